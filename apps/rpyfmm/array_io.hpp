@@ -1,0 +1,33 @@
+// rpyfmm CLI — reading and writing arrays: NumPy .npy (float64/float32,
+// C order) and whitespace-separated text. Errors are rpyfmm::Error with a
+// message naming the file and the problem.
+#pragma once
+
+#include <cstddef>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace rpyfmm::cli {
+
+struct Array {
+  std::vector<std::size_t> shape;  // e.g. {N, 3}
+  std::vector<double> data;        // row-major (C order), converted to double
+  [[nodiscard]] std::size_t rows() const { return shape.empty() ? 1 : shape[0]; }
+};
+
+/// Reads `.npy` (by magic bytes) or text (one row per line). Throws on
+/// missing files, malformed/truncated .npy, unsupported dtype or Fortran order,
+/// ragged text rows, and non-numeric text.
+Array read_array(const std::filesystem::path& path);
+
+/// Writes a float64 .npy atomically (temporary file + rename).
+void write_npy(const std::filesystem::path& path, const std::vector<std::size_t>& shape,
+               const std::vector<double>& data);
+
+/// Interprets `a` as N x 3 points: shape (N,3) or (3N,). Throws naming `what`.
+std::vector<double> as_points(const Array& a, const std::string& what);
+/// Interprets `a` as a vector of N values: shape (N,) or (N,1).
+std::vector<double> as_vector(const Array& a, std::size_t n, const std::string& what);
+
+}  // namespace rpyfmm::cli

@@ -1,0 +1,2 @@
+# Direct O(N^2) Laplace kernels (also the FMM's P2P).
+target_sources(rpyfmm_fmm PRIVATE ${CMAKE_CURRENT_LIST_DIR}/src/version.cpp)

@@ -1,0 +1,1 @@
+# Adaptive octree FMM: tree, lists, expansions, plane-wave M2L, driver.

@@ -1,0 +1,1 @@
+# sources for rpy/direct (see rpy/CMakeLists.txt)

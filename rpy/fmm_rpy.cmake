@@ -1,0 +1,1 @@
+# sources for rpy/fmm_rpy (see rpy/CMakeLists.txt)

@@ -1,0 +1,98 @@
+// rpyfmm — the one mobility interface: U = M F for N spheres.
+//
+// Every solver (direct, FMM, PSE CPU, PSE CUDA) implements this class. The
+// public methods validate their input once (non-virtual interface) and then
+// call the solver's protected hooks, so no solver repeats validation.
+//
+// Conventions: positions, forces and velocities are flat arrays of length 3N,
+// particle-major (x0, y0, z0, x1, ...). Several right-hand sides ("block")
+// are stored one 3N vector after another. Units are the caller's: with
+// viscosity eta and radius a, M_ii = 1/(6 pi eta a).
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "rpyfmm/rpy/geometry.hpp"
+#include "rpyfmm/rpy/sqrt.hpp"
+
+namespace rpyfmm::rpy {
+
+class MobilityOperator {
+ public:
+  virtual ~MobilityOperator() = default;
+  MobilityOperator(const MobilityOperator&) = delete;
+  MobilityOperator& operator=(const MobilityOperator&) = delete;
+
+  /// Short solver name ("direct", "fmm", "pse", "pse-cuda").
+  [[nodiscard]] virtual std::string name() const = 0;
+
+  [[nodiscard]] const Geometry& geometry() const { return geometry_; }
+  [[nodiscard]] double viscosity() const { return viscosity_; }
+  /// Number of particles N (0 before set_positions).
+  [[nodiscard]] std::size_t size() const { return radii_.size(); }
+  [[nodiscard]] std::span<const double> positions() const { return positions_; }
+  [[nodiscard]] std::span<const double> radii() const { return radii_; }
+  /// True when every particle has the same radius (the solvers' fast path).
+  [[nodiscard]] bool equal_radii() const { return equal_radii_; }
+
+  /// Sets positions (3N) and one common radius. Builds the solver's plan
+  /// (tree, lists, cells, FFT plans) once; apply() may then be called many times.
+  /// Throws rpyfmm::Error on N = 0, size not a multiple of 3, NaN/Inf, radius <= 0.
+  /// In a periodic geometry positions are wrapped into [0, L).
+  void set_positions(std::span<const double> positions, double radius);
+  /// Same with per-particle radii (N entries, each > 0 and finite).
+  void set_positions(std::span<const double> positions, std::span<const double> radii);
+
+  /// U = M F (3N each).
+  void apply(std::span<const double> forces, std::span<double> velocities) const;
+  /// U_k = M F_k for nrhs right-hand sides stored one after another.
+  void apply_block(std::span<const double> forces, std::span<double> velocities, std::size_t nrhs) const;
+
+  /// w = M^{1/2} z (3N each), by the method in `options` (default: the
+  /// operator's preferred one, Lanczos unless the solver overrides it).
+  SqrtReport apply_sqrt(std::span<const double> z, std::span<double> w, const SqrtOptions& options = {}) const;
+  /// Block version: nrhs noise vectors at once.
+  SqrtReport apply_sqrt_block(std::span<const double> z, std::span<double> w, std::size_t nrhs,
+                              const SqrtOptions& options = {}) const;
+
+  /// Divergence of M with respect to the positions (3N); zero for RPY.
+  virtual void divergence(std::span<double> out) const;
+
+  /// Dense 3N x 3N matrix, row-major, assembled from products with unit vectors
+  /// (small N only: throws if 9 N^2 doubles exceed `max_bytes`).
+  [[nodiscard]] std::vector<double> assemble_dense(std::size_t max_bytes = std::size_t{1} << 31) const;
+
+  /// This operator as a plain linear operator (for the square-root solvers).
+  [[nodiscard]] LinearOperatorView as_linear_operator() const;
+
+ protected:
+  /// `where` names the concrete class in error messages.
+  MobilityOperator(Geometry geometry, double viscosity, const char* where);
+
+  /// Called after positions/radii have been validated and stored.
+  virtual void on_positions_set() = 0;
+  /// U = M F for nrhs right-hand sides; sizes already checked.
+  virtual void do_apply(const double* forces, double* velocities, std::size_t nrhs) const = 0;
+  /// Default: generic solvers on apply() (Lanczos for `automatic`).
+  virtual SqrtReport do_apply_sqrt(std::span<const double> z, std::span<double> w, std::size_t nrhs,
+                                   const SqrtOptions& options) const;
+
+  /// Throws unless N > 0 (called before every apply).
+  void require_positions(const char* where) const;
+
+ private:
+  void store_positions(std::span<const double> positions, std::span<const double> radii, bool equal);
+
+  Geometry geometry_;
+  double viscosity_;
+  std::string where_;
+  std::vector<double> positions_;
+  std::vector<double> radii_;
+  bool equal_radii_ = true;
+};
+
+}  // namespace rpyfmm::rpy

@@ -1,0 +1,1 @@
+# sources for rpy/pse (see rpy/CMakeLists.txt)

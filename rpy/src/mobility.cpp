@@ -1,0 +1,140 @@
+// rpyfmm — MobilityOperator: validation (once, here) and generic fallbacks.
+#include "rpyfmm/rpy/mobility.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "rpyfmm/core/validate.hpp"
+
+namespace rpyfmm::rpy {
+
+MobilityOperator::MobilityOperator(Geometry geometry, double viscosity, const char* where)
+    : geometry_(geometry), viscosity_(viscosity), where_(where) {
+  require_positive(viscosity, where_, "viscosity");
+}
+
+void MobilityOperator::set_positions(std::span<const double> positions, double radius) {
+  const std::string where = where_ + "::set_positions";
+  require_positive(radius, where, "radius");
+  require(positions.size() % 3 == 0, ErrorCode::invalid_input, where,
+          "positions has " + std::to_string(positions.size()) + " entries, not a multiple of 3");
+  const std::vector<double> radii(positions.size() / 3, radius);
+  store_positions(positions, radii, true);
+}
+
+void MobilityOperator::set_positions(std::span<const double> positions, std::span<const double> radii) {
+  const std::string where = where_ + "::set_positions";
+  require(positions.size() % 3 == 0, ErrorCode::invalid_input, where,
+          "positions has " + std::to_string(positions.size()) + " entries, not a multiple of 3");
+  require_size(radii, positions.size() / 3, where, "radii");
+  for (std::size_t i = 0; i < radii.size(); ++i) {
+    if (!(std::isfinite(radii[i]) && radii[i] > 0.0)) {
+      fail(ErrorCode::invalid_argument, where,
+           "radius of particle " + std::to_string(i) + " must be finite and > 0, got " + std::to_string(radii[i]));
+    }
+  }
+  const bool equal = std::all_of(radii.begin(), radii.end(), [&](double a) { return a == radii.front(); });
+  store_positions(positions, radii, equal);
+}
+
+void MobilityOperator::store_positions(std::span<const double> positions, std::span<const double> radii,
+                                       bool equal) {
+  const std::string where = where_ + "::set_positions";
+  require(!positions.empty(), ErrorCode::invalid_input, where, "no particles (N = 0)");
+  require_finite(positions, where, "positions", 3);
+  positions_.assign(positions.begin(), positions.end());
+  if (geometry_.is_periodic()) {
+    const auto& L = geometry_.box();
+    for (std::size_t i = 0; i < positions_.size(); ++i) {
+      double& x = positions_[i];
+      x -= L[i % 3] * std::floor(x / L[i % 3]);
+      if (x >= L[i % 3]) x = 0.0;  // guards x = -tiny, which wraps to L exactly
+    }
+  }
+  radii_.assign(radii.begin(), radii.end());
+  equal_radii_ = equal;
+  on_positions_set();
+}
+
+void MobilityOperator::require_positions(const char* where) const {
+  require(!radii_.empty(), ErrorCode::invalid_input, where_ + "::" + where,
+          "positions not set (call set_positions first)");
+}
+
+void MobilityOperator::apply(std::span<const double> forces, std::span<double> velocities) const {
+  apply_block(forces, velocities, 1);
+}
+
+void MobilityOperator::apply_block(std::span<const double> forces, std::span<double> velocities,
+                                   std::size_t nrhs) const {
+  require_positions("apply");
+  const std::string where = where_ + "::apply";
+  require(nrhs > 0, ErrorCode::invalid_argument, where, "number of right-hand sides must be > 0");
+  const std::size_t n = 3 * size() * nrhs;
+  require_size(forces, n, where, "forces");
+  require_size(std::span<const double>(velocities.data(), velocities.size()), n, where, "velocities");
+  require_finite(forces, where, "forces", 3);
+  do_apply(forces.data(), velocities.data(), nrhs);
+}
+
+SqrtReport MobilityOperator::apply_sqrt(std::span<const double> z, std::span<double> w,
+                                        const SqrtOptions& options) const {
+  return apply_sqrt_block(z, w, 1, options);
+}
+
+SqrtReport MobilityOperator::apply_sqrt_block(std::span<const double> z, std::span<double> w, std::size_t nrhs,
+                                              const SqrtOptions& options) const {
+  require_positions("apply_sqrt");
+  const std::string where = where_ + "::apply_sqrt";
+  require(nrhs > 0, ErrorCode::invalid_argument, where, "number of right-hand sides must be > 0");
+  const std::size_t n = 3 * size() * nrhs;
+  require_size(z, n, where, "noise");
+  require_size(std::span<const double>(w.data(), w.size()), n, where, "output");
+  require_finite(z, where, "noise", 3);
+  return do_apply_sqrt(z, w, nrhs, options);
+}
+
+SqrtReport MobilityOperator::do_apply_sqrt(std::span<const double> z, std::span<double> w, std::size_t nrhs,
+                                           const SqrtOptions& options) const {
+  if (options.method == SqrtMethod::split) {
+    fail(ErrorCode::not_supported, where_ + "::apply_sqrt",
+         "the split sampler is only available for the PSE operator");
+  }
+  SqrtOptions resolved = options;
+  if (resolved.method == SqrtMethod::automatic) resolved.method = SqrtMethod::lanczos;
+  return sqrt_apply(as_linear_operator(), z, w, nrhs, resolved);
+}
+
+void MobilityOperator::divergence(std::span<double> out) const {
+  require_positions("divergence");
+  require_size(std::span<const double>(out.data(), out.size()), 3 * size(), where_ + "::divergence", "output");
+  std::fill(out.begin(), out.end(), 0.0);  // RPY is divergence-free (MATH.md §1)
+}
+
+std::vector<double> MobilityOperator::assemble_dense(std::size_t max_bytes) const {
+  require_positions("assemble_dense");
+  const std::size_t n = 3 * size();
+  require(n * n * sizeof(double) <= max_bytes / 2, ErrorCode::out_of_memory, where_ + "::assemble_dense",
+          "a dense matrix for N = " + std::to_string(size()) + " exceeds the memory limit");
+  // Columns in blocks of unit vectors: one block product per 3N columns.
+  std::vector<double> unit(n * n, 0.0);
+  for (std::size_t j = 0; j < n; ++j) unit[j * n + j] = 1.0;
+  std::vector<double> cols(n * n);
+  do_apply(unit.data(), cols.data(), n);
+  std::vector<double> dense(n * n);
+  for (std::size_t j = 0; j < n; ++j)
+    for (std::size_t i = 0; i < n; ++i) dense[i * n + j] = cols[j * n + i];
+  return dense;
+}
+
+LinearOperatorView MobilityOperator::as_linear_operator() const {
+  LinearOperatorView view;
+  view.n = 3 * size();
+  view.apply = [this](std::span<const double> x, std::span<double> y, std::size_t nrhs) {
+    do_apply(x.data(), y.data(), nrhs);
+  };
+  return view;
+}
+
+}  // namespace rpyfmm::rpy
