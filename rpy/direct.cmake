@@ -1,1 +1,2 @@
-# sources for rpy/direct (see rpy/CMakeLists.txt)
+# RPY pair formulas (header-only rpy_kernel.hpp) and the direct O(N^2) operator.
+target_sources(rpyfmm_rpy PRIVATE ${CMAKE_CURRENT_LIST_DIR}/src/direct_operator.cpp)

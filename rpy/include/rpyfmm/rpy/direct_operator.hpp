@@ -1,0 +1,39 @@
+// rpyfmm — DirectRpy: the exact O(N^2) Rotne-Prager-Yamakawa mobility operator.
+//
+// U_i = sum_j M_ij F_j with the pair blocks of rpy_kernel.hpp (MATH.md §1),
+// including overlap regimes and the self term. It is the reference every fast
+// operator (FMM, PSE) is checked against, and the right choice for small N
+// (up to a few thousand particles). Open geometry only.
+//
+// Work: 3N x 3N pair blocks per right-hand side, parallel over target
+// particles with OpenMP; each velocity is summed by one thread in a fixed
+// order, so results do not depend on the number of threads. Block products
+// (apply_block) evaluate each pair block once for all right-hand sides.
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "rpyfmm/rpy/mobility.hpp"
+
+namespace rpyfmm::rpy {
+
+class DirectRpy final : public MobilityOperator {
+ public:
+  /// Throws rpyfmm::Error (not_supported) for a periodic geometry and
+  /// (invalid_argument) for a viscosity that is not finite and > 0.
+  explicit DirectRpy(Geometry geometry = Geometry::open(), double viscosity = 1.0);
+
+  [[nodiscard]] std::string name() const override { return "direct"; }
+
+ protected:
+  void on_positions_set() override;
+  void do_apply(const double* forces, double* velocities, std::size_t nrhs) const override;
+
+ private:
+  // Structure-of-arrays copies of positions and radii (vectorizable inner loops).
+  std::vector<double> x_, y_, z_, a_;
+};
+
+}  // namespace rpyfmm::rpy

@@ -1,0 +1,190 @@
+// rpyfmm — DirectRpy: U_i = sum_j M_ij F_j over all pairs (MATH.md §1).
+//
+// The inner loops evaluate the pair scalars (f, g) of rpy_kernel.hpp in
+// branch-free form (every regime computed, then selected) so that GCC
+// vectorizes them; the branching reference forms in rpy_kernel.hpp are what
+// the tests compare against.
+#include "rpyfmm/rpy/direct_operator.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/fmm/direct_simd.hpp"
+#include "rpyfmm/rpy/rpy_kernel.hpp"
+
+namespace rpyfmm::rpy {
+namespace {
+
+constexpr std::size_t kBlock = 256;  // sources per block: pair scalars stay in L1
+constexpr double kInv6Pi = 1.0 / (6.0 * std::numbers::pi);
+constexpr double kInv8Pi = 1.0 / (8.0 * std::numbers::pi);
+
+// Scalars of one target i against sources [j0, j0 + nb): dx = x_i - x_j etc.,
+// f and gr = g / r^2 so that M_ij = (f I + gr d d^T) / eta.
+// Equal radii a: 004 eq. (3.1), 002 eq. (4).
+RPYFMM_DIRECT_CLONES
+void scalars_equal(double xi, double yi, double zi, const double* __restrict x, const double* __restrict y,
+                   const double* __restrict z, std::size_t nb, double a, double* __restrict dx,
+                   double* __restrict dy, double* __restrict dz, double* __restrict f, double* __restrict gr) {
+  const double c6 = kInv6Pi / a;
+  const double two_a = 2.0 * a;
+  const double a2 = a * a;
+  const double near_f = 9.0 / (32.0 * a);
+  const double near_g = c6 * 3.0 / (32.0 * a);
+#pragma omp simd
+  for (std::size_t j = 0; j < nb; ++j) {
+    const double ddx = xi - x[j], ddy = yi - y[j], ddz = zi - z[j];
+    const double r2 = ddx * ddx + ddy * ddy + ddz * ddz;
+    const double r = std::sqrt(r2);
+    const double inv_r = r2 > 0.0 ? 1.0 / r : 0.0;
+    const double inv_r2 = inv_r * inv_r;
+    const double s = a2 * inv_r2;
+    const double c8 = kInv8Pi * inv_r;
+    const bool far = r > two_a;
+    // far: f = (1 + 2a^2/(3r^2))/(8 pi r), g = (1 - 2a^2/r^2)/(8 pi r)
+    // near (r <= 2a): f = (1 - 9r/(32a))/(6 pi a), g = (3r/(32a))/(6 pi a), g/r^2 = 3/(32 a r)/(6 pi a)
+    f[j] = far ? c8 * (1.0 + (2.0 / 3.0) * s) : c6 * (1.0 - near_f * r);
+    gr[j] = far ? c8 * (1.0 - 2.0 * s) * inv_r2 : near_g * inv_r;
+    dx[j] = ddx;
+    dy[j] = ddy;
+    dz[j] = ddz;
+  }
+}
+
+// Different radii (Zuk et al. 2014; MATH.md §1), the three regimes selected per pair.
+RPYFMM_DIRECT_CLONES
+void scalars_general(double xi, double yi, double zi, double ai, const double* __restrict x,
+                     const double* __restrict y, const double* __restrict z, const double* __restrict a,
+                     std::size_t nb, double* __restrict dx, double* __restrict dy, double* __restrict dz,
+                     double* __restrict f, double* __restrict gr) {
+#pragma omp simd
+  for (std::size_t j = 0; j < nb; ++j) {
+    const double aj = a[j];
+    const double ddx = xi - x[j], ddy = yi - y[j], ddz = zi - z[j];
+    const double r2 = ddx * ddx + ddy * ddy + ddz * ddz;
+    const double r = std::sqrt(r2);
+    const double inv_r = r2 > 0.0 ? 1.0 / r : 0.0;
+    const double inv_r2 = inv_r * inv_r;
+    const double sum = ai + aj;
+    const double diff = ai - aj;
+    const double adiff = std::fabs(diff);
+    // far, r > ai + aj
+    const double s = (ai * ai + aj * aj) * inv_r2;
+    const double c8 = kInv8Pi * inv_r;
+    const double f_far = c8 * (1.0 + s / 3.0);
+    const double gr_far = c8 * (1.0 - s) * inv_r2;
+    // partial overlap, |ai - aj| < r <= ai + aj (divided through by r^2, see rpy_kernel.hpp)
+    const double c = kInv6Pi / (ai * aj);
+    const double d2r = diff * diff * inv_r;
+    const double pr = d2r + 3.0 * r;
+    const double qr = d2r - r;
+    const double inv_32r = inv_r * (1.0 / 32.0);
+    const double f_mid = c * (0.5 * sum - pr * pr * inv_32r);
+    const double gr_mid = c * 3.0 * qr * qr * inv_32r * inv_r2;
+    // one inside the other (and r = 0), r <= |ai - aj|
+    const double f_in = kInv6Pi / std::max(ai, aj);
+    const bool far = r > sum;
+    const bool inside = r <= adiff;
+    f[j] = far ? f_far : (inside ? f_in : f_mid);
+    gr[j] = far ? gr_far : (inside ? 0.0 : gr_mid);
+    dx[j] = ddx;
+    dy[j] = ddy;
+    dz[j] = ddz;
+  }
+}
+
+// u += sum_j (f_j F_j + gr_j d_j (d_j . F_j)) over one block, forces in SoA.
+RPYFMM_DIRECT_CLONES
+void accumulate(std::size_t nb, const double* __restrict dx, const double* __restrict dy,
+                const double* __restrict dz, const double* __restrict f, const double* __restrict gr,
+                const double* __restrict fx, const double* __restrict fy, const double* __restrict fz,
+                double& ux, double& uy, double& uz) {
+  double sx = 0.0, sy = 0.0, sz = 0.0;
+#pragma omp simd reduction(+ : sx, sy, sz)
+  for (std::size_t j = 0; j < nb; ++j) {
+    const double t = gr[j] * (dx[j] * fx[j] + dy[j] * fy[j] + dz[j] * fz[j]);
+    sx += f[j] * fx[j] + t * dx[j];
+    sy += f[j] * fy[j] + t * dy[j];
+    sz += f[j] * fz[j] + t * dz[j];
+  }
+  ux += sx;
+  uy += sy;
+  uz += sz;
+}
+
+}  // namespace
+
+DirectRpy::DirectRpy(Geometry geometry, double viscosity) : MobilityOperator(geometry, viscosity, "DirectRpy") {
+  require(geometry.is_open(), ErrorCode::not_supported, "DirectRpy",
+          "periodic geometry is not supported by the direct operator (use the PSE operator)");
+}
+
+void DirectRpy::on_positions_set() {
+  const std::size_t n = size();
+  const auto p = positions();
+  x_.resize(n);
+  y_.resize(n);
+  z_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    x_[i] = p[3 * i];
+    y_[i] = p[3 * i + 1];
+    z_[i] = p[3 * i + 2];
+  }
+  a_.assign(radii().begin(), radii().end());
+}
+
+void DirectRpy::do_apply(const double* forces, double* velocities, std::size_t nrhs) const {
+  const std::size_t n = size();
+  const double inv_eta = 1.0 / viscosity();
+  const bool equal = equal_radii();
+  // Forces to structure-of-arrays, one (fx, fy, fz) triple of length n per right-hand side.
+  std::vector<double> fsoa(3 * n * nrhs);
+  for (std::size_t k = 0; k < nrhs; ++k) {
+    const double* fk = forces + 3 * n * k;
+    double* s = fsoa.data() + 3 * n * k;
+    for (std::size_t j = 0; j < n; ++j) {
+      s[j] = fk[3 * j];
+      s[n + j] = fk[3 * j + 1];
+      s[2 * n + j] = fk[3 * j + 2];
+    }
+  }
+#pragma omp parallel
+  {
+    std::vector<double> buf(5 * kBlock);
+    std::vector<double> acc(3 * nrhs);
+    double* dx = buf.data();
+    double* dy = dx + kBlock;
+    double* dz = dy + kBlock;
+    double* f = dz + kBlock;
+    double* gr = f + kBlock;
+#pragma omp for schedule(dynamic, 16)
+    for (std::size_t i = 0; i < n; ++i) {
+      std::fill(acc.begin(), acc.end(), 0.0);
+      for (std::size_t j0 = 0; j0 < n; j0 += kBlock) {
+        const std::size_t nb = std::min(kBlock, n - j0);
+        if (equal) {
+          scalars_equal(x_[i], y_[i], z_[i], x_.data() + j0, y_.data() + j0, z_.data() + j0, nb, a_[0], dx, dy, dz,
+                        f, gr);
+        } else {
+          scalars_general(x_[i], y_[i], z_[i], a_[i], x_.data() + j0, y_.data() + j0, z_.data() + j0,
+                          a_.data() + j0, nb, dx, dy, dz, f, gr);
+        }
+        for (std::size_t k = 0; k < nrhs; ++k) {
+          const double* s = fsoa.data() + 3 * n * k;
+          accumulate(nb, dx, dy, dz, f, gr, s + j0, s + n + j0, s + 2 * n + j0, acc[3 * k], acc[3 * k + 1],
+                     acc[3 * k + 2]);
+        }
+      }
+      for (std::size_t k = 0; k < nrhs; ++k) {
+        double* u = velocities + 3 * n * k + 3 * i;
+        u[0] = inv_eta * acc[3 * k];
+        u[1] = inv_eta * acc[3 * k + 1];
+        u[2] = inv_eta * acc[3 * k + 2];
+      }
+    }
+  }
+}
+
+}  // namespace rpyfmm::rpy
