@@ -1,6 +1,10 @@
-// Placeholder dispatcher until the square-root solvers land (issue 4).
+// rpyfmm — sqrt_apply(): validation (once, here) and dispatch to the
+// Lanczos, Chebyshev and dense square-root solvers.
+#include <cmath>
+#include <sstream>
 #include <string>
 
+#include "detail.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/sqrt.hpp"
 
@@ -23,12 +27,50 @@ SqrtMethod sqrt_method_from_string(const std::string& name) {
                  SqrtMethod::eigen, SqrtMethod::split}) {
     if (name == to_string(m)) return m;
   }
-  fail(ErrorCode::invalid_argument, "sqrt method", "unknown method '" + name + "'");
+  fail(ErrorCode::invalid_argument, "sqrt method",
+       "unknown method '" + name + "' (expected automatic, lanczos, chebyshev, cholesky, eigen or split)");
 }
 
-SqrtReport sqrt_apply(const LinearOperatorView&, std::span<const double>, std::span<double>, std::size_t,
-                      const SqrtOptions&) {
-  fail(ErrorCode::not_supported, "apply_sqrt", "square-root solvers are not available yet");
+SqrtReport sqrt_apply(const LinearOperatorView& op, std::span<const double> z, std::span<double> w,
+                      std::size_t nrhs, const SqrtOptions& options) {
+  constexpr const char* where = "sqrt_apply";
+  require(op.n > 0, ErrorCode::invalid_input, where, "the operator has size 0");
+  require(static_cast<bool>(op.apply), ErrorCode::invalid_argument, where, "the operator has no apply function");
+  require(nrhs > 0, ErrorCode::invalid_argument, where, "number of right-hand sides must be > 0");
+  const double tol = options.tolerance;
+  if (!(std::isfinite(tol) && tol > 0.0 && tol < 1.0)) {
+    std::ostringstream msg;
+    msg << "tolerance must lie in (0, 1), got " << tol;
+    fail(ErrorCode::invalid_argument, where, msg.str());
+  }
+  require(options.max_iterations >= 0, ErrorCode::invalid_argument, where,
+          "max_iterations must be >= 0 (0 = automatic), got " + std::to_string(options.max_iterations));
+  require_size(z, op.n * nrhs, where, "noise");
+  require_size(std::span<const double>(w.data(), w.size()), op.n * nrhs, where, "output");
+  require_finite(z, where, "noise");
+
+  switch (options.method) {
+    case SqrtMethod::automatic:
+    case SqrtMethod::lanczos: return sqrt_detail::lanczos_sqrt(op, z, w, nrhs, options);
+    case SqrtMethod::chebyshev: {
+      const double a = options.lambda_min, b = options.lambda_max;
+      if (a == 0.0 && b == 0.0) {
+        require(options.bound_estimate_iterations >= 2, ErrorCode::invalid_argument, where,
+                "bound_estimate_iterations must be >= 2, got " + std::to_string(options.bound_estimate_iterations));
+      } else if (!(std::isfinite(a) && std::isfinite(b) && a > 0.0 && b > a)) {
+        std::ostringstream msg;
+        msg << "Chebyshev eigenvalue bounds must satisfy 0 < lambda_min < lambda_max (or both 0 = estimate), got ["
+            << a << ", " << b << "]";
+        fail(ErrorCode::invalid_argument, where, msg.str());
+      }
+      return sqrt_detail::chebyshev_sqrt(op, z, w, nrhs, options);
+    }
+    case SqrtMethod::cholesky:
+    case SqrtMethod::eigen: return sqrt_detail::dense_sqrt(op, z, w, nrhs, options);
+    case SqrtMethod::split:
+      fail(ErrorCode::not_supported, where, "the split sampler is only available for the PSE operator");
+  }
+  fail(ErrorCode::invalid_argument, where, "unknown square-root method");
 }
 
 }  // namespace rpyfmm::rpy

@@ -1,0 +1,45 @@
+// rpyfmm — internals shared by the square-root solvers (not installed).
+//
+// Vector kernels whose results do not depend on the number of OpenMP threads:
+// reductions are split into fixed-size chunks (independent of the thread
+// count), summed per chunk in parallel and then over chunks in order.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "rpyfmm/rpy/sqrt.hpp"
+
+namespace rpyfmm::rpy::sqrt_detail {
+
+/// Deterministic inner product x . y (length n).
+double dot(const double* x, const double* y, std::size_t n);
+/// Deterministic 2-norm.
+double norm2(const double* x, std::size_t n);
+/// y += a x (elementwise, parallel).
+void axpy(double a, const double* x, double* y, std::size_t n);
+/// x *= a.
+void scale(double a, double* x, std::size_t n);
+
+/// Applies `op` to `nrhs` vectors and counts the call in `report`; throws
+/// numerical_failure if the result holds NaN/Inf (names `where`).
+void apply_checked(const LinearOperatorView& op, const double* x, double* y, std::size_t nrhs,
+                   SqrtReport& report, const char* where);
+
+/// Solvers; inputs are already validated by sqrt_apply().
+SqrtReport lanczos_sqrt(const LinearOperatorView& op, std::span<const double> z, std::span<double> w,
+                        std::size_t nrhs, const SqrtOptions& options);
+SqrtReport chebyshev_sqrt(const LinearOperatorView& op, std::span<const double> z, std::span<double> w,
+                          std::size_t nrhs, const SqrtOptions& options);
+SqrtReport dense_sqrt(const LinearOperatorView& op, std::span<const double> z, std::span<double> w,
+                      std::size_t nrhs, const SqrtOptions& options);
+
+/// Coefficients c_0..c_K of the Chebyshev interpolant of sqrt on [a, b] at
+/// K+1 Chebyshev points of the first kind (sqrt(x) = sum c_k T_k(t), with
+/// t = (2x - a - b)/(b - a)); exposed for the tests.
+std::vector<double> chebyshev_sqrt_coefficients(double a, double b, int K);
+
+}  // namespace rpyfmm::rpy::sqrt_detail

@@ -1,0 +1,68 @@
+// rpyfmm — thread-count-independent vector kernels for the square-root solvers.
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "detail.hpp"
+#include "rpyfmm/core/validate.hpp"
+
+namespace rpyfmm::rpy::sqrt_detail {
+
+namespace {
+// Fixed chunk length: the summation order depends on n only, never on threads.
+constexpr std::size_t kChunk = 4096;
+}  // namespace
+
+double dot(const double* x, const double* y, std::size_t n) {
+  const std::size_t nchunks = (n + kChunk - 1) / kChunk;
+  if (nchunks <= 1) {
+    double s = 0.0;
+    for (std::size_t i = 0; i < n; ++i) s += x[i] * y[i];
+    return s;
+  }
+  std::vector<double> partial(nchunks);
+  const auto nc = static_cast<std::int64_t>(nchunks);
+#pragma omp parallel for schedule(static) if (n > 4 * kChunk)
+  for (std::int64_t c = 0; c < nc; ++c) {
+    const std::size_t lo = static_cast<std::size_t>(c) * kChunk;
+    const std::size_t hi = std::min(n, lo + kChunk);
+    double s = 0.0;
+    for (std::size_t i = lo; i < hi; ++i) s += x[i] * y[i];
+    partial[static_cast<std::size_t>(c)] = s;
+  }
+  double s = 0.0;
+  for (double p : partial) s += p;
+  return s;
+}
+
+double norm2(const double* x, std::size_t n) { return std::sqrt(dot(x, x, n)); }
+
+void axpy(double a, const double* x, double* y, std::size_t n) {
+  const auto nn = static_cast<std::int64_t>(n);
+#pragma omp parallel for schedule(static) if (n > 4 * kChunk)
+  for (std::int64_t i = 0; i < nn; ++i) y[i] += a * x[i];
+}
+
+void scale(double a, double* x, std::size_t n) {
+  const auto nn = static_cast<std::int64_t>(n);
+#pragma omp parallel for schedule(static) if (n > 4 * kChunk)
+  for (std::int64_t i = 0; i < nn; ++i) x[i] *= a;
+}
+
+void apply_checked(const LinearOperatorView& op, const double* x, double* y, std::size_t nrhs,
+                   SqrtReport& report, const char* where) {
+  op.apply(std::span<const double>(x, op.n * nrhs), std::span<double>(y, op.n * nrhs), nrhs);
+  ++report.operator_applications;
+  report.vector_products += static_cast<long long>(nrhs);
+  for (std::size_t i = 0; i < op.n * nrhs; ++i) {
+    if (!std::isfinite(y[i])) {
+      fail(ErrorCode::numerical_failure, where,
+           "the operator returned a non-finite value (entry " + std::to_string(i % op.n) + " of right-hand side " +
+               std::to_string(i / op.n) + ") at product " + std::to_string(report.operator_applications));
+    }
+  }
+}
+
+}  // namespace rpyfmm::rpy::sqrt_detail

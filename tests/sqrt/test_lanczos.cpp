@@ -1,0 +1,219 @@
+// Properties of the Lanczos square root: known spectra, breakdown, block
+// variant, thread independence, the stopping test vs the true error.
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <cmath>
+#include <vector>
+
+#include "rpyfmm/core/error.hpp"
+#include "sqrt_test_util.hpp"
+
+using namespace rpyfmm::rpy;
+
+namespace {
+
+std::span<const double> cspan(const Eigen::VectorXd& v) { return {v.data(), static_cast<std::size_t>(v.size())}; }
+std::span<double> mspan(Eigen::VectorXd& v) { return {v.data(), static_cast<std::size_t>(v.size())}; }
+
+/// Q diag(lambda) Q^T with a random orthogonal Q (fixed seed).
+Eigen::MatrixXd with_spectrum(const Eigen::VectorXd& lambda, std::uint32_t seed) {
+  const auto n = lambda.size();
+  Eigen::MatrixXd G(n, n);
+  const Eigen::VectorXd g = sqrt_test::gaussian(n * n, seed);
+  G = Eigen::Map<const Eigen::MatrixXd>(g.data(), n, n);
+  const Eigen::HouseholderQR<Eigen::MatrixXd> qr(G);
+  const Eigen::MatrixXd Q = qr.householderQ();
+  return Q * lambda.asDiagonal() * Q.transpose();
+}
+
+// A matrix with k distinct eigenvalues has a minimal polynomial of degree k:
+// the Krylov space is invariant after k steps, Lanczos breaks down there and
+// the result is exact (Saad, Iterative Methods, Prop. 6.6 / sec. 6.3).
+TEST(Lanczos, KDistinctEigenvaluesConvergeInKSteps) {
+  for (int k : {1, 2, 3, 5, 8}) {
+    const int n = 120;
+    Eigen::VectorXd lambda(n);
+    for (int i = 0; i < n; ++i) lambda[i] = 0.5 + 1.7 * (i % k);
+    const Eigen::MatrixXd M = with_spectrum(lambda, 5u + static_cast<std::uint32_t>(k));
+    const auto op = sqrt_test::view_of(M);
+    const Eigen::VectorXd z = sqrt_test::gaussian(n, 9u);
+    Eigen::VectorXd w(n);
+    SqrtOptions opt;
+    opt.method = SqrtMethod::lanczos;
+    opt.tolerance = 1e-14;  // stopping can only come from the breakdown
+    const SqrtReport rep = sqrt_apply(op, cspan(z), mspan(w), 1, opt);
+    EXPECT_EQ(rep.iterations, k) << "k = " << k;
+    EXPECT_TRUE(rep.breakdown);
+    const Eigen::VectorXd ref = sqrt_test::principal_sqrt(M) * z;
+    EXPECT_LE((w - ref).norm() / ref.norm(), 1e-11) << "k = " << k;
+  }
+}
+
+// z an eigenvector: K_1 is invariant, one step, exact sqrt(lambda) z.
+TEST(Lanczos, BreakdownOnEigenvector) {
+  const auto x = sqrt_test::random_points(30, 0.1, 3u);
+  const Eigen::MatrixXd M = sqrt_test::rpy_matrix(x, sqrt_test::radii(30, true, 4u));
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(M);
+  for (Eigen::Index idx : {Eigen::Index{0}, Eigen::Index{17}, M.rows() - 1}) {
+    const Eigen::VectorXd z = 2.5 * es.eigenvectors().col(idx);
+    Eigen::VectorXd w(M.rows());
+    SqrtOptions opt;
+    opt.method = SqrtMethod::lanczos;
+    const SqrtReport rep = sqrt_apply(sqrt_test::view_of(M), cspan(z), mspan(w), 1, opt);
+    EXPECT_EQ(rep.iterations, 1);
+    EXPECT_TRUE(rep.breakdown);
+    EXPECT_EQ(rep.error_estimate, 0.0);
+    const Eigen::VectorXd ref = std::sqrt(es.eigenvalues()[idx]) * z;
+    EXPECT_LE((w - ref).norm() / ref.norm(), 1e-12);
+  }
+}
+
+// The identity: one step, w = z.
+TEST(Lanczos, IdentityAndZeroVector) {
+  const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(12, 12) * 4.0;
+  const Eigen::VectorXd z = sqrt_test::gaussian(12, 1u);
+  Eigen::VectorXd w(12);
+  const SqrtReport rep = sqrt_apply(sqrt_test::view_of(I), cspan(z), mspan(w), 1, {});
+  EXPECT_EQ(rep.iterations, 1);
+  EXPECT_LE((w - 2.0 * z).norm(), 1e-14 * z.norm());
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(12);
+  const SqrtReport rz = sqrt_apply(sqrt_test::view_of(I), cspan(zero), mspan(w), 1, {});
+  EXPECT_EQ(rz.iterations, 0);
+  EXPECT_EQ(rz.operator_applications, 0);
+  EXPECT_EQ(w.norm(), 0.0);
+}
+
+// Block variant: identical to one-at-a-time, with one operator call per
+// iteration serving every right-hand side still iterating.
+TEST(Lanczos, BlockMatchesSingleWithOneCallPerIteration) {
+  const std::size_t N = 80;
+  const Eigen::MatrixXd M = sqrt_test::rpy_matrix(sqrt_test::random_points(N, 0.1, 8u), sqrt_test::radii(N, true, 2u));
+  const auto n = M.rows();
+  const std::size_t nrhs = 4;
+  Eigen::MatrixXd Z(n, nrhs);
+  for (std::size_t k = 0; k < nrhs; ++k) Z.col(static_cast<Eigen::Index>(k)) = sqrt_test::gaussian(n, 20u + k);
+  Z.col(2) *= 1e-3;  // scaling must not matter for the relative test
+  Eigen::MatrixXd W(n, nrhs);
+  int calls = 0;
+  auto op = sqrt_test::view_of(M);
+  auto inner = op.apply;
+  op.apply = [&](std::span<const double> x, std::span<double> y, std::size_t k) {
+    ++calls;
+    inner(x, y, k);
+  };
+  SqrtOptions opt;
+  opt.tolerance = 1e-6;
+  const SqrtReport rep = sqrt_apply(op, {Z.data(), static_cast<std::size_t>(Z.size())},
+                                    {W.data(), static_cast<std::size_t>(W.size())}, nrhs, opt);
+  EXPECT_EQ(calls, rep.operator_applications);
+  EXPECT_EQ(rep.operator_applications, rep.iterations);
+  EXPECT_LT(rep.vector_products, static_cast<long long>(nrhs) * rep.iterations + 1);
+  int max_single = 0;
+  for (std::size_t k = 0; k < nrhs; ++k) {
+    const Eigen::VectorXd z = Z.col(static_cast<Eigen::Index>(k));
+    Eigen::VectorXd w(n);
+    const SqrtReport r1 = sqrt_apply(op, cspan(z), mspan(w), 1, opt);
+    max_single = std::max(max_single, r1.iterations);
+    EXPECT_LE((W.col(static_cast<Eigen::Index>(k)) - w).norm(), 1e-13 * w.norm());
+  }
+  EXPECT_EQ(rep.iterations, max_single);
+}
+
+// Results do not depend on the number of OpenMP threads (bit for bit), for
+// a size where the inner products run in parallel chunks.
+TEST(Lanczos, SameOutputForOneAndTwoThreads) {
+  const Eigen::Index n = 30000;
+  Eigen::VectorXd d(n);
+  for (Eigen::Index i = 0; i < n; ++i) d[i] = 1.0 + std::sin(0.37 * i) * 0.9;
+  rpyfmm::rpy::LinearOperatorView op;
+  op.n = static_cast<std::size_t>(n);
+  op.apply = [&](std::span<const double> x, std::span<double> y, std::size_t nrhs) {
+    // Tridiagonal SPD (diagonally dominant) operator with coupling.
+    for (std::size_t k = 0; k < nrhs; ++k)
+      for (Eigen::Index i = 0; i < n; ++i) {
+        const std::size_t o = k * static_cast<std::size_t>(n);
+        double v = (1.5 + 2.5 * d[i]) * x[o + i];
+        if (i > 0) v += 0.5 * x[o + i - 1];
+        if (i + 1 < n) v += 0.5 * x[o + i + 1];
+        y[o + i] = v;
+      }
+  };
+  const Eigen::VectorXd z = sqrt_test::gaussian(2 * n, 77u);
+  Eigen::VectorXd w1(2 * n), w2(2 * n);
+  SqrtOptions opt;
+  opt.tolerance = 1e-8;
+  const int saved = omp_get_max_threads();
+  for (SqrtMethod m : {SqrtMethod::lanczos, SqrtMethod::chebyshev}) {
+    opt.method = m;
+    omp_set_num_threads(1);
+    const SqrtReport r1 = sqrt_apply(op, cspan(z), mspan(w1), 2, opt);
+    omp_set_num_threads(2);
+    const SqrtReport r2 = sqrt_apply(op, cspan(z), mspan(w2), 2, opt);
+    EXPECT_EQ(r1.iterations, r2.iterations);
+    EXPECT_EQ((w1 - w2).cwiseAbs().maxCoeff(), 0.0) << to_string(m);
+  }
+  omp_set_num_threads(saved);
+}
+
+// The stopping test (relative change < tol) vs the true error: the true error
+// is below 10 tol and iterations grow as the tolerance shrinks.
+TEST(Lanczos, StoppingTestTracksTrueError) {
+  const std::size_t N = 150;
+  const Eigen::MatrixXd M = sqrt_test::rpy_matrix(sqrt_test::random_points(N, 0.2, 6u), sqrt_test::radii(N, false, 0u));
+  const Eigen::VectorXd z = sqrt_test::gaussian(M.rows(), 12u);
+  const Eigen::VectorXd ref = sqrt_test::principal_sqrt(M) * z;
+  int prev_it = 0;
+  for (double tol : {1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9}) {
+    Eigen::VectorXd w(M.rows());
+    SqrtOptions opt;
+    opt.tolerance = tol;
+    const SqrtReport rep = sqrt_apply(sqrt_test::view_of(M), cspan(z), mspan(w), 1, opt);
+    const double err = (w - ref).norm() / ref.norm();
+    EXPECT_LE(err, 10 * tol) << "tol " << tol;
+    EXPECT_GE(rep.iterations, prev_it);
+    prev_it = rep.iterations;
+  }
+}
+
+// Without reorthogonalization the method still converges on a well
+// conditioned RPY matrix (the basis loses orthogonality only slowly).
+TEST(Lanczos, WithoutReorthogonalization) {
+  const std::size_t N = 100;
+  const Eigen::MatrixXd M = sqrt_test::rpy_matrix(sqrt_test::random_points(N, 0.1, 16u), sqrt_test::radii(N, true, 3u));
+  const Eigen::VectorXd z = sqrt_test::gaussian(M.rows(), 2u);
+  const Eigen::VectorXd ref = sqrt_test::principal_sqrt(M) * z;
+  Eigen::VectorXd w(M.rows());
+  SqrtOptions opt;
+  opt.tolerance = 1e-6;
+  opt.reorthogonalize = false;
+  sqrt_apply(sqrt_test::view_of(M), cspan(z), mspan(w), 1, opt);
+  EXPECT_LE((w - ref).norm() / ref.norm(), 1e-5);
+}
+
+// max_iterations reached: throw by default, or return the iterate flagged
+// not converged.
+TEST(Lanczos, MaxIterations) {
+  const std::size_t N = 100;
+  const Eigen::MatrixXd M = sqrt_test::rpy_matrix(sqrt_test::random_points(N, 0.2, 1u), sqrt_test::radii(N, true, 3u));
+  const Eigen::VectorXd z = sqrt_test::gaussian(M.rows(), 2u);
+  Eigen::VectorXd w(M.rows());
+  SqrtOptions opt;
+  opt.tolerance = 1e-10;
+  opt.max_iterations = 3;
+  try {
+    sqrt_apply(sqrt_test::view_of(M), cspan(z), mspan(w), 1, opt);
+    FAIL() << "expected rpyfmm::Error";
+  } catch (const rpyfmm::Error& e) {
+    EXPECT_EQ(e.code(), rpyfmm::ErrorCode::numerical_failure);
+    EXPECT_NE(std::string(e.what()).find("no convergence in 3 iterations"), std::string::npos) << e.what();
+  }
+  opt.throw_if_not_converged = false;
+  const SqrtReport rep = sqrt_apply(sqrt_test::view_of(M), cspan(z), mspan(w), 1, opt);
+  EXPECT_FALSE(rep.converged);
+  EXPECT_EQ(rep.iterations, 3);
+  EXPECT_GT(rep.error_estimate, 1e-10);
+  EXPECT_TRUE(w.allFinite());
+}
+
+}  // namespace
