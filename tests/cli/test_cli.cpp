@@ -1,0 +1,288 @@
+// Runs the built `rpyfmm` binary (path from CMake) on .npy/text files written
+// here, and checks outputs against the library and failures against the CLI
+// contract: exit code 2, exactly one line on stderr, no output file.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "rpyfmm/fmm/direct.hpp"
+#include "rpyfmm/rpy/direct_operator.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// Minimal .npy (v1.0, little-endian float64, C order) writer/reader, written
+// here independently of the CLI's array_io.cpp.
+void write_npy(const fs::path& p, const std::vector<std::size_t>& shape, const std::vector<double>& data,
+               std::size_t truncate_bytes = 0) {
+  std::string dict = "{'descr': '<f8', 'fortran_order': False, 'shape': (";
+  for (std::size_t s : shape) dict += std::to_string(s) + ", ";
+  dict += "), }";
+  while ((10 + dict.size() + 1) % 64 != 0) dict += ' ';
+  dict += '\n';
+  std::ofstream out(p, std::ios::binary);
+  out.write("\x93NUMPY\x01\x00", 8);
+  const std::uint16_t len = static_cast<std::uint16_t>(dict.size());
+  out.put(static_cast<char>(len & 0xff));
+  out.put(static_cast<char>(len >> 8));
+  out << dict;
+  out.write(reinterpret_cast<const char*>(data.data()),
+            static_cast<std::streamsize>(data.size() * sizeof(double) - truncate_bytes));
+}
+
+struct Npy {
+  std::vector<std::size_t> shape;
+  std::vector<double> data;
+};
+
+Npy read_npy(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  char magic[10];
+  in.read(magic, 10);
+  EXPECT_EQ(std::memcmp(magic, "\x93NUMPY\x01\x00", 8), 0);
+  const std::size_t len = static_cast<unsigned char>(magic[8]) | (static_cast<unsigned char>(magic[9]) << 8);
+  std::string header(len, '\0');
+  in.read(header.data(), static_cast<std::streamsize>(len));
+  EXPECT_NE(header.find("'<f8'"), std::string::npos) << header;
+  Npy a;
+  const auto open = header.find('('), close = header.find(')');
+  std::stringstream ss(header.substr(open + 1, close - open - 1));
+  std::string item;
+  std::size_t count = 1;
+  while (std::getline(ss, item, ',')) {
+    if (item.find_first_not_of(' ') == std::string::npos) continue;
+    a.shape.push_back(std::stoul(item));
+    count *= a.shape.back();
+  }
+  a.data.resize(count);
+  in.read(reinterpret_cast<char*>(a.data.data()), static_cast<std::streamsize>(count * 8));
+  EXPECT_TRUE(in.good()) << p;
+  return a;
+}
+
+std::vector<double> random_vec(std::size_t n, unsigned seed, double lo, double hi) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(lo, hi);
+  std::vector<double> v(n);
+  for (auto& x : v) x = u(rng);
+  return v;
+}
+
+struct Result {
+  int code = -1;
+  std::string out, err;
+};
+
+class Cli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = fs::temp_directory_path() /
+           ("rpyfmm_cli_" + std::to_string(::getpid()) + "_" + info->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  [[nodiscard]] std::string path(const std::string& name) const { return (dir_ / name).string(); }
+
+  Result run(const std::string& args) const {
+    const std::string out = path("stdout.txt"), err = path("stderr.txt");
+    const std::string cmd = std::string("'") + RPYFMM_CLI_PATH + "' " + args + " >'" + out + "' 2>'" + err + "'";
+    const int status = std::system(cmd.c_str());
+    Result r;
+    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    auto slurp = [](const std::string& p) {
+      std::ifstream in(p);
+      return std::string(std::istreambuf_iterator<char>(in), {});
+    };
+    r.out = slurp(out);
+    r.err = slurp(err);
+    return r;
+  }
+
+  // Bad input: exit code 2, one line on stderr that contains `needle`, no stdout, no output file.
+  void expect_failure(const std::string& args, const std::string& needle, const std::string& out_name) const {
+    const Result r = run(args);
+    EXPECT_EQ(r.code, 2) << args << "\nstderr: " << r.err;
+    EXPECT_FALSE(r.err.empty()) << args;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << args << "\nstderr: " << r.err;
+    EXPECT_NE(r.err.find(needle), std::string::npos) << args << "\nstderr: " << r.err;
+    EXPECT_TRUE(r.out.empty()) << r.out;
+    EXPECT_FALSE(fs::exists(path(out_name))) << args;
+    for (const auto& e : fs::directory_iterator(dir_)) {  // no temporary left behind either
+      EXPECT_EQ(e.path().filename().string().find(out_name + ".tmp"), std::string::npos) << e.path();
+    }
+  }
+
+  fs::path dir_;
+};
+
+}  // namespace
+
+TEST_F(Cli, LaplaceAtSourcesMatchesLibrary) {
+  const std::size_t n = 200;
+  const auto s = random_vec(3 * n, 1, -1, 1);
+  const auto q = random_vec(n, 2, -1, 1);
+  write_npy(path("s.npy"), {n, 3}, s);
+  write_npy(path("q.npy"), {n}, q);
+  const Result r = run("laplace --sources " + path("s.npy") + " --charges " + path("q.npy") + " --direct --out " +
+                       path("r.npy") + " --threads 2 --json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(r.err.empty()) << r.err;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1);
+  EXPECT_NE(r.out.find("\"command\":\"laplace\""), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\"n_sources\":200"), std::string::npos) << r.out;
+  const Npy out = read_npy(path("r.npy"));
+  ASSERT_EQ(out.shape, (std::vector<std::size_t>{n, 10}));
+  std::vector<double> ref(n * 10);
+  rpyfmm::fmm::laplace_direct(s, q, 1, {}, rpyfmm::fmm::all_outputs, ref);
+  EXPECT_EQ(out.data, ref);  // same code, deterministic: bitwise
+}
+
+TEST_F(Cli, LaplaceSeveralChargeVectorsAtTextTargets) {
+  const std::size_t n = 50, nd = 3, m = 7;
+  const auto s = random_vec(3 * n, 3, -1, 1);
+  const auto q = random_vec(nd * n, 4, -1, 1);
+  const auto t = random_vec(3 * m, 5, -2, 2);
+  write_npy(path("s.npy"), {n, 3}, s);
+  write_npy(path("q.npy"), {nd, n}, q);
+  {
+    std::ofstream txt(path("t.txt"));
+    txt.precision(17);
+    for (std::size_t i = 0; i < m; ++i) txt << t[3 * i] << ' ' << t[3 * i + 1] << ' ' << t[3 * i + 2] << '\n';
+  }
+  const Result r = run("laplace --sources " + path("s.npy") + " --targets " + path("t.txt") + " --charges " +
+                       path("q.npy") + " --direct --out " + path("r.npy"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(r.out.empty());
+  const Npy out = read_npy(path("r.npy"));
+  ASSERT_EQ(out.shape, (std::vector<std::size_t>{nd, m, 10}));
+  std::vector<double> ref(nd * m * 10);
+  rpyfmm::fmm::laplace_direct(s, q, nd, t, rpyfmm::fmm::all_outputs, ref);  // %.17g text round-trips exactly
+  EXPECT_EQ(out.data, ref);
+}
+
+TEST_F(Cli, MobilityMatchesLibrary) {
+  const std::size_t n = 120;
+  const auto x = random_vec(3 * n, 6, 0, 8);
+  const auto f = random_vec(3 * n, 7, -1, 1);
+  const auto a = random_vec(n, 8, 0.2, 0.9);
+  write_npy(path("x.npy"), {n, 3}, x);
+  write_npy(path("f.npy"), {n, 3}, f);
+  write_npy(path("a.npy"), {n}, a);
+  // common radius
+  Result r = run("mobility --positions " + path("x.npy") + " --forces " + path("f.npy") +
+                 " --radius 0.5 --viscosity 2 --method direct --out " + path("u.npy") + " --json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("\"command\":\"mobility\""), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\"method\":\"direct\""), std::string::npos) << r.out;
+  Npy out = read_npy(path("u.npy"));
+  ASSERT_EQ(out.shape, (std::vector<std::size_t>{n, 3}));
+  rpyfmm::rpy::DirectRpy op(rpyfmm::rpy::Geometry::open(), 2.0);
+  op.set_positions(x, 0.5);
+  std::vector<double> ref(3 * n);
+  op.apply(f, ref);
+  EXPECT_EQ(out.data, ref);
+  // per-particle radii, default viscosity and method
+  r = run("mobility --positions " + path("x.npy") + " --forces " + path("f.npy") + " --radii " + path("a.npy") +
+          " --out " + path("u2.npy") + " --threads 1");
+  ASSERT_EQ(r.code, 0) << r.err;
+  out = read_npy(path("u2.npy"));
+  rpyfmm::rpy::DirectRpy op2;
+  op2.set_positions(x, a);
+  op2.apply(f, ref);
+  EXPECT_EQ(out.data, ref);
+}
+
+TEST_F(Cli, LaplaceBadInput) {
+  const std::size_t n = 4;
+  write_npy(path("s.npy"), {n, 3}, random_vec(3 * n, 9, -1, 1));
+  write_npy(path("q.npy"), {n}, {1, 2, 3, 4});
+  write_npy(path("q5.npy"), {5}, {1, 2, 3, 4, 5});
+  write_npy(path("q_nan.npy"), {n}, {1, NAN, 3, 4});
+  write_npy(path("s2.npy"), {n, 2}, random_vec(2 * n, 10, -1, 1));
+  write_npy(path("s_inf.npy"), {n, 3}, {0, 0, 0, 1, 1, 1, 2, INFINITY, 2, 3, 3, 3});
+  write_npy(path("s0.npy"), {0, 3}, {});
+  write_npy(path("s_trunc.npy"), {n, 3}, random_vec(3 * n, 11, -1, 1), 8);
+  write_npy(path("t_nan.npy"), {1, 3}, {0, NAN, 0});
+  {
+    std::ofstream bad(path("bad.npy"), std::ios::binary);
+    bad << "\x93NUMPY garbage";
+  }
+  {
+    std::ofstream txt(path("bad.txt"));
+    txt << "1 2 3\n4 five 6\n";
+  }
+  const std::string S = " --sources " + path("s.npy"), Q = " --charges " + path("q.npy");
+  const std::string O = " --out " + path("r.npy");
+  expect_failure("laplace --sources " + path("missing.npy") + Q + " --direct" + O, "missing.npy", "r.npy");
+  expect_failure("laplace --sources " + path("bad.npy") + Q + " --direct" + O, "bad.npy", "r.npy");
+  expect_failure("laplace --sources " + path("s_trunc.npy") + Q + " --direct" + O, "truncated", "r.npy");
+  expect_failure("laplace --sources " + path("bad.txt") + Q + " --direct" + O, "not a number", "r.npy");
+  expect_failure("laplace --sources " + path("s2.npy") + Q + " --direct" + O, "sources", "r.npy");
+  expect_failure("laplace --sources " + path("s_inf.npy") + Q + " --direct" + O, "infinite", "r.npy");
+  expect_failure("laplace --sources " + path("s0.npy") + Q + " --direct" + O, "N = 0", "r.npy");
+  expect_failure("laplace" + S + " --charges " + path("q5.npy") + " --direct" + O, "charges", "r.npy");
+  expect_failure("laplace" + S + " --charges " + path("q_nan.npy") + " --direct" + O, "NaN", "r.npy");
+  expect_failure("laplace" + S + Q + " --targets " + path("t_nan.npy") + " --direct" + O, "NaN", "r.npy");
+  expect_failure("laplace" + S + Q + O, "--direct or --eps", "r.npy");
+  expect_failure("laplace" + S + Q + " --direct --eps 1e-6" + O, "--eps", "r.npy");
+  expect_failure("laplace" + S + Q + " --eps 1e-6" + O, "FMM", "r.npy");
+  expect_failure("laplace" + S + " --direct" + O, "--charges", "r.npy");
+  expect_failure("laplace" + S + Q + " --direct", "--out", "r.npy");
+  expect_failure("laplace" + S + Q + " --direct --threads -1" + O, "threads", "r.npy");
+  // unwritable output: directory does not exist
+  expect_failure("laplace" + S + Q + " --direct --out " + path("nodir/r.npy"), "nodir", "nodir");
+}
+
+TEST_F(Cli, MobilityBadInput) {
+  const std::size_t n = 3;
+  write_npy(path("x.npy"), {n, 3}, {0, 0, 0, 3, 0, 0, 0, 3, 0});
+  write_npy(path("f.npy"), {n, 3}, {1, 0, 0, 0, 1, 0, 0, 0, 1});
+  write_npy(path("f2.npy"), {2, 3}, {1, 0, 0, 0, 1, 0});
+  write_npy(path("f_nan.npy"), {n, 3}, {1, 0, 0, 0, NAN, 0, 0, 0, 1});
+  write_npy(path("x_inf.npy"), {n, 3}, {0, 0, 0, 3, -INFINITY, 0, 0, 3, 0});
+  write_npy(path("x0.npy"), {0, 3}, {});
+  write_npy(path("x4.npy"), {n, 4}, std::vector<double>(4 * n, 1.0));
+  write_npy(path("a.npy"), {n}, {1, 1, 1});
+  write_npy(path("a2.npy"), {2}, {1, 1});
+  write_npy(path("a_neg.npy"), {n}, {1, -1, 1});
+  write_npy(path("x_trunc.npy"), {n, 3}, std::vector<double>(3 * n, 1.0), 16);
+  const std::string X = " --positions " + path("x.npy"), F = " --forces " + path("f.npy");
+  const std::string O = " --out " + path("u.npy");
+  const std::string good = "mobility" + X + F;
+  expect_failure("mobility --positions " + path("nope.npy") + F + " --radius 1" + O, "nope.npy", "u.npy");
+  expect_failure("mobility --positions " + path("x_trunc.npy") + F + " --radius 1" + O, "truncated", "u.npy");
+  expect_failure("mobility --positions " + path("x4.npy") + F + " --radius 1" + O, "positions", "u.npy");
+  expect_failure("mobility --positions " + path("x_inf.npy") + F + " --radius 1" + O, "infinite", "u.npy");
+  expect_failure("mobility --positions " + path("x0.npy") + F + " --radius 1" + O, "N = 0", "u.npy");
+  expect_failure("mobility" + X + " --forces " + path("f2.npy") + " --radius 1" + O, "forces", "u.npy");
+  expect_failure("mobility" + X + " --forces " + path("f_nan.npy") + " --radius 1" + O, "NaN", "u.npy");
+  expect_failure(good + " --radius 0" + O, "radius", "u.npy");
+  expect_failure(good + " --radius -2" + O, "radius", "u.npy");
+  expect_failure(good + " --radius nan" + O, "radius", "u.npy");
+  expect_failure(good + " --radius 1 --viscosity 0" + O, "viscosity", "u.npy");
+  expect_failure(good + " --radius 1 --viscosity -1" + O, "viscosity", "u.npy");
+  expect_failure(good + O, "--radius", "u.npy");
+  expect_failure(good + " --radius 1 --radii " + path("a.npy") + O, "--radi", "u.npy");
+  expect_failure(good + " --radii " + path("a2.npy") + O, "radii", "u.npy");
+  expect_failure(good + " --radii " + path("a_neg.npy") + O, "radius of particle 1", "u.npy");
+  expect_failure(good + " --radius 1 --method warp" + O, "unknown method 'warp'", "u.npy");
+  expect_failure(good + " --radius 1 --method fmm" + O, "not available", "u.npy");
+  expect_failure("mobility" + F + " --radius 1" + O, "--positions", "u.npy");
+  expect_failure(good + " --radius 1", "--out", "u.npy");
+  expect_failure(good + " --radius 1 --threads -3" + O, "threads", "u.npy");
+}
