@@ -1,1 +1,12 @@
 # Adaptive octree FMM: tree, lists, expansions, plane-wave M2L, driver.
+find_package(Eigen3 3.3 REQUIRED NO_MODULE)
+target_sources(rpyfmm_fmm PRIVATE
+  ${CMAKE_CURRENT_LIST_DIR}/src/harmonics.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/point_expansions.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/rotation.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/child_translations.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/planewave_tables.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/planewave.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/octree.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/laplace_fmm.cpp)
+target_link_libraries(rpyfmm_fmm PRIVATE Eigen3::Eigen)

@@ -1,0 +1,95 @@
+// rpyfmm::fmm — multipole/local expansions: formation, evaluation with gradient and Hessian,
+// rotations and translations (PLANEWAVE.md §1.3-§1.4, §2, §6).
+//
+// All coefficients are *scaled* (§1.4): for a box of side s and center c,
+//   Mh_n^m = sum_j q_j c_n^m conj(R_n^m((y_j - c)/s))                 (P2M, §6.3)
+//   Lh_n^m = (1/s) sum_j q_j conj(S_n^m((y_j - c)/s)) / c_n^m          (P2L, §6.3)
+// Storage: 0 <= m <= n <= p, triangular (harmonics.hpp), `nd` densities one after the other.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <vector>
+
+#include "rpyfmm/fmm/detail/harmonics.hpp"
+#include "rpyfmm/fmm/direct.hpp"
+
+namespace rpyfmm::fmm::detail {
+
+/// Output selection flags (per density), the values of rpyfmm::fmm::Output.
+inline constexpr unsigned kPotential = potential, kGradient = gradient, kHessian = hessian;
+
+/// Accumulates charges q[d*ldq + j] (j < n, d < nd) at points xyz[3j..3j+2] into the scaled
+/// multipoles Mh[d*ncoef(p) ...] of a box with center `c` and side `s`. `R` is scratch (ncoef(p)).
+void p2m(const Harmonics& H, int p, double s, const double* c, const double* xyz, const double* q,
+         std::size_t ldq, std::size_t nd, std::size_t n, cplx* Mh, cplx* R);
+/// Same for the scaled local expansions (P2L, X list); points must be well separated from the box.
+void p2l(const Harmonics& H, int p, double s, const double* c, const double* xyz, const double* q,
+         std::size_t ldq, std::size_t nd, std::size_t n, cplx* Lh, cplx* S);
+
+/// Evaluates a scaled local expansion at one point: out[0] potential, out[1..3] gradient,
+/// out[4..9] Hessian (xx, yy, zz, xy, xz, yz), *added* to out according to `flags` (§6.1).
+/// `b` = Lh_n^m c_n^m (precomputed per box by local_to_b), `R` = regular table at (x-c)/s up to p.
+void l2p_eval(int p, double s, const cplx* b, const cplx* R, unsigned flags, double* out) noexcept;
+/// b_n^m = Lh_n^m c_n^m.
+void local_to_b(const Harmonics& H, int p, const cplx* Lh, cplx* b) noexcept;
+
+/// Evaluates a scaled multipole at one point (§6.2), adding to out as l2p_eval. `a` = Mh_n^m / c_n^m,
+/// `S` = singular table at (x-c)/s up to degree p+2 (p+1 if no Hessian, p if only potential).
+void m2p_eval(int p, double s, const cplx* a, const cplx* S, unsigned flags, double* out) noexcept;
+/// a_n^m = Mh_n^m / c_n^m.
+void multipole_to_a(const Harmonics& H, int p, const cplx* Mh, cplx* a) noexcept;
+
+/// Rotation matrices A^n(Q), n = 0..p (§2.2): sum_m M_m Y_n^m(v) = sum_m' (A^n M)_m' Y_n^m'(Q v).
+/// Built by an exact product quadrature on the sphere (n+1 Gauss-Legendre nodes x 2n+2 angles).
+class Rotation {
+ public:
+  Rotation() = default;
+  Rotation(int p, const std::array<double, 9>& Q);  // Q row-major, proper orthogonal
+  [[nodiscard]] int order() const noexcept { return p_; }
+  /// out = A in (multipole into the frame); only orders m' < mmax_out are produced (others = 0).
+  void apply(const cplx* in, cplx* out, int mmax_out) const noexcept;
+  /// out = A^H in (local out of the frame); `in` has nonzero orders only for m' < mmax_in.
+  void apply_adjoint(const cplx* in, cplx* out, int mmax_in) const noexcept;
+  /// Entry A^n_{m' m}, -n <= m', m <= n.
+  [[nodiscard]] cplx entry(int n, int mp, int m) const noexcept {
+    return a_[off_[n] + (mp + n) * (2 * n + 1) + (m + n)];
+  }
+
+ private:
+  int p_ = -1;
+  std::vector<std::size_t> off_;
+  std::vector<cplx> a_;
+};
+
+/// Multiplies coefficient m by e^{i m phi0} (a rotation about z, §2.2).
+void phase_rotate(int p, double phi0, cplx* coef) noexcept;
+
+/// Point-and-shoot translations between a box and its children (§2.1, §2.3): M2M (child -> parent)
+/// and L2L (parent -> child). Precomputes the two y-rotations of the child-parent directions
+/// and the z-shift factors for one order p.
+class ChildTranslations {
+ public:
+  explicit ChildTranslations(int p);
+  [[nodiscard]] int order() const noexcept { return p_; }
+  /// Adds to Mh_parent the multipole of child `octant` (bit0 = +x, bit1 = +y, bit2 = +z half).
+  /// `work` must hold 2 ncoef(p) entries. Child side s, parent side 2s (scaled coefficients).
+  void m2m(int octant, const cplx* Mh_child, cplx* Mh_parent, cplx* work) const noexcept;
+  /// Adds to Lh_child the L2L of the parent's local.
+  void l2l(int octant, const cplx* Lh_parent, cplx* Lh_child, cplx* work) const noexcept;
+
+  /// Scaled z-shifts (§2.1), exposed for tests: new center = old + d zhat; s0 old side, s1 new side.
+  void m2m_z(const cplx* in, cplx* out, double d, double s0, double s1) const noexcept;
+  void l2l_z(const cplx* in, cplx* out, double d, double s0, double s1) const noexcept;
+
+ private:
+  int p_;
+  Rotation up_, down_;       // Ry(t0), Ry(pi - t0), cos t0 = 1/sqrt(3)
+  std::vector<double> m2m_c_;  // sqrt(C(j-k,l) C(j+k,l)) at [idx(j,k)*(p+1) + l]
+  std::vector<double> l2l_c_;  // sqrt(C(n-k,n-j) C(n+k,n-j)) at [idx(j,k)*(p+1) + (n-j)]
+};
+
+/// Gauss-Legendre nodes and weights on [-1, 1].
+void gauss_legendre(int n, std::vector<double>& x, std::vector<double>& w);
+
+}  // namespace rpyfmm::fmm::detail

@@ -1,0 +1,121 @@
+// rpyfmm::fmm — adaptive plane-wave fast multipole method for the 3-D Laplace kernel 1/r.
+//
+// Cheng, Greengard & Rokhlin, J. Comput. Phys. 155 (1999) 468-498; dissertation 004 ch. 2;
+// design note PLANEWAVE.md. Adaptive octree with U/V/W/X lists, scaled spherical-harmonic
+// expansions, point-and-shoot M2M/L2L, plane-wave M2L with merge-and-shift in six directions,
+// M2P/P2L for the W/X lists, potential/gradient/Hessian at sources and at separate targets.
+//
+//   phi(x) = sum_j q_j / |x - y_j|   (pairs at distance 0, e.g. the self pair, are skipped)
+//
+// Usage (plan once, apply many):
+//   LaplaceFmm fmm({.eps = 1e-6});
+//   fmm.set_points(sources);                       // builds tree and lists
+//   fmm.evaluate(charges, nd, outputs, results);   // any number of times, const, thread-safe
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <span>
+#include <utility>
+#include <vector>
+
+#include "rpyfmm/core/timer.hpp"
+#include "rpyfmm/fmm/direct.hpp"
+
+namespace rpyfmm::fmm {
+
+/// Options of the FMM plan. Defaults give a relative l2 error <= eps for every output.
+struct FmmOptions {
+  /// Requested relative l2 accuracy of each output, in [1e-15, 1e-1]. The plane-wave table is the
+  /// one of the next tighter of 1e-3, 1e-6, 1e-9, 1e-12; below 1e-12 the accuracy saturates near 1e-13.
+  double eps = 1e-6;
+  /// Points per leaf before a box is split; 0 = automatic (chosen per eps by benchmark).
+  int leaf_capacity = 0;
+  /// Boxes are never split below this side: every pair of points closer than this is in the
+  /// near field (U list). 0 = no limit.
+  double min_leaf_side = 0.0;
+  /// Evaluate the near field (U-list P2P). false = far field only: the caller evaluates the
+  /// pairs of near_field() with its own kernel.
+  bool near_field = true;
+  /// Expansion order; 0 = from eps (FMM3D's rule, PLANEWAVE.md §1.5).
+  int order = 0;
+};
+
+/// Shape and cost of a plan.
+struct TreeStats {
+  int levels = 0;
+  std::size_t boxes = 0, leaves = 0;
+  std::size_t memory_bytes = 0;  // tree + lists + plan tables (per-apply buffers not included)
+  int order = 0;                 // expansion order p
+  int nlams = 0;                 // plane-wave quadrature nodes
+  int leaf_capacity = 0;
+  std::size_t u_pairs = 0, w_pairs = 0, x_pairs = 0;
+};
+
+/// Near-field structure in the caller's numbering: for every leaf, the source and target indices
+/// it holds; and the U-list pairs (target leaf, source leaf), the leaf itself included.
+struct NearField {
+  std::vector<std::size_t> source_begin;  // leaf l holds sources source_index[source_begin[l] .. source_begin[l+1])
+  std::vector<std::size_t> source_index;
+  std::vector<std::size_t> target_begin;  // same for targets (== sources when evaluating at the sources)
+  std::vector<std::size_t> target_index;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs;  // (target leaf, source leaf)
+  [[nodiscard]] std::size_t num_leaves() const noexcept { return source_begin.empty() ? 0 : source_begin.size() - 1; }
+  [[nodiscard]] std::span<const std::size_t> sources(std::size_t leaf) const noexcept {
+    return {source_index.data() + source_begin[leaf], source_index.data() + source_begin[leaf + 1]};
+  }
+  [[nodiscard]] std::span<const std::size_t> targets(std::size_t leaf) const noexcept {
+    return {target_index.data() + target_begin[leaf], target_index.data() + target_begin[leaf + 1]};
+  }
+};
+
+class LaplaceFmm {
+ public:
+  explicit LaplaceFmm(const FmmOptions& options = {});
+  ~LaplaceFmm();
+  LaplaceFmm(LaplaceFmm&&) noexcept;
+  LaplaceFmm& operator=(LaplaceFmm&&) noexcept;
+
+  /// Builds the tree and lists. sources: 3N (x0,y0,z0,x1,...), N >= 1; targets: 3M, or empty to
+  /// evaluate at the sources (self pair excluded). Throws rpyfmm::Error on bad input.
+  void set_points(std::span<const double> sources, std::span<const double> targets = {});
+
+  /// charges: nd x N (density d at charges[d*N + j]); outputs: nd flags (potential|gradient|hessian,
+  /// at least one bit each); results: nd x M x 10 [pot, gx, gy, gz, hxx, hyy, hzz, hxy, hxz, hyz],
+  /// overwritten (unrequested columns = 0). const and thread-safe; results do not depend on the
+  /// number of OpenMP threads.
+  void evaluate(std::span<const double> charges, std::size_t nd, std::span<const unsigned> outputs,
+                std::span<double> results) const;
+  /// Convenience: the same output flags for every density.
+  void evaluate(std::span<const double> charges, std::size_t nd, unsigned outputs, std::span<double> results) const;
+
+  [[nodiscard]] const FmmOptions& options() const noexcept { return options_; }
+  [[nodiscard]] std::size_t num_sources() const noexcept;
+  [[nodiscard]] std::size_t num_targets() const noexcept;
+  /// Stage times (seconds) of set_points ("tree", "lists") and of the last evaluate ("p2m", "m2m",
+  /// "m2l", "l2l", "x_p2l", "w_m2p", "l2p", "p2p", "sort", "total").
+  [[nodiscard]] StageTimes last_timings() const;
+  [[nodiscard]] TreeStats stats() const;
+  /// Near-field structure (built on first call, then cached).
+  [[nodiscard]] const NearField& near_field() const;
+
+  struct Plan;  // implementation
+
+ private:
+  FmmOptions options_;
+  std::unique_ptr<Plan> plan_;
+  mutable std::mutex mutex_;
+  mutable StageTimes timings_;
+  mutable std::unique_ptr<NearField> near_;
+};
+
+/// Expansion order chosen for a tolerance: smallest p >= 2 with (sqrt(3)/2)^p / 1.5^(p+1) < eps.
+int fmm_order_for(double eps);
+/// Digits of the plane-wave table used for a tolerance (3, 6, 9 or 12).
+int fmm_table_digits_for(double eps);
+/// Automatic leaf capacity for a tolerance.
+int fmm_default_leaf_capacity(double eps);
+
+}  // namespace rpyfmm::fmm

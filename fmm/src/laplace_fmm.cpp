@@ -1,0 +1,530 @@
+// The adaptive plane-wave Laplace FMM driver (CGR 1999 §4 algorithm; dissertation 004 §2.4;
+// PLANEWAVE.md §5.4 data flow): P2M, M2M, [L2L + X-list P2L + plane-wave M2L] per level,
+// L2P + W-list M2P + U-list P2P at the leaves.
+#include "rpyfmm/fmm/laplace_fmm.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <string>
+
+#include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/fmm/detail/expansions.hpp"
+#include "rpyfmm/fmm/detail/octree.hpp"
+#include "rpyfmm/fmm/detail/planewave.hpp"
+
+namespace rpyfmm::fmm {
+
+using detail::cplx;
+using detail::ncoef;
+
+int fmm_order_for(double eps) {
+  // PLANEWAVE.md §1.5 (FMM3D l3dterms): sources within sqrt(3)/2, nearest target at 1.5 (box units).
+  for (int p = 2; p < 80; ++p)
+    if (std::pow(std::sqrt(3.0) / 2.0, p) / std::pow(1.5, p + 1) < eps) return p;
+  return 80;
+}
+
+int fmm_table_digits_for(double eps) {
+  // Intermediate tolerances use the next tighter table.
+  const double slack = 1.0 - 1e-9;
+  if (eps >= 1e-3 * slack) return 3;
+  if (eps >= 1e-6 * slack) return 6;
+  if (eps >= 1e-9 * slack) return 9;
+  return 12;
+}
+
+int fmm_default_leaf_capacity(double eps) {
+  const int digits = fmm_table_digits_for(eps);
+  return digits <= 3 ? 64 : digits <= 6 ? 128 : digits <= 9 ? 256 : 400;
+}
+
+namespace {
+const detail::ChildTranslations& child_translations(int p) {
+  static std::mutex mutex;
+  static std::map<int, std::unique_ptr<detail::ChildTranslations>> cache;
+  std::lock_guard lock(mutex);
+  auto& slot = cache[p];
+  if (!slot) slot = std::make_unique<detail::ChildTranslations>(p);
+  return *slot;
+}
+}  // namespace
+
+struct LaplaceFmm::Plan {
+  detail::Octree tree;
+  int p = 0, digits = 0, leaf_capacity = 0;
+  const detail::Harmonics* H = nullptr;
+  const detail::ChildTranslations* ct = nullptr;
+  const detail::PlaneWave* pw = nullptr;
+  std::size_t n = 0, m = 0;
+  std::vector<double> sx, sy, sz, tx, ty, tz;  // sorted coordinates, structure of arrays
+};
+
+LaplaceFmm::LaplaceFmm(const FmmOptions& options) : options_(options) {
+  constexpr const char* where = "LaplaceFmm";
+  require_in_range(options.eps, 1e-15, 1e-1, where, "eps");
+  require(options.leaf_capacity >= 0, ErrorCode::invalid_argument, where,
+          "leaf_capacity must be >= 0 (0 = automatic), got " + std::to_string(options.leaf_capacity));
+  require(std::isfinite(options.min_leaf_side) && options.min_leaf_side >= 0.0, ErrorCode::invalid_argument, where,
+          "min_leaf_side must be finite and >= 0, got " + std::to_string(options.min_leaf_side));
+  require(options.order == 0 || (options.order >= 2 && options.order <= 70), ErrorCode::invalid_argument, where,
+          "order must be 0 (automatic) or in [2, 70], got " + std::to_string(options.order));
+}
+
+LaplaceFmm::~LaplaceFmm() = default;
+LaplaceFmm::LaplaceFmm(LaplaceFmm&& o) noexcept
+    : options_(o.options_), plan_(std::move(o.plan_)), timings_(std::move(o.timings_)), near_(std::move(o.near_)) {}
+LaplaceFmm& LaplaceFmm::operator=(LaplaceFmm&& o) noexcept {
+  options_ = o.options_;
+  plan_ = std::move(o.plan_);
+  timings_ = std::move(o.timings_);
+  near_ = std::move(o.near_);
+  return *this;
+}
+
+std::size_t LaplaceFmm::num_sources() const noexcept { return plan_ ? plan_->n : 0; }
+std::size_t LaplaceFmm::num_targets() const noexcept { return plan_ ? plan_->m : 0; }
+
+void LaplaceFmm::set_points(std::span<const double> sources, std::span<const double> targets) {
+  constexpr const char* where = "LaplaceFmm::set_points";
+  require(sources.size() % 3 == 0, ErrorCode::invalid_input, where,
+          "sources has " + std::to_string(sources.size()) + " entries, not a multiple of 3");
+  require(!sources.empty(), ErrorCode::invalid_input, where, "no sources (N = 0)");
+  require(targets.size() % 3 == 0, ErrorCode::invalid_input, where,
+          "targets has " + std::to_string(targets.size()) + " entries, not a multiple of 3");
+  require_finite(sources, where, "sources", 3);
+  require_finite(targets, where, "targets", 3);
+
+  StopWatch sw;
+  auto plan = std::make_unique<Plan>();
+  plan->p = options_.order > 0 ? options_.order : fmm_order_for(options_.eps);
+  plan->digits = fmm_table_digits_for(options_.eps);
+  plan->leaf_capacity = options_.leaf_capacity > 0 ? options_.leaf_capacity : fmm_default_leaf_capacity(options_.eps);
+  detail::OctreeParams tp;
+  tp.leaf_capacity = std::size_t(plan->leaf_capacity);
+  tp.min_leaf_side = options_.min_leaf_side;
+  plan->tree.build(sources, targets, tp);
+  const double t_tree = sw.seconds();
+  sw.restart();
+  plan->H = &detail::Harmonics::cached(plan->p + 2);
+  plan->ct = &child_translations(plan->p);
+  plan->pw = &detail::PlaneWave::cached(plan->p, plan->digits);
+  plan->n = sources.size() / 3;
+  plan->m = targets.empty() ? plan->n : targets.size() / 3;
+  auto soa = [](const std::vector<double>& xyz, std::vector<double>& x, std::vector<double>& y, std::vector<double>& z) {
+    const std::size_t k = xyz.size() / 3;
+    x.resize(k);
+    y.resize(k);
+    z.resize(k);
+    for (std::size_t j = 0; j < k; ++j) {
+      x[j] = xyz[3 * j];
+      y[j] = xyz[3 * j + 1];
+      z[j] = xyz[3 * j + 2];
+    }
+  };
+  soa(plan->tree.sorted_sources(), plan->sx, plan->sy, plan->sz);
+  soa(plan->tree.sorted_targets(), plan->tx, plan->ty, plan->tz);
+  const double t_tables = sw.seconds();
+  std::lock_guard lock(mutex_);
+  plan_ = std::move(plan);
+  near_.reset();
+  timings_.clear();
+  timings_["tree"] = t_tree;
+  timings_["tables"] = t_tables;
+}
+
+StageTimes LaplaceFmm::last_timings() const {
+  std::lock_guard lock(mutex_);
+  return timings_;
+}
+
+TreeStats LaplaceFmm::stats() const {
+  TreeStats s;
+  if (!plan_) return s;
+  const auto& t = plan_->tree;
+  s.levels = t.nlevels();
+  s.boxes = t.boxes().size();
+  s.leaves = t.leaves().size();
+  s.order = plan_->p;
+  s.nlams = plan_->pw->nlams();
+  s.leaf_capacity = plan_->leaf_capacity;
+  s.u_pairs = t.ulist().items.size();
+  s.w_pairs = t.wlist().items.size();
+  s.x_pairs = t.xlist().items.size();
+  s.memory_bytes = t.memory_bytes() + (plan_->sx.size() + plan_->tx.size()) * 3 * sizeof(double);
+  return s;
+}
+
+const NearField& LaplaceFmm::near_field() const {
+  require(plan_ != nullptr, ErrorCode::invalid_input, "LaplaceFmm::near_field", "set_points has not been called");
+  std::lock_guard lock(mutex_);
+  if (near_) return *near_;
+  const auto& t = plan_->tree;
+  auto nf = std::make_unique<NearField>();
+  const auto& leaves = t.leaves();
+  std::vector<int> leaf_id(t.boxes().size(), -1);
+  for (std::size_t i = 0; i < leaves.size(); ++i) leaf_id[leaves[i]] = int(i);
+  nf->source_begin.push_back(0);
+  nf->target_begin.push_back(0);
+  for (int b : leaves) {
+    const auto& bx = t.boxes()[b];
+    for (std::size_t j = bx.src_begin; j < bx.src_end; ++j) nf->source_index.push_back(t.source_order()[j]);
+    for (std::size_t j = bx.tgt_begin; j < bx.tgt_end; ++j) nf->target_index.push_back(t.target_order()[j]);
+    nf->source_begin.push_back(nf->source_index.size());
+    nf->target_begin.push_back(nf->target_index.size());
+  }
+  for (std::size_t i = 0; i < leaves.size(); ++i)
+    for (int u : t.ulist().of(leaves[i])) nf->pairs.emplace_back(std::uint32_t(i), std::uint32_t(leaf_id[u]));
+  near_ = std::move(nf);
+  return *near_;
+}
+
+void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, unsigned outputs,
+                          std::span<double> results) const {
+  std::vector<unsigned> flags(nd, outputs);
+  evaluate(charges, nd, flags, results);
+}
+
+void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::span<const unsigned> outputs,
+                          std::span<double> results) const {
+  constexpr const char* where = "LaplaceFmm::evaluate";
+  require(plan_ != nullptr, ErrorCode::invalid_input, where, "set_points has not been called");
+  require(nd >= 1, ErrorCode::invalid_argument, where, "nd must be >= 1");
+  const Plan& P = *plan_;
+  const std::size_t N = P.n, M = P.m;
+  require_size(charges, nd * N, where, "charges (nd x N)");
+  require_finite(charges, where, "charges", N);
+  require(outputs.size() == nd, ErrorCode::invalid_input, where,
+          "outputs has " + std::to_string(outputs.size()) + " entries, expected nd = " + std::to_string(nd));
+  for (std::size_t d = 0; d < nd; ++d)
+    require(outputs[d] >= 1 && outputs[d] <= all_outputs, ErrorCode::invalid_argument, where,
+            "outputs[" + std::to_string(d) + "] must be a non-empty subset of potential|gradient|hessian, got " +
+                std::to_string(outputs[d]));
+  require_size(results, nd * M * result_width, where, "results (nd x M x 10)");
+
+  StageTimes times;
+  StopWatch total, sw;
+  const auto& tree = P.tree;
+  const auto& boxes = tree.boxes();
+  const int nb = int(boxes.size());
+  const int p = P.p;
+  const int nc = ncoef(p);
+  const auto& H = *P.H;
+  const auto& ct = *P.ct;
+  const auto& pw = *P.pw;
+  const auto& sxyz = tree.sorted_sources();
+  const auto& txyz = tree.sorted_targets();
+  unsigned any_flags = 0;
+  for (unsigned f : outputs) any_flags |= f;
+  const bool uniform_flags = std::all_of(outputs.begin(), outputs.end(), [&](unsigned f) { return f == outputs[0]; });
+
+  // Sorted charges, nd x N.
+  std::vector<double> qs(nd * N);
+  const auto& sperm = tree.source_order();
+#pragma omp parallel for schedule(static)
+  for (std::size_t j = 0; j < N; ++j)
+    for (std::size_t d = 0; d < nd; ++d) qs[d * N + j] = charges[d * N + sperm[j]];
+  std::vector<double> res(nd * M * result_width, 0.0);
+  times["sort"] = sw.seconds();
+
+  const std::size_t stride = nd * std::size_t(nc);
+  std::vector<cplx> mp(std::size_t(nb) * stride), lp(std::size_t(nb) * stride);
+  std::vector<char> has_local(nb, 0);
+  const int nlev = tree.nlevels();
+
+  // ---- P2M at the leaves (§6.3) ----
+  sw.restart();
+  const auto& leaves = tree.leaves();
+#pragma omp parallel
+  {
+    std::vector<cplx> scratch(ncoef(p + 2));
+#pragma omp for schedule(dynamic, 8)
+    for (std::size_t i = 0; i < leaves.size(); ++i) {
+      const int b = leaves[i];
+      const auto& bx = boxes[b];
+      if (bx.nsrc() == 0 || bx.level < 2) continue;
+      const auto c = tree.center(b);
+      detail::p2m(H, p, tree.side(bx.level), c.data(), &sxyz[3 * bx.src_begin], &qs[bx.src_begin], N, nd, bx.nsrc(),
+                  &mp[std::size_t(b) * stride], scratch.data());
+    }
+  }
+  times["p2m"] = sw.seconds();
+
+  // ---- M2M (§2.3), deepest level first ----
+  sw.restart();
+  for (int l = nlev - 2; l >= 2; --l) {
+#pragma omp parallel
+    {
+      std::vector<cplx> work(2 * std::size_t(nc));
+#pragma omp for schedule(dynamic, 8)
+      for (int b = tree.level_begin(l); b < tree.level_end(l); ++b) {
+        const auto& bx = boxes[b];
+        if (bx.leaf || bx.nsrc() == 0) continue;
+        for (int o = 0; o < 8; ++o) {
+          const int c = bx.child[o];
+          if (c < 0 || boxes[c].nsrc() == 0) continue;
+          for (std::size_t d = 0; d < nd; ++d)
+            ct.m2m(o, &mp[std::size_t(c) * stride + d * nc], &mp[std::size_t(b) * stride + d * nc], work.data());
+        }
+      }
+    }
+  }
+  times["m2m"] = sw.seconds();
+
+  // ---- downward pass ----
+  double t_l2l = 0, t_x = 0, t_m2l = 0;
+  const int sumM = pw.sum_physical(), sumK = pw.sum_fourier(), kmax = pw.kmax();
+  const auto& groups = detail::merge_groups();
+  for (int l = 1; l < nlev; ++l) {
+    const int lb = tree.level_begin(l), le = tree.level_end(l);
+    sw.restart();
+    {
+#pragma omp parallel
+      {
+        std::vector<cplx> work(2 * std::size_t(nc));
+#pragma omp for schedule(dynamic, 8)
+        for (int b = lb; b < le; ++b) {
+          const auto& bx = boxes[b];
+          if (bx.ntgt() == 0 || !has_local[bx.parent]) continue;
+          int oct = 0;
+          for (int o = 0; o < 8; ++o)
+            if (boxes[bx.parent].child[o] == b) oct = o;
+          for (std::size_t d = 0; d < nd; ++d)
+            ct.l2l(oct, &lp[std::size_t(bx.parent) * stride + d * nc], &lp[std::size_t(b) * stride + d * nc],
+                   work.data());
+          has_local[b] = 1;
+        }
+      }
+    }
+    t_l2l += sw.seconds();
+    sw.restart();
+    // X list: P2L (§6.3, §5.6).
+#pragma omp parallel
+    {
+      std::vector<cplx> scratch(ncoef(p + 2));
+#pragma omp for schedule(dynamic, 8)
+      for (int b = lb; b < le; ++b) {
+        const auto& bx = boxes[b];
+        if (bx.ntgt() == 0) continue;
+        const auto c = tree.center(b);
+        for (int x : tree.xlist().of(b)) {
+          const auto& xb = boxes[x];
+          if (xb.nsrc() == 0) continue;
+          detail::p2l(H, p, tree.side(l), c.data(), &sxyz[3 * xb.src_begin], &qs[xb.src_begin], N, nd, xb.nsrc(),
+                      &lp[std::size_t(b) * stride], scratch.data());
+          has_local[b] = 1;
+        }
+      }
+    }
+    t_x += sw.seconds();
+    if (l < 2) continue;
+    // Plane-wave M2L with merge-and-shift (§5.3, §5.4 step 3), one frame pair at a time.
+    sw.restart();
+    const double s = tree.side(l);
+    const std::size_t wave_stride = std::size_t(sumM) * nd;  // one direction of one box
+    std::vector<cplx> waves(std::size_t(le - lb) * 2 * wave_stride);
+    for (int f = 0; f < 3; ++f) {
+      const detail::Rotation* rot = pw.frame_rotation(f);
+#pragma omp parallel
+      {
+        std::vector<cplx> Mt(nc), Mr(nc), Fu(sumK), Fd(sumK);
+#pragma omp for schedule(dynamic, 16)
+        for (int b = lb; b < le; ++b) {
+          if (boxes[b].nsrc() == 0) continue;
+          for (std::size_t d = 0; d < nd; ++d) {
+            const cplx* Mh = &mp[std::size_t(b) * stride + d * nc];
+            for (int i = 0; i < nc; ++i) Mt[i] = Mh[i] / s;  // unit-frame multipole (§3.4, pitfall §9)
+            if (rot) rot->apply(Mt.data(), Mr.data(), kmax);
+            pw.m2f(rot ? Mr.data() : Mt.data(), Fu.data(), Fd.data());
+            cplx* W = &waves[std::size_t(b - lb) * 2 * wave_stride];
+            pw.f2p(Fu.data(), W + d * sumM);
+            pw.f2p(Fd.data(), W + wave_stride + d * sumM);
+          }
+        }
+      }
+      const int pb = tree.level_begin(l - 1), pe = tree.level_end(l - 1);
+#pragma omp parallel
+      {
+        struct Acc {
+          int sign;
+          unsigned mask;
+          std::vector<cplx> v;
+        };
+        std::vector<Acc> accs;
+        std::vector<cplx> V(wave_stride), Gu(sumK * nd), Gd(sumK * nd), Lf(nc), Lb(nc);
+#pragma omp for schedule(dynamic, 4)
+        for (int P0 = pb; P0 < pe; ++P0) {
+          const auto& par = boxes[P0];
+          if (par.leaf || par.ntgt() == 0) continue;
+          std::size_t nacc = 0;
+          for (int C : tree.colleagues().of(P0))
+            for (int e : boxes[C].child) {
+              if (e < 0 || boxes[e].nsrc() == 0) continue;
+              const int ax = int(boxes[e].ix - 2 * par.ix), ay = int(boxes[e].iy - 2 * par.iy),
+                        az = int(boxes[e].iz - 2 * par.iz);
+              const detail::MergeGroup g = groups[detail::merge_position(ax, ay, az)][f];
+              if (g.mask == 0) continue;
+              std::size_t k = 0;
+              while (k < nacc && !(accs[k].sign == g.sign && accs[k].mask == g.mask)) ++k;
+              if (k == nacc) {
+                if (accs.size() <= nacc) accs.push_back({0, 0, {}});
+                accs[k].sign = g.sign;
+                accs[k].mask = g.mask;
+                accs[k].v.assign(wave_stride, cplx(0.0));
+                ++nacc;
+              }
+              // Shift from the source center to the center of child 0 (offset d = -a).
+              const auto dp = detail::PlaneWave::frame_offset(f, {-ax, -ay, -az});
+              const cplx* sh = g.sign > 0 ? pw.shift(dp[0], dp[1], dp[2]) : pw.shift(-dp[0], -dp[1], -dp[2]);
+              const cplx* W = &waves[std::size_t(e - lb) * 2 * wave_stride + (g.sign > 0 ? 0 : wave_stride)];
+              cplx* acc = accs[k].v.data();
+              for (std::size_t d = 0; d < nd; ++d)
+                for (int j = 0; j < sumM; ++j) acc[d * sumM + j] += sh[j] * W[d * sumM + j];
+            }
+          if (nacc == 0) continue;
+          for (int o = 0; o < 8; ++o) {
+            const int c = par.child[o];
+            if (c < 0 || boxes[c].ntgt() == 0) continue;
+            bool got[2] = {false, false};
+            for (int sgn = 0; sgn < 2; ++sgn) {
+              const int sign = sgn == 0 ? 1 : -1;
+              std::fill(V.begin(), V.end(), cplx(0.0));
+              for (std::size_t k = 0; k < nacc; ++k) {
+                if (accs[k].sign != sign || !(accs[k].mask & (1u << o))) continue;
+                got[sgn] = true;
+                for (std::size_t i = 0; i < wave_stride; ++i) V[i] += accs[k].v[i];
+              }
+              cplx* G = sgn == 0 ? Gu.data() : Gd.data();
+              if (!got[sgn]) {
+                std::fill(G, G + sumK * nd, cplx(0.0));
+                continue;
+              }
+              const auto dp = detail::PlaneWave::frame_offset(f, {o & 1, (o >> 1) & 1, (o >> 2) & 1});
+              const cplx* sh = sign > 0 ? pw.shift(dp[0], dp[1], dp[2]) : pw.shift(-dp[0], -dp[1], -dp[2]);
+              for (std::size_t d = 0; d < nd; ++d) {
+                for (int j = 0; j < sumM; ++j) V[d * sumM + j] *= sh[j];
+                pw.p2f(&V[d * sumM], G + d * sumK);
+              }
+            }
+            if (!got[0] && !got[1]) continue;
+            for (std::size_t d = 0; d < nd; ++d) {
+              pw.f2l(&Gu[d * sumK], &Gd[d * sumK], Lf.data());
+              const cplx* L = Lf.data();
+              if (rot) {
+                rot->apply_adjoint(Lf.data(), Lb.data(), kmax);
+                L = Lb.data();
+              }
+              cplx* out = &lp[std::size_t(c) * stride + d * nc];
+              for (int i = 0; i < nc; ++i) out[i] += L[i];
+            }
+            has_local[c] = 1;
+          }
+        }
+      }
+    }
+    t_m2l += sw.seconds();
+  }
+  times["l2l"] = t_l2l;
+  times["x_p2l"] = t_x;
+  times["m2l"] = t_m2l;
+
+  // ---- leaves: L2P (§6.1) ----
+  sw.restart();
+#pragma omp parallel
+  {
+    std::vector<cplx> R(ncoef(p + 2)), bcoef(stride);
+    std::vector<double> tmp(result_width);
+#pragma omp for schedule(dynamic, 4)
+    for (std::size_t i = 0; i < leaves.size(); ++i) {
+      const int b = leaves[i];
+      const auto& bx = boxes[b];
+      if (bx.ntgt() == 0 || !has_local[b]) continue;
+      const double s = tree.side(bx.level);
+      const auto c = tree.center(b);
+      for (std::size_t d = 0; d < nd; ++d) detail::local_to_b(H, p, &lp[std::size_t(b) * stride + d * nc], &bcoef[d * nc]);
+      for (std::size_t t = bx.tgt_begin; t < bx.tgt_end; ++t) {
+        const double inv_s = 1.0 / s;
+        H.regular(p, (txyz[3 * t] - c[0]) * inv_s, (txyz[3 * t + 1] - c[1]) * inv_s, (txyz[3 * t + 2] - c[2]) * inv_s,
+                  R.data());
+        for (std::size_t d = 0; d < nd; ++d)
+          detail::l2p_eval(p, s, &bcoef[d * nc], R.data(), outputs[d], &res[(d * M + t) * result_width]);
+      }
+    }
+  }
+  times["l2p"] = sw.seconds();
+
+  // ---- W list: M2P (§6.2) ----
+  sw.restart();
+  const int pS = p + ((any_flags & hessian) ? 2 : (any_flags & gradient) ? 1 : 0);
+#pragma omp parallel
+  {
+    std::vector<cplx> S(ncoef(p + 2)), acoef(stride);
+#pragma omp for schedule(dynamic, 4)
+    for (std::size_t i = 0; i < leaves.size(); ++i) {
+      const int b = leaves[i];
+      const auto& bx = boxes[b];
+      if (bx.ntgt() == 0) continue;
+      for (int w : tree.wlist().of(b)) {
+        const auto& wb = boxes[w];
+        if (wb.nsrc() == 0) continue;
+        const double s = tree.side(wb.level);
+        const auto c = tree.center(w);
+        for (std::size_t d = 0; d < nd; ++d)
+          detail::multipole_to_a(H, p, &mp[std::size_t(w) * stride + d * nc], &acoef[d * nc]);
+        for (std::size_t t = bx.tgt_begin; t < bx.tgt_end; ++t) {
+          const double inv_s = 1.0 / s;
+          H.singular(pS, (txyz[3 * t] - c[0]) * inv_s, (txyz[3 * t + 1] - c[1]) * inv_s,
+                     (txyz[3 * t + 2] - c[2]) * inv_s, S.data());
+          for (std::size_t d = 0; d < nd; ++d)
+            detail::m2p_eval(p, s, &acoef[d * nc], S.data(), outputs[d], &res[(d * M + t) * result_width]);
+        }
+      }
+    }
+  }
+  times["w_m2p"] = sw.seconds();
+
+  // ---- U list: P2P (§6.4) ----
+  sw.restart();
+  if (options_.near_field) {
+#pragma omp parallel for schedule(dynamic, 4)
+    for (std::size_t i = 0; i < leaves.size(); ++i) {
+      const int b = leaves[i];
+      const auto& bx = boxes[b];
+      if (bx.ntgt() == 0) continue;
+      const PointsSoA tg{&P.tx[bx.tgt_begin], &P.ty[bx.tgt_begin], &P.tz[bx.tgt_begin], bx.ntgt()};
+      for (int u : tree.ulist().of(b)) {
+        const auto& ub = boxes[u];
+        if (ub.nsrc() == 0) continue;
+        const PointsSoA sr{&P.sx[ub.src_begin], &P.sy[ub.src_begin], &P.sz[ub.src_begin], ub.nsrc()};
+        if (uniform_flags) {
+          laplace_p2p_add(sr, &qs[ub.src_begin], N, nd, tg, outputs[0], &res[bx.tgt_begin * result_width],
+                          M * result_width);
+        } else {
+          for (std::size_t d = 0; d < nd; ++d)
+            laplace_p2p_add(sr, &qs[d * N + ub.src_begin], N, 1, tg, outputs[d],
+                            &res[(d * M + bx.tgt_begin) * result_width], M * result_width);
+        }
+      }
+    }
+  }
+  times["p2p"] = sw.seconds();
+
+  // ---- back to the caller's order ----
+  sw.restart();
+  const auto& tperm = tree.target_order();
+#pragma omp parallel for schedule(static)
+  for (std::size_t t = 0; t < M; ++t)
+    for (std::size_t d = 0; d < nd; ++d)
+      std::copy_n(&res[(d * M + t) * result_width], result_width, &results[(d * M + tperm[t]) * result_width]);
+  times["sort"] += sw.seconds();
+  times["total"] = total.seconds();
+
+  std::lock_guard lock(mutex_);
+  const double t_tree = timings_.count("tree") ? timings_["tree"] : 0.0;
+  const double t_tab = timings_.count("tables") ? timings_["tables"] : 0.0;
+  timings_ = times;
+  timings_["tree"] = t_tree;
+  timings_["tables"] = t_tab;
+}
+
+}  // namespace rpyfmm::fmm

@@ -1,0 +1,129 @@
+// Rotation matrices of spherical-harmonic expansions (PLANEWAVE.md §2.2):
+//   A^n_{m'm}(Q) = (2n+1)/(4 pi) int_S2 Y_n^m(u) conj(Y_n^m'(Q u)) dOmega(u),
+// evaluated by the exact product rule (n+1 Gauss-Legendre nodes in cos(theta), 2n+2 angles),
+// as one small complex GEMM per degree.
+#include <Eigen/Dense>
+#include <cmath>
+#include <numbers>
+
+#include "rpyfmm/fmm/detail/expansions.hpp"
+
+namespace rpyfmm::fmm::detail {
+
+void gauss_legendre(int n, std::vector<double>& x, std::vector<double>& w) {
+  x.assign(n, 0.0);
+  w.assign(n, 0.0);
+  for (int i = 0; i < n; ++i) {
+    double t = std::cos(std::numbers::pi * (i + 0.75) / (n + 0.5));
+    double dp = 1.0;
+    for (int it = 0; it < 100; ++it) {
+      double p0 = 1.0, p1 = t;
+      for (int k = 2; k <= n; ++k) {
+        const double p2 = ((2 * k - 1) * t * p1 - (k - 1) * p0) / k;
+        p0 = p1;
+        p1 = p2;
+      }
+      if (n == 1) p0 = 1.0;
+      dp = n * (t * p1 - p0) / (t * t - 1.0);
+      const double dt = p1 / dp;
+      t -= dt;
+      if (std::abs(dt) < 1e-16) break;
+    }
+    double p0 = 1.0, p1 = t;
+    for (int k = 2; k <= n; ++k) {
+      const double p2 = ((2 * k - 1) * t * p1 - (k - 1) * p0) / k;
+      p0 = p1;
+      p1 = p2;
+    }
+    dp = n * (t * p1 - p0) / (t * t - 1.0);
+    x[i] = t;
+    w[i] = 2.0 / ((1.0 - t * t) * dp * dp);
+  }
+}
+
+Rotation::Rotation(int p, const std::array<double, 9>& Q) : p_(p) {
+  off_.resize(p + 2);
+  off_[0] = 0;
+  for (int n = 0; n <= p; ++n) off_[n + 1] = off_[n] + std::size_t(2 * n + 1) * (2 * n + 1);
+  a_.assign(off_[p + 1], cplx(0.0));
+  const Harmonics& H = Harmonics::cached(p);
+#pragma omp parallel for schedule(dynamic)
+  for (int n = 0; n <= p; ++n) {
+    const int nt = n + 1, nphi = 2 * n + 2, npts = nt * nphi, dim = 2 * n + 1;
+    std::vector<double> gx, gw;
+    gauss_legendre(nt, gx, gw);
+    Eigen::MatrixXcd Yu(npts, dim), Yv(npts, dim);
+    Eigen::VectorXd wts(npts);
+    std::vector<cplx> R(ncoef(n));
+    auto fill = [&](Eigen::MatrixXcd& Y, int row, double x, double y, double z) {
+      H.regular(n, x, y, z, R.data());
+      for (int m = 0; m <= n; ++m) {
+        const cplx v = H.c(n, m) * R[idx(n, m)];
+        Y(row, n + m) = v;
+        if (m > 0) Y(row, n - m) = std::conj(v);
+      }
+    };
+    for (int it = 0; it < nt; ++it) {
+      const double ct = gx[it], st = std::sqrt(std::max(0.0, 1.0 - ct * ct));
+      for (int ip = 0; ip < nphi; ++ip) {
+        const double ph = 2.0 * std::numbers::pi * ip / nphi;
+        const int row = it * nphi + ip;
+        const double u[3] = {st * std::cos(ph), st * std::sin(ph), ct};
+        const double v[3] = {Q[0] * u[0] + Q[1] * u[1] + Q[2] * u[2], Q[3] * u[0] + Q[4] * u[1] + Q[5] * u[2],
+                             Q[6] * u[0] + Q[7] * u[1] + Q[8] * u[2]};
+        fill(Yu, row, u[0], u[1], u[2]);
+        fill(Yv, row, v[0], v[1], v[2]);
+        wts[row] = gw[it] * (2.0 * std::numbers::pi / nphi) * (2 * n + 1) / (4.0 * std::numbers::pi);
+      }
+    }
+    const Eigen::MatrixXcd A = Yv.adjoint() * (wts.asDiagonal() * Yu);  // rows m', cols m
+    for (int i = 0; i < dim; ++i)
+      for (int j = 0; j < dim; ++j) a_[off_[n] + std::size_t(i) * dim + j] = A(i, j);
+  }
+}
+
+void Rotation::apply(const cplx* in, cplx* out, int mmax_out) const noexcept {
+  for (int n = 0; n <= p_; ++n) {
+    const int dim = 2 * n + 1;
+    const cplx* A = a_.data() + off_[n];
+    const cplx* x = in + idx(n, 0);
+    cplx* y = out + idx(n, 0);
+    const int top = std::min(n, mmax_out - 1);
+    for (int mp = 0; mp <= top; ++mp) {
+      const cplx* row = A + std::size_t(mp + n) * dim + n;  // row[m] = A_{m' m}
+      cplx acc = row[0] * x[0];
+      for (int m = 1; m <= n; ++m) acc += row[m] * x[m] + row[-m] * std::conj(x[m]);
+      y[mp] = acc;
+    }
+    for (int mp = std::max(top + 1, 0); mp <= n; ++mp) y[mp] = 0.0;
+  }
+}
+
+void Rotation::apply_adjoint(const cplx* in, cplx* out, int mmax_in) const noexcept {
+  for (int n = 0; n <= p_; ++n) {
+    const int dim = 2 * n + 1;
+    const cplx* A = a_.data() + off_[n];
+    const cplx* x = in + idx(n, 0);
+    cplx* y = out + idx(n, 0);
+    const int top = std::min(n, mmax_in - 1);
+    for (int m = 0; m <= n; ++m) {
+      // (A^H x)_m = sum_{m'} conj(A_{m' m}) x_{m'}, x_{-m'} = conj(x_{m'}).
+      cplx acc = std::conj(A[std::size_t(n) * dim + (m + n)]) * x[0];
+      for (int mp = 1; mp <= top; ++mp)
+        acc += std::conj(A[std::size_t(mp + n) * dim + (m + n)]) * x[mp] +
+               std::conj(A[std::size_t(n - mp) * dim + (m + n)]) * std::conj(x[mp]);
+      y[m] = acc;
+    }
+  }
+}
+
+void phase_rotate(int p, double phi0, cplx* coef) noexcept {
+  const cplx e(std::cos(phi0), std::sin(phi0));
+  cplx em = 1.0;
+  for (int m = 1; m <= p; ++m) {
+    em *= e;
+    for (int n = m; n <= p; ++n) coef[idx(n, m)] *= em;
+  }
+}
+
+}  // namespace rpyfmm::fmm::detail
