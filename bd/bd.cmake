@@ -1,2 +1,13 @@
-# Sources of rpyfmm::bd.
-target_sources(rpyfmm_bd PRIVATE ${CMAKE_CURRENT_LIST_DIR}/src/sampling.cpp)
+# Sources of rpyfmm::bd (owner: bd).
+target_sources(rpyfmm_bd PRIVATE
+  ${CMAKE_CURRENT_LIST_DIR}/src/sampling.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/free_draining.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/mobility_factory.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/potentials.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/force_field.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/neighbour_list.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/integrator.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/checkpoint.cpp)
+target_sources(rpyfmm_bd PRIVATE
+  ${CMAKE_CURRENT_LIST_DIR}/src/config.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/particles.cpp)

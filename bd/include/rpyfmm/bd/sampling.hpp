@@ -1,5 +1,6 @@
-// rpyfmm::bd — Brownian displacements. The square-root solvers live in
-// rpyfmm::rpy (PSE's split sampler needs them); this header re-exports them.
+// rpyfmm::bd — Brownian displacements and the combined "drift + noise"
+// products of one BD step. The square-root solvers live in rpyfmm::rpy (PSE's
+// split sampler needs them); this header re-exports them.
 #pragma once
 
 #include <cstdint>
@@ -20,5 +21,30 @@ using rpy::SqrtReport;
 SqrtReport brownian_displacement(const rpy::MobilityOperator& mobility, double kT, double dt, std::uint64_t seed,
                                  std::uint64_t step, std::span<double> displacement,
                                  const SqrtOptions& options = {});
+
+struct DriftNoiseReport {
+  SqrtReport sqrt;            ///< the square-root solver's report
+  int mobility_products = 0;  ///< products with M, counting a block [F, z] product once
+  bool shared_first_product = false;  ///< M F and Lanczos' first product M z came from one block pass
+  double seconds_drift = 0.0;  ///< wall time of the M F (or block [F, z]) product
+  double seconds_sqrt = 0.0;   ///< wall time of the rest of the square root
+};
+
+/// True when `mobility` samples M^{1/2} z by Lanczos on plain products for
+/// `options` (explicit lanczos, or automatic on the direct and fmm operators),
+/// so that drift_and_noise() can share the first Krylov product.
+bool samples_by_lanczos(const rpy::MobilityOperator& mobility, const SqrtOptions& options);
+
+/// u = M F and w = M^{1/2} z for one step (each 3N; `forces` may be all zero,
+/// `z` may be empty for a deterministic step, then `w` is untouched).
+///
+/// When samples_by_lanczos() holds, one block product M [F, z] gives u and M z,
+/// and the Lanczos solver's first product M (z / |z|) is answered from it
+/// (it is recognised as a multiple of z), so a step costs (Lanczos iterations
+/// + 1) operator applications of which the first is a 2-vector block
+/// (issue #8 target). Otherwise M F and the operator's own sampler are called.
+DriftNoiseReport drift_and_noise(const rpy::MobilityOperator& mobility, std::span<const double> forces,
+                                 std::span<const double> z, std::span<double> u, std::span<double> w,
+                                 const SqrtOptions& options);
 
 }  // namespace rpyfmm::bd

@@ -1,0 +1,82 @@
+// rpyfmm::bd — the run configuration (a TOML file; reference: docs/bd-config.md).
+//
+// Parsing is strict: a missing required key, an unknown key, a value of the
+// wrong type or out of range throws rpyfmm::Error naming the key, e.g.
+// "config: key 'integrator.dt' must be > 0, got -0.1".
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "rpyfmm/bd/force_field.hpp"
+#include "rpyfmm/bd/integrator.hpp"
+#include "rpyfmm/bd/mobility_factory.hpp"
+#include "rpyfmm/bd/neighbour_list.hpp"
+#include "rpyfmm/rpy/geometry.hpp"
+
+namespace rpyfmm::bd {
+
+/// How the initial particles are made ([particles]).
+struct ParticleSpec {
+  enum class Source { file, random, lattice, chains, clusters };
+  Source source = Source::random;
+  std::filesystem::path file;          ///< file: rows "x y z [type]" (type = index or name)
+  std::size_t count = 0;               ///< random, lattice: number of particles
+  double volume_fraction = 0.05;       ///< random, lattice, chains, clusters: sets the region size
+  std::vector<std::string> types{};    ///< generated particles' types (cycled); empty = first type
+  std::size_t chains = 0, beads = 0;   ///< chains: number and length
+  double bond_length = 0.0;            ///< chains: initial bond length (0 = 2.1 a)
+  std::size_t clusters = 0, cluster_size = 0;  ///< clusters: number and size
+  double cluster_volume_fraction = 0.3;        ///< clusters: packing inside a cluster
+  std::uint64_t seed = 1;              ///< generator seed
+};
+
+struct OutputSpec {
+  std::filesystem::path dir = "bd-out";
+  std::string trajectory = "trajectory.xyz";  ///< extended XYZ
+  std::string log = "log.csv";
+  std::string checkpoint = "checkpoint.bin";
+  std::uint64_t trajectory_every = 100;  ///< 0 = no trajectory
+  std::uint64_t log_every = 10;          ///< 0 = no log
+  std::uint64_t checkpoint_every = 1000; ///< 0 = only at the end (and on blow-up)
+};
+
+struct NamedPair {
+  std::string type1, type2;
+  PairPotential potential;
+};
+
+struct RunConfig {
+  rpy::Geometry geometry = rpy::Geometry::open();
+  double viscosity = 1.0;
+  std::vector<ParticleType> types{ParticleType{}};
+  ParticleSpec particles;
+  std::vector<NamedPair> pairs;
+  std::optional<BondPotential> chain_bond;  ///< bonds between consecutive beads of generated chains
+  std::array<double, 3> external_force{0, 0, 0};
+  IntegratorOptions integrator;
+  std::uint64_t steps = 0;
+  MobilitySpec mobility;
+  NeighbourOptions neighbours;
+  OutputSpec output;
+  std::string text;    ///< the TOML source (stored in checkpoints)
+  std::string source;  ///< file name or "<built-in demo>"
+};
+
+/// Parses TOML text; `source` names it in error messages.
+RunConfig parse_config(std::string_view text, const std::string& source);
+/// Reads and parses a file (io_error naming the file if it cannot be read).
+RunConfig load_config(const std::filesystem::path& path);
+/// The built-in demo: a sedimenting cloud of 2000 spheres with HI (`rpyfmm bd`).
+std::string_view demo_config_text();
+
+/// Builds the force field (types, pairs, external force, chain bonds) of a config.
+ForceField make_force_field(const RunConfig& config);
+
+}  // namespace rpyfmm::bd

@@ -1,0 +1,94 @@
+// rpyfmm::bd — the forces of a BD run: per-type pair potentials (mixtures),
+// bonds (bead-spring chains), constant external forces (gravity /
+// sedimentation) and user callbacks. compute() evaluates F_i particle by
+// particle (full neighbour lists, sorted), so the result does not depend on
+// the number of threads.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "rpyfmm/bd/neighbour_list.hpp"
+#include "rpyfmm/bd/potentials.hpp"
+
+namespace rpyfmm::bd {
+
+/// A kind of particle. Radius and external force apply to every particle of the type.
+struct ParticleType {
+  std::string name = "A";
+  double radius = 1.0;                            ///< hydrodynamic radius a (> 0)
+  std::array<double, 3> external_force{0, 0, 0};  ///< constant force, e.g. buoyant weight (m - m_f) g
+  double surface_potential = 0.0;                 ///< Psi, used by DLVO pairs (001 Annex 2)
+};
+
+struct Bond {
+  std::uint32_t i = 0, j = 0;
+  std::uint32_t type = 0;  ///< index into the bond potentials
+};
+
+/// A user force: adds to `forces` (3N) given positions (3N, unwrapped) and the step.
+/// Must be deterministic for reproducible runs.
+using ForceCallback =
+    std::function<void(std::span<const double> positions, std::uint64_t step, std::span<double> forces)>;
+
+class ForceField {
+ public:
+  explicit ForceField(std::vector<ParticleType> types = {ParticleType{}});
+
+  [[nodiscard]] const std::vector<ParticleType>& types() const { return types_; }
+  /// Index of the type named `name`; throws naming it when unknown.
+  [[nodiscard]] std::uint32_t type_index(const std::string& name) const;
+
+  /// Pair potential between types t1 and t2 (symmetric). Replaces an earlier one.
+  void set_pair(std::uint32_t t1, std::uint32_t t2, const PairPotential& potential);
+  /// Adds a bond potential, returns its index for Bond::type.
+  std::uint32_t add_bond_potential(const BondPotential& potential);
+  /// Adds bonds (validated against the particle count in check()).
+  void add_bonds(std::span<const Bond> bonds);
+  /// Constant force on every particle, added to the types' external forces.
+  void set_global_force(const std::array<double, 3>& force);
+  void add_callback(ForceCallback callback);
+
+  /// Largest pair cutoff (0 when no pair potential): the neighbour list's r_c.
+  [[nodiscard]] double max_cutoff() const;
+  [[nodiscard]] bool has_pairs() const { return max_cutoff() > 0.0; }
+  [[nodiscard]] std::span<const Bond> bonds() const { return bonds_; }
+  [[nodiscard]] std::span<const BondPotential> bond_potentials() const { return bond_potentials_; }
+  /// Pair term between types (inactive when none set).
+  [[nodiscard]] const PairTerm& pair(std::uint32_t t1, std::uint32_t t2) const {
+    return pairs_[t1 * types_.size() + t2];
+  }
+
+  /// Checks particle types and bonds against N particles (throws naming the entry).
+  void check(std::span<const std::uint32_t> particle_types) const;
+
+  /// F (3N) at `positions` with `list` up to date (its cutoff >= max_cutoff()).
+  /// Throws rpyfmm::Error naming the particles when a hard pair overlaps
+  /// (r < min_distance_fraction * sigma), a FENE bond is stretched beyond R0,
+  /// or bonded particles coincide. Returns the total potential energy.
+  double compute(std::span<const double> positions, std::span<const std::uint32_t> particle_types,
+                 const NeighbourList& list, std::uint64_t step, std::span<double> forces) const;
+
+ private:
+  void rebuild_bond_index(std::size_t n) const;
+
+  std::vector<ParticleType> types_;
+  std::vector<PairTerm> pairs_;  // types x types
+  std::vector<BondPotential> bond_potentials_;
+  std::vector<Bond> bonds_;
+  std::array<double, 3> global_force_{0, 0, 0};
+  std::vector<ForceCallback> callbacks_;
+  // Per-particle bond index (CSR), built lazily for N particles.
+  mutable std::size_t bond_index_n_ = 0;
+  mutable bool bond_index_valid_ = false;
+  mutable std::vector<std::size_t> bond_offsets_;
+  mutable std::vector<std::uint32_t> bond_entries_;  // bond indices
+};
+
+}  // namespace rpyfmm::bd

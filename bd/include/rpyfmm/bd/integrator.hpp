@@ -1,0 +1,115 @@
+// rpyfmm::bd — Euler-Maruyama Brownian dynamics with hydrodynamic interactions
+// on any mobility operator (MATH.md §4; PSE paper eq. 17):
+//
+//     dx = M F dt + sqrt(2 kT dt) M^{1/2} z,   z ~ N(0, I) keyed by (seed, step, particle)
+//
+// RPY is divergence-free, so no drift term kT div M dt is needed (MATH.md §1).
+// With the free-draining operator (method "none") this is 001 eq. 3.
+//
+// One step: neighbour-list update (only when needed) -> forces -> mobility
+// plan (set_positions, once per step) -> M F and M^{1/2} z (drift_and_noise,
+// sharing the first Krylov product) -> blow-up check -> x += dx.
+// Everything that enters x is independent of the thread count, provided the
+// mobility operator's products are.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "rpyfmm/bd/force_field.hpp"
+#include "rpyfmm/bd/neighbour_list.hpp"
+#include "rpyfmm/bd/sampling.hpp"
+#include "rpyfmm/core/timer.hpp"
+#include "rpyfmm/rpy/mobility.hpp"
+
+namespace rpyfmm::bd {
+
+struct IntegratorOptions {
+  /// Time step (> 0). No default: it must come from the user.
+  double dt = 0.0;
+  /// Thermal energy kT (>= 0; 0 = deterministic dynamics).
+  double kT = 1.0;
+  /// Key of the counter-based noise (with the step number and the particle index).
+  std::uint64_t seed = 1;
+  /// Square-root solver for M^{1/2} z (default: the operator's preferred one, tol 1e-3).
+  SqrtOptions sqrt{};
+  /// Blow-up guard: a step in which any particle would move more than this
+  /// fraction of its radius (or produces NaN/Inf) is refused with an error. > 0.
+  double max_displacement = 1.0;
+  /// Keep the deterministic (M F dt) and Brownian parts of the last step separately.
+  bool keep_split_displacements = false;
+};
+
+/// What one step did (and cumulative counters in Integrator::totals()).
+struct StepReport {
+  int sqrt_iterations = 0;
+  int mobility_products = 0;
+  bool shared_first_product = false;
+  bool neighbour_rebuild = false;
+  double potential_energy = 0.0;
+};
+
+struct IntegratorTotals {
+  std::uint64_t steps = 0;
+  std::uint64_t sqrt_iterations = 0;
+  std::uint64_t mobility_products = 0;
+  /// Seconds per part: "neighbours", "forces", "plan" (set_positions), "drift" (M F,
+  /// or the block M [F, z]), "sqrt" (rest of M^{1/2} z), "update".
+  StageTimes seconds;
+};
+
+class Integrator {
+ public:
+  /// `positions` (3N, finite) and `types` (N, indices into forces.types()).
+  /// Radii come from the particle types. Positions are kept unwrapped (for MSD);
+  /// the mobility operator wraps them into a periodic box itself.
+  /// Throws rpyfmm::Error naming the bad option or particle.
+  Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceField forces, IntegratorOptions options,
+             std::vector<double> positions, std::vector<std::uint32_t> types, NeighbourOptions neighbours = {},
+             std::uint64_t first_step = 0);
+
+  /// Advances one step. On a blow-up or a force error the state is left at the
+  /// last good step and rpyfmm::Error (numerical_failure / invalid_input) is thrown.
+  const StepReport& step();
+  /// Advances `count` steps.
+  void run(std::uint64_t count);
+
+  [[nodiscard]] std::span<const double> positions() const { return x_; }
+  [[nodiscard]] std::span<const std::uint32_t> types() const { return types_; }
+  [[nodiscard]] std::span<const double> radii() const { return radii_; }
+  [[nodiscard]] std::size_t size() const { return types_.size(); }
+  /// Number of steps taken since the start of the run (including before a restart).
+  [[nodiscard]] std::uint64_t step_count() const { return step_; }
+  [[nodiscard]] double time() const { return static_cast<double>(step_) * options_.dt; }
+  [[nodiscard]] const IntegratorOptions& options() const { return options_; }
+  [[nodiscard]] const StepReport& last_report() const { return report_; }
+  [[nodiscard]] const IntegratorTotals& totals() const { return totals_; }
+  [[nodiscard]] std::size_t neighbour_rebuilds() const { return list_.rebuilds(); }
+  [[nodiscard]] const NeighbourList& neighbour_list() const { return list_; }
+  [[nodiscard]] const ForceField& force_field() const { return forces_; }
+  [[nodiscard]] const rpy::MobilityOperator& mobility() const { return *mobility_; }
+  /// Forces at the start of the last step (3N).
+  [[nodiscard]] std::span<const double> last_forces() const { return f_; }
+  /// M F dt and sqrt(2 kT dt) M^{1/2} z of the last step (needs keep_split_displacements).
+  [[nodiscard]] std::span<const double> deterministic_displacement() const { return dx_det_; }
+  [[nodiscard]] std::span<const double> brownian_displacement() const { return dx_brown_; }
+
+ private:
+  std::unique_ptr<rpy::MobilityOperator> mobility_;
+  ForceField forces_;
+  IntegratorOptions options_;
+  std::vector<double> x_;
+  std::vector<std::uint32_t> types_;
+  std::vector<double> radii_;
+  NeighbourList list_;
+  std::uint64_t step_;
+  StepReport report_;
+  IntegratorTotals totals_;
+  // work arrays
+  std::vector<double> f_, z_, u_, w_, dx_, dx_det_, dx_brown_;
+};
+
+}  // namespace rpyfmm::bd

@@ -1,0 +1,47 @@
+// rpyfmm::bd — choosing a mobility operator by name, as configs and the CLI do.
+//
+//   "none"   free draining (FreeDrainingMobility), any geometry
+//   "direct" O(N^2) RPY sums (rpy::DirectRpy), open geometry
+//   "fmm"    FMM-accelerated RPY, open geometry            (not available yet)
+//   "pse"    Positively Split Ewald, periodic geometry      (not available yet)
+//   "auto"   open: direct below `fmm_crossover` particles, fmm above (direct
+//            while fmm is unavailable); periodic: pse (not available yet)
+//
+// Methods that are not built yet throw rpyfmm::Error(not_supported) naming them.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <string>
+
+#include "rpyfmm/rpy/geometry.hpp"
+#include "rpyfmm/rpy/mobility.hpp"
+
+namespace rpyfmm::bd {
+
+enum class MobilityMethod { none, direct, fmm, pse, automatic };
+
+const char* to_string(MobilityMethod method);
+/// "none" | "direct" | "fmm" | "pse" | "auto"; throws naming the value otherwise.
+MobilityMethod mobility_method_from_string(const std::string& name);
+
+struct MobilitySpec {
+  MobilityMethod method = MobilityMethod::automatic;
+  /// Relative accuracy of the product M F (used by fmm and pse; direct is exact). In (0, 1).
+  double tolerance = 1e-3;
+  /// Solvent viscosity eta (> 0).
+  double viscosity = 1.0;
+  rpy::Geometry geometry = rpy::Geometry::open();
+  /// "auto" switches from direct to fmm at this many particles (open geometry).
+  std::size_t fmm_crossover = 3000;
+};
+
+/// True when `method` can be built in this build of the library.
+bool mobility_method_available(MobilityMethod method);
+
+/// Builds the operator for `spec` and `n_particles` (used by "auto"). Throws
+/// rpyfmm::Error: invalid_argument for bad tolerance/viscosity, not_supported for a
+/// method unavailable here or in this geometry.
+std::unique_ptr<rpy::MobilityOperator> make_mobility(const MobilitySpec& spec, std::size_t n_particles);
+
+}  // namespace rpyfmm::bd

@@ -1,0 +1,28 @@
+// rpyfmm::bd — initial configurations: random suspensions at volume fraction
+// phi (random sequential addition without overlaps), simple cubic lattices,
+// bead-spring chains (self-avoiding random walks), clusters, or a file.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <vector>
+
+#include "rpyfmm/bd/config.hpp"
+#include "rpyfmm/bd/force_field.hpp"
+
+namespace rpyfmm::bd {
+
+struct InitialState {
+  std::vector<double> positions;      ///< 3N
+  std::vector<std::uint32_t> types;   ///< N
+  std::vector<Bond> bonds;            ///< chains: consecutive beads (bond type 0)
+};
+
+/// Generates or reads the particles of `config` (types resolved by name in `forces`).
+/// Throws naming the [particles] key that makes it impossible (e.g. phi too high).
+InitialState make_particles(const RunConfig& config, const ForceField& forces);
+
+/// Reads rows "x y z [type]" ('#' comments); type = index or type name.
+InitialState read_particle_file(const std::filesystem::path& path, const ForceField& forces);
+
+}  // namespace rpyfmm::bd

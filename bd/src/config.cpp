@@ -1,0 +1,415 @@
+// TOML config parsing with toml++ 3.3 used header-only (TOML_HEADER_ONLY is its
+// default): no link dependency leaks into the installed rpyfmm::bd target.
+#include "rpyfmm/bd/config.hpp"
+
+#include <toml++/toml.h>
+
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "rpyfmm/core/validate.hpp"
+
+namespace rpyfmm::bd {
+
+namespace {
+
+[[noreturn]] void bad_key(const std::string& key, const std::string& what) {
+  fail(ErrorCode::invalid_argument, "config", "key '" + key + "' " + what);
+}
+
+std::string num(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+/// One TOML table, read key by key; finish() rejects keys nobody asked for.
+class Section {
+ public:
+  Section(const toml::table* table, std::string name) : table_(table), name_(std::move(name)) {}
+
+  std::string key(const std::string& k) const { return name_.empty() ? k : name_ + "." + k; }
+  bool has(const std::string& k) const { return table_ && table_->contains(k); }
+
+  const toml::node* node(const std::string& k) {
+    used_.insert(k);
+    return table_ ? table_->get(k) : nullptr;
+  }
+  double number(const std::string& k, std::optional<double> fallback = std::nullopt) {
+    const toml::node* n = node(k);
+    if (!n) {
+      if (!fallback) bad_key(key(k), "is missing (required)");
+      return *fallback;
+    }
+    if (!n->is_number()) bad_key(key(k), "must be a number");
+    const double v = n->value<double>().value();
+    if (!std::isfinite(v)) bad_key(key(k), "must be finite, got " + num(v));
+    return v;
+  }
+  double positive(const std::string& k, std::optional<double> fallback = std::nullopt) {
+    const double v = number(k, fallback);
+    if (!(v > 0.0)) bad_key(key(k), "must be > 0, got " + num(v));
+    return v;
+  }
+  double non_negative(const std::string& k, double fallback) {
+    const double v = number(k, fallback);
+    if (v < 0.0) bad_key(key(k), "must be >= 0, got " + num(v));
+    return v;
+  }
+  std::uint64_t count(const std::string& k, std::optional<std::uint64_t> fallback = std::nullopt) {
+    const toml::node* n = node(k);
+    if (!n) {
+      if (!fallback) bad_key(key(k), "is missing (required)");
+      return *fallback;
+    }
+    if (!n->is_integer()) bad_key(key(k), "must be an integer");
+    const std::int64_t v = n->value<std::int64_t>().value();
+    if (v < 0) bad_key(key(k), "must be >= 0, got " + std::to_string(v));
+    return static_cast<std::uint64_t>(v);
+  }
+  std::string string(const std::string& k, std::optional<std::string> fallback = std::nullopt) {
+    const toml::node* n = node(k);
+    if (!n) {
+      if (!fallback) bad_key(key(k), "is missing (required)");
+      return *fallback;
+    }
+    if (!n->is_string()) bad_key(key(k), "must be a string");
+    return n->value<std::string>().value();
+  }
+  bool boolean(const std::string& k, bool fallback) {
+    const toml::node* n = node(k);
+    if (!n) return fallback;
+    if (!n->is_boolean()) bad_key(key(k), "must be true or false");
+    return n->value<bool>().value();
+  }
+  std::array<double, 3> vec3(const std::string& k, std::array<double, 3> fallback) {
+    const toml::node* n = node(k);
+    if (!n) return fallback;
+    const toml::array* a = n->as_array();
+    if (!a || a->size() != 3) bad_key(key(k), "must be an array of 3 numbers");
+    std::array<double, 3> v{};
+    for (std::size_t c = 0; c < 3; ++c) {
+      if (!(*a)[c].is_number()) bad_key(key(k), "must be an array of 3 numbers");
+      v[c] = (*a)[c].value<double>().value();
+      if (!std::isfinite(v[c])) bad_key(key(k), "must be finite");
+    }
+    return v;
+  }
+  std::vector<std::string> strings(const std::string& k) {
+    const toml::node* n = node(k);
+    if (!n) return {};
+    if (n->is_string()) return {n->value<std::string>().value()};
+    const toml::array* a = n->as_array();
+    if (!a) bad_key(key(k), "must be a string or an array of strings");
+    std::vector<std::string> v;
+    for (const auto& e : *a) {
+      if (!e.is_string()) bad_key(key(k), "must be an array of strings");
+      v.push_back(e.value<std::string>().value());
+    }
+    return v;
+  }
+  void finish() const {
+    if (!table_) return;
+    for (const auto& [k, v] : *table_) {
+      const std::string s(k.str());
+      if (!used_.count(s)) bad_key(key(s), "is unknown (see docs/bd-config.md)");
+    }
+  }
+
+ private:
+  const toml::table* table_;
+  std::string name_;
+  std::set<std::string> used_;
+};
+
+const toml::table* sub_table(const toml::table& root, const std::string& name) {
+  const toml::node* n = root.get(name);
+  if (!n) return nullptr;
+  if (!n->is_table()) bad_key(name, "must be a table ([" + name + "])");
+  return n->as_table();
+}
+
+std::vector<const toml::table*> table_array(const toml::table& root, const std::string& name) {
+  const toml::node* n = root.get(name);
+  if (!n) return {};
+  const toml::array* a = n->as_array();
+  if (!a) bad_key(name, "must be an array of tables ([[" + name + "]])");
+  std::vector<const toml::table*> out;
+  for (const auto& e : *a) {
+    if (!e.is_table()) bad_key(name, "must be an array of tables ([[" + name + "]])");
+    out.push_back(e.as_table());
+  }
+  return out;
+}
+
+}  // namespace
+
+RunConfig parse_config(std::string_view text, const std::string& source) {
+  toml::table root;
+  try {
+    root = toml::parse(text, source);
+  } catch (const toml::parse_error& e) {
+    std::ostringstream msg;
+    msg << source << ":" << e.source().begin.line << ":" << e.source().begin.column << ": " << e.description();
+    fail(ErrorCode::invalid_input, "config", msg.str());
+  }
+  RunConfig c;
+  c.text = std::string(text);
+  c.source = source;
+  static const std::set<std::string> sections{"system", "types", "particles", "pair", "bonds",
+                                              "external", "integrator", "mobility", "neighbours", "output"};
+  for (const auto& [k, v] : root) {
+    if (!sections.count(std::string(k.str())))
+      bad_key(std::string(k.str()), "is unknown (sections: system, types, particles, pair, bonds, external, "
+                                    "integrator, mobility, neighbours, output)");
+  }
+
+  {  // [system]
+    Section s(sub_table(root, "system"), "system");
+    const std::string geometry = s.string("geometry", "open");
+    c.viscosity = s.positive("viscosity", 1.0);
+    c.integrator.kT = s.non_negative("kT", 1.0);
+    if (geometry == "periodic") {
+      if (!s.has("box")) bad_key("system.box", "is missing (required for a periodic geometry)");
+      const auto box = s.vec3("box", {0, 0, 0});
+      for (int d = 0; d < 3; ++d)
+        if (!(box[d] > 0)) bad_key("system.box", "entries must be > 0");
+      c.geometry = rpy::Geometry::periodic(box[0], box[1], box[2]);
+    } else if (geometry == "open") {
+      if (s.has("box")) bad_key("system.box", "is only allowed with geometry = \"periodic\"");
+      c.geometry = rpy::Geometry::open();
+    } else {
+      bad_key("system.geometry", "must be \"open\" or \"periodic\", got \"" + geometry + "\"");
+    }
+    s.finish();
+  }
+  {  // [[types]]
+    const auto tables = table_array(root, "types");
+    if (!tables.empty()) c.types.clear();
+    for (std::size_t t = 0; t < tables.size(); ++t) {
+      Section s(tables[t], "types[" + std::to_string(t) + "]");
+      ParticleType p;
+      p.name = s.string("name");
+      p.radius = s.positive("radius", 1.0);
+      p.external_force = s.vec3("external_force", {0, 0, 0});
+      p.surface_potential = s.number("surface_potential", 0.0);
+      for (const auto& q : c.types)
+        if (q.name == p.name) bad_key(s.key("name"), "repeats type name '" + p.name + "'");
+      c.types.push_back(p);
+      s.finish();
+    }
+  }
+  auto check_type = [&](const std::string& key, const std::string& name) {
+    for (const auto& t : c.types)
+      if (t.name == name) return;
+    bad_key(key, "names unknown type '" + name + "'");
+  };
+  {  // [particles]
+    const toml::table* t = sub_table(root, "particles");
+    if (!t) bad_key("particles", "is missing (required section)");
+    Section s(t, "particles");
+    ParticleSpec& p = c.particles;
+    const std::string source_name = s.string("source");
+    p.types = s.strings("types");
+    for (const auto& name : p.types) check_type("particles.types", name);
+    p.seed = s.count("seed", 1);
+    if (source_name == "file") {
+      p.source = ParticleSpec::Source::file;
+      p.file = s.string("file");
+    } else if (source_name == "random" || source_name == "lattice") {
+      p.source = source_name == "random" ? ParticleSpec::Source::random : ParticleSpec::Source::lattice;
+      p.count = s.count("count");
+      if (p.count < 1) bad_key("particles.count", "must be >= 1");
+      if (c.geometry.is_periodic()) {  // the box sets the region
+        if (s.has("volume_fraction")) bad_key("particles.volume_fraction", "is only used in open geometry (the box sets the density)");
+      } else {
+        p.volume_fraction = s.positive("volume_fraction", 0.05);
+      }
+    } else if (source_name == "chains") {
+      p.source = ParticleSpec::Source::chains;
+      p.chains = s.count("chains");
+      p.beads = s.count("beads");
+      if (p.chains < 1 || p.beads < 1) bad_key("particles.chains", "and particles.beads must be >= 1");
+      p.bond_length = s.non_negative("bond_length", 0.0);
+      p.volume_fraction = s.positive("volume_fraction", 0.01);
+    } else if (source_name == "clusters") {
+      p.source = ParticleSpec::Source::clusters;
+      p.clusters = s.count("clusters");
+      p.cluster_size = s.count("cluster_size");
+      if (p.clusters < 1 || p.cluster_size < 1) bad_key("particles.clusters", "and cluster_size must be >= 1");
+      p.volume_fraction = s.positive("volume_fraction", 0.02);
+      p.cluster_volume_fraction = s.positive("cluster_volume_fraction", 0.3);
+      if (p.cluster_volume_fraction > 0.4) bad_key("particles.cluster_volume_fraction", "must be <= 0.4");
+    } else {
+      bad_key("particles.source", "must be file, random, lattice, chains or clusters, got \"" + source_name + "\"");
+    }
+    if (p.volume_fraction > 0.45) bad_key("particles.volume_fraction", "must be <= 0.45, got " + num(p.volume_fraction));
+    s.finish();
+  }
+  {  // [[pair]]
+    const auto tables = table_array(root, "pair");
+    for (std::size_t k = 0; k < tables.size(); ++k) {
+      Section s(tables[k], "pair[" + std::to_string(k) + "]");
+      NamedPair np;
+      const auto names = s.strings("types");
+      if (names.size() != 2) bad_key(s.key("types"), "must name two particle types, e.g. [\"A\", \"A\"]");
+      check_type(s.key("types"), names[0]);
+      check_type(s.key("types"), names[1]);
+      np.type1 = names[0];
+      np.type2 = names[1];
+      try {
+        np.potential.kind = pair_kind_from_string(s.string("kind"));
+      } catch (const Error&) {
+        bad_key(s.key("kind"), "must be lj36_18, wca, soft or dlvo");
+      }
+      np.potential.epsilon = s.positive("epsilon", 1.0);
+      np.potential.sigma = s.non_negative("sigma", 0.0);
+      np.potential.cutoff = s.non_negative("cutoff", 0.0);
+      np.potential.min_distance_fraction = s.positive("min_distance_fraction", 0.8);
+      if (np.potential.min_distance_fraction > 1.0) bad_key(s.key("min_distance_fraction"), "must be <= 1");
+      if (np.potential.kind == PairKind::dlvo) {
+        np.potential.hamaker = s.non_negative("hamaker", 0.0);
+        np.potential.permittivity = s.non_negative("permittivity", 0.0);
+        np.potential.kappa = s.positive("kappa");
+      }
+      c.pairs.push_back(np);
+      s.finish();
+    }
+  }
+  if (const toml::table* t = sub_table(root, "bonds")) {  // [bonds]
+    Section s(t, "bonds");
+    BondPotential b;
+    try {
+      b.kind = bond_kind_from_string(s.string("kind"));
+    } catch (const Error&) {
+      bad_key("bonds.kind", "must be harmonic or fene");
+    }
+    b.k = s.positive("k");
+    b.length = b.kind == BondKind::fene ? s.positive("length") : s.non_negative("length", 0.0);
+    c.chain_bond = b;
+    s.finish();
+  }
+  if (c.particles.source == ParticleSpec::Source::chains && !c.chain_bond)
+    bad_key("bonds", "is missing (required with particles.source = \"chains\")");
+  {  // [external]
+    Section s(sub_table(root, "external"), "external");
+    c.external_force = s.vec3("force", {0, 0, 0});
+    s.finish();
+  }
+  {  // [integrator]
+    const toml::table* t = sub_table(root, "integrator");
+    if (!t) bad_key("integrator", "is missing (required section with dt and steps)");
+    Section s(t, "integrator");
+    c.integrator.dt = s.positive("dt");
+    c.steps = s.count("steps");
+    c.integrator.seed = s.count("seed", 1);
+    c.integrator.max_displacement = s.positive("max_displacement", 0.5);
+    c.integrator.keep_split_displacements = s.boolean("split_displacements", false);
+    s.finish();
+  }
+  {  // [mobility]
+    Section s(sub_table(root, "mobility"), "mobility");
+    try {
+      c.mobility.method = mobility_method_from_string(s.string("method", "auto"));
+    } catch (const Error&) {
+      bad_key("mobility.method", "must be none, direct, fmm, pse or auto");
+    }
+    c.mobility.tolerance = s.positive("tolerance", 1e-3);
+    if (c.mobility.tolerance >= 0.5) bad_key("mobility.tolerance", "must be < 0.5");
+    c.mobility.viscosity = c.viscosity;
+    c.mobility.geometry = c.geometry;
+    try {
+      c.integrator.sqrt.method = rpy::sqrt_method_from_string(s.string("sqrt_method", "automatic"));
+    } catch (const Error&) {
+      bad_key("mobility.sqrt_method", "must be automatic, lanczos, chebyshev, cholesky, eigen or split");
+    }
+    c.integrator.sqrt.tolerance = s.positive("sqrt_tolerance", c.mobility.tolerance);
+    if (c.integrator.sqrt.tolerance >= 1.0) bad_key("mobility.sqrt_tolerance", "must be < 1");
+    c.integrator.sqrt.max_iterations = static_cast<int>(s.count("sqrt_max_iterations", 0));
+    s.finish();
+  }
+  {  // [neighbours]
+    Section s(sub_table(root, "neighbours"), "neighbours");
+    c.neighbours.skin = s.non_negative("skin", 0.0);
+    c.neighbours.fixed_interval = static_cast<int>(s.count("fixed_interval", 0));
+    s.finish();
+  }
+  {  // [output]
+    Section s(sub_table(root, "output"), "output");
+    c.output.dir = s.string("dir", "bd-out");
+    c.output.trajectory = s.string("trajectory", "trajectory.xyz");
+    c.output.log = s.string("log", "log.csv");
+    c.output.checkpoint = s.string("checkpoint", "checkpoint.bin");
+    c.output.trajectory_every = s.count("trajectory_every", 100);
+    c.output.log_every = s.count("log_every", 10);
+    c.output.checkpoint_every = s.count("checkpoint_every", 1000);
+    for (const auto* name : {&c.output.trajectory, &c.output.log, &c.output.checkpoint})
+      if (name->empty() || name->find('/') != std::string::npos)
+        bad_key("output", "file names must be plain names inside output.dir");
+    s.finish();
+  }
+  return c;
+}
+
+RunConfig load_config(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail(ErrorCode::io_error, "config", "cannot read '" + path.string() + "'");
+  std::ostringstream s;
+  s << in.rdbuf();
+  return parse_config(s.str(), path.string());
+}
+
+std::string_view demo_config_text() {
+  return R"(# rpyfmm bd built-in demo: a cloud of 2000 spheres sedimenting under gravity
+# with hydrodynamic interactions (direct RPY). The cloud falls faster than a
+# single sphere (collective drag reduction) and slowly loses particles from its tail.
+[system]
+geometry = "open"
+viscosity = 1.0
+kT = 1.0
+
+[[types]]
+name = "sphere"
+radius = 1.0
+external_force = [0.0, 0.0, -5.0]   # buoyant weight
+
+[particles]
+source = "random"          # a spherical cloud... generated as a random suspension
+count = 2000
+volume_fraction = 0.05
+seed = 1
+
+[[pair]]
+types = ["sphere", "sphere"]
+kind = "wca"               # short-range repulsion keeps spheres apart
+epsilon = 1.0
+
+[integrator]
+dt = 0.02
+steps = 200
+seed = 2024
+max_displacement = 0.5
+
+[mobility]
+method = "direct"          # switch to "fmm" (or "auto") once available
+tolerance = 1e-3
+
+[output]
+dir = "bd-demo"
+trajectory_every = 20
+log_every = 10
+checkpoint_every = 100
+)";
+}
+
+ForceField make_force_field(const RunConfig& config) {
+  ForceField ff(config.types);
+  for (const auto& p : config.pairs) ff.set_pair(ff.type_index(p.type1), ff.type_index(p.type2), p.potential);
+  ff.set_global_force(config.external_force);
+  if (config.chain_bond) ff.add_bond_potential(*config.chain_bond);
+  return ff;
+}
+
+}  // namespace rpyfmm::bd

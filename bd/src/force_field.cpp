@@ -1,0 +1,221 @@
+#include "rpyfmm/bd/force_field.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "rpyfmm/core/validate.hpp"
+
+namespace rpyfmm::bd {
+
+ForceField::ForceField(std::vector<ParticleType> types) : types_(std::move(types)) {
+  require(!types_.empty(), ErrorCode::invalid_argument, "ForceField", "at least one particle type is needed");
+  for (std::size_t t = 0; t < types_.size(); ++t) {
+    const std::string where = "particle type '" + types_[t].name + "'";
+    require_positive(types_[t].radius, where, "radius");
+    for (double f : types_[t].external_force)
+      require(std::isfinite(f), ErrorCode::invalid_argument, where, "external_force must be finite");
+    require(std::isfinite(types_[t].surface_potential), ErrorCode::invalid_argument, where,
+            "surface_potential must be finite");
+    for (std::size_t u = 0; u < t; ++u)
+      require(types_[u].name != types_[t].name, ErrorCode::invalid_argument, where, "type name used twice");
+  }
+  pairs_.assign(types_.size() * types_.size(), PairTerm{});
+}
+
+std::uint32_t ForceField::type_index(const std::string& name) const {
+  for (std::size_t t = 0; t < types_.size(); ++t)
+    if (types_[t].name == name) return static_cast<std::uint32_t>(t);
+  fail(ErrorCode::invalid_argument, "particle type", "unknown type '" + name + "'");
+}
+
+void ForceField::set_pair(std::uint32_t t1, std::uint32_t t2, const PairPotential& potential) {
+  require(t1 < types_.size() && t2 < types_.size(), ErrorCode::invalid_argument, "ForceField::set_pair",
+          "type index out of range");
+  const auto& a = types_[t1];
+  const auto& b = types_[t2];
+  const PairTerm term = resolve_pair(potential, a.radius, b.radius, a.surface_potential, b.surface_potential);
+  pairs_[t1 * types_.size() + t2] = term;
+  PairTerm mirrored = term;
+  std::swap(mirrored.ai, mirrored.aj);
+  pairs_[t2 * types_.size() + t1] = mirrored;
+}
+
+std::uint32_t ForceField::add_bond_potential(const BondPotential& potential) {
+  const std::string where = std::string("bond potential ") + to_string(potential.kind);
+  require_positive(potential.k, where, "k");
+  if (potential.kind == BondKind::fene) {
+    require_positive(potential.length, where, "length (maximum extension R0)");
+  } else {
+    require(std::isfinite(potential.length) && potential.length >= 0.0, ErrorCode::invalid_argument, where,
+            "length (rest length) must be finite and >= 0");
+  }
+  bond_potentials_.push_back(potential);
+  return static_cast<std::uint32_t>(bond_potentials_.size() - 1);
+}
+
+void ForceField::add_bonds(std::span<const Bond> bonds) {
+  for (const Bond& b : bonds) {
+    require(b.type < bond_potentials_.size(), ErrorCode::invalid_argument, "ForceField::add_bonds",
+            "bond (" + std::to_string(b.i) + ", " + std::to_string(b.j) + ") has unknown bond type " +
+                std::to_string(b.type));
+    require(b.i != b.j, ErrorCode::invalid_input, "ForceField::add_bonds",
+            "bond joins particle " + std::to_string(b.i) + " to itself");
+  }
+  bonds_.insert(bonds_.end(), bonds.begin(), bonds.end());
+  bond_index_valid_ = false;
+}
+
+void ForceField::set_global_force(const std::array<double, 3>& force) {
+  for (double f : force)
+    require(std::isfinite(f), ErrorCode::invalid_argument, "ForceField::set_global_force", "force must be finite");
+  global_force_ = force;
+}
+
+void ForceField::add_callback(ForceCallback callback) {
+  require(static_cast<bool>(callback), ErrorCode::invalid_argument, "ForceField::add_callback", "empty callback");
+  callbacks_.push_back(std::move(callback));
+}
+
+double ForceField::max_cutoff() const {
+  double rc = 0.0;
+  for (const auto& p : pairs_)
+    if (p.active) rc = std::max(rc, p.cutoff);
+  return rc;
+}
+
+void ForceField::check(std::span<const std::uint32_t> particle_types) const {
+  for (std::size_t i = 0; i < particle_types.size(); ++i) {
+    require(particle_types[i] < types_.size(), ErrorCode::invalid_input, "particles",
+            "particle " + std::to_string(i) + " has type index " + std::to_string(particle_types[i]) +
+                " but only " + std::to_string(types_.size()) + " types are defined");
+  }
+  for (const Bond& b : bonds_) {
+    require(b.i < particle_types.size() && b.j < particle_types.size(), ErrorCode::invalid_input, "bonds",
+            "bond (" + std::to_string(b.i) + ", " + std::to_string(b.j) + ") refers to a particle >= N = " +
+                std::to_string(particle_types.size()));
+  }
+}
+
+void ForceField::rebuild_bond_index(std::size_t n) const {
+  bond_offsets_.assign(n + 1, 0);
+  for (const Bond& b : bonds_) {
+    ++bond_offsets_[b.i + 1];
+    ++bond_offsets_[b.j + 1];
+  }
+  for (std::size_t i = 0; i < n; ++i) bond_offsets_[i + 1] += bond_offsets_[i];
+  bond_entries_.assign(bond_offsets_[n], 0);
+  std::vector<std::size_t> fill(bond_offsets_.begin(), bond_offsets_.end() - 1);
+  for (std::size_t k = 0; k < bonds_.size(); ++k) {  // bond order: deterministic summation order
+    bond_entries_[fill[bonds_[k].i]++] = static_cast<std::uint32_t>(k);
+    bond_entries_[fill[bonds_[k].j]++] = static_cast<std::uint32_t>(k);
+  }
+  bond_index_n_ = n;
+  bond_index_valid_ = true;
+}
+
+namespace {
+std::string fmt_double(double v) {
+  std::ostringstream s;
+  s.precision(6);
+  s << v;
+  return s.str();
+}
+
+// Lowest bad particle index found by any thread (deterministic error messages).
+void record_bad(std::atomic<std::size_t>& bad, std::size_t i) {
+  std::size_t cur = bad.load(std::memory_order_relaxed);
+  while (i < cur && !bad.compare_exchange_weak(cur, i, std::memory_order_relaxed)) {
+  }
+}
+}  // namespace
+
+double ForceField::compute(std::span<const double> x, std::span<const std::uint32_t> ptype,
+                           const NeighbourList& list, std::uint64_t step, std::span<double> forces) const {
+  const std::size_t n = ptype.size();
+  require(x.size() == 3 * n && forces.size() == 3 * n, ErrorCode::invalid_input, "ForceField::compute",
+          "positions, types and forces disagree on N");
+  const double rc = max_cutoff();
+  require(rc == 0.0 || (list.size() == n && list.cutoff() >= rc), ErrorCode::invalid_input, "ForceField::compute",
+          "neighbour list is not built for these particles and cutoffs");
+  if (!bond_index_valid_ || bond_index_n_ != n) rebuild_bond_index(n);
+  const std::size_t nt = types_.size();
+  constexpr std::size_t none = std::numeric_limits<std::size_t>::max();
+  std::atomic<std::size_t> bad_pair{none}, bad_bond{none};
+  double energy = 0.0;
+#pragma omp parallel for schedule(dynamic, 256) reduction(+ : energy) if (n >= 1024)
+  for (std::size_t i = 0; i < n; ++i) {
+    const ParticleType& ti = types_[ptype[i]];
+    double f[3] = {ti.external_force[0] + global_force_[0], ti.external_force[1] + global_force_[1],
+                   ti.external_force[2] + global_force_[2]};
+    double e = 0.0;
+    if (rc > 0.0) {
+      for (std::uint32_t j : list.neighbours(i)) {
+        const PairTerm& p = pairs_[ptype[i] * nt + ptype[j]];
+        if (!p.active) continue;
+        double d[3];
+        list.separation(&x[3 * i], &x[3 * j], d);
+        const double r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        if (r2 >= p.cutoff * p.cutoff) continue;
+        if (r2 <= p.min_distance * p.min_distance || r2 == 0.0) {
+          record_bad(bad_pair, i);
+          continue;
+        }
+        const EnergyForce ef = evaluate_pair(p, std::sqrt(r2));
+        e += 0.5 * ef.energy;  // each pair is visited from both sides
+        for (int c = 0; c < 3; ++c) f[c] += ef.s * d[c];
+      }
+    }
+    for (std::size_t k = bond_offsets_[i]; k < bond_offsets_[i + 1]; ++k) {
+      const Bond& b = bonds_[bond_entries_[k]];
+      const BondPotential& bp = bond_potentials_[b.type];
+      const std::uint32_t j = b.i == i ? b.j : b.i;
+      double d[3];
+      list.separation(&x[3 * i], &x[3 * j], d);
+      const double r = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+      if (r == 0.0 || (bp.kind == BondKind::fene && r >= bp.length)) {
+        record_bad(bad_bond, bond_entries_[k]);
+        continue;
+      }
+      const EnergyForce ef = evaluate_bond(bp, r);
+      e += 0.5 * ef.energy;
+      for (int c = 0; c < 3; ++c) f[c] += ef.s * d[c];
+    }
+    for (int c = 0; c < 3; ++c) forces[3 * i + c] = f[c];
+    energy += e;
+  }
+  if (bad_pair.load() != none) {
+    const std::size_t i = bad_pair.load();
+    for (std::uint32_t j : list.neighbours(i)) {
+      const PairTerm& p = pairs_[ptype[i] * nt + ptype[j]];
+      if (!p.active) continue;
+      double d[3];
+      list.separation(&x[3 * i], &x[3 * j], d);
+      const double r = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+      if (r <= p.min_distance || r == 0.0) {
+        fail(ErrorCode::invalid_input, "forces",
+             "particles " + std::to_string(i) + " and " + std::to_string(j) + " overlap at step " +
+                 std::to_string(step) + ": distance " + fmt_double(r) + " <= " + fmt_double(p.min_distance) +
+                 " allowed by the hard '" + to_string(p.kind) + "' potential (sigma " + fmt_double(p.sigma) + ")");
+      }
+    }
+  }
+  if (bad_bond.load() != none) {
+    const Bond& b = bonds_[bad_bond.load()];
+    double d[3];
+    list.separation(&x[3 * b.i], &x[3 * b.j], d);
+    const double r = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    fail(ErrorCode::invalid_input, "forces",
+         "bond " + std::to_string(bad_bond.load()) + " between particles " + std::to_string(b.i) + " and " +
+             std::to_string(b.j) + " at step " + std::to_string(step) +
+             (r == 0.0 ? " joins coincident particles"
+                       : " is stretched to " + fmt_double(r) + " >= FENE maximum extension " +
+                             fmt_double(bond_potentials_[b.type].length)));
+  }
+  for (const auto& cb : callbacks_) cb(x, step, forces);
+  return energy;
+}
+
+}  // namespace rpyfmm::bd

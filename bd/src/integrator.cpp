@@ -1,0 +1,126 @@
+#include "rpyfmm/bd/integrator.hpp"
+
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/rpy/random.hpp"
+
+namespace rpyfmm::bd {
+
+namespace {
+NeighbourList make_list(const rpy::MobilityOperator* m, const ForceField& f, const NeighbourOptions& o) {
+  require(m != nullptr, ErrorCode::invalid_argument, "Integrator", "no mobility operator given");
+  return NeighbourList(m->geometry(), f.max_cutoff(), o);
+}
+}  // namespace
+
+Integrator::Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceField forces, IntegratorOptions options,
+                       std::vector<double> positions, std::vector<std::uint32_t> types, NeighbourOptions neighbours,
+                       std::uint64_t first_step)
+    : mobility_(std::move(mobility)), forces_(std::move(forces)), options_(options), x_(std::move(positions)),
+      types_(std::move(types)), list_(make_list(mobility_.get(), forces_, neighbours)), step_(first_step) {
+  const char* where = "Integrator";
+  require_positive(options_.dt, where, "dt");
+  require(std::isfinite(options_.kT) && options_.kT >= 0.0, ErrorCode::invalid_argument, where,
+          "kT must be finite and >= 0, got " + std::to_string(options_.kT));
+  require_positive(options_.max_displacement, where, "max_displacement");
+  const std::size_t n = types_.size();
+  require(n >= 1, ErrorCode::invalid_input, where, "no particles (N = 0)");
+  require(x_.size() == 3 * n, ErrorCode::invalid_input, where,
+          "positions has " + std::to_string(x_.size()) + " entries, expected 3N = " + std::to_string(3 * n));
+  require_finite(x_, where, "positions", 3);
+  forces_.check(types_);
+  radii_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) radii_[i] = forces_.types()[types_[i]].radius;
+  f_.assign(3 * n, 0.0);
+  u_.assign(3 * n, 0.0);
+  w_.assign(3 * n, 0.0);
+  dx_.assign(3 * n, 0.0);
+  if (options_.kT > 0.0) z_.assign(3 * n, 0.0);
+  for (const char* part : {"neighbours", "forces", "plan", "drift", "sqrt", "update"}) totals_.seconds[part] = 0.0;
+}
+
+const StepReport& Integrator::step() {
+  const std::size_t n = size();
+  StepReport rep;
+  StopWatch watch;
+  // 1. Neighbour list, rebuilt only when needed (001 Algorithm 1).
+  rep.neighbour_rebuild = list_.update(x_);
+  totals_.seconds["neighbours"] += watch.seconds();
+  watch.restart();
+  // 2. Forces.
+  rep.potential_energy = forces_.compute(x_, types_, list_, step_, f_);
+  totals_.seconds["forces"] += watch.seconds();
+  watch.restart();
+  // 3. Mobility plan, built once per step.
+  mobility_->set_positions(x_, radii_);
+  totals_.seconds["plan"] += watch.seconds();
+  // 4. u = M F and w = M^{1/2} z (MATH.md §4), z keyed by (seed, step, particle).
+  if (options_.kT > 0.0) rpy::fill_normal(z_, options_.seed, step_);
+  const DriftNoiseReport dn = drift_and_noise(*mobility_, f_, z_, u_, w_, options_.sqrt);
+  totals_.seconds["drift"] += dn.seconds_drift;
+  totals_.seconds["sqrt"] += dn.seconds_sqrt;
+  rep.sqrt_iterations = dn.sqrt.iterations;
+  rep.mobility_products = dn.mobility_products;
+  rep.shared_first_product = dn.shared_first_product;
+  watch.restart();
+  // 5. dx = M F dt + sqrt(2 kT dt) M^{1/2} z, then the blow-up guard.
+  const double dt = options_.dt;
+  const double noise = std::sqrt(2.0 * options_.kT * dt);
+  const bool brownian = options_.kT > 0.0;
+  constexpr std::size_t none = std::numeric_limits<std::size_t>::max();
+  std::atomic<std::size_t> bad{none};
+  const double frac2 = options_.max_displacement * options_.max_displacement;
+#pragma omp parallel for schedule(static) if (n >= 4096)
+  for (std::size_t i = 0; i < n; ++i) {
+    double d2 = 0.0;
+    for (int c = 0; c < 3; ++c) {
+      const double d = u_[3 * i + c] * dt + (brownian ? noise * w_[3 * i + c] : 0.0);
+      dx_[3 * i + c] = d;
+      d2 += d * d;
+    }
+    if (!(d2 <= frac2 * radii_[i] * radii_[i])) {  // also catches NaN
+      std::size_t cur = bad.load(std::memory_order_relaxed);
+      while (i < cur && !bad.compare_exchange_weak(cur, i, std::memory_order_relaxed)) {
+      }
+    }
+  }
+  if (bad.load() != none) {
+    const std::size_t i = bad.load();
+    const double d = std::sqrt(dx_[3 * i] * dx_[3 * i] + dx_[3 * i + 1] * dx_[3 * i + 1] +
+                               dx_[3 * i + 2] * dx_[3 * i + 2]);
+    std::ostringstream msg;
+    msg << "blow-up at step " << step_ << ": particle " << i << " would move " << d << " > max_displacement ("
+        << options_.max_displacement << ") x radius " << radii_[i]
+        << " in one step (|force| = "
+        << std::sqrt(f_[3 * i] * f_[3 * i] + f_[3 * i + 1] * f_[3 * i + 1] + f_[3 * i + 2] * f_[3 * i + 2])
+        << "); reduce dt or check the forces. State kept at the last good step";
+    fail(ErrorCode::numerical_failure, "bd", msg.str());
+  }
+  if (options_.keep_split_displacements) {
+    dx_det_.resize(3 * n);
+    dx_brown_.resize(3 * n);
+    for (std::size_t k = 0; k < 3 * n; ++k) {
+      dx_det_[k] = u_[k] * dt;
+      dx_brown_[k] = brownian ? noise * w_[k] : 0.0;
+    }
+  }
+#pragma omp parallel for schedule(static) if (n >= 4096)
+  for (std::size_t k = 0; k < 3 * n; ++k) x_[k] += dx_[k];
+  ++step_;
+  totals_.seconds["update"] += watch.seconds();
+  ++totals_.steps;
+  totals_.sqrt_iterations += static_cast<std::uint64_t>(rep.sqrt_iterations);
+  totals_.mobility_products += static_cast<std::uint64_t>(rep.mobility_products);
+  report_ = rep;
+  return report_;
+}
+
+void Integrator::run(std::uint64_t count) {
+  for (std::uint64_t k = 0; k < count; ++k) step();
+}
+
+}  // namespace rpyfmm::bd

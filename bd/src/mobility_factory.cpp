@@ -1,0 +1,83 @@
+#include "rpyfmm/bd/mobility_factory.hpp"
+
+#include "rpyfmm/bd/free_draining.hpp"
+#include "rpyfmm/core/validate.hpp"
+
+#include "rpyfmm/rpy/direct_operator.hpp"
+// LEAD: include the solver headers here as they land, e.g.
+//   #include "rpyfmm/rpy/fmm_operator.hpp"
+//   #include "rpyfmm/rpy/pse_operator.hpp"
+
+namespace rpyfmm::bd {
+
+const char* to_string(MobilityMethod method) {
+  switch (method) {
+    case MobilityMethod::none: return "none";
+    case MobilityMethod::direct: return "direct";
+    case MobilityMethod::fmm: return "fmm";
+    case MobilityMethod::pse: return "pse";
+    case MobilityMethod::automatic: return "auto";
+  }
+  return "unknown";
+}
+
+MobilityMethod mobility_method_from_string(const std::string& name) {
+  for (auto m : {MobilityMethod::none, MobilityMethod::direct, MobilityMethod::fmm, MobilityMethod::pse,
+                 MobilityMethod::automatic}) {
+    if (name == to_string(m)) return m;
+  }
+  fail(ErrorCode::invalid_argument, "mobility method",
+       "unknown method '" + name + "' (expected none, direct, fmm, pse or auto)");
+}
+
+bool mobility_method_available(MobilityMethod method) {
+  switch (method) {
+    case MobilityMethod::none: return true;
+    case MobilityMethod::direct: return true;
+    case MobilityMethod::fmm: return false;     // LEAD: true once the FMM operator lands
+    case MobilityMethod::pse: return false;     // LEAD: true once the PSE operator lands
+    case MobilityMethod::automatic: return true;
+  }
+  return false;
+}
+
+namespace {
+[[noreturn]] void unavailable(MobilityMethod method, const std::string& why) {
+  fail(ErrorCode::not_supported, "make_mobility",
+       std::string("mobility method '") + to_string(method) + "' " + why);
+}
+}  // namespace
+
+std::unique_ptr<rpy::MobilityOperator> make_mobility(const MobilitySpec& spec, std::size_t n_particles) {
+  require_in_range(spec.tolerance, 1e-15, 0.5, "make_mobility", "mobility tolerance");
+  require_positive(spec.viscosity, "make_mobility", "viscosity");
+  MobilityMethod method = spec.method;
+  if (method == MobilityMethod::automatic) {
+    if (spec.geometry.is_periodic()) {
+      method = MobilityMethod::pse;
+    } else if (n_particles >= spec.fmm_crossover && mobility_method_available(MobilityMethod::fmm)) {
+      method = MobilityMethod::fmm;
+    } else {
+      method = MobilityMethod::direct;
+    }
+  }
+  switch (method) {
+    case MobilityMethod::none:
+      return std::make_unique<FreeDrainingMobility>(spec.geometry, spec.viscosity);
+    case MobilityMethod::direct:
+      if (spec.geometry.is_periodic()) unavailable(method, "needs open geometry (use pse for periodic boxes)");
+      return std::make_unique<rpy::DirectRpy>(spec.geometry, spec.viscosity);
+    case MobilityMethod::fmm:
+      if (spec.geometry.is_periodic()) unavailable(method, "needs open geometry (use pse for periodic boxes)");
+      // LEAD: return the FMM operator built with spec.tolerance here.
+      unavailable(method, "is not available in this build yet");
+    case MobilityMethod::pse:
+      if (spec.geometry.is_open()) unavailable(method, "needs a periodic geometry");
+      // LEAD: return the PSE operator built with spec.tolerance here.
+      unavailable(method, "is not available in this build yet");
+    case MobilityMethod::automatic: break;
+  }
+  unavailable(method, "is unknown");
+}
+
+}  // namespace rpyfmm::bd

@@ -1,0 +1,307 @@
+#include "rpyfmm/bd/particles.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <numbers>
+#include <random>
+#include <sstream>
+#include <unordered_map>
+
+#include "rpyfmm/core/validate.hpp"
+
+namespace rpyfmm::bd {
+
+namespace {
+
+constexpr double kGap = 1.02;  // generated particles keep r >= 1.02 (a_i + a_j)
+
+/// Uniform [0, 1) from a 64-bit engine, identical on every platform.
+double uniform(std::mt19937_64& gen) { return static_cast<double>(gen() >> 11) * 0x1.0p-53; }
+
+/// Random point in a ball of radius R (rejection from the cube).
+std::array<double, 3> in_ball(std::mt19937_64& gen, double R) {
+  for (;;) {
+    std::array<double, 3> p{};
+    for (double& v : p) v = (2 * uniform(gen) - 1) * R;
+    if (p[0] * p[0] + p[1] * p[1] + p[2] * p[2] <= R * R) return p;
+  }
+}
+
+/// Spatial hash for overlap tests during random sequential addition.
+class Placer {
+ public:
+  Placer(double max_radius, const rpy::Geometry& g) : cell_(2 * kGap * max_radius), geometry_(g) {}
+  bool fits(std::array<double, 3> p, double a) const {
+    wrap(p);
+    const auto k = key_of(p);
+    for (long dx = -1; dx <= 1; ++dx)
+      for (long dy = -1; dy <= 1; ++dy)
+        for (long dz = -1; dz <= 1; ++dz) {
+          auto it = cells_.find(pack({k[0] + dx, k[1] + dy, k[2] + dz}));
+          if (it == cells_.end()) continue;
+          for (std::size_t j : it->second) {
+            double r2 = 0;
+            for (int c = 0; c < 3; ++c) {
+              double d = p[c] - x_[3 * j + c];
+              if (geometry_.is_periodic()) d -= geometry_.box()[c] * std::nearbyint(d / geometry_.box()[c]);
+              r2 += d * d;
+            }
+            const double contact = kGap * (a + radius_[j]);
+            if (r2 < contact * contact) return false;
+          }
+        }
+    if (geometry_.is_periodic()) return fits_periodic_images(p, a);
+    return true;
+  }
+  void add(std::array<double, 3> p, double a) {
+    wrap(p);
+    cells_[pack(key_of(p))].push_back(radius_.size());
+    x_.insert(x_.end(), p.begin(), p.end());
+    radius_.push_back(a);
+  }
+  std::vector<double>& positions() { return x_; }
+
+ private:
+  void wrap(std::array<double, 3>& p) const {
+    if (!geometry_.is_periodic()) return;
+    for (int c = 0; c < 3; ++c) {
+      const double L = geometry_.box()[c];
+      p[c] -= L * std::floor(p[c] / L);
+      if (p[c] >= L) p[c] = 0.0;
+    }
+  }
+  // Periodic boxes: neighbours across the boundary live in far cells; check them plainly
+  // when p is near a face (cheap: only particles within one cell of the faces).
+  bool fits_periodic_images(const std::array<double, 3>& p, double a) const {
+    const auto& L = geometry_.box();
+    bool near = false;
+    for (int c = 0; c < 3; ++c) near = near || p[c] < cell_ || p[c] > L[c] - cell_;
+    if (!near) return true;
+    for (std::size_t j = 0; j < radius_.size(); ++j) {
+      double r2 = 0;
+      for (int c = 0; c < 3; ++c) {
+        double d = p[c] - x_[3 * j + c];
+        d -= L[c] * std::nearbyint(d / L[c]);
+        r2 += d * d;
+      }
+      const double contact = kGap * (a + radius_[j]);
+      if (r2 < contact * contact) return false;
+    }
+    return true;
+  }
+  std::array<long, 3> key_of(const std::array<double, 3>& p) const {
+    return {static_cast<long>(std::floor(p[0] / cell_)), static_cast<long>(std::floor(p[1] / cell_)),
+            static_cast<long>(std::floor(p[2] / cell_))};
+  }
+  static std::int64_t pack(const std::array<long, 3>& k) {
+    return ((static_cast<std::int64_t>(k[0]) & 0x1FFFFF) << 42) | ((static_cast<std::int64_t>(k[1]) & 0x1FFFFF) << 21) |
+           (static_cast<std::int64_t>(k[2]) & 0x1FFFFF);
+  }
+  double cell_;
+  rpy::Geometry geometry_;
+  std::unordered_map<std::int64_t, std::vector<std::size_t>> cells_;
+  std::vector<double> x_;
+  std::vector<double> radius_;
+};
+
+std::vector<std::uint32_t> assign_types(const RunConfig& c, const ForceField& ff, std::size_t n) {
+  std::vector<std::uint32_t> t(n, 0);
+  if (c.particles.types.empty()) return t;
+  std::vector<std::uint32_t> idx;
+  for (const auto& name : c.particles.types) idx.push_back(ff.type_index(name));
+  for (std::size_t i = 0; i < n; ++i) t[i] = idx[i % idx.size()];
+  return t;
+}
+
+double mean_volume(const ForceField& ff, const std::vector<std::uint32_t>& types) {
+  double v = 0;
+  for (auto t : types) v += 4.0 / 3.0 * std::numbers::pi * std::pow(ff.types()[t].radius, 3);
+  return v;
+}
+
+double max_radius(const ForceField& ff) {
+  double a = 0;
+  for (const auto& t : ff.types()) a = std::max(a, t.radius);
+  return a;
+}
+
+/// Random sequential addition of particles with `types`; `propose` draws a candidate.
+template <class Propose>
+std::vector<double> place(const RunConfig& c, const ForceField& ff, const std::vector<std::uint32_t>& types,
+                          Propose&& propose, const char* key) {
+  Placer placer(max_radius(ff), c.geometry);
+  for (std::size_t i = 0; i < types.size(); ++i) {
+    const double a = ff.types()[types[i]].radius;
+    bool placed = false;
+    for (int attempt = 0; attempt < 20000 && !placed; ++attempt) {
+      const auto p = propose(i, placer.positions());
+      if (placer.fits(p, a)) {
+        placer.add(p, a);
+        placed = true;
+      }
+    }
+    if (!placed)
+      fail(ErrorCode::invalid_argument, "config",
+           std::string("key '") + key + "': could not place particle " + std::to_string(i) +
+               " without overlaps (volume fraction too high for random insertion; lower it)");
+  }
+  return std::move(placer.positions());
+}
+
+}  // namespace
+
+InitialState read_particle_file(const std::filesystem::path& path, const ForceField& forces) {
+  std::ifstream in(path);
+  if (!in) fail(ErrorCode::io_error, "particles.file", "cannot read '" + path.string() + "'");
+  InitialState s;
+  std::string line;
+  std::size_t lineno = 0;
+  while (std::getline(in, line)) {
+    ++lineno;
+    if (auto hash = line.find('#'); hash != std::string::npos) line.resize(hash);
+    std::istringstream row(line);
+    std::vector<std::string> fields;
+    for (std::string f; row >> f;) fields.push_back(f);
+    if (fields.empty()) continue;
+    const std::string where = path.string() + ":" + std::to_string(lineno);
+    if (fields.size() != 3 && fields.size() != 4)
+      fail(ErrorCode::invalid_input, "particles.file", where + ": expected 'x y z [type]', got " +
+                                                           std::to_string(fields.size()) + " fields");
+    for (int c = 0; c < 3; ++c) {
+      std::size_t used = 0;
+      double v = 0;
+      try {
+        v = std::stod(fields[c], &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (used != fields[c].size())
+        fail(ErrorCode::invalid_input, "particles.file", where + ": '" + fields[c] + "' is not a number");
+      if (!std::isfinite(v))
+        fail(ErrorCode::invalid_input, "particles.file",
+             where + ": coordinate " + std::to_string(c) + " of particle " + std::to_string(s.types.size()) +
+                 " is not finite");
+      s.positions.push_back(v);
+    }
+    std::uint32_t type = 0;
+    if (fields.size() == 4) {
+      const std::string& f = fields[3];
+      if (!f.empty() && std::all_of(f.begin(), f.end(), [](char ch) { return ch >= '0' && ch <= '9'; })) {
+        const unsigned long t = std::stoul(f);
+        if (t >= forces.types().size())
+          fail(ErrorCode::invalid_input, "particles.file", where + ": type index " + f + " is not defined");
+        type = static_cast<std::uint32_t>(t);
+      } else {
+        try {
+          type = forces.type_index(f);
+        } catch (const Error&) {
+          fail(ErrorCode::invalid_input, "particles.file", where + ": unknown type '" + f + "'");
+        }
+      }
+    }
+    s.types.push_back(type);
+  }
+  if (s.types.empty()) fail(ErrorCode::invalid_input, "particles.file", "'" + path.string() + "' has no particles");
+  return s;
+}
+
+InitialState make_particles(const RunConfig& c, const ForceField& ff) {
+  const ParticleSpec& p = c.particles;
+  std::mt19937_64 gen(p.seed);
+  InitialState s;
+  const bool periodic = c.geometry.is_periodic();
+  const auto& L = c.geometry.box();
+  switch (p.source) {
+    case ParticleSpec::Source::file: {
+      s = read_particle_file(p.file, ff);
+      break;
+    }
+    case ParticleSpec::Source::random: {
+      s.types = assign_types(c, ff, p.count);
+      // Open: a spherical cloud of radius R with N v / (4/3 pi R^3) = phi.
+      const double R = periodic ? 0.0 : std::cbrt(mean_volume(ff, s.types) / p.volume_fraction * 3.0 / (4.0 * std::numbers::pi));
+      if (periodic) {
+        const double phi = mean_volume(ff, s.types) / c.geometry.volume();
+        if (phi > 0.4)
+          fail(ErrorCode::invalid_argument, "config",
+               "key 'particles.count': " + std::to_string(p.count) + " particles fill " + std::to_string(phi) +
+                   " of the box (max 0.4 for random insertion)");
+      }
+      s.positions = place(c, ff, s.types, [&](std::size_t, const std::vector<double>&) {
+        if (periodic) return std::array<double, 3>{uniform(gen) * L[0], uniform(gen) * L[1], uniform(gen) * L[2]};
+        return in_ball(gen, R);
+      }, "particles.volume_fraction");
+      break;
+    }
+    case ParticleSpec::Source::lattice: {
+      s.types = assign_types(c, ff, p.count);
+      const auto side = static_cast<std::size_t>(std::ceil(std::cbrt(static_cast<double>(p.count)) - 1e-9));
+      std::array<double, 3> h{};
+      for (int d = 0; d < 3; ++d)
+        h[d] = periodic ? L[d] / static_cast<double>(side)
+                        : std::cbrt(mean_volume(ff, s.types) / static_cast<double>(p.count) / p.volume_fraction);
+      const double amax = max_radius(ff);
+      if (*std::min_element(h.begin(), h.end()) < 2 * amax * kGap)
+        fail(ErrorCode::invalid_argument, "config",
+             "key 'particles.count': lattice spacing " + std::to_string(h[0]) + " < 2 a (particles would overlap)");
+      for (std::size_t i = 0; i < p.count; ++i) {
+        const std::size_t ix = i % side, iy = (i / side) % side, iz = i / (side * side);
+        s.positions.insert(s.positions.end(), {(static_cast<double>(ix) + 0.5) * h[0],
+                                               (static_cast<double>(iy) + 0.5) * h[1],
+                                               (static_cast<double>(iz) + 0.5) * h[2]});
+      }
+      break;
+    }
+    case ParticleSpec::Source::chains: {
+      const std::size_t n = p.chains * p.beads;
+      s.types = assign_types(c, ff, n);
+      const double a = max_radius(ff);
+      const double b = p.bond_length > 0 ? p.bond_length : 2.1 * a;
+      if (b < 2 * a * kGap)
+        fail(ErrorCode::invalid_argument, "config", "key 'particles.bond_length' must be >= 2.04 a (beads would overlap)");
+      const double R = periodic ? 0.0 : std::cbrt(mean_volume(ff, s.types) / p.volume_fraction * 3.0 / (4.0 * std::numbers::pi));
+      s.positions = place(c, ff, s.types, [&](std::size_t i, const std::vector<double>& placed) {
+        std::array<double, 3> q{};
+        if (i % p.beads == 0) {
+          q = periodic ? std::array<double, 3>{uniform(gen) * L[0], uniform(gen) * L[1], uniform(gen) * L[2]}
+                       : in_ball(gen, R);
+        } else {  // self-avoiding random walk step of length b
+          const double u = 2 * uniform(gen) - 1, phi = 2 * std::numbers::pi * uniform(gen);
+          const double sxy = std::sqrt(1 - u * u);
+          const double* last = &placed[3 * (i - 1)];
+          q = {last[0] + b * sxy * std::cos(phi), last[1] + b * sxy * std::sin(phi), last[2] + b * u};
+        }
+        return q;
+      }, "particles.volume_fraction");
+      break;
+    }
+    case ParticleSpec::Source::clusters: {
+      const std::size_t n = p.clusters * p.cluster_size;
+      s.types = assign_types(c, ff, n);
+      const double v = mean_volume(ff, s.types) / static_cast<double>(n);
+      const double rc = std::cbrt(static_cast<double>(p.cluster_size) * v / p.cluster_volume_fraction * 3.0 / (4.0 * std::numbers::pi));
+      const double R = periodic ? 0.0 : std::cbrt(static_cast<double>(n) * v / p.volume_fraction * 3.0 / (4.0 * std::numbers::pi));
+      std::vector<std::array<double, 3>> centres(p.clusters);
+      for (auto& ctr : centres)
+        ctr = periodic ? std::array<double, 3>{uniform(gen) * L[0], uniform(gen) * L[1], uniform(gen) * L[2]}
+                       : in_ball(gen, std::max(0.0, R - rc));
+      s.positions = place(c, ff, s.types, [&](std::size_t i, const std::vector<double>&) {
+        auto q = in_ball(gen, rc);
+        const auto& ctr = centres[i / p.cluster_size];
+        for (int d = 0; d < 3; ++d) q[d] += ctr[d];
+        return q;
+      }, "particles.cluster_volume_fraction");
+      break;
+    }
+  }
+  if (p.source == ParticleSpec::Source::chains) {
+    // Bonds between consecutive beads of each chain.
+    for (std::size_t ch = 0; ch < p.chains; ++ch)
+      for (std::size_t k = 1; k < p.beads; ++k)
+        s.bonds.push_back({static_cast<std::uint32_t>(ch * p.beads + k - 1), static_cast<std::uint32_t>(ch * p.beads + k), 0});
+  }
+  return s;
+}
+
+}  // namespace rpyfmm::bd

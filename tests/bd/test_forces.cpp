@@ -1,0 +1,243 @@
+// Potentials, force field and neighbour lists against plain references:
+// finite differences of the energies, brute-force pair sums, O(N^2) pair searches.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "rpyfmm/bd/force_field.hpp"
+#include "rpyfmm/bd/free_draining.hpp"
+#include "rpyfmm/bd/mobility_factory.hpp"
+#include "rpyfmm/bd/neighbour_list.hpp"
+#include "rpyfmm/bd/potentials.hpp"
+#include "rpyfmm/core/error.hpp"
+
+using namespace rpyfmm::bd;
+using rpyfmm::Error;
+using rpyfmm::ErrorCode;
+
+namespace {
+// Central difference of V: -V'(r)/r must equal s. O(h^2) error; h = 1e-6 r gives
+// ~1e-8 relative accuracy for these smooth functions (tolerance 1e-6).
+void expect_consistent(const EnergyForce& at, double r, auto&& energy) {
+  const double h = 1e-6 * r;
+  const double dv = (energy(r + h) - energy(r - h)) / (2 * h);
+  EXPECT_NEAR(at.s, -dv / r, 1e-6 * std::max(1.0, std::abs(at.s))) << "r = " << r;
+}
+
+std::vector<double> random_points(std::size_t n, double box, unsigned seed) {
+  std::mt19937_64 gen(seed);
+  std::uniform_real_distribution<double> u(0.0, box);
+  std::vector<double> x(3 * n);
+  for (double& v : x) v = u(gen);
+  return x;
+}
+}  // namespace
+
+TEST(Potentials, ForcesAreMinusEnergyGradient) {
+  for (PairKind kind : {PairKind::lj36_18, PairKind::wca, PairKind::soft}) {
+    PairPotential p;
+    p.kind = kind;
+    p.epsilon = 14.0;
+    const PairTerm t = resolve_pair(p, 1.0, 1.0, 0.0, 0.0);
+    for (double r : {1.7, 1.9, 2.0, 2.05, 2.2}) {
+      if (r >= t.cutoff) continue;
+      expect_consistent(evaluate_pair(t, r), r, [&](double q) { return evaluate_pair(t, q).energy; });
+    }
+  }
+  // DLVO, 001 Annex 2 in SI units (alumina-silica, radii 200 nm / 50 nm), energies in joules scaled to kT.
+  PairPotential d;
+  d.kind = PairKind::dlvo;
+  d.hamaker = 1.48e-20 / 4.05e-21;
+  d.permittivity = 80 * 8.854e-12 / 4.05e-21 * 1e-9;  // lengths in nm, potentials in V
+  d.kappa = 0.1;                                      // 1/nm
+  const PairTerm t = resolve_pair(d, 200.0, 50.0, 0.045, -0.020);
+  for (double h : {0.5, 2.0, 10.0, 40.0}) {
+    const double r = 250.0 + h;
+    expect_consistent(evaluate_pair(t, r), r, [&](double q) { return evaluate_pair(t, q).energy; });
+  }
+  for (BondKind kind : {BondKind::harmonic, BondKind::fene}) {
+    BondPotential b{kind, 30.0, 1.5};
+    for (double r : {0.5, 1.0, 1.4})
+      expect_consistent(evaluate_bond(b, r), r, [&](double q) { return evaluate_bond(b, q).energy; });
+  }
+}
+
+TEST(Potentials, ClosedFormValues) {
+  PairPotential p;
+  p.kind = PairKind::lj36_18;
+  p.epsilon = 14.0;
+  const PairTerm t = resolve_pair(p, 1.0, 1.0, 0, 0);
+  EXPECT_DOUBLE_EQ(t.sigma, 2.0);                                    // s = d_A, 001 eq. 8
+  EXPECT_NEAR(evaluate_pair(t, 2.0).energy, 0.0, 1e-12);            // V(s) = 0
+  EXPECT_NEAR(evaluate_pair(t, 2.0 * std::pow(2.0, 1.0 / 18)).s, 0.0, 1e-10);  // minimum at 2^(1/18) s
+  PairPotential w;
+  w.kind = PairKind::wca;
+  const PairTerm tw = resolve_pair(w, 1.0, 1.0, 0, 0);
+  EXPECT_NEAR(tw.cutoff, 2.0 * std::pow(2.0, 1.0 / 6), 1e-14);
+  EXPECT_NEAR(evaluate_pair(tw, tw.cutoff * (1 - 1e-12)).energy, 0.0, 1e-9);  // continuous at the cutoff
+  EXPECT_THROW(pair_kind_from_string("lj"), Error);
+  PairPotential bad;
+  bad.epsilon = -1;
+  EXPECT_THROW(resolve_pair(bad, 1, 1, 0, 0), Error);
+}
+
+TEST(NeighbourList, MatchesAllPairsOpenAndPeriodic) {
+  for (bool periodic : {false, true}) {
+    const double box = 20.0, rc = 2.5;
+    auto g = periodic ? rpyfmm::rpy::Geometry::periodic(box) : rpyfmm::rpy::Geometry::open();
+    NeighbourList list(g, rc, {.skin = 0.5});
+    auto x = random_points(600, box, 3);
+    list.build(x);
+    const double rl = rc + 0.5;
+    std::size_t count = 0;
+    for (std::size_t i = 0; i < 600; ++i) {
+      std::vector<std::uint32_t> expected;
+      for (std::size_t j = 0; j < 600; ++j) {
+        if (i == j) continue;
+        double r2 = 0;
+        for (int c = 0; c < 3; ++c) {
+          double d = x[3 * i + c] - x[3 * j + c];
+          if (periodic) d -= box * std::round(d / box);
+          r2 += d * d;
+        }
+        if (r2 < rl * rl) expected.push_back(static_cast<std::uint32_t>(j));
+      }
+      auto got = list.neighbours(i);
+      ASSERT_EQ(std::vector<std::uint32_t>(got.begin(), got.end()), expected) << "particle " << i;
+      count += expected.size();
+    }
+    EXPECT_GT(count, 600u);  // the test exercises real neighbours
+  }
+}
+
+TEST(NeighbourList, RebuildsOnlyAfterHalfSkin) {
+  NeighbourList list(rpyfmm::rpy::Geometry::open(), 2.0, {.skin = 1.0});
+  auto x = random_points(100, 10.0, 5);
+  EXPECT_TRUE(list.update(x));
+  x[0] += 0.49;  // < skin / 2
+  EXPECT_FALSE(list.update(x));
+  x[0] += 0.02;  // now 0.51 > skin / 2 (001 Algorithm 1, line 15)
+  EXPECT_TRUE(list.update(x));
+  EXPECT_EQ(list.rebuilds(), 2u);
+  NeighbourList fixed(rpyfmm::rpy::Geometry::open(), 2.0, {.skin = 1.0, .fixed_interval = 3});
+  int rebuilds = 0;
+  for (int s = 0; s < 9; ++s) rebuilds += fixed.update(x);
+  EXPECT_EQ(rebuilds, 3);
+  EXPECT_THROW(NeighbourList(rpyfmm::rpy::Geometry::periodic(5.0), 2.0, {.skin = 1.0}), Error);  // r_L > L/2
+}
+
+TEST(ForceField, PairSumsMatchBruteForceWithTypesBondsAndExternal) {
+  ParticleType a{"A", 1.0, {0, 0, -0.5}, 0.0};
+  ParticleType b{"B", 0.5, {0.1, 0, 0}, 0.0};
+  ForceField ff({a, b});
+  ff.set_pair(0, 0, {.kind = PairKind::lj36_18, .epsilon = 2.0});
+  ff.set_pair(0, 1, {.kind = PairKind::wca, .epsilon = 1.0});
+  ff.set_pair(1, 1, {.kind = PairKind::soft, .epsilon = 3.0});
+  const auto bt = ff.add_bond_potential({BondKind::fene, 10.0, 5.0});
+  const std::vector<Bond> bonds{{0, 1, bt}, {1, 2, bt}};
+  ff.add_bonds(bonds);
+  // Particles on a jittered lattice with spacing 2.1 (no hard overlaps).
+  const std::size_t n = 216;
+  std::vector<double> x(3 * n);
+  std::vector<std::uint32_t> types(n);
+  std::mt19937_64 gen(7);
+  std::uniform_real_distribution<double> jitter(-0.03, 0.03);
+  for (std::size_t i = 0; i < n; ++i) {
+    x[3 * i] = 2.1 * static_cast<double>(i % 6) + jitter(gen);
+    x[3 * i + 1] = 2.1 * static_cast<double>((i / 6) % 6) + jitter(gen);
+    x[3 * i + 2] = 2.1 * static_cast<double>(i / 36) + jitter(gen);
+    types[i] = static_cast<std::uint32_t>(i % 3 == 0);
+  }
+  NeighbourList list(rpyfmm::rpy::Geometry::open(), ff.max_cutoff(), {});
+  list.build(x);
+  std::vector<double> f(3 * n);
+  ff.compute(x, types, list, 0, f);
+  // Reference: every pair, written plainly.
+  std::vector<double> ref(3 * n, 0.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (int c = 0; c < 3; ++c) ref[3 * i + c] += (types[i] ? b : a).external_force[c];
+    for (std::size_t j = 0; j < n; ++j) {
+      if (i == j) continue;
+      const PairTerm& t = ff.pair(types[i], types[j]);
+      double d[3], r2 = 0;
+      for (int c = 0; c < 3; ++c) {
+        d[c] = x[3 * i + c] - x[3 * j + c];
+        r2 += d[c] * d[c];
+      }
+      if (r2 >= t.cutoff * t.cutoff) continue;
+      const double s = evaluate_pair(t, std::sqrt(r2)).s;
+      for (int c = 0; c < 3; ++c) ref[3 * i + c] += s * d[c];
+    }
+  }
+  for (const Bond& bd : bonds) {
+    double d[3], r2 = 0;
+    for (int c = 0; c < 3; ++c) {
+      d[c] = x[3 * bd.i + c] - x[3 * bd.j + c];
+      r2 += d[c] * d[c];
+    }
+    const double s = evaluate_bond(ff.bond_potentials()[0], std::sqrt(r2)).s;
+    for (int c = 0; c < 3; ++c) {
+      ref[3 * bd.i + c] += s * d[c];
+      ref[3 * bd.j + c] -= s * d[c];
+    }
+  }
+  double scale = 0;
+  for (double v : ref) scale = std::max(scale, std::abs(v));
+  EXPECT_GT(scale, 1.0);
+  for (std::size_t k = 0; k < 3 * n; ++k) EXPECT_NEAR(f[k], ref[k], 1e-12 * scale) << "entry " << k;
+}
+
+TEST(ForceField, OverlapAndOverstretchedBondNameTheParticles) {
+  ForceField ff;
+  ff.set_pair(0, 0, {.kind = PairKind::lj36_18, .epsilon = 14.0});
+  std::vector<double> x{0, 0, 0, 5, 0, 0, 6.0, 0, 0};  // particles 1 and 2 at r = 1 < 0.8 * 2
+  std::vector<std::uint32_t> types{0, 0, 0};
+  NeighbourList list(rpyfmm::rpy::Geometry::open(), ff.max_cutoff(), {});
+  list.build(x);
+  std::vector<double> f(9);
+  try {
+    ff.compute(x, types, list, 12, f);
+    FAIL() << "overlap not detected";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::invalid_input);
+    EXPECT_NE(std::string(e.what()).find("particles 1 and 2 overlap at step 12"), std::string::npos) << e.what();
+  }
+  ForceField chain;
+  const auto bt = chain.add_bond_potential({BondKind::fene, 30.0, 1.5});
+  const std::vector<Bond> bonds{{0, 2, bt}};
+  chain.add_bonds(bonds);
+  NeighbourList empty(rpyfmm::rpy::Geometry::open(), 0.0, {});
+  empty.build(x);
+  try {
+    chain.compute(x, types, empty, 0, f);
+    FAIL() << "overstretched FENE bond not detected";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("between particles 0 and 2"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(chain.check(std::vector<std::uint32_t>{0, 0}), Error);  // bond refers to particle 2 >= N
+  EXPECT_THROW(ForceField({ParticleType{"A", -1.0}}), Error);
+}
+
+TEST(MobilityFactory, FreeDrainingAndUnavailableMethods) {
+  auto m = make_mobility({.method = MobilityMethod::none}, 2);
+  m->set_positions(std::vector<double>{0, 0, 0, 1, 0, 0}, std::vector<double>{1.0, 2.0});
+  std::vector<double> f{1, 2, 3, 4, 5, 6}, u(6), w(6);
+  m->apply(f, u);
+  EXPECT_NEAR(u[1], 2.0 / (6 * M_PI), 1e-15);
+  EXPECT_NEAR(u[4], 5.0 / (12 * M_PI), 1e-15);
+  m->apply_sqrt(f, w);
+  EXPECT_NEAR(w[4], 5.0 / std::sqrt(12 * M_PI), 1e-15);
+  EXPECT_THROW(mobility_method_from_string("magic"), Error);
+  EXPECT_EQ(mobility_method_from_string("auto"), MobilityMethod::automatic);
+  try {
+    (void)make_mobility({.method = MobilityMethod::pse}, 10);  // open geometry
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::not_supported);
+    EXPECT_NE(std::string(e.what()).find("pse"), std::string::npos);
+  }
+  EXPECT_THROW((void)make_mobility({.method = MobilityMethod::none, .tolerance = 2.0}, 10), Error);
+}
