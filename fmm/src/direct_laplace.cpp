@@ -10,6 +10,7 @@
 #include "rpyfmm/fmm/direct.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -17,7 +18,27 @@
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
 
+#if defined(RPYFMM_HAVE_DIRECT_AVX512)
+#include <immintrin.h>
+#endif
+
 namespace rpyfmm::fmm {
+
+namespace detail {
+namespace {
+std::atomic<bool> g_avx512_enabled{true};
+}  // namespace
+bool avx512_kernels_active() noexcept {
+#if defined(RPYFMM_HAVE_DIRECT_AVX512)
+  static const bool cpu = __builtin_cpu_supports("avx512f");
+  return cpu && g_avx512_enabled.load(std::memory_order_relaxed);
+#else
+  return false;
+#endif
+}
+void use_avx512_kernels(bool enabled) noexcept { g_avx512_enabled.store(enabled, std::memory_order_relaxed); }
+}  // namespace detail
+
 namespace {
 
 constexpr std::size_t kBlock = 512;  // sources per geometry block (multi-density path)
@@ -136,11 +157,116 @@ template <bool P, bool G, bool H>
   }
 }
 
+#if defined(RPYFMM_HAVE_DIRECT_AVX512)
+// GCC 12's _mm512_reduce_add_pd uses _mm256_undefined_pd(): silence its false -Wuninitialized.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wuninitialized"
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+// ---- AVX-512F kernels (8 pairs per instruction, 1/r by rsqrt14 + Newton) ----
+
+// 1/sqrt(r2) where 0 < r2 < inf, else 0 (skips r = 0; the r2 = inf limit is 0).
+RPYFMM_DIRECT_AVX512 inline __m512d rsqrt_or_zero(__m512d r2) {
+  const __mmask8 ok = _mm512_cmp_pd_mask(r2, _mm512_setzero_pd(), _CMP_GT_OQ) &
+                      _mm512_cmp_pd_mask(r2, _mm512_set1_pd(__builtin_inf()), _CMP_LT_OQ);
+  __m512d y = _mm512_maskz_rsqrt14_pd(ok, r2);  // relative error < 2^-14
+  const __m512d one = _mm512_set1_pd(1.0), half = _mm512_set1_pd(0.5);
+  for (int it = 0; it < 2; ++it) {  // y <- y + (y/2)(1 - r2 y^2): error e -> ~1.5 e^2
+    const __m512d h = _mm512_fnmadd_pd(_mm512_mul_pd(r2, y), y, one);
+    y = _mm512_fmadd_pd(_mm512_mul_pd(half, y), h, y);
+  }
+  return y;  // 0 stays 0 where masked
+}
+
+template <bool P, bool G, bool H>
+RPYFMM_DIRECT_AVX512 void p2p_single_avx512(double tx, double ty, double tz, const double* sx, const double* sy,
+                                            const double* sz, const double* q, std::size_t ns, double* out) {
+  const __m512d vtx = _mm512_set1_pd(tx), vty = _mm512_set1_pd(ty), vtz = _mm512_set1_pd(tz);
+  const __m512d three = _mm512_set1_pd(3.0);
+  __m512d pot = _mm512_setzero_pd(), gx = pot, gy = pot, gz = pot;
+  __m512d hxx = pot, hyy = pot, hzz = pot, hxy = pot, hxz = pot, hyz = pot;
+  for (std::size_t j = 0; j < ns; j += 8) {
+    // tail: masked-out lanes load q = 0 (and a finite position), so they add 0
+    const __mmask8 m = ns - j >= 8 ? __mmask8(0xff) : __mmask8((1u << (ns - j)) - 1u);
+    const __m512d dx = _mm512_sub_pd(vtx, _mm512_maskz_loadu_pd(m, sx + j));
+    const __m512d dy = _mm512_sub_pd(vty, _mm512_maskz_loadu_pd(m, sy + j));
+    const __m512d dz = _mm512_sub_pd(vtz, _mm512_maskz_loadu_pd(m, sz + j));
+    const __m512d r2 = _mm512_fmadd_pd(dz, dz, _mm512_fmadd_pd(dy, dy, _mm512_mul_pd(dx, dx)));
+    const __m512d ir = rsqrt_or_zero(r2);
+    const __m512d qir = _mm512_mul_pd(_mm512_maskz_loadu_pd(m, q + j), ir);
+    if constexpr (P) pot = _mm512_add_pd(pot, qir);
+    if constexpr (G || H) {
+      const __m512d ir2 = _mm512_mul_pd(ir, ir);
+      const __m512d qir3 = _mm512_mul_pd(qir, ir2);
+      if constexpr (G) {
+        gx = _mm512_fnmadd_pd(qir3, dx, gx);
+        gy = _mm512_fnmadd_pd(qir3, dy, gy);
+        gz = _mm512_fnmadd_pd(qir3, dz, gz);
+      }
+      if constexpr (H) {
+        const __m512d w = _mm512_mul_pd(_mm512_mul_pd(three, qir3), ir2);
+        const __m512d wx = _mm512_mul_pd(w, dx), wy = _mm512_mul_pd(w, dy);
+        hxx = _mm512_add_pd(hxx, _mm512_fmsub_pd(wx, dx, qir3));
+        hyy = _mm512_add_pd(hyy, _mm512_fmsub_pd(wy, dy, qir3));
+        hzz = _mm512_add_pd(hzz, _mm512_fmsub_pd(_mm512_mul_pd(w, dz), dz, qir3));
+        hxy = _mm512_fmadd_pd(wx, dy, hxy);
+        hxz = _mm512_fmadd_pd(wx, dz, hxz);
+        hyz = _mm512_fmadd_pd(wy, dz, hyz);
+      }
+    }
+  }
+  if constexpr (P) out[col_pot] += _mm512_reduce_add_pd(pot);
+  if constexpr (G) {
+    out[col_gx] += _mm512_reduce_add_pd(gx);
+    out[col_gy] += _mm512_reduce_add_pd(gy);
+    out[col_gz] += _mm512_reduce_add_pd(gz);
+  }
+  if constexpr (H) {
+    out[col_hxx] += _mm512_reduce_add_pd(hxx);
+    out[col_hyy] += _mm512_reduce_add_pd(hyy);
+    out[col_hzz] += _mm512_reduce_add_pd(hzz);
+    out[col_hxy] += _mm512_reduce_add_pd(hxy);
+    out[col_hxz] += _mm512_reduce_add_pd(hxz);
+    out[col_hyz] += _mm512_reduce_add_pd(hyz);
+  }
+}
+
+RPYFMM_DIRECT_AVX512 void geometry_block_avx512(double tx, double ty, double tz, const double* sx, const double* sy,
+                                                const double* sz, std::size_t nb, double* dx, double* dy,
+                                                double* dz, double* ir, double* ir2) {
+  const __m512d vtx = _mm512_set1_pd(tx), vty = _mm512_set1_pd(ty), vtz = _mm512_set1_pd(tz);
+  for (std::size_t j = 0; j < nb; j += 8) {
+    const __mmask8 m = nb - j >= 8 ? __mmask8(0xff) : __mmask8((1u << (nb - j)) - 1u);
+    const __m512d ddx = _mm512_sub_pd(vtx, _mm512_maskz_loadu_pd(m, sx + j));
+    const __m512d ddy = _mm512_sub_pd(vty, _mm512_maskz_loadu_pd(m, sy + j));
+    const __m512d ddz = _mm512_sub_pd(vtz, _mm512_maskz_loadu_pd(m, sz + j));
+    const __m512d r2 = _mm512_fmadd_pd(ddz, ddz, _mm512_fmadd_pd(ddy, ddy, _mm512_mul_pd(ddx, ddx)));
+    const __m512d v = rsqrt_or_zero(r2);
+    _mm512_mask_storeu_pd(dx + j, m, ddx);
+    _mm512_mask_storeu_pd(dy + j, m, ddy);
+    _mm512_mask_storeu_pd(dz + j, m, ddz);
+    _mm512_mask_storeu_pd(ir + j, m, v);
+    _mm512_mask_storeu_pd(ir2 + j, m, _mm512_mul_pd(v, v));
+  }
+}
+#pragma GCC diagnostic pop
+#endif  // RPYFMM_HAVE_DIRECT_AVX512
+
 template <bool P, bool G, bool H>
 [[gnu::always_inline]] inline void p2p_range(const PointsSoA& s, const double* q, std::size_t ldq, std::size_t nd,
                                              const PointsSoA& t, std::size_t t0, std::size_t t1, double* out,
                                              std::size_t ldo) {
+#if defined(RPYFMM_HAVE_DIRECT_AVX512)
+  const bool avx512 = detail::avx512_kernels_active();
+#endif
   if (nd == 1) {
+#if defined(RPYFMM_HAVE_DIRECT_AVX512)
+    if (avx512) {
+      for (std::size_t i = t0; i < t1; ++i) {
+        p2p_single_avx512<P, G, H>(t.x[i], t.y[i], t.z[i], s.x, s.y, s.z, q, s.n, out + i * result_width);
+      }
+      return;
+    }
+#endif
     for (std::size_t i = t0; i < t1; ++i) {
       p2p_single<P, G, H>(t.x[i], t.y[i], t.z[i], s.x, s.y, s.z, q, s.n, out + i * result_width);
     }
@@ -155,7 +281,15 @@ template <bool P, bool G, bool H>
   for (std::size_t i = t0; i < t1; ++i) {
     for (std::size_t j0 = 0; j0 < s.n; j0 += kBlock) {
       const std::size_t nb = std::min(kBlock, s.n - j0);
+#if defined(RPYFMM_HAVE_DIRECT_AVX512)
+      if (avx512) {
+        geometry_block_avx512(t.x[i], t.y[i], t.z[i], s.x + j0, s.y + j0, s.z + j0, nb, dx, dy, dz, ir, ir2);
+      } else {
+        geometry_block(t.x[i], t.y[i], t.z[i], s.x + j0, s.y + j0, s.z + j0, nb, dx, dy, dz, ir, ir2);
+      }
+#else
       geometry_block(t.x[i], t.y[i], t.z[i], s.x + j0, s.y + j0, s.z + j0, nb, dx, dy, dz, ir, ir2);
+#endif
       for (std::size_t d = 0; d < nd; ++d) {
         p2p_from_geometry<P, G, H>(dx, dy, dz, ir, ir2, q + d * ldq + j0, nb, out + d * ldo + i * result_width);
       }

@@ -10,6 +10,7 @@
 
 #include "rpyfmm/core/error.hpp"
 #include "rpyfmm/fmm/direct.hpp"
+#include "rpyfmm/fmm/direct_simd.hpp"
 
 using namespace rpyfmm::fmm;
 using rpyfmm::Error;
@@ -49,10 +50,42 @@ std::array<double, 10> reference_at(const double* x, const std::vector<double>& 
   return o;
 }
 
+// Every test runs twice: with the AVX-512 kernels (where the CPU has them) and
+// with the portable, compiler-vectorized kernels.
+class LaplaceDirect : public ::testing::TestWithParam<bool> {
+ protected:
+  void SetUp() override { rpyfmm::fmm::detail::use_avx512_kernels(GetParam()); }
+  void TearDown() override { rpyfmm::fmm::detail::use_avx512_kernels(true); }
+};
+
 }  // namespace
 
+INSTANTIATE_TEST_SUITE_P(Kernels, LaplaceDirect, ::testing::Values(true, false),
+                         [](const ::testing::TestParamInfo<bool>& p) {
+                           return p.param ? "avx512_if_available" : "portable";
+                         });
+
+// The two code paths agree to rounding (1/sqrt within a few ulp; sums in another order).
+TEST(LaplaceDirectPaths, Avx512AndPortableAgree) {
+  const std::size_t n = 1500, nd = 2;
+  const auto s = random_points(3 * n, 21);
+  const auto q = random_points(nd * n, 22);
+  const auto t = random_points(3 * 100, 23, -1.2, 1.2);
+  for (std::size_t ndd : {std::size_t{1}, nd}) {
+    const std::vector<double> qq(q.begin(), q.begin() + ndd * n);
+    rpyfmm::fmm::detail::use_avx512_kernels(true);
+    const auto a = run(s, qq, ndd, t);
+    rpyfmm::fmm::detail::use_avx512_kernels(false);
+    const auto b = run(s, qq, ndd, t);
+    rpyfmm::fmm::detail::use_avx512_kernels(true);
+    std::array<double, 10> scale{};
+    for (std::size_t i = 0; i < b.size(); ++i) scale[i % 10] = std::max(scale[i % 10], std::abs(b[i]));
+    for (std::size_t i = 0; i < b.size(); ++i) EXPECT_NEAR(a[i], b[i], 1e-13 * scale[i % 10]) << i;
+  }
+}
+
 // Two charges: at source 0 only source 1 acts (self pair skipped).
-TEST(LaplaceDirect, TwoChargesClosedForm) {
+TEST_P(LaplaceDirect, TwoChargesClosedForm) {
   const double d = 2.0, q0 = 1.5, q1 = -0.5;
   const std::vector<double> s = {0, 0, 0, d, 0, 0}, q = {q0, q1};
   const auto out = run(s, q, 1, {});
@@ -73,7 +106,7 @@ TEST(LaplaceDirect, TwoChargesClosedForm) {
 // the field is along z: d phi/dz = -3 h/(R^2 + h^2)^{3/2}; by symmetry
 // hxx = hyy = -hzz/2 and the off-diagonal entries vanish;
 // hzz = 3 (3h^2/s^5 - 1/s^3), s = sqrt(R^2 + h^2).
-TEST(LaplaceDirect, ThreeChargesClosedForm) {
+TEST_P(LaplaceDirect, ThreeChargesClosedForm) {
   const double R = 1.0 / std::sqrt(3.0), h = 0.8;
   std::vector<double> s;
   for (int k = 0; k < 3; ++k) {
@@ -100,7 +133,7 @@ TEST(LaplaceDirect, ThreeChargesClosedForm) {
 // Gradient = central differences of the potential, Hessian = central differences
 // of the gradient; step h = 1e-5 on O(1) distances gives O(h^2) ~ 1e-10 truncation
 // plus ~1e-11 rounding: tolerance 1e-7 relative.
-TEST(LaplaceDirect, GradientAndHessianMatchFiniteDifferences) {
+TEST_P(LaplaceDirect, GradientAndHessianMatchFiniteDifferences) {
   const auto s = random_points(3 * 20, 1);
   const auto q = random_points(20, 2);
   const std::vector<double> t = {2.0, 1.5, -1.7, -2.2, 0.3, 1.9};
@@ -123,7 +156,7 @@ TEST(LaplaceDirect, GradientAndHessianMatchFiniteDifferences) {
   }
 }
 
-TEST(LaplaceDirect, HessianTraceIsZeroAndMatchesPlainLoop) {
+TEST_P(LaplaceDirect, HessianTraceIsZeroAndMatchesPlainLoop) {
   const std::size_t n = 700, nt = 90;  // more sources than one internal block
   const auto s = random_points(3 * n, 3);
   const auto q = random_points(n, 4);
@@ -144,14 +177,14 @@ TEST(LaplaceDirect, HessianTraceIsZeroAndMatchesPlainLoop) {
   }
 }
 
-TEST(LaplaceDirect, TargetsEqualToSourcesSkipSelfPair) {
+TEST_P(LaplaceDirect, TargetsEqualToSourcesSkipSelfPair) {
   const std::size_t n = 50;
   const auto s = random_points(3 * n, 6);
   const auto q = random_points(n, 7);
   EXPECT_EQ(run(s, q, 1, {}), run(s, q, 1, s));  // bitwise: identical arithmetic
 }
 
-TEST(LaplaceDirect, TargetOnASourceSkipsThatPair) {
+TEST_P(LaplaceDirect, TargetOnASourceSkipsThatPair) {
   const std::vector<double> s = {0, 0, 0, 1, 0, 0, 0, 2, 0};
   const std::vector<double> q = {1, 2, 3};
   const std::vector<double> t = {1, 0, 0};  // on source 1
@@ -162,7 +195,7 @@ TEST(LaplaceDirect, TargetOnASourceSkipsThatPair) {
   for (int c = 0; c < 10; ++c) EXPECT_NEAR(out[c], ref[c], 1e-14);
 }
 
-TEST(LaplaceDirect, SeveralChargeVectorsEqualSeparateCalls) {
+TEST_P(LaplaceDirect, SeveralChargeVectorsEqualSeparateCalls) {
   const std::size_t n = 600, nd = 4, nt = 40;
   const auto s = random_points(3 * n, 8);
   const auto q = random_points(nd * n, 9);
@@ -183,7 +216,7 @@ TEST(LaplaceDirect, SeveralChargeVectorsEqualSeparateCalls) {
   }
 }
 
-TEST(LaplaceDirect, OutputSelectionZeroesTheRest) {
+TEST_P(LaplaceDirect, OutputSelectionZeroesTheRest) {
   const std::size_t n = 64;
   const auto s = random_points(3 * n, 11);
   const auto q = random_points(n, 12);
@@ -204,7 +237,7 @@ TEST(LaplaceDirect, OutputSelectionZeroesTheRest) {
   }
 }
 
-TEST(LaplaceDirect, ResultIndependentOfThreadCount) {
+TEST_P(LaplaceDirect, ResultIndependentOfThreadCount) {
   const std::size_t n = 1000;
   const auto s = random_points(3 * n, 13);
   const auto q = random_points(2 * n, 14);
@@ -217,7 +250,7 @@ TEST(LaplaceDirect, ResultIndependentOfThreadCount) {
   EXPECT_EQ(a, b);
 }
 
-TEST(LaplaceDirect, P2PAccumulates) {
+TEST_P(LaplaceDirect, P2PAccumulates) {
   const std::size_t n = 30;
   const auto s = random_points(3 * n, 15);
   const auto q = random_points(n, 16);
@@ -232,7 +265,7 @@ TEST(LaplaceDirect, P2PAccumulates) {
   for (std::size_t i = 0; i < 50; ++i) EXPECT_NEAR(out[i], ref[i] + 1.0, 1e-13 * (std::abs(ref[i]) + 1));
 }
 
-TEST(LaplaceDirect, RejectsBadInput) {
+TEST_P(LaplaceDirect, RejectsBadInput) {
   const std::vector<double> s = {0, 0, 0, 1, 0, 0}, q = {1, 1};
   std::vector<double> out(20);
   auto call = [&](const std::vector<double>& ss, const std::vector<double>& qq, std::size_t nd,
