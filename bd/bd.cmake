@@ -11,3 +11,6 @@ target_sources(rpyfmm_bd PRIVATE
 target_sources(rpyfmm_bd PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/src/config.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/particles.cpp)
+target_sources(rpyfmm_bd PRIVATE
+  ${CMAKE_CURRENT_LIST_DIR}/src/output.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/run.cpp)

@@ -373,7 +373,7 @@ kT = 1.0
 [[types]]
 name = "sphere"
 radius = 1.0
-external_force = [0.0, 0.0, -5.0]   # buoyant weight
+external_force = [0.0, 0.0, -1.0]   # buoyant weight (kT = 1, a = 1 units)
 
 [particles]
 source = "random"          # a spherical cloud... generated as a random suspension
@@ -387,7 +387,7 @@ kind = "wca"               # short-range repulsion keeps spheres apart
 epsilon = 1.0
 
 [integrator]
-dt = 0.02
+dt = 0.01
 steps = 200
 seed = 2024
 max_displacement = 0.5

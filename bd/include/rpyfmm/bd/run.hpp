@@ -1,0 +1,49 @@
+// rpyfmm::bd — a whole BD run from a config: particles, forces, mobility,
+// integrator, trajectory/log/checkpoint output, restart and blow-up handling.
+// This is what `rpyfmm bd` calls.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <ostream>
+#include <string>
+
+#include "rpyfmm/bd/config.hpp"
+#include "rpyfmm/core/timer.hpp"
+
+namespace rpyfmm::bd {
+
+struct RunOptions {
+  /// Total number of steps of the run (overrides integrator.steps); a restarted run
+  /// continues until the step counter reaches it.
+  std::optional<std::uint64_t> steps;
+  /// Output directory (overrides output.dir).
+  std::optional<std::filesystem::path> out_dir;
+  /// Progress line ("\r step k/n, rate, ETA") on this stream, or none.
+  std::ostream* progress = nullptr;
+};
+
+struct RunSummary {
+  std::size_t particles = 0;
+  std::string mobility;                ///< operator name
+  std::uint64_t first_step = 0, last_step = 0;
+  double wall_seconds = 0.0;
+  double steps_per_second = 0.0;
+  std::uint64_t neighbour_rebuilds = 0;
+  double mean_sqrt_iterations = 0.0;   ///< per step
+  double mean_mobility_products = 0.0; ///< per step
+  StageTimes seconds;                  ///< per part (see IntegratorTotals) + "output"
+  std::filesystem::path out_dir, trajectory, log, checkpoint;
+};
+
+/// Runs `config` from its initial particles. Throws rpyfmm::Error on bad input; on a
+/// blow-up the last good state is written to the checkpoint first and the error says so.
+RunSummary run_bd(const RunConfig& config, const RunOptions& options = {});
+
+/// Continues the run stored in `checkpoint` (its embedded config is used), bitwise as
+/// if it had not been interrupted; trajectory and log (in the checkpoint's directory
+/// unless options.out_dir is set) are truncated to the checkpoint and appended to.
+RunSummary restart_bd(const std::filesystem::path& checkpoint, const RunOptions& options = {});
+
+}  // namespace rpyfmm::bd

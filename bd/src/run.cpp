@@ -1,0 +1,209 @@
+#include "rpyfmm/bd/run.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+#include "rpyfmm/bd/checkpoint.hpp"
+#include "rpyfmm/bd/output.hpp"
+#include "rpyfmm/bd/particles.hpp"
+#include "rpyfmm/core/validate.hpp"
+
+namespace rpyfmm::bd {
+
+namespace {
+
+struct Start {
+  std::vector<double> positions, reference;
+  std::vector<std::uint32_t> types;
+  std::vector<Bond> bonds;
+  std::uint64_t step = 0;
+  std::uint64_t trajectory_bytes = 0, log_bytes = 0;
+  bool restarted = false;
+};
+
+std::string fmt(const char* f, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, f, v);
+  return buf;
+}
+
+RunSummary execute(const RunConfig& config, Start start, const RunOptions& options) {
+  const std::uint64_t total = options.steps.value_or(config.steps);
+  const OutputSpec& out = config.output;
+  const auto dir = options.out_dir.value_or(out.dir);
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) fail(ErrorCode::io_error, "output", "cannot create directory '" + dir.string() + "': " + ec.message());
+
+  ForceField forces = make_force_field(config);
+  forces.add_bonds(start.bonds);
+  const std::size_t n = start.types.size();
+  Integrator bd(make_mobility(config.mobility, n), forces, config.integrator, start.positions, start.types,
+                config.neighbours, start.step);
+
+  RunSummary sum;
+  sum.particles = n;
+  sum.mobility = bd.mobility().name();
+  sum.first_step = start.step;
+  sum.out_dir = dir;
+  sum.trajectory = dir / out.trajectory;
+  sum.log = dir / out.log;
+  sum.checkpoint = dir / out.checkpoint;
+
+  AppendFile traj, log;
+  if (out.trajectory_every > 0) traj.open(sum.trajectory, start.restarted ? start.trajectory_bytes : 0);
+  if (out.log_every > 0) {
+    log.open(sum.log, start.restarted ? start.log_bytes : 0);
+    if (!start.restarted) log.write(csv_log_header());
+  }
+  auto save_checkpoint = [&]() {
+    Checkpoint c;
+    c.step = bd.step_count();
+    c.seed = config.integrator.seed;
+    c.dt = config.integrator.dt;
+    c.positions.assign(bd.positions().begin(), bd.positions().end());
+    c.reference_positions = start.reference;
+    c.types = start.types;
+    c.trajectory_bytes = traj.bytes();
+    c.log_bytes = log.bytes();
+    c.config = config.text;
+    write_checkpoint(sum.checkpoint, c);
+  };
+
+  // Interval statistics for the log.
+  IntegratorTotals last = bd.totals();
+  std::uint64_t last_log_step = bd.step_count();
+  std::array<double, 3> last_centre{};
+  auto centre = [&]() {
+    std::array<double, 3> c{0, 0, 0};
+    for (std::size_t i = 0; i < n; ++i)
+      for (int d = 0; d < 3; ++d) c[d] += bd.positions()[3 * i + d];
+    for (double& v : c) v /= static_cast<double>(n);
+    return c;
+  };
+  last_centre = centre();
+  double output_seconds = 0.0;
+  double interval_output = 0.0;
+
+  auto write_records = [&](bool first) {
+    StopWatch w;
+    const std::uint64_t s = bd.step_count();
+    if (out.trajectory_every > 0 && s % out.trajectory_every == 0)
+      traj.write(xyz_frame(bd.positions(), bd.types(), forces.types(), config.geometry, s, bd.time()));
+    if (out.log_every > 0 && (s % out.log_every == 0 || s == total)) {
+      double md = 0, msd = 0;
+      for (std::size_t i = 0; i < n; ++i) {
+        double d2 = 0;
+        for (int c = 0; c < 3; ++c) d2 += std::pow(bd.positions()[3 * i + c] - start.reference[3 * i + c], 2);
+        md += std::sqrt(d2);
+        msd += d2;
+      }
+      md /= static_cast<double>(n);
+      msd /= static_cast<double>(n);
+      const auto cnow = centre();
+      const double elapsed = static_cast<double>(s - last_log_step) * config.integrator.dt;
+      const auto& t = bd.totals();
+      const double steps = first ? 1.0 : std::max<double>(1.0, static_cast<double>(t.steps - last.steps));
+      std::ostringstream row;
+      row.precision(10);
+      row << s << ',' << bd.time() << ',' << md << ',' << msd;
+      for (int c = 0; c < 3; ++c) row << ',' << (elapsed > 0 ? (cnow[c] - last_centre[c]) / elapsed : 0.0);
+      row << ',' << bd.last_report().potential_energy << ','
+          << static_cast<double>(t.sqrt_iterations - last.sqrt_iterations) / steps << ','
+          << static_cast<double>(t.mobility_products - last.mobility_products) / steps << ','
+          << bd.neighbour_rebuilds();
+      for (const char* part : {"neighbours", "forces", "plan", "drift", "sqrt", "update"})
+        row << ',' << t.seconds.at(part) - last.seconds.at(part);
+      row << ',' << interval_output << '\n';
+      log.write(row.str());
+      last = t;
+      last_log_step = s;
+      last_centre = cnow;
+      interval_output = 0.0;
+    }
+    const double sec = w.seconds();
+    output_seconds += sec;
+    interval_output += sec;
+  };
+
+  if (!start.restarted) write_records(true);
+  StopWatch wall;
+  double last_progress = -1.0;
+  while (bd.step_count() < total) {
+    try {
+      bd.step();
+    } catch (const Error& e) {
+      const bool fresh_start = !start.restarted && bd.step_count() == 0;
+      if (fresh_start && e.code() != ErrorCode::numerical_failure) throw;  // bad initial state: nothing to save
+      save_checkpoint();
+      throw Error(e.code(), std::string(e.what()) + "; last good state (step " + std::to_string(bd.step_count()) +
+                                ") saved to '" + sum.checkpoint.string() + "'");
+    }
+    write_records(false);
+    const std::uint64_t s = bd.step_count();
+    if (out.checkpoint_every > 0 && s % out.checkpoint_every == 0 && s != total) save_checkpoint();
+    if (options.progress) {
+      const double t = wall.seconds();
+      if (t - last_progress >= 0.5 || s == total) {
+        last_progress = t;
+        const double rate = static_cast<double>(s - start.step) / std::max(t, 1e-9);
+        const double eta = static_cast<double>(total - s) / std::max(rate, 1e-12);
+        *options.progress << "\rstep " << s << "/" << total << "  " << fmt("%.3g", rate) << " steps/s  ETA "
+                          << fmt("%.0f", eta) << " s   " << std::flush;
+      }
+    }
+  }
+  if (options.progress) *options.progress << "\n";
+  save_checkpoint();
+  sum.last_step = bd.step_count();
+  sum.wall_seconds = wall.seconds();
+  const auto& t = bd.totals();
+  sum.steps_per_second = t.steps > 0 ? static_cast<double>(t.steps) / sum.wall_seconds : 0.0;
+  sum.neighbour_rebuilds = bd.neighbour_rebuilds();
+  const double steps = std::max<double>(1.0, static_cast<double>(t.steps));
+  sum.mean_sqrt_iterations = static_cast<double>(t.sqrt_iterations) / steps;
+  sum.mean_mobility_products = static_cast<double>(t.mobility_products) / steps;
+  sum.seconds = t.seconds;
+  sum.seconds["output"] = output_seconds;
+  return sum;
+}
+
+}  // namespace
+
+RunSummary run_bd(const RunConfig& config, const RunOptions& options) {
+  ForceField forces = make_force_field(config);
+  InitialState init = make_particles(config, forces);
+  Start s;
+  s.positions = init.positions;
+  s.reference = init.positions;
+  s.types = std::move(init.types);
+  s.bonds = std::move(init.bonds);
+  return execute(config, std::move(s), options);
+}
+
+RunSummary restart_bd(const std::filesystem::path& path, const RunOptions& options) {
+  const Checkpoint c = read_checkpoint(path);
+  std::string source = path.string();
+  source.append(" (embedded config)");
+  const RunConfig config = parse_config(c.config, source);
+  require(c.seed == config.integrator.seed && c.dt == config.integrator.dt, ErrorCode::io_error, "restart",
+          "'" + path.string() + "': seed/dt disagree with its embedded config");
+  Start s;
+  s.positions = c.positions;
+  s.reference = c.reference_positions;
+  s.types = c.types;
+  s.step = c.step;
+  s.trajectory_bytes = c.trajectory_bytes;
+  s.log_bytes = c.log_bytes;
+  s.restarted = true;
+  RunOptions opts = options;  // outputs continue next to the checkpoint unless redirected
+  if (!opts.out_dir) opts.out_dir = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
+  if (config.particles.source == ParticleSpec::Source::chains) {  // bonds are regenerated (deterministic)
+    ForceField ff = make_force_field(config);
+    s.bonds = make_particles(config, ff).bonds;
+  }
+  return execute(config, std::move(s), opts);
+}
+
+}  // namespace rpyfmm::bd
