@@ -1,0 +1,76 @@
+// rpyfmm — FmmRpy: the free-space Rotne-Prager-Yamakawa mobility U = M F in
+// O(N) from one multi-density Laplace FMM pass plus an exact near field.
+//
+// Far field (MATH.md §2; dissertation 004 §3.1.1), for r > a_i + a_j:
+//   U_i,k = C1 [ phi_i(F^(k)) + sum_m x_i,m E_k,i(F^(m)) - E_k,i(x.F) ]
+//         + 1/(24 pi eta) [ a_i^2 sum_m T_km,i(F^(m)) + sum_m T_km,i(a^2 F^(m)) ],   C1 = 1/(8 pi eta)
+// with phi the Laplace potential of a charge vector, E = -grad phi and
+// T = -grad grad phi. Equal radii need four charge vectors per right-hand side
+// (F^(1..3): potential, field, field gradient; x.F: field only); different
+// radii add a^2 F^(1..3) (field gradient only): seven. All charge vectors of
+// all right-hand sides travel one FMM pass together.
+//
+// Near field: the FMM runs in "far field only" mode; every pair of adjacent
+// leaves (U list) is evaluated with the exact RPY pair block (rpy_kernel.hpp,
+// both overlap regimes), plus the self term F_i / (6 pi eta a_i). Leaves are
+// never smaller than 2 max_i a_i, so every overlapping pair (r <= a_i + a_j)
+// lies in the near field and the far-field formula is only used where it is exact.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "rpyfmm/core/timer.hpp"
+#include "rpyfmm/rpy/mobility.hpp"
+
+namespace rpyfmm::fmm {
+class LaplaceFmm;
+}
+
+namespace rpyfmm::rpy {
+
+struct FmmRpyOptions {
+  /// Requested relative l2 error of U against the exact (direct) product, in [1e-12, 1e-1].
+  double tolerance = 1e-6;
+  /// Points per FMM leaf; 0 = the FMM's automatic choice.
+  int leaf_capacity = 0;
+};
+
+class FmmRpy final : public MobilityOperator {
+ public:
+  /// Throws rpyfmm::Error: not_supported for a periodic geometry, invalid_argument for a
+  /// tolerance outside [1e-12, 1e-1] or a viscosity that is not finite and > 0.
+  explicit FmmRpy(Geometry geometry = Geometry::open(), double viscosity = 1.0, FmmRpyOptions options = {});
+  ~FmmRpy() override;
+
+  [[nodiscard]] std::string name() const override { return "fmm"; }
+  [[nodiscard]] const FmmRpyOptions& options() const { return options_; }
+  /// Tolerance handed to the Laplace FMM (derived from options().tolerance).
+  [[nodiscard]] double laplace_eps() const { return laplace_eps_; }
+  /// Stage times of the last apply: the FMM's stages plus "rpy_charges", "rpy_far", "rpy_near", "rpy_total".
+  [[nodiscard]] StageTimes last_timings() const;
+  /// The Laplace FMM plan (tree statistics, near-field structure); null before set_positions.
+  [[nodiscard]] const fmm::LaplaceFmm* laplace_plan() const { return fmm_.get(); }
+
+ protected:
+  void on_positions_set() override;
+  void do_apply(const double* forces, double* velocities, std::size_t nrhs) const override;
+
+ private:
+  void apply_near_field(const double* forces, double* velocities, std::size_t nrhs) const;
+
+  FmmRpyOptions options_;
+  double laplace_eps_ = 0.0;
+  std::unique_ptr<fmm::LaplaceFmm> fmm_;
+  std::vector<double> centered_;  // positions relative to the bounding-box centre (3N)
+  // Near field grouped by target leaf: leaf_pairs_[near_begin_[t] .. near_begin_[t+1]) are the
+  // source leaves of target leaf t (t indexes near_targets_).
+  std::vector<std::uint32_t> near_targets_;
+  std::vector<std::size_t> near_begin_;
+  std::vector<std::uint32_t> near_sources_;
+  mutable StageTimes timings_;
+};
+
+}  // namespace rpyfmm::rpy

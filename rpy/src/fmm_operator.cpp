@@ -1,0 +1,204 @@
+// rpyfmm — FmmRpy: RPY mobility from Laplace FMM calls (MATH.md §2) + exact near field.
+#include "rpyfmm/rpy/fmm_operator.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <numbers>
+#include <string>
+
+#include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/fmm/laplace_fmm.hpp"
+#include "rpyfmm/rpy/rpy_kernel.hpp"
+
+namespace rpyfmm::rpy {
+namespace {
+
+constexpr double pi = std::numbers::pi;
+// Column of the FMM result row [pot, gx, gy, gz, hxx, hyy, hzz, hxy, hxz, hyz] holding H(k, m).
+constexpr std::array<std::array<int, 3>, 3> kHessianColumn = {{{4, 7, 8}, {7, 5, 9}, {8, 9, 6}}};
+
+// Laplace FMM tolerance for a requested RPY tolerance. The far field combines
+// up to 7 outputs with partial cancellation (x_m E_k(F^m) - E_k(x.F)); measured
+// on the test configurations, errors stay below the FMM's own eps, which is
+// itself conservative (tests/rpy/test_fmm_operator.cpp holds the contract).
+double laplace_eps_for(double tolerance) { return tolerance; }
+
+}  // namespace
+
+FmmRpy::FmmRpy(Geometry geometry, double viscosity, FmmRpyOptions options)
+    : MobilityOperator(geometry, viscosity, "FmmRpy"), options_(options) {
+  require(geometry.is_open(), ErrorCode::not_supported, "FmmRpy",
+          "periodic geometry is not supported by the free-space FMM operator (use the PSE operator)");
+  require_in_range(options_.tolerance, 1e-12, 1e-1, "FmmRpy", "tolerance");
+  require(options_.leaf_capacity >= 0, ErrorCode::invalid_argument, "FmmRpy",
+          "leaf_capacity must be >= 0 (0 = automatic), got " + std::to_string(options_.leaf_capacity));
+  laplace_eps_ = laplace_eps_for(options_.tolerance);
+}
+
+FmmRpy::~FmmRpy() = default;
+
+StageTimes FmmRpy::last_timings() const { return timings_; }
+
+void FmmRpy::on_positions_set() {
+  const std::size_t n = size();
+  const auto x = positions();
+  // Centre the coordinates: the far field subtracts x_i,m E_k(F^m) and E_k(x.F), whose
+  // FMM errors scale with |x|; centring keeps them at the scale of the cloud (translation invariance).
+  std::array<double, 3> lo{x[0], x[1], x[2]}, hi = lo;
+  for (std::size_t i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c) {
+      lo[c] = std::min(lo[c], x[3 * i + c]);
+      hi[c] = std::max(hi[c], x[3 * i + c]);
+    }
+  centered_.resize(3 * n);
+  for (std::size_t i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c) centered_[3 * i + c] = x[3 * i + c] - 0.5 * (lo[c] + hi[c]);
+
+  const double a_max = *std::max_element(radii().begin(), radii().end());
+  fmm::FmmOptions fo;
+  fo.eps = laplace_eps_;
+  fo.leaf_capacity = options_.leaf_capacity;
+  fo.near_field = false;
+  fo.min_leaf_side = 2.0 * a_max;  // overlapping pairs (r <= a_i + a_j) are always U-list pairs
+  fmm_ = std::make_unique<fmm::LaplaceFmm>(fo);
+  fmm_->set_points(centered_);
+
+  // Group the U-list pairs by target leaf so that the near field is race-free in parallel.
+  const fmm::NearField& near = fmm_->near_field();
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs = near.pairs;
+  std::sort(pairs.begin(), pairs.end());
+  near_targets_.clear();
+  near_begin_.clear();
+  near_sources_.clear();
+  for (std::size_t p = 0; p < pairs.size(); ++p) {
+    if (p == 0 || pairs[p].first != pairs[p - 1].first) {
+      near_targets_.push_back(pairs[p].first);
+      near_begin_.push_back(near_sources_.size());
+    }
+    near_sources_.push_back(pairs[p].second);
+  }
+  near_begin_.push_back(near_sources_.size());
+}
+
+void FmmRpy::do_apply(const double* forces, double* velocities, std::size_t nrhs) const {
+  StopWatch total;
+  const std::size_t n = size();
+  const bool equal = equal_radii();
+  const std::size_t per_rhs = equal ? 4 : 7;
+  const std::size_t nd = per_rhs * nrhs;
+  const auto a = radii();
+  const double eta = viscosity();
+
+  // Charge vectors (MATH.md §2): F^(m), x.F, and for different radii a^2 F^(m).
+  StopWatch watch;
+  std::vector<double> charges(nd * n);
+  std::vector<unsigned> outputs(nd);
+  for (std::size_t k = 0; k < nrhs; ++k) {
+    const double* f = forces + 3 * n * k;
+    double* q = charges.data() + per_rhs * n * k;
+    for (std::size_t m = 0; m < 3; ++m) {
+      outputs[per_rhs * k + m] = fmm::potential | fmm::gradient | fmm::hessian;
+      for (std::size_t j = 0; j < n; ++j) q[m * n + j] = f[3 * j + m];
+    }
+    outputs[per_rhs * k + 3] = fmm::gradient;
+    for (std::size_t j = 0; j < n; ++j) {
+      const double* xj = &centered_[3 * j];
+      q[3 * n + j] = xj[0] * f[3 * j] + xj[1] * f[3 * j + 1] + xj[2] * f[3 * j + 2];
+    }
+    if (!equal) {
+      for (std::size_t m = 0; m < 3; ++m) {
+        outputs[per_rhs * k + 4 + m] = fmm::hessian;
+        for (std::size_t j = 0; j < n; ++j) q[(4 + m) * n + j] = a[j] * a[j] * f[3 * j + m];
+      }
+    }
+  }
+  timings_.clear();
+  timings_["rpy_charges"] = watch.seconds();
+
+  std::vector<double> results(nd * n * 10);
+  fmm_->evaluate(charges, nd, outputs, results);
+  for (const auto& [stage, seconds] : fmm_->last_timings()) timings_[stage] = seconds;
+
+  // Combine (MATH.md §2); E = -g, T = -H.
+  watch.restart();
+  const double c1 = 1.0 / (8.0 * pi * eta);
+  const double c2 = 1.0 / (24.0 * pi * eta);
+  const auto nn = static_cast<std::int64_t>(n);
+  for (std::size_t k = 0; k < nrhs; ++k) {
+    const double* r = results.data() + per_rhs * n * 10 * k;
+    double* u = velocities + 3 * n * k;
+#pragma omp parallel for schedule(static)
+    for (std::int64_t ii = 0; ii < nn; ++ii) {
+      const auto i = static_cast<std::size_t>(ii);
+      const double* xi = &centered_[3 * i];
+      const double ai2 = a[i] * a[i];
+      const double* rxF = r + (3 * n + i) * 10;  // results of x.F at target i
+      for (int c = 0; c < 3; ++c) {
+        double oseen = r[(c * n + i) * 10];  // phi(F^(c))
+        double dipole = 0.0;
+        for (int m = 0; m < 3; ++m) {
+          const double* rm = r + (m * n + i) * 10;
+          oseen -= xi[m] * rm[1 + c];                      // + x_m E_c(F^m),  E = -g
+          dipole -= rm[kHessianColumn[c][m]];              // T_cm(F^m),       T = -H
+        }
+        oseen += rxF[1 + c];                               // - E_c(x.F)
+        double value = c1 * oseen + c2 * ai2 * dipole;
+        if (equal) {
+          value += c2 * ai2 * dipole;                      // a_j^2 = a_i^2
+        } else {
+          double dipole_a2 = 0.0;
+          for (int m = 0; m < 3; ++m) dipole_a2 -= r[((4 + m) * n + i) * 10 + kHessianColumn[c][m]];
+          value += c2 * dipole_a2;
+        }
+        u[3 * i + c] = value;
+      }
+    }
+  }
+  timings_["rpy_far"] = watch.seconds();
+
+  watch.restart();
+  apply_near_field(forces, velocities, nrhs);
+  timings_["rpy_near"] = watch.seconds();
+  timings_["rpy_total"] = total.seconds();
+}
+
+void FmmRpy::apply_near_field(const double* forces, double* velocities, std::size_t nrhs) const {
+  const fmm::NearField& near = fmm_->near_field();
+  const std::size_t n = size();
+  const auto x = positions();
+  const auto a = radii();
+  const double inv_eta = 1.0 / viscosity();
+  const bool equal = equal_radii();
+  const auto ntl = static_cast<std::int64_t>(near_targets_.size());
+  // Each target leaf is owned by one thread: its velocities are written by nobody else, and the
+  // order of summation is fixed, so results do not depend on the thread count.
+#pragma omp parallel for schedule(dynamic, 4)
+  for (std::int64_t t = 0; t < ntl; ++t) {
+    const auto targets = near.targets(near_targets_[t]);
+    for (std::size_t i : targets) {
+      const double* xi = &x[3 * i];
+      for (std::size_t k = 0; k < nrhs; ++k) {
+        const double* f = forces + 3 * n * k;
+        double u[3] = {0.0, 0.0, 0.0};
+        for (std::size_t s = near_begin_[t]; s < near_begin_[t + 1]; ++s) {
+          for (std::size_t j : near.sources(near_sources_[s])) {
+            if (j == i) continue;
+            const double d[3] = {xi[0] - x[3 * j], xi[1] - x[3 * j + 1], xi[2] - x[3 * j + 2]};
+            if (equal) {
+              rpy_pair_add_equal(d, a[0], inv_eta, f + 3 * j, u);
+            } else {
+              rpy_pair_add(d, a[i], a[j], inv_eta, f + 3 * j, u);
+            }
+          }
+        }
+        const double self = rpy_self(a[i]) * inv_eta;  // M_ii = I / (6 pi eta a_i)
+        double* ui = velocities + 3 * n * k + 3 * i;
+        for (int c = 0; c < 3; ++c) ui[c] += u[c] + self * f[3 * i + c];
+      }
+    }
+  }
+}
+
+}  // namespace rpyfmm::rpy

@@ -1,0 +1,133 @@
+// FmmRpy against the exact direct operator (DirectRpy, an independent O(N^2)
+// pair sum), issue 7's configurations and tolerances. The contract is
+// ||U_fmm - U_direct||_2 <= eps ||U_direct||_2; we check it with no slack.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include "configurations.hpp"
+#include "rpyfmm/fmm/laplace_fmm.hpp"
+#include "rpyfmm/rpy/direct_operator.hpp"
+#include "rpyfmm/rpy/fmm_operator.hpp"
+
+using rpyfmm::rpy::DirectRpy;
+using rpyfmm::rpy::FmmRpy;
+using rpyfmm::rpy::FmmRpyOptions;
+using rpyfmm::rpy::Geometry;
+namespace t = rpyfmm::testing;
+
+namespace {
+
+std::vector<double> product(const rpyfmm::rpy::MobilityOperator& op, const std::vector<double>& f) {
+  std::vector<double> u(f.size());
+  op.apply(f, u);
+  return u;
+}
+
+double fmm_error(const t::Configuration& c, double eps, int leaf_capacity = 0, unsigned seed = 7) {
+  DirectRpy direct;
+  FmmRpy fast(Geometry::open(), 1.0, FmmRpyOptions{.tolerance = eps, .leaf_capacity = leaf_capacity});
+  direct.set_positions(c.x, c.a);
+  fast.set_positions(c.x, c.a);
+  const auto f = t::random_vector(c.x.size(), seed);
+  return t::relative_l2(product(fast, f), product(direct, f));
+}
+
+}  // namespace
+
+
+
+TEST(FmmRpy, TouchingAndOverlappingPairsExact) {
+  // Two spheres touching, two overlapping, one inside another: all near-field, so the FMM
+  // operator must reproduce the exact pair formulas to rounding.
+  const std::vector<std::tuple<double, double, double>> pairs = {{2.0, 1.0, 1.0}, {1.3, 1.0, 1.0}, {0.2, 1.0, 3.0}};
+  for (auto [r, a1, a2] : pairs) {
+    t::Configuration c{{0, 0, 0, r, 0, 0}, {a1, a2}};
+    EXPECT_LE(fmm_error(c, 1e-6), 1e-13) << "r=" << r;
+  }
+}
+
+TEST(FmmRpy, SingleParticleIsSelfMobility) {
+  FmmRpy op(Geometry::open(), 2.0);
+  op.set_positions(std::vector<double>{1, 2, 3}, 0.5);
+  std::vector<double> f{1, -2, 3}, u(3);
+  op.apply(f, u);
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(u[k], f[k] / (6 * M_PI * 2.0 * 0.5), 1e-15);
+}
+
+TEST(FmmRpy, TranslationAndRotationInvariance) {
+  auto c = t::random_suspension(1000, 1.0, 0.1, 11);
+  const auto f = t::random_vector(c.x.size(), 12);
+  FmmRpy op(Geometry::open(), 1.0, FmmRpyOptions{.tolerance = 1e-6});
+  op.set_positions(c.x, c.a);
+  const auto u = product(op, f);
+
+  // Translation by a large offset: the operator must not lose accuracy with |x|.
+  auto shifted = c.x;
+  for (std::size_t i = 0; i < shifted.size(); ++i) shifted[i] += 1e4 * (1 + i % 3);
+  op.set_positions(shifted, c.a);
+  EXPECT_LE(t::relative_l2(product(op, f), u), 2e-6);
+
+  // Rotation R about a generic axis: U(Rx; RF) = R U(x; F).
+  const double th = 0.7, ct = std::cos(th), st = std::sin(th);
+  const double R[3][3] = {{ct, -st, 0}, {st * 0.6, ct * 0.6, -0.8}, {st * 0.8, ct * 0.8, 0.6}};
+  auto rot = [&](const std::vector<double>& v) {
+    std::vector<double> w(v.size());
+    for (std::size_t i = 0; i < v.size() / 3; ++i)
+      for (int a = 0; a < 3; ++a) w[3 * i + a] = R[a][0] * v[3 * i] + R[a][1] * v[3 * i + 1] + R[a][2] * v[3 * i + 2];
+    return w;
+  };
+  op.set_positions(rot(c.x), c.a);
+  EXPECT_LE(t::relative_l2(product(op, rot(f)), rot(u)), 2e-6);
+}
+
+TEST(FmmRpy, SymmetricAndPositive) {
+  auto c = t::bimodal_suspension(1000, 0.5, 4.0, 0.2, 13);
+  FmmRpy op(Geometry::open(), 1.0, FmmRpyOptions{.tolerance = 1e-6});
+  op.set_positions(c.x, c.a);
+  for (unsigned s = 0; s < 3; ++s) {
+    const auto uvec = t::random_vector(c.x.size(), 100 + s), v = t::random_vector(c.x.size(), 200 + s);
+    const auto Mu = product(op, uvec), Mv = product(op, v);
+    double vMu = 0, uMv = 0, vMv = 0, norm = 0;
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      vMu += v[i] * Mu[i];
+      uMv += uvec[i] * Mv[i];
+      vMv += v[i] * Mv[i];
+      norm += std::abs(v[i] * Mu[i]);
+    }
+    EXPECT_LE(std::abs(vMu - uMv), 1e-6 * norm);
+    EXPECT_GT(vMv, 0.0);
+  }
+}
+
+TEST(FmmRpy, BlockApplyEqualsSingleApplies) {
+  auto c = t::random_suspension(600, 1.0, 0.1, 14);
+  FmmRpy op(Geometry::open(), 1.0, FmmRpyOptions{.tolerance = 1e-6});
+  op.set_positions(c.x, c.a);
+  const std::size_t n3 = c.x.size();
+  auto f = t::random_vector(3 * n3, 15);
+  std::vector<double> block(3 * n3);
+  op.apply_block(f, block, 3);
+  for (std::size_t k = 0; k < 3; ++k) {
+    std::vector<double> fk(f.begin() + k * n3, f.begin() + (k + 1) * n3);
+    const auto uk = product(op, fk);
+    for (std::size_t i = 0; i < n3; ++i) EXPECT_NEAR(block[k * n3 + i], uk[i], 1e-12 * (1 + std::abs(uk[i])));
+  }
+}
+
+TEST(FmmRpy, BadInput) {
+  EXPECT_THROW(FmmRpy(Geometry::periodic(10.0)), rpyfmm::Error);
+  EXPECT_THROW(FmmRpy(Geometry::open(), 1.0, FmmRpyOptions{.tolerance = 0.0}), rpyfmm::Error);
+  EXPECT_THROW(FmmRpy(Geometry::open(), 1.0, FmmRpyOptions{.tolerance = 0.5}), rpyfmm::Error);
+  EXPECT_THROW(FmmRpy(Geometry::open(), -1.0), rpyfmm::Error);
+  FmmRpy op;
+  EXPECT_THROW(op.set_positions(std::vector<double>{0, 0, 0, 1, 1, NAN}, 1.0), rpyfmm::Error);
+  EXPECT_THROW(op.set_positions(std::vector<double>{0, 0, 0, 1, 1, 1}, std::vector<double>{1.0}), rpyfmm::Error);
+  EXPECT_THROW(op.set_positions(std::vector<double>{0, 0, 0, 1, 1, 1}, std::vector<double>{1.0, -1.0}), rpyfmm::Error);
+  std::vector<double> f(6), u(6);
+  EXPECT_THROW(op.apply(f, u), rpyfmm::Error);  // no positions yet
+}
