@@ -1,2 +1,4 @@
 # FMM-backed free-space RPY operator (FmmRpy).
 target_sources(rpyfmm_rpy PRIVATE ${CMAKE_CURRENT_LIST_DIR}/src/fmm_operator.cpp)
+# sqrt must not set errno, or the near-field pair loop does not vectorize.
+set_source_files_properties(${CMAKE_CURRENT_LIST_DIR}/src/fmm_operator.cpp PROPERTIES COMPILE_OPTIONS "-fno-math-errno")

@@ -25,6 +25,54 @@ constexpr std::array<std::array<int, 3>, 3> kHessianColumn = {{{4, 7, 8}, {7, 5,
 // itself conservative (tests/rpy/test_fmm_operator.cpp holds the contract).
 double laplace_eps_for(double tolerance) { return tolerance; }
 
+// Sum over the gathered near-field sources q of M_iq f_q (times eta): exact RPY pair blocks
+// (rpy_kernel.hpp, MATH.md §1), all three regimes evaluated branch-free and selected per pair.
+// The self pair (sid == i) is excluded; coincident distinct points (r = 0) get I / (6 pi max a).
+// Compiled for AVX-512, AVX2 and baseline x86-64, chosen at run time.
+#if defined(__x86_64__) && !defined(__SANITIZE_ADDRESS__)
+__attribute__((target_clones("avx512f", "avx2", "default")))
+#endif
+void near_pair_sum(std::size_t m, const double* sx, const double* sy, const double* sz, const double* sa,
+                   const std::size_t* sid, const double* fx, const double* fy, const double* fz, double xi,
+                   double yi, double zi, double ai, std::size_t i, double u[3]) {
+  double ux = 0.0, uy = 0.0, uz = 0.0;
+#pragma omp simd reduction(+ : ux, uy, uz)
+  for (std::size_t q = 0; q < m; ++q) {
+    const double dx = xi - sx[q], dy = yi - sy[q], dz = zi - sz[q];
+    const double r2 = dx * dx + dy * dy + dz * dz;
+    const double aj = sa[q];
+    const double safe_r2 = r2 > 0.0 ? r2 : 1.0;
+    const double r = std::sqrt(safe_r2);
+    const double inv_r = 1.0 / r;
+    const double sum = ai + aj, diff = ai - aj;
+    // far: r > ai + aj
+    const double s2 = (ai * ai + aj * aj) * inv_r * inv_r;
+    const double c8 = rpy_detail::inv_8pi * inv_r;
+    const double f_far = c8 * (1.0 + s2 / 3.0), g_far = c8 * (1.0 - s2);
+    // partial overlap: |ai - aj| < r <= ai + aj
+    const double c6 = rpy_detail::inv_6pi / (ai * aj);
+    const double d2r = diff * diff * inv_r, pr = d2r + 3.0 * r, qr = d2r - r;
+    const double inv_32r = inv_r / 32.0;
+    const double f_ov = c6 * (0.5 * sum - pr * pr * inv_32r), g_ov = c6 * (3.0 * qr * qr * inv_32r);
+    // one sphere inside the other, and coincident points
+    const double f_in = rpy_detail::inv_6pi / (ai > aj ? ai : aj);
+    const bool far = r > sum, inside = r <= (diff < 0.0 ? -diff : diff) || r2 == 0.0;
+    double fs = far ? f_far : (inside ? f_in : f_ov);
+    double gs = far ? g_far : (inside ? 0.0 : g_ov);
+    const bool self = sid[q] == i;
+    fs = self ? 0.0 : fs;
+    gs = self ? 0.0 : gs;
+    const double gr = gs * inv_r * inv_r;
+    const double df = gr * (dx * fx[q] + dy * fy[q] + dz * fz[q]);
+    ux += fs * fx[q] + df * dx;
+    uy += fs * fy[q] + df * dy;
+    uz += fs * fz[q] + df * dz;
+  }
+  u[0] = ux;
+  u[1] = uy;
+  u[2] = uz;
+}
+
 }  // namespace
 
 FmmRpy::FmmRpy(Geometry geometry, double viscosity, FmmRpyOptions options)
@@ -170,32 +218,51 @@ void FmmRpy::apply_near_field(const double* forces, double* velocities, std::siz
   const auto x = positions();
   const auto a = radii();
   const double inv_eta = 1.0 / viscosity();
-  const bool equal = equal_radii();
   const auto ntl = static_cast<std::int64_t>(near_targets_.size());
   // Each target leaf is owned by one thread: its velocities are written by nobody else, and the
   // order of summation is fixed, so results do not depend on the thread count.
-#pragma omp parallel for schedule(dynamic, 4)
-  for (std::int64_t t = 0; t < ntl; ++t) {
-    const auto targets = near.targets(near_targets_[t]);
-    for (std::size_t i : targets) {
-      const double* xi = &x[3 * i];
+#pragma omp parallel
+  {
+    // Sources of all U-list leaves of one target leaf, gathered into structure-of-arrays
+    // buffers so that the pair loop below vectorizes.
+    std::vector<double> sx, sy, sz, sa, sf;
+    std::vector<std::size_t> sid;
+#pragma omp for schedule(dynamic, 4)
+    for (std::int64_t t = 0; t < ntl; ++t) {
+      sx.clear();
+      sy.clear();
+      sz.clear();
+      sa.clear();
+      sid.clear();
+      for (std::size_t s = near_begin_[t]; s < near_begin_[t + 1]; ++s) {
+        for (std::size_t j : near.sources(near_sources_[s])) {
+          sx.push_back(x[3 * j]);
+          sy.push_back(x[3 * j + 1]);
+          sz.push_back(x[3 * j + 2]);
+          sa.push_back(a[j]);
+          sid.push_back(j);
+        }
+      }
+      const std::size_t m = sid.size();
+      sf.resize(3 * m);
       for (std::size_t k = 0; k < nrhs; ++k) {
         const double* f = forces + 3 * n * k;
-        double u[3] = {0.0, 0.0, 0.0};
-        for (std::size_t s = near_begin_[t]; s < near_begin_[t + 1]; ++s) {
-          for (std::size_t j : near.sources(near_sources_[s])) {
-            if (j == i) continue;
-            const double d[3] = {xi[0] - x[3 * j], xi[1] - x[3 * j + 1], xi[2] - x[3 * j + 2]};
-            if (equal) {
-              rpy_pair_add_equal(d, a[0], inv_eta, f + 3 * j, u);
-            } else {
-              rpy_pair_add(d, a[i], a[j], inv_eta, f + 3 * j, u);
-            }
-          }
+        for (std::size_t q = 0; q < m; ++q)
+          for (int c = 0; c < 3; ++c) sf[c * m + q] = f[3 * sid[q] + c];
+        const double* fx = sf.data();
+        const double* fy = fx + m;
+        const double* fz = fy + m;
+        for (std::size_t i : near.targets(near_targets_[t])) {
+          const double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2], ai = a[i];
+          double u[3];
+          near_pair_sum(m, sx.data(), sy.data(), sz.data(), sa.data(), sid.data(), fx, fy, fz, xi, yi, zi, ai, i, u);
+          const double ux = u[0], uy = u[1], uz = u[2];
+          const double self = rpy_self(ai);  // M_ii = I / (6 pi eta a_i)
+          double* ui = velocities + 3 * n * k + 3 * i;
+          ui[0] += inv_eta * (ux + self * f[3 * i]);
+          ui[1] += inv_eta * (uy + self * f[3 * i + 1]);
+          ui[2] += inv_eta * (uz + self * f[3 * i + 2]);
         }
-        const double self = rpy_self(a[i]) * inv_eta;  // M_ii = I / (6 pi eta a_i)
-        double* ui = velocities + 3 * n * k + 3 * i;
-        for (int c = 0; c < 3; ++c) ui[c] += u[c] + self * f[3 * i + c];
       }
     }
   }

@@ -1,0 +1,150 @@
+// Benchmark of the free-space RPY operator (issue 7), in the layout of the
+// dissertation's Tables 3.1-3.6: for each N and tolerance, one RPY product with
+// FmmRpy, its measured error against an exact RPY sum at sampled targets, the
+// time of one Laplace FMM evaluation (pot + grad + Hessian, one charge vector)
+// on the same points, and the direct O(N^2) time (measured for N <= 20000,
+// extrapolated as N^2 above, marked so). Prints one CSV row per case.
+//
+// usage: bench_rpy_fmm [dist=cylinder|eight|suspension] [N list] [eps list] [threads list] [repeats]
+//        bench_rpy_fmm cylinder 10000,100000 1e-3,1e-6,1e-9 1,2 3 [points.bin]
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "configurations.hpp"
+#include "rpyfmm/core/timer.hpp"
+#include "rpyfmm/fmm/laplace_fmm.hpp"
+#include "rpyfmm/rpy/direct_operator.hpp"
+#include "rpyfmm/rpy/fmm_operator.hpp"
+#include "rpyfmm/rpy/rpy_kernel.hpp"
+
+namespace t = rpyfmm::testing;
+using rpyfmm::StopWatch;
+
+namespace {
+
+template <class T>
+std::vector<T> parse_list(const std::string& s) {
+  std::vector<T> v;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ',')) v.push_back(static_cast<T>(std::stod(item)));
+  return v;
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+t::Configuration make(const std::string& dist, std::size_t n) {
+  // Radii small against the spacing, as in the dissertation's surface tests.
+  if (dist == "cylinder") return t::cylinder_surface(n, 1e-4, 42);
+  if (dist == "eight") return t::eight_surface(n, 1e-4, 42);
+  return t::random_suspension(n, 1.0, 0.1, 42);
+}
+
+// Exact RPY velocity at sampled targets (independent of the operators).
+double sampled_error(const t::Configuration& c, const std::vector<double>& f, const std::vector<double>& u,
+                     std::size_t samples) {
+  const std::size_t n = c.a.size();
+  double num = 0, den = 0;
+  for (std::size_t s = 0; s < std::min(samples, n); ++s) {
+    const std::size_t i = (s * 7919) % n;
+    double ui[3] = {0, 0, 0};
+    for (std::size_t j = 0; j < n; ++j) {
+      const double d[3] = {c.x[3 * i] - c.x[3 * j], c.x[3 * i + 1] - c.x[3 * j + 1], c.x[3 * i + 2] - c.x[3 * j + 2]};
+      if (i == j) {
+        for (int k = 0; k < 3; ++k) ui[k] += rpyfmm::rpy::rpy_self(c.a[i]) * f[3 * i + k];
+      } else {
+        rpyfmm::rpy::rpy_pair_add(d, c.a[i], c.a[j], 1.0, &f[3 * j], ui);
+      }
+    }
+    for (int k = 0; k < 3; ++k) {
+      num += (u[3 * i + k] - ui[k]) * (u[3 * i + k] - ui[k]);
+      den += ui[k] * ui[k];
+    }
+  }
+  return std::sqrt(num / den);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const std::string dist = argc > 1 ? argv[1] : "cylinder";
+  const auto ns = parse_list<std::size_t>(argc > 2 ? argv[2] : "10000,100000");
+  const auto epss = parse_list<double>(argc > 3 ? argv[3] : "1e-3,1e-6,1e-9");
+  const auto threads = parse_list<int>(argc > 4 ? argv[4] : "1,2");
+  const int repeats = argc > 5 ? std::stoi(argv[5]) : 3;
+  const std::string dump = argc > 6 ? argv[6] : "";
+
+  std::printf("dist,N,eps,threads,rpy_s,laplace1_s,ratio_rpy_laplace,direct_s,direct_kind,speedup_vs_direct,"
+              "rel_l2_err,levels,leaves,near_s,far_fmm_s\n");
+  for (std::size_t n : ns) {
+    const auto c = make(dist, n);
+    const auto f = t::random_vector(3 * n, 1);
+    if (!dump.empty()) {  // positions then forces, float64, for compare_stfmm3d.py
+      std::ofstream out(dump + "." + std::to_string(n), std::ios::binary);
+      out.write(reinterpret_cast<const char*>(c.x.data()), static_cast<std::streamsize>(c.x.size() * 8));
+      out.write(reinterpret_cast<const char*>(f.data()), static_cast<std::streamsize>(f.size() * 8));
+    }
+    for (int nt : threads) {
+      omp_set_num_threads(nt);
+      // Direct time: measured up to 20000 particles, extrapolated from 20000 as N^2 beyond.
+      double direct_s = 0;
+      std::string direct_kind = "measured";
+      {
+        const std::size_t nd = std::min<std::size_t>(n, 20000);
+        const auto cd = nd == n ? c : make(dist, nd);
+        rpyfmm::rpy::DirectRpy direct;
+        direct.set_positions(cd.x, cd.a);
+        std::vector<double> fd(3 * nd, 1.0), ud(3 * nd);
+        StopWatch w;
+        direct.apply(fd, ud);
+        direct_s = w.seconds() * (static_cast<double>(n) / nd) * (static_cast<double>(n) / nd);
+        if (nd != n) direct_kind = "extrapolated";
+      }
+      for (double eps : epss) {
+        rpyfmm::rpy::FmmRpy op(rpyfmm::rpy::Geometry::open(), 1.0, {.tolerance = eps});
+        op.set_positions(c.x, c.a);
+        std::vector<double> u(3 * n);
+        std::vector<double> times, near_t, far_t;
+        for (int r = 0; r < repeats; ++r) {
+          StopWatch w;
+          op.apply(f, u);
+          times.push_back(w.seconds());
+          auto tm = op.last_timings();
+          near_t.push_back(tm["rpy_near"]);
+          far_t.push_back(tm.count("total") ? tm["total"] : 0.0);
+        }
+        const double err = sampled_error(c, f, u, 200);
+
+        // One Laplace FMM evaluation, pot + grad + Hessian, one charge vector, same points and eps.
+        rpyfmm::fmm::LaplaceFmm lap({.eps = eps});
+        lap.set_points(c.x);
+        std::vector<double> q(n), res(10 * n);
+        for (std::size_t j = 0; j < n; ++j) q[j] = f[3 * j];
+        std::vector<double> lt;
+        for (int r = 0; r < repeats; ++r) {
+          StopWatch w;
+          lap.evaluate(q, 1, rpyfmm::fmm::all_outputs, res);
+          lt.push_back(w.seconds());
+        }
+        const auto stats = op.laplace_plan()->stats();
+        const double rpy_s = median(times), lap_s = median(lt);
+        std::printf("%s,%zu,%.0e,%d,%.4f,%.4f,%.2f,%.3f,%s,%.1f,%.2e,%d,%zu,%.4f,%.4f\n", dist.c_str(), n, eps, nt,
+                    rpy_s, lap_s, rpy_s / lap_s, direct_s, direct_kind.c_str(), direct_s / rpy_s, err, stats.levels,
+                    stats.leaves, median(near_t), median(far_t));
+        std::fflush(stdout);
+      }
+    }
+  }
+  return 0;
+}
