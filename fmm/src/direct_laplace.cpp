@@ -18,9 +18,6 @@
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
 
-#if defined(RPYFMM_HAVE_DIRECT_AVX512)
-#include <immintrin.h>
-#endif
 
 namespace rpyfmm::fmm {
 
@@ -164,18 +161,7 @@ template <bool P, bool G, bool H>
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 // ---- AVX-512F kernels (8 pairs per instruction, 1/r by rsqrt14 + Newton) ----
 
-// 1/sqrt(r2) where 0 < r2 < inf, else 0 (skips r = 0; the r2 = inf limit is 0).
-RPYFMM_DIRECT_AVX512 inline __m512d rsqrt_or_zero(__m512d r2) {
-  const __mmask8 ok = _mm512_cmp_pd_mask(r2, _mm512_setzero_pd(), _CMP_GT_OQ) &
-                      _mm512_cmp_pd_mask(r2, _mm512_set1_pd(__builtin_inf()), _CMP_LT_OQ);
-  __m512d y = _mm512_maskz_rsqrt14_pd(ok, r2);  // relative error < 2^-14
-  const __m512d one = _mm512_set1_pd(1.0), half = _mm512_set1_pd(0.5);
-  for (int it = 0; it < 2; ++it) {  // y <- y + (y/2)(1 - r2 y^2): error e -> ~1.5 e^2
-    const __m512d h = _mm512_fnmadd_pd(_mm512_mul_pd(r2, y), y, one);
-    y = _mm512_fmadd_pd(_mm512_mul_pd(half, y), h, y);
-  }
-  return y;  // 0 stays 0 where masked
-}
+using detail::rsqrt_or_zero;
 
 template <bool P, bool G, bool H>
 RPYFMM_DIRECT_AVX512 void p2p_single_avx512(double tx, double ty, double tz, const double* sx, const double* sy,

@@ -57,8 +57,9 @@ void scalars_equal(double xi, double yi, double zi, const double* __restrict x, 
 RPYFMM_DIRECT_CLONES
 void scalars_general(double xi, double yi, double zi, double ai, const double* __restrict x,
                      const double* __restrict y, const double* __restrict z, const double* __restrict a,
-                     std::size_t nb, double* __restrict dx, double* __restrict dy, double* __restrict dz,
-                     double* __restrict f, double* __restrict gr) {
+                     const double* __restrict inv_a, std::size_t nb, double* __restrict dx, double* __restrict dy,
+                     double* __restrict dz, double* __restrict f, double* __restrict gr) {
+  const double inv_ai = 1.0 / ai;
 #pragma omp simd
   for (std::size_t j = 0; j < nb; ++j) {
     const double aj = a[j];
@@ -76,7 +77,7 @@ void scalars_general(double xi, double yi, double zi, double ai, const double* _
     const double f_far = c8 * (1.0 + s / 3.0);
     const double gr_far = c8 * (1.0 - s) * inv_r2;
     // partial overlap, |ai - aj| < r <= ai + aj (divided through by r^2, see rpy_kernel.hpp)
-    const double c = kInv6Pi / (ai * aj);
+    const double c = kInv6Pi * inv_ai * inv_a[j];
     const double d2r = diff * diff * inv_r;
     const double pr = d2r + 3.0 * r;
     const double qr = d2r - r;
@@ -84,7 +85,7 @@ void scalars_general(double xi, double yi, double zi, double ai, const double* _
     const double f_mid = c * (0.5 * sum - pr * pr * inv_32r);
     const double gr_mid = c * 3.0 * qr * qr * inv_32r * inv_r2;
     // one inside the other (and r = 0), r <= |ai - aj|
-    const double f_in = kInv6Pi / std::max(ai, aj);
+    const double f_in = kInv6Pi * std::min(inv_ai, inv_a[j]);  // 1/(6 pi max(ai, aj))
     const bool far = r > sum;
     const bool inside = r <= adiff;
     f[j] = far ? f_far : (inside ? f_in : f_mid);
@@ -94,6 +95,97 @@ void scalars_general(double xi, double yi, double zi, double ai, const double* _
     dz[j] = ddz;
   }
 }
+
+#if defined(RPYFMM_HAVE_DIRECT_AVX512)
+// GCC 12's _mm512_abs_pd uses an undefined vector: silence its false -Wmaybe-uninitialized.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wuninitialized"
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+// The same two loops with AVX-512F, 1/r by rsqrt14 + Newton (direct_simd.hpp)
+// and r = r^2 / r; regimes chosen by lane masks.
+using fmm::detail::rsqrt_or_zero;
+
+RPYFMM_DIRECT_AVX512 void scalars_equal_avx512(double xi, double yi, double zi, const double* x, const double* y,
+                                               const double* z, std::size_t nb, double a, double* dx, double* dy,
+                                               double* dz, double* f, double* gr) {
+  const __m512d vx = _mm512_set1_pd(xi), vy = _mm512_set1_pd(yi), vz = _mm512_set1_pd(zi);
+  const __m512d c6 = _mm512_set1_pd(kInv6Pi / a), c8 = _mm512_set1_pd(kInv8Pi), two_a = _mm512_set1_pd(2.0 * a);
+  const __m512d a2 = _mm512_set1_pd(a * a), one = _mm512_set1_pd(1.0);
+  const __m512d near_f = _mm512_set1_pd(9.0 / (32.0 * a)), near_g = _mm512_set1_pd(kInv6Pi / a * 3.0 / (32.0 * a));
+  for (std::size_t j = 0; j < nb; j += 8) {
+    const __mmask8 m = nb - j >= 8 ? __mmask8(0xff) : __mmask8((1u << (nb - j)) - 1u);
+    const __m512d ddx = _mm512_sub_pd(vx, _mm512_maskz_loadu_pd(m, x + j));
+    const __m512d ddy = _mm512_sub_pd(vy, _mm512_maskz_loadu_pd(m, y + j));
+    const __m512d ddz = _mm512_sub_pd(vz, _mm512_maskz_loadu_pd(m, z + j));
+    const __m512d r2 = _mm512_fmadd_pd(ddz, ddz, _mm512_fmadd_pd(ddy, ddy, _mm512_mul_pd(ddx, ddx)));
+    const __m512d ir = rsqrt_or_zero(r2);
+    const __m512d r = _mm512_mul_pd(r2, ir);
+    const __m512d ir2 = _mm512_mul_pd(ir, ir);
+    const __m512d sa = _mm512_mul_pd(a2, ir2);
+    const __m512d c8r = _mm512_mul_pd(c8, ir);
+    const __mmask8 far = _mm512_cmp_pd_mask(r, two_a, _CMP_GT_OQ);
+    const __m512d f_far = _mm512_mul_pd(c8r, _mm512_fmadd_pd(_mm512_set1_pd(2.0 / 3.0), sa, one));
+    const __m512d g_far = _mm512_mul_pd(_mm512_mul_pd(c8r, _mm512_fnmadd_pd(_mm512_set1_pd(2.0), sa, one)), ir2);
+    const __m512d f_near = _mm512_mul_pd(c6, _mm512_fnmadd_pd(near_f, r, one));
+    const __m512d g_near = _mm512_mul_pd(near_g, ir);
+    _mm512_mask_storeu_pd(f + j, m, _mm512_mask_blend_pd(far, f_near, f_far));
+    _mm512_mask_storeu_pd(gr + j, m, _mm512_mask_blend_pd(far, g_near, g_far));
+    _mm512_mask_storeu_pd(dx + j, m, ddx);
+    _mm512_mask_storeu_pd(dy + j, m, ddy);
+    _mm512_mask_storeu_pd(dz + j, m, ddz);
+  }
+}
+
+RPYFMM_DIRECT_AVX512 void scalars_general_avx512(double xi, double yi, double zi, double ai, const double* x,
+                                                 const double* y, const double* z, const double* a,
+                                                 const double* inv_a, std::size_t nb, double* dx, double* dy,
+                                                 double* dz, double* f, double* gr) {
+  const __m512d vx = _mm512_set1_pd(xi), vy = _mm512_set1_pd(yi), vz = _mm512_set1_pd(zi);
+  const __m512d vai = _mm512_set1_pd(ai), vinv_ai = _mm512_set1_pd(1.0 / ai), one = _mm512_set1_pd(1.0);
+  const __m512d c6 = _mm512_set1_pd(kInv6Pi), c8 = _mm512_set1_pd(kInv8Pi), zero = _mm512_setzero_pd();
+  for (std::size_t j = 0; j < nb; j += 8) {
+    const __mmask8 m = nb - j >= 8 ? __mmask8(0xff) : __mmask8((1u << (nb - j)) - 1u);
+    const __m512d aj = _mm512_mask_loadu_pd(vai, m, a + j);  // idle lanes: aj = ai (finite)
+    const __m512d inv_aj = _mm512_mask_loadu_pd(vinv_ai, m, inv_a + j);
+    const __m512d ddx = _mm512_sub_pd(vx, _mm512_maskz_loadu_pd(m, x + j));
+    const __m512d ddy = _mm512_sub_pd(vy, _mm512_maskz_loadu_pd(m, y + j));
+    const __m512d ddz = _mm512_sub_pd(vz, _mm512_maskz_loadu_pd(m, z + j));
+    const __m512d r2 = _mm512_fmadd_pd(ddz, ddz, _mm512_fmadd_pd(ddy, ddy, _mm512_mul_pd(ddx, ddx)));
+    const __m512d ir = rsqrt_or_zero(r2);
+    const __m512d r = _mm512_mul_pd(r2, ir);
+    const __m512d ir2 = _mm512_mul_pd(ir, ir);
+    const __m512d sum = _mm512_add_pd(vai, aj);
+    const __m512d diff = _mm512_sub_pd(vai, aj);
+    // far, r > ai + aj
+    const __m512d s = _mm512_mul_pd(_mm512_fmadd_pd(aj, aj, _mm512_mul_pd(vai, vai)), ir2);
+    const __m512d c8r = _mm512_mul_pd(c8, ir);
+    const __m512d f_far = _mm512_mul_pd(c8r, _mm512_fmadd_pd(s, _mm512_set1_pd(1.0 / 3.0), one));
+    const __m512d g_far = _mm512_mul_pd(_mm512_mul_pd(c8r, _mm512_sub_pd(one, s)), ir2);
+    // partial overlap (divided through by r^2, see rpy_kernel.hpp)
+    const __m512d c = _mm512_mul_pd(c6, _mm512_mul_pd(vinv_ai, inv_aj));
+    const __m512d d2r = _mm512_mul_pd(_mm512_mul_pd(diff, diff), ir);
+    const __m512d pr = _mm512_fmadd_pd(_mm512_set1_pd(3.0), r, d2r);
+    const __m512d qr = _mm512_sub_pd(d2r, r);
+    const __m512d inv_32r = _mm512_mul_pd(ir, _mm512_set1_pd(1.0 / 32.0));
+    const __m512d f_mid =
+        _mm512_mul_pd(c, _mm512_fnmadd_pd(_mm512_mul_pd(pr, pr), inv_32r, _mm512_mul_pd(_mm512_set1_pd(0.5), sum)));
+    const __m512d g_mid =
+        _mm512_mul_pd(_mm512_mul_pd(c, _mm512_set1_pd(3.0)), _mm512_mul_pd(_mm512_mul_pd(qr, qr), _mm512_mul_pd(inv_32r, ir2)));
+    // one inside the other (and r = 0)
+    const __m512d f_in = _mm512_mul_pd(c6, _mm512_min_pd(vinv_ai, inv_aj));
+    const __mmask8 far = _mm512_cmp_pd_mask(r, sum, _CMP_GT_OQ);
+    const __mmask8 inside = _mm512_cmp_pd_mask(r, _mm512_abs_pd(diff), _CMP_LE_OQ);
+    const __m512d fv = _mm512_mask_blend_pd(far, _mm512_mask_blend_pd(inside, f_mid, f_in), f_far);
+    const __m512d gv = _mm512_mask_blend_pd(far, _mm512_mask_blend_pd(inside, g_mid, zero), g_far);
+    _mm512_mask_storeu_pd(f + j, m, fv);
+    _mm512_mask_storeu_pd(gr + j, m, gv);
+    _mm512_mask_storeu_pd(dx + j, m, ddx);
+    _mm512_mask_storeu_pd(dy + j, m, ddy);
+    _mm512_mask_storeu_pd(dz + j, m, ddz);
+  }
+}
+#pragma GCC diagnostic pop
+#endif  // RPYFMM_HAVE_DIRECT_AVX512
 
 // u += sum_j (f_j F_j + gr_j d_j (d_j . F_j)) over one block, forces in SoA.
 RPYFMM_DIRECT_CLONES
@@ -133,12 +225,16 @@ void DirectRpy::on_positions_set() {
     z_[i] = p[3 * i + 2];
   }
   a_.assign(radii().begin(), radii().end());
+  inv_a_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) inv_a_[i] = 1.0 / a_[i];
 }
 
 void DirectRpy::do_apply(const double* forces, double* velocities, std::size_t nrhs) const {
   const std::size_t n = size();
   const double inv_eta = 1.0 / viscosity();
   const bool equal = equal_radii();
+  const bool avx512 = fmm::detail::avx512_kernels_active();
+  (void)avx512;
   // Forces to structure-of-arrays, one (fx, fy, fz) triple of length n per right-hand side.
   std::vector<double> fsoa(3 * n * nrhs);
   for (std::size_t k = 0; k < nrhs; ++k) {
@@ -164,12 +260,23 @@ void DirectRpy::do_apply(const double* forces, double* velocities, std::size_t n
       std::fill(acc.begin(), acc.end(), 0.0);
       for (std::size_t j0 = 0; j0 < n; j0 += kBlock) {
         const std::size_t nb = std::min(kBlock, n - j0);
+#if defined(RPYFMM_HAVE_DIRECT_AVX512)
+        if (avx512) {
+          if (equal) {
+            scalars_equal_avx512(x_[i], y_[i], z_[i], x_.data() + j0, y_.data() + j0, z_.data() + j0, nb, a_[0], dx,
+                                 dy, dz, f, gr);
+          } else {
+            scalars_general_avx512(x_[i], y_[i], z_[i], a_[i], x_.data() + j0, y_.data() + j0, z_.data() + j0,
+                                   a_.data() + j0, inv_a_.data() + j0, nb, dx, dy, dz, f, gr);
+          }
+        } else
+#endif
         if (equal) {
           scalars_equal(x_[i], y_[i], z_[i], x_.data() + j0, y_.data() + j0, z_.data() + j0, nb, a_[0], dx, dy, dz,
                         f, gr);
         } else {
           scalars_general(x_[i], y_[i], z_[i], a_[i], x_.data() + j0, y_.data() + j0, z_.data() + j0,
-                          a_.data() + j0, nb, dx, dy, dz, f, gr);
+                          a_.data() + j0, inv_a_.data() + j0, nb, dx, dy, dz, f, gr);
         }
         for (std::size_t k = 0; k < nrhs; ++k) {
           const double* s = fsoa.data() + 3 * n * k;

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "rpyfmm/core/error.hpp"
+#include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
 
 using rpyfmm::Error;
@@ -86,7 +87,18 @@ double max_rel_error(const std::vector<double>& u, const std::vector<double>& re
 
 // Tolerance 1e-13 relative to max |U|: same formulas, different summation order
 // and rearranged overlap expressions (rounding only).
-TEST(DirectRpy, MatchesPlainLoopEqualRadii) {
+// Both code paths: AVX-512 kernels (where the CPU has them) and portable ones.
+class DirectRpyPaths : public ::testing::TestWithParam<bool> {
+ protected:
+  void SetUp() override { rpyfmm::fmm::detail::use_avx512_kernels(GetParam()); }
+  void TearDown() override { rpyfmm::fmm::detail::use_avx512_kernels(true); }
+};
+INSTANTIATE_TEST_SUITE_P(Kernels, DirectRpyPaths, ::testing::Values(true, false),
+                         [](const ::testing::TestParamInfo<bool>& p) {
+                           return p.param ? "avx512_if_available" : "portable";
+                         });
+
+TEST_P(DirectRpyPaths, MatchesPlainLoopEqualRadii) {
   for (double box : {4.0, 30.0}) {  // dense (many overlaps) and dilute
     auto c = random_config(150, box, 0.5, 0.5, 11);
     std::fill(c.a.begin(), c.a.end(), 0.5);
@@ -99,7 +111,7 @@ TEST(DirectRpy, MatchesPlainLoopEqualRadii) {
   }
 }
 
-TEST(DirectRpy, MatchesPlainLoopPolydisperse) {
+TEST_P(DirectRpyPaths, MatchesPlainLoopPolydisperse) {
   for (double box : {3.0, 25.0}) {
     auto c = random_config(150, box, 0.1, 1.2, 12);
     c.x[6] = c.x[0];  // particle 2 coincides with particle 0
@@ -114,7 +126,7 @@ TEST(DirectRpy, MatchesPlainLoopPolydisperse) {
   }
 }
 
-TEST(DirectRpy, BlockEqualsSeparateApplies) {
+TEST_P(DirectRpyPaths, BlockEqualsSeparateApplies) {
   const std::size_t n = 300, nrhs = 3;  // n > internal block size
   auto c = random_config(n, 10.0, 0.2, 0.6, 13, nrhs);
   DirectRpy op;

@@ -28,6 +28,10 @@
 #define RPYFMM_DIRECT_CLONES
 #endif
 
+#if defined(RPYFMM_HAVE_DIRECT_AVX512)
+#include <immintrin.h>
+#endif
+
 namespace rpyfmm::fmm::detail {
 /// True when the AVX-512 kernels are compiled in, the running CPU supports
 /// AVX-512F, and they have not been disabled with use_avx512_kernels(false).
@@ -36,4 +40,21 @@ bool avx512_kernels_active() noexcept;
 /// check the portable kernels on an AVX-512 machine. Do not call while a
 /// direct sum runs on another thread.
 void use_avx512_kernels(bool enabled) noexcept;
+
+#if defined(RPYFMM_HAVE_DIRECT_AVX512)
+/// 1/sqrt(r2) lane by lane where 0 < r2 < inf, else 0 (the r = 0 skip; the
+/// r2 = inf limit is 0): rsqrt14 (relative error < 2^-14) and two Newton steps
+/// y <- y + (y/2)(1 - r2 y^2), each squaring the error (14 -> 28 -> ~53 bits).
+RPYFMM_DIRECT_AVX512 inline __m512d rsqrt_or_zero(__m512d r2) {
+  const __mmask8 ok = _mm512_cmp_pd_mask(r2, _mm512_setzero_pd(), _CMP_GT_OQ) &
+                      _mm512_cmp_pd_mask(r2, _mm512_set1_pd(__builtin_inf()), _CMP_LT_OQ);
+  __m512d y = _mm512_maskz_rsqrt14_pd(ok, r2);
+  const __m512d one = _mm512_set1_pd(1.0), half = _mm512_set1_pd(0.5);
+  for (int it = 0; it < 2; ++it) {
+    const __m512d h = _mm512_fnmadd_pd(_mm512_mul_pd(r2, y), y, one);
+    y = _mm512_fmadd_pd(_mm512_mul_pd(half, y), h, y);
+  }
+  return y;  // masked lanes stay 0: h = 1, y = 0
+}
+#endif
 }  // namespace rpyfmm::fmm::detail

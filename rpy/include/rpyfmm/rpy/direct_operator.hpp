@@ -33,7 +33,7 @@ class DirectRpy final : public MobilityOperator {
 
  private:
   // Structure-of-arrays copies of positions and radii (vectorizable inner loops).
-  std::vector<double> x_, y_, z_, a_;
+  std::vector<double> x_, y_, z_, a_, inv_a_;
 };
 
 }  // namespace rpyfmm::rpy
