@@ -10,3 +10,9 @@ target_sources(rpyfmm_fmm PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/src/octree.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/laplace_fmm.cpp)
 target_link_libraries(rpyfmm_fmm PRIVATE Eigen3::Eigen)
+# std::complex products without the C99 Annex G inf/nan recovery (__muldc3): every value here is finite.
+set_source_files_properties(
+  ${CMAKE_CURRENT_LIST_DIR}/src/harmonics.cpp ${CMAKE_CURRENT_LIST_DIR}/src/point_expansions.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/rotation.cpp ${CMAKE_CURRENT_LIST_DIR}/src/child_translations.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/planewave.cpp ${CMAKE_CURRENT_LIST_DIR}/src/laplace_fmm.cpp
+  PROPERTIES COMPILE_OPTIONS "-fcx-limited-range")

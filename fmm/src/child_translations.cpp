@@ -8,10 +8,6 @@
 namespace rpyfmm::fmm::detail {
 
 namespace {
-std::array<double, 9> rot_y(double t) {
-  const double c = std::cos(t), s = std::sin(t);
-  return {c, 0.0, -s, 0.0, 1.0, 0.0, s, 0.0, c};
-}
 // Child octant -> direction signs of the child center relative to the parent center.
 inline void octant_signs(int octant, int& sx, int& sy, int& sz) {
   sx = (octant & 1) ? 1 : -1;
@@ -22,8 +18,8 @@ inline void octant_signs(int octant, int& sx, int& sy, int& sz) {
 
 ChildTranslations::ChildTranslations(int p)
     : p_(p),
-      up_(p, rot_y(std::acos(1.0 / std::sqrt(3.0)))),
-      down_(p, rot_y(std::numbers::pi - std::acos(1.0 / std::sqrt(3.0)))) {
+      up_(Rotation::about_y(p, std::acos(1.0 / std::sqrt(3.0)))),
+      down_(Rotation::about_y(p, std::numbers::pi - std::acos(1.0 / std::sqrt(3.0)))) {
   const Harmonics& H = Harmonics::cached(p);
   m2m_c_.assign(std::size_t(ncoef(p)) * (p + 1), 0.0);
   l2l_c_.assign(std::size_t(ncoef(p)) * (p + 1), 0.0);

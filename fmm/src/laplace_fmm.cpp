@@ -40,6 +40,10 @@ int fmm_default_leaf_capacity(double eps) {
 }
 
 namespace {
+// Loops over fewer boxes than this run on one thread: the fork/join (and, on a loaded machine, the
+// barrier spin) costs more than the work. Results do not depend on it (each item is one thread's).
+constexpr std::size_t kMinParallel = 32;
+
 const detail::ChildTranslations& child_translations(int p) {
   static std::mutex mutex;
   static std::map<int, std::unique_ptr<detail::ChildTranslations>> cache;
@@ -221,7 +225,7 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
   // Sorted charges, nd x N.
   std::vector<double> qs(nd * N);
   const auto& sperm = tree.source_order();
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for if (N >= 4096) schedule(static)
   for (std::size_t j = 0; j < N; ++j)
     for (std::size_t d = 0; d < nd; ++d) qs[d * N + j] = charges[d * N + sperm[j]];
   std::vector<double> res(nd * M * result_width, 0.0);
@@ -235,7 +239,7 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
   // ---- P2M at the leaves (§6.3) ----
   sw.restart();
   const auto& leaves = tree.leaves();
-#pragma omp parallel
+#pragma omp parallel if (leaves.size() >= kMinParallel)
   {
     std::vector<cplx> scratch(ncoef(p + 2));
 #pragma omp for schedule(dynamic, 8)
@@ -253,7 +257,7 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
   // ---- M2M (§2.3), deepest level first ----
   sw.restart();
   for (int l = nlev - 2; l >= 2; --l) {
-#pragma omp parallel
+#pragma omp parallel if (std::size_t(tree.level_end(l) - tree.level_begin(l)) >= kMinParallel)
     {
       std::vector<cplx> work(2 * std::size_t(nc));
 #pragma omp for schedule(dynamic, 8)
@@ -271,15 +275,30 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
   }
   times["m2m"] = sw.seconds();
 
+  // W and X lists: a box with few sources (W) or few targets (X) is cheaper by direct summation
+  // than by M2P or P2L (CGR 1999 §4; PLANEWAVE.md §5.6). Threshold ~ p^2/2 by operation counts.
+  const std::size_t direct_limit = std::size_t(p) * std::size_t(p) / 2;
+  auto p2p = [&](const detail::Box& src_box, std::size_t tbeg, std::size_t tcount) {
+    const PointsSoA tg{&P.tx[tbeg], &P.ty[tbeg], &P.tz[tbeg], tcount};
+    const PointsSoA sr{&P.sx[src_box.src_begin], &P.sy[src_box.src_begin], &P.sz[src_box.src_begin], src_box.nsrc()};
+    if (uniform_flags) {
+      laplace_p2p_add(sr, &qs[src_box.src_begin], N, nd, tg, outputs[0], &res[tbeg * result_width], M * result_width);
+    } else {
+      for (std::size_t d = 0; d < nd; ++d)
+        laplace_p2p_add(sr, &qs[d * N + src_box.src_begin], N, 1, tg, outputs[d], &res[(d * M + tbeg) * result_width],
+                        M * result_width);
+    }
+  };
+
   // ---- downward pass ----
   double t_l2l = 0, t_x = 0, t_m2l = 0;
-  const int sumM = pw.sum_physical(), sumK = pw.sum_fourier(), kmax = pw.kmax();
+  const int sumM = pw.sum_physical(), sumK = pw.sum_fourier();
   const auto& groups = detail::merge_groups();
   for (int l = 1; l < nlev; ++l) {
     const int lb = tree.level_begin(l), le = tree.level_end(l);
     sw.restart();
     {
-#pragma omp parallel
+#pragma omp parallel if (std::size_t(le - lb) >= kMinParallel)
       {
         std::vector<cplx> work(2 * std::size_t(nc));
 #pragma omp for schedule(dynamic, 8)
@@ -299,13 +318,13 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
     t_l2l += sw.seconds();
     sw.restart();
     // X list: P2L (§6.3, §5.6).
-#pragma omp parallel
+#pragma omp parallel if (std::size_t(le - lb) >= kMinParallel)
     {
       std::vector<cplx> scratch(ncoef(p + 2));
 #pragma omp for schedule(dynamic, 8)
       for (int b = lb; b < le; ++b) {
         const auto& bx = boxes[b];
-        if (bx.ntgt() == 0) continue;
+        if (bx.ntgt() <= direct_limit) continue;  // few targets: direct sum in the leaf pass
         const auto c = tree.center(b);
         for (int x : tree.xlist().of(b)) {
           const auto& xb = boxes[x];
@@ -324,18 +343,17 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
     const std::size_t wave_stride = std::size_t(sumM) * nd;  // one direction of one box
     std::vector<cplx> waves(std::size_t(le - lb) * 2 * wave_stride);
     for (int f = 0; f < 3; ++f) {
-      const detail::Rotation* rot = pw.frame_rotation(f);
-#pragma omp parallel
+#pragma omp parallel if (std::size_t(le - lb) >= kMinParallel)
       {
-        std::vector<cplx> Mt(nc), Mr(nc), Fu(sumK), Fd(sumK);
+        std::vector<cplx> Mt(nc), Mr(nc), Mw(nc), Fu(sumK), Fd(sumK);
 #pragma omp for schedule(dynamic, 16)
         for (int b = lb; b < le; ++b) {
           if (boxes[b].nsrc() == 0) continue;
           for (std::size_t d = 0; d < nd; ++d) {
             const cplx* Mh = &mp[std::size_t(b) * stride + d * nc];
             for (int i = 0; i < nc; ++i) Mt[i] = Mh[i] / s;  // unit-frame multipole (§3.4, pitfall §9)
-            if (rot) rot->apply(Mt.data(), Mr.data(), kmax);
-            pw.m2f(rot ? Mr.data() : Mt.data(), Fu.data(), Fd.data());
+            pw.to_frame(f, Mt.data(), Mr.data(), Mw.data());
+            pw.m2f(Mr.data(), Fu.data(), Fd.data());
             cplx* W = &waves[std::size_t(b - lb) * 2 * wave_stride];
             pw.f2p(Fu.data(), W + d * sumM);
             pw.f2p(Fd.data(), W + wave_stride + d * sumM);
@@ -343,7 +361,7 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
         }
       }
       const int pb = tree.level_begin(l - 1), pe = tree.level_end(l - 1);
-#pragma omp parallel
+#pragma omp parallel if (std::size_t(pe - pb) >= kMinParallel)
       {
         struct Acc {
           int sign;
@@ -409,13 +427,9 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
             if (!got[0] && !got[1]) continue;
             for (std::size_t d = 0; d < nd; ++d) {
               pw.f2l(&Gu[d * sumK], &Gd[d * sumK], Lf.data());
-              const cplx* L = Lf.data();
-              if (rot) {
-                rot->apply_adjoint(Lf.data(), Lb.data(), kmax);
-                L = Lb.data();
-              }
+              pw.from_frame(f, Lf.data(), Lb.data());
               cplx* out = &lp[std::size_t(c) * stride + d * nc];
-              for (int i = 0; i < nc; ++i) out[i] += L[i];
+              for (int i = 0; i < nc; ++i) out[i] += Lb[i];
             }
             has_local[c] = 1;
           }
@@ -430,7 +444,7 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
 
   // ---- leaves: L2P (§6.1) ----
   sw.restart();
-#pragma omp parallel
+#pragma omp parallel if (leaves.size() >= kMinParallel)
   {
     std::vector<cplx> R(ncoef(p + 2)), bcoef(stride);
     std::vector<double> tmp(result_width);
@@ -456,7 +470,7 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
   // ---- W list: M2P (§6.2) ----
   sw.restart();
   const int pS = p + ((any_flags & hessian) ? 2 : (any_flags & gradient) ? 1 : 0);
-#pragma omp parallel
+#pragma omp parallel if (leaves.size() >= kMinParallel)
   {
     std::vector<cplx> S(ncoef(p + 2)), acoef(stride);
 #pragma omp for schedule(dynamic, 4)
@@ -467,6 +481,10 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
       for (int w : tree.wlist().of(b)) {
         const auto& wb = boxes[w];
         if (wb.nsrc() == 0) continue;
+        if (wb.nsrc() <= direct_limit) {
+          p2p(wb, bx.tgt_begin, bx.ntgt());
+          continue;
+        }
         const double s = tree.side(wb.level);
         const auto c = tree.center(w);
         for (std::size_t d = 0; d < nd; ++d)
@@ -479,32 +497,26 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
             detail::m2p_eval(p, s, &acoef[d * nc], S.data(), outputs[d], &res[(d * M + t) * result_width]);
         }
       }
+      // X lists of this leaf and its ancestors that were left to direct summation.
+      for (int a = b; a >= 0; a = boxes[a].parent) {
+        if (boxes[a].ntgt() > direct_limit) continue;
+        for (int x : tree.xlist().of(a))
+          if (boxes[x].nsrc() > 0) p2p(boxes[x], bx.tgt_begin, bx.ntgt());
+      }
     }
   }
-  times["w_m2p"] = sw.seconds();
+  times["wx_far"] = sw.seconds();
 
   // ---- U list: P2P (§6.4) ----
   sw.restart();
   if (options_.near_field) {
-#pragma omp parallel for schedule(dynamic, 4)
+#pragma omp parallel for if (leaves.size() >= kMinParallel) schedule(dynamic, 4)
     for (std::size_t i = 0; i < leaves.size(); ++i) {
       const int b = leaves[i];
       const auto& bx = boxes[b];
       if (bx.ntgt() == 0) continue;
-      const PointsSoA tg{&P.tx[bx.tgt_begin], &P.ty[bx.tgt_begin], &P.tz[bx.tgt_begin], bx.ntgt()};
-      for (int u : tree.ulist().of(b)) {
-        const auto& ub = boxes[u];
-        if (ub.nsrc() == 0) continue;
-        const PointsSoA sr{&P.sx[ub.src_begin], &P.sy[ub.src_begin], &P.sz[ub.src_begin], ub.nsrc()};
-        if (uniform_flags) {
-          laplace_p2p_add(sr, &qs[ub.src_begin], N, nd, tg, outputs[0], &res[bx.tgt_begin * result_width],
-                          M * result_width);
-        } else {
-          for (std::size_t d = 0; d < nd; ++d)
-            laplace_p2p_add(sr, &qs[d * N + ub.src_begin], N, 1, tg, outputs[d],
-                            &res[(d * M + bx.tgt_begin) * result_width], M * result_width);
-        }
-      }
+      for (int u : tree.ulist().of(b))
+        if (boxes[u].nsrc() > 0) p2p(boxes[u], bx.tgt_begin, bx.ntgt());
     }
   }
   times["p2p"] = sw.seconds();
@@ -512,7 +524,7 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
   // ---- back to the caller's order ----
   sw.restart();
   const auto& tperm = tree.target_order();
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for if (M >= 4096) schedule(static)
   for (std::size_t t = 0; t < M; ++t)
     for (std::size_t d = 0; d < nd; ++d)
       std::copy_n(&res[(d * M + t) * result_width], result_width, &results[(d * M + tperm[t]) * result_width]);

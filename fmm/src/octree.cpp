@@ -99,7 +99,7 @@ void Octree::split_level(int level, const OctreeParams& params, std::span<const 
   std::vector<std::array<std::size_t, 16>> counts(le - lb);
   std::vector<char> split(le - lb, 0);
   std::vector<std::size_t>& tperm = same_ ? src_perm_ : tgt_perm_;
-#pragma omp parallel
+#pragma omp parallel if (le - lb >= 16)
   {
     std::vector<std::size_t> tmp;
     std::vector<unsigned char> oct;
@@ -182,7 +182,7 @@ void Octree::build_lists() {
   std::vector<std::vector<int>> coll(nb), u(nb), w(nb), x(nb);
   coll[0] = {0};
   for (int l = 1; l < nlevels(); ++l) {
-#pragma omp parallel for schedule(dynamic, 16)
+#pragma omp parallel for if (level_end(l) - level_begin(l) >= 64) schedule(dynamic, 16)
     for (int b = level_begin(l); b < level_end(l); ++b) {
       const Box& bx = boxes_[b];
       for (int c : coll[bx.parent])
@@ -193,7 +193,7 @@ void Octree::build_lists() {
       std::sort(coll[b].begin(), coll[b].end());
     }
   }
-#pragma omp parallel for schedule(dynamic, 16)
+#pragma omp parallel for if (leaves_.size() >= 64) schedule(dynamic, 16)
   for (std::size_t i = 0; i < leaves_.size(); ++i) {
     const int b = leaves_[i];
     u[b].push_back(b);

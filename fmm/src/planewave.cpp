@@ -12,12 +12,10 @@
 
 namespace rpyfmm::fmm::detail {
 
-namespace {
-constexpr std::array<double, 9> kQY = {0, 0, 1, 1, 0, 0, 0, 1, 0};   // (x,y,z) -> (z,x,y)
-constexpr std::array<double, 9> kQX = {0, 0, -1, 0, 1, 0, 1, 0, 0};  // (x,y,z) -> (-z,y,x)
-}  // namespace
-
-PlaneWave::PlaneWave(int p, int digits) : p_(p), rot_y_(p, kQY), rot_x_(p, kQX) {
+PlaneWave::PlaneWave(int p, int digits)
+    : p_(p),
+      rot_yneg_(Rotation::about_y(p, -0.5 * std::numbers::pi)),
+      rot_x_(Rotation::about_y(p, 0.5 * std::numbers::pi)) {
   const auto table = planewave_table(digits);
   if (table.empty()) throw std::invalid_argument("PlaneWave: no table for this precision");
   nlams_ = int(table.size());
@@ -74,6 +72,31 @@ const PlaneWave& PlaneWave::cached(int p, int digits) {
   return *slot;
 }
 
+void PlaneWave::to_frame(int f, const cplx* M, cplx* Mf, cplx* work) const noexcept {
+  const int nc = ncoef(p_);
+  if (f == 0) {
+    for (int i = 0; i < nc; ++i) Mf[i] = M[i];
+  } else if (f == 2) {
+    rot_x_.apply(M, Mf, kmax_);
+  } else {
+    for (int i = 0; i < nc; ++i) work[i] = M[i];
+    phase_rotate(p_, -0.5 * std::numbers::pi, work);
+    rot_yneg_.apply(work, Mf, kmax_);
+  }
+}
+
+void PlaneWave::from_frame(int f, const cplx* Lf, cplx* L) const noexcept {
+  const int nc = ncoef(p_);
+  if (f == 0) {
+    for (int i = 0; i < nc; ++i) L[i] = Lf[i];
+  } else if (f == 2) {
+    rot_x_.apply_adjoint(Lf, L, kmax_);
+  } else {
+    rot_yneg_.apply_adjoint(Lf, L, kmax_);
+    phase_rotate(p_, 0.5 * std::numbers::pi, L);
+  }
+}
+
 namespace {
 inline cplx ipow(int m) noexcept {  // i^m
   switch (m & 3) {
@@ -121,11 +144,18 @@ void PlaneWave::f2p(const cplx* F, cplx* W) const noexcept {
 void PlaneWave::p2f(const cplx* V, cplx* G) const noexcept {
   for (int k = 0; k < nlams_; ++k) {
     const double inv = 1.0 / M_[k];
-    for (int m = 0; m < K_[k]; ++m) {
-      cplx acc = 0.0;
-      for (int j = 0; j < M_[k]; ++j) acc += V[moff_[k] + j] * std::conj(twiddle_[std::size_t(moff_[k] + j) * kmax_ + m]);
-      G[koff_[k] + m] = acc * inv;
+    const int K = K_[k];
+    double re[64], im[64];
+    for (int m = 0; m < K; ++m) re[m] = im[m] = 0.0;
+    for (int j = 0; j < M_[k]; ++j) {
+      const double vr = V[moff_[k] + j].real(), vi = V[moff_[k] + j].imag();
+      const cplx* tw = twiddle_.data() + std::size_t(moff_[k] + j) * kmax_;
+      for (int m = 0; m < K; ++m) {  // V e^{-i m a}
+        re[m] += vr * tw[m].real() + vi * tw[m].imag();
+        im[m] += vi * tw[m].real() - vr * tw[m].imag();
+      }
     }
+    for (int m = 0; m < K; ++m) G[koff_[k] + m] = cplx(re[m] * inv, im[m] * inv);
   }
 }
 

@@ -82,7 +82,57 @@ Rotation::Rotation(int p, const std::array<double, 9>& Q) : p_(p) {
   }
 }
 
+Rotation Rotation::about_y(int p, double t) {
+  const double c = std::cos(t), s = std::sin(t);
+  Rotation r(p, {c, 0.0, -s, 0.0, 1.0, 0.0, s, 0.0, c});
+  r.real_ = true;
+  r.roff_.resize(p + 2);
+  r.roff_[0] = 0;
+  for (int n = 0; n <= p; ++n) r.roff_[n + 1] = r.roff_[n] + std::size_t(n + 1) * (n + 1);
+  const std::size_t total = r.roff_[p + 1];
+  r.plus_.assign(total, 0.0);
+  r.minus_.assign(total, 0.0);
+  r.tplus_.assign(total, 0.0);
+  r.tminus_.assign(total, 0.0);
+  for (int n = 0; n <= p; ++n) {
+    const std::size_t o = r.roff_[n];
+    for (int a = 0; a <= n; ++a)
+      for (int b = 0; b <= n; ++b) {
+        // forward: row m' = a, column m = b
+        const double f0 = r.entry(n, a, b).real(), f1 = r.entry(n, a, -b).real();
+        r.plus_[o + a * (n + 1) + b] = b == 0 ? f0 : f0 + f1;
+        r.minus_[o + a * (n + 1) + b] = b == 0 ? 0.0 : f0 - f1;
+        // adjoint: row m = a, column m' = b: A_{b a} and A_{-b, a}
+        const double g0 = r.entry(n, b, a).real(), g1 = r.entry(n, -b, a).real();
+        r.tplus_[o + a * (n + 1) + b] = b == 0 ? g0 : g0 + g1;
+        r.tminus_[o + a * (n + 1) + b] = b == 0 ? 0.0 : g0 - g1;
+      }
+  }
+  return r;
+}
+
 void Rotation::apply(const cplx* in, cplx* out, int mmax_out) const noexcept {
+  if (real_) {
+    for (int n = 0; n <= p_; ++n) {
+      const cplx* x = in + idx(n, 0);
+      cplx* y = out + idx(n, 0);
+      const int top = std::min(n, mmax_out - 1);
+      const double* P = plus_.data() + roff_[n];
+      const double* Mi = minus_.data() + roff_[n];
+      for (int mp = 0; mp <= top; ++mp) {
+        const double* pr = P + mp * (n + 1);
+        const double* mr = Mi + mp * (n + 1);
+        double re = 0.0, im = 0.0;
+        for (int m = 0; m <= n; ++m) {
+          re += pr[m] * x[m].real();
+          im += mr[m] * x[m].imag();
+        }
+        y[mp] = cplx(re, im);
+      }
+      for (int mp = std::max(top + 1, 0); mp <= n; ++mp) y[mp] = 0.0;
+    }
+    return;
+  }
   for (int n = 0; n <= p_; ++n) {
     const int dim = 2 * n + 1;
     const cplx* A = a_.data() + off_[n];
@@ -100,6 +150,26 @@ void Rotation::apply(const cplx* in, cplx* out, int mmax_out) const noexcept {
 }
 
 void Rotation::apply_adjoint(const cplx* in, cplx* out, int mmax_in) const noexcept {
+  if (real_) {
+    for (int n = 0; n <= p_; ++n) {
+      const cplx* x = in + idx(n, 0);
+      cplx* y = out + idx(n, 0);
+      const int top = std::min(n, mmax_in - 1);
+      const double* P = tplus_.data() + roff_[n];
+      const double* Mi = tminus_.data() + roff_[n];
+      for (int m = 0; m <= n; ++m) {
+        const double* pr = P + m * (n + 1);
+        const double* mr = Mi + m * (n + 1);
+        double re = 0.0, im = 0.0;
+        for (int mp = 0; mp <= top; ++mp) {
+          re += pr[mp] * x[mp].real();
+          im += mr[mp] * x[mp].imag();
+        }
+        y[m] = cplx(re, im);
+      }
+    }
+    return;
+  }
   for (int n = 0; n <= p_; ++n) {
     const int dim = 2 * n + 1;
     const cplx* A = a_.data() + off_[n];

@@ -46,6 +46,9 @@ class Rotation {
  public:
   Rotation() = default;
   Rotation(int p, const std::array<double, 9>& Q);  // Q row-major, proper orthogonal
+  /// Rotation about y by angle t (Q = Ry(t), §2.2): A^n is real, and apply/apply_adjoint use the
+  /// real kernels of §4.3 (Re and Im parts separate, 2 real multiply-adds per entry instead of 8).
+  static Rotation about_y(int p, double t);
   [[nodiscard]] int order() const noexcept { return p_; }
   /// out = A in (multipole into the frame); only orders m' < mmax_out are produced (others = 0).
   void apply(const cplx* in, cplx* out, int mmax_out) const noexcept;
@@ -58,8 +61,14 @@ class Rotation {
 
  private:
   int p_ = -1;
+  bool real_ = false;
   std::vector<std::size_t> off_;
   std::vector<cplx> a_;
+  // Real kernels (about_y): per degree n, (n+1)^2 entries at roff_[n]:
+  // plus_[m'][m] = A_{m'm} + A_{m',-m} (m >= 1; A_{m'0} at m = 0), minus_[m'][m] = A_{m'm} - A_{m',-m};
+  // tplus_/tminus_ the same for A^T (adjoint): tplus_[m][m'] = A_{m'm} + A_{-m',m}, ...
+  std::vector<std::size_t> roff_;
+  std::vector<double> plus_, minus_, tplus_, tminus_;
 };
 
 /// Multiplies coefficient m by e^{i m phi0} (a rotation about z, §2.2).

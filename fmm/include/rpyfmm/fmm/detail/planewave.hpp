@@ -34,8 +34,11 @@ class PlaneWave {
   /// max_k K_k: rotated multipoles are needed only for m < kmax, F2L yields only m < kmax (§3.3).
   [[nodiscard]] int kmax() const noexcept { return kmax_; }
 
-  /// Rotation of frame f (0 = z: identity, 1 = y, 2 = x), §4.2.
-  [[nodiscard]] const Rotation* frame_rotation(int f) const noexcept { return f == 1 ? &rot_y_ : f == 2 ? &rot_x_ : nullptr; }
+  /// Multipole into frame f (0 = z: identity, 1 = y, 2 = x, §4.2), orders m < kmax produced.
+  /// Q_X = Ry(pi/2); Q_Y = Ry(-pi/2) Rz(-pi/2), so both use real y-rotation kernels (§4.3).
+  void to_frame(int f, const cplx* M, cplx* Mf, cplx* work) const noexcept;
+  /// Local out of frame f: L = A(Q_f)^H Lf, Lf having orders m < kmax only.
+  void from_frame(int f, const cplx* Lf, cplx* L) const noexcept;
   /// Frame offset d' = Q_f d for an integer offset d (§4.2).
   static std::array<int, 3> frame_offset(int f, std::array<int, 3> d) noexcept {
     if (f == 1) return {d[2], d[0], d[1]};
@@ -64,7 +67,7 @@ class PlaneWave {
   std::vector<double> lam_over_c_;  // [k * ncoef(p) + idx(n,m)] = lambda_k^n / c_n^m
   std::vector<cplx> twiddle_;       // [(moff_k + j) * kmax + m] = e^{i m a_kj}
   std::vector<cplx> shift_;         // 343 tables of sumM
-  Rotation rot_y_, rot_x_;
+  Rotation rot_yneg_, rot_x_;  // Ry(-pi/2), Ry(pi/2)
 };
 
 /// Merge-and-shift group table (§5.3). For a source box at integer offset a in {-2..3}^3 (child units,

@@ -1,0 +1,293 @@
+// LaplaceFmm features: separate targets, nd densities with per-density outputs, small N, duplicated
+// points, permutation and thread-count invariance, plan reuse, far-field-only mode with the near-field
+// structure, min_leaf_side guarantee, bad input. References: the plain double loop of fmm_test_util.hpp.
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <algorithm>
+#include <numeric>
+#include <random>
+#include <set>
+
+#include "fmm_test_util.hpp"
+#include "rpyfmm/core/error.hpp"
+#include "rpyfmm/fmm/laplace_fmm.hpp"
+
+using rpyfmm::Error;
+using rpyfmm::fmm::all_outputs;
+using rpyfmm::fmm::FmmOptions;
+using rpyfmm::fmm::LaplaceFmm;
+
+namespace {
+FmmOptions opts(double eps, int leaf) {
+  FmmOptions o;
+  o.eps = eps;
+  o.leaf_capacity = leaf;
+  return o;
+}
+std::vector<double> eval(const LaplaceFmm& f, const std::vector<double>& q, std::size_t nd, unsigned out = all_outputs) {
+  std::vector<double> r(nd * f.num_targets() * 10);
+  f.evaluate(q, nd, out, r);
+  return r;
+}
+void expect_close_all(const std::vector<double>& fmm, const std::vector<double>& ref, std::size_t nd, std::size_t m,
+                      double tol, const char* what) {
+  std::vector<std::size_t> all(m);
+  std::iota(all.begin(), all.end(), 0);
+  for (std::size_t d = 0; d < nd; ++d) {
+    EXPECT_LE(fmmtest::rel_l2(fmm, m, ref, all, d, 0, 1), tol) << what << " pot d=" << d;
+    EXPECT_LE(fmmtest::rel_l2(fmm, m, ref, all, d, 1, 4), tol) << what << " grad d=" << d;
+    EXPECT_LE(fmmtest::rel_l2(fmm, m, ref, all, d, 4, 10), tol) << what << " hess d=" << d;
+  }
+}
+}  // namespace
+
+TEST(FmmFeatures, TargetsDifferentFromSources) {
+  const auto src = fmmtest::cube(2000, 11);
+  auto tgt = fmmtest::cube(1500, 12);
+  for (auto& v : tgt) v = 1.6 * v - 0.3;  // partly outside the sources' cube
+  for (int k = 0; k < 30; ++k)           // some targets coincide with sources
+    for (int c = 0; c < 3; ++c) tgt[3 * k + c] = src[3 * (7 * k) + c];
+  for (double eps : {1e-3, 1e-6}) {
+    LaplaceFmm f(opts(eps, 20));
+    f.set_points(src, tgt);
+    EXPECT_EQ(f.num_targets(), 1500u);
+    const auto q = fmmtest::charges(2000, 1, 3);
+    expect_close_all(eval(f, q, 1), fmmtest::direct(src, q, 1, tgt), 1, 1500, eps, "targets");
+  }
+}
+
+TEST(FmmFeatures, SeveralDensitiesWithPerDensityOutputs) {
+  const std::size_t n = 1000;
+  const auto src = fmmtest::plummer(n, 13);
+  for (std::size_t nd : {1u, 4u, 7u}) {
+    LaplaceFmm f(opts(1e-6, 24));
+    f.set_points(src);
+    const auto q = fmmtest::charges(n, nd, 5);
+    std::vector<unsigned> outs(nd);
+    for (std::size_t d = 0; d < nd; ++d) outs[d] = unsigned(d % 7) + 1;
+    std::vector<double> r(nd * n * 10, 123.0);
+    f.evaluate(q, nd, outs, r);
+    const auto ref = fmmtest::direct(src, q, nd, {});
+    std::vector<std::size_t> all(n);
+    std::iota(all.begin(), all.end(), 0);
+    for (std::size_t d = 0; d < nd; ++d) {
+      const unsigned o = outs[d];
+      // One pass with nd densities equals nd single-density passes (same operations, same order).
+      std::vector<double> qd(q.begin() + long(d * n), q.begin() + long((d + 1) * n));
+      std::vector<double> rd(n * 10);
+      const unsigned single[1] = {o};
+      f.evaluate(qd, 1, single, rd);
+      for (std::size_t i = 0; i < n * 10; ++i)
+        EXPECT_NEAR(r[d * n * 10 + i], rd[i], 1e-13 * (1.0 + std::abs(rd[i]))) << "nd=" << nd << " d=" << d;
+      if (o & 1u) {
+        EXPECT_LE(fmmtest::rel_l2(r, n, ref, all, d, 0, 1), 1e-6);
+      }
+      if (o & 2u) {
+        EXPECT_LE(fmmtest::rel_l2(r, n, ref, all, d, 1, 4), 1e-6);
+      }
+      if (o & 4u) {
+        EXPECT_LE(fmmtest::rel_l2(r, n, ref, all, d, 4, 10), 1e-6);
+      }
+      // Unrequested columns are exactly zero.
+      for (std::size_t t = 0; t < n; ++t) {
+        const double* row = &r[(d * n + t) * 10];
+        if (!(o & 1u)) {
+          EXPECT_EQ(row[0], 0.0);
+        }
+        if (!(o & 2u)) {
+          EXPECT_EQ(std::abs(row[1]) + std::abs(row[2]) + std::abs(row[3]), 0.0);
+        }
+        if (!(o & 4u)) {
+          EXPECT_EQ(std::abs(row[4]) + std::abs(row[5]) + std::abs(row[6]) + std::abs(row[7]) + std::abs(row[8]) +
+                        std::abs(row[9]),
+                    0.0);
+        }
+      }
+    }
+  }
+}
+
+TEST(FmmFeatures, TinyN) {
+  for (std::size_t n : {1u, 2u, 3u}) {
+    const auto src = fmmtest::cube(n, 20 + unsigned(n));
+    LaplaceFmm f(opts(1e-6, 0));
+    f.set_points(src);
+    const auto q = fmmtest::charges(n, 2, 1);
+    const auto r = eval(f, q, 2);
+    const auto ref = fmmtest::direct(src, q, 2, {});
+    for (std::size_t i = 0; i < r.size(); ++i) EXPECT_NEAR(r[i], ref[i], 1e-12 * (1 + std::abs(ref[i]))) << n;
+  }
+}
+
+TEST(FmmFeatures, DuplicatedPoints) {
+  auto base = fmmtest::cube(600, 31);
+  std::vector<double> src;
+  for (int rep = 0; rep < 3; ++rep) src.insert(src.end(), base.begin(), base.end());
+  // plus 200 copies of one point (a box that can never be split)
+  for (int k = 0; k < 200; ++k) src.insert(src.end(), {0.25, 0.5, 0.75});
+  const std::size_t n = src.size() / 3;
+  for (double eps : {1e-3, 1e-9}) {
+    LaplaceFmm f(opts(eps, 16));
+    f.set_points(src);
+    const auto q = fmmtest::charges(n, 1, 2);
+    expect_close_all(eval(f, q, 1), fmmtest::direct(src, q, 1, {}), 1, n, eps, "duplicates");
+  }
+}
+
+TEST(FmmFeatures, PermutationAndThreadInvariance) {
+  const auto src = fmmtest::sphere(2000, 41);
+  const auto q = fmmtest::charges(2000, 2, 4);
+  std::vector<std::size_t> perm(2000);
+  std::iota(perm.begin(), perm.end(), 0);
+  std::shuffle(perm.begin(), perm.end(), std::mt19937(5));
+  std::vector<double> src2(src.size()), q2(q.size());
+  for (std::size_t i = 0; i < 2000; ++i) {
+    for (int c = 0; c < 3; ++c) src2[3 * i + c] = src[3 * perm[i] + c];
+    for (int d = 0; d < 2; ++d) q2[d * 2000 + i] = q[d * 2000 + perm[i]];
+  }
+  LaplaceFmm f(opts(1e-6, 20));
+  f.set_points(src);
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(1);
+  const auto r1 = eval(f, q, 2);
+  omp_set_num_threads(2);
+  const auto r2 = eval(f, q, 2);
+  omp_set_num_threads(saved);
+  EXPECT_EQ(r1, r2);  // bitwise: every box/target is summed by one thread in a fixed order
+  LaplaceFmm g(opts(1e-6, 20));
+  g.set_points(src2);
+  const auto rp = eval(g, q2, 2);
+  double worst = 0, scale = 0;
+  for (std::size_t i = 0; i < 2000; ++i)
+    for (int d = 0; d < 2; ++d)
+      for (int c = 0; c < 10; ++c) {
+        worst = std::max(worst, std::abs(rp[(d * 2000 + i) * 10 + c] - r1[(d * 2000 + perm[i]) * 10 + c]));
+        scale = std::max(scale, std::abs(r1[(d * 2000 + perm[i]) * 10 + c]));
+      }
+  EXPECT_LE(worst, 1e-12 * scale);  // same tree, summation order within leaves may differ
+}
+
+TEST(FmmFeatures, PlanReuse) {
+  const auto src = fmmtest::cube(2000, 51);
+  LaplaceFmm f(opts(1e-6, 20));
+  f.set_points(src);
+  const auto qa = fmmtest::charges(2000, 1, 1), qb = fmmtest::charges(2000, 1, 2);
+  const auto ra = eval(f, qa, 1), rb = eval(f, qb, 1), ra2 = eval(f, qa, 1);
+  EXPECT_EQ(ra, ra2);
+  LaplaceFmm g(opts(1e-6, 20));
+  g.set_points(src);
+  EXPECT_EQ(rb, eval(g, qb, 1));
+  const auto t = f.last_timings();
+  for (const char* k : {"tree", "p2m", "m2m", "m2l", "l2l", "l2p", "p2p", "total"}) EXPECT_TRUE(t.count(k)) << k;
+  const auto st = f.stats();
+  EXPECT_GE(st.levels, 3);
+  EXPECT_GT(st.memory_bytes, 0u);
+}
+
+TEST(FmmFeatures, FarFieldOnlyPlusNearFieldStructureIsComplete) {
+  const auto src = fmmtest::plummer(1500, 61);
+  auto tgt = fmmtest::plummer(600, 62);
+  for (const bool separate : {false, true}) {
+    const std::vector<double>& T = separate ? tgt : std::vector<double>{};
+    FmmOptions o = opts(1e-6, 24);
+    o.near_field = false;
+    LaplaceFmm f(o);
+    f.set_points(src, T);
+    const std::size_t m = f.num_targets();
+    const auto q = fmmtest::charges(1500, 1, 9);
+    auto r = eval(f, q, 1);
+    const auto& nf = f.near_field();
+    // Every source and target is in exactly one leaf.
+    std::vector<int> seen_s(1500, 0), seen_t(m, 0);
+    for (std::size_t l = 0; l < nf.num_leaves(); ++l) {
+      for (auto i : nf.sources(l)) ++seen_s[i];
+      for (auto i : nf.targets(l)) ++seen_t[i];
+    }
+    EXPECT_TRUE(std::all_of(seen_s.begin(), seen_s.end(), [](int c) { return c == 1; }));
+    EXPECT_TRUE(std::all_of(seen_t.begin(), seen_t.end(), [](int c) { return c == 1; }));
+    // Caller-side exact near field over the pairs.
+    const std::vector<double>& TT = separate ? tgt : src;
+    for (const auto& [tl, sl] : nf.pairs)
+      for (auto i : nf.targets(tl))
+        for (auto j : nf.sources(sl)) {
+          const double dx = TT[3 * i] - src[3 * j], dy = TT[3 * i + 1] - src[3 * j + 1], dz = TT[3 * i + 2] - src[3 * j + 2];
+          const double r2 = dx * dx + dy * dy + dz * dz;
+          if (r2 == 0) continue;
+          const double rr = std::sqrt(r2), r3 = rr * r2, r5 = r3 * r2;
+          double* o2 = &r[i * 10];
+          o2[0] += q[j] / rr;
+          o2[1] -= q[j] * dx / r3;
+          o2[2] -= q[j] * dy / r3;
+          o2[3] -= q[j] * dz / r3;
+          o2[4] += q[j] * (3 * dx * dx / r5 - 1 / r3);
+          o2[5] += q[j] * (3 * dy * dy / r5 - 1 / r3);
+          o2[6] += q[j] * (3 * dz * dz / r5 - 1 / r3);
+          o2[7] += q[j] * 3 * dx * dy / r5;
+          o2[8] += q[j] * 3 * dx * dz / r5;
+          o2[9] += q[j] * 3 * dy * dz / r5;
+        }
+    expect_close_all(r, fmmtest::direct(src, q, 1, separate ? tgt : std::vector<double>{}), 1, m, 1e-6, "far+near");
+  }
+}
+
+TEST(FmmFeatures, MinLeafSideKeepsClosePairsInTheNearField) {
+  const auto src = fmmtest::plummer(1500, 71);
+  const double a = 0.3;
+  FmmOptions o = opts(1e-6, 4);
+  o.min_leaf_side = a;
+  LaplaceFmm f(o);
+  f.set_points(src);
+  const auto& nf = f.near_field();
+  std::vector<std::size_t> leaf_of(1500);
+  for (std::size_t l = 0; l < nf.num_leaves(); ++l)
+    for (auto i : nf.sources(l)) leaf_of[i] = l;
+  std::set<std::pair<std::size_t, std::size_t>> pairs;
+  for (const auto& pr : nf.pairs) pairs.insert({pr.first, pr.second});
+  std::size_t close = 0;
+  for (std::size_t i = 0; i < 1500; ++i)
+    for (std::size_t j = 0; j < 1500; ++j) {
+      const double dx = src[3 * i] - src[3 * j], dy = src[3 * i + 1] - src[3 * j + 1], dz = src[3 * i + 2] - src[3 * j + 2];
+      if (dx * dx + dy * dy + dz * dz < a * a) {
+        ++close;
+        ASSERT_TRUE(pairs.count({leaf_of[i], leaf_of[j]})) << i << " " << j;
+      }
+    }
+  EXPECT_GT(close, 1500u);
+  EXPECT_GT(f.stats().leaves, 8u);  // the option did not just disable the tree
+}
+
+TEST(FmmFeatures, BadInput) {
+  auto expect_error = [](auto&& fn, const char* needle) {
+    try {
+      fn();
+      ADD_FAILURE() << "no throw: " << needle;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  };
+  expect_error([] { LaplaceFmm f(opts(1.0, 0)); }, "eps");
+  expect_error([] { LaplaceFmm f(opts(1e-16, 0)); }, "eps");
+  expect_error([] { LaplaceFmm f(opts(std::nan(""), 0)); }, "eps");
+  expect_error([] { LaplaceFmm f(opts(1e-6, -1)); }, "leaf_capacity");
+  LaplaceFmm f(opts(1e-6, 0));
+  std::vector<double> x = fmmtest::cube(10, 1), q(10, 1.0), r(100);
+  expect_error([&] { f.evaluate(q, 1, all_outputs, r); }, "set_points");
+  expect_error([&] { f.set_points({}); }, "N = 0");
+  expect_error([&] { f.set_points(std::vector<double>(7, 0.0)); }, "multiple of 3");
+  auto bad = x;
+  bad[13] = std::nan("");
+  expect_error([&] { f.set_points(bad); }, "sources entry (4, 1) is NaN");
+  bad[13] = INFINITY;
+  expect_error([&] { f.set_points(x, bad); }, "targets entry (4, 1) is infinite");
+  f.set_points(x);
+  expect_error([&] { f.evaluate(std::vector<double>(9, 1.0), 1, all_outputs, r); }, "charges");
+  std::vector<double> r99(99);
+  expect_error([&] { f.evaluate(q, 1, all_outputs, r99); }, "results");
+  expect_error([&] { f.evaluate(q, 1, 8u, r); }, "outputs[0]");
+  expect_error([&] { f.evaluate(q, 1, 0u, r); }, "outputs[0]");
+  auto qn = q;
+  qn[3] = std::nan("");
+  expect_error([&] { f.evaluate(qn, 1, all_outputs, r); }, "charges");
+  EXPECT_NO_THROW(f.evaluate(q, 1, all_outputs, r));
+}
