@@ -1,0 +1,182 @@
+// `rpyfmm sample` end to end: runs the binary (RPYFMM_CLI) on text inputs
+// written here, reads its .npy output, and compares with the library called
+// directly; bad input gives exit code 2, one line on stderr and no output file.
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "rpyfmm/rpy/direct_operator.hpp"
+#include "rpyfmm/rpy/random.hpp"
+#include "sqrt_test_util.hpp"
+
+namespace fs = std::filesystem;
+using namespace rpyfmm::rpy;
+
+namespace {
+
+fs::path scratch() {
+  static const fs::path dir = [] {
+    fs::path d = fs::temp_directory_path() / ("rpyfmm_sample_cli_" + std::to_string(::getpid()));
+    fs::create_directories(d);
+    return d;
+  }();
+  return dir;
+}
+
+void write_text(const fs::path& p, const std::vector<double>& v, std::size_t cols) {
+  std::ofstream f(p);
+  f.precision(17);
+  for (std::size_t i = 0; i < v.size(); ++i) f << v[i] << ((i + 1) % cols == 0 ? "\n" : " ");
+}
+
+/// Minimal reader of a little-endian float64 C-order .npy written by the CLI.
+std::vector<double> read_npy(const fs::path& p, std::vector<std::size_t>& shape) {
+  std::ifstream f(p, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(bytes.substr(1, 5), "NUMPY");
+  const std::size_t hlen = static_cast<unsigned char>(bytes[8]) | (static_cast<unsigned char>(bytes[9]) << 8);
+  const std::string header = bytes.substr(10, hlen);
+  EXPECT_NE(header.find("<f8"), std::string::npos) << header;
+  shape.clear();
+  std::istringstream in(header.substr(header.find("'shape': (") + 10));
+  std::size_t v;
+  char c;
+  while (in >> v) {
+    shape.push_back(v);
+    in >> c;
+    if (c == ')') break;
+  }
+  std::vector<double> data((bytes.size() - 10 - hlen) / 8);
+  std::memcpy(data.data(), bytes.data() + 10 + hlen, data.size() * 8);
+  return data;
+}
+
+struct CliResult {
+  int rc;
+  std::string out, err;
+};
+
+CliResult run_cli(const std::string& args) {
+  const fs::path o = scratch() / "stdout.txt", e = scratch() / "stderr.txt";
+  const std::string cmd = std::string(RPYFMM_CLI) + " sample " + args + " > " + o.string() + " 2> " + e.string();
+  const int status = std::system(cmd.c_str());
+  CliResult r;
+  r.rc = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  std::ifstream fo(o), fe(e);
+  r.out.assign(std::istreambuf_iterator<char>(fo), {});
+  r.err.assign(std::istreambuf_iterator<char>(fe), {});
+  return r;
+}
+
+class SampleCli : public ::testing::Test {
+ protected:
+  static constexpr std::size_t N = 40;
+  std::vector<double> x = sqrt_test::random_points(N, 0.1, 3u);
+  std::vector<double> a = sqrt_test::radii(N, true, 4u);
+  fs::path xp = scratch() / "x.txt", ap = scratch() / "a.txt", out = scratch() / "w.npy";
+  void SetUp() override {
+    write_text(xp, x, 3);
+    write_text(ap, a, 1);
+    fs::remove(out);
+  }
+  std::vector<double> expected(const std::vector<double>& z, const std::vector<double>& radii, SqrtMethod m,
+                               double tol) {
+    DirectRpy op(Geometry::open(), 1.0);
+    op.set_positions(x, radii);
+    std::vector<double> w(3 * N);
+    SqrtOptions opt;
+    opt.method = m;
+    opt.tolerance = tol;
+    op.apply_sqrt(z, w, opt);
+    return w;
+  }
+};
+
+double max_rel_diff(const std::vector<double>& a, const std::vector<double>& b) {
+  double d = 0, s = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    d = std::max(d, std::abs(a[i] - b[i]));
+    s = std::max(s, std::abs(b[i]));
+  }
+  return d / s;
+}
+
+TEST_F(SampleCli, SeedMatchesLibraryAndJsonReports) {
+  const CliResult r = run_cli("--positions " + xp.string() + " --radius 1 --seed 17 --step 4 --tol 1e-5 --out " +
+                    out.string() + " --json");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  std::vector<std::size_t> shape;
+  const auto w = read_npy(out, shape);
+  EXPECT_EQ(shape, (std::vector<std::size_t>{N, 3}));
+  std::vector<double> z(3 * N);
+  fill_normal(z, 17u, 4u);
+  EXPECT_LE(max_rel_diff(w, expected(z, std::vector<double>(N, 1.0), SqrtMethod::lanczos, 1e-5)), 1e-12);
+  for (const char* key : {"\"iterations\":", "\"error_estimate\":", "\"method\":\"lanczos\"", "\"seed\":17"})
+    EXPECT_NE(r.out.find(key), std::string::npos) << key << " in " << r.out;
+}
+
+TEST_F(SampleCli, NoiseFileRadiiAndMethods) {
+  std::vector<double> z(3 * N);
+  fill_normal(z, 5u, 0u);
+  const fs::path zp = scratch() / "z.txt";
+  write_text(zp, z, 3);
+  for (SqrtMethod m : {SqrtMethod::lanczos, SqrtMethod::chebyshev, SqrtMethod::cholesky, SqrtMethod::eigen}) {
+    fs::remove(out);
+    const CliResult r = run_cli("--positions " + xp.string() + " --radii " + ap.string() + " --noise " + zp.string() +
+                      " --method " + to_string(m) + " --tol 1e-6 --out " + out.string() + " --threads 1");
+    ASSERT_EQ(r.rc, 0) << r.err;
+    std::vector<std::size_t> shape;
+    EXPECT_LE(max_rel_diff(read_npy(out, shape), expected(z, a, m, 1e-6)), 1e-12) << to_string(m);
+  }
+}
+
+TEST_F(SampleCli, BadInputExitTwoNoOutput) {
+  const std::string base = "--positions " + xp.string() + " --out " + out.string() + " ";
+  std::vector<double> zshort(3 * (N - 1), 0.5);
+  const fs::path zs = scratch() / "zshort.txt";
+  write_text(zs, zshort, 3);
+  std::vector<double> xnan = x;
+  xnan[10] = std::nan("");
+  const fs::path xn = scratch() / "xnan.txt";
+  write_text(xn, xnan, 3);
+  struct Bad {
+    std::string args, needle;
+  };
+  for (const Bad& b : std::vector<Bad>{
+           {base + "--radius 1 --tol 0", "tolerance must lie in (0, 1)"},
+           {base + "--radius 1 --tol 1", "tolerance must lie in (0, 1)"},
+           {base + "--radius 1 --tol -1e-3", "tolerance"},
+           {base + "--radius 1 --noise " + zs.string(), "noise"},
+           {base + "--radius 1 --noise " + zs.string() + " --seed 3", "excludes"},
+           {base + "--radius 1 --method krylov", "unknown method 'krylov'"},
+           {base + "--radius 1 --operator fmm", "not available yet"},
+           {base + "--radius 1 --operator magic", "unknown operator 'magic'"},
+           {base + "--radius 1 --eps 1e-6", "--eps"},
+           {base + "--radius -1", "radius"},
+           {base, "exactly one of --radius"},
+           {base + "--radius 1 --max-iterations -2", "max-iterations"},
+           {"--positions " + xn.string() + " --radius 1 --out " + out.string(), "NaN"},
+           {"--positions " + (scratch() / "missing.txt").string() + " --radius 1 --out " + out.string(),
+            "missing.txt"},
+       }) {
+    const CliResult r = run_cli(b.args);
+    EXPECT_EQ(r.rc, 2) << b.args;
+    EXPECT_NE(r.err.find(b.needle), std::string::npos) << b.args << " -> " << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_FALSE(fs::exists(out)) << b.args;
+  }
+}
+
+}  // namespace
