@@ -388,7 +388,7 @@ epsilon = 1.0
 
 [integrator]
 dt = 0.01
-steps = 200
+steps = 150
 seed = 2024
 max_displacement = 0.5
 

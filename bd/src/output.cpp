@@ -1,5 +1,6 @@
 #include "rpyfmm/bd/output.hpp"
 
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 
@@ -48,9 +49,12 @@ std::string xyz_frame(std::span<const double> x, std::span<const std::uint32_t> 
     std::snprintf(buf, sizeof buf, "pbc=\"F F F\" ");
   }
   s += buf;
-  std::snprintf(buf, sizeof buf, "Properties=species:S:1:pos:R:3:radius:R:1 Time=%.17g Step=%llu\n", time,
-                static_cast<unsigned long long>(step));
-  s += buf;
+  // Shortest decimal that round-trips (Time=0.04, not 0.040000000000000001).
+  char tbuf[64];
+  const auto res = std::to_chars(tbuf, tbuf + sizeof tbuf, time);
+  s += "Properties=species:S:1:pos:R:3:radius:R:1 Time=";
+  s.append(tbuf, res.ptr);
+  s += " Step=" + std::to_string(step) + "\n";
   for (std::size_t i = 0; i < types.size(); ++i) {
     double p[3] = {x[3 * i], x[3 * i + 1], x[3 * i + 2]};
     if (g.is_periodic())

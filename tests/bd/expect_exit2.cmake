@@ -1,0 +1,15 @@
+# Runs `${RPYFMM} bd --config ${CONFIG}` and checks exit status 2 and a one-line
+# stderr message containing ${EXPECT}.
+execute_process(COMMAND ${RPYFMM} bd --config ${CONFIG} --quiet RESULT_VARIABLE rc ERROR_VARIABLE err OUTPUT_VARIABLE out)
+if(NOT rc EQUAL 2)
+  message(FATAL_ERROR "exit status ${rc}, expected 2 (stderr: ${err})")
+endif()
+string(FIND "${err}" "${EXPECT}" pos)
+if(pos EQUAL -1)
+  message(FATAL_ERROR "stderr does not name '${EXPECT}': ${err}")
+endif()
+string(REGEX MATCHALL "\n" lines "${err}")
+list(LENGTH lines n)
+if(NOT n EQUAL 1)
+  message(FATAL_ERROR "expected one line on stderr, got ${n}: ${err}")
+endif()

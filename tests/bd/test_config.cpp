@@ -1,0 +1,210 @@
+// Config parsing (every bad config names its key or particle), particle
+// generators, and whole runs: output files, restart equal to an uninterrupted run.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "rpyfmm/bd/checkpoint.hpp"
+#include "rpyfmm/bd/config.hpp"
+#include "rpyfmm/bd/particles.hpp"
+#include "rpyfmm/bd/run.hpp"
+#include "rpyfmm/core/error.hpp"
+
+using namespace rpyfmm::bd;
+using rpyfmm::Error;
+
+namespace {
+const std::string kBase = R"(
+[system]
+viscosity = 1.0
+kT = 1.0
+[[types]]
+name = "A"
+radius = 1.0
+[particles]
+source = "random"
+count = 50
+volume_fraction = 0.05
+[[pair]]
+types = ["A", "A"]
+kind = "wca"
+[integrator]
+dt = 0.001
+steps = 10
+[mobility]
+method = "none"
+)";
+
+// Expects parse (and particle generation) to fail with a message containing `needle`.
+void expect_error(const std::string& text, const std::string& needle) {
+  try {
+    RunConfig c = parse_config(text, "test.toml");
+    ForceField ff = make_force_field(c);
+    (void)make_particles(c, ff);
+    ADD_FAILURE() << "no error; expected one mentioning '" << needle << "'";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << "message: " << e.what();
+  }
+}
+
+std::string replace(std::string s, const std::string& from, const std::string& to) {
+  const auto pos = s.find(from);
+  EXPECT_NE(pos, std::string::npos) << from;
+  return s.replace(pos, from.size(), to);
+}
+
+std::filesystem::path scratch(const std::string& name) {
+  auto p = std::filesystem::temp_directory_path() / ("rpyfmm_bd_test_" + name);
+  std::filesystem::remove_all(p);
+  return p;
+}
+}  // namespace
+
+TEST(BdConfig, ParsesDefaultsAndTheDemo) {
+  const RunConfig c = parse_config(kBase, "base");
+  EXPECT_EQ(c.steps, 10u);
+  EXPECT_DOUBLE_EQ(c.integrator.dt, 0.001);
+  EXPECT_EQ(c.mobility.method, MobilityMethod::none);
+  EXPECT_EQ(c.output.trajectory_every, 100u);
+  const RunConfig demo = parse_config(demo_config_text(), "demo");
+  EXPECT_EQ(demo.particles.count, 2000u);
+  EXPECT_EQ(demo.mobility.method, MobilityMethod::direct);
+}
+
+TEST(BdConfig, EveryBadConfigNamesTheKey) {
+  expect_error("[particles]\nsource = \"random\"\ncount = 5\n", "integrator");                 // missing section
+  expect_error(replace(kBase, "steps = 10", ""), "integrator.steps");                            // missing key
+  expect_error(replace(kBase, "dt = 0.001", "dt = -0.1"), "integrator.dt");                      // negative dt
+  expect_error(replace(kBase, "dt = 0.001", "dt = \"fast\""), "integrator.dt");                  // wrong type
+  expect_error(replace(kBase, "dt = 0.001", "dt = 0.001\ndtt = 1"), "integrator.dtt");           // unknown key
+  expect_error(kBase + "[solver]\nx = 1\n", "solver");                                           // unknown section
+  expect_error(replace(kBase, "kind = \"wca\"", "kind = \"lj\""), "pair[0].kind");               // bad enum
+  expect_error(replace(kBase, "types = [\"A\", \"A\"]", "types = [\"A\", \"B\"]"), "pair[0].types");
+  expect_error(replace(kBase, "radius = 1.0", "radius = 0"), "types[0].radius");
+  expect_error(replace(kBase, "method = \"none\"", "method = \"magic\""), "mobility.method");
+  expect_error(replace(kBase, "viscosity = 1.0", "viscosity = nan"), "system.viscosity");
+  expect_error(replace(kBase, "volume_fraction = 0.05", "volume_fraction = 0.6"), "particles.volume_fraction");
+  expect_error(replace(kBase, "source = \"random\"\ncount = 50\nvolume_fraction = 0.05",
+                       "source = \"chains\"\nchains = 2\nbeads = 3"),
+               "bonds");
+  expect_error(kBase + "[output]\nlog = \"../x.csv\"\n", "output");
+  expect_error("[integrator\n", "test.toml:1");  // TOML syntax error with its position
+}
+
+TEST(BdConfig, ParticleFileErrorsNameTheParticle) {
+  const auto dir = scratch("file");
+  std::filesystem::create_directories(dir);
+  const auto file = dir / "x.txt";
+  std::ofstream(file) << "# x y z type\n0 0 0 A\n3 0 0\n0 nan 0\n";
+  expect_error(replace(kBase, "source = \"random\"\ncount = 50\nvolume_fraction = 0.05",
+                       "source = \"file\"\nfile = \"" + file.string() + "\""),
+               "coordinate 1 of particle 2 is not finite");
+  std::ofstream(file) << "0 0 0 B\n";
+  expect_error(replace(kBase, "source = \"random\"\ncount = 50\nvolume_fraction = 0.05",
+                       "source = \"file\"\nfile = \"" + file.string() + "\""),
+               "unknown type 'B'");
+  std::filesystem::remove_all(dir);
+}
+
+TEST(BdConfig, OverlappingHardParticlesAreRejectedByName) {
+  const auto dir = scratch("overlap");
+  std::filesystem::create_directories(dir);
+  const auto file = dir / "x.txt";
+  std::ofstream(file) << "0 0 0\n10 0 0\n10.5 0 0\n";  // particles 1 and 2 overlap (r = 0.5 < 2a)
+  RunConfig c = parse_config(replace(kBase, "source = \"random\"\ncount = 50\nvolume_fraction = 0.05",
+                                     "source = \"file\"\nfile = \"" + file.string() + "\""),
+                             "t");
+  c.output.dir = dir / "out";
+  try {
+    (void)run_bd(c);
+    FAIL() << "overlap not rejected";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("particles 1 and 2 overlap"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove_all(dir);
+}
+
+TEST(BdConfig, GeneratorsProduceNonOverlappingParticles) {
+  for (const std::string src :
+       {"source = \"random\"\ncount = 300\nvolume_fraction = 0.2", "source = \"lattice\"\ncount = 100",
+        "source = \"chains\"\nchains = 5\nbeads = 20", "source = \"clusters\"\nclusters = 4\ncluster_size = 25"}) {
+    std::string text = replace(kBase, "source = \"random\"\ncount = 50\nvolume_fraction = 0.05", src);
+    if (src.find("chains") != std::string::npos) text += "[bonds]\nkind = \"fene\"\nk = 30\nlength = 3.0\n";
+    const RunConfig c = parse_config(text, "gen");
+    const ForceField ff = make_force_field(c);
+    const InitialState s = make_particles(c, ff);
+    const std::size_t n = s.types.size();
+    ASSERT_GE(n, 100u) << src;
+    double rmin = 1e300;
+    for (std::size_t i = 0; i < n; ++i)
+      for (std::size_t j = i + 1; j < n; ++j) {
+        double r2 = 0;
+        for (int k = 0; k < 3; ++k) r2 += std::pow(s.positions[3 * i + k] - s.positions[3 * j + k], 2);
+        rmin = std::min(rmin, std::sqrt(r2));
+      }
+    EXPECT_GE(rmin, 2.0) << src;  // radius 1: no overlaps
+    if (src.find("chains") != std::string::npos) {
+      EXPECT_EQ(s.bonds.size(), 5u * 19u);
+      for (const auto& b : s.bonds) {
+        double r2 = 0;
+        for (int k = 0; k < 3; ++k) r2 += std::pow(s.positions[3 * b.i + k] - s.positions[3 * b.j + k], 2);
+        EXPECT_NEAR(std::sqrt(r2), 2.1, 1e-9);  // default bond length 2.1 a
+      }
+    }
+  }
+}
+
+// A run interrupted at step 15 (by asking for 15 steps) and restarted to 40 ends in the
+// same state, bitwise, as a 40-step run; the log and trajectory are identical too.
+TEST(BdRun, RestartEqualsUninterruptedRun) {
+  std::string text = replace(kBase, "steps = 10", "steps = 40");
+  text = replace(text, "kT = 1.0", "kT = 1.0\ngeometry = \"open\"");
+  text += "[output]\ntrajectory_every = 5\nlog_every = 5\ncheckpoint_every = 10\n";
+  RunConfig c = parse_config(text, "run");
+  const auto a = scratch("full"), b = scratch("split");
+  RunOptions full, part;
+  full.out_dir = a;
+  part.out_dir = b;
+  part.steps = 15;
+  (void)run_bd(c, full);
+  (void)run_bd(c, part);
+  const RunSummary s = restart_bd(b / "checkpoint.bin");
+  EXPECT_EQ(s.first_step, 15u);
+  EXPECT_EQ(s.last_step, 40u);
+  const Checkpoint ca = read_checkpoint(a / "checkpoint.bin"), cb = read_checkpoint(b / "checkpoint.bin");
+  EXPECT_EQ(ca.step, 40u);
+  EXPECT_EQ(ca.positions, cb.positions);
+  auto slurp = [](const std::filesystem::path& p) {
+    std::ifstream in(p);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  };
+  EXPECT_EQ(slurp(a / "trajectory.xyz"), slurp(b / "trajectory.xyz"));
+  const std::string log = slurp(a / "log.csv");
+  EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 1 + 9);  // header + steps 0, 5, ..., 40
+  EXPECT_NE(slurp(a / "trajectory.xyz").find("Properties=species:S:1:pos:R:3:radius:R:1 Time=0.04 Step=40"),
+            std::string::npos);
+  std::filesystem::remove_all(a);
+  std::filesystem::remove_all(b);
+}
+
+TEST(BdRun, BlowUpLeavesTheLastGoodCheckpoint) {
+  std::string text = replace(kBase, "[[pair]]", "[external]\nforce = [0, 0, -1e6]\n[[pair]]");
+  RunConfig c = parse_config(text, "blowup");
+  const auto dir = scratch("blowup");
+  try {
+    RunOptions o;
+    o.out_dir = dir;
+    (void)run_bd(c, o);
+    FAIL() << "blow-up not reported";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("blow-up at step 0"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("checkpoint.bin"), std::string::npos) << e.what();
+  }
+  const Checkpoint chk = read_checkpoint(dir / "checkpoint.bin");
+  EXPECT_EQ(chk.step, 0u);
+  EXPECT_EQ(chk.positions, chk.reference_positions);
+  std::filesystem::remove_all(dir);
+}

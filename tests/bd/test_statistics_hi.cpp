@@ -1,0 +1,91 @@
+// Statistical BD tests with HI (dense reference RPY + Cholesky): a few seconds in
+// Release, labelled `slow` so the sanitizer run skips them.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <vector>
+
+#include "dense_rpy.hpp"
+#include "rpyfmm/bd/integrator.hpp"
+
+using namespace rpyfmm::bd;
+constexpr double pi = std::numbers::pi;
+
+namespace {
+std::vector<double> line_of_particles(std::size_t n, double spacing) {
+  std::vector<double> x(3 * n, 0.0);
+  for (std::size_t i = 0; i < n; ++i) x[3 * i] = spacing * static_cast<double>(i);
+  return x;
+}
+
+ForceField trapped(const std::vector<double>& centres, double k) {
+  ForceField ff;
+  ff.add_callback([centres, k](std::span<const double> x, std::uint64_t, std::span<double> f) {
+    for (std::size_t i = 0; i < x.size(); ++i) f[i] += -k * (x[i] - centres[i]);
+  });
+  return ff;
+}
+}  // namespace
+
+// With HI the stationary distribution is still Boltzmann, variance kT/k per axis.
+// For traps K = k I the EM covariance solves C = A C A + 2 kT dt M, A = I - k dt M,
+// i.e. C = (kT/k) (I - k dt M / 2)^{-1} (M at the trap centres; stiff traps keep M
+// nearly constant). 8 particles 4a apart (strong HI), k dt mu0 = 0.1, 20000 steps:
+// ~24 x 20000 / 20 = 24000 effective samples, relative error ~0.9%; tolerance 4%
+// (covers the variation of M over the thermal spread sqrt(kT/k) = 0.3 a too).
+TEST(BdStatistics, HarmonicTrapVarianceWithHi) {
+  const std::size_t n = 8;
+  const double k = 10.0, kT = 1.0, mu0 = 1.0 / (6 * pi), dt = 0.1 / (k * mu0);
+  auto centres = line_of_particles(n, 4.0);
+  auto op = std::make_unique<bdtest::DenseRpy>();
+  Integrator bd(std::move(op), trapped(centres, k), {.dt = dt, .kT = kT, .seed = 9}, centres,
+                std::vector<std::uint32_t>(n, 0));
+  bdtest::DenseRpy ref;
+  ref.set_positions(centres, 1.0);
+  const auto m = ref.assemble_dense();
+  Eigen::MatrixXd M = Eigen::Map<const Eigen::MatrixXd>(m.data(), 3 * n, 3 * n);
+  const Eigen::MatrixXd C = kT / k * (Eigen::MatrixXd::Identity(3 * n, 3 * n) - 0.5 * k * dt * M).inverse();
+  bd.run(100);
+  std::vector<double> sum2(3 * n, 0.0);
+  const int steps = 20000;
+  for (int s = 0; s < steps; ++s) {
+    bd.step();
+    for (std::size_t q = 0; q < 3 * n; ++q) sum2[q] += std::pow(bd.positions()[q] - centres[q], 2);
+  }
+  double ratio = 0, ratio_naive = 0;
+  for (std::size_t q = 0; q < 3 * n; ++q) {
+    ratio += sum2[q] / steps / C(static_cast<Eigen::Index>(q), static_cast<Eigen::Index>(q)) / (3.0 * n);
+    ratio_naive += sum2[q] / steps / (kT / k) / (3.0 * n);
+  }
+  EXPECT_NEAR(ratio, 1.0, 0.04);
+  EXPECT_NEAR(ratio_naive, 1.0, 0.08);  // the continuous-time answer kT/k, up to the O(dt) bias
+}
+
+// Relative diffusion of a pair at fixed separation r (one step from the same
+// configuration, K = 20000 independent steps keyed by step number): the relative
+// displacement has variance 2 dt * 2 kT (mu0 - (f + g)) along the line of centres and
+// 2 dt * 2 kT (mu0 - f) across it (M_12 = f I + g rr). Relative standard error of a
+// variance from K samples: sqrt(2/K) = 1%; tolerance 5%. Free draining would give
+// 2 dt * 2 kT mu0, 50% more at r = 3a: the test distinguishes.
+TEST(BdStatistics, PairRelativeDiffusionIsRpy) {
+  const double a = 1.0, r = 3.0, kT = 1.0, dt = 0.01;
+  std::vector<double> x{0, 0, 0, r, 0, 0};
+  const int K = 20000;  // ~0.1 ms each
+  double var_par = 0, var_perp = 0;
+  for (int s = 0; s < K; ++s) {
+    Integrator bd(std::make_unique<bdtest::DenseRpy>(), ForceField(), {.dt = dt, .kT = kT, .seed = 3}, x, {0, 0}, {},
+                  static_cast<std::uint64_t>(s));
+    bd.step();
+    const auto p = bd.positions();
+    var_par += std::pow((p[3] - p[0]) - r, 2);
+    var_perp += 0.5 * (std::pow(p[4] - p[1], 2) + std::pow(p[5] - p[2], 2));
+  }
+  var_par /= K;
+  var_perp /= K;
+  const double mu0 = 1 / (6 * pi * a);
+  const double f = (1 + 2 * a * a / (3 * r * r)) / (8 * pi * r), g = (1 - 2 * a * a / (r * r)) / (8 * pi * r);
+  EXPECT_NEAR(var_par / (4 * kT * dt * (mu0 - f - g)), 1.0, 0.05);
+  EXPECT_NEAR(var_perp / (4 * kT * dt * (mu0 - f)), 1.0, 0.05);
+}
+
