@@ -1,7 +1,7 @@
 // bench_direct — throughput of the direct O(N^2) kernels.
 //
 //   bench_direct [--n N] [--threads T] [--reps R] [--kernel laplace|rpy|all] [--nd D]
-//                [--dump FILE] [--results FILE]
+//                [--dump FILE] [--results FILE] [--portable]
 //
 // Laplace: N uniform points in the unit cube (mt19937_64, seed 1), charges in
 // [-1, 1], evaluated at the sources; prints the median of R runs for potential
@@ -13,6 +13,7 @@
 // pairs = N * (N - 1) * nd (Laplace; self pair skipped) and N^2 (RPY, self included).
 // --dump writes the points (3N doubles, particle-major) then the charges (nd*N) as raw
 // float64 so that compare_fmm3d.py can time fmm3dpy on exactly the same input;
+// --portable disables the hand-written AVX-512 kernels (compiler-vectorized loops only);
 // --results writes the pot+grad+Hessian results (nd x N x 10 float64) for its accuracy check.
 #include <omp.h>
 
@@ -29,6 +30,7 @@
 #include <vector>
 
 #include "rpyfmm/fmm/direct.hpp"
+#include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
 
 namespace {
@@ -71,8 +73,17 @@ int main(int argc, char** argv) {
   std::size_t n = 10000, nd = 1;
   int threads = 1, reps = 5;
   std::string kernel = "all", dump, results;
-  for (int i = 1; i + 1 < argc; i += 2) {
+  for (int i = 1; i < argc; i += 2) {
     const std::string k = argv[i];
+    if (k == "--portable") {  // flag: compiler-vectorized kernels only (no hand-written AVX-512)
+      rpyfmm::fmm::detail::use_avx512_kernels(false);
+      --i;
+      continue;
+    }
+    if (i + 1 >= argc) {
+      std::fprintf(stderr, "bench_direct: %s needs a value\n", argv[i]);
+      return 2;
+    }
     const char* v = argv[i + 1];
     if (k == "--n") n = std::strtoul(v, nullptr, 10);
     else if (k == "--threads") threads = std::atoi(v);
