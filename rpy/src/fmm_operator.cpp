@@ -73,6 +73,43 @@ void near_pair_sum(std::size_t m, const double* sx, const double* sy, const doub
   u[2] = uz;
 }
 
+// Equal radii a (rpy_scalars_equal, 004 eq. 3.1): one sqrt and one division per pair.
+#if defined(__x86_64__) && !defined(__SANITIZE_ADDRESS__)
+__attribute__((target_clones("avx512f", "avx2", "default")))
+#endif
+void near_pair_sum_equal(std::size_t m, const double* sx, const double* sy, const double* sz,
+                         const std::size_t* sid, const double* fx, const double* fy, const double* fz, double xi,
+                         double yi, double zi, double a, std::size_t i, double u[3]) {
+  double ux = 0.0, uy = 0.0, uz = 0.0;
+  const double two_a = 2.0 * a, a2 = a * a, c6 = rpy_detail::inv_6pi / a, inv_32a = 1.0 / (32.0 * a);
+#pragma omp simd reduction(+ : ux, uy, uz)
+  for (std::size_t q = 0; q < m; ++q) {
+    const double dx = xi - sx[q], dy = yi - sy[q], dz = zi - sz[q];
+    const double r2 = dx * dx + dy * dy + dz * dz;
+    const double safe_r2 = r2 > 0.0 ? r2 : 1.0;
+    const double r = std::sqrt(safe_r2);
+    const double inv_r2 = 1.0 / safe_r2;
+    const double inv_r = r * inv_r2;
+    const double s = a2 * inv_r2;
+    const double c8 = rpy_detail::inv_8pi * inv_r;
+    const double t = r * inv_32a;
+    const bool far = r > two_a;
+    double fs = far ? c8 * (1.0 + (2.0 / 3.0) * s) : c6 * (1.0 - 9.0 * t);
+    double gs = far ? c8 * (1.0 - 2.0 * s) : c6 * (3.0 * t);
+    gs = r2 > 0.0 ? gs : 0.0;  // coincident distinct points: I / (6 pi a)
+    const bool self = sid[q] == i;
+    fs = self ? 0.0 : fs;
+    gs = self ? 0.0 : gs;
+    const double df = gs * inv_r2 * (dx * fx[q] + dy * fy[q] + dz * fz[q]);
+    ux += fs * fx[q] + df * dx;
+    uy += fs * fy[q] + df * dy;
+    uz += fs * fz[q] + df * dz;
+  }
+  u[0] = ux;
+  u[1] = uy;
+  u[2] = uz;
+}
+
 }  // namespace
 
 FmmRpy::FmmRpy(Geometry geometry, double viscosity, FmmRpyOptions options)
@@ -218,6 +255,7 @@ void FmmRpy::apply_near_field(const double* forces, double* velocities, std::siz
   const auto x = positions();
   const auto a = radii();
   const double inv_eta = 1.0 / viscosity();
+  const bool equal = equal_radii();
   const auto ntl = static_cast<std::int64_t>(near_targets_.size());
   // Each target leaf is owned by one thread: its velocities are written by nobody else, and the
   // order of summation is fixed, so results do not depend on the thread count.
@@ -255,7 +293,11 @@ void FmmRpy::apply_near_field(const double* forces, double* velocities, std::siz
         for (std::size_t i : near.targets(near_targets_[t])) {
           const double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2], ai = a[i];
           double u[3];
-          near_pair_sum(m, sx.data(), sy.data(), sz.data(), sa.data(), sid.data(), fx, fy, fz, xi, yi, zi, ai, i, u);
+          if (equal) {
+            near_pair_sum_equal(m, sx.data(), sy.data(), sz.data(), sid.data(), fx, fy, fz, xi, yi, zi, ai, i, u);
+          } else {
+            near_pair_sum(m, sx.data(), sy.data(), sz.data(), sa.data(), sid.data(), fx, fy, fz, xi, yi, zi, ai, i, u);
+          }
           const double ux = u[0], uy = u[1], uz = u[2];
           const double self = rpy_self(ai);  // M_ii = I / (6 pi eta a_i)
           double* ui = velocities + 3 * n * k + 3 * i;
