@@ -35,8 +35,10 @@ int fmm_table_digits_for(double eps) {
 }
 
 int fmm_default_leaf_capacity(double eps) {
+  // Measured (bench/fmm/RESULTS.md, uniform cube N = 1e5, pot+grad+Hessian, one thread): with the
+  // vectorized P2P and L2P, larger leaves than FMM3D's 100/200/400/600 pay off from 1e-6 on.
   const int digits = fmm_table_digits_for(eps);
-  return digits <= 3 ? 64 : digits <= 6 ? 128 : digits <= 9 ? 256 : 400;
+  return digits <= 3 ? 100 : digits <= 6 ? 400 : digits <= 9 ? 600 : 800;
 }
 
 namespace {
@@ -446,22 +448,27 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
   sw.restart();
 #pragma omp parallel if (leaves.size() >= kMinParallel)
   {
-    std::vector<cplx> R(ncoef(p + 2)), bcoef(stride);
-    std::vector<double> tmp(result_width);
+    std::vector<cplx> bcoef(stride);
+    std::vector<double> scratch(2 * std::size_t(nc) * detail::kL2PLanes);
+    const double* rec = H.regular_recurrence();
 #pragma omp for schedule(dynamic, 4)
     for (std::size_t i = 0; i < leaves.size(); ++i) {
       const int b = leaves[i];
       const auto& bx = boxes[b];
       if (bx.ntgt() == 0 || !has_local[b]) continue;
-      const double s = tree.side(bx.level);
+      const double s = tree.side(bx.level), inv_s = 1.0 / s;
       const auto c = tree.center(b);
       for (std::size_t d = 0; d < nd; ++d) detail::local_to_b(H, p, &lp[std::size_t(b) * stride + d * nc], &bcoef[d * nc]);
-      for (std::size_t t = bx.tgt_begin; t < bx.tgt_end; ++t) {
-        const double inv_s = 1.0 / s;
-        H.regular(p, (txyz[3 * t] - c[0]) * inv_s, (txyz[3 * t + 1] - c[1]) * inv_s, (txyz[3 * t + 2] - c[2]) * inv_s,
-                  R.data());
-        for (std::size_t d = 0; d < nd; ++d)
-          detail::l2p_eval(p, s, &bcoef[d * nc], R.data(), outputs[d], &res[(d * M + t) * result_width]);
+      for (std::size_t t0 = bx.tgt_begin; t0 < bx.tgt_end; t0 += detail::kL2PLanes) {
+        const int nt = int(std::min<std::size_t>(detail::kL2PLanes, bx.tgt_end - t0));
+        double ux[detail::kL2PLanes], uy[detail::kL2PLanes], uz[detail::kL2PLanes];
+        for (int t = 0; t < nt; ++t) {
+          ux[t] = (P.tx[t0 + t] - c[0]) * inv_s;
+          uy[t] = (P.ty[t0 + t] - c[1]) * inv_s;
+          uz[t] = (P.tz[t0 + t] - c[2]) * inv_s;
+        }
+        detail::l2p_block(p, s, rec, bcoef.data(), nd, outputs.data(), nt, ux, uy, uz, &res[t0 * result_width],
+                          M * result_width, scratch.data());
       }
     }
   }

@@ -31,6 +31,16 @@ void p2l(const Harmonics& H, int p, double s, const double* c, const double* xyz
 /// out[4..9] Hessian (xx, yy, zz, xy, xz, yz), *added* to out according to `flags` (§6.1).
 /// `b` = Lh_n^m c_n^m (precomputed per box by local_to_b), `R` = regular table at (x-c)/s up to p.
 void l2p_eval(int p, double s, const cplx* b, const cplx* R, unsigned flags, double* out) noexcept;
+/// Lanes of l2p_block (targets evaluated together, SIMD lane = target).
+inline constexpr int kL2PLanes = 8;
+/// L2P for up to kL2PLanes targets at once (§6.1, §7.3 idea 1): the regular table of every target is
+/// built in structure-of-arrays form and each coefficient is broadcast over the lanes; the tables are
+/// shared by the nd densities. u{x,y,z}: scaled target offsets (x - c)/s (nt <= kL2PLanes valid lanes);
+/// b: nd x ncoef(p) (b = Lh c); result of density d, lane t added to out[d*ld + t*10 + column].
+/// scratch: 2 * ncoef(p) * kL2PLanes doubles.
+void l2p_block(int p, double s, const double* rec, const cplx* b, std::size_t nd, const unsigned* flags, int nt,
+               const double* ux, const double* uy, const double* uz, double* out, std::size_t ld,
+               double* scratch) noexcept;
 /// b_n^m = Lh_n^m c_n^m.
 void local_to_b(const Harmonics& H, int p, const cplx* Lh, cplx* b) noexcept;
 

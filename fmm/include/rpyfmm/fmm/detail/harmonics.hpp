@@ -35,6 +35,8 @@ class Harmonics {
   [[nodiscard]] double inv_c(int n, int m) const noexcept { return inv_c_[idx(n, m)]; }
   [[nodiscard]] const double* c_table() const noexcept { return c_.data(); }
   [[nodiscard]] const double* inv_c_table() const noexcept { return inv_c_.data(); }
+  /// 1/((n+1)^2 - m^2) at idx(n+1, m), the R recurrence factors (§1.2).
+  [[nodiscard]] const double* regular_recurrence() const noexcept { return rec_r_.data(); }
   /// sqrt(binomial(a, b)) for 0 <= b <= a <= 2 pmax + 4.
   [[nodiscard]] double sqrt_binomial(int a, int b) const noexcept;
 
