@@ -105,6 +105,12 @@ void scalars_general(double xi, double yi, double zi, double ai, const double* _
 // and r = r^2 / r; regimes chosen by lane masks.
 using fmm::detail::rsqrt_or_zero;
 
+// r = r^2 * (1/r), keeping r = r^2 where r^2 is 0 or overflowed to inf (inf * 0 would be NaN).
+RPYFMM_DIRECT_AVX512 inline __m512d finite_r(__m512d r2, __m512d ir) {
+  const __mmask8 fin = _mm512_cmp_pd_mask(r2, _mm512_set1_pd(__builtin_inf()), _CMP_LT_OQ);
+  return _mm512_mask_mul_pd(r2, fin, r2, ir);
+}
+
 RPYFMM_DIRECT_AVX512 void scalars_equal_avx512(double xi, double yi, double zi, const double* x, const double* y,
                                                const double* z, std::size_t nb, double a, double* dx, double* dy,
                                                double* dz, double* f, double* gr) {
@@ -119,7 +125,7 @@ RPYFMM_DIRECT_AVX512 void scalars_equal_avx512(double xi, double yi, double zi, 
     const __m512d ddz = _mm512_sub_pd(vz, _mm512_maskz_loadu_pd(m, z + j));
     const __m512d r2 = _mm512_fmadd_pd(ddz, ddz, _mm512_fmadd_pd(ddy, ddy, _mm512_mul_pd(ddx, ddx)));
     const __m512d ir = rsqrt_or_zero(r2);
-    const __m512d r = _mm512_mul_pd(r2, ir);
+    const __m512d r = finite_r(r2, ir);
     const __m512d ir2 = _mm512_mul_pd(ir, ir);
     const __m512d sa = _mm512_mul_pd(a2, ir2);
     const __m512d c8r = _mm512_mul_pd(c8, ir);
@@ -152,7 +158,7 @@ RPYFMM_DIRECT_AVX512 void scalars_general_avx512(double xi, double yi, double zi
     const __m512d ddz = _mm512_sub_pd(vz, _mm512_maskz_loadu_pd(m, z + j));
     const __m512d r2 = _mm512_fmadd_pd(ddz, ddz, _mm512_fmadd_pd(ddy, ddy, _mm512_mul_pd(ddx, ddx)));
     const __m512d ir = rsqrt_or_zero(r2);
-    const __m512d r = _mm512_mul_pd(r2, ir);
+    const __m512d r = finite_r(r2, ir);
     const __m512d ir2 = _mm512_mul_pd(ir, ir);
     const __m512d sum = _mm512_add_pd(vai, aj);
     const __m512d diff = _mm512_sub_pd(vai, aj);

@@ -297,3 +297,17 @@ TEST_P(LaplaceDirect, RejectsBadInput) {
   laplace_direct(std::vector<double>{0, 0, 0}, std::vector<double>{2.0}, 1, std::vector<double>{}, 7, o1);
   for (double v : o1) EXPECT_EQ(v, 0.0);
 }
+
+// Overflowing r^2 gives the zero limit (not NaN); tiny separations stay exact as
+// long as r^2 and 1/r^5 are normal numbers (|r| in ~[1e-60, 1e154]).
+TEST_P(LaplaceDirect, ExtremeSeparationsStayFinite) {
+  for (double d : {1e-150, 1e-60, 1e150, 1e170, 1e300}) {
+    const auto out = run({0, 0, 0, d, 0, 0}, {1.0, 2.0}, 1, {}, potential);
+    const double expect = d < 1e154 ? 1.0 / d : 0.0;
+    EXPECT_NEAR(out[col_pot], 2 * expect, 1e-14 * 2 * expect) << d;
+    EXPECT_NEAR(out[10 + col_pot], expect, 1e-14 * expect) << d;
+    if (d < 1e-60) continue;  // 1/r^5 overflows in the Hessian below ~1e-62
+    const auto all = run({0, 0, 0, d, 0, 0}, {1.0, 2.0}, 1, {});
+    for (double v : all) EXPECT_TRUE(std::isfinite(v)) << d;
+  }
+}

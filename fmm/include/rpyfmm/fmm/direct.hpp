@@ -6,7 +6,9 @@
 //   hess phi(x)   =  sum_j q_j (3 r r^T / |r|^5 - I / |r|^3), r = x - y_j   Hessian of the potential
 // (MATH.md §2 uses E = -grad phi and T = -hess phi.) Pairs at distance 0 are
 // skipped (the self pair when targets are the sources, and any target that
-// coincides with a source): they contribute nothing, silently.
+// coincides with a source): they contribute nothing, silently. Pairs so far
+// apart that r^2 overflows contribute their limit 0; pairs closer than about
+// 1e-60 overflow the Hessian's 1/r^5 (doubles, like any direct sum).
 //
 // Results: nd x M x 10 doubles, per target
 //   [pot, gx, gy, gz, hxx, hyy, hzz, hxy, hxz, hyz];

@@ -54,7 +54,7 @@ RPYFMM_DIRECT_AVX512 inline __m512d rsqrt_or_zero(__m512d r2) {
     const __m512d h = _mm512_fnmadd_pd(_mm512_mul_pd(r2, y), y, one);
     y = _mm512_fmadd_pd(_mm512_mul_pd(half, y), h, y);
   }
-  return y;  // masked lanes stay 0: h = 1, y = 0
+  return _mm512_maskz_mov_pd(ok, y);  // re-mask: r2 = inf gives inf * 0 = NaN in the Newton step
 }
 #endif
 }  // namespace rpyfmm::fmm::detail
