@@ -2,11 +2,15 @@
 //
 // One target at a time against a contiguous run of sources, with the sources
 // in structure-of-arrays form and no branches in the inner loop (the r = 0
-// skip is a select on 1/r), so that GCC vectorizes the source loop. The
-// requested outputs are template parameters: asking for the potential only
-// costs one rsqrt-like division and a multiply-add per pair. Several charge
-// vectors share the geometry: per block of sources, 1/r and 1/r^3 are
-// computed once and reused for every density.
+// skip is a select on 1/r). Two implementations of the same loops:
+//  - portable C++ that GCC vectorizes (target_clones: SSE2 / AVX2 / AVX-512),
+//    1/r = 1/sqrt(r^2) by sqrt and division;
+//  - AVX-512F intrinsics, 1/r by rsqrt14 + two Newton steps (direct_simd.hpp),
+//    chosen at run time when the CPU has AVX-512F (2-3x the pairs per second).
+// The requested outputs are template parameters, so the potential alone costs
+// 1/r and one multiply-add per pair. Several charge vectors share the
+// geometry: per block of sources, d = x - y, 1/r and 1/r^2 are computed once
+// and reused for every density.
 #include "rpyfmm/fmm/direct.hpp"
 
 #include <algorithm>
@@ -17,7 +21,6 @@
 
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
-
 
 namespace rpyfmm::fmm {
 

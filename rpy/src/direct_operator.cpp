@@ -1,9 +1,12 @@
 // rpyfmm — DirectRpy: U_i = sum_j M_ij F_j over all pairs (MATH.md §1).
 //
-// The inner loops evaluate the pair scalars (f, g) of rpy_kernel.hpp in
-// branch-free form (every regime computed, then selected) so that GCC
-// vectorizes them; the branching reference forms in rpy_kernel.hpp are what
-// the tests compare against.
+// Per target particle i and block of sources j, the pair scalars (f, g/r^2)
+// are evaluated in branch-free form (every regime computed, then selected)
+// into small buffers, then applied to every right-hand side. Two versions of
+// the scalar loops: portable C++ that GCC vectorizes (sqrt and division per
+// pair) and AVX-512F intrinsics (1/r by rsqrt14 + Newton, no division),
+// chosen at run time (fmm/direct_simd.hpp). The branching forms of
+// rpy_kernel.hpp are the reference the tests compare against.
 #include "rpyfmm/rpy/direct_operator.hpp"
 
 #include <algorithm>
@@ -12,7 +15,6 @@
 
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
-#include "rpyfmm/rpy/rpy_kernel.hpp"
 
 namespace rpyfmm::rpy {
 namespace {
