@@ -3,7 +3,7 @@ find_package(Eigen3 3.3 REQUIRED NO_MODULE)
 target_sources(rpyfmm_fmm PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/src/harmonics.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/point_expansions.cpp
-  ${CMAKE_CURRENT_LIST_DIR}/src/l2p_block.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/simd_expansions.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/rotation.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/child_translations.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/planewave_tables.cpp

@@ -243,15 +243,25 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
   const auto& leaves = tree.leaves();
 #pragma omp parallel if (leaves.size() >= kMinParallel)
   {
-    std::vector<cplx> scratch(ncoef(p + 2));
+    std::vector<double> scratch(2 * std::size_t(nc) * detail::kL2PLanes);
 #pragma omp for schedule(dynamic, 8)
     for (std::size_t i = 0; i < leaves.size(); ++i) {
       const int b = leaves[i];
       const auto& bx = boxes[b];
       if (bx.nsrc() == 0 || bx.level < 2) continue;
       const auto c = tree.center(b);
-      detail::p2m(H, p, tree.side(bx.level), c.data(), &sxyz[3 * bx.src_begin], &qs[bx.src_begin], N, nd, bx.nsrc(),
-                  &mp[std::size_t(b) * stride], scratch.data());
+      const double inv_s = 1.0 / tree.side(bx.level);
+      for (std::size_t j0 = bx.src_begin; j0 < bx.src_end; j0 += detail::kL2PLanes) {
+        const int np = int(std::min<std::size_t>(detail::kL2PLanes, bx.src_end - j0));
+        double ux[detail::kL2PLanes], uy[detail::kL2PLanes], uz[detail::kL2PLanes];
+        for (int t = 0; t < np; ++t) {
+          ux[t] = (P.sx[j0 + t] - c[0]) * inv_s;
+          uy[t] = (P.sy[j0 + t] - c[1]) * inv_s;
+          uz[t] = (P.sz[j0 + t] - c[2]) * inv_s;
+        }
+        detail::p2m_block(p, H.regular_recurrence(), H.c_table(), np, ux, uy, uz, &qs[j0], N, nd,
+                          &mp[std::size_t(b) * stride], scratch.data());
+      }
     }
   }
   times["p2m"] = sw.seconds();

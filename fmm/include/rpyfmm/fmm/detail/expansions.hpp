@@ -41,6 +41,10 @@ inline constexpr int kL2PLanes = 8;
 void l2p_block(int p, double s, const double* rec, const cplx* b, std::size_t nd, const unsigned* flags, int nt,
                const double* ux, const double* uy, const double* uz, double* out, std::size_t ld,
                double* scratch) noexcept;
+/// P2M for up to kL2PLanes sources at once (same layout as l2p_block): u = (y - c)/s scaled offsets,
+/// charges q[d*ldq + t]; adds to Mh[d*ncoef(p) + i]. cn = c_n^m table. scratch as l2p_block.
+void p2m_block(int p, const double* rec, const double* cn, int np, const double* ux, const double* uy,
+               const double* uz, const double* q, std::size_t ldq, std::size_t nd, cplx* Mh, double* scratch) noexcept;
 /// b_n^m = Lh_n^m c_n^m.
 void local_to_b(const Harmonics& H, int p, const cplx* Lh, cplx* b) noexcept;
 

@@ -1,5 +1,6 @@
-// L2P with gradient and Hessian, vectorized over targets (PLANEWAVE.md §6.1 formulas; §7.3 idea 1).
-// Same sums as l2p_eval (point_expansions.cpp), reorganized: lanes = targets, coefficients broadcast.
+// P2M and L2P (with gradient and Hessian) vectorized over points (PLANEWAVE.md §6.1, §6.3; §7.3 idea 1).
+// Same sums as p2m / l2p_eval (point_expansions.cpp), reorganized: SIMD lanes = points, regular solid
+// harmonics in structure-of-arrays form, coefficients broadcast.
 #include "rpyfmm/fmm/detail/expansions.hpp"
 
 namespace rpyfmm::fmm::detail {
@@ -22,24 +23,9 @@ inline void cmac(Acc& a, double br, double bi, const double* Rr, const double* R
 inline void rmac(double* a, double w, double br, double bi, const double* Rr, const double* Ri) noexcept {
   for (int t = 0; t < W; ++t) a[t] += w * (br * Rr[t] - bi * Ri[t]);
 }
-}  // namespace
-
-__attribute__((target_clones("avx512f", "avx2", "default"))) void l2p_block(
-    int p, double s, const double* rec, const cplx* b, std::size_t nd, const unsigned* flags, int nt, const double* ux,
-    const double* uy, const double* uz, double* out, std::size_t ld, double* scratch) noexcept {
-  const int nc = ncoef(p);
-  double* Rr = scratch;
-  double* Ri = scratch + std::size_t(nc) * W;
-  double x[W], y[W], z[W], rho2[W];
-  for (int t = 0; t < W; ++t) {
-    x[t] = t < nt ? ux[t] : 0.0;
-    y[t] = t < nt ? uy[t] : 0.0;
-    z[t] = t < nt ? uz[t] : 0.0;
-    rho2[t] = x[t] * x[t] + y[t] * y[t] + z[t] * z[t];
-    Rr[t] = 1.0;
-    Ri[t] = 0.0;
-  }
-  // Regular solid harmonics (§1.2), structure of arrays.
+// Regular solid harmonics (§1.2) of W points, structure of arrays: Rr/Ri[idx(n,m) * W + lane].
+inline void regular_soa(int p, const double* rec, const double* x, const double* y, const double* z,
+                        const double* rho2, double* Rr, double* Ri) noexcept {
   for (int m = 0; m <= p; ++m) {
     if (m > 0) {
       double* pr = Rr + idx(m, m) * W;
@@ -76,6 +62,56 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void l2p_block(
       }
     }
   }
+}
+}  // namespace
+
+__attribute__((target_clones("avx512f", "avx2", "default"))) void p2m_block(
+    int p, const double* rec, const double* cn, int np, const double* ux, const double* uy, const double* uz,
+    const double* q, std::size_t ldq, std::size_t nd, cplx* Mh, double* scratch) noexcept {
+  const int nc = ncoef(p);
+  double* Rr = scratch;
+  double* Ri = scratch + std::size_t(nc) * W;
+  double x[W], y[W], z[W], rho2[W];
+  for (int t = 0; t < W; ++t) {
+    x[t] = t < np ? ux[t] : 0.0;
+    y[t] = t < np ? uy[t] : 0.0;
+    z[t] = t < np ? uz[t] : 0.0;
+    rho2[t] = x[t] * x[t] + y[t] * y[t] + z[t] * z[t];
+    Rr[t] = 1.0;
+    Ri[t] = 0.0;
+  }
+  regular_soa(p, rec, x, y, z, rho2, Rr, Ri);
+  for (std::size_t d = 0; d < nd; ++d) {
+    double qd[W];
+    for (int t = 0; t < W; ++t) qd[t] = t < np ? q[d * ldq + t] : 0.0;  // padded lanes carry no charge
+    cplx* M = Mh + d * nc;
+    for (int i = 0; i < nc; ++i) {
+      double re = 0.0, im = 0.0;
+      for (int t = 0; t < W; ++t) {
+        re += qd[t] * Rr[i * W + t];
+        im += qd[t] * Ri[i * W + t];
+      }
+      M[i] += cplx(cn[i] * re, -cn[i] * im);  // q c conj(R)
+    }
+  }
+}
+
+__attribute__((target_clones("avx512f", "avx2", "default"))) void l2p_block(
+    int p, double s, const double* rec, const cplx* b, std::size_t nd, const unsigned* flags, int nt, const double* ux,
+    const double* uy, const double* uz, double* out, std::size_t ld, double* scratch) noexcept {
+  const int nc = ncoef(p);
+  double* Rr = scratch;
+  double* Ri = scratch + std::size_t(nc) * W;
+  double x[W], y[W], z[W], rho2[W];
+  for (int t = 0; t < W; ++t) {
+    x[t] = t < nt ? ux[t] : 0.0;
+    y[t] = t < nt ? uy[t] : 0.0;
+    z[t] = t < nt ? uz[t] : 0.0;
+    rho2[t] = x[t] * x[t] + y[t] * y[t] + z[t] * z[t];
+    Rr[t] = 1.0;
+    Ri[t] = 0.0;
+  }
+  regular_soa(p, rec, x, y, z, rho2, Rr, Ri);
   const double inv_s = 1.0 / s, inv_s2 = inv_s * inv_s;
   for (std::size_t d = 0; d < nd; ++d) {
     const cplx* bd = b + d * nc;
