@@ -49,9 +49,8 @@ void run_bd_command(const BdArgs& args) {
     source = args.restart;
     s = bd::restart_bd(args.restart, options);
   } else {
-    const bd::RunConfig config = args.config.empty()
-                                     ? bd::parse_config(bd::demo_config_text(), "<built-in demo>")
-                                     : bd::load_config(args.config);
+    const bd::RunConfig config = args.config.empty() ? bd::parse_config(bd::demo_config_text(), "<built-in demo>")
+                                                     : bd::load_config(args.config);
     source = config.source;
     if (!args.quiet && !args.common.json)
       std::cout << "rpyfmm bd: " << source << " (" << bd::to_string(config.mobility.method) << " mobility, "

@@ -115,8 +115,7 @@ Checkpoint read_checkpoint(const std::filesystem::path& path) {
   const auto len = r.get<std::uint64_t>("config length");
   const auto cfg = r.get_vector<char>(len, "config");
   c.config.assign(cfg.begin(), cfg.end());
-  if (r.pos() + 8 != bytes.size())
-    fail(ErrorCode::io_error, "read_checkpoint", "'" + name + "' has trailing bytes");
+  if (r.pos() + 8 != bytes.size()) fail(ErrorCode::io_error, "read_checkpoint", "'" + name + "' has trailing bytes");
   return c;
 }
 

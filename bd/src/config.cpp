@@ -158,12 +158,13 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
   RunConfig c;
   c.text = std::string(text);
   c.source = source;
-  static const std::set<std::string> sections{"system", "types", "particles", "pair", "bonds",
-                                              "external", "integrator", "mobility", "neighbours", "output"};
+  static const std::set<std::string> sections{"system",   "types",      "particles", "pair",       "bonds",
+                                              "external", "integrator", "mobility",  "neighbours", "output"};
   for (const auto& [k, v] : root) {
     if (!sections.count(std::string(k.str())))
-      bad_key(std::string(k.str()), "is unknown (sections: system, types, particles, pair, bonds, external, "
-                                    "integrator, mobility, neighbours, output)");
+      bad_key(std::string(k.str()),
+              "is unknown (sections: system, types, particles, pair, bonds, external, "
+              "integrator, mobility, neighbours, output)");
   }
 
   {  // [system]
@@ -223,7 +224,8 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
       p.count = s.count("count");
       if (p.count < 1) bad_key("particles.count", "must be >= 1");
       if (c.geometry.is_periodic()) {  // the box sets the region
-        if (s.has("volume_fraction")) bad_key("particles.volume_fraction", "is only used in open geometry (the box sets the density)");
+        if (s.has("volume_fraction"))
+          bad_key("particles.volume_fraction", "is only used in open geometry (the box sets the density)");
       } else {
         p.volume_fraction = s.positive("volume_fraction", 0.05);
       }
@@ -245,7 +247,8 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
     } else {
       bad_key("particles.source", "must be file, random, lattice, chains or clusters, got \"" + source_name + "\"");
     }
-    if (p.volume_fraction > 0.45) bad_key("particles.volume_fraction", "must be <= 0.45, got " + num(p.volume_fraction));
+    if (p.volume_fraction > 0.45)
+      bad_key("particles.volume_fraction", "must be <= 0.45, got " + num(p.volume_fraction));
     s.finish();
   }
   {  // [[pair]]

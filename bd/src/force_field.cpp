@@ -89,13 +89,13 @@ double ForceField::max_cutoff() const {
 void ForceField::check(std::span<const std::uint32_t> particle_types) const {
   for (std::size_t i = 0; i < particle_types.size(); ++i) {
     require(particle_types[i] < types_.size(), ErrorCode::invalid_input, "particles",
-            "particle " + std::to_string(i) + " has type index " + std::to_string(particle_types[i]) +
-                " but only " + std::to_string(types_.size()) + " types are defined");
+            "particle " + std::to_string(i) + " has type index " + std::to_string(particle_types[i]) + " but only " +
+                std::to_string(types_.size()) + " types are defined");
   }
   for (const Bond& b : bonds_) {
     require(b.i < particle_types.size() && b.j < particle_types.size(), ErrorCode::invalid_input, "bonds",
-            "bond (" + std::to_string(b.i) + ", " + std::to_string(b.j) + ") refers to a particle >= N = " +
-                std::to_string(particle_types.size()));
+            "bond (" + std::to_string(b.i) + ", " + std::to_string(b.j) +
+                ") refers to a particle >= N = " + std::to_string(particle_types.size()));
   }
 }
 
@@ -132,8 +132,8 @@ void record_bad(std::atomic<std::size_t>& bad, std::size_t i) {
 }
 }  // namespace
 
-double ForceField::compute(std::span<const double> x, std::span<const std::uint32_t> ptype,
-                           const NeighbourList& list, std::uint64_t step, std::span<double> forces) const {
+double ForceField::compute(std::span<const double> x, std::span<const std::uint32_t> ptype, const NeighbourList& list,
+                           std::uint64_t step, std::span<double> forces) const {
   const std::size_t n = ptype.size();
   require(x.size() == 3 * n && forces.size() == 3 * n, ErrorCode::invalid_input, "ForceField::compute",
           "positions, types and forces disagree on N");

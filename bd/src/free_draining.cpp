@@ -29,8 +29,8 @@ void FreeDrainingMobility::do_apply(const double* forces, double* velocities, st
   }
 }
 
-rpy::SqrtReport FreeDrainingMobility::do_apply_sqrt(std::span<const double> z, std::span<double> w,
-                                                    std::size_t nrhs, const rpy::SqrtOptions&) const {
+rpy::SqrtReport FreeDrainingMobility::do_apply_sqrt(std::span<const double> z, std::span<double> w, std::size_t nrhs,
+                                                    const rpy::SqrtOptions&) const {
   const std::size_t n = size();
   for (std::size_t k = 0; k < nrhs; ++k) {
 #pragma omp parallel for schedule(static) if (n >= 4096)

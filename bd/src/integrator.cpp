@@ -20,8 +20,13 @@ NeighbourList make_list(const rpy::MobilityOperator* m, const ForceField& f, con
 Integrator::Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceField forces, IntegratorOptions options,
                        std::vector<double> positions, std::vector<std::uint32_t> types, NeighbourOptions neighbours,
                        std::uint64_t first_step)
-    : mobility_(std::move(mobility)), forces_(std::move(forces)), options_(options), x_(std::move(positions)),
-      types_(std::move(types)), list_(make_list(mobility_.get(), forces_, neighbours)), step_(first_step) {
+    : mobility_(std::move(mobility)),
+      forces_(std::move(forces)),
+      options_(options),
+      x_(std::move(positions)),
+      types_(std::move(types)),
+      list_(make_list(mobility_.get(), forces_, neighbours)),
+      step_(first_step) {
   const char* where = "Integrator";
   require_positive(options_.dt, where, "dt");
   require(std::isfinite(options_.kT) && options_.kT >= 0.0, ErrorCode::invalid_argument, where,
@@ -59,10 +64,12 @@ const StepReport& Integrator::step() {
   mobility_->set_positions(x_, radii_);
   totals_.seconds["plan"] += watch.seconds();
   // 4. u = M F and w = M^{1/2} z (MATH.md §4), z keyed by (seed, step, particle).
+  watch.restart();
   if (options_.kT > 0.0) rpy::fill_normal(z_, options_.seed, step_);
+  const double noise_seconds = watch.seconds();
   const DriftNoiseReport dn = drift_and_noise(*mobility_, f_, z_, u_, w_, options_.sqrt);
   totals_.seconds["drift"] += dn.seconds_drift;
-  totals_.seconds["sqrt"] += dn.seconds_sqrt;
+  totals_.seconds["sqrt"] += dn.seconds_sqrt + noise_seconds;  // drawing z counts as Brownian work
   rep.sqrt_iterations = dn.sqrt.iterations;
   rep.mobility_products = dn.mobility_products;
   rep.shared_first_product = dn.shared_first_product;
@@ -90,12 +97,11 @@ const StepReport& Integrator::step() {
   }
   if (bad.load() != none) {
     const std::size_t i = bad.load();
-    const double d = std::sqrt(dx_[3 * i] * dx_[3 * i] + dx_[3 * i + 1] * dx_[3 * i + 1] +
-                               dx_[3 * i + 2] * dx_[3 * i + 2]);
+    const double d =
+        std::sqrt(dx_[3 * i] * dx_[3 * i] + dx_[3 * i + 1] * dx_[3 * i + 1] + dx_[3 * i + 2] * dx_[3 * i + 2]);
     std::ostringstream msg;
     msg << "blow-up at step " << step_ << ": particle " << i << " would move " << d << " > max_displacement ("
-        << options_.max_displacement << ") x radius " << radii_[i]
-        << " in one step (|force| = "
+        << options_.max_displacement << ") x radius " << radii_[i] << " in one step (|force| = "
         << std::sqrt(f_[3 * i] * f_[3 * i] + f_[3 * i + 1] * f_[3 * i + 1] + f_[3 * i + 2] * f_[3 * i + 2])
         << "); reduce dt or check the forces. State kept at the last good step";
     fail(ErrorCode::numerical_failure, "bd", msg.str());

@@ -2,21 +2,24 @@
 
 #include "rpyfmm/bd/free_draining.hpp"
 #include "rpyfmm/core/validate.hpp"
-
 #include "rpyfmm/rpy/direct_operator.hpp"
-// LEAD: include the solver headers here as they land, e.g.
-//   #include "rpyfmm/rpy/fmm_operator.hpp"
-//   #include "rpyfmm/rpy/pse_operator.hpp"
+#include "rpyfmm/rpy/fmm_operator.hpp"
+// LEAD: include the PSE operator's header here when it lands.
 
 namespace rpyfmm::bd {
 
 const char* to_string(MobilityMethod method) {
   switch (method) {
-    case MobilityMethod::none: return "none";
-    case MobilityMethod::direct: return "direct";
-    case MobilityMethod::fmm: return "fmm";
-    case MobilityMethod::pse: return "pse";
-    case MobilityMethod::automatic: return "auto";
+    case MobilityMethod::none:
+      return "none";
+    case MobilityMethod::direct:
+      return "direct";
+    case MobilityMethod::fmm:
+      return "fmm";
+    case MobilityMethod::pse:
+      return "pse";
+    case MobilityMethod::automatic:
+      return "auto";
   }
   return "unknown";
 }
@@ -32,19 +35,23 @@ MobilityMethod mobility_method_from_string(const std::string& name) {
 
 bool mobility_method_available(MobilityMethod method) {
   switch (method) {
-    case MobilityMethod::none: return true;
-    case MobilityMethod::direct: return true;
-    case MobilityMethod::fmm: return false;     // LEAD: true once the FMM operator lands
-    case MobilityMethod::pse: return false;     // LEAD: true once the PSE operator lands
-    case MobilityMethod::automatic: return true;
+    case MobilityMethod::none:
+      return true;
+    case MobilityMethod::direct:
+      return true;
+    case MobilityMethod::fmm:
+      return true;
+    case MobilityMethod::pse:
+      return false;  // LEAD: true once the PSE operator lands
+    case MobilityMethod::automatic:
+      return true;
   }
   return false;
 }
 
 namespace {
 [[noreturn]] void unavailable(MobilityMethod method, const std::string& why) {
-  fail(ErrorCode::not_supported, "make_mobility",
-       std::string("mobility method '") + to_string(method) + "' " + why);
+  fail(ErrorCode::not_supported, "make_mobility", std::string("mobility method '") + to_string(method) + "' " + why);
 }
 }  // namespace
 
@@ -69,13 +76,17 @@ std::unique_ptr<rpy::MobilityOperator> make_mobility(const MobilitySpec& spec, s
       return std::make_unique<rpy::DirectRpy>(spec.geometry, spec.viscosity);
     case MobilityMethod::fmm:
       if (spec.geometry.is_periodic()) unavailable(method, "needs open geometry (use pse for periodic boxes)");
-      // LEAD: return the FMM operator built with spec.tolerance here.
-      unavailable(method, "is not available in this build yet");
+      {
+        rpy::FmmRpyOptions options;
+        options.tolerance = spec.tolerance;  // relative l2 error of M F (FmmRpy accepts [1e-12, 0.1])
+        return std::make_unique<rpy::FmmRpy>(spec.geometry, spec.viscosity, options);
+      }
     case MobilityMethod::pse:
       if (spec.geometry.is_open()) unavailable(method, "needs a periodic geometry");
       // LEAD: return the PSE operator built with spec.tolerance here.
       unavailable(method, "is not available in this build yet");
-    case MobilityMethod::automatic: break;
+    case MobilityMethod::automatic:
+      break;
   }
   unavailable(method, "is unknown");
 }

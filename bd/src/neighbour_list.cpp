@@ -10,8 +10,7 @@
 namespace rpyfmm::bd {
 
 NeighbourList::NeighbourList(rpy::Geometry geometry, double cutoff, NeighbourOptions options)
-    : geometry_(geometry), periodic_(geometry.is_periodic()), cutoff_(cutoff), skin_(options.skin),
-      options_(options) {
+    : geometry_(geometry), periodic_(geometry.is_periodic()), cutoff_(cutoff), skin_(options.skin), options_(options) {
   const char* where = "NeighbourList";
   require(std::isfinite(cutoff) && cutoff >= 0.0, ErrorCode::invalid_argument, where,
           "cutoff must be finite and >= 0, got " + std::to_string(cutoff));

@@ -35,8 +35,7 @@ void AppendFile::write(const std::string& record) {
 }
 
 std::string xyz_frame(std::span<const double> x, std::span<const std::uint32_t> types,
-                      const std::vector<ParticleType>& table, const rpy::Geometry& g, std::uint64_t step,
-                      double time) {
+                      const std::vector<ParticleType>& table, const rpy::Geometry& g, std::uint64_t step, double time) {
   std::string s;
   s.reserve(types.size() * 64 + 256);
   char buf[256];
@@ -66,10 +65,13 @@ std::string xyz_frame(std::span<const double> x, std::span<const std::uint32_t> 
   return s;
 }
 
-std::string csv_log_header() {
-  return "step,time,mean_displacement,msd,mean_vx,mean_vy,mean_vz,potential_energy,sqrt_iterations,"
-         "mobility_products,neighbour_rebuilds,wall_neighbours,wall_forces,wall_plan,wall_drift,wall_sqrt,"
-         "wall_update,wall_output\n";
+std::string csv_log_header(bool split_displacements) {
+  std::string h =
+      "step,time,mean_displacement,msd,mean_vx,mean_vy,mean_vz,potential_energy,sqrt_iterations,"
+      "mobility_products,neighbour_rebuilds,wall_neighbours,wall_forces,wall_plan,wall_drift,wall_sqrt,"
+      "wall_update,wall_output";
+  if (split_displacements) h += ",deterministic_rms,brownian_rms";
+  return h + "\n";
 }
 
 }  // namespace rpyfmm::bd

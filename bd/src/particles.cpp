@@ -17,7 +17,9 @@ namespace {
 constexpr double kGap = 1.02;  // generated particles keep r >= 1.02 (a_i + a_j)
 
 /// Uniform [0, 1) from a 64-bit engine, identical on every platform.
-double uniform(std::mt19937_64& gen) { return static_cast<double>(gen() >> 11) * 0x1.0p-53; }
+double uniform(std::mt19937_64& gen) {
+  return static_cast<double>(gen() >> 11) * 0x1.0p-53;
+}
 
 /// Random point in a ball of radius R (rejection from the cube).
 std::array<double, 3> in_ball(std::mt19937_64& gen, double R) {
@@ -166,8 +168,8 @@ InitialState read_particle_file(const std::filesystem::path& path, const ForceFi
     if (fields.empty()) continue;
     const std::string where = path.string() + ":" + std::to_string(lineno);
     if (fields.size() != 3 && fields.size() != 4)
-      fail(ErrorCode::invalid_input, "particles.file", where + ": expected 'x y z [type]', got " +
-                                                           std::to_string(fields.size()) + " fields");
+      fail(ErrorCode::invalid_input, "particles.file",
+           where + ": expected 'x y z [type]', got " + std::to_string(fields.size()) + " fields");
     for (int c = 0; c < 3; ++c) {
       std::size_t used = 0;
       double v = 0;
@@ -220,7 +222,8 @@ InitialState make_particles(const RunConfig& c, const ForceField& ff) {
     case ParticleSpec::Source::random: {
       s.types = assign_types(c, ff, p.count);
       // Open: a spherical cloud of radius R with N v / (4/3 pi R^3) = phi.
-      const double R = periodic ? 0.0 : std::cbrt(mean_volume(ff, s.types) / p.volume_fraction * 3.0 / (4.0 * std::numbers::pi));
+      const double R =
+          periodic ? 0.0 : std::cbrt(mean_volume(ff, s.types) / p.volume_fraction * 3.0 / (4.0 * std::numbers::pi));
       if (periodic) {
         const double phi = mean_volume(ff, s.types) / c.geometry.volume();
         if (phi > 0.4)
@@ -228,10 +231,13 @@ InitialState make_particles(const RunConfig& c, const ForceField& ff) {
                "key 'particles.count': " + std::to_string(p.count) + " particles fill " + std::to_string(phi) +
                    " of the box (max 0.4 for random insertion)");
       }
-      s.positions = place(c, ff, s.types, [&](std::size_t, const std::vector<double>&) {
-        if (periodic) return std::array<double, 3>{uniform(gen) * L[0], uniform(gen) * L[1], uniform(gen) * L[2]};
-        return in_ball(gen, R);
-      }, "particles.volume_fraction");
+      s.positions = place(
+          c, ff, s.types,
+          [&](std::size_t, const std::vector<double>&) {
+            if (periodic) return std::array<double, 3>{uniform(gen) * L[0], uniform(gen) * L[1], uniform(gen) * L[2]};
+            return in_ball(gen, R);
+          },
+          "particles.volume_fraction");
       break;
     }
     case ParticleSpec::Source::lattice: {
@@ -247,9 +253,9 @@ InitialState make_particles(const RunConfig& c, const ForceField& ff) {
              "key 'particles.count': lattice spacing " + std::to_string(h[0]) + " < 2 a (particles would overlap)");
       for (std::size_t i = 0; i < p.count; ++i) {
         const std::size_t ix = i % side, iy = (i / side) % side, iz = i / (side * side);
-        s.positions.insert(s.positions.end(), {(static_cast<double>(ix) + 0.5) * h[0],
-                                               (static_cast<double>(iy) + 0.5) * h[1],
-                                               (static_cast<double>(iz) + 0.5) * h[2]});
+        s.positions.insert(s.positions.end(),
+                           {(static_cast<double>(ix) + 0.5) * h[0], (static_cast<double>(iy) + 0.5) * h[1],
+                            (static_cast<double>(iz) + 0.5) * h[2]});
       }
       break;
     }
@@ -259,39 +265,49 @@ InitialState make_particles(const RunConfig& c, const ForceField& ff) {
       const double a = max_radius(ff);
       const double b = p.bond_length > 0 ? p.bond_length : 2.1 * a;
       if (b < 2 * a * kGap)
-        fail(ErrorCode::invalid_argument, "config", "key 'particles.bond_length' must be >= 2.04 a (beads would overlap)");
-      const double R = periodic ? 0.0 : std::cbrt(mean_volume(ff, s.types) / p.volume_fraction * 3.0 / (4.0 * std::numbers::pi));
-      s.positions = place(c, ff, s.types, [&](std::size_t i, const std::vector<double>& placed) {
-        std::array<double, 3> q{};
-        if (i % p.beads == 0) {
-          q = periodic ? std::array<double, 3>{uniform(gen) * L[0], uniform(gen) * L[1], uniform(gen) * L[2]}
-                       : in_ball(gen, R);
-        } else {  // self-avoiding random walk step of length b
-          const double u = 2 * uniform(gen) - 1, phi = 2 * std::numbers::pi * uniform(gen);
-          const double sxy = std::sqrt(1 - u * u);
-          const double* last = &placed[3 * (i - 1)];
-          q = {last[0] + b * sxy * std::cos(phi), last[1] + b * sxy * std::sin(phi), last[2] + b * u};
-        }
-        return q;
-      }, "particles.volume_fraction");
+        fail(ErrorCode::invalid_argument, "config",
+             "key 'particles.bond_length' must be >= 2.04 a (beads would overlap)");
+      const double R =
+          periodic ? 0.0 : std::cbrt(mean_volume(ff, s.types) / p.volume_fraction * 3.0 / (4.0 * std::numbers::pi));
+      s.positions = place(
+          c, ff, s.types,
+          [&](std::size_t i, const std::vector<double>& placed) {
+            std::array<double, 3> q{};
+            if (i % p.beads == 0) {
+              q = periodic ? std::array<double, 3>{uniform(gen) * L[0], uniform(gen) * L[1], uniform(gen) * L[2]}
+                           : in_ball(gen, R);
+            } else {  // self-avoiding random walk step of length b
+              const double u = 2 * uniform(gen) - 1, phi = 2 * std::numbers::pi * uniform(gen);
+              const double sxy = std::sqrt(1 - u * u);
+              const double* last = &placed[3 * (i - 1)];
+              q = {last[0] + b * sxy * std::cos(phi), last[1] + b * sxy * std::sin(phi), last[2] + b * u};
+            }
+            return q;
+          },
+          "particles.volume_fraction");
       break;
     }
     case ParticleSpec::Source::clusters: {
       const std::size_t n = p.clusters * p.cluster_size;
       s.types = assign_types(c, ff, n);
       const double v = mean_volume(ff, s.types) / static_cast<double>(n);
-      const double rc = std::cbrt(static_cast<double>(p.cluster_size) * v / p.cluster_volume_fraction * 3.0 / (4.0 * std::numbers::pi));
-      const double R = periodic ? 0.0 : std::cbrt(static_cast<double>(n) * v / p.volume_fraction * 3.0 / (4.0 * std::numbers::pi));
+      const double rc = std::cbrt(static_cast<double>(p.cluster_size) * v / p.cluster_volume_fraction * 3.0 /
+                                  (4.0 * std::numbers::pi));
+      const double R =
+          periodic ? 0.0 : std::cbrt(static_cast<double>(n) * v / p.volume_fraction * 3.0 / (4.0 * std::numbers::pi));
       std::vector<std::array<double, 3>> centres(p.clusters);
       for (auto& ctr : centres)
         ctr = periodic ? std::array<double, 3>{uniform(gen) * L[0], uniform(gen) * L[1], uniform(gen) * L[2]}
                        : in_ball(gen, std::max(0.0, R - rc));
-      s.positions = place(c, ff, s.types, [&](std::size_t i, const std::vector<double>&) {
-        auto q = in_ball(gen, rc);
-        const auto& ctr = centres[i / p.cluster_size];
-        for (int d = 0; d < 3; ++d) q[d] += ctr[d];
-        return q;
-      }, "particles.cluster_volume_fraction");
+      s.positions = place(
+          c, ff, s.types,
+          [&](std::size_t i, const std::vector<double>&) {
+            auto q = in_ball(gen, rc);
+            const auto& ctr = centres[i / p.cluster_size];
+            for (int d = 0; d < 3; ++d) q[d] += ctr[d];
+            return q;
+          },
+          "particles.cluster_volume_fraction");
       break;
     }
   }
@@ -299,7 +315,8 @@ InitialState make_particles(const RunConfig& c, const ForceField& ff) {
     // Bonds between consecutive beads of each chain.
     for (std::size_t ch = 0; ch < p.chains; ++ch)
       for (std::size_t k = 1; k < p.beads; ++k)
-        s.bonds.push_back({static_cast<std::uint32_t>(ch * p.beads + k - 1), static_cast<std::uint32_t>(ch * p.beads + k), 0});
+        s.bonds.push_back(
+            {static_cast<std::uint32_t>(ch * p.beads + k - 1), static_cast<std::uint32_t>(ch * p.beads + k), 0});
   }
   return s;
 }

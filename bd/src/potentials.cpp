@@ -9,10 +9,14 @@ namespace rpyfmm::bd {
 
 const char* to_string(PairKind kind) {
   switch (kind) {
-    case PairKind::lj36_18: return "lj36_18";
-    case PairKind::wca: return "wca";
-    case PairKind::soft: return "soft";
-    case PairKind::dlvo: return "dlvo";
+    case PairKind::lj36_18:
+      return "lj36_18";
+    case PairKind::wca:
+      return "wca";
+    case PairKind::soft:
+      return "soft";
+    case PairKind::dlvo:
+      return "dlvo";
   }
   return "unknown";
 }
@@ -24,7 +28,9 @@ PairKind pair_kind_from_string(const std::string& name) {
        "unknown kind '" + name + "' (expected lj36_18, wca, soft or dlvo)");
 }
 
-const char* to_string(BondKind kind) { return kind == BondKind::harmonic ? "harmonic" : "fene"; }
+const char* to_string(BondKind kind) {
+  return kind == BondKind::harmonic ? "harmonic" : "fene";
+}
 
 BondKind bond_kind_from_string(const std::string& name) {
   if (name == "harmonic") return BondKind::harmonic;

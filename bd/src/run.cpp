@@ -55,7 +55,7 @@ RunSummary execute(const RunConfig& config, Start start, const RunOptions& optio
   if (out.trajectory_every > 0) traj.open(sum.trajectory, start.restarted ? start.trajectory_bytes : 0);
   if (out.log_every > 0) {
     log.open(sum.log, start.restarted ? start.log_bytes : 0);
-    if (!start.restarted) log.write(csv_log_header());
+    if (!start.restarted) log.write(csv_log_header(config.integrator.keep_split_displacements));
   }
   auto save_checkpoint = [&]() {
     Checkpoint c;
@@ -85,6 +85,10 @@ RunSummary execute(const RunConfig& config, Start start, const RunOptions& optio
   last_centre = centre();
   double output_seconds = 0.0;
   double interval_output = 0.0;
+  // integrator.split_displacements: rms of M F dt and of the Brownian part over the interval.
+  const bool split = config.integrator.keep_split_displacements;
+  double det2 = 0.0, brown2 = 0.0;
+  std::uint64_t split_steps = 0;
 
   auto write_records = [&](bool first) {
     StopWatch w;
@@ -115,7 +119,14 @@ RunSummary execute(const RunConfig& config, Start start, const RunOptions& optio
           << bd.neighbour_rebuilds();
       for (const char* part : {"neighbours", "forces", "plan", "drift", "sqrt", "update"})
         row << ',' << t.seconds.at(part) - last.seconds.at(part);
-      row << ',' << interval_output << '\n';
+      row << ',' << interval_output;
+      if (split) {
+        const double norm = static_cast<double>(std::max<std::uint64_t>(split_steps, 1)) * static_cast<double>(n);
+        row << ',' << std::sqrt(det2 / norm) << ',' << std::sqrt(brown2 / norm);
+        det2 = brown2 = 0.0;
+        split_steps = 0;
+      }
+      row << '\n';
       log.write(row.str());
       last = t;
       last_log_step = s;
@@ -133,6 +144,11 @@ RunSummary execute(const RunConfig& config, Start start, const RunOptions& optio
   while (bd.step_count() < total) {
     try {
       bd.step();
+      if (split) {
+        for (double d : bd.deterministic_displacement()) det2 += d * d;
+        for (double d : bd.brownian_displacement()) brown2 += d * d;
+        ++split_steps;
+      }
     } catch (const Error& e) {
       const bool fresh_start = !start.restarted && bd.step_count() == 0;
       if (fresh_start && e.code() != ErrorCode::numerical_failure) throw;  // bad initial state: nothing to save
@@ -187,8 +203,8 @@ RunSummary restart_bd(const std::filesystem::path& path, const RunOptions& optio
   std::string source = path.string();
   source.append(" (embedded config)");
   const RunConfig config = parse_config(c.config, source);
-  require(c.seed == config.integrator.seed && c.dt == config.integrator.dt, ErrorCode::io_error, "restart",
-          "'" + path.string() + "': seed/dt disagree with its embedded config");
+  if (c.seed != config.integrator.seed || c.dt != config.integrator.dt)
+    fail(ErrorCode::io_error, "restart", source + ": seed/dt disagree with the checkpoint header");
   Start s;
   s.positions = c.positions;
   s.reference = c.reference_positions;

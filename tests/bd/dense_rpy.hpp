@@ -5,7 +5,6 @@
 #pragma once
 
 #include <Eigen/Dense>
-
 #include <cmath>
 #include <numbers>
 #include <string>
@@ -26,7 +25,8 @@ class DenseRpy final : public rpyfmm::rpy::MobilityOperator {
     const Eigen::Vector3d e = d / r;
     if (r > 2 * a) {
       const double c = 1.0 / (8 * std::numbers::pi * eta * r);
-      return c * ((1 + 2 * a * a / (3 * r * r)) * Eigen::Matrix3d::Identity() + (1 - 2 * a * a / (r * r)) * e * e.transpose());
+      return c * ((1 + 2 * a * a / (3 * r * r)) * Eigen::Matrix3d::Identity() +
+                  (1 - 2 * a * a / (r * r)) * e * e.transpose());
     }
     const double c = 1.0 / (6 * std::numbers::pi * eta * a);
     return c * ((1 - 9 * r / (32 * a)) * Eigen::Matrix3d::Identity() + (3 * r / (32 * a)) * e * e.transpose());

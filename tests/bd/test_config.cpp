@@ -75,13 +75,13 @@ TEST(BdConfig, ParsesDefaultsAndTheDemo) {
 }
 
 TEST(BdConfig, EveryBadConfigNamesTheKey) {
-  expect_error("[particles]\nsource = \"random\"\ncount = 5\n", "integrator");                 // missing section
-  expect_error(replace(kBase, "steps = 10", ""), "integrator.steps");                            // missing key
-  expect_error(replace(kBase, "dt = 0.001", "dt = -0.1"), "integrator.dt");                      // negative dt
-  expect_error(replace(kBase, "dt = 0.001", "dt = \"fast\""), "integrator.dt");                  // wrong type
-  expect_error(replace(kBase, "dt = 0.001", "dt = 0.001\ndtt = 1"), "integrator.dtt");           // unknown key
-  expect_error(kBase + "[solver]\nx = 1\n", "solver");                                           // unknown section
-  expect_error(replace(kBase, "kind = \"wca\"", "kind = \"lj\""), "pair[0].kind");               // bad enum
+  expect_error("[particles]\nsource = \"random\"\ncount = 5\n", "integrator");          // missing section
+  expect_error(replace(kBase, "steps = 10", ""), "integrator.steps");                   // missing key
+  expect_error(replace(kBase, "dt = 0.001", "dt = -0.1"), "integrator.dt");             // negative dt
+  expect_error(replace(kBase, "dt = 0.001", "dt = \"fast\""), "integrator.dt");         // wrong type
+  expect_error(replace(kBase, "dt = 0.001", "dt = 0.001\ndtt = 1"), "integrator.dtt");  // unknown key
+  expect_error(kBase + "[solver]\nx = 1\n", "solver");                                  // unknown section
+  expect_error(replace(kBase, "kind = \"wca\"", "kind = \"lj\""), "pair[0].kind");      // bad enum
   expect_error(replace(kBase, "types = [\"A\", \"A\"]", "types = [\"A\", \"B\"]"), "pair[0].types");
   expect_error(replace(kBase, "radius = 1.0", "radius = 0"), "types[0].radius");
   expect_error(replace(kBase, "method = \"none\"", "method = \"magic\""), "mobility.method");

@@ -70,8 +70,8 @@ TEST(Potentials, ClosedFormValues) {
   p.kind = PairKind::lj36_18;
   p.epsilon = 14.0;
   const PairTerm t = resolve_pair(p, 1.0, 1.0, 0, 0);
-  EXPECT_DOUBLE_EQ(t.sigma, 2.0);                                    // s = d_A, 001 eq. 8
-  EXPECT_NEAR(evaluate_pair(t, 2.0).energy, 0.0, 1e-12);            // V(s) = 0
+  EXPECT_DOUBLE_EQ(t.sigma, 2.0);                                              // s = d_A, 001 eq. 8
+  EXPECT_NEAR(evaluate_pair(t, 2.0).energy, 0.0, 1e-12);                       // V(s) = 0
   EXPECT_NEAR(evaluate_pair(t, 2.0 * std::pow(2.0, 1.0 / 18)).s, 0.0, 1e-10);  // minimum at 2^(1/18) s
   PairPotential w;
   w.kind = PairKind::wca;

@@ -1,6 +1,7 @@
 // Statistical BD tests with HI (dense reference RPY + Cholesky): a few seconds in
 // Release, labelled `slow` so the sanitizer run skips them.
 #include <gtest/gtest.h>
+#include <omp.h>
 
 #include <cmath>
 #include <numbers>
@@ -13,6 +14,12 @@ using namespace rpyfmm::bd;
 constexpr double pi = std::numbers::pi;
 
 namespace {
+// Tiny systems, many steps: one thread avoids OpenMP start-up costs per step on busy machines.
+struct OneThread : ::testing::Environment {
+  void SetUp() override { omp_set_num_threads(1); }
+};
+const auto* const one_thread = ::testing::AddGlobalTestEnvironment(new OneThread);
+
 std::vector<double> line_of_particles(std::size_t n, double spacing) {
   std::vector<double> x(3 * n, 0.0);
   for (std::size_t i = 0; i < n; ++i) x[3 * i] = spacing * static_cast<double>(i);
@@ -88,4 +95,3 @@ TEST(BdStatistics, PairRelativeDiffusionIsRpy) {
   EXPECT_NEAR(var_par / (4 * kT * dt * (mu0 - f - g)), 1.0, 0.05);
   EXPECT_NEAR(var_perp / (4 * kT * dt * (mu0 - f)), 1.0, 0.05);
 }
-

@@ -26,15 +26,15 @@ namespace rpyfmm::bd {
 struct ParticleSpec {
   enum class Source { file, random, lattice, chains, clusters };
   Source source = Source::random;
-  std::filesystem::path file;          ///< file: rows "x y z [type]" (type = index or name)
-  std::size_t count = 0;               ///< random, lattice: number of particles
-  double volume_fraction = 0.05;       ///< random, lattice, chains, clusters: sets the region size
-  std::vector<std::string> types{};    ///< generated particles' types (cycled); empty = first type
-  std::size_t chains = 0, beads = 0;   ///< chains: number and length
-  double bond_length = 0.0;            ///< chains: initial bond length (0 = 2.1 a)
+  std::filesystem::path file;                  ///< file: rows "x y z [type]" (type = index or name)
+  std::size_t count = 0;                       ///< random, lattice: number of particles
+  double volume_fraction = 0.05;               ///< random, lattice, chains, clusters: sets the region size
+  std::vector<std::string> types{};            ///< generated particles' types (cycled); empty = first type
+  std::size_t chains = 0, beads = 0;           ///< chains: number and length
+  double bond_length = 0.0;                    ///< chains: initial bond length (0 = 2.1 a)
   std::size_t clusters = 0, cluster_size = 0;  ///< clusters: number and size
   double cluster_volume_fraction = 0.3;        ///< clusters: packing inside a cluster
-  std::uint64_t seed = 1;              ///< generator seed
+  std::uint64_t seed = 1;                      ///< generator seed
 };
 
 struct OutputSpec {
@@ -42,9 +42,9 @@ struct OutputSpec {
   std::string trajectory = "trajectory.xyz";  ///< extended XYZ
   std::string log = "log.csv";
   std::string checkpoint = "checkpoint.bin";
-  std::uint64_t trajectory_every = 100;  ///< 0 = no trajectory
-  std::uint64_t log_every = 10;          ///< 0 = no log
-  std::uint64_t checkpoint_every = 1000; ///< 0 = only at the end (and on blow-up)
+  std::uint64_t trajectory_every = 100;   ///< 0 = no trajectory
+  std::uint64_t log_every = 10;           ///< 0 = no log
+  std::uint64_t checkpoint_every = 1000;  ///< 0 = only at the end (and on blow-up)
 };
 
 struct NamedPair {

@@ -57,7 +57,7 @@ struct IntegratorTotals {
   std::uint64_t sqrt_iterations = 0;
   std::uint64_t mobility_products = 0;
   /// Seconds per part: "neighbours", "forces", "plan" (set_positions), "drift" (M F,
-  /// or the block M [F, z]), "sqrt" (rest of M^{1/2} z), "update".
+  /// or the block M [F, z]), "sqrt" (drawing z and the rest of M^{1/2} z), "update".
   StageTimes seconds;
 };
 

@@ -2,10 +2,10 @@
 //
 //   "none"   free draining (FreeDrainingMobility), any geometry
 //   "direct" O(N^2) RPY sums (rpy::DirectRpy), open geometry
-//   "fmm"    FMM-accelerated RPY, open geometry            (not available yet)
+//   "fmm"    FMM-accelerated RPY (rpy::FmmRpy), open geometry
 //   "pse"    Positively Split Ewald, periodic geometry      (not available yet)
-//   "auto"   open: direct below `fmm_crossover` particles, fmm above (direct
-//            while fmm is unavailable); periodic: pse (not available yet)
+//   "auto"   open: direct below `fmm_crossover` particles, fmm above;
+//            periodic: pse (not available yet)
 //
 // Methods that are not built yet throw rpyfmm::Error(not_supported) naming them.
 #pragma once

@@ -41,10 +41,11 @@ class AppendFile {
 /// One extended-XYZ frame: species = type name, pos, radius; Time and Step in the
 /// comment line; periodic boxes give Lattice and wrapped positions.
 std::string xyz_frame(std::span<const double> positions, std::span<const std::uint32_t> types,
-                      const std::vector<ParticleType>& type_table, const rpy::Geometry& geometry,
-                      std::uint64_t step, double time);
+                      const std::vector<ParticleType>& type_table, const rpy::Geometry& geometry, std::uint64_t step,
+                      double time);
 
-/// Columns of the CSV log (header line).
-std::string csv_log_header();
+/// Columns of the CSV log (header line); with split displacements two more columns:
+/// the rms per particle and step of M F dt and of sqrt(2 kT dt) M^{1/2} z over the interval.
+std::string csv_log_header(bool split_displacements = false);
 
 }  // namespace rpyfmm::bd

@@ -13,9 +13,9 @@
 namespace rpyfmm::bd {
 
 struct InitialState {
-  std::vector<double> positions;      ///< 3N
-  std::vector<std::uint32_t> types;   ///< N
-  std::vector<Bond> bonds;            ///< chains: consecutive beads (bond type 0)
+  std::vector<double> positions;     ///< 3N
+  std::vector<std::uint32_t> types;  ///< N
+  std::vector<Bond> bonds;           ///< chains: consecutive beads (bond type 0)
 };
 
 /// Generates or reads the particles of `config` (types resolved by name in `forces`).

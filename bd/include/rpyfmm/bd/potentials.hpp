@@ -21,7 +21,9 @@ const char* to_string(PairKind kind);
 PairKind pair_kind_from_string(const std::string& name);  // throws naming the value
 
 /// True for potentials that diverge at overlap (used for the overlap check).
-inline bool is_hard(PairKind kind) { return kind != PairKind::soft; }
+inline bool is_hard(PairKind kind) {
+  return kind != PairKind::soft;
+}
 
 /// Parameters of one pair interaction between two particle types.
 struct PairPotential {

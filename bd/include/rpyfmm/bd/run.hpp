@@ -26,14 +26,14 @@ struct RunOptions {
 
 struct RunSummary {
   std::size_t particles = 0;
-  std::string mobility;                ///< operator name
+  std::string mobility;  ///< operator name
   std::uint64_t first_step = 0, last_step = 0;
   double wall_seconds = 0.0;
   double steps_per_second = 0.0;
   std::uint64_t neighbour_rebuilds = 0;
-  double mean_sqrt_iterations = 0.0;   ///< per step
-  double mean_mobility_products = 0.0; ///< per step
-  StageTimes seconds;                  ///< per part (see IntegratorTotals) + "output"
+  double mean_sqrt_iterations = 0.0;    ///< per step
+  double mean_mobility_products = 0.0;  ///< per step
+  StageTimes seconds;                   ///< per part (see IntegratorTotals) + "output"
   std::filesystem::path out_dir, trajectory, log, checkpoint;
 };
 

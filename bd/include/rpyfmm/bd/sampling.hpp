@@ -19,15 +19,14 @@ using rpy::SqrtReport;
 /// Brownian displacement sqrt(2 kT dt) M^{1/2} z with z drawn from the
 /// counter-based generator keyed by (seed, step): MATH.md §4, PSE paper eq. 17.
 SqrtReport brownian_displacement(const rpy::MobilityOperator& mobility, double kT, double dt, std::uint64_t seed,
-                                 std::uint64_t step, std::span<double> displacement,
-                                 const SqrtOptions& options = {});
+                                 std::uint64_t step, std::span<double> displacement, const SqrtOptions& options = {});
 
 struct DriftNoiseReport {
-  SqrtReport sqrt;            ///< the square-root solver's report
-  int mobility_products = 0;  ///< products with M, counting a block [F, z] product once
+  SqrtReport sqrt;                    ///< the square-root solver's report
+  int mobility_products = 0;          ///< products with M, counting a block [F, z] product once
   bool shared_first_product = false;  ///< M F and Lanczos' first product M z came from one block pass
-  double seconds_drift = 0.0;  ///< wall time of the M F (or block [F, z]) product
-  double seconds_sqrt = 0.0;   ///< wall time of the rest of the square root
+  double seconds_drift = 0.0;         ///< wall time of the M F (or block [F, z]) product
+  double seconds_sqrt = 0.0;          ///< wall time of the rest of the square root
 };
 
 /// True when `mobility` samples M^{1/2} z by Lanczos on plain products for
