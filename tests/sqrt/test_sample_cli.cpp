@@ -142,6 +142,18 @@ TEST_F(SampleCli, NoiseFileRadiiAndMethods) {
   }
 }
 
+// The FMM operator gives the direct result to about its tolerance.
+TEST_F(SampleCli, FmmOperatorMatchesDirect) {
+  std::vector<double> z(3 * N);
+  fill_normal(z, 8u, 0u);
+  const CliResult r = run_cli("--positions " + xp.string() + " --radii " + ap.string() +
+                              " --seed 8 --operator fmm --eps 1e-9 --tol 1e-8 --out " + out.string() + " --json");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_NE(r.out.find("\"operator\":\"fmm\""), std::string::npos) << r.out;
+  std::vector<std::size_t> shape;
+  EXPECT_LE(max_rel_diff(read_npy(out, shape), expected(z, a, SqrtMethod::lanczos, 1e-8)), 1e-6);
+}
+
 TEST_F(SampleCli, BadInputExitTwoNoOutput) {
   const std::string base = "--positions " + xp.string() + " --out " + out.string() + " ";
   std::vector<double> zshort(3 * (N - 1), 0.5);
@@ -161,7 +173,7 @@ TEST_F(SampleCli, BadInputExitTwoNoOutput) {
            {base + "--radius 1 --noise " + zs.string(), "noise"},
            {base + "--radius 1 --noise " + zs.string() + " --seed 3", "excludes"},
            {base + "--radius 1 --method krylov", "unknown method 'krylov'"},
-           {base + "--radius 1 --operator fmm", "not available yet"},
+           {base + "--radius 1 --operator fmm --eps 0.5", "--eps"},
            {base + "--radius 1 --operator magic", "unknown operator 'magic'"},
            {base + "--radius 1 --eps 1e-6", "--eps"},
            {base + "--radius -1", "radius"},

@@ -9,6 +9,7 @@
 
 #include "rpyfmm/core/error.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
+#include "rpyfmm/rpy/fmm_operator.hpp"
 #include "rpyfmm/rpy/random.hpp"
 #include "sqrt_test_util.hpp"
 
@@ -52,6 +53,32 @@ TEST(SqrtOperator, DirectDefaultIsLanczosAndAccurate) {
     EXPECT_EQ(rep.method, m);
     const Eigen::VectorXd ref = S * Eigen::Map<const Eigen::VectorXd>(z.data(), M.rows());
     EXPECT_LE((Eigen::Map<const Eigen::VectorXd>(w.data(), M.rows()) - ref).norm() / ref.norm(), 1e-4);
+  }
+}
+
+// The FMM operator behind the same interface: Lanczos on FmmRpy agrees with
+// the dense principal root of the exact (direct) matrix to about the larger of
+// the FMM and square-root tolerances.
+TEST(SqrtOperator, FmmOperatorLanczosAndChebyshev) {
+  const std::size_t N = 400;
+  const auto x = sqrt_test::random_points(N, 0.1, 51u);
+  const auto a = sqrt_test::radii(N, true, 52u);
+  DirectRpy direct(Geometry::open(), 1.0);
+  direct.set_positions(x, a);
+  const Eigen::MatrixXd S = sqrt_test::principal_sqrt(dense_of(direct));
+  FmmRpyOptions fo;
+  fo.tolerance = 1e-8;
+  FmmRpy fmm(Geometry::open(), 1.0, fo);
+  fmm.set_positions(x, a);
+  std::vector<double> z(3 * N), w(3 * N);
+  fill_normal(z, 3u, 0u);
+  const Eigen::VectorXd ref = S * Eigen::Map<const Eigen::VectorXd>(z.data(), 3 * N);
+  for (SqrtMethod m : {SqrtMethod::lanczos, SqrtMethod::chebyshev}) {
+    SqrtOptions opt;
+    opt.method = m;
+    opt.tolerance = 1e-6;
+    fmm.apply_sqrt(z, w, opt);
+    EXPECT_LE((Eigen::Map<const Eigen::VectorXd>(w.data(), 3 * N) - ref).norm() / ref.norm(), 1e-5) << to_string(m);
   }
 }
 
