@@ -208,3 +208,13 @@ TEST(BdRun, BlowUpLeavesTheLastGoodCheckpoint) {
   EXPECT_EQ(chk.positions, chk.reference_positions);
   std::filesystem::remove_all(dir);
 }
+
+// The shipped example configs and the built-in demo stay valid (docs drift guard).
+TEST(BdConfig, ExamplesParse) {
+  for (const char* name : {"sedimentation.toml", "polymer.toml", "colloids_dlvo.toml"}) {
+    const auto path = std::filesystem::path(RPYFMM_SOURCE_DIR) / "examples" / "bd" / name;
+    const RunConfig c = load_config(path);
+    const ForceField ff = make_force_field(c);
+    EXPECT_GT(make_particles(c, ff).types.size(), 100u) << name;
+  }
+}
