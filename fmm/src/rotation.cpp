@@ -83,8 +83,60 @@ Rotation::Rotation(int p, const std::array<double, 9>& Q) : p_(p) {
 }
 
 Rotation Rotation::about_y(int p, double t) {
-  const double c = std::cos(t), s = std::sin(t);
-  Rotation r(p, {c, 0.0, -s, 0.0, 1.0, 0.0, s, 0.0, c});
+  // Real matrix: only rows m' >= 0 are computed (two real GEMMs per degree instead of one complex
+  // GEMM over all rows); a real A satisfies A_{-m',-m} = A_{m'm} (from Y^{-m} = conj(Y^m)).
+  const double ct0 = std::cos(t), st0 = std::sin(t);
+  const std::array<double, 9> Q = {ct0, 0.0, -st0, 0.0, 1.0, 0.0, st0, 0.0, ct0};
+  Rotation r;
+  r.p_ = p;
+  r.off_.resize(p + 2);
+  r.off_[0] = 0;
+  for (int n = 0; n <= p; ++n) r.off_[n + 1] = r.off_[n] + std::size_t(2 * n + 1) * (2 * n + 1);
+  r.a_.assign(r.off_[p + 1], cplx(0.0));
+  const Harmonics& H = Harmonics::cached(p);
+#pragma omp parallel for schedule(dynamic)
+  for (int n = p; n >= 0; --n) {
+    // The reflection y -> -y commutes with Ry and conjugates both harmonics, so the angles phi and
+    // -phi contribute equally to the real part: sum over phi_j in [0, pi] with doubled weights.
+    const int nt = n + 1, nphi = 2 * n + 2, nhalf = n + 2, npts = nt * nhalf, dim = 2 * n + 1;
+    std::vector<double> gx, gw;
+    gauss_legendre(nt, gx, gw);
+    Eigen::MatrixXd Ur(npts, dim), Ui(npts, dim), Vr(npts, n + 1), Vi(npts, n + 1);
+    std::vector<cplx> R(ncoef(n)), ring(n + 1);
+    for (int it = 0; it < nt; ++it) {
+      const double c = gx[it], sn = std::sqrt(std::max(0.0, 1.0 - c * c));
+      H.regular(n, sn, 0.0, c, R.data());  // Y_n^m on the ring at phi = 0; e^{i m phi} added below
+      for (int m = 0; m <= n; ++m) ring[m] = H.c(n, m) * R[idx(n, m)];
+      for (int ip = 0; ip < nhalf; ++ip) {
+        const double ph = 2.0 * std::numbers::pi * ip / nphi;
+        const int row = it * nhalf + ip;
+        const double u[3] = {sn * std::cos(ph), sn * std::sin(ph), c};
+        const double mult = (ip == 0 || ip == n + 1) ? 1.0 : 2.0;
+        const double w = mult * gw[it] * (2.0 * std::numbers::pi / nphi) * (2 * n + 1) / (4.0 * std::numbers::pi);
+        for (int m = 0; m <= n; ++m) {
+          const cplx y = w * ring[m] * cplx(std::cos(m * ph), std::sin(m * ph));  // weight folded into Y(u)
+          Ur(row, n + m) = y.real();
+          Ui(row, n + m) = y.imag();
+          Ur(row, n - m) = y.real();
+          Ui(row, n - m) = -y.imag();
+        }
+        H.regular(n, Q[0] * u[0] + Q[1] * u[1] + Q[2] * u[2], Q[3] * u[0] + Q[4] * u[1] + Q[5] * u[2],
+                  Q[6] * u[0] + Q[7] * u[1] + Q[8] * u[2], R.data());
+        for (int m = 0; m <= n; ++m) {
+          const cplx y = H.c(n, m) * R[idx(n, m)];
+          Vr(row, m) = y.real();
+          Vi(row, m) = y.imag();
+        }
+      }
+    }
+    const Eigen::MatrixXd A = Vr.transpose() * Ur + Vi.transpose() * Ui;  // Re(conj(V)^T U): rows m' >= 0
+    for (int mp = 0; mp <= n; ++mp)
+      for (int m = -n; m <= n; ++m) {
+        const double v = A(mp, m + n);
+        r.a_[r.off_[n] + std::size_t(mp + n) * dim + (m + n)] = v;
+        r.a_[r.off_[n] + std::size_t(-mp + n) * dim + (-m + n)] = v;
+      }
+  }
   r.real_ = true;
   r.roff_.resize(p + 2);
   r.roff_[0] = 0;
