@@ -1,0 +1,90 @@
+// rpyfmm — Positively Split Ewald (PSE): options and the parameter choices
+// derived from a tolerance.
+//
+// Fiore, Balboa Usabiaga, Donev & Swan, J. Chem. Phys. 146, 124116 (2017)
+// ("[PSE]", shared/papers/002), Sec. II.C and eqs. 22-23; Lindbo & Tornberg,
+// J. Comput. Phys. 230 (2011) 8744 for the Gaussian window; the recipe of
+// shared/design/PSE.md Sec. 3.2.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <string>
+
+namespace rpyfmm::rpy::pse {
+
+/// User options of the PSE operator. Every zero means "choose from the tolerance".
+struct PseOptions {
+  /// Requested relative accuracy of U = M F (relative to M0 = 1/(6 pi eta a)).
+  /// Must lie in [1e-8, 0.1) (below 1e-8 the double-precision closed forms
+  /// of App. A near r -> 0 (~1e-9, PSE.md Sec. 1.3) no longer leave room in the budget). Each error term (real-space cutoff, aliasing,
+  /// window truncation, table) is budgeted below it (PSE.md Sec. 3.2).
+  double tolerance = 1e-3;
+  /// Ewald splitting parameter xi (1/length). 0 = automatic: minimise the
+  /// modelled cost T(xi) of [PSE] eq. 22 over xi a in [0.2, 8] (Sec. 3.4).
+  /// A fixed xi must satisfy xi a >= 0.05 (the closed forms of App. A lose
+  /// digits below; PSE.md Sec. 1.3).
+  double xi = 0.0;
+  /// Real-space cutoff override (length); 0 = envelope cutoff for tolerance/2.
+  double r_cut = 0.0;
+  /// Grid override (points per direction); all zero = from the tolerance.
+  std::array<int, 3> grid = {0, 0, 0};
+  /// Gaussian support override (grid points per direction); 0 = from the tolerance.
+  int support = 0;
+  /// SE shape parameter eta* in (0, 1): trades grid size against support (PSE.md Sec. 3.2).
+  double window_eta = 0.8;
+  /// Lanczos tolerance of the real-space sample (split sampler); 0 = tolerance.
+  double lanczos_tolerance = 0.0;
+  /// Evaluate F, G from a linear table (true) or from the closed forms per pair (false).
+  bool real_space_table = true;
+  /// FFTW threads: 0 = automatic (all OpenMP threads for grids of >= 2^20 points, one
+  /// below, where thread synchronisation costs more than it saves on a loaded machine).
+  int fft_threads = 0;
+  /// Upper bound on the memory (bytes) of FFT grids, spectra and tables; exceeding
+  /// it throws ErrorCode::out_of_memory before anything is allocated. Default 16 GiB.
+  std::size_t max_memory_bytes = std::size_t{16} << 30;
+  /// Cost-model constants for xi = 0 (seconds per real-space pair, per FFT point
+  /// and log2, per spreading/interpolation support point); measured on the
+  /// development machine (bench/pse/RESULTS.md), only their ratios matter.
+  double cost_real_pair = 4.0e-9;
+  double cost_fft_point = 1.5e-9;
+  double cost_support_point = 2.0e-9;
+  /// Real-space products per step assumed by the cost model: 1 for M F only,
+  /// 1 + Lanczos iterations (~5) when the split sampler is used every step.
+  double cost_real_products = 5.0;
+};
+
+/// The choices made for one (radius, box, N) — reported by PseRpy::parameters().
+struct PseParameters {
+  double radius = 0.0;                  ///< a
+  double xi = 0.0;                      ///< Ewald splitting parameter
+  bool xi_automatic = false;            ///< chosen by the cost model
+  double tolerance = 0.0;               ///< requested eps
+  double r_cut = 0.0;                   ///< real-space cutoff
+  std::array<int, 3> grid = {0, 0, 0};  ///< N_x, N_y, N_z (products of 2, 3, 5, 7)
+  std::array<double, 3> spacing = {0, 0, 0};  ///< h_d = L_d / N_d
+  std::array<int, 3> support = {0, 0, 0};     ///< P_d grid points per direction
+  double window_eta = 0.0;              ///< SE eta = 4 xi^2 sigma^2
+  double sigma = 0.0;                   ///< Gaussian standard deviation
+  double window_m = 0.0;                ///< half-width in units of sigma (m)
+  double table_dr = 0.0;                ///< table spacing (0 when evaluated directly)
+  std::size_t table_size = 0;           ///< table entries
+  double lanczos_tolerance = 0.0;       ///< real-space sample tolerance
+  std::size_t memory_bytes = 0;         ///< grids + spectra + tables
+  double modelled_cost = 0.0;           ///< T(xi) of the cost model (s), for reference
+
+  /// One-line human-readable summary.
+  [[nodiscard]] std::string summary() const;
+};
+
+/// Chooses the PSE parameters for N spheres of radius `a` in box `L` (PSE.md
+/// Sec. 3.2 / 3.4). Throws rpyfmm::Error (naming the offending quantity) for a
+/// tolerance out of range, xi a < 0.05, a box smaller than 2 r_cut or than a
+/// sphere diameter, a window wider than the box, or a grid over the memory limit.
+PseParameters choose_parameters(const PseOptions& options, double radius, const std::array<double, 3>& box,
+                                std::size_t n_particles);
+
+/// Smallest n' >= n whose prime factors are all in {2, 3, 5, 7}.
+int next_fast_size(int n);
+
+}  // namespace rpyfmm::rpy::pse

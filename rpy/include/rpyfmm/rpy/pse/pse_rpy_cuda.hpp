@@ -1,0 +1,56 @@
+// rpyfmm — periodic RPY by Positively Split Ewald on a CUDA GPU (cuFFT).
+//
+// Same algorithm, parameters (choose_parameters), tables and noise contract as
+// the CPU operator PseRpy (pse_rpy.hpp): the per-mode scaling, the window
+// weights, the real-space 3x3 blocks and the Philox streams are the same
+// __host__ __device__ functions, so for the same seed and step CPU and GPU
+// agree to round-off (spreading uses atomics on the GPU: the last bits of the
+// grid sums depend on the run). Plain C++ header (pimpl): no CUDA types leak.
+//
+// Built when RPYFMM_USE_CUDA is on (then RPYFMM_HAVE_CUDA_PSE is defined);
+// otherwise the constructor throws ErrorCode::not_supported and
+// device_available() is false. Host-side Lanczos drives the real-space sample.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+
+#include "rpyfmm/rpy/mobility.hpp"
+#include "rpyfmm/rpy/pse/pse_parameters.hpp"
+
+namespace rpyfmm::rpy::pse {
+
+class PseRpyCuda final : public MobilityOperator {
+ public:
+  /// True when the library was built with CUDA and a device can be used (any
+  /// CUDA error, e.g. "insufficient driver", counts as no device).
+  static bool device_available();
+
+  /// Throws rpyfmm::Error for an open geometry, bad options, a build without
+  /// CUDA (not_supported) or no usable device.
+  PseRpyCuda(Geometry geometry, double viscosity, const PseOptions& options = {});
+  ~PseRpyCuda() override;
+
+  [[nodiscard]] std::string name() const override { return "pse-cuda"; }
+  [[nodiscard]] const PseParameters& parameters() const;
+
+  /// w = M^{1/2} z by the split sampler keyed by (seed, step), as PseRpy::sample.
+  SqrtReport sample(std::uint64_t seed, std::uint64_t step, std::span<double> w) const;
+  /// U = M F + noise_scale M^{1/2} z, as PseRpy::apply_with_noise.
+  SqrtReport apply_with_noise(std::span<const double> forces, double noise_scale, std::uint64_t seed,
+                              std::uint64_t step, std::span<double> velocities) const;
+
+ protected:
+  void on_positions_set() override;
+  void do_apply(const double* forces, double* velocities, std::size_t nrhs) const override;
+  SqrtReport do_apply_sqrt(std::span<const double> z, std::span<double> w, std::size_t nrhs,
+                           const SqrtOptions& options) const override;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace rpyfmm::rpy::pse

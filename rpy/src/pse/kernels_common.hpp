@@ -1,0 +1,146 @@
+// rpyfmm — PSE per-element kernels shared by the CPU (OpenMP) and CUDA paths.
+// Everything here is a pure function compiled for host and device, so that
+// both back ends compute the same window weights, the same per-mode scaling,
+// the same wave-space noise and the same real-space 3x3 blocks.
+#pragma once
+
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+
+#include "rpyfmm/rpy/random.hpp"  // normal3 (Philox4x32-10), RPYFMM_HOST_DEVICE
+
+namespace rpyfmm::rpy::pse::detail {
+
+/// Noise streams of normal3 (random.hpp): 1 = real-space z1 (index = particle),
+/// 2 / 3 = real / imaginary parts of the wave-space z2 (index = canonical mode).
+inline constexpr std::uint32_t kStreamReal = 1;
+inline constexpr std::uint32_t kStreamWaveRe = 2;
+inline constexpr std::uint32_t kStreamWaveIm = 3;
+
+/// First grid index of the P-point Gaussian support of coordinate x
+/// (PSE.md Sec. 2.2): every grid point closer than P h / 2 is covered.
+RPYFMM_HOST_DEVICE inline long window_start(double x, double h, int P) {
+  const double u = x / h;
+  if (P % 2 == 0) return static_cast<long>(std::floor(u)) - P / 2 + 1;
+  return static_cast<long>(std::floor(u + 0.5)) - (P - 1) / 2;
+}
+
+/// One-dimensional Gaussian weights exp(-(x_l - x)^2 / (2 sigma^2)) on the
+/// support (unwrapped distances); returns the wrapped first index in [0, n).
+RPYFMM_HOST_DEVICE inline int window_weights(double x, double h, int P, int n, double inv_2s2, double* w) {
+  const long s = window_start(x, h, P);
+  for (int l = 0; l < P; ++l) {
+    const double d = static_cast<double>(s + l) * h - x;
+    w[l] = std::exp(-d * d * inv_2s2);
+  }
+  long sw = s % n;
+  if (sw < 0) sw += n;
+  return static_cast<int>(sw);
+}
+
+/// Geometry of the r2c half spectrum [ix][iy][iz], iz = 0..nz/2.
+struct ModeGeometry {
+  int n[3];           ///< grid points per direction
+  int nzh;            ///< nz / 2 + 1
+  double two_pi_L[3]; ///< 2 pi / L_d
+  std::size_t modes;  ///< nx * ny * nzh
+  std::size_t comp_stride;  ///< doubles between components of the spectrum (2 * modes)
+};
+
+/// Signed wave number index of grid index i in a dimension of size n.
+RPYFMM_HOST_DEVICE inline int signed_index(int i, int n) { return 2 * i < n ? i : i - n; }
+
+/// Scales one half-spectrum mode in place (PSE.md Sec. 2.3 step 3 and Sec. 4.2):
+///   Uh = c(k) P_k Fh + noise_factor sqrt(c(k)) P_k z(k),  noise_factor = noise_scale / sqrt(dV)
+/// with c(k) = sg(k)/(eta Ng) (zero at k = 0 and on Nyquist planes), P_k = I - khat khat,
+/// z(k) complex Gaussian with E[z z^H] = I and z(-k) = conj(z(k)): every mode draws
+/// from the Philox stream keyed by the smaller full-grid index of {k, -k} and
+/// conjugates when it is not that representative, so r2c and c2c layouts, CPU and
+/// GPU produce the same field. `spec` holds 3 complex components (re, im
+/// interleaved) `comp_stride` doubles apart.
+RPYFMM_HOST_DEVICE inline void scale_mode(std::size_t idx, const ModeGeometry& g, const double* ck, double* spec,
+                                          bool deterministic, bool noise, std::uint64_t seed, std::uint64_t step,
+                                          double noise_factor) {
+  double* s0 = spec + 2 * idx;
+  double* s1 = s0 + g.comp_stride;
+  double* s2 = s1 + g.comp_stride;
+  const double c = ck[idx];
+  if (c == 0.0) {
+    s0[0] = s0[1] = s1[0] = s1[1] = s2[0] = s2[1] = 0.0;
+    return;
+  }
+  const int iz = static_cast<int>(idx % static_cast<std::size_t>(g.nzh));
+  const std::size_t rest = idx / static_cast<std::size_t>(g.nzh);
+  const int iy = static_cast<int>(rest % static_cast<std::size_t>(g.n[1]));
+  const int ix = static_cast<int>(rest / static_cast<std::size_t>(g.n[1]));
+  const double k0 = g.two_pi_L[0] * signed_index(ix, g.n[0]);
+  const double k1 = g.two_pi_L[1] * signed_index(iy, g.n[1]);
+  const double k2 = g.two_pi_L[2] * iz;
+  const double inv_k2 = 1.0 / (k0 * k0 + k1 * k1 + k2 * k2);
+  double re[3] = {0.0, 0.0, 0.0};
+  double im[3] = {0.0, 0.0, 0.0};
+  if (deterministic) {
+    re[0] = c * s0[0]; re[1] = c * s1[0]; re[2] = c * s2[0];
+    im[0] = c * s0[1]; im[1] = c * s1[1]; im[2] = c * s2[1];
+  }
+  if (noise) {
+    const std::uint64_t nx = static_cast<std::uint64_t>(g.n[0]);
+    const std::uint64_t ny = static_cast<std::uint64_t>(g.n[1]);
+    const std::uint64_t nz = static_cast<std::uint64_t>(g.n[2]);
+    const std::uint64_t lin = (static_cast<std::uint64_t>(ix) * ny + static_cast<std::uint64_t>(iy)) * nz +
+                              static_cast<std::uint64_t>(iz);
+    const std::uint64_t px = (nx - static_cast<std::uint64_t>(ix)) % nx;
+    const std::uint64_t py = (ny - static_cast<std::uint64_t>(iy)) % ny;
+    const std::uint64_t pz = (nz - static_cast<std::uint64_t>(iz)) % nz;
+    const std::uint64_t partner = (px * ny + py) * nz + pz;
+    const std::uint64_t rep = lin < partner ? lin : partner;
+    double zr[3];
+    double zi[3];
+    normal3(seed, step, kStreamWaveRe, rep, zr);
+    normal3(seed, step, kStreamWaveIm, rep, zi);
+    // z = (a + i b)/sqrt(2): E|z_c|^2 = 1 per component; conjugate off the representative.
+    const double amp = noise_factor * std::sqrt(c) * 0.70710678118654752440;
+    const double sgn = lin == rep ? amp : -amp;
+    for (int d = 0; d < 3; ++d) {
+      re[d] += amp * zr[d];
+      im[d] += sgn * zi[d];
+    }
+  }
+  // Projection I - k k^T / k^2, applied to the real and imaginary parts separately.
+  const double pr = (k0 * re[0] + k1 * re[1] + k2 * re[2]) * inv_k2;
+  const double pi = (k0 * im[0] + k1 * im[1] + k2 * im[2]) * inv_k2;
+  s0[0] = re[0] - k0 * pr; s0[1] = im[0] - k0 * pi;
+  s1[0] = re[1] - k1 * pr; s1[1] = im[1] - k1 * pi;
+  s2[0] = re[2] - k2 * pr; s2[1] = im[2] - k2 * pi;
+}
+
+/// Minimum-image displacement component (valid for |d| < 1.5 L).
+RPYFMM_HOST_DEVICE inline double minimum_image(double d, double L, double inv_L) {
+  return d - L * std::nearbyint(d * inv_L);
+}
+
+/// Linear table lookup: per cell j the tuple (F_j, G_j, F_{j+1}, G_{j+1}).
+RPYFMM_HOST_DEVICE inline void table_fg(const double* table, double inv_dr, double r, double& f, double& g) {
+  double t = r * inv_dr;
+  const auto j = static_cast<std::size_t>(t);
+  t -= static_cast<double>(j);
+  const double* e = table + 4 * j;
+  f = e[0] + t * (e[2] - e[0]);
+  g = e[1] + t * (e[3] - e[1]);
+}
+
+/// u += [F (I - rhat rhat) + G rhat rhat] f for displacement d = (dx, dy, dz), r = |d| > 0.
+RPYFMM_HOST_DEVICE inline void pair_block_add(double dx, double dy, double dz, double r, double F, double G,
+                                              const double* f, double* u) {
+  const double inv_r = 1.0 / r;
+  const double ex = dx * inv_r;
+  const double ey = dy * inv_r;
+  const double ez = dz * inv_r;
+  const double proj = (G - F) * (ex * f[0] + ey * f[1] + ez * f[2]);
+  u[0] += F * f[0] + proj * ex;
+  u[1] += F * f[1] + proj * ey;
+  u[2] += F * f[2] + proj * ez;
+}
+
+}  // namespace rpyfmm::rpy::pse::detail

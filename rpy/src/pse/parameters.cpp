@@ -1,0 +1,159 @@
+// rpyfmm — PSE parameter selection from a tolerance (PSE.md Sec. 3.2) and the
+// cost model for automatic xi ([PSE] eqs. 22-23, PSE.md Sec. 3.4).
+#include "rpyfmm/rpy/pse/pse_parameters.hpp"
+
+#include <algorithm>
+#include <boost/math/special_functions/erf.hpp>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <numbers>
+#include <string>
+
+#include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/rpy/pse/real_space.hpp"
+
+namespace rpyfmm::rpy::pse {
+
+namespace {
+
+constexpr const char* kWhere = "PseRpy";
+
+std::string fmt(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+/// Parameters for one fixed xi; throws rpyfmm::Error when infeasible.
+PseParameters parameters_for_xi(const PseOptions& o, double a, const std::array<double, 3>& L, std::size_t n,
+                                double xi) {
+  PseParameters p;
+  p.radius = a;
+  p.xi = xi;
+  p.tolerance = o.tolerance;
+  const double eps = o.tolerance;
+  const double min_L = std::min({L[0], L[1], L[2]});
+
+  // 1. Real-space cutoff from the envelope of F, G for eps_R = eps / 2 (Sec. 1.5).
+  p.r_cut = o.r_cut > 0.0 ? o.r_cut : real_space_cutoff(0.5 * eps, xi, a);
+  require(p.r_cut <= 0.5 * min_L, ErrorCode::invalid_argument, kWhere,
+          "box length " + fmt(min_L) + " is smaller than 2 r_cut = " + fmt(2.0 * p.r_cut) +
+              " (xi = " + fmt(xi) + ", tolerance " + fmt(eps) + "); increase xi or the box");
+
+  // 2. Window half-width m (in sigma) from the truncation term 1.5 erfc(m / sqrt 2) <= eps / 2.
+  p.window_m = std::numbers::sqrt2 * boost::math::erfc_inv(eps / 3.0);
+  // 3. Grid spacing: the aliasing exponent pi^2 eta (1 - eta/2) / (2 xi^2 h^2) >= ln(2/eps) (Sec. 2.4).
+  const double eta = o.window_eta;
+  const double h_max = (std::numbers::pi / xi) * std::sqrt(eta * (1.0 - 0.5 * eta) / (2.0 * std::log(2.0 / eps)));
+  p.window_eta = eta;
+  p.sigma = std::sqrt(eta) / (2.0 * xi);  // sigma^2 = eta / (4 xi^2)
+  double ng = 1.0;
+  for (int d = 0; d < 3; ++d) {
+    int nd = o.grid[d];
+    if (nd <= 0) {
+      const double want = std::ceil(L[d] / h_max);
+      require(want < 65536.0, ErrorCode::out_of_memory, kWhere,
+              "grid of " + fmt(want) + " points along axis " + std::to_string(d) + " is too large");
+      nd = next_fast_size(std::max(static_cast<int>(want), 4));
+    }
+    p.grid[d] = nd;
+    p.spacing[d] = L[d] / nd;
+    // 5. Support P_d covers +-m sigma.
+    p.support[d] = o.support > 0 ? o.support : static_cast<int>(std::ceil(2.0 * p.window_m * p.sigma / p.spacing[d]));
+    require(p.support[d] <= nd, ErrorCode::invalid_argument, kWhere,
+            "Gaussian window (" + std::to_string(p.support[d]) + " points) is wider than the grid (" +
+                std::to_string(nd) + " points) along axis " + std::to_string(d) +
+                "; the box is too small for xi = " + fmt(xi) + ": increase xi");
+    ng *= nd;
+  }
+  // Memory: 3 real grids + 3 half spectra + c(k) + window cache; the table is small.
+  const double modes = static_cast<double>(p.grid[0]) * p.grid[1] * (p.grid[2] / 2 + 1);
+  const double bytes = 24.0 * ng + 56.0 * modes +
+                       8.0 * static_cast<double>(n) * (p.support[0] + p.support[1] + p.support[2] + 8);
+  require(bytes <= static_cast<double>(o.max_memory_bytes), ErrorCode::out_of_memory, kWhere,
+          "FFT grid " + std::to_string(p.grid[0]) + " x " + std::to_string(p.grid[1]) + " x " +
+              std::to_string(p.grid[2]) + " needs " + fmt(bytes / 1e9) + " GB, over the limit of " +
+              fmt(static_cast<double>(o.max_memory_bytes) / 1e9) + " GB (PseOptions::max_memory_bytes)");
+  p.memory_bytes = static_cast<std::size_t>(bytes);
+  p.lanczos_tolerance = o.lanczos_tolerance > 0.0 ? o.lanczos_tolerance : eps;
+
+  // Cost model T(xi) ([PSE] eq. 22): real-space pairs, FFT pair, spreading + interpolation.
+  const double density = static_cast<double>(n) / (L[0] * L[1] * L[2]);
+  const double neighbours = density * 4.0 / 3.0 * std::numbers::pi * p.r_cut * p.r_cut * p.r_cut;
+  const double support3 = static_cast<double>(p.support[0]) * p.support[1] * p.support[2];
+  p.modelled_cost = o.cost_real_products * o.cost_real_pair * static_cast<double>(n) * (1.0 + neighbours) +
+                    2.0 * o.cost_fft_point * ng * std::log2(std::max(ng, 2.0)) +
+                    2.0 * o.cost_support_point * static_cast<double>(n) * support3;
+  return p;
+}
+
+}  // namespace
+
+int next_fast_size(int n) {
+  for (int m = std::max(n, 1);; ++m) {
+    int r = m;
+    for (int f : {2, 3, 5, 7})
+      while (r % f == 0) r /= f;
+    if (r == 1) return m;
+  }
+}
+
+PseParameters choose_parameters(const PseOptions& o, double a, const std::array<double, 3>& L,
+                                std::size_t n_particles) {
+  require_positive(a, kWhere, "radius");
+  if (!(std::isfinite(o.tolerance) && o.tolerance >= 1e-8 && o.tolerance < 0.1)) {
+    fail(ErrorCode::invalid_argument, kWhere,
+         "tolerance must lie in [1e-8, 0.1), got " + fmt(o.tolerance));
+  }
+  if (!(o.window_eta > 0.0 && o.window_eta < 1.0)) {
+    fail(ErrorCode::invalid_argument, kWhere, "window_eta must lie in (0, 1), got " + fmt(o.window_eta));
+  }
+  require(std::isfinite(o.r_cut) && o.r_cut >= 0.0, ErrorCode::invalid_argument, kWhere,
+          "r_cut override must be >= 0 (0 = automatic), got " + fmt(o.r_cut));
+  require(o.support >= 0, ErrorCode::invalid_argument, kWhere, "support override must be >= 0");
+  for (int d = 0; d < 3; ++d)
+    require(o.grid[d] >= 0, ErrorCode::invalid_argument, kWhere, "grid override must be >= 0");
+  require(std::isfinite(o.lanczos_tolerance) && o.lanczos_tolerance >= 0.0 && o.lanczos_tolerance < 1.0,
+          ErrorCode::invalid_argument, kWhere, "lanczos_tolerance must lie in [0, 1), got " + fmt(o.lanczos_tolerance));
+  const double min_L = std::min({L[0], L[1], L[2]});
+  require(min_L > 2.0 * a, ErrorCode::invalid_argument, kWhere,
+          "box length " + fmt(min_L) + " is not larger than the particle diameter " + fmt(2.0 * a));
+
+  if (o.xi != 0.0) {
+    require(std::isfinite(o.xi) && o.xi * a >= 0.05, ErrorCode::invalid_argument, kWhere,
+            "xi a must be >= 0.05 (closed forms lose accuracy below), got xi = " + fmt(o.xi));
+    return parameters_for_xi(o, a, L, n_particles, o.xi);
+  }
+  // Automatic xi: minimise the modelled cost over xi a in [0.2, 8] (Sec. 3.4).
+  PseParameters best;
+  bool found = false;
+  std::string last_error;
+  for (double xa = 0.2; xa <= 8.0 + 1e-12; xa += (xa < 2.5 ? 0.05 : 0.25)) {
+    try {
+      PseParameters p = parameters_for_xi(o, a, L, n_particles, xa / a);
+      if (!found || p.modelled_cost < best.modelled_cost) best = p;
+      found = true;
+    } catch (const Error& e) {
+      if (e.code() == ErrorCode::out_of_memory && found) break;  // larger xi only grows the grid
+      last_error = e.what();
+    }
+  }
+  require(found, ErrorCode::invalid_argument, kWhere,
+          "no Ewald parameter xi a in [0.2, 8] is feasible for this box and tolerance (" + last_error + ")");
+  best.xi_automatic = true;
+  return best;
+}
+
+std::string PseParameters::summary() const {
+  return "PSE: xi = " + fmt(xi) + (xi_automatic ? " (auto)" : "") + ", xi a = " + fmt(xi * radius) +
+         ", tolerance = " + fmt(tolerance) + ", r_cut = " + fmt(r_cut) + ", grid = " + std::to_string(grid[0]) +
+         "x" + std::to_string(grid[1]) + "x" + std::to_string(grid[2]) + ", h = " + fmt(spacing[0]) +
+         ", P = " + std::to_string(support[0]) + "/" + std::to_string(support[1]) + "/" +
+         std::to_string(support[2]) + ", eta = " + fmt(window_eta) + ", m = " + fmt(window_m) +
+         ", table dr = " + fmt(table_dr) + " (" + std::to_string(table_size) + " entries)" +
+         ", lanczos tol = " + fmt(lanczos_tolerance) + ", memory = " + fmt(static_cast<double>(memory_bytes) / 1e6) +
+         " MB";
+}
+
+}  // namespace rpyfmm::rpy::pse

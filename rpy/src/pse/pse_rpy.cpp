@@ -1,0 +1,241 @@
+// rpyfmm — PseRpy: the CPU PSE operator (plan, products, split sampler).
+#include "rpyfmm/rpy/pse/pse_rpy.hpp"
+
+#include <algorithm>
+#include <cstring>
+#include <vector>
+
+#include "real_space_sum.hpp"
+#include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/rpy/random.hpp"
+#include "wave_space.hpp"
+
+namespace rpyfmm::rpy::pse {
+
+std::uint64_t noise_hash(std::span<const double> z) {
+  // splitmix64 finaliser chained over the 64-bit patterns of z.
+  auto mix = [](std::uint64_t x) {
+    x += 0x9E3779B97F4A7C15ull;
+    x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+    x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+    return x ^ (x >> 31);
+  };
+  std::uint64_t h = mix(z.size());
+  for (double v : z) {
+    std::uint64_t bits;
+    std::memcpy(&bits, &v, sizeof bits);
+    h = mix(h ^ bits);
+  }
+  return h;
+}
+
+namespace {
+
+/// z1 = normal3(seed, step, stream 1, i) — the values of fill_normal (random.hpp), without
+/// a parallel region for small N (its cost dominates small systems on a loaded machine).
+void real_noise(std::vector<double>& z, std::uint64_t seed, std::uint64_t step) {
+  const auto n = static_cast<std::int64_t>(z.size() / 3);
+#pragma omp parallel for schedule(static) if (n >= 4096)
+  for (std::int64_t i = 0; i < n; ++i)
+    normal3(seed, step, detail::kStreamReal, static_cast<std::uint64_t>(i), &z[3 * static_cast<std::size_t>(i)]);
+}
+
+}  // namespace
+
+struct PseRpy::Impl {
+  PseOptions options;
+  PseParameters params;
+  bool planned = false;
+  std::size_t planned_n = 0;
+  std::unique_ptr<detail::RealSpaceSum> real;
+  std::unique_ptr<detail::WaveSpace> wave;
+  mutable StageTimes times;
+};
+
+PseRpy::PseRpy(Geometry geometry, double viscosity, const PseOptions& options)
+    : MobilityOperator(geometry, viscosity, "PseRpy"), impl_(std::make_unique<Impl>()) {
+  require(geometry.is_periodic(), ErrorCode::not_supported, "PseRpy",
+          "PSE needs a periodic box (Geometry::periodic); use the direct or FMM operator for open geometry");
+  impl_->options = options;
+  if (!(std::isfinite(options.tolerance) && options.tolerance >= 1e-8 && options.tolerance < 0.1)) {
+    fail(ErrorCode::invalid_argument, "PseRpy",
+         "tolerance must lie in [1e-8, 0.1), got " + std::to_string(options.tolerance));
+  }
+  require(std::isfinite(options.xi) && options.xi >= 0.0, ErrorCode::invalid_argument, "PseRpy",
+          "xi must be >= 0 (0 = automatic), got " + std::to_string(options.xi));
+}
+
+PseRpy::~PseRpy() = default;
+
+const PseOptions& PseRpy::options() const { return impl_->options; }
+
+const PseParameters& PseRpy::parameters() const {
+  require_positions("parameters");
+  return impl_->params;
+}
+
+void PseRpy::on_positions_set() {
+  require(equal_radii(), ErrorCode::not_supported, "PseRpy::set_positions",
+          "PSE supports equal radii only (the paper's assumption); the radii given differ");
+  const double a = radii().front();
+  const std::size_t n = size();
+  auto& im = *impl_;
+  const bool replan = !im.planned || im.params.radius != a || (im.options.xi == 0.0 && im.planned_n != n);
+  if (replan) {
+    StopWatch sw;
+    im.planned = false;
+    im.real.reset();
+    im.wave.reset();
+    // All checks (box vs r_cut, window, memory) happen here, before any allocation.
+    PseParameters p = choose_parameters(im.options, a, geometry().box(), n);
+    auto real = std::make_unique<detail::RealSpaceSum>(p, geometry().box(), viscosity(), im.options.real_space_table);
+    p.table_dr = im.options.real_space_table ? real->table().dr() : 0.0;
+    p.table_size = im.options.real_space_table ? real->table().size() : 0;
+    auto wave = std::make_unique<detail::WaveSpace>(p, geometry().box(), viscosity(), im.options.fft_threads);
+    im.params = p;
+    im.real = std::move(real);
+    im.wave = std::move(wave);
+    im.planned = true;
+    im.planned_n = n;
+    im.times["plan"] += sw.seconds();
+  }
+  im.real->set_positions(positions());
+  im.wave->set_positions(positions());
+}
+
+void PseRpy::do_apply(const double* forces, double* velocities, std::size_t nrhs) const {
+  const std::size_t n3 = 3 * size();
+  auto& im = *impl_;
+  for (std::size_t r = 0; r < nrhs; ++r)
+    im.wave->apply(forces + r * n3, velocities + r * n3, false, nullptr, 0.0, &im.times);
+  StopWatch sw;
+  im.real->apply(forces, velocities, nrhs, true);
+  im.times["real_space"] += sw.seconds();
+}
+
+void PseRpy::apply_real(std::span<const double> forces, std::span<double> velocities) const {
+  require_positions("apply_real");
+  require_size(forces, 3 * size(), "PseRpy::apply_real", "forces");
+  require_size(std::span<const double>(velocities.data(), velocities.size()), 3 * size(), "PseRpy::apply_real",
+               "velocities");
+  require_finite(forces, "PseRpy::apply_real", "forces", 3);
+  impl_->real->apply(forces.data(), velocities.data(), 1, false);
+}
+
+void PseRpy::apply_wave(std::span<const double> forces, std::span<double> velocities) const {
+  require_positions("apply_wave");
+  require_size(forces, 3 * size(), "PseRpy::apply_wave", "forces");
+  require_size(std::span<const double>(velocities.data(), velocities.size()), 3 * size(), "PseRpy::apply_wave",
+               "velocities");
+  require_finite(forces, "PseRpy::apply_wave", "forces", 3);
+  impl_->wave->apply(forces.data(), velocities.data(), false, nullptr, 0.0, &impl_->times);
+}
+
+LinearOperatorView PseRpy::real_space_operator() const {
+  require_positions("real_space_operator");
+  LinearOperatorView v;
+  v.n = 3 * size();
+  v.apply = [this](std::span<const double> x, std::span<double> y, std::size_t nrhs) {
+    impl_->real->apply(x.data(), y.data(), nrhs, false);
+  };
+  return v;
+}
+
+LinearOperatorView PseRpy::wave_space_operator() const {
+  require_positions("wave_space_operator");
+  LinearOperatorView v;
+  v.n = 3 * size();
+  v.apply = [this](std::span<const double> x, std::span<double> y, std::size_t nrhs) {
+    const std::size_t n3 = 3 * size();
+    for (std::size_t r = 0; r < nrhs; ++r)
+      impl_->wave->apply(x.data() + r * n3, y.data() + r * n3, false, nullptr, 0.0, &impl_->times);
+  };
+  return v;
+}
+
+namespace {
+
+/// y = M_r^{1/2} z (nrhs vectors) by Lanczos on the real-space part ([PSE] Sec. II.B, PSE.md Sec. 5).
+SqrtReport real_sqrt(const LinearOperatorView& real, std::span<const double> z, std::span<double> y,
+                     std::size_t nrhs, double tolerance) {
+  SqrtOptions o;
+  o.method = SqrtMethod::lanczos;
+  o.tolerance = tolerance;
+  return sqrt_apply(real, z, y, nrhs, o);
+}
+
+}  // namespace
+
+SqrtReport PseRpy::do_apply_sqrt(std::span<const double> z, std::span<double> w, std::size_t nrhs,
+                                 const SqrtOptions& options) const {
+  if (options.method != SqrtMethod::automatic && options.method != SqrtMethod::split) {
+    return MobilityOperator::do_apply_sqrt(z, w, nrhs, options);  // generic solvers on the full M
+  }
+  auto& im = *impl_;
+  StopWatch sw;
+  SqrtReport rep = real_sqrt(real_space_operator(), z, w, nrhs, im.params.lanczos_tolerance);
+  im.times["lanczos"] += sw.seconds();
+  const std::size_t n3 = 3 * size();
+  for (std::size_t r = 0; r < nrhs; ++r) {
+    const detail::NoiseKey key{noise_hash(z.subspan(r * n3, n3)), 0};
+    im.wave->apply(nullptr, w.data() + r * n3, true, &key, 1.0, &im.times);
+  }
+  rep.method = SqrtMethod::split;
+  rep.operator_applications += 1;
+  return rep;
+}
+
+SqrtReport PseRpy::sample(std::uint64_t seed, std::uint64_t step, std::span<double> w) const {
+  require_positions("sample");
+  require_size(std::span<const double>(w.data(), w.size()), 3 * size(), "PseRpy::sample", "output");
+  auto& im = *impl_;
+  std::vector<double> z1(3 * size());
+  real_noise(z1, seed, step);
+  StopWatch sw;
+  SqrtReport rep = real_sqrt(real_space_operator(), z1, w, 1, im.params.lanczos_tolerance);
+  im.times["lanczos"] += sw.seconds();
+  const detail::NoiseKey key{seed, step};
+  im.wave->apply(nullptr, w.data(), true, &key, 1.0, &im.times);
+  rep.method = SqrtMethod::split;
+  rep.operator_applications += 1;
+  return rep;
+}
+
+SqrtReport PseRpy::apply_with_noise(std::span<const double> forces, double noise_scale, std::uint64_t seed,
+                                    std::uint64_t step, std::span<double> velocities) const {
+  require_positions("apply_with_noise");
+  const char* where = "PseRpy::apply_with_noise";
+  require_size(forces, 3 * size(), where, "forces");
+  require_size(std::span<const double>(velocities.data(), velocities.size()), 3 * size(), where, "velocities");
+  require_finite(forces, where, "forces", 3);
+  require(std::isfinite(noise_scale) && noise_scale >= 0.0, ErrorCode::invalid_argument, where,
+          "noise_scale must be finite and >= 0, got " + std::to_string(noise_scale));
+  auto& im = *impl_;
+  SqrtReport rep;
+  rep.method = SqrtMethod::split;
+  std::vector<double> y;
+  if (noise_scale > 0.0) {
+    std::vector<double> z1(3 * size());
+    real_noise(z1, seed, step);
+    y.resize(3 * size());
+    StopWatch sw;
+    rep = real_sqrt(real_space_operator(), z1, y, 1, im.params.lanczos_tolerance);
+    rep.method = SqrtMethod::split;
+    im.times["lanczos"] += sw.seconds();
+  }
+  // One wave-space pass for M_w F + noise_scale M_w^{1/2} z2 (shared FFTs).
+  const detail::NoiseKey key{seed, step};
+  im.wave->apply(forces.data(), velocities.data(), false, noise_scale > 0.0 ? &key : nullptr, noise_scale,
+                 &im.times);
+  StopWatch sw;
+  im.real->apply(forces.data(), velocities.data(), 1, true);
+  im.times["real_space"] += sw.seconds();
+  for (std::size_t i = 0; i < y.size(); ++i) velocities[i] += noise_scale * y[i];
+  rep.operator_applications += 1;
+  return rep;
+}
+
+StageTimes PseRpy::stage_times() const { return impl_->times; }
+void PseRpy::reset_stage_times() const { impl_->times.clear(); }
+
+}  // namespace rpyfmm::rpy::pse

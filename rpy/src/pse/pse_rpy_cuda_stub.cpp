@@ -1,0 +1,40 @@
+// rpyfmm — PseRpyCuda in a build without CUDA: reports no device and refuses construction.
+#include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
+
+namespace rpyfmm::rpy::pse {
+
+struct PseRpyCuda::Impl {
+  PseParameters params;
+};
+
+bool PseRpyCuda::device_available() { return false; }
+
+PseRpyCuda::PseRpyCuda(Geometry geometry, double viscosity, const PseOptions&)
+    : MobilityOperator(geometry, viscosity, "PseRpyCuda") {
+  fail(ErrorCode::not_supported, "PseRpyCuda", "this build of rpyfmm has no CUDA support (RPYFMM_USE_CUDA=OFF)");
+}
+
+PseRpyCuda::~PseRpyCuda() = default;
+
+const PseParameters& PseRpyCuda::parameters() const { return impl_->params; }
+
+SqrtReport PseRpyCuda::sample(std::uint64_t, std::uint64_t, std::span<double>) const {
+  fail(ErrorCode::not_supported, "PseRpyCuda::sample", "no CUDA support in this build");
+}
+
+SqrtReport PseRpyCuda::apply_with_noise(std::span<const double>, double, std::uint64_t, std::uint64_t,
+                                        std::span<double>) const {
+  fail(ErrorCode::not_supported, "PseRpyCuda::apply_with_noise", "no CUDA support in this build");
+}
+
+void PseRpyCuda::on_positions_set() {}
+void PseRpyCuda::do_apply(const double*, double*, std::size_t) const {
+  fail(ErrorCode::not_supported, "PseRpyCuda::apply", "no CUDA support in this build");
+}
+SqrtReport PseRpyCuda::do_apply_sqrt(std::span<const double>, std::span<double>, std::size_t,
+                                     const SqrtOptions&) const {
+  fail(ErrorCode::not_supported, "PseRpyCuda::apply_sqrt", "no CUDA support in this build");
+}
+
+}  // namespace rpyfmm::rpy::pse

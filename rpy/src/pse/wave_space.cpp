@@ -1,0 +1,297 @@
+// rpyfmm — PSE wave space on the CPU (PSE.md Sec. 2.3 steps 1-5, Sec. 4, Sec. 6.2).
+#include "wave_space.hpp"
+
+#include <fftw3.h>
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <mutex>
+#include <numbers>
+
+#include "rpyfmm/core/validate.hpp"
+
+namespace rpyfmm::rpy::pse::detail {
+
+namespace {
+
+/// Loops below this much work run serially (a parallel region costs more there).
+constexpr std::size_t kParallelWork = 32768;
+
+std::mutex& planner_mutex() {
+  static std::mutex m;
+  return m;
+}
+
+void init_fftw_threads() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    fftw_init_threads();
+    fftw_make_planner_thread_safe();
+  });
+}
+
+/// Tile class along one axis: 0 / 1 by parity, 2 for the last tile of an odd count
+/// (it touches tile 0 through the periodic wrap). Same-class tiles are >= 2 apart.
+int tile_class(int b, int nb) { return (nb % 2 == 1 && nb > 1 && b == nb - 1) ? 2 : b % 2; }
+
+}  // namespace
+
+std::vector<double> wave_scaling_table(const PseParameters& p, const std::array<double, 3>& box, double viscosity,
+                                       ModeGeometry& g) {
+  for (int d = 0; d < 3; ++d) {
+    g.n[d] = p.grid[d];
+    g.two_pi_L[d] = 2.0 * std::numbers::pi / box[d];
+  }
+  g.nzh = g.n[2] / 2 + 1;
+  g.modes = static_cast<std::size_t>(g.n[0]) * static_cast<std::size_t>(g.n[1]) * static_cast<std::size_t>(g.nzh);
+  g.comp_stride = 2 * g.modes;
+  const double ng = static_cast<double>(g.n[0]) * g.n[1] * g.n[2];
+  const double a = p.radius;
+  const double inv_4xi2 = 1.0 / (4.0 * p.xi * p.xi);
+  std::vector<double> ck(g.modes);
+  const auto nx = static_cast<std::int64_t>(g.n[0]);
+#pragma omp parallel for schedule(static) if (g.modes >= kParallelWork)
+  for (std::int64_t ix = 0; ix < nx; ++ix) {
+    for (int iy = 0; iy < g.n[1]; ++iy) {
+      for (int iz = 0; iz < g.nzh; ++iz) {
+        const std::size_t idx = (static_cast<std::size_t>(ix) * g.n[1] + iy) * g.nzh + iz;
+        const bool nyquist = 2 * ix == g.n[0] || 2 * iy == g.n[1] || 2 * iz == g.n[2];
+        if (nyquist || (ix == 0 && iy == 0 && iz == 0)) {
+          ck[idx] = 0.0;
+          continue;
+        }
+        const double k0 = g.two_pi_L[0] * signed_index(static_cast<int>(ix), g.n[0]);
+        const double k1 = g.two_pi_L[1] * signed_index(iy, g.n[1]);
+        const double k2 = g.two_pi_L[2] * iz;
+        const double k2sum = k0 * k0 + k1 * k1 + k2 * k2;
+        const double k = std::sqrt(k2sum);
+        const double sinc = std::sin(k * a) / (k * a);
+        const double x = k2sum * inv_4xi2;
+        // sg(k) = sinc^2(ka) (1 + k^2/4xi^2) exp(-(1-eta) k^2/4xi^2) / k^2  (PSE.md Sec. 2.1)
+        const double sg = sinc * sinc * (1.0 + x) * std::exp(-(1.0 - p.window_eta) * x) / k2sum;
+        ck[idx] = sg / (viscosity * ng);
+      }
+    }
+  }
+  return ck;
+}
+
+WaveSpace::WaveSpace(const PseParameters& p, const std::array<double, 3>& box, double viscosity, int fft_threads)
+    : p_(p) {
+  n_ = p.grid;
+  P_ = p.support;
+  ng_ = static_cast<std::size_t>(n_[0]) * static_cast<std::size_t>(n_[1]) * static_cast<std::size_t>(n_[2]);
+  ck_ = wave_scaling_table(p, box, viscosity, modes_);
+  dv_ = p.spacing[0] * p.spacing[1] * p.spacing[2];
+  c3_ = std::pow(2.0 * std::numbers::pi * p.sigma * p.sigma, -1.5);
+  fft_threads_ = fft_threads > 0 ? fft_threads : (ng_ >= (std::size_t{1} << 20) ? omp_get_max_threads() : 1);
+  parallel_modes_ = modes_.modes >= kParallelWork;
+
+  grid_ = fftw_alloc_real(3 * ng_);
+  spectrum_ = reinterpret_cast<double*>(fftw_alloc_complex(3 * modes_.modes));
+  require(grid_ != nullptr && spectrum_ != nullptr, ErrorCode::out_of_memory, "PseRpy",
+          "could not allocate the FFT grids");
+  init_fftw_threads();
+  {
+    std::lock_guard<std::mutex> lock(planner_mutex());
+    fftw_plan_with_nthreads(fft_threads_);
+    const int dims[3] = {n_[0], n_[1], n_[2]};
+    const int dist_r = static_cast<int>(ng_);
+    const int dist_c = static_cast<int>(modes_.modes);
+    auto* spec = reinterpret_cast<fftw_complex*>(spectrum_);
+    plan_forward_ = fftw_plan_many_dft_r2c(3, dims, 3, grid_, nullptr, 1, dist_r, spec, nullptr, 1, dist_c,
+                                           FFTW_ESTIMATE);
+    plan_backward_ = fftw_plan_many_dft_c2r(3, dims, 3, spec, nullptr, 1, dist_c, grid_, nullptr, 1, dist_r,
+                                            FFTW_ESTIMATE);
+  }
+  require(plan_forward_ != nullptr && plan_backward_ != nullptr, ErrorCode::numerical_failure, "PseRpy",
+          "FFTW could not create the plans");
+}
+
+WaveSpace::~WaveSpace() {
+  std::lock_guard<std::mutex> lock(planner_mutex());
+  if (plan_forward_) fftw_destroy_plan(static_cast<fftw_plan>(plan_forward_));
+  if (plan_backward_) fftw_destroy_plan(static_cast<fftw_plan>(plan_backward_));
+  fftw_free(grid_);
+  fftw_free(spectrum_);
+}
+
+void WaveSpace::set_positions(std::span<const double> x) {
+  np_ = x.size() / 3;
+  const int pw = P_[0] + P_[1] + P_[2];
+  start_.resize(3 * np_);
+  weights_.resize(static_cast<std::size_t>(pw) * np_);
+  const double inv_2s2 = 1.0 / (2.0 * p_.sigma * p_.sigma);
+  const auto np = static_cast<std::int64_t>(np_);
+#pragma omp parallel for schedule(static) if (np_ >= 1024)
+  for (std::int64_t i = 0; i < np; ++i) {
+    double* w = &weights_[static_cast<std::size_t>(i) * pw];
+    for (int d = 0; d < 3; ++d) {
+      start_[3 * i + d] = window_weights(x[3 * i + d], p_.spacing[d], P_[d], n_[d], inv_2s2, w);
+      w += P_[d];
+    }
+  }
+  // Tiles of B_d >= P_d - 1 grid points in x and y (by window start): a tile's
+  // particles write only into itself and the next tile, so tiles of one colour
+  // (class per axis, tile_class) never touch the same grid point.
+  std::array<int, 2> nb{};
+  for (int d = 0; d < 2; ++d) nb[d] = std::max(1, n_[d] / std::max(P_[d] - 1, 1));
+  const auto tile_of = [&](std::size_t i) {
+    const int bx = std::min(start_[3 * i] / std::max(P_[0] - 1, 1), nb[0] - 1);
+    const int by = std::min(start_[3 * i + 1] / std::max(P_[1] - 1, 1), nb[1] - 1);
+    return bx * nb[1] + by;
+  };
+  const std::size_t ntiles = static_cast<std::size_t>(nb[0]) * static_cast<std::size_t>(nb[1]);
+  tile_begin_.assign(ntiles + 1, 0);
+  std::vector<int> tile(np_);
+  for (std::size_t i = 0; i < np_; ++i) {
+    tile[i] = tile_of(i);
+    ++tile_begin_[static_cast<std::size_t>(tile[i]) + 1];
+  }
+  for (std::size_t t = 0; t < ntiles; ++t) tile_begin_[t + 1] += tile_begin_[t];
+  order_.resize(np_);
+  std::vector<std::size_t> fill(tile_begin_.begin(), tile_begin_.end() - 1);
+  for (std::size_t i = 0; i < np_; ++i) order_[fill[static_cast<std::size_t>(tile[i])]++] = i;  // stable
+  for (auto& c : tiles_of_colour_) c.clear();
+  for (int bx = 0; bx < nb[0]; ++bx)
+    for (int by = 0; by < nb[1]; ++by) {
+      const int t = bx * nb[1] + by;
+      if (tile_begin_[static_cast<std::size_t>(t)] == tile_begin_[static_cast<std::size_t>(t) + 1]) continue;
+      tiles_of_colour_[static_cast<std::size_t>(3 * tile_class(bx, nb[0]) + tile_class(by, nb[1]))].push_back(t);
+    }
+}
+
+void WaveSpace::spread(const double* forces) {
+  // f_n = sum_j F_j g(x_n - x_j)  (PSE.md Sec. 2.3 step 1), race-free and in a fixed
+  // order: the result does not depend on the number of threads.
+  const int pw = P_[0] + P_[1] + P_[2];
+  double* g0 = grid_;
+  double* g1 = grid_ + ng_;
+  double* g2 = grid_ + 2 * ng_;
+  const auto total = static_cast<std::int64_t>(3 * ng_);
+  const std::size_t p3 = static_cast<std::size_t>(P_[0]) * P_[1] * P_[2];
+  const bool par = np_ * p3 >= kParallelWork || ng_ >= 4 * kParallelWork;
+#pragma omp parallel if (par)
+  {
+#pragma omp for schedule(static)
+    for (std::int64_t q = 0; q < total; ++q) grid_[q] = 0.0;
+    std::vector<int> zi(static_cast<std::size_t>(P_[2]));
+    for (const auto& colour : tiles_of_colour_) {
+      const auto nt = static_cast<std::int64_t>(colour.size());
+#pragma omp for schedule(dynamic, 1)
+      for (std::int64_t t = 0; t < nt; ++t) {
+        const auto tile = static_cast<std::size_t>(colour[static_cast<std::size_t>(t)]);
+        for (std::size_t q = tile_begin_[tile]; q < tile_begin_[tile + 1]; ++q) {
+          const std::size_t i = order_[q];
+          const double* wx = &weights_[i * static_cast<std::size_t>(pw)];
+          const double* wy = wx + P_[0];
+          const double* wz = wy + P_[1];
+          const double f0 = c3_ * forces[3 * i];
+          const double f1 = c3_ * forces[3 * i + 1];
+          const double f2 = c3_ * forces[3 * i + 2];
+          for (int l = 0; l < P_[2]; ++l) zi[static_cast<std::size_t>(l)] = (start_[3 * i + 2] + l) % n_[2];
+          for (int a = 0; a < P_[0]; ++a) {
+            const std::size_t ix = static_cast<std::size_t>((start_[3 * i] + a) % n_[0]);
+            for (int b = 0; b < P_[1]; ++b) {
+              const std::size_t iy = static_cast<std::size_t>((start_[3 * i + 1] + b) % n_[1]);
+              const double wxy = wx[a] * wy[b];
+              const std::size_t base = (ix * static_cast<std::size_t>(n_[1]) + iy) * static_cast<std::size_t>(n_[2]);
+              for (int l = 0; l < P_[2]; ++l) {
+                const std::size_t k = base + static_cast<std::size_t>(zi[static_cast<std::size_t>(l)]);
+                const double w = wxy * wz[l];
+                g0[k] += w * f0;
+                g1[k] += w * f1;
+                g2[k] += w * f2;
+              }
+            }
+          }
+        }
+      }  // implicit barrier: colours run one after another
+    }
+  }
+}
+
+void WaveSpace::interpolate(double* out, bool accumulate) const {
+  // U_j = dV sum_n g(x_n - x_j) u_n  (PSE.md Sec. 2.3 step 5).
+  const int pw = P_[0] + P_[1] + P_[2];
+  const double* g0 = grid_;
+  const double* g1 = grid_ + ng_;
+  const double* g2 = grid_ + 2 * ng_;
+  const double scale = c3_ * dv_;
+  const auto np = static_cast<std::int64_t>(np_);
+  const bool par = np_ * static_cast<std::size_t>(P_[0]) * P_[1] * P_[2] >= kParallelWork;
+#pragma omp parallel if (par)
+  {
+    std::vector<int> zi(static_cast<std::size_t>(P_[2]));
+#pragma omp for schedule(static)
+    for (std::int64_t ii = 0; ii < np; ++ii) {
+      const auto i = static_cast<std::size_t>(ii);
+      const double* wx = &weights_[i * static_cast<std::size_t>(pw)];
+      const double* wy = wx + P_[0];
+      const double* wz = wy + P_[1];
+      for (int l = 0; l < P_[2]; ++l) zi[static_cast<std::size_t>(l)] = (start_[3 * i + 2] + l) % n_[2];
+      double u0 = 0.0, u1 = 0.0, u2 = 0.0;
+      for (int a = 0; a < P_[0]; ++a) {
+        const std::size_t ix = static_cast<std::size_t>((start_[3 * i] + a) % n_[0]);
+        for (int b = 0; b < P_[1]; ++b) {
+          const std::size_t iy = static_cast<std::size_t>((start_[3 * i + 1] + b) % n_[1]);
+          const std::size_t base = (ix * static_cast<std::size_t>(n_[1]) + iy) * static_cast<std::size_t>(n_[2]);
+          double s0 = 0.0, s1 = 0.0, s2 = 0.0;
+          for (int l = 0; l < P_[2]; ++l) {
+            const std::size_t k = base + static_cast<std::size_t>(zi[static_cast<std::size_t>(l)]);
+            s0 += wz[l] * g0[k];
+            s1 += wz[l] * g1[k];
+            s2 += wz[l] * g2[k];
+          }
+          const double wxy = wx[a] * wy[b];
+          u0 += wxy * s0;
+          u1 += wxy * s1;
+          u2 += wxy * s2;
+        }
+      }
+      if (accumulate) {
+        out[3 * i] += scale * u0;
+        out[3 * i + 1] += scale * u1;
+        out[3 * i + 2] += scale * u2;
+      } else {
+        out[3 * i] = scale * u0;
+        out[3 * i + 1] = scale * u1;
+        out[3 * i + 2] = scale * u2;
+      }
+    }
+  }
+}
+
+void WaveSpace::apply(const double* forces, double* out, bool accumulate, const NoiseKey* noise,
+                      double noise_scale, StageTimes* times) {
+  StopWatch sw;
+  auto lap = [&](const char* stage) {
+    if (times) (*times)[stage] += sw.seconds();
+    sw.restart();
+  };
+  const bool deterministic = forces != nullptr;
+  if (deterministic) {
+    spread(forces);
+    lap("spread");
+    fftw_execute_dft_r2c(static_cast<fftw_plan>(plan_forward_), grid_, reinterpret_cast<fftw_complex*>(spectrum_));
+    lap("fft_forward");
+  }
+  const bool with_noise = noise != nullptr && noise_scale != 0.0;
+  const std::uint64_t seed = with_noise ? noise->seed : 0;
+  const std::uint64_t step = with_noise ? noise->step : 0;
+  const double factor = noise_scale / std::sqrt(dv_);
+  const auto nm = static_cast<std::int64_t>(modes_.modes);
+#pragma omp parallel for schedule(static) if (parallel_modes_)
+  for (std::int64_t m = 0; m < nm; ++m) {
+    scale_mode(static_cast<std::size_t>(m), modes_, ck_.data(), spectrum_, deterministic, with_noise, seed, step,
+               factor);
+  }
+  lap("scale");
+  fftw_execute_dft_c2r(static_cast<fftw_plan>(plan_backward_), reinterpret_cast<fftw_complex*>(spectrum_), grid_);
+  lap("fft_backward");
+  interpolate(out, accumulate);
+  lap("interpolate");
+}
+
+}  // namespace rpyfmm::rpy::pse::detail

@@ -1,0 +1,93 @@
+// PSE sampler (fast part): split sampler contract, generic Lanczos on the full PSE operator,
+// Lanczos iterations flat in N. Statistical covariance tests: test_pse_statistics.cpp (slow).
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+
+#include "ewald_reference.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy.hpp"
+#include "rpyfmm/rpy/random.hpp"
+
+using namespace rpyfmm::rpy;
+using namespace rpyfmm::rpy::pse;
+
+namespace {
+
+struct SmallSystem {
+  std::array<double, 3> L = {9.0, 9.0, 10.0};
+  std::vector<double> x = {1.0, 1.0, 1.0, 2.5, 1.2, 1.0, 6.0, 5.0, 8.5, 6.2, 5.3, 0.4};  // overlap + near pairs
+  PseOptions options() const {
+    PseOptions o;
+    o.tolerance = 1e-2;  // the covariance identity holds for the discrete operator at any eps;
+    o.xi = 1.0;          // a coarse grid keeps the 5000-sample estimates fast
+    o.lanczos_tolerance = 1e-8;
+    return o;
+  }
+};
+
+Eigen::MatrixXd dense(const MobilityOperator& op) {
+  const auto d = op.assemble_dense();
+  const auto n = static_cast<Eigen::Index>(3 * op.size());
+  return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(d.data(), n, n);
+}
+
+}  // namespace
+
+TEST(PseSampler, GenericLanczosOnFullOperatorMatchesDenseSquareRoot) {
+  const SmallSystem s;
+  PseRpy op(Geometry::periodic(s.L[0], s.L[1], s.L[2]), 1.0, s.options());
+  op.set_positions(s.x, 1.0);
+  const Eigen::MatrixXd M = dense(op);
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(0.5 * (M + M.transpose()));
+  const Eigen::MatrixXd S = es.eigenvectors() * es.eigenvalues().cwiseSqrt().asDiagonal() * es.eigenvectors().transpose();
+  std::vector<double> z(s.x.size()), w(s.x.size());
+  fill_normal(z, 5, 0);
+  SqrtOptions so;
+  so.method = SqrtMethod::lanczos;
+  so.tolerance = 1e-10;
+  const SqrtReport rep = op.apply_sqrt(z, w, so);
+  EXPECT_EQ(rep.method, SqrtMethod::lanczos);
+  const Eigen::VectorXd ref = S * Eigen::Map<const Eigen::VectorXd>(z.data(), static_cast<Eigen::Index>(z.size()));
+  const Eigen::VectorXd got = Eigen::Map<const Eigen::VectorXd>(w.data(), static_cast<Eigen::Index>(w.size()));
+  EXPECT_LT((got - ref).norm() / ref.norm(), 1e-8);
+}
+
+TEST(PseSampler, LanczosIterationsOnRealPartDoNotGrowWithN) {
+  // Random points at number density matching phi = 0.1 for a = 1: the condition number of
+  // M_r depends on the local environment only ([PSE] Fig. 1, PSE.md Sec. 5).
+  int iters[2] = {0, 0};
+  const std::size_t sizes[2] = {200, 1600};
+  for (int t = 0; t < 2; ++t) {
+    const double L = std::cbrt(static_cast<double>(sizes[t]) * 4.18879 / 0.1);
+    PseOptions o;
+    o.xi = 0.5;
+    o.tolerance = 1e-3;
+    PseRpy op(Geometry::periodic(L), 1.0, o);
+    op.set_positions(pse_test::random_points(sizes[t], {L, L, L}, 41), 1.0);
+    std::vector<double> w(3 * sizes[t]);
+    iters[t] = op.sample(1, 0, w).iterations;
+  }
+  EXPECT_LE(iters[1], iters[0] + 2);
+  EXPECT_LE(iters[1], 12);
+}
+
+TEST(PseSampler, SplitSamplerIsKeyedAndDeterministic) {
+  const SmallSystem s;
+  PseRpy op(Geometry::periodic(s.L[0], s.L[1], s.L[2]), 1.0, s.options());
+  op.set_positions(s.x, 1.0);
+  std::vector<double> a(s.x.size()), b(s.x.size()), c(s.x.size()), z(s.x.size());
+  EXPECT_EQ(op.sample(3, 1, a).method, SqrtMethod::split);
+  op.sample(3, 1, b);
+  op.sample(3, 2, c);
+  EXPECT_EQ(a, b);
+  EXPECT_NE(a, c);
+  fill_normal(z, 3, 1);
+  EXPECT_EQ(op.apply_sqrt(z, a).method, SqrtMethod::split);
+  op.apply_sqrt(z, b);
+  EXPECT_EQ(a, b);
+  // apply_with_noise(F, 0) is the plain product.
+  std::vector<double> f(s.x.size(), 0.5), u(s.x.size()), v(s.x.size());
+  op.apply(f, u);
+  op.apply_with_noise(f, 0.0, 1, 1, v);
+  for (std::size_t i = 0; i < u.size(); ++i) EXPECT_NEAR(u[i], v[i], 1e-14 * (1 + std::abs(u[i])));
+}

@@ -1,0 +1,119 @@
+// PSE split sampler statistics (label slow): covariance of M_r^{1/2} z1 + M_w^{1/2} z2
+// equals M, and the Fourier-space noise alone has covariance M_w (fixed seeds).
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+
+#include "ewald_reference.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy.hpp"
+#include "rpyfmm/rpy/random.hpp"
+
+using namespace rpyfmm::rpy;
+using namespace rpyfmm::rpy::pse;
+
+namespace {
+
+struct SmallSystem {
+  std::array<double, 3> L = {9.0, 9.0, 10.0};
+  std::vector<double> x = {1.0, 1.0, 1.0, 2.5, 1.2, 1.0, 6.0, 5.0, 8.5, 6.2, 5.3, 0.4};  // overlap + near pairs
+  PseOptions options() const {
+    PseOptions o;
+    o.tolerance = 1e-2;  // the covariance identity holds for the discrete operator at any eps;
+    o.xi = 1.0;          // a coarse grid keeps the 5000-sample estimates fast
+    o.lanczos_tolerance = 1e-8;
+    return o;
+  }
+};
+
+Eigen::MatrixXd dense(const MobilityOperator& op) {
+  const auto d = op.assemble_dense();
+  const auto n = static_cast<Eigen::Index>(3 * op.size());
+  return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(d.data(), n, n);
+}
+
+/// max_ij |C_ij - M_ij| / sqrt(M_ii M_jj): the standard error of C_ij is <= sqrt(2 / n_s).
+double covariance_error(const Eigen::MatrixXd& C, const Eigen::MatrixXd& M) {
+  double worst = 0.0;
+  for (Eigen::Index i = 0; i < M.rows(); ++i)
+    for (Eigen::Index j = 0; j < M.cols(); ++j)
+      worst = std::max(worst, std::abs(C(i, j) - M(i, j)) / std::sqrt(M(i, i) * M(j, j)));
+  return worst;
+}
+
+/// fill_normal's values (normal3 per particle), serially: the statistical loops call it
+/// thousands of times on tiny vectors.
+void normals(std::vector<double>& z, std::uint64_t seed, std::uint64_t step, std::uint32_t stream = 0) {
+  for (std::size_t i = 0; i < z.size() / 3; ++i) normal3(seed, step, stream, i, &z[3 * i]);
+}
+
+}  // namespace
+
+TEST(PseSampler, SplitSampleCovarianceEqualsM) {
+  const SmallSystem s;
+  PseRpy op(Geometry::periodic(s.L[0], s.L[1], s.L[2]), 1.0, s.options());
+  op.set_positions(s.x, 1.0);
+  const Eigen::MatrixXd M = dense(op);
+  const int ns = 5000;
+  const auto n = static_cast<Eigen::Index>(s.x.size());
+  Eigen::MatrixXd C = Eigen::MatrixXd::Zero(n, n);
+  Eigen::MatrixXd Cz = Eigen::MatrixXd::Zero(n, n);
+  Eigen::VectorXd mean = Eigen::VectorXd::Zero(n);
+  std::vector<double> w(s.x.size()), z(s.x.size()), v(s.x.size());
+  for (int k = 0; k < ns; ++k) {
+    op.sample(2024, static_cast<std::uint64_t>(k), w);  // keyed (seed, step)
+    const Eigen::Map<const Eigen::VectorXd> e(w.data(), n);
+    C += e * e.transpose();
+    mean += e;
+    normals(z, 77, static_cast<std::uint64_t>(k));  // apply_sqrt: z1 = z, z2 from hash(z)
+    const SqrtReport rep = op.apply_sqrt(z, v);
+    EXPECT_EQ(rep.method, SqrtMethod::split);
+    const Eigen::Map<const Eigen::VectorXd> ev(v.data(), n);
+    Cz += ev * ev.transpose();
+  }
+  C /= ns;
+  Cz /= ns;
+  mean /= ns;
+  const double bound = 5.0 * std::sqrt(2.0 / ns);  // 5 standard errors
+  EXPECT_LT(covariance_error(C, M), bound);
+  EXPECT_LT(covariance_error(Cz, M), bound);
+  for (Eigen::Index i = 0; i < n; ++i) EXPECT_LT(std::abs(mean(i)) / std::sqrt(M(i, i)), 5.0 / std::sqrt(ns));
+  // The sample is a deterministic function of its key / of z.
+  std::vector<double> w2(w.size());
+  op.sample(2024, 3, w);
+  op.sample(2024, 3, w2);
+  EXPECT_EQ(w, w2);
+}
+
+TEST(PseSampler, WaveNoiseAloneHasCovarianceMw) {
+  // Isolates the Fourier-space noise (conjugate symmetry, scaling, projection): the sample
+  // minus its real-space part (Lanczos on M_r with the documented z1 = fill_normal(seed,
+  // step, stream 1), recomputed here) must have covariance M_w.
+  const SmallSystem s;
+  PseRpy op(Geometry::periodic(s.L[0], s.L[1], s.L[2]), 1.0, s.options());
+  op.set_positions(s.x, 1.0);
+  const auto n = static_cast<Eigen::Index>(s.x.size());
+  Eigen::MatrixXd Mw(n, n);
+  {
+    Eigen::MatrixXd I = Eigen::MatrixXd::Identity(n, n);
+    op.wave_space_operator().apply(std::span<const double>(I.data(), I.size()),
+                                   std::span<double>(Mw.data(), Mw.size()), static_cast<std::size_t>(n));
+  }
+  SqrtOptions so;
+  so.method = SqrtMethod::lanczos;
+  so.tolerance = op.parameters().lanczos_tolerance;
+  const int ns = 5000;
+  Eigen::MatrixXd C = Eigen::MatrixXd::Zero(n, n);
+  std::vector<double> zero(s.x.size(), 0.0), u(s.x.size()), y(s.x.size()), z1(s.x.size());
+  for (int k = 0; k < ns; ++k) {
+    const double scale = 1.7;  // BD's sqrt(2 kT/dt): covariance scale^2 M_w
+    op.apply_with_noise(zero, scale, 99, static_cast<std::uint64_t>(k), u);
+    normals(z1, 99, static_cast<std::uint64_t>(k), 1);
+    sqrt_apply(op.real_space_operator(), z1, y, 1, so);
+    Eigen::VectorXd e(n);
+    for (Eigen::Index i = 0; i < n; ++i) e(i) = (u[static_cast<std::size_t>(i)] - scale * y[static_cast<std::size_t>(i)]) / scale;
+    C += e * e.transpose();
+  }
+  C /= ns;
+  EXPECT_LT(covariance_error(C, Mw), 5.0 * std::sqrt(2.0 / ns));
+}
+
