@@ -50,9 +50,10 @@ struct SqrtOptions {
   SqrtMethod method = SqrtMethod::automatic;
   /// Relative tolerance, in (0, 1).
   /// Lanczos: stops when successive iterates differ by less than tol * |iterate|
-  ///   (Ando, Chow & Saad 2012, sec. II.B). The true relative error is then of the
-  ///   same order (the tests measure it below 10 * tol on RPY matrices; it is
-  ///   typically ~ tol / 10 because the change decreases geometrically).
+  ///   (Ando, Chow & Saad 2012, sec. II.B). The change underestimates the error
+  ///   left: on RPY suspensions the true relative error is 2-3 x tol
+  ///   (bench/sqrt/RESULTS.md; the tests require <= 10 x tol). Ask for tol / 3
+  ///   if the error itself must stay below a bound.
   /// Chebyshev: the degree is the smallest whose neglected Chebyshev coefficients
   ///   of sqrt on [lambda_min, lambda_max] sum to <= tol * sqrt(lambda_min), which
   ///   bounds the relative error by tol when the bounds enclose the spectrum.
