@@ -37,7 +37,8 @@ struct FmmOptions {
   /// near field (U list). 0 = no limit.
   double min_leaf_side = 0.0;
   /// Evaluate the near field (U-list P2P). false = far field only: the caller evaluates the
-  /// pairs of near_field() with its own kernel.
+  /// pairs of near_field() with its own kernel. (W/X interactions of small boxes are still summed
+  /// directly with the Laplace kernel: they are far-field pairs, separated by >= the leaf side.)
   bool near_field = true;
   /// Expansion order; 0 = from eps (FMM3D's rule, PLANEWAVE.md §1.5).
   int order = 0;
@@ -94,8 +95,9 @@ class LaplaceFmm {
   [[nodiscard]] const FmmOptions& options() const noexcept { return options_; }
   [[nodiscard]] std::size_t num_sources() const noexcept;
   [[nodiscard]] std::size_t num_targets() const noexcept;
-  /// Stage times (seconds) of set_points ("tree", "lists") and of the last evaluate ("p2m", "m2m",
-  /// "m2l", "l2l", "x_p2l", "w_m2p", "l2p", "p2p", "sort", "total").
+  /// Stage times (seconds) of set_points ("tree": tree + lists; "tables": order-p tables, built once
+  /// per process) and of the last evaluate ("sort", "p2m", "m2m", "l2l", "x_p2l", "m2l" (plane waves),
+  /// "l2p", "wx_far" (W-list M2P and the W/X boxes summed directly), "p2p" (U list), "total").
   [[nodiscard]] StageTimes last_timings() const;
   [[nodiscard]] TreeStats stats() const;
   /// Near-field structure (built on first call, then cached).
