@@ -46,9 +46,11 @@ struct PseOptions {
   /// Cost-model constants for xi = 0 (seconds per real-space pair, per FFT point
   /// and log2, per spreading/interpolation support point); measured on the
   /// development machine (bench/pse/RESULTS.md), only their ratios matter.
-  double cost_real_pair = 4.0e-9;
-  double cost_fft_point = 1.5e-9;
-  double cost_support_point = 2.0e-9;
+  /// (1 thread, N = 8000 in bench/pse/RESULTS.md: 34 ns per pair incl. the self term,
+  /// 3.75 ns per point and log2 per transform of 3 components, 10 ns per support point.)
+  double cost_real_pair = 3.4e-8;
+  double cost_fft_point = 3.75e-9;
+  double cost_support_point = 1.0e-8;
   /// Real-space products per step assumed by the cost model: 1 for M F only,
   /// 1 + Lanczos iterations (~5) when the split sampler is used every step.
   double cost_real_products = 5.0;

@@ -1,0 +1,155 @@
+// PSE benchmark: the setup of [PSE] Table I (random hard spheres, phi = 0.1, a = 1,
+// xi a = 0.5, tolerance 1e-3): particle-timesteps per second (PTPS = N / seconds) for
+// U = M F and for the split sampler M^{1/2} z, per-stage breakdown, the split sampler
+// against generic Lanczos on the full PSE operator ([PSE] Fig. 6), and the real-space
+// table against direct evaluation of F, G. CSV rows on stdout.
+//
+// usage: bench_pse [N ...]   (default 8000 16000 32000); threads from 1 to OMP max.
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <numbers>
+#include <random>
+#include <vector>
+
+#include "rpyfmm/core/timer.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy.hpp"
+#include "rpyfmm/rpy/random.hpp"
+
+using namespace rpyfmm;
+using namespace rpyfmm::rpy;
+using namespace rpyfmm::rpy::pse;
+
+namespace {
+
+/// Random sequential addition of non-overlapping spheres (radius a) at volume fraction phi.
+std::vector<double> hard_spheres(std::size_t n, double a, double L, unsigned seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, L);
+  const int nc = std::max(1, static_cast<int>(L / (2 * a)));
+  const double cell = L / nc;
+  std::vector<std::vector<std::size_t>> cells(static_cast<std::size_t>(nc) * nc * nc);
+  std::vector<double> x;
+  x.reserve(3 * n);
+  auto cid = [&](int i, int j, int k) {
+    return (static_cast<std::size_t>((i + nc) % nc) * nc + static_cast<std::size_t>((j + nc) % nc)) * nc +
+           static_cast<std::size_t>((k + nc) % nc);
+  };
+  while (x.size() < 3 * n) {
+    const double p[3] = {u(rng), u(rng), u(rng)};
+    const int c[3] = {std::min(static_cast<int>(p[0] / cell), nc - 1), std::min(static_cast<int>(p[1] / cell), nc - 1),
+                      std::min(static_cast<int>(p[2] / cell), nc - 1)};
+    bool ok = true;
+    for (int i = -1; i <= 1 && ok; ++i)
+      for (int j = -1; j <= 1 && ok; ++j)
+        for (int k = -1; k <= 1 && ok; ++k)
+          for (std::size_t q : cells[cid(c[0] + i, c[1] + j, c[2] + k)]) {
+            double r2 = 0.0;
+            for (int d = 0; d < 3; ++d) {
+              double dd = p[d] - x[3 * q + d];
+              dd -= L * std::nearbyint(dd / L);
+              r2 += dd * dd;
+            }
+            if (r2 < 4 * a * a) {
+              ok = false;
+              break;
+            }
+          }
+    if (!ok) continue;
+    cells[cid(c[0], c[1], c[2])].push_back(x.size() / 3);
+    x.insert(x.end(), p, p + 3);
+  }
+  return x;
+}
+
+template <class Fn>
+double median_seconds(int reps, Fn&& fn) {
+  std::vector<double> t;
+  for (int r = 0; r < reps; ++r) {
+    StopWatch sw;
+    fn();
+    t.push_back(sw.seconds());
+  }
+  std::sort(t.begin(), t.end());
+  return t[t.size() / 2];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::vector<std::size_t> sizes;
+  for (int i = 1; i < argc; ++i) sizes.push_back(static_cast<std::size_t>(std::atoll(argv[i])));
+  if (sizes.empty()) sizes = {8000, 16000, 32000};
+  const int max_threads = omp_get_max_threads();
+  const double a = 1.0, phi = 0.1;
+  std::printf("N,threads,grid,P,r_cut,MF_s,MF_PTPS,sample_s,sample_PTPS,sample_over_MF,split_iters,"
+              "lanczos_full_s,lanczos_full_iters,spread,fft,scale,interp,real,lanczos_real\n");
+  for (std::size_t n : sizes) {
+    const double L = std::cbrt(static_cast<double>(n) * 4.0 / 3.0 * std::numbers::pi * a * a * a / phi);
+    const auto x = hard_spheres(n, a, L, 7);
+    std::vector<double> f(3 * n), u(3 * n), w(3 * n), z(3 * n);
+    fill_normal(f, 1, 0);
+    fill_normal(z, 2, 0);
+    for (int threads = 1; threads <= max_threads; ++threads) {
+      omp_set_num_threads(threads);
+      PseOptions o;
+      o.tolerance = 1e-3;
+      o.xi = 0.5 / a;
+      o.fft_threads = threads;
+      PseRpy op(Geometry::periodic(L), 1.0, o);
+      op.set_positions(x, a);
+      op.apply(f, u);  // warm up
+      op.reset_stage_times();
+      const int reps = 3;
+      const double t_mf = median_seconds(reps, [&] { op.apply(f, u); });
+      StageTimes mf = op.stage_times();
+      op.reset_stage_times();
+      int iters = 0;
+      std::uint64_t step = 0;
+      const double t_s = median_seconds(reps, [&] { iters = op.sample(5, step++, w).iterations; });
+      StageTimes st = op.stage_times();
+      // Generic Lanczos on the full PSE operator, same tolerance ([PSE] Fig. 6).
+      SqrtOptions so;
+      so.method = SqrtMethod::lanczos;
+      so.tolerance = 1e-3;
+      int full_iters = 0;
+      const double t_full = median_seconds(1, [&] { full_iters = op.apply_sqrt(z, w, so).iterations; });
+      const auto& p = op.parameters();
+      auto per = [&](const StageTimes& s, const char* k) {
+        auto it = s.find(k);
+        return it == s.end() ? 0.0 : it->second / reps;
+      };
+      std::printf("%zu,%d,%dx%dx%d,%d,%.3f,%.4g,%.4g,%.4g,%.4g,%.2f,%d,%.4g,%d,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g\n", n,
+                  threads, p.grid[0], p.grid[1], p.grid[2], p.support[0], p.r_cut, t_mf, n / t_mf, t_s, n / t_s,
+                  t_s / t_mf, iters, t_full, full_iters, per(mf, "spread"),
+                  per(mf, "fft_forward") + per(mf, "fft_backward"), per(mf, "scale"), per(mf, "interpolate"),
+                  per(mf, "real_space"), per(st, "lanczos"));
+      std::fflush(stdout);
+    }
+    // Real space: table vs direct closed forms (speed and difference), 1 thread.
+    omp_set_num_threads(1);
+    PseOptions o;
+    o.tolerance = 1e-3;
+    o.xi = 0.5;
+    o.fft_threads = 1;
+    PseRpy tab(Geometry::periodic(L), 1.0, o);
+    o.real_space_table = false;
+    PseRpy dir(Geometry::periodic(L), 1.0, o);
+    tab.set_positions(x, a);
+    dir.set_positions(x, a);
+    std::vector<double> ut(3 * n), ud(3 * n);
+    const double tt = median_seconds(3, [&] { tab.apply_real(f, ut); });
+    const double td = median_seconds(3, [&] { dir.apply_real(f, ud); });
+    double num = 0, den = 0;
+    for (std::size_t i = 0; i < ut.size(); ++i) {
+      num += (ut[i] - ud[i]) * (ut[i] - ud[i]);
+      den += ud[i] * ud[i];
+    }
+    std::printf("# N=%zu real space 1 thread: table %.4g s, direct %.4g s (direct/table %.2f), rel diff %.2g\n", n, tt,
+                td, td / tt, std::sqrt(num / den));
+    omp_set_num_threads(max_threads);
+  }
+}
