@@ -67,6 +67,8 @@ PseParameters parameters_for_xi(const PseOptions& o, double a, const std::array<
                 "; the box is too small for xi = " + fmt(xi) + ": increase xi");
     ng *= nd;
   }
+  require(ng < 2147483647.0, ErrorCode::out_of_memory, kWhere,
+          "FFT grid of " + fmt(ng) + " points exceeds the 2^31 points FFTW/cuFFT plans accept");
   // Memory: 3 real grids + 3 half spectra + c(k) + window cache; the table is small.
   const double modes = static_cast<double>(p.grid[0]) * p.grid[1] * (p.grid[2] / 2 + 1);
   const double bytes = 24.0 * ng + 56.0 * modes +
