@@ -2,12 +2,12 @@
 // Rotne-Prager-Yamakawa mobility.
 //
 //   rpyfmm mobility --positions X.npy --forces F.npy (--radius a | --radii R.npy)
-//                   [--viscosity 1] [--method direct] --out U.npy [--threads N] [--json]
+//                   [--viscosity 1] [--method direct|fmm|pse|auto|none] [--eps 1e-6]
+//                   [--box L | --box Lx Ly Lz] --out U.npy [--threads N] [--json]
 //
 // U has shape (N,3).
 #include <CLI/CLI.hpp>
 #include <cstddef>
-#include <functional>
 #include <iostream>
 #include <memory>
 #include <string>
@@ -18,7 +18,7 @@
 #include "commands.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
-#include "rpyfmm/rpy/direct_operator.hpp"
+#include "rpyfmm/bd/mobility_factory.hpp"
 
 namespace rpyfmm::cli {
 namespace {
@@ -28,42 +28,26 @@ struct MobilityArgs {
   double radius = 0.0;
   double viscosity = 1.0;
   std::string method = "direct";
+  double eps = 1e-6;        // tolerance of fmm / pse (direct is exact)
+  std::vector<double> box;  // periodic box: L or Lx Ly Lz (empty = free space)
   CommonOptions common;
 };
 
 // ---- methods ------------------------------------------------------------
-// One entry per --method value. To add a solver, add a row whose factory
-// builds the operator (e.g. "fmm", "pse", "auto"); a row with an empty
-// factory is known but not built yet and is rejected with a clear message.
-// (Once rpyfmm::bd::make_mobility is complete it can serve every row.)
-struct MethodEntry {
-  const char* name;
-  std::function<std::unique_ptr<rpy::MobilityOperator>(const MobilityArgs&, std::size_t n)> make;
-};
-
-const std::vector<MethodEntry>& methods() {
-  static const std::vector<MethodEntry> table = {
-      {"direct",
-       [](const MobilityArgs& a, std::size_t) {
-         return std::make_unique<rpy::DirectRpy>(rpy::Geometry::open(), a.viscosity);
-       }},
-      {"fmm", nullptr},   // FMM engineer: free-space FMM operator
-      {"pse", nullptr},   // PSE engineer: periodic operator (needs a --box option)
-      {"auto", nullptr},  // direct for small N, fmm above the crossover
-  };
-  return table;
-}
-
+// Every --method goes through rpyfmm::bd::make_mobility, the one factory that
+// the BD engine uses too: direct, fmm, pse (periodic, needs --box), auto, none.
 std::unique_ptr<rpy::MobilityOperator> make_operator(const MobilityArgs& args, std::size_t n) {
-  std::string known;
-  for (const auto& m : methods()) {
-    if (args.method == m.name) {
-      if (!m.make) fail(ErrorCode::not_supported, "--method", "method '" + args.method + "' is not available yet");
-      return m.make(args, n);
-    }
-    known += (known.empty() ? "" : ", ") + std::string(m.name);
+  bd::MobilitySpec spec;
+  spec.method = bd::mobility_method_from_string(args.method);
+  spec.tolerance = args.eps;
+  spec.viscosity = args.viscosity;
+  if (!args.box.empty()) {
+    require(args.box.size() == 1 || args.box.size() == 3, ErrorCode::invalid_argument, "--box",
+            "give one length L (cube) or three lengths Lx Ly Lz, got " + std::to_string(args.box.size()) + " values");
+    spec.geometry = args.box.size() == 1 ? rpy::Geometry::periodic(args.box[0])
+                                         : rpy::Geometry::periodic(args.box[0], args.box[1], args.box[2]);
   }
-  fail(ErrorCode::invalid_argument, "--method", "unknown method '" + args.method + "' (known: " + known + ")");
+  return bd::make_mobility(spec, n);
 }
 // -------------------------------------------------------------------------
 
@@ -111,6 +95,7 @@ void run_mobility(const MobilityArgs& args, bool radius_given) {
         .add("method", op->name())
         .add("n", n)
         .add("viscosity", args.viscosity)
+        .add("eps", args.eps)
         .add("equal_radii", op->equal_radii())
         .add("threads", active_threads())
         .add("out", args.out)
@@ -132,8 +117,13 @@ void register_mobility(CLI::App& app) {
   auto* radii = cmd->add_option("--radii", args->radii, "per-particle radii (N,)");
   radius->excludes(radii);
   cmd->add_option("--viscosity", args->viscosity, "solvent viscosity eta > 0")->capture_default_str();
-  cmd->add_option("--method", args->method, "direct (fmm, pse, auto as they become available)")
+  cmd->add_option("--method", args->method,
+                  "direct (exact O(N^2)), fmm (free space, O(N)), pse (periodic, needs --box), "
+                  "auto (direct for small N, fmm above; pse with --box), none (free draining)")
       ->capture_default_str();
+  cmd->add_option("--eps", args->eps, "relative tolerance of fmm/pse, in [1e-12, 1e-1]")->capture_default_str();
+  cmd->add_option("--box", args->box, "periodic box: L (cube) or Lx Ly Lz; particles are wrapped into it")
+      ->expected(1, 3);
   cmd->add_option("--out", args->out, "output .npy, shape (N,3)")->required();
   add_common_options(*cmd, args->common);
   cmd->callback([args, radius] { run_mobility(*args, radius->count() > 0); });

@@ -207,6 +207,63 @@ TEST_F(Cli, MobilityMatchesLibrary) {
   EXPECT_EQ(out.data, ref);
 }
 
+namespace {
+double rel_l2(const std::vector<double>& a, const std::vector<double>& b) {
+  double num = 0, den = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    num += (a[i] - b[i]) * (a[i] - b[i]);
+    den += b[i] * b[i];
+  }
+  return std::sqrt(num / den);
+}
+}  // namespace
+
+TEST_F(Cli, LaplaceFmmMatchesDirectToTolerance) {
+  const std::size_t n = 3000;
+  const auto s = random_vec(3 * n, 21, -1, 1);
+  const auto q = random_vec(n, 22, -1, 1);
+  write_npy(path("s.npy"), {n, 3}, s);
+  write_npy(path("q.npy"), {n}, q);
+  const Result r = run("laplace --sources " + path("s.npy") + " --charges " + path("q.npy") +
+                       " --eps 1e-6 --out " + path("r.npy") + " --json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("\"method\":\"fmm\""), std::string::npos) << r.out;
+  const Npy out = read_npy(path("r.npy"));
+  ASSERT_EQ(out.shape, (std::vector<std::size_t>{n, 10}));
+  std::vector<double> ref(n * 10);
+  rpyfmm::fmm::laplace_direct(s, q, 1, {}, rpyfmm::fmm::all_outputs, ref);
+  // Relative l2 error of each output (potential, gradient, Hessian) <= eps: the FMM's contract.
+  for (auto [lo, hi] : {std::pair{0, 1}, std::pair{1, 4}, std::pair{4, 10}}) {
+    std::vector<double> a, b;
+    for (std::size_t i = 0; i < n; ++i)
+      for (int c = lo; c < hi; ++c) {
+        a.push_back(out.data[10 * i + c]);
+        b.push_back(ref[10 * i + c]);
+      }
+    EXPECT_LE(rel_l2(a, b), 1e-6) << "columns " << lo << ".." << hi;
+  }
+}
+
+TEST_F(Cli, MobilityFmmAndAutoMatchDirect) {
+  const std::size_t n = 2000;
+  const auto x = random_vec(3 * n, 23, 0, 30);
+  const auto f = random_vec(3 * n, 24, -1, 1);
+  write_npy(path("x.npy"), {n, 3}, x);
+  write_npy(path("f.npy"), {n, 3}, f);
+  rpyfmm::rpy::DirectRpy op;
+  op.set_positions(x, 0.5);
+  std::vector<double> ref(3 * n);
+  op.apply(f, ref);
+  for (const std::string method : {"fmm", "auto"}) {
+    const Result r = run("mobility --positions " + path("x.npy") + " --forces " + path("f.npy") +
+                         " --radius 0.5 --method " + method + " --eps 1e-5 --out " + path("u.npy") + " --json");
+    ASSERT_EQ(r.code, 0) << r.err;
+    const Npy out = read_npy(path("u.npy"));
+    ASSERT_EQ(out.shape, (std::vector<std::size_t>{n, 3}));
+    EXPECT_LE(rel_l2(out.data, ref), 1e-5) << method;
+  }
+}
+
 TEST_F(Cli, LaplaceBadInput) {
   const std::size_t n = 4;
   write_npy(path("s.npy"), {n, 3}, random_vec(3 * n, 9, -1, 1));
@@ -240,7 +297,8 @@ TEST_F(Cli, LaplaceBadInput) {
   expect_failure("laplace" + S + Q + " --targets " + path("t_nan.npy") + " --direct" + O, "NaN", "r.npy");
   expect_failure("laplace" + S + Q + O, "--direct or --eps", "r.npy");
   expect_failure("laplace" + S + Q + " --direct --eps 1e-6" + O, "--eps", "r.npy");
-  expect_failure("laplace" + S + Q + " --eps 1e-6" + O, "FMM", "r.npy");
+  expect_failure("laplace" + S + Q + " --eps 0.5" + O, "eps", "r.npy");
+  expect_failure("laplace" + S + Q + " --eps 1e-20" + O, "eps", "r.npy");
   expect_failure("laplace" + S + " --direct" + O, "--charges", "r.npy");
   expect_failure("laplace" + S + Q + " --direct", "--out", "r.npy");
   expect_failure("laplace" + S + Q + " --direct --threads -1" + O, "threads", "r.npy");
@@ -281,7 +339,10 @@ TEST_F(Cli, MobilityBadInput) {
   expect_failure(good + " --radii " + path("a2.npy") + O, "radii", "u.npy");
   expect_failure(good + " --radii " + path("a_neg.npy") + O, "radius of particle 1", "u.npy");
   expect_failure(good + " --radius 1 --method warp" + O, "unknown method 'warp'", "u.npy");
-  expect_failure(good + " --radius 1 --method fmm" + O, "not available", "u.npy");
+  expect_failure(good + " --radius 1 --method pse" + O, "periodic", "u.npy");
+  expect_failure(good + " --radius 1 --method fmm --box 10" + O, "open geometry", "u.npy");
+  expect_failure(good + " --radius 1 --method fmm --eps 0.7" + O, "tolerance", "u.npy");
+  expect_failure(good + " --radius 1 --box 10 20" + O, "--box", "u.npy");
   expect_failure("mobility" + F + " --radius 1" + O, "--positions", "u.npy");
   expect_failure(good + " --radius 1", "--out", "u.npy");
   expect_failure(good + " --radius 1 --threads -3" + O, "threads", "u.npy");
