@@ -4,7 +4,7 @@
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
-// LEAD: include the PSE operator's header here when it lands.
+#include "rpyfmm/rpy/pse/pse_rpy.hpp"
 
 namespace rpyfmm::bd {
 
@@ -42,7 +42,7 @@ bool mobility_method_available(MobilityMethod method) {
     case MobilityMethod::fmm:
       return true;
     case MobilityMethod::pse:
-      return false;  // LEAD: true once the PSE operator lands
+      return true;
     case MobilityMethod::automatic:
       return true;
   }
@@ -83,8 +83,11 @@ std::unique_ptr<rpy::MobilityOperator> make_mobility(const MobilitySpec& spec, s
       }
     case MobilityMethod::pse:
       if (spec.geometry.is_open()) unavailable(method, "needs a periodic geometry");
-      // LEAD: return the PSE operator built with spec.tolerance here.
-      unavailable(method, "is not available in this build yet");
+      {
+        rpy::pse::PseOptions options;
+        options.tolerance = spec.tolerance;  // PseRpy accepts [1e-8, 0.1)
+        return std::make_unique<rpy::pse::PseRpy>(spec.geometry, spec.viscosity, options);
+      }
     case MobilityMethod::automatic:
       break;
   }

@@ -10,7 +10,7 @@ void fill_normal(std::span<double> z, std::uint64_t seed, std::uint64_t step, st
   require(z.size() % 3 == 0, ErrorCode::invalid_input, "fill_normal",
           "noise length " + std::to_string(z.size()) + " is not a multiple of 3");
   const auto n = static_cast<std::int64_t>(z.size() / 3);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= 4096)
   for (std::int64_t i = 0; i < n; ++i) normal3(seed, step, stream, static_cast<std::uint64_t>(i), &z[3 * i]);
 }
 
