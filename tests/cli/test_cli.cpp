@@ -264,6 +264,21 @@ TEST_F(Cli, MobilityFmmAndAutoMatchDirect) {
   }
 }
 
+TEST_F(Cli, MobilityPseSingleParticleIsHasimoto) {
+  // One sphere in a periodic cube: M = mu0 (1 - 2.837297 (a/L) + (4 pi / 3) (a/L)^3) I, exact for RPY
+  // (MATH.md §5), reached through the CLI's --method pse --box.
+  write_npy(path("x1.npy"), {1, 3}, {1.0, 2.0, 3.0});
+  write_npy(path("f1.npy"), {1, 3}, {1.0, -2.0, 0.5});
+  const double a = 0.5, L = 10.0;
+  const Result r = run("mobility --positions " + path("x1.npy") + " --forces " + path("f1.npy") +
+                       " --radius 0.5 --method pse --box 10 --eps 1e-6 --out " + path("u1.npy"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const Npy out = read_npy(path("u1.npy"));
+  const double mu = (1.0 - 2.837297 * a / L + 4.0 * M_PI / 3.0 * std::pow(a / L, 3)) / (6.0 * M_PI * a);
+  const double f[3] = {1.0, -2.0, 0.5};
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(out.data[k], mu * f[k], 1e-5 * mu * 2.0);
+}
+
 TEST_F(Cli, LaplaceBadInput) {
   const std::size_t n = 4;
   write_npy(path("s.npy"), {n, 3}, random_vec(3 * n, 9, -1, 1));
