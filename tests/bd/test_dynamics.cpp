@@ -331,3 +331,4 @@ TEST(BdDynamics, FactoryFmmMatchesDirectStep) {
   EXPECT_EQ(make_mobility({.method = MobilityMethod::automatic}, 5000)->name(), "fmm");
   EXPECT_EQ(make_mobility({.method = MobilityMethod::automatic}, 500)->name(), "direct");
 }
+
