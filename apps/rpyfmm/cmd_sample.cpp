@@ -3,7 +3,8 @@
 //
 //   rpyfmm sample --positions X.npy (--radius a | --radii R.npy)
 //                 [--noise Z.npy | --seed S [--step K]]
-//                 [--method lanczos|chebyshev|cholesky|eigen] [--operator direct|fmm]
+//                 [--method auto|lanczos|chebyshev|cholesky|eigen|split|pse]
+//                 [--operator direct|fmm|pse] [--box L | --box Lx Ly Lz]
 //                 [--tol 1e-3] [--max-iterations M] [--eps E] [--viscosity 1]
 //                 --out W.npy [--threads N] [--json]
 //
@@ -29,6 +30,7 @@
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/random.hpp"
 #include "rpyfmm/rpy/sqrt.hpp"
 
@@ -41,8 +43,9 @@ struct SampleArgs {
   double viscosity = 1.0;
   std::uint64_t seed = 0;
   std::uint64_t step = 0;
-  std::string method = "lanczos";
+  std::string method = "auto";
   std::string op = "direct";
+  std::vector<double> box;  // periodic box for --operator pse: L or Lx Ly Lz
   double tol = 1e-3;
   double eps = 0.0;  // operator (FMM) tolerance; 0 = not given
   int max_iterations = 0;
@@ -52,10 +55,8 @@ struct SampleArgs {
 // ---- operators ----------------------------------------------------------
 // One entry per --operator value; an entry with an empty factory is known but
 // not built yet and is rejected with a clear message.
-// LEAD: add the PSE operator here as "pse" with a --box L option, and allow
-// --method split there (the PSE operator's own sampler is selected with
-// SqrtMethod::automatic or SqrtMethod::split; parse_method() below lists the
-// methods accepted from the command line).
+// "pse" is the periodic PSE operator (needs --box); its own split sampler is
+// used with --method auto (the default) or split.
 struct OperatorEntry {
   const char* name;
   bool uses_eps;  // whether --eps means something for this operator
@@ -71,6 +72,16 @@ const std::vector<OperatorEntry>& operators() {
          rpy::FmmRpyOptions o;  // tolerance default 1e-6 unless --eps
          if (a.eps != 0.0) o.tolerance = a.eps;
          return std::make_unique<rpy::FmmRpy>(rpy::Geometry::open(), a.viscosity, o);
+       }},
+      {"pse", true,
+       [](const SampleArgs& a) {
+         require(a.box.size() == 1 || a.box.size() == 3, ErrorCode::invalid_argument, "--box",
+                 "--operator pse needs a periodic box: --box L or --box Lx Ly Lz");
+         const rpy::Geometry g = a.box.size() == 1 ? rpy::Geometry::periodic(a.box[0])
+                                                   : rpy::Geometry::periodic(a.box[0], a.box[1], a.box[2]);
+         rpy::pse::PseOptions o;  // tolerance default 1e-3 unless --eps
+         if (a.eps != 0.0) o.tolerance = a.eps;
+         return std::make_unique<rpy::pse::PseRpy>(g, a.viscosity, o);
        }},
   };
   return table;
@@ -90,16 +101,27 @@ const OperatorEntry& find_operator(const std::string& name) {
 // -------------------------------------------------------------------------
 
 rpy::SqrtMethod parse_method(const std::string& name) {
+  if (name == "auto") return rpy::SqrtMethod::automatic;
   for (auto m : {rpy::SqrtMethod::lanczos, rpy::SqrtMethod::chebyshev, rpy::SqrtMethod::cholesky,
-                 rpy::SqrtMethod::eigen}) {
+                 rpy::SqrtMethod::eigen, rpy::SqrtMethod::split}) {
     if (name == rpy::to_string(m)) return m;
   }
   fail(ErrorCode::invalid_argument, "--method",
-       "unknown method '" + name + "' (known: lanczos, chebyshev, cholesky, eigen)");
+       "unknown method '" + name + "' (known: auto, lanczos, chebyshev, cholesky, eigen, split, pse)");
 }
 
-void run_sample(const SampleArgs& args, bool radius_given, bool seed_given) {
-  apply_threads(args.common);
+void run_sample(const SampleArgs& given, bool radius_given, bool seed_given) {
+  apply_threads(given.common);
+  // `--method pse` is shorthand for the PSE operator with its split sampler.
+  SampleArgs args = given;
+  if (args.method == "pse") {
+    require(args.op == "direct" || args.op == "pse", ErrorCode::invalid_argument, "--method",
+            "pse selects the PSE operator; it cannot be combined with --operator " + args.op);
+    args.op = "pse";
+    args.method = "split";
+  }
+  require(args.box.empty() || args.op == "pse", ErrorCode::invalid_argument, "--box",
+          "a periodic box needs --operator pse (direct and fmm are free-space operators)");
   // Validate every option before reading or computing anything.
   require(radius_given != !args.radii.empty(), ErrorCode::invalid_argument, "sample",
           "give exactly one of --radius a or --radii R.npy");
@@ -204,14 +226,17 @@ void register_sample(CLI::App& app) {
   auto* seed = cmd->add_option("--seed", args->seed, "seed of the counter-based generator")->capture_default_str();
   noise->excludes(seed);
   cmd->add_option("--step", args->step, "time-step index (generator counter)")->capture_default_str();
-  cmd->add_option("--method", args->method, "lanczos, chebyshev, cholesky or eigen (dense, N <= 2000)")
+  cmd->add_option("--method", args->method,
+                  "auto (operator's choice: Lanczos, or PSE's split sampler), lanczos, chebyshev, cholesky or "
+                  "eigen (dense, N <= 2000), split (PSE only); pse = --operator pse --method split")
       ->capture_default_str();
-  cmd->add_option("--operator", args->op, "mobility operator: direct or fmm")
+  cmd->add_option("--operator", args->op, "mobility operator: direct, fmm, or pse (periodic, needs --box)")
       ->capture_default_str();
+  cmd->add_option("--box", args->box, "periodic box for --operator pse: L or Lx Ly Lz")->expected(1, 3);
   cmd->add_option("--tol", args->tol, "relative tolerance of the square root, in (0, 1)")->capture_default_str();
   cmd->add_option("--max-iterations", args->max_iterations, "Lanczos iterations / Chebyshev degree (0 = auto)")
       ->capture_default_str();
-  cmd->add_option("--eps", args->eps, "tolerance of the fmm operator (default 1e-6)");
+  cmd->add_option("--eps", args->eps, "tolerance of the fmm (default 1e-6) or pse (default 1e-3) operator");
   cmd->add_option("--viscosity", args->viscosity, "solvent viscosity eta > 0")->capture_default_str();
   cmd->add_option("--out", args->out, "output .npy, shape (N,3)")->required();
   add_common_options(*cmd, args->common);

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "rpyfmm/rpy/direct_operator.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/random.hpp"
 #include "sqrt_test_util.hpp"
 
@@ -154,6 +155,23 @@ TEST_F(SampleCli, FmmOperatorMatchesDirect) {
   EXPECT_LE(max_rel_diff(read_npy(out, shape), expected(z, a, SqrtMethod::lanczos, 1e-8)), 1e-6);
 }
 
+// `--method pse` = the periodic PSE operator with its split sampler: it equals the library's
+// PseRpy::apply_sqrt on the same Philox noise, bit for bit (same code, deterministic).
+TEST_F(SampleCli, PseSplitSamplerMatchesLibrary) {
+  const CliResult r = run_cli("--positions " + xp.string() + " --radius 1 --seed 9 --method pse --box 60 --out " +
+                              out.string() + " --json");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_NE(r.out.find("\"operator\":\"pse\""), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\"method\":\"split\""), std::string::npos) << r.out;
+  std::vector<double> z(3 * N), w(3 * N);
+  fill_normal(z, 9u, 0u);
+  rpyfmm::rpy::pse::PseRpy op(rpyfmm::rpy::Geometry::periodic(60.0), 1.0);
+  op.set_positions(x, 1.0);
+  op.apply_sqrt(z, w);
+  std::vector<std::size_t> shape;
+  EXPECT_LE(max_rel_diff(read_npy(out, shape), w), 1e-12);
+}
+
 TEST_F(SampleCli, BadInputExitTwoNoOutput) {
   const std::string base = "--positions " + xp.string() + " --out " + out.string() + " ";
   std::vector<double> zshort(3 * (N - 1), 0.5);
@@ -179,6 +197,10 @@ TEST_F(SampleCli, BadInputExitTwoNoOutput) {
            {base + "--radius -1", "radius"},
            {base, "exactly one of --radius"},
            {base + "--radius 1 --max-iterations -2", "max-iterations"},
+           {base + "--radius 1 --box 50", "--operator pse"},
+           {base + "--radius 1 --operator pse", "--box"},
+           {base + "--radius 1 --method split", "PSE"},
+           {base + "--radius 1 --method pse --operator fmm", "cannot be combined"},
            {"--positions " + xn.string() + " --radius 1 --out " + out.string(), "NaN"},
            {"--positions " + (scratch() / "missing.txt").string() + " --radius 1 --out " + out.string(),
             "missing.txt"},

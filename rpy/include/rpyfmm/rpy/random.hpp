@@ -23,7 +23,8 @@
 namespace rpyfmm::rpy {
 
 /// Three independent N(0,1) values for (seed, step, stream, particle).
-/// Counter = (particle, stream, step_lo, step_hi), key = seed.
+/// Counter = (particle, stream, step_lo, step_hi), key = seed; the third value uses
+/// the counter with stream | 2^31, so `stream` must be below 2^31.
 RPYFMM_HOST_DEVICE inline void normal3(std::uint64_t seed, std::uint64_t step, std::uint32_t stream,
                                        std::uint64_t particle, double out[3]) {
   using Philox = r123::Philox4x32;
@@ -48,7 +49,7 @@ RPYFMM_HOST_DEVICE inline void normal3(std::uint64_t seed, std::uint64_t step, s
 }
 
 /// Fills z[3*i + c] (i = 0..N-1, c = 0..2) with normal3(seed, step, stream, i).
-/// z.size() must be a multiple of 3 (throws rpyfmm::Error otherwise).
+/// z.size() must be a multiple of 3 and stream < 2^31 (throws rpyfmm::Error otherwise).
 void fill_normal(std::span<double> z, std::uint64_t seed, std::uint64_t step, std::uint32_t stream = 0);
 
 }  // namespace rpyfmm::rpy
