@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "configurations.hpp"
+#include "fmm_rpy_test_util.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
@@ -19,23 +20,11 @@ using rpyfmm::rpy::FmmRpy;
 using rpyfmm::rpy::FmmRpyOptions;
 using rpyfmm::rpy::Geometry;
 namespace t = rpyfmm::testing;
+using t::fmm_error;
+using t::product;
 
 namespace {
 
-std::vector<double> product(const rpyfmm::rpy::MobilityOperator& op, const std::vector<double>& f) {
-  std::vector<double> u(f.size());
-  op.apply(f, u);
-  return u;
-}
-
-double fmm_error(const t::Configuration& c, double eps, int leaf_capacity = 0, unsigned seed = 7) {
-  DirectRpy direct;
-  FmmRpy fast(Geometry::open(), 1.0, FmmRpyOptions{.tolerance = eps, .leaf_capacity = leaf_capacity});
-  direct.set_positions(c.x, c.a);
-  fast.set_positions(c.x, c.a);
-  const auto f = t::random_vector(c.x.size(), seed);
-  return t::relative_l2(product(fast, f), product(direct, f));
-}
 
 struct Case {
   std::string name;
