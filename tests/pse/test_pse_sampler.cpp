@@ -5,31 +5,17 @@
 #include <Eigen/Dense>
 
 #include "ewald_reference.hpp"
+#include "pse_sampler_util.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/random.hpp"
 
 using namespace rpyfmm::rpy;
 using namespace rpyfmm::rpy::pse;
+using pse_test::dense;
+using pse_test::SmallSystem;
 
 namespace {
 
-struct SmallSystem {
-  std::array<double, 3> L = {9.0, 9.0, 10.0};
-  std::vector<double> x = {1.0, 1.0, 1.0, 2.5, 1.2, 1.0, 6.0, 5.0, 8.5, 6.2, 5.3, 0.4};  // overlap + near pairs
-  PseOptions options() const {
-    PseOptions o;
-    o.tolerance = 1e-2;  // the covariance identity holds for the discrete operator at any eps;
-    o.xi = 1.0;          // a coarse grid keeps the 5000-sample estimates fast
-    o.lanczos_tolerance = 1e-8;
-    return o;
-  }
-};
-
-Eigen::MatrixXd dense(const MobilityOperator& op) {
-  const auto d = op.assemble_dense();
-  const auto n = static_cast<Eigen::Index>(3 * op.size());
-  return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(d.data(), n, n);
-}
 
 }  // namespace
 

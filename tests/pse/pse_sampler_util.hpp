@@ -1,0 +1,33 @@
+// Helpers shared by the PSE sampler tests (test_pse_sampler.cpp, test_pse_statistics.cpp):
+// a small periodic system with overlapping and near pairs, and dense assembly as an Eigen matrix.
+#pragma once
+
+#include <array>
+#include <vector>
+
+#include <Eigen/Dense>
+
+#include "rpyfmm/rpy/mobility.hpp"
+#include "rpyfmm/rpy/pse/pse_parameters.hpp"
+
+namespace pse_test {
+
+struct SmallSystem {
+  std::array<double, 3> L = {9.0, 9.0, 10.0};
+  std::vector<double> x = {1.0, 1.0, 1.0, 2.5, 1.2, 1.0, 6.0, 5.0, 8.5, 6.2, 5.3, 0.4};  // overlap + near pairs
+  rpyfmm::rpy::pse::PseOptions options() const {
+    rpyfmm::rpy::pse::PseOptions o;
+    o.tolerance = 1e-2;  // the covariance identity holds for the discrete operator at any eps;
+    o.xi = 1.0;          // a coarse grid keeps the 5000-sample estimates fast
+    o.lanczos_tolerance = 1e-8;
+    return o;
+  }
+};
+
+inline Eigen::MatrixXd dense(const rpyfmm::rpy::MobilityOperator& op) {
+  const auto d = op.assemble_dense();
+  const auto n = static_cast<Eigen::Index>(3 * op.size());
+  return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(d.data(), n, n);
+}
+
+}  // namespace pse_test
