@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Installs every build and test dependency of rpyfmm from Debian's packages
-# (and NumPy from PyPI for the benchmark/Python helpers when asked).
+# Installs every build and test dependency of rpyfmm from Debian's packages,
+# then the Python module's build/test packages from PyPI (install-python-deps.sh).
 # Idempotent: packages already present are skipped quickly by apt.
 set -euo pipefail
 
@@ -9,7 +9,7 @@ packages=(
   libeigen3-dev libfftw3-dev libboost-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev libtomlplusplus-dev librandom123-dev libfmt-dev
-  python3
+  python3 python3-dev python3-pip python3-venv
 )
 
 missing=()
@@ -26,3 +26,5 @@ if ((${#missing[@]})); then
   $SUDO apt-get update -qq
   $SUDO apt-get install -y --no-install-recommends "${missing[@]}"
 fi
+
+bash "$(dirname "$0")/install-python-deps.sh"

@@ -1,0 +1,104 @@
+"""rpyfmm — fast Rotne-Prager-Yamakawa hydrodynamics from NumPy.
+
+The Laplace FMM (:class:`LaplaceFmm`, :func:`laplace_direct`), the RPY mobility
+operators behind one interface (:class:`DirectRpy`, :class:`FmmRpy`,
+:class:`PseRpy`, :class:`FreeDraining`, :func:`make_mobility`), the Brownian
+samplers (``apply_sqrt``, :func:`sqrt_apply`, :func:`normal_noise`,
+:class:`SqrtReport`) and Brownian dynamics (:func:`run_bd`,
+:class:`Simulation` with Python force callbacks).
+
+Arrays: positions/forces/velocities are (N, 3) or (3N,), results come back in
+the input's shape as float64. A float64 C-contiguous array is used in place
+(no copy); float32, integer or strided inputs are converted once (a copy).
+``out=`` arrays are written in place and returned. Units are the caller's:
+with viscosity eta and radius a the self mobility is 1/(6 pi eta a).
+
+Errors raise :class:`Error` subclasses (RuntimeError; argument errors are also
+ValueError) whose message is the C++ library's, naming the bad argument.
+The GIL is released during computations; :func:`set_num_threads` sets the
+OpenMP thread count.
+"""
+
+from __future__ import annotations
+
+from ._rpyfmm import (
+    ALL_OUTPUTS,
+    GRADIENT,
+    HESSIAN,
+    POTENTIAL,
+    RESULT_COLUMNS,
+    DirectRpy,
+    Error,
+    FileError,
+    FmmRpy,
+    FreeDraining,
+    InvalidArgumentError,
+    InvalidInputError,
+    LaplaceFmm,
+    MobilityOperator,
+    NotSupportedError,
+    NumericalFailureError,
+    OutOfMemoryError,
+    PseRpy,
+    RunConfig,
+    Simulation,
+    SpectrumBounds,
+    SqrtReport,
+    StepReport,
+    __version__,
+    demo_config_text,
+    estimate_spectrum_bounds,
+    get_num_threads,
+    laplace_direct,
+    load_config,
+    make_mobility,
+    normal_noise,
+    parse_config,
+    restart_bd,
+    run_bd,
+    set_num_threads,
+    sqrt_apply,
+)
+from ._helpers import msd, read_xyz, stokes_einstein
+
+__all__ = [
+    "ALL_OUTPUTS",
+    "GRADIENT",
+    "HESSIAN",
+    "POTENTIAL",
+    "RESULT_COLUMNS",
+    "DirectRpy",
+    "Error",
+    "FileError",
+    "FmmRpy",
+    "FreeDraining",
+    "InvalidArgumentError",
+    "InvalidInputError",
+    "LaplaceFmm",
+    "MobilityOperator",
+    "NotSupportedError",
+    "NumericalFailureError",
+    "OutOfMemoryError",
+    "PseRpy",
+    "RunConfig",
+    "Simulation",
+    "SpectrumBounds",
+    "SqrtReport",
+    "StepReport",
+    "__version__",
+    "demo_config_text",
+    "estimate_spectrum_bounds",
+    "get_num_threads",
+    "laplace_direct",
+    "load_config",
+    "make_mobility",
+    "msd",
+    "normal_noise",
+    "parse_config",
+    "read_xyz",
+    "restart_bd",
+    "run_bd",
+    "set_num_threads",
+    "sqrt_apply",
+    "stokes_einstein",
+]

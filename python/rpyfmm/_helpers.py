@@ -1,0 +1,57 @@
+"""Pure-Python helpers of the rpyfmm package: trajectory reading and the mean
+squared displacement (MSD) used by the examples and tests."""
+
+from __future__ import annotations
+
+import os
+from typing import List, Tuple
+
+import numpy as np
+import numpy.typing as npt
+
+
+def read_xyz(path: str | os.PathLike[str]) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Reads an extended-XYZ trajectory written by the BD engine.
+
+    Returns ``(times, steps, positions)`` with ``positions`` of shape
+    (frames, N, 3) in length units (wrapped into the box for periodic runs, as
+    written; 10 significant digits) and ``times`` in time units.
+    """
+    times: List[float] = []
+    steps: List[int] = []
+    frames: List[np.ndarray] = []
+    with open(path, encoding="utf-8") as f:
+        lines = f.read().splitlines()
+    i = 0
+    while i < len(lines):
+        if not lines[i].strip():
+            i += 1
+            continue
+        n = int(lines[i])
+        header = lines[i + 1]
+        fields = dict(tok.split("=", 1) for tok in header.split() if "=" in tok)
+        times.append(float(fields.get("Time", "nan")))
+        steps.append(int(fields.get("Step", "-1")))
+        rows = [ln.split() for ln in lines[i + 2 : i + 2 + n]]
+        frames.append(np.array([[float(r[1]), float(r[2]), float(r[3])] for r in rows]))
+        i += 2 + n
+    return np.array(times), np.array(steps), np.array(frames)
+
+
+def msd(positions: npt.ArrayLike) -> np.ndarray:
+    """Mean squared displacement from the first frame.
+
+    positions: (frames, N, 3) unwrapped positions (length units). Returns
+    (frames,) values <|x_i(t) - x_i(0)|^2> averaged over particles
+    (length^2 units). For free diffusion it grows as 6 D t.
+    """
+    x = np.asarray(positions, dtype=np.float64)
+    if x.ndim != 3 or x.shape[2] != 3:
+        raise ValueError(f"msd: positions has shape {x.shape}, expected (frames, N, 3)")
+    d = x - x[0]
+    return np.mean(np.sum(d * d, axis=2), axis=1)
+
+
+def stokes_einstein(kT: float, viscosity: float, radius: float) -> float:
+    """Single-sphere diffusion coefficient D0 = kT / (6 pi eta a) (length^2 / time)."""
+    return kT / (6.0 * np.pi * viscosity * radius)

@@ -1,0 +1,407 @@
+// rpyfmm Python bindings — Brownian dynamics (bd/include/rpyfmm/bd/*.hpp):
+// configs, whole runs (run_bd / restart_bd, what `rpyfmm bd` calls) and a
+// steppable Simulation around bd::Integrator with Python force callbacks.
+//
+//   dx = M F dt + sqrt(2 kT dt) M^{1/2} z   (Euler-Maruyama, integrator.hpp)
+//
+// Units are the caller's: lengths, time dt, energy kT, viscosity eta with
+// mobility 1/(6 pi eta a); forces in energy/length.
+#include <nanobind/stl/filesystem.h>
+#include <nanobind/stl/map.h>
+#include <nanobind/stl/optional.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/string_view.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <optional>
+
+#include "common.hpp"
+#include "rpyfmm/bd/config.hpp"
+#include "rpyfmm/bd/integrator.hpp"
+#include "rpyfmm/bd/mobility_factory.hpp"
+#include "rpyfmm/bd/particles.hpp"
+#include "rpyfmm/bd/run.hpp"
+
+namespace rpyfmm::python {
+namespace {
+
+/// A config argument: a bd::RunConfig, a path (str or os.PathLike) to a TOML file,
+/// or TOML text (a str containing a newline or '=').
+bd::RunConfig config_from(nb::handle config) {
+  bd::RunConfig parsed;
+  if (nb::try_cast(config, parsed, false)) return parsed;
+  std::string text;
+  if (nb::try_cast(config, text, false) &&
+      (text.find('\n') != std::string::npos || text.find('=') != std::string::npos)) {
+    return bd::parse_config(text, "<python string>");
+  }
+  std::filesystem::path path;
+  if (nb::try_cast(config, path, true)) return bd::load_config(path);
+  fail(ErrorCode::invalid_argument, "config", "expected a RunConfig, a TOML file path or TOML text");
+}
+
+nb::dict summary_dict(const bd::RunSummary& s) {
+  nb::dict d;
+  d["particles"] = s.particles;
+  d["mobility"] = s.mobility;
+  d["first_step"] = s.first_step;
+  d["last_step"] = s.last_step;
+  d["wall_seconds"] = s.wall_seconds;
+  d["steps_per_second"] = s.steps_per_second;
+  d["neighbour_rebuilds"] = s.neighbour_rebuilds;
+  d["mean_sqrt_iterations"] = s.mean_sqrt_iterations;
+  d["mean_mobility_products"] = s.mean_mobility_products;
+  d["seconds"] = s.seconds;
+  d["out_dir"] = s.out_dir.string();
+  d["trajectory"] = s.trajectory.string();
+  d["log"] = s.log.string();
+  d["checkpoint"] = s.checkpoint.string();
+  return d;
+}
+
+bd::RunOptions run_options(std::optional<std::uint64_t> steps, std::optional<std::string> out_dir, bool progress) {
+  bd::RunOptions o;
+  o.steps = steps;
+  if (out_dir) o.out_dir = *out_dir;
+  if (progress) o.progress = &std::cerr;
+  return o;
+}
+
+/// The Python force callable of a Simulation; owned by it, outlives the integrator.
+struct PyForce {
+  nb::object callable;
+};
+
+/// Adds the callable's forces: f(positions (N, 3) read-only, step, forces (N, 3) writable) may add
+/// into `forces` in place and/or return an array to add. Views are valid during the call only.
+bd::ForceCallback make_callback(PyForce* state) {
+  return [state](std::span<const double> x, std::uint64_t step, std::span<double> f) {
+    nb::gil_scoped_acquire acquire;
+    const std::size_t shape[2] = {x.size() / 3, 3};
+    nb::object xv =
+        nb::cast(nb::ndarray<nb::numpy, const double>(x.data(), 2, shape, nb::handle()), nb::rv_policy::reference);
+    nb::object fv =
+        nb::cast(nb::ndarray<nb::numpy, double>(f.data(), 2, shape, nb::handle()), nb::rv_policy::reference);
+    nb::object r = state->callable(xv, step, fv);
+    if (r.is_none()) return;
+    const InArray add = as_input(r, "force callback", "returned forces");
+    require(
+        add.size == f.size(), ErrorCode::invalid_input, "force callback",
+        "returned forces has shape " + shape_string(add.shape) + ", expected (" + std::to_string(shape[0]) + ", 3)");
+    for (std::size_t i = 0; i < f.size(); ++i) f[i] += add.data[i];
+  };
+}
+
+bd::PairPotential pair_from(nb::handle pair) {
+  bd::PairPotential p;
+  std::string kind;
+  if (nb::try_cast(pair, kind, false)) {
+    p.kind = bd::pair_kind_from_string(kind);
+    return p;
+  }
+  if (!nb::isinstance<nb::dict>(pair)) {
+    fail(ErrorCode::invalid_argument, "Simulation", "pair must be None, a kind name or a dict of PairPotential fields");
+  }
+  for (auto [key, value] : nb::borrow<nb::dict>(pair)) {
+    const std::string k = nb::cast<std::string>(key);
+    if (k == "kind")
+      p.kind = bd::pair_kind_from_string(nb::cast<std::string>(value));
+    else if (k == "epsilon")
+      p.epsilon = nb::cast<double>(value);
+    else if (k == "sigma")
+      p.sigma = nb::cast<double>(value);
+    else if (k == "cutoff")
+      p.cutoff = nb::cast<double>(value);
+    else if (k == "min_distance_fraction")
+      p.min_distance_fraction = nb::cast<double>(value);
+    else
+      fail(ErrorCode::invalid_argument, "Simulation",
+           "unknown pair key '" + k + "' (expected kind, epsilon, sigma, cutoff, min_distance_fraction)");
+  }
+  return p;
+}
+
+class Simulation {
+ public:
+  /// From arrays and keywords (see the binding's docstring).
+  Simulation(ArrayArg positions, RadiusArg radius, double dt, double kT, std::uint64_t seed,
+             const std::string& mobility, double viscosity, BoxArg box, double tolerance,
+             const std::string& sqrt_method, double sqrt_tol, double max_displacement, OptArrayArg external_force,
+             nb::handle force, nb::handle pair, std::uint64_t first_step, std::size_t fmm_crossover) {
+    const std::string where = "Simulation";
+    const InArray x = as_input(positions, where, "positions");
+    const std::size_t n = require_points(x, where, "positions");
+    // Radii -> particle types: one type per distinct radius.
+    std::vector<double> radii;
+    if (nb::hasattr(radius, "ndim") ? nb::cast<int>(radius.h.attr("ndim")) > 0
+                                    : (nb::isinstance<nb::list>(radius.h) || nb::isinstance<nb::tuple>(radius.h))) {
+      const InArray r = as_input(radius, where, "radii");
+      require(r.ndim() == 1 && r.size == n, ErrorCode::invalid_input, where,
+              "radii has shape " + shape_string(r.shape) + ", expected (" + std::to_string(n) + ",)");
+      radii.assign(r.data, r.data + r.size);
+    } else {
+      radii.assign(n, nb::cast<double>(radius.h));
+    }
+    std::vector<double> distinct = radii;
+    std::sort(distinct.begin(), distinct.end());
+    distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
+    std::vector<bd::ParticleType> types;
+    for (std::size_t t = 0; t < distinct.size(); ++t) {
+      bd::ParticleType type;
+      type.name = "t" + std::to_string(t);
+      type.radius = distinct[t];
+      types.push_back(type);
+    }
+    std::vector<std::uint32_t> type_of(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      type_of[i] =
+          static_cast<std::uint32_t>(std::lower_bound(distinct.begin(), distinct.end(), radii[i]) - distinct.begin());
+    }
+    bd::ForceField forces(types);
+    if (!pair.is_none()) {
+      const bd::PairPotential p = pair_from(pair);
+      for (std::uint32_t a = 0; a < types.size(); ++a)
+        for (std::uint32_t b = a; b < types.size(); ++b) forces.set_pair(a, b, p);
+    }
+    if (!external_force.is_none()) {
+      const InArray g = as_input(external_force, where, "external_force");
+      require(g.size == 3, ErrorCode::invalid_input, where,
+              "external_force has shape " + shape_string(g.shape) + ", expected (3,)");
+      forces.set_global_force({g.data[0], g.data[1], g.data[2]});
+    }
+    add_force(forces, force);
+
+    bd::MobilitySpec spec;
+    spec.method = bd::mobility_method_from_string(mobility);
+    spec.tolerance = tolerance;
+    spec.viscosity = viscosity;
+    spec.geometry = geometry_from(box, where);
+    spec.fmm_crossover = fmm_crossover;
+    bd::IntegratorOptions o;
+    o.dt = dt;
+    o.kT = kT;
+    o.seed = seed;
+    o.sqrt.method = sqrt_method_from(sqrt_method);
+    o.sqrt.tolerance = sqrt_tol;
+    o.max_displacement = max_displacement;
+    bd::NeighbourOptions neighbours;
+    integrator_ = std::make_unique<bd::Integrator>(bd::make_mobility(spec, n), std::move(forces), o,
+                                                   std::vector<double>(x.data, x.data + x.size), std::move(type_of),
+                                                   neighbours, first_step);
+  }
+
+  /// From a run config: the same particles, forces and mobility as `rpyfmm bd` (run.cpp).
+  Simulation(const bd::RunConfig& config, nb::handle force) {
+    bd::ForceField forces = bd::make_force_field(config);
+    const bd::InitialState start = bd::make_particles(config, forces);
+    forces.add_bonds(start.bonds);
+    add_force(forces, force);
+    const std::size_t n = start.types.size();
+    integrator_ =
+        std::make_unique<bd::Integrator>(bd::make_mobility(config.mobility, n), std::move(forces), config.integrator,
+                                         start.positions, start.types, config.neighbours, 0);
+  }
+
+  /// The Python force (None when there is none) for the cyclic garbage collector.
+  [[nodiscard]] nb::handle python_force() const { return py_force_ ? py_force_->callable : nb::handle(); }
+  /// Drops the Python force (tp_clear: breaking a reference cycle; a later step raises TypeError).
+  void clear_python_force() {
+    if (py_force_) py_force_->callable = nb::none();
+  }
+
+  bd::Integrator& integrator() { return *integrator_; }
+  [[nodiscard]] const bd::Integrator& integrator() const { return *integrator_; }
+
+ private:
+  void add_force(bd::ForceField& forces, nb::handle force) {
+    if (force.is_none()) return;
+    require(PyCallable_Check(force.ptr()) != 0, ErrorCode::invalid_argument, "Simulation",
+            "force must be a callable f(positions, step, forces) or None");
+    py_force_ = std::make_unique<PyForce>(PyForce{nb::borrow(force)});
+    forces.add_callback(make_callback(py_force_.get()));
+  }
+
+  std::unique_ptr<PyForce> py_force_;  // declared first: destroyed after the integrator
+  std::unique_ptr<bd::Integrator> integrator_;
+};
+
+ArrayResult view_of(std::span<const double> values, nb::handle owner) {
+  const std::size_t shape[2] = {values.size() / 3, 3};
+  return {nb::cast(nb::ndarray<nb::numpy, const double>(values.data(), 2, shape, owner), nb::rv_policy::reference)};
+}
+
+// A force callable often refers back to its Simulation (a closure, or module globals), a
+// reference cycle: the type takes part in cyclic garbage collection (nanobind docs,
+// "Reference cycles involving functions and classes").
+int simulation_traverse(PyObject* self, visitproc visit, void* arg) {
+  Py_VISIT(Py_TYPE(self));
+  if (!nb::inst_ready(self)) return 0;
+  Py_VISIT(nb::inst_ptr<Simulation>(self)->python_force().ptr());
+  return 0;
+}
+
+int simulation_clear(PyObject* self) {
+  if (nb::inst_ready(self)) nb::inst_ptr<Simulation>(self)->clear_python_force();
+  return 0;
+}
+
+PyType_Slot simulation_slots[] = {{Py_tp_traverse, reinterpret_cast<void*>(simulation_traverse)},
+                                  {Py_tp_clear, reinterpret_cast<void*>(simulation_clear)},
+                                  {0, nullptr}};
+
+}  // namespace
+
+void bind_bd(nb::module_& m) {
+  nb::class_<bd::RunConfig>(m, "RunConfig", "A parsed BD run configuration (docs/bd-config.md).")
+      .def_prop_rw(
+          "steps", [](const bd::RunConfig& c) { return c.steps; },
+          [](bd::RunConfig& c, std::uint64_t s) { c.steps = s; }, "Total number of steps.")
+      .def_prop_rw(
+          "dt", [](const bd::RunConfig& c) { return c.integrator.dt; },
+          [](bd::RunConfig& c, double v) { c.integrator.dt = v; }, "Time step (time units).")
+      .def_prop_rw(
+          "kT", [](const bd::RunConfig& c) { return c.integrator.kT; },
+          [](bd::RunConfig& c, double v) { c.integrator.kT = v; }, "Thermal energy (energy units).")
+      .def_prop_rw(
+          "seed", [](const bd::RunConfig& c) { return c.integrator.seed; },
+          [](bd::RunConfig& c, std::uint64_t v) { c.integrator.seed = v; }, "Noise seed.")
+      .def_prop_rw(
+          "out_dir", [](const bd::RunConfig& c) { return c.output.dir.string(); },
+          [](bd::RunConfig& c, const std::string& v) { c.output.dir = v; }, "Output directory.")
+      .def_prop_ro("viscosity", [](const bd::RunConfig& c) { return c.viscosity; })
+      .def_prop_ro("box", [](const bd::RunConfig& c) { return box_tuple(c.geometry); })
+      .def_prop_ro("mobility", [](const bd::RunConfig& c) { return std::string(bd::to_string(c.mobility.method)); })
+      .def_prop_ro(
+          "text", [](const bd::RunConfig& c) { return c.text; }, "The TOML source.")
+      .def_prop_ro("source", [](const bd::RunConfig& c) { return c.source; });
+
+  m.def(
+      "load_config", [](const std::filesystem::path& p) { return bd::load_config(p); }, nb::arg("path"),
+      "Reads and parses a TOML run config (strict: unknown or bad keys raise, naming the key).");
+  m.def("parse_config", &bd::parse_config, nb::arg("text"), nb::arg("source") = "<python string>",
+        "Parses TOML text; `source` names it in error messages.");
+  m.def(
+      "demo_config_text", [] { return std::string(bd::demo_config_text()); },
+      "TOML of the built-in demo (2000 sedimenting spheres with HI).");
+
+  m.def(
+      "run_bd",
+      [](nb::handle config, std::optional<std::uint64_t> steps, std::optional<std::string> out_dir, bool progress) {
+        const bd::RunConfig c = config_from(config);
+        const bd::RunOptions o = run_options(steps, out_dir, progress);
+        bd::RunSummary s;
+        {
+          nb::gil_scoped_release release;
+          s = bd::run_bd(c, o);
+        }
+        return summary_dict(s);
+      },
+      nb::arg("config"), nb::arg("steps") = nb::none(), nb::arg("out_dir") = nb::none(), nb::arg("progress") = false,
+      "Runs a whole BD config as `rpyfmm bd` does (trajectory, log, checkpoint in out_dir).\n"
+      "config: RunConfig, path to a TOML file, or TOML text. Returns the run summary as a dict.");
+  m.def(
+      "restart_bd",
+      [](const std::filesystem::path& checkpoint, std::optional<std::uint64_t> steps,
+         std::optional<std::string> out_dir, bool progress) {
+        const bd::RunOptions o = run_options(steps, out_dir, progress);
+        bd::RunSummary s;
+        {
+          nb::gil_scoped_release release;
+          s = bd::restart_bd(checkpoint, o);
+        }
+        return summary_dict(s);
+      },
+      nb::arg("checkpoint"), nb::arg("steps") = nb::none(), nb::arg("out_dir") = nb::none(),
+      nb::arg("progress") = false, "Continues a run from its checkpoint, bitwise as if uninterrupted.");
+
+  nb::class_<bd::StepReport>(m, "StepReport", "What one BD step did.")
+      .def_ro("sqrt_iterations", &bd::StepReport::sqrt_iterations)
+      .def_ro("mobility_products", &bd::StepReport::mobility_products)
+      .def_ro("shared_first_product", &bd::StepReport::shared_first_product)
+      .def_ro("neighbour_rebuild", &bd::StepReport::neighbour_rebuild)
+      .def_ro("potential_energy", &bd::StepReport::potential_energy, "Total potential energy (energy units).");
+
+  nb::class_<Simulation>(m, "Simulation", nb::type_slots(simulation_slots),
+                         "Steppable Brownian dynamics with hydrodynamic interactions (bd::Integrator):\n"
+                         "  dx = M F dt + sqrt(2 kT dt) M^{1/2} z.\n"
+                         "The GIL is released while stepping and taken only to call the Python force.")
+      .def(nb::init<ArrayArg, RadiusArg, double, double, std::uint64_t, const std::string&, double, BoxArg, double,
+                    const std::string&, double, double, OptArrayArg, nb::handle, nb::handle, std::uint64_t,
+                    std::size_t>(),
+           nb::arg("positions"), nb::arg("radius") = 1.0, nb::kw_only(), nb::arg("dt"), nb::arg("kT") = 1.0,
+           nb::arg("seed") = 1, nb::arg("mobility") = "auto", nb::arg("viscosity") = 1.0, nb::arg("box") = nb::none(),
+           nb::arg("tolerance") = 1e-3, nb::arg("sqrt_method") = "auto", nb::arg("sqrt_tol") = 1e-3,
+           nb::arg("max_displacement") = 1.0, nb::arg("external_force") = nb::none(), nb::arg("force") = nb::none(),
+           nb::arg("pair") = nb::none(), nb::arg("first_step") = 0, nb::arg("fmm_crossover") = 3000,
+           "positions: (N, 3) (length units, copied); radius: a number or (N,) radii; dt: time step; kT: thermal\n"
+           "energy; mobility: 'none', 'direct', 'fmm', 'pse', 'auto'; box: None, L or (Lx, Ly, Lz);\n"
+           "tolerance: of the fmm/pse product; sqrt_method/sqrt_tol: Brownian square root;\n"
+           "max_displacement: blow-up guard in radii per step; external_force: (3,) force on every particle;\n"
+           "force: callable f(positions, step, forces) adding into forces (N, 3) in place and/or returning an\n"
+           "array to add (energy/length); pair: None, 'wca', 'lj36_18', 'soft' or a dict of PairPotential fields.")
+      .def_static(
+          "from_config", [](nb::handle config, nb::handle force) { return new Simulation(config_from(config), force); },
+          nb::arg("config"), nb::arg("force") = nb::none(), nb::rv_policy::take_ownership,
+          "The particles, forces and mobility of a BD config (RunConfig, path or TOML text), plus an optional\n"
+          "Python force; stepping it reproduces `run_bd` bitwise when force is None.")
+      .def(
+          "step",
+          [](Simulation& s) {
+            bd::StepReport r;
+            {
+              nb::gil_scoped_release release;
+              r = s.integrator().step();
+            }
+            return r;
+          },
+          "Advances one step; on a blow-up or a force error the state stays at the last good step and an\n"
+          "exception is raised (the Python force's own exception unchanged).")
+      .def(
+          "run",
+          [](Simulation& s, std::uint64_t count) {
+            nb::gil_scoped_release release;
+            s.integrator().run(count);
+          },
+          nb::arg("count"), "Advances `count` steps.")
+      .def_prop_ro(
+          "positions",
+          [](nb::handle self) { return view_of(nb::cast<Simulation&>(self).integrator().positions(), self); },
+          "Live read-only view (N, 3) of the unwrapped positions (updated in place by step; copy to keep).")
+      .def_prop_ro(
+          "last_forces",
+          [](nb::handle self) { return view_of(nb::cast<Simulation&>(self).integrator().last_forces(), self); },
+          "Live read-only view (N, 3) of the forces at the start of the last step.")
+      .def_prop_ro("radii",
+                   [](const Simulation& s) {
+                     auto r = s.integrator().radii();
+                     return adopt_vector(std::vector<double>(r.begin(), r.end()), {r.size()});
+                   })
+      .def_prop_ro("size", [](const Simulation& s) { return s.integrator().size(); })
+      .def("__len__", [](const Simulation& s) { return s.integrator().size(); })
+      .def_prop_ro("step_count", [](const Simulation& s) { return s.integrator().step_count(); })
+      .def_prop_ro(
+          "time", [](const Simulation& s) { return s.integrator().time(); }, "step_count * dt.")
+      .def_prop_ro("dt", [](const Simulation& s) { return s.integrator().options().dt; })
+      .def_prop_ro("kT", [](const Simulation& s) { return s.integrator().options().kT; })
+      .def_prop_ro("mobility", [](const Simulation& s) { return s.integrator().mobility().name(); })
+      .def_prop_ro("neighbour_rebuilds", [](const Simulation& s) { return s.integrator().neighbour_rebuilds(); })
+      .def_prop_ro("last_report", [](const Simulation& s) { return s.integrator().last_report(); })
+      .def(
+          "totals",
+          [](const Simulation& s) {
+            const bd::IntegratorTotals& t = s.integrator().totals();
+            nb::dict d;
+            d["steps"] = t.steps;
+            d["sqrt_iterations"] = t.sqrt_iterations;
+            d["mobility_products"] = t.mobility_products;
+            d["seconds"] = t.seconds;
+            return d;
+          },
+          "Cumulative counters and seconds per part.");
+}
+
+}  // namespace rpyfmm::python

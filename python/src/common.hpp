@@ -1,0 +1,159 @@
+// rpyfmm Python bindings — shared helpers: NumPy array arguments as zero-copy
+// views, output arrays (new or caller-given `out=`), geometry and option parsing.
+//
+// Conventions (docs/python.md):
+//  * a float64, C-contiguous, CPU array is used in place (no copy);
+//  * anything else NumPy can read as a real array (float32, integers, lists,
+//    strided views) is converted once to a float64 C-contiguous copy;
+//  * outputs are new float64 arrays in the shape of the input, or `out=`,
+//    which must be a writable float64 C-contiguous array of the right size and
+//    is returned itself (written in place);
+//  * every bad argument throws rpyfmm::Error naming it; errors.cpp maps it to
+//    the Python exception class of its ErrorCode with the message unchanged.
+#pragma once
+
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/string.h>
+
+#include <cstddef>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/rpy/geometry.hpp"
+#include "rpyfmm/rpy/sqrt.hpp"
+
+namespace nb = nanobind;
+
+namespace rpyfmm::python {
+
+// Argument/result wrappers that only give the stubs precise types (the casters
+// below accept any object and leave the checks to as_input / make_output).
+struct ArrayArg {
+  operator nb::handle() const { return h; }                   // NOLINT(google-explicit-constructor)
+  [[nodiscard]] bool is_none() const { return h.is_none(); }  ///< anything NumPy reads as a real array
+  nb::handle h;
+};
+struct OutArg {
+  operator nb::handle() const { return h; }                   // NOLINT(google-explicit-constructor)
+  [[nodiscard]] bool is_none() const { return h.is_none(); }  ///< None or a writable float64 C-contiguous array
+  nb::handle h;
+};
+struct RadiusArg {
+  operator nb::handle() const { return h; }                   // NOLINT(google-explicit-constructor)
+  [[nodiscard]] bool is_none() const { return h.is_none(); }  ///< a number or an array of radii
+  nb::handle h;
+};
+struct OptArrayArg {                         ///< None or anything NumPy reads as a real array
+  operator nb::handle() const { return h; }  // NOLINT(google-explicit-constructor)
+  [[nodiscard]] bool is_none() const { return h.is_none(); }
+  nb::handle h;
+};
+struct BoxArg {
+  operator nb::handle() const { return h; }                   // NOLINT(google-explicit-constructor)
+  [[nodiscard]] bool is_none() const { return h.is_none(); }  ///< None, L or (Lx, Ly, Lz)
+  nb::handle h;
+};
+struct ArrayResult {  ///< a float64 NumPy array
+  nb::object o;
+};
+/// (array, report) pairs returned by the samplers.
+template <class Report>
+using ArrayAndReport = nb::typed<nb::tuple, ArrayResult, Report>;
+template <class Report>
+ArrayAndReport<Report> array_and_report(const nb::object& array, const Report& report) {
+  return nb::borrow<ArrayAndReport<Report>>(nb::make_tuple(array, report));
+}
+
+/// A float64 C-contiguous read-only view of a Python array argument.
+struct InArray {
+  nb::object owner;  ///< the converted copy when one was needed (keeps it alive)
+  const double* data = nullptr;
+  std::size_t size = 0;
+  std::vector<std::size_t> shape;
+  bool copied = false;  ///< true when the argument had to be converted
+  [[nodiscard]] std::span<const double> span() const { return {data, size}; }
+  [[nodiscard]] std::size_t ndim() const { return shape.size(); }
+};
+
+/// Reads `obj` as a float64 C-contiguous array (a view when possible).
+InArray as_input(nb::handle obj, const std::string& where, const std::string& name);
+
+/// Shape as text, e.g. "(5, 2)".
+std::string shape_string(const std::vector<std::size_t>& shape);
+
+/// Checks that `a` is points data: (N, 3) or (3N,); returns N.
+std::size_t require_points(const InArray& a, const std::string& where, const std::string& name);
+
+/// An output buffer: a new NumPy array or the caller's `out`.
+struct OutArray {
+  nb::object object;  ///< what the binding returns (`out` itself when given)
+  double* data = nullptr;
+  std::size_t size = 0;
+  [[nodiscard]] std::span<double> span() const { return {data, size}; }
+};
+
+/// New float64 array of `shape`, or `out` checked to be writable, float64, C-contiguous,
+/// of the same number of entries and not overlapping `input` (when given).
+OutArray make_output(nb::handle out, const std::vector<std::size_t>& shape, const std::string& where,
+                     const InArray* input = nullptr);
+
+/// Wraps a vector's storage as a NumPy array without copying (the array owns it).
+ArrayResult adopt_vector(std::vector<double>&& values, const std::vector<std::size_t>& shape);
+
+/// None -> open; a number L -> periodic cube; three numbers -> periodic box.
+rpy::Geometry geometry_from(nb::handle box, const std::string& where);
+/// None for open geometry, else (Lx, Ly, Lz).
+nb::object box_tuple(const rpy::Geometry& geometry);
+
+/// "auto" | "automatic" | "lanczos" | "chebyshev" | "cholesky" | "eigen" | "split".
+rpy::SqrtMethod sqrt_method_from(const std::string& name);
+
+/// The sqrt solver options shared by every binding that samples.
+rpy::SqrtOptions sqrt_options(const std::string& method, double tol, int max_iterations, bool reorthogonalize,
+                              bool throw_if_not_converged, double lambda_min, double lambda_max,
+                              int bound_estimate_iterations);
+
+/// Registers the exception classes and the rpyfmm::Error translator (errors.cpp).
+void bind_errors(nb::module_& m);
+void bind_fmm(nb::module_& m);
+void bind_mobility(nb::module_& m);
+void bind_samplers(nb::module_& m);
+void bind_bd(nb::module_& m);
+
+}  // namespace rpyfmm::python
+
+namespace nanobind::detail {
+
+#define RPYFMM_PASSTHROUGH_CASTER(Type, PyName)                                                                        \
+  template <>                                                                                                          \
+  struct type_caster<rpyfmm::python::Type> {                                                                           \
+    NB_TYPE_CASTER(rpyfmm::python::Type, const_name(PyName))                                                           \
+    bool from_python(handle src, uint8_t, cleanup_list*) noexcept {                                                    \
+      value.h = src;                                                                                                   \
+      return true;                                                                                                     \
+    }                                                                                                                  \
+    static handle from_cpp(const rpyfmm::python::Type& v, rv_policy, cleanup_list*) noexcept { return v.h.inc_ref(); } \
+  };
+RPYFMM_PASSTHROUGH_CASTER(ArrayArg, "numpy.typing.ArrayLike")
+RPYFMM_PASSTHROUGH_CASTER(OptArrayArg, "numpy.typing.ArrayLike")
+RPYFMM_PASSTHROUGH_CASTER(OutArg, "numpy.typing.NDArray[numpy.float64]")
+RPYFMM_PASSTHROUGH_CASTER(RadiusArg, "float | numpy.typing.ArrayLike")
+RPYFMM_PASSTHROUGH_CASTER(BoxArg, "float | tuple[float, float, float]")
+#undef RPYFMM_PASSTHROUGH_CASTER
+
+template <>
+struct type_caster<rpyfmm::python::ArrayResult> {
+  NB_TYPE_CASTER(rpyfmm::python::ArrayResult, const_name("numpy.typing.NDArray[numpy.float64]"))
+  bool from_python(handle src, uint8_t, cleanup_list*) noexcept {
+    value.o = borrow(src);
+    return true;
+  }
+  static handle from_cpp(const rpyfmm::python::ArrayResult& v, rv_policy, cleanup_list*) noexcept {
+    return v.o.inc_ref();
+  }
+};
+
+}  // namespace nanobind::detail

@@ -1,0 +1,175 @@
+// rpyfmm Python bindings — the Laplace kernel 1/r: FMM plan and direct sums
+// (fmm/include/rpyfmm/fmm/laplace_fmm.hpp, direct.hpp).
+//
+// Results per target: [pot, gx, gy, gz, hxx, hyy, hzz, hxy, hxz, hyz] of
+// phi(x) = sum_j q_j / |x - y_j| (no 1/(4 pi)); shape (M, 10), or (nd, M, 10)
+// for charges of shape (nd, N).
+#include <nanobind/stl/map.h>
+#include <nanobind/stl/string.h>
+
+#include "common.hpp"
+#include "rpyfmm/fmm/direct.hpp"
+#include "rpyfmm/fmm/laplace_fmm.hpp"
+
+namespace rpyfmm::python {
+namespace {
+
+/// int mask, "all", one name, "potential|gradient", or a sequence of names.
+unsigned outputs_from(nb::handle outputs, const std::string& where) {
+  unsigned mask = 0;
+  if (nb::try_cast(outputs, mask, false)) return mask;  // validated by the library
+  auto one = [&](const std::string& name) -> unsigned {
+    if (name == "potential") return fmm::potential;
+    if (name == "gradient") return fmm::gradient;
+    if (name == "hessian") return fmm::hessian;
+    if (name == "all") return fmm::all_outputs;
+    fail(ErrorCode::invalid_argument, where,
+         "unknown output '" + name + "' (expected potential, gradient, hessian or all)");
+  };
+  std::string text;
+  if (nb::try_cast(outputs, text, false)) {
+    std::size_t start = 0;
+    while (start <= text.size()) {
+      const std::size_t bar = text.find('|', start);
+      mask |= one(text.substr(start, bar == std::string::npos ? std::string::npos : bar - start));
+      if (bar == std::string::npos) break;
+      start = bar + 1;
+    }
+    return mask;
+  }
+  const char* expected = "outputs must be an int mask, a name or a sequence of names";
+  if (!nb::isinstance<nb::sequence>(outputs)) fail(ErrorCode::invalid_argument, where, expected);
+  for (nb::handle item : nb::borrow<nb::sequence>(outputs)) {
+    std::string name;
+    if (!nb::try_cast(item, name, false)) fail(ErrorCode::invalid_argument, where, expected);
+    mask |= one(name);
+  }
+  return mask;
+}
+
+/// Charges (N,) -> nd = 1; (nd, N) -> nd. Result shape (M, 10) or (nd, M, 10).
+std::size_t densities(const InArray& q, const std::string& where) {
+  if (q.ndim() == 1) return 1;
+  if (q.ndim() == 2) return q.shape[0];
+  fail(ErrorCode::invalid_input, where, "charges has shape " + shape_string(q.shape) + ", expected (N,) or (nd, N)");
+}
+
+std::vector<std::size_t> result_shape(const InArray& q, std::size_t m) {
+  if (q.ndim() == 1) return {m, fmm::result_width};
+  return {q.shape[0], m, fmm::result_width};
+}
+
+nb::dict stats_dict(const fmm::TreeStats& s) {
+  nb::dict d;
+  d["levels"] = s.levels;
+  d["boxes"] = s.boxes;
+  d["leaves"] = s.leaves;
+  d["memory_bytes"] = s.memory_bytes;
+  d["order"] = s.order;
+  d["nlams"] = s.nlams;
+  d["leaf_capacity"] = s.leaf_capacity;
+  d["u_pairs"] = s.u_pairs;
+  d["w_pairs"] = s.w_pairs;
+  d["x_pairs"] = s.x_pairs;
+  return d;
+}
+
+}  // namespace
+
+void bind_fmm(nb::module_& m) {
+  m.attr("POTENTIAL") = static_cast<unsigned>(fmm::potential);
+  m.attr("GRADIENT") = static_cast<unsigned>(fmm::gradient);
+  m.attr("HESSIAN") = static_cast<unsigned>(fmm::hessian);
+  m.attr("ALL_OUTPUTS") = fmm::all_outputs;
+  m.attr("RESULT_COLUMNS") = nb::make_tuple("pot", "gx", "gy", "gz", "hxx", "hyy", "hzz", "hxy", "hxz", "hyz");
+
+  nb::class_<fmm::LaplaceFmm>(m, "LaplaceFmm",
+                              "Adaptive plane-wave FMM for phi(x) = sum_j q_j / |x - y_j| (no 1/(4 pi)).\n\n"
+                              "Plan once (set_points), evaluate many charge vectors. Lengths in any unit;\n"
+                              "potential in charge/length, gradient charge/length^2, Hessian charge/length^3.\n"
+                              "Relative l2 error of each output <= eps.")
+      .def(
+          "__init__",
+          [](fmm::LaplaceFmm* self, double eps, int leaf_capacity, int order) {
+            fmm::FmmOptions o;
+            o.eps = eps;
+            o.leaf_capacity = leaf_capacity;
+            o.order = order;
+            new (self) fmm::LaplaceFmm(o);
+          },
+          nb::arg("eps") = 1e-6, nb::arg("leaf_capacity") = 0, nb::arg("order") = 0,
+          "eps: requested relative l2 accuracy in [1e-15, 1e-1]; leaf_capacity: points per leaf (0 = automatic);\n"
+          "order: expansion order (0 = from eps).")
+      .def(
+          "set_points",
+          [](fmm::LaplaceFmm& self, ArrayArg sources, OptArrayArg targets) {
+            const InArray s = as_input(sources, "LaplaceFmm.set_points", "sources");
+            require_points(s, "LaplaceFmm.set_points", "sources");
+            InArray t;
+            if (!targets.is_none()) {
+              t = as_input(targets, "LaplaceFmm.set_points", "targets");
+              require_points(t, "LaplaceFmm.set_points", "targets");
+            }
+            nb::gil_scoped_release release;
+            self.set_points(s.span(), t.span());
+          },
+          nb::arg("sources"), nb::arg("targets") = nb::none(),
+          "Builds the tree and lists. sources: (N, 3) or (3N,) positions; targets: (M, 3) or None to evaluate\n"
+          "at the sources (self pair excluded). The points are copied into the plan.")
+      .def(
+          "evaluate",
+          [](const fmm::LaplaceFmm& self, ArrayArg charges, nb::handle outputs, OutArg out) {
+            const std::string where = "LaplaceFmm.evaluate";
+            const unsigned mask = outputs_from(outputs, where);
+            const InArray q = as_input(charges, where, "charges");
+            const std::size_t nd = densities(q, where);
+            require(self.num_sources() > 0, ErrorCode::invalid_input, where, "call set_points first");
+            OutArray r = make_output(out, result_shape(q, self.num_targets()), where, &q);
+            {
+              nb::gil_scoped_release release;
+              self.evaluate(q.span(), nd, mask, r.span());
+            }
+            return ArrayResult{r.object};
+          },
+          nb::arg("charges"), nb::arg("outputs") = "all", nb::arg("out") = nb::none(),
+          "Potential/gradient/Hessian at the targets. charges: (N,) or (nd, N); outputs: 'all', a name\n"
+          "('potential', 'gradient', 'hessian'), 'potential|gradient', a list of names or an int mask.\n"
+          "Returns (M, 10) or (nd, M, 10) float64 [pot, gx, gy, gz, hxx, hyy, hzz, hxy, hxz, hyz]\n"
+          "(unrequested columns are 0); `out` is written in place and returned.")
+      .def_prop_ro("eps", [](const fmm::LaplaceFmm& self) { return self.options().eps; })
+      .def_prop_ro("num_sources", &fmm::LaplaceFmm::num_sources)
+      .def_prop_ro("num_targets", &fmm::LaplaceFmm::num_targets)
+      .def(
+          "stats", [](const fmm::LaplaceFmm& self) { return stats_dict(self.stats()); },
+          "Tree shape and plan memory: levels, boxes, leaves, memory_bytes, order, nlams, ...")
+      .def("last_timings", &fmm::LaplaceFmm::last_timings,
+           "Stage times in seconds of set_points and of the last evaluate.");
+
+  m.def(
+      "laplace_direct",
+      [](ArrayArg sources, ArrayArg charges, OptArrayArg targets, nb::handle outputs, OutArg out) {
+        const std::string where = "laplace_direct";
+        const unsigned mask = outputs_from(outputs, where);
+        const InArray s = as_input(sources, where, "sources");
+        const std::size_t n = require_points(s, where, "sources");
+        InArray t;
+        std::size_t mt = n;
+        if (!targets.is_none()) {
+          t = as_input(targets, where, "targets");
+          mt = require_points(t, where, "targets");
+        }
+        const InArray q = as_input(charges, where, "charges");
+        const std::size_t nd = densities(q, where);
+        OutArray r = make_output(out, result_shape(q, mt), where, &q);
+        {
+          nb::gil_scoped_release release;
+          fmm::laplace_direct(s.span(), q.span(), nd, t.span(), mask, r.span());
+        }
+        return ArrayResult{r.object};
+      },
+      nb::arg("sources"), nb::arg("charges"), nb::arg("targets") = nb::none(), nb::arg("outputs") = "all",
+      nb::arg("out") = nb::none(),
+      "Exact O(N M) sums of 1/r (self pair skipped); same arguments and result layout as LaplaceFmm.evaluate.");
+}
+
+}  // namespace rpyfmm::python

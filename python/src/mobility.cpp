@@ -1,0 +1,359 @@
+// rpyfmm Python bindings — the mobility operators behind the one interface
+// rpy::MobilityOperator (rpy/include/rpyfmm/rpy/mobility.hpp): DirectRpy,
+// FmmRpy, pse::PseRpy, bd::FreeDrainingMobility and bd::make_mobility.
+//
+// Units are the caller's: with viscosity eta and radius a, M_ii = 1/(6 pi eta a);
+// velocities U = M F have units of force / (viscosity length).
+#include <nanobind/stl/map.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/unique_ptr.h>
+#include <nanobind/stl/vector.h>
+
+#include "common.hpp"
+#include "rpyfmm/bd/free_draining.hpp"
+#include "rpyfmm/bd/mobility_factory.hpp"
+#include "rpyfmm/core/timer.hpp"
+#include "rpyfmm/rpy/direct_operator.hpp"
+#include "rpyfmm/rpy/fmm_operator.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy.hpp"
+
+namespace rpyfmm::python {
+namespace {
+
+using rpy::MobilityOperator;
+
+bool is_array_like(nb::handle h) {
+  if (nb::hasattr(h, "ndim")) return nb::cast<int>(h.attr("ndim")) > 0;
+  return nb::isinstance<nb::list>(h) || nb::isinstance<nb::tuple>(h);
+}
+
+void set_positions(MobilityOperator& op, ArrayArg positions, RadiusArg radius) {
+  const std::string where = "set_positions";
+  const InArray x = as_input(positions, where, "positions");
+  require_points(x, where, "positions");
+  if (is_array_like(radius)) {
+    const InArray r = as_input(radius, where, "radii");
+    require(r.ndim() == 1, ErrorCode::invalid_input, where,
+            "radii has shape " + shape_string(r.shape) + ", expected (N,)");
+    nb::gil_scoped_release release;
+    op.set_positions(x.span(), r.span());
+    return;
+  }
+  double a = 0.0;
+  if (!nb::try_cast(radius.h, a, true)) {
+    fail(ErrorCode::invalid_argument, where, "radius must be a number or an array of N radii");
+  }
+  nb::gil_scoped_release release;
+  op.set_positions(x.span(), a);
+}
+
+/// Shape checks of a block argument: (nrhs, N, 3) or (nrhs, 3N); returns nrhs.
+std::size_t block_count(const InArray& a, const std::string& where, const std::string& name) {
+  if ((a.ndim() == 3 && a.shape[2] == 3) || a.ndim() == 2) return a.shape[0];
+  fail(ErrorCode::invalid_input, where,
+       name + " has shape " + shape_string(a.shape) + ", expected (nrhs, N, 3) or (nrhs, 3N)");
+}
+
+/// The shape of every U = A F binding: forces (N, 3) or (3N,) in, the same shape out, GIL released.
+template <class Fn>
+ArrayResult map_points(const std::string& where, ArrayArg forces, OutArg out, Fn&& fn) {
+  const InArray f = as_input(forces, where, "forces");
+  require_points(f, where, "forces");
+  OutArray u = make_output(out, f.shape, where, &f);
+  {
+    nb::gil_scoped_release release;
+    fn(f.span(), u.span());
+  }
+  return ArrayResult{u.object};
+}
+
+ArrayResult apply(const MobilityOperator& op, ArrayArg forces, OutArg out) {
+  return map_points("apply", forces, out, [&](auto f, auto u) { op.apply(f, u); });
+}
+
+ArrayResult apply_block(const MobilityOperator& op, ArrayArg forces, OutArg out) {
+  const std::string where = "apply_block";
+  const InArray f = as_input(forces, where, "forces");
+  const std::size_t nrhs = block_count(f, where, "forces");
+  OutArray u = make_output(out, f.shape, where, &f);
+  {
+    nb::gil_scoped_release release;
+    op.apply_block(f.span(), u.span(), nrhs);
+  }
+  return ArrayResult{u.object};
+}
+
+ArrayAndReport<rpy::SqrtReport> apply_sqrt(const MobilityOperator& op, ArrayArg z, OutArg out,
+                                           const std::string& method, double tol, int max_iterations,
+                                           bool reorthogonalize, bool throw_if_not_converged, double lambda_min,
+                                           double lambda_max, int bound_estimate_iterations, bool block) {
+  const std::string where = block ? "apply_sqrt_block" : "apply_sqrt";
+  const rpy::SqrtOptions o = sqrt_options(method, tol, max_iterations, reorthogonalize, throw_if_not_converged,
+                                          lambda_min, lambda_max, bound_estimate_iterations);
+  const InArray zz = as_input(z, where, "z");
+  const std::size_t nrhs = block ? block_count(zz, where, "z") : (require_points(zz, where, "z"), 1);
+  OutArray w = make_output(out, zz.shape, where, &zz);
+  rpy::SqrtReport report;
+  {
+    nb::gil_scoped_release release;
+    report = block ? op.apply_sqrt_block(zz.span(), w.span(), nrhs, o) : op.apply_sqrt(zz.span(), w.span(), o);
+  }
+  return array_and_report(w.object, report);
+}
+
+nb::dict pse_parameters(const rpy::pse::PseParameters& p) {
+  nb::dict d;
+  d["radius"] = p.radius;
+  d["xi"] = p.xi;
+  d["xi_automatic"] = p.xi_automatic;
+  d["tolerance"] = p.tolerance;
+  d["r_cut"] = p.r_cut;
+  d["grid"] = nb::make_tuple(p.grid[0], p.grid[1], p.grid[2]);
+  d["spacing"] = nb::make_tuple(p.spacing[0], p.spacing[1], p.spacing[2]);
+  d["support"] = nb::make_tuple(p.support[0], p.support[1], p.support[2]);
+  d["window_eta"] = p.window_eta;
+  d["sigma"] = p.sigma;
+  d["window_m"] = p.window_m;
+  d["table_dr"] = p.table_dr;
+  d["table_size"] = p.table_size;
+  d["lanczos_tolerance"] = p.lanczos_tolerance;
+  d["memory_bytes"] = p.memory_bytes;
+  d["modelled_cost"] = p.modelled_cost;
+  d["summary"] = p.summary();
+  return d;
+}
+
+const char* kSqrtDoc =
+    "w = M^{1/2} z for z of shape (N, 3) or (3N,). Returns (w, SqrtReport).\n\n"
+    "method: 'auto' (the operator's preferred: PSE split sampler, else Lanczos), 'lanczos', 'chebyshev',\n"
+    "'cholesky' (L z with L L^T = M), 'eigen' (dense principal root), 'split' (PSE only).\n"
+    "tol: relative tolerance in (0, 1); max_iterations: 0 = automatic; lambda_min/lambda_max: Chebyshev\n"
+    "bounds (both 0 = estimated). w has units of sqrt(mobility) times z's units.";
+
+}  // namespace
+
+void bind_mobility(nb::module_& m) {
+  nb::class_<MobilityOperator>(
+      m, "MobilityOperator",
+      "The one RPY mobility interface: U = M F for N spheres (MobilityOperator in C++).\n\n"
+      "Positions, forces and velocities are (N, 3) or (3N,) arrays (particle-major). Units are the caller's:\n"
+      "with viscosity eta and radius a, the self mobility is 1/(6 pi eta a).")
+      .def_prop_ro("name", &MobilityOperator::name, "Solver name: 'direct', 'fmm', 'pse', 'none'.")
+      .def_prop_ro("viscosity", &MobilityOperator::viscosity, "Solvent viscosity eta.")
+      .def_prop_ro(
+          "box", [](const MobilityOperator& op) { return box_tuple(op.geometry()); },
+          "(Lx, Ly, Lz) of the periodic box, or None in free space.")
+      .def_prop_ro("periodic", [](const MobilityOperator& op) { return op.geometry().is_periodic(); })
+      .def_prop_ro("size", &MobilityOperator::size, "Number of particles N (0 before set_positions).")
+      .def("__len__", &MobilityOperator::size)
+      .def_prop_ro("equal_radii", &MobilityOperator::equal_radii)
+      .def_prop_ro(
+          "positions",
+          [](const MobilityOperator& op) {
+            auto p = op.positions();
+            return adopt_vector(std::vector<double>(p.begin(), p.end()), {p.size() / 3, 3});
+          },
+          "Copy of the stored positions (N, 3) (wrapped into the box when periodic).")
+      .def_prop_ro(
+          "radii",
+          [](const MobilityOperator& op) {
+            auto r = op.radii();
+            return adopt_vector(std::vector<double>(r.begin(), r.end()), {r.size()});
+          },
+          "Copy of the radii (N,).")
+      .def("set_positions", &set_positions, nb::arg("positions"), nb::arg("radius"),
+           "Sets positions ((N, 3) or (3N,), length units) and the radius: one number for all particles or an\n"
+           "array of N radii. Builds the solver's plan once; apply may then be called many times.")
+      .def("apply", &apply, nb::arg("forces"), nb::arg("out") = nb::none(),
+           "U = M F. forces: (N, 3) or (3N,); returns velocities in the same shape (float64);\n"
+           "`out` (writable float64, C-contiguous) is written in place and returned.")
+      .def("apply_block", &apply_block, nb::arg("forces"), nb::arg("out") = nb::none(),
+           "U_k = M F_k for forces of shape (nrhs, N, 3) or (nrhs, 3N) in one pass.")
+      .def(
+          "apply_sqrt",
+          [](const MobilityOperator& op, ArrayArg z, OutArg out, const std::string& method, double tol,
+             int max_iterations, bool reorth, bool throw_nc, double lmin, double lmax, int bound_it) {
+            return apply_sqrt(op, z, out, method, tol, max_iterations, reorth, throw_nc, lmin, lmax, bound_it, false);
+          },
+          nb::arg("z"), nb::arg("out") = nb::none(), nb::kw_only(), nb::arg("method") = "auto", nb::arg("tol") = 1e-3,
+          nb::arg("max_iterations") = 0, nb::arg("reorthogonalize") = true, nb::arg("throw_if_not_converged") = true,
+          nb::arg("lambda_min") = 0.0, nb::arg("lambda_max") = 0.0, nb::arg("bound_estimate_iterations") = 30, kSqrtDoc)
+      .def(
+          "apply_sqrt_block",
+          [](const MobilityOperator& op, ArrayArg z, OutArg out, const std::string& method, double tol,
+             int max_iterations, bool reorth, bool throw_nc, double lmin, double lmax, int bound_it) {
+            return apply_sqrt(op, z, out, method, tol, max_iterations, reorth, throw_nc, lmin, lmax, bound_it, true);
+          },
+          nb::arg("z"), nb::arg("out") = nb::none(), nb::kw_only(), nb::arg("method") = "auto", nb::arg("tol") = 1e-3,
+          nb::arg("max_iterations") = 0, nb::arg("reorthogonalize") = true, nb::arg("throw_if_not_converged") = true,
+          nb::arg("lambda_min") = 0.0, nb::arg("lambda_max") = 0.0, nb::arg("bound_estimate_iterations") = 30,
+          "Block apply_sqrt: z of shape (nrhs, N, 3) or (nrhs, 3N), one operator product per iteration for all.")
+      .def(
+          "divergence",
+          [](const MobilityOperator& op) {
+            std::vector<double> d(3 * op.size());
+            op.divergence(d);
+            return adopt_vector(std::move(d), {op.size(), 3});
+          },
+          "Divergence of M with respect to the positions, (N, 3); zero for RPY.")
+      .def(
+          "assemble_dense",
+          [](const MobilityOperator& op, std::size_t max_bytes) {
+            std::vector<double> dense;
+            {
+              nb::gil_scoped_release release;
+              dense = op.assemble_dense(max_bytes);
+            }
+            const std::size_t n = 3 * op.size();
+            return adopt_vector(std::move(dense), {n, n});
+          },
+          nb::arg("max_bytes") = std::size_t{1} << 31,
+          "Dense (3N, 3N) matrix from products with unit vectors (small N only).")
+      .def("__repr__", [](const MobilityOperator& op) {
+        return "<rpyfmm." + op.name() + " mobility, N = " + std::to_string(op.size()) +
+               ", viscosity = " + std::to_string(op.viscosity()) + (op.geometry().is_periodic() ? ", periodic>" : ">");
+      });
+
+  nb::class_<rpy::DirectRpy, MobilityOperator>(m, "DirectRpy",
+                                               "Exact O(N^2) RPY mobility (all overlap regimes); free space only.")
+      .def(
+          "__init__",
+          [](rpy::DirectRpy* self, double viscosity, BoxArg box) {
+            new (self) rpy::DirectRpy(geometry_from(box, "DirectRpy"), viscosity);
+          },
+          nb::arg("viscosity") = 1.0, nb::arg("box") = nb::none(),
+          "viscosity: eta > 0; box must be None (a periodic box raises NotSupportedError).");
+
+  nb::class_<rpy::FmmRpy, MobilityOperator>(
+      m, "FmmRpy", "Free-space RPY mobility in O(N): one multi-density Laplace FMM pass plus the exact near field.")
+      .def(
+          "__init__",
+          [](rpy::FmmRpy* self, double viscosity, double tolerance, int leaf_capacity, BoxArg box) {
+            rpy::FmmRpyOptions o;
+            o.tolerance = tolerance;
+            o.leaf_capacity = leaf_capacity;
+            new (self) rpy::FmmRpy(geometry_from(box, "FmmRpy"), viscosity, o);
+          },
+          nb::arg("viscosity") = 1.0, nb::arg("tolerance") = 1e-6, nb::arg("leaf_capacity") = 0,
+          nb::arg("box") = nb::none(),
+          "tolerance: relative l2 error of U in [1e-12, 1e-1]; leaf_capacity: 0 = automatic.")
+      .def_prop_ro("tolerance", [](const rpy::FmmRpy& op) { return op.options().tolerance; })
+      .def_prop_ro("laplace_eps", &rpy::FmmRpy::laplace_eps, "Tolerance handed to the Laplace FMM.")
+      .def("last_timings", &rpy::FmmRpy::last_timings, "Stage times (s) of the last apply.");
+
+  nb::class_<rpy::pse::PseRpy, MobilityOperator>(
+      m, "PseRpy",
+      "Periodic RPY mobility by Positively Split Ewald (Fiore et al. 2017), equal radii.\n\n"
+      "apply_sqrt with method 'auto'/'split' uses the split sampler: z is z1, the wave-space noise is\n"
+      "seeded by a hash of z, so w is a deterministic function of z with covariance M.")
+      .def(
+          "__init__",
+          [](rpy::pse::PseRpy* self, BoxArg box, double viscosity, double tolerance, double xi, double r_cut,
+             double window_eta, int fft_threads, std::size_t max_memory_bytes) {
+            rpy::pse::PseOptions o;
+            o.tolerance = tolerance;
+            o.xi = xi;
+            o.r_cut = r_cut;
+            o.window_eta = window_eta;
+            o.fft_threads = fft_threads;
+            o.max_memory_bytes = max_memory_bytes;
+            new (self) rpy::pse::PseRpy(geometry_from(box, "PseRpy"), viscosity, o);
+          },
+          nb::arg("box"), nb::arg("viscosity") = 1.0, nb::arg("tolerance") = 1e-3, nb::arg("xi") = 0.0,
+          nb::arg("r_cut") = 0.0, nb::arg("window_eta") = 0.8, nb::arg("fft_threads") = 0,
+          nb::arg("max_memory_bytes") = std::size_t{16} << 30,
+          "box: L (cube) or (Lx, Ly, Lz), length units; tolerance in [1e-8, 0.1) relative to 1/(6 pi eta a);\n"
+          "xi: Ewald splitting (1/length, 0 = automatic); r_cut: real-space cutoff (length, 0 = automatic).")
+      .def_prop_ro(
+          "parameters", [](const rpy::pse::PseRpy& op) { return pse_parameters(op.parameters()); },
+          "The choices made for the current radius, box and N (xi, r_cut, grid, support, ...).")
+      .def(
+          "apply_real",
+          [](const rpy::pse::PseRpy& op, ArrayArg forces, OutArg out) {
+            return map_points("apply_real", forces, out, [&](auto f, auto u) { op.apply_real(f, u); });
+          },
+          nb::arg("forces"), nb::arg("out") = nb::none(), "U = M_r F (real-space part).")
+      .def(
+          "apply_wave",
+          [](const rpy::pse::PseRpy& op, ArrayArg forces, OutArg out) {
+            return map_points("apply_wave", forces, out, [&](auto f, auto u) { op.apply_wave(f, u); });
+          },
+          nb::arg("forces"), nb::arg("out") = nb::none(), "U = M_w F (wave-space part).")
+      .def(
+          "sample",
+          [](const rpy::pse::PseRpy& op, std::uint64_t seed, std::uint64_t step, OutArg out) {
+            OutArray w = make_output(out, {op.size(), 3}, "sample");
+            rpy::SqrtReport report;
+            {
+              nb::gil_scoped_release release;
+              report = op.sample(seed, step, w.span());
+            }
+            return array_and_report(w.object, report);
+          },
+          nb::arg("seed"), nb::arg("step") = 0, nb::arg("out") = nb::none(),
+          "w = M^{1/2} z by the split sampler with noise keyed by (seed, step). Returns (w (N, 3), SqrtReport).")
+      .def(
+          "apply_with_noise",
+          [](const rpy::pse::PseRpy& op, ArrayArg forces, double noise_scale, std::uint64_t seed, std::uint64_t step,
+             OutArg out) {
+            const InArray f = as_input(forces, "apply_with_noise", "forces");
+            require_points(f, "apply_with_noise", "forces");
+            OutArray u = make_output(out, f.shape, "apply_with_noise", &f);
+            rpy::SqrtReport report;
+            {
+              nb::gil_scoped_release release;
+              report = op.apply_with_noise(f.span(), noise_scale, seed, step, u.span());
+            }
+            return array_and_report(u.object, report);
+          },
+          nb::arg("forces"), nb::arg("noise_scale"), nb::arg("seed"), nb::arg("step") = 0, nb::arg("out") = nb::none(),
+          "U = M F + noise_scale M^{1/2} z in one fused pass (BD: noise_scale = sqrt(2 kT / dt)).")
+      .def("stage_times", &rpy::pse::PseRpy::stage_times, "Accumulated seconds per stage.")
+      .def("reset_stage_times", &rpy::pse::PseRpy::reset_stage_times);
+
+  nb::class_<bd::FreeDrainingMobility, MobilityOperator>(
+      m, "FreeDraining", "No hydrodynamic interactions: M = diag(1 / (6 pi eta a_i)); exact square root.")
+      .def(
+          "__init__",
+          [](bd::FreeDrainingMobility* self, double viscosity, BoxArg box) {
+            new (self) bd::FreeDrainingMobility(geometry_from(box, "FreeDraining"), viscosity);
+          },
+          nb::arg("viscosity") = 1.0, nb::arg("box") = nb::none());
+
+  m.def(
+      "make_mobility",
+      [](const std::string& method, std::size_t n_particles, double tolerance, double viscosity, BoxArg box,
+         std::size_t fmm_crossover) {
+        bd::MobilitySpec spec;
+        spec.method = bd::mobility_method_from_string(method);
+        spec.tolerance = tolerance;
+        spec.viscosity = viscosity;
+        spec.geometry = geometry_from(box, "make_mobility");
+        spec.fmm_crossover = fmm_crossover;
+        return bd::make_mobility(spec, n_particles);
+      },
+      nb::arg("method") = "auto", nb::arg("n_particles") = 0, nb::kw_only(), nb::arg("tolerance") = 1e-3,
+      nb::arg("viscosity") = 1.0, nb::arg("box") = nb::none(), nb::arg("fmm_crossover") = 3000,
+      "Builds an operator by name as BD configs and the CLI do: 'none', 'direct', 'fmm', 'pse', 'auto'\n"
+      "(open: direct below fmm_crossover particles, else fmm; periodic: pse).");
+
+  // Benchmark helper (bench/python/bench_overhead.py): the C++ call timed in C++,
+  // without any Python in the loop. Seconds per call, `repeats` calls.
+  m.def(
+      "_time_apply_cpp",
+      [](const MobilityOperator& op, ArrayArg forces, OutArg out, int repeats) {
+        const InArray f = as_input(forces, "_time_apply_cpp", "forces");
+        OutArray u = make_output(out, f.shape, "_time_apply_cpp", &f);
+        std::vector<double> seconds;
+        nb::gil_scoped_release release;
+        for (int r = 0; r < repeats; ++r) {
+          StopWatch watch;
+          op.apply(f.span(), u.span());
+          seconds.push_back(watch.seconds());
+        }
+        return seconds;
+      },
+      nb::arg("op"), nb::arg("forces"), nb::arg("out"), nb::arg("repeats") = 5);
+}
+
+}  // namespace rpyfmm::python

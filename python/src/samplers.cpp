@@ -1,0 +1,120 @@
+// rpyfmm Python bindings — Brownian samplers (rpy/include/rpyfmm/rpy/sqrt.hpp,
+// random.hpp): reports, Philox normal noise, spectrum bounds, and sqrt_apply
+// on any symmetric positive definite operator given as a Python callable.
+#include <nanobind/stl/string.h>
+
+#include <cstring>
+
+#include "common.hpp"
+#include "rpyfmm/rpy/mobility.hpp"
+#include "rpyfmm/rpy/random.hpp"
+
+namespace rpyfmm::python {
+namespace {
+
+std::string report_repr(const rpy::SqrtReport& r) {
+  std::string s = "SqrtReport(method='" + std::string(rpy::to_string(r.method)) +
+                  "', iterations=" + std::to_string(r.iterations) +
+                  ", error_estimate=" + nb::cast<std::string>(nb::repr(nb::float_(r.error_estimate))) +
+                  ", operator_applications=" + std::to_string(r.operator_applications) +
+                  ", converged=" + (r.converged ? "True" : "False") + ")";
+  return s;
+}
+
+}  // namespace
+
+void bind_samplers(nb::module_& m) {
+  nb::class_<rpy::SqrtReport>(m, "SqrtReport", "What a square-root solve did (iterations, error estimate).")
+      .def_prop_ro(
+          "method", [](const rpy::SqrtReport& r) { return std::string(rpy::to_string(r.method)); },
+          "Method actually used: 'lanczos', 'chebyshev', 'cholesky', 'eigen' or 'split'.")
+      .def_ro("iterations", &rpy::SqrtReport::iterations,
+              "Lanczos steps (max over right-hand sides) / Chebyshev degree / 0 for dense methods.")
+      .def_ro("error_estimate", &rpy::SqrtReport::error_estimate,
+              "Relative error estimate: last relative change (Lanczos) or bound (Chebyshev); dimensionless.")
+      .def_ro("operator_applications", &rpy::SqrtReport::operator_applications)
+      .def_ro("vector_products", &rpy::SqrtReport::vector_products)
+      .def_ro("converged", &rpy::SqrtReport::converged)
+      .def_ro("breakdown", &rpy::SqrtReport::breakdown)
+      .def_ro("lambda_min", &rpy::SqrtReport::lambda_min, "Chebyshev: lower spectrum bound used (mobility units).")
+      .def_ro("lambda_max", &rpy::SqrtReport::lambda_max, "Chebyshev: upper spectrum bound used (mobility units).")
+      .def("__repr__", &report_repr);
+
+  nb::class_<rpy::SpectrumBounds>(m, "SpectrumBounds", "Padded extreme eigenvalue estimates (mobility units).")
+      .def_ro("lambda_min", &rpy::SpectrumBounds::lambda_min)
+      .def_ro("lambda_max", &rpy::SpectrumBounds::lambda_max)
+      .def_ro("ritz_min", &rpy::SpectrumBounds::ritz_min)
+      .def_ro("ritz_max", &rpy::SpectrumBounds::ritz_max)
+      .def_ro("iterations", &rpy::SpectrumBounds::iterations)
+      .def("__repr__", [](const rpy::SpectrumBounds& b) {
+        return "SpectrumBounds(lambda_min=" + std::to_string(b.lambda_min) +
+               ", lambda_max=" + std::to_string(b.lambda_max) + ")";
+      });
+
+  m.def(
+      "normal_noise",
+      [](std::size_t n, std::uint64_t seed, std::uint64_t step, std::uint32_t stream, OutArg out) {
+        OutArray z = make_output(out, {n, 3}, "normal_noise");
+        {
+          nb::gil_scoped_release release;
+          rpy::fill_normal(z.span(), seed, step, stream);
+        }
+        return ArrayResult{z.object};
+      },
+      nb::arg("n"), nb::arg("seed"), nb::arg("step") = 0, nb::arg("stream") = 0, nb::arg("out") = nb::none(),
+      "(n, 3) standard normal values from Philox4x32-10 keyed by (seed, step, stream, particle): the same\n"
+      "stream as the C++ library, the CLI (`rpyfmm sample --seed`) and BD; independent of thread count.");
+
+  m.def(
+      "estimate_spectrum_bounds",
+      [](const rpy::MobilityOperator& op, int iterations) {
+        nb::gil_scoped_release release;
+        return rpy::estimate_spectrum_bounds(op.as_linear_operator(), iterations);
+      },
+      nb::arg("op"), nb::arg("iterations") = 30,
+      "Extreme eigenvalues of the operator's current matrix by reorthogonalized Lanczos (for Chebyshev).");
+
+  m.def(
+      "sqrt_apply",
+      [](nb::callable matvec, ArrayArg z, OutArg out, const std::string& method, double tol, int max_iterations,
+         bool reorthogonalize, bool throw_if_not_converged, double lambda_min, double lambda_max,
+         int bound_estimate_iterations) {
+        const std::string where = "sqrt_apply";
+        const rpy::SqrtOptions o = sqrt_options(method, tol, max_iterations, reorthogonalize, throw_if_not_converged,
+                                                lambda_min, lambda_max, bound_estimate_iterations);
+        const InArray zz = as_input(z, where, "z");
+        require(zz.ndim() == 1 && zz.size > 0, ErrorCode::invalid_input, where,
+                "z has shape " + shape_string(zz.shape) + ", expected (n,)");
+        OutArray w = make_output(out, zz.shape, where, &zz);
+        rpy::LinearOperatorView view;
+        view.n = zz.size;
+        // The solver runs without the GIL; each product takes it to call `matvec` on a
+        // read-only view of x (valid during the call only) and copies the result into y.
+        view.apply = [&matvec, n = zz.size](std::span<const double> x, std::span<double> y, std::size_t nrhs) {
+          nb::gil_scoped_acquire acquire;
+          for (std::size_t k = 0; k < nrhs; ++k) {
+            const std::size_t shape[1] = {n};
+            nb::object xv = nb::cast(nb::ndarray<nb::numpy, const double>(x.data() + k * n, 1, shape, nb::handle()),
+                                     nb::rv_policy::reference);
+            const InArray r = as_input(matvec(xv), "sqrt_apply", "matvec result");
+            require(r.size == n, ErrorCode::invalid_input, "sqrt_apply",
+                    "matvec returned " + std::to_string(r.size) + " entries, expected " + std::to_string(n));
+            std::memcpy(y.data() + k * n, r.data, n * sizeof(double));
+          }
+        };
+        rpy::SqrtReport report;
+        {
+          nb::gil_scoped_release release;
+          report = rpy::sqrt_apply(view, zz.span(), w.span(), 1, o);
+        }
+        return array_and_report(w.object, report);
+      },
+      nb::arg("matvec"), nb::arg("z"), nb::arg("out") = nb::none(), nb::kw_only(), nb::arg("method") = "lanczos",
+      nb::arg("tol") = 1e-3, nb::arg("max_iterations") = 0, nb::arg("reorthogonalize") = true,
+      nb::arg("throw_if_not_converged") = true, nb::arg("lambda_min") = 0.0, nb::arg("lambda_max") = 0.0,
+      nb::arg("bound_estimate_iterations") = 30,
+      "w = M^{1/2} z for a symmetric positive definite M given by matvec(x) -> M x (x: (n,) read-only).\n"
+      "Methods as MobilityOperator.apply_sqrt except 'auto'/'split'. Returns (w, SqrtReport).");
+}
+
+}  // namespace rpyfmm::python

@@ -1,0 +1,203 @@
+"""Mobility operators from Python: equal to the CLI, FMM within tolerance of the
+direct sum, dense matrix symmetric positive definite, PSE periodic
+self-mobility (Hasimoto), shapes, dtypes, no copies, GIL released."""
+
+from __future__ import annotations
+
+import threading
+import time
+import tracemalloc
+
+import numpy as np
+import pytest
+
+import rpyfmm
+from conftest import rel_err, suspension
+
+N = 300
+
+
+@pytest.fixture(scope="module")
+def system() -> tuple[np.ndarray, np.ndarray]:
+    x = suspension(N, seed=11)
+    f = np.random.default_rng(4).standard_normal((N, 3))
+    return x, f
+
+
+@pytest.mark.parametrize("method,extra,factory", [
+    ("direct", [], lambda: rpyfmm.make_mobility("direct")),
+    ("fmm", ["--eps", "1e-6"], lambda: rpyfmm.make_mobility("fmm", tolerance=1e-6)),
+    ("pse", ["--eps", "1e-4", "--box", "20"], lambda: rpyfmm.make_mobility("pse", tolerance=1e-4, box=20.0)),
+])
+def test_apply_equals_cli(system, cli, save_npy, tmp_path, method, extra, factory):
+    x, f = system
+    cli("mobility", "--positions", save_npy("X.npy", x), "--forces", save_npy("F.npy", f), "--radius", "1",
+        "--method", method, *extra, "--out", tmp_path / "U.npy")
+    op = factory()
+    assert op.name == method
+    op.set_positions(x, 1.0)
+    np.testing.assert_array_equal(op.apply(f), np.load(tmp_path / "U.npy"))
+
+
+def test_per_particle_radii_equal_cli(system, cli, save_npy, tmp_path):
+    x, f = system
+    radii = np.random.default_rng(8).uniform(0.5, 1.2, N)
+    cli("mobility", "--positions", save_npy("X.npy", x), "--forces", save_npy("F.npy", f), "--radii",
+        save_npy("A.npy", radii), "--method", "direct", "--out", tmp_path / "U.npy")
+    op = rpyfmm.DirectRpy()
+    op.set_positions(x, radii)
+    assert not op.equal_radii
+    np.testing.assert_array_equal(op.apply(f), np.load(tmp_path / "U.npy"))
+    np.testing.assert_array_equal(op.radii, radii)
+
+
+@pytest.mark.parametrize("tol", [1e-3, 1e-6, 1e-9])
+def test_fmm_meets_tolerance(system, tol):
+    x, f = system
+    direct, fmm = rpyfmm.DirectRpy(viscosity=2.0), rpyfmm.FmmRpy(viscosity=2.0, tolerance=tol)
+    radii = np.random.default_rng(1).uniform(0.3, 1.0, N)
+    for op in (direct, fmm):
+        op.set_positions(x, radii)
+    assert rel_err(fmm.apply(f), direct.apply(f)) <= tol
+
+
+def test_self_mobility_units():
+    op = rpyfmm.DirectRpy(viscosity=0.7)
+    op.set_positions(np.zeros((1, 3)), 1.3)
+    u = op.apply(np.array([[1.0, 0.0, 0.0]]))
+    np.testing.assert_allclose(u[0], [1.0 / (6 * np.pi * 0.7 * 1.3), 0.0, 0.0], rtol=1e-15)
+
+
+@pytest.mark.parametrize("name", ["direct", "fmm", "pse"])
+def test_dense_from_products_is_spd(name):
+    n = 24
+    x = suspension(n, seed=2, spacing=2.1, jitter=0.5)  # includes overlapping pairs
+    op = {"direct": lambda: rpyfmm.DirectRpy(),
+          "fmm": lambda: rpyfmm.FmmRpy(tolerance=1e-9),
+          "pse": lambda: rpyfmm.PseRpy(box=12.0, tolerance=1e-5)}[name]()
+    op.set_positions(x, 1.0)
+    m = op.assemble_dense()
+    assert m.shape == (3 * n, 3 * n)
+    # The same matrix from Python products with the unit vectors (one block call).
+    np.testing.assert_allclose(op.apply_block(np.eye(3 * n)).T, m, rtol=0, atol=1e-14 * np.abs(m).max())
+    asym = np.abs(m - m.T).max() / np.abs(m).max()
+    assert asym <= (1e-6 if name == "fmm" else 1e-14)
+    assert np.linalg.eigvalsh(0.5 * (m + m.T)).min() > 0.0
+
+
+@pytest.mark.parametrize("a_over_l", [0.02, 0.05, 0.1])
+def test_pse_periodic_self_mobility_is_hasimoto(a_over_l):
+    a, eta = 1.0, 1.3
+    box = a / a_over_l
+    op = rpyfmm.PseRpy(box=box, viscosity=eta, tolerance=1e-6)
+    op.set_positions(np.array([[0.3, 0.4, 0.5]]) * box, a)
+    u = op.apply(np.array([0.0, 0.0, 1.0]))
+    phi = a_over_l
+    hasimoto = (1.0 - 2.837297 * phi + 4.0 * np.pi / 3.0 * phi**3) / (6.0 * np.pi * eta * a)
+    assert abs(u[2] - hasimoto) <= 1e-5 * hasimoto
+    assert abs(u[0]) + abs(u[1]) <= 1e-6 * hasimoto
+    assert op.periodic and op.box == (box, box, box)
+    assert op.parameters["xi"] > 0
+
+
+def test_shapes_and_dtypes(system):
+    x, f = system
+    op = rpyfmm.DirectRpy()
+    op.set_positions(x.reshape(-1), 1.0)
+    u = op.apply(f)
+    flat = op.apply(f.reshape(-1))
+    assert flat.shape == (3 * N,) and u.shape == (N, 3)
+    np.testing.assert_array_equal(flat, u.reshape(-1))
+    u32 = op.apply(f.astype(np.float32))
+    assert u32.dtype == np.float64
+    np.testing.assert_array_equal(u32, op.apply(f.astype(np.float32).astype(np.float64)))
+    np.testing.assert_array_equal(op.apply(f.tolist()), u)  # anything NumPy reads
+    np.testing.assert_array_equal(op.apply(np.asfortranarray(f)), u)  # strided: converted
+    assert np.array_equal(op.divergence(), np.zeros((N, 3)))
+
+
+def test_out_is_written_in_place(system):
+    x, f = system
+    op = rpyfmm.FmmRpy(tolerance=1e-6)
+    op.set_positions(x, 1.0)
+    out = np.empty((N, 3))
+    address = out.ctypes.data
+    result = op.apply(f, out=out)
+    assert result is out and result.ctypes.data == address
+    np.testing.assert_array_equal(out, op.apply(f))
+    flat_out = np.empty(3 * N)
+    assert op.apply(f, out=flat_out) is flat_out  # any shape with 3N entries
+
+
+def test_float64_inputs_are_views_not_copies():
+    a = np.random.default_rng(0).standard_normal((1000, 3))
+    assert rpyfmm._rpyfmm._input_address(a) == a.ctypes.data  # used in place
+    assert rpyfmm._rpyfmm._input_address(a.astype(np.float32)) != a.ctypes.data
+    strided = a[::2]
+    assert rpyfmm._rpyfmm._input_address(strided) != strided.ctypes.data  # converted (documented)
+
+
+def test_large_arrays_are_not_copied():
+    """NumPy allocations are traced by tracemalloc: apply(F, out=U) on 2.4 MB
+    arrays must not allocate anything of that size in the binding layer."""
+    n = 100_000
+    op = rpyfmm.FreeDraining()
+    x = np.random.default_rng(0).uniform(0, 100, (n, 3))
+    op.set_positions(x, 1.0)
+    f, u = np.ones((n, 3)), np.empty((n, 3))
+    op.apply(f, out=u)  # warm-up (imports, caches)
+    tracemalloc.start()
+    try:
+        op.apply(f, out=u)
+        _, peak_view = tracemalloc.get_traced_memory()
+        tracemalloc.reset_peak()
+        op.apply(f.astype(np.float32), out=u)
+        _, peak_copy = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak_view < f.nbytes // 20
+    assert peak_copy >= f.nbytes  # the float32 conversion does copy (documented)
+    np.testing.assert_allclose(u, 1.0 / (6 * np.pi))
+
+
+def test_make_mobility_by_name():
+    assert isinstance(rpyfmm.make_mobility("auto", 10), rpyfmm.DirectRpy)
+    assert isinstance(rpyfmm.make_mobility("auto", 5000), rpyfmm.FmmRpy)
+    assert isinstance(rpyfmm.make_mobility("auto", 10, box=30.0), rpyfmm.PseRpy)
+    assert isinstance(rpyfmm.make_mobility("none"), rpyfmm.FreeDraining)
+    for op in (rpyfmm.DirectRpy(), rpyfmm.FmmRpy(), rpyfmm.PseRpy(box=(10, 12, 14))):
+        assert isinstance(op, rpyfmm.MobilityOperator)
+
+
+def test_gil_released_during_apply():
+    """While another thread is inside apply, this thread keeps running Python: the
+    longest pause between its loop iterations stays far below one apply."""
+    n = 4000
+    op = rpyfmm.DirectRpy()
+    op.set_positions(suspension(n, seed=1), 1.0)
+    f = np.ones((n, 3))
+    old = rpyfmm.get_num_threads()
+    rpyfmm.set_num_threads(1)  # in this thread only: apply below runs in the worker thread
+    try:
+        start = time.perf_counter()
+        op.apply(f)
+        one_apply = time.perf_counter() - start
+        done = threading.Event()
+
+        def work() -> None:
+            rpyfmm.set_num_threads(1)
+            for _ in range(2):
+                op.apply(f)
+            done.set()
+
+        t = threading.Thread(target=work)
+        t.start()
+        last, max_gap = time.perf_counter(), 0.0
+        while not done.is_set():
+            now = time.perf_counter()
+            max_gap, last = max(max_gap, now - last), now
+        t.join()
+    finally:
+        rpyfmm.set_num_threads(old)
+    assert one_apply > 0.02
+    assert max_gap < 0.5 * one_apply, (max_gap, one_apply)
