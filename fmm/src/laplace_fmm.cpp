@@ -8,6 +8,7 @@
 #include <map>
 #include <string>
 
+#include "planewave_kernels.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/fmm/detail/expansions.hpp"
 #include "rpyfmm/fmm/detail/octree.hpp"
@@ -19,10 +20,22 @@ using detail::cplx;
 using detail::ncoef;
 
 int fmm_order_for(double eps) {
-  // PLANEWAVE.md §1.5 (FMM3D l3dterms): sources within sqrt(3)/2, nearest target at 1.5 (box units).
-  for (int p = 2; p < 80; ++p)
-    if (std::pow(std::sqrt(3.0) / 2.0, p) / std::pow(1.5, p + 1) < eps) return p;
-  return 80;
+  // Truncation bound of PLANEWAVE.md §1.5 (FMM3D l3dterms): sources within sqrt(3)/2, nearest
+  // target at 1.5 (box units). Beyond some order the error saturates at the plane-wave table's own
+  // error, so the bound is capped per table (docs/design-notes.md, "expansion order"). The caps
+  // 8 / 18 / 32 / 42 for the 3 / 6 / 9 / 12-digit tables are the smallest orders that keep the
+  // worst case within eps/2 (one source box with charges at its corners, every V-list offset:
+  // FmmBlocks.PlaneWaveM2LAllOffsetsAllTables) and pass 200 coincident charges at 1e-9
+  // (FmmFeatures.DuplicatedPoints); random distributions saturate earlier (p = 8/16/26/36).
+  int p = 80;
+  for (int q = 2; q < 80; ++q)
+    if (std::pow(std::sqrt(3.0) / 2.0, q) / std::pow(1.5, q + 1) < eps) {
+      p = q;
+      break;
+    }
+  const int digits = fmm_table_digits_for(eps);
+  const int cap = digits <= 3 ? 8 : digits <= 6 ? 18 : digits <= 9 ? 32 : 42;
+  return std::min(p, cap);
 }
 
 int fmm_table_digits_for(double eps) {
@@ -59,6 +72,10 @@ const detail::ChildTranslations& child_translations(int p) {
 struct LaplaceFmm::Plan {
   detail::Octree tree;
   int p = 0, digits = 0, leaf_capacity = 0;
+  // W/X boxes with at most this many sources/targets are summed directly instead of by M2P/P2L;
+  // with export_direct those direct sums are left to the caller (near_field() pairs).
+  std::size_t direct_limit = 0;
+  bool export_direct = false;
   const detail::Harmonics* H = nullptr;
   const detail::ChildTranslations* ct = nullptr;
   const detail::PlaneWave* pw = nullptr;
@@ -88,8 +105,12 @@ LaplaceFmm& LaplaceFmm::operator=(LaplaceFmm&& o) noexcept {
   return *this;
 }
 
-std::size_t LaplaceFmm::num_sources() const noexcept { return plan_ ? plan_->n : 0; }
-std::size_t LaplaceFmm::num_targets() const noexcept { return plan_ ? plan_->m : 0; }
+std::size_t LaplaceFmm::num_sources() const noexcept {
+  return plan_ ? plan_->n : 0;
+}
+std::size_t LaplaceFmm::num_targets() const noexcept {
+  return plan_ ? plan_->m : 0;
+}
 
 void LaplaceFmm::set_points(std::span<const double> sources, std::span<const double> targets) {
   constexpr const char* where = "LaplaceFmm::set_points";
@@ -106,6 +127,12 @@ void LaplaceFmm::set_points(std::span<const double> sources, std::span<const dou
   plan->p = options_.order > 0 ? options_.order : fmm_order_for(options_.eps);
   plan->digits = fmm_table_digits_for(options_.eps);
   plan->leaf_capacity = options_.leaf_capacity > 0 ? options_.leaf_capacity : fmm_default_leaf_capacity(options_.eps);
+  // Direct W/X sums beat M2P/P2L below ~p^2/2 points by operation counts (CGR 1999 §4). A caller
+  // that takes them over (export_direct_far) has a kernel cheaper than nd Laplace densities, and
+  // direct sums of whole leaves then win even more (measured: FmmRpy, bench/rpy/RESULTS.md).
+  plan->export_direct = options_.export_direct_far && !options_.near_field;
+  plan->direct_limit = std::size_t(plan->p) * std::size_t(plan->p) / 2;
+  if (plan->export_direct) plan->direct_limit = std::max(plan->direct_limit, std::size_t(plan->leaf_capacity));
   detail::OctreeParams tp;
   tp.leaf_capacity = std::size_t(plan->leaf_capacity);
   tp.min_leaf_side = options_.min_leaf_side;
@@ -117,7 +144,8 @@ void LaplaceFmm::set_points(std::span<const double> sources, std::span<const dou
   plan->pw = &detail::PlaneWave::cached(plan->p, plan->digits);
   plan->n = sources.size() / 3;
   plan->m = targets.empty() ? plan->n : targets.size() / 3;
-  auto soa = [](const std::vector<double>& xyz, std::vector<double>& x, std::vector<double>& y, std::vector<double>& z) {
+  auto soa = [](const std::vector<double>& xyz, std::vector<double>& x, std::vector<double>& y,
+                std::vector<double>& z) {
     const std::size_t k = xyz.size() / 3;
     x.resize(k);
     y.resize(k);
@@ -181,6 +209,36 @@ const NearField& LaplaceFmm::near_field() const {
   }
   for (std::size_t i = 0; i < leaves.size(); ++i)
     for (int u : t.ulist().of(leaves[i])) nf->pairs.emplace_back(std::uint32_t(i), std::uint32_t(leaf_id[u]));
+  if (plan_->export_direct) {
+    // The W/X sums evaluate() leaves to the caller: every leaf (with sources) under such a box.
+    const auto& boxes = t.boxes();
+    const std::size_t limit = plan_->direct_limit;
+    std::vector<int> stack;
+    auto add_leaves_under = [&](std::uint32_t target_leaf, int box) {
+      stack.assign(1, box);
+      while (!stack.empty()) {
+        const int c = stack.back();
+        stack.pop_back();
+        if (boxes[c].nsrc() == 0) continue;
+        if (boxes[c].leaf) {
+          nf->pairs.emplace_back(target_leaf, std::uint32_t(leaf_id[c]));
+        } else {
+          for (int k : boxes[c].child)
+            if (k >= 0) stack.push_back(k);
+        }
+      }
+    };
+    for (std::size_t i = 0; i < leaves.size(); ++i) {
+      const int b = leaves[i];
+      if (boxes[b].ntgt() == 0) continue;
+      for (int w : t.wlist().of(b))
+        if (boxes[w].nsrc() > 0 && boxes[w].nsrc() <= limit) add_leaves_under(std::uint32_t(i), w);
+      for (int a = b; a >= 0; a = boxes[a].parent) {
+        if (boxes[a].ntgt() > limit) continue;
+        for (int x : t.xlist().of(a)) add_leaves_under(std::uint32_t(i), x);
+      }
+    }
+  }
   near_ = std::move(nf);
   return *near_;
 }
@@ -289,7 +347,8 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
 
   // W and X lists: a box with few sources (W) or few targets (X) is cheaper by direct summation
   // than by M2P or P2L (CGR 1999 §4; PLANEWAVE.md §5.6). Threshold ~ p^2/2 by operation counts.
-  const std::size_t direct_limit = std::size_t(p) * std::size_t(p) / 2;
+  const std::size_t direct_limit = P.direct_limit;
+  const bool export_direct = P.export_direct;
   auto p2p = [&](const detail::Box& src_box, std::size_t tbeg, std::size_t tcount) {
     const PointsSoA tg{&P.tx[tbeg], &P.ty[tbeg], &P.tz[tbeg], tcount};
     const PointsSoA sr{&P.sx[src_box.src_begin], &P.sy[src_box.src_begin], &P.sz[src_box.src_begin], src_box.nsrc()};
@@ -407,9 +466,7 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
               const auto dp = detail::PlaneWave::frame_offset(f, {-ax, -ay, -az});
               const cplx* sh = g.sign > 0 ? pw.shift(dp[0], dp[1], dp[2]) : pw.shift(-dp[0], -dp[1], -dp[2]);
               const cplx* W = &waves[std::size_t(e - lb) * 2 * wave_stride + (g.sign > 0 ? 0 : wave_stride)];
-              cplx* acc = accs[k].v.data();
-              for (std::size_t d = 0; d < nd; ++d)
-                for (int j = 0; j < sumM; ++j) acc[d * sumM + j] += sh[j] * W[d * sumM + j];
+              detail::shift_accumulate(std::size_t(sumM), nd, sh, W, accs[k].v.data());
             }
           if (nacc == 0) continue;
           for (int o = 0; o < 8; ++o) {
@@ -422,7 +479,7 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
               for (std::size_t k = 0; k < nacc; ++k) {
                 if (accs[k].sign != sign || !(accs[k].mask & (1u << o))) continue;
                 got[sgn] = true;
-                for (std::size_t i = 0; i < wave_stride; ++i) V[i] += accs[k].v[i];
+                detail::accumulate(wave_stride, accs[k].v.data(), V.data());
               }
               cplx* G = sgn == 0 ? Gu.data() : Gd.data();
               if (!got[sgn]) {
@@ -431,10 +488,8 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
               }
               const auto dp = detail::PlaneWave::frame_offset(f, {o & 1, (o >> 1) & 1, (o >> 2) & 1});
               const cplx* sh = sign > 0 ? pw.shift(dp[0], dp[1], dp[2]) : pw.shift(-dp[0], -dp[1], -dp[2]);
-              for (std::size_t d = 0; d < nd; ++d) {
-                for (int j = 0; j < sumM; ++j) V[d * sumM + j] *= sh[j];
-                pw.p2f(&V[d * sumM], G + d * sumK);
-              }
+              detail::shift_in_place(std::size_t(sumM), nd, sh, V.data());
+              for (std::size_t d = 0; d < nd; ++d) pw.p2f(&V[d * sumM], G + d * sumK);
             }
             if (!got[0] && !got[1]) continue;
             for (std::size_t d = 0; d < nd; ++d) {
@@ -468,7 +523,8 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
       if (bx.ntgt() == 0 || !has_local[b]) continue;
       const double s = tree.side(bx.level), inv_s = 1.0 / s;
       const auto c = tree.center(b);
-      for (std::size_t d = 0; d < nd; ++d) detail::local_to_b(H, p, &lp[std::size_t(b) * stride + d * nc], &bcoef[d * nc]);
+      for (std::size_t d = 0; d < nd; ++d)
+        detail::local_to_b(H, p, &lp[std::size_t(b) * stride + d * nc], &bcoef[d * nc]);
       for (std::size_t t0 = bx.tgt_begin; t0 < bx.tgt_end; t0 += detail::kL2PLanes) {
         const int nt = int(std::min<std::size_t>(detail::kL2PLanes, bx.tgt_end - t0));
         double ux[detail::kL2PLanes], uy[detail::kL2PLanes], uz[detail::kL2PLanes];
@@ -499,7 +555,7 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
         const auto& wb = boxes[w];
         if (wb.nsrc() == 0) continue;
         if (wb.nsrc() <= direct_limit) {
-          p2p(wb, bx.tgt_begin, bx.ntgt());
+          if (!export_direct) p2p(wb, bx.tgt_begin, bx.ntgt());
           continue;
         }
         const double s = tree.side(wb.level);
@@ -515,7 +571,7 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
         }
       }
       // X lists of this leaf and its ancestors that were left to direct summation.
-      for (int a = b; a >= 0; a = boxes[a].parent) {
+      for (int a = b; a >= 0 && !export_direct; a = boxes[a].parent) {
         if (boxes[a].ntgt() > direct_limit) continue;
         for (int x : tree.xlist().of(a))
           if (boxes[x].nsrc() > 0) p2p(boxes[x], bx.tgt_begin, bx.ntgt());

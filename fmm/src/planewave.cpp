@@ -8,6 +8,7 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "planewave_kernels.hpp"
 #include "planewave_tables.hpp"
 
 namespace rpyfmm::fmm::detail {
@@ -41,13 +42,18 @@ PlaneWave::PlaneWave(int p, int digits)
       lp *= lambda_[k];
     }
   }
-  twiddle_.assign(std::size_t(sumM_) * kmax_, cplx(0.0));
-  for (int k = 0; k < nlams_; ++k)
-    for (int j = 0; j < M_[k]; ++j) {
-      const double a = 2.0 * std::numbers::pi * j / M_[k];
-      for (int m = 0; m < kmax_; ++m)
-        twiddle_[std::size_t(moff_[k] + j) * kmax_ + m] = cplx(std::cos(m * a), std::sin(m * a));
-    }
+  // Twiddles e^{i m a_kj} as separate cos / sin tables, m-major within node k, so that F2P and
+  // P2F run over the angle index j with unit stride (vectorized).
+  for (int k = 0; k < nlams_; ++k) {
+    if (M_[k] > kMaxPhysical) throw std::invalid_argument("PlaneWave: table has too many angle nodes");
+    toff_.push_back(int(cos_.size()));
+    for (int m = 0; m < K_[k]; ++m)
+      for (int j = 0; j < M_[k]; ++j) {
+        const double a = 2.0 * std::numbers::pi * j / M_[k];
+        cos_.push_back(std::cos(m * a));
+        sin_.push_back(std::sin(m * a));
+      }
+  }
   shift_.resize(std::size_t(343) * sumM_);
   for (int dz = -3; dz <= 3; ++dz)
     for (int dy = -3; dy <= 3; ++dy)
@@ -57,8 +63,7 @@ PlaneWave::PlaneWave(int p, int digits)
           for (int j = 0; j < M_[k]; ++j) {
             const double a = 2.0 * std::numbers::pi * j / M_[k];
             const double lam = lambda_[k];
-            out[moff_[k] + j] =
-                std::exp(-lam * dz) * std::exp(cplx(0.0, lam * (dx * std::cos(a) + dy * std::sin(a))));
+            out[moff_[k] + j] = std::exp(-lam * dz) * std::exp(cplx(0.0, lam * (dx * std::cos(a) + dy * std::sin(a))));
           }
       }
 }
@@ -100,10 +105,14 @@ void PlaneWave::from_frame(int f, const cplx* Lf, cplx* L) const noexcept {
 namespace {
 inline cplx ipow(int m) noexcept {  // i^m
   switch (m & 3) {
-    case 0: return {1, 0};
-    case 1: return {0, 1};
-    case 2: return {-1, 0};
-    default: return {0, -1};
+    case 0:
+      return {1, 0};
+    case 1:
+      return {0, 1};
+    case 2:
+      return {-1, 0};
+    default:
+      return {0, -1};
   }
 }
 }  // namespace
@@ -123,39 +132,53 @@ void PlaneWave::m2f(const cplx* Mt, cplx* Fup, cplx* Fdown) const noexcept {
   }
 }
 
-void PlaneWave::f2p(const cplx* F, cplx* W) const noexcept {
+RPYFMM_PW_CLONES void PlaneWave::f2p(const cplx* F, cplx* W) const noexcept {
+  double re[kMaxPhysical], im[kMaxPhysical];
   for (int k = 0; k < nlams_; ++k) {
     const cplx* f = F + koff_[k];
-    for (int j = 0; j < M_[k]; ++j) {
-      const cplx* tw = twiddle_.data() + std::size_t(moff_[k] + j) * kmax_;
-      double re = f[0].real(), im = 0.0;
-      for (int m = 1; m < K_[k]; ++m) {
-        const cplx t = f[m] * tw[m];
-        if (m & 1)
-          im += 2.0 * t.imag();
-        else
-          re += 2.0 * t.real();
-      }
-      W[moff_[k] + j] = cplx(re, im);
+    const int M = M_[k];
+    for (int j = 0; j < M; ++j) {
+      re[j] = f[0].real();
+      im[j] = 0.0;
     }
+    // W_kj = F(0) + 2 sum_{m>0} [Re or Im of F(m) e^{i m a_kj}] (real charges: F(-m) = conj F(m) up
+    // to the parity of m, so even m contribute to the real and odd m to the imaginary part).
+    for (int m = 1; m < K_[k]; ++m) {
+      const double fr = 2.0 * f[m].real(), fi = 2.0 * f[m].imag();
+      const double* c = cos_.data() + toff_[k] + std::size_t(m) * M;
+      const double* s = sin_.data() + toff_[k] + std::size_t(m) * M;
+      if (m & 1) {
+#pragma omp simd
+        for (int j = 0; j < M; ++j) im[j] += fr * s[j] + fi * c[j];
+      } else {
+#pragma omp simd
+        for (int j = 0; j < M; ++j) re[j] += fr * c[j] - fi * s[j];
+      }
+    }
+    for (int j = 0; j < M; ++j) W[moff_[k] + j] = cplx(re[j], im[j]);
   }
 }
 
-void PlaneWave::p2f(const cplx* V, cplx* G) const noexcept {
+RPYFMM_PW_CLONES void PlaneWave::p2f(const cplx* V, cplx* G) const noexcept {
+  double vr[kMaxPhysical], vi[kMaxPhysical];
   for (int k = 0; k < nlams_; ++k) {
-    const double inv = 1.0 / M_[k];
-    const int K = K_[k];
-    double re[64], im[64];
-    for (int m = 0; m < K; ++m) re[m] = im[m] = 0.0;
-    for (int j = 0; j < M_[k]; ++j) {
-      const double vr = V[moff_[k] + j].real(), vi = V[moff_[k] + j].imag();
-      const cplx* tw = twiddle_.data() + std::size_t(moff_[k] + j) * kmax_;
-      for (int m = 0; m < K; ++m) {  // V e^{-i m a}
-        re[m] += vr * tw[m].real() + vi * tw[m].imag();
-        im[m] += vi * tw[m].real() - vr * tw[m].imag();
-      }
+    const int M = M_[k];
+    const double inv = 1.0 / M;
+    for (int j = 0; j < M; ++j) {
+      vr[j] = V[moff_[k] + j].real();
+      vi[j] = V[moff_[k] + j].imag();
     }
-    for (int m = 0; m < K; ++m) G[koff_[k] + m] = cplx(re[m] * inv, im[m] * inv);
+    for (int m = 0; m < K_[k]; ++m) {  // (1/M) sum_j V_j e^{-i m a_kj}
+      const double* c = cos_.data() + toff_[k] + std::size_t(m) * M;
+      const double* s = sin_.data() + toff_[k] + std::size_t(m) * M;
+      double gr = 0.0, gi = 0.0;
+#pragma omp simd reduction(+ : gr, gi)
+      for (int j = 0; j < M; ++j) {
+        gr += vr[j] * c[j] + vi[j] * s[j];
+        gi += vi[j] * c[j] - vr[j] * s[j];
+      }
+      G[koff_[k] + m] = cplx(gr * inv, gi * inv);
+    }
   }
 }
 

@@ -23,7 +23,18 @@ constexpr std::array<std::array<int, 3>, 3> kHessianColumn = {{{4, 7, 8}, {7, 5,
 // up to 7 outputs with partial cancellation (x_m E_k(F^m) - E_k(x.F)); measured
 // on the test configurations, errors stay below the FMM's own eps, which is
 // itself conservative (tests/rpy/test_fmm_operator.cpp holds the contract).
-double laplace_eps_for(double tolerance) { return tolerance; }
+double laplace_eps_for(double tolerance) {
+  return tolerance;
+}
+
+// Leaf capacity when the user leaves it at 0. Four densities per product make the far field
+// dearer relative to the near field than in one Laplace evaluation: at 3 digits, leaves twice the
+// Laplace default are fastest or within 10% of it for N = 3e3 ... 2e5 (random suspension, 1 thread,
+// bench/rpy/RESULTS.md "leaf capacity"); at 6 digits and beyond the Laplace default already is.
+int default_leaf_capacity(double eps) {
+  const int laplace = fmm::fmm_default_leaf_capacity(eps);
+  return fmm::fmm_table_digits_for(eps) <= 3 ? 2 * laplace : laplace;
+}
 
 // Sum over the gathered near-field sources q of M_iq f_q (times eta): exact RPY pair blocks
 // (rpy_kernel.hpp, MATH.md §1), all three regimes evaluated branch-free and selected per pair.
@@ -124,7 +135,9 @@ FmmRpy::FmmRpy(Geometry geometry, double viscosity, FmmRpyOptions options)
 
 FmmRpy::~FmmRpy() = default;
 
-StageTimes FmmRpy::last_timings() const { return timings_; }
+StageTimes FmmRpy::last_timings() const {
+  return timings_;
+}
 
 void FmmRpy::on_positions_set() {
   const std::size_t n = size();
@@ -144,8 +157,9 @@ void FmmRpy::on_positions_set() {
   const double a_max = *std::max_element(radii().begin(), radii().end());
   fmm::FmmOptions fo;
   fo.eps = laplace_eps_;
-  fo.leaf_capacity = options_.leaf_capacity;
+  fo.leaf_capacity = options_.leaf_capacity > 0 ? options_.leaf_capacity : default_leaf_capacity(laplace_eps_);
   fo.near_field = false;
+  fo.export_direct_far = true;     // W/X pairs summed directly: one RPY pair block beats 4-7 Laplace densities
   fo.min_leaf_side = 2.0 * a_max;  // overlapping pairs (r <= a_i + a_j) are always U-list pairs
   fmm_ = std::make_unique<fmm::LaplaceFmm>(fo);
   fmm_->set_points(centered_);
@@ -225,13 +239,13 @@ void FmmRpy::do_apply(const double* forces, double* velocities, std::size_t nrhs
         double dipole = 0.0;
         for (int m = 0; m < 3; ++m) {
           const double* rm = r + (m * n + i) * 10;
-          oseen -= xi[m] * rm[1 + c];                      // + x_m E_c(F^m),  E = -g
-          dipole -= rm[kHessianColumn[c][m]];              // T_cm(F^m),       T = -H
+          oseen -= xi[m] * rm[1 + c];          // + x_m E_c(F^m),  E = -g
+          dipole -= rm[kHessianColumn[c][m]];  // T_cm(F^m),       T = -H
         }
-        oseen += rxF[1 + c];                               // - E_c(x.F)
+        oseen += rxF[1 + c];  // - E_c(x.F)
         double value = c1 * oseen + c2 * ai2 * dipole;
         if (equal) {
-          value += c2 * ai2 * dipole;                      // a_j^2 = a_i^2
+          value += c2 * ai2 * dipole;  // a_j^2 = a_i^2
         } else {
           double dipole_a2 = 0.0;
           for (int m = 0; m < 3; ++m) dipole_a2 -= r[((4 + m) * n + i) * 10 + kHessianColumn[c][m]];

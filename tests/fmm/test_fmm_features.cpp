@@ -25,7 +25,8 @@ FmmOptions opts(double eps, int leaf) {
   o.leaf_capacity = leaf;
   return o;
 }
-std::vector<double> eval(const LaplaceFmm& f, const std::vector<double>& q, std::size_t nd, unsigned out = all_outputs) {
+std::vector<double> eval(const LaplaceFmm& f, const std::vector<double>& q, std::size_t nd,
+                         unsigned out = all_outputs) {
   std::vector<double> r(nd * f.num_targets() * 10);
   f.evaluate(q, nd, out, r);
   return r;
@@ -46,7 +47,7 @@ TEST(FmmFeatures, TargetsDifferentFromSources) {
   const auto src = fmmtest::cube(2000, 11);
   auto tgt = fmmtest::cube(1500, 12);
   for (auto& v : tgt) v = 1.6 * v - 0.3;  // partly outside the sources' cube
-  for (int k = 0; k < 30; ++k)           // some targets coincide with sources
+  for (int k = 0; k < 30; ++k)            // some targets coincide with sources
     for (int c = 0; c < 3; ++c) tgt[3 * k + c] = src[3 * (7 * k) + c];
   for (double eps : {1e-3, 1e-6}) {
     LaplaceFmm f(opts(eps, 20));
@@ -188,47 +189,56 @@ TEST(FmmFeatures, PlanReuse) {
 TEST(FmmFeatures, FarFieldOnlyPlusNearFieldStructureIsComplete) {
   const auto src = fmmtest::plummer(1500, 61);
   auto tgt = fmmtest::plummer(600, 62);
-  for (const bool separate : {false, true}) {
-    const std::vector<double>& T = separate ? tgt : std::vector<double>{};
-    FmmOptions o = opts(1e-6, 24);
-    o.near_field = false;
-    LaplaceFmm f(o);
-    f.set_points(src, T);
-    const std::size_t m = f.num_targets();
-    const auto q = fmmtest::charges(1500, 1, 9);
-    auto r = eval(f, q, 1);
-    const auto& nf = f.near_field();
-    // Every source and target is in exactly one leaf.
-    std::vector<int> seen_s(1500, 0), seen_t(m, 0);
-    for (std::size_t l = 0; l < nf.num_leaves(); ++l) {
-      for (auto i : nf.sources(l)) ++seen_s[i];
-      for (auto i : nf.targets(l)) ++seen_t[i];
+  // export_direct_far: the W/X direct sums move to the caller too (more pairs, none twice).
+  std::size_t pairs_without_export = 0;
+  for (const bool exported : {false, true})
+    for (const bool separate : {false, true}) {
+      const std::vector<double>& T = separate ? tgt : std::vector<double>{};
+      FmmOptions o = opts(1e-6, 24);
+      o.near_field = false;
+      o.export_direct_far = exported;
+      LaplaceFmm f(o);
+      f.set_points(src, T);
+      const std::size_t m = f.num_targets();
+      const auto q = fmmtest::charges(1500, 1, 9);
+      auto r = eval(f, q, 1);
+      const auto& nf = f.near_field();
+      const std::set<std::pair<std::uint32_t, std::uint32_t>> distinct(nf.pairs.begin(), nf.pairs.end());
+      EXPECT_EQ(distinct.size(), nf.pairs.size());
+      if (!exported && !separate) pairs_without_export = nf.pairs.size();
+      if (exported && !separate) EXPECT_GT(nf.pairs.size(), pairs_without_export);
+      // Every source and target is in exactly one leaf.
+      std::vector<int> seen_s(1500, 0), seen_t(m, 0);
+      for (std::size_t l = 0; l < nf.num_leaves(); ++l) {
+        for (auto i : nf.sources(l)) ++seen_s[i];
+        for (auto i : nf.targets(l)) ++seen_t[i];
+      }
+      EXPECT_TRUE(std::all_of(seen_s.begin(), seen_s.end(), [](int c) { return c == 1; }));
+      EXPECT_TRUE(std::all_of(seen_t.begin(), seen_t.end(), [](int c) { return c == 1; }));
+      // Caller-side exact near field over the pairs.
+      const std::vector<double>& TT = separate ? tgt : src;
+      for (const auto& [tl, sl] : nf.pairs)
+        for (auto i : nf.targets(tl))
+          for (auto j : nf.sources(sl)) {
+            const double dx = TT[3 * i] - src[3 * j], dy = TT[3 * i + 1] - src[3 * j + 1],
+                         dz = TT[3 * i + 2] - src[3 * j + 2];
+            const double r2 = dx * dx + dy * dy + dz * dz;
+            if (r2 == 0) continue;
+            const double rr = std::sqrt(r2), r3 = rr * r2, r5 = r3 * r2;
+            double* o2 = &r[i * 10];
+            o2[0] += q[j] / rr;
+            o2[1] -= q[j] * dx / r3;
+            o2[2] -= q[j] * dy / r3;
+            o2[3] -= q[j] * dz / r3;
+            o2[4] += q[j] * (3 * dx * dx / r5 - 1 / r3);
+            o2[5] += q[j] * (3 * dy * dy / r5 - 1 / r3);
+            o2[6] += q[j] * (3 * dz * dz / r5 - 1 / r3);
+            o2[7] += q[j] * 3 * dx * dy / r5;
+            o2[8] += q[j] * 3 * dx * dz / r5;
+            o2[9] += q[j] * 3 * dy * dz / r5;
+          }
+      expect_close_all(r, fmmtest::direct(src, q, 1, separate ? tgt : std::vector<double>{}), 1, m, 1e-6, "far+near");
     }
-    EXPECT_TRUE(std::all_of(seen_s.begin(), seen_s.end(), [](int c) { return c == 1; }));
-    EXPECT_TRUE(std::all_of(seen_t.begin(), seen_t.end(), [](int c) { return c == 1; }));
-    // Caller-side exact near field over the pairs.
-    const std::vector<double>& TT = separate ? tgt : src;
-    for (const auto& [tl, sl] : nf.pairs)
-      for (auto i : nf.targets(tl))
-        for (auto j : nf.sources(sl)) {
-          const double dx = TT[3 * i] - src[3 * j], dy = TT[3 * i + 1] - src[3 * j + 1], dz = TT[3 * i + 2] - src[3 * j + 2];
-          const double r2 = dx * dx + dy * dy + dz * dz;
-          if (r2 == 0) continue;
-          const double rr = std::sqrt(r2), r3 = rr * r2, r5 = r3 * r2;
-          double* o2 = &r[i * 10];
-          o2[0] += q[j] / rr;
-          o2[1] -= q[j] * dx / r3;
-          o2[2] -= q[j] * dy / r3;
-          o2[3] -= q[j] * dz / r3;
-          o2[4] += q[j] * (3 * dx * dx / r5 - 1 / r3);
-          o2[5] += q[j] * (3 * dy * dy / r5 - 1 / r3);
-          o2[6] += q[j] * (3 * dz * dz / r5 - 1 / r3);
-          o2[7] += q[j] * 3 * dx * dy / r5;
-          o2[8] += q[j] * 3 * dx * dz / r5;
-          o2[9] += q[j] * 3 * dy * dz / r5;
-        }
-    expect_close_all(r, fmmtest::direct(src, q, 1, separate ? tgt : std::vector<double>{}), 1, m, 1e-6, "far+near");
-  }
 }
 
 TEST(FmmFeatures, MinLeafSideKeepsClosePairsInTheNearField) {
@@ -247,7 +257,8 @@ TEST(FmmFeatures, MinLeafSideKeepsClosePairsInTheNearField) {
   std::size_t close = 0;
   for (std::size_t i = 0; i < 1500; ++i)
     for (std::size_t j = 0; j < 1500; ++j) {
-      const double dx = src[3 * i] - src[3 * j], dy = src[3 * i + 1] - src[3 * j + 1], dz = src[3 * i + 2] - src[3 * j + 2];
+      const double dx = src[3 * i] - src[3 * j], dy = src[3 * i + 1] - src[3 * j + 1],
+                   dz = src[3 * i + 2] - src[3 * j + 2];
       if (dx * dx + dy * dy + dz * dz < a * a) {
         ++close;
         ASSERT_TRUE(pairs.count({leaf_of[i], leaf_of[j]})) << i << " " << j;

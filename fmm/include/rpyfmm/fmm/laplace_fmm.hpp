@@ -40,6 +40,12 @@ struct FmmOptions {
   /// pairs of near_field() with its own kernel. (W/X interactions of small boxes are still summed
   /// directly with the Laplace kernel: they are far-field pairs, separated by >= the leaf side.)
   bool near_field = true;
+  /// With near_field = false only: the W/X interactions that would be summed directly with the
+  /// Laplace kernel (boxes with few sources or targets, and in this mode every W/X leaf of at most
+  /// leaf_capacity points) are skipped too and listed in near_field().pairs instead, for a caller
+  /// whose own pair kernel is cheaper than nd Laplace densities (FmmRpy). Those pairs are well
+  /// separated (not adjacent); U-list pairs come first.
+  bool export_direct_far = false;
   /// Expansion order; 0 = from eps (FMM3D's rule, PLANEWAVE.md §1.5).
   int order = 0;
 };
@@ -56,7 +62,8 @@ struct TreeStats {
 };
 
 /// Near-field structure in the caller's numbering: for every leaf, the source and target indices
-/// it holds; and the U-list pairs (target leaf, source leaf), the leaf itself included.
+/// it holds; and the U-list pairs (target leaf, source leaf), the leaf itself included, followed
+/// (FmmOptions::export_direct_far) by the W/X leaf pairs left to the caller.
 struct NearField {
   std::vector<std::size_t> source_begin;  // leaf l holds sources source_index[source_begin[l] .. source_begin[l+1])
   std::vector<std::size_t> source_index;
@@ -113,7 +120,8 @@ class LaplaceFmm {
   mutable std::unique_ptr<NearField> near_;
 };
 
-/// Expansion order chosen for a tolerance: smallest p >= 2 with (sqrt(3)/2)^p / 1.5^(p+1) < eps.
+/// Expansion order chosen for a tolerance: smallest p >= 2 with (sqrt(3)/2)^p / 1.5^(p+1) < eps,
+/// capped at 8 / 18 / 32 / 42 for the 3 / 6 / 9 / 12-digit plane-wave tables (where the error saturates).
 int fmm_order_for(double eps);
 /// Digits of the plane-wave table used for a tolerance (3, 6, 9 or 12).
 int fmm_table_digits_for(double eps);

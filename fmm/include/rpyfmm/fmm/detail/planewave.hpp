@@ -64,10 +64,12 @@ class PlaneWave {
   int p_, nlams_, sumK_ = 0, sumM_ = 0, kmax_ = 0;
   std::vector<double> lambda_, weight_;
   std::vector<int> K_, M_, koff_, moff_;
-  std::vector<double> lam_over_c_;  // [k * ncoef(p) + idx(n,m)] = lambda_k^n / c_n^m
-  std::vector<cplx> twiddle_;       // [(moff_k + j) * kmax + m] = e^{i m a_kj}
-  std::vector<cplx> shift_;         // 343 tables of sumM
-  Rotation rot_yneg_, rot_x_;  // Ry(-pi/2), Ry(pi/2)
+  std::vector<double> lam_over_c_;          // [k * ncoef(p) + idx(n,m)] = lambda_k^n / c_n^m
+  static constexpr int kMaxPhysical = 256;  // most angle nodes of one lambda_k (tables: 144)
+  std::vector<int> toff_;                   // node k's twiddles start at toff_[k]
+  std::vector<double> cos_, sin_;           // [toff_k + m * M_k + j] = cos / sin (m a_kj), m < K_k
+  std::vector<cplx> shift_;                 // 343 tables of sumM
+  Rotation rot_yneg_, rot_x_;               // Ry(-pi/2), Ry(pi/2)
 };
 
 /// Merge-and-shift group table (§5.3). For a source box at integer offset a in {-2..3}^3 (child units,
@@ -78,6 +80,8 @@ struct MergeGroup {
   unsigned char mask;
 };
 const std::array<std::array<MergeGroup, 3>, 216>& merge_groups();
-inline int merge_position(int ax, int ay, int az) noexcept { return ((az + 2) * 6 + (ay + 2)) * 6 + (ax + 2); }
+inline int merge_position(int ax, int ay, int az) noexcept {
+  return ((az + 2) * 6 + (ay + 2)) * 6 + (ax + 2);
+}
 
 }  // namespace rpyfmm::fmm::detail

@@ -1,0 +1,26 @@
+// Elementwise plane-wave kernels of the merge-and-shift M2L (PLANEWAVE.md §5.3), compiled for
+// AVX-512, AVX2 and baseline x86-64 and chosen at run time: the shift of physical values
+// V_kj *= Sh_kj and the accumulation of shifted waves are most of the M2L at low precision.
+#pragma once
+
+#include <cstddef>
+
+#include "rpyfmm/fmm/detail/expansions.hpp"
+
+// Run-time dispatch for the plane-wave loops (also F2P / P2F in planewave.cpp).
+#if defined(__x86_64__) && !defined(__SANITIZE_ADDRESS__)
+#define RPYFMM_PW_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+#else
+#define RPYFMM_PW_CLONES
+#endif
+
+namespace rpyfmm::fmm::detail {
+
+/// acc[d m + j] += sh[j] * w[d m + j] for j < m, d < nd (one shift factor table for nd densities).
+void shift_accumulate(std::size_t m, std::size_t nd, const cplx* sh, const cplx* w, cplx* acc) noexcept;
+/// v[d m + j] *= sh[j] for j < m, d < nd.
+void shift_in_place(std::size_t m, std::size_t nd, const cplx* sh, cplx* v) noexcept;
+/// dst[i] += src[i] for i < n.
+void accumulate(std::size_t n, const cplx* src, cplx* dst) noexcept;
+
+}  // namespace rpyfmm::fmm::detail
