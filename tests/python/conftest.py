@@ -7,8 +7,14 @@ by the RPYFMM_CLI environment variable (set by ctest) and skip without it.
 
 from __future__ import annotations
 
-import json
 import os
+
+# As the ctest presets do: idle OpenMP threads sleep instead of spinning (on a loaded
+# 2-core machine spinning makes the suite ~5x slower). Read when libgomp loads, i.e.
+# it must precede the first `import rpyfmm`.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+import json
 import subprocess
 from pathlib import Path
 from typing import Callable, List

@@ -4,6 +4,7 @@ exceptions, state kept), live position views."""
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -122,6 +123,9 @@ def test_positions_view_is_live_read_only_and_not_copied():
     assert sim.positions.ctypes.data == address and not view.flags.writeable
     assert not np.array_equal(view, x0)  # updated in place
     assert sim.last_report.mobility_products >= 1
+    refs = sys.getrefcount(sim)
+    del view
+    assert sys.getrefcount(sim) == refs - 1  # the view kept the simulation alive
 
 
 def test_bd_with_hi_is_brownian():

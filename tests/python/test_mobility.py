@@ -171,8 +171,8 @@ def test_make_mobility_by_name():
 
 def test_gil_released_during_apply():
     """While another thread is inside apply, this thread keeps running Python: the
-    longest pause between its loop iterations stays far below one apply."""
-    n = 4000
+    longest pause between its loop iterations stays far below one apply (~0.1 s)."""
+    n = 8000
     op = rpyfmm.DirectRpy()
     op.set_positions(suspension(n, seed=1), 1.0)
     f = np.ones((n, 3))
