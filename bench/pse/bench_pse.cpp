@@ -5,6 +5,7 @@
 // table against direct evaluation of F, G. CSV rows on stdout.
 //
 // usage: bench_pse [N ...]   (default 8000 16000 32000); threads from 1 to OMP max.
+// Also times the free-space FmmRpy (tolerance 1e-3) on the same particles, 1 thread.
 #include <omp.h>
 
 #include <algorithm>
@@ -16,6 +17,7 @@
 #include <vector>
 
 #include "rpyfmm/core/timer.hpp"
+#include "rpyfmm/rpy/fmm_operator.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/random.hpp"
 
@@ -85,8 +87,9 @@ int main(int argc, char** argv) {
   if (sizes.empty()) sizes = {8000, 16000, 32000};
   const int max_threads = omp_get_max_threads();
   const double a = 1.0, phi = 0.1;
-  std::printf("N,threads,grid,P,r_cut,MF_s,MF_PTPS,sample_s,sample_PTPS,sample_over_MF,split_iters,"
-              "lanczos_full_s,lanczos_full_iters,spread,fft,scale,interp,real,lanczos_real\n");
+  std::printf(
+      "N,threads,grid,P,r_cut,MF_s,MF_PTPS,sample_s,sample_PTPS,sample_over_MF,split_iters,"
+      "lanczos_full_s,lanczos_full_iters,spread,fft,scale,interp,real,lanczos_real\n");
   for (std::size_t n : sizes) {
     const double L = std::cbrt(static_cast<double>(n) * 4.0 / 3.0 * std::numbers::pi * a * a * a / phi);
     const auto x = hard_spheres(n, a, L, 7);
@@ -150,6 +153,19 @@ int main(int argc, char** argv) {
     }
     std::printf("# N=%zu real space 1 thread: table %.4g s, direct %.4g s (direct/table %.2f), rel diff %.2g\n", n, tt,
                 td, td / tt, std::sqrt(num / den));
+    // The same particles in free space with the FMM operator (tolerance 1e-3): M F and a Lanczos
+    // sample at the same tolerance, 1 thread, for the "PSE vs free-space FMM path" comparison.
+    FmmRpy fmm(Geometry::open(), 1.0, {.tolerance = 1e-3});
+    fmm.set_positions(x, a);
+    fmm.apply(f, u);  // warm up
+    const double t_fmm = median_seconds(3, [&] { fmm.apply(f, u); });
+    SqrtOptions fs;
+    fs.method = SqrtMethod::lanczos;
+    fs.tolerance = 1e-3;
+    int fmm_iters = 0;
+    const double t_fmm_sample = median_seconds(1, [&] { fmm_iters = fmm.apply_sqrt(z, w, fs).iterations; });
+    std::printf("# N=%zu free-space FMM 1 thread: M F %.4g s (%.3g PTPS), Lanczos sample %.4g s (%d its, %.3g PTPS)\n",
+                n, t_fmm, n / t_fmm, t_fmm_sample, fmm_iters, n / t_fmm_sample);
     omp_set_num_threads(max_threads);
   }
 }
