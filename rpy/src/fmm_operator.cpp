@@ -98,7 +98,7 @@ void near_pair_sum_equal(std::size_t m, const double* sx, const double* sy, cons
     const double dx = xi - sx[q], dy = yi - sy[q], dz = zi - sz[q];
     const double r2 = dx * dx + dy * dy + dz * dz;
     const double safe_r2 = r2 > 0.0 ? r2 : 1.0;
-    const double r = std::sqrt(safe_r2);
+    const double r = std::sqrt(r2);  // 0 for coincident points: the overlap branch gives I / (6 pi a)
     const double inv_r2 = 1.0 / safe_r2;
     const double inv_r = r * inv_r2;
     const double s = a2 * inv_r2;

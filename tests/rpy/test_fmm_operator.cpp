@@ -23,17 +23,12 @@ namespace t = rpyfmm::testing;
 using t::fmm_error;
 using t::product;
 
-namespace {
-
-
-}  // namespace
-
-
-
 TEST(FmmRpy, TouchingAndOverlappingPairsExact) {
-  // Two spheres touching, two overlapping, one inside another: all near-field, so the FMM
-  // operator must reproduce the exact pair formulas to rounding.
-  const std::vector<std::tuple<double, double, double>> pairs = {{2.0, 1.0, 1.0}, {1.3, 1.0, 1.0}, {0.2, 1.0, 3.0}};
+  // Two spheres touching, two overlapping, one inside another, two at the same point (equal and
+  // different radii: M_12 = I / (6 pi eta max a)): all near-field, so the FMM operator must
+  // reproduce the exact pair formulas to rounding.
+  const std::vector<std::tuple<double, double, double>> pairs = {{2.0, 1.0, 1.0}, {1.3, 1.0, 1.0}, {0.2, 1.0, 3.0},
+                                                                 {0.0, 1.0, 1.0}, {0.0, 0.7, 0.7}, {0.0, 1.0, 2.0}};
   for (auto [r, a1, a2] : pairs) {
     t::Configuration c{{0, 0, 0, r, 0, 0}, {a1, a2}};
     EXPECT_LE(fmm_error(c, 1e-6), 1e-13) << "r=" << r;
