@@ -4,8 +4,10 @@
 // against generic Lanczos on the full PSE operator ([PSE] Fig. 6), and the real-space
 // table against direct evaluation of F, G. CSV rows on stdout.
 //
-// usage: bench_pse [N ...]   (default 8000 16000 32000); threads from 1 to OMP max.
+// usage: bench_pse [--quick] [N ...]   (default 8000 16000 32000); threads from 1 to OMP max.
 // Also times the free-space FmmRpy (tolerance 1e-3) on the same particles, 1 thread.
+// --quick: only M F and the split sampler with their stage times (no full-operator Lanczos,
+// no table-vs-direct real space, no FMM comparison).
 #include <omp.h>
 
 #include <algorithm>
@@ -14,6 +16,7 @@
 #include <cstdlib>
 #include <numbers>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "rpyfmm/core/timer.hpp"
@@ -83,13 +86,21 @@ double median_seconds(int reps, Fn&& fn) {
 
 int main(int argc, char** argv) {
   std::vector<std::size_t> sizes;
-  for (int i = 1; i < argc; ++i) sizes.push_back(static_cast<std::size_t>(std::atoll(argv[i])));
+  bool quick = false;
+  for (int i = 1; i < argc; ++i) {
+    if (std::string(argv[i]) == "--quick") {
+      quick = true;
+      continue;
+    }
+    sizes.push_back(static_cast<std::size_t>(std::atoll(argv[i])));
+  }
   if (sizes.empty()) sizes = {8000, 16000, 32000};
   const int max_threads = omp_get_max_threads();
   const double a = 1.0, phi = 0.1;
   std::printf(
       "N,threads,grid,P,r_cut,MF_s,MF_PTPS,sample_s,sample_PTPS,sample_over_MF,split_iters,"
-      "lanczos_full_s,lanczos_full_iters,spread,fft,scale,interp,real,lanczos_real\n");
+      "lanczos_full_s,lanczos_full_iters,spread,fft,scale,interp,real,lanczos_real,"
+      "sample_noise_scale,sample_fft,sample_interp\n");
   for (std::size_t n : sizes) {
     const double L = std::cbrt(static_cast<double>(n) * 4.0 / 3.0 * std::numbers::pi * a * a * a / phi);
     const auto x = hard_spheres(n, a, L, 7);
@@ -119,19 +130,21 @@ int main(int argc, char** argv) {
       so.method = SqrtMethod::lanczos;
       so.tolerance = 1e-3;
       int full_iters = 0;
-      const double t_full = median_seconds(1, [&] { full_iters = op.apply_sqrt(z, w, so).iterations; });
+      const double t_full = quick ? 0.0 : median_seconds(1, [&] { full_iters = op.apply_sqrt(z, w, so).iterations; });
       const auto& p = op.parameters();
       auto per = [&](const StageTimes& s, const char* k) {
         auto it = s.find(k);
         return it == s.end() ? 0.0 : it->second / reps;
       };
-      std::printf("%zu,%d,%dx%dx%d,%d,%.3f,%.4g,%.4g,%.4g,%.4g,%.2f,%d,%.4g,%d,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g\n", n,
-                  threads, p.grid[0], p.grid[1], p.grid[2], p.support[0], p.r_cut, t_mf, n / t_mf, t_s, n / t_s,
-                  t_s / t_mf, iters, t_full, full_iters, per(mf, "spread"),
-                  per(mf, "fft_forward") + per(mf, "fft_backward"), per(mf, "scale"), per(mf, "interpolate"),
-                  per(mf, "real_space"), per(st, "lanczos"));
+      std::printf(
+          "%zu,%d,%dx%dx%d,%d,%.3f,%.4g,%.4g,%.4g,%.4g,%.2f,%d,%.4g,%d,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g\n",
+          n, threads, p.grid[0], p.grid[1], p.grid[2], p.support[0], p.r_cut, t_mf, n / t_mf, t_s, n / t_s, t_s / t_mf,
+          iters, t_full, full_iters, per(mf, "spread"), per(mf, "fft_forward") + per(mf, "fft_backward"),
+          per(mf, "scale"), per(mf, "interpolate"), per(mf, "real_space"), per(st, "lanczos"), per(st, "scale"),
+          per(st, "fft_backward"), per(st, "interpolate"));
       std::fflush(stdout);
     }
+    if (quick) continue;
     // Real space: table vs direct closed forms (speed and difference), 1 thread.
     omp_set_num_threads(1);
     PseOptions o;

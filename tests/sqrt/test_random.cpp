@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <omp.h>
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -16,7 +17,9 @@ using namespace rpyfmm::rpy;
 namespace {
 
 // KS critical value at significance 1e-3 is 1.95 / sqrt(n) (asymptotic).
-double ks_critical(std::size_t n) { return 1.95 / std::sqrt(static_cast<double>(n)); }
+double ks_critical(std::size_t n) {
+  return 1.95 / std::sqrt(static_cast<double>(n));
+}
 
 TEST(Random, StandardNormalKsAndMoments) {
   std::vector<double> z(3 * 100000);
@@ -107,6 +110,90 @@ TEST(Random, IndependentOfThreadCount) {
   normal3(99u, 5u, 2u, 12345u, g);
   EXPECT_EQ(g[0], z1[3 * 12345]);
   EXPECT_EQ(g[2], z1[3 * 12345 + 2]);
+}
+
+// sincospi_poly (the angle of the wave-space Box-Muller) against libm on a dense grid and
+// at the quadrant boundaries. 1e-15 absolute is ~4 ulps of 1: the reference sin(pi * v) itself
+// carries the rounding of pi * v (up to 1 ulp of the argument) and libm's own half ulp.
+TEST(Random, SincospiPolyMatchesLibm) {
+  const double pi = 3.14159265358979323846;
+  double worst = 0.0;
+  auto check = [&](double v) {
+    double s, c;
+    random_detail::sincospi_poly(v, s, c);
+    worst = std::max({worst, std::abs(s - std::sin(pi * v)), std::abs(c - std::cos(pi * v))});
+  };
+  for (int i = -200000; i <= 200000; ++i) check(i / 200000.0 + 1.3e-7);
+  for (double v : {-1.0, -0.75, -0.5, -0.25, 0.0, 0.25, 0.5, 0.75, 1.0, 0.25000000001, -0.7499999999}) check(v);
+  EXPECT_LT(worst, 1e-15);
+}
+
+// log_poly (the radius of that Box-Muller) against libm from 2^-52 to 1 and beyond.
+TEST(Random, LogPolyMatchesLibm) {
+  double worst = 0.0;
+  for (int i = 1; i <= 400000; ++i) {
+    const double x = std::ldexp(1.0 + (i % 1000) / 1000.0, -(i % 53)) * (1.0 + 1e-9 * i);
+    const double ref = std::log(x);
+    worst = std::max(worst, std::abs(random_detail::log_poly(x) - ref) / std::max(1.0, std::abs(ref)));
+  }
+  EXPECT_EQ(random_detail::log_poly(1.0), 0.0);
+  EXPECT_LT(worst, 1e-15);  // a few ulps; the Box-Muller radius needs far less
+}
+
+// fill_normal6 (vectorized) gives normal6's values for arbitrary, unordered indices above
+// 2^32 and any length (chunk tails); bit for bit on builds without FMA contraction.
+TEST(Random, FillNormal6EqualsNormal6) {
+  std::vector<std::uint64_t> index;
+  for (std::uint64_t i = 0; i < 1003; ++i)
+    index.push_back((i * 2654435761ull) % 100000 + (i % 7 == 0 ? (5ull << 32) : 0));
+  std::vector<double> out(6 * index.size());
+  fill_normal6(index, 0x1234567890ull, 77u, 2u, out);
+  double worst = 0.0;
+  for (std::size_t k = 0; k < index.size(); ++k) {
+    double ref[6];
+    normal6(0x1234567890ull, 77u, 2u, index[k], ref);
+    for (int c = 0; c < 6; ++c)
+      worst = std::max(worst, std::abs(out[6 * k + c] - ref[c]) / std::max(1.0, std::abs(ref[c])));
+  }
+  EXPECT_LT(worst, 1e-14);
+  std::vector<double> bad(5);
+  EXPECT_THROW(fill_normal6(std::span<const std::uint64_t>(index.data(), 1), 1u, 1u, 2u, bad), rpyfmm::Error);
+  std::vector<double> six(6);
+  EXPECT_THROW(fill_normal6(std::span<const std::uint64_t>(index.data(), 1), 1u, 1u, 1u << 24, six), rpyfmm::Error);
+}
+
+// normal6 (one call per PSE Fourier mode): standard normal per slot (KS, moments),
+// slots of one index uncorrelated, a pure function of its key, distinct keys differ.
+TEST(Random, Normal6StandardAndIndependent) {
+  const std::size_t n = 60000;
+  std::vector<double> z(6 * n);
+  for (std::size_t i = 0; i < n; ++i) normal6(31u, 4u, 2u, i, &z[6 * i]);
+  for (int c = 0; c < 6; ++c) {
+    std::vector<double> comp;
+    double m2 = 0;
+    for (std::size_t i = c; i < z.size(); i += 6) {
+      comp.push_back(z[i]);
+      m2 += z[i] * z[i];
+    }
+    EXPECT_LT(sqrt_test::ks_statistic_normal(comp), ks_critical(comp.size())) << "slot " << c;
+    EXPECT_LT(std::abs(m2 / n - 1), 5 * std::sqrt(2.0 / n)) << "slot " << c;
+    for (int d = c + 1; d < 6; ++d) {
+      double s = 0;
+      for (std::size_t i = 0; i < n; ++i) s += z[6 * i + c] * z[6 * i + d];
+      EXPECT_LT(std::abs(s / n), 5 / std::sqrt(double(n))) << c << "," << d;
+    }
+  }
+  double a[6], b[6], c6[6], d6[6];
+  normal6(31u, 4u, 2u, 777u, a);
+  normal6(31u, 4u, 2u, 777u, b);
+  normal6(31u, 5u, 2u, 777u, c6);
+  normal6(31u, 4u, 2u, 777u + (1ull << 32), d6);
+  for (int k = 0; k < 6; ++k) {
+    EXPECT_EQ(a[k], b[k]);
+    EXPECT_NE(a[k], c6[k]);
+    EXPECT_NE(a[k], d6[k]);
+    EXPECT_EQ(a[k], z[6 * 777 + k]);
+  }
 }
 
 TEST(Random, BadSize) {

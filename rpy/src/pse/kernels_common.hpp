@@ -12,11 +12,10 @@
 
 namespace rpyfmm::rpy::pse::detail {
 
-/// Noise streams of normal3 (random.hpp): 1 = real-space z1 (index = particle),
-/// 2 / 3 = real / imaginary parts of the wave-space z2 (index = canonical mode).
+/// Noise streams: 1 = real-space z1 (normal3, index = particle), 2 = wave-space z2
+/// (normal6, index = canonical mode: its three real parts, then its three imaginary parts).
 inline constexpr std::uint32_t kStreamReal = 1;
-inline constexpr std::uint32_t kStreamWaveRe = 2;
-inline constexpr std::uint32_t kStreamWaveIm = 3;
+inline constexpr std::uint32_t kStreamWave = 2;
 
 /// First grid index of the P-point Gaussian support of coordinate x
 /// (PSE.md Sec. 2.2): every grid point closer than P h / 2 is covered.
@@ -51,17 +50,34 @@ struct ModeGeometry {
 /// Signed wave number index of grid index i in a dimension of size n.
 RPYFMM_HOST_DEVICE inline int signed_index(int i, int n) { return 2 * i < n ? i : i - n; }
 
-/// Scales one half-spectrum mode in place (PSE.md Sec. 2.3 step 3 and Sec. 4.2):
+/// Full-grid linear index `lin` of mode (ix, iy, iz) and the representative `rep` of the
+/// pair {k, -k}: the smaller of lin and the index of -k ((n - i) mod n per axis). The wave
+/// noise of both modes is drawn under rep's key, so that z(-k) = conj(z(k)).
+RPYFMM_HOST_DEVICE inline void mode_pair(int ix, int iy, int iz, const ModeGeometry& g, std::uint64_t& lin,
+                                         std::uint64_t& rep) {
+  const std::uint64_t nx = static_cast<std::uint64_t>(g.n[0]);
+  const std::uint64_t ny = static_cast<std::uint64_t>(g.n[1]);
+  const std::uint64_t nz = static_cast<std::uint64_t>(g.n[2]);
+  lin = (static_cast<std::uint64_t>(ix) * ny + static_cast<std::uint64_t>(iy)) * nz + static_cast<std::uint64_t>(iz);
+  const std::uint64_t px = ix == 0 ? 0 : nx - static_cast<std::uint64_t>(ix);
+  const std::uint64_t py = iy == 0 ? 0 : ny - static_cast<std::uint64_t>(iy);
+  const std::uint64_t pz = iz == 0 ? 0 : nz - static_cast<std::uint64_t>(iz);
+  const std::uint64_t partner = (px * ny + py) * nz + pz;
+  rep = lin < partner ? lin : partner;
+}
+
+/// Scales one half-spectrum mode (ix, iy, iz), linear index idx = (ix ny + iy) nzh + iz,
+/// in place (PSE.md Sec. 2.3 step 3 and Sec. 4.2):
 ///   Uh = c(k) P_k Fh + noise_factor sqrt(c(k)) P_k z(k),  noise_factor = noise_scale / sqrt(dV)
 /// with c(k) = sg(k)/(eta Ng) (zero at k = 0 and on Nyquist planes), P_k = I - khat khat,
-/// z(k) complex Gaussian with E[z z^H] = I and z(-k) = conj(z(k)): every mode draws
-/// from the Philox stream keyed by the smaller full-grid index of {k, -k} and
-/// conjugates when it is not that representative, so r2c and c2c layouts, CPU and
-/// GPU produce the same field. `spec` holds 3 complex components (re, im
-/// interleaved) `comp_stride` doubles apart.
-RPYFMM_HOST_DEVICE inline void scale_mode(std::size_t idx, const ModeGeometry& g, const double* ck, double* spec,
-                                          bool deterministic, bool noise, std::uint64_t seed, std::uint64_t step,
-                                          double noise_factor) {
+/// z(k) complex Gaussian with E[z z^H] = I and z(-k) = conj(z(k)). `z` (null: no noise) holds
+/// normal6(seed, step, kStreamWave, rep) of the mode's pair (mode_pair): real parts z[0..2],
+/// imaginary parts z[3..5], conjugated when the mode is not the representative. So r2c and
+/// c2c layouts, CPU and GPU produce the same field. `spec` holds 3 complex components
+/// (re, im interleaved) `comp_stride` doubles apart.
+RPYFMM_HOST_DEVICE inline void scale_mode_with(int ix, int iy, int iz, std::size_t idx, const ModeGeometry& g,
+                                               const double* ck, double* spec, bool deterministic, const double* z,
+                                               bool representative, double noise_factor) {
   double* s0 = spec + 2 * idx;
   double* s1 = s0 + g.comp_stride;
   double* s2 = s1 + g.comp_stride;
@@ -70,10 +86,6 @@ RPYFMM_HOST_DEVICE inline void scale_mode(std::size_t idx, const ModeGeometry& g
     s0[0] = s0[1] = s1[0] = s1[1] = s2[0] = s2[1] = 0.0;
     return;
   }
-  const int iz = static_cast<int>(idx % static_cast<std::size_t>(g.nzh));
-  const std::size_t rest = idx / static_cast<std::size_t>(g.nzh);
-  const int iy = static_cast<int>(rest % static_cast<std::size_t>(g.n[1]));
-  const int ix = static_cast<int>(rest / static_cast<std::size_t>(g.n[1]));
   const double k0 = g.two_pi_L[0] * signed_index(ix, g.n[0]);
   const double k1 = g.two_pi_L[1] * signed_index(iy, g.n[1]);
   const double k2 = g.two_pi_L[2] * iz;
@@ -84,27 +96,13 @@ RPYFMM_HOST_DEVICE inline void scale_mode(std::size_t idx, const ModeGeometry& g
     re[0] = c * s0[0]; re[1] = c * s1[0]; re[2] = c * s2[0];
     im[0] = c * s0[1]; im[1] = c * s1[1]; im[2] = c * s2[1];
   }
-  if (noise) {
-    const std::uint64_t nx = static_cast<std::uint64_t>(g.n[0]);
-    const std::uint64_t ny = static_cast<std::uint64_t>(g.n[1]);
-    const std::uint64_t nz = static_cast<std::uint64_t>(g.n[2]);
-    const std::uint64_t lin = (static_cast<std::uint64_t>(ix) * ny + static_cast<std::uint64_t>(iy)) * nz +
-                              static_cast<std::uint64_t>(iz);
-    const std::uint64_t px = (nx - static_cast<std::uint64_t>(ix)) % nx;
-    const std::uint64_t py = (ny - static_cast<std::uint64_t>(iy)) % ny;
-    const std::uint64_t pz = (nz - static_cast<std::uint64_t>(iz)) % nz;
-    const std::uint64_t partner = (px * ny + py) * nz + pz;
-    const std::uint64_t rep = lin < partner ? lin : partner;
-    double zr[3];
-    double zi[3];
-    normal3(seed, step, kStreamWaveRe, rep, zr);
-    normal3(seed, step, kStreamWaveIm, rep, zi);
+  if (z != nullptr) {
     // z = (a + i b)/sqrt(2): E|z_c|^2 = 1 per component; conjugate off the representative.
     const double amp = noise_factor * std::sqrt(c) * 0.70710678118654752440;
-    const double sgn = lin == rep ? amp : -amp;
+    const double sgn = representative ? amp : -amp;
     for (int d = 0; d < 3; ++d) {
-      re[d] += amp * zr[d];
-      im[d] += sgn * zi[d];
+      re[d] += amp * z[d];
+      im[d] += sgn * z[3 + d];
     }
   }
   // Projection I - k k^T / k^2, applied to the real and imaginary parts separately.
@@ -113,6 +111,26 @@ RPYFMM_HOST_DEVICE inline void scale_mode(std::size_t idx, const ModeGeometry& g
   s0[0] = re[0] - k0 * pr; s0[1] = im[0] - k0 * pi;
   s1[0] = re[1] - k1 * pr; s1[1] = im[1] - k1 * pi;
   s2[0] = re[2] - k2 * pr; s2[1] = im[2] - k2 * pi;
+}
+
+/// scale_mode_with for linear half-spectrum index idx, drawing the mode's noise itself
+/// (one GPU thread per mode; the CPU draws a line of modes at once with fill_normal6).
+RPYFMM_HOST_DEVICE inline void scale_mode(std::size_t idx, const ModeGeometry& g, const double* ck, double* spec,
+                                          bool deterministic, bool noise, std::uint64_t seed, std::uint64_t step,
+                                          double noise_factor) {
+  const int iz = static_cast<int>(idx % static_cast<std::size_t>(g.nzh));
+  const std::size_t rest = idx / static_cast<std::size_t>(g.nzh);
+  const int iy = static_cast<int>(rest % static_cast<std::size_t>(g.n[1]));
+  const int ix = static_cast<int>(rest / static_cast<std::size_t>(g.n[1]));
+  double z[6];
+  bool representative = true;
+  if (noise) {
+    std::uint64_t lin, rep;
+    mode_pair(ix, iy, iz, g, lin, rep);
+    normal6(seed, step, kStreamWave, rep, z);
+    representative = lin == rep;
+  }
+  scale_mode_with(ix, iy, iz, idx, g, ck, spec, deterministic, noise ? z : nullptr, representative, noise_factor);
 }
 
 /// Minimum-image displacement component (valid for |d| < 1.5 L).

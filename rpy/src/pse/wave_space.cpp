@@ -281,11 +281,35 @@ void WaveSpace::apply(const double* forces, double* out, bool accumulate, const 
   const std::uint64_t seed = with_noise ? noise->seed : 0;
   const std::uint64_t step = with_noise ? noise->step : 0;
   const double factor = noise_scale / std::sqrt(dv_);
-  const auto nm = static_cast<std::int64_t>(modes_.modes);
-#pragma omp parallel for schedule(static) if (parallel_modes_)
-  for (std::int64_t m = 0; m < nm; ++m) {
-    scale_mode(static_cast<std::size_t>(m), modes_, ck_.data(), spectrum_, deterministic, with_noise, seed, step,
-               factor);
+  // Lines of constant (ix, iy): no index decoding per mode, and the line's noise drawn at
+  // once by the vectorized fill_normal6 (the same values as the GPU's per-mode normal6).
+  const int ny = modes_.n[1];
+  const int nzh = modes_.nzh;
+  const auto lines = static_cast<std::int64_t>(modes_.n[0]) * ny;
+#pragma omp parallel if (parallel_modes_)
+  {
+    std::vector<std::uint64_t> rep(with_noise ? static_cast<std::size_t>(nzh) : 0);
+    std::vector<char> representative(rep.size());
+    std::vector<double> z(6 * rep.size());
+#pragma omp for schedule(static)
+    for (std::int64_t line = 0; line < lines; ++line) {
+      const int ix = static_cast<int>(line / ny);
+      const int iy = static_cast<int>(line % ny);
+      const std::size_t base = static_cast<std::size_t>(line) * static_cast<std::size_t>(nzh);
+      if (with_noise) {
+        for (int iz = 0; iz < nzh; ++iz) {
+          std::uint64_t lin;
+          mode_pair(ix, iy, iz, modes_, lin, rep[static_cast<std::size_t>(iz)]);
+          representative[static_cast<std::size_t>(iz)] = lin == rep[static_cast<std::size_t>(iz)];
+        }
+        fill_normal6(rep, seed, step, kStreamWave, z);
+      }
+      for (int iz = 0; iz < nzh; ++iz) {
+        const auto q = static_cast<std::size_t>(iz);
+        scale_mode_with(ix, iy, iz, base + q, modes_, ck_.data(), spectrum_, deterministic,
+                        with_noise ? &z[6 * q] : nullptr, !with_noise || representative[q] != 0, factor);
+      }
+    }
   }
   lap("scale");
   fftw_execute_dft_c2r(static_cast<fftw_plan>(plan_backward_), reinterpret_cast<fftw_complex*>(spectrum_), grid_);

@@ -15,7 +15,7 @@
 
 namespace rpyfmm::rpy::pse::detail {
 
-/// Key of the wave-space noise z2: Philox (seed, step), streams 2/3 (kernels_common.hpp).
+/// Key of the wave-space noise z2: Philox (seed, step), stream kStreamWave (kernels_common.hpp).
 struct NoiseKey {
   std::uint64_t seed = 0;
   std::uint64_t step = 0;
