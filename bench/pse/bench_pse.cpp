@@ -4,10 +4,13 @@
 // against generic Lanczos on the full PSE operator ([PSE] Fig. 6), and the real-space
 // table against direct evaluation of F, G. CSV rows on stdout.
 //
-// usage: bench_pse [--quick] [N ...]   (default 8000 16000 32000); threads from 1 to OMP max.
+// usage: bench_pse [--quick] [--cuda] [N ...]   (default 8000 16000 32000); threads from 1 to OMP max.
 // Also times the free-space FmmRpy (tolerance 1e-3) on the same particles, 1 thread.
 // --quick: only M F and the split sampler with their stage times (no full-operator Lanczos,
 // no table-vs-direct real space, no FMM comparison).
+// --cuda: the CUDA operator PseRpyCuda instead (host arrays in and out, so transfers count),
+// with its relative difference from the CPU operator's M F for N <= 250000; skips with a
+// message when no device is usable.
 #include <omp.h>
 
 #include <algorithm>
@@ -22,6 +25,7 @@
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
 #include "rpyfmm/rpy/random.hpp"
 
 using namespace rpyfmm;
@@ -82,19 +86,71 @@ double median_seconds(int reps, Fn&& fn) {
   return t[t.size() / 2];
 }
 
+/// The Table I rows on the GPU: M F and split-sampler PTPS (median of 5 after a warm-up).
+int run_cuda(const std::vector<std::size_t>& sizes) {
+  if (!PseRpyCuda::device_available()) {
+    std::printf("# no usable CUDA device (or a build without CUDA): nothing to benchmark\n");
+    return 0;
+  }
+  const double a = 1.0, phi = 0.1;
+  std::printf("N,backend,grid,P,r_cut,MF_s,MF_PTPS,sample_s,sample_PTPS,sample_over_MF,split_iters,rel_diff_cpu\n");
+  for (std::size_t n : sizes) {
+    const double L = std::cbrt(static_cast<double>(n) * 4.0 / 3.0 * std::numbers::pi * a * a * a / phi);
+    const auto x = hard_spheres(n, a, L, 7);
+    std::vector<double> f(3 * n), u(3 * n), w(3 * n);
+    fill_normal(f, 1, 0);
+    PseOptions o;
+    o.tolerance = 1e-3;
+    o.xi = 0.5 / a;
+    PseRpyCuda op(Geometry::periodic(L), 1.0, o);
+    op.set_positions(x, a);
+    op.apply(f, u);  // warm up (plans, first-touch)
+    const double t_mf = median_seconds(5, [&] { op.apply(f, u); });
+    int iters = 0;
+    std::uint64_t step = 0;
+    op.sample(5, step++, w);
+    const double t_s = median_seconds(5, [&] { iters = op.sample(5, step++, w).iterations; });
+    double diff = -1.0;
+    if (n <= 250000) {
+      PseRpy cpu(Geometry::periodic(L), 1.0, o);
+      cpu.set_positions(x, a);
+      std::vector<double> uc(3 * n);
+      cpu.apply(f, uc);
+      op.apply(f, u);
+      double num = 0, den = 0;
+      for (std::size_t i = 0; i < u.size(); ++i) {
+        num += (u[i] - uc[i]) * (u[i] - uc[i]);
+        den += uc[i] * uc[i];
+      }
+      diff = std::sqrt(num / den);
+    }
+    const auto& p = op.parameters();
+    std::printf("%zu,cuda,%dx%dx%d,%d,%.3f,%.4g,%.4g,%.4g,%.4g,%.2f,%d,%.3g\n", n, p.grid[0], p.grid[1], p.grid[2],
+                p.support[0], p.r_cut, t_mf, n / t_mf, t_s, n / t_s, t_s / t_mf, iters, diff);
+    std::fflush(stdout);
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   std::vector<std::size_t> sizes;
   bool quick = false;
+  bool cuda = false;
   for (int i = 1; i < argc; ++i) {
     if (std::string(argv[i]) == "--quick") {
       quick = true;
       continue;
     }
+    if (std::string(argv[i]) == "--cuda") {
+      cuda = true;
+      continue;
+    }
     sizes.push_back(static_cast<std::size_t>(std::atoll(argv[i])));
   }
   if (sizes.empty()) sizes = {8000, 16000, 32000};
+  if (cuda) return run_cuda(sizes);
   const int max_threads = omp_get_max_threads();
   const double a = 1.0, phi = 0.1;
   std::printf(

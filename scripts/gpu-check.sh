@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# Runs on the lent GPU machine, in the repository root, with gpu-kit/ carried
+# (scripts/gpu-kit.sh builds it): the CPU-vs-GPU agreement tests of the CUDA PSE operator,
+# then the PSE Table I benchmark on the GPU from 8e3 to 2e6 particles. Output goes to
+# $OUT (or ./gpu-out) as test_pse_cuda.txt and bench_pse_cuda.csv. Sized for a few
+# minutes of device time: pass fewer sizes as arguments to shorten it.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+out="${OUT:-gpu-out}"
+mkdir -p "$out"
+cufft_dir=$(dirname "$(find /usr/local /opt /usr/lib -name 'libcufft.so.12*' 2>/dev/null | head -1)")
+export LD_LIBRARY_PATH="$PWD/gpu-kit/lib:${cufft_dir}:/usr/local/cuda/lib64:${LD_LIBRARY_PATH:-}"
+export OMP_NUM_THREADS="${OMP_NUM_THREADS:-8}"
+nvidia-smi -L 2>&1 | tee "$out/device.txt"
+echo "cuFFT from: $cufft_dir" | tee -a "$out/device.txt"
+gpu-kit/test_pse --gtest_filter='PseCuda.*' 2>&1 | tee "$out/test_pse_cuda.txt"
+test_rc=${PIPESTATUS[0]}
+sizes=("$@")
+[ ${#sizes[@]} -gt 0 ] || sizes=(8000 32000 128000 250000 500000 1000000 2000000)
+timeout 420 gpu-kit/bench_pse --cuda "${sizes[@]}" 2>&1 | tee "$out/bench_pse_cuda.csv"
+exit "$test_rc"
