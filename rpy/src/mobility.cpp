@@ -54,7 +54,14 @@ void MobilityOperator::store_positions(std::span<const double> positions, std::s
   }
   radii_.assign(radii.begin(), radii.end());
   equal_radii_ = equal;
-  on_positions_set();
+  try {
+    on_positions_set();  // builds the plan: may throw (box too small, grid over memory, ...)
+  } catch (...) {
+    // No half-built plan may be used: the operator is unset until set_positions succeeds.
+    positions_.clear();
+    radii_.clear();
+    throw;
+  }
 }
 
 void MobilityOperator::require_positions(const char* where) const {

@@ -53,6 +53,25 @@ TEST(PseBadInput, BoxSmallerThanTwiceTheCutoff) {
   expect_error([&] { op.set_positions(kTwo, 1.0); }, ErrorCode::invalid_argument, "2 r_cut");
 }
 
+// A failed plan leaves no half-built operator behind: products refuse with a message (they
+// used to dereference the discarded FFT/real-space parts), and a later good call recovers.
+TEST(PseBadInput, FailedPlanIsNotUsable) {
+  PseOptions o;
+  o.xi = 0.5;
+  PseRpy op(Geometry::periodic(20.0), 1.0, o);
+  std::vector<double> u(6);
+  const std::vector<double> f = {1.0, 0.0, 0.0, 0.0, 1.0, 0.0};
+  op.set_positions(kTwo, 1.0);
+  op.apply(f, u);
+  expect_error([&] { op.set_positions(kTwo, 4.0); }, ErrorCode::invalid_argument, "2 r_cut");  // r_cut ~ 23
+  expect_error([&] { op.apply(f, u); }, ErrorCode::invalid_input, "positions not set");
+  expect_error([&] { op.sample(1, 2, u); }, ErrorCode::invalid_input, "positions not set");
+  EXPECT_EQ(op.size(), 0u);
+  op.set_positions(kTwo, 1.0);
+  op.apply(f, u);
+  EXPECT_GT(u[0], 0.0);
+}
+
 TEST(PseBadInput, BoxSmallerThanTheParticle) {
   PseRpy op(Geometry::periodic(1.5), 1.0);
   expect_error([&] { op.set_positions(std::vector<double>{0.1, 0.1, 0.1}, 1.0); }, ErrorCode::invalid_argument,

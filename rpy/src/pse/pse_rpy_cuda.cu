@@ -31,11 +31,16 @@ namespace {
 constexpr const char* kWhere = "PseRpyCuda";
 
 void check(cudaError_t e, const char* what) {
-  if (e != cudaSuccess) fail(ErrorCode::numerical_failure, kWhere, std::string(what) + ": " + cudaGetErrorString(e));
+  if (e == cudaSuccess) return;
+  (void)cudaGetLastError();  // clear a non-sticky error: later launches are judged on their own
+  const ErrorCode code = e == cudaErrorMemoryAllocation ? ErrorCode::out_of_memory : ErrorCode::numerical_failure;
+  fail(code, kWhere, std::string(what) + ": " + cudaGetErrorString(e));
 }
 
 void check_fft(cufftResult r, const char* what) {
-  if (r != CUFFT_SUCCESS) fail(ErrorCode::numerical_failure, kWhere, std::string(what) + ": cuFFT error " + std::to_string(static_cast<int>(r)));
+  if (r == CUFFT_SUCCESS) return;
+  const ErrorCode code = r == CUFFT_ALLOC_FAILED ? ErrorCode::out_of_memory : ErrorCode::numerical_failure;
+  fail(code, kWhere, std::string(what) + ": cuFFT error " + std::to_string(static_cast<int>(r)));
 }
 
 /// Owning device array.
@@ -47,11 +52,14 @@ class DeviceArray {
   DeviceArray& operator=(const DeviceArray&) = delete;
   ~DeviceArray() { cudaFree(p_); }
   void resize(std::size_t n) {
-    if (n == n_) return;
+    if (n == n_ && (p_ != nullptr || n == 0)) return;
     cudaFree(p_);
     p_ = nullptr;
-    n_ = n;
-    if (n > 0) check(cudaMalloc(reinterpret_cast<void**>(&p_), n * sizeof(T)), "cudaMalloc");
+    n_ = 0;
+    if (n > 0) {
+      check(cudaMalloc(reinterpret_cast<void**>(&p_), n * sizeof(T)), "cudaMalloc");
+      n_ = n;  // only once the allocation succeeded
+    }
   }
   void upload(const T* host, std::size_t n) {
     resize(n);
@@ -196,18 +204,16 @@ struct PseRpyCuda::Impl {
   WindowParams window{};
   double dv = 0.0;
   cufftHandle plan_fwd = 0, plan_bwd = 0;
-  bool have_plans = false;
+  bool have_fwd = false, have_bwd = false;
   DeviceArray<double> ck, grid, spectrum, x, f, u, table;
   DeviceArray<unsigned long long> begin;
   DeviceArray<int> list;
 
   ~Impl() { destroy_plans(); }
   void destroy_plans() {
-    if (have_plans) {
-      cufftDestroy(plan_fwd);
-      cufftDestroy(plan_bwd);
-      have_plans = false;
-    }
+    if (have_fwd) cufftDestroy(plan_fwd);
+    if (have_bwd) cufftDestroy(plan_bwd);
+    have_fwd = have_bwd = false;
   }
 
   /// out (+)= M_w f + noise_scale M_w^{1/2} z2(key) for one right-hand side (host arrays).
@@ -273,6 +279,8 @@ PseRpyCuda::PseRpyCuda(Geometry geometry, double viscosity, const PseOptions& op
   if (!(std::isfinite(options.tolerance) && options.tolerance >= 1e-8 && options.tolerance < 0.1)) {
     fail(ErrorCode::invalid_argument, kWhere, "tolerance must lie in [1e-8, 0.1), got " + std::to_string(options.tolerance));
   }
+  require(std::isfinite(options.xi) && options.xi >= 0.0, ErrorCode::invalid_argument, kWhere,
+          "xi must be >= 0 (0 = automatic), got " + std::to_string(options.xi));
   require(device_available(), ErrorCode::not_supported, kWhere, "no usable CUDA device");
   impl_->options = options;
   impl_->options.real_space_table = true;  // the device path interpolates the table
@@ -320,10 +328,11 @@ void PseRpyCuda::on_positions_set() {
     check_fft(cufftPlanMany(&im.plan_fwd, 3, dims, nullptr, 1, static_cast<int>(im.window.ng), nullptr, 1,
                             static_cast<int>(im.modes.modes), CUFFT_D2Z, 3),
               "cufftPlanMany D2Z");
+    im.have_fwd = true;
     check_fft(cufftPlanMany(&im.plan_bwd, 3, dims, nullptr, 1, static_cast<int>(im.modes.modes), nullptr, 1,
                             static_cast<int>(im.window.ng), CUFFT_Z2D, 3),
               "cufftPlanMany Z2D");
-    im.have_plans = true;
+    im.have_bwd = true;
     im.params = p;
     im.planned = true;
     im.planned_n = n;

@@ -42,7 +42,9 @@ class MobilityOperator {
   /// Sets positions (3N) and one common radius. Builds the solver's plan
   /// (tree, lists, cells, FFT plans) once; apply() may then be called many times.
   /// Throws rpyfmm::Error on N = 0, size not a multiple of 3, NaN/Inf, radius <= 0.
-  /// In a periodic geometry positions are wrapped into [0, L).
+  /// In a periodic geometry positions are wrapped into [0, L). When planning fails
+  /// (e.g. PSE: box smaller than 2 r_cut) the error propagates and the operator holds
+  /// no positions until a later set_positions succeeds (products then throw, never crash).
   void set_positions(std::span<const double> positions, double radius);
   /// Same with per-particle radii (N entries, each > 0 and finite).
   void set_positions(std::span<const double> positions, std::span<const double> radii);
