@@ -13,7 +13,7 @@ export LD_LIBRARY_PATH="$PWD/gpu-kit/lib:${cufft_dir}:/usr/local/cuda/lib64:${LD
 export OMP_NUM_THREADS="${OMP_NUM_THREADS:-8}"
 nvidia-smi -L 2>&1 | tee "$out/device.txt"
 echo "cuFFT from: $cufft_dir" | tee -a "$out/device.txt"
-gpu-kit/test_pse --gtest_filter='PseCuda.*' 2>&1 | tee "$out/test_pse_cuda.txt"
+RPYFMM_CUDA_SYNC=1 gpu-kit/test_pse --gtest_filter='PseCuda.*' 2>&1 | tee "$out/test_pse_cuda.txt"
 test_rc=${PIPESTATUS[0]}
 sizes=("$@")
 [ ${#sizes[@]} -gt 0 ] || sizes=(8000 32000 128000 250000 500000 1000000 2000000)

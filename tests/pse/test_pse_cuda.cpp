@@ -33,11 +33,17 @@ TEST(PseCuda, CpuAndGpuAgree) {
     cpu.apply(f, uc);
     gpu.apply(f, ug);
     EXPECT_LT(pse_test::rel_l2(ug, uc), 1e-12);
-    cpu.apply_with_noise(f, 1.3, 17, 5, uc);
-    gpu.apply_with_noise(f, 1.3, 17, 5, ug);
-    EXPECT_LT(pse_test::rel_l2(ug, uc), 1e-10);  // Lanczos on both: same iterations, round-off differs
-    cpu.sample(17, 6, uc);
-    gpu.sample(17, 6, ug);
-    EXPECT_LT(pse_test::rel_l2(ug, uc), 1e-10);
+    // Lanczos on both sides: with the same number of iterations the results differ by
+    // round-off; round-off can, rarely, stop one side an iteration earlier, and then they
+    // differ by about the Lanczos tolerance (1e-6 here).
+    auto sampler_bound = [&](const SqrtReport& c, const SqrtReport& g) {
+      return c.iterations == g.iterations ? 1e-10 : 10.0 * o.tolerance;
+    };
+    const SqrtReport rc = cpu.apply_with_noise(f, 1.3, 17, 5, uc);
+    const SqrtReport rg = gpu.apply_with_noise(f, 1.3, 17, 5, ug);
+    EXPECT_LT(pse_test::rel_l2(ug, uc), sampler_bound(rc, rg)) << rc.iterations << " vs " << rg.iterations;
+    const SqrtReport sc = cpu.sample(17, 6, uc);
+    const SqrtReport sg = gpu.sample(17, 6, ug);
+    EXPECT_LT(pse_test::rel_l2(ug, uc), sampler_bound(sc, sg)) << sc.iterations << " vs " << sg.iterations;
   }
 }
