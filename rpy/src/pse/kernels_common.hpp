@@ -133,9 +133,13 @@ RPYFMM_HOST_DEVICE inline void scale_mode(std::size_t idx, const ModeGeometry& g
   scale_mode_with(ix, iy, iz, idx, g, ck, spec, deterministic, noise ? z : nullptr, representative, noise_factor);
 }
 
-/// Minimum-image displacement component (valid for |d| < 1.5 L).
+/// Minimum-image displacement component (valid for |d| < 1.5 L). The nearest integer is
+/// (y + 1.5 2^52) - 1.5 2^52 (round-half-even, as nearbyint in the default rounding mode,
+/// exact for |y| < 2^51): inline on every target, where nearbyint is a libm call on
+/// baseline x86-64 (no SSE4.1 round instruction).
 RPYFMM_HOST_DEVICE inline double minimum_image(double d, double L, double inv_L) {
-  return d - L * std::nearbyint(d * inv_L);
+  const double round_magic = 6755399441055744.0;
+  return d - L * ((d * inv_L + round_magic) - round_magic);
 }
 
 /// Linear table lookup: per cell j the tuple (F_j, G_j, F_{j+1}, G_{j+1}).

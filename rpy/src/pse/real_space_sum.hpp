@@ -38,6 +38,7 @@ class RealSpaceSum {
   std::vector<double> x_;
   std::vector<std::size_t> begin_;
   std::vector<int> list_;
+  std::vector<std::size_t> order_;  // particles sorted by cell: the order apply() visits them in
 };
 
 }  // namespace rpyfmm::rpy::pse::detail
