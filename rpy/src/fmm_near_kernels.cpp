@@ -97,4 +97,82 @@ RPYFMM_NEAR_CLONES void near_pair_sum_equal(std::size_t m, const double* sx, con
   u[2] = uz;
 }
 
+// Block products (nrhs >= 2): the pair scalars of near_pair_sum(_equal), stored once per
+// target, then one accumulation per right-hand side.
+RPYFMM_NEAR_CLONES void near_pair_scalars(std::size_t m, const double* sx, const double* sy, const double* sz,
+                                          const double* sa, const std::size_t* sid, double xi, double yi, double zi,
+                                          double ai, std::size_t i, double* dx, double* dy, double* dz, double* fs,
+                                          double* gr) {
+  if (sa == nullptr) {
+    const double a = ai;
+    const double two_a = 2.0 * a, a2 = a * a, c6 = rpy_detail::inv_6pi / a, inv_32a = 1.0 / (32.0 * a);
+#pragma omp simd
+    for (std::size_t q = 0; q < m; ++q) {
+      const double ddx = xi - sx[q], ddy = yi - sy[q], ddz = zi - sz[q];
+      const double r2 = ddx * ddx + ddy * ddy + ddz * ddz;
+      const double safe_r2 = r2 > 0.0 ? r2 : 1.0;
+      const double r = std::sqrt(r2);
+      const double inv_r2 = 1.0 / safe_r2;
+      const double inv_r = r * inv_r2;
+      const double s = a2 * inv_r2;
+      const double c8 = rpy_detail::inv_8pi * inv_r;
+      const double t = r * inv_32a;
+      const bool far = r > two_a;
+      double f = far ? c8 * (1.0 + (2.0 / 3.0) * s) : c6 * (1.0 - 9.0 * t);
+      double g = far ? c8 * (1.0 - 2.0 * s) : c6 * (3.0 * t);
+      g = r2 > 0.0 ? g : 0.0;
+      const bool self = sid[q] == i;
+      fs[q] = self ? 0.0 : f;
+      gr[q] = self ? 0.0 : g * inv_r2;
+      dx[q] = ddx;
+      dy[q] = ddy;
+      dz[q] = ddz;
+    }
+    return;
+  }
+#pragma omp simd
+  for (std::size_t q = 0; q < m; ++q) {
+    const double ddx = xi - sx[q], ddy = yi - sy[q], ddz = zi - sz[q];
+    const double r2 = ddx * ddx + ddy * ddy + ddz * ddz;
+    const double aj = sa[q];
+    const double safe_r2 = r2 > 0.0 ? r2 : 1.0;
+    const double r = std::sqrt(safe_r2);
+    const double inv_r = 1.0 / r;
+    const double sum = ai + aj, diff = ai - aj;
+    const double s2 = (ai * ai + aj * aj) * inv_r * inv_r;
+    const double c8 = rpy_detail::inv_8pi * inv_r;
+    const double f_far = c8 * (1.0 + s2 / 3.0), g_far = c8 * (1.0 - s2);
+    const double c6 = rpy_detail::inv_6pi / (ai * aj);
+    const double d2r = diff * diff * inv_r, pr = d2r + 3.0 * r, qr = d2r - r;
+    const double inv_32r = inv_r / 32.0;
+    const double f_ov = c6 * (0.5 * sum - pr * pr * inv_32r), g_ov = c6 * (3.0 * qr * qr * inv_32r);
+    const double f_in = rpy_detail::inv_6pi / (ai > aj ? ai : aj);
+    const bool far = r > sum, inside = r <= (diff < 0.0 ? -diff : diff) || r2 == 0.0;
+    const double f = far ? f_far : (inside ? f_in : f_ov);
+    const double g = far ? g_far : (inside ? 0.0 : g_ov);
+    const bool self = sid[q] == i;
+    fs[q] = self ? 0.0 : f;
+    gr[q] = self ? 0.0 : g * inv_r * inv_r;
+    dx[q] = ddx;
+    dy[q] = ddy;
+    dz[q] = ddz;
+  }
+}
+
+RPYFMM_NEAR_CLONES void near_accumulate(std::size_t m, const double* dx, const double* dy, const double* dz,
+                                        const double* fs, const double* gr, const double* fx, const double* fy,
+                                        const double* fz, double u[3]) {
+  double ux = 0.0, uy = 0.0, uz = 0.0;
+#pragma omp simd reduction(+ : ux, uy, uz)
+  for (std::size_t q = 0; q < m; ++q) {
+    const double df = gr[q] * (dx[q] * fx[q] + dy[q] * fy[q] + dz[q] * fz[q]);
+    ux += fs[q] * fx[q] + df * dx[q];
+    uy += fs[q] * fy[q] + df * dy[q];
+    uz += fs[q] * fz[q] + df * dz[q];
+  }
+  u[0] = ux;
+  u[1] = uy;
+  u[2] = uz;
+}
+
 }  // namespace rpyfmm::rpy::detail

@@ -17,4 +17,15 @@ void near_pair_sum_equal(std::size_t m, const double* sx, const double* sy, cons
                          const double* fx, const double* fy, const double* fz, double xi, double yi, double zi,
                          double a, std::size_t i, double u[3]);
 
+/// Pair scalars of the target (xi, yi, zi, ai) against the m gathered sources, for several
+/// right-hand sides: fs[q], gr[q] with M_iq = (fs I + gr d d^T) (times eta), d = x_i - x_q in
+/// dx/dy/dz; the self pair gets fs = gr = 0. Equal radii when sa is null (radius ai).
+void near_pair_scalars(std::size_t m, const double* sx, const double* sy, const double* sz, const double* sa,
+                       const std::size_t* sid, double xi, double yi, double zi, double ai, std::size_t i, double* dx,
+                       double* dy, double* dz, double* fs, double* gr);
+
+/// u = sum_q (fs_q f_q + gr_q d_q (d_q . f_q)) for one right-hand side (forces in SoA).
+void near_accumulate(std::size_t m, const double* dx, const double* dy, const double* dz, const double* fs,
+                     const double* gr, const double* fx, const double* fy, const double* fz, double u[3]);
+
 }  // namespace rpyfmm::rpy::detail

@@ -193,7 +193,7 @@ void FmmRpy::apply_near_field(const double* forces, double* velocities, std::siz
   {
     // Sources of all U-list leaves of one target leaf, gathered into structure-of-arrays
     // buffers so that the pair loop below vectorizes.
-    std::vector<double> sx, sy, sz, sa, sf;
+    std::vector<double> sx, sy, sz, sa, sf, pair_buf;
     std::vector<std::size_t> sid;
 #pragma omp for schedule(dynamic, 4)
     for (std::int64_t t = 0; t < ntl; ++t) {
@@ -212,7 +212,40 @@ void FmmRpy::apply_near_field(const double* forces, double* velocities, std::siz
         }
       }
       const std::size_t m = sid.size();
-      sf.resize(3 * m);
+      sf.resize(3 * m * nrhs);
+      if (nrhs > 1) {
+        // Block product: every rhs's forces in SoA, then per target the pair scalars once
+        // and one accumulation per rhs (the geometry is most of the near-field work).
+        for (std::size_t k = 0; k < nrhs; ++k) {
+          const double* f = forces + 3 * n * k;
+          double* sk = sf.data() + 3 * m * k;
+          for (std::size_t q = 0; q < m; ++q)
+            for (int c = 0; c < 3; ++c) sk[c * m + q] = f[3 * sid[q] + c];
+        }
+        pair_buf.resize(5 * m);
+        double* dxb = pair_buf.data();
+        double* dyb = dxb + m;
+        double* dzb = dyb + m;
+        double* fsb = dzb + m;
+        double* grb = fsb + m;
+        for (std::size_t i : near.targets(near_targets_[t])) {
+          const double ai = a[i];
+          detail::near_pair_scalars(m, sx.data(), sy.data(), sz.data(), equal ? nullptr : sa.data(), sid.data(),
+                                    x[3 * i], x[3 * i + 1], x[3 * i + 2], ai, i, dxb, dyb, dzb, fsb, grb);
+          const double self = rpy_self(ai);  // M_ii = I / (6 pi eta a_i)
+          for (std::size_t k = 0; k < nrhs; ++k) {
+            const double* f = forces + 3 * n * k;
+            const double* sk = sf.data() + 3 * m * k;
+            double u[3];
+            detail::near_accumulate(m, dxb, dyb, dzb, fsb, grb, sk, sk + m, sk + 2 * m, u);
+            double* ui = velocities + 3 * n * k + 3 * i;
+            ui[0] += inv_eta * (u[0] + self * f[3 * i]);
+            ui[1] += inv_eta * (u[1] + self * f[3 * i + 1]);
+            ui[2] += inv_eta * (u[2] + self * f[3 * i + 2]);
+          }
+        }
+        continue;
+      }
       for (std::size_t k = 0; k < nrhs; ++k) {
         const double* f = forces + 3 * n * k;
         for (std::size_t q = 0; q < m; ++q)
