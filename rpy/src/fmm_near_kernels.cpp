@@ -16,10 +16,57 @@
 
 namespace rpyfmm::rpy::detail {
 
-// Sum over the gathered near-field sources q of M_iq f_q (times eta): exact RPY pair blocks
-// (rpy_kernel.hpp, MATH.md §1), all three regimes evaluated branch-free and selected per pair.
-// The self pair (sid == i) is excluded; coincident distinct points (r = 0) get I / (6 pi max a).
-// Compiled for AVX-512, AVX2 and baseline x86-64, chosen at run time.
+namespace {
+
+// The pair scalars of the exact RPY block M_iq = (f I + gr d d^T) (times eta), d = x_i - x_q,
+// r2 = |d|^2 (rpy_kernel.hpp, MATH.md §1): all regimes evaluated branch-free and selected, so
+// that the loops calling them vectorize. Coincident distinct points (r = 0) get
+// f = 1 / (6 pi max a), gr = 0. Shared by the fused single-rhs sums and the block path.
+
+// Different radii ai, aj: far (r > ai + aj), partial overlap, one sphere inside the other.
+[[gnu::always_inline]] inline void pair_scalars(double r2, double ai, double aj, double& f, double& gr) {
+  const double safe_r2 = r2 > 0.0 ? r2 : 1.0;
+  const double r = std::sqrt(safe_r2);
+  const double inv_r = 1.0 / r;
+  const double sum = ai + aj, diff = ai - aj;
+  // far: r > ai + aj
+  const double s2 = (ai * ai + aj * aj) * inv_r * inv_r;
+  const double c8 = rpy_detail::inv_8pi * inv_r;
+  const double f_far = c8 * (1.0 + s2 / 3.0), g_far = c8 * (1.0 - s2);
+  // partial overlap: |ai - aj| < r <= ai + aj
+  const double c6 = rpy_detail::inv_6pi / (ai * aj);
+  const double d2r = diff * diff * inv_r, pr = d2r + 3.0 * r, qr = d2r - r;
+  const double inv_32r = inv_r / 32.0;
+  const double f_ov = c6 * (0.5 * sum - pr * pr * inv_32r), g_ov = c6 * (3.0 * qr * qr * inv_32r);
+  // one sphere inside the other, and coincident points
+  const double f_in = rpy_detail::inv_6pi / (ai > aj ? ai : aj);
+  const bool far = r > sum, inside = r <= (diff < 0.0 ? -diff : diff) || r2 == 0.0;
+  f = far ? f_far : (inside ? f_in : f_ov);
+  const double g = far ? g_far : (inside ? 0.0 : g_ov);
+  gr = g * inv_r * inv_r;
+}
+
+// Equal radii a (rpy_scalars_equal, 004 eq. 3.1): one sqrt and one division per pair.
+[[gnu::always_inline]] inline void pair_scalars_equal(double r2, double a, double& f, double& gr) {
+  const double two_a = 2.0 * a, a2 = a * a, c6 = rpy_detail::inv_6pi / a, inv_32a = 1.0 / (32.0 * a);
+  const double safe_r2 = r2 > 0.0 ? r2 : 1.0;
+  const double r = std::sqrt(r2);  // 0 for coincident points: the overlap branch gives I / (6 pi a)
+  const double inv_r2 = 1.0 / safe_r2;
+  const double inv_r = r * inv_r2;
+  const double s = a2 * inv_r2;
+  const double c8 = rpy_detail::inv_8pi * inv_r;
+  const double t = r * inv_32a;
+  const bool far = r > two_a;
+  f = far ? c8 * (1.0 + (2.0 / 3.0) * s) : c6 * (1.0 - 9.0 * t);
+  double g = far ? c8 * (1.0 - 2.0 * s) : c6 * (3.0 * t);
+  g = r2 > 0.0 ? g : 0.0;  // coincident distinct points: I / (6 pi a)
+  gr = g * inv_r2;
+}
+
+}  // namespace
+
+// Sum over the gathered near-field sources q of M_iq f_q (times eta), the self pair
+// (sid == i) excluded. Compiled for AVX-512, AVX2 and baseline x86-64, chosen at run time.
 RPYFMM_NEAR_CLONES void near_pair_sum(std::size_t m, const double* sx, const double* sy, const double* sz,
                                       const double* sa, const std::size_t* sid, const double* fx, const double* fy,
                                       const double* fz, double xi, double yi, double zi, double ai, std::size_t i,
@@ -28,134 +75,84 @@ RPYFMM_NEAR_CLONES void near_pair_sum(std::size_t m, const double* sx, const dou
 #pragma omp simd reduction(+ : ux, uy, uz)
   for (std::size_t q = 0; q < m; ++q) {
     const double dx = xi - sx[q], dy = yi - sy[q], dz = zi - sz[q];
-    const double r2 = dx * dx + dy * dy + dz * dz;
-    const double aj = sa[q];
-    const double safe_r2 = r2 > 0.0 ? r2 : 1.0;
-    const double r = std::sqrt(safe_r2);
-    const double inv_r = 1.0 / r;
-    const double sum = ai + aj, diff = ai - aj;
-    // far: r > ai + aj
-    const double s2 = (ai * ai + aj * aj) * inv_r * inv_r;
-    const double c8 = rpy_detail::inv_8pi * inv_r;
-    const double f_far = c8 * (1.0 + s2 / 3.0), g_far = c8 * (1.0 - s2);
-    // partial overlap: |ai - aj| < r <= ai + aj
-    const double c6 = rpy_detail::inv_6pi / (ai * aj);
-    const double d2r = diff * diff * inv_r, pr = d2r + 3.0 * r, qr = d2r - r;
-    const double inv_32r = inv_r / 32.0;
-    const double f_ov = c6 * (0.5 * sum - pr * pr * inv_32r), g_ov = c6 * (3.0 * qr * qr * inv_32r);
-    // one sphere inside the other, and coincident points
-    const double f_in = rpy_detail::inv_6pi / (ai > aj ? ai : aj);
-    const bool far = r > sum, inside = r <= (diff < 0.0 ? -diff : diff) || r2 == 0.0;
-    double fs = far ? f_far : (inside ? f_in : f_ov);
-    double gs = far ? g_far : (inside ? 0.0 : g_ov);
+    double f, gr;
+    pair_scalars(dx * dx + dy * dy + dz * dz, ai, sa[q], f, gr);
     const bool self = sid[q] == i;
-    fs = self ? 0.0 : fs;
-    gs = self ? 0.0 : gs;
-    const double gr = gs * inv_r * inv_r;
+    f = self ? 0.0 : f;
+    gr = self ? 0.0 : gr;
     const double df = gr * (dx * fx[q] + dy * fy[q] + dz * fz[q]);
-    ux += fs * fx[q] + df * dx;
-    uy += fs * fy[q] + df * dy;
-    uz += fs * fz[q] + df * dz;
+    ux += f * fx[q] + df * dx;
+    uy += f * fy[q] + df * dy;
+    uz += f * fz[q] + df * dz;
   }
   u[0] = ux;
   u[1] = uy;
   u[2] = uz;
 }
 
-// Equal radii a (rpy_scalars_equal, 004 eq. 3.1): one sqrt and one division per pair.
+// The same for equal radii a.
 RPYFMM_NEAR_CLONES void near_pair_sum_equal(std::size_t m, const double* sx, const double* sy, const double* sz,
                                             const std::size_t* sid, const double* fx, const double* fy,
                                             const double* fz, double xi, double yi, double zi, double a, std::size_t i,
                                             double u[3]) {
   double ux = 0.0, uy = 0.0, uz = 0.0;
-  const double two_a = 2.0 * a, a2 = a * a, c6 = rpy_detail::inv_6pi / a, inv_32a = 1.0 / (32.0 * a);
 #pragma omp simd reduction(+ : ux, uy, uz)
   for (std::size_t q = 0; q < m; ++q) {
     const double dx = xi - sx[q], dy = yi - sy[q], dz = zi - sz[q];
-    const double r2 = dx * dx + dy * dy + dz * dz;
-    const double safe_r2 = r2 > 0.0 ? r2 : 1.0;
-    const double r = std::sqrt(r2);  // 0 for coincident points: the overlap branch gives I / (6 pi a)
-    const double inv_r2 = 1.0 / safe_r2;
-    const double inv_r = r * inv_r2;
-    const double s = a2 * inv_r2;
-    const double c8 = rpy_detail::inv_8pi * inv_r;
-    const double t = r * inv_32a;
-    const bool far = r > two_a;
-    double fs = far ? c8 * (1.0 + (2.0 / 3.0) * s) : c6 * (1.0 - 9.0 * t);
-    double gs = far ? c8 * (1.0 - 2.0 * s) : c6 * (3.0 * t);
-    gs = r2 > 0.0 ? gs : 0.0;  // coincident distinct points: I / (6 pi a)
+    double f, gr;
+    pair_scalars_equal(dx * dx + dy * dy + dz * dz, a, f, gr);
     const bool self = sid[q] == i;
-    fs = self ? 0.0 : fs;
-    gs = self ? 0.0 : gs;
-    const double df = gs * inv_r2 * (dx * fx[q] + dy * fy[q] + dz * fz[q]);
-    ux += fs * fx[q] + df * dx;
-    uy += fs * fy[q] + df * dy;
-    uz += fs * fz[q] + df * dz;
+    f = self ? 0.0 : f;
+    gr = self ? 0.0 : gr;
+    const double df = gr * (dx * fx[q] + dy * fy[q] + dz * fz[q]);
+    ux += f * fx[q] + df * dx;
+    uy += f * fy[q] + df * dy;
+    uz += f * fz[q] + df * dz;
   }
   u[0] = ux;
   u[1] = uy;
   u[2] = uz;
 }
 
-// Block products (nrhs >= 2): the pair scalars of near_pair_sum(_equal), stored once per
-// target, then one accumulation per right-hand side.
+namespace {
+
+// The loop of near_pair_scalars, one instance per radius mode (no branch inside the loop).
+template <bool kEqual>
+[[gnu::always_inline]] inline void pair_scalars_loop(std::size_t m, const double* sx, const double* sy,
+                                                     const double* sz, const double* sa, const std::size_t* sid,
+                                                     double xi, double yi, double zi, double ai, std::size_t i,
+                                                     double* dx, double* dy, double* dz, double* fs, double* gr) {
+#pragma omp simd
+  for (std::size_t q = 0; q < m; ++q) {
+    const double ddx = xi - sx[q], ddy = yi - sy[q], ddz = zi - sz[q];
+    const double r2 = ddx * ddx + ddy * ddy + ddz * ddz;
+    double f, g;
+    if constexpr (kEqual) {
+      pair_scalars_equal(r2, ai, f, g);
+    } else {
+      pair_scalars(r2, ai, sa[q], f, g);
+    }
+    const bool self = sid[q] == i;
+    fs[q] = self ? 0.0 : f;
+    gr[q] = self ? 0.0 : g;
+    dx[q] = ddx;
+    dy[q] = ddy;
+    dz[q] = ddz;
+  }
+}
+
+}  // namespace
+
+// Block products (nrhs >= 2): the same pair scalars stored once per target, then one
+// accumulation per right-hand side (near_accumulate).
 RPYFMM_NEAR_CLONES void near_pair_scalars(std::size_t m, const double* sx, const double* sy, const double* sz,
                                           const double* sa, const std::size_t* sid, double xi, double yi, double zi,
                                           double ai, std::size_t i, double* dx, double* dy, double* dz, double* fs,
                                           double* gr) {
   if (sa == nullptr) {
-    const double a = ai;
-    const double two_a = 2.0 * a, a2 = a * a, c6 = rpy_detail::inv_6pi / a, inv_32a = 1.0 / (32.0 * a);
-#pragma omp simd
-    for (std::size_t q = 0; q < m; ++q) {
-      const double ddx = xi - sx[q], ddy = yi - sy[q], ddz = zi - sz[q];
-      const double r2 = ddx * ddx + ddy * ddy + ddz * ddz;
-      const double safe_r2 = r2 > 0.0 ? r2 : 1.0;
-      const double r = std::sqrt(r2);
-      const double inv_r2 = 1.0 / safe_r2;
-      const double inv_r = r * inv_r2;
-      const double s = a2 * inv_r2;
-      const double c8 = rpy_detail::inv_8pi * inv_r;
-      const double t = r * inv_32a;
-      const bool far = r > two_a;
-      double f = far ? c8 * (1.0 + (2.0 / 3.0) * s) : c6 * (1.0 - 9.0 * t);
-      double g = far ? c8 * (1.0 - 2.0 * s) : c6 * (3.0 * t);
-      g = r2 > 0.0 ? g : 0.0;
-      const bool self = sid[q] == i;
-      fs[q] = self ? 0.0 : f;
-      gr[q] = self ? 0.0 : g * inv_r2;
-      dx[q] = ddx;
-      dy[q] = ddy;
-      dz[q] = ddz;
-    }
-    return;
-  }
-#pragma omp simd
-  for (std::size_t q = 0; q < m; ++q) {
-    const double ddx = xi - sx[q], ddy = yi - sy[q], ddz = zi - sz[q];
-    const double r2 = ddx * ddx + ddy * ddy + ddz * ddz;
-    const double aj = sa[q];
-    const double safe_r2 = r2 > 0.0 ? r2 : 1.0;
-    const double r = std::sqrt(safe_r2);
-    const double inv_r = 1.0 / r;
-    const double sum = ai + aj, diff = ai - aj;
-    const double s2 = (ai * ai + aj * aj) * inv_r * inv_r;
-    const double c8 = rpy_detail::inv_8pi * inv_r;
-    const double f_far = c8 * (1.0 + s2 / 3.0), g_far = c8 * (1.0 - s2);
-    const double c6 = rpy_detail::inv_6pi / (ai * aj);
-    const double d2r = diff * diff * inv_r, pr = d2r + 3.0 * r, qr = d2r - r;
-    const double inv_32r = inv_r / 32.0;
-    const double f_ov = c6 * (0.5 * sum - pr * pr * inv_32r), g_ov = c6 * (3.0 * qr * qr * inv_32r);
-    const double f_in = rpy_detail::inv_6pi / (ai > aj ? ai : aj);
-    const bool far = r > sum, inside = r <= (diff < 0.0 ? -diff : diff) || r2 == 0.0;
-    const double f = far ? f_far : (inside ? f_in : f_ov);
-    const double g = far ? g_far : (inside ? 0.0 : g_ov);
-    const bool self = sid[q] == i;
-    fs[q] = self ? 0.0 : f;
-    gr[q] = self ? 0.0 : g * inv_r * inv_r;
-    dx[q] = ddx;
-    dy[q] = ddy;
-    dz[q] = ddz;
+    pair_scalars_loop<true>(m, sx, sy, sz, sa, sid, xi, yi, zi, ai, i, dx, dy, dz, fs, gr);
+  } else {
+    pair_scalars_loop<false>(m, sx, sy, sz, sa, sid, xi, yi, zi, ai, i, dx, dy, dz, fs, gr);
   }
 }
 
