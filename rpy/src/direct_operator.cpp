@@ -14,6 +14,7 @@
 #include <numbers>
 
 #include "rpyfmm/core/validate.hpp"
+#include "pair_block_sum.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
 
 namespace rpyfmm::rpy {
@@ -195,20 +196,14 @@ RPYFMM_DIRECT_AVX512 void scalars_general_avx512(double xi, double yi, double zi
 #pragma GCC diagnostic pop
 #endif  // RPYFMM_HAVE_DIRECT_AVX512
 
-// u += sum_j (f_j F_j + gr_j d_j (d_j . F_j)) over one block, forces in SoA.
+// u += sum_j (f_j F_j + gr_j d_j (d_j . F_j)) over one block, forces in SoA (pair_block_sum.hpp).
 RPYFMM_DIRECT_CLONES
 void accumulate(std::size_t nb, const double* __restrict dx, const double* __restrict dy,
                 const double* __restrict dz, const double* __restrict f, const double* __restrict gr,
                 const double* __restrict fx, const double* __restrict fy, const double* __restrict fz,
                 double& ux, double& uy, double& uz) {
-  double sx = 0.0, sy = 0.0, sz = 0.0;
-#pragma omp simd reduction(+ : sx, sy, sz)
-  for (std::size_t j = 0; j < nb; ++j) {
-    const double t = gr[j] * (dx[j] * fx[j] + dy[j] * fy[j] + dz[j] * fz[j]);
-    sx += f[j] * fx[j] + t * dx[j];
-    sy += f[j] * fy[j] + t * dy[j];
-    sz += f[j] * fz[j] + t * dz[j];
-  }
+  double sx, sy, sz;
+  detail::sum_pair_blocks(nb, dx, dy, dz, f, gr, fx, fy, fz, sx, sy, sz);
   ux += sx;
   uy += sy;
   uz += sz;

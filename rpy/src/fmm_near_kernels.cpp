@@ -6,6 +6,7 @@
 
 #include <cmath>
 
+#include "pair_block_sum.hpp"
 #include "rpyfmm/rpy/rpy_kernel.hpp"
 
 #if defined(__x86_64__) && !defined(__SANITIZE_ADDRESS__)
@@ -63,20 +64,23 @@ namespace {
   gr = g * inv_r2;
 }
 
-}  // namespace
-
-// Sum over the gathered near-field sources q of M_iq f_q (times eta), the self pair
-// (sid == i) excluded. Compiled for AVX-512, AVX2 and baseline x86-64, chosen at run time.
-RPYFMM_NEAR_CLONES void near_pair_sum(std::size_t m, const double* sx, const double* sy, const double* sz,
-                                      const double* sa, const std::size_t* sid, const double* fx, const double* fy,
-                                      const double* fz, double xi, double yi, double zi, double ai, std::size_t i,
-                                      double u[3]) {
+// The fused single-rhs loop of near_pair_sum(_equal), one instance per radius mode.
+template <bool kEqual>
+[[gnu::always_inline]] inline void pair_sum_loop(std::size_t m, const double* sx, const double* sy, const double* sz,
+                                                 const double* sa, const std::size_t* sid, const double* fx,
+                                                 const double* fy, const double* fz, double xi, double yi, double zi,
+                                                 double ai, std::size_t i, double u[3]) {
   double ux = 0.0, uy = 0.0, uz = 0.0;
 #pragma omp simd reduction(+ : ux, uy, uz)
   for (std::size_t q = 0; q < m; ++q) {
     const double dx = xi - sx[q], dy = yi - sy[q], dz = zi - sz[q];
+    const double r2 = dx * dx + dy * dy + dz * dz;
     double f, gr;
-    pair_scalars(dx * dx + dy * dy + dz * dz, ai, sa[q], f, gr);
+    if constexpr (kEqual) {
+      pair_scalars_equal(r2, ai, f, gr);
+    } else {
+      pair_scalars(r2, ai, sa[q], f, gr);
+    }
     const bool self = sid[q] == i;
     f = self ? 0.0 : f;
     gr = self ? 0.0 : gr;
@@ -90,28 +94,23 @@ RPYFMM_NEAR_CLONES void near_pair_sum(std::size_t m, const double* sx, const dou
   u[2] = uz;
 }
 
+}  // namespace
+
+// Sum over the gathered near-field sources q of M_iq f_q (times eta), the self pair
+// (sid == i) excluded. Compiled for AVX-512, AVX2 and baseline x86-64, chosen at run time.
+RPYFMM_NEAR_CLONES void near_pair_sum(std::size_t m, const double* sx, const double* sy, const double* sz,
+                                      const double* sa, const std::size_t* sid, const double* fx, const double* fy,
+                                      const double* fz, double xi, double yi, double zi, double ai, std::size_t i,
+                                      double u[3]) {
+  pair_sum_loop<false>(m, sx, sy, sz, sa, sid, fx, fy, fz, xi, yi, zi, ai, i, u);
+}
+
 // The same for equal radii a.
 RPYFMM_NEAR_CLONES void near_pair_sum_equal(std::size_t m, const double* sx, const double* sy, const double* sz,
                                             const std::size_t* sid, const double* fx, const double* fy,
                                             const double* fz, double xi, double yi, double zi, double a, std::size_t i,
                                             double u[3]) {
-  double ux = 0.0, uy = 0.0, uz = 0.0;
-#pragma omp simd reduction(+ : ux, uy, uz)
-  for (std::size_t q = 0; q < m; ++q) {
-    const double dx = xi - sx[q], dy = yi - sy[q], dz = zi - sz[q];
-    double f, gr;
-    pair_scalars_equal(dx * dx + dy * dy + dz * dz, a, f, gr);
-    const bool self = sid[q] == i;
-    f = self ? 0.0 : f;
-    gr = self ? 0.0 : gr;
-    const double df = gr * (dx * fx[q] + dy * fy[q] + dz * fz[q]);
-    ux += f * fx[q] + df * dx;
-    uy += f * fy[q] + df * dy;
-    uz += f * fz[q] + df * dz;
-  }
-  u[0] = ux;
-  u[1] = uy;
-  u[2] = uz;
+  pair_sum_loop<true>(m, sx, sy, sz, nullptr, sid, fx, fy, fz, xi, yi, zi, a, i, u);
 }
 
 namespace {
@@ -159,17 +158,7 @@ RPYFMM_NEAR_CLONES void near_pair_scalars(std::size_t m, const double* sx, const
 RPYFMM_NEAR_CLONES void near_accumulate(std::size_t m, const double* dx, const double* dy, const double* dz,
                                         const double* fs, const double* gr, const double* fx, const double* fy,
                                         const double* fz, double u[3]) {
-  double ux = 0.0, uy = 0.0, uz = 0.0;
-#pragma omp simd reduction(+ : ux, uy, uz)
-  for (std::size_t q = 0; q < m; ++q) {
-    const double df = gr[q] * (dx[q] * fx[q] + dy[q] * fy[q] + dz[q] * fz[q]);
-    ux += fs[q] * fx[q] + df * dx[q];
-    uy += fs[q] * fy[q] + df * dy[q];
-    uz += fs[q] * fz[q] + df * dz[q];
-  }
-  u[0] = ux;
-  u[1] = uy;
-  u[2] = uz;
+  sum_pair_blocks(m, dx, dy, dz, fs, gr, fx, fy, fz, u[0], u[1], u[2]);
 }
 
 }  // namespace rpyfmm::rpy::detail
