@@ -2,7 +2,5 @@
 target_sources(rpyfmm_fmm PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/src/version.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/direct_laplace.cpp)
-# sqrt must not set errno, or GCC keeps it scalar (a libm call per pair) and the
-# pair loops do not vectorize. The kernels never read errno.
-set_source_files_properties(${CMAKE_CURRENT_LIST_DIR}/src/direct_laplace.cpp
-  PROPERTIES COMPILE_OPTIONS "-fno-math-errno")
+# Branch-free pair loops: see cmake/RpyfmmPairLoops.cmake.
+rpyfmm_vectorize_pair_loops(${CMAKE_CURRENT_LIST_DIR}/src/direct_laplace.cpp)

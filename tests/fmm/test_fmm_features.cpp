@@ -206,7 +206,9 @@ TEST(FmmFeatures, FarFieldOnlyPlusNearFieldStructureIsComplete) {
       const std::set<std::pair<std::uint32_t, std::uint32_t>> distinct(nf.pairs.begin(), nf.pairs.end());
       EXPECT_EQ(distinct.size(), nf.pairs.size());
       if (!exported && !separate) pairs_without_export = nf.pairs.size();
-      if (exported && !separate) EXPECT_GT(nf.pairs.size(), pairs_without_export);
+      if (exported && !separate) {
+        EXPECT_GT(nf.pairs.size(), pairs_without_export);
+      }
       // Every source and target is in exactly one leaf.
       std::vector<int> seen_s(1500, 0), seen_t(m, 0);
       for (std::size_t l = 0; l < nf.num_leaves(); ++l) {

@@ -1,0 +1,13 @@
+# rpyfmm_vectorize_pair_loops(<source>...): compile options for sources whose hot pair loops
+# evaluate every regime branch-free and select (r = 0 skips, near/far RPY regimes).
+#  - -fno-math-errno: sqrt sets no errno, so it is an instruction, not a libm call;
+#  - -fno-trapping-math: GCC may evaluate both sides of a select (1/r where r = 0 is discarded).
+#    Without it GCC if-converts such loops only where AVX-512 masking hides the speculation, so
+#    the AVX2 and baseline clones ran scalar: 1.75x slower FmmRpy near field and 4x slower
+#    Laplace P2P on an AVX2-only CPU (bench/README.md, session 4).
+# Neither flag changes a computed value (no reassociation, no contraction beyond the default);
+# the kernels never read errno or FP exception flags.
+function(rpyfmm_vectorize_pair_loops)
+  set_source_files_properties(${ARGN} PROPERTIES COMPILE_OPTIONS
+    "$<$<CXX_COMPILER_ID:GNU,Clang>:-fno-math-errno;-fno-trapping-math>")
+endfunction()
