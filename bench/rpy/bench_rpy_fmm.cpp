@@ -6,7 +6,8 @@
 // extrapolated as N^2 above, marked so). Prints one CSV row per case.
 //
 // usage: bench_rpy_fmm [dist=cylinder|eight|suspension] [N list] [eps list] [threads list] [repeats]
-//        bench_rpy_fmm cylinder 10000,100000 1e-3,1e-6,1e-9 1,2 3 [points.bin]
+//                      [points.bin or -] [leaf capacity list, 0 = the operator's default]
+//        bench_rpy_fmm cylinder 10000,100000 1e-3,1e-6,1e-9 1,2 3 [points.bin] [0,100,200]
 #include <omp.h>
 
 #include <algorithm>
@@ -37,6 +38,14 @@ std::vector<T> parse_list(const std::string& s) {
   std::string item;
   while (std::getline(ss, item, ',')) v.push_back(static_cast<T>(std::stod(item)));
   return v;
+}
+
+// Every (tolerance, leaf capacity) pair, tolerance-major.
+std::vector<std::pair<double, int>> cases(const std::vector<double>& epss, const std::vector<int>& leaves) {
+  std::vector<std::pair<double, int>> out;
+  for (double eps : epss)
+    for (int leaf : leaves) out.emplace_back(eps, leaf);
+  return out;
 }
 
 double median(std::vector<double> v) {
@@ -83,10 +92,11 @@ int main(int argc, char** argv) {
   const auto epss = parse_list<double>(argc > 3 ? argv[3] : "1e-3,1e-6,1e-9");
   const auto threads = parse_list<int>(argc > 4 ? argv[4] : "1,2");
   const int repeats = argc > 5 ? std::stoi(argv[5]) : 3;
-  const std::string dump = argc > 6 ? argv[6] : "";
+  const std::string dump = argc > 6 && std::string(argv[6]) != "-" ? argv[6] : "";
+  const auto leaves = parse_list<int>(argc > 7 ? argv[7] : "0");
 
   std::printf("dist,N,eps,threads,rpy_s,laplace1_s,ratio_rpy_laplace,direct_s,direct_kind,speedup_vs_direct,"
-              "rel_l2_err,levels,leaves,near_s,far_fmm_s\n");
+              "rel_l2_err,levels,leaves,near_s,far_fmm_s,leaf_capacity\n");
   for (std::size_t n : ns) {
     const auto c = make(dist, n);
     const auto f = t::random_vector(3 * n, 1);
@@ -111,8 +121,8 @@ int main(int argc, char** argv) {
         direct_s = w.seconds() * (static_cast<double>(n) / nd) * (static_cast<double>(n) / nd);
         if (nd != n) direct_kind = "extrapolated";
       }
-      for (double eps : epss) {
-        rpyfmm::rpy::FmmRpy op(rpyfmm::rpy::Geometry::open(), 1.0, {.tolerance = eps});
+      for (const auto& [eps, leaf] : cases(epss, leaves)) {
+        rpyfmm::rpy::FmmRpy op(rpyfmm::rpy::Geometry::open(), 1.0, {.tolerance = eps, .leaf_capacity = leaf});
         op.set_positions(c.x, c.a);
         std::vector<double> u(3 * n);
         std::vector<double> times, near_t, far_t;
@@ -139,9 +149,9 @@ int main(int argc, char** argv) {
         }
         const auto stats = op.laplace_plan()->stats();
         const double rpy_s = median(times), lap_s = median(lt);
-        std::printf("%s,%zu,%.0e,%d,%.4f,%.4f,%.2f,%.3f,%s,%.1f,%.2e,%d,%zu,%.4f,%.4f\n", dist.c_str(), n, eps, nt,
+        std::printf("%s,%zu,%.0e,%d,%.4f,%.4f,%.2f,%.3f,%s,%.1f,%.2e,%d,%zu,%.4f,%.4f,%d\n", dist.c_str(), n, eps, nt,
                     rpy_s, lap_s, rpy_s / lap_s, direct_s, direct_kind.c_str(), direct_s / rpy_s, err, stats.levels,
-                    stats.leaves, median(near_t), median(far_t));
+                    stats.leaves, median(near_t), median(far_t), stats.leaf_capacity);
         std::fflush(stdout);
       }
     }

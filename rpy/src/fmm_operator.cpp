@@ -10,6 +10,7 @@
 
 #include "fmm_near_kernels.hpp"
 #include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
 #include "rpyfmm/rpy/rpy_kernel.hpp"
 
@@ -28,13 +29,20 @@ double laplace_eps_for(double tolerance) {
   return tolerance;
 }
 
-// Leaf capacity when the user leaves it at 0. Four densities per product make the far field
-// dearer relative to the near field than in one Laplace evaluation: at 3 digits, leaves twice the
-// Laplace default are fastest or within 10% of it for N = 3e3 ... 2e5 (random suspension, 1 thread,
-// bench/rpy/RESULTS.md "leaf capacity"); at 6 digits and beyond the Laplace default already is.
+// Leaf capacity when the user leaves it at 0 (bench/rpy/RESULTS.md "Leaf capacity", 1 thread).
+// Four densities per product make the far field dearer relative to the near field than in one
+// Laplace evaluation, so from 6 digits on the best leaves are larger than the Laplace default
+// wherever the P2P runs without AVX-512: 400 / 600 / 800 points at 6 / 9 / 12 digits on both
+// machines measured. At 3 digits the near-field kernel's speed decides: 200 points with the AVX-512
+// kernels (random suspension N = 3e3 ... 2e5, Intel machine), 100 with AVX2 (suspension and
+// cylinder surface at N = 1e5: 1.6x / 1.35x faster than 200, AMD Zen-1 machine).
 int default_leaf_capacity(double eps) {
-  const int laplace = fmm::fmm_default_leaf_capacity(eps);
-  return fmm::fmm_table_digits_for(eps) <= 3 ? 2 * laplace : laplace;
+  switch (fmm::fmm_table_digits_for(eps)) {
+    case 3: return fmm::detail::avx512_kernels_active() ? 200 : 100;
+    case 6: return 400;
+    case 9: return 600;
+    default: return 800;
+  }
 }
 
 }  // namespace

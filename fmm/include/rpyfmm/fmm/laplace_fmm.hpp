@@ -31,7 +31,8 @@ struct FmmOptions {
   /// Requested relative l2 accuracy of each output, in [1e-15, 1e-1]. The plane-wave table is the
   /// one of the next tighter of 1e-3, 1e-6, 1e-9, 1e-12; below 1e-12 the accuracy saturates near 1e-13.
   double eps = 1e-6;
-  /// Points per leaf before a box is split; 0 = automatic (chosen per eps by benchmark).
+  /// Points per leaf before a box is split; 0 = automatic (chosen per eps and P2P kernel by
+  /// benchmark: fmm_default_leaf_capacity).
   int leaf_capacity = 0;
   /// Boxes are never split below this side: every pair of points closer than this is in the
   /// near field (U list). 0 = no limit.
@@ -125,7 +126,8 @@ class LaplaceFmm {
 int fmm_order_for(double eps);
 /// Digits of the plane-wave table used for a tolerance (3, 6, 9 or 12).
 int fmm_table_digits_for(double eps);
-/// Automatic leaf capacity for a tolerance.
+/// Automatic leaf capacity for a tolerance (measured per plane-wave table; larger where the
+/// AVX-512 P2P kernels are active, see detail::avx512_kernels_active()).
 int fmm_default_leaf_capacity(double eps);
 
 }  // namespace rpyfmm::fmm
