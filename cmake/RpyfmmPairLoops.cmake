@@ -5,8 +5,9 @@
 #    Without it GCC if-converts such loops only where AVX-512 masking hides the speculation, so
 #    the AVX2 and baseline clones ran scalar: 1.75x slower FmmRpy near field and 4x slower
 #    Laplace P2P on an AVX2-only CPU (bench/README.md, session 4).
-# Neither flag changes a computed value (no reassociation, no contraction beyond the default);
-# the kernels never read errno or FP exception flags.
+# Neither flag changes a formula or allows reassociation; results change only by rounding where a
+# reduction now runs in vector lanes (as it already did in the AVX-512 clones). The kernels never
+# read errno or FP exception flags.
 function(rpyfmm_vectorize_pair_loops)
   set_source_files_properties(${ARGN} PROPERTIES COMPILE_OPTIONS
     "$<$<CXX_COMPILER_ID:GNU,Clang>:-fno-math-errno;-fno-trapping-math>")

@@ -34,11 +34,12 @@ double laplace_eps_for(double tolerance) {
 // Laplace evaluation, so from 6 digits on the best leaves are larger than the Laplace default
 // wherever the P2P runs without AVX-512: 400 / 600 / 800 points at 6 / 9 / 12 digits on both
 // machines measured. At 3 digits the near-field kernel's speed decides: 200 points with the AVX-512
-// kernels (random suspension N = 3e3 ... 2e5, Intel machine), 100 with AVX2 (suspension and
-// cylinder surface at N = 1e5: 1.6x / 1.35x faster than 200, AMD Zen-1 machine).
+// kernels (random suspension N = 3e3 ... 2e5, Intel machine), 150 with AVX2 (AMD Zen-1 machine:
+// suspension N = 1e3 ... 1e5 within 1.26x of the best of 100/150/200/400, 2x faster than 200 at
+// N = 1e5; 100 is best from 1e4 up but 1.7x slower at N = 1e3).
 int default_leaf_capacity(double eps) {
   switch (fmm::fmm_table_digits_for(eps)) {
-    case 3: return fmm::detail::avx512_kernels_active() ? 200 : 100;
+    case 3: return fmm::detail::avx512_kernels_active() ? 200 : 150;
     case 6: return 400;
     case 9: return 600;
     default: return 800;
