@@ -28,4 +28,16 @@ void near_pair_scalars(std::size_t m, const double* sx, const double* sy, const 
 void near_accumulate(std::size_t m, const double* dx, const double* dy, const double* dz, const double* fs,
                      const double* gr, const double* fx, const double* fy, const double* fz, double u[3]);
 
+/// Both directions of the block between a target i and m sources of another leaf (never i
+/// itself): u = sum_q M_iq f_q (times eta) is returned, and M_qi f_i (= M_iq f_i, the block is
+/// symmetric) is added to (ux, uy, uz)[q]. Equal radii when sa is null (radius ai).
+void near_pair_sum_symmetric(std::size_t m, const double* sx, const double* sy, const double* sz, const double* sa,
+                             const double* fx, const double* fy, const double* fz, double xi, double yi, double zi,
+                             double ai, const double fi[3], double* ux, double* uy, double* uz, double u[3]);
+
+/// The same from stored pair scalars (near_pair_scalars), for one right-hand side.
+void near_accumulate_symmetric(std::size_t m, const double* dx, const double* dy, const double* dz, const double* fs,
+                               const double* gr, const double* fx, const double* fy, const double* fz,
+                               const double fi[3], double* ux, double* uy, double* uz, double u[3]);
+
 }  // namespace rpyfmm::rpy::detail

@@ -6,9 +6,11 @@
 #include <cmath>
 #include <cstdint>
 #include <numbers>
+#include <span>
 #include <string>
 
 #include "fmm_near_kernels.hpp"
+#include "near_schedule.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
@@ -45,6 +47,11 @@ int default_leaf_capacity(double eps) {
     default: return 800;
   }
 }
+
+// Trees with fewer leaves evaluate each directed leaf pair on its own (one colour, parallel over
+// target leaves): with few leaves per colour the symmetric schedule would leave threads idle.
+// A property of the tree only, never of the thread count, so results stay thread-invariant.
+constexpr std::size_t kSymmetricMinLeaves = 64;
 
 }  // namespace
 
@@ -89,21 +96,11 @@ void FmmRpy::on_positions_set() {
   fmm_ = std::make_unique<fmm::LaplaceFmm>(fo);
   fmm_->set_points(centered_);
 
-  // Group the U-list pairs by target leaf so that the near field is race-free in parallel.
+  // Near-field schedule: each adjacent leaf pair once for both directions where the tree has
+  // enough leaves to keep every colour busy (see kSymmetricMinLeaves).
   const fmm::NearField& near = fmm_->near_field();
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs = near.pairs;
-  std::sort(pairs.begin(), pairs.end());
-  near_targets_.clear();
-  near_begin_.clear();
-  near_sources_.clear();
-  for (std::size_t p = 0; p < pairs.size(); ++p) {
-    if (p == 0 || pairs[p].first != pairs[p - 1].first) {
-      near_targets_.push_back(pairs[p].first);
-      near_begin_.push_back(near_sources_.size());
-    }
-    near_sources_.push_back(pairs[p].second);
-  }
-  near_begin_.push_back(near_sources_.size());
+  near_schedule_ = std::make_unique<detail::NearSchedule>(
+      detail::make_near_schedule(near.pairs, near.num_leaves(), near.num_leaves() >= kSymmetricMinLeaves));
 }
 
 void FmmRpy::do_apply(const double* forces, double* velocities, std::size_t nrhs) const {
@@ -188,96 +185,177 @@ void FmmRpy::do_apply(const double* forces, double* velocities, std::size_t nrhs
   timings_["rpy_total"] = total.seconds();
 }
 
+namespace {
+
+// Sources of one or more leaves gathered into structure-of-arrays buffers (so that the pair
+// loops vectorize), with their forces for every right-hand side (rhs k, component c at
+// f[(3 k + c) m + q]) and, for symmetric blocks, velocity accumulators in the same layout.
+struct GatheredSources {
+  std::vector<double> x, y, z, a, f, u;
+  std::vector<std::size_t> id;
+
+  void gather(const fmm::NearField& near, std::span<const std::uint32_t> leaves, std::span<const double> pos,
+              std::span<const double> radii, const double* forces, std::size_t n, std::size_t nrhs) {
+    x.clear();
+    y.clear();
+    z.clear();
+    a.clear();
+    id.clear();
+    for (std::uint32_t leaf : leaves)
+      for (std::size_t j : near.sources(leaf)) {
+        x.push_back(pos[3 * j]);
+        y.push_back(pos[3 * j + 1]);
+        z.push_back(pos[3 * j + 2]);
+        a.push_back(radii[j]);
+        id.push_back(j);
+      }
+    const std::size_t m = id.size();
+    f.resize(3 * m * nrhs);
+    for (std::size_t k = 0; k < nrhs; ++k) {
+      const double* fk = forces + 3 * n * k;
+      double* sk = f.data() + 3 * m * k;
+      for (std::size_t q = 0; q < m; ++q)
+        for (int c = 0; c < 3; ++c) sk[c * m + q] = fk[3 * id[q] + c];
+    }
+  }
+  [[nodiscard]] std::size_t size() const noexcept { return id.size(); }
+  [[nodiscard]] const double* forces(std::size_t k, int c) const noexcept { return f.data() + (3 * k + c) * size(); }
+  [[nodiscard]] double* velocities(std::size_t k, int c) noexcept { return u.data() + (3 * k + c) * size(); }
+};
+
+// Stored pair scalars of one target against gathered sources (block products).
+struct PairScalars {
+  std::vector<double> buf;
+  double *dx = nullptr, *dy = nullptr, *dz = nullptr, *fs = nullptr, *gr = nullptr;
+  void resize(std::size_t m) {
+    buf.resize(5 * m);
+    dx = buf.data();
+    dy = dx + m;
+    dz = dy + m;
+    fs = dz + m;
+    gr = fs + m;
+  }
+};
+
+// What every near-field task reads and writes.
+struct NearContext {
+  const fmm::NearField& near;
+  std::span<const double> x, a;
+  const double* forces;
+  double* velocities;
+  std::size_t n, nrhs;
+  double inv_eta;
+  bool equal;
+
+  [[nodiscard]] const double* force(std::size_t k, std::size_t i) const { return forces + 3 * n * k + 3 * i; }
+  void add_velocity(std::size_t k, std::size_t i, const double u[3]) const {
+    double* ui = velocities + 3 * n * k + 3 * i;
+    ui[0] += inv_eta * u[0];
+    ui[1] += inv_eta * u[1];
+    ui[2] += inv_eta * u[2];
+  }
+};
+
+// Targets of `leaf` against the gathered one-sided sources (the leaf itself among them: the
+// self pair is skipped inside the kernels), plus the self term M_ii = I / (6 pi eta a_i).
+void one_sided_block(const NearContext& ctx, std::uint32_t leaf, const GatheredSources& src, PairScalars& ps) {
+  const std::size_t m = src.size();
+  const double* sa = ctx.equal ? nullptr : src.a.data();
+  if (ctx.nrhs > 1) ps.resize(m);
+  for (std::size_t i : ctx.near.targets(leaf)) {
+    const double xi = ctx.x[3 * i], yi = ctx.x[3 * i + 1], zi = ctx.x[3 * i + 2], ai = ctx.a[i];
+    const double self = rpy_self(ai);
+    if (ctx.nrhs > 1) {
+      // Block product: the pair scalars once, one accumulation per rhs (the geometry is most of the work).
+      detail::near_pair_scalars(m, src.x.data(), src.y.data(), src.z.data(), sa, src.id.data(), xi, yi, zi, ai, i,
+                                ps.dx, ps.dy, ps.dz, ps.fs, ps.gr);
+    }
+    for (std::size_t k = 0; k < ctx.nrhs; ++k) {
+      const double *fx = src.forces(k, 0), *fy = src.forces(k, 1), *fz = src.forces(k, 2);
+      double u[3];
+      if (ctx.nrhs > 1) {
+        detail::near_accumulate(m, ps.dx, ps.dy, ps.dz, ps.fs, ps.gr, fx, fy, fz, u);
+      } else if (ctx.equal) {
+        detail::near_pair_sum_equal(m, src.x.data(), src.y.data(), src.z.data(), src.id.data(), fx, fy, fz, xi, yi,
+                                    zi, ai, i, u);
+      } else {
+        detail::near_pair_sum(m, src.x.data(), src.y.data(), src.z.data(), sa, src.id.data(), fx, fy, fz, xi, yi,
+                              zi, ai, i, u);
+      }
+      const double* fi = ctx.force(k, i);
+      for (int c = 0; c < 3; ++c) u[c] += self * fi[c];
+      ctx.add_velocity(k, i, u);
+    }
+  }
+}
+
+// Both directions between the targets of `leaf` and the gathered sources of its symmetric
+// partners (other leaves): each pair block evaluated once (M_ji = M_ij); the partners'
+// velocities are accumulated in src.u and added once at the end.
+void symmetric_block(const NearContext& ctx, std::uint32_t leaf, GatheredSources& src, PairScalars& ps) {
+  const std::size_t m = src.size();
+  const double* sa = ctx.equal ? nullptr : src.a.data();
+  src.u.assign(3 * m * ctx.nrhs, 0.0);
+  if (ctx.nrhs > 1) ps.resize(m);
+  for (std::size_t i : ctx.near.targets(leaf)) {
+    const double xi = ctx.x[3 * i], yi = ctx.x[3 * i + 1], zi = ctx.x[3 * i + 2], ai = ctx.a[i];
+    if (ctx.nrhs > 1) {
+      detail::near_pair_scalars(m, src.x.data(), src.y.data(), src.z.data(), sa, src.id.data(), xi, yi, zi, ai, i,
+                                ps.dx, ps.dy, ps.dz, ps.fs, ps.gr);
+    }
+    for (std::size_t k = 0; k < ctx.nrhs; ++k) {
+      const double *fx = src.forces(k, 0), *fy = src.forces(k, 1), *fz = src.forces(k, 2);
+      double *ux = src.velocities(k, 0), *uy = src.velocities(k, 1), *uz = src.velocities(k, 2);
+      const double* fi = ctx.force(k, i);
+      double u[3];
+      if (ctx.nrhs > 1) {
+        detail::near_accumulate_symmetric(m, ps.dx, ps.dy, ps.dz, ps.fs, ps.gr, fx, fy, fz, fi, ux, uy, uz, u);
+      } else {
+        detail::near_pair_sum_symmetric(m, src.x.data(), src.y.data(), src.z.data(), sa, fx, fy, fz, xi, yi, zi, ai,
+                                        fi, ux, uy, uz, u);
+      }
+      ctx.add_velocity(k, i, u);
+    }
+  }
+  for (std::size_t k = 0; k < ctx.nrhs; ++k) {
+    const double *ux = src.velocities(k, 0), *uy = src.velocities(k, 1), *uz = src.velocities(k, 2);
+    for (std::size_t q = 0; q < m; ++q) {
+      const double u[3] = {ux[q], uy[q], uz[q]};
+      ctx.add_velocity(k, src.id[q], u);
+    }
+  }
+}
+
+}  // namespace
+
 void FmmRpy::apply_near_field(const double* forces, double* velocities, std::size_t nrhs) const {
-  const fmm::NearField& near = fmm_->near_field();
-  const std::size_t n = size();
-  const auto x = positions();
-  const auto a = radii();
-  const double inv_eta = 1.0 / viscosity();
-  const bool equal = equal_radii();
-  const auto ntl = static_cast<std::int64_t>(near_targets_.size());
-  // Each target leaf is owned by one thread: its velocities are written by nobody else, and the
-  // order of summation is fixed, so results do not depend on the thread count.
+  const detail::NearSchedule& plan = *near_schedule_;
+  const NearContext ctx{fmm_->near_field(), positions(), radii(), forces, velocities,
+                        size(),             nrhs,        1.0 / viscosity(), equal_radii()};
+  // Colours run in order, the tasks of one colour in parallel: no two of them write the same
+  // leaf (near_schedule.hpp), and each velocity receives its contributions in a fixed order, so
+  // results do not depend on the thread count.
 #pragma omp parallel
   {
-    // Sources of all U-list leaves of one target leaf, gathered into structure-of-arrays
-    // buffers so that the pair loop below vectorizes.
-    std::vector<double> sx, sy, sz, sa, sf, pair_buf;
-    std::vector<std::size_t> sid;
-#pragma omp for schedule(dynamic, 4)
-    for (std::int64_t t = 0; t < ntl; ++t) {
-      sx.clear();
-      sy.clear();
-      sz.clear();
-      sa.clear();
-      sid.clear();
-      for (std::size_t s = near_begin_[t]; s < near_begin_[t + 1]; ++s) {
-        for (std::size_t j : near.sources(near_sources_[s])) {
-          sx.push_back(x[3 * j]);
-          sy.push_back(x[3 * j + 1]);
-          sz.push_back(x[3 * j + 2]);
-          sa.push_back(a[j]);
-          sid.push_back(j);
-        }
-      }
-      const std::size_t m = sid.size();
-      sf.resize(3 * m * nrhs);
-      if (nrhs > 1) {
-        // Block product: every rhs's forces in SoA, then per target the pair scalars once
-        // and one accumulation per rhs (the geometry is most of the near-field work).
-        for (std::size_t k = 0; k < nrhs; ++k) {
-          const double* f = forces + 3 * n * k;
-          double* sk = sf.data() + 3 * m * k;
-          for (std::size_t q = 0; q < m; ++q)
-            for (int c = 0; c < 3; ++c) sk[c * m + q] = f[3 * sid[q] + c];
-        }
-        pair_buf.resize(5 * m);
-        double* dxb = pair_buf.data();
-        double* dyb = dxb + m;
-        double* dzb = dyb + m;
-        double* fsb = dzb + m;
-        double* grb = fsb + m;
-        for (std::size_t i : near.targets(near_targets_[t])) {
-          const double ai = a[i];
-          detail::near_pair_scalars(m, sx.data(), sy.data(), sz.data(), equal ? nullptr : sa.data(), sid.data(),
-                                    x[3 * i], x[3 * i + 1], x[3 * i + 2], ai, i, dxb, dyb, dzb, fsb, grb);
-          const double self = rpy_self(ai);  // M_ii = I / (6 pi eta a_i)
-          for (std::size_t k = 0; k < nrhs; ++k) {
-            const double* f = forces + 3 * n * k;
-            const double* sk = sf.data() + 3 * m * k;
-            double u[3];
-            detail::near_accumulate(m, dxb, dyb, dzb, fsb, grb, sk, sk + m, sk + 2 * m, u);
-            double* ui = velocities + 3 * n * k + 3 * i;
-            ui[0] += inv_eta * (u[0] + self * f[3 * i]);
-            ui[1] += inv_eta * (u[1] + self * f[3 * i + 1]);
-            ui[2] += inv_eta * (u[2] + self * f[3 * i + 2]);
-          }
-        }
-        continue;
-      }
-      for (std::size_t k = 0; k < nrhs; ++k) {
-        const double* f = forces + 3 * n * k;
-        for (std::size_t q = 0; q < m; ++q)
-          for (int c = 0; c < 3; ++c) sf[c * m + q] = f[3 * sid[q] + c];
-        const double* fx = sf.data();
-        const double* fy = fx + m;
-        const double* fz = fy + m;
-        for (std::size_t i : near.targets(near_targets_[t])) {
-          const double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2], ai = a[i];
-          double u[3];
-          if (equal) {
-            detail::near_pair_sum_equal(m, sx.data(), sy.data(), sz.data(), sid.data(), fx, fy, fz, xi, yi, zi, ai, i,
-                                        u);
-          } else {
-            detail::near_pair_sum(m, sx.data(), sy.data(), sz.data(), sa.data(), sid.data(), fx, fy, fz, xi, yi, zi, ai,
-                                  i, u);
-          }
-          const double ux = u[0], uy = u[1], uz = u[2];
-          const double self = rpy_self(ai);  // M_ii = I / (6 pi eta a_i)
-          double* ui = velocities + 3 * n * k + 3 * i;
-          ui[0] += inv_eta * (ux + self * f[3 * i]);
-          ui[1] += inv_eta * (uy + self * f[3 * i + 1]);
-          ui[2] += inv_eta * (uz + self * f[3 * i + 2]);
+    GatheredSources src;
+    PairScalars ps;
+    for (std::size_t c = 0; c < plan.num_colours(); ++c) {
+      const auto t0 = static_cast<std::int64_t>(plan.colour_begin[c]);
+      const auto t1 = static_cast<std::int64_t>(plan.colour_begin[c + 1]);
+#pragma omp for schedule(dynamic, 1)
+      for (std::int64_t tt = t0; tt < t1; ++tt) {
+        const auto t = static_cast<std::size_t>(tt);
+        const std::uint32_t leaf = plan.leaf[t];
+        const std::span<const std::uint32_t> one(plan.one_sided.data() + plan.one_begin[t],
+                                                 plan.one_begin[t + 1] - plan.one_begin[t]);
+        src.gather(ctx.near, one, ctx.x, ctx.a, forces, ctx.n, nrhs);
+        one_sided_block(ctx, leaf, src, ps);
+        // All symmetric partners at once: one long pair loop per target.
+        const std::span<const std::uint32_t> partners(plan.symmetric.data() + plan.sym_begin[t],
+                                                      plan.sym_begin[t + 1] - plan.sym_begin[t]);
+        if (!partners.empty()) {
+          src.gather(ctx.near, partners, ctx.x, ctx.a, forces, ctx.n, nrhs);
+          symmetric_block(ctx, leaf, src, ps);
         }
       }
     }

@@ -15,6 +15,9 @@
 // both overlap regimes), plus the self term F_i / (6 pi eta a_i). Leaves are
 // never smaller than 2 max_i a_i, so every overlapping pair (r <= a_i + a_j)
 // lies in the near field and the far-field formula is only used where it is exact.
+// Each pair of adjacent leaves is evaluated once for both directions (M_ji = M_ij)
+// in trees of 64 leaves or more, in coloured parallel rounds whose results do not
+// depend on the thread count (rpy/src/near_schedule.hpp).
 #pragma once
 
 #include <cstddef>
@@ -30,6 +33,10 @@ class LaplaceFmm;
 }
 
 namespace rpyfmm::rpy {
+
+namespace detail {
+struct NearSchedule;
+}
 
 struct FmmRpyOptions {
   /// Requested relative l2 error of U against the exact (direct) product, in [1e-12, 1e-1].
@@ -65,11 +72,7 @@ class FmmRpy final : public MobilityOperator {
   double laplace_eps_ = 0.0;
   std::unique_ptr<fmm::LaplaceFmm> fmm_;
   std::vector<double> centered_;  // positions relative to the bounding-box centre (3N)
-  // Near field grouped by target leaf: leaf_pairs_[near_begin_[t] .. near_begin_[t+1]) are the
-  // source leaves of target leaf t (t indexes near_targets_).
-  std::vector<std::uint32_t> near_targets_;
-  std::vector<std::size_t> near_begin_;
-  std::vector<std::uint32_t> near_sources_;
+  std::unique_ptr<detail::NearSchedule> near_schedule_;  // order of the near-field leaf pairs
   mutable StageTimes timings_;
 };
 
