@@ -291,7 +291,8 @@ void one_sided_block(const NearContext& ctx, std::uint32_t leaf, const GatheredS
 
 // Both directions between the targets of `leaf` and the gathered sources of its symmetric
 // partners (other leaves): each pair block evaluated once (M_ji = M_ij); the partners'
-// velocities are accumulated in src.u and added once at the end.
+// velocities are accumulated in src.u and added once at the end. (FmmRpy evaluates at its own
+// points, so a leaf's sources are its targets and src.id indexes velocities too.)
 void symmetric_block(const NearContext& ctx, std::uint32_t leaf, GatheredSources& src, PairScalars& ps) {
   const std::size_t m = src.size();
   const double* sa = ctx.equal ? nullptr : src.a.data();
