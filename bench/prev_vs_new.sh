@@ -12,7 +12,7 @@ set -euo pipefail
 prev=$1 new=$2 out=$3 big=${4:-}
 mkdir -p "$out"
 export OMP_NUM_THREADS=1
-run() {  # run NAME ARGS...: both binaries, previous first, one line of output each, tagged
+run() {  # run TOOL ARGS...: both binaries, previous first, every output line tagged prev/new
   local tool=$1; shift
   for version in prev new; do
     local dir=$prev; [[ $version == new ]] && dir=$new

@@ -80,7 +80,7 @@ template <bool kEqual>
   }
 }
 
-// The fused single-rhs loop of near_pair_sum(_equal), one instance per radius mode.
+// The fused single-rhs loop of near_pair_sum, one instance per radius mode.
 template <bool kEqual>
 [[gnu::always_inline]] inline void pair_sum_loop(std::size_t m, const double* sx, const double* sy, const double* sz,
                                                  const double* sa, const std::size_t* sid, const double* fx,
@@ -107,20 +107,17 @@ template <bool kEqual>
 }  // namespace
 
 // Sum over the gathered near-field sources q of M_iq f_q (times eta), the self pair
-// (sid == i) excluded. Compiled for AVX-512, AVX2 and baseline x86-64, chosen at run time.
+// (sid == i) excluded; equal radii ai when sa is null. Compiled for AVX-512, AVX2 and baseline
+// x86-64, chosen at run time.
 RPYFMM_NEAR_CLONES void near_pair_sum(std::size_t m, const double* sx, const double* sy, const double* sz,
                                       const double* sa, const std::size_t* sid, const double* fx, const double* fy,
                                       const double* fz, double xi, double yi, double zi, double ai, std::size_t i,
                                       double u[3]) {
-  pair_sum_loop<false>(m, sx, sy, sz, sa, sid, fx, fy, fz, xi, yi, zi, ai, i, u);
-}
-
-// The same for equal radii a.
-RPYFMM_NEAR_CLONES void near_pair_sum_equal(std::size_t m, const double* sx, const double* sy, const double* sz,
-                                            const std::size_t* sid, const double* fx, const double* fy,
-                                            const double* fz, double xi, double yi, double zi, double a, std::size_t i,
-                                            double u[3]) {
-  pair_sum_loop<true>(m, sx, sy, sz, nullptr, sid, fx, fy, fz, xi, yi, zi, a, i, u);
+  if (sa == nullptr) {
+    pair_sum_loop<true>(m, sx, sy, sz, sa, sid, fx, fy, fz, xi, yi, zi, ai, i, u);
+  } else {
+    pair_sum_loop<false>(m, sx, sy, sz, sa, sid, fx, fy, fz, xi, yi, zi, ai, i, u);
+  }
 }
 
 namespace {

@@ -7,15 +7,11 @@
 namespace rpyfmm::rpy::detail {
 
 /// u = eta * sum_q M_iq f_q over the m sources (x, y, z, radius, index, force components in
-/// structure-of-arrays form); the self pair (sid[q] == i) is skipped; different radii.
+/// structure-of-arrays form); the self pair (sid[q] == i) is skipped. Equal radii when sa is
+/// null (radius ai).
 void near_pair_sum(std::size_t m, const double* sx, const double* sy, const double* sz, const double* sa,
                    const std::size_t* sid, const double* fx, const double* fy, const double* fz, double xi, double yi,
                    double zi, double ai, std::size_t i, double u[3]);
-
-/// The same for equal radii a.
-void near_pair_sum_equal(std::size_t m, const double* sx, const double* sy, const double* sz, const std::size_t* sid,
-                         const double* fx, const double* fy, const double* fz, double xi, double yi, double zi,
-                         double a, std::size_t i, double u[3]);
 
 /// Pair scalars of the target (xi, yi, zi, ai) against the m gathered sources, for several
 /// right-hand sides: fs[q], gr[q] with M_iq = (fs I + gr d d^T) (times eta), d = x_i - x_q in

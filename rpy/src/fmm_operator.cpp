@@ -256,73 +256,60 @@ struct NearContext {
   }
 };
 
-// Targets of `leaf` against the gathered one-sided sources (the leaf itself among them: the
-// self pair is skipped inside the kernels), plus the self term M_ii = I / (6 pi eta a_i).
-void one_sided_block(const NearContext& ctx, std::uint32_t leaf, const GatheredSources& src, PairScalars& ps) {
+// The targets of `leaf` against gathered sources, for every right-hand side.
+//  - kBothWays = false: one-sided sources (the leaf itself among them: the self pair is skipped
+//    inside the kernels), plus the self term M_ii = I / (6 pi eta a_i).
+//  - kBothWays = true: the sources of the leaf's symmetric partners (other leaves). Each pair
+//    block is evaluated once for both directions (M_ji = M_ij); the partners' velocities are
+//    accumulated in src.u and added once at the end. (FmmRpy evaluates at its own points, so a
+//    leaf's sources are its targets and src.id indexes velocities too.)
+// Block products (nrhs > 1) compute the pair scalars once per target and accumulate them per
+// rhs: the geometry is most of the work.
+template <bool kBothWays>
+void leaf_block(const NearContext& ctx, std::uint32_t leaf, GatheredSources& src, PairScalars& ps) {
   const std::size_t m = src.size();
   const double* sa = ctx.equal ? nullptr : src.a.data();
-  if (ctx.nrhs > 1) ps.resize(m);
+  const bool block = ctx.nrhs > 1;
+  if constexpr (kBothWays) src.u.assign(3 * m * ctx.nrhs, 0.0);
+  if (block) ps.resize(m);
   for (std::size_t i : ctx.near.targets(leaf)) {
     const double xi = ctx.x[3 * i], yi = ctx.x[3 * i + 1], zi = ctx.x[3 * i + 2], ai = ctx.a[i];
-    const double self = rpy_self(ai);
-    if (ctx.nrhs > 1) {
-      // Block product: the pair scalars once, one accumulation per rhs (the geometry is most of the work).
+    if (block) {
       detail::near_pair_scalars(m, src.x.data(), src.y.data(), src.z.data(), sa, src.id.data(), xi, yi, zi, ai, i,
                                 ps.dx, ps.dy, ps.dz, ps.fs, ps.gr);
     }
     for (std::size_t k = 0; k < ctx.nrhs; ++k) {
       const double *fx = src.forces(k, 0), *fy = src.forces(k, 1), *fz = src.forces(k, 2);
-      double u[3];
-      if (ctx.nrhs > 1) {
-        detail::near_accumulate(m, ps.dx, ps.dy, ps.dz, ps.fs, ps.gr, fx, fy, fz, u);
-      } else if (ctx.equal) {
-        detail::near_pair_sum_equal(m, src.x.data(), src.y.data(), src.z.data(), src.id.data(), fx, fy, fz, xi, yi,
-                                    zi, ai, i, u);
-      } else {
-        detail::near_pair_sum(m, src.x.data(), src.y.data(), src.z.data(), sa, src.id.data(), fx, fy, fz, xi, yi,
-                              zi, ai, i, u);
-      }
       const double* fi = ctx.force(k, i);
-      for (int c = 0; c < 3; ++c) u[c] += self * fi[c];
+      double u[3];
+      if constexpr (kBothWays) {
+        double *ux = src.velocities(k, 0), *uy = src.velocities(k, 1), *uz = src.velocities(k, 2);
+        if (block) {
+          detail::near_accumulate_symmetric(m, ps.dx, ps.dy, ps.dz, ps.fs, ps.gr, fx, fy, fz, fi, ux, uy, uz, u);
+        } else {
+          detail::near_pair_sum_symmetric(m, src.x.data(), src.y.data(), src.z.data(), sa, fx, fy, fz, xi, yi, zi,
+                                          ai, fi, ux, uy, uz, u);
+        }
+      } else {
+        if (block) {
+          detail::near_accumulate(m, ps.dx, ps.dy, ps.dz, ps.fs, ps.gr, fx, fy, fz, u);
+        } else {
+          detail::near_pair_sum(m, src.x.data(), src.y.data(), src.z.data(), sa, src.id.data(), fx, fy, fz, xi, yi,
+                                zi, ai, i, u);
+        }
+        const double self = rpy_self(ai);
+        for (int c = 0; c < 3; ++c) u[c] += self * fi[c];
+      }
       ctx.add_velocity(k, i, u);
     }
   }
-}
-
-// Both directions between the targets of `leaf` and the gathered sources of its symmetric
-// partners (other leaves): each pair block evaluated once (M_ji = M_ij); the partners'
-// velocities are accumulated in src.u and added once at the end. (FmmRpy evaluates at its own
-// points, so a leaf's sources are its targets and src.id indexes velocities too.)
-void symmetric_block(const NearContext& ctx, std::uint32_t leaf, GatheredSources& src, PairScalars& ps) {
-  const std::size_t m = src.size();
-  const double* sa = ctx.equal ? nullptr : src.a.data();
-  src.u.assign(3 * m * ctx.nrhs, 0.0);
-  if (ctx.nrhs > 1) ps.resize(m);
-  for (std::size_t i : ctx.near.targets(leaf)) {
-    const double xi = ctx.x[3 * i], yi = ctx.x[3 * i + 1], zi = ctx.x[3 * i + 2], ai = ctx.a[i];
-    if (ctx.nrhs > 1) {
-      detail::near_pair_scalars(m, src.x.data(), src.y.data(), src.z.data(), sa, src.id.data(), xi, yi, zi, ai, i,
-                                ps.dx, ps.dy, ps.dz, ps.fs, ps.gr);
-    }
+  if constexpr (kBothWays) {
     for (std::size_t k = 0; k < ctx.nrhs; ++k) {
-      const double *fx = src.forces(k, 0), *fy = src.forces(k, 1), *fz = src.forces(k, 2);
-      double *ux = src.velocities(k, 0), *uy = src.velocities(k, 1), *uz = src.velocities(k, 2);
-      const double* fi = ctx.force(k, i);
-      double u[3];
-      if (ctx.nrhs > 1) {
-        detail::near_accumulate_symmetric(m, ps.dx, ps.dy, ps.dz, ps.fs, ps.gr, fx, fy, fz, fi, ux, uy, uz, u);
-      } else {
-        detail::near_pair_sum_symmetric(m, src.x.data(), src.y.data(), src.z.data(), sa, fx, fy, fz, xi, yi, zi, ai,
-                                        fi, ux, uy, uz, u);
+      const double *ux = src.velocities(k, 0), *uy = src.velocities(k, 1), *uz = src.velocities(k, 2);
+      for (std::size_t q = 0; q < m; ++q) {
+        const double u[3] = {ux[q], uy[q], uz[q]};
+        ctx.add_velocity(k, src.id[q], u);
       }
-      ctx.add_velocity(k, i, u);
-    }
-  }
-  for (std::size_t k = 0; k < ctx.nrhs; ++k) {
-    const double *ux = src.velocities(k, 0), *uy = src.velocities(k, 1), *uz = src.velocities(k, 2);
-    for (std::size_t q = 0; q < m; ++q) {
-      const double u[3] = {ux[q], uy[q], uz[q]};
-      ctx.add_velocity(k, src.id[q], u);
     }
   }
 }
@@ -350,13 +337,13 @@ void FmmRpy::apply_near_field(const double* forces, double* velocities, std::siz
         const std::span<const std::uint32_t> one(plan.one_sided.data() + plan.one_begin[t],
                                                  plan.one_begin[t + 1] - plan.one_begin[t]);
         src.gather(ctx.near, one, ctx.x, ctx.a, forces, ctx.n, nrhs);
-        one_sided_block(ctx, leaf, src, ps);
+        leaf_block<false>(ctx, leaf, src, ps);
         // All symmetric partners at once: one long pair loop per target.
         const std::span<const std::uint32_t> partners(plan.symmetric.data() + plan.sym_begin[t],
                                                       plan.sym_begin[t + 1] - plan.sym_begin[t]);
         if (!partners.empty()) {
           src.gather(ctx.near, partners, ctx.x, ctx.a, forces, ctx.n, nrhs);
-          symmetric_block(ctx, leaf, src, ps);
+          leaf_block<true>(ctx, leaf, src, ps);
         }
       }
     }

@@ -55,24 +55,25 @@ NearSchedule make_near_schedule(const std::vector<std::pair<std::uint32_t, std::
     }
   }
 
-  // Store the tasks colour by colour (leaf order within a colour).
-  const int ncolours = ntasks == 0 ? 0 : *std::max_element(colour.begin(), colour.end()) + 1;
+  // Store the tasks colour by colour (leaf order within a colour: the sort is stable).
+  std::vector<std::size_t> order(ntasks);
+  for (std::size_t t = 0; t < ntasks; ++t) order[t] = t;
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t p, std::size_t q) { return colour[p] < colour[q]; });
   NearSchedule s;
   s.colour_begin.assign(1, 0);
   s.one_begin.assign(1, 0);
   s.sym_begin.assign(1, 0);
-  for (int c = 0; c < ncolours; ++c) {
-    for (std::size_t t = 0; t < ntasks; ++t) {
-      if (colour[t] != c) continue;
-      const std::uint32_t l = task_leaf[t];
-      s.leaf.push_back(l);
-      s.one_sided.insert(s.one_sided.end(), one[l].begin(), one[l].end());
-      s.one_begin.push_back(s.one_sided.size());
-      s.symmetric.insert(s.symmetric.end(), sym[l].begin(), sym[l].end());
-      s.sym_begin.push_back(s.symmetric.size());
-    }
-    s.colour_begin.push_back(s.leaf.size());
+  for (std::size_t k = 0; k < ntasks; ++k) {
+    const std::size_t t = order[k];
+    if (k > 0 && colour[t] != colour[order[k - 1]]) s.colour_begin.push_back(k);
+    const std::uint32_t l = task_leaf[t];
+    s.leaf.push_back(l);
+    s.one_sided.insert(s.one_sided.end(), one[l].begin(), one[l].end());
+    s.one_begin.push_back(s.one_sided.size());
+    s.symmetric.insert(s.symmetric.end(), sym[l].begin(), sym[l].end());
+    s.sym_begin.push_back(s.symmetric.size());
   }
+  if (ntasks > 0) s.colour_begin.push_back(ntasks);
   return s;
 }
 
