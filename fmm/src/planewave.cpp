@@ -20,35 +20,51 @@ PlaneWave::PlaneWave(int p, int digits)
   const auto table = planewave_table(digits);
   if (table.empty()) throw std::invalid_argument("PlaneWave: no table for this precision");
   nlams_ = int(table.size());
+  if (nlams_ > kMaxNodes) throw std::invalid_argument("PlaneWave: table has too many lambda nodes");
   for (const auto& node : table) {
     lambda_.push_back(node.lambda);
     weight_.push_back(node.weight);
     K_.push_back(node.nfourier);
-    M_.push_back(node.nphysical);
-    koff_.push_back(sumK_);
+    // Half-node storage (PLANEWAVE.md §3.5): for real densities W(a + pi) = conj(W(a)), and so do
+    // the translation factors, so with M_k even only the nodes j < M_k/2 are stored, shifted and
+    // transformed. The published odd M_k (and the one-node last lambda) are rounded up to even,
+    // which keeps every table within its tolerance (docs/design-notes.md item 11;
+    // test FmmBlocks.PlaneWaveM2LAllOffsetsAllTables).
+    const int Mk = node.nphysical + (node.nphysical & 1);
+    M_.push_back(Mk);
+    Mh_.push_back(Mk / 2);
     moff_.push_back(sumM_);
+    sumM_ += Mk / 2;
+    koff_.push_back(sumK_);
     sumK_ += node.nfourier;
-    sumM_ += node.nphysical;
     kmax_ = std::max(kmax_, node.nfourier);
   }
   const Harmonics& H = Harmonics::cached(p);
   const int nc = ncoef(p);
-  lam_over_c_.assign(std::size_t(nlams_) * nc, 0.0);
+  // lambda_k^n / c_n^m, node index fastest (padded to kLanes, zero where K_k <= m), so that M2F and
+  // F2L run over the nodes k with unit stride for each (n, m) (PLANEWAVE.md §3.4).
+  nlp_ = (nlams_ + kLanes - 1) / kLanes * kLanes;
+  lam_over_c_.assign(std::size_t(nc) * nlp_, 0.0);
+  lam_weight_over_c_.assign(std::size_t(nc) * nlp_, 0.0);
   for (int k = 0; k < nlams_; ++k) {
     // lambda^n / c_n^m through logs would lose digits; the direct product stays below ~1e80.
     double lp = 1.0;
     for (int n = 0; n <= p; ++n) {
-      for (int m = 0; m <= n; ++m) lam_over_c_[std::size_t(k) * nc + idx(n, m)] = lp * H.inv_c(n, m);
+      for (int m = 0; m <= n && m < K_[k]; ++m) {
+        const std::size_t at = std::size_t(idx(n, m)) * nlp_ + k;
+        lam_over_c_[at] = lp * H.inv_c(n, m);
+        lam_weight_over_c_[at] = lam_over_c_[at] * weight_[k];
+      }
       lp *= lambda_[k];
     }
   }
-  // Twiddles e^{i m a_kj} as separate cos / sin tables, m-major within node k, so that F2P and
-  // P2F run over the angle index j with unit stride (vectorized).
+  // Twiddles e^{i m a_kj} of the stored nodes j < M_k/2 as separate cos / sin tables, m-major
+  // within node k, so that F2P and P2F run over the angle index j with unit stride (vectorized).
   for (int k = 0; k < nlams_; ++k) {
-    if (M_[k] > kMaxPhysical) throw std::invalid_argument("PlaneWave: table has too many angle nodes");
+    if (Mh_[k] > kMaxPhysical) throw std::invalid_argument("PlaneWave: table has too many angle nodes");
     toff_.push_back(int(cos_.size()));
     for (int m = 0; m < K_[k]; ++m)
-      for (int j = 0; j < M_[k]; ++j) {
+      for (int j = 0; j < Mh_[k]; ++j) {
         const double a = 2.0 * std::numbers::pi * j / M_[k];
         cos_.push_back(std::cos(m * a));
         sin_.push_back(std::sin(m * a));
@@ -60,7 +76,7 @@ PlaneWave::PlaneWave(int p, int digits)
       for (int dx = -3; dx <= 3; ++dx) {
         cplx* out = shift_.data() + std::size_t(((dz + 3) * 7 + (dy + 3)) * 7 + (dx + 3)) * sumM_;
         for (int k = 0; k < nlams_; ++k)
-          for (int j = 0; j < M_[k]; ++j) {
+          for (int j = 0; j < Mh_[k]; ++j) {
             const double a = 2.0 * std::numbers::pi * j / M_[k];
             const double lam = lambda_[k];
             out[moff_[k] + j] = std::exp(-lam * dz) * std::exp(cplx(0.0, lam * (dx * std::cos(a) + dy * std::sin(a))));
@@ -115,19 +131,43 @@ inline cplx ipow(int m) noexcept {  // i^m
       return {0, -1};
   }
 }
+// (sum_j a_j x_j, sum_j a_j y_j), inlined so that it takes the caller's vector ISA.
+[[gnu::always_inline]] inline void dot2(const double* a, const double* x, const double* y, int n, double& ax,
+                                        double& ay) noexcept {
+  double sx = 0.0, sy = 0.0;
+#pragma omp simd reduction(+ : sx, sy)
+  for (int j = 0; j < n; ++j) {
+    sx += a[j] * x[j];
+    sy += a[j] * y[j];
+  }
+  ax = sx;
+  ay = sy;
+}
 }  // namespace
 
-void PlaneWave::m2f(const cplx* Mt, cplx* Fup, cplx* Fdown) const noexcept {
-  const int nc = ncoef(p_);
-  for (int k = 0; k < nlams_; ++k) {
-    const double* lc = lam_over_c_.data() + std::size_t(k) * nc;
-    for (int m = 0; m < K_[k]; ++m) {
-      cplx E = 0.0, O = 0.0;
-      for (int n = m; n <= p_; n += 2) E += lc[idx(n, m)] * Mt[idx(n, m)];
-      for (int n = m + 1; n <= p_; n += 2) O += lc[idx(n, m)] * Mt[idx(n, m)];
-      const cplx im = ipow(m);
-      Fup[koff_[k] + m] = im * (E + O);
-      Fdown[koff_[k] + m] = (m & 1) ? -im * (E - O) : im * (E - O);
+RPYFMM_PW_CLONES void PlaneWave::m2f(const cplx* Mt, cplx* Fup, cplx* Fdown) const noexcept {
+  // For each m, the parity sums E_k = sum_{n-m even} lambda_k^n Mt_n^m / c_n^m and O_k (odd) for all
+  // nodes k at once; F^up = i^m (E + O), F^down = i^m (-1)^m (E - O) (§3.4).
+  alignas(64) double er[kMaxNodes], ei[kMaxNodes], orr[kMaxNodes], oi[kMaxNodes];
+  const int L = nlp_;
+  for (int m = 0; m < kmax_; ++m) {
+    for (int k = 0; k < L; ++k) er[k] = ei[k] = orr[k] = oi[k] = 0.0;
+    for (int n = m; n <= p_; ++n) {
+      const double* a = lam_over_c_.data() + std::size_t(idx(n, m)) * L;
+      const double mr = Mt[idx(n, m)].real(), mi = Mt[idx(n, m)].imag();
+      double* re = ((n - m) & 1) ? orr : er;
+      double* im = ((n - m) & 1) ? oi : ei;
+#pragma omp simd
+      for (int k = 0; k < L; ++k) {
+        re[k] += a[k] * mr;
+        im[k] += a[k] * mi;
+      }
+    }
+    const cplx im = ipow(m), imd = (m & 1) ? -im : im;
+    for (int k = 0; k < nlams_; ++k) {
+      if (m >= K_[k]) continue;
+      Fup[koff_[k] + m] = im * cplx(er[k] + orr[k], ei[k] + oi[k]);
+      Fdown[koff_[k] + m] = imd * cplx(er[k] - orr[k], ei[k] - oi[k]);
     }
   }
 }
@@ -136,7 +176,7 @@ RPYFMM_PW_CLONES void PlaneWave::f2p(const cplx* F, cplx* W) const noexcept {
   double re[kMaxPhysical], im[kMaxPhysical];
   for (int k = 0; k < nlams_; ++k) {
     const cplx* f = F + koff_[k];
-    const int M = M_[k];
+    const int M = Mh_[k];  // stored nodes j < M_k / 2; W_{j + M_k/2} = conj(W_j)
     for (int j = 0; j < M; ++j) {
       re[j] = f[0].real();
       im[j] = 0.0;
@@ -162,37 +202,47 @@ RPYFMM_PW_CLONES void PlaneWave::f2p(const cplx* F, cplx* W) const noexcept {
 RPYFMM_PW_CLONES void PlaneWave::p2f(const cplx* V, cplx* G) const noexcept {
   double vr[kMaxPhysical], vi[kMaxPhysical];
   for (int k = 0; k < nlams_; ++k) {
-    const int M = M_[k];
-    const double inv = 1.0 / M;
+    const int M = Mh_[k];
+    const double scale = 2.0 / M_[k];
     for (int j = 0; j < M; ++j) {
       vr[j] = V[moff_[k] + j].real();
       vi[j] = V[moff_[k] + j].imag();
     }
-    for (int m = 0; m < K_[k]; ++m) {  // (1/M) sum_j V_j e^{-i m a_kj}
+    // G(m) = (1/M_k) sum_{j < M_k} V_j e^{-i m a_j}; with V_{j + M_k/2} = conj(V_j) and
+    // e^{-i m (a + pi)} = (-1)^m e^{-i m a} the pair (j, j + M_k/2) gives 2 Re V_j e^{-i m a_j}
+    // for even m and 2i Im V_j e^{-i m a_j} for odd m (PLANEWAVE.md §3.5): real x complex sums.
+    for (int m = 0; m < K_[k]; ++m) {
       const double* c = cos_.data() + toff_[k] + std::size_t(m) * M;
       const double* s = sin_.data() + toff_[k] + std::size_t(m) * M;
-      double gr = 0.0, gi = 0.0;
-#pragma omp simd reduction(+ : gr, gi)
-      for (int j = 0; j < M; ++j) {
-        gr += vr[j] * c[j] + vi[j] * s[j];
-        gi += vi[j] * c[j] - vr[j] * s[j];
-      }
-      G[koff_[k] + m] = cplx(gr * inv, gi * inv);
+      double vc, vs;
+      dot2((m & 1) ? vi : vr, c, s, M, vc, vs);
+      G[koff_[k] + m] = (m & 1) ? cplx(vs * scale, vc * scale) : cplx(vc * scale, -vs * scale);
     }
   }
 }
 
-void PlaneWave::f2l(const cplx* Gup, const cplx* Gdown, cplx* Lh) const noexcept {
-  const int nc = ncoef(p_);
+RPYFMM_PW_CLONES void PlaneWave::f2l(const cplx* Gup, const cplx* Gdown, cplx* Lh) const noexcept {
+  // Lh_n^m = i^m sum_k w_k lambda_k^n / c_n^m [(-1)^n G_k^up(m) + G_k^down(m)] (§3.4), one dot product
+  // over the nodes k per (n, m); the table is zero where K_k <= m, so those nodes drop out.
+  alignas(64) double er[kMaxNodes], ei[kMaxNodes], orr[kMaxNodes], oi[kMaxNodes];
+  const int L = nlp_, nc = ncoef(p_);
   for (int i = 0; i < nc; ++i) Lh[i] = 0.0;
-  for (int k = 0; k < nlams_; ++k) {
-    const double* lc = lam_over_c_.data() + std::size_t(k) * nc;
-    const double w = weight_[k];
-    for (int m = 0; m < K_[k]; ++m) {
-      const cplx gu = Gup[koff_[k] + m] * w, gd = Gdown[koff_[k] + m] * w;
-      const cplx sum_even = gu + gd, sum_odd = gd - gu;  // (-1)^n Gup + Gdown
-      const cplx im = ipow(m);
-      for (int n = m; n <= p_; ++n) Lh[idx(n, m)] += lc[idx(n, m)] * ((n & 1) ? sum_odd : sum_even) * im;
+  for (int m = 0; m < kmax_; ++m) {
+    for (int k = 0; k < L; ++k) er[k] = ei[k] = orr[k] = oi[k] = 0.0;
+    for (int k = 0; k < nlams_; ++k) {
+      if (m >= K_[k]) continue;
+      const cplx gu = Gup[koff_[k] + m], gd = Gdown[koff_[k] + m];
+      er[k] = gu.real() + gd.real();  // even n
+      ei[k] = gu.imag() + gd.imag();
+      orr[k] = gd.real() - gu.real();  // odd n
+      oi[k] = gd.imag() - gu.imag();
+    }
+    const cplx im = ipow(m);
+    for (int n = m; n <= p_; ++n) {
+      const double* a = lam_weight_over_c_.data() + std::size_t(idx(n, m)) * L;
+      double re, imag;
+      dot2(a, (n & 1) ? orr : er, (n & 1) ? oi : ei, L, re, imag);
+      Lh[idx(n, m)] = im * cplx(re, imag);
     }
   }
 }

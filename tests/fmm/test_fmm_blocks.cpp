@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <complex>
+#include <numbers>
 #include <random>
 
 #include "fmm_test_util.hpp"
@@ -233,6 +235,64 @@ TEST(FmmBlocks, PlaneWaveM2LAllOffsetsAllTables) {
     EXPECT_EQ(npairs, 316);  // all offsets in {-3..3}^3 with max |d_i| >= 2: a superset of every child's 189
     EXPECT_LE(worst, 0.5 * eps) << "eps " << eps;
     std::printf("plane-wave M2L eps=%.0e p=%d nlams=%d: max normalized error %.2e\n", eps, p, pw.nlams(), worst);
+  }
+}
+
+// §3.5: half-node storage. For real charges W(a + pi) = conj(W(a)) and so do the shift factors, so
+// F2P at the stored nodes j < M_k/2, the stored shift factors and P2F from them must reproduce the
+// full-circle formulas of §3.4 evaluated here at all M_k nodes (independent sums, no symmetry used).
+// Tolerance 1e-12 relative to the largest value: both sides are the same sums in another order.
+TEST(FmmBlocks, HalfNodePlaneWavesMatchFullCircle) {
+  for (double eps : {1e-3, 1e-6, 1e-9, 1e-12}) {
+    const int p = rpyfmm::fmm::fmm_order_for(eps), digits = rpyfmm::fmm::fmm_table_digits_for(eps);
+    const Harmonics& H = Harmonics::cached(p + 2);
+    const PlaneWave& pw = PlaneWave::cached(p, digits);
+    const double s = 1.0, cs[3] = {0.0, 0.0, 0.0};
+    const auto src = box_charges(40, cs, s, 11);
+    std::vector<cplx> Mh(ncoef(p)), Mf(ncoef(p)), work(ncoef(p)), T(ncoef(p + 2));
+    p2m(H, p, s, cs, src.xyz.data(), src.q.data(), 0, 1, 40, Mh.data(), T.data());
+    pw.to_frame(1, Mh.data(), Mf.data(), work.data());  // a rotated frame: all orders m populated
+    const int K = pw.sum_fourier(), Mp = pw.sum_physical();
+    std::vector<cplx> Fu(K), Fd(K), W(Mp), V(Mp), G(K);
+    pw.m2f(Mf.data(), Fu.data(), Fd.data());
+    pw.f2p(Fu.data(), W.data());
+    const int dx = 1, dy = -2, dz = 3;
+    const cplx* sh = pw.shift(dx, dy, dz);
+    for (int j = 0; j < Mp; ++j) V[j] = W[j] * sh[j];
+    pw.p2f(V.data(), G.data());
+    int stored = 0;
+    for (int k = 0; k < pw.nlams(); ++k) {
+      const int Kk = pw.fourier_modes(k), Mk = pw.angle_nodes(k);
+      ASSERT_EQ(Mk % 2, 0);
+      stored += Mk / 2;
+      const cplx* F = &Fu[pw.fourier_offset(k)];
+      std::vector<cplx> Vfull(Mk);
+      double scale = 0;
+      for (int j = 0; j < Mk; ++j) {
+        const double a = 2.0 * std::numbers::pi * j / Mk, lam = pw.lambda(k);
+        cplx w = F[0];  // W(a) = sum_{|m| < K} F(m) e^{i m a}, F(-m) = (-1)^m conj(F(m))
+        for (int m = 1; m < Kk; ++m)
+          w += F[m] * std::polar(1.0, m * a) + ((m & 1) ? -1.0 : 1.0) * std::conj(F[m]) * std::polar(1.0, -m * a);
+        const cplx shift = std::exp(-lam * dz) * std::polar(1.0, lam * (dx * std::cos(a) + dy * std::sin(a)));
+        Vfull[j] = w * shift;
+        scale = std::max(scale, std::abs(w));
+        if (j < Mk / 2) {
+          EXPECT_LE(std::abs(W[pw.physical_offset(k) + j] - w), 1e-12 * scale) << "F2P k=" << k << " j=" << j;
+          EXPECT_LE(std::abs(sh[pw.physical_offset(k) + j] - shift), 1e-12 * std::abs(shift)) << "shift k=" << k;
+        } else {
+          EXPECT_LE(std::abs(Vfull[j] - std::conj(Vfull[j - Mk / 2])), 1e-12 * scale) << "symmetry k=" << k;
+        }
+      }
+      double vmax = 0;
+      for (const auto& v : Vfull) vmax = std::max(vmax, std::abs(v));
+      for (int m = 0; m < Kk; ++m) {
+        cplx g = 0.0;  // G(m) = (1/M) sum_{j < M} V_j e^{-i m a_j}
+        for (int j = 0; j < Mk; ++j) g += Vfull[j] * std::polar(1.0, -m * 2.0 * std::numbers::pi * j / Mk);
+        g /= double(Mk);
+        EXPECT_LE(std::abs(G[pw.fourier_offset(k) + m] - g), 1e-12 * vmax) << "P2F eps=" << eps << " k=" << k;
+      }
+    }
+    EXPECT_EQ(stored, Mp);
   }
 }
 

@@ -7,6 +7,8 @@
 //   F2P  W_kj    = sum_{|m|<K_k} F_k(m) e^{i m a_kj},  a_kj = 2 pi j / M_k
 //   shift V_kj   = W_kj exp(-+lambda_k d_z +- i lambda_k (d_x cos a_kj + d_y sin a_kj))
 //   P2F  G_k(m)  = (1/M_k) sum_j V_kj e^{-i m a_kj}
+// Real densities give W_{k,j+M_k/2} = conj(W_kj) (M_k even), so physical values are stored for the
+// nodes j < M_k/2 only ("half nodes", §3.5): sum_physical() counts the stored values.
 //   F2L  Lh_n^m  = sum_{k: K_k > m} w_k lambda_k^n i^m / c_n^m [(-1)^n G_k^up(m) + G_k^down(m)]
 // Frames (§4.2): z: identity; y: Q_Y (x,y,z) -> (z,x,y); x: Q_X (x,y,z) -> (-z,y,x).
 #pragma once
@@ -30,7 +32,14 @@ class PlaneWave {
   [[nodiscard]] int order() const noexcept { return p_; }
   [[nodiscard]] int nlams() const noexcept { return nlams_; }
   [[nodiscard]] int sum_fourier() const noexcept { return sumK_; }
+  /// Stored physical values per direction: sum_k M_k / 2 (half nodes, §3.5).
   [[nodiscard]] int sum_physical() const noexcept { return sumM_; }
+  /// Node k's lambda_k, Fourier modes K_k, angle nodes M_k (even; M_k/2 of them stored) and storage offsets.
+  [[nodiscard]] double lambda(int k) const noexcept { return lambda_[k]; }
+  [[nodiscard]] int fourier_modes(int k) const noexcept { return K_[k]; }
+  [[nodiscard]] int angle_nodes(int k) const noexcept { return M_[k]; }
+  [[nodiscard]] int fourier_offset(int k) const noexcept { return koff_[k]; }
+  [[nodiscard]] int physical_offset(int k) const noexcept { return moff_[k]; }
   /// max_k K_k: rotated multipoles are needed only for m < kmax, F2L yields only m < kmax (§3.3).
   [[nodiscard]] int kmax() const noexcept { return kmax_; }
 
@@ -48,9 +57,10 @@ class PlaneWave {
 
   /// M2F for both directions at once (parity split, §3.4). Fup, Fdown: sum_fourier() entries.
   void m2f(const cplx* Mt, cplx* Fup, cplx* Fdown) const noexcept;
-  /// F2P: physical values W (sum_physical() entries) from Fourier coefficients F.
+  /// F2P: physical values W at the stored nodes (sum_physical() entries) from Fourier coefficients F.
   void f2p(const cplx* F, cplx* W) const noexcept;
-  /// P2F: Fourier coefficients G (sum_fourier()) from physical values V.
+  /// P2F: Fourier coefficients G (sum_fourier()) from physical values V at the stored nodes
+  /// (the others being their conjugates).
   void p2f(const cplx* V, cplx* G) const noexcept;
   /// F2L: scaled frame local (orders m < kmax, others set to 0) from the up and down waves.
   void f2l(const cplx* Gup, const cplx* Gdown, cplx* Lh) const noexcept;
@@ -63,13 +73,17 @@ class PlaneWave {
  private:
   int p_, nlams_, sumK_ = 0, sumM_ = 0, kmax_ = 0;
   std::vector<double> lambda_, weight_;
-  std::vector<int> K_, M_, koff_, moff_;
-  std::vector<double> lam_over_c_;          // [k * ncoef(p) + idx(n,m)] = lambda_k^n / c_n^m
-  static constexpr int kMaxPhysical = 256;  // most angle nodes of one lambda_k (tables: 144)
-  std::vector<int> toff_;                   // node k's twiddles start at toff_[k]
-  std::vector<double> cos_, sin_;           // [toff_k + m * M_k + j] = cos / sin (m a_kj), m < K_k
-  std::vector<cplx> shift_;                 // 343 tables of sumM
-  Rotation rot_yneg_, rot_x_;               // Ry(-pi/2), Ry(pi/2)
+  std::vector<int> K_, M_, Mh_, koff_, moff_;  // M_k even, Mh_k = M_k / 2 stored
+  static constexpr int kLanes = 8;             // node tables padded to a multiple of this
+  static constexpr int kMaxNodes = 64;         // most lambda nodes of a table (tables: 37), padded
+  int nlp_ = 0;                                // nlams padded to kLanes
+  std::vector<double> lam_over_c_;             // [idx(n,m) * nlp + k] = lambda_k^n / c_n^m (0 if K_k <= m)
+  std::vector<double> lam_weight_over_c_;      // the same times w_k
+  static constexpr int kMaxPhysical = 256;     // most stored angle nodes of one lambda_k (tables: 72)
+  std::vector<int> toff_;                      // node k's twiddles start at toff_[k]
+  std::vector<double> cos_, sin_;              // [toff_k + m * Mh_k + j] = cos / sin (m a_kj), m < K_k
+  std::vector<cplx> shift_;                    // 343 tables of sumM (stored nodes)
+  Rotation rot_yneg_, rot_x_;                  // Ry(-pi/2), Ry(pi/2)
 };
 
 /// Merge-and-shift group table (§5.3). For a source box at integer offset a in {-2..3}^3 (child units,
