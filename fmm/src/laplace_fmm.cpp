@@ -53,11 +53,12 @@ int fmm_default_leaf_capacity(double eps) {
   // balances P2P against M2L, so it follows the P2P kernel's speed: with the AVX-512 kernels
   // (1/r by rsqrt14 + Newton, ~3x the pairs per second) larger leaves than FMM3D's
   // 100/200/400/600 pay off from 1e-6 on (uniform cube, N = 1e5, Intel machine); with sqrt and
-  // division (AVX2 or baseline) the fastest capacities are 100/150/200 at 3/6/9 digits (cube and
-  // sphere surface, N = 1e5 and 2e5, AMD Zen-1 machine), where 400/600 cost up to 2.1x more.
+  // division (AVX2 or baseline) the fastest capacities are 100/100/200 at 3/6/9 digits (cube and
+  // sphere surface, N = 1e5 and 2e5, AMD Zen-1 machine), where 400/600 cost up to 2.1x more; 100 at
+  // 6 digits since the half-node M2L (session 5: 1.15x over 150 on the sphere, cube trees equal).
   const int digits = fmm_table_digits_for(eps);
   if (detail::avx512_kernels_active()) return digits <= 3 ? 100 : digits <= 6 ? 400 : digits <= 9 ? 600 : 800;
-  return digits <= 3 ? 100 : digits <= 6 ? 150 : digits <= 9 ? 200 : 300;
+  return digits <= 3 ? 100 : digits <= 6 ? 100 : digits <= 9 ? 200 : 300;
 }
 
 namespace {
