@@ -8,6 +8,7 @@ target_sources(rpyfmm_fmm PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/src/child_translations.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/planewave_tables.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/planewave.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/planewave_batch.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/planewave_kernels.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/octree.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/laplace_fmm.cpp)
@@ -16,5 +17,6 @@ target_link_libraries(rpyfmm_fmm PRIVATE Eigen3::Eigen)
 set_source_files_properties(
   ${CMAKE_CURRENT_LIST_DIR}/src/harmonics.cpp ${CMAKE_CURRENT_LIST_DIR}/src/point_expansions.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/rotation.cpp ${CMAKE_CURRENT_LIST_DIR}/src/child_translations.cpp
-  ${CMAKE_CURRENT_LIST_DIR}/src/planewave.cpp ${CMAKE_CURRENT_LIST_DIR}/src/laplace_fmm.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/planewave.cpp ${CMAKE_CURRENT_LIST_DIR}/src/planewave_batch.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/laplace_fmm.cpp
   PROPERTIES COMPILE_OPTIONS "-fcx-limited-range")

@@ -424,9 +424,19 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
 #pragma omp parallel if (std::size_t(le - lb) >= kMinParallel)
       {
         std::vector<cplx> Mt(nc), Mr(nc), Mw(nc), Fu(sumK), Fd(sumK);
+        detail::PlaneWave::LaneWork lanes;
 #pragma omp for schedule(dynamic, 16)
         for (int b = lb; b < le; ++b) {
           if (boxes[b].nsrc() == 0) continue;
+          if (nd > 1) {  // densities in vector lanes (planewave_batch.cpp)
+            cplx* W = &waves[std::size_t(b - lb) * 2 * wave_stride];
+            for (std::size_t d0 = 0; d0 < nd; d0 += detail::PlaneWave::kDensityLanes) {
+              const int nl = int(std::min<std::size_t>(detail::PlaneWave::kDensityLanes, nd - d0));
+              pw.multipole_to_waves(f, &mp[std::size_t(b) * stride + d0 * nc], std::size_t(nc), nl, 1.0 / s,
+                                    W + d0 * sumM, W + wave_stride + d0 * sumM, std::size_t(sumM), lanes);
+            }
+            continue;
+          }
           for (std::size_t d = 0; d < nd; ++d) {
             const cplx* Mh = &mp[std::size_t(b) * stride + d * nc];
             for (int i = 0; i < nc; ++i) Mt[i] = Mh[i] / s;  // unit-frame multipole (§3.4, pitfall §9)
@@ -447,7 +457,8 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
           std::vector<cplx> v;
         };
         std::vector<Acc> accs;
-        std::vector<cplx> V(wave_stride), Gu(sumK * nd), Gd(sumK * nd), Lf(nc), Lb(nc);
+        std::vector<cplx> V2(2 * wave_stride), Gu(sumK * nd), Gd(sumK * nd), Lf(nc), Lb(nc);
+        detail::PlaneWave::LaneWork lanes;
 #pragma omp for schedule(dynamic, 4)
         for (int P0 = pb; P0 < pe; ++P0) {
           const auto& par = boxes[P0];
@@ -482,11 +493,12 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
             bool got[2] = {false, false};
             for (int sgn = 0; sgn < 2; ++sgn) {
               const int sign = sgn == 0 ? 1 : -1;
-              std::fill(V.begin(), V.end(), cplx(0.0));
+              cplx* V = V2.data() + sgn * wave_stride;
+              std::fill(V, V + wave_stride, cplx(0.0));
               for (std::size_t k = 0; k < nacc; ++k) {
                 if (accs[k].sign != sign || !(accs[k].mask & (1u << o))) continue;
                 got[sgn] = true;
-                detail::accumulate(wave_stride, accs[k].v.data(), V.data());
+                detail::accumulate(wave_stride, accs[k].v.data(), V);
               }
               cplx* G = sgn == 0 ? Gu.data() : Gd.data();
               if (!got[sgn]) {
@@ -495,17 +507,26 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
               }
               const auto dp = detail::PlaneWave::frame_offset(f, {o & 1, (o >> 1) & 1, (o >> 2) & 1});
               const cplx* sh = sign > 0 ? pw.shift(dp[0], dp[1], dp[2]) : pw.shift(-dp[0], -dp[1], -dp[2]);
-              detail::shift_in_place(std::size_t(sumM), nd, sh, V.data());
-              for (std::size_t d = 0; d < nd; ++d) pw.p2f(&V[d * sumM], G + d * sumK);
+              detail::shift_in_place(std::size_t(sumM), nd, sh, V);
+              if (nd == 1) pw.p2f(V, G);
             }
             if (!got[0] && !got[1]) continue;
+            has_local[c] = 1;
+            if (nd > 1) {  // densities in vector lanes (planewave_batch.cpp)
+              for (std::size_t d0 = 0; d0 < nd; d0 += detail::PlaneWave::kDensityLanes) {
+                const int nl = int(std::min<std::size_t>(detail::PlaneWave::kDensityLanes, nd - d0));
+                pw.waves_to_local(f, got[0] ? V2.data() + d0 * sumM : nullptr,
+                                  got[1] ? V2.data() + wave_stride + d0 * sumM : nullptr, std::size_t(sumM), nl,
+                                  &lp[std::size_t(c) * stride + d0 * nc], std::size_t(nc), lanes);
+              }
+              continue;
+            }
             for (std::size_t d = 0; d < nd; ++d) {
               pw.f2l(&Gu[d * sumK], &Gd[d * sumK], Lf.data());
               pw.from_frame(f, Lf.data(), Lb.data());
               cplx* out = &lp[std::size_t(c) * stride + d * nc];
               for (int i = 0; i < nc; ++i) out[i] += Lb[i];
             }
-            has_local[c] = 1;
           }
         }
       }

@@ -1,5 +1,5 @@
 // Elementwise plane-wave kernels of the merge-and-shift M2L (PLANEWAVE.md §5.3), compiled for
-// AVX-512, AVX2 and baseline x86-64 and chosen at run time: the shift of physical values
+// x86-64-v4 (AVX-512), x86-64-v3 (AVX2 + FMA) and baseline x86-64 and chosen at run time: the shift of physical values
 // V_kj *= Sh_kj and the accumulation of shifted waves are most of the M2L at low precision.
 #pragma once
 
@@ -9,7 +9,7 @@
 
 // Run-time dispatch for the plane-wave loops (also F2P / P2F in planewave.cpp).
 #if defined(__x86_64__) && !defined(__SANITIZE_ADDRESS__)
-#define RPYFMM_PW_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+#define RPYFMM_PW_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #else
 #define RPYFMM_PW_CLONES
 #endif

@@ -7,8 +7,28 @@
 #include <numbers>
 
 #include "rpyfmm/fmm/detail/expansions.hpp"
+#include "planewave_kernels.hpp"
 
 namespace rpyfmm::fmm::detail {
+
+namespace {
+// Lane layout -> one complex vector per lane -> op -> lane layout (rotations without real kernels).
+template <class Op>
+void generic_lanes(const double* xr, const double* xi, double* yr, double* yi, int p, Op op) {
+  constexpr int D = Rotation::kLanes;
+  const int nc = ncoef(p);
+  std::vector<cplx> in(nc), out(nc);
+  for (int d = 0; d < D; ++d) {
+    for (int i = 0; i < nc; ++i) in[i] = cplx(xr[std::size_t(i) * D + d], xi[std::size_t(i) * D + d]);
+    op(in.data(), out.data());
+    for (int i = 0; i < nc; ++i) {
+      yr[std::size_t(i) * D + d] = out[i].real();
+      yi[std::size_t(i) * D + d] = out[i].imag();
+    }
+  }
+}
+}  // namespace
+
 
 void gauss_legendre(int n, std::vector<double>& x, std::vector<double>& w) {
   x.assign(n, 0.0);
@@ -237,6 +257,61 @@ void Rotation::apply_adjoint(const cplx* in, cplx* out, int mmax_in) const noexc
       y[m] = acc;
     }
   }
+}
+
+// Lane versions: the real kernels with the density index innermost (one vector of kLanes). A
+// general (non-y) rotation has no real kernel; it goes through apply() lane by lane.
+namespace {
+// Per degree n: y_r = sum_{c < cols(n, r)} P[r (n+1) + c] x_c for the real parts (Mi for the
+// imaginary parts), rows r <= n, all lanes at once.
+template <class Cols>
+[[gnu::always_inline]] inline void real_kernel_lanes(int p, const std::size_t* roff, const double* plus,
+                                                     const double* minus, const double* xr, const double* xi,
+                                                     double* yr, double* yi, Cols cols) noexcept {
+  constexpr int D = Rotation::kLanes;
+  for (int n = 0; n <= p; ++n) {
+    const double* x_re = xr + std::size_t(idx(n, 0)) * D;
+    const double* x_im = xi + std::size_t(idx(n, 0)) * D;
+    for (int r = 0; r <= n; ++r) {
+      const double* pr = plus + roff[n] + std::size_t(r) * (n + 1);
+      const double* mr = minus + roff[n] + std::size_t(r) * (n + 1);
+      double re[D] = {}, im[D] = {};
+      const int nc = cols(n, r);
+      for (int c = 0; c < nc; ++c)
+#pragma omp simd
+        for (int d = 0; d < D; ++d) {
+          re[d] += pr[c] * x_re[c * D + d];
+          im[d] += mr[c] * x_im[c * D + d];
+        }
+      for (int d = 0; d < D; ++d) {
+        yr[std::size_t(idx(n, r)) * D + d] = re[d];
+        yi[std::size_t(idx(n, r)) * D + d] = im[d];
+      }
+    }
+  }
+}
+}  // namespace
+
+RPYFMM_PW_CLONES void Rotation::apply_lanes(const double* xr, const double* xi, double* yr, double* yi,
+                                            int mmax_out) const noexcept {
+  if (!real_) {
+    generic_lanes(xr, xi, yr, yi, p_, [&](const cplx* in, cplx* out) { apply(in, out, mmax_out); });
+    return;
+  }
+  // Row m' < mmax_out sums over all m <= n; the other rows are 0.
+  real_kernel_lanes(p_, roff_.data(), plus_.data(), minus_.data(), xr, xi, yr, yi,
+                    [&](int n, int mp) { return mp < mmax_out ? n + 1 : 0; });
+}
+
+RPYFMM_PW_CLONES void Rotation::apply_adjoint_lanes(const double* xr, const double* xi, double* yr, double* yi,
+                                                    int mmax_in) const noexcept {
+  if (!real_) {
+    generic_lanes(xr, xi, yr, yi, p_, [&](const cplx* in, cplx* out) { apply_adjoint(in, out, mmax_in); });
+    return;
+  }
+  // Row m sums over the input orders m' <= min(n, mmax_in - 1).
+  real_kernel_lanes(p_, roff_.data(), tplus_.data(), tminus_.data(), xr, xi, yr, yi,
+                    [&](int n, int) { return std::min(n, mmax_in - 1) + 1; });
 }
 
 void phase_rotate(int p, double phi0, cplx* coef) noexcept {

@@ -68,6 +68,11 @@ class Rotation {
   void apply(const cplx* in, cplx* out, int mmax_out) const noexcept;
   /// out = A^H in (local out of the frame); `in` has nonzero orders only for m' < mmax_in.
   void apply_adjoint(const cplx* in, cplx* out, int mmax_in) const noexcept;
+  /// The same for kLanes densities at once, split into real and imaginary parts with the density
+  /// index fastest: x[idx(n,m) * kLanes + d] (the batched M2L, planewave_batch.cpp).
+  static constexpr int kLanes = 4;
+  void apply_lanes(const double* xr, const double* xi, double* yr, double* yi, int mmax_out) const noexcept;
+  void apply_adjoint_lanes(const double* xr, const double* xi, double* yr, double* yi, int mmax_in) const noexcept;
   /// Entry A^n_{m' m}, -n <= m', m <= n.
   [[nodiscard]] cplx entry(int n, int mp, int m) const noexcept {
     return a_[off_[n] + (mp + n) * (2 * n + 1) + (m + n)];

@@ -64,6 +64,21 @@ class PlaneWave {
   void p2f(const cplx* V, cplx* G) const noexcept;
   /// F2L: scaled frame local (orders m < kmax, others set to 0) from the up and down waves.
   void f2l(const cplx* Gup, const cplx* Gdown, cplx* Lh) const noexcept;
+  /// Scratch of the batched conversions below (one per thread).
+  struct LaneWork {
+    std::vector<double> ar, ai, br, bi, fur, fui, fdr, fdi, vr, vi;
+  };
+  static constexpr int kDensityLanes = Rotation::kLanes;
+  /// Batched source side of the M2L for nd <= kDensityLanes densities (planewave_batch.cpp): for
+  /// each d, Mt = inv_s Mh_d into frame f, M2F, F2P up and down, as to_frame + m2f + f2p would,
+  /// with the density index innermost so that every table entry serves all nd at once.
+  /// Mh_d at Mh + d ldm; waves at Wup + d ldw and Wdown + d ldw (sum_physical() entries each).
+  void multipole_to_waves(int f, const cplx* Mh, std::size_t ldm, int nd, double inv_s, cplx* Wup, cplx* Wdown,
+                          std::size_t ldw, LaneWork& work) const noexcept;
+  /// Batched target side: P2F of the up and down waves (nullptr = none), F2L, out of frame f, and
+  /// L_d += the result (L_d at L + d ldl), as p2f + f2l + from_frame would.
+  void waves_to_local(int f, const cplx* Vup, const cplx* Vdown, std::size_t ldv, int nd, cplx* L, std::size_t ldl,
+                      LaneWork& work) const noexcept;
   /// Translation factor Sh(d')_kj = exp(-lambda_k d'_z + i lambda_k (d'_x cos a_kj + d'_y sin a_kj)),
   /// components in [-3, 3] (the down factor is Sh(-d')).
   [[nodiscard]] const cplx* shift(int dx, int dy, int dz) const noexcept {
