@@ -437,15 +437,13 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
             }
             continue;
           }
-          for (std::size_t d = 0; d < nd; ++d) {
-            const cplx* Mh = &mp[std::size_t(b) * stride + d * nc];
-            for (int i = 0; i < nc; ++i) Mt[i] = Mh[i] / s;  // unit-frame multipole (§3.4, pitfall §9)
-            pw.to_frame(f, Mt.data(), Mr.data(), Mw.data());
-            pw.m2f(Mr.data(), Fu.data(), Fd.data());
-            cplx* W = &waves[std::size_t(b - lb) * 2 * wave_stride];
-            pw.f2p(Fu.data(), W + d * sumM);
-            pw.f2p(Fd.data(), W + wave_stride + d * sumM);
-          }
+          const cplx* Mh = &mp[std::size_t(b) * stride];  // nd = 1
+          for (int i = 0; i < nc; ++i) Mt[i] = Mh[i] / s;  // unit-frame multipole (§3.4, pitfall §9)
+          pw.to_frame(f, Mt.data(), Mr.data(), Mw.data());
+          pw.m2f(Mr.data(), Fu.data(), Fd.data());
+          cplx* W = &waves[std::size_t(b - lb) * 2 * wave_stride];
+          pw.f2p(Fu.data(), W);
+          pw.f2p(Fd.data(), W + wave_stride);
         }
       }
       const int pb = tree.level_begin(l - 1), pe = tree.level_end(l - 1);
@@ -457,7 +455,7 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
           std::vector<cplx> v;
         };
         std::vector<Acc> accs;
-        std::vector<cplx> V2(2 * wave_stride), Gu(sumK * nd), Gd(sumK * nd), Lf(nc), Lb(nc);
+        std::vector<cplx> V2(2 * wave_stride), Gu(sumK), Gd(sumK), Lf(nc), Lb(nc);  // G, L: nd = 1 path
         detail::PlaneWave::LaneWork lanes;
 #pragma omp for schedule(dynamic, 4)
         for (int P0 = pb; P0 < pe; ++P0) {
@@ -502,7 +500,7 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
               }
               cplx* G = sgn == 0 ? Gu.data() : Gd.data();
               if (!got[sgn]) {
-                std::fill(G, G + sumK * nd, cplx(0.0));
+                if (nd == 1) std::fill(G, G + sumK, cplx(0.0));
                 continue;
               }
               const auto dp = detail::PlaneWave::frame_offset(f, {o & 1, (o >> 1) & 1, (o >> 2) & 1});
@@ -521,12 +519,10 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
               }
               continue;
             }
-            for (std::size_t d = 0; d < nd; ++d) {
-              pw.f2l(&Gu[d * sumK], &Gd[d * sumK], Lf.data());
-              pw.from_frame(f, Lf.data(), Lb.data());
-              cplx* out = &lp[std::size_t(c) * stride + d * nc];
-              for (int i = 0; i < nc; ++i) out[i] += Lb[i];
-            }
+            pw.f2l(Gu.data(), Gd.data(), Lf.data());  // nd = 1
+            pw.from_frame(f, Lf.data(), Lb.data());
+            cplx* out = &lp[std::size_t(c) * stride];
+            for (int i = 0; i < nc; ++i) out[i] += Lb[i];
           }
         }
       }

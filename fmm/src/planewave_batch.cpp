@@ -4,7 +4,6 @@
 // once for all of them and the inner loops have no reductions. Used by the FMM driver for nd >= 2
 // (FmmRpy's four Laplace densities); results equal the one-density path up to rounding.
 #include <algorithm>
-#include <numbers>
 
 #include "planewave_kernels.hpp"
 #include "rpyfmm/fmm/detail/planewave.hpp"
@@ -14,10 +13,19 @@ namespace rpyfmm::fmm::detail {
 namespace {
 constexpr int D = PlaneWave::kDensityLanes;
 
-// Multiplies coefficient (n, m) of every lane by e^{i m phi0} (phase_rotate in lanes).
-[[gnu::always_inline]] inline void phase_rotate_lanes(int p, double phi0, double* re, double* im) noexcept {
+// i^m as (re, im).
+[[gnu::always_inline]] inline void ipow_parts(int m, double& c, double& s) noexcept {
+  constexpr double tc[4] = {1, 0, -1, 0}, ts[4] = {0, 1, 0, -1};
+  c = tc[m & 3];
+  s = ts[m & 3];
+}
+
+// Multiplies coefficient (n, m) of every lane by e^{i m phi0} for phi0 = quarter * pi/2 (quarter =
+// +-1): the y-frame's Rz(-+pi/2) of phase_rotate, with the factors (+-i)^m exact.
+[[gnu::always_inline]] inline void quarter_turn_lanes(int p, int quarter, double* re, double* im) noexcept {
   for (int m = 1; m <= p; ++m) {
-    const double c = std::cos(m * phi0), s = std::sin(m * phi0);
+    double c, s;
+    ipow_parts(quarter * m, c, s);  // & 3 of a negative int is its value mod 4 (two's complement)
     for (int n = m; n <= p; ++n) {
       double* xr = re + std::size_t(idx(n, m)) * D;
       double* xi = im + std::size_t(idx(n, m)) * D;
@@ -29,13 +37,6 @@ constexpr int D = PlaneWave::kDensityLanes;
       }
     }
   }
-}
-
-// i^m as (re, im).
-[[gnu::always_inline]] inline void ipow_parts(int m, double& c, double& s) noexcept {
-  constexpr double tc[4] = {1, 0, -1, 0}, ts[4] = {0, 1, 0, -1};
-  c = tc[m & 3];
-  s = ts[m & 3];
 }
 
 void ensure(std::vector<double>& v, std::size_t n) {
@@ -64,7 +65,7 @@ RPYFMM_PW_CLONES void PlaneWave::multipole_to_waves(int f, const cplx* Mh, std::
     mr = w.br.data();
     mi = w.bi.data();
   } else if (f == 1) {
-    phase_rotate_lanes(p_, -0.5 * std::numbers::pi, w.ar.data(), w.ai.data());
+    quarter_turn_lanes(p_, -1, w.ar.data(), w.ai.data());
     rot_yneg_.apply_lanes(w.ar.data(), w.ai.data(), w.br.data(), w.bi.data(), kmax_);
     mr = w.br.data();
     mi = w.bi.data();
@@ -217,7 +218,7 @@ RPYFMM_PW_CLONES void PlaneWave::waves_to_local(int f, const cplx* Vup, const cp
     li = w.bi.data();
   } else if (f == 1) {
     rot_yneg_.apply_adjoint_lanes(w.ar.data(), w.ai.data(), w.br.data(), w.bi.data(), kmax_);
-    phase_rotate_lanes(p_, 0.5 * std::numbers::pi, w.br.data(), w.bi.data());
+    quarter_turn_lanes(p_, 1, w.br.data(), w.bi.data());
     lr = w.br.data();
     li = w.bi.data();
   }

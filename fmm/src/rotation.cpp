@@ -6,8 +6,8 @@
 #include <cmath>
 #include <numbers>
 
-#include "rpyfmm/fmm/detail/expansions.hpp"
 #include "planewave_kernels.hpp"
+#include "rpyfmm/fmm/detail/expansions.hpp"
 
 namespace rpyfmm::fmm::detail {
 
@@ -28,7 +28,6 @@ void generic_lanes(const double* xr, const double* xi, double* yr, double* yi, i
   }
 }
 }  // namespace
-
 
 void gauss_legendre(int n, std::vector<double>& x, std::vector<double>& w) {
   x.assign(n, 0.0);
