@@ -321,6 +321,7 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
     }
     c.mobility.tolerance = s.positive("tolerance", 1e-3);
     if (c.mobility.tolerance >= 0.5) bad_key("mobility.tolerance", "must be < 0.5");
+    c.mobility.fmm_crossover = s.count("fmm_crossover", 0);
     c.mobility.viscosity = c.viscosity;
     c.mobility.geometry = c.geometry;
     try {
@@ -396,7 +397,7 @@ seed = 2024
 max_displacement = 0.5
 
 [mobility]
-method = "direct"          # switch to "fmm" (or "auto") once available
+method = "auto"            # direct below default_fmm_crossover particles, fmm from there
 tolerance = 1e-3
 
 [output]

@@ -2,6 +2,8 @@
 
 #include "rpyfmm/bd/free_draining.hpp"
 #include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/fmm/direct_simd.hpp"
+#include "rpyfmm/fmm/laplace_fmm.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
@@ -49,6 +51,18 @@ bool mobility_method_available(MobilityMethod method) {
   return false;
 }
 
+// Measured crossovers (bench/bd/RESULTS.md "Auto crossover"): on the AVX2 machine (AMD Zen 1,
+// 1 thread, phi = 0.05 cloud, median products) FmmRpy overtakes DirectRpy at ~1400 / 3500 /
+// 6500 / 11000 particles for 3 / 6 / 9 / 12 digits. With the AVX-512 direct kernels (Intel
+// machine, session 2) the 3-digit crossover was 2000-3000 BD particles; the other digits are
+// scaled by the same factor 2 (not measured there).
+std::size_t default_fmm_crossover(double tolerance) {
+  require_in_range(tolerance, 1e-15, 0.5, "default_fmm_crossover", "tolerance");
+  const int digits = fmm::fmm_table_digits_for(tolerance);
+  const std::size_t avx2_crossover = digits <= 3 ? 1500 : digits <= 6 ? 3500 : digits <= 9 ? 7000 : 11000;
+  return fmm::detail::avx512_kernels_active() ? 2 * avx2_crossover : avx2_crossover;
+}
+
 namespace {
 [[noreturn]] void unavailable(MobilityMethod method, const std::string& why) {
   fail(ErrorCode::not_supported, "make_mobility", std::string("mobility method '") + to_string(method) + "' " + why);
@@ -62,7 +76,9 @@ std::unique_ptr<rpy::MobilityOperator> make_mobility(const MobilitySpec& spec, s
   if (method == MobilityMethod::automatic) {
     if (spec.geometry.is_periodic()) {
       method = MobilityMethod::pse;
-    } else if (n_particles >= spec.fmm_crossover && mobility_method_available(MobilityMethod::fmm)) {
+    } else if (const std::size_t crossover =
+                   spec.fmm_crossover > 0 ? spec.fmm_crossover : default_fmm_crossover(spec.tolerance);
+               n_particles >= crossover && mobility_method_available(MobilityMethod::fmm)) {
       method = MobilityMethod::fmm;
     } else {
       method = MobilityMethod::direct;

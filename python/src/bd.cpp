@@ -336,13 +336,14 @@ void bind_bd(nb::module_& m) {
            nb::arg("seed") = 1, nb::arg("mobility") = "auto", nb::arg("viscosity") = 1.0, nb::arg("box") = nb::none(),
            nb::arg("tolerance") = 1e-3, nb::arg("sqrt_method") = "auto", nb::arg("sqrt_tol") = 1e-3,
            nb::arg("max_displacement") = 1.0, nb::arg("external_force") = nb::none(), nb::arg("force") = nb::none(),
-           nb::arg("pair") = nb::none(), nb::arg("first_step") = 0, nb::arg("fmm_crossover") = 3000,
+           nb::arg("pair") = nb::none(), nb::arg("first_step") = 0, nb::arg("fmm_crossover") = 0,
            "positions: (N, 3) (length units, copied); radius: a number or (N,) radii; dt: time step; kT: thermal\n"
            "energy; mobility: 'none', 'direct', 'fmm', 'pse', 'auto'; box: None, L or (Lx, Ly, Lz);\n"
            "tolerance: of the fmm/pse product; sqrt_method/sqrt_tol: Brownian square root;\n"
            "max_displacement: blow-up guard in radii per step; external_force: (3,) force on every particle;\n"
            "force: callable f(positions, step, forces) adding into forces (N, 3) in place and/or returning an\n"
-           "array to add (energy/length); pair: None, 'wca', 'lj36_18', 'soft' or a dict of PairPotential fields.")
+           "array to add (energy/length); pair: None, 'wca', 'lj36_18', 'soft' or a dict of PairPotential fields;\n"
+           "fmm_crossover: particles from which 'auto' uses fmm (0 = default_fmm_crossover(tolerance)).")
       .def_static(
           "from_config", [](nb::handle config, nb::handle force) { return new Simulation(config_from(config), force); },
           nb::arg("config"), nb::arg("force") = nb::none(), nb::rv_policy::take_ownership,

@@ -333,9 +333,13 @@ void bind_mobility(nb::module_& m) {
         return bd::make_mobility(spec, n_particles);
       },
       nb::arg("method") = "auto", nb::arg("n_particles") = 0, nb::kw_only(), nb::arg("tolerance") = 1e-3,
-      nb::arg("viscosity") = 1.0, nb::arg("box") = nb::none(), nb::arg("fmm_crossover") = 3000,
+      nb::arg("viscosity") = 1.0, nb::arg("box") = nb::none(), nb::arg("fmm_crossover") = 0,
       "Builds an operator by name as BD configs and the CLI do: 'none', 'direct', 'fmm', 'pse', 'auto'\n"
-      "(open: direct below fmm_crossover particles, else fmm; periodic: pse).");
+      "(open: direct below fmm_crossover particles, else fmm; periodic: pse). fmm_crossover = 0:\n"
+      "default_fmm_crossover(tolerance).");
+  m.def("default_fmm_crossover", &bd::default_fmm_crossover, nb::arg("tolerance") = 1e-3,
+        "Particle count from which 'auto' picks fmm over direct at this tolerance on this machine\n"
+        "(measured crossover of one product, larger where the AVX-512 direct kernels run).");
 
   // Benchmark helper (bench/python/bench_overhead.py): the C++ call timed in C++,
   // without any Python in the loop. Seconds per call, `repeats` calls.

@@ -71,7 +71,10 @@ TEST(BdConfig, ParsesDefaultsAndTheDemo) {
   EXPECT_EQ(c.output.trajectory_every, 100u);
   const RunConfig demo = parse_config(demo_config_text(), "demo");
   EXPECT_EQ(demo.particles.count, 2000u);
-  EXPECT_EQ(demo.mobility.method, MobilityMethod::direct);
+  EXPECT_EQ(demo.mobility.method, MobilityMethod::automatic);
+  EXPECT_EQ(demo.mobility.fmm_crossover, 0u);  // the machine's measured crossover
+  EXPECT_EQ(parse_config(replace(kBase, "[mobility]", "[mobility]\nfmm_crossover = 500"), "c").mobility.fmm_crossover,
+            500u);
 }
 
 TEST(BdConfig, EveryBadConfigNamesTheKey) {

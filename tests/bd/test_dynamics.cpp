@@ -332,3 +332,22 @@ TEST(BdDynamics, FactoryFmmMatchesDirectStep) {
   EXPECT_EQ(make_mobility({.method = MobilityMethod::automatic}, 500)->name(), "direct");
 }
 
+// "auto" switches exactly at the crossover: the machine default per tolerance (which grows with
+// the digits asked for, as the FMM gets dearer and direct sums stay exact) or the caller's value.
+TEST(BdMobility, AutoSwitchesToFmmAtTheCrossover) {
+  std::size_t previous = 0;
+  for (double tol : {1e-3, 1e-6, 1e-9, 1e-12}) {
+    const std::size_t c = default_fmm_crossover(tol);
+    EXPECT_GT(c, previous) << tol;
+    EXPECT_GE(c, 1000u) << tol;  // below ~1000 particles direct sums win at every tolerance measured
+    previous = c;
+    EXPECT_EQ(make_mobility({.method = MobilityMethod::automatic, .tolerance = tol}, c - 1)->name(), "direct");
+    EXPECT_EQ(make_mobility({.method = MobilityMethod::automatic, .tolerance = tol}, c)->name(), "fmm");
+  }
+  EXPECT_EQ(default_fmm_crossover(1e-4), default_fmm_crossover(1e-6));  // the 6-digit table serves 1e-4
+  const MobilitySpec chosen{.method = MobilityMethod::automatic, .fmm_crossover = 100};
+  EXPECT_EQ(make_mobility(chosen, 99)->name(), "direct");
+  EXPECT_EQ(make_mobility(chosen, 100)->name(), "fmm");
+  EXPECT_THROW(default_fmm_crossover(0.0), Error);
+}
+

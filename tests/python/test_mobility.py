@@ -164,6 +164,11 @@ def test_make_mobility_by_name():
     assert isinstance(rpyfmm.make_mobility("auto", 10), rpyfmm.DirectRpy)
     assert isinstance(rpyfmm.make_mobility("auto", 5000), rpyfmm.FmmRpy)
     assert isinstance(rpyfmm.make_mobility("auto", 10, box=30.0), rpyfmm.PseRpy)
+    c = rpyfmm.default_fmm_crossover(1e-6)
+    assert c > rpyfmm.default_fmm_crossover(1e-3)
+    assert isinstance(rpyfmm.make_mobility("auto", c - 1, tolerance=1e-6), rpyfmm.DirectRpy)
+    assert isinstance(rpyfmm.make_mobility("auto", c, tolerance=1e-6), rpyfmm.FmmRpy)
+    assert isinstance(rpyfmm.make_mobility("auto", 200, fmm_crossover=200), rpyfmm.FmmRpy)
     assert isinstance(rpyfmm.make_mobility("none"), rpyfmm.FreeDraining)
     for op in (rpyfmm.DirectRpy(), rpyfmm.FmmRpy(), rpyfmm.PseRpy(box=(10, 12, 14))):
         assert isinstance(op, rpyfmm.MobilityOperator)

@@ -3,11 +3,11 @@
 //   "none"   free draining (FreeDrainingMobility), any geometry
 //   "direct" O(N^2) RPY sums (rpy::DirectRpy), open geometry
 //   "fmm"    FMM-accelerated RPY (rpy::FmmRpy), open geometry
-//   "pse"    Positively Split Ewald, periodic geometry      (not available yet)
-//   "auto"   open: direct below `fmm_crossover` particles, fmm above;
-//            periodic: pse (not available yet)
+//   "pse"    Positively Split Ewald (rpy::pse::PseRpy), periodic geometry
+//   "auto"   open: direct below `fmm_crossover` particles (default: default_fmm_crossover),
+//            fmm from there on; periodic: pse
 //
-// Methods that are not built yet throw rpyfmm::Error(not_supported) naming them.
+// A method that does not fit the geometry throws rpyfmm::Error(not_supported) naming it.
 #pragma once
 
 #include <cstddef>
@@ -32,9 +32,15 @@ struct MobilitySpec {
   /// Solvent viscosity eta (> 0).
   double viscosity = 1.0;
   rpy::Geometry geometry = rpy::Geometry::open();
-  /// "auto" switches from direct to fmm at this many particles (open geometry).
-  std::size_t fmm_crossover = 3000;
+  /// "auto" switches from direct to fmm at this many particles (open geometry);
+  /// 0 = default_fmm_crossover(tolerance) on this machine.
+  std::size_t fmm_crossover = 0;
 };
+
+/// Particle count from which FmmRpy at `tolerance` beats DirectRpy per product, 1 thread: where
+/// "auto" switches by default. It grows with the digits asked for and is larger where the direct
+/// sums run the AVX-512 kernels (bench/bd/RESULTS.md, "Auto crossover").
+std::size_t default_fmm_crossover(double tolerance);
 
 /// True when `method` can be built in this build of the library.
 bool mobility_method_available(MobilityMethod method);
