@@ -97,6 +97,8 @@ LaplaceFmm::LaplaceFmm(const FmmOptions& options) : options_(options) {
           "leaf_capacity must be >= 0 (0 = automatic), got " + std::to_string(options.leaf_capacity));
   require(std::isfinite(options.min_leaf_side) && options.min_leaf_side >= 0.0, ErrorCode::invalid_argument, where,
           "min_leaf_side must be finite and >= 0, got " + std::to_string(options.min_leaf_side));
+  require(options.root_scale >= 1.0 && options.root_scale <= 8.0, ErrorCode::invalid_argument, where,
+          "root_scale must be in [1, 8], got " + std::to_string(options.root_scale));
   require(options.order == 0 || (options.order >= 2 && options.order <= 70), ErrorCode::invalid_argument, where,
           "order must be 0 (automatic) or in [2, 70], got " + std::to_string(options.order));
 }
@@ -143,6 +145,7 @@ void LaplaceFmm::set_points(std::span<const double> sources, std::span<const dou
   detail::OctreeParams tp;
   tp.leaf_capacity = std::size_t(plan->leaf_capacity);
   tp.min_leaf_side = options_.min_leaf_side;
+  tp.root_scale = options_.root_scale;
   plan->tree.build(sources, targets, tp);
   const double t_tree = sw.seconds();
   sw.restart();

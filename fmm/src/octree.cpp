@@ -64,8 +64,16 @@ void Octree::build(std::span<const double> sources, std::span<const double> targ
   extend(targets);
   double side = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
   if (!(side > 0.0)) side = std::max(1.0, std::abs(lo[0]) + std::abs(lo[1]) + std::abs(lo[2])) * 1e-3;
-  root_side_ = side * (1.0 + 1e-10);
-  for (int i = 0; i < 3; ++i) root_lo_[i] = 0.5 * (lo[i] + hi[i]) - 0.5 * root_side_;
+  if (params.root_scale > 1.0) {
+    // Root enlarged and anchored at the low corner: at the level where its side is split into 2^L
+    // boxes, exactly root_scale^-1 2^L of them span the points' extent (FmmOptions::root_scale).
+    const double pad = 0.5e-10 * side;
+    root_side_ = params.root_scale * side * (1.0 + 1e-10);
+    for (int i = 0; i < 3; ++i) root_lo_[i] = lo[i] - pad;
+  } else {
+    root_side_ = side * (1.0 + 1e-10);
+    for (int i = 0; i < 3; ++i) root_lo_[i] = 0.5 * (lo[i] + hi[i]) - 0.5 * root_side_;
+  }
 
   src_perm_.resize(n);
   for (std::size_t j = 0; j < n; ++j) src_perm_[j] = j;

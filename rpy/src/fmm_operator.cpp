@@ -48,6 +48,64 @@ int default_leaf_capacity(double eps) {
   }
 }
 
+// Automatic leaves fitted to the cloud (bench/rpy/RESULTS.md "Fitted leaf grid"). An octree over
+// the bounding cube of a uniform cloud has leaves of N / 8^L points: factor-8 steps. Where the
+// best occupancy falls between two steps (6 digits without AVX-512: ~60 points, between the 24 and
+// 195 of a uniform N = 1e5 cloud), the root is enlarged to 2^L / k bounding-cube sides (anchored
+// at the low corner) so that k leaves of the chosen occupancy span the cloud per side, k from
+// N / (fill * k^3) = occupancy, fill = the occupied fraction of the bounding cube (a histogram).
+// Measured at N = 1e5, 1e-6, 1 thread: uniform suspension 2.96 -> 2.28 s (195 -> 58 points per
+// leaf), cylinder surface 2.33 -> 2.07 s, eight spheres 3.37 -> 2.70 s.
+struct LeafGrid {
+  int capacity = 0;
+  double root_scale = 1.0;
+};
+
+// Where the fitted grid is used: from 2e4 points (below, 0.88-1.02x at N = 1e4) to 2e5. Smaller
+// leaves move work into the far field, whose 6-digit plane-wave error then weighs more: measured
+// relative error at 1e-6 (uniform suspension) 5.9e-7 -> 6.8e-7 at N = 1e5, but 9.8e-7 at 5e5 and
+// 1.03e-6 at 1e6 (bounding-cube tree: 9.05e-7), too close to or above the tolerance.
+constexpr std::size_t kFittedGridMinPoints = 20000;
+constexpr std::size_t kFittedGridMaxPoints = 200000;
+// The fitted grid replaces the bounding-cube tree only where that tree's leaves hold on average
+// more than this many times the target occupancy (cost ~ occupancy / target + target / occupancy: at
+// N = 3e5 the bounding-cube tree already has 73 points per leaf, and the fitted one, with one
+// level more, was 6% slower).
+constexpr double kFittedGridMinGain = 1.7;
+
+// Target points per leaf where the fitted grid pays, else 0 (keep the bounding cube).
+int fitted_leaf_occupancy(double eps) {
+  if (fmm::fmm_table_digits_for(eps) == 6 && !fmm::detail::avx512_kernels_active()) return 60;
+  return 0;
+}
+
+// The fitted grid for these points, or {0, 1} where it does not apply.
+LeafGrid fitted_leaf_grid(std::span<const double> x, const std::array<double, 3>& lo, double side, double eps) {
+  LeafGrid grid{0, 1.0};
+  const int occupancy = fitted_leaf_occupancy(eps);
+  const std::size_t n = x.size() / 3;
+  if (occupancy == 0 || !(side > 0.0) || n < kFittedGridMinPoints || n > kFittedGridMaxPoints) return grid;
+  // Occupied fraction of the bounding cube on a grid of ~8 points per cell (at most 32^3 cells).
+  const int g = std::clamp(static_cast<int>(std::cbrt(double(n) / 8.0)), 2, 32);
+  std::vector<char> occupied(std::size_t(g) * g * g, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    std::size_t cell = 0;
+    for (int c = 0; c < 3; ++c) {
+      const int j = std::clamp(static_cast<int>((x[3 * i + c] - lo[c]) / side * g), 0, g - 1);
+      cell = cell * g + j;
+    }
+    occupied[cell] = 1;
+  }
+  const double fill = double(std::count(occupied.begin(), occupied.end(), 1)) / double(occupied.size());
+  const auto k = static_cast<int>(std::lround(std::cbrt(double(n) / (fill * occupancy))));
+  if (k < 2) return grid;
+  int level_boxes = 1;
+  while (level_boxes < k) level_boxes *= 2;
+  grid.root_scale = double(level_boxes) / double(k);
+  grid.capacity = 2 * occupancy;  // leaves of ~occupancy points stay; their parents (~8x) split
+  return grid;
+}
+
 // Trees with fewer leaves evaluate each directed leaf pair on its own (one colour, parallel over
 // target leaves): with few leaves per colour the symmetric schedule would leave threads idle.
 // A property of the tree only, never of the thread count, so results stay thread-invariant.
@@ -89,12 +147,29 @@ void FmmRpy::on_positions_set() {
   const double a_max = *std::max_element(radii().begin(), radii().end());
   fmm::FmmOptions fo;
   fo.eps = laplace_eps_;
-  fo.leaf_capacity = options_.leaf_capacity > 0 ? options_.leaf_capacity : default_leaf_capacity(laplace_eps_);
+  LeafGrid fitted;
+  if (options_.leaf_capacity > 0) {
+    fo.leaf_capacity = options_.leaf_capacity;
+  } else {
+    const double side = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+    std::array<double, 3> centered_lo;
+    for (int c = 0; c < 3; ++c) centered_lo[c] = lo[c] - 0.5 * (lo[c] + hi[c]);
+    fo.leaf_capacity = default_leaf_capacity(laplace_eps_);
+    fitted = fitted_leaf_grid(centered_, centered_lo, side, laplace_eps_);
+  }
   fo.near_field = false;
   fo.export_direct_far = true;     // W/X pairs summed directly: one RPY pair block beats 4-7 Laplace densities
   fo.min_leaf_side = 2.0 * a_max;  // overlapping pairs (r <= a_i + a_j) are always U-list pairs
   fmm_ = std::make_unique<fmm::LaplaceFmm>(fo);
   fmm_->set_points(centered_);
+  // The bounding-cube tree's mean leaf occupancy decides whether the fitted grid pays.
+  if (fitted.capacity > 0 &&
+      double(n) > kFittedGridMinGain * fitted_leaf_occupancy(laplace_eps_) * double(fmm_->stats().leaves)) {
+    fo.leaf_capacity = fitted.capacity;
+    fo.root_scale = fitted.root_scale;
+    fmm_ = std::make_unique<fmm::LaplaceFmm>(fo);
+    fmm_->set_points(centered_);
+  }
 
   // Near-field schedule: each adjacent leaf pair once for both directions where the tree has
   // enough leaves to keep every colour busy (see kSymmetricMinLeaves).

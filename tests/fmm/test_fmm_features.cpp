@@ -271,6 +271,41 @@ TEST(FmmFeatures, MinLeafSideKeepsClosePairsInTheNearField) {
   EXPECT_GT(f.stats().leaves, 8u);  // the option did not just disable the tree
 }
 
+// An enlarged root anchored at the points' low corner (FmmOptions::root_scale, used by FmmRpy's
+// fitted leaf grid) changes only the tree: results stay within eps of the direct sums, with
+// targets apart from the sources too, and the leaf side is root_scale x side / 2^level.
+TEST(FmmFeatures, RootScaleFitsTheLeafGrid) {
+  const auto src = fmmtest::cube(3000, 21);
+  auto tgt = fmmtest::cube(800, 22);
+  for (auto& v : tgt) v = 1.2 * v - 0.1;
+  const auto q = fmmtest::charges(3000, 2, 23);
+  const auto ref_src = fmmtest::direct(src, q, 2, {}), ref_tgt = fmmtest::direct(src, q, 2, tgt);
+  for (double scale : {8.0 / 7.0, 1.6, 1.99}) {
+    for (double eps : {1e-3, 1e-6}) {
+      FmmOptions o = opts(eps, 30);
+      o.root_scale = scale;
+      LaplaceFmm f(o);
+      f.set_points(src);
+      expect_close_all(eval(f, q, 2), ref_src, 2, 3000, eps, "sources");
+      f.set_points(src, tgt);
+      expect_close_all(eval(f, q, 2), ref_tgt, 2, 800, eps, "targets");
+    }
+  }
+  // 3000 uniform points, at most 60 per leaf: the bounding cube gives 4^3 = 64 leaves of ~47
+  // points; with root_scale = 8/5 the cloud spans 5^3 = 125 level-3 boxes of ~24, one leaf each
+  // except where a level-2 box of the boundary layer holds only two of them (<= 60 points) and
+  // stays whole.
+  FmmOptions o = opts(1e-3, 60);
+  LaplaceFmm plain(o);
+  plain.set_points(src);
+  o.root_scale = 1.6;
+  LaplaceFmm fitted(o);
+  fitted.set_points(src);
+  EXPECT_EQ(plain.stats().leaves, 64u);
+  EXPECT_GT(fitted.stats().leaves, 100u);
+  EXPECT_LE(fitted.stats().leaves, 125u);
+}
+
 TEST(FmmFeatures, BadInput) {
   auto expect_error = [](auto&& fn, const char* needle) {
     try {
@@ -284,6 +319,11 @@ TEST(FmmFeatures, BadInput) {
   expect_error([] { LaplaceFmm f(opts(1e-16, 0)); }, "eps");
   expect_error([] { LaplaceFmm f(opts(std::nan(""), 0)); }, "eps");
   expect_error([] { LaplaceFmm f(opts(1e-6, -1)); }, "leaf_capacity");
+  for (double scale : {0.5, 9.0, std::nan("")}) {
+    FmmOptions o = opts(1e-6, 0);
+    o.root_scale = scale;
+    expect_error([&] { LaplaceFmm f(o); }, "root_scale");
+  }
   LaplaceFmm f(opts(1e-6, 0));
   std::vector<double> x = fmmtest::cube(10, 1), q(10, 1.0), r(100);
   expect_error([&] { f.evaluate(q, 1, all_outputs, r); }, "set_points");

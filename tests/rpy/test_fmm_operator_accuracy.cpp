@@ -11,9 +11,11 @@
 
 #include "configurations.hpp"
 #include "fmm_rpy_test_util.hpp"
+#include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
+#include "rpyfmm/rpy/rpy_kernel.hpp"
 
 using rpyfmm::rpy::DirectRpy;
 using rpyfmm::rpy::FmmRpy;
@@ -71,3 +73,47 @@ TEST_P(FmmRpyAccuracy, MatchesDirectOnAllConfigurations) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Tolerances, FmmRpyAccuracy, ::testing::Values(1e-3, 1e-6, 1e-9));
+
+// The fitted leaf grid of the automatic leaves (fmm_operator.cpp: 6 digits without AVX-512,
+// 2e4 ... 2e5 points, where the bounding-cube tree's leaves hold > 1.7 x 60 points): the tree
+// changes, the contract does not. Reference: exact RPY blocks (rpy_tensor) summed over all
+// sources for 400 sampled targets; relative l2 error over those rows <= eps, no slack.
+TEST(FmmRpyFittedLeafGrid, MeetsTheToleranceOnSampledRows) {
+  const double eps = 1e-6;
+  std::vector<t::Configuration> configs = {t::random_suspension(22000, 1.0, 0.1, 31),
+                                           t::cylinder_surface(30000, 0.01, 32)};
+  {
+    auto c = t::random_suspension(22000, 1.0, 0.15, 33);
+    for (std::size_t i = 0; i < c.a.size(); ++i) c.a[i] = 0.6 + 0.8 * ((i * 7919) % 100) / 100.0;
+    configs.push_back(c);
+  }
+  for (const auto& c : configs) {
+    const std::size_t n = c.a.size();
+    FmmRpy fast(Geometry::open(), 1.0, FmmRpyOptions{.tolerance = eps});
+    fast.set_positions(c.x, c.a);
+    if (!rpyfmm::fmm::detail::avx512_kernels_active()) {
+      EXPECT_EQ(fast.laplace_plan()->stats().leaf_capacity, 120) << "the fitted grid applies at N = " << n;
+    }
+    const auto f = t::random_vector(3 * n, 41);
+    const auto u = product(fast, f);
+    double err2 = 0.0, ref2 = 0.0;
+    for (std::size_t s = 0; s < 400; ++s) {
+      const std::size_t i = (s * 7919) % n;
+      double ref[3] = {0.0, 0.0, 0.0};
+      for (std::size_t j = 0; j < n; ++j) {
+        const double d[3] = {c.x[3 * i] - c.x[3 * j], c.x[3 * i + 1] - c.x[3 * j + 1], c.x[3 * i + 2] - c.x[3 * j + 2]};
+        double m[9];
+        rpyfmm::rpy::rpy_tensor(d, c.a[i], c.a[j], 1.0, m);
+        for (int r = 0; r < 3; ++r)
+          for (int k = 0; k < 3; ++k) ref[r] += m[3 * r + k] * f[3 * j + k];
+      }
+      for (int r = 0; r < 3; ++r) {
+        err2 += std::pow(u[3 * i + r] - ref[r], 2);
+        ref2 += ref[r] * ref[r];
+      }
+    }
+    const double err = std::sqrt(err2 / ref2);
+    std::printf("  fitted grid N=%zu leaves=%zu relative l2 error %.2e\n", n, fast.laplace_plan()->stats().leaves, err);
+    EXPECT_LE(err, eps);
+  }
+}

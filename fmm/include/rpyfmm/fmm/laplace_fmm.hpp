@@ -47,6 +47,11 @@ struct FmmOptions {
   /// whose own pair kernel is cheaper than nd Laplace densities (FmmRpy). Those pairs are well
   /// separated (not adjacent); U-list pairs come first.
   bool export_direct_far = false;
+  /// Side of the root box as a multiple of the points' bounding cube, in [1, 8]. 1 (default): the
+  /// bounding cube, centred. Above 1 the root is anchored at the points' low corner, so that with
+  /// root_scale = 2^L / k the points span exactly k boxes per side at level L: leaves of a chosen
+  /// occupancy instead of the octree's factor-8 steps (FmmRpy's automatic leaves use this).
+  double root_scale = 1.0;
   /// Expansion order; 0 = from eps (FMM3D's rule, PLANEWAVE.md §1.5).
   int order = 0;
 };

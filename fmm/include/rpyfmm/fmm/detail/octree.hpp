@@ -44,6 +44,7 @@ struct BoxLists {
 struct OctreeParams {
   std::size_t leaf_capacity = 100;  // split a box holding more points than this
   double min_leaf_side = 0.0;       // never create boxes of side below this
+  double root_scale = 1.0;          // root side / bounding-cube side; > 1: anchored at the low corner
   int max_level = 30;
 };
 
