@@ -50,41 +50,54 @@ int default_leaf_capacity(double eps) {
 
 // Automatic leaves fitted to the cloud (bench/rpy/RESULTS.md "Fitted leaf grid"). An octree over
 // the bounding cube of a uniform cloud has leaves of N / 8^L points: factor-8 steps. Where the
-// best occupancy falls between two steps (6 digits without AVX-512: ~60 points, between the 24 and
-// 195 of a uniform N = 1e5 cloud), the root is enlarged to 2^L / k bounding-cube sides (anchored
-// at the low corner) so that k leaves of the chosen occupancy span the cloud per side, k from
+// best occupancy falls between two steps (e.g. ~60 points at 6 digits, between the 24 and 195 of
+// a uniform N = 1e5 cloud), the root is enlarged to 2^L / k bounding-cube sides (anchored at the
+// low corner) so that k leaves of the chosen occupancy span the cloud per side, k from
 // N / (fill * k^3) = occupancy, fill = the occupied fraction of the bounding cube (a histogram).
-// Measured at N = 1e5, 1e-6, 1 thread: uniform suspension 2.96 -> 2.28 s (195 -> 58 points per
-// leaf), cylinder surface 2.33 -> 2.07 s, eight spheres 3.37 -> 2.70 s.
+// Measured without AVX-512, 1 thread: at 1e-6, N = 1e5, uniform suspension 2.96 -> 2.28 s
+// (195 -> 58 points per leaf), cylinder surface 2.33 -> 2.07 s, eight spheres 3.37 -> 2.70 s;
+// at 1e-3, spherical BD cloud, 1.1-1.3x from N = 3e3 to 2e5.
 struct LeafGrid {
   int capacity = 0;
   double root_scale = 1.0;
 };
 
-// Where the fitted grid is used: from 2e4 points (below, 0.88-1.02x at N = 1e4) to 2e5. Smaller
-// leaves move work into the far field, whose 6-digit plane-wave error then weighs more: measured
-// relative error at 1e-6 (uniform suspension) 5.9e-7 -> 6.8e-7 at N = 1e5, but 9.8e-7 at 5e5 and
-// 1.03e-6 at 1e6 (bounding-cube tree: 9.05e-7), too close to or above the tolerance.
-constexpr std::size_t kFittedGridMinPoints = 20000;
-constexpr std::size_t kFittedGridMaxPoints = 200000;
+// Where the fitted grid is used, per plane-wave table (without AVX-512; not measured with it):
+// the target occupancy and the point counts measured to gain. The upper end at 6 digits is set
+// by accuracy: smaller leaves move work into the far field, whose 6-digit plane-wave error then
+// weighs more (uniform suspension at 1e-6: 5.9e-7 -> 6.8e-7 at N = 1e5, but 9.8e-7 at 5e5 and
+// 1.03e-6 at 1e6, where the bounding-cube tree gives 9.05e-7). At 3 digits the errors stay
+// near 3e-4; 2e5 is the largest size measured.
+struct FittedGridRule {
+  int occupancy = 0;  // 0: keep the bounding cube
+  std::size_t min_points = 0, max_points = 0;
+  double min_fill = 0.0;  // least occupied fraction of the bounding cube (volume, not surface)
+};
+
+FittedGridRule fitted_grid_rule(double eps) {
+  if (fmm::detail::avx512_kernels_active()) return {};
+  switch (fmm::fmm_table_digits_for(eps)) {
+    // Volume-filling clouds only: on surfaces (cylinder, eight spheres) leaves of 20 points were
+    // 0.75-0.95x, their leaves have fewer neighbours and the near field costs less.
+    case 3: return {20, 2000, 200000, 0.25};
+    case 6: return {60, 5000, 200000, 0.0};  // cylinder 2.0x, eight 1.45x, BD cloud 1.13x at 5e3
+    default: return {};                 // 1e-9: 195 and 100 points per leaf tie
+  }
+}
+
 // The fitted grid replaces the bounding-cube tree only where that tree's leaves hold on average
 // more than this many times the target occupancy (cost ~ occupancy / target + target / occupancy: at
 // N = 3e5 the bounding-cube tree already has 73 points per leaf, and the fitted one, with one
 // level more, was 6% slower).
 constexpr double kFittedGridMinGain = 1.7;
 
-// Target points per leaf where the fitted grid pays, else 0 (keep the bounding cube).
-int fitted_leaf_occupancy(double eps) {
-  if (fmm::fmm_table_digits_for(eps) == 6 && !fmm::detail::avx512_kernels_active()) return 60;
-  return 0;
-}
-
 // The fitted grid for these points, or {0, 1} where it does not apply.
 LeafGrid fitted_leaf_grid(std::span<const double> x, const std::array<double, 3>& lo, double side, double eps) {
   LeafGrid grid{0, 1.0};
-  const int occupancy = fitted_leaf_occupancy(eps);
+  const FittedGridRule rule = fitted_grid_rule(eps);
+  const int occupancy = rule.occupancy;
   const std::size_t n = x.size() / 3;
-  if (occupancy == 0 || !(side > 0.0) || n < kFittedGridMinPoints || n > kFittedGridMaxPoints) return grid;
+  if (occupancy == 0 || !(side > 0.0) || n < rule.min_points || n > rule.max_points) return grid;
   // Occupied fraction of the bounding cube on a grid of ~8 points per cell (at most 32^3 cells).
   const int g = std::clamp(static_cast<int>(std::cbrt(double(n) / 8.0)), 2, 32);
   std::vector<char> occupied(std::size_t(g) * g * g, 0);
@@ -97,6 +110,7 @@ LeafGrid fitted_leaf_grid(std::span<const double> x, const std::array<double, 3>
     occupied[cell] = 1;
   }
   const double fill = double(std::count(occupied.begin(), occupied.end(), 1)) / double(occupied.size());
+  if (fill < rule.min_fill) return grid;
   const auto k = static_cast<int>(std::lround(std::cbrt(double(n) / (fill * occupancy))));
   if (k < 2) return grid;
   int level_boxes = 1;
@@ -164,7 +178,7 @@ void FmmRpy::on_positions_set() {
   fmm_->set_points(centered_);
   // The bounding-cube tree's mean leaf occupancy decides whether the fitted grid pays.
   if (fitted.capacity > 0 &&
-      double(n) > kFittedGridMinGain * fitted_leaf_occupancy(laplace_eps_) * double(fmm_->stats().leaves)) {
+      double(n) > kFittedGridMinGain * fitted_grid_rule(laplace_eps_).occupancy * double(fmm_->stats().leaves)) {
     fo.leaf_capacity = fitted.capacity;
     fo.root_scale = fitted.root_scale;
     fmm_ = std::make_unique<fmm::LaplaceFmm>(fo);
