@@ -56,7 +56,7 @@ int default_leaf_capacity(double eps) {
 // N / (fill * k^3) = occupancy, fill = the occupied fraction of the bounding cube (a histogram).
 // Measured without AVX-512, 1 thread: at 1e-6, N = 1e5, uniform suspension 2.96 -> 2.28 s
 // (195 -> 58 points per leaf), cylinder surface 2.33 -> 2.07 s, eight spheres 3.37 -> 2.70 s;
-// at 1e-3, spherical BD cloud, 1.1-1.3x from N = 3e3 to 2e5.
+// at 1e-3, spherical BD cloud, 1.0-1.28x from N = 2e3 to 1e5 and 1.33x at 2e5.
 struct LeafGrid {
   int capacity = 0;
   double root_scale = 1.0;
@@ -81,7 +81,7 @@ FittedGridRule fitted_grid_rule(double eps) {
     // 0.75-0.95x, their leaves have fewer neighbours and the near field costs less.
     case 3: return {20, 2000, 200000, 0.25};
     case 6: return {60, 5000, 200000, 0.0};  // cylinder 2.0x, eight 1.45x, BD cloud 1.13x at 5e3
-    default: return {};                 // 1e-9: 195 and 100 points per leaf tie
+    default: return {};  // 1e-9: 195 and 100 points per leaf tie
   }
 }
 
@@ -91,13 +91,16 @@ FittedGridRule fitted_grid_rule(double eps) {
 // level more, was 6% slower).
 constexpr double kFittedGridMinGain = 1.7;
 
-// The fitted grid for these points, or {0, 1} where it does not apply.
-LeafGrid fitted_leaf_grid(std::span<const double> x, const std::array<double, 3>& lo, double side, double eps) {
+// The fitted grid for these points, whose bounding-cube tree has `cube_leaves` leaves, or {0, 1}
+// where it does not apply.
+LeafGrid fitted_leaf_grid(std::span<const double> x, const std::array<double, 3>& lo, double side, double eps,
+                          std::size_t cube_leaves) {
   LeafGrid grid{0, 1.0};
   const FittedGridRule rule = fitted_grid_rule(eps);
   const int occupancy = rule.occupancy;
   const std::size_t n = x.size() / 3;
   if (occupancy == 0 || !(side > 0.0) || n < rule.min_points || n > rule.max_points) return grid;
+  if (double(n) <= kFittedGridMinGain * occupancy * double(cube_leaves)) return grid;
   // Occupied fraction of the bounding cube on a grid of ~8 points per cell (at most 32^3 cells).
   const int g = std::clamp(static_cast<int>(std::cbrt(double(n) / 8.0)), 2, 32);
   std::vector<char> occupied(std::size_t(g) * g * g, 0);
@@ -161,28 +164,25 @@ void FmmRpy::on_positions_set() {
   const double a_max = *std::max_element(radii().begin(), radii().end());
   fmm::FmmOptions fo;
   fo.eps = laplace_eps_;
-  LeafGrid fitted;
-  if (options_.leaf_capacity > 0) {
-    fo.leaf_capacity = options_.leaf_capacity;
-  } else {
-    const double side = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
-    std::array<double, 3> centered_lo;
-    for (int c = 0; c < 3; ++c) centered_lo[c] = lo[c] - 0.5 * (lo[c] + hi[c]);
-    fo.leaf_capacity = default_leaf_capacity(laplace_eps_);
-    fitted = fitted_leaf_grid(centered_, centered_lo, side, laplace_eps_);
-  }
+  fo.leaf_capacity = options_.leaf_capacity > 0 ? options_.leaf_capacity : default_leaf_capacity(laplace_eps_);
   fo.near_field = false;
   fo.export_direct_far = true;     // W/X pairs summed directly: one RPY pair block beats 4-7 Laplace densities
   fo.min_leaf_side = 2.0 * a_max;  // overlapping pairs (r <= a_i + a_j) are always U-list pairs
   fmm_ = std::make_unique<fmm::LaplaceFmm>(fo);
   fmm_->set_points(centered_);
-  // The bounding-cube tree's mean leaf occupancy decides whether the fitted grid pays.
-  if (fitted.capacity > 0 &&
-      double(n) > kFittedGridMinGain * fitted_grid_rule(laplace_eps_).occupancy * double(fmm_->stats().leaves)) {
-    fo.leaf_capacity = fitted.capacity;
-    fo.root_scale = fitted.root_scale;
-    fmm_ = std::make_unique<fmm::LaplaceFmm>(fo);
-    fmm_->set_points(centered_);
+  // Automatic leaves: the bounding-cube tree's mean leaf occupancy decides whether the fitted
+  // grid pays; then the tree is rebuilt on it.
+  if (options_.leaf_capacity == 0) {
+    const double side = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+    std::array<double, 3> centered_lo;
+    for (int c = 0; c < 3; ++c) centered_lo[c] = lo[c] - 0.5 * (lo[c] + hi[c]);
+    const LeafGrid fitted = fitted_leaf_grid(centered_, centered_lo, side, laplace_eps_, fmm_->stats().leaves);
+    if (fitted.capacity > 0) {
+      fo.leaf_capacity = fitted.capacity;
+      fo.root_scale = fitted.root_scale;
+      fmm_ = std::make_unique<fmm::LaplaceFmm>(fo);
+      fmm_->set_points(centered_);
+    }
   }
 
   // Near-field schedule: each adjacent leaf pair once for both directions where the tree has

@@ -108,7 +108,9 @@ TEST(FmmRpyFittedLeafGrid, MeetsTheToleranceOnSampledRows) {
                                    {t::cylinder_surface(6000, 0.01, 34), 1e-6, 120},
                                    {ball_cloud(5000, 0.05, 35), 1e-3, 40},
                                    {ball_cloud(20000, 0.05, 36), 1e-3, 40},
-                                   {t::cylinder_surface(30000, 0.01, 37), 1e-3, 150}};  // surface: no
+                                   {t::cylinder_surface(30000, 0.01, 37), 1e-3, 150},  // surface: no
+                                   // bounding-cube leaves of ~58 points already: not > 1.7 x 60
+                                   {t::random_suspension(30000, 1.0, 0.1, 38), 1e-6, 400}};
   {
     auto c = t::random_suspension(22000, 1.0, 0.15, 33);
     for (std::size_t i = 0; i < c.a.size(); ++i) c.a[i] = 0.6 + 0.8 * ((i * 7919) % 100) / 100.0;
