@@ -11,6 +11,7 @@ target_sources(rpyfmm_fmm PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/src/planewave_batch.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/planewave_kernels.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/octree.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/leaf_grid.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/laplace_fmm.cpp)
 target_link_libraries(rpyfmm_fmm PRIVATE Eigen3::Eigen)
 # std::complex products without the C99 Annex G inf/nan recovery (__muldc3): every value here is finite.

@@ -1,7 +1,7 @@
 // Benchmark of the adaptive plane-wave Laplace FMM (dissertation 004, Tables 2.1-2.12 layout).
 //
 // usage: bench_fmm --n N --dist cube|sphere|octant --eps E [--nd 1] [--leaf 0] [--reps 3]
-//                  [--outputs 7] [--sample 1000] [--npy points.npy] [--direct]
+//                  [--outputs 7] [--sample 1000] [--npy points.npy] [--direct] [--root-scale 1] [--occupancy T]
 // Points come from a fixed seed (or are written to --npy for the fmm3dpy peer, see compare_fmm3d.py).
 // Prints one JSON row: time (median of reps), per-stage breakdown, sampled relative l2 errors of each
 // output against a direct sum, levels, boxes, peak RSS, and (with --direct) the direct-sum time.
@@ -21,6 +21,7 @@
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/fmm/direct.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
+#include "rpyfmm/fmm/leaf_grid.hpp"
 
 namespace {
 std::vector<double> make_points(std::size_t n, const std::string& dist, unsigned seed) {
@@ -65,6 +66,8 @@ int main(int argc, char** argv) {
   std::string dist = "cube", npy;
   double eps = 1e-6;
   int leaf = 0, reps = 3;
+  double root_scale = 1.0;
+  int occupancy = 0;  // > 0: leaves fitted to ~T points (fit_leaf_grid), overrides --leaf/--root-scale
   unsigned outputs = rpyfmm::fmm::all_outputs;
   bool do_direct = false;
   for (int i = 1; i < argc; ++i) {
@@ -75,6 +78,8 @@ int main(int argc, char** argv) {
     else if (a == "--eps") eps = std::stod(next());
     else if (a == "--nd") nd = std::stoul(next());
     else if (a == "--leaf") leaf = std::stoi(next());
+    else if (a == "--occupancy") occupancy = std::stoi(next());
+    else if (a == "--root-scale") root_scale = std::stod(next());
     else if (a == "--reps") reps = std::stoi(next());
     else if (a == "--outputs") outputs = unsigned(std::stoul(next()));
     else if (a == "--sample") sample = std::stoul(next());
@@ -97,6 +102,14 @@ int main(int argc, char** argv) {
   rpyfmm::fmm::FmmOptions opt;
   opt.eps = eps;
   opt.leaf_capacity = leaf;
+  opt.root_scale = root_scale;
+  if (occupancy > 0) {
+    const auto grid = rpyfmm::fmm::fit_leaf_grid(x, {}, occupancy);
+    if (grid.fitted()) {
+      opt.leaf_capacity = grid.leaf_capacity;
+      opt.root_scale = grid.root_scale;
+    }
+  }
   rpyfmm::fmm::LaplaceFmm fmm(opt);
   rpyfmm::StopWatch sw;
   fmm.set_points(x);
@@ -144,11 +157,11 @@ int main(int argc, char** argv) {
   }
   const auto st = fmm.stats();
   std::printf("{\"n\": %zu, \"dist\": \"%s\", \"eps\": %.0e, \"nd\": %zu, \"outputs\": %u, \"threads\": %d, "
-              "\"p\": %d, \"nlams\": %d, \"leaf\": %d, \"levels\": %d, \"boxes\": %zu, \"leaves\": %zu, "
+              "\"p\": %d, \"nlams\": %d, \"leaf\": %d, \"root_scale\": %.4f, \"levels\": %d, \"boxes\": %zu, \"leaves\": %zu, "
               "\"setup_s\": %.4f, \"eval_s\": %.4f, \"err_pot\": %.2e, \"err_grad\": %.2e, \"err_hess\": %.2e, "
               "\"peak_rss_mb\": %.1f, \"bytes_per_particle\": %.0f, \"direct_s\": %.4f, \"stages\": {",
               n, dist.c_str(), eps, nd, outputs, omp_get_max_threads(), st.order, st.nlams, st.leaf_capacity,
-              st.levels, st.boxes, st.leaves, t_setup, t_eval, err[0], err[1], err[2], peak_rss_mb(),
+              opt.root_scale, st.levels, st.boxes, st.leaves, t_setup, t_eval, err[0], err[1], err[2], peak_rss_mb(),
               peak_rss_mb() * 1048576.0 / double(n), t_direct);
   bool first = true;
   for (const auto& [k, v] : stages) {

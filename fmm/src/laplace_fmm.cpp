@@ -14,6 +14,7 @@
 #include "rpyfmm/fmm/detail/octree.hpp"
 #include "rpyfmm/fmm/detail/planewave.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
+#include "rpyfmm/fmm/leaf_grid.hpp"
 
 namespace rpyfmm::fmm {
 
@@ -62,6 +63,35 @@ int fmm_default_leaf_capacity(double eps) {
 }
 
 namespace {
+// Automatic leaves fitted to the cloud (fit_leaf_grid; bench/fmm/RESULTS.md "Fitted leaf grid"):
+// where the bounding-cube tree's leaves hold well above the best occupancy (a uniform cube of 2e5
+// points at 1e-6 and capacity 400: a partly split tree of 124 points per leaf, against a best of
+// ~50), the root is enlarged so that leaves of the target occupancy span the cloud. Measured with
+// the AVX-512 kernels (Intel machine, pot + grad + Hessian, 1 thread, cube and sphere surface,
+// 1e4 ... 2e5 points, side by side): 1e-6 1.07-2.29x (2e5 cube), 1e-9 1.37-1.45x where it
+// applies, 1e-12 0.97-1.20x, 1e-3 0.99-1.09x; N = 1e6 cube at 1e-6 11.1 -> 6.4 s. Without them
+// the bounding-cube tree is kept (not measured: the P2P is ~3x dearer there and the default
+// capacities are already small).
+struct FittedGridRule {
+  int occupancy = 0;  // 0: keep the bounding-cube tree
+  std::size_t min_points = 0, max_points = 0;
+};
+
+FittedGridRule fitted_grid_rule(double eps) {
+  if (!detail::avx512_kernels_active()) return {};
+  // Best occupancies of the sweep (bench/fmm/leaf_grid_sweep.py): ~24 / 50-70 / 70-150 / 150-300
+  // points at 3 / 6 / 9 / 12 digits. The upper size is the largest measured (1e6: errors 4.5e-8,
+  // 7.8e-8, 1.3e-8 at 1e-6 and 2.5e-11, 5.5e-11, 1.0e-11 at 1e-9, potential/gradient/Hessian).
+  switch (fmm_table_digits_for(eps)) {
+    case 3: return {24, 20000, 1000000};
+    case 6: return {60, 10000, 1000000};
+    case 9: return {120, 10000, 1000000};
+    default: return {200, 10000, 1000000};
+  }
+}
+}  // namespace
+
+namespace {
 // Loops over fewer boxes than this run on one thread: the fork/join (and, on a loaded machine, the
 // barrier spin) costs more than the work. Results do not depend on it (each item is one thread's).
 constexpr std::size_t kMinParallel = 32;
@@ -79,6 +109,7 @@ const detail::ChildTranslations& child_translations(int p) {
 struct LaplaceFmm::Plan {
   detail::Octree tree;
   int p = 0, digits = 0, leaf_capacity = 0;
+  double root_scale = 1.0;
   // W/X boxes with at most this many sources/targets are summed directly instead of by M2P/P2L;
   // with export_direct those direct sums are left to the caller (near_field() pairs).
   std::size_t direct_limit = 0;
@@ -139,14 +170,31 @@ void LaplaceFmm::set_points(std::span<const double> sources, std::span<const dou
   // Direct W/X sums beat M2P/P2L below ~p^2/2 points by operation counts (CGR 1999 §4). A caller
   // that takes them over (export_direct_far) has a kernel cheaper than nd Laplace densities, and
   // direct sums of whole leaves then win even more (measured: FmmRpy, bench/rpy/RESULTS.md).
-  plan->export_direct = options_.export_direct_far && !options_.near_field;
-  plan->direct_limit = std::size_t(plan->p) * std::size_t(plan->p) / 2;
-  if (plan->export_direct) plan->direct_limit = std::max(plan->direct_limit, std::size_t(plan->leaf_capacity));
   detail::OctreeParams tp;
   tp.leaf_capacity = std::size_t(plan->leaf_capacity);
   tp.min_leaf_side = options_.min_leaf_side;
   tp.root_scale = options_.root_scale;
   plan->tree.build(sources, targets, tp);
+  // Automatic leaves: the bounding-cube tree decides whether a fitted grid can pay, then the tree
+  // is rebuilt on it (fitted_grid_rule).
+  if (options_.leaf_capacity == 0 && options_.root_scale == 1.0) {
+    const FittedGridRule rule = fitted_grid_rule(options_.eps);
+    const std::size_t points = sources.size() / 3 + targets.size() / 3;
+    if (points >= rule.min_points && points <= rule.max_points &&
+        fitted_leaf_grid_pays(points, plan->tree.leaves().size(), rule.occupancy)) {
+      const LeafGrid grid = fit_leaf_grid(sources, targets, rule.occupancy);
+      if (grid.fitted()) {
+        plan->leaf_capacity = grid.leaf_capacity;
+        tp.leaf_capacity = std::size_t(grid.leaf_capacity);
+        tp.root_scale = grid.root_scale;
+        plan->tree.build(sources, targets, tp);
+      }
+    }
+  }
+  plan->root_scale = tp.root_scale;
+  plan->export_direct = options_.export_direct_far && !options_.near_field;
+  plan->direct_limit = std::size_t(plan->p) * std::size_t(plan->p) / 2;
+  if (plan->export_direct) plan->direct_limit = std::max(plan->direct_limit, std::size_t(plan->leaf_capacity));
   const double t_tree = sw.seconds();
   sw.restart();
   plan->H = &detail::Harmonics::cached(plan->p + 2);
@@ -192,6 +240,7 @@ TreeStats LaplaceFmm::stats() const {
   s.order = plan_->p;
   s.nlams = plan_->pw->nlams();
   s.leaf_capacity = plan_->leaf_capacity;
+  s.root_scale = plan_->root_scale;
   s.u_pairs = t.ulist().items.size();
   s.w_pairs = t.wlist().items.size();
   s.x_pairs = t.xlist().items.size();

@@ -10,6 +10,7 @@
 #include "common.hpp"
 #include "rpyfmm/fmm/direct.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
+#include "rpyfmm/fmm/leaf_grid.hpp"
 
 namespace rpyfmm::python {
 namespace {
@@ -68,6 +69,7 @@ nb::dict stats_dict(const fmm::TreeStats& s) {
   d["order"] = s.order;
   d["nlams"] = s.nlams;
   d["leaf_capacity"] = s.leaf_capacity;
+  d["root_scale"] = s.root_scale;
   d["u_pairs"] = s.u_pairs;
   d["w_pairs"] = s.w_pairs;
   d["x_pairs"] = s.x_pairs;
@@ -90,16 +92,18 @@ void bind_fmm(nb::module_& m) {
                               "Relative l2 error of each output <= eps.")
       .def(
           "__init__",
-          [](fmm::LaplaceFmm* self, double eps, int leaf_capacity, int order) {
+          [](fmm::LaplaceFmm* self, double eps, int leaf_capacity, int order, double root_scale) {
             fmm::FmmOptions o;
             o.eps = eps;
             o.leaf_capacity = leaf_capacity;
             o.order = order;
+            o.root_scale = root_scale;
             new (self) fmm::LaplaceFmm(o);
           },
-          nb::arg("eps") = 1e-6, nb::arg("leaf_capacity") = 0, nb::arg("order") = 0,
+          nb::arg("eps") = 1e-6, nb::arg("leaf_capacity") = 0, nb::arg("order") = 0, nb::arg("root_scale") = 1.0,
           "eps: requested relative l2 accuracy in [1e-15, 1e-1]; leaf_capacity: points per leaf (0 = automatic);\n"
-          "order: expansion order (0 = from eps).")
+          "order: expansion order (0 = from eps); root_scale: root box side over the points' bounding cube,\n"
+          "in [1, 8] (1 = the bounding cube; above 1 anchored at the low corner, see fit_leaf_grid).")
       .def(
           "set_points",
           [](fmm::LaplaceFmm& self, ArrayArg sources, OptArrayArg targets) {
@@ -170,6 +174,25 @@ void bind_fmm(nb::module_& m) {
       nb::arg("sources"), nb::arg("charges"), nb::arg("targets") = nb::none(), nb::arg("outputs") = "all",
       nb::arg("out") = nb::none(),
       "Exact O(N M) sums of 1/r (self pair skipped); same arguments and result layout as LaplaceFmm.evaluate.");
+
+  m.def("fmm_default_leaf_capacity", &fmm::fmm_default_leaf_capacity, nb::arg("eps"),
+        "Capacity (points per leaf before a split) the automatic leaves start from at this eps, chosen\n"
+        "per plane-wave table and P2P kernel by benchmark.");
+
+  m.def(
+      "fit_leaf_grid",
+      [](ArrayArg points, int occupancy, double min_fill) -> nb::object {
+        const std::string where = "fit_leaf_grid";
+        const InArray x = as_input(points, where, "points");
+        require_points(x, where, "points");
+        const fmm::LeafGrid grid = fmm::fit_leaf_grid(x.span(), {}, occupancy, min_fill);
+        if (!grid.fitted()) return nb::none();
+        return nb::make_tuple(grid.leaf_capacity, grid.root_scale);
+      },
+      nb::arg("points"), nb::arg("occupancy"), nb::arg("min_fill") = 0.0,
+      "(leaf_capacity, root_scale) for LaplaceFmm whose leaves hold about `occupancy` of these points\n"
+      "(the root box enlarged so that whole leaves span the cloud), or None where the points fill less\n"
+      "than min_fill of their bounding cube or fewer than two leaves per side would result.");
 }
 
 }  // namespace rpyfmm::python

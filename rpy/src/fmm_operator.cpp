@@ -14,6 +14,7 @@
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
+#include "rpyfmm/fmm/leaf_grid.hpp"
 #include "rpyfmm/rpy/rpy_kernel.hpp"
 
 namespace rpyfmm::rpy {
@@ -48,21 +49,19 @@ int default_leaf_capacity(double eps) {
   }
 }
 
-// Automatic leaves fitted to the cloud (bench/rpy/RESULTS.md "Fitted leaf grid"). An octree over
-// the bounding cube of a uniform cloud has leaves of N / 8^L points: factor-8 steps. Where the
-// best occupancy falls between two steps (e.g. ~60 points at 6 digits, between the 24 and 195 of
-// a uniform N = 1e5 cloud), the root is enlarged to 2^L / k bounding-cube sides (anchored at the
-// low corner) so that k leaves of the chosen occupancy span the cloud per side, k from
-// N / (fill * k^3) = occupancy, fill = the occupied fraction of the bounding cube (a histogram).
+// Automatic leaves fitted to the cloud (bench/rpy/RESULTS.md "Fitted leaf grid"; fmm::fit_leaf_grid
+// enlarges the root so that leaves of a chosen occupancy span the cloud, instead of the octree's
+// factor-8 steps: a uniform N = 1e5 cloud gets 24 or 195 points per leaf, ~60 is best at 6 digits).
 // Measured without AVX-512, 1 thread: at 1e-6, N = 1e5, uniform suspension 2.96 -> 2.28 s
 // (195 -> 58 points per leaf), cylinder surface 2.33 -> 2.07 s, eight spheres 3.37 -> 2.70 s;
 // at 1e-3, spherical BD cloud, 1.0-1.28x from N = 2e3 to 1e5 and 1.33x at 2e5.
-struct LeafGrid {
-  int capacity = 0;
-  double root_scale = 1.0;
-};
 
-// Where the fitted grid is used, per plane-wave table (without AVX-512; not measured with it):
+// Where the fitted grid is used, per plane-wave table, without AVX-512. With the AVX-512 kernels
+// (Intel machine, session 7) leaves of 20-60 points at 1e-3, 40-150 at 1e-6 and 100-250 at 1e-9
+// were no faster than the bounding-cube tree's 200 / 400 / 600-point capacities on suspensions and
+// cylinders of 1e4 ... 2e5 points, mostly slower (cylinder 1e5 at 1e-6: 0.93 -> 1.13 s at 60):
+// the near field is cheap enough there that large leaves pay. One gain (suspension 2e5 at 1e-6,
+// 3.27 -> 2.47 s) alone did not justify a rule. Per plane-wave table:
 // the target occupancy and the point counts measured to gain. The upper end at 6 digits is set
 // by accuracy: smaller leaves move work into the far field, whose 6-digit plane-wave error then
 // weighs more (uniform suspension at 1e-6: 5.9e-7 -> 6.8e-7 at N = 1e5, but 9.8e-7 at 5e5 and
@@ -85,42 +84,14 @@ FittedGridRule fitted_grid_rule(double eps) {
   }
 }
 
-// The fitted grid replaces the bounding-cube tree only where that tree's leaves hold on average
-// more than this many times the target occupancy (cost ~ occupancy / target + target / occupancy: at
-// N = 3e5 the bounding-cube tree already has 73 points per leaf, and the fitted one, with one
-// level more, was 6% slower).
-constexpr double kFittedGridMinGain = 1.7;
-
-// The fitted grid for these points, whose bounding-cube tree has `cube_leaves` leaves, or {0, 1}
+// The fitted grid for these points, whose bounding-cube tree has `cube_leaves` leaves, or none
 // where it does not apply.
-LeafGrid fitted_leaf_grid(std::span<const double> x, const std::array<double, 3>& lo, double side, double eps,
-                          std::size_t cube_leaves) {
-  LeafGrid grid{0, 1.0};
+fmm::LeafGrid fitted_leaf_grid(std::span<const double> x, double eps, std::size_t cube_leaves) {
   const FittedGridRule rule = fitted_grid_rule(eps);
-  const int occupancy = rule.occupancy;
   const std::size_t n = x.size() / 3;
-  if (occupancy == 0 || !(side > 0.0) || n < rule.min_points || n > rule.max_points) return grid;
-  if (double(n) <= kFittedGridMinGain * occupancy * double(cube_leaves)) return grid;
-  // Occupied fraction of the bounding cube on a grid of ~8 points per cell (at most 32^3 cells).
-  const int g = std::clamp(static_cast<int>(std::cbrt(double(n) / 8.0)), 2, 32);
-  std::vector<char> occupied(std::size_t(g) * g * g, 0);
-  for (std::size_t i = 0; i < n; ++i) {
-    std::size_t cell = 0;
-    for (int c = 0; c < 3; ++c) {
-      const int j = std::clamp(static_cast<int>((x[3 * i + c] - lo[c]) / side * g), 0, g - 1);
-      cell = cell * g + j;
-    }
-    occupied[cell] = 1;
-  }
-  const double fill = double(std::count(occupied.begin(), occupied.end(), 1)) / double(occupied.size());
-  if (fill < rule.min_fill) return grid;
-  const auto k = static_cast<int>(std::lround(std::cbrt(double(n) / (fill * occupancy))));
-  if (k < 2) return grid;
-  int level_boxes = 1;
-  while (level_boxes < k) level_boxes *= 2;
-  grid.root_scale = double(level_boxes) / double(k);
-  grid.capacity = 2 * occupancy;  // leaves of ~occupancy points stay; their parents (~8x) split
-  return grid;
+  if (rule.occupancy == 0 || n < rule.min_points || n > rule.max_points) return {};
+  if (!fmm::fitted_leaf_grid_pays(n, cube_leaves, rule.occupancy)) return {};
+  return fmm::fit_leaf_grid(x, {}, rule.occupancy, rule.min_fill);
 }
 
 // Trees with fewer leaves evaluate each directed leaf pair on its own (one colour, parallel over
@@ -173,12 +144,9 @@ void FmmRpy::on_positions_set() {
   // Automatic leaves: the bounding-cube tree's mean leaf occupancy decides whether the fitted
   // grid pays; then the tree is rebuilt on it.
   if (options_.leaf_capacity == 0) {
-    const double side = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
-    std::array<double, 3> centered_lo;
-    for (int c = 0; c < 3; ++c) centered_lo[c] = lo[c] - 0.5 * (lo[c] + hi[c]);
-    const LeafGrid fitted = fitted_leaf_grid(centered_, centered_lo, side, laplace_eps_, fmm_->stats().leaves);
-    if (fitted.capacity > 0) {
-      fo.leaf_capacity = fitted.capacity;
+    const fmm::LeafGrid fitted = fitted_leaf_grid(centered_, laplace_eps_, fmm_->stats().leaves);
+    if (fitted.fitted()) {
+      fo.leaf_capacity = fitted.leaf_capacity;
       fo.root_scale = fitted.root_scale;
       fmm_ = std::make_unique<fmm::LaplaceFmm>(fo);
       fmm_->set_points(centered_);

@@ -91,3 +91,31 @@ def test_fmm_results_independent_of_threads():
     finally:
         rpyfmm.set_num_threads(old)
     np.testing.assert_array_equal(one, two)
+
+
+def test_fitted_leaf_grid_from_python():
+    # 8e3 uniform points at ~27 per leaf: k = round(cbrt(8000 / 27)) = 7 boxes per side at level 3,
+    # root 8/7 of the bounding cube, capacity 54; the FMM on that grid still meets eps.
+    rng = np.random.default_rng(4)
+    x = rng.uniform(0.0, 1.0, size=(8000, 3))
+    q = rng.standard_normal(8000)
+    capacity, root_scale = rpyfmm.fit_leaf_grid(x, 27)
+    assert capacity == 54 and root_scale == pytest.approx(8.0 / 7.0)
+    assert rpyfmm.fit_leaf_grid(x[:10], 27) is None
+    with pytest.raises(rpyfmm.InvalidArgumentError, match="occupancy"):
+        rpyfmm.fit_leaf_grid(x, 0)
+    fmm = rpyfmm.LaplaceFmm(eps=1e-6, leaf_capacity=capacity, root_scale=root_scale)
+    fmm.set_points(x)
+    stats = fmm.stats()
+    assert stats["root_scale"] == pytest.approx(8.0 / 7.0) and stats["leaf_capacity"] == 54
+    assert 250 <= stats["leaves"] <= 343
+    ref = rpyfmm.laplace_direct(x, q)
+    res = fmm.evaluate(q)
+    for c0, c1 in ((0, 1), (1, 4), (4, 10)):
+        assert np.linalg.norm(res[:, c0:c1] - ref[:, c0:c1]) <= 1e-6 * np.linalg.norm(ref[:, c0:c1])
+    small = rpyfmm.LaplaceFmm(eps=1e-6)  # 1000 points: below the fitted grid's sizes
+    small.set_points(x[:1000])
+    assert small.stats()["leaf_capacity"] == rpyfmm.fmm_default_leaf_capacity(1e-6)
+    assert small.stats()["root_scale"] == 1.0
+    with pytest.raises(rpyfmm.InvalidArgumentError, match="root_scale"):
+        rpyfmm.LaplaceFmm(eps=1e-6, root_scale=0.5)

@@ -31,8 +31,10 @@ struct FmmOptions {
   /// Requested relative l2 accuracy of each output, in [1e-15, 1e-1]. The plane-wave table is the
   /// one of the next tighter of 1e-3, 1e-6, 1e-9, 1e-12; below 1e-12 the accuracy saturates near 1e-13.
   double eps = 1e-6;
-  /// Points per leaf before a box is split; 0 = automatic (chosen per eps and P2P kernel by
-  /// benchmark: fmm_default_leaf_capacity).
+  /// Points per leaf before a box is split; 0 = automatic: fmm_default_leaf_capacity (chosen per
+  /// eps and P2P kernel by benchmark), and where that tree's leaves hold well above the best
+  /// occupancy (with the AVX-512 kernels, from 1e4 to 1e6 points), leaves fitted to the cloud
+  /// instead (fit_leaf_grid, leaf_grid.hpp). stats() reports the capacity and root scale used.
   int leaf_capacity = 0;
   /// Boxes are never split below this side: every pair of points closer than this is in the
   /// near field (U list). 0 = no limit.
@@ -50,7 +52,8 @@ struct FmmOptions {
   /// Side of the root box as a multiple of the points' bounding cube, in [1, 8]. 1 (default): the
   /// bounding cube, centred. Above 1 the root is anchored at the points' low corner, so that with
   /// root_scale = 2^L / k the points span exactly k boxes per side at level L: leaves of a chosen
-  /// occupancy instead of the octree's factor-8 steps (FmmRpy's automatic leaves use this).
+  /// occupancy instead of the octree's factor-8 steps (fit_leaf_grid; the automatic leaves use
+  /// this). With root_scale != 1 and leaf_capacity = 0 the automatic capacity is used as it is.
   double root_scale = 1.0;
   /// Expansion order; 0 = from eps (FMM3D's rule, PLANEWAVE.md §1.5).
   int order = 0;
@@ -63,7 +66,8 @@ struct TreeStats {
   std::size_t memory_bytes = 0;  // tree + lists + plan tables (per-apply buffers not included)
   int order = 0;                 // expansion order p
   int nlams = 0;                 // plane-wave quadrature nodes
-  int leaf_capacity = 0;
+  int leaf_capacity = 0;         // split threshold of the tree built (the automatic one if chosen)
+  double root_scale = 1.0;       // root side / bounding-cube side of the tree built
   std::size_t u_pairs = 0, w_pairs = 0, x_pairs = 0;
 };
 
