@@ -51,16 +51,16 @@ bool mobility_method_available(MobilityMethod method) {
   return false;
 }
 
-// Measured crossovers (bench/bd/RESULTS.md "Auto crossover"): on the AVX2 machine (AMD Zen 1,
-// 1 thread, phi = 0.05 cloud, median products) FmmRpy overtakes DirectRpy at ~1400 / 3500 /
-// 6500 / 11000 particles for 3 / 6 / 9 / 12 digits. With the AVX-512 direct kernels (Intel
-// machine, session 2) the 3-digit crossover was 2000-3000 BD particles; the other digits are
-// scaled by the same factor 2 (not measured there).
+// Measured crossovers (bench/bd/RESULTS.md "Auto crossover"; 1 thread, phi = 0.05 cloud, median
+// products): FmmRpy overtakes DirectRpy at ~1400 / 3500 / 6500 / 11000 particles for 3 / 6 / 9 /
+// 12 digits on the AVX2 machine (AMD Zen 1, session 6), and at ~2000 / 5000 / 12000 / 20000 with
+// the AVX-512 direct kernels (Intel machine, session 7).
 std::size_t default_fmm_crossover(double tolerance) {
   require_in_range(tolerance, 1e-15, 0.5, "default_fmm_crossover", "tolerance");
   const int digits = fmm::fmm_table_digits_for(tolerance);
-  const std::size_t avx2_crossover = digits <= 3 ? 1500 : digits <= 6 ? 3500 : digits <= 9 ? 7000 : 11000;
-  return fmm::detail::avx512_kernels_active() ? 2 * avx2_crossover : avx2_crossover;
+  static constexpr std::size_t avx2[] = {1500, 3500, 7000, 11000}, avx512[] = {2000, 5000, 12000, 20000};
+  const std::size_t table = digits <= 3 ? 0 : digits <= 6 ? 1 : digits <= 9 ? 2 : 3;
+  return fmm::detail::avx512_kernels_active() ? avx512[table] : avx2[table];
 }
 
 namespace {
