@@ -161,7 +161,7 @@ int main(int argc, char** argv) {
               "\"setup_s\": %.4f, \"eval_s\": %.4f, \"err_pot\": %.2e, \"err_grad\": %.2e, \"err_hess\": %.2e, "
               "\"peak_rss_mb\": %.1f, \"bytes_per_particle\": %.0f, \"direct_s\": %.4f, \"stages\": {",
               n, dist.c_str(), eps, nd, outputs, omp_get_max_threads(), st.order, st.nlams, st.leaf_capacity,
-              opt.root_scale, st.levels, st.boxes, st.leaves, t_setup, t_eval, err[0], err[1], err[2], peak_rss_mb(),
+              st.root_scale, st.levels, st.boxes, st.leaves, t_setup, t_eval, err[0], err[1], err[2], peak_rss_mb(),
               peak_rss_mb() * 1048576.0 / double(n), t_direct);
   bool first = true;
   for (const auto& [k, v] : stages) {
