@@ -1,6 +1,12 @@
 // PSE: CPU and CUDA operators agree for the same positions, forces, seed and step.
-// Skips cleanly without a usable device (any CUDA error counts as none).
+// Skips cleanly without a usable device (any CUDA error counts as none), unless
+// RPYFMM_EXPECT_CUDA is set (scripts/gpu-check.sh sets it on the GPU machine): then a missing or
+// unusable device is a failure, so that a broken setup cannot pass by skipping.
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <vector>
 
 #include "ewald_reference.hpp"
 #include "rpyfmm/core/error.hpp"
@@ -10,20 +16,49 @@
 using namespace rpyfmm::rpy;
 using namespace rpyfmm::rpy::pse;
 
+namespace {
+bool device_expected() {
+  return std::getenv("RPYFMM_EXPECT_CUDA") != nullptr;
+}
+}  // namespace
+
+#define REQUIRE_DEVICE()                                                                       \
+  do {                                                                                         \
+    if (!PseRpyCuda::device_available()) {                                                     \
+      if (device_expected()) FAIL() << "RPYFMM_EXPECT_CUDA is set, but no usable CUDA device"; \
+      GTEST_SKIP() << "no usable CUDA device";                                                 \
+    }                                                                                          \
+  } while (false)
+
+// Without a device the operator refuses at construction; with one it constructs (no skip on the
+// GPU machine, where gpu-check.sh treats any skipped test as a failure).
 TEST(PseCuda, NoDeviceMeansCleanRefusal) {
-  if (PseRpyCuda::device_available()) GTEST_SKIP() << "a device is present";
+  if (PseRpyCuda::device_available()) {
+    EXPECT_NO_THROW(PseRpyCuda(Geometry::periodic(20.0), 1.0));
+    return;
+  }
+  if (device_expected()) FAIL() << "RPYFMM_EXPECT_CUDA is set, but no usable CUDA device";
   EXPECT_THROW(PseRpyCuda(Geometry::periodic(20.0), 1.0), rpyfmm::Error);
 }
 
 TEST(PseCuda, CpuAndGpuAgree) {
-  if (!PseRpyCuda::device_available()) GTEST_SKIP() << "no usable CUDA device";
-  for (const std::array<double, 3> L : {std::array<double, 3>{14.0, 14.0, 14.0}, {12.0, 15.0, 10.0}}) {
+  REQUIRE_DEVICE();
+  // A cube and a rectangular box with the grids chosen from the tolerance (odd Nz), and one with
+  // an explicit even grid, so that the Nyquist planes of all three axes are exercised too.
+  struct Box {
+    std::array<double, 3> L;
+    std::array<int, 3> grid;
+  };
+  for (const Box& box : {Box{{14.0, 14.0, 14.0}, {0, 0, 0}}, Box{{12.0, 15.0, 10.0}, {0, 0, 0}},
+                         Box{{13.0, 13.0, 15.0}, {36, 36, 40}}}) {
+    const auto& L = box.L;
     const auto x = pse_test::random_points(500, L, 51);
     auto f = pse_test::random_points(500, {2.0, 2.0, 2.0}, 52);
     for (auto& v : f) v -= 1.0;
     PseOptions o;
     o.tolerance = 1e-6;
     o.xi = 1.0;
+    o.grid = box.grid;
     PseRpy cpu(Geometry::periodic(L[0], L[1], L[2]), 1.0, o);
     PseRpyCuda gpu(Geometry::periodic(L[0], L[1], L[2]), 1.0, o);
     cpu.set_positions(x, 1.0);
@@ -45,5 +80,33 @@ TEST(PseCuda, CpuAndGpuAgree) {
     const SqrtReport sc = cpu.sample(17, 6, uc);
     const SqrtReport sg = gpu.sample(17, 6, ug);
     EXPECT_LT(pse_test::rel_l2(ug, uc), sampler_bound(sc, sg)) << sc.iterations << " vs " << sg.iterations;
+    // The split M^{1/2} z of a given z (wave noise keyed by the hash of z).
+    const SqrtReport qc = cpu.apply_sqrt(f, uc);
+    const SqrtReport qg = gpu.apply_sqrt(f, ug);
+    EXPECT_LT(pse_test::rel_l2(ug, uc), sampler_bound(qc, qg)) << qc.iterations << " vs " << qg.iterations;
+    // Two right-hand sides at once.
+    std::vector<double> f2(2 * f.size()), uc2(f2.size()), ug2(f2.size());
+    for (std::size_t i = 0; i < f.size(); ++i) {
+      f2[i] = f[i];
+      f2[f.size() + i] = 0.5 - f[i] * f[i];
+    }
+    cpu.apply_block(f2, uc2, 2);
+    gpu.apply_block(f2, ug2, 2);
+    EXPECT_LT(pse_test::rel_l2(ug2, uc2), 1e-12);
+    // New positions in the same plan (moved particles, other neighbour counts), then fewer particles.
+    auto moved = x;
+    for (std::size_t i = 0; i < moved.size(); ++i) moved[i] += 0.7 * std::sin(1.3 * double(i));
+    cpu.set_positions(moved, 1.0);
+    gpu.set_positions(moved, 1.0);
+    cpu.apply(f, uc);
+    gpu.apply(f, ug);
+    EXPECT_LT(pse_test::rel_l2(ug, uc), 1e-12) << "moved";
+    const std::vector<double> fewer(x.begin(), x.begin() + 3 * 300), f300(f.begin(), f.begin() + 3 * 300);
+    cpu.set_positions(fewer, 1.0);
+    gpu.set_positions(fewer, 1.0);
+    std::vector<double> uc3(f300.size()), ug3(f300.size());
+    cpu.apply(f300, uc3);
+    gpu.apply(f300, ug3);
+    EXPECT_LT(pse_test::rel_l2(ug3, uc3), 1e-12) << "300 particles";
   }
 }

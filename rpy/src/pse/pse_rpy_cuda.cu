@@ -237,6 +237,7 @@ struct PseRpyCuda::Impl {
       spread_kernel<<<static_cast<unsigned>(np), 128>>>(static_cast<int>(np), x.get(), f.get(), grid.get(), window);
       check_kernel("spread kernel");
       check_fft(cufftExecD2Z(plan_fwd, grid.get(), reinterpret_cast<cufftDoubleComplex*>(spectrum.get())), "D2Z");
+      check_kernel("D2Z");  // cuFFT faults are asynchronous: name them here, not at the next kernel
     }
     const bool with_noise = key != nullptr && noise_scale != 0.0;
     scale_kernel<<<blocks_for(modes.modes, 256), 256>>>(modes, ck.get(), spectrum.get(), deterministic, with_noise,
@@ -244,6 +245,7 @@ struct PseRpyCuda::Impl {
                                                          noise_scale / std::sqrt(dv));
     check_kernel("scale kernel");
     check_fft(cufftExecZ2D(plan_bwd, reinterpret_cast<cufftDoubleComplex*>(spectrum.get()), grid.get()), "Z2D");
+    check_kernel("Z2D");
     u.resize(n3);
     interpolate_kernel<<<static_cast<unsigned>(np), kInterpThreads>>>(static_cast<int>(np), x.get(), grid.get(),
                                                                       u.get(), window, dv);
