@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "rpyfmm/core/validate.hpp"
@@ -19,6 +20,11 @@ LeafGrid fit_leaf_grid(std::span<const double> sources, std::span<const double> 
           "occupancy must be >= 1 point per leaf, got " + std::to_string(occupancy));
   require(min_fill >= 0.0 && min_fill <= 1.0, ErrorCode::invalid_argument, where,
           "min_fill must be in [0, 1], got " + std::to_string(min_fill));
+  for (const auto& [pts, name] : {std::pair{sources, "sources"}, std::pair{targets, "targets"}}) {
+    require(pts.size() % 3 == 0, ErrorCode::invalid_input, where,
+            std::string(name) + " has " + std::to_string(pts.size()) + " entries, not a multiple of 3");
+    require_finite(pts, where, name, 3);
+  }
   const std::size_t n = sources.size() / 3 + targets.size() / 3;
   LeafGrid grid;
   if (n < 2) return grid;

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include "fmm_accuracy_util.hpp"
@@ -85,6 +86,12 @@ TEST(FmmLeafGrid, BadArgumentsNameTheProblem) {
   expect_error([&] { (void)fit_leaf_grid(x, {}, 0); }, "occupancy");
   expect_error([&] { (void)fit_leaf_grid(x, {}, 50, -0.1); }, "min_fill");
   expect_error([&] { (void)fit_leaf_grid(x, {}, 50, std::nan("")); }, "min_fill");
+  auto bad = x;
+  bad[7] = std::nan("");
+  expect_error([&] { (void)fit_leaf_grid(bad, {}, 50); }, "sources");
+  bad[7] = std::numeric_limits<double>::infinity();
+  expect_error([&] { (void)fit_leaf_grid(x, bad, 50); }, "targets");
+  expect_error([&] { (void)fit_leaf_grid(std::vector<double>(10, 0.5), {}, 5); }, "multiple of 3");
   EXPECT_FALSE(rpyfmm::fmm::fitted_leaf_grid_pays(1000, 10, 60));  // 100 per leaf < 1.7 x 60
   EXPECT_TRUE(rpyfmm::fmm::fitted_leaf_grid_pays(1100, 10, 60));   // 110 > 102
   EXPECT_FALSE(rpyfmm::fmm::fitted_leaf_grid_pays(1100, 10, 0));

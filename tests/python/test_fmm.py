@@ -104,6 +104,10 @@ def test_fitted_leaf_grid_from_python():
     assert rpyfmm.fit_leaf_grid(x[:10], 27) is None
     with pytest.raises(rpyfmm.InvalidArgumentError, match="occupancy"):
         rpyfmm.fit_leaf_grid(x, 0)
+    bad = x.copy()
+    bad[3, 1] = np.nan
+    with pytest.raises(rpyfmm.InvalidInputError, match="points|sources"):
+        rpyfmm.fit_leaf_grid(bad, 27)
     fmm = rpyfmm.LaplaceFmm(eps=1e-6, leaf_capacity=capacity, root_scale=root_scale)
     fmm.set_points(x)
     stats = fmm.stats()

@@ -25,7 +25,8 @@ struct LeafGrid {
 /// less than `min_fill` of their bounding cube, or where fewer than two boxes per side would
 /// result. The fill is measured on a histogram of ~8 points per cell (at most 32^3 cells); the
 /// capacity is 2 x occupancy, so that leaves of ~occupancy points stay and their parents (~8x)
-/// split. O(N). Throws rpyfmm::Error for occupancy < 1 or min_fill outside [0, 1].
+/// split. O(N). Throws rpyfmm::Error for occupancy < 1, min_fill outside [0, 1], coordinate
+/// arrays whose length is not a multiple of 3, or non-finite coordinates.
 [[nodiscard]] LeafGrid fit_leaf_grid(std::span<const double> sources, std::span<const double> targets, int occupancy,
                                      double min_fill = 0.0);
 
