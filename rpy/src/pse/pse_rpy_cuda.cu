@@ -11,6 +11,7 @@
 #include <cuda_runtime.h>
 #include <cufft.h>
 
+#include <algorithm>
 #include <cstdlib>
 
 #include <numbers>
@@ -178,16 +179,16 @@ __global__ void scale_kernel(detail::ModeGeometry g, const double* __restrict__ 
 
 __global__ void real_space_kernel(int np, const double* __restrict__ x, const double* __restrict__ f, double* out,
                                   const unsigned long long* __restrict__ begin, const int* __restrict__ list,
-                                  const double* __restrict__ table, double inv_dr, double self, double m0,
-                                  double L0, double L1, double L2) {
+                                  const double* __restrict__ table, double inv_dr, double self, double m0, double3 L,
+                                  double3 inv_L) {
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
   if (i >= np) return;
   double u[3] = {self * f[3 * i], self * f[3 * i + 1], self * f[3 * i + 2]};
   for (unsigned long long q = begin[i]; q < begin[i + 1]; ++q) {
     const int j = list[q];
-    const double dx = detail::minimum_image(x[3 * i] - x[3 * j], L0, 1.0 / L0);
-    const double dy = detail::minimum_image(x[3 * i + 1] - x[3 * j + 1], L1, 1.0 / L1);
-    const double dz = detail::minimum_image(x[3 * i + 2] - x[3 * j + 2], L2, 1.0 / L2);
+    const double dx = detail::minimum_image(x[3 * i] - x[3 * j], L.x, inv_L.x);
+    const double dy = detail::minimum_image(x[3 * i + 1] - x[3 * j + 1], L.y, inv_L.y);
+    const double dz = detail::minimum_image(x[3 * i + 2] - x[3 * j + 2], L.z, inv_L.z);
     const double r = sqrt(dx * dx + dy * dy + dz * dz);
     if (r == 0.0) {
       for (int c = 0; c < 3; ++c) u[c] += self * f[3 * j + c];
@@ -216,6 +217,7 @@ struct PseRpyCuda::Impl {
   cufftHandle plan_fwd = 0, plan_bwd = 0;
   bool have_fwd = false, have_bwd = false;
   DeviceArray<double> ck, grid, spectrum, x, f, u, table;
+  DeviceArray<unsigned char> fft_work;  // one cuFFT work area, shared by the two plans (run in turn)
   DeviceArray<unsigned long long> begin;
   DeviceArray<int> list;
 
@@ -264,8 +266,9 @@ struct PseRpyCuda::Impl {
       f.upload(f_host + r * n3, n3);
       u.resize(n3);
       real_space_kernel<<<blocks_for(np, 128), 128>>>(static_cast<int>(np), x.get(), f.get(), u.get(), begin.get(),
-                                                      list.get(), table.get(), 1.0 / real->table().dr(),
-                                                      real->self(), real->mobility_unit(), L[0], L[1], L[2]);
+                                                      list.get(), table.get(), 1.0 / real->table().dr(), real->self(),
+                                                      real->mobility_unit(), make_double3(L[0], L[1], L[2]),
+                                                      make_double3(1.0 / L[0], 1.0 / L[1], 1.0 / L[2]));
       check_kernel("real-space kernel");
       u.download(h.data(), n3);
       double* o = out + r * n3;
@@ -321,6 +324,9 @@ void PseRpyCuda::on_positions_set() {
   if (!im.planned || im.params.radius != a || (im.options.xi == 0.0 && im.planned_n != n)) {
     im.planned = false;
     im.destroy_plans();
+    im.grid.resize(0);  // the old plan's big arrays do not count against the new one's memory check
+    im.spectrum.resize(0);
+    im.fft_work.resize(0);
     PseParameters p = choose_parameters(im.options, a, L, n);
     for (int d = 0; d < 3; ++d)
       require(p.support[d] <= kMaxSupport, ErrorCode::not_supported, kWhere,
@@ -340,17 +346,40 @@ void PseRpyCuda::on_positions_set() {
     im.window.c3 = std::pow(2.0 * std::numbers::pi * p.sigma * p.sigma, -1.5);
     im.window.ng = static_cast<std::size_t>(p.grid[0]) * p.grid[1] * p.grid[2];
     im.dv = p.spacing[0] * p.spacing[1] * p.spacing[2];
+    // Plans with 64-bit sizes (a batch of 3 grids may exceed 2^31 elements) and without their own
+    // work areas: both run on the default stream one after the other, so they share one, and the
+    // plans' sizes are known before anything large is allocated.
+    long long dims[3] = {p.grid[0], p.grid[1], p.grid[2]};
+    const auto ng = static_cast<long long>(im.window.ng);
+    const auto nm = static_cast<long long>(im.modes.modes);
+    std::size_t work_fwd = 0, work_bwd = 0;
+    check_fft(cufftCreate(&im.plan_fwd), "cufftCreate");
+    im.have_fwd = true;
+    check_fft(cufftSetAutoAllocation(im.plan_fwd, 0), "cufftSetAutoAllocation");
+    check_fft(cufftMakePlanMany64(im.plan_fwd, 3, dims, nullptr, 1, ng, nullptr, 1, nm, CUFFT_D2Z, 3, &work_fwd),
+              "cufftMakePlanMany64 D2Z");
+    check_fft(cufftCreate(&im.plan_bwd), "cufftCreate");
+    im.have_bwd = true;
+    check_fft(cufftSetAutoAllocation(im.plan_bwd, 0), "cufftSetAutoAllocation");
+    check_fft(cufftMakePlanMany64(im.plan_bwd, 3, dims, nullptr, 1, nm, nullptr, 1, ng, CUFFT_Z2D, 3, &work_bwd),
+              "cufftMakePlanMany64 Z2D");
+    const std::size_t work = std::max(work_fwd, work_bwd);
+    // The grid, the half spectrum and the work area are the device's big arrays: refuse a
+    // configuration that cannot fit before allocating any of them (the CPU path's memory check).
+    const std::size_t need = (3 * im.window.ng + 2 * 3 * im.modes.modes) * sizeof(double) + work;
+    std::size_t free_bytes = 0, total_bytes = 0;
+    check(cudaMemGetInfo(&free_bytes, &total_bytes), "cudaMemGetInfo");
+    require(need <= free_bytes, ErrorCode::out_of_memory, kWhere,
+            "the PSE grid " + std::to_string(p.grid[0]) + "x" + std::to_string(p.grid[1]) + "x" +
+                std::to_string(p.grid[2]) + " needs " + std::to_string(need >> 20) + " MiB on the device, " +
+                std::to_string(free_bytes >> 20) + " MiB are free; raise the tolerance or lower xi");
     im.grid.resize(3 * im.window.ng);
     im.spectrum.resize(2 * 3 * im.modes.modes);
-    int dims[3] = {p.grid[0], p.grid[1], p.grid[2]};
-    check_fft(cufftPlanMany(&im.plan_fwd, 3, dims, nullptr, 1, static_cast<int>(im.window.ng), nullptr, 1,
-                            static_cast<int>(im.modes.modes), CUFFT_D2Z, 3),
-              "cufftPlanMany D2Z");
-    im.have_fwd = true;
-    check_fft(cufftPlanMany(&im.plan_bwd, 3, dims, nullptr, 1, static_cast<int>(im.modes.modes), nullptr, 1,
-                            static_cast<int>(im.window.ng), CUFFT_Z2D, 3),
-              "cufftPlanMany Z2D");
-    im.have_bwd = true;
+    im.fft_work.resize(work);
+    if (work > 0) {
+      check_fft(cufftSetWorkArea(im.plan_fwd, im.fft_work.get()), "cufftSetWorkArea D2Z");
+      check_fft(cufftSetWorkArea(im.plan_bwd, im.fft_work.get()), "cufftSetWorkArea Z2D");
+    }
     im.params = p;
     im.planned = true;
     im.planned_n = n;
