@@ -2,9 +2,9 @@
 """LaplaceFmm automatic leaves (fitted grid where it applies) against the bounding-cube tree of
 the same automatic capacity (the previous automatic leaves), side by side on the same points.
 
-Usage: PYTHONPATH=build/release/python python3 bench/fmm/fitted_grid.py DISTS NS EPSS [REPEATS]
+Usage: PYTHONPATH=build/release/python python3 bench/fmm/fitted_grid.py DISTS NS EPSS [REPEATS [THREADS]]
   e.g. fitted_grid.py cube,sphere 1e4,3e4,1e5,2e5 1e-3,1e-6,1e-9,1e-12
-Pot + grad + Hessian at the sources, one density, 1 thread; the two plans' evaluations are
+Pot + grad + Hessian at the sources, one density, 1 thread (or THREADS); the two plans' evaluations are
 interleaved and the medians of REPEATS (default 7) are compared. Prints both times, the speed-up,
 the trees (leaves, capacity, root scale) and both plans' sampled errors against direct sums.
 """
@@ -34,9 +34,9 @@ def sampled_error(x, q, res, k=300):
 
 
 def main():
-    rpyfmm.set_num_threads(1)
     dists, ns, epss = sys.argv[1].split(","), sys.argv[2].split(","), sys.argv[3].split(",")
     repeats = int(sys.argv[4]) if len(sys.argv) > 4 else 7
+    rpyfmm.set_num_threads(int(sys.argv[5]) if len(sys.argv) > 5 else 1)
     for dist in dists:
         for n in (int(float(v)) for v in ns):
             x = points(dist, n)

@@ -69,25 +69,57 @@ namespace {
 // ~50), the root is enlarged so that leaves of the target occupancy span the cloud. Measured with
 // the AVX-512 kernels (Intel machine, pot + grad + Hessian, 1 thread, cube and sphere surface,
 // 1e4 ... 2e5 points, side by side): 1e-6 1.07-2.29x (2e5 cube), 1e-9 1.37-1.45x where it
-// applies, 1e-12 0.97-1.20x, 1e-3 0.99-1.09x; N = 1e6 cube at 1e-6 11.1 -> 6.4 s. Without them
-// the bounding-cube tree is kept (not measured: the P2P is ~3x dearer there and the default
-// capacities are already small).
+// applies, 1e-12 0.97-1.20x, 1e-3 0.99-1.09x; N = 1e6 cube at 1e-6 11.1 -> 6.4 s.
+// With the AVX2 / baseline kernels (AMD Zen-1 machine, session 8) the default capacities are
+// already small and the best occupancies are ~16 / 25-49 / 50-110 / 60-110 points; there the grid
+// is also fitted where a near-uniform cloud's bounding-cube tree is partly split (leaves on two
+// levels: a uniform cube of 1e5 points at 1e-9 and capacity 200, 195 points per box at level 3,
+// splits about half of them, and the W/X direct sums between the two levels cost 1.2 s of 4.5).
+
+// fit_leaf_grid's fill (occupied fraction of ~8-point cells) above which a cloud counts as near-uniform.
+constexpr double kUniformFill = 0.5;
+
 struct FittedGridRule {
   int occupancy = 0;  // 0: keep the bounding-cube tree
   std::size_t min_points = 0, max_points = 0;
+  bool refit_partial_split = false;  // also fit near-uniform clouds whose cube tree is partly split
+  double min_fill = 0.0;             // fit only clouds that fill at least this much of their cube
 };
 
 FittedGridRule fitted_grid_rule(double eps) {
-  if (!detail::avx512_kernels_active()) return {};
-  // Best occupancies of the sweep (bench/fmm/leaf_grid_sweep.py): ~24 / 50-70 / 70-150 / 150-300
-  // points at 3 / 6 / 9 / 12 digits. The upper size is the largest measured (1e6: errors 4.5e-8,
-  // 7.8e-8, 1.3e-8 at 1e-6 and 2.5e-11, 5.5e-11, 1.0e-11 at 1e-9, potential/gradient/Hessian).
-  switch (fmm_table_digits_for(eps)) {
-    case 3: return {24, 20000, 1000000};
-    case 6: return {60, 10000, 1000000};
-    case 9: return {120, 10000, 1000000};
-    default: return {200, 10000, 1000000};
+  if (detail::avx512_kernels_active()) {
+    // Best occupancies of the sweep (bench/fmm/leaf_grid_sweep.py): ~24 / 50-70 / 70-150 / 150-300
+    // points at 3 / 6 / 9 / 12 digits. The upper size is the largest measured (1e6: errors 4.5e-8,
+    // 7.8e-8, 1.3e-8 at 1e-6 and 2.5e-11, 5.5e-11, 1.0e-11 at 1e-9, potential/gradient/Hessian).
+    switch (fmm_table_digits_for(eps)) {
+      case 3: return {24, 20000, 1000000};
+      case 6: return {60, 10000, 1000000};
+      case 9: return {120, 10000, 1000000};
+      default: return {200, 10000, 1000000};
+    }
   }
+  // Side by side (bench/fmm/fitted_grid.py): at 9 and 12 digits surfaces gained nothing (0.92-1.02x)
+  // and 1e4 points at 12 digits neither (0.92x sphere, 0.99x cube): near-uniform clouds only there.
+  switch (fmm_table_digits_for(eps)) {
+    case 3: return {16, 10000, 1000000, true, 0.0};
+    case 6: return {36, 10000, 1000000, true, 0.0};
+    case 9: return {50, 10000, 1000000, true, kUniformFill};
+    default: return {70, 20000, 1000000, true, kUniformFill};
+  }
+}
+
+// Whether a tree's leaves are not (mostly) on one level: fewer than 80% of the points lie in the
+// leaves of its most populated leaf level. In a near-uniform cloud that means a partial split.
+bool partly_split(const detail::Octree& tree) {
+  std::vector<std::size_t> per_level(std::size_t(tree.nlevels()) + 1, 0);
+  std::size_t total = 0;
+  for (const int b : tree.leaves()) {
+    const auto& box = tree.boxes()[std::size_t(b)];
+    const std::size_t k = box.nsrc() + (tree.targets_are_sources() ? 0 : box.ntgt());
+    per_level[std::size_t(box.level)] += k;
+    total += k;
+  }
+  return total > 0 && double(*std::max_element(per_level.begin(), per_level.end())) < 0.8 * double(total);
 }
 }  // namespace
 
@@ -180,9 +212,12 @@ void LaplaceFmm::set_points(std::span<const double> sources, std::span<const dou
   if (options_.leaf_capacity == 0 && options_.root_scale == 1.0) {
     const FittedGridRule rule = fitted_grid_rule(options_.eps);
     const std::size_t points = sources.size() / 3 + targets.size() / 3;
-    if (points >= rule.min_points && points <= rule.max_points &&
-        fitted_leaf_grid_pays(points, plan->tree.leaves().size(), rule.occupancy)) {
-      const LeafGrid grid = fit_leaf_grid(sources, targets, rule.occupancy);
+    const bool in_range = points >= rule.min_points && points <= rule.max_points;
+    const bool pays = in_range && fitted_leaf_grid_pays(points, plan->tree.leaves().size(), rule.occupancy);
+    const bool partial = in_range && !pays && rule.refit_partial_split && partly_split(plan->tree);
+    if (pays || partial) {
+      const LeafGrid grid =
+          fit_leaf_grid(sources, targets, rule.occupancy, partial ? std::max(rule.min_fill, kUniformFill) : rule.min_fill);
       if (grid.fitted()) {
         plan->leaf_capacity = grid.leaf_capacity;
         tp.leaf_capacity = std::size_t(grid.leaf_capacity);

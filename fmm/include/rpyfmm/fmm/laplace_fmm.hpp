@@ -32,9 +32,10 @@ struct FmmOptions {
   /// one of the next tighter of 1e-3, 1e-6, 1e-9, 1e-12; below 1e-12 the accuracy saturates near 1e-13.
   double eps = 1e-6;
   /// Points per leaf before a box is split; 0 = automatic: fmm_default_leaf_capacity (chosen per
-  /// eps and P2P kernel by benchmark), and where that tree's leaves hold well above the best
-  /// occupancy (with the AVX-512 kernels, from 1e4 to 1e6 points), leaves fitted to the cloud
-  /// instead (fit_leaf_grid, leaf_grid.hpp). stats() reports the capacity and root scale used.
+  /// eps and P2P kernel by benchmark), and for 1e4 to 1e6 points, where that tree's leaves hold
+  /// well above the best occupancy (or, without the AVX-512 kernels, where a near-uniform cloud's
+  /// tree is partly split between two levels), leaves fitted to the cloud instead (fit_leaf_grid,
+  /// leaf_grid.hpp). stats() reports the capacity and root scale used.
   int leaf_capacity = 0;
   /// Boxes are never split below this side: every pair of points closer than this is in the
   /// near field (U list). 0 = no limit.
