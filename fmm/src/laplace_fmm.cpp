@@ -216,8 +216,8 @@ void LaplaceFmm::set_points(std::span<const double> sources, std::span<const dou
     const bool pays = in_range && fitted_leaf_grid_pays(points, plan->tree.leaves().size(), rule.occupancy);
     const bool partial = in_range && !pays && rule.refit_partial_split && partly_split(plan->tree);
     if (pays || partial) {
-      const LeafGrid grid =
-          fit_leaf_grid(sources, targets, rule.occupancy, partial ? std::max(rule.min_fill, kUniformFill) : rule.min_fill);
+      const double min_fill = partial ? std::max(rule.min_fill, kUniformFill) : rule.min_fill;
+      const LeafGrid grid = fit_leaf_grid(sources, targets, rule.occupancy, min_fill);
       if (grid.fitted()) {
         plan->leaf_capacity = grid.leaf_capacity;
         tp.leaf_capacity = std::size_t(grid.leaf_capacity);

@@ -130,7 +130,8 @@ TEST(FmmLeafGrid, AutomaticLeavesMeetTheTolerance) {
       {"cube 3e4 at 1e-6 (59 per leaf already)", fmmtest::cube(30000, 48), {}, 1e-6, false, false},
       {"cube 5e3 at 1e-6 (below the sizes)", fmmtest::cube(5000, 49), {}, 1e-6, false, false},
       // ~100 points per level-3 box at capacity 100: about half of the boxes split.
-      {"cube 5e4 at 1e-6 (partly split at capacity 100)", fmmtest::cube(50000, 52), {}, 1e-6, true, true},
+      // (AVX-512: capacity 400, 98 per leaf on one level, below the 1.7 x 60 gate: kept.)
+      {"cube 5e4 at 1e-6 (partly split at capacity 100)", fmmtest::cube(50000, 52), {}, 1e-6, false, true},
   };
   // Both kernel sets where the CPU has AVX-512 (detail::use_avx512_kernels switches them off).
   std::vector<bool> kernel_sets = {rpyfmm::fmm::detail::avx512_kernels_active()};
