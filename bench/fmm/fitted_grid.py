@@ -4,6 +4,7 @@ the same automatic capacity (the previous automatic leaves), side by side on the
 
 Usage: PYTHONPATH=build/release/python python3 bench/fmm/fitted_grid.py DISTS NS EPSS [REPEATS [THREADS]]
   e.g. fitted_grid.py cube,sphere 1e4,3e4,1e5,2e5 1e-3,1e-6,1e-9,1e-12
+Distributions: cube (uniform), sphere (surface), octant (surface octant), ball (uniform solid ball).
 Pot + grad + Hessian at the sources, one density, 1 thread (or THREADS); the two plans' evaluations are
 interleaved and the medians of REPEATS (default 7) are compared. Prints both times, the speed-up,
 the trees (leaves, capacity, root scale) and both plans' sampled errors against direct sums.
@@ -21,6 +22,8 @@ def points(dist, n, seed=12345):
         return rng.uniform(0.0, 1.0, (n, 3))
     v = rng.standard_normal((n, 3))
     v /= np.linalg.norm(v, axis=1)[:, None]
+    if dist == "ball":  # solid ball, uniform
+        return v * rng.uniform(0.0, 1.0, (n, 1)) ** (1.0 / 3.0)
     return np.abs(v) if dist == "octant" else v
 
 
@@ -57,7 +60,8 @@ def main():
                 a, b = np.median(times["cube"]), np.median(times["auto"])
                 sa, sb = cube.stats(), auto.stats()
                 print(f"{dist:6s} N={n:>7d} eps={eps:.0e}: bounding cube {a:.4f} s ({sa['leaves']} leaves, cap "
-                      f"{sa['leaf_capacity']}), auto {b:.4f} s ({sb['leaves']} leaves, cap {sb['leaf_capacity']}, "
+                      f"{sa['leaf_capacity']}, level share {sa['leaf_level_share']:.3f}), auto {b:.4f} s "
+                      f"({sb['leaves']} leaves, cap {sb['leaf_capacity']}, "
                       f"root {sb['root_scale']:.3f}), speed-up {a / b:.2f}x, err {sampled_error(x, q, results['cube']):.1e}"
                       f" -> {sampled_error(x, q, results['auto']):.1e}", flush=True)
 

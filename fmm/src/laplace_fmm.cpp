@@ -78,12 +78,20 @@ namespace {
 
 // fit_leaf_grid's fill (occupied fraction of ~8-point cells) above which a cloud counts as near-uniform.
 constexpr double kUniformFill = 0.5;
+// Leaf-level shares below which a near-uniform cloud's tree counts as partly split: measured with
+// the AVX2 / baseline kernels at shares of ~0.5 (session 8); with the AVX-512 kernels (session 9)
+// refitting gained 1.39-1.56x at shares 0.83-0.89, 1.15-1.28x at 0.93-0.96, 1.03x at 0.99, and
+// lost up to 14% at 1 (one level).
+constexpr double kPartialShare = 0.8;
+constexpr double kPartialShareAvx512 = 0.97;
 
 struct FittedGridRule {
   int occupancy = 0;  // 0: keep the bounding-cube tree
   std::size_t min_points = 0, max_points = 0;
-  bool refit_partial_split = false;  // also fit near-uniform clouds whose cube tree is partly split
-  double min_fill = 0.0;             // fit only clouds that fill at least this much of their cube
+  // Also fit near-uniform clouds whose cube tree is partly split: fewer than this share of the
+  // points in its most populated leaf level (TreeStats::leaf_level_share); 0: never.
+  double partial_split_share = 0.0;
+  double min_fill = 0.0;  // fit only clouds that fill at least this much of their cube
 };
 
 FittedGridRule fitted_grid_rule(double eps) {
@@ -91,26 +99,26 @@ FittedGridRule fitted_grid_rule(double eps) {
     // Best occupancies of the sweep (bench/fmm/leaf_grid_sweep.py): ~24 / 50-70 / 70-150 / 150-300
     // points at 3 / 6 / 9 / 12 digits. The upper size is the largest measured (1e6: errors 4.5e-8,
     // 7.8e-8, 1.3e-8 at 1e-6 and 2.5e-11, 5.5e-11, 1.0e-11 at 1e-9, potential/gradient/Hessian).
+    // Partly split trees are refitted too (AMD Zen-4 machine, session 9: 1.16-1.85x, see above).
     switch (fmm_table_digits_for(eps)) {
-      case 3: return {24, 20000, 1000000};
-      case 6: return {60, 10000, 1000000};
-      case 9: return {120, 10000, 1000000};
-      default: return {200, 10000, 1000000};
+      case 3: return {24, 20000, 1000000, kPartialShareAvx512};
+      case 6: return {60, 10000, 1000000, kPartialShareAvx512};
+      case 9: return {120, 10000, 1000000, kPartialShareAvx512};
+      default: return {200, 10000, 1000000, kPartialShareAvx512};
     }
   }
   // Side by side (bench/fmm/fitted_grid.py): at 9 and 12 digits surfaces gained nothing (0.92-1.02x)
   // and 1e4 points at 12 digits neither (0.92x sphere, 0.99x cube): near-uniform clouds only there.
   switch (fmm_table_digits_for(eps)) {
-    case 3: return {16, 10000, 1000000, true, 0.0};
-    case 6: return {36, 10000, 1000000, true, 0.0};
-    case 9: return {50, 10000, 1000000, true, kUniformFill};
-    default: return {70, 20000, 1000000, true, kUniformFill};
+    case 3: return {16, 10000, 1000000, kPartialShare, 0.0};
+    case 6: return {36, 10000, 1000000, kPartialShare, 0.0};
+    case 9: return {50, 10000, 1000000, kPartialShare, kUniformFill};
+    default: return {70, 20000, 1000000, kPartialShare, kUniformFill};
   }
 }
 
-// Whether a tree's leaves are not (mostly) on one level: fewer than 80% of the points lie in the
-// leaves of its most populated leaf level. In a near-uniform cloud that means a partial split.
-bool partly_split(const detail::Octree& tree) {
+// TreeStats::leaf_level_share of a tree.
+double leaf_level_share(const detail::Octree& tree) {
   std::vector<std::size_t> per_level(std::size_t(tree.nlevels()) + 1, 0);
   std::size_t total = 0;
   for (const int b : tree.leaves()) {
@@ -119,7 +127,7 @@ bool partly_split(const detail::Octree& tree) {
     per_level[std::size_t(box.level)] += k;
     total += k;
   }
-  return total > 0 && double(*std::max_element(per_level.begin(), per_level.end())) < 0.8 * double(total);
+  return total > 0 ? double(*std::max_element(per_level.begin(), per_level.end())) / double(total) : 1.0;
 }
 }  // namespace
 
@@ -214,7 +222,7 @@ void LaplaceFmm::set_points(std::span<const double> sources, std::span<const dou
     const std::size_t points = sources.size() / 3 + targets.size() / 3;
     const bool in_range = points >= rule.min_points && points <= rule.max_points;
     const bool pays = in_range && fitted_leaf_grid_pays(points, plan->tree.leaves().size(), rule.occupancy);
-    const bool partial = in_range && !pays && rule.refit_partial_split && partly_split(plan->tree);
+    const bool partial = in_range && !pays && leaf_level_share(plan->tree) < rule.partial_split_share;
     if (pays || partial) {
       const double min_fill = partial ? std::max(rule.min_fill, kUniformFill) : rule.min_fill;
       const LeafGrid grid = fit_leaf_grid(sources, targets, rule.occupancy, min_fill);
@@ -279,6 +287,7 @@ TreeStats LaplaceFmm::stats() const {
   s.u_pairs = t.ulist().items.size();
   s.w_pairs = t.wlist().items.size();
   s.x_pairs = t.xlist().items.size();
+  s.leaf_level_share = leaf_level_share(t);
   s.memory_bytes = t.memory_bytes() + (plan_->sx.size() + plan_->tx.size()) * 3 * sizeof(double);
   return s;
 }

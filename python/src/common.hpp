@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/fmm/laplace_fmm.hpp"
 #include "rpyfmm/rpy/geometry.hpp"
 #include "rpyfmm/rpy/sqrt.hpp"
 
@@ -117,6 +118,9 @@ rpy::SqrtOptions sqrt_options(const std::string& method, double tol, int max_ite
                               int bound_estimate_iterations);
 
 /// Registers the exception classes and the rpyfmm::Error translator (errors.cpp).
+// LaplaceFmm tree statistics (fmm::TreeStats) as a dict.
+nb::dict tree_stats_dict(const fmm::TreeStats& s);
+
 void bind_errors(nb::module_& m);
 void bind_fmm(nb::module_& m);
 void bind_mobility(nb::module_& m);

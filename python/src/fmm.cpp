@@ -60,7 +60,9 @@ std::vector<std::size_t> result_shape(const InArray& q, std::size_t m) {
   return {q.shape[0], m, fmm::result_width};
 }
 
-nb::dict stats_dict(const fmm::TreeStats& s) {
+}  // namespace
+
+nb::dict tree_stats_dict(const fmm::TreeStats& s) {
   nb::dict d;
   d["levels"] = s.levels;
   d["boxes"] = s.boxes;
@@ -73,10 +75,9 @@ nb::dict stats_dict(const fmm::TreeStats& s) {
   d["u_pairs"] = s.u_pairs;
   d["w_pairs"] = s.w_pairs;
   d["x_pairs"] = s.x_pairs;
+  d["leaf_level_share"] = s.leaf_level_share;
   return d;
 }
-
-}  // namespace
 
 void bind_fmm(nb::module_& m) {
   m.attr("POTENTIAL") = static_cast<unsigned>(fmm::potential);
@@ -144,7 +145,7 @@ void bind_fmm(nb::module_& m) {
       .def_prop_ro("num_sources", &fmm::LaplaceFmm::num_sources)
       .def_prop_ro("num_targets", &fmm::LaplaceFmm::num_targets)
       .def(
-          "stats", [](const fmm::LaplaceFmm& self) { return stats_dict(self.stats()); },
+          "stats", [](const fmm::LaplaceFmm& self) { return tree_stats_dict(self.stats()); },
           "Tree shape and plan memory: levels, boxes, leaves, memory_bytes, order, nlams, ...")
       .def("last_timings", &fmm::LaplaceFmm::last_timings,
            "Stage times in seconds of set_points and of the last evaluate.");

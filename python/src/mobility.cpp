@@ -14,6 +14,7 @@
 #include "rpyfmm/bd/mobility_factory.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
+#include "rpyfmm/fmm/laplace_fmm.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 
@@ -239,7 +240,13 @@ void bind_mobility(nb::module_& m) {
           "tolerance: relative l2 error of U in [1e-12, 1e-1]; leaf_capacity: 0 = automatic.")
       .def_prop_ro("tolerance", [](const rpy::FmmRpy& op) { return op.options().tolerance; })
       .def_prop_ro("laplace_eps", &rpy::FmmRpy::laplace_eps, "Tolerance handed to the Laplace FMM.")
-      .def("last_timings", &rpy::FmmRpy::last_timings, "Stage times (s) of the last apply.");
+      .def("last_timings", &rpy::FmmRpy::last_timings, "Stage times (s) of the last apply.")
+      .def(
+          "stats",
+          [](const rpy::FmmRpy& op) {
+            return op.laplace_plan() ? tree_stats_dict(op.laplace_plan()->stats()) : nb::dict();
+          },
+          "The Laplace FMM tree's statistics (as LaplaceFmm.stats()); empty before set_positions.");
 
   nb::class_<rpy::pse::PseRpy, MobilityOperator>(
       m, "PseRpy",

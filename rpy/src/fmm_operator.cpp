@@ -61,7 +61,9 @@ int default_leaf_capacity(double eps) {
 // were no faster than the bounding-cube tree's 200 / 400 / 600-point capacities on suspensions and
 // cylinders of 1e4 ... 2e5 points, mostly slower (cylinder 1e5 at 1e-6: 0.93 -> 1.13 s at 60):
 // the near field is cheap enough there that large leaves pay. One gain (suspension 2e5 at 1e-6,
-// 3.27 -> 2.47 s) alone did not justify a rule. Per plane-wave table:
+// 3.27 -> 2.47 s) was a partly split tree (leaves on two levels, share 0.67); session 9 (AMD
+// Zen-4, AVX-512) confirmed that gain and adopted refits of such trees at 6 digits only.
+// Per plane-wave table:
 // the target occupancy and the point counts measured to gain. The upper end at 6 digits is set
 // by accuracy: smaller leaves move work into the far field, whose 6-digit plane-wave error then
 // weighs more (uniform suspension at 1e-6: 5.9e-7 -> 6.8e-7 at N = 1e5, but 9.8e-7 at 5e5 and
@@ -71,10 +73,22 @@ struct FittedGridRule {
   int occupancy = 0;  // 0: keep the bounding cube
   std::size_t min_points = 0, max_points = 0;
   double min_fill = 0.0;  // least occupied fraction of the bounding cube (volume, not surface)
+  // Fit where the bounding-cube tree's mean occupancy is well above the target
+  // (fmm::fitted_leaf_grid_pays); otherwise only where it is partly split: fewer than
+  // partial_split_share of the points in its most populated leaf level (TreeStats::leaf_level_share).
+  bool by_mean_occupancy = true;
+  double partial_split_share = 0.0;
 };
 
 FittedGridRule fitted_grid_rule(double eps) {
-  if (fmm::detail::avx512_kernels_active()) return {};
+  if (fmm::detail::avx512_kernels_active()) {
+    // At 6 digits, partly split trees of volume-filling clouds only (AMD Zen-4 machine, session 9,
+    // bench/rpy/RESULTS.md "Partly split trees with the AVX-512 kernels"): uniform suspensions
+    // 1.17-1.22x (shares 0.67-0.69); balls (fill 0.58, share 0.82-0.94 from their curved edge)
+    // lost 0.74-0.99x, and at 3 digits every refit lost (0.78-0.88x).
+    if (fmm::fmm_table_digits_for(eps) == 6) return {60, 10000, 200000, 0.8, false, 0.97};
+    return {};
+  }
   switch (fmm::fmm_table_digits_for(eps)) {
     // Volume-filling clouds only: on surfaces (cylinder, eight spheres) leaves of 20 points were
     // 0.75-0.95x, their leaves have fewer neighbours and the near field costs less.
@@ -84,13 +98,15 @@ FittedGridRule fitted_grid_rule(double eps) {
   }
 }
 
-// The fitted grid for these points, whose bounding-cube tree has `cube_leaves` leaves, or none
+// The fitted grid for these points, whose bounding-cube tree is described by `cube`, or none
 // where it does not apply.
-fmm::LeafGrid fitted_leaf_grid(std::span<const double> x, double eps, std::size_t cube_leaves) {
+fmm::LeafGrid fitted_leaf_grid(std::span<const double> x, double eps, const fmm::TreeStats& cube) {
   const FittedGridRule rule = fitted_grid_rule(eps);
   const std::size_t n = x.size() / 3;
   if (rule.occupancy == 0 || n < rule.min_points || n > rule.max_points) return {};
-  if (!fmm::fitted_leaf_grid_pays(n, cube_leaves, rule.occupancy)) return {};
+  const bool pays = rule.by_mean_occupancy ? fmm::fitted_leaf_grid_pays(n, cube.leaves, rule.occupancy)
+                                           : cube.leaf_level_share < rule.partial_split_share;
+  if (!pays) return {};
   return fmm::fit_leaf_grid(x, {}, rule.occupancy, rule.min_fill);
 }
 
@@ -144,7 +160,7 @@ void FmmRpy::on_positions_set() {
   // Automatic leaves: the bounding-cube tree's mean leaf occupancy decides whether the fitted
   // grid pays; then the tree is rebuilt on it.
   if (options_.leaf_capacity == 0) {
-    const fmm::LeafGrid fitted = fitted_leaf_grid(centered_, laplace_eps_, fmm_->stats().leaves);
+    const fmm::LeafGrid fitted = fitted_leaf_grid(centered_, laplace_eps_, fmm_->stats());
     if (fitted.fitted()) {
       fo.leaf_capacity = fitted.leaf_capacity;
       fo.root_scale = fitted.root_scale;

@@ -105,8 +105,8 @@ TEST(FmmLeafGrid, BadArgumentsNameTheProblem) {
 TEST(FmmLeafGrid, AutomaticLeavesMeetTheTolerance) {
   // Whether the automatic leaves are fitted follows from the bounding-cube tree (fitted_grid_rule
   // in fmm/src/laplace_fmm.cpp): its mean occupancy against 1.7 x the target (AVX-512: 24 / 60 /
-  // 120 / 200, otherwise 16 / 36 / 50 / 70 points at 3 / 6 / 9 / 12 digits) and, without
-  // AVX-512, a near-uniform cloud whose tree is partly split (its leaves on two levels).
+  // 120 / 200, otherwise 16 / 36 / 50 / 70 points at 3 / 6 / 9 / 12 digits) and a near-uniform
+  // cloud whose tree is partly split (its leaves on two levels).
   struct Case {
     const char* what;
     std::vector<double> src, tgt;
@@ -132,6 +132,10 @@ TEST(FmmLeafGrid, AutomaticLeavesMeetTheTolerance) {
       // ~100 points per level-3 box at capacity 100: about half of the boxes split.
       // (AVX-512: capacity 400, 98 per leaf on one level, below the 1.7 x 60 gate: kept.)
       {"cube 5e4 at 1e-6 (partly split at capacity 100)", fmmtest::cube(50000, 52), {}, 1e-6, false, true},
+      // AVX-512: capacity 600, ~625 points per level-2 box; ~15% of them stay unsplit (leaf-level
+      // share ~0.85 < 0.97; 90 per leaf, below the 1.7 x 120 gate). Without: capacity 200, 78 per
+      // leaf on one level, kept.
+      {"cube 4e4 at 1e-9 (partly split at capacity 600)", fmmtest::cube(40000, 53), {}, 1e-9, true, false},
   };
   // Both kernel sets where the CPU has AVX-512 (detail::use_avx512_kernels switches them off).
   std::vector<bool> kernel_sets = {rpyfmm::fmm::detail::avx512_kernels_active()};

@@ -113,6 +113,10 @@ def test_fitted_leaf_grid_from_python():
     stats = fmm.stats()
     assert stats["root_scale"] == pytest.approx(8.0 / 7.0) and stats["leaf_capacity"] == 54
     assert 250 <= stats["leaves"] <= 343
+    assert 0.9 < stats["leaf_level_share"] <= 1.0  # level 3, but for level-2 boxes at the far edges
+    partial = rpyfmm.LaplaceFmm(eps=1e-6, leaf_capacity=16)  # ~15.6 points per level-3 box: some split
+    partial.set_points(x)
+    assert 0.2 < partial.stats()["leaf_level_share"] < 0.9
     ref = rpyfmm.laplace_direct(x, q)
     res = fmm.evaluate(q)
     for c0, c1 in ((0, 1), (1, 4), (4, 10)):

@@ -119,7 +119,9 @@ def test_shapes_and_dtypes(system):
 def test_out_is_written_in_place(system):
     x, f = system
     op = rpyfmm.FmmRpy(tolerance=1e-6)
+    assert op.stats() == {}  # no tree before set_positions
     op.set_positions(x, 1.0)
+    assert op.stats()["leaves"] >= 1 and op.stats()["leaf_capacity"] > 0
     out = np.empty((N, 3))
     address = out.ctypes.data
     result = op.apply(f, out=out)

@@ -33,8 +33,8 @@ struct FmmOptions {
   double eps = 1e-6;
   /// Points per leaf before a box is split; 0 = automatic: fmm_default_leaf_capacity (chosen per
   /// eps and P2P kernel by benchmark), and for 1e4 to 1e6 points, where that tree's leaves hold
-  /// well above the best occupancy (or, without the AVX-512 kernels, where a near-uniform cloud's
-  /// tree is partly split between two levels), leaves fitted to the cloud instead (fit_leaf_grid,
+  /// well above the best occupancy (or where a near-uniform cloud's tree is partly split between
+  /// two levels: TreeStats::leaf_level_share), leaves fitted to the cloud instead (fit_leaf_grid,
   /// leaf_grid.hpp). stats() reports the capacity and root scale used.
   int leaf_capacity = 0;
   /// Boxes are never split below this side: every pair of points closer than this is in the
@@ -70,6 +70,10 @@ struct TreeStats {
   int leaf_capacity = 0;         // split threshold of the tree built (the automatic one if chosen)
   double root_scale = 1.0;       // root side / bounding-cube side of the tree built
   std::size_t u_pairs = 0, w_pairs = 0, x_pairs = 0;
+  // Fraction of the points (sources and separate targets) in the leaves of the most populated leaf
+  // level: 1 where all leaves are on one level; in a near-uniform cloud, well below 1 means a
+  // partly split tree (leaves on two levels, W/X lists between them).
+  double leaf_level_share = 1.0;
 };
 
 /// Near-field structure in the caller's numbering: for every leaf, the source and target indices

@@ -42,7 +42,8 @@ struct FmmRpyOptions {
   /// Requested relative l2 error of U against the exact (direct) product, in [1e-12, 1e-1].
   double tolerance = 1e-6;
   /// Points per FMM leaf; 0 = automatic: a capacity measured per tolerance and, where it pays,
-  /// a root box fitted so that leaves hold a measured best occupancy (fmm_operator.cpp).
+  /// a root box fitted so that leaves hold a measured best occupancy (fmm_operator.cpp; with the
+  /// AVX-512 kernels only at 6 digits where the bounding-cube tree is partly split).
   int leaf_capacity = 0;
 };
 
