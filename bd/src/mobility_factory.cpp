@@ -53,12 +53,14 @@ bool mobility_method_available(MobilityMethod method) {
 
 // Measured crossovers (bench/bd/RESULTS.md "Auto crossover"; 1 thread, phi = 0.05 cloud, median
 // products): FmmRpy overtakes DirectRpy at ~1400 / 3500 / 6500 / 11000 particles for 3 / 6 / 9 /
-// 12 digits on the AVX2 machine (AMD Zen 1, session 6), and at ~2000 / 5000 / 12000 / 20000 with
-// the AVX-512 direct kernels (Intel machine, session 7).
+// 12 digits on the AVX2 machine (AMD Zen 1, session 6); with the AVX-512 direct kernels at ~2000 /
+// 5000 / 12000 / 16000-18000 on an Intel machine (session 7) and ~1200 / 4000 / 8500 / 13500 on an
+// AMD Zen-4 machine (session 9): the table takes values between the two (near the crossover
+// both operators cost about the same, so either machine loses little).
 std::size_t default_fmm_crossover(double tolerance) {
   require_in_range(tolerance, 1e-15, 0.5, "default_fmm_crossover", "tolerance");
   const int digits = fmm::fmm_table_digits_for(tolerance);
-  static constexpr std::size_t avx2[] = {1500, 3500, 7000, 11000}, avx512[] = {2000, 5000, 12000, 20000};
+  static constexpr std::size_t avx2[] = {1500, 3500, 7000, 11000}, avx512[] = {1500, 4500, 10000, 16000};
   const std::size_t table = digits <= 3 ? 0 : digits <= 6 ? 1 : digits <= 9 ? 2 : 3;
   return fmm::detail::avx512_kernels_active() ? avx512[table] : avx2[table];
 }
