@@ -207,9 +207,12 @@ void LaplaceFmm::set_points(std::span<const double> sources, std::span<const dou
   plan->p = options_.order > 0 ? options_.order : fmm_order_for(options_.eps);
   plan->digits = fmm_table_digits_for(options_.eps);
   plan->leaf_capacity = options_.leaf_capacity > 0 ? options_.leaf_capacity : fmm_default_leaf_capacity(options_.eps);
-  // Direct W/X sums beat M2P/P2L below ~p^2/2 points by operation counts (CGR 1999 §4). A caller
-  // that takes them over (export_direct_far) has a kernel cheaper than nd Laplace densities, and
-  // direct sums of whole leaves then win even more (measured: FmmRpy, bench/rpy/RESULTS.md).
+  // Direct W/X sums beat M2P/P2L below ~p^2/2 points by operation counts (CGR 1999 §4), with
+  // pairs as dear as expansion terms. The AVX-512 P2P kernels make pairs ~3x cheaper, and there
+  // the limit is 2 p^2 (measured on an AMD Zen-4 machine, session 9, bench/fmm/RESULTS.md "W/X
+  // direct limit": surfaces 1.1-1.5x faster, one-level trees unchanged). A caller that takes them
+  // over (export_direct_far) has a kernel cheaper than nd Laplace densities, and direct sums of
+  // whole leaves then win even more (measured: FmmRpy, bench/rpy/RESULTS.md).
   detail::OctreeParams tp;
   tp.leaf_capacity = std::size_t(plan->leaf_capacity);
   tp.min_leaf_side = options_.min_leaf_side;
@@ -236,8 +239,9 @@ void LaplaceFmm::set_points(std::span<const double> sources, std::span<const dou
   }
   plan->root_scale = tp.root_scale;
   plan->export_direct = options_.export_direct_far && !options_.near_field;
-  plan->direct_limit = std::size_t(plan->p) * std::size_t(plan->p) / 2;
-  if (plan->export_direct) plan->direct_limit = std::max(plan->direct_limit, std::size_t(plan->leaf_capacity));
+  const std::size_t p2 = std::size_t(plan->p) * std::size_t(plan->p);
+  plan->direct_limit = detail::avx512_kernels_active() ? 2 * p2 : p2 / 2;
+  if (plan->export_direct) plan->direct_limit = std::max(p2 / 2, std::size_t(plan->leaf_capacity));
   const double t_tree = sw.seconds();
   sw.restart();
   plan->H = &detail::Harmonics::cached(plan->p + 2);
