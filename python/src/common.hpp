@@ -117,10 +117,10 @@ rpy::SqrtOptions sqrt_options(const std::string& method, double tol, int max_ite
                               bool throw_if_not_converged, double lambda_min, double lambda_max,
                               int bound_estimate_iterations);
 
-/// Registers the exception classes and the rpyfmm::Error translator (errors.cpp).
-// LaplaceFmm tree statistics (fmm::TreeStats) as a dict.
+/// LaplaceFmm tree statistics (fmm::TreeStats) as a dict (fmm.cpp).
 nb::dict tree_stats_dict(const fmm::TreeStats& s);
 
+/// Registers the exception classes and the rpyfmm::Error translator (errors.cpp).
 void bind_errors(nb::module_& m);
 void bind_fmm(nb::module_& m);
 void bind_mobility(nb::module_& m);

@@ -14,7 +14,6 @@
 #include "rpyfmm/bd/mobility_factory.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
-#include "rpyfmm/fmm/laplace_fmm.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 

@@ -157,8 +157,8 @@ void FmmRpy::on_positions_set() {
   fo.min_leaf_side = 2.0 * a_max;  // overlapping pairs (r <= a_i + a_j) are always U-list pairs
   fmm_ = std::make_unique<fmm::LaplaceFmm>(fo);
   fmm_->set_points(centered_);
-  // Automatic leaves: the bounding-cube tree's mean leaf occupancy decides whether the fitted
-  // grid pays; then the tree is rebuilt on it.
+  // Automatic leaves: the bounding-cube tree's statistics (mean leaf occupancy, or with AVX-512
+  // its leaf-level share) decide whether the fitted grid pays; then the tree is rebuilt on it.
   if (options_.leaf_capacity == 0) {
     const fmm::LeafGrid fitted = fitted_leaf_grid(centered_, laplace_eps_, fmm_->stats());
     if (fitted.fitted()) {

@@ -114,7 +114,10 @@ TEST(FmmRpyFittedLeafGrid, MeetsTheToleranceOnSampledRows) {
                                    {t::random_suspension(30000, 1.0, 0.1, 38), 1e-6, 400, 400},
                                    // ~406 points per level-2 box at capacity 400: about half split
                                    // (~70 points per leaf, not > 1.7 x 60; partly split, AVX-512 refits)
-                                   {t::random_suspension(26000, 1.0, 0.1, 39), 1e-6, 400, 120}};
+                                   {t::random_suspension(26000, 1.0, 0.1, 39), 1e-6, 400, 120},
+                                   // a ball's curved edge puts leaves on several levels too, but it
+                                   // fills ~0.58 of its cube (< 0.8): no refit with AVX-512 either
+                                   {ball_cloud(26000, 0.05, 40), 1e-6, 400, 400}};
   {
     auto c = t::random_suspension(22000, 1.0, 0.15, 33);
     for (std::size_t i = 0; i < c.a.size(); ++i) c.a[i] = 0.6 + 0.8 * ((i * 7919) % 100) / 100.0;
