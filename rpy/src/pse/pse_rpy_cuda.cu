@@ -386,9 +386,12 @@ void PseRpyCuda::on_positions_set() {
   }
   im.real->set_positions(positions());
   im.x.upload(positions().data(), positions().size());
-  std::vector<unsigned long long> b(im.real->neighbour_begin().begin(), im.real->neighbour_begin().end());
+  std::vector<std::size_t> begin;
+  std::vector<int> list;
+  im.real->input_order_lists(begin, list);  // rows and neighbours in input numbering
+  std::vector<unsigned long long> b(begin.begin(), begin.end());
   im.begin.upload(b.data(), b.size());
-  im.list.upload(im.real->neighbours().data(), im.real->neighbours().size());
+  im.list.upload(list.data(), list.size());
 }
 
 void PseRpyCuda::do_apply(const double* forces, double* velocities, std::size_t nrhs) const {

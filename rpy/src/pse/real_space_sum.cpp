@@ -10,10 +10,60 @@
 #include "kernels_common.hpp"
 #include "rpyfmm/core/validate.hpp"
 
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
+#define RPYFMM_REAL_SPACE_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+#else
+#define RPYFMM_REAL_SPACE_CLONES
+#endif
+
 namespace rpyfmm::rpy::pse::detail {
 
-RealSpaceSum::RealSpaceSum(const PseParameters& p, const std::array<double, 3>& box, double viscosity,
-                           bool use_table)
+namespace {
+
+/// Positions and forces by slot, one array per axis.
+struct SlotArrays {
+  const double* x[3];
+  const double* f[3];
+};
+
+/// One row of M_r F / M0 without the self term: u += sum_q [F (I - rr) + G rr] f_q over the
+/// neighbour slots nb[0..count) of a particle at xi ([PSE] eq. 10, App. A via the linear table).
+/// Branch-free, so that it vectorizes over neighbours (gathers): a coincident neighbour
+/// (r = 0) gets 1/r = 0 and the table's r = 0 node F(0) = G(0), i.e. the block F(0) I.
+RPYFMM_REAL_SPACE_CLONES void table_row(const int* nb, std::size_t count, const double xi[3], const SlotArrays& s,
+                                        const double* table, double inv_dr, const double L[3], const double inv_L[3],
+                                        double u[3]) {
+  double ux = 0.0, uy = 0.0, uz = 0.0;
+#pragma omp simd reduction(+ : ux, uy, uz)
+  for (std::size_t q = 0; q < count; ++q) {
+    const auto t = static_cast<std::size_t>(nb[q]);
+    const double dx = minimum_image(xi[0] - s.x[0][t], L[0], inv_L[0]);
+    const double dy = minimum_image(xi[1] - s.x[1][t], L[1], inv_L[1]);
+    const double dz = minimum_image(xi[2] - s.x[2][t], L[2], inv_L[2]);
+    const double r2 = dx * dx + dy * dy + dz * dz;
+    const double r = std::sqrt(r2);
+    const double inv_r = r2 > 0.0 ? 1.0 / r : 0.0;
+    double w = r * inv_dr;
+    const int j = static_cast<int>(w);
+    w -= static_cast<double>(j);
+    const double* e = table + 4 * j;
+    const double F = e[0] + w * (e[2] - e[0]);
+    const double G = e[1] + w * (e[3] - e[1]);
+    const double fx = s.f[0][t], fy = s.f[1][t], fz = s.f[2][t];
+    const double ex = dx * inv_r, ey = dy * inv_r, ez = dz * inv_r;
+    const double proj = (G - F) * (ex * fx + ey * fy + ez * fz);
+    ux += F * fx + proj * ex;
+    uy += F * fy + proj * ey;
+    uz += F * fz + proj * ez;
+  }
+  u[0] += ux;
+  u[1] += uy;
+  u[2] += uz;
+}
+
+}  // namespace
+
+RealSpaceSum::RealSpaceSum(const PseParameters& p, const std::array<double, 3>& box, double viscosity, bool use_table)
     : p_(p),
       box_(box),
       m0_(1.0 / (6.0 * std::numbers::pi * viscosity * p.radius)),
@@ -23,7 +73,6 @@ RealSpaceSum::RealSpaceSum(const PseParameters& p, const std::array<double, 3>& 
 }
 
 void RealSpaceSum::set_positions(std::span<const double> x) {
-  x_.assign(x.begin(), x.end());
   const std::size_t n = x.size() / 3;
   require(n < static_cast<std::size_t>(std::numeric_limits<int>::max()), ErrorCode::invalid_input, "PseRpy",
           "too many particles for 32-bit neighbour indices");
@@ -34,119 +83,160 @@ void RealSpaceSum::set_positions(std::span<const double> x) {
     nc[d] = static_cast<int>(std::floor(box_[d] / p_.r_cut));
     cells = cells && nc[d] >= 3;
   }
-  // Cell list (counting sort by cell, stable).
+  // Slots: particles sorted by cell (counting sort, stable); without cells, the input order.
   std::vector<std::size_t> cell_begin;
-  std::vector<int> cell_items;
-  std::vector<std::array<int, 3>> cell_of(n);
+  std::vector<std::array<int, 3>> cell_of;
+  order_.resize(n);
   if (cells) {
     const std::size_t ncell = static_cast<std::size_t>(nc[0]) * nc[1] * nc[2];
     cell_begin.assign(ncell + 1, 0);
+    std::vector<std::array<int, 3>> cell_in(n);
     std::vector<std::size_t> id(n);
     for (std::size_t i = 0; i < n; ++i) {
-      for (int d = 0; d < 3; ++d)
-        cell_of[i][d] = std::min(static_cast<int>(x[3 * i + d] / box_[d] * nc[d]), nc[d] - 1);
-      id[i] = (static_cast<std::size_t>(cell_of[i][0]) * nc[1] + cell_of[i][1]) * nc[2] + cell_of[i][2];
+      for (int d = 0; d < 3; ++d) cell_in[i][d] = std::min(static_cast<int>(x[3 * i + d] / box_[d] * nc[d]), nc[d] - 1);
+      id[i] = (static_cast<std::size_t>(cell_in[i][0]) * nc[1] + cell_in[i][1]) * nc[2] + cell_in[i][2];
       ++cell_begin[id[i] + 1];
     }
     for (std::size_t c = 0; c < ncell; ++c) cell_begin[c + 1] += cell_begin[c];
-    cell_items.resize(n);
     std::vector<std::size_t> fill(cell_begin.begin(), cell_begin.end() - 1);
-    for (std::size_t i = 0; i < n; ++i) cell_items[fill[id[i]]++] = static_cast<int>(i);
+    for (std::size_t i = 0; i < n; ++i) order_[fill[id[i]]++] = i;
+    cell_of.resize(n);
+    for (std::size_t s = 0; s < n; ++s) cell_of[s] = cell_in[order_[s]];
+  } else {
+    for (std::size_t s = 0; s < n; ++s) order_[s] = s;
   }
-  order_.resize(n);
-  for (std::size_t q = 0; q < n; ++q) order_[q] = cells ? static_cast<std::size_t>(cell_items[q]) : q;
+  for (int d = 0; d < 3; ++d) {
+    pos_[static_cast<std::size_t>(d)].resize(n);
+    for (std::size_t s = 0; s < n; ++s)
+      pos_[static_cast<std::size_t>(d)][s] = x[3 * order_[s] + static_cast<std::size_t>(d)];
+  }
   const std::array<double, 3> inv = {1.0 / box_[0], 1.0 / box_[1], 1.0 / box_[2]};
-  auto close = [&](std::size_t i, std::size_t j) {
-    const double dx = minimum_image(x[3 * i] - x[3 * j], box_[0], inv[0]);
-    const double dy = minimum_image(x[3 * i + 1] - x[3 * j + 1], box_[1], inv[1]);
-    const double dz = minimum_image(x[3 * i + 2] - x[3 * j + 2], box_[2], inv[2]);
+  const auto& px = pos_[0];
+  const auto& py = pos_[1];
+  const auto& pz = pos_[2];
+  auto close = [&](std::size_t s, std::size_t t) {
+    const double dx = minimum_image(px[s] - px[t], box_[0], inv[0]);
+    const double dy = minimum_image(py[s] - py[t], box_[1], inv[1]);
+    const double dz = minimum_image(pz[s] - pz[t], box_[2], inv[2]);
     return dx * dx + dy * dy + dz * dz < rc2;
   };
-  // visit(i, fn): calls fn(j) for every j != i within r_cut.
-  auto visit = [&](std::size_t i, auto&& fn) {
+  // visit(s, fn): calls fn(t) for every slot t != s within r_cut.
+  auto visit = [&](std::size_t s, auto&& fn) {
     if (!cells) {
-      for (std::size_t j = 0; j < n; ++j)
-        if (j != i && close(i, j)) fn(j);
+      for (std::size_t t = 0; t < n; ++t)
+        if (t != s && close(s, t)) fn(t);
       return;
     }
     for (int ax = -1; ax <= 1; ++ax)
       for (int ay = -1; ay <= 1; ++ay)
         for (int az = -1; az <= 1; ++az) {
-          const int cx = (cell_of[i][0] + ax + nc[0]) % nc[0];
-          const int cy = (cell_of[i][1] + ay + nc[1]) % nc[1];
-          const int cz = (cell_of[i][2] + az + nc[2]) % nc[2];
+          const int cx = (cell_of[s][0] + ax + nc[0]) % nc[0];
+          const int cy = (cell_of[s][1] + ay + nc[1]) % nc[1];
+          const int cz = (cell_of[s][2] + az + nc[2]) % nc[2];
           const std::size_t c = (static_cast<std::size_t>(cx) * nc[1] + cy) * nc[2] + cz;
-          for (std::size_t q = cell_begin[c]; q < cell_begin[c + 1]; ++q) {
-            const auto j = static_cast<std::size_t>(cell_items[q]);
-            if (j != i && close(i, j)) fn(j);
-          }
+          for (std::size_t t = cell_begin[c]; t < cell_begin[c + 1]; ++t)
+            if (t != s && close(s, t)) fn(t);
         }
   };
   begin_.assign(n + 1, 0);
   const auto ni = static_cast<std::int64_t>(n);
 #pragma omp parallel for schedule(dynamic, 256) if (n >= 2048)
-  for (std::int64_t i = 0; i < ni; ++i) {
+  for (std::int64_t s = 0; s < ni; ++s) {
     std::size_t count = 0;
-    visit(static_cast<std::size_t>(i), [&](std::size_t) { ++count; });
-    begin_[static_cast<std::size_t>(i) + 1] = count;
+    visit(static_cast<std::size_t>(s), [&](std::size_t) { ++count; });
+    begin_[static_cast<std::size_t>(s) + 1] = count;
   }
-  for (std::size_t i = 0; i < n; ++i) begin_[i + 1] += begin_[i];
+  for (std::size_t s = 0; s < n; ++s) begin_[s + 1] += begin_[s];
   list_.resize(begin_[n]);
 #pragma omp parallel for schedule(dynamic, 256) if (n >= 2048)
-  for (std::int64_t i = 0; i < ni; ++i) {
-    const std::size_t b = begin_[static_cast<std::size_t>(i)];
+  for (std::int64_t s = 0; s < ni; ++s) {
+    const std::size_t b = begin_[static_cast<std::size_t>(s)];
     std::size_t q = b;
-    visit(static_cast<std::size_t>(i), [&](std::size_t j) { list_[q++] = static_cast<int>(j); });
+    visit(static_cast<std::size_t>(s), [&](std::size_t t) { list_[q++] = static_cast<int>(t); });
     std::sort(list_.begin() + static_cast<std::ptrdiff_t>(b), list_.begin() + static_cast<std::ptrdiff_t>(q));
+  }
+}
+
+void RealSpaceSum::input_order_lists(std::vector<std::size_t>& begin, std::vector<int>& list) const {
+  const std::size_t n = order_.size();
+  std::vector<std::size_t> slot_of(n);
+  for (std::size_t s = 0; s < n; ++s) slot_of[order_[s]] = s;
+  begin.assign(n + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) begin[i + 1] = begin[i] + (begin_[slot_of[i] + 1] - begin_[slot_of[i]]);
+  list.resize(begin[n]);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t s = slot_of[i];
+    auto out = list.begin() + static_cast<std::ptrdiff_t>(begin[i]);
+    for (std::size_t q = begin_[s]; q < begin_[s + 1]; ++q)
+      *out++ = static_cast<int>(order_[static_cast<std::size_t>(list_[q])]);
+    std::sort(list.begin() + static_cast<std::ptrdiff_t>(begin[i]), out);
   }
 }
 
 void RealSpaceSum::apply(const double* forces, double* out, std::size_t nrhs, bool accumulate) const {
   // U_i = M0 [ F(0) F_i + sum_{j in r_cut} (F (I - rr) + G rr) F_j ]   ([PSE] eq. 10, A1-A4)
-  const std::size_t n = x_.size() / 3;
+  const std::size_t n = order_.size();
   const std::size_t stride = 3 * n;
   const std::array<double, 3> inv = {1.0 / box_[0], 1.0 / box_[1], 1.0 / box_[2]};
   const auto ni = static_cast<std::int64_t>(n);
-#pragma omp parallel for schedule(dynamic, 64) if (n * nrhs >= 512)
-  for (std::int64_t ii = 0; ii < ni; ++ii) {
-    // Cell order: consecutive particles share most neighbours, whose positions and forces
-    // then come from cache (each particle's sum is the same whatever the visiting order).
-    const std::size_t i = order_[static_cast<std::size_t>(ii)];
-    // Small fixed-size accumulator per rhs; large blocks (dense assembly) loop rhs in chunks.
-    constexpr std::size_t kChunk = 16;
-    for (std::size_t r0 = 0; r0 < nrhs; r0 += kChunk) {
-      const std::size_t nr = std::min(kChunk, nrhs - r0);
-      double u[3 * kChunk];
-      for (std::size_t r = 0; r < nr; ++r)
-        for (int d = 0; d < 3; ++d) u[3 * r + d] = self_ * forces[(r0 + r) * stride + 3 * i + d];
-      for (std::size_t q = begin_[i]; q < begin_[i + 1]; ++q) {
-        const auto j = static_cast<std::size_t>(list_[q]);
-        const double dx = minimum_image(x_[3 * i] - x_[3 * j], box_[0], inv[0]);
-        const double dy = minimum_image(x_[3 * i + 1] - x_[3 * j + 1], box_[1], inv[1]);
-        const double dz = minimum_image(x_[3 * i + 2] - x_[3 * j + 2], box_[2], inv[2]);
-        const double r = std::sqrt(dx * dx + dy * dy + dz * dz);
-        if (r == 0.0) {  // coincident particles: F(0) = G(0), the block is F(0) I
-          for (std::size_t k = 0; k < nr; ++k)
-            for (int d = 0; d < 3; ++d) u[3 * k + d] += self_ * forces[(r0 + k) * stride + 3 * j + d];
+  const bool par = n * nrhs >= 512;
+  // Forces in slot order: work_[(3 r + d) n + s] = F_r[3 order_[s] + d].
+  work_.resize(3 * n * nrhs);
+#pragma omp parallel for schedule(static) if (par)
+  for (std::int64_t s = 0; s < ni; ++s) {
+    const std::size_t i = order_[static_cast<std::size_t>(s)];
+    for (std::size_t r = 0; r < nrhs; ++r)
+      for (std::size_t d = 0; d < 3; ++d)
+        work_[(3 * r + d) * n + static_cast<std::size_t>(s)] = forces[r * stride + 3 * i + d];
+  }
+  auto store = [&](std::size_t r, std::size_t i, const double* u) {
+    for (std::size_t d = 0; d < 3; ++d) {
+      double& o = out[r * stride + 3 * i + d];
+      o = accumulate ? o + m0_ * u[d] : m0_ * u[d];
+    }
+  };
+  if (use_table_) {
+    const double* table = table_.data().data();
+    const double inv_dr = 1.0 / table_.dr();
+    const double L[3] = {box_[0], box_[1], box_[2]};
+    const double inv_L[3] = {inv[0], inv[1], inv[2]};
+#pragma omp parallel for schedule(dynamic, 64) if (par)
+    for (std::int64_t ss = 0; ss < ni; ++ss) {
+      const auto s = static_cast<std::size_t>(ss);
+      const double xs[3] = {pos_[0][s], pos_[1][s], pos_[2][s]};
+      for (std::size_t r = 0; r < nrhs; ++r) {
+        const double* f = work_.data() + 3 * r * n;
+        const SlotArrays arrays{{pos_[0].data(), pos_[1].data(), pos_[2].data()}, {f, f + n, f + 2 * n}};
+        double u[3] = {self_ * f[s], self_ * f[n + s], self_ * f[2 * n + s]};
+        table_row(list_.data() + begin_[s], begin_[s + 1] - begin_[s], xs, arrays, table, inv_dr, L, inv_L, u);
+        store(r, order_[s], u);
+      }
+    }
+    return;
+  }
+  // Closed forms evaluated per pair (PseOptions::real_space_table = false: the reference the
+  // table is measured against).
+#pragma omp parallel for schedule(dynamic, 64) if (par)
+  for (std::int64_t ss = 0; ss < ni; ++ss) {
+    const auto s = static_cast<std::size_t>(ss);
+    for (std::size_t r = 0; r < nrhs; ++r) {
+      const double* f = work_.data() + 3 * r * n;
+      double u[3] = {self_ * f[s], self_ * f[n + s], self_ * f[2 * n + s]};
+      for (std::size_t q = begin_[s]; q < begin_[s + 1]; ++q) {
+        const auto t = static_cast<std::size_t>(list_[q]);
+        const double d[3] = {minimum_image(pos_[0][s] - pos_[0][t], box_[0], inv[0]),
+                             minimum_image(pos_[1][s] - pos_[1][t], box_[1], inv[1]),
+                             minimum_image(pos_[2][s] - pos_[2][t], box_[2], inv[2])};
+        const double ft[3] = {f[t], f[n + t], f[2 * n + t]};
+        const double dist = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        if (dist == 0.0) {  // coincident particles: F(0) = G(0), the block is F(0) I
+          for (int c = 0; c < 3; ++c) u[c] += self_ * ft[c];
           continue;
         }
-        double F;
-        double G;
-        if (use_table_) {
-          table_fg(table_.data().data(), 1.0 / table_.dr(), r, F, G);
-        } else {
-          const FG v = real_space_fg(r, p_.xi, p_.radius);
-          F = v.f;
-          G = v.g;
-        }
-        for (std::size_t k = 0; k < nr; ++k)
-          pair_block_add(dx, dy, dz, r, F, G, forces + (r0 + k) * stride + 3 * j, u + 3 * k);
+        const FG v = real_space_fg(dist, p_.xi, p_.radius);
+        pair_block_add(d[0], d[1], d[2], dist, v.f, v.g, ft, u);
       }
-      for (std::size_t r = 0; r < nr; ++r)
-        for (int d = 0; d < 3; ++d) {
-          double& o = out[(r0 + r) * stride + 3 * i + d];
-          o = accumulate ? o + m0_ * u[3 * r + d] : m0_ * u[3 * r + d];
-        }
+      store(r, order_[s], u);
     }
   }
 }
