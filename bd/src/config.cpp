@@ -322,6 +322,7 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
     c.mobility.tolerance = s.positive("tolerance", 1e-3);
     if (c.mobility.tolerance >= 0.5) bad_key("mobility.tolerance", "must be < 0.5");
     c.mobility.fmm_crossover = s.count("fmm_crossover", 0);
+    c.mobility.fft_measure = s.boolean("fft_measure", false);
     c.mobility.viscosity = c.viscosity;
     c.mobility.geometry = c.geometry;
     try {

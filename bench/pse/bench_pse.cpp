@@ -4,10 +4,13 @@
 // against generic Lanczos on the full PSE operator ([PSE] Fig. 6), and the real-space
 // table against direct evaluation of F, G. CSV rows on stdout.
 //
-// usage: bench_pse [--quick] [--cuda] [N ...]   (default 8000 16000 32000); threads from 1 to OMP max.
+// usage: bench_pse [--quick] [--fft-measure] [--cuda] [N ...]   (default 8000 16000 32000); threads
+// from 1 to OMP max.
 // Also times the free-space FmmRpy (tolerance 1e-3) on the same particles, 1 thread.
 // --quick: only M F and the split sampler with their stage times (no full-operator Lanczos,
 // no table-vs-direct real space, no FMM comparison).
+// --fft-measure: PseOptions::fft_measure (FFTW_MEASURE plans; the plan column gives the planning
+// time of set_positions, which includes the timing of the plans).
 // --cuda: the CUDA operator PseRpyCuda instead (host arrays in and out, so transfers count),
 // with its relative difference from the CPU operator's M F for N <= 250000; skips with a
 // message when no device is usable.
@@ -146,7 +149,12 @@ int main(int argc, char** argv) {
   std::vector<std::size_t> sizes;
   bool quick = false;
   bool cuda = false;
+  bool fft_measure = false;
   for (int i = 1; i < argc; ++i) {
+    if (std::string(argv[i]) == "--fft-measure") {
+      fft_measure = true;
+      continue;
+    }
     if (std::string(argv[i]) == "--quick") {
       quick = true;
       continue;
@@ -158,13 +166,19 @@ int main(int argc, char** argv) {
     sizes.push_back(static_cast<std::size_t>(std::atoll(argv[i])));
   }
   if (sizes.empty()) sizes = {8000, 16000, 32000};
+  for (std::size_t n : sizes) {
+    if (n == 0) {
+      std::fprintf(stderr, "bench_pse: particle counts must be positive integers\n");
+      return 2;
+    }
+  }
   if (cuda) return run_cuda(sizes);
   const int max_threads = omp_get_max_threads();
   const double a = 1.0, phi = 0.1;
   std::printf(
       "N,threads,grid,P,r_cut,MF_s,MF_PTPS,sample_s,sample_PTPS,sample_over_MF,split_iters,"
       "lanczos_full_s,lanczos_full_iters,spread,fft,scale,interp,real,lanczos_real,"
-      "sample_noise_scale,sample_fft,sample_interp\n");
+      "sample_noise_scale,sample_fft,sample_interp,plan_s,fft_measure\n");
   for (std::size_t n : sizes) {
     const double L = std::cbrt(static_cast<double>(n) * 4.0 / 3.0 * std::numbers::pi * a * a * a / phi);
     const auto x = hard_spheres(n, a, L, 7);
@@ -177,8 +191,11 @@ int main(int argc, char** argv) {
       o.tolerance = 1e-3;
       o.xi = 0.5 / a;
       o.fft_threads = threads;
+      o.fft_measure = fft_measure;
       PseRpy op(Geometry::periodic(L), 1.0, o);
+      StopWatch plan_watch;
       op.set_positions(x, a);
+      const double t_plan = plan_watch.seconds();
       op.apply(f, u);  // warm up
       op.reset_stage_times();
       const int reps = 3;
@@ -201,11 +218,12 @@ int main(int argc, char** argv) {
         return it == s.end() ? 0.0 : it->second / reps;
       };
       std::printf(
-          "%zu,%d,%dx%dx%d,%d,%.3f,%.4g,%.4g,%.4g,%.4g,%.2f,%d,%.4g,%d,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g\n",
+          "%zu,%d,%dx%dx%d,%d,%.3f,%.4g,%.4g,%.4g,%.4g,%.2f,%d,%.4g,%d,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,"
+          "%.3g,%d\n",
           n, threads, p.grid[0], p.grid[1], p.grid[2], p.support[0], p.r_cut, t_mf, n / t_mf, t_s, n / t_s, t_s / t_mf,
           iters, t_full, full_iters, per(mf, "spread"), per(mf, "fft_forward") + per(mf, "fft_backward"),
           per(mf, "scale"), per(mf, "interpolate"), per(mf, "real_space"), per(st, "lanczos"), per(st, "scale"),
-          per(st, "fft_backward"), per(st, "interpolate"));
+          per(st, "fft_backward"), per(st, "interpolate"), t_plan, fft_measure ? 1 : 0);
       std::fflush(stdout);
     }
     if (quick) continue;

@@ -255,7 +255,7 @@ void bind_mobility(nb::module_& m) {
       .def(
           "__init__",
           [](rpy::pse::PseRpy* self, BoxArg box, double viscosity, double tolerance, double xi, double r_cut,
-             double window_eta, int fft_threads, std::size_t max_memory_bytes) {
+             double window_eta, int fft_threads, std::size_t max_memory_bytes, bool fft_measure) {
             rpy::pse::PseOptions o;
             o.tolerance = tolerance;
             o.xi = xi;
@@ -263,13 +263,16 @@ void bind_mobility(nb::module_& m) {
             o.window_eta = window_eta;
             o.fft_threads = fft_threads;
             o.max_memory_bytes = max_memory_bytes;
+            o.fft_measure = fft_measure;
             new (self) rpy::pse::PseRpy(geometry_from(box, "PseRpy"), viscosity, o);
           },
           nb::arg("box"), nb::arg("viscosity") = 1.0, nb::arg("tolerance") = 1e-3, nb::arg("xi") = 0.0,
           nb::arg("r_cut") = 0.0, nb::arg("window_eta") = 0.8, nb::arg("fft_threads") = 0,
-          nb::arg("max_memory_bytes") = std::size_t{16} << 30,
+          nb::arg("max_memory_bytes") = std::size_t{16} << 30, nb::arg("fft_measure") = false,
           "box: L (cube) or (Lx, Ly, Lz), length units; tolerance in [1e-8, 0.1) relative to 1/(6 pi eta a);\n"
-          "xi: Ewald splitting (1/length, 0 = automatic); r_cut: real-space cutoff (length, 0 = automatic).")
+          "xi: Ewald splitting (1/length, 0 = automatic); r_cut: real-space cutoff (length, 0 = automatic);\n"
+          "fft_measure: FFTW_MEASURE plans (timed at set_positions, faster transforms, results\n"
+          "reproducible to round-off rather than bit for bit across processes).")
       .def_prop_ro(
           "parameters", [](const rpy::pse::PseRpy& op) { return pse_parameters(op.parameters()); },
           "The choices made for the current radius, box and N (xi, r_cut, grid, support, ...).")

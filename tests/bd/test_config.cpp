@@ -75,6 +75,8 @@ TEST(BdConfig, ParsesDefaultsAndTheDemo) {
   EXPECT_EQ(demo.mobility.fmm_crossover, 0u);  // the machine's measured crossover
   EXPECT_EQ(parse_config(replace(kBase, "[mobility]", "[mobility]\nfmm_crossover = 500"), "c").mobility.fmm_crossover,
             500u);
+  EXPECT_FALSE(c.mobility.fft_measure);
+  EXPECT_TRUE(parse_config(replace(kBase, "[mobility]", "[mobility]\nfft_measure = true"), "c").mobility.fft_measure);
 }
 
 TEST(BdConfig, EveryBadConfigNamesTheKey) {
@@ -88,6 +90,7 @@ TEST(BdConfig, EveryBadConfigNamesTheKey) {
   expect_error(replace(kBase, "types = [\"A\", \"A\"]", "types = [\"A\", \"B\"]"), "pair[0].types");
   expect_error(replace(kBase, "radius = 1.0", "radius = 0"), "types[0].radius");
   expect_error(replace(kBase, "method = \"none\"", "method = \"magic\""), "mobility.method");
+  expect_error(replace(kBase, "[mobility]", "[mobility]\nfft_measure = 1"), "mobility.fft_measure");  // not a boolean
   expect_error(replace(kBase, "viscosity = 1.0", "viscosity = nan"), "system.viscosity");
   expect_error(replace(kBase, "volume_fraction = 0.05", "volume_fraction = 0.6"), "particles.volume_fraction");
   expect_error(replace(kBase, "source = \"random\"\ncount = 50\nvolume_fraction = 0.05",

@@ -223,3 +223,41 @@ TEST(PseAccuracy, WrappedPositionsGiveTheSameResult) {
   op.set_positions(x, 1.0);
   EXPECT_LT(pse_test::rel_l2(product(op, f), u0), 1e-12);
 }
+
+TEST(PseAccuracy, FftMeasurePlansGiveTheSameProduct) {
+  // FFTW_MEASURE picks another algorithm for the same transforms: equal to round-off.
+  const std::array<double, 3> L = {16.0, 14.0, 18.0};
+  const auto x = pse_test::random_points(200, L, 51);
+  const auto f = random_forces(200, 52);
+  PseOptions o;
+  o.tolerance = 1e-5;
+  PseRpy estimate(Geometry::periodic(L[0], L[1], L[2]), 1.0, o);
+  o.fft_measure = true;
+  PseRpy measure(Geometry::periodic(L[0], L[1], L[2]), 1.0, o);
+  estimate.set_positions(x, 1.0);
+  measure.set_positions(x, 1.0);
+  EXPECT_LT(pse_test::rel_l2(product(estimate, f), product(measure, f)), 1e-12);
+  std::vector<double> w1(f.size()), w2(f.size());
+  estimate.sample(3, 4, w1);
+  measure.sample(3, 4, w2);
+  EXPECT_LT(pse_test::rel_l2(w1, w2), 1e-12);
+}
+
+TEST(PseParameterChoice, GridSizesAreEvenProductsOfSmallPrimes) {
+  // next_fast_size(n): the smallest even n' >= n with prime factors in {2, 3, 5, 7}.
+  auto smooth_even = [](int m) {
+    if (m % 2 != 0) return false;
+    for (int p : {2, 3, 5, 7})
+      while (m % p == 0) m /= p;
+    return m == 1;
+  };
+  for (int n = 1; n <= 700; ++n) {
+    const int m = next_fast_size(n);
+    ASSERT_GE(m, n);
+    EXPECT_TRUE(smooth_even(m)) << n << " -> " << m;
+    for (int k = n; k < m; ++k) EXPECT_FALSE(smooth_even(k)) << n << " -> " << m << " skips " << k;
+  }
+  EXPECT_EQ(next_fast_size(63), 64);    // 63 = 3^2 7 is odd
+  EXPECT_EQ(next_fast_size(189), 192);  // 190 = 2 5 19, 192 = 2^6 3
+  EXPECT_EQ(next_fast_size(196), 196);  // 2^2 7^2
+}

@@ -100,6 +100,16 @@ def test_pse_periodic_self_mobility_is_hasimoto(a_over_l):
     assert op.parameters["xi"] > 0
 
 
+def test_pse_fft_measure_matches_estimate(system):
+    x, f = system
+    box = (np.ptp(x, axis=0) + 8.0).tolist()
+    ops = [rpyfmm.PseRpy(box=box, tolerance=1e-5, fft_measure=m) for m in (False, True)]
+    for op in ops:
+        op.set_positions(x, 1.0)
+    u0, u1 = (op.apply(f) for op in ops)
+    assert np.linalg.norm(u1 - u0) <= 1e-12 * np.linalg.norm(u0)
+
+
 def test_shapes_and_dtypes(system):
     x, f = system
     op = rpyfmm.DirectRpy()

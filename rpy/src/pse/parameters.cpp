@@ -93,7 +93,7 @@ PseParameters parameters_for_xi(const PseOptions& o, double a, const std::array<
 }  // namespace
 
 int next_fast_size(int n) {
-  for (int m = std::max(n, 1);; ++m) {
+  for (int m = std::max(n, 2) + (std::max(n, 2) % 2);; m += 2) {
     int r = m;
     for (int f : {2, 3, 5, 7})
       while (r % f == 0) r /= f;

@@ -33,7 +33,63 @@ void init_fftw_threads() {
 
 /// Tile class along one axis: 0 / 1 by parity, 2 for the last tile of an odd count
 /// (it touches tile 0 through the periodic wrap). Same-class tiles are >= 2 apart.
-int tile_class(int b, int nb) { return (nb % 2 == 1 && nb > 1 && b == nb - 1) ? 2 : b % 2; }
+int tile_class(int b, int nb) {
+  return (nb % 2 == 1 && nb > 1 && b == nb - 1) ? 2 : b % 2;
+}
+
+/// The z window [z0, z0 + P) of a particle as at most two contiguous runs of the periodic
+/// grid: [z0, z0 + len0) and [0, P - len0).
+struct ZRuns {
+  std::size_t z0;
+  int len0;
+};
+ZRuns z_runs(int z0, int P, int nz) {
+  return {static_cast<std::size_t>(z0), std::min(P, nz - z0)};
+}
+
+/// g_c[line + z] += wxy * wf_c[l] over one z window (both runs), c = 0, 1, 2.
+[[gnu::always_inline]] inline void spread_line(double* g0, double* g1, double* g2, std::size_t line, ZRuns z, int P,
+                                               double wxy, const double* wf) {
+  double* p0 = g0 + line + z.z0;
+  double* p1 = g1 + line + z.z0;
+  double* p2 = g2 + line + z.z0;
+#pragma omp simd
+  for (int l = 0; l < z.len0; ++l) {
+    p0[l] += wxy * wf[l];
+    p1[l] += wxy * wf[P + l];
+    p2[l] += wxy * wf[2 * P + l];
+  }
+  for (int l = z.len0; l < P; ++l) {
+    const std::size_t k = line + static_cast<std::size_t>(l - z.len0);
+    g0[k] += wxy * wf[l];
+    g1[k] += wxy * wf[P + l];
+    g2[k] += wxy * wf[2 * P + l];
+  }
+}
+
+/// s_c += sum_l wz[l] g_c[line + z_l] over one z window (both runs), c = 0, 1, 2.
+[[gnu::always_inline]] inline void gather_line(const double* g0, const double* g1, const double* g2, std::size_t line,
+                                               ZRuns z, int P, const double* wz, double s[3]) {
+  const double* p0 = g0 + line + z.z0;
+  const double* p1 = g1 + line + z.z0;
+  const double* p2 = g2 + line + z.z0;
+  double s0 = 0.0, s1 = 0.0, s2 = 0.0;
+#pragma omp simd reduction(+ : s0, s1, s2)
+  for (int l = 0; l < z.len0; ++l) {
+    s0 += wz[l] * p0[l];
+    s1 += wz[l] * p1[l];
+    s2 += wz[l] * p2[l];
+  }
+  for (int l = z.len0; l < P; ++l) {
+    const std::size_t k = line + static_cast<std::size_t>(l - z.len0);
+    s0 += wz[l] * g0[k];
+    s1 += wz[l] * g1[k];
+    s2 += wz[l] * g2[k];
+  }
+  s[0] += s0;
+  s[1] += s1;
+  s[2] += s2;
+}
 
 }  // namespace
 
@@ -77,7 +133,8 @@ std::vector<double> wave_scaling_table(const PseParameters& p, const std::array<
   return ck;
 }
 
-WaveSpace::WaveSpace(const PseParameters& p, const std::array<double, 3>& box, double viscosity, int fft_threads)
+WaveSpace::WaveSpace(const PseParameters& p, const std::array<double, 3>& box, double viscosity, int fft_threads,
+                     bool fft_measure)
     : p_(p) {
   n_ = p.grid;
   P_ = p.support;
@@ -100,10 +157,10 @@ WaveSpace::WaveSpace(const PseParameters& p, const std::array<double, 3>& box, d
     const int dist_r = static_cast<int>(ng_);
     const int dist_c = static_cast<int>(modes_.modes);
     auto* spec = reinterpret_cast<fftw_complex*>(spectrum_);
-    plan_forward_ = fftw_plan_many_dft_r2c(3, dims, 3, grid_, nullptr, 1, dist_r, spec, nullptr, 1, dist_c,
-                                           FFTW_ESTIMATE);
-    plan_backward_ = fftw_plan_many_dft_c2r(3, dims, 3, spec, nullptr, 1, dist_c, grid_, nullptr, 1, dist_r,
-                                            FFTW_ESTIMATE);
+    // FFTW_MEASURE overwrites grid_ and spectrum_ while it times: both are scratch set by apply().
+    const unsigned flags = fft_measure ? FFTW_MEASURE : FFTW_ESTIMATE;
+    plan_forward_ = fftw_plan_many_dft_r2c(3, dims, 3, grid_, nullptr, 1, dist_r, spec, nullptr, 1, dist_c, flags);
+    plan_backward_ = fftw_plan_many_dft_c2r(3, dims, 3, spec, nullptr, 1, dist_c, grid_, nullptr, 1, dist_r, flags);
   }
   require(plan_forward_ != nullptr && plan_backward_ != nullptr, ErrorCode::numerical_failure, "PseRpy",
           "FFTW could not create the plans");
@@ -153,6 +210,15 @@ void WaveSpace::set_positions(std::span<const double> x) {
   order_.resize(np_);
   std::vector<std::size_t> fill(tile_begin_.begin(), tile_begin_.end() - 1);
   for (std::size_t i = 0; i < np_; ++i) order_[fill[static_cast<std::size_t>(tile[i])]++] = i;  // stable
+    // Within a tile, by window start in z (then input order): consecutive particles then touch
+    // overlapping stretches of the same grid lines, which stay in cache and stream in memory order.
+#pragma omp parallel for schedule(dynamic, 64) if (np_ >= 16384)
+  for (std::int64_t t = 0; t < static_cast<std::int64_t>(ntiles); ++t) {
+    const auto b = static_cast<std::ptrdiff_t>(tile_begin_[static_cast<std::size_t>(t)]);
+    const auto e = static_cast<std::ptrdiff_t>(tile_begin_[static_cast<std::size_t>(t) + 1]);
+    std::stable_sort(order_.begin() + b, order_.begin() + e,
+                     [&](std::size_t i, std::size_t j) { return start_[3 * i + 2] < start_[3 * j + 2]; });
+  }
   for (auto& c : tiles_of_colour_) c.clear();
   for (int bx = 0; bx < nb[0]; ++bx)
     for (int by = 0; by < nb[1]; ++by) {
@@ -160,6 +226,22 @@ void WaveSpace::set_positions(std::span<const double> x) {
       if (tile_begin_[static_cast<std::size_t>(t)] == tile_begin_[static_cast<std::size_t>(t) + 1]) continue;
       tiles_of_colour_[static_cast<std::size_t>(3 * tile_class(bx, nb[0]) + tile_class(by, nb[1]))].push_back(t);
     }
+}
+
+void WaveSpace::window_lines(std::size_t i, std::size_t* xline, std::size_t* yline) const {
+  // Offsets of the grid lines (x, y) of particle i's window: line = xline[a] + yline[b],
+  // wrapped without a division per point.
+  const auto nz = static_cast<std::size_t>(n_[2]);
+  int ix = start_[3 * i];
+  for (int a = 0; a < P_[0]; ++a, ++ix) {
+    if (ix == n_[0]) ix = 0;
+    xline[a] = static_cast<std::size_t>(ix) * static_cast<std::size_t>(n_[1]) * nz;
+  }
+  int iy = start_[3 * i + 1];
+  for (int b = 0; b < P_[1]; ++b, ++iy) {
+    if (iy == n_[1]) iy = 0;
+    yline[b] = static_cast<std::size_t>(iy) * nz;
+  }
 }
 
 void WaveSpace::spread(const double* forces) {
@@ -176,7 +258,8 @@ void WaveSpace::spread(const double* forces) {
   {
 #pragma omp for schedule(static)
     for (std::int64_t q = 0; q < total; ++q) grid_[q] = 0.0;
-    std::vector<int> zi(static_cast<std::size_t>(P_[2]));
+    std::vector<double> wf(3 * static_cast<std::size_t>(P_[2]));  // wz * f, per component
+    std::vector<std::size_t> xline(static_cast<std::size_t>(P_[0])), yline(static_cast<std::size_t>(P_[1]));
     for (const auto& colour : tiles_of_colour_) {
       const auto nt = static_cast<std::int64_t>(colour.size());
 #pragma omp for schedule(dynamic, 1)
@@ -190,22 +273,17 @@ void WaveSpace::spread(const double* forces) {
           const double f0 = c3_ * forces[3 * i];
           const double f1 = c3_ * forces[3 * i + 1];
           const double f2 = c3_ * forces[3 * i + 2];
-          for (int l = 0; l < P_[2]; ++l) zi[static_cast<std::size_t>(l)] = (start_[3 * i + 2] + l) % n_[2];
-          for (int a = 0; a < P_[0]; ++a) {
-            const std::size_t ix = static_cast<std::size_t>((start_[3 * i] + a) % n_[0]);
-            for (int b = 0; b < P_[1]; ++b) {
-              const std::size_t iy = static_cast<std::size_t>((start_[3 * i + 1] + b) % n_[1]);
-              const double wxy = wx[a] * wy[b];
-              const std::size_t base = (ix * static_cast<std::size_t>(n_[1]) + iy) * static_cast<std::size_t>(n_[2]);
-              for (int l = 0; l < P_[2]; ++l) {
-                const std::size_t k = base + static_cast<std::size_t>(zi[static_cast<std::size_t>(l)]);
-                const double w = wxy * wz[l];
-                g0[k] += w * f0;
-                g1[k] += w * f1;
-                g2[k] += w * f2;
-              }
-            }
+          for (int l = 0; l < P_[2]; ++l) {
+            wf[static_cast<std::size_t>(l)] = wz[l] * f0;
+            wf[static_cast<std::size_t>(P_[2] + l)] = wz[l] * f1;
+            wf[static_cast<std::size_t>(2 * P_[2] + l)] = wz[l] * f2;
           }
+          const ZRuns z = z_runs(start_[3 * i + 2], P_[2], n_[2]);
+          window_lines(i, xline.data(), yline.data());
+          for (int a = 0; a < P_[0]; ++a)
+            for (int b = 0; b < P_[1]; ++b)
+              spread_line(g0, g1, g2, xline[static_cast<std::size_t>(a)] + yline[static_cast<std::size_t>(b)], z, P_[2],
+                          wx[a] * wy[b], wf.data());
         }
       }  // implicit barrier: colours run one after another
     }
@@ -223,7 +301,7 @@ void WaveSpace::interpolate(double* out, bool accumulate) const {
   const bool par = np_ * static_cast<std::size_t>(P_[0]) * P_[1] * P_[2] >= kParallelWork;
 #pragma omp parallel if (par)
   {
-    std::vector<int> zi(static_cast<std::size_t>(P_[2]));
+    std::vector<std::size_t> xline(static_cast<std::size_t>(P_[0])), yline(static_cast<std::size_t>(P_[1]));
     // Particles in tile order (order_, as in spread): neighbours in the loop read neighbouring
     // grid points, so the gathers hit cache instead of the whole grid at random.
 #pragma omp for schedule(static)
@@ -232,24 +310,18 @@ void WaveSpace::interpolate(double* out, bool accumulate) const {
       const double* wx = &weights_[i * static_cast<std::size_t>(pw)];
       const double* wy = wx + P_[0];
       const double* wz = wy + P_[1];
-      for (int l = 0; l < P_[2]; ++l) zi[static_cast<std::size_t>(l)] = (start_[3 * i + 2] + l) % n_[2];
+      const ZRuns z = z_runs(start_[3 * i + 2], P_[2], n_[2]);
+      window_lines(i, xline.data(), yline.data());
       double u0 = 0.0, u1 = 0.0, u2 = 0.0;
       for (int a = 0; a < P_[0]; ++a) {
-        const std::size_t ix = static_cast<std::size_t>((start_[3 * i] + a) % n_[0]);
         for (int b = 0; b < P_[1]; ++b) {
-          const std::size_t iy = static_cast<std::size_t>((start_[3 * i + 1] + b) % n_[1]);
-          const std::size_t base = (ix * static_cast<std::size_t>(n_[1]) + iy) * static_cast<std::size_t>(n_[2]);
-          double s0 = 0.0, s1 = 0.0, s2 = 0.0;
-          for (int l = 0; l < P_[2]; ++l) {
-            const std::size_t k = base + static_cast<std::size_t>(zi[static_cast<std::size_t>(l)]);
-            s0 += wz[l] * g0[k];
-            s1 += wz[l] * g1[k];
-            s2 += wz[l] * g2[k];
-          }
+          double sz[3] = {0.0, 0.0, 0.0};
+          gather_line(g0, g1, g2, xline[static_cast<std::size_t>(a)] + yline[static_cast<std::size_t>(b)], z, P_[2], wz,
+                      sz);
           const double wxy = wx[a] * wy[b];
-          u0 += wxy * s0;
-          u1 += wxy * s1;
-          u2 += wxy * s2;
+          u0 += wxy * sz[0];
+          u1 += wxy * sz[1];
+          u2 += wxy * sz[2];
         }
       }
       if (accumulate) {
@@ -265,8 +337,8 @@ void WaveSpace::interpolate(double* out, bool accumulate) const {
   }
 }
 
-void WaveSpace::apply(const double* forces, double* out, bool accumulate, const NoiseKey* noise,
-                      double noise_scale, StageTimes* times) {
+void WaveSpace::apply(const double* forces, double* out, bool accumulate, const NoiseKey* noise, double noise_scale,
+                      StageTimes* times) {
   StopWatch sw;
   auto lap = [&](const char* stage) {
     if (times) (*times)[stage] += sw.seconds();

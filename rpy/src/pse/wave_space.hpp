@@ -9,9 +9,9 @@
 #include <span>
 #include <vector>
 
+#include "kernels_common.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/rpy/pse/pse_parameters.hpp"
-#include "kernels_common.hpp"
 
 namespace rpyfmm::rpy::pse::detail {
 
@@ -28,7 +28,9 @@ std::vector<double> wave_scaling_table(const PseParameters& p, const std::array<
 
 class WaveSpace {
  public:
-  WaveSpace(const PseParameters& p, const std::array<double, 3>& box, double viscosity, int fft_threads);
+  /// fft_measure: FFTW_MEASURE plans instead of FFTW_ESTIMATE (PseOptions::fft_measure).
+  WaveSpace(const PseParameters& p, const std::array<double, 3>& box, double viscosity, int fft_threads,
+            bool fft_measure);
   ~WaveSpace();
   WaveSpace(const WaveSpace&) = delete;
   WaveSpace& operator=(const WaveSpace&) = delete;
@@ -44,6 +46,7 @@ class WaveSpace {
  private:
   void spread(const double* forces);
   void interpolate(double* out, bool accumulate) const;
+  void window_lines(std::size_t i, std::size_t* xline, std::size_t* yline) const;
 
   PseParameters p_;
   std::array<int, 3> n_{};
@@ -66,8 +69,8 @@ class WaveSpace {
   std::vector<double> weights_;
   // Tiles for race-free spreading: particles sorted by tile; tiles grouped by colour.
   std::vector<std::size_t> order_;
-  std::vector<std::size_t> tile_begin_;                 // per tile: range in order_
-  std::array<std::vector<int>, 9> tiles_of_colour_;      // tile ids per colour
+  std::vector<std::size_t> tile_begin_;              // per tile: range in order_
+  std::array<std::vector<int>, 9> tiles_of_colour_;  // tile ids per colour
 };
 
 }  // namespace rpyfmm::rpy::pse::detail

@@ -35,6 +35,9 @@ struct MobilitySpec {
   /// "auto" switches from direct to fmm at this many particles (open geometry);
   /// 0 = default_fmm_crossover(tolerance) on this machine.
   std::size_t fmm_crossover = 0;
+  /// pse: FFTW_MEASURE plans (rpy::pse::PseOptions::fft_measure): faster transforms for long
+  /// runs, results reproducible to round-off instead of bit for bit across processes.
+  bool fft_measure = false;
 };
 
 /// Particle count from which FmmRpy at `tolerance` beats DirectRpy per product, 1 thread: where

@@ -40,6 +40,13 @@ struct PseOptions {
   /// FFTW threads: 0 = automatic (all OpenMP threads for grids of >= 2^20 points, one
   /// below, where thread synchronisation costs more than it saves on a loaded machine).
   int fft_threads = 0;
+  /// FFTW planning: false = FFTW_ESTIMATE (instant, the same algorithm in every run, so results
+  /// are reproducible bit for bit across processes); true = FFTW_MEASURE: the plans are timed on
+  /// this machine when the operator is planned (~0.5 s for a 100^3 grid, ~3 s for 200^3; later
+  /// plans of the same size in the process reuse FFTW's wisdom), and the transforms then run
+  /// 1.1-1.9x faster (bench/pse/RESULTS.md). The algorithm FFTW picks may differ between
+  /// processes, so results then agree to round-off, not bit for bit. For long runs.
+  bool fft_measure = false;
   /// Upper bound on the memory (bytes) of FFT grids, spectra and tables; exceeding
   /// it throws ErrorCode::out_of_memory before anything is allocated. Default 16 GiB.
   std::size_t max_memory_bytes = std::size_t{16} << 30;
@@ -86,7 +93,9 @@ struct PseParameters {
 PseParameters choose_parameters(const PseOptions& options, double radius, const std::array<double, 3>& box,
                                 std::size_t n_particles);
 
-/// Smallest n' >= n whose prime factors are all in {2, 3, 5, 7}.
+/// Smallest even n' >= n whose prime factors are all in {2, 3, 5, 7}. Odd lengths are
+/// avoided: FFTW's r2c/c2r transforms of odd length ran 1.5-2.2x slower per point than the
+/// even sizes next to them (63 vs 64, 125 vs 128, 147 vs 150, 189 vs 192; bench/pse/RESULTS.md).
 int next_fast_size(int n);
 
 }  // namespace rpyfmm::rpy::pse

@@ -11,7 +11,8 @@
 // otherwise the constructor throws ErrorCode::not_supported and
 // device_available() is false. Host-side Lanczos drives the real-space sample.
 // The device always evaluates the real-space part from the table
-// (PseOptions::real_space_table is taken as true). Set RPYFMM_CUDA_SYNC=1 in the
+// (PseOptions::real_space_table is taken as true); fft_threads and fft_measure are FFTW
+// settings and do not apply to cuFFT. Set RPYFMM_CUDA_SYNC=1 in the
 // environment to check every kernel synchronously (first runs on a new device).
 #pragma once
 
