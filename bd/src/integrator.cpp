@@ -64,10 +64,19 @@ const StepReport& Integrator::step() {
   mobility_->set_positions(x_, radii_);
   totals_.seconds["plan"] += watch.seconds();
   // 4. u = M F and w = M^{1/2} z (MATH.md §4), z keyed by (seed, step, particle).
+  const double dt = options_.dt;
+  const double noise = std::sqrt(2.0 * options_.kT * dt);
+  // PSE: u = M F + (noise / dt) M^{1/2} z in one pass whose wave-space parts share their FFTs
+  // (w = 0 then), unless the drift and Brownian parts are asked for separately.
+  const bool fused = options_.kT > 0.0 && !options_.keep_split_displacements &&
+                     fuses_drift_and_noise(*mobility_, options_.sqrt);
+  const bool brownian = options_.kT > 0.0 && !fused;
   watch.restart();
-  if (options_.kT > 0.0) rpy::fill_normal(z_, options_.seed, step_);
+  if (brownian) rpy::fill_normal(z_, options_.seed, step_);
   const double noise_seconds = watch.seconds();
-  const DriftNoiseReport dn = drift_and_noise(*mobility_, f_, z_, u_, w_, options_.sqrt);
+  const DriftNoiseReport dn =
+      fused ? fused_drift_and_noise(*mobility_, f_, noise / dt, options_.seed, step_, u_, options_.sqrt)
+            : drift_and_noise(*mobility_, f_, z_, u_, w_, options_.sqrt);
   totals_.seconds["drift"] += dn.seconds_drift;
   totals_.seconds["sqrt"] += dn.seconds_sqrt + noise_seconds;  // drawing z counts as Brownian work
   rep.sqrt_iterations = dn.sqrt.iterations;
@@ -75,9 +84,6 @@ const StepReport& Integrator::step() {
   rep.shared_first_product = dn.shared_first_product;
   watch.restart();
   // 5. dx = M F dt + sqrt(2 kT dt) M^{1/2} z, then the blow-up guard.
-  const double dt = options_.dt;
-  const double noise = std::sqrt(2.0 * options_.kT * dt);
-  const bool brownian = options_.kT > 0.0;
   constexpr std::size_t none = std::numeric_limits<std::size_t>::max();
   std::atomic<std::size_t> bad{none};
   const double frac2 = options_.max_displacement * options_.max_displacement;

@@ -6,6 +6,7 @@
 
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy.hpp"
 
 namespace rpyfmm::bd {
 
@@ -106,6 +107,25 @@ DriftNoiseReport drift_and_noise(const rpy::MobilityOperator& mobility, std::spa
   report.mobility_products = 1 + products;
   report.shared_first_product = shared != 0;
   report.seconds_sqrt = watch.seconds();
+  return report;
+}
+
+bool fuses_drift_and_noise(const rpy::MobilityOperator& mobility, const SqrtOptions& options) {
+  const bool split = options.method == SqrtMethod::automatic || options.method == SqrtMethod::split;
+  return split && dynamic_cast<const rpy::pse::PseRpy*>(&mobility) != nullptr;
+}
+
+DriftNoiseReport fused_drift_and_noise(const rpy::MobilityOperator& mobility, std::span<const double> forces,
+                                       double noise_scale, std::uint64_t seed, std::uint64_t step,
+                                       std::span<double> v, const SqrtOptions& options) {
+  require(fuses_drift_and_noise(mobility, options), ErrorCode::not_supported, "fused_drift_and_noise",
+          "operator '" + mobility.name() + "' has no fused drift-and-noise pass (use drift_and_noise)");
+  const auto& pse = dynamic_cast<const rpy::pse::PseRpy&>(mobility);
+  DriftNoiseReport report;
+  StopWatch watch;
+  report.sqrt = pse.apply_with_noise(forces, noise_scale, seed, step, v);
+  report.mobility_products = report.sqrt.operator_applications;
+  report.seconds_drift = watch.seconds();  // one pass: drift and noise are not timed apart
   return report;
 }
 

@@ -1,10 +1,15 @@
 // BD step throughput and where the time goes (issue #8 benchmark).
 //
-//   bench_bd steps  --method none|direct|fmm --n 1000,3000,10000 [--steps 5] [--tol 1e-3]
+//   bench_bd steps  --method none|direct|fmm|pse --n 1000,3000,10000 [--steps 5] [--tol 1e-3]
+//                   [--split-displacements]
 //       one CSV row per N: seconds per step (median of the per-step times after one
 //       warm-up step), Lanczos iterations and mobility products per step, and the
 //       time split (neighbours, forces, plan, drift = M F or M [F, z], sqrt, update).
-//       System: random cloud at phi = 0.05 (radius 1, WCA, gravity 1, kT 1, dt 0.01).
+//       System: random cloud at phi = 0.05 (radius 1, WCA, gravity 1, kT 1, dt 0.01);
+//       pse: the same particles at phi = 0.05 in a periodic cube. With pse a step is one
+//       fused pass (drift and noise share the wave-space FFTs, timed as drift);
+//       --split-displacements keeps the drift and Brownian parts apart, which takes the
+//       separate M F + split-sampler path.
 //   bench_bd neighbours --n 20000 [--steps 400]
 //       001 Tables 1-3: dynamic rebuild test (skin/2) against fixed intervals, free
 //       draining, WCA at phi = 0.15 in a periodic box: rebuilds, time per step, and
@@ -45,7 +50,8 @@ double median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
-RunConfig cloud_config(std::size_t n, const std::string& method, double tol, bool periodic, double phi) {
+RunConfig cloud_config(std::size_t n, const std::string& method, double tol, bool periodic, double phi,
+                       bool split_displacements = false) {
   std::ostringstream t;
   t << "[system]\n";
   if (periodic) {
@@ -57,6 +63,7 @@ RunConfig cloud_config(std::size_t n, const std::string& method, double tol, boo
     << (periodic ? "" : "volume_fraction = " + std::to_string(phi) + "\n")
     << "[[pair]]\ntypes = [\"s\", \"s\"]\nkind = \"wca\"\n"
     << "[integrator]\ndt = 0.01\nsteps = 1\nseed = 3\nmax_displacement = 1.0\n"
+    << "split_displacements = " << (split_displacements ? "true" : "false") << "\n"
     << "[mobility]\nmethod = \"" << method << "\"\ntolerance = " << tol << "\n";
   return parse_config(t.str(), "bench");
 }
@@ -68,7 +75,9 @@ int bench_steps(int argc, char** argv) {
   std::printf(
       "method,N,threads,sec_per_step,steps_per_sec,lanczos_its,products,neighbours,forces,plan,drift,sqrt,update\n");
   for (std::size_t n : sizes(arg(argc, argv, "--n", "1000,3000"))) {
-    const RunConfig c = cloud_config(n, method, tol, false, 0.05);
+    bool split = false;
+    for (int i = 2; i < argc; ++i) split = split || std::string(argv[i]) == "--split-displacements";
+    const RunConfig c = cloud_config(n, method, tol, method == "pse", 0.05, split);
     const ForceField ff = make_force_field(c);
     const InitialState s = make_particles(c, ff);
     Integrator bd(make_mobility(c.mobility, n), ff, c.integrator, s.positions, s.types, c.neighbours);

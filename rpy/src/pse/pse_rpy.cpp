@@ -100,8 +100,12 @@ void PseRpy::on_positions_set() {
     im.planned_n = n;
     im.times["plan"] += sw.seconds();
   }
+  StopWatch sw;
   im.real->set_positions(positions());
+  im.times["positions_real"] += sw.seconds();
+  sw.restart();
   im.wave->set_positions(positions());
+  im.times["positions_wave"] += sw.seconds();
 }
 
 void PseRpy::do_apply(const double* forces, double* velocities, std::size_t nrhs) const {

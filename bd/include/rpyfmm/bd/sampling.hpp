@@ -46,4 +46,16 @@ DriftNoiseReport drift_and_noise(const rpy::MobilityOperator& mobility, std::spa
                                  std::span<const double> z, std::span<double> u, std::span<double> w,
                                  const SqrtOptions& options);
 
+/// True when `mobility` can give v = M F + noise_scale M^{1/2} z(seed, step) in one fused pass
+/// for `options` (automatic or split): the CPU PSE operator, whose deterministic and Brownian
+/// wave-space parts then share their FFTs ([PSE] Sec. III; rpy::pse::PseRpy::apply_with_noise).
+bool fuses_drift_and_noise(const rpy::MobilityOperator& mobility, const SqrtOptions& options);
+
+/// v = M F + noise_scale M^{1/2} z with the operator's own noise keyed by (seed, step) (for PSE:
+/// z1 from stream 1 for the real-space part, z2 from the wave-space stream; not the z of
+/// fill_normal(seed, step)). Requires fuses_drift_and_noise(); u and w are not separated.
+DriftNoiseReport fused_drift_and_noise(const rpy::MobilityOperator& mobility, std::span<const double> forces,
+                                       double noise_scale, std::uint64_t seed, std::uint64_t step,
+                                       std::span<double> v, const SqrtOptions& options);
+
 }  // namespace rpyfmm::bd

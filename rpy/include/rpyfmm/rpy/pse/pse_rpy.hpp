@@ -66,7 +66,9 @@ class PseRpy final : public MobilityOperator {
                               std::uint64_t step, std::span<double> velocities) const;
 
   /// Accumulated wall-clock seconds per stage: spread, fft_forward, scale, fft_backward,
-  /// interpolate, real_space, lanczos (Lanczos includes its real-space products), plan.
+  /// interpolate, real_space, lanczos (Lanczos includes its real-space products), plan (parameters,
+  /// tables, FFT plans), positions_real (cell order, neighbour lists) and positions_wave (window
+  /// weights, tile order) of set_positions.
   [[nodiscard]] StageTimes stage_times() const;
   void reset_stage_times() const;
 
