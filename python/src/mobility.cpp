@@ -112,6 +112,7 @@ nb::dict pse_parameters(const rpy::pse::PseParameters& p) {
   d["spacing"] = nb::make_tuple(p.spacing[0], p.spacing[1], p.spacing[2]);
   d["support"] = nb::make_tuple(p.support[0], p.support[1], p.support[2]);
   d["window_eta"] = p.window_eta;
+  d["eta_automatic"] = p.eta_automatic;
   d["sigma"] = p.sigma;
   d["window_m"] = p.window_m;
   d["table_dr"] = p.table_dr;
@@ -267,7 +268,7 @@ void bind_mobility(nb::module_& m) {
             new (self) rpy::pse::PseRpy(geometry_from(box, "PseRpy"), viscosity, o);
           },
           nb::arg("box"), nb::arg("viscosity") = 1.0, nb::arg("tolerance") = 1e-3, nb::arg("xi") = 0.0,
-          nb::arg("r_cut") = 0.0, nb::arg("window_eta") = 0.8, nb::arg("fft_threads") = 0,
+          nb::arg("r_cut") = 0.0, nb::arg("window_eta") = 0.0, nb::arg("fft_threads") = 0,
           nb::arg("max_memory_bytes") = std::size_t{16} << 30, nb::arg("fft_measure") = false,
           "box: L (cube) or (Lx, Ly, Lz), length units; tolerance in [1e-8, 0.1) relative to 1/(6 pi eta a);\n"
           "xi: Ewald splitting (1/length, 0 = automatic); r_cut: real-space cutoff (length, 0 = automatic);\n"

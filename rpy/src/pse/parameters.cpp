@@ -1,16 +1,17 @@
 // rpyfmm — PSE parameter selection from a tolerance (PSE.md Sec. 3.2) and the
 // cost model for automatic xi ([PSE] eqs. 22-23, PSE.md Sec. 3.4).
-#include "rpyfmm/rpy/pse/pse_parameters.hpp"
-
 #include <algorithm>
 #include <boost/math/special_functions/erf.hpp>
 #include <cmath>
 #include <cstdio>
+#include <exception>
 #include <limits>
 #include <numbers>
 #include <string>
+#include <vector>
 
 #include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/rpy/pse/pse_parameters.hpp"
 #include "rpyfmm/rpy/pse/real_space.hpp"
 
 namespace rpyfmm::rpy::pse {
@@ -25,9 +26,24 @@ std::string fmt(double v) {
   return buf;
 }
 
-/// Parameters for one fixed xi; throws rpyfmm::Error when infeasible.
-PseParameters parameters_for_xi(const PseOptions& o, double a, const std::array<double, 3>& L, std::size_t n,
-                                double xi) {
+/// Window shape values eta* tried when PseOptions::window_eta = 0 (automatic).
+constexpr double kEtaCandidates[] = {0.4, 0.45, 0.5, 0.55, 0.6, 0.65, 0.7, 0.75, 0.8, 0.85, 0.9};
+
+/// Window truncation: the relative error of M F from cutting the Gaussian at m sigma, measured
+/// against a window of 26 points on the same grid (bench/pse/RESULTS.md, session 10), is at most
+/// kTruncation erfc(m / sqrt 2) for xi a = 0.3 ... 1.5 and eps = 1e-2 ... 1e-5 (2.8-3.8 x the
+/// 1.5 erfc(m / sqrt 2) of PSE.md Sec. 3.1, which had let this term alone exceed eps by up to 1.9x).
+constexpr double kTruncation = 6.0;
+
+/// Real-space cutoff for xi: the override, or the envelope cutoff for eps / 2 (Sec. 1.5).
+double cutoff_for_xi(const PseOptions& o, double a, double xi) {
+  return o.r_cut > 0.0 ? o.r_cut : real_space_cutoff(0.5 * o.tolerance, xi, a);
+}
+
+/// Parameters for one fixed xi, window shape eta and cutoff r_cut; throws rpyfmm::Error when
+/// infeasible.
+PseParameters parameters_for(const PseOptions& o, double a, const std::array<double, 3>& L, std::size_t n, double xi,
+                             double eta, double r_cut) {
   PseParameters p;
   p.radius = a;
   p.xi = xi;
@@ -36,15 +52,14 @@ PseParameters parameters_for_xi(const PseOptions& o, double a, const std::array<
   const double min_L = std::min({L[0], L[1], L[2]});
 
   // 1. Real-space cutoff from the envelope of F, G for eps_R = eps / 2 (Sec. 1.5).
-  p.r_cut = o.r_cut > 0.0 ? o.r_cut : real_space_cutoff(0.5 * eps, xi, a);
+  p.r_cut = r_cut;
   require(p.r_cut <= 0.5 * min_L, ErrorCode::invalid_argument, kWhere,
-          "box length " + fmt(min_L) + " is smaller than 2 r_cut = " + fmt(2.0 * p.r_cut) +
-              " (xi = " + fmt(xi) + ", tolerance " + fmt(eps) + "); increase xi or the box");
+          "box length " + fmt(min_L) + " is smaller than 2 r_cut = " + fmt(2.0 * p.r_cut) + " (xi = " + fmt(xi) +
+              ", tolerance " + fmt(eps) + "); increase xi or the box");
 
-  // 2. Window half-width m (in sigma) from the truncation term 1.5 erfc(m / sqrt 2) <= eps / 2.
-  p.window_m = std::numbers::sqrt2 * boost::math::erfc_inv(eps / 3.0);
+  // 2. Window half-width m (in sigma) from the truncation term kTruncation erfc(m / sqrt 2) <= eps / 2.
+  p.window_m = std::numbers::sqrt2 * boost::math::erfc_inv(eps / (2.0 * kTruncation));
   // 3. Grid spacing: the aliasing exponent pi^2 eta (1 - eta/2) / (2 xi^2 h^2) >= ln(2/eps) (Sec. 2.4).
-  const double eta = o.window_eta;
   const double h_max = (std::numbers::pi / xi) * std::sqrt(eta * (1.0 - 0.5 * eta) / (2.0 * std::log(2.0 / eps)));
   p.window_eta = eta;
   p.sigma = std::sqrt(eta) / (2.0 * xi);  // sigma^2 = eta / (4 xi^2)
@@ -71,8 +86,8 @@ PseParameters parameters_for_xi(const PseOptions& o, double a, const std::array<
           "FFT grid of " + fmt(ng) + " points exceeds the 2^31 points FFTW/cuFFT plans accept");
   // Memory: 3 real grids + 3 half spectra + c(k) + window cache; the table is small.
   const double modes = static_cast<double>(p.grid[0]) * p.grid[1] * (p.grid[2] / 2 + 1);
-  const double bytes = 24.0 * ng + 56.0 * modes +
-                       8.0 * static_cast<double>(n) * (p.support[0] + p.support[1] + p.support[2] + 8);
+  const double bytes =
+      24.0 * ng + 56.0 * modes + 8.0 * static_cast<double>(n) * (p.support[0] + p.support[1] + p.support[2] + 8);
   require(bytes <= static_cast<double>(o.max_memory_bytes), ErrorCode::out_of_memory, kWhere,
           "FFT grid " + std::to_string(p.grid[0]) + " x " + std::to_string(p.grid[1]) + " x " +
               std::to_string(p.grid[2]) + " needs " + fmt(bytes / 1e9) + " GB, over the limit of " +
@@ -95,9 +110,9 @@ PseParameters parameters_for_xi(const PseOptions& o, double a, const std::array<
 int next_fast_size(int n) {
   for (int m = std::max(n, 2) + (std::max(n, 2) % 2);; m += 2) {
     int r = m;
-    for (int f : {2, 3, 5, 7})
+    for (int f : {2, 5, 7})
       while (r % f == 0) r /= f;
-    if (r == 1) return m;
+    if (r == 1 || r == 3) return m;
   }
 }
 
@@ -105,11 +120,11 @@ PseParameters choose_parameters(const PseOptions& o, double a, const std::array<
                                 std::size_t n_particles) {
   require_positive(a, kWhere, "radius");
   if (!(std::isfinite(o.tolerance) && o.tolerance >= 1e-8 && o.tolerance < 0.1)) {
-    fail(ErrorCode::invalid_argument, kWhere,
-         "tolerance must lie in [1e-8, 0.1), got " + fmt(o.tolerance));
+    fail(ErrorCode::invalid_argument, kWhere, "tolerance must lie in [1e-8, 0.1), got " + fmt(o.tolerance));
   }
-  if (!(o.window_eta > 0.0 && o.window_eta < 1.0)) {
-    fail(ErrorCode::invalid_argument, kWhere, "window_eta must lie in (0, 1), got " + fmt(o.window_eta));
+  if (!(o.window_eta == 0.0 || (o.window_eta > 0.0 && o.window_eta < 1.0))) {
+    fail(ErrorCode::invalid_argument, kWhere,
+         "window_eta must lie in (0, 1) (or be 0: automatic), got " + fmt(o.window_eta));
   }
   require(std::isfinite(o.r_cut) && o.r_cut >= 0.0, ErrorCode::invalid_argument, kWhere,
           "r_cut override must be >= 0 (0 = automatic), got " + fmt(o.r_cut));
@@ -122,10 +137,39 @@ PseParameters choose_parameters(const PseOptions& o, double a, const std::array<
   require(min_L > 2.0 * a, ErrorCode::invalid_argument, kWhere,
           "box length " + fmt(min_L) + " is not larger than the particle diameter " + fmt(2.0 * a));
 
+  // Window shapes to try: the given one, or (automatic) the candidates, keeping the cheapest by
+  // the cost model. eta trades the grid (h_max ~ sqrt(eta (1 - eta/2))) against the support
+  // (P ~ m / sqrt(1 - eta/2) at h = h_max), and P moves in whole points.
+  std::vector<double> etas;
+  if (o.window_eta > 0.0) {
+    etas.push_back(o.window_eta);
+  } else {
+    etas.assign(std::begin(kEtaCandidates), std::end(kEtaCandidates));
+  }
+  // The cheapest feasible eta for one xi; if none is, the error of the last one tried
+  // (a fixed eta: its own error), so that its code (out_of_memory, ...) reaches the caller.
+  auto best_for_xi = [&](double xi) {
+    PseParameters best;
+    bool found = false;
+    std::exception_ptr last;
+    const double r_cut = cutoff_for_xi(o, a, xi);
+    for (double eta : etas) {
+      try {
+        PseParameters p = parameters_for(o, a, L, n_particles, xi, eta, r_cut);
+        if (!found || p.modelled_cost < best.modelled_cost) best = p;
+        found = true;
+      } catch (const Error&) {
+        last = std::current_exception();
+      }
+    }
+    if (!found) std::rethrow_exception(last);
+    best.eta_automatic = etas.size() > 1;
+    return best;
+  };
   if (o.xi != 0.0) {
     require(std::isfinite(o.xi) && o.xi * a >= 0.05, ErrorCode::invalid_argument, kWhere,
             "xi a must be >= 0.05 (closed forms lose accuracy below), got xi = " + fmt(o.xi));
-    return parameters_for_xi(o, a, L, n_particles, o.xi);
+    return best_for_xi(o.xi);
   }
   // Automatic xi: minimise the modelled cost over xi a in [0.2, 8] (Sec. 3.4).
   PseParameters best;
@@ -133,7 +177,7 @@ PseParameters choose_parameters(const PseOptions& o, double a, const std::array<
   std::string last_error;
   for (double xa = 0.2; xa <= 8.0 + 1e-12; xa += (xa < 2.5 ? 0.05 : 0.25)) {
     try {
-      PseParameters p = parameters_for_xi(o, a, L, n_particles, xa / a);
+      const PseParameters p = best_for_xi(xa / a);
       if (!found || p.modelled_cost < best.modelled_cost) best = p;
       found = true;
     } catch (const Error& e) {
@@ -149,10 +193,10 @@ PseParameters choose_parameters(const PseOptions& o, double a, const std::array<
 
 std::string PseParameters::summary() const {
   return "PSE: xi = " + fmt(xi) + (xi_automatic ? " (auto)" : "") + ", xi a = " + fmt(xi * radius) +
-         ", tolerance = " + fmt(tolerance) + ", r_cut = " + fmt(r_cut) + ", grid = " + std::to_string(grid[0]) +
-         "x" + std::to_string(grid[1]) + "x" + std::to_string(grid[2]) + ", h = " + fmt(spacing[0]) +
-         ", P = " + std::to_string(support[0]) + "/" + std::to_string(support[1]) + "/" +
-         std::to_string(support[2]) + ", eta = " + fmt(window_eta) + ", m = " + fmt(window_m) +
+         ", tolerance = " + fmt(tolerance) + ", r_cut = " + fmt(r_cut) + ", grid = " + std::to_string(grid[0]) + "x" +
+         std::to_string(grid[1]) + "x" + std::to_string(grid[2]) + ", h = " + fmt(spacing[0]) +
+         ", P = " + std::to_string(support[0]) + "/" + std::to_string(support[1]) + "/" + std::to_string(support[2]) +
+         ", eta = " + fmt(window_eta) + (eta_automatic ? " (auto)" : "") + ", m = " + fmt(window_m) +
          ", table dr = " + fmt(table_dr) + " (" + std::to_string(table_size) + " entries)" +
          ", lanczos tol = " + fmt(lanczos_tolerance) + ", memory = " + fmt(static_cast<double>(memory_bytes) / 1e6) +
          " MB";

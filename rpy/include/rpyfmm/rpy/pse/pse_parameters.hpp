@@ -32,7 +32,9 @@ struct PseOptions {
   /// Gaussian support override (grid points per direction); 0 = from the tolerance.
   int support = 0;
   /// SE shape parameter eta* in (0, 1): trades grid size against support (PSE.md Sec. 3.2).
-  double window_eta = 0.8;
+  /// 0 = automatic: the cheapest of eta* = 0.4, 0.45, ..., 0.9 by the cost model (for each xi
+  /// tried, when xi is automatic too). The error terms meet the tolerance for every eta*.
+  double window_eta = 0.0;
   /// Lanczos tolerance of the real-space sample (split sampler); 0 = tolerance.
   double lanczos_tolerance = 0.0;
   /// Evaluate F, G from a linear table (true) or from the closed forms per pair (false).
@@ -74,6 +76,7 @@ struct PseParameters {
   std::array<double, 3> spacing = {0, 0, 0};  ///< h_d = L_d / N_d
   std::array<int, 3> support = {0, 0, 0};     ///< P_d grid points per direction
   double window_eta = 0.0;              ///< SE eta = 4 xi^2 sigma^2
+  bool eta_automatic = false;           ///< eta chosen by the cost model
   double sigma = 0.0;                   ///< Gaussian standard deviation
   double window_m = 0.0;                ///< half-width in units of sigma (m)
   double table_dr = 0.0;                ///< table spacing (0 when evaluated directly)
@@ -93,9 +96,11 @@ struct PseParameters {
 PseParameters choose_parameters(const PseOptions& options, double radius, const std::array<double, 3>& box,
                                 std::size_t n_particles);
 
-/// Smallest even n' >= n whose prime factors are all in {2, 3, 5, 7}. Odd lengths are
-/// avoided: FFTW's r2c/c2r transforms of odd length ran 1.5-2.2x slower per point than the
-/// even sizes next to them (63 vs 64, 125 vs 128, 147 vs 150, 189 vs 192; bench/pse/RESULTS.md).
+/// Smallest even n' >= n of the form 2^a 3^b 5^c 7^d with b <= 1. Odd lengths are avoided:
+/// FFTW's r2c/c2r transforms of odd length ran 1.5-2.2x slower per point than the even sizes
+/// next to them (63 vs 64, 125 vs 128, 147 vs 150, 189 vs 192), and so did lengths with 3^2 or
+/// more (108, 144, 162, 180, 216: 0.9-1.15 ns per point and log2 against 0.63-0.74 for 100,
+/// 112, 150, 160, 200; bench/pse/RESULTS.md, session 10).
 int next_fast_size(int n);
 
 }  // namespace rpyfmm::rpy::pse
