@@ -4,11 +4,14 @@
 // against generic Lanczos on the full PSE operator ([PSE] Fig. 6), and the real-space
 // table against direct evaluation of F, G. CSV rows on stdout.
 //
-// usage: bench_pse [--quick] [--fft-measure] [--cuda] [N ...]   (default 8000 16000 32000); threads
-// from 1 to OMP max.
+// usage: bench_pse [--quick] [--fft-measure] [--error] [--eta E] [--support P] [--cuda] [N ...]
+//   (default 8000 16000 32000); threads from 1 to OMP max.
 // Also times the free-space FmmRpy (tolerance 1e-3) on the same particles, 1 thread.
 // --quick: only M F and the split sampler with their stage times (no full-operator Lanczos,
 // no table-vs-direct real space, no FMM comparison).
+// --error: the relative l2 error of M F against the same operator at tolerance 1e-8 (N <= 64000;
+// -1 above), column MF_rel_error. --eta / --support: PseOptions::window_eta / support overrides
+// (e.g. --eta 0.8 --support 6 is the window the versions before session 10 chose at 1e-3).
 // --fft-measure: PseOptions::fft_measure (FFTW_MEASURE plans; the plan column gives the planning
 // time of set_positions, which includes the timing of the plans).
 // --cuda: the CUDA operator PseRpyCuda instead (host arrays in and out, so transfers count),
@@ -150,7 +153,22 @@ int main(int argc, char** argv) {
   bool quick = false;
   bool cuda = false;
   bool fft_measure = false;
+  bool with_error = false;
+  double eta = 0.0;
+  int support = 0;
   for (int i = 1; i < argc; ++i) {
+    if (std::string(argv[i]) == "--error") {
+      with_error = true;
+      continue;
+    }
+    if ((std::string(argv[i]) == "--eta" || std::string(argv[i]) == "--support") && i + 1 < argc) {
+      if (std::string(argv[i]) == "--eta") {
+        eta = std::atof(argv[++i]);
+      } else {
+        support = std::atoi(argv[++i]);
+      }
+      continue;
+    }
     if (std::string(argv[i]) == "--fft-measure") {
       fft_measure = true;
       continue;
@@ -178,7 +196,7 @@ int main(int argc, char** argv) {
   std::printf(
       "N,threads,grid,P,r_cut,MF_s,MF_PTPS,sample_s,sample_PTPS,sample_over_MF,split_iters,"
       "lanczos_full_s,lanczos_full_iters,spread,fft,scale,interp,real,lanczos_real,"
-      "sample_noise_scale,sample_fft,sample_interp,plan_s,fft_measure\n");
+      "sample_noise_scale,sample_fft,sample_interp,plan_s,fft_measure,eta,MF_rel_error\n");
   for (std::size_t n : sizes) {
     const double L = std::cbrt(static_cast<double>(n) * 4.0 / 3.0 * std::numbers::pi * a * a * a / phi);
     const auto x = hard_spheres(n, a, L, 7);
@@ -192,6 +210,8 @@ int main(int argc, char** argv) {
       o.xi = 0.5 / a;
       o.fft_threads = threads;
       o.fft_measure = fft_measure;
+      o.window_eta = eta;
+      o.support = support;
       PseRpy op(Geometry::periodic(L), 1.0, o);
       StopWatch plan_watch;
       op.set_positions(x, a);
@@ -213,17 +233,33 @@ int main(int argc, char** argv) {
       int full_iters = 0;
       const double t_full = quick ? 0.0 : median_seconds(1, [&] { full_iters = op.apply_sqrt(z, w, so).iterations; });
       const auto& p = op.parameters();
+      double rel_error = -1.0;
+      if (with_error && n <= 64000) {
+        PseOptions ro;
+        ro.tolerance = 1e-8;
+        PseRpy ref(Geometry::periodic(L), 1.0, ro);
+        ref.set_positions(x, a);
+        std::vector<double> ur(3 * n);
+        ref.apply(f, ur);
+        op.apply(f, u);
+        double num = 0.0, den = 0.0;
+        for (std::size_t i = 0; i < u.size(); ++i) {
+          num += (u[i] - ur[i]) * (u[i] - ur[i]);
+          den += ur[i] * ur[i];
+        }
+        rel_error = std::sqrt(num / den);
+      }
       auto per = [&](const StageTimes& s, const char* k) {
         auto it = s.find(k);
         return it == s.end() ? 0.0 : it->second / reps;
       };
       std::printf(
           "%zu,%d,%dx%dx%d,%d,%.3f,%.4g,%.4g,%.4g,%.4g,%.2f,%d,%.4g,%d,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,"
-          "%.3g,%d\n",
+          "%.3g,%d,%.2f,%.3g\n",
           n, threads, p.grid[0], p.grid[1], p.grid[2], p.support[0], p.r_cut, t_mf, n / t_mf, t_s, n / t_s, t_s / t_mf,
           iters, t_full, full_iters, per(mf, "spread"), per(mf, "fft_forward") + per(mf, "fft_backward"),
           per(mf, "scale"), per(mf, "interpolate"), per(mf, "real_space"), per(st, "lanczos"), per(st, "scale"),
-          per(st, "fft_backward"), per(st, "interpolate"), t_plan, fft_measure ? 1 : 0);
+          per(st, "fft_backward"), per(st, "interpolate"), t_plan, fft_measure ? 1 : 0, p.window_eta, rel_error);
       std::fflush(stdout);
     }
     if (quick) continue;
