@@ -272,6 +272,7 @@ void bind_mobility(nb::module_& m) {
           nb::arg("max_memory_bytes") = std::size_t{16} << 30, nb::arg("fft_measure") = false,
           "box: L (cube) or (Lx, Ly, Lz), length units; tolerance in [1e-8, 0.1) relative to 1/(6 pi eta a);\n"
           "xi: Ewald splitting (1/length, 0 = automatic); r_cut: real-space cutoff (length, 0 = automatic);\n"
+          "window_eta: Gaussian window shape in (0, 1), 0 = the cheapest meeting the tolerance;\n"
           "fft_measure: FFTW_MEASURE plans (timed at set_positions, faster transforms, results\n"
           "reproducible to round-off rather than bit for bit across processes).")
       .def_prop_ro(

@@ -85,23 +85,20 @@ void RealSpaceSum::set_positions(std::span<const double> x) {
   }
   // Slots: particles sorted by cell (counting sort, stable); without cells, the input order.
   std::vector<std::size_t> cell_begin;
-  std::vector<std::array<int, 3>> cell_of;
   order_.resize(n);
   if (cells) {
     const std::size_t ncell = static_cast<std::size_t>(nc[0]) * nc[1] * nc[2];
     cell_begin.assign(ncell + 1, 0);
-    std::vector<std::array<int, 3>> cell_in(n);
     std::vector<std::size_t> id(n);
     for (std::size_t i = 0; i < n; ++i) {
-      for (int d = 0; d < 3; ++d) cell_in[i][d] = std::min(static_cast<int>(x[3 * i + d] / box_[d] * nc[d]), nc[d] - 1);
-      id[i] = (static_cast<std::size_t>(cell_in[i][0]) * nc[1] + cell_in[i][1]) * nc[2] + cell_in[i][2];
+      int c[3];
+      for (int d = 0; d < 3; ++d) c[d] = std::min(static_cast<int>(x[3 * i + d] / box_[d] * nc[d]), nc[d] - 1);
+      id[i] = (static_cast<std::size_t>(c[0]) * nc[1] + c[1]) * nc[2] + c[2];
       ++cell_begin[id[i] + 1];
     }
     for (std::size_t c = 0; c < ncell; ++c) cell_begin[c + 1] += cell_begin[c];
     std::vector<std::size_t> fill(cell_begin.begin(), cell_begin.end() - 1);
     for (std::size_t i = 0; i < n; ++i) order_[fill[id[i]]++] = i;
-    cell_of.resize(n);
-    for (std::size_t s = 0; s < n; ++s) cell_of[s] = cell_in[order_[s]];
   } else {
     for (std::size_t s = 0; s < n; ++s) order_[s] = s;
   }
