@@ -72,11 +72,11 @@ int bench_steps(int argc, char** argv) {
   const std::string method = arg(argc, argv, "--method", "direct");
   const int steps = std::stoi(arg(argc, argv, "--steps", "5"));
   const double tol = std::stod(arg(argc, argv, "--tol", "1e-3"));
+  bool split = false;
+  for (int i = 2; i < argc; ++i) split = split || std::string(argv[i]) == "--split-displacements";
   std::printf(
       "method,N,threads,sec_per_step,steps_per_sec,lanczos_its,products,neighbours,forces,plan,drift,sqrt,update\n");
   for (std::size_t n : sizes(arg(argc, argv, "--n", "1000,3000"))) {
-    bool split = false;
-    for (int i = 2; i < argc; ++i) split = split || std::string(argv[i]) == "--split-displacements";
     const RunConfig c = cloud_config(n, method, tol, method == "pse", 0.05, split);
     const ForceField ff = make_force_field(c);
     const InitialState s = make_particles(c, ff);

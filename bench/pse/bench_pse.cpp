@@ -80,6 +80,16 @@ std::vector<double> hard_spheres(std::size_t n, double a, double L, unsigned see
   return x;
 }
 
+/// ||a - b|| / ||b|| (l2).
+double relative_l2(const std::vector<double>& a, const std::vector<double>& b) {
+  double num = 0.0, den = 0.0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    num += (a[i] - b[i]) * (a[i] - b[i]);
+    den += b[i] * b[i];
+  }
+  return std::sqrt(num / den);
+}
+
 template <class Fn>
 double median_seconds(int reps, Fn&& fn) {
   std::vector<double> t;
@@ -127,12 +137,7 @@ int run_cuda(const std::vector<std::size_t>& sizes) {
       std::vector<double> uc(3 * n);
       cpu.apply(f, uc);
       op.apply(f, u);
-      double num = 0, den = 0;
-      for (std::size_t i = 0; i < u.size(); ++i) {
-        num += (u[i] - uc[i]) * (u[i] - uc[i]);
-        den += uc[i] * uc[i];
-      }
-      diff = std::sqrt(num / den);
+      diff = relative_l2(u, uc);
       if (!(diff <= kMaxRelDiffCpu)) {
         std::printf("# N = %zu: GPU and CPU differ by %.3g (> %.0e)\n", n, diff, kMaxRelDiffCpu);
         status = 3;
@@ -242,12 +247,7 @@ int main(int argc, char** argv) {
         std::vector<double> ur(3 * n);
         ref.apply(f, ur);
         op.apply(f, u);
-        double num = 0.0, den = 0.0;
-        for (std::size_t i = 0; i < u.size(); ++i) {
-          num += (u[i] - ur[i]) * (u[i] - ur[i]);
-          den += ur[i] * ur[i];
-        }
-        rel_error = std::sqrt(num / den);
+        rel_error = relative_l2(u, ur);
       }
       auto per = [&](const StageTimes& s, const char* k) {
         auto it = s.find(k);
@@ -277,13 +277,8 @@ int main(int argc, char** argv) {
     std::vector<double> ut(3 * n), ud(3 * n);
     const double tt = median_seconds(3, [&] { tab.apply_real(f, ut); });
     const double td = median_seconds(3, [&] { dir.apply_real(f, ud); });
-    double num = 0, den = 0;
-    for (std::size_t i = 0; i < ut.size(); ++i) {
-      num += (ut[i] - ud[i]) * (ut[i] - ud[i]);
-      den += ud[i] * ud[i];
-    }
     std::printf("# N=%zu real space 1 thread: table %.4g s, direct %.4g s (direct/table %.2f), rel diff %.2g\n", n, tt,
-                td, td / tt, std::sqrt(num / den));
+                td, td / tt, relative_l2(ut, ud));
     // The same particles in free space with the FMM operator (tolerance 1e-3): M F and a Lanczos
     // sample at the same tolerance, 1 thread, for the "PSE vs free-space FMM path" comparison.
     FmmRpy fmm(Geometry::open(), 1.0, {.tolerance = 1e-3});

@@ -389,4 +389,18 @@ TEST(BdDynamics, PseStepFusesDriftAndNoise) {
   pse->apply(f, u);
   for (std::size_t i = 0; i < 12; ++i) EXPECT_NEAR(split.deterministic_displacement()[i], dt * u[i], 1e-15) << i;
   EXPECT_GT(std::abs(split.brownian_displacement()[0]), 0.0);
+  // Only the PSE split sampler fuses: generic Lanczos on the PSE operator, or another operator,
+  // takes the separate path, and asking such an operator for the fused pass is refused.
+  EXPECT_TRUE(fuses_drift_and_noise(*pse, SqrtOptions{}));
+  EXPECT_FALSE(fuses_drift_and_noise(*pse, SqrtOptions{.method = SqrtMethod::lanczos}));
+  bdtest::DenseRpy dense;
+  dense.set_positions(x1, 1.0);
+  EXPECT_FALSE(fuses_drift_and_noise(dense, SqrtOptions{}));
+  try {
+    fused_drift_and_noise(dense, f, 1.0, 5, 1, v, SqrtOptions{});
+    ADD_FAILURE() << "fused_drift_and_noise accepted an operator without a fused pass";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::not_supported);
+    EXPECT_NE(std::string(e.what()).find("fused"), std::string::npos) << e.what();
+  }
 }

@@ -122,6 +122,16 @@ TEST(PseBadInput, WindowWiderThanGridOverride) {
   expect_error([&] { op.set_positions(kTwo, 1.0); }, ErrorCode::invalid_argument, "wider than the grid");
 }
 
+TEST(PseBadInput, WindowShapeOutOfRange) {
+  // window_eta: 0 (automatic) or in (0, 1); anything else is refused when the plan is made.
+  for (double eta : {-0.1, 1.0, 1.5, std::numeric_limits<double>::quiet_NaN()}) {
+    PseOptions o;
+    o.window_eta = eta;
+    PseRpy op(Geometry::periodic(20.0), 1.0, o);
+    expect_error([&] { op.set_positions(kTwo, 1.0); }, ErrorCode::invalid_argument, "window_eta");
+  }
+}
+
 TEST(PseBadInput, ApplyBeforePositions) {
   PseRpy op(Geometry::periodic(20.0), 1.0);
   std::vector<double> f(6, 0.0), u(6);

@@ -1,5 +1,7 @@
 // rpyfmm — PSE parameter selection from a tolerance (PSE.md Sec. 3.2) and the
 // cost model for automatic xi ([PSE] eqs. 22-23, PSE.md Sec. 3.4).
+#include "rpyfmm/rpy/pse/pse_parameters.hpp"
+
 #include <algorithm>
 #include <boost/math/special_functions/erf.hpp>
 #include <cmath>
@@ -11,7 +13,6 @@
 #include <vector>
 
 #include "rpyfmm/core/validate.hpp"
-#include "rpyfmm/rpy/pse/pse_parameters.hpp"
 #include "rpyfmm/rpy/pse/real_space.hpp"
 
 namespace rpyfmm::rpy::pse {
