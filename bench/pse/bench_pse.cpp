@@ -4,13 +4,14 @@
 // against generic Lanczos on the full PSE operator ([PSE] Fig. 6), and the real-space
 // table against direct evaluation of F, G. CSV rows on stdout.
 //
-// usage: bench_pse [--quick] [--fft-measure] [--error] [--eta E] [--support P] [--cuda] [N ...]
+// usage: bench_pse [--quick] [--fft-measure] [--error] [--xi XA] [--eta E] [--support P] [--cuda] [N ...]
 //   (default 8000 16000 32000); threads from 1 to OMP max.
 // Also times the free-space FmmRpy (tolerance 1e-3) on the same particles, 1 thread.
 // --quick: only M F and the split sampler with their stage times (no full-operator Lanczos,
 // no table-vs-direct real space, no FMM comparison).
 // --error: the relative l2 error of M F against the same operator at tolerance 1e-8 (N <= 64000;
-// -1 above), column MF_rel_error. --eta / --support: PseOptions::window_eta / support overrides
+// -1 above), column MF_rel_error. --xi: xi a of the M F / sampler rows (default 0.5, Table I;
+// 0 = automatic, the cost model's choice). --eta / --support: PseOptions::window_eta / support overrides
 // (e.g. --eta 0.8 --support 6 is the window the versions before session 10 chose at 1e-3).
 // --fft-measure: PseOptions::fft_measure (FFTW_MEASURE plans; the plan column gives the planning
 // time of set_positions, which includes the timing of the plans).
@@ -160,8 +161,13 @@ int main(int argc, char** argv) {
   bool fft_measure = false;
   bool with_error = false;
   double eta = 0.0;
+  double xi_a = 0.5;
   int support = 0;
   for (int i = 1; i < argc; ++i) {
+    if (std::string(argv[i]) == "--xi" && i + 1 < argc) {
+      xi_a = std::atof(argv[++i]);
+      continue;
+    }
     if (std::string(argv[i]) == "--error") {
       with_error = true;
       continue;
@@ -201,7 +207,7 @@ int main(int argc, char** argv) {
   std::printf(
       "N,threads,grid,P,r_cut,MF_s,MF_PTPS,sample_s,sample_PTPS,sample_over_MF,split_iters,"
       "lanczos_full_s,lanczos_full_iters,spread,fft,scale,interp,real,lanczos_real,"
-      "sample_noise_scale,sample_fft,sample_interp,plan_s,fft_measure,eta,MF_rel_error\n");
+      "sample_noise_scale,sample_fft,sample_interp,plan_s,fft_measure,eta,MF_rel_error,xi_a\n");
   for (std::size_t n : sizes) {
     const double L = std::cbrt(static_cast<double>(n) * 4.0 / 3.0 * std::numbers::pi * a * a * a / phi);
     const auto x = hard_spheres(n, a, L, 7);
@@ -212,7 +218,7 @@ int main(int argc, char** argv) {
       omp_set_num_threads(threads);
       PseOptions o;
       o.tolerance = 1e-3;
-      o.xi = 0.5 / a;
+      o.xi = xi_a / a;
       o.fft_threads = threads;
       o.fft_measure = fft_measure;
       o.window_eta = eta;
@@ -255,11 +261,12 @@ int main(int argc, char** argv) {
       };
       std::printf(
           "%zu,%d,%dx%dx%d,%d,%.3f,%.4g,%.4g,%.4g,%.4g,%.2f,%d,%.4g,%d,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,"
-          "%.3g,%d,%.2f,%.3g\n",
+          "%.3g,%d,%.2f,%.3g,%.3g\n",
           n, threads, p.grid[0], p.grid[1], p.grid[2], p.support[0], p.r_cut, t_mf, n / t_mf, t_s, n / t_s, t_s / t_mf,
           iters, t_full, full_iters, per(mf, "spread"), per(mf, "fft_forward") + per(mf, "fft_backward"),
           per(mf, "scale"), per(mf, "interpolate"), per(mf, "real_space"), per(st, "lanczos"), per(st, "scale"),
-          per(st, "fft_backward"), per(st, "interpolate"), t_plan, fft_measure ? 1 : 0, p.window_eta, rel_error);
+          per(st, "fft_backward"), per(st, "interpolate"), t_plan, fft_measure ? 1 : 0, p.window_eta, rel_error,
+          p.xi * a);
       std::fflush(stdout);
     }
     if (quick) continue;

@@ -245,25 +245,3 @@ TEST(PseAccuracy, FftMeasurePlansGiveTheSameProduct) {
   measure.sample(3, 4, w2);
   EXPECT_LT(pse_test::rel_l2(w1, w2), 1e-12);
 }
-
-TEST(PseParameterChoice, GridSizesAreEvenProductsOfSmallPrimes) {
-  // next_fast_size(n): the smallest even n' >= n of the form 2^a 3^b 5^c 7^d, b <= 1.
-  auto smooth_even = [](int m) {
-    if (m % 2 != 0) return false;
-    int threes = 0;
-    for (; m % 3 == 0; m /= 3) ++threes;
-    for (int p : {2, 5, 7})
-      while (m % p == 0) m /= p;
-    return m == 1 && threes <= 1;
-  };
-  for (int n = 1; n <= 700; ++n) {
-    const int m = next_fast_size(n);
-    ASSERT_GE(m, n);
-    EXPECT_TRUE(smooth_even(m)) << n << " -> " << m;
-    for (int k = n; k < m; ++k) EXPECT_FALSE(smooth_even(k)) << n << " -> " << m << " skips " << k;
-  }
-  EXPECT_EQ(next_fast_size(63), 64);    // 63 = 3^2 7 is odd
-  EXPECT_EQ(next_fast_size(189), 192);  // 190 = 2 5 19, 192 = 2^6 3
-  EXPECT_EQ(next_fast_size(196), 196);  // 2^2 7^2
-  EXPECT_EQ(next_fast_size(101), 112);  // 102 = 2 3 17, 104 = 2^3 13, 108 = 2^2 3^3: skipped
-}

@@ -1,7 +1,5 @@
 // rpyfmm — PSE parameter selection from a tolerance (PSE.md Sec. 3.2) and the
 // cost model for automatic xi ([PSE] eqs. 22-23, PSE.md Sec. 3.4).
-#include "rpyfmm/rpy/pse/pse_parameters.hpp"
-
 #include <algorithm>
 #include <boost/math/special_functions/erf.hpp>
 #include <cmath>
@@ -13,6 +11,7 @@
 #include <vector>
 
 #include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/rpy/pse/pse_parameters.hpp"
 #include "rpyfmm/rpy/pse/real_space.hpp"
 
 namespace rpyfmm::rpy::pse {
@@ -35,6 +34,63 @@ constexpr double kEtaCandidates[] = {0.4, 0.45, 0.5, 0.55, 0.6, 0.65, 0.7, 0.75,
 /// kTruncation erfc(m / sqrt 2) for xi a = 0.3 ... 1.5 and eps = 1e-2 ... 1e-5 (2.8-3.8 x the
 /// 1.5 erfc(m / sqrt 2) of PSE.md Sec. 3.1, which had let this term alone exceed eps by up to 1.9x).
 constexpr double kTruncation = 6.0;
+
+/// FFT lengths with their measured cost factor: FFTW_ESTIMATE r2c + c2r of three components on an
+/// n^3 grid, seconds per point and log2(points), divided by the median over n = 64 ... 320
+/// (bench/pse/fft_sizes.cpp, medians of 3 rounds, 1 thread; bench/pse/RESULTS.md, session 11).
+/// Every even 2^a 3^b 5^c 7^d from 8 to 320. The factor is not a smooth function of the
+/// factorisation: 200 = 2^3 5^2 costs 0.89, 210 = 2 3 5 7 1.22 and 256 = 2^8 1.32 (cache-set
+/// conflicts of power-of-two strides); the growth with n is the memory hierarchy.
+struct FftLength {
+  int n;
+  double factor;
+};
+constexpr FftLength kFftLengths[] = {
+    {8, 0.37},   {10, 0.34},  {12, 0.32},  {14, 0.49},  {16, 0.33},  {18, 1.09},  {20, 0.34},  {24, 0.82},
+    {28, 0.72},  {30, 1.57},  {32, 0.32},  {36, 0.94},  {40, 0.92},  {42, 0.72},  {48, 0.64},  {50, 0.78},
+    {54, 0.87},  {56, 0.61},  {60, 0.80},  {64, 0.39},  {70, 0.74},  {72, 0.63},  {80, 0.79},  {84, 0.73},
+    {90, 0.83},  {96, 0.84},  {98, 0.67},  {100, 0.65}, {108, 1.00}, {112, 0.69}, {120, 0.74}, {126, 0.94},
+    {128, 0.57}, {140, 0.85}, {144, 1.27}, {150, 0.86}, {160, 0.90}, {162, 1.38}, {168, 1.19}, {180, 1.20},
+    {192, 1.36}, {196, 1.03}, {200, 0.89}, {210, 1.22}, {216, 1.19}, {224, 1.34}, {240, 1.33}, {250, 1.06},
+    {252, 1.00}, {256, 1.32}, {270, 1.45}, {280, 1.13}, {288, 1.19}, {294, 1.16}, {300, 1.00}, {320, 1.11}};
+constexpr int kLongestTabulated = 320;
+/// Factor of lengths beyond the table (next_fast_size lengths): the mean of the table from 250 up.
+constexpr double kUntabulatedFactor = 1.15;
+/// FFT lengths tried per axis: the first kGridCandidates admissible lengths >= the length the
+/// accuracy needs (a longer one can be cheaper per point, and it may shrink the support).
+constexpr int kGridCandidates = 4;
+
+/// The first `count` lengths >= n that the grid choice may use: tabulated ones, then next_fast_size.
+std::vector<int> fft_lengths_from(int n, int count) {
+  std::vector<int> out;
+  for (const auto& e : kFftLengths)
+    if (e.n >= n && static_cast<int>(out.size()) < count) out.push_back(e.n);
+  for (int m = std::max(n, kLongestTabulated + 1); static_cast<int>(out.size()) < count; ++m) {
+    m = next_fast_size(m);
+    out.push_back(m);
+  }
+  return out;
+}
+
+/// Memory of a plan (bytes): 3 real grids + 3 half spectra + c(k) + the window cache.
+double memory_estimate(const std::array<int, 3>& grid, const std::array<int, 3>& support, std::size_t n) {
+  const double ng = static_cast<double>(grid[0]) * grid[1] * grid[2];
+  const double modes = static_cast<double>(grid[0]) * grid[1] * (grid[2] / 2 + 1);
+  return 24.0 * ng + 56.0 * modes + 8.0 * static_cast<double>(n) * (support[0] + support[1] + support[2] + 8);
+}
+
+/// The grid-dependent part of the cost model: two transforms of three components (per axis pass
+/// the length's factor), the per-grid-point work (scaling, wave-space noise), and spreading plus
+/// interpolation over the P_x P_y P_z support.
+double grid_cost(const PseOptions& o, const std::array<int, 3>& grid, const std::array<int, 3>& support,
+                 std::size_t n) {
+  const double ng = static_cast<double>(grid[0]) * grid[1] * grid[2];
+  double per_point_log2 = 0.0;
+  for (int d = 0; d < 3; ++d) per_point_log2 += fft_length_cost(grid[d]) * std::log2(std::max(grid[d], 2));
+  const double support3 = static_cast<double>(support[0]) * support[1] * support[2];
+  return 2.0 * o.cost_fft_point * ng * per_point_log2 + o.cost_grid_point * ng +
+         2.0 * o.cost_support_point * static_cast<double>(n) * support3;
+}
 
 /// Real-space cutoff for xi: the override, or the envelope cutoff for eps / 2 (Sec. 1.5).
 double cutoff_for_xi(const PseOptions& o, double a, double xi) {
@@ -64,19 +120,44 @@ PseParameters parameters_for(const PseOptions& o, double a, const std::array<dou
   const double h_max = (std::numbers::pi / xi) * std::sqrt(eta * (1.0 - 0.5 * eta) / (2.0 * std::log(2.0 / eps)));
   p.window_eta = eta;
   p.sigma = std::sqrt(eta) / (2.0 * xi);  // sigma^2 = eta / (4 xi^2)
+  // 4. Grid: per axis the override, or among the first admissible FFT lengths >= L_d / h_max the
+  // combination of least modelled cost (5. with the support P_d covering +-m sigma on it).
+  std::array<std::vector<int>, 3> lengths;
+  for (int d = 0; d < 3; ++d) {
+    if (o.grid[d] > 0) {
+      lengths[d] = {o.grid[d]};
+      continue;
+    }
+    const double want = std::ceil(L[d] / h_max);
+    require(want < 65536.0, ErrorCode::out_of_memory, kWhere,
+            "grid of " + fmt(want) + " points along axis " + std::to_string(d) + " is too large");
+    lengths[d] = fft_lengths_from(std::max(static_cast<int>(want), 4), kGridCandidates);
+  }
+  auto support_for = [&](int d, int nd) {
+    return o.support > 0 ? o.support : static_cast<int>(std::ceil(2.0 * p.window_m * p.sigma / (L[d] / nd)));
+  };
+  // The shortest lengths are the fallback, so that an infeasible choice fails with its own message.
+  std::array<int, 3> grid = {lengths[0][0], lengths[1][0], lengths[2][0]};
+  double best_cost = std::numeric_limits<double>::infinity();
+  for (int gx : lengths[0])
+    for (int gy : lengths[1])
+      for (int gz : lengths[2]) {
+        const std::array<int, 3> g = {gx, gy, gz};
+        const std::array<int, 3> s = {support_for(0, gx), support_for(1, gy), support_for(2, gz)};
+        if (s[0] > gx || s[1] > gy || s[2] > gz) continue;
+        if (memory_estimate(g, s, n) > static_cast<double>(o.max_memory_bytes)) continue;
+        const double c = grid_cost(o, g, s, n);
+        if (c < best_cost) {
+          best_cost = c;
+          grid = g;
+        }
+      }
   double ng = 1.0;
   for (int d = 0; d < 3; ++d) {
-    int nd = o.grid[d];
-    if (nd <= 0) {
-      const double want = std::ceil(L[d] / h_max);
-      require(want < 65536.0, ErrorCode::out_of_memory, kWhere,
-              "grid of " + fmt(want) + " points along axis " + std::to_string(d) + " is too large");
-      nd = next_fast_size(std::max(static_cast<int>(want), 4));
-    }
+    const int nd = grid[d];
     p.grid[d] = nd;
     p.spacing[d] = L[d] / nd;
-    // 5. Support P_d covers +-m sigma.
-    p.support[d] = o.support > 0 ? o.support : static_cast<int>(std::ceil(2.0 * p.window_m * p.sigma / p.spacing[d]));
+    p.support[d] = support_for(d, nd);
     require(p.support[d] <= nd, ErrorCode::invalid_argument, kWhere,
             "Gaussian window (" + std::to_string(p.support[d]) + " points) is wider than the grid (" +
                 std::to_string(nd) + " points) along axis " + std::to_string(d) +
@@ -85,10 +166,7 @@ PseParameters parameters_for(const PseOptions& o, double a, const std::array<dou
   }
   require(ng < 2147483647.0, ErrorCode::out_of_memory, kWhere,
           "FFT grid of " + fmt(ng) + " points exceeds the 2^31 points FFTW/cuFFT plans accept");
-  // Memory: 3 real grids + 3 half spectra + c(k) + window cache; the table is small.
-  const double modes = static_cast<double>(p.grid[0]) * p.grid[1] * (p.grid[2] / 2 + 1);
-  const double bytes =
-      24.0 * ng + 56.0 * modes + 8.0 * static_cast<double>(n) * (p.support[0] + p.support[1] + p.support[2] + 8);
+  const double bytes = memory_estimate(p.grid, p.support, n);
   require(bytes <= static_cast<double>(o.max_memory_bytes), ErrorCode::out_of_memory, kWhere,
           "FFT grid " + std::to_string(p.grid[0]) + " x " + std::to_string(p.grid[1]) + " x " +
               std::to_string(p.grid[2]) + " needs " + fmt(bytes / 1e9) + " GB, over the limit of " +
@@ -96,17 +174,22 @@ PseParameters parameters_for(const PseOptions& o, double a, const std::array<dou
   p.memory_bytes = static_cast<std::size_t>(bytes);
   p.lanczos_tolerance = o.lanczos_tolerance > 0.0 ? o.lanczos_tolerance : eps;
 
-  // Cost model T(xi) ([PSE] eq. 22): real-space pairs, FFT pair, spreading + interpolation.
+  // Cost model T(xi) ([PSE] eq. 22): real-space pairs (M_r F and the Lanczos iterations of the
+  // sampler), plus the grid-dependent part.
   const double density = static_cast<double>(n) / (L[0] * L[1] * L[2]);
   const double neighbours = density * 4.0 / 3.0 * std::numbers::pi * p.r_cut * p.r_cut * p.r_cut;
-  const double support3 = static_cast<double>(p.support[0]) * p.support[1] * p.support[2];
   p.modelled_cost = o.cost_real_products * o.cost_real_pair * static_cast<double>(n) * (1.0 + neighbours) +
-                    2.0 * o.cost_fft_point * ng * std::log2(std::max(ng, 2.0)) +
-                    2.0 * o.cost_support_point * static_cast<double>(n) * support3;
+                    grid_cost(o, p.grid, p.support, n);
   return p;
 }
 
 }  // namespace
+
+double fft_length_cost(int n) {
+  for (const auto& e : kFftLengths)
+    if (e.n == n) return e.factor;
+  return kUntabulatedFactor;
+}
 
 int next_fast_size(int n) {
   for (int m = std::max(n, 2) + (std::max(n, 2) % 2);; m += 2) {
@@ -134,6 +217,9 @@ PseParameters choose_parameters(const PseOptions& o, double a, const std::array<
     require(o.grid[d] >= 0, ErrorCode::invalid_argument, kWhere, "grid override must be >= 0");
   require(std::isfinite(o.lanczos_tolerance) && o.lanczos_tolerance >= 0.0 && o.lanczos_tolerance < 1.0,
           ErrorCode::invalid_argument, kWhere, "lanczos_tolerance must lie in [0, 1), got " + fmt(o.lanczos_tolerance));
+  for (double c : {o.cost_real_pair, o.cost_fft_point, o.cost_grid_point, o.cost_support_point, o.cost_real_products})
+    require(std::isfinite(c) && c >= 0.0, ErrorCode::invalid_argument, kWhere,
+            "cost-model constants (PseOptions::cost_*) must be finite and >= 0, got " + fmt(c));
   const double min_L = std::min({L[0], L[1], L[2]});
   require(min_L > 2.0 * a, ErrorCode::invalid_argument, kWhere,
           "box length " + fmt(min_L) + " is not larger than the particle diameter " + fmt(2.0 * a));

@@ -17,8 +17,8 @@ namespace rpyfmm::rpy::pse {
 struct PseOptions {
   /// Requested relative accuracy of U = M F (relative to M0 = 1/(6 pi eta a)).
   /// Must lie in [1e-8, 0.1) (below 1e-8 the double-precision closed forms
-  /// of App. A near r -> 0 (~1e-9, PSE.md Sec. 1.3) no longer leave room in the budget). Each error term (real-space cutoff, aliasing,
-  /// window truncation, table) is budgeted below it (PSE.md Sec. 3.2).
+  /// of App. A near r -> 0 (~1e-9, PSE.md Sec. 1.3) no longer leave room in the budget). Each error term (real-space
+  /// cutoff, aliasing, window truncation, table) is budgeted below it (PSE.md Sec. 3.2).
   double tolerance = 1e-3;
   /// Ewald splitting parameter xi (1/length). 0 = automatic: minimise the
   /// modelled cost T(xi) of [PSE] eq. 22 over xi a in [0.2, 8] (Sec. 3.4).
@@ -52,14 +52,16 @@ struct PseOptions {
   /// Upper bound on the memory (bytes) of FFT grids, spectra and tables; exceeding
   /// it throws ErrorCode::out_of_memory before anything is allocated. Default 16 GiB.
   std::size_t max_memory_bytes = std::size_t{16} << 30;
-  /// Cost-model constants for xi = 0 (seconds per real-space pair, per FFT point
-  /// and log2, per spreading/interpolation support point); measured on the
-  /// development machine (bench/pse/RESULTS.md), only their ratios matter.
-  /// (1 thread, N = 8000 in bench/pse/RESULTS.md: 34 ns per pair incl. the self term,
-  /// 3.75 ns per point and log2 per transform of 3 components, 10 ns per support point.)
-  double cost_real_pair = 3.4e-8;
-  double cost_fft_point = 3.75e-9;
-  double cost_support_point = 1.0e-8;
+  /// Cost-model constants, used to choose xi (when 0), the window shape (when 0) and the grid
+  /// lengths: seconds per real-space pair (self term included), per FFT point and log2 of one
+  /// transform of 3 components (times the length's factor, fft_length_cost), per grid point and
+  /// step (scaling and the wave-space noise), and per support point of spreading or of
+  /// interpolation. Measured with bench_pse on the development machine (1 thread, N = 32000 and
+  /// 128000, bench/pse/RESULTS.md, session 11); only their ratios matter.
+  double cost_real_pair = 9.5e-9;
+  double cost_fft_point = 1.05e-9;
+  double cost_grid_point = 1.75e-8;
+  double cost_support_point = 2.5e-9;
   /// Real-space products per step assumed by the cost model: 1 for M F only,
   /// 1 + Lanczos iterations (~5) when the split sampler is used every step.
   double cost_real_products = 5.0;
@@ -67,23 +69,23 @@ struct PseOptions {
 
 /// The choices made for one (radius, box, N) — reported by PseRpy::parameters().
 struct PseParameters {
-  double radius = 0.0;                  ///< a
-  double xi = 0.0;                      ///< Ewald splitting parameter
-  bool xi_automatic = false;            ///< chosen by the cost model
-  double tolerance = 0.0;               ///< requested eps
-  double r_cut = 0.0;                   ///< real-space cutoff
-  std::array<int, 3> grid = {0, 0, 0};  ///< N_x, N_y, N_z (products of 2, 3, 5, 7)
+  double radius = 0.0;                        ///< a
+  double xi = 0.0;                            ///< Ewald splitting parameter
+  bool xi_automatic = false;                  ///< chosen by the cost model
+  double tolerance = 0.0;                     ///< requested eps
+  double r_cut = 0.0;                         ///< real-space cutoff
+  std::array<int, 3> grid = {0, 0, 0};        ///< N_x, N_y, N_z (even products of 2, 3, 5, 7)
   std::array<double, 3> spacing = {0, 0, 0};  ///< h_d = L_d / N_d
   std::array<int, 3> support = {0, 0, 0};     ///< P_d grid points per direction
-  double window_eta = 0.0;              ///< SE eta = 4 xi^2 sigma^2
-  bool eta_automatic = false;           ///< eta chosen by the cost model
-  double sigma = 0.0;                   ///< Gaussian standard deviation
-  double window_m = 0.0;                ///< half-width in units of sigma (m)
-  double table_dr = 0.0;                ///< table spacing (0 when evaluated directly)
-  std::size_t table_size = 0;           ///< table entries
-  double lanczos_tolerance = 0.0;       ///< real-space sample tolerance
-  std::size_t memory_bytes = 0;         ///< grids + spectra + tables
-  double modelled_cost = 0.0;           ///< T(xi) of the cost model (s), for reference
+  double window_eta = 0.0;                    ///< SE eta = 4 xi^2 sigma^2
+  bool eta_automatic = false;                 ///< eta chosen by the cost model
+  double sigma = 0.0;                         ///< Gaussian standard deviation
+  double window_m = 0.0;                      ///< half-width in units of sigma (m)
+  double table_dr = 0.0;                      ///< table spacing (0 when evaluated directly)
+  std::size_t table_size = 0;                 ///< table entries
+  double lanczos_tolerance = 0.0;             ///< real-space sample tolerance
+  std::size_t memory_bytes = 0;               ///< grids + spectra + tables
+  double modelled_cost = 0.0;                 ///< T(xi) of the cost model (s), for reference
 
   /// One-line human-readable summary.
   [[nodiscard]] std::string summary() const;
@@ -96,11 +98,17 @@ struct PseParameters {
 PseParameters choose_parameters(const PseOptions& options, double radius, const std::array<double, 3>& box,
                                 std::size_t n_particles);
 
-/// Smallest even n' >= n of the form 2^a 3^b 5^c 7^d with b <= 1. Odd lengths are avoided:
-/// FFTW's r2c/c2r transforms of odd length ran 1.5-2.2x slower per point than the even sizes
-/// next to them (63 vs 64, 125 vs 128, 147 vs 150, 189 vs 192), and so did lengths with 3^2 or
-/// more (108, 144, 162, 180, 216: 0.9-1.15 ns per point and log2 against 0.63-0.74 for 100,
-/// 112, 150, 160, 200; bench/pse/RESULTS.md, session 10).
+/// Relative cost per point and log2 of an FFT of length n along one axis, as the cost model uses it
+/// (1 = the median of lengths 64 ... 320): FFTW_ESTIMATE transforms timed per length
+/// (bench/pse/fft_sizes.cpp) for the even lengths 2^a 3^b 5^c 7^d up to 320, 1.15 beyond.
+/// The grid is chosen among the first admissible lengths at or above what the accuracy needs.
+double fft_length_cost(int n);
+
+/// Smallest even n' >= n of the form 2^a 3^b 5^c 7^d with b <= 1: the grid lengths beyond the
+/// measured table of fft_length_cost (up to 320 every even 7-smooth length is a candidate). Odd
+/// lengths are avoided: FFTW's r2c/c2r transforms of odd length ran 1.5-2.2x slower per point
+/// than the even sizes next to them (63 vs 64, 125 vs 128, 147 vs 150, 189 vs 192), and lengths
+/// with 3^2 or more mostly did too (bench/pse/RESULTS.md, sessions 10 and 11).
 int next_fast_size(int n);
 
 }  // namespace rpyfmm::rpy::pse
