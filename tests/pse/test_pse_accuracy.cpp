@@ -4,10 +4,11 @@
 
 #include <algorithm>
 #include <cmath>
-#include <span>
 #include <numbers>
+#include <span>
 
 #include "ewald_reference.hpp"
+#include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/real_space.hpp"
 
@@ -89,8 +90,8 @@ TEST(PseAccuracy, ErrorFollowsTolerance) {
   };
   const Case cases[] = {{{20.0, 20.0, 20.0}, 0.5, 1e-6, 0.0}, {{14.0, 14.0, 14.0}, 1.0, 1e-8, 0.0},
                         {{12.0, 15.0, 10.0}, 1.5, 1e-8, 0.0}, {{13.0, 11.0, 16.5}, 2.0, 1e-8, 0.0},
-                        {{14.0, 14.0, 14.0}, 1.0, 1e-8, 0.8},  // a fixed shape (the former default)
-                        {{18.0, 16.0, 17.0}, 0.0, 1e-5, 0.0}}; // automatic xi and shape
+                        {{14.0, 14.0, 14.0}, 1.0, 1e-8, 0.8},   // a fixed shape (the former default)
+                        {{18.0, 16.0, 17.0}, 0.0, 1e-5, 0.0}};  // automatic xi and shape
   const std::size_t n = 30;
   for (const auto& c : cases) {
     const auto x = pse_test::random_points(n, c.L, 11);
@@ -138,8 +139,8 @@ TEST(PseAccuracy, RealSpaceProductMatchesPairSum) {
   const std::array<double, 3> L = {40.0, 35.0, 45.0};
   auto x = pse_test::random_points(1500, L, 41);
   for (int d = 0; d < 3; ++d) {
-    x[3 * 7 + d] = x[3 * 1200 + d];                            // coincident pair
-    x[3 * 8 + d] = x[3 * 900 + d] + (d == 0 ? 0.3 : 0.0);     // deep overlap, r = 0.3 a
+    x[3 * 7 + d] = x[3 * 1200 + d];                        // coincident pair
+    x[3 * 8 + d] = x[3 * 900 + d] + (d == 0 ? 0.3 : 0.0);  // deep overlap, r = 0.3 a
   }
   x[3 * 9] = 0.2;  // pairs across the periodic boundary
   x[3 * 10] = L[0] - 0.4;
@@ -244,4 +245,32 @@ TEST(PseAccuracy, FftMeasurePlansGiveTheSameProduct) {
   estimate.sample(3, 4, w1);
   measure.sample(3, 4, w2);
   EXPECT_LT(pse_test::rel_l2(w1, w2), 1e-12);
+}
+
+TEST(PseAccuracy, Avx512AndPortableWindowKernelsAgree) {
+  // Spreading and interpolation run with AVX-512 masked vectors when the CPU has them and the
+  // support is <= 8 points; the portable loops otherwise. Both must give the same product and
+  // sample to round-off, for windows that wrap around the box (particles near each face) and
+  // for supports from 4 to 9 (tolerances 1e-2 ... 1e-6; 9 takes the portable path in both).
+  if (!rpyfmm::fmm::detail::avx512_kernels_active()) GTEST_SKIP() << "no AVX-512F on this CPU";
+  const std::array<double, 3> L = {17.0, 15.0, 19.0};
+  auto x = pse_test::random_points(300, L, 61);
+  for (std::size_t i = 0; i < 30; ++i) x[3 * i + i % 3] = L[i % 3] * (i % 2 ? 0.999 : 0.001);
+  const auto f = random_forces(300, 62);
+  for (double eps : {1e-2, 1e-3, 1e-4, 1e-6}) {
+    PseOptions o;
+    o.tolerance = eps;
+    PseRpy op(Geometry::periodic(L[0], L[1], L[2]), 1.0, o);
+    op.set_positions(x, 1.0);
+    SCOPED_TRACE(op.parameters().summary());
+    std::vector<double> w_simd(f.size()), w_portable(f.size());
+    const auto u_simd = product(op, f);
+    op.sample(3, 4, w_simd);
+    rpyfmm::fmm::detail::use_avx512_kernels(false);
+    const auto u_portable = product(op, f);
+    op.sample(3, 4, w_portable);
+    rpyfmm::fmm::detail::use_avx512_kernels(true);
+    EXPECT_LT(pse_test::rel_l2(u_simd, u_portable), 1e-13);
+    EXPECT_LT(pse_test::rel_l2(w_simd, w_portable), 1e-13);
+  }
 }

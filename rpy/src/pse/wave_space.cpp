@@ -10,6 +10,7 @@
 #include <numbers>
 
 #include "rpyfmm/core/validate.hpp"
+#include "window_avx512.hpp"
 
 namespace rpyfmm::rpy::pse::detail {
 
@@ -254,6 +255,7 @@ void WaveSpace::spread(const double* forces) {
   const auto total = static_cast<std::int64_t>(3 * ng_);
   const std::size_t p3 = static_cast<std::size_t>(P_[0]) * P_[1] * P_[2];
   const bool par = np_ * p3 >= kParallelWork || ng_ >= 4 * kParallelWork;
+  const bool simd = avx512_window_kernels(P_[2]);
 #pragma omp parallel if (par)
   {
 #pragma omp for schedule(static)
@@ -273,13 +275,19 @@ void WaveSpace::spread(const double* forces) {
           const double f0 = c3_ * forces[3 * i];
           const double f1 = c3_ * forces[3 * i + 1];
           const double f2 = c3_ * forces[3 * i + 2];
-          for (int l = 0; l < P_[2]; ++l) {
+          for (int l = 0; l < (simd ? 0 : P_[2]); ++l) {
             wf[static_cast<std::size_t>(l)] = wz[l] * f0;
             wf[static_cast<std::size_t>(P_[2] + l)] = wz[l] * f1;
             wf[static_cast<std::size_t>(2 * P_[2] + l)] = wz[l] * f2;
           }
           const ZRuns z = z_runs(start_[3 * i + 2], P_[2], n_[2]);
           window_lines(i, xline.data(), yline.data());
+          if (simd) {
+            const double fc[3] = {f0, f1, f2};
+            spread_window_avx512(g0, g1, g2, xline.data(), yline.data(), P_[0], P_[1], {z.z0, z.len0, P_[2]}, wx, wy,
+                                 wz, fc);
+            continue;
+          }
           for (int a = 0; a < P_[0]; ++a)
             for (int b = 0; b < P_[1]; ++b)
               spread_line(g0, g1, g2, xline[static_cast<std::size_t>(a)] + yline[static_cast<std::size_t>(b)], z, P_[2],
@@ -299,6 +307,7 @@ void WaveSpace::interpolate(double* out, bool accumulate) const {
   const double scale = c3_ * dv_;
   const auto np = static_cast<std::int64_t>(np_);
   const bool par = np_ * static_cast<std::size_t>(P_[0]) * P_[1] * P_[2] >= kParallelWork;
+  const bool simd = avx512_window_kernels(P_[2]);
 #pragma omp parallel if (par)
   {
     std::vector<std::size_t> xline(static_cast<std::size_t>(P_[0])), yline(static_cast<std::size_t>(P_[1]));
@@ -313,7 +322,15 @@ void WaveSpace::interpolate(double* out, bool accumulate) const {
       const ZRuns z = z_runs(start_[3 * i + 2], P_[2], n_[2]);
       window_lines(i, xline.data(), yline.data());
       double u0 = 0.0, u1 = 0.0, u2 = 0.0;
-      for (int a = 0; a < P_[0]; ++a) {
+      if (simd) {
+        double u[3] = {0.0, 0.0, 0.0};
+        gather_window_avx512(g0, g1, g2, xline.data(), yline.data(), P_[0], P_[1], {z.z0, z.len0, P_[2]}, wx, wy, wz,
+                             u);
+        u0 = u[0];
+        u1 = u[1];
+        u2 = u[2];
+      }
+      for (int a = 0; a < (simd ? 0 : P_[0]); ++a) {
         for (int b = 0; b < P_[1]; ++b) {
           double sz[3] = {0.0, 0.0, 0.0};
           gather_line(g0, g1, g2, xline[static_cast<std::size_t>(a)] + yline[static_cast<std::size_t>(b)], z, P_[2], wz,

@@ -61,7 +61,7 @@ struct PseOptions {
   double cost_real_pair = 9.5e-9;
   double cost_fft_point = 1.05e-9;
   double cost_grid_point = 1.75e-8;
-  double cost_support_point = 2.5e-9;
+  double cost_support_point = 1.8e-9;
   /// Real-space products per step assumed by the cost model: 1 for M F only,
   /// 1 + Lanczos iterations (~5) when the split sampler is used every step.
   double cost_real_products = 5.0;
