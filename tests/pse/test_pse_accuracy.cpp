@@ -247,11 +247,13 @@ TEST(PseAccuracy, FftMeasurePlansGiveTheSameProduct) {
   EXPECT_LT(pse_test::rel_l2(w1, w2), 1e-12);
 }
 
-TEST(PseAccuracy, Avx512AndPortableWindowKernelsAgree) {
-  // Spreading and interpolation run with AVX-512 masked vectors when the CPU has them and the
-  // support is <= 8 points; the portable loops otherwise. Both must give the same product and
-  // sample to round-off, for windows that wrap around the box (particles near each face) and
-  // for supports from 4 to 9 (tolerances 1e-2 ... 1e-6; 9 takes the portable path in both).
+TEST(PseAccuracy, Avx512AndPortableKernelsAgree) {
+  // Spreading and interpolation (support <= 8 points) and the real-space rows run with AVX-512
+  // intrinsics when the CPU has them, the portable loops otherwise. Both must give the same
+  // product and sample to round-off: windows that wrap around the box (particles near each
+  // face), neighbour rows that cross the box, supports from 4 to 9 (tolerances 1e-2 ... 1e-6;
+  // 9 takes the portable spreading in both). RealSpaceProductMatchesPairSum checks the AVX-512
+  // rows against an independent pair sum with coincident and overlapping pairs.
   if (!rpyfmm::fmm::detail::avx512_kernels_active()) GTEST_SKIP() << "no AVX-512F on this CPU";
   const std::array<double, 3> L = {17.0, 15.0, 19.0};
   auto x = pse_test::random_points(300, L, 61);

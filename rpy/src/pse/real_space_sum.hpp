@@ -45,6 +45,7 @@ class RealSpaceSum {
   std::vector<std::size_t> begin_;          // per slot: range in list_
   std::vector<int> list_;                   // neighbour slots within r_cut (r > 0 or coincident)
   mutable std::vector<double> work_;        // forces gathered into slot order (3 arrays per rhs)
+  mutable std::vector<double> packed_;      // AVX-512 kernel: x, y, z, fx, fy, fz, 0, 0 per slot and rhs
 };
 
 }  // namespace rpyfmm::rpy::pse::detail

@@ -58,7 +58,7 @@ struct PseOptions {
   /// step (scaling and the wave-space noise), and per support point of spreading or of
   /// interpolation. Measured with bench_pse on the development machine (1 thread, N = 32000 and
   /// 128000, bench/pse/RESULTS.md, session 11); only their ratios matter.
-  double cost_real_pair = 9.5e-9;
+  double cost_real_pair = 6.5e-9;
   double cost_fft_point = 1.05e-9;
   double cost_grid_point = 1.75e-8;
   double cost_support_point = 1.8e-9;
