@@ -4,15 +4,17 @@
 // against generic Lanczos on the full PSE operator ([PSE] Fig. 6), and the real-space
 // table against direct evaluation of F, G. CSV rows on stdout.
 //
-// usage: bench_pse [--quick] [--fft-measure] [--error] [--xi XA] [--eta E] [--support P] [--cuda] [N ...]
+// usage: bench_pse [--quick] [--fft-measure] [--error] [--xi XA] [--eta E] [--support P] [--grid G] [--cuda]
+//                  [N ...]
 //   (default 8000 16000 32000); threads from 1 to OMP max.
 // Also times the free-space FmmRpy (tolerance 1e-3) on the same particles, 1 thread.
 // --quick: only M F and the split sampler with their stage times (no full-operator Lanczos,
 // no table-vs-direct real space, no FMM comparison).
 // --error: the relative l2 error of M F against the same operator at tolerance 1e-8 (N <= 64000;
 // -1 above), column MF_rel_error. --xi: xi a of the M F / sampler rows (default 0.5, Table I;
-// 0 = automatic, the cost model's choice). --eta / --support: PseOptions::window_eta / support overrides
-// (e.g. --eta 0.8 --support 6 is the window the versions before session 10 chose at 1e-3).
+// 0 = automatic, the cost model's choice). --grid: PseOptions::grid = {G, G, G} (timing of
+// the transforms in place, bench/pse/RESULTS.md session 11). --eta / --support: PseOptions::window_eta / support
+// overrides (e.g. --eta 0.8 --support 6 is the window the versions before session 10 chose at 1e-3).
 // --fft-measure: PseOptions::fft_measure (FFTW_MEASURE plans; the plan column gives the planning
 // time of set_positions, which includes the timing of the plans).
 // --cuda: the CUDA operator PseRpyCuda instead (host arrays in and out, so transfers count),
@@ -163,7 +165,12 @@ int main(int argc, char** argv) {
   double eta = 0.0;
   double xi_a = 0.5;
   int support = 0;
+  int grid = 0;
   for (int i = 1; i < argc; ++i) {
+    if (std::string(argv[i]) == "--grid" && i + 1 < argc) {
+      grid = std::atoi(argv[++i]);
+      continue;
+    }
     if (std::string(argv[i]) == "--xi" && i + 1 < argc) {
       xi_a = std::atof(argv[++i]);
       continue;
@@ -223,6 +230,7 @@ int main(int argc, char** argv) {
       o.fft_measure = fft_measure;
       o.window_eta = eta;
       o.support = support;
+      o.grid = {grid, grid, grid};
       PseRpy op(Geometry::periodic(L), 1.0, o);
       StopWatch plan_watch;
       op.set_positions(x, a);

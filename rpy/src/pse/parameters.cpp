@@ -35,24 +35,26 @@ constexpr double kEtaCandidates[] = {0.4, 0.45, 0.5, 0.55, 0.6, 0.65, 0.7, 0.75,
 /// 1.5 erfc(m / sqrt 2) of PSE.md Sec. 3.1, which had let this term alone exceed eps by up to 1.9x).
 constexpr double kTruncation = 6.0;
 
-/// FFT lengths with their measured cost factor: FFTW_ESTIMATE r2c + c2r of three components on an
-/// n^3 grid, seconds per point and log2(points), divided by the median over n = 64 ... 320
-/// (bench/pse/fft_sizes.cpp, medians of 3 rounds, 1 thread; bench/pse/RESULTS.md, session 11).
-/// Every even 2^a 3^b 5^c 7^d from 8 to 320. The factor is not a smooth function of the
-/// factorisation: 200 = 2^3 5^2 costs 0.89, 210 = 2 3 5 7 1.22 and 256 = 2^8 1.32 (cache-set
-/// conflicts of power-of-two strides); the growth with n is the memory hierarchy.
+/// FFT lengths with their measured cost factor: r2c + c2r of three components on an n^3 grid
+/// (FFTW_ESTIMATE, 1 thread), seconds per point and log2(points), divided by the median over
+/// n = 64 ... 256. From 48 to 256 timed in place, inside the PSE pass (`bench_pse --grid n`,
+/// 3 rounds), where lengths up to 128 ran 1.0-1.5x slower than alone; below 48 and above 256
+/// timed alone (bench/pse/fft_sizes.cpp, 3 rounds). bench/pse/RESULTS.md, session 11. Every
+/// even 2^a 3^b 5^c 7^d from 8 to 320. The factor is not a smooth function of the
+/// factorisation: 200 = 2^3 5^2 costs 0.88, 210 = 2 3 5 7 1.21 and 256 = 2^8 1.28 (cache-set
+/// conflicts of power-of-two strides), 64 0.39, 70 0.80.
 struct FftLength {
   int n;
   double factor;
 };
 constexpr FftLength kFftLengths[] = {
     {8, 0.37},   {10, 0.34},  {12, 0.32},  {14, 0.49},  {16, 0.33},  {18, 1.09},  {20, 0.34},  {24, 0.82},
-    {28, 0.72},  {30, 1.57},  {32, 0.32},  {36, 0.94},  {40, 0.92},  {42, 0.72},  {48, 0.64},  {50, 0.78},
-    {54, 0.87},  {56, 0.61},  {60, 0.80},  {64, 0.39},  {70, 0.74},  {72, 0.63},  {80, 0.79},  {84, 0.73},
-    {90, 0.83},  {96, 0.84},  {98, 0.67},  {100, 0.65}, {108, 1.00}, {112, 0.69}, {120, 0.74}, {126, 0.94},
-    {128, 0.57}, {140, 0.85}, {144, 1.27}, {150, 0.86}, {160, 0.90}, {162, 1.38}, {168, 1.19}, {180, 1.20},
-    {192, 1.36}, {196, 1.03}, {200, 0.89}, {210, 1.22}, {216, 1.19}, {224, 1.34}, {240, 1.33}, {250, 1.06},
-    {252, 1.00}, {256, 1.32}, {270, 1.45}, {280, 1.13}, {288, 1.19}, {294, 1.16}, {300, 1.00}, {320, 1.11}};
+    {28, 0.72},  {30, 1.57},  {32, 0.32},  {36, 0.94},  {40, 0.92},  {42, 0.72},  {48, 0.71},  {50, 0.82},
+    {54, 0.93},  {56, 0.59},  {60, 0.82},  {64, 0.39},  {70, 0.80},  {72, 0.76},  {80, 0.83},  {84, 0.85},
+    {90, 1.14},  {96, 0.94},  {98, 0.90},  {100, 0.72}, {108, 1.43}, {112, 0.76}, {120, 0.86}, {126, 1.05},
+    {128, 0.69}, {140, 0.83}, {144, 1.30}, {150, 0.87}, {160, 0.94}, {162, 1.37}, {168, 1.19}, {180, 1.21},
+    {192, 1.31}, {196, 1.06}, {200, 0.88}, {210, 1.21}, {216, 1.26}, {224, 1.32}, {240, 1.30}, {250, 1.07},
+    {252, 1.00}, {256, 1.28}, {270, 1.45}, {280, 1.13}, {288, 1.19}, {294, 1.16}, {300, 1.00}, {320, 1.11}};
 constexpr int kLongestTabulated = 320;
 /// Factor of lengths beyond the table (next_fast_size lengths): the mean of the table from 250 up.
 constexpr double kUntabulatedFactor = 1.15;

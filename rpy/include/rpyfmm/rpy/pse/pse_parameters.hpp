@@ -59,7 +59,7 @@ struct PseOptions {
   /// interpolation. Measured with bench_pse on the development machine (1 thread, N = 32000 and
   /// 128000, bench/pse/RESULTS.md, session 11); only their ratios matter.
   double cost_real_pair = 6.5e-9;
-  double cost_fft_point = 1.05e-9;
+  double cost_fft_point = 1.09e-9;
   double cost_grid_point = 1.75e-8;
   double cost_support_point = 1.8e-9;
   /// Real-space products per step assumed by the cost model: 1 for M F only,
@@ -99,9 +99,10 @@ PseParameters choose_parameters(const PseOptions& options, double radius, const 
                                 std::size_t n_particles);
 
 /// Relative cost per point and log2 of an FFT of length n along one axis, as the cost model uses it
-/// (1 = the median of lengths 64 ... 320): FFTW_ESTIMATE transforms timed per length
-/// (bench/pse/fft_sizes.cpp) for the even lengths 2^a 3^b 5^c 7^d up to 320, 1.15 beyond.
-/// The grid is chosen among the first admissible lengths at or above what the accuracy needs.
+/// (1 = the median of lengths 64 ... 256): FFTW_ESTIMATE transforms timed per length, in place
+/// inside the PSE pass from 48 to 256 and alone (bench/pse/fft_sizes.cpp) otherwise, for the
+/// even lengths 2^a 3^b 5^c 7^d up to 320; 1.15 beyond. The grid is chosen among the first
+/// admissible lengths at or above what the accuracy needs.
 double fft_length_cost(int n);
 
 /// Smallest even n' >= n of the form 2^a 3^b 5^c 7^d with b <= 1: the grid lengths beyond the
