@@ -272,26 +272,20 @@ void WaveSpace::spread(const double* forces) {
           const double* wx = &weights_[i * static_cast<std::size_t>(pw)];
           const double* wy = wx + P_[0];
           const double* wz = wy + P_[1];
-          const double f0 = c3_ * forces[3 * i];
-          const double f1 = c3_ * forces[3 * i + 1];
-          const double f2 = c3_ * forces[3 * i + 2];
-          for (int l = 0; l < (simd ? 0 : P_[2]); ++l) {
-            wf[static_cast<std::size_t>(l)] = wz[l] * f0;
-            wf[static_cast<std::size_t>(P_[2] + l)] = wz[l] * f1;
-            wf[static_cast<std::size_t>(2 * P_[2] + l)] = wz[l] * f2;
-          }
+          const double fc[3] = {c3_ * forces[3 * i], c3_ * forces[3 * i + 1], c3_ * forces[3 * i + 2]};
           const ZRuns z = z_runs(start_[3 * i + 2], P_[2], n_[2]);
           window_lines(i, xline.data(), yline.data());
           if (simd) {
-            const double fc[3] = {f0, f1, f2};
             spread_window_avx512(g0, g1, g2, xline.data(), yline.data(), P_[0], P_[1], {z.z0, z.len0, P_[2]}, wx, wy,
                                  wz, fc);
-            continue;
+          } else {
+            for (int l = 0; l < P_[2]; ++l)
+              for (int c = 0; c < 3; ++c) wf[static_cast<std::size_t>(c * P_[2] + l)] = wz[l] * fc[c];
+            for (int a = 0; a < P_[0]; ++a)
+              for (int b = 0; b < P_[1]; ++b)
+                spread_line(g0, g1, g2, xline[static_cast<std::size_t>(a)] + yline[static_cast<std::size_t>(b)], z,
+                            P_[2], wx[a] * wy[b], wf.data());
           }
-          for (int a = 0; a < P_[0]; ++a)
-            for (int b = 0; b < P_[1]; ++b)
-              spread_line(g0, g1, g2, xline[static_cast<std::size_t>(a)] + yline[static_cast<std::size_t>(b)], z, P_[2],
-                          wx[a] * wy[b], wf.data());
         }
       }  // implicit barrier: colours run one after another
     }
@@ -321,34 +315,24 @@ void WaveSpace::interpolate(double* out, bool accumulate) const {
       const double* wz = wy + P_[1];
       const ZRuns z = z_runs(start_[3 * i + 2], P_[2], n_[2]);
       window_lines(i, xline.data(), yline.data());
-      double u0 = 0.0, u1 = 0.0, u2 = 0.0;
+      double u[3] = {0.0, 0.0, 0.0};
       if (simd) {
-        double u[3] = {0.0, 0.0, 0.0};
         gather_window_avx512(g0, g1, g2, xline.data(), yline.data(), P_[0], P_[1], {z.z0, z.len0, P_[2]}, wx, wy, wz,
                              u);
-        u0 = u[0];
-        u1 = u[1];
-        u2 = u[2];
-      }
-      for (int a = 0; a < (simd ? 0 : P_[0]); ++a) {
-        for (int b = 0; b < P_[1]; ++b) {
-          double sz[3] = {0.0, 0.0, 0.0};
-          gather_line(g0, g1, g2, xline[static_cast<std::size_t>(a)] + yline[static_cast<std::size_t>(b)], z, P_[2], wz,
-                      sz);
-          const double wxy = wx[a] * wy[b];
-          u0 += wxy * sz[0];
-          u1 += wxy * sz[1];
-          u2 += wxy * sz[2];
+      } else {
+        for (int a = 0; a < P_[0]; ++a) {
+          for (int b = 0; b < P_[1]; ++b) {
+            double sz[3] = {0.0, 0.0, 0.0};
+            gather_line(g0, g1, g2, xline[static_cast<std::size_t>(a)] + yline[static_cast<std::size_t>(b)], z, P_[2],
+                        wz, sz);
+            const double wxy = wx[a] * wy[b];
+            for (int c = 0; c < 3; ++c) u[c] += wxy * sz[c];
+          }
         }
       }
-      if (accumulate) {
-        out[3 * i] += scale * u0;
-        out[3 * i + 1] += scale * u1;
-        out[3 * i + 2] += scale * u2;
-      } else {
-        out[3 * i] = scale * u0;
-        out[3 * i + 1] = scale * u1;
-        out[3 * i + 2] = scale * u2;
+      for (int c = 0; c < 3; ++c) {
+        double& o = out[3 * i + static_cast<std::size_t>(c)];
+        o = accumulate ? o + scale * u[c] : scale * u[c];
       }
     }
   }
