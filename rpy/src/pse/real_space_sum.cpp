@@ -329,6 +329,57 @@ void RealSpaceSum::apply(const double* forces, double* out, std::size_t nrhs, bo
   const std::array<double, 3> inv = {1.0 / box_[0], 1.0 / box_[1], 1.0 / box_[2]};
   const auto ni = static_cast<std::int64_t>(n);
   const bool par = n * nrhs >= 512;
+  auto store = [&](std::size_t r, std::size_t i, const double* u) {
+    for (std::size_t d = 0; d < 3; ++d) {
+      double& o = out[r * stride + 3 * i + d];
+      o = accumulate ? o + m0_ * u[d] : m0_ * u[d];
+    }
+  };
+  // For every slot s and rhs r: u = F(0) f_s (self term, force(s, r, d) in slot order), then
+  // row(s, r, u) adds the pair sum, then u is stored.
+  auto for_each_row = [&](auto&& force, auto&& row) {
+#pragma omp parallel for schedule(dynamic, 64) if (par)
+    for (std::int64_t ss = 0; ss < ni; ++ss) {
+      const auto s = static_cast<std::size_t>(ss);
+      for (std::size_t r = 0; r < nrhs; ++r) {
+        double u[3] = {self_ * force(s, r, 0), self_ * force(s, r, 1), self_ * force(s, r, 2)};
+        row(s, r, u);
+        store(r, order_[s], u);
+      }
+    }
+  };
+  const double* table = use_table_ ? table_.data().data() : nullptr;
+  const double inv_dr = use_table_ ? 1.0 / table_.dr() : 0.0;
+  const double L[3] = {box_[0], box_[1], box_[2]};
+  const double inv_L[3] = {inv[0], inv[1], inv[2]};
+#if defined(RPYFMM_HAVE_DIRECT_AVX512)
+  if (use_table_ && fmm::detail::avx512_kernels_active()) {
+    // Rows of 8 doubles per slot and rhs, 64-byte aligned, filled straight from the input forces:
+    // x, y, z, fx, fy, fz, 0, 0.
+    packed_.resize(8 * n * nrhs + 8);
+    double* packed = packed_.data();
+    packed += (8 - (reinterpret_cast<std::uintptr_t>(packed) / sizeof(double)) % 8) % 8;
+#pragma omp parallel for schedule(static) if (par)
+    for (std::int64_t ss = 0; ss < ni; ++ss) {
+      const auto s = static_cast<std::size_t>(ss);
+      const std::size_t i = order_[s];
+      for (std::size_t r = 0; r < nrhs; ++r) {
+        double* row = packed + 8 * (r * n + s);
+        for (std::size_t d = 0; d < 3; ++d) {
+          row[d] = pos_[d][s];
+          row[3 + d] = forces[r * stride + 3 * i + d];
+        }
+        row[6] = row[7] = 0.0;
+      }
+    }
+    for_each_row([&](std::size_t s, std::size_t r, std::size_t d) { return packed[8 * (r * n + s) + 3 + d]; },
+                 [&](std::size_t s, std::size_t r, double* u) {
+                   packed_row_avx512(list_.data() + begin_[s], begin_[s + 1] - begin_[s], s, packed + 8 * r * n, table,
+                                     inv_dr, L, inv_L, u);
+                 });
+    return;
+  }
+#endif
   // Forces in slot order: work_[(3 r + d) n + s] = F_r[3 order_[s] + d].
   work_.resize(3 * n * nrhs);
 #pragma omp parallel for schedule(static) if (par)
@@ -338,56 +389,10 @@ void RealSpaceSum::apply(const double* forces, double* out, std::size_t nrhs, bo
       for (std::size_t d = 0; d < 3; ++d)
         work_[(3 * r + d) * n + static_cast<std::size_t>(s)] = forces[r * stride + 3 * i + d];
   }
-  auto store = [&](std::size_t r, std::size_t i, const double* u) {
-    for (std::size_t d = 0; d < 3; ++d) {
-      double& o = out[r * stride + 3 * i + d];
-      o = accumulate ? o + m0_ * u[d] : m0_ * u[d];
-    }
-  };
-  // row(s, r, f, u) adds slot s's pair sum for rhs r (slot-ordered forces f) to u, which starts
-  // at the self term; then u is stored.
-  auto for_each_row = [&](auto&& row) {
-#pragma omp parallel for schedule(dynamic, 64) if (par)
-    for (std::int64_t ss = 0; ss < ni; ++ss) {
-      const auto s = static_cast<std::size_t>(ss);
-      for (std::size_t r = 0; r < nrhs; ++r) {
-        const double* f = work_.data() + 3 * r * n;
-        double u[3] = {self_ * f[s], self_ * f[n + s], self_ * f[2 * n + s]};
-        row(s, r, f, u);
-        store(r, order_[s], u);
-      }
-    }
-  };
+  auto slot_force = [&](std::size_t s, std::size_t r, std::size_t d) { return work_[(3 * r + d) * n + s]; };
   if (use_table_) {
-    const double* table = table_.data().data();
-    const double inv_dr = 1.0 / table_.dr();
-    const double L[3] = {box_[0], box_[1], box_[2]};
-    const double inv_L[3] = {inv[0], inv[1], inv[2]};
-#if defined(RPYFMM_HAVE_DIRECT_AVX512)
-    if (fmm::detail::avx512_kernels_active()) {
-      // Rows of 8 doubles per slot and rhs, 64-byte aligned: x, y, z, fx, fy, fz, 0, 0.
-      packed_.assign(8 * n * nrhs + 8, 0.0);
-      double* packed = packed_.data();
-      packed += (8 - (reinterpret_cast<std::uintptr_t>(packed) / sizeof(double)) % 8) % 8;
-#pragma omp parallel for schedule(static) if (par)
-      for (std::int64_t ss = 0; ss < ni; ++ss) {
-        const auto s = static_cast<std::size_t>(ss);
-        for (std::size_t r = 0; r < nrhs; ++r) {
-          double* row = packed + 8 * (r * n + s);
-          for (std::size_t d = 0; d < 3; ++d) {
-            row[d] = pos_[d][s];
-            row[3 + d] = work_[(3 * r + d) * n + s];
-          }
-        }
-      }
-      for_each_row([&](std::size_t s, std::size_t r, const double*, double* u) {
-        packed_row_avx512(list_.data() + begin_[s], begin_[s + 1] - begin_[s], s, packed + 8 * r * n, table, inv_dr, L,
-                          inv_L, u);
-      });
-      return;
-    }
-#endif
-    for_each_row([&](std::size_t s, std::size_t, const double* f, double* u) {
+    for_each_row(slot_force, [&](std::size_t s, std::size_t r, double* u) {
+      const double* f = work_.data() + 3 * r * n;
       const double xs[3] = {pos_[0][s], pos_[1][s], pos_[2][s]};
       const SlotArrays arrays{{pos_[0].data(), pos_[1].data(), pos_[2].data()}, {f, f + n, f + 2 * n}};
       table_row(list_.data() + begin_[s], begin_[s + 1] - begin_[s], xs, arrays, table, inv_dr, L, inv_L, u);
@@ -396,7 +401,8 @@ void RealSpaceSum::apply(const double* forces, double* out, std::size_t nrhs, bo
   }
   // Closed forms evaluated per pair (PseOptions::real_space_table = false: the reference the
   // table is measured against).
-  for_each_row([&](std::size_t s, std::size_t, const double* f, double* u) {
+  for_each_row(slot_force, [&](std::size_t s, std::size_t r, double* u) {
+    const double* f = work_.data() + 3 * r * n;
     for (std::size_t q = begin_[s]; q < begin_[s + 1]; ++q) {
       const auto t = static_cast<std::size_t>(list_[q]);
       const double d[3] = {minimum_image(pos_[0][s] - pos_[0][t], box_[0], inv[0]),
