@@ -3,7 +3,8 @@
 //
 //   rpyfmm mobility --positions X.npy --forces F.npy (--radius a | --radii R.npy)
 //                   [--viscosity 1] [--method direct|fmm|pse|auto|none] [--eps 1e-6]
-//                   [--box L | --box Lx Ly Lz] --out U.npy [--threads N] [--json]
+//                   [--box L | --box Lx Ly Lz] [--wave-precision auto|single|double]
+//                   --out U.npy [--threads N] [--json]
 //
 // U has shape (N,3).
 #include <CLI/CLI.hpp>
@@ -16,9 +17,9 @@
 #include "array_io.hpp"
 #include "cli_common.hpp"
 #include "commands.hpp"
+#include "rpyfmm/bd/mobility_factory.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
-#include "rpyfmm/bd/mobility_factory.hpp"
 
 namespace rpyfmm::cli {
 namespace {
@@ -28,8 +29,9 @@ struct MobilityArgs {
   double radius = 0.0;
   double viscosity = 1.0;
   std::string method = "direct";
-  double eps = 1e-6;        // tolerance of fmm / pse (direct is exact)
-  std::vector<double> box;  // periodic box: L or Lx Ly Lz (empty = free space)
+  double eps = 1e-6;                    // tolerance of fmm / pse (direct is exact)
+  std::vector<double> box;              // periodic box: L or Lx Ly Lz (empty = free space)
+  std::string wave_precision = "auto";  // pse: auto | single | double
   CommonOptions common;
 };
 
@@ -41,6 +43,10 @@ std::unique_ptr<rpy::MobilityOperator> make_operator(const MobilityArgs& args, s
   spec.method = bd::mobility_method_from_string(args.method);
   spec.tolerance = args.eps;
   spec.viscosity = args.viscosity;
+  spec.wave_precision = rpy::pse::wave_precision_from_name(args.wave_precision, "--wave-precision");
+  require(spec.wave_precision == rpy::pse::WavePrecision::automatic || spec.method == bd::MobilityMethod::pse ||
+              (spec.method == bd::MobilityMethod::automatic && !args.box.empty()),
+          ErrorCode::invalid_argument, "--wave-precision", "applies to the pse method only");
   if (!args.box.empty()) {
     require(args.box.size() == 1 || args.box.size() == 3, ErrorCode::invalid_argument, "--box",
             "give one length L (cube) or three lengths Lx Ly Lz, got " + std::to_string(args.box.size()) + " values");
@@ -124,6 +130,9 @@ void register_mobility(CLI::App& app) {
   cmd->add_option("--eps", args->eps, "relative tolerance of fmm/pse, in [1e-12, 1e-1]")->capture_default_str();
   cmd->add_option("--box", args->box, "periodic box: L (cube) or Lx Ly Lz; particles are wrapped into it")
       ->expected(1, 3);
+  cmd->add_option("--wave-precision", args->wave_precision,
+                  "pse: wave-space grids in single or double precision; auto = single for --eps >= 1e-5")
+      ->capture_default_str();
   cmd->add_option("--out", args->out, "output .npy, shape (N,3)")->required();
   add_common_options(*cmd, args->common);
   cmd->callback([args, radius] { run_mobility(*args, radius->count() > 0); });

@@ -5,14 +5,15 @@
 //                 [--noise Z.npy | --seed S [--step K]]
 //                 [--method auto|lanczos|chebyshev|cholesky|eigen|split|pse]
 //                 [--operator direct|fmm|pse] [--box L | --box Lx Ly Lz]
-//                 [--tol 1e-3] [--max-iterations M] [--eps E] [--viscosity 1]
+//                 [--tol 1e-3] [--max-iterations M] [--eps E] [--wave-precision auto|single|double]
+//                 [--viscosity 1]
 //                 --out W.npy [--threads N] [--json]
 //
 // W has shape (N,3). Without --noise, z is drawn with the counter-based
 // generator (rpy/random.hpp) keyed by (seed, step, particle): the same on any
 // thread count. --eps is the FMM operator's tolerance (default 1e-6); keep it
-// below --tol, since the square root cannot be more accurate than M. With --json, one line reports the iterations, the error
-// estimate and the number of operator products.
+// below --tol, since the square root cannot be more accurate than M. With --json, one line reports the iterations, the
+// error estimate and the number of operator products.
 #include <CLI/CLI.hpp>
 #include <cstddef>
 #include <cstdint>
@@ -47,7 +48,8 @@ struct SampleArgs {
   std::string op = "direct";
   std::vector<double> box;  // periodic box for --operator pse: L or Lx Ly Lz
   double tol = 1e-3;
-  double eps = 0.0;  // operator (FMM) tolerance; 0 = not given
+  double eps = 0.0;                     // operator (FMM) tolerance; 0 = not given
+  std::string wave_precision = "auto";  // pse operator: auto | single | double
   int max_iterations = 0;
   CommonOptions common;
 };
@@ -81,6 +83,7 @@ const std::vector<OperatorEntry>& operators() {
                                                    : rpy::Geometry::periodic(a.box[0], a.box[1], a.box[2]);
          rpy::pse::PseOptions o;  // tolerance default 1e-3 unless --eps
          if (a.eps != 0.0) o.tolerance = a.eps;
+         o.wave_precision = rpy::pse::wave_precision_from_name(a.wave_precision, "--wave-precision");
          return std::make_unique<rpy::pse::PseRpy>(g, a.viscosity, o);
        }},
   };
@@ -122,6 +125,8 @@ void run_sample(const SampleArgs& given, bool radius_given, bool seed_given) {
   }
   require(args.box.empty() || args.op == "pse", ErrorCode::invalid_argument, "--box",
           "a periodic box needs --operator pse (direct and fmm are free-space operators)");
+  require(args.wave_precision == "auto" || args.op == "pse", ErrorCode::invalid_argument, "--wave-precision",
+          "applies to the pse operator only");
   // Validate every option before reading or computing anything.
   require(radius_given != !args.radii.empty(), ErrorCode::invalid_argument, "sample",
           "give exactly one of --radius a or --radii R.npy");
@@ -237,6 +242,9 @@ void register_sample(CLI::App& app) {
   cmd->add_option("--max-iterations", args->max_iterations, "Lanczos iterations / Chebyshev degree (0 = auto)")
       ->capture_default_str();
   cmd->add_option("--eps", args->eps, "tolerance of the fmm (default 1e-6) or pse (default 1e-3) operator");
+  cmd->add_option("--wave-precision", args->wave_precision,
+                  "pse operator: wave-space grids in single or double precision; auto = single for eps >= 1e-5")
+      ->capture_default_str();
   cmd->add_option("--viscosity", args->viscosity, "solvent viscosity eta > 0")->capture_default_str();
   cmd->add_option("--out", args->out, "output .npy, shape (N,3)")->required();
   add_common_options(*cmd, args->common);

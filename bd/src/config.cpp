@@ -323,6 +323,11 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
     if (c.mobility.tolerance >= 0.5) bad_key("mobility.tolerance", "must be < 0.5");
     c.mobility.fmm_crossover = s.count("fmm_crossover", 0);
     c.mobility.fft_measure = s.boolean("fft_measure", false);
+    try {
+      c.mobility.wave_precision = rpy::pse::wave_precision_from_name(s.string("wave_precision", "auto"));
+    } catch (const Error&) {
+      bad_key("mobility.wave_precision", "must be auto, single or double");
+    }
     c.mobility.viscosity = c.viscosity;
     c.mobility.geometry = c.geometry;
     try {

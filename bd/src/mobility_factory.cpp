@@ -105,6 +105,7 @@ std::unique_ptr<rpy::MobilityOperator> make_mobility(const MobilitySpec& spec, s
         rpy::pse::PseOptions options;
         options.tolerance = spec.tolerance;  // PseRpy accepts [1e-8, 0.1)
         options.fft_measure = spec.fft_measure;
+        options.wave_precision = spec.wave_precision;
         return std::make_unique<rpy::pse::PseRpy>(spec.geometry, spec.viscosity, options);
       }
     case MobilityMethod::automatic:

@@ -4,8 +4,8 @@
 // against generic Lanczos on the full PSE operator ([PSE] Fig. 6), and the real-space
 // table against direct evaluation of F, G. CSV rows on stdout.
 //
-// usage: bench_pse [--quick] [--fft-measure] [--error] [--xi XA] [--eta E] [--support P] [--grid G] [--cuda]
-//                  [N ...]
+// usage: bench_pse [--quick] [--fft-measure] [--error] [--xi XA] [--eta E] [--support P] [--grid G]
+//                  [--precision auto|single|double] [--cuda] [N ...]
 //   (default 8000 16000 32000); threads from 1 to OMP max.
 // Also times the free-space FmmRpy (tolerance 1e-3) on the same particles, 1 thread.
 // --quick: only M F and the split sampler with their stage times (no full-operator Lanczos,
@@ -15,10 +15,13 @@
 // 0 = automatic, the cost model's choice). --grid: PseOptions::grid = {G, G, G} (timing of
 // the transforms in place, bench/pse/RESULTS.md session 11). --eta / --support: PseOptions::window_eta / support
 // overrides (e.g. --eta 0.8 --support 6 is the window the versions before session 10 chose at 1e-3).
+// --precision: PseOptions::wave_precision (default auto: single-precision wave grids at the
+// tolerance 1e-3 of Table I; column wave_single).
 // --fft-measure: PseOptions::fft_measure (FFTW_MEASURE plans; the plan column gives the planning
 // time of set_positions, which includes the timing of the plans).
 // --cuda: the CUDA operator PseRpyCuda instead (host arrays in and out, so transfers count),
-// with its relative difference from the CPU operator's M F for N <= 250000; skips with a
+// with its relative difference from the CPU operator's M F (double-precision wave grids, as on
+// the GPU) for N <= 250000; skips with a
 // message when no device is usable.
 #include <omp.h>
 
@@ -107,10 +110,12 @@ double median_seconds(int reps, Fn&& fn) {
 
 /// The Table I rows on the GPU: M F and split-sampler PTPS (median of 5 after a warm-up).
 /// Relative l2 difference of u (a product already computed) from the CPU operator's M F with
-/// options o on the same particles.
+/// options o and double-precision wave grids on the same particles.
 double difference_from_cpu(const PseOptions& o, double L, const std::vector<double>& x, double a,
                            const std::vector<double>& f, const std::vector<double>& u) {
-  PseRpy cpu(Geometry::periodic(L), 1.0, o);
+  PseOptions od = o;
+  od.wave_precision = WavePrecision::double_precision;  // as the GPU (and the 1e-8 reference)
+  PseRpy cpu(Geometry::periodic(L), 1.0, od);
   cpu.set_positions(x, a);
   std::vector<double> uc(u.size());
   cpu.apply(f, uc);
@@ -173,7 +178,20 @@ int main(int argc, char** argv) {
   double xi_a = 0.5;
   int support = 0;
   int grid = 0;
+  WavePrecision precision = WavePrecision::automatic;
   for (int i = 1; i < argc; ++i) {
+    if (std::string(argv[i]) == "--precision" && i + 1 < argc) {
+      const std::string v = argv[++i];
+      if (v == "single") {
+        precision = WavePrecision::single_precision;
+      } else if (v == "double") {
+        precision = WavePrecision::double_precision;
+      } else if (v != "auto") {
+        std::fprintf(stderr, "bench_pse: --precision takes auto, single or double\n");
+        return 2;
+      }
+      continue;
+    }
     if (std::string(argv[i]) == "--grid" && i + 1 < argc) {
       grid = std::atoi(argv[++i]);
       continue;
@@ -221,7 +239,7 @@ int main(int argc, char** argv) {
   std::printf(
       "N,threads,grid,P,r_cut,MF_s,MF_PTPS,sample_s,sample_PTPS,sample_over_MF,split_iters,"
       "lanczos_full_s,lanczos_full_iters,spread,fft,scale,interp,real,lanczos_real,"
-      "sample_noise_scale,sample_fft,sample_interp,plan_s,fft_measure,eta,MF_rel_error,xi_a\n");
+      "sample_noise_scale,sample_fft,sample_interp,plan_s,fft_measure,eta,MF_rel_error,xi_a,wave_single\n");
   for (std::size_t n : sizes) {
     const double L = std::cbrt(static_cast<double>(n) * 4.0 / 3.0 * std::numbers::pi * a * a * a / phi);
     const auto x = hard_spheres(n, a, L, 7);
@@ -238,6 +256,7 @@ int main(int argc, char** argv) {
       o.window_eta = eta;
       o.support = support;
       o.grid = {grid, grid, grid};
+      o.wave_precision = precision;
       PseRpy op(Geometry::periodic(L), 1.0, o);
       StopWatch plan_watch;
       op.set_positions(x, a);
@@ -272,12 +291,12 @@ int main(int argc, char** argv) {
       };
       std::printf(
           "%zu,%d,%dx%dx%d,%d,%.3f,%.4g,%.4g,%.4g,%.4g,%.2f,%d,%.4g,%d,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,"
-          "%.3g,%d,%.2f,%.3g,%.3g\n",
+          "%.3g,%d,%.2f,%.3g,%.3g,%d\n",
           n, threads, p.grid[0], p.grid[1], p.grid[2], p.support[0], p.r_cut, t_mf, n / t_mf, t_s, n / t_s, t_s / t_mf,
           iters, t_full, full_iters, per(mf, "spread"), per(mf, "fft_forward") + per(mf, "fft_backward"),
           per(mf, "scale"), per(mf, "interpolate"), per(mf, "real_space"), per(st, "lanczos"), per(st, "scale"),
           per(st, "fft_backward"), per(st, "interpolate"), t_plan, fft_measure ? 1 : 0, p.window_eta, rel_error,
-          p.xi * a);
+          p.xi * a, p.wave_single ? 1 : 0);
       std::fflush(stdout);
     }
     if (quick) continue;

@@ -77,6 +77,10 @@ TEST(BdConfig, ParsesDefaultsAndTheDemo) {
             500u);
   EXPECT_FALSE(c.mobility.fft_measure);
   EXPECT_TRUE(parse_config(replace(kBase, "[mobility]", "[mobility]\nfft_measure = true"), "c").mobility.fft_measure);
+  EXPECT_EQ(c.mobility.wave_precision, rpyfmm::rpy::pse::WavePrecision::automatic);
+  EXPECT_EQ(parse_config(replace(kBase, "[mobility]", "[mobility]\nwave_precision = \"double\""), "c")
+                .mobility.wave_precision,
+            rpyfmm::rpy::pse::WavePrecision::double_precision);
 }
 
 TEST(BdConfig, EveryBadConfigNamesTheKey) {
@@ -91,6 +95,7 @@ TEST(BdConfig, EveryBadConfigNamesTheKey) {
   expect_error(replace(kBase, "radius = 1.0", "radius = 0"), "types[0].radius");
   expect_error(replace(kBase, "method = \"none\"", "method = \"magic\""), "mobility.method");
   expect_error(replace(kBase, "[mobility]", "[mobility]\nfft_measure = 1"), "mobility.fft_measure");  // not a boolean
+  expect_error(replace(kBase, "[mobility]", "[mobility]\nwave_precision = \"half\""), "mobility.wave_precision");
   expect_error(replace(kBase, "viscosity = 1.0", "viscosity = nan"), "system.viscosity");
   expect_error(replace(kBase, "volume_fraction = 0.05", "volume_fraction = 0.6"), "particles.volume_fraction");
   expect_error(replace(kBase, "source = \"random\"\ncount = 50\nvolume_fraction = 0.05",

@@ -277,6 +277,14 @@ TEST_F(Cli, MobilityPseSingleParticleIsHasimoto) {
   const double mu = (1.0 - 2.837297 * a / L + 4.0 * M_PI / 3.0 * std::pow(a / L, 3)) / (6.0 * M_PI * a);
   const double f[3] = {1.0, -2.0, 0.5};
   for (int k = 0; k < 3; ++k) EXPECT_NEAR(out.data[k], mu * f[k], 1e-5 * mu * 2.0);
+  // --wave-precision single at the same tolerance: float grids, the same answer within float
+  // round-off (~1e-7 relative, tests/pse/test_pse_precision.cpp).
+  const Result rs =
+      run("mobility --positions " + path("x1.npy") + " --forces " + path("f1.npy") +
+          " --radius 0.5 --method pse --box 10 --eps 1e-6 --wave-precision single --out " + path("u1s.npy"));
+  ASSERT_EQ(rs.code, 0) << rs.err;
+  const Npy single = read_npy(path("u1s.npy"));
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(single.data[k], out.data[k], 1e-6 * mu * 2.0);
 }
 
 TEST_F(Cli, LaplaceBadInput) {
@@ -358,6 +366,8 @@ TEST_F(Cli, MobilityBadInput) {
   expect_failure(good + " --radius 1 --method fmm --box 10" + O, "open geometry", "u.npy");
   expect_failure(good + " --radius 1 --method fmm --eps 0.7" + O, "tolerance", "u.npy");
   expect_failure(good + " --radius 1 --box 10 20" + O, "--box", "u.npy");
+  expect_failure(good + " --radius 1 --method pse --box 10 --wave-precision half" + O, "--wave-precision", "u.npy");
+  expect_failure(good + " --radius 1 --method fmm --wave-precision single" + O, "pse method only", "u.npy");
   expect_failure("mobility" + F + " --radius 1" + O, "--positions", "u.npy");
   expect_failure(good + " --radius 1", "--out", "u.npy");
   expect_failure(good + " --radius 1 --threads -3" + O, "threads", "u.npy");

@@ -2,10 +2,9 @@
 // a small periodic system with overlapping and near pairs, and dense assembly as an Eigen matrix.
 #pragma once
 
+#include <Eigen/Dense>
 #include <array>
 #include <vector>
-
-#include <Eigen/Dense>
 
 #include "rpyfmm/rpy/mobility.hpp"
 #include "rpyfmm/rpy/pse/pse_parameters.hpp"
@@ -20,6 +19,8 @@ struct SmallSystem {
     o.tolerance = 1e-2;  // the covariance identity holds for the discrete operator at any eps;
     o.xi = 1.0;          // a coarse grid keeps the 5000-sample estimates fast
     o.lanczos_tolerance = 1e-8;
+    // Double-precision wave grids: the dense square-root comparisons go to 1e-8 and below.
+    o.wave_precision = rpyfmm::rpy::pse::WavePrecision::double_precision;
     return o;
   }
 };

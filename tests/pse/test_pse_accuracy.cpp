@@ -6,6 +6,7 @@
 #include <cmath>
 #include <numbers>
 #include <span>
+#include <utility>
 
 #include "ewald_reference.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
@@ -243,14 +244,19 @@ TEST(PseAccuracy, WrappedPositionsGiveTheSameResult) {
 }
 
 TEST(PseAccuracy, FftMeasurePlansGiveTheSameProduct) {
-  // FFTW_MEASURE picks another algorithm for the same transforms: equal to round-off.
-  PseOptions estimate;
-  estimate.tolerance = 1e-5;
-  PseOptions measure = estimate;
-  measure.fft_measure = true;
-  const Difference d = difference_between(estimate, measure, {16.0, 14.0, 18.0}, 200, 51);
-  EXPECT_LT(d.product, 1e-12);
-  EXPECT_LT(d.sample, 1e-12);
+  // FFTW_MEASURE picks another algorithm for the same transforms: equal to round-off, of double
+  // (1e-12) or of single-precision wave grids (1e-6, test_pse_precision.cpp).
+  for (const auto& [precision, bound] :
+       {std::pair{WavePrecision::double_precision, 1e-12}, std::pair{WavePrecision::single_precision, 1e-6}}) {
+    PseOptions estimate;
+    estimate.tolerance = 1e-5;
+    estimate.wave_precision = precision;
+    PseOptions measure = estimate;
+    measure.fft_measure = true;
+    const Difference d = difference_between(estimate, measure, {16.0, 14.0, 18.0}, 200, 51);
+    EXPECT_LT(d.product, bound);
+    EXPECT_LT(d.sample, bound);
+  }
 }
 
 TEST(PseAccuracy, Avx512AndPortableKernelsAgree) {
@@ -258,16 +264,22 @@ TEST(PseAccuracy, Avx512AndPortableKernelsAgree) {
   // intrinsics when the CPU has them, the portable loops otherwise. Both must give the same
   // product and sample to round-off: windows that wrap around the box (particles near each
   // face), neighbour rows that cross the box, supports from 4 to 9 (tolerances 1e-2 ... 1e-6;
-  // 9 takes the portable spreading in both). RealSpaceProductMatchesPairSum checks the AVX-512
-  // rows against an independent pair sum with coincident and overlapping pairs.
+  // 9 takes the portable spreading in both), double- and single-precision wave grids. RealSpaceProductMatchesPairSum
+  // checks the AVX-512 rows against an independent pair sum with coincident and overlapping pairs.
   if (!rpyfmm::fmm::detail::avx512_kernels_active()) GTEST_SKIP() << "no AVX-512F on this CPU";
   const std::array<double, 3> L = {17.0, 15.0, 19.0};
   auto x = pse_test::random_points(300, L, 61);
   for (std::size_t i = 0; i < 30; ++i) x[3 * i + i % 3] = L[i % 3] * (i % 2 ? 0.999 : 0.001);
   const auto f = random_forces(300, 62);
-  for (double eps : {1e-2, 1e-3, 1e-4, 1e-6}) {
+  for (const auto& [eps, precision] :
+       {std::pair{1e-2, WavePrecision::double_precision}, std::pair{1e-3, WavePrecision::double_precision},
+        std::pair{1e-4, WavePrecision::double_precision}, std::pair{1e-6, WavePrecision::double_precision},
+        std::pair{1e-3, WavePrecision::single_precision}, std::pair{1e-4, WavePrecision::single_precision}}) {
     PseOptions o;
     o.tolerance = eps;
+    o.wave_precision = precision;
+    // Float grids: the same sums in another order, rounded to float (test_pse_precision.cpp).
+    const double bound = precision == WavePrecision::double_precision ? 1e-13 : 1e-6;
     PseRpy op(Geometry::periodic(L[0], L[1], L[2]), 1.0, o);
     op.set_positions(x, 1.0);
     SCOPED_TRACE(op.parameters().summary());
@@ -278,7 +290,7 @@ TEST(PseAccuracy, Avx512AndPortableKernelsAgree) {
     const auto u_portable = product(op, f);
     op.sample(3, 4, w_portable);
     rpyfmm::fmm::detail::use_avx512_kernels(true);
-    EXPECT_LT(pse_test::rel_l2(u_simd, u_portable), 1e-13);
-    EXPECT_LT(pse_test::rel_l2(w_simd, w_portable), 1e-13);
+    EXPECT_LT(pse_test::rel_l2(u_simd, u_portable), bound);
+    EXPECT_LT(pse_test::rel_l2(w_simd, w_portable), bound);
   }
 }

@@ -2,9 +2,10 @@
 // configuration, overlapping pairs included ([PSE] Sec. II.A, App. B), checked
 // by dense assembly and Eigen's symmetric eigensolver.
 #include <gtest/gtest.h>
+#include <omp.h>
 
 #include <Eigen/Dense>
-#include <omp.h>
+#include <utility>
 
 #include "ewald_reference.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
@@ -41,32 +42,38 @@ std::vector<double> overlapping_configuration(const std::array<double, 3>& L, bo
 TEST(PseSpd, RealAndWavePartsAreSymmetricPositive) {
   const std::array<double, 3> L = {10.0, 9.0, 11.0};
   for (const bool coincident : {false, true}) {
-  const auto x = overlapping_configuration(L, coincident);
-  for (double xa : {1.0, 2.0}) {
-    PseOptions o;
-    o.tolerance = 1e-3;
-    o.xi = xa;
-    PseRpy op(Geometry::periodic(L[0], L[1], L[2]), 1.0, o);
-    op.set_positions(x, 1.0);
-    const Eigen::MatrixXd Mr = assemble(op.real_space_operator());
-    const Eigen::MatrixXd Mw = assemble(op.wave_space_operator());
-    const double scale_r = Mr.cwiseAbs().maxCoeff(), scale_w = Mw.cwiseAbs().maxCoeff();
-    EXPECT_LE((Mr - Mr.transpose()).cwiseAbs().maxCoeff(), 1e-12 * scale_r) << "M_r asymmetric, xi a " << xa;
-    EXPECT_LE((Mw - Mw.transpose()).cwiseAbs().maxCoeff(), 1e-12 * scale_w) << "M_w asymmetric, xi a " << xa;
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> er(0.5 * (Mr + Mr.transpose()));
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> ew(0.5 * (Mw + Mw.transpose()));
-    // Coincident particles make M_r (like RPY itself) exactly singular: PSD, not PD, then.
-    if (coincident) {
-      EXPECT_GE(er.eigenvalues().minCoeff(), -1e-12 * er.eigenvalues().maxCoeff()) << "M_r not PSD, xi a " << xa;
-    } else {
-      EXPECT_GT(er.eigenvalues().minCoeff(), 1e-6 * er.eigenvalues().maxCoeff()) << "M_r not PD, xi a " << xa;
+    const auto x = overlapping_configuration(L, coincident);
+    for (double xa : {1.0, 2.0}) {
+      // Double-precision wave grids: symmetric and PSD to double round-off. Single-precision ones
+      // (the automatic choice at this tolerance): to float round-off (test_pse_precision.cpp).
+      for (const auto& [precision, roundoff] :
+           {std::pair{WavePrecision::double_precision, 1e-12}, std::pair{WavePrecision::single_precision, 1e-6}}) {
+        PseOptions o;
+        o.tolerance = 1e-3;
+        o.xi = xa;
+        o.wave_precision = precision;
+        PseRpy op(Geometry::periodic(L[0], L[1], L[2]), 1.0, o);
+        op.set_positions(x, 1.0);
+        const Eigen::MatrixXd Mr = assemble(op.real_space_operator());
+        const Eigen::MatrixXd Mw = assemble(op.wave_space_operator());
+        const double scale_r = Mr.cwiseAbs().maxCoeff(), scale_w = Mw.cwiseAbs().maxCoeff();
+        EXPECT_LE((Mr - Mr.transpose()).cwiseAbs().maxCoeff(), 1e-12 * scale_r) << "M_r asymmetric, xi a " << xa;
+        EXPECT_LE((Mw - Mw.transpose()).cwiseAbs().maxCoeff(), roundoff * scale_w) << "M_w asymmetric, xi a " << xa;
+        Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> er(0.5 * (Mr + Mr.transpose()));
+        Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> ew(0.5 * (Mw + Mw.transpose()));
+        // Coincident particles make M_r (like RPY itself) exactly singular: PSD, not PD, then.
+        if (coincident) {
+          EXPECT_GE(er.eigenvalues().minCoeff(), -1e-12 * er.eigenvalues().maxCoeff()) << "M_r not PSD, xi a " << xa;
+        } else {
+          EXPECT_GT(er.eigenvalues().minCoeff(), 1e-6 * er.eigenvalues().maxCoeff()) << "M_r not PD, xi a " << xa;
+        }
+        EXPECT_GE(ew.eigenvalues().minCoeff(), -roundoff * ew.eigenvalues().maxCoeff()) << "M_w not PSD, xi a " << xa;
+        // The full operator: M = M_r + M_w, SPD.
+        const auto dense = op.assemble_dense();
+        const Eigen::Map<const Eigen::MatrixXd> M(dense.data(), Mr.rows(), Mr.cols());
+        EXPECT_LE((M - (Mr + Mw)).cwiseAbs().maxCoeff(), roundoff * (scale_r + scale_w));
+      }
     }
-    EXPECT_GE(ew.eigenvalues().minCoeff(), -1e-12 * ew.eigenvalues().maxCoeff()) << "M_w not PSD, xi a " << xa;
-    // The full operator: M = M_r + M_w, SPD.
-    const auto dense = op.assemble_dense();
-    const Eigen::Map<const Eigen::MatrixXd> M(dense.data(), Mr.rows(), Mr.cols());
-    EXPECT_LE((M - (Mr + Mw)).cwiseAbs().maxCoeff(), 1e-12 * (scale_r + scale_w));
-  }
   }
 }
 

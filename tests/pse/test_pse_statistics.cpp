@@ -35,39 +35,45 @@ void normals(std::vector<double>& z, std::uint64_t seed, std::uint64_t step, std
 }  // namespace
 
 TEST(PseSampler, SplitSampleCovarianceEqualsM) {
-  const SmallSystem s;
-  PseRpy op(Geometry::periodic(s.L[0], s.L[1], s.L[2]), 1.0, s.options());
-  op.set_positions(s.x, 1.0);
-  const Eigen::MatrixXd M = dense(op);
-  const int ns = 5000;
-  const auto n = static_cast<Eigen::Index>(s.x.size());
-  Eigen::MatrixXd C = Eigen::MatrixXd::Zero(n, n);
-  Eigen::MatrixXd Cz = Eigen::MatrixXd::Zero(n, n);
-  Eigen::VectorXd mean = Eigen::VectorXd::Zero(n);
-  std::vector<double> w(s.x.size()), z(s.x.size()), v(s.x.size());
-  for (int k = 0; k < ns; ++k) {
-    op.sample(2024, static_cast<std::uint64_t>(k), w);  // keyed (seed, step)
-    const Eigen::Map<const Eigen::VectorXd> e(w.data(), n);
-    C += e * e.transpose();
-    mean += e;
-    normals(z, 77, static_cast<std::uint64_t>(k));  // apply_sqrt: z1 = z, z2 from hash(z)
-    const SqrtReport rep = op.apply_sqrt(z, v);
-    EXPECT_EQ(rep.method, SqrtMethod::split);
-    const Eigen::Map<const Eigen::VectorXd> ev(v.data(), n);
-    Cz += ev * ev.transpose();
+  // Both wave-grid precisions: double, and single (the automatic choice at this tolerance).
+  for (const auto precision : {WavePrecision::double_precision, WavePrecision::single_precision}) {
+    SCOPED_TRACE(precision == WavePrecision::single_precision ? "single-precision wave grids" : "double");
+    const SmallSystem s;
+    PseOptions o = s.options();
+    o.wave_precision = precision;
+    PseRpy op(Geometry::periodic(s.L[0], s.L[1], s.L[2]), 1.0, o);
+    op.set_positions(s.x, 1.0);
+    const Eigen::MatrixXd M = dense(op);
+    const int ns = 5000;
+    const auto n = static_cast<Eigen::Index>(s.x.size());
+    Eigen::MatrixXd C = Eigen::MatrixXd::Zero(n, n);
+    Eigen::MatrixXd Cz = Eigen::MatrixXd::Zero(n, n);
+    Eigen::VectorXd mean = Eigen::VectorXd::Zero(n);
+    std::vector<double> w(s.x.size()), z(s.x.size()), v(s.x.size());
+    for (int k = 0; k < ns; ++k) {
+      op.sample(2024, static_cast<std::uint64_t>(k), w);  // keyed (seed, step)
+      const Eigen::Map<const Eigen::VectorXd> e(w.data(), n);
+      C += e * e.transpose();
+      mean += e;
+      normals(z, 77, static_cast<std::uint64_t>(k));  // apply_sqrt: z1 = z, z2 from hash(z)
+      const SqrtReport rep = op.apply_sqrt(z, v);
+      EXPECT_EQ(rep.method, SqrtMethod::split);
+      const Eigen::Map<const Eigen::VectorXd> ev(v.data(), n);
+      Cz += ev * ev.transpose();
+    }
+    C /= ns;
+    Cz /= ns;
+    mean /= ns;
+    const double bound = 5.0 * std::sqrt(2.0 / ns);  // 5 standard errors
+    EXPECT_LT(covariance_error(C, M), bound);
+    EXPECT_LT(covariance_error(Cz, M), bound);
+    for (Eigen::Index i = 0; i < n; ++i) EXPECT_LT(std::abs(mean(i)) / std::sqrt(M(i, i)), 5.0 / std::sqrt(ns));
+    // The sample is a deterministic function of its key / of z.
+    std::vector<double> w2(w.size());
+    op.sample(2024, 3, w);
+    op.sample(2024, 3, w2);
+    EXPECT_EQ(w, w2);
   }
-  C /= ns;
-  Cz /= ns;
-  mean /= ns;
-  const double bound = 5.0 * std::sqrt(2.0 / ns);  // 5 standard errors
-  EXPECT_LT(covariance_error(C, M), bound);
-  EXPECT_LT(covariance_error(Cz, M), bound);
-  for (Eigen::Index i = 0; i < n; ++i) EXPECT_LT(std::abs(mean(i)) / std::sqrt(M(i, i)), 5.0 / std::sqrt(ns));
-  // The sample is a deterministic function of its key / of z.
-  std::vector<double> w2(w.size());
-  op.sample(2024, 3, w);
-  op.sample(2024, 3, w2);
-  EXPECT_EQ(w, w2);
 }
 
 TEST(PseSampler, WaveNoiseAloneHasCovarianceMw) {
@@ -96,10 +102,10 @@ TEST(PseSampler, WaveNoiseAloneHasCovarianceMw) {
     normals(z1, 99, static_cast<std::uint64_t>(k), 1);
     sqrt_apply(op.real_space_operator(), z1, y, 1, so);
     Eigen::VectorXd e(n);
+
     for (Eigen::Index i = 0; i < n; ++i) e(i) = (u[static_cast<std::size_t>(i)] - scale * y[static_cast<std::size_t>(i)]) / scale;
     C += e * e.transpose();
   }
   C /= ns;
   EXPECT_LT(covariance_error(C, Mw), 5.0 * std::sqrt(2.0 / ns));
 }
-

@@ -74,7 +74,7 @@ def test_dense_from_products_is_spd(name):
     x = suspension(n, seed=2, spacing=2.1, jitter=0.5)  # includes overlapping pairs
     op = {"direct": lambda: rpyfmm.DirectRpy(),
           "fmm": lambda: rpyfmm.FmmRpy(tolerance=1e-9),
-          "pse": lambda: rpyfmm.PseRpy(box=12.0, tolerance=1e-5)}[name]()
+          "pse": lambda: rpyfmm.PseRpy(box=12.0, tolerance=1e-5, wave_precision="double")}[name]()
     op.set_positions(x, 1.0)
     m = op.assemble_dense()
     assert m.shape == (3 * n, 3 * n)
@@ -103,11 +103,28 @@ def test_pse_periodic_self_mobility_is_hasimoto(a_over_l):
 def test_pse_fft_measure_matches_estimate(system):
     x, f = system
     box = (np.ptp(x, axis=0) + 8.0).tolist()
-    ops = [rpyfmm.PseRpy(box=box, tolerance=1e-5, fft_measure=m) for m in (False, True)]
+    ops = [rpyfmm.PseRpy(box=box, tolerance=1e-5, fft_measure=m, wave_precision="double") for m in (False, True)]
     for op in ops:
         op.set_positions(x, 1.0)
     u0, u1 = (op.apply(f) for op in ops)
     assert np.linalg.norm(u1 - u0) <= 1e-12 * np.linalg.norm(u0)
+
+
+def test_pse_wave_precision(system):
+    # Single-precision wave grids (the automatic choice at tolerance >= 1e-5) against double ones:
+    # float round-off only (~1e-7 relative, tests/pse/test_pse_precision.cpp); bad names refused.
+    x, f = system
+    box = (np.ptp(x, axis=0) + 8.0).tolist()
+    auto, single, double = (rpyfmm.PseRpy(box=box, tolerance=1e-4, wave_precision=w)
+                            for w in ("auto", "single", "double"))
+    for op in (auto, single, double):
+        op.set_positions(x, 1.0)
+    assert auto.parameters["wave_precision"] == "single"
+    assert double.parameters["wave_precision"] == "double"
+    np.testing.assert_array_equal(auto.apply(f), single.apply(f))
+    assert 0.0 < rel_err(single.apply(f), double.apply(f)) <= 1e-6
+    with pytest.raises(rpyfmm.Error, match="wave precision"):
+        rpyfmm.PseRpy(box=box, wave_precision="half")
 
 
 def test_shapes_and_dtypes(system):

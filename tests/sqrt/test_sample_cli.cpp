@@ -201,6 +201,8 @@ TEST_F(SampleCli, BadInputExitTwoNoOutput) {
            {base + "--radius 1 --operator pse", "--box"},
            {base + "--radius 1 --method split", "PSE"},
            {base + "--radius 1 --method pse --operator fmm", "cannot be combined"},
+           {base + "--radius 1 --method pse --box 60 --wave-precision quad", "--wave-precision"},
+           {base + "--radius 1 --wave-precision single", "pse operator only"},
            {"--positions " + xn.string() + " --radius 1 --out " + out.string(), "NaN"},
            {"--positions " + (scratch() / "missing.txt").string() + " --radius 1 --out " + out.string(),
             "missing.txt"},

@@ -40,11 +40,11 @@ RPYFMM_HOST_DEVICE inline int window_weights(double x, double h, int P, int n, d
 
 /// Geometry of the r2c half spectrum [ix][iy][iz], iz = 0..nz/2.
 struct ModeGeometry {
-  int n[3];           ///< grid points per direction
-  int nzh;            ///< nz / 2 + 1
-  double two_pi_L[3]; ///< 2 pi / L_d
-  std::size_t modes;  ///< nx * ny * nzh
-  std::size_t comp_stride;  ///< doubles between components of the spectrum (2 * modes)
+  int n[3];                 ///< grid points per direction
+  int nzh;                  ///< nz / 2 + 1
+  double two_pi_L[3];       ///< 2 pi / L_d
+  std::size_t modes;        ///< nx * ny * nzh
+  std::size_t comp_stride;  ///< reals between components of the spectrum (2 * modes)
 };
 
 /// Signed wave number index of grid index i in a dimension of size n.
@@ -74,16 +74,18 @@ RPYFMM_HOST_DEVICE inline void mode_pair(int ix, int iy, int iz, const ModeGeome
 /// normal6(seed, step, kStreamWave, rep) of the mode's pair (mode_pair): real parts z[0..2],
 /// imaginary parts z[3..5], conjugated when the mode is not the representative. So r2c and
 /// c2c layouts, CPU and GPU produce the same field. `spec` holds 3 complex components
-/// (re, im interleaved) `comp_stride` doubles apart.
+/// (re, im interleaved) `comp_stride` reals apart; Real = float for single-precision wave grids
+/// (PseOptions::wave_precision), the arithmetic is double either way.
+template <class Real>
 RPYFMM_HOST_DEVICE inline void scale_mode_with(int ix, int iy, int iz, std::size_t idx, const ModeGeometry& g,
-                                               const double* ck, double* spec, bool deterministic, const double* z,
+                                               const double* ck, Real* spec, bool deterministic, const double* z,
                                                bool representative, double noise_factor) {
-  double* s0 = spec + 2 * idx;
-  double* s1 = s0 + g.comp_stride;
-  double* s2 = s1 + g.comp_stride;
+  Real* s0 = spec + 2 * idx;
+  Real* s1 = s0 + g.comp_stride;
+  Real* s2 = s1 + g.comp_stride;
   const double c = ck[idx];
   if (c == 0.0) {
-    s0[0] = s0[1] = s1[0] = s1[1] = s2[0] = s2[1] = 0.0;
+    s0[0] = s0[1] = s1[0] = s1[1] = s2[0] = s2[1] = Real(0);
     return;
   }
   const double k0 = g.two_pi_L[0] * signed_index(ix, g.n[0]);
@@ -108,9 +110,12 @@ RPYFMM_HOST_DEVICE inline void scale_mode_with(int ix, int iy, int iz, std::size
   // Projection I - k k^T / k^2, applied to the real and imaginary parts separately.
   const double pr = (k0 * re[0] + k1 * re[1] + k2 * re[2]) * inv_k2;
   const double pi = (k0 * im[0] + k1 * im[1] + k2 * im[2]) * inv_k2;
-  s0[0] = re[0] - k0 * pr; s0[1] = im[0] - k0 * pi;
-  s1[0] = re[1] - k1 * pr; s1[1] = im[1] - k1 * pi;
-  s2[0] = re[2] - k2 * pr; s2[1] = im[2] - k2 * pi;
+  s0[0] = static_cast<Real>(re[0] - k0 * pr);
+  s0[1] = static_cast<Real>(im[0] - k0 * pi);
+  s1[0] = static_cast<Real>(re[1] - k1 * pr);
+  s1[1] = static_cast<Real>(im[1] - k1 * pi);
+  s2[0] = static_cast<Real>(re[2] - k2 * pr);
+  s2[1] = static_cast<Real>(im[2] - k2 * pi);
 }
 
 /// scale_mode_with for linear half-spectrum index idx, drawing the mode's noise itself

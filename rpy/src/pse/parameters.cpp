@@ -74,11 +74,20 @@ std::vector<int> fft_lengths_from(int n, int count) {
   return out;
 }
 
-/// Memory of a plan (bytes): 3 real grids + 3 half spectra + c(k) + the window cache.
-double memory_estimate(const std::array<int, 3>& grid, const std::array<int, 3>& support, std::size_t n) {
+/// Whether the wave-space grids are single precision (PseOptions::wave_precision).
+bool wave_single(const PseOptions& o) {
+  return o.wave_precision == WavePrecision::single_precision ||
+         (o.wave_precision == WavePrecision::automatic && o.tolerance >= kSingleWaveTolerance);
+}
+
+/// Memory of a plan (bytes): 3 real grids + 3 half spectra (4 or 8 bytes a real) + c(k) (double)
+/// + the window cache.
+double memory_estimate(const std::array<int, 3>& grid, const std::array<int, 3>& support, std::size_t n, bool single) {
   const double ng = static_cast<double>(grid[0]) * grid[1] * grid[2];
   const double modes = static_cast<double>(grid[0]) * grid[1] * (grid[2] / 2 + 1);
-  return 24.0 * ng + 56.0 * modes + 8.0 * static_cast<double>(n) * (support[0] + support[1] + support[2] + 8);
+  const double real_bytes = single ? 4.0 : 8.0;
+  return 3.0 * real_bytes * ng + (6.0 * real_bytes + 8.0) * modes +
+         8.0 * static_cast<double>(n) * (support[0] + support[1] + support[2] + 8);
 }
 
 /// The grid-dependent part of the cost model: two transforms of three components (per axis pass
@@ -107,6 +116,7 @@ PseParameters parameters_for(const PseOptions& o, double a, const std::array<dou
   p.radius = a;
   p.xi = xi;
   p.tolerance = o.tolerance;
+  p.wave_single = wave_single(o);
   const double eps = o.tolerance;
   const double min_L = std::min({L[0], L[1], L[2]});
 
@@ -147,7 +157,7 @@ PseParameters parameters_for(const PseOptions& o, double a, const std::array<dou
         const std::array<int, 3> g = {gx, gy, gz};
         const std::array<int, 3> s = {support_for(0, gx), support_for(1, gy), support_for(2, gz)};
         if (s[0] > gx || s[1] > gy || s[2] > gz) continue;
-        if (memory_estimate(g, s, n) > static_cast<double>(o.max_memory_bytes)) continue;
+        if (memory_estimate(g, s, n, p.wave_single) > static_cast<double>(o.max_memory_bytes)) continue;
         const double c = grid_cost(o, g, s, n);
         if (c < best_cost) {
           best_cost = c;
@@ -168,7 +178,7 @@ PseParameters parameters_for(const PseOptions& o, double a, const std::array<dou
   }
   require(ng < 2147483647.0, ErrorCode::out_of_memory, kWhere,
           "FFT grid of " + fmt(ng) + " points exceeds the 2^31 points FFTW/cuFFT plans accept");
-  const double bytes = memory_estimate(p.grid, p.support, n);
+  const double bytes = memory_estimate(p.grid, p.support, n, p.wave_single);
   require(bytes <= static_cast<double>(o.max_memory_bytes), ErrorCode::out_of_memory, kWhere,
           "FFT grid " + std::to_string(p.grid[0]) + " x " + std::to_string(p.grid[1]) + " x " +
               std::to_string(p.grid[2]) + " needs " + fmt(bytes / 1e9) + " GB, over the limit of " +
@@ -186,6 +196,26 @@ PseParameters parameters_for(const PseOptions& o, double a, const std::array<dou
 }
 
 }  // namespace
+
+WavePrecision wave_precision_from_name(std::string_view name, const char* where) {
+  if (name == "auto") return WavePrecision::automatic;
+  if (name == "single") return WavePrecision::single_precision;
+  if (name == "double") return WavePrecision::double_precision;
+  fail(ErrorCode::invalid_argument, where,
+       "wave precision must be auto, single or double, got '" + std::string(name) + "'");
+}
+
+const char* wave_precision_name(WavePrecision precision) {
+  switch (precision) {
+    case WavePrecision::single_precision:
+      return "single";
+    case WavePrecision::double_precision:
+      return "double";
+    case WavePrecision::automatic:
+      break;
+  }
+  return "auto";
+}
 
 double fft_length_cost(int n) {
   for (const auto& e : kFftLengths)
@@ -215,6 +245,9 @@ PseParameters choose_parameters(const PseOptions& o, double a, const std::array<
   require(std::isfinite(o.r_cut) && o.r_cut >= 0.0, ErrorCode::invalid_argument, kWhere,
           "r_cut override must be >= 0 (0 = automatic), got " + fmt(o.r_cut));
   require(o.support >= 0, ErrorCode::invalid_argument, kWhere, "support override must be >= 0");
+  require(o.wave_precision == WavePrecision::automatic || o.wave_precision == WavePrecision::double_precision ||
+              o.wave_precision == WavePrecision::single_precision,
+          ErrorCode::invalid_argument, kWhere, "wave_precision is not a WavePrecision value");
   for (int d = 0; d < 3; ++d)
     require(o.grid[d] >= 0, ErrorCode::invalid_argument, kWhere, "grid override must be >= 0");
   require(std::isfinite(o.lanczos_tolerance) && o.lanczos_tolerance >= 0.0 && o.lanczos_tolerance < 1.0,
@@ -287,8 +320,8 @@ std::string PseParameters::summary() const {
          ", P = " + std::to_string(support[0]) + "/" + std::to_string(support[1]) + "/" + std::to_string(support[2]) +
          ", eta = " + fmt(window_eta) + (eta_automatic ? " (auto)" : "") + ", m = " + fmt(window_m) +
          ", table dr = " + fmt(table_dr) + " (" + std::to_string(table_size) + " entries)" +
-         ", lanczos tol = " + fmt(lanczos_tolerance) + ", memory = " + fmt(static_cast<double>(memory_bytes) / 1e6) +
-         " MB";
+         ", lanczos tol = " + fmt(lanczos_tolerance) + ", wave grids " + (wave_single ? "single" : "double") +
+         ", memory = " + fmt(static_cast<double>(memory_bytes) / 1e6) + " MB";
 }
 
 }  // namespace rpyfmm::rpy::pse

@@ -91,8 +91,8 @@ void PseRpy::on_positions_set() {
     auto real = std::make_unique<detail::RealSpaceSum>(p, geometry().box(), viscosity(), im.options.real_space_table);
     p.table_dr = im.options.real_space_table ? real->table().dr() : 0.0;
     p.table_size = im.options.real_space_table ? real->table().size() : 0;
-    auto wave = std::make_unique<detail::WaveSpace>(p, geometry().box(), viscosity(), im.options.fft_threads,
-                                                    im.options.fft_measure);
+    auto wave =
+        detail::make_wave_space(p, geometry().box(), viscosity(), im.options.fft_threads, im.options.fft_measure);
     im.params = p;
     im.real = std::move(real);
     im.wave = std::move(wave);

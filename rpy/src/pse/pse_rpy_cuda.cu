@@ -302,9 +302,13 @@ PseRpyCuda::PseRpyCuda(Geometry geometry, double viscosity, const PseOptions& op
   }
   require(std::isfinite(options.xi) && options.xi >= 0.0, ErrorCode::invalid_argument, kWhere,
           "xi must be >= 0 (0 = automatic), got " + std::to_string(options.xi));
+  require(options.wave_precision != WavePrecision::single_precision, ErrorCode::not_supported, kWhere,
+          "single-precision wave grids (PseOptions::wave_precision) are CPU-only; the CUDA backend computes in "
+          "double precision (use automatic or double_precision)");
   require(device_available(), ErrorCode::not_supported, kWhere, "no usable CUDA device");
   impl_->options = options;
-  impl_->options.real_space_table = true;  // the device path interpolates the table
+  impl_->options.real_space_table = true;                           // the device path interpolates the table
+  impl_->options.wave_precision = WavePrecision::double_precision;  // cuFFT in double (Z2D / D2Z)
 }
 
 PseRpyCuda::~PseRpyCuda() = default;

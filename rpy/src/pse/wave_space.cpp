@@ -24,14 +24,6 @@ std::mutex& planner_mutex() {
   return m;
 }
 
-void init_fftw_threads() {
-  static std::once_flag once;
-  std::call_once(once, [] {
-    fftw_init_threads();
-    fftw_make_planner_thread_safe();
-  });
-}
-
 /// Tile class along one axis: 0 / 1 by parity, 2 for the last tile of an odd count
 /// (it touches tile 0 through the periodic wrap). Same-class tiles are >= 2 apart.
 int tile_class(int b, int nb) {
@@ -49,11 +41,12 @@ ZRuns z_runs(int z0, int P, int nz) {
 }
 
 /// g_c[line + z] += wxy * wf_c[l] over one z window (both runs), c = 0, 1, 2.
-[[gnu::always_inline]] inline void spread_line(double* g0, double* g1, double* g2, std::size_t line, ZRuns z, int P,
-                                               double wxy, const double* wf) {
-  double* p0 = g0 + line + z.z0;
-  double* p1 = g1 + line + z.z0;
-  double* p2 = g2 + line + z.z0;
+template <class Real>
+[[gnu::always_inline]] inline void spread_line(Real* g0, Real* g1, Real* g2, std::size_t line, ZRuns z, int P, Real wxy,
+                                               const Real* wf) {
+  Real* p0 = g0 + line + z.z0;
+  Real* p1 = g1 + line + z.z0;
+  Real* p2 = g2 + line + z.z0;
 #pragma omp simd
   for (int l = 0; l < z.len0; ++l) {
     p0[l] += wxy * wf[l];
@@ -68,12 +61,13 @@ ZRuns z_runs(int z0, int P, int nz) {
   }
 }
 
-/// s_c += sum_l wz[l] g_c[line + z_l] over one z window (both runs), c = 0, 1, 2.
-[[gnu::always_inline]] inline void gather_line(const double* g0, const double* g1, const double* g2, std::size_t line,
+/// s_c += sum_l wz[l] g_c[line + z_l] over one z window (both runs), c = 0, 1, 2 (sums in double).
+template <class Real>
+[[gnu::always_inline]] inline void gather_line(const Real* g0, const Real* g1, const Real* g2, std::size_t line,
                                                ZRuns z, int P, const double* wz, double s[3]) {
-  const double* p0 = g0 + line + z.z0;
-  const double* p1 = g1 + line + z.z0;
-  const double* p2 = g2 + line + z.z0;
+  const Real* p0 = g0 + line + z.z0;
+  const Real* p1 = g1 + line + z.z0;
+  const Real* p2 = g2 + line + z.z0;
   double s0 = 0.0, s1 = 0.0, s2 = 0.0;
 #pragma omp simd reduction(+ : s0, s1, s2)
   for (int l = 0; l < z.len0; ++l) {
@@ -91,6 +85,111 @@ ZRuns z_runs(int z0, int P, int nz) {
   s[1] += s1;
   s[2] += s2;
 }
+
+/// FFTW's double- and single-precision interfaces under one name (fftw_* / fftwf_*).
+template <class Real>
+struct Fftw;
+
+template <>
+struct Fftw<double> {
+  using Complex = fftw_complex;
+  using Plan = fftw_plan;
+  static double* alloc_real(std::size_t n) { return fftw_alloc_real(n); }
+  static Complex* alloc_complex(std::size_t n) { return fftw_alloc_complex(n); }
+  static void free(void* p) { fftw_free(p); }
+  static void init_threads() {
+    static std::once_flag once;
+    std::call_once(once, [] {
+      fftw_init_threads();
+      fftw_make_planner_thread_safe();
+    });
+  }
+  static void plan_with_nthreads(int n) { fftw_plan_with_nthreads(n); }
+  static Plan r2c(const int* dims, int howmany, double* in, int dist_r, Complex* out, int dist_c, unsigned flags) {
+    return fftw_plan_many_dft_r2c(3, dims, howmany, in, nullptr, 1, dist_r, out, nullptr, 1, dist_c, flags);
+  }
+  static Plan c2r(const int* dims, int howmany, Complex* in, int dist_c, double* out, int dist_r, unsigned flags) {
+    return fftw_plan_many_dft_c2r(3, dims, howmany, in, nullptr, 1, dist_c, out, nullptr, 1, dist_r, flags);
+  }
+  static void execute_r2c(Plan p, double* in, Complex* out) { fftw_execute_dft_r2c(p, in, out); }
+  static void execute_c2r(Plan p, Complex* in, double* out) { fftw_execute_dft_c2r(p, in, out); }
+  static void destroy(Plan p) { fftw_destroy_plan(p); }
+};
+
+template <>
+struct Fftw<float> {
+  using Complex = fftwf_complex;
+  using Plan = fftwf_plan;
+  static float* alloc_real(std::size_t n) { return fftwf_alloc_real(n); }
+  static Complex* alloc_complex(std::size_t n) { return fftwf_alloc_complex(n); }
+  static void free(void* p) { fftwf_free(p); }
+  static void init_threads() {
+    static std::once_flag once;
+    std::call_once(once, [] {
+      fftwf_init_threads();
+      fftwf_make_planner_thread_safe();
+    });
+  }
+  static void plan_with_nthreads(int n) { fftwf_plan_with_nthreads(n); }
+  static Plan r2c(const int* dims, int howmany, float* in, int dist_r, Complex* out, int dist_c, unsigned flags) {
+    return fftwf_plan_many_dft_r2c(3, dims, howmany, in, nullptr, 1, dist_r, out, nullptr, 1, dist_c, flags);
+  }
+  static Plan c2r(const int* dims, int howmany, Complex* in, int dist_c, float* out, int dist_r, unsigned flags) {
+    return fftwf_plan_many_dft_c2r(3, dims, howmany, in, nullptr, 1, dist_c, out, nullptr, 1, dist_r, flags);
+  }
+  static void execute_r2c(Plan p, float* in, Complex* out) { fftwf_execute_dft_r2c(p, in, out); }
+  static void execute_c2r(Plan p, Complex* in, float* out) { fftwf_execute_dft_c2r(p, in, out); }
+  static void destroy(Plan p) { fftwf_destroy_plan(p); }
+};
+
+/// WaveSpace on grids and spectra of type Real (double, or float for PseParameters::wave_single).
+template <class Real>
+class WaveGrid final : public WaveSpace {
+ public:
+  WaveGrid(const PseParameters& p, const std::array<double, 3>& box, double viscosity, int fft_threads,
+           bool fft_measure);
+  ~WaveGrid() override;
+  WaveGrid(const WaveGrid&) = delete;
+  WaveGrid& operator=(const WaveGrid&) = delete;
+
+  void set_positions(std::span<const double> x) override;
+  void apply(const double* forces, double* out, bool accumulate, const NoiseKey* noise, double noise_scale,
+             StageTimes* times) override;
+
+ private:
+  using Plan = typename Fftw<Real>::Plan;
+  using Complex = typename Fftw<Real>::Complex;
+
+  void spread(const double* forces);
+  void interpolate(double* out, bool accumulate) const;
+  void window_lines(std::size_t i, std::size_t* xline, std::size_t* yline) const;
+  /// Destroys the plans and frees the grids (idempotent).
+  void release() noexcept;
+
+  PseParameters p_;
+  std::array<int, 3> n_{};
+  std::array<int, 3> P_{};
+  std::size_t ng_ = 0;
+  ModeGeometry modes_{};
+  double dv_ = 0.0;
+  double c3_ = 0.0;
+  std::vector<double> ck_;
+  Real* grid_ = nullptr;      // 3 x Ng real (fftw_malloc)
+  Real* spectrum_ = nullptr;  // 3 x modes complex (fftw_malloc)
+  Plan plan_forward_ = nullptr;
+  Plan plan_backward_ = nullptr;
+  int fft_threads_ = 1;
+  bool parallel_modes_ = false;
+
+  // Per particle: wrapped window starts and cached 1D weights (Px + Py + Pz).
+  std::size_t np_ = 0;
+  std::vector<int> start_;
+  std::vector<double> weights_;
+  // Tiles for race-free spreading: particles sorted by tile; tiles grouped by colour.
+  std::vector<std::size_t> order_;
+  std::vector<std::size_t> tile_begin_;              // per tile: range in order_
+  std::array<std::vector<int>, 9> tiles_of_colour_;  // tile ids per colour
+};
 
 }  // namespace
 
@@ -134,9 +233,11 @@ std::vector<double> wave_scaling_table(const PseParameters& p, const std::array<
   return ck;
 }
 
-WaveSpace::WaveSpace(const PseParameters& p, const std::array<double, 3>& box, double viscosity, int fft_threads,
-                     bool fft_measure)
+template <class Real>
+WaveGrid<Real>::WaveGrid(const PseParameters& p, const std::array<double, 3>& box, double viscosity, int fft_threads,
+                         bool fft_measure)
     : p_(p) {
+  using F = Fftw<Real>;
   n_ = p.grid;
   P_ = p.support;
   ng_ = static_cast<std::size_t>(n_[0]) * static_cast<std::size_t>(n_[1]) * static_cast<std::size_t>(n_[2]);
@@ -146,36 +247,51 @@ WaveSpace::WaveSpace(const PseParameters& p, const std::array<double, 3>& box, d
   fft_threads_ = fft_threads > 0 ? fft_threads : (ng_ >= (std::size_t{1} << 20) ? omp_get_max_threads() : 1);
   parallel_modes_ = modes_.modes >= kParallelWork;
 
-  grid_ = fftw_alloc_real(3 * ng_);
-  spectrum_ = reinterpret_cast<double*>(fftw_alloc_complex(3 * modes_.modes));
-  require(grid_ != nullptr && spectrum_ != nullptr, ErrorCode::out_of_memory, "PseRpy",
-          "could not allocate the FFT grids");
-  init_fftw_threads();
+  grid_ = F::alloc_real(3 * ng_);
+  auto* spec = F::alloc_complex(3 * modes_.modes);
+  spectrum_ = reinterpret_cast<Real*>(spec);
+  if (grid_ == nullptr || spectrum_ == nullptr) {
+    F::free(grid_);
+    F::free(spectrum_);
+    fail(ErrorCode::out_of_memory, "PseRpy", "could not allocate the FFT grids");
+  }
+  F::init_threads();
   {
     std::lock_guard<std::mutex> lock(planner_mutex());
-    fftw_plan_with_nthreads(fft_threads_);
+    F::plan_with_nthreads(fft_threads_);
     const int dims[3] = {n_[0], n_[1], n_[2]};
     const int dist_r = static_cast<int>(ng_);
     const int dist_c = static_cast<int>(modes_.modes);
-    auto* spec = reinterpret_cast<fftw_complex*>(spectrum_);
     // FFTW_MEASURE overwrites grid_ and spectrum_ while it times: both are scratch set by apply().
     const unsigned flags = fft_measure ? FFTW_MEASURE : FFTW_ESTIMATE;
-    plan_forward_ = fftw_plan_many_dft_r2c(3, dims, 3, grid_, nullptr, 1, dist_r, spec, nullptr, 1, dist_c, flags);
-    plan_backward_ = fftw_plan_many_dft_c2r(3, dims, 3, spec, nullptr, 1, dist_c, grid_, nullptr, 1, dist_r, flags);
+    plan_forward_ = F::r2c(dims, 3, grid_, dist_r, spec, dist_c, flags);
+    plan_backward_ = F::c2r(dims, 3, spec, dist_c, grid_, dist_r, flags);
   }
-  require(plan_forward_ != nullptr && plan_backward_ != nullptr, ErrorCode::numerical_failure, "PseRpy",
-          "FFTW could not create the plans");
+  if (plan_forward_ == nullptr || plan_backward_ == nullptr) {
+    release();  // the destructor does not run when the constructor throws
+    fail(ErrorCode::numerical_failure, "PseRpy", "FFTW could not create the plans");
+  }
 }
 
-WaveSpace::~WaveSpace() {
+template <class Real>
+void WaveGrid<Real>::release() noexcept {
+  using F = Fftw<Real>;
   std::lock_guard<std::mutex> lock(planner_mutex());
-  if (plan_forward_) fftw_destroy_plan(static_cast<fftw_plan>(plan_forward_));
-  if (plan_backward_) fftw_destroy_plan(static_cast<fftw_plan>(plan_backward_));
-  fftw_free(grid_);
-  fftw_free(spectrum_);
+  if (plan_forward_) F::destroy(plan_forward_);
+  if (plan_backward_) F::destroy(plan_backward_);
+  F::free(grid_);
+  F::free(spectrum_);
+  plan_forward_ = plan_backward_ = nullptr;
+  grid_ = spectrum_ = nullptr;
 }
 
-void WaveSpace::set_positions(std::span<const double> x) {
+template <class Real>
+WaveGrid<Real>::~WaveGrid() {
+  release();
+}
+
+template <class Real>
+void WaveGrid<Real>::set_positions(std::span<const double> x) {
   np_ = x.size() / 3;
   const int pw = P_[0] + P_[1] + P_[2];
   start_.resize(3 * np_);
@@ -229,7 +345,8 @@ void WaveSpace::set_positions(std::span<const double> x) {
     }
 }
 
-void WaveSpace::window_lines(std::size_t i, std::size_t* xline, std::size_t* yline) const {
+template <class Real>
+void WaveGrid<Real>::window_lines(std::size_t i, std::size_t* xline, std::size_t* yline) const {
   // Offsets of the grid lines (x, y) of particle i's window: line = xline[a] + yline[b],
   // wrapped without a division per point.
   const auto nz = static_cast<std::size_t>(n_[2]);
@@ -245,13 +362,14 @@ void WaveSpace::window_lines(std::size_t i, std::size_t* xline, std::size_t* yli
   }
 }
 
-void WaveSpace::spread(const double* forces) {
+template <class Real>
+void WaveGrid<Real>::spread(const double* forces) {
   // f_n = sum_j F_j g(x_n - x_j)  (PSE.md Sec. 2.3 step 1), race-free and in a fixed
   // order: the result does not depend on the number of threads.
   const int pw = P_[0] + P_[1] + P_[2];
-  double* g0 = grid_;
-  double* g1 = grid_ + ng_;
-  double* g2 = grid_ + 2 * ng_;
+  Real* g0 = grid_;
+  Real* g1 = grid_ + ng_;
+  Real* g2 = grid_ + 2 * ng_;
   const auto total = static_cast<std::int64_t>(3 * ng_);
   const std::size_t p3 = static_cast<std::size_t>(P_[0]) * P_[1] * P_[2];
   const bool par = np_ * p3 >= kParallelWork || ng_ >= 4 * kParallelWork;
@@ -259,8 +377,8 @@ void WaveSpace::spread(const double* forces) {
 #pragma omp parallel if (par)
   {
 #pragma omp for schedule(static)
-    for (std::int64_t q = 0; q < total; ++q) grid_[q] = 0.0;
-    std::vector<double> wf(3 * static_cast<std::size_t>(P_[2]));  // wz * f, per component
+    for (std::int64_t q = 0; q < total; ++q) grid_[q] = Real(0);
+    std::vector<Real> wf(3 * static_cast<std::size_t>(P_[2]));  // wz * f, per component
     std::vector<std::size_t> xline(static_cast<std::size_t>(P_[0])), yline(static_cast<std::size_t>(P_[1]));
     for (const auto& colour : tiles_of_colour_) {
       const auto nt = static_cast<std::int64_t>(colour.size());
@@ -280,11 +398,12 @@ void WaveSpace::spread(const double* forces) {
                                  wz, fc);
           } else {
             for (int l = 0; l < P_[2]; ++l)
-              for (int c = 0; c < 3; ++c) wf[static_cast<std::size_t>(c * P_[2] + l)] = wz[l] * fc[c];
+              for (int c = 0; c < 3; ++c)
+                wf[static_cast<std::size_t>(c * P_[2] + l)] = static_cast<Real>(wz[l] * fc[c]);
             for (int a = 0; a < P_[0]; ++a)
               for (int b = 0; b < P_[1]; ++b)
                 spread_line(g0, g1, g2, xline[static_cast<std::size_t>(a)] + yline[static_cast<std::size_t>(b)], z,
-                            P_[2], wx[a] * wy[b], wf.data());
+                            P_[2], static_cast<Real>(wx[a] * wy[b]), wf.data());
           }
         }
       }  // implicit barrier: colours run one after another
@@ -292,12 +411,13 @@ void WaveSpace::spread(const double* forces) {
   }
 }
 
-void WaveSpace::interpolate(double* out, bool accumulate) const {
+template <class Real>
+void WaveGrid<Real>::interpolate(double* out, bool accumulate) const {
   // U_j = dV sum_n g(x_n - x_j) u_n  (PSE.md Sec. 2.3 step 5).
   const int pw = P_[0] + P_[1] + P_[2];
-  const double* g0 = grid_;
-  const double* g1 = grid_ + ng_;
-  const double* g2 = grid_ + 2 * ng_;
+  const Real* g0 = grid_;
+  const Real* g1 = grid_ + ng_;
+  const Real* g2 = grid_ + 2 * ng_;
   const double scale = c3_ * dv_;
   const auto np = static_cast<std::int64_t>(np_);
   const bool par = np_ * static_cast<std::size_t>(P_[0]) * P_[1] * P_[2] >= kParallelWork;
@@ -338,8 +458,9 @@ void WaveSpace::interpolate(double* out, bool accumulate) const {
   }
 }
 
-void WaveSpace::apply(const double* forces, double* out, bool accumulate, const NoiseKey* noise, double noise_scale,
-                      StageTimes* times) {
+template <class Real>
+void WaveGrid<Real>::apply(const double* forces, double* out, bool accumulate, const NoiseKey* noise,
+                           double noise_scale, StageTimes* times) {
   StopWatch sw;
   auto lap = [&](const char* stage) {
     if (times) (*times)[stage] += sw.seconds();
@@ -349,7 +470,7 @@ void WaveSpace::apply(const double* forces, double* out, bool accumulate, const 
   if (deterministic) {
     spread(forces);
     lap("spread");
-    fftw_execute_dft_r2c(static_cast<fftw_plan>(plan_forward_), grid_, reinterpret_cast<fftw_complex*>(spectrum_));
+    Fftw<Real>::execute_r2c(plan_forward_, grid_, reinterpret_cast<Complex*>(spectrum_));
     lap("fft_forward");
   }
   const bool with_noise = noise != nullptr && noise_scale != 0.0;
@@ -387,10 +508,16 @@ void WaveSpace::apply(const double* forces, double* out, bool accumulate, const 
     }
   }
   lap("scale");
-  fftw_execute_dft_c2r(static_cast<fftw_plan>(plan_backward_), reinterpret_cast<fftw_complex*>(spectrum_), grid_);
+  Fftw<Real>::execute_c2r(plan_backward_, reinterpret_cast<Complex*>(spectrum_), grid_);
   lap("fft_backward");
   interpolate(out, accumulate);
   lap("interpolate");
+}
+
+std::unique_ptr<WaveSpace> make_wave_space(const PseParameters& p, const std::array<double, 3>& box, double viscosity,
+                                           int fft_threads, bool fft_measure) {
+  if (p.wave_single) return std::make_unique<WaveGrid<float>>(p, box, viscosity, fft_threads, fft_measure);
+  return std::make_unique<WaveGrid<double>>(p, box, viscosity, fft_threads, fft_measure);
 }
 
 }  // namespace rpyfmm::rpy::pse::detail

@@ -36,4 +36,12 @@ void gather_window_avx512(const double* g0, const double* g1, const double* g2, 
                           const std::size_t* yline, int Px, int Py, WindowZ z, const double* wx, const double* wy,
                           const double* wz, double u[3]);
 
+/// The same on single-precision grids (PseOptions::wave_precision): weights and sums in double,
+/// grid values loaded and (spreading) stored as float; spreading adds wxy (wz f) in float.
+void spread_window_avx512(float* g0, float* g1, float* g2, const std::size_t* xline, const std::size_t* yline, int Px,
+                          int Py, WindowZ z, const double* wx, const double* wy, const double* wz, const double f[3]);
+void gather_window_avx512(const float* g0, const float* g1, const float* g2, const std::size_t* xline,
+                          const std::size_t* yline, int Px, int Py, WindowZ z, const double* wx, const double* wy,
+                          const double* wz, double u[3]);
+
 }  // namespace rpyfmm::rpy::pse::detail

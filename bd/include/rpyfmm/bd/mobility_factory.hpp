@@ -16,6 +16,7 @@
 
 #include "rpyfmm/rpy/geometry.hpp"
 #include "rpyfmm/rpy/mobility.hpp"
+#include "rpyfmm/rpy/pse/pse_parameters.hpp"
 
 namespace rpyfmm::bd {
 
@@ -38,6 +39,9 @@ struct MobilitySpec {
   /// pse: FFTW_MEASURE plans (rpy::pse::PseOptions::fft_measure): faster transforms for long
   /// runs, results reproducible to round-off instead of bit for bit across processes.
   bool fft_measure = false;
+  /// pse: precision of the wave-space grids (rpy::pse::PseOptions::wave_precision); automatic
+  /// takes single precision for tolerances >= 1e-5.
+  rpy::pse::WavePrecision wave_precision = rpy::pse::WavePrecision::automatic;
 };
 
 /// Particle count from which FmmRpy at `tolerance` beats DirectRpy per product, 1 thread: where

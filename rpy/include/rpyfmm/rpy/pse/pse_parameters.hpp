@@ -10,8 +10,32 @@
 #include <array>
 #include <cstddef>
 #include <string>
+#include <string_view>
 
 namespace rpyfmm::rpy::pse {
+
+/// Floating-point type of the wave-space grids and spectra (spreading, FFTs, scaling,
+/// interpolation). Positions, forces, weights, the real-space part and every sum over a
+/// particle's window stay in double precision.
+enum class WavePrecision {
+  /// single_precision when the tolerance is >= kSingleWaveTolerance, double_precision below.
+  automatic,
+  double_precision,
+  /// float grids and FFTW's single-precision transforms: 1.35-1.8x faster transforms and half the
+  /// grid memory; adds ~1e-7 relative error to M F (tests/pse/test_pse_precision.cpp). CPU only.
+  single_precision,
+};
+
+/// "auto", "single" or "double" (the names the CLI, Python and BD configs use); throws
+/// rpyfmm::Error (invalid_argument) naming `where` for anything else.
+WavePrecision wave_precision_from_name(std::string_view name, const char* where = "PseRpy");
+/// The name of a WavePrecision value ("auto", "single", "double").
+const char* wave_precision_name(WavePrecision precision);
+
+/// Smallest tolerance for which WavePrecision::automatic picks single precision: float round-off
+/// in the wave space (~1e-7 relative, measured in tests/pse/test_pse_precision.cpp) stays 100x
+/// below it.
+inline constexpr double kSingleWaveTolerance = 1e-5;
 
 /// User options of the PSE operator. Every zero means "choose from the tolerance".
 struct PseOptions {
@@ -49,6 +73,9 @@ struct PseOptions {
   /// 1.1-1.9x faster (bench/pse/RESULTS.md). The algorithm FFTW picks may differ between
   /// processes, so results then agree to round-off, not bit for bit. For long runs.
   bool fft_measure = false;
+  /// Precision of the wave-space grids (WavePrecision). The CUDA backend computes in double
+  /// precision and refuses single_precision.
+  WavePrecision wave_precision = WavePrecision::automatic;
   /// Upper bound on the memory (bytes) of FFT grids, spectra and tables; exceeding
   /// it throws ErrorCode::out_of_memory before anything is allocated. Default 16 GiB.
   std::size_t max_memory_bytes = std::size_t{16} << 30;
@@ -84,6 +111,7 @@ struct PseParameters {
   double table_dr = 0.0;                      ///< table spacing (0 when evaluated directly)
   std::size_t table_size = 0;                 ///< table entries
   double lanczos_tolerance = 0.0;             ///< real-space sample tolerance
+  bool wave_single = false;                   ///< wave-space grids in single precision
   std::size_t memory_bytes = 0;               ///< grids + spectra + tables
   double modelled_cost = 0.0;                 ///< T(xi) of the cost model (s), for reference
 

@@ -5,7 +5,11 @@
 // weights, the real-space 3x3 blocks and the Philox streams are the same
 // __host__ __device__ functions, so for the same seed and step CPU and GPU
 // agree to round-off (spreading uses atomics on the GPU: the last bits of the
-// grid sums depend on the run). Plain C++ header (pimpl): no CUDA types leak.
+// grid sums depend on the run) when the CPU operator's wave grids are double
+// precision too: the GPU always computes in double, while PseRpy's automatic
+// wave_precision uses single-precision grids for tolerances >= 1e-5 (then the two
+// differ by ~1e-6 relative, far below the tolerance). A PseOptions asking for
+// WavePrecision::single_precision is refused. Plain C++ header (pimpl): no CUDA types leak.
 //
 // Built when RPYFMM_USE_CUDA is on (then RPYFMM_HAVE_CUDA_PSE is defined);
 // otherwise the constructor throws ErrorCode::not_supported and

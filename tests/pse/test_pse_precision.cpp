@@ -1,0 +1,129 @@
+// PSE wave-space precision (PseOptions::wave_precision): single-precision grids against double
+// ones and against the direct Ewald sum; the automatic choice; what the CUDA backend accepts.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <string>
+
+#include "ewald_reference.hpp"
+#include "rpyfmm/core/error.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
+
+using namespace rpyfmm::rpy;
+using namespace rpyfmm::rpy::pse;
+
+namespace {
+
+std::vector<double> product(const PseRpy& op, const std::vector<double>& f) {
+  std::vector<double> u(f.size());
+  op.apply(f, u);
+  return u;
+}
+
+PseOptions with_precision(double tolerance, WavePrecision precision) {
+  PseOptions o;
+  o.tolerance = tolerance;
+  o.wave_precision = precision;
+  return o;
+}
+
+/// Forces with components uniform in [-1, 1).
+std::vector<double> random_forces(std::size_t n, unsigned seed) {
+  auto f = pse_test::random_points(n, {2.0, 2.0, 2.0}, seed);
+  for (auto& v : f) v -= 1.0;
+  return f;
+}
+
+}  // namespace
+
+TEST(PsePrecision, SingleAndDoubleWaveGridsAgree) {
+  // The same operator with float and double grids: products and split samples (wave-space noise
+  // included) differ by float round-off only. Bound 1e-6: float's unit round-off 6e-8 times the
+  // growth of the spreading sums and the FFTs (measured 0.5-1.1e-7 on 1500 particles at
+  // tolerances 1e-2 ... 1e-7), 10x below kSingleWaveTolerance.
+  const std::array<double, 3> L = {24.0, 22.0, 26.0};
+  const auto x = pse_test::random_points(1500, L, 71);
+  const auto f = random_forces(1500, 72);
+  for (double eps : {1e-2, 1e-3, 1e-5, 1e-7}) {
+    PseRpy single(Geometry::periodic(L[0], L[1], L[2]), 1.0, with_precision(eps, WavePrecision::single_precision));
+    PseRpy dbl(Geometry::periodic(L[0], L[1], L[2]), 1.0, with_precision(eps, WavePrecision::double_precision));
+    single.set_positions(x, 1.0);
+    dbl.set_positions(x, 1.0);
+    ASSERT_TRUE(single.parameters().wave_single);
+    ASSERT_FALSE(dbl.parameters().wave_single);
+    // Same parameters apart from the precision: grids, supports, xi.
+    EXPECT_EQ(single.parameters().grid, dbl.parameters().grid);
+    EXPECT_EQ(single.parameters().support, dbl.parameters().support);
+    EXPECT_EQ(single.parameters().xi, dbl.parameters().xi);
+    const double d_product = pse_test::rel_l2(product(single, f), product(dbl, f));
+    std::vector<double> w_single(f.size()), w_double(f.size()), u_single(f.size()), u_double(f.size());
+    single.sample(3, 4, w_single);
+    dbl.sample(3, 4, w_double);
+    const double d_sample = pse_test::rel_l2(w_single, w_double);
+    single.apply_wave(f, u_single);
+    dbl.apply_wave(f, u_double);
+    const double d_wave = pse_test::rel_l2(u_single, u_double);
+    EXPECT_LT(d_product, 1e-6) << "eps " << eps;
+    EXPECT_LT(d_sample, 1e-6) << "eps " << eps;
+    EXPECT_LT(d_wave, 1e-6) << "eps " << eps;
+    // ... and they do differ (the float path is really taken).
+    EXPECT_GT(d_wave, 1e-10) << "eps " << eps;
+    std::printf("eps %.0e: single vs double: product %.2e, sample %.2e, wave part %.2e\n", eps, d_product, d_sample,
+                d_wave);
+  }
+}
+
+TEST(PsePrecision, SingleGridsMeetTheToleranceAgainstEwaldSum) {
+  // Float grids forced at every tolerance down to 1e-6 (below kSingleWaveTolerance the automatic
+  // choice takes double): the error against the direct Ewald sum stays below eps (measured 0.2-0.5
+  // eps), and at 1e-8, out of single's reach, below 1e-6, the floor SingleAndDoubleWaveGridsAgree
+  // bounds (measured 6e-8).
+  const std::array<double, 3> L = {14.0, 14.0, 14.0};
+  const auto x = pse_test::random_points(30, L, 11);
+  const auto f = random_forces(30, 12);
+  const auto ref = pse_test::ewald_reference(x, 1.0, 1.0, L, f, 1.0);
+  for (double eps : {1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-8}) {
+    PseOptions o = with_precision(eps, WavePrecision::single_precision);
+    o.xi = 1.0;
+    PseRpy op(Geometry::periodic(L[0], L[1], L[2]), 1.0, o);
+    op.set_positions(x, 1.0);
+    const double err = pse_test::rel_l2(product(op, f), ref);
+    EXPECT_LE(err, std::max(eps, 1e-6)) << op.parameters().summary();
+    std::printf("eps %.0e: single-precision grids, error %.2e\n", eps, err);
+  }
+}
+
+TEST(PsePrecision, AutomaticChoiceFollowsTheTolerance) {
+  const std::array<double, 3> L = {20.0, 20.0, 20.0};
+  const auto choose = [&](double eps, WavePrecision w) {
+    return choose_parameters(with_precision(eps, w), 1.0, L, 1000);
+  };
+  EXPECT_TRUE(choose(1e-3, WavePrecision::automatic).wave_single);
+  EXPECT_TRUE(choose(kSingleWaveTolerance, WavePrecision::automatic).wave_single);
+  EXPECT_FALSE(choose(0.99 * kSingleWaveTolerance, WavePrecision::automatic).wave_single);
+  EXPECT_FALSE(choose(1e-3, WavePrecision::double_precision).wave_single);
+  EXPECT_TRUE(choose(1e-7, WavePrecision::single_precision).wave_single);
+  // Float grids and spectra take half the bytes (the weight cache and c(k) stay double).
+  const auto s = choose(1e-3, WavePrecision::single_precision);
+  const auto d = choose(1e-3, WavePrecision::double_precision);
+  EXPECT_EQ(s.grid, d.grid);
+  EXPECT_LT(static_cast<double>(s.memory_bytes), 0.6 * static_cast<double>(d.memory_bytes));
+  EXPECT_NE(s.summary().find("wave grids single"), std::string::npos);
+  EXPECT_NE(d.summary().find("wave grids double"), std::string::npos);
+  // A value outside the enumeration is refused.
+  EXPECT_THROW(choose(1e-3, static_cast<WavePrecision>(7)), rpyfmm::Error);
+}
+
+TEST(PsePrecision, CudaBackendRefusesSinglePrecision) {
+  PseOptions o = with_precision(1e-3, WavePrecision::single_precision);
+  try {
+    PseRpyCuda op(Geometry::periodic(20.0), 1.0, o);
+    FAIL() << "PseRpyCuda accepted single-precision wave grids";
+  } catch (const rpyfmm::Error& e) {
+    EXPECT_EQ(e.code(), rpyfmm::ErrorCode::not_supported);
+#if defined(RPYFMM_HAVE_CUDA_PSE)
+    EXPECT_NE(std::string(e.what()).find("wave_precision"), std::string::npos) << e.what();
+#endif
+  }
+}
