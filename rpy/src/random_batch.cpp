@@ -1,8 +1,8 @@
 // rpyfmm — fill_normal6 (random.hpp): normal6 for many indices at once, vectorized.
 //
-// Two passes per chunk of indices: Philox4x32-10 for the chunk's 3 blocks per index (AVX2:
-// eight counters per instruction, 32 x 32 -> 64-bit products by vpmuludq; otherwise the
-// portable loop), then Box-Muller on the 64-bit uniforms (random_detail::box_muller_bits, a
+// Two passes per chunk of indices: Philox4x32-10 for the chunk's 3 blocks per index (AVX-512:
+// sixteen counters per instruction, AVX2: eight, 32 x 32 -> 64-bit products by vpmuludq;
+// otherwise the portable loop), then Box-Muller on the 64-bit uniforms (random_detail::box_muller_bits, a
 // branch-free loop that GCC vectorizes: this file is compiled with -fno-trapping-math and
 // -fno-math-errno, which change no value, and -ffp-contract=off, so that every variant gives
 // normal6's values bit for bit on a build without FMA contraction).
@@ -11,6 +11,7 @@
 #include <string>
 
 #include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/rpy/random.hpp"
 
 #if defined(__x86_64__)
@@ -48,61 +49,102 @@ void philox_portable(const std::uint64_t* index, std::size_t m, std::uint64_t se
 }
 
 #ifdef RPYFMM_RANDOM_X86
-/// hi/lo 32-bit halves of a * M for eight unsigned 32-bit lanes.
-__attribute__((target("avx2"))) inline void mulhilo8(__m256i a, std::uint32_t M, __m256i& hi, __m256i& lo) {
-  const __m256i m = _mm256_set1_epi32(static_cast<int>(M));
-  const __m256i even = _mm256_mul_epu32(a, m);                        // lanes 0, 2, 4, 6 as 64-bit products
-  const __m256i odd = _mm256_mul_epu32(_mm256_srli_epi64(a, 32), m);  // lanes 1, 3, 5, 7
-  lo = _mm256_blend_epi32(even, _mm256_slli_epi64(odd, 32), 0xAA);
-  hi = _mm256_blend_epi32(_mm256_srli_epi64(even, 32), odd, 0xAA);
+#define RPYFMM_TARGET_AVX2 __attribute__((target("avx2")))
+#define RPYFMM_TARGET_AVX512 __attribute__((target("avx512f")))
+
+/// Eight unsigned 32-bit lanes (AVX2).
+struct Avx2Lanes {
+  static constexpr std::size_t width = 8;
+  using V = __m256i;
+  RPYFMM_TARGET_AVX2 static V load(const std::uint32_t* p) { return _mm256_load_si256(reinterpret_cast<const V*>(p)); }
+  RPYFMM_TARGET_AVX2 static void store(std::uint32_t* p, V v) { _mm256_storeu_si256(reinterpret_cast<V*>(p), v); }
+  RPYFMM_TARGET_AVX2 static V set1(std::uint32_t v) { return _mm256_set1_epi32(static_cast<int>(v)); }
+  RPYFMM_TARGET_AVX2 static V bxor(V a, V b) { return _mm256_xor_si256(a, b); }
+  RPYFMM_TARGET_AVX2 static V add(V a, V b) { return _mm256_add_epi32(a, b); }
+  /// hi/lo 32-bit halves of a * M, lane by lane (32 x 32 -> 64-bit products by vpmuludq).
+  RPYFMM_TARGET_AVX2 static void mulhilo(V a, std::uint32_t M, V& hi, V& lo) {
+    const V m = set1(M);
+    const V even = _mm256_mul_epu32(a, m);                        // lanes 0, 2, 4, 6 as 64-bit products
+    const V odd = _mm256_mul_epu32(_mm256_srli_epi64(a, 32), m);  // lanes 1, 3, 5, 7
+    lo = _mm256_blend_epi32(even, _mm256_slli_epi64(odd, 32), 0xAA);
+    hi = _mm256_blend_epi32(_mm256_srli_epi64(even, 32), odd, 0xAA);
+  }
+};
+
+/// Sixteen unsigned 32-bit lanes (AVX-512F).
+struct Avx512Lanes {
+  static constexpr std::size_t width = 16;
+  using V = __m512i;
+  RPYFMM_TARGET_AVX512 static V load(const std::uint32_t* p) { return _mm512_load_si512(p); }
+  RPYFMM_TARGET_AVX512 static void store(std::uint32_t* p, V v) { _mm512_storeu_si512(p, v); }
+  RPYFMM_TARGET_AVX512 static V set1(std::uint32_t v) { return _mm512_set1_epi32(static_cast<int>(v)); }
+  RPYFMM_TARGET_AVX512 static V bxor(V a, V b) { return _mm512_xor_si512(a, b); }
+  RPYFMM_TARGET_AVX512 static V add(V a, V b) { return _mm512_add_epi32(a, b); }
+  /// As Avx2Lanes::mulhilo. The maskz forms with all lanes set: GCC 12's plain ones read an
+  /// undefined register and trip -Wmaybe-uninitialized in its own header.
+  RPYFMM_TARGET_AVX512 static void mulhilo(V a, std::uint32_t M, V& hi, V& lo) {
+    constexpr __mmask8 all = 0xFF;
+    const V m = set1(M);
+    const V even = _mm512_maskz_mul_epu32(all, a, m);
+    const V odd = _mm512_maskz_mul_epu32(all, _mm512_maskz_srli_epi64(all, a, 32), m);
+    lo = _mm512_mask_blend_epi32(0xAAAA, even, _mm512_maskz_slli_epi64(all, odd, 32));
+    hi = _mm512_mask_blend_epi32(0xAAAA, _mm512_maskz_srli_epi64(all, even, 32), odd);
+  }
+};
+
+/// The same Philox4x32-10 rounds as r123::Philox4x32 on L::width counters at once. The last
+/// group of a chunk that is not a multiple of the width repeats its last index in the spare
+/// lanes: their words land in slots m ... k + width - 1 < kChunk, which nothing reads. Expanded
+/// inside functions compiled for L's instruction set (a macro: the target attribute of a
+/// function cannot come from a template parameter).
+#define RPYFMM_PHILOX_CHUNK_BODY(L)                                                    \
+  for (std::size_t k = 0; k < m; k += L::width) {                                      \
+    alignas(64) std::uint32_t lo[L::width], hi[L::width];                              \
+    for (std::size_t l = 0; l < L::width; ++l) {                                       \
+      const std::uint64_t i = index[std::min(k + l, m - 1)];                           \
+      lo[l] = static_cast<std::uint32_t>(i);                                           \
+      hi[l] = static_cast<std::uint32_t>(i >> 32);                                     \
+    }                                                                                  \
+    const L::V index_lo = L::load(lo);                                                 \
+    const L::V key0 = L::bxor(L::set1(static_cast<std::uint32_t>(seed)), L::load(hi)); \
+    const L::V key1 = L::set1(static_cast<std::uint32_t>(seed >> 32));                 \
+    for (std::uint32_t b = 0; b < 3; ++b) {                                            \
+      L::V c0 = index_lo;                                                              \
+      L::V c1 = L::set1(stream + (b << 24));                                           \
+      L::V c2 = L::set1(static_cast<std::uint32_t>(step));                             \
+      L::V c3 = L::set1(static_cast<std::uint32_t>(step >> 32));                       \
+      L::V k0 = key0;                                                                  \
+      L::V k1 = key1;                                                                  \
+      for (int round = 0; round < 10; ++round) {                                       \
+        L::V hi0, lo0, hi1, lo1;                                                       \
+        L::mulhilo(c0, kPhiloxM0, hi0, lo0);                                           \
+        L::mulhilo(c2, kPhiloxM1, hi1, lo1);                                           \
+        c0 = L::bxor(L::bxor(hi1, c1), k0);                                            \
+        c2 = L::bxor(L::bxor(hi0, c3), k1);                                            \
+        c1 = lo1;                                                                      \
+        c3 = lo0;                                                                      \
+        k0 = L::add(k0, L::set1(kPhiloxW0));                                           \
+        k1 = L::add(k1, L::set1(kPhiloxW1));                                           \
+      }                                                                                \
+      std::uint32_t* w = &out.w[b * 4 * kChunk + k];                                   \
+      L::store(w, c0);                                                                 \
+      L::store(w + kChunk, c1);                                                        \
+      L::store(w + 2 * kChunk, c2);                                                    \
+      L::store(w + 3 * kChunk, c3);                                                    \
+    }                                                                                  \
+  }
+
+RPYFMM_TARGET_AVX2 void philox_avx2(const std::uint64_t* index, std::size_t m, std::uint64_t seed, std::uint64_t step,
+                                    std::uint32_t stream, ChunkWords& out) {
+  RPYFMM_PHILOX_CHUNK_BODY(Avx2Lanes);
 }
 
-/// The same Philox4x32-10 rounds as r123::Philox4x32 on eight counters at once.
-__attribute__((target("avx2"))) void philox_avx2(const std::uint64_t* index, std::size_t m, std::uint64_t seed,
-                                                 std::uint64_t step, std::uint32_t stream, ChunkWords& out) {
-  std::size_t k = 0;
-  for (; k + 8 <= m; k += 8) {
-    alignas(32) std::uint32_t lo[8], hi[8];
-    for (int l = 0; l < 8; ++l) {
-      lo[l] = static_cast<std::uint32_t>(index[k + l]);
-      hi[l] = static_cast<std::uint32_t>(index[k + l] >> 32);
-    }
-    const __m256i index_lo = _mm256_load_si256(reinterpret_cast<const __m256i*>(lo));
-    const __m256i key0 = _mm256_xor_si256(_mm256_set1_epi32(static_cast<int>(static_cast<std::uint32_t>(seed))),
-                                          _mm256_load_si256(reinterpret_cast<const __m256i*>(hi)));
-    const __m256i key1 = _mm256_set1_epi32(static_cast<int>(static_cast<std::uint32_t>(seed >> 32)));
-    for (std::uint32_t b = 0; b < 3; ++b) {
-      __m256i c0 = index_lo;
-      __m256i c1 = _mm256_set1_epi32(static_cast<int>(stream + (b << 24)));
-      __m256i c2 = _mm256_set1_epi32(static_cast<int>(static_cast<std::uint32_t>(step)));
-      __m256i c3 = _mm256_set1_epi32(static_cast<int>(static_cast<std::uint32_t>(step >> 32)));
-      __m256i k0 = key0;
-      __m256i k1 = key1;
-      for (int round = 0; round < 10; ++round) {
-        __m256i hi0, lo0, hi1, lo1;
-        mulhilo8(c0, kPhiloxM0, hi0, lo0);
-        mulhilo8(c2, kPhiloxM1, hi1, lo1);
-        c0 = _mm256_xor_si256(_mm256_xor_si256(hi1, c1), k0);
-        c2 = _mm256_xor_si256(_mm256_xor_si256(hi0, c3), k1);
-        c1 = lo1;
-        c3 = lo0;
-        k0 = _mm256_add_epi32(k0, _mm256_set1_epi32(static_cast<int>(kPhiloxW0)));
-        k1 = _mm256_add_epi32(k1, _mm256_set1_epi32(static_cast<int>(kPhiloxW1)));
-      }
-      std::uint32_t* w = &out.w[b * 4 * kChunk + k];
-      _mm256_storeu_si256(reinterpret_cast<__m256i*>(w), c0);
-      _mm256_storeu_si256(reinterpret_cast<__m256i*>(w + kChunk), c1);
-      _mm256_storeu_si256(reinterpret_cast<__m256i*>(w + 2 * kChunk), c2);
-      _mm256_storeu_si256(reinterpret_cast<__m256i*>(w + 3 * kChunk), c3);
-    }
-  }
-  if (k < m) {  // tail: the portable rounds into the same slots
-    ChunkWords tail;
-    philox_portable(index + k, m - k, seed, step, stream, tail);
-    for (std::uint32_t bw = 0; bw < 12; ++bw)
-      for (std::size_t q = 0; q < m - k; ++q) out.w[bw * kChunk + k + q] = tail.w[bw * kChunk + q];
-  }
+RPYFMM_TARGET_AVX512 void philox_avx512(const std::uint64_t* index, std::size_t m, std::uint64_t seed,
+                                        std::uint64_t step, std::uint32_t stream, ChunkWords& out) {
+  RPYFMM_PHILOX_CHUNK_BODY(Avx512Lanes);
 }
+
+#undef RPYFMM_PHILOX_CHUNK_BODY
 #endif
 
 /// Box-Muller over the chunk: out[6 k + 2 b + {0, 1}] from block b's words (u0 = w0:w1, u1 = w2:w3).
@@ -119,12 +161,14 @@ __attribute__((target("avx2"))) void philox_avx2(const std::uint64_t* index, std
     }                                                                                 \
   }
 
-void box_muller_portable(const ChunkWords& words, std::size_t m, double* g0, double* g1) {
+void box_muller_portable(const ChunkWords& words, std::size_t m, double* g0, double* g1){RPYFMM_BOX_MULLER_CHUNK_BODY}
+#ifdef RPYFMM_RANDOM_X86
+RPYFMM_TARGET_AVX2 void box_muller_avx2(const ChunkWords& words, std::size_t m, double* g0, double* g1) {
   RPYFMM_BOX_MULLER_CHUNK_BODY
 }
-
-#ifdef RPYFMM_RANDOM_X86
-__attribute__((target("avx2"))) void box_muller_avx2(const ChunkWords& words, std::size_t m, double* g0, double* g1) {
+__attribute__((target("avx512f,avx512dq,prefer-vector-width=512"))) void box_muller_avx512(const ChunkWords& words,
+                                                                                           std::size_t m, double* g0,
+                                                                                           double* g1) {
   RPYFMM_BOX_MULLER_CHUNK_BODY
 }
 #endif
@@ -149,13 +193,17 @@ void fill_normal6(std::span<const std::uint64_t> index, std::uint64_t seed, std:
   require(stream < (1u << 24), ErrorCode::invalid_argument, "fill_normal6",
           "stream " + std::to_string(stream) + " must be below 2^24 (the top byte selects the Philox block)");
   const bool avx2 = cpu_has_avx2();
+  const bool avx512 = fmm::detail::avx512_kernels_active();
   ChunkWords words;
   alignas(64) double g0[3 * kChunk];
   alignas(64) double g1[3 * kChunk];
   for (std::size_t start = 0; start < index.size(); start += kChunk) {
     const std::size_t m = std::min(kChunk, index.size() - start);
 #ifdef RPYFMM_RANDOM_X86
-    if (avx2) {
+    if (avx512) {
+      philox_avx512(index.data() + start, m, seed, step, stream, words);
+      box_muller_avx512(words, m, g0, g1);
+    } else if (avx2) {
       philox_avx2(index.data() + start, m, seed, step, stream, words);
       box_muller_avx2(words, m, g0, g1);
     } else
@@ -172,6 +220,7 @@ void fill_normal6(std::span<const std::uint64_t> index, std::uint64_t seed, std:
       }
   }
   (void)avx2;
+  (void)avx512;
 }
 
 }  // namespace rpyfmm::rpy

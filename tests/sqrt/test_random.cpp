@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "rpyfmm/core/error.hpp"
+#include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/rpy/random.hpp"
 #include "sqrt_test_util.hpp"
 
@@ -141,21 +142,30 @@ TEST(Random, LogPolyMatchesLibm) {
 }
 
 // fill_normal6 (vectorized) gives normal6's values for arbitrary, unordered indices above
-// 2^32 and any length (chunk tails); bit for bit on builds without FMA contraction.
+// 2^32 and any length (chunk tails, groups of 16 / 8 lanes with spare lanes); bit for bit on
+// builds without FMA contraction. With the AVX-512 kernels (where the CPU has them) and without
+// (AVX2 or portable).
 TEST(Random, FillNormal6EqualsNormal6) {
   std::vector<std::uint64_t> index;
   for (std::uint64_t i = 0; i < 1003; ++i)
     index.push_back((i * 2654435761ull) % 100000 + (i % 7 == 0 ? (5ull << 32) : 0));
-  std::vector<double> out(6 * index.size());
-  fill_normal6(index, 0x1234567890ull, 77u, 2u, out);
-  double worst = 0.0;
-  for (std::size_t k = 0; k < index.size(); ++k) {
-    double ref[6];
-    normal6(0x1234567890ull, 77u, 2u, index[k], ref);
-    for (int c = 0; c < 6; ++c)
-      worst = std::max(worst, std::abs(out[6 * k + c] - ref[c]) / std::max(1.0, std::abs(ref[c])));
+  for (const bool avx512 : {true, false}) {
+    rpyfmm::fmm::detail::use_avx512_kernels(avx512);
+    for (const std::size_t n : {std::size_t{1003}, std::size_t{5}, std::size_t{17}, std::size_t{64}}) {
+      const std::span<const std::uint64_t> idx(index.data(), n);
+      std::vector<double> out(6 * n);
+      fill_normal6(idx, 0x1234567890ull, 77u, 2u, out);
+      double worst = 0.0;
+      for (std::size_t k = 0; k < n; ++k) {
+        double ref[6];
+        normal6(0x1234567890ull, 77u, 2u, idx[k], ref);
+        for (int c = 0; c < 6; ++c)
+          worst = std::max(worst, std::abs(out[6 * k + c] - ref[c]) / std::max(1.0, std::abs(ref[c])));
+      }
+      EXPECT_LT(worst, 1e-14) << "n " << n << (avx512 ? ", AVX-512 allowed" : ", AVX-512 off");
+    }
   }
-  EXPECT_LT(worst, 1e-14);
+  rpyfmm::fmm::detail::use_avx512_kernels(true);
   std::vector<double> bad(5);
   EXPECT_THROW(fill_normal6(std::span<const std::uint64_t>(index.data(), 1), 1u, 1u, 2u, bad), rpyfmm::Error);
   std::vector<double> six(6);
