@@ -1,6 +1,7 @@
 // PSE accuracy: Hasimoto self-mobility, xi independence, tolerance sweep against a
 // direct Ewald sum without FFTs (ewald_reference.hpp), rectangular boxes, large-box limit.
 #include <gtest/gtest.h>
+#include <omp.h>
 
 #include <algorithm>
 #include <cmath>
@@ -29,6 +30,14 @@ std::vector<double> random_forces(std::size_t n, unsigned seed) {
   auto f = pse_test::random_points(n, {2.0, 2.0, 2.0}, seed);
   for (auto& v : f) v -= 1.0;
   return f;
+}
+
+/// Particles i and j at x = xi and xj with equal y and z: a pair across the periodic x boundary.
+void straddle_x_boundary(std::vector<double>& x, std::size_t i, std::size_t j, double xi, double xj) {
+  x[3 * i] = xi;
+  x[3 * j] = xj;
+  x[3 * j + 1] = x[3 * i + 1];
+  x[3 * j + 2] = x[3 * i + 2];
 }
 
 /// Relative differences of M F and of a split sample (seed 3, step 4) between two operators
@@ -145,6 +154,42 @@ TEST(PseAccuracy, TableAndDirectRealSpaceAgree) {
   EXPECT_LT(difference_between(table, direct, {14.0, 14.0, 14.0}, 40, 5).product, 1e-6);
 }
 
+TEST(PseAccuracy, RealSpaceHalfListsMatchFullRows) {
+  // Where the AVX-512 kernels run and the cell grid has >= 4 cells along x and y, M_r F sums each
+  // pair once for both rows, block by block in four colours (design note 22). Against the
+  // portable full rows: cell grids of 4 ... 10 layers (even and odd block counts, widths 2 and
+  // 3), coincident and periodic-boundary pairs, 3 right-hand sides; the same result with 1 and 2
+  // threads, bit for bit (each sum is added in a fixed order).
+  if (!rpyfmm::fmm::detail::avx512_kernels_active()) GTEST_SKIP() << "no AVX-512F on this CPU";
+  const double rc = 4.0;
+  for (const std::array<int, 3>& cells : {std::array<int, 3>{4, 4, 3}, std::array<int, 3>{5, 6, 4},
+                                          std::array<int, 3>{9, 10, 3}, std::array<int, 3>{7, 4, 5}}) {
+    const std::array<double, 3> L = {rc * cells[0] + 0.5, rc * cells[1] + 0.5, rc * cells[2] + 0.5};
+    auto x = pse_test::random_points(static_cast<std::size_t>(cells[0] * cells[1] * cells[2] * 6), L, 43);
+    for (int d = 0; d < 3; ++d) x[3 * 5 + d] = x[3 * 40 + d];  // coincident pair
+    straddle_x_boundary(x, 6, 7, 0.1, L[0] - 0.2);
+    const std::size_t n = x.size() / 3, nrhs = 3;
+    const auto f = random_forces(n * nrhs, 44);
+    PseOptions o;
+    o.xi = 0.8;
+    o.r_cut = rc;
+    PseRpy op(Geometry::periodic(L[0], L[1], L[2]), 1.0, o);
+    op.set_positions(x, 1.0);
+    std::vector<double> half(3 * n * nrhs), half2(3 * n * nrhs), full(3 * n * nrhs);
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(1);
+    op.real_space_operator().apply(f, half, nrhs);
+    omp_set_num_threads(std::max(2, saved));
+    op.real_space_operator().apply(f, half2, nrhs);
+    omp_set_num_threads(saved);
+    rpyfmm::fmm::detail::use_avx512_kernels(false);
+    op.real_space_operator().apply(f, full, nrhs);
+    rpyfmm::fmm::detail::use_avx512_kernels(true);
+    EXPECT_LT(pse_test::rel_l2(half, full), 1e-13) << cells[0] << " x " << cells[1] << " cells";
+    EXPECT_EQ(half, half2) << cells[0] << " x " << cells[1] << " cells";
+  }
+}
+
 TEST(PseAccuracy, RealSpaceProductMatchesPairSum) {
   // M_r F by the operator (cell lists, particles renumbered in cell order, the vectorized
   // table row) against an O(N^2) sum over minimum images with the closed forms of [PSE]
@@ -157,10 +202,7 @@ TEST(PseAccuracy, RealSpaceProductMatchesPairSum) {
     x[3 * 7 + d] = x[3 * 1200 + d];                        // coincident pair
     x[3 * 8 + d] = x[3 * 900 + d] + (d == 0 ? 0.3 : 0.0);  // deep overlap, r = 0.3 a
   }
-  x[3 * 9] = 0.2;  // pairs across the periodic boundary
-  x[3 * 10] = L[0] - 0.4;
-  x[3 * 10 + 1] = x[3 * 9 + 1];
-  x[3 * 10 + 2] = x[3 * 9 + 2];
+  straddle_x_boundary(x, 9, 10, 0.2, L[0] - 0.4);
   const std::size_t n = x.size() / 3, nrhs = 3;
   const auto f = random_forces(n * nrhs, 42);
   PseOptions o;

@@ -112,61 +112,147 @@ RPYFMM_DIRECT_AVX512 inline void transpose_table(const double* table, const int 
   out[3] = _mm512_shuffle_f64x2(c, d, high);
 }
 
+/// Constants of the AVX-512 rows: the particle's position, the box, the table spacing.
+struct RowFrame {
+  __m512d pos[3], box[3], inv_box[3];
+  __m512d inv_dr;
+};
+
+RPYFMM_DIRECT_AVX512 inline RowFrame row_frame(const double* self_row, double inv_dr, const double L[3],
+                                               const double inv_L[3]) {
+  RowFrame f;
+  for (int d = 0; d < 3; ++d) {
+    f.pos[d] = _mm512_set1_pd(self_row[d]);
+    f.box[d] = _mm512_set1_pd(L[d]);
+    f.inv_box[d] = _mm512_set1_pd(inv_L[d]);
+  }
+  f.inv_dr = _mm512_set1_pd(inv_dr);
+  return f;
+}
+
+/// The blocks F (I - ee) + G ee of eight pairs: e = (x_s - x_t)/r (0 at r = 0) and F, G from
+/// the table, for neighbours whose x, y, z are v[0..2] (transpose_slots).
+struct PairLanes {
+  __m512d e[3];
+  __m512d F, G;
+};
+
+RPYFMM_DIRECT_AVX512 inline PairLanes pair_lanes(const RowFrame& fr, const __m512d v[6], const double* table) {
+  const __m512d magic = _mm512_set1_pd(6755399441055744.0);  // minimum_image's round-to-nearest
+  __m512d dr[3];
+  for (int d = 0; d < 3; ++d) {
+    const __m512d t = _mm512_sub_pd(fr.pos[d], v[d]);
+    const __m512d k = _mm512_sub_pd(_mm512_add_pd(_mm512_mul_pd(t, fr.inv_box[d]), magic), magic);
+    dr[d] = _mm512_fnmadd_pd(fr.box[d], k, t);
+  }
+  const __m512d r2 = _mm512_fmadd_pd(dr[0], dr[0], _mm512_fmadd_pd(dr[1], dr[1], _mm512_mul_pd(dr[2], dr[2])));
+  const __m512d inv_r = fmm::detail::rsqrt_or_zero(r2);
+  __m512d w = _mm512_mul_pd(_mm512_mul_pd(r2, inv_r), fr.inv_dr);
+  const __m256i jv = _mm512_cvttpd_epi32(w);
+  w = _mm512_sub_pd(w, _mm512_cvtepi32_pd(jv));
+  alignas(32) int j[8];
+  _mm256_store_si256(reinterpret_cast<__m256i*>(j), jv);
+  __m512d tab[4];
+  transpose_table(table, j, tab);
+  PairLanes p;
+  p.F = _mm512_fmadd_pd(w, _mm512_sub_pd(tab[2], tab[0]), tab[0]);
+  p.G = _mm512_fmadd_pd(w, _mm512_sub_pd(tab[3], tab[1]), tab[1]);
+  for (int d = 0; d < 3; ++d) p.e[d] = _mm512_mul_pd(dr[d], inv_r);
+  return p;
+}
+
+/// [F (I - ee) + G ee] f, lane by lane, for the force f (three vectors).
+RPYFMM_DIRECT_AVX512 inline void block_times(const PairLanes& p, const __m512d f[3], __m512d out[3]) {
+  const __m512d proj =
+      _mm512_mul_pd(_mm512_sub_pd(p.G, p.F),
+                    _mm512_fmadd_pd(p.e[0], f[0], _mm512_fmadd_pd(p.e[1], f[1], _mm512_mul_pd(p.e[2], f[2]))));
+  for (int d = 0; d < 3; ++d) out[d] = _mm512_fmadd_pd(p.F, f[d], _mm512_mul_pd(proj, p.e[d]));
+}
+
+/// Neighbour rows of chunk q (eight slots; the last chunk padded with the row's own slot, r = 0:
+/// a valid table index) transposed into x, y, z, fx, fy, fz across the eight; returns the mask of
+/// the real neighbours.
+RPYFMM_DIRECT_AVX512 inline __mmask8 load_chunk(const int* nb, std::size_t count, std::size_t q, std::size_t self,
+                                                const double* packed, __m512d v[6]) {
+  const std::size_t left = count - q;
+  const double* rows[8];
+  for (std::size_t k = 0; k < 8; ++k) rows[k] = packed + 8 * (k < left ? static_cast<std::size_t>(nb[q + k]) : self);
+  transpose_slots(rows, v);
+  return left >= 8 ? static_cast<__mmask8>(0xFF) : static_cast<__mmask8>((1u << left) - 1u);
+}
+
+/// u[c] += the sum of the eight lanes of s[c], c = 0, 1, 2.
+RPYFMM_DIRECT_AVX512 inline void add_lane_sums(const __m512d s[3], double* u) {
+  alignas(64) double t[3][8];
+  for (int c = 0; c < 3; ++c) _mm512_store_pd(t[c], s[c]);
+  for (int c = 0; c < 3; ++c)
+    u[c] += ((t[c][0] + t[c][1]) + (t[c][2] + t[c][3])) + ((t[c][4] + t[c][5]) + (t[c][6] + t[c][7]));
+}
+
 /// table_row with AVX-512 intrinsics, eight neighbours at a time, without gathers (which ran
 /// at ~20 cycles per pair here): each neighbour's position and force are one 64-byte row of
 /// `packed` (x, y, z, fx, fy, fz, 0, 0 per slot), loaded whole and transposed, and the table
 /// tuples likewise. 1/r by rsqrt14 and two Newton steps (fmm::detail::rsqrt_or_zero, 0 at r = 0
-/// as in table_row). The last chunk is padded with the row's own slot (r = 0, a valid table
-/// index) and masked out of the sums.
+/// as in table_row). The padding lanes of the last chunk are masked out of the sums.
 RPYFMM_DIRECT_AVX512 void packed_row_avx512(const int* nb, std::size_t count, std::size_t self, const double* packed,
                                             const double* table, double inv_dr, const double L[3],
                                             const double inv_L[3], double u[3]) {
-  const __m512d magic = _mm512_set1_pd(6755399441055744.0);  // minimum_image's round-to-nearest
-  const __m512d inv_dr_v = _mm512_set1_pd(inv_dr);
-  __m512d pos[3], box[3], inv_box[3];
-  for (int d = 0; d < 3; ++d) {
-    pos[d] = _mm512_set1_pd(packed[8 * self + static_cast<std::size_t>(d)]);
-    box[d] = _mm512_set1_pd(L[d]);
-    inv_box[d] = _mm512_set1_pd(inv_L[d]);
-  }
-  __m512d ux = _mm512_setzero_pd(), uy = _mm512_setzero_pd(), uz = _mm512_setzero_pd();
+  const RowFrame fr = row_frame(packed + 8 * self, inv_dr, L, inv_L);
+  __m512d sum[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
   for (std::size_t q = 0; q < count; q += 8) {
-    const std::size_t left = count - q;
-    const __mmask8 m = left >= 8 ? static_cast<__mmask8>(0xFF) : static_cast<__mmask8>((1u << left) - 1u);
-    const double* rows[8];
-    for (std::size_t k = 0; k < 8; ++k) rows[k] = packed + 8 * (k < left ? static_cast<std::size_t>(nb[q + k]) : self);
     __m512d v[6];
-    transpose_slots(rows, v);
-    __m512d dr[3];
-    for (int d = 0; d < 3; ++d) {
-      const __m512d t = _mm512_sub_pd(pos[d], v[d]);
-      const __m512d k = _mm512_sub_pd(_mm512_add_pd(_mm512_mul_pd(t, inv_box[d]), magic), magic);
-      dr[d] = _mm512_fnmadd_pd(box[d], k, t);
-    }
-    const __m512d r2 = _mm512_fmadd_pd(dr[0], dr[0], _mm512_fmadd_pd(dr[1], dr[1], _mm512_mul_pd(dr[2], dr[2])));
-    const __m512d inv_r = fmm::detail::rsqrt_or_zero(r2);
-    __m512d w = _mm512_mul_pd(_mm512_mul_pd(r2, inv_r), inv_dr_v);
-    const __m256i jv = _mm512_cvttpd_epi32(w);
-    w = _mm512_sub_pd(w, _mm512_cvtepi32_pd(jv));
-    alignas(32) int j[8];
-    _mm256_store_si256(reinterpret_cast<__m256i*>(j), jv);
-    __m512d e[4];
-    transpose_table(table, j, e);
-    const __m512d F = _mm512_fmadd_pd(w, _mm512_sub_pd(e[2], e[0]), e[0]);
-    const __m512d G = _mm512_fmadd_pd(w, _mm512_sub_pd(e[3], e[1]), e[1]);
-    const __m512d ex = _mm512_mul_pd(dr[0], inv_r), ey = _mm512_mul_pd(dr[1], inv_r), ez = _mm512_mul_pd(dr[2], inv_r);
-    const __m512d proj = _mm512_mul_pd(_mm512_sub_pd(G, F),
-                                       _mm512_fmadd_pd(ex, v[3], _mm512_fmadd_pd(ey, v[4], _mm512_mul_pd(ez, v[5]))));
-    ux = _mm512_mask_add_pd(ux, m, ux, _mm512_fmadd_pd(F, v[3], _mm512_mul_pd(proj, ex)));
-    uy = _mm512_mask_add_pd(uy, m, uy, _mm512_fmadd_pd(F, v[4], _mm512_mul_pd(proj, ey)));
-    uz = _mm512_mask_add_pd(uz, m, uz, _mm512_fmadd_pd(F, v[5], _mm512_mul_pd(proj, ez)));
+    const __mmask8 m = load_chunk(nb, count, q, self, packed, v);
+    const PairLanes p = pair_lanes(fr, v, table);
+    __m512d b[3];
+    block_times(p, v + 3, b);
+    for (int d = 0; d < 3; ++d) sum[d] = _mm512_mask_add_pd(sum[d], m, sum[d], b[d]);
   }
-  alignas(64) double t[3][8];
-  _mm512_store_pd(t[0], ux);
-  _mm512_store_pd(t[1], uy);
-  _mm512_store_pd(t[2], uz);
-  for (int c = 0; c < 3; ++c)
-    u[c] += ((t[c][0] + t[c][1]) + (t[c][2] + t[c][3])) + ((t[c][4] + t[c][5]) + (t[c][6] + t[c][7]));
+  add_lane_sums(sum, u);
+}
+
+/// The half-list row (design note 22): for the neighbours nb[0..count) of slot `self` with larger
+/// slots, acc[4 self + c] += sum_t B_st f_t and acc[4 t + c] += B_st f_s (B is symmetric: e
+/// changes sign with the pair's direction and appears twice). The scatter goes through a small
+/// buffer, one neighbour at a time (no two lanes of a chunk name the same slot).
+RPYFMM_DIRECT_AVX512 void packed_half_row_avx512(const int* nb, std::size_t count, std::size_t self,
+                                                 const double* packed, const double* table, double inv_dr,
+                                                 const double L[3], const double inv_L[3], double* acc) {
+  const RowFrame fr = row_frame(packed + 8 * self, inv_dr, L, inv_L);
+  const __m512d fs[3] = {_mm512_set1_pd(packed[8 * self + 3]), _mm512_set1_pd(packed[8 * self + 4]),
+                         _mm512_set1_pd(packed[8 * self + 5])};
+  __m512d sum[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
+  for (std::size_t q = 0; q < count; q += 8) {
+    __m512d v[6];
+    const __mmask8 m = load_chunk(nb, count, q, self, packed, v);
+    const PairLanes p = pair_lanes(fr, v, table);
+    __m512d b[3], back[3];
+    block_times(p, v + 3, b);
+    block_times(p, fs, back);
+    for (int d = 0; d < 3; ++d) sum[d] = _mm512_mask_add_pd(sum[d], m, sum[d], b[d]);
+    // Lanes -> rows (x, y, z, 0) of four doubles: two 128-bit unpacks per pair of components,
+    // then lane shuffles put rows k and k + 2 into the halves of one vector.
+    const __m512d zero = _mm512_setzero_pd();
+    const __m512d xy_even = _mm512_unpacklo_pd(back[0], back[1]);  // [x0 y0 | x2 y2 | x4 y4 | x6 y6]
+    const __m512d xy_odd = _mm512_unpackhi_pd(back[0], back[1]);   // [x1 y1 | x3 y3 | ...]
+    const __m512d z_even = _mm512_unpacklo_pd(back[2], zero);      // [z0 0 | z2 0 | ...]
+    const __m512d z_odd = _mm512_unpackhi_pd(back[2], zero);
+    constexpr int low = _MM_SHUFFLE(1, 0, 1, 0), high = _MM_SHUFFLE(3, 2, 3, 2), mix = _MM_SHUFFLE(3, 1, 2, 0);
+    __m512d rows[4];
+    rows[0] = _mm512_shuffle_f64x2(xy_even, z_even, low);  // [x0 y0 | x2 y2 | z0 0 | z2 0]
+    rows[1] = _mm512_shuffle_f64x2(xy_odd, z_odd, low);
+    rows[2] = _mm512_shuffle_f64x2(xy_even, z_even, high);
+    rows[3] = _mm512_shuffle_f64x2(xy_odd, z_odd, high);
+    for (auto& pair : rows) pair = _mm512_shuffle_f64x2(pair, pair, mix);  // [row k | row k + 2]
+    const std::size_t lanes = std::min<std::size_t>(8, count - q);
+    for (std::size_t k = 0; k < lanes; ++k) {
+      // lane k sits in rows[(k / 4) * 2 + k % 2], half (k / 2) % 2
+      const __m512d pair = rows[(k / 4) * 2 + k % 2];
+      const __m256d row = (k / 2) % 2 == 0 ? _mm512_castpd512_pd256(pair) : _mm512_extractf64x4_pd(pair, 1);
+      double* a = acc + 4 * static_cast<std::size_t>(nb[q + k]);
+      _mm256_store_pd(a, _mm256_add_pd(_mm256_load_pd(a), row));
+    }
+  }
+  add_lane_sums(sum, acc + 4 * self);
 }
 #pragma GCC diagnostic pop
 #endif
@@ -304,6 +390,68 @@ void RealSpaceSum::set_positions(std::span<const double> x) {
     const std::size_t first_slot = cell_begin[static_cast<std::size_t>(b) * block_cells];
     std::copy(part.begin(), part.end(), list_.begin() + static_cast<std::ptrdiff_t>(begin_[first_slot]));
   }
+  // Half lists: the tail of each (ascending) row past its own slot.
+  upper_.resize(n);
+  for (std::size_t s = 0; s < n; ++s) {
+    const auto row_begin = list_.begin() + static_cast<std::ptrdiff_t>(begin_[s]);
+    const auto row_end = list_.begin() + static_cast<std::ptrdiff_t>(begin_[s + 1]);
+    upper_[s] =
+        begin_[s] + static_cast<std::size_t>(std::upper_bound(row_begin, row_end, static_cast<int>(s)) - row_begin);
+  }
+  for (auto& colour : half_blocks_) colour.clear();
+  half_ = cells && nc[0] >= 4 && nc[1] >= 4;
+  if (half_) plan_half_blocks(nc, cell_begin);
+}
+
+void RealSpaceSum::plan_half_blocks(const std::array<int, 3>& nc, const std::vector<std::size_t>& cell_begin) {
+  // Slot s writes to the slots t > s of the 27 cells around it: cells of larger id, i.e. in
+  // cell layers x + 1 (any y), or x with y + 1, or x, y with z + 1, and by the periodic wrap
+  // also layer x = nc_x - 1 from x = 0 and y = nc_y - 1 from y = 0. A block of x layers
+  // [x0, x1) and y layers [y0, y1) thus writes to x in [x0, x1] (and nc_x - 1 if x0 = 0) and
+  // y in [y0 - 1, y1] (cyclically). With an even number of blocks per axis, each >= 2 layers
+  // wide, two blocks of equal (x parity, y parity) are at least one block apart along an axis
+  // whose footprints then miss each other: a block reaches only the first layer of the next
+  // block and the last layer of the previous one (design note 22).
+  auto axis_blocks = [](int layers) {
+    int count = layers / 2;
+    if (count % 2 == 1) --count;  // even, >= 2 for layers >= 4; widths layers / count >= 2
+    std::vector<int> start(static_cast<std::size_t>(count) + 1);
+    for (int k = 0; k <= count; ++k) start[static_cast<std::size_t>(k)] = k * layers / count;
+    return start;
+  };
+  const auto xs = axis_blocks(nc[0]);
+  const auto ys = axis_blocks(nc[1]);
+  const auto ny = static_cast<std::size_t>(nc[1]), nz = static_cast<std::size_t>(nc[2]);
+  for (std::size_t i = 0; i + 1 < xs.size(); ++i)
+    for (std::size_t j = 0; j + 1 < ys.size(); ++j) {
+      // Cell columns (x, y0 ... y1 - 1, all z) are consecutive ids: one slot range per x layer.
+      std::vector<SlotRange> block;
+      for (int x = xs[i]; x < xs[i + 1]; ++x) {
+        const auto first = (static_cast<std::size_t>(x) * ny + static_cast<std::size_t>(ys[j])) * nz;
+        const auto last = (static_cast<std::size_t>(x) * ny + static_cast<std::size_t>(ys[j + 1])) * nz;
+        if (cell_begin[last] > cell_begin[first]) block.push_back({cell_begin[first], cell_begin[last]});
+      }
+      if (!block.empty()) half_blocks_[2 * (i % 2) + (j % 2)].push_back(std::move(block));
+    }
+}
+
+void RealSpaceSum::apply_half_avx512(const double* packed, const double* table, double inv_dr, const double L[3],
+                                     const double inv_L[3], std::size_t nrhs, double* acc) const {
+#if defined(RPYFMM_HAVE_DIRECT_AVX512)
+  const std::size_t n = order_.size();
+  for (const auto& colour : half_blocks_) {  // colours one after another; blocks of one colour in parallel
+    const auto nblock = static_cast<std::int64_t>(colour.size());
+#pragma omp parallel for schedule(dynamic, 1) if (n * nrhs >= 512)
+    for (std::int64_t b = 0; b < nblock; ++b)
+      for (const SlotRange& range : colour[static_cast<std::size_t>(b)])
+        for (std::size_t s = range.begin; s < range.end; ++s)
+          for (std::size_t r = 0; r < nrhs; ++r)
+            packed_half_row_avx512(list_.data() + upper_[s], begin_[s + 1] - upper_[s], s, packed + 8 * r * n, table,
+                                   inv_dr, L, inv_L, acc + 4 * r * n);
+  }
+#else
+  (void)packed, (void)table, (void)inv_dr, (void)L, (void)inv_L, (void)nrhs, (void)acc;
+#endif
 }
 
 void RealSpaceSum::input_order_lists(std::vector<std::size_t>& begin, std::vector<int>& list) const {
@@ -355,10 +503,14 @@ void RealSpaceSum::apply(const double* forces, double* out, std::size_t nrhs, bo
 #if defined(RPYFMM_HAVE_DIRECT_AVX512)
   if (use_table_ && fmm::detail::avx512_kernels_active()) {
     // Rows of 8 doubles per slot and rhs, 64-byte aligned, filled straight from the input forces:
-    // x, y, z, fx, fy, fz, 0, 0.
+    // x, y, z, fx, fy, fz, 0, 0. With half lists, also the zeroed sums.
+    const bool half = half_;
     packed_.resize(8 * n * nrhs + 8);
+    if (half) acc_.resize(4 * n * nrhs + 4);
     double* packed = packed_.data();
     packed += (8 - (reinterpret_cast<std::uintptr_t>(packed) / sizeof(double)) % 8) % 8;
+    double* acc = acc_.data();  // rows of 4 doubles, 32-byte aligned
+    if (half) acc += (4 - (reinterpret_cast<std::uintptr_t>(acc) / sizeof(double)) % 4) % 4;
 #pragma omp parallel for schedule(static) if (par)
     for (std::int64_t ss = 0; ss < ni; ++ss) {
       const auto s = static_cast<std::size_t>(ss);
@@ -370,7 +522,16 @@ void RealSpaceSum::apply(const double* forces, double* out, std::size_t nrhs, bo
           row[3 + d] = forces[r * stride + 3 * i + d];
         }
         row[6] = row[7] = 0.0;
+        if (half) std::fill_n(acc + 4 * (r * n + s), 4, 0.0);
       }
+    }
+    if (half) {
+      apply_half_avx512(packed, table, inv_dr, L, inv_L, nrhs, acc);
+      for_each_row([&](std::size_t s, std::size_t r, std::size_t d) { return packed[8 * (r * n + s) + 3 + d]; },
+                   [&](std::size_t s, std::size_t r, double* u) {
+                     for (std::size_t d = 0; d < 3; ++d) u[d] += acc[4 * (r * n + s) + d];
+                   });
+      return;
     }
     for_each_row([&](std::size_t s, std::size_t r, std::size_t d) { return packed[8 * (r * n + s) + 3 + d]; },
                  [&](std::size_t s, std::size_t r, double* u) {

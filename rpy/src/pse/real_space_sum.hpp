@@ -5,7 +5,8 @@
 // Particles are renumbered internally in cell order ("slots"): positions are kept by slot
 // (structure of arrays), the neighbour lists hold slots, and apply() gathers the forces into
 // slot order once, so that a row reads its neighbours' positions and forces from a few nearby
-// cache lines instead of from all over the input arrays (design note 16).
+// cache lines instead of from all over the input arrays (design note 16). Where the AVX-512
+// kernels run, each pair is evaluated once for both of its rows (half lists, design note 22).
 #pragma once
 
 #include <array>
@@ -46,6 +47,24 @@ class RealSpaceSum {
   std::vector<int> list_;                   // neighbour slots within r_cut (r > 0 or coincident)
   mutable std::vector<double> work_;        // forces gathered into slot order (3 arrays per rhs)
   mutable std::vector<double> packed_;      // AVX-512 kernel: x, y, z, fx, fy, fz, 0, 0 per slot and rhs
+
+  // Half lists (AVX-512 path, design note 22): each pair once, from its lower slot, which adds
+  // the pair's block to both rows. upper_[s]: the first entry of row s with a larger slot (the
+  // rows are ascending, so the half list is the row's tail). A row writes to its own slot and to
+  // larger slots among the 27 cells around it; the cells are cut into blocks of >= 2 x 2 cell
+  // columns (x, y), an even number per axis, and blocks of one colour (x and y block parity)
+  // never write to the same slot, so each colour runs in parallel without atomics. Empty when
+  // the cell grid is too coarse (fewer than 4 cells along x or y): then the full rows run.
+  struct SlotRange {
+    std::size_t begin, end;
+  };
+  bool half_ = false;  // half lists planned (the AVX-512 path then uses them)
+  std::vector<std::size_t> upper_;
+  std::array<std::vector<std::vector<SlotRange>>, 4> half_blocks_;  // per colour: blocks of slot ranges
+  mutable std::vector<double> acc_;                                 // half-list sums, 4 doubles per slot and rhs
+  void plan_half_blocks(const std::array<int, 3>& nc, const std::vector<std::size_t>& cell_begin);
+  void apply_half_avx512(const double* packed, const double* table, double inv_dr, const double L[3],
+                         const double inv_L[3], std::size_t nrhs, double* acc) const;
 };
 
 }  // namespace rpyfmm::rpy::pse::detail
