@@ -155,15 +155,16 @@ TEST(PseAccuracy, TableAndDirectRealSpaceAgree) {
 }
 
 TEST(PseAccuracy, RealSpaceHalfListsMatchFullRows) {
-  // Where the AVX-512 kernels run and the cell grid has >= 4 cells along x and y, M_r F sums each
-  // pair once for both rows, block by block in four colours (design note 22). Against the
-  // portable full rows: cell grids of 4 ... 10 layers (even and odd block counts, widths 2 and
-  // 3), coincident and periodic-boundary pairs, 3 right-hand sides; the same result with 1 and 2
-  // threads, bit for bit (each sum is added in a fixed order).
+  // Where the AVX-512 kernels run on a cell grid, M_r F sums each pair once for both rows, block
+  // by block in up to eight colours (design note 22). Against the portable full rows: cell grids
+  // of 3 ... 10 layers (axes left whole, even and odd block counts, widths 2 and 3), coincident
+  // and periodic-boundary pairs, 3 right-hand sides; the same result with 1 and 2 threads, bit
+  // for bit (each sum is added in a fixed order).
   if (!rpyfmm::fmm::detail::avx512_kernels_active()) GTEST_SKIP() << "no AVX-512F on this CPU";
   const double rc = 4.0;
-  for (const std::array<int, 3>& cells : {std::array<int, 3>{4, 4, 3}, std::array<int, 3>{5, 6, 4},
-                                          std::array<int, 3>{9, 10, 3}, std::array<int, 3>{7, 4, 5}}) {
+  for (const std::array<int, 3>& cells :
+       {std::array<int, 3>{4, 4, 3}, std::array<int, 3>{5, 6, 4}, std::array<int, 3>{9, 10, 3},
+        std::array<int, 3>{7, 4, 5}, std::array<int, 3>{3, 3, 3}, std::array<int, 3>{3, 8, 6}}) {
     const std::array<double, 3> L = {rc * cells[0] + 0.5, rc * cells[1] + 0.5, rc * cells[2] + 0.5};
     auto x = pse_test::random_points(static_cast<std::size_t>(cells[0] * cells[1] * cells[2] * 6), L, 43);
     for (int d = 0; d < 3; ++d) x[3 * 5 + d] = x[3 * 40 + d];  // coincident pair

@@ -399,40 +399,44 @@ void RealSpaceSum::set_positions(std::span<const double> x) {
         begin_[s] + static_cast<std::size_t>(std::upper_bound(row_begin, row_end, static_cast<int>(s)) - row_begin);
   }
   for (auto& colour : half_blocks_) colour.clear();
-  half_ = cells && nc[0] >= 4 && nc[1] >= 4;
+  half_ = cells;
   if (half_) plan_half_blocks(nc, cell_begin);
 }
 
 void RealSpaceSum::plan_half_blocks(const std::array<int, 3>& nc, const std::vector<std::size_t>& cell_begin) {
-  // Slot s writes to the slots t > s of the 27 cells around it: cells of larger id, i.e. in
-  // cell layers x + 1 (any y), or x with y + 1, or x, y with z + 1, and by the periodic wrap
-  // also layer x = nc_x - 1 from x = 0 and y = nc_y - 1 from y = 0. A block of x layers
-  // [x0, x1) and y layers [y0, y1) thus writes to x in [x0, x1] (and nc_x - 1 if x0 = 0) and
-  // y in [y0 - 1, y1] (cyclically). With an even number of blocks per axis, each >= 2 layers
-  // wide, two blocks of equal (x parity, y parity) are at least one block apart along an axis
-  // whose footprints then miss each other: a block reaches only the first layer of the next
-  // block and the last layer of the previous one (design note 22).
+  // Slot s writes to the slots t > s of the 27 cells around it, i.e. to cells of larger id:
+  // layer x + 1 (any y, z), or x with y + 1 (any z), or x, y with z + 1; by the periodic wrap
+  // also the last layer from the first one along each axis (x = nc_x - 1 from x = 0, and so
+  // on). A block of layers [a, b) along an axis thus writes within [a, b] along x and within
+  // [a - 1, b] along y and z (cyclically): it reaches only the first layer of the next block and
+  // the last layer of the previous one. Each axis with >= 4 layers is cut into an even number
+  // of blocks, each >= 2 layers wide (an axis of 3 layers stays whole); a block's colour is its
+  // parity along the cut axes. Two blocks of one colour are then at least one block apart along
+  // some cut axis, where their footprints miss each other (design note 22).
   auto axis_blocks = [](int layers) {
+    if (layers < 4) return std::vector<int>{0, layers};
     int count = layers / 2;
-    if (count % 2 == 1) --count;  // even, >= 2 for layers >= 4; widths layers / count >= 2
+    if (count % 2 == 1) --count;  // even, >= 2; widths layers / count >= 2
     std::vector<int> start(static_cast<std::size_t>(count) + 1);
     for (int k = 0; k <= count; ++k) start[static_cast<std::size_t>(k)] = k * layers / count;
     return start;
   };
-  const auto xs = axis_blocks(nc[0]);
-  const auto ys = axis_blocks(nc[1]);
+  const auto xs = axis_blocks(nc[0]), ys = axis_blocks(nc[1]), zs = axis_blocks(nc[2]);
   const auto ny = static_cast<std::size_t>(nc[1]), nz = static_cast<std::size_t>(nc[2]);
   for (std::size_t i = 0; i + 1 < xs.size(); ++i)
-    for (std::size_t j = 0; j + 1 < ys.size(); ++j) {
-      // Cell columns (x, y0 ... y1 - 1, all z) are consecutive ids: one slot range per x layer.
-      std::vector<SlotRange> block;
-      for (int x = xs[i]; x < xs[i + 1]; ++x) {
-        const auto first = (static_cast<std::size_t>(x) * ny + static_cast<std::size_t>(ys[j])) * nz;
-        const auto last = (static_cast<std::size_t>(x) * ny + static_cast<std::size_t>(ys[j + 1])) * nz;
-        if (cell_begin[last] > cell_begin[first]) block.push_back({cell_begin[first], cell_begin[last]});
+    for (std::size_t j = 0; j + 1 < ys.size(); ++j)
+      for (std::size_t k = 0; k + 1 < zs.size(); ++k) {
+        // The cells (x, y, z0 ... z1 - 1) are consecutive ids: one slot range per (x, y) column.
+        std::vector<SlotRange> block;
+        for (int x = xs[i]; x < xs[i + 1]; ++x)
+          for (int y = ys[j]; y < ys[j + 1]; ++y) {
+            const std::size_t column = (static_cast<std::size_t>(x) * ny + static_cast<std::size_t>(y)) * nz;
+            const std::size_t first = cell_begin[column + static_cast<std::size_t>(zs[k])];
+            const std::size_t last = cell_begin[column + static_cast<std::size_t>(zs[k + 1])];
+            if (last > first) block.push_back({first, last});
+          }
+        if (!block.empty()) half_blocks_[4 * (i % 2) + 2 * (j % 2) + (k % 2)].push_back(std::move(block));
       }
-      if (!block.empty()) half_blocks_[2 * (i % 2) + (j % 2)].push_back(std::move(block));
-    }
 }
 
 void RealSpaceSum::apply_half_avx512(const double* packed, const double* table, double inv_dr, const double L[3],
