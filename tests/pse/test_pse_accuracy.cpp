@@ -156,7 +156,7 @@ TEST(PseAccuracy, TableAndDirectRealSpaceAgree) {
 
 TEST(PseAccuracy, RealSpaceHalfListsMatchFullRows) {
   // Where the AVX-512 kernels run on a cell grid, M_r F sums each pair once for both rows, block
-  // by block in up to eight colours (design note 22). Against the portable full rows: cell grids
+  // by block in up to four colours (design note 22). Against the portable full rows: cell grids
   // of 3 ... 10 layers (axes left whole, even and odd block counts, widths 2 and 3), coincident
   // and periodic-boundary pairs, 3 right-hand sides; the same result with 1 and 2 threads, bit
   // for bit (each sum is added in a fixed order).

@@ -51,16 +51,17 @@ class RealSpaceSum {
   // Half lists (AVX-512 path, design note 22): each pair once, from its lower slot, which adds
   // the pair's block to both rows. upper_[s]: the first entry of row s with a larger slot (the
   // rows are ascending, so the half list is the row's tail). A row writes to its own slot and to
-  // larger slots among the 27 cells around it; the cell grid is cut into blocks of >= 2 cells
-  // along each axis of >= 4 cells, an even number per axis, and blocks of one colour (their
-  // parities along the cut axes) never write to the same slot, so each colour runs in parallel
-  // without atomics. Without a cell grid (fewer than 3 cells along an axis) the full rows run.
+  // larger slots among the 27 cells around it; the cell grid is cut along x and y (where they
+  // have >= 4 cells) into blocks of >= 2 cells, an even number per axis, and blocks of one
+  // colour (their parities along the cut axes) never write to the same slot, so each colour
+  // runs in parallel without atomics. Without a cell grid (fewer than 3 cells along an axis)
+  // the full rows run.
   struct SlotRange {
     std::size_t begin, end;
   };
   bool half_ = false;  // half lists planned (the AVX-512 path then uses them)
   std::vector<std::size_t> upper_;
-  std::array<std::vector<std::vector<SlotRange>>, 8> half_blocks_;  // per colour: blocks of slot ranges
+  std::array<std::vector<std::vector<SlotRange>>, 4> half_blocks_;  // per colour: blocks of slot ranges
   mutable std::vector<double> acc_;                                 // half-list sums, 4 doubles per slot and rhs
   void plan_half_blocks(const std::array<int, 3>& nc, const std::vector<std::size_t>& cell_begin);
   void apply_half_avx512(const double* packed, const double* table, double inv_dr, const double L[3],
