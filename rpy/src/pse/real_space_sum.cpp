@@ -346,6 +346,11 @@ void RealSpaceSum::set_positions(std::span<const double> x) {
     std::sort(out.begin(), out.end());  // 27 distinct cells: nc >= 3 along every axis
     return k;
   };
+  // Where the half-list rows will run (AVX-512 with the table on a cell grid), only the pairs
+  // t > s are listed (neighbour cells of larger id, and the later slots of the own cell): half
+  // the distance checks. Full rows are then derived on demand (full_rows()).
+  half_lists_ = cells && use_table_ && fmm::detail::avx512_kernels_active();
+  full_ready_ = !half_lists_;
   // One pass: blocks of consecutive cells (consecutive slots) fill buffers of their own, which are
   // then concatenated in block order.
   const std::size_t block_cells = std::max<std::size_t>(1, ncell / 512);
@@ -365,7 +370,9 @@ void RealSpaceSum::set_positions(std::span<const double> x) {
         const std::size_t before = out.size();
         for (int k = 0; k < m; ++k) {
           const std::size_t cn = nbr[static_cast<std::size_t>(k)];
-          const std::size_t t0 = cell_begin[cn], count = cell_begin[cn + 1] - t0;
+          if (half_lists_ && cn < c) continue;
+          const std::size_t t0 = half_lists_ && cn == c ? s + 1 : cell_begin[cn];
+          const std::size_t count = cell_begin[cn + 1] - t0;
           // Distances first (a loop that vectorizes), then a branch-free compaction: about one
           // candidate in six is kept, so a branch per candidate would mostly mispredict.
           d2.resize(std::max(d2.size(), count));
@@ -390,9 +397,14 @@ void RealSpaceSum::set_positions(std::span<const double> x) {
     const std::size_t first_slot = cell_begin[static_cast<std::size_t>(b) * block_cells];
     std::copy(part.begin(), part.end(), list_.begin() + static_cast<std::ptrdiff_t>(begin_[first_slot]));
   }
-  // Half lists: the tail of each (ascending) row past its own slot.
+  // Half lists: the tail of each (ascending) row past its own slot (the whole row when only
+  // those were listed).
   upper_.resize(n);
   for (std::size_t s = 0; s < n; ++s) {
+    if (half_lists_) {
+      upper_[s] = begin_[s];
+      continue;
+    }
     const auto row_begin = list_.begin() + static_cast<std::ptrdiff_t>(begin_[s]);
     const auto row_end = list_.begin() + static_cast<std::ptrdiff_t>(begin_[s + 1]);
     upper_[s] =
@@ -458,18 +470,42 @@ void RealSpaceSum::apply_half_avx512(const double* packed, const double* table, 
 #endif
 }
 
+RealSpaceSum::Rows RealSpaceSum::full_rows() const {
+  if (!half_lists_) return {begin_.data(), list_.data()};
+  if (!full_ready_) {
+    // Row t = its lower part {s < t : t in half row s}, ascending, then its half row.
+    const std::size_t n = order_.size();
+    full_begin_.assign(n + 1, 0);
+    for (std::size_t s = 0; s < n; ++s) {
+      full_begin_[s + 1] += begin_[s + 1] - begin_[s];
+      for (std::size_t q = begin_[s]; q < begin_[s + 1]; ++q) ++full_begin_[static_cast<std::size_t>(list_[q]) + 1];
+    }
+    for (std::size_t s = 0; s < n; ++s) full_begin_[s + 1] += full_begin_[s];
+    full_list_.resize(full_begin_[n]);
+    std::vector<std::size_t> fill(full_begin_.begin(), full_begin_.end() - 1);
+    for (std::size_t s = 0; s < n; ++s) {  // row s's lower part is complete: it comes from rows < s
+      for (std::size_t q = begin_[s]; q < begin_[s + 1]; ++q) full_list_[fill[s]++] = list_[q];
+      for (std::size_t q = begin_[s]; q < begin_[s + 1]; ++q)
+        full_list_[fill[static_cast<std::size_t>(list_[q])]++] = static_cast<int>(s);
+    }
+    full_ready_ = true;
+  }
+  return {full_begin_.data(), full_list_.data()};
+}
+
 void RealSpaceSum::input_order_lists(std::vector<std::size_t>& begin, std::vector<int>& list) const {
   const std::size_t n = order_.size();
+  const Rows rows = full_rows();
   std::vector<std::size_t> slot_of(n);
   for (std::size_t s = 0; s < n; ++s) slot_of[order_[s]] = s;
   begin.assign(n + 1, 0);
-  for (std::size_t i = 0; i < n; ++i) begin[i + 1] = begin[i] + (begin_[slot_of[i] + 1] - begin_[slot_of[i]]);
+  for (std::size_t i = 0; i < n; ++i) begin[i + 1] = begin[i] + (rows.begin[slot_of[i] + 1] - rows.begin[slot_of[i]]);
   list.resize(begin[n]);
   for (std::size_t i = 0; i < n; ++i) {
     const std::size_t s = slot_of[i];
     auto out = list.begin() + static_cast<std::ptrdiff_t>(begin[i]);
-    for (std::size_t q = begin_[s]; q < begin_[s + 1]; ++q)
-      *out++ = static_cast<int>(order_[static_cast<std::size_t>(list_[q])]);
+    for (std::size_t q = rows.begin[s]; q < rows.begin[s + 1]; ++q)
+      *out++ = static_cast<int>(order_[static_cast<std::size_t>(rows.list[q])]);
     std::sort(list.begin() + static_cast<std::ptrdiff_t>(begin[i]), out);
   }
 }
@@ -537,14 +573,16 @@ void RealSpaceSum::apply(const double* forces, double* out, std::size_t nrhs, bo
                    });
       return;
     }
+    const Rows rows = full_rows();
     for_each_row([&](std::size_t s, std::size_t r, std::size_t d) { return packed[8 * (r * n + s) + 3 + d]; },
                  [&](std::size_t s, std::size_t r, double* u) {
-                   packed_row_avx512(list_.data() + begin_[s], begin_[s + 1] - begin_[s], s, packed + 8 * r * n, table,
-                                     inv_dr, L, inv_L, u);
+                   packed_row_avx512(rows.list + rows.begin[s], rows.begin[s + 1] - rows.begin[s], s,
+                                     packed + 8 * r * n, table, inv_dr, L, inv_L, u);
                  });
     return;
   }
 #endif
+  const Rows rows = full_rows();
   // Forces in slot order: work_[(3 r + d) n + s] = F_r[3 order_[s] + d].
   work_.resize(3 * n * nrhs);
 #pragma omp parallel for schedule(static) if (par)
@@ -560,7 +598,7 @@ void RealSpaceSum::apply(const double* forces, double* out, std::size_t nrhs, bo
       const double* f = work_.data() + 3 * r * n;
       const double xs[3] = {pos_[0][s], pos_[1][s], pos_[2][s]};
       const SlotArrays arrays{{pos_[0].data(), pos_[1].data(), pos_[2].data()}, {f, f + n, f + 2 * n}};
-      table_row(list_.data() + begin_[s], begin_[s + 1] - begin_[s], xs, arrays, table, inv_dr, L, inv_L, u);
+      table_row(rows.list + rows.begin[s], rows.begin[s + 1] - rows.begin[s], xs, arrays, table, inv_dr, L, inv_L, u);
     });
     return;
   }
@@ -568,8 +606,8 @@ void RealSpaceSum::apply(const double* forces, double* out, std::size_t nrhs, bo
   // table is measured against).
   for_each_row(slot_force, [&](std::size_t s, std::size_t r, double* u) {
     const double* f = work_.data() + 3 * r * n;
-    for (std::size_t q = begin_[s]; q < begin_[s + 1]; ++q) {
-      const auto t = static_cast<std::size_t>(list_[q]);
+    for (std::size_t q = rows.begin[s]; q < rows.begin[s + 1]; ++q) {
+      const auto t = static_cast<std::size_t>(rows.list[q]);
       const double d[3] = {minimum_image(pos_[0][s] - pos_[0][t], box_[0], inv[0]),
                            minimum_image(pos_[1][s] - pos_[1][t], box_[1], inv[1]),
                            minimum_image(pos_[2][s] - pos_[2][t], box_[2], inv[2])};

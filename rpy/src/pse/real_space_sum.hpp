@@ -59,7 +59,19 @@ class RealSpaceSum {
   struct SlotRange {
     std::size_t begin, end;
   };
-  bool half_ = false;  // half lists planned (the AVX-512 path then uses them)
+  bool half_ = false;  // half-list blocks planned (the AVX-512 path then uses them)
+  // list_ holds only the half rows (t > s) when the half-list path is expected at
+  // set_positions (AVX-512 with the table on a cell grid); full rows, which the portable rows,
+  // the closed forms and the CUDA lists need, are then derived once on demand.
+  bool half_lists_ = false;
+  struct Rows {
+    const std::size_t* begin;
+    const int* list;
+  };
+  [[nodiscard]] Rows full_rows() const;
+  mutable bool full_ready_ = true;
+  mutable std::vector<std::size_t> full_begin_;
+  mutable std::vector<int> full_list_;
   std::vector<std::size_t> upper_;
   std::array<std::vector<std::vector<SlotRange>>, 4> half_blocks_;  // per colour: blocks of slot ranges
   mutable std::vector<double> acc_;                                 // half-list sums, 4 doubles per slot and rhs
