@@ -5,6 +5,7 @@ target_sources(rpyfmm_rpy PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/real_space.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/real_space_sum.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/wave_space.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/pse/window_avx2.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/window_avx512.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/pse_rpy.cpp)
 target_link_libraries(rpyfmm_rpy PRIVATE PkgConfig::FFTW3 ${FFTW3_OMP_LIBRARY} PkgConfig::FFTW3F ${FFTW3F_OMP_LIBRARY})

@@ -5,7 +5,7 @@
 // table against direct evaluation of F, G. CSV rows on stdout.
 //
 // usage: bench_pse [--quick] [--fft-measure] [--error] [--xi XA] [--eta E] [--support P] [--grid G]
-//                  [--precision auto|single|double] [--cuda] [N ...]
+//                  [--precision auto|single|double] [--kernels auto|avx2|portable] [--cuda] [N ...]
 //   (default 8000 16000 32000); threads from 1 to OMP max.
 // Also times the free-space FmmRpy (tolerance 1e-3) on the same particles, 1 thread.
 // --quick: only M F and the split sampler with their stage times (no full-operator Lanczos,
@@ -15,6 +15,8 @@
 // 0 = automatic, the cost model's choice). --grid: PseOptions::grid = {G, G, G} (timing of
 // the transforms in place, bench/pse/RESULTS.md session 11). --eta / --support: PseOptions::window_eta / support
 // overrides (e.g. --eta 0.8 --support 6 is the window the versions before session 10 chose at 1e-3).
+// --kernels: avx2 / portable turn the AVX-512 kernels off (as on a CPU without them), and for
+// portable the AVX2 window kernels too (auto: the widest the CPU has).
 // --precision: PseOptions::wave_precision (default auto: single-precision wave grids at the
 // tolerance 1e-3 of Table I; column wave_single).
 // --fft-measure: PseOptions::fft_measure (FFTW_MEASURE plans; the plan column gives the planning
@@ -34,7 +36,9 @@
 #include <string>
 #include <vector>
 
+#include "../../rpy/src/pse/window_avx2.hpp"  // use_avx2_window_kernels (--kernels)
 #include "rpyfmm/core/timer.hpp"
+#include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
@@ -180,6 +184,17 @@ int main(int argc, char** argv) {
   int grid = 0;
   WavePrecision precision = WavePrecision::automatic;
   for (int i = 1; i < argc; ++i) {
+    if (std::string(argv[i]) == "--kernels" && i + 1 < argc) {
+      const std::string v = argv[++i];
+      if (v == "avx2" || v == "portable") {
+        fmm::detail::use_avx512_kernels(false);  // as on a CPU without AVX-512
+        rpy::pse::detail::use_avx2_window_kernels(v == "avx2");
+      } else if (v != "auto") {
+        std::fprintf(stderr, "bench_pse: --kernels takes auto, avx2 or portable\n");
+        return 2;
+      }
+      continue;
+    }
     if (std::string(argv[i]) == "--precision" && i + 1 < argc) {
       const std::string v = argv[++i];
       if (v == "single") {

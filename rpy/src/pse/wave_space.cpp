@@ -10,6 +10,7 @@
 #include <numbers>
 
 #include "rpyfmm/core/validate.hpp"
+#include "window_avx2.hpp"
 #include "window_avx512.hpp"
 
 namespace rpyfmm::rpy::pse::detail {
@@ -28,6 +29,14 @@ std::mutex& planner_mutex() {
 /// (it touches tile 0 through the periodic wrap). Same-class tiles are >= 2 apart.
 int tile_class(int b, int nb) {
   return (nb % 2 == 1 && nb > 1 && b == nb - 1) ? 2 : b % 2;
+}
+
+/// Which window kernels run (the widest the CPU has; P_z <= 8 for the vector ones).
+enum class WindowKernels { portable, avx2, avx512 };
+WindowKernels window_kernels(int Pz) {
+  if (avx512_window_kernels(Pz)) return WindowKernels::avx512;
+  if (avx2_window_kernels(Pz)) return WindowKernels::avx2;
+  return WindowKernels::portable;
 }
 
 /// The z window [z0, z0 + P) of a particle as at most two contiguous runs of the periodic
@@ -373,7 +382,7 @@ void WaveGrid<Real>::spread(const double* forces) {
   const auto total = static_cast<std::int64_t>(3 * ng_);
   const std::size_t p3 = static_cast<std::size_t>(P_[0]) * P_[1] * P_[2];
   const bool par = np_ * p3 >= kParallelWork || ng_ >= 4 * kParallelWork;
-  const bool simd = avx512_window_kernels(P_[2]);
+  const WindowKernels kernels = window_kernels(P_[2]);
 #pragma omp parallel if (par)
   {
 #pragma omp for schedule(static)
@@ -393,9 +402,12 @@ void WaveGrid<Real>::spread(const double* forces) {
           const double fc[3] = {c3_ * forces[3 * i], c3_ * forces[3 * i + 1], c3_ * forces[3 * i + 2]};
           const ZRuns z = z_runs(start_[3 * i + 2], P_[2], n_[2]);
           window_lines(i, xline.data(), yline.data());
-          if (simd) {
+          if (kernels == WindowKernels::avx512) {
             spread_window_avx512(g0, g1, g2, xline.data(), yline.data(), P_[0], P_[1], {z.z0, z.len0, P_[2]}, wx, wy,
                                  wz, fc);
+          } else if (kernels == WindowKernels::avx2) {
+            spread_window_avx2(g0, g1, g2, xline.data(), yline.data(), P_[0], P_[1], {z.z0, z.len0, P_[2]}, wx, wy, wz,
+                               fc);
           } else {
             for (int l = 0; l < P_[2]; ++l)
               for (int c = 0; c < 3; ++c)
@@ -421,7 +433,7 @@ void WaveGrid<Real>::interpolate(double* out, bool accumulate) const {
   const double scale = c3_ * dv_;
   const auto np = static_cast<std::int64_t>(np_);
   const bool par = np_ * static_cast<std::size_t>(P_[0]) * P_[1] * P_[2] >= kParallelWork;
-  const bool simd = avx512_window_kernels(P_[2]);
+  const WindowKernels kernels = window_kernels(P_[2]);
 #pragma omp parallel if (par)
   {
     std::vector<std::size_t> xline(static_cast<std::size_t>(P_[0])), yline(static_cast<std::size_t>(P_[1]));
@@ -436,9 +448,11 @@ void WaveGrid<Real>::interpolate(double* out, bool accumulate) const {
       const ZRuns z = z_runs(start_[3 * i + 2], P_[2], n_[2]);
       window_lines(i, xline.data(), yline.data());
       double u[3] = {0.0, 0.0, 0.0};
-      if (simd) {
+      if (kernels == WindowKernels::avx512) {
         gather_window_avx512(g0, g1, g2, xline.data(), yline.data(), P_[0], P_[1], {z.z0, z.len0, P_[2]}, wx, wy, wz,
                              u);
+      } else if (kernels == WindowKernels::avx2) {
+        gather_window_avx2(g0, g1, g2, xline.data(), yline.data(), P_[0], P_[1], {z.z0, z.len0, P_[2]}, wx, wy, wz, u);
       } else {
         for (int a = 0; a < P_[0]; ++a) {
           for (int b = 0; b < P_[1]; ++b) {

@@ -39,9 +39,10 @@ template <>
 struct Run<double> {
   using Vec = __m512d;
   using Mask = __mmask8;
+  RPYFMM_DIRECT_AVX512 static Mask mask(int len) { return lanes(len); }
   /// w[0 ... len) f in lanes 0 ... len - 1, zeros above.
-  RPYFMM_DIRECT_AVX512 static Vec scaled(const double* w, int len, double f) {
-    return _mm512_mul_pd(_mm512_maskz_loadu_pd(lanes(len), w), _mm512_set1_pd(f));
+  RPYFMM_DIRECT_AVX512 static Vec scaled(const double* w, Mask m, int, double f) {
+    return _mm512_mul_pd(_mm512_maskz_loadu_pd(m, w), _mm512_set1_pd(f));
   }
   RPYFMM_DIRECT_AVX512 static Vec broadcast(double v) { return _mm512_set1_pd(v); }
   /// p[0 ... len) += w * v.
@@ -55,8 +56,9 @@ template <>
 struct Run<float> {
   using Vec = __m512;  // lanes 0 ... 7 used
   using Mask = __mmask16;
+  RPYFMM_DIRECT_AVX512 static Mask mask(int len) { return lanes(len); }
   /// w[0 ... len) f rounded to float in lanes 0 ... len - 1, zeros above (once per particle).
-  RPYFMM_DIRECT_AVX512 static Vec scaled(const double* w, int len, double f) {
+  RPYFMM_DIRECT_AVX512 static Vec scaled(const double* w, Mask, int len, double f) {
     alignas(64) float t[16] = {};
     for (int l = 0; l < len; ++l) t[l] = static_cast<float>(w[l] * f);
     return _mm512_load_ps(t);
@@ -74,32 +76,9 @@ struct Run<float> {
   }
 };
 
-template <class Real>
-RPYFMM_DIRECT_AVX512 void spread_window(Real* g0, Real* g1, Real* g2, const std::size_t* xline,
-                                        const std::size_t* yline, int Px, int Py, WindowZ z, const double* wx,
-                                        const double* wy, const double* wz, const double f[3]) {
-  using R = Run<Real>;
-  const int len1 = z.Pz - z.len0;
-  const typename R::Mask m0 = lanes(z.len0), m1 = lanes(len1);
-  // wz f_c on each run: lanes of the first run, then those that wrap.
-  const auto a0 = R::scaled(wz, z.len0, f[0]), b0 = R::scaled(wz + z.len0, len1, f[0]);
-  const auto a1 = R::scaled(wz, z.len0, f[1]), b1 = R::scaled(wz + z.len0, len1, f[1]);
-  const auto a2 = R::scaled(wz, z.len0, f[2]), b2 = R::scaled(wz + z.len0, len1, f[2]);
-  for (int a = 0; a < Px; ++a) {
-    for (int b = 0; b < Py; ++b) {
-      const std::size_t line = xline[a] + yline[b];
-      const auto wxy = R::broadcast(wx[a] * wy[b]);
-      R::add(g0 + line + z.z0, m0, wxy, a0);
-      R::add(g1 + line + z.z0, m0, wxy, a1);
-      R::add(g2 + line + z.z0, m0, wxy, a2);
-      if (len1 > 0) {
-        R::add(g0 + line, m1, wxy, b0);
-        R::add(g1 + line, m1, wxy, b1);
-        R::add(g2 + line, m1, wxy, b2);
-      }
-    }
-  }
-}
+#define RPYFMM_WINDOW_TARGET RPYFMM_DIRECT_AVX512
+#include "window_spread.inc"
+#undef RPYFMM_WINDOW_TARGET
 
 template <class Real>
 RPYFMM_DIRECT_AVX512 void gather_window(const Real* g0, const Real* g1, const Real* g2, const std::size_t* xline,
@@ -107,7 +86,7 @@ RPYFMM_DIRECT_AVX512 void gather_window(const Real* g0, const Real* g1, const Re
                                         const double* wy, const double* wz, double u[3]) {
   using R = Run<Real>;
   const int len1 = z.Pz - z.len0;
-  const typename R::Mask m0 = lanes(z.len0), m1 = lanes(len1);
+  const auto m0 = R::mask(z.len0), m1 = R::mask(len1);
   const __m512d w0 = _mm512_maskz_loadu_pd(lanes(z.len0), wz), w1 = _mm512_maskz_loadu_pd(lanes(len1), wz + z.len0);
   __m512d s0 = _mm512_setzero_pd(), s1 = _mm512_setzero_pd(), s2 = _mm512_setzero_pd();
   for (int a = 0; a < Px; ++a) {
