@@ -5,7 +5,8 @@
 //   M = M_r + M_w, both SPD ([PSE] Sec. II.A, App. B):
 //   - M_r: closed forms F, G of [PSE] App. A, cut at r_cut, cell/neighbour lists, minimum image;
 //   - M_w: Spectral Ewald (Gaussian spreading on P^3 points, FFTW r2c, scaling
-//     (1/(eta V)) sinc^2(ka) H(k, xi)/k^2 (I - khat khat), c2r, interpolation).
+//     (1/(eta V)) sinc^2(ka) H(k, xi)/k^2 (I - khat khat), c2r, interpolation), on float
+//     grids for tolerances >= 1e-5 (PseOptions::wave_precision; ~1e-7 added error).
 //
 // Brownian noise, split sampler ([PSE] eq. 17-21):  M^{1/2} z = M_r^{1/2} z1 + M_w^{1/2} z2,
 //   z1: Lanczos on M_r alone (sqrt_apply), z2: complex Gaussian Fourier field with
@@ -13,7 +14,7 @@
 // Noise derivation (documented contract):
 //   - sample(seed, step, w) / apply_with_noise(...): z1 = fill_normal(seed, step, stream 1)
 //     (random.hpp), z2 from (seed, step). Reproducible, thread-count independent, and the
-//     same on CPU and CUDA.
+//     same on CPU and CUDA (to round-off, with double-precision wave grids on the CPU).
 //   - apply_sqrt(z, w) with SqrtMethod::automatic or split: z is used as z1; z2 is drawn
 //     with seed = a 64-bit hash of z's bits (splitmix64 chain) and step 0, so w is a
 //     deterministic function of z and, for Gaussian z, has covariance M_r + M_w = M.
