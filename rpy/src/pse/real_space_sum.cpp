@@ -358,35 +358,43 @@ void RealSpaceSum::set_positions(std::span<const double> x) {
   std::vector<std::vector<int>> block_list(nblock);
   begin_.assign(n + 1, 0);
   const auto nb = static_cast<std::int64_t>(nblock);
-#pragma omp parallel for schedule(dynamic, 1) if (n >= 2048)
-  for (std::int64_t b = 0; b < nb; ++b) {
+#pragma omp parallel if (n >= 2048)
+  {
+    // Per thread: the block's entries go to a buffer that only grows (no zero-fill per
+    // candidate cell, no shared vector headers written per candidate: block_list's headers
+    // are adjacent in memory, and writing them from two threads at every resize made the
+    // build slower with 2 threads than with 1), then are copied out once per block.
     std::array<std::size_t, 27> nbr{};
     std::vector<double> d2;  // squared distances to one neighbour cell's slots
-    auto& out = block_list[static_cast<std::size_t>(b)];
-    const std::size_t c_end = std::min(ncell, (static_cast<std::size_t>(b) + 1) * block_cells);
-    for (std::size_t c = static_cast<std::size_t>(b) * block_cells; c < c_end; ++c) {
-      const int m = neighbour_cells(c, nbr);
-      for (std::size_t s = cell_begin[c]; s < cell_begin[c + 1]; ++s) {
-        const std::size_t before = out.size();
-        for (int k = 0; k < m; ++k) {
-          const std::size_t cn = nbr[static_cast<std::size_t>(k)];
-          if (half_lists_ && cn < c) continue;
-          const std::size_t t0 = half_lists_ && cn == c ? s + 1 : cell_begin[cn];
-          const std::size_t count = cell_begin[cn + 1] - t0;
-          // Distances first (a loop that vectorizes), then a branch-free compaction: about one
-          // candidate in six is kept, so a branch per candidate would mostly mispredict.
-          d2.resize(std::max(d2.size(), count));
-          squared_distances(s, t0, count, d2.data());
-          std::size_t kept = out.size();
-          out.resize(kept + count);
-          for (std::size_t q = 0; q < count; ++q) {
-            out[kept] = static_cast<int>(t0 + q);
-            kept += static_cast<std::size_t>(d2[q] < rc2) & static_cast<std::size_t>(t0 + q != s);
+    std::vector<int> buf;
+#pragma omp for schedule(dynamic, 1)
+    for (std::int64_t b = 0; b < nb; ++b) {
+      std::size_t used = 0;
+      const std::size_t c_end = std::min(ncell, (static_cast<std::size_t>(b) + 1) * block_cells);
+      for (std::size_t c = static_cast<std::size_t>(b) * block_cells; c < c_end; ++c) {
+        const int m = neighbour_cells(c, nbr);
+        for (std::size_t s = cell_begin[c]; s < cell_begin[c + 1]; ++s) {
+          const std::size_t before = used;
+          for (int k = 0; k < m; ++k) {
+            const std::size_t cn = nbr[static_cast<std::size_t>(k)];
+            if (half_lists_ && cn < c) continue;
+            const std::size_t t0 = half_lists_ && cn == c ? s + 1 : cell_begin[cn];
+            const std::size_t count = cell_begin[cn + 1] - t0;
+            // Distances first (a loop that vectorizes), then a branch-free compaction: about one
+            // candidate in six is kept, so a branch per candidate would mostly mispredict.
+            if (d2.size() < count) d2.resize(count);
+            squared_distances(s, t0, count, d2.data());
+            if (buf.size() < used + count) buf.resize(2 * (used + count));
+            int* out = buf.data();
+            for (std::size_t q = 0; q < count; ++q) {
+              out[used] = static_cast<int>(t0 + q);
+              used += static_cast<std::size_t>(d2[q] < rc2) & static_cast<std::size_t>(t0 + q != s);
+            }
           }
-          out.resize(kept);
+          begin_[s + 1] = used - before;
         }
-        begin_[s + 1] = out.size() - before;
       }
+      block_list[static_cast<std::size_t>(b)].assign(buf.begin(), buf.begin() + static_cast<std::ptrdiff_t>(used));
     }
   }
   for (std::size_t s = 0; s < n; ++s) begin_[s + 1] += begin_[s];
