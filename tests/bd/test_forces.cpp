@@ -13,6 +13,7 @@
 #include "rpyfmm/bd/neighbour_list.hpp"
 #include "rpyfmm/bd/potentials.hpp"
 #include "rpyfmm/core/error.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy.hpp"
 
 using namespace rpyfmm::bd;
 using rpyfmm::Error;
@@ -240,4 +241,17 @@ TEST(MobilityFactory, FreeDrainingAndUnavailableMethods) {
     EXPECT_NE(std::string(e.what()).find("pse"), std::string::npos);
   }
   EXPECT_THROW((void)make_mobility({.method = MobilityMethod::none, .tolerance = 2.0}, 10), Error);
+  // The PSE options reach the operator (MobilitySpec::wave_precision, fft_measure).
+  for (const auto precision :
+       {rpyfmm::rpy::pse::WavePrecision::double_precision, rpyfmm::rpy::pse::WavePrecision::single_precision}) {
+    const auto pse = make_mobility({.method = MobilityMethod::pse,
+                                    .geometry = rpyfmm::rpy::Geometry::periodic(12.0),
+                                    .fft_measure = true,
+                                    .wave_precision = precision},
+                                   10);
+    const auto* op = dynamic_cast<const rpyfmm::rpy::pse::PseRpy*>(pse.get());
+    ASSERT_NE(op, nullptr);
+    EXPECT_EQ(op->options().wave_precision, precision);
+    EXPECT_TRUE(op->options().fft_measure);
+  }
 }

@@ -205,18 +205,6 @@ WavePrecision wave_precision_from_name(std::string_view name, const char* where)
        "wave precision must be auto, single or double, got '" + std::string(name) + "'");
 }
 
-const char* wave_precision_name(WavePrecision precision) {
-  switch (precision) {
-    case WavePrecision::single_precision:
-      return "single";
-    case WavePrecision::double_precision:
-      return "double";
-    case WavePrecision::automatic:
-      break;
-  }
-  return "auto";
-}
-
 double fft_length_cost(int n) {
   for (const auto& e : kFftLengths)
     if (e.n == n) return e.factor;

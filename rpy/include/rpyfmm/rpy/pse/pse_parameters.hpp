@@ -29,8 +29,6 @@ enum class WavePrecision {
 /// "auto", "single" or "double" (the names the CLI, Python and BD configs use); throws
 /// rpyfmm::Error (invalid_argument) naming `where` for anything else.
 WavePrecision wave_precision_from_name(std::string_view name, const char* where = "PseRpy");
-/// The name of a WavePrecision value ("auto", "single", "double").
-const char* wave_precision_name(WavePrecision precision);
 
 /// Smallest tolerance for which WavePrecision::automatic picks single precision: float round-off
 /// in the wave space (~1e-7 relative, measured in tests/pse/test_pse_precision.cpp) stays 100x

@@ -8,7 +8,7 @@
 // grid sums depend on the run) when the CPU operator's wave grids are double
 // precision too: the GPU always computes in double, while PseRpy's automatic
 // wave_precision uses single-precision grids for tolerances >= 1e-5 (then the two
-// differ by ~1e-6 relative, far below the tolerance). A PseOptions asking for
+// differ by ~1e-7 relative, far below the tolerance). A PseOptions asking for
 // WavePrecision::single_precision is refused. Plain C++ header (pimpl): no CUDA types leak.
 //
 // Built when RPYFMM_USE_CUDA is on (then RPYFMM_HAVE_CUDA_PSE is defined);
