@@ -5,7 +5,8 @@
 // table against direct evaluation of F, G. CSV rows on stdout.
 //
 // usage: bench_pse [--quick] [--fft-measure] [--error] [--xi XA] [--eta E] [--support P] [--grid G]
-//                  [--precision auto|single|double] [--kernels auto|avx2|portable] [--cuda] [N ...]
+//                  [--precision auto|single|double] [--kernels auto|avx2|portable] [--no-real-cache]
+//                  [--cuda] [N ...]
 //   (default 8000 16000 32000); threads from 1 to OMP max.
 // Also times the free-space FmmRpy (tolerance 1e-3) on the same particles, 1 thread.
 // --quick: only M F and the split sampler with their stage times (no full-operator Lanczos,
@@ -19,6 +20,9 @@
 // portable the AVX2 window kernels too (auto: the widest the CPU has).
 // --precision: PseOptions::wave_precision (default auto: single-precision wave grids at the
 // tolerance 1e-3 of Table I; column wave_single).
+// --no-real-cache: PseOptions::real_space_cache = false (every product evaluates the real-space
+// pairs). M F and the sampler are timed as the first after set_positions (as in a time step);
+// MF_cached_s is a product repeated with the same positions (the pair cache filled).
 // --fft-measure: PseOptions::fft_measure (FFTW_MEASURE plans; the plan column gives the planning
 // time of set_positions, which includes the timing of the plans).
 // --cuda: the CUDA operator PseRpyCuda instead (host arrays in and out, so transfers count),
@@ -112,6 +116,15 @@ double median_seconds(int reps, Fn&& fn) {
   return t[t.size() / 2];
 }
 
+/// Median of reps values returned by fn (seconds it timed itself).
+template <class Fn>
+double median_of(int reps, Fn&& fn) {
+  std::vector<double> t;
+  for (int r = 0; r < reps; ++r) t.push_back(fn());
+  std::sort(t.begin(), t.end());
+  return t[t.size() / 2];
+}
+
 /// The Table I rows on the GPU: M F and split-sampler PTPS (median of 5 after a warm-up).
 /// Relative l2 difference of u (a product already computed) from the CPU operator's M F with
 /// options o and double-precision wave grids on the same particles.
@@ -183,6 +196,7 @@ int main(int argc, char** argv) {
   int support = 0;
   int grid = 0;
   WavePrecision precision = WavePrecision::automatic;
+  bool real_cache = true;
   for (int i = 1; i < argc; ++i) {
     if (std::string(argv[i]) == "--kernels" && i + 1 < argc) {
       const std::string v = argv[++i];
@@ -231,6 +245,10 @@ int main(int argc, char** argv) {
       fft_measure = true;
       continue;
     }
+    if (std::string(argv[i]) == "--no-real-cache") {
+      real_cache = false;
+      continue;
+    }
     if (std::string(argv[i]) == "--quick") {
       quick = true;
       continue;
@@ -254,7 +272,8 @@ int main(int argc, char** argv) {
   std::printf(
       "N,threads,grid,P,r_cut,MF_s,MF_PTPS,sample_s,sample_PTPS,sample_over_MF,split_iters,"
       "lanczos_full_s,lanczos_full_iters,spread,fft,scale,interp,real,lanczos_real,"
-      "sample_noise_scale,sample_fft,sample_interp,plan_s,fft_measure,eta,MF_rel_error,xi_a,wave_single\n");
+      "sample_noise_scale,sample_fft,sample_interp,plan_s,fft_measure,eta,MF_rel_error,xi_a,wave_single,"
+      "MF_cached_s,real_cache_MB\n");
   for (std::size_t n : sizes) {
     const double L = std::cbrt(static_cast<double>(n) * 4.0 / 3.0 * std::numbers::pi * a * a * a / phi);
     const auto x = hard_spheres(n, a, L, 7);
@@ -272,19 +291,33 @@ int main(int argc, char** argv) {
       o.support = support;
       o.grid = {grid, grid, grid};
       o.wave_precision = precision;
+      o.real_space_cache = real_cache;
       PseRpy op(Geometry::periodic(L), 1.0, o);
       StopWatch plan_watch;
       op.set_positions(x, a);
       const double t_plan = plan_watch.seconds();
       op.apply(f, u);  // warm up
-      op.reset_stage_times();
       const int reps = 3;
-      const double t_mf = median_seconds(reps, [&] { op.apply(f, u); });
+      // As in a time step: every timed product and sample is the first after set_positions (which
+      // is not timed), so the real-space pair cache is filled by it, not carried over from the
+      // previous repetition. MF_cached_s: a product that finds the cache filled (later products
+      // with the same positions, e.g. an iterative solver's).
+      auto fresh = [&](auto&& fn) {
+        return [&] {
+          op.set_positions(x, a);
+          StopWatch sw;
+          fn();
+          return sw.seconds();
+        };
+      };
+      op.reset_stage_times();
+      const double t_mf = median_of(reps, fresh([&] { op.apply(f, u); }));
       StageTimes mf = op.stage_times();
+      const double t_mf_cached = median_seconds(reps, [&] { op.apply(f, u); });
       op.reset_stage_times();
       int iters = 0;
       std::uint64_t step = 0;
-      const double t_s = median_seconds(reps, [&] { iters = op.sample(5, step++, w).iterations; });
+      const double t_s = median_of(reps, fresh([&] { iters = op.sample(5, step++, w).iterations; }));
       StageTimes st = op.stage_times();
       // Generic Lanczos on the full PSE operator, same tolerance ([PSE] Fig. 6).
       SqrtOptions so;
@@ -306,12 +339,12 @@ int main(int argc, char** argv) {
       };
       std::printf(
           "%zu,%d,%dx%dx%d,%d,%.3f,%.4g,%.4g,%.4g,%.4g,%.2f,%d,%.4g,%d,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,"
-          "%.3g,%d,%.2f,%.3g,%.3g,%d\n",
+          "%.3g,%d,%.2f,%.3g,%.3g,%d,%.4g,%.1f\n",
           n, threads, p.grid[0], p.grid[1], p.grid[2], p.support[0], p.r_cut, t_mf, n / t_mf, t_s, n / t_s, t_s / t_mf,
           iters, t_full, full_iters, per(mf, "spread"), per(mf, "fft_forward") + per(mf, "fft_backward"),
           per(mf, "scale"), per(mf, "interpolate"), per(mf, "real_space"), per(st, "lanczos"), per(st, "scale"),
           per(st, "fft_backward"), per(st, "interpolate"), t_plan, fft_measure ? 1 : 0, p.window_eta, rel_error,
-          p.xi * a, p.wave_single ? 1 : 0);
+          p.xi * a, p.wave_single ? 1 : 0, t_mf_cached, static_cast<double>(p.real_space_cache_bytes) / 1e6);
       std::fflush(stdout);
     }
     if (quick) continue;
@@ -321,6 +354,7 @@ int main(int argc, char** argv) {
     o.tolerance = 1e-3;
     o.xi = 0.5;
     o.fft_threads = 1;
+    o.real_space_cache = false;  // every timed product evaluates the pairs
     PseRpy tab(Geometry::periodic(L), 1.0, o);
     o.real_space_table = false;
     PseRpy dir(Geometry::periodic(L), 1.0, o);

@@ -1,7 +1,10 @@
 """Sweep of the Ewald parameter xi for the PSE operator: the time of one BD step's mobility work
-(apply_with_noise: M F plus the split sampler's M^{1/2} z, sharing the wave-space FFTs) and of
-one product M F at fixed xi a, against what the automatic choice (xi = 0, the cost model of
-PseOptions::cost_*) picks. Used to calibrate the cost-model constants (bench/pse/RESULTS.md).
+(set_positions, then apply_with_noise: M F plus the split sampler's M^{1/2} z, sharing the
+wave-space FFTs) and of one product M F after set_positions, at fixed xi a, against what the
+automatic choice (xi = 0, the cost model of PseOptions::cost_*) picks. Used to calibrate the
+cost-model constants (bench/pse/RESULTS.md). Every timed call follows set_positions, as in a
+time step, so the real-space pair cache is refilled each time (since session 13; before, the
+step excluded set_positions).
 
 usage: PYTHONPATH=build/release/python OMP_NUM_THREADS=1 python3 bench/pse/xi_sweep.py [N ...]
 Random points (overlaps allowed) at volume fraction 0.1, a = 1, tolerance 1e-3 by default
@@ -14,9 +17,11 @@ import numpy as np
 import rpyfmm
 
 
-def median_time(fn, reps):
+def median_time(fn, reps, setup=None):
     times = []
     for _ in range(reps):
+        if setup is not None:
+            setup()
         t0 = time.perf_counter()
         fn()
         times.append(time.perf_counter() - t0)
@@ -45,11 +50,15 @@ def main():
                 continue
             p = op.parameters
             op.apply(f)  # warm-up
-            step = median_time(lambda: op.apply_with_noise(f, 1.0, 5, 1), args.reps)
-            mf = median_time(lambda: op.apply(f), args.reps)
+            def step():
+                op.set_positions(x, 1.0)
+                op.apply_with_noise(f, 1.0, 5, 1)
+
+            step_s = median_time(step, args.reps)
+            mf = median_time(lambda: op.apply(f), args.reps, setup=lambda: op.set_positions(x, 1.0))
             label = f"auto({p['xi']:.3g})" if xa == 0.0 else f"{xa:.2f}"
             grid = "x".join(str(g) for g in p["grid"])
-            print(f"{n},{label},{grid},{p['support'][0]},{p['r_cut']:.3f},{step:.4g},{mf:.4g}", flush=True)
+            print(f"{n},{label},{grid},{p['support'][0]},{p['r_cut']:.3f},{step_s:.4g},{mf:.4g}", flush=True)
 
 
 if __name__ == "__main__":

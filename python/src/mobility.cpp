@@ -120,6 +120,7 @@ nb::dict pse_parameters(const rpy::pse::PseParameters& p) {
   d["lanczos_tolerance"] = p.lanczos_tolerance;
   d["wave_precision"] = p.wave_single ? "single" : "double";
   d["memory_bytes"] = p.memory_bytes;
+  d["real_space_cache_bytes"] = p.real_space_cache_bytes;
   d["modelled_cost"] = p.modelled_cost;
   d["summary"] = p.summary();
   return d;
@@ -258,7 +259,7 @@ void bind_mobility(nb::module_& m) {
           "__init__",
           [](rpy::pse::PseRpy* self, BoxArg box, double viscosity, double tolerance, double xi, double r_cut,
              double window_eta, int fft_threads, std::size_t max_memory_bytes, bool fft_measure,
-             const std::string& wave_precision) {
+             const std::string& wave_precision, bool real_space_cache) {
             rpy::pse::PseOptions o;
             o.tolerance = tolerance;
             o.xi = xi;
@@ -268,19 +269,23 @@ void bind_mobility(nb::module_& m) {
             o.max_memory_bytes = max_memory_bytes;
             o.fft_measure = fft_measure;
             o.wave_precision = rpy::pse::wave_precision_from_name(wave_precision, "PseRpy");
+            o.real_space_cache = real_space_cache;
             new (self) rpy::pse::PseRpy(geometry_from(box, "PseRpy"), viscosity, o);
           },
           nb::arg("box"), nb::arg("viscosity") = 1.0, nb::arg("tolerance") = 1e-3, nb::arg("xi") = 0.0,
           nb::arg("r_cut") = 0.0, nb::arg("window_eta") = 0.0, nb::arg("fft_threads") = 0,
           nb::arg("max_memory_bytes") = std::size_t{16} << 30, nb::arg("fft_measure") = false,
-          nb::arg("wave_precision") = "auto",
+          nb::arg("wave_precision") = "auto", nb::arg("real_space_cache") = true,
           "box: L (cube) or (Lx, Ly, Lz), length units; tolerance in [1e-8, 0.1) relative to 1/(6 pi eta a);\n"
           "xi: Ewald splitting (1/length, 0 = automatic); r_cut: real-space cutoff (length, 0 = automatic);\n"
           "window_eta: Gaussian window shape in (0, 1), 0 = the cheapest meeting the tolerance;\n"
           "fft_measure: FFTW_MEASURE plans (timed at set_positions, faster transforms, results\n"
           "reproducible to round-off rather than bit for bit across processes);\n"
           "wave_precision: 'single' or 'double' wave-space grids; 'auto' = single for tolerance >= 1e-5\n"
-          "(adds ~1e-7 relative error, faster FFTs and half the grid memory).")
+          "(adds ~1e-7 relative error, faster FFTs and half the grid memory);\n"
+          "real_space_cache: keep each real-space pair's block from the first product after set_positions\n"
+          "for the later ones (the split sampler's Lanczos); float with single wave grids, else double,\n"
+          "while it fits in max_memory_bytes (parameters['real_space_cache_bytes']).")
       .def_prop_ro(
           "parameters", [](const rpy::pse::PseRpy& op) { return pse_parameters(op.parameters()); },
           "The choices made for the current radius, box and N (xi, r_cut, grid, support, ...).")

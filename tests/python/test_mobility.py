@@ -127,6 +127,25 @@ def test_pse_wave_precision(system):
         rpyfmm.PseRpy(box=box, wave_precision="half")
 
 
+def test_pse_real_space_cache():
+    # The pair cache (float here, with float wave grids) against the same operator without it:
+    # rounding of the kept blocks only (tests/pse/test_pse_pair_cache.cpp); the first product
+    # fills it, the second reads it. Kept only where the AVX-512 kernels run.
+    rng = np.random.default_rng(3)
+    box = 30.0
+    x = rng.uniform(0.0, box, size=(1500, 3))
+    f = rng.standard_normal((1500, 3))
+    with_cache, without = (rpyfmm.PseRpy(box=box, tolerance=1e-3, xi=0.6, real_space_cache=c) for c in (True, False))
+    for op in (with_cache, without):
+        op.set_positions(x, 1.0)
+    assert without.parameters["real_space_cache_bytes"] == 0
+    u = without.apply(f)
+    assert rel_err(with_cache.apply(f), u) <= 1e-6
+    assert rel_err(with_cache.apply(f), u) <= 1e-6
+    if with_cache.parameters["real_space_cache_bytes"] > 0:
+        assert "pair cache" in with_cache.parameters["summary"]
+
+
 def test_shapes_and_dtypes(system):
     x, f = system
     op = rpyfmm.DirectRpy()

@@ -309,7 +309,9 @@ std::string PseParameters::summary() const {
          ", eta = " + fmt(window_eta) + (eta_automatic ? " (auto)" : "") + ", m = " + fmt(window_m) +
          ", table dr = " + fmt(table_dr) + " (" + std::to_string(table_size) + " entries)" +
          ", lanczos tol = " + fmt(lanczos_tolerance) + ", wave grids " + (wave_single ? "single" : "double") +
-         ", memory = " + fmt(static_cast<double>(memory_bytes) / 1e6) + " MB";
+         ", memory = " + fmt(static_cast<double>(memory_bytes) / 1e6) + " MB" +
+         (real_space_cache_bytes > 0 ? ", pair cache " + fmt(static_cast<double>(real_space_cache_bytes) / 1e6) + " MB"
+                                     : std::string());
 }
 
 }  // namespace rpyfmm::rpy::pse

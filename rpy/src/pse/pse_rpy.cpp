@@ -50,6 +50,29 @@ struct PseRpy::Impl {
   std::unique_ptr<detail::RealSpaceSum> real;
   std::unique_ptr<detail::WaveSpace> wave;
   mutable StageTimes times;
+
+  /// y = M_r^{1/2} z (nrhs vectors in input order) by Lanczos on the real-space part ([PSE]
+  /// Sec. II.B, PSE.md Sec. 5), iterated in slot order: z is permuted once, the products then
+  /// need no gather from and scatter to input order (the Krylov result is the same up to
+  /// round-off: Lanczos commutes with a permutation of the unknowns).
+  SqrtReport real_sqrt(std::span<const double> z, std::span<double> y, std::size_t nrhs) const {
+    const std::size_t n3 = z.size() / nrhs;
+    std::vector<double> zs(z.size()), ys(z.size());
+    for (std::size_t r = 0; r < nrhs; ++r) real->to_slots(z.data() + r * n3, zs.data() + r * n3);
+    LinearOperatorView slots;
+    slots.n = n3;
+    slots.apply = [this](std::span<const double> x, std::span<double> out, std::size_t k) {
+      real->apply_slots(x.data(), out.data(), k);
+    };
+    SqrtOptions o;
+    o.method = SqrtMethod::lanczos;
+    o.tolerance = params.lanczos_tolerance;
+    StopWatch sw;
+    SqrtReport rep = sqrt_apply(slots, zs, ys, nrhs, o);
+    times["lanczos"] += sw.seconds();
+    for (std::size_t r = 0; r < nrhs; ++r) real->from_slots(ys.data() + r * n3, y.data() + r * n3);
+    return rep;
+  }
 };
 
 PseRpy::PseRpy(Geometry geometry, double viscosity, const PseOptions& options)
@@ -88,7 +111,13 @@ void PseRpy::on_positions_set() {
     im.wave.reset();
     // All checks (box vs r_cut, window, memory) happen here, before any allocation.
     PseParameters p = choose_parameters(im.options, a, geometry().box(), n);
-    auto real = std::make_unique<detail::RealSpaceSum>(p, geometry().box(), viscosity(), im.options.real_space_table);
+    // Pair cache (design note 23): float with float wave grids, else double; within what the
+    // memory limit leaves beside the grids.
+    const auto cache = !im.options.real_space_cache ? detail::PairCache::off
+                       : p.wave_single              ? detail::PairCache::single_precision
+                                                    : detail::PairCache::double_precision;
+    auto real = std::make_unique<detail::RealSpaceSum>(p, geometry().box(), viscosity(), im.options.real_space_table,
+                                                       cache, im.options.max_memory_bytes - p.memory_bytes);
     p.table_dr = im.options.real_space_table ? real->table().dr() : 0.0;
     p.table_size = im.options.real_space_table ? real->table().size() : 0;
     auto wave =
@@ -102,6 +131,7 @@ void PseRpy::on_positions_set() {
   }
   StopWatch sw;
   im.real->set_positions(positions());
+  im.params.real_space_cache_bytes = im.real->cache_bytes();
   im.times["positions_real"] += sw.seconds();
   sw.restart();
   im.wave->set_positions(positions());
@@ -158,28 +188,13 @@ LinearOperatorView PseRpy::wave_space_operator() const {
   return v;
 }
 
-namespace {
-
-/// y = M_r^{1/2} z (nrhs vectors) by Lanczos on the real-space part ([PSE] Sec. II.B, PSE.md Sec. 5).
-SqrtReport real_sqrt(const LinearOperatorView& real, std::span<const double> z, std::span<double> y,
-                     std::size_t nrhs, double tolerance) {
-  SqrtOptions o;
-  o.method = SqrtMethod::lanczos;
-  o.tolerance = tolerance;
-  return sqrt_apply(real, z, y, nrhs, o);
-}
-
-}  // namespace
-
 SqrtReport PseRpy::do_apply_sqrt(std::span<const double> z, std::span<double> w, std::size_t nrhs,
                                  const SqrtOptions& options) const {
   if (options.method != SqrtMethod::automatic && options.method != SqrtMethod::split) {
     return MobilityOperator::do_apply_sqrt(z, w, nrhs, options);  // generic solvers on the full M
   }
   auto& im = *impl_;
-  StopWatch sw;
-  SqrtReport rep = real_sqrt(real_space_operator(), z, w, nrhs, im.params.lanczos_tolerance);
-  im.times["lanczos"] += sw.seconds();
+  SqrtReport rep = im.real_sqrt(z, w, nrhs);
   const std::size_t n3 = 3 * size();
   for (std::size_t r = 0; r < nrhs; ++r) {
     const detail::NoiseKey key{noise_hash(z.subspan(r * n3, n3)), 0};
@@ -196,9 +211,7 @@ SqrtReport PseRpy::sample(std::uint64_t seed, std::uint64_t step, std::span<doub
   auto& im = *impl_;
   std::vector<double> z1(3 * size());
   real_noise(z1, seed, step);
-  StopWatch sw;
-  SqrtReport rep = real_sqrt(real_space_operator(), z1, w, 1, im.params.lanczos_tolerance);
-  im.times["lanczos"] += sw.seconds();
+  SqrtReport rep = im.real_sqrt(z1, w, 1);
   const detail::NoiseKey key{seed, step};
   im.wave->apply(nullptr, w.data(), true, &key, 1.0, &im.times);
   rep.method = SqrtMethod::split;
@@ -223,10 +236,8 @@ SqrtReport PseRpy::apply_with_noise(std::span<const double> forces, double noise
     std::vector<double> z1(3 * size());
     real_noise(z1, seed, step);
     y.resize(3 * size());
-    StopWatch sw;
-    rep = real_sqrt(real_space_operator(), z1, y, 1, im.params.lanczos_tolerance);
+    rep = im.real_sqrt(z1, y, 1);
     rep.method = SqrtMethod::split;
-    im.times["lanczos"] += sw.seconds();
   }
   // One wave-space pass for M_w F + noise_scale M_w^{1/2} z2 (shared FFTs).
   const detail::NoiseKey key{seed, step};

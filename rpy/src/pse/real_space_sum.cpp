@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <limits>
 #include <numbers>
+#include <type_traits>
 
 #include "kernels_common.hpp"
 #include "rpyfmm/core/validate.hpp"
@@ -210,13 +211,78 @@ RPYFMM_DIRECT_AVX512 void packed_row_avx512(const int* nb, std::size_t count, st
   add_lane_sums(sum, u);
 }
 
+/// acc[4 nb[k] + c] += lane k of back[c] (c = 0, 1, 2) for the first `lanes` lanes: lanes ->
+/// rows (x, y, z, 0) of four doubles by two 128-bit unpacks per pair of components, then lane
+/// shuffles put rows k and k + 2 into the halves of one vector; one neighbour at a time (no two
+/// lanes of a chunk name the same slot).
+RPYFMM_DIRECT_AVX512 inline void scatter_rows(const __m512d back[3], const int* nb, std::size_t lanes, double* acc) {
+  const __m512d zero = _mm512_setzero_pd();
+  const __m512d xy_even = _mm512_unpacklo_pd(back[0], back[1]);  // [x0 y0 | x2 y2 | x4 y4 | x6 y6]
+  const __m512d xy_odd = _mm512_unpackhi_pd(back[0], back[1]);   // [x1 y1 | x3 y3 | ...]
+  const __m512d z_even = _mm512_unpacklo_pd(back[2], zero);      // [z0 0 | z2 0 | ...]
+  const __m512d z_odd = _mm512_unpackhi_pd(back[2], zero);
+  constexpr int low = _MM_SHUFFLE(1, 0, 1, 0), high = _MM_SHUFFLE(3, 2, 3, 2), mix = _MM_SHUFFLE(3, 1, 2, 0);
+  __m512d rows[4];
+  rows[0] = _mm512_shuffle_f64x2(xy_even, z_even, low);  // [x0 y0 | x2 y2 | z0 0 | z2 0]
+  rows[1] = _mm512_shuffle_f64x2(xy_odd, z_odd, low);
+  rows[2] = _mm512_shuffle_f64x2(xy_even, z_even, high);
+  rows[3] = _mm512_shuffle_f64x2(xy_odd, z_odd, high);
+  for (auto& pair : rows) pair = _mm512_shuffle_f64x2(pair, pair, mix);  // [row k | row k + 2]
+  for (std::size_t k = 0; k < lanes; ++k) {
+    // lane k sits in rows[(k / 4) * 2 + k % 2], half (k / 2) % 2
+    const __m512d pair = rows[(k / 4) * 2 + k % 2];
+    const __m256d row = (k / 2) % 2 == 0 ? _mm512_castpd512_pd256(pair) : _mm512_extractf64x4_pd(pair, 1);
+    double* a = acc + 4 * static_cast<std::size_t>(nb[k]);
+    _mm256_store_pd(a, _mm256_add_pd(_mm256_load_pd(a), row));
+  }
+}
+
+/// Eight lanes of the pair cache as doubles (T = float: converted).
+template <class T>
+RPYFMM_DIRECT_AVX512 inline __m512d load_cached(const T* c) {
+  if constexpr (std::is_same_v<T, float>)
+    return _mm512_cvtps_pd(_mm256_load_ps(c));
+  else
+    return _mm512_load_pd(c);
+}
+
+template <class T>
+RPYFMM_DIRECT_AVX512 inline void store_cached(T* c, __m512d v) {
+  if constexpr (std::is_same_v<T, float>)
+    _mm256_store_ps(c, _mm512_cvtpd_ps(v));
+  else
+    _mm512_store_pd(c, v);
+}
+
+/// One chunk of the pair cache (40 values): F - F(0), G - G(0), e_x, e_y, e_z. F and G are kept
+/// as differences from their r = 0 values (the table's first node), which a coincident pair
+/// thus gets back exactly in float too: its block stays equal to the self block, and M_r stays
+/// exactly singular (positive semidefinite) with coincident particles.
+template <class T>
+RPYFMM_DIRECT_AVX512 inline void store_pair_lanes(T* c, const PairLanes& p, const __m512d origin[2]) {
+  store_cached(c, _mm512_sub_pd(p.F, origin[0]));
+  store_cached(c + 8, _mm512_sub_pd(p.G, origin[1]));
+  for (int d = 0; d < 3; ++d) store_cached(c + 16 + 8 * d, p.e[d]);
+}
+
+template <class T>
+RPYFMM_DIRECT_AVX512 inline PairLanes load_pair_lanes(const T* c, const __m512d origin[2]) {
+  PairLanes p;
+  p.F = _mm512_add_pd(origin[0], load_cached(c));
+  p.G = _mm512_add_pd(origin[1], load_cached(c + 8));
+  for (int d = 0; d < 3; ++d) p.e[d] = load_cached(c + 16 + 8 * d);
+  return p;
+}
+
 /// The half-list row (design note 22): for the neighbours nb[0..count) of slot `self` with larger
 /// slots, acc[4 self + c] += sum_t B_st f_t and acc[4 t + c] += B_st f_s (B is symmetric: e
-/// changes sign with the pair's direction and appears twice). The scatter goes through a small
-/// buffer, one neighbour at a time (no two lanes of a chunk name the same slot).
+/// changes sign with the pair's direction and appears twice). With a cache (design note 23), the
+/// lanes of chunk q are stored at cache + 5 q and read back, so that the products that later read
+/// them apply the very same blocks.
+template <class T>
 RPYFMM_DIRECT_AVX512 void packed_half_row_avx512(const int* nb, std::size_t count, std::size_t self,
                                                  const double* packed, const double* table, double inv_dr,
-                                                 const double L[3], const double inv_L[3], double* acc) {
+                                                 const double L[3], const double inv_L[3], double* acc, T* cache) {
   const RowFrame fr = row_frame(packed + 8 * self, inv_dr, L, inv_L);
   const __m512d fs[3] = {_mm512_set1_pd(packed[8 * self + 3]), _mm512_set1_pd(packed[8 * self + 4]),
                          _mm512_set1_pd(packed[8 * self + 5])};
@@ -224,33 +290,61 @@ RPYFMM_DIRECT_AVX512 void packed_half_row_avx512(const int* nb, std::size_t coun
   for (std::size_t q = 0; q < count; q += 8) {
     __m512d v[6];
     const __mmask8 m = load_chunk(nb, count, q, self, packed, v);
-    const PairLanes p = pair_lanes(fr, v, table);
+    PairLanes p = pair_lanes(fr, v, table);
+    if (cache != nullptr) {
+      const __m512d origin[2] = {_mm512_set1_pd(table[0]), _mm512_set1_pd(table[1])};
+      store_pair_lanes(cache + 5 * q, p, origin);
+      p = load_pair_lanes(cache + 5 * q, origin);
+    }
     __m512d b[3], back[3];
     block_times(p, v + 3, b);
     block_times(p, fs, back);
     for (int d = 0; d < 3; ++d) sum[d] = _mm512_mask_add_pd(sum[d], m, sum[d], b[d]);
-    // Lanes -> rows (x, y, z, 0) of four doubles: two 128-bit unpacks per pair of components,
-    // then lane shuffles put rows k and k + 2 into the halves of one vector.
-    const __m512d zero = _mm512_setzero_pd();
-    const __m512d xy_even = _mm512_unpacklo_pd(back[0], back[1]);  // [x0 y0 | x2 y2 | x4 y4 | x6 y6]
-    const __m512d xy_odd = _mm512_unpackhi_pd(back[0], back[1]);   // [x1 y1 | x3 y3 | ...]
-    const __m512d z_even = _mm512_unpacklo_pd(back[2], zero);      // [z0 0 | z2 0 | ...]
-    const __m512d z_odd = _mm512_unpackhi_pd(back[2], zero);
-    constexpr int low = _MM_SHUFFLE(1, 0, 1, 0), high = _MM_SHUFFLE(3, 2, 3, 2), mix = _MM_SHUFFLE(3, 1, 2, 0);
-    __m512d rows[4];
-    rows[0] = _mm512_shuffle_f64x2(xy_even, z_even, low);  // [x0 y0 | x2 y2 | z0 0 | z2 0]
-    rows[1] = _mm512_shuffle_f64x2(xy_odd, z_odd, low);
-    rows[2] = _mm512_shuffle_f64x2(xy_even, z_even, high);
-    rows[3] = _mm512_shuffle_f64x2(xy_odd, z_odd, high);
-    for (auto& pair : rows) pair = _mm512_shuffle_f64x2(pair, pair, mix);  // [row k | row k + 2]
-    const std::size_t lanes = std::min<std::size_t>(8, count - q);
-    for (std::size_t k = 0; k < lanes; ++k) {
-      // lane k sits in rows[(k / 4) * 2 + k % 2], half (k / 2) % 2
-      const __m512d pair = rows[(k / 4) * 2 + k % 2];
-      const __m256d row = (k / 2) % 2 == 0 ? _mm512_castpd512_pd256(pair) : _mm512_extractf64x4_pd(pair, 1);
-      double* a = acc + 4 * static_cast<std::size_t>(nb[q + k]);
-      _mm256_store_pd(a, _mm256_add_pd(_mm256_load_pd(a), row));
-    }
+    scatter_rows(back, nb + q, std::min<std::size_t>(8, count - q), acc);
+  }
+  add_lane_sums(sum, acc + 4 * self);
+}
+
+/// Rows (fx, fy, fz, 0) of eight slots -> the vectors fx, fy, fz across the eight.
+RPYFMM_DIRECT_AVX512 inline void transpose_forces(const double* const rows[8], __m512d f[3]) {
+  __m512d a[4];  // [x_k y_k z_k 0 | x_k+4 y_k+4 z_k+4 0]
+  for (int k = 0; k < 4; ++k)
+    a[k] = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(rows[k])), _mm256_load_pd(rows[k + 4]), 1);
+  const __m512d xz01 = _mm512_unpacklo_pd(a[0], a[1]);  // [x0 x1 | z0 z1 | x4 x5 | z4 z5]
+  const __m512d y01 = _mm512_unpackhi_pd(a[0], a[1]);   // [y0 y1 | 0 0 | y4 y5 | 0 0]
+  const __m512d xz23 = _mm512_unpacklo_pd(a[2], a[3]);
+  const __m512d y23 = _mm512_unpackhi_pd(a[2], a[3]);
+  const __m512i first = _mm512_set_epi64(13, 12, 5, 4, 9, 8, 1, 0);     // [0 1 8 9 4 5 12 13]
+  const __m512i second = _mm512_set_epi64(15, 14, 7, 6, 11, 10, 3, 2);  // [2 3 10 11 6 7 14 15]
+  f[0] = _mm512_permutex2var_pd(xz01, first, xz23);
+  f[1] = _mm512_permutex2var_pd(y01, first, y23);
+  f[2] = _mm512_permutex2var_pd(xz01, second, xz23);
+}
+
+/// packed_half_row_avx512 for the later products with the same positions: the blocks come from
+/// the pair cache (chunk q at cache + 5 q), the forces from rows of four doubles (fx, fy, fz, 0
+/// per slot), and the pair is not evaluated again.
+template <class T>
+RPYFMM_DIRECT_AVX512 void cached_half_row_avx512(const int* nb, std::size_t count, std::size_t self,
+                                                 const double* forces, const T* cache, const double* table,
+                                                 double* acc) {
+  const __m512d origin[2] = {_mm512_set1_pd(table[0]), _mm512_set1_pd(table[1])};
+  const double* own = forces + 4 * self;
+  const __m512d fs[3] = {_mm512_set1_pd(own[0]), _mm512_set1_pd(own[1]), _mm512_set1_pd(own[2])};
+  __m512d sum[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
+  for (std::size_t q = 0; q < count; q += 8) {
+    const std::size_t left = count - q;
+    const double* rows[8];
+    for (std::size_t k = 0; k < 8; ++k) rows[k] = forces + 4 * (k < left ? static_cast<std::size_t>(nb[q + k]) : self);
+    __m512d f[3];
+    transpose_forces(rows, f);
+    const auto m = left >= 8 ? static_cast<__mmask8>(0xFF) : static_cast<__mmask8>((1u << left) - 1u);
+    const PairLanes p = load_pair_lanes(cache + 5 * q, origin);
+    __m512d b[3], back[3];
+    block_times(p, f, b);
+    block_times(p, fs, back);
+    for (int d = 0; d < 3; ++d) sum[d] = _mm512_mask_add_pd(sum[d], m, sum[d], b[d]);
+    scatter_rows(back, nb + q, std::min<std::size_t>(8, left), acc);
   }
   add_lane_sums(sum, acc + 4 * self);
 }
@@ -259,12 +353,15 @@ RPYFMM_DIRECT_AVX512 void packed_half_row_avx512(const int* nb, std::size_t coun
 
 }  // namespace
 
-RealSpaceSum::RealSpaceSum(const PseParameters& p, const std::array<double, 3>& box, double viscosity, bool use_table)
+RealSpaceSum::RealSpaceSum(const PseParameters& p, const std::array<double, 3>& box, double viscosity, bool use_table,
+                           PairCache cache, std::size_t cache_limit_bytes)
     : p_(p),
       box_(box),
       m0_(1.0 / (6.0 * std::numbers::pi * viscosity * p.radius)),
       self_(real_space_self(p.xi, p.radius)),
-      use_table_(use_table) {
+      use_table_(use_table),
+      cache_(cache),
+      cache_limit_(cache_limit_bytes) {
   if (use_table_) table_ = PseRealSpaceTable(p.xi, p.radius, p.r_cut, p.tolerance / 10.0);
 }
 
@@ -421,6 +518,25 @@ void RealSpaceSum::set_positions(std::span<const double> x) {
   for (auto& colour : half_blocks_) colour.clear();
   half_ = cells;
   if (half_) plan_half_blocks(nc, cell_begin);
+  // Pair cache: chunks of eight pairs per half row, five lanes each; kept where the half rows run
+  // (AVX-512 with the table on a cell grid) and it fits in the limit, else released.
+  chunk_begin_.assign(n + 1, 0);
+  for (std::size_t s = 0; s < n; ++s) chunk_begin_[s + 1] = chunk_begin_[s] + (begin_[s + 1] - upper_[s] + 7) / 8;
+  const std::size_t value_bytes = cache_ == PairCache::single_precision ? sizeof(float) : sizeof(double);
+  cache_bytes_ = 40 * value_bytes * chunk_begin_[n];
+  cache_on_ = cache_ != PairCache::off && half_ && use_table_ && fmm::detail::avx512_kernels_active() &&
+              cache_bytes_ <= cache_limit_;
+  cache_ready_ = false;
+  if (cache_on_) {
+    cache_store_.resize(cache_bytes_ / sizeof(double) + 8);
+  } else {
+    std::vector<double>().swap(cache_store_);
+  }
+}
+
+void* RealSpaceSum::cache_data() const {
+  double* c = cache_store_.data();
+  return c + (8 - (reinterpret_cast<std::uintptr_t>(c) / sizeof(double)) % 8) % 8;  // 64-byte aligned
 }
 
 void RealSpaceSum::plan_half_blocks(const std::array<int, 3>& nc, const std::vector<std::size_t>& cell_begin) {
@@ -459,22 +575,60 @@ void RealSpaceSum::plan_half_blocks(const std::array<int, 3>& nc, const std::vec
     }
 }
 
+namespace {
+
+/// row(s, r) for every half row s and rhs r: colours one after another, the blocks of one colour
+/// in parallel (design note 22).
+template <class Blocks, class Row>
+void sweep_half_rows(const Blocks& colours, std::size_t n, std::size_t nrhs, Row&& row) {
+  for (const auto& colour : colours) {
+    const auto nblock = static_cast<std::int64_t>(colour.size());
+#pragma omp parallel for schedule(dynamic, 1) if (n * nrhs >= 512)
+    for (std::int64_t b = 0; b < nblock; ++b)
+      for (const auto& range : colour[static_cast<std::size_t>(b)])
+        for (std::size_t s = range.begin; s < range.end; ++s)
+          for (std::size_t r = 0; r < nrhs; ++r) row(s, r);
+  }
+}
+
+}  // namespace
+
 void RealSpaceSum::apply_half_avx512(const double* packed, const double* table, double inv_dr, const double L[3],
                                      const double inv_L[3], std::size_t nrhs, double* acc) const {
 #if defined(RPYFMM_HAVE_DIRECT_AVX512)
   const std::size_t n = order_.size();
-  for (const auto& colour : half_blocks_) {  // colours one after another; blocks of one colour in parallel
-    const auto nblock = static_cast<std::int64_t>(colour.size());
-#pragma omp parallel for schedule(dynamic, 1) if (n * nrhs >= 512)
-    for (std::int64_t b = 0; b < nblock; ++b)
-      for (const SlotRange& range : colour[static_cast<std::size_t>(b)])
-        for (std::size_t s = range.begin; s < range.end; ++s)
-          for (std::size_t r = 0; r < nrhs; ++r)
-            packed_half_row_avx512(list_.data() + upper_[s], begin_[s + 1] - upper_[s], s, packed + 8 * r * n, table,
-                                   inv_dr, L, inv_L, acc + 4 * r * n);
-  }
+  const bool fill = cache_on_ && !cache_ready_;
+  auto sweep = [&](auto* cache) {
+    sweep_half_rows(half_blocks_, n, nrhs, [&](std::size_t s, std::size_t r) {
+      packed_half_row_avx512(list_.data() + upper_[s], begin_[s + 1] - upper_[s], s, packed + 8 * r * n, table, inv_dr,
+                             L, inv_L, acc + 4 * r * n, cache != nullptr ? cache + 40 * chunk_begin_[s] : cache);
+    });
+  };
+  if (cache_ == PairCache::single_precision)
+    sweep(fill ? static_cast<float*>(cache_data()) : static_cast<float*>(nullptr));
+  else
+    sweep(fill ? static_cast<double*>(cache_data()) : static_cast<double*>(nullptr));
+  cache_ready_ = cache_ready_ || fill;
 #else
   (void)packed, (void)table, (void)inv_dr, (void)L, (void)inv_L, (void)nrhs, (void)acc;
+#endif
+}
+
+void RealSpaceSum::apply_cached_avx512(const double* forces, std::size_t nrhs, double* acc) const {
+#if defined(RPYFMM_HAVE_DIRECT_AVX512)
+  const std::size_t n = order_.size();
+  auto sweep = [&](const auto* cache) {
+    sweep_half_rows(half_blocks_, n, nrhs, [&](std::size_t s, std::size_t r) {
+      cached_half_row_avx512(list_.data() + upper_[s], begin_[s + 1] - upper_[s], s, forces + 4 * r * n,
+                             cache + 40 * chunk_begin_[s], table_.data().data(), acc + 4 * r * n);
+    });
+  };
+  if (cache_ == PairCache::single_precision)
+    sweep(static_cast<const float*>(cache_data()));
+  else
+    sweep(static_cast<const double*>(cache_data()));
+#else
+  (void)forces, (void)nrhs, (void)acc;
 #endif
 }
 
@@ -519,8 +673,30 @@ void RealSpaceSum::input_order_lists(std::vector<std::size_t>& begin, std::vecto
 }
 
 void RealSpaceSum::apply(const double* forces, double* out, std::size_t nrhs, bool accumulate) const {
+  apply_mapped(forces, out, nrhs, accumulate, order_.data());
+}
+
+void RealSpaceSum::apply_slots(const double* forces, double* out, std::size_t nrhs) const {
+  apply_mapped(forces, out, nrhs, false, nullptr);
+}
+
+void RealSpaceSum::to_slots(const double* in, double* out) const {
+  const std::size_t n = order_.size();
+  for (std::size_t s = 0; s < n; ++s)
+    for (std::size_t d = 0; d < 3; ++d) out[3 * s + d] = in[3 * order_[s] + d];
+}
+
+void RealSpaceSum::from_slots(const double* in, double* out) const {
+  const std::size_t n = order_.size();
+  for (std::size_t s = 0; s < n; ++s)
+    for (std::size_t d = 0; d < 3; ++d) out[3 * order_[s] + d] = in[3 * s + d];
+}
+
+void RealSpaceSum::apply_mapped(const double* forces, double* out, std::size_t nrhs, bool accumulate,
+                                const std::size_t* map) const {
   // U_i = M0 [ F(0) F_i + sum_{j in r_cut} (F (I - rr) + G rr) F_j ]   ([PSE] eq. 10, A1-A4)
   const std::size_t n = order_.size();
+  auto index = [map](std::size_t s) { return map != nullptr ? map[s] : s; };
   const std::size_t stride = 3 * n;
   const std::array<double, 3> inv = {1.0 / box_[0], 1.0 / box_[1], 1.0 / box_[2]};
   const auto ni = static_cast<std::int64_t>(n);
@@ -540,7 +716,7 @@ void RealSpaceSum::apply(const double* forces, double* out, std::size_t nrhs, bo
       for (std::size_t r = 0; r < nrhs; ++r) {
         double u[3] = {self_ * force(s, r, 0), self_ * force(s, r, 1), self_ * force(s, r, 2)};
         row(s, r, u);
-        store(r, order_[s], u);
+        store(r, index(s), u);
       }
     }
   };
@@ -550,43 +726,52 @@ void RealSpaceSum::apply(const double* forces, double* out, std::size_t nrhs, bo
   const double inv_L[3] = {inv[0], inv[1], inv[2]};
 #if defined(RPYFMM_HAVE_DIRECT_AVX512)
   if (use_table_ && fmm::detail::avx512_kernels_active()) {
-    // Rows of 8 doubles per slot and rhs, 64-byte aligned, filled straight from the input forces:
-    // x, y, z, fx, fy, fz, 0, 0. With half lists, also the zeroed sums.
+    // Rows per slot and rhs, filled straight from the input forces: x, y, z, fx, fy, fz, 0, 0 (8
+    // doubles, 64-byte aligned) where the pairs are evaluated, or fx, fy, fz, 0 (4 doubles) where
+    // the pair cache holds them (later products with these positions). With half lists, also the
+    // zeroed sums.
     const bool half = half_;
-    packed_.resize(8 * n * nrhs + 8);
-    if (half) acc_.resize(4 * n * nrhs + 4);
+    const bool cached = half && cache_on_ && cache_ready_;
+    const std::size_t width = cached ? 4 : 8, force_at = cached ? 0 : 3;
+    packed_.resize(width * (n * nrhs + 1));
     double* packed = packed_.data();
-    packed += (8 - (reinterpret_cast<std::uintptr_t>(packed) / sizeof(double)) % 8) % 8;
+    packed += (width - (reinterpret_cast<std::uintptr_t>(packed) / sizeof(double)) % width) % width;
+    if (half) acc_.resize(4 * n * nrhs + 4);
     double* acc = acc_.data();  // rows of 4 doubles, 32-byte aligned
     if (half) acc += (4 - (reinterpret_cast<std::uintptr_t>(acc) / sizeof(double)) % 4) % 4;
 #pragma omp parallel for schedule(static) if (par)
     for (std::int64_t ss = 0; ss < ni; ++ss) {
       const auto s = static_cast<std::size_t>(ss);
-      const std::size_t i = order_[s];
+      const std::size_t i = index(s);
       for (std::size_t r = 0; r < nrhs; ++r) {
-        double* row = packed + 8 * (r * n + s);
+        double* row = packed + width * (r * n + s);
         for (std::size_t d = 0; d < 3; ++d) {
-          row[d] = pos_[d][s];
-          row[3 + d] = forces[r * stride + 3 * i + d];
+          if (!cached) row[d] = pos_[d][s];
+          row[force_at + d] = forces[r * stride + 3 * i + d];
         }
-        row[6] = row[7] = 0.0;
+        std::fill(row + force_at + 3, row + width, 0.0);
         if (half) std::fill_n(acc + 4 * (r * n + s), 4, 0.0);
       }
     }
+    auto packed_force = [&](std::size_t s, std::size_t r, std::size_t d) {
+      return packed[width * (r * n + s) + force_at + d];
+    };
     if (half) {
-      apply_half_avx512(packed, table, inv_dr, L, inv_L, nrhs, acc);
-      for_each_row([&](std::size_t s, std::size_t r, std::size_t d) { return packed[8 * (r * n + s) + 3 + d]; },
-                   [&](std::size_t s, std::size_t r, double* u) {
-                     for (std::size_t d = 0; d < 3; ++d) u[d] += acc[4 * (r * n + s) + d];
-                   });
+      if (cached) {
+        apply_cached_avx512(packed, nrhs, acc);
+      } else {
+        apply_half_avx512(packed, table, inv_dr, L, inv_L, nrhs, acc);
+      }
+      for_each_row(packed_force, [&](std::size_t s, std::size_t r, double* u) {
+        for (std::size_t d = 0; d < 3; ++d) u[d] += acc[4 * (r * n + s) + d];
+      });
       return;
     }
     const Rows rows = full_rows();
-    for_each_row([&](std::size_t s, std::size_t r, std::size_t d) { return packed[8 * (r * n + s) + 3 + d]; },
-                 [&](std::size_t s, std::size_t r, double* u) {
-                   packed_row_avx512(rows.list + rows.begin[s], rows.begin[s + 1] - rows.begin[s], s,
-                                     packed + 8 * r * n, table, inv_dr, L, inv_L, u);
-                 });
+    for_each_row(packed_force, [&](std::size_t s, std::size_t r, double* u) {
+      packed_row_avx512(rows.list + rows.begin[s], rows.begin[s + 1] - rows.begin[s], s, packed + 8 * r * n, table,
+                        inv_dr, L, inv_L, u);
+    });
     return;
   }
 #endif
@@ -595,7 +780,7 @@ void RealSpaceSum::apply(const double* forces, double* out, std::size_t nrhs, bo
   work_.resize(3 * n * nrhs);
 #pragma omp parallel for schedule(static) if (par)
   for (std::int64_t s = 0; s < ni; ++s) {
-    const std::size_t i = order_[static_cast<std::size_t>(s)];
+    const std::size_t i = index(static_cast<std::size_t>(s));
     for (std::size_t r = 0; r < nrhs; ++r)
       for (std::size_t d = 0; d < 3; ++d)
         work_[(3 * r + d) * n + static_cast<std::size_t>(s)] = forces[r * stride + 3 * i + d];

@@ -6,7 +6,10 @@
 // (structure of arrays), the neighbour lists hold slots, and apply() gathers the forces into
 // slot order once, so that a row reads its neighbours' positions and forces from a few nearby
 // cache lines instead of from all over the input arrays (design note 16). Where the AVX-512
-// kernels run, each pair is evaluated once for both of its rows (half lists, design note 22).
+// kernels run, each pair is evaluated once for both of its rows (half lists, design note 22),
+// and the first product after set_positions keeps each pair's block (F, G, r^) in a pair cache
+// that the later products with the same positions read instead of evaluating the pair again
+// (design note 23): the Lanczos iterations of the split sampler.
 #pragma once
 
 #include <array>
@@ -19,14 +22,30 @@
 
 namespace rpyfmm::rpy::pse::detail {
 
+/// Storage of the pair cache: none, or the five lanes F, G, e_x, e_y, e_z of each pair in float
+/// or in double.
+enum class PairCache { off, single_precision, double_precision };
+
 class RealSpaceSum {
  public:
-  RealSpaceSum(const PseParameters& p, const std::array<double, 3>& box, double viscosity, bool use_table);
+  /// `cache`: the pair cache's precision (off: every product evaluates the pairs);
+  /// `cache_limit_bytes`: it is kept only for positions whose cache fits in this many bytes.
+  RealSpaceSum(const PseParameters& p, const std::array<double, 3>& box, double viscosity, bool use_table,
+               PairCache cache = PairCache::off, std::size_t cache_limit_bytes = 0);
 
   /// Cell order and neighbour lists (CSR over slots, ascending) for positions wrapped into the box.
   void set_positions(std::span<const double> x);
   /// U (+)= M_r F for nrhs right-hand sides (3N each, stored one after another).
   void apply(const double* forces, double* out, std::size_t nrhs, bool accumulate) const;
+  /// U = M_r F with F and U in slot order (3 per slot, slot = position in cell order), nrhs of
+  /// them: the same products without the gather from and the scatter to input order, for
+  /// iterations that stay in slot order (the split sampler's Lanczos).
+  void apply_slots(const double* forces, double* out, std::size_t nrhs) const;
+  /// out[3 s + d] = in[3 i(s) + d] (input -> slot order) and its inverse, one 3N vector.
+  void to_slots(const double* in, double* out) const;
+  void from_slots(const double* in, double* out) const;
+  /// Bytes of the pair cache for the current positions (0: not kept, see the constructor).
+  [[nodiscard]] std::size_t cache_bytes() const { return cache_on_ ? cache_bytes_ : 0; }
 
   [[nodiscard]] const PseRealSpaceTable& table() const { return table_; }
   /// The neighbour lists in input numbering (CSR, j ascending), as the CUDA kernel reads them.
@@ -47,6 +66,7 @@ class RealSpaceSum {
   std::vector<int> list_;                   // neighbour slots within r_cut (r > 0 or coincident)
   mutable std::vector<double> work_;        // forces gathered into slot order (3 arrays per rhs)
   mutable std::vector<double> packed_;      // AVX-512 kernel: x, y, z, fx, fy, fz, 0, 0 per slot and rhs
+                                            // (fx, fy, fz, 0 where the pair cache is read)
 
   // Half lists (AVX-512 path, design note 22): each pair once, from its lower slot, which adds
   // the pair's block to both rows. upper_[s]: the first entry of row s with a larger slot (the
@@ -73,11 +93,30 @@ class RealSpaceSum {
   mutable std::vector<std::size_t> full_begin_;
   mutable std::vector<int> full_list_;
   std::vector<std::size_t> upper_;
+  // Pair cache (design note 23): per half row s, chunks [chunk_begin_[s], chunk_begin_[s + 1]) of
+  // eight pairs, each five vectors of eight lanes (F, G, e_x, e_y, e_z as the half-list kernel
+  // computes them, padding lanes included) of float or double; filled by the first product
+  // after set_positions and read by the later ones. The fill rounds the lanes to the cache's
+  // precision before using them, so that every product applies the same operator.
+  PairCache cache_ = PairCache::off;
+  std::size_t cache_limit_ = 0;
+  bool cache_on_ = false;  // cache kept for these positions (half lists, within the limit)
+  std::size_t cache_bytes_ = 0;
+  std::vector<std::size_t> chunk_begin_;
+  mutable std::vector<double> cache_store_;  // 64-byte aligned inside (cache_data())
+  mutable bool cache_ready_ = false;
+  [[nodiscard]] void* cache_data() const;
+  /// apply / apply_slots: particle i(s) = map[s] (input order), or s where map is null.
+  void apply_mapped(const double* forces, double* out, std::size_t nrhs, bool accumulate, const std::size_t* map) const;
   std::array<std::vector<std::vector<SlotRange>>, 4> half_blocks_;  // per colour: blocks of slot ranges
   mutable std::vector<double> acc_;                                 // half-list sums, 4 doubles per slot and rhs
   void plan_half_blocks(const std::array<int, 3>& nc, const std::vector<std::size_t>& cell_begin);
+  /// The half rows on `packed` rows (x, y, z, fx, fy, fz, 0, 0), filling the pair cache where it
+  /// is kept and not yet filled; and the half rows from the filled cache on force rows (fx, fy,
+  /// fz, 0).
   void apply_half_avx512(const double* packed, const double* table, double inv_dr, const double L[3],
                          const double inv_L[3], std::size_t nrhs, double* acc) const;
+  void apply_cached_avx512(const double* forces, std::size_t nrhs, double* acc) const;
 };
 
 }  // namespace rpyfmm::rpy::pse::detail

@@ -61,6 +61,14 @@ struct PseOptions {
   double lanczos_tolerance = 0.0;
   /// Evaluate F, G from a linear table (true) or from the closed forms per pair (false).
   bool real_space_table = true;
+  /// Keep each real-space pair's block (F, G and the direction) from the first product after
+  /// set_positions and reuse it in the later products with the same positions (the Lanczos
+  /// iterations of the split sampler, M F in a BD step): 1.3-1.6x faster later products
+  /// (bench/pse/RESULTS.md, session 13). Kept in float with single-precision wave grids
+  /// (wave_precision), else in double: 20 or 40 bytes per pair within r_cut, kept only while it
+  /// fits in max_memory_bytes beside the grids (PseParameters::real_space_cache_bytes). Where
+  /// the AVX-512 real-space kernels run (elsewhere every product evaluates the pairs).
+  bool real_space_cache = true;
   /// FFTW threads: 0 = automatic (all OpenMP threads for grids of >= 2^20 points, one
   /// below, where thread synchronisation costs more than it saves on a loaded machine).
   int fft_threads = 0;
@@ -111,6 +119,7 @@ struct PseParameters {
   double lanczos_tolerance = 0.0;             ///< real-space sample tolerance
   bool wave_single = false;                   ///< wave-space grids in single precision
   std::size_t memory_bytes = 0;               ///< grids + spectra + tables
+  std::size_t real_space_cache_bytes = 0;     ///< pair cache for the current positions (0: none)
   double modelled_cost = 0.0;                 ///< T(xi) of the cost model (s), for reference
 
   /// One-line human-readable summary.
