@@ -278,7 +278,7 @@ RPYFMM_DIRECT_AVX512 inline PairLanes load_pair_lanes(const T* c, const __m512d 
 /// slots, acc[4 self + c] += sum_t B_st f_t and acc[4 t + c] += B_st f_s (B is symmetric: e
 /// changes sign with the pair's direction and appears twice). With a cache (design note 23), the
 /// lanes of chunk q are stored at cache + 5 q and read back, so that the products that later read
-/// them apply the very same blocks.
+/// them apply the very same blocks (T = float or double; void: no cache).
 template <class T>
 RPYFMM_DIRECT_AVX512 void packed_half_row_avx512(const int* nb, std::size_t count, std::size_t self,
                                                  const double* packed, const double* table, double inv_dr,
@@ -291,7 +291,7 @@ RPYFMM_DIRECT_AVX512 void packed_half_row_avx512(const int* nb, std::size_t coun
     __m512d v[6];
     const __mmask8 m = load_chunk(nb, count, q, self, packed, v);
     PairLanes p = pair_lanes(fr, v, table);
-    if (cache != nullptr) {
+    if constexpr (!std::is_void_v<T>) {
       const __m512d origin[2] = {_mm512_set1_pd(table[0]), _mm512_set1_pd(table[1])};
       store_pair_lanes(cache + 5 * q, p, origin);
       p = load_pair_lanes(cache + 5 * q, origin);
@@ -527,6 +527,7 @@ void RealSpaceSum::set_positions(std::span<const double> x) {
   cache_on_ = cache_ != PairCache::off && half_ && use_table_ && fmm::detail::avx512_kernels_active() &&
               cache_bytes_ <= cache_limit_;
   cache_ready_ = false;
+  reused_ = false;
   if (cache_on_) {
     cache_store_.resize(cache_bytes_ / sizeof(double) + 8);
   } else {
@@ -594,23 +595,28 @@ void sweep_half_rows(const Blocks& colours, std::size_t n, std::size_t nrhs, Row
 }  // namespace
 
 void RealSpaceSum::apply_half_avx512(const double* packed, const double* table, double inv_dr, const double L[3],
-                                     const double inv_L[3], std::size_t nrhs, double* acc) const {
+                                     const double inv_L[3], std::size_t nrhs, bool fill_cache, double* acc) const {
 #if defined(RPYFMM_HAVE_DIRECT_AVX512)
   const std::size_t n = order_.size();
-  const bool fill = cache_on_ && !cache_ready_;
-  auto sweep = [&](auto* cache) {
+  const bool fill = fill_cache && cache_on_ && !cache_ready_;
+  auto sweep = [&](auto* cache) {  // void*: no cache
+    using T = std::remove_pointer_t<decltype(cache)>;
     sweep_half_rows(half_blocks_, n, nrhs, [&](std::size_t s, std::size_t r) {
+      T* chunk = nullptr;
+      if constexpr (!std::is_void_v<T>) chunk = cache + 40 * chunk_begin_[s];
       packed_half_row_avx512(list_.data() + upper_[s], begin_[s + 1] - upper_[s], s, packed + 8 * r * n, table, inv_dr,
-                             L, inv_L, acc + 4 * r * n, cache != nullptr ? cache + 40 * chunk_begin_[s] : cache);
+                             L, inv_L, acc + 4 * r * n, chunk);
     });
   };
-  if (cache_ == PairCache::single_precision)
-    sweep(fill ? static_cast<float*>(cache_data()) : static_cast<float*>(nullptr));
+  if (!fill)
+    sweep(static_cast<void*>(nullptr));
+  else if (cache_ == PairCache::single_precision)
+    sweep(static_cast<float*>(cache_data()));
   else
-    sweep(fill ? static_cast<double*>(cache_data()) : static_cast<double*>(nullptr));
+    sweep(static_cast<double*>(cache_data()));
   cache_ready_ = cache_ready_ || fill;
 #else
-  (void)packed, (void)table, (void)inv_dr, (void)L, (void)inv_L, (void)nrhs, (void)acc;
+  (void)packed, (void)table, (void)inv_dr, (void)L, (void)inv_L, (void)nrhs, (void)fill_cache, (void)acc;
 #endif
 }
 
@@ -673,11 +679,14 @@ void RealSpaceSum::input_order_lists(std::vector<std::size_t>& begin, std::vecto
 }
 
 void RealSpaceSum::apply(const double* forces, double* out, std::size_t nrhs, bool accumulate) const {
-  apply_mapped(forces, out, nrhs, accumulate, order_.data());
+  // The first product after set_positions does not fill the pair cache (one product per
+  // positions, M F in a time step, gains nothing from it); a second one does.
+  apply_mapped(forces, out, nrhs, accumulate, order_.data(), reused_);
+  reused_ = true;
 }
 
 void RealSpaceSum::apply_slots(const double* forces, double* out, std::size_t nrhs) const {
-  apply_mapped(forces, out, nrhs, false, nullptr);
+  apply_mapped(forces, out, nrhs, false, nullptr, true);  // Lanczos: several products follow
 }
 
 void RealSpaceSum::to_slots(const double* in, double* out) const {
@@ -693,7 +702,7 @@ void RealSpaceSum::from_slots(const double* in, double* out) const {
 }
 
 void RealSpaceSum::apply_mapped(const double* forces, double* out, std::size_t nrhs, bool accumulate,
-                                const std::size_t* map) const {
+                                const std::size_t* map, bool fill_cache) const {
   // U_i = M0 [ F(0) F_i + sum_{j in r_cut} (F (I - rr) + G rr) F_j ]   ([PSE] eq. 10, A1-A4)
   const std::size_t n = order_.size();
   auto index = [map](std::size_t s) { return map != nullptr ? map[s] : s; };
@@ -733,7 +742,8 @@ void RealSpaceSum::apply_mapped(const double* forces, double* out, std::size_t n
     const bool half = half_;
     const bool cached = half && cache_on_ && cache_ready_;
     const std::size_t width = cached ? 4 : 8, force_at = cached ? 0 : 3;
-    packed_.resize(width * (n * nrhs + 1));
+    // (Never shrunk: growing back would zero-fill the tail at every switch of width.)
+    if (packed_.size() < width * (n * nrhs + 1)) packed_.resize(width * (n * nrhs + 1));
     double* packed = packed_.data();
     packed += (width - (reinterpret_cast<std::uintptr_t>(packed) / sizeof(double)) % width) % width;
     if (half) acc_.resize(4 * n * nrhs + 4);
@@ -760,7 +770,7 @@ void RealSpaceSum::apply_mapped(const double* forces, double* out, std::size_t n
       if (cached) {
         apply_cached_avx512(packed, nrhs, acc);
       } else {
-        apply_half_avx512(packed, table, inv_dr, L, inv_L, nrhs, acc);
+        apply_half_avx512(packed, table, inv_dr, L, inv_L, nrhs, fill_cache, acc);
       }
       for_each_row(packed_force, [&](std::size_t s, std::size_t r, double* u) {
         for (std::size_t d = 0; d < 3; ++d) u[d] += acc[4 * (r * n + s) + d];

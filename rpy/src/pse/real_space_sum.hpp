@@ -7,9 +7,9 @@
 // slot order once, so that a row reads its neighbours' positions and forces from a few nearby
 // cache lines instead of from all over the input arrays (design note 16). Where the AVX-512
 // kernels run, each pair is evaluated once for both of its rows (half lists, design note 22),
-// and the first product after set_positions keeps each pair's block (F, G, r^) in a pair cache
-// that the later products with the same positions read instead of evaluating the pair again
-// (design note 23): the Lanczos iterations of the split sampler.
+// and a product after set_positions (the second one, or the first of the split sampler's
+// Lanczos) keeps each pair's block (F, G, r^) in a pair cache that the later products with the
+// same positions read instead of evaluating the pair again (design note 23).
 #pragma once
 
 #include <array>
@@ -35,11 +35,12 @@ class RealSpaceSum {
 
   /// Cell order and neighbour lists (CSR over slots, ascending) for positions wrapped into the box.
   void set_positions(std::span<const double> x);
-  /// U (+)= M_r F for nrhs right-hand sides (3N each, stored one after another).
+  /// U (+)= M_r F for nrhs right-hand sides (3N each, stored one after another). The pair cache
+  /// is filled by the second product after set_positions (the first may be the only one).
   void apply(const double* forces, double* out, std::size_t nrhs, bool accumulate) const;
   /// U = M_r F with F and U in slot order (3 per slot, slot = position in cell order), nrhs of
   /// them: the same products without the gather from and the scatter to input order, for
-  /// iterations that stay in slot order (the split sampler's Lanczos).
+  /// iterations that stay in slot order (the split sampler's Lanczos). Fills the pair cache at once.
   void apply_slots(const double* forces, double* out, std::size_t nrhs) const;
   /// out[3 s + d] = in[3 i(s) + d] (input -> slot order) and its inverse, one 3N vector.
   void to_slots(const double* in, double* out) const;
@@ -105,9 +106,12 @@ class RealSpaceSum {
   std::vector<std::size_t> chunk_begin_;
   mutable std::vector<double> cache_store_;  // 64-byte aligned inside (cache_data())
   mutable bool cache_ready_ = false;
+  mutable bool reused_ = false;  // apply() ran since set_positions: the next one fills the cache
   [[nodiscard]] void* cache_data() const;
-  /// apply / apply_slots: particle i(s) = map[s] (input order), or s where map is null.
-  void apply_mapped(const double* forces, double* out, std::size_t nrhs, bool accumulate, const std::size_t* map) const;
+  /// apply / apply_slots: particle i(s) = map[s] (input order), or s where map is null;
+  /// fill_cache: this product fills the pair cache (where it is kept and not yet filled).
+  void apply_mapped(const double* forces, double* out, std::size_t nrhs, bool accumulate, const std::size_t* map,
+                    bool fill_cache) const;
   std::array<std::vector<std::vector<SlotRange>>, 4> half_blocks_;  // per colour: blocks of slot ranges
   mutable std::vector<double> acc_;                                 // half-list sums, 4 doubles per slot and rhs
   void plan_half_blocks(const std::array<int, 3>& nc, const std::vector<std::size_t>& cell_begin);
@@ -115,7 +119,7 @@ class RealSpaceSum {
   /// is kept and not yet filled; and the half rows from the filled cache on force rows (fx, fy,
   /// fz, 0).
   void apply_half_avx512(const double* packed, const double* table, double inv_dr, const double L[3],
-                         const double inv_L[3], std::size_t nrhs, double* acc) const;
+                         const double inv_L[3], std::size_t nrhs, bool fill_cache, double* acc) const;
   void apply_cached_avx512(const double* forces, std::size_t nrhs, double* acc) const;
 };
 

@@ -61,9 +61,10 @@ struct PseOptions {
   double lanczos_tolerance = 0.0;
   /// Evaluate F, G from a linear table (true) or from the closed forms per pair (false).
   bool real_space_table = true;
-  /// Keep each real-space pair's block (F, G and the direction) from the first product after
-  /// set_positions and reuse it in the later products with the same positions (the Lanczos
-  /// iterations of the split sampler, M F in a BD step): 1.3-1.6x faster later products
+  /// Keep each real-space pair's block (F, G and the direction) and reuse it in the later products
+  /// with the same positions: the split sampler's Lanczos keeps them from its first product (its
+  /// later iterations and M F in a BD step reuse them), apply() from the second product after
+  /// set_positions (a single M F per positions pays nothing): 1.3-1.6x faster later products
   /// (bench/pse/RESULTS.md, session 13). Kept in float with single-precision wave grids
   /// (wave_precision), else in double: 20 or 40 bytes per pair within r_cut, kept only while it
   /// fits in max_memory_bytes beside the grids (PseParameters::real_space_cache_bytes). Where
