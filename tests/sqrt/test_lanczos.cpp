@@ -6,6 +6,8 @@
 #include <cmath>
 #include <vector>
 
+#include "../../rpy/src/sqrt/detail.hpp"  // dots, subtract_combination
+#include "../../rpy/src/sqrt/krylov.hpp"  // LanczosProcess
 #include "rpyfmm/core/error.hpp"
 #include "sqrt_test_util.hpp"
 
@@ -217,3 +219,61 @@ TEST(Lanczos, MaxIterations) {
 }
 
 }  // namespace
+
+TEST(Lanczos, ReorthogonalizedBasisStaysOrthonormal) {
+  // Eigenvalues spread geometrically over 1e-8 ... 1: the largest Ritz values converge within a
+  // few steps, and plain Lanczos then loses the orthogonality of its basis (Paige). With full
+  // reorthogonalization (classical Gram-Schmidt twice) the basis of 80 steps stays orthonormal
+  // to round-off: |V^T V - I| <= 1e-12 (n = 400, unit round-off 1.1e-16 times a few hundred
+  // terms); without it the same run is far from orthonormal, so the test can tell the two apart.
+  const int n = 400, steps = 80;
+  Eigen::VectorXd lambda(n);
+  for (int i = 0; i < n; ++i) lambda[i] = std::pow(10.0, -8.0 * i / (n - 1));
+  const Eigen::VectorXd z = sqrt_test::gaussian(n, 5);
+  auto basis_error = [&](bool reorthogonalize) {
+    sqrt_detail::LanczosProcess process(n, reorthogonalize);
+    process.start(z.data());
+    Eigen::VectorXd y(n);
+    for (int it = 0; it < steps; ++it) {
+      y = lambda.cwiseProduct(Eigen::Map<const Eigen::VectorXd>(process.current(), n));
+      EXPECT_FALSE(process.step(y.data(), "test", 0)) << "breakdown at step " << it;
+    }
+    Eigen::MatrixXd V(n, steps);
+    for (int k = 0; k < steps; ++k) {
+      Eigen::VectorXd unit = Eigen::VectorXd::Unit(steps, k);
+      Eigen::VectorXd v(n);
+      process.combine(unit, v.data());
+      V.col(k) = v;
+    }
+    return (V.transpose() * V - Eigen::MatrixXd::Identity(steps, steps)).cwiseAbs().maxCoeff();
+  };
+  EXPECT_LE(basis_error(true), 1e-12);
+  EXPECT_GE(basis_error(false), 1e-3);
+}
+
+TEST(Lanczos, GramSchmidtKernels) {
+  // dots() gives dot() of every vector bit for bit (same chunks, same order), for lengths below,
+  // at and above the chunk of 4096 and with 1 and 2 threads; subtract_combination() against the
+  // sum written out.
+  for (const std::size_t n : {std::size_t{7}, std::size_t{4096}, std::size_t{20011}}) {
+    std::vector<std::vector<double>> v;
+    for (std::uint32_t q = 0; q < 5; ++q) {
+      const Eigen::VectorXd g = sqrt_test::gaussian(static_cast<Eigen::Index>(n), 10 + q);
+      v.emplace_back(g.data(), g.data() + n);
+    }
+    const Eigen::VectorXd yv = sqrt_test::gaussian(static_cast<Eigen::Index>(n), 20);
+    std::vector<double> y(yv.data(), yv.data() + n), h(v.size());
+    const int saved = omp_get_max_threads();
+    for (int threads : {1, 2}) {
+      omp_set_num_threads(threads);
+      sqrt_detail::dots(v, y.data(), n, h.data());
+      for (std::size_t q = 0; q < v.size(); ++q) EXPECT_EQ(h[q], sqrt_detail::dot(v[q].data(), y.data(), n));
+    }
+    omp_set_num_threads(saved);
+    std::vector<double> expected = y, got = y;
+    for (std::size_t i = 0; i < n; ++i)
+      for (std::size_t q = 0; q < v.size(); ++q) expected[i] -= h[q] * v[q][i];
+    sqrt_detail::subtract_combination(v, h.data(), got.data(), n);
+    for (std::size_t i = 0; i < n; ++i) EXPECT_NEAR(got[i], expected[i], 1e-13 * (1.0 + std::abs(expected[i])));
+  }
+}

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <numbers>
 #include <type_traits>
 
@@ -529,14 +530,23 @@ void RealSpaceSum::set_positions(std::span<const double> x) {
   cache_ready_ = false;
   reused_ = false;
   if (cache_on_) {
-    cache_store_.resize(cache_bytes_ / sizeof(double) + 8);
+    // Grown with 25% headroom and never value-initialized (the filling product writes every
+    // chunk): the pair count changes a little at every step, and a std::vector would copy and
+    // zero-fill tens of MB whenever it grows.
+    const std::size_t need = cache_bytes_ / sizeof(double) + 8;
+    if (cache_capacity_ < need) {
+      cache_store_.reset();
+      cache_capacity_ = need + need / 4;
+      cache_store_ = std::make_unique_for_overwrite<double[]>(cache_capacity_);
+    }
   } else {
-    std::vector<double>().swap(cache_store_);
+    cache_store_.reset();
+    cache_capacity_ = 0;
   }
 }
 
 void* RealSpaceSum::cache_data() const {
-  double* c = cache_store_.data();
+  double* c = cache_store_.get();
   return c + (8 - (reinterpret_cast<std::uintptr_t>(c) / sizeof(double)) % 8) % 8;  // 64-byte aligned
 }
 

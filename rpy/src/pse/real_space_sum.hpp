@@ -14,6 +14,7 @@
 
 #include <array>
 #include <cstddef>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -104,7 +105,8 @@ class RealSpaceSum {
   bool cache_on_ = false;  // cache kept for these positions (half lists, within the limit)
   std::size_t cache_bytes_ = 0;
   std::vector<std::size_t> chunk_begin_;
-  mutable std::vector<double> cache_store_;  // 64-byte aligned inside (cache_data())
+  std::unique_ptr<double[]> cache_store_;  // 64-byte aligned inside (cache_data())
+  std::size_t cache_capacity_ = 0;         // doubles allocated
   mutable bool cache_ready_ = false;
   mutable bool reused_ = false;  // apply() ran since set_positions: the next one fills the cache
   [[nodiscard]] void* cache_data() const;

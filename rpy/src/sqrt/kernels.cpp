@@ -51,8 +51,46 @@ void scale(double a, double* x, std::size_t n) {
   for (std::int64_t i = 0; i < nn; ++i) x[i] *= a;
 }
 
-void apply_checked(const LinearOperatorView& op, const double* x, double* y, std::size_t nrhs,
-                   SqrtReport& report, const char* where) {
+void dots(const std::vector<std::vector<double>>& v, const double* y, std::size_t n, double* h) {
+  const std::size_t m = v.size();
+  const std::size_t nchunks = std::max<std::size_t>(1, (n + kChunk - 1) / kChunk);
+  std::vector<double> partial(nchunks * m);
+  const auto nc = static_cast<std::int64_t>(nchunks);
+#pragma omp parallel for schedule(static) if (n > 4 * kChunk)
+  for (std::int64_t c = 0; c < nc; ++c) {
+    const std::size_t lo = static_cast<std::size_t>(c) * kChunk;
+    const std::size_t hi = std::min(n, lo + kChunk);
+    for (std::size_t q = 0; q < m; ++q) {  // the chunk of y stays in L1 across the vectors
+      const double* x = v[q].data();
+      double s = 0.0;
+      for (std::size_t i = lo; i < hi; ++i) s += x[i] * y[i];
+      partial[static_cast<std::size_t>(c) * m + q] = s;
+    }
+  }
+  for (std::size_t q = 0; q < m; ++q) {
+    double s = 0.0;
+    for (std::size_t c = 0; c < nchunks; ++c) s += partial[c * m + q];
+    h[q] = s;
+  }
+}
+
+void subtract_combination(const std::vector<std::vector<double>>& v, const double* h, double* y, std::size_t n) {
+  const std::size_t nchunks = (n + kChunk - 1) / kChunk;
+  const auto nc = static_cast<std::int64_t>(nchunks);
+#pragma omp parallel for schedule(static) if (n > 4 * kChunk)
+  for (std::int64_t c = 0; c < nc; ++c) {
+    const std::size_t lo = static_cast<std::size_t>(c) * kChunk;
+    const std::size_t hi = std::min(n, lo + kChunk);
+    for (std::size_t q = 0; q < v.size(); ++q) {
+      const double* x = v[q].data();
+      const double a = h[q];
+      for (std::size_t i = lo; i < hi; ++i) y[i] -= a * x[i];
+    }
+  }
+}
+
+void apply_checked(const LinearOperatorView& op, const double* x, double* y, std::size_t nrhs, SqrtReport& report,
+                   const char* where) {
   op.apply(std::span<const double>(x, op.n * nrhs), std::span<double>(y, op.n * nrhs), nrhs);
   ++report.operator_applications;
   report.vector_products += static_cast<long long>(nrhs);
