@@ -405,44 +405,84 @@ void RealSpaceSum::set_positions(std::span<const double> x) {
   const auto& px = pos_[0];
   const auto& py = pos_[1];
   const auto& pz = pos_[2];
-  // d2[q] = |x_s - x_{t0 + q}|^2 (minimum image), q < count.
-  auto squared_distances = [&](std::size_t s, std::size_t t0, std::size_t count, double* __restrict d2) {
+  // d2[q] = |x_s - x_{t0 + q} - shift|^2, q < count: the neighbour's periodic image is fixed per
+  // neighbour cell (shift 0 or +-L per axis, below); without cells (shift null), minimum image.
+  auto squared_distances = [&](std::size_t s, std::size_t t0, std::size_t count, const double* shift,
+                               double* __restrict d2) {
     const double xs = px[s], ys = py[s], zs = pz[s];
     const double* __restrict xt = px.data() + t0;
     const double* __restrict yt = py.data() + t0;
     const double* __restrict zt = pz.data() + t0;
+    if (shift == nullptr) {
+#pragma omp simd
+      for (std::size_t q = 0; q < count; ++q) {
+        const double dx = minimum_image(xs - xt[q], box_[0], inv[0]);
+        const double dy = minimum_image(ys - yt[q], box_[1], inv[1]);
+        const double dz = minimum_image(zs - zt[q], box_[2], inv[2]);
+        d2[q] = dx * dx + dy * dy + dz * dz;
+      }
+      return;
+    }
+    const double sx = shift[0], sy = shift[1], sz = shift[2];
 #pragma omp simd
     for (std::size_t q = 0; q < count; ++q) {
-      const double dx = minimum_image(xs - xt[q], box_[0], inv[0]);
-      const double dy = minimum_image(ys - yt[q], box_[1], inv[1]);
-      const double dz = minimum_image(zs - zt[q], box_[2], inv[2]);
+      const double dx = (xs - xt[q]) - sx, dy = (ys - yt[q]) - sy, dz = (zs - zt[q]) - sz;
       d2[q] = dx * dx + dy * dy + dz * dz;
     }
   };
-  // Neighbour cells of cell c in ascending order: slots are numbered cell by cell, so each row
-  // then lists its neighbours in ascending slot order without a sort. Without cells, one
-  // pseudo-cell holds every slot.
+  // The 27 neighbour cells of cell c in ascending id order, merged into runs of consecutive ids
+  // with the same image shift (a z column of three cells is one run of consecutive slots unless
+  // it wraps): slots are numbered cell by cell, so each row then lists its neighbours in
+  // ascending slot order without a sort. The shift along an axis is +L where the neighbour cell
+  // wrapped past the last layer, -L where it wrapped below the first, else 0: with >= 3 cells of
+  // edge >= r_cut per axis, a pair within r_cut has that image as its minimum image (any other
+  // image is >= L - 2 h >= h >= r_cut away along the axis), and x_s - x_t -+ L is rounded as
+  // minimum_image rounds it. Without cells, one pseudo-cell holds every slot (minimum image).
+  struct CellRun {
+    std::size_t first, end;  // cells [first, end)
+    double shift[3];
+  };
   if (!cells) cell_begin = {0, n};
   const std::size_t ncell = cell_begin.size() - 1;
-  auto neighbour_cells = [&](std::size_t c, std::array<std::size_t, 27>& out) -> int {
+  auto neighbour_runs = [&](std::size_t c, std::array<CellRun, 27>& out) -> int {
     if (!cells) {
-      out[0] = 0;
+      out[0] = {0, 1, {0.0, 0.0, 0.0}};
       return 1;
     }
     const auto nyz = static_cast<std::size_t>(nc[1]) * static_cast<std::size_t>(nc[2]);
     const int c0[3] = {static_cast<int>(c / nyz), static_cast<int>((c / static_cast<std::size_t>(nc[2])) % nc[1]),
                        static_cast<int>(c % static_cast<std::size_t>(nc[2]))};
+    std::array<CellRun, 27> one{};
     int k = 0;
     for (int ax = -1; ax <= 1; ++ax)
       for (int ay = -1; ay <= 1; ++ay)
         for (int az = -1; az <= 1; ++az) {
-          const int cx = (c0[0] + ax + nc[0]) % nc[0];
-          const int cy = (c0[1] + ay + nc[1]) % nc[1];
-          const int cz = (c0[2] + az + nc[2]) % nc[2];
-          out[static_cast<std::size_t>(k++)] = (static_cast<std::size_t>(cx) * nc[1] + cy) * nc[2] + cz;
+          const int a[3] = {ax, ay, az};
+          int id[3];
+          CellRun& r = one[static_cast<std::size_t>(k++)];
+          for (int d = 0; d < 3; ++d) {
+            const int u = c0[d] + a[d];
+            id[d] = (u + nc[d]) % nc[d];
+            r.shift[d] = u >= nc[d] ? box_[static_cast<std::size_t>(d)]
+                         : u < 0    ? -box_[static_cast<std::size_t>(d)]
+                                    : 0.0;
+          }
+          r.first = (static_cast<std::size_t>(id[0]) * nc[1] + id[1]) * nc[2] + id[2];
+          r.end = r.first + 1;
         }
-    std::sort(out.begin(), out.end());  // 27 distinct cells: nc >= 3 along every axis
-    return k;
+    // 27 distinct cells: nc >= 3 along every axis.
+    std::sort(one.begin(), one.end(), [](const CellRun& p, const CellRun& q) { return p.first < q.first; });
+    int m = 0;
+    for (const CellRun& r : one) {
+      CellRun* last = m > 0 ? &out[static_cast<std::size_t>(m - 1)] : nullptr;
+      if (last != nullptr && last->end == r.first && last->shift[0] == r.shift[0] && last->shift[1] == r.shift[1] &&
+          last->shift[2] == r.shift[2]) {
+        last->end = r.end;
+      } else {
+        out[static_cast<std::size_t>(m++)] = r;
+      }
+    }
+    return m;
   };
   // Where the half-list rows will run (AVX-512 with the table on a cell grid), only the pairs
   // t > s are listed (neighbour cells of larger id, and the later slots of the own cell): half
@@ -462,26 +502,27 @@ void RealSpaceSum::set_positions(std::span<const double> x) {
     // candidate cell, no shared vector headers written per candidate: block_list's headers
     // are adjacent in memory, and writing them from two threads at every resize made the
     // build slower with 2 threads than with 1), then are copied out once per block.
-    std::array<std::size_t, 27> nbr{};
-    std::vector<double> d2;  // squared distances to one neighbour cell's slots
+    std::array<CellRun, 27> runs{};
+    std::vector<double> d2;  // squared distances to one run's slots
     std::vector<int> buf;
 #pragma omp for schedule(dynamic, 1)
     for (std::int64_t b = 0; b < nb; ++b) {
       std::size_t used = 0;
       const std::size_t c_end = std::min(ncell, (static_cast<std::size_t>(b) + 1) * block_cells);
       for (std::size_t c = static_cast<std::size_t>(b) * block_cells; c < c_end; ++c) {
-        const int m = neighbour_cells(c, nbr);
+        const int m = neighbour_runs(c, runs);
         for (std::size_t s = cell_begin[c]; s < cell_begin[c + 1]; ++s) {
           const std::size_t before = used;
           for (int k = 0; k < m; ++k) {
-            const std::size_t cn = nbr[static_cast<std::size_t>(k)];
-            if (half_lists_ && cn < c) continue;
-            const std::size_t t0 = half_lists_ && cn == c ? s + 1 : cell_begin[cn];
-            const std::size_t count = cell_begin[cn + 1] - t0;
+            const CellRun& run = runs[static_cast<std::size_t>(k)];
+            if (half_lists_ && run.end <= c) continue;
+            // Half lists: the cells of larger id and the later slots of the own cell.
+            const std::size_t t0 = !half_lists_ ? cell_begin[run.first] : run.first > c ? cell_begin[run.first] : s + 1;
+            const std::size_t count = cell_begin[run.end] - t0;
             // Distances first (a loop that vectorizes), then a branch-free compaction: about one
             // candidate in six is kept, so a branch per candidate would mostly mispredict.
             if (d2.size() < count) d2.resize(count);
-            squared_distances(s, t0, count, d2.data());
+            squared_distances(s, t0, count, cells ? run.shift : nullptr, d2.data());
             if (buf.size() < used + count) buf.resize(2 * (used + count));
             int* out = buf.data();
             for (std::size_t q = 0; q < count; ++q) {
