@@ -340,6 +340,10 @@ RPYFMM_DIRECT_AVX512 void cached_half_row_avx512(const int* nb, std::size_t coun
     __m512d f[3];
     transpose_forces(rows, f);
     const auto m = left >= 8 ? static_cast<__mmask8>(0xFF) : static_cast<__mmask8>((1u << left) - 1u);
+    // The cache is streamed once per product: prefetch ~1 KB ahead (1.15-1.2x on this kernel
+    // at 64 MB of cache; 0.5-4 KB ahead did about as well).
+    const char* ahead = reinterpret_cast<const char*>(cache + 5 * q) + 1024;
+    for (std::size_t line = 0; line < 40 * sizeof(T); line += 64) _mm_prefetch(ahead + line, _MM_HINT_T0);
     const PairLanes p = load_pair_lanes(cache + 5 * q, origin);
     __m512d b[3], back[3];
     block_times(p, f, b);
