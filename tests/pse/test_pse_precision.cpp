@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <string>
 
+#include "../../rpy/src/pse/kernels_common.hpp"  // window weights
 #include "ewald_reference.hpp"
 #include "rpyfmm/core/error.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
@@ -125,5 +126,33 @@ TEST(PsePrecision, CudaBackendRefusesSinglePrecision) {
 #if defined(RPYFMM_HAVE_CUDA_PSE)
     EXPECT_NE(std::string(e.what()).find("wave_precision"), std::string::npos) << e.what();
 #endif
+  }
+}
+
+TEST(PsePrecision, WindowWeightRecurrenceMatchesExponentials) {
+  // The CPU wave space computes the Gaussian window weights by the fast-Gaussian-gridding
+  // recurrence (two exponentials per axis); the CUDA kernels by one exponential per point.
+  // Same first index, and weights within 1e-12 relative, over positions across the box (wrapped
+  // windows included), supports 4-16 and window widths 0.5-1.5 grid spacings. Neither is exact:
+  // both round the distance d = x_l - x to ~ulp(x) (7e-15 at x = 35), which changes the exponent
+  // d^2 / 2 sigma^2 by up to |d| ulp(x) / sigma^2 (~3e-13 at the edge of a 16-point window of
+  // width 0.5 h); the products of the recurrence add P ulps. Far below the 1e-8 the tolerance
+  // range needs.
+  const int n = 50;
+  const double h = 0.7;
+  for (int P : {4, 6, 7, 12, 16}) {
+    for (double sigma_over_h : {0.5, 1.0, 1.5}) {
+      const double sigma = sigma_over_h * h, inv_2s2 = 1.0 / (2.0 * sigma * sigma);
+      std::vector<double> tail(static_cast<std::size_t>(P)), exact(tail.size()), fast(tail.size());
+      for (int l = 0; l < P; ++l) tail[static_cast<std::size_t>(l)] = std::exp(-(l * h) * (l * h) * inv_2s2);
+      const auto x = pse_test::random_points(400, {n * h, n * h, n * h}, 91);
+      for (double xi : x) {
+        const int s_exact = detail::window_weights(xi, h, P, n, inv_2s2, exact.data());
+        const int s_fast = detail::window_weights_recurrence(xi, h, P, n, inv_2s2, tail.data(), fast.data());
+        ASSERT_EQ(s_exact, s_fast) << "x = " << xi;
+        for (std::size_t l = 0; l < exact.size(); ++l)
+          ASSERT_NEAR(fast[l], exact[l], 1e-12 * exact[l]) << "P = " << P << ", x = " << xi << ", l = " << l;
+      }
+    }
   }
 }

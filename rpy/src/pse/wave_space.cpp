@@ -306,12 +306,21 @@ void WaveGrid<Real>::set_positions(std::span<const double> x) {
   start_.resize(3 * np_);
   weights_.resize(static_cast<std::size_t>(pw) * np_);
   const double inv_2s2 = 1.0 / (2.0 * p_.sigma * p_.sigma);
+  std::array<std::vector<double>, 3> tail;  // exp(-l^2 h_d^2 / (2 sigma^2)), l < P_d
+  for (std::size_t d = 0; d < 3; ++d) {
+    tail[d].resize(static_cast<std::size_t>(P_[d]));
+    for (int l = 0; l < P_[d]; ++l) {
+      const double lh = l * p_.spacing[d];
+      tail[d][static_cast<std::size_t>(l)] = std::exp(-lh * lh * inv_2s2);
+    }
+  }
   const auto np = static_cast<std::int64_t>(np_);
 #pragma omp parallel for schedule(static) if (np_ >= 1024)
   for (std::int64_t i = 0; i < np; ++i) {
     double* w = &weights_[static_cast<std::size_t>(i) * pw];
-    for (int d = 0; d < 3; ++d) {
-      start_[3 * i + d] = window_weights(x[3 * i + d], p_.spacing[d], P_[d], n_[d], inv_2s2, w);
+    for (std::size_t d = 0; d < 3; ++d) {
+      start_[3 * i + d] =
+          window_weights_recurrence(x[3 * i + d], p_.spacing[d], P_[d], n_[d], inv_2s2, tail[d].data(), w);
       w += P_[d];
     }
   }
