@@ -1,7 +1,7 @@
 // PSE real-space pair cache (PseOptions::real_space_cache, design note 23): the first product after
 // set_positions keeps every pair's block, the later ones read it. Against the same operator
-// without the cache; every product applies the same operator; new positions refill it; the
-// memory limit and the option turn it off.
+// without the cache, for the AVX-512 half rows and the portable rows; every product applies the
+// same operator; new positions refill it; the memory limit and the option turn it off.
 #include <gtest/gtest.h>
 #include <omp.h>
 
@@ -40,6 +40,28 @@ PseOptions cached(double tolerance, bool cache) {
 
 const std::array<double, 3> kBox = {30.0, 26.0, 34.0};  // 3+ cells of r_cut along every axis
 
+/// The real-space kernels to run: the AVX-512 half rows (half-list chunk cache) where the CPU
+/// has them, and the portable rows (row cache, as on a CPU without AVX-512) everywhere.
+std::vector<bool> kernel_choices() {
+  std::vector<bool> avx512{false};
+  if (rpyfmm::fmm::detail::avx512_kernels_active()) avx512.push_back(true);
+  return avx512;
+}
+
+/// Selects the AVX-512 kernels or not for its lifetime (set_positions chooses the cache layout).
+class KernelScope {
+ public:
+  explicit KernelScope(bool avx512) : saved_(rpyfmm::fmm::detail::avx512_kernels_active()) {
+    rpyfmm::fmm::detail::use_avx512_kernels(avx512 && saved_);
+  }
+  ~KernelScope() { rpyfmm::fmm::detail::use_avx512_kernels(saved_); }
+  KernelScope(const KernelScope&) = delete;
+  KernelScope& operator=(const KernelScope&) = delete;
+
+ private:
+  bool saved_;
+};
+
 }  // namespace
 
 TEST(PsePairCache, CachedProductsMatchEvaluatedPairs) {
@@ -49,92 +71,119 @@ TEST(PsePairCache, CachedProductsMatchEvaluatedPairs) {
   // bound 1e-13. The first product after set_positions evaluates the pairs (bit for bit the
   // operator without the cache); the second fills the cache and the later ones (1 or 2 threads)
   // read it: the same rounded blocks, so these agree bit for bit.
-  if (!rpyfmm::fmm::detail::avx512_kernels_active()) GTEST_SKIP() << "the pair cache needs the AVX-512 kernels";
   auto x = pse_test::random_points(2000, kBox, 81);
   for (int d = 0; d < 3; ++d) x[3 * 7 + d] = x[3 * 900 + d];  // a coincident pair
   const std::size_t n = x.size() / 3, nrhs = 3;
   const auto f = uniform_components(n * nrhs, 82);
-  for (const auto& [eps, bound] : {std::pair{1e-3, 1e-6}, std::pair{1e-6, 1e-13}}) {
-    PseRpy with(Geometry::periodic(kBox[0], kBox[1], kBox[2]), 1.0, cached(eps, true));
-    PseRpy without(Geometry::periodic(kBox[0], kBox[1], kBox[2]), 1.0, cached(eps, false));
-    with.set_positions(x, 1.0);
-    without.set_positions(x, 1.0);
-    const std::size_t value = with.parameters().wave_single ? sizeof(float) : sizeof(double);
-    // Five values per pair, pairs in chunks of eight per half row: at least 5 x (pairs) values.
-    EXPECT_GE(with.parameters().real_space_cache_bytes, 5 * value * 2000);
-    EXPECT_EQ(without.parameters().real_space_cache_bytes, 0u);
-    const auto reference = real_product(without, f, nrhs);
-    const int saved = omp_get_max_threads();
-    omp_set_num_threads(1);
-    const auto first = real_product(with, f, nrhs);
-    const auto fill = real_product(with, f, nrhs);
-    const auto again = real_product(with, f, nrhs);
-    omp_set_num_threads(std::max(2, saved));
-    const auto two_threads = real_product(with, f, nrhs);
-    omp_set_num_threads(saved);
-    EXPECT_EQ(first, reference) << "tolerance " << eps;
-    EXPECT_LT(pse_test::rel_l2(fill, reference), bound) << "tolerance " << eps;
-    EXPECT_GT(pse_test::rel_l2(fill, reference), 0.0) << "tolerance " << eps << ": was the cache used?";
-    EXPECT_EQ(fill, again) << "tolerance " << eps;
-    EXPECT_EQ(fill, two_threads) << "tolerance " << eps;
-    // The whole operator and the split sampler (Lanczos on M_r in slot order) likewise.
-    std::vector<double> u_with(3 * n), u_without(3 * n), w_with(3 * n), w_without(3 * n);
-    with.apply(std::span<const double>(f.data(), 3 * n), u_with);
-    without.apply(std::span<const double>(f.data(), 3 * n), u_without);
-    EXPECT_LT(pse_test::rel_l2(u_with, u_without), bound) << "tolerance " << eps;
-    const auto r_with = with.sample(5, 1, w_with);
-    const auto r_without = without.sample(5, 1, w_without);
-    EXPECT_EQ(r_with.iterations, r_without.iterations);
-    EXPECT_LT(pse_test::rel_l2(w_with, w_without), 10 * bound) << "tolerance " << eps;
-  }
+  for (const bool avx512 : kernel_choices())
+    for (const auto& [eps, bound] : {std::pair{1e-3, 1e-6}, std::pair{1e-6, 1e-13}}) {
+      SCOPED_TRACE(avx512 ? "AVX-512 half rows" : "portable rows");
+      const KernelScope kernels(avx512);
+      PseRpy with(Geometry::periodic(kBox[0], kBox[1], kBox[2]), 1.0, cached(eps, true));
+      PseRpy without(Geometry::periodic(kBox[0], kBox[1], kBox[2]), 1.0, cached(eps, false));
+      with.set_positions(x, 1.0);
+      without.set_positions(x, 1.0);
+      const std::size_t value = with.parameters().wave_single ? sizeof(float) : sizeof(double);
+      // Five values per pair, pairs in chunks of eight per half row: at least 5 x (pairs) values.
+      EXPECT_GE(with.parameters().real_space_cache_bytes, 5 * value * 2000);
+      EXPECT_EQ(without.parameters().real_space_cache_bytes, 0u);
+      const auto reference = real_product(without, f, nrhs);
+      const int saved = omp_get_max_threads();
+      omp_set_num_threads(1);
+      const auto first = real_product(with, f, nrhs);
+      const auto fill = real_product(with, f, nrhs);
+      const auto again = real_product(with, f, nrhs);
+      omp_set_num_threads(std::max(2, saved));
+      const auto two_threads = real_product(with, f, nrhs);
+      omp_set_num_threads(saved);
+      EXPECT_EQ(first, reference) << "tolerance " << eps;
+      EXPECT_LT(pse_test::rel_l2(fill, reference), bound) << "tolerance " << eps;
+      EXPECT_GT(pse_test::rel_l2(fill, reference), 0.0) << "tolerance " << eps << ": was the cache used?";
+      EXPECT_EQ(fill, again) << "tolerance " << eps;
+      EXPECT_EQ(fill, two_threads) << "tolerance " << eps;
+      // The whole operator and the split sampler (Lanczos on M_r in slot order) likewise.
+      std::vector<double> u_with(3 * n), u_without(3 * n), w_with(3 * n), w_without(3 * n);
+      with.apply(std::span<const double>(f.data(), 3 * n), u_with);
+      without.apply(std::span<const double>(f.data(), 3 * n), u_without);
+      EXPECT_LT(pse_test::rel_l2(u_with, u_without), bound) << "tolerance " << eps;
+      const auto r_with = with.sample(5, 1, w_with);
+      const auto r_without = without.sample(5, 1, w_without);
+      EXPECT_EQ(r_with.iterations, r_without.iterations);
+      EXPECT_LT(pse_test::rel_l2(w_with, w_without), 10 * bound) << "tolerance " << eps;
+    }
 }
 
 TEST(PsePairCache, NewPositionsRefillTheCache) {
   // After set_positions the cache holds the new pairs: products after a move match an operator
   // that never cached, for a move that changes the neighbour lists.
-  if (!rpyfmm::fmm::detail::avx512_kernels_active()) GTEST_SKIP() << "the pair cache needs the AVX-512 kernels";
-  auto x = pse_test::random_points(1500, kBox, 83);
-  const auto f = uniform_components(x.size(), 84);
-  PseRpy with(Geometry::periodic(kBox[0], kBox[1], kBox[2]), 1.0, cached(1e-3, true));
-  with.set_positions(x, 1.0);
-  for (int k = 0; k < 3; ++k) (void)real_product(with, f, 1);  // fills the cache, then reads it
-  const auto step = uniform_components(x.size(), 85);
-  for (std::size_t i = 0; i < x.size(); ++i) x[i] += 1.5 * step[i];
-  with.set_positions(x, 1.0);  // particles leaving the box are wrapped
-  PseRpy without(Geometry::periodic(kBox[0], kBox[1], kBox[2]), 1.0, cached(1e-3, false));
-  without.set_positions(x, 1.0);
-  const auto reference = real_product(without, f, 1);
-  for (int k = 0; k < 3; ++k)  // evaluated, filling, cached
-    EXPECT_LT(pse_test::rel_l2(real_product(with, f, 1), reference), 1e-6) << "product " << k;
+  for (const bool avx512 : kernel_choices()) {
+    SCOPED_TRACE(avx512 ? "AVX-512 half rows" : "portable rows");
+    const KernelScope kernels(avx512);
+    auto x = pse_test::random_points(1500, kBox, 83);
+    const auto f = uniform_components(x.size(), 84);
+    PseRpy with(Geometry::periodic(kBox[0], kBox[1], kBox[2]), 1.0, cached(1e-3, true));
+    with.set_positions(x, 1.0);
+    for (int k = 0; k < 3; ++k) (void)real_product(with, f, 1);  // fills the cache, then reads it
+    const auto step = uniform_components(x.size(), 85);
+    for (std::size_t i = 0; i < x.size(); ++i) x[i] += 1.5 * step[i];
+    with.set_positions(x, 1.0);  // particles leaving the box are wrapped
+    PseRpy without(Geometry::periodic(kBox[0], kBox[1], kBox[2]), 1.0, cached(1e-3, false));
+    without.set_positions(x, 1.0);
+    const auto reference = real_product(without, f, 1);
+    ASSERT_GT(with.parameters().real_space_cache_bytes, 0u);
+    for (int k = 0; k < 3; ++k)  // evaluated, filling, cached
+      EXPECT_LT(pse_test::rel_l2(real_product(with, f, 1), reference), 1e-6) << "product " << k;
+  }
 }
 
-TEST(PsePairCache, MemoryLimitAndPortableKernelsTurnItOff) {
+TEST(PsePairCache, MemoryLimitTurnsItOff) {
   // A cache that would not fit in max_memory_bytes beside the grids is not kept, and the products
-  // are then those of the operator without it, bit for bit; likewise without the AVX-512 kernels.
-  if (!rpyfmm::fmm::detail::avx512_kernels_active()) GTEST_SKIP() << "the pair cache needs the AVX-512 kernels";
-  const auto x = pse_test::random_points(1500, kBox, 86);
-  const auto f = uniform_components(x.size(), 87);
-  PseRpy probe(Geometry::periodic(kBox[0], kBox[1], kBox[2]), 1.0, cached(1e-3, true));
-  probe.set_positions(x, 1.0);
-  const PseParameters p = probe.parameters();
-  ASSERT_GT(p.real_space_cache_bytes, 0u);
-  PseOptions tight = cached(1e-3, true);
-  tight.max_memory_bytes = p.memory_bytes + p.real_space_cache_bytes - 1;
-  PseRpy limited(Geometry::periodic(kBox[0], kBox[1], kBox[2]), 1.0, tight);
-  limited.set_positions(x, 1.0);
-  EXPECT_EQ(limited.parameters().real_space_cache_bytes, 0u);
-  tight.max_memory_bytes = p.memory_bytes + p.real_space_cache_bytes;
-  PseRpy fits(Geometry::periodic(kBox[0], kBox[1], kBox[2]), 1.0, tight);
-  fits.set_positions(x, 1.0);
-  EXPECT_EQ(fits.parameters().real_space_cache_bytes, p.real_space_cache_bytes);
+  // are then those of the operator without it, bit for bit.
+  for (const bool avx512 : kernel_choices()) {
+    SCOPED_TRACE(avx512 ? "AVX-512 half rows" : "portable rows");
+    const KernelScope kernels(avx512);
+    const auto x = pse_test::random_points(1500, kBox, 86);
+    const auto f = uniform_components(x.size(), 87);
+    PseRpy probe(Geometry::periodic(kBox[0], kBox[1], kBox[2]), 1.0, cached(1e-3, true));
+    probe.set_positions(x, 1.0);
+    const PseParameters p = probe.parameters();
+    ASSERT_GT(p.real_space_cache_bytes, 0u);
+    PseOptions tight = cached(1e-3, true);
+    tight.max_memory_bytes = p.memory_bytes + p.real_space_cache_bytes - 1;
+    PseRpy limited(Geometry::periodic(kBox[0], kBox[1], kBox[2]), 1.0, tight);
+    limited.set_positions(x, 1.0);
+    EXPECT_EQ(limited.parameters().real_space_cache_bytes, 0u);
+    tight.max_memory_bytes = p.memory_bytes + p.real_space_cache_bytes;
+    PseRpy fits(Geometry::periodic(kBox[0], kBox[1], kBox[2]), 1.0, tight);
+    fits.set_positions(x, 1.0);
+    EXPECT_EQ(fits.parameters().real_space_cache_bytes, p.real_space_cache_bytes);
+    PseRpy without(Geometry::periodic(kBox[0], kBox[1], kBox[2]), 1.0, cached(1e-3, false));
+    without.set_positions(x, 1.0);
+    const auto reference = real_product(without, f, 1);
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(real_product(limited, f, 1), reference) << "product " << k;
+  }
+}
+
+TEST(PsePairCache, KernelsSwitchedAfterSetPositions) {
+  // The cache layout follows the kernels at set_positions; products after a switch of kernels
+  // (a test or benchmark toggling them) run without the cache instead of reading the other
+  // layout, and stay correct.
+  if (!rpyfmm::fmm::detail::avx512_kernels_active()) GTEST_SKIP() << "needs the AVX-512 kernels to switch";
+  const auto x = pse_test::random_points(1500, kBox, 88);
+  const auto f = uniform_components(x.size(), 89);
   PseRpy without(Geometry::periodic(kBox[0], kBox[1], kBox[2]), 1.0, cached(1e-3, false));
   without.set_positions(x, 1.0);
   const auto reference = real_product(without, f, 1);
-  for (int k = 0; k < 3; ++k) EXPECT_EQ(real_product(limited, f, 1), reference) << "product " << k;
-
-  rpyfmm::fmm::detail::use_avx512_kernels(false);
-  probe.set_positions(x, 1.0);
-  const std::size_t portable_bytes = probe.parameters().real_space_cache_bytes;
-  rpyfmm::fmm::detail::use_avx512_kernels(true);
-  EXPECT_EQ(portable_bytes, 0u);
+  for (const bool first : {true, false}) {
+    PseRpy op(Geometry::periodic(kBox[0], kBox[1], kBox[2]), 1.0, cached(1e-3, true));
+    std::vector<double> u;
+    {
+      const KernelScope at_positions(first);
+      op.set_positions(x, 1.0);
+      u = real_product(op, f, 1);
+    }
+    const KernelScope later(!first);
+    for (int k = 0; k < 3; ++k)
+      EXPECT_LT(pse_test::rel_l2(real_product(op, f, 1), reference), 1e-6) << "product " << k << ", first " << first;
+  }
 }

@@ -29,10 +29,32 @@ struct SlotArrays {
   const double* f[3];
 };
 
+/// F, G and the unit vector e = (x_s - x_t)/r of the pair of a particle at xi with slot t (minimum
+/// image, [PSE] App. A via the linear table). Branch-free, so that the loops over neighbours
+/// that call it vectorize (gathers): a coincident neighbour (r = 0) gets e = 0 and the table's
+/// r = 0 node F(0) = G(0), i.e. the block F(0) I.
+struct PairValues {
+  double F, G, ex, ey, ez;
+};
+
+[[gnu::always_inline]] inline PairValues table_pair(const double xi[3], const SlotArrays& s, std::size_t t,
+                                                    const double* table, double inv_dr, const double L[3],
+                                                    const double inv_L[3]) {
+  const double dx = minimum_image(xi[0] - s.x[0][t], L[0], inv_L[0]);
+  const double dy = minimum_image(xi[1] - s.x[1][t], L[1], inv_L[1]);
+  const double dz = minimum_image(xi[2] - s.x[2][t], L[2], inv_L[2]);
+  const double r2 = dx * dx + dy * dy + dz * dz;
+  const double r = std::sqrt(r2);
+  const double inv_r = r2 > 0.0 ? 1.0 / r : 0.0;
+  double w = r * inv_dr;
+  const int j = static_cast<int>(w);
+  w -= static_cast<double>(j);
+  const double* e = table + 4 * j;
+  return {e[0] + w * (e[2] - e[0]), e[1] + w * (e[3] - e[1]), dx * inv_r, dy * inv_r, dz * inv_r};
+}
+
 /// One row of M_r F / M0 without the self term: u += sum_q [F (I - rr) + G rr] f_q over the
 /// neighbour slots nb[0..count) of a particle at xi ([PSE] eq. 10, App. A via the linear table).
-/// Branch-free, so that it vectorizes over neighbours (gathers): a coincident neighbour
-/// (r = 0) gets 1/r = 0 and the table's r = 0 node F(0) = G(0), i.e. the block F(0) I.
 RPYFMM_REAL_SPACE_CLONES void table_row(const int* nb, std::size_t count, const double xi[3], const SlotArrays& s,
                                         const double* table, double inv_dr, const double L[3], const double inv_L[3],
                                         double u[3]) {
@@ -40,20 +62,68 @@ RPYFMM_REAL_SPACE_CLONES void table_row(const int* nb, std::size_t count, const 
 #pragma omp simd reduction(+ : ux, uy, uz)
   for (std::size_t q = 0; q < count; ++q) {
     const auto t = static_cast<std::size_t>(nb[q]);
-    const double dx = minimum_image(xi[0] - s.x[0][t], L[0], inv_L[0]);
-    const double dy = minimum_image(xi[1] - s.x[1][t], L[1], inv_L[1]);
-    const double dz = minimum_image(xi[2] - s.x[2][t], L[2], inv_L[2]);
-    const double r2 = dx * dx + dy * dy + dz * dz;
-    const double r = std::sqrt(r2);
-    const double inv_r = r2 > 0.0 ? 1.0 / r : 0.0;
-    double w = r * inv_dr;
-    const int j = static_cast<int>(w);
-    w -= static_cast<double>(j);
-    const double* e = table + 4 * j;
-    const double F = e[0] + w * (e[2] - e[0]);
-    const double G = e[1] + w * (e[3] - e[1]);
+    const PairValues v = table_pair(xi, s, t, table, inv_dr, L, inv_L);
     const double fx = s.f[0][t], fy = s.f[1][t], fz = s.f[2][t];
-    const double ex = dx * inv_r, ey = dy * inv_r, ez = dz * inv_r;
+    const double proj = (v.G - v.F) * (v.ex * fx + v.ey * fy + v.ez * fz);
+    ux += v.F * fx + proj * v.ex;
+    uy += v.F * fy + proj * v.ey;
+    uz += v.F * fz + proj * v.ez;
+  }
+  u[0] += ux;
+  u[1] += uy;
+  u[2] += uz;
+}
+
+/// The row-layout pair cache of the portable rows (design note 23): per row entry q, F - F(0),
+/// G - G(0), e_x, e_y, e_z in five arrays of `stride` values each.
+template <class T>
+struct RowCache {
+  T* data;
+  std::size_t stride;
+};
+
+/// Keeps each pair's values of one row in the row cache (entries from `first` on), rounded to T:
+/// the table_row arithmetic without the sum, which cached_row_body then forms from the kept
+/// values, in the same order as every later product.
+template <class T>
+[[gnu::always_inline]] inline void keep_row_body(const int* nb, std::size_t count, const double xi[3],
+                                                 const SlotArrays& s, const double* table, double inv_dr,
+                                                 const double L[3], const double inv_L[3], RowCache<T> c,
+                                                 std::size_t first) {
+  const double F0 = table[0], G0 = table[1];
+  T* cF = c.data + first;
+  T* cG = cF + c.stride;
+  T* cx = cG + c.stride;
+  T* cy = cx + c.stride;
+  T* cz = cy + c.stride;
+#pragma omp simd
+  for (std::size_t q = 0; q < count; ++q) {
+    const PairValues v = table_pair(xi, s, static_cast<std::size_t>(nb[q]), table, inv_dr, L, inv_L);
+    cF[q] = static_cast<T>(v.F - F0);
+    cG[q] = static_cast<T>(v.G - G0);
+    cx[q] = static_cast<T>(v.ex);
+    cy[q] = static_cast<T>(v.ey);
+    cz[q] = static_cast<T>(v.ez);
+  }
+}
+
+/// One row from the row cache: the forces of the neighbours and the kept values only.
+template <class T>
+[[gnu::always_inline]] inline void cached_row_body(const int* nb, std::size_t count, const SlotArrays& s,
+                                                   const double* table, RowCache<T> c, std::size_t first, double u[3]) {
+  const double F0 = table[0], G0 = table[1];
+  const T* cF = c.data + first;
+  const T* cG = cF + c.stride;
+  const T* cx = cG + c.stride;
+  const T* cy = cx + c.stride;
+  const T* cz = cy + c.stride;
+  double ux = 0.0, uy = 0.0, uz = 0.0;
+#pragma omp simd reduction(+ : ux, uy, uz)
+  for (std::size_t q = 0; q < count; ++q) {
+    const auto t = static_cast<std::size_t>(nb[q]);
+    const double F = F0 + static_cast<double>(cF[q]), G = G0 + static_cast<double>(cG[q]);
+    const double ex = cx[q], ey = cy[q], ez = cz[q];
+    const double fx = s.f[0][t], fy = s.f[1][t], fz = s.f[2][t];
     const double proj = (G - F) * (ex * fx + ey * fy + ez * fz);
     ux += F * fx + proj * ex;
     uy += F * fy + proj * ey;
@@ -62,6 +132,28 @@ RPYFMM_REAL_SPACE_CLONES void table_row(const int* nb, std::size_t count, const 
   u[0] += ux;
   u[1] += uy;
   u[2] += uz;
+}
+
+// Non-template entry points, so that each gets its AVX2 / AVX-512 clones.
+RPYFMM_REAL_SPACE_CLONES void fill_row(const int* nb, std::size_t count, const double xi[3], const SlotArrays& s,
+                                       const double* table, double inv_dr, const double L[3], const double inv_L[3],
+                                       RowCache<float> c, std::size_t first, double u[3]) {
+  keep_row_body(nb, count, xi, s, table, inv_dr, L, inv_L, c, first);
+  cached_row_body(nb, count, s, table, c, first, u);
+}
+RPYFMM_REAL_SPACE_CLONES void fill_row(const int* nb, std::size_t count, const double xi[3], const SlotArrays& s,
+                                       const double* table, double inv_dr, const double L[3], const double inv_L[3],
+                                       RowCache<double> c, std::size_t first, double u[3]) {
+  keep_row_body(nb, count, xi, s, table, inv_dr, L, inv_L, c, first);
+  cached_row_body(nb, count, s, table, c, first, u);
+}
+RPYFMM_REAL_SPACE_CLONES void cached_row(const int* nb, std::size_t count, const SlotArrays& s, const double* table,
+                                         RowCache<float> c, std::size_t first, double u[3]) {
+  cached_row_body(nb, count, s, table, c, first, u);
+}
+RPYFMM_REAL_SPACE_CLONES void cached_row(const int* nb, std::size_t count, const SlotArrays& s, const double* table,
+                                         RowCache<double> c, std::size_t first, double u[3]) {
+  cached_row_body(nb, count, s, table, c, first, u);
 }
 
 #if defined(RPYFMM_HAVE_DIRECT_AVX512)
@@ -564,14 +656,16 @@ void RealSpaceSum::set_positions(std::span<const double> x) {
   for (auto& colour : half_blocks_) colour.clear();
   half_ = cells;
   if (half_) plan_half_blocks(nc, cell_begin);
-  // Pair cache: chunks of eight pairs per half row, five lanes each; kept where the half rows run
-  // (AVX-512 with the table on a cell grid) and it fits in the limit, else released.
+  // Pair cache: where the AVX-512 half rows run (table, cell grid), chunks of eight pairs per
+  // half row, five lanes each; where the portable rows run (no AVX-512, table), five values per
+  // entry of the full rows. Kept where it fits in the limit, else released.
+  const bool avx512 = fmm::detail::avx512_kernels_active();
+  cache_rows_ = !avx512;
   chunk_begin_.assign(n + 1, 0);
   for (std::size_t s = 0; s < n; ++s) chunk_begin_[s + 1] = chunk_begin_[s] + (begin_[s + 1] - upper_[s] + 7) / 8;
   const std::size_t value_bytes = cache_ == PairCache::single_precision ? sizeof(float) : sizeof(double);
-  cache_bytes_ = 40 * value_bytes * chunk_begin_[n];
-  cache_on_ = cache_ != PairCache::off && half_ && use_table_ && fmm::detail::avx512_kernels_active() &&
-              cache_bytes_ <= cache_limit_;
+  cache_bytes_ = cache_rows_ ? 5 * value_bytes * begin_[n] : 40 * value_bytes * chunk_begin_[n];
+  cache_on_ = cache_ != PairCache::off && use_table_ && (cache_rows_ || half_) && cache_bytes_ <= cache_limit_;
   cache_ready_ = false;
   reused_ = false;
   if (cache_on_) {
@@ -653,7 +747,7 @@ void RealSpaceSum::apply_half_avx512(const double* packed, const double* table, 
                                      const double inv_L[3], std::size_t nrhs, bool fill_cache, double* acc) const {
 #if defined(RPYFMM_HAVE_DIRECT_AVX512)
   const std::size_t n = order_.size();
-  const bool fill = fill_cache && cache_on_ && !cache_ready_;
+  const bool fill = fill_cache && cache_on_ && !cache_rows_ && !cache_ready_;
   auto sweep = [&](auto* cache) {  // void*: no cache
     using T = std::remove_pointer_t<decltype(cache)>;
     sweep_half_rows(half_blocks_, n, nrhs, [&](std::size_t s, std::size_t r) {
@@ -795,7 +889,7 @@ void RealSpaceSum::apply_mapped(const double* forces, double* out, std::size_t n
     // the pair cache holds them (later products with these positions). With half lists, also the
     // zeroed sums.
     const bool half = half_;
-    const bool cached = half && cache_on_ && cache_ready_;
+    const bool cached = half && cache_on_ && !cache_rows_ && cache_ready_;
     const std::size_t width = cached ? 4 : 8, force_at = cached ? 0 : 3;
     // (Never shrunk: growing back would zero-fill the tail at every switch of width.)
     if (packed_.size() < width * (n * nrhs + 1)) packed_.resize(width * (n * nrhs + 1));
@@ -852,12 +946,32 @@ void RealSpaceSum::apply_mapped(const double* forces, double* out, std::size_t n
   }
   auto slot_force = [&](std::size_t s, std::size_t r, std::size_t d) { return work_[(3 * r + d) * n + s]; };
   if (use_table_) {
-    for_each_row(slot_force, [&](std::size_t s, std::size_t r, double* u) {
-      const double* f = work_.data() + 3 * r * n;
-      const double xs[3] = {pos_[0][s], pos_[1][s], pos_[2][s]};
-      const SlotArrays arrays{{pos_[0].data(), pos_[1].data(), pos_[2].data()}, {f, f + n, f + 2 * n}};
-      table_row(rows.list + rows.begin[s], rows.begin[s + 1] - rows.begin[s], xs, arrays, table, inv_dr, L, inv_L, u);
-    });
+    const bool row_cache = cache_on_ && cache_rows_;
+    const bool cached = row_cache && cache_ready_, fill = row_cache && !cache_ready_ && fill_cache;
+    auto rows_with = [&](auto c) {  // c: RowCache<T>, or nullptr without the cache
+      for_each_row(slot_force, [&](std::size_t s, std::size_t r, double* u) {
+        const double* f = work_.data() + 3 * r * n;
+        const double xs[3] = {pos_[0][s], pos_[1][s], pos_[2][s]};
+        const SlotArrays arrays{{pos_[0].data(), pos_[1].data(), pos_[2].data()}, {f, f + n, f + 2 * n}};
+        const int* nb = rows.list + rows.begin[s];
+        const std::size_t count = rows.begin[s + 1] - rows.begin[s];
+        if constexpr (std::is_same_v<decltype(c), std::nullptr_t>) {
+          table_row(nb, count, xs, arrays, table, inv_dr, L, inv_L, u);
+        } else if (cached) {
+          cached_row(nb, count, arrays, table, c, rows.begin[s], u);
+        } else {
+          fill_row(nb, count, xs, arrays, table, inv_dr, L, inv_L, c, rows.begin[s], u);
+        }
+      });
+    };
+    if (!cached && !fill) {
+      rows_with(nullptr);
+    } else if (cache_ == PairCache::single_precision) {
+      rows_with(RowCache<float>{static_cast<float*>(cache_data()), rows.begin[n]});
+    } else {
+      rows_with(RowCache<double>{static_cast<double*>(cache_data()), rows.begin[n]});
+    }
+    cache_ready_ = cache_ready_ || fill;
     return;
   }
   // Closed forms evaluated per pair (PseOptions::real_space_table = false: the reference the

@@ -102,7 +102,8 @@ class RealSpaceSum {
   // precision before using them, so that every product applies the same operator.
   PairCache cache_ = PairCache::off;
   std::size_t cache_limit_ = 0;
-  bool cache_on_ = false;  // cache kept for these positions (half lists, within the limit)
+  bool cache_on_ = false;    // cache kept for these positions (within the limit)
+  bool cache_rows_ = false;  // layout: per entry of the full rows (portable rows), else half-list chunks
   std::size_t cache_bytes_ = 0;
   std::vector<std::size_t> chunk_begin_;
   std::unique_ptr<double[]> cache_store_;  // 64-byte aligned inside (cache_data())
