@@ -67,8 +67,8 @@ struct PseOptions {
   /// set_positions (a single M F per positions pays nothing): 1.3-1.6x faster later products
   /// (bench/pse/RESULTS.md, session 13). Kept in float with single-precision wave grids
   /// (wave_precision), else in double: 20 or 40 bytes per pair within r_cut, kept only while it
-  /// fits in max_memory_bytes beside the grids (PseParameters::real_space_cache_bytes). Where
-  /// the AVX-512 real-space kernels run (elsewhere every product evaluates the pairs).
+  /// fits in max_memory_bytes beside the grids (PseParameters::real_space_cache_bytes). On CPUs
+  /// without AVX-512 it holds every entry of the full neighbour rows (twice the pairs).
   bool real_space_cache = true;
   /// FFTW threads: 0 = automatic (all OpenMP threads for grids of >= 2^20 points, one
   /// below, where thread synchronisation costs more than it saves on a loaded machine).
