@@ -6,10 +6,11 @@
 // (structure of arrays), the neighbour lists hold slots, and apply() gathers the forces into
 // slot order once, so that a row reads its neighbours' positions and forces from a few nearby
 // cache lines instead of from all over the input arrays (design note 16). Where the AVX-512
-// kernels run, each pair is evaluated once for both of its rows (half lists, design note 22),
-// and a product after set_positions (the second one, or the first of the split sampler's
-// Lanczos) keeps each pair's block (F, G, r^) in a pair cache that the later products with the
-// same positions read instead of evaluating the pair again (design note 23).
+// kernels run, each pair is evaluated once for both of its rows (half lists, design note 22).
+// A product after set_positions (the second one, or the first of the split sampler's Lanczos)
+// keeps each pair's block (F, G, r^) in a pair cache that the later products with the same
+// positions read instead of evaluating the pair again (design note 23): per half-list chunk
+// with the AVX-512 kernels, per entry of the full rows with the portable ones.
 #pragma once
 
 #include <array>
@@ -95,11 +96,13 @@ class RealSpaceSum {
   mutable std::vector<std::size_t> full_begin_;
   mutable std::vector<int> full_list_;
   std::vector<std::size_t> upper_;
-  // Pair cache (design note 23): per half row s, chunks [chunk_begin_[s], chunk_begin_[s + 1]) of
-  // eight pairs, each five vectors of eight lanes (F, G, e_x, e_y, e_z as the half-list kernel
-  // computes them, padding lanes included) of float or double; filled by the first product
-  // after set_positions and read by the later ones. The fill rounds the lanes to the cache's
-  // precision before using them, so that every product applies the same operator.
+  // Pair cache (design note 23). AVX-512 layout: per half row s, chunks [chunk_begin_[s],
+  // chunk_begin_[s + 1]) of eight pairs, each five vectors of eight lanes (F - F(0), G - G(0),
+  // e_x, e_y, e_z as the half-list kernel computes them, padding lanes included). Row layout
+  // (portable rows): the same five values per entry of the full rows, in five arrays. Float or
+  // double; filled by one product after set_positions (apply: the second; apply_slots: the
+  // first) and read by the later ones. The fill rounds the values to the cache's precision
+  // before using them, so that every product applies the same operator.
   PairCache cache_ = PairCache::off;
   std::size_t cache_limit_ = 0;
   bool cache_on_ = false;    // cache kept for these positions (within the limit)
