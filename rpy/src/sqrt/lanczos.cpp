@@ -86,11 +86,15 @@ SqrtReport lanczos_sqrt(const LinearOperatorView& op, std::span<const double> z,
       if (state[k].active) active.push_back(k);
     if (active.empty()) break;
     // One operator call for every right-hand side still iterating.
-    x.resize(active.size() * n);
+    // (One right-hand side: its basis vector is multiplied in place, without the copy.)
     y.resize(active.size() * n);
-    for (std::size_t a = 0; a < active.size(); ++a)
-      std::copy_n(state[active[a]].process.current(), n, &x[a * n]);
-    apply_checked(op, x.data(), y.data(), active.size(), report, kWhere);
+    const double* input = state[active[0]].process.current();
+    if (active.size() > 1) {
+      x.resize(active.size() * n);
+      for (std::size_t a = 0; a < active.size(); ++a) std::copy_n(state[active[a]].process.current(), n, &x[a * n]);
+      input = x.data();
+    }
+    apply_checked(op, input, y.data(), active.size(), report, kWhere);
 
     for (std::size_t a = 0; a < active.size(); ++a) {
       const std::size_t k = active[a];
