@@ -182,6 +182,7 @@ TEST(PsePairCache, KernelsSwitchedAfterSetPositions) {
       op.set_positions(x, 1.0);
       u = real_product(op, f, 1);
     }
+    EXPECT_LT(pse_test::rel_l2(u, reference), 1e-6) << "before the switch, first " << first;
     const KernelScope later(!first);
     for (int k = 0; k < 3; ++k)
       EXPECT_LT(pse_test::rel_l2(real_product(op, f, 1), reference), 1e-6) << "product " << k << ", first " << first;
