@@ -19,6 +19,8 @@ namespace {
 
 /// Loops below this much work run serially (a parallel region costs more there).
 constexpr std::size_t kParallelWork = 32768;
+/// Particles ahead whose forces (outputs) spreading (interpolation) prefetches.
+constexpr std::size_t kPrefetchAhead = 8;
 
 std::mutex& planner_mutex() {
   static std::mutex m;
@@ -171,7 +173,7 @@ class WaveGrid final : public WaveSpace {
 
   void spread(const double* forces);
   void interpolate(double* out, bool accumulate) const;
-  void window_lines(std::size_t i, std::size_t* xline, std::size_t* yline) const;
+  void window_lines(std::size_t q, std::size_t* xline, std::size_t* yline) const;
   /// Destroys the plans and frees the grids (idempotent).
   void release() noexcept;
 
@@ -190,7 +192,8 @@ class WaveGrid final : public WaveSpace {
   int fft_threads_ = 1;
   bool parallel_modes_ = false;
 
-  // Per particle: wrapped window starts and cached 1D weights (Px + Py + Pz).
+  // Per particle, in tile order (slot q holds particle order_[q]): wrapped window starts
+  // and cached 1D weights (Px + Py + Pz). The loops over slots then read them in memory order.
   std::size_t np_ = 0;
   std::vector<int> start_;
   std::vector<double> weights_;
@@ -303,35 +306,24 @@ template <class Real>
 void WaveGrid<Real>::set_positions(std::span<const double> x) {
   np_ = x.size() / 3;
   const int pw = P_[0] + P_[1] + P_[2];
-  start_.resize(3 * np_);
-  weights_.resize(static_cast<std::size_t>(pw) * np_);
-  const double inv_2s2 = 1.0 / (2.0 * p_.sigma * p_.sigma);
-  std::array<std::vector<double>, 3> tail;  // exp(-l^2 h_d^2 / (2 sigma^2)), l < P_d
-  for (std::size_t d = 0; d < 3; ++d) {
-    tail[d].resize(static_cast<std::size_t>(P_[d]));
-    for (int l = 0; l < P_[d]; ++l) {
-      const double lh = l * p_.spacing[d];
-      tail[d][static_cast<std::size_t>(l)] = std::exp(-lh * lh * inv_2s2);
-    }
-  }
   const auto np = static_cast<std::int64_t>(np_);
-#pragma omp parallel for schedule(static) if (np_ >= 1024)
-  for (std::int64_t i = 0; i < np; ++i) {
-    double* w = &weights_[static_cast<std::size_t>(i) * pw];
+  // Window starts in input order first (they decide the tiles), weights later in tile order.
+  std::vector<int> start(3 * np_);
+#pragma omp parallel for schedule(static) if (np_ >= 4096)
+  for (std::int64_t i = 0; i < np; ++i)
     for (std::size_t d = 0; d < 3; ++d) {
-      start_[3 * i + d] =
-          window_weights_recurrence(x[3 * i + d], p_.spacing[d], P_[d], n_[d], inv_2s2, tail[d].data(), w);
-      w += P_[d];
+      long s = window_start(x[3 * i + d], p_.spacing[d], P_[d]) % n_[d];
+      if (s < 0) s += n_[d];
+      start[3 * i + d] = static_cast<int>(s);
     }
-  }
   // Tiles of B_d >= P_d - 1 grid points in x and y (by window start): a tile's
   // particles write only into itself and the next tile, so tiles of one colour
   // (class per axis, tile_class) never touch the same grid point.
   std::array<int, 2> nb{};
   for (int d = 0; d < 2; ++d) nb[d] = std::max(1, n_[d] / std::max(P_[d] - 1, 1));
   const auto tile_of = [&](std::size_t i) {
-    const int bx = std::min(start_[3 * i] / std::max(P_[0] - 1, 1), nb[0] - 1);
-    const int by = std::min(start_[3 * i + 1] / std::max(P_[1] - 1, 1), nb[1] - 1);
+    const int bx = std::min(start[3 * i] / std::max(P_[0] - 1, 1), nb[0] - 1);
+    const int by = std::min(start[3 * i + 1] / std::max(P_[1] - 1, 1), nb[1] - 1);
     return bx * nb[1] + by;
   };
   const std::size_t ntiles = static_cast<std::size_t>(nb[0]) * static_cast<std::size_t>(nb[1]);
@@ -352,7 +344,7 @@ void WaveGrid<Real>::set_positions(std::span<const double> x) {
     const auto b = static_cast<std::ptrdiff_t>(tile_begin_[static_cast<std::size_t>(t)]);
     const auto e = static_cast<std::ptrdiff_t>(tile_begin_[static_cast<std::size_t>(t) + 1]);
     std::stable_sort(order_.begin() + b, order_.begin() + e,
-                     [&](std::size_t i, std::size_t j) { return start_[3 * i + 2] < start_[3 * j + 2]; });
+                     [&](std::size_t i, std::size_t j) { return start[3 * i + 2] < start[3 * j + 2]; });
   }
   for (auto& c : tiles_of_colour_) c.clear();
   for (int bx = 0; bx < nb[0]; ++bx)
@@ -361,19 +353,41 @@ void WaveGrid<Real>::set_positions(std::span<const double> x) {
       if (tile_begin_[static_cast<std::size_t>(t)] == tile_begin_[static_cast<std::size_t>(t) + 1]) continue;
       tiles_of_colour_[static_cast<std::size_t>(3 * tile_class(bx, nb[0]) + tile_class(by, nb[1]))].push_back(t);
     }
+  // The Gaussian window's 1D weights (PSE.md Sec. 2.3) and starts, in tile order.
+  start_.resize(3 * np_);
+  weights_.resize(static_cast<std::size_t>(pw) * np_);
+  const double inv_2s2 = 1.0 / (2.0 * p_.sigma * p_.sigma);
+  std::array<std::vector<double>, 3> tail;  // exp(-l^2 h_d^2 / (2 sigma^2)), l < P_d
+  for (std::size_t d = 0; d < 3; ++d) {
+    tail[d].resize(static_cast<std::size_t>(P_[d]));
+    for (int l = 0; l < P_[d]; ++l) {
+      const double lh = l * p_.spacing[d];
+      tail[d][static_cast<std::size_t>(l)] = std::exp(-lh * lh * inv_2s2);
+    }
+  }
+#pragma omp parallel for schedule(static) if (np_ >= 1024)
+  for (std::int64_t q = 0; q < np; ++q) {
+    const std::size_t i = order_[static_cast<std::size_t>(q)];
+    double* w = &weights_[static_cast<std::size_t>(q) * pw];
+    for (std::size_t d = 0; d < 3; ++d) {
+      start_[3 * q + d] =
+          window_weights_recurrence(x[3 * i + d], p_.spacing[d], P_[d], n_[d], inv_2s2, tail[d].data(), w);
+      w += P_[d];
+    }
+  }
 }
 
 template <class Real>
-void WaveGrid<Real>::window_lines(std::size_t i, std::size_t* xline, std::size_t* yline) const {
-  // Offsets of the grid lines (x, y) of particle i's window: line = xline[a] + yline[b],
+void WaveGrid<Real>::window_lines(std::size_t q, std::size_t* xline, std::size_t* yline) const {
+  // Offsets of the grid lines (x, y) of slot q's window: line = xline[a] + yline[b],
   // wrapped without a division per point.
   const auto nz = static_cast<std::size_t>(n_[2]);
-  int ix = start_[3 * i];
+  int ix = start_[3 * q];
   for (int a = 0; a < P_[0]; ++a, ++ix) {
     if (ix == n_[0]) ix = 0;
     xline[a] = static_cast<std::size_t>(ix) * static_cast<std::size_t>(n_[1]) * nz;
   }
-  int iy = start_[3 * i + 1];
+  int iy = start_[3 * q + 1];
   for (int b = 0; b < P_[1]; ++b, ++iy) {
     if (iy == n_[1]) iy = 0;
     yline[b] = static_cast<std::size_t>(iy) * nz;
@@ -403,14 +417,17 @@ void WaveGrid<Real>::spread(const double* forces) {
 #pragma omp for schedule(dynamic, 1)
       for (std::int64_t t = 0; t < nt; ++t) {
         const auto tile = static_cast<std::size_t>(colour[static_cast<std::size_t>(t)]);
-        for (std::size_t q = tile_begin_[tile]; q < tile_begin_[tile + 1]; ++q) {
+        const std::size_t end = tile_begin_[tile + 1];
+        for (std::size_t q = tile_begin_[tile]; q < end; ++q) {
           const std::size_t i = order_[q];
-          const double* wx = &weights_[i * static_cast<std::size_t>(pw)];
+          // The forces are read in tile order, i.e. at random: fetch a few particles ahead.
+          if (q + kPrefetchAhead < end) __builtin_prefetch(&forces[3 * order_[q + kPrefetchAhead]]);
+          const double* wx = &weights_[q * static_cast<std::size_t>(pw)];
           const double* wy = wx + P_[0];
           const double* wz = wy + P_[1];
           const double fc[3] = {c3_ * forces[3 * i], c3_ * forces[3 * i + 1], c3_ * forces[3 * i + 2]};
-          const ZRuns z = z_runs(start_[3 * i + 2], P_[2], n_[2]);
-          window_lines(i, xline.data(), yline.data());
+          const ZRuns z = z_runs(start_[3 * q + 2], P_[2], n_[2]);
+          window_lines(q, xline.data(), yline.data());
           if (kernels == WindowKernels::avx512) {
             spread_window_avx512(g0, g1, g2, xline.data(), yline.data(), P_[0], P_[1], {z.z0, z.len0, P_[2]}, wx, wy,
                                  wz, fc);
@@ -449,13 +466,16 @@ void WaveGrid<Real>::interpolate(double* out, bool accumulate) const {
     // Particles in tile order (order_, as in spread): neighbours in the loop read neighbouring
     // grid points, so the gathers hit cache instead of the whole grid at random.
 #pragma omp for schedule(static)
-    for (std::int64_t ii = 0; ii < np; ++ii) {
-      const std::size_t i = order_[static_cast<std::size_t>(ii)];
-      const double* wx = &weights_[i * static_cast<std::size_t>(pw)];
+    for (std::int64_t qq = 0; qq < np; ++qq) {
+      const auto q = static_cast<std::size_t>(qq);
+      const std::size_t i = order_[q];
+      // The outputs are written in tile order, i.e. at random: fetch a few particles ahead.
+      if (q + kPrefetchAhead < np_) __builtin_prefetch(&out[3 * order_[q + kPrefetchAhead]], 1);
+      const double* wx = &weights_[q * static_cast<std::size_t>(pw)];
       const double* wy = wx + P_[0];
       const double* wz = wy + P_[1];
-      const ZRuns z = z_runs(start_[3 * i + 2], P_[2], n_[2]);
-      window_lines(i, xline.data(), yline.data());
+      const ZRuns z = z_runs(start_[3 * q + 2], P_[2], n_[2]);
+      window_lines(q, xline.data(), yline.data());
       double u[3] = {0.0, 0.0, 0.0};
       if (kernels == WindowKernels::avx512) {
         gather_window_avx512(g0, g1, g2, xline.data(), yline.data(), P_[0], P_[1], {z.z0, z.len0, P_[2]}, wx, wy, wz,
