@@ -38,6 +38,33 @@ RPYFMM_HOST_DEVICE inline int window_weights(double x, double h, int P, int n, d
   return static_cast<int>(sw);
 }
 
+/// s mod n in [0, n): one comparison for the starts of wrapped positions (-P < s < n + P),
+/// the division only beyond.
+inline int wrap_index(long s, int n) {
+  long sw = s;
+  if (sw < 0) {
+    sw += n;
+  } else if (sw >= n) {
+    sw -= n;
+  }
+  if (sw < 0 || sw >= n) {
+    sw = s % n;
+    if (sw < 0) sw += n;
+  }
+  return static_cast<int>(sw);
+}
+
+/// The recurrence of window_weights_recurrence (below) from the offset d0 = x_s - x of the
+/// window's first point: w[l] = exp(-(d0 + l h)^2 inv_2s2), l < P.
+inline void window_weights_from_offset(double d0, double h, int P, double inv_2s2, const double* tail, double* w) {
+  const double step = std::exp(-2.0 * d0 * h * inv_2s2);
+  double g = std::exp(-d0 * d0 * inv_2s2);
+  for (int l = 0; l < P; ++l) {
+    w[l] = g * tail[l];
+    g *= step;
+  }
+}
+
 /// window_weights by the fast Gaussian gridding recurrence (Greengard & Lee, SIAM Rev. 46
 /// (2004) 443, Sec. 3): with d_0 = x_s - x, exp(-(d_0 + l h)^2 a) = exp(-d_0^2 a)
 /// exp(-2 d_0 h a)^l exp(-l^2 h^2 a), two exponentials per axis instead of P; `tail[l]` =
@@ -45,16 +72,8 @@ RPYFMM_HOST_DEVICE inline int window_weights(double x, double h, int P, int n, d
 /// ~P ulps (the powers by repeated products). Host only: the CUDA kernels keep window_weights.
 inline int window_weights_recurrence(double x, double h, int P, int n, double inv_2s2, const double* tail, double* w) {
   const long s = window_start(x, h, P);
-  const double d0 = static_cast<double>(s) * h - x;
-  const double step = std::exp(-2.0 * d0 * h * inv_2s2);
-  double g = std::exp(-d0 * d0 * inv_2s2);
-  for (int l = 0; l < P; ++l) {
-    w[l] = g * tail[l];
-    g *= step;
-  }
-  long sw = s % n;
-  if (sw < 0) sw += n;
-  return static_cast<int>(sw);
+  window_weights_from_offset(static_cast<double>(s) * h - x, h, P, inv_2s2, tail, w);
+  return wrap_index(s, n);
 }
 
 /// Geometry of the r2c half spectrum [ix][iy][iz], iz = 0..nz/2.

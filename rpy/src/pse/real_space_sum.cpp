@@ -445,6 +445,34 @@ RPYFMM_DIRECT_AVX512 void cached_half_row_avx512(const int* nb, std::size_t coun
   }
   add_lane_sums(sum, acc + 4 * self);
 }
+
+/// The list build's candidate filter, eight candidates at a time: appends to out the slots t0 + q
+/// (q < count) with |(xs - x_t, ys - y_t, zs - z_t)|^2 < rc2, where (xs, ys, zs) is the row's
+/// position less the run's image shift, in ascending order; returns how many. Rounded as the
+/// portable filter rounds ((xs - x_t) - shift per axis there; products and sums without fused
+/// multiply-adds), so both keep the same pairs. out needs 8 entries of slack past the kept ones.
+RPYFMM_DIRECT_AVX512 std::size_t pairs_within_avx512(const double* xt, const double* yt, const double* zt,
+                                                     std::size_t t0, std::size_t count, const double xs[3],
+                                                     const double shift[3], double rc2, int* out) {
+  const __m512d x = _mm512_set1_pd(xs[0]), y = _mm512_set1_pd(xs[1]), z = _mm512_set1_pd(xs[2]);
+  const __m512d sx = _mm512_set1_pd(shift[0]), sy = _mm512_set1_pd(shift[1]), sz = _mm512_set1_pd(shift[2]);
+  const __m512d r2 = _mm512_set1_pd(rc2);
+  const __m512i lane = _mm512_set_epi32(0, 0, 0, 0, 0, 0, 0, 0, 7, 6, 5, 4, 3, 2, 1, 0);
+  std::size_t used = 0;
+  for (std::size_t q = 0; q < count; q += 8) {
+    const auto live = static_cast<__mmask8>(count - q >= 8 ? 0xFF : (1u << (count - q)) - 1u);
+    const __m512d dx = _mm512_sub_pd(_mm512_sub_pd(x, _mm512_maskz_loadu_pd(live, xt + t0 + q)), sx);
+    const __m512d dy = _mm512_sub_pd(_mm512_sub_pd(y, _mm512_maskz_loadu_pd(live, yt + t0 + q)), sy);
+    const __m512d dz = _mm512_sub_pd(_mm512_sub_pd(z, _mm512_maskz_loadu_pd(live, zt + t0 + q)), sz);
+    const __m512d d2 =
+        _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy)), _mm512_mul_pd(dz, dz));
+    const __mmask8 keep = _mm512_mask_cmp_pd_mask(live, d2, r2, _CMP_LT_OQ);
+    const __m512i idx = _mm512_add_epi32(_mm512_set1_epi32(static_cast<int>(t0 + q)), lane);
+    _mm512_storeu_si512(out + used, _mm512_maskz_compress_epi32(keep, idx));
+    used += static_cast<std::size_t>(__builtin_popcount(keep));
+  }
+  return used;
+}
 #pragma GCC diagnostic pop
 #endif
 
@@ -617,10 +645,17 @@ void RealSpaceSum::set_positions(std::span<const double> x) {
             const std::size_t count = cell_begin[run.end] - t0;
             // Distances first (a loop that vectorizes), then a branch-free compaction: about one
             // candidate in six is kept, so a branch per candidate would mostly mispredict.
+            if (buf.size() < used + count + 16) buf.resize(2 * (used + count + 16));
+            int* out = buf.data();
+#if defined(RPYFMM_HAVE_DIRECT_AVX512)
+            if (half_lists_) {  // AVX-512 active; t0 > s, so the own slot is never a candidate
+              const double xs[3] = {px[s], py[s], pz[s]};
+              used += pairs_within_avx512(px.data(), py.data(), pz.data(), t0, count, xs, run.shift, rc2, out + used);
+              continue;
+            }
+#endif
             if (d2.size() < count) d2.resize(count);
             squared_distances(s, t0, count, cells ? run.shift : nullptr, d2.data());
-            if (buf.size() < used + count) buf.resize(2 * (used + count));
-            int* out = buf.data();
             for (std::size_t q = 0; q < count; ++q) {
               out[used] = static_cast<int>(t0 + q);
               used += static_cast<std::size_t>(d2[q] < rc2) & static_cast<std::size_t>(t0 + q != s);

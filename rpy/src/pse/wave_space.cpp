@@ -307,14 +307,17 @@ void WaveGrid<Real>::set_positions(std::span<const double> x) {
   np_ = x.size() / 3;
   const int pw = P_[0] + P_[1] + P_[2];
   const auto np = static_cast<std::int64_t>(np_);
-  // Window starts in input order first (they decide the tiles), weights later in tile order.
+  // Window starts (wrapped) and the offsets d0 = x_s - x of their first points in input order
+  // first: they decide the tiles. The weights follow in tile order.
   std::vector<int> start(3 * np_);
+  std::vector<double> offset(3 * np_);
 #pragma omp parallel for schedule(static) if (np_ >= 4096)
   for (std::int64_t i = 0; i < np; ++i)
     for (std::size_t d = 0; d < 3; ++d) {
-      long s = window_start(x[3 * i + d], p_.spacing[d], P_[d]) % n_[d];
-      if (s < 0) s += n_[d];
-      start[3 * i + d] = static_cast<int>(s);
+      const double xd = x[3 * i + d];
+      const long s = window_start(xd, p_.spacing[d], P_[d]);
+      offset[3 * i + d] = static_cast<double>(s) * p_.spacing[d] - xd;
+      start[3 * i + d] = wrap_index(s, n_[d]);
     }
   // Tiles of B_d >= P_d - 1 grid points in x and y (by window start): a tile's
   // particles write only into itself and the next tile, so tiles of one colour
@@ -327,6 +330,16 @@ void WaveGrid<Real>::set_positions(std::span<const double> x) {
     return bx * nb[1] + by;
   };
   const std::size_t ntiles = static_cast<std::size_t>(nb[0]) * static_cast<std::size_t>(nb[1]);
+  // Particles by tile, within a tile by window start in z, then in input order (consecutive
+  // particles then touch overlapping stretches of the same grid lines, which stay in cache and
+  // stream in memory order): two stable counting sorts, by z start and then by tile.
+  std::vector<std::size_t> by_z(np_);
+  {
+    std::vector<std::size_t> z_begin(static_cast<std::size_t>(n_[2]) + 1, 0);
+    for (std::size_t i = 0; i < np_; ++i) ++z_begin[static_cast<std::size_t>(start[3 * i + 2]) + 1];
+    for (std::size_t z = 0; z + 1 < z_begin.size(); ++z) z_begin[z + 1] += z_begin[z];
+    for (std::size_t i = 0; i < np_; ++i) by_z[z_begin[static_cast<std::size_t>(start[3 * i + 2])]++] = i;
+  }
   tile_begin_.assign(ntiles + 1, 0);
   std::vector<int> tile(np_);
   for (std::size_t i = 0; i < np_; ++i) {
@@ -336,16 +349,7 @@ void WaveGrid<Real>::set_positions(std::span<const double> x) {
   for (std::size_t t = 0; t < ntiles; ++t) tile_begin_[t + 1] += tile_begin_[t];
   order_.resize(np_);
   std::vector<std::size_t> fill(tile_begin_.begin(), tile_begin_.end() - 1);
-  for (std::size_t i = 0; i < np_; ++i) order_[fill[static_cast<std::size_t>(tile[i])]++] = i;  // stable
-    // Within a tile, by window start in z (then input order): consecutive particles then touch
-    // overlapping stretches of the same grid lines, which stay in cache and stream in memory order.
-#pragma omp parallel for schedule(dynamic, 64) if (np_ >= 16384)
-  for (std::int64_t t = 0; t < static_cast<std::int64_t>(ntiles); ++t) {
-    const auto b = static_cast<std::ptrdiff_t>(tile_begin_[static_cast<std::size_t>(t)]);
-    const auto e = static_cast<std::ptrdiff_t>(tile_begin_[static_cast<std::size_t>(t) + 1]);
-    std::stable_sort(order_.begin() + b, order_.begin() + e,
-                     [&](std::size_t i, std::size_t j) { return start[3 * i + 2] < start[3 * j + 2]; });
-  }
+  for (const std::size_t i : by_z) order_[fill[static_cast<std::size_t>(tile[i])]++] = i;
   for (auto& c : tiles_of_colour_) c.clear();
   for (int bx = 0; bx < nb[0]; ++bx)
     for (int by = 0; by < nb[1]; ++by) {
@@ -368,10 +372,15 @@ void WaveGrid<Real>::set_positions(std::span<const double> x) {
 #pragma omp parallel for schedule(static) if (np_ >= 1024)
   for (std::int64_t q = 0; q < np; ++q) {
     const std::size_t i = order_[static_cast<std::size_t>(q)];
+    if (static_cast<std::size_t>(q) + kPrefetchAhead < np_) {  // read at random: fetch ahead
+      const std::size_t ahead = 3 * order_[static_cast<std::size_t>(q) + kPrefetchAhead];
+      __builtin_prefetch(&offset[ahead]);
+      __builtin_prefetch(&start[ahead]);
+    }
     double* w = &weights_[static_cast<std::size_t>(q) * pw];
     for (std::size_t d = 0; d < 3; ++d) {
-      start_[3 * q + d] =
-          window_weights_recurrence(x[3 * i + d], p_.spacing[d], P_[d], n_[d], inv_2s2, tail[d].data(), w);
+      start_[3 * q + d] = start[3 * i + d];
+      window_weights_from_offset(offset[3 * i + d], p_.spacing[d], P_[d], inv_2s2, tail[d].data(), w);
       w += P_[d];
     }
   }
