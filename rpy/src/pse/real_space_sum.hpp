@@ -71,6 +71,9 @@ class RealSpaceSum {
   mutable std::vector<double> packed_;      // AVX-512 kernel: x, y, z, fx, fy, fz, 0, 0 per slot and rhs
                                             // (fx, fy, fz, 0 where the pair cache is read)
 
+  // The list build's per-block parts (kept: their memory is reused by the next set_positions).
+  std::vector<std::vector<int>> block_lists_;
+
   // Half lists (AVX-512 path, design note 22): each pair once, from its lower slot, which adds
   // the pair's block to both rows. upper_[s]: the first entry of row s with a larger slot (the
   // rows are ascending, so the half list is the row's tail). A row writes to its own slot and to
