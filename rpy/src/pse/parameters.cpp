@@ -80,13 +80,14 @@ bool wave_single(const PseOptions& o) {
          (o.wave_precision == WavePrecision::automatic && o.tolerance >= kSingleWaveTolerance);
 }
 
-/// Memory of a plan (bytes): 3 real grids + 3 half spectra (4 or 8 bytes a real) + c(k) (double)
+/// Memory of a plan (bytes): 3 real grids (with a 64-byte pad per x plane and component, the
+/// spreading layout of wave_space.cpp) + 3 half spectra (4 or 8 bytes a real) + c(k) (double)
 /// + the window cache.
 double memory_estimate(const std::array<int, 3>& grid, const std::array<int, 3>& support, std::size_t n, bool single) {
   const double ng = static_cast<double>(grid[0]) * grid[1] * grid[2];
   const double modes = static_cast<double>(grid[0]) * grid[1] * (grid[2] / 2 + 1);
   const double real_bytes = single ? 4.0 : 8.0;
-  return 3.0 * real_bytes * ng + (6.0 * real_bytes + 8.0) * modes +
+  return 3.0 * (real_bytes * ng + 64.0 * (grid[0] + 1)) + (6.0 * real_bytes + 8.0) * modes +
          8.0 * static_cast<double>(n) * (support[0] + support[1] + support[2] + 8);
 }
 
