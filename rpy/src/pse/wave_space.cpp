@@ -121,6 +121,13 @@ struct Iodims {
   }
 };
 
+/// plan_fn (fftw(f)_plan_guru64_dft_r2c or _c2r) for those transforms.
+template <class PlanFn, class In, class Out>
+auto guru_plan(PlanFn plan_fn, const RealLayout& r, int howmany, bool real_to_complex, In in, Out out, unsigned flags) {
+  Iodims io(r, howmany, real_to_complex);
+  return plan_fn(3, io.dims, 1, &io.howmany, in, out, flags);
+}
+
 /// FFTW's double- and single-precision interfaces under one name (fftw_* / fftwf_*).
 template <class Real>
 struct Fftw;
@@ -141,12 +148,10 @@ struct Fftw<double> {
   }
   static void plan_with_nthreads(int n) { fftw_plan_with_nthreads(n); }
   static Plan r2c(const RealLayout& r, int howmany, double* in, Complex* out, unsigned flags) {
-    Iodims io(r, howmany, true);
-    return fftw_plan_guru64_dft_r2c(3, io.dims, 1, &io.howmany, in, out, flags);
+    return guru_plan(fftw_plan_guru64_dft_r2c, r, howmany, true, in, out, flags);
   }
   static Plan c2r(const RealLayout& r, int howmany, Complex* in, double* out, unsigned flags) {
-    Iodims io(r, howmany, false);
-    return fftw_plan_guru64_dft_c2r(3, io.dims, 1, &io.howmany, in, out, flags);
+    return guru_plan(fftw_plan_guru64_dft_c2r, r, howmany, false, in, out, flags);
   }
   static void execute_r2c(Plan p, double* in, Complex* out) { fftw_execute_dft_r2c(p, in, out); }
   static void execute_c2r(Plan p, Complex* in, double* out) { fftw_execute_dft_c2r(p, in, out); }
@@ -169,12 +174,10 @@ struct Fftw<float> {
   }
   static void plan_with_nthreads(int n) { fftwf_plan_with_nthreads(n); }
   static Plan r2c(const RealLayout& r, int howmany, float* in, Complex* out, unsigned flags) {
-    Iodims io(r, howmany, true);
-    return fftwf_plan_guru64_dft_r2c(3, io.dims, 1, &io.howmany, in, out, flags);
+    return guru_plan(fftwf_plan_guru64_dft_r2c, r, howmany, true, in, out, flags);
   }
   static Plan c2r(const RealLayout& r, int howmany, Complex* in, float* out, unsigned flags) {
-    Iodims io(r, howmany, false);
-    return fftwf_plan_guru64_dft_c2r(3, io.dims, 1, &io.howmany, in, out, flags);
+    return guru_plan(fftwf_plan_guru64_dft_c2r, r, howmany, false, in, out, flags);
   }
   static void execute_r2c(Plan p, float* in, Complex* out) { fftwf_execute_dft_r2c(p, in, out); }
   static void execute_c2r(Plan p, Complex* in, float* out) { fftwf_execute_dft_c2r(p, in, out); }
