@@ -275,16 +275,11 @@ RPYFMM_DIRECT_AVX512 inline __mmask8 load_chunk(const int* nb, std::size_t count
   return left >= 8 ? static_cast<__mmask8>(0xFF) : static_cast<__mmask8>((1u << left) - 1u);
 }
 
-/// u[c] += the sum of the eight lanes of s[c], c = 0, 1, 2, as ((t0 + t1) + (t2 + t3)) + ((t4 +
-/// t5) + (t6 + t7)), in registers: neighbouring lanes, then pairs, then halves (through memory,
-/// a store and 24 scalar reloads, the real-space product was ~5% slower at 32000 particles).
+/// u[c] += the sum of the eight lanes of s[c], c = 0, 1, 2 (fmm::detail::sum_lanes_pairwise: in
+/// registers; through memory, a store and 24 scalar reloads, the real-space product was ~5% slower
+/// at 32000 particles).
 RPYFMM_DIRECT_AVX512 inline void add_lane_sums(const __m512d s[3], double* u) {
-  for (int c = 0; c < 3; ++c) {
-    const __m512d a = _mm512_add_pd(s[c], _mm512_permute_pd(s[c], 0x55));                     // t0 + t1 in lane 0
-    const __m512d b = _mm512_add_pd(a, _mm512_shuffle_f64x2(a, a, _MM_SHUFFLE(2, 3, 0, 1)));  // + (t2 + t3)
-    const __m512d h = _mm512_add_pd(b, _mm512_shuffle_f64x2(b, b, _MM_SHUFFLE(1, 0, 3, 2)));  // + upper half
-    u[c] += _mm_cvtsd_f64(_mm512_castpd512_pd128(h));
-  }
+  for (int c = 0; c < 3; ++c) u[c] += fmm::detail::sum_lanes_pairwise(s[c]);
 }
 
 /// table_row with AVX-512 intrinsics, eight neighbours at a time, without gathers (which ran

@@ -27,11 +27,10 @@ RPYFMM_WINDOW_VL inline __mmask8 lanes(int len) {
   return static_cast<__mmask8>((1u << len) - 1u);
 }
 
-/// Sum of the 8 lanes (GCC 12's _mm512_reduce_add_pd trips -Wuninitialized in its own header).
+/// Sum of the 8 lanes, pairwise in registers (GCC 12's _mm512_reduce_add_pd trips
+/// -Wuninitialized in its own header).
 RPYFMM_WINDOW_VL inline double sum_lanes(__m512d v) {
-  alignas(64) double t[8];
-  _mm512_store_pd(t, v);
-  return ((t[0] + t[1]) + (t[2] + t[3])) + ((t[4] + t[5]) + (t[6] + t[7]));
+  return fmm::detail::sum_lanes_pairwise(v);
 }
 
 /// One run of a grid line (at most 8 points) in the grid's precision: the masked

@@ -56,5 +56,15 @@ RPYFMM_DIRECT_AVX512 inline __m512d rsqrt_or_zero(__m512d r2) {
   }
   return _mm512_maskz_mov_pd(ok, y);  // re-mask: r2 = inf gives inf * 0 = NaN in the Newton step
 }
+
+/// The sum of the eight lanes as ((t0 + t1) + (t2 + t3)) + ((t4 + t5) + (t6 + t7)), in registers:
+/// neighbouring lanes, then pairs, then halves (no store and scalar reloads). The maskz forms:
+/// GCC 12's plain permutes start from an undefined register and trip -Wuninitialized.
+RPYFMM_DIRECT_AVX512 inline double sum_lanes_pairwise(__m512d v) {
+  const __m512d a = _mm512_add_pd(v, _mm512_maskz_permute_pd(0xFF, v, 0x55));  // t0 + t1 in lane 0
+  const __m512d b = _mm512_add_pd(a, _mm512_maskz_shuffle_f64x2(0xFF, a, a, _MM_SHUFFLE(2, 3, 0, 1)));  // + t2 + t3
+  const __m512d h = _mm512_add_pd(b, _mm512_maskz_shuffle_f64x2(0xFF, b, b, _MM_SHUFFLE(1, 0, 3, 2)));  // + upper half
+  return _mm512_cvtsd_f64(h);
+}
 #endif
 }  // namespace rpyfmm::fmm::detail
