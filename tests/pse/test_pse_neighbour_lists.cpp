@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "../../rpy/src/pse/real_space_sum.hpp"
+#include "../../rpy/src/pse/window_avx2.hpp"
 #include "ewald_reference.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/rpy/pse/pse_parameters.hpp"
@@ -16,11 +17,14 @@
 using namespace rpyfmm::rpy::pse;
 
 TEST(PseNeighbourLists, InputOrderListsMatchBruteForce) {
-  for (const bool avx512 : {true, false}) {  // half lists then derived full rows; full lists
+  // Half lists (AVX-512 filter) then derived full rows; full lists by the AVX2 filter; full lists
+  // by the portable filter (on CPUs without AVX-512 or AVX2 some of these are the same path).
+  for (const auto& [avx512, avx2] : {std::pair{true, true}, std::pair{false, true}, std::pair{false, false}}) {
     for (const std::array<double, 3>& L :
          {std::array<double, 3>{21.0, 17.5, 26.0}, std::array<double, 3>{9.0, 30.0, 13.0},
           std::array<double, 3>{7.5, 7.5, 7.5}}) {
       rpyfmm::fmm::detail::use_avx512_kernels(avx512);
+      detail::use_avx2_window_kernels(avx2);
       auto x = pse_test::random_points(700, L, 19);
       for (int d = 0; d < 3; ++d) x[3 * 3 + d] = x[3 * 400 + d];  // coincident pair
       PseOptions o;
@@ -33,6 +37,7 @@ TEST(PseNeighbourLists, InputOrderListsMatchBruteForce) {
       std::vector<int> list;
       sum.input_order_lists(begin, list);
       rpyfmm::fmm::detail::use_avx512_kernels(true);
+      detail::use_avx2_window_kernels(true);
       ASSERT_EQ(begin.size(), 701u);
       std::size_t pairs = 0;
       for (std::size_t i = 0; i < 700; ++i) {
@@ -49,7 +54,10 @@ TEST(PseNeighbourLists, InputOrderListsMatchBruteForce) {
         }
         const std::vector<int> got(list.begin() + static_cast<std::ptrdiff_t>(begin[i]),
                                    list.begin() + static_cast<std::ptrdiff_t>(begin[i + 1]));
-        EXPECT_EQ(got, expected) << "particle " << i << (avx512 ? ", half lists" : ", full lists");
+        EXPECT_EQ(got, expected) << "particle " << i
+                                 << (avx512 ? ", half lists"
+                                     : avx2 ? ", AVX2 filter"
+                                            : ", portable");
         pairs += expected.size();
       }
       EXPECT_GT(pairs, 700u);  // the boxes are dense enough to have neighbours

@@ -12,6 +12,7 @@
 #include "kernels_common.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
+#include "window_avx2.hpp"
 
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
 #define RPYFMM_REAL_SPACE_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
@@ -472,6 +473,68 @@ RPYFMM_DIRECT_AVX512 std::size_t pairs_within_avx512(const double* xt, const dou
   }
   return used;
 }
+
+/// _mm_shuffle_epi8 controls that move the 32-bit lanes set in a 4-bit mask to the front, in
+/// order (the rest zeroed): the compaction of pairs_within_avx2.
+struct CompactTable {
+  alignas(16) std::uint8_t control[16][16];
+  constexpr CompactTable() : control{} {
+    for (int m = 0; m < 16; ++m) {
+      int k = 0;
+      for (int lane = 0; lane < 4; ++lane)
+        if ((m >> lane) & 1) {
+          for (int b = 0; b < 4; ++b) control[m][4 * k + b] = static_cast<std::uint8_t>(4 * lane + b);
+          ++k;
+        }
+      for (int b = 4 * k; b < 16; ++b) control[m][b] = 0x80;
+    }
+  }
+};
+constexpr CompactTable kCompact{};
+
+/// pairs_within_avx512 for CPUs with AVX2 but not the AVX-512 kernels (full lists, both
+/// directions): four candidates at a time, the kept slots moved to the front by a byte shuffle
+/// from a 16-entry table; the slot `skip` (the row's own; any other value: none) is never kept.
+/// Compiled for AVX2 without FMA, so rounded as the portable filter. out needs 4 entries of
+/// slack past the kept ones.
+__attribute__((target("avx2"))) std::size_t pairs_within_avx2(const double* xt, const double* yt, const double* zt,
+                                                              std::size_t t0, std::size_t count, const double xs[3],
+                                                              const double shift[3], double rc2, std::size_t skip,
+                                                              int* out) {
+  const __m256d x = _mm256_set1_pd(xs[0]), y = _mm256_set1_pd(xs[1]), z = _mm256_set1_pd(xs[2]);
+  const __m256d sx = _mm256_set1_pd(shift[0]), sy = _mm256_set1_pd(shift[1]), sz = _mm256_set1_pd(shift[2]);
+  const __m256d r2 = _mm256_set1_pd(rc2);
+  const __m128i lane = _mm_setr_epi32(0, 1, 2, 3);
+  std::size_t used = 0;
+  for (std::size_t q = 0; q < count; q += 4) {
+    const std::size_t left = count - q;
+    __m256d vx, vy, vz;
+    if (left >= 4) {
+      vx = _mm256_loadu_pd(xt + t0 + q);
+      vy = _mm256_loadu_pd(yt + t0 + q);
+      vz = _mm256_loadu_pd(zt + t0 + q);
+    } else {
+      const __m256i live =
+          _mm256_cmpgt_epi64(_mm256_set1_epi64x(static_cast<long long>(left)), _mm256_setr_epi64x(0, 1, 2, 3));
+      vx = _mm256_maskload_pd(xt + t0 + q, live);
+      vy = _mm256_maskload_pd(yt + t0 + q, live);
+      vz = _mm256_maskload_pd(zt + t0 + q, live);
+    }
+    const __m256d dx = _mm256_sub_pd(_mm256_sub_pd(x, vx), sx);
+    const __m256d dy = _mm256_sub_pd(_mm256_sub_pd(y, vy), sy);
+    const __m256d dz = _mm256_sub_pd(_mm256_sub_pd(z, vz), sz);
+    const __m256d d2 =
+        _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)), _mm256_mul_pd(dz, dz));
+    unsigned keep = static_cast<unsigned>(_mm256_movemask_pd(_mm256_cmp_pd(d2, r2, _CMP_LT_OQ)));
+    if (left < 4) keep &= (1u << left) - 1u;
+    if (skip - (t0 + q) < 4) keep &= ~(1u << (skip - (t0 + q)));
+    const __m128i idx = _mm_add_epi32(_mm_set1_epi32(static_cast<int>(t0 + q)), lane);
+    const __m128i control = _mm_load_si128(reinterpret_cast<const __m128i*>(kCompact.control[keep]));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(out + used), _mm_shuffle_epi8(idx, control));
+    used += static_cast<std::size_t>(__builtin_popcount(keep));
+  }
+  return used;
+}
 #pragma GCC diagnostic pop
 #endif
 
@@ -617,6 +680,9 @@ void RealSpaceSum::set_positions(std::span<const double> x) {
   // t > s are listed (neighbour cells of larger id, and the later slots of the own cell): half
   // the distance checks. Full rows are then derived on demand (full_rows()).
   half_lists_ = cells && use_table_ && fmm::detail::avx512_kernels_active();
+#if defined(RPYFMM_HAVE_DIRECT_AVX512)
+  const bool avx2_filter = !half_lists_ && avx2_window_kernels(1);  // CPU and toggle: window_avx2.hpp
+#endif
   full_ready_ = !half_lists_;
   // One pass: blocks of consecutive cells (consecutive slots) fill buffers of their own, which are
   // then concatenated in block order.
@@ -657,6 +723,11 @@ void RealSpaceSum::set_positions(std::span<const double> x) {
             if (half_lists_) {  // AVX-512 active; t0 > s, so the own slot is never a candidate
               const double xs[3] = {px[s], py[s], pz[s]};
               used += pairs_within_avx512(px.data(), py.data(), pz.data(), t0, count, xs, run.shift, rc2, out + used);
+              continue;
+            }
+            if (cells && avx2_filter) {  // full lists on a CPU with AVX2
+              const double xs[3] = {px[s], py[s], pz[s]};
+              used += pairs_within_avx2(px.data(), py.data(), pz.data(), t0, count, xs, run.shift, rc2, s, out + used);
               continue;
             }
 #endif
