@@ -450,7 +450,8 @@ RPYFMM_DIRECT_AVX512 void cached_half_row_avx512(const int* nb, std::size_t coun
 /// (q < count) with |(xs - x_t, ys - y_t, zs - z_t)|^2 < rc2, where (xs, ys, zs) is the row's
 /// position less the run's image shift, in ascending order; returns how many. Rounded as the
 /// portable filter rounds ((xs - x_t) - shift per axis there; products and sums without fused
-/// multiply-adds), so both keep the same pairs. out needs 8 entries of slack past the kept ones.
+/// multiply-adds), so both keep the same pairs. out needs 16 entries of slack past the kept ones (one
+/// 512-bit store of 16 slots).
 RPYFMM_DIRECT_AVX512 std::size_t pairs_within_avx512(const double* xt, const double* yt, const double* zt,
                                                      std::size_t t0, std::size_t count, const double xs[3],
                                                      const double shift[3], double rc2, int* out) {
