@@ -571,12 +571,15 @@ void RealSpaceSum::set_positions(std::span<const double> x) {
     const std::size_t ncell = static_cast<std::size_t>(nc[0]) * nc[1] * nc[2];
     cell_begin.assign(ncell + 1, 0);
     std::vector<std::size_t> id(n);
-    for (std::size_t i = 0; i < n; ++i) {
+    // Cell ids in parallel (divisions), the counts serially.
+#pragma omp parallel for schedule(static) if (n >= 16384)
+    for (std::int64_t ii = 0; ii < static_cast<std::int64_t>(n); ++ii) {
+      const auto i = static_cast<std::size_t>(ii);
       int c[3];
       for (int d = 0; d < 3; ++d) c[d] = std::min(static_cast<int>(x[3 * i + d] / box_[d] * nc[d]), nc[d] - 1);
       id[i] = (static_cast<std::size_t>(c[0]) * nc[1] + c[1]) * nc[2] + c[2];
-      ++cell_begin[id[i] + 1];
     }
+    for (std::size_t i = 0; i < n; ++i) ++cell_begin[id[i] + 1];
     for (std::size_t c = 0; c < ncell; ++c) cell_begin[c + 1] += cell_begin[c];
     std::vector<std::size_t> fill(cell_begin.begin(), cell_begin.end() - 1);
     for (std::size_t i = 0; i < n; ++i) order_[fill[id[i]]++] = i;
@@ -587,7 +590,9 @@ void RealSpaceSum::set_positions(std::span<const double> x) {
   // One pass (x is read at random, a particle's three coordinates share a cache line), fetching
   // a few slots ahead.
   constexpr std::size_t ahead = 8;
-  for (std::size_t s = 0; s < n; ++s) {
+#pragma omp parallel for schedule(static) if (n >= 16384)
+  for (std::int64_t ss = 0; ss < static_cast<std::int64_t>(n); ++ss) {
+    const auto s = static_cast<std::size_t>(ss);
     if (s + ahead < n) __builtin_prefetch(&x[3 * order_[s + ahead]]);
     const double* xi = &x[3 * order_[s]];
     pos_[0][s] = xi[0];

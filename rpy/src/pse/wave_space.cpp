@@ -390,10 +390,9 @@ void WaveGrid<Real>::set_positions(std::span<const double> x) {
   }
   tile_begin_.assign(ntiles + 1, 0);
   std::vector<int> tile(np_);
-  for (std::size_t i = 0; i < np_; ++i) {
-    tile[i] = tile_of(i);
-    ++tile_begin_[static_cast<std::size_t>(tile[i]) + 1];
-  }
+#pragma omp parallel for schedule(static) if (np_ >= 16384)
+  for (std::int64_t i = 0; i < np; ++i) tile[static_cast<std::size_t>(i)] = tile_of(static_cast<std::size_t>(i));
+  for (std::size_t i = 0; i < np_; ++i) ++tile_begin_[static_cast<std::size_t>(tile[i]) + 1];
   for (std::size_t t = 0; t < ntiles; ++t) tile_begin_[t + 1] += tile_begin_[t];
   order_.resize(np_);
   std::vector<std::size_t> fill(tile_begin_.begin(), tile_begin_.end() - 1);
