@@ -70,6 +70,8 @@ inline void window_weights_from_offset(double d0, double h, int P, double inv_2s
 /// exp(-2 d_0 h a)^l exp(-l^2 h^2 a), two exponentials per axis instead of P; `tail[l]` =
 /// exp(-l^2 h^2 a) (the same for every particle). Relative difference from window_weights
 /// ~P ulps (the powers by repeated products). Host only: the CUDA kernels keep window_weights.
+/// WaveGrid::set_positions does the same three steps in two passes (starts and offsets in input
+/// order, weights in tile order); this one-call form is what the tests compare.
 inline int window_weights_recurrence(double x, double h, int P, int n, double inv_2s2, const double* tail, double* w) {
   const long s = window_start(x, h, P);
   window_weights_from_offset(static_cast<double>(s) * h - x, h, P, inv_2s2, tail, w);

@@ -449,9 +449,11 @@ RPYFMM_DIRECT_AVX512 void cached_half_row_avx512(const int* nb, std::size_t coun
 /// The list build's candidate filter, eight candidates at a time: appends to out the slots t0 + q
 /// (q < count) with |(xs - x_t, ys - y_t, zs - z_t)|^2 < rc2, where (xs, ys, zs) is the row's
 /// position less the run's image shift, in ascending order; returns how many. Rounded as the
-/// portable filter rounds ((xs - x_t) - shift per axis there; products and sums without fused
-/// multiply-adds), so both keep the same pairs. out needs 16 entries of slack past the kept ones (one
-/// 512-bit store of 16 slots).
+/// portable filter rounds in the default (portable x86-64) build ((xs - x_t) - shift per axis;
+/// products and sums without fused multiply-adds), so both keep the same pairs; where the
+/// compiler may fuse the portable filter's products (-march=native), a pair within a rounding
+/// of r_cut may differ, whose block is below the tolerance there anyway. out needs 16 entries
+/// of slack past the kept ones (one 512-bit store of 16 slots).
 RPYFMM_DIRECT_AVX512 std::size_t pairs_within_avx512(const double* xt, const double* yt, const double* zt,
                                                      std::size_t t0, std::size_t count, const double xs[3],
                                                      const double shift[3], double rc2, int* out) {
@@ -496,8 +498,8 @@ constexpr CompactTable kCompact{};
 /// pairs_within_avx512 for CPUs with AVX2 but not the AVX-512 kernels (full lists, both
 /// directions): four candidates at a time, the kept slots moved to the front by a byte shuffle
 /// from a 16-entry table; the slot `skip` (the row's own; any other value: none) is never kept.
-/// Compiled for AVX2 without FMA, so rounded as the portable filter. out needs 4 entries of
-/// slack past the kept ones.
+/// Compiled for AVX2 without FMA, so rounded as pairs_within_avx512 (and the portable filter,
+/// with the same proviso). out needs 4 entries of slack past the kept ones.
 __attribute__((target("avx2"))) std::size_t pairs_within_avx2(const double* xt, const double* yt, const double* zt,
                                                               std::size_t t0, std::size_t count, const double xs[3],
                                                               const double shift[3], double rc2, std::size_t skip,
