@@ -25,10 +25,10 @@
 // MF_cached_s is a product repeated with the same positions (the pair cache filled).
 // --fft-measure: PseOptions::fft_measure (FFTW_MEASURE plans; the plan column gives the planning
 // time of set_positions, which includes the timing of the plans).
-// --cuda: the CUDA operator PseRpyCuda instead (host arrays in and out, so transfers count),
-// with its relative difference from the CPU operator's M F (double-precision wave grids, as on
-// the GPU) for N <= 250000; skips with a
-// message when no device is usable.
+// --cuda: the CUDA operator PseRpyCuda instead: host arrays in and out (transfers count) and
+// device arrays (apply_device / sample_device), the device's stage times, and its relative
+// difference from the CPU operator's M F (double-precision wave grids, as on the GPU) for
+// N <= 250000; skips with a message when no device is usable.
 #include <omp.h>
 
 #include <algorithm>
@@ -47,6 +47,10 @@
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
 #include "rpyfmm/rpy/random.hpp"
+
+#ifdef RPYFMM_HAVE_CUDA_PSE
+#include <cuda_runtime.h>  // device arrays for apply_device / sample_device (--cuda)
+#endif
 
 using namespace rpyfmm;
 using namespace rpyfmm::rpy;
@@ -139,6 +143,12 @@ double difference_from_cpu(const PseOptions& o, double L, const std::vector<doub
   return relative_l2(u, uc);
 }
 
+/// Seconds of `stage` per call in `t` over `calls` calls (0 where it did not run).
+double per_call(const StageTimes& t, const char* stage, int calls) {
+  const auto it = t.find(stage);
+  return it == t.end() ? 0.0 : it->second / calls;
+}
+
 int run_cuda(const std::vector<std::size_t>& sizes) {
   if (!PseRpyCuda::device_available()) {
     std::printf("# no usable CUDA device (or a build without CUDA): nothing to benchmark\n");
@@ -147,9 +157,16 @@ int run_cuda(const std::vector<std::size_t>& sizes) {
   // Same algorithm as the CPU path: the results differ by round-off only (atomic spreading in
   // another order), far below this; a larger difference fails the run (exit status 3).
   constexpr double kMaxRelDiffCpu = 1e-9;
+  constexpr int kReps = 5;
   int status = 0;
   const double a = 1.0, phi = 0.1;
-  std::printf("N,backend,grid,P,r_cut,MF_s,MF_PTPS,sample_s,sample_PTPS,sample_over_MF,split_iters,rel_diff_cpu\n");
+  // MF / sample: host arrays in and out (transfers count); MF_dev / sample_dev: device arrays
+  // (apply_device / sample_device). Stage columns: seconds per host-array M F (transfer = both
+  // copies with the gathers and scatters, fft = forward + backward) and per sample (lanczos).
+  std::printf(
+      "N,backend,grid,P,r_cut,MF_s,MF_PTPS,MF_dev_s,MF_dev_PTPS,sample_s,sample_PTPS,sample_dev_s,sample_dev_PTPS,"
+      "sample_over_MF,split_iters,rel_diff_cpu,MF_transfer_s,MF_real_s,MF_spread_s,MF_fft_s,MF_scale_s,"
+      "MF_interp_s,sample_lanczos_s,sample_wave_s\n");
   for (std::size_t n : sizes) {
     const double L = std::cbrt(static_cast<double>(n) * 4.0 / 3.0 * std::numbers::pi * a * a * a / phi);
     const auto x = hard_spheres(n, a, L, 7);
@@ -161,11 +178,31 @@ int run_cuda(const std::vector<std::size_t>& sizes) {
     PseRpyCuda op(Geometry::periodic(L), 1.0, o);
     op.set_positions(x, a);
     op.apply(f, u);  // warm up (plans, first-touch)
-    const double t_mf = median_seconds(5, [&] { op.apply(f, u); });
+    op.reset_stage_times();
+    const double t_mf = median_seconds(kReps, [&] { op.apply(f, u); });
+    const StageTimes mf = op.stage_times();
     int iters = 0;
     std::uint64_t step = 0;
     op.sample(5, step++, w);
-    const double t_s = median_seconds(5, [&] { iters = op.sample(5, step++, w).iterations; });
+    op.reset_stage_times();
+    const double t_s = median_seconds(kReps, [&] { iters = op.sample(5, step++, w).iterations; });
+    const StageTimes st = op.stage_times();
+    double t_mf_dev = -1.0, t_s_dev = -1.0;
+#ifdef RPYFMM_HAVE_CUDA_PSE
+    {
+      double *df = nullptr, *du = nullptr;
+      const std::size_t bytes = f.size() * sizeof(double);
+      if (cudaMalloc(reinterpret_cast<void**>(&df), bytes) == cudaSuccess &&
+          cudaMalloc(reinterpret_cast<void**>(&du), bytes) == cudaSuccess &&
+          cudaMemcpy(df, f.data(), bytes, cudaMemcpyHostToDevice) == cudaSuccess) {
+        op.apply_device(df, du);
+        t_mf_dev = median_seconds(kReps, [&] { op.apply_device(df, du); });
+        t_s_dev = median_seconds(kReps, [&] { op.sample_device(5, step++, du); });
+      }
+      cudaFree(df);
+      cudaFree(du);
+    }
+#endif
     double diff = -1.0;
     if (n <= 250000) {
       op.apply(f, u);
@@ -176,8 +213,16 @@ int run_cuda(const std::vector<std::size_t>& sizes) {
       }
     }
     const auto& p = op.parameters();
-    std::printf("%zu,cuda,%dx%dx%d,%d,%.3f,%.4g,%.4g,%.4g,%.4g,%.2f,%d,%.3g\n", n, p.grid[0], p.grid[1], p.grid[2],
-                p.support[0], p.r_cut, t_mf, n / t_mf, t_s, n / t_s, t_s / t_mf, iters, diff);
+    const auto ptps = [n](double t) { return t > 0.0 ? static_cast<double>(n) / t : -1.0; };
+    std::printf(
+        "%zu,cuda,%dx%dx%d,%d,%.3f,%.4g,%.4g,%.4g,%.4g,%.4g,%.4g,%.4g,%.4g,%.2f,%d,%.3g,%.4g,%.4g,%.4g,%.4g,%.4g,%.4g,"
+        "%.4g,%.4g\n",
+        n, p.grid[0], p.grid[1], p.grid[2], p.support[0], p.r_cut, t_mf, ptps(t_mf), t_mf_dev, ptps(t_mf_dev), t_s,
+        ptps(t_s), t_s_dev, ptps(t_s_dev), t_s / t_mf, iters, diff, per_call(mf, "transfer", kReps),
+        per_call(mf, "real_space", kReps), per_call(mf, "spread", kReps),
+        per_call(mf, "fft_forward", kReps) + per_call(mf, "fft_backward", kReps), per_call(mf, "scale", kReps),
+        per_call(mf, "interpolate", kReps), per_call(st, "lanczos", kReps),
+        per_call(st, "scale", kReps) + per_call(st, "fft_backward", kReps) + per_call(st, "interpolate", kReps));
     std::fflush(stdout);
   }
   return status;

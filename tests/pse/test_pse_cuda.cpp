@@ -13,6 +13,10 @@
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
 
+#ifdef RPYFMM_HAVE_CUDA_PSE
+#include <cuda_runtime.h>
+#endif
+
 using namespace rpyfmm::rpy;
 using namespace rpyfmm::rpy::pse;
 
@@ -94,6 +98,32 @@ TEST(PseCuda, CpuAndGpuAgree) {
     cpu.apply_block(f2, uc2, 2);
     gpu.apply_block(f2, ug2, 2);
     EXPECT_LT(pse_test::rel_l2(ug2, uc2), 1e-12);
+#ifdef RPYFMM_HAVE_CUDA_PSE
+    // The device-array entry points: the same products without host transfers.
+    {
+      double *df = nullptr, *du = nullptr;
+      const std::size_t bytes = f.size() * sizeof(double);
+      ASSERT_EQ(cudaMalloc(reinterpret_cast<void**>(&df), bytes), cudaSuccess);
+      ASSERT_EQ(cudaMalloc(reinterpret_cast<void**>(&du), bytes), cudaSuccess);
+      ASSERT_EQ(cudaMemcpy(df, f.data(), bytes, cudaMemcpyHostToDevice), cudaSuccess);
+      cpu.apply(f, uc);
+      gpu.apply_device(df, du);
+      ASSERT_EQ(cudaMemcpy(ug.data(), du, bytes, cudaMemcpyDeviceToHost), cudaSuccess);
+      EXPECT_LT(pse_test::rel_l2(ug, uc), 1e-12) << "apply_device";
+      const SqrtReport dc = cpu.sample(23, 2, uc);
+      const SqrtReport dg = gpu.sample_device(23, 2, du);
+      ASSERT_EQ(cudaMemcpy(ug.data(), du, bytes, cudaMemcpyDeviceToHost), cudaSuccess);
+      EXPECT_LT(pse_test::rel_l2(ug, uc), sampler_bound(dc, dg)) << "sample_device";
+      cudaFree(df);
+      cudaFree(du);
+    }
+    // Stage times from the device's events: every stage of a product and of a sample ran.
+    const auto stages = gpu.stage_times();
+    for (const char* stage :
+         {"transfer", "real_space", "spread", "fft_forward", "scale", "fft_backward", "interpolate", "lanczos"}) {
+      EXPECT_TRUE(stages.count(stage) == 1 && stages.at(stage) > 0.0) << stage;
+    }
+#endif
     // New positions in the same plan (moved particles, other neighbour counts), then fewer particles.
     auto moved = x;
     for (std::size_t i = 0; i < moved.size(); ++i) moved[i] += 0.7 * std::sin(1.3 * double(i));

@@ -4,11 +4,14 @@
 #include <omp.h>
 
 #include <cmath>
+#include <cstdint>
 #include <vector>
 
-#include "../../rpy/src/sqrt/detail.hpp"  // dots, subtract_combination
-#include "../../rpy/src/sqrt/krylov.hpp"  // LanczosProcess
+#include "../../rpy/src/sqrt/detail.hpp"        // dots, subtract_combination
+#include "../../rpy/src/sqrt/krylov.hpp"        // LanczosProcess
+#include "../../rpy/src/sqrt/krylov_space.hpp"  // KrylovSpace, lanczos_sqrt_in_space
 #include "rpyfmm/core/error.hpp"
+#include "rpyfmm/core/validate.hpp"  // fail
 #include "sqrt_test_util.hpp"
 
 using namespace rpyfmm::rpy;
@@ -276,4 +279,124 @@ TEST(Lanczos, GramSchmidtKernels) {
     sqrt_detail::subtract_combination(v, h.data(), got.data(), n);
     for (std::size_t i = 0; i < n; ++i) EXPECT_NEAR(got[i], expected[i], 1e-13 * (1.0 + std::abs(expected[i])));
   }
+}
+
+namespace {
+
+/// A Krylov space whose vectors live out of the iteration's reach, as device vectors do for the
+/// CUDA PSE sampler: its "pointers" are handles (addresses in the first page, which any
+/// dereference would fault on), resolved to host storage only inside the space's operations and
+/// the product. Its inner products sum in another order than the host kernels (blocks of 7,
+/// then the blocks), as a device reduction would.
+class HandleSpace final : public sqrt_detail::KrylovSpace {
+ public:
+  explicit HandleSpace(std::size_t n) : n_(n) {}
+  [[nodiscard]] std::size_t n() const override { return n_; }
+  void clear() override { count_ = 0; }
+  double* push() override {
+    if (count_ == basis_.size()) basis_.emplace_back(n_);
+    return handle(count_++);
+  }
+  [[nodiscard]] double* vector(std::size_t q) override { return handle(q); }
+  [[nodiscard]] std::size_t basis_size() const override { return count_; }
+  [[nodiscard]] double* work() override { return handle(kWork); }
+  double dot(const double* x, const double* y) override {
+    const double* a = data(x);
+    const double* b = data(y);
+    double total = 0.0;
+    for (std::size_t lo = 0; lo < n_; lo += 7) {
+      double block = 0.0;
+      for (std::size_t i = lo; i < std::min(n_, lo + 7); ++i) block += a[i] * b[i];
+      total += block;
+    }
+    return total;
+  }
+  void dots(std::size_t k, const double* y, double* h) override {
+    for (std::size_t q = 0; q < k; ++q) h[q] = dot(handle(q), y);
+  }
+  void subtract_combination(std::size_t k, const double* h, double* y) override {
+    for (std::size_t q = 0; q < k; ++q) axpy(-h[q], handle(q), y);
+  }
+  void axpy(double a, const double* x, double* y) override {
+    const double* xs = data(x);
+    double* ys = data(y);
+    for (std::size_t i = 0; i < n_; ++i) ys[i] += a * xs[i];
+  }
+  void scale_into(double a, const double* x, double* out) override {
+    const double* xs = data(x);
+    double* o = data(out);
+    for (std::size_t i = 0; i < n_; ++i) o[i] = a * xs[i];
+  }
+  void combine(std::size_t k, const double* c, double* out) override {
+    double* o = data(out);
+    std::fill(o, o + n_, 0.0);
+    for (std::size_t q = 0; q < k; ++q) axpy(c[q], handle(q), out);
+  }
+  void require_finite(const double* y, const char* where, long long product) override {
+    const double* v = data(y);
+    for (std::size_t i = 0; i < n_; ++i)
+      if (!std::isfinite(v[i]))
+        rpyfmm::fail(rpyfmm::ErrorCode::numerical_failure, where, "non-finite product " + std::to_string(product));
+  }
+  /// Handles of the caller's vectors (input z, output w), and their storage.
+  double* input() { return handle(kInput); }
+  double* output() { return handle(kOutput); }
+  /// The storage behind a handle.
+  double* data(const double* h) {
+    const auto id = (reinterpret_cast<std::uintptr_t>(h) - kBase) / 8;
+    if (id == kWork) return work_.data();
+    if (id == kInput) return input_.data();
+    if (id == kOutput) return output_.data();
+    return basis_.at(id).data();
+  }
+
+ private:
+  static constexpr std::uintptr_t kBase = 64;
+  static constexpr std::size_t kWork = 400, kInput = 401, kOutput = 402;
+  static double* handle(std::size_t id) { return reinterpret_cast<double*>(kBase + 8 * id); }
+  std::size_t n_;
+  std::vector<std::vector<double>> basis_;
+  std::size_t count_ = 0;
+  std::vector<double> work_ = std::vector<double>(n_), input_ = std::vector<double>(n_),
+                      output_ = std::vector<double>(n_);
+};
+
+}  // namespace
+
+TEST(Lanczos, IterationOnAnotherMemorySpace) {
+  // lanczos_sqrt_in_space touches vectors only through the space and the product (the CUDA
+  // sampler's contract): on handle "pointers" it runs without faulting and gives the host
+  // result, to round-off of the other summation order, with the same iteration count.
+  const int N = 60;
+  const Eigen::MatrixXd M = sqrt_test::rpy_matrix(sqrt_test::random_points(N, 0.3, 4u), sqrt_test::radii(N, false, 5u));
+  const Eigen::VectorXd z = sqrt_test::gaussian(M.rows(), 6u);
+  const auto n = static_cast<std::size_t>(M.rows());
+  SqrtOptions opt;
+  opt.method = SqrtMethod::lanczos;
+  opt.tolerance = 1e-8;
+  Eigen::VectorXd w_host(M.rows());
+  const SqrtReport host = sqrt_apply(sqrt_test::view_of(M), cspan(z), mspan(w_host), 1, opt);
+
+  HandleSpace space(n);
+  std::copy_n(z.data(), n, space.data(space.input()));
+  long long products = 0;
+  const SqrtReport other = sqrt_detail::lanczos_sqrt_in_space(
+      space,
+      [&](const double* x, double* y) {
+        ++products;
+        Eigen::Map<Eigen::VectorXd>(space.data(y), M.rows()) =
+            M * Eigen::Map<const Eigen::VectorXd>(space.data(x), M.rows());
+      },
+      space.input(), space.output(), opt);
+  const Eigen::VectorXd w_other = Eigen::Map<const Eigen::VectorXd>(space.data(space.output()), M.rows());
+  EXPECT_EQ(other.iterations, host.iterations);
+  EXPECT_EQ(other.operator_applications, products);
+  EXPECT_TRUE(other.converged);
+  EXPECT_LT((w_other - w_host).norm() / w_host.norm(), 1e-12);
+  // A second right-hand side in the same space (the basis memory is reused) and a zero vector.
+  std::fill_n(space.data(space.input()), n, 0.0);
+  const SqrtReport zero = sqrt_detail::lanczos_sqrt_in_space(
+      space, [&](const double*, double*) { FAIL() << "no product for z = 0"; }, space.input(), space.output(), opt);
+  EXPECT_EQ(zero.iterations, 0);
+  EXPECT_EQ(Eigen::Map<const Eigen::VectorXd>(space.data(space.output()), M.rows()).norm(), 0.0);
 }

@@ -1,23 +1,32 @@
 // rpyfmm — PseRpyCuda: the PSE stages on a CUDA device (PSE.md Sec. 6.3).
+// The particles live on the device in slot order (the CPU cell list's order, so that neighbours
+// in space are neighbours in memory: the spreading atomics and the neighbour reads stay in L2);
+// a product uploads its forces once and downloads its velocities once, gathered and scattered
+// between input and slot order on the device.
 //   spread:      one thread block per particle, 1D weights in shared memory, atomicAdd;
 //   FFT:         cuFFT D2Z / Z2D, batch of 3 components (same layout as FFTW);
 //   scale+noise: one thread per half-spectrum mode, the same scale_mode() as the CPU;
-//   interpolate: one block per particle, block reduction;
-//   real space:  one thread per particle over its neighbour list (built on the host
-//                with the CPU cell list), table lookup, no atomics.
-// Parameters, tables and neighbour lists come from the CPU code, so both back ends
-// use identical inputs; the Lanczos iteration of the split sampler runs on the host
-// with device products.
+//   interpolate: one block per particle, warp-shuffle reduction, added to the real-space part;
+//   real space:  one thread per particle over its neighbour list (built on the host with the
+//                CPU cell list), table lookup, no atomics;
+//   Lanczos:     the real-space square root of the split sampler iterates on device vectors
+//                (sqrt_detail::lanczos_sqrt_in_space, the host's iteration and stopping test;
+//                deterministic block sums for the inner products).
+// Parameters, tables and neighbour lists come from the CPU code, so both back ends use
+// identical inputs.
 #include <cuda_runtime.h>
 #include <cufft.h>
 
 #include <algorithm>
+#include <array>
+#include <chrono>
 #include <cstdlib>
-
+#include <memory>
 #include <numbers>
 #include <string>
 #include <vector>
 
+#include "../sqrt/krylov_space.hpp"
 #include "kernels_common.hpp"
 #include "real_space_sum.hpp"
 #include "rpyfmm/core/timer.hpp"
@@ -81,6 +90,7 @@ class DeviceArray {
   }
   T* get() { return p_; }
   const T* get() const { return p_; }
+  [[nodiscard]] std::size_t size() const { return n_; }
 
  private:
   T* p_ = nullptr;
@@ -97,6 +107,46 @@ struct WindowParams {
 };
 
 constexpr int kMaxSupport = 64;
+constexpr unsigned kThreads = 256;        // element-wise kernels
+constexpr unsigned kWindowThreads = 128;  // spreading and interpolation: threads per particle
+constexpr unsigned kReduceBlocks = 240;   // inner products: fixed, so their sums do not depend on the device
+constexpr unsigned kWarp = 32;
+
+unsigned blocks_for(std::size_t n, unsigned threads) {
+  return static_cast<unsigned>((n + threads - 1) / threads);
+}
+
+/// Sum over the block (blockDim.x a multiple of 32, at most 1024) in a fixed order: shuffles
+/// within each warp, then the warps' sums in order by thread 0; valid in thread 0 only.
+__device__ double block_sum(double v, double* shared_warps) {
+  for (unsigned offset = kWarp / 2; offset > 0; offset /= 2) v += __shfl_down_sync(0xffffffffu, v, offset);
+  const unsigned lane = threadIdx.x % kWarp, warp = threadIdx.x / kWarp;
+  if (lane == 0) shared_warps[warp] = v;
+  __syncthreads();
+  double s = 0.0;
+  if (threadIdx.x == 0)
+    for (unsigned q = 0; q < blockDim.x / kWarp; ++q) s += shared_warps[q];
+  __syncthreads();  // shared_warps may be reused by the caller's next call
+  return s;
+}
+
+/// out[3 s + c] = in[3 order[s] + c] (input -> slot order).
+__global__ void gather3_kernel(int np, const int* __restrict__ order, const double* __restrict__ in,
+                               double* __restrict__ out) {
+  const int s = blockIdx.x * blockDim.x + threadIdx.x;
+  if (s >= np) return;
+  const std::size_t i = static_cast<std::size_t>(order[s]);
+  for (int c = 0; c < 3; ++c) out[3 * static_cast<std::size_t>(s) + c] = in[3 * i + c];
+}
+
+/// out[3 order[s] + c] = in[3 s + c] (slot -> input order).
+__global__ void scatter3_kernel(int np, const int* __restrict__ order, const double* __restrict__ in,
+                                double* __restrict__ out) {
+  const int s = blockIdx.x * blockDim.x + threadIdx.x;
+  if (s >= np) return;
+  const std::size_t i = static_cast<std::size_t>(order[s]);
+  for (int c = 0; c < 3; ++c) out[3 * i + c] = in[3 * static_cast<std::size_t>(s) + c];
+}
 
 __global__ void spread_kernel(int np, const double* __restrict__ x, const double* __restrict__ f, double* grid,
                               WindowParams w) {
@@ -126,21 +176,20 @@ __global__ void spread_kernel(int np, const double* __restrict__ x, const double
   }
 }
 
-constexpr int kInterpThreads = 128;
-
-__global__ void interpolate_kernel(int np, const double* __restrict__ x, const double* __restrict__ grid,
-                                   double* out, WindowParams w, double scale) {
+/// out[3 i + c] (+)= scale c3 sum_window w grid_c (one block of kWindowThreads per particle).
+__global__ void interpolate_kernel(int np, const double* __restrict__ x, const double* __restrict__ grid, double* out,
+                                   WindowParams w, double scale, bool accumulate) {
   const int i = blockIdx.x;
   if (i >= np) return;
   __shared__ double wts[3 * kMaxSupport];
   __shared__ int start[3];
-  __shared__ double red[3][kInterpThreads];
+  __shared__ double warps[kWindowThreads / kWarp];
   if (threadIdx.x < 3) {
     const int d = threadIdx.x;
     start[d] = detail::window_weights(x[3 * i + d], w.h[d], w.P[d], w.n[d], w.inv_2s2, wts + d * kMaxSupport);
   }
   __syncthreads();
-  double s0 = 0.0, s1 = 0.0, s2 = 0.0;
+  double s[3] = {0.0, 0.0, 0.0};
   const int total = w.P[0] * w.P[1] * w.P[2];
   for (int t = threadIdx.x; t < total; t += blockDim.x) {
     const int l = t % w.P[2];
@@ -151,22 +200,16 @@ __global__ void interpolate_kernel(int np, const double* __restrict__ x, const d
     const std::size_t iz = static_cast<std::size_t>((start[2] + l) % w.n[2]);
     const std::size_t k = (ix * w.n[1] + iy) * w.n[2] + iz;
     const double wt = wts[a] * wts[kMaxSupport + b] * wts[2 * kMaxSupport + l];
-    s0 += wt * grid[k];
-    s1 += wt * grid[w.ng + k];
-    s2 += wt * grid[2 * w.ng + k];
+    s[0] += wt * grid[k];
+    s[1] += wt * grid[w.ng + k];
+    s[2] += wt * grid[2 * w.ng + k];
   }
-  red[0][threadIdx.x] = s0;
-  red[1][threadIdx.x] = s1;
-  red[2][threadIdx.x] = s2;
-  __syncthreads();
-  for (int half = kInterpThreads / 2; half > 0; half /= 2) {
-    if (static_cast<int>(threadIdx.x) < half) {
-      for (int c = 0; c < 3; ++c) red[c][threadIdx.x] += red[c][threadIdx.x + half];
+  for (int c = 0; c < 3; ++c) {
+    const double total_c = block_sum(s[c], warps);
+    if (threadIdx.x == 0) {
+      const double v = scale * w.c3 * total_c;
+      out[3 * i + c] = accumulate ? out[3 * i + c] + v : v;
     }
-    __syncthreads();
-  }
-  if (threadIdx.x == 0) {
-    for (int c = 0; c < 3; ++c) out[3 * i + c] = scale * w.c3 * red[c][0];
   }
 }
 
@@ -177,6 +220,7 @@ __global__ void scale_kernel(detail::ModeGeometry g, const double* __restrict__ 
   detail::scale_mode(idx, g, ck, spec, deterministic, noise, seed, step, factor);
 }
 
+/// out = M_r f, everything in slot order (the neighbour lists hold slots).
 __global__ void real_space_kernel(int np, const double* __restrict__ x, const double* __restrict__ f, double* out,
                                   const unsigned long long* __restrict__ begin, const int* __restrict__ list,
                                   const double* __restrict__ table, double inv_dr, double self, double m0, double3 L,
@@ -184,11 +228,12 @@ __global__ void real_space_kernel(int np, const double* __restrict__ x, const do
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
   if (i >= np) return;
   double u[3] = {self * f[3 * i], self * f[3 * i + 1], self * f[3 * i + 2]};
+  const double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2];
   for (unsigned long long q = begin[i]; q < begin[i + 1]; ++q) {
     const int j = list[q];
-    const double dx = detail::minimum_image(x[3 * i] - x[3 * j], L.x, inv_L.x);
-    const double dy = detail::minimum_image(x[3 * i + 1] - x[3 * j + 1], L.y, inv_L.y);
-    const double dz = detail::minimum_image(x[3 * i + 2] - x[3 * j + 2], L.z, inv_L.z);
+    const double dx = detail::minimum_image(xi - x[3 * j], L.x, inv_L.x);
+    const double dy = detail::minimum_image(yi - x[3 * j + 1], L.y, inv_L.y);
+    const double dz = detail::minimum_image(zi - x[3 * j + 2], L.z, inv_L.z);
     const double r = sqrt(dx * dx + dy * dy + dz * dz);
     if (r == 0.0) {
       for (int c = 0; c < 3; ++c) u[c] += self * f[3 * j + c];
@@ -201,7 +246,197 @@ __global__ void real_space_kernel(int np, const double* __restrict__ x, const do
   for (int c = 0; c < 3; ++c) out[3 * i + c] = m0 * u[c];
 }
 
-unsigned blocks_for(std::size_t n, unsigned threads) { return static_cast<unsigned>((n + threads - 1) / threads); }
+/// out[3 s + c] = normal3(seed, step, stream, order[s])[c]: fill_normal's values (keyed by the
+/// input index), drawn on the device straight into slot order.
+__global__ void normal_slots_kernel(int np, const int* __restrict__ order, std::uint64_t seed, std::uint64_t step,
+                                    std::uint32_t stream, double* __restrict__ out) {
+  const int s = blockIdx.x * blockDim.x + threadIdx.x;
+  if (s >= np) return;
+  normal3(seed, step, stream, static_cast<std::uint64_t>(order[s]), out + 3 * static_cast<std::size_t>(s));
+}
+
+// ---- vector kernels of the device Lanczos (KrylovSpace) ----
+
+/// partial[b] = sum over block b's grid-stride share of x[q] y[q] (kReduceBlocks blocks).
+__global__ void dot_partial_kernel(std::size_t n, const double* __restrict__ x, const double* __restrict__ y,
+                                   double* __restrict__ partial) {
+  __shared__ double warps[kThreads / kWarp];
+  double s = 0.0;
+  for (std::size_t q = static_cast<std::size_t>(blockIdx.x) * blockDim.x + threadIdx.x; q < n;
+       q += static_cast<std::size_t>(gridDim.x) * blockDim.x)
+    s += x[q] * y[q];
+  s = block_sum(s, warps);
+  if (threadIdx.x == 0) partial[blockIdx.x] = s;
+}
+
+__global__ void axpy_kernel(std::size_t n, double a, const double* __restrict__ x, double* __restrict__ y) {
+  const std::size_t q = static_cast<std::size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (q < n) y[q] += a * x[q];
+}
+
+/// y += a x on n device doubles.
+void device_axpy(std::size_t n, double a, const double* x, double* y) {
+  axpy_kernel<<<blocks_for(n, kThreads), kThreads>>>(n, a, x, y);
+  check_kernel("axpy kernel");
+}
+
+__global__ void scale_into_kernel(std::size_t n, double a, const double* x, double* out) {
+  const std::size_t q = static_cast<std::size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (q < n) out[q] = a * x[q];
+}
+
+/// first[0] = min index q with a non-finite y[q] (stays at its initial n when there is none).
+__global__ void first_nonfinite_kernel(std::size_t n, const double* __restrict__ y, unsigned long long* first) {
+  const std::size_t q = static_cast<std::size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (q < n && !isfinite(y[q])) atomicMin(first, static_cast<unsigned long long>(q));
+}
+
+/// The Lanczos basis in device memory: one allocation per basis vector, kept across samples.
+class DeviceKrylovSpace final : public sqrt_detail::KrylovSpace {
+ public:
+  void set_size(std::size_t n) {
+    if (n == n_) return;
+    n_ = n;
+    store_.clear();
+    count_ = 0;
+    work_.resize(0);
+  }
+  [[nodiscard]] std::size_t n() const override { return n_; }
+  void clear() override { count_ = 0; }
+  double* push() override {
+    if (count_ == store_.size()) {
+      store_.push_back(std::make_unique<DeviceArray<double>>());
+      store_.back()->resize(n_);
+    }
+    return store_[count_++]->get();
+  }
+  [[nodiscard]] double* vector(std::size_t q) override { return store_[q]->get(); }
+  [[nodiscard]] std::size_t basis_size() const override { return count_; }
+  [[nodiscard]] double* work() override {
+    work_.resize(n_);
+    return work_.get();
+  }
+  double dot(const double* x, const double* y) override {
+    double h = 0.0;
+    dots_of({x}, y, &h);
+    return h;
+  }
+  void dots(std::size_t k, const double* y, double* h) override {
+    std::vector<const double*> v(k);
+    for (std::size_t q = 0; q < k; ++q) v[q] = store_[q]->get();
+    dots_of(v, y, h);
+  }
+  void subtract_combination(std::size_t k, const double* h, double* y) override {
+    for (std::size_t q = 0; q < k; ++q) axpy(-h[q], store_[q]->get(), y);
+  }
+  void axpy(double a, const double* x, double* y) override { device_axpy(n_, a, x, y); }
+  void scale_into(double a, const double* x, double* out) override {
+    scale_into_kernel<<<blocks_for(n_, kThreads), kThreads>>>(n_, a, x, out);
+    check_kernel("scale kernel (Lanczos)");
+  }
+  void combine(std::size_t k, const double* c, double* out) override {
+    check(cudaMemset(out, 0, n_ * sizeof(double)), "cudaMemset");
+    for (std::size_t q = 0; q < k; ++q) axpy(c[q], store_[q]->get(), out);
+  }
+  void require_finite(const double* y, const char* where, long long product) override {
+    flag_.resize(1);
+    const auto none = static_cast<unsigned long long>(n_);
+    check(cudaMemcpy(flag_.get(), &none, sizeof(none), cudaMemcpyHostToDevice), "cudaMemcpy to device");
+    first_nonfinite_kernel<<<blocks_for(n_, kThreads), kThreads>>>(n_, y, flag_.get());
+    check_kernel("finiteness kernel");
+    unsigned long long first = none;
+    flag_.download(&first, 1);
+    if (first < none) {
+      fail(ErrorCode::numerical_failure, where,
+           "the operator returned a non-finite value (entry " + std::to_string(first) +
+               " of right-hand side 0, slot order) at product " + std::to_string(product));
+    }
+  }
+
+ private:
+  /// h[q] = v[q] . y: kReduceBlocks partial sums per vector on the device, added on the host in
+  /// block order (deterministic).
+  void dots_of(const std::vector<const double*>& v, const double* y, double* h) {
+    const std::size_t need = std::max<std::size_t>(1, v.size()) * kReduceBlocks;
+    if (partial_.size() < need) partial_.resize(2 * need);  // grows only: no allocation per call
+    for (std::size_t q = 0; q < v.size(); ++q) {
+      dot_partial_kernel<<<kReduceBlocks, kThreads>>>(n_, v[q], y, partial_.get() + q * kReduceBlocks);
+      check_kernel("dot kernel");
+    }
+    host_partial_.resize(v.size() * kReduceBlocks);
+    partial_.download(host_partial_.data(), host_partial_.size());
+    for (std::size_t q = 0; q < v.size(); ++q) {
+      double s = 0.0;
+      for (unsigned b = 0; b < kReduceBlocks; ++b) s += host_partial_[q * kReduceBlocks + b];
+      h[q] = s;
+    }
+  }
+
+  std::size_t n_ = 0;
+  std::vector<std::unique_ptr<DeviceArray<double>>> store_;
+  std::size_t count_ = 0;
+  DeviceArray<double> work_, partial_;
+  DeviceArray<unsigned long long> flag_;
+  std::vector<double> host_partial_;
+};
+
+/// Wall-clock seconds of the device's stages, from CUDA events (the stream's own timeline);
+/// read (and accumulated) once the product's result has been downloaded.
+class StageEvents {
+ public:
+  StageEvents() = default;
+  StageEvents(const StageEvents&) = delete;
+  StageEvents& operator=(const StageEvents&) = delete;
+  ~StageEvents() {
+    for (auto& e : pool_) cudaEventDestroy(e);
+  }
+  /// Marks the start of `stage` on the default stream.
+  void begin(const char* stage) { open_.push_back({stage, record()}); }
+  /// Marks the end of the stage begun last.
+  void end() {
+    if (open_.empty()) return;
+    const Open o = open_.back();
+    open_.pop_back();
+    done_.push_back({o.stage, o.event, record()});
+  }
+  /// Adds the finished stages' times to `times` (waits for their events) and recycles the
+  /// events; called where no stage is open (a stage left open by an exception is dropped).
+  void collect(StageTimes& times) {
+    std::vector<Done> done;
+    done.swap(done_);
+    open_.clear();
+    used_ = 0;
+    for (const Done& d : done) {
+      check(cudaEventSynchronize(pool_[d.stop]), "cudaEventSynchronize");
+      float ms = 0.0F;
+      check(cudaEventElapsedTime(&ms, pool_[d.start], pool_[d.stop]), "cudaEventElapsedTime");
+      times[d.stage] += 1e-3 * static_cast<double>(ms);
+    }
+  }
+
+ private:
+  struct Open {
+    const char* stage;
+    std::size_t event;
+  };
+  struct Done {
+    const char* stage;
+    std::size_t start, stop;
+  };
+  std::size_t record() {
+    if (used_ == pool_.size()) {
+      cudaEvent_t e{};
+      check(cudaEventCreate(&e), "cudaEventCreate");
+      pool_.push_back(e);
+    }
+    check(cudaEventRecord(pool_[used_], 0), "cudaEventRecord");
+    return used_++;
+  }
+  std::vector<cudaEvent_t> pool_;
+  std::size_t used_ = 0;
+  std::vector<Open> open_;
+  std::vector<Done> done_;
+};
 
 }  // namespace
 
@@ -214,12 +449,22 @@ struct PseRpyCuda::Impl {
   detail::ModeGeometry modes{};
   WindowParams window{};
   double dv = 0.0;
+  std::array<double, 3> box{};
   cufftHandle plan_fwd = 0, plan_bwd = 0;
   bool have_fwd = false, have_bwd = false;
-  DeviceArray<double> ck, grid, spectrum, x, f, u, table;
+  // Device arrays; particle vectors (3 per particle) in slot order unless named otherwise.
+  DeviceArray<double> ck, grid, spectrum, table;
+  DeviceArray<double> x;                // positions
+  DeviceArray<double> io;               // one vector in input order: the transfers
+  DeviceArray<double> f, u, z;          // forces, velocities, the real-space noise
+  DeviceArray<double> noise;            // apply_with_noise: M_r^{1/2} z1
   DeviceArray<unsigned char> fft_work;  // one cuFFT work area, shared by the two plans (run in turn)
   DeviceArray<unsigned long long> begin;
-  DeviceArray<int> list;
+  DeviceArray<int> list, order;
+  DeviceKrylovSpace krylov;
+  StageEvents events;
+  StageTimes times;
+  std::size_t np = 0;
 
   ~Impl() { destroy_plans(); }
   void destroy_plans() {
@@ -228,52 +473,124 @@ struct PseRpyCuda::Impl {
     have_fwd = have_bwd = false;
   }
 
-  /// out (+)= M_w f + noise_scale M_w^{1/2} z2(key) for one right-hand side (host arrays).
-  void wave(const double* f_host, double* out, bool accumulate, const detail::NoiseKey* key, double noise_scale,
-            std::size_t np) {
-    const std::size_t n3 = 3 * np;
-    const bool deterministic = f_host != nullptr;
+  [[nodiscard]] std::size_t n3() const { return 3 * np; }
+
+  /// dst (slot order) = src (input order), both on the device.
+  void gather(const double* src, DeviceArray<double>& dst) {
+    dst.resize(n3());
+    gather3_kernel<<<blocks_for(np, kThreads), kThreads>>>(static_cast<int>(np), order.get(), src, dst.get());
+    check_kernel("gather kernel");
+  }
+  /// dst (input order) = src (slot order), both on the device.
+  void scatter(const DeviceArray<double>& src, double* dst) {
+    scatter3_kernel<<<blocks_for(np, kThreads), kThreads>>>(static_cast<int>(np), order.get(), src.get(), dst);
+    check_kernel("scatter kernel");
+  }
+
+  /// dst (slot order, device) = host (input order).
+  void upload_to_slots(const double* host, DeviceArray<double>& dst) {
+    events.begin("transfer");
+    io.upload(host, n3());
+    gather(io.get(), dst);
+    events.end();
+  }
+
+  /// host (input order) = src (slot order, device); then the stage times of the work so far.
+  void download_from_slots(const DeviceArray<double>& src, double* host) {
+    events.begin("transfer");
+    io.resize(n3());
+    scatter(src, io.get());
+    io.download(host, n3());
+    events.end();
+    events.collect(times);
+  }
+
+  /// dst (slot order) = the real-space noise z1 keyed by (seed, step): fill_normal's values in
+  /// input order, drawn on the device.
+  void draw_real_noise(std::uint64_t seed, std::uint64_t step, DeviceArray<double>& dst) {
+    dst.resize(n3());
+    normal_slots_kernel<<<blocks_for(np, kThreads), kThreads>>>(static_cast<int>(np), order.get(), seed, step,
+                                                                detail::kStreamReal, dst.get());
+    check_kernel("noise kernel");
+  }
+
+  /// out (slot order) = M f for f in slot order on the device.
+  void product(const DeviceArray<double>& f_dev, DeviceArray<double>& out) {
+    out.resize(n3());
+    real_space(f_dev.get(), out.get());
+    wave(f_dev.get(), out.get(), true, nullptr, 0.0);
+  }
+
+  /// out (slot order) = M_r^{1/2} z1 + M_w^{1/2} z2 keyed by (seed, step).
+  SqrtReport split_sample(std::uint64_t seed, std::uint64_t step, DeviceArray<double>& out) {
+    draw_real_noise(seed, step, z);
+    SqrtReport rep = real_sqrt(z, out);
+    const detail::NoiseKey key{seed, step};
+    wave(nullptr, out.get(), true, &key, 1.0);
+    rep.method = SqrtMethod::split;
+    rep.operator_applications += 1;
+    return rep;
+  }
+
+  /// out = M_r in (device vectors, slot order).
+  void real_space(const double* in, double* out) {
+    events.begin("real_space");
+    real_space_kernel<<<blocks_for(np, 128), 128>>>(static_cast<int>(np), x.get(), in, out, begin.get(), list.get(),
+                                                    table.get(), 1.0 / real->table().dr(), real->self(),
+                                                    real->mobility_unit(), make_double3(box[0], box[1], box[2]),
+                                                    make_double3(1.0 / box[0], 1.0 / box[1], 1.0 / box[2]));
+    check_kernel("real-space kernel");
+    events.end();
+  }
+
+  /// out (+)= M_w f + noise_scale M_w^{1/2} z2(key) (device vectors, slot order); f null: the
+  /// noise only.
+  void wave(const double* f_dev, double* out, bool accumulate, const detail::NoiseKey* key, double noise_scale) {
+    const bool deterministic = f_dev != nullptr;
     if (deterministic) {
-      f.upload(f_host, n3);
+      events.begin("spread");
       check(cudaMemset(grid.get(), 0, 3 * window.ng * sizeof(double)), "cudaMemset");
-      spread_kernel<<<static_cast<unsigned>(np), 128>>>(static_cast<int>(np), x.get(), f.get(), grid.get(), window);
+      spread_kernel<<<static_cast<unsigned>(np), kWindowThreads>>>(static_cast<int>(np), x.get(), f_dev, grid.get(),
+                                                                   window);
       check_kernel("spread kernel");
+      events.end();
+      events.begin("fft_forward");
       check_fft(cufftExecD2Z(plan_fwd, grid.get(), reinterpret_cast<cufftDoubleComplex*>(spectrum.get())), "D2Z");
       check_kernel("D2Z");  // cuFFT faults are asynchronous: name them here, not at the next kernel
+      events.end();
     }
     const bool with_noise = key != nullptr && noise_scale != 0.0;
+    events.begin("scale");
     scale_kernel<<<blocks_for(modes.modes, 256), 256>>>(modes, ck.get(), spectrum.get(), deterministic, with_noise,
                                                          with_noise ? key->seed : 0, with_noise ? key->step : 0,
                                                          noise_scale / std::sqrt(dv));
     check_kernel("scale kernel");
+    events.end();
+    events.begin("fft_backward");
     check_fft(cufftExecZ2D(plan_bwd, reinterpret_cast<cufftDoubleComplex*>(spectrum.get()), grid.get()), "Z2D");
     check_kernel("Z2D");
-    u.resize(n3);
-    interpolate_kernel<<<static_cast<unsigned>(np), kInterpThreads>>>(static_cast<int>(np), x.get(), grid.get(),
-                                                                      u.get(), window, dv);
+    events.end();
+    events.begin("interpolate");
+    interpolate_kernel<<<static_cast<unsigned>(np), kWindowThreads>>>(static_cast<int>(np), x.get(), grid.get(), out,
+                                                                      window, dv, accumulate);
     check_kernel("interpolate kernel");
-    std::vector<double> h(n3);
-    u.download(h.data(), n3);
-    for (std::size_t q = 0; q < n3; ++q) out[q] = accumulate ? out[q] + h[q] : h[q];
+    events.end();
   }
 
-  /// out (+)= M_r f for nrhs right-hand sides (host arrays).
-  void real_space(const double* f_host, double* out, std::size_t nrhs, bool accumulate, std::size_t np,
-                  const std::array<double, 3>& L) {
-    const std::size_t n3 = 3 * np;
-    std::vector<double> h(n3);
-    for (std::size_t r = 0; r < nrhs; ++r) {
-      f.upload(f_host + r * n3, n3);
-      u.resize(n3);
-      real_space_kernel<<<blocks_for(np, 128), 128>>>(static_cast<int>(np), x.get(), f.get(), u.get(), begin.get(),
-                                                      list.get(), table.get(), 1.0 / real->table().dr(), real->self(),
-                                                      real->mobility_unit(), make_double3(L[0], L[1], L[2]),
-                                                      make_double3(1.0 / L[0], 1.0 / L[1], 1.0 / L[2]));
-      check_kernel("real-space kernel");
-      u.download(h.data(), n3);
-      double* o = out + r * n3;
-      for (std::size_t q = 0; q < n3; ++q) o[q] = accumulate ? o[q] + h[q] : h[q];
-    }
+  /// w = M_r^{1/2} z by Lanczos on device vectors (slot order; the operator in slot order is
+  /// P M_r P^T, whose square root is P M_r^{1/2} P^T).
+  SqrtReport real_sqrt(const DeviceArray<double>& zin, DeviceArray<double>& w) {
+    const auto t0 = std::chrono::steady_clock::now();
+    w.resize(n3());
+    krylov.set_size(n3());
+    SqrtOptions o;
+    o.method = SqrtMethod::lanczos;
+    o.tolerance = params.lanczos_tolerance;
+    const SqrtReport rep = sqrt_detail::lanczos_sqrt_in_space(
+        krylov, [this](const double* in, double* out) { real_space(in, out); }, zin.get(), w.get(), o);
+    check(cudaDeviceSynchronize(), "Lanczos");
+    times["lanczos"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return rep;
   }
 };
 
@@ -318,6 +635,13 @@ const PseParameters& PseRpyCuda::parameters() const {
   return impl_->params;
 }
 
+StageTimes PseRpyCuda::stage_times() const {
+  return impl_->times;
+}
+void PseRpyCuda::reset_stage_times() const {
+  impl_->times.clear();
+}
+
 void PseRpyCuda::on_positions_set() {
   require(equal_radii(), ErrorCode::not_supported, "PseRpyCuda::set_positions",
           "PSE supports equal radii only (the paper's assumption); the radii given differ");
@@ -325,7 +649,10 @@ void PseRpyCuda::on_positions_set() {
   const double a = radii().front();
   const std::size_t n = size();
   const auto& L = geometry().box();
+  require(3 * n < static_cast<std::size_t>(1) << 31, ErrorCode::not_supported, kWhere,
+          "3 N >= 2^31: the device kernels index particle vectors with 32-bit integers");
   if (!im.planned || im.params.radius != a || (im.options.xi == 0.0 && im.planned_n != n)) {
+    const auto t0 = std::chrono::steady_clock::now();
     im.planned = false;
     im.destroy_plans();
     im.grid.resize(0);  // the old plan's big arrays do not count against the new one's memory check
@@ -385,36 +712,57 @@ void PseRpyCuda::on_positions_set() {
       check_fft(cufftSetWorkArea(im.plan_bwd, im.fft_work.get()), "cufftSetWorkArea Z2D");
     }
     im.params = p;
+    im.box = L;
     im.planned = true;
     im.planned_n = n;
+    im.times["plan"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   }
+  const auto t0 = std::chrono::steady_clock::now();
+  im.np = n;
   im.real->set_positions(positions());
-  im.x.upload(positions().data(), positions().size());
-  std::vector<std::size_t> begin;
-  std::vector<int> list;
-  im.real->input_order_lists(begin, list);  // rows and neighbours in input numbering
-  std::vector<unsigned long long> b(begin.begin(), begin.end());
-  im.begin.upload(b.data(), b.size());
-  im.list.upload(list.data(), list.size());
+  const detail::RealSpaceSum::SlotLists lists = im.real->slot_lists();
+  const std::vector<int> order(lists.order.begin(), lists.order.end());
+  const std::vector<unsigned long long> row_begin(lists.begin.begin(), lists.begin.end());
+  im.order.upload(order.data(), order.size());
+  im.begin.upload(row_begin.data(), row_begin.size());
+  im.list.upload(lists.list.data(), lists.list.size());
+  im.times["positions_real"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  im.upload_to_slots(positions().data(), im.x);  // the input positions, as the CPU wave space reads them
+  im.events.collect(im.times);
 }
 
 void PseRpyCuda::do_apply(const double* forces, double* velocities, std::size_t nrhs) const {
+  auto& im = *impl_;
   const std::size_t n3 = 3 * size();
-  for (std::size_t r = 0; r < nrhs; ++r) impl_->wave(forces + r * n3, velocities + r * n3, false, nullptr, 0.0, size());
-  impl_->real_space(forces, velocities, nrhs, true, size(), geometry().box());
+  for (std::size_t r = 0; r < nrhs; ++r) {
+    im.upload_to_slots(forces + r * n3, im.f);
+    im.product(im.f, im.u);
+    im.download_from_slots(im.u, velocities + r * n3);
+  }
 }
 
-namespace {
-
-SqrtReport lanczos_real(const LinearOperatorView& view, std::span<const double> z, std::span<double> w,
-                        std::size_t nrhs, double tol) {
-  SqrtOptions o;
-  o.method = SqrtMethod::lanczos;
-  o.tolerance = tol;
-  return sqrt_apply(view, z, w, nrhs, o);
+void PseRpyCuda::apply_device(const double* forces_device, double* velocities_device) const {
+  require_positions("apply_device");
+  require(forces_device != nullptr && velocities_device != nullptr, ErrorCode::invalid_argument,
+          "PseRpyCuda::apply_device", "null device pointer");
+  auto& im = *impl_;
+  im.gather(forces_device, im.f);
+  im.product(im.f, im.u);
+  im.scatter(im.u, velocities_device);
+  check(cudaDeviceSynchronize(), "apply_device");
+  im.events.collect(im.times);
 }
 
-}  // namespace
+SqrtReport PseRpyCuda::sample_device(std::uint64_t seed, std::uint64_t step, double* w_device) const {
+  require_positions("sample_device");
+  require(w_device != nullptr, ErrorCode::invalid_argument, "PseRpyCuda::sample_device", "null device pointer");
+  auto& im = *impl_;
+  const SqrtReport rep = im.split_sample(seed, step, im.u);
+  im.scatter(im.u, w_device);
+  check(cudaDeviceSynchronize(), "sample_device");
+  im.events.collect(im.times);
+  return rep;
+}
 
 SqrtReport PseRpyCuda::do_apply_sqrt(std::span<const double> z, std::span<double> w, std::size_t nrhs,
                                      const SqrtOptions& options) const {
@@ -422,37 +770,31 @@ SqrtReport PseRpyCuda::do_apply_sqrt(std::span<const double> z, std::span<double
     return MobilityOperator::do_apply_sqrt(z, w, nrhs, options);
   }
   auto& im = *impl_;
-  LinearOperatorView view;
-  view.n = 3 * size();
-  view.apply = [this](std::span<const double> xin, std::span<double> y, std::size_t k) {
-    impl_->real_space(xin.data(), y.data(), k, false, size(), geometry().box());
-  };
-  SqrtReport rep = lanczos_real(view, z, w, nrhs, im.params.lanczos_tolerance);
   const std::size_t n3 = 3 * size();
+  SqrtReport rep;
   for (std::size_t r = 0; r < nrhs; ++r) {
+    im.upload_to_slots(z.data() + r * n3, im.z);
+    const SqrtReport one = im.real_sqrt(im.z, im.u);
     const detail::NoiseKey key{noise_hash(z.subspan(r * n3, n3)), 0};
-    im.wave(nullptr, w.data() + r * n3, true, &key, 1.0, size());
+    im.wave(nullptr, im.u.get(), true, &key, 1.0);
+    im.download_from_slots(im.u, w.data() + r * n3);
+    rep.iterations = std::max(rep.iterations, one.iterations);
+    rep.operator_applications += one.operator_applications + 1;
+    rep.vector_products += one.vector_products;
+    rep.error_estimate = std::max(rep.error_estimate, one.error_estimate);
+    rep.converged = rep.converged && one.converged;
+    rep.breakdown = rep.breakdown || one.breakdown;
   }
   rep.method = SqrtMethod::split;
-  rep.operator_applications += 1;
   return rep;
 }
 
 SqrtReport PseRpyCuda::sample(std::uint64_t seed, std::uint64_t step, std::span<double> w) const {
   require_positions("sample");
   require_size(std::span<const double>(w.data(), w.size()), 3 * size(), "PseRpyCuda::sample", "output");
-  std::vector<double> z1(3 * size());
-  fill_normal(z1, seed, step, detail::kStreamReal);
-  LinearOperatorView view;
-  view.n = 3 * size();
-  view.apply = [this](std::span<const double> xin, std::span<double> y, std::size_t k) {
-    impl_->real_space(xin.data(), y.data(), k, false, size(), geometry().box());
-  };
-  SqrtReport rep = lanczos_real(view, z1, w, 1, impl_->params.lanczos_tolerance);
-  const detail::NoiseKey key{seed, step};
-  impl_->wave(nullptr, w.data(), true, &key, 1.0, size());
-  rep.method = SqrtMethod::split;
-  rep.operator_applications += 1;
+  auto& im = *impl_;
+  const SqrtReport rep = im.split_sample(seed, step, im.u);
+  im.download_from_slots(im.u, w.data());
   return rep;
 }
 
@@ -465,25 +807,22 @@ SqrtReport PseRpyCuda::apply_with_noise(std::span<const double> forces, double n
   require_finite(forces, where, "forces", 3);
   require(std::isfinite(noise_scale) && noise_scale >= 0.0, ErrorCode::invalid_argument, where,
           "noise_scale must be finite and >= 0");
+  auto& im = *impl_;
+  const std::size_t n3 = 3 * size();
   SqrtReport rep;
   rep.method = SqrtMethod::split;
-  std::vector<double> y;
   if (noise_scale > 0.0) {
-    std::vector<double> z1(3 * size());
-    fill_normal(z1, seed, step, detail::kStreamReal);
-    y.resize(3 * size());
-    LinearOperatorView view;
-    view.n = 3 * size();
-    view.apply = [this](std::span<const double> xin, std::span<double> yo, std::size_t k) {
-      impl_->real_space(xin.data(), yo.data(), k, false, size(), geometry().box());
-    };
-    rep = lanczos_real(view, z1, y, 1, impl_->params.lanczos_tolerance);
+    im.draw_real_noise(seed, step, im.z);
+    rep = im.real_sqrt(im.z, im.noise);
     rep.method = SqrtMethod::split;
   }
+  im.upload_to_slots(forces.data(), im.f);
+  im.u.resize(n3);
+  im.real_space(im.f.get(), im.u.get());
   const detail::NoiseKey key{seed, step};
-  impl_->wave(forces.data(), velocities.data(), false, noise_scale > 0.0 ? &key : nullptr, noise_scale, size());
-  impl_->real_space(forces.data(), velocities.data(), 1, true, size(), geometry().box());
-  for (std::size_t i = 0; i < y.size(); ++i) velocities[i] += noise_scale * y[i];
+  im.wave(im.f.get(), im.u.get(), true, noise_scale > 0.0 ? &key : nullptr, noise_scale);
+  if (noise_scale > 0.0) device_axpy(n3, noise_scale, im.noise.get(), im.u.get());
+  im.download_from_slots(im.u, velocities.data());
   rep.operator_applications += 1;
   return rep;
 }

@@ -28,6 +28,18 @@ SqrtReport PseRpyCuda::apply_with_noise(std::span<const double>, double, std::ui
   fail(ErrorCode::not_supported, "PseRpyCuda::apply_with_noise", "no CUDA support in this build");
 }
 
+void PseRpyCuda::apply_device(const double*, double*) const {
+  fail(ErrorCode::not_supported, "PseRpyCuda::apply_device", "no CUDA support in this build");
+}
+SqrtReport PseRpyCuda::sample_device(std::uint64_t, std::uint64_t, double*) const {
+  fail(ErrorCode::not_supported, "PseRpyCuda::sample_device", "no CUDA support in this build");
+}
+
+StageTimes PseRpyCuda::stage_times() const {
+  return {};
+}
+void PseRpyCuda::reset_stage_times() const {}
+
 void PseRpyCuda::on_positions_set() {}
 void PseRpyCuda::do_apply(const double*, double*, std::size_t) const {
   fail(ErrorCode::not_supported, "PseRpyCuda::apply", "no CUDA support in this build");

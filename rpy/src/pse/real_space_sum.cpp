@@ -947,6 +947,12 @@ void RealSpaceSum::input_order_lists(std::vector<std::size_t>& begin, std::vecto
   }
 }
 
+RealSpaceSum::SlotLists RealSpaceSum::slot_lists() const {
+  const std::size_t n = order_.size();
+  const Rows rows = full_rows();
+  return {order_, {rows.begin, n + 1}, {rows.list, rows.begin[n]}};
+}
+
 void RealSpaceSum::apply(const double* forces, double* out, std::size_t nrhs, bool accumulate) const {
   // The first product after set_positions does not fill the pair cache (one product per
   // positions, M F in a time step, gains nothing from it); a second one does.

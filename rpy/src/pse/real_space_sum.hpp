@@ -51,8 +51,17 @@ class RealSpaceSum {
   [[nodiscard]] std::size_t cache_bytes() const { return cache_on_ ? cache_bytes_ : 0; }
 
   [[nodiscard]] const PseRealSpaceTable& table() const { return table_; }
-  /// The neighbour lists in input numbering (CSR, j ascending), as the CUDA kernel reads them.
+  /// The neighbour lists in input numbering (CSR, j ascending).
   void input_order_lists(std::vector<std::size_t>& begin, std::vector<int>& list) const;
+  /// The slot order (order[s]: the input index of slot s) and the full neighbour lists in slot
+  /// numbering (CSR: row s is list[begin[s] .. begin[s + 1]), ascending), as the CUDA kernels
+  /// read them. Valid until the next set_positions.
+  struct SlotLists {
+    std::span<const std::size_t> order;
+    std::span<const std::size_t> begin;
+    std::span<const int> list;
+  };
+  [[nodiscard]] SlotLists slot_lists() const;
   [[nodiscard]] double self() const { return self_; }
   [[nodiscard]] double mobility_unit() const { return m0_; }
 

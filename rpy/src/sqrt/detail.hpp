@@ -26,8 +26,10 @@ void scale(double a, double* x, std::size_t n);
 /// h[q] = v_q . y for every vector v_q of `v` (length n each) in one pass over y; h[q] equals
 /// dot(v_q.data(), y, n) bit for bit (the same chunks, summed in the same order).
 void dots(const std::vector<std::vector<double>>& v, const double* y, std::size_t n, double* h);
+void dots(const double* const* v, std::size_t m, const double* y, std::size_t n, double* h);
 /// y -= sum_q h[q] v_q in one pass over y (classical Gram-Schmidt's update).
 void subtract_combination(const std::vector<std::vector<double>>& v, const double* h, double* y, std::size_t n);
+void subtract_combination(const double* const* v, std::size_t m, const double* h, double* y, std::size_t n);
 
 /// Applies `op` to `nrhs` vectors and counts the call in `report`; throws
 /// numerical_failure if the result holds NaN/Inf (names `where`).

@@ -51,8 +51,23 @@ void scale(double a, double* x, std::size_t n) {
   for (std::int64_t i = 0; i < nn; ++i) x[i] *= a;
 }
 
+namespace {
+std::vector<const double*> pointers(const std::vector<std::vector<double>>& v) {
+  std::vector<const double*> p(v.size());
+  for (std::size_t q = 0; q < v.size(); ++q) p[q] = v[q].data();
+  return p;
+}
+}  // namespace
+
 void dots(const std::vector<std::vector<double>>& v, const double* y, std::size_t n, double* h) {
-  const std::size_t m = v.size();
+  dots(pointers(v).data(), v.size(), y, n, h);
+}
+
+void subtract_combination(const std::vector<std::vector<double>>& v, const double* h, double* y, std::size_t n) {
+  subtract_combination(pointers(v).data(), v.size(), h, y, n);
+}
+
+void dots(const double* const* v, std::size_t m, const double* y, std::size_t n, double* h) {
   const std::size_t nchunks = std::max<std::size_t>(1, (n + kChunk - 1) / kChunk);
   std::vector<double> partial(nchunks * m);
   const auto nc = static_cast<std::int64_t>(nchunks);
@@ -61,7 +76,7 @@ void dots(const std::vector<std::vector<double>>& v, const double* y, std::size_
     const std::size_t lo = static_cast<std::size_t>(c) * kChunk;
     const std::size_t hi = std::min(n, lo + kChunk);
     for (std::size_t q = 0; q < m; ++q) {  // the chunk of y stays in L1 across the vectors
-      const double* x = v[q].data();
+      const double* x = v[q];
       double s = 0.0;
       for (std::size_t i = lo; i < hi; ++i) s += x[i] * y[i];
       partial[static_cast<std::size_t>(c) * m + q] = s;
@@ -74,15 +89,15 @@ void dots(const std::vector<std::vector<double>>& v, const double* y, std::size_
   }
 }
 
-void subtract_combination(const std::vector<std::vector<double>>& v, const double* h, double* y, std::size_t n) {
+void subtract_combination(const double* const* v, std::size_t m, const double* h, double* y, std::size_t n) {
   const std::size_t nchunks = (n + kChunk - 1) / kChunk;
   const auto nc = static_cast<std::int64_t>(nchunks);
 #pragma omp parallel for schedule(static) if (n > 4 * kChunk)
   for (std::int64_t c = 0; c < nc; ++c) {
     const std::size_t lo = static_cast<std::size_t>(c) * kChunk;
     const std::size_t hi = std::min(n, lo + kChunk);
-    for (std::size_t q = 0; q < v.size(); ++q) {
-      const double* x = v[q].data();
+    for (std::size_t q = 0; q < m; ++q) {
+      const double* x = v[q];
       const double a = h[q];
       for (std::size_t i = lo; i < hi; ++i) y[i] -= a * x[i];
     }

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <string>
 
 #include "detail.hpp"
 #include "rpyfmm/core/validate.hpp"
@@ -12,25 +13,25 @@
 namespace rpyfmm::rpy::sqrt_detail {
 
 double LanczosProcess::start(const double* z) {
-  basis_.clear();
+  space_->clear();
   alpha_.clear();
   beta_.clear();
   tnorm_ = 0.0;
-  const double nz = norm2(z, n_);
+  const double nz = std::sqrt(space_->dot(z, z));
   if (nz == 0.0) return 0.0;
-  basis_.emplace_back(z, z + n_);
-  scale(1.0 / nz, basis_.back().data(), n_);
+  space_->scale_into(1.0 / nz, z, space_->push());
   return nz;
 }
 
 bool LanczosProcess::step(double* y, const std::string& where, std::size_t rhs) {
   const std::size_t j = alpha_.size();
-  const double* v = basis_[j].data();
+  const std::size_t k = space_->basis_size();  // j + 1
+  const double* v = space_->vector(j);
   // With reorthogonalization, h = V^T y in one pass; its last entry is alpha_j = v_j . y (bit
   // for bit dot(v_j, y)).
-  std::vector<double> h(reorthogonalize_ ? basis_.size() : 0);
-  if (reorthogonalize_) dots(basis_, y, n_, h.data());
-  const double a = reorthogonalize_ ? h[j] : dot(v, y, n_);
+  std::vector<double> h(reorthogonalize_ ? k : 0);
+  if (reorthogonalize_) space_->dots(k, y, h.data());
+  const double a = reorthogonalize_ ? h[j] : space_->dot(v, y);
   // alpha_j = v_j^T M v_j is a Rayleigh quotient: <= 0 proves M is not SPD.
   if (!(a > 0.0)) {
     std::ostringstream msg;
@@ -46,25 +47,73 @@ bool LanczosProcess::step(double* y, const std::string& where, std::size_t rhs) 
     // against the older vectors at once. Each pass reads y and the basis once for the
     // products and once for the update, against five vector passes per basis vector for
     // modified Gram-Schmidt (bench/README.md, session 13).
-    subtract_combination(basis_, h.data(), y, n_);
-    dots(basis_, y, n_, h.data());
-    subtract_combination(basis_, h.data(), y, n_);
+    space_->subtract_combination(k, h.data(), y);
+    space_->dots(k, y, h.data());
+    space_->subtract_combination(k, h.data(), y);
   } else {
-    axpy(-a, v, y, n_);
-    if (j > 0) axpy(-beta_[j - 1], basis_[j - 1].data(), y, n_);
+    space_->axpy(-a, v, y);
+    if (j > 0) space_->axpy(-beta_[j - 1], space_->vector(j - 1), y);
   }
-  const double b = norm2(y, n_);
+  const double b = std::sqrt(space_->dot(y, y));
   tnorm_ = std::max(tnorm_, std::abs(a) + 2.0 * std::max(b, j > 0 ? beta_[j - 1] : 0.0));
   beta_.push_back(b);
   if (b <= breakdown_tol * tnorm_ || j + 1 >= n_) return true;  // invariant subspace: T_m is exact
-  basis_.emplace_back(y, y + n_);
-  scale(1.0 / b, basis_.back().data(), n_);
+  space_->scale_into(1.0 / b, y, space_->push());
   return false;
 }
 
 void LanczosProcess::combine(const Eigen::VectorXd& coeff, double* out) const {
+  space_->combine(static_cast<std::size_t>(coeff.size()), coeff.data(), out);
+}
+
+double* HostKrylovSpace::push() {
+  if (count_ == basis_.size()) basis_.push_back(std::make_unique_for_overwrite<double[]>(n_));
+  return basis_[count_++].get();
+}
+
+double* HostKrylovSpace::work() {
+  work_.resize(n_);
+  return work_.data();
+}
+
+double HostKrylovSpace::dot(const double* x, const double* y) {
+  return sqrt_detail::dot(x, y, n_);
+}
+
+void HostKrylovSpace::dots(std::size_t k, const double* y, double* h) {
+  std::vector<const double*> v(k);
+  for (std::size_t q = 0; q < k; ++q) v[q] = basis_[q].get();
+  sqrt_detail::dots(v.data(), k, y, n_, h);
+}
+
+void HostKrylovSpace::subtract_combination(std::size_t k, const double* h, double* y) {
+  std::vector<const double*> v(k);
+  for (std::size_t q = 0; q < k; ++q) v[q] = basis_[q].get();
+  sqrt_detail::subtract_combination(v.data(), k, h, y, n_);
+}
+
+void HostKrylovSpace::axpy(double a, const double* x, double* y) {
+  sqrt_detail::axpy(a, x, y, n_);
+}
+
+void HostKrylovSpace::scale_into(double a, const double* x, double* out) {
+  if (out != x) std::copy_n(x, n_, out);
+  sqrt_detail::scale(a, out, n_);
+}
+
+void HostKrylovSpace::combine(std::size_t k, const double* c, double* out) {
   std::fill(out, out + n_, 0.0);
-  for (Eigen::Index i = 0; i < coeff.size(); ++i) axpy(coeff[i], basis_[static_cast<std::size_t>(i)].data(), out, n_);
+  for (std::size_t q = 0; q < k; ++q) sqrt_detail::axpy(c[q], basis_[q].get(), out, n_);
+}
+
+void HostKrylovSpace::require_finite(const double* y, const char* where, long long product) {
+  for (std::size_t i = 0; i < n_; ++i) {
+    if (!std::isfinite(y[i])) {
+      fail(ErrorCode::numerical_failure, where,
+           "the operator returned a non-finite value (entry " + std::to_string(i) +
+               " of right-hand side 0) at product " + std::to_string(product));
+    }
+  }
 }
 
 Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> tridiagonal_eigen(const std::vector<double>& alpha,

@@ -56,16 +56,86 @@ Eigen::VectorXd sqrt_coefficients(const LanczosProcess& p, double znorm, std::si
   return znorm * (Q * weights);
 }
 
+/// After the product y = M v_j of right-hand side k at iteration `it`: one Lanczos step, the new
+/// coefficients and the stopping test. When this right-hand side is done (converged, broken down
+/// or out of iterations), writes its w (in the process's memory) and marks it inactive.
+void advance(RhsState& s, double* y, int it, int max_it, const SqrtOptions& options, std::size_t k, double* w,
+             SqrtReport& report) {
+  const bool breakdown = s.process.step(y, kWhere, k);
+  Eigen::VectorXd c = sqrt_coefficients(s.process, s.znorm, k);
+  if (s.coeff.size() > 0) {
+    Eigen::VectorXd prev = Eigen::VectorXd::Zero(c.size());
+    prev.head(s.coeff.size()) = s.coeff;
+    s.change = (c - prev).norm() / c.norm();
+  }
+  s.coeff = std::move(c);
+  report.iterations = std::max(report.iterations, it + 1);
+  const bool converged = breakdown || (it > 0 && s.change < options.tolerance);
+  if (breakdown) {
+    s.breakdown = true;
+    s.change = 0.0;  // invariant subspace: the result is exact (up to rounding)
+  }
+  if (converged || it + 1 == max_it) {
+    s.process.combine(s.coeff, w);
+    s.active = false;
+    if (!converged) {
+      report.converged = false;
+      if (options.throw_if_not_converged) {
+        std::ostringstream msg;
+        msg << "no convergence in " << max_it << " iterations (right-hand side " << k << ": last relative change "
+            << s.change << " > tolerance " << options.tolerance << "); raise max_iterations or the tolerance";
+        fail(ErrorCode::numerical_failure, kWhere, msg.str());
+      }
+    }
+  }
+}
+
+int max_iterations(const SqrtOptions& options, std::size_t n) {
+  return options.max_iterations > 0 ? options.max_iterations : static_cast<int>(std::min<std::size_t>(n, 500));
+}
+
 }  // namespace
 
-SqrtReport lanczos_sqrt(const LinearOperatorView& op, std::span<const double> z, std::span<double> w,
-                        std::size_t nrhs, const SqrtOptions& options) {
-  const std::size_t n = op.n;
+
+SqrtReport lanczos_sqrt_in_space(KrylovSpace& space, const KrylovProduct& product, const double* z, double* w,
+                                 const SqrtOptions& options) {
   SqrtReport report;
   report.method = SqrtMethod::lanczos;
-  const int max_it = options.max_iterations > 0
-                         ? options.max_iterations
-                         : static_cast<int>(std::min<std::size_t>(n, 500));
+  const int max_it = max_iterations(options, space.n());
+  RhsState s{LanczosProcess(space, options.reorthogonalize), 0.0, {}, 0.0, true, false};
+  s.znorm = s.process.start(z);
+  if (s.znorm == 0.0) {  // M^{1/2} 0 = 0 exactly
+    space.combine(0, nullptr, w);
+    s.active = false;
+  }
+  double* y = space.work();
+  for (int it = 0; it < max_it && s.active; ++it) {
+    product(s.process.current(), y);
+    ++report.operator_applications;
+    ++report.vector_products;
+    space.require_finite(y, kWhere, report.operator_applications);
+    advance(s, y, it, max_it, options, 0, w, report);
+  }
+  report.error_estimate = s.change;
+  report.breakdown = s.breakdown;
+  return report;
+}
+
+SqrtReport lanczos_sqrt(const LinearOperatorView& op, std::span<const double> z, std::span<double> w, std::size_t nrhs,
+                        const SqrtOptions& options) {
+  const std::size_t n = op.n;
+  if (nrhs == 1) {  // one right-hand side: the iteration of any Krylov space, here on host vectors
+    HostKrylovSpace space(n);
+    return lanczos_sqrt_in_space(
+        space,
+        [&op](const double* x, double* y) {
+          op.apply(std::span<const double>(x, op.n), std::span<double>(y, op.n), 1);
+        },
+        z.data(), w.data(), options);
+  }
+  SqrtReport report;
+  report.method = SqrtMethod::lanczos;
+  const int max_it = max_iterations(options, n);
 
   std::vector<RhsState> state;
   state.reserve(nrhs);
@@ -95,38 +165,9 @@ SqrtReport lanczos_sqrt(const LinearOperatorView& op, std::span<const double> z,
       input = x.data();
     }
     apply_checked(op, input, y.data(), active.size(), report, kWhere);
-
     for (std::size_t a = 0; a < active.size(); ++a) {
       const std::size_t k = active[a];
-      RhsState& s = state[k];
-      const bool breakdown = s.process.step(&y[a * n], kWhere, k);
-      Eigen::VectorXd c = sqrt_coefficients(s.process, s.znorm, k);
-      if (s.coeff.size() > 0) {
-        Eigen::VectorXd prev = Eigen::VectorXd::Zero(c.size());
-        prev.head(s.coeff.size()) = s.coeff;
-        s.change = (c - prev).norm() / c.norm();
-      }
-      s.coeff = std::move(c);
-      report.iterations = std::max(report.iterations, it + 1);
-      const bool converged = breakdown || (it > 0 && s.change < options.tolerance);
-      if (breakdown) {
-        s.breakdown = true;
-        s.change = 0.0;  // invariant subspace: the result is exact (up to rounding)
-      }
-      if (converged || it + 1 == max_it) {
-        s.process.combine(s.coeff, &w[k * n]);
-        s.active = false;
-        if (!converged) {
-          report.converged = false;
-          if (options.throw_if_not_converged) {
-            std::ostringstream msg;
-            msg << "no convergence in " << max_it << " iterations (right-hand side " << k
-                << ": last relative change " << s.change << " > tolerance " << options.tolerance
-                << "); raise max_iterations or the tolerance";
-            fail(ErrorCode::numerical_failure, kWhere, msg.str());
-          }
-        }
-      }
+      advance(state[k], &y[a * n], it, max_it, options, k, &w[k * n], report);
     }
   }
   for (const auto& s : state) {

@@ -18,6 +18,10 @@
 // (PseOptions::real_space_table is taken as true); fft_threads and fft_measure are FFTW
 // settings and do not apply to cuFFT. Set RPYFMM_CUDA_SYNC=1 in the
 // environment to check every kernel synchronously (first runs on a new device).
+//
+// On the device the particles are kept in the CPU cell list's slot order; a product uploads
+// its forces once and downloads its velocities once (host arrays in and out), and the split
+// sampler's real-space Lanczos iterates on device vectors, so only the result crosses the bus.
 #pragma once
 
 #include <cstdint>
@@ -25,6 +29,7 @@
 #include <span>
 #include <string>
 
+#include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/rpy/mobility.hpp"
 #include "rpyfmm/rpy/pse/pse_parameters.hpp"
 
@@ -49,6 +54,21 @@ class PseRpyCuda final : public MobilityOperator {
   /// U = M F + noise_scale M^{1/2} z, as PseRpy::apply_with_noise.
   SqrtReport apply_with_noise(std::span<const double> forces, double noise_scale, std::uint64_t seed,
                               std::uint64_t step, std::span<double> velocities) const;
+
+  /// U = M F with F and U in device memory (3N doubles each, input order, on the current
+  /// device; the caller owns them): no host transfers, for codes that keep their particles on
+  /// the GPU. Returns when U is written. The pointers are not checked beyond null.
+  void apply_device(const double* forces_device, double* velocities_device) const;
+  /// w = M^{1/2} z by the split sampler keyed by (seed, step), as sample(), w in device memory.
+  SqrtReport sample_device(std::uint64_t seed, std::uint64_t step, double* w_device) const;
+
+  /// Accumulated seconds per stage, from CUDA events on the device's timeline: transfer (host
+  /// <-> device copies with the gathers into and scatters from slot order), real_space, spread,
+  /// fft_forward, scale, fft_backward, interpolate; lanczos (host clock: the real-space square
+  /// root of the split sampler, its real-space products included); plan and positions_real
+  /// (host clock: parameters, tables and cuFFT plans; cell order and neighbour lists).
+  [[nodiscard]] StageTimes stage_times() const;
+  void reset_stage_times() const;
 
  protected:
   void on_positions_set() override;
