@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Runs on the lent GPU machine, in the repository root, with gpu-kit/ carried
-# (scripts/gpu-kit.sh builds it): the CPU-vs-GPU agreement tests of the CUDA PSE operator,
+# (scripts/gpu-kit.sh builds it): the CPU-vs-GPU agreement tests of the CUDA PSE operator (host and
+# device arrays, stage times),
 # then the PSE Table I benchmark on the GPU at 8e3, 3.2e4, 2.5e5, 1e6 and 2e6 particles. Output goes to
 # $OUT (or ./gpu-out) as test_pse_cuda.txt and bench_pse_cuda.csv. Sized for a few
 # minutes of device time: pass fewer sizes as arguments to shorten it. Fails (non-zero exit) if
