@@ -3,7 +3,7 @@
 //
 //   rpyfmm mobility --positions X.npy --forces F.npy (--radius a | --radii R.npy)
 //                   [--viscosity 1] [--method direct|fmm|pse|auto|none] [--eps 1e-6]
-//                   [--box L | --box Lx Ly Lz] [--wave-precision auto|single|double]
+//                   [--box L | --box Lx Ly Lz] [--wave-precision auto|single|double] [--device cpu|cuda]
 //                   --out U.npy [--threads N] [--json]
 //
 // U has shape (N,3).
@@ -32,6 +32,7 @@ struct MobilityArgs {
   double eps = 1e-6;                    // tolerance of fmm / pse (direct is exact)
   std::vector<double> box;              // periodic box: L or Lx Ly Lz (empty = free space)
   std::string wave_precision = "auto";  // pse: auto | single | double
+  std::string device = "cpu";           // pse: cpu | cuda
   CommonOptions common;
 };
 
@@ -47,6 +48,9 @@ std::unique_ptr<rpy::MobilityOperator> make_operator(const MobilityArgs& args, s
   require(spec.wave_precision == rpy::pse::WavePrecision::automatic || spec.method == bd::MobilityMethod::pse ||
               (spec.method == bd::MobilityMethod::automatic && !args.box.empty()),
           ErrorCode::invalid_argument, "--wave-precision", "applies to the pse method only");
+  require(args.device == "cpu" || args.device == "cuda", ErrorCode::invalid_argument, "--device",
+          "must be cpu or cuda, got '" + args.device + "'");
+  spec.device = bd::compute_device_from_string(args.device);
   if (!args.box.empty()) {
     require(args.box.size() == 1 || args.box.size() == 3, ErrorCode::invalid_argument, "--box",
             "give one length L (cube) or three lengths Lx Ly Lz, got " + std::to_string(args.box.size()) + " values");
@@ -133,6 +137,7 @@ void register_mobility(CLI::App& app) {
   cmd->add_option("--wave-precision", args->wave_precision,
                   "pse: wave-space grids in single or double precision; auto = single for --eps >= 1e-5")
       ->capture_default_str();
+  cmd->add_option("--device", args->device, "pse: cpu, or cuda (a GPU; double-precision grids)")->capture_default_str();
   cmd->add_option("--out", args->out, "output .npy, shape (N,3)")->required();
   add_common_options(*cmd, args->common);
   cmd->callback([args, radius] { run_mobility(*args, radius->count() > 0); });

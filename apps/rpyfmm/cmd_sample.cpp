@@ -6,6 +6,7 @@
 //                 [--method auto|lanczos|chebyshev|cholesky|eigen|split|pse]
 //                 [--operator direct|fmm|pse] [--box L | --box Lx Ly Lz]
 //                 [--tol 1e-3] [--max-iterations M] [--eps E] [--wave-precision auto|single|double]
+//                 [--device cpu|cuda]
 //                 [--viscosity 1]
 //                 --out W.npy [--threads N] [--json]
 //
@@ -27,11 +28,13 @@
 #include "array_io.hpp"
 #include "cli_common.hpp"
 #include "commands.hpp"
+#include "rpyfmm/bd/mobility_factory.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
 #include "rpyfmm/rpy/random.hpp"
 #include "rpyfmm/rpy/sqrt.hpp"
 
@@ -50,6 +53,7 @@ struct SampleArgs {
   double tol = 1e-3;
   double eps = 0.0;                     // operator (FMM) tolerance; 0 = not given
   std::string wave_precision = "auto";  // pse operator: auto | single | double
+  std::string device = "cpu";           // pse operator: cpu | cuda
   int max_iterations = 0;
   CommonOptions common;
 };
@@ -84,7 +88,12 @@ const std::vector<OperatorEntry>& operators() {
          rpy::pse::PseOptions o;  // tolerance default 1e-3 unless --eps
          if (a.eps != 0.0) o.tolerance = a.eps;
          o.wave_precision = rpy::pse::wave_precision_from_name(a.wave_precision, "--wave-precision");
-         return std::make_unique<rpy::pse::PseRpy>(g, a.viscosity, o);
+         if (bd::compute_device_from_string(a.device) == bd::ComputeDevice::cuda) {
+           require(rpy::pse::PseRpyCuda::device_available(), ErrorCode::not_supported, "--device",
+                   "cuda: no usable CUDA device (or a build without CUDA)");
+           return std::unique_ptr<rpy::MobilityOperator>(std::make_unique<rpy::pse::PseRpyCuda>(g, a.viscosity, o));
+         }
+         return std::unique_ptr<rpy::MobilityOperator>(std::make_unique<rpy::pse::PseRpy>(g, a.viscosity, o));
        }},
   };
   return table;
@@ -127,6 +136,10 @@ void run_sample(const SampleArgs& given, bool radius_given, bool seed_given) {
           "a periodic box needs --operator pse (direct and fmm are free-space operators)");
   require(args.wave_precision == "auto" || args.op == "pse", ErrorCode::invalid_argument, "--wave-precision",
           "applies to the pse operator only");
+  require(args.device == "cpu" || args.device == "cuda", ErrorCode::invalid_argument, "--device",
+          "must be cpu or cuda, got '" + args.device + "'");
+  require(args.device == "cpu" || args.op == "pse", ErrorCode::invalid_argument, "--device",
+          "cuda applies to the pse operator only");
   // Validate every option before reading or computing anything.
   require(radius_given != !args.radii.empty(), ErrorCode::invalid_argument, "sample",
           "give exactly one of --radius a or --radii R.npy");
@@ -244,6 +257,8 @@ void register_sample(CLI::App& app) {
   cmd->add_option("--eps", args->eps, "tolerance of the fmm (default 1e-6) or pse (default 1e-3) operator");
   cmd->add_option("--wave-precision", args->wave_precision,
                   "pse operator: wave-space grids in single or double precision; auto = single for eps >= 1e-5")
+      ->capture_default_str();
+  cmd->add_option("--device", args->device, "pse operator: cpu, or cuda (a GPU; double-precision grids)")
       ->capture_default_str();
   cmd->add_option("--viscosity", args->viscosity, "solvent viscosity eta > 0")->capture_default_str();
   cmd->add_option("--out", args->out, "output .npy, shape (N,3)")->required();

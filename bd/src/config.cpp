@@ -328,6 +328,11 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
     } catch (const Error&) {
       bad_key("mobility.wave_precision", "must be auto, single or double");
     }
+    try {
+      c.mobility.device = compute_device_from_string(s.string("device", "cpu"));
+    } catch (const Error&) {
+      bad_key("mobility.device", "must be cpu or cuda");
+    }
     c.mobility.viscosity = c.viscosity;
     c.mobility.geometry = c.geometry;
     try {

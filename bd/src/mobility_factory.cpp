@@ -7,6 +7,7 @@
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
 
 namespace rpyfmm::bd {
 
@@ -33,6 +34,16 @@ MobilityMethod mobility_method_from_string(const std::string& name) {
   }
   fail(ErrorCode::invalid_argument, "mobility method",
        "unknown method '" + name + "' (expected none, direct, fmm, pse or auto)");
+}
+
+const char* to_string(ComputeDevice device) {
+  return device == ComputeDevice::cuda ? "cuda" : "cpu";
+}
+
+ComputeDevice compute_device_from_string(const std::string& name) {
+  if (name == "cpu") return ComputeDevice::cpu;
+  if (name == "cuda") return ComputeDevice::cuda;
+  fail(ErrorCode::invalid_argument, "compute device", "unknown device '" + name + "' (expected cpu or cuda)");
 }
 
 bool mobility_method_available(MobilityMethod method) {
@@ -86,6 +97,9 @@ std::unique_ptr<rpy::MobilityOperator> make_mobility(const MobilitySpec& spec, s
       method = MobilityMethod::direct;
     }
   }
+  if (spec.device == ComputeDevice::cuda && method != MobilityMethod::pse) {
+    unavailable(method, "has no CUDA version (device 'cuda' is for the pse method, periodic boxes)");
+  }
   switch (method) {
     case MobilityMethod::none:
       return std::make_unique<FreeDrainingMobility>(spec.geometry, spec.viscosity);
@@ -106,6 +120,12 @@ std::unique_ptr<rpy::MobilityOperator> make_mobility(const MobilitySpec& spec, s
         options.tolerance = spec.tolerance;  // PseRpy accepts [1e-8, 0.1)
         options.fft_measure = spec.fft_measure;
         options.wave_precision = spec.wave_precision;
+        if (spec.device == ComputeDevice::cuda) {
+          if (!rpy::pse::PseRpyCuda::device_available()) {
+            unavailable(method, "on device 'cuda': no usable CUDA device (or a build without CUDA)");
+          }
+          return std::make_unique<rpy::pse::PseRpyCuda>(spec.geometry, spec.viscosity, options);
+        }
         return std::make_unique<rpy::pse::PseRpy>(spec.geometry, spec.viscosity, options);
       }
     case MobilityMethod::automatic:

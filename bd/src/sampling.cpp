@@ -7,6 +7,7 @@
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
 
 namespace rpyfmm::bd {
 
@@ -112,7 +113,8 @@ DriftNoiseReport drift_and_noise(const rpy::MobilityOperator& mobility, std::spa
 
 bool fuses_drift_and_noise(const rpy::MobilityOperator& mobility, const SqrtOptions& options) {
   const bool split = options.method == SqrtMethod::automatic || options.method == SqrtMethod::split;
-  return split && dynamic_cast<const rpy::pse::PseRpy*>(&mobility) != nullptr;
+  return split && (dynamic_cast<const rpy::pse::PseRpy*>(&mobility) != nullptr ||
+                   dynamic_cast<const rpy::pse::PseRpyCuda*>(&mobility) != nullptr);
 }
 
 DriftNoiseReport fused_drift_and_noise(const rpy::MobilityOperator& mobility, std::span<const double> forces,
@@ -120,10 +122,13 @@ DriftNoiseReport fused_drift_and_noise(const rpy::MobilityOperator& mobility, st
                                        std::span<double> v, const SqrtOptions& options) {
   require(fuses_drift_and_noise(mobility, options), ErrorCode::not_supported, "fused_drift_and_noise",
           "operator '" + mobility.name() + "' has no fused drift-and-noise pass (use drift_and_noise)");
-  const auto& pse = dynamic_cast<const rpy::pse::PseRpy&>(mobility);
   DriftNoiseReport report;
   StopWatch watch;
-  report.sqrt = pse.apply_with_noise(forces, noise_scale, seed, step, v);
+  if (const auto* gpu = dynamic_cast<const rpy::pse::PseRpyCuda*>(&mobility)) {
+    report.sqrt = gpu->apply_with_noise(forces, noise_scale, seed, step, v);
+  } else {
+    report.sqrt = dynamic_cast<const rpy::pse::PseRpy&>(mobility).apply_with_noise(forces, noise_scale, seed, step, v);
+  }
   report.mobility_products = report.sqrt.operator_applications;
   report.seconds_drift = watch.seconds();  // one pass: drift and noise are not timed apart
   return report;

@@ -16,6 +16,7 @@
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
 
 namespace rpyfmm::python {
 namespace {
@@ -345,20 +346,24 @@ void bind_mobility(nb::module_& m) {
   m.def(
       "make_mobility",
       [](const std::string& method, std::size_t n_particles, double tolerance, double viscosity, BoxArg box,
-         std::size_t fmm_crossover) {
+         std::size_t fmm_crossover, const std::string& device) {
         bd::MobilitySpec spec;
         spec.method = bd::mobility_method_from_string(method);
         spec.tolerance = tolerance;
         spec.viscosity = viscosity;
         spec.geometry = geometry_from(box, "make_mobility");
         spec.fmm_crossover = fmm_crossover;
+        spec.device = bd::compute_device_from_string(device);
         return bd::make_mobility(spec, n_particles);
       },
       nb::arg("method") = "auto", nb::arg("n_particles") = 0, nb::kw_only(), nb::arg("tolerance") = 1e-3,
-      nb::arg("viscosity") = 1.0, nb::arg("box") = nb::none(), nb::arg("fmm_crossover") = 0,
+      nb::arg("viscosity") = 1.0, nb::arg("box") = nb::none(), nb::arg("fmm_crossover") = 0, nb::arg("device") = "cpu",
       "Builds an operator by name as BD configs and the CLI do: 'none', 'direct', 'fmm', 'pse', 'auto'\n"
       "(open: direct below fmm_crossover particles, else fmm; periodic: pse). fmm_crossover = 0:\n"
-      "default_fmm_crossover(tolerance).");
+      "default_fmm_crossover(tolerance). device 'cuda': the pse operator on a GPU (a build with CUDA\n"
+      "and a usable device, see cuda_device_available(); other methods refuse it).");
+  m.def("cuda_device_available", &rpy::pse::PseRpyCuda::device_available,
+        "True when this build has the CUDA PSE backend and a usable GPU (make_mobility(..., device='cuda')).");
   m.def("default_fmm_crossover", &bd::default_fmm_crossover, nb::arg("tolerance") = 1e-3,
         "Particle count from which 'auto' picks fmm over direct at this tolerance on this machine\n"
         "(measured crossover of one product, larger where the AVX-512 direct kernels run).");

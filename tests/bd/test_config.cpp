@@ -81,6 +81,9 @@ TEST(BdConfig, ParsesDefaultsAndTheDemo) {
   EXPECT_EQ(parse_config(replace(kBase, "[mobility]", "[mobility]\nwave_precision = \"double\""), "c")
                 .mobility.wave_precision,
             rpyfmm::rpy::pse::WavePrecision::double_precision);
+  EXPECT_EQ(c.mobility.device, ComputeDevice::cpu);
+  EXPECT_EQ(parse_config(replace(kBase, "[mobility]", "[mobility]\ndevice = \"cuda\""), "c").mobility.device,
+            ComputeDevice::cuda);
 }
 
 TEST(BdConfig, EveryBadConfigNamesTheKey) {
@@ -96,6 +99,7 @@ TEST(BdConfig, EveryBadConfigNamesTheKey) {
   expect_error(replace(kBase, "method = \"none\"", "method = \"magic\""), "mobility.method");
   expect_error(replace(kBase, "[mobility]", "[mobility]\nfft_measure = 1"), "mobility.fft_measure");  // not a boolean
   expect_error(replace(kBase, "[mobility]", "[mobility]\nwave_precision = \"half\""), "mobility.wave_precision");
+  expect_error(replace(kBase, "[mobility]", "[mobility]\ndevice = \"gpu\""), "mobility.device");
   expect_error(replace(kBase, "viscosity = 1.0", "viscosity = nan"), "system.viscosity");
   expect_error(replace(kBase, "volume_fraction = 0.05", "volume_fraction = 0.6"), "particles.volume_fraction");
   expect_error(replace(kBase, "source = \"random\"\ncount = 50\nvolume_fraction = 0.05",

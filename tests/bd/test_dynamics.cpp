@@ -15,6 +15,7 @@
 #include "rpyfmm/bd/mobility_factory.hpp"
 #include "rpyfmm/core/error.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
 
 using namespace rpyfmm::bd;
 using rpyfmm::Error;
@@ -402,5 +403,39 @@ TEST(BdDynamics, PseStepFusesDriftAndNoise) {
   } catch (const Error& e) {
     EXPECT_EQ(e.code(), ErrorCode::not_supported);
     EXPECT_NE(std::string(e.what()).find("fused"), std::string::npos) << e.what();
+  }
+}
+
+// Device "cuda" builds the PSE operator on a GPU and nothing else: other methods (and "auto" in
+// open geometry) are refused by name, and without a usable device the PSE one is refused too,
+// before anything is computed. (A BD step on the GPU against the CPU: tests/pse/test_pse_cuda.cpp.)
+TEST(BdMobility, CudaDeviceIsForPseOnly) {
+  EXPECT_EQ(compute_device_from_string("cuda"), ComputeDevice::cuda);
+  EXPECT_EQ(compute_device_from_string("cpu"), ComputeDevice::cpu);
+  EXPECT_THROW(compute_device_from_string("gpu"), Error);
+  auto expect_refusal = [](const MobilitySpec& spec, const std::string& needle) {
+    try {
+      make_mobility(spec, 10);
+      ADD_FAILURE() << "accepted device cuda for method " << to_string(spec.method);
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::not_supported);
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  };
+  for (MobilityMethod m :
+       {MobilityMethod::direct, MobilityMethod::fmm, MobilityMethod::none, MobilityMethod::automatic})
+    expect_refusal({.method = m, .device = ComputeDevice::cuda}, "no CUDA version");
+  const MobilitySpec pse{
+      .method = MobilityMethod::pse, .geometry = rpyfmm::rpy::Geometry::periodic(14.0), .device = ComputeDevice::cuda};
+  if (rpyfmm::rpy::pse::PseRpyCuda::device_available()) {
+    EXPECT_EQ(make_mobility(pse, 10)->name(), "pse-cuda");
+    EXPECT_EQ(make_mobility({.method = MobilityMethod::automatic,
+                             .geometry = rpyfmm::rpy::Geometry::periodic(14.0),
+                             .device = ComputeDevice::cuda},
+                            10)
+                  ->name(),
+              "pse-cuda");
+  } else {
+    expect_refusal(pse, "no usable CUDA device");
   }
 }

@@ -18,6 +18,7 @@
 
 #include "rpyfmm/fmm/direct.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
 
 namespace fs = std::filesystem;
 
@@ -368,6 +369,11 @@ TEST_F(Cli, MobilityBadInput) {
   expect_failure(good + " --radius 1 --box 10 20" + O, "--box", "u.npy");
   expect_failure(good + " --radius 1 --method pse --box 10 --wave-precision half" + O, "--wave-precision", "u.npy");
   expect_failure(good + " --radius 1 --method fmm --wave-precision single" + O, "pse method only", "u.npy");
+  expect_failure(good + " --radius 1 --method pse --box 10 --device gpu" + O, "--device", "u.npy");
+  expect_failure(good + " --radius 1 --method fmm --device cuda" + O, "no CUDA version", "u.npy");
+  if (!rpyfmm::rpy::pse::PseRpyCuda::device_available()) {
+    expect_failure(good + " --radius 1 --method pse --box 10 --device cuda" + O, "no usable CUDA device", "u.npy");
+  }
   expect_failure("mobility" + F + " --radius 1" + O, "--positions", "u.npy");
   expect_failure(good + " --radius 1", "--out", "u.npy");
   expect_failure(good + " --radius 1 --threads -3" + O, "threads", "u.npy");

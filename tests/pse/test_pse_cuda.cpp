@@ -9,6 +9,8 @@
 #include <vector>
 
 #include "ewald_reference.hpp"
+#include "rpyfmm/bd/integrator.hpp"
+#include "rpyfmm/bd/mobility_factory.hpp"
 #include "rpyfmm/core/error.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
@@ -140,4 +142,41 @@ TEST(PseCuda, CpuAndGpuAgree) {
     gpu.apply(f300, ug3);
     EXPECT_LT(pse_test::rel_l2(ug3, uc3), 1e-12) << "300 particles";
   }
+}
+
+// The BD engine on the GPU (mobility device "cuda"): a few steps of sedimenting, diffusing
+// particles give the CPU engine's trajectory (double-precision wave grids on both), to the
+// round-off of the atomics and the Lanczos tolerance (PSE tolerance 1e-7: the sampler's Lanczos
+// stops at the same iteration or one apart, ~1e-7 of a displacement).
+TEST(PseCuda, BdStepsOnTheGpuMatchTheCpu) {
+  REQUIRE_DEVICE();
+  using namespace rpyfmm::bd;
+  const std::array<double, 3> L{14.0, 15.0, 13.0};
+  const std::size_t n = 300;
+  const auto x0 = pse_test::random_points(n, L, 61);
+  MobilitySpec spec{.method = MobilityMethod::pse,
+                    .tolerance = 1e-7,
+                    .geometry = Geometry::periodic(L[0], L[1], L[2]),
+                    .wave_precision = WavePrecision::double_precision};
+  auto engine = [&](ComputeDevice device) {
+    spec.device = device;
+    ForceField ff;
+    ff.add_callback([](std::span<const double>, std::uint64_t, std::span<double> f) {
+      for (std::size_t i = 2; i < f.size(); i += 3) f[i] -= 1.0;  // gravity along -z
+    });
+    auto bd = std::make_unique<Integrator>(make_mobility(spec, n), std::move(ff),
+                                           IntegratorOptions{.dt = 0.01, .kT = 1.0, .seed = 9}, x0,
+                                           std::vector<std::uint32_t>(n, 0));
+    return bd;
+  };
+  auto cpu = engine(ComputeDevice::cpu);
+  auto gpu = engine(ComputeDevice::cuda);
+  cpu->run(3);
+  gpu->run(3);
+  std::vector<double> dc(3 * n), dg(3 * n);
+  for (std::size_t i = 0; i < 3 * n; ++i) {
+    dc[i] = cpu->positions()[i] - x0[i];
+    dg[i] = gpu->positions()[i] - x0[i];
+  }
+  EXPECT_LT(pse_test::rel_l2(dg, dc), 1e-6);
 }

@@ -223,6 +223,21 @@ def test_make_mobility_by_name():
         assert isinstance(op, rpyfmm.MobilityOperator)
 
 
+def test_make_mobility_device():
+    """device='cuda' is for the PSE operator on a GPU: other methods refuse it by name, and
+    without a usable device (or in a build without CUDA, as pip's) so does pse."""
+    assert isinstance(rpyfmm.make_mobility("pse", box=20.0, device="cpu"), rpyfmm.PseRpy)
+    with pytest.raises(rpyfmm.Error, match="no CUDA version"):
+        rpyfmm.make_mobility("direct", device="cuda")
+    with pytest.raises(rpyfmm.Error, match="unknown device 'gpu'"):
+        rpyfmm.make_mobility("pse", box=20.0, device="gpu")
+    if not rpyfmm.cuda_device_available():
+        with pytest.raises(rpyfmm.Error, match="no usable CUDA device"):
+            rpyfmm.make_mobility("pse", box=20.0, device="cuda")
+    else:
+        assert rpyfmm.make_mobility("pse", box=20.0, device="cuda").name == "pse-cuda"
+
+
 def test_gil_released_during_apply():
     """While another thread is inside apply, this thread keeps running Python: the
     longest pause between its loop iterations stays far below one apply (~0.1 s)."""

@@ -203,6 +203,8 @@ TEST_F(SampleCli, BadInputExitTwoNoOutput) {
            {base + "--radius 1 --method pse --operator fmm", "cannot be combined"},
            {base + "--radius 1 --method pse --box 60 --wave-precision quad", "--wave-precision"},
            {base + "--radius 1 --wave-precision single", "pse operator only"},
+           {base + "--radius 1 --method pse --box 60 --device gpu", "--device"},
+           {base + "--radius 1 --device cuda", "pse operator only"},
            {"--positions " + xn.string() + " --radius 1 --out " + out.string(), "NaN"},
            {"--positions " + (scratch() / "missing.txt").string() + " --radius 1 --out " + out.string(),
             "missing.txt"},

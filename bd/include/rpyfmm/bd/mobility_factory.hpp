@@ -7,6 +7,9 @@
 //   "auto"   open: direct below `fmm_crossover` particles (default: default_fmm_crossover),
 //            fmm from there on; periodic: pse
 //
+// Device "cuda" (pse only) builds rpy::pse::PseRpyCuda instead of PseRpy: the same operator on
+// a GPU (a build with CUDA and a usable device; double-precision wave grids).
+//
 // A method that does not fit the geometry throws rpyfmm::Error(not_supported) naming it.
 #pragma once
 
@@ -21,6 +24,13 @@
 namespace rpyfmm::bd {
 
 enum class MobilityMethod { none, direct, fmm, pse, automatic };
+
+/// Where the operator computes: the CPU, or a CUDA GPU (the pse method only).
+enum class ComputeDevice { cpu, cuda };
+
+const char* to_string(ComputeDevice device);
+/// "cpu" | "cuda"; throws naming the value otherwise.
+ComputeDevice compute_device_from_string(const std::string& name);
 
 const char* to_string(MobilityMethod method);
 /// "none" | "direct" | "fmm" | "pse" | "auto"; throws naming the value otherwise.
@@ -42,6 +52,10 @@ struct MobilitySpec {
   /// pse: precision of the wave-space grids (rpy::pse::PseOptions::wave_precision); automatic
   /// takes single precision for tolerances >= 1e-5.
   rpy::pse::WavePrecision wave_precision = rpy::pse::WavePrecision::automatic;
+  /// cuda: the pse method on a GPU (rpy::pse::PseRpyCuda); other methods refuse it. Needs a
+  /// build with CUDA and a usable device (else not_supported, naming why); the GPU computes in
+  /// double precision, so wave_precision single is refused and automatic means double.
+  ComputeDevice device = ComputeDevice::cpu;
 };
 
 /// Particle count from which FmmRpy at `tolerance` beats DirectRpy per product, 1 thread: where
