@@ -137,7 +137,8 @@ void register_mobility(CLI::App& app) {
   cmd->add_option("--wave-precision", args->wave_precision,
                   "pse: wave-space grids in single or double precision; auto = single for --eps >= 1e-5")
       ->capture_default_str();
-  cmd->add_option("--device", args->device, "pse: cpu, or cuda (a GPU; double-precision grids)")->capture_default_str();
+  cmd->add_option("--device", args->device, "pse: cpu, or cuda (on a GPU, in a build with CUDA)")
+      ->capture_default_str();
   cmd->add_option("--out", args->out, "output .npy, shape (N,3)")->required();
   add_common_options(*cmd, args->common);
   cmd->callback([args, radius] { run_mobility(*args, radius->count() > 0); });

@@ -258,7 +258,7 @@ void register_sample(CLI::App& app) {
   cmd->add_option("--wave-precision", args->wave_precision,
                   "pse operator: wave-space grids in single or double precision; auto = single for eps >= 1e-5")
       ->capture_default_str();
-  cmd->add_option("--device", args->device, "pse operator: cpu, or cuda (a GPU; double-precision grids)")
+  cmd->add_option("--device", args->device, "pse operator: cpu, or cuda (on a GPU, in a build with CUDA)")
       ->capture_default_str();
   cmd->add_option("--viscosity", args->viscosity, "solvent viscosity eta > 0")->capture_default_str();
   cmd->add_option("--out", args->out, "output .npy, shape (N,3)")->required();

@@ -144,6 +144,39 @@ TEST(PseCuda, CpuAndGpuAgree) {
   }
 }
 
+// Single-precision wave grids (the automatic choice for tolerances >= 1e-5, on both back ends):
+// R2C / C2R transforms and float atomics on the GPU. GPU and CPU then agree to float round-off
+// (~1e-7 relative; bound 1e-5), and both stay within that of the double-precision product.
+TEST(PseCuda, SinglePrecisionGridsAgree) {
+  REQUIRE_DEVICE();
+  const std::array<double, 3> L{12.0, 15.0, 10.0};
+  const auto x = pse_test::random_points(400, L, 71);
+  auto f = pse_test::random_points(400, {2.0, 2.0, 2.0}, 72);
+  for (auto& v : f) v -= 1.0;
+  PseOptions o;
+  o.tolerance = 1e-4;
+  PseRpy cpu(Geometry::periodic(L[0], L[1], L[2]), 1.0, o);
+  PseRpyCuda gpu(Geometry::periodic(L[0], L[1], L[2]), 1.0, o);
+  cpu.set_positions(x, 1.0);
+  gpu.set_positions(x, 1.0);
+  ASSERT_TRUE(cpu.parameters().wave_single);
+  ASSERT_TRUE(gpu.parameters().wave_single);
+  std::vector<double> uc(f.size()), ug(f.size()), ud(f.size());
+  cpu.apply(f, uc);
+  gpu.apply(f, ug);
+  EXPECT_LT(pse_test::rel_l2(ug, uc), 1e-5);
+  PseOptions od = o;
+  od.wave_precision = WavePrecision::double_precision;
+  PseRpyCuda gpu_double(Geometry::periodic(L[0], L[1], L[2]), 1.0, od);
+  gpu_double.set_positions(x, 1.0);
+  gpu_double.apply(f, ud);
+  EXPECT_LT(pse_test::rel_l2(ug, ud), 1e-5);
+  EXPECT_GT(pse_test::rel_l2(ug, ud), 0.0);  // the float path did run
+  const SqrtReport rc = cpu.apply_with_noise(f, 1.1, 3, 4, uc);
+  const SqrtReport rg = gpu.apply_with_noise(f, 1.1, 3, 4, ug);
+  EXPECT_LT(pse_test::rel_l2(ug, uc), rc.iterations == rg.iterations ? 1e-5 : 10.0 * o.tolerance);
+}
+
 // The BD engine on the GPU (mobility device "cuda"): a few steps of sedimenting, diffusing
 // particles give the CPU engine's trajectory (double-precision wave grids on both), to the
 // round-off of the atomics and the Lanczos tolerance (PSE tolerance 1e-7: the sampler's Lanczos

@@ -116,16 +116,25 @@ TEST(PsePrecision, AutomaticChoiceFollowsTheTolerance) {
   EXPECT_THROW(choose(1e-3, static_cast<WavePrecision>(7)), rpyfmm::Error);
 }
 
-TEST(PsePrecision, CudaBackendRefusesSinglePrecision) {
-  PseOptions o = with_precision(1e-3, WavePrecision::single_precision);
-  try {
-    PseRpyCuda op(Geometry::periodic(20.0), 1.0, o);
-    FAIL() << "PseRpyCuda accepted single-precision wave grids";
-  } catch (const rpyfmm::Error& e) {
-    EXPECT_EQ(e.code(), rpyfmm::ErrorCode::not_supported);
-#if defined(RPYFMM_HAVE_CUDA_PSE)
-    EXPECT_NE(std::string(e.what()).find("wave_precision"), std::string::npos) << e.what();
-#endif
+// The CUDA backend follows wave_precision as the CPU does (single grids since session 15): with a
+// device the option is taken (the agreement with the CPU: test_pse_cuda.cpp); without one the
+// constructor refuses for that reason, not for the precision.
+TEST(PsePrecision, CudaBackendFollowsWavePrecision) {
+  for (WavePrecision precision : {WavePrecision::single_precision, WavePrecision::double_precision}) {
+    const PseOptions o = with_precision(1e-3, precision);
+    if (PseRpyCuda::device_available()) {
+      PseRpyCuda op(Geometry::periodic(20.0), 1.0, o);
+      op.set_positions(std::vector<double>{1.0, 2.0, 3.0, 7.0, 8.0, 9.0}, 1.0);
+      EXPECT_EQ(op.parameters().wave_single, precision == WavePrecision::single_precision);
+      continue;
+    }
+    try {
+      PseRpyCuda op(Geometry::periodic(20.0), 1.0, o);
+      FAIL() << "PseRpyCuda constructed without a usable device";
+    } catch (const rpyfmm::Error& e) {
+      EXPECT_EQ(e.code(), rpyfmm::ErrorCode::not_supported);
+      EXPECT_EQ(std::string(e.what()).find("wave_precision"), std::string::npos) << e.what();
+    }
   }
 }
 

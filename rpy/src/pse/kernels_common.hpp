@@ -160,7 +160,8 @@ RPYFMM_HOST_DEVICE inline void scale_mode_with(int ix, int iy, int iz, std::size
 
 /// scale_mode_with for linear half-spectrum index idx, drawing the mode's noise itself
 /// (one GPU thread per mode; the CPU draws a line of modes at once with fill_normal6).
-RPYFMM_HOST_DEVICE inline void scale_mode(std::size_t idx, const ModeGeometry& g, const double* ck, double* spec,
+template <class Real>
+RPYFMM_HOST_DEVICE inline void scale_mode(std::size_t idx, const ModeGeometry& g, const double* ck, Real* spec,
                                           bool deterministic, bool noise, std::uint64_t seed, std::uint64_t step,
                                           double noise_factor) {
   const int iz = static_cast<int>(idx % static_cast<std::size_t>(g.nzh));

@@ -4,7 +4,8 @@
 // a product uploads its forces once and downloads its velocities once, gathered and scattered
 // between input and slot order on the device.
 //   spread:      one thread block per particle, 1D weights in shared memory, atomicAdd;
-//   FFT:         cuFFT D2Z / Z2D, batch of 3 components (same layout as FFTW);
+//   FFT:         cuFFT D2Z / Z2D (R2C / C2R for single-precision grids, PseParameters::wave_single,
+//                as the CPU chooses them), batch of 3 components (same layout as FFTW);
 //   scale+noise: one thread per half-spectrum mode, the same scale_mode() as the CPU;
 //   interpolate: one block per particle, warp-shuffle reduction, added to the real-space part;
 //   real space:  one thread per particle over its neighbour list (built on the host with the
@@ -24,6 +25,7 @@
 #include <memory>
 #include <numbers>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "../sqrt/krylov_space.hpp"
@@ -148,7 +150,10 @@ __global__ void scatter3_kernel(int np, const int* __restrict__ order, const dou
   for (int c = 0; c < 3; ++c) out[3 * i + c] = in[3 * static_cast<std::size_t>(s) + c];
 }
 
-__global__ void spread_kernel(int np, const double* __restrict__ x, const double* __restrict__ f, double* grid,
+/// grid_c += c3 w f_c over each particle's window (one block of kWindowThreads per particle);
+/// Real = float for single-precision wave grids (the products in double, the sums in Real).
+template <class Real>
+__global__ void spread_kernel(int np, const double* __restrict__ x, const double* __restrict__ f, Real* grid,
                               WindowParams w) {
   const int i = blockIdx.x;
   if (i >= np) return;
@@ -170,14 +175,16 @@ __global__ void spread_kernel(int np, const double* __restrict__ x, const double
     const std::size_t iz = static_cast<std::size_t>((start[2] + l) % w.n[2]);
     const std::size_t k = (ix * w.n[1] + iy) * w.n[2] + iz;
     const double wt = wts[a] * wts[kMaxSupport + b] * wts[2 * kMaxSupport + l];
-    atomicAdd(grid + k, wt * f0);
-    atomicAdd(grid + w.ng + k, wt * f1);
-    atomicAdd(grid + 2 * w.ng + k, wt * f2);
+    atomicAdd(grid + k, static_cast<Real>(wt * f0));
+    atomicAdd(grid + w.ng + k, static_cast<Real>(wt * f1));
+    atomicAdd(grid + 2 * w.ng + k, static_cast<Real>(wt * f2));
   }
 }
 
-/// out[3 i + c] (+)= scale c3 sum_window w grid_c (one block of kWindowThreads per particle).
-__global__ void interpolate_kernel(int np, const double* __restrict__ x, const double* __restrict__ grid, double* out,
+/// out[3 i + c] (+)= scale c3 sum_window w grid_c (one block of kWindowThreads per particle;
+/// the sums in double whatever the grid's Real).
+template <class Real>
+__global__ void interpolate_kernel(int np, const double* __restrict__ x, const Real* __restrict__ grid, double* out,
                                    WindowParams w, double scale, bool accumulate) {
   const int i = blockIdx.x;
   if (i >= np) return;
@@ -200,9 +207,9 @@ __global__ void interpolate_kernel(int np, const double* __restrict__ x, const d
     const std::size_t iz = static_cast<std::size_t>((start[2] + l) % w.n[2]);
     const std::size_t k = (ix * w.n[1] + iy) * w.n[2] + iz;
     const double wt = wts[a] * wts[kMaxSupport + b] * wts[2 * kMaxSupport + l];
-    s[0] += wt * grid[k];
-    s[1] += wt * grid[w.ng + k];
-    s[2] += wt * grid[2 * w.ng + k];
+    s[0] += wt * static_cast<double>(grid[k]);
+    s[1] += wt * static_cast<double>(grid[w.ng + k]);
+    s[2] += wt * static_cast<double>(grid[2 * w.ng + k]);
   }
   for (int c = 0; c < 3; ++c) {
     const double total_c = block_sum(s[c], warps);
@@ -213,7 +220,8 @@ __global__ void interpolate_kernel(int np, const double* __restrict__ x, const d
   }
 }
 
-__global__ void scale_kernel(detail::ModeGeometry g, const double* __restrict__ ck, double* spec, bool deterministic,
+template <class Real>
+__global__ void scale_kernel(detail::ModeGeometry g, const double* __restrict__ ck, Real* spec, bool deterministic,
                              bool noise, std::uint64_t seed, std::uint64_t step, double factor) {
   const std::size_t idx = static_cast<std::size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
   if (idx >= g.modes) return;
@@ -453,7 +461,9 @@ struct PseRpyCuda::Impl {
   cufftHandle plan_fwd = 0, plan_bwd = 0;
   bool have_fwd = false, have_bwd = false;
   // Device arrays; particle vectors (3 per particle) in slot order unless named otherwise.
-  DeviceArray<double> ck, grid, spectrum, table;
+  DeviceArray<double> ck, table;
+  // Wave grids and their half spectra: double, or float where params.wave_single.
+  DeviceArray<unsigned char> grid, spectrum;
   DeviceArray<double> x;                // positions
   DeviceArray<double> io;               // one vector in input order: the transfers
   DeviceArray<double> f, u, z;          // forces, velocities, the real-space noise
@@ -546,33 +556,53 @@ struct PseRpyCuda::Impl {
   /// out (+)= M_w f + noise_scale M_w^{1/2} z2(key) (device vectors, slot order); f null: the
   /// noise only.
   void wave(const double* f_dev, double* out, bool accumulate, const detail::NoiseKey* key, double noise_scale) {
+    if (params.wave_single) {
+      wave_in<float>(f_dev, out, accumulate, key, noise_scale);
+    } else {
+      wave_in<double>(f_dev, out, accumulate, key, noise_scale);
+    }
+  }
+
+  /// wave() on Real grids: cuFFT R2C / C2R for float, D2Z / Z2D for double.
+  template <class Real>
+  void wave_in(const double* f_dev, double* out, bool accumulate, const detail::NoiseKey* key, double noise_scale) {
+    auto* g = reinterpret_cast<Real*>(grid.get());
+    auto* spec = reinterpret_cast<Real*>(spectrum.get());
     const bool deterministic = f_dev != nullptr;
     if (deterministic) {
       events.begin("spread");
-      check(cudaMemset(grid.get(), 0, 3 * window.ng * sizeof(double)), "cudaMemset");
-      spread_kernel<<<static_cast<unsigned>(np), kWindowThreads>>>(static_cast<int>(np), x.get(), f_dev, grid.get(),
-                                                                   window);
+      check(cudaMemset(g, 0, 3 * window.ng * sizeof(Real)), "cudaMemset");
+      spread_kernel<Real>
+          <<<static_cast<unsigned>(np), kWindowThreads>>>(static_cast<int>(np), x.get(), f_dev, g, window);
       check_kernel("spread kernel");
       events.end();
       events.begin("fft_forward");
-      check_fft(cufftExecD2Z(plan_fwd, grid.get(), reinterpret_cast<cufftDoubleComplex*>(spectrum.get())), "D2Z");
-      check_kernel("D2Z");  // cuFFT faults are asynchronous: name them here, not at the next kernel
+      if constexpr (std::is_same_v<Real, float>) {
+        check_fft(cufftExecR2C(plan_fwd, g, reinterpret_cast<cufftComplex*>(spec)), "R2C");
+      } else {
+        check_fft(cufftExecD2Z(plan_fwd, g, reinterpret_cast<cufftDoubleComplex*>(spec)), "D2Z");
+      }
+      check_kernel("forward FFT");  // cuFFT faults are asynchronous: name them here, not at the next kernel
       events.end();
     }
     const bool with_noise = key != nullptr && noise_scale != 0.0;
     events.begin("scale");
-    scale_kernel<<<blocks_for(modes.modes, 256), 256>>>(modes, ck.get(), spectrum.get(), deterministic, with_noise,
-                                                         with_noise ? key->seed : 0, with_noise ? key->step : 0,
-                                                         noise_scale / std::sqrt(dv));
+    scale_kernel<Real><<<blocks_for(modes.modes, 256), 256>>>(modes, ck.get(), spec, deterministic, with_noise,
+                                                              with_noise ? key->seed : 0, with_noise ? key->step : 0,
+                                                              noise_scale / std::sqrt(dv));
     check_kernel("scale kernel");
     events.end();
     events.begin("fft_backward");
-    check_fft(cufftExecZ2D(plan_bwd, reinterpret_cast<cufftDoubleComplex*>(spectrum.get()), grid.get()), "Z2D");
-    check_kernel("Z2D");
+    if constexpr (std::is_same_v<Real, float>) {
+      check_fft(cufftExecC2R(plan_bwd, reinterpret_cast<cufftComplex*>(spec), g), "C2R");
+    } else {
+      check_fft(cufftExecZ2D(plan_bwd, reinterpret_cast<cufftDoubleComplex*>(spec), g), "Z2D");
+    }
+    check_kernel("backward FFT");
     events.end();
     events.begin("interpolate");
-    interpolate_kernel<<<static_cast<unsigned>(np), kWindowThreads>>>(static_cast<int>(np), x.get(), grid.get(), out,
-                                                                      window, dv, accumulate);
+    interpolate_kernel<Real>
+        <<<static_cast<unsigned>(np), kWindowThreads>>>(static_cast<int>(np), x.get(), g, out, window, dv, accumulate);
     check_kernel("interpolate kernel");
     events.end();
   }
@@ -605,7 +635,7 @@ bool PseRpyCuda::device_available() {
   // The library carries code for the architectures it was built for (CMAKE_CUDA_ARCHITECTURES);
   // a device without a kernel image for it counts as no device, so tests skip instead of failing.
   cudaFuncAttributes attributes{};
-  const bool image = cudaFuncGetAttributes(&attributes, scale_kernel) == cudaSuccess;
+  const bool image = cudaFuncGetAttributes(&attributes, scale_kernel<double>) == cudaSuccess;
   (void)cudaGetLastError();
   return image;
 }
@@ -619,13 +649,9 @@ PseRpyCuda::PseRpyCuda(Geometry geometry, double viscosity, const PseOptions& op
   }
   require(std::isfinite(options.xi) && options.xi >= 0.0, ErrorCode::invalid_argument, kWhere,
           "xi must be >= 0 (0 = automatic), got " + std::to_string(options.xi));
-  require(options.wave_precision != WavePrecision::single_precision, ErrorCode::not_supported, kWhere,
-          "single-precision wave grids (PseOptions::wave_precision) are CPU-only; the CUDA backend computes in "
-          "double precision (use automatic or double_precision)");
   require(device_available(), ErrorCode::not_supported, kWhere, "no usable CUDA device");
   impl_->options = options;
-  impl_->options.real_space_table = true;                           // the device path interpolates the table
-  impl_->options.wave_precision = WavePrecision::double_precision;  // cuFFT in double (Z2D / D2Z)
+  impl_->options.real_space_table = true;  // the device path interpolates the table
 }
 
 PseRpyCuda::~PseRpyCuda() = default;
@@ -687,25 +713,29 @@ void PseRpyCuda::on_positions_set() {
     check_fft(cufftCreate(&im.plan_fwd), "cufftCreate");
     im.have_fwd = true;
     check_fft(cufftSetAutoAllocation(im.plan_fwd, 0), "cufftSetAutoAllocation");
-    check_fft(cufftMakePlanMany64(im.plan_fwd, 3, dims, nullptr, 1, ng, nullptr, 1, nm, CUFFT_D2Z, 3, &work_fwd),
-              "cufftMakePlanMany64 D2Z");
+    const bool single = p.wave_single;
+    check_fft(cufftMakePlanMany64(im.plan_fwd, 3, dims, nullptr, 1, ng, nullptr, 1, nm, single ? CUFFT_R2C : CUFFT_D2Z,
+                                  3, &work_fwd),
+              "cufftMakePlanMany64 (forward)");
     check_fft(cufftCreate(&im.plan_bwd), "cufftCreate");
     im.have_bwd = true;
     check_fft(cufftSetAutoAllocation(im.plan_bwd, 0), "cufftSetAutoAllocation");
-    check_fft(cufftMakePlanMany64(im.plan_bwd, 3, dims, nullptr, 1, nm, nullptr, 1, ng, CUFFT_Z2D, 3, &work_bwd),
-              "cufftMakePlanMany64 Z2D");
+    check_fft(cufftMakePlanMany64(im.plan_bwd, 3, dims, nullptr, 1, nm, nullptr, 1, ng, single ? CUFFT_C2R : CUFFT_Z2D,
+                                  3, &work_bwd),
+              "cufftMakePlanMany64 (backward)");
     const std::size_t work = std::max(work_fwd, work_bwd);
     // The grid, the half spectrum and the work area are the device's big arrays: refuse a
     // configuration that cannot fit before allocating any of them (the CPU path's memory check).
-    const std::size_t need = (3 * im.window.ng + 2 * 3 * im.modes.modes) * sizeof(double) + work;
+    const std::size_t real_bytes = single ? sizeof(float) : sizeof(double);
+    const std::size_t need = (3 * im.window.ng + 2 * 3 * im.modes.modes) * real_bytes + work;
     std::size_t free_bytes = 0, total_bytes = 0;
     check(cudaMemGetInfo(&free_bytes, &total_bytes), "cudaMemGetInfo");
     require(need <= free_bytes, ErrorCode::out_of_memory, kWhere,
             "the PSE grid " + std::to_string(p.grid[0]) + "x" + std::to_string(p.grid[1]) + "x" +
                 std::to_string(p.grid[2]) + " needs " + std::to_string(need >> 20) + " MiB on the device, " +
                 std::to_string(free_bytes >> 20) + " MiB are free; raise the tolerance or lower xi");
-    im.grid.resize(3 * im.window.ng);
-    im.spectrum.resize(2 * 3 * im.modes.modes);
+    im.grid.resize(3 * im.window.ng * real_bytes);
+    im.spectrum.resize(2 * 3 * im.modes.modes * real_bytes);
     im.fft_work.resize(work);
     if (work > 0) {
       check_fft(cufftSetWorkArea(im.plan_fwd, im.fft_work.get()), "cufftSetWorkArea D2Z");

@@ -8,7 +8,7 @@
 //            fmm from there on; periodic: pse
 //
 // Device "cuda" (pse only) builds rpy::pse::PseRpyCuda instead of PseRpy: the same operator on
-// a GPU (a build with CUDA and a usable device; double-precision wave grids).
+// a GPU (a build with CUDA and a usable device; wave_precision as on the CPU).
 //
 // A method that does not fit the geometry throws rpyfmm::Error(not_supported) naming it.
 #pragma once
@@ -53,8 +53,7 @@ struct MobilitySpec {
   /// takes single precision for tolerances >= 1e-5.
   rpy::pse::WavePrecision wave_precision = rpy::pse::WavePrecision::automatic;
   /// cuda: the pse method on a GPU (rpy::pse::PseRpyCuda); other methods refuse it. Needs a
-  /// build with CUDA and a usable device (else not_supported, naming why); the GPU computes in
-  /// double precision, so wave_precision single is refused and automatic means double.
+  /// build with CUDA and a usable device (else not_supported, naming why).
   ComputeDevice device = ComputeDevice::cpu;
 };
 

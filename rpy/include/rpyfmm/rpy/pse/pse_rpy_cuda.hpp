@@ -5,11 +5,11 @@
 // weights, the real-space 3x3 blocks and the Philox streams are the same
 // __host__ __device__ functions, so for the same seed and step CPU and GPU
 // agree to round-off (spreading uses atomics on the GPU: the last bits of the
-// grid sums depend on the run) when the CPU operator's wave grids are double
-// precision too: the GPU always computes in double, while PseRpy's automatic
-// wave_precision uses single-precision grids for tolerances >= 1e-5 (then the two
-// differ by ~1e-7 relative, far below the tolerance). A PseOptions asking for
-// WavePrecision::single_precision is refused. Plain C++ header (pimpl): no CUDA types leak.
+// grid sums depend on the run). The wave grids' precision follows
+// PseOptions::wave_precision as on the CPU (automatic: single precision for tolerances
+// >= 1e-5, cuFFT R2C / C2R and float atomics; double: D2Z / Z2D): with double grids both
+// back ends agree to ~1e-12, with single grids to float round-off (~1e-7 relative, far
+// below the tolerance). Plain C++ header (pimpl): no CUDA types leak.
 //
 // Built when RPYFMM_USE_CUDA is on (then RPYFMM_HAVE_CUDA_PSE is defined);
 // otherwise the constructor throws ErrorCode::not_supported and
