@@ -163,7 +163,8 @@ int run_cuda(const std::vector<std::size_t>& sizes) {
   // (apply_device / sample_device). Stage columns: seconds per host-array M F (transfer = both
   // copies with the gathers and scatters, fft = forward + backward) and per sample (lanczos).
   std::printf(
-      "N,backend,wave,grid,P,r_cut,MF_s,MF_PTPS,MF_dev_s,MF_dev_PTPS,sample_s,sample_PTPS,sample_dev_s,sample_dev_PTPS,"
+      "N,backend,wave,lists,grid,P,r_cut,set_positions_s,MF_s,MF_PTPS,MF_dev_s,MF_dev_PTPS,sample_s,sample_PTPS,sample_"
+      "dev_s,sample_dev_PTPS,"
       "sample_over_MF,split_iters,rel_diff_cpu,MF_transfer_s,MF_real_s,MF_spread_s,MF_fft_s,MF_scale_s,"
       "MF_interp_s,sample_lanczos_s,sample_wave_s\n");
   for (std::size_t n : sizes) {
@@ -172,15 +173,23 @@ int run_cuda(const std::vector<std::size_t>& sizes) {
     std::vector<double> f(3 * n), u(3 * n), w(3 * n);
     fill_normal(f, 1, 0);
     // Single-precision wave grids (the automatic choice at tolerance 1e-3, as on the CPU), then
-    // double (the GPU's old only choice).
-    for (const WavePrecision precision : {WavePrecision::single_precision, WavePrecision::double_precision}) {
+    // double (the GPU's old only choice), both with the host's neighbour lists; then single with
+    // the device cell list (PseCudaOptions::device_cell_list).
+    struct Variant {
+      WavePrecision precision;
+      bool cells;
+    };
+    for (const Variant variant :
+         {Variant{WavePrecision::single_precision, false}, Variant{WavePrecision::double_precision, false},
+          Variant{WavePrecision::single_precision, true}}) {
       PseOptions o;
       o.tolerance = 1e-3;
       o.xi = 0.5 / a;
-      o.wave_precision = precision;
-      const bool single = precision == WavePrecision::single_precision;
-      PseRpyCuda op(Geometry::periodic(L), 1.0, o);
-      op.set_positions(x, a);
+      o.wave_precision = variant.precision;
+      const bool single = variant.precision == WavePrecision::single_precision;
+      PseRpyCuda op(Geometry::periodic(L), 1.0, o, PseCudaOptions{.device_cell_list = variant.cells});
+      op.set_positions(x, a);  // plans
+      const double t_pos = median_seconds(3, [&] { op.set_positions(x, a); });
       op.apply(f, u);  // warm up (plans, first-touch)
       op.reset_stage_times();
       const double t_mf = median_seconds(kReps, [&] { op.apply(f, u); });
@@ -219,13 +228,14 @@ int run_cuda(const std::vector<std::size_t>& sizes) {
       }
       const auto& p = op.parameters();
       const auto ptps = [n](double t) { return t > 0.0 ? static_cast<double>(n) / t : -1.0; };
+      std::printf("%zu,cuda,%s,%s,%dx%dx%d,%d,%.3f,%.4g,", n, single ? "single" : "double",
+                  op.device_cell_list_active() ? "device" : "host", p.grid[0], p.grid[1], p.grid[2], p.support[0],
+                  p.r_cut, t_pos);
+      std::printf("%.4g,%.4g,%.4g,%.4g,%.4g,%.4g,%.4g,%.4g,%.2f,%d,%.3g,", t_mf, ptps(t_mf), t_mf_dev, ptps(t_mf_dev),
+                  t_s, ptps(t_s), t_s_dev, ptps(t_s_dev), t_s / t_mf, iters, diff);
       std::printf(
-          "%zu,cuda,%s,%dx%dx%d,%d,%.3f,%.4g,%.4g,%.4g,%.4g,%.4g,%.4g,%.4g,%.4g,%.2f,%d,%.3g,%.4g,%.4g,%.4g,%.4g,%.4g,%"
-          ".4g,"
-          "%.4g,%.4g\n",
-          n, single ? "single" : "double", p.grid[0], p.grid[1], p.grid[2], p.support[0], p.r_cut, t_mf, ptps(t_mf),
-          t_mf_dev, ptps(t_mf_dev), t_s, ptps(t_s), t_s_dev, ptps(t_s_dev), t_s / t_mf, iters, diff,
-          per_call(mf, "transfer", kReps), per_call(mf, "real_space", kReps), per_call(mf, "spread", kReps),
+          "%.4g,%.4g,%.4g,%.4g,%.4g,%.4g,%.4g,%.4g\n", per_call(mf, "transfer", kReps),
+          per_call(mf, "real_space", kReps), per_call(mf, "spread", kReps),
           per_call(mf, "fft_forward", kReps) + per_call(mf, "fft_backward", kReps), per_call(mf, "scale", kReps),
           per_call(mf, "interpolate", kReps), per_call(st, "lanczos", kReps),
           per_call(st, "scale", kReps) + per_call(st, "fft_backward", kReps) + per_call(st, "interpolate", kReps));

@@ -4,6 +4,7 @@
 // unusable device is a failure, so that a broken setup cannot pass by skipping.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <vector>
@@ -141,6 +142,61 @@ TEST(PseCuda, CpuAndGpuAgree) {
     cpu.apply(f300, uc3);
     gpu.apply(f300, ug3);
     EXPECT_LT(pse_test::rel_l2(ug3, uc3), 1e-12) << "300 particles";
+  }
+}
+
+// The device cell list (PseCudaOptions::device_cell_list): the real-space pairs found by a radix
+// sort into cells on the GPU give the host lists' products (to round-off: the same pairs, summed
+// in another order), in boxes with 3 (16^3, r_cut 4.96) and 5-6 cells per side, with coincident and overlapping
+// particles, after moves and with fewer particles; a box side with < 3 cells falls back to the
+// host lists.
+TEST(PseCuda, DeviceCellListMatchesHostLists) {
+  REQUIRE_DEVICE();
+  struct Case {
+    std::array<double, 3> L;
+    std::size_t n;
+  };
+  for (const Case& c : {Case{{16.0, 16.0, 16.0}, 500}, Case{{30.0, 26.0, 34.0}, 3000}, Case{{12.0, 15.0, 10.0}, 400}}) {
+    auto x = pse_test::random_points(c.n, c.L, 81);
+    for (int d = 0; d < 3; ++d) x[3 * 7 + d] = x[3 * 3 + d];  // a coincident pair
+    auto f = pse_test::random_points(c.n, {2.0, 2.0, 2.0}, 82);
+    for (auto& v : f) v -= 1.0;
+    PseOptions o;
+    o.tolerance = 1e-6;
+    o.xi = 1.0;
+    o.wave_precision = WavePrecision::double_precision;
+    const Geometry g = Geometry::periodic(c.L[0], c.L[1], c.L[2]);
+    PseRpy cpu(g, 1.0, o);
+    PseRpyCuda lists(g, 1.0, o);
+    PseRpyCuda cells(g, 1.0, o, PseCudaOptions{.device_cell_list = true});
+    std::vector<double> uc(f.size()), ul(f.size()), ug(f.size());
+    for (int round = 0; round < 2; ++round) {
+      if (round == 1) {  // moved particles, then the same plan with fewer of them below
+        for (std::size_t i = 0; i < x.size(); ++i) x[i] += 0.9 * std::cos(0.7 * double(i));
+      }
+      cpu.set_positions(x, 1.0);
+      lists.set_positions(x, 1.0);
+      cells.set_positions(x, 1.0);
+      const double r_cut = cells.parameters().r_cut;
+      const bool fits = std::min({c.L[0], c.L[1], c.L[2]}) >= 3.0 * r_cut;
+      EXPECT_EQ(cells.device_cell_list_active(), fits) << "r_cut " << r_cut;
+      EXPECT_FALSE(lists.device_cell_list_active());
+      cpu.apply(f, uc);
+      lists.apply(f, ul);
+      cells.apply(f, ug);
+      EXPECT_LT(pse_test::rel_l2(ug, ul), 1e-12) << c.n << " round " << round;
+      EXPECT_LT(pse_test::rel_l2(ug, uc), 1e-12) << c.n << " round " << round;
+      const SqrtReport sl = lists.sample(4, 2, ul);
+      const SqrtReport sg = cells.sample(4, 2, ug);
+      EXPECT_LT(pse_test::rel_l2(ug, ul), sl.iterations == sg.iterations ? 1e-10 : 10.0 * o.tolerance);
+    }
+    const std::vector<double> fewer(x.begin(), x.begin() + 3 * (c.n / 2)), fh(f.begin(), f.begin() + 3 * (c.n / 2));
+    std::vector<double> a(fh.size()), b(fh.size());
+    cpu.set_positions(fewer, 1.0);
+    cells.set_positions(fewer, 1.0);
+    cpu.apply(fh, a);
+    cells.apply(fh, b);
+    EXPECT_LT(pse_test::rel_l2(b, a), 1e-12) << "fewer particles";
   }
 }
 

@@ -22,6 +22,7 @@
 #include <array>
 #include <chrono>
 #include <cstdlib>
+#include <cub/device/device_radix_sort.cuh>
 #include <memory>
 #include <numbers>
 #include <string>
@@ -254,6 +255,81 @@ __global__ void real_space_kernel(int np, const double* __restrict__ x, const do
   for (int c = 0; c < 3; ++c) out[3 * i + c] = m0 * u[c];
 }
 
+/// The device cell list: cells of edge >= r_cut, nc[d] >= 3 per axis (so that the 27 cells
+/// around a cell are distinct and every pair within r_cut < L / 2 is found once).
+struct CellGrid {
+  int nc[3];
+  double inv_cell[3];  // nc[d] / L[d]
+};
+
+/// key[i] = linear cell index of input particle i (positions wrapped into [0, L)), value[i] = i.
+__global__ void cell_key_kernel(int np, const double* __restrict__ x, CellGrid cg, unsigned* __restrict__ key,
+                                int* __restrict__ value) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= np) return;
+  int c[3];
+  for (int d = 0; d < 3; ++d) {
+    const int cd = static_cast<int>(x[3 * i + d] * cg.inv_cell[d]);
+    c[d] = cd < 0 ? 0 : (cd >= cg.nc[d] ? cg.nc[d] - 1 : cd);
+  }
+  key[i] = static_cast<unsigned>((c[0] * cg.nc[1] + c[1]) * cg.nc[2] + c[2]);
+  value[i] = i;
+}
+
+/// cell_begin[c] / cell_end[c]: the slot range of cell c in the sorted keys (both zero-filled
+/// before, so empty cells stay empty).
+__global__ void cell_range_kernel(int np, const unsigned* __restrict__ sorted_key, int* __restrict__ cell_begin,
+                                  int* __restrict__ cell_end) {
+  const int s = blockIdx.x * blockDim.x + threadIdx.x;
+  if (s >= np) return;
+  const unsigned k = sorted_key[s];
+  if (s == 0 || sorted_key[s - 1] != k) cell_begin[k] = s;
+  if (s == np - 1 || sorted_key[s + 1] != k) cell_end[k] = s + 1;
+}
+
+/// out = M_r f in slot order from the cell list: each row scans the 27 cells around its own
+/// and takes the pairs with |r|^2 < rc2 (coincident particles included, as the lists do).
+__global__ void real_space_cells_kernel(int np, const double* __restrict__ x, const double* __restrict__ f, double* out,
+                                        const unsigned* __restrict__ sorted_key, const int* __restrict__ cell_begin,
+                                        const int* __restrict__ cell_end, CellGrid cg, double rc2,
+                                        const double* __restrict__ table, double inv_dr, double self, double m0,
+                                        double3 L, double3 inv_L) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= np) return;
+  double u[3] = {self * f[3 * i], self * f[3 * i + 1], self * f[3 * i + 2]};
+  const double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2];
+  const int key = static_cast<int>(sorted_key[i]);
+  const int cz = key % cg.nc[2];
+  const int cy = (key / cg.nc[2]) % cg.nc[1];
+  const int cx = key / (cg.nc[2] * cg.nc[1]);
+  for (int ox = -1; ox <= 1; ++ox) {
+    const int nx = (cx + ox + cg.nc[0]) % cg.nc[0];
+    for (int oy = -1; oy <= 1; ++oy) {
+      const int ny = (cy + oy + cg.nc[1]) % cg.nc[1];
+      for (int oz = -1; oz <= 1; ++oz) {
+        const int c = (nx * cg.nc[1] + ny) * cg.nc[2] + (cz + oz + cg.nc[2]) % cg.nc[2];
+        for (int j = cell_begin[c]; j < cell_end[c]; ++j) {
+          if (j == i) continue;
+          const double dx = detail::minimum_image(xi - x[3 * j], L.x, inv_L.x);
+          const double dy = detail::minimum_image(yi - x[3 * j + 1], L.y, inv_L.y);
+          const double dz = detail::minimum_image(zi - x[3 * j + 2], L.z, inv_L.z);
+          const double r2 = dx * dx + dy * dy + dz * dz;
+          if (!(r2 < rc2)) continue;
+          if (r2 == 0.0) {
+            for (int q = 0; q < 3; ++q) u[q] += self * f[3 * j + q];
+            continue;
+          }
+          const double r = sqrt(r2);
+          double F, G;
+          detail::table_fg(table, inv_dr, r, F, G);
+          detail::pair_block_add(dx, dy, dz, r, F, G, f + 3 * j, u);
+        }
+      }
+    }
+  }
+  for (int q = 0; q < 3; ++q) out[3 * i + q] = m0 * u[q];
+}
+
 /// out[3 s + c] = normal3(seed, step, stream, order[s])[c]: fill_normal's values (keyed by the
 /// input index), drawn on the device straight into slot order.
 __global__ void normal_slots_kernel(int np, const int* __restrict__ order, std::uint64_t seed, std::uint64_t step,
@@ -450,6 +526,15 @@ class StageEvents {
 
 struct PseRpyCuda::Impl {
   PseOptions options;
+  PseCudaOptions cuda_options;
+  // Device cell list (PseCudaOptions::device_cell_list): active for the current positions,
+  // its grid, the sorted cell keys by slot and the slot ranges per cell; the radix sort's
+  // input keys and values and its work area.
+  bool cells_active = false;
+  CellGrid cell_grid{};
+  DeviceArray<unsigned> keys_in, keys_sorted;
+  DeviceArray<int> values_in, cell_begin, cell_end;
+  DeviceArray<unsigned char> sort_work;
   PseParameters params;
   bool planned = false;
   std::size_t planned_n = 0;
@@ -542,9 +627,68 @@ struct PseRpyCuda::Impl {
     return rep;
   }
 
+  /// The slot order and cell ranges of the device cell list for the positions in `io` (input
+  /// order, wrapped into the box); false (nothing built) where a box side holds < 3 cells.
+  bool build_device_cells() {
+    std::size_t total = 1;
+    for (int d = 0; d < 3; ++d) {
+      const int nc = static_cast<int>(box[d] / params.r_cut);  // cells of edge >= r_cut
+      if (nc < 3) return false;
+      cell_grid.nc[d] = nc;
+      total *= static_cast<std::size_t>(nc);
+    }
+    // Sparse systems: no more cells than ~2 per particle (larger cells stay valid).
+    const double limit = std::max(27.0, 2.0 * static_cast<double>(np));
+    if (static_cast<double>(total) > limit) {
+      const double shrink = std::cbrt(static_cast<double>(total) / limit);
+      total = 1;
+      for (int d = 0; d < 3; ++d) {
+        cell_grid.nc[d] = std::max(3, static_cast<int>(cell_grid.nc[d] / shrink));
+        total *= static_cast<std::size_t>(cell_grid.nc[d]);
+      }
+    }
+    for (int d = 0; d < 3; ++d) cell_grid.inv_cell[d] = cell_grid.nc[d] / box[d];
+    keys_in.resize(np);
+    keys_sorted.resize(np);
+    values_in.resize(np);
+    order.resize(np);
+    cell_key_kernel<<<blocks_for(np, kThreads), kThreads>>>(static_cast<int>(np), io.get(), cell_grid, keys_in.get(),
+                                                            values_in.get());
+    check_kernel("cell key kernel");
+    int bits = 1;
+    while (bits < 32 && (std::size_t{1} << bits) < total) ++bits;
+    std::size_t work_bytes = 0;
+    check(cub::DeviceRadixSort::SortPairs(nullptr, work_bytes, keys_in.get(), keys_sorted.get(), values_in.get(),
+                                          order.get(), static_cast<int>(np), 0, bits),
+          "radix sort (size)");
+    work_bytes = std::max<std::size_t>(work_bytes, 1);  // a null work area would mean "size query" again
+    if (sort_work.size() < work_bytes) sort_work.resize(work_bytes);
+    check(cub::DeviceRadixSort::SortPairs(sort_work.get(), work_bytes, keys_in.get(), keys_sorted.get(),
+                                          values_in.get(), order.get(), static_cast<int>(np), 0, bits),
+          "radix sort");
+    cell_begin.resize(total);
+    cell_end.resize(total);
+    check(cudaMemset(cell_begin.get(), 0, total * sizeof(int)), "cudaMemset");
+    check(cudaMemset(cell_end.get(), 0, total * sizeof(int)), "cudaMemset");
+    cell_range_kernel<<<blocks_for(np, kThreads), kThreads>>>(static_cast<int>(np), keys_sorted.get(), cell_begin.get(),
+                                                              cell_end.get());
+    check_kernel("cell range kernel");
+    return true;
+  }
+
   /// out = M_r in (device vectors, slot order).
   void real_space(const double* in, double* out) {
     events.begin("real_space");
+    if (cells_active) {
+      const double rc = params.r_cut;
+      real_space_cells_kernel<<<blocks_for(np, 128), 128>>>(
+          static_cast<int>(np), x.get(), in, out, keys_sorted.get(), cell_begin.get(), cell_end.get(), cell_grid,
+          rc * rc, table.get(), 1.0 / real->table().dr(), real->self(), real->mobility_unit(),
+          make_double3(box[0], box[1], box[2]), make_double3(1.0 / box[0], 1.0 / box[1], 1.0 / box[2]));
+      check_kernel("real-space kernel (cells)");
+      events.end();
+      return;
+    }
     real_space_kernel<<<blocks_for(np, 128), 128>>>(static_cast<int>(np), x.get(), in, out, begin.get(), list.get(),
                                                     table.get(), 1.0 / real->table().dr(), real->self(),
                                                     real->mobility_unit(), make_double3(box[0], box[1], box[2]),
@@ -640,7 +784,8 @@ bool PseRpyCuda::device_available() {
   return image;
 }
 
-PseRpyCuda::PseRpyCuda(Geometry geometry, double viscosity, const PseOptions& options)
+PseRpyCuda::PseRpyCuda(Geometry geometry, double viscosity, const PseOptions& options,
+                       const PseCudaOptions& cuda_options)
     : MobilityOperator(geometry, viscosity, kWhere), impl_(std::make_unique<Impl>()) {
   require(geometry.is_periodic(), ErrorCode::not_supported, kWhere,
           "PSE needs a periodic box (Geometry::periodic); use the direct or FMM operator for open geometry");
@@ -651,6 +796,7 @@ PseRpyCuda::PseRpyCuda(Geometry geometry, double viscosity, const PseOptions& op
           "xi must be >= 0 (0 = automatic), got " + std::to_string(options.xi));
   require(device_available(), ErrorCode::not_supported, kWhere, "no usable CUDA device");
   impl_->options = options;
+  impl_->cuda_options = cuda_options;
   impl_->options.real_space_table = true;  // the device path interpolates the table
 }
 
@@ -659,6 +805,11 @@ PseRpyCuda::~PseRpyCuda() = default;
 const PseParameters& PseRpyCuda::parameters() const {
   require_positions("parameters");
   return impl_->params;
+}
+
+bool PseRpyCuda::device_cell_list_active() const {
+  require_positions("device_cell_list_active");
+  return impl_->cells_active;
 }
 
 StageTimes PseRpyCuda::stage_times() const {
@@ -749,15 +900,28 @@ void PseRpyCuda::on_positions_set() {
   }
   const auto t0 = std::chrono::steady_clock::now();
   im.np = n;
-  im.real->set_positions(positions());
-  const detail::RealSpaceSum::SlotLists lists = im.real->slot_lists();
-  const std::vector<int> order(lists.order.begin(), lists.order.end());
-  const std::vector<unsigned long long> row_begin(lists.begin.begin(), lists.begin.end());
-  im.order.upload(order.data(), order.size());
-  im.begin.upload(row_begin.data(), row_begin.size());
-  im.list.upload(lists.list.data(), lists.list.size());
+  im.cells_active = false;
+  if (im.cuda_options.device_cell_list) {
+    im.events.begin("transfer");
+    im.io.upload(positions().data(), im.n3());  // wrapped into the box by set_positions
+    im.events.end();
+    im.events.begin("positions_device");
+    im.cells_active = im.build_device_cells();
+    if (im.cells_active) im.gather(im.io.get(), im.x);  // positions in slot order
+    im.events.end();
+  }
+  if (!im.cells_active) {
+    im.real->set_positions(positions());
+    const detail::RealSpaceSum::SlotLists lists = im.real->slot_lists();
+    const std::vector<int> order(lists.order.begin(), lists.order.end());
+    const std::vector<unsigned long long> row_begin(lists.begin.begin(), lists.begin.end());
+    im.order.upload(order.data(), order.size());
+    im.begin.upload(row_begin.data(), row_begin.size());
+    im.list.upload(lists.list.data(), lists.list.size());
+    im.upload_to_slots(positions().data(), im.x);  // the input positions, as the CPU wave space reads them
+  }
+  check(cudaDeviceSynchronize(), "set_positions");
   im.times["positions_real"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  im.upload_to_slots(positions().data(), im.x);  // the input positions, as the CPU wave space reads them
   im.events.collect(im.times);
 }
 

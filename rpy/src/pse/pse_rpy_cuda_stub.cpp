@@ -10,14 +10,19 @@ struct PseRpyCuda::Impl {
 
 bool PseRpyCuda::device_available() { return false; }
 
-PseRpyCuda::PseRpyCuda(Geometry geometry, double viscosity, const PseOptions&)
+PseRpyCuda::PseRpyCuda(Geometry geometry, double viscosity, const PseOptions&, const PseCudaOptions&)
     : MobilityOperator(geometry, viscosity, "PseRpyCuda") {
   fail(ErrorCode::not_supported, "PseRpyCuda", "this build of rpyfmm has no CUDA support (RPYFMM_USE_CUDA=OFF)");
 }
 
 PseRpyCuda::~PseRpyCuda() = default;
 
-const PseParameters& PseRpyCuda::parameters() const { return impl_->params; }
+const PseParameters& PseRpyCuda::parameters() const {
+  return impl_->params;
+}
+bool PseRpyCuda::device_cell_list_active() const {
+  return false;
+}
 
 SqrtReport PseRpyCuda::sample(std::uint64_t, std::uint64_t, std::span<double>) const {
   fail(ErrorCode::not_supported, "PseRpyCuda::sample", "no CUDA support in this build");

@@ -35,6 +35,17 @@
 
 namespace rpyfmm::rpy::pse {
 
+/// Settings of the CUDA backend beyond PseOptions.
+struct PseCudaOptions {
+  /// Real-space neighbour search on the device: particles sorted into cells (edge >= r_cut) by
+  /// a radix sort on the GPU, each row scanning its 27 cells, instead of the host cell list's
+  /// neighbour lists uploaded at every set_positions (which, at 1e6 particles, costs several
+  /// times a product). Same pairs (|r| < r_cut, coincident included), sums in another order.
+  /// Where a box side holds fewer than 3 cells the host lists are used (see
+  /// device_cell_list_active()). Off by default until measured on a GPU (bench_pse --cuda).
+  bool device_cell_list = false;
+};
+
 class PseRpyCuda final : public MobilityOperator {
  public:
   /// True when the library was built with CUDA and a device can be used (any
@@ -43,11 +54,15 @@ class PseRpyCuda final : public MobilityOperator {
 
   /// Throws rpyfmm::Error for an open geometry, bad options, a build without
   /// CUDA (not_supported) or no usable device.
-  PseRpyCuda(Geometry geometry, double viscosity, const PseOptions& options = {});
+  PseRpyCuda(Geometry geometry, double viscosity, const PseOptions& options = {},
+             const PseCudaOptions& cuda_options = {});
   ~PseRpyCuda() override;
 
   [[nodiscard]] std::string name() const override { return "pse-cuda"; }
   [[nodiscard]] const PseParameters& parameters() const;
+  /// True when the current positions' real-space part runs on the device cell list
+  /// (PseCudaOptions::device_cell_list and at least 3 cells along every box side).
+  [[nodiscard]] bool device_cell_list_active() const;
 
   /// w = M^{1/2} z by the split sampler keyed by (seed, step), as PseRpy::sample.
   SqrtReport sample(std::uint64_t seed, std::uint64_t step, std::span<double> w) const;
