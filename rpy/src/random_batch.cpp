@@ -188,10 +188,15 @@ bool cpu_has_avx2() {
 
 void fill_normal6(std::span<const std::uint64_t> index, std::uint64_t seed, std::uint64_t step, std::uint32_t stream,
                   std::span<double> out) {
-  require(out.size() == 6 * index.size(), ErrorCode::invalid_input, "fill_normal6",
-          "output length " + std::to_string(out.size()) + " is not 6 x " + std::to_string(index.size()) + " indices");
-  require(stream < (1u << 24), ErrorCode::invalid_argument, "fill_normal6",
-          "stream " + std::to_string(stream) + " must be below 2^24 (the top byte selects the Philox block)");
+  // The messages are built only on failure: this runs once per line of modes (PSE wave noise).
+  if (out.size() != 6 * index.size()) {
+    fail(ErrorCode::invalid_input, "fill_normal6",
+         "output length " + std::to_string(out.size()) + " is not 6 x " + std::to_string(index.size()) + " indices");
+  }
+  if (stream >= (1u << 24)) {
+    fail(ErrorCode::invalid_argument, "fill_normal6",
+         "stream " + std::to_string(stream) + " must be below 2^24 (the top byte selects the Philox block)");
+  }
   const bool avx2 = cpu_has_avx2();
   const bool avx512 = fmm::detail::avx512_kernels_active();
   ChunkWords words;
