@@ -389,8 +389,9 @@ class DeviceKrylovSpace final : public sqrt_detail::KrylovSpace {
   void clear() override { count_ = 0; }
   double* push() override {
     if (count_ == store_.size()) {
-      store_.push_back(std::make_unique<DeviceArray<double>>());
-      store_.back()->resize(n_);
+      auto v = std::make_unique<DeviceArray<double>>();
+      v->resize(n_);  // allocated before it joins the basis: a failed cudaMalloc leaves no null entry
+      store_.push_back(std::move(v));
     }
     return store_[count_++]->get();
   }

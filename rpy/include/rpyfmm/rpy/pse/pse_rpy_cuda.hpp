@@ -13,15 +13,17 @@
 //
 // Built when RPYFMM_USE_CUDA is on (then RPYFMM_HAVE_CUDA_PSE is defined);
 // otherwise the constructor throws ErrorCode::not_supported and
-// device_available() is false. Host-side Lanczos drives the real-space sample.
-// The device always evaluates the real-space part from the table
+// device_available() is false. The device always evaluates the real-space part from the table
 // (PseOptions::real_space_table is taken as true); fft_threads and fft_measure are FFTW
 // settings and do not apply to cuFFT. Set RPYFMM_CUDA_SYNC=1 in the
 // environment to check every kernel synchronously (first runs on a new device).
 //
-// On the device the particles are kept in the CPU cell list's slot order; a product uploads
-// its forces once and downloads its velocities once (host arrays in and out), and the split
-// sampler's real-space Lanczos iterates on device vectors, so only the result crosses the bus.
+// On the device the particles are kept in slot order (the CPU cell list's, or with
+// PseCudaOptions::device_cell_list the GPU radix sort's); a product uploads its forces once
+// and downloads its velocities once (host arrays in and out), and the split sampler's
+// real-space Lanczos iterates on device vectors (only its small Ritz problem is on the host),
+// so only the result crosses the bus. All work runs on the legacy default stream: callers that
+// write the device arrays of apply_device / sample_device on other streams synchronise first.
 #pragma once
 
 #include <cstdint>
@@ -81,7 +83,8 @@ class PseRpyCuda final : public MobilityOperator {
   /// <-> device copies with the gathers into and scatters from slot order), real_space, spread,
   /// fft_forward, scale, fft_backward, interpolate; lanczos (host clock: the real-space square
   /// root of the split sampler, its real-space products included); plan and positions_real
-  /// (host clock: parameters, tables and cuFFT plans; cell order and neighbour lists).
+  /// (host clock: parameters, tables and cuFFT plans; cell order and neighbour lists, on the
+  /// host or on the device); positions_device (events: the device cell list's sort).
   [[nodiscard]] StageTimes stage_times() const;
   void reset_stage_times() const;
 
