@@ -1,6 +1,6 @@
 // PSE real-space neighbour lists (private RealSpaceSum): where the AVX-512 half-list rows run,
-// only the pairs t > s are listed and the full rows (the portable rows, the closed forms and the
-// CUDA kernel's input-order lists) are derived from them. Both ways must give every pair within
+// only the pairs t > s are listed and the full rows (the portable rows, the closed forms) are
+// derived from them; the CUDA backend asks for full lists instead. Both ways must give every pair within
 // r_cut exactly once per row, against an O(N^2) minimum-image search written here.
 #include <gtest/gtest.h>
 
@@ -17,9 +17,15 @@
 using namespace rpyfmm::rpy::pse;
 
 TEST(PseNeighbourLists, InputOrderListsMatchBruteForce) {
-  // Half lists (AVX-512 filter) then derived full rows; full lists by the AVX2 filter; full lists
-  // by the portable filter (on CPUs without AVX-512 or AVX2 some of these are the same path).
-  for (const auto& [avx512, avx2] : {std::pair{true, true}, std::pair{false, true}, std::pair{false, false}}) {
+  // Half lists (AVX-512 filter) then derived full rows; full lists asked for by the constructor
+  // (full_lists, as the CUDA backend does) where the AVX-512 kernels run; full lists by the AVX2
+  // filter; full lists by the portable filter (on CPUs without AVX-512 or AVX2 some of these are
+  // the same path).
+  struct Filter {
+    bool avx512, avx2, full;
+  };
+  for (const auto& [avx512, avx2, full] :
+       {Filter{true, true, false}, Filter{true, true, true}, Filter{false, true, false}, Filter{false, false, false}}) {
     for (const std::array<double, 3>& L :
          {std::array<double, 3>{21.0, 17.5, 26.0}, std::array<double, 3>{9.0, 30.0, 13.0},
           std::array<double, 3>{7.5, 7.5, 7.5}}) {
@@ -31,7 +37,7 @@ TEST(PseNeighbourLists, InputOrderListsMatchBruteForce) {
       o.xi = 1.0;
       o.r_cut = 2.45;  // cell grids 8 x 7 x 10, 3 x 12 x 5 and 3 x 3 x 3
       const PseParameters p = choose_parameters(o, 1.0, L, 700);
-      detail::RealSpaceSum sum(p, L, 1.0, true);
+      detail::RealSpaceSum sum(p, L, 1.0, true, detail::PairCache::off, 0, full);
       sum.set_positions(x);
       std::vector<std::size_t> begin;
       std::vector<int> list;
@@ -55,9 +61,10 @@ TEST(PseNeighbourLists, InputOrderListsMatchBruteForce) {
         const std::vector<int> got(list.begin() + static_cast<std::ptrdiff_t>(begin[i]),
                                    list.begin() + static_cast<std::ptrdiff_t>(begin[i + 1]));
         EXPECT_EQ(got, expected) << "particle " << i
-                                 << (avx512 ? ", half lists"
-                                     : avx2 ? ", AVX2 filter"
-                                            : ", portable");
+                                 << (avx512 && full ? ", full lists asked for"
+                                     : avx512       ? ", half lists"
+                                     : avx2         ? ", AVX2 filter"
+                                                    : ", portable");
         pairs += expected.size();
       }
       EXPECT_GT(pairs, 700u);  // the boxes are dense enough to have neighbours

@@ -840,7 +840,8 @@ void PseRpyCuda::on_positions_set() {
     for (int d = 0; d < 3; ++d)
       require(p.support[d] <= kMaxSupport, ErrorCode::not_supported, kWhere,
               "Gaussian support of " + std::to_string(p.support[d]) + " points exceeds the device limit 64");
-    im.real = std::make_unique<detail::RealSpaceSum>(p, L, viscosity(), true);
+    im.real = std::make_unique<detail::RealSpaceSum>(p, L, viscosity(), true, detail::PairCache::off, 0,
+                                                     /*full_lists=*/true);  // as the kernels read them
     p.table_dr = im.real->table().dr();
     p.table_size = im.real->table().size();
     const std::vector<double> ck = detail::wave_scaling_table(p, L, viscosity(), im.modes);

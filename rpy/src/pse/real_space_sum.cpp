@@ -544,7 +544,7 @@ __attribute__((target("avx2"))) std::size_t pairs_within_avx2(const double* xt, 
 }  // namespace
 
 RealSpaceSum::RealSpaceSum(const PseParameters& p, const std::array<double, 3>& box, double viscosity, bool use_table,
-                           PairCache cache, std::size_t cache_limit_bytes)
+                           PairCache cache, std::size_t cache_limit_bytes, bool full_lists)
     : p_(p),
       box_(box),
       m0_(1.0 / (6.0 * std::numbers::pi * viscosity * p.radius)),
@@ -552,6 +552,7 @@ RealSpaceSum::RealSpaceSum(const PseParameters& p, const std::array<double, 3>& 
       use_table_(use_table),
       cache_(cache),
       cache_limit_(cache_limit_bytes) {
+  full_lists_only_ = full_lists;
   if (use_table_) table_ = PseRealSpaceTable(p.xi, p.radius, p.r_cut, p.tolerance / 10.0);
 }
 
@@ -687,7 +688,7 @@ void RealSpaceSum::set_positions(std::span<const double> x) {
   // Where the half-list rows will run (AVX-512 with the table on a cell grid), only the pairs
   // t > s are listed (neighbour cells of larger id, and the later slots of the own cell): half
   // the distance checks. Full rows are then derived on demand (full_rows()).
-  half_lists_ = cells && use_table_ && fmm::detail::avx512_kernels_active();
+  half_lists_ = cells && use_table_ && fmm::detail::avx512_kernels_active() && !full_lists_only_;
 #if defined(RPYFMM_HAVE_DIRECT_AVX512)
   const bool avx2_filter = !half_lists_ && avx2_window_kernels(1);  // CPU and toggle: window_avx2.hpp
 #endif
