@@ -48,9 +48,7 @@ std::unique_ptr<rpy::MobilityOperator> make_operator(const MobilityArgs& args, s
   require(spec.wave_precision == rpy::pse::WavePrecision::automatic || spec.method == bd::MobilityMethod::pse ||
               (spec.method == bd::MobilityMethod::automatic && !args.box.empty()),
           ErrorCode::invalid_argument, "--wave-precision", "applies to the pse method only");
-  require(args.device == "cpu" || args.device == "cuda", ErrorCode::invalid_argument, "--device",
-          "must be cpu or cuda, got '" + args.device + "'");
-  spec.device = bd::compute_device_from_string(args.device);
+  spec.device = bd::compute_device_from_string(args.device, "--device");
   if (!args.box.empty()) {
     require(args.box.size() == 1 || args.box.size() == 3, ErrorCode::invalid_argument, "--box",
             "give one length L (cube) or three lengths Lx Ly Lz, got " + std::to_string(args.box.size()) + " values");

@@ -40,10 +40,10 @@ const char* to_string(ComputeDevice device) {
   return device == ComputeDevice::cuda ? "cuda" : "cpu";
 }
 
-ComputeDevice compute_device_from_string(const std::string& name) {
+ComputeDevice compute_device_from_string(const std::string& name, const char* where) {
   if (name == "cpu") return ComputeDevice::cpu;
   if (name == "cuda") return ComputeDevice::cuda;
-  fail(ErrorCode::invalid_argument, "compute device", "unknown device '" + name + "' (expected cpu or cuda)");
+  fail(ErrorCode::invalid_argument, where, "unknown device '" + name + "' (expected cpu or cuda)");
 }
 
 bool mobility_method_available(MobilityMethod method) {

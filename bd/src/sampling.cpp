@@ -6,8 +6,7 @@
 
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
-#include "rpyfmm/rpy/pse/pse_rpy.hpp"
-#include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
+#include "rpyfmm/rpy/pse/pse_operator.hpp"
 
 namespace rpyfmm::bd {
 
@@ -113,8 +112,7 @@ DriftNoiseReport drift_and_noise(const rpy::MobilityOperator& mobility, std::spa
 
 bool fuses_drift_and_noise(const rpy::MobilityOperator& mobility, const SqrtOptions& options) {
   const bool split = options.method == SqrtMethod::automatic || options.method == SqrtMethod::split;
-  return split && (dynamic_cast<const rpy::pse::PseRpy*>(&mobility) != nullptr ||
-                   dynamic_cast<const rpy::pse::PseRpyCuda*>(&mobility) != nullptr);
+  return split && dynamic_cast<const rpy::pse::PseOperator*>(&mobility) != nullptr;
 }
 
 DriftNoiseReport fused_drift_and_noise(const rpy::MobilityOperator& mobility, std::span<const double> forces,
@@ -124,11 +122,8 @@ DriftNoiseReport fused_drift_and_noise(const rpy::MobilityOperator& mobility, st
           "operator '" + mobility.name() + "' has no fused drift-and-noise pass (use drift_and_noise)");
   DriftNoiseReport report;
   StopWatch watch;
-  if (const auto* gpu = dynamic_cast<const rpy::pse::PseRpyCuda*>(&mobility)) {
-    report.sqrt = gpu->apply_with_noise(forces, noise_scale, seed, step, v);
-  } else {
-    report.sqrt = dynamic_cast<const rpy::pse::PseRpy&>(mobility).apply_with_noise(forces, noise_scale, seed, step, v);
-  }
+  const auto& pse = dynamic_cast<const rpy::pse::PseOperator&>(mobility);
+  report.sqrt = pse.apply_with_noise(forces, noise_scale, seed, step, v);
   report.mobility_products = report.sqrt.operator_applications;
   report.seconds_drift = watch.seconds();  // one pass: drift and noise are not timed apart
   return report;

@@ -353,7 +353,7 @@ void bind_mobility(nb::module_& m) {
         spec.viscosity = viscosity;
         spec.geometry = geometry_from(box, "make_mobility");
         spec.fmm_crossover = fmm_crossover;
-        spec.device = bd::compute_device_from_string(device);
+        spec.device = bd::compute_device_from_string(device, "make_mobility");
         return bd::make_mobility(spec, n_particles);
       },
       nb::arg("method") = "auto", nb::arg("n_particles") = 0, nb::kw_only(), nb::arg("tolerance") = 1e-3,

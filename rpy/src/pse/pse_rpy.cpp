@@ -76,7 +76,7 @@ struct PseRpy::Impl {
 };
 
 PseRpy::PseRpy(Geometry geometry, double viscosity, const PseOptions& options)
-    : MobilityOperator(geometry, viscosity, "PseRpy"), impl_(std::make_unique<Impl>()) {
+    : PseOperator(geometry, viscosity, "PseRpy"), impl_(std::make_unique<Impl>()) {
   require(geometry.is_periodic(), ErrorCode::not_supported, "PseRpy",
           "PSE needs a periodic box (Geometry::periodic); use the direct or FMM operator for open geometry");
   impl_->options = options;

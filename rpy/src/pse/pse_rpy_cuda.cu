@@ -787,7 +787,7 @@ bool PseRpyCuda::device_available() {
 
 PseRpyCuda::PseRpyCuda(Geometry geometry, double viscosity, const PseOptions& options,
                        const PseCudaOptions& cuda_options)
-    : MobilityOperator(geometry, viscosity, kWhere), impl_(std::make_unique<Impl>()) {
+    : PseOperator(geometry, viscosity, kWhere), impl_(std::make_unique<Impl>()) {
   require(geometry.is_periodic(), ErrorCode::not_supported, kWhere,
           "PSE needs a periodic box (Geometry::periodic); use the direct or FMM operator for open geometry");
   if (!(std::isfinite(options.tolerance) && options.tolerance >= 1e-8 && options.tolerance < 0.1)) {

@@ -11,7 +11,7 @@ struct PseRpyCuda::Impl {
 bool PseRpyCuda::device_available() { return false; }
 
 PseRpyCuda::PseRpyCuda(Geometry geometry, double viscosity, const PseOptions&, const PseCudaOptions&)
-    : MobilityOperator(geometry, viscosity, "PseRpyCuda") {
+    : PseOperator(geometry, viscosity, "PseRpyCuda") {
   fail(ErrorCode::not_supported, "PseRpyCuda", "this build of rpyfmm has no CUDA support (RPYFMM_USE_CUDA=OFF)");
 }
 

@@ -31,6 +31,10 @@ void dots(const double* const* v, std::size_t m, const double* y, std::size_t n,
 void subtract_combination(const std::vector<std::vector<double>>& v, const double* h, double* y, std::size_t n);
 void subtract_combination(const double* const* v, std::size_t m, const double* h, double* y, std::size_t n);
 
+/// Throws numerical_failure naming `where`, the entry, the right-hand side and `product` if one of
+/// the nrhs vectors y (n each) holds NaN/Inf.
+void require_finite_product(const double* y, std::size_t n, std::size_t nrhs, const char* where, long long product);
+
 /// Applies `op` to `nrhs` vectors and counts the call in `report`; throws
 /// numerical_failure if the result holds NaN/Inf (names `where`).
 void apply_checked(const LinearOperatorView& op, const double* x, double* y, std::size_t nrhs,

@@ -109,11 +109,15 @@ void apply_checked(const LinearOperatorView& op, const double* x, double* y, std
   op.apply(std::span<const double>(x, op.n * nrhs), std::span<double>(y, op.n * nrhs), nrhs);
   ++report.operator_applications;
   report.vector_products += static_cast<long long>(nrhs);
-  for (std::size_t i = 0; i < op.n * nrhs; ++i) {
+  require_finite_product(y, op.n, nrhs, where, report.operator_applications);
+}
+
+void require_finite_product(const double* y, std::size_t n, std::size_t nrhs, const char* where, long long product) {
+  for (std::size_t i = 0; i < n * nrhs; ++i) {
     if (!std::isfinite(y[i])) {
       fail(ErrorCode::numerical_failure, where,
-           "the operator returned a non-finite value (entry " + std::to_string(i % op.n) + " of right-hand side " +
-               std::to_string(i / op.n) + ") at product " + std::to_string(report.operator_applications));
+           "the operator returned a non-finite value (entry " + std::to_string(i % n) + " of right-hand side " +
+               std::to_string(i / n) + ") at product " + std::to_string(product));
     }
   }
 }

@@ -107,13 +107,7 @@ void HostKrylovSpace::combine(std::size_t k, const double* c, double* out) {
 }
 
 void HostKrylovSpace::require_finite(const double* y, const char* where, long long product) {
-  for (std::size_t i = 0; i < n_; ++i) {
-    if (!std::isfinite(y[i])) {
-      fail(ErrorCode::numerical_failure, where,
-           "the operator returned a non-finite value (entry " + std::to_string(i) +
-               " of right-hand side 0) at product " + std::to_string(product));
-    }
-  }
+  require_finite_product(y, n_, 1, where, product);
 }
 
 Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> tridiagonal_eigen(const std::vector<double>& alpha,

@@ -29,8 +29,8 @@ enum class MobilityMethod { none, direct, fmm, pse, automatic };
 enum class ComputeDevice { cpu, cuda };
 
 const char* to_string(ComputeDevice device);
-/// "cpu" | "cuda"; throws naming the value otherwise.
-ComputeDevice compute_device_from_string(const std::string& name);
+/// "cpu" | "cuda"; throws invalid_argument naming the value (and `where`) otherwise.
+ComputeDevice compute_device_from_string(const std::string& name, const char* where = "compute device");
 
 const char* to_string(MobilityMethod method);
 /// "none" | "direct" | "fmm" | "pse" | "auto"; throws naming the value otherwise.

@@ -48,7 +48,7 @@ DriftNoiseReport drift_and_noise(const rpy::MobilityOperator& mobility, std::spa
 
 /// True when `mobility` can give v = M F + noise_scale M^{1/2} z(seed, step) in one fused pass
 /// for `options` (automatic or split): the CPU PSE operator, whose deterministic and Brownian
-/// wave-space parts then share their FFTs ([PSE] Sec. III; rpy::pse::PseRpy::apply_with_noise).
+/// wave-space parts then share their FFTs ([PSE] Sec. III; rpy::pse::PseOperator::apply_with_noise).
 bool fuses_drift_and_noise(const rpy::MobilityOperator& mobility, const SqrtOptions& options);
 
 /// v = M F + noise_scale M^{1/2} z with the operator's own noise keyed by (seed, step) (for PSE:

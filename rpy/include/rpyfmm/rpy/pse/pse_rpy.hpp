@@ -36,11 +36,12 @@
 
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/rpy/mobility.hpp"
+#include "rpyfmm/rpy/pse/pse_operator.hpp"
 #include "rpyfmm/rpy/pse/pse_parameters.hpp"
 
 namespace rpyfmm::rpy::pse {
 
-class PseRpy final : public MobilityOperator {
+class PseRpy final : public PseOperator {
  public:
   /// Throws rpyfmm::Error for an open geometry, viscosity <= 0, or bad options.
   PseRpy(Geometry geometry, double viscosity, const PseOptions& options = {});
@@ -49,7 +50,7 @@ class PseRpy final : public MobilityOperator {
   [[nodiscard]] std::string name() const override { return "pse"; }
   [[nodiscard]] const PseOptions& options() const;
   /// The choices made for the current radius/box/N (throws before set_positions).
-  [[nodiscard]] const PseParameters& parameters() const;
+  [[nodiscard]] const PseParameters& parameters() const override;
 
   /// U = M_r F (real-space part only), 3N each.
   void apply_real(std::span<const double> forces, std::span<double> velocities) const;
@@ -60,18 +61,18 @@ class PseRpy final : public MobilityOperator {
   [[nodiscard]] LinearOperatorView wave_space_operator() const;
 
   /// w = M^{1/2} z by the split sampler with z1, z2 keyed by (seed, step) (see above).
-  SqrtReport sample(std::uint64_t seed, std::uint64_t step, std::span<double> w) const;
+  SqrtReport sample(std::uint64_t seed, std::uint64_t step, std::span<double> w) const override;
   /// U = M F + noise_scale M^{1/2} z (one fused wave-space pass: the deterministic and the
   /// Brownian wave parts share their FFTs, [PSE] Sec. III). For BD: noise_scale = sqrt(2 kT / dt).
   SqrtReport apply_with_noise(std::span<const double> forces, double noise_scale, std::uint64_t seed,
-                              std::uint64_t step, std::span<double> velocities) const;
+                              std::uint64_t step, std::span<double> velocities) const override;
 
   /// Accumulated wall-clock seconds per stage: spread, fft_forward, scale, fft_backward,
   /// interpolate, real_space, lanczos (Lanczos includes its real-space products), plan (parameters,
   /// tables, FFT plans), positions_real (cell order, neighbour lists) and positions_wave (window
   /// weights, tile order) of set_positions.
-  [[nodiscard]] StageTimes stage_times() const;
-  void reset_stage_times() const;
+  [[nodiscard]] StageTimes stage_times() const override;
+  void reset_stage_times() const override;
 
  protected:
   void on_positions_set() override;

@@ -33,6 +33,7 @@
 
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/rpy/mobility.hpp"
+#include "rpyfmm/rpy/pse/pse_operator.hpp"
 #include "rpyfmm/rpy/pse/pse_parameters.hpp"
 
 namespace rpyfmm::rpy::pse {
@@ -48,7 +49,7 @@ struct PseCudaOptions {
   bool device_cell_list = false;
 };
 
-class PseRpyCuda final : public MobilityOperator {
+class PseRpyCuda final : public PseOperator {
  public:
   /// True when the library was built with CUDA and a device can be used (any
   /// CUDA error, e.g. "insufficient driver", counts as no device).
@@ -61,16 +62,16 @@ class PseRpyCuda final : public MobilityOperator {
   ~PseRpyCuda() override;
 
   [[nodiscard]] std::string name() const override { return "pse-cuda"; }
-  [[nodiscard]] const PseParameters& parameters() const;
+  [[nodiscard]] const PseParameters& parameters() const override;
   /// True when the current positions' real-space part runs on the device cell list
   /// (PseCudaOptions::device_cell_list and at least 3 cells along every box side).
   [[nodiscard]] bool device_cell_list_active() const;
 
   /// w = M^{1/2} z by the split sampler keyed by (seed, step), as PseRpy::sample.
-  SqrtReport sample(std::uint64_t seed, std::uint64_t step, std::span<double> w) const;
+  SqrtReport sample(std::uint64_t seed, std::uint64_t step, std::span<double> w) const override;
   /// U = M F + noise_scale M^{1/2} z, as PseRpy::apply_with_noise.
   SqrtReport apply_with_noise(std::span<const double> forces, double noise_scale, std::uint64_t seed,
-                              std::uint64_t step, std::span<double> velocities) const;
+                              std::uint64_t step, std::span<double> velocities) const override;
 
   /// U = M F with F and U in device memory (3N doubles each, input order, on the current
   /// device; the caller owns them): no host transfers, for codes that keep their particles on
@@ -85,8 +86,8 @@ class PseRpyCuda final : public MobilityOperator {
   /// root of the split sampler, its real-space products included); plan and positions_real
   /// (host clock: parameters, tables and cuFFT plans; cell order and neighbour lists, on the
   /// host or on the device); positions_device (events: the device cell list's sort).
-  [[nodiscard]] StageTimes stage_times() const;
-  void reset_stage_times() const;
+  [[nodiscard]] StageTimes stage_times() const override;
+  void reset_stage_times() const override;
 
  protected:
   void on_positions_set() override;

@@ -1,0 +1,34 @@
+// rpyfmm — what the PSE operators share beyond MobilityOperator, whatever computes them (the
+// CPU's PseRpy, the GPU's PseRpyCuda): the split sampler keyed by (seed, step), the fused
+// drift-and-noise pass, the parameters chosen and the stage times. Code that uses these (the
+// BD engine) depends on this interface, not on a back end.
+#pragma once
+
+#include <cstdint>
+#include <span>
+
+#include "rpyfmm/core/timer.hpp"
+#include "rpyfmm/rpy/mobility.hpp"
+#include "rpyfmm/rpy/pse/pse_parameters.hpp"
+
+namespace rpyfmm::rpy::pse {
+
+class PseOperator : public MobilityOperator {
+ public:
+  /// The choices made for the current radius/box/N (throws before set_positions).
+  [[nodiscard]] virtual const PseParameters& parameters() const = 0;
+  /// w = M^{1/2} z by the split sampler, z1 and z2 keyed by (seed, step) (pse_rpy.hpp).
+  virtual SqrtReport sample(std::uint64_t seed, std::uint64_t step, std::span<double> w) const = 0;
+  /// U = M F + noise_scale M^{1/2} z in one pass whose deterministic and Brownian wave parts
+  /// share their FFTs ([PSE] Sec. III). For BD: noise_scale = sqrt(2 kT / dt).
+  virtual SqrtReport apply_with_noise(std::span<const double> forces, double noise_scale, std::uint64_t seed,
+                                      std::uint64_t step, std::span<double> velocities) const = 0;
+  /// Accumulated seconds per stage (the back end's list) and their reset.
+  [[nodiscard]] virtual StageTimes stage_times() const = 0;
+  virtual void reset_stage_times() const = 0;
+
+ protected:
+  using MobilityOperator::MobilityOperator;
+};
+
+}  // namespace rpyfmm::rpy::pse
