@@ -5,9 +5,13 @@ target_sources(rpyfmm_rpy PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/real_space.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/real_space_sum.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/wave_space.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/pse/scale_line.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/window_avx2.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/window_avx512.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/pse_rpy.cpp)
+# The line loop's sqrt and selects vectorize only without errno and FP traps (no value changes).
+set_source_files_properties(${CMAKE_CURRENT_LIST_DIR}/src/pse/scale_line.cpp PROPERTIES
+  COMPILE_OPTIONS "$<$<CXX_COMPILER_ID:GNU,Clang>:-fno-trapping-math;-fno-math-errno>")
 target_link_libraries(rpyfmm_rpy PRIVATE PkgConfig::FFTW3 ${FFTW3_OMP_LIBRARY} PkgConfig::FFTW3F ${FFTW3F_OMP_LIBRARY})
 
 if(RPYFMM_USE_CUDA)

@@ -1,11 +1,12 @@
-// rpyfmm — fill_normal6 (random.hpp): normal6 for many indices at once, vectorized.
+// rpyfmm — fill_normal6 (random.hpp): normal6 / normal6f for many indices at once, vectorized.
 //
 // Two passes per chunk of indices: Philox4x32-10 for the chunk's 3 blocks per index (AVX-512:
 // sixteen counters per instruction, AVX2: eight, 32 x 32 -> 64-bit products by vpmuludq;
-// otherwise the portable loop), then Box-Muller on the 64-bit uniforms (random_detail::box_muller_bits, a
-// branch-free loop that GCC vectorizes: this file is compiled with -fno-trapping-math and
-// -fno-math-errno, which change no value, and -ffp-contract=off, so that every variant gives
-// normal6's values bit for bit on a build without FMA contraction).
+// otherwise the portable loop), then Box-Muller on the uniforms (random_detail::box_muller_bits in
+// double, box_muller_bits_f in single precision: a branch-free loop that GCC vectorizes; this
+// file is compiled with -fno-trapping-math and -fno-math-errno, which change no value, and
+// -ffp-contract=off, so that every variant gives normal6's / normal6f's values bit for bit on a
+// build without FMA contraction).
 #include <algorithm>
 #include <cstdint>
 #include <string>
@@ -147,33 +148,37 @@ RPYFMM_TARGET_AVX512 void philox_avx512(const std::uint64_t* index, std::size_t 
 #undef RPYFMM_PHILOX_CHUNK_BODY
 #endif
 
-/// Box-Muller over the chunk: out[6 k + 2 b + {0, 1}] from block b's words (u0 = w0:w1, u1 = w2:w3).
-#define RPYFMM_BOX_MULLER_CHUNK_BODY                                                  \
-  for (std::uint32_t b = 0; b < 3; ++b) {                                             \
-    const std::uint32_t* w0 = &words.w[(b * 4 + 0) * kChunk];                         \
-    const std::uint32_t* w1 = w0 + kChunk;                                            \
-    const std::uint32_t* w2 = w1 + kChunk;                                            \
-    const std::uint32_t* w3 = w2 + kChunk;                                            \
-    _Pragma("omp simd") for (std::size_t k = 0; k < m; ++k) {                         \
-      const std::uint64_t u0 = (static_cast<std::uint64_t>(w0[k]) << 32) | w1[k];     \
-      const std::uint64_t u1 = (static_cast<std::uint64_t>(w2[k]) << 32) | w3[k];     \
-      random_detail::box_muller_bits(u0, u1, g0[b * kChunk + k], g1[b * kChunk + k]); \
-    }                                                                                 \
+/// Box-Muller over the chunk: g0/g1[b * kChunk + k] from block b's words of index k (a branch-free
+/// loop the compiler vectorizes; inlined into the ISA-specific functions below).
+template <class Real>
+[[gnu::always_inline]] inline void box_muller_chunk(const ChunkWords& words, std::size_t m, Real* g0, Real* g1) {
+  for (std::uint32_t b = 0; b < 3; ++b) {
+    const std::uint32_t* w0 = &words.w[(b * 4 + 0) * kChunk];
+    const std::uint32_t* w1 = w0 + kChunk;
+    const std::uint32_t* w2 = w1 + kChunk;
+    const std::uint32_t* w3 = w2 + kChunk;
+#pragma omp simd
+    for (std::size_t k = 0; k < m; ++k)
+      random_detail::box_muller_words(w0[k], w1[k], w2[k], w3[k], g0[b * kChunk + k], g1[b * kChunk + k]);
   }
-
-void box_muller_portable(const ChunkWords& words, std::size_t m, double* g0, double* g1){RPYFMM_BOX_MULLER_CHUNK_BODY}
-#ifdef RPYFMM_RANDOM_X86
-RPYFMM_TARGET_AVX2 void box_muller_avx2(const ChunkWords& words, std::size_t m, double* g0, double* g1) {
-  RPYFMM_BOX_MULLER_CHUNK_BODY
 }
+
+template <class Real>
+void box_muller_portable(const ChunkWords& words, std::size_t m, Real* g0, Real* g1) {
+  box_muller_chunk(words, m, g0, g1);
+}
+#ifdef RPYFMM_RANDOM_X86
+template <class Real>
+RPYFMM_TARGET_AVX2 void box_muller_avx2(const ChunkWords& words, std::size_t m, Real* g0, Real* g1) {
+  box_muller_chunk(words, m, g0, g1);
+}
+template <class Real>
 __attribute__((target("avx512f,avx512dq,prefer-vector-width=512"))) void box_muller_avx512(const ChunkWords& words,
-                                                                                           std::size_t m, double* g0,
-                                                                                           double* g1) {
-  RPYFMM_BOX_MULLER_CHUNK_BODY
+                                                                                           std::size_t m, Real* g0,
+                                                                                           Real* g1) {
+  box_muller_chunk(words, m, g0, g1);
 }
 #endif
-
-#undef RPYFMM_BOX_MULLER_CHUNK_BODY
 
 bool cpu_has_avx2() {
 #ifdef RPYFMM_RANDOM_X86
@@ -184,24 +189,31 @@ bool cpu_has_avx2() {
 #endif
 }
 
-}  // namespace
-
-void fill_normal6(std::span<const std::uint64_t> index, std::uint64_t seed, std::uint64_t step, std::uint32_t stream,
-                  std::span<double> out) {
-  // The messages are built only on failure: this runs once per line of modes (PSE wave noise).
-  if (out.size() != 6 * index.size()) {
+/// Checks shared by both precisions. The messages are built only on failure: this runs once per
+/// line of modes (PSE wave noise).
+void check_fill_normal6(std::size_t indices, std::size_t out_size, std::uint32_t stream) {
+  if (out_size != 6 * indices) {
     fail(ErrorCode::invalid_input, "fill_normal6",
-         "output length " + std::to_string(out.size()) + " is not 6 x " + std::to_string(index.size()) + " indices");
+         "output length " + std::to_string(out_size) + " is not 6 x " + std::to_string(indices) + " indices");
   }
   if (stream >= (1u << 24)) {
     fail(ErrorCode::invalid_argument, "fill_normal6",
          "stream " + std::to_string(stream) + " must be below 2^24 (the top byte selects the Philox block)");
   }
+}
+
+/// fill_normal6 for double (box_muller_bits) or float (box_muller_bits_f) values.
+/// Planar = true: value c of index k at out[c * n + k] instead of out[6 k + c].
+template <class Real, bool Planar>
+void fill_normal6_impl(std::span<const std::uint64_t> index, std::uint64_t seed, std::uint64_t step,
+                       std::uint32_t stream, std::span<Real> out) {
+  check_fill_normal6(index.size(), out.size(), stream);
+  const std::size_t n = index.size();
   const bool avx2 = cpu_has_avx2();
   const bool avx512 = fmm::detail::avx512_kernels_active();
   ChunkWords words;
-  alignas(64) double g0[3 * kChunk];
-  alignas(64) double g1[3 * kChunk];
+  alignas(64) Real g0[3 * kChunk];
+  alignas(64) Real g1[3 * kChunk];
   for (std::size_t start = 0; start < index.size(); start += kChunk) {
     const std::size_t m = std::min(kChunk, index.size() - start);
 #ifdef RPYFMM_RANDOM_X86
@@ -217,15 +229,48 @@ void fill_normal6(std::span<const std::uint64_t> index, std::uint64_t seed, std:
       philox_portable(index.data() + start, m, seed, step, stream, words);
       box_muller_portable(words, m, g0, g1);
     }
-    double* o = out.data() + 6 * start;
-    for (std::size_t k = 0; k < m; ++k)
+    if constexpr (Planar) {
       for (std::uint32_t b = 0; b < 3; ++b) {
-        o[6 * k + 2 * b] = g0[b * kChunk + k];
-        o[6 * k + 2 * b + 1] = g1[b * kChunk + k];
+        std::copy_n(&g0[b * kChunk], m, out.data() + (2 * b) * n + start);
+        std::copy_n(&g1[b * kChunk], m, out.data() + (2 * b + 1) * n + start);
       }
+    } else {
+      Real* o = out.data() + 6 * start;
+      for (std::size_t k = 0; k < m; ++k)
+        for (std::uint32_t b = 0; b < 3; ++b) {
+          o[6 * k + 2 * b] = g0[b * kChunk + k];
+          o[6 * k + 2 * b + 1] = g1[b * kChunk + k];
+        }
+    }
   }
   (void)avx2;
   (void)avx512;
 }
+
+}  // namespace
+
+void fill_normal6(std::span<const std::uint64_t> index, std::uint64_t seed, std::uint64_t step, std::uint32_t stream,
+                  std::span<double> out) {
+  fill_normal6_impl<double, false>(index, seed, step, stream, out);
+}
+
+void fill_normal6(std::span<const std::uint64_t> index, std::uint64_t seed, std::uint64_t step, std::uint32_t stream,
+                  std::span<float> out) {
+  fill_normal6_impl<float, false>(index, seed, step, stream, out);
+}
+
+namespace random_detail {
+
+void fill_normal6_planar(std::span<const std::uint64_t> index, std::uint64_t seed, std::uint64_t step,
+                         std::uint32_t stream, std::span<double> out) {
+  fill_normal6_impl<double, true>(index, seed, step, stream, out);
+}
+
+void fill_normal6_planar(std::span<const std::uint64_t> index, std::uint64_t seed, std::uint64_t step,
+                         std::uint32_t stream, std::span<float> out) {
+  fill_normal6_impl<float, true>(index, seed, step, stream, out);
+}
+
+}  // namespace random_detail
 
 }  // namespace rpyfmm::rpy

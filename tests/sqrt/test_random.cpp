@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
 #include <vector>
 
 #include "rpyfmm/core/error.hpp"
@@ -204,6 +205,83 @@ TEST(Random, Normal6StandardAndIndependent) {
     EXPECT_NE(a[k], d6[k]);
     EXPECT_EQ(a[k], z[6 * 777 + k]);
   }
+}
+
+// The single-precision transform (normal6f, the noise of float PSE wave grids): its polynomials
+// against libm to a few float ulps, and its values against normal6's (the same Philox words)
+// to 1e-6 max(1, |g|): float's unit round-off 6e-8 times the conditioning of sqrt(-2 log u) and
+// of the angle. Checked on random words and on crafted ones at both ends of u (u = 2^-32:
+// |g| = 6.66; u -> 1: radii ~1e-5, where 1 - u must not be formed from a rounded u).
+TEST(Random, SinglePrecisionBoxMullerFollowsDouble) {
+  const double pi = 3.14159265358979323846;
+  double worst_trig = 0.0;
+  for (int i = -100000; i <= 100000; ++i) {
+    const float v = static_cast<float>(i / 100000.0 + 1.3e-7);
+    float s, c;
+    random_detail::sincospi_polyf(v, s, c);
+    worst_trig = std::max({worst_trig, std::abs(s - std::sin(pi * v)), std::abs(c - std::cos(pi * v))});
+  }
+  EXPECT_LT(worst_trig, 4e-7);  // a few ulps of 1
+  double worst_log = 0.0;
+  for (int i = 1; i <= 100000; ++i) {
+    const double x = std::ldexp(1.0 + (i % 1000) / 1000.0, -(i % 33)) * (1.0 + 1e-9 * i);
+    const float xf = static_cast<float>(std::min(x, 1.0));
+    const double ref = std::log(static_cast<double>(xf));
+    const float t = static_cast<float>(1.0 - static_cast<double>(xf));
+    worst_log = std::max(worst_log, std::abs(random_detail::log_polyf(xf, t) - ref) / std::max(1e-30, std::abs(ref)));
+  }
+  EXPECT_LT(worst_log, 1e-6);  // relative, also near x = 1 thanks to t
+  EXPECT_EQ(random_detail::log_polyf(1.0f, 0.0f), 0.0f);
+
+  auto compare = [](std::uint32_t w0, std::uint32_t w1, std::uint32_t w2, std::uint32_t w3) {
+    double g0, g1;
+    float f0, f1;
+    random_detail::box_muller_bits((std::uint64_t{w0} << 32) | w1, (std::uint64_t{w2} << 32) | w3, g0, g1);
+    random_detail::box_muller_bits_f(w0, w2, w3, f0, f1);
+    return std::max(std::abs(f0 - g0) / std::max(1.0, std::abs(g0)), std::abs(f1 - g1) / std::max(1.0, std::abs(g1)));
+  };
+  double worst = 0.0;
+  std::mt19937 rng(3);
+  for (int i = 0; i < 200000; ++i) worst = std::max(worst, compare(rng(), rng(), rng(), rng()));
+  for (std::uint32_t w2 : {0u, 1u, 7u, 0xFFFFu, 0x7FFFFFFFu, 0xFFFFFF00u, 0xFFFFFFFEu, 0xFFFFFFFFu})
+    for (std::uint32_t w3 : {0u, 0x1000u, 0x80000000u, 0xFFFFFFFFu})
+      for (std::uint32_t w0 : {0u, 0x40000000u, 0x80000000u, 0xC0000001u, 0xFFFFFFFFu})
+        worst = std::max(worst, compare(w0, 12345u, w2, w3));
+  EXPECT_LT(worst, 1e-6);
+
+  // normal6f against normal6, and the vectorized fill (interleaved and planar) against normal6f:
+  // bit for bit without FMA contraction, a few ulps with it.
+  std::vector<std::uint64_t> index;
+  for (std::uint64_t i = 0; i < 1003; ++i)
+    index.push_back(i * 2654435761ull % 100000 + (i % 5 == 0 ? (3ull << 32) : 0));
+  for (const bool avx512 : {true, false}) {
+    rpyfmm::fmm::detail::use_avx512_kernels(avx512);
+    std::vector<float> out(6 * index.size()), planar(6 * index.size());
+    std::vector<double> planar_d(6 * index.size());
+    fill_normal6(index, 99u, 4u, 2u, std::span<float>(out));
+    random_detail::fill_normal6_planar(index, 99u, 4u, 2u, std::span<float>(planar));
+    random_detail::fill_normal6_planar(index, 99u, 4u, 2u, std::span<double>(planar_d));
+    double worst_fill = 0.0, worst_vs_double = 0.0;
+    for (std::size_t k = 0; k < index.size(); ++k) {
+      float ref[6];
+      double refd[6];
+      normal6f(99u, 4u, 2u, index[k], ref);
+      normal6(99u, 4u, 2u, index[k], refd);
+      for (std::size_t c = 0; c < 6; ++c) {
+        const double scale = std::max(1.0, std::abs(static_cast<double>(ref[c])));
+        worst_fill = std::max(worst_fill, std::abs(static_cast<double>(out[6 * k + c] - ref[c])) / scale);
+        worst_fill = std::max(worst_fill, std::abs(static_cast<double>(planar[c * index.size() + k] - ref[c])) / scale);
+        worst_vs_double = std::max(worst_vs_double, std::abs(ref[c] - refd[c]) / std::max(1.0, std::abs(refd[c])));
+        EXPECT_NEAR(planar_d[c * index.size() + k], refd[c], 1e-14 * std::max(1.0, std::abs(refd[c])));
+      }
+    }
+    EXPECT_LT(worst_fill, 1e-6) << (avx512 ? "AVX-512 allowed" : "AVX-512 off");
+    EXPECT_LT(worst_vs_double, 1e-6);
+  }
+  rpyfmm::fmm::detail::use_avx512_kernels(true);
+  std::vector<float> bad(5);
+  EXPECT_THROW(fill_normal6(std::span<const std::uint64_t>(index.data(), 1), 1u, 1u, 2u, std::span<float>(bad)),
+               rpyfmm::Error);
 }
 
 TEST(Random, BadSize) {

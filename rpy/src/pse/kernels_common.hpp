@@ -115,10 +115,11 @@ RPYFMM_HOST_DEVICE inline void mode_pair(int ix, int iy, int iz, const ModeGeome
 /// imaginary parts z[3..5], conjugated when the mode is not the representative. So r2c and
 /// c2c layouts, CPU and GPU produce the same field. `spec` holds 3 complex components
 /// (re, im interleaved) `comp_stride` reals apart; Real = float for single-precision wave grids
-/// (PseOptions::wave_precision), the arithmetic is double either way.
-template <class Real>
+/// (PseOptions::wave_precision), the arithmetic is double either way. Noise = float holds
+/// normal6f's values instead (the noise of single-precision grids).
+template <class Real, class Noise>
 RPYFMM_HOST_DEVICE inline void scale_mode_with(int ix, int iy, int iz, std::size_t idx, const ModeGeometry& g,
-                                               const double* ck, Real* spec, bool deterministic, const double* z,
+                                               const double* ck, Real* spec, bool deterministic, const Noise* z,
                                                bool representative, double noise_factor) {
   Real* s0 = spec + 2 * idx;
   Real* s1 = s0 + g.comp_stride;
@@ -159,7 +160,8 @@ RPYFMM_HOST_DEVICE inline void scale_mode_with(int ix, int iy, int iz, std::size
 }
 
 /// scale_mode_with for linear half-spectrum index idx, drawing the mode's noise itself
-/// (one GPU thread per mode; the CPU draws a line of modes at once with fill_normal6).
+/// (one GPU thread per mode; the CPU draws lines of modes at once with fill_normal6):
+/// normal6f for single-precision grids (Real = float), normal6 for double ones.
 template <class Real>
 RPYFMM_HOST_DEVICE inline void scale_mode(std::size_t idx, const ModeGeometry& g, const double* ck, Real* spec,
                                           bool deterministic, bool noise, std::uint64_t seed, std::uint64_t step,
@@ -168,12 +170,16 @@ RPYFMM_HOST_DEVICE inline void scale_mode(std::size_t idx, const ModeGeometry& g
   const std::size_t rest = idx / static_cast<std::size_t>(g.nzh);
   const int iy = static_cast<int>(rest % static_cast<std::size_t>(g.n[1]));
   const int ix = static_cast<int>(rest / static_cast<std::size_t>(g.n[1]));
-  double z[6];
+  Real z[6];
   bool representative = true;
   if (noise) {
     std::uint64_t lin, rep;
     mode_pair(ix, iy, iz, g, lin, rep);
-    normal6(seed, step, kStreamWave, rep, z);
+    if constexpr (sizeof(Real) == sizeof(float)) {
+      normal6f(seed, step, kStreamWave, rep, z);
+    } else {
+      normal6(seed, step, kStreamWave, rep, z);
+    }
     representative = lin == rep;
   }
   scale_mode_with(ix, iy, iz, idx, g, ck, spec, deterministic, noise ? z : nullptr, representative, noise_factor);

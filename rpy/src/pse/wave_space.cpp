@@ -8,8 +8,11 @@
 #include <cmath>
 #include <mutex>
 #include <numbers>
+#include <span>
+#include <vector>
 
 #include "rpyfmm/core/validate.hpp"
+#include "scale_line.hpp"
 #include "window_avx2.hpp"
 #include "window_avx512.hpp"
 
@@ -576,33 +579,57 @@ void WaveGrid<Real>::apply(const double* forces, double* out, bool accumulate, c
   const std::uint64_t seed = with_noise ? noise->seed : 0;
   const std::uint64_t step = with_noise ? noise->step : 0;
   const double factor = noise_scale / std::sqrt(dv_);
-  // Lines of constant (ix, iy): no index decoding per mode, and the line's noise drawn at
-  // once by the vectorized fill_normal6 (the same values as the GPU's per-mode normal6).
+  // Lines of constant (ix, iy): no index decoding per mode. The noise of a group of lines is
+  // drawn at once by the vectorized fill_normal6 (the same values as the GPU's per-mode
+  // normal6 / normal6f): groups of at least kNoiseBatch modes keep its vectors full (a line of
+  // 33 modes alone would leave a third of the lanes idle). Single-precision grids draw the
+  // noise in single precision (normal6f), as their spectrum is float.
+  constexpr int kNoiseBatch = 256;
   const int ny = modes_.n[1];
   const int nzh = modes_.nzh;
   const auto lines = static_cast<std::int64_t>(modes_.n[0]) * ny;
+  const std::int64_t group = with_noise ? std::max<std::int64_t>(1, (kNoiseBatch + nzh - 1) / nzh) : 1;
+  const std::int64_t groups = (lines + group - 1) / group;
 #pragma omp parallel if (parallel_modes_)
   {
-    std::vector<std::uint64_t> rep(with_noise ? static_cast<std::size_t>(nzh) : 0);
-    std::vector<char> representative(rep.size());
-    std::vector<double> z(6 * rep.size());
+    const std::size_t batch = with_noise ? static_cast<std::size_t>(group * nzh) : 0;
+    std::vector<std::uint64_t> rep(batch);
+    std::vector<char> representative(batch);
+    std::vector<Real> z(6 * batch);
 #pragma omp for schedule(static)
-    for (std::int64_t line = 0; line < lines; ++line) {
-      const int ix = static_cast<int>(line / ny);
-      const int iy = static_cast<int>(line % ny);
-      const std::size_t base = static_cast<std::size_t>(line) * static_cast<std::size_t>(nzh);
+    for (std::int64_t gr = 0; gr < groups; ++gr) {
+      const std::int64_t first = gr * group;
+      const std::int64_t last = std::min(lines, first + group);
       if (with_noise) {
-        for (int iz = 0; iz < nzh; ++iz) {
-          std::uint64_t lin;
-          mode_pair(ix, iy, iz, modes_, lin, rep[static_cast<std::size_t>(iz)]);
-          representative[static_cast<std::size_t>(iz)] = lin == rep[static_cast<std::size_t>(iz)];
+        std::size_t q = 0;
+        for (std::int64_t line = first; line < last; ++line) {
+          const int ix = static_cast<int>(line / ny);
+          const int iy = static_cast<int>(line % ny);
+          for (int iz = 0; iz < nzh; ++iz, ++q) {
+            std::uint64_t lin;
+            mode_pair(ix, iy, iz, modes_, lin, rep[q]);
+            representative[q] = lin == rep[q];
+          }
         }
-        fill_normal6(rep, seed, step, kStreamWave, z);
+        // Planar values: value c of the group's mode q at z[c * group_modes + q] (scale_line).
+        random_detail::fill_normal6_planar(std::span<const std::uint64_t>(rep.data(), q), seed, step, kStreamWave,
+                                           std::span<Real>(z.data(), 6 * q));
       }
-      for (int iz = 0; iz < nzh; ++iz) {
-        const auto q = static_cast<std::size_t>(iz);
-        scale_mode_with(ix, iy, iz, base + q, modes_, ck_.data(), spectrum_, deterministic,
-                        with_noise ? &z[6 * q] : nullptr, !with_noise || representative[q] != 0, factor);
+      ModeLine<Real> ml;
+      ml.ck = ck_.data();
+      ml.spec = spectrum_;
+      ml.deterministic = deterministic;
+      ml.z_stride = static_cast<std::size_t>(last - first) * static_cast<std::size_t>(nzh);
+      ml.noise_factor = factor;
+      for (std::int64_t line = first; line < last; ++line) {
+        ml.ix = static_cast<int>(line / ny);
+        ml.iy = static_cast<int>(line % ny);
+        if (with_noise) {
+          const auto q0 = static_cast<std::size_t>(line - first) * static_cast<std::size_t>(nzh);
+          ml.z = z.data() + q0;
+          ml.representative = representative.data() + q0;
+        }
+        scale_line(modes_, ml);
       }
     }
   }

@@ -1,0 +1,128 @@
+// rpyfmm — the PSE wave-space line scaling (scale_line.hpp).
+#include "scale_line.hpp"
+
+#include <cmath>
+
+#include "rpyfmm/fmm/direct_simd.hpp"  // RPYFMM_HAVE_DIRECT_AVX512: GCC on x86-64, run-time dispatch
+
+namespace rpyfmm::rpy::pse::detail {
+namespace {
+
+/// The loop of scale_line. Det / Noisy select the terms (loop-invariant, so the loop has no
+/// branch); c(k) = 0 (k = 0, Nyquist planes) gives exact zeros, as scale_mode_with's early return.
+template <class Real, bool Det, bool Noisy>
+[[gnu::always_inline]] inline void scale_line_body(const ModeGeometry& g, const ModeLine<Real>& line) {
+  const double k0 = g.two_pi_L[0] * signed_index(line.ix, g.n[0]);
+  const double k1 = g.two_pi_L[1] * signed_index(line.iy, g.n[1]);
+  const double k01 = k0 * k0 + k1 * k1;
+  const double tz = g.two_pi_L[2];
+  const int nzh = g.nzh;
+  const std::size_t base =
+      (static_cast<std::size_t>(line.ix) * static_cast<std::size_t>(g.n[1]) + static_cast<std::size_t>(line.iy)) *
+      static_cast<std::size_t>(nzh);
+  const double* __restrict ck = line.ck + base;
+  Real* __restrict s0 = line.spec + 2 * base;
+  Real* __restrict s1 = s0 + g.comp_stride;
+  Real* __restrict s2 = s1 + g.comp_stride;
+  const Real* __restrict z = line.z;
+  const std::size_t zs = line.z_stride;
+  const char* __restrict rep = line.representative;
+  const double noise_factor = line.noise_factor;
+#pragma omp simd
+  for (int iz = 0; iz < nzh; ++iz) {
+    const double c = ck[iz];
+    const bool zero = c == 0.0;
+    const double k2 = tz * iz;
+    const double inv_k2 = 1.0 / (zero ? 1.0 : k01 + k2 * k2);
+    double re0 = 0.0, re1 = 0.0, re2 = 0.0, im0 = 0.0, im1 = 0.0, im2 = 0.0;
+    if constexpr (Det) {
+      re0 = c * s0[2 * iz];
+      re1 = c * s1[2 * iz];
+      re2 = c * s2[2 * iz];
+      im0 = c * s0[2 * iz + 1];
+      im1 = c * s1[2 * iz + 1];
+      im2 = c * s2[2 * iz + 1];
+    }
+    if constexpr (Noisy) {
+      // z = (a + i b)/sqrt(2); conjugate off the representative (scale_mode_with).
+      const double amp = noise_factor * std::sqrt(c) * 0.70710678118654752440;
+      const double sgn = rep[iz] != 0 ? amp : -amp;
+      re0 += amp * z[iz];
+      re1 += amp * z[zs + iz];
+      re2 += amp * z[2 * zs + iz];
+      im0 += sgn * z[3 * zs + iz];
+      im1 += sgn * z[4 * zs + iz];
+      im2 += sgn * z[5 * zs + iz];
+    }
+    // Projection I - k k^T / k^2 on the real and imaginary parts.
+    const double pr = (k0 * re0 + k1 * re1 + k2 * re2) * inv_k2;
+    const double pi = (k0 * im0 + k1 * im1 + k2 * im2) * inv_k2;
+    s0[2 * iz] = zero ? Real(0) : static_cast<Real>(re0 - k0 * pr);
+    s0[2 * iz + 1] = zero ? Real(0) : static_cast<Real>(im0 - k0 * pi);
+    s1[2 * iz] = zero ? Real(0) : static_cast<Real>(re1 - k1 * pr);
+    s1[2 * iz + 1] = zero ? Real(0) : static_cast<Real>(im1 - k1 * pi);
+    s2[2 * iz] = zero ? Real(0) : static_cast<Real>(re2 - k2 * pr);
+    s2[2 * iz + 1] = zero ? Real(0) : static_cast<Real>(im2 - k2 * pi);
+  }
+}
+
+template <class Real>
+[[gnu::always_inline]] inline void scale_line_dispatch(const ModeGeometry& g, const ModeLine<Real>& line) {
+  const bool noisy = line.z != nullptr;
+  if (line.deterministic && noisy) {
+    scale_line_body<Real, true, true>(g, line);
+  } else if (line.deterministic) {
+    scale_line_body<Real, true, false>(g, line);
+  } else if (noisy) {
+    scale_line_body<Real, false, true>(g, line);
+  } else {
+    scale_line_body<Real, false, false>(g, line);
+  }
+}
+
+template <class Real>
+void scale_line_portable(const ModeGeometry& g, const ModeLine<Real>& line) {
+  scale_line_dispatch(g, line);
+}
+
+#if defined(RPYFMM_HAVE_DIRECT_AVX512)
+template <class Real>
+__attribute__((target("avx2,fma"))) void scale_line_avx2(const ModeGeometry& g, const ModeLine<Real>& line) {
+  scale_line_dispatch(g, line);
+}
+
+template <class Real>
+__attribute__((target("avx512f,avx512vl,avx512dq,prefer-vector-width=512"))) void scale_line_avx512(
+    const ModeGeometry& g, const ModeLine<Real>& line) {
+  scale_line_dispatch(g, line);
+}
+#endif
+
+template <class Real>
+void scale_line_any(const ModeGeometry& g, const ModeLine<Real>& line) {
+#if defined(RPYFMM_HAVE_DIRECT_AVX512)
+  static const bool avx512_cpu =
+      __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512dq");
+  static const bool avx2_cpu = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+  if (avx512_cpu && fmm::detail::avx512_kernels_active()) {
+    scale_line_avx512(g, line);
+    return;
+  }
+  if (avx2_cpu) {
+    scale_line_avx2(g, line);
+    return;
+  }
+#endif
+  scale_line_portable(g, line);
+}
+
+}  // namespace
+
+void scale_line(const ModeGeometry& g, const ModeLine<double>& line) {
+  scale_line_any(g, line);
+}
+void scale_line(const ModeGeometry& g, const ModeLine<float>& line) {
+  scale_line_any(g, line);
+}
+
+}  // namespace rpyfmm::rpy::pse::detail

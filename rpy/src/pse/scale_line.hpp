@@ -1,0 +1,36 @@
+// rpyfmm — PSE wave-space scaling of a whole line of modes (PSE.md Sec. 2.3 step 3 and
+// Sec. 4.2): kernels_common.hpp's scale_mode_with for every iz of a line (ix, iy) at once,
+// written as one branch-free loop over iz that the compiler vectorizes (AVX-512, AVX2 or
+// portable, chosen at run time). The CPU wave space calls this; the GPU keeps one thread per
+// mode (scale_mode). Private.
+#pragma once
+
+#include <cstddef>
+
+#include "kernels_common.hpp"
+
+namespace rpyfmm::rpy::pse::detail {
+
+/// One line's modes base ... base + nzh - 1, base = (ix n_y + iy) nzh, scaled in place in
+/// `spec` (layout of scale_mode_with). With noise (z non-null): value c of the line's mode iz at
+/// z[c * z_stride + iz] (normal6 for double grids, normal6f for float ones, as in
+/// scale_mode_with), representative[iz] != 0 when the mode is its pair's representative.
+template <class Real>
+struct ModeLine {
+  int ix = 0;
+  int iy = 0;
+  const double* ck = nullptr;  ///< the whole spectrum's c(k) table
+  Real* spec = nullptr;        ///< the whole spectrum
+  bool deterministic = false;  ///< scale the spectrum (false: overwrite it with noise only)
+  const Real* z = nullptr;
+  std::size_t z_stride = 0;
+  const char* representative = nullptr;
+  double noise_factor = 0.0;
+};
+
+/// scale_mode_with(ix, iy, iz, ...) for iz = 0 ... nzh - 1: the same operations per mode (values
+/// equal up to contraction into fused multiply-adds).
+void scale_line(const ModeGeometry& g, const ModeLine<double>& line);
+void scale_line(const ModeGeometry& g, const ModeLine<float>& line);
+
+}  // namespace rpyfmm::rpy::pse::detail
