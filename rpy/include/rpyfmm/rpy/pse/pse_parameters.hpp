@@ -22,7 +22,8 @@ enum class WavePrecision {
   automatic,
   double_precision,
   /// float grids and FFTW's single-precision transforms: 1.35-1.8x faster transforms and half the
-  /// grid memory; adds ~1e-7 relative error to M F (tests/pse/test_pse_precision.cpp). CPU only.
+  /// grid memory; adds ~1e-7 relative error to M F (tests/pse/test_pse_precision.cpp); the wave
+  /// noise is then drawn in single precision too (normal6f). CPU and CUDA.
   single_precision,
 };
 
@@ -80,8 +81,8 @@ struct PseOptions {
   /// 1.1-1.9x faster (bench/pse/RESULTS.md). The algorithm FFTW picks may differ between
   /// processes, so results then agree to round-off, not bit for bit. For long runs.
   bool fft_measure = false;
-  /// Precision of the wave-space grids (WavePrecision). The CUDA backend computes in double
-  /// precision and refuses single_precision.
+  /// Precision of the wave-space grids (WavePrecision), on the CPU and the CUDA backend alike.
+  /// Single-precision grids also draw their wave-space noise in single precision (normal6f).
   WavePrecision wave_precision = WavePrecision::automatic;
   /// Upper bound on the memory (bytes) of FFT grids, spectra and tables; exceeding
   /// it throws ErrorCode::out_of_memory before anything is allocated. Default 16 GiB.
