@@ -66,7 +66,7 @@ TEST(PseCuda, CpuAndGpuAgree) {
     o.tolerance = 1e-6;
     o.xi = 1.0;
     o.grid = box.grid;
-    o.wave_precision = WavePrecision::double_precision;  // the GPU computes in double
+    o.wave_precision = WavePrecision::double_precision;  // round-off agreement (float grids: SinglePrecisionGridsAgree)
     PseRpy cpu(Geometry::periodic(L[0], L[1], L[2]), 1.0, o);
     PseRpyCuda gpu(Geometry::periodic(L[0], L[1], L[2]), 1.0, o);
     cpu.set_positions(x, 1.0);

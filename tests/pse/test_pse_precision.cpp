@@ -9,6 +9,7 @@
 
 #include "../../rpy/src/pse/kernels_common.hpp"  // window weights, scale_mode_with
 #include "../../rpy/src/pse/scale_line.hpp"
+#include "../../rpy/src/pse/window_avx2.hpp"  // use_avx2_window_kernels
 #include "ewald_reference.hpp"
 #include "rpyfmm/core/error.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
@@ -251,16 +252,18 @@ TEST(PsePrecision, LineScalingMatchesPerModeScaling) {
   // The CPU's vectorized line loop against the per-mode function the GPU runs: the same
   // operations, so differences are round-off (fused multiply-adds where the vector ISA has
   // them): below 1e-14 for double spectra, 1e-6 (a few float ulps) for float ones. With the
-  // AVX-512 kernels (where the CPU has them) and without (AVX2 or portable).
-  for (const bool avx512 : {true, false}) {
-    rpyfmm::fmm::detail::use_avx512_kernels(avx512);
+  // AVX-512 kernels (where the CPU has them), the AVX2 ones (likewise) and the portable loop.
+  for (const int kernels : {512, 2, 0}) {
+    rpyfmm::fmm::detail::use_avx512_kernels(kernels == 512);
+    detail::use_avx2_window_kernels(kernels == 2);
     for (const bool det : {true, false}) {
       for (const bool noisy : {true, false}) {
         if (!det && !noisy) continue;  // nothing to scale (the wave space never asks)
-        EXPECT_LT(scale_line_vs_per_mode<double>(det, noisy), 1e-14) << det << noisy << avx512;
-        EXPECT_LT(scale_line_vs_per_mode<float>(det, noisy), 1e-6) << det << noisy << avx512;
+        EXPECT_LT(scale_line_vs_per_mode<double>(det, noisy), 1e-14) << det << noisy << kernels;
+        EXPECT_LT(scale_line_vs_per_mode<float>(det, noisy), 1e-6) << det << noisy << kernels;
       }
     }
   }
   rpyfmm::fmm::detail::use_avx512_kernels(true);
+  detail::use_avx2_window_kernels(true);
 }

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "rpyfmm/fmm/direct_simd.hpp"  // RPYFMM_HAVE_DIRECT_AVX512: GCC on x86-64, run-time dispatch
+#include "window_avx2.hpp"             // avx2_window_kernels: the AVX2 switch of the wave space
 
 namespace rpyfmm::rpy::pse::detail {
 namespace {
@@ -103,12 +104,11 @@ void scale_line_any(const ModeGeometry& g, const ModeLine<Real>& line) {
 #if defined(RPYFMM_HAVE_DIRECT_AVX512)
   static const bool avx512_cpu =
       __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512dq");
-  static const bool avx2_cpu = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
   if (avx512_cpu && fmm::detail::avx512_kernels_active()) {
     scale_line_avx512(g, line);
     return;
   }
-  if (avx2_cpu) {
+  if (avx2_window_kernels(1)) {  // the CPU has AVX2 and FMA, and tests have not turned them off
     scale_line_avx2(g, line);
     return;
   }
