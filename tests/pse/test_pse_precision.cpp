@@ -202,6 +202,7 @@ double scale_line_vs_per_mode(bool deterministic, bool noisy) {
   const std::size_t nzh = static_cast<std::size_t>(g.nzh);
   std::vector<Real> z(6 * nzh);
   std::vector<char> rep_flag(nzh);
+  std::vector<Real> sign(nzh);
   for (int ix = 0; ix < n[0]; ++ix) {
     for (int iy = 0; iy < n[1]; ++iy) {
       const std::size_t base = (static_cast<std::size_t>(ix) * static_cast<std::size_t>(n[1]) + iy) * nzh;
@@ -209,6 +210,7 @@ double scale_line_vs_per_mode(bool deterministic, bool noisy) {
         std::uint64_t lin, rep;
         detail::mode_pair(ix, iy, static_cast<int>(iz), g, lin, rep);
         rep_flag[iz] = lin == rep;
+        sign[iz] = rep_flag[iz] ? Real(1) : Real(-1);
         Real zm[6];
         if constexpr (std::is_same_v<Real, float>) {
           normal6f(11, 3, detail::kStreamWave, rep, zm);
@@ -227,7 +229,7 @@ double scale_line_vs_per_mode(bool deterministic, bool noisy) {
       line.deterministic = deterministic;
       line.z = noisy ? z.data() : nullptr;
       line.z_stride = nzh;
-      line.representative = rep_flag.data();
+      line.sign = sign.data();
       line.noise_factor = factor;
       detail::scale_line(g, line);
     }

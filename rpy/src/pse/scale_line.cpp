@@ -27,7 +27,7 @@ template <class Real, bool Det, bool Noisy>
   Real* __restrict s2 = s1 + g.comp_stride;
   const Real* __restrict z = line.z;
   const std::size_t zs = line.z_stride;
-  const char* __restrict rep = line.representative;
+  const Real* __restrict sign = line.sign;
   const double noise_factor = line.noise_factor;
 #pragma omp simd
   for (int iz = 0; iz < nzh; ++iz) {
@@ -47,7 +47,7 @@ template <class Real, bool Det, bool Noisy>
     if constexpr (Noisy) {
       // z = (a + i b)/sqrt(2); conjugate off the representative (scale_mode_with).
       const double amp = noise_factor * std::sqrt(c) * 0.70710678118654752440;
-      const double sgn = rep[iz] != 0 ? amp : -amp;
+      const double sgn = amp * static_cast<double>(sign[iz]);  // +-amp exactly
       re0 += amp * z[iz];
       re1 += amp * z[zs + iz];
       re2 += amp * z[2 * zs + iz];

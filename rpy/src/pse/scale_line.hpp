@@ -14,7 +14,9 @@ namespace rpyfmm::rpy::pse::detail {
 /// One line's modes base ... base + nzh - 1, base = (ix n_y + iy) nzh, scaled in place in
 /// `spec` (layout of scale_mode_with). With noise (z non-null): value c of the line's mode iz at
 /// z[c * z_stride + iz] (normal6 for double grids, normal6f for float ones, as in
-/// scale_mode_with), representative[iz] != 0 when the mode is its pair's representative.
+/// scale_mode_with), and sign[iz] = +1 when the mode is its pair's representative, -1 when its
+/// noise is the conjugate (a Real array, not flags: a char array keeps GCC 12 from vectorizing
+/// the loop).
 template <class Real>
 struct ModeLine {
   int ix = 0;
@@ -24,7 +26,7 @@ struct ModeLine {
   bool deterministic = false;  ///< scale the spectrum (false: overwrite it with noise only)
   const Real* z = nullptr;
   std::size_t z_stride = 0;
-  const char* representative = nullptr;
+  const Real* sign = nullptr;
   double noise_factor = 0.0;
 };
 

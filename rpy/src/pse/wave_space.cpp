@@ -594,7 +594,7 @@ void WaveGrid<Real>::apply(const double* forces, double* out, bool accumulate, c
   {
     const std::size_t batch = with_noise ? static_cast<std::size_t>(group * nzh) : 0;
     std::vector<std::uint64_t> rep(batch);
-    std::vector<char> representative(batch);
+    std::vector<Real> sign(batch);  // +1: the pair's representative, -1: the conjugate
     std::vector<Real> z(6 * batch);
 #pragma omp for schedule(static)
     for (std::int64_t gr = 0; gr < groups; ++gr) {
@@ -608,7 +608,7 @@ void WaveGrid<Real>::apply(const double* forces, double* out, bool accumulate, c
           for (int iz = 0; iz < nzh; ++iz, ++q) {
             std::uint64_t lin;
             mode_pair(ix, iy, iz, modes_, lin, rep[q]);
-            representative[q] = lin == rep[q];
+            sign[q] = lin == rep[q] ? Real(1) : Real(-1);
           }
         }
         // Planar values: value c of the group's mode q at z[c * group_modes + q] (scale_line).
@@ -627,7 +627,7 @@ void WaveGrid<Real>::apply(const double* forces, double* out, bool accumulate, c
         if (with_noise) {
           const auto q0 = static_cast<std::size_t>(line - first) * static_cast<std::size_t>(nzh);
           ml.z = z.data() + q0;
-          ml.representative = representative.data() + q0;
+          ml.sign = sign.data() + q0;
         }
         scale_line(modes_, ml);
       }
