@@ -269,3 +269,41 @@ TEST(PsePrecision, LineScalingMatchesPerModeScaling) {
   rpyfmm::fmm::detail::use_avx512_kernels(true);
   detail::use_avx2_window_kernels(true);
 }
+
+TEST(PsePrecision, LineNoiseKeysMatchModePair) {
+  // The vectorized keys and conjugation signs of a line against mode_pair, mode by mode, on odd
+  // and even grid sizes (Nyquist planes, the k = 0 line, self-conjugate modes), on each build.
+  for (const std::array<int, 3> n : {std::array<int, 3>{6, 5, 8}, std::array<int, 3>{7, 4, 9}}) {
+    detail::ModeGeometry g{};
+    for (int d = 0; d < 3; ++d) g.n[d] = n[static_cast<std::size_t>(d)];
+    g.nzh = n[2] / 2 + 1;
+    g.modes = static_cast<std::size_t>(n[0] * n[1] * g.nzh);
+    g.comp_stride = 2 * g.modes;
+    const auto nzh = static_cast<std::size_t>(g.nzh);
+    for (const int kernels : {512, 2, 0}) {
+      rpyfmm::fmm::detail::use_avx512_kernels(kernels == 512);
+      detail::use_avx2_window_kernels(kernels == 2);
+      int conjugates = 0;
+      for (int ix = 0; ix < n[0]; ++ix) {
+        for (int iy = 0; iy < n[1]; ++iy) {
+          std::vector<std::uint64_t> rep(nzh);
+          std::vector<float> sign(nzh);
+          std::vector<double> sign_d(nzh);
+          detail::line_noise_keys(g, ix, iy, rep.data(), sign.data());
+          detail::line_noise_keys(g, ix, iy, rep.data(), sign_d.data());
+          for (std::size_t iz = 0; iz < nzh; ++iz) {
+            std::uint64_t lin, ref;
+            detail::mode_pair(ix, iy, static_cast<int>(iz), g, lin, ref);
+            EXPECT_EQ(rep[iz], ref) << ix << " " << iy << " " << iz << " kernels " << kernels;
+            EXPECT_EQ(sign[iz], lin == ref ? 1.0f : -1.0f) << ix << " " << iy << " " << iz;
+            EXPECT_EQ(sign_d[iz], lin == ref ? 1.0 : -1.0) << ix << " " << iy << " " << iz;
+            conjugates += lin != ref;
+          }
+        }
+      }
+      EXPECT_GT(conjugates, 0);
+    }
+  }
+  rpyfmm::fmm::detail::use_avx512_kernels(true);
+  detail::use_avx2_window_kernels(true);
+}

@@ -67,6 +67,30 @@ template <class Real, bool Det, bool Noisy>
   }
 }
 
+/// The loop of line_noise_keys: mode_pair's lin and partner per iz, in 64-bit lanes.
+template <class Real>
+[[gnu::always_inline]] inline void line_noise_keys_body(const ModeGeometry& g, int ix, int iy,
+                                                        std::uint64_t* __restrict rep, Real* __restrict sign) {
+  const auto nx = static_cast<std::uint64_t>(g.n[0]);
+  const auto ny = static_cast<std::uint64_t>(g.n[1]);
+  const auto nz = static_cast<std::uint64_t>(g.n[2]);
+  const auto ux = static_cast<std::uint64_t>(ix);
+  const auto uy = static_cast<std::uint64_t>(iy);
+  const std::uint64_t lin0 = (ux * ny + uy) * nz;
+  const std::uint64_t px = ix == 0 ? 0 : nx - ux;
+  const std::uint64_t py = iy == 0 ? 0 : ny - uy;
+  const std::uint64_t partner0 = (px * ny + py) * nz;
+  const int nzh = g.nzh;
+#pragma omp simd
+  for (int iz = 0; iz < nzh; ++iz) {
+    const auto uz = static_cast<std::uint64_t>(iz);
+    const std::uint64_t lin = lin0 + uz;
+    const std::uint64_t partner = partner0 + (iz == 0 ? 0 : nz - uz);
+    rep[iz] = lin < partner ? lin : partner;
+    sign[iz] = lin <= partner ? Real(1) : Real(-1);
+  }
+}
+
 template <class Real>
 [[gnu::always_inline]] inline void scale_line_dispatch(const ModeGeometry& g, const ModeLine<Real>& line) {
   const bool noisy = line.z != nullptr;
@@ -100,20 +124,55 @@ __attribute__((target("avx512f,avx512vl,avx512dq,prefer-vector-width=512"))) voi
 #endif
 
 template <class Real>
-void scale_line_any(const ModeGeometry& g, const ModeLine<Real>& line) {
+void line_noise_keys_portable(const ModeGeometry& g, int ix, int iy, std::uint64_t* rep, Real* sign) {
+  line_noise_keys_body(g, ix, iy, rep, sign);
+}
+
+#if defined(RPYFMM_HAVE_DIRECT_AVX512)
+template <class Real>
+__attribute__((target("avx2,fma"))) void line_noise_keys_avx2(const ModeGeometry& g, int ix, int iy, std::uint64_t* rep,
+                                                              Real* sign) {
+  line_noise_keys_body(g, ix, iy, rep, sign);
+}
+
+template <class Real>
+__attribute__((target("avx512f,avx512vl,avx512dq,prefer-vector-width=512"))) void line_noise_keys_avx512(
+    const ModeGeometry& g, int ix, int iy, std::uint64_t* rep, Real* sign) {
+  line_noise_keys_body(g, ix, iy, rep, sign);
+}
+#endif
+
+/// Which build of a loop runs: AVX-512 (the CPU has it and the AVX-512 kernels are on), AVX2 (the
+/// CPU has AVX2 and FMA, and tests have not turned them off: use_avx2_window_kernels), or portable.
+enum class LineKernels { portable, avx2, avx512 };
+LineKernels line_kernels() {
 #if defined(RPYFMM_HAVE_DIRECT_AVX512)
   static const bool avx512_cpu =
       __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512dq");
-  if (avx512_cpu && fmm::detail::avx512_kernels_active()) {
-    scale_line_avx512(g, line);
-    return;
-  }
-  if (avx2_window_kernels(1)) {  // the CPU has AVX2 and FMA, and tests have not turned them off
-    scale_line_avx2(g, line);
-    return;
-  }
+  if (avx512_cpu && fmm::detail::avx512_kernels_active()) return LineKernels::avx512;
+  if (avx2_window_kernels(1)) return LineKernels::avx2;
+#endif
+  return LineKernels::portable;
+}
+
+template <class Real>
+void scale_line_any(const ModeGeometry& g, const ModeLine<Real>& line) {
+#if defined(RPYFMM_HAVE_DIRECT_AVX512)
+  const LineKernels k = line_kernels();
+  if (k == LineKernels::avx512) return scale_line_avx512(g, line);
+  if (k == LineKernels::avx2) return scale_line_avx2(g, line);
 #endif
   scale_line_portable(g, line);
+}
+
+template <class Real>
+void line_noise_keys_any(const ModeGeometry& g, int ix, int iy, std::uint64_t* rep, Real* sign) {
+#if defined(RPYFMM_HAVE_DIRECT_AVX512)
+  const LineKernels k = line_kernels();
+  if (k == LineKernels::avx512) return line_noise_keys_avx512(g, ix, iy, rep, sign);
+  if (k == LineKernels::avx2) return line_noise_keys_avx2(g, ix, iy, rep, sign);
+#endif
+  line_noise_keys_portable(g, ix, iy, rep, sign);
 }
 
 }  // namespace
@@ -123,6 +182,12 @@ void scale_line(const ModeGeometry& g, const ModeLine<double>& line) {
 }
 void scale_line(const ModeGeometry& g, const ModeLine<float>& line) {
   scale_line_any(g, line);
+}
+void line_noise_keys(const ModeGeometry& g, int ix, int iy, std::uint64_t* rep, double* sign) {
+  line_noise_keys_any(g, ix, iy, rep, sign);
+}
+void line_noise_keys(const ModeGeometry& g, int ix, int iy, std::uint64_t* rep, float* sign) {
+  line_noise_keys_any(g, ix, iy, rep, sign);
 }
 
 }  // namespace rpyfmm::rpy::pse::detail

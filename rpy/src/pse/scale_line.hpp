@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 
 #include "kernels_common.hpp"
 
@@ -29,6 +30,12 @@ struct ModeLine {
   const Real* sign = nullptr;
   double noise_factor = 0.0;
 };
+
+/// mode_pair for iz = 0 ... nzh - 1 of the line (ix, iy): rep[iz] = the key of the mode's noise
+/// (its pair's representative), sign[iz] = +1 if the mode is the representative, else -1 (the
+/// ModeLine's sign).
+void line_noise_keys(const ModeGeometry& g, int ix, int iy, std::uint64_t* rep, double* sign);
+void line_noise_keys(const ModeGeometry& g, int ix, int iy, std::uint64_t* rep, float* sign);
 
 /// scale_mode_with(ix, iy, iz, ...) for iz = 0 ... nzh - 1: the same operations per mode (values
 /// equal up to contraction into fused multiply-adds).

@@ -602,14 +602,9 @@ void WaveGrid<Real>::apply(const double* forces, double* out, bool accumulate, c
       const std::int64_t last = std::min(lines, first + group);
       if (with_noise) {
         std::size_t q = 0;
-        for (std::int64_t line = first; line < last; ++line) {
-          const int ix = static_cast<int>(line / ny);
-          const int iy = static_cast<int>(line % ny);
-          for (int iz = 0; iz < nzh; ++iz, ++q) {
-            std::uint64_t lin;
-            mode_pair(ix, iy, iz, modes_, lin, rep[q]);
-            sign[q] = lin == rep[q] ? Real(1) : Real(-1);
-          }
+        for (std::int64_t line = first; line < last; ++line, q += static_cast<std::size_t>(nzh)) {
+          line_noise_keys(modes_, static_cast<int>(line / ny), static_cast<int>(line % ny), rep.data() + q,
+                          sign.data() + q);
         }
         // Planar values: value c of the group's mode q at z[c * group_modes + q] (scale_line).
         random_detail::fill_normal6_planar(std::span<const std::uint64_t>(rep.data(), q), seed, step, kStreamWave,
