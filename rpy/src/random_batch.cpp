@@ -1,4 +1,5 @@
-// rpyfmm — fill_normal6 (random.hpp): normal6 / normal6f for many indices at once, vectorized.
+// rpyfmm — fill_normal and fill_normal6 (random.hpp): normal3 / normal6 / normal6f for many
+// indices at once, vectorized.
 //
 // Two passes per chunk of indices: Philox4x32-10 for the chunk's 3 blocks per index (AVX-512:
 // sixteen counters per instruction, AVX2: eight, 32 x 32 -> 64-bit products by vpmuludq;
@@ -37,13 +38,24 @@ struct ChunkWords {
   alignas(64) std::uint32_t w[3 * 4 * kChunk];
 };
 
+/// The Philox blocks drawn per index: block b uses counter (index_lo, c1[b], step_lo, step_hi)
+/// and key (seed_lo ^ index_hi, seed_hi). normal6: c1 = stream + 2^24 b, b < 3; normal3:
+/// c1 = stream, stream ^ 2^31.
+struct Blocks {
+  std::uint32_t c1[3];
+  std::uint32_t count;
+};
+
 void philox_portable(const std::uint64_t* index, std::size_t m, std::uint64_t seed, std::uint64_t step,
-                     std::uint32_t stream, ChunkWords& out) {
+                     const Blocks& blocks, ChunkWords& out) {
   const r123::Philox4x32 rng;
   for (std::size_t k = 0; k < m; ++k) {
     const auto key = random_detail::normal6_key(seed, index[k]);
-    for (std::uint32_t b = 0; b < 3; ++b) {
-      const auto r = rng(random_detail::normal6_counter(step, stream, index[k], b), key);
+    for (std::uint32_t b = 0; b < blocks.count; ++b) {
+      const r123::Philox4x32::ctr_type ctr = {{static_cast<std::uint32_t>(index[k]), blocks.c1[b],
+                                               static_cast<std::uint32_t>(step),
+                                               static_cast<std::uint32_t>(step >> 32)}};
+      const auto r = rng(ctr, key);
       for (int w = 0; w < 4; ++w) out.w[(b * 4 + w) * kChunk + k] = r.v[w];
     }
   }
@@ -109,9 +121,9 @@ struct Avx512Lanes {
     const L::V index_lo = L::load(lo);                                                 \
     const L::V key0 = L::bxor(L::set1(static_cast<std::uint32_t>(seed)), L::load(hi)); \
     const L::V key1 = L::set1(static_cast<std::uint32_t>(seed >> 32));                 \
-    for (std::uint32_t b = 0; b < 3; ++b) {                                            \
+    for (std::uint32_t b = 0; b < blocks.count; ++b) {                                 \
       L::V c0 = index_lo;                                                              \
-      L::V c1 = L::set1(stream + (b << 24));                                           \
+      L::V c1 = L::set1(blocks.c1[b]);                                                 \
       L::V c2 = L::set1(static_cast<std::uint32_t>(step));                             \
       L::V c3 = L::set1(static_cast<std::uint32_t>(step >> 32));                       \
       L::V k0 = key0;                                                                  \
@@ -136,47 +148,62 @@ struct Avx512Lanes {
   }
 
 RPYFMM_TARGET_AVX2 void philox_avx2(const std::uint64_t* index, std::size_t m, std::uint64_t seed, std::uint64_t step,
-                                    std::uint32_t stream, ChunkWords& out) {
+                                    const Blocks& blocks, ChunkWords& out) {
   RPYFMM_PHILOX_CHUNK_BODY(Avx2Lanes);
 }
 
 RPYFMM_TARGET_AVX512 void philox_avx512(const std::uint64_t* index, std::size_t m, std::uint64_t seed,
-                                        std::uint64_t step, std::uint32_t stream, ChunkWords& out) {
+                                        std::uint64_t step, const Blocks& blocks, ChunkWords& out) {
   RPYFMM_PHILOX_CHUNK_BODY(Avx512Lanes);
 }
 
 #undef RPYFMM_PHILOX_CHUNK_BODY
 #endif
 
+/// The Box-Muller transforms: Mapping::bits (normal6: box_muller_bits for double values,
+/// box_muller_bits_f for float ones) or Mapping::r123 (normal3: box_muller_r123).
+enum class Mapping { bits, r123 };
+
 /// Box-Muller over the chunk: g0/g1[b * kChunk + k] from block b's words of index k (a branch-free
 /// loop the compiler vectorizes; inlined into the ISA-specific functions below).
-template <class Real>
-[[gnu::always_inline]] inline void box_muller_chunk(const ChunkWords& words, std::size_t m, Real* g0, Real* g1) {
-  for (std::uint32_t b = 0; b < 3; ++b) {
+template <Mapping M, class Real>
+[[gnu::always_inline]] inline void box_muller_chunk(const ChunkWords& words, std::size_t m, std::uint32_t blocks,
+                                                    Real* g0, Real* g1) {
+  for (std::uint32_t b = 0; b < blocks; ++b) {
     const std::uint32_t* w0 = &words.w[(b * 4 + 0) * kChunk];
     const std::uint32_t* w1 = w0 + kChunk;
     const std::uint32_t* w2 = w1 + kChunk;
     const std::uint32_t* w3 = w2 + kChunk;
+    Real* h0 = g0 + b * kChunk;
+    Real* h1 = g1 + b * kChunk;
 #pragma omp simd
-    for (std::size_t k = 0; k < m; ++k)
-      random_detail::box_muller_words(w0[k], w1[k], w2[k], w3[k], g0[b * kChunk + k], g1[b * kChunk + k]);
+    for (std::size_t k = 0; k < m; ++k) {
+      if constexpr (M == Mapping::r123) {
+        random_detail::box_muller_r123((static_cast<std::uint64_t>(w0[k]) << 32) | w1[k],
+                                       (static_cast<std::uint64_t>(w2[k]) << 32) | w3[k], h0[k], h1[k]);
+      } else {
+        random_detail::box_muller_words(w0[k], w1[k], w2[k], w3[k], h0[k], h1[k]);
+      }
+    }
   }
 }
 
-template <class Real>
-void box_muller_portable(const ChunkWords& words, std::size_t m, Real* g0, Real* g1) {
-  box_muller_chunk(words, m, g0, g1);
+template <Mapping M, class Real>
+void box_muller_portable(const ChunkWords& words, std::size_t m, std::uint32_t blocks, Real* g0, Real* g1) {
+  box_muller_chunk<M>(words, m, blocks, g0, g1);
 }
 #ifdef RPYFMM_RANDOM_X86
-template <class Real>
-RPYFMM_TARGET_AVX2 void box_muller_avx2(const ChunkWords& words, std::size_t m, Real* g0, Real* g1) {
-  box_muller_chunk(words, m, g0, g1);
+template <Mapping M, class Real>
+RPYFMM_TARGET_AVX2 void box_muller_avx2(const ChunkWords& words, std::size_t m, std::uint32_t blocks, Real* g0,
+                                        Real* g1) {
+  box_muller_chunk<M>(words, m, blocks, g0, g1);
 }
-template <class Real>
+template <Mapping M, class Real>
 __attribute__((target("avx512f,avx512dq,prefer-vector-width=512"))) void box_muller_avx512(const ChunkWords& words,
-                                                                                           std::size_t m, Real* g0,
-                                                                                           Real* g1) {
-  box_muller_chunk(words, m, g0, g1);
+                                                                                           std::size_t m,
+                                                                                           std::uint32_t blocks,
+                                                                                           Real* g0, Real* g1) {
+  box_muller_chunk<M>(words, m, blocks, g0, g1);
 }
 #endif
 
@@ -187,6 +214,27 @@ bool cpu_has_avx2() {
 #else
   return false;
 #endif
+}
+
+/// Philox and Box-Muller for the m <= kChunk indices of one chunk, on the widest instruction
+/// set the CPU (and fmm::detail::use_avx512_kernels) allows.
+template <Mapping M, class Real>
+void draw_chunk(const std::uint64_t* index, std::size_t m, std::uint64_t seed, std::uint64_t step, const Blocks& blocks,
+                ChunkWords& words, Real* g0, Real* g1) {
+#ifdef RPYFMM_RANDOM_X86
+  if (fmm::detail::avx512_kernels_active()) {
+    philox_avx512(index, m, seed, step, blocks, words);
+    box_muller_avx512<M>(words, m, blocks.count, g0, g1);
+    return;
+  }
+  if (cpu_has_avx2()) {
+    philox_avx2(index, m, seed, step, blocks, words);
+    box_muller_avx2<M>(words, m, blocks.count, g0, g1);
+    return;
+  }
+#endif
+  philox_portable(index, m, seed, step, blocks, words);
+  box_muller_portable<M>(words, m, blocks.count, g0, g1);
 }
 
 /// Checks shared by both precisions. The messages are built only on failure: this runs once per
@@ -209,26 +257,13 @@ void fill_normal6_impl(std::span<const std::uint64_t> index, std::uint64_t seed,
                        std::uint32_t stream, std::span<Real> out) {
   check_fill_normal6(index.size(), out.size(), stream);
   const std::size_t n = index.size();
-  const bool avx2 = cpu_has_avx2();
-  const bool avx512 = fmm::detail::avx512_kernels_active();
+  const Blocks blocks{{stream, stream + (1u << 24), stream + (2u << 24)}, 3};
   ChunkWords words;
   alignas(64) Real g0[3 * kChunk];
   alignas(64) Real g1[3 * kChunk];
   for (std::size_t start = 0; start < index.size(); start += kChunk) {
     const std::size_t m = std::min(kChunk, index.size() - start);
-#ifdef RPYFMM_RANDOM_X86
-    if (avx512) {
-      philox_avx512(index.data() + start, m, seed, step, stream, words);
-      box_muller_avx512(words, m, g0, g1);
-    } else if (avx2) {
-      philox_avx2(index.data() + start, m, seed, step, stream, words);
-      box_muller_avx2(words, m, g0, g1);
-    } else
-#endif
-    {
-      philox_portable(index.data() + start, m, seed, step, stream, words);
-      box_muller_portable(words, m, g0, g1);
-    }
+    draw_chunk<Mapping::bits>(index.data() + start, m, seed, step, blocks, words, g0, g1);
     if constexpr (Planar) {
       for (std::uint32_t b = 0; b < 3; ++b) {
         std::copy_n(&g0[b * kChunk], m, out.data() + (2 * b) * n + start);
@@ -243,8 +278,6 @@ void fill_normal6_impl(std::span<const std::uint64_t> index, std::uint64_t seed,
         }
     }
   }
-  (void)avx2;
-  (void)avx512;
 }
 
 }  // namespace
@@ -257,6 +290,36 @@ void fill_normal6(std::span<const std::uint64_t> index, std::uint64_t seed, std:
 void fill_normal6(std::span<const std::uint64_t> index, std::uint64_t seed, std::uint64_t step, std::uint32_t stream,
                   std::span<float> out) {
   fill_normal6_impl<float, false>(index, seed, step, stream, out);
+}
+
+void fill_normal(std::span<double> z, std::uint64_t seed, std::uint64_t step, std::uint32_t stream) {
+  require(z.size() % 3 == 0, ErrorCode::invalid_input, "fill_normal",
+          "noise length " + std::to_string(z.size()) + " is not a multiple of 3");
+  require(stream < 0x80000000u, ErrorCode::invalid_argument, "fill_normal",
+          "stream " + std::to_string(stream) + " must be below 2^31 (the top bit selects the third component)");
+  const std::size_t n = z.size() / 3;
+  const Blocks blocks{{stream, stream ^ 0x80000000u, 0}, 2};
+  const auto chunks = static_cast<std::int64_t>((n + kChunk - 1) / kChunk);
+#pragma omp parallel if (n >= 16384)
+  {
+    ChunkWords words;
+    alignas(64) double g0[3 * kChunk];
+    alignas(64) double g1[3 * kChunk];
+    alignas(64) std::uint64_t index[kChunk];
+#pragma omp for schedule(static)
+    for (std::int64_t c = 0; c < chunks; ++c) {
+      const std::size_t start = static_cast<std::size_t>(c) * kChunk;
+      const std::size_t m = std::min(kChunk, n - start);
+      for (std::size_t k = 0; k < m; ++k) index[k] = start + k;
+      draw_chunk<Mapping::r123>(index, m, seed, step, blocks, words, g0, g1);
+      double* o = z.data() + 3 * start;
+      for (std::size_t k = 0; k < m; ++k) {
+        o[3 * k] = g0[k];
+        o[3 * k + 1] = g1[k];
+        o[3 * k + 2] = g0[kChunk + k];
+      }
+    }
+  }
 }
 
 namespace random_detail {

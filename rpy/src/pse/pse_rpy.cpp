@@ -31,13 +31,9 @@ std::uint64_t noise_hash(std::span<const double> z) {
 
 namespace {
 
-/// z1 = normal3(seed, step, stream 1, i) — the values of fill_normal (random.hpp), without
-/// a parallel region for small N (its cost dominates small systems on a loaded machine).
+/// z1 = normal3(seed, step, stream 1, i) for every particle i (fill_normal, vectorized).
 void real_noise(std::vector<double>& z, std::uint64_t seed, std::uint64_t step) {
-  const auto n = static_cast<std::int64_t>(z.size() / 3);
-#pragma omp parallel for schedule(static) if (n >= 4096)
-  for (std::int64_t i = 0; i < n; ++i)
-    normal3(seed, step, detail::kStreamReal, static_cast<std::uint64_t>(i), &z[3 * static_cast<std::size_t>(i)]);
+  fill_normal(z, seed, step, detail::kStreamReal);
 }
 
 }  // namespace

@@ -1,15 +1,15 @@
 // rpyfmm — counter-based normal random numbers.
 //
 // A draw is a pure function of (seed, step, stream, particle): results do not
-// depend on thread count or on the order of work, and normal3() compiles for
-// CUDA (host and device) so that CPU and GPU noise agree bit for bit.
-// Philox4x32-10 (Salmon, Moraes, Dror & Shaw, SC'11; Random123) and the
-// Box-Muller transform of Random123's boxmuller.hpp.
+// depend on thread count or on the order of work, and normal3() / normal6() compile for
+// CUDA (host and device) so that CPU and GPU noise agree (the same operations: equal up to
+// fused multiply-adds).
+// Philox4x32-10 (Salmon, Moraes, Dror & Shaw, SC'11; Random123) and Box-Muller transforms
+// by polynomials (no libm call but sqrt), so that batches vectorize.
 #pragma once
 
 #include <Random123/philox.h>
 
-#include <Random123/boxmuller.hpp>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -24,32 +24,6 @@
 #endif
 
 namespace rpyfmm::rpy {
-
-/// Three independent N(0,1) values for (seed, step, stream, particle).
-/// Counter = (particle, stream, step_lo, step_hi), key = seed; the third value uses
-/// the counter with stream | 2^31, so `stream` must be below 2^31.
-RPYFMM_HOST_DEVICE inline void normal3(std::uint64_t seed, std::uint64_t step, std::uint32_t stream,
-                                       std::uint64_t particle, double out[3]) {
-  using Philox = r123::Philox4x32;
-  Philox rng;
-  Philox::ctr_type ctr = {{static_cast<std::uint32_t>(particle), stream, static_cast<std::uint32_t>(step),
-                           static_cast<std::uint32_t>(step >> 32)}};
-  // The particle's high word goes into the key so that > 2^32 particles stay distinct.
-  Philox::key_type key = {{static_cast<std::uint32_t>(seed) ^ static_cast<std::uint32_t>(particle >> 32),
-                           static_cast<std::uint32_t>(seed >> 32)}};
-  const Philox::ctr_type r = rng(ctr, key);
-  const auto u0 = (static_cast<std::uint64_t>(r.v[0]) << 32) | r.v[1];
-  const auto u1 = (static_cast<std::uint64_t>(r.v[2]) << 32) | r.v[3];
-  const r123::double2 g01 = r123::boxmuller(u0, u1);
-  ctr.v[1] = stream ^ 0x80000000u;  // second block for the third component
-  const Philox::ctr_type s = rng(ctr, key);
-  const auto u2 = (static_cast<std::uint64_t>(s.v[0]) << 32) | s.v[1];
-  const auto u3 = (static_cast<std::uint64_t>(s.v[2]) << 32) | s.v[3];
-  const r123::double2 g23 = r123::boxmuller(u2, u3);
-  out[0] = g01.x;
-  out[1] = g01.y;
-  out[2] = g23.x;
-}
 
 namespace random_detail {
 
@@ -165,6 +139,22 @@ RPYFMM_HOST_DEVICE inline void box_muller_bits(std::uint64_t u0, std::uint64_t u
   g1 = rad * c;
 }
 
+/// Random123's Box-Muller (r123::boxmuller on two 64-bit words) with sincospi_poly and
+/// log_poly in place of libm's functions, so that it vectorizes and host and device compute the
+/// same operations: v = uneg11(u0) = int64(u0) 2^-63 + 2^-64 in [-1, 1], u = u01(u1) =
+/// u1 2^-64 + 2^-65 in (0, 1] (Random123's uniform.hpp mappings); g0 = sin(pi v) r,
+/// g1 = cos(pi v) r, r = sqrt(-2 log u). Equal to r123::boxmuller to a few ulps
+/// (tests/sqrt/test_random.cpp).
+RPYFMM_HOST_DEVICE inline void box_muller_r123(std::uint64_t u0, std::uint64_t u1, double& g0, double& g1) {
+  const double v = static_cast<double>(static_cast<std::int64_t>(u0)) * 0x1p-63 + 0x1p-64;
+  const double u = static_cast<double>(u1) * 0x1p-64 + 0x1p-65;
+  double s, c;
+  sincospi_poly(v, s, c);
+  const double r = std::sqrt(-2.0 * log_poly(u));
+  g0 = s * r;
+  g1 = c * r;
+}
+
 /// sincospi_poly in single precision: the same quadrant reduction (q = round(2v) by the
 /// 1.5 * 2^23 trick), Taylor polynomials to x^9 / x^10 on |x| <= pi/4 (truncation below 3e-9,
 /// under float's unit round-off 6e-8).
@@ -258,6 +248,29 @@ RPYFMM_HOST_DEVICE inline void normal6_as(std::uint64_t seed, std::uint64_t step
 
 }  // namespace random_detail
 
+/// Three independent N(0,1) values for (seed, step, stream, particle).
+/// Counter = (particle, stream, step_lo, step_hi), key = (seed_lo ^ particle_hi, seed_hi); the
+/// third value uses the counter with stream | 2^31, so `stream` must be below 2^31. Each Philox
+/// block gives two normals by Random123's Box-Muller mapping (random_detail::box_muller_r123;
+/// the third value's block gives one). fill_normal computes the same values for many particles
+/// at once, vectorized.
+RPYFMM_HOST_DEVICE inline void normal3(std::uint64_t seed, std::uint64_t step, std::uint32_t stream,
+                                       std::uint64_t particle, double out[3]) {
+  const r123::Philox4x32 rng;
+  r123::Philox4x32::ctr_type ctr = {{static_cast<std::uint32_t>(particle), stream, static_cast<std::uint32_t>(step),
+                                     static_cast<std::uint32_t>(step >> 32)}};
+  // The particle's high word goes into the key so that > 2^32 particles stay distinct.
+  const auto key = random_detail::normal6_key(seed, particle);
+  const auto r = rng(ctr, key);
+  random_detail::box_muller_r123((static_cast<std::uint64_t>(r.v[0]) << 32) | r.v[1],
+                                 (static_cast<std::uint64_t>(r.v[2]) << 32) | r.v[3], out[0], out[1]);
+  ctr.v[1] = stream ^ 0x80000000u;  // second block for the third component
+  const auto t = rng(ctr, key);
+  double unused;
+  random_detail::box_muller_r123((static_cast<std::uint64_t>(t.v[0]) << 32) | t.v[1],
+                                 (static_cast<std::uint64_t>(t.v[2]) << 32) | t.v[3], out[2], unused);
+}
+
 /// Six independent N(0,1) values for (seed, step, stream, index): three Philox4x32-10 blocks
 /// (counter (index_lo, stream + 2^24 b, step_lo, step_hi), b = 0, 1, 2; key (seed_lo ^ index_hi,
 /// seed_hi)), each giving two normals by Box-Muller (random_detail::box_muller_bits).
@@ -296,7 +309,9 @@ void fill_normal6_planar(std::span<const std::uint64_t> index, std::uint64_t see
                          std::uint32_t stream, std::span<float> out);
 }  // namespace random_detail
 
-/// Fills z[3*i + c] (i = 0..N-1, c = 0..2) with normal3(seed, step, stream, i).
+/// Fills z[3*i + c] (i = 0..N-1, c = 0..2) with normal3(seed, step, stream, i), vectorized
+/// (AVX2 / AVX-512 where the CPU has them) and in parallel (OpenMP): the values equal normal3's
+/// to a few ulps (bit for bit on builds without FMA contraction), whatever the thread count.
 /// z.size() must be a multiple of 3 and stream < 2^31 (throws rpyfmm::Error otherwise).
 void fill_normal(std::span<double> z, std::uint64_t seed, std::uint64_t step, std::uint32_t stream = 0);
 
