@@ -5,6 +5,7 @@
 #include <cstring>
 #include <vector>
 
+#include "real_space_sqrt.hpp"
 #include "real_space_sum.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/random.hpp"
@@ -60,11 +61,8 @@ struct PseRpy::Impl {
     slots.apply = [this](std::span<const double> x, std::span<double> out, std::size_t k) {
       real->apply_slots(x.data(), out.data(), k);
     };
-    SqrtOptions o;
-    o.method = SqrtMethod::lanczos;
-    o.tolerance = params.lanczos_tolerance;
     StopWatch sw;
-    SqrtReport rep = sqrt_apply(slots, zs, ys, nrhs, o);
+    SqrtReport rep = sqrt_apply(slots, zs, ys, nrhs, detail::real_space_sqrt_options(params.lanczos_tolerance));
     times["lanczos"] += sw.seconds();
     for (std::size_t r = 0; r < nrhs; ++r) real->from_slots(ys.data() + r * n3, y.data() + r * n3);
     return rep;

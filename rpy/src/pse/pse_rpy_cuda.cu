@@ -31,6 +31,7 @@
 
 #include "../sqrt/krylov_space.hpp"
 #include "kernels_common.hpp"
+#include "real_space_sqrt.hpp"
 #include "real_space_sum.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
@@ -758,11 +759,9 @@ struct PseRpyCuda::Impl {
     const auto t0 = std::chrono::steady_clock::now();
     w.resize(n3());
     krylov.set_size(n3());
-    SqrtOptions o;
-    o.method = SqrtMethod::lanczos;
-    o.tolerance = params.lanczos_tolerance;
     const SqrtReport rep = sqrt_detail::lanczos_sqrt_in_space(
-        krylov, [this](const double* in, double* out) { real_space(in, out); }, zin.get(), w.get(), o);
+        krylov, [this](const double* in, double* out) { real_space(in, out); }, zin.get(), w.get(),
+        detail::real_space_sqrt_options(params.lanczos_tolerance));
     check(cudaDeviceSynchronize(), "Lanczos");
     times["lanczos"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return rep;
