@@ -52,10 +52,7 @@ void philox_portable(const std::uint64_t* index, std::size_t m, std::uint64_t se
   for (std::size_t k = 0; k < m; ++k) {
     const auto key = random_detail::normal6_key(seed, index[k]);
     for (std::uint32_t b = 0; b < blocks.count; ++b) {
-      const r123::Philox4x32::ctr_type ctr = {{static_cast<std::uint32_t>(index[k]), blocks.c1[b],
-                                               static_cast<std::uint32_t>(step),
-                                               static_cast<std::uint32_t>(step >> 32)}};
-      const auto r = rng(ctr, key);
+      const auto r = rng(random_detail::philox_counter(index[k], blocks.c1[b], step), key);
       for (int w = 0; w < 4; ++w) out.w[(b * 4 + w) * kChunk + k] = r.v[w];
     }
   }

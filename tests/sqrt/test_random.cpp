@@ -334,6 +334,15 @@ TEST(Random, BadSize) {
   } catch (const rpyfmm::Error& e) {
     EXPECT_NE(std::string(e.what()).find("not a multiple of 3"), std::string::npos);
   }
+  // The top bit of the stream word selects normal3's second block: streams from 2^31 on refused.
+  std::vector<double> six(6);
+  try {
+    fill_normal(six, 1u, 1u, 0x80000000u);
+    FAIL();
+  } catch (const rpyfmm::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("must be below 2^31"), std::string::npos);
+  }
+  EXPECT_NO_THROW(fill_normal(six, 1u, 1u, 0x7FFFFFFFu));
 }
 
 }  // namespace

@@ -212,12 +212,15 @@ RPYFMM_HOST_DEVICE inline void box_muller_bits_f(std::uint32_t w0, std::uint32_t
   g1 = rad * c;
 }
 
-/// Philox4x32-10 counter for block b of normal6.
-RPYFMM_HOST_DEVICE inline r123::Philox4x32::ctr_type normal6_counter(std::uint64_t step, std::uint32_t stream,
-                                                                     std::uint64_t index, std::uint32_t b) {
-  return {{static_cast<std::uint32_t>(index), stream + (b << 24), static_cast<std::uint32_t>(step),
+/// Philox4x32-10 counter (index_lo, c1, step_lo, step_hi) of one block: c1 = stream + 2^24 b for
+/// block b of normal6, stream and stream ^ 2^31 for normal3's two blocks.
+RPYFMM_HOST_DEVICE inline r123::Philox4x32::ctr_type philox_counter(std::uint64_t index, std::uint32_t c1,
+                                                                    std::uint64_t step) {
+  return {{static_cast<std::uint32_t>(index), c1, static_cast<std::uint32_t>(step),
            static_cast<std::uint32_t>(step >> 32)}};
 }
+/// Philox4x32-10 key (seed_lo ^ index_hi, seed_hi) of normal3 and normal6: the index's high word
+/// goes into the key, so that more than 2^32 indices stay distinct.
 RPYFMM_HOST_DEVICE inline r123::Philox4x32::key_type normal6_key(std::uint64_t seed, std::uint64_t index) {
   return {{static_cast<std::uint32_t>(seed) ^ static_cast<std::uint32_t>(index >> 32),
            static_cast<std::uint32_t>(seed >> 32)}};
@@ -241,7 +244,7 @@ RPYFMM_HOST_DEVICE inline void normal6_as(std::uint64_t seed, std::uint64_t step
   const r123::Philox4x32 rng;
   const auto key = normal6_key(seed, index);
   for (std::uint32_t b = 0; b < 3; ++b) {
-    const auto r = rng(normal6_counter(step, stream, index, b), key);
+    const auto r = rng(philox_counter(index, stream + (b << 24), step), key);
     box_muller_words(r.v[0], r.v[1], r.v[2], r.v[3], out[2 * b], out[2 * b + 1]);
   }
 }
@@ -257,15 +260,12 @@ RPYFMM_HOST_DEVICE inline void normal6_as(std::uint64_t seed, std::uint64_t step
 RPYFMM_HOST_DEVICE inline void normal3(std::uint64_t seed, std::uint64_t step, std::uint32_t stream,
                                        std::uint64_t particle, double out[3]) {
   const r123::Philox4x32 rng;
-  r123::Philox4x32::ctr_type ctr = {{static_cast<std::uint32_t>(particle), stream, static_cast<std::uint32_t>(step),
-                                     static_cast<std::uint32_t>(step >> 32)}};
-  // The particle's high word goes into the key so that > 2^32 particles stay distinct.
   const auto key = random_detail::normal6_key(seed, particle);
-  const auto r = rng(ctr, key);
+  const auto r = rng(random_detail::philox_counter(particle, stream, step), key);
   random_detail::box_muller_r123((static_cast<std::uint64_t>(r.v[0]) << 32) | r.v[1],
                                  (static_cast<std::uint64_t>(r.v[2]) << 32) | r.v[3], out[0], out[1]);
-  ctr.v[1] = stream ^ 0x80000000u;  // second block for the third component
-  const auto t = rng(ctr, key);
+  // The second block, for the third component.
+  const auto t = rng(random_detail::philox_counter(particle, stream ^ 0x80000000u, step), key);
   double unused;
   random_detail::box_muller_r123((static_cast<std::uint64_t>(t.v[0]) << 32) | t.v[1],
                                  (static_cast<std::uint64_t>(t.v[2]) << 32) | t.v[3], out[2], unused);
