@@ -343,6 +343,16 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
     c.integrator.sqrt.tolerance = s.positive("sqrt_tolerance", c.mobility.tolerance);
     if (c.integrator.sqrt.tolerance >= 1.0) bad_key("mobility.sqrt_tolerance", "must be < 1");
     c.integrator.sqrt.max_iterations = static_cast<int>(s.count("sqrt_max_iterations", 0));
+    try {
+      c.integrator.sqrt.preconditioner =
+          rpy::sqrt_preconditioner_from_string(s.string("sqrt_preconditioner", "automatic"));
+    } catch (const Error&) {
+      bad_key("mobility.sqrt_preconditioner", "must be automatic, block or none");
+    }
+    c.integrator.sqrt.preconditioner_block = static_cast<int>(s.count("sqrt_preconditioner_block", 0));
+    if (c.integrator.sqrt.preconditioner == rpy::SqrtPreconditioner::block &&
+        c.integrator.sqrt.method != rpy::SqrtMethod::lanczos && c.integrator.sqrt.method != rpy::SqrtMethod::automatic)
+      bad_key("mobility.sqrt_preconditioner", "block needs sqrt_method lanczos or automatic");
     s.finish();
   }
   {  // [neighbours]

@@ -2,10 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
+#include <string>
 #include <vector>
 
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/rpy/block_preconditioner.hpp"
 #include "rpyfmm/rpy/pse/pse_operator.hpp"
 
 namespace rpyfmm::bd {
@@ -63,18 +66,28 @@ DriftNoiseReport drift_and_noise(const rpy::MobilityOperator& mobility, std::spa
     report.seconds_sqrt = watch.seconds();
     return report;
   }
-  // One block pass M [F, z] (MATH.md §4: dx = M F dt + sqrt(2 kT dt) M^{1/2} z).
+  // Lanczos on A = M, or on A = G M G^T with the block preconditioner (w = G^{-1} A^{1/2} z;
+  // rpyfmm/rpy/block_preconditioner.hpp). One block pass M [F, G^T z] gives the drift and the
+  // first Krylov product A z (MATH.md §4: dx = M F dt + sqrt(2 kT dt) B z, B B^T = M).
+  require(options.preconditioner_block >= 0, ErrorCode::invalid_argument, "drift_and_noise",
+          "preconditioner_block must be >= 0 (0 = automatic), got " + std::to_string(options.preconditioner_block));
+  std::optional<rpy::BlockPreconditioner> preconditioner;
+  if (options.preconditioner != rpy::SqrtPreconditioner::none)
+    preconditioner.emplace(mobility, static_cast<std::size_t>(options.preconditioner_block));
   std::vector<double> rhs(2 * n3), out(2 * n3);
   std::copy(forces.begin(), forces.end(), rhs.begin());
   std::copy(z.begin(), z.end(), rhs.begin() + static_cast<std::ptrdiff_t>(n3));
+  if (preconditioner) preconditioner->apply_g_transpose(rhs.data() + n3);
   mobility.apply_block(rhs, out, 2);
   std::copy(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(n3), u.begin());
   report.seconds_drift = watch.seconds();
   watch.restart();
-  const double* mz = out.data() + n3;
+  double* mz = out.data() + n3;  // A z
+  if (preconditioner) preconditioner->apply_g(mz);
   double zz = 0.0;
   for (double v : z) zz += v * v;
-  const rpy::LinearOperatorView base = mobility.as_linear_operator();
+  const rpy::LinearOperatorView base =
+      preconditioner ? preconditioner->precondition(mobility.as_linear_operator()) : mobility.as_linear_operator();
   bool cached_available = zz > 0.0;
   int products = 0;
   int shared = 0;
@@ -103,7 +116,12 @@ DriftNoiseReport drift_and_noise(const rpy::MobilityOperator& mobility, std::spa
   };
   SqrtOptions resolved = options;
   resolved.method = SqrtMethod::lanczos;
+  resolved.preconditioner = rpy::SqrtPreconditioner::none;  // applied here, around the solver
   report.sqrt = rpy::sqrt_apply(view, z, w, 1, resolved);
+  if (preconditioner) {
+    preconditioner->solve_g(w.data());
+    report.sqrt.preconditioner_blocks = preconditioner->blocks();
+  }
   report.mobility_products = 1 + products;
   report.shared_first_product = shared != 0;
   report.seconds_sqrt = watch.seconds();

@@ -1,7 +1,7 @@
 // BD step throughput and where the time goes (issue #8 benchmark).
 //
 //   bench_bd steps  --method none|direct|fmm|pse --n 1000,3000,10000 [--steps 5] [--tol 1e-3]
-//                   [--split-displacements]
+//                   [--split-displacements] [--preconditioner automatic|block|none]
 //       one CSV row per N: seconds per step (median of the per-step times after one
 //       warm-up step), Lanczos iterations and mobility products per step, and the
 //       time split (neighbours, forces, plan, drift = M F or M [F, z], sqrt, update).
@@ -9,7 +9,9 @@
 //       pse: the same particles at phi = 0.05 in a periodic cube. With pse a step is one
 //       fused pass (drift and noise share the wave-space FFTs, timed as drift);
 //       --split-displacements keeps the drift and Brownian parts apart, which takes the
-//       separate M F + split-sampler path.
+//       separate M F + split-sampler path. --preconditioner: the Lanczos sampler's block
+//       preconditioner (the BD default automatic = block for direct and fmm; none = M^{1/2} z,
+//       the sampler before session 17), column `preconditioner`.
 //   bench_bd neighbours --n 20000 [--steps 400]
 //       001 Tables 1-3: dynamic rebuild test (skin/2) against fixed intervals, free
 //       draining, WCA at phi = 0.15 in a periodic box: rebuilds, time per step, and
@@ -74,10 +76,13 @@ int bench_steps(int argc, char** argv) {
   const double tol = std::stod(arg(argc, argv, "--tol", "1e-3"));
   bool split = false;
   for (int i = 2; i < argc; ++i) split = split || std::string(argv[i]) == "--split-displacements";
+  const std::string preconditioner = arg(argc, argv, "--preconditioner", "automatic");
   std::printf(
-      "method,N,threads,sec_per_step,steps_per_sec,lanczos_its,products,neighbours,forces,plan,drift,sqrt,update\n");
+      "method,preconditioner,N,threads,sec_per_step,steps_per_sec,lanczos_its,products,neighbours,forces,plan,drift,"
+      "sqrt,update\n");
   for (std::size_t n : sizes(arg(argc, argv, "--n", "1000,3000"))) {
-    const RunConfig c = cloud_config(n, method, tol, method == "pse", 0.05, split);
+    RunConfig c = cloud_config(n, method, tol, method == "pse", 0.05, split);
+    c.integrator.sqrt.preconditioner = rpyfmm::rpy::sqrt_preconditioner_from_string(preconditioner);
     const ForceField ff = make_force_field(c);
     const InitialState s = make_particles(c, ff);
     Integrator bd(make_mobility(c.mobility, n), ff, c.integrator, s.positions, s.types, c.neighbours);
@@ -93,8 +98,8 @@ int bench_steps(int argc, char** argv) {
     const double ns = steps;
     auto part = [&](const char* p) { return (t.seconds.at(p) - before.seconds.at(p)) / ns; };
     const double med = median(per_step);
-    std::printf("%s,%zu,%d,%.4g,%.4g,%.1f,%.1f,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g\n", method.c_str(), n,
-                omp_get_max_threads(), med, 1.0 / med,
+    std::printf("%s,%s,%zu,%d,%.4g,%.4g,%.1f,%.1f,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g\n", method.c_str(),
+                preconditioner.c_str(), n, omp_get_max_threads(), med, 1.0 / med,
                 static_cast<double>(t.sqrt_iterations - before.sqrt_iterations) / ns,
                 static_cast<double>(t.mobility_products - before.mobility_products) / ns, part("neighbours"),
                 part("forces"), part("plan"), part("drift"), part("sqrt"), part("update"));

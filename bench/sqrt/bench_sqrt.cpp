@@ -7,16 +7,19 @@
 // 0.1, radius 1 (overlaps allowed), fixed seed. Prints one CSV row per case.
 //
 // usage: bench_sqrt [operator=direct|fmm] [N list] [tol list] [threads list] [repeats] [fmm eps]
-//                   [all|lanczos|chebyshev] [block|noblock]
+//                   [all|lanczos|chebyshev|preconditioned] [block|noblock] [preconditioner blocks]
 //        bench_sqrt direct 1000,2000,5000 1e-3,1e-5 1,2 3
 //        bench_sqrt fmm 1000,10000,100000 1e-3,1e-5 1,2 3 1e-6
 //
 // Chebyshev: the eigenvalue bounds are estimated once per configuration
 // (estimate_spectrum_bounds, 30 Lanczos steps; column bounds_s) and reused for
 // every sample, as a BD code would; its per-sample time excludes them.
+// "preconditioned" (also in "all") is Lanczos with the block preconditioner
+// (SqrtPreconditioner::block), once per block size of the last argument (default 48; method
+
+// column lanczos+block<size>); its sample time includes building the blocks' factors.
 // To benchmark another operator, add a branch to make_operator().
 #include <omp.h>
-
 #include <time.h>
 
 #include <algorithm>
@@ -95,6 +98,7 @@ int main(int argc, char** argv) {
   // "all" (default) or one method; "noblock" skips the block-of-4 timing (large N).
   const std::string methods = argc > 7 ? argv[7] : "all";
   const bool block = !(argc > 8 && std::string(argv[8]) == "noblock");
+  const auto block_sizes = parse_list<int>(argc > 9 ? argv[9] : "48");
 
   std::printf(
       "operator,N,threads,tol,method,iterations,products,error_estimate,sample_wall_s,sample_cpu_s,"
@@ -119,11 +123,20 @@ int main(int argc, char** argv) {
       const double bounds_s = swb.seconds();
 
       for (double tol : tols) {
-        for (SqrtMethod m : {SqrtMethod::lanczos, SqrtMethod::chebyshev}) {
-          if (methods != "all" && methods != to_string(m)) continue;
+        std::vector<std::pair<SqrtMethod, int>> variants{{SqrtMethod::lanczos, 0}, {SqrtMethod::chebyshev, 0}};
+        for (int b : block_sizes) variants.emplace_back(SqrtMethod::lanczos, b);
+        for (const auto& [m, preconditioner_block] : variants) {
+          const std::string variant = preconditioner_block > 0 ? "preconditioned" : to_string(m);
+          if (methods != "all" && methods != variant) continue;
           SqrtOptions opt;
           opt.method = m;
           opt.tolerance = tol;
+          if (preconditioner_block > 0) {
+            opt.preconditioner = SqrtPreconditioner::block;
+            opt.preconditioner_block = preconditioner_block;
+          }
+          const std::string label =
+              preconditioner_block > 0 ? "lanczos+block" + std::to_string(preconditioner_block) : to_string(m);
           if (m == SqrtMethod::chebyshev) {
             opt.lambda_min = bounds.lambda_min;
             opt.lambda_max = bounds.lambda_max;
@@ -150,9 +163,8 @@ int main(int argc, char** argv) {
             tb.push_back((cpu_seconds() - c0) / 4);
           }
           std::printf("%s,%zu,%d,%.0e,%s,%.0f,%d,%.3e,%.4e,%.4e,%.4e,%.2f,%.4e,%.4e\n", opname.c_str(), n, t, tol,
-                      to_string(m), median(its), rep.operator_applications, rep.error_estimate, median(ts),
-                      median(tc), median(tp), median(ratio), m == SqrtMethod::chebyshev ? bounds_s : 0.0,
-                      block ? median(tb) : 0.0);
+                      label.c_str(), median(its), rep.operator_applications, rep.error_estimate, median(ts), median(tc),
+                      median(tp), median(ratio), m == SqrtMethod::chebyshev ? bounds_s : 0.0, block ? median(tb) : 0.0);
           std::fflush(stdout);
         }
       }

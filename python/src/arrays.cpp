@@ -147,10 +147,18 @@ rpy::SqrtMethod sqrt_method_from(const std::string& name) {
   return rpy::sqrt_method_from_string(name);
 }
 
+rpy::SqrtPreconditioner sqrt_preconditioner_from(const std::string& name) {
+  if (name == "auto") return rpy::SqrtPreconditioner::automatic;
+  return rpy::sqrt_preconditioner_from_string(name);
+}
+
 rpy::SqrtOptions sqrt_options(const std::string& method, double tol, int max_iterations, bool reorthogonalize,
                               bool throw_if_not_converged, double lambda_min, double lambda_max,
-                              int bound_estimate_iterations) {
+                              int bound_estimate_iterations, const std::string& preconditioner,
+                              int preconditioner_block) {
   rpy::SqrtOptions o;
+  o.preconditioner = sqrt_preconditioner_from(preconditioner);
+  o.preconditioner_block = preconditioner_block;
   o.method = sqrt_method_from(method);
   o.tolerance = tol;
   o.max_iterations = max_iterations;

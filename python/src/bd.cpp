@@ -131,7 +131,8 @@ class Simulation {
   Simulation(ArrayArg positions, RadiusArg radius, double dt, double kT, std::uint64_t seed,
              const std::string& mobility, double viscosity, BoxArg box, double tolerance,
              const std::string& sqrt_method, double sqrt_tol, double max_displacement, OptArrayArg external_force,
-             nb::handle force, nb::handle pair, std::uint64_t first_step, std::size_t fmm_crossover) {
+             nb::handle force, nb::handle pair, std::uint64_t first_step, std::size_t fmm_crossover,
+             const std::string& sqrt_preconditioner) {
     const std::string where = "Simulation";
     const InArray x = as_input(positions, where, "positions");
     const std::size_t n = require_points(x, where, "positions");
@@ -187,6 +188,10 @@ class Simulation {
     o.seed = seed;
     o.sqrt.method = sqrt_method_from(sqrt_method);
     o.sqrt.tolerance = sqrt_tol;
+    o.sqrt.preconditioner = sqrt_preconditioner_from(sqrt_preconditioner);
+    if (o.sqrt.preconditioner == rpy::SqrtPreconditioner::block && o.sqrt.method != rpy::SqrtMethod::lanczos &&
+        o.sqrt.method != rpy::SqrtMethod::automatic)
+      fail(ErrorCode::invalid_argument, where, "sqrt_preconditioner 'block' needs sqrt_method 'lanczos' or 'auto'");
     o.max_displacement = max_displacement;
     bd::NeighbourOptions neighbours;
     integrator_ = std::make_unique<bd::Integrator>(bd::make_mobility(spec, n), std::move(forces), o,
@@ -330,16 +335,18 @@ void bind_bd(nb::module_& m) {
                          "  dx = M F dt + sqrt(2 kT dt) M^{1/2} z.\n"
                          "The GIL is released while stepping and taken only to call the Python force.")
       .def(nb::init<ArrayArg, RadiusArg, double, double, std::uint64_t, const std::string&, double, BoxArg, double,
-                    const std::string&, double, double, OptArrayArg, nb::handle, nb::handle, std::uint64_t,
-                    std::size_t>(),
+                    const std::string&, double, double, OptArrayArg, nb::handle, nb::handle, std::uint64_t, std::size_t,
+                    const std::string&>(),
            nb::arg("positions"), nb::arg("radius") = 1.0, nb::kw_only(), nb::arg("dt"), nb::arg("kT") = 1.0,
            nb::arg("seed") = 1, nb::arg("mobility") = "auto", nb::arg("viscosity") = 1.0, nb::arg("box") = nb::none(),
            nb::arg("tolerance") = 1e-3, nb::arg("sqrt_method") = "auto", nb::arg("sqrt_tol") = 1e-3,
            nb::arg("max_displacement") = 1.0, nb::arg("external_force") = nb::none(), nb::arg("force") = nb::none(),
            nb::arg("pair") = nb::none(), nb::arg("first_step") = 0, nb::arg("fmm_crossover") = 0,
+           nb::arg("sqrt_preconditioner") = "auto",
            "positions: (N, 3) (length units, copied); radius: a number or (N,) radii; dt: time step; kT: thermal\n"
            "energy; mobility: 'none', 'direct', 'fmm', 'pse', 'auto'; box: None, L or (Lx, Ly, Lz);\n"
            "tolerance: of the fmm/pse product; sqrt_method/sqrt_tol: Brownian square root;\n"
+           "sqrt_preconditioner: 'auto' (block-preconditioned Lanczos for direct/fmm), 'block' or 'none';\n"
            "max_displacement: blow-up guard in radii per step; external_force: (3,) force on every particle;\n"
            "force: callable f(positions, step, forces) adding into forces (N, 3) in place and/or returning an\n"
            "array to add (energy/length); pair: None, 'wca', 'lj36_18', 'soft' or a dict of PairPotential fields;\n"

@@ -111,11 +111,14 @@ nb::object box_tuple(const rpy::Geometry& geometry);
 
 /// "auto" | "automatic" | "lanczos" | "chebyshev" | "cholesky" | "eigen" | "split".
 rpy::SqrtMethod sqrt_method_from(const std::string& name);
+/// "auto" | "automatic" | "none" | "block".
+rpy::SqrtPreconditioner sqrt_preconditioner_from(const std::string& name);
 
 /// The sqrt solver options shared by every binding that samples.
 rpy::SqrtOptions sqrt_options(const std::string& method, double tol, int max_iterations, bool reorthogonalize,
                               bool throw_if_not_converged, double lambda_min, double lambda_max,
-                              int bound_estimate_iterations);
+                              int bound_estimate_iterations, const std::string& preconditioner = "none",
+                              int preconditioner_block = 0);
 
 /// LaplaceFmm tree statistics (fmm::TreeStats) as a dict (fmm.cpp).
 nb::dict tree_stats_dict(const fmm::TreeStats& s);

@@ -87,10 +87,12 @@ ArrayResult apply_block(const MobilityOperator& op, ArrayArg forces, OutArg out)
 ArrayAndReport<rpy::SqrtReport> apply_sqrt(const MobilityOperator& op, ArrayArg z, OutArg out,
                                            const std::string& method, double tol, int max_iterations,
                                            bool reorthogonalize, bool throw_if_not_converged, double lambda_min,
-                                           double lambda_max, int bound_estimate_iterations, bool block) {
+                                           double lambda_max, int bound_estimate_iterations,
+                                           const std::string& preconditioner, int preconditioner_block, bool block) {
   const std::string where = block ? "apply_sqrt_block" : "apply_sqrt";
-  const rpy::SqrtOptions o = sqrt_options(method, tol, max_iterations, reorthogonalize, throw_if_not_converged,
-                                          lambda_min, lambda_max, bound_estimate_iterations);
+  const rpy::SqrtOptions o =
+      sqrt_options(method, tol, max_iterations, reorthogonalize, throw_if_not_converged, lambda_min, lambda_max,
+                   bound_estimate_iterations, preconditioner, preconditioner_block);
   const InArray zz = as_input(z, where, "z");
   const std::size_t nrhs = block ? block_count(zz, where, "z") : (require_points(zz, where, "z"), 1);
   OutArray w = make_output(out, zz.shape, where, &zz);
@@ -132,7 +134,10 @@ const char* kSqrtDoc =
     "method: 'auto' (the operator's preferred: PSE split sampler, else Lanczos), 'lanczos', 'chebyshev',\n"
     "'cholesky' (L z with L L^T = M), 'eigen' (dense principal root), 'split' (PSE only).\n"
     "tol: relative tolerance in (0, 1); max_iterations: 0 = automatic; lambda_min/lambda_max: Chebyshev\n"
-    "bounds (both 0 = estimated). w has units of sqrt(mobility) times z's units.";
+    "bounds (both 0 = estimated). w has units of sqrt(mobility) times z's units.\n"
+    "preconditioner: 'none' (w = M^{1/2} z), 'block' (Lanczos only: w = B z with B B^T = M, the same\n"
+    "covariance in 1.7-2.6x fewer products; spatial blocks of at most preconditioner_block particles,\n"
+    "0 = 64) or 'auto' (block where the method is Lanczos, else none).";
 
 }  // namespace
 
@@ -176,21 +181,27 @@ void bind_mobility(nb::module_& m) {
       .def(
           "apply_sqrt",
           [](const MobilityOperator& op, ArrayArg z, OutArg out, const std::string& method, double tol,
-             int max_iterations, bool reorth, bool throw_nc, double lmin, double lmax, int bound_it) {
-            return apply_sqrt(op, z, out, method, tol, max_iterations, reorth, throw_nc, lmin, lmax, bound_it, false);
-          },
-          nb::arg("z"), nb::arg("out") = nb::none(), nb::kw_only(), nb::arg("method") = "auto", nb::arg("tol") = 1e-3,
-          nb::arg("max_iterations") = 0, nb::arg("reorthogonalize") = true, nb::arg("throw_if_not_converged") = true,
-          nb::arg("lambda_min") = 0.0, nb::arg("lambda_max") = 0.0, nb::arg("bound_estimate_iterations") = 30, kSqrtDoc)
-      .def(
-          "apply_sqrt_block",
-          [](const MobilityOperator& op, ArrayArg z, OutArg out, const std::string& method, double tol,
-             int max_iterations, bool reorth, bool throw_nc, double lmin, double lmax, int bound_it) {
-            return apply_sqrt(op, z, out, method, tol, max_iterations, reorth, throw_nc, lmin, lmax, bound_it, true);
+             int max_iterations, bool reorth, bool throw_nc, double lmin, double lmax, int bound_it,
+             const std::string& preconditioner, int preconditioner_block) {
+            return apply_sqrt(op, z, out, method, tol, max_iterations, reorth, throw_nc, lmin, lmax, bound_it,
+                              preconditioner, preconditioner_block, false);
           },
           nb::arg("z"), nb::arg("out") = nb::none(), nb::kw_only(), nb::arg("method") = "auto", nb::arg("tol") = 1e-3,
           nb::arg("max_iterations") = 0, nb::arg("reorthogonalize") = true, nb::arg("throw_if_not_converged") = true,
           nb::arg("lambda_min") = 0.0, nb::arg("lambda_max") = 0.0, nb::arg("bound_estimate_iterations") = 30,
+          nb::arg("preconditioner") = "none", nb::arg("preconditioner_block") = 0, kSqrtDoc)
+      .def(
+          "apply_sqrt_block",
+          [](const MobilityOperator& op, ArrayArg z, OutArg out, const std::string& method, double tol,
+             int max_iterations, bool reorth, bool throw_nc, double lmin, double lmax, int bound_it,
+             const std::string& preconditioner, int preconditioner_block) {
+            return apply_sqrt(op, z, out, method, tol, max_iterations, reorth, throw_nc, lmin, lmax, bound_it,
+                              preconditioner, preconditioner_block, true);
+          },
+          nb::arg("z"), nb::arg("out") = nb::none(), nb::kw_only(), nb::arg("method") = "auto", nb::arg("tol") = 1e-3,
+          nb::arg("max_iterations") = 0, nb::arg("reorthogonalize") = true, nb::arg("throw_if_not_converged") = true,
+          nb::arg("lambda_min") = 0.0, nb::arg("lambda_max") = 0.0, nb::arg("bound_estimate_iterations") = 30,
+          nb::arg("preconditioner") = "none", nb::arg("preconditioner_block") = 0,
           "Block apply_sqrt: z of shape (nrhs, N, 3) or (nrhs, 3N), one operator product per iteration for all.")
       .def(
           "divergence",

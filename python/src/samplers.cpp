@@ -38,6 +38,8 @@ void bind_samplers(nb::module_& m) {
       .def_ro("breakdown", &rpy::SqrtReport::breakdown)
       .def_ro("lambda_min", &rpy::SqrtReport::lambda_min, "Chebyshev: lower spectrum bound used (mobility units).")
       .def_ro("lambda_max", &rpy::SqrtReport::lambda_max, "Chebyshev: upper spectrum bound used (mobility units).")
+      .def_ro("preconditioner_blocks", &rpy::SqrtReport::preconditioner_blocks,
+              "Blocks of the block preconditioner (0: the sample is M^{1/2} z, unpreconditioned).")
       .def("__repr__", &report_repr);
 
   nb::class_<rpy::SpectrumBounds>(m, "SpectrumBounds", "Padded extreme eigenvalue estimates (mobility units).")

@@ -6,8 +6,24 @@
 #include <string>
 
 #include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/rpy/block_preconditioner.hpp"
 
 namespace rpyfmm::rpy {
+namespace {
+
+/// Whether the sampler in `options` (method already resolved) runs preconditioned; refuses the
+/// block preconditioner for methods other than Lanczos and a negative block size.
+bool preconditioned(const SqrtOptions& options, const std::string& where) {
+  require(options.preconditioner_block >= 0, ErrorCode::invalid_argument, where,
+          "preconditioner_block must be >= 0 (0 = automatic), got " + std::to_string(options.preconditioner_block));
+  if (options.preconditioner == SqrtPreconditioner::block) {
+    require(options.method == SqrtMethod::lanczos, ErrorCode::invalid_argument, where,
+            std::string("the block preconditioner serves the Lanczos sampler only, not ") + to_string(options.method));
+  }
+  return options.method == SqrtMethod::lanczos && options.preconditioner != SqrtPreconditioner::none;
+}
+
+}  // namespace
 
 MobilityOperator::MobilityOperator(Geometry geometry, double viscosity, const char* where)
     : geometry_(geometry), viscosity_(viscosity), where_(where) {
@@ -110,7 +126,12 @@ SqrtReport MobilityOperator::do_apply_sqrt(std::span<const double> z, std::span<
   }
   SqrtOptions resolved = options;
   if (resolved.method == SqrtMethod::automatic) resolved.method = SqrtMethod::lanczos;
-  return sqrt_apply(as_linear_operator(), z, w, nrhs, resolved);
+  if (!preconditioned(resolved, where_ + "::apply_sqrt")) {
+    resolved.preconditioner = SqrtPreconditioner::none;  // `automatic` off Lanczos
+    return sqrt_apply(as_linear_operator(), z, w, nrhs, resolved);
+  }
+  const BlockPreconditioner preconditioner(*this, static_cast<std::size_t>(resolved.preconditioner_block));
+  return preconditioner.sample(as_linear_operator(), z, w, nrhs, resolved);
 }
 
 void MobilityOperator::divergence(std::span<double> out) const {

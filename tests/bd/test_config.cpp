@@ -84,6 +84,11 @@ TEST(BdConfig, ParsesDefaultsAndTheDemo) {
   EXPECT_EQ(c.mobility.device, ComputeDevice::cpu);
   EXPECT_EQ(parse_config(replace(kBase, "[mobility]", "[mobility]\ndevice = \"cuda\""), "c").mobility.device,
             ComputeDevice::cuda);
+  EXPECT_EQ(c.integrator.sqrt.preconditioner, rpyfmm::rpy::SqrtPreconditioner::automatic);
+  const RunConfig block = parse_config(
+      replace(kBase, "[mobility]", "[mobility]\nsqrt_preconditioner = \"block\"\nsqrt_preconditioner_block = 32"), "c");
+  EXPECT_EQ(block.integrator.sqrt.preconditioner, rpyfmm::rpy::SqrtPreconditioner::block);
+  EXPECT_EQ(block.integrator.sqrt.preconditioner_block, 32);
 }
 
 TEST(BdConfig, EveryBadConfigNamesTheKey) {
@@ -100,6 +105,12 @@ TEST(BdConfig, EveryBadConfigNamesTheKey) {
   expect_error(replace(kBase, "[mobility]", "[mobility]\nfft_measure = 1"), "mobility.fft_measure");  // not a boolean
   expect_error(replace(kBase, "[mobility]", "[mobility]\nwave_precision = \"half\""), "mobility.wave_precision");
   expect_error(replace(kBase, "[mobility]", "[mobility]\ndevice = \"gpu\""), "mobility.device");
+  expect_error(replace(kBase, "[mobility]", "[mobility]\nsqrt_preconditioner = \"jacobi\""),
+               "mobility.sqrt_preconditioner");
+  expect_error(replace(kBase, "[mobility]", "[mobility]\nsqrt_preconditioner = \"block\"\nsqrt_method = \"chebyshev\""),
+               "mobility.sqrt_preconditioner");
+  expect_error(replace(kBase, "[mobility]", "[mobility]\nsqrt_preconditioner_block = -4"),
+               "mobility.sqrt_preconditioner_block");
   expect_error(replace(kBase, "viscosity = 1.0", "viscosity = nan"), "system.viscosity");
   expect_error(replace(kBase, "volume_fraction = 0.05", "volume_fraction = 0.6"), "particles.volume_fraction");
   expect_error(replace(kBase, "source = \"random\"\ncount = 50\nvolume_fraction = 0.05",

@@ -14,6 +14,7 @@
 #include "rpyfmm/bd/integrator.hpp"
 #include "rpyfmm/bd/mobility_factory.hpp"
 #include "rpyfmm/core/error.hpp"
+#include "rpyfmm/rpy/block_preconditioner.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
 
@@ -239,9 +240,9 @@ TEST(BdSafety, BadInputsNameTheProblem) {
   }
 }
 
-// Sharing M F with the first Krylov product needs Lanczos (rpy::sqrt_apply); until it
-// lands the test is skipped. It checks the count (iterations + 1 products) and the
-// result against the unshared path.
+// Sharing M F with the first Krylov product: the count (iterations + 1 products) and the
+// result against the unshared path, without and with the block preconditioner (then the block
+// pass is M [F, G^T z] and the sample G^{-1} (G M G^T)^{1/2} z).
 TEST(BdSampling, DriftAndFirstKrylovProductShareOnePass) {
   bdtest::DenseRpy op;
   op.set_positions(line_of_particles(6, 2.5), 1.0);
@@ -250,24 +251,29 @@ TEST(BdSampling, DriftAndFirstKrylovProductShareOnePass) {
     f[k] = std::sin(1.0 + static_cast<double>(k));
     z[k] = std::cos(2.0 * static_cast<double>(k));
   }
-  SqrtOptions lanczos{.method = SqrtMethod::lanczos, .tolerance = 1e-10};
-  DriftNoiseReport rep;
-  try {
-    rep = drift_and_noise(op, f, z, u, w, lanczos);
-  } catch (const Error& e) {
-    if (e.code() == ErrorCode::not_supported) GTEST_SKIP() << "Lanczos not available yet: " << e.what();
-    throw;
-  }
-  EXPECT_TRUE(rep.shared_first_product);
-  // Issue #8 target: at most (Lanczos iterations + 1) products per step.
-  EXPECT_LE(rep.mobility_products, rep.sqrt.iterations + 1);
-  EXPECT_GE(rep.sqrt.iterations, 2);
-  op.apply(f, u_ref);
-  // Reference: the same Lanczos on plain products (DenseRpy's own sqrt is Cholesky).
-  rpyfmm::rpy::sqrt_apply(op.as_linear_operator(), z, w_ref, 1, lanczos);
-  for (std::size_t k = 0; k < 18; ++k) {
-    EXPECT_NEAR(u[k], u_ref[k], 1e-14);
-    EXPECT_NEAR(w[k], w_ref[k], 1e-8);
+  for (auto preconditioner : {rpyfmm::rpy::SqrtPreconditioner::none, rpyfmm::rpy::SqrtPreconditioner::block}) {
+    SCOPED_TRACE(to_string(preconditioner));
+    const SqrtOptions lanczos{.method = SqrtMethod::lanczos,
+                              .tolerance = 1e-10,
+                              .preconditioner = preconditioner,
+                              .preconditioner_block = 2};  // blocks of 1-2 particles: 6 -> 3 + 3 -> 1 + 2 ...
+    const DriftNoiseReport rep = drift_and_noise(op, f, z, u, w, lanczos);
+    EXPECT_TRUE(rep.shared_first_product);
+    // Issue #8 target: at most (Lanczos iterations + 1) products per step.
+    EXPECT_LE(rep.mobility_products, rep.sqrt.iterations + 1);
+    EXPECT_GE(rep.sqrt.iterations, 2);
+    op.apply(f, u_ref);
+    // Reference: the same Lanczos on plain products (DenseRpy's own sqrt is Cholesky).
+    if (preconditioner == rpyfmm::rpy::SqrtPreconditioner::none) {
+      rpyfmm::rpy::sqrt_apply(op.as_linear_operator(), z, w_ref, 1, lanczos);
+    } else {
+      EXPECT_EQ(rep.sqrt.preconditioner_blocks, 4u);
+      rpyfmm::rpy::BlockPreconditioner(op, 2).sample(op.as_linear_operator(), z, w_ref, 1, lanczos);
+    }
+    for (std::size_t k = 0; k < 18; ++k) {
+      EXPECT_NEAR(u[k], u_ref[k], 1e-14);
+      EXPECT_NEAR(w[k], w_ref[k], 1e-8);
+    }
   }
 }
 
@@ -347,12 +353,12 @@ TEST(BdMobility, AutoSwitchesToFmmAtTheCrossover) {
     EXPECT_EQ(make_mobility({.method = MobilityMethod::automatic, .tolerance = tol}, c)->name(), "fmm");
   }
   EXPECT_EQ(default_fmm_crossover(1e-4), default_fmm_crossover(1e-6));  // the 6-digit table serves 1e-4
+
   const MobilitySpec chosen{.method = MobilityMethod::automatic, .fmm_crossover = 100};
   EXPECT_EQ(make_mobility(chosen, 99)->name(), "direct");
   EXPECT_EQ(make_mobility(chosen, 100)->name(), "fmm");
   EXPECT_THROW(default_fmm_crossover(0.0), Error);
 }
-
 
 // PSE: a step is one fused pass, dx = dt (M F + (sqrt(2 kT dt) / dt) M^{1/2} z) with the operator's
 // own noise keyed by (seed, step), so that the deterministic and Brownian wave-space parts share

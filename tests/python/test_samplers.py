@@ -65,6 +65,33 @@ def test_sqrt_against_dense_eigendecomposition():
     assert bounds.lambda_min <= lam.min() and bounds.lambda_max >= lam.max()
 
 
+def test_block_preconditioned_sampler():
+    """preconditioner='block': w = G^{-1} (G M G^T)^{1/2} z with G = L^{-1}, L L^T = M's block
+    diagonal. What defines the sampler: its covariance B B^T = M (B column by column from the
+    samples of the 3N unit vectors, each converged to 1e-10), fewer iterations than plain Lanczos,
+    and the report."""
+    n = 60
+    x = suspension(n, seed=4, spacing=2.1, jitter=0.5)
+    op = rpyfmm.DirectRpy()
+    op.set_positions(x, 1.0)
+    m = op.assemble_dense()
+    b = np.stack([op.apply_sqrt(e.reshape(n, 3), tol=1e-10, preconditioner="block", preconditioner_block=16)[0]
+                  .reshape(-1) for e in np.eye(3 * n)], axis=1)
+    assert rel_err(b @ b.T, m) < 1e-8
+    assert rel_err(b, principal_sqrt(m)) > 1e-2  # a different square root than M^{1/2}
+    z = rpyfmm.normal_noise(n, seed=3)
+    _, plain = op.apply_sqrt(z, tol=1e-6)
+    _, rep = op.apply_sqrt(z, tol=1e-6, preconditioner="block", preconditioner_block=16)
+    assert rep.preconditioner_blocks == 4 and plain.preconditioner_blocks == 0
+    assert rep.iterations < plain.iterations
+    _, rep = op.apply_sqrt(z, method="eigen", preconditioner="auto")  # 'auto' off Lanczos: none
+    assert rep.preconditioner_blocks == 0
+    with pytest.raises(rpyfmm.Error, match="Lanczos sampler only"):
+        op.apply_sqrt(z, method="chebyshev", preconditioner="block")
+    with pytest.raises(rpyfmm.Error, match="unknown preconditioner"):
+        op.apply_sqrt(z, preconditioner="jacobi")
+
+
 def test_sqrt_apply_on_a_python_operator():
     rng = np.random.default_rng(2)
     a = rng.standard_normal((30, 30))

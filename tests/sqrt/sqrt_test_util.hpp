@@ -10,6 +10,7 @@
 #include <random>
 #include <vector>
 
+#include "rpyfmm/rpy/mobility.hpp"
 #include "rpyfmm/rpy/sqrt.hpp"
 
 namespace sqrt_test {
@@ -71,6 +72,13 @@ inline std::vector<double> radii(std::size_t N, bool mixed, std::uint32_t seed) 
     for (auto& v : a) v = u(gen);
   }
   return a;
+}
+
+/// An operator's dense matrix (assemble_dense; row-major there, M symmetric anyway).
+inline Eigen::MatrixXd dense_of(const rpyfmm::rpy::MobilityOperator& op) {
+  const auto n = static_cast<Eigen::Index>(3 * op.size());
+  const std::vector<double> d = op.assemble_dense();
+  return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(d.data(), n, n);
 }
 
 /// Wraps a dense symmetric matrix (kept alive by the caller).

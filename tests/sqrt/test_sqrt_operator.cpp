@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <omp.h>
 
+#include <array>
 #include <cmath>
 #include <vector>
 
@@ -17,13 +18,6 @@ using namespace rpyfmm::rpy;
 
 namespace {
 
-Eigen::MatrixXd dense_of(const MobilityOperator& op) {
-  const auto n = static_cast<Eigen::Index>(3 * op.size());
-  const std::vector<double> d = op.assemble_dense();
-  // Row-major from assemble_dense; M is symmetric anyway.
-  return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(d.data(), n, n);
-}
-
 // The operator's own dense matrix agrees with the plain test builder, and the
 // default apply_sqrt (Lanczos) matches the principal root to the tolerance.
 TEST(SqrtOperator, DirectDefaultIsLanczosAndAccurate) {
@@ -32,7 +26,7 @@ TEST(SqrtOperator, DirectDefaultIsLanczosAndAccurate) {
   const auto a = sqrt_test::radii(N, true, 22u);
   DirectRpy op(Geometry::open(), 1.0);
   op.set_positions(x, a);
-  const Eigen::MatrixXd M = dense_of(op);
+  const Eigen::MatrixXd M = sqrt_test::dense_of(op);
   ASSERT_LE((M - sqrt_test::rpy_matrix(x, a)).norm(), 1e-12 * M.norm());
   const Eigen::MatrixXd S = sqrt_test::principal_sqrt(M);
   std::vector<double> z(3 * N), w(3 * N);
@@ -65,7 +59,7 @@ TEST(SqrtOperator, FmmOperatorLanczosAndChebyshev) {
   const auto a = sqrt_test::radii(N, true, 52u);
   DirectRpy direct(Geometry::open(), 1.0);
   direct.set_positions(x, a);
-  const Eigen::MatrixXd S = sqrt_test::principal_sqrt(dense_of(direct));
+  const Eigen::MatrixXd S = sqrt_test::principal_sqrt(sqrt_test::dense_of(direct));
   FmmRpyOptions fo;
   fo.tolerance = 1e-8;
   FmmRpy fmm(Geometry::open(), 1.0, fo);
@@ -107,7 +101,8 @@ CovarianceVerdict covariance_test(const Eigen::MatrixXd& M, const Eigen::MatrixX
   return v;
 }
 
-// Fluctuation-dissipation: samples M^{1/2} z have covariance M. 1830 entries
+// Fluctuation-dissipation: samples M^{1/2} z (and the block-preconditioned
+// B z, B B^T = M; last loop pass) have covariance M. 1830 entries
 // of C tested at 5 standard errors (Bonferroni: false alarm ~1e-3) plus a KS
 // test at 1e-3; fixed seeds. Negative control: the diagonal-only sampler
 // sqrt(diag M) z must fail the same test (so the test can fail).
@@ -115,10 +110,13 @@ TEST(SqrtOperator, CovarianceIsMobilityLanczosChebyshev) {
   const std::size_t N = 20;
   DirectRpy op(Geometry::open(), 1.0);
   op.set_positions(sqrt_test::random_points(N, 0.15, 31u), sqrt_test::radii(N, true, 32u));
-  const Eigen::MatrixXd M = dense_of(op);
+  const Eigen::MatrixXd M = sqrt_test::dense_of(op);
   const auto n = M.rows();
   const std::size_t S = 4000, block = 200;
-  for (SqrtMethod m : {SqrtMethod::lanczos, SqrtMethod::chebyshev, SqrtMethod::cholesky}) {
+  for (int variant = 0; variant < 4; ++variant) {
+    const SqrtMethod m = std::array{SqrtMethod::lanczos, SqrtMethod::chebyshev, SqrtMethod::cholesky,
+                                    SqrtMethod::lanczos}[static_cast<std::size_t>(variant)];
+    const bool preconditioned = variant == 3;  // blocks of 8 particles (3 blocks for N = 20)
     Eigen::MatrixXd W(n, static_cast<Eigen::Index>(S));
     std::vector<double> z(3 * N * block);
     for (std::size_t s0 = 0; s0 < S; s0 += block) {
@@ -127,13 +125,14 @@ TEST(SqrtOperator, CovarianceIsMobilityLanczosChebyshev) {
       SqrtOptions opt;
       opt.method = m;
       opt.tolerance = 1e-4;
-      op.apply_sqrt_block(z, std::span<double>(W.col(static_cast<Eigen::Index>(s0)).data(), 3 * N * block), block,
-                          opt);
+      if (preconditioned)
+        opt = {.tolerance = 1e-4, .preconditioner = SqrtPreconditioner::block, .preconditioner_block = 8};
+      op.apply_sqrt_block(z, std::span<double>(W.col(static_cast<Eigen::Index>(s0)).data(), 3 * N * block), block, opt);
     }
     const CovarianceVerdict v = covariance_test(M, W);
-    EXPECT_LT(v.ks, v.ks_crit) << to_string(m);
-    EXPECT_LT(v.max_z, 5.0) << to_string(m);
-    if (m == SqrtMethod::lanczos) {
+    EXPECT_LT(v.ks, v.ks_crit) << to_string(m) << (preconditioned ? " + block" : "");
+    EXPECT_LT(v.max_z, 5.0) << to_string(m) << (preconditioned ? " + block" : "");
+    if (variant == 0) {
       // Negative control on the same noise: ignore the hydrodynamic coupling.
       Eigen::MatrixXd Z(n, static_cast<Eigen::Index>(S));
       for (std::size_t s = 0; s < S; ++s)

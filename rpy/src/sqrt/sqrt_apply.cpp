@@ -31,8 +31,28 @@ SqrtMethod sqrt_method_from_string(const std::string& name) {
        "unknown method '" + name + "' (expected automatic, lanczos, chebyshev, cholesky, eigen or split)");
 }
 
-SqrtReport sqrt_apply(const LinearOperatorView& op, std::span<const double> z, std::span<double> w,
-                      std::size_t nrhs, const SqrtOptions& options) {
+const char* to_string(SqrtPreconditioner preconditioner) {
+  switch (preconditioner) {
+    case SqrtPreconditioner::none:
+      return "none";
+    case SqrtPreconditioner::block:
+      return "block";
+    case SqrtPreconditioner::automatic:
+      return "automatic";
+  }
+  return "unknown";
+}
+
+SqrtPreconditioner sqrt_preconditioner_from_string(const std::string& name) {
+  for (auto p : {SqrtPreconditioner::none, SqrtPreconditioner::block, SqrtPreconditioner::automatic}) {
+    if (name == to_string(p)) return p;
+  }
+  fail(ErrorCode::invalid_argument, "sqrt preconditioner",
+       "unknown preconditioner '" + name + "' (expected none, block or automatic)");
+}
+
+SqrtReport sqrt_apply(const LinearOperatorView& op, std::span<const double> z, std::span<double> w, std::size_t nrhs,
+                      const SqrtOptions& options) {
   constexpr const char* where = "sqrt_apply";
   require(op.n > 0, ErrorCode::invalid_input, where, "the operator has size 0");
   require(static_cast<bool>(op.apply), ErrorCode::invalid_argument, where, "the operator has no apply function");
@@ -48,6 +68,9 @@ SqrtReport sqrt_apply(const LinearOperatorView& op, std::span<const double> z, s
   require_size(z, op.n * nrhs, where, "noise");
   require_size(std::span<const double>(w.data(), w.size()), op.n * nrhs, where, "output");
   require_finite(z, where, "noise");
+  require(options.preconditioner != SqrtPreconditioner::block, ErrorCode::invalid_argument, where,
+          "the block preconditioner needs the particles: use MobilityOperator::apply_sqrt or "
+          "BlockPreconditioner::sample");
 
   switch (options.method) {
     case SqrtMethod::automatic:

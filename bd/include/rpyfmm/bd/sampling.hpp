@@ -35,11 +35,13 @@ struct DriftNoiseReport {
 bool samples_by_lanczos(const rpy::MobilityOperator& mobility, const SqrtOptions& options);
 
 /// u = M F and w = M^{1/2} z for one step (each 3N; `forces` may be all zero,
-/// `z` may be empty for a deterministic step, then `w` is untouched).
+/// `z` may be empty for a deterministic step, then `w` is untouched). With
+/// options.preconditioner block or automatic, w = G^{-1} (G M G^T)^{1/2} z instead
+/// (rpy::BlockPreconditioner: the same covariance, fewer products).
 ///
-/// When samples_by_lanczos() holds, one block product M [F, z] gives u and M z,
-/// and the Lanczos solver's first product M (z / |z|) is answered from it
-/// (it is recognised as a multiple of z), so a step costs (Lanczos iterations
+/// When samples_by_lanczos() holds, one block product M [F, z] (M [F, G^T z])
+/// gives u and the Lanczos solver's first product, M (z / |z|) (G M G^T (z / |z|)),
+/// which is recognised as a multiple of z, so a step costs (Lanczos iterations
 /// + 1) operator applications of which the first is a 2-vector block
 /// (issue #8 target). Otherwise M F and the operator's own sampler are called.
 DriftNoiseReport drift_and_noise(const rpy::MobilityOperator& mobility, std::span<const double> forces,

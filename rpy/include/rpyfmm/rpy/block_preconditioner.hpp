@@ -1,0 +1,75 @@
+// rpyfmm — the block-diagonal preconditioner of the Krylov Brownian sampler
+// (SqrtOptions::preconditioner = SqrtPreconditioner::block).
+//
+// Any invertible G gives a valid Brownian displacement
+//     w = G^{-1} (G M G^T)^{1/2} z,   since  (G^{-1} A^{1/2}) (G^{-1} A^{1/2})^T = G^{-1} A G^{-T} = M
+// for A = G M G^T (the preconditioned Krylov sampler of Ando, Chow, Saad & Skolnick, J. Chem. Phys.
+// 137, 064106 (2012); dissertation 004 ch. 5 proposes preconditioning the random displacements).
+// Here G = L^{-1}, where L L^T ~ the block diagonal of M over spatial blocks of nearby particles:
+// the blocks of A on its diagonal are (nearly) identities, so the short-range couplings that spread M's
+// small eigenvalues are gone and Lanczos on A needs fewer products than on M. The blocks come
+// from a recursive median bisection of the particles along the widest axis, so every block has
+// between max_block / 2 and max_block particles whatever the density of the cloud.
+//
+// L is stored in single precision (packed lower triangles), and G x, G^T x are triangular solves
+// with it: they read a quarter of the memory of a double square block. The rounding makes L a
+// slightly different invertible matrix, and every operation uses that same L, so w w^T still
+// averages to M exactly.
+#pragma once
+
+#include <cstddef>
+#include <span>
+#include <vector>
+
+#include "rpyfmm/rpy/geometry.hpp"
+#include "rpyfmm/rpy/sqrt.hpp"
+
+namespace rpyfmm::rpy {
+
+class MobilityOperator;
+
+class BlockPreconditioner {
+ public:
+  /// Particles per block when none is asked for (bench/sqrt/RESULTS.md "Block preconditioner").
+  static constexpr std::size_t default_block = 64;
+
+  /// Partitions N = radii.size() particles into blocks of at most `max_block` particles and
+  /// factors each diagonal block of the RPY mobility (viscosity eta; minimum-image separations
+  /// in a periodic geometry). A block whose Cholesky factorization fails (coincident particles
+  /// make it singular) keeps only its diagonal, so L is always invertible.
+  BlockPreconditioner(std::span<const double> positions, std::span<const double> radii, double viscosity,
+                      const Geometry& geometry, std::size_t max_block);
+  /// From an operator's positions, radii, viscosity and geometry; max_block 0 = default_block.
+  explicit BlockPreconditioner(const MobilityOperator& mobility, std::size_t max_block = 0);
+
+  /// x <- G x = L^{-1} x, one vector of 3N entries.
+  void apply_g(double* x) const;
+  /// x <- G^T x = L^{-T} x.
+  void apply_g_transpose(double* x) const;
+  /// x <- G^{-1} x = L x.
+  void solve_g(double* x) const;
+
+  /// A = G M G^T as a linear operator (for the Krylov solvers); refers to `m` and to this.
+  [[nodiscard]] LinearOperatorView precondition(const LinearOperatorView& m) const;
+  /// w = G^{-1} (G M G^T)^{1/2} z by `options` (method lanczos; nrhs vectors one after another).
+  SqrtReport sample(const LinearOperatorView& m, std::span<const double> z, std::span<double> w, std::size_t nrhs,
+                    const SqrtOptions& options) const;
+
+  [[nodiscard]] std::size_t size() const { return n_; }
+  [[nodiscard]] std::size_t blocks() const { return offsets_.size() - 1; }
+  /// Blocks that fell back to their diagonal.
+  [[nodiscard]] std::size_t diagonal_blocks() const { return diagonal_blocks_; }
+
+ private:
+  enum class Op { apply_g, apply_g_transpose, solve_g };
+  void apply(Op op, double* x) const;
+
+  std::size_t n_ = 0;
+  std::vector<std::size_t> order_;          // particle indices, block after block
+  std::vector<std::size_t> offsets_;        // block b holds order_[offsets_[b] .. offsets_[b + 1])
+  std::vector<std::size_t> factor_offset_;  // block b's G starts at factors_[factor_offset_[b]]
+  std::vector<float> factors_;              // L_b's lower triangle, row after row (row i: i + 1 entries)
+  std::size_t diagonal_blocks_ = 0;
+};
+
+}  // namespace rpyfmm::rpy

@@ -1,0 +1,197 @@
+// rpyfmm — BlockPreconditioner: spatial blocks and their Cholesky factors (see the header).
+#include "rpyfmm/rpy/block_preconditioner.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numeric>
+#include <string>
+
+#include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/rpy/mobility.hpp"
+#include "rpyfmm/rpy/rpy_kernel.hpp"
+
+namespace rpyfmm::rpy {
+namespace {
+
+using Matrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor>;
+
+/// Splits order[begin, end) at its median along the axis of widest extent until every part has
+/// at most max_block particles; appends the part boundaries to `offsets`.
+void bisect(std::span<const double> x, std::vector<std::size_t>& order, std::size_t begin, std::size_t end,
+            std::size_t max_block, std::vector<std::size_t>& offsets) {
+  if (end - begin <= max_block) {
+    offsets.push_back(end);
+    return;
+  }
+  std::array<double, 3> lo{x[3 * order[begin]], x[3 * order[begin] + 1], x[3 * order[begin] + 2]};
+  std::array<double, 3> hi = lo;
+  for (std::size_t k = begin; k < end; ++k) {
+    for (int c = 0; c < 3; ++c) {
+      lo[c] = std::min(lo[c], x[3 * order[k] + c]);
+      hi[c] = std::max(hi[c], x[3 * order[k] + c]);
+    }
+  }
+  int axis = 0;
+  for (int c = 1; c < 3; ++c)
+    if (hi[c] - lo[c] > hi[axis] - lo[axis]) axis = c;
+  const std::size_t mid = begin + (end - begin) / 2;
+  std::nth_element(order.begin() + static_cast<std::ptrdiff_t>(begin), order.begin() + static_cast<std::ptrdiff_t>(mid),
+                   order.begin() + static_cast<std::ptrdiff_t>(end),
+                   [&](std::size_t i, std::size_t j) { return x[3 * i + axis] < x[3 * j + axis]; });
+  bisect(x, order, begin, mid, max_block, offsets);
+  bisect(x, order, mid, end, max_block, offsets);
+}
+
+}  // namespace
+
+BlockPreconditioner::BlockPreconditioner(std::span<const double> positions, std::span<const double> radii,
+                                         double viscosity, const Geometry& geometry, std::size_t max_block)
+    : n_(radii.size()) {
+  require(positions.size() == 3 * n_, ErrorCode::invalid_input, "BlockPreconditioner",
+          "positions has " + std::to_string(positions.size()) + " entries for " + std::to_string(n_) + " radii");
+  order_.resize(n_);
+  std::iota(order_.begin(), order_.end(), std::size_t{0});
+  offsets_.push_back(0);
+  if (n_ > 0) bisect(positions, order_, 0, n_, std::max<std::size_t>(max_block, 1), offsets_);
+
+  const std::size_t nb = blocks();
+  factor_offset_.resize(nb + 1, 0);
+  for (std::size_t b = 0; b < nb; ++b) {
+    const std::size_t m = 3 * (offsets_[b + 1] - offsets_[b]);
+    factor_offset_[b + 1] = factor_offset_[b] + m * (m + 1) / 2;
+  }
+  factors_.assign(factor_offset_[nb], 0.0f);
+  const bool periodic = geometry.is_periodic();
+  const auto box = geometry.box();
+  std::size_t diagonal = 0;
+
+#pragma omp parallel for schedule(dynamic) reduction(+ : diagonal)
+  for (std::size_t b = 0; b < nb; ++b) {
+    const std::size_t first = offsets_[b];
+    const std::size_t count = offsets_[b + 1] - first;
+    const auto m = static_cast<Eigen::Index>(3 * count);
+    // The block of M (MATH.md §1; the lower triangle is all the factorization reads).
+    Matrix block(m, m);
+    for (std::size_t q = 0; q < count; ++q) {
+      const std::size_t j = order_[first + q];
+      for (std::size_t p = q; p < count; ++p) {
+        const std::size_t i = order_[first + p];
+        double d[3];
+        for (int c = 0; c < 3; ++c) {
+          d[c] = positions[3 * i + c] - positions[3 * j + c];
+          if (periodic) d[c] -= box[c] * std::nearbyint(d[c] / box[c]);  // minimum image
+        }
+        double t[9];
+        rpy_tensor(d, radii[i], radii[j], viscosity, t);
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c)
+            block(static_cast<Eigen::Index>(3 * p) + r, static_cast<Eigen::Index>(3 * q) + c) =
+                static_cast<float>(t[3 * r + c]);
+      }
+    }
+    Eigen::LLT<Matrix, Eigen::Lower> llt(block);
+    const bool factored = llt.info() == Eigen::Success && llt.matrixLLT().diagonal().minCoeff() > 0.0f;
+    if (!factored) ++diagonal;  // singular block (coincident particles): L = diag(sqrt(M_kk))
+    const Matrix& l = llt.matrixLLT();
+    float* packed = factors_.data() + factor_offset_[b];
+    for (Eigen::Index i = 0; i < m; ++i) {
+      for (Eigen::Index j = 0; j < i; ++j) *packed++ = factored ? l(i, j) : 0.0f;
+      *packed++ = factored ? l(i, i) : std::sqrt(block(i, i));
+    }
+  }
+  diagonal_blocks_ = diagonal;
+}
+
+BlockPreconditioner::BlockPreconditioner(const MobilityOperator& mobility, std::size_t max_block)
+    : BlockPreconditioner(mobility.positions(), mobility.radii(), mobility.viscosity(), mobility.geometry(),
+                          max_block == 0 ? default_block : max_block) {}
+
+void BlockPreconditioner::apply(Op op, double* x) const {
+  const std::size_t nb = blocks();
+#pragma omp parallel
+  {
+    std::vector<double> in, out;
+#pragma omp for schedule(static)
+    for (std::size_t b = 0; b < nb; ++b) {
+      const std::size_t first = offsets_[b];
+      const std::size_t count = offsets_[b + 1] - first;
+      const std::size_t m = 3 * count;
+      const float* l = factors_.data() + factor_offset_[b];
+      in.resize(m);
+      out.assign(m, 0.0);
+      for (std::size_t p = 0; p < count; ++p)
+        for (std::size_t c = 0; c < 3; ++c) in[3 * p + c] = x[3 * order_[first + p] + c];
+      switch (op) {
+        case Op::apply_g:  // G in = L^{-1} in: forward substitution, L out = in
+          for (std::size_t i = 0; i < m; ++i) {
+            const float* row = l + i * (i + 1) / 2;  // L_i0 .. L_ii
+            double s = in[i];
+#pragma omp simd reduction(- : s)
+            for (std::size_t j = 0; j < i; ++j) s -= static_cast<double>(row[j]) * out[j];
+            out[i] = s / static_cast<double>(row[i]);
+          }
+          break;
+        case Op::apply_g_transpose:  // G^T in = L^{-T} in: back substitution, L^T out = in, row by row
+          out = in;
+          for (std::size_t i = m; i-- > 0;) {
+            const float* row = l + i * (i + 1) / 2;
+            const double v = out[i] / static_cast<double>(row[i]);
+            out[i] = v;
+#pragma omp simd
+            for (std::size_t j = 0; j < i; ++j) out[j] -= static_cast<double>(row[j]) * v;
+          }
+          break;
+        case Op::solve_g:  // G^{-1} in = L in
+          for (std::size_t i = 0; i < m; ++i) {
+            const float* row = l + i * (i + 1) / 2;
+            double s = 0.0;
+#pragma omp simd reduction(+ : s)
+            for (std::size_t j = 0; j <= i; ++j) s += static_cast<double>(row[j]) * in[j];
+            out[i] = s;
+          }
+          break;
+      }
+      for (std::size_t p = 0; p < count; ++p)
+        for (std::size_t c = 0; c < 3; ++c) x[3 * order_[first + p] + c] = out[3 * p + c];
+    }
+  }
+}
+
+void BlockPreconditioner::apply_g(double* x) const {
+  apply(Op::apply_g, x);
+}
+void BlockPreconditioner::apply_g_transpose(double* x) const {
+  apply(Op::apply_g_transpose, x);
+}
+void BlockPreconditioner::solve_g(double* x) const {
+  apply(Op::solve_g, x);
+}
+
+LinearOperatorView BlockPreconditioner::precondition(const LinearOperatorView& m) const {
+  require(m.n == 3 * n_, ErrorCode::invalid_input, "BlockPreconditioner",
+          "operator of size " + std::to_string(m.n) + " for " + std::to_string(n_) + " particles");
+  LinearOperatorView a;
+  a.n = m.n;
+  a.apply = [this, m](std::span<const double> x, std::span<double> y, std::size_t nrhs) {
+    std::vector<double> t(x.begin(), x.end());
+    for (std::size_t r = 0; r < nrhs; ++r) apply_g_transpose(t.data() + r * m.n);  // G^T x
+    m.apply(t, y, nrhs);                                                           // M G^T x
+    for (std::size_t r = 0; r < nrhs; ++r) apply_g(y.data() + r * m.n);            // G M G^T x
+  };
+  return a;
+}
+
+SqrtReport BlockPreconditioner::sample(const LinearOperatorView& m, std::span<const double> z, std::span<double> w,
+                                       std::size_t nrhs, const SqrtOptions& options) const {
+  SqrtOptions plain = options;
+  plain.preconditioner = SqrtPreconditioner::none;
+  SqrtReport report = sqrt_apply(precondition(m), z, w, nrhs, plain);  // (G M G^T)^{1/2} z
+  for (std::size_t r = 0; r < nrhs; ++r) solve_g(w.data() + r * m.n);  // G^{-1} (G M G^T)^{1/2} z
+  report.preconditioner_blocks = blocks();
+  return report;
+}
+
+}  // namespace rpyfmm::rpy
