@@ -1,7 +1,7 @@
 // BD step throughput and where the time goes (issue #8 benchmark).
 //
 //   bench_bd steps  --method none|direct|fmm|pse --n 1000,3000,10000 [--steps 5] [--tol 1e-3]
-//                   [--split-displacements] [--preconditioner automatic|block|none]
+//                   [--split-displacements] [--preconditioner automatic|block|none] [--block B]
 //       one CSV row per N: seconds per step (median of the per-step times after one
 //       warm-up step), Lanczos iterations and mobility products per step, and the
 //       time split (neighbours, forces, plan, drift = M F or M [F, z], sqrt, update).
@@ -11,7 +11,8 @@
 //       --split-displacements keeps the drift and Brownian parts apart, which takes the
 //       separate M F + split-sampler path. --preconditioner: the Lanczos sampler's block
 //       preconditioner (the BD default automatic = block for direct and fmm; none = M^{1/2} z,
-//       the sampler before session 17), column `preconditioner`.
+//       the sampler before session 17), column `preconditioner`; --block: particles per
+//       block (0 = automatic).
 //   bench_bd neighbours --n 20000 [--steps 400]
 //       001 Tables 1-3: dynamic rebuild test (skin/2) against fixed intervals, free
 //       draining, WCA at phi = 0.15 in a periodic box: rebuilds, time per step, and
@@ -83,6 +84,7 @@ int bench_steps(int argc, char** argv) {
   for (std::size_t n : sizes(arg(argc, argv, "--n", "1000,3000"))) {
     RunConfig c = cloud_config(n, method, tol, method == "pse", 0.05, split);
     c.integrator.sqrt.preconditioner = rpyfmm::rpy::sqrt_preconditioner_from_string(preconditioner);
+    c.integrator.sqrt.preconditioner_block = std::stoi(arg(argc, argv, "--block", "0"));
     const ForceField ff = make_force_field(c);
     const InitialState s = make_particles(c, ff);
     Integrator bd(make_mobility(c.mobility, n), ff, c.integrator, s.positions, s.types, c.neighbours);

@@ -111,9 +111,10 @@ TEST(BlockPreconditioner, SampleMatchesDenseReferenceInFewerProducts) {
       EXPECT_LE(rep.iterations, 0.75 * plain.iterations) << tol;
     }
   }
-  // `automatic` preconditions Lanczos with the default block size.
+  // `automatic` preconditions Lanczos with the automatic block size (400 / 64 -> 16: 32 blocks).
   SqrtOptions automatic{.tolerance = 1e-4, .preconditioner = SqrtPreconditioner::automatic};
-  EXPECT_EQ(op.apply_sqrt(z, w, automatic).preconditioner_blocks, BlockPreconditioner(op).blocks());
+  EXPECT_EQ(BlockPreconditioner::automatic_block(N), 16u);
+  EXPECT_EQ(op.apply_sqrt(z, w, automatic).preconditioner_blocks, 32u);
   // ... and falls back to none for the other methods (dense eigen: the principal root).
   automatic.method = SqrtMethod::eigen;
   EXPECT_EQ(op.apply_sqrt(z, w, automatic).preconditioner_blocks, 0u);
@@ -167,8 +168,9 @@ TEST(BlockPreconditioner, OneBlockGivesTheCholeskySampleInOneStep) {
   op.set_positions(sqrt_test::random_points(N, 0.2, 91u), sqrt_test::radii(N, true, 92u));
   std::vector<double> z(3 * N), w(3 * N), c(3 * N);
   fill_normal(z, 2u, 0u);
-  const SqrtReport rep =
-      op.apply_sqrt(z, w, SqrtOptions{.tolerance = 1e-6, .preconditioner = SqrtPreconditioner::block});
+  const SqrtReport rep = op.apply_sqrt(
+      z, w, SqrtOptions{.tolerance = 1e-6, .preconditioner = SqrtPreconditioner::block, .preconditioner_block = 32});
+  EXPECT_EQ(rep.preconditioner_blocks, 1u);
   EXPECT_LE(rep.iterations, 2);
   op.apply_sqrt(z, c, SqrtOptions{.method = SqrtMethod::cholesky});
   Eigen::VectorXd ref = Eigen::Map<const Eigen::VectorXd>(c.data(), 3 * static_cast<Eigen::Index>(N));
@@ -189,7 +191,8 @@ TEST(BlockPreconditioner, FmmAndPeriodicOperators) {
   fill_normal(z, 4u, 0u);
   const SqrtOptions opt{.tolerance = 1e-6, .preconditioner = SqrtPreconditioner::block, .preconditioner_block = 32};
   {
-    const Eigen::MatrixXd B = dense_sampler(sqrt_test::dense_of(direct), dense_map(BlockPreconditioner(fmm, 32), Which::g));
+    const Eigen::MatrixXd B =
+        dense_sampler(sqrt_test::dense_of(direct), dense_map(BlockPreconditioner(fmm, 32), Which::g));
     fmm.apply_sqrt(z, w, opt);
     EXPECT_LE(relative_error(w, B * Eigen::Map<const Eigen::VectorXd>(z.data(), 3 * N)), 1e-5);
   }

@@ -30,8 +30,10 @@ class MobilityOperator;
 
 class BlockPreconditioner {
  public:
-  /// Particles per block when none is asked for (bench/sqrt/RESULTS.md "Block preconditioner").
-  static constexpr std::size_t default_block = 64;
+  /// Particles per block when none is asked for: N / 64, between 16 and 64. Small blocks are
+  /// cheap to factor and whiten enough below ~2000 particles; above, 64 saves the most
+  /// iterations for its cost (bench/bd/RESULTS.md "Block preconditioner").
+  static std::size_t automatic_block(std::size_t n) { return n / 64 < 16 ? 16 : (n / 64 > 64 ? 64 : n / 64); }
 
   /// Partitions N = radii.size() particles into blocks of at most `max_block` particles and
   /// factors each diagonal block of the RPY mobility (viscosity eta; minimum-image separations
@@ -39,7 +41,7 @@ class BlockPreconditioner {
   /// make it singular) keeps only its diagonal, so L is always invertible.
   BlockPreconditioner(std::span<const double> positions, std::span<const double> radii, double viscosity,
                       const Geometry& geometry, std::size_t max_block);
-  /// From an operator's positions, radii, viscosity and geometry; max_block 0 = default_block.
+  /// From an operator's positions, radii, viscosity and geometry; max_block 0 = automatic_block(N).
   explicit BlockPreconditioner(const MobilityOperator& mobility, std::size_t max_block = 0);
 
   /// x <- G x = L^{-1} x, one vector of 3N entries.
