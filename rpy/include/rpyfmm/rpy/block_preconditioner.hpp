@@ -17,6 +17,7 @@
 // averages to M exactly.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <span>
 #include <vector>
@@ -33,7 +34,7 @@ class BlockPreconditioner {
   /// Particles per block when none is asked for: N / 64, between 16 and 64. Small blocks are
   /// cheap to factor and whiten enough below ~2000 particles; above, 64 saves the most
   /// iterations for its cost (bench/bd/RESULTS.md "Block preconditioner").
-  static std::size_t automatic_block(std::size_t n) { return n / 64 < 16 ? 16 : (n / 64 > 64 ? 64 : n / 64); }
+  static std::size_t automatic_block(std::size_t n) { return std::clamp<std::size_t>(n / 64, 16, 64); }
 
   /// Partitions N = radii.size() particles into blocks of at most `max_block` particles and
   /// factors each diagonal block of the RPY mobility (viscosity eta; minimum-image separations
@@ -69,7 +70,7 @@ class BlockPreconditioner {
   std::size_t n_ = 0;
   std::vector<std::size_t> order_;          // particle indices, block after block
   std::vector<std::size_t> offsets_;        // block b holds order_[offsets_[b] .. offsets_[b + 1])
-  std::vector<std::size_t> factor_offset_;  // block b's G starts at factors_[factor_offset_[b]]
+  std::vector<std::size_t> factor_offset_;  // block b's L_b starts at factors_[factor_offset_[b]]
   std::vector<float> factors_;              // L_b's lower triangle, row after row (row i: i + 1 entries)
   std::size_t diagonal_blocks_ = 0;
 };
