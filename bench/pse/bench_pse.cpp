@@ -9,6 +9,8 @@
 //                  [--cuda] [N ...]
 //   (default 8000 16000 32000); threads from 1 to OMP max.
 // Also times the free-space FmmRpy (tolerance 1e-3) on the same particles, 1 thread.
+// Comment lines (#) add block-preconditioned Lanczos (design note 29) on the full PSE operator and
+// on the free-space FMM operator.
 // --quick: only M F and the split sampler with their stage times (no full-operator Lanczos,
 // no table-vs-direct real space, no FMM comparison).
 // --error: the relative l2 error of M F against the same operator at tolerance 1e-8 (N <= 64000;
@@ -387,6 +389,11 @@ int main(int argc, char** argv) {
       so.tolerance = 1e-3;
       int full_iters = 0;
       const double t_full = quick ? 0.0 : median_seconds(1, [&] { full_iters = op.apply_sqrt(z, w, so).iterations; });
+      // The same with the block preconditioner (design note 29; a comment line below the row).
+      SqrtOptions sb = so;
+      sb.preconditioner = SqrtPreconditioner::block;
+      int block_iters = 0;
+      const double t_block = quick ? 0.0 : median_seconds(1, [&] { block_iters = op.apply_sqrt(z, w, sb).iterations; });
       const auto& p = op.parameters();
       double rel_error = -1.0;
       if (with_error && n <= 64000) {
@@ -407,6 +414,10 @@ int main(int argc, char** argv) {
           per(mf, "scale"), per(mf, "interpolate"), per(mf, "real_space"), per(st, "lanczos"), per(st, "scale"),
           per(st, "fft_backward"), per(st, "interpolate"), t_plan, fft_measure ? 1 : 0, p.window_eta, rel_error,
           p.xi * a, p.wave_single ? 1 : 0, t_mf_cached, static_cast<double>(p.real_space_cache_bytes) / 1e6);
+      if (!quick) {
+        std::printf("# N=%zu threads=%d: block-preconditioned Lanczos on the full PSE operator %.4g s (%d its)\n", n,
+                    threads, t_block, block_iters);
+      }
       std::fflush(stdout);
     }
     if (quick) continue;
@@ -438,8 +449,13 @@ int main(int argc, char** argv) {
     fs.tolerance = 1e-3;
     int fmm_iters = 0;
     const double t_fmm_sample = median_seconds(1, [&] { fmm_iters = fmm.apply_sqrt(z, w, fs).iterations; });
-    std::printf("# N=%zu free-space FMM 1 thread: M F %.4g s (%.3g PTPS), Lanczos sample %.4g s (%d its, %.3g PTPS)\n",
-                n, t_fmm, n / t_fmm, t_fmm_sample, fmm_iters, n / t_fmm_sample);
+    fs.preconditioner = SqrtPreconditioner::block;  // the BD engine's sampler since session 17
+    int fmm_block_iters = 0;
+    const double t_fmm_block = median_seconds(1, [&] { fmm_block_iters = fmm.apply_sqrt(z, w, fs).iterations; });
+    std::printf(
+        "# N=%zu free-space FMM 1 thread: M F %.4g s (%.3g PTPS), Lanczos sample %.4g s (%d its, %.3g PTPS), "
+        "block-preconditioned %.4g s (%d its, %.3g PTPS)\n",
+        n, t_fmm, n / t_fmm, t_fmm_sample, fmm_iters, n / t_fmm_sample, t_fmm_block, fmm_block_iters, n / t_fmm_block);
     omp_set_num_threads(max_threads);
   }
 }

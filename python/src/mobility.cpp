@@ -137,7 +137,7 @@ const char* kSqrtDoc =
     "bounds (both 0 = estimated). w has units of sqrt(mobility) times z's units.\n"
     "preconditioner: 'none' (w = M^{1/2} z), 'block' (Lanczos only: w = B z with B B^T = M, the same\n"
     "covariance in 1.7-2.6x fewer products; spatial blocks of at most preconditioner_block particles,\n"
-    "0 = N/64 in [16, 64]) or 'auto' (block where the method is Lanczos, else none).";
+    "0 = N/64 in [16, 32]) or 'auto' (block where the method is Lanczos, else none).";
 
 }  // namespace
 

@@ -31,10 +31,12 @@ class MobilityOperator;
 
 class BlockPreconditioner {
  public:
-  /// Particles per block when none is asked for: N / 64, between 16 and 64. Small blocks are
-  /// cheap to factor and whiten enough below ~2000 particles; above, 64 saves the most
-  /// iterations for its cost (bench/bd/RESULTS.md "Block preconditioner").
-  static std::size_t automatic_block(std::size_t n) { return std::clamp<std::size_t>(n / 64, 16, 64); }
+  /// Particles per block when none is asked for: N / 64, between 16 and 32. Small blocks are
+  /// cheap to factor and whiten enough below ~2000 particles. Larger blocks than 32 save a few
+  /// more iterations, which pays for the FMM operator at 10^5 particles (4%) but not for
+  /// operators with cheaper products (PSE: 1.1x faster with 32 than with 64 at 8000 particles;
+  /// bench/bd/RESULTS.md and bench/pse/RESULTS.md "Block preconditioner").
+  static std::size_t automatic_block(std::size_t n) { return std::clamp<std::size_t>(n / 64, 16, 32); }
 
   /// Partitions N = radii.size() particles into blocks of at most `max_block` particles and
   /// factors each diagonal block of the RPY mobility (viscosity eta; minimum-image separations

@@ -88,7 +88,7 @@ struct SqrtOptions {
   /// none there (PSE's split sampler, Chebyshev, the dense methods, sqrt_apply on a bare operator).
   SqrtPreconditioner preconditioner = SqrtPreconditioner::none;
   /// Particles per block of the `block` preconditioner (at most; blocks hold half to all of
-  /// it); 0 = BlockPreconditioner::automatic_block(N): N / 64, between 16 and 64.
+  /// it); 0 = BlockPreconditioner::automatic_block(N): N / 64, between 16 and 32.
   int preconditioner_block = 0;
   /// Chebyshev eigenvalue bounds; both 0 = estimate with a few Lanczos steps
   /// (see estimate_spectrum_bounds). Otherwise 0 < lambda_min < lambda_max.
