@@ -70,6 +70,7 @@ void run_bd_command(const BdArgs& args) {
         .add("steps_per_second", s.steps_per_second)
         .add("neighbour_rebuilds", static_cast<long long>(s.neighbour_rebuilds))
         .add("sqrt_iterations_per_step", s.mean_sqrt_iterations)
+        .add("preconditioner_blocks", s.preconditioner_blocks)
         .add("mobility_products_per_step", s.mean_mobility_products)
         .add("seconds", s.seconds)
         .add("out_dir", s.out_dir.string());
@@ -78,8 +79,11 @@ void run_bd_command(const BdArgs& args) {
     std::printf("%zu particles, steps %llu -> %llu in %.2f s (%.3g steps/s), %s mobility\n", s.particles,
                 static_cast<unsigned long long>(s.first_step), static_cast<unsigned long long>(s.last_step),
                 s.wall_seconds, s.steps_per_second, s.mobility.c_str());
-    std::printf("per step: %.1f Lanczos iterations, %.1f mobility products; %llu neighbour-list builds\n",
-                s.mean_sqrt_iterations, s.mean_mobility_products,
+    const std::string blocks = s.preconditioner_blocks > 0
+                                   ? " (block-preconditioned, " + std::to_string(s.preconditioner_blocks) + " blocks)"
+                                   : "";
+    std::printf("per step: %.1f Lanczos iterations%s, %.1f mobility products; %llu neighbour-list builds\n",
+                s.mean_sqrt_iterations, blocks.c_str(), s.mean_mobility_products,
                 static_cast<unsigned long long>(s.neighbour_rebuilds));
     std::printf("time:");
     for (const auto& [part, sec] : s.seconds) std::printf(" %s %.2fs", part.c_str(), sec);

@@ -80,6 +80,7 @@ const StepReport& Integrator::step() {
   totals_.seconds["drift"] += dn.seconds_drift;
   totals_.seconds["sqrt"] += dn.seconds_sqrt + noise_seconds;  // drawing z counts as Brownian work
   rep.sqrt_iterations = dn.sqrt.iterations;
+  rep.preconditioner_blocks = dn.sqrt.preconditioner_blocks;
   rep.mobility_products = dn.mobility_products;
   rep.shared_first_product = dn.shared_first_product;
   watch.restart();

@@ -180,6 +180,7 @@ RunSummary execute(const RunConfig& config, Start start, const RunOptions& optio
   const double steps = std::max<double>(1.0, static_cast<double>(t.steps));
   sum.mean_sqrt_iterations = static_cast<double>(t.sqrt_iterations) / steps;
   sum.mean_mobility_products = static_cast<double>(t.mobility_products) / steps;
+  sum.preconditioner_blocks = bd.last_report().preconditioner_blocks;
   sum.seconds = t.seconds;
   sum.seconds["output"] = output_seconds;
   return sum;

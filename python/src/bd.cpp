@@ -54,6 +54,7 @@ nb::dict summary_dict(const bd::RunSummary& s) {
   d["steps_per_second"] = s.steps_per_second;
   d["neighbour_rebuilds"] = s.neighbour_rebuilds;
   d["mean_sqrt_iterations"] = s.mean_sqrt_iterations;
+  d["preconditioner_blocks"] = s.preconditioner_blocks;
   d["mean_mobility_products"] = s.mean_mobility_products;
   d["seconds"] = s.seconds;
   d["out_dir"] = s.out_dir.string();
@@ -325,6 +326,7 @@ void bind_bd(nb::module_& m) {
 
   nb::class_<bd::StepReport>(m, "StepReport", "What one BD step did.")
       .def_ro("sqrt_iterations", &bd::StepReport::sqrt_iterations)
+      .def_ro("preconditioner_blocks", &bd::StepReport::preconditioner_blocks)
       .def_ro("mobility_products", &bd::StepReport::mobility_products)
       .def_ro("shared_first_product", &bd::StepReport::shared_first_product)
       .def_ro("neighbour_rebuild", &bd::StepReport::neighbour_rebuild)

@@ -138,3 +138,21 @@ def test_bd_with_hi_is_brownian():
     msd = rpyfmm.msd(np.stack([grid, sim.positions]))[-1]
     expected = 6 * d0 * sim.time
     assert abs(msd - expected) < 0.35 * expected  # 81 degrees of freedom: ~16% standard error
+
+
+def test_sampler_preconditioner_reported_and_selectable(tmp_path: Path):
+    """BD samples by block-preconditioned Lanczos by default (the report names its blocks);
+    sqrt_preconditioner='none' gives M^{1/2} z; both drift identically without noise."""
+    x = 2.5 * np.indices((4, 4, 4)).reshape(3, -1).T.astype(float)
+    runs = {}
+    for pre in ("auto", "none"):
+        sim = rpyfmm.Simulation(x, radius=1.0, dt=0.01, kT=1.0, seed=3, mobility="direct", sqrt_preconditioner=pre)
+        sim.run(2)
+        runs[pre] = (sim.last_report.preconditioner_blocks, sim.positions.copy())
+    assert runs["auto"][0] == 4 and runs["none"][0] == 0  # 64 particles, blocks of at most 16
+    assert not np.allclose(runs["auto"][1], runs["none"][1])  # a different (equally valid) noise
+    summary = rpyfmm.run_bd(CONFIG, steps=2, out_dir=str(tmp_path))
+    assert summary["preconditioner_blocks"] == 2  # 30 particles in the config's direct run
+    with pytest.raises(rpyfmm.Error, match="needs sqrt_method"):
+        rpyfmm.Simulation(x, radius=1.0, dt=0.01, mobility="direct", sqrt_method="chebyshev",
+                          sqrt_preconditioner="block")

@@ -48,6 +48,7 @@ struct IntegratorOptions {
 /// What one step did (and cumulative counters in Integrator::totals()).
 struct StepReport {
   int sqrt_iterations = 0;
+  std::size_t preconditioner_blocks = 0;  ///< blocks of the sampler's block preconditioner (0: none)
   int mobility_products = 0;
   bool shared_first_product = false;
   bool neighbour_rebuild = false;

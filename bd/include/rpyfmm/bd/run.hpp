@@ -31,9 +31,10 @@ struct RunSummary {
   double wall_seconds = 0.0;
   double steps_per_second = 0.0;
   std::uint64_t neighbour_rebuilds = 0;
-  double mean_sqrt_iterations = 0.0;    ///< per step
-  double mean_mobility_products = 0.0;  ///< per step
-  StageTimes seconds;                   ///< per part (see IntegratorTotals) + "output"
+  double mean_sqrt_iterations = 0.0;      ///< per step
+  double mean_mobility_products = 0.0;    ///< per step
+  std::size_t preconditioner_blocks = 0;  ///< the last step's block-preconditioner blocks (0: none)
+  StageTimes seconds;                     ///< per part (see IntegratorTotals) + "output"
   std::filesystem::path out_dir, trajectory, log, checkpoint;
 };
 
