@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
-#include <string>
 #include <vector>
 
 #include "rpyfmm/core/timer.hpp"
@@ -69,11 +68,8 @@ DriftNoiseReport drift_and_noise(const rpy::MobilityOperator& mobility, std::spa
   // Lanczos on A = M, or on A = G M G^T with the block preconditioner (w = G^{-1} A^{1/2} z;
   // rpyfmm/rpy/block_preconditioner.hpp). One block pass M [F, G^T z] gives the drift and the
   // first Krylov product A z (MATH.md §4: dx = M F dt + sqrt(2 kT dt) B z, B B^T = M).
-  require(options.preconditioner_block >= 0, ErrorCode::invalid_argument, "drift_and_noise",
-          "preconditioner_block must be >= 0 (0 = automatic), got " + std::to_string(options.preconditioner_block));
   std::optional<rpy::BlockPreconditioner> preconditioner;
-  if (options.preconditioner != rpy::SqrtPreconditioner::none)
-    preconditioner.emplace(mobility, static_cast<std::size_t>(options.preconditioner_block));
+  if (options.preconditioner != rpy::SqrtPreconditioner::none) preconditioner.emplace(mobility, options);
   std::vector<double> rhs(2 * n3), out(2 * n3);
   std::copy(forces.begin(), forces.end(), rhs.begin());
   std::copy(z.begin(), z.end(), rhs.begin() + static_cast<std::ptrdiff_t>(n3));

@@ -12,10 +12,8 @@ namespace rpyfmm::rpy {
 namespace {
 
 /// Whether the sampler in `options` (method already resolved) runs preconditioned; refuses the
-/// block preconditioner for methods other than Lanczos and a negative block size.
+/// block preconditioner for methods other than Lanczos.
 bool preconditioned(const SqrtOptions& options, const std::string& where) {
-  require(options.preconditioner_block >= 0, ErrorCode::invalid_argument, where,
-          "preconditioner_block must be >= 0 (0 = automatic), got " + std::to_string(options.preconditioner_block));
   if (options.preconditioner == SqrtPreconditioner::block) {
     require(options.method == SqrtMethod::lanczos, ErrorCode::invalid_argument, where,
             std::string("the block preconditioner serves the Lanczos sampler only, not ") + to_string(options.method));
@@ -130,7 +128,7 @@ SqrtReport MobilityOperator::do_apply_sqrt(std::span<const double> z, std::span<
     resolved.preconditioner = SqrtPreconditioner::none;  // `automatic` off Lanczos
     return sqrt_apply(as_linear_operator(), z, w, nrhs, resolved);
   }
-  const BlockPreconditioner preconditioner(*this, static_cast<std::size_t>(resolved.preconditioner_block));
+  const BlockPreconditioner preconditioner(*this, resolved);
   return preconditioner.sample(as_linear_operator(), z, w, nrhs, resolved);
 }
 

@@ -146,6 +146,17 @@ BlockPreconditioner::BlockPreconditioner(const MobilityOperator& mobility, std::
     : BlockPreconditioner(mobility.positions(), mobility.radii(), mobility.viscosity(), mobility.geometry(),
                           max_block == 0 ? automatic_block(mobility.size()) : max_block) {}
 
+namespace {
+std::size_t checked_block(const SqrtOptions& options) {
+  require(options.preconditioner_block >= 0, ErrorCode::invalid_argument, "BlockPreconditioner",
+          "preconditioner_block must be >= 0 (0 = automatic), got " + std::to_string(options.preconditioner_block));
+  return static_cast<std::size_t>(options.preconditioner_block);
+}
+}  // namespace
+
+BlockPreconditioner::BlockPreconditioner(const MobilityOperator& mobility, const SqrtOptions& options)
+    : BlockPreconditioner(mobility, checked_block(options)) {}
+
 void BlockPreconditioner::apply(Op op, double* x) const {
   const std::size_t nb = blocks();
 #pragma omp parallel

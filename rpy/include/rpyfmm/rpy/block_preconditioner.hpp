@@ -46,6 +46,9 @@ class BlockPreconditioner {
                       const Geometry& geometry, std::size_t max_block);
   /// From an operator's positions, radii, viscosity and geometry; max_block 0 = automatic_block(N).
   explicit BlockPreconditioner(const MobilityOperator& mobility, std::size_t max_block = 0);
+  /// The same with the block size of a sampler's options (options.preconditioner_block: >= 0,
+  /// else rpyfmm::Error; 0 = automatic).
+  BlockPreconditioner(const MobilityOperator& mobility, const SqrtOptions& options);
 
   /// x <- G x = L^{-1} x, one vector of 3N entries.
   void apply_g(double* x) const;
