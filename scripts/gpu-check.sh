@@ -3,7 +3,8 @@
 # (scripts/gpu-kit.sh builds it): the CPU-vs-GPU agreement tests of the CUDA PSE operator (host and
 # device arrays, stage times),
 # then the PSE Table I benchmark on the GPU at 8e3, 3.2e4, 2.5e5, 1e6 and 2e6 particles. Output goes to
-# $OUT (or ./gpu-out) as test_pse_cuda.txt and bench_pse_cuda.csv. Sized for a few
+# $OUT (or ./gpu-out) as test_pse_cuda.txt and bench_pse_cuda.csv (and sanitizer*.txt when
+# compute-sanitizer is there and time is left). Sized for a few
 # minutes of device time: pass fewer sizes as arguments to shorten it. Fails (non-zero exit) if
 # the tests fail or skip (RPYFMM_EXPECT_CUDA: no usable device is an error, not a skip), or if
 # the benchmark finds the GPU and CPU products apart by more than round-off (N <= 250000).
@@ -24,5 +25,18 @@ sizes=("$@")
 [ ${#sizes[@]} -gt 0 ] || sizes=(8000 32000 250000 1000000 2000000)
 timeout 420 gpu-kit/bench_pse --cuda "${sizes[@]}" 2>&1 | tee "$out/bench_pse_cuda.csv"
 bench_rc=${PIPESTATUS[0]}
+# If time is left and the machine has it: compute-sanitizer memcheck and racecheck on the smallest
+# CPU-vs-GPU test (kernel bounds and shared-memory races; informative, does not change the exit
+# status). Output: sanitizer.txt.
+sanitizer=$(command -v compute-sanitizer || ls /usr/local/cuda*/bin/compute-sanitizer 2>/dev/null | head -1 || true)
+if [ -n "$sanitizer" ] && [ "$SECONDS" -lt 420 ]; then
+  for tool in memcheck racecheck; do
+    RPYFMM_CUDA_SYNC=1 timeout 60 "$sanitizer" --tool "$tool" --error-exitcode 9 gpu-kit/test_pse \
+      --gtest_filter='PseCuda.SinglePrecisionGridsAgree' > "$out/sanitizer_$tool.txt" 2>&1
+    echo "gpu-check: compute-sanitizer $tool rc=$? (9: errors found, 124: timed out)" | tee -a "$out/sanitizer.txt"
+  done
+else
+  echo "gpu-check: compute-sanitizer skipped (not found or no time left)" | tee -a "$out/sanitizer.txt"
+fi
 echo "gpu-check: tests rc=$test_rc, benchmark rc=$bench_rc (124: timed out; 3: GPU and CPU differ)"
 [ "$test_rc" -eq 0 ] && [ "$bench_rc" -eq 0 ]

@@ -14,7 +14,7 @@
 // generator (rpy/random.hpp) keyed by (seed, step, particle): the same on any
 // thread count. --eps is the FMM operator's tolerance (default 1e-6); keep it
 // below --tol, since the square root cannot be more accurate than M. With --json, one line reports the iterations, the
-// error estimate and the number of operator products. --preconditioner block (Lanczos only) gives
+// error estimate and the number of operator products. --preconditioner block (Lanczos, Chebyshev) gives
 // w = B z with B B^T = M instead of M^{1/2} z, in fewer products (rpy/block_preconditioner.hpp).
 #include <CLI/CLI.hpp>
 #include <cstddef>
@@ -168,10 +168,10 @@ void run_sample(const SampleArgs& given, bool radius_given, bool seed_given) {
   options.preconditioner = rpy::sqrt_preconditioner_from_string(args.preconditioner == "auto" ? std::string("automatic")
                                                                                               : args.preconditioner);
   options.preconditioner_block = args.preconditioner_block;
-  const bool lanczos =
-      options.method == rpy::SqrtMethod::lanczos || (options.method == rpy::SqrtMethod::automatic && args.op != "pse");
-  require(options.preconditioner != rpy::SqrtPreconditioner::block || lanczos, ErrorCode::invalid_argument,
-          "--preconditioner", "block serves the Lanczos sampler only, not --method " + args.method);
+  const bool krylov = options.method == rpy::SqrtMethod::lanczos || options.method == rpy::SqrtMethod::chebyshev ||
+                      (options.method == rpy::SqrtMethod::automatic && args.op != "pse");
+  require(options.preconditioner != rpy::SqrtPreconditioner::block || krylov, ErrorCode::invalid_argument,
+          "--preconditioner", "block serves the Lanczos and Chebyshev samplers only, not --method " + args.method);
   const OperatorEntry& entry = find_operator(args.op);
   if (args.eps != 0.0) {
     require(entry.uses_eps, ErrorCode::invalid_argument, "--eps",
@@ -276,7 +276,7 @@ void register_sample(CLI::App& app) {
   cmd->add_option("--device", args->device, "pse operator: cpu, or cuda (on a GPU, in a build with CUDA)")
       ->capture_default_str();
   cmd->add_option("--preconditioner", args->preconditioner,
-                  "Lanczos: none (w = M^{1/2} z), block (w = B z, B B^T = M, fewer products) or auto")
+                  "Lanczos/Chebyshev: none (w = M^{1/2} z), block (w = B z, B B^T = M, fewer products) or auto")
       ->capture_default_str();
   cmd->add_option("--preconditioner-block", args->preconditioner_block,
                   "particles per block of the block preconditioner (0 = automatic)")

@@ -351,8 +351,10 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
     }
     c.integrator.sqrt.preconditioner_block = static_cast<int>(s.count("sqrt_preconditioner_block", 0));
     if (c.integrator.sqrt.preconditioner == rpy::SqrtPreconditioner::block &&
-        c.integrator.sqrt.method != rpy::SqrtMethod::lanczos && c.integrator.sqrt.method != rpy::SqrtMethod::automatic)
-      bad_key("mobility.sqrt_preconditioner", "block needs sqrt_method lanczos or automatic");
+        c.integrator.sqrt.method != rpy::SqrtMethod::lanczos &&
+        c.integrator.sqrt.method != rpy::SqrtMethod::chebyshev &&
+        c.integrator.sqrt.method != rpy::SqrtMethod::automatic)
+      bad_key("mobility.sqrt_preconditioner", "block needs sqrt_method lanczos, chebyshev or automatic");
     s.finish();
   }
   {  // [neighbours]

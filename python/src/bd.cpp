@@ -191,8 +191,9 @@ class Simulation {
     o.sqrt.tolerance = sqrt_tol;
     o.sqrt.preconditioner = sqrt_preconditioner_from(sqrt_preconditioner);
     if (o.sqrt.preconditioner == rpy::SqrtPreconditioner::block && o.sqrt.method != rpy::SqrtMethod::lanczos &&
-        o.sqrt.method != rpy::SqrtMethod::automatic)
-      fail(ErrorCode::invalid_argument, where, "sqrt_preconditioner 'block' needs sqrt_method 'lanczos' or 'auto'");
+        o.sqrt.method != rpy::SqrtMethod::chebyshev && o.sqrt.method != rpy::SqrtMethod::automatic)
+      fail(ErrorCode::invalid_argument, where,
+           "sqrt_preconditioner 'block' needs sqrt_method 'lanczos', 'chebyshev' or 'auto'");
     o.max_displacement = max_displacement;
     bd::NeighbourOptions neighbours;
     integrator_ = std::make_unique<bd::Integrator>(bd::make_mobility(spec, n), std::move(forces), o,
@@ -348,7 +349,7 @@ void bind_bd(nb::module_& m) {
            "positions: (N, 3) (length units, copied); radius: a number or (N,) radii; dt: time step; kT: thermal\n"
            "energy; mobility: 'none', 'direct', 'fmm', 'pse', 'auto'; box: None, L or (Lx, Ly, Lz);\n"
            "tolerance: of the fmm/pse product; sqrt_method/sqrt_tol: Brownian square root;\n"
-           "sqrt_preconditioner: 'auto' (block-preconditioned Lanczos for direct/fmm), 'block' or 'none';\n"
+           "sqrt_preconditioner: 'auto' (block-preconditioned Krylov, direct/fmm), 'block' or 'none';\n"
            "max_displacement: blow-up guard in radii per step; external_force: (3,) force on every particle;\n"
            "force: callable f(positions, step, forces) adding into forces (N, 3) in place and/or returning an\n"
            "array to add (energy/length); pair: None, 'wca', 'lj36_18', 'soft' or a dict of PairPotential fields;\n"

@@ -135,9 +135,10 @@ const char* kSqrtDoc =
     "'cholesky' (L z with L L^T = M), 'eigen' (dense principal root), 'split' (PSE only).\n"
     "tol: relative tolerance in (0, 1); max_iterations: 0 = automatic; lambda_min/lambda_max: Chebyshev\n"
     "bounds (both 0 = estimated). w has units of sqrt(mobility) times z's units.\n"
-    "preconditioner: 'none' (w = M^{1/2} z), 'block' (Lanczos only: w = B z with B B^T = M, the same\n"
-    "covariance in 1.7-2.6x fewer products; spatial blocks of at most preconditioner_block particles,\n"
-    "0 = N/64 in [16, 32]) or 'auto' (block where the method is Lanczos, else none).";
+    "preconditioner: 'none' (w = M^{1/2} z), 'block' (Lanczos and Chebyshev: w = B z with B B^T = M, the\n"
+    "same covariance in fewer products; spatial blocks of at most preconditioner_block particles,\n"
+    "0 = N/64 in [16, 32]; given Chebyshev bounds must then bound G M G^T) or 'auto' (block for Lanczos\n"
+    "and for Chebyshev with estimated bounds, else none).";
 
 }  // namespace
 

@@ -11,14 +11,25 @@
 namespace rpyfmm::rpy {
 namespace {
 
-/// Whether the sampler in `options` (method already resolved) runs preconditioned; refuses the
-/// block preconditioner for methods other than Lanczos.
+/// Whether the sampler in `options` (method already resolved) runs preconditioned. `block` serves
+/// the Krylov samplers, Lanczos and Chebyshev, and is refused for the dense methods. `automatic`
+/// means block for Lanczos, and for Chebyshev when its eigenvalue bounds are to be estimated
+/// (bounds given in the options are M's, not those of the preconditioned G M G^T).
 bool preconditioned(const SqrtOptions& options, const std::string& where) {
-  if (options.preconditioner == SqrtPreconditioner::block) {
-    require(options.method == SqrtMethod::lanczos, ErrorCode::invalid_argument, where,
-            std::string("the block preconditioner serves the Lanczos sampler only, not ") + to_string(options.method));
+  const bool lanczos = options.method == SqrtMethod::lanczos;
+  const bool chebyshev = options.method == SqrtMethod::chebyshev;
+  switch (options.preconditioner) {
+    case SqrtPreconditioner::none:
+      return false;
+    case SqrtPreconditioner::block:
+      require(lanczos || chebyshev, ErrorCode::invalid_argument, where,
+              std::string("the block preconditioner serves the Lanczos and Chebyshev samplers only, not ") +
+                  to_string(options.method));
+      return true;
+    case SqrtPreconditioner::automatic:
+      return lanczos || (chebyshev && options.lambda_min == 0.0 && options.lambda_max == 0.0);
   }
-  return options.method == SqrtMethod::lanczos && options.preconditioner != SqrtPreconditioner::none;
+  return false;
 }
 
 }  // namespace
@@ -125,7 +136,7 @@ SqrtReport MobilityOperator::do_apply_sqrt(std::span<const double> z, std::span<
   SqrtOptions resolved = options;
   if (resolved.method == SqrtMethod::automatic) resolved.method = SqrtMethod::lanczos;
   if (!preconditioned(resolved, where_ + "::apply_sqrt")) {
-    resolved.preconditioner = SqrtPreconditioner::none;  // `automatic` off Lanczos
+    resolved.preconditioner = SqrtPreconditioner::none;  // `automatic` where it does not apply
     return sqrt_apply(as_linear_operator(), z, w, nrhs, resolved);
   }
   const BlockPreconditioner preconditioner(*this, resolved);

@@ -107,7 +107,7 @@ TEST(BdConfig, EveryBadConfigNamesTheKey) {
   expect_error(replace(kBase, "[mobility]", "[mobility]\ndevice = \"gpu\""), "mobility.device");
   expect_error(replace(kBase, "[mobility]", "[mobility]\nsqrt_preconditioner = \"jacobi\""),
                "mobility.sqrt_preconditioner");
-  expect_error(replace(kBase, "[mobility]", "[mobility]\nsqrt_preconditioner = \"block\"\nsqrt_method = \"chebyshev\""),
+  expect_error(replace(kBase, "[mobility]", "[mobility]\nsqrt_preconditioner = \"block\"\nsqrt_method = \"eigen\""),
                "mobility.sqrt_preconditioner");
   expect_error(replace(kBase, "[mobility]", "[mobility]\nsqrt_preconditioner_block = -4"),
                "mobility.sqrt_preconditioner_block");

@@ -154,5 +154,8 @@ def test_sampler_preconditioner_reported_and_selectable(tmp_path: Path):
     summary = rpyfmm.run_bd(CONFIG, steps=2, out_dir=str(tmp_path))
     assert summary["preconditioner_blocks"] == 2  # 30 particles in the config's direct run
     with pytest.raises(rpyfmm.Error, match="needs sqrt_method"):
-        rpyfmm.Simulation(x, radius=1.0, dt=0.01, mobility="direct", sqrt_method="chebyshev",
+        rpyfmm.Simulation(x, radius=1.0, dt=0.01, mobility="direct", sqrt_method="eigen",
                           sqrt_preconditioner="block")
+    sim = rpyfmm.Simulation(x, radius=1.0, dt=0.01, kT=1.0, seed=3, mobility="direct", sqrt_method="chebyshev")
+    sim.run(1)
+    assert sim.last_report.preconditioner_blocks == 4  # 'auto' preconditions Chebyshev too

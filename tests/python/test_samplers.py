@@ -86,8 +86,11 @@ def test_block_preconditioned_sampler():
     assert rep.iterations < plain.iterations
     _, rep = op.apply_sqrt(z, method="eigen", preconditioner="auto")  # 'auto' off Lanczos: none
     assert rep.preconditioner_blocks == 0
-    with pytest.raises(rpyfmm.Error, match="Lanczos sampler only"):
-        op.apply_sqrt(z, method="chebyshev", preconditioner="block")
+    _, cheb = op.apply_sqrt(z, method="chebyshev", tol=1e-6)
+    _, pcheb = op.apply_sqrt(z, method="chebyshev", tol=1e-6, preconditioner="auto")
+    assert pcheb.preconditioner_blocks > 0 and pcheb.iterations < cheb.iterations
+    with pytest.raises(rpyfmm.Error, match="Lanczos and Chebyshev samplers only"):
+        op.apply_sqrt(z, method="cholesky", preconditioner="block")
     with pytest.raises(rpyfmm.Error, match="unknown preconditioner"):
         op.apply_sqrt(z, preconditioner="jacobi")
 

@@ -1,4 +1,4 @@
-// The block preconditioner of the Lanczos sampler (rpyfmm/rpy/block_preconditioner.hpp):
+// The block preconditioner of the Krylov samplers (rpyfmm/rpy/block_preconditioner.hpp):
 // G = L^{-1} against the dense RPY matrix, the preconditioned sample w = G^{-1} (G M G^T)^{1/2} z
 // against the same formula evaluated densely (eigendecomposition), its covariance B B^T = M, the
 // fallback for coincident particles, and the FMM and periodic (PSE) operators behind it. The
@@ -52,6 +52,26 @@ double relative_error(const std::vector<double>& w, const Eigen::VectorXd& ref) 
   return (Eigen::Map<const Eigen::VectorXd>(w.data(), ref.size()) - ref).norm() / ref.norm();
 }
 
+/// 400 particles of mixed radii (phi 0.1) behind a DirectRpy, its dense matrix M, blocks of at
+/// most 48 particles, their dense G and sampler B = G^{-1} (G M G^T)^{1/2}.
+class BlockPreconditionerSuspension : public ::testing::Test {
+ protected:
+  static constexpr std::size_t N = 400;
+  static DirectRpy& placed(DirectRpy& op) {
+    op.set_positions(sqrt_test::random_points(N, 0.1, 71u), sqrt_test::radii(N, false, 72u));
+    return op;
+  }
+  /// B z for the noise z.
+  [[nodiscard]] Eigen::VectorXd sampled(const std::vector<double>& z) const {
+    return B * Eigen::Map<const Eigen::VectorXd>(z.data(), M.rows());
+  }
+  DirectRpy op{Geometry::open(), 1.0};  // members initialize in this order
+  BlockPreconditioner p{placed(op), 48};
+  Eigen::MatrixXd M{sqrt_test::dense_of(op)};
+  Eigen::MatrixXd G{dense_map(p, Which::g)};
+  Eigen::MatrixXd B{dense_sampler(M, G)};
+};
+
 }  // namespace
 
 // G = L^{-1} with L L^T the block diagonal of M: the particles' 3x3 diagonal blocks of
@@ -87,18 +107,10 @@ TEST(BlockPreconditioner, WhitensTheBlockDiagonal) {
 // The preconditioned Lanczos sample through MobilityOperator::apply_sqrt equals B z to the
 // sampler's usual accuracy (<= 10 tol, as for M^{1/2} z: sqrt.hpp), for tolerances 1e-2 ... 1e-8,
 // and needs fewer products than Lanczos on M itself (the reason for the preconditioner).
-TEST(BlockPreconditioner, SampleMatchesDenseReferenceInFewerProducts) {
-  const std::size_t N = 400;
-  const auto x = sqrt_test::random_points(N, 0.1, 71u);
-  const auto a = sqrt_test::radii(N, false, 72u);
-  DirectRpy op(Geometry::open(), 1.0);
-  op.set_positions(x, a);
-  const Eigen::MatrixXd M = sqrt_test::dense_of(op);
-  const BlockPreconditioner p(op, 48);
-  const Eigen::MatrixXd B = dense_sampler(M, dense_map(p, Which::g));
+TEST_F(BlockPreconditionerSuspension, SampleMatchesDenseReferenceInFewerProducts) {
   std::vector<double> z(3 * N), w(3 * N);
   fill_normal(z, 5u, 0u);
-  const Eigen::VectorXd ref = B * Eigen::Map<const Eigen::VectorXd>(z.data(), M.rows());
+  const Eigen::VectorXd ref = sampled(z);
   for (double tol : {1e-2, 1e-4, 1e-6, 1e-8}) {
     SqrtOptions opt{.tolerance = tol, .preconditioner = SqrtPreconditioner::block, .preconditioner_block = 48};
     const SqrtReport rep = op.apply_sqrt(z, w, opt);
@@ -132,6 +144,48 @@ TEST(BlockPreconditioner, SampleMatchesDenseReferenceInFewerProducts) {
     const Eigen::VectorXd one = Eigen::Map<const Eigen::VectorXd>(w1.data(), 3 * static_cast<Eigen::Index>(N));
     EXPECT_LE(relative_error(std::vector<double>(w2.begin() + 3 * N * r, w2.begin() + 3 * N * (r + 1)), one), 1e-5);
   }
+}
+
+// The preconditioned Chebyshev sampler equals B z within its bound (the relative error is <= tol when
+// the bounds enclose the spectrum of A = G M G^T: chebyshev.cpp; 2 tol allows for the padded
+// estimate), with bounds estimated on A or given; its degree falls with A's condition number
+// (degree ~ sqrt(kappa) log(1/tol): at least 2x lower here, where kappa(M) / kappa(A) ~ 6).
+// `automatic` preconditions it only when the bounds are estimated: given bounds are M's.
+TEST_F(BlockPreconditionerSuspension, ChebyshevSamplerOnThePreconditionedOperator) {
+  std::vector<double> z(3 * N), w(3 * N);
+  fill_normal(z, 9u, 0u);
+  const Eigen::VectorXd ref = sampled(z);
+  const Eigen::VectorXd evA = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(G * M * G.transpose()).eigenvalues();
+  const Eigen::VectorXd evM = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(M).eigenvalues();
+  for (double tol : {1e-2, 1e-4, 1e-6}) {
+    SqrtOptions opt{.method = SqrtMethod::chebyshev,
+                    .tolerance = tol,
+                    .preconditioner = SqrtPreconditioner::block,
+                    .preconditioner_block = 48};
+    const SqrtReport rep = op.apply_sqrt(z, w, opt);
+    EXPECT_EQ(rep.method, SqrtMethod::chebyshev);
+    EXPECT_EQ(rep.preconditioner_blocks, p.blocks());
+    EXPECT_LE(rep.lambda_min, evA(0)) << tol;  // the estimated bounds enclose A's spectrum
+    EXPECT_GE(rep.lambda_max, evA(evA.size() - 1)) << tol;
+    EXPECT_LE(relative_error(w, ref), 2 * tol) << tol;
+    const SqrtReport plain = op.apply_sqrt(z, w, SqrtOptions{.method = SqrtMethod::chebyshev, .tolerance = tol});
+    EXPECT_LE(2 * rep.iterations, plain.iterations) << tol;
+    // Exact bounds of A, given: the same sample within tol.
+    opt.lambda_min = evA(0);
+    opt.lambda_max = evA(evA.size() - 1);
+    EXPECT_EQ(op.apply_sqrt(z, w, opt).lambda_min, evA(0));
+    EXPECT_LE(relative_error(w, ref), tol) << tol;
+  }
+  // `automatic` with estimated bounds: preconditioned; with given bounds (M's): not.
+  SqrtOptions automatic{
+      .method = SqrtMethod::chebyshev, .tolerance = 1e-6, .preconditioner = SqrtPreconditioner::automatic};
+  EXPECT_EQ(op.apply_sqrt(z, w, automatic).preconditioner_blocks, 32u);
+  automatic.lambda_min = evM(0);
+  automatic.lambda_max = evM(evM.size() - 1);
+  EXPECT_EQ(op.apply_sqrt(z, w, automatic).preconditioner_blocks, 0u);
+  const Eigen::VectorXd principal =
+      sqrt_test::principal_sqrt(M) * Eigen::Map<const Eigen::VectorXd>(z.data(), M.rows());
+  EXPECT_LE(relative_error(w, principal), 1e-6);
 }
 
 // Coincident particles make their block of M singular: that block keeps its diagonal, G stays
@@ -232,8 +286,8 @@ TEST(BlockPreconditioner, BadInput) {
   expect_error([&] { sqrt_apply(op.as_linear_operator(), z, w, 1, block); }, "needs the particles");
   SqrtOptions automatic{.preconditioner = SqrtPreconditioner::automatic};
   EXPECT_NO_THROW(sqrt_apply(op.as_linear_operator(), z, w, 1, automatic));  // falls back to none
-  block.method = SqrtMethod::chebyshev;
-  expect_error([&] { op.apply_sqrt(z, w, block); }, "Lanczos sampler only, not chebyshev");
+  block.method = SqrtMethod::cholesky;
+  expect_error([&] { op.apply_sqrt(z, w, block); }, "Lanczos and Chebyshev samplers only, not cholesky");
   block = {.preconditioner = SqrtPreconditioner::block, .preconditioner_block = -1};
   expect_error([&] { op.apply_sqrt(z, w, block); }, "preconditioner_block must be >= 0");
   expect_error([] { sqrt_preconditioner_from_string("jacobi"); }, "unknown preconditioner 'jacobi'");

@@ -174,22 +174,26 @@ TEST_F(SampleCli, PseSplitSamplerMatchesLibrary) {
 
 // --preconditioner block: the library's preconditioned sampler (B z, B B^T = M) on the same noise.
 TEST_F(SampleCli, BlockPreconditionerMatchesLibrary) {
-  const CliResult r = run_cli("--positions " + xp.string() +
-                              " --radius 1 --seed 6 --tol 1e-6 --preconditioner block "
-                              "--preconditioner-block 16 --out " +
-                              out.string() + " --json");
-  ASSERT_EQ(r.rc, 0) << r.err;
-  std::vector<double> z(3 * N), w(3 * N);
-  fill_normal(z, 6u, 0u);
-  DirectRpy op(rpyfmm::rpy::Geometry::open(), 1.0);
-  op.set_positions(x, 1.0);
-  const SqrtReport rep = op.apply_sqrt(
-      z, w, SqrtOptions{.tolerance = 1e-6, .preconditioner = SqrtPreconditioner::block, .preconditioner_block = 16});
-  EXPECT_NE(r.out.find("\"preconditioner_blocks\":" + std::to_string(rep.preconditioner_blocks)), std::string::npos)
-      << r.out;
-  EXPECT_GT(rep.preconditioner_blocks, 1u);
-  std::vector<std::size_t> shape;
-  EXPECT_LE(max_rel_diff(read_npy(out, shape), w), 1e-12);
+  for (const SqrtMethod method : {SqrtMethod::lanczos, SqrtMethod::chebyshev}) {
+    const CliResult r =
+        run_cli("--positions " + xp.string() + " --radius 1 --seed 6 --tol 1e-6 --method " + to_string(method) +
+                " --preconditioner block --preconditioner-block 16 --out " + out.string() + " --json");
+    ASSERT_EQ(r.rc, 0) << r.err;
+    std::vector<double> z(3 * N), w(3 * N);
+    fill_normal(z, 6u, 0u);
+    DirectRpy op(rpyfmm::rpy::Geometry::open(), 1.0);
+    op.set_positions(x, 1.0);
+    const SqrtReport rep = op.apply_sqrt(z, w,
+                                         SqrtOptions{.method = method,
+                                                     .tolerance = 1e-6,
+                                                     .preconditioner = SqrtPreconditioner::block,
+                                                     .preconditioner_block = 16});
+    EXPECT_NE(r.out.find("\"preconditioner_blocks\":" + std::to_string(rep.preconditioner_blocks)), std::string::npos)
+        << r.out;
+    EXPECT_GT(rep.preconditioner_blocks, 1u);
+    std::vector<std::size_t> shape;
+    EXPECT_LE(max_rel_diff(read_npy(out, shape), w), 1e-12) << to_string(method);
+  }
 }
 
 TEST_F(SampleCli, BadInputExitTwoNoOutput) {
@@ -218,7 +222,7 @@ TEST_F(SampleCli, BadInputExitTwoNoOutput) {
            {base, "exactly one of --radius"},
            {base + "--radius 1 --max-iterations -2", "max-iterations"},
            {base + "--radius 1 --preconditioner jacobi", "--preconditioner"},
-           {base + "--radius 1 --preconditioner block --method chebyshev", "Lanczos sampler only"},
+           {base + "--radius 1 --preconditioner block --method eigen", "Lanczos and Chebyshev samplers only"},
            {base + "--radius 1 --preconditioner-block -3", "--preconditioner-block"},
            {base + "--radius 1 --box 50", "--operator pse"},
            {base + "--radius 1 --operator pse", "--box"},
@@ -229,8 +233,7 @@ TEST_F(SampleCli, BadInputExitTwoNoOutput) {
            {base + "--radius 1 --method pse --box 60 --device gpu", "--device"},
            {base + "--radius 1 --device cuda", "pse operator only"},
            {"--positions " + xn.string() + " --radius 1 --out " + out.string(), "NaN"},
-           {"--positions " + (scratch() / "missing.txt").string() + " --radius 1 --out " + out.string(),
-            "missing.txt"},
+           {"--positions " + (scratch() / "missing.txt").string() + " --radius 1 --out " + out.string(), "missing.txt"},
        }) {
     const CliResult r = run_cli(b.args);
     EXPECT_EQ(r.rc, 2) << b.args;

@@ -188,7 +188,7 @@ SqrtReport PseRpy::do_apply_sqrt(std::span<const double> z, std::span<double> w,
     return MobilityOperator::do_apply_sqrt(z, w, nrhs, options);  // generic solvers on the full M
   }
   require(options.preconditioner != SqrtPreconditioner::block, ErrorCode::invalid_argument, "PseRpy::apply_sqrt",
-          "the block preconditioner serves the Lanczos sampler only, not the split sampler");
+          "the block preconditioner serves the Lanczos and Chebyshev samplers only, not the split sampler");
   auto& im = *impl_;
   SqrtReport rep = im.real_sqrt(z, w, nrhs);
   const std::size_t n3 = 3 * size();

@@ -965,7 +965,7 @@ SqrtReport PseRpyCuda::do_apply_sqrt(std::span<const double> z, std::span<double
     return MobilityOperator::do_apply_sqrt(z, w, nrhs, options);
   }
   require(options.preconditioner != SqrtPreconditioner::block, ErrorCode::invalid_argument, "PseRpyCuda::apply_sqrt",
-          "the block preconditioner serves the Lanczos sampler only, not the split sampler");
+          "the block preconditioner serves the Lanczos and Chebyshev samplers only, not the split sampler");
   auto& im = *impl_;
   const std::size_t n3 = 3 * size();
   SqrtReport rep;

@@ -43,13 +43,14 @@ enum class SqrtMethod {
 const char* to_string(SqrtMethod method);
 SqrtMethod sqrt_method_from_string(const std::string& name);  // throws rpyfmm::Error naming the value
 
-/// Preconditioning of the Lanczos sampler of a mobility operator (rpyfmm/rpy/block_preconditioner.hpp).
+/// Preconditioning of the Krylov samplers (Lanczos, Chebyshev) of a mobility operator
+/// (rpyfmm/rpy/block_preconditioner.hpp).
 enum class SqrtPreconditioner {
   none,       ///< w = M^{1/2} z, the principal square root
   block,      ///< w = L (L^{-1} M L^{-T})^{1/2} z with L L^T = M's block diagonal over spatial blocks
               ///< of nearby particles: the same covariance M (w w^T averages to M), fewer products
-  automatic,  ///< `block` where the sampler is Lanczos on a mobility operator, `none` otherwise
-              ///< (the BD engine's default)
+  automatic,  ///< `block` where the sampler is Lanczos, or Chebyshev with estimated bounds, on a
+              ///< mobility operator; `none` otherwise (the BD engine's default)
 };
 
 const char* to_string(SqrtPreconditioner preconditioner);
@@ -81,17 +82,20 @@ struct SqrtOptions {
   /// rpyfmm::Error (numerical_failure) if true; otherwise return the last
   /// iterate with report.converged = false.
   bool throw_if_not_converged = true;
-  /// Lanczos only, and only through a MobilityOperator (it needs the particles): `block` draws a
-  /// different but equally valid displacement, B z with B B^T = M, in 1.7-2.6x fewer products
-  /// than M^{1/2} z (bench/sqrt/RESULTS.md "Block preconditioner"). With `block`, a method other
-  /// than lanczos (or automatic resolving to it) is an error; `automatic` quietly falls back to
-  /// none there (PSE's split sampler, Chebyshev, the dense methods, sqrt_apply on a bare operator).
+  /// Lanczos and Chebyshev only, and only through a MobilityOperator (it needs the particles):
+  /// `block` draws a different but equally valid displacement, B z with B B^T = M, in 1.7-2.6x
+  /// fewer products than M^{1/2} z with Lanczos (bench/sqrt/RESULTS.md "Block preconditioner").
+  /// With `block`, another method (PSE's split sampler, the dense methods) is an error; `automatic`
+  /// quietly falls back to none there, for Chebyshev with given bounds and for sqrt_apply on a
+  /// bare operator. Chebyshev with `block` works on A = G M G^T: lambda_min / lambda_max, if
+  /// given, must bound A's spectrum (estimate_spectrum_bounds(BlockPreconditioner::precondition(..))).
   SqrtPreconditioner preconditioner = SqrtPreconditioner::none;
   /// Particles per block of the `block` preconditioner (at most; blocks hold half to all of
   /// it); 0 = BlockPreconditioner::automatic_block(N): N / 64, between 16 and 32.
   int preconditioner_block = 0;
   /// Chebyshev eigenvalue bounds; both 0 = estimate with a few Lanczos steps
-  /// (see estimate_spectrum_bounds). Otherwise 0 < lambda_min < lambda_max.
+  /// (see estimate_spectrum_bounds). Otherwise 0 < lambda_min < lambda_max: bounds of M, or of
+  /// G M G^T with the `block` preconditioner.
   double lambda_min = 0.0;
   double lambda_max = 0.0;
   /// Lanczos steps used to estimate the Chebyshev bounds (when not given).
@@ -106,7 +110,8 @@ struct SqrtReport {
   long long vector_products = 0;              ///< products M x summed over right-hand sides
   bool converged = true;                      ///< false only when throw_if_not_converged = false and it did not
   bool breakdown = false;                     ///< Lanczos found an invariant subspace (result exact)
-  double lambda_min = 0.0;                    ///< Chebyshev: bounds used (estimated or given)
+  double lambda_min = 0.0;                    ///< Chebyshev: bounds used (estimated or given; of G M G^T
+                                              ///< when preconditioned)
   double lambda_max = 0.0;
   std::size_t preconditioner_blocks = 0;  ///< blocks of the `block` preconditioner (0: none used)
 };

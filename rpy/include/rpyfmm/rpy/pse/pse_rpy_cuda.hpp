@@ -9,7 +9,8 @@
 // PseOptions::wave_precision as on the CPU (automatic: single precision for tolerances
 // >= 1e-5, cuFFT R2C / C2R and float atomics; double: D2Z / Z2D): with double grids both
 // back ends agree to ~1e-12, with single grids to float round-off (~1e-7 relative, far
-// below the tolerance). Plain C++ header (pimpl): no CUDA types leak.
+// below the tolerance; there the CPU also rounds its real-space pair cache to float, while the
+// device keeps the real-space blocks in double). Plain C++ header (pimpl): no CUDA types leak.
 //
 // Built when RPYFMM_USE_CUDA is on (then RPYFMM_HAVE_CUDA_PSE is defined);
 // otherwise the constructor throws ErrorCode::not_supported and
@@ -22,8 +23,11 @@
 // PseCudaOptions::device_cell_list the GPU radix sort's); a product uploads its forces once
 // and downloads its velocities once (host arrays in and out), and the split sampler's
 // real-space Lanczos iterates on device vectors (only its small Ritz problem is on the host),
-// so only the result crosses the bus. All work runs on the legacy default stream: callers that
-// write the device arrays of apply_device / sample_device on other streams synchronise first.
+// so only the result crosses the bus. The Lanczos basis stays allocated for the operator's
+// lifetime (at most the iterations of the longest sample, 3N doubles each: ~1 GB for 50
+// iterations at N = 1e6) and is not counted in the planning memory check. All work runs on
+// the legacy default stream: callers that write the device arrays of apply_device /
+// sample_device on other streams synchronise first.
 #pragma once
 
 #include <cstdint>
