@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
   rpyfmm::cli::register_mobility(app);
   rpyfmm::cli::register_sample(app);
   rpyfmm::cli::register_bd(app);
+  rpyfmm::cli::register_rigid(app);
   try {
     app.parse(argc, argv);
     if (app.get_subcommands().empty()) {

@@ -4,7 +4,8 @@ The Laplace FMM (:class:`LaplaceFmm`, :func:`laplace_direct`), the RPY mobility
 operators behind one interface (:class:`DirectRpy`, :class:`FmmRpy`,
 :class:`PseRpy`, :class:`FreeDraining`, :func:`make_mobility`), the Brownian
 samplers (``apply_sqrt``, :func:`sqrt_apply`, :func:`normal_noise`,
-:class:`SqrtReport`) and Brownian dynamics (:func:`run_bd`,
+:class:`SqrtReport`), rigid bodies of beads (:class:`RigidBodies`,
+:func:`icosphere_beads`) and Brownian dynamics (:func:`run_bd`,
 :class:`Simulation` with Python force callbacks).
 
 Arrays: positions/forces/velocities are (N, 3) or (3N,), results come back in
@@ -40,6 +41,8 @@ from ._rpyfmm import (
     NumericalFailureError,
     OutOfMemoryError,
     PseRpy,
+    RigidBodies,
+    RigidBodyReport,
     RunConfig,
     Simulation,
     SpectrumBounds,
@@ -53,6 +56,8 @@ from ._rpyfmm import (
     fit_leaf_grid,
     fmm_default_leaf_capacity,
     get_num_threads,
+    icosphere_bead_radius,
+    icosphere_beads,
     laplace_direct,
     load_config,
     make_mobility,
@@ -84,6 +89,8 @@ __all__ = [
     "NumericalFailureError",
     "OutOfMemoryError",
     "PseRpy",
+    "RigidBodies",
+    "RigidBodyReport",
     "RunConfig",
     "Simulation",
     "SpectrumBounds",
@@ -97,6 +104,8 @@ __all__ = [
     "fit_leaf_grid",
     "fmm_default_leaf_capacity",
     "get_num_threads",
+    "icosphere_bead_radius",
+    "icosphere_beads",
     "laplace_direct",
     "load_config",
     "make_mobility",

@@ -129,6 +129,7 @@ void bind_fmm(nb::module_& m);
 void bind_mobility(nb::module_& m);
 void bind_samplers(nb::module_& m);
 void bind_bd(nb::module_& m);
+void bind_rigid(nb::module_& m);
 
 }  // namespace rpyfmm::python
 

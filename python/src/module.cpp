@@ -2,8 +2,9 @@
 //
 // One file per area: arrays.cpp (conversions), errors.cpp, fmm.cpp (Laplace
 // FMM and direct sums), mobility.cpp (the mobility operators), samplers.cpp
-// (square roots, noise, reports), bd.cpp (Brownian dynamics). The package
-// `rpyfmm` (python/rpyfmm/__init__.py) re-exports everything.
+// (square roots, noise, reports), bd.cpp (Brownian dynamics), rigid.cpp (rigid
+// bodies of beads). The package `rpyfmm` (python/rpyfmm/__init__.py) re-exports
+// everything.
 #include <omp.h>
 
 #include <cstdint>
@@ -45,4 +46,5 @@ NB_MODULE(_rpyfmm, m) {
   bind_mobility(m);
   bind_samplers(m);
   bind_bd(m);
+  bind_rigid(m);
 }

@@ -19,6 +19,7 @@
 #include "rpyfmm/fmm/direct.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
+#include "rpyfmm/rpy/rigid_bodies.hpp"
 
 namespace fs = std::filesystem;
 
@@ -377,4 +378,97 @@ TEST_F(Cli, MobilityBadInput) {
   expect_failure("mobility" + F + " --radius 1" + O, "--positions", "u.npy");
   expect_failure(good + " --radius 1", "--out", "u.npy");
   expect_failure(good + " --radius 1 --threads -3" + O, "threads", "u.npy");
+}
+
+namespace {
+/// Two bead-shell spheres (42 beads, radius 2) and a tetrahedron of 4 beads, body after body.
+struct RigidCase {
+  std::vector<double> x;
+  std::vector<std::size_t> offsets{0};
+  double radius = 0.0;
+};
+RigidCase rigid_case() {
+  RigidCase c;
+  const std::vector<double> shell = rpyfmm::rpy::icosphere_beads(1);
+  c.radius = 2.0 * rpyfmm::rpy::icosphere_bead_radius(1);
+  for (double shift : {0.0, 7.0}) {
+    for (std::size_t i = 0; i < shell.size(); ++i) c.x.push_back(2.0 * shell[i] + (i % 3 == 0 ? shift : 0.0));
+    c.offsets.push_back(c.x.size() / 3);
+  }
+  for (double v : {0.0, 9.0, 0.0, 2.0, 9.0, 0.0, 1.0, 10.7, 0.0, 1.0, 9.6, 1.6}) c.x.push_back(v);
+  c.offsets.push_back(c.x.size() / 3);
+  return c;
+}
+}  // namespace
+
+// `rpyfmm rigid` gives the library's body velocities and bead forces (same solver and options).
+TEST_F(Cli, RigidMatchesLibrary) {
+  const RigidCase c = rigid_case();
+  const std::size_t n = c.x.size() / 3, m = 3;
+  const auto ft = random_vec(6 * m, 12, -1, 1);
+  write_npy(path("x.npy"), {n, 3}, c.x);
+  write_npy(path("ft.npy"), {m, 6}, ft);
+  {
+    std::ofstream sizes(path("sizes.txt"));
+    sizes << "42\n42\n4\n";
+  }
+  const Result r =
+      run("rigid --positions " + path("x.npy") + " --radius " + std::to_string(c.radius) + " --body-sizes " +
+          path("sizes.txt") + " --forces " + path("ft.npy") + " --viscosity 1.5 --tol 1e-10 --out " + path("uw.npy") +
+          " --bead-forces " + path("lambda.npy") + " --json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("\"command\":\"rigid\""), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\"iterations\":"), std::string::npos) << r.out;
+  const Npy uw = read_npy(path("uw.npy")), lambda = read_npy(path("lambda.npy"));
+  ASSERT_EQ(uw.shape, (std::vector<std::size_t>{m, 6}));
+  ASSERT_EQ(lambda.shape, (std::vector<std::size_t>{n, 3}));
+  rpyfmm::rpy::DirectRpy beads(rpyfmm::rpy::Geometry::open(), 1.5);
+  rpyfmm::rpy::RigidBodies bodies(beads, {.tolerance = 1e-10});
+  bodies.set_configuration(c.x, std::stod(std::to_string(c.radius)), c.offsets);
+  std::vector<double> ref(6 * m), ref_lambda(3 * n);
+  bodies.apply(ft, ref, ref_lambda);
+  EXPECT_LE(rel_l2(uw.data, ref), 1e-12);
+  EXPECT_LE(rel_l2(lambda.data, ref_lambda), 1e-12);
+}
+
+TEST_F(Cli, RigidBadInput) {
+  const RigidCase c = rigid_case();
+  const std::size_t n = c.x.size() / 3;
+  write_npy(path("x.npy"), {n, 3}, c.x);
+  write_npy(path("ft.npy"), {3, 6}, std::vector<double>(18, 1.0));
+  write_npy(path("ft5.npy"), {3, 5}, std::vector<double>(15, 1.0));
+  std::vector<double> ft_nan(18, 1.0);
+  ft_nan[7] = NAN;
+  write_npy(path("ft_nan.npy"), {3, 6}, ft_nan);
+  write_npy(path("q2.npy"), {2, 3}, std::vector<double>(6, 0.0));
+  auto text = [&](const std::string& name, const std::string& content) {
+    std::ofstream(path(name)) << content;
+    return path(name);
+  };
+  const std::string sizes = text("sizes.txt", "42 42 4\n");
+  const std::string base = "rigid --positions " + path("x.npy") + " --radius 0.5 --forces " + path("ft.npy");
+  const std::string O = " --out " + path("uw.npy");
+  expect_failure(base + " --body-sizes " + text("s1.txt", "42 42 5\n") + O, "add up to 89", "uw.npy");
+  expect_failure(base + " --body-sizes " + text("s2.txt", "42 42.5 3.5\n") + O, "whole number", "uw.npy");
+  expect_failure(base + " --body-sizes " + text("s3.txt", "42 44 2\n") + O, "at least 3", "uw.npy");
+  expect_failure(base + " --body-sizes " + text("s4.txt", "84 4\n") + O, "--forces", "uw.npy");
+  expect_failure(
+      "rigid --positions " + path("x.npy") + " --radius 0.5 --forces " + path("ft5.npy") + " --body-sizes " + sizes + O,
+      "--forces", "uw.npy");
+  expect_failure("rigid --positions " + path("x.npy") + " --radius 0.5 --forces " + path("ft_nan.npy") +
+                     " --body-sizes " + sizes + O,
+                 "NaN", "uw.npy");
+  expect_failure(base + " --body-sizes " + sizes + " --reference " + path("q2.npy") + O, "--reference", "uw.npy");
+  expect_failure(base + " --body-sizes " + sizes + " --tol 0" + O, "--tol", "uw.npy");
+  expect_failure(base + " --body-sizes " + sizes + " --method pse" + O, "periodic", "uw.npy");
+  expect_failure(base + " --body-sizes " + sizes + " --max-iterations 1 --tol 1e-12" + O, "did not reach", "uw.npy");
+  expect_failure(base + O, "--body-sizes", "uw.npy");
+  expect_failure("rigid --positions " + path("x.npy") + " --forces " + path("ft.npy") + " --body-sizes " + sizes + O,
+                 "--radius", "uw.npy");
+  // Beads on one line.
+  write_npy(path("line.npy"), {3, 3}, {0, 0, 0, 2, 0, 0, 4, 0, 0});
+  write_npy(path("ft1.npy"), {1, 6}, std::vector<double>(6, 1.0));
+  expect_failure("rigid --positions " + path("line.npy") + " --radius 1 --forces " + path("ft1.npy") +
+                     " --body-sizes " + text("s5.txt", "3\n") + O,
+                 "one line", "uw.npy");
 }

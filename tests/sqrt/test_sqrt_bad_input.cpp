@@ -6,6 +6,7 @@
 #include <limits>
 #include <string>
 
+#include "expect_error.hpp"
 #include "rpyfmm/core/error.hpp"
 #include "sqrt_test_util.hpp"
 
@@ -14,17 +15,7 @@ using rpyfmm::ErrorCode;
 
 namespace {
 
-/// Runs `f`, expects rpyfmm::Error with `code` and `needle` in the message.
-template <class F>
-void expect_error(F&& f, ErrorCode code, const std::string& needle) {
-  try {
-    f();
-    ADD_FAILURE() << "expected rpyfmm::Error containing '" << needle << "'";
-  } catch (const rpyfmm::Error& e) {
-    EXPECT_EQ(e.code(), code) << e.what();
-    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
-  }
-}
+using rpyfmm_test::expect_error;
 
 struct Fixture {
   Eigen::MatrixXd M = sqrt_test::rpy_matrix(sqrt_test::random_points(10, 0.1, 1u), sqrt_test::radii(10, false, 0u));

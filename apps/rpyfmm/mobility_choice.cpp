@@ -1,0 +1,47 @@
+// rpyfmm CLI — the mobility operator chosen on the command line (see the header).
+#include "mobility_choice.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include "rpyfmm/bd/mobility_factory.hpp"
+#include "rpyfmm/core/validate.hpp"
+
+namespace rpyfmm::cli {
+
+void add_mobility_options(CLI::App& cmd, MobilityChoice& choice) {
+  cmd.add_option("--viscosity", choice.viscosity, "solvent viscosity eta > 0")->capture_default_str();
+  cmd.add_option("--method", choice.method,
+                 "direct (exact O(N^2)), fmm (free space, O(N)), pse (periodic, needs --box), "
+                 "auto (direct for small N, fmm above; pse with --box), none (free draining)")
+      ->capture_default_str();
+  cmd.add_option("--eps", choice.eps, "relative tolerance of fmm/pse, in [1e-12, 1e-1]")->capture_default_str();
+  cmd.add_option("--box", choice.box, "periodic box: L (cube) or Lx Ly Lz; particles are wrapped into it")
+      ->expected(1, 3);
+  cmd.add_option("--wave-precision", choice.wave_precision,
+                 "pse: wave-space grids in single or double precision; auto = single for --eps >= 1e-5")
+      ->capture_default_str();
+  cmd.add_option("--device", choice.device, "pse: cpu, or cuda (on a GPU, in a build with CUDA)")
+      ->capture_default_str();
+}
+
+std::unique_ptr<rpy::MobilityOperator> make_operator(const MobilityChoice& choice, std::size_t n) {
+  require_positive(choice.viscosity, "--viscosity", "viscosity");
+  bd::MobilitySpec spec;
+  spec.method = bd::mobility_method_from_string(choice.method);
+  spec.tolerance = choice.eps;
+  spec.viscosity = choice.viscosity;
+  spec.wave_precision = rpy::pse::wave_precision_from_name(choice.wave_precision, "--wave-precision");
+  require(spec.wave_precision == rpy::pse::WavePrecision::automatic || spec.method == bd::MobilityMethod::pse ||
+              (spec.method == bd::MobilityMethod::automatic && !choice.box.empty()),
+          ErrorCode::invalid_argument, "--wave-precision", "applies to the pse method only");
+  spec.device = bd::compute_device_from_string(choice.device, "--device");
+  if (!choice.box.empty()) {
+    require(choice.box.size() == 1 || choice.box.size() == 3, ErrorCode::invalid_argument, "--box",
+            "give one length L (cube) or three lengths Lx Ly Lz, got " + std::to_string(choice.box.size()) + " values");
+    spec.geometry = choice.box.size() == 1 ? rpy::Geometry::periodic(choice.box[0])
+                                           : rpy::Geometry::periodic(choice.box[0], choice.box[1], choice.box[2]);
+  }
+  return bd::make_mobility(spec, n);
+}
+
+}  // namespace rpyfmm::cli

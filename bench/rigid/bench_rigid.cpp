@@ -1,0 +1,181 @@
+// Benchmark of the rigid-body mobility (rpyfmm/rpy/rigid_bodies.hpp): a suspension of m
+// bead-shell spheres (icosphere_beads, touching beads) of radius R = 2 at body volume fraction
+// phi, randomly oriented, placed at random without overlap in a cube. For each bead operator
+// (direct, or FMM at a tolerance) and body count: the setup (bead plan + body factorizations),
+// GMRES iterations and time of one mobility solve N W (random forces and torques), and their
+// ratio to one bead product M F; medians of `repeats`. With `plain`, also unpreconditioned
+// GMRES (capped at 2000 iterations; small systems only). With the direct operator and at most
+// 4000 beads, also the dense reference: M assembled, then its Cholesky and N = (K^T M^{-1} K)^{-1}
+// (Eigen; dense_s times these, not the assembly) and the relative difference of the GMRES
+// velocities from it. Prints one CSV row per case.
+//
+// usage: bench_rigid [operator=direct|fmm] [body counts] [subdivisions] [phi] [gmres tol]
+//                    [fmm eps] [repeats] [plain|noplain]
+//        bench_rigid direct 8,64 2 0.1 1e-6
+//        bench_rigid fmm 64,512 2 0.1 1e-6 1e-6 3
+#include <omp.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <numbers>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "rpyfmm/core/error.hpp"
+#include "rpyfmm/core/timer.hpp"
+#include "rpyfmm/rpy/direct_operator.hpp"
+#include "rpyfmm/rpy/fmm_operator.hpp"
+#include "rpyfmm/rpy/rigid_bodies.hpp"
+
+using namespace rpyfmm::rpy;
+using rpyfmm::StopWatch;
+
+namespace {
+
+std::vector<std::size_t> parse_counts(const std::string& s) {
+  std::vector<std::size_t> v;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ',')) v.push_back(static_cast<std::size_t>(std::stod(item)));
+  return v;
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0.0 : v[v.size() / 2];
+}
+
+struct Suspension {
+  std::vector<double> x, radii;
+  std::vector<std::size_t> offsets{0};
+};
+
+/// m spheres of radius R at volume fraction phi (random sequential addition, centres at least
+/// 2 R + 2 a apart so that no beads of different bodies overlap), random orientations.
+Suspension suspension(std::size_t m, int subdivisions, double phi, unsigned seed) {
+  const double R = 2.0;
+  const std::vector<double> shell = icosphere_beads(subdivisions);
+  const double a = icosphere_bead_radius(subdivisions) * R;
+  const double L = std::cbrt(double(m) * 4.0 / 3.0 * std::numbers::pi * R * R * R / phi);
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, L);
+  std::normal_distribution<double> g;
+  std::vector<std::array<double, 3>> centres;
+  Suspension s;
+  while (centres.size() < m) {
+    const std::array<double, 3> c{u(rng), u(rng), u(rng)};
+    bool free = true;
+    for (const auto& o : centres) {
+      const double d2 = (c[0] - o[0]) * (c[0] - o[0]) + (c[1] - o[1]) * (c[1] - o[1]) + (c[2] - o[2]) * (c[2] - o[2]);
+      if (d2 < std::pow(2 * R + 2 * a, 2)) free = false;
+    }
+    if (!free) continue;
+    centres.push_back(c);
+    // Random rotation from a unit quaternion (w, x, y, z).
+    double q[4] = {g(rng), g(rng), g(rng), g(rng)};
+    const double qn = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    for (double& e : q) e /= qn;
+    const double w = q[0], x = q[1], y = q[2], z = q[3];
+    const double rot[9] = {1 - 2 * (y * y + z * z), 2 * (x * y - z * w),     2 * (x * z + y * w),
+                           2 * (x * y + z * w),     1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
+                           2 * (x * z - y * w),     2 * (y * z + x * w),     1 - 2 * (x * x + y * y)};
+    for (std::size_t i = 0; i < shell.size(); i += 3)
+      for (int r = 0; r < 3; ++r)
+        s.x.push_back(c[static_cast<std::size_t>(r)] +
+                      R * (rot[3 * r] * shell[i] + rot[3 * r + 1] * shell[i + 1] + rot[3 * r + 2] * shell[i + 2]));
+    s.radii.insert(s.radii.end(), shell.size() / 3, a);
+    s.offsets.push_back(s.radii.size());
+  }
+  return s;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const std::string opname = argc > 1 ? argv[1] : "direct";
+  const auto counts = parse_counts(argc > 2 ? argv[2] : "8,64");
+  const int subdivisions = argc > 3 ? std::stoi(argv[3]) : 2;
+  const double phi = argc > 4 ? std::stod(argv[4]) : 0.1;
+  const double tol = argc > 5 ? std::stod(argv[5]) : 1e-6;
+  const double eps = argc > 6 ? std::stod(argv[6]) : 1e-6;
+  const int repeats = argc > 7 ? std::stoi(argv[7]) : 3;
+  const bool plain = argc > 8 && std::string(argv[8]) == "plain";
+  std::printf(
+      "operator,eps,bodies,beads,threads,phi,tol,setup_s,iterations,solve_s,product_s,solve_over_product,"
+      "plain_iterations,plain_solve_s,dense_s,dense_rel_diff\n");
+  for (std::size_t m : counts) {
+    const Suspension s = suspension(m, subdivisions, phi, 42u + m);
+    std::unique_ptr<MobilityOperator> beads;
+    if (opname == "fmm") {
+      beads = std::make_unique<FmmRpy>(Geometry::open(), 1.0, FmmRpyOptions{.tolerance = eps});
+    } else {
+      beads = std::make_unique<DirectRpy>(Geometry::open(), 1.0);
+    }
+    RigidBodies bodies(*beads, {.tolerance = tol});
+    StopWatch setup;
+    bodies.set_configuration(s.x, s.radii, s.offsets);
+    const double setup_s = setup.seconds();
+    std::mt19937_64 rng(7);
+    std::normal_distribution<double> g;
+    std::vector<double> w(6 * m), y(6 * m), f(s.x.size()), u(s.x.size());
+    for (double& v : f) v = g(rng);
+    std::vector<double> ts, tp;
+    int iterations = 0;
+    for (int r = 0; r < repeats; ++r) {
+      for (double& v : w) v = g(rng);
+      StopWatch product;
+      beads->apply(f, u);
+      tp.push_back(product.seconds());
+      StopWatch solve;
+      iterations = bodies.apply(w, y).iterations;
+      ts.push_back(solve.seconds());
+    }
+    int plain_iterations = 0;
+    double plain_s = 0.0;
+    if (plain) {
+      RigidBodies unpreconditioned(*beads, {.tolerance = tol, .max_iterations = 2000, .precondition = false});
+      unpreconditioned.set_configuration(s.x, s.radii, s.offsets);
+      StopWatch solve;
+      try {
+        plain_iterations = unpreconditioned.apply(w, y).iterations;
+      } catch (const rpyfmm::Error&) {
+        plain_iterations = -2000;  // did not converge within the cap
+      }
+      plain_s = solve.seconds();
+    }
+    double dense_s = 0.0, dense_diff = 0.0;
+    if (opname == "direct" && s.radii.size() <= 4000) {
+      const auto n3 = static_cast<Eigen::Index>(s.x.size());
+      const std::vector<double> flat = beads->assemble_dense();
+      StopWatch dense;  // the dense solve, after assembling M (3N products here)
+      const Eigen::MatrixXd M =
+          Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(flat.data(), n3, n3);
+      Eigen::MatrixXd K = Eigen::MatrixXd::Zero(n3, static_cast<Eigen::Index>(6 * m));
+      const auto q = bodies.reference_points();
+      for (std::size_t k = 0; k < m; ++k)
+        for (std::size_t i = s.offsets[k]; i < s.offsets[k + 1]; ++i) {
+          const auto r = static_cast<Eigen::Index>(3 * i), c = static_cast<Eigen::Index>(6 * k);
+          const double ax = s.x[3 * i] - q[3 * k], ay = s.x[3 * i + 1] - q[3 * k + 1],
+                       az = s.x[3 * i + 2] - q[3 * k + 2];
+          K.block<3, 3>(r, c).setIdentity();
+          K(r, c + 4) = az, K(r, c + 5) = -ay, K(r + 1, c + 3) = -az, K(r + 1, c + 5) = ax, K(r + 2, c + 3) = ay,
+                   K(r + 2, c + 4) = -ax;
+        }
+      const Eigen::MatrixXd N = (K.transpose() * Eigen::LLT<Eigen::MatrixXd>(M).solve(K)).inverse();
+      const Eigen::VectorXd ref = N * Eigen::Map<const Eigen::VectorXd>(w.data(), static_cast<Eigen::Index>(6 * m));
+      dense_s = dense.seconds();
+      bodies.apply(w, y);
+      dense_diff = (Eigen::Map<const Eigen::VectorXd>(y.data(), ref.size()) - ref).norm() / ref.norm();
+    }
+    std::printf("%s,%.0e,%zu,%zu,%d,%.2f,%.0e,%.4e,%d,%.4e,%.4e,%.2f,%d,%.4e,%.4e,%.2e\n", opname.c_str(),
+                opname == "fmm" ? eps : 0.0, m, s.radii.size(), omp_get_max_threads(), phi, tol, setup_s, iterations,
+                median(ts), median(tp), median(ts) / median(tp), plain_iterations, plain_s, dense_s, dense_diff);
+    std::fflush(stdout);
+  }
+  return 0;
+}

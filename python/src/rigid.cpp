@@ -1,0 +1,133 @@
+// rpyfmm Python bindings — rigid bodies of beads (rpy/include/rpyfmm/rpy/rigid_bodies.hpp):
+// the body mobility by preconditioned GMRES over any mobility operator, its report, and the
+// bead-shell sphere shapes.
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/vector.h>
+
+#include "common.hpp"
+#include "rpyfmm/rpy/rigid_bodies.hpp"
+
+namespace rpyfmm::python {
+namespace {
+
+using rpy::RigidBodies;
+using rpy::RigidBodyReport;
+
+std::string report_repr(const RigidBodyReport& r) {
+  return "RigidBodyReport(iterations=" + std::to_string(r.iterations) + ", restarts=" + std::to_string(r.restarts) +
+         ", residual=" + nb::cast<std::string>(nb::repr(nb::float_(r.residual))) +
+         ", seconds_solve=" + nb::cast<std::string>(nb::repr(nb::float_(r.seconds_solve))) + ")";
+}
+
+void set_configuration(RigidBodies& bodies, ArrayArg positions, RadiusArg radius,
+                       const std::vector<std::size_t>& body_offsets, OptArrayArg reference_points) {
+  const std::string where = "RigidBodies.set_configuration";
+  const InArray x = as_input(positions, where, "positions");
+  require_points(x, where, "positions");
+  InArray q;
+  if (!reference_points.h.is_none()) {
+    q = as_input(reference_points, where, "reference_points");
+    require_points(q, where, "reference_points");
+  }
+  if (nb::hasattr(radius.h, "ndim") || nb::isinstance<nb::list>(radius.h) || nb::isinstance<nb::tuple>(radius.h)) {
+    const InArray r = as_input(radius, where, "radii");
+    require(r.ndim() == 1, ErrorCode::invalid_input, where,
+            "radii has shape " + shape_string(r.shape) + ", expected (N,)");
+    nb::gil_scoped_release release;
+    bodies.set_configuration(x.span(), r.span(), body_offsets, q.span());
+    return;
+  }
+  double a = 0.0;
+  if (!nb::try_cast(radius.h, a, true)) fail(ErrorCode::invalid_argument, where, "radius must be a number or N radii");
+  nb::gil_scoped_release release;
+  bodies.set_configuration(x.span(), a, body_offsets, q.span());
+}
+
+/// (velocities (m, 6)[, bead forces (N, 3)], report).
+nb::tuple apply(const RigidBodies& bodies, ArrayArg forces_torques, bool with_bead_forces) {
+  const std::string where = "RigidBodies.apply";
+  const InArray w = as_input(forces_torques, where, "forces_torques");
+  const std::size_t m = bodies.bodies();
+  require((w.ndim() == 2 && w.shape[1] == 6) || w.ndim() == 1, ErrorCode::invalid_input, where,
+          "forces_torques has shape " + shape_string(w.shape) + ", expected (m, 6) or (6m,)");
+  OutArray y = make_output(nb::none(), {m, 6}, where);
+  std::vector<double> lambda(with_bead_forces ? 3 * bodies.beads() : 0);
+  RigidBodyReport report;
+  {
+    nb::gil_scoped_release release;
+    report = bodies.apply(w.span(), y.span(), lambda);
+  }
+  if (!with_bead_forces) return nb::make_tuple(y.object, report);
+  const std::size_t n = bodies.beads();
+  return nb::make_tuple(y.object, adopt_vector(std::move(lambda), {n, 3}).o, report);
+}
+
+}  // namespace
+
+void bind_rigid(nb::module_& m) {
+  nb::class_<RigidBodyReport>(m, "RigidBodyReport", "What a rigid-body mobility solve did (GMRES).")
+      .def_ro("iterations", &RigidBodyReport::iterations, "GMRES iterations = bead products M lambda.")
+      .def_ro("restarts", &RigidBodyReport::restarts)
+      .def_ro("residual", &RigidBodyReport::residual, "Final relative residual of the saddle-point system.")
+      .def_ro("seconds_setup", &RigidBodyReport::seconds_setup, "The last set_configuration, in seconds.")
+      .def_ro("seconds_solve", &RigidBodyReport::seconds_solve)
+      .def("__repr__", &report_repr);
+
+  nb::class_<RigidBodies>(
+      m, "RigidBodies",
+      "Mobility of rigid bodies made of beads (bead-shell / rigid multiblob models): forces and torques\n"
+      "(m, 6) -> linear and angular velocities (m, 6), with full hydrodynamic interactions among all beads\n"
+      "through a mobility operator (DirectRpy, FmmRpy, PseRpy). Solves the saddle-point system\n"
+      "M lambda = K Y, K^T lambda = (F, T) by GMRES, preconditioned body by body.")
+      .def(
+          "__init__",
+          [](RigidBodies* self, rpy::MobilityOperator& beads, double tolerance, int max_iterations, int restart,
+             bool precondition) {
+            new (self) RigidBodies(beads, {.tolerance = tolerance,
+                                           .max_iterations = max_iterations,
+                                           .restart = restart,
+                                           .precondition = precondition});
+          },
+          nb::arg("beads"), nb::kw_only(), nb::arg("tolerance") = 1e-6, nb::arg("max_iterations") = 500,
+          nb::arg("restart") = 60, nb::arg("precondition") = true, nb::keep_alive<1, 2>(),
+          "beads: the bead mobility operator (kept alive; set_configuration sets its positions);\n"
+          "tolerance: GMRES relative residual in (0, 1); max_iterations: bead products at most;\n"
+          "restart: Krylov vectors kept; precondition: the body-block preconditioner (False: plain GMRES).")
+      .def("set_configuration", &set_configuration, nb::arg("positions"), nb::arg("radius"), nb::arg("body_offsets"),
+           nb::arg("reference_points") = nb::none(),
+           "positions: bead positions (N, 3); radius: a number or (N,) radii; body_offsets: m + 1 increasing\n"
+           "indices (body k = beads body_offsets[k] ... body_offsets[k+1] - 1; first 0, last N);\n"
+           "reference_points: (m, 3) points the angular velocities and torques refer to (None: centroids).")
+      .def(
+          "apply", [](const RigidBodies& b, ArrayArg w) { return apply(b, w, false); }, nb::arg("forces_torques"),
+          "(velocities (m, 6), RigidBodyReport) for forces_torques (m, 6) = (F_x, F_y, F_z, T_x, T_y, T_z)\n"
+          "per body; velocities = (U_x, U_y, U_z, Omega_x, Omega_y, Omega_z).")
+      .def(
+          "apply_with_bead_forces", [](const RigidBodies& b, ArrayArg w) { return apply(b, w, true); },
+          nb::arg("forces_torques"),
+          "(velocities (m, 6), bead forces (N, 3), RigidBodyReport): also the forces the beads exert on the\n"
+          "fluid to keep the bodies rigid.")
+      .def_prop_ro("bodies", &RigidBodies::bodies)
+      .def_prop_ro("beads", &RigidBodies::beads)
+      .def_prop_ro(
+          "reference_points",
+          [](const RigidBodies& b) {
+            const auto q = b.reference_points();
+            return adopt_vector(std::vector<double>(q.begin(), q.end()), {q.size() / 3, 3});
+          },
+          "The reference points in use (m, 3).");
+
+  m.def(
+      "icosphere_beads",
+      [](int subdivisions) {
+        std::vector<double> v = rpy::icosphere_beads(subdivisions);
+        const std::size_t n = v.size() / 3;
+        return adopt_vector(std::move(v), {n, 3});
+      },
+      nb::arg("subdivisions"),
+      "Bead-shell sphere: (10 4^s + 2, 3) points on the unit sphere (a subdivided icosahedron).");
+  m.def("icosphere_bead_radius", &rpy::icosphere_bead_radius, nb::arg("subdivisions"),
+        "Radius of touching beads on that unit shell (half the smallest bead distance).");
+}
+
+}  // namespace rpyfmm::python

@@ -1,0 +1,120 @@
+// rpyfmm — the mobility of rigid bodies built from beads ("bead-shell" / rigid multiblob models):
+// forces and torques on m rigid bodies -> their linear and angular velocities, with full
+// hydrodynamic interactions among all beads through any MobilityOperator (direct, FMM, PSE).
+//
+// Body k is a set of beads i at positions r_i (radius a_i) moving rigidly with a reference
+// point q_k: u_i = U_k + Omega_k x (r_i - q_k), i.e. u = K Y (dissertation 004 ch. 5, the
+// bead-shell model; Swan et al. / Usabiaga et al., "rigid multiblob", J. Comput. Phys. 2016,
+// eq. 8). The beads exert forces lambda on the fluid with M lambda = K Y (no slip, M the RPY
+// bead mobility) and sum to the body's force and torque, K^T lambda = W = (F_k, T_k). So
+//     [ M   -K ] [lambda]   [ 0]
+//     [-K^T  0 ] [  Y   ] = [-W],    Y = N W,   N = (K^T M^{-1} K)^{-1}  (the body mobility).
+// The saddle-point system is solved matrix-free by restarted GMRES, with one bead product
+// M lambda per iteration, right-preconditioned by the same system without the hydrodynamic
+// coupling between different bodies (per body: a dense Cholesky of its bead block M_kk and
+// the 6x6 N_k = (K_k^T M_kk^{-1} K_k)^{-1}). For well-separated bodies that preconditioner is
+// nearly exact; iterations grow slowly with the volume fraction (bench/rigid/RESULTS.md).
+//
+// Conventions. Bead positions 3N as everywhere; bodies are contiguous runs of beads given by
+// offsets (body k holds beads offsets[k] .. offsets[k+1] - 1; offsets[0] = 0, offsets[m] = N).
+// Forces/torques and velocities are 6 per body: (F_x, F_y, F_z, T_x, T_y, T_z) ->
+// (U_x, U_y, U_z, Omega_x, Omega_y, Omega_z). In a periodic geometry lever arms r_i - q_k
+// are minimum images, so a body may straddle the box. Each body needs at least three beads
+// not on one line (else its rotation about that line is undefined: rpyfmm::Error).
+#pragma once
+
+#include <cstddef>
+#include <span>
+#include <vector>
+
+#include "rpyfmm/rpy/mobility.hpp"
+
+namespace rpyfmm::rpy {
+
+struct RigidBodyOptions {
+  /// GMRES stops at ||r|| <= tolerance ||W||, r the residual of the saddle-point system above,
+  /// in which each body's torque and angular velocity are scaled by its RMS lever arm l_k
+  /// (T_k / l_k, Omega_k l_k: forces and torques weigh alike). The relative error of the
+  /// velocities is then within a few times the tolerance (bench/rigid/RESULTS.md); in (0, 1).
+  double tolerance = 1e-6;
+  /// Most GMRES iterations (bead products) in all; not converging then throws
+  /// ErrorCode::numerical_failure.
+  int max_iterations = 500;
+  /// Krylov vectors kept before a restart (memory: restart x (3N + 6m) doubles).
+  int restart = 60;
+  /// The body-block preconditioner (true: the recommended solver; false: plain GMRES, for
+  /// comparison only: it needs many more iterations).
+  bool precondition = true;
+  /// Refuse (before allocating) a preconditioner whose dense body blocks exceed this many bytes
+  /// in all (a body of n beads needs 72 n^2 bytes).
+  std::size_t max_preconditioner_bytes = std::size_t{1} << 31;
+};
+
+struct RigidBodyReport {
+  int iterations = 0;          ///< GMRES iterations = bead products M lambda
+  int restarts = 0;            ///< GMRES restarts
+  double residual = 0.0;       ///< final ||r|| / ||W|| (recomputed from the solution)
+  double seconds_setup = 0.0;  ///< set_configuration: bead plan + body factorizations
+  double seconds_solve = 0.0;  ///< apply
+};
+
+class RigidBodies {
+ public:
+  /// `beads` computes bead products (not owned: it must outlive this object; set_configuration
+  /// sets its positions, and nothing else may change them before apply). Throws rpyfmm::Error
+  /// on bad options.
+  explicit RigidBodies(MobilityOperator& beads, RigidBodyOptions options = {});
+
+  /// Bead positions (3N) and one radius or N radii, body offsets (m + 1 entries), and the
+  /// bodies' reference points q_k (3m; empty = each body's bead centroid). Plans the bead
+  /// operator and factors the body blocks. Throws rpyfmm::Error naming the problem (sizes,
+  /// NaN/Inf, empty bodies, fewer than three non-collinear beads, coincident beads in a body,
+  /// preconditioner too large).
+  void set_configuration(std::span<const double> bead_positions, std::span<const double> radii,
+                         std::span<const std::size_t> body_offsets, std::span<const double> reference_points = {});
+  void set_configuration(std::span<const double> bead_positions, double radius,
+                         std::span<const std::size_t> body_offsets, std::span<const double> reference_points = {});
+
+  /// Y = N W: velocities (6m) from forces and torques (6m). Optionally also the bead forces
+  /// lambda (3N) that hold the bodies rigid. Throws rpyfmm::Error on wrong sizes, NaN/Inf, a
+  /// call before set_configuration, or no convergence within max_iterations.
+  RigidBodyReport apply(std::span<const double> forces_torques, std::span<double> velocities,
+                        std::span<double> bead_forces = {}) const;
+
+  [[nodiscard]] std::size_t bodies() const { return offsets_.empty() ? 0 : offsets_.size() - 1; }
+  [[nodiscard]] std::size_t beads() const { return beads_.size(); }
+  /// Reference points q_k (3m) in use.
+  [[nodiscard]] std::span<const double> reference_points() const { return reference_; }
+  [[nodiscard]] const RigidBodyOptions& options() const { return options_; }
+  /// Time spent in the last set_configuration.
+  [[nodiscard]] double seconds_setup() const { return seconds_setup_; }
+
+ private:
+  /// y = K Y (bead velocities of rigid motions) and w = K^T lambda (forces and torques).
+  void rigid_velocities(const double* body, double* bead) const;
+  void forces_and_torques(const double* bead, double* body) const;
+  /// The saddle-point operator and its body-block preconditioner on x = [lambda; Y].
+  void saddle_apply(const double* x, double* y) const;
+  void precondition(const double* x, double* y) const;
+
+  MobilityOperator& beads_;
+  RigidBodyOptions options_;
+  std::vector<std::size_t> offsets_;
+  std::vector<double> arms_;                // (r_i - q_k) / l_k (minimum image), 3N
+  std::vector<double> scale_;               // l_k: body k's RMS lever arm (rotations in length units)
+  std::vector<double> reference_;           // q_k, 3m
+  std::vector<std::size_t> factor_offset_;  // body k's Cholesky factor of M_kk at factors_[factor_offset_[k]]
+  std::vector<double> factors_;             // lower triangles, column-major (3 n_k)^2 each
+  std::vector<double> body_mobility_;       // N_k (6x6 row-major) per body
+  double seconds_setup_ = 0.0;
+};
+
+/// Bead-shell model of a sphere: beads on the unit sphere at the vertices of an icosahedron
+/// subdivided `subdivisions` times (0 ... 6: 12, 42, 162, 642, 2562, ... = 10 4^s + 2 beads),
+/// 3 coordinates per bead; multiply by the sphere's radius. Throws rpyfmm::Error outside 0 ... 6.
+std::vector<double> icosphere_beads(int subdivisions);
+/// Radius of touching beads on that unit shell: half the smallest bead-to-bead distance
+/// (0.526 / 0.273 / 0.138 / 0.0691 for 0 ... 3 subdivisions).
+double icosphere_bead_radius(int subdivisions);
+
+}  // namespace rpyfmm::rpy

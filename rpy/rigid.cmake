@@ -1,0 +1,6 @@
+# Rigid bodies of beads: the body mobility by preconditioned GMRES — see
+# rpy/include/rpyfmm/rpy/rigid_bodies.hpp.
+target_sources(rpyfmm_rpy PRIVATE
+  ${CMAKE_CURRENT_LIST_DIR}/src/rigid/bead_shapes.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/rigid/gmres.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/rigid/rigid_bodies.cpp)

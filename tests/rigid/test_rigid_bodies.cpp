@@ -1,0 +1,407 @@
+// Rigid bodies of beads (rpyfmm/rpy/rigid_bodies.hpp): the GMRES body mobility against the dense
+// N = (K^T M^{-1} K)^{-1} (Eigen, from the bead operator's dense matrix and K written here), its
+// symmetry and positive definiteness, frame invariance, the Stokes limit of bead-shell spheres,
+// the far-field (Oseen / RPY) coupling of two bodies, FMM and periodic (PSE) bead operators,
+// and bad input.
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <array>
+#include <cmath>
+#include <map>
+#include <numbers>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "expect_error.hpp"
+#include "rpyfmm/core/error.hpp"
+#include "rpyfmm/rpy/direct_operator.hpp"
+#include "rpyfmm/rpy/fmm_operator.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy.hpp"
+#include "rpyfmm/rpy/rigid_bodies.hpp"
+
+using namespace rpyfmm::rpy;
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+/// Bead-shell sphere of the library (rpyfmm::rpy::icosphere_beads) as points.
+std::vector<Eigen::Vector3d> icosphere(int levels) {
+  const std::vector<double> flat = icosphere_beads(levels);
+  std::vector<Eigen::Vector3d> v;
+  for (std::size_t i = 0; i < flat.size(); i += 3) v.emplace_back(flat[i], flat[i + 1], flat[i + 2]);
+  return v;
+}
+
+double touching_radius(int levels) {
+  return icosphere_bead_radius(levels);
+}
+
+}  // namespace
+
+// The bead-shell shapes: 10 4^s + 2 beads on the unit sphere, no two closer than twice the
+// touching radius and each with a neighbour at exactly that distance (brute force here).
+TEST(RigidBodies, IcosphereBeads) {
+  for (int levels : {0, 1, 2}) {
+    const auto v = icosphere(levels);
+    ASSERT_EQ(v.size(), std::size_t(10 * (1 << (2 * levels)) + 2));
+    const double a = touching_radius(levels);
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      EXPECT_NEAR(v[i].norm(), 1.0, 1e-14);
+      double nearest = 1e300;
+      for (std::size_t j = 0; j < v.size(); ++j)
+        if (j != i) nearest = std::min(nearest, (v[i] - v[j]).norm());
+      EXPECT_GE(nearest, 2 * a - 1e-14);
+      if (i == 0) {
+        EXPECT_LE(nearest, 2 * a * 1.3);
+      }
+    }
+  }
+  EXPECT_NEAR(touching_radius(0), 0.5 * 1.0514622242382672, 1e-12);  // icosahedron edge / circumradius
+  EXPECT_THROW(icosphere_beads(7), rpyfmm::Error);
+}
+
+namespace {
+
+/// A system of bodies being assembled: bead positions, radii, offsets.
+struct System {
+  std::vector<double> x, radii;
+  std::vector<std::size_t> offsets{0};
+  void add(const std::vector<Eigen::Vector3d>& shape, double scale, double radius, const Eigen::Matrix3d& rotation,
+           const Eigen::Vector3d& centre) {
+    for (const auto& p : shape) {
+      const Eigen::Vector3d q = centre + rotation * (scale * p);
+      x.insert(x.end(), {q.x(), q.y(), q.z()});
+      radii.push_back(radius);
+    }
+    offsets.push_back(radii.size());
+  }
+  [[nodiscard]] std::size_t bodies() const { return offsets.size() - 1; }
+};
+
+Eigen::Matrix3d random_rotation(std::mt19937& rng) {
+  std::normal_distribution<double> g;
+  return Eigen::Quaterniond(g(rng), g(rng), g(rng), g(rng)).normalized().toRotationMatrix();
+}
+
+/// Five bodies: three bead-shell spheres (42 beads), a bent rod of 9 beads and a flat triangle of
+/// 6, randomly oriented and placed without overlap.
+System five_bodies() {
+  std::mt19937 rng(11);
+  System s;
+  const auto shell = icosphere(1);
+  const double a = touching_radius(1) * 2.0;
+  std::vector<Eigen::Vector3d> rod, triangle;
+  for (int i = 0; i < 9; ++i) rod.emplace_back(i < 5 ? 2.0 * i : 8.0, i < 5 ? 0.0 : 2.0 * (i - 4), 0.0);
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j <= i; ++j) triangle.emplace_back(2.0 * i - j, 1.7 * j, 0.0);
+  s.add(shell, 2.0, a, random_rotation(rng), {0, 0, 0});
+  s.add(shell, 2.0, a, random_rotation(rng), {7, 1, 0});
+  s.add(shell, 2.0, a, random_rotation(rng), {1, 7, 2});
+  s.add(rod, 1.0, 1.0, random_rotation(rng), {-12, 0, 3});
+  s.add(triangle, 1.0, 1.0, random_rotation(rng), {2, -3, 9});
+  return s;
+}
+
+/// The dense body mobility (K^T M^{-1} K)^{-1} from the operator's dense bead matrix and K built
+/// here from the bodies' reference points (centroids unless given).
+Eigen::MatrixXd dense_body_mobility(const MobilityOperator& beads, const System& s,
+                                    Eigen::MatrixXd* lambda_map = nullptr) {
+  const auto n = static_cast<Eigen::Index>(s.radii.size());
+  const auto m = static_cast<Eigen::Index>(s.bodies());
+  const std::vector<double> dense = beads.assemble_dense();
+  const Eigen::MatrixXd M = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+      dense.data(), 3 * n, 3 * n);
+  Eigen::MatrixXd K = Eigen::MatrixXd::Zero(3 * n, 6 * m);
+  for (Eigen::Index k = 0; k < m; ++k) {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    const auto first = static_cast<Eigen::Index>(s.offsets[static_cast<std::size_t>(k)]);
+    const auto last = static_cast<Eigen::Index>(s.offsets[static_cast<std::size_t>(k) + 1]);
+    for (Eigen::Index i = first; i < last; ++i) c += Eigen::Map<const Eigen::Vector3d>(&s.x[3 * std::size_t(i)]);
+    c /= double(last - first);
+    for (Eigen::Index i = first; i < last; ++i) {
+      const Eigen::Vector3d r = Eigen::Map<const Eigen::Vector3d>(&s.x[3 * std::size_t(i)]) - c;
+      K.block<3, 3>(3 * i, 6 * k).setIdentity();
+      Eigen::Matrix3d cross;  // Omega x r = -[r]_x Omega
+      cross << 0, r.z(), -r.y(), -r.z(), 0, r.x(), r.y(), -r.x(), 0;
+      K.block<3, 3>(3 * i, 6 * k + 3) = cross;
+    }
+  }
+  const Eigen::LLT<Eigen::MatrixXd> llt(M);
+  const Eigen::MatrixXd MinvK = llt.solve(K);
+  const Eigen::MatrixXd N = (K.transpose() * MinvK).inverse();
+  if (lambda_map) *lambda_map = MinvK * N;  // bead forces = M^{-1} K N W
+  return N;
+}
+
+Eigen::VectorXd random_vector(Eigen::Index n, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> g;
+  Eigen::VectorXd v(n);
+  for (auto& e : v) e = g(rng);
+  return v;
+}
+
+/// Body velocities from RigidBodies for forces and torques w.
+Eigen::VectorXd solve(const RigidBodies& bodies, const Eigen::VectorXd& w, RigidBodyReport* report = nullptr,
+                      Eigen::VectorXd* bead_forces = nullptr) {
+  Eigen::VectorXd y(w.size());
+  std::vector<double> lambda(3 * bodies.beads());
+  const RigidBodyReport rep = bodies.apply({w.data(), std::size_t(w.size())}, {y.data(), std::size_t(y.size())},
+                                           bead_forces ? std::span<double>(lambda) : std::span<double>());
+  if (report) *report = rep;
+  if (bead_forces) *bead_forces = Eigen::Map<const Eigen::VectorXd>(lambda.data(), Eigen::Index(lambda.size()));
+  return y;
+}
+
+/// The dense body mobility from RigidBodies, column by column.
+Eigen::MatrixXd body_mobility(const RigidBodies& bodies) {
+  const auto n = static_cast<Eigen::Index>(6 * bodies.bodies());
+  Eigen::MatrixXd N(n, n);
+  for (Eigen::Index c = 0; c < n; ++c) N.col(c) = solve(bodies, Eigen::VectorXd::Unit(n, c));
+  return N;
+}
+
+double rel(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  return (a - b).norm() / b.norm();
+}
+
+}  // namespace
+
+// GMRES against the dense saddle-point solution (direct bead operator), with and without the
+// body preconditioner. Tolerances: the relative residual is asked at 1e-10 and the velocities
+// must agree to 1e-8 (the residual bounds the error times the preconditioned condition number,
+// which is small here); the preconditioner must at least halve the iterations.
+TEST(RigidBodies, MatchesTheDenseBodyMobility) {
+  const System s = five_bodies();
+  DirectRpy beads(Geometry::open(), 0.7);
+  RigidBodies bodies(beads, {.tolerance = 1e-10});
+  bodies.set_configuration(s.x, s.radii, s.offsets);
+  ASSERT_EQ(bodies.bodies(), 5u);
+  Eigen::MatrixXd lambda_map;
+  const Eigen::MatrixXd N = dense_body_mobility(beads, s, &lambda_map);
+  const Eigen::VectorXd w = random_vector(30, 3u);
+  RigidBodyReport rep;
+  Eigen::VectorXd lambda;
+  const Eigen::VectorXd y = solve(bodies, w, &rep, &lambda);
+  EXPECT_LE(rel(y, N * w), 1e-8);
+  EXPECT_LE(rel(lambda, lambda_map * w), 1e-7);
+  EXPECT_LE(rep.residual, 1e-10);
+  EXPECT_GT(rep.iterations, 1);
+
+  RigidBodies plain(beads, {.tolerance = 1e-10, .max_iterations = 3000, .precondition = false});
+  plain.set_configuration(s.x, s.radii, s.offsets);
+  RigidBodyReport rep_plain;
+  EXPECT_LE(rel(solve(plain, w, &rep_plain), N * w), 1e-7);
+  EXPECT_LE(2 * rep.iterations, rep_plain.iterations);
+  // Zero forces and torques: zero velocities, no iterations.
+  EXPECT_EQ(solve(bodies, Eigen::VectorXd::Zero(30), &rep).norm(), 0.0);
+  EXPECT_EQ(rep.iterations, 0);
+}
+
+// N is symmetric positive definite (it is the inverse of K^T M^{-1} K, M SPD), and a rigid
+// rotation Q plus a translation of the whole system maps it to diag(Q, Q) N diag(Q, Q)^T.
+TEST(RigidBodies, SymmetricPositiveDefiniteAndFrameInvariant) {
+  System s = five_bodies();
+  DirectRpy beads(Geometry::open(), 1.0);
+  RigidBodies bodies(beads, {.tolerance = 1e-11});
+  bodies.set_configuration(s.x, s.radii, s.offsets);
+  const Eigen::MatrixXd N = body_mobility(bodies);
+  EXPECT_LE((N - N.transpose()).norm(), 1e-9 * N.norm());
+  const Eigen::VectorXd ev = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(0.5 * (N + N.transpose())).eigenvalues();
+  EXPECT_GT(ev(0), 0.0);
+
+  std::mt19937 rng(5);
+  const Eigen::Matrix3d Q = random_rotation(rng);
+  const Eigen::Vector3d shift(3.0, -40.0, 7.5);
+  for (std::size_t i = 0; i < s.radii.size(); ++i) {
+    const Eigen::Vector3d p = Q * Eigen::Map<const Eigen::Vector3d>(&s.x[3 * i]) + shift;
+    std::copy(p.data(), p.data() + 3, s.x.begin() + static_cast<std::ptrdiff_t>(3 * i));
+  }
+  bodies.set_configuration(s.x, s.radii, s.offsets);
+  Eigen::MatrixXd R = Eigen::MatrixXd::Zero(30, 30);
+  for (int b = 0; b < 10; ++b) R.block<3, 3>(3 * b, 3 * b) = Q;
+  const Eigen::VectorXd w = random_vector(30, 8u);
+  EXPECT_LE(rel(solve(bodies, R * w), R * N * w), 1e-8);
+}
+
+// A bead-shell sphere (icosphere of radius R, touching beads of radius a) has an isotropic
+// body mobility without translation-rotation coupling (icosahedral symmetry, centrosymmetric),
+// and its mobilities approach Stokes' 1/(6 pi eta R) and 1/(8 pi eta R^3) as the beads shrink:
+// the error falls with a / R, and the linear extrapolation to a / R = 0 of the two finest shells
+// (the classical shell-model extrapolation) lands within 1.5% of Stokes.
+TEST(RigidBodies, BeadShellSpheresApproachStokes) {
+  const double R = 1.0, eta = 1.0;
+  std::vector<double> ratio, mu_t, mu_r;
+  for (int levels : {1, 2, 3}) {
+    const auto shell = icosphere(levels);
+    const double a = touching_radius(levels) * R;
+    System s;
+    s.add(shell, R, a, Eigen::Matrix3d::Identity(), {0.3, -0.2, 0.1});
+    DirectRpy beads(Geometry::open(), eta);
+    RigidBodies bodies(beads, {.tolerance = 1e-12});
+    bodies.set_configuration(s.x, s.radii, s.offsets);
+    const Eigen::MatrixXd N = body_mobility(bodies);
+    const double t = N(0, 0), r = N(3, 3);
+    EXPECT_LE((N.topLeftCorner<3, 3>() - t * Eigen::Matrix3d::Identity()).norm(), 1e-8 * t) << levels;
+    EXPECT_LE((N.bottomRightCorner(3, 3) - r * Eigen::Matrix3d::Identity()).norm(), 1e-8 * r) << levels;
+    EXPECT_LE(N.topRightCorner(3, 3).norm(), 1e-8 * std::sqrt(t * r)) << levels;
+    ratio.push_back(a / R);
+    mu_t.push_back(t * 6 * kPi * eta * R);
+    mu_r.push_back(r * 8 * kPi * eta * R * R * R);
+  }
+  for (std::size_t l = 1; l < ratio.size(); ++l) {
+    EXPECT_LT(std::abs(mu_t[l] - 1), std::abs(mu_t[l - 1] - 1)) << l;
+    EXPECT_LT(std::abs(mu_r[l] - 1), std::abs(mu_r[l - 1] - 1)) << l;
+  }
+  auto extrapolate = [&](const std::vector<double>& mu) {
+    const double slope = (mu[2] - mu[1]) / (ratio[2] - ratio[1]);
+    return mu[2] - slope * ratio[2];
+  };
+  EXPECT_NEAR(extrapolate(mu_t), 1.0, 0.015);
+  EXPECT_NEAR(extrapolate(mu_r), 1.0, 0.015);
+}
+
+// Two bead-shell spheres far apart (centre distance d = 25 R) couple like two RPY spheres of
+// the shells' own effective radius R_eff = 1 / (6 pi eta mu_self): the cross translational block
+// is (1/(8 pi eta d)) [(1 + 2 R_eff^2/(3 d^2)) I + (1 - 2 R_eff^2/d^2) dd] up to O((R/d)^4)
+// relative (Batchelor 1976): within 1e-4 here, where the R_eff^2 / d^2 terms alone are 1.2e-3.
+TEST(RigidBodies, FarApartBodiesCoupleLikeRpySpheres) {
+  const auto shell = icosphere(2);
+  const double a = touching_radius(2);
+  const double d = 25.0;
+  System s;
+  std::mt19937 rng(2);
+  s.add(shell, 1.0, a, random_rotation(rng), {0, 0, 0});
+  const Eigen::Vector3d e = Eigen::Vector3d(1.0, 2.0, -0.5).normalized();
+  s.add(shell, 1.0, a, random_rotation(rng), d * e);
+  DirectRpy beads(Geometry::open(), 1.0);
+  RigidBodies bodies(beads, {.tolerance = 1e-11});
+  bodies.set_configuration(s.x, s.radii, s.offsets);
+  const Eigen::MatrixXd N = body_mobility(bodies);
+  const double r_eff = 1.0 / (6 * kPi * N(0, 0));
+  const double s2 = r_eff * r_eff / (d * d);
+  const Eigen::Matrix3d expected =
+      ((1 + 2 * s2 / 3) * Eigen::Matrix3d::Identity() + (1 - 2 * s2) * e * e.transpose()) / (8 * kPi * d);
+  EXPECT_LE((N.block(0, 6, 3, 3) - expected).norm(), 1e-4 * expected.norm());
+  EXPECT_LE((N.block(0, 6, 3, 3) - N.block(6, 0, 3, 3).transpose()).norm(), 1e-9 * expected.norm());
+}
+
+// The FMM bead operator gives the direct operator's body velocities to about its tolerance
+// (27 bead-shell spheres of 162 beads on a lattice: 4374 beads, enough for a tree with far-field
+// interactions): within 10 eps at eps 1e-3 and 1e-6, and the error moves with eps (more than
+// 100x smaller at 1e-6), so the FMM's far field is really in use.
+TEST(RigidBodies, FmmBeadsMatchDirectBeads) {
+  const auto shell = icosphere(2);
+  const double a = touching_radius(2) * 2.0;
+  std::mt19937 rng(4);
+  System s;
+  for (int i = 0; i < 27; ++i)
+    s.add(shell, 2.0, a, random_rotation(rng), Eigen::Vector3d(6.0 * (i % 3), 6.0 * (i / 3 % 3), 6.0 * (i / 9)));
+  DirectRpy direct(Geometry::open(), 1.0);
+  RigidBodies by_direct(direct, {.tolerance = 1e-11});
+  by_direct.set_configuration(s.x, s.radii, s.offsets);
+  const Eigen::VectorXd w = random_vector(6 * 27, 4u);
+  const Eigen::VectorXd reference = solve(by_direct, w);
+  double errors[2];
+  for (int k = 0; k < 2; ++k) {
+    FmmRpy fmm(Geometry::open(), 1.0, {.tolerance = k == 0 ? 1e-3 : 1e-6});
+    RigidBodies by_fmm(fmm, {.tolerance = 1e-11});
+    by_fmm.set_configuration(s.x, s.radii, s.offsets);
+    errors[k] = rel(solve(by_fmm, w), reference);
+  }
+  EXPECT_LE(errors[0], 1e-2);
+  EXPECT_GT(errors[0], 0.0);
+  EXPECT_LE(errors[1], 1e-5);
+  EXPECT_LE(errors[1], 1e-2 * errors[0]);
+}
+
+// Periodic bead operator (PSE): a body straddling the box boundary (its beads wrapped to the
+// other side) moves like the same body shifted inside the box (the periodic system is
+// translation invariant), to the PSE tolerance; and the reference points are minimum-image
+// centroids.
+TEST(RigidBodies, PeriodicBodiesMayStraddleTheBox) {
+  const double L = 30.0;
+  const auto shell = icosphere(1);
+  const double a = touching_radius(1) * 2.0;
+  std::mt19937 rng(9);
+  const Eigen::Matrix3d Q1 = random_rotation(rng), Q2 = random_rotation(rng);
+  auto build = [&](const Eigen::Vector3d& shift) {
+    System s;
+    s.add(shell, 2.0, a, Q1, Eigen::Vector3d(1.0, 15.0, 15.0) + shift);  // crosses x = 0 unshifted
+    s.add(shell, 2.0, a, Q2, Eigen::Vector3d(9.0, 12.0, 16.0) + shift);
+    return s;
+  };
+  const Eigen::Vector3d shift(5.0, 0.0, 0.0);
+  pse::PseRpy beads(Geometry::periodic(L), 1.0, {.tolerance = 1e-7});
+  RigidBodies bodies(beads, {.tolerance = 1e-10});
+  const Eigen::VectorXd w = random_vector(12, 6u);
+  bodies.set_configuration(build(Eigen::Vector3d::Zero()).x, build(Eigen::Vector3d::Zero()).radii,
+                           build(Eigen::Vector3d::Zero()).offsets);
+  const auto q = bodies.reference_points();
+  EXPECT_NEAR(std::remainder(q[0] - 1.0, L), 0.0, 1e-9);  // the centroid, not the wrapped mean
+  const Eigen::VectorXd y0 = solve(bodies, w);
+  const System shifted = build(shift);
+  bodies.set_configuration(shifted.x, shifted.radii, shifted.offsets);
+  EXPECT_LE(rel(solve(bodies, w), y0), 1e-6);
+}
+
+// Bad input: rpyfmm::Error naming the problem, before any work.
+TEST(RigidBodies, BadInput) {
+  using rpyfmm::ErrorCode;
+  using rpyfmm_test::expect_error;
+  DirectRpy beads(Geometry::open(), 1.0);
+  expect_error([&] { RigidBodies(beads, {.tolerance = 0.0}); }, ErrorCode::invalid_argument, "tolerance");
+  expect_error([&] { RigidBodies(beads, {.max_iterations = 0}); }, ErrorCode::invalid_argument, "max_iterations");
+  expect_error([&] { RigidBodies(beads, {.restart = -1}); }, ErrorCode::invalid_argument, "restart");
+  RigidBodies bodies(beads);
+  const System s = five_bodies();
+  std::vector<double> w(30, 1.0), y(30);
+  expect_error([&] { bodies.apply(w, y); }, ErrorCode::invalid_input, "before set_configuration");
+  const std::vector<std::size_t> bad_end{0, 42, 84, 126, 135, 140};
+  expect_error([&] { bodies.set_configuration(s.x, s.radii, bad_end); }, ErrorCode::invalid_input, "end at");
+  const std::vector<std::size_t> empty_body{0, 42, 42, 126, 135, 141};
+  expect_error([&] { bodies.set_configuration(s.x, s.radii, empty_body); }, ErrorCode::invalid_input,
+               "body 1 has no beads");
+  const std::vector<std::size_t> two_beads{0, 2, 126, 135, 141};
+  expect_error([&] { bodies.set_configuration(s.x, s.radii, two_beads); }, ErrorCode::invalid_input, "at least 3");
+  expect_error([&] { bodies.set_configuration(s.x, s.radii, s.offsets, std::vector<double>(5, 0.0)); },
+               ErrorCode::invalid_input, "reference points");
+  std::vector<double> x = s.x;
+  x[7] = std::nan("");
+  expect_error([&] { bodies.set_configuration(x, s.radii, s.offsets); }, ErrorCode::invalid_input, "NaN");
+  expect_error([&] { bodies.set_configuration(s.x, -1.0, s.offsets); }, ErrorCode::invalid_argument, "radius");
+  // A straight rod: its rotation about its axis is undefined.
+  std::vector<double> rod;
+  for (int i = 0; i < 5; ++i) rod.insert(rod.end(), {2.0 * i, 2.0 * i, 0.0});
+  expect_error(
+      [&] {
+        bodies.set_configuration(rod, 1.0, std::vector<std::size_t>{0, 5});
+      },
+      ErrorCode::invalid_input, "one line");
+  // Coincident beads make the body's bead block singular (the preconditioner's factorization).
+  std::vector<double> twin = {0, 0, 0, 0, 0, 0, 2, 0, 0, 0, 2, 0};
+  expect_error(
+      [&] {
+        bodies.set_configuration(twin, 1.0, std::vector<std::size_t>{0, 4});
+      },
+      ErrorCode::invalid_input, "singular");
+  RigidBodies small(beads, {.max_preconditioner_bytes = 1000});
+  expect_error([&] { small.set_configuration(s.x, s.radii, s.offsets); }, ErrorCode::out_of_memory, "MiB");
+  // A failed configuration leaves the object unconfigured.
+  expect_error([&] { bodies.apply(w, y); }, ErrorCode::invalid_input, "before set_configuration");
+  bodies.set_configuration(s.x, s.radii, s.offsets);
+  expect_error([&] { bodies.apply(std::vector<double>(29, 1.0), y); }, ErrorCode::invalid_input, "forces and torques");
+  w[4] = INFINITY;
+  expect_error([&] { bodies.apply(w, y); }, ErrorCode::invalid_input, "infinite");
+  w[4] = 1.0;
+  std::vector<double> lambda(10);
+  expect_error([&] { bodies.apply(w, y, lambda); }, ErrorCode::invalid_input, "bead forces");
+  beads.set_positions(std::vector<double>(s.x.begin(), s.x.begin() + 30), 1.0);  // behind its back
+  expect_error([&] { bodies.apply(w, y); }, ErrorCode::invalid_input, "set elsewhere");
+  RigidBodies hurried(beads, {.tolerance = 1e-12, .max_iterations = 2});
+  hurried.set_configuration(s.x, s.radii, s.offsets);
+  expect_error([&] { hurried.apply(w, y); }, ErrorCode::numerical_failure, "did not reach");
+}
