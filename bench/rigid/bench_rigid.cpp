@@ -3,7 +3,9 @@
 // phi, randomly oriented, placed at random without overlap in a cube. For each bead operator
 // (direct, or FMM at a tolerance) and body count: the setup (bead plan + body factorizations),
 // GMRES iterations and time of one mobility solve N W (random forces and torques), and their
-// ratio to one bead product M F; medians of `repeats`. With `plain`, also unpreconditioned
+// ratio to one bead product M F; medians of `repeats`. Also one Brownian solve
+// (apply_with_noise: block-preconditioned bead noise B z at tolerance 1e-3, then GMRES): its time
+// and the bead sampler's iterations. With `plain`, also unpreconditioned
 // GMRES (capped at 2000 iterations; small systems only). With the direct operator and at most
 // 4000 beads, also the dense reference: M assembled, then its Cholesky and N = (K^T M^{-1} K)^{-1}
 // (Eigen; dense_s times these, not the assembly) and the relative difference of the GMRES
@@ -107,7 +109,7 @@ int main(int argc, char** argv) {
   const bool plain = argc > 8 && std::string(argv[8]) == "plain";
   std::printf(
       "operator,eps,bodies,beads,threads,phi,tol,setup_s,iterations,solve_s,product_s,solve_over_product,"
-      "plain_iterations,plain_solve_s,dense_s,dense_rel_diff\n");
+      "plain_iterations,plain_solve_s,dense_s,dense_rel_diff,noise_solve_s,noise_sqrt_iterations\n");
   for (std::size_t m : counts) {
     const Suspension s = suspension(m, subdivisions, phi, 42u + m);
     std::unique_ptr<MobilityOperator> beads;
@@ -135,6 +137,12 @@ int main(int argc, char** argv) {
       iterations = bodies.apply(w, y).iterations;
       ts.push_back(solve.seconds());
     }
+    std::vector<double> z(s.x.size());
+    for (double& v : z) v = g(rng);
+    StopWatch noise;
+    const RigidBodyReport noisy = bodies.apply_with_noise(
+        w, 1.0, z, y, SqrtOptions{.tolerance = 1e-3, .preconditioner = SqrtPreconditioner::automatic});
+    const double noise_s = noise.seconds();
     int plain_iterations = 0;
     double plain_s = 0.0;
     if (plain) {
@@ -172,9 +180,10 @@ int main(int argc, char** argv) {
       bodies.apply(w, y);
       dense_diff = (Eigen::Map<const Eigen::VectorXd>(y.data(), ref.size()) - ref).norm() / ref.norm();
     }
-    std::printf("%s,%.0e,%zu,%zu,%d,%.2f,%.0e,%.4e,%d,%.4e,%.4e,%.2f,%d,%.4e,%.4e,%.2e\n", opname.c_str(),
+    std::printf("%s,%.0e,%zu,%zu,%d,%.2f,%.0e,%.4e,%d,%.4e,%.4e,%.2f,%d,%.4e,%.4e,%.2e,%.4e,%d\n", opname.c_str(),
                 opname == "fmm" ? eps : 0.0, m, s.radii.size(), omp_get_max_threads(), phi, tol, setup_s, iterations,
-                median(ts), median(tp), median(ts) / median(tp), plain_iterations, plain_s, dense_s, dense_diff);
+                median(ts), median(tp), median(ts) / median(tp), plain_iterations, plain_s, dense_s, dense_diff,
+                noise_s, noisy.sqrt.iterations);
     std::fflush(stdout);
   }
   return 0;

@@ -62,6 +62,24 @@ nb::tuple apply(const RigidBodies& bodies, ArrayArg forces_torques, bool with_be
   return nb::make_tuple(y.object, adopt_vector(std::move(lambda), {n, 3}).o, report);
 }
 
+nb::tuple apply_with_noise(const RigidBodies& bodies, ArrayArg forces_torques, double noise_scale, ArrayArg z,
+                           double sqrt_tol, const std::string& preconditioner) {
+  const std::string where = "RigidBodies.apply_with_noise";
+  const InArray w = as_input(forces_torques, where, "forces_torques");
+  const InArray zz = as_input(z, where, "z");
+  require_points(zz, where, "z");
+  require((w.ndim() == 2 && w.shape[1] == 6) || w.ndim() == 1, ErrorCode::invalid_input, where,
+          "forces_torques has shape " + shape_string(w.shape) + ", expected (m, 6) or (6m,)");
+  const rpy::SqrtOptions options = sqrt_options("auto", sqrt_tol, 0, true, true, 0.0, 0.0, 30, preconditioner, 0);
+  OutArray y = make_output(nb::none(), {bodies.bodies(), 6}, where);
+  RigidBodyReport report;
+  {
+    nb::gil_scoped_release release;
+    report = bodies.apply_with_noise(w.span(), noise_scale, zz.span(), y.span(), options);
+  }
+  return nb::make_tuple(y.object, report);
+}
+
 }  // namespace
 
 void bind_rigid(nb::module_& m) {
@@ -71,6 +89,8 @@ void bind_rigid(nb::module_& m) {
       .def_ro("residual", &RigidBodyReport::residual, "Final relative residual of the saddle-point system.")
       .def_ro("seconds_setup", &RigidBodyReport::seconds_setup, "The last set_configuration, in seconds.")
       .def_ro("seconds_solve", &RigidBodyReport::seconds_solve)
+      .def_ro("sqrt", &RigidBodyReport::sqrt, "apply_with_noise: the SqrtReport of the bead noise B z.")
+      .def_ro("seconds_sqrt", &RigidBodyReport::seconds_sqrt)
       .def("__repr__", &report_repr);
 
   nb::class_<RigidBodies>(
@@ -107,6 +127,13 @@ void bind_rigid(nb::module_& m) {
           nb::arg("forces_torques"),
           "(velocities (m, 6), bead forces (N, 3), RigidBodyReport): also the forces the beads exert on the\n"
           "fluid to keep the bodies rigid.")
+      .def("apply_with_noise", &apply_with_noise, nb::arg("forces_torques"), nb::arg("noise_scale"), nb::arg("z"),
+           nb::arg("sqrt_tol") = 1e-3, nb::arg("preconditioner") = "auto",
+           "(velocities (m, 6), RigidBodyReport): N W + noise_scale N K^T M^{-1} B z for bead noise z (N, 3)\n"
+           "(standard normal, e.g. normal_noise(N, seed, step)); B B^T = M from the bead operator's sampler\n"
+           "(Lanczos at sqrt_tol; preconditioner 'auto' | 'block' | 'none'). The noise part has covariance\n"
+           "noise_scale^2 N: with noise_scale = sqrt(2 kT / dt), Y dt is a Brownian step (without the\n"
+           "thermal drift).")
       .def_prop_ro("bodies", &RigidBodies::bodies)
       .def_prop_ro("beads", &RigidBodies::beads)
       .def_prop_ro(

@@ -55,6 +55,26 @@ def test_body_mobility_matches_dense_solve():
     assert "RigidBodyReport(" in repr(report)
 
 
+def test_brownian_velocities():
+    """apply_with_noise = N W + c N K^T M^{-1} M^{1/2} z (principal root: preconditioner 'none')."""
+    x, radii, offsets = two_shells_and_a_triangle()
+    op = rpyfmm.DirectRpy()
+    bodies = rpyfmm.RigidBodies(op, tolerance=1e-11)
+    bodies.set_configuration(x, radii, offsets)
+    n, bead_map = dense_body_mobility(op, x, offsets)
+    lam, v = np.linalg.eigh(np.array(op.assemble_dense()))
+    root = (v * np.sqrt(lam)) @ v.T
+    w = np.random.default_rng(3).standard_normal((3, 6))
+    z = rpyfmm.normal_noise(len(x), seed=4)
+    u, report = bodies.apply_with_noise(w, 0.7, z, sqrt_tol=1e-10, preconditioner="none")
+    assert rel_err(u.ravel(), n @ w.ravel() + 0.7 * bead_map.T @ root @ z.ravel()) < 1e-7
+    assert report.sqrt.iterations > 0 and report.sqrt.preconditioner_blocks == 0
+    _, report = bodies.apply_with_noise(w, 0.7, z)  # default: block-preconditioned bead noise
+    assert report.sqrt.preconditioner_blocks > 0
+    with pytest.raises(rpyfmm.Error, match="noise_scale"):
+        bodies.apply_with_noise(w, -1.0, z)
+
+
 def test_reference_points_shift_the_angular_frame():
     """About another reference point q' = q + d, a body's velocity there is U + Omega x d and its
     torque T - d x F: the rigid motion is the same."""

@@ -19,6 +19,7 @@
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
+#include "rpyfmm/rpy/random.hpp"
 #include "rpyfmm/rpy/rigid_bodies.hpp"
 
 using namespace rpyfmm::rpy;
@@ -348,6 +349,52 @@ TEST(RigidBodies, PeriodicBodiesMayStraddleTheBox) {
   EXPECT_LE(rel(solve(bodies, w), y0), 1e-6);
 }
 
+// Brownian velocities: for given bead noise z, apply_with_noise gives N W + c N K^T M^{-1} M^{1/2} z
+// (M^{1/2} the principal root, dense eigendecomposition here; sampler at 1e-10), and over many
+// noise vectors (block-preconditioned sampler: any B with B B^T = M) the noise part has
+// covariance c^2 N: 4000 samples of 12 components, relative Frobenius error <= 0.1 (the
+// expected sampling error is sqrt((1 + tr(N)^2 / |N|^2) / 4000) <= sqrt(13 / 4000) = 0.057;
+// this seed gives 0.049).
+TEST(RigidBodies, BrownianVelocitiesHaveCovarianceN) {
+  System s;
+  std::mt19937 rng(3);
+  s.add(icosphere(0), 1.5, 0.7, random_rotation(rng), {0, 0, 0});
+  s.add({{0, 0, 0}, {2, 0, 0}, {1, 1.7, 0}, {1, 0.6, 1.6}}, 1.0, 0.9, random_rotation(rng), {3.5, 1, 0});
+  DirectRpy beads(Geometry::open(), 1.0);
+  RigidBodies bodies(beads, {.tolerance = 1e-11});
+  bodies.set_configuration(s.x, s.radii, s.offsets);
+  Eigen::MatrixXd lambda_map;
+  const Eigen::MatrixXd N = dense_body_mobility(beads, s, &lambda_map);
+  const std::vector<double> dense = beads.assemble_dense();
+  const auto n3 = static_cast<Eigen::Index>(s.x.size());
+  const Eigen::MatrixXd M =
+      Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(dense.data(), n3, n3);
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(M);
+  const Eigen::MatrixXd root =
+      es.eigenvectors() * es.eigenvalues().cwiseSqrt().asDiagonal() * es.eigenvectors().transpose();
+  // N K^T M^{-1} = lambda_map^T (lambda_map = M^{-1} K N, N symmetric).
+  const Eigen::VectorXd w = random_vector(12, 5u), z = random_vector(n3, 6u);
+  const double c = 0.8;
+  Eigen::VectorXd y(12);
+  const RigidBodyReport rep = bodies.apply_with_noise({w.data(), 12}, c, {z.data(), std::size_t(n3)}, {y.data(), 12},
+                                                      SqrtOptions{.tolerance = 1e-10});
+  EXPECT_LE(rel(y, N * w + c * lambda_map.transpose() * root * z), 1e-7);
+  EXPECT_GT(rep.sqrt.iterations, 0);
+
+  const int samples = 4000;
+  Eigen::MatrixXd cov = Eigen::MatrixXd::Zero(12, 12);
+  std::vector<double> zs(static_cast<std::size_t>(n3)), zero(12, 0.0), ys(12);
+  const SqrtOptions block{.tolerance = 1e-6, .preconditioner = SqrtPreconditioner::block, .preconditioner_block = 8};
+  for (int k = 0; k < samples; ++k) {
+    fill_normal(zs, 17u, static_cast<std::uint64_t>(k));
+    bodies.apply_with_noise(zero, 1.0, zs, ys, block);
+    const Eigen::Map<const Eigen::VectorXd> v(ys.data(), 12);
+    cov += v * v.transpose();
+  }
+  cov /= samples;
+  EXPECT_LE((cov - N).norm() / N.norm(), 0.1);
+}
+
 // Bad input: rpyfmm::Error naming the problem, before any work.
 TEST(RigidBodies, BadInput) {
   using rpyfmm::ErrorCode;
@@ -401,6 +448,13 @@ TEST(RigidBodies, BadInput) {
   expect_error([&] { bodies.apply(w, y, lambda); }, ErrorCode::invalid_input, "bead forces");
   beads.set_positions(std::vector<double>(s.x.begin(), s.x.begin() + 30), 1.0);  // behind its back
   expect_error([&] { bodies.apply(w, y); }, ErrorCode::invalid_input, "set elsewhere");
+  bodies.set_configuration(s.x, s.radii, s.offsets);
+  std::vector<double> z(s.x.size(), 0.5);
+  expect_error([&] { bodies.apply_with_noise(w, 1.0, std::vector<double>(5, 0.0), y); }, ErrorCode::invalid_input,
+               "bead noise z");
+  expect_error([&] { bodies.apply_with_noise(w, -1.0, z, y); }, ErrorCode::invalid_argument, "noise_scale");
+  z[3] = std::nan("");
+  expect_error([&] { bodies.apply_with_noise(w, 1.0, z, y); }, ErrorCode::invalid_input, "NaN");
   RigidBodies hurried(beads, {.tolerance = 1e-12, .max_iterations = 2});
   hurried.set_configuration(s.x, s.radii, s.offsets);
   expect_error([&] { hurried.apply(w, y); }, ErrorCode::numerical_failure, "did not reach");

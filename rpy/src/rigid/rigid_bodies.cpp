@@ -295,8 +295,8 @@ void RigidBodies::precondition(const double* x, double* y) const {
   }
 }
 
-RigidBodyReport RigidBodies::apply(std::span<const double> forces_torques, std::span<double> velocities,
-                                   std::span<double> bead_forces) const {
+void RigidBodies::check_call(std::span<const double> forces_torques, std::span<double> velocities,
+                             std::span<double> bead_forces) const {
   require(!offsets_.empty(), ErrorCode::invalid_input, kWhere, "apply before set_configuration");
   require(beads_.size() == offsets_.back(), ErrorCode::invalid_input, kWhere,
           "the bead operator now holds " + std::to_string(beads_.size()) + " particles, not the " +
@@ -309,10 +309,16 @@ RigidBodyReport RigidBodies::apply(std::span<const double> forces_torques, std::
           "bead forces have " + std::to_string(bead_forces.size()) + " entries, expected " + std::to_string(n3) +
               " (3 per bead) or none");
   require_finite(forces_torques, kWhere, "forces and torques", 6);
+}
+
+RigidBodyReport RigidBodies::solve(std::span<const double> forces_torques, std::vector<double>& b,
+                                   std::span<double> velocities, std::span<double> bead_forces) const {
+  const std::size_t m = bodies();
+  const std::size_t n3 = 3 * beads_.size();
   StopWatch watch;
-  std::vector<double> b(n3 + 6 * m, 0.0), x(n3 + 6 * m, 0.0);
   for (std::size_t k = 0; k < m; ++k)  // -(F_k, T_k / l_k)
     for (std::size_t c = 0; c < 6; ++c) b[n3 + 6 * k + c] = -forces_torques[6 * k + c] / (c < 3 ? 1.0 : scale_[k]);
+  std::vector<double> x(n3 + 6 * m, 0.0);
   const rigid_detail::VectorMap op = [this](const double* in, double* out) { saddle_apply(in, out); };
   rigid_detail::VectorMap pre;
   if (options_.precondition) pre = [this](const double* in, double* out) { precondition(in, out); };
@@ -333,6 +339,35 @@ RigidBodyReport RigidBodies::apply(std::span<const double> forces_torques, std::
   report.residual = g.residual;
   report.seconds_setup = seconds_setup_;
   report.seconds_solve = watch.seconds();
+  return report;
+}
+
+RigidBodyReport RigidBodies::apply(std::span<const double> forces_torques, std::span<double> velocities,
+                                   std::span<double> bead_forces) const {
+  check_call(forces_torques, velocities, bead_forces);
+  std::vector<double> b(3 * beads_.size() + 6 * bodies(), 0.0);  // no slip
+  return solve(forces_torques, b, velocities, bead_forces);
+}
+
+RigidBodyReport RigidBodies::apply_with_noise(std::span<const double> forces_torques, double noise_scale,
+                                              std::span<const double> z, std::span<double> velocities,
+                                              const SqrtOptions& sqrt_options, std::span<double> bead_forces) const {
+  check_call(forces_torques, velocities, bead_forces);
+  const std::size_t n3 = 3 * beads_.size();
+  require_size(z, n3, kWhere, "bead noise z");
+  require_finite(z, kWhere, "bead noise z", 3);
+  require(std::isfinite(noise_scale) && noise_scale >= 0.0, ErrorCode::invalid_argument, kWhere,
+          "noise_scale must be finite and >= 0, got " + std::to_string(noise_scale));
+  StopWatch watch;
+  // Random slip s = -c B z with B B^T = M: Y = N W + c N K^T M^{-1} B z, whose noise part has
+  // covariance c^2 N K^T M^{-1} M M^{-1} K N = c^2 N (Usabiaga et al. 2016, sec. 4).
+  std::vector<double> b(n3 + 6 * bodies(), 0.0), w(n3);
+  const SqrtReport sqrt_report = beads_.apply_sqrt(z, w, sqrt_options);
+  for (std::size_t i = 0; i < n3; ++i) b[i] = -noise_scale * w[i];
+  const double seconds_sqrt = watch.seconds();
+  RigidBodyReport report = solve(forces_torques, b, velocities, bead_forces);
+  report.sqrt = sqrt_report;
+  report.seconds_sqrt = seconds_sqrt;
   return report;
 }
 

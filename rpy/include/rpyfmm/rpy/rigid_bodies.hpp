@@ -55,7 +55,9 @@ struct RigidBodyReport {
   int restarts = 0;            ///< GMRES restarts
   double residual = 0.0;       ///< final ||r|| / ||W|| (recomputed from the solution)
   double seconds_setup = 0.0;  ///< set_configuration: bead plan + body factorizations
-  double seconds_solve = 0.0;  ///< apply
+  double seconds_solve = 0.0;  ///< the GMRES solve of apply / apply_with_noise
+  SqrtReport sqrt;             ///< apply_with_noise: the bead noise B z (B B^T = M)
+  double seconds_sqrt = 0.0;   ///< apply_with_noise: time of the bead noise
 };
 
 class RigidBodies {
@@ -81,6 +83,18 @@ class RigidBodies {
   RigidBodyReport apply(std::span<const double> forces_torques, std::span<double> velocities,
                         std::span<double> bead_forces = {}) const;
 
+  /// Velocities with Brownian noise for a time step: Y = N W + noise_scale N K^T M^{-1} B z, where
+  /// B z (B B^T = M) is the bead operator's square root of the bead noise z (3N standard normal
+  /// values; `sqrt_options` as for MobilityOperator::apply_sqrt, the block preconditioner
+  /// included). The noise part has covariance noise_scale^2 N, so with noise_scale =
+  /// sqrt(2 kT / dt) the displacements Y dt carry the bodies' Brownian motion (Usabiaga et al.
+  /// 2016: a random slip on the beads). One bead square root and one GMRES solve. The thermal
+  /// drift kT div N of a full BD step is not included. Throws as apply, and on a bad z or
+  /// noise_scale < 0.
+  RigidBodyReport apply_with_noise(std::span<const double> forces_torques, double noise_scale,
+                                   std::span<const double> z, std::span<double> velocities,
+                                   const SqrtOptions& sqrt_options = {}, std::span<double> bead_forces = {}) const;
+
   [[nodiscard]] std::size_t bodies() const { return offsets_.empty() ? 0 : offsets_.size() - 1; }
   [[nodiscard]] std::size_t beads() const { return beads_.size(); }
   /// Reference points q_k (3m) in use.
@@ -90,6 +104,12 @@ class RigidBodies {
   [[nodiscard]] double seconds_setup() const { return seconds_setup_; }
 
  private:
+  void check_call(std::span<const double> forces_torques, std::span<double> velocities,
+                  std::span<double> bead_forces) const;
+  /// GMRES on the saddle-point system with bead rows b[0, 3N) given (the slip) and the body rows
+  /// from forces_torques; velocities and bead forces from its solution.
+  RigidBodyReport solve(std::span<const double> forces_torques, std::vector<double>& b, std::span<double> velocities,
+                        std::span<double> bead_forces) const;
   /// y = K Y (bead velocities of rigid motions) and w = K^T lambda (forces and torques).
   void rigid_velocities(const double* body, double* bead) const;
   void forces_and_torques(const double* bead, double* body) const;
