@@ -165,6 +165,7 @@ void RigidBodies::set_configuration(std::span<const double> bead_positions, std:
     factor_offset[k + 1] = factor_offset[k] + (options_.precondition ? rows * rows : 0);
   }
   std::vector<double> factors(factor_offset[m]), mobility(options_.precondition ? 36 * m : 0);
+  std::vector<double> minv_k(options_.precondition ? 18 * n : 0);  // M_kk^{-1} K_k, 3 n_k x 6 per body
   const auto radii_used = beads_.radii();
   const double eta = beads_.viscosity();
   std::vector<int> failure(m, 0);  // 1: singular bead block, 2: rotation undefined
@@ -191,7 +192,8 @@ void RigidBodies::set_configuration(std::span<const double> bead_positions, std:
       continue;
     }
     const MatrixX kk = rigid_map(karms.data() + 3 * first, count);
-    const Matrix6 s = kk.transpose() * llt.solve(kk);
+    const MatrixX minvk = llt.solve(kk);
+    const Matrix6 s = kk.transpose() * minvk;
     const Eigen::Matrix<double, 6, 1> scale = s.diagonal().cwiseSqrt().cwiseInverse();
     const Matrix6 scaled = scale.asDiagonal() * s * scale.asDiagonal();
     const Eigen::SelfAdjointEigenSolver<Matrix6> eig(scaled, Eigen::EigenvaluesOnly);
@@ -204,6 +206,7 @@ void RigidBodies::set_configuration(std::span<const double> bead_positions, std:
       for (int c = 0; c < 6; ++c) mobility[36 * k + 6 * std::size_t(r) + std::size_t(c)] = 0.5 * (nk(r, c) + nk(c, r));
     const MatrixX l = llt.matrixL();
     std::copy(l.data(), l.data() + l.size(), factors.begin() + static_cast<std::ptrdiff_t>(factor_offset[k]));
+    std::copy(minvk.data(), minvk.data() + minvk.size(), minv_k.begin() + static_cast<std::ptrdiff_t>(18 * first));
   }
   for (std::size_t k = 0; k < m; ++k) {
     require(failure[k] != 1, ErrorCode::invalid_input, kWhere,
@@ -220,6 +223,7 @@ void RigidBodies::set_configuration(std::span<const double> bead_positions, std:
   reference_ = std::move(reference);
   factor_offset_ = std::move(factor_offset);
   factors_ = std::move(factors);
+  minv_k_ = std::move(minv_k);
   body_mobility_ = std::move(mobility);
   offsets_.assign(body_offsets.begin(), body_offsets.end());
   seconds_setup_ = watch.seconds();
@@ -272,7 +276,8 @@ void RigidBodies::saddle_apply(const double* x, double* y) const {
 
 void RigidBodies::precondition(const double* x, double* y) const {
   // Per body, the saddle-point system without inter-body coupling:
-  //   Y_k = -N_k (b_k + K_k^T M_kk^{-1} a_k),  lambda_k = M_kk^{-1} (a_k + K_k Y_k).
+  //   Y_k = -N_k (b_k + K_k^T M_kk^{-1} a_k),  lambda_k = M_kk^{-1} a_k + (M_kk^{-1} K_k) Y_k
+  // (two triangular solves; M_kk^{-1} K_k is stored).
   const std::size_t n3 = 3 * beads_.size();
   const std::size_t m = bodies();
 #pragma omp parallel for schedule(dynamic)
@@ -280,17 +285,15 @@ void RigidBodies::precondition(const double* x, double* y) const {
     const std::size_t first = offsets_[k], count = offsets_[k + 1] - first;
     const auto rows = static_cast<Eigen::Index>(3 * count);
     const Eigen::Map<const MatrixX> l(factors_.data() + factor_offset_[k], rows, rows);
-    const MatrixX kk = rigid_map(arms_.data() + 3 * first, count);
+    const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 6>> minvk(minv_k_.data() + 18 * first, rows, 6);
     const Eigen::Map<const Eigen::VectorXd> a(x + 3 * first, rows);
     const Eigen::Map<const Eigen::Matrix<double, 6, 1>> b(x + n3 + 6 * k);
     const Eigen::Map<const Eigen::Matrix<double, 6, 6, Eigen::RowMajor>> nk(body_mobility_.data() + 36 * k);
     Eigen::VectorXd minv_a = l.triangularView<Eigen::Lower>().solve(a);
     l.triangularView<Eigen::Lower>().transpose().solveInPlace(minv_a);
-    const Eigen::Matrix<double, 6, 1> yk = -(nk * (b + kk.transpose() * minv_a));
-    Eigen::VectorXd lambda = a + kk * yk;
-    l.triangularView<Eigen::Lower>().solveInPlace(lambda);
-    l.triangularView<Eigen::Lower>().transpose().solveInPlace(lambda);
-    Eigen::Map<Eigen::VectorXd>(y + 3 * first, rows) = lambda;
+    // K_k^T M_kk^{-1} a_k = (M_kk^{-1} K_k)^T a_k (M_kk symmetric)
+    const Eigen::Matrix<double, 6, 1> yk = -(nk * (b + minvk.transpose() * a));
+    Eigen::Map<Eigen::VectorXd>(y + 3 * first, rows) = minv_a + minvk * yk;
     Eigen::Map<Eigen::Matrix<double, 6, 1>>(y + n3 + 6 * k) = yk;
   }
 }

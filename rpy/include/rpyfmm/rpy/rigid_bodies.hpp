@@ -125,6 +125,7 @@ class RigidBodies {
   std::vector<double> reference_;           // q_k, 3m
   std::vector<std::size_t> factor_offset_;  // body k's Cholesky factor of M_kk at factors_[factor_offset_[k]]
   std::vector<double> factors_;             // lower triangles, column-major (3 n_k)^2 each
+  std::vector<double> minv_k_;              // M_kk^{-1} K_k (3 n_k x 6, column-major) per body
   std::vector<double> body_mobility_;       // N_k (6x6 row-major) per body
   double seconds_setup_ = 0.0;
 };
