@@ -86,7 +86,8 @@ void bind_rigid(nb::module_& m) {
   nb::class_<RigidBodyReport>(m, "RigidBodyReport", "What a rigid-body mobility solve did (GMRES).")
       .def_ro("iterations", &RigidBodyReport::iterations, "GMRES iterations = bead products M lambda.")
       .def_ro("restarts", &RigidBodyReport::restarts)
-      .def_ro("residual", &RigidBodyReport::residual, "Final relative residual of the saddle-point system.")
+      .def_ro("residual", &RigidBodyReport::residual,
+              "Final relative residual of the saddle-point system (GMRES's recurrence estimate).")
       .def_ro("seconds_setup", &RigidBodyReport::seconds_setup, "The last set_configuration, in seconds.")
       .def_ro("seconds_solve", &RigidBodyReport::seconds_solve)
       .def_ro("sqrt", &RigidBodyReport::sqrt, "apply_with_noise: the SqrtReport of the bead noise B z.")

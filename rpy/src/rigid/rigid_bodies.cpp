@@ -363,7 +363,7 @@ RigidBodyReport RigidBodies::apply_with_noise(std::span<const double> forces_tor
           "noise_scale must be finite and >= 0, got " + std::to_string(noise_scale));
   StopWatch watch;
   // Random slip s = -c B z with B B^T = M: Y = N W + c N K^T M^{-1} B z, whose noise part has
-  // covariance c^2 N K^T M^{-1} M M^{-1} K N = c^2 N (Usabiaga et al. 2016, sec. 4).
+  // covariance c^2 N K^T M^{-1} M M^{-1} K N = c^2 N (Sprinkle et al., J. Chem. Phys. 147, 244103 (2017)).
   std::vector<double> b(n3 + 6 * bodies(), 0.0), w(n3);
   const SqrtReport sqrt_report = beads_.apply_sqrt(z, w, sqrt_options);
   for (std::size_t i = 0; i < n3; ++i) b[i] = -noise_scale * w[i];

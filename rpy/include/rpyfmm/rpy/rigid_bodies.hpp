@@ -4,9 +4,9 @@
 //
 // Body k is a set of beads i at positions r_i (radius a_i) moving rigidly with a reference
 // point q_k: u_i = U_k + Omega_k x (r_i - q_k), i.e. u = K Y (dissertation 004 ch. 5, the
-// bead-shell model; Swan et al. / Usabiaga et al., "rigid multiblob", J. Comput. Phys. 2016,
-// eq. 8). The beads exert forces lambda on the fluid with M lambda = K Y (no slip, M the RPY
-// bead mobility) and sum to the body's force and torque, K^T lambda = W = (F_k, T_k). So
+// bead-shell model; the "rigid multiblob" formulation of Balboa Usabiaga et al., Commun. Appl.
+// Math. Comput. Sci. 11, 217 (2016)). The beads exert forces lambda on the fluid with M lambda = K Y (no slip, M the
+// RPY bead mobility) and sum to the body's force and torque, K^T lambda = W = (F_k, T_k). So
 //     [ M   -K ] [lambda]   [ 0]
 //     [-K^T  0 ] [  Y   ] = [-W],    Y = N W,   N = (K^T M^{-1} K)^{-1}  (the body mobility).
 // The saddle-point system is solved matrix-free by restarted GMRES, with one bead product
@@ -32,9 +32,10 @@
 namespace rpyfmm::rpy {
 
 struct RigidBodyOptions {
-  /// GMRES stops at ||r|| <= tolerance ||W||, r the residual of the saddle-point system above,
-  /// in which each body's torque and angular velocity are scaled by its RMS lever arm l_k
-  /// (T_k / l_k, Omega_k l_k: forces and torques weigh alike). The relative error of the
+  /// GMRES stops at ||r|| <= tolerance ||b||: r the residual of the saddle-point system above,
+  /// b its right-hand side (W, and apply_with_noise's random slip), with each body's torque and
+  /// angular velocity scaled by its RMS lever arm l_k (T_k / l_k, Omega_k l_k: forces and
+  /// torques weigh alike). The relative error of the
   /// velocities is then within a few times the tolerance (bench/rigid/RESULTS.md); in (0, 1).
   double tolerance = 1e-6;
   /// Most GMRES iterations (bead products) in all; not converging then throws
@@ -53,7 +54,7 @@ struct RigidBodyOptions {
 struct RigidBodyReport {
   int iterations = 0;          ///< GMRES iterations = bead products M lambda
   int restarts = 0;            ///< GMRES restarts
-  double residual = 0.0;       ///< final ||r|| / ||W|| (recomputed from the solution)
+  double residual = 0.0;       ///< final ||r|| / ||b|| as GMRES's recurrence estimates it
   double seconds_setup = 0.0;  ///< set_configuration: bead plan + body factorizations
   double seconds_solve = 0.0;  ///< the GMRES solve of apply / apply_with_noise
   SqrtReport sqrt;             ///< apply_with_noise: the bead noise B z (B B^T = M)
@@ -87,10 +88,10 @@ class RigidBodies {
   /// B z (B B^T = M) is the bead operator's square root of the bead noise z (3N standard normal
   /// values; `sqrt_options` as for MobilityOperator::apply_sqrt, the block preconditioner
   /// included). The noise part has covariance noise_scale^2 N, so with noise_scale =
-  /// sqrt(2 kT / dt) the displacements Y dt carry the bodies' Brownian motion (Usabiaga et al.
-  /// 2016: a random slip on the beads). One bead square root and one GMRES solve. The thermal
-  /// drift kT div N of a full BD step is not included. Throws as apply, and on a bad z or
-  /// noise_scale < 0.
+  /// sqrt(2 kT / dt) the displacements Y dt carry the bodies' Brownian motion: a random slip
+  /// on the beads (Sprinkle, Balboa Usabiaga, Patankar & Donev, J. Chem. Phys. 147, 244103
+  /// (2017)). One bead square root and one GMRES solve. The thermal drift kT div N of a full
+  /// BD step is not included. Throws as apply, and on a bad z or noise_scale < 0.
   RigidBodyReport apply_with_noise(std::span<const double> forces_torques, double noise_scale,
                                    std::span<const double> z, std::span<double> velocities,
                                    const SqrtOptions& sqrt_options = {}, std::span<double> bead_forces = {}) const;
