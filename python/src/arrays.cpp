@@ -118,6 +118,11 @@ OutArray make_output(nb::handle out, const std::vector<std::size_t>& shape, cons
   return result;
 }
 
+bool is_array_like(nb::handle h) {
+  if (nb::hasattr(h, "ndim")) return nb::cast<int>(h.attr("ndim")) > 0;
+  return nb::isinstance<nb::list>(h) || nb::isinstance<nb::tuple>(h);
+}
+
 ArrayResult adopt_vector(std::vector<double>&& values, const std::vector<std::size_t>& shape) {
   auto* heap = new std::vector<double>(std::move(values));
   nb::capsule owner(heap, [](void* p) noexcept { delete static_cast<std::vector<double>*>(p); });

@@ -85,6 +85,10 @@ InArray as_input(nb::handle obj, const std::string& where, const std::string& na
 /// Shape as text, e.g. "(5, 2)".
 std::string shape_string(const std::vector<std::size_t>& shape);
 
+/// True for arrays with at least one dimension, lists and tuples (N radii); false for numbers,
+/// NumPy scalars included (one radius).
+bool is_array_like(nb::handle h);
+
 /// Checks that `a` is points data: (N, 3) or (3N,); returns N.
 std::size_t require_points(const InArray& a, const std::string& where, const std::string& name);
 

@@ -23,11 +23,6 @@ namespace {
 
 using rpy::MobilityOperator;
 
-bool is_array_like(nb::handle h) {
-  if (nb::hasattr(h, "ndim")) return nb::cast<int>(h.attr("ndim")) > 0;
-  return nb::isinstance<nb::list>(h) || nb::isinstance<nb::tuple>(h);
-}
-
 void set_positions(MobilityOperator& op, ArrayArg positions, RadiusArg radius) {
   const std::string where = "set_positions";
   const InArray x = as_input(positions, where, "positions");

@@ -29,7 +29,7 @@ void set_configuration(RigidBodies& bodies, ArrayArg positions, RadiusArg radius
     q = as_input(reference_points, where, "reference_points");
     require_points(q, where, "reference_points");
   }
-  if (nb::hasattr(radius.h, "ndim") || nb::isinstance<nb::list>(radius.h) || nb::isinstance<nb::tuple>(radius.h)) {
+  if (is_array_like(radius)) {  // N radii; a NumPy scalar (ndim 0) is one radius
     const InArray r = as_input(radius, where, "radii");
     require(r.ndim() == 1, ErrorCode::invalid_input, where,
             "radii has shape " + shape_string(r.shape) + ", expected (N,)");

@@ -115,7 +115,8 @@ def test_errors():
         bodies.set_configuration(x, radii, [0, 42, 84])
     with pytest.raises(rpyfmm.Error, match="one line"):
         bodies.set_configuration(np.array([[0.0, 0, 0], [2, 0, 0], [4, 0, 0]]), 1.0, [0, 3])
-    bodies.set_configuration(x, radii, np.array(offsets))  # NumPy integer offsets work too
+    bodies.set_configuration(x, np.float64(0.5), np.array(offsets))  # NumPy scalar radius, integer offsets
+    bodies.set_configuration(x, radii, np.array(offsets))
     with pytest.raises(rpyfmm.Error, match="forces and torques"):
         bodies.apply(np.zeros((2, 6)))
     with pytest.raises(rpyfmm.Error, match="expected"):
