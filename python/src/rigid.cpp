@@ -135,6 +135,20 @@ void bind_rigid(nb::module_& m) {
            "(Lanczos at sqrt_tol; preconditioner 'auto' | 'block' | 'none'). The noise part has covariance\n"
            "noise_scale^2 N: with noise_scale = sqrt(2 kT / dt), Y dt is a Brownian step (without the\n"
            "thermal drift).")
+      .def(
+          "mobility_matrix",
+          [](const RigidBodies& b, std::size_t max_bodies) {
+            std::vector<double> n;
+            {
+              nb::gil_scoped_release release;
+              n = b.mobility_matrix(max_bodies);
+            }
+            const std::size_t rows = 6 * b.bodies();
+            return adopt_vector(std::move(n), {rows, rows});
+          },
+          nb::arg("max_bodies") = 200,
+          "The body mobility matrix N (6m, 6m) by 6m solves, symmetrized; kT N is the grand diffusion\n"
+          "tensor (translational and rotational diffusion of bead models).")
       .def_prop_ro("bodies", &RigidBodies::bodies)
       .def_prop_ro("beads", &RigidBodies::beads)
       .def_prop_ro(

@@ -75,6 +75,22 @@ def test_brownian_velocities():
         bodies.apply_with_noise(w, -1.0, z)
 
 
+def test_mobility_matrix_of_a_bead_shell_sphere():
+    """kT N of one bead shell: isotropic translational and rotational diffusion, no coupling, close
+    to Stokes-Einstein for the shell's radius R = 1 (642 beads: 2.3% and 6.5% below 1/(6 pi eta R)
+    and 1/(8 pi eta R^3); the shell's hydrodynamic radius exceeds R by a third of a bead radius)."""
+    shell = rpyfmm.icosphere_beads(3)
+    bodies = rpyfmm.RigidBodies(rpyfmm.DirectRpy(), tolerance=1e-10)
+    bodies.set_configuration(shell, rpyfmm.icosphere_bead_radius(3), [0, len(shell)])
+    n = bodies.mobility_matrix()
+    assert n.shape == (6, 6)
+    np.testing.assert_array_equal(n, n.T)
+    np.testing.assert_allclose(n[:3, :3], n[0, 0] * np.eye(3), atol=1e-8 * n[0, 0])
+    np.testing.assert_allclose(n[3:, 3:], n[3, 3] * np.eye(3), atol=1e-8 * n[3, 3])
+    assert np.abs(n[:3, 3:]).max() < 1e-8 * np.sqrt(n[0, 0] * n[3, 3])
+    assert 0.95 < n[0, 0] * 6 * np.pi < 1.0 and 0.9 < n[3, 3] * 8 * np.pi < 1.0
+
+
 def test_reference_points_shift_the_angular_frame():
     """About another reference point q' = q + d, a body's velocity there is U + Omega x d and its
     torque T - d x F: the rigid motion is the same."""

@@ -211,6 +211,12 @@ TEST(RigidBodies, SymmetricPositiveDefiniteAndFrameInvariant) {
   bodies.set_configuration(s.x, s.radii, s.offsets);
   const Eigen::MatrixXd N = body_mobility(bodies);
   EXPECT_LE((N - N.transpose()).norm(), 1e-9 * N.norm());
+  // The library's mobility_matrix: the same columns, symmetrized; too many bodies are refused.
+  const std::vector<double> flat = bodies.mobility_matrix();
+  const Eigen::MatrixXd Nlib = Eigen::Map<const Eigen::Matrix<double, 30, 30, Eigen::RowMajor>>(flat.data());
+  EXPECT_EQ(Nlib, Nlib.transpose());
+  EXPECT_LE((Nlib - N).norm(), 1e-9 * N.norm());
+  EXPECT_THROW((void)bodies.mobility_matrix(4), rpyfmm::Error);
   const Eigen::VectorXd ev = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(0.5 * (N + N.transpose())).eigenvalues();
   EXPECT_GT(ev(0), 0.0);
 

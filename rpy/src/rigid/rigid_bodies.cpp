@@ -374,4 +374,24 @@ RigidBodyReport RigidBodies::apply_with_noise(std::span<const double> forces_tor
   return report;
 }
 
+std::vector<double> RigidBodies::mobility_matrix(std::size_t max_bodies) const {
+  require(!offsets_.empty(), ErrorCode::invalid_input, kWhere, "mobility_matrix before set_configuration");
+  const std::size_t m = bodies();
+  require(m <= max_bodies, ErrorCode::invalid_argument, kWhere,
+          "mobility_matrix of " + std::to_string(m) + " bodies needs " + std::to_string(6 * m) +
+              " solves; raise max_bodies (" + std::to_string(max_bodies) + ") to allow it");
+  const std::size_t n = 6 * m;
+  std::vector<double> matrix(n * n), unit(n, 0.0), column(n);
+  for (std::size_t c = 0; c < n; ++c) {
+    unit[c] = 1.0;
+    apply(unit, column);
+    unit[c] = 0.0;
+    for (std::size_t r = 0; r < n; ++r) matrix[r * n + c] = column[r];
+  }
+  for (std::size_t r = 0; r < n; ++r)
+    for (std::size_t c = r + 1; c < n; ++c)
+      matrix[r * n + c] = matrix[c * n + r] = 0.5 * (matrix[r * n + c] + matrix[c * n + r]);
+  return matrix;
+}
+
 }  // namespace rpyfmm::rpy

@@ -96,6 +96,13 @@ class RigidBodies {
                                    std::span<const double> z, std::span<double> velocities,
                                    const SqrtOptions& sqrt_options = {}, std::span<double> bead_forces = {}) const;
 
+  /// The body mobility matrix N (6m x 6m, row-major; rows and columns (U, Omega) / (F, T) per
+  /// body) by 6m solves with unit forces and torques, symmetrized (N = N^T exactly; the solves
+  /// leave an asymmetry of about the tolerance). kT N is the bodies' grand diffusion tensor,
+  /// e.g. translational and rotational diffusion of a bead model of a macromolecule. Throws
+  /// for more than `max_bodies` bodies (the cost is 6m solves).
+  [[nodiscard]] std::vector<double> mobility_matrix(std::size_t max_bodies = 200) const;
+
   [[nodiscard]] std::size_t bodies() const { return offsets_.empty() ? 0 : offsets_.size() - 1; }
   [[nodiscard]] std::size_t beads() const { return beads_.size(); }
   /// Reference points q_k (3m) in use.
