@@ -5,7 +5,8 @@ operators behind one interface (:class:`DirectRpy`, :class:`FmmRpy`,
 :class:`PseRpy`, :class:`FreeDraining`, :func:`make_mobility`), the Brownian
 samplers (``apply_sqrt``, :func:`sqrt_apply`, :func:`normal_noise`,
 :class:`SqrtReport`), rigid bodies of beads (:class:`RigidBodies`,
-:func:`icosphere_beads`) and Brownian dynamics (:func:`run_bd`,
+:func:`icosphere_beads`, and their Brownian dynamics :class:`RigidBodyDynamics`) and
+Brownian dynamics of beads (:func:`run_bd`,
 :class:`Simulation` with Python force callbacks).
 
 Arrays: positions/forces/velocities are (N, 3) or (3N,), results come back in
@@ -42,7 +43,9 @@ from ._rpyfmm import (
     OutOfMemoryError,
     PseRpy,
     RigidBodies,
+    RigidBodyDynamics,
     RigidBodyReport,
+    RigidStepReport,
     RunConfig,
     Simulation,
     SpectrumBounds,
@@ -90,7 +93,9 @@ __all__ = [
     "OutOfMemoryError",
     "PseRpy",
     "RigidBodies",
+    "RigidBodyDynamics",
     "RigidBodyReport",
+    "RigidStepReport",
     "RunConfig",
     "Simulation",
     "SpectrumBounds",

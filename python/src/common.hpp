@@ -134,6 +134,7 @@ void bind_mobility(nb::module_& m);
 void bind_samplers(nb::module_& m);
 void bind_bd(nb::module_& m);
 void bind_rigid(nb::module_& m);
+void bind_rigid_dynamics(nb::module_& m);
 
 }  // namespace rpyfmm::python
 

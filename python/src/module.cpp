@@ -3,8 +3,8 @@
 // One file per area: arrays.cpp (conversions), errors.cpp, fmm.cpp (Laplace
 // FMM and direct sums), mobility.cpp (the mobility operators), samplers.cpp
 // (square roots, noise, reports), bd.cpp (Brownian dynamics), rigid.cpp (rigid
-// bodies of beads). The package `rpyfmm` (python/rpyfmm/__init__.py) re-exports
-// everything.
+// bodies of beads), rigid_dynamics.cpp (their Brownian dynamics). The package `rpyfmm` (python/rpyfmm/__init__.py)
+// re-exports everything.
 #include <omp.h>
 
 #include <cstdint>
@@ -47,4 +47,5 @@ NB_MODULE(_rpyfmm, m) {
   bind_samplers(m);
   bind_bd(m);
   bind_rigid(m);
+  bind_rigid_dynamics(m);
 }

@@ -1,0 +1,300 @@
+// rpyfmm::bd — RigidBodyDynamics: Euler-Maruyama with a random-finite-difference drift for
+// rigid bodies of beads (see the header; design note 32).
+#include "rpyfmm/bd/rigid_dynamics.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <string>
+
+#include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/rpy/random.hpp"
+
+namespace rpyfmm::bd {
+
+namespace quaternion {
+
+std::array<double, 9> rotation_matrix(std::span<const double, 4> q) {
+  const double w = q[0], x = q[1], y = q[2], z = q[3];
+  return {1 - 2 * (y * y + z * z), 2 * (x * y - w * z),     2 * (x * z + w * y),
+          2 * (x * y + w * z),     1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+          2 * (x * z - w * y),     2 * (y * z + w * x),     1 - 2 * (x * x + y * y)};
+}
+
+void rotate(std::span<double, 4> q, const double phi[3]) {
+  // dq = (cos(theta/2), sin(theta/2) phi / theta), theta = |phi|; q <- dq q (Hamilton product),
+  // so that R(dq q) = R(dq) R(q): a rotation in the lab frame.
+  const double theta = std::sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]);
+  const double half = 0.5 * theta;
+  // sin(theta/2) / theta, by its series where theta is tiny.
+  const double s = theta > 1e-4 ? std::sin(half) / theta : 0.5 - theta * theta / 48.0;
+  const double a = std::cos(half), b = s * phi[0], c = s * phi[1], d = s * phi[2];
+  const double w = q[0], x = q[1], y = q[2], z = q[3];
+  double r[4] = {a * w - b * x - c * y - d * z, a * x + b * w + c * z - d * y, a * y - b * z + c * w + d * x,
+                 a * z + b * y - c * x + d * w};
+  const double norm = std::sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2] + r[3] * r[3]);
+  for (int i = 0; i < 4; ++i) q[i] = r[i] / norm;
+}
+
+}  // namespace quaternion
+
+namespace {
+
+constexpr const char* kWhere = "RigidBodyDynamics";
+
+rpy::MobilityOperator& checked(const std::unique_ptr<rpy::MobilityOperator>& beads) {
+  require(beads != nullptr, ErrorCode::invalid_argument, kWhere, "no bead mobility operator given");
+  return *beads;
+}
+
+/// The options, checked; used before the solvers are built from them.
+const RigidDynamicsOptions& checked(const RigidDynamicsOptions& options) {
+  require_positive(options.dt, kWhere, "dt");
+  require(std::isfinite(options.kT) && options.kT >= 0.0, ErrorCode::invalid_argument, kWhere,
+          "kT must be finite and >= 0, got " + std::to_string(options.kT));
+  require_in_range(options.rfd_delta, 1e-6, 0.1, kWhere, "rfd_delta");
+  require_positive(options.max_displacement, kWhere, "max_displacement");
+  return options;
+}
+
+rpy::RigidBodyOptions rfd_options(const RigidDynamicsOptions& options) {
+  rpy::RigidBodyOptions o = options.solver;
+  o.tolerance = std::min(o.tolerance, 1e-3 * options.rfd_delta);
+  return o;
+}
+
+}  // namespace
+
+RigidBodyDynamics::RigidBodyDynamics(std::unique_ptr<rpy::MobilityOperator> beads, std::vector<double> shape,
+                                     std::vector<double> radii, std::vector<std::size_t> body_offsets,
+                                     std::vector<double> positions, std::vector<double> orientations,
+                                     RigidDynamicsOptions options, BodyForceFunction forces)
+    : RigidBodyDynamics(checked(beads), std::move(shape), std::move(radii), std::move(body_offsets),
+                        std::move(positions), std::move(orientations), options, std::move(forces)) {
+  owned_ = std::move(beads);
+}
+
+RigidBodyDynamics::RigidBodyDynamics(rpy::MobilityOperator& beads, std::vector<double> shape, std::vector<double> radii,
+                                     std::vector<std::size_t> body_offsets, std::vector<double> positions,
+                                     std::vector<double> orientations, RigidDynamicsOptions options,
+                                     BodyForceFunction forces)
+    : bead_operator_(beads),
+      options_(checked(options)),
+      forces_(std::move(forces)),
+      shape_(std::move(shape)),
+      radii_(std::move(radii)),
+      offsets_(std::move(body_offsets)),
+      q_(std::move(positions)),
+      quat_(std::move(orientations)),
+      solver_(beads, options.solver),
+      rfd_solver_(beads, rfd_options(options)) {
+  require(shape_.size() % 3 == 0 && !shape_.empty(), ErrorCode::invalid_input, kWhere,
+          "the body-frame shape has " + std::to_string(shape_.size()) + " entries (expected 3 per bead, N >= 3)");
+  const std::size_t n = shape_.size() / 3;
+  require_finite(shape_, kWhere, "shape", 3);
+  if (radii_.size() == 1) radii_.assign(n, radii_[0]);
+  require(radii_.size() == n, ErrorCode::invalid_input, kWhere,
+          "radii have " + std::to_string(radii_.size()) + " entries for " + std::to_string(n) +
+              " beads (expected one or N)");
+  require(offsets_.size() >= 2 && offsets_.front() == 0 && offsets_.back() == n, ErrorCode::invalid_input, kWhere,
+          "body offsets must have m + 1 >= 2 entries from 0 to the number of beads " + std::to_string(n));
+  const std::size_t m = offsets_.size() - 1;
+  require(q_.size() == 3 * m, ErrorCode::invalid_input, kWhere,
+          "positions have " + std::to_string(q_.size()) + " entries for " + std::to_string(m) +
+              " bodies (expected 3 per body)");
+  require_finite(q_, kWhere, "positions", 3);
+  if (quat_.empty()) {
+    quat_.assign(4 * m, 0.0);
+    for (std::size_t k = 0; k < m; ++k) quat_[4 * k] = 1.0;
+  }
+  require(quat_.size() == 4 * m, ErrorCode::invalid_input, kWhere,
+          "orientations have " + std::to_string(quat_.size()) + " entries for " + std::to_string(m) +
+              " bodies (expected 4 per body: quaternions w, x, y, z)");
+  require_finite(quat_, kWhere, "orientations", 4);
+  for (std::size_t k = 0; k < m; ++k) {
+    double norm = 0.0;
+    for (int c = 0; c < 4; ++c) norm += quat_[4 * k + c] * quat_[4 * k + c];
+    norm = std::sqrt(norm);
+    require(norm > 1e-12, ErrorCode::invalid_input, kWhere,
+            "the orientation of body " + std::to_string(k) + " is a zero quaternion");
+    for (int c = 0; c < 4; ++c) quat_[4 * k + c] /= norm;
+  }
+  // Lever arms l_k (validates offsets on the way: RigidBodies below names the problem).
+  lever_.assign(m, 0.0);
+  for (std::size_t k = 0; k < m; ++k) {
+    require(offsets_[k + 1] > offsets_[k], ErrorCode::invalid_input, kWhere,
+            "body " + std::to_string(k) + " has no beads (body offsets must increase strictly)");
+    double sum = 0.0;
+    for (std::size_t i = offsets_[k]; i < offsets_[k + 1]; ++i)
+      for (int c = 0; c < 3; ++c) sum += shape_[3 * i + c] * shape_[3 * i + c];
+    lever_[k] = std::sqrt(sum / double(offsets_[k + 1] - offsets_[k]));
+    require(lever_[k] > 0.0, ErrorCode::invalid_input, kWhere,
+            "body " + std::to_string(k) + " has all its beads at its reference point");
+  }
+  w_.assign(6 * m, 0.0);
+  y_.assign(6 * m, 0.0);
+  drift_.assign(6 * m, 0.0);
+  z_.assign(3 * n, 0.0);
+  rfd_w_.assign(6 * m, 0.0);
+  rfd_v_.assign(6 * m, 0.0);
+  rfd_plus_.assign(6 * m, 0.0);
+  rfd_minus_.assign(6 * m, 0.0);
+  place_beads(q_, quat_, beads_now_);
+  // Plans once: RigidBodies refuses bad bodies (collinear, coincident beads, radii) here.
+  solver_.set_configuration(beads_now_, radii_, offsets_, q_);
+}
+
+double RigidBodyDynamics::rfd_tolerance() const {
+  return std::min(options_.solver.tolerance, 1e-3 * options_.rfd_delta);
+}
+
+void RigidBodyDynamics::place_beads(std::span<const double> positions, std::span<const double> orientations,
+                                    std::vector<double>& out) const {
+  out.resize(shape_.size());
+  const std::size_t m = bodies();
+  for (std::size_t k = 0; k < m; ++k) {
+    const auto r = quaternion::rotation_matrix(std::span<const double, 4>(orientations.data() + 4 * k, 4));
+    for (std::size_t i = offsets_[k]; i < offsets_[k + 1]; ++i) {
+      const double* rho = &shape_[3 * i];
+      for (int c = 0; c < 3; ++c)
+        out[3 * i + c] = positions[3 * k + c] + r[3 * c] * rho[0] + r[3 * c + 1] * rho[1] + r[3 * c + 2] * rho[2];
+    }
+  }
+}
+
+void RigidBodyDynamics::bead_forces_to_bodies(std::span<const double> bead_forces,
+                                              std::span<double> forces_torques) const {
+  require_size(bead_forces, shape_.size(), kWhere, "bead forces");
+  require_size(forces_torques, 6 * bodies(), kWhere, "forces_torques");
+  for (std::size_t k = 0; k < bodies(); ++k) {
+    double* w = &forces_torques[6 * k];
+    for (std::size_t i = offsets_[k]; i < offsets_[k + 1]; ++i) {
+      const double* f = &bead_forces[3 * i];
+      double arm[3];
+      for (int c = 0; c < 3; ++c) arm[c] = beads_now_[3 * i + c] - q_[3 * k + c];
+      for (int c = 0; c < 3; ++c) w[c] += f[c];
+      w[3] += arm[1] * f[2] - arm[2] * f[1];
+      w[4] += arm[2] * f[0] - arm[0] * f[2];
+      w[5] += arm[0] * f[1] - arm[1] * f[0];
+    }
+  }
+}
+
+int RigidBodyDynamics::perturbed_solve(rpy::RigidBodies& solver, std::span<const double> w, double sign,
+                                       std::span<double> out) {
+  const std::size_t m = bodies();
+  const double half = 0.5 * sign * options_.rfd_delta;
+  q_work_.assign(q_.begin(), q_.end());
+  quat_work_.assign(quat_.begin(), quat_.end());
+  for (std::size_t k = 0; k < m; ++k) {
+    const double phi[3] = {half * w[6 * k + 3], half * w[6 * k + 4], half * w[6 * k + 5]};
+    for (int c = 0; c < 3; ++c) {
+      q_work_[3 * k + c] += half * lever_[k] * w[6 * k + c];
+      rfd_v_[6 * k + c] = w[6 * k + c] / lever_[k];  // S^{-1} w
+      rfd_v_[6 * k + 3 + c] = w[6 * k + 3 + c];
+    }
+    quaternion::rotate(std::span<double, 4>(quat_work_.data() + 4 * k, 4), phi);
+  }
+  place_beads(q_work_, quat_work_, beads_work_);
+  solver.set_configuration(beads_work_, radii_, offsets_, q_work_);
+  return solver.apply(rfd_v_, out).iterations;
+}
+
+int RigidBodyDynamics::drift_estimate(std::span<const double> w, std::span<double> drift) {
+  require_size(w, 6 * bodies(), kWhere, "RFD direction w");
+  require_finite(w, kWhere, "RFD direction w", 6);
+  require_size(drift, 6 * bodies(), kWhere, "drift");
+  int iterations = perturbed_solve(rfd_solver_, w, +1.0, rfd_plus_);
+  iterations += perturbed_solve(rfd_solver_, w, -1.0, rfd_minus_);
+  for (std::size_t i = 0; i < drift.size(); ++i) drift[i] = (rfd_plus_[i] - rfd_minus_[i]) / options_.rfd_delta;
+  return iterations;
+}
+
+const RigidStepReport& RigidBodyDynamics::step() {
+  const std::size_t m = bodies();
+  const double dt = options_.dt, kT = options_.kT;
+  report_ = {};
+  StopWatch watch;
+
+  // Forces and torques at the current state.
+  std::fill(w_.begin(), w_.end(), 0.0);
+  if (forces_) {
+    forces_(RigidBodyState{time(), q_, quat_, beads_now_}, w_);
+    for (std::size_t k = 0; k < m; ++k)
+      for (int c = 0; c < 6; ++c)
+        require(std::isfinite(w_[6 * k + c]), ErrorCode::invalid_input, kWhere,
+                "step " + std::to_string(step_) + ": the force function gave a non-finite " +
+                    (c < 3 ? "force" : "torque") + " on body " + std::to_string(k));
+  }
+  totals_.seconds["forces"] += watch.seconds();
+
+  // 1. Velocities with the random slip, at the current configuration.
+  watch.restart();
+  solver_.set_configuration(beads_now_, radii_, offsets_, q_);
+  totals_.seconds["plan"] += watch.seconds();
+  rpy::RigidBodyReport solve;
+  if (kT > 0.0) {
+    watch.restart();
+    rpy::fill_normal(z_, options_.seed, step_, 0);
+    solve = solver_.apply_with_noise(w_, std::sqrt(2.0 * kT / dt), z_, y_, options_.sqrt);
+    report_.sqrt_iterations = solve.sqrt.iterations;
+    totals_.seconds["sqrt"] += solve.seconds_sqrt;
+    totals_.seconds["solve"] += watch.seconds() - solve.seconds_sqrt;
+  } else {
+    watch.restart();
+    solve = solver_.apply(w_, y_);
+    totals_.seconds["solve"] += watch.seconds();
+  }
+  report_.solve_iterations = solve.iterations;
+
+  // 2. The drift kT d/dQ . N by a random finite difference.
+  std::fill(drift_.begin(), drift_.end(), 0.0);
+  if (kT > 0.0 && options_.drift == RigidDrift::random_finite_difference) {
+    watch.restart();
+    rpy::fill_normal(rfd_w_, options_.seed, step_, 1);
+    report_.drift_iterations = drift_estimate(rfd_w_, drift_);
+    for (double& d : drift_) d *= kT;
+    totals_.seconds["drift"] += watch.seconds();
+  }
+
+  // 3. The update, checked before it is committed.
+  watch.restart();
+  q_work_.assign(q_.begin(), q_.end());
+  quat_work_.assign(quat_.begin(), quat_.end());
+  for (std::size_t k = 0; k < m; ++k) {
+    double move = 0.0, turn = 0.0, phi[3];
+    for (int c = 0; c < 3; ++c) {
+      const double dq = dt * (y_[6 * k + c] + drift_[6 * k + c]);
+      phi[c] = dt * (y_[6 * k + 3 + c] + drift_[6 * k + 3 + c]);
+      q_work_[3 * k + c] += dq;
+      move += dq * dq;
+      turn += phi[c] * phi[c];
+    }
+    const double moved = std::sqrt(move) + lever_[k] * std::sqrt(turn);
+    if (!(moved <= options_.max_displacement * lever_[k])) {
+      std::ostringstream what;
+      what << "step " << step_ << ": body " << k << " would move its beads by " << moved
+           << " (translation + lever arm x rotation), above max_displacement x lever arm = "
+           << options_.max_displacement * lever_[k] << "; reduce dt";
+      fail(ErrorCode::numerical_failure, kWhere, what.str());
+    }
+    quaternion::rotate(std::span<double, 4>(quat_work_.data() + 4 * k, 4), phi);
+  }
+  q_.swap(q_work_);
+  quat_.swap(quat_work_);
+  place_beads(q_, quat_, beads_now_);
+  ++step_;
+  totals_.seconds["update"] += watch.seconds();
+
+  ++totals_.steps;
+  totals_.solve_iterations += static_cast<std::uint64_t>(report_.solve_iterations);
+  totals_.drift_iterations += static_cast<std::uint64_t>(report_.drift_iterations);
+  totals_.sqrt_iterations += static_cast<std::uint64_t>(report_.sqrt_iterations);
+  return report_;
+}
+
+void RigidBodyDynamics::run(std::uint64_t count) {
+  for (std::uint64_t i = 0; i < count; ++i) step();
+}
+
+}  // namespace rpyfmm::bd

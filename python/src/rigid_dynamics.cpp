@@ -1,0 +1,222 @@
+// rpyfmm Python bindings — Brownian dynamics of rigid bodies of beads
+// (bd/include/rpyfmm/bd/rigid_dynamics.hpp): RigidBodyDynamics with a Python force function, its
+// step report, and the quaternion helpers.
+#include "rpyfmm/bd/rigid_dynamics.hpp"
+
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/vector.h>
+
+#include <memory>
+
+#include "common.hpp"
+
+namespace rpyfmm::python {
+namespace {
+
+using bd::RigidBodyDynamics;
+using bd::RigidStepReport;
+
+/// The Python object, holding the simulation and the force callable it calls.
+struct PyRigidBodyDynamics {
+  nb::object forces;  ///< None or forces(time, positions (m,3), orientations (m,4), beads (N,3)) -> (m,6)
+  std::unique_ptr<RigidBodyDynamics> sim;
+};
+
+std::vector<double> to_vector(ArrayArg a, const std::string& where, const std::string& name) {
+  const InArray in = as_input(a, where, name);
+  return {in.data, in.data + in.size};
+}
+
+ArrayResult copy_rows(std::span<const double> v, std::size_t columns) {
+  return adopt_vector(std::vector<double>(v.begin(), v.end()), {v.size() / columns, columns});
+}
+
+void init(PyRigidBodyDynamics* self, rpy::MobilityOperator& beads, ArrayArg shape, RadiusArg radius,
+          const std::vector<std::size_t>& body_offsets, ArrayArg positions, OptArrayArg orientations, double dt,
+          double kT, std::uint64_t seed, const std::string& drift, double rfd_delta, double tolerance,
+          int max_iterations, double sqrt_tol, const std::string& preconditioner, double max_displacement,
+          nb::object forces) {
+  const std::string where = "RigidBodyDynamics";
+  const InArray rho = as_input(shape, where, "shape");
+  require_points(rho, where, "shape");
+  std::vector<double> radii;
+  if (is_array_like(radius)) {
+    const InArray r = as_input(radius, where, "radii");
+    require(r.ndim() == 1, ErrorCode::invalid_input, where,
+            "radii has shape " + shape_string(r.shape) + ", expected (N,)");
+    radii.assign(r.data, r.data + r.size);
+  } else {
+    double a = 0.0;
+    if (!nb::try_cast(radius.h, a, true))
+      fail(ErrorCode::invalid_argument, where, "radius must be a number or N radii");
+    radii.assign(1, a);
+  }
+  const InArray q = as_input(positions, where, "positions");
+  require_points(q, where, "positions");
+  std::vector<double> quat;
+  if (!orientations.is_none()) {
+    const InArray o = as_input(orientations, where, "orientations");
+    require(o.ndim() == 2 && o.shape[1] == 4, ErrorCode::invalid_input, where,
+            "orientations has shape " + shape_string(o.shape) + ", expected (m, 4) quaternions (w, x, y, z)");
+    quat.assign(o.data, o.data + o.size);
+  }
+  bd::RigidDrift drift_kind;
+  if (drift == "rfd" || drift == "random_finite_difference") {
+    drift_kind = bd::RigidDrift::random_finite_difference;
+  } else if (drift == "none") {
+    drift_kind = bd::RigidDrift::none;
+  } else {
+    fail(ErrorCode::invalid_argument, where, "drift must be 'rfd' or 'none', got '" + drift + "'");
+  }
+  require(forces.is_none() || PyCallable_Check(forces.ptr()), ErrorCode::invalid_argument, where,
+          "forces must be None or a callable forces(time, positions, orientations, bead_positions) -> (m, 6)");
+  bd::RigidDynamicsOptions options{
+      .dt = dt,
+      .kT = kT,
+      .seed = seed,
+      .drift = drift_kind,
+      .rfd_delta = rfd_delta,
+      .solver = {.tolerance = tolerance, .max_iterations = max_iterations},
+      .sqrt = sqrt_options("auto", sqrt_tol, 0, true, true, 0.0, 0.0, 30, preconditioner, 0),
+      .max_displacement = max_displacement};
+  bd::BodyForceFunction function;
+  if (!forces.is_none()) {
+    // `self` is the object's storage, constructed below; the function runs only after that.
+    function = [self](const bd::RigidBodyState& state, std::span<double> w) {
+      // Called from step() with the GIL held (see step below).
+      const std::string name = "RigidBodyDynamics forces";
+      nb::object result = self->forces(state.time, copy_rows(state.positions, 3).o, copy_rows(state.orientations, 4).o,
+                                       copy_rows(state.bead_positions, 3).o);
+      const InArray f = as_input(ArrayArg{result}, name, "the forces function's result");
+      require(f.size == w.size(), ErrorCode::invalid_input, name,
+              "the forces function returned shape " + shape_string(f.shape) + ", expected (m, 6) = (" +
+                  std::to_string(w.size() / 6) + ", 6)");
+      std::copy(f.data, f.data + f.size, w.begin());
+    };
+  }
+  auto simulation = std::make_unique<RigidBodyDynamics>(
+      beads, std::vector<double>(rho.data, rho.data + rho.size), std::move(radii), body_offsets,
+      std::vector<double>(q.data, q.data + q.size), std::move(quat), options, std::move(function));
+  new (self) PyRigidBodyDynamics{forces, std::move(simulation)};
+}
+
+const RigidStepReport& run(PyRigidBodyDynamics& self, std::uint64_t steps) {
+  if (self.forces.is_none()) {
+    nb::gil_scoped_release release;
+    self.sim->run(steps);
+  } else {
+    self.sim->run(steps);  // the force function needs the GIL
+  }
+  return self.sim->last_report();
+}
+
+RigidBodyDynamics& sim(PyRigidBodyDynamics& self) {
+  require(self.sim != nullptr, ErrorCode::invalid_input, "RigidBodyDynamics", "not initialized");
+  return *self.sim;
+}
+
+}  // namespace
+
+void bind_rigid_dynamics(nb::module_& m) {
+  nb::class_<RigidStepReport>(m, "RigidStepReport", "What one rigid-body Brownian dynamics step did.")
+      .def_ro("solve_iterations", &RigidStepReport::solve_iterations, "GMRES iterations of the velocity solve.")
+      .def_ro("drift_iterations", &RigidStepReport::drift_iterations,
+              "GMRES iterations of the two random-finite-difference solves (0 without drift).")
+      .def_ro("sqrt_iterations", &RigidStepReport::sqrt_iterations, "Iterations of the bead square root B z.")
+      .def("__repr__", [](const RigidStepReport& r) {
+        return "RigidStepReport(solve_iterations=" + std::to_string(r.solve_iterations) +
+               ", drift_iterations=" + std::to_string(r.drift_iterations) +
+               ", sqrt_iterations=" + std::to_string(r.sqrt_iterations) + ")";
+      });
+
+  nb::class_<PyRigidBodyDynamics>(
+      m, "RigidBodyDynamics",
+      "Brownian dynamics of rigid bodies made of beads with full hydrodynamic interactions: Euler-Maruyama\n"
+      "on positions and quaternions (exponential map), the noise as a random slip on the beads, and the\n"
+      "thermal drift kT d/dQ . N by a random finite difference (two extra GMRES solves per step).")
+      .def("__init__", &init, nb::arg("beads"), nb::arg("shape"), nb::arg("radius"), nb::arg("body_offsets"),
+           nb::arg("positions"), nb::arg("orientations") = nb::none(), nb::kw_only(), nb::arg("dt"),
+           nb::arg("kT") = 1.0, nb::arg("seed") = 1, nb::arg("drift") = "rfd", nb::arg("rfd_delta") = 1e-3,
+           nb::arg("tolerance") = 1e-6, nb::arg("max_iterations") = 500, nb::arg("sqrt_tol") = 1e-3,
+           nb::arg("preconditioner") = "auto", nb::arg("max_displacement") = 1.0, nb::arg("forces") = nb::none(),
+           nb::keep_alive<1, 2>(),
+           "beads: the bead mobility operator (DirectRpy, FmmRpy, PseRpy; kept alive);\n"
+           "shape: (N, 3) bead positions in the bodies' frames, relative to their reference points;\n"
+           "radius: a number or (N,) radii; body_offsets: m + 1 increasing indices (first 0, last N);\n"
+           "positions: (m, 3) reference points; orientations: (m, 4) quaternions (w, x, y, z) or None\n"
+           "(identity); dt > 0; kT >= 0; seed: key of the noise; drift: 'rfd' | 'none'; rfd_delta: relative\n"
+           "RFD step; tolerance, max_iterations: GMRES; sqrt_tol, preconditioner: the bead square root;\n"
+           "max_displacement: refuse a step moving beads more than this many lever arms; forces: None or\n"
+           "forces(time, positions (m,3), orientations (m,4), bead_positions (N,3)) -> (m, 6) forces and\n"
+           "torques about the reference points.")
+      .def(
+          "step", [](PyRigidBodyDynamics& self) { return run(self, 1); }, "One step; returns its RigidStepReport.")
+      .def("run", &run, nb::arg("steps"), "Advances `steps` steps; returns the last step's RigidStepReport.")
+      .def(
+          "drift_estimate",
+          [](PyRigidBodyDynamics& self, ArrayArg w) {
+            const std::string where = "RigidBodyDynamics.drift_estimate";
+            const std::vector<double> direction = to_vector(w, where, "w");
+            std::vector<double> out(6 * sim(self).bodies());
+            sim(self).drift_estimate(direction, out);
+            return adopt_vector(std::move(out), {sim(self).bodies(), 6});
+          },
+          nb::arg("w"),
+          "(1/delta)[N(Q + delta/2 S w) - N(Q - delta/2 S w)] S^{-1} w (m, 6) for w (6m): its mean over\n"
+          "standard normal w (and its sum over unit vectors) is the divergence d/dQ . N.")
+      .def(
+          "bead_forces_to_bodies",
+          [](PyRigidBodyDynamics& self, ArrayArg f) {
+            const std::vector<double> forces = to_vector(f, "RigidBodyDynamics.bead_forces_to_bodies", "bead_forces");
+            std::vector<double> w(6 * sim(self).bodies(), 0.0);
+            sim(self).bead_forces_to_bodies(forces, w);
+            return adopt_vector(std::move(w), {sim(self).bodies(), 6});
+          },
+          nb::arg("bead_forces"), "Forces and torques (m, 6) of bead forces (N, 3) at the current bead positions.")
+      .def_prop_ro(
+          "positions", [](PyRigidBodyDynamics& s) { return copy_rows(sim(s).positions(), 3); },
+          "Reference points (m, 3), unwrapped.")
+      .def_prop_ro(
+          "orientations", [](PyRigidBodyDynamics& s) { return copy_rows(sim(s).orientations(), 4); },
+          "Unit quaternions (m, 4) (w, x, y, z).")
+      .def_prop_ro(
+          "bead_positions", [](PyRigidBodyDynamics& s) { return copy_rows(sim(s).bead_positions(), 3); },
+          "Bead positions (N, 3) = q_k + R_k rho_i, unwrapped.")
+      .def_prop_ro(
+          "lever_arms",
+          [](PyRigidBodyDynamics& s) {
+            const auto l = sim(s).lever_arms();
+            return adopt_vector(std::vector<double>(l.begin(), l.end()), {l.size()});
+          },
+          "Each body's RMS lever arm (m,).")
+      .def_prop_ro(
+          "last_velocities", [](PyRigidBodyDynamics& s) { return copy_rows(sim(s).last_velocities(), 6); },
+          "Velocities (m, 6) of the last step, noise included, drift not.")
+      .def_prop_ro(
+          "last_drift", [](PyRigidBodyDynamics& s) { return copy_rows(sim(s).last_drift(), 6); },
+          "The drift velocity (m, 6) of the last step (zeros without drift).")
+      .def_prop_ro("bodies", [](PyRigidBodyDynamics& s) { return sim(s).bodies(); })
+      .def_prop_ro("beads", [](PyRigidBodyDynamics& s) { return sim(s).beads(); })
+      .def_prop_ro("time", [](PyRigidBodyDynamics& s) { return sim(s).time(); })
+      .def_prop_ro("step_count", [](PyRigidBodyDynamics& s) { return sim(s).step_count(); })
+      .def_prop_ro(
+          "rfd_tolerance", [](PyRigidBodyDynamics& s) { return sim(s).rfd_tolerance(); },
+          "GMRES tolerance of the RFD solves: min(tolerance, 1e-3 rfd_delta).")
+      .def_prop_ro("last_report", [](PyRigidBodyDynamics& s) { return sim(s).last_report(); })
+      .def_prop_ro(
+          "totals",
+          [](PyRigidBodyDynamics& s) {
+            const auto& t = sim(s).totals();
+            nb::dict d, seconds;
+            d["steps"] = t.steps;
+            d["solve_iterations"] = t.solve_iterations;
+            d["drift_iterations"] = t.drift_iterations;
+            d["sqrt_iterations"] = t.sqrt_iterations;
+            for (const auto& [name, value] : t.seconds) seconds[name.c_str()] = value;
+            d["seconds"] = seconds;
+            return d;
+          },
+          "Counters and seconds per stage ('forces', 'plan', 'sqrt', 'solve', 'drift', 'update').");
+}
+
+}  // namespace rpyfmm::python
