@@ -133,10 +133,13 @@ void record_bad(std::atomic<std::size_t>& bad, std::size_t i) {
 }  // namespace
 
 double ForceField::compute(std::span<const double> x, std::span<const std::uint32_t> ptype, const NeighbourList& list,
-                           std::uint64_t step, std::span<double> forces) const {
+                           std::uint64_t step, std::span<double> forces, std::span<const std::uint32_t> groups) const {
   const std::size_t n = ptype.size();
   require(x.size() == 3 * n && forces.size() == 3 * n, ErrorCode::invalid_input, "ForceField::compute",
           "positions, types and forces disagree on N");
+  require(groups.empty() || groups.size() == n, ErrorCode::invalid_input, "ForceField::compute",
+          "groups has " + std::to_string(groups.size()) + " entries for " + std::to_string(n) + " particles");
+  const bool grouped = !groups.empty();
   const double rc = max_cutoff();
   require(rc == 0.0 || (list.size() == n && list.cutoff() >= rc), ErrorCode::invalid_input, "ForceField::compute",
           "neighbour list is not built for these particles and cutoffs");
@@ -154,7 +157,7 @@ double ForceField::compute(std::span<const double> x, std::span<const std::uint3
     if (rc > 0.0) {
       for (std::uint32_t j : list.neighbours(i)) {
         const PairTerm& p = pairs_[ptype[i] * nt + ptype[j]];
-        if (!p.active) continue;
+        if (!p.active || (grouped && groups[i] == groups[j])) continue;
         double d[3];
         list.separation(&x[3 * i], &x[3 * j], d);
         const double r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
@@ -190,7 +193,7 @@ double ForceField::compute(std::span<const double> x, std::span<const std::uint3
     const std::size_t i = bad_pair.load();
     for (std::uint32_t j : list.neighbours(i)) {
       const PairTerm& p = pairs_[ptype[i] * nt + ptype[j]];
-      if (!p.active) continue;
+      if (!p.active || (grouped && groups[i] == groups[j])) continue;
       double d[3];
       list.separation(&x[3 * i], &x[3 * j], d);
       const double r = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);

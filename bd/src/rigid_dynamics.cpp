@@ -144,6 +144,24 @@ RigidBodyDynamics::RigidBodyDynamics(rpy::MobilityOperator& beads, std::vector<d
   solver_.set_configuration(beads_now_, radii_, offsets_, q_);
 }
 
+void RigidBodyDynamics::set_bead_forces(ForceField field, std::vector<std::uint32_t> bead_types,
+                                        NeighbourOptions neighbours) {
+  const std::size_t n = beads();
+  if (bead_types.empty()) bead_types.assign(n, 0u);
+  require(bead_types.size() == n, ErrorCode::invalid_input, kWhere,
+          "bead types have " + std::to_string(bead_types.size()) + " entries for " + std::to_string(n) +
+              " beads (expected N, or none for type 0)");
+  field.check(bead_types);
+  auto list = std::make_unique<NeighbourList>(bead_operator_.geometry(), field.max_cutoff(), neighbours);
+  bead_body_.resize(n);
+  for (std::size_t k = 0; k < bodies(); ++k)
+    for (std::size_t i = offsets_[k]; i < offsets_[k + 1]; ++i) bead_body_[i] = static_cast<std::uint32_t>(k);
+  bead_forces_.assign(3 * n, 0.0);
+  bead_field_ = std::move(field);
+  bead_types_ = std::move(bead_types);
+  bead_list_ = std::move(list);
+}
+
 double RigidBodyDynamics::rfd_tolerance() const {
   return std::min(options_.solver.tolerance, 1e-3 * options_.rfd_delta);
 }
@@ -225,6 +243,12 @@ const RigidStepReport& RigidBodyDynamics::step() {
         require(std::isfinite(w_[6 * k + c]), ErrorCode::invalid_input, kWhere,
                 "step " + std::to_string(step_) + ": the force function gave a non-finite " +
                     (c < 3 ? "force" : "torque") + " on body " + std::to_string(k));
+  }
+  if (bead_field_) {
+    report_.neighbour_rebuild = bead_list_->update(beads_now_);
+    report_.potential_energy =
+        bead_field_->compute(beads_now_, bead_types_, *bead_list_, step_, bead_forces_, bead_body_);
+    bead_forces_to_bodies(bead_forces_, w_);
   }
   totals_.seconds["forces"] += watch.seconds();
 

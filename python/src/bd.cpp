@@ -97,7 +97,9 @@ bd::ForceCallback make_callback(PyForce* state) {
   };
 }
 
-bd::PairPotential pair_from(nb::handle pair) {
+}  // namespace
+
+bd::PairPotential pair_from(nb::handle pair, const std::string& where) {
   bd::PairPotential p;
   std::string kind;
   if (nb::try_cast(pair, kind, false)) {
@@ -105,7 +107,7 @@ bd::PairPotential pair_from(nb::handle pair) {
     return p;
   }
   if (!nb::isinstance<nb::dict>(pair)) {
-    fail(ErrorCode::invalid_argument, "Simulation", "pair must be None, a kind name or a dict of PairPotential fields");
+    fail(ErrorCode::invalid_argument, where, "pair must be None, a kind name or a dict of PairPotential fields");
   }
   for (auto [key, value] : nb::borrow<nb::dict>(pair)) {
     const std::string k = nb::cast<std::string>(key);
@@ -120,11 +122,13 @@ bd::PairPotential pair_from(nb::handle pair) {
     else if (k == "min_distance_fraction")
       p.min_distance_fraction = nb::cast<double>(value);
     else
-      fail(ErrorCode::invalid_argument, "Simulation",
+      fail(ErrorCode::invalid_argument, where,
            "unknown pair key '" + k + "' (expected kind, epsilon, sigma, cutoff, min_distance_fraction)");
   }
   return p;
 }
+
+namespace {
 
 class Simulation {
  public:
@@ -165,7 +169,7 @@ class Simulation {
     }
     bd::ForceField forces(types);
     if (!pair.is_none()) {
-      const bd::PairPotential p = pair_from(pair);
+      const bd::PairPotential p = pair_from(pair, "Simulation");
       for (std::uint32_t a = 0; a < types.size(); ++a)
         for (std::uint32_t b = a; b < types.size(); ++b) forces.set_pair(a, b, p);
     }

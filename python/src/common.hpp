@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "rpyfmm/bd/potentials.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
 #include "rpyfmm/rpy/geometry.hpp"
@@ -123,6 +124,10 @@ rpy::SqrtOptions sqrt_options(const std::string& method, double tol, int max_ite
                               bool throw_if_not_converged, double lambda_min, double lambda_max,
                               int bound_estimate_iterations, const std::string& preconditioner = "none",
                               int preconditioner_block = 0);
+
+/// A pair potential from Python (not None): a kind name ('wca', 'soft', ...) or a dict of
+/// PairPotential fields (bd.cpp); errors name `where`.
+bd::PairPotential pair_from(nb::handle pair, const std::string& where);
 
 /// LaplaceFmm tree statistics (fmm::TreeStats) as a dict (fmm.cpp).
 nb::dict tree_stats_dict(const fmm::TreeStats& s);

@@ -35,7 +35,7 @@ void init(PyRigidBodyDynamics* self, rpy::MobilityOperator& beads, ArrayArg shap
           const std::vector<std::size_t>& body_offsets, ArrayArg positions, OptArrayArg orientations, double dt,
           double kT, std::uint64_t seed, const std::string& drift, double rfd_delta, double tolerance,
           int max_iterations, double sqrt_tol, const std::string& preconditioner, double max_displacement,
-          nb::object forces) {
+          nb::object forces, nb::handle pair) {
   const std::string where = "RigidBodyDynamics";
   const InArray rho = as_input(shape, where, "shape");
   require_points(rho, where, "shape");
@@ -97,6 +97,12 @@ void init(PyRigidBodyDynamics* self, rpy::MobilityOperator& beads, ArrayArg shap
   auto simulation = std::make_unique<RigidBodyDynamics>(
       beads, std::vector<double>(rho.data, rho.data + rho.size), std::move(radii), body_offsets,
       std::vector<double>(q.data, q.data + q.size), std::move(quat), options, std::move(function));
+  if (!pair.is_none()) {
+    // One bead type with the first bead's radius: sigma = 0 means twice that (contact).
+    bd::ForceField field({bd::ParticleType{.radius = simulation->radii()[0]}});
+    field.set_pair(0, 0, pair_from(pair, where));
+    simulation->set_bead_forces(std::move(field));
+  }
   new (self) PyRigidBodyDynamics{forces, std::move(simulation)};
 }
 
@@ -123,6 +129,8 @@ void bind_rigid_dynamics(nb::module_& m) {
       .def_ro("drift_iterations", &RigidStepReport::drift_iterations,
               "GMRES iterations of the two random-finite-difference solves (0 without drift).")
       .def_ro("sqrt_iterations", &RigidStepReport::sqrt_iterations, "Iterations of the bead square root B z.")
+      .def_ro("potential_energy", &RigidStepReport::potential_energy, "Of the bead pair potential (0 without).")
+      .def_ro("neighbour_rebuild", &RigidStepReport::neighbour_rebuild)
       .def("__repr__", [](const RigidStepReport& r) {
         return "RigidStepReport(solve_iterations=" + std::to_string(r.solve_iterations) +
                ", drift_iterations=" + std::to_string(r.drift_iterations) +
@@ -139,7 +147,7 @@ void bind_rigid_dynamics(nb::module_& m) {
            nb::arg("kT") = 1.0, nb::arg("seed") = 1, nb::arg("drift") = "rfd", nb::arg("rfd_delta") = 1e-3,
            nb::arg("tolerance") = 1e-6, nb::arg("max_iterations") = 500, nb::arg("sqrt_tol") = 1e-3,
            nb::arg("preconditioner") = "auto", nb::arg("max_displacement") = 1.0, nb::arg("forces") = nb::none(),
-           nb::keep_alive<1, 2>(),
+           nb::arg("pair") = nb::none(), nb::keep_alive<1, 2>(),
            "beads: the bead mobility operator (DirectRpy, FmmRpy, PseRpy; kept alive);\n"
            "shape: (N, 3) bead positions in the bodies' frames, relative to their reference points;\n"
            "radius: a number or (N,) radii; body_offsets: m + 1 increasing indices (first 0, last N);\n"
@@ -148,7 +156,9 @@ void bind_rigid_dynamics(nb::module_& m) {
            "RFD step; tolerance, max_iterations: GMRES; sqrt_tol, preconditioner: the bead square root;\n"
            "max_displacement: refuse a step moving beads more than this many lever arms; forces: None or\n"
            "forces(time, positions (m,3), orientations (m,4), bead_positions (N,3)) -> (m, 6) forces and\n"
-           "torques about the reference points.")
+           "torques about the reference points; pair: None, 'wca', 'soft', 'lj36_18' or a dict of PairPotential\n"
+           "fields (kind, epsilon, sigma, cutoff, min_distance_fraction): a pair potential between beads of\n"
+           "different bodies (sigma 0 = twice the first bead's radius), with a neighbour list.")
       .def(
           "step", [](PyRigidBodyDynamics& self) { return run(self, 1); }, "One step; returns its RigidStepReport.")
       .def("run", &run, nb::arg("steps"), "Advances `steps` steps; returns the last step's RigidStepReport.")
@@ -203,6 +213,9 @@ void bind_rigid_dynamics(nb::module_& m) {
           "rfd_tolerance", [](PyRigidBodyDynamics& s) { return sim(s).rfd_tolerance(); },
           "GMRES tolerance of the RFD solves: min(tolerance, 1e-3 rfd_delta).")
       .def_prop_ro("last_report", [](PyRigidBodyDynamics& s) { return sim(s).last_report(); })
+      .def_prop_ro(
+          "last_forces_torques", [](PyRigidBodyDynamics& s) { return copy_rows(sim(s).last_forces_torques(), 6); },
+          "Forces and torques (m, 6) of the last step (force function plus bead pair forces).")
       .def_prop_ro(
           "totals",
           [](PyRigidBodyDynamics& s) {

@@ -119,3 +119,23 @@ def test_errors():
                                    forces=lambda t, q, o, b: np.full((1, 6), np.nan))
     with pytest.raises(rpyfmm.InvalidInputError, match="non-finite"):
         nan.step()
+
+
+def test_pair_repulsion_between_bodies():
+    shape = rpyfmm.icosphere_beads(0)
+    x = np.vstack([shape, shape])
+    sim = rpyfmm.RigidBodyDynamics(rpyfmm.DirectRpy(), x, 0.5, [0, 12, 24], [[0, 0, 0], [2.0, 0.2, 0]], dt=0.01,
+                                   kT=0.0, pair={"kind": "soft", "epsilon": 5.0, "sigma": 1.0})
+    r = sim.step()
+    w = sim.last_forces_torques
+    assert r.potential_energy > 0 and w[1, 0] > 0 > w[0, 0]
+    np.testing.assert_allclose(w[0, :3], -w[1, :3], atol=1e-12)  # action = reaction
+    sim.run(20)
+    assert sim.positions[1, 0] - sim.positions[0, 0] > 2.0
+    # A hard potential between the beads of one body is not evaluated (its beads are 1.05 apart).
+    apart = rpyfmm.RigidBodyDynamics(rpyfmm.DirectRpy(), x, 0.5, [0, 12, 24], [[0, 0, 0], [9.0, 0, 0]], dt=0.01,
+                                     pair={"kind": "wca", "sigma": 1.5})
+    assert apart.run(2).potential_energy == 0.0
+    with pytest.raises(rpyfmm.InvalidArgumentError, match="unknown pair key"):
+        rpyfmm.RigidBodyDynamics(rpyfmm.DirectRpy(), x, 0.5, [0, 12, 24], [[0, 0, 0], [9.0, 0, 0]], dt=0.01,
+                                 pair={"range": 2})

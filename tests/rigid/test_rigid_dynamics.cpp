@@ -257,6 +257,64 @@ TEST(RigidDynamics, PeriodicDriftAndSteps) {
   EXPECT_LT((Eigen::Map<const Vec3>(sim.positions().data()) - Eigen::Map<const Vec3>(q0.data())).norm(), 3.0);
 }
 
+// A bead force field acts between beads of different bodies only: a soft repulsion
+// eps (1 - r/s)^2 gives each body the force and torque summed here pair by pair (beads of
+// different bodies within s); a hard WCA whose sigma exceeds the beads' spacing inside a body
+// does not see those pairs (no overlap error); bad bead types are refused.
+TEST(RigidDynamics, BeadForceFieldActsBetweenBodies) {
+  Shapes s;
+  s.add(rpy::icosphere_beads(0), 1.0, 0.5, Vec3(0.1, 0.0, 0.0));
+  s.add(rpy::icosphere_beads(0), 1.0, 0.5, Vec3(0.0, 0.2, 0.0));
+  const std::vector<double> q0{0, 0, 0, 2.1, 0.3, -0.2};
+  const std::vector<double> quat0 = random_quaternions(2, 31u);
+  DirectRpy beads(Geometry::open(), 1.0);
+  RigidBodyDynamics sim(beads, s.shape, s.radii, s.offsets, q0, quat0, {.dt = 0.001, .kT = 0.0});
+  const double eps = 2.0, sigma = 1.0;
+  ForceField field({ParticleType{.radius = 0.5}});
+  field.set_pair(0, 0, PairPotential{.kind = PairKind::soft, .epsilon = eps, .sigma = sigma});
+  sim.set_bead_forces(field);
+  sim.step();
+  const std::vector<double> x = place(s, q0, quat0);
+  Eigen::VectorXd expected = Eigen::VectorXd::Zero(12);
+  int pairs = 0;
+  for (std::size_t i = 0; i < 12; ++i) {
+    for (std::size_t j = 12; j < 24; ++j) {
+      const Vec3 d = Eigen::Map<const Vec3>(&x[3 * i]) - Eigen::Map<const Vec3>(&x[3 * j]);
+      const double r = d.norm();
+      if (r >= sigma) continue;
+      ++pairs;
+      const Vec3 f = 2.0 * eps * (1.0 - r / sigma) / sigma * d / r;  // on bead i; -f on bead j
+      const Vec3 ri = Eigen::Map<const Vec3>(&x[3 * i]) - Eigen::Map<const Vec3>(&q0[0]);
+      const Vec3 rj = Eigen::Map<const Vec3>(&x[3 * j]) - Eigen::Map<const Vec3>(&q0[3]);
+      expected.segment<3>(0) += f;
+      expected.segment<3>(3) += ri.cross(f);
+      expected.segment<3>(6) -= f;
+      expected.segment<3>(9) -= rj.cross(f);
+    }
+  }
+  ASSERT_GT(pairs, 2);
+  const Eigen::Map<const Eigen::VectorXd> w(sim.last_forces_torques().data(), 12);
+  EXPECT_LE((w - expected).norm(), 1e-12 * expected.norm()) << w.transpose() << "\n" << expected.transpose();
+  EXPECT_GT(sim.last_report().potential_energy, 0.0);
+  // Kept apart by the repulsion: the centres separate.
+  sim.run(20);
+  EXPECT_GT(sim.positions()[3] - sim.positions()[0], q0[3] - q0[0]);
+
+  // WCA with sigma 1.5 > 0.8 x the beads' spacing inside a body (1.05): only other bodies count.
+  ForceField hard({ParticleType{.radius = 0.5}});
+  hard.set_pair(0, 0, PairPotential{.kind = PairKind::wca, .epsilon = 1.0, .sigma = 1.5});
+  DirectRpy other(Geometry::open(), 1.0);
+  const std::vector<double> far{0, 0, 0, 10, 0, 0};
+  RigidBodyDynamics apart(other, s.shape, s.radii, s.offsets, far, {}, {.dt = 0.01, .kT = 1.0});
+  apart.set_bead_forces(hard);
+  apart.run(2);
+  EXPECT_EQ(apart.last_report().potential_energy, 0.0);
+  using rpyfmm_test::expect_error;
+  expect_error([&] { apart.set_bead_forces(hard, {0, 0, 0}); }, ErrorCode::invalid_input, "bead types");
+  expect_error([&] { apart.set_bead_forces(hard, std::vector<std::uint32_t>(24, 3u)); }, ErrorCode::invalid_input,
+               "type");
+}
+
 // The noise is keyed by (seed, step): equal seeds give equal trajectories, other seeds others. A
 // force function's NaN and a step larger than the guard are refused with the state kept; the
 // bead-to-body force sum.

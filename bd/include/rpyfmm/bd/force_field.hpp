@@ -72,8 +72,11 @@ class ForceField {
   /// Throws rpyfmm::Error naming the particles when a hard pair overlaps
   /// (r < min_distance_fraction * sigma), a FENE bond is stretched beyond R0,
   /// or bonded particles coincide. Returns the total potential energy.
+  /// `groups` (empty, or N group indices): pairs of particles in the same group are skipped
+  /// (the beads of one rigid body, whose internal forces cancel anyway).
   double compute(std::span<const double> positions, std::span<const std::uint32_t> particle_types,
-                 const NeighbourList& list, std::uint64_t step, std::span<double> forces) const;
+                 const NeighbourList& list, std::uint64_t step, std::span<double> forces,
+                 std::span<const std::uint32_t> groups = {}) const;
 
  private:
   void rebuild_bond_index(std::size_t n) const;

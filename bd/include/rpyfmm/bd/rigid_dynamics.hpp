@@ -23,8 +23,10 @@
 // hydrodynamically coupled, non-spherical bodies; drift = none leaves it out (for bodies known
 // to have none, e.g. spheres tracked at their centres, at a third of the cost).
 //
-// Forces and torques come from a user function of the state (e.g. gravity, traps, bead
-// potentials summed with bead_forces_to_bodies). The noise is counter-based (seed, step): a run
+// Forces and torques come from a user function of the state (e.g. gravity, traps), and from an
+// optional bead force field (set_bead_forces: pair potentials between beads of different bodies,
+// e.g. steric repulsion, with a neighbour list; per-type constant forces), summed over each
+// body's beads into its force and torque. The noise is counter-based (seed, step): a run
 // is reproducible and independent of the thread count where the bead operator's products are.
 #pragma once
 
@@ -32,9 +34,12 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <span>
 #include <vector>
 
+#include "rpyfmm/bd/force_field.hpp"
+#include "rpyfmm/bd/neighbour_list.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/rpy/mobility.hpp"
 #include "rpyfmm/rpy/rigid_bodies.hpp"
@@ -90,9 +95,11 @@ using BodyForceFunction = std::function<void(const RigidBodyState& state, std::s
 
 /// What one step did.
 struct RigidStepReport {
-  int solve_iterations = 0;  ///< GMRES iterations of step 1
-  int drift_iterations = 0;  ///< GMRES iterations of the two RFD solves
-  int sqrt_iterations = 0;   ///< iterations of the bead square root
+  int solve_iterations = 0;        ///< GMRES iterations of step 1
+  int drift_iterations = 0;        ///< GMRES iterations of the two RFD solves
+  int sqrt_iterations = 0;         ///< iterations of the bead square root
+  double potential_energy = 0.0;   ///< of the bead force field (0 without one)
+  bool neighbour_rebuild = false;  ///< the bead neighbour list was rebuilt this step
 };
 
 struct RigidDynamicsTotals {
@@ -100,9 +107,9 @@ struct RigidDynamicsTotals {
   std::uint64_t solve_iterations = 0;
   std::uint64_t drift_iterations = 0;
   std::uint64_t sqrt_iterations = 0;
-  /// Seconds per part: "forces", "plan" (bead plans and body factorizations of step 1), "sqrt"
-  /// (B z), "solve" (step 1's GMRES), "drift" (both RFD configurations: plans and solves),
-  /// "update".
+  /// Seconds per part: "forces" (the force function and the bead force field), "plan" (bead plans and body
+  /// factorizations of step 1), "sqrt" (B z), "solve" (step 1's GMRES), "drift" (both RFD configurations: plans and
+  /// solves), "update".
   StageTimes seconds;
 };
 
@@ -121,6 +128,16 @@ class RigidBodyDynamics {
   RigidBodyDynamics(std::unique_ptr<rpy::MobilityOperator> beads, std::vector<double> shape, std::vector<double> radii,
                     std::vector<std::size_t> body_offsets, std::vector<double> positions,
                     std::vector<double> orientations, RigidDynamicsOptions options, BodyForceFunction forces = {});
+
+  /// Bead forces from a force field (ForceField: pair potentials by bead type, acting between
+  /// beads of different bodies only; per-type and global constant forces), added to the force
+  /// function's forces and torques every step. `bead_types`: N indices into field.types(), or
+  /// empty for type 0 everywhere (radii of the types are not used: beads keep their own).
+  /// Pair potentials whose sigma is 0 take the contact distance of the types' radii, so give
+  /// the types the beads' radii or set sigma. A neighbour list with `neighbours` serves the
+  /// pairs. Throws rpyfmm::Error on bad types or a periodic box smaller than twice the list
+  /// radius.
+  void set_bead_forces(ForceField field, std::vector<std::uint32_t> bead_types = {}, NeighbourOptions neighbours = {});
 
   /// Advances one step. On a blow-up, a force error or an unconverged solve the state stays at
   /// the last good step and rpyfmm::Error is thrown.
@@ -177,6 +194,10 @@ class RigidBodyDynamics {
   std::vector<std::size_t> offsets_;
   std::vector<double> q_, quat_, lever_;
   rpy::RigidBodies solver_, rfd_solver_;
+  std::optional<ForceField> bead_field_;
+  std::vector<std::uint32_t> bead_types_, bead_body_;
+  std::unique_ptr<NeighbourList> bead_list_;
+  std::vector<double> bead_forces_;
   std::uint64_t step_ = 0;
   RigidStepReport report_;
   RigidDynamicsTotals totals_;
