@@ -139,6 +139,7 @@ RigidBodyDynamics::RigidBodyDynamics(rpy::MobilityOperator& beads, std::vector<d
   rfd_v_.assign(6 * m, 0.0);
   rfd_plus_.assign(6 * m, 0.0);
   rfd_minus_.assign(6 * m, 0.0);
+  rfd_lambda_.assign(3 * n, 0.0);
   place_beads(q_, quat_, beads_now_);
   // Plans once: RigidBodies refuses bad bodies (collinear, coincident beads, radii) here.
   solver_.set_configuration(beads_now_, radii_, offsets_, q_);
@@ -199,7 +200,7 @@ void RigidBodyDynamics::bead_forces_to_bodies(std::span<const double> bead_force
 }
 
 int RigidBodyDynamics::perturbed_solve(rpy::RigidBodies& solver, std::span<const double> w, double sign,
-                                       std::span<double> out) {
+                                       std::span<double> out, bool warm) {
   const std::size_t m = bodies();
   const double half = 0.5 * sign * options_.rfd_delta;
   q_work_.assign(q_.begin(), q_.end());
@@ -215,15 +216,17 @@ int RigidBodyDynamics::perturbed_solve(rpy::RigidBodies& solver, std::span<const
   }
   place_beads(q_work_, quat_work_, beads_work_);
   solver.set_configuration(beads_work_, radii_, offsets_, q_work_);
-  return solver.apply(rfd_v_, out).iterations;
+  if (!warm) return solver.apply(rfd_v_, out, rfd_lambda_).iterations;
+  // The other side's solution is within O(delta) of this one: start GMRES from it.
+  return solver.apply_from(rfd_v_, rfd_plus_, rfd_lambda_, out).iterations;
 }
 
 int RigidBodyDynamics::drift_estimate(std::span<const double> w, std::span<double> drift) {
   require_size(w, 6 * bodies(), kWhere, "RFD direction w");
   require_finite(w, kWhere, "RFD direction w", 6);
   require_size(drift, 6 * bodies(), kWhere, "drift");
-  int iterations = perturbed_solve(rfd_solver_, w, +1.0, rfd_plus_);
-  iterations += perturbed_solve(rfd_solver_, w, -1.0, rfd_minus_);
+  int iterations = perturbed_solve(rfd_solver_, w, +1.0, rfd_plus_, false);
+  iterations += perturbed_solve(rfd_solver_, w, -1.0, rfd_minus_, true);
   for (std::size_t i = 0; i < drift.size(); ++i) drift[i] = (rfd_plus_[i] - rfd_minus_[i]) / options_.rfd_delta;
   return iterations;
 }

@@ -464,6 +464,51 @@ TEST(RigidBodies, BrownianVelocitiesHaveCovarianceN) {
 }
 
 // Bad input: rpyfmm::Error naming the problem, before any work.
+// apply_from: GMRES started from a guess. The exact solution needs no iteration beyond the
+// first check; a guess 1e-3 off (a slightly moved configuration's solution, as the RFD of
+// RigidBodyDynamics has) needs fewer iterations than a cold start and meets the same tolerance
+// against the dense N; bad guesses are refused.
+TEST(RigidBodies, WarmStartFromAGuess) {
+  const System s = five_bodies();
+  DirectRpy beads(Geometry::open(), 1.0);
+  RigidBodies bodies(beads, {.tolerance = 1e-8});
+  bodies.set_configuration(s.x, s.radii, s.offsets);
+  const Eigen::MatrixXd N = dense_body_mobility(beads, s);
+  const Eigen::VectorXd w = random_vector(30, 9u);
+  Eigen::VectorXd y(30), y_warm(30);
+  std::vector<double> lambda(s.x.size());
+  const RigidBodyReport cold = bodies.apply({w.data(), 30}, {y.data(), 30}, lambda);
+  EXPECT_LE(rel(y, N * w), 1e-7);
+  // Start from the other configuration's solution: the same bodies moved by 1e-3 of their size.
+  System moved = s;
+  for (std::size_t i = 0; i < moved.x.size(); ++i) moved.x[i] += 1e-3 * std::sin(double(i));
+  DirectRpy moved_beads(Geometry::open(), 1.0);
+  RigidBodies moved_bodies(moved_beads, {.tolerance = 1e-8});
+  moved_bodies.set_configuration(moved.x, moved.radii, moved.offsets);
+  Eigen::VectorXd y_moved(30);
+  std::vector<double> lambda_moved(s.x.size());
+  moved_bodies.apply({w.data(), 30}, {y_moved.data(), 30}, lambda_moved);
+  const RigidBodyReport warm =
+      bodies.apply_from({w.data(), 30}, {y_moved.data(), 30}, lambda_moved, {y_warm.data(), 30});
+  EXPECT_LE(rel(y_warm, N * w), 1e-7);
+  EXPECT_LT(warm.iterations, cold.iterations * 3 / 4) << warm.iterations << " vs " << cold.iterations;
+  const RigidBodyReport exact = bodies.apply_from({w.data(), 30}, {y.data(), 30}, lambda, {y_warm.data(), 30});
+  EXPECT_LE(exact.iterations, 1);
+  EXPECT_LE(rel(y_warm, y), 1e-9);
+  std::vector<double> bad(29, 0.0);
+  rpyfmm_test::expect_error(
+      [&] {
+        bodies.apply_from({w.data(), 30}, bad, lambda, {y_warm.data(), 30});
+      },
+      rpyfmm::ErrorCode::invalid_input, "guess velocities");
+  lambda[0] = std::nan("");
+  rpyfmm_test::expect_error(
+      [&] {
+        bodies.apply_from({w.data(), 30}, {y.data(), 30}, lambda, {y_warm.data(), 30});
+      },
+      rpyfmm::ErrorCode::invalid_input, "guess bead forces");
+}
+
 TEST(RigidBodies, BadInput) {
   using rpyfmm::ErrorCode;
   using rpyfmm_test::expect_error;

@@ -315,13 +315,20 @@ void RigidBodies::check_call(std::span<const double> forces_torques, std::span<d
 }
 
 RigidBodyReport RigidBodies::solve(std::span<const double> forces_torques, std::vector<double>& b,
-                                   std::span<double> velocities, std::span<double> bead_forces) const {
+                                   std::span<double> velocities, std::span<double> bead_forces,
+                                   std::span<const double> guess_velocities,
+                                   std::span<const double> guess_bead_forces) const {
   const std::size_t m = bodies();
   const std::size_t n3 = 3 * beads_.size();
   StopWatch watch;
   for (std::size_t k = 0; k < m; ++k)  // -(F_k, T_k / l_k)
     for (std::size_t c = 0; c < 6; ++c) b[n3 + 6 * k + c] = -forces_torques[6 * k + c] / (c < 3 ? 1.0 : scale_[k]);
   std::vector<double> x(n3 + 6 * m, 0.0);
+  if (!guess_velocities.empty()) {  // [lambda; U_k, Omega_k l_k], as below in reverse
+    std::copy(guess_bead_forces.begin(), guess_bead_forces.end(), x.begin());
+    for (std::size_t k = 0; k < m; ++k)
+      for (std::size_t c = 0; c < 6; ++c) x[n3 + 6 * k + c] = guess_velocities[6 * k + c] * (c < 3 ? 1.0 : scale_[k]);
+  }
   const rigid_detail::VectorMap op = [this](const double* in, double* out) { saddle_apply(in, out); };
   rigid_detail::VectorMap pre;
   if (options_.precondition) pre = [this](const double* in, double* out) { precondition(in, out); };
@@ -350,6 +357,19 @@ RigidBodyReport RigidBodies::apply(std::span<const double> forces_torques, std::
   check_call(forces_torques, velocities, bead_forces);
   std::vector<double> b(3 * beads_.size() + 6 * bodies(), 0.0);  // no slip
   return solve(forces_torques, b, velocities, bead_forces);
+}
+
+RigidBodyReport RigidBodies::apply_from(std::span<const double> forces_torques,
+                                        std::span<const double> guess_velocities,
+                                        std::span<const double> guess_bead_forces, std::span<double> velocities,
+                                        std::span<double> bead_forces) const {
+  check_call(forces_torques, velocities, bead_forces);
+  require_size(guess_velocities, 6 * bodies(), kWhere, "guess velocities");
+  require_finite(guess_velocities, kWhere, "guess velocities", 6);
+  require_size(guess_bead_forces, 3 * beads_.size(), kWhere, "guess bead forces");
+  require_finite(guess_bead_forces, kWhere, "guess bead forces", 3);
+  std::vector<double> b(3 * beads_.size() + 6 * bodies(), 0.0);  // no slip
+  return solve(forces_torques, b, velocities, bead_forces, guess_velocities, guess_bead_forces);
 }
 
 RigidBodyReport RigidBodies::apply_with_noise(std::span<const double> forces_torques, double noise_scale,

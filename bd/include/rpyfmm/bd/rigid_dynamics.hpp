@@ -183,8 +183,10 @@ class RigidBodyDynamics {
   void place_beads(std::span<const double> positions, std::span<const double> orientations,
                    std::vector<double>& out) const;
   /// Perturbed configuration Q + sign delta/2 S w, planned on the solver `solver`, and the
-  /// solve N(Q +- ...) S^{-1} w into out. Returns GMRES iterations.
-  int perturbed_solve(rpy::RigidBodies& solver, std::span<const double> w, double sign, std::span<double> out);
+  /// solve N(Q +- ...) S^{-1} w into out (bead forces into rfd_lambda_); `warm`: GMRES starts
+  /// from the other side's solution (rfd_plus_, rfd_lambda_). Returns GMRES iterations.
+  int perturbed_solve(rpy::RigidBodies& solver, std::span<const double> w, double sign, std::span<double> out,
+                      bool warm);
 
   std::unique_ptr<rpy::MobilityOperator> owned_;
   rpy::MobilityOperator& bead_operator_;
@@ -202,8 +204,8 @@ class RigidBodyDynamics {
   RigidStepReport report_;
   RigidDynamicsTotals totals_;
   // work arrays
-  std::vector<double> beads_now_, w_, y_, drift_, z_, rfd_w_, rfd_v_, rfd_plus_, rfd_minus_, q_work_, quat_work_,
-      beads_work_;
+  std::vector<double> beads_now_, w_, y_, drift_, z_, rfd_w_, rfd_v_, rfd_plus_, rfd_minus_, rfd_lambda_, q_work_,
+      quat_work_, beads_work_;
 };
 
 }  // namespace rpyfmm::bd

@@ -84,6 +84,15 @@ class RigidBodies {
   RigidBodyReport apply(std::span<const double> forces_torques, std::span<double> velocities,
                         std::span<double> bead_forces = {}) const;
 
+  /// apply() with GMRES started from a guess instead of zero: the velocities (6m) and bead
+  /// forces (3N) of a nearby problem, e.g. the same forces and torques on a slightly moved
+  /// configuration (RigidBodyDynamics' second RFD solve). The result meets the same tolerance,
+  /// in fewer iterations the better the guess. Throws as apply, and on guesses of the wrong
+  /// size or with NaN/Inf.
+  RigidBodyReport apply_from(std::span<const double> forces_torques, std::span<const double> guess_velocities,
+                             std::span<const double> guess_bead_forces, std::span<double> velocities,
+                             std::span<double> bead_forces = {}) const;
+
   /// Velocities with Brownian noise for a time step: Y = N W + noise_scale N K^T M^{-1} B z, where
   /// B z (B B^T = M) is the bead operator's square root of the bead noise z (3N standard normal
   /// values; `sqrt_options` as for MobilityOperator::apply_sqrt, the block preconditioner
@@ -117,7 +126,8 @@ class RigidBodies {
   /// GMRES on the saddle-point system with bead rows b[0, 3N) given (the slip) and the body rows
   /// from forces_torques; velocities and bead forces from its solution.
   RigidBodyReport solve(std::span<const double> forces_torques, std::vector<double>& b, std::span<double> velocities,
-                        std::span<double> bead_forces) const;
+                        std::span<double> bead_forces, std::span<const double> guess_velocities = {},
+                        std::span<const double> guess_bead_forces = {}) const;
   /// y = K Y (bead velocities of rigid motions) and w = K^T lambda (forces and torques).
   void rigid_velocities(const double* body, double* bead) const;
   void forces_and_torques(const double* bead, double* body) const;
