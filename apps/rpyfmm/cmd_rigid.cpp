@@ -39,18 +39,6 @@ struct RigidArgs {
   CommonOptions common;
 };
 
-/// Body offsets from the body sizes (whole numbers >= 1; the library checks >= 3 and the total).
-std::vector<std::size_t> offsets_from_sizes(const std::vector<double>& sizes) {
-  std::vector<std::size_t> offsets{0};
-  for (std::size_t k = 0; k < sizes.size(); ++k) {
-    const double s = sizes[k];
-    require(std::isfinite(s) && s >= 1.0 && s == std::floor(s) && s < 1e15, ErrorCode::invalid_input, "--body-sizes",
-            "entry " + std::to_string(k) + " is not a whole number of beads >= 1");
-    offsets.push_back(offsets.back() + static_cast<std::size_t>(s));
-  }
-  return offsets;
-}
-
 void run_rigid(const RigidArgs& args, bool radius_given) {
   apply_threads(args.common);
   require(radius_given != !args.radii.empty(), ErrorCode::invalid_argument, "rigid",
@@ -64,7 +52,7 @@ void run_rigid(const RigidArgs& args, bool radius_given) {
   const std::vector<double> x = as_points(read_array(args.positions), "positions");
   const std::size_t n = x.size() / 3;
   const Array sizes_array = read_array(args.body_sizes);
-  const std::vector<std::size_t> offsets = offsets_from_sizes(sizes_array.data);
+  const std::vector<std::size_t> offsets = body_offsets_from_sizes(sizes_array.data);
   const std::size_t m = offsets.size() - 1;
   require(m > 0, ErrorCode::invalid_input, "--body-sizes", "no bodies given");
   require(offsets.back() == n, ErrorCode::invalid_input, "--body-sizes",

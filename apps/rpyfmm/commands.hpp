@@ -11,4 +11,5 @@ void register_mobility(CLI::App& app);  // cmd_mobility.cpp: U = M F
 void register_sample(CLI::App& app);    // cmd_sample.cpp: M^{1/2} z
 void register_bd(CLI::App& app);        // cmd_bd.cpp: Brownian dynamics with HI
 void register_rigid(CLI::App& app);     // cmd_rigid.cpp: rigid bodies of beads
+void register_rigid_bd(CLI::App& app);  // cmd_rigid_bd.cpp: their Brownian dynamics
 }  // namespace rpyfmm::cli

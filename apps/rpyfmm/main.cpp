@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
   rpyfmm::cli::register_sample(app);
   rpyfmm::cli::register_bd(app);
   rpyfmm::cli::register_rigid(app);
+  rpyfmm::cli::register_rigid_bd(app);
   try {
     app.parse(argc, argv);
     if (app.get_subcommands().empty()) {

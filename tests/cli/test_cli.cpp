@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "rpyfmm/bd/rigid_dynamics.hpp"
 #include "rpyfmm/fmm/direct.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
@@ -471,4 +472,77 @@ TEST_F(Cli, RigidBadInput) {
   expect_failure("rigid --positions " + path("line.npy") + " --radius 1 --forces " + path("ft1.npy") +
                      " --body-sizes " + text("s5.txt", "3\n") + O,
                  "one line", "uw.npy");
+}
+
+// `rpyfmm rigid-bd` follows the library's RigidBodyDynamics step for step (same seed, options and
+// constant body force and torque): frames at 0, every K and the last step, bodies' centroids as
+// reference points, identity orientations at t = 0; --beads-out is the last bead configuration.
+TEST_F(Cli, RigidBdMatchesLibrary) {
+  const RigidCase c = rigid_case();
+  const std::size_t n = c.x.size() / 3, m = 3;
+  write_npy(path("x.npy"), {n, 3}, c.x);
+  std::ofstream(path("sizes.txt")) << "42\n42\n4\n";
+  const Result r = run("rigid-bd --positions " + path("x.npy") + " --radius " + std::to_string(c.radius) +
+                       " --body-sizes " + path("sizes.txt") +
+                       " --dt 0.02 --steps 7 --every 3 --kT 0.5 --seed 9 --body-force 0 0 -1 --body-torque 0.1 0 0"
+                       " --out " +
+                       path("traj.npy") + " --beads-out " + path("beads.npy") + " --json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("\"command\":\"rigid-bd\""), std::string::npos) << r.out;
+  const Npy traj = read_npy(path("traj.npy")), beads = read_npy(path("beads.npy"));
+  ASSERT_EQ(traj.shape, (std::vector<std::size_t>{4, m, 7}));  // steps 0, 3, 6, 7
+  ASSERT_EQ(beads.shape, (std::vector<std::size_t>{n, 3}));
+
+  std::vector<double> reference(3 * m, 0.0), shape(c.x.size());
+  for (std::size_t k = 0; k < m; ++k) {
+    const double count = double(c.offsets[k + 1] - c.offsets[k]);
+    for (std::size_t i = c.offsets[k]; i < c.offsets[k + 1]; ++i)
+      for (std::size_t d = 0; d < 3; ++d) reference[3 * k + d] += c.x[3 * i + d] / count;
+  }
+  for (std::size_t k = 0; k < m; ++k)
+    for (std::size_t i = c.offsets[k]; i < c.offsets[k + 1]; ++i)
+      for (std::size_t d = 0; d < 3; ++d) shape[3 * i + d] = c.x[3 * i + d] - reference[3 * k + d];
+  rpyfmm::rpy::DirectRpy op(rpyfmm::rpy::Geometry::open(), 1.0);
+  rpyfmm::bd::BodyForceFunction load = [](const rpyfmm::bd::RigidBodyState&, std::span<double> w) {
+    for (std::size_t k = 0; k < w.size(); k += 6) w[k + 2] = -1.0, w[k + 3] = 0.1;
+  };
+  rpyfmm::bd::RigidBodyDynamics sim(op, shape, {std::stod(std::to_string(c.radius))}, c.offsets, reference, {},
+                                    {.dt = 0.02, .kT = 0.5, .seed = 9}, load);
+  std::size_t frame = 0;
+  const auto compare = [&] {
+    for (std::size_t k = 0; k < m; ++k) {
+      for (std::size_t d = 0; d < 3; ++d)
+        EXPECT_NEAR(traj.data[(frame * m + k) * 7 + d], sim.positions()[3 * k + d], 1e-12) << frame;
+      for (std::size_t d = 0; d < 4; ++d)
+        EXPECT_NEAR(traj.data[(frame * m + k) * 7 + 3 + d], sim.orientations()[4 * k + d], 1e-12) << frame;
+    }
+    ++frame;
+  };
+  compare();
+  for (int s = 1; s <= 7; ++s) {
+    sim.step();
+    if (s % 3 == 0 || s == 7) compare();
+  }
+  EXPECT_LE(rel_l2(beads.data, {sim.bead_positions().begin(), sim.bead_positions().end()}), 1e-13);
+  EXPECT_NE(traj.data[7 * m * 3 + 2], traj.data[2]);  // it moved
+}
+
+TEST_F(Cli, RigidBdBadInput) {
+  const RigidCase c = rigid_case();
+  const std::size_t n = c.x.size() / 3;
+  write_npy(path("x.npy"), {n, 3}, c.x);
+  std::ofstream(path("sizes.txt")) << "42 42 4\n";
+  std::ofstream(path("bad_sizes.txt")) << "42 42 5\n";
+  const std::string base = "rigid-bd --positions " + path("x.npy") + " --radius 0.5 --body-sizes ";
+  const std::string sizes = path("sizes.txt"), O = " --out " + path("traj.npy");
+  expect_failure(base + sizes + " --dt 0.01 --steps 0" + O, "--steps", "traj.npy");
+  expect_failure(base + sizes + " --dt 0 --steps 2" + O, "dt", "traj.npy");
+  expect_failure(base + sizes + " --dt 0.01 --steps 2 --kT -1" + O, "kT", "traj.npy");
+  expect_failure(base + sizes + " --dt 0.01 --steps 2 --drift fixman" + O, "--drift", "traj.npy");
+  expect_failure(base + sizes + " --dt 0.01 --steps 2 --rfd-delta 1" + O, "rfd_delta", "traj.npy");
+  expect_failure(base + sizes + " --dt 0.01 --steps 2 --pair square" + O, "square", "traj.npy");
+  expect_failure(base + path("bad_sizes.txt") + " --dt 0.01 --steps 2" + O, "add up to", "traj.npy");
+  expect_failure(base + sizes + " --dt 0.01 --steps 2 --body-force 0 0 nan" + O, "--body-force", "traj.npy");
+  // A blow-up mid-run: nothing is written.
+  expect_failure(base + sizes + " --dt 1 --steps 5 --body-force 1e6 0 0" + O, "reduce dt", "traj.npy");
 }
