@@ -6,18 +6,24 @@
 //                   [--rfd-delta 1e-3] [--body-force Fx Fy Fz] [--body-torque Tx Ty Tz]
 //                   [--pair none|wca|soft|lj36_18] [--pair-epsilon 1] [--pair-sigma 0]
 //                   [--tol 1e-6] [--sqrt-tol 1e-3] [--every K] [--method ...] [--eps ...]
-//                   [--box ...] --out TRAJ.npy [--beads-out B.npy] [--threads N] [--json]
+//                   [--box ...] --out TRAJ.npy [--beads-out B.npy] [--restart OLD.npy
+//                   --first-step S] [--threads N] [--json]
 //
 // X holds the beads at time 0, body after body (S: beads per body); the bodies' reference points
 // are Q (default: centroids) and their orientations start at the identity, so bead i of body k
 // sits at q_k(t) + R(quaternion_k(t)) (x_i(0) - q_k(0)). TRAJ is (frames, m, 7): q_x q_y q_z
-// w x y z per body, frames at steps 0, K, 2K, ... and the last step. Files are written at the
-// end, atomically: a failed run leaves no output.
+// w x y z per body, frames at the first step, at steps that are multiples of K, and at the last
+// step. Files are written at the end, atomically: a failed run leaves no output.
+//
+// Restart: --restart OLD.npy starts from OLD's last frame (with the original --positions,
+// --body-sizes and --reference, which define the bodies' shapes); with --first-step S, S the
+// last step of the earlier run, the continuation equals one longer run bit for bit.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <iostream>
 #include <memory>
 #include <string>
@@ -35,7 +41,8 @@ namespace rpyfmm::cli {
 namespace {
 
 struct RigidBdArgs {
-  std::string positions, radii, body_sizes, reference, out, beads_out;
+  std::string positions, radii, body_sizes, reference, out, beads_out, restart;
+  std::uint64_t first_step = 0;
   double radius = 0.0;
   double dt = 0.0, kT = 1.0, rfd_delta = 1e-3, tol = 1e-6, sqrt_tol = 1e-3;
   long long steps = 0, every = 0;
@@ -89,6 +96,19 @@ void run_rigid_bd(const RigidBdArgs& args, bool radius_given) {
   for (std::size_t k = 0; k < m; ++k)
     for (std::size_t i = offsets[k]; i < offsets[k + 1]; ++i)
       for (std::size_t c = 0; c < 3; ++c) shape[3 * i + c] = x[3 * i + c] - reference[3 * k + c];
+  // The state: the bodies at t = 0 (identity orientations), or the last frame of --restart.
+  std::vector<double> positions = reference, orientations;
+  if (!args.restart.empty()) {
+    const Array old = read_array(args.restart);
+    require(old.shape.size() == 3 && old.shape[1] == m && old.shape[2] == 7 && old.shape[0] >= 1,
+            ErrorCode::invalid_input, "--restart",
+            "expected a trajectory of shape (frames, " + std::to_string(m) + ", 7) from rpyfmm rigid-bd");
+    const std::size_t last = (old.shape[0] - 1) * m * 7;
+    for (std::size_t k = 0; k < m; ++k) {
+      for (std::size_t c = 0; c < 3; ++c) positions[3 * k + c] = old.data[last + 7 * k + c];
+      for (std::size_t c = 0; c < 4; ++c) orientations.push_back(old.data[last + 7 * k + 3 + c]);
+    }
+  }
   StageTimes stages;
   stages["read"] = watch.seconds();
 
@@ -106,11 +126,13 @@ void run_rigid_bd(const RigidBdArgs& args, bool radius_given) {
       .dt = args.dt,
       .kT = args.kT,
       .seed = args.seed,
+      .first_step = args.first_step,
       .drift = args.drift == "none" ? bd::RigidDrift::none : bd::RigidDrift::random_finite_difference,
       .rfd_delta = args.rfd_delta,
       .solver = {.tolerance = args.tol},
       .sqrt = {.tolerance = args.sqrt_tol, .preconditioner = rpy::SqrtPreconditioner::automatic}};
-  bd::RigidBodyDynamics sim(make_operator(args.mobility, n), shape, radii, offsets, reference, {}, options, forces);
+  bd::RigidBodyDynamics sim(make_operator(args.mobility, n), shape, radii, offsets, positions, orientations, options,
+                            forces);
   if (args.pair != "none") {
     bd::ForceField field({bd::ParticleType{.radius = radii[0]}});
     field.set_pair(
@@ -136,7 +158,7 @@ void run_rigid_bd(const RigidBdArgs& args, bool radius_given) {
   record();
   for (std::uint64_t s = 1; s <= steps; ++s) {
     sim.step();
-    if (s % every == 0 || s == steps) record();
+    if (sim.step_count() % every == 0 || s == steps) record();
   }
   stages["run"] = watch.seconds();
 
@@ -156,6 +178,7 @@ void run_rigid_bd(const RigidBdArgs& args, bool radius_given) {
         .add("bodies", m)
         .add("beads", n)
         .add("steps", static_cast<std::size_t>(steps))
+        .add("last_step", static_cast<std::size_t>(sim.step_count()))
         .add("frames", frame_count)
         .add("dt", args.dt)
         .add("kT", args.kT)
@@ -214,6 +237,11 @@ void register_rigid_bd(CLI::App& app) {
   add_mobility_options(*cmd, args->mobility);
   cmd->add_option("--out", args->out, "trajectory .npy, shape (frames, m, 7): q_x q_y q_z w x y z")->required();
   cmd->add_option("--beads-out", args->beads_out, "also write the final bead positions (N,3) to this .npy");
+  cmd->add_option("--restart", args->restart,
+                  "start from the last frame of this trajectory (same --positions, --body-sizes, --reference)");
+  cmd->add_option("--first-step", args->first_step,
+                  "step number of the initial state (with --restart: the earlier run's last step)")
+      ->capture_default_str();
   add_common_options(*cmd, args->common);
   cmd->callback([args, radius] { run_rigid_bd(*args, radius->count() > 0); });
 }

@@ -87,7 +87,8 @@ RigidBodyDynamics::RigidBodyDynamics(rpy::MobilityOperator& beads, std::vector<d
       q_(std::move(positions)),
       quat_(std::move(orientations)),
       solver_(beads, options.solver),
-      rfd_solver_(beads, rfd_options(options)) {
+      rfd_solver_(beads, rfd_options(options)),
+      step_(options.first_step) {
   require(shape_.size() % 3 == 0 && !shape_.empty(), ErrorCode::invalid_input, kWhere,
           "the body-frame shape has " + std::to_string(shape_.size()) + " entries (expected 3 per bead, N >= 3)");
   const std::size_t n = shape_.size() / 3;
@@ -117,7 +118,9 @@ RigidBodyDynamics::RigidBodyDynamics(rpy::MobilityOperator& beads, std::vector<d
     norm = std::sqrt(norm);
     require(norm > 1e-12, ErrorCode::invalid_input, kWhere,
             "the orientation of body " + std::to_string(k) + " is a zero quaternion");
-    for (int c = 0; c < 4; ++c) quat_[4 * k + c] /= norm;
+    // Unit quaternions (a saved state) are kept as they are, so that a restart is bitwise.
+    if (std::abs(norm - 1.0) > 1e-14)
+      for (int c = 0; c < 4; ++c) quat_[4 * k + c] /= norm;
   }
   // Lever arms l_k (validates offsets on the way: RigidBodies below names the problem).
   lever_.assign(m, 0.0);

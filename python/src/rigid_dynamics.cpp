@@ -33,9 +33,9 @@ ArrayResult copy_rows(std::span<const double> v, std::size_t columns) {
 
 void init(PyRigidBodyDynamics* self, rpy::MobilityOperator& beads, ArrayArg shape, RadiusArg radius,
           const std::vector<std::size_t>& body_offsets, ArrayArg positions, OptArrayArg orientations, double dt,
-          double kT, std::uint64_t seed, const std::string& drift, double rfd_delta, double tolerance,
-          int max_iterations, double sqrt_tol, const std::string& preconditioner, double max_displacement,
-          nb::object forces, nb::handle pair) {
+          double kT, std::uint64_t seed, std::uint64_t first_step, const std::string& drift, double rfd_delta,
+          double tolerance, int max_iterations, double sqrt_tol, const std::string& preconditioner,
+          double max_displacement, nb::object forces, nb::handle pair) {
   const std::string where = "RigidBodyDynamics";
   const InArray rho = as_input(shape, where, "shape");
   require_points(rho, where, "shape");
@@ -74,6 +74,7 @@ void init(PyRigidBodyDynamics* self, rpy::MobilityOperator& beads, ArrayArg shap
       .dt = dt,
       .kT = kT,
       .seed = seed,
+      .first_step = first_step,
       .drift = drift_kind,
       .rfd_delta = rfd_delta,
       .solver = {.tolerance = tolerance, .max_iterations = max_iterations},
@@ -144,15 +145,17 @@ void bind_rigid_dynamics(nb::module_& m) {
       "thermal drift kT d/dQ . N by a random finite difference (two extra GMRES solves per step).")
       .def("__init__", &init, nb::arg("beads"), nb::arg("shape"), nb::arg("radius"), nb::arg("body_offsets"),
            nb::arg("positions"), nb::arg("orientations") = nb::none(), nb::kw_only(), nb::arg("dt"),
-           nb::arg("kT") = 1.0, nb::arg("seed") = 1, nb::arg("drift") = "rfd", nb::arg("rfd_delta") = 1e-3,
-           nb::arg("tolerance") = 1e-6, nb::arg("max_iterations") = 500, nb::arg("sqrt_tol") = 1e-3,
-           nb::arg("preconditioner") = "auto", nb::arg("max_displacement") = 1.0, nb::arg("forces") = nb::none(),
-           nb::arg("pair") = nb::none(), nb::keep_alive<1, 2>(),
+           nb::arg("kT") = 1.0, nb::arg("seed") = 1, nb::arg("first_step") = 0, nb::arg("drift") = "rfd",
+           nb::arg("rfd_delta") = 1e-3, nb::arg("tolerance") = 1e-6, nb::arg("max_iterations") = 500,
+           nb::arg("sqrt_tol") = 1e-3, nb::arg("preconditioner") = "auto", nb::arg("max_displacement") = 1.0,
+           nb::arg("forces") = nb::none(), nb::arg("pair") = nb::none(), nb::keep_alive<1, 2>(),
            "beads: the bead mobility operator (DirectRpy, FmmRpy, PseRpy; kept alive);\n"
            "shape: (N, 3) bead positions in the bodies' frames, relative to their reference points;\n"
            "radius: a number or (N,) radii; body_offsets: m + 1 increasing indices (first 0, last N);\n"
            "positions: (m, 3) reference points; orientations: (m, 4) quaternions (w, x, y, z) or None\n"
-           "(identity); dt > 0; kT >= 0; seed: key of the noise; drift: 'rfd' | 'none'; rfd_delta: relative\n"
+           "(identity); dt > 0; kT >= 0; seed: key of the noise; first_step: step number of this state (a\n"
+           "restart from saved positions and orientations continues a run bit for bit); drift: 'rfd' | 'none'; "
+           "rfd_delta: relative\n"
            "RFD step; tolerance, max_iterations: GMRES; sqrt_tol, preconditioner: the bead square root;\n"
            "max_displacement: refuse a step moving beads more than this many lever arms; forces: None or\n"
            "forces(time, positions (m,3), orientations (m,4), bead_positions (N,3)) -> (m, 6) forces and\n"

@@ -527,6 +527,33 @@ TEST_F(Cli, RigidBdMatchesLibrary) {
   EXPECT_NE(traj.data[7 * m * 3 + 2], traj.data[2]);  // it moved
 }
 
+// A restart from the last frame with --first-step continues the run bit for bit: 10 steps in one
+// run equal 6 + 4 (noise keyed by the step; frames at multiples of --every in both).
+TEST_F(Cli, RigidBdRestartContinuesBitForBit) {
+  const RigidCase c = rigid_case();
+  const std::size_t n = c.x.size() / 3, m = 3;
+  write_npy(path("x.npy"), {n, 3}, c.x);
+  std::ofstream(path("sizes.txt")) << "42 42 4\n";
+  const std::string base = "rigid-bd --positions " + path("x.npy") + " --radius 0.5 --body-sizes " + path("sizes.txt") +
+                           " --dt 0.02 --seed 5 --every 2 --body-force 0 0 -1 --pair soft";
+  ASSERT_EQ(run(base + " --steps 10 --out " + path("full.npy")).code, 0);
+  ASSERT_EQ(run(base + " --steps 6 --out " + path("first.npy")).code, 0);
+  const Result r =
+      run(base + " --steps 4 --restart " + path("first.npy") + " --first-step 6 --json --out " + path("second.npy"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("\"last_step\":10"), std::string::npos) << r.out;
+  const Npy full = read_npy(path("full.npy")), first = read_npy(path("first.npy")),
+            second = read_npy(path("second.npy"));
+  ASSERT_EQ(full.shape, (std::vector<std::size_t>{6, m, 7}));    // steps 0, 2, 4, 6, 8, 10
+  ASSERT_EQ(first.shape, (std::vector<std::size_t>{4, m, 7}));   // 0, 2, 4, 6
+  ASSERT_EQ(second.shape, (std::vector<std::size_t>{3, m, 7}));  // 6 (restart), 8, 10
+  for (std::size_t i = 0; i < 3 * m * 7; ++i) EXPECT_EQ(second.data[i], full.data[3 * m * 7 + i]) << i;
+  // Without --first-step the noise restarts at step 0: a different continuation.
+  ASSERT_EQ(run(base + " --steps 4 --restart " + path("first.npy") + " --out " + path("other.npy")).code, 0);
+  EXPECT_NE(read_npy(path("other.npy")).data.back(), full.data.back());
+  expect_failure(base + " --steps 2 --restart " + path("x.npy") + " --out " + path("bad.npy"), "--restart", "bad.npy");
+}
+
 TEST_F(Cli, RigidBdBadInput) {
   const RigidCase c = rigid_case();
   const std::size_t n = c.x.size() / 3;

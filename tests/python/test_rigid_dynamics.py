@@ -139,3 +139,23 @@ def test_pair_repulsion_between_bodies():
     with pytest.raises(rpyfmm.InvalidArgumentError, match="unknown pair key"):
         rpyfmm.RigidBodyDynamics(rpyfmm.DirectRpy(), x, 0.5, [0, 12, 24], [[0, 0, 0], [9.0, 0, 0]], dt=0.01,
                                  pair={"range": 2})
+
+
+def test_restart_with_first_step_continues_bit_for_bit():
+    shape = rpyfmm.icosphere_beads(0)
+    x = np.vstack([shape + [0.3, 0, 0], shape])
+    q0 = [[0, 0, 0], [3, 0.5, 0]]
+
+    def make(positions, orientations=None, first_step=0):
+        return rpyfmm.RigidBodyDynamics(rpyfmm.DirectRpy(), x, 0.5, [0, 12, 24], positions, orientations, dt=0.01,
+                                        seed=11, first_step=first_step)
+
+    full = make(q0)
+    full.run(10)
+    first = make(q0)
+    first.run(6)
+    second = make(first.positions, first.orientations, first_step=first.step_count)
+    second.run(4)
+    assert second.step_count == 10 and second.time == pytest.approx(0.1)
+    np.testing.assert_array_equal(second.positions, full.positions)
+    np.testing.assert_array_equal(second.orientations, full.orientations)

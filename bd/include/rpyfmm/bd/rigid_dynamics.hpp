@@ -67,6 +67,10 @@ struct RigidDynamicsOptions {
   double kT = 1.0;
   /// Key of the counter-based noise (with the step number).
   std::uint64_t seed = 1;
+  /// Step number of the initial state: a restart from the state after step s (positions and
+  /// orientations as saved, first_step = s, same seed and options) continues the run it restarts
+  /// bit for bit, since the noise is keyed by the step and no other state carries over.
+  std::uint64_t first_step = 0;
   RigidDrift drift = RigidDrift::random_finite_difference;
   /// RFD step delta (relative: translations by delta l_k, rotations by delta radians); in
   /// [1e-6, 0.1]. The RFD's bias is O(delta^2) from the difference and O(tolerance / delta) from
@@ -118,7 +122,8 @@ class RigidBodyDynamics {
   /// `shape`: bead positions rho_i in each body's frame, relative to its reference point (3N);
   /// `radii`: one or N bead radii; `body_offsets`: m + 1 entries (body k holds beads
   /// body_offsets[k] ... body_offsets[k+1] - 1); `positions`: reference points q_k (3m);
-  /// `orientations`: 4m unit quaternions (empty = identity; normalized here, zero refused).
+  /// `orientations`: 4m quaternions (empty = identity; normalized here unless already unit to
+  /// 1e-14, zero refused).
   /// `beads` computes bead products (not owned: it must outlive this object). Throws
   /// rpyfmm::Error naming the problem (sizes, NaN/Inf, options, bodies RigidBodies refuses).
   RigidBodyDynamics(rpy::MobilityOperator& beads, std::vector<double> shape, std::vector<double> radii,
@@ -165,6 +170,7 @@ class RigidBodyDynamics {
   [[nodiscard]] std::span<const std::size_t> body_offsets() const { return offsets_; }
   /// Body k's RMS lever arm l_k (of its shape about the reference point).
   [[nodiscard]] std::span<const double> lever_arms() const { return lever_; }
+  /// The step number (first_step + steps taken).
   [[nodiscard]] std::uint64_t step_count() const { return step_; }
   [[nodiscard]] double time() const { return static_cast<double>(step_) * options_.dt; }
   [[nodiscard]] const RigidDynamicsOptions& options() const { return options_; }
