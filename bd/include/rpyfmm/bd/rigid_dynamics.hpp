@@ -21,7 +21,8 @@
 // The drift matters whenever the reference point is not a body's centre of mobility (a tracked
 // point off the centre drifts towards it at -2 D_r (q - c) for an isotropic body) and for
 // hydrodynamically coupled, non-spherical bodies; drift = none leaves it out (for bodies known
-// to have none, e.g. spheres tracked at their centres, at a third of the cost).
+// to have none, e.g. a lone sphere tracked at its centre; a step then costs 0.53-0.66 of one with
+// the drift, bench/rigid/RESULTS.md).
 //
 // Forces and torques come from a user function of the state (e.g. gravity, traps), and from an
 // optional bead force field (set_bead_forces: pair potentials between beads of different bodies,
