@@ -95,10 +95,11 @@ TrapStatistics trapped_bodies(RigidDrift drift, std::uint64_t steps) {
 
 // Gibbs-Boltzmann: <|q - trap|^2> = 3 kT / k and no lean, with the drift (12 blocks of 1000 steps
 // after 200 to equilibrate; statistical error about 0.05 on the lean (0.023 in 60000 steps, scaled),
-// 0.025 on the variance, EM's O(dt) bias below 1%). The bounds, 0.2 on the lean and 0.1 on the
+// 0.03 on the variance, EM's O(dt) bias below 1%; 60000-step runs with seeds 7, 13, 99 gave
+// variance ratios 0.994, 1.024, 0.977 +- 0.013). The bounds, 0.2 on the lean and 0.12 on the
 // variance, are about 4 standard errors: the trajectories differ between machines (vector
-// kernels, FMA), so the seed does not pin the outcome. Without the drift the lean is 0.41-0.43
-// (bound 0.25): the test can fail.
+// kernels, FMA) and versions, so the seed does not pin the outcome. Without the drift the lean
+// is 0.41-0.43 (bound 0.25): the test can fail.
 TEST(RigidEquilibrium, TrappedBodiesNeedTheDrift) {
   // 96 beads: threads only add overhead (and time on a shared 2-core machine).
   const int threads = omp_get_max_threads();
@@ -106,7 +107,7 @@ TEST(RigidEquilibrium, TrappedBodiesNeedTheDrift) {
   const TrapStatistics with = trapped_bodies(RigidDrift::random_finite_difference, 12000);
   std::cout << "with drift: variance ratio " << with.variance_ratio << " +- " << with.variance_error << ", lean "
             << with.lean << " +- " << with.lean_error << "\n";
-  EXPECT_NEAR(with.variance_ratio, 1.0, 0.1);
+  EXPECT_NEAR(with.variance_ratio, 1.0, 0.12);
   EXPECT_LE(std::abs(with.lean), 0.2);
   const TrapStatistics without = trapped_bodies(RigidDrift::none, 12000);
   std::cout << "without drift: variance ratio " << without.variance_ratio << " +- " << without.variance_error
