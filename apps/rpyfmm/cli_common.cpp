@@ -92,15 +92,4 @@ std::string JsonLine::str() const {
   return s + "}";
 }
 
-std::vector<std::size_t> body_offsets_from_sizes(const std::vector<double>& sizes) {
-  std::vector<std::size_t> offsets{0};
-  for (std::size_t k = 0; k < sizes.size(); ++k) {
-    const double s = sizes[k];
-    require(std::isfinite(s) && s >= 1.0 && s == std::floor(s) && s < 1e15, ErrorCode::invalid_input, "--body-sizes",
-            "entry " + std::to_string(k) + " is not a whole number of beads >= 1");
-    offsets.push_back(offsets.back() + static_cast<std::size_t>(s));
-  }
-  return offsets;
-}
-
 }  // namespace rpyfmm::cli

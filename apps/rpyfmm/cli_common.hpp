@@ -45,8 +45,4 @@ class JsonLine {
 
 std::string json_escape(const std::string& s);
 
-/// Body offsets (m + 1 entries from 0) from body sizes read from --body-sizes: whole numbers
-/// >= 1 (the library checks >= 3 beads and the total). rpyfmm::Error naming the entry.
-std::vector<std::size_t> body_offsets_from_sizes(const std::vector<double>& sizes);
-
 }  // namespace rpyfmm::cli

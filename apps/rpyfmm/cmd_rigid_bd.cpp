@@ -11,7 +11,8 @@
 //
 // X holds the beads at time 0, body after body (S: beads per body); the bodies' reference points
 // are Q (default: centroids) and their orientations start at the identity, so bead i of body k
-// sits at q_k(t) + R(quaternion_k(t)) (x_i(0) - q_k(0)). TRAJ is (frames, m, 7): q_x q_y q_z
+// sits at q_k(t) + R(quaternion_k(t)) (x_i(0) - q_k(0)), x_i(0) - q_k(0) a minimum image in a
+// periodic box (bodies may be given wrapped into it). TRAJ is (frames, m, 7): q_x q_y q_z
 // w x y z per body, frames at the first step, at steps that are multiples of K, and at the last
 // step. Files are written at the end, atomically: a failed run leaves no output.
 //
@@ -30,6 +31,7 @@
 #include <vector>
 
 #include "array_io.hpp"
+#include "bead_bodies.hpp"
 #include "cli_common.hpp"
 #include "commands.hpp"
 #include "mobility_choice.hpp"
@@ -41,9 +43,9 @@ namespace rpyfmm::cli {
 namespace {
 
 struct RigidBdArgs {
-  std::string positions, radii, body_sizes, reference, out, beads_out, restart;
+  BeadBodyArgs bodies;
+  std::string out, beads_out, restart;
   std::uint64_t first_step = 0;
-  double radius = 0.0;
   double dt = 0.0, kT = 1.0, rfd_delta = 1e-3, tol = 1e-6, sqrt_tol = 1e-3;
   long long steps = 0, every = 0;
   std::uint64_t seed = 1;
@@ -54,11 +56,8 @@ struct RigidBdArgs {
   CommonOptions common;
 };
 
-void run_rigid_bd(const RigidBdArgs& args, bool radius_given) {
+void run_rigid_bd(const RigidBdArgs& args) {
   apply_threads(args.common);
-  require(radius_given != !args.radii.empty(), ErrorCode::invalid_argument, "rigid-bd",
-          "give exactly one of --radius a or --radii R.npy");
-  if (radius_given) require_positive(args.radius, "--radius", "radius");
   require(args.steps >= 1, ErrorCode::invalid_argument, "--steps", "must be >= 1, got " + std::to_string(args.steps));
   require(args.every >= 0, ErrorCode::invalid_argument, "--every", "must be >= 0, got " + std::to_string(args.every));
   require(args.drift == "rfd" || args.drift == "none", ErrorCode::invalid_argument, "--drift",
@@ -70,32 +69,12 @@ void run_rigid_bd(const RigidBdArgs& args, bool radius_given) {
 
   StopWatch total;
   StopWatch watch;
-  const std::vector<double> x = as_points(read_array(args.positions), "positions");
-  const std::size_t n = x.size() / 3;
-  const std::vector<std::size_t> offsets = body_offsets_from_sizes(read_array(args.body_sizes).data);
-  const std::size_t m = offsets.size() - 1;
-  require(m > 0, ErrorCode::invalid_input, "--body-sizes", "no bodies given");
-  require(offsets.back() == n, ErrorCode::invalid_input, "--body-sizes",
-          "the body sizes add up to " + std::to_string(offsets.back()) + " beads, but --positions has " +
-              std::to_string(n));
-  std::vector<double> radii(n, args.radius);
-  if (!radius_given) radii = as_vector(read_array(args.radii), n, "radii");
-  std::vector<double> reference(3 * m, 0.0);
-  if (!args.reference.empty()) {
-    reference = as_points(read_array(args.reference), "reference points");
-    require(reference.size() == 3 * m, ErrorCode::invalid_input, "--reference",
-            "has " + std::to_string(reference.size() / 3) + " rows, expected " + std::to_string(m) + " (one per body)");
-  } else {
-    for (std::size_t k = 0; k < m; ++k) {
-      for (std::size_t i = offsets[k]; i < offsets[k + 1]; ++i)
-        for (std::size_t c = 0; c < 3; ++c) reference[3 * k + c] += x[3 * i + c];
-      for (std::size_t c = 0; c < 3; ++c) reference[3 * k + c] /= double(offsets[k + 1] - offsets[k]);
-    }
-  }
-  std::vector<double> shape(3 * n);
-  for (std::size_t k = 0; k < m; ++k)
-    for (std::size_t i = offsets[k]; i < offsets[k + 1]; ++i)
-      for (std::size_t c = 0; c < 3; ++c) shape[3 * i + c] = x[3 * i + c] - reference[3 * k + c];
+  const BeadBodies bodies = read_bead_bodies(args.bodies);
+  const std::size_t n = bodies.beads(), m = bodies.bodies();
+  // The operator first: its geometry gives the minimum images of bodies wrapped into a box.
+  auto beads = make_operator(args.mobility, n);
+  std::vector<double> reference = bodies.reference;
+  const std::vector<double> shape = body_frame_shape(beads->geometry(), bodies, reference);
   // The state: the bodies at t = 0 (identity orientations), or the last frame of --restart.
   std::vector<double> positions = reference, orientations;
   if (!args.restart.empty()) {
@@ -131,10 +110,10 @@ void run_rigid_bd(const RigidBdArgs& args, bool radius_given) {
       .rfd_delta = args.rfd_delta,
       .solver = {.tolerance = args.tol},
       .sqrt = {.tolerance = args.sqrt_tol, .preconditioner = rpy::SqrtPreconditioner::automatic}};
-  bd::RigidBodyDynamics sim(make_operator(args.mobility, n), shape, radii, offsets, positions, orientations, options,
+  bd::RigidBodyDynamics sim(std::move(beads), shape, bodies.radii, bodies.offsets, positions, orientations, options,
                             forces);
   if (args.pair != "none") {
-    bd::ForceField field({bd::ParticleType{.radius = radii[0]}});
+    bd::ForceField field({bd::ParticleType{.radius = bodies.radii[0]}});
     field.set_pair(
         0, 0,
         bd::PairPotential{
@@ -207,13 +186,8 @@ void register_rigid_bd(CLI::App& app) {
   auto args = std::make_shared<RigidBdArgs>();
   CLI::App* cmd = app.add_subcommand(
       "rigid-bd", "Brownian dynamics of rigid bodies made of beads (HI among all beads, thermal drift)");
-  cmd->add_option("--positions", args->positions, "bead positions at t = 0, (N,3) .npy or text, body after body")
-      ->required();
-  auto* radius = cmd->add_option("--radius", args->radius, "common bead radius a > 0");
-  auto* radii = cmd->add_option("--radii", args->radii, "per-bead radii (N,)");
-  radius->excludes(radii);
-  cmd->add_option("--body-sizes", args->body_sizes, "beads per body (m,), in the order of --positions")->required();
-  cmd->add_option("--reference", args->reference, "reference points (m,3) at t = 0 (default: body centroids)");
+  add_bead_body_options(*cmd, args->bodies, "bead positions at t = 0, (N,3) .npy or text, body after body",
+                        "reference points (m,3) at t = 0 (default: body centroids)");
   cmd->add_option("--dt", args->dt, "time step > 0")->required();
   cmd->add_option("--steps", args->steps, "number of steps >= 1")->required();
   cmd->add_option("--kT", args->kT, "thermal energy >= 0 (0: deterministic)")->capture_default_str();
@@ -243,7 +217,7 @@ void register_rigid_bd(CLI::App& app) {
                   "step number of the initial state (with --restart: the earlier run's last step)")
       ->capture_default_str();
   add_common_options(*cmd, args->common);
-  cmd->callback([args, radius] { run_rigid_bd(*args, radius->count() > 0); });
+  cmd->callback([args] { run_rigid_bd(*args); });
 }
 
 }  // namespace rpyfmm::cli

@@ -554,6 +554,36 @@ TEST_F(Cli, RigidBdRestartContinuesBitForBit) {
   expect_failure(base + " --steps 2 --restart " + path("x.npy") + " --out " + path("bad.npy"), "--restart", "bad.npy");
 }
 
+// In a periodic box a body given wrapped into the box (beads on both sides of a face) keeps its
+// shape: the bodies' frames come from minimum images, so the run equals the one from unwrapped
+// beads (the same first bead) up to rounding.
+TEST_F(Cli, RigidBdWrappedBodyKeepsItsShape) {
+  const std::vector<double> shell = rpyfmm::rpy::icosphere_beads(1);
+  const double L = 12.0, radius = 2.0 * rpyfmm::rpy::icosphere_bead_radius(1);
+  std::vector<double> unwrapped, wrapped;
+  std::size_t first = 0;
+  while (shell[3 * first] < 0.5) ++first;  // start with a bead inside the box in both inputs
+  for (std::size_t j = 0; j < shell.size() / 3; ++j) {
+    const std::size_t i = (first + j) % (shell.size() / 3);
+    const double p[3] = {0.5 + 2.0 * shell[3 * i], 6.0 + 2.0 * shell[3 * i + 1], 6.0 + 2.0 * shell[3 * i + 2]};
+    for (double v : p) unwrapped.push_back(v), wrapped.push_back(v - L * std::floor(v / L));
+  }
+  ASSERT_NE(unwrapped, wrapped);
+  write_npy(path("u.npy"), {42, 3}, unwrapped);
+  write_npy(path("w.npy"), {42, 3}, wrapped);
+  std::ofstream(path("sizes.txt")) << "42\n";
+  const std::string options = " --radius " + std::to_string(radius) + " --body-sizes " + path("sizes.txt") +
+                              " --method pse --box 12 --eps 1e-6 --kT 0 --dt 0.5 --steps 3 --every 1"
+                              " --body-force 0.2 0 -1 --body-torque 0 0.5 0";
+  ASSERT_EQ(run("rigid-bd --positions " + path("u.npy") + options + " --out " + path("tu.npy")).code, 0);
+  const Result r = run("rigid-bd --positions " + path("w.npy") + options + " --out " + path("tw.npy"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const Npy tu = read_npy(path("tu.npy")), tw = read_npy(path("tw.npy"));
+  ASSERT_EQ(tu.shape, tw.shape);
+  EXPECT_LE(rel_l2(tw.data, tu.data), 1e-10);
+  EXPECT_GT(std::abs(tu.data[tu.data.size() - 2] - tu.data[5]), 1e-3);  // it turned about y (quaternion y)
+}
+
 TEST_F(Cli, RigidBdBadInput) {
   const RigidCase c = rigid_case();
   const std::size_t n = c.x.size() / 3;
