@@ -33,6 +33,7 @@
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
 #include "rpyfmm/rpy/rigid_bodies.hpp"
+#include "shell_suspension.hpp"
 
 using namespace rpyfmm::rpy;
 using rpyfmm::StopWatch;
@@ -52,48 +53,15 @@ double median(std::vector<double> v) {
   return v.empty() ? 0.0 : v[v.size() / 2];
 }
 
+/// The suspension with lab-frame bead positions (shell_suspension.hpp).
 struct Suspension {
   std::vector<double> x, radii;
-  std::vector<std::size_t> offsets{0};
+  std::vector<std::size_t> offsets;
 };
 
-/// m spheres of radius R at volume fraction phi (random sequential addition, centres at least
-/// 2 R + 2 a apart so that no beads of different bodies overlap), random orientations.
 Suspension suspension(std::size_t m, int subdivisions, double phi, unsigned seed) {
-  const double R = 2.0;
-  const std::vector<double> shell = icosphere_beads(subdivisions);
-  const double a = icosphere_bead_radius(subdivisions) * R;
-  const double L = std::cbrt(double(m) * 4.0 / 3.0 * std::numbers::pi * R * R * R / phi);
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> u(0.0, L);
-  std::normal_distribution<double> g;
-  std::vector<std::array<double, 3>> centres;
-  Suspension s;
-  while (centres.size() < m) {
-    const std::array<double, 3> c{u(rng), u(rng), u(rng)};
-    bool free = true;
-    for (const auto& o : centres) {
-      const double d2 = (c[0] - o[0]) * (c[0] - o[0]) + (c[1] - o[1]) * (c[1] - o[1]) + (c[2] - o[2]) * (c[2] - o[2]);
-      if (d2 < std::pow(2 * R + 2 * a, 2)) free = false;
-    }
-    if (!free) continue;
-    centres.push_back(c);
-    // Random rotation from a unit quaternion (w, x, y, z).
-    double q[4] = {g(rng), g(rng), g(rng), g(rng)};
-    const double qn = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-    for (double& e : q) e /= qn;
-    const double w = q[0], x = q[1], y = q[2], z = q[3];
-    const double rot[9] = {1 - 2 * (y * y + z * z), 2 * (x * y - z * w),     2 * (x * z + y * w),
-                           2 * (x * y + z * w),     1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
-                           2 * (x * z - y * w),     2 * (y * z + x * w),     1 - 2 * (x * x + y * y)};
-    for (std::size_t i = 0; i < shell.size(); i += 3)
-      for (int r = 0; r < 3; ++r)
-        s.x.push_back(c[static_cast<std::size_t>(r)] +
-                      R * (rot[3 * r] * shell[i] + rot[3 * r + 1] * shell[i + 1] + rot[3 * r + 2] * shell[i + 2]));
-    s.radii.insert(s.radii.end(), shell.size() / 3, a);
-    s.offsets.push_back(s.radii.size());
-  }
-  return s;
+  const rpyfmm_bench::ShellSuspension s = rpyfmm_bench::shell_suspension(m, subdivisions, phi, seed);
+  return {s.positions(), s.radii, s.offsets};
 }
 
 }  // namespace

@@ -31,6 +31,7 @@
 #include "rpyfmm/rpy/fmm_operator.hpp"
 #include "rpyfmm/rpy/random.hpp"
 #include "rpyfmm/rpy/rigid_bodies.hpp"
+#include "shell_suspension.hpp"
 
 using namespace rpyfmm;
 
@@ -47,40 +48,6 @@ std::vector<std::size_t> parse_counts(const std::string& s) {
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   return v.empty() ? 0.0 : v[v.size() / 2];
-}
-
-struct Suspension {
-  std::vector<double> shape, radii, centres, orientations;
-  std::vector<std::size_t> offsets{0};
-};
-
-/// m spheres of radius R at volume fraction phi (random sequential addition, centres at least
-/// 2 R + 2 a apart), random orientations; body frames centred on the spheres.
-Suspension suspension(std::size_t m, int subdivisions, double phi, unsigned seed) {
-  const double R = 2.0;
-  const std::vector<double> shell = rpy::icosphere_beads(subdivisions);
-  const double a = rpy::icosphere_bead_radius(subdivisions) * R;
-  const double L = std::cbrt(double(m) * 4.0 / 3.0 * std::numbers::pi * R * R * R / phi);
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> u(0.0, L);
-  std::normal_distribution<double> g;
-  Suspension s;
-  while (s.centres.size() < 3 * m) {
-    const std::array<double, 3> c{u(rng), u(rng), u(rng)};
-    bool free = true;
-    for (std::size_t k = 0; k < s.centres.size(); k += 3) {
-      double d2 = 0.0;
-      for (std::size_t r = 0; r < 3; ++r) d2 += std::pow(c[r] - s.centres[k + r], 2);
-      if (d2 < std::pow(2 * R + 2 * a, 2)) free = false;
-    }
-    if (!free) continue;
-    s.centres.insert(s.centres.end(), c.begin(), c.end());
-    for (int i = 0; i < 4; ++i) s.orientations.push_back(g(rng));
-    for (double v : shell) s.shape.push_back(R * v);
-    s.radii.insert(s.radii.end(), shell.size() / 3, a);
-    s.offsets.push_back(s.radii.size());
-  }
-  return s;
 }
 
 std::unique_ptr<rpy::MobilityOperator> make_operator(const std::string& name, double eps) {
@@ -103,7 +70,7 @@ int main(int argc, char** argv) {
       "operator,eps,bodies,beads,threads,phi,drift,step_s,plan_s,sqrt_s,solve_s,drift_s,solve_iterations,"
       "drift_iterations,sqrt_iterations,drift_rel_diff_vs_direct\n");
   for (std::size_t m : counts) {
-    const Suspension s = suspension(m, subdivisions, phi, 7u + unsigned(m));
+    const rpyfmm_bench::ShellSuspension s = rpyfmm_bench::shell_suspension(m, subdivisions, phi, 7u + unsigned(m));
     const std::size_t n = s.radii.size();
     // Settling: a unit force along -z on every body. dt: a tenth of the time to settle 0.05 R
     // (one sphere's Stokes speed ~ 1 / (6 pi R)), well inside the blow-up guard.

@@ -191,6 +191,27 @@ TEST(ForceField, PairSumsMatchBruteForceWithTypesBondsAndExternal) {
   for (std::size_t k = 0; k < 3 * n; ++k) EXPECT_NEAR(f[k], ref[k], 1e-12 * scale) << "entry " << k;
 }
 
+// Groups (the beads of rigid bodies): pairs within a group are skipped, pairs across groups
+// kept, a hard overlap inside a group is not an error; groups of the wrong size are refused.
+TEST(ForceField, GroupsSkipPairsWithinAGroup) {
+  ForceField ff;
+  ff.set_pair(0, 0, {.kind = PairKind::wca, .epsilon = 1.0, .sigma = 2.0});
+  // 0-1 overlap hard (r = 1 < 0.8 sigma) but share group 0; 1-2 at r = 2.1 < 2^(1/6) 2 interact.
+  const std::vector<double> x{0, 0, 0, 1, 0, 0, 3.1, 0, 0, 9, 0, 0};
+  const std::vector<std::uint32_t> types(4, 0), groups{0, 0, 1, 1};
+  NeighbourList list(rpyfmm::rpy::Geometry::open(), ff.max_cutoff(), {});
+  list.build(x);
+  std::vector<double> f(12);
+  EXPECT_THROW(ff.compute(x, types, list, 0, f), rpyfmm::Error);  // without groups: the overlap
+  ff.compute(x, types, list, 0, f, groups);
+  const double s = evaluate_pair(ff.pair(0, 0), 2.1).s;
+  const std::vector<double> expected{0, 0, 0, -2.1 * s, 0, 0, 2.1 * s, 0, 0, 0, 0, 0};
+  for (std::size_t k = 0; k < 12; ++k) EXPECT_NEAR(f[k], expected[k], 1e-12 * std::abs(2.1 * s)) << k;
+  EXPECT_NE(s, 0.0);
+  const std::vector<std::uint32_t> short_groups{0, 0, 1};
+  EXPECT_THROW(ff.compute(x, types, list, 0, f, short_groups), rpyfmm::Error);
+}
+
 TEST(ForceField, OverlapAndOverstretchedBondNameTheParticles) {
   ForceField ff;
   ff.set_pair(0, 0, {.kind = PairKind::lj36_18, .epsilon = 14.0});

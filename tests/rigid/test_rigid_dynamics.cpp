@@ -61,6 +61,21 @@ Eigen::MatrixXd dense_body_mobility(const std::vector<double>& x, const std::vec
   return (K.transpose() * Eigen::LLT<Eigen::MatrixXd>(M).solve(K)).inverse();
 }
 
+/// The library's random finite differences summed over the 6m unit directions: d/dQ . N to
+/// O(delta^2) (each call must do GMRES work).
+Eigen::VectorXd divergence_by_rfd(RigidBodyDynamics& sim) {
+  const std::size_t n = 6 * sim.bodies();
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(Eigen::Index(n));
+  std::vector<double> e(n, 0.0), estimate(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    e[k] = 1.0;
+    EXPECT_GT(sim.drift_estimate(e, estimate), 0);
+    e[k] = 0.0;
+    sum += Eigen::Map<const Eigen::VectorXd>(estimate.data(), Eigen::Index(n));
+  }
+  return sum;
+}
+
 }  // namespace
 
 // The exponential map on quaternions: q <- exp(phi) q rotates by |phi| about phi in the lab frame,
@@ -142,14 +157,7 @@ TEST(RigidDynamics, DriftOfAnOffCentreReferencePoint) {
   RigidBodyDynamics sim(beads, s.shape, s.radii, s.offsets, q0, quat0,
                         {.dt = 0.01, .kT = kT, .solver = {.tolerance = 1e-10}});
   EXPECT_DOUBLE_EQ(sim.rfd_tolerance(), 1e-10);
-  Eigen::VectorXd sum = Eigen::VectorXd::Zero(6);
-  std::vector<double> e(6), estimate(6);
-  for (int k = 0; k < 6; ++k) {
-    std::fill(e.begin(), e.end(), 0.0);
-    e[std::size_t(k)] = 1.0;
-    EXPECT_GT(sim.drift_estimate(e, estimate), 0);
-    sum += Eigen::Map<const Eigen::VectorXd>(estimate.data(), 6);
-  }
+  const Eigen::VectorXd sum = divergence_by_rfd(sim);
   // mu_r from the body mobility about the centre c = q0 - R d.
   const Eigen::Matrix3d R = from_quaternion(quat0);
   const Vec3 arm = R * d;
@@ -184,14 +192,7 @@ TEST(RigidDynamics, DriftMatchesTheDivergenceOfTheDenseMobility) {
   DirectRpy beads(Geometry::open(), 1.0);
   RigidBodyDynamics sim(beads, s.shape, s.radii, s.offsets, q0, quat0,
                         {.dt = 0.01, .kT = 1.0, .solver = {.tolerance = 1e-11}});
-  Eigen::VectorXd rfd = Eigen::VectorXd::Zero(12);
-  std::vector<double> e(12), estimate(12);
-  for (int k = 0; k < 12; ++k) {
-    std::fill(e.begin(), e.end(), 0.0);
-    e[std::size_t(k)] = 1.0;
-    sim.drift_estimate(e, estimate);
-    rfd += Eigen::Map<const Eigen::VectorXd>(estimate.data(), 12);
-  }
+  const Eigen::VectorXd rfd = divergence_by_rfd(sim);
   const double h = 1e-4;
   Eigen::VectorXd divergence = Eigen::VectorXd::Zero(12);
   for (int k = 0; k < 12; ++k) {
@@ -233,14 +234,7 @@ TEST(RigidDynamics, PeriodicDriftAndSteps) {
   rpy::pse::PseRpy beads(Geometry::periodic(L), 1.0, {.tolerance = 1e-8});
   RigidBodyDynamics sim(beads, s.shape, s.radii, s.offsets, q0, quat0,
                         {.dt = 0.05, .kT = 1.0, .solver = {.tolerance = 1e-10}});
-  Eigen::VectorXd sum = Eigen::VectorXd::Zero(6);
-  std::vector<double> e(6), estimate(6);
-  for (int k = 0; k < 6; ++k) {
-    std::fill(e.begin(), e.end(), 0.0);
-    e[std::size_t(k)] = 1.0;
-    sim.drift_estimate(e, estimate);
-    sum += Eigen::Map<const Eigen::VectorXd>(estimate.data(), 6);
-  }
+  const Eigen::VectorXd sum = divergence_by_rfd(sim);
   const Vec3 arm = from_quaternion(quat0) * d;
   std::vector<double> centre(3);
   for (int c = 0; c < 3; ++c) centre[std::size_t(c)] = q0[std::size_t(c)] - arm[c];
