@@ -123,6 +123,18 @@ bool is_array_like(nb::handle h) {
   return nb::isinstance<nb::list>(h) || nb::isinstance<nb::tuple>(h);
 }
 
+Radii radii_from(RadiusArg radius, const std::string& where) {
+  if (is_array_like(radius)) {  // N radii; a NumPy scalar (ndim 0) is one radius
+    const InArray r = as_input(radius, where, "radii");
+    require(r.ndim() == 1, ErrorCode::invalid_input, where,
+            "radii has shape " + shape_string(r.shape) + ", expected (N,)");
+    return {{r.data, r.data + r.size}, false};
+  }
+  double a = 0.0;
+  if (!nb::try_cast(radius.h, a, true)) fail(ErrorCode::invalid_argument, where, "radius must be a number or N radii");
+  return {{a}, true};
+}
+
 ArrayResult adopt_vector(std::vector<double>&& values, const std::vector<std::size_t>& shape) {
   auto* heap = new std::vector<double>(std::move(values));
   nb::capsule owner(heap, [](void* p) noexcept { delete static_cast<std::vector<double>*>(p); });

@@ -90,6 +90,14 @@ std::string shape_string(const std::vector<std::size_t>& shape);
 /// NumPy scalars included (one radius).
 bool is_array_like(nb::handle h);
 
+/// A `radius` argument: one number (scalar = true, values = {a}) or an array of N radii
+/// (scalar = false, values as given, 1-d required). rpyfmm::Error naming `where` otherwise.
+struct Radii {
+  std::vector<double> values;
+  bool scalar = true;
+};
+Radii radii_from(RadiusArg radius, const std::string& where);
+
 /// Checks that `a` is points data: (N, 3) or (3N,); returns N.
 std::size_t require_points(const InArray& a, const std::string& where, const std::string& name);
 

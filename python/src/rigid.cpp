@@ -29,18 +29,13 @@ void set_configuration(RigidBodies& bodies, ArrayArg positions, RadiusArg radius
     q = as_input(reference_points, where, "reference_points");
     require_points(q, where, "reference_points");
   }
-  if (is_array_like(radius)) {  // N radii; a NumPy scalar (ndim 0) is one radius
-    const InArray r = as_input(radius, where, "radii");
-    require(r.ndim() == 1, ErrorCode::invalid_input, where,
-            "radii has shape " + shape_string(r.shape) + ", expected (N,)");
-    nb::gil_scoped_release release;
-    bodies.set_configuration(x.span(), r.span(), body_offsets, q.span());
-    return;
-  }
-  double a = 0.0;
-  if (!nb::try_cast(radius.h, a, true)) fail(ErrorCode::invalid_argument, where, "radius must be a number or N radii");
+  const Radii r = radii_from(radius, where);
   nb::gil_scoped_release release;
-  bodies.set_configuration(x.span(), a, body_offsets, q.span());
+  if (r.scalar) {
+    bodies.set_configuration(x.span(), r.values[0], body_offsets, q.span());
+  } else {
+    bodies.set_configuration(x.span(), r.values, body_offsets, q.span());
+  }
 }
 
 /// (velocities (m, 6)[, bead forces (N, 3)], report).

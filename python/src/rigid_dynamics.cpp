@@ -39,18 +39,8 @@ void init(PyRigidBodyDynamics* self, rpy::MobilityOperator& beads, ArrayArg shap
   const std::string where = "RigidBodyDynamics";
   const InArray rho = as_input(shape, where, "shape");
   require_points(rho, where, "shape");
-  std::vector<double> radii;
-  if (is_array_like(radius)) {
-    const InArray r = as_input(radius, where, "radii");
-    require(r.ndim() == 1, ErrorCode::invalid_input, where,
-            "radii has shape " + shape_string(r.shape) + ", expected (N,)");
-    radii.assign(r.data, r.data + r.size);
-  } else {
-    double a = 0.0;
-    if (!nb::try_cast(radius.h, a, true))
-      fail(ErrorCode::invalid_argument, where, "radius must be a number or N radii");
-    radii.assign(1, a);
-  }
+  // One radius or N (RigidBodyDynamics takes a 1-element vector as one radius for all beads).
+  std::vector<double> radii = radii_from(radius, where).values;
   const InArray q = as_input(positions, where, "positions");
   require_points(q, where, "positions");
   std::vector<double> quat;
