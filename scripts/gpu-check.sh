@@ -18,25 +18,50 @@ export OMP_NUM_THREADS="${OMP_NUM_THREADS:-8}"
 export RPYFMM_EXPECT_CUDA=1
 nvidia-smi -L 2>&1 | tee "$out/device.txt"
 echo "cuFFT from: $cufft_dir" | tee -a "$out/device.txt"
-RPYFMM_CUDA_SYNC=1 gpu-kit/test_pse --gtest_filter='PseCuda.*' 2>&1 | tee "$out/test_pse_cuda.txt"
+nvidia-smi --query-gpu=name,driver_version,memory.total,clocks.max.sm --format=csv >> "$out/device.txt" 2>&1
+ldd gpu-kit/test_pse >> "$out/device.txt" 2>&1
+RPYFMM_CUDA_SYNC=1 timeout 150 gpu-kit/test_pse --gtest_filter='PseCuda.*' 2>&1 | tee "$out/test_pse_cuda.txt"
 test_rc=${PIPESTATUS[0]}
 if grep -q "SKIPPED" "$out/test_pse_cuda.txt"; then echo "gpu-check: a CUDA test was skipped" >&2; test_rc=1; fi
 sizes=("$@")
 [ ${#sizes[@]} -gt 0 ] || sizes=(8000 32000 250000 1000000 2000000)
-timeout 420 gpu-kit/bench_pse --cuda "${sizes[@]}" 2>&1 | tee "$out/bench_pse_cuda.csv"
-bench_rc=${PIPESTATUS[0]}
-# If time is left and the machine has it: compute-sanitizer memcheck and racecheck on the smallest
-# CPU-vs-GPU test (kernel bounds and shared-memory races; informative, does not change the exit
-# status). Output: sanitizer.txt.
-sanitizer=$(command -v compute-sanitizer || ls /usr/local/cuda*/bin/compute-sanitizer 2>/dev/null | head -1 || true)
-if [ -n "$sanitizer" ] && [ "$SECONDS" -lt 420 ]; then
-  for tool in memcheck racecheck; do
-    RPYFMM_CUDA_SYNC=1 timeout 60 "$sanitizer" --tool "$tool" --error-exitcode 9 gpu-kit/test_pse \
-      --gtest_filter='PseCuda.SinglePrecisionGridsAgree' > "$out/sanitizer_$tool.txt" 2>&1
-    echo "gpu-check: compute-sanitizer $tool rc=$? (9: errors found, 124: timed out)" | tee -a "$out/sanitizer.txt"
-  done
-else
-  echo "gpu-check: compute-sanitizer skipped (not found or no time left)" | tee -a "$out/sanitizer.txt"
-fi
+# One process per size, each within what is left of the budget (RPYFMM_GPU_BUDGET seconds, default
+# 360), so that a crash or a hang at one size keeps the rows of the others; the CSV header once.
+budget="${RPYFMM_GPU_BUDGET:-360}"
+bench_rc=0
+first=1
+sanitizer_done=0
+run_sanitizer() {
+  # compute-sanitizer memcheck and racecheck on the smallest CPU-vs-GPU test (kernel bounds and
+  # shared-memory races; informative, does not change the exit status). Output: sanitizer*.txt.
+  local sanitizer
+  sanitizer=$(command -v compute-sanitizer || ls /usr/local/cuda*/bin/compute-sanitizer 2>/dev/null | head -1 || true)
+  if [ -n "$sanitizer" ] && [ $((budget - SECONDS)) -gt 90 ]; then
+    for tool in memcheck racecheck; do
+      RPYFMM_CUDA_SYNC=1 timeout 45 "$sanitizer" --tool "$tool" --error-exitcode 9 gpu-kit/test_pse \
+        --gtest_filter='PseCuda.SinglePrecisionGridsAgree' > "$out/sanitizer_$tool.txt" 2>&1
+      echo "gpu-check: compute-sanitizer $tool rc=$? (9: errors found, 124: timed out)" | tee -a "$out/sanitizer.txt"
+    done
+  else
+    echo "gpu-check: compute-sanitizer skipped (not found or no time left)" | tee -a "$out/sanitizer.txt"
+  fi
+  sanitizer_done=1
+}
+for n in "${sizes[@]}"; do
+  # The sanitizer before the largest size (2e6 is beyond the 1e6).
+  if [ "$n" -gt 1000000 ] && [ "$sanitizer_done" -eq 0 ]; then run_sanitizer; fi
+  left=$((budget - SECONDS))
+  if [ "$left" -lt 30 ]; then echo "# N = $n: skipped, ${left} s of the budget left" | tee -a "$out/bench_pse_cuda.csv"; continue; fi
+  if [ "$first" -eq 1 ]; then
+    timeout "$left" gpu-kit/bench_pse --cuda "$n" 2>&1 | tee -a "$out/bench_pse_cuda.csv"
+  else
+    timeout "$left" gpu-kit/bench_pse --cuda "$n" 2>&1 | grep --line-buffered -v '^N,backend' | tee -a "$out/bench_pse_cuda.csv"
+  fi
+  rc=${PIPESTATUS[0]}
+  first=0
+  echo "# N = $n: bench_pse rc=$rc at ${SECONDS} s" | tee -a "$out/bench_pse_cuda.csv"
+  [ "$rc" -eq 0 ] || bench_rc=$rc
+done
+[ "$sanitizer_done" -eq 1 ] || run_sanitizer
 echo "gpu-check: tests rc=$test_rc, benchmark rc=$bench_rc (124: timed out; 3: GPU and CPU differ)"
 [ "$test_rc" -eq 0 ] && [ "$bench_rc" -eq 0 ]
