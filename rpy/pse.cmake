@@ -15,7 +15,8 @@ set_source_files_properties(${CMAKE_CURRENT_LIST_DIR}/src/pse/scale_line.cpp PRO
 target_link_libraries(rpyfmm_rpy PRIVATE PkgConfig::FFTW3 ${FFTW3_OMP_LIBRARY} PkgConfig::FFTW3F ${FFTW3F_OMP_LIBRARY})
 
 if(RPYFMM_USE_CUDA)
-  target_sources(rpyfmm_rpy PRIVATE ${CMAKE_CURRENT_LIST_DIR}/src/pse/pse_rpy_cuda.cu)
+  target_sources(rpyfmm_rpy PRIVATE ${CMAKE_CURRENT_LIST_DIR}/src/pse/pse_rpy_cuda.cu
+                                    ${CMAKE_CURRENT_LIST_DIR}/src/pse/host_copy.cpp)
   target_link_libraries(rpyfmm_rpy PRIVATE CUDA::cufft CUDA::cudart)
   target_compile_definitions(rpyfmm_rpy PUBLIC RPYFMM_HAVE_CUDA_PSE=1)
   # CMake < 3.26 does not know nvcc's C++20 flag (CMAKE_CUDA_STANDARD 20 fails at generate

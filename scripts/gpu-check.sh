@@ -4,7 +4,8 @@
 # device arrays, stage times),
 # then the PSE Table I benchmark on the GPU at 8e3, 3.2e4, 2.5e5, 1e6 and 2e6 particles. Output goes to
 # $OUT (or ./gpu-out) as test_pse_cuda.txt and bench_pse_cuda.csv (and sanitizer*.txt when
-# compute-sanitizer is there and time is left). Sized for a few
+# compute-sanitizer is there and time is left), then bench_pse_cuda_bins.csv (the bin-edge sweep at
+# RPYFMM_GPU_SWEEP sizes, default 32000 250000 1000000). Sized for a few
 # minutes of device time: pass fewer sizes as arguments to shorten it. Fails (non-zero exit) if
 # the tests fail or skip (RPYFMM_EXPECT_CUDA: no usable device is an error, not a skip), or if
 # the benchmark finds the GPU and CPU products apart by more than round-off (N <= 250000).
@@ -20,7 +21,7 @@ nvidia-smi -L 2>&1 | tee "$out/device.txt"
 echo "cuFFT from: $cufft_dir" | tee -a "$out/device.txt"
 nvidia-smi --query-gpu=name,driver_version,memory.total,clocks.max.sm --format=csv >> "$out/device.txt" 2>&1
 ldd gpu-kit/test_pse >> "$out/device.txt" 2>&1
-RPYFMM_CUDA_SYNC=1 timeout 150 gpu-kit/test_pse --gtest_filter='PseCuda.*' 2>&1 | tee "$out/test_pse_cuda.txt"
+RPYFMM_CUDA_SYNC=1 timeout 150 gpu-kit/test_pse --gtest_filter='PseCuda.*:PseCuda/*' 2>&1 | tee "$out/test_pse_cuda.txt"
 test_rc=${PIPESTATUS[0]}
 if grep -q "SKIPPED" "$out/test_pse_cuda.txt"; then echo "gpu-check: a CUDA test was skipped" >&2; test_rc=1; fi
 sizes=("$@")
@@ -32,14 +33,16 @@ bench_rc=0
 first=1
 sanitizer_done=0
 run_sanitizer() {
-  # compute-sanitizer memcheck and racecheck on the smallest CPU-vs-GPU test (kernel bounds and
-  # shared-memory races; informative, does not change the exit status). Output: sanitizer*.txt.
+  # compute-sanitizer memcheck and racecheck on the smallest CPU-vs-GPU test and two instances of
+  # the bin kernels' test (a subgrid wrapping onto itself; crowded bins): kernel bounds and
+  # shared-memory races; informative, does not change the exit status. Output: sanitizer*.txt.
   local sanitizer
   sanitizer=$(command -v compute-sanitizer || ls /usr/local/cuda*/bin/compute-sanitizer 2>/dev/null | head -1 || true)
-  if [ -n "$sanitizer" ] && [ $((budget - SECONDS)) -gt 90 ]; then
+  if [ -n "$sanitizer" ] && [ $((budget - SECONDS)) -gt 200 ]; then
     for tool in memcheck racecheck; do
-      RPYFMM_CUDA_SYNC=1 timeout 45 "$sanitizer" --tool "$tool" --error-exitcode 9 gpu-kit/test_pse \
-        --gtest_filter='PseCuda.SinglePrecisionGridsAgree' > "$out/sanitizer_$tool.txt" 2>&1
+      RPYFMM_CUDA_SYNC=1 timeout 90 "$sanitizer" --tool "$tool" --error-exitcode 9 gpu-kit/test_pse \
+        --gtest_filter='PseCuda.SinglePrecisionGridsAgree:PseCuda/WindowBins.*/rectangular_float_edge16:PseCuda/WindowBins.*/clustered_double_edge4' \
+        > "$out/sanitizer_$tool.txt" 2>&1
       echo "gpu-check: compute-sanitizer $tool rc=$? (9: errors found, 124: timed out)" | tee -a "$out/sanitizer.txt"
     done
   else
@@ -63,5 +66,12 @@ for n in "${sizes[@]}"; do
   [ "$rc" -eq 0 ] || bench_rc=$rc
 done
 [ "$sanitizer_done" -eq 1 ] || run_sanitizer
+# The bin-edge sweep (bench_pse --bin-sweep) at RPYFMM_GPU_SWEEP sizes, if time is left.
+for n in ${RPYFMM_GPU_SWEEP-32000 250000 1000000}; do
+  left=$((budget - SECONDS))
+  if [ "$left" -lt 30 ]; then echo "# sweep N = $n: skipped, ${left} s of the budget left" | tee -a "$out/bench_pse_cuda_bins.csv"; continue; fi
+  timeout "$left" gpu-kit/bench_pse --cuda --bin-sweep "$n" 2>&1 | tee -a "$out/bench_pse_cuda_bins.csv"
+  echo "# sweep N = $n: bench_pse rc=${PIPESTATUS[0]} at ${SECONDS} s" | tee -a "$out/bench_pse_cuda_bins.csv"
+done
 echo "gpu-check: tests rc=$test_rc, benchmark rc=$bench_rc (124: timed out; 3: GPU and CPU differ)"
 [ "$test_rc" -eq 0 ] && [ "$bench_rc" -eq 0 ]

@@ -6,7 +6,7 @@
 //
 // usage: bench_pse [--quick] [--fft-measure] [--error] [--xi XA] [--eta E] [--support P] [--grid G]
 //                  [--precision auto|single|double] [--kernels auto|avx2|portable] [--no-real-cache]
-//                  [--cuda] [N ...]
+//                  [--cuda [--bin-sweep]] [N ...]
 //   (default 8000 16000 32000); threads from 1 to OMP max.
 // Also times the free-space FmmRpy (tolerance 1e-3) on the same particles, 1 thread.
 // Comment lines (#) add block-preconditioned Lanczos (design note 29) on the full PSE operator and
@@ -30,7 +30,9 @@
 // --cuda: the CUDA operator PseRpyCuda instead: host arrays in and out (transfers count) and
 // device arrays (apply_device / sample_device), the device's stage times, and its relative
 // difference from the CPU operator's M F (double-precision wave grids, as on the GPU) for
-// N <= 250000; skips with a message when no device is usable.
+// N <= 250000; skips with a message when no device is usable. Rows: the defaults, then each
+// default changed alone (double grids, host lists, per-particle windows, pageable transfers);
+// --bin-sweep: the defaults with the bin edges -1 (per particle), 6, 8, ..., 16 instead.
 #include <omp.h>
 
 #include <algorithm>
@@ -149,7 +151,7 @@ double per_call(const StageTimes& t, const char* stage, int calls) {
   return it == t.end() ? 0.0 : it->second / calls;
 }
 
-int run_cuda(const std::vector<std::size_t>& sizes) {
+int run_cuda(const std::vector<std::size_t>& sizes, bool bin_sweep) {
   if (!PseRpyCuda::device_available()) {
     std::printf("# no usable CUDA device (or a build without CUDA): nothing to benchmark\n");
     return std::getenv("RPYFMM_EXPECT_CUDA") != nullptr ? 1 : 0;  // gpu-check.sh expects a device
@@ -165,31 +167,48 @@ int run_cuda(const std::vector<std::size_t>& sizes) {
   // (apply_device / sample_device). Stage columns: seconds per host-array M F (transfer = both
   // copies with the gathers and scatters, fft = forward + backward) and per sample (lanczos).
   std::printf(
-      "N,backend,wave,lists,grid,P,r_cut,set_positions_s,MF_s,MF_PTPS,MF_dev_s,MF_dev_PTPS,sample_s,sample_PTPS,sample_"
+      "N,backend,wave,lists,bin,transfers,grid,P,r_cut,set_positions_s,MF_s,MF_PTPS,MF_dev_s,MF_dev_PTPS,sample_s,"
+      "sample_PTPS,sample_"
       "dev_s,sample_dev_PTPS,"
       "sample_over_MF,split_iters,rel_diff_cpu,MF_transfer_s,MF_real_s,MF_spread_s,MF_fft_s,MF_scale_s,"
-      "MF_interp_s,sample_lanczos_s,sample_wave_s\n");
+      "MF_interp_s,sample_lanczos_s,sample_wave_s,step_s,step_PTPS\n");
   for (std::size_t n : sizes) {
     const double L = std::cbrt(static_cast<double>(n) * 4.0 / 3.0 * std::numbers::pi * a * a * a / phi);
     const auto x = hard_spheres(n, a, L, 7);
     std::vector<double> f(3 * n), u(3 * n), w(3 * n);
     fill_normal(f, 1, 0);
-    // Single-precision wave grids (the automatic choice at tolerance 1e-3, as on the CPU), then
-    // double (the GPU's old only choice), both with the host's neighbour lists; then single with
-    // the device cell list (PseCudaOptions::device_cell_list).
+    // The defaults (single-precision wave grids, the automatic choice at tolerance 1e-3 as on the
+    // CPU; device cell list; automatic bins; page-locked transfers), then each default changed
+    // alone: double grids, the host's neighbour lists, one block per particle for spreading and
+    // interpolation (the kernels before session 20), pageable transfers. --bin-sweep: the
+    // defaults with bin edges -1 (per particle), 6, 8, ..., 16 instead.
     struct Variant {
       WavePrecision precision;
       bool cells;
+      int bin;
+      bool pinned;
     };
-    for (const Variant variant :
-         {Variant{WavePrecision::single_precision, false}, Variant{WavePrecision::double_precision, false},
-          Variant{WavePrecision::single_precision, true}}) {
+    std::vector<Variant> variants;
+    if (bin_sweep) {
+      for (const int bin : {-1, 6, 8, 10, 12, 14, 16})
+        variants.push_back({WavePrecision::single_precision, true, bin, true});
+    } else {
+      variants = {{WavePrecision::single_precision, true, 0, true},
+                  {WavePrecision::double_precision, true, 0, true},
+                  {WavePrecision::single_precision, false, 0, true},
+                  {WavePrecision::single_precision, true, -1, true},
+                  {WavePrecision::single_precision, true, 0, false}};
+    }
+    for (const Variant& variant : variants) {
       PseOptions o;
       o.tolerance = 1e-3;
       o.xi = 0.5 / a;
       o.wave_precision = variant.precision;
       const bool single = variant.precision == WavePrecision::single_precision;
-      PseRpyCuda op(Geometry::periodic(L), 1.0, o, PseCudaOptions{.device_cell_list = variant.cells});
+      PseRpyCuda op(
+          Geometry::periodic(L), 1.0, o,
+          PseCudaOptions{
+              .device_cell_list = variant.cells, .window_bin = variant.bin, .pinned_transfers = variant.pinned});
       op.set_positions(x, a);  // plans
       const double t_pos = median_seconds(3, [&] { op.set_positions(x, a); });
       op.apply(f, u);  // warm up (plans, first-touch)
@@ -218,6 +237,13 @@ int run_cuda(const std::vector<std::size_t>& sizes) {
         cudaFree(du);
       }
 #endif
+      // One Brownian step's mobility work with host arrays: set_positions, then
+      // U = M F + sqrt(2 kT / dt) M^1/2 z (apply_with_noise, the split sampler's real-space Lanczos
+      // and its wave noise sharing the product's FFTs).
+      const double t_step = median_seconds(kReps, [&] {
+        op.set_positions(x, a);
+        op.apply_with_noise(f, 1.0, 5, step++, u);
+      });
       double diff = -1.0;
       if (n <= 250000) {
         op.apply(f, u);
@@ -230,17 +256,19 @@ int run_cuda(const std::vector<std::size_t>& sizes) {
       }
       const auto& p = op.parameters();
       const auto ptps = [n](double t) { return t > 0.0 ? static_cast<double>(n) / t : -1.0; };
-      std::printf("%zu,cuda,%s,%s,%dx%dx%d,%d,%.3f,%.4g,", n, single ? "single" : "double",
-                  op.device_cell_list_active() ? "device" : "host", p.grid[0], p.grid[1], p.grid[2], p.support[0],
-                  p.r_cut, t_pos);
+      std::printf("%zu,cuda,%s,%s,%d,%s,%dx%dx%d,%d,%.3f,%.4g,", n, single ? "single" : "double",
+                  op.device_cell_list_active() ? "device" : "host", op.window_bin_edge(),
+                  variant.pinned ? "pinned" : "pageable", p.grid[0], p.grid[1], p.grid[2], p.support[0], p.r_cut,
+                  t_pos);
       std::printf("%.4g,%.4g,%.4g,%.4g,%.4g,%.4g,%.4g,%.4g,%.2f,%d,%.3g,", t_mf, ptps(t_mf), t_mf_dev, ptps(t_mf_dev),
                   t_s, ptps(t_s), t_s_dev, ptps(t_s_dev), t_s / t_mf, iters, diff);
       std::printf(
-          "%.4g,%.4g,%.4g,%.4g,%.4g,%.4g,%.4g,%.4g\n", per_call(mf, "transfer", kReps),
+          "%.4g,%.4g,%.4g,%.4g,%.4g,%.4g,%.4g,%.4g,", per_call(mf, "transfer", kReps),
           per_call(mf, "real_space", kReps), per_call(mf, "spread", kReps),
           per_call(mf, "fft_forward", kReps) + per_call(mf, "fft_backward", kReps), per_call(mf, "scale", kReps),
           per_call(mf, "interpolate", kReps), per_call(st, "lanczos", kReps),
           per_call(st, "scale", kReps) + per_call(st, "fft_backward", kReps) + per_call(st, "interpolate", kReps));
+      std::printf("%.4g,%.4g\n", t_step, ptps(t_step));
       std::fflush(stdout);
     }
   }
@@ -253,6 +281,7 @@ int main(int argc, char** argv) {
   std::vector<std::size_t> sizes;
   bool quick = false;
   bool cuda = false;
+  bool bin_sweep = false;
   bool fft_measure = false;
   bool with_error = false;
   double eta = 0.0;
@@ -321,6 +350,10 @@ int main(int argc, char** argv) {
       cuda = true;
       continue;
     }
+    if (std::string(argv[i]) == "--bin-sweep") {
+      bin_sweep = true;
+      continue;
+    }
     sizes.push_back(static_cast<std::size_t>(std::atoll(argv[i])));
   }
   if (sizes.empty()) sizes = {8000, 16000, 32000};
@@ -330,7 +363,7 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  if (cuda) return run_cuda(sizes);
+  if (cuda) return run_cuda(sizes, bin_sweep);
   const int max_threads = omp_get_max_threads();
   const double a = 1.0, phi = 0.1;
   std::printf(

@@ -33,24 +33,25 @@ def main(path: str) -> int:
     if not rows:
         print("no benchmark rows in", path)
         return 2
-    print("| N | wave | lists | grid, P | set_positions (s) | M F (s) | M F PTPS | M F dev PTPS |"
-          " sample (s) | sample PTPS | sample dev PTPS | sample / M F | its | diff from CPU |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("| N | wave | lists | bin | transfers | grid, P | set_positions (s) | M F (s) | M F PTPS | M F dev PTPS |"
+          " sample (s) | sample PTPS | sample dev PTPS | sample / M F | its | BD step (s) | diff from CPU |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['N']} | {r['wave']} | {r['lists']} | {r['grid']}, {r['P']} | {fmt(r['set_positions_s'])} |"
+        print(f"| {r['N']} | {r['wave']} | {r['lists']} | {r.get('bin', '-')} | {r.get('transfers', 'pageable')} | {r['grid']}, {r['P']} | {fmt(r['set_positions_s'])} |"
               f" {fmt(r['MF_s'])} | {fmt(r['MF_PTPS'])} | {fmt(r['MF_dev_PTPS'])} | {fmt(r['sample_s'])} |"
               f" {fmt(r['sample_PTPS'])} | {fmt(r['sample_dev_PTPS'])} | {r['sample_over_MF']} |"
-              f" {r['split_iters']} | {fmt(r['rel_diff_cpu'])} |")
+              f" {r['split_iters']} | {fmt(r.get('step_s') or '-1')} | {fmt(r['rel_diff_cpu'])} |")
     print()
     print("Stages per M F and per sample (ms):")
     print()
-    print("| N | wave | lists | transfer | real space | spread | FFTs | scale | interpolate | sample: Lanczos |"
+    print("| N | wave | lists | bin | transfers | transfer | real space | spread | FFTs | scale | interpolate | sample: Lanczos |"
           " sample: wave noise |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         cells = [fmt(r[k], 1e3) for k in ("MF_transfer_s", "MF_real_s", "MF_spread_s", "MF_fft_s", "MF_scale_s",
                                           "MF_interp_s", "sample_lanczos_s", "sample_wave_s")]
-        print(f"| {r['N']} | {r['wave']} | {r['lists']} | " + " | ".join(cells) + " |")
+        print(f"| {r['N']} | {r['wave']} | {r['lists']} | {r.get('bin', '-')} | {r.get('transfers', 'pageable')} | "
+              + " | ".join(cells) + " |")
     print()
     n_target = min({int(r["N"]) for r in rows}, key=lambda n: abs(n - 1_000_000))
     at = [r for r in rows if int(r["N"]) == n_target]

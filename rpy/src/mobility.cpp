@@ -44,8 +44,7 @@ void MobilityOperator::set_positions(std::span<const double> positions, double r
   require_positive(radius, where, "radius");
   require(positions.size() % 3 == 0, ErrorCode::invalid_input, where,
           "positions has " + std::to_string(positions.size()) + " entries, not a multiple of 3");
-  const std::vector<double> radii(positions.size() / 3, radius);
-  store_positions(positions, radii, true);
+  store_positions(positions, std::span<const double>(&radius, 1), true);  // one radius for all
 }
 
 void MobilityOperator::set_positions(std::span<const double> positions, std::span<const double> radii) {
@@ -70,14 +69,26 @@ void MobilityOperator::store_positions(std::span<const double> positions, std::s
   require_finite(positions, where, "positions", 3);
   positions_.assign(positions.begin(), positions.end());
   if (geometry_.is_periodic()) {
+    // Into [0, L) per axis; most positions of a time step are inside already and stay bitwise.
     const auto& L = geometry_.box();
-    for (std::size_t i = 0; i < positions_.size(); ++i) {
-      double& x = positions_[i];
-      x -= L[i % 3] * std::floor(x / L[i % 3]);
-      if (x >= L[i % 3]) x = 0.0;  // guards x = -tiny, which wraps to L exactly
+    const auto n = static_cast<long long>(positions_.size() / 3);
+    double* x = positions_.data();
+#pragma omp parallel for schedule(static) if (n > 100000)
+    for (long long i = 0; i < n; ++i) {
+      for (int d = 0; d < 3; ++d) {
+        double& v = x[3 * i + d];
+        if (v >= 0.0 && v < L[d]) continue;
+        v -= L[d] * std::floor(v / L[d]);
+        if (v < 0.0) v += L[d];  // -tiny wraps to L - tiny (or to L: then below)
+        if (v >= L[d]) v = 0.0;  // guards results that round to L exactly
+      }
     }
   }
-  radii_.assign(radii.begin(), radii.end());
+  if (radii.size() == 1) {
+    radii_.assign(positions.size() / 3, radii.front());
+  } else {
+    radii_.assign(radii.begin(), radii.end());
+  }
   equal_radii_ = equal;
   try {
     on_positions_set();  // builds the plan: may throw (box too small, grid over memory, ...)

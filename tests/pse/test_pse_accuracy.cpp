@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <span>
 #include <utility>
@@ -287,6 +288,38 @@ TEST(PseAccuracy, WrappedPositionsGiveTheSameResult) {
   for (std::size_t i = 0; i < x.size(); ++i) x[i] += (i % 2 ? 3.0 : -2.0) * L[i % 3];
   op.set_positions(x, 1.0);
   EXPECT_LT(pse_test::rel_l2(product(op, f), u0), 1e-12);
+}
+
+// The stored positions lie in [0, L) per axis: inside ones bitwise unchanged (also the largest
+// double below L, whose x / L rounds to 1), outside ones moved by whole periods, including
+// values a hair below a multiple of L, -0.0, tiny negatives (the smallest, whose quotient by L
+// underflows, used to be kept as a negative position) and huge values.
+TEST(PseAccuracy, StoredPositionsAreWrappedIntoTheBox) {
+  const std::array<double, 3> L = {12.0, 15.0, 10.0};
+  const double below_L = std::nextafter(L[0], 0.0);
+  const double below_2L = std::nextafter(2.0 * L[1], 0.0);
+  const double tiniest = std::numeric_limits<double>::denorm_min();  // -tiniest / L underflows to -0
+  std::vector<double> x = {0.5,  1.0,         2.0,  below_L, -0.0,        7.25,  -1e-300,  below_2L, 3.0 * L[2] + 0.5,
+                           -6.0, 1e6 + 0.125, -0.0, 11.0,    -4.0 * L[1], 9.999, -tiniest, 4.0,      5.0};
+  const std::size_t n = x.size() / 3;
+  PseOptions o;
+  o.xi = 1.0;
+  PseRpy op(Geometry::periodic(L[0], L[1], L[2]), 1.0, o);
+  op.set_positions(x, 1.0);
+  const auto stored = op.positions();
+  ASSERT_EQ(stored.size(), x.size());
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    const double Ld = L[i % 3];
+    EXPECT_GE(stored[i], 0.0) << i;
+    EXPECT_LT(stored[i], Ld) << i;
+    if (x[i] >= 0.0 && x[i] < Ld) {
+      EXPECT_EQ(stored[i], x[i]) << i;
+    } else {
+      const double periods = (x[i] - stored[i]) / Ld;  // a whole number (or one off, at L - tiny)
+      EXPECT_NEAR(periods, std::round(periods), 1e-9) << i;
+    }
+  }
+  EXPECT_EQ(op.radii().size(), n);
 }
 
 TEST(PseAccuracy, FftMeasurePlansGiveTheSameProduct) {

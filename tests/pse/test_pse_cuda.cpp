@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <ostream>
+#include <string>
 #include <vector>
 
 #include "ewald_reference.hpp"
@@ -167,7 +169,7 @@ TEST(PseCuda, DeviceCellListMatchesHostLists) {
     o.wave_precision = WavePrecision::double_precision;
     const Geometry g = Geometry::periodic(c.L[0], c.L[1], c.L[2]);
     PseRpy cpu(g, 1.0, o);
-    PseRpyCuda lists(g, 1.0, o);
+    PseRpyCuda lists(g, 1.0, o, PseCudaOptions{.device_cell_list = false});
     PseRpyCuda cells(g, 1.0, o, PseCudaOptions{.device_cell_list = true});
     std::vector<double> uc(f.size()), ul(f.size()), ug(f.size());
     for (int round = 0; round < 2; ++round) {
@@ -197,6 +199,120 @@ TEST(PseCuda, DeviceCellListMatchesHostLists) {
     cpu.apply(fh, a);
     cells.apply(fh, b);
     EXPECT_LT(pse_test::rel_l2(b, a), 1e-12) << "fewer particles";
+  }
+}
+
+// Spreading and interpolation by bins through shared memory (PseCudaOptions::window_bin): the
+// same products as one block per particle and as the CPU (double grids: to round-off, 1e-12;
+// float grids: float round-off, 1e-5), for bin edges that divide the grid or not, a grid
+// smaller than one bin along an axis (the subgrid wraps onto itself: edge 16 on the explicit
+// 27x33x12 grid), a rectangular box with an explicit grid, particles piled into a few bins
+// (many particles per block), the split sampler (interpolation alone), and with pageable
+// instead of page-locked transfers. One instance per (box, precision, edge), so that
+// compute-sanitizer can run a single one (scripts/gpu-check.sh).
+struct BinBox {
+  const char* name;
+  std::array<double, 3> L;
+  std::array<int, 3> grid;  // {0, 0, 0}: from the tolerance
+  std::size_t n;
+  bool clustered;
+};
+struct BinCase {
+  BinBox box;
+  WavePrecision precision;
+  int edge;
+};
+
+// Test names and ctest's list show the case, not its bytes.
+void PrintTo(const BinCase& c, std::ostream* os) {
+  *os << c.box.name << (c.precision == WavePrecision::double_precision ? " double" : " float") << " edge " << c.edge;
+}
+
+class WindowBins : public testing::TestWithParam<BinCase> {};
+
+TEST_P(WindowBins, MatchPerParticleKernelsAndCpu) {
+  REQUIRE_DEVICE();
+  const BinCase& p = GetParam();
+  const BinBox& c = p.box;
+  auto x = pse_test::random_points(c.n, c.L, 91);
+  if (c.clustered) {  // most particles within a small cube: a few crowded bins
+    for (std::size_t i = 0; i < x.size(); i += 3) {
+      if (i % 9 == 0) continue;
+      for (int d = 0; d < 3; ++d) x[i + d] = 3.0 + 0.2 * x[i + d];
+    }
+  }
+  auto f = pse_test::random_points(c.n, {2.0, 2.0, 2.0}, 92);
+  for (auto& v : f) v -= 1.0;
+  PseOptions o;
+  o.tolerance = 1e-5;
+  o.xi = 1.0;
+  o.grid = c.grid;
+  o.wave_precision = p.precision;
+  const double bound = p.precision == WavePrecision::double_precision ? 1e-12 : 1e-5;
+  const Geometry g = Geometry::periodic(c.L[0], c.L[1], c.L[2]);
+  PseRpy cpu(g, 1.0, o);
+  cpu.set_positions(x, 1.0);
+  std::vector<double> uc(f.size()), sc(f.size());
+  cpu.apply(f, uc);
+  const SqrtReport rc = cpu.sample(5, 1, sc);
+  PseRpyCuda per_particle(g, 1.0, o, PseCudaOptions{.window_bin = -1});
+  per_particle.set_positions(x, 1.0);
+  EXPECT_EQ(per_particle.window_bin_edge(), 0);
+  std::vector<double> up(f.size());
+  per_particle.apply(f, up);
+  EXPECT_LT(pse_test::rel_l2(up, uc), bound);
+  for (const bool pinned : {true, false}) {
+    PseRpyCuda bins(g, 1.0, o, PseCudaOptions{.window_bin = p.edge, .pinned_transfers = pinned});
+    bins.set_positions(x, 1.0);
+    ASSERT_EQ(bins.window_bin_edge(), p.edge);
+    std::vector<double> ub(f.size()), sb(f.size());
+    bins.apply(f, ub);
+    EXPECT_LT(pse_test::rel_l2(ub, uc), bound) << "grid " << bins.parameters().grid[0];
+    EXPECT_LT(pse_test::rel_l2(ub, up), bound);
+    const SqrtReport rb = bins.sample(5, 1, sb);
+    EXPECT_LT(pse_test::rel_l2(sb, sc), rb.iterations == rc.iterations ? std::max(bound, 1e-10) : 10.0 * o.tolerance);
+  }
+}
+
+std::vector<BinCase> bin_cases() {
+  std::vector<BinCase> cases;
+  for (const BinBox& b : {BinBox{"cube", {14.0, 14.0, 14.0}, {0, 0, 0}, 600, false},
+                          BinBox{"rectangular", {12.0, 15.0, 10.0}, {27, 33, 12}, 500, false},
+                          BinBox{"clustered", {16.0, 16.0, 16.0}, {0, 0, 0}, 800, true}}) {
+    // Edges whose subgrids fit in shared memory (support 10-11 here): double up to 8, float 16.
+    for (const int edge : {4, 5, 8}) {
+      cases.push_back({b, WavePrecision::double_precision, edge});
+      cases.push_back({b, WavePrecision::single_precision, edge});
+    }
+    cases.push_back({b, WavePrecision::single_precision, 16});
+  }
+  return cases;
+}
+
+INSTANTIATE_TEST_SUITE_P(PseCuda, WindowBins, testing::ValuesIn(bin_cases()),
+                         [](const testing::TestParamInfo<BinCase>& param) {
+                           const BinCase& c = param.param;
+                           return std::string(c.box.name) +
+                                  (c.precision == WavePrecision::double_precision ? "_double" : "_float") + "_edge" +
+                                  std::to_string(c.edge);
+                         });
+
+// Bin edges out of range, or whose subgrid exceeds the device's shared memory, are refused.
+TEST(PseCuda, BadWindowBinsAreRefused) {
+  REQUIRE_DEVICE();
+  EXPECT_THROW(PseRpyCuda(Geometry::periodic(20.0), 1.0, {}, PseCudaOptions{.window_bin = 65}), rpyfmm::Error);
+  EXPECT_THROW(PseRpyCuda(Geometry::periodic(20.0), 1.0, {}, PseCudaOptions{.window_bin = -2}), rpyfmm::Error);
+  // An edge whose subgrid cannot fit in shared memory: refused at set_positions, with a message.
+  PseOptions o;
+  o.tolerance = 1e-6;
+  o.wave_precision = WavePrecision::double_precision;
+  PseRpyCuda too_big(Geometry::periodic(80.0), 1.0, o, PseCudaOptions{.window_bin = 64});
+  const auto x = pse_test::random_points(50, {80.0, 80.0, 80.0}, 93);
+  try {
+    too_big.set_positions(x, 1.0);
+    ADD_FAILURE() << "window_bin 64 was accepted";
+  } catch (const rpyfmm::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("window_bin"), std::string::npos) << e.what();
   }
 }
 

@@ -30,6 +30,8 @@
 #include <vector>
 
 #include "../sqrt/krylov_space.hpp"
+#include "cuda_window.cuh"
+#include "host_copy.hpp"
 #include "kernels_common.hpp"
 #include "real_space_sqrt.hpp"
 #include "real_space_sum.hpp"
@@ -101,37 +103,47 @@ class DeviceArray {
   std::size_t n_ = 0;
 };
 
-struct WindowParams {
-  int n[3];
-  int P[3];
-  double h[3];
-  double inv_2s2;
-  double c3;
-  std::size_t ng;
+/// Owning page-locked host buffer (grows only).
+class PinnedBuffer {
+ public:
+  PinnedBuffer() = default;
+  PinnedBuffer(const PinnedBuffer&) = delete;
+  PinnedBuffer& operator=(const PinnedBuffer&) = delete;
+  ~PinnedBuffer() { cudaFreeHost(p_); }
+  double* reserve(std::size_t n) {
+    if (n > n_) {
+      cudaFreeHost(p_);
+      p_ = nullptr;
+      n_ = 0;
+      check(cudaMallocHost(reinterpret_cast<void**>(&p_), n * sizeof(double)), "cudaMallocHost");
+      n_ = n;
+    }
+    return p_;
+  }
+
+ private:
+  double* p_ = nullptr;
+  std::size_t n_ = 0;
 };
 
-constexpr int kMaxSupport = 64;
-constexpr unsigned kThreads = 256;        // element-wise kernels
-constexpr unsigned kWindowThreads = 128;  // spreading and interpolation: threads per particle
-constexpr unsigned kReduceBlocks = 240;   // inner products: fixed, so their sums do not depend on the device
-constexpr unsigned kWarp = 32;
+/// Bits of the radix sort's keys for keys below `count`.
+int key_bits(std::size_t count) {
+  int bits = 1;
+  while (bits < 32 && (std::size_t{1} << bits) < count) ++bits;
+  return bits;
+}
+
+using cuda_window::BinGrid;
+using cuda_window::block_sum;
+using cuda_window::kMaxSupport;
+using cuda_window::kWarp;
+using cuda_window::WindowParams;
+
+constexpr unsigned kThreads = 256;       // element-wise kernels
+constexpr unsigned kReduceBlocks = 240;  // inner products: fixed, so their sums do not depend on the device
 
 unsigned blocks_for(std::size_t n, unsigned threads) {
   return static_cast<unsigned>((n + threads - 1) / threads);
-}
-
-/// Sum over the block (blockDim.x a multiple of 32, at most 1024) in a fixed order: shuffles
-/// within each warp, then the warps' sums in order by thread 0; valid in thread 0 only.
-__device__ double block_sum(double v, double* shared_warps) {
-  for (unsigned offset = kWarp / 2; offset > 0; offset /= 2) v += __shfl_down_sync(0xffffffffu, v, offset);
-  const unsigned lane = threadIdx.x % kWarp, warp = threadIdx.x / kWarp;
-  if (lane == 0) shared_warps[warp] = v;
-  __syncthreads();
-  double s = 0.0;
-  if (threadIdx.x == 0)
-    for (unsigned q = 0; q < blockDim.x / kWarp; ++q) s += shared_warps[q];
-  __syncthreads();  // shared_warps may be reused by the caller's next call
-  return s;
 }
 
 /// out[3 s + c] = in[3 order[s] + c] (input -> slot order).
@@ -150,76 +162,6 @@ __global__ void scatter3_kernel(int np, const int* __restrict__ order, const dou
   if (s >= np) return;
   const std::size_t i = static_cast<std::size_t>(order[s]);
   for (int c = 0; c < 3; ++c) out[3 * i + c] = in[3 * static_cast<std::size_t>(s) + c];
-}
-
-/// grid_c += c3 w f_c over each particle's window (one block of kWindowThreads per particle);
-/// Real = float for single-precision wave grids (the products in double, the sums in Real).
-template <class Real>
-__global__ void spread_kernel(int np, const double* __restrict__ x, const double* __restrict__ f, Real* grid,
-                              WindowParams w) {
-  const int i = blockIdx.x;
-  if (i >= np) return;
-  __shared__ double wts[3 * kMaxSupport];
-  __shared__ int start[3];
-  if (threadIdx.x < 3) {
-    const int d = threadIdx.x;
-    start[d] = detail::window_weights(x[3 * i + d], w.h[d], w.P[d], w.n[d], w.inv_2s2, wts + d * kMaxSupport);
-  }
-  __syncthreads();
-  const double f0 = w.c3 * f[3 * i], f1 = w.c3 * f[3 * i + 1], f2 = w.c3 * f[3 * i + 2];
-  const int total = w.P[0] * w.P[1] * w.P[2];
-  for (int t = threadIdx.x; t < total; t += blockDim.x) {
-    const int l = t % w.P[2];
-    const int b = (t / w.P[2]) % w.P[1];
-    const int a = t / (w.P[2] * w.P[1]);
-    const std::size_t ix = static_cast<std::size_t>((start[0] + a) % w.n[0]);
-    const std::size_t iy = static_cast<std::size_t>((start[1] + b) % w.n[1]);
-    const std::size_t iz = static_cast<std::size_t>((start[2] + l) % w.n[2]);
-    const std::size_t k = (ix * w.n[1] + iy) * w.n[2] + iz;
-    const double wt = wts[a] * wts[kMaxSupport + b] * wts[2 * kMaxSupport + l];
-    atomicAdd(grid + k, static_cast<Real>(wt * f0));
-    atomicAdd(grid + w.ng + k, static_cast<Real>(wt * f1));
-    atomicAdd(grid + 2 * w.ng + k, static_cast<Real>(wt * f2));
-  }
-}
-
-/// out[3 i + c] (+)= scale c3 sum_window w grid_c (one block of kWindowThreads per particle;
-/// the sums in double whatever the grid's Real).
-template <class Real>
-__global__ void interpolate_kernel(int np, const double* __restrict__ x, const Real* __restrict__ grid, double* out,
-                                   WindowParams w, double scale, bool accumulate) {
-  const int i = blockIdx.x;
-  if (i >= np) return;
-  __shared__ double wts[3 * kMaxSupport];
-  __shared__ int start[3];
-  __shared__ double warps[kWindowThreads / kWarp];
-  if (threadIdx.x < 3) {
-    const int d = threadIdx.x;
-    start[d] = detail::window_weights(x[3 * i + d], w.h[d], w.P[d], w.n[d], w.inv_2s2, wts + d * kMaxSupport);
-  }
-  __syncthreads();
-  double s[3] = {0.0, 0.0, 0.0};
-  const int total = w.P[0] * w.P[1] * w.P[2];
-  for (int t = threadIdx.x; t < total; t += blockDim.x) {
-    const int l = t % w.P[2];
-    const int b = (t / w.P[2]) % w.P[1];
-    const int a = t / (w.P[2] * w.P[1]);
-    const std::size_t ix = static_cast<std::size_t>((start[0] + a) % w.n[0]);
-    const std::size_t iy = static_cast<std::size_t>((start[1] + b) % w.n[1]);
-    const std::size_t iz = static_cast<std::size_t>((start[2] + l) % w.n[2]);
-    const std::size_t k = (ix * w.n[1] + iy) * w.n[2] + iz;
-    const double wt = wts[a] * wts[kMaxSupport + b] * wts[2 * kMaxSupport + l];
-    s[0] += wt * static_cast<double>(grid[k]);
-    s[1] += wt * static_cast<double>(grid[w.ng + k]);
-    s[2] += wt * static_cast<double>(grid[2 * w.ng + k]);
-  }
-  for (int c = 0; c < 3; ++c) {
-    const double total_c = block_sum(s[c], warps);
-    if (threadIdx.x == 0) {
-      const double v = scale * w.c3 * total_c;
-      out[3 * i + c] = accumulate ? out[3 * i + c] + v : v;
-    }
-  }
 }
 
 template <class Real>
@@ -275,17 +217,6 @@ __global__ void cell_key_kernel(int np, const double* __restrict__ x, CellGrid c
   }
   key[i] = static_cast<unsigned>((c[0] * cg.nc[1] + c[1]) * cg.nc[2] + c[2]);
   value[i] = i;
-}
-
-/// cell_begin[c] / cell_end[c]: the slot range of cell c in the sorted keys (both zero-filled
-/// before, so empty cells stay empty).
-__global__ void cell_range_kernel(int np, const unsigned* __restrict__ sorted_key, int* __restrict__ cell_begin,
-                                  int* __restrict__ cell_end) {
-  const int s = blockIdx.x * blockDim.x + threadIdx.x;
-  if (s >= np) return;
-  const unsigned k = sorted_key[s];
-  if (s == 0 || sorted_key[s - 1] != k) cell_begin[k] = s;
-  if (s == np - 1 || sorted_key[s + 1] != k) cell_end[k] = s + 1;
 }
 
 /// out = M_r f in slot order from the cell list: each row scans the 27 cells around its own
@@ -537,6 +468,16 @@ struct PseRpyCuda::Impl {
   DeviceArray<unsigned> keys_in, keys_sorted;
   DeviceArray<int> values_in, cell_begin, cell_end;
   DeviceArray<unsigned char> sort_work;
+  // Spreading and interpolation by bins (cuda_window.cuh) for the current positions: the bin
+  // edge (0: one block per particle), the bin grid, the slots in bin order and each bin's range
+  // (with the radix sort's input keys and values).
+  int bin_edge = 0;
+  BinGrid bin_grid{};
+  DeviceArray<unsigned> bin_keys_in, bin_keys_sorted;
+  DeviceArray<int> bin_values, bin_slots, bin_begin, bin_end;
+  int multiprocessors = 1;
+  std::size_t max_shared = 48 * 1024;  // dynamic shared memory per block (opt-in maximum)
+  PinnedBuffer pinned;                 // PseCudaOptions::pinned_transfers
   PseParameters params;
   bool planned = false;
   std::size_t planned_n = 0;
@@ -584,10 +525,22 @@ struct PseRpyCuda::Impl {
     check_kernel("scatter kernel");
   }
 
+  /// io = host (3N doubles, input order), through the page-locked buffer where
+  /// PseCudaOptions::pinned_transfers.
+  void upload_input(const double* host) {
+    if (cuda_options.pinned_transfers) {
+      double* staging = pinned.reserve(n3());
+      detail::parallel_copy(staging, host, n3());
+      io.upload(staging, n3());
+    } else {
+      io.upload(host, n3());
+    }
+  }
+
   /// dst (slot order, device) = host (input order).
   void upload_to_slots(const double* host, DeviceArray<double>& dst) {
     events.begin("transfer");
-    io.upload(host, n3());
+    upload_input(host);
     gather(io.get(), dst);
     events.end();
   }
@@ -597,7 +550,13 @@ struct PseRpyCuda::Impl {
     events.begin("transfer");
     io.resize(n3());
     scatter(src, io.get());
-    io.download(host, n3());
+    if (cuda_options.pinned_transfers) {
+      double* staging = pinned.reserve(n3());
+      io.download(staging, n3());
+      detail::parallel_copy(host, staging, n3());
+    } else {
+      io.download(host, n3());
+    }
     events.end();
     events.collect(times);
   }
@@ -629,6 +588,77 @@ struct PseRpyCuda::Impl {
     return rep;
   }
 
+  /// keys_out / values_out (np entries) = keys_in / values_in sorted by key (the low `bits` bits).
+  void radix_sort(DeviceArray<unsigned>& keys_in, DeviceArray<unsigned>& keys_out, DeviceArray<int>& values_in,
+                  DeviceArray<int>& values_out, int bits) {
+    std::size_t work_bytes = 0;
+    check(cub::DeviceRadixSort::SortPairs(nullptr, work_bytes, keys_in.get(), keys_out.get(), values_in.get(),
+                                          values_out.get(), static_cast<int>(np), 0, bits),
+          "radix sort (size)");
+    work_bytes = std::max<std::size_t>(work_bytes, 1);  // a null work area would mean "size query" again
+    if (sort_work.size() < work_bytes) sort_work.resize(work_bytes);
+    check(cub::DeviceRadixSort::SortPairs(sort_work.get(), work_bytes, keys_in.get(), keys_out.get(), values_in.get(),
+                                          values_out.get(), static_cast<int>(np), 0, bits),
+          "radix sort");
+  }
+
+  /// range_begin[k] / range_end[k] (k < count): the slot range of key k in sorted_keys (empty
+  /// for absent keys).
+  void key_ranges(const DeviceArray<unsigned>& sorted_keys, std::size_t count, DeviceArray<int>& range_begin,
+                  DeviceArray<int>& range_end) {
+    range_begin.resize(count);
+    range_end.resize(count);
+    check(cudaMemset(range_begin.get(), 0, count * sizeof(int)), "cudaMemset");
+    check(cudaMemset(range_end.get(), 0, count * sizeof(int)), "cudaMemset");
+    cuda_window::key_range_kernel<<<blocks_for(np, kThreads), kThreads>>>(static_cast<int>(np), sorted_keys.get(),
+                                                                          range_begin.get(), range_end.get());
+    check_kernel("key range kernel");
+  }
+
+  /// The bins of spreading and interpolation for the positions x (slot order, on the device):
+  /// the edge from PseCudaOptions::window_bin, the slots sorted by the bin of their window's
+  /// first point, each bin's slot range.
+  void build_bins() {
+    const std::size_t real_bytes = params.wave_single ? sizeof(float) : sizeof(double);
+    bin_edge =
+        cuda_window::choose_bin_edge(window, np, real_bytes, cuda_options.window_bin, multiprocessors, max_shared);
+    if (cuda_options.window_bin > 0 && bin_edge == 0) {
+      fail(ErrorCode::invalid_argument, kWhere,
+           "window_bin " + std::to_string(cuda_options.window_bin) +
+               " needs more shared memory per block than the device's " + std::to_string(max_shared) +
+               " bytes; use a smaller edge, 0 (automatic) or -1 (per particle)");
+    }
+    if (bin_edge == 0) return;
+    bin_grid = cuda_window::make_bin_grid(window, bin_edge);
+    const std::size_t bins = bin_grid.bins();
+    bin_keys_in.resize(np);
+    bin_keys_sorted.resize(np);
+    bin_values.resize(np);
+    bin_slots.resize(np);
+    cuda_window::bin_key_kernel<<<blocks_for(np, kThreads), kThreads>>>(static_cast<int>(np), x.get(), window, bin_grid,
+                                                                        bin_keys_in.get(), bin_values.get());
+    check_kernel("bin key kernel");
+    radix_sort(bin_keys_in, bin_keys_sorted, bin_values, bin_slots, key_bits(bins));
+    key_ranges(bin_keys_sorted, bins, bin_begin, bin_end);
+    const auto bytes =
+        static_cast<int>(params.wave_single ? bin_grid.shared_bytes<float>() : bin_grid.shared_bytes<double>());
+    if (params.wave_single) {
+      check(cudaFuncSetAttribute(cuda_window::spread_bins_kernel<float>, cudaFuncAttributeMaxDynamicSharedMemorySize,
+                                 bytes),
+            "shared memory of the bin kernels");
+      check(cudaFuncSetAttribute(cuda_window::interpolate_bins_kernel<float>,
+                                 cudaFuncAttributeMaxDynamicSharedMemorySize, bytes),
+            "shared memory of the bin kernels");
+    } else {
+      check(cudaFuncSetAttribute(cuda_window::spread_bins_kernel<double>, cudaFuncAttributeMaxDynamicSharedMemorySize,
+                                 bytes),
+            "shared memory of the bin kernels");
+      check(cudaFuncSetAttribute(cuda_window::interpolate_bins_kernel<double>,
+                                 cudaFuncAttributeMaxDynamicSharedMemorySize, bytes),
+            "shared memory of the bin kernels");
+    }
+  }
+
   /// The slot order and cell ranges of the device cell list for the positions in `io` (input
   /// order, wrapped into the box); false (nothing built) where a box side holds < 3 cells.
   bool build_device_cells() {
@@ -657,24 +687,8 @@ struct PseRpyCuda::Impl {
     cell_key_kernel<<<blocks_for(np, kThreads), kThreads>>>(static_cast<int>(np), io.get(), cell_grid, keys_in.get(),
                                                             values_in.get());
     check_kernel("cell key kernel");
-    int bits = 1;
-    while (bits < 32 && (std::size_t{1} << bits) < total) ++bits;
-    std::size_t work_bytes = 0;
-    check(cub::DeviceRadixSort::SortPairs(nullptr, work_bytes, keys_in.get(), keys_sorted.get(), values_in.get(),
-                                          order.get(), static_cast<int>(np), 0, bits),
-          "radix sort (size)");
-    work_bytes = std::max<std::size_t>(work_bytes, 1);  // a null work area would mean "size query" again
-    if (sort_work.size() < work_bytes) sort_work.resize(work_bytes);
-    check(cub::DeviceRadixSort::SortPairs(sort_work.get(), work_bytes, keys_in.get(), keys_sorted.get(),
-                                          values_in.get(), order.get(), static_cast<int>(np), 0, bits),
-          "radix sort");
-    cell_begin.resize(total);
-    cell_end.resize(total);
-    check(cudaMemset(cell_begin.get(), 0, total * sizeof(int)), "cudaMemset");
-    check(cudaMemset(cell_end.get(), 0, total * sizeof(int)), "cudaMemset");
-    cell_range_kernel<<<blocks_for(np, kThreads), kThreads>>>(static_cast<int>(np), keys_sorted.get(), cell_begin.get(),
-                                                              cell_end.get());
-    check_kernel("cell range kernel");
+    radix_sort(keys_in, keys_sorted, values_in, order, key_bits(total));
+    key_ranges(keys_sorted, total, cell_begin, cell_end);
     return true;
   }
 
@@ -718,8 +732,14 @@ struct PseRpyCuda::Impl {
     if (deterministic) {
       events.begin("spread");
       check(cudaMemset(g, 0, 3 * window.ng * sizeof(Real)), "cudaMemset");
-      spread_kernel<Real>
-          <<<static_cast<unsigned>(np), kWindowThreads>>>(static_cast<int>(np), x.get(), f_dev, g, window);
+      if (bin_edge > 0) {
+        cuda_window::spread_bins_kernel<Real>
+            <<<static_cast<unsigned>(bin_grid.bins()), cuda_window::kBinThreads, bin_grid.shared_bytes<Real>()>>>(
+                bin_slots.get(), bin_begin.get(), bin_end.get(), x.get(), f_dev, g, window, bin_grid);
+      } else {
+        cuda_window::spread_particles_kernel<Real><<<static_cast<unsigned>(np), cuda_window::kParticleThreads>>>(
+            static_cast<int>(np), x.get(), f_dev, g, window);
+      }
       check_kernel("spread kernel");
       events.end();
       events.begin("fft_forward");
@@ -747,8 +767,14 @@ struct PseRpyCuda::Impl {
     check_kernel("backward FFT");
     events.end();
     events.begin("interpolate");
-    interpolate_kernel<Real>
-        <<<static_cast<unsigned>(np), kWindowThreads>>>(static_cast<int>(np), x.get(), g, out, window, dv, accumulate);
+    if (bin_edge > 0) {
+      cuda_window::interpolate_bins_kernel<Real>
+          <<<static_cast<unsigned>(bin_grid.bins()), cuda_window::kBinThreads, bin_grid.shared_bytes<Real>()>>>(
+              bin_slots.get(), bin_begin.get(), bin_end.get(), x.get(), g, out, window, bin_grid, dv, accumulate);
+    } else {
+      cuda_window::interpolate_particles_kernel<Real><<<static_cast<unsigned>(np), cuda_window::kParticleThreads>>>(
+          static_cast<int>(np), x.get(), g, out, window, dv, accumulate);
+    }
     check_kernel("interpolate kernel");
     events.end();
   }
@@ -797,7 +823,16 @@ PseRpyCuda::PseRpyCuda(Geometry geometry, double viscosity, const PseOptions& op
   require(device_available(), ErrorCode::not_supported, kWhere, "no usable CUDA device");
   impl_->options = options;
   impl_->cuda_options = cuda_options;
+  require(cuda_options.window_bin >= -1 && cuda_options.window_bin <= 64, ErrorCode::invalid_argument, kWhere,
+          "window_bin must be -1 (per particle), 0 (automatic) or a bin edge in [1, 64], got " +
+              std::to_string(cuda_options.window_bin));
   impl_->options.real_space_table = true;  // the device path interpolates the table
+  int device = 0, multiprocessors = 0, shared = 0;
+  check(cudaGetDevice(&device), "cudaGetDevice");
+  check(cudaDeviceGetAttribute(&multiprocessors, cudaDevAttrMultiProcessorCount, device), "cudaDeviceGetAttribute");
+  check(cudaDeviceGetAttribute(&shared, cudaDevAttrMaxSharedMemoryPerBlockOptin, device), "cudaDeviceGetAttribute");
+  impl_->multiprocessors = std::max(1, multiprocessors);
+  impl_->max_shared = static_cast<std::size_t>(std::max(shared, 48 * 1024));
 }
 
 PseRpyCuda::~PseRpyCuda() = default;
@@ -810,6 +845,11 @@ const PseParameters& PseRpyCuda::parameters() const {
 bool PseRpyCuda::device_cell_list_active() const {
   require_positions("device_cell_list_active");
   return impl_->cells_active;
+}
+
+int PseRpyCuda::window_bin_edge() const {
+  require_positions("window_bin_edge");
+  return impl_->bin_edge;
 }
 
 StageTimes PseRpyCuda::stage_times() const {
@@ -904,7 +944,7 @@ void PseRpyCuda::on_positions_set() {
   im.cells_active = false;
   if (im.cuda_options.device_cell_list) {
     im.events.begin("transfer");
-    im.io.upload(positions().data(), im.n3());  // wrapped into the box by set_positions
+    im.upload_input(positions().data());  // wrapped into the box by set_positions
     im.events.end();
     im.events.begin("positions_device");
     im.cells_active = im.build_device_cells();
@@ -921,6 +961,9 @@ void PseRpyCuda::on_positions_set() {
     im.list.upload(lists.list.data(), lists.list.size());
     im.upload_to_slots(positions().data(), im.x);  // the input positions, as the CPU wave space reads them
   }
+  im.events.begin("positions_device");
+  im.build_bins();
+  im.events.end();
   check(cudaDeviceSynchronize(), "set_positions");
   im.times["positions_real"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   im.events.collect(im.times);

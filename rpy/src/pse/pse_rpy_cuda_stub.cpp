@@ -23,6 +23,9 @@ const PseParameters& PseRpyCuda::parameters() const {
 bool PseRpyCuda::device_cell_list_active() const {
   return false;
 }
+int PseRpyCuda::window_bin_edge() const {
+  return 0;
+}
 
 SqrtReport PseRpyCuda::sample(std::uint64_t, std::uint64_t, std::span<double>) const {
   fail(ErrorCode::not_supported, "PseRpyCuda::sample", "no CUDA support in this build");

@@ -46,11 +46,23 @@ namespace rpyfmm::rpy::pse {
 struct PseCudaOptions {
   /// Real-space neighbour search on the device: particles sorted into cells (edge >= r_cut) by
   /// a radix sort on the GPU, each row scanning its 27 cells, instead of the host cell list's
-  /// neighbour lists uploaded at every set_positions (which, at 1e6 particles, costs several
-  /// times a product). Same pairs (|r| < r_cut, coincident included), sums in another order.
-  /// Where a box side holds fewer than 3 cells the host lists are used (see
-  /// device_cell_list_active()). Off by default until measured on a GPU (bench_pse --cuda).
-  bool device_cell_list = false;
+  /// neighbour lists uploaded at every set_positions. Same pairs (|r| < r_cut, coincident
+  /// included), sums in another order. Where a box side holds fewer than 3 cells the host lists
+  /// are used (see device_cell_list_active()). On by default: on an H200 at N = 1e6 (Table I)
+  /// set_positions takes 0.030 s instead of 0.17 s (16 host threads building the lists), which
+  /// outweighs the slower scan of the products (bench/pse/RESULTS.md, session 20).
+  bool device_cell_list = true;
+  /// Spreading and interpolation by bins through shared memory (rpy/src/pse/cuda_window.cuh):
+  /// 0 = automatic (bins of the largest edge in 16, 14, ..., 4 points whose subgrids fit two
+  /// blocks per multiprocessor, give >= 2 bins per multiprocessor and cut the grid atomics at
+  /// least in half; else one block per particle), -1 = always one block per particle with
+  /// atomics into the grid, > 0 = bins of that edge (an error at set_positions where its
+  /// subgrid exceeds the device's shared memory per block). See window_bin_edge().
+  int window_bin = 0;
+  /// Host-array products (apply, sample, apply_with_noise, apply_sqrt) copy through one
+  /// page-locked host buffer of 3N doubles (filled and emptied by the OpenMP threads) instead of
+  /// pageable copies.
+  bool pinned_transfers = true;
 };
 
 class PseRpyCuda final : public PseOperator {
@@ -70,6 +82,9 @@ class PseRpyCuda final : public PseOperator {
   /// True when the current positions' real-space part runs on the device cell list
   /// (PseCudaOptions::device_cell_list and at least 3 cells along every box side).
   [[nodiscard]] bool device_cell_list_active() const;
+  /// The bin edge (grid points) of spreading and interpolation for the current positions; 0
+  /// where they run one block per particle (PseCudaOptions::window_bin).
+  [[nodiscard]] int window_bin_edge() const;
 
   /// w = M^{1/2} z by the split sampler keyed by (seed, step), as PseRpy::sample.
   SqrtReport sample(std::uint64_t seed, std::uint64_t step, std::span<double> w) const override;
