@@ -70,7 +70,9 @@ done
 for n in ${RPYFMM_GPU_SWEEP-32000 250000 1000000}; do
   left=$((budget - SECONDS))
   if [ "$left" -lt 30 ]; then echo "# sweep N = $n: skipped, ${left} s of the budget left" | tee -a "$out/bench_pse_cuda_bins.csv"; continue; fi
-  timeout "$left" gpu-kit/bench_pse --cuda --bin-sweep "$n" 2>&1 | tee -a "$out/bench_pse_cuda_bins.csv"
+  header=$([ -s "$out/bench_pse_cuda_bins.csv" ] && echo '^N,backend' || echo '^$')  # the CSV header once
+  timeout "$left" gpu-kit/bench_pse --cuda --bin-sweep "$n" 2>&1 | grep --line-buffered -v "$header" |
+    tee -a "$out/bench_pse_cuda_bins.csv"
   echo "# sweep N = $n: bench_pse rc=${PIPESTATUS[0]} at ${SECONDS} s" | tee -a "$out/bench_pse_cuda_bins.csv"
 done
 echo "gpu-check: tests rc=$test_rc, benchmark rc=$bench_rc (124: timed out; 3: GPU and CPU differ)"

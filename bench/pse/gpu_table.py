@@ -6,9 +6,10 @@ usage: python3 bench/pse/gpu_table.py gpu-out/bench_pse_cuda.csv
 
 Targets ([PSE] Table I setup, N ~ 1e6): >= 50e6 particle-timesteps per second for M F and
 >= 30e6 for the split sampler M^1/2 z, i.e. 10x the paper's K40 figures. Each target is judged
-on the best row at the N closest to 1e6, once with host arrays in and out (transfers counted)
-and once with device arrays (apply_device / sample_device). Exit status 0 when both targets are
-met with device arrays, 1 otherwise (2: no rows).
+on the defaults' row (the first row printed for each N) at the N closest to 1e6, once with host
+arrays in and out (transfers counted) and once with device arrays (apply_device /
+sample_device). Exit status 0 when both targets are met with device arrays, 1 otherwise (2: no
+rows).
 """
 import csv
 import sys
@@ -58,15 +59,13 @@ def main(path: str) -> int:
     met = True
     for label, host_key, dev_key, target in (("M F", "MF_PTPS", "MF_dev_PTPS", TARGET_MF),
                                              ("M^1/2 z", "sample_PTPS", "sample_dev_PTPS", TARGET_SAMPLE)):
-        best_host = max(at, key=lambda r: float(r[host_key]))
-        best_dev = max(at, key=lambda r: float(r[dev_key]))
-        ok_dev = float(best_dev[dev_key]) >= target
-        met = met and ok_dev
-        print(f"- {label} at N = {n_target}: host arrays {float(best_host[host_key]):.3g} PTPS"
-              f" ({best_host['wave']}, {best_host['lists']} lists), device arrays {float(best_dev[dev_key]):.3g}"
-              f" PTPS ({best_dev['wave']}, {best_dev['lists']} lists); target {target:.0e}:"
-              f" {'met' if ok_dev else 'NOT met'} (device arrays),"
-              f" {'met' if float(best_host[host_key]) >= target else 'not met'} (host arrays)")
+        row = at[0]  # the defaults (bench_pse prints them first for each N)
+        host, dev = float(row[host_key]), float(row[dev_key])
+        met = met and dev >= target
+        print(f"- {label} at N = {n_target} ({row['wave']} grids, {row['lists']} lists, bin {row.get('bin', '-')}):"
+              f" host arrays {host:.3g} PTPS, device arrays {dev:.3g} PTPS; target {target:.0e}:"
+              f" {'met' if dev >= target else 'NOT met'} (device arrays),"
+              f" {'met' if host >= target else 'not met'} (host arrays)")
     return 0 if met else 1
 
 

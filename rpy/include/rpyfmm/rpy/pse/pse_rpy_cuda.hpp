@@ -19,13 +19,18 @@
 // settings and do not apply to cuFFT. Set RPYFMM_CUDA_SYNC=1 in the
 // environment to check every kernel synchronously (first runs on a new device).
 //
-// On the device the particles are kept in slot order (the CPU cell list's, or with
-// PseCudaOptions::device_cell_list the GPU radix sort's); a product uploads its forces once
-// and downloads its velocities once (host arrays in and out), and the split sampler's
+// On the device the particles are kept in slot order (the GPU radix sort's into cells, or with
+// PseCudaOptions::device_cell_list off the CPU cell list's); spreading and interpolation run by
+// bins of the grid through shared memory where that pays (PseCudaOptions::window_bin). A product
+// uploads its forces once and downloads its velocities once (host arrays in and out, through a
+// page-locked buffer), and the split sampler's
 // real-space Lanczos iterates on device vectors (only its small Ritz problem is on the host),
 // so only the result crosses the bus. The Lanczos basis stays allocated for the operator's
 // lifetime (at most the iterations of the longest sample, 3N doubles each: ~1 GB for 50
-// iterations at N = 1e6) and is not counted in the planning memory check. All work runs on
+// iterations at N = 1e6) and is not counted in the planning memory check. On one H200 at the
+// [PSE] Table I setup (N = 1e6, tolerance 1e-3): M F 7.4e7 particle-timesteps per second with
+// host arrays, 1.07e8 with device arrays; M^1/2 z 1.08e8 / 1.21e8 (bench/pse/RESULTS.md,
+// session 20). All work runs on
 // the legacy default stream: callers that write the device arrays of apply_device /
 // sample_device on other streams synchronise first.
 #pragma once
