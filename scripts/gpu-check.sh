@@ -5,7 +5,8 @@
 # then the PSE Table I benchmark on the GPU at 8e3, 3.2e4, 2.5e5, 1e6 and 2e6 particles. Output goes to
 # $OUT (or ./gpu-out) as test_pse_cuda.txt and bench_pse_cuda.csv (and sanitizer*.txt when
 # compute-sanitizer is there and time is left), then bench_pse_cuda_bins.csv (the bin-edge sweep at
-# RPYFMM_GPU_SWEEP sizes, default 32000 250000 1000000). Sized for a few
+# RPYFMM_GPU_SWEEP sizes, default 32000 250000 1000000), then bench_bd.csv (whole BD steps with
+# the mobility on the GPU and on the CPU cores). Sized for a few
 # minutes of device time: pass fewer sizes as arguments to shorten it. Fails (non-zero exit) if
 # the tests fail or skip (RPYFMM_EXPECT_CUDA: no usable device is an error, not a skip), or if
 # the benchmark finds the GPU and CPU products apart by more than round-off (N <= 250000).
@@ -74,6 +75,22 @@ for n in ${RPYFMM_GPU_SWEEP-32000 250000 1000000}; do
   timeout "$left" gpu-kit/bench_pse --cuda --bin-sweep "$n" 2>&1 | grep --line-buffered -v "$header" |
     tee -a "$out/bench_pse_cuda_bins.csv"
   echo "# sweep N = $n: bench_pse rc=${PIPESTATUS[0]} at ${SECONDS} s" | tee -a "$out/bench_pse_cuda_bins.csv"
+done
+# Whole BD steps (bench_bd steps: WCA spheres at phi = 0.05 in a periodic cube, sedimenting,
+# PSE at tolerance 1e-3), the mobility on the GPU at RPYFMM_GPU_BD sizes (default 10000 100000
+# 1000000), then on the host's CPU cores at RPYFMM_GPU_BD_CPU sizes (default 10000 100000), if
+# time is left. Output: bench_bd.csv.
+for device in cuda cpu; do
+  if [ "$device" = cuda ]; then list="${RPYFMM_GPU_BD-10000 100000 1000000}"; else list="${RPYFMM_GPU_BD_CPU-10000 100000}"; fi
+  for n in $list; do
+    left=$((budget - SECONDS))
+    if [ "$left" -lt 30 ]; then echo "# bd $device N = $n: skipped, ${left} s of the budget left" | tee -a "$out/bench_bd.csv"; continue; fi
+    header=$([ -s "$out/bench_bd.csv" ] && echo '^method,' || echo '^$')
+    threads=$([ "$device" = cpu ] && nproc || echo "$OMP_NUM_THREADS")  # the CPU runs on all host cores
+    OMP_NUM_THREADS=$threads timeout "$left" gpu-kit/bench_bd steps --method pse --device "$device" --n "$n" --steps 5 2>&1 |
+      grep --line-buffered -v "$header" | tee -a "$out/bench_bd.csv"
+    echo "# bd $device N = $n: bench_bd rc=${PIPESTATUS[0]} at ${SECONDS} s" | tee -a "$out/bench_bd.csv"
+  done
 done
 echo "gpu-check: tests rc=$test_rc, benchmark rc=$bench_rc (124: timed out; 3: GPU and CPU differ)"
 [ "$test_rc" -eq 0 ] && [ "$bench_rc" -eq 0 ]

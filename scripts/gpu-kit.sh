@@ -8,11 +8,11 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 command -v nvcc >/dev/null || export PATH=/usr/local/cuda/bin:$PATH
 cmake --preset release -DRPYFMM_USE_CUDA=ON > /dev/null
-cmake --build --preset release --target test_pse bench_pse
+cmake --build --preset release --target test_pse bench_pse bench_bd
 grep -q "RPYFMM_USE_CUDA:BOOL=ON" build/release/CMakeCache.txt || { echo "gpu-kit: CUDA is off in build/release" >&2; exit 1; }
 rm -rf gpu-kit && mkdir -p gpu-kit/lib
-cp build/release/tests/pse/test_pse build/release/bench/pse/bench_pse gpu-kit/
-for lib in $(ldd gpu-kit/test_pse gpu-kit/bench_pse | awk '/libfftw3|libgomp|libcudart/ {print $3}' | sort -u); do
+cp build/release/tests/pse/test_pse build/release/bench/pse/bench_pse build/release/bench/bd/bench_bd gpu-kit/
+for lib in $(ldd gpu-kit/test_pse gpu-kit/bench_pse gpu-kit/bench_bd | awk '/libfftw3|libgomp|libcudart/ {print $3}' | sort -u); do
   cp -L "$lib" gpu-kit/lib/
 done
 ls -la gpu-kit gpu-kit/lib

@@ -2,6 +2,7 @@
 //
 //   bench_bd steps  --method none|direct|fmm|pse --n 1000,3000,10000 [--steps 5] [--tol 1e-3]
 //                   [--split-displacements] [--preconditioner automatic|block|none] [--block B]
+//                   [--device cpu|cuda]
 //       one CSV row per N: seconds per step (median of the per-step times after one
 //       warm-up step), Lanczos iterations and mobility products per step, and the
 //       time split (neighbours, forces, plan, drift = M F or M [F, z], sqrt, update).
@@ -12,7 +13,7 @@
 //       separate M F + split-sampler path. --preconditioner: the Lanczos sampler's block
 //       preconditioner (the BD default automatic = block for direct and fmm; none = M^{1/2} z,
 //       the sampler before session 17), column `preconditioner`; --block: particles per
-//       block (0 = automatic).
+//       block (0 = automatic). --device cuda: the mobility on a GPU (pse only; column `device`).
 //   bench_bd neighbours --n 20000 [--steps 400]
 //       001 Tables 1-3: dynamic rebuild test (skin/2) against fixed intervals, free
 //       draining, WCA at phi = 0.15 in a periodic box: rebuilds, time per step, and
@@ -54,7 +55,7 @@ double median(std::vector<double> v) {
 }
 
 RunConfig cloud_config(std::size_t n, const std::string& method, double tol, bool periodic, double phi,
-                       bool split_displacements = false) {
+                       bool split_displacements = false, const std::string& device = "cpu") {
   std::ostringstream t;
   t << "[system]\n";
   if (periodic) {
@@ -67,7 +68,7 @@ RunConfig cloud_config(std::size_t n, const std::string& method, double tol, boo
     << "[[pair]]\ntypes = [\"s\", \"s\"]\nkind = \"wca\"\n"
     << "[integrator]\ndt = 0.01\nsteps = 1\nseed = 3\nmax_displacement = 1.0\n"
     << "split_displacements = " << (split_displacements ? "true" : "false") << "\n"
-    << "[mobility]\nmethod = \"" << method << "\"\ntolerance = " << tol << "\n";
+    << "[mobility]\nmethod = \"" << method << "\"\ntolerance = " << tol << "\ndevice = \"" << device << "\"\n";
   return parse_config(t.str(), "bench");
 }
 
@@ -78,11 +79,13 @@ int bench_steps(int argc, char** argv) {
   bool split = false;
   for (int i = 2; i < argc; ++i) split = split || std::string(argv[i]) == "--split-displacements";
   const std::string preconditioner = arg(argc, argv, "--preconditioner", "automatic");
+  const std::string device = arg(argc, argv, "--device", "cpu");
   std::printf(
-      "method,preconditioner,N,threads,sec_per_step,steps_per_sec,lanczos_its,products,neighbours,forces,plan,drift,"
+      "method,device,preconditioner,N,threads,sec_per_step,steps_per_sec,lanczos_its,products,neighbours,forces,plan,"
+      "drift,"
       "sqrt,update\n");
   for (std::size_t n : sizes(arg(argc, argv, "--n", "1000,3000"))) {
-    RunConfig c = cloud_config(n, method, tol, method == "pse", 0.05, split);
+    RunConfig c = cloud_config(n, method, tol, method == "pse", 0.05, split, device);
     c.integrator.sqrt.preconditioner = rpyfmm::rpy::sqrt_preconditioner_from_string(preconditioner);
     c.integrator.sqrt.preconditioner_block = std::stoi(arg(argc, argv, "--block", "0"));
     const ForceField ff = make_force_field(c);
@@ -100,7 +103,7 @@ int bench_steps(int argc, char** argv) {
     const double ns = steps;
     auto part = [&](const char* p) { return (t.seconds.at(p) - before.seconds.at(p)) / ns; };
     const double med = median(per_step);
-    std::printf("%s,%s,%zu,%d,%.4g,%.4g,%.1f,%.1f,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g\n", method.c_str(),
+    std::printf("%s,%s,%s,%zu,%d,%.4g,%.4g,%.1f,%.1f,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g\n", method.c_str(), device.c_str(),
                 preconditioner.c_str(), n, omp_get_max_threads(), med, 1.0 / med,
                 static_cast<double>(t.sqrt_iterations - before.sqrt_iterations) / ns,
                 static_cast<double>(t.mobility_products - before.mobility_products) / ns, part("neighbours"),
