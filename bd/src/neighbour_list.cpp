@@ -142,41 +142,76 @@ void NeighbourList::build_cells(std::span<const double> x) {
     for (std::size_t i = 0; i < n; ++i)
       order[fill[static_cast<std::size_t>((coord[i][0] * nc[1] + coord[i][1]) * nc[2] + coord[i][2])]++] = i;
   }
-  // Per-particle lists, built in parallel, then concatenated in particle order.
-  std::vector<std::vector<std::uint32_t>> lists(n);
-#pragma omp parallel for schedule(dynamic, 256) if (n >= 1024)
-  for (std::size_t i = 0; i < n; ++i) {
-    auto& list = lists[i];
-    for (long dx = -1; dx <= 1; ++dx) {
-      for (long dy = -1; dy <= 1; ++dy) {
-        for (long dz = -1; dz <= 1; ++dz) {
-          std::array<long, 3> k{coord[i][0] + dx, coord[i][1] + dy, coord[i][2] + dz};
-          bool skip = false;
-          for (int c = 0; c < 3; ++c) {
-            if (wrap) {
-              k[c] = (k[c] + nc[c]) % nc[c];
-            } else if (k[c] < 0 || k[c] >= nc[c]) {
-              skip = true;
+  // The rows in cell order, in chunks of consecutive slots (each chunk one growing buffer: no
+  // allocation per particle), reading the candidates' positions from a copy in cell order (a
+  // row's candidates then lie in a few contiguous runs; read in input order, the cache misses
+  // dominated the build). In a periodic box the copy is wrapped into [0, L) and a neighbour
+  // cell across a face carries its image shift, so no rounding per candidate. Each particle's
+  // neighbours are then sorted, and the chunks concatenated in particle order.
+  std::vector<double> xs(3 * n);
+#pragma omp parallel for schedule(static) if (n >= 4096)
+  for (std::size_t s = 0; s < n; ++s) {
+    for (int c = 0; c < 3; ++c) {
+      double v = x[3 * order[s] + c];
+      if (periodic_) v -= box_[c] * std::floor(v * inv_box_[c]);
+      xs[3 * s + c] = v;
+    }
+  }
+  constexpr std::size_t kChunk = 2048;
+  const std::size_t chunks = (n + kChunk - 1) / kChunk;
+  std::vector<std::vector<std::uint32_t>> chunk_lists(chunks);
+  std::vector<std::uint32_t> count(n);
+#pragma omp parallel for schedule(dynamic, 1) if (n >= 1024)
+  for (std::size_t ch = 0; ch < chunks; ++ch) {
+    auto& buf = chunk_lists[ch];
+    for (std::size_t slot = ch * kChunk; slot < std::min(n, (ch + 1) * kChunk); ++slot) {
+      const std::size_t i = order[slot];
+      const double* xi = &xs[3 * slot];
+      const std::size_t before = buf.size();
+      for (long dx = -1; dx <= 1; ++dx) {
+        for (long dy = -1; dy <= 1; ++dy) {
+          for (long dz = -1; dz <= 1; ++dz) {
+            std::array<long, 3> k{coord[i][0] + dx, coord[i][1] + dy, coord[i][2] + dz};
+            std::array<double, 3> shift{0.0, 0.0, 0.0};  // added to xi - xj: the image across a face
+            bool skip = false;
+            for (int c = 0; c < 3; ++c) {
+              if (wrap) {  // k in [-1, nc]
+                if (k[c] < 0) {
+                  k[c] += nc[c];
+                  shift[c] = box_[c];
+                } else if (k[c] >= nc[c]) {
+                  k[c] -= nc[c];
+                  shift[c] = -box_[c];
+                }
+              } else if (k[c] < 0 || k[c] >= nc[c]) {
+                skip = true;
+              }
             }
-          }
-          if (skip) continue;
-          const auto cell = static_cast<std::size_t>((k[0] * nc[1] + k[1]) * nc[2] + k[2]);
-          for (std::size_t s = start[cell]; s < start[cell + 1]; ++s) {
-            const std::size_t j = order[s];
-            if (j == i) continue;
-            double d[3];
-            separation(&x[3 * i], &x[3 * j], d);
-            if (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] < rl2) list.push_back(static_cast<std::uint32_t>(j));
+            if (skip) continue;
+            const auto cell = static_cast<std::size_t>((k[0] * nc[1] + k[1]) * nc[2] + k[2]);
+            const double xi0 = xi[0] + shift[0], xi1 = xi[1] + shift[1], xi2 = xi[2] + shift[2];
+            for (std::size_t t = start[cell]; t < start[cell + 1]; ++t) {
+              const double d0 = xi0 - xs[3 * t], d1 = xi1 - xs[3 * t + 1], d2 = xi2 - xs[3 * t + 2];
+              if (d0 * d0 + d1 * d1 + d2 * d2 < rl2 && t != slot) buf.push_back(static_cast<std::uint32_t>(order[t]));
+            }
           }
         }
       }
+      std::sort(buf.begin() + static_cast<std::ptrdiff_t>(before), buf.end());
+      count[i] = static_cast<std::uint32_t>(buf.size() - before);
     }
-    std::sort(list.begin(), list.end());
   }
-  for (std::size_t i = 0; i < n; ++i) offsets_[i + 1] = offsets_[i] + lists[i].size();
+  for (std::size_t i = 0; i < n; ++i) offsets_[i + 1] = offsets_[i] + count[i];
   indices_.resize(offsets_[n]);
-#pragma omp parallel for schedule(static) if (n >= 4096)
-  for (std::size_t i = 0; i < n; ++i) std::copy(lists[i].begin(), lists[i].end(), indices_.begin() + offsets_[i]);
+#pragma omp parallel for schedule(dynamic, 1) if (n >= 1024)
+  for (std::size_t ch = 0; ch < chunks; ++ch) {
+    const std::uint32_t* from = chunk_lists[ch].data();
+    for (std::size_t slot = ch * kChunk; slot < std::min(n, (ch + 1) * kChunk); ++slot) {
+      const std::size_t i = order[slot];
+      std::copy(from, from + count[i], indices_.begin() + static_cast<std::ptrdiff_t>(offsets_[i]));
+      from += count[i];
+    }
+  }
 }
 
 }  // namespace rpyfmm::bd

@@ -30,17 +30,31 @@ std::array<double, 3> in_ball(std::mt19937_64& gen, double R) {
   }
 }
 
-/// Spatial hash for overlap tests during random sequential addition.
+/// Spatial hash for overlap tests during random sequential addition. Cells of edge >= the
+/// largest contact distance, so a candidate's overlaps lie in its 27 surrounding cells; in a
+/// periodic box the cell indices wrap (cells of edge L / floor(L / contact) per axis), so images
+/// across the faces are found the same way (each test is O(1), not O(N) near a face).
 class Placer {
  public:
-  Placer(double max_radius, const rpy::Geometry& g) : cell_(2 * kGap * max_radius), geometry_(g) {}
+  Placer(double max_radius, const rpy::Geometry& g) : geometry_(g) {
+    const double contact = 2 * kGap * max_radius;
+    for (int c = 0; c < 3; ++c) {
+      if (geometry_.is_periodic()) {
+        const double L = geometry_.box()[c];
+        cells_per_axis_[c] = std::max<long>(1, static_cast<long>(std::floor(L / contact)));
+        cell_[c] = L / static_cast<double>(cells_per_axis_[c]);
+      } else {
+        cell_[c] = contact;
+      }
+    }
+  }
   bool fits(std::array<double, 3> p, double a) const {
     wrap(p);
     const auto k = key_of(p);
     for (long dx = -1; dx <= 1; ++dx)
       for (long dy = -1; dy <= 1; ++dy)
         for (long dz = -1; dz <= 1; ++dz) {
-          auto it = cells_.find(pack({k[0] + dx, k[1] + dy, k[2] + dz}));
+          auto it = cells_.find(pack(neighbour_key(k, {dx, dy, dz})));
           if (it == cells_.end()) continue;
           for (std::size_t j : it->second) {
             double r2 = 0;
@@ -53,7 +67,6 @@ class Placer {
             if (r2 < contact * contact) return false;
           }
         }
-    if (geometry_.is_periodic()) return fits_periodic_images(p, a);
     return true;
   }
   void add(std::array<double, 3> p, double a) {
@@ -73,34 +86,30 @@ class Placer {
       if (p[c] >= L) p[c] = 0.0;
     }
   }
-  // Periodic boxes: neighbours across the boundary live in far cells; check them plainly
-  // when p is near a face (cheap: only particles within one cell of the faces).
-  bool fits_periodic_images(const std::array<double, 3>& p, double a) const {
-    const auto& L = geometry_.box();
-    bool near = false;
-    for (int c = 0; c < 3; ++c) near = near || p[c] < cell_ || p[c] > L[c] - cell_;
-    if (!near) return true;
-    for (std::size_t j = 0; j < radius_.size(); ++j) {
-      double r2 = 0;
-      for (int c = 0; c < 3; ++c) {
-        double d = p[c] - x_[3 * j + c];
-        d -= L[c] * std::nearbyint(d / L[c]);
-        r2 += d * d;
-      }
-      const double contact = kGap * (a + radius_[j]);
-      if (r2 < contact * contact) return false;
-    }
-    return true;
-  }
   std::array<long, 3> key_of(const std::array<double, 3>& p) const {
-    return {static_cast<long>(std::floor(p[0] / cell_)), static_cast<long>(std::floor(p[1] / cell_)),
-            static_cast<long>(std::floor(p[2] / cell_))};
+    std::array<long, 3> k{};
+    for (int c = 0; c < 3; ++c) {
+      k[c] = static_cast<long>(std::floor(p[c] / cell_[c]));
+      if (geometry_.is_periodic()) k[c] = std::clamp(k[c], 0L, cells_per_axis_[c] - 1);  // p in [0, L)
+    }
+    return k;
+  }
+  /// The cell at offset o from cell k (wrapped in a periodic box; with fewer than 3 cells along
+  /// an axis some offsets name the same cell, which is then searched twice: harmless).
+  std::array<long, 3> neighbour_key(const std::array<long, 3>& k, const std::array<long, 3>& o) const {
+    std::array<long, 3> n{};
+    for (int c = 0; c < 3; ++c) {
+      n[c] = k[c] + o[c];
+      if (geometry_.is_periodic()) n[c] = ((n[c] % cells_per_axis_[c]) + cells_per_axis_[c]) % cells_per_axis_[c];
+    }
+    return n;
   }
   static std::int64_t pack(const std::array<long, 3>& k) {
     return ((static_cast<std::int64_t>(k[0]) & 0x1FFFFF) << 42) | ((static_cast<std::int64_t>(k[1]) & 0x1FFFFF) << 21) |
            (static_cast<std::int64_t>(k[2]) & 0x1FFFFF);
   }
-  double cell_;
+  std::array<double, 3> cell_{};
+  std::array<long, 3> cells_per_axis_{1, 1, 1};
   rpy::Geometry geometry_;
   std::unordered_map<std::int64_t, std::vector<std::size_t>> cells_;
   std::vector<double> x_;

@@ -153,6 +153,41 @@ TEST(BdConfig, OverlappingHardParticlesAreRejectedByName) {
   std::filesystem::remove_all(dir);
 }
 
+// Random insertion in periodic boxes: no two particles closer than contact under the minimum
+// image (brute force over all pairs), across the faces too, in a dense cube and in a slab whose
+// thin side holds only two placement cells (wrapped cell neighbours repeat there).
+TEST(BdConfig, RandomParticlesDoNotOverlapAcrossPeriodicFaces) {
+  for (const auto& [box, count] : {std::pair{std::array<double, 3>{24.0, 24.0, 24.0}, std::size_t{1000}},
+                                   std::pair{std::array<double, 3>{5.0, 40.0, 40.0}, std::size_t{600}}}) {
+    std::string text = replace(kBase, "source = \"random\"\ncount = 50\nvolume_fraction = 0.05",
+                               "source = \"random\"\ncount = " + std::to_string(count));
+    text = replace(text, "[system]\n",
+                   "[system]\ngeometry = \"periodic\"\nbox = [" + std::to_string(box[0]) + ", " +
+                       std::to_string(box[1]) + ", " + std::to_string(box[2]) + "]\n");
+    const RunConfig c = parse_config(text, "periodic random");
+    const ForceField ff = make_force_field(c);
+    const InitialState s = make_particles(c, ff);
+    ASSERT_EQ(s.types.size(), count);
+    double rmin = 1e300;
+    for (std::size_t i = 0; i < count; ++i) {
+      for (int k = 0; k < 3; ++k) {
+        EXPECT_GE(s.positions[3 * i + k], 0.0);
+        EXPECT_LT(s.positions[3 * i + k], box[k]);
+      }
+      for (std::size_t j = i + 1; j < count; ++j) {
+        double r2 = 0;
+        for (int k = 0; k < 3; ++k) {
+          double d = s.positions[3 * i + k] - s.positions[3 * j + k];
+          d -= box[k] * std::nearbyint(d / box[k]);
+          r2 += d * d;
+        }
+        rmin = std::min(rmin, std::sqrt(r2));
+      }
+    }
+    EXPECT_GE(rmin, 2.0 * 1.02 - 1e-12) << box[0];  // radius 1, generated with a 2% gap
+  }
+}
+
 TEST(BdConfig, GeneratorsProduceNonOverlappingParticles) {
   for (const std::string src :
        {"source = \"random\"\ncount = 300\nvolume_fraction = 0.2", "source = \"lattice\"\ncount = 100",

@@ -85,12 +85,18 @@ TEST(Potentials, ClosedFormValues) {
   EXPECT_THROW(resolve_pair(bad, 1, 1, 0, 0), Error);
 }
 
+// Also with positions outside the periodic box (BD trajectories are not wrapped): the list
+// wraps its own copy and carries image shifts across the faces.
 TEST(NeighbourList, MatchesAllPairsOpenAndPeriodic) {
-  for (bool periodic : {false, true}) {
+  for (int variant = 0; variant < 3; ++variant) {
+    const bool periodic = variant > 0;
     const double box = 20.0, rc = 2.5;
     auto g = periodic ? rpyfmm::rpy::Geometry::periodic(box) : rpyfmm::rpy::Geometry::open();
     NeighbourList list(g, rc, {.skin = 0.5});
     auto x = random_points(600, box, 3);
+    if (variant == 2) {
+      for (std::size_t i = 0; i < x.size(); ++i) x[i] += box * static_cast<double>(static_cast<int>(i % 5) - 2);
+    }
     list.build(x);
     const double rl = rc + 0.5;
     std::size_t count = 0;
