@@ -14,84 +14,12 @@
 
 #include <cuda_runtime.h>
 
-#include <algorithm>
-#include <array>
 #include <cstddef>
 
+#include "cuda_window_plan.hpp"
 #include "kernels_common.hpp"
 
 namespace rpyfmm::rpy::pse::cuda_window {
-
-constexpr int kMaxSupport = 64;
-constexpr unsigned kWarp = 32;
-constexpr unsigned kParticleThreads = 128;  // per-particle kernels: threads per particle
-constexpr unsigned kBinThreads = 512;       // bin kernels: threads per bin (16 warps, a particle each)
-
-/// The grid and its Gaussian window (PSE.md Sec. 2.2).
-struct WindowParams {
-  int n[3];        // grid points per axis
-  int P[3];        // window support per axis
-  double h[3];     // grid spacing
-  double inv_2s2;  // 1 / (2 sigma^2)
-  double c3;       // (2 pi sigma^2)^(-3/2)
-  std::size_t ng;  // n0 n1 n2
-};
-
-/// Bins of B[d] grid points per axis (the last one along an axis may be shorter) and their
-/// shared-memory subgrids of m[d] = B[d] + P[d] - 1 points.
-struct BinGrid {
-  int B[3];
-  int nb[3];
-  int m[3];
-  int sub;          // m0 m1 m2 (points per component)
-  int max_support;  // max P[d]: the stride of each warp's window weights in shared memory
-  [[nodiscard]] std::size_t bins() const { return static_cast<std::size_t>(nb[0]) * nb[1] * nb[2]; }
-  /// Shared memory of a bin kernel on Real grids: the three subgrids and each warp's weights.
-  template <class Real>
-  [[nodiscard]] std::size_t shared_bytes() const {
-    return (kBinThreads / kWarp) * 3 * static_cast<std::size_t>(max_support) * sizeof(double) +
-           3 * static_cast<std::size_t>(sub) * sizeof(Real);
-  }
-};
-
-/// The bin grid of edge B (clipped to the grid) for window w.
-inline BinGrid make_bin_grid(const WindowParams& w, int B) {
-  BinGrid g{};
-  g.sub = 1;
-  g.max_support = std::max({w.P[0], w.P[1], w.P[2]});
-  for (int d = 0; d < 3; ++d) {
-    g.B[d] = std::min(B, w.n[d]);
-    g.nb[d] = (w.n[d] + g.B[d] - 1) / g.B[d];
-    g.m[d] = g.B[d] + w.P[d] - 1;
-    g.sub *= g.m[d];
-  }
-  return g;
-}
-
-/// The bin edge for np particles: `requested` > 0 as given (0 where its subgrid exceeds
-/// `max_shared` bytes); `requested` == 0 (automatic): the largest B in 16, 14, ..., 4 whose
-/// subgrids fit two blocks per multiprocessor (<= 100 KiB), that gives at least two bins per
-/// multiprocessor, and whose subgrids hold at most half the points of the particles' windows
-/// (else atomics per particle are as cheap: few particles per bin); 0 where none does (the
-/// per-particle kernels). `requested` < 0: 0.
-inline int choose_bin_edge(const WindowParams& w, std::size_t np, std::size_t real_bytes, int requested,
-                           int multiprocessors, std::size_t max_shared) {
-  const auto bytes = [&](const BinGrid& g) {
-    return real_bytes == sizeof(float) ? g.shared_bytes<float>() : g.shared_bytes<double>();
-  };
-  if (requested > 0) return bytes(make_bin_grid(w, requested)) <= max_shared ? requested : 0;
-  if (requested < 0) return 0;
-  const double window_points = static_cast<double>(np) * w.P[0] * w.P[1] * w.P[2];
-  for (int B = 16; B >= 4; B -= 2) {
-    const BinGrid g = make_bin_grid(w, B);
-    const std::size_t b = bytes(g);
-    if (b > std::min<std::size_t>(100 * 1024, max_shared)) continue;
-    if (g.bins() < 2 * static_cast<std::size_t>(multiprocessors)) continue;
-    if (static_cast<double>(g.bins()) * g.sub > 0.5 * window_points) continue;
-    return B;
-  }
-  return 0;
-}
 
 /// The wrapped first grid index of x's window along one axis, as window_weights returns it.
 __device__ inline int window_first(double x, double h, int P, int n) {

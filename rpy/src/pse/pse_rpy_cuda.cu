@@ -643,20 +643,22 @@ struct PseRpyCuda::Impl {
     const auto bytes =
         static_cast<int>(params.wave_single ? bin_grid.shared_bytes<float>() : bin_grid.shared_bytes<double>());
     if (params.wave_single) {
-      check(cudaFuncSetAttribute(cuda_window::spread_bins_kernel<float>, cudaFuncAttributeMaxDynamicSharedMemorySize,
-                                 bytes),
-            "shared memory of the bin kernels");
-      check(cudaFuncSetAttribute(cuda_window::interpolate_bins_kernel<float>,
-                                 cudaFuncAttributeMaxDynamicSharedMemorySize, bytes),
-            "shared memory of the bin kernels");
+      allow_bin_shared_memory<float>(bytes);
     } else {
-      check(cudaFuncSetAttribute(cuda_window::spread_bins_kernel<double>, cudaFuncAttributeMaxDynamicSharedMemorySize,
-                                 bytes),
-            "shared memory of the bin kernels");
-      check(cudaFuncSetAttribute(cuda_window::interpolate_bins_kernel<double>,
-                                 cudaFuncAttributeMaxDynamicSharedMemorySize, bytes),
-            "shared memory of the bin kernels");
+      allow_bin_shared_memory<double>(bytes);
     }
+  }
+
+  /// Lets the bin kernels on Real grids use `bytes` of dynamic shared memory (above 48 KiB
+  /// needs the opt-in).
+  template <class Real>
+  static void allow_bin_shared_memory(int bytes) {
+    check(
+        cudaFuncSetAttribute(cuda_window::spread_bins_kernel<Real>, cudaFuncAttributeMaxDynamicSharedMemorySize, bytes),
+        "shared memory of the bin kernels");
+    check(cudaFuncSetAttribute(cuda_window::interpolate_bins_kernel<Real>, cudaFuncAttributeMaxDynamicSharedMemorySize,
+                               bytes),
+          "shared memory of the bin kernels");
   }
 
   /// The slot order and cell ranges of the device cell list for the positions in `io` (input
