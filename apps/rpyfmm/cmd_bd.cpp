@@ -19,6 +19,7 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
+#include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/bd/config.hpp"
 #include "rpyfmm/bd/run.hpp"
 #include "rpyfmm/core/validate.hpp"
@@ -64,6 +65,7 @@ void run_bd_command(const BdArgs& args) {
         .add("n", s.particles)
         .add("mobility", s.mobility)
         .add("threads", active_threads())
+        .add("simd", simd_level_name(simd_level()))
         .add("first_step", static_cast<long long>(s.first_step))
         .add("last_step", static_cast<long long>(s.last_step))
         .add("wall_seconds", s.wall_seconds)

@@ -17,6 +17,7 @@
 #include "array_io.hpp"
 #include "cli_common.hpp"
 #include "commands.hpp"
+#include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/fmm/direct.hpp"
@@ -122,6 +123,7 @@ void run_laplace(const LaplaceArgs& args, bool eps_given) {
         .add("at_sources", args.targets.empty())
         .add("nd", p.nd)
         .add("threads", active_threads())
+        .add("simd", simd_level_name(simd_level()))
         .add("out", args.out)
         .add("pairs", static_cast<double>(p.n) * static_cast<double>(p.m) * static_cast<double>(p.nd))
         .add("seconds", stages)

@@ -17,6 +17,7 @@
 #include "array_io.hpp"
 #include "cli_common.hpp"
 #include "commands.hpp"
+#include "rpyfmm/core/cpu_features.hpp"
 #include "mobility_choice.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
@@ -78,6 +79,7 @@ void run_mobility(const MobilityArgs& args, bool radius_given) {
         .add("eps", args.mobility.eps)
         .add("equal_radii", op->equal_radii())
         .add("threads", active_threads())
+        .add("simd", simd_level_name(simd_level()))
         .add("out", args.out)
         .add("seconds", stages)
         .add("total_seconds", total.seconds());

@@ -22,6 +22,7 @@
 #include "bead_bodies.hpp"
 #include "cli_common.hpp"
 #include "commands.hpp"
+#include "rpyfmm/core/cpu_features.hpp"
 #include "mobility_choice.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
@@ -91,6 +92,7 @@ void run_rigid(const RigidArgs& args) {
         .add("restarts", report.restarts)
         .add("residual", report.residual)
         .add("threads", active_threads())
+        .add("simd", simd_level_name(simd_level()))
         .add("out", args.out)
         .add("seconds", stages)
         .add("total_seconds", total.seconds());

@@ -34,6 +34,7 @@
 #include "bead_bodies.hpp"
 #include "cli_common.hpp"
 #include "commands.hpp"
+#include "rpyfmm/core/cpu_features.hpp"
 #include "mobility_choice.hpp"
 #include "rpyfmm/bd/rigid_dynamics.hpp"
 #include "rpyfmm/core/timer.hpp"
@@ -166,6 +167,7 @@ void run_rigid_bd(const RigidBdArgs& args) {
         .add("sqrt_iterations_per_step", double(t.sqrt_iterations) / double(steps))
         .add("seconds_per_step", per_step)
         .add("threads", active_threads())
+        .add("simd", simd_level_name(simd_level()))
         .add("out", args.out)
         .add("seconds", stages)
         .add("step_seconds", t.seconds)

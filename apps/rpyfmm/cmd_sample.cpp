@@ -29,6 +29,7 @@
 #include "array_io.hpp"
 #include "cli_common.hpp"
 #include "commands.hpp"
+#include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/bd/mobility_factory.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
@@ -231,6 +232,7 @@ void run_sample(const SampleArgs& given, bool radius_given, bool seed_given) {
         .add("viscosity", args.viscosity)
         .add("equal_radii", op->equal_radii())
         .add("threads", active_threads())
+        .add("simd", simd_level_name(simd_level()))
         .add("out", args.out)
         .add("seconds", stages)
         .add("total_seconds", total.seconds());

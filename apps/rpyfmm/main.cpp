@@ -7,6 +7,7 @@
 #include <iostream>
 
 #include "commands.hpp"
+#include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/core/error.hpp"
 #include "rpyfmm/fmm/version.hpp"
 
@@ -21,6 +22,7 @@ int main(int argc, char** argv) {
   rpyfmm::cli::register_rigid(app);
   rpyfmm::cli::register_rigid_bd(app);
   try {
+    rpyfmm::require_valid_simd_environment();  // RPYFMM_SIMD: a typo is an error, not a warning
     app.parse(argc, argv);
     if (app.get_subcommands().empty()) {
       std::cout << app.help();

@@ -73,7 +73,7 @@ std::size_t default_fmm_crossover(double tolerance) {
   const int digits = fmm::fmm_table_digits_for(tolerance);
   static constexpr std::size_t avx2[] = {1500, 3500, 7000, 11000}, avx512[] = {1500, 4500, 10000, 16000};
   const std::size_t table = digits <= 3 ? 0 : digits <= 6 ? 1 : digits <= 9 ? 2 : 3;
-  return fmm::detail::avx512_kernels_active() ? avx512[table] : avx2[table];
+  return simd_level() == SimdLevel::avx512 ? avx512[table] : avx2[table];
 }
 
 namespace {

@@ -60,8 +60,7 @@ Timing time_it(int reps, const std::function<void()>& f) {
   return {t[t.size() / 2], t.front(), c[c.size() / 2]};
 }
 
-void row(const char* kernel, const char* outputs, std::size_t n, std::size_t nd, int threads, Timing t,
-         double pairs) {
+void row(const char* kernel, const char* outputs, std::size_t n, std::size_t nd, int threads, Timing t, double pairs) {
   std::printf("%s,%s,%zu,%zu,%d,%.6g,%.6g,%.6g,%.4g,%.4g\n", kernel, outputs, n, nd, threads, t.median, t.min,
               t.cpu_median, pairs / t.median, pairs / t.cpu_median);
   std::fflush(stdout);
@@ -75,8 +74,8 @@ int main(int argc, char** argv) {
   std::string kernel = "all", dump, results;
   for (int i = 1; i < argc; i += 2) {
     const std::string k = argv[i];
-    if (k == "--portable") {  // flag: compiler-vectorized kernels only (no hand-written AVX-512)
-      rpyfmm::fmm::detail::use_avx512_kernels(false);
+    if (k == "--portable") {  // flag: compiler-vectorized AVX2 kernels (no hand-written AVX-512)
+      rpyfmm::set_simd_level(rpyfmm::SimdLevel::avx2);
       --i;
       continue;
     }
@@ -85,13 +84,20 @@ int main(int argc, char** argv) {
       return 2;
     }
     const char* v = argv[i + 1];
-    if (k == "--n") n = std::strtoul(v, nullptr, 10);
-    else if (k == "--threads") threads = std::atoi(v);
-    else if (k == "--reps") reps = std::atoi(v);
-    else if (k == "--kernel") kernel = v;
-    else if (k == "--nd") nd = std::strtoul(v, nullptr, 10);
-    else if (k == "--dump") dump = v;
-    else if (k == "--results") results = v;
+    if (k == "--n")
+      n = std::strtoul(v, nullptr, 10);
+    else if (k == "--threads")
+      threads = std::atoi(v);
+    else if (k == "--reps")
+      reps = std::atoi(v);
+    else if (k == "--kernel")
+      kernel = v;
+    else if (k == "--nd")
+      nd = std::strtoul(v, nullptr, 10);
+    else if (k == "--dump")
+      dump = v;
+    else if (k == "--results")
+      results = v;
     else {
       std::fprintf(stderr, "bench_direct: unknown option %s\n", argv[i]);
       return 2;

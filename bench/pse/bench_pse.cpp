@@ -44,7 +44,6 @@
 #include <string>
 #include <vector>
 
-#include "../../rpy/src/pse/window_avx2.hpp"  // use_avx2_window_kernels (--kernels)
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
@@ -293,9 +292,8 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     if (std::string(argv[i]) == "--kernels" && i + 1 < argc) {
       const std::string v = argv[++i];
-      if (v == "avx2" || v == "portable") {
-        fmm::detail::use_avx512_kernels(false);  // as on a CPU without AVX-512
-        rpy::pse::detail::use_avx2_window_kernels(v == "avx2");
+      if (v == "avx2" || v == "portable") {  // as on a CPU without AVX-512 (or AVX2)
+        rpyfmm::set_simd_level(v == "avx2" ? rpyfmm::SimdLevel::avx2 : rpyfmm::SimdLevel::scalar);
       } else if (v != "auto") {
         std::fprintf(stderr, "bench_pse: --kernels takes auto, avx2 or portable\n");
         return 2;

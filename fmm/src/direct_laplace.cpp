@@ -3,41 +3,24 @@
 // One target at a time against a contiguous run of sources, with the sources
 // in structure-of-arrays form and no branches in the inner loop (the r = 0
 // skip is a select on 1/r). Two implementations of the same loops:
-//  - portable C++ that GCC vectorizes (target_clones: SSE2 / AVX2 / AVX-512),
+//  - portable C++ that GCC vectorizes (simd_dispatch: baseline / AVX2 / AVX-512),
 //    1/r = 1/sqrt(r^2) by sqrt and division;
 //  - AVX-512F intrinsics, 1/r by rsqrt14 + two Newton steps (direct_simd.hpp),
-//    chosen at run time when the CPU has AVX-512F (2-3x the pairs per second).
+//    chosen where simd_level() is avx512 (2-3x the pairs per second).
 // The requested outputs are template parameters, so the potential alone costs
 // 1/r and one multiply-add per pair. Several charge vectors share the
 // geometry: per block of sources, d = x - y, 1/r and 1/r^2 are computed once
 // and reused for every density.
-#include "rpyfmm/fmm/direct.hpp"
-
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <string>
 #include <vector>
 
 #include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/fmm/direct.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
 
 namespace rpyfmm::fmm {
-
-namespace detail {
-namespace {
-std::atomic<bool> g_avx512_enabled{true};
-}  // namespace
-bool avx512_kernels_active() noexcept {
-#if defined(RPYFMM_HAVE_DIRECT_AVX512)
-  static const bool cpu = __builtin_cpu_supports("avx512f");
-  return cpu && g_avx512_enabled.load(std::memory_order_relaxed);
-#else
-  return false;
-#endif
-}
-void use_avx512_kernels(bool enabled) noexcept { g_avx512_enabled.store(enabled, std::memory_order_relaxed); }
-}  // namespace detail
 
 namespace {
 
@@ -220,8 +203,8 @@ RPYFMM_DIRECT_AVX512 void p2p_single_avx512(double tx, double ty, double tz, con
 }
 
 RPYFMM_DIRECT_AVX512 void geometry_block_avx512(double tx, double ty, double tz, const double* sx, const double* sy,
-                                                const double* sz, std::size_t nb, double* dx, double* dy,
-                                                double* dz, double* ir, double* ir2) {
+                                                const double* sz, std::size_t nb, double* dx, double* dy, double* dz,
+                                                double* ir, double* ir2) {
   const __m512d vtx = _mm512_set1_pd(tx), vty = _mm512_set1_pd(ty), vtz = _mm512_set1_pd(tz);
   for (std::size_t j = 0; j < nb; j += 8) {
     const __mmask8 m = nb - j >= 8 ? __mmask8(0xff) : __mmask8((1u << (nb - j)) - 1u);
@@ -245,7 +228,7 @@ template <bool P, bool G, bool H>
                                              const PointsSoA& t, std::size_t t0, std::size_t t1, double* out,
                                              std::size_t ldo) {
 #if defined(RPYFMM_HAVE_DIRECT_AVX512)
-  const bool avx512 = detail::avx512_kernels_active();
+  const bool avx512 = simd_level() == SimdLevel::avx512;
 #endif
   if (nd == 1) {
 #if defined(RPYFMM_HAVE_DIRECT_AVX512)
@@ -287,19 +270,35 @@ template <bool P, bool G, bool H>
 }
 
 // The multiversioned entry: targets [t0, t1) against all sources.
-RPYFMM_DIRECT_CLONES
 void p2p_dispatch(const PointsSoA& s, const double* q, std::size_t ldq, std::size_t nd, const PointsSoA& t,
                   std::size_t t0, std::size_t t1, unsigned outputs, double* out, std::size_t ldo) {
-  switch (outputs & all_outputs) {
-    case 1: p2p_range<true, false, false>(s, q, ldq, nd, t, t0, t1, out, ldo); break;
-    case 2: p2p_range<false, true, false>(s, q, ldq, nd, t, t0, t1, out, ldo); break;
-    case 3: p2p_range<true, true, false>(s, q, ldq, nd, t, t0, t1, out, ldo); break;
-    case 4: p2p_range<false, false, true>(s, q, ldq, nd, t, t0, t1, out, ldo); break;
-    case 5: p2p_range<true, false, true>(s, q, ldq, nd, t, t0, t1, out, ldo); break;
-    case 6: p2p_range<false, true, true>(s, q, ldq, nd, t, t0, t1, out, ldo); break;
-    case 7: p2p_range<true, true, true>(s, q, ldq, nd, t, t0, t1, out, ldo); break;
-    default: break;
-  }
+  simd_dispatch([=]() RPYFMM_SIMD_BODY {
+    switch (outputs & all_outputs) {
+      case 1:
+        p2p_range<true, false, false>(s, q, ldq, nd, t, t0, t1, out, ldo);
+        break;
+      case 2:
+        p2p_range<false, true, false>(s, q, ldq, nd, t, t0, t1, out, ldo);
+        break;
+      case 3:
+        p2p_range<true, true, false>(s, q, ldq, nd, t, t0, t1, out, ldo);
+        break;
+      case 4:
+        p2p_range<false, false, true>(s, q, ldq, nd, t, t0, t1, out, ldo);
+        break;
+      case 5:
+        p2p_range<true, false, true>(s, q, ldq, nd, t, t0, t1, out, ldo);
+        break;
+      case 6:
+        p2p_range<false, true, true>(s, q, ldq, nd, t, t0, t1, out, ldo);
+        break;
+      case 7:
+        p2p_range<true, true, true>(s, q, ldq, nd, t, t0, t1, out, ldo);
+        break;
+      default:
+        break;
+    }
+  });
 }
 
 struct SoA {

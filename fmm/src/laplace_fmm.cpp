@@ -58,7 +58,7 @@ int fmm_default_leaf_capacity(double eps) {
   // sphere surface, N = 1e5 and 2e5, AMD Zen-1 machine), where 400/600 cost up to 2.1x more; 100 at
   // 6 digits since the half-node M2L (session 5: 1.15x over 150 on the sphere, cube trees equal).
   const int digits = fmm_table_digits_for(eps);
-  if (detail::avx512_kernels_active()) return digits <= 3 ? 100 : digits <= 6 ? 400 : digits <= 9 ? 600 : 800;
+  if (simd_level() == SimdLevel::avx512) return digits <= 3 ? 100 : digits <= 6 ? 400 : digits <= 9 ? 600 : 800;
   return digits <= 3 ? 100 : digits <= 6 ? 100 : digits <= 9 ? 200 : 300;
 }
 
@@ -95,25 +95,33 @@ struct FittedGridRule {
 };
 
 FittedGridRule fitted_grid_rule(double eps) {
-  if (detail::avx512_kernels_active()) {
+  if (simd_level() == SimdLevel::avx512) {
     // Best occupancies of the sweep (bench/fmm/leaf_grid_sweep.py): ~24 / 50-70 / 70-150 / 150-300
     // points at 3 / 6 / 9 / 12 digits. The upper size is the largest measured (1e6: errors 4.5e-8,
     // 7.8e-8, 1.3e-8 at 1e-6 and 2.5e-11, 5.5e-11, 1.0e-11 at 1e-9, potential/gradient/Hessian).
     // Partly split trees are refitted too (AMD Zen-4 machine, session 9: 1.16-1.85x, see above).
     switch (fmm_table_digits_for(eps)) {
-      case 3: return {24, 20000, 1000000, kPartialShareAvx512};
-      case 6: return {60, 10000, 1000000, kPartialShareAvx512};
-      case 9: return {120, 10000, 1000000, kPartialShareAvx512};
-      default: return {200, 10000, 1000000, kPartialShareAvx512};
+      case 3:
+        return {24, 20000, 1000000, kPartialShareAvx512};
+      case 6:
+        return {60, 10000, 1000000, kPartialShareAvx512};
+      case 9:
+        return {120, 10000, 1000000, kPartialShareAvx512};
+      default:
+        return {200, 10000, 1000000, kPartialShareAvx512};
     }
   }
   // Side by side (bench/fmm/fitted_grid.py): at 9 and 12 digits surfaces gained nothing (0.92-1.02x)
   // and 1e4 points at 12 digits neither (0.92x sphere, 0.99x cube): near-uniform clouds only there.
   switch (fmm_table_digits_for(eps)) {
-    case 3: return {16, 10000, 1000000, kPartialShare, 0.0};
-    case 6: return {36, 10000, 1000000, kPartialShare, 0.0};
-    case 9: return {50, 10000, 1000000, kPartialShare, kUniformFill};
-    default: return {70, 20000, 1000000, kPartialShare, kUniformFill};
+    case 3:
+      return {16, 10000, 1000000, kPartialShare, 0.0};
+    case 6:
+      return {36, 10000, 1000000, kPartialShare, 0.0};
+    case 9:
+      return {50, 10000, 1000000, kPartialShare, kUniformFill};
+    default:
+      return {70, 20000, 1000000, kPartialShare, kUniformFill};
   }
 }
 
@@ -153,6 +161,7 @@ struct LaplaceFmm::Plan {
   // W/X boxes with at most this many sources/targets are summed directly instead of by M2P/P2L;
   // with export_direct those direct sums are left to the caller (near_field() pairs).
   std::size_t direct_limit = 0;
+  SimdLevel simd_level = SimdLevel::scalar;  // the level the parameters were chosen for
   bool export_direct = false;
   const detail::Harmonics* H = nullptr;
   const detail::ChildTranslations* ct = nullptr;
@@ -240,7 +249,8 @@ void LaplaceFmm::set_points(std::span<const double> sources, std::span<const dou
   plan->root_scale = tp.root_scale;
   plan->export_direct = options_.export_direct_far && !options_.near_field;
   const std::size_t p2 = std::size_t(plan->p) * std::size_t(plan->p);
-  plan->direct_limit = detail::avx512_kernels_active() ? 2 * p2 : p2 / 2;
+  plan->simd_level = simd_level();
+  plan->direct_limit = plan->simd_level == SimdLevel::avx512 ? 2 * p2 : p2 / 2;
   if (plan->export_direct) plan->direct_limit = std::max(p2 / 2, std::size_t(plan->leaf_capacity));
   const double t_tree = sw.seconds();
   sw.restart();
@@ -292,6 +302,8 @@ TreeStats LaplaceFmm::stats() const {
   s.w_pairs = t.wlist().items.size();
   s.x_pairs = t.xlist().items.size();
   s.leaf_level_share = leaf_level_share(t);
+  s.simd_level = plan_->simd_level;
+  s.direct_limit = plan_->direct_limit;
   s.memory_bytes = t.memory_bytes() + (plan_->sx.size() + plan_->tx.size()) * 3 * sizeof(double);
   return s;
 }
@@ -537,7 +549,7 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
             }
             continue;
           }
-          const cplx* Mh = &mp[std::size_t(b) * stride];  // nd = 1
+          const cplx* Mh = &mp[std::size_t(b) * stride];   // nd = 1
           for (int i = 0; i < nc; ++i) Mt[i] = Mh[i] / s;  // unit-frame multipole (§3.4, pitfall §9)
           pw.to_frame(f, Mt.data(), Mr.data(), Mw.data());
           pw.m2f(Mr.data(), Fu.data(), Fd.data());

@@ -145,106 +145,114 @@ inline cplx ipow(int m) noexcept {  // i^m
 }
 }  // namespace
 
-RPYFMM_PW_CLONES void PlaneWave::m2f(const cplx* Mt, cplx* Fup, cplx* Fdown) const noexcept {
-  // For each m, the parity sums E_k = sum_{n-m even} lambda_k^n Mt_n^m / c_n^m and O_k (odd) for all
-  // nodes k at once; F^up = i^m (E + O), F^down = i^m (-1)^m (E - O) (§3.4).
-  alignas(64) double er[kMaxNodes], ei[kMaxNodes], orr[kMaxNodes], oi[kMaxNodes];
-  const int L = nlp_;
-  for (int m = 0; m < kmax_; ++m) {
-    for (int k = 0; k < L; ++k) er[k] = ei[k] = orr[k] = oi[k] = 0.0;
-    for (int n = m; n <= p_; ++n) {
-      const double* a = lam_over_c_.data() + std::size_t(idx(n, m)) * L;
-      const double mr = Mt[idx(n, m)].real(), mi = Mt[idx(n, m)].imag();
-      double* re = ((n - m) & 1) ? orr : er;
-      double* im = ((n - m) & 1) ? oi : ei;
+void PlaneWave::m2f(const cplx* Mt, cplx* Fup, cplx* Fdown) const noexcept {
+  simd_dispatch([=, this]() RPYFMM_SIMD_BODY {
+    // For each m, the parity sums E_k = sum_{n-m even} lambda_k^n Mt_n^m / c_n^m and O_k (odd) for all
+    // nodes k at once; F^up = i^m (E + O), F^down = i^m (-1)^m (E - O) (§3.4).
+    alignas(64) double er[kMaxNodes], ei[kMaxNodes], orr[kMaxNodes], oi[kMaxNodes];
+    const int L = nlp_;
+    for (int m = 0; m < kmax_; ++m) {
+      for (int k = 0; k < L; ++k) er[k] = ei[k] = orr[k] = oi[k] = 0.0;
+      for (int n = m; n <= p_; ++n) {
+        const double* a = lam_over_c_.data() + std::size_t(idx(n, m)) * L;
+        const double mr = Mt[idx(n, m)].real(), mi = Mt[idx(n, m)].imag();
+        double* re = ((n - m) & 1) ? orr : er;
+        double* im = ((n - m) & 1) ? oi : ei;
 #pragma omp simd
-      for (int k = 0; k < L; ++k) {
-        re[k] += a[k] * mr;
-        im[k] += a[k] * mi;
+        for (int k = 0; k < L; ++k) {
+          re[k] += a[k] * mr;
+          im[k] += a[k] * mi;
+        }
+      }
+      const cplx im = ipow(m), imd = (m & 1) ? -im : im;
+      for (int k = 0; k < nlams_; ++k) {
+        if (m >= K_[k]) continue;
+        Fup[koff_[k] + m] = im * cplx(er[k] + orr[k], ei[k] + oi[k]);
+        Fdown[koff_[k] + m] = imd * cplx(er[k] - orr[k], ei[k] - oi[k]);
       }
     }
-    const cplx im = ipow(m), imd = (m & 1) ? -im : im;
-    for (int k = 0; k < nlams_; ++k) {
-      if (m >= K_[k]) continue;
-      Fup[koff_[k] + m] = im * cplx(er[k] + orr[k], ei[k] + oi[k]);
-      Fdown[koff_[k] + m] = imd * cplx(er[k] - orr[k], ei[k] - oi[k]);
-    }
-  }
+  });
 }
 
-RPYFMM_PW_CLONES void PlaneWave::f2p(const cplx* F, cplx* W) const noexcept {
-  double re[kMaxPhysical], im[kMaxPhysical];
-  for (int k = 0; k < nlams_; ++k) {
-    const cplx* f = F + koff_[k];
-    const int M = Mh_[k];  // stored nodes j < M_k / 2; W_{j + M_k/2} = conj(W_j)
-    for (int j = 0; j < M; ++j) {
-      re[j] = f[0].real();
-      im[j] = 0.0;
+void PlaneWave::f2p(const cplx* F, cplx* W) const noexcept {
+  simd_dispatch([=, this]() RPYFMM_SIMD_BODY {
+    double re[kMaxPhysical], im[kMaxPhysical];
+    for (int k = 0; k < nlams_; ++k) {
+      const cplx* f = F + koff_[k];
+      const int M = Mh_[k];  // stored nodes j < M_k / 2; W_{j + M_k/2} = conj(W_j)
+      for (int j = 0; j < M; ++j) {
+        re[j] = f[0].real();
+        im[j] = 0.0;
+      }
+      // W_kj = F(0) + 2 sum_{m>0} [Re or Im of F(m) e^{i m a_kj}] (real charges: F(-m) = conj F(m) up
+      // to the parity of m, so even m contribute to the real and odd m to the imaginary part).
+      for (int m = 1; m < K_[k]; ++m) {
+        const double fr = 2.0 * f[m].real(), fi = 2.0 * f[m].imag();
+        const double* c = cos_.data() + toff_[k] + std::size_t(m) * M;
+        const double* s = sin_.data() + toff_[k] + std::size_t(m) * M;
+        if (m & 1) {
+#pragma omp simd
+          for (int j = 0; j < M; ++j) im[j] += fr * s[j] + fi * c[j];
+        } else {
+#pragma omp simd
+          for (int j = 0; j < M; ++j) re[j] += fr * c[j] - fi * s[j];
+        }
+      }
+      for (int j = 0; j < M; ++j) W[moff_[k] + j] = cplx(re[j], im[j]);
     }
-    // W_kj = F(0) + 2 sum_{m>0} [Re or Im of F(m) e^{i m a_kj}] (real charges: F(-m) = conj F(m) up
-    // to the parity of m, so even m contribute to the real and odd m to the imaginary part).
-    for (int m = 1; m < K_[k]; ++m) {
-      const double fr = 2.0 * f[m].real(), fi = 2.0 * f[m].imag();
-      const double* c = cos_.data() + toff_[k] + std::size_t(m) * M;
-      const double* s = sin_.data() + toff_[k] + std::size_t(m) * M;
-      if (m & 1) {
-#pragma omp simd
-        for (int j = 0; j < M; ++j) im[j] += fr * s[j] + fi * c[j];
-      } else {
-#pragma omp simd
-        for (int j = 0; j < M; ++j) re[j] += fr * c[j] - fi * s[j];
+  });
+}
+
+void PlaneWave::p2f(const cplx* V, cplx* G) const noexcept {
+  simd_dispatch([=, this]() RPYFMM_SIMD_BODY {
+    double vr[kMaxPhysical], vi[kMaxPhysical];
+    for (int k = 0; k < nlams_; ++k) {
+      const int M = Mh_[k];
+      const double scale = 2.0 / M_[k];
+      for (int j = 0; j < M; ++j) {
+        vr[j] = V[moff_[k] + j].real();
+        vi[j] = V[moff_[k] + j].imag();
+      }
+      // G(m) = (1/M_k) sum_{j < M_k} V_j e^{-i m a_j}; with V_{j + M_k/2} = conj(V_j) and
+      // e^{-i m (a + pi)} = (-1)^m e^{-i m a} the pair (j, j + M_k/2) gives 2 Re V_j e^{-i m a_j}
+      // for even m and 2i Im V_j e^{-i m a_j} for odd m (PLANEWAVE.md §3.5): real x complex sums.
+      for (int m = 0; m < K_[k]; ++m) {
+        const double* c = cos_.data() + toff_[k] + std::size_t(m) * M;
+        const double* s = sin_.data() + toff_[k] + std::size_t(m) * M;
+        double vc, vs;
+        dot2((m & 1) ? vi : vr, c, s, M, vc, vs);
+        G[koff_[k] + m] = (m & 1) ? cplx(vs * scale, vc * scale) : cplx(vc * scale, -vs * scale);
       }
     }
-    for (int j = 0; j < M; ++j) W[moff_[k] + j] = cplx(re[j], im[j]);
-  }
+  });
 }
 
-RPYFMM_PW_CLONES void PlaneWave::p2f(const cplx* V, cplx* G) const noexcept {
-  double vr[kMaxPhysical], vi[kMaxPhysical];
-  for (int k = 0; k < nlams_; ++k) {
-    const int M = Mh_[k];
-    const double scale = 2.0 / M_[k];
-    for (int j = 0; j < M; ++j) {
-      vr[j] = V[moff_[k] + j].real();
-      vi[j] = V[moff_[k] + j].imag();
+void PlaneWave::f2l(const cplx* Gup, const cplx* Gdown, cplx* Lh) const noexcept {
+  simd_dispatch([=, this]() RPYFMM_SIMD_BODY {
+    // Lh_n^m = i^m sum_k w_k lambda_k^n / c_n^m [(-1)^n G_k^up(m) + G_k^down(m)] (§3.4), one dot product
+    // over the nodes k per (n, m); the table is zero where K_k <= m, so those nodes drop out.
+    alignas(64) double er[kMaxNodes], ei[kMaxNodes], orr[kMaxNodes], oi[kMaxNodes];
+    const int L = nlp_, nc = ncoef(p_);
+    for (int i = 0; i < nc; ++i) Lh[i] = 0.0;
+    for (int m = 0; m < kmax_; ++m) {
+      for (int k = 0; k < L; ++k) er[k] = ei[k] = orr[k] = oi[k] = 0.0;
+      for (int k = 0; k < nlams_; ++k) {
+        if (m >= K_[k]) continue;
+        const cplx gu = Gup[koff_[k] + m], gd = Gdown[koff_[k] + m];
+        er[k] = gu.real() + gd.real();  // even n
+        ei[k] = gu.imag() + gd.imag();
+        orr[k] = gd.real() - gu.real();  // odd n
+        oi[k] = gd.imag() - gu.imag();
+      }
+      const cplx im = ipow(m);
+      for (int n = m; n <= p_; ++n) {
+        const double* a = lam_weight_over_c_.data() + std::size_t(idx(n, m)) * L;
+        double re, imag;
+        dot2(a, (n & 1) ? orr : er, (n & 1) ? oi : ei, L, re, imag);
+        Lh[idx(n, m)] = im * cplx(re, imag);
+      }
     }
-    // G(m) = (1/M_k) sum_{j < M_k} V_j e^{-i m a_j}; with V_{j + M_k/2} = conj(V_j) and
-    // e^{-i m (a + pi)} = (-1)^m e^{-i m a} the pair (j, j + M_k/2) gives 2 Re V_j e^{-i m a_j}
-    // for even m and 2i Im V_j e^{-i m a_j} for odd m (PLANEWAVE.md §3.5): real x complex sums.
-    for (int m = 0; m < K_[k]; ++m) {
-      const double* c = cos_.data() + toff_[k] + std::size_t(m) * M;
-      const double* s = sin_.data() + toff_[k] + std::size_t(m) * M;
-      double vc, vs;
-      dot2((m & 1) ? vi : vr, c, s, M, vc, vs);
-      G[koff_[k] + m] = (m & 1) ? cplx(vs * scale, vc * scale) : cplx(vc * scale, -vs * scale);
-    }
-  }
-}
-
-RPYFMM_PW_CLONES void PlaneWave::f2l(const cplx* Gup, const cplx* Gdown, cplx* Lh) const noexcept {
-  // Lh_n^m = i^m sum_k w_k lambda_k^n / c_n^m [(-1)^n G_k^up(m) + G_k^down(m)] (§3.4), one dot product
-  // over the nodes k per (n, m); the table is zero where K_k <= m, so those nodes drop out.
-  alignas(64) double er[kMaxNodes], ei[kMaxNodes], orr[kMaxNodes], oi[kMaxNodes];
-  const int L = nlp_, nc = ncoef(p_);
-  for (int i = 0; i < nc; ++i) Lh[i] = 0.0;
-  for (int m = 0; m < kmax_; ++m) {
-    for (int k = 0; k < L; ++k) er[k] = ei[k] = orr[k] = oi[k] = 0.0;
-    for (int k = 0; k < nlams_; ++k) {
-      if (m >= K_[k]) continue;
-      const cplx gu = Gup[koff_[k] + m], gd = Gdown[koff_[k] + m];
-      er[k] = gu.real() + gd.real();  // even n
-      ei[k] = gu.imag() + gd.imag();
-      orr[k] = gd.real() - gu.real();  // odd n
-      oi[k] = gd.imag() - gu.imag();
-    }
-    const cplx im = ipow(m);
-    for (int n = m; n <= p_; ++n) {
-      const double* a = lam_weight_over_c_.data() + std::size_t(idx(n, m)) * L;
-      double re, imag;
-      dot2(a, (n & 1) ? orr : er, (n & 1) ? oi : ei, L, re, imag);
-      Lh[idx(n, m)] = im * cplx(re, imag);
-    }
-  }
+  });
 }
 
 const std::array<std::array<MergeGroup, 3>, 216>& merge_groups() {

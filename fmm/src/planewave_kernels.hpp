@@ -1,5 +1,5 @@
 // Elementwise plane-wave kernels of the merge-and-shift M2L (PLANEWAVE.md §5.3), compiled for
-// x86-64-v4 (AVX-512), x86-64-v3 (AVX2 + FMA) and baseline x86-64 and chosen at run time: the shift of physical values
+// x86-64-v4 (AVX-512), x86-64-v3 (AVX2 + FMA) and the baseline and chosen by simd_level(): the shift of physical values
 // V_kj *= Sh_kj and the accumulation of shifted waves are most of the M2L at low precision.
 #pragma once
 
@@ -7,12 +7,9 @@
 
 #include "rpyfmm/fmm/detail/expansions.hpp"
 
-// Run-time dispatch for the plane-wave loops (also F2P / P2F in planewave.cpp).
-#if defined(__x86_64__) && !defined(__SANITIZE_ADDRESS__)
-#define RPYFMM_PW_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
-#else
-#define RPYFMM_PW_CLONES
-#endif
+// Run-time dispatch for the plane-wave loops (also M2F, F2P, P2F, F2L in planewave.cpp, the batched
+// conversions in planewave_batch.cpp and the rotations in rotation.cpp): simd_dispatch.
+#include "rpyfmm/core/simd_dispatch.hpp"
 
 namespace rpyfmm::fmm::detail {
 

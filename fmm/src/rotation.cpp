@@ -291,26 +291,29 @@ template <class Cols>
 }
 }  // namespace
 
-RPYFMM_PW_CLONES void Rotation::apply_lanes(const double* xr, const double* xi, double* yr, double* yi,
-                                            int mmax_out) const noexcept {
-  if (!real_) {
-    generic_lanes(xr, xi, yr, yi, p_, [&](const cplx* in, cplx* out) { apply(in, out, mmax_out); });
-    return;
-  }
-  // Row m' < mmax_out sums over all m <= n; the other rows are 0.
-  real_kernel_lanes(p_, roff_.data(), plus_.data(), minus_.data(), xr, xi, yr, yi,
-                    [&](int n, int mp) { return mp < mmax_out ? n + 1 : 0; });
+void Rotation::apply_lanes(const double* xr, const double* xi, double* yr, double* yi, int mmax_out) const noexcept {
+  simd_dispatch([=, this]() RPYFMM_SIMD_BODY {
+    if (!real_) {
+      generic_lanes(xr, xi, yr, yi, p_, [&](const cplx* in, cplx* out) { apply(in, out, mmax_out); });
+      return;
+    }
+    // Row m' < mmax_out sums over all m <= n; the other rows are 0.
+    real_kernel_lanes(p_, roff_.data(), plus_.data(), minus_.data(), xr, xi, yr, yi,
+                      [&](int n, int mp) { return mp < mmax_out ? n + 1 : 0; });
+  });
 }
 
-RPYFMM_PW_CLONES void Rotation::apply_adjoint_lanes(const double* xr, const double* xi, double* yr, double* yi,
-                                                    int mmax_in) const noexcept {
-  if (!real_) {
-    generic_lanes(xr, xi, yr, yi, p_, [&](const cplx* in, cplx* out) { apply_adjoint(in, out, mmax_in); });
-    return;
-  }
-  // Row m sums over the input orders m' <= min(n, mmax_in - 1).
-  real_kernel_lanes(p_, roff_.data(), tplus_.data(), tminus_.data(), xr, xi, yr, yi,
-                    [&](int n, int) { return std::min(n, mmax_in - 1) + 1; });
+void Rotation::apply_adjoint_lanes(const double* xr, const double* xi, double* yr, double* yi,
+                                   int mmax_in) const noexcept {
+  simd_dispatch([=, this]() RPYFMM_SIMD_BODY {
+    if (!real_) {
+      generic_lanes(xr, xi, yr, yi, p_, [&](const cplx* in, cplx* out) { apply_adjoint(in, out, mmax_in); });
+      return;
+    }
+    // Row m sums over the input orders m' <= min(n, mmax_in - 1).
+    real_kernel_lanes(p_, roff_.data(), tplus_.data(), tminus_.data(), xr, xi, yr, yi,
+                      [&](int n, int) { return std::min(n, mmax_in - 1) + 1; });
+  });
 }
 
 void phase_rotate(int p, double phi0, cplx* coef) noexcept {

@@ -13,8 +13,8 @@
 #include <cmath>
 #include <numbers>
 
-#include "rpyfmm/core/validate.hpp"
 #include "pair_block_sum.hpp"
+#include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
 
 namespace rpyfmm::rpy {
@@ -27,76 +27,78 @@ constexpr double kInv8Pi = 1.0 / (8.0 * std::numbers::pi);
 // Scalars of one target i against sources [j0, j0 + nb): dx = x_i - x_j etc.,
 // f and gr = g / r^2 so that M_ij = (f I + gr d d^T) / eta.
 // Equal radii a: 004 eq. (3.1), 002 eq. (4).
-RPYFMM_DIRECT_CLONES
 void scalars_equal(double xi, double yi, double zi, const double* __restrict x, const double* __restrict y,
-                   const double* __restrict z, std::size_t nb, double a, double* __restrict dx,
-                   double* __restrict dy, double* __restrict dz, double* __restrict f, double* __restrict gr) {
-  const double c6 = kInv6Pi / a;
-  const double two_a = 2.0 * a;
-  const double a2 = a * a;
-  const double near_f = 9.0 / (32.0 * a);
-  const double near_g = c6 * 3.0 / (32.0 * a);
+                   const double* __restrict z, std::size_t nb, double a, double* __restrict dx, double* __restrict dy,
+                   double* __restrict dz, double* __restrict f, double* __restrict gr) {
+  simd_dispatch([=]() RPYFMM_SIMD_BODY {
+    const double c6 = kInv6Pi / a;
+    const double two_a = 2.0 * a;
+    const double a2 = a * a;
+    const double near_f = 9.0 / (32.0 * a);
+    const double near_g = c6 * 3.0 / (32.0 * a);
 #pragma omp simd
-  for (std::size_t j = 0; j < nb; ++j) {
-    const double ddx = xi - x[j], ddy = yi - y[j], ddz = zi - z[j];
-    const double r2 = ddx * ddx + ddy * ddy + ddz * ddz;
-    const double r = std::sqrt(r2);
-    const double inv_r = r2 > 0.0 ? 1.0 / r : 0.0;
-    const double inv_r2 = inv_r * inv_r;
-    const double s = a2 * inv_r2;
-    const double c8 = kInv8Pi * inv_r;
-    const bool far = r > two_a;
-    // far: f = (1 + 2a^2/(3r^2))/(8 pi r), g = (1 - 2a^2/r^2)/(8 pi r)
-    // near (r <= 2a): f = (1 - 9r/(32a))/(6 pi a), g = (3r/(32a))/(6 pi a), g/r^2 = 3/(32 a r)/(6 pi a)
-    f[j] = far ? c8 * (1.0 + (2.0 / 3.0) * s) : c6 * (1.0 - near_f * r);
-    gr[j] = far ? c8 * (1.0 - 2.0 * s) * inv_r2 : near_g * inv_r;
-    dx[j] = ddx;
-    dy[j] = ddy;
-    dz[j] = ddz;
-  }
+    for (std::size_t j = 0; j < nb; ++j) {
+      const double ddx = xi - x[j], ddy = yi - y[j], ddz = zi - z[j];
+      const double r2 = ddx * ddx + ddy * ddy + ddz * ddz;
+      const double r = std::sqrt(r2);
+      const double inv_r = r2 > 0.0 ? 1.0 / r : 0.0;
+      const double inv_r2 = inv_r * inv_r;
+      const double s = a2 * inv_r2;
+      const double c8 = kInv8Pi * inv_r;
+      const bool far = r > two_a;
+      // far: f = (1 + 2a^2/(3r^2))/(8 pi r), g = (1 - 2a^2/r^2)/(8 pi r)
+      // near (r <= 2a): f = (1 - 9r/(32a))/(6 pi a), g = (3r/(32a))/(6 pi a), g/r^2 = 3/(32 a r)/(6 pi a)
+      f[j] = far ? c8 * (1.0 + (2.0 / 3.0) * s) : c6 * (1.0 - near_f * r);
+      gr[j] = far ? c8 * (1.0 - 2.0 * s) * inv_r2 : near_g * inv_r;
+      dx[j] = ddx;
+      dy[j] = ddy;
+      dz[j] = ddz;
+    }
+  });
 }
 
 // Different radii (Zuk et al. 2014; MATH.md §1), the three regimes selected per pair.
-RPYFMM_DIRECT_CLONES
-void scalars_general(double xi, double yi, double zi, double ai, const double* __restrict x,
-                     const double* __restrict y, const double* __restrict z, const double* __restrict a,
-                     const double* __restrict inv_a, std::size_t nb, double* __restrict dx, double* __restrict dy,
-                     double* __restrict dz, double* __restrict f, double* __restrict gr) {
-  const double inv_ai = 1.0 / ai;
+void scalars_general(double xi, double yi, double zi, double ai, const double* __restrict x, const double* __restrict y,
+                     const double* __restrict z, const double* __restrict a, const double* __restrict inv_a,
+                     std::size_t nb, double* __restrict dx, double* __restrict dy, double* __restrict dz,
+                     double* __restrict f, double* __restrict gr) {
+  simd_dispatch([=]() RPYFMM_SIMD_BODY {
+    const double inv_ai = 1.0 / ai;
 #pragma omp simd
-  for (std::size_t j = 0; j < nb; ++j) {
-    const double aj = a[j];
-    const double ddx = xi - x[j], ddy = yi - y[j], ddz = zi - z[j];
-    const double r2 = ddx * ddx + ddy * ddy + ddz * ddz;
-    const double r = std::sqrt(r2);
-    const double inv_r = r2 > 0.0 ? 1.0 / r : 0.0;
-    const double inv_r2 = inv_r * inv_r;
-    const double sum = ai + aj;
-    const double diff = ai - aj;
-    const double adiff = std::fabs(diff);
-    // far, r > ai + aj
-    const double s = (ai * ai + aj * aj) * inv_r2;
-    const double c8 = kInv8Pi * inv_r;
-    const double f_far = c8 * (1.0 + s / 3.0);
-    const double gr_far = c8 * (1.0 - s) * inv_r2;
-    // partial overlap, |ai - aj| < r <= ai + aj (divided through by r^2, see rpy_kernel.hpp)
-    const double c = kInv6Pi * inv_ai * inv_a[j];
-    const double d2r = diff * diff * inv_r;
-    const double pr = d2r + 3.0 * r;
-    const double qr = d2r - r;
-    const double inv_32r = inv_r * (1.0 / 32.0);
-    const double f_mid = c * (0.5 * sum - pr * pr * inv_32r);
-    const double gr_mid = c * 3.0 * qr * qr * inv_32r * inv_r2;
-    // one inside the other (and r = 0), r <= |ai - aj|
-    const double f_in = kInv6Pi * std::min(inv_ai, inv_a[j]);  // 1/(6 pi max(ai, aj))
-    const bool far = r > sum;
-    const bool inside = r <= adiff;
-    f[j] = far ? f_far : (inside ? f_in : f_mid);
-    gr[j] = far ? gr_far : (inside ? 0.0 : gr_mid);
-    dx[j] = ddx;
-    dy[j] = ddy;
-    dz[j] = ddz;
-  }
+    for (std::size_t j = 0; j < nb; ++j) {
+      const double aj = a[j];
+      const double ddx = xi - x[j], ddy = yi - y[j], ddz = zi - z[j];
+      const double r2 = ddx * ddx + ddy * ddy + ddz * ddz;
+      const double r = std::sqrt(r2);
+      const double inv_r = r2 > 0.0 ? 1.0 / r : 0.0;
+      const double inv_r2 = inv_r * inv_r;
+      const double sum = ai + aj;
+      const double diff = ai - aj;
+      const double adiff = std::fabs(diff);
+      // far, r > ai + aj
+      const double s = (ai * ai + aj * aj) * inv_r2;
+      const double c8 = kInv8Pi * inv_r;
+      const double f_far = c8 * (1.0 + s / 3.0);
+      const double gr_far = c8 * (1.0 - s) * inv_r2;
+      // partial overlap, |ai - aj| < r <= ai + aj (divided through by r^2, see rpy_kernel.hpp)
+      const double c = kInv6Pi * inv_ai * inv_a[j];
+      const double d2r = diff * diff * inv_r;
+      const double pr = d2r + 3.0 * r;
+      const double qr = d2r - r;
+      const double inv_32r = inv_r * (1.0 / 32.0);
+      const double f_mid = c * (0.5 * sum - pr * pr * inv_32r);
+      const double gr_mid = c * 3.0 * qr * qr * inv_32r * inv_r2;
+      // one inside the other (and r = 0), r <= |ai - aj|
+      const double f_in = kInv6Pi * std::min(inv_ai, inv_a[j]);  // 1/(6 pi max(ai, aj))
+      const bool far = r > sum;
+      const bool inside = r <= adiff;
+      f[j] = far ? f_far : (inside ? f_in : f_mid);
+      gr[j] = far ? gr_far : (inside ? 0.0 : gr_mid);
+      dx[j] = ddx;
+      dy[j] = ddy;
+      dz[j] = ddz;
+    }
+  });
 }
 
 #if defined(RPYFMM_HAVE_DIRECT_AVX512)
@@ -146,9 +148,9 @@ RPYFMM_DIRECT_AVX512 void scalars_equal_avx512(double xi, double yi, double zi, 
 }
 
 RPYFMM_DIRECT_AVX512 void scalars_general_avx512(double xi, double yi, double zi, double ai, const double* x,
-                                                 const double* y, const double* z, const double* a,
-                                                 const double* inv_a, std::size_t nb, double* dx, double* dy,
-                                                 double* dz, double* f, double* gr) {
+                                                 const double* y, const double* z, const double* a, const double* inv_a,
+                                                 std::size_t nb, double* dx, double* dy, double* dz, double* f,
+                                                 double* gr) {
   const __m512d vx = _mm512_set1_pd(xi), vy = _mm512_set1_pd(yi), vz = _mm512_set1_pd(zi);
   const __m512d vai = _mm512_set1_pd(ai), vinv_ai = _mm512_set1_pd(1.0 / ai), one = _mm512_set1_pd(1.0);
   const __m512d c6 = _mm512_set1_pd(kInv6Pi), c8 = _mm512_set1_pd(kInv8Pi), zero = _mm512_setzero_pd();
@@ -178,8 +180,8 @@ RPYFMM_DIRECT_AVX512 void scalars_general_avx512(double xi, double yi, double zi
     const __m512d inv_32r = _mm512_mul_pd(ir, _mm512_set1_pd(1.0 / 32.0));
     const __m512d f_mid =
         _mm512_mul_pd(c, _mm512_fnmadd_pd(_mm512_mul_pd(pr, pr), inv_32r, _mm512_mul_pd(_mm512_set1_pd(0.5), sum)));
-    const __m512d g_mid =
-        _mm512_mul_pd(_mm512_mul_pd(c, _mm512_set1_pd(3.0)), _mm512_mul_pd(_mm512_mul_pd(qr, qr), _mm512_mul_pd(inv_32r, ir2)));
+    const __m512d g_mid = _mm512_mul_pd(_mm512_mul_pd(c, _mm512_set1_pd(3.0)),
+                                        _mm512_mul_pd(_mm512_mul_pd(qr, qr), _mm512_mul_pd(inv_32r, ir2)));
     // one inside the other (and r = 0)
     const __m512d f_in = _mm512_mul_pd(c6, _mm512_min_pd(vinv_ai, inv_aj));
     const __mmask8 far = _mm512_cmp_pd_mask(r, sum, _CMP_GT_OQ);
@@ -197,16 +199,16 @@ RPYFMM_DIRECT_AVX512 void scalars_general_avx512(double xi, double yi, double zi
 #endif  // RPYFMM_HAVE_DIRECT_AVX512
 
 // u += sum_j (f_j F_j + gr_j d_j (d_j . F_j)) over one block, forces in SoA (pair_block_sum.hpp).
-RPYFMM_DIRECT_CLONES
-void accumulate(std::size_t nb, const double* __restrict dx, const double* __restrict dy,
-                const double* __restrict dz, const double* __restrict f, const double* __restrict gr,
-                const double* __restrict fx, const double* __restrict fy, const double* __restrict fz,
-                double& ux, double& uy, double& uz) {
-  double sx, sy, sz;
-  detail::sum_pair_blocks(nb, dx, dy, dz, f, gr, fx, fy, fz, sx, sy, sz);
-  ux += sx;
-  uy += sy;
-  uz += sz;
+void accumulate(std::size_t nb, const double* __restrict dx, const double* __restrict dy, const double* __restrict dz,
+                const double* __restrict f, const double* __restrict gr, const double* __restrict fx,
+                const double* __restrict fy, const double* __restrict fz, double& ux, double& uy, double& uz) {
+  simd_dispatch([=, &ux, &uy, &uz]() RPYFMM_SIMD_BODY {
+    double sx, sy, sz;
+    detail::sum_pair_blocks(nb, dx, dy, dz, f, gr, fx, fy, fz, sx, sy, sz);
+    ux += sx;
+    uy += sy;
+    uz += sz;
+  });
 }
 
 }  // namespace
@@ -236,7 +238,7 @@ void DirectRpy::do_apply(const double* forces, double* velocities, std::size_t n
   const std::size_t n = size();
   const double inv_eta = 1.0 / viscosity();
   const bool equal = equal_radii();
-  const bool avx512 = fmm::detail::avx512_kernels_active();
+  const bool avx512 = simd_level() == SimdLevel::avx512;
   (void)avx512;
   // Forces to structure-of-arrays, one (fx, fy, fz) triple of length n per right-hand side.
   std::vector<double> fsoa(3 * n * nrhs);
@@ -266,20 +268,20 @@ void DirectRpy::do_apply(const double* forces, double* velocities, std::size_t n
 #if defined(RPYFMM_HAVE_DIRECT_AVX512)
         if (avx512) {
           if (equal) {
-            scalars_equal_avx512(x_[i], y_[i], z_[i], x_.data() + j0, y_.data() + j0, z_.data() + j0, nb, a_[0], dx,
-                                 dy, dz, f, gr);
+            scalars_equal_avx512(x_[i], y_[i], z_[i], x_.data() + j0, y_.data() + j0, z_.data() + j0, nb, a_[0], dx, dy,
+                                 dz, f, gr);
           } else {
             scalars_general_avx512(x_[i], y_[i], z_[i], a_[i], x_.data() + j0, y_.data() + j0, z_.data() + j0,
                                    a_.data() + j0, inv_a_.data() + j0, nb, dx, dy, dz, f, gr);
           }
         } else
 #endif
-        if (equal) {
-          scalars_equal(x_[i], y_[i], z_[i], x_.data() + j0, y_.data() + j0, z_.data() + j0, nb, a_[0], dx, dy, dz,
-                        f, gr);
+            if (equal) {
+          scalars_equal(x_[i], y_[i], z_[i], x_.data() + j0, y_.data() + j0, z_.data() + j0, nb, a_[0], dx, dy, dz, f,
+                        gr);
         } else {
-          scalars_general(x_[i], y_[i], z_[i], a_[i], x_.data() + j0, y_.data() + j0, z_.data() + j0,
-                          a_.data() + j0, inv_a_.data() + j0, nb, dx, dy, dz, f, gr);
+          scalars_general(x_[i], y_[i], z_[i], a_[i], x_.data() + j0, y_.data() + j0, z_.data() + j0, a_.data() + j0,
+                          inv_a_.data() + j0, nb, dx, dy, dz, f, gr);
         }
         for (std::size_t k = 0; k < nrhs; ++k) {
           const double* s = fsoa.data() + 3 * n * k;

@@ -1,5 +1,5 @@
 // Near-field kernels of FmmRpy (fmm_near_kernels.hpp): portable loops that GCC vectorizes,
-// compiled for AVX-512, AVX2 and baseline x86-64 and chosen at run time. (An AVX-512 variant
+// compiled for AVX-512, AVX2 and the baseline and chosen by simd_level() (simd_dispatch). (An AVX-512 variant
 // with 1/r from rsqrt14 + Newton steps instead of sqrt + division was measured only 6-8 % faster
 // at N = 1e5: the loop is bound by its ~40 vector operations per 8 pairs, not by the divider.)
 #include "fmm_near_kernels.hpp"
@@ -7,13 +7,8 @@
 #include <cmath>
 
 #include "pair_block_sum.hpp"
+#include "rpyfmm/core/simd_dispatch.hpp"
 #include "rpyfmm/rpy/rpy_kernel.hpp"
-
-#if defined(__x86_64__) && !defined(__SANITIZE_ADDRESS__)
-#define RPYFMM_NEAR_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
-#else
-#define RPYFMM_NEAR_CLONES
-#endif
 
 namespace rpyfmm::rpy::detail {
 
@@ -109,15 +104,16 @@ template <bool kEqual>
 // Sum over the gathered near-field sources q of M_iq f_q (times eta), the self pair
 // (sid == i) excluded; equal radii ai when sa is null. Compiled for AVX-512, AVX2 and baseline
 // x86-64, chosen at run time.
-RPYFMM_NEAR_CLONES void near_pair_sum(std::size_t m, const double* sx, const double* sy, const double* sz,
-                                      const double* sa, const std::size_t* sid, const double* fx, const double* fy,
-                                      const double* fz, double xi, double yi, double zi, double ai, std::size_t i,
-                                      double u[3]) {
-  if (sa == nullptr) {
-    pair_sum_loop<true>(m, sx, sy, sz, sa, sid, fx, fy, fz, xi, yi, zi, ai, i, u);
-  } else {
-    pair_sum_loop<false>(m, sx, sy, sz, sa, sid, fx, fy, fz, xi, yi, zi, ai, i, u);
-  }
+void near_pair_sum(std::size_t m, const double* sx, const double* sy, const double* sz, const double* sa,
+                   const std::size_t* sid, const double* fx, const double* fy, const double* fz, double xi, double yi,
+                   double zi, double ai, std::size_t i, double u[3]) {
+  simd_dispatch([=]() RPYFMM_SIMD_BODY {
+    if (sa == nullptr) {
+      pair_sum_loop<true>(m, sx, sy, sz, sa, sid, fx, fy, fz, xi, yi, zi, ai, i, u);
+    } else {
+      pair_sum_loop<false>(m, sx, sy, sz, sa, sid, fx, fy, fz, xi, yi, zi, ai, i, u);
+    }
+  });
 }
 
 namespace {
@@ -152,24 +148,24 @@ template <bool kEqual>
 
 }  // namespace
 
-RPYFMM_NEAR_CLONES void near_pair_sum_symmetric(std::size_t m, const double* sx, const double* sy, const double* sz,
-                                                const double* sa, const double* fx, const double* fy,
-                                                const double* fz, double xi, double yi, double zi, double ai,
-                                                const double fi[3], double* ux, double* uy, double* uz,
-                                                double u[3]) {
-  if (sa == nullptr) {
-    pair_sum_symmetric_loop<true>(m, sx, sy, sz, sa, fx, fy, fz, xi, yi, zi, ai, fi, ux, uy, uz, u);
-  } else {
-    pair_sum_symmetric_loop<false>(m, sx, sy, sz, sa, fx, fy, fz, xi, yi, zi, ai, fi, ux, uy, uz, u);
-  }
+void near_pair_sum_symmetric(std::size_t m, const double* sx, const double* sy, const double* sz, const double* sa,
+                             const double* fx, const double* fy, const double* fz, double xi, double yi, double zi,
+                             double ai, const double fi[3], double* ux, double* uy, double* uz, double u[3]) {
+  simd_dispatch([=]() RPYFMM_SIMD_BODY {
+    if (sa == nullptr) {
+      pair_sum_symmetric_loop<true>(m, sx, sy, sz, sa, fx, fy, fz, xi, yi, zi, ai, fi, ux, uy, uz, u);
+    } else {
+      pair_sum_symmetric_loop<false>(m, sx, sy, sz, sa, fx, fy, fz, xi, yi, zi, ai, fi, ux, uy, uz, u);
+    }
+  });
 }
 
-RPYFMM_NEAR_CLONES void near_accumulate_symmetric(std::size_t m, const double* dx, const double* dy,
-                                                  const double* dz, const double* fs, const double* gr,
-                                                  const double* fx, const double* fy, const double* fz,
-                                                  const double fi[3], double* ux, double* uy, double* uz,
-                                                  double u[3]) {
-  apply_pair_blocks<true>(m, dx, dy, dz, fs, gr, fx, fy, fz, fi, ux, uy, uz, u[0], u[1], u[2]);
+void near_accumulate_symmetric(std::size_t m, const double* dx, const double* dy, const double* dz, const double* fs,
+                               const double* gr, const double* fx, const double* fy, const double* fz,
+                               const double fi[3], double* ux, double* uy, double* uz, double u[3]) {
+  simd_dispatch([=]() RPYFMM_SIMD_BODY {
+    apply_pair_blocks<true>(m, dx, dy, dz, fs, gr, fx, fy, fz, fi, ux, uy, uz, u[0], u[1], u[2]);
+  });
 }
 
 namespace {
@@ -197,21 +193,21 @@ template <bool kEqual>
 
 // Block products (nrhs >= 2): the same pair scalars stored once per target, then one
 // accumulation per right-hand side (near_accumulate).
-RPYFMM_NEAR_CLONES void near_pair_scalars(std::size_t m, const double* sx, const double* sy, const double* sz,
-                                          const double* sa, const std::size_t* sid, double xi, double yi, double zi,
-                                          double ai, std::size_t i, double* dx, double* dy, double* dz, double* fs,
-                                          double* gr) {
-  if (sa == nullptr) {
-    pair_scalars_loop<true>(m, sx, sy, sz, sa, sid, xi, yi, zi, ai, i, dx, dy, dz, fs, gr);
-  } else {
-    pair_scalars_loop<false>(m, sx, sy, sz, sa, sid, xi, yi, zi, ai, i, dx, dy, dz, fs, gr);
-  }
+void near_pair_scalars(std::size_t m, const double* sx, const double* sy, const double* sz, const double* sa,
+                       const std::size_t* sid, double xi, double yi, double zi, double ai, std::size_t i, double* dx,
+                       double* dy, double* dz, double* fs, double* gr) {
+  simd_dispatch([=]() RPYFMM_SIMD_BODY {
+    if (sa == nullptr) {
+      pair_scalars_loop<true>(m, sx, sy, sz, sa, sid, xi, yi, zi, ai, i, dx, dy, dz, fs, gr);
+    } else {
+      pair_scalars_loop<false>(m, sx, sy, sz, sa, sid, xi, yi, zi, ai, i, dx, dy, dz, fs, gr);
+    }
+  });
 }
 
-RPYFMM_NEAR_CLONES void near_accumulate(std::size_t m, const double* dx, const double* dy, const double* dz,
-                                        const double* fs, const double* gr, const double* fx, const double* fy,
-                                        const double* fz, double u[3]) {
-  sum_pair_blocks(m, dx, dy, dz, fs, gr, fx, fy, fz, u[0], u[1], u[2]);
+void near_accumulate(std::size_t m, const double* dx, const double* dy, const double* dz, const double* fs,
+                     const double* gr, const double* fx, const double* fy, const double* fz, double u[3]) {
+  simd_dispatch([=]() RPYFMM_SIMD_BODY { sum_pair_blocks(m, dx, dy, dz, fs, gr, fx, fy, fz, u[0], u[1], u[2]); });
 }
 
 }  // namespace rpyfmm::rpy::detail

@@ -42,10 +42,14 @@ double laplace_eps_for(double tolerance) {
 // N = 1e5; 100 is best from 1e4 up but 1.7x slower at N = 1e3).
 int default_leaf_capacity(double eps) {
   switch (fmm::fmm_table_digits_for(eps)) {
-    case 3: return fmm::detail::avx512_kernels_active() ? 200 : 150;
-    case 6: return 400;
-    case 9: return 600;
-    default: return 800;
+    case 3:
+      return simd_level() == SimdLevel::avx512 ? 200 : 150;
+    case 6:
+      return 400;
+    case 9:
+      return 600;
+    default:
+      return 800;
   }
 }
 
@@ -81,7 +85,7 @@ struct FittedGridRule {
 };
 
 FittedGridRule fitted_grid_rule(double eps) {
-  if (fmm::detail::avx512_kernels_active()) {
+  if (simd_level() == SimdLevel::avx512) {
     // At 6 digits, partly split trees of volume-filling clouds only (AMD Zen-4 machine, session 9,
     // bench/rpy/RESULTS.md "Partly split trees with the AVX-512 kernels"): uniform suspensions
     // 1.17-1.22x (shares 0.67-0.69); balls (fill 0.58, share 0.82-0.94 from their curved edge)
@@ -92,9 +96,12 @@ FittedGridRule fitted_grid_rule(double eps) {
   switch (fmm::fmm_table_digits_for(eps)) {
     // Volume-filling clouds only: on surfaces (cylinder, eight spheres) leaves of 20 points were
     // 0.75-0.95x, their leaves have fewer neighbours and the near field costs less.
-    case 3: return {20, 2000, 200000, 0.25};
-    case 6: return {60, 5000, 200000, 0.0};  // cylinder 2.0x, eight 1.45x, BD cloud 1.13x at 5e3
-    default: return {};  // 1e-9: 195 and 100 points per leaf tie
+    case 3:
+      return {20, 2000, 200000, 0.25};
+    case 6:
+      return {60, 5000, 200000, 0.0};  // cylinder 2.0x, eight 1.45x, BD cloud 1.13x at 5e3
+    default:
+      return {};  // 1e-9: 195 and 100 points per leaf tie
   }
 }
 
@@ -360,15 +367,15 @@ void leaf_block(const NearContext& ctx, std::uint32_t leaf, GatheredSources& src
         if (block) {
           detail::near_accumulate_symmetric(m, ps.dx, ps.dy, ps.dz, ps.fs, ps.gr, fx, fy, fz, fi, ux, uy, uz, u);
         } else {
-          detail::near_pair_sum_symmetric(m, src.x.data(), src.y.data(), src.z.data(), sa, fx, fy, fz, xi, yi, zi,
-                                          ai, fi, ux, uy, uz, u);
+          detail::near_pair_sum_symmetric(m, src.x.data(), src.y.data(), src.z.data(), sa, fx, fy, fz, xi, yi, zi, ai,
+                                          fi, ux, uy, uz, u);
         }
       } else {
         if (block) {
           detail::near_accumulate(m, ps.dx, ps.dy, ps.dz, ps.fs, ps.gr, fx, fy, fz, u);
         } else {
-          detail::near_pair_sum(m, src.x.data(), src.y.data(), src.z.data(), sa, src.id.data(), fx, fy, fz, xi, yi,
-                                zi, ai, i, u);
+          detail::near_pair_sum(m, src.x.data(), src.y.data(), src.z.data(), sa, src.id.data(), fx, fy, fz, xi, yi, zi,
+                                ai, i, u);
         }
         const double self = rpy_self(ai);
         for (int c = 0; c < 3; ++c) u[c] += self * fi[c];
@@ -391,8 +398,8 @@ void leaf_block(const NearContext& ctx, std::uint32_t leaf, GatheredSources& src
 
 void FmmRpy::apply_near_field(const double* forces, double* velocities, std::size_t nrhs) const {
   const detail::NearSchedule& plan = *near_schedule_;
-  const NearContext ctx{fmm_->near_field(), positions(), radii(), forces, velocities,
-                        size(),             nrhs,        1.0 / viscosity(), equal_radii()};
+  const NearContext ctx{fmm_->near_field(), positions(),  radii(), forces, velocities, size(), nrhs,
+                        1.0 / viscosity(),  equal_radii()};
   // Colours run in order, the tasks of one colour in parallel: no two of them write the same
   // leaf (near_schedule.hpp), and each velocity receives its contributions in a fixed order, so
   // results do not depend on the thread count.

@@ -16,7 +16,7 @@
 #include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/rpy/random.hpp"
 
-#if defined(__x86_64__)
+#if defined(RPYFMM_HAVE_X86_KERNELS)
 #include <immintrin.h>
 #define RPYFMM_RANDOM_X86 1
 #endif
@@ -204,27 +204,18 @@ __attribute__((target("avx512f,avx512dq,prefer-vector-width=512"))) void box_mul
 }
 #endif
 
-bool cpu_has_avx2() {
-#ifdef RPYFMM_RANDOM_X86
-  static const bool has = __builtin_cpu_supports("avx2");
-  return has;
-#else
-  return false;
-#endif
-}
-
 /// Philox and Box-Muller for the m <= kChunk indices of one chunk, on the widest instruction
-/// set the CPU (and fmm::detail::use_avx512_kernels) allows.
+/// set simd_level() names.
 template <Mapping M, class Real>
 void draw_chunk(const std::uint64_t* index, std::size_t m, std::uint64_t seed, std::uint64_t step, const Blocks& blocks,
                 ChunkWords& words, Real* g0, Real* g1) {
 #ifdef RPYFMM_RANDOM_X86
-  if (fmm::detail::avx512_kernels_active()) {
+  if (simd_level() == SimdLevel::avx512) {
     philox_avx512(index, m, seed, step, blocks, words);
     box_muller_avx512<M>(words, m, blocks.count, g0, g1);
     return;
   }
-  if (cpu_has_avx2()) {
+  if (simd_level() == SimdLevel::avx2) {
     philox_avx2(index, m, seed, step, blocks, words);
     box_muller_avx2<M>(words, m, blocks.count, g0, g1);
     return;

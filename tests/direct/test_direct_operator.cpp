@@ -12,6 +12,7 @@
 #include "rpyfmm/core/error.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
+#include "simd_levels.hpp"
 
 using rpyfmm::Error;
 using rpyfmm::ErrorCode;
@@ -87,16 +88,10 @@ double max_rel_error(const std::vector<double>& u, const std::vector<double>& re
 
 // Tolerance 1e-13 relative to max |U|: same formulas, different summation order
 // and rearranged overlap expressions (rounding only).
-// Both code paths: AVX-512 kernels (where the CPU has them) and portable ones.
-class DirectRpyPaths : public ::testing::TestWithParam<bool> {
- protected:
-  void SetUp() override { rpyfmm::fmm::detail::use_avx512_kernels(GetParam()); }
-  void TearDown() override { rpyfmm::fmm::detail::use_avx512_kernels(true); }
-};
-INSTANTIATE_TEST_SUITE_P(Kernels, DirectRpyPaths, ::testing::Values(true, false),
-                         [](const ::testing::TestParamInfo<bool>& p) {
-                           return p.param ? "avx512_if_available" : "portable";
-                         });
+// Every instruction-set level the machine has (scalar, AVX2, AVX-512).
+class DirectRpyPaths : public rpyfmm::test::SimdLevelTest {};
+INSTANTIATE_TEST_SUITE_P(Kernels, DirectRpyPaths, ::testing::ValuesIn(rpyfmm::test::all_simd_levels()),
+                         rpyfmm::test::simd_level_param_name);
 
 TEST_P(DirectRpyPaths, MatchesPlainLoopEqualRadii) {
   for (double box : {4.0, 30.0}) {  // dense (many overlaps) and dilute
@@ -203,8 +198,10 @@ TEST_P(DirectRpyPaths, ExtremeSeparationsStayFinite) {
     const std::vector<double> x = {0, 0, 0, d, 0, 0, 0, 2 * d, 0};
     for (bool poly : {false, true}) {
       DirectRpy op;
-      if (poly) op.set_positions(x, std::vector<double>{1.0, 2.0, 0.5});
-      else op.set_positions(x, 1.0);
+      if (poly)
+        op.set_positions(x, std::vector<double>{1.0, 2.0, 0.5});
+      else
+        op.set_positions(x, 1.0);
       std::vector<double> f = {1, 0, 0, 0, 1, 0, 0, 0, 1}, u(9);
       op.apply(f, u);
       for (double v : u) EXPECT_TRUE(std::isfinite(v)) << d;

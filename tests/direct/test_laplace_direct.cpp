@@ -11,6 +11,7 @@
 #include "rpyfmm/core/error.hpp"
 #include "rpyfmm/fmm/direct.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
+#include "simd_levels.hpp"
 
 using namespace rpyfmm::fmm;
 using rpyfmm::Error;
@@ -50,37 +51,35 @@ std::array<double, 10> reference_at(const double* x, const std::vector<double>& 
   return o;
 }
 
-// Every test runs twice: with the AVX-512 kernels (where the CPU has them) and
-// with the portable, compiler-vectorized kernels.
-class LaplaceDirect : public ::testing::TestWithParam<bool> {
- protected:
-  void SetUp() override { rpyfmm::fmm::detail::use_avx512_kernels(GetParam()); }
-  void TearDown() override { rpyfmm::fmm::detail::use_avx512_kernels(true); }
-};
+// Every test runs at each instruction-set level the machine has (scalar, AVX2, AVX-512).
+class LaplaceDirect : public rpyfmm::test::SimdLevelTest {};
 
 }  // namespace
 
-INSTANTIATE_TEST_SUITE_P(Kernels, LaplaceDirect, ::testing::Values(true, false),
-                         [](const ::testing::TestParamInfo<bool>& p) {
-                           return p.param ? "avx512_if_available" : "portable";
-                         });
+INSTANTIATE_TEST_SUITE_P(Kernels, LaplaceDirect, ::testing::ValuesIn(rpyfmm::test::all_simd_levels()),
+                         rpyfmm::test::simd_level_param_name);
 
-// The two code paths agree to rounding (1/sqrt within a few ulp; sums in another order).
-TEST(LaplaceDirectPaths, Avx512AndPortableAgree) {
+// The levels agree to rounding (1/sqrt within a few ulp; sums in another order).
+TEST(LaplaceDirectPaths, EveryLevelAgreesWithScalar) {
   const std::size_t n = 1500, nd = 2;
   const auto s = random_points(3 * n, 21);
   const auto q = random_points(nd * n, 22);
   const auto t = random_points(3 * 100, 23, -1.2, 1.2);
   for (std::size_t ndd : {std::size_t{1}, nd}) {
     const std::vector<double> qq(q.begin(), q.begin() + ndd * n);
-    rpyfmm::fmm::detail::use_avx512_kernels(true);
-    const auto a = run(s, qq, ndd, t);
-    rpyfmm::fmm::detail::use_avx512_kernels(false);
-    const auto b = run(s, qq, ndd, t);
-    rpyfmm::fmm::detail::use_avx512_kernels(true);
+    std::vector<double> b;
+    {
+      const rpyfmm::ScopedSimdLevel scalar(rpyfmm::SimdLevel::scalar);
+      b = run(s, qq, ndd, t);
+    }
     std::array<double, 10> scale{};
     for (std::size_t i = 0; i < b.size(); ++i) scale[i % 10] = std::max(scale[i % 10], std::abs(b[i]));
-    for (std::size_t i = 0; i < b.size(); ++i) EXPECT_NEAR(a[i], b[i], 1e-13 * scale[i % 10]) << i;
+    for (const rpyfmm::SimdLevel level : rpyfmm::test::available_simd_levels()) {
+      const rpyfmm::ScopedSimdLevel scope(level);
+      const auto a = run(s, qq, ndd, t);
+      for (std::size_t i = 0; i < b.size(); ++i)
+        EXPECT_NEAR(a[i], b[i], 1e-13 * scale[i % 10]) << i << " at " << rpyfmm::simd_level_name(level);
+    }
   }
 }
 
@@ -91,10 +90,10 @@ TEST_P(LaplaceDirect, TwoChargesClosedForm) {
   const auto out = run(s, q, 1, {});
   // at x0 = 0, r = x0 - x1 = (-d, 0, 0): phi = q1/d, grad = -q1 r/d^3 = (q1/d^2, 0, 0),
   // hess = q1 (3 rr/d^5 - I/d^3) = q1/d^3 diag(2, -1, -1).
-  const std::array<double, 10> e0 = {q1 / d, q1 / (d * d), 0, 0, 2 * q1 / (d * d * d), -q1 / (d * d * d),
-                                     -q1 / (d * d * d), 0, 0, 0};
-  const std::array<double, 10> e1 = {q0 / d, -q0 / (d * d), 0, 0, 2 * q0 / (d * d * d), -q0 / (d * d * d),
-                                     -q0 / (d * d * d), 0, 0, 0};
+  const std::array<double, 10> e0 = {
+      q1 / d, q1 / (d * d), 0, 0, 2 * q1 / (d * d * d), -q1 / (d * d * d), -q1 / (d * d * d), 0, 0, 0};
+  const std::array<double, 10> e1 = {
+      q0 / d, -q0 / (d * d), 0, 0, 2 * q0 / (d * d * d), -q0 / (d * d * d), -q0 / (d * d * d), 0, 0, 0};
   for (int c = 0; c < 10; ++c) {
     EXPECT_NEAR(out[c], e0[c], 1e-15) << c;
     EXPECT_NEAR(out[10 + c], e1[c], 1e-15) << c;
@@ -269,23 +268,22 @@ TEST_P(LaplaceDirect, RejectsBadInput) {
   const std::vector<double> s = {0, 0, 0, 1, 0, 0}, q = {1, 1};
   std::vector<double> out(20);
   auto call = [&](const std::vector<double>& ss, const std::vector<double>& qq, std::size_t nd,
-                  const std::vector<double>& tt, unsigned outputs, std::vector<double>& oo) {
-    laplace_direct(ss, qq, nd, tt, outputs, oo);
-  };
-  EXPECT_THROW(call({}, {}, 1, {}, 7, out), Error);                     // N = 0
-  EXPECT_THROW(call({0, 0, 0, 1}, q, 1, {}, 7, out), Error);            // not a multiple of 3
-  EXPECT_THROW(call(s, {1}, 1, {}, 7, out), Error);                     // charges too short
-  EXPECT_THROW(call(s, q, 2, {}, 7, out), Error);                       // nd x N mismatch
-  EXPECT_THROW(call(s, q, 0, {}, 7, out), Error);                       // nd = 0
-  EXPECT_THROW(call(s, q, 1, {0, 0}, 7, out), Error);                   // targets not multiple of 3
-  EXPECT_THROW(call(s, q, 1, {}, 0, out), Error);                       // empty output mask
-  EXPECT_THROW(call(s, q, 1, {}, 8, out), Error);                       // unknown output bit
+                  const std::vector<double>& tt, unsigned outputs,
+                  std::vector<double>& oo) { laplace_direct(ss, qq, nd, tt, outputs, oo); };
+  EXPECT_THROW(call({}, {}, 1, {}, 7, out), Error);           // N = 0
+  EXPECT_THROW(call({0, 0, 0, 1}, q, 1, {}, 7, out), Error);  // not a multiple of 3
+  EXPECT_THROW(call(s, {1}, 1, {}, 7, out), Error);           // charges too short
+  EXPECT_THROW(call(s, q, 2, {}, 7, out), Error);             // nd x N mismatch
+  EXPECT_THROW(call(s, q, 0, {}, 7, out), Error);             // nd = 0
+  EXPECT_THROW(call(s, q, 1, {0, 0}, 7, out), Error);         // targets not multiple of 3
+  EXPECT_THROW(call(s, q, 1, {}, 0, out), Error);             // empty output mask
+  EXPECT_THROW(call(s, q, 1, {}, 8, out), Error);             // unknown output bit
   std::vector<double> small(19);
-  EXPECT_THROW(call(s, q, 1, {}, 7, small), Error);                     // results too short
-  EXPECT_THROW(call({0, 0, 0, 1, NAN, 0}, q, 1, {}, 7, out), Error);    // NaN source
-  EXPECT_THROW(call(s, {1, INFINITY}, 1, {}, 7, out), Error);           // Inf charge
+  EXPECT_THROW(call(s, q, 1, {}, 7, small), Error);                   // results too short
+  EXPECT_THROW(call({0, 0, 0, 1, NAN, 0}, q, 1, {}, 7, out), Error);  // NaN source
+  EXPECT_THROW(call(s, {1, INFINITY}, 1, {}, 7, out), Error);         // Inf charge
   std::vector<double> out1(10);
-  EXPECT_THROW(call(s, q, 1, {0, NAN, 0}, 7, out1), Error);             // NaN target
+  EXPECT_THROW(call(s, q, 1, {0, NAN, 0}, 7, out1), Error);  // NaN target
   try {
     call(s, {1, NAN}, 1, {}, 7, out);
   } catch (const Error& e) {

@@ -13,6 +13,7 @@
 #include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
 #include "rpyfmm/fmm/leaf_grid.hpp"
+#include "simd_levels.hpp"
 
 using rpyfmm::fmm::fit_leaf_grid;
 using rpyfmm::fmm::FmmOptions;
@@ -137,12 +138,11 @@ TEST(FmmLeafGrid, AutomaticLeavesMeetTheTolerance) {
       // leaf on one level, kept.
       {"cube 4e4 at 1e-9 (partly split at capacity 600)", fmmtest::cube(40000, 53), {}, 1e-9, true, false},
   };
-  // Both kernel sets where the CPU has AVX-512 (detail::use_avx512_kernels switches them off).
-  std::vector<bool> kernel_sets = {rpyfmm::fmm::detail::avx512_kernels_active()};
-  if (kernel_sets[0]) kernel_sets.push_back(false);
-  for (const bool avx512 : kernel_sets)
+  // Every instruction-set level the machine has (the rules differ between AVX-512 and the others).
+  for (const rpyfmm::SimdLevel level : rpyfmm::test::available_simd_levels())
     for (const auto& c : cases) {
-      rpyfmm::fmm::detail::use_avx512_kernels(avx512);
+      const rpyfmm::ScopedSimdLevel scope(level);
+      const bool avx512 = level == rpyfmm::SimdLevel::avx512;
       FmmOptions o;
       o.eps = c.eps;
       LaplaceFmm f(o);
@@ -166,5 +166,4 @@ TEST(FmmLeafGrid, AutomaticLeavesMeetTheTolerance) {
       EXPECT_LE(fmmtest::rel_l2(res, m, ref, which, 0, 1, 4), c.eps) << c.what << " gradient";
       EXPECT_LE(fmmtest::rel_l2(res, m, ref, which, 0, 4, 10), c.eps) << c.what << " Hessian";
     }
-  rpyfmm::fmm::detail::use_avx512_kernels(true);
 }

@@ -10,11 +10,11 @@
 #include <span>
 #include <utility>
 
-#include "../../rpy/src/pse/window_avx2.hpp"
 #include "ewald_reference.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/real_space.hpp"
+#include "simd_levels.hpp"
 
 using namespace rpyfmm::rpy;
 using namespace rpyfmm::rpy::pse;
@@ -163,7 +163,7 @@ TEST(PseAccuracy, RealSpaceHalfListsMatchFullRows) {
   // and periodic-boundary pairs, 3 right-hand sides; the same result with 1 and 2 threads, bit
   // for bit (each sum is added in a fixed order). Without the pair cache, which rounds the blocks
   // it keeps (tests/pse/test_pse_pair_cache.cpp), so that every product evaluates the pairs.
-  if (!rpyfmm::fmm::detail::avx512_kernels_active()) GTEST_SKIP() << "no AVX-512F on this CPU";
+  if (!(rpyfmm::simd_level() == rpyfmm::SimdLevel::avx512)) GTEST_SKIP() << "no AVX-512F on this CPU";
   const double rc = 4.0;
   for (const std::array<int, 3>& cells :
        {std::array<int, 3>{4, 4, 3}, std::array<int, 3>{5, 6, 4}, std::array<int, 3>{9, 10, 3},
@@ -187,9 +187,11 @@ TEST(PseAccuracy, RealSpaceHalfListsMatchFullRows) {
     omp_set_num_threads(std::max(2, saved));
     op.real_space_operator().apply(f, half2, nrhs);
     omp_set_num_threads(saved);
-    rpyfmm::fmm::detail::use_avx512_kernels(false);
-    op.real_space_operator().apply(f, full, nrhs);
-    rpyfmm::fmm::detail::use_avx512_kernels(true);
+    {
+      const rpyfmm::ScopedSimdLevel portable(rpyfmm::SimdLevel::scalar);
+      op.set_positions(x, 1.0);
+      op.real_space_operator().apply(f, full, nrhs);
+    }
     EXPECT_LT(pse_test::rel_l2(half, full), 1e-13) << cells[0] << " x " << cells[1] << " cells";
     EXPECT_EQ(half, half2) << cells[0] << " x " << cells[1] << " cells";
   }
@@ -346,22 +348,18 @@ TEST(PseAccuracy, SimdAndPortableKernelsAgree) {
   // 4 to 9 (tolerances 1e-2 ... 1e-6; 9 takes the portable spreading everywhere), double- and
   // single-precision wave grids. RealSpaceProductMatchesPairSum checks the AVX-512 rows against
   // an independent pair sum with coincident and overlapping pairs.
-  const bool avx512 = rpyfmm::fmm::detail::avx512_kernels_active();
-  const bool avx2 = detail::avx2_window_kernels(8);
-  if (!avx512 && !avx2) GTEST_SKIP() << "neither AVX-512F nor AVX2 on this CPU";
+  if (rpyfmm::detected_simd_level() == rpyfmm::SimdLevel::scalar) GTEST_SKIP() << "no AVX2 on this machine";
   const std::array<double, 3> L = {17.0, 15.0, 19.0};
   auto x = pse_test::random_points(300, L, 61);
   for (std::size_t i = 0; i < 30; ++i) x[3 * i + i % 3] = L[i % 3] * (i % 2 ? 0.999 : 0.001);
   const auto f = random_forces(300, 62);
-  // Runs M F and a sample with the AVX-512 kernels on or off and the AVX2 window kernels on or off.
-  auto run = [&](const PseRpy& op, bool use_avx512, bool use_avx2) {
-    rpyfmm::fmm::detail::use_avx512_kernels(use_avx512);
-    detail::use_avx2_window_kernels(use_avx2);
+  // Plans the positions, then runs M F and a sample, at one instruction-set level.
+  auto run = [&](PseRpy& op, rpyfmm::SimdLevel level) {
+    const rpyfmm::ScopedSimdLevel scope(level);
+    op.set_positions(x, 1.0);
     std::vector<double> w(f.size());
     auto u = product(op, f);
     op.sample(3, 4, w);
-    rpyfmm::fmm::detail::use_avx512_kernels(true);
-    detail::use_avx2_window_kernels(true);
     u.insert(u.end(), w.begin(), w.end());
     return u;
   };
@@ -375,14 +373,9 @@ TEST(PseAccuracy, SimdAndPortableKernelsAgree) {
     // Float grids: the same sums in another order, rounded to float (test_pse_precision.cpp).
     const double bound = precision == WavePrecision::double_precision ? 1e-13 : 1e-6;
     PseRpy op(Geometry::periodic(L[0], L[1], L[2]), 1.0, o);
-    op.set_positions(x, 1.0);
+    const auto portable = run(op, rpyfmm::SimdLevel::scalar);
     SCOPED_TRACE(op.parameters().summary());
-    const auto portable = run(op, false, false);
-    if (avx512) {
-      EXPECT_LT(pse_test::rel_l2(run(op, true, true), portable), bound) << "AVX-512";
-    }
-    if (avx2) {
-      EXPECT_LT(pse_test::rel_l2(run(op, false, true), portable), bound) << "AVX2";
-    }
+    for (const rpyfmm::SimdLevel level : rpyfmm::test::available_simd_levels())
+      EXPECT_LT(pse_test::rel_l2(run(op, level), portable), bound) << rpyfmm::simd_level_name(level);
   }
 }

@@ -9,7 +9,6 @@
 #include <vector>
 
 #include "../../rpy/src/pse/real_space_sum.hpp"
-#include "../../rpy/src/pse/window_avx2.hpp"
 #include "ewald_reference.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/rpy/pse/pse_parameters.hpp"
@@ -19,18 +18,19 @@ using namespace rpyfmm::rpy::pse;
 TEST(PseNeighbourLists, InputOrderListsMatchBruteForce) {
   // Half lists (AVX-512 filter) then derived full rows; full lists asked for by the constructor
   // (full_lists, as the CUDA backend does) where the AVX-512 kernels run; full lists by the AVX2
-  // filter; full lists by the portable filter (on CPUs without AVX-512 or AVX2 some of these are
-  // the same path).
+  // filter; full lists by the portable filter (each where the machine has the level).
   struct Filter {
-    bool avx512, avx2, full;
+    rpyfmm::SimdLevel level;
+    bool full;
   };
-  for (const auto& [avx512, avx2, full] :
-       {Filter{true, true, false}, Filter{true, true, true}, Filter{false, true, false}, Filter{false, false, false}}) {
+  for (const auto& [level, full] : {Filter{rpyfmm::SimdLevel::avx512, false}, Filter{rpyfmm::SimdLevel::avx512, true},
+                                    Filter{rpyfmm::SimdLevel::avx2, false}, Filter{rpyfmm::SimdLevel::scalar, false}}) {
+    if (level > rpyfmm::detected_simd_level()) continue;
+    const bool avx512 = level == rpyfmm::SimdLevel::avx512, avx2 = level == rpyfmm::SimdLevel::avx2;
     for (const std::array<double, 3>& L :
          {std::array<double, 3>{21.0, 17.5, 26.0}, std::array<double, 3>{9.0, 30.0, 13.0},
           std::array<double, 3>{7.5, 7.5, 7.5}}) {
-      rpyfmm::fmm::detail::use_avx512_kernels(avx512);
-      detail::use_avx2_window_kernels(avx2);
+      const rpyfmm::ScopedSimdLevel scope(level);
       auto x = pse_test::random_points(700, L, 19);
       for (int d = 0; d < 3; ++d) x[3 * 3 + d] = x[3 * 400 + d];  // coincident pair
       PseOptions o;
@@ -42,8 +42,6 @@ TEST(PseNeighbourLists, InputOrderListsMatchBruteForce) {
       std::vector<std::size_t> begin;
       std::vector<int> list;
       sum.input_order_lists(begin, list);
-      rpyfmm::fmm::detail::use_avx512_kernels(true);
-      detail::use_avx2_window_kernels(true);
       ASSERT_EQ(begin.size(), 701u);
       std::size_t pairs = 0;
       for (std::size_t i = 0; i < 700; ++i) {

@@ -11,6 +11,7 @@
 #include "ewald_reference.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
+#include "simd_levels.hpp"
 
 using namespace rpyfmm::rpy;
 using namespace rpyfmm::rpy::pse;
@@ -40,27 +41,11 @@ PseOptions cached(double tolerance, bool cache) {
 
 const std::array<double, 3> kBox = {30.0, 26.0, 34.0};  // 3+ cells of r_cut along every axis
 
-/// The real-space kernels to run: the AVX-512 half rows (half-list chunk cache) where the CPU
-/// has them, and the portable rows (row cache, as on a CPU without AVX-512) everywhere.
-std::vector<bool> kernel_choices() {
-  std::vector<bool> avx512{false};
-  if (rpyfmm::fmm::detail::avx512_kernels_active()) avx512.push_back(true);
-  return avx512;
+/// The real-space kernels to run: the AVX-512 half rows (half-list chunk cache) and the portable
+/// rows (row cache, as on a CPU without AVX-512), at each level the machine has.
+std::vector<rpyfmm::SimdLevel> kernel_choices() {
+  return rpyfmm::test::available_simd_levels();
 }
-
-/// Selects the AVX-512 kernels or not for its lifetime (set_positions chooses the cache layout).
-class KernelScope {
- public:
-  explicit KernelScope(bool avx512) : saved_(rpyfmm::fmm::detail::avx512_kernels_active()) {
-    rpyfmm::fmm::detail::use_avx512_kernels(avx512 && saved_);
-  }
-  ~KernelScope() { rpyfmm::fmm::detail::use_avx512_kernels(saved_); }
-  KernelScope(const KernelScope&) = delete;
-  KernelScope& operator=(const KernelScope&) = delete;
-
- private:
-  bool saved_;
-};
 
 }  // namespace
 
@@ -68,17 +53,17 @@ TEST(PsePairCache, CachedProductsMatchEvaluatedPairs) {
   // Tolerance 1e-3: float grids and a float cache; 1e-6: double. The cache stores F - F(0),
   // G - G(0) and the unit vector, rounded to its precision: float's unit round-off 6e-8 relative
   // per block, well below the table's own error (tolerance / 10), bound 1e-6; double: round-off,
-  // bound 1e-13. The first product after set_positions evaluates the pairs (bit for bit the
-  // operator without the cache); the second fills the cache and the later ones (1 or 2 threads)
-  // read it: the same rounded blocks, so these agree bit for bit.
+  // bound 1e-13. The first product after set_positions fills the cache and applies the blocks as
+  // kept; the later ones (1 or 2 threads) read them: the same rounded blocks, so every product
+  // agrees bit for bit with the first, whatever was called in between.
   auto x = pse_test::random_points(2000, kBox, 81);
   for (int d = 0; d < 3; ++d) x[3 * 7 + d] = x[3 * 900 + d];  // a coincident pair
   const std::size_t n = x.size() / 3, nrhs = 3;
   const auto f = uniform_components(n * nrhs, 82);
-  for (const bool avx512 : kernel_choices())
+  for (const rpyfmm::SimdLevel level : kernel_choices())
     for (const auto& [eps, bound] : {std::pair{1e-3, 1e-6}, std::pair{1e-6, 1e-13}}) {
-      SCOPED_TRACE(avx512 ? "AVX-512 half rows" : "portable rows");
-      const KernelScope kernels(avx512);
+      SCOPED_TRACE(rpyfmm::simd_level_name(level));
+      const rpyfmm::ScopedSimdLevel kernels(level);
       PseRpy with(Geometry::periodic(kBox[0], kBox[1], kBox[2]), 1.0, cached(eps, true));
       PseRpy without(Geometry::periodic(kBox[0], kBox[1], kBox[2]), 1.0, cached(eps, false));
       with.set_positions(x, 1.0);
@@ -96,9 +81,9 @@ TEST(PsePairCache, CachedProductsMatchEvaluatedPairs) {
       omp_set_num_threads(std::max(2, saved));
       const auto two_threads = real_product(with, f, nrhs);
       omp_set_num_threads(saved);
-      EXPECT_EQ(first, reference) << "tolerance " << eps;
-      EXPECT_LT(pse_test::rel_l2(fill, reference), bound) << "tolerance " << eps;
-      EXPECT_GT(pse_test::rel_l2(fill, reference), 0.0) << "tolerance " << eps << ": was the cache used?";
+      EXPECT_LT(pse_test::rel_l2(first, reference), bound) << "tolerance " << eps;
+      EXPECT_GT(pse_test::rel_l2(first, reference), 0.0) << "tolerance " << eps << ": was the cache used?";
+      EXPECT_EQ(first, fill) << "tolerance " << eps;
       EXPECT_EQ(fill, again) << "tolerance " << eps;
       EXPECT_EQ(fill, two_threads) << "tolerance " << eps;
       // The whole operator and the split sampler (Lanczos on M_r in slot order) likewise.
@@ -116,9 +101,9 @@ TEST(PsePairCache, CachedProductsMatchEvaluatedPairs) {
 TEST(PsePairCache, NewPositionsRefillTheCache) {
   // After set_positions the cache holds the new pairs: products after a move match an operator
   // that never cached, for a move that changes the neighbour lists.
-  for (const bool avx512 : kernel_choices()) {
-    SCOPED_TRACE(avx512 ? "AVX-512 half rows" : "portable rows");
-    const KernelScope kernels(avx512);
+  for (const rpyfmm::SimdLevel level : kernel_choices()) {
+    SCOPED_TRACE(rpyfmm::simd_level_name(level));
+    const rpyfmm::ScopedSimdLevel kernels(level);
     auto x = pse_test::random_points(1500, kBox, 83);
     const auto f = uniform_components(x.size(), 84);
     PseRpy with(Geometry::periodic(kBox[0], kBox[1], kBox[2]), 1.0, cached(1e-3, true));
@@ -131,7 +116,7 @@ TEST(PsePairCache, NewPositionsRefillTheCache) {
     without.set_positions(x, 1.0);
     const auto reference = real_product(without, f, 1);
     ASSERT_GT(with.parameters().real_space_cache_bytes, 0u);
-    for (int k = 0; k < 3; ++k)  // evaluated, filling, cached
+    for (int k = 0; k < 3; ++k)  // filling, cached, cached
       EXPECT_LT(pse_test::rel_l2(real_product(with, f, 1), reference), 1e-6) << "product " << k;
   }
 }
@@ -139,9 +124,9 @@ TEST(PsePairCache, NewPositionsRefillTheCache) {
 TEST(PsePairCache, MemoryLimitTurnsItOff) {
   // A cache that would not fit in max_memory_bytes beside the grids is not kept, and the products
   // are then those of the operator without it, bit for bit.
-  for (const bool avx512 : kernel_choices()) {
-    SCOPED_TRACE(avx512 ? "AVX-512 half rows" : "portable rows");
-    const KernelScope kernels(avx512);
+  for (const rpyfmm::SimdLevel level : kernel_choices()) {
+    SCOPED_TRACE(rpyfmm::simd_level_name(level));
+    const rpyfmm::ScopedSimdLevel kernels(level);
     const auto x = pse_test::random_points(1500, kBox, 86);
     const auto f = uniform_components(x.size(), 87);
     PseRpy probe(Geometry::periodic(kBox[0], kBox[1], kBox[2]), 1.0, cached(1e-3, true));
@@ -165,26 +150,30 @@ TEST(PsePairCache, MemoryLimitTurnsItOff) {
 }
 
 TEST(PsePairCache, KernelsSwitchedAfterSetPositions) {
-  // The cache layout follows the kernels at set_positions; products after a switch of kernels
-  // (a test or benchmark toggling them) run without the cache instead of reading the other
-  // layout, and stay correct.
-  if (!rpyfmm::fmm::detail::avx512_kernels_active()) GTEST_SKIP() << "needs the AVX-512 kernels to switch";
+  // The real-space plan (lists, cache layout, AVX-512 or portable rows) follows the level at
+  // set_positions; after a switch of level (a test or benchmark changing it) the products keep
+  // that plan, the portable rows run at the new level, and they stay correct (1e-6: the float
+  // cache, as in CachedProductsMatchEvaluatedPairs).
+  if (rpyfmm::detected_simd_level() == rpyfmm::SimdLevel::scalar) GTEST_SKIP() << "one level only";
   const auto x = pse_test::random_points(1500, kBox, 88);
   const auto f = uniform_components(x.size(), 89);
   PseRpy without(Geometry::periodic(kBox[0], kBox[1], kBox[2]), 1.0, cached(1e-3, false));
   without.set_positions(x, 1.0);
   const auto reference = real_product(without, f, 1);
-  for (const bool first : {true, false}) {
+  const std::vector<rpyfmm::SimdLevel> levels = kernel_choices();
+  for (const rpyfmm::SimdLevel first : levels) {
     PseRpy op(Geometry::periodic(kBox[0], kBox[1], kBox[2]), 1.0, cached(1e-3, true));
     std::vector<double> u;
     {
-      const KernelScope at_positions(first);
+      const rpyfmm::ScopedSimdLevel at_positions(first);
       op.set_positions(x, 1.0);
       u = real_product(op, f, 1);
     }
-    EXPECT_LT(pse_test::rel_l2(u, reference), 1e-6) << "before the switch, first " << first;
-    const KernelScope later(!first);
-    for (int k = 0; k < 3; ++k)
-      EXPECT_LT(pse_test::rel_l2(real_product(op, f, 1), reference), 1e-6) << "product " << k << ", first " << first;
+    EXPECT_LT(pse_test::rel_l2(u, reference), 1e-6) << "before the switch, first " << rpyfmm::simd_level_name(first);
+    for (const rpyfmm::SimdLevel later : levels) {
+      const rpyfmm::ScopedSimdLevel scope(later);
+      EXPECT_LT(pse_test::rel_l2(real_product(op, f, 1), reference), 1e-6)
+          << "planned at " << rpyfmm::simd_level_name(first) << ", run at " << rpyfmm::simd_level_name(later);
+    }
   }
 }

@@ -9,13 +9,13 @@
 
 #include "../../rpy/src/pse/kernels_common.hpp"  // window weights, scale_mode_with
 #include "../../rpy/src/pse/scale_line.hpp"
-#include "../../rpy/src/pse/window_avx2.hpp"  // use_avx2_window_kernels
 #include "ewald_reference.hpp"
 #include "rpyfmm/core/error.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
 #include "rpyfmm/rpy/random.hpp"
+#include "simd_levels.hpp"
 
 using namespace rpyfmm::rpy;
 using namespace rpyfmm::rpy::pse;
@@ -254,10 +254,10 @@ TEST(PsePrecision, LineScalingMatchesPerModeScaling) {
   // The CPU's vectorized line loop against the per-mode function the GPU runs: the same
   // operations, so differences are round-off (fused multiply-adds where the vector ISA has
   // them): below 1e-14 for double spectra, 1e-6 (a few float ulps) for float ones. With the
-  // AVX-512 kernels (where the CPU has them), the AVX2 ones (likewise) and the portable loop.
-  for (const int kernels : {512, 2, 0}) {
-    rpyfmm::fmm::detail::use_avx512_kernels(kernels == 512);
-    detail::use_avx2_window_kernels(kernels == 2);
+  // AVX-512 kernels, the AVX2 ones and the portable loop (each where the machine has it).
+  for (const rpyfmm::SimdLevel level : rpyfmm::test::available_simd_levels()) {
+    const rpyfmm::ScopedSimdLevel scope(level);
+    const char* kernels = rpyfmm::simd_level_name(level);
     for (const bool det : {true, false}) {
       for (const bool noisy : {true, false}) {
         if (!det && !noisy) continue;  // nothing to scale (the wave space never asks)
@@ -266,8 +266,6 @@ TEST(PsePrecision, LineScalingMatchesPerModeScaling) {
       }
     }
   }
-  rpyfmm::fmm::detail::use_avx512_kernels(true);
-  detail::use_avx2_window_kernels(true);
 }
 
 TEST(PsePrecision, LineNoiseKeysMatchModePair) {
@@ -280,9 +278,9 @@ TEST(PsePrecision, LineNoiseKeysMatchModePair) {
     g.modes = static_cast<std::size_t>(n[0] * n[1] * g.nzh);
     g.comp_stride = 2 * g.modes;
     const auto nzh = static_cast<std::size_t>(g.nzh);
-    for (const int kernels : {512, 2, 0}) {
-      rpyfmm::fmm::detail::use_avx512_kernels(kernels == 512);
-      detail::use_avx2_window_kernels(kernels == 2);
+    for (const rpyfmm::SimdLevel level : rpyfmm::test::available_simd_levels()) {
+      const rpyfmm::ScopedSimdLevel scope(level);
+      const char* kernels = rpyfmm::simd_level_name(level);
       int conjugates = 0;
       for (int ix = 0; ix < n[0]; ++ix) {
         for (int iy = 0; iy < n[1]; ++iy) {
@@ -304,6 +302,4 @@ TEST(PsePrecision, LineNoiseKeysMatchModePair) {
       EXPECT_GT(conjugates, 0);
     }
   }
-  rpyfmm::fmm::detail::use_avx512_kernels(true);
-  detail::use_avx2_window_kernels(true);
 }

@@ -17,6 +17,7 @@
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
 #include "rpyfmm/rpy/rpy_kernel.hpp"
+#include "simd_levels.hpp"
 
 using rpyfmm::rpy::DirectRpy;
 using rpyfmm::rpy::FmmRpy;
@@ -27,7 +28,6 @@ using t::fmm_error;
 using t::product;
 
 namespace {
-
 
 struct Case {
   std::string name;
@@ -123,17 +123,17 @@ TEST(FmmRpyFittedLeafGrid, MeetsTheToleranceOnSampledRows) {
     for (std::size_t i = 0; i < c.a.size(); ++i) c.a[i] = 0.6 + 0.8 * ((i * 7919) % 100) / 100.0;
     cases.push_back({c, 1e-6, 120, 400});
   }
-  // Both kernel sets where the CPU has AVX-512 (detail::use_avx512_kernels switches them off).
-  std::vector<bool> kernel_sets = {rpyfmm::fmm::detail::avx512_kernels_active()};
-  if (kernel_sets[0]) kernel_sets.push_back(false);
-  for (const bool avx512 : kernel_sets)
+  // Every instruction-set level the machine has (AVX-512 has rules of its own; AVX2 and scalar
+  // share theirs).
+  for (const rpyfmm::SimdLevel level : rpyfmm::test::available_simd_levels())
     for (const auto& [c, eps, capacity, capacity_avx512] : cases) {
-      rpyfmm::fmm::detail::use_avx512_kernels(avx512);
+      const rpyfmm::ScopedSimdLevel scope(level);
+      const bool avx512 = level == rpyfmm::SimdLevel::avx512;
       const std::size_t n = c.a.size();
       FmmRpy fast(Geometry::open(), 1.0, FmmRpyOptions{.tolerance = eps});
       fast.set_positions(c.x, c.a);
       EXPECT_EQ(fast.laplace_plan()->stats().leaf_capacity, avx512 ? capacity_avx512 : capacity)
-          << "N = " << n << " eps = " << eps << (avx512 ? " (AVX-512 kernels)" : "");
+          << "N = " << n << " eps = " << eps << " at " << rpyfmm::simd_level_name(level);
       const auto f = t::random_vector(3 * n, 41);
       const auto u = product(fast, f);
       double err2 = 0.0, ref2 = 0.0;
@@ -158,5 +158,4 @@ TEST(FmmRpyFittedLeafGrid, MeetsTheToleranceOnSampledRows) {
                   fast.laplace_plan()->stats().leaves, err);
       EXPECT_LE(err, eps);
     }
-  rpyfmm::fmm::detail::use_avx512_kernels(true);
 }

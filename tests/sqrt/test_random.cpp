@@ -13,6 +13,7 @@
 #include "rpyfmm/core/error.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/rpy/random.hpp"
+#include "simd_levels.hpp"
 #include "sqrt_test_util.hpp"
 
 using namespace rpyfmm::rpy;
@@ -147,14 +148,13 @@ TEST(Random, LogPolyMatchesLibm) {
 
 // fill_normal6 (vectorized) gives normal6's values for arbitrary, unordered indices above
 // 2^32 and any length (chunk tails, groups of 16 / 8 lanes with spare lanes); bit for bit on
-// builds without FMA contraction. With the AVX-512 kernels (where the CPU has them) and without
-// (AVX2 or portable).
+// builds without FMA contraction. At every instruction-set level the machine has.
 TEST(Random, FillNormal6EqualsNormal6) {
   std::vector<std::uint64_t> index;
   for (std::uint64_t i = 0; i < 1003; ++i)
     index.push_back((i * 2654435761ull) % 100000 + (i % 7 == 0 ? (5ull << 32) : 0));
-  for (const bool avx512 : {true, false}) {
-    rpyfmm::fmm::detail::use_avx512_kernels(avx512);
+  for (const rpyfmm::SimdLevel level : rpyfmm::test::available_simd_levels()) {
+    const rpyfmm::ScopedSimdLevel scope(level);
     for (const std::size_t n : {std::size_t{1003}, std::size_t{5}, std::size_t{17}, std::size_t{64}}) {
       const std::span<const std::uint64_t> idx(index.data(), n);
       std::vector<double> out(6 * n);
@@ -166,10 +166,9 @@ TEST(Random, FillNormal6EqualsNormal6) {
         for (int c = 0; c < 6; ++c)
           worst = std::max(worst, std::abs(out[6 * k + c] - ref[c]) / std::max(1.0, std::abs(ref[c])));
       }
-      EXPECT_LT(worst, 1e-14) << "n " << n << (avx512 ? ", AVX-512 allowed" : ", AVX-512 off");
+      EXPECT_LT(worst, 1e-14) << "n " << n << " at " << rpyfmm::simd_level_name(level);
     }
   }
-  rpyfmm::fmm::detail::use_avx512_kernels(true);
   std::vector<double> bad(5);
   EXPECT_THROW(fill_normal6(std::span<const std::uint64_t>(index.data(), 1), 1u, 1u, 2u, bad), rpyfmm::Error);
   std::vector<double> six(6);
@@ -257,8 +256,8 @@ TEST(Random, SinglePrecisionBoxMullerFollowsDouble) {
   std::vector<std::uint64_t> index;
   for (std::uint64_t i = 0; i < 1003; ++i)
     index.push_back(i * 2654435761ull % 100000 + (i % 5 == 0 ? (3ull << 32) : 0));
-  for (const bool avx512 : {true, false}) {
-    rpyfmm::fmm::detail::use_avx512_kernels(avx512);
+  for (const rpyfmm::SimdLevel level : rpyfmm::test::available_simd_levels()) {
+    const rpyfmm::ScopedSimdLevel scope(level);
     std::vector<float> out(6 * index.size()), planar(6 * index.size());
     std::vector<double> planar_d(6 * index.size());
     fill_normal6(index, 99u, 4u, 2u, std::span<float>(out));
@@ -278,10 +277,9 @@ TEST(Random, SinglePrecisionBoxMullerFollowsDouble) {
         EXPECT_NEAR(planar_d[c * index.size() + k], refd[c], 1e-14 * std::max(1.0, std::abs(refd[c])));
       }
     }
-    EXPECT_LT(worst_fill, 1e-6) << (avx512 ? "AVX-512 allowed" : "AVX-512 off");
+    EXPECT_LT(worst_fill, 1e-6) << rpyfmm::simd_level_name(level);
     EXPECT_LT(worst_vs_double, 1e-6);
   }
-  rpyfmm::fmm::detail::use_avx512_kernels(true);
   std::vector<float> bad(5);
   EXPECT_THROW(fill_normal6(std::span<const std::uint64_t>(index.data(), 1), 1u, 1u, 2u, std::span<float>(bad)),
                rpyfmm::Error);
@@ -290,8 +288,8 @@ TEST(Random, SinglePrecisionBoxMullerFollowsDouble) {
 // normal3's Box-Muller (random_detail::box_muller_r123: polynomials instead of libm) against
 // Random123's own r123::boxmuller on the same words: a few ulps (1e-14 relative to max(1, |g|)),
 // on random words and at the ends of both uniforms. And fill_normal (vectorized, in chunks of
-// 64 particles, in parallel above 16384) against normal3 for sizes with chunk tails, with the
-// AVX-512 kernels allowed and not: bit for bit on builds without FMA contraction, 1e-14 here.
+// 64 particles, in parallel above 16384) against normal3 for sizes with chunk tails, at every
+// instruction-set level: bit for bit on builds without FMA contraction, 1e-14 here.
 TEST(Random, Normal3FollowsRandom123BoxMuller) {
   double worst = 0.0;
   auto compare = [&](std::uint64_t u0, std::uint64_t u1) {
@@ -307,8 +305,8 @@ TEST(Random, Normal3FollowsRandom123BoxMuller) {
     for (std::uint64_t u1 : {0ull, 1ull, 0x8000000000000000ull, ~0ull - 1, ~0ull}) compare(u0, u1);
   EXPECT_LT(worst, 1e-14);
 
-  for (const bool avx512 : {true, false}) {
-    rpyfmm::fmm::detail::use_avx512_kernels(avx512);
+  for (const rpyfmm::SimdLevel level : rpyfmm::test::available_simd_levels()) {
+    const rpyfmm::ScopedSimdLevel scope(level);
     for (const std::size_t n :
          {std::size_t{1}, std::size_t{63}, std::size_t{64}, std::size_t{1001}, std::size_t{20011}}) {
       std::vector<double> z(3 * n);
@@ -320,10 +318,9 @@ TEST(Random, Normal3FollowsRandom123BoxMuller) {
         for (std::size_t c = 0; c < 3; ++c)
           worst_fill = std::max(worst_fill, std::abs(z[3 * i + c] - ref[c]) / std::max(1.0, std::abs(ref[c])));
       }
-      EXPECT_LT(worst_fill, 1e-14) << "n " << n << (avx512 ? ", AVX-512 allowed" : ", AVX-512 off");
+      EXPECT_LT(worst_fill, 1e-14) << "n " << n << " at " << rpyfmm::simd_level_name(level);
     }
   }
-  rpyfmm::fmm::detail::use_avx512_kernels(true);
 }
 
 TEST(Random, BadSize) {

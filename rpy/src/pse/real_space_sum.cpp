@@ -14,12 +14,6 @@
 #include "rpyfmm/fmm/direct_simd.hpp"
 #include "window_avx2.hpp"
 
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
-#define RPYFMM_REAL_SPACE_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
-#else
-#define RPYFMM_REAL_SPACE_CLONES
-#endif
-
 namespace rpyfmm::rpy::pse::detail {
 
 namespace {
@@ -56,23 +50,24 @@ struct PairValues {
 
 /// One row of M_r F / M0 without the self term: u += sum_q [F (I - rr) + G rr] f_q over the
 /// neighbour slots nb[0..count) of a particle at xi ([PSE] eq. 10, App. A via the linear table).
-RPYFMM_REAL_SPACE_CLONES void table_row(const int* nb, std::size_t count, const double xi[3], const SlotArrays& s,
-                                        const double* table, double inv_dr, const double L[3], const double inv_L[3],
-                                        double u[3]) {
-  double ux = 0.0, uy = 0.0, uz = 0.0;
+void table_row(const int* nb, std::size_t count, const double xi[3], const SlotArrays& s, const double* table,
+               double inv_dr, const double L[3], const double inv_L[3], double u[3]) {
+  simd_dispatch([=]() RPYFMM_SIMD_BODY {
+    double ux = 0.0, uy = 0.0, uz = 0.0;
 #pragma omp simd reduction(+ : ux, uy, uz)
-  for (std::size_t q = 0; q < count; ++q) {
-    const auto t = static_cast<std::size_t>(nb[q]);
-    const PairValues v = table_pair(xi, s, t, table, inv_dr, L, inv_L);
-    const double fx = s.f[0][t], fy = s.f[1][t], fz = s.f[2][t];
-    const double proj = (v.G - v.F) * (v.ex * fx + v.ey * fy + v.ez * fz);
-    ux += v.F * fx + proj * v.ex;
-    uy += v.F * fy + proj * v.ey;
-    uz += v.F * fz + proj * v.ez;
-  }
-  u[0] += ux;
-  u[1] += uy;
-  u[2] += uz;
+    for (std::size_t q = 0; q < count; ++q) {
+      const auto t = static_cast<std::size_t>(nb[q]);
+      const PairValues v = table_pair(xi, s, t, table, inv_dr, L, inv_L);
+      const double fx = s.f[0][t], fy = s.f[1][t], fz = s.f[2][t];
+      const double proj = (v.G - v.F) * (v.ex * fx + v.ey * fy + v.ez * fz);
+      ux += v.F * fx + proj * v.ex;
+      uy += v.F * fy + proj * v.ey;
+      uz += v.F * fz + proj * v.ez;
+    }
+    u[0] += ux;
+    u[1] += uy;
+    u[2] += uz;
+  });
 }
 
 /// The row-layout pair cache of the portable rows (design note 23): per row entry q, F - F(0),
@@ -135,26 +130,30 @@ template <class T>
   u[2] += uz;
 }
 
-// Non-template entry points, so that each gets its AVX2 / AVX-512 clones.
-RPYFMM_REAL_SPACE_CLONES void fill_row(const int* nb, std::size_t count, const double xi[3], const SlotArrays& s,
-                                       const double* table, double inv_dr, const double L[3], const double inv_L[3],
-                                       RowCache<float> c, std::size_t first, double u[3]) {
-  keep_row_body(nb, count, xi, s, table, inv_dr, L, inv_L, c, first);
-  cached_row_body(nb, count, s, table, c, first, u);
+// Non-template entry points, each compiled per instruction-set level (simd_dispatch).
+void fill_row(const int* nb, std::size_t count, const double xi[3], const SlotArrays& s, const double* table,
+              double inv_dr, const double L[3], const double inv_L[3], RowCache<float> c, std::size_t first,
+              double u[3]) {
+  simd_dispatch([=]() RPYFMM_SIMD_BODY {
+    keep_row_body(nb, count, xi, s, table, inv_dr, L, inv_L, c, first);
+    cached_row_body(nb, count, s, table, c, first, u);
+  });
 }
-RPYFMM_REAL_SPACE_CLONES void fill_row(const int* nb, std::size_t count, const double xi[3], const SlotArrays& s,
-                                       const double* table, double inv_dr, const double L[3], const double inv_L[3],
-                                       RowCache<double> c, std::size_t first, double u[3]) {
-  keep_row_body(nb, count, xi, s, table, inv_dr, L, inv_L, c, first);
-  cached_row_body(nb, count, s, table, c, first, u);
+void fill_row(const int* nb, std::size_t count, const double xi[3], const SlotArrays& s, const double* table,
+              double inv_dr, const double L[3], const double inv_L[3], RowCache<double> c, std::size_t first,
+              double u[3]) {
+  simd_dispatch([=]() RPYFMM_SIMD_BODY {
+    keep_row_body(nb, count, xi, s, table, inv_dr, L, inv_L, c, first);
+    cached_row_body(nb, count, s, table, c, first, u);
+  });
 }
-RPYFMM_REAL_SPACE_CLONES void cached_row(const int* nb, std::size_t count, const SlotArrays& s, const double* table,
-                                         RowCache<float> c, std::size_t first, double u[3]) {
-  cached_row_body(nb, count, s, table, c, first, u);
+void cached_row(const int* nb, std::size_t count, const SlotArrays& s, const double* table, RowCache<float> c,
+                std::size_t first, double u[3]) {
+  simd_dispatch([=]() RPYFMM_SIMD_BODY { cached_row_body(nb, count, s, table, c, first, u); });
 }
-RPYFMM_REAL_SPACE_CLONES void cached_row(const int* nb, std::size_t count, const SlotArrays& s, const double* table,
-                                         RowCache<double> c, std::size_t first, double u[3]) {
-  cached_row_body(nb, count, s, table, c, first, u);
+void cached_row(const int* nb, std::size_t count, const SlotArrays& s, const double* table, RowCache<double> c,
+                std::size_t first, double u[3]) {
+  simd_dispatch([=]() RPYFMM_SIMD_BODY { cached_row_body(nb, count, s, table, c, first, u); });
 }
 
 #if defined(RPYFMM_HAVE_DIRECT_AVX512)
@@ -688,7 +687,9 @@ void RealSpaceSum::set_positions(std::span<const double> x) {
   // Where the half-list rows will run (AVX-512 with the table on a cell grid), only the pairs
   // t > s are listed (neighbour cells of larger id, and the later slots of the own cell): half
   // the distance checks. Full rows are then derived on demand (full_rows()).
-  half_lists_ = cells && use_table_ && fmm::detail::avx512_kernels_active() && !full_lists_only_;
+  // The plan follows the instruction-set level at set_positions (lists, cache layout, row kernels).
+  avx512_rows_ = simd_level() == SimdLevel::avx512;
+  half_lists_ = cells && use_table_ && avx512_rows_ && !full_lists_only_;
 #if defined(RPYFMM_HAVE_DIRECT_AVX512)
   const bool avx2_filter = !half_lists_ && avx2_window_kernels(1);  // CPU and toggle: window_avx2.hpp
 #endif
@@ -780,15 +781,13 @@ void RealSpaceSum::set_positions(std::span<const double> x) {
   // Pair cache: where the AVX-512 half rows run (table, cell grid), chunks of eight pairs per
   // half row, five lanes each; where the portable rows run (no AVX-512, table), five values per
   // entry of the full rows. Kept where it fits in the limit, else released.
-  const bool avx512 = fmm::detail::avx512_kernels_active();
-  cache_rows_ = !avx512;
+  cache_rows_ = !avx512_rows_;
   chunk_begin_.assign(n + 1, 0);
   for (std::size_t s = 0; s < n; ++s) chunk_begin_[s + 1] = chunk_begin_[s] + (begin_[s + 1] - upper_[s] + 7) / 8;
   const std::size_t value_bytes = cache_ == PairCache::single_precision ? sizeof(float) : sizeof(double);
   cache_bytes_ = cache_rows_ ? 5 * value_bytes * begin_[n] : 40 * value_bytes * chunk_begin_[n];
   cache_on_ = cache_ != PairCache::off && use_table_ && (cache_rows_ || half_) && cache_bytes_ <= cache_limit_;
   cache_ready_ = false;
-  reused_ = false;
   if (cache_on_) {
     // Grown with 25% headroom and never value-initialized (the filling product writes every
     // chunk): the pair count changes a little at every step, and a std::vector would copy and
@@ -865,10 +864,10 @@ void sweep_half_rows(const Blocks& colours, std::size_t n, std::size_t nrhs, Row
 }  // namespace
 
 void RealSpaceSum::apply_half_avx512(const double* packed, const double* table, double inv_dr, const double L[3],
-                                     const double inv_L[3], std::size_t nrhs, bool fill_cache, double* acc) const {
+                                     const double inv_L[3], std::size_t nrhs, double* acc) const {
 #if defined(RPYFMM_HAVE_DIRECT_AVX512)
   const std::size_t n = order_.size();
-  const bool fill = fill_cache && cache_on_ && !cache_rows_ && !cache_ready_;
+  const bool fill = cache_on_ && !cache_rows_ && !cache_ready_;
   auto sweep = [&](auto* cache) {  // void*: no cache
     using T = std::remove_pointer_t<decltype(cache)>;
     sweep_half_rows(half_blocks_, n, nrhs, [&](std::size_t s, std::size_t r) {
@@ -886,7 +885,7 @@ void RealSpaceSum::apply_half_avx512(const double* packed, const double* table, 
     sweep(static_cast<double*>(cache_data()));
   cache_ready_ = cache_ready_ || fill;
 #else
-  (void)packed, (void)table, (void)inv_dr, (void)L, (void)inv_L, (void)nrhs, (void)fill_cache, (void)acc;
+  (void)packed, (void)table, (void)inv_dr, (void)L, (void)inv_L, (void)nrhs, (void)acc;
 #endif
 }
 
@@ -955,14 +954,14 @@ RealSpaceSum::SlotLists RealSpaceSum::slot_lists() const {
 }
 
 void RealSpaceSum::apply(const double* forces, double* out, std::size_t nrhs, bool accumulate) const {
-  // The first product after set_positions does not fill the pair cache (one product per
-  // positions, M F in a time step, gains nothing from it); a second one does.
-  apply_mapped(forces, out, nrhs, accumulate, order_.data(), reused_);
-  reused_ = true;
+  // Where the pair cache is kept, the first product after set_positions fills it and every
+  // product (this one included) applies the blocks as kept, rounded to the cache's precision: the
+  // operator is the same whatever was called before (docs/reproducibility.md).
+  apply_mapped(forces, out, nrhs, accumulate, order_.data());
 }
 
 void RealSpaceSum::apply_slots(const double* forces, double* out, std::size_t nrhs) const {
-  apply_mapped(forces, out, nrhs, false, nullptr, true);  // Lanczos: several products follow
+  apply_mapped(forces, out, nrhs, false, nullptr);
 }
 
 void RealSpaceSum::to_slots(const double* in, double* out) const {
@@ -978,7 +977,7 @@ void RealSpaceSum::from_slots(const double* in, double* out) const {
 }
 
 void RealSpaceSum::apply_mapped(const double* forces, double* out, std::size_t nrhs, bool accumulate,
-                                const std::size_t* map, bool fill_cache) const {
+                                const std::size_t* map) const {
   // U_i = M0 [ F(0) F_i + sum_{j in r_cut} (F (I - rr) + G rr) F_j ]   ([PSE] eq. 10, A1-A4)
   const std::size_t n = order_.size();
   auto index = [map](std::size_t s) { return map != nullptr ? map[s] : s; };
@@ -1010,7 +1009,7 @@ void RealSpaceSum::apply_mapped(const double* forces, double* out, std::size_t n
   const double L[3] = {box_[0], box_[1], box_[2]};
   const double inv_L[3] = {inv[0], inv[1], inv[2]};
 #if defined(RPYFMM_HAVE_DIRECT_AVX512)
-  if (use_table_ && fmm::detail::avx512_kernels_active()) {
+  if (use_table_ && avx512_rows_) {
     // Rows per slot and rhs, filled straight from the input forces: x, y, z, fx, fy, fz, 0, 0 (8
     // doubles, 64-byte aligned) where the pairs are evaluated, or fx, fy, fz, 0 (4 doubles) where
     // the pair cache holds them (later products with these positions). With half lists, also the
@@ -1046,7 +1045,7 @@ void RealSpaceSum::apply_mapped(const double* forces, double* out, std::size_t n
       if (cached) {
         apply_cached_avx512(packed, nrhs, acc);
       } else {
-        apply_half_avx512(packed, table, inv_dr, L, inv_L, nrhs, fill_cache, acc);
+        apply_half_avx512(packed, table, inv_dr, L, inv_L, nrhs, acc);
       }
       for_each_row(packed_force, [&](std::size_t s, std::size_t r, double* u) {
         for (std::size_t d = 0; d < 3; ++d) u[d] += acc[4 * (r * n + s) + d];
@@ -1074,7 +1073,7 @@ void RealSpaceSum::apply_mapped(const double* forces, double* out, std::size_t n
   auto slot_force = [&](std::size_t s, std::size_t r, std::size_t d) { return work_[(3 * r + d) * n + s]; };
   if (use_table_) {
     const bool row_cache = cache_on_ && cache_rows_;
-    const bool cached = row_cache && cache_ready_, fill = row_cache && !cache_ready_ && fill_cache;
+    const bool cached = row_cache && cache_ready_, fill = row_cache && !cache_ready_;
     auto rows_with = [&](auto c) {  // c: RowCache<T>, or nullptr without the cache
       for_each_row(slot_force, [&](std::size_t s, std::size_t r, double* u) {
         const double* f = work_.data() + 3 * r * n;

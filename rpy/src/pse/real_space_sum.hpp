@@ -7,10 +7,9 @@
 // slot order once, so that a row reads its neighbours' positions and forces from a few nearby
 // cache lines instead of from all over the input arrays (design note 16). Where the AVX-512
 // kernels run, each pair is evaluated once for both of its rows (half lists, design note 22).
-// A product after set_positions (the second one, or the first of the split sampler's Lanczos)
-// keeps each pair's block (F, G, r^) in a pair cache that the later products with the same
-// positions read instead of evaluating the pair again (design note 23): per half-list chunk
-// with the AVX-512 kernels, per entry of the full rows with the portable ones.
+// The first product after set_positions keeps each pair's block (F, G, r^) in a pair cache that the later products with
+// the same positions read instead of evaluating the pair again (design note 23): per half-list chunk with the AVX-512
+// kernels, per entry of the full rows with the portable ones.
 #pragma once
 
 #include <array>
@@ -41,8 +40,9 @@ class RealSpaceSum {
 
   /// Cell order and neighbour lists (CSR over slots, ascending) for positions wrapped into the box.
   void set_positions(std::span<const double> x);
-  /// U (+)= M_r F for nrhs right-hand sides (3N each, stored one after another). The pair cache
-  /// is filled by the second product after set_positions (the first may be the only one).
+  /// U (+)= M_r F for nrhs right-hand sides (3N each, stored one after another). Where the pair
+  /// cache is kept, the first product after set_positions fills it, and every product applies the
+  /// blocks as kept (rounded to the cache's precision).
   void apply(const double* forces, double* out, std::size_t nrhs, bool accumulate) const;
   /// U = M_r F with F and U in slot order (3 per slot, slot = position in cell order), nrhs of
   /// them: the same products without the gather from and the scatter to input order, for
@@ -98,7 +98,8 @@ class RealSpaceSum {
   struct SlotRange {
     std::size_t begin, end;
   };
-  bool half_ = false;  // half-list blocks planned (the AVX-512 path then uses them)
+  bool half_ = false;         // half-list blocks planned (the AVX-512 path then uses them)
+  bool avx512_rows_ = false;  // the AVX-512 rows run (simd_level() at set_positions)
   // list_ holds only the half rows (t > s) when the half-list path is expected at
   // set_positions (AVX-512 with the table on a cell grid); full rows, which the portable rows,
   // the closed forms and the CUDA lists need, are then derived once on demand.
@@ -117,9 +118,8 @@ class RealSpaceSum {
   // chunk_begin_[s + 1]) of eight pairs, each five vectors of eight lanes (F - F(0), G - G(0),
   // e_x, e_y, e_z as the half-list kernel computes them, padding lanes included). Row layout
   // (portable rows): the same five values per entry of the full rows, in five arrays. Float or
-  // double; filled by one product after set_positions (apply: the second; apply_slots: the
-  // first) and read by the later ones. The fill rounds the values to the cache's precision
-  // before using them, so that every product applies the same operator.
+  // double; filled by the first product after set_positions and read by the later ones. The fill rounds the values to
+  // the cache's precision before using them, so that every product applies the same operator.
   PairCache cache_ = PairCache::off;
   std::size_t cache_limit_ = 0;
   bool cache_on_ = false;    // cache kept for these positions (within the limit)
@@ -129,12 +129,9 @@ class RealSpaceSum {
   std::unique_ptr<double[]> cache_store_;  // 64-byte aligned inside (cache_data())
   std::size_t cache_capacity_ = 0;         // doubles allocated
   mutable bool cache_ready_ = false;
-  mutable bool reused_ = false;  // apply() ran since set_positions: the next one fills the cache
   [[nodiscard]] void* cache_data() const;
   /// apply / apply_slots: particle i(s) = map[s] (input order), or s where map is null;
-  /// fill_cache: this product fills the pair cache (where it is kept and not yet filled).
-  void apply_mapped(const double* forces, double* out, std::size_t nrhs, bool accumulate, const std::size_t* map,
-                    bool fill_cache) const;
+  void apply_mapped(const double* forces, double* out, std::size_t nrhs, bool accumulate, const std::size_t* map) const;
   std::array<std::vector<std::vector<SlotRange>>, 4> half_blocks_;  // per colour: blocks of slot ranges
   mutable std::vector<double> acc_;                                 // half-list sums, 4 doubles per slot and rhs
   void plan_half_blocks(const std::array<int, 3>& nc, const std::vector<std::size_t>& cell_begin);
@@ -142,7 +139,7 @@ class RealSpaceSum {
   /// is kept and not yet filled; and the half rows from the filled cache on force rows (fx, fy,
   /// fz, 0).
   void apply_half_avx512(const double* packed, const double* table, double inv_dr, const double L[3],
-                         const double inv_L[3], std::size_t nrhs, bool fill_cache, double* acc) const;
+                         const double inv_L[3], std::size_t nrhs, double* acc) const;
   void apply_cached_avx512(const double* forces, std::size_t nrhs, double* acc) const;
 };
 

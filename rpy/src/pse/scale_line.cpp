@@ -4,7 +4,6 @@
 #include <cmath>
 
 #include "rpyfmm/fmm/direct_simd.hpp"  // RPYFMM_HAVE_DIRECT_AVX512: GCC on x86-64, run-time dispatch
-#include "window_avx2.hpp"             // avx2_window_kernels: the AVX2 switch of the wave space
 
 namespace rpyfmm::rpy::pse::detail {
 namespace {
@@ -142,15 +141,12 @@ __attribute__((target("avx512f,avx512vl,avx512dq,prefer-vector-width=512"))) voi
 }
 #endif
 
-/// Which build of a loop runs: AVX-512 (the CPU has it and the AVX-512 kernels are on), AVX2 (the
-/// CPU has AVX2 and FMA, and tests have not turned them off: use_avx2_window_kernels), or portable.
+/// Which build of a loop runs: the one simd_level() names (AVX-512, AVX2 with FMA, or portable).
 enum class LineKernels { portable, avx2, avx512 };
 LineKernels line_kernels() {
 #if defined(RPYFMM_HAVE_DIRECT_AVX512)
-  static const bool avx512_cpu =
-      __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512dq");
-  if (avx512_cpu && fmm::detail::avx512_kernels_active()) return LineKernels::avx512;
-  if (avx2_window_kernels(1)) return LineKernels::avx2;
+  if (simd_level() == SimdLevel::avx512) return LineKernels::avx512;
+  if (simd_level() == SimdLevel::avx2) return LineKernels::avx2;
 #endif
   return LineKernels::portable;
 }

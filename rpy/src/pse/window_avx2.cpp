@@ -1,24 +1,13 @@
 // rpyfmm — AVX2 window kernels of the PSE wave space (window_avx2.hpp).
 #include "window_avx2.hpp"
 
-#include <atomic>
-
 #include "rpyfmm/fmm/direct_simd.hpp"  // RPYFMM_HAVE_DIRECT_AVX512: GCC on x86-64, run-time dispatch
 
 namespace rpyfmm::rpy::pse::detail {
 
-namespace {
-std::atomic<bool> g_avx2_window_kernels{true};
-}  // namespace
-
-void use_avx2_window_kernels(bool enabled) noexcept {
-  g_avx2_window_kernels.store(enabled, std::memory_order_relaxed);
-}
-
 bool avx2_window_kernels(int Pz) noexcept {
 #if defined(RPYFMM_HAVE_DIRECT_AVX512)
-  static const bool cpu = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-  return cpu && g_avx2_window_kernels.load(std::memory_order_relaxed) && Pz >= 1 && Pz <= 8;
+  return simd_level() >= SimdLevel::avx2 && Pz >= 1 && Pz <= 8;
 #else
   (void)Pz;
   return false;

@@ -15,14 +15,10 @@
 namespace rpyfmm::rpy::pse::detail {
 
 /// True when the kernels below may run for a support of Pz points along z: compiled in (GCC,
-/// x86-64), the CPU has AVX2 and FMA, use_avx2_window_kernels has not turned them off, and
-/// Pz <= 8. (WaveSpace prefers the AVX-512 kernels where those run.)
+/// x86-64), simd_level() is at least SimdLevel::avx2, and Pz <= 8. (WaveSpace prefers the
+/// AVX-512 kernels where those run.) The same switch serves the AVX2 line scaling
+/// (scale_line.hpp) and the AVX2 candidate filter of the real-space list build.
 bool avx2_window_kernels(int Pz) noexcept;
-/// Enables (default) or disables the AVX2 window kernels, the AVX2 line scaling (scale_line.hpp)
-/// and the AVX2 candidate filter of the real-space list build (RealSpaceSum::set_positions, where
-/// the AVX-512 half lists do not run), so that tests can reach the portable loops on any machine. Do not call while a
-/// product or set_positions runs on another thread.
-void use_avx2_window_kernels(bool enabled) noexcept;
 
 /// g_c[xline[a] + yline[b] + z] += wx[a] wy[b] wz[l] f[c] over the window, c = 0, 1, 2.
 void spread_window_avx2(double* g0, double* g1, double* g2, const std::size_t* xline, const std::size_t* yline, int Px,

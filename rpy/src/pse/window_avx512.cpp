@@ -7,8 +7,7 @@ namespace rpyfmm::rpy::pse::detail {
 
 bool avx512_window_kernels(int Pz) noexcept {
 #if defined(RPYFMM_HAVE_DIRECT_AVX512)
-  static const bool vl = __builtin_cpu_supports("avx512vl");
-  return Pz >= 1 && Pz <= 8 && vl && fmm::detail::avx512_kernels_active();
+  return Pz >= 1 && Pz <= 8 && simd_level() == SimdLevel::avx512;  // x86-64-v4: AVX-512F and VL
 #else
   (void)Pz;
   return false;

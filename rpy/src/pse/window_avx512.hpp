@@ -4,9 +4,9 @@
 // A window is P_x P_y lines of P_z <= 8 points along z, in at most two runs on the periodic
 // grid ([z0, z0 + len0) and [0, P_z - len0)): each run of a line is one masked 8-lane load,
 // FMA and (spreading) masked store per component (512-bit for double, 256-bit for float
-// grids), instead of a scalar or 2-lane loop whose length is known only at run time. Masked-out lanes are neither read nor written, so the
-// tile colouring of WaveSpace::spread still keeps threads apart. Results differ from the
-// portable loops by rounding only (fused multiply-adds, another summation order).
+// grids), instead of a scalar or 2-lane loop whose length is known only at run time. Masked-out lanes are neither read
+// nor written, so the tile colouring of WaveSpace::spread still keeps threads apart. Results differ from the portable
+// loops by rounding only (fused multiply-adds, another summation order).
 #pragma once
 
 #include <cstddef>
@@ -15,7 +15,7 @@ namespace rpyfmm::rpy::pse::detail {
 
 /// True when the kernels below may run for a support of Pz points along z: compiled in (GCC,
 /// x86-64), the CPU has AVX-512F and VL (the 256-bit runs of single-precision grids),
-/// rpyfmm::fmm::detail::use_avx512_kernels has not turned the AVX-512 kernels off, and Pz <= 8.
+/// simd_level() is SimdLevel::avx512, and Pz <= 8.
 bool avx512_window_kernels(int Pz) noexcept;
 
 /// One particle's z runs: the first starts at grid index z0 and has len0 points (1 ... Pz);

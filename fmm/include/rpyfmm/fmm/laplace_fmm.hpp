@@ -21,6 +21,7 @@
 #include <utility>
 #include <vector>
 
+#include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/fmm/direct.hpp"
 
@@ -74,6 +75,11 @@ struct TreeStats {
   // level: 1 where all leaves are on one level; in a near-uniform cloud, well below 1 means a
   // partly split tree (leaves on two levels, W/X lists between them).
   double leaf_level_share = 1.0;
+  // The instruction-set level the plan was built for (docs/reproducibility.md: the automatic
+  // leaf capacity, fitted grid and direct limit are chosen per level) and the W/X-list direct
+  // limit: W/X pairs whose leaf holds at most this many points are summed directly.
+  SimdLevel simd_level = SimdLevel::scalar;
+  std::size_t direct_limit = 0;
 };
 
 /// Near-field structure in the caller's numbering: for every leaf, the source and target indices
@@ -141,7 +147,7 @@ int fmm_order_for(double eps);
 /// Digits of the plane-wave table used for a tolerance (3, 6, 9 or 12).
 int fmm_table_digits_for(double eps);
 /// Automatic leaf capacity for a tolerance (measured per plane-wave table; larger where the
-/// AVX-512 P2P kernels are active, see detail::avx512_kernels_active()).
+/// AVX-512 P2P kernels are active, see simd_level() == SimdLevel::avx512).
 int fmm_default_leaf_capacity(double eps);
 
 }  // namespace rpyfmm::fmm
