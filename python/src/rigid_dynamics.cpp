@@ -172,7 +172,10 @@ void bind_rigid_dynamics(nb::module_& m) {
                  const std::string where = "RigidBodyDynamics.drift_estimate";
                  const std::vector<double> direction = to_vector(w, where, "w");
                  std::vector<double> out(6 * sim(self).bodies());
-                 sim(self).drift_estimate(direction, out);
+                 {
+                   nb::gil_scoped_release release;  // two GMRES solves
+                   sim(self).drift_estimate(direction, out);
+                 }
                  return adopt_vector(std::move(out), {sim(self).bodies(), 6});
                }),
            nb::arg("w"),

@@ -270,6 +270,50 @@ def test_concurrent_rigid_bodies_and_their_operator():
             np.testing.assert_array_equal(r, expected_bodies if k % 2 else expected_beads)
 
 
+def test_concurrent_rigid_dynamics_steps_equal_serial_steps():
+    """RigidBodyDynamics steps from three threads (GIL released, noise keyed by the step number)
+    equal the same number of steps in one thread, bitwise."""
+    shape = 1.5 * rpyfmm.icosphere_beads(1)
+    a = 1.5 * rpyfmm.icosphere_bead_radius(1)
+
+    def make(forces=None) -> rpyfmm.RigidBodyDynamics:
+        return rpyfmm.RigidBodyDynamics(rpyfmm.DirectRpy(), np.vstack([shape, shape]), a, [0, 42, 84],
+                                        [[0.0, 0.0, 0.0], [5.0, 0.0, 0.0]], dt=0.01, seed=2, forces=forces)
+
+    def push(t, q, quat, beads):
+        return np.tile([0.1, 0.0, 0.0, 0.0, 0.0, 0.05], (2, 1))
+
+    for forces in (None, push):
+        serial = make(forces)
+        serial.run(6)
+        shared = make(forces)
+        in_threads(lambda k: [shared.step() for _ in range(2)], count=3)
+        assert shared.step_count == 6
+        np.testing.assert_array_equal(shared.positions, serial.positions)
+        np.testing.assert_array_equal(shared.orientations, serial.orientations)
+
+
+def test_force_function_using_the_bead_operator_raises():
+    """The bead operator is in use during a RigidBodyDynamics step: its apply from the force
+    function raises NotSupportedError (not a deadlock); reading its size works."""
+    out = run_isolated("""
+        shape = 1.5 * rpyfmm.icosphere_beads(1)
+        op = rpyfmm.DirectRpy()
+        seen = []
+        def forces(t, q, quat, beads):
+            seen.append(op.size)
+            op.apply(np.ones((42, 3)))
+            return np.zeros((1, 6))
+        sim = rpyfmm.RigidBodyDynamics(op, shape, 0.3, [0, 42], [[0.0, 0.0, 0.0]], dt=0.01, forces=forces)
+        try:
+            sim.step()
+        except rpyfmm.NotSupportedError as e:
+            assert "callback" in str(e) and "MobilityOperator.apply" in str(e), str(e)
+            print("raised", seen)
+        """, timeout=60)
+    assert out.strip() == "raised [42]"
+
+
 def test_callback_calling_its_own_simulation_raises():
     """A force callback may read its Simulation; stepping it from inside raises (no deadlock)."""
     out = run_isolated("""
