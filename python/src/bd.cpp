@@ -386,7 +386,8 @@ void bind_bd(nb::module_& m) {
            "sqrt_preconditioner: 'auto' (block-preconditioned Krylov, direct/fmm), 'block' or 'none';\n"
            "max_displacement: blow-up guard in radii per step; external_force: (3,) force on every particle;\n"
            "force: callable f(positions, step, forces) adding into forces (N, 3) in place and/or returning an\n"
-           "array to add (energy/length); pair: None, 'wca', 'lj36_18', 'soft' or a dict of PairPotential fields;\n"
+           "array to add (energy/length; both arrays are copies it may keep);\n"
+           "pair: None, 'wca', 'lj36_18', 'soft' or a dict of PairPotential fields;\n"
            "fmm_crossover: particles from which 'auto' uses fmm (0 = default_fmm_crossover(tolerance)).")
       .def_static(
           "from_config", [](nb::handle config, nb::handle force) { return new Simulation(config_from(config), force); },
