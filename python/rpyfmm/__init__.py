@@ -14,11 +14,24 @@ the input's shape as float64. A float64 C-contiguous array is used in place
 (no copy); float32, integer or strided inputs are converted once (a copy).
 ``out=`` arrays are written in place and returned. Units are the caller's:
 with viscosity eta and radius a the self mobility is 1/(6 pi eta a).
+Arrays handed to Python callbacks (Simulation forces, sqrt_apply's matvec,
+RigidBodyDynamics forces) own their memory: a callback may keep them.
 
 Errors raise :class:`Error` subclasses (RuntimeError; argument errors are also
-ValueError) whose message is the C++ library's, naming the bad argument.
-The GIL is released during computations; :func:`set_num_threads` sets the
-OpenMP thread count.
+ValueError) whose message is the C++ library's, naming the bad argument; standard
+C++ exceptions map onto the same classes. The GIL is released during
+computations; calls on one object from several Python threads are serialized
+(docs/safety-python.md). :func:`set_num_threads` sets the OpenMP thread count
+(1 to 4 x the hardware threads, at most 1024).
+
+Constants:
+
+* ``POTENTIAL``, ``GRADIENT``, ``HESSIAN``: bits of the ``outputs`` mask of
+  :meth:`LaplaceFmm.evaluate` and :func:`laplace_direct`; ``ALL_OUTPUTS`` is
+  all three.
+* ``RESULT_COLUMNS``: names of the 10 result columns (pot, gx, gy, gz, hxx,
+  hyy, hzz, hxy, hxz, hyz).
+* ``__version__``: the library version.
 """
 
 from __future__ import annotations

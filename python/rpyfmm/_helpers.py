@@ -1,5 +1,6 @@
 """Pure-Python helpers of the rpyfmm package: trajectory reading and the mean
-squared displacement (MSD) used by the examples and tests."""
+squared displacement (MSD) used by the examples and tests. Their errors are
+rpyfmm.Error subclasses, as those of the extension."""
 
 from __future__ import annotations
 
@@ -9,19 +10,37 @@ from typing import List, Tuple
 import numpy as np
 import numpy.typing as npt
 
+from ._rpyfmm import FileError, InvalidInputError
+
 
 def read_xyz(path: str | os.PathLike[str]) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Reads an extended-XYZ trajectory written by the BD engine.
 
     Returns ``(times, steps, positions)`` with ``positions`` of shape
     (frames, N, 3) in length units (wrapped into the box for periodic runs, as
-    written; 10 significant digits) and ``times`` in time units.
+    written; 10 significant digits) and ``times`` in time units. A file that
+    cannot be opened raises :class:`FileError`; one that is not such a
+    trajectory (binary, truncated, malformed) :class:`InvalidInputError`; both
+    name the file.
     """
+    try:
+        with open(path, encoding="utf-8") as f:
+            text = f.read()
+    except UnicodeDecodeError as e:
+        raise InvalidInputError(f"read_xyz: '{os.fspath(path)}' is not a text file ({e})") from e
+    except OSError as e:
+        raise FileError(f"read_xyz: cannot read '{os.fspath(path)}': {e.strerror or e}") from e
+    try:
+        return _parse_xyz(text.splitlines())
+    except (ValueError, IndexError) as e:
+        raise InvalidInputError(f"read_xyz: '{os.fspath(path)}' is not an XYZ trajectory: {e}") from e
+
+
+def _parse_xyz(lines: List[str]) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Frames of an extended-XYZ text: (times, steps, positions); ValueError/IndexError when malformed."""
     times: List[float] = []
     steps: List[int] = []
     frames: List[np.ndarray] = []
-    with open(path, encoding="utf-8") as f:
-        lines = f.read().splitlines()
     i = 0
     while i < len(lines):
         if not lines[i].strip():
@@ -33,6 +52,8 @@ def read_xyz(path: str | os.PathLike[str]) -> Tuple[np.ndarray, np.ndarray, np.n
         times.append(float(fields.get("Time", "nan")))
         steps.append(int(fields.get("Step", "-1")))
         rows = [ln.split() for ln in lines[i + 2 : i + 2 + n]]
+        if len(rows) != n:
+            raise ValueError(f"frame {len(frames)} has {len(rows)} of its {n} atom lines")
         frames.append(np.array([[float(r[1]), float(r[2]), float(r[3])] for r in rows]))
         i += 2 + n
     return np.array(times), np.array(steps), np.array(frames)
@@ -47,7 +68,7 @@ def msd(positions: npt.ArrayLike) -> np.ndarray:
     """
     x = np.asarray(positions, dtype=np.float64)
     if x.ndim != 3 or x.shape[2] != 3:
-        raise ValueError(f"msd: positions has shape {x.shape}, expected (frames, N, 3)")
+        raise InvalidInputError(f"msd: positions has shape {x.shape}, expected (frames, N, 3)")
     d = x - x[0]
     return np.mean(np.sum(d * d, axis=2), axis=1)
 

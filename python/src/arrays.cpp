@@ -141,6 +141,12 @@ ArrayResult adopt_vector(std::vector<double>&& values, const std::vector<std::si
   return {nb::cast(nb::ndarray<nb::numpy, double>(heap->data(), shape.size(), shape.data(), owner))};
 }
 
+ArrayResult read_only_copy(std::span<const double> values, const std::vector<std::size_t>& shape) {
+  auto* heap = new std::vector<double>(values.begin(), values.end());
+  nb::capsule owner(heap, [](void* p) noexcept { delete static_cast<std::vector<double>*>(p); });
+  return {nb::cast(nb::ndarray<nb::numpy, const double>(heap->data(), shape.size(), shape.data(), owner))};
+}
+
 rpy::Geometry geometry_from(nb::handle box, const std::string& where) {
   if (box.is_none()) return rpy::Geometry::open();
   double L = 0.0;

@@ -14,12 +14,15 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <ios>
 #include <iostream>
 #include <map>
 #include <memory>
 #include <optional>
+#include <system_error>
 
 #include "common.hpp"
+#include "object_lock.hpp"
 #include "rpyfmm/bd/config.hpp"
 #include "rpyfmm/bd/integrator.hpp"
 #include "rpyfmm/bd/mobility_factory.hpp"
@@ -28,6 +31,21 @@
 
 namespace rpyfmm::python {
 namespace {
+
+/// Runs fn() reading the file `path`: a directory, or a stream failure (whose message does not
+/// name the file), raises FileError naming `where` and the path.
+template <class Fn>
+auto reading_file(const char* where, const std::filesystem::path& path, Fn&& fn) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) {
+    fail(ErrorCode::io_error, where, "'" + path.string() + "' is a directory, expected a file");
+  }
+  try {
+    return fn();
+  } catch (const std::ios_base::failure& e) {
+    fail(ErrorCode::io_error, where, "reading '" + path.string() + "' failed: " + e.what());
+  }
+}
 
 /// A config argument: a bd::RunConfig, a path (str or os.PathLike) to a TOML file,
 /// or TOML text (a str containing a newline or '=').
@@ -40,7 +58,7 @@ bd::RunConfig config_from(nb::handle config) {
     return bd::parse_config(text, "<python string>");
   }
   std::filesystem::path path;
-  if (nb::try_cast(config, path, true)) return bd::load_config(path);
+  if (nb::try_cast(config, path, true)) return reading_file("config", path, [&] { return bd::load_config(path); });
   fail(ErrorCode::invalid_argument, "config", "expected a RunConfig, a TOML file path or TOML text");
 }
 
@@ -78,16 +96,18 @@ struct PyForce {
 };
 
 /// Adds the callable's forces: f(positions (N, 3) read-only, step, forces (N, 3) writable) may add
-/// into `forces` in place and/or return an array to add. Views are valid during the call only.
+/// into `forces` in place and/or return an array to add. Both arrays own their memory (copies of
+/// the integrator's buffers, about 1 ms each at N = 1e5), so a callable that keeps them never reads
+/// or writes freed memory; what it writes into `forces` after returning has no effect.
 bd::ForceCallback make_callback(PyForce* state) {
   return [state](std::span<const double> x, std::uint64_t step, std::span<double> f) {
     nb::gil_scoped_acquire acquire;
-    const std::size_t shape[2] = {x.size() / 3, 3};
-    nb::object xv =
-        nb::cast(nb::ndarray<nb::numpy, const double>(x.data(), 2, shape, nb::handle()), nb::rv_policy::reference);
-    nb::object fv =
-        nb::cast(nb::ndarray<nb::numpy, double>(f.data(), 2, shape, nb::handle()), nb::rv_policy::reference);
-    nb::object r = state->callable(xv, step, fv);
+    const std::vector<std::size_t> shape{x.size() / 3, 3};
+    const ArrayResult xv = read_only_copy(x, shape);
+    const OutArray fv = make_output(nb::none(), shape, "force callback");
+    std::copy(f.begin(), f.end(), fv.data);
+    nb::object r = state->callable(xv.o, step, fv.object);
+    std::copy(fv.data, fv.data + fv.size, f.begin());
     if (r.is_none()) return;
     const InArray add = as_input(r, "force callback", "returned forces");
     require(
@@ -283,16 +303,24 @@ void bind_bd(nb::module_& m) {
       .def_prop_rw(
           "out_dir", [](const bd::RunConfig& c) { return c.output.dir.string(); },
           [](bd::RunConfig& c, const std::string& v) { c.output.dir = v; }, "Output directory.")
-      .def_prop_ro("viscosity", [](const bd::RunConfig& c) { return c.viscosity; })
-      .def_prop_ro("box", [](const bd::RunConfig& c) { return box_tuple(c.geometry); })
-      .def_prop_ro("mobility", [](const bd::RunConfig& c) { return std::string(bd::to_string(c.mobility.method)); })
+      .def_prop_ro(
+          "viscosity", [](const bd::RunConfig& c) { return c.viscosity; }, "Solvent viscosity eta.")
+      .def_prop_ro(
+          "box", [](const bd::RunConfig& c) { return box_tuple(c.geometry); },
+          "(Lx, Ly, Lz) of the periodic box, or None in free space.")
+      .def_prop_ro(
+          "mobility", [](const bd::RunConfig& c) { return std::string(bd::to_string(c.mobility.method)); },
+          "Mobility method ('none', 'direct', 'fmm', 'pse', 'auto').")
       .def_prop_ro(
           "text", [](const bd::RunConfig& c) { return c.text; }, "The TOML source.")
-      .def_prop_ro("source", [](const bd::RunConfig& c) { return c.source; });
+      .def_prop_ro(
+          "source", [](const bd::RunConfig& c) { return c.source; },
+          "Where the TOML came from (a path or '<python string>'), as error messages name it.");
 
   m.def(
-      "load_config", [](const std::filesystem::path& p) { return bd::load_config(p); }, nb::arg("path"),
-      "Reads and parses a TOML run config (strict: unknown or bad keys raise, naming the key).");
+      "load_config",
+      [](const std::filesystem::path& p) { return reading_file("load_config", p, [&] { return bd::load_config(p); }); },
+      nb::arg("path"), "Reads and parses a TOML run config (strict: unknown or bad keys raise, naming the key).");
   m.def("parse_config", &bd::parse_config, nb::arg("text"), nb::arg("source") = "<python string>",
         "Parses TOML text; `source` names it in error messages.");
   m.def(
@@ -322,7 +350,7 @@ void bind_bd(nb::module_& m) {
         bd::RunSummary s;
         {
           nb::gil_scoped_release release;
-          s = bd::restart_bd(checkpoint, o);
+          s = reading_file("restart_bd", checkpoint, [&] { return bd::restart_bd(checkpoint, o); });
         }
         return summary_dict(s);
       },
@@ -330,11 +358,13 @@ void bind_bd(nb::module_& m) {
       nb::arg("progress") = false, "Continues a run from its checkpoint, bitwise as if uninterrupted.");
 
   nb::class_<bd::StepReport>(m, "StepReport", "What one BD step did.")
-      .def_ro("sqrt_iterations", &bd::StepReport::sqrt_iterations)
-      .def_ro("preconditioner_blocks", &bd::StepReport::preconditioner_blocks)
-      .def_ro("mobility_products", &bd::StepReport::mobility_products)
-      .def_ro("shared_first_product", &bd::StepReport::shared_first_product)
-      .def_ro("neighbour_rebuild", &bd::StepReport::neighbour_rebuild)
+      .def_ro("sqrt_iterations", &bd::StepReport::sqrt_iterations, "Iterations of the Brownian square root.")
+      .def_ro("preconditioner_blocks", &bd::StepReport::preconditioner_blocks,
+              "Blocks of the square root's block preconditioner (0: none).")
+      .def_ro("mobility_products", &bd::StepReport::mobility_products, "Mobility products M x of this step.")
+      .def_ro("shared_first_product", &bd::StepReport::shared_first_product,
+              "True when M F and the square root's first product M z came from one block pass.")
+      .def_ro("neighbour_rebuild", &bd::StepReport::neighbour_rebuild, "True when the neighbour list was rebuilt.")
       .def_ro("potential_energy", &bd::StepReport::potential_energy, "Total potential energy (energy units).");
 
   nb::class_<Simulation>(m, "Simulation", nb::type_slots(simulation_slots),
@@ -356,32 +386,35 @@ void bind_bd(nb::module_& m) {
            "sqrt_preconditioner: 'auto' (block-preconditioned Krylov, direct/fmm), 'block' or 'none';\n"
            "max_displacement: blow-up guard in radii per step; external_force: (3,) force on every particle;\n"
            "force: callable f(positions, step, forces) adding into forces (N, 3) in place and/or returning an\n"
-           "array to add (energy/length); pair: None, 'wca', 'lj36_18', 'soft' or a dict of PairPotential fields;\n"
+           "array to add (energy/length; both arrays are copies it may keep);\n"
+           "pair: None, 'wca', 'lj36_18', 'soft' or a dict of PairPotential fields;\n"
            "fmm_crossover: particles from which 'auto' uses fmm (0 = default_fmm_crossover(tolerance)).")
       .def_static(
           "from_config", [](nb::handle config, nb::handle force) { return new Simulation(config_from(config), force); },
           nb::arg("config"), nb::arg("force") = nb::none(), nb::rv_policy::take_ownership,
           "The particles, forces and mobility of a BD config (RunConfig, path or TOML text), plus an optional\n"
           "Python force; stepping it reproduces `run_bd` bitwise when force is None.")
-      .def(
-          "step",
-          [](Simulation& s) {
-            bd::StepReport r;
-            {
-              nb::gil_scoped_release release;
-              r = s.integrator().step();
-            }
-            return r;
-          },
-          "Advances one step; on a blow-up or a force error the state stays at the last good step and an\n"
-          "exception is raised (the Python force's own exception unchanged).")
-      .def(
-          "run",
-          [](Simulation& s, std::uint64_t count) {
-            nb::gil_scoped_release release;
-            s.integrator().run(count);
-          },
-          nb::arg("count"), "Advances `count` steps.")
+      .def("step",
+           locked(
+               "Simulation.step",
+               +[](Simulation& s) {
+                 bd::StepReport r;
+                 {
+                   nb::gil_scoped_release release;
+                   r = s.integrator().step();
+                 }
+                 return r;
+               }),
+           "Advances one step; on a blow-up or a force error the state stays at the last good step and an\n"
+           "exception is raised (the Python force's own exception unchanged).")
+      .def("run",
+           locked(
+               "Simulation.run",
+               +[](Simulation& s, std::uint64_t count) {
+                 nb::gil_scoped_release release;
+                 s.integrator().run(count);
+               }),
+           nb::arg("count"), "Advances `count` steps.")
       .def_prop_ro(
           "positions",
           [](nb::handle self) { return view_of(nb::cast<Simulation&>(self).integrator().positions(), self); },
@@ -391,32 +424,54 @@ void bind_bd(nb::module_& m) {
           [](nb::handle self) { return view_of(nb::cast<Simulation&>(self).integrator().last_forces(), self); },
           "Live read-only view (N, 3) of the forces at the start of the last step.")
       .def_prop_ro("radii",
-                   [](const Simulation& s) {
-                     auto r = s.integrator().radii();
-                     return adopt_vector(std::vector<double>(r.begin(), r.end()), {r.size()});
-                   })
-      .def_prop_ro("size", [](const Simulation& s) { return s.integrator().size(); })
-      .def("__len__", [](const Simulation& s) { return s.integrator().size(); })
-      .def_prop_ro("step_count", [](const Simulation& s) { return s.integrator().step_count(); })
+                   locked_read(
+                       "Simulation.radii",
+                       +[](const Simulation& s) {
+                         auto r = s.integrator().radii();
+                         return adopt_vector(std::vector<double>(r.begin(), r.end()), {r.size()});
+                       }),
+                   "Copy of the radii (N,).")
       .def_prop_ro(
-          "time", [](const Simulation& s) { return s.integrator().time(); }, "step_count * dt.")
-      .def_prop_ro("dt", [](const Simulation& s) { return s.integrator().options().dt; })
-      .def_prop_ro("kT", [](const Simulation& s) { return s.integrator().options().kT; })
-      .def_prop_ro("mobility", [](const Simulation& s) { return s.integrator().mobility().name(); })
-      .def_prop_ro("neighbour_rebuilds", [](const Simulation& s) { return s.integrator().neighbour_rebuilds(); })
-      .def_prop_ro("last_report", [](const Simulation& s) { return s.integrator().last_report(); })
+          "size", [](const Simulation& s) { return s.integrator().size(); }, "Number of particles N.")
       .def(
-          "totals",
-          [](const Simulation& s) {
-            const bd::IntegratorTotals& t = s.integrator().totals();
-            nb::dict d;
-            d["steps"] = t.steps;
-            d["sqrt_iterations"] = t.sqrt_iterations;
-            d["mobility_products"] = t.mobility_products;
-            d["seconds"] = t.seconds;
-            return d;
-          },
-          "Cumulative counters and seconds per part.");
+          "__len__", [](const Simulation& s) { return s.integrator().size(); }, "N, as size.")
+      .def_prop_ro("step_count",
+                   locked_read(
+                       "Simulation.step_count", +[](const Simulation& s) { return s.integrator().step_count(); }),
+                   "Number of the current step (first_step + steps taken).")
+      .def_prop_ro("time",
+                   locked_read(
+                       "Simulation.time", +[](const Simulation& s) { return s.integrator().time(); }),
+                   "step_count * dt.")
+      .def_prop_ro(
+          "dt", [](const Simulation& s) { return s.integrator().options().dt; }, "Time step (time units).")
+      .def_prop_ro(
+          "kT", [](const Simulation& s) { return s.integrator().options().kT; }, "Thermal energy (energy units).")
+      .def_prop_ro(
+          "mobility", [](const Simulation& s) { return s.integrator().mobility().name(); },
+          "Name of the mobility operator in use ('none', 'direct', 'fmm', 'pse').")
+      .def_prop_ro("neighbour_rebuilds",
+                   locked_read(
+                       "Simulation.neighbour_rebuilds",
+                       +[](const Simulation& s) { return s.integrator().neighbour_rebuilds(); }),
+                   "Neighbour-list rebuilds so far.")
+      .def_prop_ro("last_report",
+                   locked_read(
+                       "Simulation.last_report", +[](const Simulation& s) { return s.integrator().last_report(); }),
+                   "The StepReport of the last step.")
+      .def("totals",
+           locked_read(
+               "Simulation.totals",
+               +[](const Simulation& s) {
+                 const bd::IntegratorTotals& t = s.integrator().totals();
+                 nb::dict d;
+                 d["steps"] = t.steps;
+                 d["sqrt_iterations"] = t.sqrt_iterations;
+                 d["mobility_products"] = t.mobility_products;
+                 d["seconds"] = t.seconds;
+                 return d;
+               }),
+           "Cumulative counters and seconds per part.");
 }
 
 }  // namespace rpyfmm::python

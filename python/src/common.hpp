@@ -117,6 +117,10 @@ OutArray make_output(nb::handle out, const std::vector<std::size_t>& shape, cons
 /// Wraps a vector's storage as a NumPy array without copying (the array owns it).
 ArrayResult adopt_vector(std::vector<double>&& values, const std::vector<std::size_t>& shape);
 
+/// A read-only NumPy array that owns a copy of `values`: what Python callbacks receive, so that
+/// an array they keep stays valid after the C++ buffer behind `values` is gone.
+ArrayResult read_only_copy(std::span<const double> values, const std::vector<std::size_t>& shape);
+
 /// None -> open; a number L -> periodic cube; three numbers -> periodic box.
 rpy::Geometry geometry_from(nb::handle box, const std::string& where);
 /// None for open geometry, else (Lx, Ly, Lz).

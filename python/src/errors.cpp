@@ -9,8 +9,23 @@
 //   numerical_failure -> NumericalFailureError(Error, ArithmeticError)
 //   io_error          -> FileError(Error)    (OSError's layout cannot be combined with RuntimeError)
 //   out_of_memory     -> OutOfMemoryError(Error, MemoryError)
+// Standard C++ exceptions escaping the library map onto the same classes (message = what()),
+// so that every failure from C++ is an rpyfmm.Error:
+//   std::bad_alloc, std::length_error            -> OutOfMemoryError
+//   std::filesystem::filesystem_error, std::ios_base::failure -> FileError
+//   std::invalid_argument, std::domain_error      -> InvalidArgumentError
+//   std::out_of_range                             -> InvalidInputError
+//   std::overflow_error, underflow_error, range_error -> NumericalFailureError
+//   any other std::exception                      -> Error
+// nanobind's own exceptions (argument conversion: std::bad_cast -> TypeError) and Python
+// exceptions raised by callbacks pass through unchanged.
 #include <array>
 #include <exception>
+#include <filesystem>
+#include <ios>
+#include <new>
+#include <stdexcept>
+#include <typeinfo>
 
 #include "common.hpp"
 #include "rpyfmm/core/error.hpp"
@@ -20,6 +35,42 @@ namespace {
 
 constexpr std::size_t kCodes = 6;
 std::array<PyObject*, kCodes> g_classes{};  // indexed by ErrorCode; kept alive by the module
+
+PyObject* g_base = nullptr;  // rpyfmm.Error
+
+PyObject* class_of(ErrorCode code) {
+  const auto index = static_cast<std::size_t>(code);
+  return index < kCodes && g_classes[index] ? g_classes[index] : g_base;
+}
+
+/// The rpyfmm.Error subclass of a standard exception (rethrows `p` to inspect it).
+PyObject* class_of_std(const std::exception_ptr& p) {
+  try {
+    std::rethrow_exception(p);
+  } catch (const std::bad_alloc&) {
+    return class_of(ErrorCode::out_of_memory);
+  } catch (const std::length_error&) {
+    return class_of(ErrorCode::out_of_memory);
+  } catch (const std::filesystem::filesystem_error&) {
+    return class_of(ErrorCode::io_error);
+  } catch (const std::ios_base::failure&) {
+    return class_of(ErrorCode::io_error);
+  } catch (const std::invalid_argument&) {
+    return class_of(ErrorCode::invalid_argument);
+  } catch (const std::domain_error&) {
+    return class_of(ErrorCode::invalid_argument);
+  } catch (const std::out_of_range&) {
+    return class_of(ErrorCode::invalid_input);
+  } catch (const std::overflow_error&) {
+    return class_of(ErrorCode::numerical_failure);
+  } catch (const std::underflow_error&) {
+    return class_of(ErrorCode::numerical_failure);
+  } catch (const std::range_error&) {
+    return class_of(ErrorCode::numerical_failure);
+  } catch (...) {
+    return g_base;
+  }
+}
 
 struct ClassSpec {
   ErrorCode code;
@@ -40,6 +91,7 @@ void bind_errors(nb::module_& m) {
   if (base == nullptr) throw nb::python_error();
   PyObject_SetAttrString(base, "code", Py_None);
   m.attr("Error") = nb::steal(base);
+  g_base = base;
 
   const ClassSpec specs[] = {
       {ErrorCode::invalid_argument, "InvalidArgumentError", "invalid_argument", PyExc_ValueError,
@@ -69,9 +121,11 @@ void bind_errors(nb::module_& m) {
     try {
       std::rethrow_exception(p);
     } catch (const rpyfmm::Error& e) {
-      const auto index = static_cast<std::size_t>(e.code());
-      PyObject* cls = index < kCodes && g_classes[index] ? g_classes[index] : PyExc_RuntimeError;
-      PyErr_SetString(cls, e.what());
+      PyErr_SetString(class_of(e.code()), e.what());
+    } catch (const std::bad_cast&) {
+      throw;  // nanobind's cast_error: its own translator raises TypeError
+    } catch (const std::exception& e) {
+      PyErr_SetString(class_of_std(p), e.what());
     }
   });
 }

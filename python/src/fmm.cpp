@@ -8,6 +8,7 @@
 #include <nanobind/stl/string.h>
 
 #include "common.hpp"
+#include "object_lock.hpp"
 #include "rpyfmm/fmm/direct.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
 #include "rpyfmm/fmm/leaf_grid.hpp"
@@ -105,49 +106,61 @@ void bind_fmm(nb::module_& m) {
           "eps: requested relative l2 accuracy in [1e-15, 1e-1]; leaf_capacity: points per leaf (0 = automatic);\n"
           "order: expansion order (0 = from eps); root_scale: root box side over the points' bounding cube,\n"
           "in [1, 8] (1 = the bounding cube; above 1 anchored at the low corner, see fit_leaf_grid).")
-      .def(
-          "set_points",
-          [](fmm::LaplaceFmm& self, ArrayArg sources, OptArrayArg targets) {
-            const InArray s = as_input(sources, "LaplaceFmm.set_points", "sources");
-            require_points(s, "LaplaceFmm.set_points", "sources");
-            InArray t;
-            if (!targets.is_none()) {
-              t = as_input(targets, "LaplaceFmm.set_points", "targets");
-              require_points(t, "LaplaceFmm.set_points", "targets");
-            }
-            nb::gil_scoped_release release;
-            self.set_points(s.span(), t.span());
-          },
-          nb::arg("sources"), nb::arg("targets") = nb::none(),
-          "Builds the tree and lists. sources: (N, 3) or (3N,) positions; targets: (M, 3) or None to evaluate\n"
-          "at the sources (self pair excluded). The points are copied into the plan.")
-      .def(
-          "evaluate",
-          [](const fmm::LaplaceFmm& self, ArrayArg charges, nb::handle outputs, OutArg out) {
-            const std::string where = "LaplaceFmm.evaluate";
-            const unsigned mask = outputs_from(outputs, where);
-            const InArray q = as_input(charges, where, "charges");
-            const std::size_t nd = densities(q, where);
-            require(self.num_sources() > 0, ErrorCode::invalid_input, where, "call set_points first");
-            OutArray r = make_output(out, result_shape(q, self.num_targets()), where, &q);
-            {
-              nb::gil_scoped_release release;
-              self.evaluate(q.span(), nd, mask, r.span());
-            }
-            return ArrayResult{r.object};
-          },
-          nb::arg("charges"), nb::arg("outputs") = "all", nb::arg("out") = nb::none(),
-          "Potential/gradient/Hessian at the targets. charges: (N,) or (nd, N); outputs: 'all', a name\n"
-          "('potential', 'gradient', 'hessian'), 'potential|gradient', a list of names or an int mask.\n"
-          "Returns (M, 10) or (nd, M, 10) float64 [pot, gx, gy, gz, hxx, hyy, hzz, hxy, hxz, hyz]\n"
-          "(unrequested columns are 0); `out` is written in place and returned.")
-      .def_prop_ro("eps", [](const fmm::LaplaceFmm& self) { return self.options().eps; })
-      .def_prop_ro("num_sources", &fmm::LaplaceFmm::num_sources)
-      .def_prop_ro("num_targets", &fmm::LaplaceFmm::num_targets)
-      .def(
-          "stats", [](const fmm::LaplaceFmm& self) { return tree_stats_dict(self.stats()); },
-          "Tree shape and plan memory: levels, boxes, leaves, memory_bytes, order, nlams, ...")
-      .def("last_timings", &fmm::LaplaceFmm::last_timings,
+      .def("set_points",
+           locked(
+               "LaplaceFmm.set_points",
+               +[](fmm::LaplaceFmm& self, ArrayArg sources, OptArrayArg targets) {
+                 const InArray s = as_input(sources, "LaplaceFmm.set_points", "sources");
+                 require_points(s, "LaplaceFmm.set_points", "sources");
+                 InArray t;
+                 if (!targets.is_none()) {
+                   t = as_input(targets, "LaplaceFmm.set_points", "targets");
+                   require_points(t, "LaplaceFmm.set_points", "targets");
+                 }
+                 nb::gil_scoped_release release;
+                 self.set_points(s.span(), t.span());
+               }),
+           nb::arg("sources"), nb::arg("targets") = nb::none(),
+           "Builds the tree and lists. sources: (N, 3) or (3N,) positions; targets: (M, 3) or None to evaluate\n"
+           "at the sources (self pair excluded). The points are copied into the plan.")
+      .def("evaluate",
+           locked(
+               "LaplaceFmm.evaluate",
+               +[](const fmm::LaplaceFmm& self, ArrayArg charges, nb::handle outputs, OutArg out) {
+                 const std::string where = "LaplaceFmm.evaluate";
+                 const unsigned mask = outputs_from(outputs, where);
+                 const InArray q = as_input(charges, where, "charges");
+                 const std::size_t nd = densities(q, where);
+                 require(self.num_sources() > 0, ErrorCode::invalid_input, where, "call set_points first");
+                 OutArray r = make_output(out, result_shape(q, self.num_targets()), where, &q);
+                 {
+                   nb::gil_scoped_release release;
+                   self.evaluate(q.span(), nd, mask, r.span());
+                 }
+                 return ArrayResult{r.object};
+               }),
+           nb::arg("charges"), nb::arg("outputs") = "all", nb::arg("out") = nb::none(),
+           "Potential/gradient/Hessian at the targets. charges: (N,) or (nd, N); outputs: 'all', a name\n"
+           "('potential', 'gradient', 'hessian'), 'potential|gradient', a list of names or an int mask.\n"
+           "Returns (M, 10) or (nd, M, 10) float64 [pot, gx, gy, gz, hxx, hyy, hzz, hxy, hxz, hyz]\n"
+           "(unrequested columns are 0); `out` is written in place and returned.")
+      .def_prop_ro(
+          "eps", [](const fmm::LaplaceFmm& self) { return self.options().eps; }, "Requested relative l2 accuracy.")
+      .def_prop_ro("num_sources",
+                   locked_read(
+                       "LaplaceFmm.num_sources", +[](const fmm::LaplaceFmm& self) { return self.num_sources(); }),
+                   "Number of source points N (0 before set_points).")
+      .def_prop_ro("num_targets",
+                   locked_read(
+                       "LaplaceFmm.num_targets", +[](const fmm::LaplaceFmm& self) { return self.num_targets(); }),
+                   "Number of target points M (N when evaluating at the sources).")
+      .def("stats",
+           locked_read(
+               "LaplaceFmm.stats", +[](const fmm::LaplaceFmm& self) { return tree_stats_dict(self.stats()); }),
+           "Tree shape and plan memory: levels, boxes, leaves, memory_bytes, order, nlams, ...")
+      .def("last_timings",
+           locked_read(
+               "LaplaceFmm.last_timings", +[](const fmm::LaplaceFmm& self) { return self.last_timings(); }),
            "Stage times in seconds of set_points and of the last evaluate.");
 
   m.def(

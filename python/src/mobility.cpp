@@ -10,8 +10,10 @@
 #include <nanobind/stl/vector.h>
 
 #include "common.hpp"
+#include "object_lock.hpp"
 #include "rpyfmm/bd/free_draining.hpp"
 #include "rpyfmm/bd/mobility_factory.hpp"
+#include "rpyfmm/core/threads.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
@@ -148,82 +150,101 @@ void bind_mobility(nb::module_& m) {
       .def_prop_ro(
           "box", [](const MobilityOperator& op) { return box_tuple(op.geometry()); },
           "(Lx, Ly, Lz) of the periodic box, or None in free space.")
-      .def_prop_ro("periodic", [](const MobilityOperator& op) { return op.geometry().is_periodic(); })
-      .def_prop_ro("size", &MobilityOperator::size, "Number of particles N (0 before set_positions).")
-      .def("__len__", &MobilityOperator::size)
-      .def_prop_ro("equal_radii", &MobilityOperator::equal_radii)
       .def_prop_ro(
-          "positions",
-          [](const MobilityOperator& op) {
-            auto p = op.positions();
-            return adopt_vector(std::vector<double>(p.begin(), p.end()), {p.size() / 3, 3});
-          },
-          "Copy of the stored positions (N, 3) (wrapped into the box when periodic).")
-      .def_prop_ro(
-          "radii",
-          [](const MobilityOperator& op) {
-            auto r = op.radii();
-            return adopt_vector(std::vector<double>(r.begin(), r.end()), {r.size()});
-          },
-          "Copy of the radii (N,).")
-      .def("set_positions", &set_positions, nb::arg("positions"), nb::arg("radius"),
+          "periodic", [](const MobilityOperator& op) { return op.geometry().is_periodic(); }, "True in a periodic box.")
+      .def_prop_ro("size",
+                   locked_read(
+                       "MobilityOperator.size", +[](const MobilityOperator& op) { return op.size(); }),
+                   "Number of particles N (0 before set_positions).")
+      .def("__len__",
+           locked_read(
+               "MobilityOperator.__len__", +[](const MobilityOperator& op) { return op.size(); }),
+           "N, as size.")
+      .def_prop_ro("equal_radii",
+                   locked_read(
+                       "MobilityOperator.equal_radii", +[](const MobilityOperator& op) { return op.equal_radii(); }),
+                   "True when every particle has the same radius.")
+      .def_prop_ro("positions",
+                   locked_read(
+                       "MobilityOperator.positions",
+                       +[](const MobilityOperator& op) {
+                         auto p = op.positions();
+                         return adopt_vector(std::vector<double>(p.begin(), p.end()), {p.size() / 3, 3});
+                       }),
+                   "Copy of the stored positions (N, 3) (wrapped into the box when periodic).")
+      .def_prop_ro("radii",
+                   locked_read(
+                       "MobilityOperator.radii",
+                       +[](const MobilityOperator& op) {
+                         auto r = op.radii();
+                         return adopt_vector(std::vector<double>(r.begin(), r.end()), {r.size()});
+                       }),
+                   "Copy of the radii (N,).")
+      .def("set_positions", locked("MobilityOperator.set_positions", &set_positions), nb::arg("positions"),
+           nb::arg("radius"),
            "Sets positions ((N, 3) or (3N,), length units) and the radius: one number for all particles or an\n"
            "array of N radii. Builds the solver's plan once; apply may then be called many times.")
-      .def("apply", &apply, nb::arg("forces"), nb::arg("out") = nb::none(),
+      .def("apply", locked("MobilityOperator.apply", &apply), nb::arg("forces"), nb::arg("out") = nb::none(),
            "U = M F. forces: (N, 3) or (3N,); returns velocities in the same shape (float64);\n"
            "`out` (writable float64, C-contiguous) is written in place and returned.")
-      .def("apply_block", &apply_block, nb::arg("forces"), nb::arg("out") = nb::none(),
-           "U_k = M F_k for forces of shape (nrhs, N, 3) or (nrhs, 3N) in one pass.")
-      .def(
-          "apply_sqrt",
-          [](const MobilityOperator& op, ArrayArg z, OutArg out, const std::string& method, double tol,
-             int max_iterations, bool reorth, bool throw_nc, double lmin, double lmax, int bound_it,
-             const std::string& preconditioner, int preconditioner_block) {
-            return apply_sqrt(op, z, out, method, tol, max_iterations, reorth, throw_nc, lmin, lmax, bound_it,
-                              preconditioner, preconditioner_block, false);
-          },
-          nb::arg("z"), nb::arg("out") = nb::none(), nb::kw_only(), nb::arg("method") = "auto", nb::arg("tol") = 1e-3,
-          nb::arg("max_iterations") = 0, nb::arg("reorthogonalize") = true, nb::arg("throw_if_not_converged") = true,
-          nb::arg("lambda_min") = 0.0, nb::arg("lambda_max") = 0.0, nb::arg("bound_estimate_iterations") = 30,
-          nb::arg("preconditioner") = "none", nb::arg("preconditioner_block") = 0, kSqrtDoc)
-      .def(
-          "apply_sqrt_block",
-          [](const MobilityOperator& op, ArrayArg z, OutArg out, const std::string& method, double tol,
-             int max_iterations, bool reorth, bool throw_nc, double lmin, double lmax, int bound_it,
-             const std::string& preconditioner, int preconditioner_block) {
-            return apply_sqrt(op, z, out, method, tol, max_iterations, reorth, throw_nc, lmin, lmax, bound_it,
-                              preconditioner, preconditioner_block, true);
-          },
-          nb::arg("z"), nb::arg("out") = nb::none(), nb::kw_only(), nb::arg("method") = "auto", nb::arg("tol") = 1e-3,
-          nb::arg("max_iterations") = 0, nb::arg("reorthogonalize") = true, nb::arg("throw_if_not_converged") = true,
-          nb::arg("lambda_min") = 0.0, nb::arg("lambda_max") = 0.0, nb::arg("bound_estimate_iterations") = 30,
-          nb::arg("preconditioner") = "none", nb::arg("preconditioner_block") = 0,
-          "Block apply_sqrt: z of shape (nrhs, N, 3) or (nrhs, 3N), one operator product per iteration for all.")
-      .def(
-          "divergence",
-          [](const MobilityOperator& op) {
-            std::vector<double> d(3 * op.size());
-            op.divergence(d);
-            return adopt_vector(std::move(d), {op.size(), 3});
-          },
-          "Divergence of M with respect to the positions, (N, 3); zero for RPY.")
-      .def(
-          "assemble_dense",
-          [](const MobilityOperator& op, std::size_t max_bytes) {
-            std::vector<double> dense;
-            {
-              nb::gil_scoped_release release;
-              dense = op.assemble_dense(max_bytes);
-            }
-            const std::size_t n = 3 * op.size();
-            return adopt_vector(std::move(dense), {n, n});
-          },
-          nb::arg("max_bytes") = std::size_t{1} << 31,
-          "Dense (3N, 3N) matrix from products with unit vectors (small N only).")
-      .def("__repr__", [](const MobilityOperator& op) {
-        return "<rpyfmm." + op.name() + " mobility, N = " + std::to_string(op.size()) +
-               ", viscosity = " + std::to_string(op.viscosity()) + (op.geometry().is_periodic() ? ", periodic>" : ">");
-      });
+      .def("apply_block", locked("MobilityOperator.apply_block", &apply_block), nb::arg("forces"),
+           nb::arg("out") = nb::none(), "U_k = M F_k for forces of shape (nrhs, N, 3) or (nrhs, 3N) in one pass.")
+      .def("apply_sqrt",
+           locked(
+               "MobilityOperator.apply_sqrt",
+               +[](const MobilityOperator& op, ArrayArg z, OutArg out, const std::string& method, double tol,
+                   int max_iterations, bool reorth, bool throw_nc, double lmin, double lmax, int bound_it,
+                   const std::string& preconditioner, int preconditioner_block) {
+                 return apply_sqrt(op, z, out, method, tol, max_iterations, reorth, throw_nc, lmin, lmax, bound_it,
+                                   preconditioner, preconditioner_block, false);
+               }),
+           nb::arg("z"), nb::arg("out") = nb::none(), nb::kw_only(), nb::arg("method") = "auto", nb::arg("tol") = 1e-3,
+           nb::arg("max_iterations") = 0, nb::arg("reorthogonalize") = true, nb::arg("throw_if_not_converged") = true,
+           nb::arg("lambda_min") = 0.0, nb::arg("lambda_max") = 0.0, nb::arg("bound_estimate_iterations") = 30,
+           nb::arg("preconditioner") = "none", nb::arg("preconditioner_block") = 0, kSqrtDoc)
+      .def("apply_sqrt_block",
+           locked(
+               "MobilityOperator.apply_sqrt_block",
+               +[](const MobilityOperator& op, ArrayArg z, OutArg out, const std::string& method, double tol,
+                   int max_iterations, bool reorth, bool throw_nc, double lmin, double lmax, int bound_it,
+                   const std::string& preconditioner, int preconditioner_block) {
+                 return apply_sqrt(op, z, out, method, tol, max_iterations, reorth, throw_nc, lmin, lmax, bound_it,
+                                   preconditioner, preconditioner_block, true);
+               }),
+           nb::arg("z"), nb::arg("out") = nb::none(), nb::kw_only(), nb::arg("method") = "auto", nb::arg("tol") = 1e-3,
+           nb::arg("max_iterations") = 0, nb::arg("reorthogonalize") = true, nb::arg("throw_if_not_converged") = true,
+           nb::arg("lambda_min") = 0.0, nb::arg("lambda_max") = 0.0, nb::arg("bound_estimate_iterations") = 30,
+           nb::arg("preconditioner") = "none", nb::arg("preconditioner_block") = 0,
+           "Block apply_sqrt: z of shape (nrhs, N, 3) or (nrhs, 3N), one operator product per iteration for all.")
+      .def("divergence",
+           locked(
+               "MobilityOperator.divergence",
+               +[](const MobilityOperator& op) {
+                 std::vector<double> d(3 * op.size());
+                 op.divergence(d);
+                 return adopt_vector(std::move(d), {op.size(), 3});
+               }),
+           "Divergence of M with respect to the positions, (N, 3); zero for RPY.")
+      .def("assemble_dense",
+           locked(
+               "MobilityOperator.assemble_dense",
+               +[](const MobilityOperator& op, std::size_t max_bytes) {
+                 std::vector<double> dense;
+                 {
+                   nb::gil_scoped_release release;
+                   dense = op.assemble_dense(max_bytes);
+                 }
+                 const std::size_t n = 3 * op.size();
+                 return adopt_vector(std::move(dense), {n, n});
+               }),
+           nb::arg("max_bytes") = std::size_t{1} << 31,
+           "Dense (3N, 3N) matrix from products with unit vectors (small N only).")
+      .def("__repr__", locked_read(
+                           "MobilityOperator.__repr__", +[](const MobilityOperator& op) {
+                             return "<rpyfmm." + op.name() + " mobility, N = " + std::to_string(op.size()) +
+                                    ", viscosity = " + std::to_string(op.viscosity()) +
+                                    (op.geometry().is_periodic() ? ", periodic>" : ">");
+                           }));
 
   nb::class_<rpy::DirectRpy, MobilityOperator>(m, "DirectRpy",
                                                "Exact O(N^2) RPY mobility (all overlap regimes); free space only.")
@@ -248,15 +269,24 @@ void bind_mobility(nb::module_& m) {
           nb::arg("viscosity") = 1.0, nb::arg("tolerance") = 1e-6, nb::arg("leaf_capacity") = 0,
           nb::arg("box") = nb::none(),
           "tolerance: relative l2 error of U in [1e-12, 1e-1]; leaf_capacity: 0 = automatic.")
-      .def_prop_ro("tolerance", [](const rpy::FmmRpy& op) { return op.options().tolerance; })
-      .def_prop_ro("laplace_eps", &rpy::FmmRpy::laplace_eps, "Tolerance handed to the Laplace FMM.")
-      .def("last_timings", &rpy::FmmRpy::last_timings, "Stage times (s) of the last apply.")
-      .def(
-          "stats",
-          [](const rpy::FmmRpy& op) {
-            return op.laplace_plan() ? tree_stats_dict(op.laplace_plan()->stats()) : nb::dict();
-          },
-          "The Laplace FMM tree's statistics (as LaplaceFmm.stats()); empty before set_positions.");
+      .def_prop_ro(
+          "tolerance", [](const rpy::FmmRpy& op) { return op.options().tolerance; },
+          "Requested relative l2 error of U.")
+      .def_prop_ro("laplace_eps",
+                   locked_read(
+                       "FmmRpy.laplace_eps", +[](const rpy::FmmRpy& op) { return op.laplace_eps(); }),
+                   "Tolerance handed to the Laplace FMM.")
+      .def("last_timings",
+           locked_read(
+               "FmmRpy.last_timings", +[](const rpy::FmmRpy& op) { return op.last_timings(); }),
+           "Stage times (s) of the last apply.")
+      .def("stats",
+           locked_read(
+               "FmmRpy.stats",
+               +[](const rpy::FmmRpy& op) {
+                 return op.laplace_plan() ? tree_stats_dict(op.laplace_plan()->stats()) : nb::dict();
+               }),
+           "The Laplace FMM tree's statistics (as LaplaceFmm.stats()); empty before set_positions.");
 
   nb::class_<rpy::pse::PseRpy, MobilityOperator>(
       m, "PseRpy",
@@ -273,6 +303,7 @@ void bind_mobility(nb::module_& m) {
             o.xi = xi;
             o.r_cut = r_cut;
             o.window_eta = window_eta;
+            require_thread_count(fft_threads, "PseRpy fft_threads", true);
             o.fft_threads = fft_threads;
             o.max_memory_bytes = max_memory_bytes;
             o.fft_measure = fft_measure;
@@ -287,6 +318,8 @@ void bind_mobility(nb::module_& m) {
           "box: L (cube) or (Lx, Ly, Lz), length units; tolerance in [1e-8, 0.1) relative to 1/(6 pi eta a);\n"
           "xi: Ewald splitting (1/length, 0 = automatic); r_cut: real-space cutoff (length, 0 = automatic);\n"
           "window_eta: Gaussian window shape in (0, 1), 0 = the cheapest meeting the tolerance;\n"
+          "fft_threads: FFTW threads (0 = automatic: the OpenMP threads for grids of >= 2^20 points, else one;\n"
+          "at most 4 x the hardware threads);\n"
           "fft_measure: FFTW_MEASURE plans (timed at set_positions, faster transforms, results\n"
           "reproducible to round-off rather than bit for bit across processes);\n"
           "wave_precision: 'single' or 'double' wave-space grids; 'auto' = single for tolerance >= 1e-5\n"
@@ -295,51 +328,63 @@ void bind_mobility(nb::module_& m) {
           "for the later ones (the split sampler's Lanczos); float with single wave grids, else double,\n"
           "while it fits in max_memory_bytes (parameters['real_space_cache_bytes']).")
       .def_prop_ro(
-          "parameters", [](const rpy::pse::PseRpy& op) { return pse_parameters(op.parameters()); },
+          "parameters",
+          locked_read(
+              "PseRpy.parameters", +[](const rpy::pse::PseRpy& op) { return pse_parameters(op.parameters()); }),
           "The choices made for the current radius, box and N (xi, r_cut, grid, support, ...).")
-      .def(
-          "apply_real",
-          [](const rpy::pse::PseRpy& op, ArrayArg forces, OutArg out) {
-            return map_points("apply_real", forces, out, [&](auto f, auto u) { op.apply_real(f, u); });
-          },
-          nb::arg("forces"), nb::arg("out") = nb::none(), "U = M_r F (real-space part).")
-      .def(
-          "apply_wave",
-          [](const rpy::pse::PseRpy& op, ArrayArg forces, OutArg out) {
-            return map_points("apply_wave", forces, out, [&](auto f, auto u) { op.apply_wave(f, u); });
-          },
-          nb::arg("forces"), nb::arg("out") = nb::none(), "U = M_w F (wave-space part).")
-      .def(
-          "sample",
-          [](const rpy::pse::PseRpy& op, std::uint64_t seed, std::uint64_t step, OutArg out) {
-            OutArray w = make_output(out, {op.size(), 3}, "sample");
-            rpy::SqrtReport report;
-            {
-              nb::gil_scoped_release release;
-              report = op.sample(seed, step, w.span());
-            }
-            return array_and_report(w.object, report);
-          },
-          nb::arg("seed"), nb::arg("step") = 0, nb::arg("out") = nb::none(),
-          "w = M^{1/2} z by the split sampler with noise keyed by (seed, step). Returns (w (N, 3), SqrtReport).")
-      .def(
-          "apply_with_noise",
-          [](const rpy::pse::PseRpy& op, ArrayArg forces, double noise_scale, std::uint64_t seed, std::uint64_t step,
-             OutArg out) {
-            const InArray f = as_input(forces, "apply_with_noise", "forces");
-            require_points(f, "apply_with_noise", "forces");
-            OutArray u = make_output(out, f.shape, "apply_with_noise", &f);
-            rpy::SqrtReport report;
-            {
-              nb::gil_scoped_release release;
-              report = op.apply_with_noise(f.span(), noise_scale, seed, step, u.span());
-            }
-            return array_and_report(u.object, report);
-          },
-          nb::arg("forces"), nb::arg("noise_scale"), nb::arg("seed"), nb::arg("step") = 0, nb::arg("out") = nb::none(),
-          "U = M F + noise_scale M^{1/2} z in one fused pass (BD: noise_scale = sqrt(2 kT / dt)).")
-      .def("stage_times", &rpy::pse::PseRpy::stage_times, "Accumulated seconds per stage.")
-      .def("reset_stage_times", &rpy::pse::PseRpy::reset_stage_times);
+      .def("apply_real",
+           locked(
+               "PseRpy.apply_real",
+               +[](const rpy::pse::PseRpy& op, ArrayArg forces, OutArg out) {
+                 return map_points("apply_real", forces, out, [&](auto f, auto u) { op.apply_real(f, u); });
+               }),
+           nb::arg("forces"), nb::arg("out") = nb::none(), "U = M_r F (real-space part).")
+      .def("apply_wave",
+           locked(
+               "PseRpy.apply_wave",
+               +[](const rpy::pse::PseRpy& op, ArrayArg forces, OutArg out) {
+                 return map_points("apply_wave", forces, out, [&](auto f, auto u) { op.apply_wave(f, u); });
+               }),
+           nb::arg("forces"), nb::arg("out") = nb::none(), "U = M_w F (wave-space part).")
+      .def("sample",
+           locked(
+               "PseRpy.sample",
+               +[](const rpy::pse::PseRpy& op, std::uint64_t seed, std::uint64_t step, OutArg out) {
+                 OutArray w = make_output(out, {op.size(), 3}, "sample");
+                 rpy::SqrtReport report;
+                 {
+                   nb::gil_scoped_release release;
+                   report = op.sample(seed, step, w.span());
+                 }
+                 return array_and_report(w.object, report);
+               }),
+           nb::arg("seed"), nb::arg("step") = 0, nb::arg("out") = nb::none(),
+           "w = M^{1/2} z by the split sampler with noise keyed by (seed, step). Returns (w (N, 3), SqrtReport).")
+      .def("apply_with_noise",
+           locked(
+               "PseRpy.apply_with_noise",
+               +[](const rpy::pse::PseRpy& op, ArrayArg forces, double noise_scale, std::uint64_t seed,
+                   std::uint64_t step, OutArg out) {
+                 const InArray f = as_input(forces, "apply_with_noise", "forces");
+                 require_points(f, "apply_with_noise", "forces");
+                 OutArray u = make_output(out, f.shape, "apply_with_noise", &f);
+                 rpy::SqrtReport report;
+                 {
+                   nb::gil_scoped_release release;
+                   report = op.apply_with_noise(f.span(), noise_scale, seed, step, u.span());
+                 }
+                 return array_and_report(u.object, report);
+               }),
+           nb::arg("forces"), nb::arg("noise_scale"), nb::arg("seed"), nb::arg("step") = 0, nb::arg("out") = nb::none(),
+           "U = M F + noise_scale M^{1/2} z in one fused pass (BD: noise_scale = sqrt(2 kT / dt)).")
+      .def("stage_times",
+           locked_read(
+               "PseRpy.stage_times", +[](const rpy::pse::PseRpy& op) { return op.stage_times(); }),
+           "Accumulated seconds per stage.")
+      .def("reset_stage_times",
+           locked(
+               "PseRpy.reset_stage_times", +[](rpy::pse::PseRpy& op) { op.reset_stage_times(); }),
+           "Sets the accumulated stage times to zero.");
 
   nb::class_<bd::FreeDrainingMobility, MobilityOperator>(
       m, "FreeDraining", "No hydrodynamic interactions: M = diag(1 / (6 pi eta a_i)); exact square root.")
@@ -348,7 +393,8 @@ void bind_mobility(nb::module_& m) {
           [](bd::FreeDrainingMobility* self, double viscosity, BoxArg box) {
             new (self) bd::FreeDrainingMobility(geometry_from(box, "FreeDraining"), viscosity);
           },
-          nb::arg("viscosity") = 1.0, nb::arg("box") = nb::none());
+          nb::arg("viscosity") = 1.0, nb::arg("box") = nb::none(),
+          "viscosity: eta > 0; box: None, L or (Lx, Ly, Lz) (the diagonal mobility does not depend on it).");
 
   m.def(
       "make_mobility",
@@ -380,6 +426,7 @@ void bind_mobility(nb::module_& m) {
   m.def(
       "_time_apply_cpp",
       [](const MobilityOperator& op, ArrayArg forces, OutArg out, int repeats) {
+        const CallGuard hold = guard("_time_apply_cpp", op);
         const InArray f = as_input(forces, "_time_apply_cpp", "forces");
         OutArray u = make_output(out, f.shape, "_time_apply_cpp", &f);
         std::vector<double> seconds;

@@ -5,6 +5,7 @@
 #include <nanobind/stl/vector.h>
 
 #include "common.hpp"
+#include "object_lock.hpp"
 #include "rpyfmm/rpy/rigid_bodies.hpp"
 
 namespace rpyfmm::python {
@@ -13,15 +14,28 @@ namespace {
 using rpy::RigidBodies;
 using rpy::RigidBodyReport;
 
+/// The Python RigidBodies: the solver and the bead operator it drives (kept alive by the Python
+/// object), whose lock every call takes too.
+struct BoundRigidBodies {
+  BoundRigidBodies(rpy::MobilityOperator& op, const rpy::RigidBodyOptions& options) : beads(op), bodies(op, options) {}
+  rpy::MobilityOperator& beads;
+  RigidBodies bodies;
+};
+
+LockPtr inner_lock_of(const BoundRigidBodies& b) {
+  return lock_of(b.beads);
+}
+
 std::string report_repr(const RigidBodyReport& r) {
   return "RigidBodyReport(iterations=" + std::to_string(r.iterations) + ", restarts=" + std::to_string(r.restarts) +
          ", residual=" + nb::cast<std::string>(nb::repr(nb::float_(r.residual))) +
          ", seconds_solve=" + nb::cast<std::string>(nb::repr(nb::float_(r.seconds_solve))) + ")";
 }
 
-void set_configuration(RigidBodies& bodies, ArrayArg positions, RadiusArg radius,
+void set_configuration(BoundRigidBodies& bound, ArrayArg positions, RadiusArg radius,
                        const std::vector<std::size_t>& body_offsets, OptArrayArg reference_points) {
   const std::string where = "RigidBodies.set_configuration";
+  RigidBodies& bodies = bound.bodies;
   const InArray x = as_input(positions, where, "positions");
   require_points(x, where, "positions");
   InArray q;
@@ -39,8 +53,9 @@ void set_configuration(RigidBodies& bodies, ArrayArg positions, RadiusArg radius
 }
 
 /// (velocities (m, 6)[, bead forces (N, 3)], report).
-nb::tuple apply(const RigidBodies& bodies, ArrayArg forces_torques, bool with_bead_forces) {
+nb::tuple apply(const BoundRigidBodies& bound, ArrayArg forces_torques, bool with_bead_forces) {
   const std::string where = "RigidBodies.apply";
+  const RigidBodies& bodies = bound.bodies;
   const InArray w = as_input(forces_torques, where, "forces_torques");
   const std::size_t m = bodies.bodies();
   require((w.ndim() == 2 && w.shape[1] == 6) || w.ndim() == 1, ErrorCode::invalid_input, where,
@@ -57,9 +72,10 @@ nb::tuple apply(const RigidBodies& bodies, ArrayArg forces_torques, bool with_be
   return nb::make_tuple(y.object, adopt_vector(std::move(lambda), {n, 3}).o, report);
 }
 
-nb::tuple apply_with_noise(const RigidBodies& bodies, ArrayArg forces_torques, double noise_scale, ArrayArg z,
+nb::tuple apply_with_noise(const BoundRigidBodies& bound, ArrayArg forces_torques, double noise_scale, ArrayArg z,
                            double sqrt_tol, const std::string& preconditioner) {
   const std::string where = "RigidBodies.apply_with_noise";
+  const RigidBodies& bodies = bound.bodies;
   const InArray w = as_input(forces_torques, where, "forces_torques");
   const InArray zz = as_input(z, where, "z");
   require_points(zz, where, "z");
@@ -80,16 +96,16 @@ nb::tuple apply_with_noise(const RigidBodies& bodies, ArrayArg forces_torques, d
 void bind_rigid(nb::module_& m) {
   nb::class_<RigidBodyReport>(m, "RigidBodyReport", "What a rigid-body mobility solve did (GMRES).")
       .def_ro("iterations", &RigidBodyReport::iterations, "GMRES iterations = bead products M lambda.")
-      .def_ro("restarts", &RigidBodyReport::restarts)
+      .def_ro("restarts", &RigidBodyReport::restarts, "GMRES restarts.")
       .def_ro("residual", &RigidBodyReport::residual,
               "Final relative residual of the saddle-point system (GMRES's recurrence estimate).")
       .def_ro("seconds_setup", &RigidBodyReport::seconds_setup, "The last set_configuration, in seconds.")
-      .def_ro("seconds_solve", &RigidBodyReport::seconds_solve)
+      .def_ro("seconds_solve", &RigidBodyReport::seconds_solve, "This apply's solve, in seconds.")
       .def_ro("sqrt", &RigidBodyReport::sqrt, "apply_with_noise: the SqrtReport of the bead noise B z.")
-      .def_ro("seconds_sqrt", &RigidBodyReport::seconds_sqrt)
+      .def_ro("seconds_sqrt", &RigidBodyReport::seconds_sqrt, "apply_with_noise: the bead noise B z, in seconds.")
       .def("__repr__", &report_repr);
 
-  nb::class_<RigidBodies>(
+  nb::class_<BoundRigidBodies>(
       m, "RigidBodies",
       "Mobility of rigid bodies made of beads (bead-shell / rigid multiblob models): forces and torques\n"
       "(m, 6) -> linear and angular velocities (m, 6), with full hydrodynamic interactions among all beads\n"
@@ -97,62 +113,75 @@ void bind_rigid(nb::module_& m) {
       "M lambda = K Y, K^T lambda = (F, T) by GMRES, preconditioned body by body.")
       .def(
           "__init__",
-          [](RigidBodies* self, rpy::MobilityOperator& beads, double tolerance, int max_iterations, int restart,
+          [](BoundRigidBodies* self, rpy::MobilityOperator& beads, double tolerance, int max_iterations, int restart,
              bool precondition) {
-            new (self) RigidBodies(beads, {.tolerance = tolerance,
-                                           .max_iterations = max_iterations,
-                                           .restart = restart,
-                                           .precondition = precondition});
+            const CallGuard hold = guard("RigidBodies", beads);
+            new (self) BoundRigidBodies(beads, {.tolerance = tolerance,
+                                                .max_iterations = max_iterations,
+                                                .restart = restart,
+                                                .precondition = precondition});
           },
           nb::arg("beads"), nb::kw_only(), nb::arg("tolerance") = 1e-6, nb::arg("max_iterations") = 500,
           nb::arg("restart") = 60, nb::arg("precondition") = true, nb::keep_alive<1, 2>(),
           "beads: the bead mobility operator (kept alive; set_configuration sets its positions);\n"
           "tolerance: GMRES relative residual in (0, 1); max_iterations: bead products at most;\n"
           "restart: Krylov vectors kept; precondition: the body-block preconditioner (False: plain GMRES).")
-      .def("set_configuration", &set_configuration, nb::arg("positions"), nb::arg("radius"), nb::arg("body_offsets"),
-           nb::arg("reference_points") = nb::none(),
+      .def("set_configuration", locked("RigidBodies.set_configuration", &set_configuration), nb::arg("positions"),
+           nb::arg("radius"), nb::arg("body_offsets"), nb::arg("reference_points") = nb::none(),
            "positions: bead positions (N, 3); radius: a number or (N,) radii; body_offsets: m + 1 increasing\n"
            "indices (body k = beads body_offsets[k] ... body_offsets[k+1] - 1; first 0, last N);\n"
            "reference_points: (m, 3) points the angular velocities and torques refer to (None: centroids).")
-      .def(
-          "apply", [](const RigidBodies& b, ArrayArg w) { return apply(b, w, false); }, nb::arg("forces_torques"),
-          "(velocities (m, 6), RigidBodyReport) for forces_torques (m, 6) = (F_x, F_y, F_z, T_x, T_y, T_z)\n"
-          "per body; velocities = (U_x, U_y, U_z, Omega_x, Omega_y, Omega_z).")
-      .def(
-          "apply_with_bead_forces", [](const RigidBodies& b, ArrayArg w) { return apply(b, w, true); },
-          nb::arg("forces_torques"),
-          "(velocities (m, 6), bead forces (N, 3), RigidBodyReport): also the forces the beads exert on the\n"
-          "fluid to keep the bodies rigid.")
-      .def("apply_with_noise", &apply_with_noise, nb::arg("forces_torques"), nb::arg("noise_scale"), nb::arg("z"),
-           nb::arg("sqrt_tol") = 1e-3, nb::arg("preconditioner") = "auto",
+      .def("apply",
+           locked(
+               "RigidBodies.apply", +[](const BoundRigidBodies& b, ArrayArg w) { return apply(b, w, false); }),
+           nb::arg("forces_torques"),
+           "(velocities (m, 6), RigidBodyReport) for forces_torques (m, 6) = (F_x, F_y, F_z, T_x, T_y, T_z)\n"
+           "per body; velocities = (U_x, U_y, U_z, Omega_x, Omega_y, Omega_z).")
+      .def("apply_with_bead_forces",
+           locked(
+               "RigidBodies.apply_with_bead_forces",
+               +[](const BoundRigidBodies& b, ArrayArg w) { return apply(b, w, true); }),
+           nb::arg("forces_torques"),
+           "(velocities (m, 6), bead forces (N, 3), RigidBodyReport): also the forces the beads exert on the\n"
+           "fluid to keep the bodies rigid.")
+      .def("apply_with_noise", locked("RigidBodies.apply_with_noise", &apply_with_noise), nb::arg("forces_torques"),
+           nb::arg("noise_scale"), nb::arg("z"), nb::arg("sqrt_tol") = 1e-3, nb::arg("preconditioner") = "auto",
            "(velocities (m, 6), RigidBodyReport): N W + noise_scale N K^T M^{-1} B z for bead noise z (N, 3)\n"
            "(standard normal, e.g. normal_noise(N, seed, step)); B B^T = M from the bead operator's sampler\n"
            "(Lanczos at sqrt_tol; preconditioner 'auto' | 'block' | 'none'). The noise part has covariance\n"
            "noise_scale^2 N: with noise_scale = sqrt(2 kT / dt), Y dt is a Brownian step (without the\n"
            "thermal drift).")
-      .def(
-          "mobility_matrix",
-          [](const RigidBodies& b, std::size_t max_bodies) {
-            std::vector<double> n;
-            {
-              nb::gil_scoped_release release;
-              n = b.mobility_matrix(max_bodies);
-            }
-            const std::size_t rows = 6 * b.bodies();
-            return adopt_vector(std::move(n), {rows, rows});
-          },
-          nb::arg("max_bodies") = 200,
-          "The body mobility matrix N (6m, 6m) by 6m solves, symmetrized; kT N is the grand diffusion\n"
-          "tensor (translational and rotational diffusion of bead models).")
-      .def_prop_ro("bodies", &RigidBodies::bodies)
-      .def_prop_ro("beads", &RigidBodies::beads)
-      .def_prop_ro(
-          "reference_points",
-          [](const RigidBodies& b) {
-            const auto q = b.reference_points();
-            return adopt_vector(std::vector<double>(q.begin(), q.end()), {q.size() / 3, 3});
-          },
-          "The reference points in use (m, 3).");
+      .def("mobility_matrix",
+           locked(
+               "RigidBodies.mobility_matrix",
+               +[](const BoundRigidBodies& b, std::size_t max_bodies) {
+                 std::vector<double> n;
+                 {
+                   nb::gil_scoped_release release;
+                   n = b.bodies.mobility_matrix(max_bodies);
+                 }
+                 const std::size_t rows = 6 * b.bodies.bodies();
+                 return adopt_vector(std::move(n), {rows, rows});
+               }),
+           nb::arg("max_bodies") = 200,
+           "The body mobility matrix N (6m, 6m) by 6m solves, symmetrized; kT N is the grand diffusion\n"
+           "tensor (translational and rotational diffusion of bead models).")
+      .def_prop_ro("bodies",
+                   locked_read(
+                       "RigidBodies.bodies", +[](const BoundRigidBodies& b) { return b.bodies.bodies(); }),
+                   "Number of bodies m.")
+      .def_prop_ro("beads",
+                   locked_read(
+                       "RigidBodies.beads", +[](const BoundRigidBodies& b) { return b.bodies.beads(); }),
+                   "Number of beads N.")
+      .def_prop_ro("reference_points",
+                   locked_read(
+                       "RigidBodies.reference_points",
+                       +[](const BoundRigidBodies& b) {
+                         const auto q = b.bodies.reference_points();
+                         return adopt_vector(std::vector<double>(q.begin(), q.end()), {q.size() / 3, 3});
+                       }),
+                   "The reference points in use (m, 3).");
 
   m.def(
       "icosphere_beads",

@@ -9,6 +9,7 @@
 #include <memory>
 
 #include "common.hpp"
+#include "object_lock.hpp"
 
 namespace rpyfmm::python {
 namespace {
@@ -16,11 +17,17 @@ namespace {
 using bd::RigidBodyDynamics;
 using bd::RigidStepReport;
 
-/// The Python object, holding the simulation and the force callable it calls.
+/// The Python object, holding the simulation, the force callable it calls and the bead operator
+/// it drives (kept alive by the Python object; its lock is taken with this object's).
 struct PyRigidBodyDynamics {
   nb::object forces;  ///< None or forces(time, positions (m,3), orientations (m,4), beads (N,3)) -> (m,6)
   std::unique_ptr<RigidBodyDynamics> sim;
+  rpy::MobilityOperator* beads = nullptr;
 };
+
+LockPtr inner_lock_of(const PyRigidBodyDynamics& self) {
+  return self.beads ? lock_of(*self.beads) : nullptr;
+}
 
 std::vector<double> to_vector(ArrayArg a, const std::string& where, const std::string& name) {
   const InArray in = as_input(a, where, name);
@@ -37,6 +44,7 @@ void init(PyRigidBodyDynamics* self, rpy::MobilityOperator& beads, ArrayArg shap
           double tolerance, int max_iterations, double sqrt_tol, const std::string& preconditioner,
           double max_displacement, nb::object forces, nb::handle pair) {
   const std::string where = "RigidBodyDynamics";
+  const CallGuard hold = guard(where, beads);
   const InArray rho = as_input(shape, where, "shape");
   require_points(rho, where, "shape");
   // One radius or N (RigidBodyDynamics takes a 1-element vector as one radius for all beads).
@@ -74,7 +82,8 @@ void init(PyRigidBodyDynamics* self, rpy::MobilityOperator& beads, ArrayArg shap
   if (!forces.is_none()) {
     // `self` is the object's storage, constructed below; the function runs only after that.
     function = [self](const bd::RigidBodyState& state, std::span<double> w) {
-      // Called from step() with the GIL held (see step below).
+      // Called from step(), which runs without the GIL; the arrays are copies the callable may keep.
+      nb::gil_scoped_acquire acquire;
       const std::string name = "RigidBodyDynamics forces";
       nb::object result = self->forces(state.time, copy_rows(state.positions, 3).o, copy_rows(state.orientations, 4).o,
                                        copy_rows(state.bead_positions, 3).o);
@@ -94,16 +103,13 @@ void init(PyRigidBodyDynamics* self, rpy::MobilityOperator& beads, ArrayArg shap
     field.set_pair(0, 0, pair_from(pair, where));
     simulation->set_bead_forces(std::move(field));
   }
-  new (self) PyRigidBodyDynamics{forces, std::move(simulation)};
+  new (self) PyRigidBodyDynamics{forces, std::move(simulation), &beads};
 }
 
-const RigidStepReport& run(PyRigidBodyDynamics& self, std::uint64_t steps) {
-  if (self.forces.is_none()) {
-    nb::gil_scoped_release release;
-    self.sim->run(steps);
-  } else {
-    self.sim->run(steps);  // the force function needs the GIL
-  }
+/// Steps without the GIL (the force function takes it while it runs).
+RigidStepReport run(PyRigidBodyDynamics& self, std::uint64_t steps) {
+  nb::gil_scoped_release release;
+  self.sim->run(steps);
   return self.sim->last_report();
 }
 
@@ -121,7 +127,8 @@ void bind_rigid_dynamics(nb::module_& m) {
               "GMRES iterations of the two random-finite-difference solves (0 without drift).")
       .def_ro("sqrt_iterations", &RigidStepReport::sqrt_iterations, "Iterations of the bead square root B z.")
       .def_ro("potential_energy", &RigidStepReport::potential_energy, "Of the bead pair potential (0 without).")
-      .def_ro("neighbour_rebuild", &RigidStepReport::neighbour_rebuild)
+      .def_ro("neighbour_rebuild", &RigidStepReport::neighbour_rebuild,
+              "True when the bead neighbour list was rebuilt (pair potential only).")
       .def("__repr__", [](const RigidStepReport& r) {
         return "RigidStepReport(solve_iterations=" + std::to_string(r.solve_iterations) +
                ", drift_iterations=" + std::to_string(r.drift_iterations) +
@@ -152,77 +159,117 @@ void bind_rigid_dynamics(nb::module_& m) {
            "torques about the reference points; pair: None, 'wca', 'soft', 'lj36_18' or a dict of PairPotential\n"
            "fields (kind, epsilon, sigma, cutoff, min_distance_fraction): a pair potential between beads of\n"
            "different bodies (sigma 0 = twice the first bead's radius), with a neighbour list.")
-      .def(
-          "step", [](PyRigidBodyDynamics& self) { return run(self, 1); }, "One step; returns its RigidStepReport.")
-      .def("run", &run, nb::arg("steps"), "Advances `steps` steps; returns the last step's RigidStepReport.")
-      .def(
-          "drift_estimate",
-          [](PyRigidBodyDynamics& self, ArrayArg w) {
-            const std::string where = "RigidBodyDynamics.drift_estimate";
-            const std::vector<double> direction = to_vector(w, where, "w");
-            std::vector<double> out(6 * sim(self).bodies());
-            sim(self).drift_estimate(direction, out);
-            return adopt_vector(std::move(out), {sim(self).bodies(), 6});
-          },
-          nb::arg("w"),
-          "(1/delta)[N(Q + delta/2 S w) - N(Q - delta/2 S w)] S^{-1} w (m, 6) for w (6m): its mean over\n"
-          "standard normal w (and its sum over unit vectors) is the divergence d/dQ . N.")
-      .def(
-          "bead_forces_to_bodies",
-          [](PyRigidBodyDynamics& self, ArrayArg f) {
-            const std::vector<double> forces = to_vector(f, "RigidBodyDynamics.bead_forces_to_bodies", "bead_forces");
-            std::vector<double> w(6 * sim(self).bodies(), 0.0);
-            sim(self).bead_forces_to_bodies(forces, w);
-            return adopt_vector(std::move(w), {sim(self).bodies(), 6});
-          },
-          nb::arg("bead_forces"), "Forces and torques (m, 6) of bead forces (N, 3) at the current bead positions.")
+      .def("step",
+           locked(
+               "RigidBodyDynamics.step", +[](PyRigidBodyDynamics& self) { return run(self, 1); }),
+           "One step; returns its RigidStepReport.")
+      .def("run", locked("RigidBodyDynamics.run", &run), nb::arg("steps"),
+           "Advances `steps` steps; returns the last step's RigidStepReport.")
+      .def("drift_estimate",
+           locked(
+               "RigidBodyDynamics.drift_estimate",
+               +[](PyRigidBodyDynamics& self, ArrayArg w) {
+                 const std::string where = "RigidBodyDynamics.drift_estimate";
+                 const std::vector<double> direction = to_vector(w, where, "w");
+                 std::vector<double> out(6 * sim(self).bodies());
+                 {
+                   nb::gil_scoped_release release;  // two GMRES solves
+                   sim(self).drift_estimate(direction, out);
+                 }
+                 return adopt_vector(std::move(out), {sim(self).bodies(), 6});
+               }),
+           nb::arg("w"),
+           "(1/delta)[N(Q + delta/2 S w) - N(Q - delta/2 S w)] S^{-1} w (m, 6) for w (6m): its mean over\n"
+           "standard normal w (and its sum over unit vectors) is the divergence d/dQ . N.")
+      .def("bead_forces_to_bodies",
+           locked(
+               "RigidBodyDynamics.bead_forces_to_bodies",
+               +[](PyRigidBodyDynamics& self, ArrayArg f) {
+                 const std::vector<double> forces =
+                     to_vector(f, "RigidBodyDynamics.bead_forces_to_bodies", "bead_forces");
+                 std::vector<double> w(6 * sim(self).bodies(), 0.0);
+                 sim(self).bead_forces_to_bodies(forces, w);
+                 return adopt_vector(std::move(w), {sim(self).bodies(), 6});
+               }),
+           nb::arg("bead_forces"), "Forces and torques (m, 6) of bead forces (N, 3) at the current bead positions.")
       .def_prop_ro(
-          "positions", [](PyRigidBodyDynamics& s) { return copy_rows(sim(s).positions(), 3); },
+          "positions",
+          locked_read(
+              "RigidBodyDynamics.positions", +[](PyRigidBodyDynamics& s) { return copy_rows(sim(s).positions(), 3); }),
           "Reference points (m, 3), unwrapped.")
+      .def_prop_ro("orientations",
+                   locked_read(
+                       "RigidBodyDynamics.orientations",
+                       +[](PyRigidBodyDynamics& s) { return copy_rows(sim(s).orientations(), 4); }),
+                   "Unit quaternions (m, 4) (w, x, y, z).")
+      .def_prop_ro("bead_positions",
+                   locked_read(
+                       "RigidBodyDynamics.bead_positions",
+                       +[](PyRigidBodyDynamics& s) { return copy_rows(sim(s).bead_positions(), 3); }),
+                   "Bead positions (N, 3) = q_k + R_k rho_i, unwrapped.")
+      .def_prop_ro("lever_arms",
+                   locked_read(
+                       "RigidBodyDynamics.lever_arms",
+                       +[](PyRigidBodyDynamics& s) {
+                         const auto l = sim(s).lever_arms();
+                         return adopt_vector(std::vector<double>(l.begin(), l.end()), {l.size()});
+                       }),
+                   "Each body's RMS lever arm (m,).")
+      .def_prop_ro("last_velocities",
+                   locked_read(
+                       "RigidBodyDynamics.last_velocities",
+                       +[](PyRigidBodyDynamics& s) { return copy_rows(sim(s).last_velocities(), 6); }),
+                   "Velocities (m, 6) of the last step, noise included, drift not.")
+      .def_prop_ro("last_drift",
+                   locked_read(
+                       "RigidBodyDynamics.last_drift",
+                       +[](PyRigidBodyDynamics& s) { return copy_rows(sim(s).last_drift(), 6); }),
+                   "The drift velocity (m, 6) of the last step (zeros without drift).")
+      .def_prop_ro("bodies",
+                   locked_read(
+                       "RigidBodyDynamics.bodies", +[](PyRigidBodyDynamics& s) { return sim(s).bodies(); }),
+                   "Number of bodies m.")
+      .def_prop_ro("beads",
+                   locked_read(
+                       "RigidBodyDynamics.beads", +[](PyRigidBodyDynamics& s) { return sim(s).beads(); }),
+                   "Number of beads N.")
+      .def_prop_ro("time",
+                   locked_read(
+                       "RigidBodyDynamics.time", +[](PyRigidBodyDynamics& s) { return sim(s).time(); }),
+                   "step_count * dt (time units).")
+      .def_prop_ro("step_count",
+                   locked_read(
+                       "RigidBodyDynamics.step_count", +[](PyRigidBodyDynamics& s) { return sim(s).step_count(); }),
+                   "Step number of the current state (first_step + steps taken).")
       .def_prop_ro(
-          "orientations", [](PyRigidBodyDynamics& s) { return copy_rows(sim(s).orientations(), 4); },
-          "Unit quaternions (m, 4) (w, x, y, z).")
-      .def_prop_ro(
-          "bead_positions", [](PyRigidBodyDynamics& s) { return copy_rows(sim(s).bead_positions(), 3); },
-          "Bead positions (N, 3) = q_k + R_k rho_i, unwrapped.")
-      .def_prop_ro(
-          "lever_arms",
-          [](PyRigidBodyDynamics& s) {
-            const auto l = sim(s).lever_arms();
-            return adopt_vector(std::vector<double>(l.begin(), l.end()), {l.size()});
-          },
-          "Each body's RMS lever arm (m,).")
-      .def_prop_ro(
-          "last_velocities", [](PyRigidBodyDynamics& s) { return copy_rows(sim(s).last_velocities(), 6); },
-          "Velocities (m, 6) of the last step, noise included, drift not.")
-      .def_prop_ro(
-          "last_drift", [](PyRigidBodyDynamics& s) { return copy_rows(sim(s).last_drift(), 6); },
-          "The drift velocity (m, 6) of the last step (zeros without drift).")
-      .def_prop_ro("bodies", [](PyRigidBodyDynamics& s) { return sim(s).bodies(); })
-      .def_prop_ro("beads", [](PyRigidBodyDynamics& s) { return sim(s).beads(); })
-      .def_prop_ro("time", [](PyRigidBodyDynamics& s) { return sim(s).time(); })
-      .def_prop_ro("step_count", [](PyRigidBodyDynamics& s) { return sim(s).step_count(); })
-      .def_prop_ro(
-          "rfd_tolerance", [](PyRigidBodyDynamics& s) { return sim(s).rfd_tolerance(); },
+          "rfd_tolerance",
+          locked_read(
+              "RigidBodyDynamics.rfd_tolerance", +[](PyRigidBodyDynamics& s) { return sim(s).rfd_tolerance(); }),
           "GMRES tolerance of the RFD solves: min(tolerance, 1e-3 rfd_delta).")
-      .def_prop_ro("last_report", [](PyRigidBodyDynamics& s) { return sim(s).last_report(); })
-      .def_prop_ro(
-          "last_forces_torques", [](PyRigidBodyDynamics& s) { return copy_rows(sim(s).last_forces_torques(), 6); },
-          "Forces and torques (m, 6) of the last step (force function plus bead pair forces).")
-      .def_prop_ro(
-          "totals",
-          [](PyRigidBodyDynamics& s) {
-            const auto& t = sim(s).totals();
-            nb::dict d, seconds;
-            d["steps"] = t.steps;
-            d["solve_iterations"] = t.solve_iterations;
-            d["drift_iterations"] = t.drift_iterations;
-            d["sqrt_iterations"] = t.sqrt_iterations;
-            for (const auto& [name, value] : t.seconds) seconds[name.c_str()] = value;
-            d["seconds"] = seconds;
-            return d;
-          },
-          "Counters and seconds per stage ('forces', 'plan', 'sqrt', 'solve', 'drift', 'update').");
+      .def_prop_ro("last_report",
+                   locked_read(
+                       "RigidBodyDynamics.last_report", +[](PyRigidBodyDynamics& s) { return sim(s).last_report(); }),
+                   "The RigidStepReport of the last step.")
+      .def_prop_ro("last_forces_torques",
+                   locked_read(
+                       "RigidBodyDynamics.last_forces_torques",
+                       +[](PyRigidBodyDynamics& s) { return copy_rows(sim(s).last_forces_torques(), 6); }),
+                   "Forces and torques (m, 6) of the last step (force function plus bead pair forces).")
+      .def_prop_ro("totals",
+                   locked_read(
+                       "RigidBodyDynamics.totals",
+                       +[](PyRigidBodyDynamics& s) {
+                         const auto& t = sim(s).totals();
+                         nb::dict d, seconds;
+                         d["steps"] = t.steps;
+                         d["solve_iterations"] = t.solve_iterations;
+                         d["drift_iterations"] = t.drift_iterations;
+                         d["sqrt_iterations"] = t.sqrt_iterations;
+                         for (const auto& [name, value] : t.seconds) seconds[name.c_str()] = value;
+                         d["seconds"] = seconds;
+                         return d;
+                       }),
+                   "Counters and seconds per stage ('forces', 'plan', 'sqrt', 'solve', 'drift', 'update').");
 }
 
 }  // namespace rpyfmm::python

@@ -6,6 +6,7 @@
 #include <cstring>
 
 #include "common.hpp"
+#include "object_lock.hpp"
 #include "rpyfmm/rpy/mobility.hpp"
 #include "rpyfmm/rpy/random.hpp"
 
@@ -32,10 +33,13 @@ void bind_samplers(nb::module_& m) {
               "Lanczos steps (max over right-hand sides) / Chebyshev degree / 0 for dense methods.")
       .def_ro("error_estimate", &rpy::SqrtReport::error_estimate,
               "Relative error estimate: last relative change (Lanczos) or bound (Chebyshev); dimensionless.")
-      .def_ro("operator_applications", &rpy::SqrtReport::operator_applications)
-      .def_ro("vector_products", &rpy::SqrtReport::vector_products)
-      .def_ro("converged", &rpy::SqrtReport::converged)
-      .def_ro("breakdown", &rpy::SqrtReport::breakdown)
+      .def_ro("operator_applications", &rpy::SqrtReport::operator_applications,
+              "Calls of the operator (one call serves all right-hand sides).")
+      .def_ro("vector_products", &rpy::SqrtReport::vector_products, "Products M x summed over right-hand sides.")
+      .def_ro("converged", &rpy::SqrtReport::converged,
+              "False only when throw_if_not_converged=False and the tolerance was not met.")
+      .def_ro("breakdown", &rpy::SqrtReport::breakdown,
+              "True when Lanczos found an invariant subspace (the result is then exact).")
       .def_ro("lambda_min", &rpy::SqrtReport::lambda_min, "Chebyshev: lower spectrum bound used (mobility units).")
       .def_ro("lambda_max", &rpy::SqrtReport::lambda_max, "Chebyshev: upper spectrum bound used (mobility units).")
       .def_ro("preconditioner_blocks", &rpy::SqrtReport::preconditioner_blocks,
@@ -43,11 +47,12 @@ void bind_samplers(nb::module_& m) {
       .def("__repr__", &report_repr);
 
   nb::class_<rpy::SpectrumBounds>(m, "SpectrumBounds", "Padded extreme eigenvalue estimates (mobility units).")
-      .def_ro("lambda_min", &rpy::SpectrumBounds::lambda_min)
-      .def_ro("lambda_max", &rpy::SpectrumBounds::lambda_max)
-      .def_ro("ritz_min", &rpy::SpectrumBounds::ritz_min)
-      .def_ro("ritz_max", &rpy::SpectrumBounds::ritz_max)
-      .def_ro("iterations", &rpy::SpectrumBounds::iterations)
+      .def_ro("lambda_min", &rpy::SpectrumBounds::lambda_min, "Padded lower bound (smallest Ritz value / 2).")
+      .def_ro("lambda_max", &rpy::SpectrumBounds::lambda_max,
+              "Padded upper bound (largest Ritz value + Lanczos residual bound, x 1.01).")
+      .def_ro("ritz_min", &rpy::SpectrumBounds::ritz_min, "Smallest Ritz value found.")
+      .def_ro("ritz_max", &rpy::SpectrumBounds::ritz_max, "Largest Ritz value found.")
+      .def_ro("iterations", &rpy::SpectrumBounds::iterations, "Lanczos steps taken.")
       .def("__repr__", [](const rpy::SpectrumBounds& b) {
         return "SpectrumBounds(lambda_min=" + std::to_string(b.lambda_min) +
                ", lambda_max=" + std::to_string(b.lambda_max) + ")";
@@ -70,6 +75,7 @@ void bind_samplers(nb::module_& m) {
   m.def(
       "estimate_spectrum_bounds",
       [](const rpy::MobilityOperator& op, int iterations) {
+        const CallGuard hold = guard("estimate_spectrum_bounds", op);
         nb::gil_scoped_release release;
         return rpy::estimate_spectrum_bounds(op.as_linear_operator(), iterations);
       },
@@ -91,14 +97,13 @@ void bind_samplers(nb::module_& m) {
         rpy::LinearOperatorView view;
         view.n = zz.size;
         // The solver runs without the GIL; each product takes it to call `matvec` on a
-        // read-only view of x (valid during the call only) and copies the result into y.
+        // read-only copy of x (an array owning its memory: matvec may keep it) and copies the
+        // result into y.
         view.apply = [&matvec, n = zz.size](std::span<const double> x, std::span<double> y, std::size_t nrhs) {
           nb::gil_scoped_acquire acquire;
           for (std::size_t k = 0; k < nrhs; ++k) {
-            const std::size_t shape[1] = {n};
-            nb::object xv = nb::cast(nb::ndarray<nb::numpy, const double>(x.data() + k * n, 1, shape, nb::handle()),
-                                     nb::rv_policy::reference);
-            const InArray r = as_input(matvec(xv), "sqrt_apply", "matvec result");
+            const ArrayResult xv = read_only_copy(x.subspan(k * n, n), {n});
+            const InArray r = as_input(matvec(xv.o), "sqrt_apply", "matvec result");
             require(r.size == n, ErrorCode::invalid_input, "sqrt_apply",
                     "matvec returned " + std::to_string(r.size) + " entries, expected " + std::to_string(n));
             std::memcpy(y.data() + k * n, r.data, n * sizeof(double));
@@ -115,7 +120,8 @@ void bind_samplers(nb::module_& m) {
       nb::arg("tol") = 1e-3, nb::arg("max_iterations") = 0, nb::arg("reorthogonalize") = true,
       nb::arg("throw_if_not_converged") = true, nb::arg("lambda_min") = 0.0, nb::arg("lambda_max") = 0.0,
       nb::arg("bound_estimate_iterations") = 30,
-      "w = M^{1/2} z for a symmetric positive definite M given by matvec(x) -> M x (x: (n,) read-only).\n"
+      "w = M^{1/2} z for a symmetric positive definite M given by matvec(x) -> M x (x: (n,) read-only, a\n"
+      "copy owning its memory).\n"
       "Methods as MobilityOperator.apply_sqrt except 'auto'/'split'. Returns (w, SqrtReport).");
 }
 

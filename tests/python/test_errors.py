@@ -75,7 +75,7 @@ CASES = [
     (lambda: rpyfmm.laplace_direct(X, np.ones(5)), rpyfmm.InvalidInputError, "charges"),
     (lambda: rpyfmm.laplace_direct(X, np.ones((2, 2, 2))), rpyfmm.InvalidInputError,
      "charges has shape (2, 2, 2), expected (N,) or (nd, N)"),
-    (lambda: rpyfmm.set_num_threads(0), rpyfmm.InvalidArgumentError, "n must be >= 1"),
+    (lambda: rpyfmm.set_num_threads(0), rpyfmm.InvalidArgumentError, "set_num_threads: thread count must lie in [1, "),
     (lambda: rpyfmm.normal_noise(4, 1, out=np.empty(5)), rpyfmm.InvalidInputError, "out has shape (5,)"),
     (lambda: rpyfmm.sqrt_apply(lambda v: v, np.ones((2, 2))), rpyfmm.InvalidInputError, "z has shape (2, 2)"),
     (lambda: rpyfmm.parse_config("[integrator]\ndt = 0.1\n"), rpyfmm.InvalidArgumentError,
