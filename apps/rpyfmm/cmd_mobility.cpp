@@ -18,6 +18,7 @@
 #include "cli_common.hpp"
 #include "commands.hpp"
 #include "mobility_choice.hpp"
+#include "rpyfmm/core/file_safety.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
 
@@ -32,6 +33,9 @@ struct MobilityArgs {
 };
 
 void run_mobility(const MobilityArgs& args, bool radius_given) {
+  require_distinct_files(
+      std::vector<NamedPath>{{"--positions", args.positions}, {"--forces", args.forces}, {"--radii", args.radii}},
+      std::vector<NamedPath>{{"--out", args.out}});
   apply_threads(args.common);
   require(radius_given != !args.radii.empty(), ErrorCode::invalid_argument, "mobility",
           "give exactly one of --radius a or --radii R.npy");
