@@ -116,7 +116,8 @@ Checkpoint read_checkpoint(const std::filesystem::path& path) {
   const auto version = r.get<std::uint32_t>("version");
   if (version != kVersion)
     fail(ErrorCode::io_error, "read_checkpoint",
-         "'" + name + "' has format version " + std::to_string(version) + ", expected " + std::to_string(kVersion));
+         "'" + name + "' has format version " + std::to_string(version) + ", expected " + std::to_string(kVersion) +
+             (version == 1 ? " (version 1 does not identify its output files; start the run afresh)" : ""));
   Checkpoint c;
   const auto n = r.get<std::uint64_t>("N");
   if (n == 0 || n > (bytes.size() / 28)) fail(ErrorCode::io_error, "read_checkpoint", "'" + name + "' has a bad N");

@@ -58,9 +58,11 @@ class OutputDirectory {
   bool kept_ = false;
 };
 
-// The files a run reads (its config file, a particle file) and writes, for
-// require_distinct_files. A restart's checkpoint is not listed: it is replaced on purpose.
-void require_distinct_run_files(const RunConfig& config, const RunSummary& sum) {
+// Checks, before anything is written, that no output of the run is an input (its config
+// file, a particle file) or another output, and that the checkpoint can be replaced (so a
+// long run does not fail at its first checkpoint). A restart's checkpoint is not an input
+// here: it is replaced on purpose.
+void check_run_files(const RunConfig& config, const RunSummary& sum) {
   std::vector<NamedPath> inputs, outputs;
   std::error_code ec;
   if (std::filesystem::is_regular_file(config.source, ec)) inputs.push_back({"config", config.source});
@@ -70,6 +72,7 @@ void require_distinct_run_files(const RunConfig& config, const RunSummary& sum) 
   if (config.output.log_every > 0) outputs.push_back({"output.log", sum.log});
   outputs.push_back({"output.checkpoint", sum.checkpoint});
   require_distinct_files(inputs, outputs);
+  require_regular_or_absent(sum.checkpoint);
 }
 
 std::string fmt(const char* f, double v) {
@@ -98,7 +101,7 @@ RunSummary execute(const RunConfig& config, Start start, const RunOptions& optio
   sum.trajectory = dir / out.trajectory;
   sum.log = dir / out.log;
   sum.checkpoint = dir / out.checkpoint;
-  require_distinct_run_files(config, sum);
+  check_run_files(config, sum);
 
   // New files stay temporaries and reopened ones keep their tail until commit(): the run
   // has then started (a step succeeded, or a checkpoint is due). Before that, a refusal

@@ -2,8 +2,10 @@
 // replaces an input, a restart touches only the files its checkpoint wrote, a run refused at
 // start-up leaves nothing behind, and checkpoint errors name the file.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -175,7 +177,23 @@ TEST_F(BdFiles, RefusedStartLeavesNothingBehind) {
   EXPECT_EQ(std::distance(fs::directory_iterator(dir_ / "old"), fs::directory_iterator{}), 1);  // no temporaries
 }
 
-// An output name that is a symbolic link (here to a precious file) is refused, not followed.
+// A crash after the checkpoint leaves a partial record behind it: the restart cuts it off and
+// ends where an uninterrupted run does, byte for byte in the trajectory.
+TEST_F(BdFiles, RestartDropsATailWrittenAfterTheCheckpoint) {
+  const RunConfig c = parse_config(kRun + "[output]\ntrajectory_every = 5\nlog_every = 5\n", "c");
+  (void)run(c, dir_ / "full", 20);
+  (void)run(c, dir_ / "cut", 10);
+  std::ofstream(dir_ / "cut" / "trajectory.xyz", std::ios::app) << "30\npbc=\"F F F\" Properties=spec";
+  std::ofstream(dir_ / "cut" / "log.csv", std::ios::app) << "15,0.01";
+  EXPECT_EQ(restart_bd(dir_ / "cut" / "checkpoint.bin", {.steps = 20}).last_step, 20u);
+  EXPECT_EQ(slurp(dir_ / "cut" / "trajectory.xyz"), slurp(dir_ / "full" / "trajectory.xyz"));
+  const std::string log = slurp(dir_ / "cut" / "log.csv");
+  EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 1 + 5);  // header + steps 0, 5, ..., 20
+  EXPECT_EQ(log.find("15,0.01\n"), std::string::npos);
+}
+
+// An output name that is a symbolic link (here to a precious file) is refused, not followed;
+// a checkpoint name that is a FIFO is refused at start-up, not at the first checkpoint.
 TEST_F(BdFiles, OutputThatIsALinkIsRefused) {
   std::ofstream(dir_ / "precious") << "keep me\n";
   fs::create_directories(dir_ / "out");
@@ -184,6 +202,13 @@ TEST_F(BdFiles, OutputThatIsALinkIsRefused) {
                {(dir_ / "out" / "log.csv").string(), "symbolic link"});
   EXPECT_EQ(slurp(dir_ / "precious"), "keep me\n");
   EXPECT_TRUE(fs::is_symlink(dir_ / "out" / "log.csv"));
+
+  fs::create_directories(dir_ / "fifo");
+  ASSERT_EQ(::mkfifo((dir_ / "fifo" / "checkpoint.bin").c_str(), 0600), 0);
+  expect_error([&] { (void)run(parse_config(kRun, "f"), dir_ / "fifo", 5); },
+               {(dir_ / "fifo" / "checkpoint.bin").string(), "FIFO"});
+  EXPECT_TRUE(fs::is_fifo(dir_ / "fifo" / "checkpoint.bin"));
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir_ / "fifo"), fs::directory_iterator{}), 1);
 }
 
 TEST_F(BdFiles, CheckpointErrorsNameTheFile) {
