@@ -696,3 +696,25 @@ TEST_F(Cli, BdRefusesCollidingOutputsAndBadCheckpointPaths) {
   EXPECT_NE(r.err.find(dir_.string()), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("directory"), std::string::npos) << r.err;
 }
+
+// `rpyfmm bd --restart` of run A's checkpoint with run B's directory as --out-dir: exit 2, one line
+// naming B's trajectory, and B's files left byte for byte.
+TEST_F(Cli, BdRestartRefusesAnotherRunsFiles) {
+  const std::string base =
+      "[[types]]\nname = \"A\"\nradius = 1.0\n[particles]\nsource = \"random\"\ncount = 10\n"
+      "volume_fraction = 0.01\n[mobility]\nmethod = \"none\"\n[output]\ntrajectory_every = 2\nlog_every = 2\n"
+      "[integrator]\ndt = 0.001\nsteps = 8\n";
+  std::ofstream(path("a.toml")) << base;
+  std::ofstream(path("b.toml")) << base << "seed = 2\n";
+  ASSERT_EQ(run("bd --config " + path("a.toml") + " --steps 4 --out-dir " + path("a") + " --quiet").code, 0);
+  ASSERT_EQ(run("bd --config " + path("b.toml") + " --out-dir " + path("b") + " --quiet").code, 0);
+  const std::string traj = slurp_file(path("b/trajectory.xyz")), log = slurp_file(path("b/log.csv"));
+  const Result r = run("bd --restart " + path("a/checkpoint.bin") + " --out-dir " + path("b") + " --quiet");
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_NE(r.err.find(path("b/trajectory.xyz")), std::string::npos) << r.err;
+  EXPECT_EQ(slurp_file(path("b/trajectory.xyz")), traj);
+  EXPECT_EQ(slurp_file(path("b/log.csv")), log);
+  // Its own directory continues.
+  EXPECT_EQ(run("bd --restart " + path("a/checkpoint.bin") + " --steps 8 --quiet").code, 0);
+}
