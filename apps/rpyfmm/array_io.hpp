@@ -21,7 +21,8 @@ struct Array {
 /// ragged text rows, and non-numeric text.
 Array read_array(const std::filesystem::path& path);
 
-/// Writes a float64 .npy atomically (temporary file + rename).
+/// Writes a float64 .npy with write_file_atomically (rpyfmm/core/atomic_file.hpp): a target
+/// that is not a regular file is refused; a new temporary is fsync'ed and renamed over it.
 void write_npy(const std::filesystem::path& path, const std::vector<std::size_t>& shape,
                const std::vector<double>& data);
 

@@ -18,6 +18,7 @@
 #include "cli_common.hpp"
 #include "commands.hpp"
 #include "rpyfmm/core/cpu_features.hpp"
+#include "rpyfmm/core/file_safety.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/fmm/direct.hpp"
@@ -90,6 +91,9 @@ void evaluate_fmm(const LaplaceProblem& p, double eps, std::vector<double>& resu
 // -------------------------------------------------------------------------
 
 void run_laplace(const LaplaceArgs& args, bool eps_given) {
+  require_distinct_files(
+      std::vector<NamedPath>{{"--sources", args.sources}, {"--targets", args.targets}, {"--charges", args.charges}},
+      std::vector<NamedPath>{{"--out", args.out}});
   apply_threads(args.common);
   require(args.direct != eps_given, ErrorCode::invalid_argument, "laplace",
           "choose exactly one method: --direct or --eps E");

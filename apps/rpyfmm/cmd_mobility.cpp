@@ -19,6 +19,7 @@
 #include "commands.hpp"
 #include "rpyfmm/core/cpu_features.hpp"
 #include "mobility_choice.hpp"
+#include "rpyfmm/core/file_safety.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
 
@@ -33,6 +34,9 @@ struct MobilityArgs {
 };
 
 void run_mobility(const MobilityArgs& args, bool radius_given) {
+  require_distinct_files(
+      std::vector<NamedPath>{{"--positions", args.positions}, {"--forces", args.forces}, {"--radii", args.radii}},
+      std::vector<NamedPath>{{"--out", args.out}});
   apply_threads(args.common);
   require(radius_given != !args.radii.empty(), ErrorCode::invalid_argument, "mobility",
           "give exactly one of --radius a or --radii R.npy");

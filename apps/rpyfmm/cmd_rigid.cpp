@@ -24,6 +24,7 @@
 #include "commands.hpp"
 #include "rpyfmm/core/cpu_features.hpp"
 #include "mobility_choice.hpp"
+#include "rpyfmm/core/file_safety.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/rigid_bodies.hpp"
@@ -42,6 +43,13 @@ struct RigidArgs {
 };
 
 void run_rigid(const RigidArgs& args) {
+  const BeadBodyArgs& b = args.bodies;
+  require_distinct_files(std::vector<NamedPath>{{"--positions", b.positions},
+                                                {"--radii", b.radii},
+                                                {"--body-sizes", b.body_sizes},
+                                                {"--reference", b.reference},
+                                                {"--forces", args.forces}},
+                         std::vector<NamedPath>{{"--out", args.out}, {"--bead-forces", args.bead_forces}});
   apply_threads(args.common);
   require(args.tol > 0.0 && args.tol < 1.0, ErrorCode::invalid_argument, "--tol",
           "must lie in (0, 1), got " + std::to_string(args.tol));

@@ -37,6 +37,7 @@
 #include "rpyfmm/core/cpu_features.hpp"
 #include "mobility_choice.hpp"
 #include "rpyfmm/bd/rigid_dynamics.hpp"
+#include "rpyfmm/core/file_safety.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
 
@@ -58,6 +59,13 @@ struct RigidBdArgs {
 };
 
 void run_rigid_bd(const RigidBdArgs& args) {
+  const BeadBodyArgs& b = args.bodies;
+  require_distinct_files(std::vector<NamedPath>{{"--positions", b.positions},
+                                                {"--radii", b.radii},
+                                                {"--body-sizes", b.body_sizes},
+                                                {"--reference", b.reference},
+                                                {"--restart", args.restart}},
+                         std::vector<NamedPath>{{"--out", args.out}, {"--beads-out", args.beads_out}});
   apply_threads(args.common);
   require(args.steps >= 1, ErrorCode::invalid_argument, "--steps", "must be >= 1, got " + std::to_string(args.steps));
   require(args.every >= 0, ErrorCode::invalid_argument, "--every", "must be >= 0, got " + std::to_string(args.every));

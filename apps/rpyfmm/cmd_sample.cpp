@@ -31,6 +31,7 @@
 #include "commands.hpp"
 #include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/bd/mobility_factory.hpp"
+#include "rpyfmm/core/file_safety.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
@@ -127,6 +128,9 @@ rpy::SqrtMethod parse_method(const std::string& name) {
 }
 
 void run_sample(const SampleArgs& given, bool radius_given, bool seed_given) {
+  require_distinct_files(
+      std::vector<NamedPath>{{"--positions", given.positions}, {"--radii", given.radii}, {"--noise", given.noise}},
+      std::vector<NamedPath>{{"--out", given.out}});
   apply_threads(given.common);
   // `--method pse` is shorthand for the PSE operator with its split sampler.
   SampleArgs args = given;

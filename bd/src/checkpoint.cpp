@@ -5,21 +5,37 @@
 #include <iterator>
 
 #include "rpyfmm/core/atomic_file.hpp"
+#include "rpyfmm/core/file_safety.hpp"
 #include "rpyfmm/core/validate.hpp"
 
 namespace rpyfmm::bd {
 
 namespace {
 constexpr char kMagic[8] = {'R', 'P', 'Y', 'F', 'M', 'M', 'B', 'D'};
-constexpr std::uint32_t kVersion = 1;
+constexpr std::uint32_t kVersion = 2;  // 2: output hashes (version 1 could not identify its files)
 
-std::uint64_t fnv1a(const std::string& bytes) {
-  std::uint64_t h = 1469598103934665603ull;
-  for (unsigned char c : bytes) {
-    h ^= c;
-    h *= 1099511628211ull;
-  }
-  return h;
+std::uint64_t fnv1a(std::string_view bytes) {
+  Fnv1a h;
+  h.add(bytes);
+  return h.value();
+}
+
+// The whole content of the regular file `path`; io_error naming it otherwise.
+std::string read_regular_file(const std::filesystem::path& path) {
+  const std::string name = "'" + path.string() + "'";
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (!std::filesystem::exists(status))
+    fail(ErrorCode::io_error, "read_checkpoint", "cannot open " + name + " (does it exist?)");
+  if (!std::filesystem::is_regular_file(status))
+    fail(ErrorCode::io_error, "read_checkpoint",
+         name + " is " + (std::filesystem::is_directory(status) ? "a directory" : "not a regular file") +
+             ", not a checkpoint file");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail(ErrorCode::io_error, "read_checkpoint", "cannot open " + name);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) fail(ErrorCode::io_error, "read_checkpoint", "cannot read " + name);
+  return bytes;
 }
 
 template <class T>
@@ -74,7 +90,9 @@ void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c) {
   put(out, c.seed);
   put(out, c.dt);
   put(out, c.trajectory_bytes);
+  put(out, c.trajectory_hash);
   put(out, c.log_bytes);
+  put(out, c.log_hash);
   put_vector(out, c.positions);
   put_vector(out, c.reference_positions);
   put_vector(out, c.types);
@@ -86,21 +104,20 @@ void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c) {
 
 Checkpoint read_checkpoint(const std::filesystem::path& path) {
   const std::string name = path.string();
-  std::ifstream in(path, std::ios::binary);
-  if (!in) fail(ErrorCode::io_error, "read_checkpoint", "cannot open '" + name + "'");
-  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string bytes = read_regular_file(path);
   if (bytes.size() < sizeof kMagic + 8 || std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0)
     fail(ErrorCode::io_error, "read_checkpoint", "'" + name + "' is not an rpyfmm BD checkpoint");
   std::uint64_t stored = 0;
   std::memcpy(&stored, bytes.data() + bytes.size() - 8, 8);
-  if (stored != fnv1a(bytes.substr(0, bytes.size() - 8)))
+  if (stored != fnv1a(std::string_view(bytes).substr(0, bytes.size() - 8)))
     fail(ErrorCode::io_error, "read_checkpoint", "'" + name + "' is corrupt (checksum mismatch)");
   Reader r(bytes, name);
   r.get_vector<char>(sizeof kMagic, "magic");
   const auto version = r.get<std::uint32_t>("version");
   if (version != kVersion)
     fail(ErrorCode::io_error, "read_checkpoint",
-         "'" + name + "' has format version " + std::to_string(version) + ", expected " + std::to_string(kVersion));
+         "'" + name + "' has format version " + std::to_string(version) + ", expected " + std::to_string(kVersion) +
+             (version == 1 ? " (version 1 does not identify its output files; start the run afresh)" : ""));
   Checkpoint c;
   const auto n = r.get<std::uint64_t>("N");
   if (n == 0 || n > (bytes.size() / 28)) fail(ErrorCode::io_error, "read_checkpoint", "'" + name + "' has a bad N");
@@ -108,7 +125,9 @@ Checkpoint read_checkpoint(const std::filesystem::path& path) {
   c.seed = r.get<std::uint64_t>("seed");
   c.dt = r.get<double>("dt");
   c.trajectory_bytes = r.get<std::uint64_t>("trajectory length");
+  c.trajectory_hash = r.get<std::uint64_t>("trajectory hash");
   c.log_bytes = r.get<std::uint64_t>("log length");
+  c.log_hash = r.get<std::uint64_t>("log hash");
   c.positions = r.get_vector<double>(3 * n, "positions");
   c.reference_positions = r.get_vector<double>(3 * n, "reference positions");
   c.types = r.get_vector<std::uint32_t>(n, "types");

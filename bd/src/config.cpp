@@ -19,6 +19,20 @@ namespace {
   fail(ErrorCode::invalid_argument, "config", "key '" + key + "' " + what);
 }
 
+// Two outputs of one run in one file would interleave or replace each other: each file
+// written (trajectory and log when enabled, the checkpoint always) needs its own name.
+void require_distinct_output_names(const OutputSpec& o) {
+  const std::pair<const char*, const std::string*> written[] = {
+      {"output.trajectory", o.trajectory_every > 0 ? &o.trajectory : nullptr},
+      {"output.log", o.log_every > 0 ? &o.log : nullptr},
+      {"output.checkpoint", &o.checkpoint}};
+  for (std::size_t i = 0; i < 3; ++i)
+    for (std::size_t j = i + 1; j < 3; ++j)
+      if (written[i].second && written[j].second && *written[i].second == *written[j].second)
+        bad_key(written[i].first, std::string("and key '") + written[j].first + "' name the same file '" +
+                                      *written[i].second + "': each output needs its own file");
+}
+
 std::string num(double v) {
   std::ostringstream s;
   s << v;
@@ -375,6 +389,7 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
     for (const auto* name : {&c.output.trajectory, &c.output.log, &c.output.checkpoint})
       if (name->empty() || name->find('/') != std::string::npos)
         bad_key("output", "file names must be plain names inside output.dir");
+    require_distinct_output_names(c.output);
     s.finish();
   }
   return c;

@@ -1,36 +1,85 @@
 #include "rpyfmm/bd/output.hpp"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 
 #include "rpyfmm/core/validate.hpp"
 
 namespace rpyfmm::bd {
 
-void AppendFile::open(const std::filesystem::path& path, std::uint64_t keep_bytes) {
-  path_ = path;
-  std::error_code ec;
-  if (keep_bytes == 0) {
-    out_.open(path, std::ios::binary | std::ios::trunc | std::ios::out);
-  } else {
-    const auto size = std::filesystem::file_size(path, ec);
-    if (ec || size < keep_bytes)
-      fail(ErrorCode::io_error, "restart",
-           "'" + path.string() + "' is shorter than recorded in the checkpoint (" + std::to_string(keep_bytes) +
-               " bytes): it does not belong to this checkpoint");
-    std::filesystem::resize_file(path, keep_bytes, ec);  // drop records written after the checkpoint
-    if (ec) fail(ErrorCode::io_error, "restart", "cannot truncate '" + path.string() + "': " + ec.message());
-    out_.open(path, std::ios::binary | std::ios::app | std::ios::out);
+namespace {
+// Hash of the first `length` bytes of the open file `fd` (named `path` in errors).
+std::uint64_t hash_prefix(int fd, std::uint64_t length, const std::filesystem::path& path) {
+  Fnv1a hash;
+  std::string buffer(std::size_t{1} << 20, '\0');
+  for (std::uint64_t done = 0; done < length;) {
+    const auto want = static_cast<std::size_t>(std::min<std::uint64_t>(buffer.size(), length - done));
+    const ssize_t n = ::pread(fd, buffer.data(), want, static_cast<off_t>(done));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) fail(ErrorCode::io_error, "restart", "cannot read '" + path.string() + "'");
+    hash.add(std::string_view(buffer.data(), static_cast<std::size_t>(n)));
+    done += static_cast<std::uint64_t>(n);
   }
-  if (!out_) fail(ErrorCode::io_error, "output", "cannot open '" + path.string() + "' for writing");
+  return hash.value();
+}
+}  // namespace
+
+AppendFile::~AppendFile() {
+  if (fd_ >= 0) ::close(fd_);
+  if (!temporary_.empty()) ::unlink(temporary_.c_str());
+}
+
+void AppendFile::create(const std::filesystem::path& path) {
+  path_ = path;
+  require_regular_or_absent(path);
+  fd_ = create_temporary_next_to(path, temporary_);
+}
+
+void AppendFile::reopen(const std::filesystem::path& path, std::uint64_t keep_bytes, std::uint64_t expected_hash) {
+  path_ = path;
+  const std::string name = "'" + path.string() + "'";
+  require_regular_or_absent(path);
+  fd_ = ::open(path.c_str(), O_RDWR | O_APPEND | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC);
+  if (fd_ < 0) fail(ErrorCode::io_error, "restart", "cannot open " + name + " to continue it: " + std::strerror(errno));
+  struct stat st {};
+  if (::fstat(fd_, &st) != 0 || !S_ISREG(st.st_mode))
+    fail(ErrorCode::io_error, "restart", name + " is not a regular file");
+  if (static_cast<std::uint64_t>(st.st_size) < keep_bytes)
+    fail(ErrorCode::io_error, "restart",
+         name + " is shorter than recorded in the checkpoint (" + std::to_string(keep_bytes) +
+             " bytes): it does not belong to this checkpoint");
+  if (hash_prefix(fd_, keep_bytes, path) != expected_hash)
+    fail(ErrorCode::io_error, "restart",
+         name + " does not match the checkpoint (its first " + std::to_string(keep_bytes) +
+             " bytes differ from what the checkpointed run wrote): it belongs to another run; left untouched");
+  cut_pending_ = true;  // the tail written after the checkpoint goes in publish()
   bytes_ = keep_bytes;
+  hash_ = Fnv1a(expected_hash);  // the running hash continues from the verified prefix
+}
+
+void AppendFile::publish() {
+  if (cut_pending_) {  // drop records written after the checkpoint
+    if (::ftruncate(fd_, static_cast<off_t>(bytes_)) != 0)
+      fail(ErrorCode::io_error, "restart", "cannot truncate '" + path_.string() + "': " + std::strerror(errno));
+    cut_pending_ = false;
+  }
+  if (temporary_.empty()) return;
+  replace_with(temporary_, path_);
+  temporary_.clear();
 }
 
 void AppendFile::write(const std::string& record) {
-  out_.write(record.data(), static_cast<std::streamsize>(record.size()));
-  out_.flush();
-  if (!out_) fail(ErrorCode::io_error, "output", "writing '" + path_.string() + "' failed (disk full?)");
+  if (cut_pending_) publish();  // never append behind a tail that is still to be cut
+  write_all(fd_, record, path_);
+  hash_.add(record);
   bytes_ += record.size();
 }
 

@@ -7,6 +7,7 @@
 #include "rpyfmm/bd/checkpoint.hpp"
 #include "rpyfmm/bd/output.hpp"
 #include "rpyfmm/bd/particles.hpp"
+#include "rpyfmm/core/file_safety.hpp"
 #include "rpyfmm/core/validate.hpp"
 
 namespace rpyfmm::bd {
@@ -19,8 +20,60 @@ struct Start {
   std::vector<Bond> bonds;
   std::uint64_t step = 0;
   std::uint64_t trajectory_bytes = 0, log_bytes = 0;
+  std::uint64_t trajectory_hash = 0, log_hash = 0;
   bool restarted = false;
 };
+
+// The output directory: created (with missing parents) on construction; unless keep() is
+// called, the destructor removes the directories it created, if they are empty, so a run
+// refused at start-up leaves no trace.
+class OutputDirectory {
+ public:
+  explicit OutputDirectory(const std::filesystem::path& dir) {
+    std::error_code ec;
+    for (auto p = std::filesystem::absolute(dir, ec).lexically_normal(); !ec && p != p.parent_path();
+         p = p.parent_path()) {
+      if (std::filesystem::exists(std::filesystem::symlink_status(p, ec))) break;
+      created_.push_back(p);  // deepest first
+    }
+    std::filesystem::create_directories(dir, ec);
+    if (ec) {
+      remove_created();
+      fail(ErrorCode::io_error, "output", "cannot create directory '" + dir.string() + "': " + ec.message());
+    }
+  }
+  OutputDirectory(const OutputDirectory&) = delete;
+  OutputDirectory& operator=(const OutputDirectory&) = delete;
+  ~OutputDirectory() {
+    if (!kept_) remove_created();
+  }
+  void keep() { kept_ = true; }
+
+ private:
+  void remove_created() {
+    std::error_code ignored;
+    for (const auto& p : created_) std::filesystem::remove(p, ignored);  // fails (harmlessly) if not empty
+  }
+  std::vector<std::filesystem::path> created_;
+  bool kept_ = false;
+};
+
+// Checks, before anything is written, that no output of the run is an input (its config
+// file, a particle file) or another output, and that the checkpoint can be replaced (so a
+// long run does not fail at its first checkpoint). A restart's checkpoint is not an input
+// here: it is replaced on purpose.
+void check_run_files(const RunConfig& config, const RunSummary& sum) {
+  std::vector<NamedPath> inputs, outputs;
+  std::error_code ec;
+  if (std::filesystem::is_regular_file(config.source, ec)) inputs.push_back({"config", config.source});
+  if (config.particles.source == ParticleSpec::Source::file)
+    inputs.push_back({"particles.file", config.particles.file});
+  if (config.output.trajectory_every > 0) outputs.push_back({"output.trajectory", sum.trajectory});
+  if (config.output.log_every > 0) outputs.push_back({"output.log", sum.log});
+  outputs.push_back({"output.checkpoint", sum.checkpoint});
+  require_distinct_files(inputs, outputs);
+  require_regular_or_absent(sum.checkpoint);
+}
 
 std::string fmt(const char* f, double v) {
   char buf[64];
@@ -32,10 +85,8 @@ RunSummary execute(const RunConfig& config, Start start, const RunOptions& optio
   const std::uint64_t total = options.steps.value_or(config.steps);
   const OutputSpec& out = config.output;
   const auto dir = options.out_dir.value_or(out.dir);
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) fail(ErrorCode::io_error, "output", "cannot create directory '" + dir.string() + "': " + ec.message());
 
+  // Everything that can refuse the run comes before any file or directory is created.
   ForceField forces = make_force_field(config);
   forces.add_bonds(start.bonds);
   const std::size_t n = start.types.size();
@@ -50,14 +101,33 @@ RunSummary execute(const RunConfig& config, Start start, const RunOptions& optio
   sum.trajectory = dir / out.trajectory;
   sum.log = dir / out.log;
   sum.checkpoint = dir / out.checkpoint;
+  check_run_files(config, sum);
 
+  // New files stay temporaries and reopened ones keep their tail until commit(): the run
+  // has then started (a step succeeded, or a checkpoint is due). Before that, a refusal
+  // removes what was created and changes nothing else.
+  OutputDirectory made(dir);
   AppendFile traj, log;
-  if (out.trajectory_every > 0) traj.open(sum.trajectory, start.restarted ? start.trajectory_bytes : 0);
+  if (out.trajectory_every > 0) {
+    if (start.restarted)
+      traj.reopen(sum.trajectory, start.trajectory_bytes, start.trajectory_hash);
+    else
+      traj.create(sum.trajectory);
+  }
   if (out.log_every > 0) {
-    log.open(sum.log, start.restarted ? start.log_bytes : 0);
+    if (start.restarted)
+      log.reopen(sum.log, start.log_bytes, start.log_hash);
+    else
+      log.create(sum.log);
     if (!start.restarted) log.write(csv_log_header(config.integrator.keep_split_displacements));
   }
+  auto commit = [&]() {
+    traj.publish();
+    log.publish();
+    made.keep();
+  };
   auto save_checkpoint = [&]() {
+    commit();
     Checkpoint c;
     c.step = bd.step_count();
     c.seed = config.integrator.seed;
@@ -66,7 +136,9 @@ RunSummary execute(const RunConfig& config, Start start, const RunOptions& optio
     c.reference_positions = start.reference;
     c.types = start.types;
     c.trajectory_bytes = traj.bytes();
+    c.trajectory_hash = traj.hash();
     c.log_bytes = log.bytes();
+    c.log_hash = log.hash();
     c.config = config.text;
     write_checkpoint(sum.checkpoint, c);
   };
@@ -156,6 +228,7 @@ RunSummary execute(const RunConfig& config, Start start, const RunOptions& optio
       throw Error(e.code(), std::string(e.what()) + "; last good state (step " + std::to_string(bd.step_count()) +
                                 ") saved to '" + sum.checkpoint.string() + "'");
     }
+    commit();
     write_records(false);
     const std::uint64_t s = bd.step_count();
     if (out.checkpoint_every > 0 && s % out.checkpoint_every == 0 && s != total) save_checkpoint();
@@ -213,6 +286,8 @@ RunSummary restart_bd(const std::filesystem::path& path, const RunOptions& optio
   s.step = c.step;
   s.trajectory_bytes = c.trajectory_bytes;
   s.log_bytes = c.log_bytes;
+  s.trajectory_hash = c.trajectory_hash;
+  s.log_hash = c.log_hash;
   s.restarted = true;
   RunOptions opts = options;  // outputs continue next to the checkpoint unless redirected
   if (!opts.out_dir) opts.out_dir = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");

@@ -2,6 +2,7 @@
 // here, and checks outputs against the library and failures against the CLI
 // contract: exit code 2, exactly one line on stderr, no output file.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -602,4 +603,118 @@ TEST_F(Cli, RigidBdBadInput) {
   expect_failure(base + sizes + " --dt 0.01 --steps 2 --body-force 0 0 nan" + O, "--body-force", "traj.npy");
   // A blow-up mid-run: nothing is written.
   expect_failure(base + sizes + " --dt 1 --steps 5 --body-force 1e6 0 0" + O, "reduce dt", "traj.npy");
+}
+
+namespace {
+std::string slurp_file(const std::string& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+}  // namespace
+
+// An output naming an input (however spelled) or another output: exit 2 before any work, one
+// line naming both options, the input unchanged.
+TEST_F(Cli, OutputNamingAnInputOrAnotherOutputIsRefused) {
+  const RigidCase c = rigid_case();
+  const std::size_t n = c.x.size() / 3;
+  write_npy(path("x.npy"), {n, 3}, c.x);
+  write_npy(path("f.npy"), {n, 3}, random_vec(3 * n, 31, -1, 1));
+  write_npy(path("q.npy"), {n}, random_vec(n, 32, -1, 1));
+  write_npy(path("ft.npy"), {3, 6}, std::vector<double>(18, 1.0));
+  std::ofstream(path("sizes.txt")) << "42 42 4\n";
+  const std::string x = slurp_file(path("x.npy")), f = slurp_file(path("f.npy")), q = slurp_file(path("q.npy"));
+  const auto refused = [&](const std::string& args, const std::string& out_option, const std::string& other) {
+    const Result r = run(args);
+    EXPECT_EQ(r.code, 2) << args << "\nstderr: " << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_NE(r.err.find(out_option), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find(other), std::string::npos) << r.err;
+    EXPECT_TRUE(r.out.empty()) << r.out;
+  };
+  const std::string mob = "mobility --positions " + path("x.npy") + " --forces " + path("f.npy") + " --radius 0.5";
+  refused(mob + " --out " + path("x.npy"), "--out", "--positions");
+  refused(mob + " --out " + dir_.string() + "/./x.npy", "--out", "--positions");
+  refused(mob + " --out " + path("f.npy"), "--out", "--forces");
+  refused("laplace --sources " + path("x.npy") + " --charges " + path("q.npy") + " --direct --out " + path("q.npy"),
+          "--out", "--charges");
+  const std::string bodies = " --positions " + path("x.npy") + " --radius 0.5 --body-sizes " + path("sizes.txt");
+  refused("rigid-bd" + bodies + " --dt 0.01 --steps 1 --out " + path("t.npy") + " --beads-out " + path("x.npy"),
+          "--beads-out", "--positions");
+  refused("rigid" + bodies + " --forces " + path("ft.npy") + " --out " + path("uw.npy") + " --bead-forces " +
+              path("uw.npy"),
+          "--bead-forces", "--out");
+  EXPECT_EQ(slurp_file(path("x.npy")), x);
+  EXPECT_EQ(slurp_file(path("f.npy")), f);
+  EXPECT_EQ(slurp_file(path("q.npy")), q);
+  EXPECT_FALSE(fs::exists(path("uw.npy")));
+  EXPECT_FALSE(fs::exists(path("t.npy")));
+}
+
+// --out naming a FIFO, a directory or a symbolic link: exit 2, one line naming it, the target
+// left as it was (a FIFO stays a FIFO; the link's target keeps its content).
+TEST_F(Cli, OutputThatIsNotARegularFileIsRefused) {
+  write_npy(path("x.npy"), {2, 3}, {0, 0, 0, 3, 0, 0});
+  write_npy(path("f.npy"), {2, 3}, {1, 0, 0, 0, 1, 0});
+  ASSERT_EQ(::mkfifo(path("fifo").c_str(), 0600), 0);
+  fs::create_directory(path("sub"));
+  std::ofstream(path("precious")) << "keep me\n";
+  fs::create_symlink(path("precious"), path("link.npy"));
+  const std::string mob = "mobility --positions " + path("x.npy") + " --forces " + path("f.npy") + " --radius 0.5";
+  for (const std::string target : {"fifo", "sub", "link.npy"}) {
+    const Result r = run(mob + " --out " + path(target));
+    EXPECT_EQ(r.code, 2) << target << "\nstderr: " << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_NE(r.err.find(path(target)), std::string::npos) << r.err;
+  }
+  EXPECT_TRUE(fs::is_fifo(fs::symlink_status(path("fifo"))));
+  EXPECT_TRUE(fs::is_directory(path("sub")));
+  EXPECT_TRUE(fs::is_symlink(path("link.npy")));
+  EXPECT_EQ(slurp_file(path("precious")), "keep me\n");
+  for (const auto& e : fs::directory_iterator(dir_))  // no temporary left behind
+    EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path();
+}
+
+// `rpyfmm bd` with two outputs in one file: exit 2 at start-up, one line naming both keys, no
+// output directory. A --restart that is a directory: one line naming it.
+TEST_F(Cli, BdRefusesCollidingOutputsAndBadCheckpointPaths) {
+  const std::string base =
+      "[[types]]\nname = \"A\"\nradius = 1.0\n[particles]\nsource = \"random\"\ncount = 10\n"
+      "volume_fraction = 0.01\n[integrator]\ndt = 0.001\nsteps = 2\n[mobility]\nmethod = \"none\"\n[output]\n";
+  for (const auto& [line, key] : {std::pair<std::string, std::string>{"log = \"trajectory.xyz\"\n", "output.log"},
+                                  {"checkpoint = \"trajectory.xyz\"\n", "output.checkpoint"}}) {
+    std::ofstream(path("run.toml")) << base << line;
+    const Result r = run("bd --config " + path("run.toml") + " --out-dir " + path("out") + " --quiet");
+    EXPECT_EQ(r.code, 2) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_NE(r.err.find("output.trajectory"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find(key), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(path("out")));
+  }
+  const Result r = run("bd --restart " + dir_.string() + " --quiet");
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_NE(r.err.find(dir_.string()), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("directory"), std::string::npos) << r.err;
+}
+
+// `rpyfmm bd --restart` of run A's checkpoint with run B's directory as --out-dir: exit 2, one line
+// naming B's trajectory, and B's files left byte for byte.
+TEST_F(Cli, BdRestartRefusesAnotherRunsFiles) {
+  const std::string base =
+      "[[types]]\nname = \"A\"\nradius = 1.0\n[particles]\nsource = \"random\"\ncount = 10\n"
+      "volume_fraction = 0.01\n[mobility]\nmethod = \"none\"\n[output]\ntrajectory_every = 2\nlog_every = 2\n"
+      "[integrator]\ndt = 0.001\nsteps = 8\n";
+  std::ofstream(path("a.toml")) << base;
+  std::ofstream(path("b.toml")) << base << "seed = 2\n";
+  ASSERT_EQ(run("bd --config " + path("a.toml") + " --steps 4 --out-dir " + path("a") + " --quiet").code, 0);
+  ASSERT_EQ(run("bd --config " + path("b.toml") + " --out-dir " + path("b") + " --quiet").code, 0);
+  const std::string traj = slurp_file(path("b/trajectory.xyz")), log = slurp_file(path("b/log.csv"));
+  const Result r = run("bd --restart " + path("a/checkpoint.bin") + " --out-dir " + path("b") + " --quiet");
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_NE(r.err.find(path("b/trajectory.xyz")), std::string::npos) << r.err;
+  EXPECT_EQ(slurp_file(path("b/trajectory.xyz")), traj);
+  EXPECT_EQ(slurp_file(path("b/log.csv")), log);
+  // Its own directory continues.
+  EXPECT_EQ(run("bd --restart " + path("a/checkpoint.bin") + " --steps 8 --quiet").code, 0);
 }

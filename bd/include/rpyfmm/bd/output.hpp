@@ -2,40 +2,63 @@
 // CSV log, both appended and flushed per record.
 //
 // Crash guarantee: each record is written whole and flushed; every checkpoint
-// (written atomically) stores the byte length of both files at that state, and
-// a restart truncates them back to it. So after any crash the files plus the
-// last checkpoint form a consistent prefix of the run, and a partially written
-// last frame is dropped on restart.
+// (written atomically) stores the byte length and a hash of the content of both
+// files at that state, and a restart checks the hash and truncates them back to
+// the length. So after any crash the files plus the last checkpoint form a
+// consistent prefix of the run, a partially written last frame is dropped on
+// restart, and a file another run wrote is refused, never cut.
+//
+// A new run writes each file to a temporary next to it (rpyfmm/core/file_safety.hpp)
+// and publishes it (rename over the name) once the run has started; a run refused
+// before that leaves nothing behind and the previous file untouched.
 #pragma once
 
 #include <cstdint>
 #include <filesystem>
-#include <fstream>
 #include <span>
 #include <string>
 #include <vector>
 
 #include "rpyfmm/bd/force_field.hpp"
+#include "rpyfmm/core/file_safety.hpp"
 #include "rpyfmm/rpy/geometry.hpp"
 
 namespace rpyfmm::bd {
 
-/// An append-only text file that can be reopened at a given length.
+/// An append-only file, written unbuffered record by record, that knows its length and
+/// the hash (Fnv1a) of everything in it. Closing it (destructor) removes an unpublished
+/// temporary.
 class AppendFile {
  public:
   AppendFile() = default;
-  /// Opens `path`; keep_bytes = 0 starts it empty, otherwise it is truncated to
-  /// keep_bytes (throws io_error if it is shorter: the file does not match the checkpoint).
-  void open(const std::filesystem::path& path, std::uint64_t keep_bytes);
-  void write(const std::string& record);  ///< appends and flushes
+  AppendFile(const AppendFile&) = delete;
+  AppendFile& operator=(const AppendFile&) = delete;
+  ~AppendFile();
+
+  /// Starts a new, empty file for `path`: records go to a temporary next to it until
+  /// publish(). Throws io_error if `path` exists and is not a regular file.
+  void create(const std::filesystem::path& path);
+  /// Reopens the regular file `path` written by an earlier run: its first keep_bytes bytes
+  /// must hash to `expected_hash` (else io_error naming the file: it belongs to another
+  /// run). The rest (written after the checkpoint) is cut off by publish().
+  void reopen(const std::filesystem::path& path, std::uint64_t keep_bytes, std::uint64_t expected_hash);
+  /// Makes the file the run's output: renames the temporary of create() over the path, or
+  /// cuts a reopened file back to the checkpoint. Nothing on disk changes before; later
+  /// calls do nothing.
+  void publish();
+  void write(const std::string& record);  ///< appends, straight to the file
+
   [[nodiscard]] std::uint64_t bytes() const { return bytes_; }
-  [[nodiscard]] bool is_open() const { return out_.is_open(); }
+  [[nodiscard]] std::uint64_t hash() const { return hash_.value(); }
+  [[nodiscard]] bool is_open() const { return fd_ >= 0; }
   [[nodiscard]] const std::filesystem::path& path() const { return path_; }
 
  private:
-  std::filesystem::path path_;
-  std::ofstream out_;
+  std::filesystem::path path_, temporary_;  // temporary_: empty once published
+  int fd_ = -1;
+  bool cut_pending_ = false;  // reopened, tail not yet cut
   std::uint64_t bytes_ = 0;
+  Fnv1a hash_;
 };
 
 /// One extended-XYZ frame: species = type name, pos, radius; Time and Step in the

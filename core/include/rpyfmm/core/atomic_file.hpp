@@ -1,42 +1,83 @@
-// rpyfmm — files written so that a failure never leaves a truncated file in
-// place of a good one: data goes to "<path>.tmp.<pid>" and is renamed over
-// <path> only after a successful flush and close.
+// rpyfmm — files written so that a failure never leaves a truncated file in place of a
+// good one, and never writes anywhere but the named target (file_safety.hpp):
+//
+//   1. a target that exists and is not a regular file is refused (message names it);
+//   2. the data go to a new temporary next to the target, created with an unpredictable
+//      name and O_CREAT | O_EXCL | O_NOFOLLOW (no planted file or link is ever opened);
+//   3. the temporary is flushed, fsync'ed and closed, then renamed over the target.
+//
+// On any failure the temporary is removed and the target is left as it was.
 #pragma once
 
-#include <cstdio>
+#include <array>
 #include <filesystem>
-#include <fstream>
 #include <functional>
+#include <ostream>
+#include <streambuf>
 #include <string>
-#include <system_error>
-#include <unistd.h>
 
 #include "rpyfmm/core/error.hpp"
+#include "rpyfmm/core/file_safety.hpp"
 
 namespace rpyfmm {
 
-/// Calls `write(stream)` on a temporary file next to `path`, then renames it
-/// to `path`. On any exception or stream failure the temporary is removed,
-/// `path` is left untouched, and the error is rethrown (as rpyfmm::Error for
-/// stream failures).
-inline void write_file_atomically(const std::filesystem::path& path,
-                                  const std::function<void(std::ostream&)>& write,
-                                  std::ios::openmode mode = std::ios::binary) {
-  const std::filesystem::path tmp = path.string() + ".tmp." + std::to_string(::getpid());
+namespace atomic_file_detail {
+
+// A buffered std::streambuf over a file descriptor; write errors surface as exceptions.
+class FdBuffer : public std::streambuf {
+ public:
+  FdBuffer(int fd, std::filesystem::path path) : fd_(fd), path_(std::move(path)) {
+    setp(buffer_.data(), buffer_.data() + buffer_.size());
+  }
+  void flush_all() {
+    write_all(fd_, std::string_view(pbase(), static_cast<std::size_t>(pptr() - pbase())), path_);
+    setp(buffer_.data(), buffer_.data() + buffer_.size());
+  }
+
+ protected:
+  int_type overflow(int_type c) override {
+    flush_all();
+    if (!traits_type::eq_int_type(c, traits_type::eof())) sputc(traits_type::to_char_type(c));
+    return traits_type::not_eof(c);
+  }
+  int sync() override {
+    flush_all();
+    return 0;
+  }
+
+ private:
+  int fd_;
+  std::filesystem::path path_;
+  std::array<char, 1 << 16> buffer_{};
+};
+
+}  // namespace atomic_file_detail
+
+/// Calls `write(stream)` on a temporary file next to `path`, then renames it to `path`
+/// (steps above). Throws rpyfmm::Error(io_error) naming the file when the target is not a
+/// regular file or any write, sync or rename fails; an exception from `write` is rethrown.
+/// `mode` is accepted for source compatibility: POSIX files have no text mode.
+inline void write_file_atomically(const std::filesystem::path& path, const std::function<void(std::ostream&)>& write,
+                                  [[maybe_unused]] std::ios::openmode mode = std::ios::binary) {
+  require_regular_or_absent(path);
+  std::filesystem::path tmp;
+  int fd = create_temporary_next_to(path, tmp);
   try {
-    {
-      std::ofstream out(tmp, mode | std::ios::out | std::ios::trunc);
-      if (!out) throw Error(ErrorCode::io_error, "cannot open '" + tmp.string() + "' for writing");
-      write(out);
-      out.flush();
-      if (!out) throw Error(ErrorCode::io_error, "writing '" + path.string() + "' failed");
-    }
-    std::error_code ec;
-    std::filesystem::rename(tmp, path, ec);
-    if (ec) throw Error(ErrorCode::io_error, "cannot rename '" + tmp.string() + "' to '" + path.string() + "': " + ec.message());
+    atomic_file_detail::FdBuffer buffer(fd, path);
+    std::ostream out(&buffer);
+    out.exceptions(std::ios::badbit);  // a failed flush inside the stream rethrows its Error
+    write(out);
+    buffer.flush_all();
+    if (::fsync(fd) != 0)
+      throw Error(ErrorCode::io_error, "cannot sync '" + path.string() + "' to disk: " + std::strerror(errno));
+    const int closed = ::close(fd);
+    fd = -1;
+    if (closed != 0)
+      throw Error(ErrorCode::io_error, "closing '" + path.string() + "' failed: " + std::strerror(errno));
+    replace_with(tmp, path);
   } catch (...) {
-    std::error_code ignored;
-    std::filesystem::remove(tmp, ignored);
+    if (fd >= 0) ::close(fd);
+    ::unlink(tmp.c_str());
     throw;
   }
 }
