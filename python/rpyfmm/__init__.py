@@ -82,6 +82,7 @@ from ._rpyfmm import (
     restart_bd,
     run_bd,
     set_num_threads,
+    simd_level,
     sqrt_apply,
 )
 from ._helpers import msd, read_xyz, stokes_einstein
@@ -134,6 +135,7 @@ __all__ = [
     "restart_bd",
     "run_bd",
     "set_num_threads",
+    "simd_level",
     "sqrt_apply",
     "stokes_einstein",
 ]

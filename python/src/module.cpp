@@ -15,6 +15,7 @@
 #include <system_error>
 
 #include "common.hpp"
+#include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/core/threads.hpp"
 
 namespace rpyfmm::python {
@@ -63,6 +64,10 @@ NB_MODULE(_rpyfmm, m) {
         "n must lie in [1, 4 x the hardware threads] (at most 1024), else InvalidArgumentError.\n"
         "Results do not depend on the thread count.");
   m.def("get_num_threads", &omp_get_max_threads, "Number of OpenMP threads the next parallel region uses.");
+  m.def(
+      "simd_level", [] { return std::string(rpyfmm::simd_level_name(rpyfmm::simd_level())); },
+      "The instruction-set level the kernels run at: 'scalar', 'avx2' or 'avx512' (the widest the build\n"
+      "and CPU support, lowered by the environment variable RPYFMM_SIMD; docs/reproducibility.md).");
   // Test helper: the address of the float64 buffer the C++ side reads for an array argument
   // (equal to arr.ctypes.data exactly when no copy was made).
   m.def(

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "rpyfmm/bd/rigid_dynamics.hpp"
+#include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/fmm/direct.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
@@ -93,8 +94,7 @@ class Cli : public ::testing::Test {
  protected:
   void SetUp() override {
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           ("rpyfmm_cli_" + std::to_string(::getpid()) + "_" + info->name());
+    dir_ = fs::temp_directory_path() / ("rpyfmm_cli_" + std::to_string(::getpid()) + "_" + info->name());
     fs::remove_all(dir_);
     fs::create_directories(dir_);
   }
@@ -102,9 +102,13 @@ class Cli : public ::testing::Test {
 
   [[nodiscard]] std::string path(const std::string& name) const { return (dir_ / name).string(); }
 
-  Result run(const std::string& args) const {
+  Result run(const std::string& args) const { return run_with_env("", args); }
+
+  // `env`: variable assignments put before the command ("NAME=value ...").
+  Result run_with_env(const std::string& env, const std::string& args) const {
     const std::string out = path("stdout.txt"), err = path("stderr.txt");
-    const std::string cmd = std::string("'") + RPYFMM_CLI_PATH + "' " + args + " >'" + out + "' 2>'" + err + "'";
+    const std::string cmd =
+        env + (env.empty() ? "" : " ") + "'" + RPYFMM_CLI_PATH + "' " + args + " >'" + out + "' 2>'" + err + "'";
     const int status = std::system(cmd.c_str());
     Result r;
     r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
@@ -228,8 +232,8 @@ TEST_F(Cli, LaplaceFmmMatchesDirectToTolerance) {
   const auto q = random_vec(n, 22, -1, 1);
   write_npy(path("s.npy"), {n, 3}, s);
   write_npy(path("q.npy"), {n}, q);
-  const Result r = run("laplace --sources " + path("s.npy") + " --charges " + path("q.npy") +
-                       " --eps 1e-6 --out " + path("r.npy") + " --json");
+  const Result r = run("laplace --sources " + path("s.npy") + " --charges " + path("q.npy") + " --eps 1e-6 --out " +
+                       path("r.npy") + " --json");
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("\"method\":\"fmm\""), std::string::npos) << r.out;
   const Npy out = read_npy(path("r.npy"));
@@ -717,4 +721,28 @@ TEST_F(Cli, BdRestartRefusesAnotherRunsFiles) {
   EXPECT_EQ(slurp_file(path("b/log.csv")), log);
   // Its own directory continues.
   EXPECT_EQ(run("bd --restart " + path("a/checkpoint.bin") + " --steps 8 --quiet").code, 0);
+}
+
+TEST_F(Cli, SimdLevelIsReportedAndItsOverrideChecked) {
+  // --json names the instruction-set level in use; RPYFMM_SIMD lowers it (scalar runs
+  // everywhere) and a value that names no level is one line and exit 2, before any work.
+  const std::size_t n = 40;
+  write_npy(path("s.npy"), {n, 3}, random_vec(3 * n, 61, -1, 1));
+  write_npy(path("q.npy"), {n}, random_vec(n, 62, -1, 1));
+  const std::string args =
+      "laplace --sources " + path("s.npy") + " --charges " + path("q.npy") + " --direct --out " + path("r.npy");
+  const Result native = run(args + " --json");
+  ASSERT_EQ(native.code, 0) << native.err;
+  EXPECT_NE(native.out.find("\"simd\":\"" + std::string(rpyfmm::simd_level_name(rpyfmm::simd_level())) + "\""),
+            std::string::npos)
+      << native.out;
+  const Result scalar = run_with_env("RPYFMM_SIMD=scalar", args + " --json");
+  ASSERT_EQ(scalar.code, 0) << scalar.err;
+  EXPECT_NE(scalar.out.find("\"simd\":\"scalar\""), std::string::npos) << scalar.out;
+  fs::remove(path("r.npy"));
+  const Result typo = run_with_env("RPYFMM_SIMD=avx3", args);
+  EXPECT_EQ(typo.code, 2) << typo.err;
+  EXPECT_EQ(std::count(typo.err.begin(), typo.err.end(), '\n'), 1) << typo.err;
+  EXPECT_NE(typo.err.find("RPYFMM_SIMD"), std::string::npos) << typo.err;
+  EXPECT_FALSE(fs::exists(path("r.npy")));
 }

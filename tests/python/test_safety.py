@@ -435,3 +435,14 @@ def test_every_public_name_has_a_docstring():
                 if not doc_text(value):
                     missing.append(f"{name}.{member}")
     assert not missing, f"without a docstring: {missing}"
+
+
+def test_simd_level_reports_the_level_in_use():
+    # The level is one of three names and follows RPYFMM_SIMD (read at the first query), so a
+    # fresh interpreter with RPYFMM_SIMD=scalar reports scalar.
+    assert rpyfmm.simd_level() in ("scalar", "avx2", "avx512")
+    os.environ["RPYFMM_SIMD"] = "scalar"
+    try:
+        assert run_isolated("print(rpyfmm.simd_level())").strip().splitlines()[-1] == "scalar"
+    finally:
+        del os.environ["RPYFMM_SIMD"]
