@@ -83,7 +83,11 @@ class Section {
   }
   double in(const std::string& k, const ranges::RealRange& range, double fallback) {
     const double v = number(k, fallback);
-    if (!range.contains(v)) bad_key(key(k), std::string("must lie in ").append(range.str()).append(", got ") + num(v));
+    if (!range.contains(v)) {
+      std::string what = "must lie in ";
+      what.append(range.str()).append(", got ").append(num(v));
+      bad_key(key(k), what);
+    }
     return v;
   }
   double non_negative(const std::string& k, double fallback) {

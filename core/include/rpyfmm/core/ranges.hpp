@@ -15,20 +15,27 @@
 
 namespace rpyfmm::ranges {
 
+/// "[lo, hi]" (built by appending: GCC 12 warns falsely on "literal" + std::string chains).
+inline std::string bracket(const std::string& lo, const std::string& hi) {
+  std::string s = "[";
+  s.append(lo).append(", ").append(hi).append("]");
+  return s;
+}
+
 /// A closed range [lo, hi] of a real parameter.
 struct RealRange {
   double lo;
   double hi;
   [[nodiscard]] constexpr bool contains(double v) const noexcept { return v >= lo && v <= hi; }
   /// "[1e-12, 0.1]": the form used in --help and in error messages.
-  [[nodiscard]] std::string str() const { return "[" + format_number(lo) + ", " + format_number(hi) + "]"; }
+  [[nodiscard]] std::string str() const { return bracket(format_number(lo), format_number(hi)); }
 };
 
 /// A closed range [lo, hi] of an integer parameter.
 struct IntRange {
   std::int64_t lo;
   std::uint64_t hi;
-  [[nodiscard]] std::string str() const { return "[" + std::to_string(lo) + ", " + bound(hi) + "]"; }
+  [[nodiscard]] std::string str() const { return bracket(std::to_string(lo), bound(hi)); }
 
  private:
   static std::string bound(std::uint64_t v) {
