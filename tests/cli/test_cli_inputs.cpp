@@ -250,13 +250,14 @@ TEST_F(CliInputs, IntegerOptionsOutOfRangeAreRefusedNeverWrapped) {
 // ---- real parameters -----------------------------------------------------------------------
 
 TEST_F(CliInputs, SubnormalAndHugeScalesAreRefused) {
-  expect_refused(mobility_with(path("x.txt"), "", "1e-320"), {"--radius", "[1e-30, 1e+30]", "got 9.99989e-321"});
+  expect_refused(mobility_with(path("x.txt"), "", "1e-320"),
+                 {"--radius", "[1e-30, 1e+30]", "got the subnormal 9.99989e-321"});
   expect_refused(mobility_with(path("x.txt"), "", "1e31"), {"--radius", "[1e-30, 1e+30]"});
   expect_refused(mobility_with(path("x.txt"), " --viscosity 1e-310"), {"--viscosity", "[1e-30, 1e+30]"});
   expect_refused(mobility_with(path("x.txt"), " --method fmm --eps 1e-320"), {"--eps", "[1e-12, 0.1]"});
   expect_refused("sample --positions " + path("x.txt") + " --radius 1e-320 --out " + path("u.npy"), {"--radius"});
   expect_refused("sample --positions " + path("x.txt") + " --radius 1 --tol 1e-320 --out " + path("u.npy"),
-                 {"--tol", "[1e-15, 0.5]"});
+                 {"--tol", "must lie in (0, 1), got the subnormal 9.99989e-321"});
 }
 
 // Messages print numbers as %g: "[1e-12, 0.1], got 0.7", never "[0.000000, 0.500000]".

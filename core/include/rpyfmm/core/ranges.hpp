@@ -22,13 +22,24 @@ inline std::string bracket(const std::string& lo, const std::string& hi) {
   return s;
 }
 
-/// A closed range [lo, hi] of a real parameter.
+/// A range of a real parameter: [lo, hi], or open at an end where a bound itself is invalid
+/// (a solver tolerance of 0 or 1).
 struct RealRange {
   double lo;
   double hi;
-  [[nodiscard]] constexpr bool contains(double v) const noexcept { return v >= lo && v <= hi; }
-  /// "[1e-12, 0.1]": the form used in --help and in error messages.
-  [[nodiscard]] std::string str() const { return bracket(format_number(lo), format_number(hi)); }
+  bool open_lo = false;
+  bool open_hi = false;
+  /// False for NaN, for infinities (the bounds are finite) and for subnormal numbers, which no
+  /// parameter needs and whose reciprocals overflow.
+  [[nodiscard]] bool contains(double v) const noexcept {
+    return (v == 0.0 || std::isnormal(v)) && (open_lo ? v > lo : v >= lo) && (open_hi ? v < hi : v <= hi);
+  }
+  /// "[1e-12, 0.1]" or "(0, 1)": the form used in --help and in error messages.
+  [[nodiscard]] std::string str() const {
+    std::string s = open_lo ? "(" : "[";
+    s.append(format_number(lo)).append(", ").append(format_number(hi)).append(open_hi ? ")" : "]");
+    return s;
+  }
 };
 
 /// A closed range [lo, hi] of an integer parameter.
@@ -55,7 +66,7 @@ inline constexpr RealRange kViscosity{1e-30, 1e30};  ///< solvent viscosity eta
 inline constexpr RealRange kMobilityTolerance{1e-12, 0.1};
 /// Relative tolerance of a Krylov solve or square root (Lanczos, Chebyshev, GMRES): sample --tol,
 /// rigid --tol, rigid-bd --tol / --sqrt-tol, the [mobility] sqrt_tolerance of a BD config.
-inline constexpr RealRange kSolverTolerance{1e-15, 0.5};
+inline constexpr RealRange kSolverTolerance{0.0, 1.0, true, true};
 /// Relative tolerance of the Laplace FMM (laplace --eps; fmm::LaplaceFmm checks it too).
 inline constexpr RealRange kLaplaceTolerance{1e-15, 0.1};
 
@@ -77,9 +88,15 @@ inline constexpr IntRange kGmresIterations{1, 10000000};
 inline constexpr IntRange kParticleCount{1, 1000000000};
 
 /// Throws rpyfmm::Error (invalid_argument) naming `where` unless `value` lies in `range`
-/// (NaN and infinities never do).
+/// (NaN, infinities and subnormals never do).
 inline void require_in(const RealRange& range, double value, std::string_view where, std::string_view name) {
-  require_in_range(value, range.lo, range.hi, where, name);
+  if (!range.contains(value)) {
+    std::string what(name);
+    what.append(" must lie in ").append(range.str()).append(", got ");
+    if (std::isfinite(value) && value != 0.0 && !std::isnormal(value)) what.append("the subnormal ");
+    what.append(format_number(value));
+    fail(ErrorCode::invalid_argument, where, what);
+  }
 }
 
 }  // namespace rpyfmm::ranges
