@@ -189,9 +189,65 @@ std::vector<const toml::table*> table_array(const toml::table& root, const std::
   return out;
 }
 
+// TOML allows non-ASCII bytes only inside strings and comments. toml++ 3.3 reaches
+// TOML_UNREACHABLE (undefined behaviour) on some non-ASCII characters elsewhere, e.g. U+01CE
+// where it checks for whitespace (found by fuzzing), so such bytes are refused before it parses.
+void require_ascii_outside_strings(std::string_view text, const std::string& source) {
+  enum class In { code, comment, basic, literal, multi_basic, multi_literal } in = In::code;
+  std::size_t line = 1, column = 0;
+  const auto at = [&](std::size_t i, std::string_view s) { return text.substr(i, s.size()) == s; };
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    ++column;
+    if (c == '\n') {
+      ++line;
+      column = 0;
+      if (in != In::multi_basic && in != In::multi_literal) in = In::code;  // unterminated: toml++ says so
+      continue;
+    }
+    switch (in) {
+      case In::code:
+        if (static_cast<unsigned char>(c) >= 0x80) {
+          fail(ErrorCode::invalid_input, "config",
+               source + ":" + std::to_string(line) + ":" + std::to_string(column) +
+                   ": non-ASCII character outside a string or comment");
+        }
+        if (c == '#')
+          in = In::comment;
+        else if (at(i, "\"\"\""))
+          in = In::multi_basic, i += 2;
+        else if (at(i, "'''"))
+          in = In::multi_literal, i += 2;
+        else if (c == '"')
+          in = In::basic;
+        else if (c == '\'')
+          in = In::literal;
+        break;
+      case In::comment:
+        break;
+      case In::basic:
+      case In::multi_basic:
+        if (c == '\\')
+          ++i;  // an escape: the next byte cannot end the string
+        else if (in == In::basic && c == '"')
+          in = In::code;
+        else if (in == In::multi_basic && at(i, "\"\"\""))
+          in = In::code, i += 2;
+        break;
+      case In::literal:
+        if (c == '\'') in = In::code;
+        break;
+      case In::multi_literal:
+        if (at(i, "'''")) in = In::code, i += 2;
+        break;
+    }
+  }
+}
+
 }  // namespace
 
 RunConfig parse_config(std::string_view text, const std::string& source) {
+  require_ascii_outside_strings(text, source);
   toml::table root;
   try {
     root = toml::parse(text, source);
