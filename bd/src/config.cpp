@@ -189,29 +189,30 @@ std::vector<const toml::table*> table_array(const toml::table& root, const std::
   return out;
 }
 
-// TOML allows non-ASCII bytes only inside strings and comments. toml++ 3.3 reaches
-// TOML_UNREACHABLE (undefined behaviour) on some non-ASCII characters elsewhere, e.g. U+01CE
-// where it checks for whitespace (found by fuzzing), so such bytes are refused before it parses.
+// TOML allows non-ASCII bytes only inside strings and comments, and not in escapes. toml++ 3.3
+// reaches TOML_UNREACHABLE (undefined behaviour) on some non-ASCII characters elsewhere, e.g.
+// U+01CE where it checks for whitespace, or U+FCFF after a backslash in a multi-line string
+// (both found by fuzzing), so such bytes are refused before it parses.
 void require_ascii_outside_strings(std::string_view text, const std::string& source) {
   enum class In { code, comment, basic, literal, multi_basic, multi_literal } in = In::code;
-  std::size_t line = 1, column = 0;
+  std::size_t line = 1, line_start = 0;  // line_start: index of the line's first byte
   const auto at = [&](std::size_t i, std::string_view s) { return text.substr(i, s.size()) == s; };
+  const auto non_ascii = [&source](std::size_t l, std::size_t col) {
+    fail(ErrorCode::invalid_input, "config",
+         source + ":" + std::to_string(l) + ":" + std::to_string(col) +
+             ": non-ASCII character outside a string or comment, or in an escape");
+  };
   for (std::size_t i = 0; i < text.size(); ++i) {
     const char c = text[i];
-    ++column;
     if (c == '\n') {
       ++line;
-      column = 0;
+      line_start = i + 1;
       if (in != In::multi_basic && in != In::multi_literal) in = In::code;  // unterminated: toml++ says so
       continue;
     }
     switch (in) {
       case In::code:
-        if (static_cast<unsigned char>(c) >= 0x80) {
-          fail(ErrorCode::invalid_input, "config",
-               source + ":" + std::to_string(line) + ":" + std::to_string(column) +
-                   ": non-ASCII character outside a string or comment");
-        }
+        if (static_cast<unsigned char>(c) >= 0x80) non_ascii(line, i - line_start + 1);
         if (c == '#')
           in = In::comment;
         else if (at(i, "\"\"\""))
@@ -227,9 +228,11 @@ void require_ascii_outside_strings(std::string_view text, const std::string& sou
         break;
       case In::basic:
       case In::multi_basic:
-        if (c == '\\')
-          ++i;  // an escape: the next byte cannot end the string
-        else if (in == In::basic && c == '"')
+        if (c == '\\') {  // an escape: ASCII (toml++ also misreads non-ASCII there), and it ends nothing
+          if (i + 1 < text.size() && static_cast<unsigned char>(text[i + 1]) >= 0x80)
+            non_ascii(line, i - line_start + 2);
+          ++i;
+        } else if (in == In::basic && c == '"')
           in = In::code;
         else if (in == In::multi_basic && at(i, "\"\"\""))
           in = In::code, i += 2;

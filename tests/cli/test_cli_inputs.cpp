@@ -314,6 +314,8 @@ TEST_F(CliInputs, ConfigNumbersOutOfRangeAreRefusedNamingTheKey) {
   // strings and comments (U+01CE here); they are refused first. In comments and strings they stay.
   EXPECT_NE(message("\xc7\x8e").find("t.toml:1:1: non-ASCII character outside a string or comment"), std::string::npos)
       << message("\xc7\x8e");
+  EXPECT_NE(message("x = \"\"\"a \\\xef\xb3\xbf\n\"\"\"\n").find("t.toml:1:11: non-ASCII"), std::string::npos)
+      << message("x = \"\"\"a \\\xef\xb3\xbf\n\"\"\"\n");
   EXPECT_EQ(message("# \xce\xb7 = 1, \xc7\x8e\n" + config("1.0", "10", "") + "[output]\ndir = \"\xc7\x8e\"\n"),
             "no error");
   EXPECT_NE(message(config("1.0", "1000000000000000", "")).find("particles.count"), std::string::npos);

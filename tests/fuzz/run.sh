@@ -64,6 +64,11 @@ build() {
 }
 
 for target in "${targets[@]}"; do
+  if [[ $target == config || $target == particles ]] &&
+     grep -q '^RPYFMM_USE_CUDA:BOOL=ON' "$release/CMakeCache.txt" 2>/dev/null; then
+    echo "fuzz: $target skipped: $release is a CUDA build (set RPYFMM_RELEASE_DIR to a CPU-only one)"
+    continue
+  fi
   start=$(date +%s)
   build "$target"
   built=$(date +%s)
