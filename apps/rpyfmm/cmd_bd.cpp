@@ -104,6 +104,7 @@ void register_bd(CLI::App& app) {
   cmd->add_option("--config", args->config, "TOML run config (docs/bd-config.md)");
   add_integer_option(*cmd, "--steps", args->steps, ranges::kSteps,
                      "total steps of the run (overrides integrator.steps)")
+      ->default_str("")  // not given: the config's integrator.steps
       ->each([args](const std::string&) { args->steps_given = true; });
   cmd->add_option("--out-dir", args->out_dir, "output directory (overrides output.dir)");
   cmd->add_option("--restart", args->restart, "continue from a checkpoint file (bitwise identical)");
