@@ -189,19 +189,17 @@ std::vector<const toml::table*> table_array(const toml::table& root, const std::
   return out;
 }
 
-// TOML allows non-ASCII bytes only inside strings and comments, and not in escapes. toml++ 3.3
-// reaches TOML_UNREACHABLE (undefined behaviour) on some non-ASCII characters elsewhere, e.g.
-// U+01CE where it checks for whitespace, or U+FCFF after a backslash in a multi-line string
-// (both found by fuzzing), so such bytes are refused before it parses.
-void require_ascii_outside_strings(std::string_view text, const std::string& source) {
+// The text toml++ parses: ASCII only. toml++ 3.3 reaches TOML_UNREACHABLE (undefined behaviour)
+// on some non-ASCII characters wherever it checks for whitespace: U+01CE between tokens, U+FCFF
+// after a backslash in a string, U+00BA inside a malformed table header (all found by
+// fuzzing). So non-ASCII bytes in comments become '?' (comments are dropped anyway) and
+// anywhere else they are refused, naming line and column. Whatever this scan takes for a
+// comment, toml++ never sees a non-ASCII byte.
+std::string ascii_for_toml(std::string_view text, const std::string& source) {
   enum class In { code, comment, basic, literal, multi_basic, multi_literal } in = In::code;
+  std::string out(text);
   std::size_t line = 1, line_start = 0;  // line_start: index of the line's first byte
   const auto at = [&](std::size_t i, std::string_view s) { return text.substr(i, s.size()) == s; };
-  const auto non_ascii = [&source](std::size_t l, std::size_t col) {
-    fail(ErrorCode::invalid_input, "config",
-         source + ":" + std::to_string(l) + ":" + std::to_string(col) +
-             ": non-ASCII character outside a string or comment, or in an escape");
-  };
   for (std::size_t i = 0; i < text.size(); ++i) {
     const char c = text[i];
     if (c == '\n') {
@@ -210,50 +208,57 @@ void require_ascii_outside_strings(std::string_view text, const std::string& sou
       if (in != In::multi_basic && in != In::multi_literal) in = In::code;  // unterminated: toml++ says so
       continue;
     }
+    if (static_cast<unsigned char>(c) >= 0x80) {
+      if (in != In::comment) {
+        fail(ErrorCode::invalid_input, "config",
+             source + ":" + std::to_string(line) + ":" + std::to_string(i - line_start + 1) +
+                 ": non-ASCII character (BD configs are ASCII outside comments)");
+      }
+      out[i] = '?';
+      continue;
+    }
     switch (in) {
       case In::code:
-        if (static_cast<unsigned char>(c) >= 0x80) non_ascii(line, i - line_start + 1);
-        if (c == '#')
+        if (c == '#') {
           in = In::comment;
-        else if (at(i, "\"\"\""))
-          in = In::multi_basic, i += 2;
-        else if (at(i, "'''"))
-          in = In::multi_literal, i += 2;
-        else if (c == '"')
-          in = In::basic;
-        else if (c == '\'')
-          in = In::literal;
+        } else if (at(i, "\"\"\"") || at(i, "'''")) {
+          in = c == '"' ? In::multi_basic : In::multi_literal;
+          i += 2;
+        } else if (c == '"' || c == '\'') {
+          in = c == '"' ? In::basic : In::literal;
+        }
         break;
       case In::comment:
         break;
       case In::basic:
       case In::multi_basic:
-        if (c == '\\') {  // an escape: ASCII (toml++ also misreads non-ASCII there), and it ends nothing
-          if (i + 1 < text.size() && static_cast<unsigned char>(text[i + 1]) >= 0x80)
-            non_ascii(line, i - line_start + 2);
-          ++i;
-        } else if (in == In::basic && c == '"')
+        if (c == '\\') {
+          ++i;  // an escape: the next byte ends nothing (a non-ASCII one is refused above next time)
+          if (i < text.size() && static_cast<unsigned char>(text[i]) >= 0x80) --i;
+        } else if (in == In::basic ? c == '"' : at(i, "\"\"\"")) {
+          if (in == In::multi_basic) i += 2;
           in = In::code;
-        else if (in == In::multi_basic && at(i, "\"\"\""))
-          in = In::code, i += 2;
+        }
         break;
       case In::literal:
-        if (c == '\'') in = In::code;
-        break;
       case In::multi_literal:
-        if (at(i, "'''")) in = In::code, i += 2;
+        if (in == In::literal ? c == '\'' : at(i, "'''")) {
+          if (in == In::multi_literal) i += 2;
+          in = In::code;
+        }
         break;
     }
   }
+  return out;
 }
 
 }  // namespace
 
 RunConfig parse_config(std::string_view text, const std::string& source) {
-  require_ascii_outside_strings(text, source);
+  const std::string ascii = ascii_for_toml(text, source);
   toml::table root;
   try {
-    root = toml::parse(text, source);
+    root = toml::parse(ascii, source);
   } catch (const toml::parse_error& e) {
     std::ostringstream msg;
     msg << source << ":" << e.source().begin.line << ":" << e.source().begin.column << ": " << e.description();
