@@ -4,8 +4,10 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace rpyfmm::cli {
@@ -16,10 +18,19 @@ struct Array {
   [[nodiscard]] std::size_t rows() const { return shape.empty() ? 1 : shape[0]; }
 };
 
+/// Text arrays: a line may hold at most kMaxTextLineBytes and the input at most kMaxTextBytes
+/// (larger data belongs in .npy); beyond either the reader stops with an error, so an endless or
+/// binary input (/dev/zero) fails at once instead of filling memory.
+inline constexpr std::size_t kMaxTextLineBytes = std::size_t{1} << 20;  // 1 MiB
+inline constexpr std::uint64_t kMaxTextBytes = std::uint64_t{1} << 30;  // 1 GiB
+
 /// Reads `.npy` (by magic bytes) or text (one row per line). Throws on
-/// missing files, malformed/truncated .npy, unsupported dtype or Fortran order,
-/// ragged text rows, and non-numeric text.
+/// missing files, directories, malformed/truncated .npy (the declared shape is checked against
+/// the file's size before anything is allocated), unsupported dtype or Fortran order,
+/// ragged text rows, non-numeric text, text beyond the limits above, and exhausted memory.
 Array read_array(const std::filesystem::path& path);
+/// The same reader over bytes in memory; `name` names the input in messages.
+Array read_array_bytes(std::string_view bytes, const std::string& name);
 
 /// Writes a float64 .npy with write_file_atomically (rpyfmm/core/atomic_file.hpp): a target
 /// that is not a regular file is refused; a new temporary is fsync'ed and renamed over it.

@@ -28,7 +28,7 @@ std::vector<std::size_t> body_offsets_from_sizes(const std::vector<double>& size
 void add_bead_body_options(CLI::App& cmd, BeadBodyArgs& args, const std::string& positions_help,
                            const std::string& reference_help) {
   cmd.add_option("--positions", args.positions, positions_help)->required();
-  auto* radius = cmd.add_option("--radius", args.radius, "common bead radius a > 0");
+  auto* radius = cmd.add_option("--radius", args.radius, "common bead radius a, in " + ranges::kRadius.str());
   auto* radii = cmd.add_option("--radii", args.radii, "per-bead radii (N,)");
   radius->excludes(radii);
   // Recorded when parsed, so that --radius 0 is refused rather than taken for "not given".
@@ -40,7 +40,7 @@ void add_bead_body_options(CLI::App& cmd, BeadBodyArgs& args, const std::string&
 BeadBodies read_bead_bodies(const BeadBodyArgs& args) {
   require(args.radius_given != !args.radii.empty(), ErrorCode::invalid_argument, "--radius",
           "give exactly one of --radius a or --radii R.npy");
-  if (args.radius_given) require_positive(args.radius, "--radius", "radius");
+  if (args.radius_given) ranges::require_in(ranges::kRadius, args.radius, "--radius", "radius");
   BeadBodies b;
   b.x = as_points(read_array(args.positions), "positions");
   const std::size_t n = b.x.size() / 3;

@@ -1,35 +1,110 @@
 #include "cli_common.hpp"
 
-#include <CLI/CLI.hpp>
-#include <cmath>
-#include <cstdio>
 #include <omp.h>
 
+#include <CLI/CLI.hpp>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "rpyfmm/core/threads.hpp"
 #include "rpyfmm/core/validate.hpp"
 
 namespace rpyfmm::cli {
 
 void add_common_options(CLI::App& cmd, CommonOptions& options) {
-  cmd.add_option("--threads", options.threads, "OpenMP threads (0 = default)");
+  // The range of rpyfmm::require_thread_count (threads.hpp), which apply_threads applies too.
+  add_integer_option(cmd, "--threads", options.threads, {0, static_cast<std::uint64_t>(max_threads())},
+                     "OpenMP threads, 0 = default; at most 4 x the hardware threads and never more than " +
+                         std::to_string(kThreadCeiling));
   cmd.add_flag("--json", options.json, "print one line of JSON with parameters and timings");
 }
 
 void apply_threads(const CommonOptions& options) {
-  require(options.threads >= 0, ErrorCode::invalid_argument, "--threads",
-          "must be >= 0, got " + std::to_string(options.threads));
-  if (options.threads > 0) omp_set_num_threads(options.threads);
+  require_thread_count(options.threads, "--threads", /*allow_zero=*/true);
+  if (options.threads > 0) omp_set_num_threads(static_cast<int>(options.threads));
 }
 
-int active_threads() { return omp_get_max_threads(); }
+namespace {
+
+// The value of `text` if it is a decimal integer (optional sign) in `range`; otherwise a
+// CLI::ValidationError naming the option (main prints it on one line and exits with 2).
+__int128 parse_integer(const std::string& text, const std::string& name, ranges::IntRange range) {
+  const bool negative = !text.empty() && text[0] == '-';
+  const char* first = text.data() + ((negative || (!text.empty() && text[0] == '+')) ? 1 : 0);
+  const char* last = text.data() + text.size();
+  std::uint64_t magnitude = 0;
+  const auto [end, ec] = std::from_chars(first, last, magnitude);
+  const std::string expect = "must be an integer in " + range.str();
+  if (first == last || ec == std::errc::invalid_argument || end != last)
+    throw CLI::ValidationError(name, expect + ", got '" + text + "'");
+  const __int128 value = negative ? -static_cast<__int128>(magnitude) : static_cast<__int128>(magnitude);
+  if (ec == std::errc::result_out_of_range || value < range.lo || value > static_cast<__int128>(range.hi))
+    throw CLI::ValidationError(name, expect + ", got " + text);
+  return value;
+}
+
+template <class T>
+CLI::Option* add_integer(CLI::App& cmd, const std::string& name, T& target, ranges::IntRange range,
+                         const std::string& help) {
+  // The range must fit T, so that the checked value converts exactly.
+  if (range.lo < static_cast<__int128>(std::numeric_limits<T>::min()) ||
+      static_cast<__int128>(range.hi) > static_cast<__int128>(std::numeric_limits<T>::max()))
+    throw std::logic_error("add_integer_option: range of " + name + " does not fit its type");
+  auto* option = cmd.add_option_function<std::string>(
+      name,
+      [&target, name, range](const std::string& text) { target = static_cast<T>(parse_integer(text, name, range)); },
+      help + " (integer in " + range.str() + ")");
+  option->type_name("INT")->default_str(std::to_string(target));
+  return option;
+}
+
+}  // namespace
+
+CLI::Option* add_integer_option(CLI::App& cmd, const std::string& name, int& target, ranges::IntRange range,
+                                const std::string& help) {
+  return add_integer(cmd, name, target, range, help);
+}
+CLI::Option* add_integer_option(CLI::App& cmd, const std::string& name, long long& target, ranges::IntRange range,
+                                const std::string& help) {
+  return add_integer(cmd, name, target, range, help);
+}
+CLI::Option* add_integer_option(CLI::App& cmd, const std::string& name, std::uint64_t& target, ranges::IntRange range,
+                                const std::string& help) {
+  return add_integer(cmd, name, target, range, help);
+}
+
+void require_finite_output(std::span<const double> values, const std::string& what) {
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    if (!std::isfinite(values[i])) {
+      fail(ErrorCode::numerical_failure, what,
+           "entry " + std::to_string(i) + " of the result is " + (std::isnan(values[i]) ? "NaN" : "infinite") +
+               " (nothing written; are the input's scales extreme?)");
+    }
+  }
+}
+
+int active_threads() {
+  return omp_get_max_threads();
+}
 
 std::string json_escape(const std::string& s) {
   std::string out;
   for (char c : s) {
     switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\t': out += "\\t"; break;
+      case '"':
+        out += "\\\"";
+        break;
+      case '\\':
+        out += "\\\\";
+        break;
+      case '\n':
+        out += "\\n";
+        break;
+      case '\t':
+        out += "\\t";
+        break;
       default:
         if (static_cast<unsigned char>(c) < 0x20) {
           char buf[8];
@@ -61,6 +136,10 @@ JsonLine& JsonLine::add(const std::string& key, double value) {
   return *this;
 }
 JsonLine& JsonLine::add(const std::string& key, long long value) {
+  items_.emplace_back(key, std::to_string(value));
+  return *this;
+}
+JsonLine& JsonLine::add(const std::string& key, std::uint64_t value) {
   items_.emplace_back(key, std::to_string(value));
   return *this;
 }

@@ -1,29 +1,51 @@
-// rpyfmm CLI — pieces shared by the subcommands: thread count, one-line JSON.
+// rpyfmm CLI — pieces shared by the subcommands: thread count, strictly parsed integer
+// options, the finiteness check of results, one-line JSON.
 #pragma once
 
+#include <cstdint>
 #include <map>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "rpyfmm/core/ranges.hpp"
+
 namespace CLI {
 class App;
-}
+class Option;
+}  // namespace CLI
 
 namespace rpyfmm::cli {
 
 /// Options every subcommand has.
 struct CommonOptions {
-  int threads = 0;   // 0 = OpenMP default
-  bool json = false; // print one line of JSON to stdout
+  long long threads = 0;  // 0 = OpenMP default
+  bool json = false;      // print one line of JSON to stdout
 };
 
 /// Adds --threads and --json to `cmd`.
 void add_common_options(CLI::App& cmd, CommonOptions& options);
-/// Applies --threads (omp_set_num_threads) after validating it.
+/// Applies --threads (omp_set_num_threads) after validating it (rpyfmm::require_thread_count).
 void apply_threads(const CommonOptions& options);
 /// Threads that OpenMP will use.
 int active_threads();
+
+/// Adds an integer option parsed strictly: decimal digits with an optional sign, and a value in
+/// `range`. Anything else (a negative count, a value past the type, "1e3", "12abc") is refused
+/// while parsing, one line naming the option and the range, never wrapped or truncated. The
+/// help text gets the range appended and shows the current value of `target` as the default.
+CLI::Option* add_integer_option(CLI::App& cmd, const std::string& name, int& target, ranges::IntRange range,
+                                const std::string& help);
+CLI::Option* add_integer_option(CLI::App& cmd, const std::string& name, long long& target, ranges::IntRange range,
+                                const std::string& help);
+CLI::Option* add_integer_option(CLI::App& cmd, const std::string& name, std::uint64_t& target, ranges::IntRange range,
+                                const std::string& help);
+
+/// Throws rpyfmm::Error (numerical_failure) naming `what` and the first entry that is NaN or
+/// infinite: every command calls it on its results before writing any of them, so that exit
+/// status 0 never comes with non-finite output.
+void require_finite_output(std::span<const double> values, const std::string& what);
 
 /// A flat JSON object built key by key and printed on one line.
 class JsonLine {
@@ -33,7 +55,7 @@ class JsonLine {
   JsonLine& add(const std::string& key, double value);
   JsonLine& add(const std::string& key, long long value);
   JsonLine& add(const std::string& key, int value) { return add(key, static_cast<long long>(value)); }
-  JsonLine& add(const std::string& key, std::size_t value) { return add(key, static_cast<long long>(value)); }
+  JsonLine& add(const std::string& key, std::uint64_t value);  // exact up to 2^64-1
   JsonLine& add(const std::string& key, bool value);
   JsonLine& add(const std::string& key, const std::map<std::string, double>& values);
   JsonLine& add(const std::string& key, const std::vector<double>& values);

@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <cstdint>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -29,7 +30,8 @@ namespace {
 
 struct BdArgs {
   std::string config, out_dir, restart;
-  long long steps = -1;
+  std::uint64_t steps = 0;
+  bool steps_given = false;
   bool quiet = false;
   CommonOptions common;
 };
@@ -39,7 +41,7 @@ void run_bd_command(const BdArgs& args) {
   require(args.config.empty() || args.restart.empty(), ErrorCode::invalid_argument, "bd",
           "give --config or --restart, not both (a checkpoint carries its config)");
   bd::RunOptions options;
-  if (args.steps >= 0) options.steps = static_cast<std::uint64_t>(args.steps);
+  if (args.steps_given) options.steps = args.steps;
   if (!args.out_dir.empty()) options.out_dir = args.out_dir;
   const bool terminal = ::isatty(STDOUT_FILENO) != 0;
   if (terminal && !args.quiet && !args.common.json) options.progress = &std::cerr;
@@ -102,7 +104,10 @@ void register_bd(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "bd", "Brownian dynamics with hydrodynamic interactions (no --config: built-in sedimentation demo)");
   cmd->add_option("--config", args->config, "TOML run config (docs/bd-config.md)");
-  cmd->add_option("--steps", args->steps, "total steps of the run (overrides integrator.steps)");
+  add_integer_option(*cmd, "--steps", args->steps, ranges::kSteps,
+                     "total steps of the run (overrides integrator.steps)")
+      ->default_str("")  // not given: the config's integrator.steps
+      ->each([args](const std::string&) { args->steps_given = true; });
   cmd->add_option("--out-dir", args->out_dir, "output directory (overrides output.dir)");
   cmd->add_option("--restart", args->restart, "continue from a checkpoint file (bitwise identical)");
   cmd->add_flag("--quiet", args->quiet, "no progress line and no summary");

@@ -97,6 +97,7 @@ void run_laplace(const LaplaceArgs& args, bool eps_given) {
   apply_threads(args.common);
   require(args.direct != eps_given, ErrorCode::invalid_argument, "laplace",
           "choose exactly one method: --direct or --eps E");
+  if (eps_given) ranges::require_in(ranges::kLaplaceTolerance, args.eps, "--eps", "eps");
   StopWatch total;
   StopWatch watch;
   const LaplaceProblem p = read_problem(args);
@@ -113,6 +114,7 @@ void run_laplace(const LaplaceArgs& args, bool eps_given) {
   stages["evaluate"] = watch.seconds();
 
   watch.restart();
+  require_finite_output(results, "laplace");
   std::vector<std::size_t> shape = {p.m, fmm::result_width};
   if (p.charges_2d) shape.insert(shape.begin(), p.nd);
   write_npy(args.out, shape, results);
@@ -147,7 +149,8 @@ void register_laplace(CLI::App& app) {
   cmd->add_option("--targets", args->targets, "target positions (M,3); default: at the sources, self pair skipped");
   cmd->add_option("--charges", args->charges, "charges (N,) or (nd,N)")->required();
   auto* direct = cmd->add_flag("--direct", args->direct, "exact O(N M) direct sums");
-  auto* eps = cmd->add_option("--eps", args->eps, "FMM with relative tolerance E");
+  auto* eps =
+      cmd->add_option("--eps", args->eps, "FMM with relative tolerance E, in " + ranges::kLaplaceTolerance.str());
   direct->excludes(eps);
   cmd->add_option("--out", args->out, "output .npy: (M,10) or (nd,M,10), columns pot,gx,gy,gz,hxx,hyy,hzz,hxy,hxz,hyz")
       ->required();

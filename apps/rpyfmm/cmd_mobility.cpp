@@ -40,8 +40,8 @@ void run_mobility(const MobilityArgs& args, bool radius_given) {
   apply_threads(args.common);
   require(radius_given != !args.radii.empty(), ErrorCode::invalid_argument, "mobility",
           "give exactly one of --radius a or --radii R.npy");
-  if (radius_given) require_positive(args.radius, "--radius", "radius");
-  require_positive(args.mobility.viscosity, "--viscosity", "viscosity");
+  if (radius_given) ranges::require_in(ranges::kRadius, args.radius, "--radius", "radius");
+  ranges::require_in(ranges::kViscosity, args.mobility.viscosity, "--viscosity", "viscosity");
 
   StopWatch total;
   StopWatch watch;
@@ -71,6 +71,7 @@ void run_mobility(const MobilityArgs& args, bool radius_given) {
   stages["apply"] = watch.seconds();
 
   watch.restart();
+  require_finite_output(u, "mobility");
   write_npy(args.out, {n, 3}, u);
   stages["write"] = watch.seconds();
 
@@ -99,7 +100,7 @@ void register_mobility(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("mobility", "RPY velocities U = M F of N spheres");
   cmd->add_option("--positions", args->positions, "positions, (N,3) .npy or text")->required();
   cmd->add_option("--forces", args->forces, "forces (N,3)")->required();
-  auto* radius = cmd->add_option("--radius", args->radius, "common sphere radius a > 0");
+  auto* radius = cmd->add_option("--radius", args->radius, "common sphere radius a, in " + ranges::kRadius.str());
   auto* radii = cmd->add_option("--radii", args->radii, "per-particle radii (N,)");
   radius->excludes(radii);
   add_mobility_options(*cmd, args->mobility);

@@ -51,8 +51,7 @@ void run_rigid(const RigidArgs& args) {
                                                 {"--forces", args.forces}},
                          std::vector<NamedPath>{{"--out", args.out}, {"--bead-forces", args.bead_forces}});
   apply_threads(args.common);
-  require(args.tol > 0.0 && args.tol < 1.0, ErrorCode::invalid_argument, "--tol",
-          "must lie in (0, 1), got " + std::to_string(args.tol));
+  ranges::require_in(ranges::kSolverTolerance, args.tol, "--tol", "tolerance");
 
   StopWatch total;
   StopWatch watch;
@@ -82,6 +81,8 @@ void run_rigid(const RigidArgs& args) {
   stages["solve"] = watch.seconds();
 
   watch.restart();
+  require_finite_output(uw, "rigid");
+  require_finite_output(lambda, "rigid (bead forces)");
   write_npy(args.out, {m, 6}, uw);
   if (!args.bead_forces.empty()) write_npy(args.bead_forces, {n, 3}, lambda);
   stages["write"] = watch.seconds();
@@ -116,9 +117,10 @@ void register_rigid(CLI::App& app) {
   add_bead_body_options(*cmd, args->bodies, "bead positions, (N,3) .npy or text, body after body",
                         "points (m,3) the torques and angular velocities refer to (default: body centroids)");
   cmd->add_option("--forces", args->forces, "forces and torques (m,6): F_x F_y F_z T_x T_y T_z per body")->required();
-  cmd->add_option("--tol", args->tol, "GMRES relative residual, in (0, 1)")->capture_default_str();
-  cmd->add_option("--max-iterations", args->max_iterations, "most GMRES iterations (bead products)")
+  cmd->add_option("--tol", args->tol, "GMRES relative residual, in " + ranges::kSolverTolerance.str())
       ->capture_default_str();
+  add_integer_option(*cmd, "--max-iterations", args->max_iterations, ranges::kGmresIterations,
+                     "most GMRES iterations (bead products)");
   cmd->add_flag("--no-precondition", args->no_precondition,
                 "plain GMRES instead of the body-block preconditioner (for comparison; many more iterations)");
   add_mobility_options(*cmd, args->mobility);

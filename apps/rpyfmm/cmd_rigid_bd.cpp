@@ -67,8 +67,8 @@ void run_rigid_bd(const RigidBdArgs& args) {
                                                 {"--restart", args.restart}},
                          std::vector<NamedPath>{{"--out", args.out}, {"--beads-out", args.beads_out}});
   apply_threads(args.common);
-  require(args.steps >= 1, ErrorCode::invalid_argument, "--steps", "must be >= 1, got " + std::to_string(args.steps));
-  require(args.every >= 0, ErrorCode::invalid_argument, "--every", "must be >= 0, got " + std::to_string(args.every));
+  ranges::require_in(ranges::kSolverTolerance, args.tol, "--tol", "tolerance");
+  ranges::require_in(ranges::kSolverTolerance, args.sqrt_tol, "--sqrt-tol", "tolerance");
   require(args.drift == "rfd" || args.drift == "none", ErrorCode::invalid_argument, "--drift",
           "must be rfd or none, got '" + args.drift + "'");
   require(args.body_force.size() == 3 && args.body_torque.size() == 3, ErrorCode::invalid_argument, "rigid-bd",
@@ -151,6 +151,8 @@ void run_rigid_bd(const RigidBdArgs& args) {
   stages["run"] = watch.seconds();
 
   watch.restart();
+  require_finite_output(frames, "rigid-bd (trajectory)");
+  require_finite_output(sim.bead_positions(), "rigid-bd (bead positions)");
   const std::size_t frame_count = frames.size() / (7 * m);
   write_npy(args.out, {frame_count, m, 7}, frames);
   if (!args.beads_out.empty())
@@ -199,9 +201,9 @@ void register_rigid_bd(CLI::App& app) {
   add_bead_body_options(*cmd, args->bodies, "bead positions at t = 0, (N,3) .npy or text, body after body",
                         "reference points (m,3) at t = 0 (default: body centroids)");
   cmd->add_option("--dt", args->dt, "time step > 0")->required();
-  cmd->add_option("--steps", args->steps, "number of steps >= 1")->required();
+  add_integer_option(*cmd, "--steps", args->steps, {1, ranges::kSteps.hi}, "number of steps")->required();
   cmd->add_option("--kT", args->kT, "thermal energy >= 0 (0: deterministic)")->capture_default_str();
-  cmd->add_option("--seed", args->seed, "key of the noise")->capture_default_str();
+  add_integer_option(*cmd, "--seed", args->seed, ranges::kSeed, "key of the noise");
   cmd->add_option("--drift", args->drift, "thermal drift: rfd (random finite difference) or none")
       ->capture_default_str();
   cmd->add_option("--rfd-delta", args->rfd_delta, "relative RFD step, in [1e-6, 0.1]")->capture_default_str();
@@ -213,19 +215,21 @@ void register_rigid_bd(CLI::App& app) {
   cmd->add_option("--pair-epsilon", args->pair_epsilon, "its energy scale")->capture_default_str();
   cmd->add_option("--pair-sigma", args->pair_sigma, "its length scale (0: twice the first bead's radius)")
       ->capture_default_str();
-  cmd->add_option("--tol", args->tol, "GMRES relative residual, in (0, 1)")->capture_default_str();
-  cmd->add_option("--sqrt-tol", args->sqrt_tol, "tolerance of the bead noise B z (block-preconditioned Lanczos)")
+  cmd->add_option("--tol", args->tol, "GMRES relative residual, in " + ranges::kSolverTolerance.str())
       ->capture_default_str();
-  cmd->add_option("--every", args->every, "record a frame every K steps (0: first and last only)")
+  cmd->add_option(
+         "--sqrt-tol", args->sqrt_tol,
+         "tolerance of the bead noise B z (block-preconditioned Lanczos), in " + ranges::kSolverTolerance.str())
       ->capture_default_str();
+  add_integer_option(*cmd, "--every", args->every, ranges::kSteps,
+                     "record a frame every K steps (0: first and last only)");
   add_mobility_options(*cmd, args->mobility);
   cmd->add_option("--out", args->out, "trajectory .npy, shape (frames, m, 7): q_x q_y q_z w x y z")->required();
   cmd->add_option("--beads-out", args->beads_out, "also write the final bead positions (N,3) to this .npy");
   cmd->add_option("--restart", args->restart,
                   "start from the last frame of this trajectory (same --positions, --body-sizes, --reference)");
-  cmd->add_option("--first-step", args->first_step,
-                  "step number of the initial state (with --restart: the earlier run's last step)")
-      ->capture_default_str();
+  add_integer_option(*cmd, "--first-step", args->first_step, ranges::kSeed,
+                     "step number of the initial state (with --restart: the earlier run's last step)");
   add_common_options(*cmd, args->common);
   cmd->callback([args] { run_rigid_bd(*args); });
 }

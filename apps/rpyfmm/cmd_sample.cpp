@@ -152,17 +152,9 @@ void run_sample(const SampleArgs& given, bool radius_given, bool seed_given) {
           "give exactly one of --radius a or --radii R.npy");
   require(!(seed_given && !args.noise.empty()), ErrorCode::invalid_argument, "sample",
           "give at most one of --noise Z.npy or --seed S");
-  if (radius_given) require_positive(args.radius, "--radius", "radius");
-  require_positive(args.viscosity, "--viscosity", "viscosity");
-  if (!(args.tol > 0.0 && args.tol < 1.0)) {
-    std::ostringstream msg;
-    msg << "tolerance must lie in (0, 1), got " << args.tol;
-    fail(ErrorCode::invalid_argument, "--tol", msg.str());
-  }
-  require(args.max_iterations >= 0, ErrorCode::invalid_argument, "--max-iterations",
-          "must be >= 0 (0 = automatic), got " + std::to_string(args.max_iterations));
-  require(args.preconditioner_block >= 0, ErrorCode::invalid_argument, "--preconditioner-block",
-          "must be >= 0 (0 = automatic), got " + std::to_string(args.preconditioner_block));
+  if (radius_given) ranges::require_in(ranges::kRadius, args.radius, "--radius", "radius");
+  ranges::require_in(ranges::kViscosity, args.viscosity, "--viscosity", "viscosity");
+  ranges::require_in(ranges::kSolverTolerance, args.tol, "--tol", "tolerance");
   rpy::SqrtOptions options;
   options.method = parse_method(args.method);
   options.tolerance = args.tol;
@@ -181,7 +173,7 @@ void run_sample(const SampleArgs& given, bool radius_given, bool seed_given) {
   if (args.eps != 0.0) {
     require(entry.uses_eps, ErrorCode::invalid_argument, "--eps",
             "applies to approximate operators only, not to --operator " + args.op);
-    require_in_range(args.eps, 1e-12, 0.1, "--eps", "operator tolerance");
+    ranges::require_in(ranges::kMobilityTolerance, args.eps, "--eps", "operator tolerance");
   }
 
   StopWatch total;
@@ -216,6 +208,7 @@ void run_sample(const SampleArgs& given, bool radius_given, bool seed_given) {
   stages["sample"] = watch.seconds();
 
   watch.restart();
+  require_finite_output(w, "sample");
   write_npy(args.out, {n, 3}, w);
   stages["write"] = watch.seconds();
 
@@ -241,7 +234,7 @@ void run_sample(const SampleArgs& given, bool radius_given, bool seed_given) {
         .add("seconds", stages)
         .add("total_seconds", total.seconds());
     if (args.noise.empty()) {
-      line.add("seed", static_cast<long long>(args.seed)).add("step", static_cast<long long>(args.step));
+      line.add("seed", args.seed).add("step", args.step);
     }
     if (report.method == rpy::SqrtMethod::chebyshev) {
       line.add("lambda_min", report.lambda_min).add("lambda_max", report.lambda_max);
@@ -258,13 +251,13 @@ void register_sample(CLI::App& app) {
   auto args = std::make_shared<SampleArgs>();
   CLI::App* cmd = app.add_subcommand("sample", "Brownian displacements M^{1/2} z of N spheres (RPY mobility)");
   cmd->add_option("--positions", args->positions, "positions, (N,3) .npy or text")->required();
-  auto* radius = cmd->add_option("--radius", args->radius, "common sphere radius a > 0");
+  auto* radius = cmd->add_option("--radius", args->radius, "common sphere radius a, in " + ranges::kRadius.str());
   auto* radii = cmd->add_option("--radii", args->radii, "per-particle radii (N,)");
   radius->excludes(radii);
   auto* noise = cmd->add_option("--noise", args->noise, "noise z, (N,3); default: Philox normals from --seed");
-  auto* seed = cmd->add_option("--seed", args->seed, "seed of the counter-based generator")->capture_default_str();
+  auto* seed = add_integer_option(*cmd, "--seed", args->seed, ranges::kSeed, "seed of the counter-based generator");
   noise->excludes(seed);
-  cmd->add_option("--step", args->step, "time-step index (generator counter)")->capture_default_str();
+  add_integer_option(*cmd, "--step", args->step, ranges::kSeed, "time-step index (generator counter)");
   cmd->add_option("--method", args->method,
                   "auto (operator's choice: Lanczos, or PSE's split sampler), lanczos, chebyshev, cholesky or "
                   "eigen (dense, N <= 2000), split (PSE only); pse = --operator pse --method split")
@@ -272,10 +265,13 @@ void register_sample(CLI::App& app) {
   cmd->add_option("--operator", args->op, "mobility operator: direct, fmm, or pse (periodic, needs --box)")
       ->capture_default_str();
   cmd->add_option("--box", args->box, "periodic box for --operator pse: L or Lx Ly Lz")->expected(1, 3);
-  cmd->add_option("--tol", args->tol, "relative tolerance of the square root, in (0, 1)")->capture_default_str();
-  cmd->add_option("--max-iterations", args->max_iterations, "Lanczos iterations / Chebyshev degree (0 = auto)")
+  cmd->add_option("--tol", args->tol, "relative tolerance of the square root, in " + ranges::kSolverTolerance.str())
       ->capture_default_str();
-  cmd->add_option("--eps", args->eps, "tolerance of the fmm (default 1e-6) or pse (default 1e-3) operator");
+  add_integer_option(*cmd, "--max-iterations", args->max_iterations, ranges::kSqrtIterations,
+                     "Lanczos iterations / Chebyshev degree (0 = auto)");
+  cmd->add_option("--eps", args->eps,
+                  "tolerance of the fmm (default 1e-6) or pse (default 1e-3) operator, in " +
+                      ranges::kMobilityTolerance.str() + " (pse: from 1e-8)");
   cmd->add_option("--wave-precision", args->wave_precision,
                   "pse operator: wave-space grids in single or double precision; auto = single for eps >= 1e-5")
       ->capture_default_str();
@@ -284,10 +280,10 @@ void register_sample(CLI::App& app) {
   cmd->add_option("--preconditioner", args->preconditioner,
                   "Lanczos/Chebyshev: none (w = M^{1/2} z), block (w = B z, B B^T = M, fewer products) or auto")
       ->capture_default_str();
-  cmd->add_option("--preconditioner-block", args->preconditioner_block,
-                  "particles per block of the block preconditioner (0 = automatic)")
+  add_integer_option(*cmd, "--preconditioner-block", args->preconditioner_block, ranges::kPreconditionerBlock,
+                     "particles per block of the block preconditioner (0 = automatic)");
+  cmd->add_option("--viscosity", args->viscosity, "solvent viscosity eta, in " + ranges::kViscosity.str())
       ->capture_default_str();
-  cmd->add_option("--viscosity", args->viscosity, "solvent viscosity eta > 0")->capture_default_str();
   cmd->add_option("--out", args->out, "output .npy, shape (N,3)")->required();
   add_common_options(*cmd, args->common);
   cmd->callback([args, radius, seed] { run_sample(*args, radius->count() > 0, seed->count() > 0); });

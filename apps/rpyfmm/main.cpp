@@ -5,6 +5,7 @@
 #include <CLI/CLI.hpp>
 #include <exception>
 #include <iostream>
+#include <new>
 
 #include "commands.hpp"
 #include "rpyfmm/core/cpu_features.hpp"
@@ -39,6 +40,11 @@ int main(int argc, char** argv) {
     return 2;
   } catch (const rpyfmm::Error& e) {
     std::cerr << "rpyfmm: error: " << e.what() << "\n";
+    return 2;
+  } catch (const std::bad_alloc&) {
+    // Readers name their input when memory runs out; this is for the sizes computations ask for.
+    std::cerr << "rpyfmm: error: out of memory: the problem is too large for this machine (fewer particles, "
+                 "a smaller --max-iterations or --preconditioner-block)\n";
     return 2;
   } catch (const std::exception& e) {
     std::cerr << "rpyfmm: error: " << e.what() << "\n";

@@ -4,17 +4,20 @@
 #include <CLI/CLI.hpp>
 
 #include "rpyfmm/bd/mobility_factory.hpp"
+#include "rpyfmm/core/ranges.hpp"
 #include "rpyfmm/core/validate.hpp"
 
 namespace rpyfmm::cli {
 
 void add_mobility_options(CLI::App& cmd, MobilityChoice& choice) {
-  cmd.add_option("--viscosity", choice.viscosity, "solvent viscosity eta > 0")->capture_default_str();
+  cmd.add_option("--viscosity", choice.viscosity, "solvent viscosity eta, in " + ranges::kViscosity.str())
+      ->capture_default_str();
   cmd.add_option("--method", choice.method,
                  "direct (exact O(N^2)), fmm (free space, O(N)), pse (periodic, needs --box), "
                  "auto (direct for small N, fmm above; pse with --box), none (free draining)")
       ->capture_default_str();
-  cmd.add_option("--eps", choice.eps, "relative tolerance of fmm/pse, in [1e-12, 1e-1]")->capture_default_str();
+  cmd.add_option("--eps", choice.eps, "relative tolerance of fmm/pse, in " + ranges::kMobilityTolerance.str())
+      ->capture_default_str();
   cmd.add_option("--box", choice.box, "periodic box: L (cube) or Lx Ly Lz; particles are wrapped into it")
       ->expected(1, 3);
   cmd.add_option("--wave-precision", choice.wave_precision,
@@ -25,7 +28,8 @@ void add_mobility_options(CLI::App& cmd, MobilityChoice& choice) {
 }
 
 std::unique_ptr<rpy::MobilityOperator> make_operator(const MobilityChoice& choice, std::size_t n) {
-  require_positive(choice.viscosity, "--viscosity", "viscosity");
+  ranges::require_in(ranges::kViscosity, choice.viscosity, "--viscosity", "viscosity");
+  ranges::require_in(ranges::kMobilityTolerance, choice.eps, "--eps", "tolerance");
   bd::MobilitySpec spec;
   spec.method = bd::mobility_method_from_string(choice.method);
   spec.tolerance = choice.eps;

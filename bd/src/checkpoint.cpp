@@ -62,7 +62,7 @@ class Reader {
   std::vector<T> get_vector(std::size_t count, const char* what) {
     need(count * sizeof(T), what);
     std::vector<T> v(count);
-    std::memcpy(v.data(), bytes_.data() + pos_, count * sizeof(T));
+    if (count > 0) std::memcpy(v.data(), bytes_.data() + pos_, count * sizeof(T));  // data() may be null at 0
     pos_ += count * sizeof(T);
     return v;
   }

@@ -3,12 +3,16 @@
 #include "rpyfmm/bd/config.hpp"
 
 #include <toml++/toml.h>
+#include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <set>
 #include <sstream>
 
+#include "rpyfmm/core/ranges.hpp"
 #include "rpyfmm/core/validate.hpp"
 
 namespace rpyfmm::bd {
@@ -34,9 +38,31 @@ void require_distinct_output_names(const OutputSpec& o) {
 }
 
 std::string num(double v) {
-  std::ostringstream s;
-  s << v;
-  return s.str();
+  return format_number(v);
+}
+
+// A lower bound of the memory a BD run keeps per particle (positions, reference positions,
+// forces, displacements, noise, neighbour lists, the mobility operator's copies): a count whose
+// run could never fit is refused while parsing, naming the key, instead of failing with
+// std::bad_alloc while the particles are placed.
+constexpr std::uint64_t kBytesPerParticle = 256;
+
+std::uint64_t physical_memory_bytes() {
+  const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGE_SIZE);
+  if (pages <= 0 || page <= 0) return std::numeric_limits<std::uint64_t>::max();
+  return static_cast<std::uint64_t>(pages) * static_cast<std::uint64_t>(page);
+}
+
+// `a` x `b` particles (a count, or chains x beads, ...), in kParticleCount and in memory.
+void require_particle_count(std::uint64_t a, std::uint64_t b, const std::string& key) {
+  const std::uint64_t max = ranges::kParticleCount.hi;
+  if (b != 0 && a > max / b)
+    bad_key(key, "asks for more than " + std::to_string(max) + " particles (the limit " + ranges::kParticleCount.str() +
+                     ")");
+  const std::uint64_t n = a * b, memory = physical_memory_bytes();
+  if (n > memory / kBytesPerParticle)
+    bad_key(key, "asks for " + std::to_string(n) + " particles, which need more than the " +
+                     format_number(static_cast<double>(memory) / 1e9) + " GB of memory of this machine");
 }
 
 /// One TOML table, read key by key; finish() rejects keys nobody asked for.
@@ -62,9 +88,20 @@ class Section {
     if (!std::isfinite(v)) bad_key(key(k), "must be finite, got " + num(v));
     return v;
   }
+  /// > 0 and not subnormal (a subnormal scale's reciprocal overflows).
   double positive(const std::string& k, std::optional<double> fallback = std::nullopt) {
     const double v = number(k, fallback);
     if (!(v > 0.0)) bad_key(key(k), "must be > 0, got " + num(v));
+    if (!std::isnormal(v)) bad_key(key(k), "must be a normal number (>= 2.2e-308), got " + num(v));
+    return v;
+  }
+  double in(const std::string& k, const ranges::RealRange& range, double fallback) {
+    const double v = number(k, fallback);
+    if (!range.contains(v)) {
+      std::string what = "must lie in ";
+      what.append(range.str()).append(", got ").append(num(v));
+      bad_key(key(k), what);
+    }
     return v;
   }
   double non_negative(const std::string& k, double fallback) {
@@ -72,7 +109,9 @@ class Section {
     if (v < 0.0) bad_key(key(k), "must be >= 0, got " + num(v));
     return v;
   }
-  std::uint64_t count(const std::string& k, std::optional<std::uint64_t> fallback = std::nullopt) {
+  /// An integer in `range` (default: any of TOML's non-negative integers).
+  std::uint64_t count(const std::string& k, std::optional<std::uint64_t> fallback = std::nullopt,
+                      ranges::IntRange range = {0, ranges::kI64Max}) {
     const toml::node* n = node(k);
     if (!n) {
       if (!fallback) bad_key(key(k), "is missing (required)");
@@ -80,8 +119,14 @@ class Section {
     }
     if (!n->is_integer()) bad_key(key(k), "must be an integer");
     const std::int64_t v = n->value<std::int64_t>().value();
-    if (v < 0) bad_key(key(k), "must be >= 0, got " + std::to_string(v));
+    if (v < range.lo || static_cast<std::uint64_t>(v) > range.hi)
+      bad_key(key(k), "must be an integer in " + range.str() + ", got " + std::to_string(v));
     return static_cast<std::uint64_t>(v);
+  }
+  /// An integer in `range` that the library keeps as int.
+  int int_count(const std::string& k, ranges::IntRange range) {
+    range.hi = std::min<std::uint64_t>(range.hi, static_cast<std::uint64_t>(std::numeric_limits<int>::max()));
+    return static_cast<int>(count(k, 0, range));
   }
   std::string string(const std::string& k, std::optional<std::string> fallback = std::nullopt) {
     const toml::node* n = node(k);
@@ -158,12 +203,76 @@ std::vector<const toml::table*> table_array(const toml::table& root, const std::
   return out;
 }
 
+// The text toml++ parses: ASCII only. toml++ 3.3 reaches TOML_UNREACHABLE (undefined behaviour)
+// on some non-ASCII characters wherever it checks for whitespace: U+01CE between tokens, U+FCFF
+// after a backslash in a string, U+00BA inside a malformed table header (all found by
+// fuzzing). So non-ASCII bytes in comments become '?' (comments are dropped anyway) and
+// anywhere else they are refused, naming line and column. Whatever this scan takes for a
+// comment, toml++ never sees a non-ASCII byte.
+std::string ascii_for_toml(std::string_view text, const std::string& source) {
+  enum class In { code, comment, basic, literal, multi_basic, multi_literal } in = In::code;
+  std::string out(text);
+  std::size_t line = 1, line_start = 0;  // line_start: index of the line's first byte
+  const auto at = [&](std::size_t i, std::string_view s) { return text.substr(i, s.size()) == s; };
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (c == '\n') {
+      ++line;
+      line_start = i + 1;
+      if (in != In::multi_basic && in != In::multi_literal) in = In::code;  // unterminated: toml++ says so
+      continue;
+    }
+    if (static_cast<unsigned char>(c) >= 0x80) {
+      if (in != In::comment) {
+        fail(ErrorCode::invalid_input, "config",
+             source + ":" + std::to_string(line) + ":" + std::to_string(i - line_start + 1) +
+                 ": non-ASCII character (BD configs are ASCII outside comments)");
+      }
+      out[i] = '?';
+      continue;
+    }
+    switch (in) {
+      case In::code:
+        if (c == '#') {
+          in = In::comment;
+        } else if (at(i, "\"\"\"") || at(i, "'''")) {
+          in = c == '"' ? In::multi_basic : In::multi_literal;
+          i += 2;
+        } else if (c == '"' || c == '\'') {
+          in = c == '"' ? In::basic : In::literal;
+        }
+        break;
+      case In::comment:
+        break;
+      case In::basic:
+      case In::multi_basic:
+        if (c == '\\') {
+          ++i;  // an escape: the next byte ends nothing (a non-ASCII one is refused above next time)
+          if (i < text.size() && static_cast<unsigned char>(text[i]) >= 0x80) --i;
+        } else if (in == In::basic ? c == '"' : at(i, "\"\"\"")) {
+          if (in == In::multi_basic) i += 2;
+          in = In::code;
+        }
+        break;
+      case In::literal:
+      case In::multi_literal:
+        if (in == In::literal ? c == '\'' : at(i, "'''")) {
+          if (in == In::multi_literal) i += 2;
+          in = In::code;
+        }
+        break;
+    }
+  }
+  return out;
+}
+
 }  // namespace
 
 RunConfig parse_config(std::string_view text, const std::string& source) {
+  const std::string ascii = ascii_for_toml(text, source);
   toml::table root;
   try {
-    root = toml::parse(text, source);
+    root = toml::parse(ascii, source);
   } catch (const toml::parse_error& e) {
     std::ostringstream msg;
     msg << source << ":" << e.source().begin.line << ":" << e.source().begin.column << ": " << e.description();
@@ -184,7 +293,7 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
   {  // [system]
     Section s(sub_table(root, "system"), "system");
     const std::string geometry = s.string("geometry", "open");
-    c.viscosity = s.positive("viscosity", 1.0);
+    c.viscosity = s.in("viscosity", ranges::kViscosity, 1.0);
     c.integrator.kT = s.non_negative("kT", 1.0);
     if (geometry == "periodic") {
       if (!s.has("box")) bad_key("system.box", "is missing (required for a periodic geometry)");
@@ -207,7 +316,7 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
       Section s(tables[t], "types[" + std::to_string(t) + "]");
       ParticleType p;
       p.name = s.string("name");
-      p.radius = s.positive("radius", 1.0);
+      p.radius = s.in("radius", ranges::kRadius, 1.0);
       p.external_force = s.vec3("external_force", {0, 0, 0});
       p.surface_potential = s.number("surface_potential", 0.0);
       for (const auto& q : c.types)
@@ -235,8 +344,8 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
       p.file = s.string("file");
     } else if (source_name == "random" || source_name == "lattice") {
       p.source = source_name == "random" ? ParticleSpec::Source::random : ParticleSpec::Source::lattice;
-      p.count = s.count("count");
-      if (p.count < 1) bad_key("particles.count", "must be >= 1");
+      p.count = s.count("count", std::nullopt, ranges::kParticleCount);
+      require_particle_count(p.count, 1, "particles.count");
       if (c.geometry.is_periodic()) {  // the box sets the region
         if (s.has("volume_fraction"))
           bad_key("particles.volume_fraction", "is only used in open geometry (the box sets the density)");
@@ -248,6 +357,7 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
       p.chains = s.count("chains");
       p.beads = s.count("beads");
       if (p.chains < 1 || p.beads < 1) bad_key("particles.chains", "and particles.beads must be >= 1");
+      require_particle_count(p.chains, p.beads, "particles.chains");
       p.bond_length = s.non_negative("bond_length", 0.0);
       p.volume_fraction = s.positive("volume_fraction", 0.01);
     } else if (source_name == "clusters") {
@@ -255,6 +365,7 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
       p.clusters = s.count("clusters");
       p.cluster_size = s.count("cluster_size");
       if (p.clusters < 1 || p.cluster_size < 1) bad_key("particles.clusters", "and cluster_size must be >= 1");
+      require_particle_count(p.clusters, p.cluster_size, "particles.clusters");
       p.volume_fraction = s.positive("volume_fraction", 0.02);
       p.cluster_volume_fraction = s.positive("cluster_volume_fraction", 0.3);
       if (p.cluster_volume_fraction > 0.4) bad_key("particles.cluster_volume_fraction", "must be <= 0.4");
@@ -320,7 +431,7 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
     if (!t) bad_key("integrator", "is missing (required section with dt and steps)");
     Section s(t, "integrator");
     c.integrator.dt = s.positive("dt");
-    c.steps = s.count("steps");
+    c.steps = s.count("steps", std::nullopt, ranges::kSteps);
     c.integrator.seed = s.count("seed", 1);
     c.integrator.max_displacement = s.positive("max_displacement", 0.5);
     c.integrator.keep_split_displacements = s.boolean("split_displacements", false);
@@ -333,8 +444,7 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
     } catch (const Error&) {
       bad_key("mobility.method", "must be none, direct, fmm, pse or auto");
     }
-    c.mobility.tolerance = s.positive("tolerance", 1e-3);
-    if (c.mobility.tolerance >= 0.5) bad_key("mobility.tolerance", "must be < 0.5");
+    c.mobility.tolerance = s.in("tolerance", ranges::kMobilityTolerance, 1e-3);
     c.mobility.fmm_crossover = s.count("fmm_crossover", 0);
     c.mobility.fft_measure = s.boolean("fft_measure", false);
     try {
@@ -354,16 +464,15 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
     } catch (const Error&) {
       bad_key("mobility.sqrt_method", "must be automatic, lanczos, chebyshev, cholesky, eigen or split");
     }
-    c.integrator.sqrt.tolerance = s.positive("sqrt_tolerance", c.mobility.tolerance);
-    if (c.integrator.sqrt.tolerance >= 1.0) bad_key("mobility.sqrt_tolerance", "must be < 1");
-    c.integrator.sqrt.max_iterations = static_cast<int>(s.count("sqrt_max_iterations", 0));
+    c.integrator.sqrt.tolerance = s.in("sqrt_tolerance", ranges::kSolverTolerance, c.mobility.tolerance);
+    c.integrator.sqrt.max_iterations = s.int_count("sqrt_max_iterations", ranges::kSqrtIterations);
     try {
       c.integrator.sqrt.preconditioner =
           rpy::sqrt_preconditioner_from_string(s.string("sqrt_preconditioner", "automatic"));
     } catch (const Error&) {
       bad_key("mobility.sqrt_preconditioner", "must be automatic, block or none");
     }
-    c.integrator.sqrt.preconditioner_block = static_cast<int>(s.count("sqrt_preconditioner_block", 0));
+    c.integrator.sqrt.preconditioner_block = s.int_count("sqrt_preconditioner_block", ranges::kPreconditionerBlock);
     if (c.integrator.sqrt.preconditioner == rpy::SqrtPreconditioner::block &&
         c.integrator.sqrt.method != rpy::SqrtMethod::lanczos &&
         c.integrator.sqrt.method != rpy::SqrtMethod::chebyshev &&
@@ -374,7 +483,7 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
   {  // [neighbours]
     Section s(sub_table(root, "neighbours"), "neighbours");
     c.neighbours.skin = s.non_negative("skin", 0.0);
-    c.neighbours.fixed_interval = static_cast<int>(s.count("fixed_interval", 0));
+    c.neighbours.fixed_interval = s.int_count("fixed_interval", {0, ranges::kI64Max});
     s.finish();
   }
   {  // [output]

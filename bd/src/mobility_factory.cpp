@@ -1,6 +1,7 @@
 #include "rpyfmm/bd/mobility_factory.hpp"
 
 #include "rpyfmm/bd/free_draining.hpp"
+#include "rpyfmm/core/ranges.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
@@ -83,8 +84,8 @@ namespace {
 }  // namespace
 
 std::unique_ptr<rpy::MobilityOperator> make_mobility(const MobilitySpec& spec, std::size_t n_particles) {
-  require_in_range(spec.tolerance, 1e-15, 0.5, "make_mobility", "mobility tolerance");
-  require_positive(spec.viscosity, "make_mobility", "viscosity");
+  ranges::require_in(ranges::kMobilityTolerance, spec.tolerance, "make_mobility", "mobility tolerance");
+  ranges::require_in(ranges::kViscosity, spec.viscosity, "make_mobility", "viscosity");
   MobilityMethod method = spec.method;
   if (method == MobilityMethod::automatic) {
     if (spec.geometry.is_periodic()) {
@@ -110,7 +111,7 @@ std::unique_ptr<rpy::MobilityOperator> make_mobility(const MobilitySpec& spec, s
       if (spec.geometry.is_periodic()) unavailable(method, "needs open geometry (use pse for periodic boxes)");
       {
         rpy::FmmRpyOptions options;
-        options.tolerance = spec.tolerance;  // relative l2 error of M F (FmmRpy accepts [1e-12, 0.1])
+        options.tolerance = spec.tolerance;  // relative l2 error of M F (FmmRpy accepts kMobilityTolerance)
         return std::make_unique<rpy::FmmRpy>(spec.geometry, spec.viscosity, options);
       }
     case MobilityMethod::pse:

@@ -11,6 +11,7 @@
 
 #include "fmm_near_kernels.hpp"
 #include "near_schedule.hpp"
+#include "rpyfmm/core/ranges.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
@@ -128,7 +129,7 @@ FmmRpy::FmmRpy(Geometry geometry, double viscosity, FmmRpyOptions options)
     : MobilityOperator(geometry, viscosity, "FmmRpy"), options_(options) {
   require(geometry.is_open(), ErrorCode::not_supported, "FmmRpy",
           "periodic geometry is not supported by the free-space FMM operator (use the PSE operator)");
-  require_in_range(options_.tolerance, 1e-12, 1e-1, "FmmRpy", "tolerance");
+  ranges::require_in(ranges::kMobilityTolerance, options_.tolerance, "FmmRpy", "tolerance");
   require(options_.leaf_capacity >= 0, ErrorCode::invalid_argument, "FmmRpy",
           "leaf_capacity must be >= 0 (0 = automatic), got " + std::to_string(options_.leaf_capacity));
   laplace_eps_ = laplace_eps_for(options_.tolerance);

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstddef>
+#include <cstdio>
 #include <span>
 #include <string>
 #include <string_view>
@@ -13,6 +14,15 @@
 #include "rpyfmm/core/error.hpp"
 
 namespace rpyfmm {
+
+/// A number as printf's "%.6g" prints it ("1e-12", "0.5", "4.94066e-324"): the form every
+/// message uses, so that tiny and huge values stay readable (std::to_string(double) prints
+/// fixed-point with six decimals, which shows 1e-12 as "0.000000").
+inline std::string format_number(double value) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", value);
+  return buf;
+}
 
 [[noreturn]] inline void fail(ErrorCode code, std::string_view where, std::string_view what) {
   throw Error(code, std::string(where) + ": " + std::string(what));
@@ -26,9 +36,9 @@ inline void require(bool condition, ErrorCode code, std::string_view where, std:
 inline void require_size(std::span<const double> values, std::size_t expected, std::string_view where,
                          std::string_view name) {
   if (values.size() != expected) {
-    fail(ErrorCode::invalid_input, where,
-         std::string(name) + " has " + std::to_string(values.size()) + " entries, expected " +
-             std::to_string(expected));
+    fail(
+        ErrorCode::invalid_input, where,
+        std::string(name) + " has " + std::to_string(values.size()) + " entries, expected " + std::to_string(expected));
   }
 }
 
@@ -50,11 +60,16 @@ inline void require_finite(std::span<const double> values, std::string_view wher
   }
 }
 
-/// Checks a scalar parameter is finite and strictly positive.
+/// Checks a scalar parameter is finite, strictly positive and not subnormal (below
+/// DBL_MIN ~ 2.2e-308 its reciprocal overflows and the products of the kernels lose all digits).
 inline void require_positive(double value, std::string_view where, std::string_view name) {
   if (!(std::isfinite(value) && value > 0.0)) {
     fail(ErrorCode::invalid_argument, where,
-         std::string(name) + " must be finite and > 0, got " + std::to_string(value));
+         std::string(name) + " must be finite and > 0, got " + format_number(value));
+  }
+  if (!std::isnormal(value)) {
+    fail(ErrorCode::invalid_argument, where,
+         std::string(name) + " must be a normal number (>= 2.2e-308), got the subnormal " + format_number(value));
   }
 }
 
@@ -62,8 +77,8 @@ inline void require_positive(double value, std::string_view where, std::string_v
 inline void require_in_range(double value, double lo, double hi, std::string_view where, std::string_view name) {
   if (!(std::isfinite(value) && value >= lo && value <= hi)) {
     fail(ErrorCode::invalid_argument, where,
-         std::string(name) + " must lie in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " +
-             std::to_string(value));
+         std::string(name) + " must lie in [" + format_number(lo) + ", " + format_number(hi) + "], got " +
+             format_number(value));
   }
 }
 
