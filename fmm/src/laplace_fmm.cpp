@@ -209,12 +209,14 @@ namespace {
 // Clouds whose extent lies outside [kMinExtent, kMaxExtent] are refused. The expansions and the
 // plane-wave translations take powers of the box sides up to the order (~20) and the outputs go
 // as 1/r, 1/r^2, 1/r^3: a dyadic cloud of extent 2^406 lost its gradients to underflow (relative
-// error 1), one of 2^606 its potentials, one of 2^-394 gave NaN gradients and one of 2^-199
-// NaN Hessians, while 2^-194 ... 2^206 matched the direct sums to the requested digits
-// (tests/fmm/test_fmm_far_coordinates.cpp checks both ends of the range at 6 and 12 digits).
-// Translations do not matter (exact_shifts). Callers with other length scales scale by a power of
-// two first (exact; FmmRpy does so).
-constexpr double kMinExtent = 0x1p-190, kMaxExtent = 0x1p200;
+// error 1), one of 2^606 its potentials, one of 2^-394 gave NaN gradients. What fails at the small
+// end is the Hessian, once leaves are smaller than ~2^-200 (NaN for a 3-level tree of extent
+// 2^-199 and for trees of 14 ... 31 levels at 2^-188); trees of 31 levels at 2^-149 and at 2^199
+// matched the direct sums (tests/fmm/test_fmm_far_coordinates.cpp checks both ends, shallow and
+// deep trees, 6 and 12 digits). The octree has at most 30 levels, so with extents >= 2^-150 every
+// leaf is >= 2^-180. Translations do not matter (exact_shifts). Callers with other length scales
+// scale by a power of two first (exact; FmmRpy does so).
+constexpr double kMinExtent = 0x1p-150, kMaxExtent = 0x1p200;
 
 std::string format_number(double v, int digits = 6) {
   char buf[40];
@@ -267,7 +269,7 @@ std::array<std::array<double, 3>, 2> require_plain_extent(std::span<const double
   };
   fail(ErrorCode::invalid_input, where,
        name(los[widest]) + " and " + name(his[widest]) + " span " + format_number(2.0 * half) + " along " + axis +
-           ", outside the extents 2^-190 ... 2^200 (" + format_number(kMinExtent) + " ... " +
+           ", outside the extents 2^-150 ... 2^200 (" + format_number(kMinExtent) + " ... " +
            format_number(kMaxExtent) + ") the FMM evaluates without underflow or overflow; scale the " +
            "coordinates by a power of two");
   return box;

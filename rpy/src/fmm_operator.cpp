@@ -125,15 +125,15 @@ constexpr std::size_t kSymmetricMinLeaves = 64;
 
 // Lengths that FmmRpy evaluates as given. The near-field kernel (rpy_kernel.hpp) forms r^2 and
 // g / r^2 ~ 1/r^3, the far field 1/r^3 (field gradients) and a^2 T. Where the suspension's size S
-// (half its extent, or the largest radius) lies in [2^-190, 2^199] and every radius is >= 2^-300,
+// (half its extent, or the largest radius) lies in [2^-150, 2^199] and every radius is >= 2^-300,
 // non-overlapping pairs have r >= 2^-299 and far pairs r >= 2^-31 S (the octree's 30 levels), so
 // all of these stay normal and finite for forces below ~1e100, and LaplaceFmm accepts the extent
-// (2^-190 ... 2^200; a smaller extent with S >= 2^-190 means S = a_max, and LaplaceFmm takes a cloud
+// (2^-150 ... 2^200; a smaller extent with S >= 2^-150 means S = a_max, and LaplaceFmm takes a cloud
 // smaller than its min_leaf_side = 2 a_max). Other suspensions (extent 1e137, radius 1e135: the
 // a^2 T terms underflowed, 18-24% error; extent 1e-130: NaN) are evaluated in units of 2^e with
 // 2^-e S in [1, 2): exact, and M(x, a) = 2^-e M(2^-e x, 2^-e a) since the RPY tensor is
 // homogeneous of degree -1 in its lengths.
-constexpr double kPlainScaleMin = 0x1p-190, kPlainScaleMax = 0x1p199, kPlainRadiusMin = 0x1p-300;
+constexpr double kPlainScaleMin = 0x1p-150, kPlainScaleMax = 0x1p199, kPlainRadiusMin = 0x1p-300;
 
 // e with 2^-e S in [1, 2), or 0 where the lengths are plain (above; results there are those of
 // the unscaled evaluation, bit for bit).
