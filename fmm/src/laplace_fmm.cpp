@@ -4,9 +4,12 @@
 #include "rpyfmm/fmm/laplace_fmm.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <string>
+#include <vector>
 
 #include "planewave_kernels.hpp"
 #include "rpyfmm/core/validate.hpp"
@@ -201,6 +204,103 @@ std::size_t LaplaceFmm::num_targets() const noexcept {
   return plan_ ? plan_->m : 0;
 }
 
+namespace {
+
+// Clouds whose extent lies outside [kMinExtent, kMaxExtent] are refused. The expansions and the
+// plane-wave translations take powers of the box sides up to the order (~20) and the outputs go
+// as 1/r, 1/r^2, 1/r^3: a dyadic cloud of extent 2^406 lost its gradients to underflow (relative
+// error 1), one of 2^606 its potentials, one of 2^-394 gave NaN gradients. What fails at the small
+// end is the Hessian, once leaves are smaller than ~2^-200 (NaN for a 3-level tree of extent
+// 2^-199 and for trees of 14 ... 31 levels at 2^-188); trees of 31 levels at 2^-149 and at 2^199
+// matched the direct sums (tests/fmm/test_fmm_far_coordinates.cpp checks both ends, shallow and
+// deep trees, 6 and 12 digits). The octree has at most 30 levels, so with extents >= 2^-150 every
+// leaf is >= 2^-180. Translations do not matter (exact_shifts). Callers with other length scales
+// scale by a power of two first (exact; FmmRpy does so).
+constexpr double kMinExtent = 0x1p-150, kMaxExtent = 0x1p200;
+
+std::string format_number(double v, int digits = 6) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.*g", digits, v);
+  return buf;
+}
+
+// Throws where the largest extent of sources and targets (over the axes) is outside the range above
+// (all points coinciding is fine, and so is a cloud smaller than min_leaf_side: its root box is
+// never split and every pair is summed directly), naming the two particles that span it.
+// Returns the bounding box {lo, hi}.
+std::array<std::array<double, 3>, 2> require_plain_extent(std::span<const double> sources,
+                                                          std::span<const double> targets, double min_leaf_side,
+                                                          const char* where) {
+  std::array<std::array<double, 3>, 2> box{};
+  struct End {
+    double v;
+    bool target;
+    std::size_t i;
+  };
+  // The octree's root is a cube of the largest side: that side decides.
+  std::array<End, 3> los{}, his{};
+  int widest = 0;
+  double half = 0.0;  // half the largest extent, without overflow
+  for (int c = 0; c < 3; ++c) {
+    End lo{sources[c], false, 0}, hi = lo;
+    auto scan = [&](std::span<const double> pts, bool target) {
+      for (std::size_t j = 0; j < pts.size() / 3; ++j) {
+        const double v = pts[3 * j + c];
+        if (v < lo.v) lo = {v, target, j};
+        if (v > hi.v) hi = {v, target, j};
+      }
+    };
+    scan(sources, false);
+    scan(targets, true);
+    box[0][c] = lo.v;
+    box[1][c] = hi.v;
+    los[c] = lo;
+    his[c] = hi;
+    if (0.5 * hi.v - 0.5 * lo.v > half) {
+      half = 0.5 * hi.v - 0.5 * lo.v;
+      widest = c;
+    }
+  }
+  if (half == 0.0 || (half <= 0.5 * kMaxExtent && (half >= 0.5 * kMinExtent || 2.0 * half < min_leaf_side))) return box;
+  const char axis = char('x' + widest);
+  auto name = [&](const End& e) {
+    return std::string(e.target ? "target " : "source ") + std::to_string(e.i) + " (" + axis + " = " +
+           format_number(e.v, 17) + ")";
+  };
+  fail(ErrorCode::invalid_input, where,
+       name(los[widest]) + " and " + name(his[widest]) + " span " + format_number(2.0 * half) + " along " + axis +
+           ", outside the extents 2^-150 ... 2^200 (" + format_number(kMinExtent) + " ... " +
+           format_number(kMaxExtent) + ") the FMM evaluates without underflow or overflow; scale the " +
+           "coordinates by a power of two");
+  return box;
+}
+
+// Shifts that bring a cloud far from the origin (its centre at least 4 extents out along an axis)
+// next to it: the octree's box centres and the offsets x - c of the expansions are otherwise
+// rounded to the ulp of the coordinates, not of the cloud (a dyadic grid of extent 64 at 2^46:
+// errors 7e-5 at eps = 1e-6). There every x has x / mid in [7/8, 9/8] and x - mid is exact
+// (Sterbenz), so the FMM sees the same pair differences; clouds nearer the origin are not moved,
+// and their results stay those of the untranslated points bit for bit.
+std::array<double, 3> exact_shifts(const std::array<std::array<double, 3>, 2>& box) {
+  double extent = 0.0;
+  for (int c = 0; c < 3; ++c) extent = std::max(extent, 0.5 * box[1][c] - 0.5 * box[0][c]);
+  extent *= 2.0;  // finite: require_plain_extent bounds it
+  std::array<double, 3> shift{};
+  for (int c = 0; c < 3; ++c) {
+    const double mid = 0.5 * box[0][c] + 0.5 * box[1][c];
+    if (std::abs(mid) >= 4.0 * extent) shift[c] = mid;
+  }
+  return shift;
+}
+
+std::vector<double> shifted(std::span<const double> pts, const std::array<double, 3>& shift) {
+  std::vector<double> out(pts.begin(), pts.end());
+  for (std::size_t j = 0; j < out.size(); ++j) out[j] -= shift[j % 3];
+  return out;
+}
+
+}  // namespace
+
 void LaplaceFmm::set_points(std::span<const double> sources, std::span<const double> targets) {
   constexpr const char* where = "LaplaceFmm::set_points";
   require(sources.size() % 3 == 0, ErrorCode::invalid_input, where,
@@ -210,6 +310,14 @@ void LaplaceFmm::set_points(std::span<const double> sources, std::span<const dou
           "targets has " + std::to_string(targets.size()) + " entries, not a multiple of 3");
   require_finite(sources, where, "sources", 3);
   require_finite(targets, where, "targets", 3);
+  const auto shift = exact_shifts(require_plain_extent(sources, targets, options_.min_leaf_side, where));
+  std::vector<double> shifted_sources, shifted_targets;
+  if (shift != std::array<double, 3>{}) {
+    shifted_sources = shifted(sources, shift);
+    shifted_targets = shifted(targets, shift);
+    sources = shifted_sources;
+    targets = shifted_targets;
+  }
 
   StopWatch sw;
   auto plan = std::make_unique<Plan>();

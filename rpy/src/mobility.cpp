@@ -78,9 +78,12 @@ void MobilityOperator::store_positions(std::span<const double> positions, std::s
       for (int d = 0; d < 3; ++d) {
         double& v = x[3 * i + d];
         if (v >= 0.0 && v < L[d]) continue;
-        v -= L[d] * std::floor(v / L[d]);
-        if (v < 0.0) v += L[d];  // -tiny wraps to L - tiny (or to L: then below)
-        if (v >= L[d]) v = 0.0;  // guards results that round to L exactly
+        // fmod is exact (the remainder of two doubles is a double), so a position any number of
+        // box lengths away wraps to the same point; v - L floor(v / L) lost all bits of v past
+        // ~1e16 box lengths (floor of a rounded quotient, then a cancelling difference).
+        v = std::fmod(v, L[d]);              // in (-L, L), sign of v, exact
+        if (v < 0.0) v += L[d];              // -tiny wraps to L - tiny (or to L: then below)
+        if (v >= L[d] || v == 0.0) v = 0.0;  // guards results that round to L exactly; -0 to +0
       }
     }
   }
