@@ -4,7 +4,12 @@
 # seed corpus (tests/fuzz/corpus/<target>/, read only; new inputs go to build/fuzz/corpus/).
 #
 #   tests/fuzz/run.sh [target...]        targets: npy text config checkpoint particles (default all)
-#   FUZZ_SECONDS=60                      time per target (-max_total_time)
+#   FUZZ_SECONDS=60                      time per target at most (-max_total_time)
+#   FUZZ_SEED=1                          libFuzzer's seed; with it fixed, every run tries the same
+#                                        inputs in the same order
+#   FUZZ_RUNS=N                          inputs per target (default per target, below: as many
+#                                        as a 2-core machine runs in well under FUZZ_SECONDS, so
+#                                        that a clean run on one machine is a clean run on another)
 #   RPYFMM_RELEASE_DIR=build/release     a release build whose librpyfmm_{bd,rpy,fmm}.a the config
 #                                        and particles targets link (built here if missing)
 #
@@ -17,6 +22,14 @@ set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
 cxx=${FUZZ_CXX:-clang++}
 seconds=${FUZZ_SECONDS:-60}
+seed=${FUZZ_SEED:-1}
+default_runs() {
+  case $1 in
+    npy|text) echo 200000 ;;
+    config) echo 60000 ;;
+    *) echo 6000 ;;  # checkpoint, particles: a few hundred inputs per second
+  esac
+}
 release=${RPYFMM_RELEASE_DIR:-$root/build/release}
 out=$root/build/fuzz
 targets=("$@")
@@ -46,6 +59,7 @@ library_libs() {
     cmake --build "$release" --target rpyfmm_bd >/dev/null
   fi
   echo "$release/bd/librpyfmm_bd.a $release/rpy/librpyfmm_rpy.a $release/fmm/librpyfmm_fmm.a" \
+       "$release/core/librpyfmm_core.a" \
        "-lfftw3_omp -lfftw3f_omp -lfftw3 -lfftw3f -lgomp -lpthread"
 }
 
@@ -73,7 +87,7 @@ for target in "${targets[@]}"; do
   build "$target"
   built=$(date +%s)
   mkdir -p "$out/corpus/$target"
-  "$out/fuzz_$target" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=2048 \
+  "$out/fuzz_$target" -seed="$seed" -runs="${FUZZ_RUNS:-$(default_runs "$target")}" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=2048 \
     -max_len=8192 -print_final_stats=1 -artifact_prefix="$out/artifacts/$target-" \
     "$out/corpus/$target" "$root/tests/fuzz/corpus/$target" 2>"$out/$target.log" || {
     tail -n 40 "$out/$target.log"
