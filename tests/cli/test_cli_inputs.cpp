@@ -170,10 +170,13 @@ TEST_F(CliInputs, DirectoryIsNamedAsOne) {
 
 // Binary bytes in a text array: a short escaped excerpt on one line, not the raw bytes.
 TEST_F(CliInputs, BinaryTextIsQuotedEscaped) {
-  write("bin.txt", std::string("0 0 0\n\x01\x02\x1b[2J\rxy\x00z\x0b\x0c\n0 3 0\n", 20));
+  // Lengths from the arrays (sizeof - 1: all but the terminating NUL), as the texts hold NULs.
+  constexpr char binary[] = "0 0 0\n\x01\x02\x1b[2J\rxy\x00z\x0b\x0c\n0 3 0\n";
+  write("bin.txt", std::string(binary, sizeof binary - 1));
   expect_refused(mobility_with(path("bin.txt")), {"bin.txt", "line 2: not a number near '\\x01\\x02\\x1b[2J\\x0dxy"});
   // A NUL byte ends nothing: the rest of the line is still read (and refused).
-  write("nul.txt", std::string("0 0 0\n3 0 0 \x00 7\n0 3 0\n", 24));
+  constexpr char with_nul[] = "0 0 0\n3 0 0 \x00 7\n0 3 0\n";
+  write("nul.txt", std::string(with_nul, sizeof with_nul - 1));
   expect_refused(mobility_with(path("nul.txt")), {"nul.txt", "line 2: not a number near '\\x00 7'"});
 }
 
