@@ -215,7 +215,7 @@ void PlaneWave::p2f(const cplx* V, cplx* G) const noexcept {
       }
       // G(m) = (1/M_k) sum_{j < M_k} V_j e^{-i m a_j}; with V_{j + M_k/2} = conj(V_j) and
       // e^{-i m (a + pi)} = (-1)^m e^{-i m a} the pair (j, j + M_k/2) gives 2 Re V_j e^{-i m a_j}
-      // for even m and 2i Im V_j e^{-i m a_j} for odd m (PLANEWAVE.md §3.5): real x complex sums.
+      // for even m and 2i Im V_j e^{-i m a_j} for odd m: real x complex sums.
       for (int m = 0; m < K_[k]; ++m) {
         const double* c = cos_.data() + toff_[k] + std::size_t(m) * M;
         const double* s = sin_.data() + toff_[k] + std::size_t(m) * M;
