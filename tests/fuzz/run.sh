@@ -10,7 +10,7 @@
 #   FUZZ_RUNS=N                          inputs per target (default per target, below: as many
 #                                        as a 2-core machine runs in well under FUZZ_SECONDS, so
 #                                        that a clean run on one machine is a clean run on another)
-#   RPYFMM_RELEASE_DIR=build/release     a release build whose librpyfmm_{bd,rpy,fmm}.a the config
+#   RPYFMM_RELEASE_DIR=build/release     a CPU-only build whose librpyfmm_{bd,rpy,fmm}.a the config
 #                                        and particles targets link (built here if missing)
 #
 # A crash, a sanitizer report, a leak, an input slower than 10 s or an allocation above 2 GB is a
