@@ -76,6 +76,20 @@ CLI::Option* add_integer_option(CLI::App& cmd, const std::string& name, std::uin
   return add_integer(cmd, name, target, range, help);
 }
 
+namespace {
+
+std::vector<std::string>& pending_warnings() {
+  static std::vector<std::string> warnings;
+  return warnings;
+}
+
+}  // namespace
+
+void print_pending_warnings() {
+  for (const std::string& w : pending_warnings()) std::cerr << "rpyfmm: warning: " << w << '\n';
+  pending_warnings().clear();
+}
+
 bool RenamedOption::given() const {
   return option->count() + deprecated->count() > 0;
 }
@@ -92,11 +106,11 @@ RenamedOption add_renamed_option(CLI::App& cmd, const std::string& name, const s
       [current, &target, name, old_name](const double& value) {
         require(current->count() == 0 || value == target, ErrorCode::invalid_argument, name,
                 old_name + " (its deprecated spelling) was given a different value");
-        std::cerr << "rpyfmm: warning: " << old_name << " is deprecated; use " << name << '\n';
+        pending_warnings().push_back(old_name + " is deprecated; use " + name);
         target = value;
       },
       "deprecated spelling of " + name);
-  r.deprecated->group("");  // hidden from --help
+  r.deprecated->group("Deprecated spellings");  // listed apart in --help (a hidden option has no name in errors)
   return r;
 }
 

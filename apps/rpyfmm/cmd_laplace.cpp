@@ -157,7 +157,10 @@ void register_laplace(CLI::App& app) {
   cmd->add_option("--out", args->out, "output .npy: (M,10) or (nd,M,10), columns pot,gx,gy,gz,hxx,hyy,hzz,hxy,hxz,hyz")
       ->required();
   add_common_options(*cmd, args->common);
-  cmd->callback([args, tolerance] { run_laplace(*args, tolerance.given()); });
+  cmd->callback([args, tolerance] {
+    print_pending_warnings();
+    run_laplace(*args, tolerance.given());
+  });
 }
 
 }  // namespace rpyfmm::cli

@@ -106,7 +106,10 @@ void register_mobility(CLI::App& app) {
   add_mobility_options(*cmd, args->mobility);
   cmd->add_option("--out", args->out, "output .npy, shape (N,3)")->required();
   add_common_options(*cmd, args->common);
-  cmd->callback([args, radius] { run_mobility(*args, radius->count() > 0); });
+  cmd->callback([args, radius] {
+    print_pending_warnings();
+    run_mobility(*args, radius->count() > 0);
+  });
 }
 
 }  // namespace rpyfmm::cli

@@ -129,7 +129,10 @@ void register_rigid(CLI::App& app) {
   cmd->add_option("--out", args->out, "output .npy, shape (m,6): U_x U_y U_z Omega_x Omega_y Omega_z")->required();
   cmd->add_option("--bead-forces", args->bead_forces, "also write the bead forces (N,3) to this .npy");
   add_common_options(*cmd, args->common);
-  cmd->callback([args] { run_rigid(*args); });
+  cmd->callback([args] {
+    print_pending_warnings();
+    run_rigid(*args);
+  });
 }
 
 }  // namespace rpyfmm::cli

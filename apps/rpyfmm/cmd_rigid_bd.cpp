@@ -269,7 +269,10 @@ void register_rigid_bd(CLI::App& app) {
   add_integer_option(*cmd, "--first-step", args->first_step, ranges::kSeed,
                      "step number of the initial state (with --restart: the earlier run's last step)");
   add_common_options(*cmd, args->common);
-  cmd->callback([args] { run_rigid_bd(*args); });
+  cmd->callback([args] {
+    print_pending_warnings();
+    run_rigid_bd(*args);
+  });
 }
 
 }  // namespace rpyfmm::cli

@@ -320,7 +320,10 @@ void register_sample(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--out", args->out, "output .npy, shape (N,3)")->required();
   add_common_options(*cmd, args->common);
-  cmd->callback([args, radius, seed] { run_sample(*args, radius->count() > 0, seed->count() > 0); });
+  cmd->callback([args, radius, seed] {
+    print_pending_warnings();
+    run_sample(*args, radius->count() > 0, seed->count() > 0);
+  });
 }
 
 }  // namespace rpyfmm::cli

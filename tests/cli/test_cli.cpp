@@ -262,6 +262,8 @@ TEST_F(Cli, FormerToleranceSpellingsWarnAndGiveTheSameOutput) {
   const std::string mobility =
       "mobility --positions " + path("x.npy") + " --forces " + path("f.npy") + " --radius 0.5 --method fmm ";
   const std::string sample = "sample --positions " + path("x.npy") + " --radius 0.5 --seed 3 --operator fmm ";
+  write_npy(path("q.npy"), {n}, random_vec(n, 33, -1, 1));
+  const std::string laplace = "laplace --sources " + path("x.npy") + " --charges " + path("q.npy") + " ";
   struct Case {
     std::string command, current, former, warning;
   };
@@ -269,6 +271,7 @@ TEST_F(Cli, FormerToleranceSpellingsWarnAndGiveTheSameOutput) {
       {mobility, "--tolerance 1e-5", "--eps 1e-5", "rpyfmm: warning: --eps is deprecated; use --tolerance\n"},
       {sample, "--sqrt-tolerance 1e-4", "--tol 1e-4", "rpyfmm: warning: --tol is deprecated; use --sqrt-tolerance\n"},
       {sample, "--tolerance 1e-7", "--eps 1e-7", "rpyfmm: warning: --eps is deprecated; use --tolerance\n"},
+      {laplace, "--tolerance 1e-3", "--eps 1e-3", "rpyfmm: warning: --eps is deprecated; use --tolerance\n"},
   };
   for (const Case& c : cases) {
     const Result a = run(c.command + c.current + " --out " + path("a.npy"));
@@ -281,6 +284,7 @@ TEST_F(Cli, FormerToleranceSpellingsWarnAndGiveTheSameOutput) {
     EXPECT_EQ(both.code, 0) << both.err;  // the same value twice
   }
   expect_failure(mobility + "--tolerance 1e-5 --eps 1e-4 --out " + path("d.npy"), "different value", "d.npy");
+  expect_failure(laplace + "--direct --eps 1e-3 --out " + path("d.npy"), "--eps", "d.npy");
 }
 
 TEST_F(Cli, MobilityFmmAndAutoMatchDirect) {
