@@ -175,11 +175,14 @@ rpy::SqrtPreconditioner sqrt_preconditioner_from(const std::string& name) {
   return rpy::sqrt_preconditioner_from_string(name);
 }
 
+void warn_deprecated(const std::string& message) {
+  if (PyErr_WarnEx(PyExc_DeprecationWarning, message.c_str(), 1) != 0) throw nb::python_error();
+}
+
 double renamed_keyword(std::optional<double> value, std::optional<double> old_value, double fallback,
                        const std::string& where, const char* name, const char* old_name) {
   if (!old_value) return value.value_or(fallback);
-  const std::string message = std::string(where) + ": " + old_name + "= is deprecated; use " + name + "=";
-  if (PyErr_WarnEx(PyExc_DeprecationWarning, message.c_str(), 1) != 0) throw nb::python_error();
+  warn_deprecated(where + ": " + old_name + "= is deprecated; use " + name + "=");
   require(!value || *value == *old_value, ErrorCode::invalid_argument, where,
           std::string(name) + " and its deprecated spelling " + old_name + " were given different values");
   return *old_value;

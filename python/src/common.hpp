@@ -133,6 +133,9 @@ rpy::SqrtMethod sqrt_method_from(const std::string& name);
 /// "auto" | "automatic" | "none" | "block".
 rpy::SqrtPreconditioner sqrt_preconditioner_from(const std::string& name);
 
+/// Issues a DeprecationWarning (raised as an exception where warnings are errors).
+void warn_deprecated(const std::string& message);
+
 /// A keyword of the one name for accuracy (`tolerance`, `sqrt_tolerance`) that replaced an older
 /// spelling (`eps`, `tol`, `sqrt_tol`): the new keyword's value, else the old one's (with a
 /// DeprecationWarning naming both), else `fallback`. Both given with different values raise an

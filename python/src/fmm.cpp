@@ -176,8 +176,7 @@ void bind_laplace_fmm(nb::module_& m) {
       .def_prop_ro(
           "eps",
           [](const fmm::LaplaceFmm& self) {
-            if (PyErr_WarnEx(PyExc_DeprecationWarning, "LaplaceFmm.eps is deprecated; use LaplaceFmm.tolerance", 1))
-              throw nb::python_error();
+            warn_deprecated("LaplaceFmm.eps is deprecated; use LaplaceFmm.tolerance");
             return self.options().tolerance;
           },
           "Deprecated spelling of tolerance (DeprecationWarning).")

@@ -135,9 +135,9 @@ const char* kSqrtDoc =
     "w = M^{1/2} z for z of shape (N, 3) or (3N,). Returns (w, SqrtReport).\n\n"
     "method: 'auto' (the operator's preferred: PSE split sampler, else Lanczos), 'lanczos', 'chebyshev',\n"
     "'cholesky' (L z with L L^T = M), 'eigen' (dense principal root), 'split' (PSE only).\n"
-    "tolerance: relative tolerance in (0, 1) (tol: its deprecated spelling); max_iterations: 0 = automatic; "
-    "lambda_min/lambda_max: Chebyshev\n"
-    "bounds (both 0 = estimated). w has units of sqrt(mobility) times z's units.\n"
+    "tolerance: relative tolerance in (0, 1) (tol: its deprecated spelling); max_iterations: 0 = automatic;\n"
+    "lambda_min/lambda_max: Chebyshev bounds (both 0 = estimated). w has units of sqrt(mobility) times z's\n"
+    "units.\n"
     "preconditioner: 'none' (w = M^{1/2} z), 'block' (Lanczos and Chebyshev: w = B z with B B^T = M, the\n"
     "same covariance in fewer products; spatial blocks of at most preconditioner_block particles,\n"
     "0 = N/64 in [16, 32]; given Chebyshev bounds must then bound G M G^T) or 'auto' (block for Lanczos\n"
@@ -277,10 +277,18 @@ void bind_fmm_rpy(nb::module_& m) {
       .def_prop_ro(
           "tolerance", [](const rpy::FmmRpy& op) { return op.options().tolerance; },
           "Requested relative l2 error of U.")
+      .def_prop_ro("laplace_tolerance",
+                   locked_read(
+                       "FmmRpy.laplace_tolerance", +[](const rpy::FmmRpy& op) { return op.laplace_eps(); }),
+                   "Tolerance handed to the Laplace FMM.")
       .def_prop_ro("laplace_eps",
                    locked_read(
-                       "FmmRpy.laplace_eps", +[](const rpy::FmmRpy& op) { return op.laplace_eps(); }),
-                   "Tolerance handed to the Laplace FMM.")
+                       "FmmRpy.laplace_eps",
+                       +[](const rpy::FmmRpy& op) {
+                         warn_deprecated("FmmRpy.laplace_eps is deprecated; use FmmRpy.laplace_tolerance");
+                         return op.laplace_eps();
+                       }),
+                   "Deprecated spelling of laplace_tolerance (DeprecationWarning).")
       .def("last_timings",
            locked_read(
                "FmmRpy.last_timings", +[](const rpy::FmmRpy& op) { return op.last_timings(); }),

@@ -120,3 +120,10 @@ def test_rigid_sqrt_tolerance():
     new.run(2)
     old.run(2)
     np.testing.assert_array_equal(new.positions, old.positions)
+
+
+def test_fmm_rpy_laplace_tolerance():
+    op = rpyfmm.FmmRpy(tolerance=1e-6)
+    op.set_positions(suspension(200), 1.0)
+    with pytest.warns(DeprecationWarning, match="laplace_tolerance"):
+        assert op.laplace_eps == op.laplace_tolerance
