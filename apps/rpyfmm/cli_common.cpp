@@ -6,6 +6,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <iostream>
 #include <limits>
 
 #include "rpyfmm/core/threads.hpp"
@@ -73,6 +74,44 @@ CLI::Option* add_integer_option(CLI::App& cmd, const std::string& name, long lon
 CLI::Option* add_integer_option(CLI::App& cmd, const std::string& name, std::uint64_t& target, ranges::IntRange range,
                                 const std::string& help) {
   return add_integer(cmd, name, target, range, help);
+}
+
+namespace {
+
+std::vector<std::string>& pending_warnings() {
+  static std::vector<std::string> warnings;
+  return warnings;
+}
+
+}  // namespace
+
+void print_pending_warnings() {
+  for (const std::string& w : pending_warnings()) std::cerr << "rpyfmm: warning: " << w << '\n';
+  pending_warnings().clear();
+}
+
+bool RenamedOption::given() const {
+  return option->count() + deprecated->count() > 0;
+}
+
+RenamedOption add_renamed_option(CLI::App& cmd, const std::string& name, const std::string& old_name, double& target,
+                                 const std::string& help) {
+  RenamedOption r;
+  r.option = cmd.add_option(name, target, help);
+  // Option callbacks run after parsing in the order the options were added: `target` then holds
+  // the value of `name` when it was given.
+  CLI::Option* current = r.option;
+  r.deprecated = cmd.add_option_function<double>(
+      old_name,
+      [current, &target, name, old_name](const double& value) {
+        require(current->count() == 0 || value == target, ErrorCode::invalid_argument, name,
+                old_name + " (its deprecated spelling) was given a different value");
+        pending_warnings().push_back(old_name + " is deprecated; use " + name);
+        target = value;
+      },
+      "deprecated spelling of " + name);
+  r.deprecated->group("Deprecated spellings");  // listed apart in --help (a hidden option has no name in errors)
+  return r;
 }
 
 void require_finite_output(std::span<const double> values, const std::string& what) {

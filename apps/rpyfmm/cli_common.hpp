@@ -42,6 +42,23 @@ CLI::Option* add_integer_option(CLI::App& cmd, const std::string& name, long lon
 CLI::Option* add_integer_option(CLI::App& cmd, const std::string& name, std::uint64_t& target, ranges::IntRange range,
                                 const std::string& help);
 
+/// A real option under its name in the one vocabulary for accuracy (`--tolerance`,
+/// `--sqrt-tolerance`, `--solver-tolerance`) plus its former spelling (`--eps`, `--tol`,
+/// `--sqrt-tol`), listed apart in --help. Both write `target`; the former one queues the warning
+/// "rpyfmm: warning: --eps is deprecated; use --tolerance" (print_pending_warnings), and both given
+/// with different values is an error naming them.
+struct RenamedOption {
+  CLI::Option* option = nullptr;      ///< the current name
+  CLI::Option* deprecated = nullptr;  ///< the former spelling
+  /// True when either spelling was given (after parsing).
+  [[nodiscard]] bool given() const;
+};
+RenamedOption add_renamed_option(CLI::App& cmd, const std::string& name, const std::string& old_name, double& target,
+                                 const std::string& help);
+/// Prints the queued warnings to stderr, one line each. A command calls it first when it runs, so
+/// that a command line refused while parsing still gives one line on stderr: the error.
+void print_pending_warnings();
+
 /// Throws rpyfmm::Error (numerical_failure) naming `what` and the first entry that is NaN or
 /// infinite: every command calls it on its results before writing any of them, so that exit
 /// status 0 never comes with non-finite output.

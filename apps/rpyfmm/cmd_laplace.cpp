@@ -3,7 +3,7 @@
 // or at separate targets.
 //
 //   rpyfmm laplace --sources S.npy [--targets T.npy] --charges Q.npy
-//                  (--direct | --eps E) --out R.npy [--threads N] [--json]
+//                  (--direct | --tolerance E) --out R.npy [--threads N] [--json]
 //
 // R has shape (M,10), or (nd,M,10) when Q has shape (nd,N), with columns
 // [pot, gx, gy, gz, hxx, hyy, hzz, hxy, hxz, hyz] (rpyfmm/fmm/direct.hpp).
@@ -30,7 +30,7 @@ namespace {
 struct LaplaceArgs {
   std::string sources, targets, charges, out;
   bool direct = false;
-  double eps = 0.0;  // FMM relative tolerance; 0 = not requested
+  double tolerance = 0.0;  // FMM relative tolerance; 0 = not requested
   CommonOptions common;
 };
 
@@ -76,9 +76,9 @@ void evaluate_direct(const LaplaceProblem& p, std::vector<double>& results, Stag
 
 // Adaptive plane-wave FMM (rpyfmm/fmm/laplace_fmm.hpp): plan once, evaluate all nd
 // densities in one pass; its stage times go into the JSON line as "fmm_<stage>".
-void evaluate_fmm(const LaplaceProblem& p, double eps, std::vector<double>& results, StageTimes& stages) {
+void evaluate_fmm(const LaplaceProblem& p, double tolerance, std::vector<double>& results, StageTimes& stages) {
   fmm::FmmOptions options;
-  options.eps = eps;  // validated by the plan: [1e-15, 1e-1]
+  options.tolerance = tolerance;  // validated by the plan: [1e-15, 1e-1]
   fmm::LaplaceFmm plan(options);
   plan.set_points(p.sources, p.targets);
   plan.evaluate(p.charges, p.nd, fmm::all_outputs, results);
@@ -90,14 +90,14 @@ void evaluate_fmm(const LaplaceProblem& p, double eps, std::vector<double>& resu
 }
 // -------------------------------------------------------------------------
 
-void run_laplace(const LaplaceArgs& args, bool eps_given) {
+void run_laplace(const LaplaceArgs& args, bool fmm_requested) {
   require_distinct_files(
       std::vector<NamedPath>{{"--sources", args.sources}, {"--targets", args.targets}, {"--charges", args.charges}},
       std::vector<NamedPath>{{"--out", args.out}});
   apply_threads(args.common);
-  require(args.direct != eps_given, ErrorCode::invalid_argument, "laplace",
-          "choose exactly one method: --direct or --eps E");
-  if (eps_given) ranges::require_in(ranges::kLaplaceTolerance, args.eps, "--eps", "eps");
+  require(args.direct != fmm_requested, ErrorCode::invalid_argument, "laplace",
+          "choose exactly one method: --direct or --tolerance E");
+  if (fmm_requested) ranges::require_in(ranges::kLaplaceTolerance, args.tolerance, "--tolerance", "tolerance");
   StopWatch total;
   StopWatch watch;
   const LaplaceProblem p = read_problem(args);
@@ -109,7 +109,7 @@ void run_laplace(const LaplaceArgs& args, bool eps_given) {
   if (args.direct) {
     evaluate_direct(p, results, stages);
   } else {
-    evaluate_fmm(p, args.eps, results, stages);
+    evaluate_fmm(p, args.tolerance, results, stages);
   }
   stages["evaluate"] = watch.seconds();
 
@@ -134,7 +134,7 @@ void run_laplace(const LaplaceArgs& args, bool eps_given) {
         .add("pairs", static_cast<double>(p.n) * static_cast<double>(p.m) * static_cast<double>(p.nd))
         .add("seconds", stages)
         .add("total_seconds", total.seconds());
-    if (!args.direct) line.add("eps", args.eps);
+    if (!args.direct) line.add("eps", args.tolerance);
     std::cout << line.str() << '\n';
   }
 }
@@ -149,13 +149,18 @@ void register_laplace(CLI::App& app) {
   cmd->add_option("--targets", args->targets, "target positions (M,3); default: at the sources, self pair skipped");
   cmd->add_option("--charges", args->charges, "charges (N,) or (nd,N)")->required();
   auto* direct = cmd->add_flag("--direct", args->direct, "exact O(N M) direct sums");
-  auto* eps =
-      cmd->add_option("--eps", args->eps, "FMM with relative tolerance E, in " + ranges::kLaplaceTolerance.str());
-  direct->excludes(eps);
+  const RenamedOption tolerance =
+      add_renamed_option(*cmd, "--tolerance", "--eps", args->tolerance,
+                         "FMM with relative tolerance E, in " + ranges::kLaplaceTolerance.str());
+  direct->excludes(tolerance.option);
+  direct->excludes(tolerance.deprecated);
   cmd->add_option("--out", args->out, "output .npy: (M,10) or (nd,M,10), columns pot,gx,gy,gz,hxx,hyy,hzz,hxy,hxz,hyz")
       ->required();
   add_common_options(*cmd, args->common);
-  cmd->callback([args, eps] { run_laplace(*args, eps->count() > 0); });
+  cmd->callback([args, tolerance] {
+    print_pending_warnings();
+    run_laplace(*args, tolerance.given());
+  });
 }
 
 }  // namespace rpyfmm::cli

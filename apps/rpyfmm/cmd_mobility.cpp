@@ -2,7 +2,7 @@
 // Rotne-Prager-Yamakawa mobility.
 //
 //   rpyfmm mobility --positions X.npy --forces F.npy (--radius a | --radii R.npy)
-//                   [--viscosity 1] [--method direct|fmm|pse|auto|none] [--eps 1e-6]
+//                   [--viscosity 1] [--method direct|fmm|pse|auto|none] [--tolerance 1e-6]
 //                   [--box L | --box Lx Ly Lz] [--wave-precision auto|single|double] [--device cpu|cuda]
 //                   --out U.npy [--threads N] [--json]
 //
@@ -17,8 +17,8 @@
 #include "array_io.hpp"
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "rpyfmm/core/cpu_features.hpp"
 #include "mobility_choice.hpp"
+#include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/core/file_safety.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
@@ -29,7 +29,7 @@ namespace {
 struct MobilityArgs {
   std::string positions, forces, radii, out;
   double radius = 0.0;
-  MobilityChoice mobility;  // --method, --eps, --viscosity, --box, ... (mobility_choice.hpp)
+  MobilityChoice mobility;  // --method, --tolerance, --viscosity, --box, ... (mobility_choice.hpp)
   CommonOptions common;
 };
 
@@ -81,7 +81,7 @@ void run_mobility(const MobilityArgs& args, bool radius_given) {
         .add("method", op->name())
         .add("n", n)
         .add("viscosity", args.mobility.viscosity)
-        .add("eps", args.mobility.eps)
+        .add("eps", args.mobility.tolerance)
         .add("equal_radii", op->equal_radii())
         .add("threads", active_threads())
         .add("simd", simd_level_name(simd_level()))
@@ -106,7 +106,10 @@ void register_mobility(CLI::App& app) {
   add_mobility_options(*cmd, args->mobility);
   cmd->add_option("--out", args->out, "output .npy, shape (N,3)")->required();
   add_common_options(*cmd, args->common);
-  cmd->callback([args, radius] { run_mobility(*args, radius->count() > 0); });
+  cmd->callback([args, radius] {
+    print_pending_warnings();
+    run_mobility(*args, radius->count() > 0);
+  });
 }
 
 }  // namespace rpyfmm::cli

@@ -3,8 +3,8 @@
 // (rpyfmm/rpy/rigid_bodies.hpp).
 //
 //   rpyfmm rigid --positions X.npy (--radius a | --radii R.npy) --body-sizes S.txt
-//                --forces FT.npy [--reference Q.npy] [--tol 1e-6] [--max-iterations 500]
-//                [--no-precondition] [--method direct|fmm|pse|auto] [--eps 1e-6] [--viscosity 1]
+//                --forces FT.npy [--reference Q.npy] [--solver-tolerance 1e-6] [--max-iterations 500]
+//                [--no-precondition] [--method direct|fmm|pse|auto] [--tolerance 1e-6] [--viscosity 1]
 //                [--box L | --box Lx Ly Lz] --out UW.npy [--bead-forces L.npy] [--threads N] [--json]
 //
 // Beads are listed body after body; S holds the m body sizes (beads per body, each >= 3).
@@ -22,8 +22,8 @@
 #include "bead_bodies.hpp"
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "rpyfmm/core/cpu_features.hpp"
 #include "mobility_choice.hpp"
+#include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/core/file_safety.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
@@ -35,7 +35,7 @@ namespace {
 struct RigidArgs {
   BeadBodyArgs bodies;
   std::string forces, out, bead_forces;
-  double tol = 1e-6;
+  double solver_tolerance = 1e-6;  // GMRES relative residual
   int max_iterations = 500;
   bool no_precondition = false;
   MobilityChoice mobility;
@@ -51,7 +51,7 @@ void run_rigid(const RigidArgs& args) {
                                                 {"--forces", args.forces}},
                          std::vector<NamedPath>{{"--out", args.out}, {"--bead-forces", args.bead_forces}});
   apply_threads(args.common);
-  ranges::require_in(ranges::kSolverTolerance, args.tol, "--tol", "tolerance");
+  ranges::require_in(ranges::kSolverTolerance, args.solver_tolerance, "--solver-tolerance", "tolerance");
 
   StopWatch total;
   StopWatch watch;
@@ -70,8 +70,9 @@ void run_rigid(const RigidArgs& args) {
 
   watch.restart();
   auto beads = make_operator(args.mobility, n);
-  rpy::RigidBodies bodies(
-      *beads, {.tolerance = args.tol, .max_iterations = args.max_iterations, .precondition = !args.no_precondition});
+  rpy::RigidBodies bodies(*beads, {.tolerance = args.solver_tolerance,
+                                   .max_iterations = args.max_iterations,
+                                   .precondition = !args.no_precondition});
   bodies.set_configuration(x, radii, offsets, reference);
   stages["setup"] = watch.seconds();
 
@@ -94,8 +95,8 @@ void run_rigid(const RigidArgs& args) {
         .add("bodies", m)
         .add("beads", n)
         .add("viscosity", args.mobility.viscosity)
-        .add("eps", args.mobility.eps)
-        .add("tol", args.tol)
+        .add("eps", args.mobility.tolerance)
+        .add("tol", args.solver_tolerance)
         .add("preconditioned", !args.no_precondition)
         .add("iterations", report.iterations)
         .add("restarts", report.restarts)
@@ -117,8 +118,9 @@ void register_rigid(CLI::App& app) {
   add_bead_body_options(*cmd, args->bodies, "bead positions, (N,3) .npy or text, body after body",
                         "points (m,3) the torques and angular velocities refer to (default: body centroids)");
   cmd->add_option("--forces", args->forces, "forces and torques (m,6): F_x F_y F_z T_x T_y T_z per body")->required();
-  cmd->add_option("--tol", args->tol, "GMRES relative residual, in " + ranges::kSolverTolerance.str())
-      ->capture_default_str();
+  add_renamed_option(*cmd, "--solver-tolerance", "--tol", args->solver_tolerance,
+                     "GMRES relative residual, in " + ranges::kSolverTolerance.str())
+      .option->capture_default_str();
   add_integer_option(*cmd, "--max-iterations", args->max_iterations, ranges::kGmresIterations,
                      "most GMRES iterations (bead products)");
   cmd->add_flag("--no-precondition", args->no_precondition,
@@ -127,7 +129,10 @@ void register_rigid(CLI::App& app) {
   cmd->add_option("--out", args->out, "output .npy, shape (m,6): U_x U_y U_z Omega_x Omega_y Omega_z")->required();
   cmd->add_option("--bead-forces", args->bead_forces, "also write the bead forces (N,3) to this .npy");
   add_common_options(*cmd, args->common);
-  cmd->callback([args] { run_rigid(*args); });
+  cmd->callback([args] {
+    print_pending_warnings();
+    run_rigid(*args);
+  });
 }
 
 }  // namespace rpyfmm::cli

@@ -5,7 +5,8 @@
 //                   [--reference Q.npy] --dt DT --steps N [--kT 1] [--seed 1] [--drift rfd|none]
 //                   [--rfd-delta 1e-3] [--body-force Fx Fy Fz] [--body-torque Tx Ty Tz]
 //                   [--pair none|wca|soft|lj36_18] [--pair-epsilon 1] [--pair-sigma 0]
-//                   [--tol 1e-6] [--sqrt-tol 1e-3] [--every K] [--method ...] [--eps ...]
+//                   [--solver-tolerance 1e-6] [--sqrt-tolerance 1e-3] [--every K] [--method ...]
+//                   [--tolerance ...]
 //                   [--box ...] --out TRAJ.npy [--beads-out B.npy] [--restart OLD.npy
 //                   --first-step S] [--threads N] [--json]
 //
@@ -34,9 +35,9 @@
 #include "bead_bodies.hpp"
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "rpyfmm/core/cpu_features.hpp"
 #include "mobility_choice.hpp"
 #include "rpyfmm/bd/rigid_dynamics.hpp"
+#include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/core/file_safety.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
@@ -48,7 +49,8 @@ struct RigidBdArgs {
   BeadBodyArgs bodies;
   std::string out, beads_out, restart;
   std::uint64_t first_step = 0;
-  double dt = 0.0, kT = 1.0, rfd_delta = 1e-3, tol = 1e-6, sqrt_tol = 1e-3;
+  double dt = 0.0, kT = 1.0, rfd_delta = 1e-3;
+  double solver_tolerance = 1e-6, sqrt_tolerance = 1e-3;  // GMRES residual; bead noise B z
   long long steps = 0, every = 0;
   std::uint64_t seed = 1;
   std::string drift = "rfd", pair = "none";
@@ -58,7 +60,8 @@ struct RigidBdArgs {
   CommonOptions common;
 };
 
-void run_rigid_bd(const RigidBdArgs& args) {
+/// Checks every option that needs no file before anything is read.
+void validate(const RigidBdArgs& args) {
   const BeadBodyArgs& b = args.bodies;
   require_distinct_files(std::vector<NamedPath>{{"--positions", b.positions},
                                                 {"--radii", b.radii},
@@ -67,71 +70,74 @@ void run_rigid_bd(const RigidBdArgs& args) {
                                                 {"--restart", args.restart}},
                          std::vector<NamedPath>{{"--out", args.out}, {"--beads-out", args.beads_out}});
   apply_threads(args.common);
-  ranges::require_in(ranges::kSolverTolerance, args.tol, "--tol", "tolerance");
-  ranges::require_in(ranges::kSolverTolerance, args.sqrt_tol, "--sqrt-tol", "tolerance");
+  ranges::require_in(ranges::kSolverTolerance, args.solver_tolerance, "--solver-tolerance", "tolerance");
+  ranges::require_in(ranges::kSolverTolerance, args.sqrt_tolerance, "--sqrt-tolerance", "tolerance");
   require(args.drift == "rfd" || args.drift == "none", ErrorCode::invalid_argument, "--drift",
           "must be rfd or none, got '" + args.drift + "'");
   require(args.body_force.size() == 3 && args.body_torque.size() == 3, ErrorCode::invalid_argument, "rigid-bd",
           "--body-force and --body-torque take three numbers");
   require_finite(args.body_force, "--body-force", "force", 3);
   require_finite(args.body_torque, "--body-torque", "torque", 3);
+}
 
-  StopWatch total;
-  StopWatch watch;
-  const BeadBodies bodies = read_bead_bodies(args.bodies);
-  const std::size_t n = bodies.beads(), m = bodies.bodies();
-  // The operator first: its geometry gives the minimum images of bodies wrapped into a box.
-  auto beads = make_operator(args.mobility, n);
-  std::vector<double> reference = bodies.reference;
-  const std::vector<double> shape = body_frame_shape(beads->geometry(), bodies, reference);
-  // The state: the bodies at t = 0 (identity orientations), or the last frame of --restart.
-  std::vector<double> positions = reference, orientations;
-  if (!args.restart.empty()) {
-    const Array old = read_array(args.restart);
-    require(old.shape.size() == 3 && old.shape[1] == m && old.shape[2] == 7 && old.shape[0] >= 1,
-            ErrorCode::invalid_input, "--restart",
-            "expected a trajectory of shape (frames, " + std::to_string(m) + ", 7) from rpyfmm rigid-bd");
-    const std::size_t last = (old.shape[0] - 1) * m * 7;
-    for (std::size_t k = 0; k < m; ++k) {
-      for (std::size_t c = 0; c < 3; ++c) positions[3 * k + c] = old.data[last + 7 * k + c];
-      for (std::size_t c = 0; c < 4; ++c) orientations.push_back(old.data[last + 7 * k + 3 + c]);
-    }
+/// The bodies' positions and orientations to start from: `reference` with identity orientations
+/// (none given), or the last frame of --restart.
+struct BodyState {
+  std::vector<double> positions, orientations;
+};
+
+BodyState initial_state(const RigidBdArgs& args, const std::vector<double>& reference, std::size_t m) {
+  BodyState state{reference, {}};
+  if (args.restart.empty()) return state;
+  const Array old = read_array(args.restart);
+  require(old.shape.size() == 3 && old.shape[1] == m && old.shape[2] == 7 && old.shape[0] >= 1,
+          ErrorCode::invalid_input, "--restart",
+          "expected a trajectory of shape (frames, " + std::to_string(m) + ", 7) from rpyfmm rigid-bd");
+  const std::size_t last = (old.shape[0] - 1) * m * 7;
+  for (std::size_t k = 0; k < m; ++k) {
+    for (std::size_t c = 0; c < 3; ++c) state.positions[3 * k + c] = old.data[last + 7 * k + c];
+    for (std::size_t c = 0; c < 4; ++c) state.orientations.push_back(old.data[last + 7 * k + 3 + c]);
   }
-  StageTimes stages;
-  stages["read"] = watch.seconds();
+  return state;
+}
 
-  watch.restart();
+/// --body-force and --body-torque on every body (none when both are zero).
+bd::BodyForceFunction constant_load(const RigidBdArgs& args) {
   const std::array<double, 6> load{args.body_force[0],  args.body_force[1],  args.body_force[2],
                                    args.body_torque[0], args.body_torque[1], args.body_torque[2]};
-  bd::BodyForceFunction forces;
-  if (std::any_of(load.begin(), load.end(), [](double v) { return v != 0.0; })) {
-    forces = [load](const bd::RigidBodyState&, std::span<double> w) {
-      for (std::size_t k = 0; k < w.size(); k += 6)
-        for (std::size_t c = 0; c < 6; ++c) w[k + c] = load[c];
-    };
-  }
-  const bd::RigidDynamicsOptions options{
-      .dt = args.dt,
-      .kT = args.kT,
-      .seed = args.seed,
-      .first_step = args.first_step,
-      .drift = args.drift == "none" ? bd::RigidDrift::none : bd::RigidDrift::random_finite_difference,
-      .rfd_delta = args.rfd_delta,
-      .solver = {.tolerance = args.tol},
-      .sqrt = {.tolerance = args.sqrt_tol, .preconditioner = rpy::SqrtPreconditioner::automatic}};
-  bd::RigidBodyDynamics sim(std::move(beads), shape, bodies.radii, bodies.offsets, positions, orientations, options,
-                            forces);
-  if (args.pair != "none") {
-    bd::ForceField field({bd::ParticleType{.radius = bodies.radii[0]}});
-    field.set_pair(
-        0, 0,
-        bd::PairPotential{
-            .kind = bd::pair_kind_from_string(args.pair), .epsilon = args.pair_epsilon, .sigma = args.pair_sigma});
-    sim.set_bead_forces(std::move(field));
-  }
-  stages["setup"] = watch.seconds();
+  if (std::none_of(load.begin(), load.end(), [](double v) { return v != 0.0; })) return {};
+  return [load](const bd::RigidBodyState&, std::span<double> w) {
+    for (std::size_t k = 0; k < w.size(); k += 6)
+      for (std::size_t c = 0; c < 6; ++c) w[k + c] = load[c];
+  };
+}
 
-  watch.restart();
+bd::RigidDynamicsOptions dynamics_options(const RigidBdArgs& args) {
+  return {.dt = args.dt,
+          .kT = args.kT,
+          .seed = args.seed,
+          .first_step = args.first_step,
+          .drift = args.drift == "none" ? bd::RigidDrift::none : bd::RigidDrift::random_finite_difference,
+          .rfd_delta = args.rfd_delta,
+          .solver = {.tolerance = args.solver_tolerance},
+          .sqrt = {.tolerance = args.sqrt_tolerance, .preconditioner = rpy::SqrtPreconditioner::automatic}};
+}
+
+/// --pair between beads of different bodies (one bead type, the first bead's radius).
+void add_bead_pair(bd::RigidBodyDynamics& sim, const RigidBdArgs& args, double radius) {
+  if (args.pair == "none") return;
+  bd::ForceField field({bd::ParticleType{.radius = radius}});
+  field.set_pair(
+      0, 0,
+      bd::PairPotential{
+          .kind = bd::pair_kind_from_string(args.pair), .epsilon = args.pair_epsilon, .sigma = args.pair_sigma});
+  sim.set_bead_forces(std::move(field));
+}
+
+/// Runs --steps steps; returns the frames (q, quaternion per body) at the first step, at multiples
+/// of --every and at the last step.
+std::vector<double> run_and_record(bd::RigidBodyDynamics& sim, const RigidBdArgs& args) {
+  const std::size_t m = sim.bodies();
   const auto every = static_cast<std::uint64_t>(args.every > 0 ? args.every : args.steps);
   const auto steps = static_cast<std::uint64_t>(args.steps);
   std::vector<double> frames;
@@ -148,17 +154,13 @@ void run_rigid_bd(const RigidBdArgs& args) {
     sim.step();
     if (sim.step_count() % every == 0 || s == steps) record();
   }
-  stages["run"] = watch.seconds();
+  return frames;
+}
 
-  watch.restart();
-  require_finite_output(frames, "rigid-bd (trajectory)");
-  require_finite_output(sim.bead_positions(), "rigid-bd (bead positions)");
-  const std::size_t frame_count = frames.size() / (7 * m);
-  write_npy(args.out, {frame_count, m, 7}, frames);
-  if (!args.beads_out.empty())
-    write_npy(args.beads_out, {n, 3}, std::vector<double>(sim.bead_positions().begin(), sim.bead_positions().end()));
-  stages["write"] = watch.seconds();
-
+void report_rigid_bd(const RigidBdArgs& args, const bd::RigidBodyDynamics& sim, std::size_t frame_count,
+                     StageTimes& stages, double total_seconds) {
+  const std::size_t m = sim.bodies(), n = sim.beads();
+  const auto steps = static_cast<std::uint64_t>(args.steps);
   const auto& t = sim.totals();
   const double per_step = stages["run"] / double(steps);
   if (args.common.json) {
@@ -181,7 +183,7 @@ void run_rigid_bd(const RigidBdArgs& args) {
         .add("out", args.out)
         .add("seconds", stages)
         .add("step_seconds", t.seconds)
-        .add("total_seconds", total.seconds());
+        .add("total_seconds", total_seconds);
     std::cout << line.str() << '\n';
   } else {
     std::cout << "rigid-bd: " << m << " bodies, " << n << " beads, " << steps << " steps in " << stages["run"] << " s ("
@@ -190,6 +192,41 @@ void run_rigid_bd(const RigidBdArgs& args) {
               << double(t.sqrt_iterations) / double(steps) << " iterations per step); " << frame_count << " frames -> "
               << args.out << '\n';
   }
+}
+
+void run_rigid_bd(const RigidBdArgs& args) {
+  validate(args);
+  StopWatch total;
+  StopWatch watch;
+  const BeadBodies bodies = read_bead_bodies(args.bodies);
+  const std::size_t n = bodies.beads(), m = bodies.bodies();
+  // The operator first: its geometry gives the minimum images of bodies wrapped into a box.
+  auto beads = make_operator(args.mobility, n);
+  std::vector<double> reference = bodies.reference;
+  const std::vector<double> shape = body_frame_shape(beads->geometry(), bodies, reference);
+  const BodyState start = initial_state(args, reference, m);
+  StageTimes stages;
+  stages["read"] = watch.seconds();
+
+  watch.restart();
+  bd::RigidBodyDynamics sim(std::move(beads), shape, bodies.radii, bodies.offsets, start.positions, start.orientations,
+                            dynamics_options(args), constant_load(args));
+  add_bead_pair(sim, args, bodies.radii[0]);
+  stages["setup"] = watch.seconds();
+
+  watch.restart();
+  const std::vector<double> frames = run_and_record(sim, args);
+  stages["run"] = watch.seconds();
+
+  watch.restart();
+  require_finite_output(frames, "rigid-bd (trajectory)");
+  require_finite_output(sim.bead_positions(), "rigid-bd (bead positions)");
+  const std::size_t frame_count = frames.size() / (7 * m);
+  write_npy(args.out, {frame_count, m, 7}, frames);
+  if (!args.beads_out.empty())
+    write_npy(args.beads_out, {n, 3}, std::vector<double>(sim.bead_positions().begin(), sim.bead_positions().end()));
+  stages["write"] = watch.seconds();
+  report_rigid_bd(args, sim, frame_count, stages, total.seconds());
 }
 
 }  // namespace
@@ -215,12 +252,13 @@ void register_rigid_bd(CLI::App& app) {
   cmd->add_option("--pair-epsilon", args->pair_epsilon, "its energy scale")->capture_default_str();
   cmd->add_option("--pair-sigma", args->pair_sigma, "its length scale (0: twice the first bead's radius)")
       ->capture_default_str();
-  cmd->add_option("--tol", args->tol, "GMRES relative residual, in " + ranges::kSolverTolerance.str())
-      ->capture_default_str();
-  cmd->add_option(
-         "--sqrt-tol", args->sqrt_tol,
-         "tolerance of the bead noise B z (block-preconditioned Lanczos), in " + ranges::kSolverTolerance.str())
-      ->capture_default_str();
+  add_renamed_option(*cmd, "--solver-tolerance", "--tol", args->solver_tolerance,
+                     "GMRES relative residual, in " + ranges::kSolverTolerance.str())
+      .option->capture_default_str();
+  add_renamed_option(
+      *cmd, "--sqrt-tolerance", "--sqrt-tol", args->sqrt_tolerance,
+      "tolerance of the bead noise B z (block-preconditioned Lanczos), in " + ranges::kSolverTolerance.str())
+      .option->capture_default_str();
   add_integer_option(*cmd, "--every", args->every, ranges::kSteps,
                      "record a frame every K steps (0: first and last only)");
   add_mobility_options(*cmd, args->mobility);
@@ -231,7 +269,10 @@ void register_rigid_bd(CLI::App& app) {
   add_integer_option(*cmd, "--first-step", args->first_step, ranges::kSeed,
                      "step number of the initial state (with --restart: the earlier run's last step)");
   add_common_options(*cmd, args->common);
-  cmd->callback([args] { run_rigid_bd(*args); });
+  cmd->callback([args] {
+    print_pending_warnings();
+    run_rigid_bd(*args);
+  });
 }
 
 }  // namespace rpyfmm::cli

@@ -1,21 +1,22 @@
 // rpyfmm CLI — `rpyfmm sample`: Brownian displacements w = M^{1/2} z of N
-// spheres under the Rotne-Prager-Yamakawa mobility (MATH.md §4).
+// spheres under the Rotne-Prager-Yamakawa mobility (docs/theory/samplers.md).
 //
 //   rpyfmm sample --positions X.npy (--radius a | --radii R.npy)
 //                 [--noise Z.npy | --seed S [--step K]]
 //                 [--method auto|lanczos|chebyshev|cholesky|eigen|split|pse]
 //                 [--operator direct|fmm|pse] [--box L | --box Lx Ly Lz]
-//                 [--tol 1e-3] [--max-iterations M] [--eps E] [--wave-precision auto|single|double]
+//                 [--sqrt-tolerance 1e-3] [--max-iterations M] [--tolerance E]
+//                 [--wave-precision auto|single|double]
 //                 [--device cpu|cuda] [--preconditioner none|block|auto [--preconditioner-block B]]
 //                 [--viscosity 1]
 //                 --out W.npy [--threads N] [--json]
 //
 // W has shape (N,3). Without --noise, z is drawn with the counter-based
 // generator (rpy/random.hpp) keyed by (seed, step, particle): the same on any
-// thread count. --eps is the FMM operator's tolerance (default 1e-6); keep it
-// below --tol, since the square root cannot be more accurate than M. With --json, one line reports the iterations, the
-// error estimate and the number of operator products. --preconditioner block (Lanczos, Chebyshev) gives
-// w = B z with B B^T = M instead of M^{1/2} z, in fewer products (rpy/block_preconditioner.hpp).
+// thread count. --tolerance is the operator's (fmm: default 1e-6); keep it below
+// --sqrt-tolerance, since the square root cannot be more accurate than M. With --json, one line reports the iterations,
+// the error estimate and the number of operator products. --preconditioner block (Lanczos, Chebyshev) gives w = B z
+// with B B^T = M instead of M^{1/2} z, in fewer products (rpy/block_preconditioner.hpp).
 #include <CLI/CLI.hpp>
 #include <cstddef>
 #include <cstdint>
@@ -29,8 +30,8 @@
 #include "array_io.hpp"
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/bd/mobility_factory.hpp"
+#include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/core/file_safety.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
@@ -53,8 +54,8 @@ struct SampleArgs {
   std::string method = "auto";
   std::string op = "direct";
   std::vector<double> box;  // periodic box for --operator pse: L or Lx Ly Lz
-  double tol = 1e-3;
-  double eps = 0.0;                     // operator (FMM) tolerance; 0 = not given
+  double sqrt_tolerance = 1e-3;
+  double tolerance = 0.0;               // operator (fmm, pse) tolerance; 0 = not given
   std::string wave_precision = "auto";  // pse operator: auto | single | double
   std::string device = "cpu";           // pse operator: cpu | cuda
   int max_iterations = 0;
@@ -70,7 +71,7 @@ struct SampleArgs {
 // used with --method auto (the default) or split.
 struct OperatorEntry {
   const char* name;
-  bool uses_eps;  // whether --eps means something for this operator
+  bool uses_tolerance;  // whether --tolerance means something for this operator
   std::function<std::unique_ptr<rpy::MobilityOperator>(const SampleArgs&)> make;
 };
 
@@ -80,8 +81,8 @@ const std::vector<OperatorEntry>& operators() {
        [](const SampleArgs& a) { return std::make_unique<rpy::DirectRpy>(rpy::Geometry::open(), a.viscosity); }},
       {"fmm", true,
        [](const SampleArgs& a) {
-         rpy::FmmRpyOptions o;  // tolerance default 1e-6 unless --eps
-         if (a.eps != 0.0) o.tolerance = a.eps;
+         rpy::FmmRpyOptions o;  // tolerance default 1e-6 unless --tolerance
+         if (a.tolerance != 0.0) o.tolerance = a.tolerance;
          return std::make_unique<rpy::FmmRpy>(rpy::Geometry::open(), a.viscosity, o);
        }},
       {"pse", true,
@@ -90,8 +91,8 @@ const std::vector<OperatorEntry>& operators() {
                  "--operator pse needs a periodic box: --box L or --box Lx Ly Lz");
          const rpy::Geometry g = a.box.size() == 1 ? rpy::Geometry::periodic(a.box[0])
                                                    : rpy::Geometry::periodic(a.box[0], a.box[1], a.box[2]);
-         rpy::pse::PseOptions o;  // tolerance default 1e-3 unless --eps
-         if (a.eps != 0.0) o.tolerance = a.eps;
+         rpy::pse::PseOptions o;  // tolerance default 1e-3 unless --tolerance
+         if (a.tolerance != 0.0) o.tolerance = a.tolerance;
          o.wave_precision = rpy::pse::wave_precision_from_name(a.wave_precision, "--wave-precision");
          if (bd::compute_device_from_string(a.device, "--device") == bd::ComputeDevice::cuda) {
            require(rpy::pse::PseRpyCuda::device_available(), ErrorCode::not_supported, "--device",
@@ -127,12 +128,9 @@ rpy::SqrtMethod parse_method(const std::string& name) {
        "unknown method '" + name + "' (known: auto, lanczos, chebyshev, cholesky, eigen, split, pse)");
 }
 
-void run_sample(const SampleArgs& given, bool radius_given, bool seed_given) {
-  require_distinct_files(
-      std::vector<NamedPath>{{"--positions", given.positions}, {"--radii", given.radii}, {"--noise", given.noise}},
-      std::vector<NamedPath>{{"--out", given.out}});
-  apply_threads(given.common);
-  // `--method pse` is shorthand for the PSE operator with its split sampler.
+/// The arguments with `--method pse` expanded (the PSE operator with its split sampler), after the
+/// checks of which options apply to which operator.
+SampleArgs resolve_operator(const SampleArgs& given) {
   SampleArgs args = given;
   if (args.method == "pse") {
     require(args.op == "direct" || args.op == "pse", ErrorCode::invalid_argument, "--method",
@@ -147,17 +145,15 @@ void run_sample(const SampleArgs& given, bool radius_given, bool seed_given) {
   const bd::ComputeDevice device = bd::compute_device_from_string(args.device, "--device");
   require(device == bd::ComputeDevice::cpu || args.op == "pse", ErrorCode::invalid_argument, "--device",
           "cuda applies to the pse operator only");
-  // Validate every option before reading or computing anything.
-  require(radius_given != !args.radii.empty(), ErrorCode::invalid_argument, "sample",
-          "give exactly one of --radius a or --radii R.npy");
-  require(!(seed_given && !args.noise.empty()), ErrorCode::invalid_argument, "sample",
-          "give at most one of --noise Z.npy or --seed S");
-  if (radius_given) ranges::require_in(ranges::kRadius, args.radius, "--radius", "radius");
-  ranges::require_in(ranges::kViscosity, args.viscosity, "--viscosity", "viscosity");
-  ranges::require_in(ranges::kSolverTolerance, args.tol, "--tol", "tolerance");
+  return args;
+}
+
+/// The square-root solver of --method, --sqrt-tolerance, --max-iterations and --preconditioner.
+rpy::SqrtOptions sqrt_options_of(const SampleArgs& args) {
+  ranges::require_in(ranges::kSolverTolerance, args.sqrt_tolerance, "--sqrt-tolerance", "tolerance");
   rpy::SqrtOptions options;
   options.method = parse_method(args.method);
-  options.tolerance = args.tol;
+  options.tolerance = args.sqrt_tolerance;
   options.max_iterations = args.max_iterations;
   require(args.preconditioner == "none" || args.preconditioner == "block" || args.preconditioner == "auto",
           ErrorCode::invalid_argument, "--preconditioner",
@@ -169,42 +165,109 @@ void run_sample(const SampleArgs& given, bool radius_given, bool seed_given) {
                       (options.method == rpy::SqrtMethod::automatic && args.op != "pse");
   require(options.preconditioner != rpy::SqrtPreconditioner::block || krylov, ErrorCode::invalid_argument,
           "--preconditioner", "block serves the Lanczos and Chebyshev samplers only, not --method " + args.method);
+  return options;
+}
+
+/// The operator's entry, with --tolerance checked against it.
+const OperatorEntry& operator_of(const SampleArgs& args) {
   const OperatorEntry& entry = find_operator(args.op);
-  if (args.eps != 0.0) {
-    require(entry.uses_eps, ErrorCode::invalid_argument, "--eps",
+  if (args.tolerance != 0.0) {
+    require(entry.uses_tolerance, ErrorCode::invalid_argument, "--tolerance",
             "applies to approximate operators only, not to --operator " + args.op);
-    ranges::require_in(ranges::kMobilityTolerance, args.eps, "--eps", "operator tolerance");
+    ranges::require_in(ranges::kMobilityTolerance, args.tolerance, "--tolerance", "operator tolerance");
   }
+  return entry;
+}
+
+/// What `sample` reads: positions, radii (unless --radius) and the noise z.
+struct SampleInput {
+  std::vector<double> x, radii, z;
+};
+
+SampleInput read_sample_input(const SampleArgs& args, bool radius_given) {
+  SampleInput in;
+  in.x = as_points(read_array(args.positions), "positions");
+  const std::size_t n = in.x.size() / 3;
+  if (!radius_given) in.radii = as_vector(read_array(args.radii), n, "radii");
+  in.z.resize(3 * n);
+  if (!args.noise.empty()) {
+    in.z = as_points(read_array(args.noise), "noise");
+    require(in.z.size() == in.x.size(), ErrorCode::invalid_input, "noise",
+            "has " + std::to_string(in.z.size() / 3) + " rows, expected " + std::to_string(n) + " (one per particle)");
+  } else {
+    rpy::fill_normal(in.z, args.seed, args.step);
+  }
+  return in;
+}
+
+void print_sample_json(const SampleArgs& args, const rpy::MobilityOperator& op, const rpy::SqrtReport& report,
+                       std::size_t n, bool radius_given, const StageTimes& stages, double total_seconds) {
+  JsonLine line;
+  line.add("command", "sample")
+      .add("operator", op.name())
+      .add("method", rpy::to_string(report.method))
+      .add("n", n)
+      .add("tolerance", args.sqrt_tolerance)
+      .add("iterations", report.iterations)
+      .add("error_estimate", report.error_estimate)
+      .add("operator_applications", report.operator_applications)
+      .add("converged", report.converged)
+      .add("breakdown", report.breakdown)
+      .add("preconditioner_blocks", report.preconditioner_blocks)
+      .add("noise", args.noise.empty() ? "philox" : args.noise)
+      .add("viscosity", args.viscosity)
+      .add("equal_radii", op.equal_radii())
+      .add("threads", active_threads())
+      .add("simd", simd_level_name(simd_level()))
+      .add("out", args.out)
+      .add("seconds", stages)
+      .add("total_seconds", total_seconds);
+  if (args.noise.empty()) {
+    line.add("seed", args.seed).add("step", args.step);
+  }
+  if (report.method == rpy::SqrtMethod::chebyshev) {
+    line.add("lambda_min", report.lambda_min).add("lambda_max", report.lambda_max);
+  }
+  if (radius_given) line.add("radius", args.radius);
+  if (args.tolerance != 0.0) line.add("eps", args.tolerance);
+  std::cout << line.str() << '\n';
+}
+
+void run_sample(const SampleArgs& given, bool radius_given, bool seed_given) {
+  require_distinct_files(
+      std::vector<NamedPath>{{"--positions", given.positions}, {"--radii", given.radii}, {"--noise", given.noise}},
+      std::vector<NamedPath>{{"--out", given.out}});
+  apply_threads(given.common);
+  const SampleArgs args = resolve_operator(given);
+  // Validate every option before reading or computing anything.
+  require(radius_given != !args.radii.empty(), ErrorCode::invalid_argument, "sample",
+          "give exactly one of --radius a or --radii R.npy");
+  require(!(seed_given && !args.noise.empty()), ErrorCode::invalid_argument, "sample",
+          "give at most one of --noise Z.npy or --seed S");
+  if (radius_given) ranges::require_in(ranges::kRadius, args.radius, "--radius", "radius");
+  ranges::require_in(ranges::kViscosity, args.viscosity, "--viscosity", "viscosity");
+  const rpy::SqrtOptions options = sqrt_options_of(args);
+  const OperatorEntry& entry = operator_of(args);
 
   StopWatch total;
   StopWatch watch;
-  const std::vector<double> x = as_points(read_array(args.positions), "positions");
-  const std::size_t n = x.size() / 3;
-  std::vector<double> radii;
-  if (!radius_given) radii = as_vector(read_array(args.radii), n, "radii");
-  std::vector<double> z(3 * n);
-  if (!args.noise.empty()) {
-    z = as_points(read_array(args.noise), "noise");
-    require(z.size() == x.size(), ErrorCode::invalid_input, "noise",
-            "has " + std::to_string(z.size() / 3) + " rows, expected " + std::to_string(n) + " (one per particle)");
-  } else {
-    rpy::fill_normal(z, args.seed, args.step);
-  }
+  const SampleInput in = read_sample_input(args, radius_given);
+  const std::size_t n = in.x.size() / 3;
   StageTimes stages;
   stages["read"] = watch.seconds();
 
   watch.restart();
   auto op = entry.make(args);
   if (radius_given) {
-    op->set_positions(x, args.radius);
+    op->set_positions(in.x, args.radius);
   } else {
-    op->set_positions(x, radii);
+    op->set_positions(in.x, in.radii);
   }
   stages["setup"] = watch.seconds();
 
   watch.restart();
   std::vector<double> w(3 * n);
-  const rpy::SqrtReport report = op->apply_sqrt(z, w, options);
+  const rpy::SqrtReport report = op->apply_sqrt(in.z, w, options);
   stages["sample"] = watch.seconds();
 
   watch.restart();
@@ -212,37 +275,7 @@ void run_sample(const SampleArgs& given, bool radius_given, bool seed_given) {
   write_npy(args.out, {n, 3}, w);
   stages["write"] = watch.seconds();
 
-  if (args.common.json) {
-    JsonLine line;
-    line.add("command", "sample")
-        .add("operator", op->name())
-        .add("method", rpy::to_string(report.method))
-        .add("n", n)
-        .add("tolerance", args.tol)
-        .add("iterations", report.iterations)
-        .add("error_estimate", report.error_estimate)
-        .add("operator_applications", report.operator_applications)
-        .add("converged", report.converged)
-        .add("breakdown", report.breakdown)
-        .add("preconditioner_blocks", report.preconditioner_blocks)
-        .add("noise", args.noise.empty() ? "philox" : args.noise)
-        .add("viscosity", args.viscosity)
-        .add("equal_radii", op->equal_radii())
-        .add("threads", active_threads())
-        .add("simd", simd_level_name(simd_level()))
-        .add("out", args.out)
-        .add("seconds", stages)
-        .add("total_seconds", total.seconds());
-    if (args.noise.empty()) {
-      line.add("seed", args.seed).add("step", args.step);
-    }
-    if (report.method == rpy::SqrtMethod::chebyshev) {
-      line.add("lambda_min", report.lambda_min).add("lambda_max", report.lambda_max);
-    }
-    if (radius_given) line.add("radius", args.radius);
-    if (args.eps != 0.0) line.add("eps", args.eps);
-    std::cout << line.str() << '\n';
-  }
+  if (args.common.json) print_sample_json(args, *op, report, n, radius_given, stages, total.seconds());
 }
 
 }  // namespace
@@ -265,15 +298,16 @@ void register_sample(CLI::App& app) {
   cmd->add_option("--operator", args->op, "mobility operator: direct, fmm, or pse (periodic, needs --box)")
       ->capture_default_str();
   cmd->add_option("--box", args->box, "periodic box for --operator pse: L or Lx Ly Lz")->expected(1, 3);
-  cmd->add_option("--tol", args->tol, "relative tolerance of the square root, in " + ranges::kSolverTolerance.str())
-      ->capture_default_str();
+  add_renamed_option(*cmd, "--sqrt-tolerance", "--tol", args->sqrt_tolerance,
+                     "relative tolerance of the square root, in " + ranges::kSolverTolerance.str())
+      .option->capture_default_str();
   add_integer_option(*cmd, "--max-iterations", args->max_iterations, ranges::kSqrtIterations,
                      "Lanczos iterations / Chebyshev degree (0 = auto)");
-  cmd->add_option("--eps", args->eps,
-                  "tolerance of the fmm (default 1e-6) or pse (default 1e-3) operator, in " +
-                      ranges::kMobilityTolerance.str() + " (pse: from 1e-8)");
+  add_renamed_option(*cmd, "--tolerance", "--eps", args->tolerance,
+                     "tolerance of the fmm (default 1e-6) or pse (default 1e-3) operator, in " +
+                         ranges::kMobilityTolerance.str() + " (pse: from 1e-8)");
   cmd->add_option("--wave-precision", args->wave_precision,
-                  "pse operator: wave-space grids in single or double precision; auto = single for eps >= 1e-5")
+                  "pse operator: wave-space grids in single or double precision; auto = single for --tolerance >= 1e-5")
       ->capture_default_str();
   cmd->add_option("--device", args->device, "pse operator: cpu, or cuda (on a GPU, in a build with CUDA)")
       ->capture_default_str();
@@ -286,7 +320,10 @@ void register_sample(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--out", args->out, "output .npy, shape (N,3)")->required();
   add_common_options(*cmd, args->common);
-  cmd->callback([args, radius, seed] { run_sample(*args, radius->count() > 0, seed->count() > 0); });
+  cmd->callback([args, radius, seed] {
+    print_pending_warnings();
+    run_sample(*args, radius->count() > 0, seed->count() > 0);
+  });
 }
 
 }  // namespace rpyfmm::cli

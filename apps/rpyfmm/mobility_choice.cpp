@@ -3,6 +3,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "cli_common.hpp"
 #include "rpyfmm/bd/mobility_factory.hpp"
 #include "rpyfmm/core/ranges.hpp"
 #include "rpyfmm/core/validate.hpp"
@@ -16,12 +17,13 @@ void add_mobility_options(CLI::App& cmd, MobilityChoice& choice) {
                  "direct (exact O(N^2)), fmm (free space, O(N)), pse (periodic, needs --box), "
                  "auto (direct for small N, fmm above; pse with --box), none (free draining)")
       ->capture_default_str();
-  cmd.add_option("--eps", choice.eps, "relative tolerance of fmm/pse, in " + ranges::kMobilityTolerance.str())
-      ->capture_default_str();
+  add_renamed_option(cmd, "--tolerance", "--eps", choice.tolerance,
+                     "relative tolerance of fmm/pse, in " + ranges::kMobilityTolerance.str())
+      .option->capture_default_str();
   cmd.add_option("--box", choice.box, "periodic box: L (cube) or Lx Ly Lz; particles are wrapped into it")
       ->expected(1, 3);
   cmd.add_option("--wave-precision", choice.wave_precision,
-                 "pse: wave-space grids in single or double precision; auto = single for --eps >= 1e-5")
+                 "pse: wave-space grids in single or double precision; auto = single for --tolerance >= 1e-5")
       ->capture_default_str();
   cmd.add_option("--device", choice.device, "pse: cpu, or cuda (on a GPU, in a build with CUDA)")
       ->capture_default_str();
@@ -29,10 +31,10 @@ void add_mobility_options(CLI::App& cmd, MobilityChoice& choice) {
 
 std::unique_ptr<rpy::MobilityOperator> make_operator(const MobilityChoice& choice, std::size_t n) {
   ranges::require_in(ranges::kViscosity, choice.viscosity, "--viscosity", "viscosity");
-  ranges::require_in(ranges::kMobilityTolerance, choice.eps, "--eps", "tolerance");
+  ranges::require_in(ranges::kMobilityTolerance, choice.tolerance, "--tolerance", "tolerance");
   bd::MobilitySpec spec;
   spec.method = bd::mobility_method_from_string(choice.method);
-  spec.tolerance = choice.eps;
+  spec.tolerance = choice.tolerance;
   spec.viscosity = choice.viscosity;
   spec.wave_precision = rpy::pse::wave_precision_from_name(choice.wave_precision, "--wave-precision");
   require(spec.wave_precision == rpy::pse::WavePrecision::automatic || spec.method == bd::MobilityMethod::pse ||

@@ -1,5 +1,5 @@
 // rpyfmm CLI — the bead / particle mobility operator chosen on the command line
-// (--method, --eps, --viscosity, --box, --wave-precision, --device), shared by `mobility`
+// (--method, --tolerance, --viscosity, --box, --wave-precision, --device), shared by `mobility`
 // and `rigid`. Every method goes through rpyfmm::bd::make_mobility, the factory the BD
 // engine uses too.
 #pragma once
@@ -20,13 +20,13 @@ namespace rpyfmm::cli {
 struct MobilityChoice {
   double viscosity = 1.0;
   std::string method = "direct";
-  double eps = 1e-6;                    // tolerance of fmm / pse (direct is exact)
+  double tolerance = 1e-6;              // of fmm / pse (direct is exact)
   std::vector<double> box;              // periodic box: L or Lx Ly Lz (empty = free space)
   std::string wave_precision = "auto";  // pse: auto | single | double
   std::string device = "cpu";           // pse: cpu | cuda
 };
 
-/// Adds --viscosity, --method, --eps, --box, --wave-precision and --device to `cmd`.
+/// Adds --viscosity, --method, --tolerance (former spelling --eps), --box, --wave-precision and --device to `cmd`.
 void add_mobility_options(CLI::App& cmd, MobilityChoice& choice);
 /// The operator for n particles (validates the choice; rpyfmm::Error naming the option).
 std::unique_ptr<rpy::MobilityOperator> make_operator(const MobilityChoice& choice, std::size_t n);

@@ -100,7 +100,7 @@ int main(int argc, char** argv) {
     write_npy(npy + ".charges.npy", q, nd, n);
   }
   rpyfmm::fmm::FmmOptions opt;
-  opt.eps = eps;
+  opt.tolerance = eps;
   opt.leaf_capacity = leaf;
   opt.root_scale = root_scale;
   if (occupancy > 0) {

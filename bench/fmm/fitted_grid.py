@@ -45,9 +45,9 @@ def main():
             x = points(dist, n)
             q = np.random.default_rng(777).uniform(-1.0, 1.0, n)
             for eps in (float(v) for v in epss):
-                auto = rpyfmm.LaplaceFmm(eps=eps)
+                auto = rpyfmm.LaplaceFmm(tolerance=eps)
                 auto.set_points(x)
-                cube = rpyfmm.LaplaceFmm(eps=eps, leaf_capacity=rpyfmm.fmm_default_leaf_capacity(eps))
+                cube = rpyfmm.LaplaceFmm(tolerance=eps, leaf_capacity=rpyfmm.fmm_default_leaf_capacity(eps))
                 cube.set_points(x)
                 plans = {"cube": cube, "auto": auto}
                 times = {k: [] for k in plans}

@@ -137,7 +137,7 @@ int main(int argc, char** argv) {
         const double err = sampled_error(c, f, u, 200);
 
         // One Laplace FMM evaluation, pot + grad + Hessian, one charge vector, same points and eps.
-        rpyfmm::fmm::LaplaceFmm lap({.eps = eps});
+        rpyfmm::fmm::LaplaceFmm lap({.tolerance = eps});
         lap.set_points(c.x);
         std::vector<double> q(n), res(10 * n);
         for (std::size_t j = 0; j < n; ++j) q[j] = f[3 * j];

@@ -175,7 +175,7 @@ struct LaplaceFmm::Plan {
 
 LaplaceFmm::LaplaceFmm(const FmmOptions& options) : options_(options) {
   constexpr const char* where = "LaplaceFmm";
-  require_in_range(options.eps, 1e-15, 1e-1, where, "eps");
+  require_in_range(options.tolerance, 1e-15, 1e-1, where, "tolerance");
   require(options.leaf_capacity >= 0, ErrorCode::invalid_argument, where,
           "leaf_capacity must be >= 0 (0 = automatic), got " + std::to_string(options.leaf_capacity));
   require(std::isfinite(options.min_leaf_side) && options.min_leaf_side >= 0.0, ErrorCode::invalid_argument, where,
@@ -321,9 +321,10 @@ void LaplaceFmm::set_points(std::span<const double> sources, std::span<const dou
 
   StopWatch sw;
   auto plan = std::make_unique<Plan>();
-  plan->p = options_.order > 0 ? options_.order : fmm_order_for(options_.eps);
-  plan->digits = fmm_table_digits_for(options_.eps);
-  plan->leaf_capacity = options_.leaf_capacity > 0 ? options_.leaf_capacity : fmm_default_leaf_capacity(options_.eps);
+  plan->p = options_.order > 0 ? options_.order : fmm_order_for(options_.tolerance);
+  plan->digits = fmm_table_digits_for(options_.tolerance);
+  plan->leaf_capacity =
+      options_.leaf_capacity > 0 ? options_.leaf_capacity : fmm_default_leaf_capacity(options_.tolerance);
   // Direct W/X sums beat M2P/P2L below ~p^2/2 points by operation counts (CGR 1999 §4), with
   // pairs as dear as expansion terms. The AVX-512 P2P kernels make pairs ~3x cheaper, and there
   // the limit is 2 p^2 (measured on an AMD Zen-4 machine, session 9, bench/fmm/RESULTS.md "W/X
@@ -338,7 +339,7 @@ void LaplaceFmm::set_points(std::span<const double> sources, std::span<const dou
   // Automatic leaves: the bounding-cube tree decides whether a fitted grid can pay, then the tree
   // is rebuilt on it (fitted_grid_rule).
   if (options_.leaf_capacity == 0 && options_.root_scale == 1.0) {
-    const FittedGridRule rule = fitted_grid_rule(options_.eps);
+    const FittedGridRule rule = fitted_grid_rule(options_.tolerance);
     const std::size_t points = sources.size() / 3 + targets.size() / 3;
     const bool in_range = points >= rule.min_points && points <= rule.max_points;
     const bool pays = in_range && fitted_leaf_grid_pays(points, plan->tree.leaves().size(), rule.occupancy);

@@ -175,7 +175,20 @@ rpy::SqrtPreconditioner sqrt_preconditioner_from(const std::string& name) {
   return rpy::sqrt_preconditioner_from_string(name);
 }
 
-rpy::SqrtOptions sqrt_options(const std::string& method, double tol, int max_iterations, bool reorthogonalize,
+void warn_deprecated(const std::string& message) {
+  if (PyErr_WarnEx(PyExc_DeprecationWarning, message.c_str(), 1) != 0) throw nb::python_error();
+}
+
+double renamed_keyword(std::optional<double> value, std::optional<double> old_value, double fallback,
+                       const std::string& where, const char* name, const char* old_name) {
+  if (!old_value) return value.value_or(fallback);
+  warn_deprecated(where + ": " + old_name + "= is deprecated; use " + name + "=");
+  require(!value || *value == *old_value, ErrorCode::invalid_argument, where,
+          std::string(name) + " and its deprecated spelling " + old_name + " were given different values");
+  return *old_value;
+}
+
+rpy::SqrtOptions sqrt_options(const std::string& method, double tolerance, int max_iterations, bool reorthogonalize,
                               bool throw_if_not_converged, double lambda_min, double lambda_max,
                               int bound_estimate_iterations, const std::string& preconditioner,
                               int preconditioner_block) {
@@ -183,7 +196,7 @@ rpy::SqrtOptions sqrt_options(const std::string& method, double tol, int max_ite
   o.preconditioner = sqrt_preconditioner_from(preconditioner);
   o.preconditioner_block = preconditioner_block;
   o.method = sqrt_method_from(method);
-  o.tolerance = tol;
+  o.tolerance = tolerance;
   o.max_iterations = max_iterations;
   o.reorthogonalize = reorthogonalize;
   o.throw_if_not_converged = throw_if_not_converged;

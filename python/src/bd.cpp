@@ -150,55 +150,86 @@ bd::PairPotential pair_from(nb::handle pair, const std::string& where) {
 
 namespace {
 
+/// Per-particle radii of a Simulation: one number for all, or (N,) radii.
+std::vector<double> simulation_radii(RadiusArg radius, std::size_t n, const std::string& where) {
+  if (nb::hasattr(radius, "ndim") ? nb::cast<int>(radius.h.attr("ndim")) > 0
+                                  : (nb::isinstance<nb::list>(radius.h) || nb::isinstance<nb::tuple>(radius.h))) {
+    const InArray r = as_input(radius, where, "radii");
+    require(r.ndim() == 1 && r.size == n, ErrorCode::invalid_input, where,
+            "radii has shape " + shape_string(r.shape) + ", expected (" + std::to_string(n) + ",)");
+    return {r.data, r.data + r.size};
+  }
+  return std::vector<double>(n, nb::cast<double>(radius.h));
+}
+
+/// Particle types from radii, one type per distinct radius: the types (sorted by radius) and each
+/// particle's type.
+std::pair<std::vector<bd::ParticleType>, std::vector<std::uint32_t>> types_of(const std::vector<double>& radii) {
+  std::vector<double> distinct = radii;
+  std::sort(distinct.begin(), distinct.end());
+  distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
+  std::vector<bd::ParticleType> types;
+  for (std::size_t t = 0; t < distinct.size(); ++t) {
+    bd::ParticleType type;
+    type.name = "t" + std::to_string(t);
+    type.radius = distinct[t];
+    types.push_back(type);
+  }
+  std::vector<std::uint32_t> type_of(radii.size());
+  for (std::size_t i = 0; i < radii.size(); ++i) {
+    type_of[i] =
+        static_cast<std::uint32_t>(std::lower_bound(distinct.begin(), distinct.end(), radii[i]) - distinct.begin());
+  }
+  return {std::move(types), std::move(type_of)};
+}
+
+/// The pair potential (None: none) between every two types and the external force (None: none).
+bd::ForceField simulation_forces(std::vector<bd::ParticleType> types, nb::handle pair, OptArrayArg external_force,
+                                 const std::string& where) {
+  const std::size_t count = types.size();
+  bd::ForceField forces(std::move(types));
+  if (!pair.is_none()) {
+    const bd::PairPotential p = pair_from(pair, where);
+    for (std::uint32_t a = 0; a < count; ++a)
+      for (std::uint32_t b = a; b < count; ++b) forces.set_pair(a, b, p);
+  }
+  if (!external_force.is_none()) {
+    const InArray g = as_input(external_force, where, "external_force");
+    require(g.size == 3, ErrorCode::invalid_input, where,
+            "external_force has shape " + shape_string(g.shape) + ", expected (3,)");
+    forces.set_global_force({g.data[0], g.data[1], g.data[2]});
+  }
+  return forces;
+}
+
+/// The Brownian square root of a Simulation: method, tolerance and preconditioner.
+rpy::SqrtOptions simulation_sqrt(const std::string& method, double tolerance, const std::string& preconditioner,
+                                 const std::string& where) {
+  rpy::SqrtOptions o = bd::IntegratorOptions{}.sqrt;
+  o.method = sqrt_method_from(method);
+  o.tolerance = tolerance;
+  o.preconditioner = sqrt_preconditioner_from(preconditioner);
+  if (o.preconditioner == rpy::SqrtPreconditioner::block && o.method != rpy::SqrtMethod::lanczos &&
+      o.method != rpy::SqrtMethod::chebyshev && o.method != rpy::SqrtMethod::automatic)
+    fail(ErrorCode::invalid_argument, where,
+         "sqrt_preconditioner 'block' needs sqrt_method 'lanczos', 'chebyshev' or 'auto'");
+  return o;
+}
+
 class Simulation {
  public:
-  /// From arrays and keywords (see the binding's docstring).
+  /// From arrays and keywords (see the binding's docstring); `sqrt_tol` is the deprecated spelling of
+  /// `sqrt_tolerance`.
   Simulation(ArrayArg positions, RadiusArg radius, double dt, double kT, std::uint64_t seed,
              const std::string& mobility, double viscosity, BoxArg box, double tolerance,
-             const std::string& sqrt_method, double sqrt_tol, double max_displacement, OptArrayArg external_force,
-             nb::handle force, nb::handle pair, std::uint64_t first_step, std::size_t fmm_crossover,
-             const std::string& sqrt_preconditioner) {
+             const std::string& sqrt_method, std::optional<double> sqrt_tolerance, double max_displacement,
+             OptArrayArg external_force, nb::handle force, nb::handle pair, std::uint64_t first_step,
+             std::size_t fmm_crossover, const std::string& sqrt_preconditioner, std::optional<double> sqrt_tol) {
     const std::string where = "Simulation";
     const InArray x = as_input(positions, where, "positions");
     const std::size_t n = require_points(x, where, "positions");
-    // Radii -> particle types: one type per distinct radius.
-    std::vector<double> radii;
-    if (nb::hasattr(radius, "ndim") ? nb::cast<int>(radius.h.attr("ndim")) > 0
-                                    : (nb::isinstance<nb::list>(radius.h) || nb::isinstance<nb::tuple>(radius.h))) {
-      const InArray r = as_input(radius, where, "radii");
-      require(r.ndim() == 1 && r.size == n, ErrorCode::invalid_input, where,
-              "radii has shape " + shape_string(r.shape) + ", expected (" + std::to_string(n) + ",)");
-      radii.assign(r.data, r.data + r.size);
-    } else {
-      radii.assign(n, nb::cast<double>(radius.h));
-    }
-    std::vector<double> distinct = radii;
-    std::sort(distinct.begin(), distinct.end());
-    distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
-    std::vector<bd::ParticleType> types;
-    for (std::size_t t = 0; t < distinct.size(); ++t) {
-      bd::ParticleType type;
-      type.name = "t" + std::to_string(t);
-      type.radius = distinct[t];
-      types.push_back(type);
-    }
-    std::vector<std::uint32_t> type_of(n);
-    for (std::size_t i = 0; i < n; ++i) {
-      type_of[i] =
-          static_cast<std::uint32_t>(std::lower_bound(distinct.begin(), distinct.end(), radii[i]) - distinct.begin());
-    }
-    bd::ForceField forces(types);
-    if (!pair.is_none()) {
-      const bd::PairPotential p = pair_from(pair, "Simulation");
-      for (std::uint32_t a = 0; a < types.size(); ++a)
-        for (std::uint32_t b = a; b < types.size(); ++b) forces.set_pair(a, b, p);
-    }
-    if (!external_force.is_none()) {
-      const InArray g = as_input(external_force, where, "external_force");
-      require(g.size == 3, ErrorCode::invalid_input, where,
-              "external_force has shape " + shape_string(g.shape) + ", expected (3,)");
-      forces.set_global_force({g.data[0], g.data[1], g.data[2]});
-    }
+    auto [types, type_of] = types_of(simulation_radii(radius, n, where));
+    bd::ForceField forces = simulation_forces(std::move(types), pair, external_force, where);
     add_force(forces, force);
 
     bd::MobilitySpec spec;
@@ -211,13 +242,8 @@ class Simulation {
     o.dt = dt;
     o.kT = kT;
     o.seed = seed;
-    o.sqrt.method = sqrt_method_from(sqrt_method);
-    o.sqrt.tolerance = sqrt_tol;
-    o.sqrt.preconditioner = sqrt_preconditioner_from(sqrt_preconditioner);
-    if (o.sqrt.preconditioner == rpy::SqrtPreconditioner::block && o.sqrt.method != rpy::SqrtMethod::lanczos &&
-        o.sqrt.method != rpy::SqrtMethod::chebyshev && o.sqrt.method != rpy::SqrtMethod::automatic)
-      fail(ErrorCode::invalid_argument, where,
-           "sqrt_preconditioner 'block' needs sqrt_method 'lanczos', 'chebyshev' or 'auto'");
+    const double sqrt_t = renamed_keyword(sqrt_tolerance, sqrt_tol, 1e-3, where, "sqrt_tolerance", "sqrt_tol");
+    o.sqrt = simulation_sqrt(sqrt_method, sqrt_t, sqrt_preconditioner, where);
     o.max_displacement = max_displacement;
     bd::NeighbourOptions neighbours;
     integrator_ = std::make_unique<bd::Integrator>(bd::make_mobility(spec, n), std::move(forces), o,
@@ -284,129 +310,23 @@ PyType_Slot simulation_slots[] = {{Py_tp_traverse, reinterpret_cast<void*>(simul
                                   {Py_tp_clear, reinterpret_cast<void*>(simulation_clear)},
                                   {0, nullptr}};
 
-}  // namespace
+using SimulationClass = nb::class_<Simulation>;
 
-void bind_bd(nb::module_& m) {
-  nb::class_<bd::RunConfig>(m, "RunConfig", "A parsed BD run configuration (docs/bd-config.md).")
-      .def_prop_rw(
-          "steps", [](const bd::RunConfig& c) { return c.steps; },
-          [](bd::RunConfig& c, std::uint64_t s) { c.steps = s; }, "Total number of steps.")
-      .def_prop_rw(
-          "dt", [](const bd::RunConfig& c) { return c.integrator.dt; },
-          [](bd::RunConfig& c, double v) { c.integrator.dt = v; }, "Time step (time units).")
-      .def_prop_rw(
-          "kT", [](const bd::RunConfig& c) { return c.integrator.kT; },
-          [](bd::RunConfig& c, double v) { c.integrator.kT = v; }, "Thermal energy (energy units).")
-      .def_prop_rw(
-          "seed", [](const bd::RunConfig& c) { return c.integrator.seed; },
-          [](bd::RunConfig& c, std::uint64_t v) { c.integrator.seed = v; }, "Noise seed.")
-      .def_prop_rw(
-          "out_dir", [](const bd::RunConfig& c) { return c.output.dir.string(); },
-          [](bd::RunConfig& c, const std::string& v) { c.output.dir = v; }, "Output directory.")
-      .def_prop_ro(
-          "viscosity", [](const bd::RunConfig& c) { return c.viscosity; }, "Solvent viscosity eta.")
-      .def_prop_ro(
-          "box", [](const bd::RunConfig& c) { return box_tuple(c.geometry); },
-          "(Lx, Ly, Lz) of the periodic box, or None in free space.")
-      .def_prop_ro(
-          "mobility", [](const bd::RunConfig& c) { return std::string(bd::to_string(c.mobility.method)); },
-          "Mobility method ('none', 'direct', 'fmm', 'pse', 'auto').")
-      .def_prop_ro(
-          "text", [](const bd::RunConfig& c) { return c.text; }, "The TOML source.")
-      .def_prop_ro(
-          "source", [](const bd::RunConfig& c) { return c.source; },
-          "Where the TOML came from (a path or '<python string>'), as error messages name it.");
-
-  m.def(
-      "load_config",
-      [](const std::filesystem::path& p) { return reading_file("load_config", p, [&] { return bd::load_config(p); }); },
-      nb::arg("path"), "Reads and parses a TOML run config (strict: unknown or bad keys raise, naming the key).");
-  m.def("parse_config", &bd::parse_config, nb::arg("text"), nb::arg("source") = "<python string>",
-        "Parses TOML text; `source` names it in error messages.");
-  m.def(
-      "demo_config_text", [] { return std::string(bd::demo_config_text()); },
-      "TOML of the built-in demo (2000 sedimenting spheres with HI).");
-
-  m.def(
-      "run_bd",
-      [](nb::handle config, std::optional<std::uint64_t> steps, std::optional<std::string> out_dir, bool progress) {
-        const bd::RunConfig c = config_from(config);
-        const bd::RunOptions o = run_options(steps, out_dir, progress);
-        bd::RunSummary s;
-        {
-          nb::gil_scoped_release release;
-          s = bd::run_bd(c, o);
-        }
-        return summary_dict(s);
-      },
-      nb::arg("config"), nb::arg("steps") = nb::none(), nb::arg("out_dir") = nb::none(), nb::arg("progress") = false,
-      "Runs a whole BD config as `rpyfmm bd` does (trajectory, log, checkpoint in out_dir).\n"
-      "config: RunConfig, path to a TOML file, or TOML text. Returns the run summary as a dict.");
-  m.def(
-      "restart_bd",
-      [](const std::filesystem::path& checkpoint, std::optional<std::uint64_t> steps,
-         std::optional<std::string> out_dir, bool progress) {
-        const bd::RunOptions o = run_options(steps, out_dir, progress);
-        bd::RunSummary s;
-        {
-          nb::gil_scoped_release release;
-          s = reading_file("restart_bd", checkpoint, [&] { return bd::restart_bd(checkpoint, o); });
-        }
-        return summary_dict(s);
-      },
-      nb::arg("checkpoint"), nb::arg("steps") = nb::none(), nb::arg("out_dir") = nb::none(),
-      nb::arg("progress") = false, "Continues a run from its checkpoint, bitwise as if uninterrupted.");
-
-  nb::class_<bd::StepReport>(m, "StepReport", "What one BD step did.")
-      .def_ro("sqrt_iterations", &bd::StepReport::sqrt_iterations, "Iterations of the Brownian square root.")
-      .def_ro("preconditioner_blocks", &bd::StepReport::preconditioner_blocks,
-              "Blocks of the square root's block preconditioner (0: none).")
-      .def_ro("mobility_products", &bd::StepReport::mobility_products, "Mobility products M x of this step.")
-      .def_ro("shared_first_product", &bd::StepReport::shared_first_product,
-              "True when M F and the square root's first product M z came from one block pass.")
-      .def_ro("neighbour_rebuild", &bd::StepReport::neighbour_rebuild, "True when the neighbour list was rebuilt.")
-      .def_ro("potential_energy", &bd::StepReport::potential_energy, "Total potential energy (energy units).");
-
-  nb::class_<Simulation>(m, "Simulation", nb::type_slots(simulation_slots),
-                         "Steppable Brownian dynamics with hydrodynamic interactions (bd::Integrator):\n"
-                         "  dx = M F dt + sqrt(2 kT dt) M^{1/2} z.\n"
-                         "The GIL is released while stepping and taken only to call the Python force.")
-      .def(nb::init<ArrayArg, RadiusArg, double, double, std::uint64_t, const std::string&, double, BoxArg, double,
-                    const std::string&, double, double, OptArrayArg, nb::handle, nb::handle, std::uint64_t, std::size_t,
-                    const std::string&>(),
-           nb::arg("positions"), nb::arg("radius") = 1.0, nb::kw_only(), nb::arg("dt"), nb::arg("kT") = 1.0,
-           nb::arg("seed") = 1, nb::arg("mobility") = "auto", nb::arg("viscosity") = 1.0, nb::arg("box") = nb::none(),
-           nb::arg("tolerance") = 1e-3, nb::arg("sqrt_method") = "auto", nb::arg("sqrt_tol") = 1e-3,
-           nb::arg("max_displacement") = 1.0, nb::arg("external_force") = nb::none(), nb::arg("force") = nb::none(),
-           nb::arg("pair") = nb::none(), nb::arg("first_step") = 0, nb::arg("fmm_crossover") = 0,
-           nb::arg("sqrt_preconditioner") = "auto",
-           "positions: (N, 3) (length units, copied); radius: a number or (N,) radii; dt: time step; kT: thermal\n"
-           "energy; mobility: 'none', 'direct', 'fmm', 'pse', 'auto'; box: None, L or (Lx, Ly, Lz);\n"
-           "tolerance: of the fmm/pse product; sqrt_method/sqrt_tol: Brownian square root;\n"
-           "sqrt_preconditioner: 'auto' (block-preconditioned Krylov, direct/fmm), 'block' or 'none';\n"
-           "max_displacement: blow-up guard in radii per step; external_force: (3,) force on every particle;\n"
-           "force: callable f(positions, step, forces) adding into forces (N, 3) in place and/or returning an\n"
-           "array to add (energy/length; both arrays are copies it may keep);\n"
-           "pair: None, 'wca', 'lj36_18', 'soft' or a dict of PairPotential fields;\n"
-           "fmm_crossover: particles from which 'auto' uses fmm (0 = default_fmm_crossover(tolerance)).")
-      .def_static(
-          "from_config", [](nb::handle config, nb::handle force) { return new Simulation(config_from(config), force); },
-          nb::arg("config"), nb::arg("force") = nb::none(), nb::rv_policy::take_ownership,
-          "The particles, forces and mobility of a BD config (RunConfig, path or TOML text), plus an optional\n"
-          "Python force; stepping it reproduces `run_bd` bitwise when force is None.")
-      .def("step",
-           locked(
-               "Simulation.step",
-               +[](Simulation& s) {
-                 bd::StepReport r;
-                 {
-                   nb::gil_scoped_release release;
-                   r = s.integrator().step();
-                 }
-                 return r;
-               }),
-           "Advances one step; on a blow-up or a force error the state stays at the last good step and an\n"
-           "exception is raised (the Python force's own exception unchanged).")
+/// Simulation's steps.
+void add_simulation_steps(SimulationClass& cls) {
+  cls.def("step",
+          locked(
+              "Simulation.step",
+              +[](Simulation& s) {
+                bd::StepReport r;
+                {
+                  nb::gil_scoped_release release;
+                  r = s.integrator().step();
+                }
+                return r;
+              }),
+          "Advances one step; on a blow-up or a force error the state stays at the last good step and an\n"
+          "exception is raised (the Python force's own exception unchanged).")
       .def("run",
            locked(
                "Simulation.run",
@@ -414,11 +334,15 @@ void bind_bd(nb::module_& m) {
                  nb::gil_scoped_release release;
                  s.integrator().run(count);
                }),
-           nb::arg("count"), "Advances `count` steps.")
-      .def_prop_ro(
-          "positions",
-          [](nb::handle self) { return view_of(nb::cast<Simulation&>(self).integrator().positions(), self); },
-          "Live read-only view (N, 3) of the unwrapped positions (updated in place by step; copy to keep).")
+           nb::arg("count"), "Advances `count` steps.");
+}
+
+/// Simulation's state: positions, forces, counters.
+void add_simulation_state(SimulationClass& cls) {
+  cls.def_prop_ro(
+         "positions",
+         [](nb::handle self) { return view_of(nb::cast<Simulation&>(self).integrator().positions(), self); },
+         "Live read-only view (N, 3) of the unwrapped positions (updated in place by step; copy to keep).")
       .def_prop_ro(
           "last_forces",
           [](nb::handle self) { return view_of(nb::cast<Simulation&>(self).integrator().last_forces(), self); },
@@ -472,6 +396,135 @@ void bind_bd(nb::module_& m) {
                  return d;
                }),
            "Cumulative counters and seconds per part.");
+}
+
+void bind_run_config(nb::module_& m) {
+  nb::class_<bd::RunConfig>(m, "RunConfig", "A parsed BD run configuration (docs/bd-config.md).")
+      .def_prop_rw(
+          "steps", [](const bd::RunConfig& c) { return c.steps; },
+          [](bd::RunConfig& c, std::uint64_t s) { c.steps = s; }, "Total number of steps.")
+      .def_prop_rw(
+          "dt", [](const bd::RunConfig& c) { return c.integrator.dt; },
+          [](bd::RunConfig& c, double v) { c.integrator.dt = v; }, "Time step (time units).")
+      .def_prop_rw(
+          "kT", [](const bd::RunConfig& c) { return c.integrator.kT; },
+          [](bd::RunConfig& c, double v) { c.integrator.kT = v; }, "Thermal energy (energy units).")
+      .def_prop_rw(
+          "seed", [](const bd::RunConfig& c) { return c.integrator.seed; },
+          [](bd::RunConfig& c, std::uint64_t v) { c.integrator.seed = v; }, "Noise seed.")
+      .def_prop_rw(
+          "out_dir", [](const bd::RunConfig& c) { return c.output.dir.string(); },
+          [](bd::RunConfig& c, const std::string& v) { c.output.dir = v; }, "Output directory.")
+      .def_prop_ro(
+          "viscosity", [](const bd::RunConfig& c) { return c.viscosity; }, "Solvent viscosity eta.")
+      .def_prop_ro(
+          "box", [](const bd::RunConfig& c) { return box_tuple(c.geometry); },
+          "(Lx, Ly, Lz) of the periodic box, or None in free space.")
+      .def_prop_ro(
+          "mobility", [](const bd::RunConfig& c) { return std::string(bd::to_string(c.mobility.method)); },
+          "Mobility method ('none', 'direct', 'fmm', 'pse', 'auto').")
+      .def_prop_ro(
+          "text", [](const bd::RunConfig& c) { return c.text; }, "The TOML source.")
+      .def_prop_ro(
+          "source", [](const bd::RunConfig& c) { return c.source; },
+          "Where the TOML came from (a path or '<python string>'), as error messages name it.");
+  m.def(
+      "load_config",
+      [](const std::filesystem::path& p) { return reading_file("load_config", p, [&] { return bd::load_config(p); }); },
+      nb::arg("path"), "Reads and parses a TOML run config (strict: unknown or bad keys raise, naming the key).");
+  m.def("parse_config", &bd::parse_config, nb::arg("text"), nb::arg("source") = "<python string>",
+        "Parses TOML text; `source` names it in error messages.");
+  m.def(
+      "demo_config_text", [] { return std::string(bd::demo_config_text()); },
+      "TOML of the built-in demo (2000 sedimenting spheres with HI).");
+}
+
+/// Whole runs, as `rpyfmm bd`.
+void bind_runs(nb::module_& m) {
+  m.def(
+      "run_bd",
+      [](nb::handle config, std::optional<std::uint64_t> steps, std::optional<std::string> out_dir, bool progress) {
+        const bd::RunConfig c = config_from(config);
+        const bd::RunOptions o = run_options(steps, out_dir, progress);
+        bd::RunSummary s;
+        {
+          nb::gil_scoped_release release;
+          s = bd::run_bd(c, o);
+        }
+        return summary_dict(s);
+      },
+      nb::arg("config"), nb::arg("steps") = nb::none(), nb::arg("out_dir") = nb::none(), nb::arg("progress") = false,
+      "Runs a whole BD config as `rpyfmm bd` does (trajectory, log, checkpoint in out_dir).\n"
+      "config: RunConfig, path to a TOML file, or TOML text. Returns the run summary as a dict.");
+  m.def(
+      "restart_bd",
+      [](const std::filesystem::path& checkpoint, std::optional<std::uint64_t> steps,
+         std::optional<std::string> out_dir, bool progress) {
+        const bd::RunOptions o = run_options(steps, out_dir, progress);
+        bd::RunSummary s;
+        {
+          nb::gil_scoped_release release;
+          s = reading_file("restart_bd", checkpoint, [&] { return bd::restart_bd(checkpoint, o); });
+        }
+        return summary_dict(s);
+      },
+      nb::arg("checkpoint"), nb::arg("steps") = nb::none(), nb::arg("out_dir") = nb::none(),
+      nb::arg("progress") = false, "Continues a run from its checkpoint, bitwise as if uninterrupted.");
+}
+
+void bind_step_report(nb::module_& m) {
+  nb::class_<bd::StepReport>(m, "StepReport", "What one BD step did.")
+      .def_ro("sqrt_iterations", &bd::StepReport::sqrt_iterations, "Iterations of the Brownian square root.")
+      .def_ro("preconditioner_blocks", &bd::StepReport::preconditioner_blocks,
+              "Blocks of the square root's block preconditioner (0: none).")
+      .def_ro("mobility_products", &bd::StepReport::mobility_products, "Mobility products M x of this step.")
+      .def_ro("shared_first_product", &bd::StepReport::shared_first_product,
+              "True when M F and the square root's first product M z came from one block pass.")
+      .def_ro("neighbour_rebuild", &bd::StepReport::neighbour_rebuild, "True when the neighbour list was rebuilt.")
+      .def_ro("potential_energy", &bd::StepReport::potential_energy, "Total potential energy (energy units).");
+}
+
+void bind_simulation(nb::module_& m) {
+  SimulationClass cls(m, "Simulation", nb::type_slots(simulation_slots),
+                      "Steppable Brownian dynamics with hydrodynamic interactions (bd::Integrator):\n"
+                      "  dx = M F dt + sqrt(2 kT dt) M^{1/2} z.\n"
+                      "The GIL is released while stepping and taken only to call the Python force.");
+  cls.def(nb::init<ArrayArg, RadiusArg, double, double, std::uint64_t, const std::string&, double, BoxArg, double,
+                   const std::string&, std::optional<double>, double, OptArrayArg, nb::handle, nb::handle,
+                   std::uint64_t, std::size_t, const std::string&, std::optional<double>>(),
+          nb::arg("positions"), nb::arg("radius") = 1.0, nb::kw_only(), nb::arg("dt"), nb::arg("kT") = 1.0,
+          nb::arg("seed") = 1, nb::arg("mobility") = "auto", nb::arg("viscosity") = 1.0, nb::arg("box") = nb::none(),
+          nb::arg("tolerance") = 1e-3, nb::arg("sqrt_method") = "auto",
+          nb::arg("sqrt_tolerance").sig("0.001") = nb::none(), nb::arg("max_displacement") = 1.0,
+          nb::arg("external_force") = nb::none(), nb::arg("force") = nb::none(), nb::arg("pair") = nb::none(),
+          nb::arg("first_step") = 0, nb::arg("fmm_crossover") = 0, nb::arg("sqrt_preconditioner") = "auto",
+          nb::arg("sqrt_tol") = nb::none(),
+          "positions: (N, 3) (length units, copied); radius: a number or (N,) radii; dt: time step; kT: thermal\n"
+          "energy; mobility: 'none', 'direct', 'fmm', 'pse', 'auto'; box: None, L or (Lx, Ly, Lz);\n"
+          "tolerance: of the fmm/pse product; sqrt_method/sqrt_tolerance: Brownian square root (sqrt_tol:\n"
+          "the deprecated spelling of sqrt_tolerance);\n"
+          "sqrt_preconditioner: 'auto' (block-preconditioned Krylov, direct/fmm), 'block' or 'none';\n"
+          "max_displacement: blow-up guard in radii per step; external_force: (3,) force on every particle;\n"
+          "force: callable f(positions, step, forces) adding into forces (N, 3) in place and/or returning an\n"
+          "array to add (energy/length; both arrays are copies it may keep);\n"
+          "pair: None, 'wca', 'lj36_18', 'soft' or a dict of PairPotential fields;\n"
+          "fmm_crossover: particles from which 'auto' uses fmm (0 = default_fmm_crossover(tolerance)).")
+      .def_static(
+          "from_config", [](nb::handle config, nb::handle force) { return new Simulation(config_from(config), force); },
+          nb::arg("config"), nb::arg("force") = nb::none(), nb::rv_policy::take_ownership,
+          "The particles, forces and mobility of a BD config (RunConfig, path or TOML text), plus an optional\n"
+          "Python force; stepping it reproduces `run_bd` bitwise when force is None.");
+  add_simulation_steps(cls);
+  add_simulation_state(cls);
+}
+
+}  // namespace
+
+void bind_bd(nb::module_& m) {
+  bind_run_config(m);
+  bind_runs(m);
+  bind_step_report(m);
+  bind_simulation(m);
 }
 
 }  // namespace rpyfmm::python

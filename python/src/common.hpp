@@ -14,9 +14,11 @@
 
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
+#include <nanobind/stl/optional.h>
 #include <nanobind/stl/string.h>
 
 #include <cstddef>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -131,8 +133,18 @@ rpy::SqrtMethod sqrt_method_from(const std::string& name);
 /// "auto" | "automatic" | "none" | "block".
 rpy::SqrtPreconditioner sqrt_preconditioner_from(const std::string& name);
 
+/// Issues a DeprecationWarning (raised as an exception where warnings are errors).
+void warn_deprecated(const std::string& message);
+
+/// A keyword of the one name for accuracy (`tolerance`, `sqrt_tolerance`) that replaced an older
+/// spelling (`eps`, `tol`, `sqrt_tol`): the new keyword's value, else the old one's (with a
+/// DeprecationWarning naming both), else `fallback`. Both given with different values raise an
+/// InvalidArgumentError naming `where`.
+double renamed_keyword(std::optional<double> value, std::optional<double> old_value, double fallback,
+                       const std::string& where, const char* name, const char* old_name);
+
 /// The sqrt solver options shared by every binding that samples.
-rpy::SqrtOptions sqrt_options(const std::string& method, double tol, int max_iterations, bool reorthogonalize,
+rpy::SqrtOptions sqrt_options(const std::string& method, double tolerance, int max_iterations, bool reorthogonalize,
                               bool throw_if_not_converged, double lambda_min, double lambda_max,
                               int bound_estimate_iterations, const std::string& preconditioner = "none",
                               int preconditioner_block = 0);

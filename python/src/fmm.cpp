@@ -80,72 +80,106 @@ nb::dict tree_stats_dict(const fmm::TreeStats& s) {
   return d;
 }
 
-void bind_fmm(nb::module_& m) {
+namespace {
+
+void bind_output_constants(nb::module_& m) {
   m.attr("POTENTIAL") = static_cast<unsigned>(fmm::potential);
   m.attr("GRADIENT") = static_cast<unsigned>(fmm::gradient);
   m.attr("HESSIAN") = static_cast<unsigned>(fmm::hessian);
   m.attr("ALL_OUTPUTS") = fmm::all_outputs;
   m.attr("RESULT_COLUMNS") = nb::make_tuple("pot", "gx", "gy", "gz", "hxx", "hyy", "hzz", "hxy", "hxz", "hyz");
+}
 
+void set_points(fmm::LaplaceFmm& self, ArrayArg sources, OptArrayArg targets) {
+  const InArray s = as_input(sources, "LaplaceFmm.set_points", "sources");
+  require_points(s, "LaplaceFmm.set_points", "sources");
+  InArray t;
+  if (!targets.is_none()) {
+    t = as_input(targets, "LaplaceFmm.set_points", "targets");
+    require_points(t, "LaplaceFmm.set_points", "targets");
+  }
+  nb::gil_scoped_release release;
+  self.set_points(s.span(), t.span());
+}
+
+ArrayResult evaluate(const fmm::LaplaceFmm& self, ArrayArg charges, nb::handle outputs, OutArg out) {
+  const std::string where = "LaplaceFmm.evaluate";
+  const unsigned mask = outputs_from(outputs, where);
+  const InArray q = as_input(charges, where, "charges");
+  const std::size_t nd = densities(q, where);
+  require(self.num_sources() > 0, ErrorCode::invalid_input, where, "call set_points first");
+  OutArray r = make_output(out, result_shape(q, self.num_targets()), where, &q);
+  {
+    nb::gil_scoped_release release;
+    self.evaluate(q.span(), nd, mask, r.span());
+  }
+  return ArrayResult{r.object};
+}
+
+ArrayResult laplace_direct(ArrayArg sources, ArrayArg charges, OptArrayArg targets, nb::handle outputs, OutArg out) {
+  const std::string where = "laplace_direct";
+  const unsigned mask = outputs_from(outputs, where);
+  const InArray s = as_input(sources, where, "sources");
+  const std::size_t n = require_points(s, where, "sources");
+  InArray t;
+  std::size_t mt = n;
+  if (!targets.is_none()) {
+    t = as_input(targets, where, "targets");
+    mt = require_points(t, where, "targets");
+  }
+  const InArray q = as_input(charges, where, "charges");
+  const std::size_t nd = densities(q, where);
+  OutArray r = make_output(out, result_shape(q, mt), where, &q);
+  {
+    nb::gil_scoped_release release;
+    fmm::laplace_direct(s.span(), q.span(), nd, t.span(), mask, r.span());
+  }
+  return ArrayResult{r.object};
+}
+
+void bind_laplace_fmm(nb::module_& m) {
   nb::class_<fmm::LaplaceFmm>(m, "LaplaceFmm",
                               "Adaptive plane-wave FMM for phi(x) = sum_j q_j / |x - y_j| (no 1/(4 pi)).\n\n"
                               "Plan once (set_points), evaluate many charge vectors. Lengths in any unit;\n"
                               "potential in charge/length, gradient charge/length^2, Hessian charge/length^3.\n"
-                              "Relative l2 error of each output <= eps.")
+                              "Relative l2 error of each output <= tolerance.")
       .def(
           "__init__",
-          [](fmm::LaplaceFmm* self, double eps, int leaf_capacity, int order, double root_scale) {
+          [](fmm::LaplaceFmm* self, std::optional<double> tolerance, int leaf_capacity, int order, double root_scale,
+             std::optional<double> eps) {
             fmm::FmmOptions o;
-            o.eps = eps;
+            o.tolerance = renamed_keyword(tolerance, eps, o.tolerance, "LaplaceFmm", "tolerance", "eps");
             o.leaf_capacity = leaf_capacity;
             o.order = order;
             o.root_scale = root_scale;
             new (self) fmm::LaplaceFmm(o);
           },
-          nb::arg("eps") = 1e-6, nb::arg("leaf_capacity") = 0, nb::arg("order") = 0, nb::arg("root_scale") = 1.0,
-          "eps: requested relative l2 accuracy in [1e-15, 1e-1]; leaf_capacity: points per leaf (0 = automatic);\n"
-          "order: expansion order (0 = from eps); root_scale: root box side over the points' bounding cube,\n"
-          "in [1, 8] (1 = the bounding cube; above 1 anchored at the low corner, see fit_leaf_grid).")
-      .def("set_points",
-           locked(
-               "LaplaceFmm.set_points",
-               +[](fmm::LaplaceFmm& self, ArrayArg sources, OptArrayArg targets) {
-                 const InArray s = as_input(sources, "LaplaceFmm.set_points", "sources");
-                 require_points(s, "LaplaceFmm.set_points", "sources");
-                 InArray t;
-                 if (!targets.is_none()) {
-                   t = as_input(targets, "LaplaceFmm.set_points", "targets");
-                   require_points(t, "LaplaceFmm.set_points", "targets");
-                 }
-                 nb::gil_scoped_release release;
-                 self.set_points(s.span(), t.span());
-               }),
-           nb::arg("sources"), nb::arg("targets") = nb::none(),
+          nb::arg("tolerance").sig("1e-06") = nb::none(), nb::arg("leaf_capacity") = 0, nb::arg("order") = 0,
+          nb::arg("root_scale") = 1.0, nb::kw_only(), nb::arg("eps") = nb::none(),
+          "tolerance: requested relative l2 accuracy in [1e-15, 1e-1]; leaf_capacity: points per leaf\n"
+          "(0 = automatic); order: expansion order (0 = from tolerance); root_scale: root box side over the\n"
+          "points' bounding cube, in [1, 8] (1 = the bounding cube; above 1 anchored at the low corner, see\n"
+          "fit_leaf_grid). eps: deprecated spelling of tolerance (DeprecationWarning).")
+      .def("set_points", locked("LaplaceFmm.set_points", &set_points), nb::arg("sources"),
+           nb::arg("targets") = nb::none(),
            "Builds the tree and lists. sources: (N, 3) or (3N,) positions; targets: (M, 3) or None to evaluate\n"
            "at the sources (self pair excluded). The points are copied into the plan.")
-      .def("evaluate",
-           locked(
-               "LaplaceFmm.evaluate",
-               +[](const fmm::LaplaceFmm& self, ArrayArg charges, nb::handle outputs, OutArg out) {
-                 const std::string where = "LaplaceFmm.evaluate";
-                 const unsigned mask = outputs_from(outputs, where);
-                 const InArray q = as_input(charges, where, "charges");
-                 const std::size_t nd = densities(q, where);
-                 require(self.num_sources() > 0, ErrorCode::invalid_input, where, "call set_points first");
-                 OutArray r = make_output(out, result_shape(q, self.num_targets()), where, &q);
-                 {
-                   nb::gil_scoped_release release;
-                   self.evaluate(q.span(), nd, mask, r.span());
-                 }
-                 return ArrayResult{r.object};
-               }),
-           nb::arg("charges"), nb::arg("outputs") = "all", nb::arg("out") = nb::none(),
+      .def("evaluate", locked("LaplaceFmm.evaluate", &evaluate), nb::arg("charges"), nb::arg("outputs") = "all",
+           nb::arg("out") = nb::none(),
            "Potential/gradient/Hessian at the targets. charges: (N,) or (nd, N); outputs: 'all', a name\n"
            "('potential', 'gradient', 'hessian'), 'potential|gradient', a list of names or an int mask.\n"
            "Returns (M, 10) or (nd, M, 10) float64 [pot, gx, gy, gz, hxx, hyy, hzz, hxy, hxz, hyz]\n"
            "(unrequested columns are 0); `out` is written in place and returned.")
       .def_prop_ro(
-          "eps", [](const fmm::LaplaceFmm& self) { return self.options().eps; }, "Requested relative l2 accuracy.")
+          "tolerance", [](const fmm::LaplaceFmm& self) { return self.options().tolerance; },
+          "Requested relative l2 accuracy.")
+      .def_prop_ro(
+          "eps",
+          [](const fmm::LaplaceFmm& self) {
+            warn_deprecated("LaplaceFmm.eps is deprecated; use LaplaceFmm.tolerance");
+            return self.options().tolerance;
+          },
+          "Deprecated spelling of tolerance (DeprecationWarning).")
       .def_prop_ro("num_sources",
                    locked_read(
                        "LaplaceFmm.num_sources", +[](const fmm::LaplaceFmm& self) { return self.num_sources(); }),
@@ -162,36 +196,23 @@ void bind_fmm(nb::module_& m) {
            locked_read(
                "LaplaceFmm.last_timings", +[](const fmm::LaplaceFmm& self) { return self.last_timings(); }),
            "Stage times in seconds of set_points and of the last evaluate.");
+}
+
+void bind_laplace_functions(nb::module_& m) {
+  m.def("laplace_direct", &laplace_direct, nb::arg("sources"), nb::arg("charges"), nb::arg("targets") = nb::none(),
+        nb::arg("outputs") = "all", nb::arg("out") = nb::none(),
+        "Exact O(N M) sums of 1/r (self pair skipped); same arguments and result layout as LaplaceFmm.evaluate.");
 
   m.def(
-      "laplace_direct",
-      [](ArrayArg sources, ArrayArg charges, OptArrayArg targets, nb::handle outputs, OutArg out) {
-        const std::string where = "laplace_direct";
-        const unsigned mask = outputs_from(outputs, where);
-        const InArray s = as_input(sources, where, "sources");
-        const std::size_t n = require_points(s, where, "sources");
-        InArray t;
-        std::size_t mt = n;
-        if (!targets.is_none()) {
-          t = as_input(targets, where, "targets");
-          mt = require_points(t, where, "targets");
-        }
-        const InArray q = as_input(charges, where, "charges");
-        const std::size_t nd = densities(q, where);
-        OutArray r = make_output(out, result_shape(q, mt), where, &q);
-        {
-          nb::gil_scoped_release release;
-          fmm::laplace_direct(s.span(), q.span(), nd, t.span(), mask, r.span());
-        }
-        return ArrayResult{r.object};
+      "fmm_default_leaf_capacity",
+      [](std::optional<double> tolerance, std::optional<double> eps) {
+        const double t = renamed_keyword(tolerance, eps, fmm::FmmOptions{}.tolerance, "fmm_default_leaf_capacity",
+                                         "tolerance", "eps");
+        return fmm::fmm_default_leaf_capacity(t);
       },
-      nb::arg("sources"), nb::arg("charges"), nb::arg("targets") = nb::none(), nb::arg("outputs") = "all",
-      nb::arg("out") = nb::none(),
-      "Exact O(N M) sums of 1/r (self pair skipped); same arguments and result layout as LaplaceFmm.evaluate.");
-
-  m.def("fmm_default_leaf_capacity", &fmm::fmm_default_leaf_capacity, nb::arg("eps"),
-        "Capacity (points per leaf before a split) the automatic leaves start from at this eps, chosen\n"
-        "per plane-wave table and P2P kernel by benchmark.");
+      nb::arg("tolerance").sig("1e-06") = nb::none(), nb::kw_only(), nb::arg("eps") = nb::none(),
+      "Capacity (points per leaf before a split) the automatic leaves start from at this tolerance,\n"
+      "chosen per plane-wave table and P2P kernel by benchmark. eps: deprecated spelling of tolerance.");
 
   m.def(
       "fit_leaf_grid",
@@ -207,6 +228,14 @@ void bind_fmm(nb::module_& m) {
       "(leaf_capacity, root_scale) for LaplaceFmm whose leaves hold about `occupancy` of these points\n"
       "(the root box enlarged so that whole leaves span the cloud), or None where the points fill less\n"
       "than min_fill of their bounding cube or fewer than two leaves per side would result.");
+}
+
+}  // namespace
+
+void bind_fmm(nb::module_& m) {
+  bind_output_constants(m);
+  bind_laplace_fmm(m);
+  bind_laplace_functions(m);
 }
 
 }  // namespace rpyfmm::python

@@ -81,22 +81,27 @@ ArrayResult apply_block(const MobilityOperator& op, ArrayArg forces, OutArg out)
   return ArrayResult{u.object};
 }
 
+/// apply_sqrt (Block = false) and apply_sqrt_block (Block = true): `tol` is the deprecated spelling
+/// of `tolerance`.
+template <bool Block>
 ArrayAndReport<rpy::SqrtReport> apply_sqrt(const MobilityOperator& op, ArrayArg z, OutArg out,
-                                           const std::string& method, double tol, int max_iterations,
-                                           bool reorthogonalize, bool throw_if_not_converged, double lambda_min,
-                                           double lambda_max, int bound_estimate_iterations,
-                                           const std::string& preconditioner, int preconditioner_block, bool block) {
-  const std::string where = block ? "apply_sqrt_block" : "apply_sqrt";
+                                           const std::string& method, std::optional<double> tolerance,
+                                           int max_iterations, bool reorthogonalize, bool throw_if_not_converged,
+                                           double lambda_min, double lambda_max, int bound_estimate_iterations,
+                                           const std::string& preconditioner, int preconditioner_block,
+                                           std::optional<double> tol) {
+  const std::string where = Block ? "apply_sqrt_block" : "apply_sqrt";
+  const double t = renamed_keyword(tolerance, tol, rpy::SqrtOptions{}.tolerance, where, "tolerance", "tol");
   const rpy::SqrtOptions o =
-      sqrt_options(method, tol, max_iterations, reorthogonalize, throw_if_not_converged, lambda_min, lambda_max,
+      sqrt_options(method, t, max_iterations, reorthogonalize, throw_if_not_converged, lambda_min, lambda_max,
                    bound_estimate_iterations, preconditioner, preconditioner_block);
   const InArray zz = as_input(z, where, "z");
-  const std::size_t nrhs = block ? block_count(zz, where, "z") : (require_points(zz, where, "z"), 1);
+  const std::size_t nrhs = Block ? block_count(zz, where, "z") : (require_points(zz, where, "z"), 1);
   OutArray w = make_output(out, zz.shape, where, &zz);
   rpy::SqrtReport report;
   {
     nb::gil_scoped_release release;
-    report = block ? op.apply_sqrt_block(zz.span(), w.span(), nrhs, o) : op.apply_sqrt(zz.span(), w.span(), o);
+    report = Block ? op.apply_sqrt_block(zz.span(), w.span(), nrhs, o) : op.apply_sqrt(zz.span(), w.span(), o);
   }
   return array_and_report(w.object, report);
 }
@@ -130,22 +135,19 @@ const char* kSqrtDoc =
     "w = M^{1/2} z for z of shape (N, 3) or (3N,). Returns (w, SqrtReport).\n\n"
     "method: 'auto' (the operator's preferred: PSE split sampler, else Lanczos), 'lanczos', 'chebyshev',\n"
     "'cholesky' (L z with L L^T = M), 'eigen' (dense principal root), 'split' (PSE only).\n"
-    "tol: relative tolerance in (0, 1); max_iterations: 0 = automatic; lambda_min/lambda_max: Chebyshev\n"
-    "bounds (both 0 = estimated). w has units of sqrt(mobility) times z's units.\n"
+    "tolerance: relative tolerance in (0, 1) (tol: its deprecated spelling); max_iterations: 0 = automatic;\n"
+    "lambda_min/lambda_max: Chebyshev bounds (both 0 = estimated). w has units of sqrt(mobility) times z's\n"
+    "units.\n"
     "preconditioner: 'none' (w = M^{1/2} z), 'block' (Lanczos and Chebyshev: w = B z with B B^T = M, the\n"
     "same covariance in fewer products; spatial blocks of at most preconditioner_block particles,\n"
     "0 = N/64 in [16, 32]; given Chebyshev bounds must then bound G M G^T) or 'auto' (block for Lanczos\n"
     "and for Chebyshev with estimated bounds, else none).";
 
-}  // namespace
+using OperatorClass = nb::class_<MobilityOperator>;
 
-void bind_mobility(nb::module_& m) {
-  nb::class_<MobilityOperator>(
-      m, "MobilityOperator",
-      "The one RPY mobility interface: U = M F for N spheres (MobilityOperator in C++).\n\n"
-      "Positions, forces and velocities are (N, 3) or (3N,) arrays (particle-major). Units are the caller's:\n"
-      "with viscosity eta and radius a, the self mobility is 1/(6 pi eta a).")
-      .def_prop_ro("name", &MobilityOperator::name, "Solver name: 'direct', 'fmm', 'pse', 'none'.")
+/// MobilityOperator's state: name, geometry, particles, repr.
+void add_operator_state(OperatorClass& cls) {
+  cls.def_prop_ro("name", &MobilityOperator::name, "Solver name: 'direct', 'fmm', 'pse', 'none'.")
       .def_prop_ro("viscosity", &MobilityOperator::viscosity, "Solvent viscosity eta.")
       .def_prop_ro(
           "box", [](const MobilityOperator& op) { return box_tuple(op.geometry()); },
@@ -180,72 +182,73 @@ void bind_mobility(nb::module_& m) {
                          return adopt_vector(std::vector<double>(r.begin(), r.end()), {r.size()});
                        }),
                    "Copy of the radii (N,).")
-      .def("set_positions", locked("MobilityOperator.set_positions", &set_positions), nb::arg("positions"),
-           nb::arg("radius"),
-           "Sets positions ((N, 3) or (3N,), length units) and the radius: one number for all particles or an\n"
-           "array of N radii. Builds the solver's plan once; apply may then be called many times.")
-      .def("apply", locked("MobilityOperator.apply", &apply), nb::arg("forces"), nb::arg("out") = nb::none(),
-           "U = M F. forces: (N, 3) or (3N,); returns velocities in the same shape (float64);\n"
-           "`out` (writable float64, C-contiguous) is written in place and returned.")
-      .def("apply_block", locked("MobilityOperator.apply_block", &apply_block), nb::arg("forces"),
-           nb::arg("out") = nb::none(), "U_k = M F_k for forces of shape (nrhs, N, 3) or (nrhs, 3N) in one pass.")
-      .def("apply_sqrt",
-           locked(
-               "MobilityOperator.apply_sqrt",
-               +[](const MobilityOperator& op, ArrayArg z, OutArg out, const std::string& method, double tol,
-                   int max_iterations, bool reorth, bool throw_nc, double lmin, double lmax, int bound_it,
-                   const std::string& preconditioner, int preconditioner_block) {
-                 return apply_sqrt(op, z, out, method, tol, max_iterations, reorth, throw_nc, lmin, lmax, bound_it,
-                                   preconditioner, preconditioner_block, false);
-               }),
-           nb::arg("z"), nb::arg("out") = nb::none(), nb::kw_only(), nb::arg("method") = "auto", nb::arg("tol") = 1e-3,
-           nb::arg("max_iterations") = 0, nb::arg("reorthogonalize") = true, nb::arg("throw_if_not_converged") = true,
-           nb::arg("lambda_min") = 0.0, nb::arg("lambda_max") = 0.0, nb::arg("bound_estimate_iterations") = 30,
-           nb::arg("preconditioner") = "none", nb::arg("preconditioner_block") = 0, kSqrtDoc)
-      .def("apply_sqrt_block",
-           locked(
-               "MobilityOperator.apply_sqrt_block",
-               +[](const MobilityOperator& op, ArrayArg z, OutArg out, const std::string& method, double tol,
-                   int max_iterations, bool reorth, bool throw_nc, double lmin, double lmax, int bound_it,
-                   const std::string& preconditioner, int preconditioner_block) {
-                 return apply_sqrt(op, z, out, method, tol, max_iterations, reorth, throw_nc, lmin, lmax, bound_it,
-                                   preconditioner, preconditioner_block, true);
-               }),
-           nb::arg("z"), nb::arg("out") = nb::none(), nb::kw_only(), nb::arg("method") = "auto", nb::arg("tol") = 1e-3,
-           nb::arg("max_iterations") = 0, nb::arg("reorthogonalize") = true, nb::arg("throw_if_not_converged") = true,
-           nb::arg("lambda_min") = 0.0, nb::arg("lambda_max") = 0.0, nb::arg("bound_estimate_iterations") = 30,
-           nb::arg("preconditioner") = "none", nb::arg("preconditioner_block") = 0,
-           "Block apply_sqrt: z of shape (nrhs, N, 3) or (nrhs, 3N), one operator product per iteration for all.")
-      .def("divergence",
-           locked(
-               "MobilityOperator.divergence",
-               +[](const MobilityOperator& op) {
-                 std::vector<double> d(3 * op.size());
-                 op.divergence(d);
-                 return adopt_vector(std::move(d), {op.size(), 3});
-               }),
-           "Divergence of M with respect to the positions, (N, 3); zero for RPY.")
-      .def("assemble_dense",
-           locked(
-               "MobilityOperator.assemble_dense",
-               +[](const MobilityOperator& op, std::size_t max_bytes) {
-                 std::vector<double> dense;
-                 {
-                   nb::gil_scoped_release release;
-                   dense = op.assemble_dense(max_bytes);
-                 }
-                 const std::size_t n = 3 * op.size();
-                 return adopt_vector(std::move(dense), {n, n});
-               }),
-           nb::arg("max_bytes") = std::size_t{1} << 31,
-           "Dense (3N, 3N) matrix from products with unit vectors (small N only).")
       .def("__repr__", locked_read(
                            "MobilityOperator.__repr__", +[](const MobilityOperator& op) {
                              return "<rpyfmm." + op.name() + " mobility, N = " + std::to_string(op.size()) +
                                     ", viscosity = " + std::to_string(op.viscosity()) +
                                     (op.geometry().is_periodic() ? ", periodic>" : ">");
                            }));
+}
 
+/// apply_sqrt or apply_sqrt_block with their keywords (the same for both).
+template <bool Block>
+void add_apply_sqrt(OperatorClass& cls, const char* name, const char* where, const char* doc) {
+  cls.def(name, locked(where, &apply_sqrt<Block>), nb::arg("z"), nb::arg("out") = nb::none(), nb::kw_only(),
+          nb::arg("method") = "auto", nb::arg("tolerance").sig("0.001") = nb::none(), nb::arg("max_iterations") = 0,
+          nb::arg("reorthogonalize") = true, nb::arg("throw_if_not_converged") = true, nb::arg("lambda_min") = 0.0,
+          nb::arg("lambda_max") = 0.0, nb::arg("bound_estimate_iterations") = 30, nb::arg("preconditioner") = "none",
+          nb::arg("preconditioner_block") = 0, nb::arg("tol") = nb::none(), doc);
+}
+
+ArrayResult divergence(const MobilityOperator& op) {
+  std::vector<double> d(3 * op.size());
+  op.divergence(d);
+  return adopt_vector(std::move(d), {op.size(), 3});
+}
+
+ArrayResult assemble_dense(const MobilityOperator& op, std::size_t max_bytes) {
+  std::vector<double> dense;
+  {
+    nb::gil_scoped_release release;
+    dense = op.assemble_dense(max_bytes);
+  }
+  const std::size_t n = 3 * op.size();
+  return adopt_vector(std::move(dense), {n, n});
+}
+
+/// MobilityOperator's products: set_positions, M F, M^{1/2} z, divergence, dense matrix.
+void add_operator_products(OperatorClass& cls) {
+  cls.def("set_positions", locked("MobilityOperator.set_positions", &set_positions), nb::arg("positions"),
+          nb::arg("radius"),
+          "Sets positions ((N, 3) or (3N,), length units) and the radius: one number for all particles or an\n"
+          "array of N radii. Builds the solver's plan once; apply may then be called many times.")
+      .def("apply", locked("MobilityOperator.apply", &apply), nb::arg("forces"), nb::arg("out") = nb::none(),
+           "U = M F. forces: (N, 3) or (3N,); returns velocities in the same shape (float64);\n"
+           "`out` (writable float64, C-contiguous) is written in place and returned.")
+      .def("apply_block", locked("MobilityOperator.apply_block", &apply_block), nb::arg("forces"),
+           nb::arg("out") = nb::none(), "U_k = M F_k for forces of shape (nrhs, N, 3) or (nrhs, 3N) in one pass.");
+  add_apply_sqrt<false>(cls, "apply_sqrt", "MobilityOperator.apply_sqrt", kSqrtDoc);
+  add_apply_sqrt<true>(
+      cls, "apply_sqrt_block", "MobilityOperator.apply_sqrt_block",
+      "Block apply_sqrt: z of shape (nrhs, N, 3) or (nrhs, 3N), one operator product per iteration for all.");
+  cls.def("divergence", locked("MobilityOperator.divergence", &divergence),
+          "Divergence of M with respect to the positions, (N, 3); zero for RPY.")
+      .def("assemble_dense", locked("MobilityOperator.assemble_dense", &assemble_dense),
+           nb::arg("max_bytes") = std::size_t{1} << 31,
+           "Dense (3N, 3N) matrix from products with unit vectors (small N only).");
+}
+
+void bind_mobility_operator(nb::module_& m) {
+  OperatorClass cls(
+      m, "MobilityOperator",
+      "The one RPY mobility interface: U = M F for N spheres (MobilityOperator in C++).\n\n"
+      "Positions, forces and velocities are (N, 3) or (3N,) arrays (particle-major). Units are the caller's:\n"
+      "with viscosity eta and radius a, the self mobility is 1/(6 pi eta a).");
+  add_operator_state(cls);
+  add_operator_products(cls);
+}
+
+void bind_direct_rpy(nb::module_& m) {
   nb::class_<rpy::DirectRpy, MobilityOperator>(m, "DirectRpy",
                                                "Exact O(N^2) RPY mobility (all overlap regimes); free space only.")
       .def(
@@ -255,7 +258,9 @@ void bind_mobility(nb::module_& m) {
           },
           nb::arg("viscosity") = 1.0, nb::arg("box") = nb::none(),
           "viscosity: eta > 0; box must be None (a periodic box raises NotSupportedError).");
+}
 
+void bind_fmm_rpy(nb::module_& m) {
   nb::class_<rpy::FmmRpy, MobilityOperator>(
       m, "FmmRpy", "Free-space RPY mobility in O(N): one multi-density Laplace FMM pass plus the exact near field.")
       .def(
@@ -272,10 +277,18 @@ void bind_mobility(nb::module_& m) {
       .def_prop_ro(
           "tolerance", [](const rpy::FmmRpy& op) { return op.options().tolerance; },
           "Requested relative l2 error of U.")
+      .def_prop_ro("laplace_tolerance",
+                   locked_read(
+                       "FmmRpy.laplace_tolerance", +[](const rpy::FmmRpy& op) { return op.laplace_eps(); }),
+                   "Tolerance handed to the Laplace FMM.")
       .def_prop_ro("laplace_eps",
                    locked_read(
-                       "FmmRpy.laplace_eps", +[](const rpy::FmmRpy& op) { return op.laplace_eps(); }),
-                   "Tolerance handed to the Laplace FMM.")
+                       "FmmRpy.laplace_eps",
+                       +[](const rpy::FmmRpy& op) {
+                         warn_deprecated("FmmRpy.laplace_eps is deprecated; use FmmRpy.laplace_tolerance");
+                         return op.laplace_eps();
+                       }),
+                   "Deprecated spelling of laplace_tolerance (DeprecationWarning).")
       .def("last_timings",
            locked_read(
                "FmmRpy.last_timings", +[](const rpy::FmmRpy& op) { return op.last_timings(); }),
@@ -287,32 +300,31 @@ void bind_mobility(nb::module_& m) {
                  return op.laplace_plan() ? tree_stats_dict(op.laplace_plan()->stats()) : nb::dict();
                }),
            "The Laplace FMM tree's statistics (as LaplaceFmm.stats()); empty before set_positions.");
+}
 
-  nb::class_<rpy::pse::PseRpy, MobilityOperator>(
-      m, "PseRpy",
-      "Periodic RPY mobility by Positively Split Ewald (Fiore et al. 2017), equal radii.\n\n"
-      "apply_sqrt with method 'auto'/'split' uses the split sampler: z is z1, the wave-space noise is\n"
-      "seeded by a hash of z, so w is a deterministic function of z with covariance M.")
-      .def(
-          "__init__",
-          [](rpy::pse::PseRpy* self, BoxArg box, double viscosity, double tolerance, double xi, double r_cut,
-             double window_eta, int fft_threads, std::size_t max_memory_bytes, bool fft_measure,
-             const std::string& wave_precision, bool real_space_cache) {
-            rpy::pse::PseOptions o;
-            o.tolerance = tolerance;
-            o.xi = xi;
-            o.r_cut = r_cut;
-            o.window_eta = window_eta;
-            require_thread_count(fft_threads, "PseRpy fft_threads", true);
-            o.fft_threads = fft_threads;
-            o.max_memory_bytes = max_memory_bytes;
-            o.fft_measure = fft_measure;
-            o.wave_precision = rpy::pse::wave_precision_from_name(wave_precision, "PseRpy");
-            o.real_space_cache = real_space_cache;
-            new (self) rpy::pse::PseRpy(geometry_from(box, "PseRpy"), viscosity, o);
-          },
-          nb::arg("box"), nb::arg("viscosity") = 1.0, nb::arg("tolerance") = 1e-3, nb::arg("xi") = 0.0,
-          nb::arg("r_cut") = 0.0, nb::arg("window_eta") = 0.0, nb::arg("fft_threads") = 0,
+void init_pse_rpy(rpy::pse::PseRpy* self, BoxArg box, double viscosity, double tolerance, double xi, double r_cut,
+                  double window_eta, int fft_threads, std::size_t max_memory_bytes, bool fft_measure,
+                  const std::string& wave_precision, bool real_space_cache) {
+  rpy::pse::PseOptions o;
+  o.tolerance = tolerance;
+  o.xi = xi;
+  o.r_cut = r_cut;
+  o.window_eta = window_eta;
+  require_thread_count(fft_threads, "PseRpy fft_threads", true);
+  o.fft_threads = fft_threads;
+  o.max_memory_bytes = max_memory_bytes;
+  o.fft_measure = fft_measure;
+  o.wave_precision = rpy::pse::wave_precision_from_name(wave_precision, "PseRpy");
+  o.real_space_cache = real_space_cache;
+  new (self) rpy::pse::PseRpy(geometry_from(box, "PseRpy"), viscosity, o);
+}
+
+using PseClass = nb::class_<rpy::pse::PseRpy, MobilityOperator>;
+
+/// PseRpy's construction, parameters and stage times.
+void add_pse_state(PseClass& cls) {
+  cls.def("__init__", &init_pse_rpy, nb::arg("box"), nb::arg("viscosity") = 1.0, nb::arg("tolerance") = 1e-3,
+          nb::arg("xi") = 0.0, nb::arg("r_cut") = 0.0, nb::arg("window_eta") = 0.0, nb::arg("fft_threads") = 0,
           nb::arg("max_memory_bytes") = std::size_t{16} << 30, nb::arg("fft_measure") = false,
           nb::arg("wave_precision") = "auto", nb::arg("real_space_cache") = true,
           "box: L (cube) or (Lx, Ly, Lz), length units; tolerance in [1e-8, 0.1) relative to 1/(6 pi eta a);\n"
@@ -332,51 +344,6 @@ void bind_mobility(nb::module_& m) {
           locked_read(
               "PseRpy.parameters", +[](const rpy::pse::PseRpy& op) { return pse_parameters(op.parameters()); }),
           "The choices made for the current radius, box and N (xi, r_cut, grid, support, ...).")
-      .def("apply_real",
-           locked(
-               "PseRpy.apply_real",
-               +[](const rpy::pse::PseRpy& op, ArrayArg forces, OutArg out) {
-                 return map_points("apply_real", forces, out, [&](auto f, auto u) { op.apply_real(f, u); });
-               }),
-           nb::arg("forces"), nb::arg("out") = nb::none(), "U = M_r F (real-space part).")
-      .def("apply_wave",
-           locked(
-               "PseRpy.apply_wave",
-               +[](const rpy::pse::PseRpy& op, ArrayArg forces, OutArg out) {
-                 return map_points("apply_wave", forces, out, [&](auto f, auto u) { op.apply_wave(f, u); });
-               }),
-           nb::arg("forces"), nb::arg("out") = nb::none(), "U = M_w F (wave-space part).")
-      .def("sample",
-           locked(
-               "PseRpy.sample",
-               +[](const rpy::pse::PseRpy& op, std::uint64_t seed, std::uint64_t step, OutArg out) {
-                 OutArray w = make_output(out, {op.size(), 3}, "sample");
-                 rpy::SqrtReport report;
-                 {
-                   nb::gil_scoped_release release;
-                   report = op.sample(seed, step, w.span());
-                 }
-                 return array_and_report(w.object, report);
-               }),
-           nb::arg("seed"), nb::arg("step") = 0, nb::arg("out") = nb::none(),
-           "w = M^{1/2} z by the split sampler with noise keyed by (seed, step). Returns (w (N, 3), SqrtReport).")
-      .def("apply_with_noise",
-           locked(
-               "PseRpy.apply_with_noise",
-               +[](const rpy::pse::PseRpy& op, ArrayArg forces, double noise_scale, std::uint64_t seed,
-                   std::uint64_t step, OutArg out) {
-                 const InArray f = as_input(forces, "apply_with_noise", "forces");
-                 require_points(f, "apply_with_noise", "forces");
-                 OutArray u = make_output(out, f.shape, "apply_with_noise", &f);
-                 rpy::SqrtReport report;
-                 {
-                   nb::gil_scoped_release release;
-                   report = op.apply_with_noise(f.span(), noise_scale, seed, step, u.span());
-                 }
-                 return array_and_report(u.object, report);
-               }),
-           nb::arg("forces"), nb::arg("noise_scale"), nb::arg("seed"), nb::arg("step") = 0, nb::arg("out") = nb::none(),
-           "U = M F + noise_scale M^{1/2} z in one fused pass (BD: noise_scale = sqrt(2 kT / dt)).")
       .def("stage_times",
            locked_read(
                "PseRpy.stage_times", +[](const rpy::pse::PseRpy& op) { return op.stage_times(); }),
@@ -385,7 +352,66 @@ void bind_mobility(nb::module_& m) {
            locked(
                "PseRpy.reset_stage_times", +[](rpy::pse::PseRpy& op) { op.reset_stage_times(); }),
            "Sets the accumulated stage times to zero.");
+}
 
+ArrayAndReport<rpy::SqrtReport> pse_sample(const rpy::pse::PseRpy& op, std::uint64_t seed, std::uint64_t step,
+                                           OutArg out) {
+  OutArray w = make_output(out, {op.size(), 3}, "sample");
+  rpy::SqrtReport report;
+  {
+    nb::gil_scoped_release release;
+    report = op.sample(seed, step, w.span());
+  }
+  return array_and_report(w.object, report);
+}
+
+ArrayAndReport<rpy::SqrtReport> pse_apply_with_noise(const rpy::pse::PseRpy& op, ArrayArg forces, double noise_scale,
+                                                     std::uint64_t seed, std::uint64_t step, OutArg out) {
+  const InArray f = as_input(forces, "apply_with_noise", "forces");
+  require_points(f, "apply_with_noise", "forces");
+  OutArray u = make_output(out, f.shape, "apply_with_noise", &f);
+  rpy::SqrtReport report;
+  {
+    nb::gil_scoped_release release;
+    report = op.apply_with_noise(f.span(), noise_scale, seed, step, u.span());
+  }
+  return array_and_report(u.object, report);
+}
+
+/// PseRpy's own products: the real- and wave-space parts, the split sampler, the fused BD pass.
+void add_pse_products(PseClass& cls) {
+  cls.def("apply_real",
+          locked(
+              "PseRpy.apply_real",
+              +[](const rpy::pse::PseRpy& op, ArrayArg forces, OutArg out) {
+                return map_points("apply_real", forces, out, [&](auto f, auto u) { op.apply_real(f, u); });
+              }),
+          nb::arg("forces"), nb::arg("out") = nb::none(), "U = M_r F (real-space part).")
+      .def("apply_wave",
+           locked(
+               "PseRpy.apply_wave",
+               +[](const rpy::pse::PseRpy& op, ArrayArg forces, OutArg out) {
+                 return map_points("apply_wave", forces, out, [&](auto f, auto u) { op.apply_wave(f, u); });
+               }),
+           nb::arg("forces"), nb::arg("out") = nb::none(), "U = M_w F (wave-space part).")
+      .def("sample", locked("PseRpy.sample", &pse_sample), nb::arg("seed"), nb::arg("step") = 0,
+           nb::arg("out") = nb::none(),
+           "w = M^{1/2} z by the split sampler with noise keyed by (seed, step). Returns (w (N, 3), SqrtReport).")
+      .def("apply_with_noise", locked("PseRpy.apply_with_noise", &pse_apply_with_noise), nb::arg("forces"),
+           nb::arg("noise_scale"), nb::arg("seed"), nb::arg("step") = 0, nb::arg("out") = nb::none(),
+           "U = M F + noise_scale M^{1/2} z in one fused pass (BD: noise_scale = sqrt(2 kT / dt)).");
+}
+
+void bind_pse_rpy(nb::module_& m) {
+  PseClass cls(m, "PseRpy",
+               "Periodic RPY mobility by Positively Split Ewald (Fiore et al. 2017), equal radii.\n\n"
+               "apply_sqrt with method 'auto'/'split' uses the split sampler: z is z1, the wave-space noise is\n"
+               "seeded by a hash of z, so w is a deterministic function of z with covariance M.");
+  add_pse_state(cls);
+  add_pse_products(cls);
+}
+
+void bind_free_draining(nb::module_& m) {
   nb::class_<bd::FreeDrainingMobility, MobilityOperator>(
       m, "FreeDraining", "No hydrodynamic interactions: M = diag(1 / (6 pi eta a_i)); exact square root.")
       .def(
@@ -395,7 +421,10 @@ void bind_mobility(nb::module_& m) {
           },
           nb::arg("viscosity") = 1.0, nb::arg("box") = nb::none(),
           "viscosity: eta > 0; box: None, L or (Lx, Ly, Lz) (the diagonal mobility does not depend on it).");
+}
 
+/// make_mobility and its helpers, as BD configs and the CLI build operators.
+void bind_mobility_factory(nb::module_& m) {
   m.def(
       "make_mobility",
       [](const std::string& method, std::size_t n_particles, double tolerance, double viscosity, BoxArg box,
@@ -439,6 +468,17 @@ void bind_mobility(nb::module_& m) {
         return seconds;
       },
       nb::arg("op"), nb::arg("forces"), nb::arg("out"), nb::arg("repeats") = 5);
+}
+
+}  // namespace
+
+void bind_mobility(nb::module_& m) {
+  bind_mobility_operator(m);
+  bind_direct_rpy(m);
+  bind_fmm_rpy(m);
+  bind_pse_rpy(m);
+  bind_free_draining(m);
+  bind_mobility_factory(m);
 }
 
 }  // namespace rpyfmm::python

@@ -4,6 +4,8 @@
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
+#include <optional>
+
 #include "common.hpp"
 #include "object_lock.hpp"
 #include "rpyfmm/rpy/rigid_bodies.hpp"
@@ -72,16 +74,19 @@ nb::tuple apply(const BoundRigidBodies& bound, ArrayArg forces_torques, bool wit
   return nb::make_tuple(y.object, adopt_vector(std::move(lambda), {n, 3}).o, report);
 }
 
+/// RigidBodies.apply_with_noise; `sqrt_tol` is the deprecated spelling of `sqrt_tolerance`.
 nb::tuple apply_with_noise(const BoundRigidBodies& bound, ArrayArg forces_torques, double noise_scale, ArrayArg z,
-                           double sqrt_tol, const std::string& preconditioner) {
+                           std::optional<double> sqrt_tolerance, const std::string& preconditioner,
+                           std::optional<double> sqrt_tol) {
   const std::string where = "RigidBodies.apply_with_noise";
+  const double sqrt_t = renamed_keyword(sqrt_tolerance, sqrt_tol, 1e-3, where, "sqrt_tolerance", "sqrt_tol");
   const RigidBodies& bodies = bound.bodies;
   const InArray w = as_input(forces_torques, where, "forces_torques");
   const InArray zz = as_input(z, where, "z");
   require_points(zz, where, "z");
   require((w.ndim() == 2 && w.shape[1] == 6) || w.ndim() == 1, ErrorCode::invalid_input, where,
           "forces_torques has shape " + shape_string(w.shape) + ", expected (m, 6) or (6m,)");
-  const rpy::SqrtOptions options = sqrt_options("auto", sqrt_tol, 0, true, true, 0.0, 0.0, 30, preconditioner, 0);
+  const rpy::SqrtOptions options = sqrt_options("auto", sqrt_t, 0, true, true, 0.0, 0.0, 30, preconditioner, 0);
   OutArray y = make_output(nb::none(), {bodies.bodies(), 6}, where);
   RigidBodyReport report;
   {
@@ -91,46 +96,15 @@ nb::tuple apply_with_noise(const BoundRigidBodies& bound, ArrayArg forces_torque
   return nb::make_tuple(y.object, report);
 }
 
-}  // namespace
+using BodiesClass = nb::class_<BoundRigidBodies>;
 
-void bind_rigid(nb::module_& m) {
-  nb::class_<RigidBodyReport>(m, "RigidBodyReport", "What a rigid-body mobility solve did (GMRES).")
-      .def_ro("iterations", &RigidBodyReport::iterations, "GMRES iterations = bead products M lambda.")
-      .def_ro("restarts", &RigidBodyReport::restarts, "GMRES restarts.")
-      .def_ro("residual", &RigidBodyReport::residual,
-              "Final relative residual of the saddle-point system (GMRES's recurrence estimate).")
-      .def_ro("seconds_setup", &RigidBodyReport::seconds_setup, "The last set_configuration, in seconds.")
-      .def_ro("seconds_solve", &RigidBodyReport::seconds_solve, "This apply's solve, in seconds.")
-      .def_ro("sqrt", &RigidBodyReport::sqrt, "apply_with_noise: the SqrtReport of the bead noise B z.")
-      .def_ro("seconds_sqrt", &RigidBodyReport::seconds_sqrt, "apply_with_noise: the bead noise B z, in seconds.")
-      .def("__repr__", &report_repr);
-
-  nb::class_<BoundRigidBodies>(
-      m, "RigidBodies",
-      "Mobility of rigid bodies made of beads (bead-shell / rigid multiblob models): forces and torques\n"
-      "(m, 6) -> linear and angular velocities (m, 6), with full hydrodynamic interactions among all beads\n"
-      "through a mobility operator (DirectRpy, FmmRpy, PseRpy). Solves the saddle-point system\n"
-      "M lambda = K Y, K^T lambda = (F, T) by GMRES, preconditioned body by body.")
-      .def(
-          "__init__",
-          [](BoundRigidBodies* self, rpy::MobilityOperator& beads, double tolerance, int max_iterations, int restart,
-             bool precondition) {
-            const CallGuard hold = guard("RigidBodies", beads);
-            new (self) BoundRigidBodies(beads, {.tolerance = tolerance,
-                                                .max_iterations = max_iterations,
-                                                .restart = restart,
-                                                .precondition = precondition});
-          },
-          nb::arg("beads"), nb::kw_only(), nb::arg("tolerance") = 1e-6, nb::arg("max_iterations") = 500,
-          nb::arg("restart") = 60, nb::arg("precondition") = true, nb::keep_alive<1, 2>(),
-          "beads: the bead mobility operator (kept alive; set_configuration sets its positions);\n"
-          "tolerance: GMRES relative residual in (0, 1); max_iterations: bead products at most;\n"
-          "restart: Krylov vectors kept; precondition: the body-block preconditioner (False: plain GMRES).")
-      .def("set_configuration", locked("RigidBodies.set_configuration", &set_configuration), nb::arg("positions"),
-           nb::arg("radius"), nb::arg("body_offsets"), nb::arg("reference_points") = nb::none(),
-           "positions: bead positions (N, 3); radius: a number or (N,) radii; body_offsets: m + 1 increasing\n"
-           "indices (body k = beads body_offsets[k] ... body_offsets[k+1] - 1; first 0, last N);\n"
-           "reference_points: (m, 3) points the angular velocities and torques refer to (None: centroids).")
+/// RigidBodies's configuration and solves.
+void add_bodies_products(BodiesClass& cls) {
+  cls.def("set_configuration", locked("RigidBodies.set_configuration", &set_configuration), nb::arg("positions"),
+          nb::arg("radius"), nb::arg("body_offsets"), nb::arg("reference_points") = nb::none(),
+          "positions: bead positions (N, 3); radius: a number or (N,) radii; body_offsets: m + 1 increasing\n"
+          "indices (body k = beads body_offsets[k] ... body_offsets[k+1] - 1; first 0, last N);\n"
+          "reference_points: (m, 3) points the angular velocities and torques refer to (None: centroids).")
       .def("apply",
            locked(
                "RigidBodies.apply", +[](const BoundRigidBodies& b, ArrayArg w) { return apply(b, w, false); }),
@@ -145,27 +119,33 @@ void bind_rigid(nb::module_& m) {
            "(velocities (m, 6), bead forces (N, 3), RigidBodyReport): also the forces the beads exert on the\n"
            "fluid to keep the bodies rigid.")
       .def("apply_with_noise", locked("RigidBodies.apply_with_noise", &apply_with_noise), nb::arg("forces_torques"),
-           nb::arg("noise_scale"), nb::arg("z"), nb::arg("sqrt_tol") = 1e-3, nb::arg("preconditioner") = "auto",
+           nb::arg("noise_scale"), nb::arg("z"), nb::arg("sqrt_tolerance").sig("0.001") = nb::none(),
+           nb::arg("preconditioner") = "auto", nb::kw_only(), nb::arg("sqrt_tol") = nb::none(),
            "(velocities (m, 6), RigidBodyReport): N W + noise_scale N K^T M^{-1} B z for bead noise z (N, 3)\n"
            "(standard normal, e.g. normal_noise(N, seed, step)); B B^T = M from the bead operator's sampler\n"
-           "(Lanczos at sqrt_tol; preconditioner 'auto' | 'block' | 'none'). The noise part has covariance\n"
+           "(Lanczos at sqrt_tolerance, sqrt_tol its deprecated spelling; preconditioner 'auto' | 'block' |\n"
+           "'none'). The noise part has covariance\n"
            "noise_scale^2 N: with noise_scale = sqrt(2 kT / dt), Y dt is a Brownian step (without the\n"
-           "thermal drift).")
-      .def("mobility_matrix",
-           locked(
-               "RigidBodies.mobility_matrix",
-               +[](const BoundRigidBodies& b, std::size_t max_bodies) {
-                 std::vector<double> n;
-                 {
-                   nb::gil_scoped_release release;
-                   n = b.bodies.mobility_matrix(max_bodies);
-                 }
-                 const std::size_t rows = 6 * b.bodies.bodies();
-                 return adopt_vector(std::move(n), {rows, rows});
-               }),
-           nb::arg("max_bodies") = 200,
-           "The body mobility matrix N (6m, 6m) by 6m solves, symmetrized; kT N is the grand diffusion\n"
-           "tensor (translational and rotational diffusion of bead models).")
+           "thermal drift).");
+}
+
+/// RigidBodies's mobility matrix and sizes.
+void add_bodies_state(BodiesClass& cls) {
+  cls.def("mobility_matrix",
+          locked(
+              "RigidBodies.mobility_matrix",
+              +[](const BoundRigidBodies& b, std::size_t max_bodies) {
+                std::vector<double> n;
+                {
+                  nb::gil_scoped_release release;
+                  n = b.bodies.mobility_matrix(max_bodies);
+                }
+                const std::size_t rows = 6 * b.bodies.bodies();
+                return adopt_vector(std::move(n), {rows, rows});
+              }),
+          nb::arg("max_bodies") = 200,
+          "The body mobility matrix N (6m, 6m) by 6m solves, symmetrized; kT N is the grand diffusion\n"
+          "tensor (translational and rotational diffusion of bead models).")
       .def_prop_ro("bodies",
                    locked_read(
                        "RigidBodies.bodies", +[](const BoundRigidBodies& b) { return b.bodies.bodies(); }),
@@ -182,7 +162,48 @@ void bind_rigid(nb::module_& m) {
                          return adopt_vector(std::vector<double>(q.begin(), q.end()), {q.size() / 3, 3});
                        }),
                    "The reference points in use (m, 3).");
+}
 
+void bind_rigid_body_report(nb::module_& m) {
+  nb::class_<RigidBodyReport>(m, "RigidBodyReport", "What a rigid-body mobility solve did (GMRES).")
+      .def_ro("iterations", &RigidBodyReport::iterations, "GMRES iterations = bead products M lambda.")
+      .def_ro("restarts", &RigidBodyReport::restarts, "GMRES restarts.")
+      .def_ro("residual", &RigidBodyReport::residual,
+              "Final relative residual of the saddle-point system (GMRES's recurrence estimate).")
+      .def_ro("seconds_setup", &RigidBodyReport::seconds_setup, "The last set_configuration, in seconds.")
+      .def_ro("seconds_solve", &RigidBodyReport::seconds_solve, "This apply's solve, in seconds.")
+      .def_ro("sqrt", &RigidBodyReport::sqrt, "apply_with_noise: the SqrtReport of the bead noise B z.")
+      .def_ro("seconds_sqrt", &RigidBodyReport::seconds_sqrt, "apply_with_noise: the bead noise B z, in seconds.")
+      .def("__repr__", &report_repr);
+}
+
+void bind_rigid_bodies(nb::module_& m) {
+  BodiesClass cls(
+      m, "RigidBodies",
+      "Mobility of rigid bodies made of beads (bead-shell / rigid multiblob models): forces and torques\n"
+      "(m, 6) -> linear and angular velocities (m, 6), with full hydrodynamic interactions among all beads\n"
+      "through a mobility operator (DirectRpy, FmmRpy, PseRpy). Solves the saddle-point system\n"
+      "M lambda = K Y, K^T lambda = (F, T) by GMRES, preconditioned body by body.");
+  cls.def(
+      "__init__",
+      [](BoundRigidBodies* self, rpy::MobilityOperator& beads, double tolerance, int max_iterations, int restart,
+         bool precondition) {
+        const CallGuard hold = guard("RigidBodies", beads);
+        new (self) BoundRigidBodies(beads, {.tolerance = tolerance,
+                                            .max_iterations = max_iterations,
+                                            .restart = restart,
+                                            .precondition = precondition});
+      },
+      nb::arg("beads"), nb::kw_only(), nb::arg("tolerance") = 1e-6, nb::arg("max_iterations") = 500,
+      nb::arg("restart") = 60, nb::arg("precondition") = true, nb::keep_alive<1, 2>(),
+      "beads: the bead mobility operator (kept alive; set_configuration sets its positions);\n"
+      "tolerance: GMRES relative residual in (0, 1); max_iterations: bead products at most;\n"
+      "restart: Krylov vectors kept; precondition: the body-block preconditioner (False: plain GMRES).");
+  add_bodies_products(cls);
+  add_bodies_state(cls);
+}
+
+void bind_icosphere(nb::module_& m) {
   m.def(
       "icosphere_beads",
       [](int subdivisions) {
@@ -194,6 +215,14 @@ void bind_rigid(nb::module_& m) {
       "Bead-shell sphere: (10 4^s + 2, 3) points on the unit sphere (a subdivided icosahedron).");
   m.def("icosphere_bead_radius", &rpy::icosphere_bead_radius, nb::arg("subdivisions"),
         "Radius of touching beads on that unit shell (half the smallest bead distance).");
+}
+
+}  // namespace
+
+void bind_rigid(nb::module_& m) {
+  bind_rigid_body_report(m);
+  bind_rigid_bodies(m);
+  bind_icosphere(m);
 }
 
 }  // namespace rpyfmm::python

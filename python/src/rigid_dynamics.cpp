@@ -7,6 +7,7 @@
 #include <nanobind/stl/vector.h>
 
 #include <memory>
+#include <optional>
 
 #include "common.hpp"
 #include "object_lock.hpp"
@@ -38,11 +39,47 @@ ArrayResult copy_rows(std::span<const double> v, std::size_t columns) {
   return adopt_vector(std::vector<double>(v.begin(), v.end()), {v.size() / columns, columns});
 }
 
+/// (m, 4) quaternions, or none (identity orientations).
+std::vector<double> orientations_from(OptArrayArg orientations, const std::string& where) {
+  if (orientations.is_none()) return {};
+  const InArray o = as_input(orientations, where, "orientations");
+  require(o.ndim() == 2 && o.shape[1] == 4, ErrorCode::invalid_input, where,
+          "orientations has shape " + shape_string(o.shape) + ", expected (m, 4) quaternions (w, x, y, z)");
+  return {o.data, o.data + o.size};
+}
+
+bd::RigidDrift drift_from(const std::string& drift, const std::string& where) {
+  if (drift == "rfd" || drift == "random_finite_difference") return bd::RigidDrift::random_finite_difference;
+  if (drift == "none") return bd::RigidDrift::none;
+  fail(ErrorCode::invalid_argument, where, "drift must be 'rfd' or 'none', got '" + drift + "'");
+}
+
+/// The body forces of `self->forces` (None: no function). `self` is the object's storage, constructed
+/// after this; the function runs only after that.
+bd::BodyForceFunction body_forces(PyRigidBodyDynamics* self, const nb::object& forces, const std::string& where) {
+  require(forces.is_none() || PyCallable_Check(forces.ptr()), ErrorCode::invalid_argument, where,
+          "forces must be None or a callable forces(time, positions, orientations, bead_positions) -> (m, 6)");
+  if (forces.is_none()) return {};
+  return [self](const bd::RigidBodyState& state, std::span<double> w) {
+    // Called from step(), which runs without the GIL; the arrays are copies the callable may keep.
+    nb::gil_scoped_acquire acquire;
+    const std::string name = "RigidBodyDynamics forces";
+    nb::object result = self->forces(state.time, copy_rows(state.positions, 3).o, copy_rows(state.orientations, 4).o,
+                                     copy_rows(state.bead_positions, 3).o);
+    const InArray f = as_input(ArrayArg{result}, name, "the forces function's result");
+    require(f.size == w.size(), ErrorCode::invalid_input, name,
+            "the forces function returned shape " + shape_string(f.shape) + ", expected (m, 6) = (" +
+                std::to_string(w.size() / 6) + ", 6)");
+    std::copy(f.data, f.data + f.size, w.begin());
+  };
+}
+
+/// RigidBodyDynamics(...); `sqrt_tol` is the deprecated spelling of `sqrt_tolerance`.
 void init(PyRigidBodyDynamics* self, rpy::MobilityOperator& beads, ArrayArg shape, RadiusArg radius,
           const std::vector<std::size_t>& body_offsets, ArrayArg positions, OptArrayArg orientations, double dt,
           double kT, std::uint64_t seed, std::uint64_t first_step, const std::string& drift, double rfd_delta,
-          double tolerance, int max_iterations, double sqrt_tol, const std::string& preconditioner,
-          double max_displacement, nb::object forces, nb::handle pair) {
+          double tolerance, int max_iterations, std::optional<double> sqrt_tolerance, const std::string& preconditioner,
+          double max_displacement, nb::object forces, nb::handle pair, std::optional<double> sqrt_tol) {
   const std::string where = "RigidBodyDynamics";
   const CallGuard hold = guard(where, beads);
   const InArray rho = as_input(shape, where, "shape");
@@ -51,52 +88,22 @@ void init(PyRigidBodyDynamics* self, rpy::MobilityOperator& beads, ArrayArg shap
   std::vector<double> radii = radii_from(radius, where).values;
   const InArray q = as_input(positions, where, "positions");
   require_points(q, where, "positions");
-  std::vector<double> quat;
-  if (!orientations.is_none()) {
-    const InArray o = as_input(orientations, where, "orientations");
-    require(o.ndim() == 2 && o.shape[1] == 4, ErrorCode::invalid_input, where,
-            "orientations has shape " + shape_string(o.shape) + ", expected (m, 4) quaternions (w, x, y, z)");
-    quat.assign(o.data, o.data + o.size);
-  }
-  bd::RigidDrift drift_kind;
-  if (drift == "rfd" || drift == "random_finite_difference") {
-    drift_kind = bd::RigidDrift::random_finite_difference;
-  } else if (drift == "none") {
-    drift_kind = bd::RigidDrift::none;
-  } else {
-    fail(ErrorCode::invalid_argument, where, "drift must be 'rfd' or 'none', got '" + drift + "'");
-  }
-  require(forces.is_none() || PyCallable_Check(forces.ptr()), ErrorCode::invalid_argument, where,
-          "forces must be None or a callable forces(time, positions, orientations, bead_positions) -> (m, 6)");
-  bd::RigidDynamicsOptions options{
+  const double sqrt_t = renamed_keyword(sqrt_tolerance, sqrt_tol, 1e-3, where, "sqrt_tolerance", "sqrt_tol");
+  const bd::RigidDynamicsOptions options{
       .dt = dt,
       .kT = kT,
       .seed = seed,
       .first_step = first_step,
-      .drift = drift_kind,
+      .drift = drift_from(drift, where),
       .rfd_delta = rfd_delta,
       .solver = {.tolerance = tolerance, .max_iterations = max_iterations},
-      .sqrt = sqrt_options("auto", sqrt_tol, 0, true, true, 0.0, 0.0, 30, preconditioner, 0),
+      .sqrt = sqrt_options("auto", sqrt_t, 0, true, true, 0.0, 0.0, 30, preconditioner, 0),
       .max_displacement = max_displacement};
-  bd::BodyForceFunction function;
-  if (!forces.is_none()) {
-    // `self` is the object's storage, constructed below; the function runs only after that.
-    function = [self](const bd::RigidBodyState& state, std::span<double> w) {
-      // Called from step(), which runs without the GIL; the arrays are copies the callable may keep.
-      nb::gil_scoped_acquire acquire;
-      const std::string name = "RigidBodyDynamics forces";
-      nb::object result = self->forces(state.time, copy_rows(state.positions, 3).o, copy_rows(state.orientations, 4).o,
-                                       copy_rows(state.bead_positions, 3).o);
-      const InArray f = as_input(ArrayArg{result}, name, "the forces function's result");
-      require(f.size == w.size(), ErrorCode::invalid_input, name,
-              "the forces function returned shape " + shape_string(f.shape) + ", expected (m, 6) = (" +
-                  std::to_string(w.size() / 6) + ", 6)");
-      std::copy(f.data, f.data + f.size, w.begin());
-    };
-  }
-  auto simulation = std::make_unique<RigidBodyDynamics>(
-      beads, std::vector<double>(rho.data, rho.data + rho.size), std::move(radii), body_offsets,
-      std::vector<double>(q.data, q.data + q.size), std::move(quat), options, std::move(function));
+  bd::BodyForceFunction function = body_forces(self, forces, where);
+  auto simulation =
+      std::make_unique<RigidBodyDynamics>(beads, std::vector<double>(rho.data, rho.data + rho.size), std::move(radii),
+                                          body_offsets, std::vector<double>(q.data, q.data + q.size),
+                                          orientations_from(orientations, where), options, std::move(function));
   if (!pair.is_none()) {
     // One bead type with the first bead's radius: sigma = 0 means twice that (contact).
     bd::ForceField field({bd::ParticleType{.radius = simulation->radii()[0]}});
@@ -118,51 +125,14 @@ RigidBodyDynamics& sim(PyRigidBodyDynamics& self) {
   return *self.sim;
 }
 
-}  // namespace
+using DynamicsClass = nb::class_<PyRigidBodyDynamics>;
 
-void bind_rigid_dynamics(nb::module_& m) {
-  nb::class_<RigidStepReport>(m, "RigidStepReport", "What one rigid-body Brownian dynamics step did.")
-      .def_ro("solve_iterations", &RigidStepReport::solve_iterations, "GMRES iterations of the velocity solve.")
-      .def_ro("drift_iterations", &RigidStepReport::drift_iterations,
-              "GMRES iterations of the two random-finite-difference solves (0 without drift).")
-      .def_ro("sqrt_iterations", &RigidStepReport::sqrt_iterations, "Iterations of the bead square root B z.")
-      .def_ro("potential_energy", &RigidStepReport::potential_energy, "Of the bead pair potential (0 without).")
-      .def_ro("neighbour_rebuild", &RigidStepReport::neighbour_rebuild,
-              "True when the bead neighbour list was rebuilt (pair potential only).")
-      .def("__repr__", [](const RigidStepReport& r) {
-        return "RigidStepReport(solve_iterations=" + std::to_string(r.solve_iterations) +
-               ", drift_iterations=" + std::to_string(r.drift_iterations) +
-               ", sqrt_iterations=" + std::to_string(r.sqrt_iterations) + ")";
-      });
-
-  nb::class_<PyRigidBodyDynamics>(
-      m, "RigidBodyDynamics",
-      "Brownian dynamics of rigid bodies made of beads with full hydrodynamic interactions: Euler-Maruyama\n"
-      "on positions and quaternions (exponential map), the noise as a random slip on the beads, and the\n"
-      "thermal drift kT d/dQ . N by a random finite difference (two extra GMRES solves per step).")
-      .def("__init__", &init, nb::arg("beads"), nb::arg("shape"), nb::arg("radius"), nb::arg("body_offsets"),
-           nb::arg("positions"), nb::arg("orientations") = nb::none(), nb::kw_only(), nb::arg("dt"),
-           nb::arg("kT") = 1.0, nb::arg("seed") = 1, nb::arg("first_step") = 0, nb::arg("drift") = "rfd",
-           nb::arg("rfd_delta") = 1e-3, nb::arg("tolerance") = 1e-6, nb::arg("max_iterations") = 500,
-           nb::arg("sqrt_tol") = 1e-3, nb::arg("preconditioner") = "auto", nb::arg("max_displacement") = 1.0,
-           nb::arg("forces") = nb::none(), nb::arg("pair") = nb::none(), nb::keep_alive<1, 2>(),
-           "beads: the bead mobility operator (DirectRpy, FmmRpy, PseRpy; kept alive);\n"
-           "shape: (N, 3) bead positions in the bodies' frames, relative to their reference points;\n"
-           "radius: a number or (N,) radii; body_offsets: m + 1 increasing indices (first 0, last N);\n"
-           "positions: (m, 3) reference points; orientations: (m, 4) quaternions (w, x, y, z) or None\n"
-           "(identity); dt > 0; kT >= 0; seed: key of the noise; first_step: step number of this state (a\n"
-           "restart from saved positions and orientations continues a run bit for bit); drift: 'rfd' | 'none'; "
-           "rfd_delta: relative\n"
-           "RFD step; tolerance, max_iterations: GMRES; sqrt_tol, preconditioner: the bead square root;\n"
-           "max_displacement: refuse a step moving beads more than this many lever arms; forces: None or\n"
-           "forces(time, positions (m,3), orientations (m,4), bead_positions (N,3)) -> (m, 6) forces and\n"
-           "torques about the reference points; pair: None, 'wca', 'soft', 'lj36_18' or a dict of PairPotential\n"
-           "fields (kind, epsilon, sigma, cutoff, min_distance_fraction): a pair potential between beads of\n"
-           "different bodies (sigma 0 = twice the first bead's radius), with a neighbour list.")
-      .def("step",
-           locked(
-               "RigidBodyDynamics.step", +[](PyRigidBodyDynamics& self) { return run(self, 1); }),
-           "One step; returns its RigidStepReport.")
+/// RigidBodyDynamics's steps and body-force helpers.
+void add_dynamics_methods(DynamicsClass& cls) {
+  cls.def("step",
+          locked(
+              "RigidBodyDynamics.step", +[](PyRigidBodyDynamics& self) { return run(self, 1); }),
+          "One step; returns its RigidStepReport.")
       .def("run", locked("RigidBodyDynamics.run", &run), nb::arg("steps"),
            "Advances `steps` steps; returns the last step's RigidStepReport.")
       .def("drift_estimate",
@@ -191,12 +161,16 @@ void bind_rigid_dynamics(nb::module_& m) {
                  sim(self).bead_forces_to_bodies(forces, w);
                  return adopt_vector(std::move(w), {sim(self).bodies(), 6});
                }),
-           nb::arg("bead_forces"), "Forces and torques (m, 6) of bead forces (N, 3) at the current bead positions.")
-      .def_prop_ro(
-          "positions",
-          locked_read(
-              "RigidBodyDynamics.positions", +[](PyRigidBodyDynamics& s) { return copy_rows(sim(s).positions(), 3); }),
-          "Reference points (m, 3), unwrapped.")
+           nb::arg("bead_forces"), "Forces and torques (m, 6) of bead forces (N, 3) at the current bead positions.");
+}
+
+/// RigidBodyDynamics's state: bodies, beads, last step, counters.
+void add_dynamics_state(DynamicsClass& cls) {
+  cls.def_prop_ro(
+         "positions",
+         locked_read(
+             "RigidBodyDynamics.positions", +[](PyRigidBodyDynamics& s) { return copy_rows(sim(s).positions(), 3); }),
+         "Reference points (m, 3), unwrapped.")
       .def_prop_ro("orientations",
                    locked_read(
                        "RigidBodyDynamics.orientations",
@@ -215,16 +189,6 @@ void bind_rigid_dynamics(nb::module_& m) {
                          return adopt_vector(std::vector<double>(l.begin(), l.end()), {l.size()});
                        }),
                    "Each body's RMS lever arm (m,).")
-      .def_prop_ro("last_velocities",
-                   locked_read(
-                       "RigidBodyDynamics.last_velocities",
-                       +[](PyRigidBodyDynamics& s) { return copy_rows(sim(s).last_velocities(), 6); }),
-                   "Velocities (m, 6) of the last step, noise included, drift not.")
-      .def_prop_ro("last_drift",
-                   locked_read(
-                       "RigidBodyDynamics.last_drift",
-                       +[](PyRigidBodyDynamics& s) { return copy_rows(sim(s).last_drift(), 6); }),
-                   "The drift velocity (m, 6) of the last step (zeros without drift).")
       .def_prop_ro("bodies",
                    locked_read(
                        "RigidBodyDynamics.bodies", +[](PyRigidBodyDynamics& s) { return sim(s).bodies(); }),
@@ -240,7 +204,21 @@ void bind_rigid_dynamics(nb::module_& m) {
       .def_prop_ro("step_count",
                    locked_read(
                        "RigidBodyDynamics.step_count", +[](PyRigidBodyDynamics& s) { return sim(s).step_count(); }),
-                   "Step number of the current state (first_step + steps taken).")
+                   "Step number of the current state (first_step + steps taken).");
+}
+
+/// RigidBodyDynamics's last step and counters.
+void add_dynamics_last_step(DynamicsClass& cls) {
+  cls.def_prop_ro("last_velocities",
+                  locked_read(
+                      "RigidBodyDynamics.last_velocities",
+                      +[](PyRigidBodyDynamics& s) { return copy_rows(sim(s).last_velocities(), 6); }),
+                  "Velocities (m, 6) of the last step, noise included, drift not.")
+      .def_prop_ro("last_drift",
+                   locked_read(
+                       "RigidBodyDynamics.last_drift",
+                       +[](PyRigidBodyDynamics& s) { return copy_rows(sim(s).last_drift(), 6); }),
+                   "The drift velocity (m, 6) of the last step (zeros without drift).")
       .def_prop_ro(
           "rfd_tolerance",
           locked_read(
@@ -270,6 +248,61 @@ void bind_rigid_dynamics(nb::module_& m) {
                          return d;
                        }),
                    "Counters and seconds per stage ('forces', 'plan', 'sqrt', 'solve', 'drift', 'update').");
+}
+
+void bind_rigid_step_report(nb::module_& m) {
+  nb::class_<RigidStepReport>(m, "RigidStepReport", "What one rigid-body Brownian dynamics step did.")
+      .def_ro("solve_iterations", &RigidStepReport::solve_iterations, "GMRES iterations of the velocity solve.")
+      .def_ro("drift_iterations", &RigidStepReport::drift_iterations,
+              "GMRES iterations of the two random-finite-difference solves (0 without drift).")
+      .def_ro("sqrt_iterations", &RigidStepReport::sqrt_iterations, "Iterations of the bead square root B z.")
+      .def_ro("potential_energy", &RigidStepReport::potential_energy, "Of the bead pair potential (0 without).")
+      .def_ro("neighbour_rebuild", &RigidStepReport::neighbour_rebuild,
+              "True when the bead neighbour list was rebuilt (pair potential only).")
+      .def("__repr__", [](const RigidStepReport& r) {
+        return "RigidStepReport(solve_iterations=" + std::to_string(r.solve_iterations) +
+               ", drift_iterations=" + std::to_string(r.drift_iterations) +
+               ", sqrt_iterations=" + std::to_string(r.sqrt_iterations) + ")";
+      });
+}
+
+void bind_rigid_body_dynamics(nb::module_& m) {
+  DynamicsClass cls(
+      m, "RigidBodyDynamics",
+      "Brownian dynamics of rigid bodies made of beads with full hydrodynamic interactions: Euler-Maruyama\n"
+      "on positions and quaternions (exponential map), the noise as a random slip on the beads, and the\n"
+      "thermal drift kT d/dQ . N by a random finite difference (two extra GMRES solves per step).");
+  cls.def("__init__", &init, nb::arg("beads"), nb::arg("shape"), nb::arg("radius"), nb::arg("body_offsets"),
+          nb::arg("positions"), nb::arg("orientations") = nb::none(), nb::kw_only(), nb::arg("dt"), nb::arg("kT") = 1.0,
+          nb::arg("seed") = 1, nb::arg("first_step") = 0, nb::arg("drift") = "rfd", nb::arg("rfd_delta") = 1e-3,
+          nb::arg("tolerance") = 1e-6, nb::arg("max_iterations") = 500,
+          nb::arg("sqrt_tolerance").sig("0.001") = nb::none(), nb::arg("preconditioner") = "auto",
+          nb::arg("max_displacement") = 1.0, nb::arg("forces") = nb::none(), nb::arg("pair") = nb::none(),
+          nb::arg("sqrt_tol") = nb::none(), nb::keep_alive<1, 2>(),
+          "beads: the bead mobility operator (DirectRpy, FmmRpy, PseRpy; kept alive);\n"
+          "shape: (N, 3) bead positions in the bodies' frames, relative to their reference points;\n"
+          "radius: a number or (N,) radii; body_offsets: m + 1 increasing indices (first 0, last N);\n"
+          "positions: (m, 3) reference points; orientations: (m, 4) quaternions (w, x, y, z) or None\n"
+          "(identity); dt > 0; kT >= 0; seed: key of the noise; first_step: step number of this state (a\n"
+          "restart from saved positions and orientations continues a run bit for bit); drift: 'rfd' | 'none'; "
+          "rfd_delta: relative\n"
+          "RFD step; tolerance, max_iterations: GMRES; sqrt_tolerance, preconditioner: the bead square root\n"
+          "(sqrt_tol: its deprecated spelling);\n"
+          "max_displacement: refuse a step moving beads more than this many lever arms; forces: None or\n"
+          "forces(time, positions (m,3), orientations (m,4), bead_positions (N,3)) -> (m, 6) forces and\n"
+          "torques about the reference points; pair: None, 'wca', 'soft', 'lj36_18' or a dict of PairPotential\n"
+          "fields (kind, epsilon, sigma, cutoff, min_distance_fraction): a pair potential between beads of\n"
+          "different bodies (sigma 0 = twice the first bead's radius), with a neighbour list.");
+  add_dynamics_methods(cls);
+  add_dynamics_state(cls);
+  add_dynamics_last_step(cls);
+}
+
+}  // namespace
+
+void bind_rigid_dynamics(nb::module_& m) {
+  bind_rigid_step_report(m);
+  bind_rigid_body_dynamics(m);
 }
 
 }  // namespace rpyfmm::python

@@ -202,7 +202,7 @@ void FmmRpy::on_positions_set() {
   }
   const std::span<const double> a = scale_exponent_ == 0 ? radii() : std::span<const double>(scaled_radii_);
   fmm::FmmOptions fo;
-  fo.eps = laplace_eps_;
+  fo.tolerance = laplace_eps_;
   fo.leaf_capacity = options_.leaf_capacity > 0 ? options_.leaf_capacity : default_leaf_capacity(laplace_eps_);
   fo.near_field = false;
   fo.export_direct_far = true;  // W/X pairs summed directly: one RPY pair block beats 4-7 Laplace densities

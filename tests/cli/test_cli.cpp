@@ -232,8 +232,8 @@ TEST_F(Cli, LaplaceFmmMatchesDirectToTolerance) {
   const auto q = random_vec(n, 22, -1, 1);
   write_npy(path("s.npy"), {n, 3}, s);
   write_npy(path("q.npy"), {n}, q);
-  const Result r = run("laplace --sources " + path("s.npy") + " --charges " + path("q.npy") + " --eps 1e-6 --out " +
-                       path("r.npy") + " --json");
+  const Result r = run("laplace --sources " + path("s.npy") + " --charges " + path("q.npy") +
+                       " --tolerance 1e-6 --out " + path("r.npy") + " --json");
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("\"method\":\"fmm\""), std::string::npos) << r.out;
   const Npy out = read_npy(path("r.npy"));
@@ -252,6 +252,41 @@ TEST_F(Cli, LaplaceFmmMatchesDirectToTolerance) {
   }
 }
 
+// One name for accuracy: the former spellings (--eps, sample's --tol) still work, print one warning
+// line naming the new option and give the same output; given with the new name and a different
+// value they fail.
+TEST_F(Cli, FormerToleranceSpellingsWarnAndGiveTheSameOutput) {
+  const std::size_t n = 300;
+  write_npy(path("x.npy"), {n, 3}, random_vec(3 * n, 31, 0, 12));
+  write_npy(path("f.npy"), {n, 3}, random_vec(3 * n, 32, -1, 1));
+  const std::string mobility =
+      "mobility --positions " + path("x.npy") + " --forces " + path("f.npy") + " --radius 0.5 --method fmm ";
+  const std::string sample = "sample --positions " + path("x.npy") + " --radius 0.5 --seed 3 --operator fmm ";
+  write_npy(path("q.npy"), {n}, random_vec(n, 33, -1, 1));
+  const std::string laplace = "laplace --sources " + path("x.npy") + " --charges " + path("q.npy") + " ";
+  struct Case {
+    std::string command, current, former, warning;
+  };
+  const std::vector<Case> cases = {
+      {mobility, "--tolerance 1e-5", "--eps 1e-5", "rpyfmm: warning: --eps is deprecated; use --tolerance\n"},
+      {sample, "--sqrt-tolerance 1e-4", "--tol 1e-4", "rpyfmm: warning: --tol is deprecated; use --sqrt-tolerance\n"},
+      {sample, "--tolerance 1e-7", "--eps 1e-7", "rpyfmm: warning: --eps is deprecated; use --tolerance\n"},
+      {laplace, "--tolerance 1e-3", "--eps 1e-3", "rpyfmm: warning: --eps is deprecated; use --tolerance\n"},
+  };
+  for (const Case& c : cases) {
+    const Result a = run(c.command + c.current + " --out " + path("a.npy"));
+    const Result b = run(c.command + c.former + " --out " + path("b.npy"));
+    ASSERT_EQ(a.code, 0) << a.err;
+    ASSERT_EQ(b.code, 0) << b.err;
+    EXPECT_EQ(b.err, a.err + c.warning);
+    EXPECT_EQ(read_npy(path("a.npy")).data, read_npy(path("b.npy")).data) << c.former;
+    const Result both = run(c.command + c.current + " " + c.former + " --out " + path("c.npy"));
+    EXPECT_EQ(both.code, 0) << both.err;  // the same value twice
+  }
+  expect_failure(mobility + "--tolerance 1e-5 --eps 1e-4 --out " + path("d.npy"), "different value", "d.npy");
+  expect_failure(laplace + "--direct --eps 1e-3 --out " + path("d.npy"), "--eps", "d.npy");
+}
+
 TEST_F(Cli, MobilityFmmAndAutoMatchDirect) {
   const std::size_t n = 2000;
   const auto x = random_vec(3 * n, 23, 0, 30);
@@ -264,7 +299,7 @@ TEST_F(Cli, MobilityFmmAndAutoMatchDirect) {
   op.apply(f, ref);
   for (const std::string method : {"fmm", "auto"}) {
     const Result r = run("mobility --positions " + path("x.npy") + " --forces " + path("f.npy") +
-                         " --radius 0.5 --method " + method + " --eps 1e-5 --out " + path("u.npy") + " --json");
+                         " --radius 0.5 --method " + method + " --tolerance 1e-5 --out " + path("u.npy") + " --json");
     ASSERT_EQ(r.code, 0) << r.err;
     const Npy out = read_npy(path("u.npy"));
     ASSERT_EQ(out.shape, (std::vector<std::size_t>{n, 3}));
@@ -274,12 +309,12 @@ TEST_F(Cli, MobilityFmmAndAutoMatchDirect) {
 
 TEST_F(Cli, MobilityPseSingleParticleIsHasimoto) {
   // One sphere in a periodic cube: M = mu0 (1 - 2.837297 (a/L) + (4 pi / 3) (a/L)^3) I, exact for RPY
-  // (MATH.md §5), reached through the CLI's --method pse --box.
+  // (Hasimoto, J. Fluid Mech. 5 (1959) 317; docs/theory/pse.md), reached through the CLI's --method pse --box.
   write_npy(path("x1.npy"), {1, 3}, {1.0, 2.0, 3.0});
   write_npy(path("f1.npy"), {1, 3}, {1.0, -2.0, 0.5});
   const double a = 0.5, L = 10.0;
   const Result r = run("mobility --positions " + path("x1.npy") + " --forces " + path("f1.npy") +
-                       " --radius 0.5 --method pse --box 10 --eps 1e-6 --out " + path("u1.npy"));
+                       " --radius 0.5 --method pse --box 10 --tolerance 1e-6 --out " + path("u1.npy"));
   ASSERT_EQ(r.code, 0) << r.err;
   const Npy out = read_npy(path("u1.npy"));
   const double mu = (1.0 - 2.837297 * a / L + 4.0 * M_PI / 3.0 * std::pow(a / L, 3)) / (6.0 * M_PI * a);
@@ -289,7 +324,7 @@ TEST_F(Cli, MobilityPseSingleParticleIsHasimoto) {
   // round-off (~1e-7 relative, tests/pse/test_pse_precision.cpp).
   const Result rs =
       run("mobility --positions " + path("x1.npy") + " --forces " + path("f1.npy") +
-          " --radius 0.5 --method pse --box 10 --eps 1e-6 --wave-precision single --out " + path("u1s.npy"));
+          " --radius 0.5 --method pse --box 10 --tolerance 1e-6 --wave-precision single --out " + path("u1s.npy"));
   ASSERT_EQ(rs.code, 0) << rs.err;
   const Npy single = read_npy(path("u1s.npy"));
   for (int k = 0; k < 3; ++k) EXPECT_NEAR(single.data[k], out.data[k], 1e-6 * mu * 2.0);
@@ -326,10 +361,10 @@ TEST_F(Cli, LaplaceBadInput) {
   expect_failure("laplace" + S + " --charges " + path("q5.npy") + " --direct" + O, "charges", "r.npy");
   expect_failure("laplace" + S + " --charges " + path("q_nan.npy") + " --direct" + O, "NaN", "r.npy");
   expect_failure("laplace" + S + Q + " --targets " + path("t_nan.npy") + " --direct" + O, "NaN", "r.npy");
-  expect_failure("laplace" + S + Q + O, "--direct or --eps", "r.npy");
-  expect_failure("laplace" + S + Q + " --direct --eps 1e-6" + O, "--eps", "r.npy");
-  expect_failure("laplace" + S + Q + " --eps 0.5" + O, "eps", "r.npy");
-  expect_failure("laplace" + S + Q + " --eps 1e-20" + O, "eps", "r.npy");
+  expect_failure("laplace" + S + Q + O, "--direct or --tolerance", "r.npy");
+  expect_failure("laplace" + S + Q + " --direct --tolerance 1e-6" + O, "--tolerance", "r.npy");
+  expect_failure("laplace" + S + Q + " --tolerance 0.5" + O, "tolerance", "r.npy");
+  expect_failure("laplace" + S + Q + " --tolerance 1e-20" + O, "tolerance", "r.npy");
   expect_failure("laplace" + S + " --direct" + O, "--charges", "r.npy");
   expect_failure("laplace" + S + Q + " --direct", "--out", "r.npy");
   expect_failure("laplace" + S + Q + " --direct --threads -1" + O, "threads", "r.npy");
@@ -372,7 +407,7 @@ TEST_F(Cli, MobilityBadInput) {
   expect_failure(good + " --radius 1 --method warp" + O, "unknown method 'warp'", "u.npy");
   expect_failure(good + " --radius 1 --method pse" + O, "periodic", "u.npy");
   expect_failure(good + " --radius 1 --method fmm --box 10" + O, "open geometry", "u.npy");
-  expect_failure(good + " --radius 1 --method fmm --eps 0.7" + O, "tolerance", "u.npy");
+  expect_failure(good + " --radius 1 --method fmm --tolerance 0.7" + O, "tolerance", "u.npy");
   expect_failure(good + " --radius 1 --box 10 20" + O, "--box", "u.npy");
   expect_failure(good + " --radius 1 --method pse --box 10 --wave-precision half" + O, "--wave-precision", "u.npy");
   expect_failure(good + " --radius 1 --method fmm --wave-precision single" + O, "pse method only", "u.npy");
@@ -420,8 +455,8 @@ TEST_F(Cli, RigidMatchesLibrary) {
   }
   const Result r =
       run("rigid --positions " + path("x.npy") + " --radius " + std::to_string(c.radius) + " --body-sizes " +
-          path("sizes.txt") + " --forces " + path("ft.npy") + " --viscosity 1.5 --tol 1e-10 --out " + path("uw.npy") +
-          " --bead-forces " + path("lambda.npy") + " --json");
+          path("sizes.txt") + " --forces " + path("ft.npy") + " --viscosity 1.5 --solver-tolerance 1e-10 --out " +
+          path("uw.npy") + " --bead-forces " + path("lambda.npy") + " --json");
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("\"command\":\"rigid\""), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("\"iterations\":"), std::string::npos) << r.out;
@@ -465,9 +500,10 @@ TEST_F(Cli, RigidBadInput) {
                      " --body-sizes " + sizes + O,
                  "NaN", "uw.npy");
   expect_failure(base + " --body-sizes " + sizes + " --reference " + path("q2.npy") + O, "--reference", "uw.npy");
-  expect_failure(base + " --body-sizes " + sizes + " --tol 0" + O, "--tol", "uw.npy");
+  expect_failure(base + " --body-sizes " + sizes + " --solver-tolerance 0" + O, "--solver-tolerance", "uw.npy");
   expect_failure(base + " --body-sizes " + sizes + " --method pse" + O, "periodic", "uw.npy");
-  expect_failure(base + " --body-sizes " + sizes + " --max-iterations 1 --tol 1e-12" + O, "did not reach", "uw.npy");
+  expect_failure(base + " --body-sizes " + sizes + " --max-iterations 1 --solver-tolerance 1e-12" + O, "did not reach",
+                 "uw.npy");
   expect_failure(base + O, "--body-sizes", "uw.npy");
   expect_failure("rigid --positions " + path("x.npy") + " --forces " + path("ft.npy") + " --body-sizes " + sizes + O,
                  "--radius", "uw.npy");
@@ -578,7 +614,7 @@ TEST_F(Cli, RigidBdWrappedBodyKeepsItsShape) {
   write_npy(path("w.npy"), {42, 3}, wrapped);
   std::ofstream(path("sizes.txt")) << "42\n";
   const std::string options = " --radius " + std::to_string(radius) + " --body-sizes " + path("sizes.txt") +
-                              " --method pse --box 12 --eps 1e-6 --kT 0 --dt 0.5 --steps 3 --every 1"
+                              " --method pse --box 12 --tolerance 1e-6 --kT 0 --dt 0.5 --steps 3 --every 1"
                               " --body-force 0.2 0 -1 --body-torque 0 0.5 0";
   ASSERT_EQ(run("rigid-bd --positions " + path("u.npy") + options + " --out " + path("tu.npy")).code, 0);
   const Result r = run("rigid-bd --positions " + path("w.npy") + options + " --out " + path("tw.npy"));

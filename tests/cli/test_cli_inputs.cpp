@@ -257,15 +257,15 @@ TEST_F(CliInputs, SubnormalAndHugeScalesAreRefused) {
                  {"--radius", "[1e-30, 1e+30]", "got the subnormal 9.99989e-321"});
   expect_refused(mobility_with(path("x.txt"), "", "1e31"), {"--radius", "[1e-30, 1e+30]"});
   expect_refused(mobility_with(path("x.txt"), " --viscosity 1e-310"), {"--viscosity", "[1e-30, 1e+30]"});
-  expect_refused(mobility_with(path("x.txt"), " --method fmm --eps 1e-320"), {"--eps", "[1e-12, 0.1]"});
+  expect_refused(mobility_with(path("x.txt"), " --method fmm --tolerance 1e-320"), {"--tolerance", "[1e-12, 0.1]"});
   expect_refused("sample --positions " + path("x.txt") + " --radius 1e-320 --out " + path("u.npy"), {"--radius"});
-  expect_refused("sample --positions " + path("x.txt") + " --radius 1 --tol 1e-320 --out " + path("u.npy"),
-                 {"--tol", "must lie in (0, 1), got the subnormal 9.99989e-321"});
+  expect_refused("sample --positions " + path("x.txt") + " --radius 1 --sqrt-tolerance 1e-320 --out " + path("u.npy"),
+                 {"--sqrt-tolerance", "must lie in (0, 1), got the subnormal 9.99989e-321"});
 }
 
 // Messages print numbers as %g: "[1e-12, 0.1], got 0.7", never "[0.000000, 0.500000]".
 TEST_F(CliInputs, RangesAreStatedOnceAndPrintedReadably) {
-  expect_refused(mobility_with(path("x.txt"), " --method fmm --eps 0.7"), {"must lie in [1e-12, 0.1], got 0.7"});
+  expect_refused(mobility_with(path("x.txt"), " --method fmm --tolerance 0.7"), {"must lie in [1e-12, 0.1], got 0.7"});
   const Result help = run("mobility --help");
   EXPECT_NE(help.out.find("relative tolerance of fmm/pse, in " + ranges::kMobilityTolerance.str()), std::string::npos)
       << help.out;

@@ -23,7 +23,7 @@ inline Errors run(const std::vector<double>& src, const std::vector<double>& tgt
            int leaf = 0, std::size_t nsample = 400) {
   const std::size_t n = src.size() / 3, m = tgt.empty() ? n : tgt.size() / 3;
   rpyfmm::fmm::FmmOptions o;
-  o.eps = eps;
+  o.tolerance = eps;
   o.leaf_capacity = leaf;
   rpyfmm::fmm::LaplaceFmm fmm(o);
   fmm.set_points(src, tgt);

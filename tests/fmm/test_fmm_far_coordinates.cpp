@@ -34,7 +34,7 @@ std::vector<double> grid_points(std::size_t n, unsigned seed) {
 
 fmm::FmmOptions options(double eps = 1e-6) {
   fmm::FmmOptions o;
-  o.eps = eps;
+  o.tolerance = eps;
   o.leaf_capacity = 50;  // a tree of several levels: far field through expansions
   return o;
 }

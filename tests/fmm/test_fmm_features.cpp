@@ -21,7 +21,7 @@ using rpyfmm::fmm::LaplaceFmm;
 namespace {
 FmmOptions opts(double eps, int leaf) {
   FmmOptions o;
-  o.eps = eps;
+  o.tolerance = eps;
   o.leaf_capacity = leaf;
   return o;
 }
@@ -315,9 +315,9 @@ TEST(FmmFeatures, BadInput) {
       EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
     }
   };
-  expect_error([] { LaplaceFmm f(opts(1.0, 0)); }, "eps");
-  expect_error([] { LaplaceFmm f(opts(1e-16, 0)); }, "eps");
-  expect_error([] { LaplaceFmm f(opts(std::nan(""), 0)); }, "eps");
+  expect_error([] { LaplaceFmm f(opts(1.0, 0)); }, "tolerance");
+  expect_error([] { LaplaceFmm f(opts(1e-16, 0)); }, "tolerance");
+  expect_error([] { LaplaceFmm f(opts(std::nan(""), 0)); }, "tolerance");
   expect_error([] { LaplaceFmm f(opts(1e-6, -1)); }, "leaf_capacity");
   for (double scale : {0.5, 9.0, std::nan("")}) {
     FmmOptions o = opts(1e-6, 0);

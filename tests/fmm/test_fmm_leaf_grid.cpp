@@ -22,7 +22,7 @@ using rpyfmm::fmm::LaplaceFmm;
 namespace {
 double mean_occupancy(const std::vector<double>& src, const std::vector<double>& tgt, int capacity, double root_scale) {
   FmmOptions o;
-  o.eps = 1e-3;
+  o.tolerance = 1e-3;
   o.leaf_capacity = capacity;
   o.root_scale = root_scale;
   LaplaceFmm f(o);
@@ -144,7 +144,7 @@ TEST(FmmLeafGrid, AutomaticLeavesMeetTheTolerance) {
       const rpyfmm::ScopedSimdLevel scope(level);
       const bool avx512 = level == rpyfmm::SimdLevel::avx512;
       FmmOptions o;
-      o.eps = c.eps;
+      o.tolerance = c.eps;
       LaplaceFmm f(o);
       f.set_points(c.src, c.tgt);
       const auto stats = f.stats();

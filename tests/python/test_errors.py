@@ -61,13 +61,13 @@ CASES = [
     (lambda: ready(rpyfmm.DirectRpy()).apply(F, out=F), rpyfmm.InvalidInputError, "must not share memory"),
     (lambda: ready(rpyfmm.DirectRpy()).apply_sqrt(F, method="krylov"), rpyfmm.InvalidArgumentError,
      "unknown method 'krylov'"),
-    (lambda: ready(rpyfmm.DirectRpy()).apply_sqrt(F, tol=2.0), rpyfmm.InvalidArgumentError, "tolerance"),
+    (lambda: ready(rpyfmm.DirectRpy()).apply_sqrt(F, tolerance=2.0), rpyfmm.InvalidArgumentError, "tolerance"),
     (lambda: ready(rpyfmm.DirectRpy()).apply_sqrt(F, method="split"), rpyfmm.Error, "split"),
     (lambda: ready(rpyfmm.DirectRpy()).apply_block(F.reshape(-1)), rpyfmm.InvalidInputError,
      "expected (nrhs, N, 3) or (nrhs, 3N)"),
     (lambda: rpyfmm.make_mobility("magic"), rpyfmm.InvalidArgumentError, "magic"),
     (lambda: rpyfmm.make_mobility("pse"), rpyfmm.NotSupportedError, "periodic"),
-    (lambda: rpyfmm.LaplaceFmm(eps=0.0).set_points(X), rpyfmm.InvalidArgumentError, "eps"),
+    (lambda: rpyfmm.LaplaceFmm(tolerance=0.0).set_points(X), rpyfmm.InvalidArgumentError, "tolerance"),
     (lambda: rpyfmm.LaplaceFmm().evaluate(np.ones(4)), rpyfmm.InvalidInputError, "call set_points first"),
     (lambda: rpyfmm.laplace_direct(X, np.ones(4), outputs="flux"), rpyfmm.InvalidArgumentError,
      "unknown output 'flux'"),
@@ -123,7 +123,7 @@ def test_message_is_the_cli_message(cli, save_npy, tmp_path):
     """One valid range, one message: the CLI (stderr 'rpyfmm: error: <option>: <message>') and
     Python state the same range from the one definition (core/include/rpyfmm/core/ranges.hpp)."""
     stderr = cli("mobility", "--positions", save_npy("X.npy", X), "--forces", save_npy("F.npy", F),
-                 "--radius", "1", "--method", "fmm", "--eps", "0.5", "--out", tmp_path / "U.npy", expect_rc=2)
+                 "--radius", "1", "--method", "fmm", "--tolerance", "0.5", "--out", tmp_path / "U.npy", expect_rc=2)
     with pytest.raises(rpyfmm.InvalidArgumentError) as info:
         rpyfmm.make_mobility("fmm", tolerance=0.5)
     assert "tolerance" in str(info.value)

@@ -29,8 +29,8 @@ def test_direct_equals_cli(points, cli, save_npy, tmp_path):
 def test_fmm_equals_cli_and_meets_eps(points, cli, save_npy, tmp_path):
     s, q, t = points
     cli("laplace", "--sources", save_npy("S.npy", s), "--targets", save_npy("T.npy", t), "--charges",
-        save_npy("Q.npy", q), "--eps", "1e-6", "--out", tmp_path / "R.npy")
-    fmm = rpyfmm.LaplaceFmm(eps=1e-6)
+        save_npy("Q.npy", q), "--tolerance", "1e-6", "--out", tmp_path / "R.npy")
+    fmm = rpyfmm.LaplaceFmm(tolerance=1e-6)
     fmm.set_points(s, targets=t)
     r = fmm.evaluate(q)
     assert r.shape == (200, 10) and r.dtype == np.float64
@@ -52,7 +52,7 @@ def test_potential_matches_numpy_sum():
 
 def test_densities_outputs_and_plan_reuse(points):
     s, q, _ = points
-    fmm = rpyfmm.LaplaceFmm(eps=1e-9)
+    fmm = rpyfmm.LaplaceFmm(tolerance=1e-9)
     fmm.set_points(s.reshape(-1))  # (3N,) works too
     assert fmm.num_sources == fmm.num_targets == len(s)
     q2 = np.stack([q, 2.0 * q + 1.0])
@@ -79,7 +79,7 @@ def test_out_written_in_place_and_float32_converted(points):
 def test_fmm_results_independent_of_threads():
     x = suspension(800, seed=5)
     q = np.random.default_rng(2).standard_normal(800)
-    fmm = rpyfmm.LaplaceFmm(eps=1e-6)
+    fmm = rpyfmm.LaplaceFmm(tolerance=1e-6)
     fmm.set_points(x)
     old = rpyfmm.get_num_threads()
     try:
@@ -108,22 +108,22 @@ def test_fitted_leaf_grid_from_python():
     bad[3, 1] = np.nan
     with pytest.raises(rpyfmm.InvalidInputError, match="points|sources"):
         rpyfmm.fit_leaf_grid(bad, 27)
-    fmm = rpyfmm.LaplaceFmm(eps=1e-6, leaf_capacity=capacity, root_scale=root_scale)
+    fmm = rpyfmm.LaplaceFmm(tolerance=1e-6, leaf_capacity=capacity, root_scale=root_scale)
     fmm.set_points(x)
     stats = fmm.stats()
     assert stats["root_scale"] == pytest.approx(8.0 / 7.0) and stats["leaf_capacity"] == 54
     assert 250 <= stats["leaves"] <= 343
     assert 0.9 < stats["leaf_level_share"] <= 1.0  # level 3, but for level-2 boxes at the far edges
-    partial = rpyfmm.LaplaceFmm(eps=1e-6, leaf_capacity=16)  # ~15.6 points per level-3 box: some split
+    partial = rpyfmm.LaplaceFmm(tolerance=1e-6, leaf_capacity=16)  # ~15.6 points per level-3 box: some split
     partial.set_points(x)
     assert 0.2 < partial.stats()["leaf_level_share"] < 0.9
     ref = rpyfmm.laplace_direct(x, q)
     res = fmm.evaluate(q)
     for c0, c1 in ((0, 1), (1, 4), (4, 10)):
         assert np.linalg.norm(res[:, c0:c1] - ref[:, c0:c1]) <= 1e-6 * np.linalg.norm(ref[:, c0:c1])
-    small = rpyfmm.LaplaceFmm(eps=1e-6)  # 1000 points: below the fitted grid's sizes
+    small = rpyfmm.LaplaceFmm(tolerance=1e-6)  # 1000 points: below the fitted grid's sizes
     small.set_points(x[:1000])
     assert small.stats()["leaf_capacity"] == rpyfmm.fmm_default_leaf_capacity(1e-6)
     assert small.stats()["root_scale"] == 1.0
     with pytest.raises(rpyfmm.InvalidArgumentError, match="root_scale"):
-        rpyfmm.LaplaceFmm(eps=1e-6, root_scale=0.5)
+        rpyfmm.LaplaceFmm(tolerance=1e-6, root_scale=0.5)

@@ -26,8 +26,8 @@ def system() -> tuple[np.ndarray, np.ndarray]:
 
 @pytest.mark.parametrize("method,extra,factory", [
     ("direct", [], lambda: rpyfmm.make_mobility("direct")),
-    ("fmm", ["--eps", "1e-6"], lambda: rpyfmm.make_mobility("fmm", tolerance=1e-6)),
-    ("pse", ["--eps", "1e-4", "--box", "20"], lambda: rpyfmm.make_mobility("pse", tolerance=1e-4, box=20.0)),
+    ("fmm", ["--tolerance", "1e-6"], lambda: rpyfmm.make_mobility("fmm", tolerance=1e-6)),
+    ("pse", ["--tolerance", "1e-4", "--box", "20"], lambda: rpyfmm.make_mobility("pse", tolerance=1e-4, box=20.0)),
 ])
 def test_apply_equals_cli(system, cli, save_npy, tmp_path, method, extra, factory):
     x, f = system

@@ -66,7 +66,7 @@ def test_brownian_velocities():
     root = (v * np.sqrt(lam)) @ v.T
     w = np.random.default_rng(3).standard_normal((3, 6))
     z = rpyfmm.normal_noise(len(x), seed=4)
-    u, report = bodies.apply_with_noise(w, 0.7, z, sqrt_tol=1e-10, preconditioner="none")
+    u, report = bodies.apply_with_noise(w, 0.7, z, sqrt_tolerance=1e-10, preconditioner="none")
     assert rel_err(u.ravel(), n @ w.ravel() + 0.7 * bead_map.T @ root @ z.ravel()) < 1e-7
     assert report.sqrt.iterations > 0 and report.sqrt.preconditioner_blocks == 0
     _, report = bodies.apply_with_noise(w, 0.7, z)  # default: block-preconditioned bead noise

@@ -111,7 +111,7 @@ def test_sqrt_apply_matvec_argument_outlives_the_call():
         def matvec(v):
             kept.setdefault("first", (v, v.copy()))
             return d * v
-        w, _ = rpyfmm.sqrt_apply(matvec, np.ones(n), tol=1e-8)
+        w, _ = rpyfmm.sqrt_apply(matvec, np.ones(n), tolerance=1e-8)
         assert np.allclose(w, np.sqrt(d), rtol=1e-6)
         gc.collect()
         fresh = churn((n,))

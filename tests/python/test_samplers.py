@@ -32,11 +32,11 @@ def test_sample_equals_cli(cli, save_npy, tmp_path, method):
     n = 200
     x = suspension(n, seed=9)
     out = cli("sample", "--positions", save_npy("X.npy", x), "--radius", "1", "--seed", "7", "--step", "2",
-              "--method", method, "--tol", "1e-6", "--out", tmp_path / "W.npy", "--json")
+              "--method", method, "--sqrt-tolerance", "1e-6", "--out", tmp_path / "W.npy", "--json")
     info = cli_json(out)
     op = rpyfmm.DirectRpy()
     op.set_positions(x, 1.0)
-    w, report = op.apply_sqrt(rpyfmm.normal_noise(n, seed=7, step=2), method=method, tol=1e-6)
+    w, report = op.apply_sqrt(rpyfmm.normal_noise(n, seed=7, step=2), method=method, tolerance=1e-6)
     np.testing.assert_array_equal(w, np.load(tmp_path / "W.npy"))
     assert report.method == info["method"] == method
     assert report.iterations == info["iterations"] > 0
@@ -53,9 +53,9 @@ def test_sqrt_against_dense_eigendecomposition():
     ref = (principal_sqrt(op.assemble_dense()) @ z.reshape(-1)).reshape(n, 3)
     w, rep = op.apply_sqrt(z, method="eigen")
     assert rel_err(w, ref) < 1e-10 and rep.method == "eigen"
-    w, rep = op.apply_sqrt(z, method="lanczos", tol=1e-7)
+    w, rep = op.apply_sqrt(z, method="lanczos", tolerance=1e-7)
     assert rel_err(w, ref) < 1e-6 and rep.error_estimate <= 1e-7 and rep.iterations > 0
-    w, rep = op.apply_sqrt(z, method="chebyshev", tol=1e-5)
+    w, rep = op.apply_sqrt(z, method="chebyshev", tolerance=1e-5)
     assert rel_err(w, ref) < 1e-5 and rep.lambda_min > 0 and rep.lambda_max > rep.lambda_min
     # Cholesky gives L z, L L^T = M: not the principal root, but the right covariance.
     w, rep = op.apply_sqrt(z, method="cholesky")
@@ -75,19 +75,19 @@ def test_block_preconditioned_sampler():
     op = rpyfmm.DirectRpy()
     op.set_positions(x, 1.0)
     m = op.assemble_dense()
-    b = np.stack([op.apply_sqrt(e.reshape(n, 3), tol=1e-10, preconditioner="block", preconditioner_block=16)[0]
+    b = np.stack([op.apply_sqrt(e.reshape(n, 3), tolerance=1e-10, preconditioner="block", preconditioner_block=16)[0]
                   .reshape(-1) for e in np.eye(3 * n)], axis=1)
     assert rel_err(b @ b.T, m) < 1e-8
     assert rel_err(b, principal_sqrt(m)) > 1e-2  # a different square root than M^{1/2}
     z = rpyfmm.normal_noise(n, seed=3)
-    _, plain = op.apply_sqrt(z, tol=1e-6)
-    _, rep = op.apply_sqrt(z, tol=1e-6, preconditioner="block", preconditioner_block=16)
+    _, plain = op.apply_sqrt(z, tolerance=1e-6)
+    _, rep = op.apply_sqrt(z, tolerance=1e-6, preconditioner="block", preconditioner_block=16)
     assert rep.preconditioner_blocks == 4 and plain.preconditioner_blocks == 0
     assert rep.iterations < plain.iterations
     _, rep = op.apply_sqrt(z, method="eigen", preconditioner="auto")  # 'auto' off Lanczos: none
     assert rep.preconditioner_blocks == 0
-    _, cheb = op.apply_sqrt(z, method="chebyshev", tol=1e-6)
-    _, pcheb = op.apply_sqrt(z, method="chebyshev", tol=1e-6, preconditioner="auto")
+    _, cheb = op.apply_sqrt(z, method="chebyshev", tolerance=1e-6)
+    _, pcheb = op.apply_sqrt(z, method="chebyshev", tolerance=1e-6, preconditioner="auto")
     assert pcheb.preconditioner_blocks > 0 and pcheb.iterations < cheb.iterations
     with pytest.raises(rpyfmm.Error, match="Lanczos and Chebyshev samplers only"):
         op.apply_sqrt(z, method="cholesky", preconditioner="block")
@@ -100,7 +100,7 @@ def test_sqrt_apply_on_a_python_operator():
     a = rng.standard_normal((30, 30))
     m = a @ a.T + 30 * np.eye(30)
     z = rng.standard_normal(30)
-    w, rep = rpyfmm.sqrt_apply(lambda v: m @ v, z, tol=1e-10)
+    w, rep = rpyfmm.sqrt_apply(lambda v: m @ v, z, tolerance=1e-10)
     assert rel_err(w, principal_sqrt(m) @ z) < 1e-8 and rep.method == "lanczos"
 
     def broken(v: np.ndarray) -> np.ndarray:
@@ -125,7 +125,7 @@ def test_lanczos_covariance_equals_mobility():
     op = rpyfmm.DirectRpy()
     op.set_positions(x, 1.0)
     z = np.stack([rpyfmm.normal_noise(n, seed=11, step=s) for s in range(k)])
-    w, rep = op.apply_sqrt_block(z, tol=1e-8)
+    w, rep = op.apply_sqrt_block(z, tolerance=1e-8)
     assert w.shape == (k, n, 3) and rep.converged
     assert covariance_z_scores(w.reshape(k, -1), op.assemble_dense()).max() < 5.0
 

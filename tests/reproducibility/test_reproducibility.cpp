@@ -197,7 +197,7 @@ TEST_P(Reproducible, LaplaceFmmDoesNotDependOnCallHistoryOrThreads) {
     auto evaluate = [&](int threads, bool detour) {
       return with_threads(threads, [&] {
         rpyfmm::fmm::FmmOptions o;
-        o.eps = eps;
+        o.tolerance = eps;
         rpyfmm::fmm::LaplaceFmm fmm(o);
         fmm.set_points(x);
         std::vector<double> out(n * 10), other(2 * n * 10);

@@ -115,8 +115,8 @@ double max_rel_diff(const std::vector<double>& a, const std::vector<double>& b) 
 }
 
 TEST_F(SampleCli, SeedMatchesLibraryAndJsonReports) {
-  const CliResult r = run_cli("--positions " + xp.string() + " --radius 1 --seed 17 --step 4 --tol 1e-5 --out " +
-                    out.string() + " --json");
+  const CliResult r = run_cli("--positions " + xp.string() +
+                              " --radius 1 --seed 17 --step 4 --sqrt-tolerance 1e-5 --out " + out.string() + " --json");
   ASSERT_EQ(r.rc, 0) << r.err;
   std::vector<std::size_t> shape;
   const auto w = read_npy(out, shape);
@@ -135,8 +135,9 @@ TEST_F(SampleCli, NoiseFileRadiiAndMethods) {
   write_text(zp, z, 3);
   for (SqrtMethod m : {SqrtMethod::lanczos, SqrtMethod::chebyshev, SqrtMethod::cholesky, SqrtMethod::eigen}) {
     fs::remove(out);
-    const CliResult r = run_cli("--positions " + xp.string() + " --radii " + ap.string() + " --noise " + zp.string() +
-                      " --method " + to_string(m) + " --tol 1e-6 --out " + out.string() + " --threads 1");
+    const CliResult r =
+        run_cli("--positions " + xp.string() + " --radii " + ap.string() + " --noise " + zp.string() + " --method " +
+                to_string(m) + " --sqrt-tolerance 1e-6 --out " + out.string() + " --threads 1");
     ASSERT_EQ(r.rc, 0) << r.err;
     std::vector<std::size_t> shape;
     EXPECT_LE(max_rel_diff(read_npy(out, shape), expected(z, a, m, 1e-6)), 1e-12) << to_string(m);
@@ -147,8 +148,9 @@ TEST_F(SampleCli, NoiseFileRadiiAndMethods) {
 TEST_F(SampleCli, FmmOperatorMatchesDirect) {
   std::vector<double> z(3 * N);
   fill_normal(z, 8u, 0u);
-  const CliResult r = run_cli("--positions " + xp.string() + " --radii " + ap.string() +
-                              " --seed 8 --operator fmm --eps 1e-9 --tol 1e-8 --out " + out.string() + " --json");
+  const CliResult r =
+      run_cli("--positions " + xp.string() + " --radii " + ap.string() +
+              " --seed 8 --operator fmm --tolerance 1e-9 --sqrt-tolerance 1e-8 --out " + out.string() + " --json");
   ASSERT_EQ(r.rc, 0) << r.err;
   EXPECT_NE(r.out.find("\"operator\":\"fmm\""), std::string::npos) << r.out;
   std::vector<std::size_t> shape;
@@ -175,9 +177,9 @@ TEST_F(SampleCli, PseSplitSamplerMatchesLibrary) {
 // --preconditioner block: the library's preconditioned sampler (B z, B B^T = M) on the same noise.
 TEST_F(SampleCli, BlockPreconditionerMatchesLibrary) {
   for (const SqrtMethod method : {SqrtMethod::lanczos, SqrtMethod::chebyshev}) {
-    const CliResult r =
-        run_cli("--positions " + xp.string() + " --radius 1 --seed 6 --tol 1e-6 --method " + to_string(method) +
-                " --preconditioner block --preconditioner-block 16 --out " + out.string() + " --json");
+    const CliResult r = run_cli("--positions " + xp.string() + " --radius 1 --seed 6 --sqrt-tolerance 1e-6 --method " +
+                                to_string(method) + " --preconditioner block --preconditioner-block 16 --out " +
+                                out.string() + " --json");
     ASSERT_EQ(r.rc, 0) << r.err;
     std::vector<double> z(3 * N), w(3 * N);
     fill_normal(z, 6u, 0u);
@@ -209,15 +211,15 @@ TEST_F(SampleCli, BadInputExitTwoNoOutput) {
     std::string args, needle;
   };
   for (const Bad& b : std::vector<Bad>{
-           {base + "--radius 1 --tol 0", "tolerance must lie in (0, 1)"},
-           {base + "--radius 1 --tol 1", "tolerance must lie in (0, 1)"},
-           {base + "--radius 1 --tol -1e-3", "tolerance"},
+           {base + "--radius 1 --sqrt-tolerance 0", "tolerance must lie in (0, 1)"},
+           {base + "--radius 1 --sqrt-tolerance 1", "tolerance must lie in (0, 1)"},
+           {base + "--radius 1 --sqrt-tolerance -1e-3", "tolerance"},
            {base + "--radius 1 --noise " + zs.string(), "noise"},
            {base + "--radius 1 --noise " + zs.string() + " --seed 3", "excludes"},
            {base + "--radius 1 --method krylov", "unknown method 'krylov'"},
-           {base + "--radius 1 --operator fmm --eps 0.5", "--eps"},
+           {base + "--radius 1 --operator fmm --tolerance 0.5", "--tolerance"},
            {base + "--radius 1 --operator magic", "unknown operator 'magic'"},
-           {base + "--radius 1 --eps 1e-6", "--eps"},
+           {base + "--radius 1 --tolerance 1e-6", "--tolerance"},
            {base + "--radius -1", "radius"},
            {base, "exactly one of --radius"},
            {base + "--radius 1 --max-iterations -2", "max-iterations"},

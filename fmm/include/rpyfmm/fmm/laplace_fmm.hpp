@@ -8,7 +8,7 @@
 //   phi(x) = sum_j q_j / |x - y_j|   (pairs at distance 0, e.g. the self pair, are skipped)
 //
 // Usage (plan once, apply many):
-//   LaplaceFmm fmm({.eps = 1e-6});
+//   LaplaceFmm fmm({.tolerance = 1e-6});
 //   fmm.set_points(sources);                       // builds tree and lists
 //   fmm.evaluate(charges, nd, outputs, results);   // any number of times, const, thread-safe
 #pragma once
@@ -27,13 +27,13 @@
 
 namespace rpyfmm::fmm {
 
-/// Options of the FMM plan. Defaults give a relative l2 error <= eps for every output.
+/// Options of the FMM plan. Defaults give a relative l2 error <= tolerance for every output.
 struct FmmOptions {
   /// Requested relative l2 accuracy of each output, in [1e-15, 1e-1]. The plane-wave table is the
   /// one of the next tighter of 1e-3, 1e-6, 1e-9, 1e-12; below 1e-12 the accuracy saturates near 1e-13.
-  double eps = 1e-6;
+  double tolerance = 1e-6;
   /// Points per leaf before a box is split; 0 = automatic: fmm_default_leaf_capacity (chosen per
-  /// eps and P2P kernel by benchmark), and for 1e4 to 1e6 points, where that tree's leaves hold
+  /// tolerance and P2P kernel by benchmark), and for 1e4 to 1e6 points, where that tree's leaves hold
   /// well above the best occupancy (or where a near-uniform cloud's tree is partly split between
   /// two levels: TreeStats::leaf_level_share), leaves fitted to the cloud instead (fit_leaf_grid,
   /// leaf_grid.hpp). stats() reports the capacity and root scale used.
