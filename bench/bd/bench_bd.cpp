@@ -1,4 +1,4 @@
-// BD step throughput and where the time goes (issue #8 benchmark).
+// BD step throughput and where the time goes (integrator: docs/theory/bd.md).
 //
 //   bench_bd steps  --method none|direct|fmm|pse --n 1000,3000,10000 [--steps 5] [--tol 1e-3]
 //                   [--split-displacements] [--preconditioner automatic|block|none] [--block B]
@@ -12,7 +12,7 @@
 //       --split-displacements keeps the drift and Brownian parts apart, which takes the
 //       separate M F + split-sampler path. --preconditioner: the Lanczos sampler's block
 //       preconditioner (the BD default automatic = block for direct and fmm; none = M^{1/2} z,
-//       the sampler before session 17), column `preconditioner`; --block: particles per
+//       without the block preconditioner), column `preconditioner`; --block: particles per
 //       block (0 = automatic). --device cuda: the mobility on a GPU (pse only; column `device`).
 //   bench_bd neighbours --n 20000 [--steps 400]
 //       001 Tables 1-3: dynamic rebuild test (skin/2) against fixed intervals, free
