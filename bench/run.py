@@ -323,10 +323,11 @@ def available_targets(build: Path) -> set[str]:
 
 
 def build_targets(source: Path, build: Path, targets: list[str], like: Path | None = None) -> None:
+    """The benchmark programs, and for the main build the CLI (which reports the instruction-set level)."""
     if not (build / "CMakeCache.txt").exists():
         configure(source, build, like)
     present = available_targets(build)
-    wanted = [t for t in ["rpyfmm_cli", *targets] if t in present]
+    wanted = [t for t in [*([] if like else ["rpyfmm_cli"]), *targets] if t in present]
     cmd = ["nice", "-n", "5", "cmake", "--build", str(build), "-j", str(CORES), "--target", *wanted]
     print("#", " ".join(cmd), file=sys.stderr)
     subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
@@ -432,8 +433,8 @@ def median_rows(group: Group, runs: list[dict]) -> list[dict]:
 
 
 def run_group(group: Group, variants: list[Variant], full: bool, rounds: int) -> dict[str, list[dict]]:
-    """Every case on every variant in turn, `rounds` times; medians per variant."""
-    peer = fmm3d_python() if group.name == "fmm" else None
+    """Every case on every variant in turn, `rounds` times; medians per variant (the peer code: headline runs)."""
+    peer = fmm3d_python() if group.name == "fmm" and len(variants) == 1 else None
     runs: dict[str, list[dict]] = {v.name: [] for v in variants}
     for r in range(rounds):
         for case in group.cases(full):
@@ -460,7 +461,8 @@ def record(group: Group, args, variants: list[Variant], rows: dict[str, list[dic
         "rounds": args.rounds,
         "variants": [{"name": v.name, "commit": commit_of(v.build.parent.parent),
                       "simd": simd_level(v.build, v.simd)} for v in variants],
-        "fmm3dpy": group.name == "fmm" and fmm3d_python() is not None,
+        "fmm3dpy": group.name == "fmm" and len(variants) == 1 and fmm3d_python() is not None,
+        "note": args.note or "",
         "rows": rows,
     }
 
@@ -527,8 +529,10 @@ def ratio_section(group: Group, rec: dict, what: str) -> list[str]:
         times = [others[n].get(group.time_key) for n in names]
         table.append([str(row.get(c, "")) for _, c in keys] + [cell("{:.4g}", t) for t in times] + [
             cell("{:.2f}", t / times[0]) if t and times[0] else "" for t in times[1:]])
-    variants = ", ".join(f"{v['name']} = {v['commit']} at {v['simd']}" for v in rec["variants"])
-    return [f"### {group.title}: {what}", "", f"{provenance(rec)}; {variants}; column `{group.time_key}`, "
+    variants = ", ".join(f"{v['name']} = {v['commit']}" + (f" at {v['simd']}" if v["simd"] != "unknown" else "")
+                         for v in rec["variants"])
+    note = [rec["note"], ""] if rec.get("note") else []
+    return [f"### {group.title}: {what}", "", *note, f"{provenance(rec)}; {variants}; column `{group.time_key}`, "
             "lower is better, the variants run alternately.", ""] + markdown_table(headers, table) + [""]
 
 
@@ -603,6 +607,7 @@ def parse_args() -> argparse.Namespace:
     ap.add_argument("--rounds", type=int, help="runs of each case (default 1 quick, 3 full or side by side)")
     ap.add_argument("--no-build", action="store_true", help="use the programs as built")
     ap.add_argument("--render-only", action="store_true", help="only redraw bench/README.md from the JSON files")
+    ap.add_argument("--note", help="a sentence shown with this run's tables (e.g. what --compare compares)")
     args = ap.parse_args()
     if args.rounds is None:
         args.rounds = 3 if args.full or args.compare or args.simd_levels else 1
@@ -632,7 +637,14 @@ def make_variants(args, build: Path) -> list[Variant]:
     return [Variant("new", build)]
 
 
+def use_bench_venv() -> None:
+    """Run under build/bench-venv's interpreter where it exists (fmm3dpy and matplotlib live there)."""
+    if VENV_PYTHON.exists() and Path(sys.prefix).resolve() != VENV_PYTHON.parent.parent.resolve():
+        os.execv(str(VENV_PYTHON), [str(VENV_PYTHON), str(Path(__file__).resolve()), *sys.argv[1:]])
+
+
 def main() -> None:
+    use_bench_venv()
     args = parse_args()
     RESULTS.mkdir(parents=True, exist_ok=True)
     if not args.render_only:
