@@ -266,7 +266,8 @@ def git(*args: str, cwd: Path = ROOT) -> str:
 def commit_of(tree: Path) -> str:
     try:
         sha = git("rev-parse", "--short=12", "HEAD", cwd=tree)
-        outside_results = ["--", ".", ":!bench/README.md", ":!bench/results"]
+        # The driver and its outputs do not change the programs measured.
+        outside_results = ["--", ".", ":!bench/README.md", ":!bench/results", ":!bench/run.py"]
         changed = git("status", "--porcelain", "--untracked-files=no", *outside_results, cwd=tree)
         return sha + ("+dirty" if changed else "")
     except (OSError, subprocess.CalledProcessError):
@@ -379,6 +380,13 @@ def fmm3d_python() -> str | None:
     return None
 
 
+def fmm3d_version(python: str | None) -> str:
+    if python is None:
+        return ""
+    code = "import importlib.metadata as m; print(m.version('fmm3dpy'))"
+    return subprocess.run([python, "-c", code], capture_output=True, text=True).stdout.strip()
+
+
 def run_peer(python: str, points: str, eps: str, threads: int) -> dict:
     out = subprocess.run([python, "-c", FMM3D_PEER, points, eps, "500"], env=run_env(threads, None),
                          capture_output=True, text=True, check=True).stdout
@@ -461,7 +469,7 @@ def record(group: Group, args, variants: list[Variant], rows: dict[str, list[dic
         "rounds": args.rounds,
         "variants": [{"name": v.name, "commit": commit_of(v.build.parent.parent),
                       "simd": simd_level(v.build, v.simd)} for v in variants],
-        "fmm3dpy": group.name == "fmm" and len(variants) == 1 and fmm3d_python() is not None,
+        "fmm3dpy": fmm3d_version(fmm3d_python()) if group.name == "fmm" and len(variants) == 1 else "",
         "note": args.note or "",
         "rows": rows,
     }
@@ -511,8 +519,10 @@ def headline_section(group: Group, rec: dict | None) -> list[str]:
     columns = [c for c in group.columns if any(c[1] in r for r in rows)]
     table = [[cell(fmt, r.get(col)) for _, col, fmt in columns] for r in rows]
     lines += [provenance(rec) + ".", ""] + markdown_table([h for h, _, _ in columns], table) + [""]
-    if group.name == "fmm" and not rec.get("fmm3dpy"):
-        lines += ["fmm3dpy did not import on this machine: no peer columns.", ""]
+    if group.name == "fmm":
+        lines += [f"fmm3dpy {rec['fmm3dpy']} (the PyPI wheel, in `build/bench-venv`), same thread count; the ratio "
+                  "divides its time by ours with the setup included." if rec.get("fmm3dpy") else
+                  "fmm3dpy did not import here: no peer columns (`pip install fmm3dpy` into `build/bench-venv`).", ""]
     if (RESULTS / f"{group.name}.png").exists():
         lines += [f"![{group.title}](results/{group.name}.png)", ""]
     return lines
@@ -522,18 +532,19 @@ def ratio_section(group: Group, rec: dict, what: str) -> list[str]:
     names = [v["name"] for v in rec["variants"]]
     base = {row_key(group, r): r for r in rec["rows"][names[0]]}
     keys = [(h, c) for h, c, _ in group.columns if c in group.keys]
-    headers = [h for h, _ in keys] + [f"{n} s" for n in names] + [f"{n} / {names[0]}" for n in names[1:]]
+    headers = [h for h, _ in keys] + [f"{n} s" for n in names] + [f"{names[0]} / {n}" for n in names[1:]]
     table = []
     for key, row in base.items():
         others = {n: {row_key(group, r): r for r in rec["rows"][n]}.get(key, {}) for n in names}
         times = [others[n].get(group.time_key) for n in names]
         table.append([str(row.get(c, "")) for _, c in keys] + [cell("{:.4g}", t) for t in times] + [
-            cell("{:.2f}", t / times[0]) if t and times[0] else "" for t in times[1:]])
+            cell("{:.2f}", times[0] / t) if t and times[0] else "" for t in times[1:]])
     variants = ", ".join(f"{v['name']} = {v['commit']}" + (f" at {v['simd']}" if v["simd"] != "unknown" else "")
                          for v in rec["variants"])
     note = [rec["note"], ""] if rec.get("note") else []
-    return [f"### {group.title}: {what}", "", *note, f"{provenance(rec)}; {variants}; column `{group.time_key}`, "
-            "lower is better, the variants run alternately.", ""] + markdown_table(headers, table) + [""]
+    about = (f"{provenance(rec)}; {variants}; column `{group.time_key}`, lower is better (a ratio below 1: "
+             f"{names[0]} faster), the variants run alternately.")
+    return [f"### {group.title}: {what}", "", *note, about, ""] + markdown_table(headers, table) + [""]
 
 
 INTRO = """# Benchmarks
@@ -549,7 +560,10 @@ every measured row). Regenerate everything with one command (about 10 minutes on
 (built in `build/compare-<sha>`) in turn and shows the ratios, `--simd-levels` runs them at every
 instruction-set level of the CPU (`RPYFMM_SIMD`), `--render-only` redraws this page. Times are
 medians; 1-thread rows are the per-core figures, the rows at all cores show the parallel speed-up.
-Where the machine was shared (load average above its cores), 1-thread figures are the steadier.
+Where the machine was shared (load average above its cores), 1-thread figures are the steadier
+and rows at all cores mostly show the contention. The fmm3dpy peer comes from PyPI:
+
+    python3 -m venv --system-site-packages build/bench-venv && build/bench-venv/bin/pip install fmm3dpy matplotlib
 """
 
 
