@@ -311,9 +311,10 @@ def cache_value(build: Path, name: str, fallback: str) -> str:
 
 
 def configure(source: Path, build: Path, like: Path | None) -> None:
-    cuda = cache_value(like, "RPYFMM_USE_CUDA", "OFF") if like else "OFF"
-    cmd = ["cmake", "--preset", "release", "-B", str(build), "-DRPYFMM_BUILD_TESTS=OFF",
-           f"-DRPYFMM_USE_CUDA={cuda}", "-DRPYFMM_BUILD_PYTHON=OFF"]
+    """The release preset without tests and Python; CUDA as the preset finds it, or as in the build `like`."""
+    cuda = [f"-DRPYFMM_USE_CUDA={cache_value(like, 'RPYFMM_USE_CUDA', 'OFF')}"] if like else []
+    cmd = ["cmake", "--preset", "release", "-B", str(build), "-DRPYFMM_BUILD_TESTS=OFF", "-DRPYFMM_BUILD_PYTHON=OFF",
+           *cuda]
     print("#", " ".join(cmd), file=sys.stderr)
     subprocess.run(cmd, cwd=source, check=True, stdout=subprocess.DEVNULL)
 
@@ -571,6 +572,9 @@ def render(results: dict[str, dict]) -> str:
     lines = [INTRO]
     for group in GROUPS:
         lines += headline_section(group, results.get(f"{group.name}.json"))
+    if any(".compare-" in name or name.endswith(".simd-levels.json") for name in results):
+        lines += ["## Side by side", "", "Runs of `--compare COMMIT` and `--simd-levels`: each case on both "
+                  "builds (or levels) in turn, in the same run.", ""]
     for name, rec in results.items():
         group = GROUP_BY_NAME.get(rec["group"])
         if group and ".compare-" in name:
