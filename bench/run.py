@@ -194,7 +194,8 @@ GROUPS = [
            ("RPY / Laplace", "ratio_rpy_laplace", "{:.2f}"), ("DirectRpy s", "direct_s", "{:.3f}")],
           keys=("dist", "N", "eps", "threads")),
     Group("pse", "PSE on the CPU",
-          "The setup of Table I of Fiore, Balboa Usabiaga, Donev & Swan (J. Chem. Phys. 2017): hard spheres at "
+          "The setup of Table I of Fiore, Balboa Usabiaga, Donev & Swan, J. Chem. Phys. 146 (2017) 124116: hard "
+          "spheres at "
           "phi = 0.1, xi a = 0.5, tolerance 1e-3, periodic; particle-timesteps per second (PTPS = N / s) of "
           "U = M F and of the split sampler M^{1/2} z (docs/theory/pse.md), each the first after set_positions.",
           ["bench_pse"], pse_cases, parse_csv, "MF_s",

@@ -1,4 +1,6 @@
-// PSE benchmark: the setup of [PSE] Table I (random hard spheres, phi = 0.1, a = 1,
+// PSE benchmark ([PSE] = Fiore, Balboa Usabiaga, Donev & Swan, "Rapid sampling of stochastic
+// displacements in Brownian dynamics simulations", J. Chem. Phys. 146 (2017) 124116; docs/theory/pse.md):
+// the setup of [PSE] Table I (random hard spheres, phi = 0.1, a = 1,
 // xi a = 0.5, tolerance 1e-3): particle-timesteps per second (PTPS = N / seconds) for
 // U = M F and for the split sampler M^{1/2} z, per-stage breakdown, the split sampler
 // against generic Lanczos on the full PSE operator ([PSE] Fig. 6), and the real-space
