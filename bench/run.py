@@ -546,7 +546,7 @@ def ratio_section(group: Group, rec: dict, what: str) -> list[str]:
     note = [rec["note"], ""] if rec.get("note") else []
     about = (f"{provenance(rec)}; {variants}; column `{group.time_key}`, lower is better (a ratio below 1: "
              f"{names[0]} faster), the variants run alternately.")
-    return [f"### {group.title}: {what}", "", *note, about, ""] + markdown_table(headers, table) + [""]
+    return [f"### Group `{group.name}`: {what}", "", *note, about, ""] + markdown_table(headers, table) + [""]
 
 
 INTRO = """# Benchmarks
