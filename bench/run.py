@@ -414,12 +414,13 @@ def run_case(group: Group, case: Case, variant: Variant, peer: str | None) -> li
 
 
 def derive(group: Group, row: dict) -> None:
-    """Columns computed from others: fmm3dpy's time over ours (setup included), rigid's time column."""
+    """Columns computed from others: fmm3dpy's time over ours (setup included), rigid's time and GMRES columns."""
     if "fmm3d_s" in row:
         row["fmm3d_over_rpyfmm"] = row["fmm3d_s"] / (row["eval_s"] + row["setup_s"])
     if group.name == "rigid":
         row["time_s"] = row[TIME_COLUMNS[row["benchmark"]]]
         row.setdefault("drift", "")
+        row.setdefault("iterations", row.get("solve_iterations"))
 
 
 def row_key(group: Group, row: dict) -> tuple:
