@@ -1,4 +1,4 @@
-// BD step throughput and where the time goes (issue #8 benchmark).
+// BD step throughput and where the time goes (integrator: docs/theory/bd.md).
 //
 //   bench_bd steps  --method none|direct|fmm|pse --n 1000,3000,10000 [--steps 5] [--tol 1e-3]
 //                   [--split-displacements] [--preconditioner automatic|block|none] [--block B]
@@ -12,11 +12,12 @@
 //       --split-displacements keeps the drift and Brownian parts apart, which takes the
 //       separate M F + split-sampler path. --preconditioner: the Lanczos sampler's block
 //       preconditioner (the BD default automatic = block for direct and fmm; none = M^{1/2} z,
-//       the sampler before session 17), column `preconditioner`; --block: particles per
+//       without the block preconditioner), column `preconditioner`; --block: particles per
 //       block (0 = automatic). --device cuda: the mobility on a GPU (pse only; column `device`).
 //   bench_bd neighbours --n 20000 [--steps 400]
-//       001 Tables 1-3: dynamic rebuild test (skin/2) against fixed intervals, free
-//       draining, WCA at phi = 0.15 in a periodic box: rebuilds, time per step, and
+//       The GPU BD paper's Tables 1-3 (docs/theory/bd.md): dynamic rebuild test (skin/2)
+//       against fixed intervals, free draining, WCA at phi = 0.15 in a periodic box: rebuilds,
+//       time per step, and
 //       for fixed intervals the steps on which some particle had moved more than skin/2
 //       since the last build (pairs may have been missed). --skin (default 1.0 a).
 // Threads: OMP_NUM_THREADS.
@@ -142,7 +143,8 @@ int bench_neighbours(int argc, char** argv) {
           last_builds = bd.neighbour_rebuilds();
           ref = before;
         }
-        double worst = 0;  // displacement since the last build (001 Algorithm 1, line 15)
+        double worst =
+            0;  // displacement since the last build (the GPU BD paper's Algorithm 1, line 15; docs/theory/bd.md)
         for (std::size_t i = 0; i < n; ++i) {
           double d2 = 0;
           for (int q = 0; q < 3; ++q) d2 += std::pow(bd.positions()[3 * i + q] - ref[3 * i + q], 2);

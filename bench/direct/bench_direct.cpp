@@ -12,7 +12,7 @@
 // per-CPU-second rate is the steadier figure; wall time shows the parallel speed-up).
 // pairs = N * (N - 1) * nd (Laplace; self pair skipped) and N^2 (RPY, self included).
 // --dump writes the points (3N doubles, particle-major) then the charges (nd*N) as raw
-// float64 so that compare_fmm3d.py can time fmm3dpy on exactly the same input;
+// float64 so that a peer code (e.g. fmm3dpy's l3ddir) can be timed on exactly the same input;
 // --portable disables the hand-written AVX-512 kernels (compiler-vectorized loops only);
 // --results writes the pot+grad+Hessian results (nd x N x 10 float64) for its accuracy check.
 #include <omp.h>

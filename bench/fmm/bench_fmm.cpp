@@ -1,8 +1,10 @@
-// Benchmark of the adaptive plane-wave Laplace FMM (dissertation 004, Tables 2.1-2.12 layout).
+// Benchmark of the adaptive plane-wave Laplace FMM (docs/theory/fmm.md), in the layout of
+// Tables 2.1-2.12 of W. Guan, "Fast Algorithms for Brownian Dynamics with Hydrodynamic
+// Interactions", PhD dissertation, UNC Chapel Hill.
 //
 // usage: bench_fmm --n N --dist cube|sphere|octant --eps E [--nd 1] [--leaf 0] [--reps 3]
 //                  [--outputs 7] [--sample 1000] [--npy points.npy] [--direct] [--root-scale 1] [--occupancy T]
-// Points come from a fixed seed (or are written to --npy for the fmm3dpy peer, see compare_fmm3d.py).
+// Points come from a fixed seed (or are written to --npy for the fmm3dpy peer of bench/run.py).
 // Prints one JSON row: time (median of reps), per-stage breakdown, sampled relative l2 errors of each
 // output against a direct sum, levels, boxes, peak RSS, and (with --direct) the direct-sum time.
 #include <omp.h>
@@ -73,18 +75,30 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&] { return std::string(argv[++i]); };
-    if (a == "--n") n = std::size_t(std::stod(next()));
-    else if (a == "--dist") dist = next();
-    else if (a == "--eps") eps = std::stod(next());
-    else if (a == "--nd") nd = std::stoul(next());
-    else if (a == "--leaf") leaf = std::stoi(next());
-    else if (a == "--occupancy") occupancy = std::stoi(next());
-    else if (a == "--root-scale") root_scale = std::stod(next());
-    else if (a == "--reps") reps = std::stoi(next());
-    else if (a == "--outputs") outputs = unsigned(std::stoul(next()));
-    else if (a == "--sample") sample = std::stoul(next());
-    else if (a == "--npy") npy = next();
-    else if (a == "--direct") do_direct = true;
+    if (a == "--n")
+      n = std::size_t(std::stod(next()));
+    else if (a == "--dist")
+      dist = next();
+    else if (a == "--eps")
+      eps = std::stod(next());
+    else if (a == "--nd")
+      nd = std::stoul(next());
+    else if (a == "--leaf")
+      leaf = std::stoi(next());
+    else if (a == "--occupancy")
+      occupancy = std::stoi(next());
+    else if (a == "--root-scale")
+      root_scale = std::stod(next());
+    else if (a == "--reps")
+      reps = std::stoi(next());
+    else if (a == "--outputs")
+      outputs = unsigned(std::stoul(next()));
+    else if (a == "--sample")
+      sample = std::stoul(next());
+    else if (a == "--npy")
+      npy = next();
+    else if (a == "--direct")
+      do_direct = true;
     else {
       std::fprintf(stderr, "unknown argument %s\n", a.c_str());
       return 2;
@@ -156,13 +170,14 @@ int main(int argc, char** argv) {
     t_direct = sw.seconds();
   }
   const auto st = fmm.stats();
-  std::printf("{\"n\": %zu, \"dist\": \"%s\", \"eps\": %.0e, \"nd\": %zu, \"outputs\": %u, \"threads\": %d, "
-              "\"p\": %d, \"nlams\": %d, \"leaf\": %d, \"root_scale\": %.4f, \"levels\": %d, \"boxes\": %zu, \"leaves\": %zu, "
-              "\"setup_s\": %.4f, \"eval_s\": %.4f, \"err_pot\": %.2e, \"err_grad\": %.2e, \"err_hess\": %.2e, "
-              "\"peak_rss_mb\": %.1f, \"bytes_per_particle\": %.0f, \"direct_s\": %.4f, \"stages\": {",
-              n, dist.c_str(), eps, nd, outputs, omp_get_max_threads(), st.order, st.nlams, st.leaf_capacity,
-              st.root_scale, st.levels, st.boxes, st.leaves, t_setup, t_eval, err[0], err[1], err[2], peak_rss_mb(),
-              peak_rss_mb() * 1048576.0 / double(n), t_direct);
+  std::printf(
+      "{\"n\": %zu, \"dist\": \"%s\", \"eps\": %.0e, \"nd\": %zu, \"outputs\": %u, \"threads\": %d, "
+      "\"p\": %d, \"nlams\": %d, \"leaf\": %d, \"root_scale\": %.4f, \"levels\": %d, \"boxes\": %zu, \"leaves\": %zu, "
+      "\"setup_s\": %.4f, \"eval_s\": %.4f, \"err_pot\": %.2e, \"err_grad\": %.2e, \"err_hess\": %.2e, "
+      "\"peak_rss_mb\": %.1f, \"bytes_per_particle\": %.0f, \"direct_s\": %.4f, \"stages\": {",
+      n, dist.c_str(), eps, nd, outputs, omp_get_max_threads(), st.order, st.nlams, st.leaf_capacity, st.root_scale,
+      st.levels, st.boxes, st.leaves, t_setup, t_eval, err[0], err[1], err[2], peak_rss_mb(),
+      peak_rss_mb() * 1048576.0 / double(n), t_direct);
   bool first = true;
   for (const auto& [k, v] : stages) {
     std::printf("%s\"%s\": %.4f", first ? "" : ", ", k.c_str(), v);

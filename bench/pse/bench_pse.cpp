@@ -1,4 +1,6 @@
-// PSE benchmark: the setup of [PSE] Table I (random hard spheres, phi = 0.1, a = 1,
+// PSE benchmark ([PSE] = Fiore, Balboa Usabiaga, Donev & Swan, "Rapid sampling of stochastic
+// displacements in Brownian dynamics simulations", J. Chem. Phys. 146 (2017) 124116; docs/theory/pse.md):
+// the setup of [PSE] Table I (random hard spheres, phi = 0.1, a = 1,
 // xi a = 0.5, tolerance 1e-3): particle-timesteps per second (PTPS = N / seconds) for
 // U = M F and for the split sampler M^{1/2} z, per-stage breakdown, the split sampler
 // against generic Lanczos on the full PSE operator ([PSE] Fig. 6), and the real-space
@@ -9,15 +11,15 @@
 //                  [--cuda [--bin-sweep]] [N ...]
 //   (default 8000 16000 32000); threads from 1 to OMP max.
 // Also times the free-space FmmRpy (tolerance 1e-3) on the same particles, 1 thread.
-// Comment lines (#) add block-preconditioned Lanczos (design note 29) on the full PSE operator and
+// Comment lines (#) add block-preconditioned Lanczos (docs/theory/samplers.md) on the full PSE operator and
 // on the free-space FMM operator.
 // --quick: only M F and the split sampler with their stage times (no full-operator Lanczos,
 // no table-vs-direct real space, no FMM comparison).
 // --error: the relative l2 error of M F against the same operator at tolerance 1e-8 (N <= 64000;
 // -1 above), column MF_rel_error. --xi: xi a of the M F / sampler rows (default 0.5, Table I;
 // 0 = automatic, the cost model's choice). --grid: PseOptions::grid = {G, G, G} (timing of
-// the transforms in place, bench/pse/RESULTS.md session 11). --eta / --support: PseOptions::window_eta / support
-// overrides (e.g. --eta 0.8 --support 6 is the window the versions before session 10 chose at 1e-3).
+// the transforms in place, see fft_sizes.cpp). --eta / --support: PseOptions::window_eta / support
+// overrides (e.g. --eta 0.8 --support 6 is a wider window than the automatic one at 1e-3).
 // --kernels: avx2 / portable turn the AVX-512 kernels off (as on a CPU without them), and for
 // portable the AVX2 window kernels too (auto: the widest the CPU has).
 // --precision: PseOptions::wave_precision (default auto: single-precision wave grids at the
@@ -179,7 +181,7 @@ int run_cuda(const std::vector<std::size_t>& sizes, bool bin_sweep) {
     // The defaults (single-precision wave grids, the automatic choice at tolerance 1e-3 as on the
     // CPU; device cell list; automatic bins; page-locked transfers), then each default changed
     // alone: double grids, the host's neighbour lists, one block per particle for spreading and
-    // interpolation (the kernels before session 20), pageable transfers. --bin-sweep: the
+    // interpolation (the simpler kernels), pageable transfers. --bin-sweep: the
     // defaults with bin edges -1 (per particle), 6, 8, ..., 16 instead.
     struct Variant {
       WavePrecision precision;
@@ -420,7 +422,7 @@ int main(int argc, char** argv) {
       so.tolerance = 1e-3;
       int full_iters = 0;
       const double t_full = quick ? 0.0 : median_seconds(1, [&] { full_iters = op.apply_sqrt(z, w, so).iterations; });
-      // The same with the block preconditioner (design note 29; a comment line below the row).
+      // The same with the block preconditioner (docs/theory/samplers.md; a comment line below the row).
       SqrtOptions sb = so;
       sb.preconditioner = SqrtPreconditioner::block;
       int block_iters = 0;
@@ -480,7 +482,7 @@ int main(int argc, char** argv) {
     fs.tolerance = 1e-3;
     int fmm_iters = 0;
     const double t_fmm_sample = median_seconds(1, [&] { fmm_iters = fmm.apply_sqrt(z, w, fs).iterations; });
-    fs.preconditioner = SqrtPreconditioner::block;  // the BD engine's sampler since session 17
+    fs.preconditioner = SqrtPreconditioner::block;  // the BD engine's default sampler
     int fmm_block_iters = 0;
     const double t_fmm_block = median_seconds(1, [&] { fmm_block_iters = fmm.apply_sqrt(z, w, fs).iterations; });
     std::printf(

@@ -1,5 +1,5 @@
 // rpyfmm — time FFTW's 3D r2c + c2r transforms of three components (the PSE wave-space pass)
-// per grid size, to calibrate the per-size FFT cost of the PSE cost model (design note 18).
+// per grid size, to calibrate the per-size FFT cost of the PSE cost model (docs/theory/pse.md).
 //
 // usage: fft_sizes [--min N] [--max N] [--reps R] [--measure]
 // Every even length 2^a 3^b 5^c 7^d in [min, max] (default 8 ... 320), n^3 grids, 1 thread.
@@ -7,7 +7,7 @@
 // and the factor the cost model uses now (fft_length_cost). The model's table takes these
 // timings below 48 and above 256 (divided by their median over 64 ... 320, medians of 3 runs);
 // from 48 to 256 it takes the transforms timed in place, `bench_pse --quick --grid n 32000`,
-// where lengths up to 128 ran 1.0-1.5x slower than alone (bench/pse/RESULTS.md, session 11).
+// where lengths up to 128 ran 1.0-1.5x slower than alone.
 #include <fftw3.h>
 
 #include <algorithm>

@@ -1,8 +1,8 @@
 // Measures the window-truncation error of the PSE wave-space part, the constant behind
-// PseOptions' choice of the window half-width m (design note 17): for several xi a and
+// PseOptions' choice of the window half-width m (docs/theory/pse.md): for several xi a and
 // tolerances, the product M_w F with the support P chosen by the parameters and with P - 1 ...
 // P + 3, on the same grid, against the same grid with a 26-point window, relative to |M F|;
-// next to it the model 1.5 erfc(m_eff / sqrt 2) of PSE.md Sec. 3.1, m_eff = P h / (2 sigma).
+// next to it the model 1.5 erfc(m_eff / sqrt 2) of docs/theory/pse.md, m_eff = P h / (2 sigma).
 //
 // usage: window_truncation [N]   (default 2000 random points at volume fraction 0.1, a = 1)
 #include <cmath>

@@ -1,7 +1,8 @@
-// Benchmark of the free-space RPY operator (issue 7), in the layout of the
-// dissertation's Tables 3.1-3.6: for each N and tolerance, one RPY product with
-// FmmRpy, its measured error against an exact RPY sum at sampled targets, the
-// time of one Laplace FMM evaluation (pot + grad + Hessian, one charge vector)
+// Benchmark of the free-space RPY operator (docs/theory/rpy.md), in the layout of Tables 3.1-3.6
+// of W. Guan, "Fast Algorithms for Brownian Dynamics with Hydrodynamic Interactions", PhD
+// dissertation, UNC Chapel Hill: for each N and tolerance, one RPY product with FmmRpy, its
+// measured error against an exact RPY sum at sampled targets, the time of one Laplace FMM
+// evaluation (pot + grad + Hessian, one charge vector)
 // on the same points, and the direct O(N^2) time (measured for N <= 20000,
 // extrapolated as N^2 above, marked so). Prints one CSV row per case.
 //
@@ -95,12 +96,13 @@ int main(int argc, char** argv) {
   const std::string dump = argc > 6 && std::string(argv[6]) != "-" ? argv[6] : "";
   const auto leaves = parse_list<int>(argc > 7 ? argv[7] : "0");
 
-  std::printf("dist,N,eps,threads,rpy_s,laplace1_s,ratio_rpy_laplace,direct_s,direct_kind,speedup_vs_direct,"
-              "rel_l2_err,levels,leaves,near_s,far_fmm_s,leaf_capacity\n");
+  std::printf(
+      "dist,N,eps,threads,rpy_s,laplace1_s,ratio_rpy_laplace,direct_s,direct_kind,speedup_vs_direct,"
+      "rel_l2_err,levels,leaves,near_s,far_fmm_s,leaf_capacity\n");
   for (std::size_t n : ns) {
     const auto c = make(dist, n);
     const auto f = t::random_vector(3 * n, 1);
-    if (!dump.empty()) {  // positions then forces, float64, for compare_stfmm3d.py
+    if (!dump.empty()) {  // positions then forces, float64, for a peer code
       std::ofstream out(dump + "." + std::to_string(n), std::ios::binary);
       out.write(reinterpret_cast<const char*>(c.x.data()), static_cast<std::streamsize>(c.x.size() * 8));
       out.write(reinterpret_cast<const char*>(f.data()), static_cast<std::streamsize>(f.size() * 8));

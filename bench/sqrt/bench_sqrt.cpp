@@ -1,4 +1,4 @@
-// Benchmark of the Brownian square roots (issue 4): iterations and time per
+// Benchmark of the Brownian square roots (docs/theory/samplers.md): iterations and time per
 // sample of M^{1/2} z versus N, Lanczos versus Chebyshev, tolerances, the
 // ratio (time per sample) / (time per product M F), and the block variant
 // (4 noise vectors per operator pass). Each sample is timed right after one

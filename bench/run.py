@@ -1,0 +1,689 @@
+#!/usr/bin/env python3
+"""Benchmark driver: builds the benchmark programs, runs them, writes bench/results/<group>.json and
+renders bench/README.md from those files.
+
+    python3 bench/run.py [--quick|--full] [--only GROUP ...] [--compare COMMIT] [--simd-levels]
+                         [--build build/release] [--rounds R] [--render-only]
+
+Groups: fmm (Laplace FMM, and fmm3dpy's lfmm3d on the same points when it imports), direct (direct
+kernels), rpy (RPY operators: FmmRpy, DirectRpy), pse (PSE on the CPU), pse-gpu (PSE with CUDA, only
+where a GPU is present), samplers (Lanczos, Chebyshev, block preconditioner), bd (BD steps), rigid
+(rigid-body mobility solves and steps).
+
+Every case runs at 1 thread (the per-core figure) and at all cores; each program reports the median
+of its own repetitions and the driver the median over --rounds runs. --compare COMMIT builds COMMIT in
+a scratch worktree build/compare-<sha> (same preset) and runs every case on both builds in turn, so
+machine noise hits both alike; --simd-levels runs every case at each instruction-set level the CPU
+has (RPYFMM_SIMD, docs/reproducibility.md). Both write <group>.compare-<sha>.json or
+<group>.simd-levels.json next to the headline files, and the page shows their ratios.
+
+fmm3dpy (the peer code of the fmm group) is looked up in the virtual environment build/bench-venv:
+    python3 -m venv --system-site-packages build/bench-venv && build/bench-venv/bin/pip install fmm3dpy
+matplotlib, where it imports there or in this interpreter, draws bench/results/<group>.png.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import datetime
+import io
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+RESULTS = ROOT / "bench" / "results"
+VENV_PYTHON = ROOT / "build" / "bench-venv" / "bin" / "python"
+CORES = os.cpu_count() or 1
+THREADS = sorted({1, CORES})
+
+
+@dataclass
+class Case:
+    """One benchmark run: a program of the build's bench/ folder, its arguments, its thread count."""
+
+    argv: list[str]
+    threads: int
+    key: dict  # what identifies the case in the tables (merged into every row it prints)
+    keep: dict = field(default_factory=dict)  # only rows whose columns have these values
+    peer: bool = False  # fmm: also run fmm3dpy on the same points
+
+
+@dataclass
+class Variant:
+    """A build and an instruction-set level every case runs on (several: side by side)."""
+
+    name: str
+    build: Path
+    simd: str | None = None
+
+
+# ----------------------------------------------------------------------------------------------
+# Output parsing
+
+
+def number(text: str):
+    try:
+        value = float(text)
+    except ValueError:
+        return text
+    return int(value) if value.is_integer() and "e" not in text and "." not in text else value
+
+
+def parse_csv(out: str) -> list[dict]:
+    lines = [line for line in out.splitlines() if line and not line.startswith("#")]
+    return [{k: number(v) for k, v in row.items()} for row in csv.DictReader(io.StringIO("\n".join(lines)))]
+
+
+def parse_json_lines(out: str) -> list[dict]:
+    rows = []
+    for line in out.splitlines():
+        if line.startswith("{"):
+            row = json.loads(line)
+            row.update({f"stage_{k}": v for k, v in row.pop("stages", {}).items()})
+            rows.append(row)
+    return rows
+
+
+# ----------------------------------------------------------------------------------------------
+# Groups: the cases of --quick and --full, how to read their output, what the page shows
+
+
+@dataclass
+class Group:
+    name: str
+    title: str
+    about: str
+    targets: list[str]
+    cases: object  # (full: bool) -> list[Case]
+    parse: object = parse_csv
+    time_key: str = ""  # the column compared between variants (seconds, lower is better)
+    columns: list = field(default_factory=list)  # (header, column, format)
+    keys: tuple = ()  # the columns that identify a row (the others are measured)
+    needs_gpu: bool = False
+
+
+def fmm_cases(full: bool) -> list[Case]:
+    sizes, dists, epss = (["1e5", "1e6"], ["cube", "sphere"], ["1e-3", "1e-6", "1e-9"]) if full else (
+        ["1e5"], ["cube"], ["1e-3", "1e-6"])
+    return [Case(["fmm/bench_fmm", "--n", n, "--dist", d, "--eps", e, "--reps", "3", "--sample", "500"], t,
+                 {"N": int(float(n)), "dist": d, "eps": e}, peer=True)
+            for n in sizes for d in dists for e in epss for t in THREADS]
+
+
+def direct_cases(full: bool) -> list[Case]:
+    n = "20000" if full else "4000"
+    return [Case(["direct/bench_direct", "--n", n, "--threads", str(t), "--reps", "5", "--kernel", "all"], t, {})
+            for t in THREADS]
+
+
+def rpy_cases(full: bool) -> list[Case]:
+    dists, sizes, epss = (["suspension", "cylinder"], ["10000", "100000"], ["1e-3", "1e-6", "1e-9"]) if full else (
+        ["suspension"], ["10000"], ["1e-3", "1e-6"])
+    return [Case(["rpy/bench_rpy_fmm", d, n, e, str(t), "3"], t, {}) for d in dists for n in sizes for e in epss
+            for t in THREADS]
+
+
+def pse_cases(full: bool) -> list[Case]:
+    sizes = ["8000", "32000", "128000"] if full else ["8000", "32000"]
+    # bench_pse times every thread count from 1 to OMP_NUM_THREADS; keep the one asked for.
+    return [Case(["pse/bench_pse", "--quick", n], t, {}, keep={"threads": t}) for n in sizes for t in THREADS]
+
+
+def pse_gpu_cases(full: bool) -> list[Case]:
+    sizes = ["32000", "128000", "512000"] if full else ["32000", "128000"]
+    return [Case(["pse/bench_pse", "--cuda", *sizes], CORES, {})]
+
+
+def sampler_cases(full: bool) -> list[Case]:
+    op, sizes, tols = ("fmm", "10000,100000", "1e-3,1e-5") if full else ("direct", "2000", "1e-3")
+    return [Case(["sqrt/bench_sqrt", op, sizes, tols, str(t), "3", "1e-6", "all", "noblock"], t, {})
+            for t in THREADS]
+
+
+def bd_cases(full: bool) -> list[Case]:
+    sizes = {"direct": "1000,3000", "fmm": "3000,10000,30000", "pse": "3000,10000,30000"} if full else {
+        "direct": "2000", "fmm": "2000", "pse": "2000"}
+    return [Case(["bd/bench_bd", "steps", "--method", m, "--n", n, "--steps", "5" if full else "3"], t, {})
+            for m, n in sizes.items() for t in THREADS]
+
+
+def rigid_cases(full: bool) -> list[Case]:
+    # Direct bead operators at <= 4000 beads also time the dense reference: small counts only.
+    counts = {"direct": "8,64", "fmm": "64,512", "step": "8,64"} if full else {
+        "direct": "8", "fmm": "8,64", "step": "8"}
+    subdivisions = "2" if full else "1"
+    solves = [Case(["rigid/bench_rigid", op, counts[op], subdivisions, "0.1", "1e-6", "1e-6", "3", "noplain"], t,
+                   {"benchmark": "solve"}) for op in ("direct", "fmm") for t in THREADS]
+    steps = [Case(["rigid/bench_rigid_dynamics", "fmm", counts["step"], "1", "0.1", "3", "3", "1e-6"], t,
+                  {"benchmark": "step"}) for t in THREADS]
+    return solves + steps
+
+
+GROUPS = [
+    Group("fmm", "Laplace FMM against fmm3dpy",
+          "One evaluation of potential, gradient and Hessian at the sources (LaplaceFmm, adaptive plane-wave "
+          "FMM, docs/theory/fmm.md) against fmm3dpy's `lfmm3d` on the same points and charges; errors: "
+          "relative l2 against a direct sum at 500 sampled targets.",
+          ["bench_fmm"], fmm_cases, parse_json_lines, "eval_s",
+          [("N", "N", "{:.0e}"), ("points", "dist", "{}"), ("eps", "eps", "{}"), ("threads", "threads", "{}"),
+           ("setup s", "setup_s", "{:.3f}"), ("eval s", "eval_s", "{:.3f}"), ("err Hess", "err_hess", "{:.1e}"),
+           ("fmm3dpy s", "fmm3d_s", "{:.3f}"), ("fmm3dpy err Hess", "fmm3d_err_hess", "{:.1e}"),
+           ("fmm3dpy / rpyfmm", "fmm3d_over_rpyfmm", "{:.2f}")],
+          keys=("N", "dist", "eps", "threads")),
+    Group("direct", "Direct kernels",
+          "O(N^2) direct sums at N uniform points in the unit cube: Laplace (self pair skipped) and RPY "
+          "(equal and polydisperse radii); pairs per second of wall time.",
+          ["bench_direct"], direct_cases, parse_csv, "median_s",
+          [("kernel", "kernel", "{}"), ("outputs", "outputs", "{}"), ("N", "n", "{}"), ("threads", "threads", "{}"),
+           ("median s", "median_s", "{:.4f}"), ("pairs/s", "pairs_per_s", "{:.3g}")],
+          keys=("kernel", "outputs", "n", "threads")),
+    Group("rpy", "RPY operators",
+          "One product U = M F with FmmRpy (four Laplace FMM densities, docs/theory/rpy.md) on a random "
+          "suspension, its error against an exact RPY sum at 200 sampled targets, one Laplace FMM "
+          "evaluation on the same points, and the direct operator DirectRpy.",
+          ["bench_rpy_fmm"], rpy_cases, parse_csv, "rpy_s",
+          [("points", "dist", "{}"), ("N", "N", "{}"), ("eps", "eps", "{:.0e}"), ("threads", "threads", "{}"),
+           ("FmmRpy s", "rpy_s", "{:.3f}"), ("rel err", "rel_l2_err", "{:.1e}"),
+           ("Laplace FMM s", "laplace1_s", "{:.3f}"),
+           ("RPY / Laplace", "ratio_rpy_laplace", "{:.2f}"), ("DirectRpy s", "direct_s", "{:.3f}")],
+          keys=("dist", "N", "eps", "threads")),
+    Group("pse", "PSE on the CPU",
+          "The setup of Table I of Fiore, Balboa Usabiaga, Donev & Swan, J. Chem. Phys. 146 (2017) 124116: hard "
+          "spheres at "
+          "phi = 0.1, xi a = 0.5, tolerance 1e-3, periodic; particle-timesteps per second (PTPS = N / s) of "
+          "U = M F and of the split sampler M^{1/2} z (docs/theory/pse.md), each the first after set_positions.",
+          ["bench_pse"], pse_cases, parse_csv, "MF_s",
+          [("N", "N", "{}"), ("threads", "threads", "{}"), ("grid", "grid", "{}"), ("M F s", "MF_s", "{:.4f}"),
+           ("M F PTPS", "MF_PTPS", "{:.3g}"), ("sample s", "sample_s", "{:.4f}"),
+           ("sample PTPS", "sample_PTPS", "{:.3g}"), ("split its", "split_iters", "{}")],
+          keys=("N", "threads")),
+    Group("pse-gpu", "PSE on a GPU",
+          "The same setup with the CUDA operator PseRpyCuda: host arrays in and out (transfers count) and device "
+          "arrays; one row per variant of its defaults.",
+          ["bench_pse"], pse_gpu_cases, parse_csv, "MF_s",
+          [("N", "N", "{}"), ("wave", "wave", "{}"), ("lists", "lists", "{}"), ("transfers", "transfers", "{}"),
+           ("M F s", "MF_s", "{:.4f}"), ("M F PTPS", "MF_PTPS", "{:.3g}"),
+           ("M F PTPS device", "MF_dev_PTPS", "{:.3g}"),
+           ("sample PTPS", "sample_PTPS", "{:.3g}")],
+          needs_gpu=True, keys=("N", "wave", "lists", "bin", "transfers")),
+    Group("samplers", "Square-root samplers",
+          "One Brownian sample M^{1/2} z at tolerance 1e-3 (docs/theory/samplers.md): Lanczos, Chebyshev (spectrum "
+          "bounds estimated once, not timed) and both with the block preconditioner (blocks of 48 particles); "
+          "random suspension, phi = 0.1; ratio = CPU time of a sample / of one product M F.",
+          ["bench_sqrt"], sampler_cases, parse_csv, "sample_wall_s",
+          [("operator", "operator", "{}"), ("N", "N", "{}"), ("tol", "tol", "{:.0e}"), ("threads", "threads", "{}"),
+           ("method", "method", "{}"), ("iterations", "iterations", "{}"), ("sample s", "sample_wall_s", "{:.3f}"),
+           ("sample / product", "ratio_cpu", "{:.1f}")],
+          keys=("operator", "N", "tol", "threads", "method")),
+    Group("bd", "Brownian dynamics steps",
+          "Seconds per step (median after one warm-up step) of a sedimenting cloud at phi = 0.05 (WCA, gravity, "
+          "kT 1, dt 0.01, docs/theory/bd.md) with direct, FMM or PSE (periodic) hydrodynamics, tolerance 1e-3.",
+          ["bench_bd"], bd_cases, parse_csv, "sec_per_step",
+          [("method", "method", "{}"), ("N", "N", "{}"), ("threads", "threads", "{}"),
+           ("s / step", "sec_per_step", "{:.4f}"), ("sampler its", "lanczos_its", "{:.1f}"),
+           ("drift s", "drift", "{:.3g}"),
+           ("sqrt s", "sqrt", "{:.3g}")],
+          keys=("method", "N", "threads")),
+    Group("rigid", "Rigid bodies",
+          "Bead-shell spheres at body volume fraction 0.1 (docs/theory/rigid.md): one mobility solve (GMRES with "
+          "the body preconditioner, tolerance 1e-6) with direct or FMM bead operators, and one Brownian step "
+          "with the FMM operator (with and without the RFD drift).",
+          ["bench_rigid", "bench_rigid_dynamics"], rigid_cases, parse_csv, "time_s",
+          [("benchmark", "benchmark", "{}"), ("operator", "operator", "{}"), ("bodies", "bodies", "{}"),
+           ("beads", "beads", "{}"), ("threads", "threads", "{}"), ("drift", "drift", "{}"),
+           ("GMRES its", "iterations", "{}"), ("s", "time_s", "{:.4f}"), ("setup s", "setup_s", "{:.4f}")],
+          keys=("benchmark", "operator", "bodies", "beads", "threads", "drift")),
+]
+GROUP_BY_NAME = {g.name: g for g in GROUPS}
+TIME_COLUMNS = {"solve": "solve_s", "step": "step_s"}  # rigid: the time column of each program
+
+
+# ----------------------------------------------------------------------------------------------
+# Machine, commit, builds
+
+
+def cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    import platform
+
+    return platform.processor() or platform.machine()
+
+
+def git(*args: str, cwd: Path = ROOT) -> str:
+    return subprocess.run(["git", *args], cwd=cwd, capture_output=True, text=True, check=True).stdout.strip()
+
+
+def commit_of(tree: Path) -> str:
+    try:
+        sha = git("rev-parse", "--short=12", "HEAD", cwd=tree)
+        # The driver and its outputs do not change the programs measured.
+        outside_results = ["--", ".", ":!bench/README.md", ":!bench/results", ":!bench/run.py"]
+        changed = git("status", "--porcelain", "--untracked-files=no", *outside_results, cwd=tree)
+        return sha + ("+dirty" if changed else "")
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def simd_level(build: Path, simd: str | None) -> str:
+    """The instruction-set level the library runs at, as the CLI reports it ("simd" of --json)."""
+    cli = build / "apps" / "rpyfmm"
+    with tempfile.TemporaryDirectory() as tmp:
+        src, q, out = (str(Path(tmp) / name) for name in ("x.txt", "q.txt", "u.npy"))
+        Path(src).write_text("0 0 0\n1 0 0\n")
+        Path(q).write_text("1\n1\n")
+        try:
+            text = subprocess.run([str(cli), "laplace", "--sources", src, "--charges", q, "--direct", "--out", out,
+                                   "--json"], env=run_env(1, simd), capture_output=True, text=True, check=True).stdout
+            return json.loads(text.splitlines()[-1]).get("simd", "unknown")
+        except (OSError, subprocess.CalledProcessError, ValueError, IndexError):
+            return "unknown"
+
+
+def machine(build: Path) -> dict:
+    return {"cpu": cpu_model(), "isa": simd_level(build, None), "cores": CORES,
+            "load_average": [round(x, 2) for x in os.getloadavg()]}
+
+
+def has_gpu() -> bool:
+    try:
+        return subprocess.run(["nvidia-smi", "-L"], capture_output=True, check=True).stdout.strip() != b""
+    except (OSError, subprocess.CalledProcessError):
+        return False
+
+
+def cache_value(build: Path, name: str, fallback: str) -> str:
+    cache = build / "CMakeCache.txt"
+    if cache.exists():
+        for line in cache.read_text().splitlines():
+            if line.startswith(name + ":"):
+                return line.split("=", 1)[1]
+    return fallback
+
+
+def configure(source: Path, build: Path, like: Path | None) -> None:
+    """The release preset without tests and Python; CUDA as the preset finds it, or as in the build `like`."""
+    cuda = [f"-DRPYFMM_USE_CUDA={cache_value(like, 'RPYFMM_USE_CUDA', 'OFF')}"] if like else []
+    cmd = ["cmake", "--preset", "release", "-B", str(build), "-DRPYFMM_BUILD_TESTS=OFF", "-DRPYFMM_BUILD_PYTHON=OFF",
+           *cuda]
+    print("#", " ".join(cmd), file=sys.stderr)
+    subprocess.run(cmd, cwd=source, check=True, stdout=subprocess.DEVNULL)
+
+
+def available_targets(build: Path) -> set[str]:
+    out = subprocess.run(["cmake", "--build", str(build), "--target", "help"], capture_output=True, text=True).stdout
+    return {line.split()[-1].split(":")[0] for line in out.splitlines() if line.startswith("...") or ":" in line}
+
+
+def build_targets(source: Path, build: Path, targets: list[str], like: Path | None = None) -> None:
+    """The benchmark programs, and for the main build the CLI (which reports the instruction-set level)."""
+    if not (build / "CMakeCache.txt").exists():
+        configure(source, build, like)
+    present = available_targets(build)
+    wanted = [t for t in [*([] if like else ["rpyfmm_cli"]), *targets] if t in present]
+    cmd = ["nice", "-n", "5", "cmake", "--build", str(build), "-j", str(CORES), "--target", *wanted]
+    print("#", " ".join(cmd), file=sys.stderr)
+    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+
+
+def compare_tree(commit: str) -> Path:
+    """A detached worktree of COMMIT under build/, built with the same preset as the main build."""
+    sha = git("rev-parse", "--short=12", commit)
+    tree = ROOT / "build" / f"compare-{sha}"
+    if not (tree / ".git").exists():
+        git("worktree", "add", "--detach", str(tree), sha)
+    return tree
+
+
+# ----------------------------------------------------------------------------------------------
+# Running
+
+
+def run_env(threads: int, simd: str | None) -> dict:
+    env = dict(os.environ, OMP_NUM_THREADS=str(threads))
+    env.pop("RPYFMM_SIMD", None)
+    if simd:
+        env["RPYFMM_SIMD"] = simd
+    return env
+
+
+FMM3D_PEER = r"""
+import sys, time, json, numpy as np, fmm3dpy
+path, eps, nsample = sys.argv[1], float(sys.argv[2]), int(sys.argv[3])
+x = np.load(path); q = np.load(path + ".charges.npy")[0].copy(); n = x.shape[0]
+src = np.ascontiguousarray(x.T)
+t0 = time.perf_counter()
+out = fmm3dpy.lfmm3d(eps=eps, sources=src, charges=q, pg=3)
+t = time.perf_counter() - t0
+idx = np.random.default_rng(99).integers(0, n, size=min(nsample, n))
+ref = fmm3dpy.l3ddir(sources=src, targets=np.ascontiguousarray(src[:, idx]), charges=q, pgt=3)
+rel = lambda a, b: float(np.linalg.norm(a - b) / np.linalg.norm(b))
+print(json.dumps({"fmm3d_s": t, "fmm3d_err_pot": rel(out.pot[idx], ref.pottarg),
+                  "fmm3d_err_hess": rel(out.hess[:, idx], ref.hesstarg)}))
+"""
+
+
+def fmm3d_python() -> str | None:
+    """An interpreter that imports fmm3dpy (the benchmark venv first), or None."""
+    for python in (str(VENV_PYTHON), sys.executable):
+        if Path(python).exists() and subprocess.run([python, "-c", "import fmm3dpy"],
+                                                    capture_output=True).returncode == 0:
+            return python
+    return None
+
+
+def fmm3d_version(python: str | None) -> str:
+    if python is None:
+        return ""
+    code = "import importlib.metadata as m; print(m.version('fmm3dpy'))"
+    return subprocess.run([python, "-c", code], capture_output=True, text=True).stdout.strip()
+
+
+def run_peer(python: str, points: str, eps: str, threads: int) -> dict:
+    out = subprocess.run([python, "-c", FMM3D_PEER, points, eps, "500"], env=run_env(threads, None),
+                         capture_output=True, text=True, check=True).stdout
+    return json.loads(out.splitlines()[-1])
+
+
+def run_case(group: Group, case: Case, variant: Variant, peer: str | None) -> list[dict]:
+    program = variant.build / "bench" / case.argv[0]
+    if not program.exists():
+        return []
+    with tempfile.TemporaryDirectory() as tmp:
+        points = str(Path(tmp) / "points.npy")
+        argv = [str(program), *case.argv[1:], *(["--npy", points] if case.peer and peer else [])]
+        out = subprocess.run(argv, env=run_env(case.threads, variant.simd), capture_output=True, text=True,
+                             check=True).stdout
+        rows = [r for r in group.parse(out) if all(r.get(k) == v for k, v in case.keep.items())]
+        extra = run_peer(peer, points, case.argv[case.argv.index("--eps") + 1], case.threads) if (
+            case.peer and peer) else {}
+    for row in rows:
+        row.update(case.key, threads=row.get("threads", case.threads), **extra)
+        derive(group, row)
+    return rows
+
+
+def derive(group: Group, row: dict) -> None:
+    """Columns computed from others: fmm3dpy's time over ours (setup included), rigid's time and GMRES columns."""
+    if "fmm3d_s" in row:
+        row["fmm3d_over_rpyfmm"] = row["fmm3d_s"] / (row["eval_s"] + row["setup_s"])
+    if group.name == "rigid":
+        row["time_s"] = row[TIME_COLUMNS[row["benchmark"]]]
+        row.setdefault("drift", "")
+        row.setdefault("iterations", row.get("solve_iterations"))
+
+
+def row_key(group: Group, row: dict) -> tuple:
+    return tuple(str(row.get(c, "")) for c in group.keys)
+
+
+def median_rows(group: Group, runs: list[dict]) -> list[dict]:
+    """Per case key: the median of every numeric column over the rounds (other columns: the last run's)."""
+    by_key: dict[tuple, list[dict]] = {}
+    for row in runs:
+        by_key.setdefault(row_key(group, row), []).append(row)
+    merged = []
+    for rows in by_key.values():
+        out = dict(rows[-1])
+        for k, v in out.items():
+            values = [r[k] for r in rows if isinstance(r.get(k), (int, float))]
+            if isinstance(v, (int, float)) and len(values) == len(rows):
+                out[k] = statistics.median(values)
+        merged.append(out)
+    return merged
+
+
+def run_group(group: Group, variants: list[Variant], full: bool, rounds: int) -> dict[str, list[dict]]:
+    """Every case on every variant in turn, `rounds` times; medians per variant (the peer code: headline runs)."""
+    peer = fmm3d_python() if group.name == "fmm" and len(variants) == 1 else None
+    runs: dict[str, list[dict]] = {v.name: [] for v in variants}
+    for r in range(rounds):
+        for case in group.cases(full):
+            for i, variant in enumerate(variants):
+                start = datetime.datetime.now()
+                runs[variant.name] += run_case(group, case, variant, peer if i == 0 else None)
+                seconds = (datetime.datetime.now() - start).total_seconds()
+                print(f"# {group.name} round {r + 1}/{rounds} {variant.name}: {' '.join(case.argv)} "
+                      f"(threads {case.threads}): {seconds:.1f} s", file=sys.stderr, flush=True)
+    return {name: median_rows(group, rows) for name, rows in runs.items()}
+
+
+# ----------------------------------------------------------------------------------------------
+# Results files
+
+
+def record(group: Group, args, variants: list[Variant], rows: dict[str, list[dict]]) -> dict:
+    return {
+        "group": group.name,
+        "generated_by": "python3 bench/run.py " + " ".join(sys.argv[1:]),
+        "mode": "full" if args.full else "quick",
+        "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        "machine": machine(variants[0].build),
+        "rounds": args.rounds,
+        "variants": [{"name": v.name, "commit": commit_of(v.build.parent.parent),
+                      "simd": simd_level(v.build, v.simd)} for v in variants],
+        "fmm3dpy": fmm3d_version(fmm3d_python()) if group.name == "fmm" and len(variants) == 1 else "",
+        "note": args.note or "",
+        "rows": rows,
+    }
+
+
+def results_name(group: Group, variants: list[Variant], args) -> str:
+    if args.compare:
+        return f"{group.name}.compare-{variants[1].build.parent.parent.name.removeprefix('compare-')}.json"
+    return f"{group.name}.simd-levels.json" if args.simd_levels else f"{group.name}.json"
+
+
+def load_results() -> dict[str, dict]:
+    return {p.name: json.loads(p.read_text()) for p in sorted(RESULTS.glob("*.json"))}
+
+
+# ----------------------------------------------------------------------------------------------
+# The page
+
+
+def cell(fmt: str, value) -> str:
+    if value is None or value == "":
+        return ""
+    try:
+        return fmt.format(value)
+    except (ValueError, TypeError):
+        return str(value)
+
+
+def markdown_table(headers: list[str], lines: list[list[str]]) -> list[str]:
+    return ["| " + " | ".join(headers) + " |", "|" + "---|" * len(headers)] + [
+        "| " + " | ".join(line) + " |" for line in lines]
+
+
+def provenance(rec: dict) -> str:
+    m, v = rec["machine"], rec["variants"][0]
+    return (f"{m['cpu']} ({v['simd']}, {m['cores']} cores, load average {m['load_average'][0]} at the start), "
+            f"commit {v['commit']}, {rec['date']}, `--{rec['mode']}`, median of {rec['rounds']} run(s) of each "
+            f"program's own median")
+
+
+def headline_section(group: Group, rec: dict | None) -> list[str]:
+    lines = [f"## {group.title}", "", group.about, ""]
+    if rec is None:
+        where = "on a machine with a GPU and a build with `-DRPYFMM_USE_CUDA=ON`" if group.needs_gpu else "here"
+        return lines + [f"Not measured on this machine: run `python3 bench/run.py --only {group.name}` {where}.", ""]
+    rows = rec["rows"][rec["variants"][0]["name"]]
+    columns = [c for c in group.columns if any(c[1] in r for r in rows)]
+    table = [[cell(fmt, r.get(col)) for _, col, fmt in columns] for r in rows]
+    lines += [provenance(rec) + ".", ""] + markdown_table([h for h, _, _ in columns], table) + [""]
+    if group.name == "fmm":
+        lines += [f"fmm3dpy {rec['fmm3dpy']} (the PyPI wheel, in `build/bench-venv`), same thread count; the ratio "
+                  "divides its time by ours with the setup included." if rec.get("fmm3dpy") else
+                  "fmm3dpy did not import here: no peer columns (`pip install fmm3dpy` into `build/bench-venv`).", ""]
+    if (RESULTS / f"{group.name}.png").exists():
+        lines += [f"![{group.title}](results/{group.name}.png)", ""]
+    return lines
+
+
+def ratio_section(group: Group, rec: dict, what: str) -> list[str]:
+    names = [v["name"] for v in rec["variants"]]
+    base = {row_key(group, r): r for r in rec["rows"][names[0]]}
+    keys = [(h, c) for h, c, _ in group.columns if c in group.keys]
+    headers = [h for h, _ in keys] + [f"{n} s" for n in names] + [f"{names[0]} / {n}" for n in names[1:]]
+    table = []
+    for key, row in base.items():
+        others = {n: {row_key(group, r): r for r in rec["rows"][n]}.get(key, {}) for n in names}
+        times = [others[n].get(group.time_key) for n in names]
+        table.append([str(row.get(c, "")) for _, c in keys] + [cell("{:.4g}", t) for t in times] + [
+            cell("{:.2f}", times[0] / t) if t and times[0] else "" for t in times[1:]])
+    variants = ", ".join(f"{v['name']} = {v['commit']}" + (f" at {v['simd']}" if v["simd"] != "unknown" else "")
+                         for v in rec["variants"])
+    note = [rec["note"], ""] if rec.get("note") else []
+    about = (f"{provenance(rec)}; {variants}; column `{group.time_key}`, lower is better (a ratio below 1: "
+             f"{names[0]} faster), the variants run alternately.")
+    return [f"### Group `{group.name}`: {what}", "", *note, about, ""] + markdown_table(headers, table) + [""]
+
+
+INTRO = """# Benchmarks
+
+<!-- Generated by bench/run.py from bench/results/*.json; edit bench/run.py, not this page. -->
+Generated by `bench/run.py` from the JSON files in `bench/results/` (machine, commit, date and
+every measured row). Regenerate everything with one command (about 10 minutes on 2 cores;
+`--full` for the larger sizes):
+
+    python3 bench/run.py --quick
+
+`--only GROUP ...` runs some groups, `--compare COMMIT` runs every case on this tree and on COMMIT
+(built in `build/compare-<sha>`) in turn and shows the ratios, `--simd-levels` runs them at every
+instruction-set level of the CPU (`RPYFMM_SIMD`), `--render-only` redraws this page. Times are
+medians; 1-thread rows are the per-core figures, the rows at all cores show the parallel speed-up.
+Where the machine was shared (load average above its cores), 1-thread figures are the steadier
+and rows at all cores mostly show the contention. The fmm3dpy peer comes from PyPI:
+
+    python3 -m venv --system-site-packages build/bench-venv && build/bench-venv/bin/pip install fmm3dpy matplotlib
+"""
+
+
+def render(results: dict[str, dict]) -> str:
+    lines = [INTRO]
+    for group in GROUPS:
+        lines += headline_section(group, results.get(f"{group.name}.json"))
+    if any(".compare-" in name or name.endswith(".simd-levels.json") for name in results):
+        lines += ["## Side by side", "", "Runs of `--compare COMMIT` and `--simd-levels`: each case on both "
+                  "builds (or levels) in turn, in the same run.", ""]
+    for name, rec in results.items():
+        group = GROUP_BY_NAME.get(rec["group"])
+        if group and ".compare-" in name:
+            lines += ratio_section(group, rec, f"this tree against {rec['variants'][1]['commit']}")
+        elif group and name.endswith(".simd-levels.json"):
+            lines += ratio_section(group, rec, "instruction-set levels")
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def plot(group: Group, rec: dict) -> None:
+    """A bar chart of the group's time column (log scale), one bar per headline row, where matplotlib imports."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return
+    rows = rec["rows"][rec["variants"][0]["name"]]
+    labels = [" ".join(row_key(group, r)) for r in rows]
+    fig, ax = plt.subplots(figsize=(8, 0.3 * len(rows) + 1.2))
+    ax.barh(labels, [r.get(group.time_key, 0) for r in rows], label="rpyfmm")
+    if group.name == "fmm" and rec.get("fmm3dpy"):
+        ax.barh(labels, [r.get("fmm3d_s", 0) for r in rows], height=0.4, label="fmm3dpy")
+        ax.legend()
+    ax.set_xscale("log")
+    ax.set_xlabel(f"{group.time_key} (seconds, median)")
+    ax.set_title(f"{group.title}: {rec['machine']['cpu']}, {rec['variants'][0]['commit']}", fontsize=9)
+    ax.tick_params(axis="y", labelsize=7)
+    fig.tight_layout()
+    fig.savefig(RESULTS / f"{group.name}.png", dpi=90)
+    plt.close(fig)
+
+
+# ----------------------------------------------------------------------------------------------
+# Driver
+
+
+def parse_args() -> argparse.Namespace:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    size = ap.add_mutually_exclusive_group()
+    size.add_argument("--quick", action="store_true", help="small sizes, about 10 minutes on 2 cores (default)")
+    size.add_argument("--full", action="store_true", help="the sizes of the headline tables on a quiet machine")
+    ap.add_argument("--only", nargs="+", choices=[g.name for g in GROUPS], help="run these groups only")
+    ap.add_argument("--compare", metavar="COMMIT", help="also build COMMIT and report new/old ratios")
+    ap.add_argument("--simd-levels", action="store_true", help="run at every instruction-set level of the CPU")
+    ap.add_argument("--build", default="build/release", help="build directory (configured if missing)")
+    ap.add_argument("--rounds", type=int, help="runs of each case (default 1 quick, 3 full or side by side)")
+    ap.add_argument("--no-build", action="store_true", help="use the programs as built")
+    ap.add_argument("--render-only", action="store_true", help="only redraw bench/README.md from the JSON files")
+    ap.add_argument("--note", help="a sentence shown with this run's tables (e.g. what --compare compares)")
+    args = ap.parse_args()
+    if args.rounds is None:
+        args.rounds = 3 if args.full or args.compare or args.simd_levels else 1
+    return args
+
+
+def selected_groups(args) -> list[Group]:
+    groups = [g for g in GROUPS if not args.only or g.name in args.only]
+    gpu = has_gpu()
+    skipped = [g.name for g in groups if g.needs_gpu and not gpu]
+    if skipped:
+        print(f"# no GPU: skipping {', '.join(skipped)}", file=sys.stderr)
+    return [g for g in groups if gpu or not g.needs_gpu]
+
+
+def make_variants(args, build: Path) -> list[Variant]:
+    if args.compare:
+        tree = compare_tree(args.compare)
+        return [Variant("new", build), Variant("old", tree / "build" / "release")]
+    if args.simd_levels:
+        levels = []
+        for level in ("avx512", "avx2", "scalar"):
+            reported = simd_level(build, level)
+            if reported == level:
+                levels.append(level)
+        return [Variant(level, build, level) for level in levels]
+    return [Variant("new", build)]
+
+
+def use_bench_venv() -> None:
+    """Run under build/bench-venv's interpreter where it exists (fmm3dpy and matplotlib live there)."""
+    if VENV_PYTHON.exists() and Path(sys.prefix).resolve() != VENV_PYTHON.parent.parent.resolve():
+        os.execv(str(VENV_PYTHON), [str(VENV_PYTHON), str(Path(__file__).resolve()), *sys.argv[1:]])
+
+
+def main() -> None:
+    use_bench_venv()
+    args = parse_args()
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    if not args.render_only:
+        build = (ROOT / args.build).resolve()
+        groups = selected_groups(args)
+        targets = sorted({t for g in groups for t in g.targets})
+        if not args.no_build:
+            build_targets(ROOT, build, targets)
+        variants = make_variants(args, build)
+        if args.compare and not args.no_build:
+            build_targets(variants[1].build.parent.parent, variants[1].build, targets, like=build)
+        for group in groups:
+            rec = record(group, args, variants, run_group(group, variants, args.full, args.rounds))
+            (RESULTS / results_name(group, variants, args)).write_text(json.dumps(rec, indent=1) + "\n")
+            if len(variants) == 1:
+                plot(group, rec)
+    (ROOT / "bench" / "README.md").write_text(render(load_results()))
+    print(f"# wrote {ROOT / 'bench' / 'README.md'}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
