@@ -1,4 +1,5 @@
-// Adaptive octree construction and the U, W, X lists (CGR 1999 §2; PLANEWAVE.md §5.1-§5.2).
+// Adaptive octree construction and the U, W, X lists (Cheng, Greengard & Rokhlin 1999 §2; Guan,
+// dissertation, §2.1; docs/theory/fmm.md).
 #include "rpyfmm/fmm/detail/octree.hpp"
 
 #include <algorithm>
@@ -18,7 +19,8 @@ BoxLists flatten(std::vector<std::vector<int>>& lists) {
   out.begin.resize(lists.size() + 1, 0);
   for (std::size_t i = 0; i < lists.size(); ++i) out.begin[i + 1] = out.begin[i] + lists[i].size();
   out.items.resize(out.begin.back());
-  for (std::size_t i = 0; i < lists.size(); ++i) std::copy(lists[i].begin(), lists[i].end(), out.items.begin() + out.begin[i]);
+  for (std::size_t i = 0; i < lists.size(); ++i)
+    std::copy(lists[i].begin(), lists[i].end(), out.items.begin() + out.begin[i]);
   return out;
 }
 }  // namespace
@@ -46,6 +48,11 @@ bool Octree::adjacent(int a, int b) const noexcept {
 }
 
 void Octree::build(std::span<const double> sources, std::span<const double> targets, const OctreeParams& params) {
+  build_boxes(sources, targets, params);
+  finish_build(sources, targets);
+}
+
+void Octree::build_boxes(std::span<const double> sources, std::span<const double> targets, const OctreeParams& params) {
   same_ = targets.empty();
   const std::size_t n = sources.size() / 3, m = same_ ? 0 : targets.size() / 3;
   double lo[3], hi[3];
@@ -88,15 +95,19 @@ void Octree::build(std::span<const double> sources, std::span<const double> targ
     if (int(boxes_.size()) == level_begin_[l + 1]) break;
     level_begin_.push_back(int(boxes_.size()));
   }
+  leaves_.clear();
+  for (int b = 0; b < int(boxes_.size()); ++b)
+    if (boxes_[b].leaf) leaves_.push_back(b);
+}
+
+void Octree::finish_build(std::span<const double> sources, std::span<const double> targets) {
+  const std::size_t n = sources.size() / 3, m = same_ ? 0 : targets.size() / 3;
   src_xyz_.resize(3 * n);
   for (std::size_t j = 0; j < n; ++j)
     for (int i = 0; i < 3; ++i) src_xyz_[3 * j + i] = sources[3 * src_perm_[j] + i];
   tgt_xyz_.resize(3 * m);
   for (std::size_t j = 0; j < m; ++j)
     for (int i = 0; i < 3; ++i) tgt_xyz_[3 * j + i] = targets[3 * tgt_perm_[j] + i];
-  leaves_.clear();
-  for (int b = 0; b < int(boxes_.size()); ++b)
-    if (boxes_[b].leaf) leaves_.push_back(b);
   build_lists();
 }
 

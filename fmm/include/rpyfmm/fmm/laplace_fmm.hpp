@@ -24,6 +24,7 @@
 #include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/fmm/direct.hpp"
+#include "rpyfmm/fmm/leaf_grid.hpp"
 
 namespace rpyfmm::fmm {
 
@@ -57,8 +58,13 @@ struct FmmOptions {
   /// occupancy instead of the octree's factor-8 steps (fit_leaf_grid; the automatic leaves use
   /// this). With root_scale != 1 and leaf_capacity = 0 the automatic capacity is used as it is.
   double root_scale = 1.0;
-  /// Expansion order; 0 = from eps (FMM3D's rule, PLANEWAVE.md §1.5).
+  /// Expansion order; 0 = from eps (FMM3D's rule, fmm_order_for).
   int order = 0;
+  /// With leaf_capacity > 0 and root_scale = 1: a fitted grid (fit_leaf_grid) replaces the tree of
+  /// that capacity where this rule says it pays, e.g. a caller's measured rule (FmmRpy). The
+  /// decision takes the bounding-cube tree's boxes only; the lists are built once. Default
+  /// (occupancy 0): never. Automatic leaves (leaf_capacity = 0) follow the built-in rule instead.
+  FittedGridRule fitted_grid{};
 };
 
 /// Shape and cost of a plan.
