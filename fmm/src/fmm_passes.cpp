@@ -224,8 +224,8 @@ inline void add_direct(Evaluation& ev, const Box& src_box, std::size_t tbeg, std
   }
 }
 
-// M2P of the multipole of box w at the targets of leaf bx (Guan, Theorem 2.2.2 evaluated with
-// derivatives, §2.3). S: the singular harmonics up to p + 2, acoef: stride entries.
+// M2P of the multipole of box w at the targets of leaf bx (Guan, Theorems 2.2.2 and
+// 2.3.2: the multipole with its derivatives). S: the singular harmonics up to p + 2, acoef: stride entries.
 inline void w_box_to_targets(Evaluation& ev, int w, const Box& bx, cplx* S, cplx* acoef) {
   const auto& tree = ev.tree;
   const auto& H = *ev.plan.H;

@@ -1,4 +1,5 @@
-// Batched plane-wave conversions of the M2L for several densities (PLANEWAVE.md §3.4-§3.5, §4.2):
+// Batched plane-wave conversions of the M2L for several densities (docs/theory/fmm.md, "Several
+// densities"):
 // the same M2F, F2P, P2F, F2L and frame rotations as planewave.cpp, with up to four densities
 // held in the lanes of one vector (layout [entry * D + d]), so that each table entry is loaded
 // once for all of them and the inner loops have no reductions. Used by the FMM driver for nd >= 2
@@ -51,14 +52,14 @@ void PlaneWave::multipole_to_waves(int f, const cplx* Mh, std::size_t ldm, int n
     const std::size_t nlane = std::size_t(nc) * D, klane = std::size_t(sumK_) * D;
     for (auto* v : {&w.ar, &w.ai, &w.br, &w.bi}) ensure(*v, nlane);
     for (auto* v : {&w.fur, &w.fui, &w.fdr, &w.fdi}) ensure(*v, klane);
-    // Gather Mt = Mh / s (unit-frame multipole, §3.4) into lanes; unused lanes are 0.
+    // Gather Mt = Mh / s (unit-frame multipole) into lanes; unused lanes are 0.
     for (int i = 0; i < nc; ++i)
       for (int d = 0; d < D; ++d) {
         const cplx x = d < nd ? Mh[std::size_t(d) * ldm + i] * inv_s : cplx(0.0);
         w.ar[std::size_t(i) * D + d] = x.real();
         w.ai[std::size_t(i) * D + d] = x.imag();
       }
-    // Into frame f (§4.2): z identity, x = Ry(pi/2), y = Ry(-pi/2) Rz(-pi/2).
+    // Into frame f: z identity, x = Ry(pi/2), y = Ry(-pi/2) Rz(-pi/2).
     const double *mr = w.ar.data(), *mi = w.ai.data();
     if (f == 2) {
       rot_x_.apply_lanes(w.ar.data(), w.ai.data(), w.br.data(), w.bi.data(), kmax_);
@@ -70,7 +71,7 @@ void PlaneWave::multipole_to_waves(int f, const cplx* Mh, std::size_t ldm, int n
       mr = w.br.data();
       mi = w.bi.data();
     }
-    // M2F, both directions from the parity sums (§3.4): F^up = i^m (E + O), F^down = i^m (-1)^m (E - O).
+    // M2F, both directions from the parity sums: F^up = i^m (E + O), F^down = i^m (-1)^m (E - O).
     for (int k = 0; k < nlams_; ++k)
       for (int m = 0; m < K_[k]; ++m) {
         double er[D] = {}, ei[D] = {}, orr[D] = {}, oi[D] = {};
@@ -103,7 +104,7 @@ void PlaneWave::multipole_to_waves(int f, const cplx* Mh, std::size_t ldm, int n
           w.fdi[at + d] = sd * (c * di + s * dr);
         }
       }
-    // F2P at the stored nodes, both directions (§3.4, §3.5).
+    // F2P at the stored nodes, both directions.
     for (int k = 0; k < nlams_; ++k) {
       const int M = Mh_[k];
       for (int j = 0; j < M; ++j) {
@@ -148,7 +149,7 @@ void PlaneWave::waves_to_local(int f, const cplx* Vup, const cplx* Vdown, std::s
     for (auto* v : {&w.ar, &w.ai, &w.br, &w.bi}) ensure(*v, nlane);
     for (auto* v : {&w.fur, &w.fui, &w.fdr, &w.fdi}) ensure(*v, klane);
     for (auto* v : {&w.vr, &w.vi}) ensure(*v, mlane);
-    // P2F from the stored nodes (§3.5): G(m) = (2/M_k) sum_j e^{-i m a_j} (Re V_j, m even; i Im V_j, m odd).
+    // P2F from the stored nodes: G(m) = (2/M_k) sum_j e^{-i m a_j} (Re V_j, m even; i Im V_j, m odd).
     auto p2f = [&](const cplx* V, double* gr, double* gi) {
       if (V == nullptr) {
         std::fill(gr, gr + klane, 0.0);
@@ -185,7 +186,7 @@ void PlaneWave::waves_to_local(int f, const cplx* Vup, const cplx* Vdown, std::s
     };
     p2f(Vup, w.fur.data(), w.fui.data());
     p2f(Vdown, w.fdr.data(), w.fdi.data());
-    // F2L (§3.4): Lh_n^m = i^m sum_k w_k lambda_k^n / c_n^m [(-1)^n G^up + G^down], m < kmax.
+    // F2L: Lh_n^m = i^m sum_k w_k lambda_k^n / c_n^m [(-1)^n G^up + G^down], m < kmax.
     std::fill(w.ar.begin(), w.ar.begin() + nlane, 0.0);
     std::fill(w.ai.begin(), w.ai.begin() + nlane, 0.0);
     for (int m = 0; m < kmax_; ++m) {
@@ -212,7 +213,7 @@ void PlaneWave::waves_to_local(int f, const cplx* Vup, const cplx* Vdown, std::s
         }
       }
     }
-    // Out of frame f: L = A(Q_f)^H Lf (§4.2).
+    // Out of frame f: L = A(Q_f)^H Lf.
     const double *lr = w.ar.data(), *li = w.ai.data();
     if (f == 2) {
       rot_x_.apply_adjoint_lanes(w.ar.data(), w.ai.data(), w.br.data(), w.bi.data(), kmax_);

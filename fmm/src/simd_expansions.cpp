@@ -1,4 +1,5 @@
-// P2M and L2P (with gradient and Hessian) vectorized over points (PLANEWAVE.md §6.1, §6.3; §7.3 idea 1).
+// P2M and L2P (with gradient and Hessian) vectorized over points (docs/theory/fmm.md, "Expansions";
+// Guan, dissertation, Theorems 2.2.2 and 2.3.1).
 // Same sums as p2m / l2p_eval (point_expansions.cpp), reorganized: SIMD lanes = points, regular solid
 // harmonics in structure-of-arrays form, coefficients broadcast.
 #include "rpyfmm/core/simd_dispatch.hpp"
@@ -24,7 +25,7 @@ inline void cmac(Acc& a, double br, double bi, const double* Rr, const double* R
 inline void rmac(double* a, double w, double br, double bi, const double* Rr, const double* Ri) noexcept {
   for (int t = 0; t < W; ++t) a[t] += w * (br * Rr[t] - bi * Ri[t]);
 }
-// Regular solid harmonics (§1.2) of W points, structure of arrays: Rr/Ri[idx(n,m) * W + lane].
+// Regular solid harmonics of W points, structure of arrays: Rr/Ri[idx(n,m) * W + lane].
 inline void regular_soa(int p, const double* rec, const double* x, const double* y, const double* z, const double* rho2,
                         double* Rr, double* Ri) noexcept {
   for (int m = 0; m <= p; ++m) {

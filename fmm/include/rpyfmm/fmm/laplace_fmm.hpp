@@ -1,7 +1,8 @@
 // rpyfmm::fmm — adaptive plane-wave fast multipole method for the 3-D Laplace kernel 1/r.
 //
-// Cheng, Greengard & Rokhlin, J. Comput. Phys. 155 (1999) 468-498; dissertation 004 ch. 2;
-// design note PLANEWAVE.md. Adaptive octree with U/V/W/X lists, scaled spherical-harmonic
+// Cheng, Greengard & Rokhlin, J. Comput. Phys. 155 (1999) 468-498; W. Guan, "Fast Algorithms for
+// Brownian Dynamics with Hydrodynamic Interactions", PhD dissertation, University of North Carolina
+// at Chapel Hill, ch. 2; docs/theory/fmm.md. Adaptive octree with U/V/W/X lists, scaled spherical-harmonic
 // expansions, point-and-shoot M2M/L2L, plane-wave M2L with merge-and-shift in six directions,
 // M2P/P2L for the W/X lists, potential/gradient/Hessian at sources and at separate targets.
 //

@@ -1,5 +1,6 @@
 // rpyfmm::fmm — adaptive octree with the U, V, W, X lists of Cheng, Greengard & Rokhlin
-// (JCP 155 (1999) §2; dissertation 004 §2.1; PLANEWAVE.md §5.1-§5.2).
+// (J. Comput. Phys. 155 (1999) §2; Guan, dissertation, §2.1; docs/theory/fmm.md, "The tree and
+// the four lists").
 //
 // Boxes are stored level by level; empty boxes are never created. All adjacency and offset tests
 // use integer box coordinates (level, ix, iy, iz). The tree is *not* level-restricted: the lists
