@@ -86,6 +86,21 @@ class PlaneWave {
   }
 
  private:
+  // Stages of multipole_to_waves and waves_to_local (planewave_batch.cpp), inlined into each
+  // instruction-set version of those two. Lanes: [entry * kDensityLanes + d].
+  [[gnu::always_inline]] inline void gather_multipole_lanes(const cplx* Mh, std::size_t ldm, int nd, double inv_s,
+                                                            LaneWork& w) const noexcept;
+  [[gnu::always_inline]] inline void rotate_lanes_into_frame(int f, LaneWork& w, const double*& mr,
+                                                             const double*& mi) const noexcept;
+  [[gnu::always_inline]] inline void m2f_lanes(const double* mr, const double* mi, LaneWork& w) const noexcept;
+  [[gnu::always_inline]] inline void f2p_lanes(const LaneWork& w, int nd, cplx* Wup, cplx* Wdown,
+                                               std::size_t ldw) const noexcept;
+  [[gnu::always_inline]] inline void p2f_lanes(const cplx* V, std::size_t ldv, int nd, double* gr, double* gi,
+                                               LaneWork& w) const noexcept;
+  [[gnu::always_inline]] inline void f2l_lanes(LaneWork& w) const noexcept;
+  [[gnu::always_inline]] inline void rotate_lanes_out_of_frame(int f, LaneWork& w, const double*& lr,
+                                                               const double*& li) const noexcept;
+
   int p_, nlams_, sumK_ = 0, sumM_ = 0, kmax_ = 0;
   std::vector<double> lambda_, weight_;
   std::vector<int> K_, M_, Mh_, koff_, moff_;  // M_k even, Mh_k = M_k / 2 stored
