@@ -22,7 +22,10 @@ Evaluation::Evaluation(const LaplaceFmm::Plan& plan_, std::size_t nd_, std::span
       N(plan_.n),
       M(plan_.m),
       stride(nd_ * std::size_t(ncoef(plan_.p))),
-      outputs(outputs_) {
+      outputs(outputs_),
+      mp(boxes.size() * stride),
+      lp(boxes.size() * stride),
+      has_local(boxes.size(), 0) {
   for (unsigned f : outputs) any_flags |= f;
   uniform_flags = std::all_of(outputs.begin(), outputs.end(), [&](unsigned f) { return f == outputs[0]; });
 }
@@ -36,10 +39,6 @@ void sort_charges(Evaluation& ev, std::span<const double> charges) {
   for (std::size_t j = 0; j < N; ++j)
     for (std::size_t d = 0; d < nd; ++d) qs[d * N + j] = charges[d * N + sperm[j]];
   ev.res.assign(nd * ev.M * result_width, 0.0);
-  const std::size_t nb = ev.boxes.size();
-  ev.mp.resize(nb * ev.stride);
-  ev.lp.resize(nb * ev.stride);
-  ev.has_local.assign(nb, 0);
 }
 
 namespace {

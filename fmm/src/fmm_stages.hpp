@@ -67,7 +67,7 @@ struct Evaluation {
   std::vector<char> has_local;  // the box's local expansion has received a contribution
 };
 
-/// Charges into tree order (qs).
+/// Charges into tree order (qs); results (res) zeroed.
 void sort_charges(Evaluation& ev, std::span<const double> charges);
 /// Upward pass, P2M: multipoles of the leaves from their sources.
 void form_leaf_multipoles(Evaluation& ev);
