@@ -88,6 +88,7 @@ class Octree {
 
  private:
   void split_level(int level, const OctreeParams& params, std::span<const double> src, std::span<const double> tgt);
+  void add_children(int b, const std::array<std::size_t, 16>& counts);
   void build_lists();
 
   bool same_ = true;
