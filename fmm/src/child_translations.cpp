@@ -1,4 +1,5 @@
-// M2M and L2L between a box and its children by point-and-shoot (PLANEWAVE.md §2.1, §2.3):
+// M2M and L2L between a box and its children by point-and-shoot (docs/theory/fmm.md, "Translations
+// between levels"; Guan, dissertation, Theorems 2.2.4-2.2.5):
 // rotate so that the shift is along +z, shift along z, rotate back.
 #include <cmath>
 #include <numbers>
@@ -33,7 +34,7 @@ ChildTranslations::ChildTranslations(int p)
     }
 }
 
-// Mh'_j^k = sum_l Mh_{j-l}^k (s0/s1)^(j-l) (-d/s1)^l sqrt(C(j-k,l) C(j+k,l))   (§2.1, scaled)
+// Mh'_j^k = sum_l Mh_{j-l}^k (s0/s1)^(j-l) (-d/s1)^l sqrt(C(j-k,l) C(j+k,l))   (scaled)
 void ChildTranslations::m2m_z(const cplx* in, cplx* out, double d, double s0, double s1) const noexcept {
   const int p = p_;
   std::vector<double> ra(p + 1), rb(p + 1);
@@ -51,7 +52,7 @@ void ChildTranslations::m2m_z(const cplx* in, cplx* out, double d, double s0, do
     }
 }
 
-// Lh'_j^k = sum_{n>=j} Lh_n^k (s1/s0)^j (d/s0)^(n-j) sqrt(C(n-k,n-j) C(n+k,n-j))   (§2.1, scaled)
+// Lh'_j^k = sum_{n>=j} Lh_n^k (s1/s0)^j (d/s0)^(n-j) sqrt(C(n-k,n-j) C(n+k,n-j))   (scaled)
 void ChildTranslations::l2l_z(const cplx* in, cplx* out, double d, double s0, double s1) const noexcept {
   const int p = p_;
   std::vector<double> ra(p + 1), rb(p + 1);
@@ -71,7 +72,7 @@ void ChildTranslations::l2l_z(const cplx* in, cplx* out, double d, double s0, do
 
 // Child at offset (s/2)(sx,sy,sz) from the parent center (child side s, parent side 2s).
 // M2M moves the center from child to parent: direction u = -(sx,sy,sz)/sqrt(3), |d| = sqrt(3) s/2.
-// Frame Q_u = Ry(t) Rz(f) with u = (sin t cos f, sin t sin f, cos t) (§2.2), so A(Q_u) = A(Ry(t)) diag(e^{imf}).
+// Frame Q_u = Ry(t) Rz(f) with u = (sin t cos f, sin t sin f, cos t), so A(Q_u) = A(Ry(t)) diag(e^{imf}).
 void ChildTranslations::m2m(int octant, const cplx* Mh_child, cplx* Mh_parent, cplx* work) const noexcept {
   int sx, sy, sz;
   octant_signs(octant, sx, sy, sz);

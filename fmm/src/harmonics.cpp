@@ -1,4 +1,4 @@
-// Solid harmonics and normalizers (PLANEWAVE.md §1.1-§1.2).
+// Solid harmonics and normalizers (docs/theory/fmm.md, "Expansions"; Guan, dissertation, §2.2.1).
 #include "rpyfmm/fmm/detail/harmonics.hpp"
 
 #include <cmath>
@@ -61,8 +61,7 @@ void Harmonics::singular(int p, double x, double y, double z, cplx* S) const noe
     if (m > 0) S[idx(m, m)] = -double(2 * m - 1) * w * S[idx(m - 1, m - 1)] * inv;
     if (m + 1 <= p) S[idx(m + 1, m)] = double(2 * m + 1) * z * S[idx(m, m)] * inv;
     for (int n = m + 1; n < p; ++n)
-      S[idx(n + 1, m)] =
-          (double(2 * n + 1) * z * S[idx(n, m)] - double(n * n - m * m) * S[idx(n - 1, m)]) * inv;
+      S[idx(n + 1, m)] = (double(2 * n + 1) * z * S[idx(n, m)] - double(n * n - m * m) * S[idx(n - 1, m)]) * inv;
   }
 }
 

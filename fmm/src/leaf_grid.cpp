@@ -1,4 +1,4 @@
-// Leaf grid fitted to a cloud (rpyfmm/fmm/leaf_grid.hpp; docs/design-notes.md item 13).
+// Leaf grid fitted to a cloud (rpyfmm/fmm/leaf_grid.hpp; docs/theory/fmm.md).
 #include "rpyfmm/fmm/leaf_grid.hpp"
 
 #include <algorithm>
@@ -67,6 +67,17 @@ LeafGrid fit_leaf_grid(std::span<const double> sources, std::span<const double> 
 bool fitted_leaf_grid_pays(std::size_t points, std::size_t cube_leaves, int occupancy) noexcept {
   constexpr double kMinGain = 1.7;
   return occupancy > 0 && double(points) > kMinGain * double(occupancy) * double(cube_leaves);
+}
+
+LeafGrid choose_leaf_grid(const FittedGridRule& rule, std::span<const double> sources, std::span<const double> targets,
+                          std::size_t cube_leaves, double cube_leaf_level_share) {
+  const std::size_t points = sources.size() / 3 + targets.size() / 3;
+  if (rule.occupancy == 0 || points < rule.min_points || points > rule.max_points) return {};
+  const bool pays = rule.by_mean_occupancy && fitted_leaf_grid_pays(points, cube_leaves, rule.occupancy);
+  const bool partial = !pays && cube_leaf_level_share < rule.partial_split_share;
+  if (!pays && !partial) return {};
+  const double min_fill = partial ? std::max(rule.min_fill, rule.partial_min_fill) : rule.min_fill;
+  return fit_leaf_grid(sources, targets, rule.occupancy, min_fill);
 }
 
 }  // namespace rpyfmm::fmm

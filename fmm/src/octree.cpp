@@ -1,4 +1,5 @@
-// Adaptive octree construction and the U, W, X lists (CGR 1999 §2; PLANEWAVE.md §5.1-§5.2).
+// Adaptive octree construction and the U, W, X lists (Cheng, Greengard & Rokhlin 1999 §2; Guan,
+// dissertation, §2.1; docs/theory/fmm.md).
 #include "rpyfmm/fmm/detail/octree.hpp"
 
 #include <algorithm>
@@ -18,7 +19,8 @@ BoxLists flatten(std::vector<std::vector<int>>& lists) {
   out.begin.resize(lists.size() + 1, 0);
   for (std::size_t i = 0; i < lists.size(); ++i) out.begin[i + 1] = out.begin[i] + lists[i].size();
   out.items.resize(out.begin.back());
-  for (std::size_t i = 0; i < lists.size(); ++i) std::copy(lists[i].begin(), lists[i].end(), out.items.begin() + out.begin[i]);
+  for (std::size_t i = 0; i < lists.size(); ++i)
+    std::copy(lists[i].begin(), lists[i].end(), out.items.begin() + out.begin[i]);
   return out;
 }
 }  // namespace
@@ -46,6 +48,11 @@ bool Octree::adjacent(int a, int b) const noexcept {
 }
 
 void Octree::build(std::span<const double> sources, std::span<const double> targets, const OctreeParams& params) {
+  build_boxes(sources, targets, params);
+  finish_build(sources, targets);
+}
+
+void Octree::build_boxes(std::span<const double> sources, std::span<const double> targets, const OctreeParams& params) {
   same_ = targets.empty();
   const std::size_t n = sources.size() / 3, m = same_ ? 0 : targets.size() / 3;
   double lo[3], hi[3];
@@ -88,18 +95,71 @@ void Octree::build(std::span<const double> sources, std::span<const double> targ
     if (int(boxes_.size()) == level_begin_[l + 1]) break;
     level_begin_.push_back(int(boxes_.size()));
   }
+  leaves_.clear();
+  for (int b = 0; b < int(boxes_.size()); ++b)
+    if (boxes_[b].leaf) leaves_.push_back(b);
+}
+
+void Octree::finish_build(std::span<const double> sources, std::span<const double> targets) {
+  const std::size_t n = sources.size() / 3, m = same_ ? 0 : targets.size() / 3;
   src_xyz_.resize(3 * n);
   for (std::size_t j = 0; j < n; ++j)
     for (int i = 0; i < 3; ++i) src_xyz_[3 * j + i] = sources[3 * src_perm_[j] + i];
   tgt_xyz_.resize(3 * m);
   for (std::size_t j = 0; j < m; ++j)
     for (int i = 0; i < 3; ++i) tgt_xyz_[3 * j + i] = targets[3 * tgt_perm_[j] + i];
-  leaves_.clear();
-  for (int b = 0; b < int(boxes_.size()); ++b)
-    if (boxes_[b].leaf) leaves_.push_back(b);
   build_lists();
 }
 
+namespace {
+
+// Whether the points of a box (sources [sb, se) and targets [tb, te) of the permutations) all
+// coincide: such a box is never split (duplicated points).
+bool all_coincide(std::span<const double> src, const std::vector<std::size_t>& sperm, std::size_t sb, std::size_t se,
+                  std::span<const double> tgt, const std::vector<std::size_t>& tperm, std::size_t tb, std::size_t te) {
+  double mn[3], mx[3];
+  for (int i = 0; i < 3; ++i) {
+    mn[i] = std::numeric_limits<double>::infinity();
+    mx[i] = -mn[i];
+  }
+  for (std::size_t j = sb; j < se; ++j)
+    for (int i = 0; i < 3; ++i) {
+      mn[i] = std::min(mn[i], src[3 * sperm[j] + i]);
+      mx[i] = std::max(mx[i], src[3 * sperm[j] + i]);
+    }
+  for (std::size_t j = tb; j < te; ++j)
+    for (int i = 0; i < 3; ++i) {
+      mn[i] = std::min(mn[i], tgt[3 * tperm[j] + i]);
+      mx[i] = std::max(mx[i], tgt[3 * tperm[j] + i]);
+    }
+  return mx[0] == mn[0] && mx[1] == mn[1] && mx[2] == mn[2];
+}
+
+// Stable partition of perm[begin, end) by the octant of each point about the centre c; cnt: the
+// count per octant. oct, tmp: scratch.
+void partition_octants(std::span<const double> pts, std::vector<std::size_t>& perm, std::size_t begin, std::size_t end,
+                       const std::array<double, 3>& c, std::size_t* cnt, std::vector<unsigned char>& oct,
+                       std::vector<std::size_t>& tmp) {
+  const std::size_t len = end - begin;
+  oct.resize(len);
+  tmp.resize(len);
+  for (int o = 0; o < 8; ++o) cnt[o] = 0;
+  for (std::size_t j = 0; j < len; ++j) {
+    oct[j] = static_cast<unsigned char>(octant_of(&pts[3 * perm[begin + j]], c.data()));
+    ++cnt[oct[j]];
+  }
+  std::size_t pos[8];
+  pos[0] = 0;
+  for (int o = 1; o < 8; ++o) pos[o] = pos[o - 1] + cnt[o - 1];
+  for (std::size_t j = 0; j < len; ++j) tmp[pos[oct[j]]++] = perm[begin + j];  // stable
+  std::copy(tmp.begin(), tmp.end(), perm.begin() + begin);
+}
+
+}  // namespace
+
+// Splits the boxes of a level that hold more than leaf_capacity points (and are not below
+// min_leaf_side, nor of coincident points) into their non-empty children, in parallel over the
+// boxes (each partitions only its own range of the permutations); children are appended in box order.
 void Octree::split_level(int level, const OctreeParams& params, std::span<const double> src,
                          std::span<const double> tgt) {
   const int lb = level_begin_[level], le = level_begin_[level + 1];
@@ -116,72 +176,45 @@ void Octree::split_level(int level, const OctreeParams& params, std::span<const 
       Box& bx = boxes_[b];
       const std::size_t count = bx.nsrc() + (same_ ? 0 : bx.ntgt());
       if (count <= params.leaf_capacity || child_side < params.min_leaf_side) continue;
-      // Do not split a box whose points all coincide (duplicated points).
-      double mn[3], mx[3];
-      for (int i = 0; i < 3; ++i) {
-        mn[i] = std::numeric_limits<double>::infinity();
-        mx[i] = -mn[i];
-      }
-      for (std::size_t j = bx.src_begin; j < bx.src_end; ++j)
-        for (int i = 0; i < 3; ++i) {
-          mn[i] = std::min(mn[i], src[3 * src_perm_[j] + i]);
-          mx[i] = std::max(mx[i], src[3 * src_perm_[j] + i]);
-        }
-      if (!same_)
-        for (std::size_t j = bx.tgt_begin; j < bx.tgt_end; ++j)
-          for (int i = 0; i < 3; ++i) {
-            mn[i] = std::min(mn[i], tgt[3 * tperm[j] + i]);
-            mx[i] = std::max(mx[i], tgt[3 * tperm[j] + i]);
-          }
-      if (mx[0] == mn[0] && mx[1] == mn[1] && mx[2] == mn[2]) continue;
+      if (all_coincide(src, src_perm_, bx.src_begin, bx.src_end, tgt, tperm, bx.tgt_begin,
+                       same_ ? bx.tgt_begin : bx.tgt_end))
+        continue;
       split[b - lb] = 1;
       const auto c = center(b);
-      auto partition = [&](std::span<const double> pts, std::vector<std::size_t>& perm, std::size_t begin,
-                           std::size_t end, std::size_t* cnt) {
-        const std::size_t len = end - begin;
-        oct.resize(len);
-        tmp.resize(len);
-        for (int o = 0; o < 8; ++o) cnt[o] = 0;
-        for (std::size_t j = 0; j < len; ++j) {
-          oct[j] = static_cast<unsigned char>(octant_of(&pts[3 * perm[begin + j]], c.data()));
-          ++cnt[oct[j]];
-        }
-        std::size_t pos[8];
-        pos[0] = 0;
-        for (int o = 1; o < 8; ++o) pos[o] = pos[o - 1] + cnt[o - 1];
-        for (std::size_t j = 0; j < len; ++j) tmp[pos[oct[j]]++] = perm[begin + j];  // stable
-        std::copy(tmp.begin(), tmp.end(), perm.begin() + begin);
-      };
-      partition(src, src_perm_, bx.src_begin, bx.src_end, counts[b - lb].data());
+      partition_octants(src, src_perm_, bx.src_begin, bx.src_end, c, counts[b - lb].data(), oct, tmp);
       if (same_) {
         for (int o = 0; o < 8; ++o) counts[b - lb][8 + o] = counts[b - lb][o];
       } else {
-        partition(tgt, tgt_perm_, bx.tgt_begin, bx.tgt_end, counts[b - lb].data() + 8);
+        partition_octants(tgt, tgt_perm_, bx.tgt_begin, bx.tgt_end, c, counts[b - lb].data() + 8, oct, tmp);
       }
     }
   }
-  for (int b = lb; b < le; ++b) {
-    if (!split[b - lb]) continue;
-    std::size_t s0 = boxes_[b].src_begin, t0 = boxes_[b].tgt_begin;
-    boxes_[b].leaf = false;
-    for (int o = 0; o < 8; ++o) {
-      const std::size_t ns = counts[b - lb][o], nt = counts[b - lb][8 + o];
-      if (ns + nt == 0) continue;  // empty boxes are skipped
-      Box ch;
-      ch.level = level + 1;
-      ch.ix = 2 * boxes_[b].ix + (o & 1);
-      ch.iy = 2 * boxes_[b].iy + ((o >> 1) & 1);
-      ch.iz = 2 * boxes_[b].iz + ((o >> 2) & 1);
-      ch.parent = b;
-      ch.src_begin = s0;
-      ch.src_end = s0 + ns;
-      ch.tgt_begin = t0;
-      ch.tgt_end = t0 + nt;
-      s0 += ns;
-      t0 += nt;
-      boxes_[b].child[o] = int(boxes_.size());
-      boxes_.push_back(ch);
-    }
+  for (int b = lb; b < le; ++b)
+    if (split[b - lb]) add_children(b, counts[b - lb]);
+}
+
+// Appends the non-empty children of box b, whose points are partitioned by octant with the counts
+// of sources (counts[0..7]) and targets (counts[8..15]).
+void Octree::add_children(int b, const std::array<std::size_t, 16>& counts) {
+  std::size_t s0 = boxes_[b].src_begin, t0 = boxes_[b].tgt_begin;
+  boxes_[b].leaf = false;
+  for (int o = 0; o < 8; ++o) {
+    const std::size_t ns = counts[o], nt = counts[8 + o];
+    if (ns + nt == 0) continue;  // empty boxes are skipped
+    Box ch;
+    ch.level = boxes_[b].level + 1;
+    ch.ix = 2 * boxes_[b].ix + (o & 1);
+    ch.iy = 2 * boxes_[b].iy + ((o >> 1) & 1);
+    ch.iz = 2 * boxes_[b].iz + ((o >> 2) & 1);
+    ch.parent = b;
+    ch.src_begin = s0;
+    ch.src_end = s0 + ns;
+    ch.tgt_begin = t0;
+    ch.tgt_end = t0 + nt;
+    s0 += ns;
+    t0 += nt;
+    boxes_[b].child[o] = int(boxes_.size());
+    boxes_.push_back(ch);
   }
 }
 

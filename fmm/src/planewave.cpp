@@ -1,4 +1,5 @@
-// Plane-wave M2L operators (PLANEWAVE.md §3.4, §4, §5.3).
+// Plane-wave M2L operators (docs/theory/fmm.md, "Plane-wave M2L with merge-and-shift"; Guan,
+// dissertation, Theorems 2.2.7-2.2.9).
 #include "rpyfmm/fmm/detail/planewave.hpp"
 
 #include <algorithm>
@@ -25,10 +26,10 @@ PlaneWave::PlaneWave(int p, int digits)
     lambda_.push_back(node.lambda);
     weight_.push_back(node.weight);
     K_.push_back(node.nfourier);
-    // Half-node storage (PLANEWAVE.md §3.5): for real densities W(a + pi) = conj(W(a)), and so do
+    // Half-node storage: for real densities W(a + pi) = conj(W(a)), and so do
     // the translation factors, so with M_k even only the nodes j < M_k/2 are stored, shifted and
     // transformed. The published odd M_k (and the one-node last lambda) are rounded up to even,
-    // which keeps every table within its tolerance (docs/design-notes.md item 11;
+    // which keeps every table within its tolerance (docs/theory/fmm.md, "Half the angle nodes";
     // test FmmBlocks.PlaneWaveM2LAllOffsetsAllTables).
     const int Mk = node.nphysical + (node.nphysical & 1);
     M_.push_back(Mk);
@@ -42,7 +43,7 @@ PlaneWave::PlaneWave(int p, int digits)
   const Harmonics& H = Harmonics::cached(p);
   const int nc = ncoef(p);
   // lambda_k^n / c_n^m, node index fastest (padded to kLanes, zero where K_k <= m), so that M2F and
-  // F2L run over the nodes k with unit stride for each (n, m) (PLANEWAVE.md §3.4).
+  // F2L run over the nodes k with unit stride for each (n, m).
   nlp_ = (nlams_ + kLanes - 1) / kLanes * kLanes;
   lam_over_c_.assign(std::size_t(nc) * nlp_, 0.0);
   lam_weight_over_c_.assign(std::size_t(nc) * nlp_, 0.0);
@@ -148,7 +149,7 @@ inline cplx ipow(int m) noexcept {  // i^m
 void PlaneWave::m2f(const cplx* Mt, cplx* Fup, cplx* Fdown) const noexcept {
   simd_dispatch([=, this]() RPYFMM_SIMD_BODY {
     // For each m, the parity sums E_k = sum_{n-m even} lambda_k^n Mt_n^m / c_n^m and O_k (odd) for all
-    // nodes k at once; F^up = i^m (E + O), F^down = i^m (-1)^m (E - O) (§3.4).
+    // nodes k at once; F^up = i^m (E + O), F^down = i^m (-1)^m (E - O).
     alignas(64) double er[kMaxNodes], ei[kMaxNodes], orr[kMaxNodes], oi[kMaxNodes];
     const int L = nlp_;
     for (int m = 0; m < kmax_; ++m) {
@@ -229,7 +230,7 @@ void PlaneWave::p2f(const cplx* V, cplx* G) const noexcept {
 
 void PlaneWave::f2l(const cplx* Gup, const cplx* Gdown, cplx* Lh) const noexcept {
   simd_dispatch([=, this]() RPYFMM_SIMD_BODY {
-    // Lh_n^m = i^m sum_k w_k lambda_k^n / c_n^m [(-1)^n G_k^up(m) + G_k^down(m)] (§3.4), one dot product
+    // Lh_n^m = i^m sum_k w_k lambda_k^n / c_n^m [(-1)^n G_k^up(m) + G_k^down(m)], one dot product
     // over the nodes k per (n, m); the table is zero where K_k <= m, so those nodes drop out.
     alignas(64) double er[kMaxNodes], ei[kMaxNodes], orr[kMaxNodes], oi[kMaxNodes];
     const int L = nlp_, nc = ncoef(p_);
@@ -275,7 +276,7 @@ const std::array<std::array<MergeGroup, 3>, 216>& merge_groups() {
             }
           }
           if (all8) continue;
-          // Rule 2: classify each V-pair by §4.1.
+          // Rule 2: classify each V-pair by the first axis along which the boxes are separated (CGR 1999 §4).
           for (int oct = 0; oct < 8; ++oct) {
             const int c[3] = {oct & 1, (oct >> 1) & 1, (oct >> 2) & 1};
             const int d[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};

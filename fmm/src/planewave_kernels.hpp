@@ -1,4 +1,4 @@
-// Elementwise plane-wave kernels of the merge-and-shift M2L (PLANEWAVE.md §5.3), compiled for
+// Elementwise plane-wave kernels of the merge-and-shift M2L (docs/theory/fmm.md), compiled for
 // x86-64-v4 (AVX-512), x86-64-v3 (AVX2 + FMA) and the baseline and chosen by simd_level(): the shift of physical values
 // V_kj *= Sh_kj and the accumulation of shifted waves are most of the M2L at low precision.
 #pragma once

@@ -5,7 +5,7 @@
 
 namespace rpyfmm::fmm::detail {
 
-/// One lambda node of the exponential representation (PLANEWAVE.md §3.2):
+/// One lambda node of the exponential representation (docs/theory/fmm.md, "Plane-wave M2L"):
 /// weight w_k, K_k Fourier modes kept, M_k equispaced angle nodes.
 struct PlaneWaveNode {
   double lambda;

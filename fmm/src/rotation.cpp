@@ -1,4 +1,5 @@
-// Rotation matrices of spherical-harmonic expansions (PLANEWAVE.md §2.2):
+// Rotation matrices of spherical-harmonic expansions (docs/theory/fmm.md, "Translations between
+// levels"; Greengard & Rokhlin, Acta Numerica 6 (1997) §5):
 //   A^n_{m'm}(Q) = (2n+1)/(4 pi) int_S2 Y_n^m(u) conj(Y_n^m'(Q u)) dOmega(u),
 // evaluated by the exact product rule (n+1 Gauss-Legendre nodes in cos(theta), 2n+2 angles),
 // as one small complex GEMM per degree.

@@ -1,6 +1,7 @@
-// P2M and L2P (with gradient and Hessian) vectorized over points (PLANEWAVE.md §6.1, §6.3; §7.3 idea 1).
-// Same sums as p2m / l2p_eval (point_expansions.cpp), reorganized: SIMD lanes = points, regular solid
-// harmonics in structure-of-arrays form, coefficients broadcast.
+// P2M and L2P (with gradient and Hessian) vectorized over points (docs/theory/fmm.md, "Expansions";
+// Guan, dissertation, Theorems 2.2.2 and 2.3.1).
+// The sums of the one-point forms (tests/fmm/expansion_reference.hpp), reorganized: SIMD lanes =
+// points, regular solid harmonics in structure-of-arrays form, coefficients broadcast.
 #include "rpyfmm/core/simd_dispatch.hpp"
 #include "rpyfmm/fmm/detail/expansions.hpp"
 
@@ -24,7 +25,7 @@ inline void cmac(Acc& a, double br, double bi, const double* Rr, const double* R
 inline void rmac(double* a, double w, double br, double bi, const double* Rr, const double* Ri) noexcept {
   for (int t = 0; t < W; ++t) a[t] += w * (br * Rr[t] - bi * Ri[t]);
 }
-// Regular solid harmonics (§1.2) of W points, structure of arrays: Rr/Ri[idx(n,m) * W + lane].
+// Regular solid harmonics of W points, structure of arrays: Rr/Ri[idx(n,m) * W + lane].
 inline void regular_soa(int p, const double* rec, const double* x, const double* y, const double* z, const double* rho2,
                         double* Rr, double* Ri) noexcept {
   for (int m = 0; m <= p; ++m) {
@@ -64,6 +65,100 @@ inline void regular_soa(int p, const double* rec, const double* x, const double*
     }
   }
 }
+// The regular solid harmonics of the lanes' scaled offsets u (nt valid lanes; the others at 0).
+[[gnu::always_inline]] inline void regular_lanes(int p, const double* rec, int nt, const double* ux, const double* uy,
+                                                 const double* uz, double* Rr, double* Ri) noexcept {
+  double x[W], y[W], z[W], rho2[W];
+  for (int t = 0; t < W; ++t) {
+    x[t] = t < nt ? ux[t] : 0.0;
+    y[t] = t < nt ? uy[t] : 0.0;
+    z[t] = t < nt ? uz[t] : 0.0;
+    rho2[t] = x[t] * x[t] + y[t] * y[t] + z[t] * z[t];
+    Rr[t] = 1.0;
+    Ri[t] = 0.0;
+  }
+  regular_soa(p, rec, x, y, z, rho2, Rr, Ri);
+}
+
+// L2P potential of the lanes: phi = sum_{n,m} Re'(b_n^m R_n^m), added to o[t * 10].
+[[gnu::always_inline]] inline void l2p_potential(int p, const cplx* bd, const double* Rr, const double* Ri, int nt,
+                                                 double* o) noexcept {
+  double phi[W] = {};
+  for (int n = 0; n <= p; ++n)
+    for (int m = 0; m <= n; ++m) {
+      const int i = idx(n, m);
+      rmac(phi, m ? 2.0 : 1.0, bd[i].real(), bd[i].imag(), Rr + i * W, Ri + i * W);
+    }
+  for (int t = 0; t < nt; ++t) o[t * 10] += phi[t];
+}
+
+// L2P gradient of the lanes from the coefficients one degree up (Guan, Theorem 2.3.1), added to
+// o[t * 10 + 1 .. 3].
+[[gnu::always_inline]] inline void l2p_gradient(int p, double inv_s, const cplx* bd, const double* Rr, const double* Ri,
+                                                int nt, double* o) noexcept {
+  double dz[W] = {};
+  Acc g1{}, g2{};
+  for (int n = 0; n + 1 <= p; ++n)
+    for (int m = 0; m <= n; ++m) {
+      const int i = idx(n, m);
+      const double* rr = Rr + i * W;
+      const double* ri = Ri + i * W;
+      const cplx c0 = bd[idx(n + 1, m)], cp = bd[idx(n + 1, m + 1)];
+      rmac(dz, m ? 2.0 : 1.0, c0.real(), c0.imag(), rr, ri);
+      if (m >= 1) {
+        const cplx cm = bd[idx(n + 1, m - 1)];
+        cmac(g1, cm.real(), cm.imag(), rr, ri);
+      }
+      cmac(g2, cp.real(), cp.imag(), rr, ri);
+    }
+  for (int t = 0; t < nt; ++t) {
+    o[t * 10 + 1] += (g1.re[t] - g2.re[t]) * inv_s;  // G = G1 - conj(G2)
+    o[t * 10 + 2] += (g1.im[t] + g2.im[t]) * inv_s;
+    o[t * 10 + 3] += dz[t] * inv_s;
+  }
+}
+
+// L2P Hessian of the lanes from the coefficients two degrees up (Guan, Theorem 2.3.1), added to
+// o[t * 10 + 4 .. 9] (xx, yy, zz, xy, xz, yz).
+[[gnu::always_inline]] inline void l2p_hessian(int p, double inv_s2, const cplx* bd, const double* Rr, const double* Ri,
+                                               int nt, double* o) noexcept {
+  double dzz[W] = {};
+  Acc j1{}, j2{}, k1{}, k3{};
+  for (int n = 0; n + 2 <= p; ++n)
+    for (int m = 0; m <= n; ++m) {
+      const int i = idx(n, m);
+      const double* rr = Rr + i * W;
+      const double* ri = Ri + i * W;
+      const cplx c0 = bd[idx(n + 2, m)], cp = bd[idx(n + 2, m + 1)], cpp = bd[idx(n + 2, m + 2)];
+      rmac(dzz, m ? 2.0 : 1.0, c0.real(), c0.imag(), rr, ri);
+      if (m >= 1) {
+        const cplx cm = bd[idx(n + 2, m - 1)];
+        cmac(j1, cm.real(), cm.imag(), rr, ri);
+      }
+      cmac(j2, cp.real(), cp.imag(), rr, ri);
+      if (m >= 2) {
+        const cplx cmm = bd[idx(n + 2, m - 2)];
+        cmac(k1, cmm.real(), cmm.imag(), rr, ri);
+      }
+      if (m == 1) {
+        const cplx c1 = bd[idx(n + 2, 1)];
+        cmac(k1, -c1.real(), c1.imag(), rr, ri);  // - conj(b_{n+2}^1) R_n^1
+      }
+      cmac(k3, cpp.real(), cpp.imag(), rr, ri);
+    }
+  for (int t = 0; t < nt; ++t) {
+    const double zz = dzz[t] * inv_s2;
+    const double Jr = (j1.re[t] - j2.re[t]) * inv_s2, Ji = (j1.im[t] + j2.im[t]) * inv_s2;  // J = J1 - conj(J2)
+    const double Kr = (k1.re[t] + k3.re[t]) * inv_s2, Ki = (k1.im[t] - k3.im[t]) * inv_s2;  // K = K1 + conj(K3)
+    double* r = o + t * 10;
+    r[4] += 0.5 * (Kr - zz);
+    r[5] += -0.5 * (Kr + zz);
+    r[6] += zz;
+    r[7] += 0.5 * Ki;
+    r[8] += Jr;
+    r[9] += Ji;
+  }
+}
 }  // namespace
 
 void p2m_block(int p, const double* rec, const double* cn, int np, const double* ux, const double* uy, const double* uz,
@@ -72,16 +167,7 @@ void p2m_block(int p, const double* rec, const double* cn, int np, const double*
     const int nc = ncoef(p);
     double* Rr = scratch;
     double* Ri = scratch + std::size_t(nc) * W;
-    double x[W], y[W], z[W], rho2[W];
-    for (int t = 0; t < W; ++t) {
-      x[t] = t < np ? ux[t] : 0.0;
-      y[t] = t < np ? uy[t] : 0.0;
-      z[t] = t < np ? uz[t] : 0.0;
-      rho2[t] = x[t] * x[t] + y[t] * y[t] + z[t] * z[t];
-      Rr[t] = 1.0;
-      Ri[t] = 0.0;
-    }
-    regular_soa(p, rec, x, y, z, rho2, Rr, Ri);
+    regular_lanes(p, rec, np, ux, uy, uz, Rr, Ri);
     for (std::size_t d = 0; d < nd; ++d) {
       double qd[W];
       for (int t = 0; t < W; ++t) qd[t] = t < np ? q[d * ldq + t] : 0.0;  // padded lanes carry no charge
@@ -105,90 +191,14 @@ void l2p_block(int p, double s, const double* rec, const cplx* b, std::size_t nd
     const int nc = ncoef(p);
     double* Rr = scratch;
     double* Ri = scratch + std::size_t(nc) * W;
-    double x[W], y[W], z[W], rho2[W];
-    for (int t = 0; t < W; ++t) {
-      x[t] = t < nt ? ux[t] : 0.0;
-      y[t] = t < nt ? uy[t] : 0.0;
-      z[t] = t < nt ? uz[t] : 0.0;
-      rho2[t] = x[t] * x[t] + y[t] * y[t] + z[t] * z[t];
-      Rr[t] = 1.0;
-      Ri[t] = 0.0;
-    }
-    regular_soa(p, rec, x, y, z, rho2, Rr, Ri);
+    regular_lanes(p, rec, nt, ux, uy, uz, Rr, Ri);
     const double inv_s = 1.0 / s, inv_s2 = inv_s * inv_s;
     for (std::size_t d = 0; d < nd; ++d) {
       const cplx* bd = b + d * nc;
-      const unsigned fl = flags[d];
       double* o = out + d * ld;
-      if (fl & kPotential) {
-        double phi[W] = {};
-        for (int n = 0; n <= p; ++n)
-          for (int m = 0; m <= n; ++m) {
-            const int i = idx(n, m);
-            rmac(phi, m ? 2.0 : 1.0, bd[i].real(), bd[i].imag(), Rr + i * W, Ri + i * W);
-          }
-        for (int t = 0; t < nt; ++t) o[t * 10] += phi[t];
-      }
-      if (fl & kGradient) {
-        double dz[W] = {};
-        Acc g1{}, g2{};
-        for (int n = 0; n + 1 <= p; ++n)
-          for (int m = 0; m <= n; ++m) {
-            const int i = idx(n, m);
-            const double* rr = Rr + i * W;
-            const double* ri = Ri + i * W;
-            const cplx c0 = bd[idx(n + 1, m)], cp = bd[idx(n + 1, m + 1)];
-            rmac(dz, m ? 2.0 : 1.0, c0.real(), c0.imag(), rr, ri);
-            if (m >= 1) {
-              const cplx cm = bd[idx(n + 1, m - 1)];
-              cmac(g1, cm.real(), cm.imag(), rr, ri);
-            }
-            cmac(g2, cp.real(), cp.imag(), rr, ri);
-          }
-        for (int t = 0; t < nt; ++t) {
-          o[t * 10 + 1] += (g1.re[t] - g2.re[t]) * inv_s;  // G = G1 - conj(G2)
-          o[t * 10 + 2] += (g1.im[t] + g2.im[t]) * inv_s;
-          o[t * 10 + 3] += dz[t] * inv_s;
-        }
-      }
-      if (fl & kHessian) {
-        double dzz[W] = {};
-        Acc j1{}, j2{}, k1{}, k3{};
-        for (int n = 0; n + 2 <= p; ++n)
-          for (int m = 0; m <= n; ++m) {
-            const int i = idx(n, m);
-            const double* rr = Rr + i * W;
-            const double* ri = Ri + i * W;
-            const cplx c0 = bd[idx(n + 2, m)], cp = bd[idx(n + 2, m + 1)], cpp = bd[idx(n + 2, m + 2)];
-            rmac(dzz, m ? 2.0 : 1.0, c0.real(), c0.imag(), rr, ri);
-            if (m >= 1) {
-              const cplx cm = bd[idx(n + 2, m - 1)];
-              cmac(j1, cm.real(), cm.imag(), rr, ri);
-            }
-            cmac(j2, cp.real(), cp.imag(), rr, ri);
-            if (m >= 2) {
-              const cplx cmm = bd[idx(n + 2, m - 2)];
-              cmac(k1, cmm.real(), cmm.imag(), rr, ri);
-            }
-            if (m == 1) {
-              const cplx c1 = bd[idx(n + 2, 1)];
-              cmac(k1, -c1.real(), c1.imag(), rr, ri);  // - conj(b_{n+2}^1) R_n^1
-            }
-            cmac(k3, cpp.real(), cpp.imag(), rr, ri);
-          }
-        for (int t = 0; t < nt; ++t) {
-          const double zz = dzz[t] * inv_s2;
-          const double Jr = (j1.re[t] - j2.re[t]) * inv_s2, Ji = (j1.im[t] + j2.im[t]) * inv_s2;  // J = J1 - conj(J2)
-          const double Kr = (k1.re[t] + k3.re[t]) * inv_s2, Ki = (k1.im[t] - k3.im[t]) * inv_s2;  // K = K1 + conj(K3)
-          double* r = o + t * 10;
-          r[4] += 0.5 * (Kr - zz);
-          r[5] += -0.5 * (Kr + zz);
-          r[6] += zz;
-          r[7] += 0.5 * Ki;
-          r[8] += Jr;
-          r[9] += Ji;
-        }
-      }
+      if (flags[d] & kPotential) l2p_potential(p, bd, Rr, Ri, nt, o);
+      if (flags[d] & kGradient) l2p_gradient(p, inv_s, bd, Rr, Ri, nt, o);
+      if (flags[d] & kHessian) l2p_hessian(p, inv_s2, bd, Rr, Ri, nt, o);
     }
   });
 }

@@ -1,4 +1,5 @@
-// rpyfmm — FmmRpy: RPY mobility from Laplace FMM calls (MATH.md §2) + exact near field.
+// rpyfmm — FmmRpy: RPY mobility from Laplace FMM calls plus the exact near field (docs/theory/rpy.md;
+// Guan, dissertation, §3.1 and Algorithm 2).
 #include "rpyfmm/rpy/fmm_operator.hpp"
 
 #include <algorithm>
@@ -16,7 +17,6 @@
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
-#include "rpyfmm/fmm/leaf_grid.hpp"
 #include "rpyfmm/rpy/rpy_kernel.hpp"
 
 namespace rpyfmm::rpy {
@@ -25,14 +25,6 @@ namespace {
 constexpr double pi = std::numbers::pi;
 // Column of the FMM result row [pot, gx, gy, gz, hxx, hyy, hzz, hxy, hxz, hyz] holding H(k, m).
 constexpr std::array<std::array<int, 3>, 3> kHessianColumn = {{{4, 7, 8}, {7, 5, 9}, {8, 9, 6}}};
-
-// Laplace FMM tolerance for a requested RPY tolerance. The far field combines
-// up to 7 outputs with partial cancellation (x_m E_k(F^m) - E_k(x.F)); measured
-// on the test configurations, errors stay below the FMM's own eps, which is
-// itself conservative (tests/rpy/test_fmm_operator.cpp holds the contract).
-double laplace_eps_for(double tolerance) {
-  return tolerance;
-}
 
 // Leaf capacity when the user leaves it at 0 (bench/rpy/RESULTS.md "Leaf capacity", 1 thread).
 // Four densities per product make the far field dearer relative to the near field than in one
@@ -58,37 +50,23 @@ int default_leaf_capacity(double eps) {
 // Automatic leaves fitted to the cloud (bench/rpy/RESULTS.md "Fitted leaf grid"; fmm::fit_leaf_grid
 // enlarges the root so that leaves of a chosen occupancy span the cloud, instead of the octree's
 // factor-8 steps: a uniform N = 1e5 cloud gets 24 or 195 points per leaf, ~60 is best at 6 digits).
-// Measured without AVX-512, 1 thread: at 1e-6, N = 1e5, uniform suspension 2.96 -> 2.28 s
-// (195 -> 58 points per leaf), cylinder surface 2.33 -> 2.07 s, eight spheres 3.37 -> 2.70 s;
-// at 1e-3, spherical BD cloud, 1.0-1.28x from N = 2e3 to 1e5 and 1.33x at 2e5.
-
-// Where the fitted grid is used, per plane-wave table, without AVX-512. With the AVX-512 kernels
-// (Intel machine, session 7) leaves of 20-60 points at 1e-3, 40-150 at 1e-6 and 100-250 at 1e-9
-// were no faster than the bounding-cube tree's 200 / 400 / 600-point capacities on suspensions and
-// cylinders of 1e4 ... 2e5 points, mostly slower (cylinder 1e5 at 1e-6: 0.93 -> 1.13 s at 60):
-// the near field is cheap enough there that large leaves pay. One gain (suspension 2e5 at 1e-6,
-// 3.27 -> 2.47 s) was a partly split tree (leaves on two levels, share 0.67); session 9 (AMD
-// Zen-4, AVX-512) confirmed that gain and adopted refits of such trees at 6 digits only.
-// Per plane-wave table:
-// the target occupancy and the point counts measured to gain. The upper end at 6 digits is set
-// by accuracy: smaller leaves move work into the far field, whose 6-digit plane-wave error then
-// weighs more (uniform suspension at 1e-6: 5.9e-7 -> 6.8e-7 at N = 1e5, but 9.8e-7 at 5e5 and
-// 1.03e-6 at 1e6, where the bounding-cube tree gives 9.05e-7). At 3 digits the errors stay
-// near 3e-4; 2e5 is the largest size measured.
-struct FittedGridRule {
-  int occupancy = 0;  // 0: keep the bounding cube
-  std::size_t min_points = 0, max_points = 0;
-  double min_fill = 0.0;  // least occupied fraction of the bounding cube (volume, not surface)
-  // Fit where the bounding-cube tree's mean occupancy is well above the target
-  // (fmm::fitted_leaf_grid_pays); otherwise only where it is partly split: fewer than
-  // partial_split_share of the points in its most populated leaf level (TreeStats::leaf_level_share).
-  bool by_mean_occupancy = true;
-  double partial_split_share = 0.0;
-};
-
-FittedGridRule fitted_grid_rule(double eps) {
+// Measured without AVX-512, 1 thread: at 1e-6, N = 1e5, uniform suspension 1.30x faster (195 -> 58
+// points per leaf), cylinder surface 1.13x, eight spheres 1.25x; at 1e-3, spherical BD cloud,
+// 1.0-1.28x from N = 2e3 to 1e5 and 1.33x at 2e5.
+//
+// The rule, per plane-wave table: the target occupancy and the point counts measured to gain. The
+// upper end at 6 digits is set by accuracy: smaller leaves move work into the far field, whose
+// 6-digit plane-wave error then weighs more (uniform suspension at 1e-6: 5.9e-7 -> 6.8e-7 at
+// N = 1e5, but 9.8e-7 at 5e5 and 1.03e-6 at 1e6, where the bounding-cube tree gives 9.05e-7). At 3
+// digits the errors stay near 3e-4; 2e5 is the largest size measured. With the AVX-512 kernels
+// (Intel machine) leaves of 20-60 points at 1e-3, 40-150 at 1e-6 and 100-250 at 1e-9 were no faster
+// than the bounding-cube tree's 200 / 400 / 600-point capacities on suspensions and cylinders of
+// 1e4 ... 2e5 points, mostly slower (cylinder 1e5 at 1e-6: 0.82x at 60 points per leaf): the near
+// field is cheap enough there that large leaves pay. The exception is a partly split tree (leaves
+// on two levels): suspension 2e5 at 1e-6, share 0.67, 1.32x (Intel), 1.17-1.22x (AMD Zen-4).
+fmm::FittedGridRule fitted_grid_rule(double eps) {
   if (simd_level() == SimdLevel::avx512) {
-    // At 6 digits, partly split trees of volume-filling clouds only (AMD Zen-4 machine, session 9,
+    // At 6 digits, partly split trees of volume-filling clouds only (AMD Zen-4 machine,
     // bench/rpy/RESULTS.md "Partly split trees with the AVX-512 kernels"): uniform suspensions
     // 1.17-1.22x (shares 0.67-0.69); balls (fill 0.58, share 0.82-0.94 from their curved edge)
     // lost 0.74-0.99x, and at 3 digits every refit lost (0.78-0.88x).
@@ -105,18 +83,6 @@ FittedGridRule fitted_grid_rule(double eps) {
     default:
       return {};  // 1e-9: 195 and 100 points per leaf tie
   }
-}
-
-// The fitted grid for these points, whose bounding-cube tree is described by `cube`, or none
-// where it does not apply.
-fmm::LeafGrid fitted_leaf_grid(std::span<const double> x, double eps, const fmm::TreeStats& cube) {
-  const FittedGridRule rule = fitted_grid_rule(eps);
-  const std::size_t n = x.size() / 3;
-  if (rule.occupancy == 0 || n < rule.min_points || n > rule.max_points) return {};
-  const bool pays = rule.by_mean_occupancy ? fmm::fitted_leaf_grid_pays(n, cube.leaves, rule.occupancy)
-                                           : cube.leaf_level_share < rule.partial_split_share;
-  if (!pays) return {};
-  return fmm::fit_leaf_grid(x, {}, rule.occupancy, rule.min_fill);
 }
 
 // Trees with fewer leaves evaluate each directed leaf pair on its own (one colour, parallel over
@@ -168,7 +134,6 @@ FmmRpy::FmmRpy(Geometry geometry, double viscosity, FmmRpyOptions options)
   ranges::require_in(ranges::kMobilityTolerance, options_.tolerance, "FmmRpy", "tolerance");
   require(options_.leaf_capacity >= 0, ErrorCode::invalid_argument, "FmmRpy",
           "leaf_capacity must be >= 0 (0 = automatic), got " + std::to_string(options_.leaf_capacity));
-  laplace_eps_ = laplace_eps_for(options_.tolerance);
 }
 
 FmmRpy::~FmmRpy() = default;
@@ -201,26 +166,21 @@ void FmmRpy::on_positions_set() {
     rescale(lo, hi);
   }
   const std::span<const double> a = scale_exponent_ == 0 ? radii() : std::span<const double>(scaled_radii_);
+  // The Laplace FMM runs at the requested tolerance: the far field combines up to 7 outputs with
+  // partial cancellation (x_m E_k(F^m) - E_k(x.F)), and its errors measured on the test
+  // configurations stay below the FMM's own eps (tests/rpy/test_fmm_operator.cpp holds the contract).
   fmm::FmmOptions fo;
-  fo.tolerance = laplace_eps_;
-  fo.leaf_capacity = options_.leaf_capacity > 0 ? options_.leaf_capacity : default_leaf_capacity(laplace_eps_);
+  fo.tolerance = options_.tolerance;
+  fo.leaf_capacity = options_.leaf_capacity > 0 ? options_.leaf_capacity : default_leaf_capacity(fo.tolerance);
+  // Automatic leaves: the bounding-cube tree's mean leaf occupancy (or with AVX-512 its leaf-level
+  // share) decides whether the fitted grid pays, within the one set_points.
+  if (options_.leaf_capacity == 0) fo.fitted_grid = fitted_grid_rule(fo.tolerance);
   fo.near_field = false;
   fo.export_direct_far = true;  // W/X pairs summed directly: one RPY pair block beats 4-7 Laplace densities
   // Overlapping pairs (r <= a_i + a_j) are always U-list pairs.
   fo.min_leaf_side = 2.0 * *std::max_element(a.begin(), a.end());
   fmm_ = std::make_unique<fmm::LaplaceFmm>(fo);
   fmm_->set_points(centered_);
-  // Automatic leaves: the bounding-cube tree's statistics (mean leaf occupancy, or with AVX-512
-  // its leaf-level share) decide whether the fitted grid pays; then the tree is rebuilt on it.
-  if (options_.leaf_capacity == 0) {
-    const fmm::LeafGrid fitted = fitted_leaf_grid(centered_, laplace_eps_, fmm_->stats());
-    if (fitted.fitted()) {
-      fo.leaf_capacity = fitted.leaf_capacity;
-      fo.root_scale = fitted.root_scale;
-      fmm_ = std::make_unique<fmm::LaplaceFmm>(fo);
-      fmm_->set_points(centered_);
-    }
-  }
 
   // Near-field schedule: each adjacent leaf pair once for both directions where the tree has
   // enough leaves to keep every colour busy (see kSymmetricMinLeaves).
@@ -285,19 +245,14 @@ void FmmRpy::rescale(const std::array<double, 3>& lo, const std::array<double, 3
   for (std::size_t i = 0; i < n; ++i) scaled_radii_[i] = std::ldexp(a[i], -e);
 }
 
-void FmmRpy::do_apply(const double* forces, double* velocities, std::size_t nrhs) const {
-  StopWatch total;
-  const std::size_t n = size();
-  const bool equal = equal_radii();
-  const std::size_t per_rhs = equal ? 4 : 7;
-  const std::size_t nd = per_rhs * nrhs;
-  const auto a = unit_radii();
-  const double eta = viscosity();
+namespace {
 
-  // Charge vectors (MATH.md §2): F^(m), x.F, and for different radii a^2 F^(m).
-  StopWatch watch;
-  std::vector<double> charges(nd * n);
-  std::vector<unsigned> outputs(nd);
+// The Laplace densities of the far field (docs/theory/rpy.md; Guan, dissertation, Algorithm 2),
+// per right-hand side: F^(1..3) (potential, field, field gradient), x.F (field) and for different
+// radii a^2 F^(1..3) (field gradient). charges: nd x n, outputs: nd.
+void far_field_charges(const double* forces, std::size_t n, std::size_t nrhs, bool equal, std::span<const double> x,
+                       std::span<const double> a, std::vector<double>& charges, std::vector<unsigned>& outputs) {
+  const std::size_t per_rhs = equal ? 4 : 7;
   for (std::size_t k = 0; k < nrhs; ++k) {
     const double* f = forces + 3 * n * k;
     double* q = charges.data() + per_rhs * n * k;
@@ -307,7 +262,7 @@ void FmmRpy::do_apply(const double* forces, double* velocities, std::size_t nrhs
     }
     outputs[per_rhs * k + 3] = fmm::gradient;
     for (std::size_t j = 0; j < n; ++j) {
-      const double* xj = &centered_[3 * j];
+      const double* xj = &x[3 * j];
       q[3 * n + j] = xj[0] * f[3 * j] + xj[1] * f[3 * j + 1] + xj[2] * f[3 * j + 2];
     }
     if (!equal) {
@@ -317,15 +272,13 @@ void FmmRpy::do_apply(const double* forces, double* velocities, std::size_t nrhs
       }
     }
   }
-  timings_.clear();
-  timings_["rpy_charges"] = watch.seconds();
+}
 
-  std::vector<double> results(nd * n * 10);
-  fmm_->evaluate(charges, nd, outputs, results);
-  for (const auto& [stage, seconds] : fmm_->last_timings()) timings_[stage] = seconds;
-
-  // Combine (MATH.md §2); E = -g, T = -H.
-  watch.restart();
+// The far-field velocities from the FMM results of far_field_charges (the formula in
+// fmm_operator.hpp; docs/theory/rpy.md; Guan, dissertation, §3.1.1); E = -g, T = -H.
+void combine_far_field(const std::vector<double>& results, std::size_t n, std::size_t nrhs, bool equal,
+                       std::span<const double> x, std::span<const double> a, double eta, double* velocities) {
+  const std::size_t per_rhs = equal ? 4 : 7;
   const double c1 = 1.0 / (8.0 * pi * eta);
   const double c2 = 1.0 / (24.0 * pi * eta);
   const auto nn = static_cast<std::int64_t>(n);
@@ -335,7 +288,7 @@ void FmmRpy::do_apply(const double* forces, double* velocities, std::size_t nrhs
 #pragma omp parallel for schedule(static)
     for (std::int64_t ii = 0; ii < nn; ++ii) {
       const auto i = static_cast<std::size_t>(ii);
-      const double* xi = &centered_[3 * i];
+      const double* xi = &x[3 * i];
       const double ai2 = a[i] * a[i];
       const double* rxF = r + (3 * n + i) * 10;  // results of x.F at target i
       for (int c = 0; c < 3; ++c) {
@@ -359,6 +312,30 @@ void FmmRpy::do_apply(const double* forces, double* velocities, std::size_t nrhs
       }
     }
   }
+}
+
+}  // namespace
+
+void FmmRpy::do_apply(const double* forces, double* velocities, std::size_t nrhs) const {
+  StopWatch total;
+  const std::size_t n = size();
+  const bool equal = equal_radii();
+  const std::size_t nd = (equal ? 4 : 7) * nrhs;
+  const auto a = unit_radii();
+
+  StopWatch watch;
+  std::vector<double> charges(nd * n);
+  std::vector<unsigned> outputs(nd);
+  far_field_charges(forces, n, nrhs, equal, centered_, a, charges, outputs);
+  timings_.clear();
+  timings_["rpy_charges"] = watch.seconds();
+
+  std::vector<double> results(nd * n * 10);
+  fmm_->evaluate(charges, nd, outputs, results);
+  for (const auto& [stage, seconds] : fmm_->last_timings()) timings_[stage] = seconds;
+
+  watch.restart();
+  combine_far_field(results, n, nrhs, equal, centered_, a, viscosity(), velocities);
   timings_["rpy_far"] = watch.seconds();
 
   watch.restart();

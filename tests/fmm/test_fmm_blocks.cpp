@@ -1,5 +1,6 @@
-// Building blocks of the FMM against independent references (PLANEWAVE.md §8.1-§8.3):
-// solid harmonics vs the classical Legendre recurrence, P2M/M2P and P2L/L2P with gradient and Hessian vs direct sums,
+// Building blocks of the FMM against independent references (docs/theory/fmm.md): solid harmonics
+// vs the classical Legendre recurrence, P2M/M2P and P2L/L2P with gradient and Hessian vs direct sums,
+// the vectorized P2M/L2P vs their one-point forms (expansion_reference.hpp),
 // M2M exactness, L2L, rotations, the plane-wave M2L chain for one box pair at all 189 offsets and all
 // four tables, and the merge-and-shift group table.
 #include <gtest/gtest.h>
@@ -9,6 +10,7 @@
 #include <numbers>
 #include <random>
 
+#include "expansion_reference.hpp"
 #include "fmm_test_util.hpp"
 #include "rpyfmm/fmm/detail/expansions.hpp"
 #include "rpyfmm/fmm/detail/planewave.hpp"
@@ -72,7 +74,7 @@ TEST(FmmBlocks, SolidHarmonicsMatchLegendre) {
         const cplx e(std::cos(m * ph), std::sin(m * ph));
         const cplx Rref = std::pow(r, n) * P * e / fact(n + m);
         const cplx Sref = fact(n - m) * P * e / std::pow(rs, n + 1);
-        // Relative to the bounds |R| <= r^n / c_n^m, |S| <= c_n^m / r^(n+1) (§1.2): near a root of
+        // Relative to the bounds |R| <= r^n / c_n^m, |S| <= c_n^m / r^(n+1): near a root of
         // P_n^m a pointwise relative error is meaningless.
         const double cnm = std::sqrt(fact(n - m) * fact(n + m));
         EXPECT_LE(std::abs(R[idx(n, m)] - Rref), 1e-13 * std::pow(r, n) / cnm) << n << " " << m;
@@ -90,17 +92,22 @@ TEST(FmmBlocks, FormAndEvaluateWithDerivatives) {
     const double c[3] = {0.1 * L, -0.2 * L, 0.3 * L}, s = L;
     const auto src = box_charges(40, c, s, 3);
     std::vector<cplx> Mh(ncoef(p)), a(ncoef(p)), T(ncoef(p + 2));
-    p2m(H, p, s, c, src.xyz.data(), src.q.data(), 0, 1, 40, Mh.data(), T.data());
+    fmmtest::p2m_reference(H, p, s, c, src.xyz.data(), src.q.data(), 0, 1, 40, Mh.data(), T.data());
     multipole_to_a(H, p, Mh.data(), a.data());
     // targets 3 box sides away: ratio (sqrt(3)/2)/3 -> truncation ~ 0.29^31 ~ 1e-17
-    std::vector<double> tg = {c[0] + 3 * s, c[1] + 0.5 * s, c[2] - 0.7 * s, c[0] - 1.2 * s, c[1] - 3.1 * s, c[2] + 0.2 * s};
+    std::vector<double> tg = {c[0] + 3 * s,   c[1] + 0.5 * s, c[2] - 0.7 * s,
+                              c[0] - 1.2 * s, c[1] - 3.1 * s, c[2] + 0.2 * s};
     const auto ref = fmmtest::direct(src.xyz, src.q, 1, tg);
     for (int t = 0; t < 2; ++t) {
       double out[10] = {};
       H.singular(p + 2, (tg[3 * t] - c[0]) / s, (tg[3 * t + 1] - c[1]) / s, (tg[3 * t + 2] - c[2]) / s, T.data());
       m2p_eval(p, s, a.data(), T.data(), 7u, out);
       for (int k = 0; k < 10; ++k)
-        EXPECT_NEAR(out[k], ref[t * 10 + k], 1e-12 * std::abs(ref[t * 10]) / std::pow(L, k == 0 ? 0 : k < 4 ? 1 : 2))
+        EXPECT_NEAR(out[k], ref[t * 10 + k],
+                    1e-12 * std::abs(ref[t * 10]) /
+                        std::pow(L, k == 0  ? 0
+                                    : k < 4 ? 1
+                                            : 2))
             << "M2P L=" << L << " k=" << k;
       EXPECT_NEAR(out[4] + out[5] + out[6], 0.0, 1e-12 / (L * L * L));
     }
@@ -116,12 +123,63 @@ TEST(FmmBlocks, FormAndEvaluateWithDerivatives) {
       double out[10] = {};
       H.regular(p, (inside.xyz[3 * t] - c[0]) / s, (inside.xyz[3 * t + 1] - c[1]) / s,
                 (inside.xyz[3 * t + 2] - c[2]) / s, T.data());
-      l2p_eval(p, s, b.data(), T.data(), 7u, out);
+      fmmtest::l2p_reference(p, s, b.data(), T.data(), 7u, out);
       for (int k = 0; k < 10; ++k)
-        EXPECT_NEAR(out[k], ref2[t * 10 + k], 1e-10 * std::abs(ref2[t * 10]) / std::pow(L, k == 0 ? 0 : k < 4 ? 1 : 2))
+        EXPECT_NEAR(out[k], ref2[t * 10 + k],
+                    1e-10 * std::abs(ref2[t * 10]) /
+                        std::pow(L, k == 0  ? 0
+                                    : k < 4 ? 1
+                                            : 2))
             << "L2P L=" << L << " k=" << k;
     }
   }
+}
+
+// The vectorized P2M and L2P of the library (whole and partial lane blocks, two densities) match
+// the one-point forms.
+TEST(FmmBlocks, VectorizedP2MAndL2PMatchOnePointForms) {
+  const int p = 20, nc = ncoef(p);
+  const Harmonics& H = Harmonics::cached(p + 2);
+  const double c[3] = {0.3, -0.1, 0.2}, s = 0.5;
+  const std::size_t n = 13, nd = 2;
+  auto pts = box_charges(int(n), c, s, 7);
+  const auto more = box_charges(int(n), c, s, 8);
+  pts.q.insert(pts.q.end(), more.q.begin(), more.q.end());  // density 1
+  std::vector<cplx> ref(nd * nc), got(nd * nc), R(nc);
+  fmmtest::p2m_reference(H, p, s, c, pts.xyz.data(), pts.q.data(), n, nd, n, ref.data(), R.data());
+  std::vector<double> scratch(2 * std::size_t(nc) * kL2PLanes);
+  double ux[kL2PLanes], uy[kL2PLanes], uz[kL2PLanes];
+  auto lanes = [&](std::size_t j0) {  // scaled offsets of the points j0 ... j0 + kL2PLanes - 1
+    const int np = int(std::min<std::size_t>(kL2PLanes, n - j0));
+    for (int t = 0; t < np; ++t) {
+      ux[t] = (pts.xyz[3 * (j0 + t)] - c[0]) / s;
+      uy[t] = (pts.xyz[3 * (j0 + t) + 1] - c[1]) / s;
+      uz[t] = (pts.xyz[3 * (j0 + t) + 2] - c[2]) / s;
+    }
+    return np;
+  };
+  for (std::size_t j0 = 0; j0 < n; j0 += kL2PLanes) {
+    const int np = lanes(j0);
+    p2m_block(p, H.regular_recurrence(), H.c_table(), np, ux, uy, uz, &pts.q[j0], n, nd, got.data(), scratch.data());
+  }
+  for (int i = 0; i < int(nd) * nc; ++i) EXPECT_NEAR(std::abs(got[i] - ref[i]), 0.0, 1e-13 * (1 + std::abs(ref[i])));
+
+  // L2P of the multipoles read as local coefficients b: any coefficients will do for the comparison.
+  const unsigned flags[2] = {7u, 3u};
+  std::vector<double> out_ref(nd * n * 10, 0.0), out(nd * n * 10, 0.0);
+  for (std::size_t t = 0; t < n; ++t) {
+    H.regular(p, (pts.xyz[3 * t] - c[0]) / s, (pts.xyz[3 * t + 1] - c[1]) / s, (pts.xyz[3 * t + 2] - c[2]) / s,
+              R.data());
+    for (std::size_t d = 0; d < nd; ++d)
+      fmmtest::l2p_reference(p, s, &ref[d * nc], R.data(), flags[d], &out_ref[(d * n + t) * 10]);
+  }
+  for (std::size_t t0 = 0; t0 < n; t0 += kL2PLanes) {
+    const int nt = lanes(t0);
+    l2p_block(p, s, H.regular_recurrence(), ref.data(), nd, flags, nt, ux, uy, uz, &out[t0 * 10], n * 10,
+              scratch.data());
+  }
+  for (std::size_t i = 0; i < out.size(); ++i)
+    EXPECT_NEAR(out[i], out_ref[i], 1e-12 * (1 + std::abs(out_ref[i]))) << "entry " << i;
 }
 
 TEST(FmmBlocks, RotationsAreUnitaryAndPreserveValues) {
@@ -152,8 +210,8 @@ TEST(FmmBlocks, M2MIsExactAndL2LMatchesDirect) {
                             cp[2] + ((o & 4) ? 0.25 : -0.25) * 2 * s};
       const auto src = box_charges(20, cc, s, 10 + o);
       std::vector<cplx> Mc(ncoef(p)), Mp(ncoef(p)), Mref(ncoef(p));
-      p2m(H, p, s, cc, src.xyz.data(), src.q.data(), 0, 1, 20, Mc.data(), scratch.data());
-      p2m(H, p, 2 * s, cp, src.xyz.data(), src.q.data(), 0, 1, 20, Mref.data(), scratch.data());
+      fmmtest::p2m_reference(H, p, s, cc, src.xyz.data(), src.q.data(), 0, 1, 20, Mc.data(), scratch.data());
+      fmmtest::p2m_reference(H, p, 2 * s, cp, src.xyz.data(), src.q.data(), 0, 1, 20, Mref.data(), scratch.data());
       T.m2m(o, Mc.data(), Mp.data(), work.data());
       double err = 0, mx = 0;
       for (int i = 0; i < ncoef(p); ++i) {
@@ -174,14 +232,14 @@ TEST(FmmBlocks, M2MIsExactAndL2LMatchesDirect) {
         double out[10] = {};
         H.regular(p, (pts.xyz[3 * t] - cc[0]) / s, (pts.xyz[3 * t + 1] - cc[1]) / s, (pts.xyz[3 * t + 2] - cc[2]) / s,
                   scratch.data());
-        l2p_eval(p, s, b.data(), scratch.data(), 1u, out);
+        fmmtest::l2p_reference(p, s, b.data(), scratch.data(), 1u, out);
         EXPECT_NEAR(out[0], ref[t * 10], std::pow(0.35, p) * 60) << "L2L p=" << p;
       }
     }
   }
 }
 
-// §8.2: one source box (side 1/8, 60 charges incl. corners) and a target box at each of the 189
+// One source box (side 1/8, 60 charges incl. corners) and a target box at each of the 189
 // V-list offsets; normalized error of the plane-wave M2L chain + L2P <= 0.5 eps for each table.
 TEST(FmmBlocks, PlaneWaveM2LAllOffsetsAllTables) {
   for (double eps : {1e-3, 1e-6, 1e-9, 1e-12}) {
@@ -191,7 +249,7 @@ TEST(FmmBlocks, PlaneWaveM2LAllOffsetsAllTables) {
     const double s = 0.125, cs[3] = {0.2, -0.1, 0.05};
     const auto src = box_charges(60, cs, s, 77);
     std::vector<cplx> Mh(ncoef(p)), Mt(ncoef(p)), Mf(ncoef(p)), work(ncoef(p)), T(ncoef(p + 2));
-    p2m(H, p, s, cs, src.xyz.data(), src.q.data(), 0, 1, 60, Mh.data(), T.data());
+    fmmtest::p2m_reference(H, p, s, cs, src.xyz.data(), src.q.data(), 0, 1, 60, Mh.data(), T.data());
     for (int i = 0; i < ncoef(p); ++i) Mt[i] = Mh[i] / s;
     const int K = pw.sum_fourier(), Mp = pw.sum_physical();
     std::vector<cplx> Fu(K), Fd(K), W(Mp), G(K), Z(K, 0.0), Lf(ncoef(p)), L(ncoef(p)), b(ncoef(p));
@@ -203,9 +261,12 @@ TEST(FmmBlocks, PlaneWaveM2LAllOffsetsAllTables) {
           if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) < 2) continue;
           ++npairs;
           int f, sign;
-          if (std::abs(dz) >= 2) f = 0, sign = dz > 0 ? 1 : -1;
-          else if (std::abs(dy) >= 2) f = 1, sign = dy > 0 ? 1 : -1;
-          else f = 2, sign = dx > 0 ? 1 : -1;
+          if (std::abs(dz) >= 2)
+            f = 0, sign = dz > 0 ? 1 : -1;
+          else if (std::abs(dy) >= 2)
+            f = 1, sign = dy > 0 ? 1 : -1;
+          else
+            f = 2, sign = dx > 0 ? 1 : -1;
           pw.to_frame(f, Mt.data(), Mf.data(), work.data());
           pw.m2f(Mf.data(), Fu.data(), Fd.data());
           pw.f2p(sign > 0 ? Fu.data() : Fd.data(), W.data());
@@ -222,7 +283,7 @@ TEST(FmmBlocks, PlaneWaveM2LAllOffsetsAllTables) {
             double out[10] = {}, exact = 0, scale = 0;
             H.regular(p, (tg.xyz[3 * t] - ct[0]) / s, (tg.xyz[3 * t + 1] - ct[1]) / s, (tg.xyz[3 * t + 2] - ct[2]) / s,
                       T.data());
-            l2p_eval(p, s, b.data(), T.data(), 1u, out);
+            fmmtest::l2p_reference(p, s, b.data(), T.data(), 1u, out);
             for (int j = 0; j < 60; ++j) {
               const double r = std::hypot(tg.xyz[3 * t] - src.xyz[3 * j], tg.xyz[3 * t + 1] - src.xyz[3 * j + 1],
                                           tg.xyz[3 * t + 2] - src.xyz[3 * j + 2]);
@@ -260,8 +321,10 @@ TEST(FmmBlocks, LaneRotationsMatchOneDensityRotations) {
   for (const Rotation* R : {&A, &B})
     for (int mmax : {p + 1, 5})
       for (bool adjoint : {false, true}) {
-        if (adjoint) R->apply_adjoint_lanes(xr.data(), xi.data(), yr.data(), yi.data(), mmax);
-        else R->apply_lanes(xr.data(), xi.data(), yr.data(), yi.data(), mmax);
+        if (adjoint)
+          R->apply_adjoint_lanes(xr.data(), xi.data(), yr.data(), yi.data(), mmax);
+        else
+          R->apply_lanes(xr.data(), xi.data(), yr.data(), yi.data(), mmax);
         std::vector<cplx> in(nc), out(nc);
         for (int d = 0; d < D; ++d) {
           for (int i = 0; i < nc; ++i) in[i] = x[std::size_t(d) * nc + i];
@@ -270,8 +333,10 @@ TEST(FmmBlocks, LaneRotationsMatchOneDensityRotations) {
             for (int n = 0; n <= p; ++n)
               for (int m = mmax; m <= n; ++m) in[idx(n, m)] = 0.0;
           }
-          if (adjoint) R->apply_adjoint(in.data(), out.data(), mmax);
-          else R->apply(in.data(), out.data(), mmax);
+          if (adjoint)
+            R->apply_adjoint(in.data(), out.data(), mmax);
+          else
+            R->apply(in.data(), out.data(), mmax);
           for (int i = 0; i < nc; ++i)
             EXPECT_NEAR(std::abs(cplx(yr[std::size_t(i) * D + d], yi[std::size_t(i) * D + d]) - out[i]), 0.0, 1e-13)
                 << (R == &A ? "about_y" : "general") << " mmax=" << mmax << " adjoint=" << adjoint << " i=" << i;
@@ -279,9 +344,9 @@ TEST(FmmBlocks, LaneRotationsMatchOneDensityRotations) {
       }
 }
 
-// §3.5: half-node storage. For real charges W(a + pi) = conj(W(a)) and so do the shift factors, so
+// Half-node storage. For real charges W(a + pi) = conj(W(a)) and so do the shift factors, so
 // F2P at the stored nodes j < M_k/2, the stored shift factors and P2F from them must reproduce the
-// full-circle formulas of §3.4 evaluated here at all M_k nodes (independent sums, no symmetry used).
+// full-circle formulas evaluated here at all M_k nodes (independent sums, no symmetry used).
 // Tolerance 1e-12 relative to the largest value: both sides are the same sums in another order.
 TEST(FmmBlocks, HalfNodePlaneWavesMatchFullCircle) {
   for (double eps : {1e-3, 1e-6, 1e-9, 1e-12}) {
@@ -291,7 +356,7 @@ TEST(FmmBlocks, HalfNodePlaneWavesMatchFullCircle) {
     const double s = 1.0, cs[3] = {0.0, 0.0, 0.0};
     const auto src = box_charges(40, cs, s, 11);
     std::vector<cplx> Mh(ncoef(p)), Mf(ncoef(p)), work(ncoef(p)), T(ncoef(p + 2));
-    p2m(H, p, s, cs, src.xyz.data(), src.q.data(), 0, 1, 40, Mh.data(), T.data());
+    fmmtest::p2m_reference(H, p, s, cs, src.xyz.data(), src.q.data(), 0, 1, 40, Mh.data(), T.data());
     pw.to_frame(1, Mh.data(), Mf.data(), work.data());  // a rotated frame: all orders m populated
     const int K = pw.sum_fourier(), Mp = pw.sum_physical();
     std::vector<cplx> Fu(K), Fd(K), W(Mp), V(Mp), G(K);
@@ -337,7 +402,7 @@ TEST(FmmBlocks, HalfNodePlaneWavesMatchFullCircle) {
   }
 }
 
-// §8.3: merge-and-shift groups. Every child receives each of its 189 V-pairs exactly once, along an
+// Merge-and-shift groups. Every child receives each of its 189 V-pairs exactly once, along an
 // axis on which the pair is separated by >= 2 boxes, with the sign of the offset.
 TEST(FmmBlocks, MergeGroupsCoverEveryVPairOnce) {
   const auto& g = merge_groups();

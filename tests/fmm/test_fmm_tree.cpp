@@ -1,5 +1,5 @@
-// Octree and list invariants (CGR 1999 §2; PLANEWAVE.md §8.4) on uniform, clustered and surface inputs:
-// every point in exactly one leaf, nested ranges, U symmetric, b in W(c) <=> c in X(b), W/X separation,
+// Octree and list invariants (CGR 1999 §2; docs/theory/fmm.md, "The tree and the four lists") on uniform, clustered and
+// surface inputs: every point in exactly one leaf, nested ranges, U symmetric, b in W(c) <=> c in X(b), W/X separation,
 // V sizes <= 189, and the partition invariant: for every target leaf, U, W, and the V/X lists of its
 // ancestors (each with its subtree) cover every source exactly once.
 #include <gtest/gtest.h>
@@ -86,14 +86,22 @@ void check_tree(const std::vector<double>& src, const std::vector<double>& tgt, 
 }
 }  // namespace
 
-TEST(FmmTree, InvariantsUniform) { check_tree(fmmtest::cube(1500, 1), {}, 8); }
-TEST(FmmTree, InvariantsClustered) { check_tree(fmmtest::plummer(1500, 2), {}, 8); }
-TEST(FmmTree, InvariantsSphereSurface) { check_tree(fmmtest::sphere(1500, 3), {}, 8); }
+TEST(FmmTree, InvariantsUniform) {
+  check_tree(fmmtest::cube(1500, 1), {}, 8);
+}
+TEST(FmmTree, InvariantsClustered) {
+  check_tree(fmmtest::plummer(1500, 2), {}, 8);
+}
+TEST(FmmTree, InvariantsSphereSurface) {
+  check_tree(fmmtest::sphere(1500, 3), {}, 8);
+}
 TEST(FmmTree, InvariantsTwoClustersAndLine) {
   check_tree(fmmtest::two_clusters(800, 4), {}, 4);
   check_tree(fmmtest::line(800, 5), {}, 4);
 }
-TEST(FmmTree, InvariantsSeparateTargets) { check_tree(fmmtest::plummer(800, 6), fmmtest::cube(700, 7), 8); }
+TEST(FmmTree, InvariantsSeparateTargets) {
+  check_tree(fmmtest::plummer(800, 6), fmmtest::cube(700, 7), 8);
+}
 TEST(FmmTree, DuplicatesStopSplitting) {
   std::vector<double> x;
   for (int k = 0; k < 50; ++k) x.insert(x.end(), {0.1, 0.2, 0.3});

@@ -4,7 +4,7 @@
 //   phi(x)        = sum_j q_j / |x - y_j|                              potential
 //   grad phi(x)   = -sum_j q_j (x - y_j) / |x - y_j|^3                 gradient of the potential
 //   hess phi(x)   =  sum_j q_j (3 r r^T / |r|^5 - I / |r|^3), r = x - y_j   Hessian of the potential
-// (MATH.md §2 uses E = -grad phi and T = -hess phi.) Pairs at distance 0 are
+// (The RPY operator uses E = -grad phi and T = -hess phi, docs/theory/rpy.md.) Pairs at distance 0 are
 // skipped (the self pair when targets are the sources, and any target that
 // coincides with a source): they contribute nothing, silently. Pairs so far
 // apart that r^2 overflows contribute their limit 0; pairs closer than about

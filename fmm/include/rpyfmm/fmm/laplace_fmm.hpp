@@ -1,7 +1,8 @@
 // rpyfmm::fmm — adaptive plane-wave fast multipole method for the 3-D Laplace kernel 1/r.
 //
-// Cheng, Greengard & Rokhlin, J. Comput. Phys. 155 (1999) 468-498; dissertation 004 ch. 2;
-// design note PLANEWAVE.md. Adaptive octree with U/V/W/X lists, scaled spherical-harmonic
+// Cheng, Greengard & Rokhlin, J. Comput. Phys. 155 (1999) 468-498; W. Guan, "Fast Algorithms for
+// Brownian Dynamics with Hydrodynamic Interactions", PhD dissertation, University of North Carolina
+// at Chapel Hill, ch. 2; docs/theory/fmm.md. Adaptive octree with U/V/W/X lists, scaled spherical-harmonic
 // expansions, point-and-shoot M2M/L2L, plane-wave M2L with merge-and-shift in six directions,
 // M2P/P2L for the W/X lists, potential/gradient/Hessian at sources and at separate targets.
 //
@@ -24,6 +25,7 @@
 #include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/fmm/direct.hpp"
+#include "rpyfmm/fmm/leaf_grid.hpp"
 
 namespace rpyfmm::fmm {
 
@@ -57,8 +59,13 @@ struct FmmOptions {
   /// occupancy instead of the octree's factor-8 steps (fit_leaf_grid; the automatic leaves use
   /// this). With root_scale != 1 and leaf_capacity = 0 the automatic capacity is used as it is.
   double root_scale = 1.0;
-  /// Expansion order; 0 = from eps (FMM3D's rule, PLANEWAVE.md §1.5).
+  /// Expansion order; 0 = from eps (FMM3D's rule, fmm_order_for).
   int order = 0;
+  /// With leaf_capacity > 0 and root_scale = 1: a fitted grid (fit_leaf_grid) replaces the tree of
+  /// that capacity where this rule says it pays, e.g. a caller's measured rule (FmmRpy). The
+  /// decision takes the bounding-cube tree's boxes only; the lists are built once. Default
+  /// (occupancy 0): never. Automatic leaves (leaf_capacity = 0) follow the built-in rule instead.
+  FittedGridRule fitted_grid{};
 };
 
 /// Shape and cost of a plan.

@@ -1,7 +1,8 @@
 // rpyfmm — FmmRpy: the free-space Rotne-Prager-Yamakawa mobility U = M F in
 // O(N) from one multi-density Laplace FMM pass plus an exact near field.
 //
-// Far field (MATH.md §2; dissertation 004 §3.1.1), for r > a_i + a_j:
+// Far field (docs/theory/rpy.md; W. Guan, "Fast Algorithms for Brownian Dynamics with Hydrodynamic
+// Interactions", PhD dissertation, UNC Chapel Hill, §3.1.1), for r > a_i + a_j:
 //   U_i,k = C1 [ phi_i(F^(k)) + sum_m x_i,m E_k,i(F^(m)) - E_k,i(x.F) ]
 //         + 1/(24 pi eta) [ a_i^2 sum_m T_km,i(F^(m)) + sum_m T_km,i(a^2 F^(m)) ],   C1 = 1/(8 pi eta)
 // with phi the Laplace potential of a charge vector, E = -grad phi and
@@ -58,8 +59,8 @@ class FmmRpy final : public MobilityOperator {
 
   [[nodiscard]] std::string name() const override { return "fmm"; }
   [[nodiscard]] const FmmRpyOptions& options() const { return options_; }
-  /// Tolerance handed to the Laplace FMM (derived from options().tolerance).
-  [[nodiscard]] double laplace_eps() const { return laplace_eps_; }
+  /// Tolerance handed to the Laplace FMM: options().tolerance (see on_positions_set).
+  [[nodiscard]] double laplace_eps() const { return options_.tolerance; }
   /// Stage times of the last apply: the FMM's stages plus "rpy_charges", "rpy_far", "rpy_near", "rpy_total".
   [[nodiscard]] StageTimes last_timings() const;
   /// The Laplace FMM plan (tree statistics, near-field structure); null before set_positions.
@@ -78,7 +79,6 @@ class FmmRpy final : public MobilityOperator {
   [[nodiscard]] std::span<const double> unit_radii() const;
 
   FmmRpyOptions options_;
-  double laplace_eps_ = 0.0;
   std::unique_ptr<fmm::LaplaceFmm> fmm_;
   std::vector<double> centered_;  // positions relative to the bounding-box centre (3N); scaled: see rescale()
   // Clouds far outside the lengths 2^-200 ... 2^200 are evaluated in units of 2^e (fmm_operator.cpp):

@@ -1,9 +1,10 @@
 // rpyfmm::fmm — multipole/local expansions: formation, evaluation with gradient and Hessian,
-// rotations and translations (PLANEWAVE.md §1.3-§1.4, §2, §6).
+// rotations and translations (docs/theory/fmm.md, "Expansions" and "Translations between levels";
+// Guan, dissertation, Theorems 2.2.2-2.2.5 and 2.3.1-2.3.2).
 //
-// All coefficients are *scaled* (§1.4): for a box of side s and center c,
-//   Mh_n^m = sum_j q_j c_n^m conj(R_n^m((y_j - c)/s))                 (P2M, §6.3)
-//   Lh_n^m = (1/s) sum_j q_j conj(S_n^m((y_j - c)/s)) / c_n^m          (P2L, §6.3)
+// All coefficients are *scaled*: for a box of side s and center c,
+//   Mh_n^m = sum_j q_j c_n^m conj(R_n^m((y_j - c)/s))                 (P2M)
+//   Lh_n^m = (1/s) sum_j q_j conj(S_n^m((y_j - c)/s)) / c_n^m          (P2L)
 // Storage: 0 <= m <= n <= p, triangular (harmonics.hpp), `nd` densities one after the other.
 #pragma once
 
@@ -19,21 +20,37 @@ namespace rpyfmm::fmm::detail {
 /// Output selection flags (per density), the values of rpyfmm::fmm::Output.
 inline constexpr unsigned kPotential = potential, kGradient = gradient, kHessian = hessian;
 
-/// Accumulates charges q[d*ldq + j] (j < n, d < nd) at points xyz[3j..3j+2] into the scaled
-/// multipoles Mh[d*ncoef(p) ...] of a box with center `c` and side `s`. `R` is scratch (ncoef(p)).
-void p2m(const Harmonics& H, int p, double s, const double* c, const double* xyz, const double* q,
-         std::size_t ldq, std::size_t nd, std::size_t n, cplx* Mh, cplx* R);
-/// Same for the scaled local expansions (P2L, X list); points must be well separated from the box.
-void p2l(const Harmonics& H, int p, double s, const double* c, const double* xyz, const double* q,
-         std::size_t ldq, std::size_t nd, std::size_t n, cplx* Lh, cplx* S);
+/// Accumulates charges q[d*ldq + j] (j < n, d < nd) at points xyz[3j..3j+2] into the scaled local
+/// expansions Lh[d*ncoef(p) ...] of a box with center `c` and side `s` (P2L, X list); points must be
+/// well separated from the box. `S` is scratch (ncoef(p)).
+void p2l(const Harmonics& H, int p, double s, const double* c, const double* xyz, const double* q, std::size_t ldq,
+         std::size_t nd, std::size_t n, cplx* Lh, cplx* S);
 
-/// Evaluates a scaled local expansion at one point: out[0] potential, out[1..3] gradient,
-/// out[4..9] Hessian (xx, yy, zz, xy, xz, yz), *added* to out according to `flags` (§6.1).
-/// `b` = Lh_n^m c_n^m (precomputed per box by local_to_b), `R` = regular table at (x-c)/s up to p.
-void l2p_eval(int p, double s, const cplx* b, const cplx* R, unsigned flags, double* out) noexcept;
+/// Re'(A_n, B_n) = sum_{m=0}^{mmax} omega_m Re(A_n^m B_n^m), omega_0 = 1, omega_m = 2: the sum over
+/// -n <= m <= n of a product of expansions stored for m >= 0 (the negative orders are conjugates).
+inline double re_prime(const cplx* A, const cplx* B, int mmax) noexcept {
+  double acc = A[0].real() * B[0].real() - A[0].imag() * B[0].imag();
+  double acc2 = 0.0;
+  for (int m = 1; m <= mmax; ++m) acc2 += A[m].real() * B[m].real() - A[m].imag() * B[m].imag();
+  return acc + 2.0 * acc2;
+}
+/// Adds the Hessian (xx, yy, zz, xy, xz, yz at out[4..9]) from d_zz, J = d_xz + i d_yz and
+/// K = (d_xx - d_yy) + 2i d_xy, all times `scale`.
+inline void finish_hessian(double dzz, cplx J, cplx K, double scale, double* out) noexcept {
+  dzz *= scale;
+  J *= scale;
+  K *= scale;
+  out[4] += 0.5 * (K.real() - dzz);
+  out[5] += -0.5 * (K.real() + dzz);
+  out[6] += dzz;
+  out[7] += 0.5 * K.imag();
+  out[8] += J.real();
+  out[9] += J.imag();
+}
+
 /// Lanes of l2p_block (targets evaluated together, SIMD lane = target).
 inline constexpr int kL2PLanes = 8;
-/// L2P for up to kL2PLanes targets at once (§6.1, §7.3 idea 1): the regular table of every target is
+/// L2P for up to kL2PLanes targets at once: the regular table of every target is
 /// built in structure-of-arrays form and each coefficient is broadcast over the lanes; the tables are
 /// shared by the nd densities. u{x,y,z}: scaled target offsets (x - c)/s (nt <= kL2PLanes valid lanes);
 /// b: nd x ncoef(p) (b = Lh c); result of density d, lane t added to out[d*ld + t*10 + column].
@@ -43,25 +60,26 @@ void l2p_block(int p, double s, const double* rec, const cplx* b, std::size_t nd
                double* scratch) noexcept;
 /// P2M for up to kL2PLanes sources at once (same layout as l2p_block): u = (y - c)/s scaled offsets,
 /// charges q[d*ldq + t]; adds to Mh[d*ncoef(p) + i]. cn = c_n^m table. scratch as l2p_block.
-void p2m_block(int p, const double* rec, const double* cn, int np, const double* ux, const double* uy,
-               const double* uz, const double* q, std::size_t ldq, std::size_t nd, cplx* Mh, double* scratch) noexcept;
+void p2m_block(int p, const double* rec, const double* cn, int np, const double* ux, const double* uy, const double* uz,
+               const double* q, std::size_t ldq, std::size_t nd, cplx* Mh, double* scratch) noexcept;
 /// b_n^m = Lh_n^m c_n^m.
 void local_to_b(const Harmonics& H, int p, const cplx* Lh, cplx* b) noexcept;
 
-/// Evaluates a scaled multipole at one point (§6.2), adding to out as l2p_eval. `a` = Mh_n^m / c_n^m,
+/// Evaluates a scaled multipole at one point, adding to out as l2p_block (out[0] potential, out[1..3]
+/// gradient, out[4..9] Hessian xx, yy, zz, xy, xz, yz, according to `flags`). `a` = Mh_n^m / c_n^m,
 /// `S` = singular table at (x-c)/s up to degree p+2 (p+1 if no Hessian, p if only potential).
 void m2p_eval(int p, double s, const cplx* a, const cplx* S, unsigned flags, double* out) noexcept;
 /// a_n^m = Mh_n^m / c_n^m.
 void multipole_to_a(const Harmonics& H, int p, const cplx* Mh, cplx* a) noexcept;
 
-/// Rotation matrices A^n(Q), n = 0..p (§2.2): sum_m M_m Y_n^m(v) = sum_m' (A^n M)_m' Y_n^m'(Q v).
+/// Rotation matrices A^n(Q), n = 0..p: sum_m M_m Y_n^m(v) = sum_m' (A^n M)_m' Y_n^m'(Q v).
 /// Built by an exact product quadrature on the sphere (n+1 Gauss-Legendre nodes x 2n+2 angles).
 class Rotation {
  public:
   Rotation() = default;
   Rotation(int p, const std::array<double, 9>& Q);  // Q row-major, proper orthogonal
-  /// Rotation about y by angle t (Q = Ry(t), §2.2): A^n is real, and apply/apply_adjoint use the
-  /// real kernels of §4.3 (Re and Im parts separate, 2 real multiply-adds per entry instead of 8).
+  /// Rotation about y by angle t (Q = Ry(t)): A^n is real, and apply/apply_adjoint use the
+  /// real kernels (Re and Im parts separate, 2 real multiply-adds per entry instead of 8).
   static Rotation about_y(int p, double t);
   [[nodiscard]] int order() const noexcept { return p_; }
   /// out = A in (multipole into the frame); only orders m' < mmax_out are produced (others = 0).
@@ -90,12 +108,12 @@ class Rotation {
   std::vector<double> plus_, minus_, tplus_, tminus_;
 };
 
-/// Multiplies coefficient m by e^{i m phi0} (a rotation about z, §2.2).
+/// Multiplies coefficient m by e^{i m phi0} (a rotation about z).
 void phase_rotate(int p, double phi0, cplx* coef) noexcept;
 
-/// Point-and-shoot translations between a box and its children (§2.1, §2.3): M2M (child -> parent)
-/// and L2L (parent -> child). Precomputes the two y-rotations of the child-parent directions
-/// and the z-shift factors for one order p.
+/// Point-and-shoot translations between a box and its children (Greengard & Rokhlin, Acta Numerica 6 (1997) §5): M2M
+/// (child -> parent) and L2L (parent -> child). Precomputes the two y-rotations of the child-parent directions and the
+/// z-shift factors for one order p.
 class ChildTranslations {
  public:
   explicit ChildTranslations(int p);
@@ -106,13 +124,13 @@ class ChildTranslations {
   /// Adds to Lh_child the L2L of the parent's local.
   void l2l(int octant, const cplx* Lh_parent, cplx* Lh_child, cplx* work) const noexcept;
 
-  /// Scaled z-shifts (§2.1), exposed for tests: new center = old + d zhat; s0 old side, s1 new side.
+  /// Scaled z-shifts, exposed for tests: new center = old + d zhat; s0 old side, s1 new side.
   void m2m_z(const cplx* in, cplx* out, double d, double s0, double s1) const noexcept;
   void l2l_z(const cplx* in, cplx* out, double d, double s0, double s1) const noexcept;
 
  private:
   int p_;
-  Rotation up_, down_;       // Ry(t0), Ry(pi - t0), cos t0 = 1/sqrt(3)
+  Rotation up_, down_;         // Ry(t0), Ry(pi - t0), cos t0 = 1/sqrt(3)
   std::vector<double> m2m_c_;  // sqrt(C(j-k,l) C(j+k,l)) at [idx(j,k)*(p+1) + l]
   std::vector<double> l2l_c_;  // sqrt(C(n-k,n-j) C(n+k,n-j)) at [idx(j,k)*(p+1) + (n-j)]
 };

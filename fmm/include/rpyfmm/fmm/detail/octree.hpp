@@ -1,5 +1,6 @@
 // rpyfmm::fmm — adaptive octree with the U, V, W, X lists of Cheng, Greengard & Rokhlin
-// (JCP 155 (1999) §2; dissertation 004 §2.1; PLANEWAVE.md §5.1-§5.2).
+// (J. Comput. Phys. 155 (1999) §2; Guan, dissertation, §2.1; docs/theory/fmm.md, "The tree and
+// the four lists").
 //
 // Boxes are stored level by level; empty boxes are never created. All adjacency and offset tests
 // use integer box coordinates (level, ix, iy, iz). The tree is *not* level-restricted: the lists
@@ -25,8 +26,8 @@ struct Box {
   std::int64_t ix = 0, iy = 0, iz = 0;  // integer coordinates at this level
   int parent = -1;
   std::array<int, 8> child{-1, -1, -1, -1, -1, -1, -1, -1};  // octant bit0 +x, bit1 +y, bit2 +z
-  std::size_t src_begin = 0, src_end = 0;  // range in the sorted sources
-  std::size_t tgt_begin = 0, tgt_end = 0;  // range in the sorted targets
+  std::size_t src_begin = 0, src_end = 0;                    // range in the sorted sources
+  std::size_t tgt_begin = 0, tgt_end = 0;                    // range in the sorted targets
   bool leaf = true;
   [[nodiscard]] std::size_t nsrc() const noexcept { return src_end - src_begin; }
   [[nodiscard]] std::size_t ntgt() const noexcept { return tgt_end - tgt_begin; }
@@ -50,8 +51,14 @@ struct OctreeParams {
 
 class Octree {
  public:
-  /// Builds the tree over `sources` (3N, xyz interleaved) and `targets` (3M; empty = the sources).
+  /// Builds the tree over `sources` (3N, xyz interleaved) and `targets` (3M; empty = the sources):
+  /// build_boxes, then finish_build.
   void build(std::span<const double> sources, std::span<const double> targets, const OctreeParams& params);
+  /// The first part of build: the boxes, the permutations into tree order and the leaves. Enough
+  /// for the tree's shape (boxes(), leaves(), nlevels()), e.g. to decide on other parameters.
+  void build_boxes(std::span<const double> sources, std::span<const double> targets, const OctreeParams& params);
+  /// The rest of build after build_boxes with the same points: sorted coordinates and the lists.
+  void finish_build(std::span<const double> sources, std::span<const double> targets);
 
   [[nodiscard]] bool targets_are_sources() const noexcept { return same_; }
   [[nodiscard]] int nlevels() const noexcept { return int(level_begin_.size()) - 1; }
@@ -81,6 +88,7 @@ class Octree {
 
  private:
   void split_level(int level, const OctreeParams& params, std::span<const double> src, std::span<const double> tgt);
+  void add_children(int b, const std::array<std::size_t, 16>& counts);
   void build_lists();
 
   bool same_ = true;
