@@ -1,5 +1,6 @@
-// rpyfmm — PSE on CUDA: the wave-space scaling of the half spectrum, one thread per mode, by
-// the CPU's scale_mode() ([PSE] eqs. 19-20; docs/theory/pse.md). Included by pse_rpy_cuda.cu only.
+// rpyfmm — PSE on CUDA: the wave-space scaling of the half spectrum (B of [PSE] eq. 19, and its
+// square root for the noise, eq. 21; docs/theory/pse.md), one thread per mode, by the CPU's
+// scale_mode(). Included by pse_rpy_cuda.cu only.
 #pragma once
 
 #include <cuda_runtime.h>

@@ -1,5 +1,5 @@
-// rpyfmm — PSE parameter selection from a tolerance (PSE.md Sec. 3.2) and the
-// cost model for automatic xi ([PSE] eqs. 22-23, PSE.md Sec. 3.4).
+// rpyfmm — PSE parameter selection from a tolerance and the cost model for automatic xi
+// ([PSE] eqs. 22-23; docs/theory/pse.md).
 #include <algorithm>
 #include <boost/math/special_functions/erf.hpp>
 #include <cmath>
@@ -30,19 +30,18 @@ std::string fmt(double v) {
 constexpr double kEtaCandidates[] = {0.4, 0.45, 0.5, 0.55, 0.6, 0.65, 0.7, 0.75, 0.8, 0.85, 0.9};
 
 /// Window truncation: the relative error of M F from cutting the Gaussian at m sigma, measured
-/// against a window of 26 points on the same grid (bench/pse/RESULTS.md, session 10), is at most
-/// kTruncation erfc(m / sqrt 2) for xi a = 0.3 ... 1.5 and eps = 1e-2 ... 1e-5 (2.8-3.8 x the
-/// 1.5 erfc(m / sqrt 2) of PSE.md Sec. 3.1, which had let this term alone exceed eps by up to 1.9x).
+/// against a window of 26 points on the same grid (2026-12-03, 2-vCPU Intel Xeon VM, family 6 model 167, AVX-512), is
+/// at most kTruncation erfc(m / sqrt 2) for xi a = 0.3 ... 1.5 and eps = 1e-2 ... 1e-5 (2.8-3.8 x the 1.5 erfc(m / sqrt
+/// 2) of the usual estimate, which let this term alone exceed eps by up to 1.9x).
 constexpr double kTruncation = 6.0;
 
 /// FFT lengths with their measured cost factor: r2c + c2r of three components on an n^3 grid
 /// (FFTW_ESTIMATE, 1 thread), seconds per point and log2(points), divided by the median over
 /// n = 64 ... 256. From 48 to 256 timed in place, inside the PSE pass (`bench_pse --grid n`,
 /// 3 rounds), where lengths up to 128 ran 1.0-1.5x slower than alone; below 48 and above 256
-/// timed alone (bench/pse/fft_sizes.cpp, 3 rounds). bench/pse/RESULTS.md, session 11. Every
-/// even 2^a 3^b 5^c 7^d from 8 to 320. The factor is not a smooth function of the
-/// factorisation: 200 = 2^3 5^2 costs 0.88, 210 = 2 3 5 7 1.21 and 256 = 2^8 1.28 (cache-set
-/// conflicts of power-of-two strides), 64 0.39, 70 0.80.
+/// timed alone (bench/pse/fft_sizes.cpp, 3 rounds); 2026-12-03, 2-vCPU Intel Xeon VM, family 6 model 167, AVX-512.
+/// Every even 2^a 3^b 5^c 7^d from 8 to 320. The factor is not a smooth function of the factorisation: 200 = 2^3 5^2
+/// costs 0.88, 210 = 2 3 5 7 1.21 and 256 = 2^8 1.28 (cache-set conflicts of power-of-two strides), 64 0.39, 70 0.80.
 struct FftLength {
   int n;
   double factor;

@@ -1,4 +1,4 @@
-// rpyfmm — PSE wave space on the CPU (PSE.md Sec. 2.3 steps 1-5, Sec. 4, Sec. 6.2).
+// rpyfmm — PSE wave space on the CPU ([PSE] eqs. 19-21; docs/theory/pse.md).
 #include "wave_space.hpp"
 
 #include <fftw3.h>
@@ -275,7 +275,7 @@ std::vector<double> wave_scaling_table(const PseParameters& p, const std::array<
         const double k = std::sqrt(k2sum);
         const double sinc = std::sin(k * a) / (k * a);
         const double x = k2sum * inv_4xi2;
-        // sg(k) = sinc^2(ka) (1 + k^2/4xi^2) exp(-(1-eta) k^2/4xi^2) / k^2  (PSE.md Sec. 2.1)
+        // sg(k) = sinc^2(ka) (1 + k^2/4xi^2) exp(-(1-eta) k^2/4xi^2) / k^2  ([PSE] eqs. 9 and 11)
         const double sg = sinc * sinc * (1.0 + x) * std::exp(-(1.0 - p.window_eta) * x) / k2sum;
         ck[idx] = sg / (viscosity * ng);
       }
@@ -407,7 +407,7 @@ void WaveGrid<Real>::set_positions(std::span<const double> x) {
       if (tile_begin_[static_cast<std::size_t>(t)] == tile_begin_[static_cast<std::size_t>(t) + 1]) continue;
       tiles_of_colour_[static_cast<std::size_t>(3 * tile_class(bx, nb[0]) + tile_class(by, nb[1]))].push_back(t);
     }
-  // The Gaussian window's 1D weights (PSE.md Sec. 2.3) and starts, in tile order.
+  // The Gaussian window's 1D weights (docs/theory/pse.md) and starts, in tile order.
   start_.resize(3 * np_);
   weights_.resize(static_cast<std::size_t>(pw) * np_);
   const double inv_2s2 = 1.0 / (2.0 * p_.sigma * p_.sigma);
@@ -455,7 +455,7 @@ void WaveGrid<Real>::window_lines(std::size_t q, std::size_t* xline, std::size_t
 
 template <class Real>
 void WaveGrid<Real>::spread(const double* forces) {
-  // f_n = sum_j F_j g(x_n - x_j)  (PSE.md Sec. 2.3 step 1), race-free and in a fixed
+  // f_n = sum_j F_j g(x_n - x_j)  (spreading, D in [PSE] eq. 19), race-free and in a fixed
   // order: the result does not depend on the number of threads.
   const int pw = P_[0] + P_[1] + P_[2];
   Real* g0 = grid_;
@@ -510,7 +510,7 @@ void WaveGrid<Real>::spread(const double* forces) {
 
 template <class Real>
 void WaveGrid<Real>::interpolate(double* out, bool accumulate) const {
-  // U_j = dV sum_n g(x_n - x_j) u_n  (PSE.md Sec. 2.3 step 5).
+  // U_j = dV sum_n g(x_n - x_j) u_n  (interpolation, D^-1 in [PSE] eq. 19).
   const int pw = P_[0] + P_[1] + P_[2];
   const Real* g0 = grid_;
   const Real* g1 = grid_ + ng_;
