@@ -207,6 +207,11 @@ class WaveGrid final : public WaveSpace {
 
   void spread(const double* forces);
   void interpolate(double* out, bool accumulate) const;
+  // set_positions stages: window starts and offsets in input order, the tile order and colours,
+  // the window weights in tile order.
+  void window_starts(std::span<const double> x, std::vector<int>& start, std::vector<double>& offset) const;
+  void order_by_tile(const std::vector<int>& start);
+  void weights_in_tile_order(const std::vector<int>& start, const std::vector<double>& offset);
   void window_lines(std::size_t q, std::size_t* xline, std::size_t* yline, std::size_t plane) const;
   /// Destroys the plans and frees the grids (idempotent).
   void release() noexcept;
@@ -356,12 +361,19 @@ WaveGrid<Real>::~WaveGrid() {
 template <class Real>
 void WaveGrid<Real>::set_positions(std::span<const double> x) {
   np_ = x.size() / 3;
-  const int pw = P_[0] + P_[1] + P_[2];
-  const auto np = static_cast<std::int64_t>(np_);
   // Window starts (wrapped) and the offsets d0 = x_s - x of their first points in input order
   // first: they decide the tiles. The weights follow in tile order.
   std::vector<int> start(3 * np_);
   std::vector<double> offset(3 * np_);
+  window_starts(x, start, offset);
+  order_by_tile(start);
+  weights_in_tile_order(start, offset);
+}
+
+template <class Real>
+void WaveGrid<Real>::window_starts(std::span<const double> x, std::vector<int>& start,
+                                   std::vector<double>& offset) const {
+  const auto np = static_cast<std::int64_t>(np_);
 #pragma omp parallel for schedule(static) if (np_ >= 4096)
   for (std::int64_t i = 0; i < np; ++i)
     for (std::size_t d = 0; d < 3; ++d) {
@@ -370,6 +382,11 @@ void WaveGrid<Real>::set_positions(std::span<const double> x) {
       offset[3 * i + d] = static_cast<double>(s) * p_.spacing[d] - xd;
       start[3 * i + d] = wrap_index(s, n_[d]);
     }
+}
+
+template <class Real>
+void WaveGrid<Real>::order_by_tile(const std::vector<int>& start) {
+  const auto np = static_cast<std::int64_t>(np_);
   // Tiles of B_d >= P_d - 1 grid points in x and y (by window start): a tile's
   // particles write only into itself and the next tile, so tiles of one colour
   // (class per axis, tile_class) never touch the same grid point.
@@ -407,6 +424,12 @@ void WaveGrid<Real>::set_positions(std::span<const double> x) {
       if (tile_begin_[static_cast<std::size_t>(t)] == tile_begin_[static_cast<std::size_t>(t) + 1]) continue;
       tiles_of_colour_[static_cast<std::size_t>(3 * tile_class(bx, nb[0]) + tile_class(by, nb[1]))].push_back(t);
     }
+}
+
+template <class Real>
+void WaveGrid<Real>::weights_in_tile_order(const std::vector<int>& start, const std::vector<double>& offset) {
+  const int pw = P_[0] + P_[1] + P_[2];
+  const auto np = static_cast<std::int64_t>(np_);
   // The Gaussian window's 1D weights (docs/theory/pse.md) and starts, in tile order.
   start_.resize(3 * np_);
   weights_.resize(static_cast<std::size_t>(pw) * np_);
