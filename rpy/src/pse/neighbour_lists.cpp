@@ -173,10 +173,24 @@ struct BuildScratch {
   std::vector<int> buf;
 };
 
-/// Appends to w.buf (from entry `used`) the slots t0 .. t0 + count - 1 within r_cut of slot s
-/// (never s itself) and returns the new count. Distances first (a loop that vectorizes), then a
+/// The portable filter: out[used ...] = the slots t0 .. t0 + count - 1 within r_cut of slot s
+/// (never s itself); returns the new count. Distances first (a loop that vectorizes), then a
 /// branch-free compaction: about one candidate in six is kept, so a branch per candidate would
-/// mostly mispredict.
+/// mostly mispredict. Not inlined into the list build, whose hot loops then ran 15-25% slower at
+/// the scalar level (2026-12-05, 2-core AMD EPYC VM, AVX2, 32000 particles).
+[[gnu::noinline]] std::size_t portable_within(const ListBuild& b, std::size_t s, std::size_t t0, std::size_t count,
+                                              const double* shift, BuildScratch& w, int* out, std::size_t used) {
+  if (w.d2.size() < count) w.d2.resize(count);
+  squared_distances(b, s, t0, count, b.in.grid.cells ? shift : nullptr, w.d2.data());
+  for (std::size_t q = 0; q < count; ++q) {
+    out[used] = static_cast<int>(t0 + q);
+    used += static_cast<std::size_t>(w.d2[q] < b.rc2) & static_cast<std::size_t>(t0 + q != s);
+  }
+  return used;
+}
+
+/// Appends to w.buf (from entry `used`) the slots t0 .. t0 + count - 1 within r_cut of slot s
+/// (never s itself) by the build's filter and returns the new count.
 std::size_t append_within(const ListBuild& b, std::size_t s, std::size_t t0, std::size_t count, const double* shift,
                           BuildScratch& w, std::size_t used) {
   if (w.buf.size() < used + count + 16) w.buf.resize(2 * (used + count + 16));
@@ -192,13 +206,7 @@ std::size_t append_within(const ListBuild& b, std::size_t s, std::size_t t0, std
            pairs_within_avx2(pos[0].data(), pos[1].data(), pos[2].data(), t0, count, xs, shift, b.rc2, s, out + used);
   }
 #endif
-  if (w.d2.size() < count) w.d2.resize(count);
-  squared_distances(b, s, t0, count, b.in.grid.cells ? shift : nullptr, w.d2.data());
-  for (std::size_t q = 0; q < count; ++q) {
-    out[used] = static_cast<int>(t0 + q);
-    used += static_cast<std::size_t>(w.d2[q] < b.rc2) & static_cast<std::size_t>(t0 + q != s);
-  }
-  return used;
+  return portable_within(b, s, t0, count, shift, w, out, used);
 }
 
 /// The rows of the slots of cells [c_begin, c_end) into w.buf; counts[s] = the length of row s.
