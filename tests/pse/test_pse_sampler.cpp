@@ -15,8 +15,6 @@ using namespace rpyfmm::rpy::pse;
 using pse_test::dense;
 using pse_test::SmallSystem;
 
-namespace {}  // namespace
-
 TEST(PseSampler, GenericLanczosOnFullOperatorMatchesDenseSquareRoot) {
   const SmallSystem s;
   PseRpy op(Geometry::periodic(s.L[0], s.L[1], s.L[2]), 1.0, s.options());
