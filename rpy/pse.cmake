@@ -4,6 +4,13 @@ target_sources(rpyfmm_rpy PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/parameters.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/real_space.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/real_space_sum.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/pse/real_space_apply.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/pse/neighbour_lists.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/pse/list_filter.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/pse/half_blocks.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/pse/pair_cache.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/pse/pair_rows.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/pse/pair_rows_avx512.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/wave_space.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/scale_line.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/window_avx2.cpp

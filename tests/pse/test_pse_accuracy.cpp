@@ -113,7 +113,7 @@ TEST(PseAccuracy, ErrorFollowsTolerance) {
   // Relative l2 error of U for random forces against the direct Ewald sum, eps = 1e-2 .. 1e-8,
   // cubic and rectangular boxes, several xi, the window shape chosen automatically. Bound eps:
   // the real-space, aliasing and window-truncation terms are each budgeted at eps / 2 with
-  // measured constants (design note 17), and they do not add up in phase.
+  // measured constants (docs/theory/pse.md), and they do not add up in phase.
   struct Case {
     std::array<double, 3> L;
     double xa;       // the operator's xi a (0: automatic); the reference uses 1 then
@@ -158,7 +158,7 @@ TEST(PseAccuracy, TableAndDirectRealSpaceAgree) {
 
 TEST(PseAccuracy, RealSpaceHalfListsMatchFullRows) {
   // Where the AVX-512 kernels run on a cell grid, M_r F sums each pair once for both rows, block
-  // by block in up to four colours (design note 22). Against the portable full rows: cell grids
+  // by block in up to four colours (rpy/src/pse/half_blocks.hpp). Against the portable full rows: cell grids
   // of 3 ... 10 layers (axes left whole, even and odd block counts, widths 2 and 3), coincident
   // and periodic-boundary pairs, 3 right-hand sides; the same result with 1 and 2 threads, bit
   // for bit (each sum is added in a fixed order). Without the pair cache, which rounds the blocks
@@ -295,7 +295,7 @@ TEST(PseAccuracy, WrappedPositionsGiveTheSameResult) {
 // The stored positions lie in [0, L) per axis: inside ones bitwise unchanged (also the largest
 // double below L, whose x / L rounds to 1), outside ones moved by whole periods, including
 // values a hair below a multiple of L, -0.0, tiny negatives (the smallest, whose quotient by L
-// underflows, used to be kept as a negative position) and huge values.
+// underflows, must not stay negative) and huge values.
 TEST(PseAccuracy, StoredPositionsAreWrappedIntoTheBox) {
   const std::array<double, 3> L = {12.0, 15.0, 10.0};
   const double below_L = std::nextafter(L[0], 0.0);

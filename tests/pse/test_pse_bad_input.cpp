@@ -53,8 +53,8 @@ TEST(PseBadInput, BoxSmallerThanTwiceTheCutoff) {
   expect_error([&] { op.set_positions(kTwo, 1.0); }, ErrorCode::invalid_argument, "2 r_cut");
 }
 
-// A failed plan leaves no half-built operator behind: products refuse with a message (they
-// used to dereference the discarded FFT/real-space parts), and a later good call recovers.
+// A failed plan leaves no half-built operator behind: products refuse with a message (rather than
+// reach the discarded FFT/real-space parts), and a later good call recovers.
 TEST(PseBadInput, FailedPlanIsNotUsable) {
   PseOptions o;
   o.xi = 0.5;
@@ -74,8 +74,11 @@ TEST(PseBadInput, FailedPlanIsNotUsable) {
 
 TEST(PseBadInput, BoxSmallerThanTheParticle) {
   PseRpy op(Geometry::periodic(1.5), 1.0);
-  expect_error([&] { op.set_positions(std::vector<double>{0.1, 0.1, 0.1}, 1.0); }, ErrorCode::invalid_argument,
-               "particle diameter");
+  expect_error(
+      [&] {
+        op.set_positions(std::vector<double>{0.1, 0.1, 0.1}, 1.0);
+      },
+      ErrorCode::invalid_argument, "particle diameter");
 }
 
 TEST(PseBadInput, XiTooSmall) {

@@ -1,7 +1,7 @@
 // The host-side plan of the CUDA spreading and interpolation (rpy/src/pse/cuda_window_plan.hpp),
 // tested without a device: the bin grid's shape and shared memory, and the automatic bin edge
 // against the choices measured best on an H200 (132 multiprocessors, 227 KiB of opt-in shared
-// memory per block; bench/pse/RESULTS.md, session 20: 14 for float grids, 10 for double at
+// memory per block; measured 2026-12-04, CUDA 13.0: 14 for float grids, 10 for double at
 // Table I's sizes, one block per particle at 8000 particles on 64^3).
 #include <gtest/gtest.h>
 

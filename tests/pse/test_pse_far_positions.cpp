@@ -1,7 +1,7 @@
 // PSE: positions any number of box lengths outside the box wrap exactly into [0, L).
-// The wrap used to be v - L floor(v / L): the rounded quotient's floor can be one too large, and
-// L floor(v / L) is then rounded too, so that at ~1e16 box lengths a position landed on the wrong
-// point of the box (below: 8 -> 4), and far beyond it on garbage (|U| ~ 1e68) or NaN.
+// The naive wrap v - L floor(v / L) fails there: the rounded quotient's floor can be one too
+// large, and L floor(v / L) is then rounded too, so that at ~1e16 box lengths a position lands on
+// the wrong point of the box (below: 8 -> 4), and far beyond it on garbage (|U| ~ 1e68) or NaN.
 // The references are exact integer arithmetic: for L = 12 = 3 * 4, a double x = m 2^q (m an
 // integer, q >= 2) has x mod 12 = 4 ((m 2^(q-2)) mod 3), with 2^j mod 3 = 1 (j even) or 2 (j odd).
 #include <gtest/gtest.h>

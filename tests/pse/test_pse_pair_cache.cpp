@@ -1,4 +1,4 @@
-// PSE real-space pair cache (PseOptions::real_space_cache, design note 23): the first product after
+// PSE real-space pair cache (PseOptions::real_space_cache, rpy/src/pse/pair_cache.hpp): the first product after
 // set_positions keeps every pair's block, the later ones read it. Against the same operator
 // without the cache, for the AVX-512 half rows and the portable rows; every product applies the
 // same operator; new positions refill it; the memory limit and the option turn it off.

@@ -1,5 +1,5 @@
 // PSE parameter choice: FFT grid lengths, the aliasing bound on the spacing, the window
-// support, and the cost model's steering of the grid (design notes 17-18).
+// support, and the cost model's steering of the grid (docs/theory/pse.md).
 #include <gtest/gtest.h>
 
 #include <array>
@@ -23,7 +23,7 @@ bool smooth_even(int m, int max_threes) {
   return m == 1 && threes <= max_threes;
 }
 
-/// The coarsest spacing the aliasing term allows (PSE.md Sec. 2.4, the bound parameters.cpp
+/// The coarsest spacing the aliasing term allows (docs/theory/pse.md, the bound parameters.cpp
 /// uses): pi^2 eta (1 - eta/2) / (2 xi^2 h^2) >= ln(2 / eps).
 double h_max(double xi, double eta, double eps) {
   return (std::numbers::pi / xi) * std::sqrt(eta * (1.0 - 0.5 * eta) / (2.0 * std::log(2.0 / eps)));
@@ -48,8 +48,8 @@ TEST(PseParameterChoice, GridSizesAreEvenProductsOfSmallPrimes) {
 TEST(PseParameterChoice, FftLengthCostsAreMeasuredForEveryTabulatedLength) {
   // Every even 7-smooth length up to 320 has its own measured factor (positive, within the
   // 0.3 ... 1.6 the table spans); beyond it one constant. Two measured facts the grid choice
-  // relies on: 200^3 transforms are cheaper per point than 210^3 and 196^3 (RESULTS.md, session
-  // 11: 0.353 s against 0.563 s and 0.396 s for 1.05x and 0.94x the points).
+  // relies on: 200^3 transforms are cheaper per point than 210^3 and 196^3 (2026-12-03, 2-vCPU Intel Xeon VM, family 6
+  // model 167, AVX-512: 0.353 s against 0.563 s and 0.396 s for 1.05x and 0.94x the points).
   for (int n = 8; n <= 320; ++n) {
     if (!smooth_even(n, 10)) continue;
     EXPECT_GT(fft_length_cost(n), 0.3) << n;

@@ -122,7 +122,7 @@ TEST(PsePrecision, AutomaticChoiceFollowsTheTolerance) {
   EXPECT_THROW(choose(1e-3, static_cast<WavePrecision>(7)), rpyfmm::Error);
 }
 
-// The CUDA backend follows wave_precision as the CPU does (single grids since session 15): with a
+// The CUDA backend follows wave_precision as the CPU does (single-precision grids too): with a
 // device the option is taken (the agreement with the CPU: test_pse_cuda.cpp); without one the
 // constructor refuses for that reason, not for the precision.
 TEST(PsePrecision, CudaBackendFollowsWavePrecision) {

@@ -23,8 +23,8 @@ TEST(PseRealSpace, ClosedFormMatchesFourierQuadrature) {
   }
 }
 
-TEST(PseRealSpace, RegressionValuesOfDesignNote) {
-  // PSE.md Sec. 1.2 (computed independently there in 60-digit arithmetic), xi a = 0.5, a = 1.
+TEST(PseRealSpace, RegressionValuesFromExtendedPrecision) {
+  // [PSE] eqs. A1-A4 evaluated independently in 60-digit arithmetic, xi a = 0.5, a = 1.
   EXPECT_NEAR(real_space_self(0.5, 1.0), 0.33561712446901, 1e-13);
   const FG v1 = real_space_fg(1.0, 0.5, 1.0);
   EXPECT_NEAR(v1.f, 0.12319096951, 1e-10);
@@ -38,7 +38,7 @@ TEST(PseRealSpace, RegressionValuesOfDesignNote) {
 }
 
 TEST(PseRealSpace, ContinuousWithContinuousSlopeAt2a) {
-  // f0, g0 vanish at 2a with a double / triple zero (PSE.md Sec. 1.2): F, G and F', G'
+  // f0, g0 vanish at 2a with a double / triple zero (docs/theory/pse.md): F, G and F', G'
   // are continuous. Values: linear extrapolation from each side reaches F(2a) to O(h^2);
   // slopes: one-sided differences agree to O(h) (the second derivative jumps).
   for (double xa : {0.3, 0.5, 1.0, 2.0}) {
@@ -58,7 +58,7 @@ TEST(PseRealSpace, SeriesJoinsClosedFormAndSelfTerm) {
   for (double xa : {0.3, 0.5, 1.0, 2.0}) {
     const double rs = std::clamp(0.01 / xa, 0.004, 0.2);
     const FG below = real_space_fg(rs * (1 - 1e-9), xa, 1.0), above = real_space_fg(rs * (1 + 1e-9), xa, 1.0);
-    // Both sides carry <= ~5e-10 error there (PSE.md Sec. 1.3): the jump is <= 2e-9.
+    // Both sides carry <= ~5e-10 error there (docs/theory/pse.md): the jump is <= 2e-9.
     EXPECT_NEAR(below.f, above.f, 2e-9) << xa;
     EXPECT_NEAR(below.g, above.g, 2e-9) << xa;
     const FG zero = real_space_fg(0.0, xa, 1.0);

@@ -15,18 +15,14 @@ using namespace rpyfmm::rpy::pse;
 using pse_test::dense;
 using pse_test::SmallSystem;
 
-namespace {
-
-
-}  // namespace
-
 TEST(PseSampler, GenericLanczosOnFullOperatorMatchesDenseSquareRoot) {
   const SmallSystem s;
   PseRpy op(Geometry::periodic(s.L[0], s.L[1], s.L[2]), 1.0, s.options());
   op.set_positions(s.x, 1.0);
   const Eigen::MatrixXd M = dense(op);
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(0.5 * (M + M.transpose()));
-  const Eigen::MatrixXd S = es.eigenvectors() * es.eigenvalues().cwiseSqrt().asDiagonal() * es.eigenvectors().transpose();
+  const Eigen::MatrixXd S =
+      es.eigenvectors() * es.eigenvalues().cwiseSqrt().asDiagonal() * es.eigenvectors().transpose();
   std::vector<double> z(s.x.size()), w(s.x.size());
   fill_normal(z, 5, 0);
   SqrtOptions so;
@@ -41,7 +37,7 @@ TEST(PseSampler, GenericLanczosOnFullOperatorMatchesDenseSquareRoot) {
 
 TEST(PseSampler, LanczosIterationsOnRealPartDoNotGrowWithN) {
   // Random points at number density matching phi = 0.1 for a = 1: the condition number of
-  // M_r depends on the local environment only ([PSE] Fig. 1, PSE.md Sec. 5).
+  // M_r depends on the local environment only ([PSE] Fig. 1).
   int iters[2] = {0, 0};
   const std::size_t sizes[2] = {200, 1600};
   for (int t = 0; t < 2; ++t) {
@@ -101,7 +97,8 @@ TEST(PseSampler, PlainLanczosOnRealPartMatchesDenseSquareRoot) {
   }
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(0.5 * (Mr + Mr.transpose()));
   ASSERT_GT(es.eigenvalues().minCoeff(), 0.0);
-  const Eigen::MatrixXd S = es.eigenvectors() * es.eigenvalues().cwiseSqrt().asDiagonal() * es.eigenvectors().transpose();
+  const Eigen::MatrixXd S =
+      es.eigenvectors() * es.eigenvalues().cwiseSqrt().asDiagonal() * es.eigenvectors().transpose();
   std::vector<double> z(x.size());
   fill_normal(z, 11, 2, 1);
   const Eigen::VectorXd ref = S * Eigen::Map<const Eigen::VectorXd>(z.data(), n);
@@ -119,4 +116,3 @@ TEST(PseSampler, PlainLanczosOnRealPartMatchesDenseSquareRoot) {
     EXPECT_GT(rp.iterations, 3) << "tol " << tol;  // a real Krylov run, not a 1-step case
   }
 }
-

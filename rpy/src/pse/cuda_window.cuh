@@ -1,5 +1,5 @@
-// rpyfmm — PSE on CUDA: Gaussian spreading and interpolation ([PSE] eqs. 18 and 21; PSE.md
-// Sec. 2.2), the device side of wave_space.cpp's windows. Included by pse_rpy_cuda.cu only.
+// rpyfmm — PSE on CUDA: Gaussian spreading and interpolation (D and D^-1 of [PSE] eq. 19;
+// docs/theory/pse.md), the device side of wave_space.cpp's windows. Included by pse_rpy_cuda.cu only.
 //
 // Two forms, same sums (to the order of the floating-point additions):
 // - per particle: one block per particle over its P^3 window, atomics straight into the grid;

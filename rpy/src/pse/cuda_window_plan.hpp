@@ -14,7 +14,7 @@ constexpr unsigned kWarp = 32;
 constexpr unsigned kParticleThreads = 128;  // per-particle kernels: threads per particle
 constexpr unsigned kBinThreads = 512;       // bin kernels: threads per bin (16 warps, a particle each)
 
-/// The grid and its Gaussian window (PSE.md Sec. 2.2).
+/// The grid and its Gaussian window (docs/theory/pse.md).
 struct WindowParams {
   int n[3];        // grid points per axis
   int P[3];        // window support per axis

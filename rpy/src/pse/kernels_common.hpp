@@ -18,7 +18,7 @@ inline constexpr std::uint32_t kStreamReal = 1;
 inline constexpr std::uint32_t kStreamWave = 2;
 
 /// First grid index of the P-point Gaussian support of coordinate x
-/// (PSE.md Sec. 2.2): every grid point closer than P h / 2 is covered.
+/// (docs/theory/pse.md): every grid point closer than P h / 2 is covered.
 RPYFMM_HOST_DEVICE inline long window_start(double x, double h, int P) {
   const double u = x / h;
   if (P % 2 == 0) return static_cast<long>(std::floor(u)) - P / 2 + 1;
@@ -88,7 +88,9 @@ struct ModeGeometry {
 };
 
 /// Signed wave number index of grid index i in a dimension of size n.
-RPYFMM_HOST_DEVICE inline int signed_index(int i, int n) { return 2 * i < n ? i : i - n; }
+RPYFMM_HOST_DEVICE inline int signed_index(int i, int n) {
+  return 2 * i < n ? i : i - n;
+}
 
 /// Full-grid linear index `lin` of mode (ix, iy, iz) and the representative `rep` of the
 /// pair {k, -k}: the smaller of lin and the index of -k ((n - i) mod n per axis). The wave
@@ -107,7 +109,7 @@ RPYFMM_HOST_DEVICE inline void mode_pair(int ix, int iy, int iz, const ModeGeome
 }
 
 /// Scales one half-spectrum mode (ix, iy, iz), linear index idx = (ix ny + iy) nzh + iz,
-/// in place (PSE.md Sec. 2.3 step 3 and Sec. 4.2):
+/// in place ([PSE] eqs. 19 and 21; docs/theory/pse.md):
 ///   Uh = c(k) P_k Fh + noise_factor sqrt(c(k)) P_k z(k),  noise_factor = noise_scale / sqrt(dV)
 /// with c(k) = sg(k)/(eta Ng) (zero at k = 0 and on Nyquist planes), P_k = I - khat khat,
 /// z(k) complex Gaussian with E[z z^H] = I and z(-k) = conj(z(k)). `z` (null: no noise) holds
@@ -136,8 +138,12 @@ RPYFMM_HOST_DEVICE inline void scale_mode_with(int ix, int iy, int iz, std::size
   double re[3] = {0.0, 0.0, 0.0};
   double im[3] = {0.0, 0.0, 0.0};
   if (deterministic) {
-    re[0] = c * s0[0]; re[1] = c * s1[0]; re[2] = c * s2[0];
-    im[0] = c * s0[1]; im[1] = c * s1[1]; im[2] = c * s2[1];
+    re[0] = c * s0[0];
+    re[1] = c * s1[0];
+    re[2] = c * s2[0];
+    im[0] = c * s0[1];
+    im[1] = c * s1[1];
+    im[2] = c * s2[1];
   }
   if (z != nullptr) {
     // z = (a + i b)/sqrt(2): E|z_c|^2 = 1 per component; conjugate off the representative.

@@ -1,5 +1,5 @@
-// rpyfmm — PSE parameter selection from a tolerance (PSE.md Sec. 3.2) and the
-// cost model for automatic xi ([PSE] eqs. 22-23, PSE.md Sec. 3.4).
+// rpyfmm — PSE parameter selection from a tolerance and the cost model for automatic xi
+// ([PSE] eqs. 22-23; docs/theory/pse.md).
 #include <algorithm>
 #include <boost/math/special_functions/erf.hpp>
 #include <cmath>
@@ -30,19 +30,18 @@ std::string fmt(double v) {
 constexpr double kEtaCandidates[] = {0.4, 0.45, 0.5, 0.55, 0.6, 0.65, 0.7, 0.75, 0.8, 0.85, 0.9};
 
 /// Window truncation: the relative error of M F from cutting the Gaussian at m sigma, measured
-/// against a window of 26 points on the same grid (bench/pse/RESULTS.md, session 10), is at most
-/// kTruncation erfc(m / sqrt 2) for xi a = 0.3 ... 1.5 and eps = 1e-2 ... 1e-5 (2.8-3.8 x the
-/// 1.5 erfc(m / sqrt 2) of PSE.md Sec. 3.1, which had let this term alone exceed eps by up to 1.9x).
+/// against a window of 26 points on the same grid (2026-12-03, 2-vCPU Intel Xeon VM, family 6 model 167, AVX-512), is
+/// at most kTruncation erfc(m / sqrt 2) for xi a = 0.3 ... 1.5 and eps = 1e-2 ... 1e-5 (2.8-3.8 x the 1.5 erfc(m / sqrt
+/// 2) of the usual estimate, which let this term alone exceed eps by up to 1.9x).
 constexpr double kTruncation = 6.0;
 
 /// FFT lengths with their measured cost factor: r2c + c2r of three components on an n^3 grid
 /// (FFTW_ESTIMATE, 1 thread), seconds per point and log2(points), divided by the median over
 /// n = 64 ... 256. From 48 to 256 timed in place, inside the PSE pass (`bench_pse --grid n`,
 /// 3 rounds), where lengths up to 128 ran 1.0-1.5x slower than alone; below 48 and above 256
-/// timed alone (bench/pse/fft_sizes.cpp, 3 rounds). bench/pse/RESULTS.md, session 11. Every
-/// even 2^a 3^b 5^c 7^d from 8 to 320. The factor is not a smooth function of the
-/// factorisation: 200 = 2^3 5^2 costs 0.88, 210 = 2 3 5 7 1.21 and 256 = 2^8 1.28 (cache-set
-/// conflicts of power-of-two strides), 64 0.39, 70 0.80.
+/// timed alone (bench/pse/fft_sizes.cpp, 3 rounds); 2026-12-03, 2-vCPU Intel Xeon VM, family 6 model 167, AVX-512.
+/// Every even 2^a 3^b 5^c 7^d from 8 to 320. The factor is not a smooth function of the factorisation: 200 = 2^3 5^2
+/// costs 0.88, 210 = 2 3 5 7 1.21 and 256 = 2^8 1.28 (cache-set conflicts of power-of-two strides), 64 0.39, 70 0.80.
 struct FftLength {
   int n;
   double factor;
@@ -104,9 +103,81 @@ double grid_cost(const PseOptions& o, const std::array<int, 3>& grid, const std:
          2.0 * o.cost_support_point * static_cast<double>(n) * support3;
 }
 
-/// Real-space cutoff for xi: the override, or the envelope cutoff for eps / 2 (Sec. 1.5).
+/// Real-space cutoff for xi: the override, or the envelope cutoff for eps / 2 (docs/theory/pse.md).
 double cutoff_for_xi(const PseOptions& o, double a, double xi) {
   return o.r_cut > 0.0 ? o.r_cut : real_space_cutoff(0.5 * o.tolerance, xi, a);
+}
+
+/// Gaussian support (points) along an axis of length L_d cut into nd points: the override, or
+/// +-m sigma covered.
+int support_on(const PseOptions& o, const PseParameters& p, double L_d, int nd) {
+  return o.support > 0 ? o.support : static_cast<int>(std::ceil(2.0 * p.window_m * p.sigma / (L_d / nd)));
+}
+
+/// Per axis the override, or the first admissible FFT lengths >= L_d / h_max.
+std::array<std::vector<int>, 3> candidate_lengths(const PseOptions& o, const std::array<double, 3>& L, double h_max) {
+  std::array<std::vector<int>, 3> lengths;
+  for (int d = 0; d < 3; ++d) {
+    if (o.grid[d] > 0) {
+      lengths[d] = {o.grid[d]};
+      continue;
+    }
+    const double want = std::ceil(L[d] / h_max);
+    require(want < 65536.0, ErrorCode::out_of_memory, kWhere,
+            "grid of " + fmt(want) + " points along axis " + std::to_string(d) + " is too large");
+    lengths[d] = fft_lengths_from(std::max(static_cast<int>(want), 4), kGridCandidates);
+  }
+  return lengths;
+}
+
+/// The combination of candidate lengths of least modelled cost whose supports fit on it and
+/// within the memory limit; the shortest lengths where none does (the fallback, so that an
+/// infeasible choice fails with its own message in set_grid).
+std::array<int, 3> cheapest_grid(const PseOptions& o, const PseParameters& p, const std::array<double, 3>& L,
+                                 std::size_t n, const std::array<std::vector<int>, 3>& lengths) {
+  std::array<int, 3> grid = {lengths[0][0], lengths[1][0], lengths[2][0]};
+  double best_cost = std::numeric_limits<double>::infinity();
+  for (int gx : lengths[0])
+    for (int gy : lengths[1])
+      for (int gz : lengths[2]) {
+        const std::array<int, 3> g = {gx, gy, gz};
+        const std::array<int, 3> s = {support_on(o, p, L[0], gx), support_on(o, p, L[1], gy),
+                                      support_on(o, p, L[2], gz)};
+        if (s[0] > gx || s[1] > gy || s[2] > gz) continue;
+        if (memory_estimate(g, s, n, p.wave_single) > static_cast<double>(o.max_memory_bytes)) continue;
+        const double c = grid_cost(o, g, s, n);
+        if (c < best_cost) {
+          best_cost = c;
+          grid = g;
+        }
+      }
+  return grid;
+}
+
+/// p's grid, spacing, support and memory for `grid`; throws rpyfmm::Error where the window is
+/// wider than the grid or the grid exceeds the plan size or the memory limit.
+void set_grid(PseParameters& p, const PseOptions& o, const std::array<double, 3>& L, std::size_t n,
+              const std::array<int, 3>& grid) {
+  double ng = 1.0;
+  for (int d = 0; d < 3; ++d) {
+    const int nd = grid[d];
+    p.grid[d] = nd;
+    p.spacing[d] = L[d] / nd;
+    p.support[d] = support_on(o, p, L[d], nd);
+    require(p.support[d] <= nd, ErrorCode::invalid_argument, kWhere,
+            "Gaussian window (" + std::to_string(p.support[d]) + " points) is wider than the grid (" +
+                std::to_string(nd) + " points) along axis " + std::to_string(d) +
+                "; the box is too small for xi = " + fmt(p.xi) + ": increase xi");
+    ng *= nd;
+  }
+  require(ng < 2147483647.0, ErrorCode::out_of_memory, kWhere,
+          "FFT grid of " + fmt(ng) + " points exceeds the 2^31 points FFTW/cuFFT plans accept");
+  const double bytes = memory_estimate(p.grid, p.support, n, p.wave_single);
+  require(bytes <= static_cast<double>(o.max_memory_bytes), ErrorCode::out_of_memory, kWhere,
+          "FFT grid " + std::to_string(p.grid[0]) + " x " + std::to_string(p.grid[1]) + " x " +
+              std::to_string(p.grid[2]) + " needs " + fmt(bytes / 1e9) + " GB, over the limit of " +
+              fmt(static_cast<double>(o.max_memory_bytes) / 1e9) + " GB (PseOptions::max_memory_bytes)");
+  p.memory_bytes = static_cast<std::size_t>(bytes);
 }
 
 /// Parameters for one fixed xi, window shape eta and cutoff r_cut; throws rpyfmm::Error when
@@ -121,7 +192,7 @@ PseParameters parameters_for(const PseOptions& o, double a, const std::array<dou
   const double eps = o.tolerance;
   const double min_L = std::min({L[0], L[1], L[2]});
 
-  // 1. Real-space cutoff from the envelope of F, G for eps_R = eps / 2 (Sec. 1.5).
+  // 1. Real-space cutoff from the envelope of F, G for eps_R = eps / 2 (docs/theory/pse.md).
   p.r_cut = r_cut;
   require(p.r_cut <= 0.5 * min_L, ErrorCode::invalid_argument, kWhere,
           "box length " + fmt(min_L) + " is smaller than 2 r_cut = " + fmt(2.0 * p.r_cut) + " (xi = " + fmt(xi) +
@@ -129,62 +200,14 @@ PseParameters parameters_for(const PseOptions& o, double a, const std::array<dou
 
   // 2. Window half-width m (in sigma) from the truncation term kTruncation erfc(m / sqrt 2) <= eps / 2.
   p.window_m = std::numbers::sqrt2 * boost::math::erfc_inv(eps / (2.0 * kTruncation));
-  // 3. Grid spacing: the aliasing exponent pi^2 eta (1 - eta/2) / (2 xi^2 h^2) >= ln(2/eps) (Sec. 2.4).
+  // 3. Grid spacing: the aliasing exponent pi^2 eta (1 - eta/2) / (2 xi^2 h^2) >= ln(2/eps)
+  // (docs/theory/pse.md).
   const double h_max = (std::numbers::pi / xi) * std::sqrt(eta * (1.0 - 0.5 * eta) / (2.0 * std::log(2.0 / eps)));
   p.window_eta = eta;
   p.sigma = std::sqrt(eta) / (2.0 * xi);  // sigma^2 = eta / (4 xi^2)
   // 4. Grid: per axis the override, or among the first admissible FFT lengths >= L_d / h_max the
   // combination of least modelled cost (5. with the support P_d covering +-m sigma on it).
-  std::array<std::vector<int>, 3> lengths;
-  for (int d = 0; d < 3; ++d) {
-    if (o.grid[d] > 0) {
-      lengths[d] = {o.grid[d]};
-      continue;
-    }
-    const double want = std::ceil(L[d] / h_max);
-    require(want < 65536.0, ErrorCode::out_of_memory, kWhere,
-            "grid of " + fmt(want) + " points along axis " + std::to_string(d) + " is too large");
-    lengths[d] = fft_lengths_from(std::max(static_cast<int>(want), 4), kGridCandidates);
-  }
-  auto support_for = [&](int d, int nd) {
-    return o.support > 0 ? o.support : static_cast<int>(std::ceil(2.0 * p.window_m * p.sigma / (L[d] / nd)));
-  };
-  // The shortest lengths are the fallback, so that an infeasible choice fails with its own message.
-  std::array<int, 3> grid = {lengths[0][0], lengths[1][0], lengths[2][0]};
-  double best_cost = std::numeric_limits<double>::infinity();
-  for (int gx : lengths[0])
-    for (int gy : lengths[1])
-      for (int gz : lengths[2]) {
-        const std::array<int, 3> g = {gx, gy, gz};
-        const std::array<int, 3> s = {support_for(0, gx), support_for(1, gy), support_for(2, gz)};
-        if (s[0] > gx || s[1] > gy || s[2] > gz) continue;
-        if (memory_estimate(g, s, n, p.wave_single) > static_cast<double>(o.max_memory_bytes)) continue;
-        const double c = grid_cost(o, g, s, n);
-        if (c < best_cost) {
-          best_cost = c;
-          grid = g;
-        }
-      }
-  double ng = 1.0;
-  for (int d = 0; d < 3; ++d) {
-    const int nd = grid[d];
-    p.grid[d] = nd;
-    p.spacing[d] = L[d] / nd;
-    p.support[d] = support_for(d, nd);
-    require(p.support[d] <= nd, ErrorCode::invalid_argument, kWhere,
-            "Gaussian window (" + std::to_string(p.support[d]) + " points) is wider than the grid (" +
-                std::to_string(nd) + " points) along axis " + std::to_string(d) +
-                "; the box is too small for xi = " + fmt(xi) + ": increase xi");
-    ng *= nd;
-  }
-  require(ng < 2147483647.0, ErrorCode::out_of_memory, kWhere,
-          "FFT grid of " + fmt(ng) + " points exceeds the 2^31 points FFTW/cuFFT plans accept");
-  const double bytes = memory_estimate(p.grid, p.support, n, p.wave_single);
-  require(bytes <= static_cast<double>(o.max_memory_bytes), ErrorCode::out_of_memory, kWhere,
-          "FFT grid " + std::to_string(p.grid[0]) + " x " + std::to_string(p.grid[1]) + " x " +
-              std::to_string(p.grid[2]) + " needs " + fmt(bytes / 1e9) + " GB, over the limit of " +
-              fmt(static_cast<double>(o.max_memory_bytes) / 1e9) + " GB (PseOptions::max_memory_bytes)");
-  p.memory_bytes = static_cast<std::size_t>(bytes);
+  set_grid(p, o, L, n, cheapest_grid(o, p, L, n, candidate_lengths(o, L, h_max)));
   p.lanczos_tolerance = o.lanczos_tolerance > 0.0 ? o.lanczos_tolerance : eps;
 
   // Cost model T(xi) ([PSE] eq. 22): real-space pairs (M_r F and the Lanczos iterations of the
@@ -282,7 +305,7 @@ PseParameters choose_parameters(const PseOptions& o, double a, const std::array<
             "xi a must be >= 0.05 (closed forms lose accuracy below), got xi = " + fmt(o.xi));
     return best_for_xi(o.xi);
   }
-  // Automatic xi: minimise the modelled cost over xi a in [0.2, 8] (Sec. 3.4).
+  // Automatic xi: minimise the modelled cost over xi a in [0.2, 8] ([PSE] eq. 22; docs/theory/pse.md).
   PseParameters best;
   bool found = false;
   std::string last_error;

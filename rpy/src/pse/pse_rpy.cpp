@@ -49,7 +49,7 @@ struct PseRpy::Impl {
   mutable StageTimes times;
 
   /// y = M_r^{1/2} z (nrhs vectors in input order) by Lanczos on the real-space part ([PSE]
-  /// Sec. II.B, PSE.md Sec. 5), iterated in slot order: z is permuted once, the products then
+  /// Sec. II.B; docs/theory/pse.md, split sampler), iterated in slot order: z is permuted once, the products then
   /// need no gather from and scatter to input order (the Krylov result is the same up to
   /// round-off: Lanczos commutes with a permutation of the unknowns).
   SqrtReport real_sqrt(std::span<const double> z, std::span<double> y, std::size_t nrhs) const {
@@ -84,7 +84,9 @@ PseRpy::PseRpy(Geometry geometry, double viscosity, const PseOptions& options)
 
 PseRpy::~PseRpy() = default;
 
-const PseOptions& PseRpy::options() const { return impl_->options; }
+const PseOptions& PseRpy::options() const {
+  return impl_->options;
+}
 
 const PseParameters& PseRpy::parameters() const {
   require_positions("parameters");
@@ -105,7 +107,7 @@ void PseRpy::on_positions_set() {
     im.wave.reset();
     // All checks (box vs r_cut, window, memory) happen here, before any allocation.
     PseParameters p = choose_parameters(im.options, a, geometry().box(), n);
-    // Pair cache (design note 23): float with float wave grids, else double; within what the
+    // Pair cache (pair_cache.hpp): float with float wave grids, else double; within what the
     // memory limit leaves beside the grids.
     const auto cache = !im.options.real_space_cache ? detail::PairCache::off
                        : p.wave_single              ? detail::PairCache::single_precision
@@ -237,8 +239,7 @@ SqrtReport PseRpy::apply_with_noise(std::span<const double> forces, double noise
   }
   // One wave-space pass for M_w F + noise_scale M_w^{1/2} z2 (shared FFTs).
   const detail::NoiseKey key{seed, step};
-  im.wave->apply(forces.data(), velocities.data(), false, noise_scale > 0.0 ? &key : nullptr, noise_scale,
-                 &im.times);
+  im.wave->apply(forces.data(), velocities.data(), false, noise_scale > 0.0 ? &key : nullptr, noise_scale, &im.times);
   StopWatch sw;
   im.real->apply(forces.data(), velocities.data(), 1, true);
   im.times["real_space"] += sw.seconds();
@@ -247,7 +248,11 @@ SqrtReport PseRpy::apply_with_noise(std::span<const double> forces, double noise
   return rep;
 }
 
-StageTimes PseRpy::stage_times() const { return impl_->times; }
-void PseRpy::reset_stage_times() const { impl_->times.clear(); }
+StageTimes PseRpy::stage_times() const {
+  return impl_->times;
+}
+void PseRpy::reset_stage_times() const {
+  impl_->times.clear();
+}
 
 }  // namespace rpyfmm::rpy::pse

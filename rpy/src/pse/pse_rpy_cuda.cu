@@ -1,13 +1,16 @@
-// rpyfmm — PseRpyCuda: the PSE stages on a CUDA device (PSE.md Sec. 6.3).
+// rpyfmm — PseRpyCuda: the host orchestration of the PSE stages on a CUDA device
+// (docs/theory/pse.md; kernels in cuda_real_space.cuh, cuda_wave_space.cuh, cuda_window.cuh and
+// cuda_krylov.cuh).
 // The particles live on the device in slot order (the CPU cell list's order, so that neighbours
 // in space are neighbours in memory: the spreading atomics and the neighbour reads stay in L2);
 // a product uploads its forces once and downloads its velocities once, gathered and scattered
 // between input and slot order on the device.
-//   spread:      one thread block per particle, 1D weights in shared memory, atomicAdd;
+//   spread:      by bins of grid points in shared memory, or one thread block per particle
+//                (cuda_window.cuh);
 //   FFT:         cuFFT D2Z / Z2D (R2C / C2R for single-precision grids, PseParameters::wave_single,
 //                as the CPU chooses them), batch of 3 components (same layout as FFTW);
 //   scale+noise: one thread per half-spectrum mode, the same scale_mode() as the CPU;
-//   interpolate: one block per particle, warp-shuffle reduction, added to the real-space part;
+//   interpolate: the same two forms, added to the real-space part;
 //   real space:  one thread per particle over its neighbour list (built on the host with the
 //                CPU cell list), table lookup, no atomics;
 //   Lanczos:     the real-space square root of the split sampler iterates on device vectors
@@ -30,6 +33,10 @@
 #include <vector>
 
 #include "../sqrt/krylov_space.hpp"
+#include "cuda_device.cuh"
+#include "cuda_krylov.cuh"
+#include "cuda_real_space.cuh"
+#include "cuda_wave_space.cuh"
 #include "cuda_window.cuh"
 #include "host_copy.hpp"
 #include "kernels_common.hpp"
@@ -44,418 +51,11 @@
 
 namespace rpyfmm::rpy::pse {
 
-namespace {
-
-constexpr const char* kWhere = "PseRpyCuda";
-
-void check(cudaError_t e, const char* what) {
-  if (e == cudaSuccess) return;
-  (void)cudaGetLastError();  // clear a non-sticky error: later launches are judged on their own
-  const ErrorCode code = e == cudaErrorMemoryAllocation ? ErrorCode::out_of_memory : ErrorCode::numerical_failure;
-  fail(code, kWhere, std::string(what) + ": " + cudaGetErrorString(e));
-}
-
-void check_fft(cufftResult r, const char* what) {
-  if (r == CUFFT_SUCCESS) return;
-  const ErrorCode code = r == CUFFT_ALLOC_FAILED ? ErrorCode::out_of_memory : ErrorCode::numerical_failure;
-  fail(code, kWhere, std::string(what) + ": cuFFT error " + std::to_string(static_cast<int>(r)));
-}
-
-/// After a kernel launch: launch errors always; with RPYFMM_CUDA_SYNC set in the environment,
-/// also the kernel's own faults (a synchronising check, for the first runs on a new device).
-void check_kernel(const char* what) {
-  check(cudaGetLastError(), what);
-  static const bool sync = std::getenv("RPYFMM_CUDA_SYNC") != nullptr;
-  if (sync) check(cudaDeviceSynchronize(), what);
-}
-
-/// Owning device array.
-template <class T>
-class DeviceArray {
- public:
-  DeviceArray() = default;
-  DeviceArray(const DeviceArray&) = delete;
-  DeviceArray& operator=(const DeviceArray&) = delete;
-  ~DeviceArray() { cudaFree(p_); }
-  void resize(std::size_t n) {
-    if (n == n_ && (p_ != nullptr || n == 0)) return;
-    cudaFree(p_);
-    p_ = nullptr;
-    n_ = 0;
-    if (n > 0) {
-      check(cudaMalloc(reinterpret_cast<void**>(&p_), n * sizeof(T)), "cudaMalloc");
-      n_ = n;  // only once the allocation succeeded
-    }
-  }
-  void upload(const T* host, std::size_t n) {
-    resize(n);
-    if (n > 0) check(cudaMemcpy(p_, host, n * sizeof(T), cudaMemcpyHostToDevice), "cudaMemcpy to device");
-  }
-  void download(T* host, std::size_t n) const {
-    if (n > 0) check(cudaMemcpy(host, p_, n * sizeof(T), cudaMemcpyDeviceToHost), "cudaMemcpy to host");
-  }
-  T* get() { return p_; }
-  const T* get() const { return p_; }
-  [[nodiscard]] std::size_t size() const { return n_; }
-
- private:
-  T* p_ = nullptr;
-  std::size_t n_ = 0;
-};
-
-/// Owning page-locked host buffer (grows only).
-class PinnedBuffer {
- public:
-  PinnedBuffer() = default;
-  PinnedBuffer(const PinnedBuffer&) = delete;
-  PinnedBuffer& operator=(const PinnedBuffer&) = delete;
-  ~PinnedBuffer() { cudaFreeHost(p_); }
-  double* reserve(std::size_t n) {
-    if (n > n_) {
-      cudaFreeHost(p_);
-      p_ = nullptr;
-      n_ = 0;
-      check(cudaMallocHost(reinterpret_cast<void**>(&p_), n * sizeof(double)), "cudaMallocHost");
-      n_ = n;
-    }
-    return p_;
-  }
-
- private:
-  double* p_ = nullptr;
-  std::size_t n_ = 0;
-};
-
-/// Bits of the radix sort's keys for keys below `count`.
-int key_bits(std::size_t count) {
-  int bits = 1;
-  while (bits < 32 && (std::size_t{1} << bits) < count) ++bits;
-  return bits;
-}
-
+// The device helpers and kernels (cuda_*.cuh) are this file's own: each header is included here only.
+using namespace cuda_detail;
 using cuda_window::BinGrid;
-using cuda_window::block_sum;
 using cuda_window::kMaxSupport;
-using cuda_window::kWarp;
 using cuda_window::WindowParams;
-
-constexpr unsigned kThreads = 256;       // element-wise kernels
-constexpr unsigned kReduceBlocks = 240;  // inner products: fixed, so their sums do not depend on the device
-
-unsigned blocks_for(std::size_t n, unsigned threads) {
-  return static_cast<unsigned>((n + threads - 1) / threads);
-}
-
-/// out[3 s + c] = in[3 order[s] + c] (input -> slot order).
-__global__ void gather3_kernel(int np, const int* __restrict__ order, const double* __restrict__ in,
-                               double* __restrict__ out) {
-  const int s = blockIdx.x * blockDim.x + threadIdx.x;
-  if (s >= np) return;
-  const std::size_t i = static_cast<std::size_t>(order[s]);
-  for (int c = 0; c < 3; ++c) out[3 * static_cast<std::size_t>(s) + c] = in[3 * i + c];
-}
-
-/// out[3 order[s] + c] = in[3 s + c] (slot -> input order).
-__global__ void scatter3_kernel(int np, const int* __restrict__ order, const double* __restrict__ in,
-                                double* __restrict__ out) {
-  const int s = blockIdx.x * blockDim.x + threadIdx.x;
-  if (s >= np) return;
-  const std::size_t i = static_cast<std::size_t>(order[s]);
-  for (int c = 0; c < 3; ++c) out[3 * i + c] = in[3 * static_cast<std::size_t>(s) + c];
-}
-
-template <class Real>
-__global__ void scale_kernel(detail::ModeGeometry g, const double* __restrict__ ck, Real* spec, bool deterministic,
-                             bool noise, std::uint64_t seed, std::uint64_t step, double factor) {
-  const std::size_t idx = static_cast<std::size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
-  if (idx >= g.modes) return;
-  detail::scale_mode(idx, g, ck, spec, deterministic, noise, seed, step, factor);
-}
-
-/// out = M_r f, everything in slot order (the neighbour lists hold slots).
-__global__ void real_space_kernel(int np, const double* __restrict__ x, const double* __restrict__ f, double* out,
-                                  const unsigned long long* __restrict__ begin, const int* __restrict__ list,
-                                  const double* __restrict__ table, double inv_dr, double self, double m0, double3 L,
-                                  double3 inv_L) {
-  const int i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i >= np) return;
-  double u[3] = {self * f[3 * i], self * f[3 * i + 1], self * f[3 * i + 2]};
-  const double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2];
-  for (unsigned long long q = begin[i]; q < begin[i + 1]; ++q) {
-    const int j = list[q];
-    const double dx = detail::minimum_image(xi - x[3 * j], L.x, inv_L.x);
-    const double dy = detail::minimum_image(yi - x[3 * j + 1], L.y, inv_L.y);
-    const double dz = detail::minimum_image(zi - x[3 * j + 2], L.z, inv_L.z);
-    const double r = sqrt(dx * dx + dy * dy + dz * dz);
-    if (r == 0.0) {
-      for (int c = 0; c < 3; ++c) u[c] += self * f[3 * j + c];
-      continue;
-    }
-    double F, G;
-    detail::table_fg(table, inv_dr, r, F, G);
-    detail::pair_block_add(dx, dy, dz, r, F, G, f + 3 * j, u);
-  }
-  for (int c = 0; c < 3; ++c) out[3 * i + c] = m0 * u[c];
-}
-
-/// The device cell list: cells of edge >= r_cut, nc[d] >= 3 per axis (so that the 27 cells
-/// around a cell are distinct and every pair within r_cut < L / 2 is found once).
-struct CellGrid {
-  int nc[3];
-  double inv_cell[3];  // nc[d] / L[d]
-};
-
-/// key[i] = linear cell index of input particle i (positions wrapped into [0, L)), value[i] = i.
-__global__ void cell_key_kernel(int np, const double* __restrict__ x, CellGrid cg, unsigned* __restrict__ key,
-                                int* __restrict__ value) {
-  const int i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i >= np) return;
-  int c[3];
-  for (int d = 0; d < 3; ++d) {
-    const int cd = static_cast<int>(x[3 * i + d] * cg.inv_cell[d]);
-    c[d] = cd < 0 ? 0 : (cd >= cg.nc[d] ? cg.nc[d] - 1 : cd);
-  }
-  key[i] = static_cast<unsigned>((c[0] * cg.nc[1] + c[1]) * cg.nc[2] + c[2]);
-  value[i] = i;
-}
-
-/// out = M_r f in slot order from the cell list: each row scans the 27 cells around its own
-/// and takes the pairs with |r|^2 < rc2 (coincident particles included, as the lists do).
-__global__ void real_space_cells_kernel(int np, const double* __restrict__ x, const double* __restrict__ f, double* out,
-                                        const unsigned* __restrict__ sorted_key, const int* __restrict__ cell_begin,
-                                        const int* __restrict__ cell_end, CellGrid cg, double rc2,
-                                        const double* __restrict__ table, double inv_dr, double self, double m0,
-                                        double3 L, double3 inv_L) {
-  const int i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i >= np) return;
-  double u[3] = {self * f[3 * i], self * f[3 * i + 1], self * f[3 * i + 2]};
-  const double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2];
-  const int key = static_cast<int>(sorted_key[i]);
-  const int cz = key % cg.nc[2];
-  const int cy = (key / cg.nc[2]) % cg.nc[1];
-  const int cx = key / (cg.nc[2] * cg.nc[1]);
-  for (int ox = -1; ox <= 1; ++ox) {
-    const int nx = (cx + ox + cg.nc[0]) % cg.nc[0];
-    for (int oy = -1; oy <= 1; ++oy) {
-      const int ny = (cy + oy + cg.nc[1]) % cg.nc[1];
-      for (int oz = -1; oz <= 1; ++oz) {
-        const int c = (nx * cg.nc[1] + ny) * cg.nc[2] + (cz + oz + cg.nc[2]) % cg.nc[2];
-        for (int j = cell_begin[c]; j < cell_end[c]; ++j) {
-          if (j == i) continue;
-          const double dx = detail::minimum_image(xi - x[3 * j], L.x, inv_L.x);
-          const double dy = detail::minimum_image(yi - x[3 * j + 1], L.y, inv_L.y);
-          const double dz = detail::minimum_image(zi - x[3 * j + 2], L.z, inv_L.z);
-          const double r2 = dx * dx + dy * dy + dz * dz;
-          if (!(r2 < rc2)) continue;
-          if (r2 == 0.0) {
-            for (int q = 0; q < 3; ++q) u[q] += self * f[3 * j + q];
-            continue;
-          }
-          const double r = sqrt(r2);
-          double F, G;
-          detail::table_fg(table, inv_dr, r, F, G);
-          detail::pair_block_add(dx, dy, dz, r, F, G, f + 3 * j, u);
-        }
-      }
-    }
-  }
-  for (int q = 0; q < 3; ++q) out[3 * i + q] = m0 * u[q];
-}
-
-/// out[3 s + c] = normal3(seed, step, stream, order[s])[c]: fill_normal's values (keyed by the
-/// input index), drawn on the device straight into slot order.
-__global__ void normal_slots_kernel(int np, const int* __restrict__ order, std::uint64_t seed, std::uint64_t step,
-                                    std::uint32_t stream, double* __restrict__ out) {
-  const int s = blockIdx.x * blockDim.x + threadIdx.x;
-  if (s >= np) return;
-  normal3(seed, step, stream, static_cast<std::uint64_t>(order[s]), out + 3 * static_cast<std::size_t>(s));
-}
-
-// ---- vector kernels of the device Lanczos (KrylovSpace) ----
-
-/// partial[b] = sum over block b's grid-stride share of x[q] y[q] (kReduceBlocks blocks).
-__global__ void dot_partial_kernel(std::size_t n, const double* __restrict__ x, const double* __restrict__ y,
-                                   double* __restrict__ partial) {
-  __shared__ double warps[kThreads / kWarp];
-  double s = 0.0;
-  for (std::size_t q = static_cast<std::size_t>(blockIdx.x) * blockDim.x + threadIdx.x; q < n;
-       q += static_cast<std::size_t>(gridDim.x) * blockDim.x)
-    s += x[q] * y[q];
-  s = block_sum(s, warps);
-  if (threadIdx.x == 0) partial[blockIdx.x] = s;
-}
-
-__global__ void axpy_kernel(std::size_t n, double a, const double* __restrict__ x, double* __restrict__ y) {
-  const std::size_t q = static_cast<std::size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
-  if (q < n) y[q] += a * x[q];
-}
-
-/// y += a x on n device doubles.
-void device_axpy(std::size_t n, double a, const double* x, double* y) {
-  axpy_kernel<<<blocks_for(n, kThreads), kThreads>>>(n, a, x, y);
-  check_kernel("axpy kernel");
-}
-
-__global__ void scale_into_kernel(std::size_t n, double a, const double* x, double* out) {
-  const std::size_t q = static_cast<std::size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
-  if (q < n) out[q] = a * x[q];
-}
-
-/// first[0] = min index q with a non-finite y[q] (stays at its initial n when there is none).
-__global__ void first_nonfinite_kernel(std::size_t n, const double* __restrict__ y, unsigned long long* first) {
-  const std::size_t q = static_cast<std::size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
-  if (q < n && !isfinite(y[q])) atomicMin(first, static_cast<unsigned long long>(q));
-}
-
-/// The Lanczos basis in device memory: one allocation per basis vector, kept across samples.
-class DeviceKrylovSpace final : public sqrt_detail::KrylovSpace {
- public:
-  void set_size(std::size_t n) {
-    if (n == n_) return;
-    n_ = n;
-    store_.clear();
-    count_ = 0;
-    work_.resize(0);
-  }
-  [[nodiscard]] std::size_t n() const override { return n_; }
-  void clear() override { count_ = 0; }
-  double* push() override {
-    if (count_ == store_.size()) {
-      auto v = std::make_unique<DeviceArray<double>>();
-      v->resize(n_);  // allocated before it joins the basis: a failed cudaMalloc leaves no null entry
-      store_.push_back(std::move(v));
-    }
-    return store_[count_++]->get();
-  }
-  [[nodiscard]] double* vector(std::size_t q) override { return store_[q]->get(); }
-  [[nodiscard]] std::size_t basis_size() const override { return count_; }
-  [[nodiscard]] double* work() override {
-    work_.resize(n_);
-    return work_.get();
-  }
-  double dot(const double* x, const double* y) override {
-    double h = 0.0;
-    dots_of({x}, y, &h);
-    return h;
-  }
-  void dots(std::size_t k, const double* y, double* h) override {
-    std::vector<const double*> v(k);
-    for (std::size_t q = 0; q < k; ++q) v[q] = store_[q]->get();
-    dots_of(v, y, h);
-  }
-  void subtract_combination(std::size_t k, const double* h, double* y) override {
-    for (std::size_t q = 0; q < k; ++q) axpy(-h[q], store_[q]->get(), y);
-  }
-  void axpy(double a, const double* x, double* y) override { device_axpy(n_, a, x, y); }
-  void scale_into(double a, const double* x, double* out) override {
-    scale_into_kernel<<<blocks_for(n_, kThreads), kThreads>>>(n_, a, x, out);
-    check_kernel("scale kernel (Lanczos)");
-  }
-  void combine(std::size_t k, const double* c, double* out) override {
-    check(cudaMemset(out, 0, n_ * sizeof(double)), "cudaMemset");
-    for (std::size_t q = 0; q < k; ++q) axpy(c[q], store_[q]->get(), out);
-  }
-  void require_finite(const double* y, const char* where, long long product) override {
-    flag_.resize(1);
-    const auto none = static_cast<unsigned long long>(n_);
-    check(cudaMemcpy(flag_.get(), &none, sizeof(none), cudaMemcpyHostToDevice), "cudaMemcpy to device");
-    first_nonfinite_kernel<<<blocks_for(n_, kThreads), kThreads>>>(n_, y, flag_.get());
-    check_kernel("finiteness kernel");
-    unsigned long long first = none;
-    flag_.download(&first, 1);
-    if (first < none) {
-      fail(ErrorCode::numerical_failure, where,
-           "the operator returned a non-finite value (entry " + std::to_string(first) +
-               " of right-hand side 0, slot order) at product " + std::to_string(product));
-    }
-  }
-
- private:
-  /// h[q] = v[q] . y: kReduceBlocks partial sums per vector on the device, added on the host in
-  /// block order (deterministic).
-  void dots_of(const std::vector<const double*>& v, const double* y, double* h) {
-    const std::size_t need = std::max<std::size_t>(1, v.size()) * kReduceBlocks;
-    if (partial_.size() < need) partial_.resize(2 * need);  // grows only: no allocation per call
-    for (std::size_t q = 0; q < v.size(); ++q) {
-      dot_partial_kernel<<<kReduceBlocks, kThreads>>>(n_, v[q], y, partial_.get() + q * kReduceBlocks);
-      check_kernel("dot kernel");
-    }
-    host_partial_.resize(v.size() * kReduceBlocks);
-    partial_.download(host_partial_.data(), host_partial_.size());
-    for (std::size_t q = 0; q < v.size(); ++q) {
-      double s = 0.0;
-      for (unsigned b = 0; b < kReduceBlocks; ++b) s += host_partial_[q * kReduceBlocks + b];
-      h[q] = s;
-    }
-  }
-
-  std::size_t n_ = 0;
-  std::vector<std::unique_ptr<DeviceArray<double>>> store_;
-  std::size_t count_ = 0;
-  DeviceArray<double> work_, partial_;
-  DeviceArray<unsigned long long> flag_;
-  std::vector<double> host_partial_;
-};
-
-/// Wall-clock seconds of the device's stages, from CUDA events (the stream's own timeline);
-/// read (and accumulated) once the product's result has been downloaded.
-class StageEvents {
- public:
-  StageEvents() = default;
-  StageEvents(const StageEvents&) = delete;
-  StageEvents& operator=(const StageEvents&) = delete;
-  ~StageEvents() {
-    for (auto& e : pool_) cudaEventDestroy(e);
-  }
-  /// Marks the start of `stage` on the default stream.
-  void begin(const char* stage) { open_.push_back({stage, record()}); }
-  /// Marks the end of the stage begun last.
-  void end() {
-    if (open_.empty()) return;
-    const Open o = open_.back();
-    open_.pop_back();
-    done_.push_back({o.stage, o.event, record()});
-  }
-  /// Adds the finished stages' times to `times` (waits for their events) and recycles the
-  /// events; called where no stage is open (a stage left open by an exception is dropped).
-  void collect(StageTimes& times) {
-    std::vector<Done> done;
-    done.swap(done_);
-    open_.clear();
-    used_ = 0;
-    for (const Done& d : done) {
-      check(cudaEventSynchronize(pool_[d.stop]), "cudaEventSynchronize");
-      float ms = 0.0F;
-      check(cudaEventElapsedTime(&ms, pool_[d.start], pool_[d.stop]), "cudaEventElapsedTime");
-      times[d.stage] += 1e-3 * static_cast<double>(ms);
-    }
-  }
-
- private:
-  struct Open {
-    const char* stage;
-    std::size_t event;
-  };
-  struct Done {
-    const char* stage;
-    std::size_t start, stop;
-  };
-  std::size_t record() {
-    if (used_ == pool_.size()) {
-      cudaEvent_t e{};
-      check(cudaEventCreate(&e), "cudaEventCreate");
-      pool_.push_back(e);
-    }
-    check(cudaEventRecord(pool_[used_], 0), "cudaEventRecord");
-    return used_++;
-  }
-  std::vector<cudaEvent_t> pool_;
-  std::size_t used_ = 0;
-  std::vector<Open> open_;
-  std::vector<Done> done_;
-};
-
-}  // namespace
 
 struct PseRpyCuda::Impl {
   PseOptions options;
@@ -794,6 +394,129 @@ struct PseRpyCuda::Impl {
     times["lanczos"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return rep;
   }
+
+  /// Parameters, tables, window, FFT plans and the wave grids for radius a, box L and n
+  /// particles (PseOptions; the parameters as the CPU chooses them).
+  void plan(double a, const std::array<double, 3>& L, std::size_t n, double viscosity) {
+    const auto t0 = std::chrono::steady_clock::now();
+    planned = false;
+    destroy_plans();
+    grid.resize(0);  // the old plan's big arrays do not count against the new one's memory check
+    spectrum.resize(0);
+    fft_work.resize(0);
+    PseParameters p = choose_parameters(options, a, L, n);
+    for (int d = 0; d < 3; ++d)
+      require(p.support[d] <= kMaxSupport, ErrorCode::not_supported, kWhere,
+              "Gaussian support of " + std::to_string(p.support[d]) + " points exceeds the device limit 64");
+    real = std::make_unique<detail::RealSpaceSum>(p, L, viscosity, true, detail::PairCache::off, 0,
+                                                  /*full_lists=*/true);  // as the kernels read them
+    p.table_dr = real->table().dr();
+    p.table_size = real->table().size();
+    const std::vector<double> ck_host = detail::wave_scaling_table(p, L, viscosity, modes);
+    ck.upload(ck_host.data(), ck_host.size());
+    table.upload(real->table().data().data(), real->table().data().size());
+    set_window(p);
+    allocate_wave(p, make_fft_plans(p));
+    params = p;
+    box = L;
+    planned = true;
+    planned_n = n;
+    times["plan"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
+
+  /// The Gaussian window on the grid of p.
+  void set_window(const PseParameters& p) {
+    for (int d = 0; d < 3; ++d) {
+      window.n[d] = p.grid[d];
+      window.P[d] = p.support[d];
+      window.h[d] = p.spacing[d];
+    }
+    window.inv_2s2 = 1.0 / (2.0 * p.sigma * p.sigma);
+    window.c3 = std::pow(2.0 * std::numbers::pi * p.sigma * p.sigma, -1.5);
+    window.ng = static_cast<std::size_t>(p.grid[0]) * p.grid[1] * p.grid[2];
+    dv = p.spacing[0] * p.spacing[1] * p.spacing[2];
+  }
+
+  /// The forward and backward plans; returns the bytes of the work area they share.
+  std::size_t make_fft_plans(const PseParameters& p) {
+    // Plans with 64-bit sizes (a batch of 3 grids may exceed 2^31 elements) and without their own
+    // work areas: both run on the default stream one after the other, so they share one, and the
+    // plans' sizes are known before anything large is allocated.
+    long long dims[3] = {p.grid[0], p.grid[1], p.grid[2]};
+    const auto ng = static_cast<long long>(window.ng);
+    const auto nm = static_cast<long long>(modes.modes);
+    std::size_t work_fwd = 0, work_bwd = 0;
+    check_fft(cufftCreate(&plan_fwd), "cufftCreate");
+    have_fwd = true;
+    check_fft(cufftSetAutoAllocation(plan_fwd, 0), "cufftSetAutoAllocation");
+    const bool single = p.wave_single;
+    check_fft(cufftMakePlanMany64(plan_fwd, 3, dims, nullptr, 1, ng, nullptr, 1, nm, single ? CUFFT_R2C : CUFFT_D2Z, 3,
+                                  &work_fwd),
+              "cufftMakePlanMany64 (forward)");
+    check_fft(cufftCreate(&plan_bwd), "cufftCreate");
+    have_bwd = true;
+    check_fft(cufftSetAutoAllocation(plan_bwd, 0), "cufftSetAutoAllocation");
+    check_fft(cufftMakePlanMany64(plan_bwd, 3, dims, nullptr, 1, nm, nullptr, 1, ng, single ? CUFFT_C2R : CUFFT_Z2D, 3,
+                                  &work_bwd),
+              "cufftMakePlanMany64 (backward)");
+    return std::max(work_fwd, work_bwd);
+  }
+
+  /// The grid, the half spectrum and the FFT work area: the device's big arrays. A configuration
+  /// that cannot fit is refused before any of them is allocated (the CPU path's memory check).
+  void allocate_wave(const PseParameters& p, std::size_t work) {
+    const std::size_t real_bytes = p.wave_single ? sizeof(float) : sizeof(double);
+    const std::size_t need = (3 * window.ng + 2 * 3 * modes.modes) * real_bytes + work;
+    std::size_t free_bytes = 0, total_bytes = 0;
+    check(cudaMemGetInfo(&free_bytes, &total_bytes), "cudaMemGetInfo");
+    require(need <= free_bytes, ErrorCode::out_of_memory, kWhere,
+            "the PSE grid " + std::to_string(p.grid[0]) + "x" + std::to_string(p.grid[1]) + "x" +
+                std::to_string(p.grid[2]) + " needs " + std::to_string(need >> 20) + " MiB on the device, " +
+                std::to_string(free_bytes >> 20) + " MiB are free; raise the tolerance or lower xi");
+    grid.resize(3 * window.ng * real_bytes);
+    spectrum.resize(2 * 3 * modes.modes * real_bytes);
+    fft_work.resize(work);
+    if (work > 0) {
+      check_fft(cufftSetWorkArea(plan_fwd, fft_work.get()), "cufftSetWorkArea D2Z");
+      check_fft(cufftSetWorkArea(plan_bwd, fft_work.get()), "cufftSetWorkArea Z2D");
+    }
+  }
+
+  /// The slot order, the real-space neighbours (device cell list, or the CPU's lists) and the
+  /// window bins for positions wrapped into the box (input order, on the host).
+  void place_particles(std::span<const double> positions) {
+    const auto t0 = std::chrono::steady_clock::now();
+    np = positions.size() / 3;
+    cells_active = false;
+    if (cuda_options.device_cell_list) {
+      events.begin("transfer");
+      upload_input(positions.data());
+      events.end();
+      events.begin("positions_device");
+      cells_active = build_device_cells();
+      if (cells_active) gather(io.get(), x);  // positions in slot order
+      events.end();
+    }
+    if (!cells_active) upload_host_lists(positions);
+    events.begin("positions_device");
+    build_bins();
+    events.end();
+    check(cudaDeviceSynchronize(), "set_positions");
+    times["positions_real"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    events.collect(times);
+  }
+
+  /// The CPU's slot order and full neighbour lists, uploaded, and the positions in slot order.
+  void upload_host_lists(std::span<const double> positions) {
+    real->set_positions(positions);
+    const detail::RealSpaceSum::SlotLists lists = real->slot_lists();
+    const std::vector<int> order_host(lists.order.begin(), lists.order.end());
+    const std::vector<unsigned long long> row_begin(lists.begin.begin(), lists.begin.end());
+    order.upload(order_host.data(), order_host.size());
+    begin.upload(row_begin.data(), row_begin.size());
+    list.upload(lists.list.data(), lists.list.size());
+    upload_to_slots(positions.data(), x);  // the input positions, as the CPU wave space reads them
+  }
 };
 
 bool PseRpyCuda::device_available() {
@@ -818,7 +541,8 @@ PseRpyCuda::PseRpyCuda(Geometry geometry, double viscosity, const PseOptions& op
   require(geometry.is_periodic(), ErrorCode::not_supported, kWhere,
           "PSE needs a periodic box (Geometry::periodic); use the direct or FMM operator for open geometry");
   if (!(std::isfinite(options.tolerance) && options.tolerance >= 1e-8 && options.tolerance < 0.1)) {
-    fail(ErrorCode::invalid_argument, kWhere, "tolerance must lie in [1e-8, 0.1), got " + std::to_string(options.tolerance));
+    fail(ErrorCode::invalid_argument, kWhere,
+         "tolerance must lie in [1e-8, 0.1), got " + std::to_string(options.tolerance));
   }
   require(std::isfinite(options.xi) && options.xi >= 0.0, ErrorCode::invalid_argument, kWhere,
           "xi must be >= 0 (0 = automatic), got " + std::to_string(options.xi));
@@ -867,108 +591,12 @@ void PseRpyCuda::on_positions_set() {
   auto& im = *impl_;
   const double a = radii().front();
   const std::size_t n = size();
-  const auto& L = geometry().box();
   require(3 * n < static_cast<std::size_t>(1) << 31, ErrorCode::not_supported, kWhere,
           "3 N >= 2^31: the device kernels index particle vectors with 32-bit integers");
   if (!im.planned || im.params.radius != a || (im.options.xi == 0.0 && im.planned_n != n)) {
-    const auto t0 = std::chrono::steady_clock::now();
-    im.planned = false;
-    im.destroy_plans();
-    im.grid.resize(0);  // the old plan's big arrays do not count against the new one's memory check
-    im.spectrum.resize(0);
-    im.fft_work.resize(0);
-    PseParameters p = choose_parameters(im.options, a, L, n);
-    for (int d = 0; d < 3; ++d)
-      require(p.support[d] <= kMaxSupport, ErrorCode::not_supported, kWhere,
-              "Gaussian support of " + std::to_string(p.support[d]) + " points exceeds the device limit 64");
-    im.real = std::make_unique<detail::RealSpaceSum>(p, L, viscosity(), true, detail::PairCache::off, 0,
-                                                     /*full_lists=*/true);  // as the kernels read them
-    p.table_dr = im.real->table().dr();
-    p.table_size = im.real->table().size();
-    const std::vector<double> ck = detail::wave_scaling_table(p, L, viscosity(), im.modes);
-    im.ck.upload(ck.data(), ck.size());
-    im.table.upload(im.real->table().data().data(), im.real->table().data().size());
-    for (int d = 0; d < 3; ++d) {
-      im.window.n[d] = p.grid[d];
-      im.window.P[d] = p.support[d];
-      im.window.h[d] = p.spacing[d];
-    }
-    im.window.inv_2s2 = 1.0 / (2.0 * p.sigma * p.sigma);
-    im.window.c3 = std::pow(2.0 * std::numbers::pi * p.sigma * p.sigma, -1.5);
-    im.window.ng = static_cast<std::size_t>(p.grid[0]) * p.grid[1] * p.grid[2];
-    im.dv = p.spacing[0] * p.spacing[1] * p.spacing[2];
-    // Plans with 64-bit sizes (a batch of 3 grids may exceed 2^31 elements) and without their own
-    // work areas: both run on the default stream one after the other, so they share one, and the
-    // plans' sizes are known before anything large is allocated.
-    long long dims[3] = {p.grid[0], p.grid[1], p.grid[2]};
-    const auto ng = static_cast<long long>(im.window.ng);
-    const auto nm = static_cast<long long>(im.modes.modes);
-    std::size_t work_fwd = 0, work_bwd = 0;
-    check_fft(cufftCreate(&im.plan_fwd), "cufftCreate");
-    im.have_fwd = true;
-    check_fft(cufftSetAutoAllocation(im.plan_fwd, 0), "cufftSetAutoAllocation");
-    const bool single = p.wave_single;
-    check_fft(cufftMakePlanMany64(im.plan_fwd, 3, dims, nullptr, 1, ng, nullptr, 1, nm, single ? CUFFT_R2C : CUFFT_D2Z,
-                                  3, &work_fwd),
-              "cufftMakePlanMany64 (forward)");
-    check_fft(cufftCreate(&im.plan_bwd), "cufftCreate");
-    im.have_bwd = true;
-    check_fft(cufftSetAutoAllocation(im.plan_bwd, 0), "cufftSetAutoAllocation");
-    check_fft(cufftMakePlanMany64(im.plan_bwd, 3, dims, nullptr, 1, nm, nullptr, 1, ng, single ? CUFFT_C2R : CUFFT_Z2D,
-                                  3, &work_bwd),
-              "cufftMakePlanMany64 (backward)");
-    const std::size_t work = std::max(work_fwd, work_bwd);
-    // The grid, the half spectrum and the work area are the device's big arrays: refuse a
-    // configuration that cannot fit before allocating any of them (the CPU path's memory check).
-    const std::size_t real_bytes = single ? sizeof(float) : sizeof(double);
-    const std::size_t need = (3 * im.window.ng + 2 * 3 * im.modes.modes) * real_bytes + work;
-    std::size_t free_bytes = 0, total_bytes = 0;
-    check(cudaMemGetInfo(&free_bytes, &total_bytes), "cudaMemGetInfo");
-    require(need <= free_bytes, ErrorCode::out_of_memory, kWhere,
-            "the PSE grid " + std::to_string(p.grid[0]) + "x" + std::to_string(p.grid[1]) + "x" +
-                std::to_string(p.grid[2]) + " needs " + std::to_string(need >> 20) + " MiB on the device, " +
-                std::to_string(free_bytes >> 20) + " MiB are free; raise the tolerance or lower xi");
-    im.grid.resize(3 * im.window.ng * real_bytes);
-    im.spectrum.resize(2 * 3 * im.modes.modes * real_bytes);
-    im.fft_work.resize(work);
-    if (work > 0) {
-      check_fft(cufftSetWorkArea(im.plan_fwd, im.fft_work.get()), "cufftSetWorkArea D2Z");
-      check_fft(cufftSetWorkArea(im.plan_bwd, im.fft_work.get()), "cufftSetWorkArea Z2D");
-    }
-    im.params = p;
-    im.box = L;
-    im.planned = true;
-    im.planned_n = n;
-    im.times["plan"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    im.plan(a, geometry().box(), n, viscosity());
   }
-  const auto t0 = std::chrono::steady_clock::now();
-  im.np = n;
-  im.cells_active = false;
-  if (im.cuda_options.device_cell_list) {
-    im.events.begin("transfer");
-    im.upload_input(positions().data());  // wrapped into the box by set_positions
-    im.events.end();
-    im.events.begin("positions_device");
-    im.cells_active = im.build_device_cells();
-    if (im.cells_active) im.gather(im.io.get(), im.x);  // positions in slot order
-    im.events.end();
-  }
-  if (!im.cells_active) {
-    im.real->set_positions(positions());
-    const detail::RealSpaceSum::SlotLists lists = im.real->slot_lists();
-    const std::vector<int> order(lists.order.begin(), lists.order.end());
-    const std::vector<unsigned long long> row_begin(lists.begin.begin(), lists.begin.end());
-    im.order.upload(order.data(), order.size());
-    im.begin.upload(row_begin.data(), row_begin.size());
-    im.list.upload(lists.list.data(), lists.list.size());
-    im.upload_to_slots(positions().data(), im.x);  // the input positions, as the CPU wave space reads them
-  }
-  im.events.begin("positions_device");
-  im.build_bins();
-  im.events.end();
-  check(cudaDeviceSynchronize(), "set_positions");
-  im.times["positions_real"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  im.events.collect(im.times);
+  im.place_particles(positions());
 }
 
 void PseRpyCuda::do_apply(const double* forces, double* velocities, std::size_t nrhs) const {

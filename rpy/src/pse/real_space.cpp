@@ -1,6 +1,6 @@
 // rpyfmm — PSE real-space kernel F(r, xi), G(r, xi): [PSE] Appendix A
-// (eqs. A1-A4) in the form of PSE.md Sec. 1.2, the small-r series of Sec. 1.3,
-// the envelope cutoff of Sec. 1.5 and the linear table of Sec. 1.4.
+// (eqs. A1-A4) in the form of docs/theory/pse.md, with its small-r series, envelope cutoff and
+// linear table.
 #include "rpyfmm/rpy/pse/real_space.hpp"
 
 #include <algorithm>
@@ -17,7 +17,7 @@ namespace {
 constexpr double kSqrtPi = 1.7724538509055160273;
 
 /// Closed forms of [PSE] App. A (eqs. A1-A3), r > 0; f0, g0 switch at r = 2a.
-/// T = long double near r = 0, where the terms cancel (PSE.md Sec. 1.3).
+/// T = long double near r = 0, where the terms cancel (docs/theory/pse.md).
 template <class T>
 FG closed_form(T r, T xi, T a) {
   const T xi2 = xi * xi;
@@ -36,7 +36,7 @@ FG closed_form(T r, T xi, T a) {
   const T pm = T(4.0) * a * a + T(4.0) * a * r + T(9.0) * r2;
   const T pp = T(4.0) * a * a - T(4.0) * a * r + T(9.0) * r2;
   const T ds = T(1.772453850905516027298167483341145183L) * a * xi3;  // sqrt(pi) a xi^3
-  const T d4 = a * xi4;            // a xi^4
+  const T d4 = a * xi4;                                               // a xi^4
 
   const T f1 = (T(18.0) * xi2 * r2 + T(3.0)) / (T(64.0) * ds * r2);
   const T f2 = (T(2.0) * xi2 * (T(2.0) * a - r) * pm - T(2.0) * a - T(3.0) * r) / (T(128.0) * ds * r3);
@@ -49,8 +49,9 @@ FG closed_form(T r, T xi, T a) {
   const T g2 = (-T(2.0) * xi2 * rm * rm * (T(2.0) * a + T(3.0) * r) + T(2.0) * a + T(3.0) * r) / (T(64.0) * ds * r3);
   const T g3 = (T(2.0) * xi2 * rp * rp * (T(2.0) * a - T(3.0) * r) - T(2.0) * a + T(3.0) * r) / (T(64.0) * ds * r3);
   const T g4 = -T(3.0) * (T(4.0) * xi4 * r2 * r2 + T(1.0)) / (T(64.0) * d4 * r3);
-  const T g5 = (T(3.0) - T(4.0) * xi4 * (T(2.0) * a - r) * (T(2.0) * a - r) * (T(2.0) * a - r) * (T(2.0) * a + T(3.0) * r)) /
-                    (T(128.0) * d4 * r3);
+  const T g5 =
+      (T(3.0) - T(4.0) * xi4 * (T(2.0) * a - r) * (T(2.0) * a - r) * (T(2.0) * a - r) * (T(2.0) * a + T(3.0) * r)) /
+      (T(128.0) * d4 * r3);
   const T g6 = (T(3.0) - T(4.0) * xi4 * (T(2.0) * a - T(3.0) * r) * rp * rp * rp) / (T(128.0) * d4 * r3);
 
   T f0 = 0;
@@ -72,7 +73,7 @@ double real_space_self(double xi, double a) {
 
 FG real_space_fg(double r, double xi, double a) {
   // The closed form cancels catastrophically as r -> 0 (absolute error ~3 u / (128 a xi^4 r^3)
-  // for unit round-off u, PSE.md Sec. 1.3). Below r_s the series (remainder O(r^4)); up to
+  // for unit round-off u, docs/theory/pse.md). Below r_s the series (remainder O(r^4)); up to
   // 0.5 a the closed form in long double (u ~ 1e-19); beyond, double. Errors <~ 1e-11.
   const double rs = std::clamp(0.001 / xi, 0.0004 * a, 0.02 * a);
   if (r < rs) {
@@ -89,7 +90,7 @@ double real_space_cutoff(double eps_r, double xi, double a) {
   require_positive(eps_r, "pse::real_space_cutoff", "eps_r");
   require_positive(xi, "pse::real_space_cutoff", "xi");
   require_positive(a, "pse::real_space_cutoff", "radius");
-  // r_c = smallest r with max(|F|, |G|) <= eps_r on [r, r + 4/xi] (PSE.md Sec. 1.5):
+  // r_c = smallest r with max(|F|, |G|) <= eps_r on [r, r + 4/xi] (docs/theory/pse.md):
   // sample from r0 outward in steps of 0.01/xi and return the sample after the
   // last one that exceeds eps_r (far beyond 2a + sqrt(ln(1/eps_r))/xi all are below).
   const double step = 0.01 / xi;
@@ -110,7 +111,7 @@ PseRealSpaceTable::PseRealSpaceTable(double xi, double a, double r_cut, double e
   require_positive(r_cut, where, "r_cut");
   require_positive(eps_t, where, "table tolerance");
   // Linear interpolation error <= dr^2 max|F''| / 8 with max|F''| <~ 0.7 / a^2
-  // (PSE.md Sec. 1.4); start there and halve dr until every midpoint is within eps_t.
+  // (docs/theory/pse.md); start there and halve dr until every midpoint is within eps_t.
   double dr = std::min(std::sqrt(8.0 * eps_t / 0.7) * a, r_cut / 16.0);
   constexpr std::size_t kMaxEntries = std::size_t{1} << 24;
   for (;;) {

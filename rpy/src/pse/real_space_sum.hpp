@@ -1,31 +1,70 @@
-// rpyfmm — PSE real-space product U = M_r F on the CPU: neighbour lists from a
-// cell list (cells of edge >= r_cut, minimum image), rows computed in parallel
-// (each thread writes only its own rows: no races, deterministic). Private.
+// rpyfmm — PSE real-space product U = M_r F on the CPU ([PSE] eq. 10 with App. A;
+// docs/theory/pse.md). Private.
+//
+// Pieces, one file each:
+//  - neighbour_lists.{hpp,cpp}: the cell grid, the slot order (particles sorted by cell), the
+//    neighbour lists (CSR over slots, ascending) and the full rows derived from half lists;
+//  - list_filter.{hpp,cpp}: the candidate filters of the list build (AVX-512, AVX2);
+//  - pair_rows.{hpp,cpp}: the portable rows (linear table, row-layout pair cache, closed forms);
+//  - pair_rows_avx512.{hpp,cpp}: the AVX-512 rows (full rows, half rows, half rows from the cache);
+//  - half_blocks.{hpp,cpp}: the colouring that lets half rows run in parallel without atomics;
+//  - pair_cache.{hpp,cpp}: the pair cache's storage;
+//  - real_space_sum.cpp, real_space_apply.cpp: this class, the drivers of set_positions and apply.
 //
 // Particles are renumbered internally in cell order ("slots"): positions are kept by slot
 // (structure of arrays), the neighbour lists hold slots, and apply() gathers the forces into
 // slot order once, so that a row reads its neighbours' positions and forces from a few nearby
-// cache lines instead of from all over the input arrays (design note 16). Where the AVX-512
-// kernels run, each pair is evaluated once for both of its rows (half lists, design note 22).
-// The first product after set_positions keeps each pair's block (F, G, r^) in a pair cache that the later products with
-// the same positions read instead of evaluating the pair again (design note 23): per half-list chunk with the AVX-512
-// kernels, per entry of the full rows with the portable ones.
+// cache lines instead of from all over the input arrays. Rows are computed in parallel, each
+// thread writing only its own rows (no races, deterministic).
+//
+// set_positions chooses, once, the row kernel (RowKernel), what the lists hold (ListLayout) and
+// whether a pair cache is kept (PairCacheStore): where the AVX-512 kernels run, each pair is
+// evaluated once for both of its rows (half lists), and the first product after set_positions
+// keeps each pair's block (F, G, e) in the pair cache that the later products with the same
+// positions read instead of evaluating the pair again.
 #pragma once
 
 #include <array>
 #include <cstddef>
-#include <memory>
 #include <span>
 #include <vector>
 
+#include "half_blocks.hpp"
+#include "neighbour_lists.hpp"
+#include "pair_cache.hpp"
 #include "rpyfmm/rpy/pse/pse_parameters.hpp"
 #include "rpyfmm/rpy/pse/real_space.hpp"
 
 namespace rpyfmm::rpy::pse::detail {
 
-/// Storage of the pair cache: none, or the five lanes F, G, e_x, e_y, e_z of each pair in float
-/// or in double.
-enum class PairCache { off, single_precision, double_precision };
+/// The rows that form the pair sums, chosen at set_positions from the instruction-set level
+/// (simd_level()), the table option and the cell grid.
+enum class RowKernel {
+  /// AVX-512 with the table on a cell grid: each pair once, from its lower slot, adding its block
+  /// to both rows; blocks of one colour run in parallel (half_blocks.hpp). Pair cache: chunks of
+  /// eight pairs per half row.
+  half_avx512,
+  /// AVX-512 with the table, no cell grid (fewer than 3 cells along an axis): full rows, no cache.
+  full_avx512,
+  /// The portable rows with the table (simd_dispatch). Pair cache: per entry of the full rows.
+  table,
+  /// The closed forms per pair (PseOptions::real_space_table = false: the reference the table is
+  /// measured against). No cache.
+  closed_form,
+};
+
+/// What the neighbour lists hold.
+enum class ListLayout {
+  /// Both directions of every pair (begin_/list_ are the full rows).
+  full,
+  /// Only the pairs t > s (half_avx512 without the constructor's full_lists): half the distance
+  /// checks. The full rows, which the closed forms, slot_lists() and input_order_lists() need,
+  /// are derived on demand...
+  half,
+  /// ... after which the layout is this one (half rows in begin_/list_, full rows in
+  /// full_begin_/full_list_).
+  half_and_full,
+};
 
 class RealSpaceSum {
  public:
@@ -52,7 +91,7 @@ class RealSpaceSum {
   void to_slots(const double* in, double* out) const;
   void from_slots(const double* in, double* out) const;
   /// Bytes of the pair cache for the current positions (0: not kept, see the constructor).
-  [[nodiscard]] std::size_t cache_bytes() const { return cache_on_ ? cache_bytes_ : 0; }
+  [[nodiscard]] std::size_t cache_bytes() const { return cache_.kept_bytes(); }
 
   [[nodiscard]] const PseRealSpaceTable& table() const { return table_; }
   /// The neighbour lists in input numbering (CSR, j ascending).
@@ -75,72 +114,70 @@ class RealSpaceSum {
   double m0_;    // 1 / (6 pi mu a)
   double self_;  // F(0)
   bool use_table_;
+  bool full_lists_only_;  // constructor's full_lists: the layout is always ListLayout::full
   PseRealSpaceTable table_;
-  std::vector<std::size_t> order_;          // slot -> input index (particles sorted by cell)
-  std::array<std::vector<double>, 3> pos_;  // positions by slot, one array per axis
-  std::vector<std::size_t> begin_;          // per slot: range in list_
-  std::vector<int> list_;                   // neighbour slots within r_cut (r > 0 or coincident)
-  mutable std::vector<double> work_;        // forces gathered into slot order (3 arrays per rhs)
-  mutable std::vector<double> packed_;      // AVX-512 kernel: x, y, z, fx, fy, fz, 0, 0 per slot and rhs
-                                            // (fx, fy, fz, 0 where the pair cache is read)
 
-  // The list build's per-block parts (kept: their memory is reused by the next set_positions).
-  std::vector<std::vector<int>> block_lists_;
+  // The plan of set_positions.
+  RowKernel kernel_ = RowKernel::closed_form;
+  mutable ListLayout lists_ = ListLayout::full;  // half -> half_and_full on demand (full_rows())
 
-  // Half lists (AVX-512 path, design note 22): each pair once, from its lower slot, which adds
-  // the pair's block to both rows. upper_[s]: the first entry of row s with a larger slot (the
-  // rows are ascending, so the half list is the row's tail). A row writes to its own slot and to
-  // larger slots among the 27 cells around it; the cell grid is cut along x and y (where they
-  // have >= 4 cells) into blocks of >= 2 cells, an even number per axis, and blocks of one
-  // colour (their parities along the cut axes) never write to the same slot, so each colour
-  // runs in parallel without atomics. Without a cell grid (fewer than 3 cells along an axis)
-  // the full rows run.
-  struct SlotRange {
-    std::size_t begin, end;
-  };
-  bool half_ = false;         // half-list blocks planned (the AVX-512 path then uses them)
-  bool avx512_rows_ = false;  // the AVX-512 rows run (simd_level() at set_positions)
-  // list_ holds only the half rows (t > s) when the half-list path is expected at
-  // set_positions (AVX-512 with the table on a cell grid); full rows, which the portable rows,
-  // the closed forms and the CUDA lists need, are then derived once on demand.
-  bool half_lists_ = false;
-  bool full_lists_only_ = false;  // constructor's full_lists: half_lists_ stays false
-  struct Rows {
-    const std::size_t* begin;
-    const int* list;
-  };
-  [[nodiscard]] Rows full_rows() const;
-  mutable bool full_ready_ = true;
-  mutable std::vector<std::size_t> full_begin_;
+  std::vector<std::size_t> order_;             // slot -> input index (particles sorted by cell)
+  std::array<std::vector<double>, 3> pos_;     // positions by slot, one array per axis
+  std::vector<std::size_t> begin_;             // per slot: range in list_
+  std::vector<int> list_;                      // neighbour slots within r_cut (r > 0 or coincident)
+  std::vector<std::size_t> upper_;             // upper_[s]: the first entry of row s with a larger slot (its half row)
+  std::vector<std::vector<int>> block_lists_;  // the list build's per-block parts (memory kept)
+  mutable std::vector<std::size_t> full_begin_;  // full rows derived from half lists
   mutable std::vector<int> full_list_;
-  std::vector<std::size_t> upper_;
-  // Pair cache (design note 23). AVX-512 layout: per half row s, chunks [chunk_begin_[s],
-  // chunk_begin_[s + 1]) of eight pairs, each five vectors of eight lanes (F - F(0), G - G(0),
-  // e_x, e_y, e_z as the half-list kernel computes them, padding lanes included). Row layout
-  // (portable rows): the same five values per entry of the full rows, in five arrays. Float or
-  // double; filled by the first product after set_positions and read by the later ones. The fill rounds the values to
-  // the cache's precision before using them, so that every product applies the same operator.
-  PairCache cache_ = PairCache::off;
-  std::size_t cache_limit_ = 0;
-  bool cache_on_ = false;    // cache kept for these positions (within the limit)
-  bool cache_rows_ = false;  // layout: per entry of the full rows (portable rows), else half-list chunks
-  std::size_t cache_bytes_ = 0;
-  std::vector<std::size_t> chunk_begin_;
-  std::unique_ptr<double[]> cache_store_;  // 64-byte aligned inside (cache_data())
-  std::size_t cache_capacity_ = 0;         // doubles allocated
-  mutable bool cache_ready_ = false;
-  [[nodiscard]] void* cache_data() const;
-  /// apply / apply_slots: particle i(s) = map[s] (input order), or s where map is null;
+  HalfBlocks half_blocks_;  // half_avx512: per colour, blocks of slot ranges
+  PairCacheStore cache_;
+
+  mutable std::vector<double> work_;    // portable rows: forces gathered into slot order (3 arrays per rhs)
+  mutable std::vector<double> packed_;  // AVX-512 rows: x, y, z, fx, fy, fz, 0, 0 per slot and rhs
+                                        // (fx, fy, fz, 0 where the pair cache is read)
+  mutable std::vector<double> acc_;     // half-list sums, 4 doubles per slot and rhs
+
+  /// set_positions: the row kernel and the list layout for this grid and instruction-set level.
+  void choose_plan(const CellGrid& grid);
+
+  /// The full rows (derived once from half lists where those are kept).
+  [[nodiscard]] Rows full_rows() const;
+
+  // apply stages. apply / apply_slots: particle i(s) = map[s] (input order), or s where map is null.
   void apply_mapped(const double* forces, double* out, std::size_t nrhs, bool accumulate, const std::size_t* map) const;
-  std::array<std::vector<std::vector<SlotRange>>, 4> half_blocks_;  // per colour: blocks of slot ranges
-  mutable std::vector<double> acc_;                                 // half-list sums, 4 doubles per slot and rhs
-  void plan_half_blocks(const std::array<int, 3>& nc, const std::vector<std::size_t>& cell_begin);
-  /// The half rows on `packed` rows (x, y, z, fx, fy, fz, 0, 0), filling the pair cache where it
-  /// is kept and not yet filled; and the half rows from the filled cache on force rows (fx, fy,
-  /// fz, 0).
-  void apply_half_avx512(const double* packed, const double* table, double inv_dr, const double L[3],
-                         const double inv_L[3], std::size_t nrhs, double* acc) const;
+  /// The table (null for the closed forms), 1 / its spacing, the box and its inverse.
+  struct Frame {
+    const double* table;
+    double inv_dr;
+    double L[3], inv_L[3];
+  };
+  [[nodiscard]] Frame frame() const;
+  /// out_r[i(s)] (+)= M0 u for every slot s and rhs r, u = F(0) force(s, r, .) + row(s, r, u).
+  template <class Force, class Row>
+  void for_each_row(double* out, std::size_t nrhs, bool accumulate, const std::size_t* map, Force&& force,
+                    Row&& row) const;
+
+  // AVX-512 rows.
+  /// packed_ rows of `width` doubles per slot and rhs (64-byte aligned), the force at `force_at`;
+  /// acc: acc_ (half rows' sums, zeroed, 32-byte aligned).
+  struct PackedRows {
+    double* packed;
+    double* acc;
+    std::size_t width, force_at;
+  };
+  /// x, y, z, fx, fy, fz, 0, 0 per slot and rhs; fx, fy, fz, 0 where the filled cache is read.
+  [[nodiscard]] PackedRows pack_rows(const double* forces, std::size_t nrhs, const std::size_t* map, bool cached) const;
+  void apply_avx512(const double* forces, double* out, std::size_t nrhs, bool accumulate, const std::size_t* map) const;
+  /// The half rows on packed rows (x, y, z, fx, fy, fz, 0, 0), filling the pair cache where it is
+  /// kept and empty; the half rows from the filled cache on force rows (fx, fy, fz, 0).
+  void apply_half_avx512(const double* packed, std::size_t nrhs, double* acc) const;
   void apply_cached_avx512(const double* forces, std::size_t nrhs, double* acc) const;
+
+  // Portable rows, on the forces gathered into slot order.
+  /// work_[(3 r + d) n + s] = F_r[3 i(s) + d].
+  void gather_forces(const double* forces, std::size_t nrhs, const std::size_t* map) const;
+  void apply_table_rows(double* out, std::size_t nrhs, bool accumulate, const std::size_t* map) const;
+  void apply_closed_forms(double* out, std::size_t nrhs, bool accumulate, const std::size_t* map) const;
 };
 
 }  // namespace rpyfmm::rpy::pse::detail

@@ -1,5 +1,5 @@
-// rpyfmm — PSE wave-space scaling of a whole line of modes (PSE.md Sec. 2.3 step 3 and
-// Sec. 4.2): kernels_common.hpp's scale_mode_with for every iz of a line (ix, iy) at once,
+// rpyfmm — PSE wave-space scaling of a whole line of modes (B of [PSE] eq. 19 and its square
+// root for the noise, eq. 21): kernels_common.hpp's scale_mode_with for every iz of a line (ix, iy) at once,
 // written as one branch-free loop over iz that the compiler vectorizes (AVX-512, AVX2 or
 // portable, chosen at run time). The CPU wave space calls this; the GPU keeps one thread per
 // mode (scale_mode). Private.

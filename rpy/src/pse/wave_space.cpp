@@ -1,4 +1,4 @@
-// rpyfmm — PSE wave space on the CPU (PSE.md Sec. 2.3 steps 1-5, Sec. 4, Sec. 6.2).
+// rpyfmm — PSE wave space on the CPU ([PSE] eqs. 19-21; docs/theory/pse.md).
 #include "wave_space.hpp"
 
 #include <fftw3.h>
@@ -207,6 +207,11 @@ class WaveGrid final : public WaveSpace {
 
   void spread(const double* forces);
   void interpolate(double* out, bool accumulate) const;
+  // set_positions stages: window starts and offsets in input order, the tile order and colours,
+  // the window weights in tile order.
+  void window_starts(std::span<const double> x, std::vector<int>& start, std::vector<double>& offset) const;
+  void order_by_tile(const std::vector<int>& start);
+  void weights_in_tile_order(const std::vector<int>& start, const std::vector<double>& offset);
   void window_lines(std::size_t q, std::size_t* xline, std::size_t* yline, std::size_t plane) const;
   /// Destroys the plans and frees the grids (idempotent).
   void release() noexcept;
@@ -275,7 +280,7 @@ std::vector<double> wave_scaling_table(const PseParameters& p, const std::array<
         const double k = std::sqrt(k2sum);
         const double sinc = std::sin(k * a) / (k * a);
         const double x = k2sum * inv_4xi2;
-        // sg(k) = sinc^2(ka) (1 + k^2/4xi^2) exp(-(1-eta) k^2/4xi^2) / k^2  (PSE.md Sec. 2.1)
+        // sg(k) = sinc^2(ka) (1 + k^2/4xi^2) exp(-(1-eta) k^2/4xi^2) / k^2  ([PSE] eqs. 9 and 11)
         const double sg = sinc * sinc * (1.0 + x) * std::exp(-(1.0 - p.window_eta) * x) / k2sum;
         ck[idx] = sg / (viscosity * ng);
       }
@@ -356,12 +361,19 @@ WaveGrid<Real>::~WaveGrid() {
 template <class Real>
 void WaveGrid<Real>::set_positions(std::span<const double> x) {
   np_ = x.size() / 3;
-  const int pw = P_[0] + P_[1] + P_[2];
-  const auto np = static_cast<std::int64_t>(np_);
   // Window starts (wrapped) and the offsets d0 = x_s - x of their first points in input order
   // first: they decide the tiles. The weights follow in tile order.
   std::vector<int> start(3 * np_);
   std::vector<double> offset(3 * np_);
+  window_starts(x, start, offset);
+  order_by_tile(start);
+  weights_in_tile_order(start, offset);
+}
+
+template <class Real>
+void WaveGrid<Real>::window_starts(std::span<const double> x, std::vector<int>& start,
+                                   std::vector<double>& offset) const {
+  const auto np = static_cast<std::int64_t>(np_);
 #pragma omp parallel for schedule(static) if (np_ >= 4096)
   for (std::int64_t i = 0; i < np; ++i)
     for (std::size_t d = 0; d < 3; ++d) {
@@ -370,6 +382,11 @@ void WaveGrid<Real>::set_positions(std::span<const double> x) {
       offset[3 * i + d] = static_cast<double>(s) * p_.spacing[d] - xd;
       start[3 * i + d] = wrap_index(s, n_[d]);
     }
+}
+
+template <class Real>
+void WaveGrid<Real>::order_by_tile(const std::vector<int>& start) {
+  const auto np = static_cast<std::int64_t>(np_);
   // Tiles of B_d >= P_d - 1 grid points in x and y (by window start): a tile's
   // particles write only into itself and the next tile, so tiles of one colour
   // (class per axis, tile_class) never touch the same grid point.
@@ -407,7 +424,13 @@ void WaveGrid<Real>::set_positions(std::span<const double> x) {
       if (tile_begin_[static_cast<std::size_t>(t)] == tile_begin_[static_cast<std::size_t>(t) + 1]) continue;
       tiles_of_colour_[static_cast<std::size_t>(3 * tile_class(bx, nb[0]) + tile_class(by, nb[1]))].push_back(t);
     }
-  // The Gaussian window's 1D weights (PSE.md Sec. 2.3) and starts, in tile order.
+}
+
+template <class Real>
+void WaveGrid<Real>::weights_in_tile_order(const std::vector<int>& start, const std::vector<double>& offset) {
+  const int pw = P_[0] + P_[1] + P_[2];
+  const auto np = static_cast<std::int64_t>(np_);
+  // The Gaussian window's 1D weights (docs/theory/pse.md) and starts, in tile order.
   start_.resize(3 * np_);
   weights_.resize(static_cast<std::size_t>(pw) * np_);
   const double inv_2s2 = 1.0 / (2.0 * p_.sigma * p_.sigma);
@@ -455,7 +478,7 @@ void WaveGrid<Real>::window_lines(std::size_t q, std::size_t* xline, std::size_t
 
 template <class Real>
 void WaveGrid<Real>::spread(const double* forces) {
-  // f_n = sum_j F_j g(x_n - x_j)  (PSE.md Sec. 2.3 step 1), race-free and in a fixed
+  // f_n = sum_j F_j g(x_n - x_j)  (spreading, D in [PSE] eq. 19), race-free and in a fixed
   // order: the result does not depend on the number of threads.
   const int pw = P_[0] + P_[1] + P_[2];
   Real* g0 = grid_;
@@ -510,7 +533,7 @@ void WaveGrid<Real>::spread(const double* forces) {
 
 template <class Real>
 void WaveGrid<Real>::interpolate(double* out, bool accumulate) const {
-  // U_j = dV sum_n g(x_n - x_j) u_n  (PSE.md Sec. 2.3 step 5).
+  // U_j = dV sum_n g(x_n - x_j) u_n  (interpolation, D^-1 in [PSE] eq. 19).
   const int pw = P_[0] + P_[1] + P_[2];
   const Real* g0 = grid_;
   const Real* g1 = grid_ + ng_;

@@ -1,6 +1,6 @@
 // rpyfmm — PSE wave-space part on the CPU: Spectral Ewald with a Gaussian
 // window (Lindbo & Tornberg 2010/2011), FFTW r2c/c2r with threads, race-free
-// OpenMP spreading by tile colouring (PSE.md Sec. 2.3, 4, 6.2), grids in double or
+// OpenMP spreading by tile colouring (docs/theory/pse.md), grids in double or
 // single precision. Private.
 #pragma once
 
@@ -24,7 +24,7 @@ struct NoiseKey {
 };
 
 /// c(k) = sinc^2(ka) (1 + k^2/4xi^2) exp(-(1-eta) k^2/4xi^2) / (k^2 mu Ng) on the half
-/// spectrum, zero at k = 0 and on Nyquist planes (PSE.md Sec. 2.3). Shared with CUDA.
+/// spectrum, zero at k = 0 and on Nyquist planes (docs/theory/pse.md). Shared with CUDA.
 std::vector<double> wave_scaling_table(const PseParameters& p, const std::array<double, 3>& box, double viscosity,
                                        ModeGeometry& geometry);
 

@@ -1,5 +1,5 @@
 // rpyfmm — PSE spreading and interpolation of one particle's window with AVX2 masked vectors
-// (PSE.md Sec. 2.3 steps 1 and 5), for CPUs without AVX-512 (window_avx512.hpp there). Private.
+// ([PSE] eq. 19: D and D^-1), for CPUs without AVX-512 (window_avx512.hpp there). Private.
 //
 // The same scheme as the AVX-512 kernels: each z run of a window line (at most 8 points, in at
 // most two runs on the periodic grid) is a masked load, FMA and (spreading) masked store per

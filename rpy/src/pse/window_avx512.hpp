@@ -1,5 +1,5 @@
 // rpyfmm — PSE spreading and interpolation of one particle's window with AVX-512 masked
-// vectors (PSE.md Sec. 2.3 steps 1 and 5). Private.
+// vectors ([PSE] eq. 19: D and D^-1). Private.
 //
 // A window is P_x P_y lines of P_z <= 8 points along z, in at most two runs on the periodic
 // grid ([z0, z0 + len0) and [0, P_z - len0)): each run of a line is one masked 8-lane load,

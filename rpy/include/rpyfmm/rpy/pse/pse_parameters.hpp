@@ -2,9 +2,9 @@
 // derived from a tolerance.
 //
 // Fiore, Balboa Usabiaga, Donev & Swan, J. Chem. Phys. 146, 124116 (2017)
-// ("[PSE]", shared/papers/002), Sec. II.C and eqs. 22-23; Lindbo & Tornberg,
-// J. Comput. Phys. 230 (2011) 8744 for the Gaussian window; the recipe of
-// shared/design/PSE.md Sec. 3.2.
+// ("[PSE]"), Sec. II.C and eqs. 22-23; Lindbo & Tornberg, J. Comput. Phys. 230 (2011) 8744
+// for the Gaussian window; the recipe is derived in docs/theory/pse.md (parameters from the
+// tolerance).
 #pragma once
 
 #include <array>
@@ -40,13 +40,13 @@ inline constexpr double kSingleWaveTolerance = 1e-5;
 struct PseOptions {
   /// Requested relative accuracy of U = M F (relative to M0 = 1/(6 pi eta a)).
   /// Must lie in [1e-8, 0.1) (below 1e-8 the double-precision closed forms
-  /// of App. A near r -> 0 (~1e-9, PSE.md Sec. 1.3) no longer leave room in the budget). Each error term (real-space
-  /// cutoff, aliasing, window truncation, table) is budgeted below it (PSE.md Sec. 3.2).
+  /// of App. A near r -> 0 (~1e-9, docs/theory/pse.md) no longer leave room in the budget). Each error term (real-space
+  /// cutoff, aliasing, window truncation, table) is budgeted below it (docs/theory/pse.md).
   double tolerance = 1e-3;
   /// Ewald splitting parameter xi (1/length). 0 = automatic: minimise the
-  /// modelled cost T(xi) of [PSE] eq. 22 over xi a in [0.2, 8] (Sec. 3.4).
+  /// modelled cost T(xi) of [PSE] eq. 22 over xi a in [0.2, 8] (docs/theory/pse.md).
   /// A fixed xi must satisfy xi a >= 0.05 (the closed forms of App. A lose
-  /// digits below; PSE.md Sec. 1.3).
+  /// digits below; docs/theory/pse.md).
   double xi = 0.0;
   /// Real-space cutoff override (length); 0 = envelope cutoff for tolerance/2.
   double r_cut = 0.0;
@@ -54,7 +54,7 @@ struct PseOptions {
   std::array<int, 3> grid = {0, 0, 0};
   /// Gaussian support override (grid points per direction); 0 = from the tolerance.
   int support = 0;
-  /// SE shape parameter eta* in (0, 1): trades grid size against support (PSE.md Sec. 3.2).
+  /// SE shape parameter eta* in (0, 1): trades grid size against support (docs/theory/pse.md).
   /// 0 = automatic: the cheapest of eta* = 0.4, 0.45, ..., 0.9 by the cost model (for each xi
   /// tried, when xi is automatic too). The error terms meet the tolerance for every eta*.
   double window_eta = 0.0;
@@ -66,10 +66,10 @@ struct PseOptions {
   /// with the same positions: the split sampler's Lanczos keeps them from its first product (its
   /// later iterations and M F in a BD step reuse them), apply() from the second product after
   /// set_positions (a single M F per positions pays nothing): 1.3-1.6x faster later products
-  /// (bench/pse/RESULTS.md, session 13). Kept in float with single-precision wave grids
-  /// (wave_precision), else in double: 20 or 40 bytes per pair within r_cut, kept only while it
-  /// fits in max_memory_bytes beside the grids (PseParameters::real_space_cache_bytes). On CPUs
-  /// without AVX-512 it holds every entry of the full neighbour rows (twice the pairs).
+  /// (measured 2026-12-03 on a 2-vCPU Intel Xeon VM, family 6 model 167, AVX-512). Kept in float with single-precision
+  /// wave grids (wave_precision), else in double: 20 or 40 bytes per pair within r_cut, kept only while it fits in
+  /// max_memory_bytes beside the grids (PseParameters::real_space_cache_bytes). On CPUs without AVX-512 it holds every
+  /// entry of the full neighbour rows (twice the pairs).
   bool real_space_cache = true;
   /// FFTW threads: 0 = automatic (all OpenMP threads for grids of >= 2^20 points, one
   /// below, where thread synchronisation costs more than it saves on a loaded machine).
@@ -78,8 +78,8 @@ struct PseOptions {
   /// are reproducible bit for bit across processes); true = FFTW_MEASURE: the plans are timed on
   /// this machine when the operator is planned (~0.5 s for a 100^3 grid, ~3 s for 200^3; later
   /// plans of the same size in the process reuse FFTW's wisdom), and the transforms then run
-  /// 1.1-1.9x faster (bench/pse/RESULTS.md). The algorithm FFTW picks may differ between
-  /// processes, so results then agree to round-off, not bit for bit. For long runs.
+  /// 1.1-1.9x faster (2026-12-03, 2-vCPU Intel Xeon VM, family 6 model 167, AVX-512). The algorithm FFTW picks may
+  /// differ between processes, so results then agree to round-off, not bit for bit. For long runs.
   bool fft_measure = false;
   /// Precision of the wave-space grids (WavePrecision), on the CPU and the CUDA backend alike.
   /// Single-precision grids also draw their wave-space noise in single precision (normal6f).
@@ -92,7 +92,7 @@ struct PseOptions {
   /// transform of 3 components (times the length's factor, fft_length_cost), per grid point and
   /// step (scaling and the wave-space noise), and per support point of spreading or of
   /// interpolation. Measured with bench_pse on the development machine (1 thread, N = 32000 and
-  /// 128000, bench/pse/RESULTS.md, session 11); only their ratios matter.
+  /// 128000; 2026-12-03, 2-vCPU Intel Xeon VM, family 6 model 167, AVX-512); only their ratios matter.
   double cost_real_pair = 6.5e-9;
   double cost_fft_point = 1.09e-9;
   double cost_grid_point = 1.75e-8;
@@ -128,8 +128,8 @@ struct PseParameters {
   [[nodiscard]] std::string summary() const;
 };
 
-/// Chooses the PSE parameters for N spheres of radius `a` in box `L` (PSE.md
-/// Sec. 3.2 / 3.4). Throws rpyfmm::Error (naming the offending quantity) for a
+/// Chooses the PSE parameters for N spheres of radius `a` in box `L` (docs/theory/pse.md:
+/// parameters from the tolerance, cost model). Throws rpyfmm::Error (naming the offending quantity) for a
 /// tolerance out of range, xi a < 0.05, a box smaller than 2 r_cut or than a
 /// sphere diameter, a window wider than the box, or a grid over the memory limit.
 PseParameters choose_parameters(const PseOptions& options, double radius, const std::array<double, 3>& box,
@@ -146,7 +146,7 @@ double fft_length_cost(int n);
 /// measured table of fft_length_cost (up to 320 every even 7-smooth length is a candidate). Odd
 /// lengths are avoided: FFTW's r2c/c2r transforms of odd length ran 1.5-2.2x slower per point
 /// than the even sizes next to them (63 vs 64, 125 vs 128, 147 vs 150, 189 vs 192), and lengths
-/// with 3^2 or more mostly did too (bench/pse/RESULTS.md, sessions 10 and 11).
+/// with 3^2 or more mostly did too (2026-12-03, 2-vCPU Intel Xeon VM, family 6 model 167, AVX-512).
 int next_fast_size(int n);
 
 }  // namespace rpyfmm::rpy::pse

@@ -1,6 +1,6 @@
 // rpyfmm — periodic RPY mobility by Positively Split Ewald on the CPU
-// (Fiore, Balboa Usabiaga, Donev & Swan, J. Chem. Phys. 146, 124116 (2017),
-// shared/papers/002; design: shared/design/PSE.md).
+// (Fiore, Balboa Usabiaga, Donev & Swan, J. Chem. Phys. 146, 124116 (2017); the method in the
+// project's words: docs/theory/pse.md).
 //
 //   M = M_r + M_w, both SPD ([PSE] Sec. II.A, App. B):
 //   - M_r: closed forms F, G of [PSE] App. A, cut at r_cut, cell/neighbour lists, minimum image;

@@ -29,8 +29,8 @@
 // lifetime (at most the iterations of the longest sample, 3N doubles each: ~1 GB for 50
 // iterations at N = 1e6) and is not counted in the planning memory check. On one H200 at the
 // [PSE] Table I setup (N = 1e6, tolerance 1e-3): M F 7.4e7 particle-timesteps per second with
-// host arrays, 1.07e8 with device arrays; M^1/2 z 1.08e8 / 1.21e8 (bench/pse/RESULTS.md,
-// session 20). All work runs on
+// host arrays, 1.07e8 with device arrays; M^1/2 z 1.08e8 / 1.21e8 (2026-12-04, CUDA 13.0,
+// 16 host cores). All work runs on
 // the legacy default stream: callers that write the device arrays of apply_device /
 // sample_device on other streams synchronise first.
 #pragma once
@@ -55,7 +55,7 @@ struct PseCudaOptions {
   /// included), sums in another order. Where a box side holds fewer than 3 cells the host lists
   /// are used (see device_cell_list_active()). On by default: on an H200 at N = 1e6 (Table I)
   /// set_positions takes 0.030 s instead of 0.17 s (16 host threads building the lists), which
-  /// outweighs the slower scan of the products (bench/pse/RESULTS.md, session 20).
+  /// outweighs the slower scan of the products (2026-12-04, CUDA 13.0).
   bool device_cell_list = true;
   /// Spreading and interpolation by bins through shared memory (rpy/src/pse/cuda_window.cuh):
   /// 0 = automatic (bins of the largest edge in 16, 14, ..., 4 points whose subgrids fit two

@@ -10,7 +10,7 @@
 namespace rpyfmm::rpy::pse {
 
 /// F and G of [PSE] App. A at distance r >= 0 (both branches r > 2a and r <= 2a;
-/// series below r_s = 0.01/xi, clamped to [0.004 a, 0.2 a], PSE.md Sec. 1.3).
+/// series below r_s = 0.01/xi, clamped to [0.004 a, 0.2 a]; docs/theory/pse.md).
 struct FG {
   double f;
   double g;
@@ -20,10 +20,10 @@ FG real_space_fg(double r, double xi, double a);
 /// Self term F(0) = G(0) = erfc(2 a xi) - expm1(-4 a^2 xi^2) / (4 sqrt(pi) a xi)  ([PSE] eq. A4).
 double real_space_self(double xi, double a);
 
-/// Smallest r such that max(|F|, |G|) <= eps_r on [r, r + 4/xi] (PSE.md Sec. 1.5).
+/// Smallest r such that max(|F|, |G|) <= eps_r on [r, r + 4/xi] (docs/theory/pse.md).
 double real_space_cutoff(double eps_r, double xi, double a);
 
-/// Linear table of F, G in r on [0, r_cut] (PSE.md Sec. 1.4): spacing halved
+/// Linear table of F, G in r on [0, r_cut] (docs/theory/pse.md): spacing halved
 /// until the error at every midpoint is below eps_t.
 class PseRealSpaceTable {
  public:
