@@ -440,7 +440,7 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
   {  // [mobility]
     Section s(sub_table(root, "mobility"), "mobility");
     try {
-      c.mobility.method = mobility_method_from_string(s.string("method", "auto"));
+      c.mobility.method = rpy::mobility_method_from_string(s.string("method", "auto"));
     } catch (const Error&) {
       bad_key("mobility.method", "must be none, direct, fmm, pse or auto");
     }
@@ -453,7 +453,7 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
       bad_key("mobility.wave_precision", "must be auto, single or double");
     }
     try {
-      c.mobility.device = compute_device_from_string(s.string("device", "cpu"));
+      c.mobility.device = rpy::compute_device_from_string(s.string("device", "cpu"));
     } catch (const Error&) {
       bad_key("mobility.device", "must be cpu or cuda");
     }

@@ -90,7 +90,7 @@ RunSummary execute(const RunConfig& config, Start start, const RunOptions& optio
   ForceField forces = make_force_field(config);
   forces.add_bonds(start.bonds);
   const std::size_t n = start.types.size();
-  Integrator bd(make_mobility(config.mobility, n), forces, config.integrator, start.positions, start.types,
+  Integrator bd(rpy::make_mobility(config.mobility, n), forces, config.integrator, start.positions, start.types,
                 config.neighbours, start.step);
 
   RunSummary sum;
