@@ -1,8 +1,6 @@
 # Sources of rpyfmm::bd (owner: bd).
 target_sources(rpyfmm_bd PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/src/sampling.cpp
-  ${CMAKE_CURRENT_LIST_DIR}/src/free_draining.cpp
-  ${CMAKE_CURRENT_LIST_DIR}/src/mobility_factory.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/potentials.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/force_field.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/neighbour_list.cpp

@@ -56,7 +56,7 @@ void run_bd_command(const BdArgs& args) {
                                                      : bd::load_config(args.config);
     source = config.source;
     if (!args.quiet && !args.common.json)
-      std::cout << "rpyfmm bd: " << source << " (" << bd::to_string(config.mobility.method) << " mobility, "
+      std::cout << "rpyfmm bd: " << source << " (" << rpy::to_string(config.mobility.method) << " mobility, "
                 << active_threads() << " threads)" << std::endl;
     s = bd::run_bd(config, options);
   }

@@ -30,7 +30,7 @@
 #include "array_io.hpp"
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "rpyfmm/bd/mobility_factory.hpp"
+#include "rpyfmm/rpy/mobility_factory.hpp"
 #include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/core/file_safety.hpp"
 #include "rpyfmm/core/timer.hpp"
@@ -94,7 +94,7 @@ const std::vector<OperatorEntry>& operators() {
          rpy::pse::PseOptions o;  // tolerance default 1e-3 unless --tolerance
          if (a.tolerance != 0.0) o.tolerance = a.tolerance;
          o.wave_precision = rpy::pse::wave_precision_from_name(a.wave_precision, "--wave-precision");
-         if (bd::compute_device_from_string(a.device, "--device") == bd::ComputeDevice::cuda) {
+         if (rpy::compute_device_from_string(a.device, "--device") == rpy::ComputeDevice::cuda) {
            require(rpy::pse::PseRpyCuda::device_available(), ErrorCode::not_supported, "--device",
                    "cuda: no usable CUDA device (or a build without CUDA)");
            return std::unique_ptr<rpy::MobilityOperator>(std::make_unique<rpy::pse::PseRpyCuda>(g, a.viscosity, o));
@@ -142,8 +142,8 @@ SampleArgs resolve_operator(const SampleArgs& given) {
           "a periodic box needs --operator pse (direct and fmm are free-space operators)");
   require(args.wave_precision == "auto" || args.op == "pse", ErrorCode::invalid_argument, "--wave-precision",
           "applies to the pse operator only");
-  const bd::ComputeDevice device = bd::compute_device_from_string(args.device, "--device");
-  require(device == bd::ComputeDevice::cpu || args.op == "pse", ErrorCode::invalid_argument, "--device",
+  const rpy::ComputeDevice device = rpy::compute_device_from_string(args.device, "--device");
+  require(device == rpy::ComputeDevice::cpu || args.op == "pse", ErrorCode::invalid_argument, "--device",
           "cuda applies to the pse operator only");
   return args;
 }

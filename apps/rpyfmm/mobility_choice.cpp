@@ -4,7 +4,7 @@
 #include <CLI/CLI.hpp>
 
 #include "cli_common.hpp"
-#include "rpyfmm/bd/mobility_factory.hpp"
+#include "rpyfmm/rpy/mobility_factory.hpp"
 #include "rpyfmm/core/ranges.hpp"
 #include "rpyfmm/core/validate.hpp"
 
@@ -32,22 +32,22 @@ void add_mobility_options(CLI::App& cmd, MobilityChoice& choice) {
 std::unique_ptr<rpy::MobilityOperator> make_operator(const MobilityChoice& choice, std::size_t n) {
   ranges::require_in(ranges::kViscosity, choice.viscosity, "--viscosity", "viscosity");
   ranges::require_in(ranges::kMobilityTolerance, choice.tolerance, "--tolerance", "tolerance");
-  bd::MobilitySpec spec;
-  spec.method = bd::mobility_method_from_string(choice.method);
+  rpy::MobilitySpec spec;
+  spec.method = rpy::mobility_method_from_string(choice.method);
   spec.tolerance = choice.tolerance;
   spec.viscosity = choice.viscosity;
   spec.wave_precision = rpy::pse::wave_precision_from_name(choice.wave_precision, "--wave-precision");
-  require(spec.wave_precision == rpy::pse::WavePrecision::automatic || spec.method == bd::MobilityMethod::pse ||
-              (spec.method == bd::MobilityMethod::automatic && !choice.box.empty()),
+  require(spec.wave_precision == rpy::pse::WavePrecision::automatic || spec.method == rpy::MobilityMethod::pse ||
+              (spec.method == rpy::MobilityMethod::automatic && !choice.box.empty()),
           ErrorCode::invalid_argument, "--wave-precision", "applies to the pse method only");
-  spec.device = bd::compute_device_from_string(choice.device, "--device");
+  spec.device = rpy::compute_device_from_string(choice.device, "--device");
   if (!choice.box.empty()) {
     require(choice.box.size() == 1 || choice.box.size() == 3, ErrorCode::invalid_argument, "--box",
             "give one length L (cube) or three lengths Lx Ly Lz, got " + std::to_string(choice.box.size()) + " values");
     spec.geometry = choice.box.size() == 1 ? rpy::Geometry::periodic(choice.box[0])
                                            : rpy::Geometry::periodic(choice.box[0], choice.box[1], choice.box[2]);
   }
-  return bd::make_mobility(spec, n);
+  return rpy::make_mobility(spec, n);
 }
 
 }  // namespace rpyfmm::cli

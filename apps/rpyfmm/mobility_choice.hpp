@@ -1,6 +1,6 @@
 // rpyfmm CLI — the bead / particle mobility operator chosen on the command line
 // (--method, --tolerance, --viscosity, --box, --wave-precision, --device), shared by `mobility`
-// and `rigid`. Every method goes through rpyfmm::bd::make_mobility, the factory the BD
+// and `rigid`. Every method goes through rpyfmm::rpy::make_mobility, the factory the BD
 // engine uses too.
 #pragma once
 

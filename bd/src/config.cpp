@@ -266,9 +266,8 @@ std::string ascii_for_toml(std::string_view text, const std::string& source) {
   return out;
 }
 
-}  // namespace
-
-RunConfig parse_config(std::string_view text, const std::string& source) {
+/// The TOML table of `text` (ASCII-checked first); syntax errors name source:line:column.
+toml::table parse_toml(std::string_view text, const std::string& source) {
   const std::string ascii = ascii_for_toml(text, source);
   toml::table root;
   try {
@@ -278,9 +277,11 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
     msg << source << ":" << e.source().begin.line << ":" << e.source().begin.column << ": " << e.description();
     fail(ErrorCode::invalid_input, "config", msg.str());
   }
-  RunConfig c;
-  c.text = std::string(text);
-  c.source = source;
+  return root;
+}
+
+/// Throws on a top-level key that is not a known section.
+void require_known_sections(const toml::table& root) {
   static const std::set<std::string> sections{"system",   "types",      "particles", "pair",       "bonds",
                                               "external", "integrator", "mobility",  "neighbours", "output"};
   for (const auto& [k, v] : root) {
@@ -289,124 +290,136 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
               "is unknown (sections: system, types, particles, pair, bonds, external, "
               "integrator, mobility, neighbours, output)");
   }
+}
 
-  {  // [system]
-    Section s(sub_table(root, "system"), "system");
-    const std::string geometry = s.string("geometry", "open");
-    c.viscosity = s.in("viscosity", ranges::kViscosity, 1.0);
-    c.integrator.kT = s.non_negative("kT", 1.0);
-    if (geometry == "periodic") {
-      if (!s.has("box")) bad_key("system.box", "is missing (required for a periodic geometry)");
-      const auto box = s.vec3("box", {0, 0, 0});
-      for (int d = 0; d < 3; ++d)
-        if (!(box[d] > 0)) bad_key("system.box", "entries must be > 0");
-      c.geometry = rpy::Geometry::periodic(box[0], box[1], box[2]);
-    } else if (geometry == "open") {
-      if (s.has("box")) bad_key("system.box", "is only allowed with geometry = \"periodic\"");
-      c.geometry = rpy::Geometry::open();
-    } else {
-      bad_key("system.geometry", "must be \"open\" or \"periodic\", got \"" + geometry + "\"");
-    }
+/// [system]: geometry, box, viscosity, kT.
+void parse_system(const toml::table& root, RunConfig& c) {
+  Section s(sub_table(root, "system"), "system");
+  const std::string geometry = s.string("geometry", "open");
+  c.viscosity = s.in("viscosity", ranges::kViscosity, 1.0);
+  c.integrator.kT = s.non_negative("kT", 1.0);
+  if (geometry == "periodic") {
+    if (!s.has("box")) bad_key("system.box", "is missing (required for a periodic geometry)");
+    const auto box = s.vec3("box", {0, 0, 0});
+    for (int d = 0; d < 3; ++d)
+      if (!(box[d] > 0)) bad_key("system.box", "entries must be > 0");
+    c.geometry = rpy::Geometry::periodic(box[0], box[1], box[2]);
+  } else if (geometry == "open") {
+    if (s.has("box")) bad_key("system.box", "is only allowed with geometry = \"periodic\"");
+    c.geometry = rpy::Geometry::open();
+  } else {
+    bad_key("system.geometry", "must be \"open\" or \"periodic\", got \"" + geometry + "\"");
+  }
+  s.finish();
+}
+
+/// [[types]]: particle types (names unique); none keeps the default type.
+void parse_types(const toml::table& root, RunConfig& c) {
+  const auto tables = table_array(root, "types");
+  if (!tables.empty()) c.types.clear();
+  for (std::size_t t = 0; t < tables.size(); ++t) {
+    Section s(tables[t], "types[" + std::to_string(t) + "]");
+    ParticleType p;
+    p.name = s.string("name");
+    p.radius = s.in("radius", ranges::kRadius, 1.0);
+    p.external_force = s.vec3("external_force", {0, 0, 0});
+    p.surface_potential = s.number("surface_potential", 0.0);
+    for (const auto& q : c.types)
+      if (q.name == p.name) bad_key(s.key("name"), "repeats type name '" + p.name + "'");
+    c.types.push_back(p);
     s.finish();
   }
-  {  // [[types]]
-    const auto tables = table_array(root, "types");
-    if (!tables.empty()) c.types.clear();
-    for (std::size_t t = 0; t < tables.size(); ++t) {
-      Section s(tables[t], "types[" + std::to_string(t) + "]");
-      ParticleType p;
-      p.name = s.string("name");
-      p.radius = s.in("radius", ranges::kRadius, 1.0);
-      p.external_force = s.vec3("external_force", {0, 0, 0});
-      p.surface_potential = s.number("surface_potential", 0.0);
-      for (const auto& q : c.types)
-        if (q.name == p.name) bad_key(s.key("name"), "repeats type name '" + p.name + "'");
-      c.types.push_back(p);
-      s.finish();
-    }
-  }
-  auto check_type = [&](const std::string& key, const std::string& name) {
-    for (const auto& t : c.types)
-      if (t.name == name) return;
-    bad_key(key, "names unknown type '" + name + "'");
-  };
-  {  // [particles]
-    const toml::table* t = sub_table(root, "particles");
-    if (!t) bad_key("particles", "is missing (required section)");
-    Section s(t, "particles");
-    ParticleSpec& p = c.particles;
-    const std::string source_name = s.string("source");
-    p.types = s.strings("types");
-    for (const auto& name : p.types) check_type("particles.types", name);
-    p.seed = s.count("seed", 1);
-    if (source_name == "file") {
-      p.source = ParticleSpec::Source::file;
-      p.file = s.string("file");
-    } else if (source_name == "random" || source_name == "lattice") {
-      p.source = source_name == "random" ? ParticleSpec::Source::random : ParticleSpec::Source::lattice;
-      p.count = s.count("count", std::nullopt, ranges::kParticleCount);
-      require_particle_count(p.count, 1, "particles.count");
-      if (c.geometry.is_periodic()) {  // the box sets the region
-        if (s.has("volume_fraction"))
-          bad_key("particles.volume_fraction", "is only used in open geometry (the box sets the density)");
-      } else {
-        p.volume_fraction = s.positive("volume_fraction", 0.05);
-      }
-    } else if (source_name == "chains") {
-      p.source = ParticleSpec::Source::chains;
-      p.chains = s.count("chains");
-      p.beads = s.count("beads");
-      if (p.chains < 1 || p.beads < 1) bad_key("particles.chains", "and particles.beads must be >= 1");
-      require_particle_count(p.chains, p.beads, "particles.chains");
-      p.bond_length = s.non_negative("bond_length", 0.0);
-      p.volume_fraction = s.positive("volume_fraction", 0.01);
-    } else if (source_name == "clusters") {
-      p.source = ParticleSpec::Source::clusters;
-      p.clusters = s.count("clusters");
-      p.cluster_size = s.count("cluster_size");
-      if (p.clusters < 1 || p.cluster_size < 1) bad_key("particles.clusters", "and cluster_size must be >= 1");
-      require_particle_count(p.clusters, p.cluster_size, "particles.clusters");
-      p.volume_fraction = s.positive("volume_fraction", 0.02);
-      p.cluster_volume_fraction = s.positive("cluster_volume_fraction", 0.3);
-      if (p.cluster_volume_fraction > 0.4) bad_key("particles.cluster_volume_fraction", "must be <= 0.4");
+}
+
+/// Throws naming `key` unless `name` is one of the particle types.
+void check_type(const std::vector<ParticleType>& types, const std::string& key, const std::string& name) {
+  for (const auto& t : types)
+    if (t.name == name) return;
+  bad_key(key, "names unknown type '" + name + "'");
+}
+
+/// [particles]: where the initial positions come from.
+void parse_particles(const toml::table& root, RunConfig& c) {
+  const toml::table* t = sub_table(root, "particles");
+  if (!t) bad_key("particles", "is missing (required section)");
+  Section s(t, "particles");
+  ParticleSpec& p = c.particles;
+  const std::string source_name = s.string("source");
+  p.types = s.strings("types");
+  for (const auto& name : p.types) check_type(c.types, "particles.types", name);
+  p.seed = s.count("seed", 1);
+  if (source_name == "file") {
+    p.source = ParticleSpec::Source::file;
+    p.file = s.string("file");
+  } else if (source_name == "random" || source_name == "lattice") {
+    p.source = source_name == "random" ? ParticleSpec::Source::random : ParticleSpec::Source::lattice;
+    p.count = s.count("count", std::nullopt, ranges::kParticleCount);
+    require_particle_count(p.count, 1, "particles.count");
+    if (c.geometry.is_periodic()) {  // the box sets the region
+      if (s.has("volume_fraction"))
+        bad_key("particles.volume_fraction", "is only used in open geometry (the box sets the density)");
     } else {
-      bad_key("particles.source", "must be file, random, lattice, chains or clusters, got \"" + source_name + "\"");
+      p.volume_fraction = s.positive("volume_fraction", 0.05);
     }
-    if (p.volume_fraction > 0.45)
-      bad_key("particles.volume_fraction", "must be <= 0.45, got " + num(p.volume_fraction));
+  } else if (source_name == "chains") {
+    p.source = ParticleSpec::Source::chains;
+    p.chains = s.count("chains");
+    p.beads = s.count("beads");
+    if (p.chains < 1 || p.beads < 1) bad_key("particles.chains", "and particles.beads must be >= 1");
+    require_particle_count(p.chains, p.beads, "particles.chains");
+    p.bond_length = s.non_negative("bond_length", 0.0);
+    p.volume_fraction = s.positive("volume_fraction", 0.01);
+  } else if (source_name == "clusters") {
+    p.source = ParticleSpec::Source::clusters;
+    p.clusters = s.count("clusters");
+    p.cluster_size = s.count("cluster_size");
+    if (p.clusters < 1 || p.cluster_size < 1) bad_key("particles.clusters", "and cluster_size must be >= 1");
+    require_particle_count(p.clusters, p.cluster_size, "particles.clusters");
+    p.volume_fraction = s.positive("volume_fraction", 0.02);
+    p.cluster_volume_fraction = s.positive("cluster_volume_fraction", 0.3);
+    if (p.cluster_volume_fraction > 0.4) bad_key("particles.cluster_volume_fraction", "must be <= 0.4");
+  } else {
+    bad_key("particles.source", "must be file, random, lattice, chains or clusters, got \"" + source_name + "\"");
+  }
+  if (p.volume_fraction > 0.45) bad_key("particles.volume_fraction", "must be <= 0.45, got " + num(p.volume_fraction));
+  s.finish();
+}
+
+/// [[pair]]: pair potentials between named types.
+void parse_pairs(const toml::table& root, RunConfig& c) {
+  const auto tables = table_array(root, "pair");
+  for (std::size_t k = 0; k < tables.size(); ++k) {
+    Section s(tables[k], "pair[" + std::to_string(k) + "]");
+    NamedPair np;
+    const auto names = s.strings("types");
+    if (names.size() != 2) bad_key(s.key("types"), "must name two particle types, e.g. [\"A\", \"A\"]");
+    check_type(c.types, s.key("types"), names[0]);
+    check_type(c.types, s.key("types"), names[1]);
+    np.type1 = names[0];
+    np.type2 = names[1];
+    try {
+      np.potential.kind = pair_kind_from_string(s.string("kind"));
+    } catch (const Error&) {
+      bad_key(s.key("kind"), "must be lj36_18, wca, soft or dlvo");
+    }
+    np.potential.epsilon = s.positive("epsilon", 1.0);
+    np.potential.sigma = s.non_negative("sigma", 0.0);
+    np.potential.cutoff = s.non_negative("cutoff", 0.0);
+    np.potential.min_distance_fraction = s.positive("min_distance_fraction", 0.8);
+    if (np.potential.min_distance_fraction > 1.0) bad_key(s.key("min_distance_fraction"), "must be <= 1");
+    if (np.potential.kind == PairKind::dlvo) {
+      np.potential.hamaker = s.non_negative("hamaker", 0.0);
+      np.potential.permittivity = s.non_negative("permittivity", 0.0);
+      np.potential.kappa = s.positive("kappa");
+    }
+    c.pairs.push_back(np);
     s.finish();
   }
-  {  // [[pair]]
-    const auto tables = table_array(root, "pair");
-    for (std::size_t k = 0; k < tables.size(); ++k) {
-      Section s(tables[k], "pair[" + std::to_string(k) + "]");
-      NamedPair np;
-      const auto names = s.strings("types");
-      if (names.size() != 2) bad_key(s.key("types"), "must name two particle types, e.g. [\"A\", \"A\"]");
-      check_type(s.key("types"), names[0]);
-      check_type(s.key("types"), names[1]);
-      np.type1 = names[0];
-      np.type2 = names[1];
-      try {
-        np.potential.kind = pair_kind_from_string(s.string("kind"));
-      } catch (const Error&) {
-        bad_key(s.key("kind"), "must be lj36_18, wca, soft or dlvo");
-      }
-      np.potential.epsilon = s.positive("epsilon", 1.0);
-      np.potential.sigma = s.non_negative("sigma", 0.0);
-      np.potential.cutoff = s.non_negative("cutoff", 0.0);
-      np.potential.min_distance_fraction = s.positive("min_distance_fraction", 0.8);
-      if (np.potential.min_distance_fraction > 1.0) bad_key(s.key("min_distance_fraction"), "must be <= 1");
-      if (np.potential.kind == PairKind::dlvo) {
-        np.potential.hamaker = s.non_negative("hamaker", 0.0);
-        np.potential.permittivity = s.non_negative("permittivity", 0.0);
-        np.potential.kappa = s.positive("kappa");
-      }
-      c.pairs.push_back(np);
-      s.finish();
-    }
-  }
-  if (const toml::table* t = sub_table(root, "bonds")) {  // [bonds]
+}
+
+/// [bonds]: the chain bond potential (required with particles.source = "chains").
+void parse_bonds(const toml::table& root, RunConfig& c) {
+  if (const toml::table* t = sub_table(root, "bonds")) {
     Section s(t, "bonds");
     BondPotential b;
     try {
@@ -421,86 +434,115 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
   }
   if (c.particles.source == ParticleSpec::Source::chains && !c.chain_bond)
     bad_key("bonds", "is missing (required with particles.source = \"chains\")");
-  {  // [external]
-    Section s(sub_table(root, "external"), "external");
-    c.external_force = s.vec3("force", {0, 0, 0});
-    s.finish();
+}
+
+/// [external]: a force on every particle.
+void parse_external(const toml::table& root, RunConfig& c) {
+  Section s(sub_table(root, "external"), "external");
+  c.external_force = s.vec3("force", {0, 0, 0});
+  s.finish();
+}
+
+/// [integrator]: time step, steps, seed, displacement guard.
+void parse_integrator(const toml::table& root, RunConfig& c) {
+  const toml::table* t = sub_table(root, "integrator");
+  if (!t) bad_key("integrator", "is missing (required section with dt and steps)");
+  Section s(t, "integrator");
+  c.integrator.dt = s.positive("dt");
+  c.steps = s.count("steps", std::nullopt, ranges::kSteps);
+  c.integrator.seed = s.count("seed", 1);
+  c.integrator.max_displacement = s.positive("max_displacement", 0.5);
+  c.integrator.keep_split_displacements = s.boolean("split_displacements", false);
+  s.finish();
+}
+
+/// [mobility]: the operator (rpy::MobilitySpec) and its square-root sampler.
+void parse_mobility(const toml::table& root, RunConfig& c) {
+  Section s(sub_table(root, "mobility"), "mobility");
+  try {
+    c.mobility.method = rpy::mobility_method_from_string(s.string("method", "auto"));
+  } catch (const Error&) {
+    bad_key("mobility.method", "must be none, direct, fmm, pse or auto");
   }
-  {  // [integrator]
-    const toml::table* t = sub_table(root, "integrator");
-    if (!t) bad_key("integrator", "is missing (required section with dt and steps)");
-    Section s(t, "integrator");
-    c.integrator.dt = s.positive("dt");
-    c.steps = s.count("steps", std::nullopt, ranges::kSteps);
-    c.integrator.seed = s.count("seed", 1);
-    c.integrator.max_displacement = s.positive("max_displacement", 0.5);
-    c.integrator.keep_split_displacements = s.boolean("split_displacements", false);
-    s.finish();
+  c.mobility.tolerance = s.in("tolerance", ranges::kMobilityTolerance, 1e-3);
+  c.mobility.fmm_crossover = s.count("fmm_crossover", 0);
+  c.mobility.fft_measure = s.boolean("fft_measure", false);
+  try {
+    c.mobility.wave_precision = rpy::pse::wave_precision_from_name(s.string("wave_precision", "auto"));
+  } catch (const Error&) {
+    bad_key("mobility.wave_precision", "must be auto, single or double");
   }
-  {  // [mobility]
-    Section s(sub_table(root, "mobility"), "mobility");
-    try {
-      c.mobility.method = mobility_method_from_string(s.string("method", "auto"));
-    } catch (const Error&) {
-      bad_key("mobility.method", "must be none, direct, fmm, pse or auto");
-    }
-    c.mobility.tolerance = s.in("tolerance", ranges::kMobilityTolerance, 1e-3);
-    c.mobility.fmm_crossover = s.count("fmm_crossover", 0);
-    c.mobility.fft_measure = s.boolean("fft_measure", false);
-    try {
-      c.mobility.wave_precision = rpy::pse::wave_precision_from_name(s.string("wave_precision", "auto"));
-    } catch (const Error&) {
-      bad_key("mobility.wave_precision", "must be auto, single or double");
-    }
-    try {
-      c.mobility.device = compute_device_from_string(s.string("device", "cpu"));
-    } catch (const Error&) {
-      bad_key("mobility.device", "must be cpu or cuda");
-    }
-    c.mobility.viscosity = c.viscosity;
-    c.mobility.geometry = c.geometry;
-    try {
-      c.integrator.sqrt.method = rpy::sqrt_method_from_string(s.string("sqrt_method", "automatic"));
-    } catch (const Error&) {
-      bad_key("mobility.sqrt_method", "must be automatic, lanczos, chebyshev, cholesky, eigen or split");
-    }
-    c.integrator.sqrt.tolerance = s.in("sqrt_tolerance", ranges::kSolverTolerance, c.mobility.tolerance);
-    c.integrator.sqrt.max_iterations = s.int_count("sqrt_max_iterations", ranges::kSqrtIterations);
-    try {
-      c.integrator.sqrt.preconditioner =
-          rpy::sqrt_preconditioner_from_string(s.string("sqrt_preconditioner", "automatic"));
-    } catch (const Error&) {
-      bad_key("mobility.sqrt_preconditioner", "must be automatic, block or none");
-    }
-    c.integrator.sqrt.preconditioner_block = s.int_count("sqrt_preconditioner_block", ranges::kPreconditionerBlock);
-    if (c.integrator.sqrt.preconditioner == rpy::SqrtPreconditioner::block &&
-        c.integrator.sqrt.method != rpy::SqrtMethod::lanczos &&
-        c.integrator.sqrt.method != rpy::SqrtMethod::chebyshev &&
-        c.integrator.sqrt.method != rpy::SqrtMethod::automatic)
-      bad_key("mobility.sqrt_preconditioner", "block needs sqrt_method lanczos, chebyshev or automatic");
-    s.finish();
+  try {
+    c.mobility.device = rpy::compute_device_from_string(s.string("device", "cpu"));
+  } catch (const Error&) {
+    bad_key("mobility.device", "must be cpu or cuda");
   }
-  {  // [neighbours]
-    Section s(sub_table(root, "neighbours"), "neighbours");
-    c.neighbours.skin = s.non_negative("skin", 0.0);
-    c.neighbours.fixed_interval = s.int_count("fixed_interval", {0, ranges::kI64Max});
-    s.finish();
+  c.mobility.viscosity = c.viscosity;
+  c.mobility.geometry = c.geometry;
+  try {
+    c.integrator.sqrt.method = rpy::sqrt_method_from_string(s.string("sqrt_method", "automatic"));
+  } catch (const Error&) {
+    bad_key("mobility.sqrt_method", "must be automatic, lanczos, chebyshev, cholesky, eigen or split");
   }
-  {  // [output]
-    Section s(sub_table(root, "output"), "output");
-    c.output.dir = s.string("dir", "bd-out");
-    c.output.trajectory = s.string("trajectory", "trajectory.xyz");
-    c.output.log = s.string("log", "log.csv");
-    c.output.checkpoint = s.string("checkpoint", "checkpoint.bin");
-    c.output.trajectory_every = s.count("trajectory_every", 100);
-    c.output.log_every = s.count("log_every", 10);
-    c.output.checkpoint_every = s.count("checkpoint_every", 1000);
-    for (const auto* name : {&c.output.trajectory, &c.output.log, &c.output.checkpoint})
-      if (name->empty() || name->find('/') != std::string::npos)
-        bad_key("output", "file names must be plain names inside output.dir");
-    require_distinct_output_names(c.output);
-    s.finish();
+  c.integrator.sqrt.tolerance = s.in("sqrt_tolerance", ranges::kSolverTolerance, c.mobility.tolerance);
+  c.integrator.sqrt.max_iterations = s.int_count("sqrt_max_iterations", ranges::kSqrtIterations);
+  try {
+    c.integrator.sqrt.preconditioner =
+        rpy::sqrt_preconditioner_from_string(s.string("sqrt_preconditioner", "automatic"));
+  } catch (const Error&) {
+    bad_key("mobility.sqrt_preconditioner", "must be automatic, block or none");
   }
+  c.integrator.sqrt.preconditioner_block = s.int_count("sqrt_preconditioner_block", ranges::kPreconditionerBlock);
+  if (c.integrator.sqrt.preconditioner == rpy::SqrtPreconditioner::block &&
+      c.integrator.sqrt.method != rpy::SqrtMethod::lanczos && c.integrator.sqrt.method != rpy::SqrtMethod::chebyshev &&
+      c.integrator.sqrt.method != rpy::SqrtMethod::automatic)
+    bad_key("mobility.sqrt_preconditioner", "block needs sqrt_method lanczos, chebyshev or automatic");
+  s.finish();
+}
+
+/// [neighbours]: list skin and rebuild policy.
+void parse_neighbours(const toml::table& root, RunConfig& c) {
+  Section s(sub_table(root, "neighbours"), "neighbours");
+  c.neighbours.skin = s.non_negative("skin", 0.0);
+  c.neighbours.fixed_interval = s.int_count("fixed_interval", {0, ranges::kI64Max});
+  s.finish();
+}
+
+/// [output]: directory, file names and intervals.
+void parse_output(const toml::table& root, RunConfig& c) {
+  Section s(sub_table(root, "output"), "output");
+  c.output.dir = s.string("dir", "bd-out");
+  c.output.trajectory = s.string("trajectory", "trajectory.xyz");
+  c.output.log = s.string("log", "log.csv");
+  c.output.checkpoint = s.string("checkpoint", "checkpoint.bin");
+  c.output.trajectory_every = s.count("trajectory_every", 100);
+  c.output.log_every = s.count("log_every", 10);
+  c.output.checkpoint_every = s.count("checkpoint_every", 1000);
+  for (const auto* name : {&c.output.trajectory, &c.output.log, &c.output.checkpoint})
+    if (name->empty() || name->find('/') != std::string::npos)
+      bad_key("output", "file names must be plain names inside output.dir");
+  require_distinct_output_names(c.output);
+  s.finish();
+}
+
+}  // namespace
+
+RunConfig parse_config(std::string_view text, const std::string& source) {
+  const toml::table root = parse_toml(text, source);
+  require_known_sections(root);
+  RunConfig c;
+  c.text = std::string(text);
+  c.source = source;
+  parse_system(root, c);
+  parse_types(root, c);
+  parse_particles(root, c);
+  parse_pairs(root, c);
+  parse_bonds(root, c);
+  parse_external(root, c);
+  parse_integrator(root, c);
+  parse_mobility(root, c);
+  parse_neighbours(root, c);
+  parse_output(root, c);
   return c;
 }
 

@@ -132,6 +132,39 @@ void record_bad(std::atomic<std::size_t>& bad, std::size_t i) {
 }
 }  // namespace
 
+void ForceField::fail_overlap(std::size_t i, std::span<const double> x, std::span<const std::uint32_t> ptype,
+                              const NeighbourList& list, std::uint64_t step,
+                              std::span<const std::uint32_t> groups) const {
+  const std::size_t nt = types_.size();
+  for (std::uint32_t j : list.neighbours(i)) {
+    const PairTerm& p = pairs_[ptype[i] * nt + ptype[j]];
+    if (!p.active || (!groups.empty() && groups[i] == groups[j])) continue;
+    double d[3];
+    list.separation(&x[3 * i], &x[3 * j], d);
+    const double r = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    if (r <= p.min_distance || r == 0.0) {
+      fail(ErrorCode::invalid_input, "forces",
+           "particles " + std::to_string(i) + " and " + std::to_string(j) + " overlap at step " + std::to_string(step) +
+               ": distance " + fmt_double(r) + " <= " + fmt_double(p.min_distance) + " allowed by the hard '" +
+               to_string(p.kind) + "' potential (sigma " + fmt_double(p.sigma) + ")");
+    }
+  }
+}
+
+void ForceField::fail_bond(std::size_t k, std::span<const double> x, const NeighbourList& list,
+                           std::uint64_t step) const {
+  const Bond& b = bonds_[k];
+  double d[3];
+  list.separation(&x[3 * b.i], &x[3 * b.j], d);
+  const double r = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+  fail(ErrorCode::invalid_input, "forces",
+       "bond " + std::to_string(k) + " between particles " + std::to_string(b.i) + " and " + std::to_string(b.j) +
+           " at step " + std::to_string(step) +
+           (r == 0.0 ? " joins coincident particles"
+                     : " is stretched to " + fmt_double(r) + " >= FENE maximum extension " +
+                           fmt_double(bond_potentials_[b.type].length)));
+}
+
 double ForceField::compute(std::span<const double> x, std::span<const std::uint32_t> ptype, const NeighbourList& list,
                            std::uint64_t step, std::span<double> forces, std::span<const std::uint32_t> groups) const {
   const std::size_t n = ptype.size();
@@ -189,34 +222,8 @@ double ForceField::compute(std::span<const double> x, std::span<const std::uint3
     for (int c = 0; c < 3; ++c) forces[3 * i + c] = f[c];
     energy += e;
   }
-  if (bad_pair.load() != none) {
-    const std::size_t i = bad_pair.load();
-    for (std::uint32_t j : list.neighbours(i)) {
-      const PairTerm& p = pairs_[ptype[i] * nt + ptype[j]];
-      if (!p.active || (grouped && groups[i] == groups[j])) continue;
-      double d[3];
-      list.separation(&x[3 * i], &x[3 * j], d);
-      const double r = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-      if (r <= p.min_distance || r == 0.0) {
-        fail(ErrorCode::invalid_input, "forces",
-             "particles " + std::to_string(i) + " and " + std::to_string(j) + " overlap at step " +
-                 std::to_string(step) + ": distance " + fmt_double(r) + " <= " + fmt_double(p.min_distance) +
-                 " allowed by the hard '" + to_string(p.kind) + "' potential (sigma " + fmt_double(p.sigma) + ")");
-      }
-    }
-  }
-  if (bad_bond.load() != none) {
-    const Bond& b = bonds_[bad_bond.load()];
-    double d[3];
-    list.separation(&x[3 * b.i], &x[3 * b.j], d);
-    const double r = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-    fail(ErrorCode::invalid_input, "forces",
-         "bond " + std::to_string(bad_bond.load()) + " between particles " + std::to_string(b.i) + " and " +
-             std::to_string(b.j) + " at step " + std::to_string(step) +
-             (r == 0.0 ? " joins coincident particles"
-                       : " is stretched to " + fmt_double(r) + " >= FENE maximum extension " +
-                             fmt_double(bond_potentials_[b.type].length)));
-  }
+  if (bad_pair.load() != none) fail_overlap(bad_pair.load(), x, ptype, list, step, groups);
+  if (bad_bond.load() != none) fail_bond(bad_bond.load(), x, list, step);
   for (const auto& cb : callbacks_) cb(x, step, forces);
   return energy;
 }

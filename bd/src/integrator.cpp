@@ -48,30 +48,9 @@ Integrator::Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceFie
   for (const char* part : {"neighbours", "forces", "plan", "drift", "sqrt", "update"}) totals_.seconds[part] = 0.0;
 }
 
-const StepReport& Integrator::step() {
-  const std::size_t n = size();
-  StepReport rep;
-  StopWatch watch;
-  // 1. Neighbour list, rebuilt only when needed (001 Algorithm 1).
-  rep.neighbour_rebuild = list_.update(x_);
-  totals_.seconds["neighbours"] += watch.seconds();
-  watch.restart();
-  // 2. Forces.
-  rep.potential_energy = forces_.compute(x_, types_, list_, step_, f_);
-  totals_.seconds["forces"] += watch.seconds();
-  watch.restart();
-  // 3. Mobility plan, built once per step.
-  mobility_->set_positions(x_, radii_);
-  totals_.seconds["plan"] += watch.seconds();
-  // 4. u = M F and w = M^{1/2} z (MATH.md §4), z keyed by (seed, step, particle).
+void Integrator::drift_and_noise_products(StepReport& rep, bool fused, bool brownian, double noise) {
   const double dt = options_.dt;
-  const double noise = std::sqrt(2.0 * options_.kT * dt);
-  // PSE: u = M F + (noise / dt) M^{1/2} z in one pass whose wave-space parts share their FFTs
-  // (w = 0 then), unless the drift and Brownian parts are asked for separately.
-  const bool fused = options_.kT > 0.0 && !options_.keep_split_displacements &&
-                     fuses_drift_and_noise(*mobility_, options_.sqrt);
-  const bool brownian = options_.kT > 0.0 && !fused;
-  watch.restart();
+  StopWatch watch;
   if (brownian) rpy::fill_normal(z_, options_.seed, step_);
   const double noise_seconds = watch.seconds();
   const DriftNoiseReport dn =
@@ -83,8 +62,10 @@ const StepReport& Integrator::step() {
   rep.preconditioner_blocks = dn.sqrt.preconditioner_blocks;
   rep.mobility_products = dn.mobility_products;
   rep.shared_first_product = dn.shared_first_product;
-  watch.restart();
-  // 5. dx = M F dt + sqrt(2 kT dt) M^{1/2} z, then the blow-up guard.
+}
+
+void Integrator::checked_displacements(double dt, double noise, bool brownian) {
+  const std::size_t n = size();
   constexpr std::size_t none = std::numeric_limits<std::size_t>::max();
   std::atomic<std::size_t> bad{none};
   const double frac2 = options_.max_displacement * options_.max_displacement;
@@ -113,6 +94,36 @@ const StepReport& Integrator::step() {
         << "); reduce dt or check the forces. State kept at the last good step";
     fail(ErrorCode::numerical_failure, "bd", msg.str());
   }
+}
+
+const StepReport& Integrator::step() {
+  const std::size_t n = size();
+  StepReport rep;
+  StopWatch watch;
+  // 1. Neighbour list, rebuilt only when needed (GPU BD paper, Eurographics 2015, Algorithm 1;
+  //    docs/theory/bd.md).
+  rep.neighbour_rebuild = list_.update(x_);
+  totals_.seconds["neighbours"] += watch.seconds();
+  watch.restart();
+  // 2. Forces.
+  rep.potential_energy = forces_.compute(x_, types_, list_, step_, f_);
+  totals_.seconds["forces"] += watch.seconds();
+  watch.restart();
+  // 3. Mobility plan, built once per step.
+  mobility_->set_positions(x_, radii_);
+  totals_.seconds["plan"] += watch.seconds();
+  // 4. u = M F and w = M^{1/2} z (docs/theory/bd.md), z keyed by (seed, step, particle).
+  const double dt = options_.dt;
+  const double noise = std::sqrt(2.0 * options_.kT * dt);
+  // PSE: u = M F + (noise / dt) M^{1/2} z in one pass whose wave-space parts share their FFTs
+  // (w = 0 then), unless the drift and Brownian parts are asked for separately.
+  const bool fused =
+      options_.kT > 0.0 && !options_.keep_split_displacements && fuses_drift_and_noise(*mobility_, options_.sqrt);
+  const bool brownian = options_.kT > 0.0 && !fused;
+  drift_and_noise_products(rep, fused, brownian, noise);
+  watch.restart();
+  // 5. dx = M F dt + sqrt(2 kT dt) M^{1/2} z, then the blow-up guard.
+  checked_displacements(dt, noise, brownian);
   if (options_.keep_split_displacements) {
     dx_det_.resize(3 * n);
     dx_brown_.resize(3 * n);

@@ -35,7 +35,7 @@ bool NeighbourList::update(std::span<const double> positions) {
     if (options_.fixed_interval > 0) {
       rebuild = steps_since_build_ >= static_cast<std::size_t>(options_.fixed_interval);
     } else {
-      // 001 Algorithm 1, line 15: has any particle moved more than skin/2?
+      // GPU BD paper (Eurographics 2015), Algorithm 1, line 15: has any particle moved more than skin/2?
       const double limit2 = 0.25 * skin_ * skin_;
       const std::size_t n = positions.size() / 3;
       int moved = 0;
@@ -92,126 +92,189 @@ void NeighbourList::build_all_pairs(std::span<const double> x) {
   }
 }
 
-void NeighbourList::build_cells(std::span<const double> x) {
-  const std::size_t n = x.size() / 3;
-  const double rl = list_radius();
-  const double rl2 = rl * rl;
-  // Cell grid: side >= r_L so that neighbours lie in the 27 surrounding cells.
-  std::array<double, 3> lo{}, extent{};
+namespace {
+
+/// The cell grid of a build: cells of side >= r_L, so that a particle's neighbours lie in the 27
+/// cells around its own; `wrap` when the periodic 27-cell stencil is distinct (>= 3 cells a side).
+struct CellGrid {
+  std::array<double, 3> lo{}, extent{}, box{}, inv_box{};
   std::array<long, 3> nc{};
+  bool periodic = false;
+  bool wrap = false;
+
+  [[nodiscard]] std::size_t cells() const { return static_cast<std::size_t>(nc[0] * nc[1] * nc[2]); }
+  [[nodiscard]] std::size_t index(const std::array<long, 3>& k) const {
+    return static_cast<std::size_t>((k[0] * nc[1] + k[1]) * nc[2] + k[2]);
+  }
+  /// Coordinate c of x, wrapped into [0, L) in a periodic box.
+  [[nodiscard]] double wrapped(double v, int c) const { return periodic ? v - box[c] * std::floor(v * inv_box[c]) : v; }
+  [[nodiscard]] long cell_coord(double v, int c) const {
+    const double u = wrapped(v - lo[c], c);
+    const long k = static_cast<long>(u / extent[c] * static_cast<double>(nc[c]));
+    return std::clamp(k, 0L, nc[c] - 1);
+  }
+};
+
+CellGrid cell_grid(std::span<const double> x, double rl, bool periodic, const std::array<double, 3>& box,
+                   const std::array<double, 3>& inv_box) {
+  const std::size_t n = x.size() / 3;
+  CellGrid g;
+  g.periodic = periodic;
+  g.box = box;
+  g.inv_box = inv_box;
   for (int c = 0; c < 3; ++c) {
-    if (periodic_) {
-      lo[c] = 0.0;
-      extent[c] = box_[c];
+    if (periodic) {
+      g.lo[c] = 0.0;
+      g.extent[c] = box[c];
     } else {
       double mn = x[c], mx = x[c];
       for (std::size_t i = 0; i < n; ++i) {
         mn = std::min(mn, x[3 * i + c]);
         mx = std::max(mx, x[3 * i + c]);
       }
-      lo[c] = mn;
-      extent[c] = std::max(mx - mn, 1e-300);
+      g.lo[c] = mn;
+      g.extent[c] = std::max(mx - mn, 1e-300);
     }
-    nc[c] = std::max(1L, static_cast<long>(std::floor(extent[c] / rl)));
+    g.nc[c] = std::max(1L, static_cast<long>(std::floor(g.extent[c] / rl)));
   }
   // Keep the grid at most ~ 2N cells (sparse open clouds).
-  while (static_cast<double>(nc[0]) * nc[1] * nc[2] > 2.0 * static_cast<double>(n) + 27.0) {
-    for (auto& v : nc) v = std::max(1L, v / 2);
+  while (static_cast<double>(g.nc[0]) * g.nc[1] * g.nc[2] > 2.0 * static_cast<double>(n) + 27.0) {
+    for (auto& v : g.nc) v = std::max(1L, v / 2);
   }
-  const bool wrap = periodic_ && nc[0] >= 3 && nc[1] >= 3 && nc[2] >= 3;
-  if (periodic_ && !wrap) {  // too few cells for the 27-cell stencil to be distinct
-    build_all_pairs(x);
-    return;
-  }
-  const std::size_t ncell = static_cast<std::size_t>(nc[0] * nc[1] * nc[2]);
-  auto cell_coord = [&](std::size_t i, int c) {
-    double v = x[3 * i + c] - lo[c];
-    if (periodic_) v -= box_[c] * std::floor(v * inv_box_[c]);
-    long k = static_cast<long>(v / extent[c] * static_cast<double>(nc[c]));
-    return std::clamp(k, 0L, nc[c] - 1);
-  };
-  std::vector<std::array<long, 3>> coord(n);
-  std::vector<std::size_t> start(ncell + 1, 0), order(n);
+  g.wrap = periodic && g.nc[0] >= 3 && g.nc[1] >= 3 && g.nc[2] >= 3;
+  return g;
+}
+
+/// Particles sorted into cells (counting sort): coord[i] is particle i's cell, the particles of
+/// cell k are order[start[k] .. start[k + 1]).
+struct CellSort {
+  std::vector<std::array<long, 3>> coord;
+  std::vector<std::size_t> start, order;
+};
+
+CellSort sort_into_cells(std::span<const double> x, const CellGrid& g) {
+  const std::size_t n = x.size() / 3;
+  CellSort s{std::vector<std::array<long, 3>>(n), std::vector<std::size_t>(g.cells() + 1, 0),
+             std::vector<std::size_t>(n)};
   for (std::size_t i = 0; i < n; ++i) {
-    coord[i] = {cell_coord(i, 0), cell_coord(i, 1), cell_coord(i, 2)};
-    ++start[static_cast<std::size_t>((coord[i][0] * nc[1] + coord[i][1]) * nc[2] + coord[i][2]) + 1];
+    s.coord[i] = {g.cell_coord(x[3 * i], 0), g.cell_coord(x[3 * i + 1], 1), g.cell_coord(x[3 * i + 2], 2)};
+    ++s.start[g.index(s.coord[i]) + 1];
   }
-  for (std::size_t k = 0; k < ncell; ++k) start[k + 1] += start[k];
-  {
-    std::vector<std::size_t> fill(start.begin(), start.end() - 1);
-    for (std::size_t i = 0; i < n; ++i)
-      order[fill[static_cast<std::size_t>((coord[i][0] * nc[1] + coord[i][1]) * nc[2] + coord[i][2])]++] = i;
-  }
-  // The rows in cell order, in chunks of consecutive slots (each chunk one growing buffer: no
-  // allocation per particle), reading the candidates' positions from a copy in cell order (a
-  // row's candidates then lie in a few contiguous runs; read in input order, the cache misses
-  // dominated the build). In a periodic box the copy is wrapped into [0, L) and a neighbour
-  // cell across a face carries its image shift, so no rounding per candidate. Each particle's
-  // neighbours are then sorted, and the chunks concatenated in particle order.
+  for (std::size_t k = 0; k < g.cells(); ++k) s.start[k + 1] += s.start[k];
+  std::vector<std::size_t> fill(s.start.begin(), s.start.end() - 1);
+  for (std::size_t i = 0; i < n; ++i) s.order[fill[g.index(s.coord[i])]++] = i;
+  return s;
+}
+
+/// The positions in cell order (wrapped into [0, L) in a periodic box).
+std::vector<double> positions_in_cell_order(std::span<const double> x, const CellGrid& g,
+                                            const std::vector<std::size_t>& order) {
+  const std::size_t n = order.size();
   std::vector<double> xs(3 * n);
 #pragma omp parallel for schedule(static) if (n >= 4096)
-  for (std::size_t s = 0; s < n; ++s) {
-    for (int c = 0; c < 3; ++c) {
-      double v = x[3 * order[s] + c];
-      if (periodic_) v -= box_[c] * std::floor(v * inv_box_[c]);
-      xs[3 * s + c] = v;
+  for (std::size_t s = 0; s < n; ++s)
+    for (int c = 0; c < 3; ++c) xs[3 * s + c] = g.wrapped(x[3 * order[s] + c], c);
+  return xs;
+}
+
+/// Appends to `buf` the neighbours (input indices, unsorted) of the particle in `slot`: the
+/// candidates of the 27 cells around its cell within r_L. A neighbour cell across a periodic face
+/// carries its image shift, so no rounding per candidate.
+inline void append_row(std::vector<std::uint32_t>& buf, std::size_t slot, const CellGrid& g, const CellSort& cs,
+                       const std::vector<double>& xs, double rl2) {
+  const std::array<long, 3>& home = cs.coord[cs.order[slot]];
+  const double* xi = &xs[3 * slot];
+  for (long dx = -1; dx <= 1; ++dx) {
+    for (long dy = -1; dy <= 1; ++dy) {
+      for (long dz = -1; dz <= 1; ++dz) {
+        std::array<long, 3> k{home[0] + dx, home[1] + dy, home[2] + dz};
+        std::array<double, 3> shift{0.0, 0.0, 0.0};  // added to xi - xj: the image across a face
+        bool skip = false;
+        for (int c = 0; c < 3; ++c) {
+          if (g.wrap) {  // k in [-1, nc]
+            if (k[c] < 0) {
+              k[c] += g.nc[c];
+              shift[c] = g.box[c];
+            } else if (k[c] >= g.nc[c]) {
+              k[c] -= g.nc[c];
+              shift[c] = -g.box[c];
+            }
+          } else if (k[c] < 0 || k[c] >= g.nc[c]) {
+            skip = true;
+          }
+        }
+        if (skip) continue;
+        const std::size_t cell = g.index(k);
+        const double xi0 = xi[0] + shift[0], xi1 = xi[1] + shift[1], xi2 = xi[2] + shift[2];
+        for (std::size_t t = cs.start[cell]; t < cs.start[cell + 1]; ++t) {
+          const double d0 = xi0 - xs[3 * t], d1 = xi1 - xs[3 * t + 1], d2 = xi2 - xs[3 * t + 2];
+          if (d0 * d0 + d1 * d1 + d2 * d2 < rl2 && t != slot) buf.push_back(static_cast<std::uint32_t>(cs.order[t]));
+        }
+      }
     }
   }
-  constexpr std::size_t kChunk = 2048;
+}
+
+constexpr std::size_t kChunk = 2048;  // slots per row buffer
+
+/// The rows in cell order, in chunks of consecutive slots (each chunk one growing buffer: no
+/// allocation per particle), each row sorted; count[i] = the length of particle i's row.
+std::vector<std::vector<std::uint32_t>> rows_by_chunk(const CellGrid& g, const CellSort& cs,
+                                                      const std::vector<double>& xs, double rl2,
+                                                      std::vector<std::uint32_t>& count) {
+  const std::size_t n = cs.order.size();
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
   std::vector<std::vector<std::uint32_t>> chunk_lists(chunks);
-  std::vector<std::uint32_t> count(n);
 #pragma omp parallel for schedule(dynamic, 1) if (n >= 1024)
   for (std::size_t ch = 0; ch < chunks; ++ch) {
     auto& buf = chunk_lists[ch];
     for (std::size_t slot = ch * kChunk; slot < std::min(n, (ch + 1) * kChunk); ++slot) {
-      const std::size_t i = order[slot];
-      const double* xi = &xs[3 * slot];
       const std::size_t before = buf.size();
-      for (long dx = -1; dx <= 1; ++dx) {
-        for (long dy = -1; dy <= 1; ++dy) {
-          for (long dz = -1; dz <= 1; ++dz) {
-            std::array<long, 3> k{coord[i][0] + dx, coord[i][1] + dy, coord[i][2] + dz};
-            std::array<double, 3> shift{0.0, 0.0, 0.0};  // added to xi - xj: the image across a face
-            bool skip = false;
-            for (int c = 0; c < 3; ++c) {
-              if (wrap) {  // k in [-1, nc]
-                if (k[c] < 0) {
-                  k[c] += nc[c];
-                  shift[c] = box_[c];
-                } else if (k[c] >= nc[c]) {
-                  k[c] -= nc[c];
-                  shift[c] = -box_[c];
-                }
-              } else if (k[c] < 0 || k[c] >= nc[c]) {
-                skip = true;
-              }
-            }
-            if (skip) continue;
-            const auto cell = static_cast<std::size_t>((k[0] * nc[1] + k[1]) * nc[2] + k[2]);
-            const double xi0 = xi[0] + shift[0], xi1 = xi[1] + shift[1], xi2 = xi[2] + shift[2];
-            for (std::size_t t = start[cell]; t < start[cell + 1]; ++t) {
-              const double d0 = xi0 - xs[3 * t], d1 = xi1 - xs[3 * t + 1], d2 = xi2 - xs[3 * t + 2];
-              if (d0 * d0 + d1 * d1 + d2 * d2 < rl2 && t != slot) buf.push_back(static_cast<std::uint32_t>(order[t]));
-            }
-          }
-        }
-      }
+      append_row(buf, slot, g, cs, xs, rl2);
       std::sort(buf.begin() + static_cast<std::ptrdiff_t>(before), buf.end());
-      count[i] = static_cast<std::uint32_t>(buf.size() - before);
+      count[cs.order[slot]] = static_cast<std::uint32_t>(buf.size() - before);
     }
   }
-  for (std::size_t i = 0; i < n; ++i) offsets_[i + 1] = offsets_[i] + count[i];
-  indices_.resize(offsets_[n]);
+  return chunk_lists;
+}
+
+/// Concatenates the chunks' rows in particle order (offsets: prefix sums of count).
+void concatenate_rows(const std::vector<std::vector<std::uint32_t>>& chunk_lists, const std::vector<std::size_t>& order,
+                      const std::vector<std::uint32_t>& count, std::vector<std::size_t>& offsets,
+                      std::vector<std::uint32_t>& indices) {
+  const std::size_t n = order.size();
+  for (std::size_t i = 0; i < n; ++i) offsets[i + 1] = offsets[i] + count[i];
+  indices.resize(offsets[n]);
+  const std::size_t chunks = chunk_lists.size();
 #pragma omp parallel for schedule(dynamic, 1) if (n >= 1024)
   for (std::size_t ch = 0; ch < chunks; ++ch) {
     const std::uint32_t* from = chunk_lists[ch].data();
     for (std::size_t slot = ch * kChunk; slot < std::min(n, (ch + 1) * kChunk); ++slot) {
       const std::size_t i = order[slot];
-      std::copy(from, from + count[i], indices_.begin() + static_cast<std::ptrdiff_t>(offsets_[i]));
+      std::copy(from, from + count[i], indices.begin() + static_cast<std::ptrdiff_t>(offsets[i]));
       from += count[i];
     }
   }
+}
+
+}  // namespace
+
+// Cell-list build: sort the particles into cells of side >= r_L, then each row from the 27
+// cells around a particle's own, reading the candidates' positions from a copy in cell order
+// (a row's candidates then lie in a few contiguous runs; read in input order, the cache misses
+// dominated the build). Rows are built in cell order and concatenated in particle order.
+void NeighbourList::build_cells(std::span<const double> x) {
+  const double rl = list_radius();
+  const CellGrid grid = cell_grid(x, rl, periodic_, box_, inv_box_);
+  if (periodic_ && !grid.wrap) {  // too few cells for the 27-cell stencil to be distinct
+    build_all_pairs(x);
+    return;
+  }
+  const CellSort cells = sort_into_cells(x, grid);
+  const std::vector<double> xs = positions_in_cell_order(x, grid, cells.order);
+  std::vector<std::uint32_t> count(cells.order.size());
+  const auto chunk_lists = rows_by_chunk(grid, cells, xs, rl * rl, count);
+  concatenate_rows(chunk_lists, cells.order, count, offsets_, indices_);
 }
 
 }  // namespace rpyfmm::bd

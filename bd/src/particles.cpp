@@ -217,117 +217,138 @@ InitialState read_particle_file(const std::filesystem::path& path, const ForceFi
   return s;
 }
 
-InitialState make_particles(const RunConfig& c, const ForceField& ff) {
+namespace {
+
+/// A uniform point in the periodic box L (three draws, x first).
+std::array<double, 3> in_box(std::mt19937_64& gen, const std::array<double, 3>& L) {
+  return {uniform(gen) * L[0], uniform(gen) * L[1], uniform(gen) * L[2]};
+}
+
+/// Radius of the ball that `volume` fills to volume fraction phi: volume / (4/3 pi R^3) = phi.
+double ball_radius(double volume, double phi) {
+  return std::cbrt(volume / phi * 3.0 / (4.0 * std::numbers::pi));
+}
+
+/// source = "random": uniform in the box, or in a spherical cloud of volume fraction phi (open).
+InitialState random_particles(const RunConfig& c, const ForceField& ff, std::mt19937_64& gen) {
   const ParticleSpec& p = c.particles;
-  std::mt19937_64 gen(p.seed);
+  const bool periodic = c.geometry.is_periodic();
   InitialState s;
+  s.types = assign_types(c, ff, p.count);
+  const double R = periodic ? 0.0 : ball_radius(mean_volume(ff, s.types), p.volume_fraction);
+  if (periodic) {
+    const double phi = mean_volume(ff, s.types) / c.geometry.volume();
+    if (phi > 0.4)
+      fail(ErrorCode::invalid_argument, "config",
+           "key 'particles.count': " + std::to_string(p.count) + " particles fill " + std::to_string(phi) +
+               " of the box (max 0.4 for random insertion)");
+  }
+  s.positions = place(
+      c, ff, s.types,
+      [&](std::size_t, const std::vector<double>&) {
+        return periodic ? in_box(gen, c.geometry.box()) : in_ball(gen, R);
+      },
+      "particles.volume_fraction");
+  return s;
+}
+
+/// source = "lattice": a cubic lattice filling the box, or of volume fraction phi (open).
+InitialState lattice_particles(const RunConfig& c, const ForceField& ff) {
+  const ParticleSpec& p = c.particles;
   const bool periodic = c.geometry.is_periodic();
   const auto& L = c.geometry.box();
-  switch (p.source) {
-    case ParticleSpec::Source::file: {
-      s = read_particle_file(p.file, ff);
-      break;
-    }
-    case ParticleSpec::Source::random: {
-      s.types = assign_types(c, ff, p.count);
-      // Open: a spherical cloud of radius R with N v / (4/3 pi R^3) = phi.
-      const double R =
-          periodic ? 0.0 : std::cbrt(mean_volume(ff, s.types) / p.volume_fraction * 3.0 / (4.0 * std::numbers::pi));
-      if (periodic) {
-        const double phi = mean_volume(ff, s.types) / c.geometry.volume();
-        if (phi > 0.4)
-          fail(ErrorCode::invalid_argument, "config",
-               "key 'particles.count': " + std::to_string(p.count) + " particles fill " + std::to_string(phi) +
-                   " of the box (max 0.4 for random insertion)");
-      }
-      s.positions = place(
-          c, ff, s.types,
-          [&](std::size_t, const std::vector<double>&) {
-            if (periodic) return std::array<double, 3>{uniform(gen) * L[0], uniform(gen) * L[1], uniform(gen) * L[2]};
-            return in_ball(gen, R);
-          },
-          "particles.volume_fraction");
-      break;
-    }
-    case ParticleSpec::Source::lattice: {
-      s.types = assign_types(c, ff, p.count);
-      const auto side = static_cast<std::size_t>(std::ceil(std::cbrt(static_cast<double>(p.count)) - 1e-9));
-      std::array<double, 3> h{};
-      for (int d = 0; d < 3; ++d)
-        h[d] = periodic ? L[d] / static_cast<double>(side)
-                        : std::cbrt(mean_volume(ff, s.types) / static_cast<double>(p.count) / p.volume_fraction);
-      const double amax = max_radius(ff);
-      if (*std::min_element(h.begin(), h.end()) < 2 * amax * kGap)
-        fail(ErrorCode::invalid_argument, "config",
-             "key 'particles.count': lattice spacing " + std::to_string(h[0]) + " < 2 a (particles would overlap)");
-      for (std::size_t i = 0; i < p.count; ++i) {
-        const std::size_t ix = i % side, iy = (i / side) % side, iz = i / (side * side);
-        s.positions.insert(s.positions.end(),
-                           {(static_cast<double>(ix) + 0.5) * h[0], (static_cast<double>(iy) + 0.5) * h[1],
-                            (static_cast<double>(iz) + 0.5) * h[2]});
-      }
-      break;
-    }
-    case ParticleSpec::Source::chains: {
-      const std::size_t n = p.chains * p.beads;
-      s.types = assign_types(c, ff, n);
-      const double a = max_radius(ff);
-      const double b = p.bond_length > 0 ? p.bond_length : 2.1 * a;
-      if (b < 2 * a * kGap)
-        fail(ErrorCode::invalid_argument, "config",
-             "key 'particles.bond_length' must be >= 2.04 a (beads would overlap)");
-      const double R =
-          periodic ? 0.0 : std::cbrt(mean_volume(ff, s.types) / p.volume_fraction * 3.0 / (4.0 * std::numbers::pi));
-      s.positions = place(
-          c, ff, s.types,
-          [&](std::size_t i, const std::vector<double>& placed) {
-            std::array<double, 3> q{};
-            if (i % p.beads == 0) {
-              q = periodic ? std::array<double, 3>{uniform(gen) * L[0], uniform(gen) * L[1], uniform(gen) * L[2]}
-                           : in_ball(gen, R);
-            } else {  // self-avoiding random walk step of length b
-              const double u = 2 * uniform(gen) - 1, phi = 2 * std::numbers::pi * uniform(gen);
-              const double sxy = std::sqrt(1 - u * u);
-              const double* last = &placed[3 * (i - 1)];
-              q = {last[0] + b * sxy * std::cos(phi), last[1] + b * sxy * std::sin(phi), last[2] + b * u};
-            }
-            return q;
-          },
-          "particles.volume_fraction");
-      break;
-    }
-    case ParticleSpec::Source::clusters: {
-      const std::size_t n = p.clusters * p.cluster_size;
-      s.types = assign_types(c, ff, n);
-      const double v = mean_volume(ff, s.types) / static_cast<double>(n);
-      const double rc = std::cbrt(static_cast<double>(p.cluster_size) * v / p.cluster_volume_fraction * 3.0 /
-                                  (4.0 * std::numbers::pi));
-      const double R =
-          periodic ? 0.0 : std::cbrt(static_cast<double>(n) * v / p.volume_fraction * 3.0 / (4.0 * std::numbers::pi));
-      std::vector<std::array<double, 3>> centres(p.clusters);
-      for (auto& ctr : centres)
-        ctr = periodic ? std::array<double, 3>{uniform(gen) * L[0], uniform(gen) * L[1], uniform(gen) * L[2]}
-                       : in_ball(gen, std::max(0.0, R - rc));
-      s.positions = place(
-          c, ff, s.types,
-          [&](std::size_t i, const std::vector<double>&) {
-            auto q = in_ball(gen, rc);
-            const auto& ctr = centres[i / p.cluster_size];
-            for (int d = 0; d < 3; ++d) q[d] += ctr[d];
-            return q;
-          },
-          "particles.cluster_volume_fraction");
-      break;
-    }
-  }
-  if (p.source == ParticleSpec::Source::chains) {
-    // Bonds between consecutive beads of each chain.
-    for (std::size_t ch = 0; ch < p.chains; ++ch)
-      for (std::size_t k = 1; k < p.beads; ++k)
-        s.bonds.push_back(
-            {static_cast<std::uint32_t>(ch * p.beads + k - 1), static_cast<std::uint32_t>(ch * p.beads + k), 0});
+  InitialState s;
+  s.types = assign_types(c, ff, p.count);
+  const auto side = static_cast<std::size_t>(std::ceil(std::cbrt(static_cast<double>(p.count)) - 1e-9));
+  std::array<double, 3> h{};
+  for (int d = 0; d < 3; ++d)
+    h[d] = periodic ? L[d] / static_cast<double>(side)
+                    : std::cbrt(mean_volume(ff, s.types) / static_cast<double>(p.count) / p.volume_fraction);
+  const double amax = max_radius(ff);
+  if (*std::min_element(h.begin(), h.end()) < 2 * amax * kGap)
+    fail(ErrorCode::invalid_argument, "config",
+         "key 'particles.count': lattice spacing " + std::to_string(h[0]) + " < 2 a (particles would overlap)");
+  for (std::size_t i = 0; i < p.count; ++i) {
+    const std::size_t ix = i % side, iy = (i / side) % side, iz = i / (side * side);
+    s.positions.insert(s.positions.end(),
+                       {(static_cast<double>(ix) + 0.5) * h[0], (static_cast<double>(iy) + 0.5) * h[1],
+                        (static_cast<double>(iz) + 0.5) * h[2]});
   }
   return s;
+}
+
+/// source = "chains": self-avoiding random walks of bond length b from random starts, bonded
+/// bead to bead.
+InitialState chain_particles(const RunConfig& c, const ForceField& ff, std::mt19937_64& gen) {
+  const ParticleSpec& p = c.particles;
+  const bool periodic = c.geometry.is_periodic();
+  InitialState s;
+  s.types = assign_types(c, ff, p.chains * p.beads);
+  const double a = max_radius(ff);
+  const double b = p.bond_length > 0 ? p.bond_length : 2.1 * a;
+  if (b < 2 * a * kGap)
+    fail(ErrorCode::invalid_argument, "config", "key 'particles.bond_length' must be >= 2.04 a (beads would overlap)");
+  const double R = periodic ? 0.0 : ball_radius(mean_volume(ff, s.types), p.volume_fraction);
+  s.positions = place(
+      c, ff, s.types,
+      [&](std::size_t i, const std::vector<double>& placed) {
+        if (i % p.beads == 0) return periodic ? in_box(gen, c.geometry.box()) : in_ball(gen, R);
+        // A self-avoiding random walk step of length b.
+        const double u = 2 * uniform(gen) - 1, phi = 2 * std::numbers::pi * uniform(gen);
+        const double sxy = std::sqrt(1 - u * u);
+        const double* last = &placed[3 * (i - 1)];
+        return std::array<double, 3>{last[0] + b * sxy * std::cos(phi), last[1] + b * sxy * std::sin(phi),
+                                     last[2] + b * u};
+      },
+      "particles.volume_fraction");
+  for (std::size_t ch = 0; ch < p.chains; ++ch)  // bonds between consecutive beads of each chain
+    for (std::size_t k = 1; k < p.beads; ++k)
+      s.bonds.push_back(
+          {static_cast<std::uint32_t>(ch * p.beads + k - 1), static_cast<std::uint32_t>(ch * p.beads + k), 0});
+  return s;
+}
+
+/// source = "clusters": balls of cluster_volume_fraction around random centres.
+InitialState cluster_particles(const RunConfig& c, const ForceField& ff, std::mt19937_64& gen) {
+  const ParticleSpec& p = c.particles;
+  const bool periodic = c.geometry.is_periodic();
+  const std::size_t n = p.clusters * p.cluster_size;
+  InitialState s;
+  s.types = assign_types(c, ff, n);
+  const double v = mean_volume(ff, s.types) / static_cast<double>(n);
+  const double rc = ball_radius(static_cast<double>(p.cluster_size) * v, p.cluster_volume_fraction);
+  const double R = periodic ? 0.0 : ball_radius(static_cast<double>(n) * v, p.volume_fraction);
+  std::vector<std::array<double, 3>> centres(p.clusters);
+  for (auto& ctr : centres) ctr = periodic ? in_box(gen, c.geometry.box()) : in_ball(gen, std::max(0.0, R - rc));
+  s.positions = place(
+      c, ff, s.types,
+      [&](std::size_t i, const std::vector<double>&) {
+        auto q = in_ball(gen, rc);
+        const auto& ctr = centres[i / p.cluster_size];
+        for (int d = 0; d < 3; ++d) q[d] += ctr[d];
+        return q;
+      },
+      "particles.cluster_volume_fraction");
+  return s;
+}
+
+}  // namespace
+
+InitialState make_particles(const RunConfig& c, const ForceField& ff) {
+  std::mt19937_64 gen(c.particles.seed);
+  switch (c.particles.source) {
+    case ParticleSpec::Source::file:
+      return read_particle_file(c.particles.file, ff);
+    case ParticleSpec::Source::random:
+      return random_particles(c, ff, gen);
+    case ParticleSpec::Source::lattice:
+      return lattice_particles(c, ff);
+    case ParticleSpec::Source::chains:
+      return chain_particles(c, ff, gen);
+    case ParticleSpec::Source::clusters:
+      return cluster_particles(c, ff, gen);
+  }
+  return {};
 }
 
 }  // namespace rpyfmm::bd

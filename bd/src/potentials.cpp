@@ -74,7 +74,8 @@ PairTerm resolve_pair(const PairPotential& p, double ai, double aj, double psi_i
       t.hamaker = p.hamaker;
       t.kappa = p.kappa;
       const double sum2 = psi_i * psi_i + psi_j * psi_j;
-      // 001 eq. 11: pi eps a_i a_j / (a_i + a_j) (Psi_i^2 + Psi_j^2), ratio 2 Psi_i Psi_j / (Psi_i^2 + Psi_j^2)
+      // GPU BD paper eq. 11: pi eps a_i a_j / (a_i + a_j) (Psi_i^2 + Psi_j^2),
+      // ratio 2 Psi_i Psi_j / (Psi_i^2 + Psi_j^2)
       t.el_prefactor = std::numbers::pi * p.permittivity * ai * aj / (ai + aj) * sum2;
       t.el_ratio = sum2 > 0.0 ? 2.0 * psi_i * psi_j / sum2 : 0.0;
       break;
@@ -88,7 +89,7 @@ PairTerm resolve_pair(const PairPotential& p, double ai, double aj, double psi_i
 
 EnergyForce evaluate_pair(const PairTerm& t, double r) {
   switch (t.kind) {
-    case PairKind::lj36_18: {  // 001 eq. 8
+    case PairKind::lj36_18: {  // GPU BD paper (Eurographics 2015) eq. 8
       const double x2 = (t.sigma / r) * (t.sigma / r);
       const double x6 = x2 * x2 * x2;
       const double x18 = x6 * x6 * x6;
@@ -106,7 +107,7 @@ EnergyForce evaluate_pair(const PairTerm& t, double r) {
       return {t.epsilon * u * u, 2.0 * t.epsilon * u / (t.sigma * r)};
     }
     case PairKind::dlvo: {
-      // van der Waals, 001 eq. 10, with s = a_i + a_j, d = a_i - a_j.
+      // van der Waals, GPU BD paper eq. 10, with s = a_i + a_j, d = a_i - a_j.
       const double ai = t.ai, aj = t.aj;
       const double r2 = r * r;
       const double ps = r2 - (ai + aj) * (ai + aj);
@@ -115,7 +116,7 @@ EnergyForce evaluate_pair(const PairTerm& t, double r) {
       const double v_vdw = -t.hamaker / 6.0 * (c / ps + c / pd + std::log(ps / pd));
       const double dv_vdw =
           -t.hamaker / 6.0 * (-2.0 * c * r / (ps * ps) - 2.0 * c * r / (pd * pd) + 2.0 * r / ps - 2.0 * r / pd);
-      // electrostatic, 001 eq. 11, h = r - a_i - a_j, e = exp(-kappa h).
+      // electrostatic, GPU BD paper eq. 11, h = r - a_i - a_j, e = exp(-kappa h).
       const double h = r - ai - aj;
       const double e = std::exp(-t.kappa * h);
       const double one_m_e2 = 1.0 - e * e;

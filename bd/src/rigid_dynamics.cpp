@@ -234,17 +234,11 @@ int RigidBodyDynamics::drift_estimate(std::span<const double> w, std::span<doubl
   return iterations;
 }
 
-const RigidStepReport& RigidBodyDynamics::step() {
-  const std::size_t m = bodies();
-  const double dt = options_.dt, kT = options_.kT;
-  report_ = {};
-  StopWatch watch;
-
-  // Forces and torques at the current state.
+void RigidBodyDynamics::gather_forces_and_torques() {
   std::fill(w_.begin(), w_.end(), 0.0);
   if (forces_) {
     forces_(RigidBodyState{time(), q_, quat_, beads_now_}, w_);
-    for (std::size_t k = 0; k < m; ++k)
+    for (std::size_t k = 0; k < bodies(); ++k)
       for (int c = 0; c < 6; ++c)
         require(std::isfinite(w_[6 * k + c]), ErrorCode::invalid_input, kWhere,
                 "step " + std::to_string(step_) + ": the force function gave a non-finite " +
@@ -256,17 +250,18 @@ const RigidStepReport& RigidBodyDynamics::step() {
         bead_field_->compute(beads_now_, bead_types_, *bead_list_, step_, bead_forces_, bead_body_);
     bead_forces_to_bodies(bead_forces_, w_);
   }
-  totals_.seconds["forces"] += watch.seconds();
+}
 
-  // 1. Velocities with the random slip, at the current configuration.
-  watch.restart();
+void RigidBodyDynamics::solve_velocities() {
+  const double kT = options_.kT;
+  StopWatch watch;
   solver_.set_configuration(beads_now_, radii_, offsets_, q_);
   totals_.seconds["plan"] += watch.seconds();
   rpy::RigidBodyReport solve;
   if (kT > 0.0) {
     watch.restart();
     rpy::fill_normal(z_, options_.seed, step_, 0);
-    solve = solver_.apply_with_noise(w_, std::sqrt(2.0 * kT / dt), z_, y_, options_.sqrt);
+    solve = solver_.apply_with_noise(w_, std::sqrt(2.0 * kT / options_.dt), z_, y_, options_.sqrt);
     report_.sqrt_iterations = solve.sqrt.iterations;
     totals_.seconds["sqrt"] += solve.seconds_sqrt;
     totals_.seconds["solve"] += watch.seconds() - solve.seconds_sqrt;
@@ -276,22 +271,24 @@ const RigidStepReport& RigidBodyDynamics::step() {
     totals_.seconds["solve"] += watch.seconds();
   }
   report_.solve_iterations = solve.iterations;
+}
 
-  // 2. The drift kT d/dQ . N by a random finite difference.
+void RigidBodyDynamics::estimate_drift() {
   std::fill(drift_.begin(), drift_.end(), 0.0);
-  if (kT > 0.0 && options_.drift == RigidDrift::random_finite_difference) {
-    watch.restart();
+  if (options_.kT > 0.0 && options_.drift == RigidDrift::random_finite_difference) {
+    StopWatch watch;
     rpy::fill_normal(rfd_w_, options_.seed, step_, 1);
     report_.drift_iterations = drift_estimate(rfd_w_, drift_);
-    for (double& d : drift_) d *= kT;
+    for (double& d : drift_) d *= options_.kT;
     totals_.seconds["drift"] += watch.seconds();
   }
+}
 
-  // 3. The update, checked before it is committed.
-  watch.restart();
+void RigidBodyDynamics::update_bodies() {
+  const double dt = options_.dt;
   q_work_.assign(q_.begin(), q_.end());
   quat_work_.assign(quat_.begin(), quat_.end());
-  for (std::size_t k = 0; k < m; ++k) {
+  for (std::size_t k = 0; k < bodies(); ++k) {
     double move = 0.0, turn = 0.0, phi[3];
     for (int c = 0; c < 3; ++c) {
       const double dq = dt * (y_[6 * k + c] + drift_[6 * k + c]);
@@ -313,6 +310,17 @@ const RigidStepReport& RigidBodyDynamics::step() {
   q_.swap(q_work_);
   quat_.swap(quat_work_);
   place_beads(q_, quat_, beads_now_);
+}
+
+const RigidStepReport& RigidBodyDynamics::step() {
+  report_ = {};
+  StopWatch watch;
+  gather_forces_and_torques();  // at the current state
+  totals_.seconds["forces"] += watch.seconds();
+  solve_velocities();  // 1. velocities with the random slip, at the current configuration
+  estimate_drift();    // 2. the drift kT d/dQ . N by a random finite difference
+  watch.restart();
+  update_bodies();  // 3. the update, checked before it is committed
   ++step_;
   totals_.seconds["update"] += watch.seconds();
 

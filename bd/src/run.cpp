@@ -1,7 +1,10 @@
 #include "rpyfmm/bd/run.hpp"
 
+#include <array>
 #include <cmath>
 #include <cstdio>
+#include <optional>
+#include <span>
 #include <sstream>
 
 #include "rpyfmm/bd/checkpoint.hpp"
@@ -81,182 +84,235 @@ std::string fmt(const char* f, double v) {
   return buf;
 }
 
-RunSummary execute(const RunConfig& config, Start start, const RunOptions& options) {
-  const std::uint64_t total = options.steps.value_or(config.steps);
-  const OutputSpec& out = config.output;
-  const auto dir = options.out_dir.value_or(out.dir);
+/// Centre of the particles.
+std::array<double, 3> centre_of(std::span<const double> x, std::size_t n) {
+  std::array<double, 3> c{0, 0, 0};
+  for (std::size_t i = 0; i < n; ++i)
+    for (int d = 0; d < 3; ++d) c[d] += x[3 * i + d];
+  for (double& v : c) v /= static_cast<double>(n);
+  return c;
+}
 
-  // Everything that can refuse the run comes before any file or directory is created.
+/// Mean displacement and mean squared displacement from the reference positions.
+std::array<double, 2> displacement_moments(std::span<const double> x, const std::vector<double>& reference,
+                                           std::size_t n) {
+  double md = 0, msd = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    double d2 = 0;
+    for (int c = 0; c < 3; ++c) d2 += std::pow(x[3 * i + c] - reference[3 * i + c], 2);
+    md += std::sqrt(d2);
+    msd += d2;
+  }
+  return {md / static_cast<double>(n), msd / static_cast<double>(n)};
+}
+
+ForceField run_force_field(const RunConfig& config, const std::vector<Bond>& bonds) {
   ForceField forces = make_force_field(config);
-  forces.add_bonds(start.bonds);
-  const std::size_t n = start.types.size();
-  Integrator bd(make_mobility(config.mobility, n), forces, config.integrator, start.positions, start.types,
-                config.neighbours, start.step);
+  forces.add_bonds(bonds);
+  return forces;
+}
 
-  RunSummary sum;
-  sum.particles = n;
-  sum.mobility = bd.mobility().name();
-  sum.first_step = start.step;
-  sum.out_dir = dir;
-  sum.trajectory = dir / out.trajectory;
-  sum.log = dir / out.log;
-  sum.checkpoint = dir / out.checkpoint;
-  check_run_files(config, sum);
+/// One run from `start`: the integrator, its output files and the statistics of the log rows.
+/// Everything that can refuse the run (forces, operator, file names) is checked in the
+/// constructor, before any file or directory is created.
+class Run {
+ public:
+  Run(const RunConfig& config, Start start, const RunOptions& options)
+      : config_(config),
+        options_(options),
+        start_(std::move(start)),
+        total_(options.steps.value_or(config.steps)),
+        forces_(run_force_field(config, start_.bonds)),
+        n_(start_.types.size()),
+        bd_(rpy::make_mobility(config.mobility, n_), forces_, config.integrator, start_.positions, start_.types,
+            config.neighbours, start_.step) {
+    const auto dir = options.out_dir.value_or(config.output.dir);
+    sum_.particles = n_;
+    sum_.mobility = bd_.mobility().name();
+    sum_.first_step = start_.step;
+    sum_.out_dir = dir;
+    sum_.trajectory = dir / config.output.trajectory;
+    sum_.log = dir / config.output.log;
+    sum_.checkpoint = dir / config.output.checkpoint;
+    check_run_files(config, sum_);
+  }
+
+  RunSummary execute() {
+    open_outputs();
+    last_.totals = bd_.totals();
+    last_.step = bd_.step_count();
+    last_.centre = centre_of(bd_.positions(), n_);
+    if (!start_.restarted) write_records(true);
+    StopWatch wall;
+    double last_progress = -1.0;
+    while (bd_.step_count() < total_) {
+      step();
+      commit();
+      write_records(false);
+      const std::uint64_t s = bd_.step_count();
+      if (config_.output.checkpoint_every > 0 && s % config_.output.checkpoint_every == 0 && s != total_)
+        save_checkpoint();
+      if (options_.progress) report_progress(wall.seconds(), last_progress);
+    }
+    if (options_.progress) *options_.progress << "\n";
+    save_checkpoint();
+    return summary(wall.seconds());
+  }
+
+ private:
+  // What changed since the previous log row.
+  struct Interval {
+    IntegratorTotals totals;
+    std::uint64_t step = 0;
+    std::array<double, 3> centre{};
+    double output_seconds = 0.0;
+    double det2 = 0.0, brown2 = 0.0;  // split displacements: sums of squares over the interval
+    std::uint64_t split_steps = 0;
+  };
 
   // New files stay temporaries and reopened ones keep their tail until commit(): the run
   // has then started (a step succeeded, or a checkpoint is due). Before that, a refusal
   // removes what was created and changes nothing else.
-  OutputDirectory made(dir);
-  AppendFile traj, log;
-  if (out.trajectory_every > 0) {
-    if (start.restarted)
-      traj.reopen(sum.trajectory, start.trajectory_bytes, start.trajectory_hash);
-    else
-      traj.create(sum.trajectory);
+  void open_outputs() {
+    made_.emplace(sum_.out_dir);
+    if (config_.output.trajectory_every > 0) {
+      if (start_.restarted)
+        traj_.reopen(sum_.trajectory, start_.trajectory_bytes, start_.trajectory_hash);
+      else
+        traj_.create(sum_.trajectory);
+    }
+    if (config_.output.log_every > 0) {
+      if (start_.restarted)
+        log_.reopen(sum_.log, start_.log_bytes, start_.log_hash);
+      else
+        log_.create(sum_.log);
+      if (!start_.restarted) log_.write(csv_log_header(config_.integrator.keep_split_displacements));
+    }
   }
-  if (out.log_every > 0) {
-    if (start.restarted)
-      log.reopen(sum.log, start.log_bytes, start.log_hash);
-    else
-      log.create(sum.log);
-    if (!start.restarted) log.write(csv_log_header(config.integrator.keep_split_displacements));
+
+  void commit() {
+    traj_.publish();
+    log_.publish();
+    made_->keep();
   }
-  auto commit = [&]() {
-    traj.publish();
-    log.publish();
-    made.keep();
-  };
-  auto save_checkpoint = [&]() {
+
+  void save_checkpoint() {
     commit();
     Checkpoint c;
-    c.step = bd.step_count();
-    c.seed = config.integrator.seed;
-    c.dt = config.integrator.dt;
-    c.positions.assign(bd.positions().begin(), bd.positions().end());
-    c.reference_positions = start.reference;
-    c.types = start.types;
-    c.trajectory_bytes = traj.bytes();
-    c.trajectory_hash = traj.hash();
-    c.log_bytes = log.bytes();
-    c.log_hash = log.hash();
-    c.config = config.text;
-    write_checkpoint(sum.checkpoint, c);
-  };
+    c.step = bd_.step_count();
+    c.seed = config_.integrator.seed;
+    c.dt = config_.integrator.dt;
+    c.positions.assign(bd_.positions().begin(), bd_.positions().end());
+    c.reference_positions = start_.reference;
+    c.types = start_.types;
+    c.trajectory_bytes = traj_.bytes();
+    c.trajectory_hash = traj_.hash();
+    c.log_bytes = log_.bytes();
+    c.log_hash = log_.hash();
+    c.config = config_.text;
+    write_checkpoint(sum_.checkpoint, c);
+  }
 
-  // Interval statistics for the log.
-  IntegratorTotals last = bd.totals();
-  std::uint64_t last_log_step = bd.step_count();
-  std::array<double, 3> last_centre{};
-  auto centre = [&]() {
-    std::array<double, 3> c{0, 0, 0};
-    for (std::size_t i = 0; i < n; ++i)
-      for (int d = 0; d < 3; ++d) c[d] += bd.positions()[3 * i + d];
-    for (double& v : c) v /= static_cast<double>(n);
-    return c;
-  };
-  last_centre = centre();
-  double output_seconds = 0.0;
-  double interval_output = 0.0;
-  // integrator.split_displacements: rms of M F dt and of the Brownian part over the interval.
-  const bool split = config.integrator.keep_split_displacements;
-  double det2 = 0.0, brown2 = 0.0;
-  std::uint64_t split_steps = 0;
-
-  auto write_records = [&](bool first) {
-    StopWatch w;
-    const std::uint64_t s = bd.step_count();
-    if (out.trajectory_every > 0 && s % out.trajectory_every == 0)
-      traj.write(xyz_frame(bd.positions(), bd.types(), forces.types(), config.geometry, s, bd.time()));
-    if (out.log_every > 0 && (s % out.log_every == 0 || s == total)) {
-      double md = 0, msd = 0;
-      for (std::size_t i = 0; i < n; ++i) {
-        double d2 = 0;
-        for (int c = 0; c < 3; ++c) d2 += std::pow(bd.positions()[3 * i + c] - start.reference[3 * i + c], 2);
-        md += std::sqrt(d2);
-        msd += d2;
-      }
-      md /= static_cast<double>(n);
-      msd /= static_cast<double>(n);
-      const auto cnow = centre();
-      const double elapsed = static_cast<double>(s - last_log_step) * config.integrator.dt;
-      const auto& t = bd.totals();
-      const double steps = first ? 1.0 : std::max<double>(1.0, static_cast<double>(t.steps - last.steps));
-      std::ostringstream row;
-      row.precision(10);
-      row << s << ',' << bd.time() << ',' << md << ',' << msd;
-      for (int c = 0; c < 3; ++c) row << ',' << (elapsed > 0 ? (cnow[c] - last_centre[c]) / elapsed : 0.0);
-      row << ',' << bd.last_report().potential_energy << ','
-          << static_cast<double>(t.sqrt_iterations - last.sqrt_iterations) / steps << ','
-          << static_cast<double>(t.mobility_products - last.mobility_products) / steps << ','
-          << bd.neighbour_rebuilds();
-      for (const char* part : {"neighbours", "forces", "plan", "drift", "sqrt", "update"})
-        row << ',' << t.seconds.at(part) - last.seconds.at(part);
-      row << ',' << interval_output;
-      if (split) {
-        const double norm = static_cast<double>(std::max<std::uint64_t>(split_steps, 1)) * static_cast<double>(n);
-        row << ',' << std::sqrt(det2 / norm) << ',' << std::sqrt(brown2 / norm);
-        det2 = brown2 = 0.0;
-        split_steps = 0;
-      }
-      row << '\n';
-      log.write(row.str());
-      last = t;
-      last_log_step = s;
-      last_centre = cnow;
-      interval_output = 0.0;
-    }
-    const double sec = w.seconds();
-    output_seconds += sec;
-    interval_output += sec;
-  };
-
-  if (!start.restarted) write_records(true);
-  StopWatch wall;
-  double last_progress = -1.0;
-  while (bd.step_count() < total) {
+  /// One step; on failure after the run has started, the last good state is saved first.
+  void step() {
     try {
-      bd.step();
-      if (split) {
-        for (double d : bd.deterministic_displacement()) det2 += d * d;
-        for (double d : bd.brownian_displacement()) brown2 += d * d;
-        ++split_steps;
+      bd_.step();
+      if (config_.integrator.keep_split_displacements) {
+        for (double d : bd_.deterministic_displacement()) last_.det2 += d * d;
+        for (double d : bd_.brownian_displacement()) last_.brown2 += d * d;
+        ++last_.split_steps;
       }
     } catch (const Error& e) {
-      const bool fresh_start = !start.restarted && bd.step_count() == 0;
+      const bool fresh_start = !start_.restarted && bd_.step_count() == 0;
       if (fresh_start && e.code() != ErrorCode::numerical_failure) throw;  // bad initial state: nothing to save
       save_checkpoint();
-      throw Error(e.code(), std::string(e.what()) + "; last good state (step " + std::to_string(bd.step_count()) +
-                                ") saved to '" + sum.checkpoint.string() + "'");
-    }
-    commit();
-    write_records(false);
-    const std::uint64_t s = bd.step_count();
-    if (out.checkpoint_every > 0 && s % out.checkpoint_every == 0 && s != total) save_checkpoint();
-    if (options.progress) {
-      const double t = wall.seconds();
-      if (t - last_progress >= 0.5 || s == total) {
-        last_progress = t;
-        const double rate = static_cast<double>(s - start.step) / std::max(t, 1e-9);
-        const double eta = static_cast<double>(total - s) / std::max(rate, 1e-12);
-        *options.progress << "\rstep " << s << "/" << total << "  " << fmt("%.3g", rate) << " steps/s  ETA "
-                          << fmt("%.0f", eta) << " s   " << std::flush;
-      }
+      throw Error(e.code(), std::string(e.what()) + "; last good state (step " + std::to_string(bd_.step_count()) +
+                                ") saved to '" + sum_.checkpoint.string() + "'");
     }
   }
-  if (options.progress) *options.progress << "\n";
-  save_checkpoint();
-  sum.last_step = bd.step_count();
-  sum.wall_seconds = wall.seconds();
-  const auto& t = bd.totals();
-  sum.steps_per_second = t.steps > 0 ? static_cast<double>(t.steps) / sum.wall_seconds : 0.0;
-  sum.neighbour_rebuilds = bd.neighbour_rebuilds();
-  const double steps = std::max<double>(1.0, static_cast<double>(t.steps));
-  sum.mean_sqrt_iterations = static_cast<double>(t.sqrt_iterations) / steps;
-  sum.mean_mobility_products = static_cast<double>(t.mobility_products) / steps;
-  sum.preconditioner_blocks = bd.last_report().preconditioner_blocks;
-  sum.seconds = t.seconds;
-  sum.seconds["output"] = output_seconds;
-  return sum;
+
+  /// The trajectory frame and the log row due at the current step.
+  void write_records(bool first) {
+    StopWatch w;
+    const OutputSpec& out = config_.output;
+    const std::uint64_t s = bd_.step_count();
+    if (out.trajectory_every > 0 && s % out.trajectory_every == 0)
+      traj_.write(xyz_frame(bd_.positions(), bd_.types(), forces_.types(), config_.geometry, s, bd_.time()));
+    if (out.log_every > 0 && (s % out.log_every == 0 || s == total_)) write_log_row(first);
+    const double sec = w.seconds();
+    output_seconds_ += sec;
+    last_.output_seconds += sec;
+  }
+
+  void write_log_row(bool first) {
+    const std::uint64_t s = bd_.step_count();
+    const auto [md, msd] = displacement_moments(bd_.positions(), start_.reference, n_);
+    const auto cnow = centre_of(bd_.positions(), n_);
+    const double elapsed = static_cast<double>(s - last_.step) * config_.integrator.dt;
+    const auto& t = bd_.totals();
+    const double steps = first ? 1.0 : std::max<double>(1.0, static_cast<double>(t.steps - last_.totals.steps));
+    std::ostringstream row;
+    row.precision(10);
+    row << s << ',' << bd_.time() << ',' << md << ',' << msd;
+    for (int c = 0; c < 3; ++c) row << ',' << (elapsed > 0 ? (cnow[c] - last_.centre[c]) / elapsed : 0.0);
+    row << ',' << bd_.last_report().potential_energy << ','
+        << static_cast<double>(t.sqrt_iterations - last_.totals.sqrt_iterations) / steps << ','
+        << static_cast<double>(t.mobility_products - last_.totals.mobility_products) / steps << ','
+        << bd_.neighbour_rebuilds();
+    for (const char* part : {"neighbours", "forces", "plan", "drift", "sqrt", "update"})
+      row << ',' << t.seconds.at(part) - last_.totals.seconds.at(part);
+    row << ',' << last_.output_seconds;
+    if (config_.integrator.keep_split_displacements) {  // rms of M F dt and of the Brownian part
+      const double norm = static_cast<double>(std::max<std::uint64_t>(last_.split_steps, 1)) * static_cast<double>(n_);
+      row << ',' << std::sqrt(last_.det2 / norm) << ',' << std::sqrt(last_.brown2 / norm);
+    }
+    row << '\n';
+    log_.write(row.str());
+    last_ = Interval{t, s, cnow};
+  }
+
+  void report_progress(double seconds, double& last_progress) {
+    const std::uint64_t s = bd_.step_count();
+    if (seconds - last_progress < 0.5 && s != total_) return;
+    last_progress = seconds;
+    const double rate = static_cast<double>(s - start_.step) / std::max(seconds, 1e-9);
+    const double eta = static_cast<double>(total_ - s) / std::max(rate, 1e-12);
+    *options_.progress << "\rstep " << s << "/" << total_ << "  " << fmt("%.3g", rate) << " steps/s  ETA "
+                       << fmt("%.0f", eta) << " s   " << std::flush;
+  }
+
+  RunSummary summary(double wall_seconds) {
+    RunSummary sum = sum_;
+    sum.last_step = bd_.step_count();
+    sum.wall_seconds = wall_seconds;
+    const auto& t = bd_.totals();
+    sum.steps_per_second = t.steps > 0 ? static_cast<double>(t.steps) / sum.wall_seconds : 0.0;
+    sum.neighbour_rebuilds = bd_.neighbour_rebuilds();
+    const double steps = std::max<double>(1.0, static_cast<double>(t.steps));
+    sum.mean_sqrt_iterations = static_cast<double>(t.sqrt_iterations) / steps;
+    sum.mean_mobility_products = static_cast<double>(t.mobility_products) / steps;
+    sum.preconditioner_blocks = bd_.last_report().preconditioner_blocks;
+    sum.seconds = t.seconds;
+    sum.seconds["output"] = output_seconds_;
+    return sum;
+  }
+
+  const RunConfig& config_;
+  const RunOptions& options_;
+  Start start_;
+  std::uint64_t total_;
+  ForceField forces_;
+  std::size_t n_;
+  Integrator bd_;
+  RunSummary sum_;
+  std::optional<OutputDirectory> made_;  // before the files: they are removed first on failure
+  AppendFile traj_, log_;
+  Interval last_;
+  double output_seconds_ = 0.0;
+};
+
+RunSummary execute(const RunConfig& config, Start start, const RunOptions& options) {
+  return Run(config, std::move(start), options).execute();
 }
 
 }  // namespace

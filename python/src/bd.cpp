@@ -25,7 +25,7 @@
 #include "object_lock.hpp"
 #include "rpyfmm/bd/config.hpp"
 #include "rpyfmm/bd/integrator.hpp"
-#include "rpyfmm/bd/mobility_factory.hpp"
+#include "rpyfmm/rpy/mobility_factory.hpp"
 #include "rpyfmm/bd/particles.hpp"
 #include "rpyfmm/bd/run.hpp"
 
@@ -232,8 +232,8 @@ class Simulation {
     bd::ForceField forces = simulation_forces(std::move(types), pair, external_force, where);
     add_force(forces, force);
 
-    bd::MobilitySpec spec;
-    spec.method = bd::mobility_method_from_string(mobility);
+    rpy::MobilitySpec spec;
+    spec.method = rpy::mobility_method_from_string(mobility);
     spec.tolerance = tolerance;
     spec.viscosity = viscosity;
     spec.geometry = geometry_from(box, where);
@@ -246,7 +246,7 @@ class Simulation {
     o.sqrt = simulation_sqrt(sqrt_method, sqrt_t, sqrt_preconditioner, where);
     o.max_displacement = max_displacement;
     bd::NeighbourOptions neighbours;
-    integrator_ = std::make_unique<bd::Integrator>(bd::make_mobility(spec, n), std::move(forces), o,
+    integrator_ = std::make_unique<bd::Integrator>(rpy::make_mobility(spec, n), std::move(forces), o,
                                                    std::vector<double>(x.data, x.data + x.size), std::move(type_of),
                                                    neighbours, first_step);
   }
@@ -259,7 +259,7 @@ class Simulation {
     add_force(forces, force);
     const std::size_t n = start.types.size();
     integrator_ =
-        std::make_unique<bd::Integrator>(bd::make_mobility(config.mobility, n), std::move(forces), config.integrator,
+        std::make_unique<bd::Integrator>(rpy::make_mobility(config.mobility, n), std::move(forces), config.integrator,
                                          start.positions, start.types, config.neighbours, 0);
   }
 
@@ -421,7 +421,7 @@ void bind_run_config(nb::module_& m) {
           "box", [](const bd::RunConfig& c) { return box_tuple(c.geometry); },
           "(Lx, Ly, Lz) of the periodic box, or None in free space.")
       .def_prop_ro(
-          "mobility", [](const bd::RunConfig& c) { return std::string(bd::to_string(c.mobility.method)); },
+          "mobility", [](const bd::RunConfig& c) { return std::string(rpy::to_string(c.mobility.method)); },
           "Mobility method ('none', 'direct', 'fmm', 'pse', 'auto').")
       .def_prop_ro(
           "text", [](const bd::RunConfig& c) { return c.text; }, "The TOML source.")

@@ -1,6 +1,6 @@
 // rpyfmm Python bindings — the mobility operators behind the one interface
 // rpy::MobilityOperator (rpy/include/rpyfmm/rpy/mobility.hpp): DirectRpy,
-// FmmRpy, pse::PseRpy, bd::FreeDrainingMobility and bd::make_mobility.
+// FmmRpy, pse::PseRpy, rpy::FreeDrainingMobility and rpy::make_mobility.
 //
 // Units are the caller's: with viscosity eta and radius a, M_ii = 1/(6 pi eta a);
 // velocities U = M F have units of force / (viscosity length).
@@ -11,8 +11,8 @@
 
 #include "common.hpp"
 #include "object_lock.hpp"
-#include "rpyfmm/bd/free_draining.hpp"
-#include "rpyfmm/bd/mobility_factory.hpp"
+#include "rpyfmm/rpy/free_draining.hpp"
+#include "rpyfmm/rpy/mobility_factory.hpp"
 #include "rpyfmm/core/threads.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
@@ -412,12 +412,12 @@ void bind_pse_rpy(nb::module_& m) {
 }
 
 void bind_free_draining(nb::module_& m) {
-  nb::class_<bd::FreeDrainingMobility, MobilityOperator>(
+  nb::class_<rpy::FreeDrainingMobility, MobilityOperator>(
       m, "FreeDraining", "No hydrodynamic interactions: M = diag(1 / (6 pi eta a_i)); exact square root.")
       .def(
           "__init__",
-          [](bd::FreeDrainingMobility* self, double viscosity, BoxArg box) {
-            new (self) bd::FreeDrainingMobility(geometry_from(box, "FreeDraining"), viscosity);
+          [](rpy::FreeDrainingMobility* self, double viscosity, BoxArg box) {
+            new (self) rpy::FreeDrainingMobility(geometry_from(box, "FreeDraining"), viscosity);
           },
           nb::arg("viscosity") = 1.0, nb::arg("box") = nb::none(),
           "viscosity: eta > 0; box: None, L or (Lx, Ly, Lz) (the diagonal mobility does not depend on it).");
@@ -429,14 +429,14 @@ void bind_mobility_factory(nb::module_& m) {
       "make_mobility",
       [](const std::string& method, std::size_t n_particles, double tolerance, double viscosity, BoxArg box,
          std::size_t fmm_crossover, const std::string& device) {
-        bd::MobilitySpec spec;
-        spec.method = bd::mobility_method_from_string(method);
+        rpy::MobilitySpec spec;
+        spec.method = rpy::mobility_method_from_string(method);
         spec.tolerance = tolerance;
         spec.viscosity = viscosity;
         spec.geometry = geometry_from(box, "make_mobility");
         spec.fmm_crossover = fmm_crossover;
-        spec.device = bd::compute_device_from_string(device, "make_mobility");
-        return bd::make_mobility(spec, n_particles);
+        spec.device = rpy::compute_device_from_string(device, "make_mobility");
+        return rpy::make_mobility(spec, n_particles);
       },
       nb::arg("method") = "auto", nb::arg("n_particles") = 0, nb::kw_only(), nb::arg("tolerance") = 1e-3,
       nb::arg("viscosity") = 1.0, nb::arg("box") = nb::none(), nb::arg("fmm_crossover") = 0, nb::arg("device") = "cpu",
@@ -446,7 +446,7 @@ void bind_mobility_factory(nb::module_& m) {
       "and a usable device, see cuda_device_available(); other methods refuse it).");
   m.def("cuda_device_available", &rpy::pse::PseRpyCuda::device_available,
         "True when this build has the CUDA PSE backend and a usable GPU (make_mobility(..., device='cuda')).");
-  m.def("default_fmm_crossover", &bd::default_fmm_crossover, nb::arg("tolerance") = 1e-3,
+  m.def("default_fmm_crossover", &rpy::default_fmm_crossover, nb::arg("tolerance") = 1e-3,
         "Particle count from which 'auto' picks fmm over direct at this tolerance on this machine\n"
         "(measured crossover of one product, larger where the AVX-512 direct kernels run).");
 

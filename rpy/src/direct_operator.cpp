@@ -1,4 +1,4 @@
-// rpyfmm — DirectRpy: U_i = sum_j M_ij F_j over all pairs (MATH.md §1).
+// rpyfmm — DirectRpy: U_i = sum_j M_ij F_j over all pairs (docs/theory/rpy.md).
 //
 // Per target particle i and block of sources j, the pair scalars (f, g/r^2)
 // are evaluated in branch-free form (every regime computed, then selected)
@@ -26,7 +26,7 @@ constexpr double kInv8Pi = 1.0 / (8.0 * std::numbers::pi);
 
 // Scalars of one target i against sources [j0, j0 + nb): dx = x_i - x_j etc.,
 // f and gr = g / r^2 so that M_ij = (f I + gr d d^T) / eta.
-// Equal radii a: 004 eq. (3.1), 002 eq. (4).
+// Equal radii a: Guan eq. 3.1; Fiore et al. 2017 eq. 4 (docs/theory/rpy.md).
 void scalars_equal(double xi, double yi, double zi, const double* __restrict x, const double* __restrict y,
                    const double* __restrict z, std::size_t nb, double a, double* __restrict dx, double* __restrict dy,
                    double* __restrict dz, double* __restrict f, double* __restrict gr) {
@@ -57,7 +57,7 @@ void scalars_equal(double xi, double yi, double zi, const double* __restrict x, 
   });
 }
 
-// Different radii (Zuk et al. 2014; MATH.md §1), the three regimes selected per pair.
+// Different radii (Zuk et al. 2014; docs/theory/rpy.md), the three regimes selected per pair.
 void scalars_general(double xi, double yi, double zi, double ai, const double* __restrict x, const double* __restrict y,
                      const double* __restrict z, const double* __restrict a, const double* __restrict inv_a,
                      std::size_t nb, double* __restrict dx, double* __restrict dy, double* __restrict dz,

@@ -15,7 +15,7 @@ namespace rpyfmm::rpy::detail {
 namespace {
 
 // The pair scalars of the exact RPY block M_iq = (f I + gr d d^T) (times eta), d = x_i - x_q,
-// r2 = |d|^2 (rpy_kernel.hpp, MATH.md §1): all regimes evaluated branch-free and selected, so
+// r2 = |d|^2 (rpy_kernel.hpp, docs/theory/rpy.md): all regimes evaluated branch-free and selected, so
 // that the loops calling them vectorize. Coincident distinct points (r = 0) get
 // f = 1 / (6 pi max a), gr = 0. Shared by the fused single-rhs sums and the block path.
 
@@ -42,7 +42,7 @@ namespace {
   gr = g * inv_r * inv_r;
 }
 
-// Equal radii a (rpy_scalars_equal, 004 eq. 3.1): one sqrt and one division per pair.
+// Equal radii a (rpy_scalars_equal, Guan eq. 3.1): one sqrt and one division per pair.
 [[gnu::always_inline]] inline void pair_scalars_equal(double r2, double a, double& f, double& gr) {
   const double two_a = 2.0 * a, a2 = a * a, c6 = rpy_detail::inv_6pi / a, inv_32a = 1.0 / (32.0 * a);
   const double safe_r2 = r2 > 0.0 ? r2 : 1.0;

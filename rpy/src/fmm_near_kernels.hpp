@@ -1,5 +1,5 @@
 // Near-field kernels of FmmRpy: sums of exact RPY pair blocks over gathered sources
-// (rpy_kernel.hpp, MATH.md §1; dissertation 004 eq. 3.1), for one target at a time.
+// (rpy_kernel.hpp, docs/theory/rpy.md; Guan eq. 3.1), for one target at a time.
 #pragma once
 
 #include <cstddef>

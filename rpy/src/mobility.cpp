@@ -157,10 +157,16 @@ SqrtReport MobilityOperator::do_apply_sqrt(std::span<const double> z, std::span<
   return preconditioner.sample(as_linear_operator(), z, w, nrhs, resolved);
 }
 
+SqrtReport MobilityOperator::apply_with_noise(std::span<const double>, double, std::uint64_t, std::uint64_t,
+                                              std::span<double>) const {
+  fail(ErrorCode::not_supported, where_ + "::apply_with_noise",
+       "operator '" + name() + "' has no fused drift-and-noise pass (compute M F and M^{1/2} z apart)");
+}
+
 void MobilityOperator::divergence(std::span<double> out) const {
   require_positions("divergence");
   require_size(std::span<const double>(out.data(), out.size()), 3 * size(), where_ + "::divergence", "output");
-  std::fill(out.begin(), out.end(), 0.0);  // RPY is divergence-free (MATH.md §1)
+  std::fill(out.begin(), out.end(), 0.0);  // RPY is divergence-free (docs/theory/rpy.md)
 }
 
 std::vector<double> MobilityOperator::assemble_dense(std::size_t max_bytes) const {

@@ -1,5 +1,5 @@
 // Test-only reference mobility: the RPY tensor for equal radii written plainly
-// from MATH.md §1 (dissertation 004 eq. 3.1), assembled densely, with an exact
+// from docs/theory/rpy.md (Guan eq. 3.1), assembled densely, with an exact
 // square root by Cholesky (Eigen). Independent of the library's solvers, so the
 // BD tests do not depend on the direct/FMM operators or on Lanczos.
 #pragma once
@@ -17,6 +17,7 @@ class DenseRpy final : public rpyfmm::rpy::MobilityOperator {
  public:
   explicit DenseRpy(double eta = 1.0) : MobilityOperator(rpyfmm::rpy::Geometry::open(), eta, "DenseRpy") {}
   std::string name() const override { return "dense-test"; }
+  rpyfmm::rpy::SqrtMethod native_sampler() const override { return rpyfmm::rpy::SqrtMethod::cholesky; }
   int applications = 0;
 
   /// 3x3 block M_ij (i != j) for equal radii a at separation d = x_i - x_j.

@@ -15,6 +15,8 @@
 
 using namespace rpyfmm::bd;
 using rpyfmm::Error;
+using rpyfmm::rpy::ComputeDevice;
+using rpyfmm::rpy::MobilityMethod;
 
 namespace {
 const std::string kBase = R"(

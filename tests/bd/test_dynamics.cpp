@@ -10,17 +10,24 @@
 
 #include "dense_rpy.hpp"
 #include "rpyfmm/bd/checkpoint.hpp"
-#include "rpyfmm/bd/free_draining.hpp"
 #include "rpyfmm/bd/integrator.hpp"
-#include "rpyfmm/bd/mobility_factory.hpp"
 #include "rpyfmm/core/error.hpp"
 #include "rpyfmm/rpy/block_preconditioner.hpp"
+#include "rpyfmm/rpy/free_draining.hpp"
+#include "rpyfmm/rpy/mobility_factory.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
 
 using namespace rpyfmm::bd;
 using rpyfmm::Error;
 using rpyfmm::ErrorCode;
+using rpyfmm::rpy::compute_device_from_string;
+using rpyfmm::rpy::ComputeDevice;
+using rpyfmm::rpy::default_fmm_crossover;
+using rpyfmm::rpy::FreeDrainingMobility;
+using rpyfmm::rpy::make_mobility;
+using rpyfmm::rpy::MobilityMethod;
+using rpyfmm::rpy::MobilitySpec;
 constexpr double pi = std::numbers::pi;
 
 namespace {
@@ -88,7 +95,7 @@ TEST(BdStatistics, HarmonicTrapVarianceWithoutHi) {
 
 // Two spheres sedimenting under equal forces F (kT = 0), side by side (F perpendicular
 // to the line of centres) and one above the other (F along it). Closed-form RPY
-// (004 eq. 3.1): U = F [1/(6 pi eta a) + (1 + 2a^2/(3r^2))/(8 pi eta r)] perpendicular,
+// (Guan eq. 3.1): U = F [1/(6 pi eta a) + (1 + 2a^2/(3r^2))/(8 pi eta r)] perpendicular,
 //                U = F [1/(6 pi eta a) + (2 - 4a^2/(3r^2))/(8 pi eta r)] parallel.
 TEST(BdDynamics, TwoSedimentingSpheresMatchClosedFormRpy) {
   const double a = 1.0, eta = 2.0, r = 3.0, F = 1.0, dt = 1e-3;

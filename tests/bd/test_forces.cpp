@@ -8,16 +8,18 @@
 #include <vector>
 
 #include "rpyfmm/bd/force_field.hpp"
-#include "rpyfmm/bd/free_draining.hpp"
-#include "rpyfmm/bd/mobility_factory.hpp"
 #include "rpyfmm/bd/neighbour_list.hpp"
 #include "rpyfmm/bd/potentials.hpp"
 #include "rpyfmm/core/error.hpp"
+#include "rpyfmm/rpy/mobility_factory.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 
 using namespace rpyfmm::bd;
 using rpyfmm::Error;
 using rpyfmm::ErrorCode;
+using rpyfmm::rpy::make_mobility;
+using rpyfmm::rpy::mobility_method_from_string;
+using rpyfmm::rpy::MobilityMethod;
 
 namespace {
 // Central difference of V: -V'(r)/r must equal s. O(h^2) error; h = 1e-6 r gives
@@ -71,7 +73,7 @@ TEST(Potentials, ClosedFormValues) {
   p.kind = PairKind::lj36_18;
   p.epsilon = 14.0;
   const PairTerm t = resolve_pair(p, 1.0, 1.0, 0, 0);
-  EXPECT_DOUBLE_EQ(t.sigma, 2.0);                                              // s = d_A, 001 eq. 8
+  EXPECT_DOUBLE_EQ(t.sigma, 2.0);                                              // s = d_A, GPU BD paper eq. 8
   EXPECT_NEAR(evaluate_pair(t, 2.0).energy, 0.0, 1e-12);                       // V(s) = 0
   EXPECT_NEAR(evaluate_pair(t, 2.0 * std::pow(2.0, 1.0 / 18)).s, 0.0, 1e-10);  // minimum at 2^(1/18) s
   PairPotential w;
@@ -126,7 +128,7 @@ TEST(NeighbourList, RebuildsOnlyAfterHalfSkin) {
   EXPECT_TRUE(list.update(x));
   x[0] += 0.49;  // < skin / 2
   EXPECT_FALSE(list.update(x));
-  x[0] += 0.02;  // now 0.51 > skin / 2 (001 Algorithm 1, line 15)
+  x[0] += 0.02;  // now 0.51 > skin / 2 (GPU BD paper, Algorithm 1, line 15)
   EXPECT_TRUE(list.update(x));
   EXPECT_EQ(list.rebuilds(), 2u);
   NeighbourList fixed(rpyfmm::rpy::Geometry::open(), 2.0, {.skin = 1.0, .fixed_interval = 3});

@@ -9,9 +9,12 @@
 
 #include "dense_rpy.hpp"
 #include "rpyfmm/bd/integrator.hpp"
-#include "rpyfmm/bd/mobility_factory.hpp"
+#include "rpyfmm/rpy/mobility_factory.hpp"
 
 using namespace rpyfmm::bd;
+using rpyfmm::rpy::make_mobility;
+using rpyfmm::rpy::MobilityMethod;
+using rpyfmm::rpy::MobilitySpec;
 constexpr double pi = std::numbers::pi;
 
 namespace {
@@ -99,7 +102,7 @@ TEST(BdStatistics, PairRelativeDiffusionIsRpy) {
 
 // Periodic BD with PSE hydrodynamics: one sphere in a cube of side L = 5a diffuses with the
 // periodic self-mobility mu(L) = mu0 (1 - 2.837297 a/L + (4 pi/3)(a/L)^3) (Hasimoto; exact for
-// RPY, MATH.md §5), 0.466 mu0 here. 600 steps x 3 axes of independent Gaussian increments give
+// RPY; docs/theory/pse.md), 0.466 mu0 here. 600 steps x 3 axes of independent Gaussian increments give
 // the per-step variance 2 kT mu dt with relative standard error sqrt(2/1800) = 3.3%; tolerance
 // 12% (~3.6 sigma) — the free-space value would be off by a factor 2.1.
 TEST(BdStatistics, PeriodicPseDiffusionIsHasimoto) {

@@ -18,7 +18,7 @@
 #include "../../apps/rpyfmm/array_io.hpp"
 #include "rpyfmm/bd/checkpoint.hpp"
 #include "rpyfmm/bd/config.hpp"
-#include "rpyfmm/bd/mobility_factory.hpp"
+#include "rpyfmm/rpy/mobility_factory.hpp"
 #include "rpyfmm/core/error.hpp"
 #include "rpyfmm/core/ranges.hpp"
 #include "rpyfmm/core/threads.hpp"
@@ -270,14 +270,14 @@ TEST_F(CliInputs, RangesAreStatedOnceAndPrintedReadably) {
   EXPECT_NE(help.out.find("relative tolerance of fmm/pse, in " + ranges::kMobilityTolerance.str()), std::string::npos)
       << help.out;
   // The library's tolerance range is the one in the help text: make_mobility and FmmRpy agree.
-  using rpyfmm::bd::MobilityMethod;
+  using rpyfmm::rpy::MobilityMethod;
   const auto& r = ranges::kMobilityTolerance;
   for (double tol : {r.lo, r.hi}) {
-    EXPECT_NO_THROW((void)rpyfmm::bd::make_mobility({.method = MobilityMethod::fmm, .tolerance = tol}, 10)) << tol;
+    EXPECT_NO_THROW((void)rpyfmm::rpy::make_mobility({.method = MobilityMethod::fmm, .tolerance = tol}, 10)) << tol;
     EXPECT_NO_THROW(rpyfmm::rpy::FmmRpy(rpyfmm::rpy::Geometry::open(), 1.0, {.tolerance = tol})) << tol;
   }
   for (double tol : {r.lo / 2, r.hi * 1.5, 0.3}) {
-    EXPECT_THROW((void)rpyfmm::bd::make_mobility({.method = MobilityMethod::fmm, .tolerance = tol}, 10), rpyfmm::Error)
+    EXPECT_THROW((void)rpyfmm::rpy::make_mobility({.method = MobilityMethod::fmm, .tolerance = tol}, 10), rpyfmm::Error)
         << tol;
     EXPECT_THROW(rpyfmm::rpy::FmmRpy(rpyfmm::rpy::Geometry::open(), 1.0, {.tolerance = tol}), rpyfmm::Error) << tol;
   }

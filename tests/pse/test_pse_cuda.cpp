@@ -13,7 +13,7 @@
 
 #include "ewald_reference.hpp"
 #include "rpyfmm/bd/integrator.hpp"
-#include "rpyfmm/bd/mobility_factory.hpp"
+#include "rpyfmm/rpy/mobility_factory.hpp"
 #include "rpyfmm/core/error.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"

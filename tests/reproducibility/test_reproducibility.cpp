@@ -15,10 +15,10 @@
 #include <random>
 #include <vector>
 
-#include "rpyfmm/bd/free_draining.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
+#include "rpyfmm/rpy/free_draining.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/rigid_bodies.hpp"
 #include "simd_levels.hpp"
@@ -87,7 +87,7 @@ std::vector<OperatorCase> operator_cases() {
       {"fmm_1e-6",
        [] { return std::make_unique<rpyfmm::rpy::FmmRpy>(Geometry::open(), 1.0, rpyfmm::rpy::FmmRpyOptions{1e-6}); },
        2000, 50.0},
-      {"free_draining", [] { return std::make_unique<rpyfmm::bd::FreeDrainingMobility>(); }, 500, 20.0},
+      {"free_draining", [] { return std::make_unique<rpyfmm::rpy::FreeDrainingMobility>(); }, 500, 20.0},
       // Float grids and a float pair cache (the default at tolerance >= 1e-5): FFTW's threaded
       // float transforms are bound by float round-off of the wave part (~1e-7 of |M F|).
       {"pse_1e-3_float", pse(1e-3, WavePrecision::automatic), 1200, 30.0, 1e-6},

@@ -1,5 +1,5 @@
 // Test helpers for the square-root solvers: a plain dense RPY matrix
-// (MATH.md §1; Zuk et al., J. Fluid Mech. 741, R5 (2014)), random
+// (docs/theory/rpy.md; Zuk et al., J. Fluid Mech. 741, R5 (2014)), random
 // suspensions, and wrappers of dense matrices as LinearOperatorView.
 #pragma once
 
@@ -16,7 +16,7 @@
 namespace sqrt_test {
 
 /// 3x3 RPY block between spheres i and j (viscosity eta), written plainly
-/// from MATH.md §1 (all three regimes; self term when r = 0 and a_i = a_j).
+/// from docs/theory/rpy.md (all three regimes; self term when r = 0 and a_i = a_j).
 inline Eigen::Matrix3d rpy_pair(const Eigen::Vector3d& xi, const Eigen::Vector3d& xj, double ai, double aj,
                                 double eta) {
   const double pi = std::numbers::pi;

@@ -15,6 +15,87 @@ double dot(const double* a, const double* b, std::size_t n) {
   return s;
 }
 
+/// The workspace of one GMRES cycle of at most m columns on vectors of length n.
+struct Cycle {
+  Cycle(std::size_t size, std::size_t columns)
+      : n(size),
+        m(columns),
+        basis(m + 1, std::vector<double>(n)),
+        h((m + 1) * m, 0.0),
+        cs(m),
+        sn(m),
+        g(m + 1),
+        y(m),
+        z(n),
+        w(n) {}
+  [[nodiscard]] double* column(std::size_t j) { return h.data() + j * (m + 1); }
+
+  std::size_t n, m;
+  std::vector<std::vector<double>> basis;
+  std::vector<double> h;  // Hessenberg matrix, column j at h[j * (m + 1)]
+  std::vector<double> cs, sn, g, y, z, w;
+};
+
+/// Column j of the Arnoldi process: w = A P^{-1} v_j orthogonalised against v_0 .. v_j by
+/// modified Gram-Schmidt, v_{j+1} = w / |w|. Returns true on breakdown (|w| = 0: the Krylov
+/// space holds the solution).
+bool arnoldi_column(Cycle& c, std::size_t j, const VectorMap& apply, const VectorMap& precondition) {
+  const std::size_t n = c.n;
+  if (precondition) {
+    precondition(c.basis[j].data(), c.z.data());
+    apply(c.z.data(), c.w.data());
+  } else {
+    apply(c.basis[j].data(), c.w.data());
+  }
+  double* hj = c.column(j);
+  for (std::size_t i = 0; i <= j; ++i) {
+    hj[i] = dot(c.w.data(), c.basis[i].data(), n);
+    for (std::size_t k = 0; k < n; ++k) c.w[k] -= hj[i] * c.basis[i][k];
+  }
+  hj[j + 1] = std::sqrt(dot(c.w.data(), c.w.data(), n));
+  const bool breakdown = hj[j + 1] == 0.0;
+  if (!breakdown)
+    for (std::size_t k = 0; k < n; ++k) c.basis[j + 1][k] = c.w[k] / hj[j + 1];
+  return breakdown;
+}
+
+/// Givens rotations keep H upper triangular: the earlier ones applied to column j, a new one
+/// zeroing h_{j+1,j}; afterwards |g[j + 1]| is the residual norm.
+void rotate_column(Cycle& c, std::size_t j) {
+  double* hj = c.column(j);
+  for (std::size_t i = 0; i < j; ++i) {
+    const double t = c.cs[i] * hj[i] + c.sn[i] * hj[i + 1];
+    hj[i + 1] = -c.sn[i] * hj[i] + c.cs[i] * hj[i + 1];
+    hj[i] = t;
+  }
+  const double r = std::hypot(hj[j], hj[j + 1]);
+  c.cs[j] = hj[j] / r;
+  c.sn[j] = hj[j + 1] / r;
+  hj[j] = r;
+  hj[j + 1] = 0.0;
+  c.g[j + 1] = -c.sn[j] * c.g[j];
+  c.g[j] = c.cs[j] * c.g[j];
+}
+
+/// After j columns: y = H^{-1} g (upper triangular) and x += P^{-1} V y.
+void update_solution(Cycle& c, std::size_t j, const VectorMap& precondition, double* x) {
+  const std::size_t n = c.n, m = c.m;
+  for (std::size_t i = j; i-- > 0;) {
+    double s = c.g[i];
+    for (std::size_t k = i + 1; k < j; ++k) s -= c.h[k * (m + 1) + i] * c.y[k];
+    c.y[i] = s / c.h[i * (m + 1) + i];
+  }
+  std::fill(c.w.begin(), c.w.end(), 0.0);
+  for (std::size_t i = 0; i < j; ++i)
+    for (std::size_t k = 0; k < n; ++k) c.w[k] += c.y[i] * c.basis[i][k];
+  if (precondition) {
+    precondition(c.w.data(), c.z.data());
+  } else {
+    std::copy(c.w.begin(), c.w.end(), c.z.begin());
+  }
+  for (std::size_t k = 0; k < n; ++k) x[k] += c.z[k];
+}
+
 }  // namespace
 
 GmresResult gmres(std::size_t n, const VectorMap& apply, const VectorMap& precondition, const double* b, double* x,
@@ -26,86 +107,38 @@ GmresResult gmres(std::size_t n, const VectorMap& apply, const VectorMap& precon
     result.converged = true;
     return result;
   }
-  const auto m = static_cast<std::size_t>(std::max(restart, 1));
-  std::vector<std::vector<double>> basis(m + 1, std::vector<double>(n));
-  std::vector<double> h((m + 1) * m, 0.0);  // Hessenberg matrix, column j at h[j * (m + 1)]
-  std::vector<double> cs(m), sn(m), g(m + 1), y(m), z(n), w(n);
-  auto residual_into = [&](double* r) {  // r = b - A x
-    apply(x, w.data());
-    for (std::size_t i = 0; i < n; ++i) r[i] = b[i] - w[i];
-  };
-
+  Cycle c(n, static_cast<std::size_t>(std::max(restart, 1)));
   bool zero_guess = std::all_of(x, x + n, [](double v) { return v == 0.0; });
   while (true) {
     if (zero_guess) {  // r = b without a product
-      std::copy(b, b + n, basis[0].begin());
+      std::copy(b, b + n, c.basis[0].begin());
       zero_guess = false;
-    } else {
-      residual_into(basis[0].data());
+    } else {  // r = b - A x
+      apply(x, c.w.data());
+      for (std::size_t i = 0; i < n; ++i) c.basis[0][i] = b[i] - c.w[i];
       ++result.iterations;
     }
-    const double beta = std::sqrt(dot(basis[0].data(), basis[0].data(), n));
+    const double beta = std::sqrt(dot(c.basis[0].data(), c.basis[0].data(), n));
     result.residual = beta / bnorm;
     if (beta <= tol * bnorm) {
       result.converged = true;
       return result;
     }
     if (result.iterations >= max_iterations) return result;
-    for (std::size_t i = 0; i < n; ++i) basis[0][i] /= beta;
-    std::fill(g.begin(), g.end(), 0.0);
-    g[0] = beta;
+    for (std::size_t i = 0; i < n; ++i) c.basis[0][i] /= beta;
+    std::fill(c.g.begin(), c.g.end(), 0.0);
+    c.g[0] = beta;
     std::size_t j = 0;  // columns done
     bool done = false;
-    while (j < m && !done) {
-      // w = A P^{-1} v_j
-      if (precondition) {
-        precondition(basis[j].data(), z.data());
-        apply(z.data(), w.data());
-      } else {
-        apply(basis[j].data(), w.data());
-      }
+    while (j < c.m && !done) {
+      const bool breakdown = arnoldi_column(c, j, apply, precondition);
       ++result.iterations;
-      double* hj = h.data() + j * (m + 1);
-      for (std::size_t i = 0; i <= j; ++i) {  // modified Gram-Schmidt
-        hj[i] = dot(w.data(), basis[i].data(), n);
-        for (std::size_t k = 0; k < n; ++k) w[k] -= hj[i] * basis[i][k];
-      }
-      hj[j + 1] = std::sqrt(dot(w.data(), w.data(), n));
-      const bool breakdown = hj[j + 1] == 0.0;  // the Krylov space holds the solution
-      if (!breakdown)
-        for (std::size_t k = 0; k < n; ++k) basis[j + 1][k] = w[k] / hj[j + 1];
-      // Givens rotations keep H upper triangular; |g[j + 1]| is the residual norm.
-      for (std::size_t i = 0; i < j; ++i) {
-        const double t = cs[i] * hj[i] + sn[i] * hj[i + 1];
-        hj[i + 1] = -sn[i] * hj[i] + cs[i] * hj[i + 1];
-        hj[i] = t;
-      }
-      const double r = std::hypot(hj[j], hj[j + 1]);
-      cs[j] = hj[j] / r;
-      sn[j] = hj[j + 1] / r;
-      hj[j] = r;
-      hj[j + 1] = 0.0;
-      g[j + 1] = -sn[j] * g[j];
-      g[j] = cs[j] * g[j];
+      rotate_column(c, j);
       ++j;
-      result.residual = std::abs(g[j]) / bnorm;
+      result.residual = std::abs(c.g[j]) / bnorm;
       done = breakdown || result.residual <= tol || result.iterations >= max_iterations;
     }
-    // y = H^{-1} g (upper triangular), x += P^{-1} V y.
-    for (std::size_t i = j; i-- > 0;) {
-      double s = g[i];
-      for (std::size_t k = i + 1; k < j; ++k) s -= h[k * (m + 1) + i] * y[k];
-      y[i] = s / h[i * (m + 1) + i];
-    }
-    std::fill(w.begin(), w.end(), 0.0);
-    for (std::size_t i = 0; i < j; ++i)
-      for (std::size_t k = 0; k < n; ++k) w[k] += y[i] * basis[i][k];
-    if (precondition) {
-      precondition(w.data(), z.data());
-    } else {
-      std::copy(w.begin(), w.end(), z.begin());
-    }
-    for (std::size_t k = 0; k < n; ++k) x[k] += z[k];
+    update_solution(c, j, precondition, x);
     if (result.residual <= tol) {
       result.converged = true;
       return result;

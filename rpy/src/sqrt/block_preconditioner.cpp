@@ -110,7 +110,7 @@ BlockPreconditioner::BlockPreconditioner(std::span<const double> positions, std:
     const std::size_t first = offsets_[b];
     const std::size_t count = offsets_[b + 1] - first;
     const auto m = static_cast<Eigen::Index>(3 * count);
-    // The block of M (MATH.md §1; the lower triangle is all the factorization reads).
+    // The block of M (docs/theory/rpy.md; the lower triangle is all the factorization reads).
     Matrix block(m, m);
     for (std::size_t q = 0; q < count; ++q) {
       const std::size_t j = order_[first + q];

@@ -41,8 +41,9 @@ void apply_checked(const LinearOperatorView& op, const double* x, double* y, std
                    SqrtReport& report, const char* where);
 
 /// Solvers; inputs are already validated by sqrt_apply().
-SqrtReport lanczos_sqrt(const LinearOperatorView& op, std::span<const double> z, std::span<double> w,
-                        std::size_t nrhs, const SqrtOptions& options);
+/// lanczos_sqrt: `first_product` = op z (nrhs = 1) or empty, as in sqrt_apply.
+SqrtReport lanczos_sqrt(const LinearOperatorView& op, std::span<const double> z, std::span<double> w, std::size_t nrhs,
+                        const SqrtOptions& options, std::span<const double> first_product = {});
 SqrtReport chebyshev_sqrt(const LinearOperatorView& op, std::span<const double> z, std::span<double> w,
                           std::size_t nrhs, const SqrtOptions& options);
 SqrtReport dense_sqrt(const LinearOperatorView& op, std::span<const double> z, std::span<double> w,

@@ -46,7 +46,7 @@ bool LanczosProcess::step(double* y, const std::string& where, std::size_t rhs) 
     // holds the three-term step (alpha_j v_j + beta_{j-1} v_{j-1}) and the reorthogonalization
     // against the older vectors at once. Each pass reads y and the basis once for the
     // products and once for the update, against five vector passes per basis vector for
-    // modified Gram-Schmidt (bench/README.md, session 13).
+    // modified Gram-Schmidt (docs/theory/samplers.md).
     space_->subtract_combination(k, h.data(), y);
     space_->dots(k, y, h.data());
     space_->subtract_combination(k, h.data(), y);

@@ -76,7 +76,9 @@ using KrylovProduct = std::function<void(const double* x, double* y)>;
 
 /// w = M^{1/2} z for one right-hand side by the Lanczos square root (lanczos_sqrt's iteration,
 /// stopping test and errors), z and w in the space's memory. Counts the products in the report.
+/// `first_product`, if not null, is M z (in the space's memory): the first Lanczos product
+/// M (z / |z|) is then scaled from it instead of calling `product`.
 SqrtReport lanczos_sqrt_in_space(KrylovSpace& space, const KrylovProduct& product, const double* z, double* w,
-                                 const SqrtOptions& options);
+                                 const SqrtOptions& options, const double* first_product = nullptr);
 
 }  // namespace rpyfmm::rpy::sqrt_detail

@@ -96,9 +96,8 @@ int max_iterations(const SqrtOptions& options, std::size_t n) {
 
 }  // namespace
 
-
 SqrtReport lanczos_sqrt_in_space(KrylovSpace& space, const KrylovProduct& product, const double* z, double* w,
-                                 const SqrtOptions& options) {
+                                 const SqrtOptions& options, const double* first_product) {
   SqrtReport report;
   report.method = SqrtMethod::lanczos;
   const int max_it = max_iterations(options, space.n());
@@ -110,10 +109,15 @@ SqrtReport lanczos_sqrt_in_space(KrylovSpace& space, const KrylovProduct& produc
   }
   double* y = space.work();
   for (int it = 0; it < max_it && s.active; ++it) {
-    product(s.process.current(), y);
-    ++report.operator_applications;
-    ++report.vector_products;
-    space.require_finite(y, kWhere, report.operator_applications);
+    if (it == 0 && first_product != nullptr) {
+      space.scale_into(1.0 / s.znorm, first_product, y);  // M v_1 = (M z) / |z|, as start() scales z
+      space.require_finite(y, kWhere, 1);
+    } else {
+      product(s.process.current(), y);
+      ++report.operator_applications;
+      ++report.vector_products;
+      space.require_finite(y, kWhere, report.operator_applications);
+    }
     advance(s, y, it, max_it, options, 0, w, report);
   }
   report.error_estimate = s.change;
@@ -122,7 +126,7 @@ SqrtReport lanczos_sqrt_in_space(KrylovSpace& space, const KrylovProduct& produc
 }
 
 SqrtReport lanczos_sqrt(const LinearOperatorView& op, std::span<const double> z, std::span<double> w, std::size_t nrhs,
-                        const SqrtOptions& options) {
+                        const SqrtOptions& options, std::span<const double> first_product) {
   const std::size_t n = op.n;
   if (nrhs == 1) {  // one right-hand side: the iteration of any Krylov space, here on host vectors
     HostKrylovSpace space(n);
@@ -131,7 +135,7 @@ SqrtReport lanczos_sqrt(const LinearOperatorView& op, std::span<const double> z,
         [&op](const double* x, double* y) {
           op.apply(std::span<const double>(x, op.n), std::span<double>(y, op.n), 1);
         },
-        z.data(), w.data(), options);
+        z.data(), w.data(), options, first_product.empty() ? nullptr : first_product.data());
   }
   SqrtReport report;
   report.method = SqrtMethod::lanczos;

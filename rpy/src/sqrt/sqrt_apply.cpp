@@ -52,7 +52,7 @@ SqrtPreconditioner sqrt_preconditioner_from_string(const std::string& name) {
 }
 
 SqrtReport sqrt_apply(const LinearOperatorView& op, std::span<const double> z, std::span<double> w, std::size_t nrhs,
-                      const SqrtOptions& options) {
+                      const SqrtOptions& options, std::span<const double> first_product) {
   constexpr const char* where = "sqrt_apply";
   require(op.n > 0, ErrorCode::invalid_input, where, "the operator has size 0");
   require(static_cast<bool>(op.apply), ErrorCode::invalid_argument, where, "the operator has no apply function");
@@ -71,10 +71,15 @@ SqrtReport sqrt_apply(const LinearOperatorView& op, std::span<const double> z, s
   require(options.preconditioner != SqrtPreconditioner::block, ErrorCode::invalid_argument, where,
           "the block preconditioner needs the particles: use MobilityOperator::apply_sqrt or "
           "BlockPreconditioner::sample");
+  if (!first_product.empty()) {
+    require(nrhs == 1 && (options.method == SqrtMethod::lanczos || options.method == SqrtMethod::automatic),
+            ErrorCode::invalid_argument, where, "a given first product serves Lanczos on one right-hand side only");
+    require_size(first_product, op.n, where, "first product");
+  }
 
   switch (options.method) {
     case SqrtMethod::automatic:
-    case SqrtMethod::lanczos: return sqrt_detail::lanczos_sqrt(op, z, w, nrhs, options);
+    case SqrtMethod::lanczos: return sqrt_detail::lanczos_sqrt(op, z, w, nrhs, options, first_product);
     case SqrtMethod::chebyshev: {
       const double a = options.lambda_min, b = options.lambda_max;
       if (a == 0.0 && b == 0.0) {

@@ -16,9 +16,9 @@
 
 #include "rpyfmm/bd/force_field.hpp"
 #include "rpyfmm/bd/integrator.hpp"
-#include "rpyfmm/bd/mobility_factory.hpp"
 #include "rpyfmm/bd/neighbour_list.hpp"
 #include "rpyfmm/rpy/geometry.hpp"
+#include "rpyfmm/rpy/mobility_factory.hpp"
 
 namespace rpyfmm::bd {
 
@@ -62,7 +62,7 @@ struct RunConfig {
   std::array<double, 3> external_force{0, 0, 0};
   IntegratorOptions integrator;
   std::uint64_t steps = 0;
-  MobilitySpec mobility;
+  rpy::MobilitySpec mobility;
   NeighbourOptions neighbours;
   OutputSpec output;
   std::string text;    ///< the TOML source (stored in checkpoints)

@@ -80,6 +80,13 @@ class ForceField {
 
  private:
   void rebuild_bond_index(std::size_t n) const;
+  /// Throws invalid_input naming the first neighbour of particle i within its hard core (none
+  /// found at the precision of r: returns).
+  void fail_overlap(std::size_t i, std::span<const double> x, std::span<const std::uint32_t> ptype,
+                    const NeighbourList& list, std::uint64_t step, std::span<const std::uint32_t> groups) const;
+  /// Throws invalid_input naming bond k (coincident ends, or a FENE bond at its maximum extension).
+  [[noreturn]] void fail_bond(std::size_t k, std::span<const double> x, const NeighbourList& list,
+                              std::uint64_t step) const;
 
   std::vector<ParticleType> types_;
   std::vector<PairTerm> pairs_;  // types x types

@@ -1,10 +1,11 @@
 // rpyfmm::bd — Euler-Maruyama Brownian dynamics with hydrodynamic interactions
-// on any mobility operator (MATH.md §4; PSE paper eq. 17):
+// on any mobility operator (docs/theory/bd.md; Fiore et al. 2017, eq. 17):
 //
 //     dx = M F dt + sqrt(2 kT dt) M^{1/2} z,   z ~ N(0, I) keyed by (seed, step, particle)
 //
-// RPY is divergence-free, so no drift term kT div M dt is needed (MATH.md §1).
-// With the free-draining operator (method "none") this is 001 eq. 3.
+// RPY is divergence-free, so no drift term kT div M dt is needed (docs/theory/rpy.md).
+// With the free-draining operator (method "none") this is eq. 3 of the GPU BD paper
+// (Eurographics 2015; docs/theory/bd.md).
 //
 // One step: neighbour-list update (only when needed) -> forces -> mobility
 // plan (set_positions, once per step) -> M F and M^{1/2} z (drift_and_noise,
@@ -35,8 +36,8 @@ struct IntegratorOptions {
   /// Key of the counter-based noise (with the step number and the particle index).
   std::uint64_t seed = 1;
   /// Square-root solver for the Brownian displacement B z, B B^T = M (default: the operator's
-  /// preferred one, tol 1e-3; Lanczos runs with the block preconditioner, 1.7-2.6x fewer products
-  /// than M^{1/2} z: bench/sqrt/RESULTS.md "Block preconditioner").
+  /// preferred one, tol 1e-3; Lanczos runs with the block preconditioner, measured at 1.7-2.6x
+  /// fewer products than M^{1/2} z: docs/theory/samplers.md).
   SqrtOptions sqrt{.preconditioner = rpy::SqrtPreconditioner::automatic};
   /// Blow-up guard: a step in which any particle would move more than this
   /// fraction of its radius (or produces NaN/Inf) is refused with an error. > 0.
@@ -101,6 +102,12 @@ class Integrator {
   [[nodiscard]] std::span<const double> brownian_displacement() const { return dx_brown_; }
 
  private:
+  /// u = M F and w = M^{1/2} z (or, fused, u = M F + noise / dt M^{1/2} z) at the current state.
+  void drift_and_noise_products(StepReport& rep, bool fused, bool brownian, double noise);
+  /// dx = u dt + noise w, refused (numerical_failure, state unchanged) when a particle would move
+  /// more than max_displacement x its radius.
+  void checked_displacements(double dt, double noise, bool brownian);
+
   std::unique_ptr<rpy::MobilityOperator> mobility_;
   ForceField forces_;
   IntegratorOptions options_;

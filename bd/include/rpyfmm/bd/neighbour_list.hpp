@@ -1,9 +1,9 @@
-// rpyfmm::bd — cell list + Verlet neighbour list with a skin (paper 001,
-// sec. 3.1 and Algorithm 1).
+// rpyfmm::bd — cell list + Verlet neighbour list with a skin (GPU BD paper, Eurographics
+// 2015, Sec. 3.1 and Algorithm 1; docs/theory/bd.md).
 //
 // Every particle i stores all j != i with |x_i - x_j| < r_L = r_c + skin at the
 // last build, sorted by j. The list is rebuilt only when some particle has moved
-// more than skin/2 since the last build (001, Algorithm 1, lines 15-16): then no
+// more than skin/2 since the last build (Algorithm 1, lines 15-16): then no
 // pair can have come closer than r_c unseen. Sorting makes the order in which
 // forces are summed independent of when the list was built, so trajectories do
 // not depend on the rebuild schedule (restarts continue bitwise identically).
@@ -27,8 +27,8 @@ namespace rpyfmm::bd {
 struct NeighbourOptions {
   /// Skin r_L - r_c (> 0 when a cutoff is set). 0 = automatic: 0.3 r_c.
   double skin = 0.0;
-  /// 0 = dynamic rebuild test (001 Algorithm 1); n > 0 = rebuild every n steps
-  /// regardless (the fixed-interval strategy of 001 Table 1, for comparison only:
+  /// 0 = dynamic rebuild test (GPU BD paper, Algorithm 1); n > 0 = rebuild every n steps
+  /// regardless (the fixed-interval strategy of its Table 1, for comparison only:
   /// it can miss pairs when particles move fast).
   int fixed_interval = 0;
 };

@@ -22,7 +22,7 @@
 // point off the centre drifts towards it at -2 D_r (q - c) for an isotropic body) and for
 // hydrodynamically coupled, non-spherical bodies; drift = none leaves it out (for bodies known
 // to have none, e.g. a lone sphere tracked at its centre; a step then costs 0.53-0.66 of one with
-// the drift, bench/rigid/RESULTS.md).
+// the drift; docs/theory/rigid.md).
 //
 // Forces and torques come from a user function of the state (e.g. gravity, traps), and from an
 // optional bead force field (set_bead_forces: pair potentials between beads of different bodies,
@@ -186,6 +186,15 @@ class RigidBodyDynamics {
   [[nodiscard]] std::span<const double> last_drift() const { return drift_; }
 
  private:
+  // The stages of step(), in order.
+  /// w_ = forces and torques at the current state (user function and bead force field).
+  void gather_forces_and_torques();
+  /// y_ = N W, plus the random slip sqrt(2 kT / dt) N^{1/2} z when kT > 0.
+  void solve_velocities();
+  /// drift_ = kT d/dQ . N by a random finite difference (zero without it).
+  void estimate_drift();
+  /// Q += dt (Y + drift) (rotations by quaternion), refused beyond max_displacement; beads moved.
+  void update_bodies();
   /// Bead positions of (positions, orientations) into out (3N).
   void place_beads(std::span<const double> positions, std::span<const double> orientations,
                    std::vector<double>& out) const;

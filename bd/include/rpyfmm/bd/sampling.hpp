@@ -17,7 +17,7 @@ using rpy::SqrtOptions;
 using rpy::SqrtReport;
 
 /// Brownian displacement sqrt(2 kT dt) M^{1/2} z with z drawn from the
-/// counter-based generator keyed by (seed, step): MATH.md §4, PSE paper eq. 17.
+/// counter-based generator keyed by (seed, step): docs/theory/bd.md; Fiore et al. 2017, eq. 17.
 SqrtReport brownian_displacement(const rpy::MobilityOperator& mobility, double kT, double dt, std::uint64_t seed,
                                  std::uint64_t step, std::span<double> displacement, const SqrtOptions& options = {});
 
@@ -30,8 +30,8 @@ struct DriftNoiseReport {
 };
 
 /// True when `mobility` samples M^{1/2} z by Lanczos on plain products for
-/// `options` (explicit lanczos, or automatic on the direct and fmm operators),
-/// so that drift_and_noise() can share the first Krylov product.
+/// `options` (explicit lanczos, or automatic on an operator whose native sampler is Lanczos,
+/// such as direct and fmm), so that drift_and_noise() can share the first Krylov product.
 bool samples_by_lanczos(const rpy::MobilityOperator& mobility, const SqrtOptions& options);
 
 /// u = M F and w = M^{1/2} z for one step (each 3N; `forces` may be all zero,
@@ -40,17 +40,18 @@ bool samples_by_lanczos(const rpy::MobilityOperator& mobility, const SqrtOptions
 /// (rpy::BlockPreconditioner: the same covariance, fewer products).
 ///
 /// When samples_by_lanczos() holds, one block product M [F, z] (M [F, G^T z])
-/// gives u and the Lanczos solver's first product, M (z / |z|) (G M G^T (z / |z|)),
-/// which is recognised as a multiple of z, so a step costs (Lanczos iterations
-/// + 1) operator applications of which the first is a 2-vector block
-/// (issue #8 target). Otherwise M F and the operator's own sampler are called.
+/// gives u and M z (G M G^T z), which the Lanczos solver takes as its first product
+/// (rpy::sqrt_apply's `first_product`), so a step costs (Lanczos iterations + 1) operator
+/// applications of which the first is a 2-vector block. Otherwise M F and the operator's own
+/// sampler are called.
 DriftNoiseReport drift_and_noise(const rpy::MobilityOperator& mobility, std::span<const double> forces,
                                  std::span<const double> z, std::span<double> u, std::span<double> w,
                                  const SqrtOptions& options);
 
 /// True when `mobility` can give v = M F + noise_scale M^{1/2} z(seed, step) in one fused pass
-/// for `options` (automatic or split): the CPU PSE operator, whose deterministic and Brownian
-/// wave-space parts then share their FFTs ([PSE] Sec. III; rpy::pse::PseOperator::apply_with_noise).
+/// for `options` (automatic or split): an operator that answers
+/// MobilityOperator::fuses_drift_and_noise(), i.e. PSE, whose deterministic and Brownian
+/// wave-space parts then share their FFTs (Fiore et al. 2017, Sec. III; docs/theory/pse.md).
 bool fuses_drift_and_noise(const rpy::MobilityOperator& mobility, const SqrtOptions& options);
 
 /// v = M F + noise_scale M^{1/2} z with the operator's own noise keyed by (seed, step) (for PSE:

@@ -4,7 +4,7 @@
 // Any invertible G gives a valid Brownian displacement
 //     w = G^{-1} (G M G^T)^{1/2} z,   since  (G^{-1} A^{1/2}) (G^{-1} A^{1/2})^T = G^{-1} A G^{-T} = M
 // for A = G M G^T (the preconditioned Krylov sampler of Ando, Chow, Saad & Skolnick, J. Chem. Phys.
-// 137, 064106 (2012); dissertation 004 ch. 5 proposes preconditioning the random displacements).
+// 137, 064106 (2012); docs/theory/samplers.md).
 // Here G = L^{-1}, where L L^T ~ the block diagonal of M over spatial blocks of nearby particles:
 // the blocks of A on its diagonal are (nearly) identities, so the short-range couplings that spread M's
 // small eigenvalues are gone and Lanczos on A needs fewer products than on M. Chebyshev gains
@@ -35,8 +35,8 @@ class BlockPreconditioner {
   /// Particles per block when none is asked for: N / 64, between 16 and 32. Small blocks are
   /// cheap to factor and whiten enough below ~2000 particles. Larger blocks than 32 save a few
   /// more iterations, which pays for the FMM operator at 10^5 particles (4%) but not for
-  /// operators with cheaper products (PSE: 1.1x faster with 32 than with 64 at 8000 particles;
-  /// bench/bd/RESULTS.md and bench/pse/RESULTS.md "Block preconditioner").
+  /// operators with cheaper products (PSE: measured 1.1x faster with 32 than with 64 at 8000
+  /// particles; docs/theory/samplers.md).
   static std::size_t automatic_block(std::size_t n) { return std::clamp<std::size_t>(n / 64, 16, 32); }
 
   /// Partitions N = radii.size() particles into blocks of at most `max_block` particles and

@@ -1,6 +1,6 @@
 // rpyfmm — DirectRpy: the exact O(N^2) Rotne-Prager-Yamakawa mobility operator.
 //
-// U_i = sum_j M_ij F_j with the pair blocks of rpy_kernel.hpp (MATH.md §1),
+// U_i = sum_j M_ij F_j with the pair blocks of rpy_kernel.hpp (docs/theory/rpy.md),
 // including overlap regimes and the self term. It is the reference every fast
 // operator (FMM, PSE) is checked against, and the right choice for small N
 // (up to a few thousand particles). Open geometry only.

@@ -11,6 +11,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <span>
 #include <string>
@@ -60,6 +61,22 @@ class MobilityOperator {
   /// Block version: nrhs noise vectors at once.
   SqrtReport apply_sqrt_block(std::span<const double> z, std::span<double> w, std::size_t nrhs,
                               const SqrtOptions& options = {}) const;
+
+  // Capability queries: what an operator offers beyond U = M F, so that callers (the BD
+  // engine) choose a path by asking the operator rather than by its name or type.
+
+  /// The method apply_sqrt takes for SqrtMethod::automatic: lanczos on products (the default
+  /// do_apply_sqrt), split for PSE, cholesky for the exact diagonal of free draining. An
+  /// operator that overrides do_apply_sqrt overrides this too.
+  [[nodiscard]] virtual SqrtMethod native_sampler() const { return SqrtMethod::lanczos; }
+  /// True when apply_with_noise gives the drift and the Brownian velocity in one pass (PSE: the
+  /// deterministic and Brownian wave-space parts share their FFTs, docs/theory/pse.md).
+  [[nodiscard]] virtual bool fuses_drift_and_noise() const { return false; }
+  /// U = M F + noise_scale M^{1/2} z in one pass, with the operator's own noise keyed by
+  /// (seed, step). For BD: noise_scale = sqrt(2 kT / dt). Throws not_supported unless
+  /// fuses_drift_and_noise().
+  virtual SqrtReport apply_with_noise(std::span<const double> forces, double noise_scale, std::uint64_t seed,
+                                      std::uint64_t step, std::span<double> velocities) const;
 
   /// Divergence of M with respect to the positions (3N); zero for RPY.
   virtual void divergence(std::span<double> out) const;

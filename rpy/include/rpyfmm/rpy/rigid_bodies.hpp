@@ -3,8 +3,8 @@
 // hydrodynamic interactions among all beads through any MobilityOperator (direct, FMM, PSE).
 //
 // Body k is a set of beads i at positions r_i (radius a_i) moving rigidly with a reference
-// point q_k: u_i = U_k + Omega_k x (r_i - q_k), i.e. u = K Y (dissertation 004 ch. 5, the
-// bead-shell model; the "rigid multiblob" formulation of Balboa Usabiaga et al., Commun. Appl.
+// point q_k: u_i = U_k + Omega_k x (r_i - q_k), i.e. u = K Y (Guan, dissertation, ch. 4, the
+// bead-shell model; docs/theory/rigid.md; the "rigid multiblob" formulation of Balboa Usabiaga et al., Commun. Appl.
 // Math. Comput. Sci. 11, 217 (2016)). The beads exert forces lambda on the fluid with M lambda = K Y (no slip, M the
 // RPY bead mobility) and sum to the body's force and torque, K^T lambda = W = (F_k, T_k). So
 //     [ M   -K ] [lambda]   [ 0]
@@ -13,7 +13,7 @@
 // M lambda per iteration, right-preconditioned by the same system without the hydrodynamic
 // coupling between different bodies (per body: a dense Cholesky of its bead block M_kk and
 // the 6x6 N_k = (K_k^T M_kk^{-1} K_k)^{-1}). For well-separated bodies that preconditioner is
-// nearly exact; iterations grow slowly with the volume fraction (bench/rigid/RESULTS.md).
+// nearly exact; iterations grow slowly with the volume fraction (docs/theory/rigid.md).
 //
 // Conventions. Bead positions 3N as everywhere; bodies are contiguous runs of beads given by
 // offsets (body k holds beads offsets[k] .. offsets[k+1] - 1; offsets[0] = 0, offsets[m] = N).
@@ -36,7 +36,7 @@ struct RigidBodyOptions {
   /// b its right-hand side (W, and apply_with_noise's random slip), with each body's torque and
   /// angular velocity scaled by its RMS lever arm l_k (T_k / l_k, Omega_k l_k: forces and
   /// torques weigh alike). The relative error of the
-  /// velocities is then within a few times the tolerance (bench/rigid/RESULTS.md); in (0, 1).
+  /// velocities is then within a few times the tolerance (docs/theory/rigid.md); in (0, 1).
   double tolerance = 1e-6;
   /// Most GMRES iterations (bead products) in all; not converging then throws
   /// ErrorCode::numerical_failure.

@@ -1,8 +1,8 @@
 // rpyfmm — the Rotne-Prager-Yamakawa pair mobility, written once for host and
 // device code (header-only, no std:: calls so that nvcc compiles it for the GPU).
 //
-// Every function here follows /work/shared/design/MATH.md §1:
-//   equal radii a:      dissertation 004 eq. (3.1); PSE paper 002 eq. (4);
+// Every function here follows docs/theory/rpy.md:
+//   equal radii a:      Guan, dissertation, eq. (3.1); Fiore et al., J. Chem. Phys. 2017, eq. (4);
 //   different radii:    Zuk, Wajnryb, Mizerski & Szymczak, J. Fluid Mech. 741, R5 (2014),
 //                       eqs. (10)-(12) (far field, partial overlap, one sphere inside the other).
 // The pair tensor is isotropic-plus-dyadic,
@@ -36,10 +36,10 @@ struct RpyScalars {
   double g;
 };
 
-/// Self mobility times eta: 1 / (6 pi a)   (MATH.md §1, M_ii = I / (6 pi eta a)).
+/// Self mobility times eta: 1 / (6 pi a)   (M_ii = I / (6 pi eta a)).
 RPYFMM_HOST_DEVICE inline double rpy_self(double a) { return rpy_detail::inv_6pi / a; }
 
-/// Equal radii a at distance r >= 0 (004 eq. 3.1; 002 eq. 4):
+/// Equal radii a at distance r >= 0 (Guan eq. 3.1; Fiore et al. 2017 eq. 4):
 ///   r >  2a: f = (1 + 2a^2/(3r^2)) / (8 pi r),  g = (1 - 2a^2/r^2) / (8 pi r)
 ///   r <= 2a: f = (1 - 9r/(32a)) / (6 pi a),     g = (3r/(32a)) / (6 pi a)
 /// r = 0 gives the self term (f = 1/(6 pi a), g = 0).
@@ -54,7 +54,7 @@ RPYFMM_HOST_DEVICE inline RpyScalars rpy_scalars_equal(double r, double a) {
   return {c * (1.0 - 9.0 * t), c * (3.0 * t)};
 }
 
-/// Radii ai, aj at distance r >= 0 (Zuk et al. 2014, MATH.md §1):
+/// Radii ai, aj at distance r >= 0 (Zuk et al. 2014):
 ///   r > ai + aj (far):      f = (1 + (ai^2 + aj^2)/(3r^2)) / (8 pi r),  g = (1 - (ai^2 + aj^2)/r^2) / (8 pi r)
 ///   |ai - aj| < r <= ai + aj (partial overlap):
 ///       f = (16 r^3 (ai + aj) - ((ai - aj)^2 + 3r^2)^2) / (32 r^3) / (6 pi ai aj)

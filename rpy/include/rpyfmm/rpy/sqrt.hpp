@@ -1,5 +1,5 @@
 // rpyfmm — square roots of symmetric positive definite operators:
-// w = M^{1/2} z for Brownian displacements (MATH.md §4).
+// w = M^{1/2} z for Brownian displacements (docs/theory/samplers.md).
 //
 // The solvers need only products with M ("apply M"), so they serve every
 // mobility operator (direct, FMM, PSE) alike. They live in rpyfmm::rpy rather
@@ -64,8 +64,8 @@ struct SqrtOptions {
   /// Relative tolerance, in (0, 1).
   /// Lanczos: stops when successive iterates differ by less than tol * |iterate|
   ///   (Ando, Chow & Saad 2012, sec. II.B). The change underestimates the error
-  ///   left: on RPY suspensions the true relative error is 2-3 x tol
-  ///   (bench/sqrt/RESULTS.md; the tests require <= 10 x tol). Ask for tol / 3
+  ///   left: on RPY suspensions the true relative error is measured at 2-3 x tol
+  ///   (docs/theory/samplers.md; the tests require <= 10 x tol). Ask for tol / 3
   ///   if the error itself must stay below a bound.
   /// Chebyshev: the degree is the smallest whose neglected Chebyshev coefficients
   ///   of sqrt on [lambda_min, lambda_max] sum to <= tol * sqrt(lambda_min), which
@@ -84,7 +84,7 @@ struct SqrtOptions {
   bool throw_if_not_converged = true;
   /// Lanczos and Chebyshev only, and only through a MobilityOperator (it needs the particles):
   /// `block` draws a different but equally valid displacement, B z with B B^T = M, in 1.7-2.6x
-  /// fewer products than M^{1/2} z with Lanczos (bench/sqrt/RESULTS.md "Block preconditioner").
+  /// fewer products than M^{1/2} z with Lanczos (docs/theory/samplers.md).
   /// With `block`, another method (PSE's split sampler, the dense methods) is an error; `automatic`
   /// quietly falls back to none there, for Chebyshev with given bounds and for sqrt_apply on a
   /// bare operator. Chebyshev with `block` works on A = G M G^T: lambda_min / lambda_max, if
@@ -129,8 +129,13 @@ struct LinearOperatorView {
 /// options, wrong sizes, or when M is detected not to be positive definite.
 /// Results do not depend on the number of OpenMP threads (inner products are
 /// summed in a fixed order) provided op.apply does not.
-SqrtReport sqrt_apply(const LinearOperatorView& op, std::span<const double> z, std::span<double> w,
-                      std::size_t nrhs, const SqrtOptions& options);
+///
+/// `first_product`, when not empty, is the product op z, already computed by the caller (the BD
+/// engine gets it in one block pass with the drift M F). Lanczos starts from v_1 = z / |z|, so
+/// its first product op v_1 = (op z) / |z| then costs no call of op.apply (and is not counted in
+/// the report's operator_applications). Lanczos only (method lanczos or automatic), nrhs = 1.
+SqrtReport sqrt_apply(const LinearOperatorView& op, std::span<const double> z, std::span<double> w, std::size_t nrhs,
+                      const SqrtOptions& options, std::span<const double> first_product = {});
 
 /// Bounds on the spectrum of an SPD operator for the Chebyshev method.
 struct SpectrumBounds {

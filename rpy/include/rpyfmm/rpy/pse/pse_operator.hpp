@@ -26,6 +26,8 @@ class PseOperator : public MobilityOperator {
   /// Accumulated seconds per stage (the back end's list) and their reset.
   [[nodiscard]] virtual StageTimes stage_times() const = 0;
   virtual void reset_stage_times() const = 0;
+  [[nodiscard]] SqrtMethod native_sampler() const override { return SqrtMethod::split; }
+  [[nodiscard]] bool fuses_drift_and_noise() const override { return true; }
 
  protected:
   using MobilityOperator::MobilityOperator;

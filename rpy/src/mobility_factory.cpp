@@ -1,16 +1,16 @@
-#include "rpyfmm/bd/mobility_factory.hpp"
+#include "rpyfmm/rpy/mobility_factory.hpp"
 
-#include "rpyfmm/bd/free_draining.hpp"
 #include "rpyfmm/core/ranges.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
+#include "rpyfmm/rpy/free_draining.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
 
-namespace rpyfmm::bd {
+namespace rpyfmm::rpy {
 
 const char* to_string(MobilityMethod method) {
   switch (method) {
@@ -47,28 +47,12 @@ ComputeDevice compute_device_from_string(const std::string& name, const char* wh
   fail(ErrorCode::invalid_argument, where, "unknown device '" + name + "' (expected cpu or cuda)");
 }
 
-bool mobility_method_available(MobilityMethod method) {
-  switch (method) {
-    case MobilityMethod::none:
-      return true;
-    case MobilityMethod::direct:
-      return true;
-    case MobilityMethod::fmm:
-      return true;
-    case MobilityMethod::pse:
-      return true;
-    case MobilityMethod::automatic:
-      return true;
-  }
-  return false;
-}
-
-// Measured crossovers (bench/bd/RESULTS.md "Auto crossover"; 1 thread, phi = 0.05 cloud, median
-// products): FmmRpy overtakes DirectRpy at ~1400 / 3500 / 6500 / 11000 particles for 3 / 6 / 9 /
-// 12 digits on the AVX2 machine (AMD Zen 1, session 6); with the AVX-512 direct kernels at ~2000 /
-// 5000 / 12000 / 16000-18000 on an Intel machine (session 7) and ~1200 / 4000 / 8500 / 13500 on an
-// AMD Zen-4 machine (session 9): the table takes values between the two (near the crossover
-// both operators cost about the same, so either machine loses little).
+// One-product crossovers of FmmRpy against DirectRpy, measured on a random cloud at phi = 0.05
+// (1 thread, median products) for 3 / 6 / 9 / 12 digits: with the AVX2 direct kernels (AMD Zen 1) FmmRpy overtakes
+// DirectRpy at ~1400 / 3500 / 6500 / 11000 particles; with the AVX-512 ones at ~2000 / 5000 /
+// 12000 / 16000-18000 (Intel) and ~1200 / 4000 / 8500 / 13500 (AMD Zen 4). The AVX-512 row takes
+// values between the two machines: near the crossover both operators cost about the same, so
+// either machine loses little.
 std::size_t default_fmm_crossover(double tolerance) {
   require_in_range(tolerance, 1e-15, 0.5, "default_fmm_crossover", "tolerance");
   const int digits = fmm::fmm_table_digits_for(tolerance);
@@ -83,7 +67,7 @@ namespace {
 }
 }  // namespace
 
-std::unique_ptr<rpy::MobilityOperator> make_mobility(const MobilitySpec& spec, std::size_t n_particles) {
+std::unique_ptr<MobilityOperator> make_mobility(const MobilitySpec& spec, std::size_t n_particles) {
   ranges::require_in(ranges::kMobilityTolerance, spec.tolerance, "make_mobility", "mobility tolerance");
   ranges::require_in(ranges::kViscosity, spec.viscosity, "make_mobility", "viscosity");
   MobilityMethod method = spec.method;
@@ -92,7 +76,7 @@ std::unique_ptr<rpy::MobilityOperator> make_mobility(const MobilitySpec& spec, s
       method = MobilityMethod::pse;
     } else if (const std::size_t crossover =
                    spec.fmm_crossover > 0 ? spec.fmm_crossover : default_fmm_crossover(spec.tolerance);
-               n_particles >= crossover && mobility_method_available(MobilityMethod::fmm)) {
+               n_particles >= crossover) {
       method = MobilityMethod::fmm;
     } else {
       method = MobilityMethod::direct;
@@ -106,28 +90,28 @@ std::unique_ptr<rpy::MobilityOperator> make_mobility(const MobilitySpec& spec, s
       return std::make_unique<FreeDrainingMobility>(spec.geometry, spec.viscosity);
     case MobilityMethod::direct:
       if (spec.geometry.is_periodic()) unavailable(method, "needs open geometry (use pse for periodic boxes)");
-      return std::make_unique<rpy::DirectRpy>(spec.geometry, spec.viscosity);
+      return std::make_unique<DirectRpy>(spec.geometry, spec.viscosity);
     case MobilityMethod::fmm:
       if (spec.geometry.is_periodic()) unavailable(method, "needs open geometry (use pse for periodic boxes)");
       {
-        rpy::FmmRpyOptions options;
+        FmmRpyOptions options;
         options.tolerance = spec.tolerance;  // relative l2 error of M F (FmmRpy accepts kMobilityTolerance)
-        return std::make_unique<rpy::FmmRpy>(spec.geometry, spec.viscosity, options);
+        return std::make_unique<FmmRpy>(spec.geometry, spec.viscosity, options);
       }
     case MobilityMethod::pse:
       if (spec.geometry.is_open()) unavailable(method, "needs a periodic geometry");
       {
-        rpy::pse::PseOptions options;
+        pse::PseOptions options;
         options.tolerance = spec.tolerance;  // PseRpy accepts [1e-8, 0.1)
         options.fft_measure = spec.fft_measure;
         options.wave_precision = spec.wave_precision;
         if (spec.device == ComputeDevice::cuda) {
-          if (!rpy::pse::PseRpyCuda::device_available()) {
+          if (!pse::PseRpyCuda::device_available()) {
             unavailable(method, "on device 'cuda': no usable CUDA device (or a build without CUDA)");
           }
-          return std::make_unique<rpy::pse::PseRpyCuda>(spec.geometry, spec.viscosity, options);
+          return std::make_unique<pse::PseRpyCuda>(spec.geometry, spec.viscosity, options);
         }
-        return std::make_unique<rpy::pse::PseRpy>(spec.geometry, spec.viscosity, options);
+        return std::make_unique<pse::PseRpy>(spec.geometry, spec.viscosity, options);
       }
     case MobilityMethod::automatic:
       break;
@@ -135,4 +119,4 @@ std::unique_ptr<rpy::MobilityOperator> make_mobility(const MobilitySpec& spec, s
   unavailable(method, "is unknown");
 }
 
-}  // namespace rpyfmm::bd
+}  // namespace rpyfmm::rpy

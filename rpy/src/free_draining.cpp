@@ -1,11 +1,11 @@
-#include "rpyfmm/bd/free_draining.hpp"
+#include "rpyfmm/rpy/free_draining.hpp"
 
 #include <cmath>
 #include <numbers>
 
-namespace rpyfmm::bd {
+namespace rpyfmm::rpy {
 
-FreeDrainingMobility::FreeDrainingMobility(rpy::Geometry geometry, double viscosity)
+FreeDrainingMobility::FreeDrainingMobility(Geometry geometry, double viscosity)
     : MobilityOperator(geometry, viscosity, "FreeDrainingMobility") {}
 
 void FreeDrainingMobility::on_positions_set() {
@@ -13,7 +13,7 @@ void FreeDrainingMobility::on_positions_set() {
   mobility_.resize(a.size());
   sqrt_mobility_.resize(a.size());
   for (std::size_t i = 0; i < a.size(); ++i) {
-    mobility_[i] = 1.0 / (6.0 * std::numbers::pi * viscosity() * a[i]);  // Stokes drag, 001 eq. 3
+    mobility_[i] = 1.0 / (6.0 * std::numbers::pi * viscosity() * a[i]);  // Stokes drag
     sqrt_mobility_[i] = std::sqrt(mobility_[i]);
   }
 }
@@ -29,17 +29,17 @@ void FreeDrainingMobility::do_apply(const double* forces, double* velocities, st
   }
 }
 
-rpy::SqrtReport FreeDrainingMobility::do_apply_sqrt(std::span<const double> z, std::span<double> w, std::size_t nrhs,
-                                                    const rpy::SqrtOptions&) const {
+SqrtReport FreeDrainingMobility::do_apply_sqrt(std::span<const double> z, std::span<double> w, std::size_t nrhs,
+                                               const SqrtOptions&) const {
   const std::size_t n = size();
   for (std::size_t k = 0; k < nrhs; ++k) {
 #pragma omp parallel for schedule(static) if (n >= 4096)
     for (std::size_t i = 0; i < n; ++i)
       for (int c = 0; c < 3; ++c) w[3 * n * k + 3 * i + c] = sqrt_mobility_[i] * z[3 * n * k + 3 * i + c];
   }
-  rpy::SqrtReport report;
-  report.method = rpy::SqrtMethod::cholesky;  // a diagonal matrix's exact factor
+  SqrtReport report;
+  report.method = SqrtMethod::cholesky;  // a diagonal matrix's exact factor
   return report;
 }
 
-}  // namespace rpyfmm::bd
+}  // namespace rpyfmm::rpy

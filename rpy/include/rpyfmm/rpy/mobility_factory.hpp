@@ -1,13 +1,13 @@
-// rpyfmm::bd — choosing a mobility operator by name, as configs and the CLI do.
+// rpyfmm::rpy — choosing a mobility operator by name, as BD configs, the CLI and Python do.
 //
 //   "none"   free draining (FreeDrainingMobility), any geometry
-//   "direct" O(N^2) RPY sums (rpy::DirectRpy), open geometry
-//   "fmm"    FMM-accelerated RPY (rpy::FmmRpy), open geometry
-//   "pse"    Positively Split Ewald (rpy::pse::PseRpy), periodic geometry
+//   "direct" O(N^2) RPY sums (DirectRpy), open geometry
+//   "fmm"    FMM-accelerated RPY (FmmRpy), open geometry
+//   "pse"    Positively Split Ewald (pse::PseRpy), periodic geometry
 //   "auto"   open: direct below `fmm_crossover` particles (default: default_fmm_crossover),
 //            fmm from there on; periodic: pse
 //
-// Device "cuda" (pse only) builds rpy::pse::PseRpyCuda instead of PseRpy: the same operator on
+// Device "cuda" (pse only) builds pse::PseRpyCuda instead of PseRpy: the same operator on
 // a GPU (a build with CUDA and a usable device; wave_precision as on the CPU).
 //
 // A method that does not fit the geometry throws rpyfmm::Error(not_supported) naming it.
@@ -21,7 +21,7 @@
 #include "rpyfmm/rpy/mobility.hpp"
 #include "rpyfmm/rpy/pse/pse_parameters.hpp"
 
-namespace rpyfmm::bd {
+namespace rpyfmm::rpy {
 
 enum class MobilityMethod { none, direct, fmm, pse, automatic };
 
@@ -42,32 +42,30 @@ struct MobilitySpec {
   double tolerance = 1e-3;
   /// Solvent viscosity eta (> 0).
   double viscosity = 1.0;
-  rpy::Geometry geometry = rpy::Geometry::open();
+  Geometry geometry = Geometry::open();
   /// "auto" switches from direct to fmm at this many particles (open geometry);
   /// 0 = default_fmm_crossover(tolerance) on this machine.
   std::size_t fmm_crossover = 0;
-  /// pse: FFTW_MEASURE plans (rpy::pse::PseOptions::fft_measure): faster transforms for long
+  /// pse: FFTW_MEASURE plans (pse::PseOptions::fft_measure): faster transforms for long
   /// runs, results reproducible to round-off instead of bit for bit across processes.
   bool fft_measure = false;
-  /// pse: precision of the wave-space grids (rpy::pse::PseOptions::wave_precision); automatic
+  /// pse: precision of the wave-space grids (pse::PseOptions::wave_precision); automatic
   /// takes single precision for tolerances >= 1e-5.
-  rpy::pse::WavePrecision wave_precision = rpy::pse::WavePrecision::automatic;
-  /// cuda: the pse method on a GPU (rpy::pse::PseRpyCuda); other methods refuse it. Needs a
+  pse::WavePrecision wave_precision = pse::WavePrecision::automatic;
+  /// cuda: the pse method on a GPU (pse::PseRpyCuda); other methods refuse it. Needs a
   /// build with CUDA and a usable device (else not_supported, naming why).
   ComputeDevice device = ComputeDevice::cpu;
 };
 
 /// Particle count from which FmmRpy at `tolerance` beats DirectRpy per product, 1 thread: where
-/// "auto" switches by default. It grows with the digits asked for and is larger where the direct
-/// sums run the AVX-512 kernels (bench/bd/RESULTS.md, "Auto crossover").
+/// "auto" switches by default. It grows with the digits asked for (the FMM gets dearer, direct
+/// sums do not) and is larger where the direct sums run the AVX-512 kernels (the measured values
+/// are in mobility_factory.cpp).
 std::size_t default_fmm_crossover(double tolerance);
-
-/// True when `method` can be built in this build of the library.
-bool mobility_method_available(MobilityMethod method);
 
 /// Builds the operator for `spec` and `n_particles` (used by "auto"). Throws
 /// rpyfmm::Error: invalid_argument for bad tolerance/viscosity, not_supported for a
 /// method unavailable here or in this geometry.
-std::unique_ptr<rpy::MobilityOperator> make_mobility(const MobilitySpec& spec, std::size_t n_particles);
+std::unique_ptr<MobilityOperator> make_mobility(const MobilitySpec& spec, std::size_t n_particles);
 
-}  // namespace rpyfmm::bd
+}  // namespace rpyfmm::rpy
