@@ -3,7 +3,7 @@
 # device machine has CUDA and cuFFT but none of Debian's packages and no network): builds
 # the release preset with CUDA here, then copies the PSE test and benchmark programs and the
 # shared libraries they need beyond CUDA's own (FFTW, libgomp, the CUDA runtime).
-# Then run scripts/gpu-check.sh there with gpu-kit carried (see bench/pse/RESULTS.md).
+# Then run scripts/gpu-check.sh there with gpu-kit carried (bench/README.md, section PSE on a GPU).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 command -v nvcc >/dev/null || export PATH=/usr/local/cuda/bin:$PATH

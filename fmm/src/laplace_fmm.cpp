@@ -46,7 +46,7 @@ int fmm_table_digits_for(double eps) {
 }
 
 int fmm_default_leaf_capacity(double eps) {
-  // Measured (bench/fmm/RESULTS.md "Leaf capacity", pot+grad+Hessian, one thread). The best leaf
+  // Measured (bench/fmm/RESULTS.md at commit 010249d "Leaf capacity", pot+grad+Hessian, one thread). The best leaf
   // balances P2P against M2L, so it follows the P2P kernel's speed: with the AVX-512 kernels
   // (1/r by rsqrt14 + Newton, ~3x the pairs per second) larger leaves than FMM3D's
   // 100/200/400/600 pay off from 1e-6 on (uniform cube, N = 1e5, Intel machine); with sqrt and
@@ -59,7 +59,7 @@ int fmm_default_leaf_capacity(double eps) {
 }
 
 namespace {
-// Automatic leaves fitted to the cloud (fit_leaf_grid; bench/fmm/RESULTS.md "Fitted leaf grid"):
+// Automatic leaves fitted to the cloud (fit_leaf_grid; bench/fmm/RESULTS.md at commit 010249d "Fitted leaf grid"):
 // where the bounding-cube tree's leaves hold well above the best occupancy (a uniform cube of 2e5
 // points at 1e-6 and capacity 400: a partly split tree of 124 points per leaf, against a best of
 // ~50), the root is enlarged so that leaves of the target occupancy span the cloud. Measured with
@@ -83,7 +83,7 @@ constexpr double kPartialShareAvx512 = 0.97;
 
 FittedGridRule automatic_fitted_grid_rule(double eps) {
   if (simd_level() == SimdLevel::avx512) {
-    // Best occupancies of the sweep (bench/fmm/leaf_grid_sweep.py): ~24 / 50-70 / 70-150 / 150-300
+    // Best occupancies of the sweep (bench/fmm/leaf_grid_sweep.py at commit 010249d): ~24 / 50-70 / 70-150 / 150-300
     // points at 3 / 6 / 9 / 12 digits. The upper size is the largest measured (1e6: errors 4.5e-8,
     // 7.8e-8, 1.3e-8 at 1e-6 and 2.5e-11, 5.5e-11, 1.0e-11 at 1e-9, potential/gradient/Hessian).
     // Partly split trees are refitted too (AMD Zen-4 machine: 1.16-1.85x, see above).
@@ -98,7 +98,7 @@ FittedGridRule automatic_fitted_grid_rule(double eps) {
         return {200, 10000, 1000000, 0.0, true, kPartialShareAvx512, kUniformFill};
     }
   }
-  // Side by side (bench/fmm/fitted_grid.py): at 9 and 12 digits surfaces gained nothing (0.92-1.02x)
+  // Side by side (bench/fmm/fitted_grid.py at commit 010249d): at 9 and 12 digits surfaces gained nothing (0.92-1.02x)
   // and 1e4 points at 12 digits neither (0.92x sphere, 0.99x cube): near-uniform clouds only there.
   switch (fmm_table_digits_for(eps)) {
     case 3:
@@ -310,10 +310,10 @@ void build_plan_tree(LaplaceFmm::Plan& plan, const FmmOptions& options, std::spa
 // W/X boxes with at most this many points are summed directly. Direct sums beat M2P/P2L below
 // ~p^2/2 points by operation counts (Cheng, Greengard & Rokhlin 1999 §4; Guan, Algorithm 1 step 3
 // uses p^2), with pairs as dear as expansion terms. The AVX-512 P2P kernels make pairs ~3x
-// cheaper, and there the limit is 2 p^2 (measured on an AMD Zen-4 machine, bench/fmm/RESULTS.md
+// cheaper, and there the limit is 2 p^2 (measured on an AMD Zen-4 machine, bench/fmm/RESULTS.md at commit 010249d
 // "W/X direct limit": surfaces 1.1-1.5x faster, one-level trees unchanged). A caller that takes
 // them over (export_direct_far) has a kernel cheaper than nd Laplace densities, and direct sums of
-// whole leaves then win even more (measured: FmmRpy, bench/rpy/RESULTS.md).
+// whole leaves then win even more (measured: FmmRpy, bench/rpy/RESULTS.md at commit 010249d).
 std::size_t direct_limit(const LaplaceFmm::Plan& plan) {
   const std::size_t p2 = std::size_t(plan.p) * std::size_t(plan.p);
   if (plan.export_direct) return std::max(p2 / 2, std::size_t(plan.leaf_capacity));
@@ -352,7 +352,8 @@ void LaplaceFmm::set_points(std::span<const double> sources, std::span<const dou
   auto plan = std::make_unique<Plan>();
   plan->p = options_.order > 0 ? options_.order : fmm_order_for(options_.tolerance);
   plan->digits = fmm_table_digits_for(options_.tolerance);
-  plan->leaf_capacity = options_.leaf_capacity > 0 ? options_.leaf_capacity : fmm_default_leaf_capacity(options_.tolerance);
+  plan->leaf_capacity =
+      options_.leaf_capacity > 0 ? options_.leaf_capacity : fmm_default_leaf_capacity(options_.tolerance);
   build_plan_tree(*plan, options_, sources, targets);
   plan->export_direct = options_.export_direct_far && !options_.near_field;
   plan->simd_level = simd_level();

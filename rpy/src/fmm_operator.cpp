@@ -26,7 +26,7 @@ constexpr double pi = std::numbers::pi;
 // Column of the FMM result row [pot, gx, gy, gz, hxx, hyy, hzz, hxy, hxz, hyz] holding H(k, m).
 constexpr std::array<std::array<int, 3>, 3> kHessianColumn = {{{4, 7, 8}, {7, 5, 9}, {8, 9, 6}}};
 
-// Leaf capacity when the user leaves it at 0 (bench/rpy/RESULTS.md "Leaf capacity", 1 thread).
+// Leaf capacity when the user leaves it at 0 (bench/rpy/RESULTS.md at commit 010249d "Leaf capacity", 1 thread).
 // Four densities per product make the far field dearer relative to the near field than in one
 // Laplace evaluation, so from 6 digits on the best leaves are larger than the Laplace default
 // wherever the P2P runs without AVX-512: 400 / 600 / 800 points at 6 / 9 / 12 digits on both
@@ -47,7 +47,7 @@ int default_leaf_capacity(double eps) {
   }
 }
 
-// Automatic leaves fitted to the cloud (bench/rpy/RESULTS.md "Fitted leaf grid"; fmm::fit_leaf_grid
+// Automatic leaves fitted to the cloud (bench/rpy/RESULTS.md at commit 010249d "Fitted leaf grid"; fmm::fit_leaf_grid
 // enlarges the root so that leaves of a chosen occupancy span the cloud, instead of the octree's
 // factor-8 steps: a uniform N = 1e5 cloud gets 24 or 195 points per leaf, ~60 is best at 6 digits).
 // Measured without AVX-512, 1 thread: at 1e-6, N = 1e5, uniform suspension 1.30x faster (195 -> 58
@@ -67,7 +67,7 @@ int default_leaf_capacity(double eps) {
 fmm::FittedGridRule fitted_grid_rule(double eps) {
   if (simd_level() == SimdLevel::avx512) {
     // At 6 digits, partly split trees of volume-filling clouds only (AMD Zen-4 machine,
-    // bench/rpy/RESULTS.md "Partly split trees with the AVX-512 kernels"): uniform suspensions
+    // bench/rpy/RESULTS.md at commit 010249d "Partly split trees with the AVX-512 kernels"): uniform suspensions
     // 1.17-1.22x (shares 0.67-0.69); balls (fill 0.58, share 0.82-0.94 from their curved edge)
     // lost 0.74-0.99x, and at 3 digits every refit lost (0.78-0.88x).
     if (fmm::fmm_table_digits_for(eps) == 6) return {60, 10000, 200000, 0.8, false, 0.97};

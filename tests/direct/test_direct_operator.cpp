@@ -1,4 +1,4 @@
-// DirectRpy against a plain double loop written here from MATH.md §1, plus
+// DirectRpy against a plain double loop written here from docs/theory/rpy.md, plus
 // block products, thread-count independence and input validation.
 #include <gtest/gtest.h>
 #include <omp.h>
@@ -22,7 +22,7 @@ constexpr double pi = std::numbers::pi;
 
 namespace {
 
-// Reference: U_i = sum_j M_ij F_j, branches exactly as in MATH.md §1.
+// Reference: U_i = sum_j M_ij F_j, branches exactly as in docs/theory/rpy.md.
 std::vector<double> reference(const std::vector<double>& x, const std::vector<double>& a, double eta,
                               const std::vector<double>& F) {
   const std::size_t n = a.size();

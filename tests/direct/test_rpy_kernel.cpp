@@ -1,5 +1,5 @@
 // RPY pair formulas (rpy_kernel.hpp) against closed forms written here
-// independently, and their structural properties (MATH.md §1).
+// independently, and their structural properties (docs/theory/rpy.md).
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>

@@ -18,7 +18,7 @@
 #include <vector>
 
 #include "rpyfmm/bd/config.hpp"
-#include "rpyfmm/bd/mobility_factory.hpp"
+#include "rpyfmm/rpy/mobility_factory.hpp"
 #include "rpyfmm/rpy/pse/pse_parameters.hpp"
 #include "rpyfmm/rpy/sqrt.hpp"
 
@@ -181,7 +181,7 @@ const std::map<std::string, Check>& checks() {
        [](const RunConfig& c, const std::string& l) { return c.integrator.keep_split_displacements == flag(l); }},
       {"mobility.method",
        [](const RunConfig& c, const std::string& l) {
-         return c.mobility.method == bd::mobility_method_from_string(unquoted(l));
+         return c.mobility.method == rpy::mobility_method_from_string(unquoted(l));
        }},
       {"mobility.tolerance",
        [](const RunConfig& c, const std::string& l) { return c.mobility.tolerance == number(l); }},
@@ -257,10 +257,10 @@ TEST(DocsBdConfig, BuiltInDemoIsAsDescribed) {
   // (1500 on every machine) is at most 2000 particles.
   const RunConfig demo = rpyfmm::bd::parse_config(rpyfmm::bd::demo_config_text(), "<built-in demo>");
   EXPECT_EQ(demo.particles.count, 2000u);
-  EXPECT_EQ(demo.mobility.method, rpyfmm::bd::MobilityMethod::automatic);
+  EXPECT_EQ(demo.mobility.method, rpyfmm::rpy::MobilityMethod::automatic);
   EXPECT_EQ(demo.mobility.tolerance, 1e-3);
-  EXPECT_EQ(rpyfmm::bd::default_fmm_crossover(demo.mobility.tolerance), 1500u);
-  EXPECT_LE(rpyfmm::bd::default_fmm_crossover(demo.mobility.tolerance), demo.particles.count);
+  EXPECT_EQ(rpyfmm::rpy::default_fmm_crossover(demo.mobility.tolerance), 1500u);
+  EXPECT_LE(rpyfmm::rpy::default_fmm_crossover(demo.mobility.tolerance), demo.particles.count);
 }
 
 }  // namespace

@@ -62,7 +62,7 @@ struct IntRange {
 inline constexpr RealRange kRadius{1e-30, 1e30};     ///< sphere / bead radius a
 inline constexpr RealRange kViscosity{1e-30, 1e30};  ///< solvent viscosity eta
 /// Relative tolerance of an approximate mobility product (fmm, pse): CLI --eps, the
-/// [mobility] tolerance of a BD config, bd::make_mobility and rpy::FmmRpy.
+/// [mobility] tolerance of a BD config, rpy::make_mobility and rpy::FmmRpy.
 inline constexpr RealRange kMobilityTolerance{1e-12, 0.1};
 /// Relative tolerance of a Krylov solve or square root (Lanczos, Chebyshev, GMRES): sample --tol,
 /// rigid --tol, rigid-bd --tol / --sqrt-tol, the [mobility] sqrt_tolerance of a BD config.
