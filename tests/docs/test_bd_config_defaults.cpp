@@ -195,7 +195,7 @@ const std::map<std::string, Check>& checks() {
        }},
       {"mobility.device",
        [](const RunConfig& c, const std::string& l) {
-         return c.mobility.device == bd::compute_device_from_string(unquoted(l));
+         return c.mobility.device == rpy::compute_device_from_string(unquoted(l));
        }},
       {"mobility.sqrt_method",
        [](const RunConfig& c, const std::string& l) {
