@@ -59,20 +59,20 @@ void philox_portable(const std::uint64_t* index, std::size_t m, std::uint64_t se
 }
 
 #ifdef RPYFMM_RANDOM_X86
-#define RPYFMM_TARGET_AVX2 __attribute__((target("avx2")))
-#define RPYFMM_TARGET_AVX512 __attribute__((target("avx512f")))
+#define RPYFMM_RANDOM_TARGET_AVX2 __attribute__((target("avx2")))
+#define RPYFMM_RANDOM_TARGET_AVX512 __attribute__((target("avx512f")))
 
 /// Eight unsigned 32-bit lanes (AVX2).
 struct Avx2Lanes {
   static constexpr std::size_t width = 8;
   using V = __m256i;
-  RPYFMM_TARGET_AVX2 static V load(const std::uint32_t* p) { return _mm256_load_si256(reinterpret_cast<const V*>(p)); }
-  RPYFMM_TARGET_AVX2 static void store(std::uint32_t* p, V v) { _mm256_storeu_si256(reinterpret_cast<V*>(p), v); }
-  RPYFMM_TARGET_AVX2 static V set1(std::uint32_t v) { return _mm256_set1_epi32(static_cast<int>(v)); }
-  RPYFMM_TARGET_AVX2 static V bxor(V a, V b) { return _mm256_xor_si256(a, b); }
-  RPYFMM_TARGET_AVX2 static V add(V a, V b) { return _mm256_add_epi32(a, b); }
+  RPYFMM_RANDOM_TARGET_AVX2 static V load(const std::uint32_t* p) { return _mm256_load_si256(reinterpret_cast<const V*>(p)); }
+  RPYFMM_RANDOM_TARGET_AVX2 static void store(std::uint32_t* p, V v) { _mm256_storeu_si256(reinterpret_cast<V*>(p), v); }
+  RPYFMM_RANDOM_TARGET_AVX2 static V set1(std::uint32_t v) { return _mm256_set1_epi32(static_cast<int>(v)); }
+  RPYFMM_RANDOM_TARGET_AVX2 static V bxor(V a, V b) { return _mm256_xor_si256(a, b); }
+  RPYFMM_RANDOM_TARGET_AVX2 static V add(V a, V b) { return _mm256_add_epi32(a, b); }
   /// hi/lo 32-bit halves of a * M, lane by lane (32 x 32 -> 64-bit products by vpmuludq).
-  RPYFMM_TARGET_AVX2 static void mulhilo(V a, std::uint32_t M, V& hi, V& lo) {
+  RPYFMM_RANDOM_TARGET_AVX2 static void mulhilo(V a, std::uint32_t M, V& hi, V& lo) {
     const V m = set1(M);
     const V even = _mm256_mul_epu32(a, m);                        // lanes 0, 2, 4, 6 as 64-bit products
     const V odd = _mm256_mul_epu32(_mm256_srli_epi64(a, 32), m);  // lanes 1, 3, 5, 7
@@ -85,14 +85,14 @@ struct Avx2Lanes {
 struct Avx512Lanes {
   static constexpr std::size_t width = 16;
   using V = __m512i;
-  RPYFMM_TARGET_AVX512 static V load(const std::uint32_t* p) { return _mm512_load_si512(p); }
-  RPYFMM_TARGET_AVX512 static void store(std::uint32_t* p, V v) { _mm512_storeu_si512(p, v); }
-  RPYFMM_TARGET_AVX512 static V set1(std::uint32_t v) { return _mm512_set1_epi32(static_cast<int>(v)); }
-  RPYFMM_TARGET_AVX512 static V bxor(V a, V b) { return _mm512_xor_si512(a, b); }
-  RPYFMM_TARGET_AVX512 static V add(V a, V b) { return _mm512_add_epi32(a, b); }
+  RPYFMM_RANDOM_TARGET_AVX512 static V load(const std::uint32_t* p) { return _mm512_load_si512(p); }
+  RPYFMM_RANDOM_TARGET_AVX512 static void store(std::uint32_t* p, V v) { _mm512_storeu_si512(p, v); }
+  RPYFMM_RANDOM_TARGET_AVX512 static V set1(std::uint32_t v) { return _mm512_set1_epi32(static_cast<int>(v)); }
+  RPYFMM_RANDOM_TARGET_AVX512 static V bxor(V a, V b) { return _mm512_xor_si512(a, b); }
+  RPYFMM_RANDOM_TARGET_AVX512 static V add(V a, V b) { return _mm512_add_epi32(a, b); }
   /// As Avx2Lanes::mulhilo. The maskz forms with all lanes set: GCC 12's plain ones read an
   /// undefined register and trip -Wmaybe-uninitialized in its own header.
-  RPYFMM_TARGET_AVX512 static void mulhilo(V a, std::uint32_t M, V& hi, V& lo) {
+  RPYFMM_RANDOM_TARGET_AVX512 static void mulhilo(V a, std::uint32_t M, V& hi, V& lo) {
     constexpr __mmask8 all = 0xFF;
     const V m = set1(M);
     const V even = _mm512_maskz_mul_epu32(all, a, m);
@@ -144,12 +144,12 @@ struct Avx512Lanes {
     }                                                                                  \
   }
 
-RPYFMM_TARGET_AVX2 void philox_avx2(const std::uint64_t* index, std::size_t m, std::uint64_t seed, std::uint64_t step,
+RPYFMM_RANDOM_TARGET_AVX2 void philox_avx2(const std::uint64_t* index, std::size_t m, std::uint64_t seed, std::uint64_t step,
                                     const Blocks& blocks, ChunkWords& out) {
   RPYFMM_PHILOX_CHUNK_BODY(Avx2Lanes);
 }
 
-RPYFMM_TARGET_AVX512 void philox_avx512(const std::uint64_t* index, std::size_t m, std::uint64_t seed,
+RPYFMM_RANDOM_TARGET_AVX512 void philox_avx512(const std::uint64_t* index, std::size_t m, std::uint64_t seed,
                                         std::uint64_t step, const Blocks& blocks, ChunkWords& out) {
   RPYFMM_PHILOX_CHUNK_BODY(Avx512Lanes);
 }
@@ -191,7 +191,7 @@ void box_muller_portable(const ChunkWords& words, std::size_t m, std::uint32_t b
 }
 #ifdef RPYFMM_RANDOM_X86
 template <Mapping M, class Real>
-RPYFMM_TARGET_AVX2 void box_muller_avx2(const ChunkWords& words, std::size_t m, std::uint32_t blocks, Real* g0,
+RPYFMM_RANDOM_TARGET_AVX2 void box_muller_avx2(const ChunkWords& words, std::size_t m, std::uint32_t blocks, Real* g0,
                                         Real* g1) {
   box_muller_chunk<M>(words, m, blocks, g0, g1);
 }

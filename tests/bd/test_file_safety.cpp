@@ -21,6 +21,14 @@ using rpyfmm::Error;
 
 namespace {
 
+/// Run options that only set the total step count.
+RunOptions steps_to(std::uint64_t steps) {
+  RunOptions o;
+  o.steps = steps;
+  return o;
+}
+
+
 const std::string kRun = R"(
 [system]
 geometry = "open"
@@ -146,7 +154,7 @@ TEST_F(BdFiles, RestartChecksEveryFileBeforeCuttingAny) {
   EXPECT_EQ(slurp(dir_ / "b" / "trajectory.xyz"), traj);
   EXPECT_EQ(slurp(dir_ / "b" / "log.csv"), log);
   // Its own directory restarts fine.
-  EXPECT_EQ(restart_bd(dir_ / "a" / "checkpoint.bin", {.steps = 20}).last_step, 20u);
+  EXPECT_EQ(restart_bd(dir_ / "a" / "checkpoint.bin", steps_to(20)).last_step, 20u);
 }
 
 // Refused at start-up (a periodic box with the open-geometry direct mobility; overlapping
@@ -185,7 +193,7 @@ TEST_F(BdFiles, RestartDropsATailWrittenAfterTheCheckpoint) {
   (void)run(c, dir_ / "cut", 10);
   std::ofstream(dir_ / "cut" / "trajectory.xyz", std::ios::app) << "30\npbc=\"F F F\" Properties=spec";
   std::ofstream(dir_ / "cut" / "log.csv", std::ios::app) << "15,0.01";
-  EXPECT_EQ(restart_bd(dir_ / "cut" / "checkpoint.bin", {.steps = 20}).last_step, 20u);
+  EXPECT_EQ(restart_bd(dir_ / "cut" / "checkpoint.bin", steps_to(20)).last_step, 20u);
   EXPECT_EQ(slurp(dir_ / "cut" / "trajectory.xyz"), slurp(dir_ / "full" / "trajectory.xyz"));
   const std::string log = slurp(dir_ / "cut" / "log.csv");
   EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 1 + 5);  // header + steps 0, 5, ..., 20
