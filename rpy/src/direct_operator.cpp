@@ -12,7 +12,9 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <span>
 
+#include "length_units.hpp"
 #include "pair_block_sum.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
@@ -220,7 +222,16 @@ DirectRpy::DirectRpy(Geometry geometry, double viscosity) : MobilityOperator(geo
 
 void DirectRpy::on_positions_set() {
   const std::size_t n = size();
-  const auto p = positions();
+  std::span<const double> p = positions();
+  std::span<const double> a = radii();
+  const detail::LengthUnits units = detail::choose_length_units(detail::bounding_box(p), a, "DirectRpy::set_positions");
+  scale_exponent_ = units.exponent;
+  std::vector<double> scaled_x, scaled_a;
+  if (scale_exponent_ != 0) {
+    detail::to_units(units, p, a, scaled_x, scaled_a);
+    p = scaled_x;
+    a = scaled_a;
+  }
   x_.resize(n);
   y_.resize(n);
   z_.resize(n);
@@ -229,7 +240,7 @@ void DirectRpy::on_positions_set() {
     y_[i] = p[3 * i + 1];
     z_[i] = p[3 * i + 2];
   }
-  a_.assign(radii().begin(), radii().end());
+  a_.assign(a.begin(), a.end());
   inv_a_.resize(n);
   for (std::size_t i = 0; i < n; ++i) inv_a_[i] = 1.0 / a_[i];
 }
@@ -291,9 +302,8 @@ void DirectRpy::do_apply(const double* forces, double* velocities, std::size_t n
       }
       for (std::size_t k = 0; k < nrhs; ++k) {
         double* u = velocities + 3 * n * k + 3 * i;
-        u[0] = inv_eta * acc[3 * k];
-        u[1] = inv_eta * acc[3 * k + 1];
-        u[2] = inv_eta * acc[3 * k + 2];
+        // Back from the units of length_units.hpp: M(x, a) = 2^-e M(2^-e x, 2^-e a) (exact).
+        for (int c = 0; c < 3; ++c) u[c] = std::ldexp(inv_eta * acc[3 * k + c], -scale_exponent_);
       }
     }
   }

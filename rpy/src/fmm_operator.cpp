@@ -12,6 +12,7 @@
 #include <string>
 
 #include "fmm_near_kernels.hpp"
+#include "length_units.hpp"
 #include "near_schedule.hpp"
 #include "rpyfmm/core/ranges.hpp"
 #include "rpyfmm/core/validate.hpp"
@@ -90,41 +91,6 @@ fmm::FittedGridRule fitted_grid_rule(double eps) {
 // A property of the tree only, never of the thread count, so results stay thread-invariant.
 constexpr std::size_t kSymmetricMinLeaves = 64;
 
-// Lengths that FmmRpy evaluates as given. The near-field kernel (rpy_kernel.hpp) forms r^2 and
-// g / r^2 ~ 1/r^3, the far field 1/r^3 (field gradients) and a^2 T. Where the suspension's size S
-// (half its extent, or the largest radius) lies in [2^-150, 2^199] and every radius is >= 2^-300,
-// non-overlapping pairs have r >= 2^-299 and far pairs r >= 2^-31 S (the octree's 30 levels), so
-// all of these stay normal and finite for forces below ~1e100, and LaplaceFmm accepts the extent
-// (2^-150 ... 2^200; a smaller extent with S >= 2^-150 means S = a_max, and LaplaceFmm takes a cloud
-// smaller than its min_leaf_side = 2 a_max). Other suspensions (extent 1e137, radius 1e135: the
-// a^2 T terms underflowed, 18-24% error; extent 1e-130: NaN) are evaluated in units of 2^e with
-// 2^-e S in [1, 2): exact, and M(x, a) = 2^-e M(2^-e x, 2^-e a) since the RPY tensor is
-// homogeneous of degree -1 in its lengths.
-constexpr double kPlainScaleMin = 0x1p-150, kPlainScaleMax = 0x1p199, kPlainRadiusMin = 0x1p-300;
-
-// e with 2^-e S in [1, 2), or 0 where the lengths are plain (above; results there are those of
-// the unscaled evaluation, bit for bit).
-int scale_exponent(const std::array<double, 3>& lo, const std::array<double, 3>& hi, double a_max, double a_min) {
-  double size = a_max;
-  for (int c = 0; c < 3; ++c) size = std::max(size, 0.5 * hi[c] - 0.5 * lo[c]);  // no overflow
-  if (size >= kPlainScaleMin && size <= kPlainScaleMax && a_min >= kPlainRadiusMin) return 0;
-  return std::ilogb(size);
-}
-
-// The largest ratio of the suspension's size S to a radius: 2^300 (~2e90). In units of S
-// (rescale), radii and the distances of non-overlapping pairs are then >= 2^-300, their squares
-// and cubes normal numbers; overlapping pairs closer than 2^-511 meet r^2 = 0, i.e. coincide, an
-// error of r / a < 2^-211 in M. A particle 1e300 away from spheres of radius 1 is beyond it: no
-// unit keeps both the outlier's squared distance finite and the spheres' squared distances
-// normal (scaled to the outlier, they underflowed and U was 30x wrong; unscaled it was NaN).
-constexpr int kMaxSizeRatioLog2 = 300;
-
-std::string format_length(double v, int digits = 6) {
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.*g", digits, v);
-  return buf;
-}
-
 }  // namespace
 
 FmmRpy::FmmRpy(Geometry geometry, double viscosity, FmmRpyOptions options)
@@ -147,23 +113,17 @@ void FmmRpy::on_positions_set() {
   const auto x = positions();
   // Centre the coordinates: the far field subtracts x_i,m E_k(F^m) and E_k(x.F), whose
   // FMM errors scale with |x|; centring keeps them at the scale of the cloud (translation invariance).
-  std::array<double, 3> lo{x[0], x[1], x[2]}, hi = lo;
-  std::array<std::size_t, 3> ilo{}, ihi{};  // particles at lo and hi
-  for (std::size_t i = 0; i < n; ++i)
-    for (int c = 0; c < 3; ++c) {
-      if (x[3 * i + c] < lo[c]) lo[c] = x[3 * i + c], ilo[c] = i;
-      if (x[3 * i + c] > hi[c]) hi[c] = x[3 * i + c], ihi[c] = i;
-    }
-  const auto [a_min, a_max] = std::minmax_element(radii().begin(), radii().end());
-  require_size_ratio(lo, hi, ilo, ihi, *a_max);
-  scale_exponent_ = scale_exponent(lo, hi, *a_max, *a_min);
+  // Suspensions at extreme length scales are evaluated in units of their size (length_units.hpp).
+  const detail::BoundingBox box = detail::bounding_box(x);
+  const detail::LengthUnits units = detail::choose_length_units(box, radii(), "FmmRpy::set_positions");
+  scale_exponent_ = units.exponent;
   centered_.resize(3 * n);
   if (scale_exponent_ == 0) {
     for (std::size_t i = 0; i < n; ++i)
-      for (int c = 0; c < 3; ++c) centered_[3 * i + c] = x[3 * i + c] - 0.5 * (lo[c] + hi[c]);
+      for (int c = 0; c < 3; ++c) centered_[3 * i + c] = x[3 * i + c] - 0.5 * (box.lo[c] + box.hi[c]);
     scaled_radii_.clear();
   } else {
-    rescale(lo, hi);
+    detail::to_units(units, x, radii(), centered_, scaled_radii_);
   }
   const std::span<const double> a = scale_exponent_ == 0 ? radii() : std::span<const double>(scaled_radii_);
   // The Laplace FMM runs at the requested tolerance: the far field combines up to 7 outputs with
@@ -189,60 +149,8 @@ void FmmRpy::on_positions_set() {
       detail::make_near_schedule(near.pairs, near.num_leaves(), near.num_leaves() >= kSymmetricMinLeaves));
 }
 
-void FmmRpy::require_size_ratio(const std::array<double, 3>& lo, const std::array<double, 3>& hi,
-                                const std::array<std::size_t, 3>& ilo, const std::array<std::size_t, 3>& ihi,
-                                double a_max) const {
-  int widest = 0;
-  double half = 0.0;
-  for (int c = 0; c < 3; ++c)
-    if (0.5 * hi[c] - 0.5 * lo[c] > half) half = 0.5 * hi[c] - 0.5 * lo[c], widest = c;
-  const double size = std::max(half, a_max);
-  const double least = std::ldexp(size, -kMaxSizeRatioLog2);
-  const auto a = radii();
-  for (std::size_t i = 0; i < a.size(); ++i) {
-    if (a[i] >= least) continue;
-    const char axis = char('x' + widest);
-    const std::string span = size == a_max && a_max > half
-                                 ? "the largest radius is " + format_length(a_max)
-                                 : "particles " + std::to_string(ilo[widest]) + " (" + axis + " = " +
-                                       format_length(lo[widest], 17) + ") and " + std::to_string(ihi[widest]) + " (" +
-                                       axis + " = " + format_length(hi[widest], 17) + ") span " +
-                                       format_length(2.0 * half) + " along " + axis;
-    fail(ErrorCode::invalid_input, "FmmRpy::set_positions",
-         "radius of particle " + std::to_string(i) + " (" + format_length(a[i]) + ") is below 2^-" +
-             std::to_string(kMaxSizeRatioLog2) + " of the size of the suspension: " + span +
-             "; squared distances of its pairs would underflow where those of the suspension's extent do not " +
-             "overflow (FmmRpy evaluates ratios of half the extent, or of the largest radius, to a radius up to 2^" +
-             std::to_string(kMaxSizeRatioLog2) + " = " + format_length(std::ldexp(1.0, kMaxSizeRatioLog2)) + ")");
-  }
-}
-
 std::span<const double> FmmRpy::unit_radii() const {
   return scale_exponent_ == 0 ? radii() : std::span<const double>(scaled_radii_);
-}
-
-void FmmRpy::rescale(const std::array<double, 3>& lo, const std::array<double, 3>& hi) {
-  const std::size_t n = size();
-  const auto x = positions();
-  const auto a = radii();
-  const int e = scale_exponent_;
-  // Translation by the box centre c where it is exact: with lo >= c/2 and hi <= 2c (c > 0, or
-  // mirrored), every x in [lo, hi] has x/c in [1/2, 2] and x - c is exact (Sterbenz). Otherwise
-  // the box reaches within a third of its extent from the origin, |x| <= 1.5 extent, and the
-  // positions are only scaled. Either way pair distances are those of the input positions.
-  std::array<double, 3> shift{};
-  for (int c = 0; c < 3; ++c) {
-    const double mid = 0.5 * lo[c] + 0.5 * hi[c];
-    const bool sterbenz =
-        mid > 0.0 ? (lo[c] >= 0.5 * mid && hi[c] <= 2.0 * mid) : (hi[c] <= 0.5 * mid && lo[c] >= 2.0 * mid);
-    shift[c] = sterbenz ? mid : 0.0;
-  }
-  // Scaling by 2^-e is exact unless a result is subnormal: positions lose only bits below 2^-1022
-  // of the cloud's size there, and radii are at least 2^-300 of it (require_size_ratio).
-  for (std::size_t i = 0; i < n; ++i)
-    for (int c = 0; c < 3; ++c) centered_[3 * i + c] = std::ldexp(x[3 * i + c] - shift[c], -e);
-  scaled_radii_.resize(n);
-  for (std::size_t i = 0; i < n; ++i) scaled_radii_[i] = std::ldexp(a[i], -e);
 }
 
 namespace {
@@ -340,7 +248,7 @@ void FmmRpy::do_apply(const double* forces, double* velocities, std::size_t nrhs
 
   watch.restart();
   apply_near_field(forces, velocities, nrhs);
-  // Back from the scaled lengths of rescale(): M(x, a) = 2^-e M(2^-e x, 2^-e a).
+  // Back from the units of length_units.hpp: M(x, a) = 2^-e M(2^-e x, 2^-e a).
   if (scale_exponent_ != 0)
     for (std::size_t j = 0; j < 3 * n * nrhs; ++j) velocities[j] = std::ldexp(velocities[j], -scale_exponent_);
   timings_["rpy_near"] = watch.seconds();
@@ -481,7 +389,7 @@ void leaf_block(const NearContext& ctx, std::uint32_t leaf, GatheredSources& src
 void FmmRpy::apply_near_field(const double* forces, double* velocities, std::size_t nrhs) const {
   const detail::NearSchedule& plan = *near_schedule_;
   // Unscaled, the exact input positions (the centred ones may be rounded); scaled, the exactly
-  // translated and scaled ones of rescale().
+  // translated and scaled ones of length_units.hpp.
   const std::span<const double> x = scale_exponent_ == 0 ? positions() : std::span<const double>(centered_);
   const NearContext ctx{fmm_->near_field(), x, unit_radii(), forces, velocities, size(), nrhs, 1.0 / viscosity(),
                         equal_radii()};

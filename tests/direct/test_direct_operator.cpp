@@ -7,6 +7,7 @@
 #include <cmath>
 #include <numbers>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "rpyfmm/core/error.hpp"
@@ -191,21 +192,30 @@ TEST(DirectRpy, RejectsBadInput) {
   EXPECT_NO_THROW(op.apply(f, u));
 }
 
-// Extreme separations: pairs whose r^2 overflows contribute their (zero) limit,
-// never NaN; tiny separations stay finite. Both code paths.
-TEST_P(DirectRpyPaths, ExtremeSeparationsStayFinite) {
-  for (double d : {1e-170, 1e-150, 1e150, 1e170, 1e300}) {
+// Extreme separations: tiny ones stay finite; large ones are evaluated in units of the
+// suspension's size (no r^2 overflow), up to the limit of 2^300 (~2e90) on the ratio of size to
+// radius shared with FmmRpy, beyond which they are refused naming the particle. Both code paths.
+TEST_P(DirectRpyPaths, ExtremeSeparationsStayFiniteOrAreRefused) {
+  for (double d : {1e-170, 1e-150, 1e40, 1e80, 1e150, 1e300}) {
     const std::vector<double> x = {0, 0, 0, d, 0, 0, 0, 2 * d, 0};
     for (bool poly : {false, true}) {
       DirectRpy op;
-      if (poly)
-        op.set_positions(x, std::vector<double>{1.0, 2.0, 0.5});
-      else
-        op.set_positions(x, 1.0);
+      const std::vector<double> a = poly ? std::vector<double>{1.0, 2.0, 0.5} : std::vector<double>(3, 1.0);
+      if (d > 1e90) {
+        try {
+          op.set_positions(x, a);
+          ADD_FAILURE() << "accepted radius 1 at separation " << d;
+        } catch (const Error& e) {
+          EXPECT_NE(std::string(e.what()).find("DirectRpy::set_positions: radius of particle"), std::string::npos)
+              << e.what();
+        }
+        continue;
+      }
+      op.set_positions(x, a);
       std::vector<double> f = {1, 0, 0, 0, 1, 0, 0, 0, 1}, u(9);
       op.apply(f, u);
       for (double v : u) EXPECT_TRUE(std::isfinite(v)) << d;
-      if (d >= 1e150) {  // far apart: the self term dominates (others < 1e-150)
+      if (d >= 1e40) {  // far apart: the self term dominates (others < 1e-40)
         const double a0 = 1.0;
         EXPECT_NEAR(u[0], 1 / (6 * pi * a0), 1e-15);
       }

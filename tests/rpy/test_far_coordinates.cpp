@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <initializer_list>
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
@@ -75,33 +77,61 @@ FmmRpy make_fmm() {
   return FmmRpy(Geometry::open(), 1.0, FmmRpyOptions{.tolerance = kTol, .leaf_capacity = 50});
 }
 
+// The plain suspension translated by `offset` and scaled by 2^e with radius 2^e kRadius; M's exact
+// product is 2^-e times the plain one (u0), since M is homogeneous of degree -1 in its lengths.
+// Returns the relative error of op's product against it, after checking that it is finite.
+double scaled_error(rpyfmm::rpy::MobilityOperator& op, const std::vector<double>& x0, const std::vector<double>& u0,
+                    const std::vector<double>& f, int e, double offset) {
+  const std::string what = "e = " + std::to_string(e) + ", offset = " + std::to_string(offset);
+  std::vector<double> x(x0.size());
+  for (std::size_t i = 0; i < x.size(); ++i) x[i] = std::ldexp(x0[i] + offset, e);
+  op.set_positions(x, std::ldexp(kRadius, e));
+  const auto u = product(op, f);
+  expect_finite(u, what);
+  std::vector<double> ref(u0.size());
+  for (std::size_t i = 0; i < ref.size(); ++i) ref[i] = std::ldexp(u0[i], -e);
+  return relative_error(u, ref);
+}
+
+// scaled_error for each exponent and the offsets 0, 2^40, -2^46 (grid units), against DirectRpy's
+// product on the plain suspension.
+template <class MakeOperator>
+void expect_scaled_products(MakeOperator make_operator, std::initializer_list<int> exponents, double tol) {
+  const auto x0 = grid_points(3);
+  const auto f = forces(kN);
+  DirectRpy plain;
+  plain.set_positions(x0, kRadius);
+  const auto u0 = product(plain, f);
+  for (int e : exponents)
+    for (double offset : {0.0, std::ldexp(1.0, 40), -std::ldexp(1.0, 46)}) {
+      const auto op = make_operator();
+      EXPECT_LE(scaled_error(*op, x0, u0, f, e, offset), tol) << "e = " << e << ", offset = " << offset;
+    }
+}
+
 }  // namespace
 
 // Translated by 2^40 and -2^46 grid units (~2^34 and 2^40 extents away), and scaled by 2^e with
 // centres out to ~2^1012: the RPY tensor is homogeneous of degree -1 in its lengths
 // (M(s x, s a) = M(x, a) / s), so the exact product is 2^-e that of the plain suspension,
-// computed by DirectRpy at ordinary lengths (DirectRpy itself loses terms at the extreme ones).
+// computed by DirectRpy at ordinary lengths.
 TEST(FmmFarCoordinates, TranslatedAndScaledSuspensionsMatchDirect) {
-  const auto x0 = grid_points(3);
-  const auto f = forces(kN);
-  DirectRpy direct;
-  direct.set_positions(x0, kRadius);
-  const auto u0 = product(direct, f);
   // e = 450: extent ~1e137 (lost the a^2 T terms: 24% error); 620: extent ~1e188 at ~3e200 and
   // 960 (centres near 2^1012) gave NaN; -600 (extent ~1e-179) and -1000 (~1e-300) gave NaN.
-  for (int e : {0, 100, 450, 620, 960, -100, -600, -1000})
-    for (double offset : {0.0, std::ldexp(1.0, 40), -std::ldexp(1.0, 46)}) {
-      const std::string what = "e = " + std::to_string(e) + ", offset = " + std::to_string(offset);
-      std::vector<double> x(x0.size());
-      for (std::size_t i = 0; i < x.size(); ++i) x[i] = std::ldexp(x0[i] + offset, e);
-      FmmRpy fmm = make_fmm();
-      fmm.set_positions(x, std::ldexp(kRadius, e));
-      const auto u = product(fmm, f);
-      expect_finite(u, what);
-      std::vector<double> ref(u0.size());
-      for (std::size_t i = 0; i < ref.size(); ++i) ref[i] = std::ldexp(u0[i], -e);
-      EXPECT_LE(relative_error(u, ref), kTol) << what;
-    }
+  expect_scaled_products(
+      [] {
+        return std::make_unique<FmmRpy>(Geometry::open(), 1.0, FmmRpyOptions{.tolerance = kTol, .leaf_capacity = 50});
+      },
+      {0, 100, 450, 620, 960, -100, -600, -1000}, kTol);
+}
+
+// DirectRpy itself at the same extreme scales: extent ~1e137 (its r^2 and a^2 terms stay finite,
+// but the FMM's do not), centres near 2^1012 (r^2 overflowed: pair terms lost) and extents 1e-179,
+// 1e-300 (r^2 underflowed: pairs taken as coincident, or NaN). In units of the suspension's size
+// the evaluation is the plain one scaled by a power of two, so the products agree to rounding
+// (1e-13 relative; the scaled and plain sums round identically but for the translation's rounding).
+TEST(DirectFarCoordinates, TranslatedAndScaledSuspensionsMatchThePlainProduct) {
+  expect_scaled_products([] { return std::make_unique<DirectRpy>(); }, {450, 620, 960, -600, -1000}, 1e-13);
 }
 
 // Radii far below the suspension's size (2^-290 of it, within the ratio limit) in a small

@@ -3,7 +3,9 @@
 // U_i = sum_j M_ij F_j with the pair blocks of rpy_kernel.hpp (docs/theory/rpy.md),
 // including overlap regimes and the self term. It is the reference every fast
 // operator (FMM, PSE) is checked against, and the right choice for small N
-// (up to a few thousand particles). Open geometry only.
+// (up to a few thousand particles). Open geometry only. Suspensions at extreme
+// length scales (extent 1e137, or 1e-130) are evaluated in units of their size,
+// exactly (M is homogeneous of degree -1 in its lengths).
 //
 // Work: 3N x 3N pair blocks per right-hand side, parallel over target
 // particles with OpenMP; each velocity is summed by one thread in a fixed
@@ -32,8 +34,10 @@ class DirectRpy final : public MobilityOperator {
   void do_apply(const double* forces, double* velocities, std::size_t nrhs) const override;
 
  private:
-  // Structure-of-arrays copies of positions and radii (vectorizable inner loops).
+  // Structure-of-arrays copies of positions and radii (vectorizable inner loops), in units of
+  // 2^scale_exponent_ (rpy/src/length_units.hpp; 0 for suspensions of ordinary lengths).
   std::vector<double> x_, y_, z_, a_, inv_a_;
+  int scale_exponent_ = 0;
 };
 
 }  // namespace rpyfmm::rpy

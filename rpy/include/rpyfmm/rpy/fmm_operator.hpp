@@ -72,16 +72,12 @@ class FmmRpy final : public MobilityOperator {
 
  private:
   void apply_near_field(const double* forces, double* velocities, std::size_t nrhs) const;
-  void rescale(const std::array<double, 3>& lo, const std::array<double, 3>& hi);
-  void require_size_ratio(const std::array<double, 3>& lo, const std::array<double, 3>& hi,
-                          const std::array<std::size_t, 3>& ilo, const std::array<std::size_t, 3>& ihi,
-                          double a_max) const;
   [[nodiscard]] std::span<const double> unit_radii() const;
 
   FmmRpyOptions options_;
   std::unique_ptr<fmm::LaplaceFmm> fmm_;
-  std::vector<double> centered_;  // positions relative to the bounding-box centre (3N); scaled: see rescale()
-  // Clouds far outside the lengths 2^-200 ... 2^200 are evaluated in units of 2^e (fmm_operator.cpp):
+  std::vector<double> centered_;  // positions relative to the bounding-box centre (3N); scaled: see length_units.hpp
+  // Clouds far outside the lengths 2^-150 ... 2^199 are evaluated in units of 2^e (length_units.hpp):
   // centered_ then holds 2^-e (x - shift), translated only where exact, and scaled_radii_ 2^-e a.
   int scale_exponent_ = 0;
   std::vector<double> scaled_radii_;

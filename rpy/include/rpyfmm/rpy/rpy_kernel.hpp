@@ -37,7 +37,9 @@ struct RpyScalars {
 };
 
 /// Self mobility times eta: 1 / (6 pi a)   (M_ii = I / (6 pi eta a)).
-RPYFMM_HOST_DEVICE inline double rpy_self(double a) { return rpy_detail::inv_6pi / a; }
+RPYFMM_HOST_DEVICE inline double rpy_self(double a) {
+  return rpy_detail::inv_6pi / a;
+}
 
 /// Equal radii a at distance r >= 0 (Guan eq. 3.1; Fiore et al. 2017 eq. 4):
 ///   r >  2a: f = (1 + 2a^2/(3r^2)) / (8 pi r),  g = (1 - 2a^2/r^2) / (8 pi r)
@@ -102,8 +104,8 @@ RPYFMM_HOST_DEVICE inline void rpy_tensor(const double d[3], double ai, double a
 
 /// u += M_ij f for one pair: d = x_i - x_j, radii ai, aj, inv_eta = 1/eta.
 /// Used by the direct operator's generic path, the FMM near field and CUDA kernels.
-RPYFMM_HOST_DEVICE inline void rpy_pair_add(const double d[3], double ai, double aj, double inv_eta,
-                                            const double f[3], double u[3]) {
+RPYFMM_HOST_DEVICE inline void rpy_pair_add(const double d[3], double ai, double aj, double inv_eta, const double f[3],
+                                            double u[3]) {
   const double r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
   const RpyScalars s = rpy_scalars(::sqrt(r2), ai, aj);
   const double gr = r2 > 0.0 ? s.g / r2 : 0.0;
