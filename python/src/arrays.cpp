@@ -64,6 +64,8 @@ InArray as_input(nb::handle obj, const std::string& where, const std::string& na
     }
     in.owner = arr;
     in.copied = true;
+  } else {
+    in.owner = nb::borrow(obj);  // a view: the array stays alive as long as `in` (e.g. a temporary result)
   }
   in.data = view.data();
   in.shape = shape_of(view);

@@ -73,7 +73,7 @@ ArrayAndReport<Report> array_and_report(const nb::object& array, const Report& r
 
 /// A float64 C-contiguous read-only view of a Python array argument.
 struct InArray {
-  nb::object owner;  ///< the converted copy when one was needed (keeps it alive)
+  nb::object owner;  ///< the array read, or its converted copy: keeps the data alive
   const double* data = nullptr;
   std::size_t size = 0;
   std::vector<std::size_t> shape;
