@@ -4,12 +4,37 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/block_preconditioner.hpp"
 
 namespace rpyfmm::rpy {
 namespace {
+
+// Forces whose largest entry lies outside [2^-100, 2^100] are applied as 2^-k F with that entry in
+// [1, 2), then scaled back: M is linear and scaling by a power of two is exact, so ordinary forces
+// keep their bitwise results, while forces near 1e308 (whose pair terms d (d . F) overflowed although
+// M F does not), beyond single precision (PSE's grids and pair cache for tolerances >= 1e-5) or near
+// 1e-300 (digits lost in those grids) are evaluated as accurately as ordinary ones. 0: no scaling.
+int force_scale_exponent(std::span<const double> forces) {
+  double largest = 0.0;
+  for (double f : forces) largest = std::max(largest, std::abs(f));
+  if (largest == 0.0 || (largest >= 0x1p-100 && largest <= 0x1p100)) return 0;
+  return std::ilogb(largest);
+}
+
+// Finite inputs whose product overflows (forces so large, or radii so small, that M F is beyond
+// double precision) give Inf or NaN: refused, naming the first entry, rather than returned.
+void require_finite_result(std::span<const double> out, const std::string& where, const char* name, const char* input) {
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    if (std::isfinite(out[i])) continue;
+    fail(ErrorCode::numerical_failure, where,
+         std::string(name) + " entry (" + std::to_string(i / 3) + ", " + std::to_string(i % 3) + ") is " +
+             (std::isnan(out[i]) ? "NaN" : "infinite") + ": the product overflows double precision (scale the " +
+             input + " down and the result up)");
+  }
+}
 
 /// Whether the sampler in `options` (method already resolved) runs preconditioned. `block` serves
 /// the Krylov samplers, Lanczos and Chebyshev, and is refused for the dense methods. `automatic`
@@ -62,8 +87,7 @@ void MobilityOperator::set_positions(std::span<const double> positions, std::spa
   store_positions(positions, radii, equal);
 }
 
-void MobilityOperator::store_positions(std::span<const double> positions, std::span<const double> radii,
-                                       bool equal) {
+void MobilityOperator::store_positions(std::span<const double> positions, std::span<const double> radii, bool equal) {
   const std::string where = where_ + "::set_positions";
   require(!positions.empty(), ErrorCode::invalid_input, where, "no particles (N = 0)");
   require_finite(positions, where, "positions", 3);
@@ -121,7 +145,16 @@ void MobilityOperator::apply_block(std::span<const double> forces, std::span<dou
   require_size(forces, n, where, "forces");
   require_size(std::span<const double>(velocities.data(), velocities.size()), n, where, "velocities");
   require_finite(forces, where, "forces", 3);
-  do_apply(forces.data(), velocities.data(), nrhs);
+  const int k = force_scale_exponent(forces);
+  if (k == 0) {
+    do_apply(forces.data(), velocities.data(), nrhs);
+  } else {
+    std::vector<double> scaled(forces.begin(), forces.end());
+    for (double& f : scaled) f = std::ldexp(f, -k);
+    do_apply(scaled.data(), velocities.data(), nrhs);
+    for (double& u : velocities) u = std::ldexp(u, k);
+  }
+  require_finite_result(velocities, where, "velocities", "forces");
 }
 
 SqrtReport MobilityOperator::apply_sqrt(std::span<const double> z, std::span<double> w,
@@ -138,14 +171,15 @@ SqrtReport MobilityOperator::apply_sqrt_block(std::span<const double> z, std::sp
   require_size(z, n, where, "noise");
   require_size(std::span<const double>(w.data(), w.size()), n, where, "output");
   require_finite(z, where, "noise", 3);
-  return do_apply_sqrt(z, w, nrhs, options);
+  const SqrtReport report = do_apply_sqrt(z, w, nrhs, options);
+  require_finite_result(w, where, "output", "noise");
+  return report;
 }
 
 SqrtReport MobilityOperator::do_apply_sqrt(std::span<const double> z, std::span<double> w, std::size_t nrhs,
                                            const SqrtOptions& options) const {
   if (options.method == SqrtMethod::split) {
-    fail(ErrorCode::not_supported, where_ + "::apply_sqrt",
-         "the split sampler is only available for the PSE operator");
+    fail(ErrorCode::not_supported, where_ + "::apply_sqrt", "the split sampler is only available for the PSE operator");
   }
   SqrtOptions resolved = options;
   if (resolved.method == SqrtMethod::automatic) resolved.method = SqrtMethod::lanczos;

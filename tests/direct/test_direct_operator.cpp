@@ -222,3 +222,29 @@ TEST_P(DirectRpyPaths, ExtremeSeparationsStayFiniteOrAreRefused) {
     }
   }
 }
+
+// Forces near 1e308 on spheres of radius 1 give velocities near 5e306: their pair terms
+// d (d . F) overflowed and U was Inf or NaN; forces are now applied in units of their size. Where
+// M F itself overflows (radius 1e-3), the product is refused with numerical_failure naming the entry,
+// never returned as Inf or NaN.
+TEST(DirectRpy, HugeForcesGiveTheScaledProductOrAreRefused) {
+  DirectRpy op;
+  op.set_positions(std::vector<double>{0, 0, 0, 3, 0, 0}, 1.0);
+  std::vector<double> u(6), u1(6);
+  op.apply(std::vector<double>{1, 0.5, 0, 1, 0, -0.25}, u1);
+  // Powers of two: the products are the plain one's exactly.
+  for (int e : {1020, 700, -700, -1000}) {
+    const double s = std::ldexp(1.0, e);
+    op.apply(std::vector<double>{s, 0.5 * s, 0, s, 0, -0.25 * s}, u);
+    for (int i = 0; i < 6; ++i) EXPECT_EQ(std::ldexp(u[i], -e), u1[i]) << e << " " << i;
+  }
+  op.set_positions(std::vector<double>{0, 0, 0, 3, 0, 0}, 1e-3);
+  try {
+    op.apply(std::vector<double>{1e308, 0, 0, 1e308, 0, 0}, u);
+    ADD_FAILURE() << "returned " << u[0];
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::numerical_failure);
+    EXPECT_NE(std::string(e.what()).find("DirectRpy::apply: velocities entry (0, 0) is infinite"), std::string::npos)
+        << e.what();
+  }
+}

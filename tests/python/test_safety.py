@@ -379,6 +379,25 @@ def test_read_xyz_errors_name_the_file(tmp_path):
         rpyfmm.msd(np.zeros(3))
 
 
+@pytest.mark.parametrize("make", [rpyfmm.DirectRpy, rpyfmm.FmmRpy, lambda **kw: rpyfmm.PseRpy(box=20.0, **kw)],
+                         ids=["direct", "fmm", "pse"])
+def test_huge_forces_give_the_scaled_product_or_raise(make):
+    op = make()
+    x = np.array([[1.0, 1.0, 1.0], [4.0, 1.0, 1.0]])
+    op.set_positions(x, 1.0)
+    f = np.array([[1.0, 0.5, 0.0], [1.0, 0.0, -0.25]])
+    reference = op.apply(f)
+    # M is linear: forces near 1e308 or 1e-300 give the scaled product (PSE's grids are single
+    # precision at its default tolerance; the direct pair terms d (d . F) overflowed at 1e308). The
+    # scales are powers of two, so the products are the reference's exactly.
+    for e in (1020, -1000):
+        np.testing.assert_array_equal(np.ldexp(op.apply(np.ldexp(f, e)), -e), reference)
+    op = make(viscosity=1e-3)  # M F ~ 1e308 / (6 pi 1e-3) overflows: raised, never returned
+    op.set_positions(x, 1.0)
+    with pytest.raises(rpyfmm.NumericalFailureError, match=r"apply: velocities entry \(0, 0\) is infinite"):
+        op.apply(np.full((2, 3), 1e308))
+
+
 STD_EXCEPTIONS = [
     # (C++ exception thrown by rpyfmm._rpyfmm._throw, Python class, also a subclass of)
     ("bad_alloc", rpyfmm.OutOfMemoryError, MemoryError),
