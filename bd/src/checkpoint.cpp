@@ -22,7 +22,7 @@ std::uint64_t fnv1a(std::string_view bytes) {
 
 // The whole content of the regular file `path`; io_error naming it otherwise.
 std::string read_regular_file(const std::filesystem::path& path) {
-  const std::string name = "'" + path.string() + "'";
+  const std::string name = file_safety_detail::quoted(path);
   std::error_code ec;
   const auto status = std::filesystem::status(path, ec);
   if (!std::filesystem::exists(status))

@@ -45,7 +45,7 @@ void AppendFile::create(const std::filesystem::path& path) {
 
 void AppendFile::reopen(const std::filesystem::path& path, std::uint64_t keep_bytes, std::uint64_t expected_hash) {
   path_ = path;
-  const std::string name = "'" + path.string() + "'";
+  const std::string name = file_safety_detail::quoted(path);
   require_regular_or_absent(path);
   fd_ = ::open(path.c_str(), O_RDWR | O_APPEND | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC);
   if (fd_ < 0) fail(ErrorCode::io_error, "restart", "cannot open " + name + " to continue it: " + std::strerror(errno));
