@@ -134,7 +134,7 @@ void run_laplace(const LaplaceArgs& args, bool fmm_requested) {
         .add("pairs", static_cast<double>(p.n) * static_cast<double>(p.m) * static_cast<double>(p.nd))
         .add("seconds", stages)
         .add("total_seconds", total.seconds());
-    if (!args.direct) line.add("eps", args.tolerance);
+    if (!args.direct) line.add("tolerance", args.tolerance);
     std::cout << line.str() << '\n';
   }
 }

@@ -81,7 +81,7 @@ void run_mobility(const MobilityArgs& args, bool radius_given) {
         .add("method", op->name())
         .add("n", n)
         .add("viscosity", args.mobility.viscosity)
-        .add("eps", args.mobility.tolerance)
+        .add("tolerance", args.mobility.tolerance)
         .add("equal_radii", op->equal_radii())
         .add("threads", active_threads())
         .add("simd", simd_level_name(simd_level()))

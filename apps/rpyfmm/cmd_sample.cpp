@@ -207,7 +207,7 @@ void print_sample_json(const SampleArgs& args, const rpy::MobilityOperator& op, 
       .add("operator", op.name())
       .add("method", rpy::to_string(report.method))
       .add("n", n)
-      .add("tolerance", args.sqrt_tolerance)
+      .add("sqrt_tolerance", args.sqrt_tolerance)
       .add("iterations", report.iterations)
       .add("error_estimate", report.error_estimate)
       .add("operator_applications", report.operator_applications)
@@ -229,7 +229,7 @@ void print_sample_json(const SampleArgs& args, const rpy::MobilityOperator& op, 
     line.add("lambda_min", report.lambda_min).add("lambda_max", report.lambda_max);
   }
   if (radius_given) line.add("radius", args.radius);
-  if (args.tolerance != 0.0) line.add("eps", args.tolerance);
+  if (args.tolerance != 0.0) line.add("tolerance", args.tolerance);
   std::cout << line.str() << '\n';
 }
 

@@ -236,6 +236,7 @@ TEST_F(Cli, LaplaceFmmMatchesDirectToTolerance) {
                        " --tolerance 1e-6 --out " + path("r.npy") + " --json");
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("\"method\":\"fmm\""), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\"tolerance\":"), std::string::npos) << r.out;  // the option's name, not "eps"
   const Npy out = read_npy(path("r.npy"));
   ASSERT_EQ(out.shape, (std::vector<std::size_t>{n, 10}));
   std::vector<double> ref(n * 10);
@@ -301,6 +302,7 @@ TEST_F(Cli, MobilityFmmAndAutoMatchDirect) {
     const Result r = run("mobility --positions " + path("x.npy") + " --forces " + path("f.npy") +
                          " --radius 0.5 --method " + method + " --tolerance 1e-5 --out " + path("u.npy") + " --json");
     ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.out.find("\"tolerance\":"), std::string::npos) << r.out;
     const Npy out = read_npy(path("u.npy"));
     ASSERT_EQ(out.shape, (std::vector<std::size_t>{n, 3}));
     EXPECT_LE(rel_l2(out.data, ref), 1e-5) << method;
@@ -460,6 +462,7 @@ TEST_F(Cli, RigidMatchesLibrary) {
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("\"command\":\"rigid\""), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("\"iterations\":"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\"solver_tolerance\":"), std::string::npos) << r.out;
   const Npy uw = read_npy(path("uw.npy")), lambda = read_npy(path("lambda.npy"));
   ASSERT_EQ(uw.shape, (std::vector<std::size_t>{m, 6}));
   ASSERT_EQ(lambda.shape, (std::vector<std::size_t>{n, 3}));

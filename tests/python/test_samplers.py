@@ -41,6 +41,7 @@ def test_sample_equals_cli(cli, save_npy, tmp_path, method):
     assert report.method == info["method"] == method
     assert report.iterations == info["iterations"] > 0
     assert report.error_estimate == info["error_estimate"]
+    assert info["sqrt_tolerance"] == 1e-6  # keys named as the options
     assert report.converged
 
 
