@@ -4,7 +4,9 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <utility>
 
+#include "rpyfmm/core/cell_sort.hpp"
 #include "rpyfmm/core/validate.hpp"
 
 namespace rpyfmm::bd {
@@ -145,24 +147,25 @@ CellGrid cell_grid(std::span<const double> x, double rl, bool periodic, const st
   return g;
 }
 
-/// Particles sorted into cells (counting sort): coord[i] is particle i's cell, the particles of
-/// cell k are order[start[k] .. start[k + 1]).
-struct CellSort {
+/// Particles sorted into cells (rpyfmm/core/cell_sort.hpp): coord[i] is particle i's cell, the
+/// particles of cell k are order[start[k] .. start[k + 1]).
+struct CellBins {
   std::vector<std::array<long, 3>> coord;
   std::vector<std::size_t> start, order;
 };
 
-CellSort sort_into_cells(std::span<const double> x, const CellGrid& g) {
+CellBins sort_into_cells(std::span<const double> x, const CellGrid& g) {
   const std::size_t n = x.size() / 3;
-  CellSort s{std::vector<std::array<long, 3>>(n), std::vector<std::size_t>(g.cells() + 1, 0),
-             std::vector<std::size_t>(n)};
+  CellBins s{std::vector<std::array<long, 3>>(n), {}, {}};
+  std::vector<std::size_t> id(n);
   for (std::size_t i = 0; i < n; ++i) {
     s.coord[i] = {g.cell_coord(x[3 * i], 0), g.cell_coord(x[3 * i + 1], 1), g.cell_coord(x[3 * i + 2], 2)};
-    ++s.start[g.index(s.coord[i]) + 1];
+    id[i] = g.index(s.coord[i]);
   }
-  for (std::size_t k = 0; k < g.cells(); ++k) s.start[k + 1] += s.start[k];
-  std::vector<std::size_t> fill(s.start.begin(), s.start.end() - 1);
-  for (std::size_t i = 0; i < n; ++i) s.order[fill[g.index(s.coord[i])]++] = i;
+  rpyfmm::CellSort sorted;
+  sort_by_cell(id, g.cells(), sorted);
+  s.start = std::move(sorted.cell_begin);
+  s.order = std::move(sorted.order);
   return s;
 }
 
@@ -180,7 +183,7 @@ std::vector<double> positions_in_cell_order(std::span<const double> x, const Cel
 /// Appends to `buf` the neighbours (input indices, unsorted) of the particle in `slot`: the
 /// candidates of the 27 cells around its cell within r_L. A neighbour cell across a periodic face
 /// carries its image shift, so no rounding per candidate.
-inline void append_row(std::vector<std::uint32_t>& buf, std::size_t slot, const CellGrid& g, const CellSort& cs,
+inline void append_row(std::vector<std::uint32_t>& buf, std::size_t slot, const CellGrid& g, const CellBins& cs,
                        const std::vector<double>& xs, double rl2) {
   const std::array<long, 3>& home = cs.coord[cs.order[slot]];
   const double* xi = &xs[3 * slot];
@@ -219,7 +222,7 @@ constexpr std::size_t kChunk = 2048;  // slots per row buffer
 
 /// The rows in cell order, in chunks of consecutive slots (each chunk one growing buffer: no
 /// allocation per particle), each row sorted; count[i] = the length of particle i's row.
-std::vector<std::vector<std::uint32_t>> rows_by_chunk(const CellGrid& g, const CellSort& cs,
+std::vector<std::vector<std::uint32_t>> rows_by_chunk(const CellGrid& g, const CellBins& cs,
                                                       const std::vector<double>& xs, double rl2,
                                                       std::vector<std::uint32_t>& count) {
   const std::size_t n = cs.order.size();
@@ -270,7 +273,7 @@ void NeighbourList::build_cells(std::span<const double> x) {
     build_all_pairs(x);
     return;
   }
-  const CellSort cells = sort_into_cells(x, grid);
+  const CellBins cells = sort_into_cells(x, grid);
   const std::vector<double> xs = positions_in_cell_order(x, grid, cells.order);
   std::vector<std::uint32_t> count(cells.order.size());
   const auto chunk_lists = rows_by_chunk(grid, cells, xs, rl * rl, count);

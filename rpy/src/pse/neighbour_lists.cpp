@@ -5,9 +5,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <utility>
 
 #include "kernels_common.hpp"
 #include "list_filter.hpp"
+#include "rpyfmm/core/cell_sort.hpp"
 #include "rpyfmm/core/cpu_features.hpp"
 #include "window_avx2.hpp"
 
@@ -32,9 +34,8 @@ std::vector<std::size_t> sort_into_cells(std::span<const double> x, const std::a
   }
   const auto& nc = grid.nc;
   const std::size_t ncell = static_cast<std::size_t>(nc[0]) * nc[1] * nc[2];
-  std::vector<std::size_t> cell_begin(ncell + 1, 0);
   std::vector<std::size_t> id(n);
-  // Cell ids in parallel (divisions), the counts serially.
+  // Cell ids in parallel (divisions), the sort serially.
 #pragma omp parallel for schedule(static) if (n >= 16384)
   for (std::int64_t ii = 0; ii < static_cast<std::int64_t>(n); ++ii) {
     const auto i = static_cast<std::size_t>(ii);
@@ -42,11 +43,10 @@ std::vector<std::size_t> sort_into_cells(std::span<const double> x, const std::a
     for (int d = 0; d < 3; ++d) c[d] = std::min(static_cast<int>(x[3 * i + d] / box[d] * nc[d]), nc[d] - 1);
     id[i] = (static_cast<std::size_t>(c[0]) * nc[1] + c[1]) * nc[2] + c[2];
   }
-  for (std::size_t i = 0; i < n; ++i) ++cell_begin[id[i] + 1];
-  for (std::size_t c = 0; c < ncell; ++c) cell_begin[c + 1] += cell_begin[c];
-  std::vector<std::size_t> fill(cell_begin.begin(), cell_begin.end() - 1);
-  for (std::size_t i = 0; i < n; ++i) order[fill[id[i]]++] = i;
-  return cell_begin;
+  CellSort sorted;
+  sort_by_cell(id, ncell, sorted);
+  order = std::move(sorted.order);
+  return std::move(sorted.cell_begin);
 }
 
 void gather_positions(std::span<const double> x, const std::vector<std::size_t>& order,
