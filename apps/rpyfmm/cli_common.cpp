@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <iostream>
 #include <limits>
+#include <utility>
 
 #include "rpyfmm/core/threads.hpp"
 #include "rpyfmm/core/validate.hpp"
@@ -29,33 +30,48 @@ void apply_threads(const CommonOptions& options) {
 
 namespace {
 
-// The value of `text` if it is a decimal integer (optional sign) in `range`; otherwise a
-// CLI::ValidationError naming the option (main prints it on one line and exits with 2).
-__int128 parse_integer(const std::string& text, const std::string& name, ranges::IntRange range) {
-  const bool negative = !text.empty() && text[0] == '-';
-  const char* first = text.data() + ((negative || (!text.empty() && text[0] == '+')) ? 1 : 0);
-  const char* last = text.data() + text.size();
+// A decimal integer as read: its sign and magnitude (every value of the int64 and uint64 ranges).
+struct ParsedInteger {
+  bool negative = false;
   std::uint64_t magnitude = 0;
-  const auto [end, ec] = std::from_chars(first, last, magnitude);
+  /// The value as T; T holds it (add_integer checks that the range fits T).
+  template <class T>
+  [[nodiscard]] T as() const {
+    if (!negative) return static_cast<T>(magnitude);
+    return static_cast<T>(-static_cast<std::int64_t>(magnitude - 1) - 1);  // magnitude <= 2^63
+  }
+};
+
+// `text` if it is a decimal integer (optional sign) in `range`; otherwise a CLI::ValidationError
+// naming the option (main prints it on one line and exits with 2).
+ParsedInteger parse_integer(const std::string& text, const std::string& name, ranges::IntRange range) {
+  ParsedInteger v;
+  v.negative = !text.empty() && text[0] == '-';
+  const char* first = text.data() + ((v.negative || (!text.empty() && text[0] == '+')) ? 1 : 0);
+  const char* last = text.data() + text.size();
+  const auto [end, ec] = std::from_chars(first, last, v.magnitude);
   const std::string expect = "must be an integer in " + range.str();
   if (first == last || ec == std::errc::invalid_argument || end != last)
     throw CLI::ValidationError(name, expect + ", got '" + text + "'");
-  const __int128 value = negative ? -static_cast<__int128>(magnitude) : static_cast<__int128>(magnitude);
-  if (ec == std::errc::result_out_of_range || value < range.lo || value > static_cast<__int128>(range.hi))
-    throw CLI::ValidationError(name, expect + ", got " + text);
-  return value;
+  if (v.negative && v.magnitude == 0) v.negative = false;  // "-0"
+  constexpr std::uint64_t kMaxNegative = std::uint64_t{1} << 63;
+  const bool in_range =
+      ec != std::errc::result_out_of_range &&
+      (v.negative ? v.magnitude <= kMaxNegative && std::cmp_greater_equal(v.as<std::int64_t>(), range.lo)
+                  : std::cmp_greater_equal(v.magnitude, range.lo) && v.magnitude <= range.hi);
+  if (!in_range) throw CLI::ValidationError(name, expect + ", got " + text);
+  return v;
 }
 
 template <class T>
 CLI::Option* add_integer(CLI::App& cmd, const std::string& name, T& target, ranges::IntRange range,
                          const std::string& help) {
   // The range must fit T, so that the checked value converts exactly.
-  if (range.lo < static_cast<__int128>(std::numeric_limits<T>::min()) ||
-      static_cast<__int128>(range.hi) > static_cast<__int128>(std::numeric_limits<T>::max()))
+  if (std::cmp_less(range.lo, std::numeric_limits<T>::min()) ||
+      std::cmp_greater(range.hi, std::numeric_limits<T>::max()))
     throw std::logic_error("add_integer_option: range of " + name + " does not fit its type");
   auto* option = cmd.add_option_function<std::string>(
-      name,
-      [&target, name, range](const std::string& text) { target = static_cast<T>(parse_integer(text, name, range)); },
+      name, [&target, name, range](const std::string& text) { target = parse_integer(text, name, range).as<T>(); },
       help + " (integer in " + range.str() + ")");
   option->type_name("INT")->default_str(std::to_string(target));
   return option;
