@@ -65,8 +65,23 @@ ArrayResult map_points(const std::string& where, ArrayArg forces, OutArg out, Fn
   return ArrayResult{u.object};
 }
 
-ArrayResult apply(const MobilityOperator& op, ArrayArg forces, OutArg out) {
-  return map_points("apply", forces, out, [&](auto f, auto u) { op.apply(f, u); });
+/// U = M F; with torques, (U, W) = M (F, T) (MobilityOperator::apply with rotation).
+nb::object apply(const MobilityOperator& op, ArrayArg forces, OptArrayArg torques, OutArg out) {
+  if (torques.is_none()) return map_points("apply", forces, out, [&](auto f, auto u) { op.apply(f, u); }).o;
+  const std::string where = "apply";
+  require(out.is_none(), ErrorCode::invalid_argument, where, "out is not supported together with torques");
+  const InArray f = as_input(forces, where, "forces");
+  const InArray t = as_input(torques, where, "torques");
+  require_points(f, where, "forces");
+  require(t.shape == f.shape, ErrorCode::invalid_input, where,
+          "torques has shape " + shape_string(t.shape) + ", expected the shape of forces " + shape_string(f.shape));
+  OutArray u = make_output(nb::none(), f.shape, where);
+  OutArray w = make_output(nb::none(), f.shape, where);
+  {
+    nb::gil_scoped_release release;
+    op.apply(f.span(), t.span(), u.span(), w.span());
+  }
+  return nb::make_tuple(u.object, w.object);
 }
 
 ArrayResult apply_block(const MobilityOperator& op, ArrayArg forces, OutArg out) {
@@ -222,9 +237,14 @@ void add_operator_products(OperatorClass& cls) {
           nb::arg("radius"),
           "Sets positions ((N, 3) or (3N,), length units) and the radius: one number for all particles or an\n"
           "array of N radii. Builds the solver's plan once; apply may then be called many times.")
-      .def("apply", locked("MobilityOperator.apply", &apply), nb::arg("forces"), nb::arg("out") = nb::none(),
+      .def("apply", locked("MobilityOperator.apply", &apply), nb::arg("forces"), nb::arg("torques") = nb::none(),
+           nb::arg("out") = nb::none(),
            "U = M F. forces: (N, 3) or (3N,); returns velocities in the same shape (float64);\n"
-           "`out` (writable float64, C-contiguous) is written in place and returned.")
+           "`out` (writable float64, C-contiguous) is written in place and returned.\n"
+           "With torques (same shape as forces): returns (U, W) = M (F, T), the velocities and angular\n"
+           "velocities of the grand mobility with rotation (operators with supports_rotation only).")
+      .def_prop_ro("supports_rotation", [](const MobilityOperator& op) { return op.supports_rotation(); },
+                   "True when apply accepts torques (the grand mobility with rotation: DirectRpy).")
       .def("apply_block", locked("MobilityOperator.apply_block", &apply_block), nb::arg("forces"),
            nb::arg("out") = nb::none(), "U_k = M F_k for forces of shape (nrhs, N, 3) or (nrhs, 3N) in one pass.");
   add_apply_sqrt<false>(cls, "apply_sqrt", "MobilityOperator.apply_sqrt", kSqrtDoc);

@@ -157,6 +157,29 @@ void MobilityOperator::apply_block(std::span<const double> forces, std::span<dou
   require_finite_result(velocities, where, "velocities", "forces");
 }
 
+void MobilityOperator::apply(std::span<const double> forces, std::span<const double> torques,
+                             std::span<double> velocities, std::span<double> angular_velocities) const {
+  require_positions("apply");
+  const std::string where = where_ + "::apply";
+  require(supports_rotation(), ErrorCode::not_supported, where,
+          "operator '" + name() + "' has no rotational mobility (torques and angular velocities); use 'direct'");
+  const std::size_t n = 3 * size();
+  require_size(forces, n, where, "forces");
+  require_size(torques, n, where, "torques");
+  require_size(std::span<const double>(velocities.data(), velocities.size()), n, where, "velocities");
+  require_size(std::span<const double>(angular_velocities.data(), angular_velocities.size()), n, where,
+               "angular velocities");
+  require_finite(forces, where, "forces", 3);
+  require_finite(torques, where, "torques", 3);
+  do_apply_rotation(forces.data(), torques.data(), velocities.data(), angular_velocities.data());
+  require_finite_result(velocities, where, "velocities", "forces and torques");
+  require_finite_result(angular_velocities, where, "angular velocities", "forces and torques");
+}
+
+void MobilityOperator::do_apply_rotation(const double*, const double*, double*, double*) const {
+  fail(ErrorCode::not_supported, where_ + "::apply", "operator '" + name() + "' has no rotational mobility");
+}
+
 SqrtReport MobilityOperator::apply_sqrt(std::span<const double> z, std::span<double> w,
                                         const SqrtOptions& options) const {
   return apply_sqrt_block(z, w, 1, options);

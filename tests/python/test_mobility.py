@@ -270,3 +270,33 @@ def test_gil_released_during_apply():
         rpyfmm.set_num_threads(old)
     assert one_apply > 0.02
     assert max_gap < 0.5 * one_apply, (max_gap, one_apply)
+
+
+def test_apply_with_torques_gives_the_grand_mobility():
+    # Two spheres 5 apart (far field): W_0 = (F_1 x e) / (8 pi eta r^2) (half the stokeslet's vorticity),
+    # U_0 = (T_1 x e) / (8 pi eta r^2) (the rotlet), W_0 += -(T_1 - 3 e (e . T_1)) / (16 pi eta r^3); the
+    # self blocks 1/(6 pi eta a) and 1/(8 pi eta a^3). Forces alone give apply(F).
+    eta, a, r = 1.5, 1.0, 5.0
+    x = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, -r]])
+    e = np.array([0.0, 0.0, 1.0])  # x_0 - x_1, normalized
+    F = np.array([[0.0, 0.0, 0.0], [1.0, 0.5, -0.25]])
+    T = np.array([[0.0, 0.0, 0.0], [0.3, -0.2, 0.7]])
+    op = rpyfmm.DirectRpy(viscosity=eta)
+    op.set_positions(x, a)
+    assert op.supports_rotation
+    U, W = op.apply(F, T)
+    tt = (np.eye(3) * (1 + 2 * a * a / (3 * r * r)) + np.outer(e, e) * (1 - 2 * a * a / (r * r))) / (8 * np.pi * eta * r)
+    want_u = tt @ F[1] + np.cross(T[1], e) / (8 * np.pi * eta * r * r)
+    want_w = np.cross(F[1], e) / (8 * np.pi * eta * r * r) - (T[1] - 3 * e * (e @ T[1])) / (16 * np.pi * eta * r**3)
+    np.testing.assert_allclose(U[0], want_u, rtol=1e-14, atol=1e-17)
+    np.testing.assert_allclose(W[0], want_w, rtol=1e-14, atol=1e-17)
+    np.testing.assert_allclose(W[1], T[1] / (8 * np.pi * eta * a**3) + np.cross(F[0], -e), rtol=1e-14, atol=1e-17)
+    U0, _ = op.apply(F, np.zeros_like(T))
+    np.testing.assert_allclose(U0, op.apply(F), rtol=1e-13, atol=1e-17)
+    fmm = rpyfmm.FmmRpy()
+    fmm.set_positions(x, a)
+    assert not fmm.supports_rotation
+    with pytest.raises(rpyfmm.NotSupportedError, match="has no rotational mobility"):
+        fmm.apply(F, T)
+    with pytest.raises(rpyfmm.InvalidInputError, match="torques has shape"):
+        op.apply(F, T[:1])

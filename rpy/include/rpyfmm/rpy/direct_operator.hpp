@@ -28,10 +28,15 @@ class DirectRpy final : public MobilityOperator {
   explicit DirectRpy(Geometry geometry = Geometry::open(), double viscosity = 1.0);
 
   [[nodiscard]] std::string name() const override { return "direct"; }
+  /// The grand mobility with torques (rpy_rotation_kernel.hpp): apply(F, T, U, W).
+  [[nodiscard]] bool supports_rotation() const override { return true; }
 
  protected:
   void on_positions_set() override;
   void do_apply(const double* forces, double* velocities, std::size_t nrhs) const override;
+  /// direct_rotation.cpp: every pair's four blocks, parallel over targets, fixed order per target.
+  void do_apply_rotation(const double* forces, const double* torques, double* velocities,
+                         double* angular_velocities) const override;
 
  private:
   // Structure-of-arrays copies of positions and radii (vectorizable inner loops), in units of

@@ -55,6 +55,15 @@ class MobilityOperator {
   /// U_k = M F_k for nrhs right-hand sides stored one after another.
   void apply_block(std::span<const double> forces, std::span<double> velocities, std::size_t nrhs) const;
 
+  /// [U; W] = M [F; T]: the grand mobility with rotation (docs/theory/rpy.md, "Rotation"):
+  /// velocities U and angular velocities W (3N each) from forces F and torques T (3N each).
+  /// Throws rpyfmm::Error (not_supported) unless supports_rotation(); sizes and finiteness as
+  /// for apply().
+  void apply(std::span<const double> forces, std::span<const double> torques, std::span<double> velocities,
+             std::span<double> angular_velocities) const;
+  /// True when the four-argument apply (torques, angular velocities) is available.
+  [[nodiscard]] virtual bool supports_rotation() const { return false; }
+
   /// w = M^{1/2} z (3N each), by the method in `options` (default: the
   /// operator's preferred one, Lanczos unless the solver overrides it).
   SqrtReport apply_sqrt(std::span<const double> z, std::span<double> w, const SqrtOptions& options = {}) const;
@@ -96,6 +105,9 @@ class MobilityOperator {
   virtual void on_positions_set() = 0;
   /// U = M F for nrhs right-hand sides; sizes already checked.
   virtual void do_apply(const double* forces, double* velocities, std::size_t nrhs) const = 0;
+  /// [U; W] = M [F; T] (3N each); sizes already checked. Default: not_supported.
+  virtual void do_apply_rotation(const double* forces, const double* torques, double* velocities,
+                                 double* angular_velocities) const;
   /// Default: generic solvers on apply() (Lanczos for `automatic`).
   virtual SqrtReport do_apply_sqrt(std::span<const double> z, std::span<double> w, std::size_t nrhs,
                                    const SqrtOptions& options) const;
