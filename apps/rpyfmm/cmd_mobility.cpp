@@ -4,9 +4,11 @@
 //   rpyfmm mobility --positions X.npy --forces F.npy (--radius a | --radii R.npy)
 //                   [--viscosity 1] [--method direct|fmm|pse|auto|none] [--tolerance 1e-6]
 //                   [--box L | --box Lx Ly Lz] [--wave-precision auto|single|double] [--device cpu|cuda]
-//                   --out U.npy [--threads N] [--json]
+//                   [--torques T.npy | --angular] --out U.npy [--threads N] [--json]
 //
-// U has shape (N,3).
+// U has shape (N,3). With --torques (N,3) or --angular (T = 0), the grand mobility with rotation
+// (docs/theory/rpy.md section 7; operators with supports_rotation, i.e. --method direct): the output
+// has shape (N,6), columns Ux Uy Uz Wx Wy Wz.
 #include <CLI/CLI.hpp>
 #include <cstddef>
 #include <iostream>
@@ -27,16 +29,47 @@ namespace rpyfmm::cli {
 namespace {
 
 struct MobilityArgs {
-  std::string positions, forces, radii, out;
+  std::string positions, forces, radii, torques, out;
+  bool angular = false;  // (N, 6) output with rotation; T = 0 unless --torques
   double radius = 0.0;
   MobilityChoice mobility;  // --method, --tolerance, --viscosity, --box, ... (mobility_choice.hpp)
   CommonOptions common;
 };
 
+/// U = M F, or with torques t (non-empty) [U; W] = M [F; T] written as (N, 6) rows Ux Uy Uz Wx Wy Wz;
+/// checked finite, then written to `out`. Times "apply" and "write".
+void apply_and_write(const rpy::MobilityOperator& op, const std::vector<double>& f, const std::vector<double>& t,
+                     const std::string& out, StageTimes& stages) {
+  const std::size_t n = f.size() / 3;
+  const bool rotation = !t.empty();
+  StopWatch watch;
+  std::vector<double> u(3 * n), w(rotation ? 3 * n : 0);
+  if (rotation) {
+    op.apply(f, t, u, w);
+  } else {
+    op.apply(f, u);
+  }
+  stages["apply"] = watch.seconds();
+  watch.restart();
+  require_finite_output(u, "mobility");
+  if (!rotation) {
+    write_npy(out, {n, 3}, u);
+  } else {
+    require_finite_output(w, "mobility");
+    std::vector<double> uw(6 * n);
+    for (std::size_t i = 0; i < n; ++i)
+      for (int c = 0; c < 3; ++c) uw[6 * i + c] = u[3 * i + c], uw[6 * i + 3 + c] = w[3 * i + c];
+    write_npy(out, {n, 6}, uw);
+  }
+  stages["write"] = watch.seconds();
+}
+
 void run_mobility(const MobilityArgs& args, bool radius_given) {
-  require_distinct_files(
-      std::vector<NamedPath>{{"--positions", args.positions}, {"--forces", args.forces}, {"--radii", args.radii}},
-      std::vector<NamedPath>{{"--out", args.out}});
+  require_distinct_files(std::vector<NamedPath>{{"--positions", args.positions},
+                                                {"--forces", args.forces},
+                                                {"--radii", args.radii},
+                                                {"--torques", args.torques}},
+                         std::vector<NamedPath>{{"--out", args.out}});
   apply_threads(args.common);
   require(radius_given != !args.radii.empty(), ErrorCode::invalid_argument, "mobility",
           "give exactly one of --radius a or --radii R.npy");
@@ -65,15 +98,17 @@ void run_mobility(const MobilityArgs& args, bool radius_given) {
   }
   stages["setup"] = watch.seconds();
 
-  watch.restart();
-  std::vector<double> u(3 * n);
-  op->apply(f, u);
-  stages["apply"] = watch.seconds();
+  const bool rotation = args.angular || !args.torques.empty();
+  std::vector<double> t(rotation ? 3 * n : 0, 0.0);
+  if (!args.torques.empty()) {
+    t = as_points(read_array(args.torques), "torques");
+    require(t.size() == x.size(), ErrorCode::invalid_input, "torques",
+            "has " + std::to_string(t.size() / 3) + " rows, expected " + std::to_string(n) + " (one per particle)");
+  }
+  require(!rotation || op->supports_rotation(), ErrorCode::not_supported, "mobility",
+          "--torques and --angular need a mobility with rotation (--method direct); '" + op->name() + "' has none");
 
-  watch.restart();
-  require_finite_output(u, "mobility");
-  write_npy(args.out, {n, 3}, u);
-  stages["write"] = watch.seconds();
+  apply_and_write(*op, f, t, args.out, stages);
 
   if (args.common.json) {
     JsonLine line;
@@ -104,7 +139,10 @@ void register_mobility(CLI::App& app) {
   auto* radii = cmd->add_option("--radii", args->radii, "per-particle radii (N,)");
   radius->excludes(radii);
   add_mobility_options(*cmd, args->mobility);
-  cmd->add_option("--out", args->out, "output .npy, shape (N,3)")->required();
+  cmd->add_option("--torques", args->torques,
+                  "torques (N,3): the output is then (N,6), velocities and angular velocities (--method direct)");
+  cmd->add_flag("--angular", args->angular, "output (N,6) with angular velocities, torques zero unless --torques");
+  cmd->add_option("--out", args->out, "output .npy, shape (N,3), or (N,6) with --torques / --angular")->required();
   add_common_options(*cmd, args->common);
   cmd->callback([args, radius] {
     print_pending_warnings();

@@ -183,6 +183,39 @@ TEST_F(Cli, LaplaceSeveralChargeVectorsAtTextTargets) {
   EXPECT_EQ(out.data, ref);
 }
 
+// --torques: the grand mobility with rotation, (N, 6) rows Ux Uy Uz Wx Wy Wz, equal bit for bit to
+// DirectRpy::apply(F, T, U, W); --angular alone: T = 0; an operator without rotation refuses.
+TEST_F(Cli, MobilityWithTorquesWritesVelocitiesAndAngularVelocities) {
+  const std::size_t n = 40;
+  const auto x = random_vec(3 * n, 16, 0, 6);
+  const auto f = random_vec(3 * n, 17, -1, 1);
+  const auto t = random_vec(3 * n, 18, -1, 1);
+  write_npy(path("x.npy"), {n, 3}, x);
+  write_npy(path("f.npy"), {n, 3}, f);
+  write_npy(path("t.npy"), {n, 3}, t);
+  const std::string base = "mobility --positions " + path("x.npy") + " --forces " + path("f.npy") +
+                           " --radius 0.5 --viscosity 2 --method direct --out " + path("uw.npy");
+  rpyfmm::rpy::DirectRpy op(rpyfmm::rpy::Geometry::open(), 2.0);
+  op.set_positions(x, 0.5);
+  for (const bool torques : {true, false}) {
+    const Result r = run(base + (torques ? " --torques " + path("t.npy") : std::string(" --angular")));
+    ASSERT_EQ(r.code, 0) << r.err;
+    const Npy uw = read_npy(path("uw.npy"));
+    ASSERT_EQ(uw.shape, (std::vector<std::size_t>{n, 6}));
+    std::vector<double> u(3 * n), w(3 * n);
+    op.apply(f, torques ? t : std::vector<double>(3 * n, 0.0), u, w);
+    for (std::size_t i = 0; i < n; ++i)
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_EQ(uw.data[6 * i + c], u[3 * i + c]) << i;
+        EXPECT_EQ(uw.data[6 * i + 3 + c], w[3 * i + c]) << i;
+      }
+    fs::remove(path("uw.npy"));
+  }
+  expect_failure("mobility --positions " + path("x.npy") + " --forces " + path("f.npy") + " --radius 0.5 --method fmm" +
+                     " --torques " + path("t.npy") + " --out " + path("uw.npy"),
+                 "need a mobility with rotation", "uw.npy");
+}
+
 TEST_F(Cli, MobilityMatchesLibrary) {
   const std::size_t n = 120;
   const auto x = random_vec(3 * n, 6, 0, 8);
