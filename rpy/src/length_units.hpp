@@ -2,8 +2,10 @@
 //
 // The pair kernels form r^2 and g / r^2 ~ 1/r^3, the FMM's far field 1/r^3 and a^2 T. Where the
 // suspension's size S (half its extent, or the largest radius) lies in [2^-150, 2^199] and every
-// radius is >= 2^-300, all of these stay normal and finite, and the operators evaluate the lengths
-// as given. Other suspensions (extent 1e137 with radius 1e135: the a^2 T terms underflowed; extent
+// radius is >= 2^-300, non-overlapping pairs have r >= 2^-299 and the FMM's far pairs r >= 2^-31 S
+// (its octree's 30 levels), so all of these stay normal and finite for loads below ~1e100 (larger
+// ones are scaled by MobilityOperator::apply), LaplaceFmm accepts the extent, and the operators
+// evaluate the lengths as given. Other suspensions (extent 1e137 with radius 1e135: the a^2 T terms underflowed; extent
 // 1e-130: NaN) are evaluated in units of 2^e with 2^-e S in [1, 2): exact, and
 // M(x, a) = 2^-e M(2^-e x, 2^-e a) since the RPY tensor is homogeneous of degree -1 in its
 // lengths (docs/theory/rpy.md). Used by DirectRpy and FmmRpy.

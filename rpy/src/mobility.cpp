@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <initializer_list>
 #include <string>
 #include <vector>
 
@@ -12,14 +13,16 @@
 namespace rpyfmm::rpy {
 namespace {
 
-// Forces whose largest entry lies outside [2^-100, 2^100] are applied as 2^-k F with that entry in
+// Loads (forces, torques) whose largest entry lies outside [2^-100, 2^100] are applied as 2^-k F with that entry in
 // [1, 2), then scaled back: M is linear and scaling by a power of two is exact, so ordinary forces
 // keep their bitwise results, while forces near 1e308 (whose pair terms d (d . F) overflowed although
 // M F does not), beyond single precision (PSE's grids and pair cache for tolerances >= 1e-5) or near
 // 1e-300 (digits lost in those grids) are evaluated as accurately as ordinary ones. 0: no scaling.
-int force_scale_exponent(std::span<const double> forces) {
+// Forces and torques share one power of two (M [F; T] is linear in both together).
+int load_scale_exponent(std::initializer_list<std::span<const double>> loads) {
   double largest = 0.0;
-  for (double f : forces) largest = std::max(largest, std::abs(f));
+  for (const auto load : loads)
+    for (double f : load) largest = std::max(largest, std::abs(f));
   if (largest == 0.0 || (largest >= 0x1p-100 && largest <= 0x1p100)) return 0;
   return std::ilogb(largest);
 }
@@ -145,7 +148,7 @@ void MobilityOperator::apply_block(std::span<const double> forces, std::span<dou
   require_size(forces, n, where, "forces");
   require_size(std::span<const double>(velocities.data(), velocities.size()), n, where, "velocities");
   require_finite(forces, where, "forces", 3);
-  const int k = force_scale_exponent(forces);
+  const int k = load_scale_exponent({forces});
   if (k == 0) {
     do_apply(forces.data(), velocities.data(), nrhs);
   } else {
@@ -171,7 +174,17 @@ void MobilityOperator::apply(std::span<const double> forces, std::span<const dou
                "angular velocities");
   require_finite(forces, where, "forces", 3);
   require_finite(torques, where, "torques", 3);
-  do_apply_rotation(forces.data(), torques.data(), velocities.data(), angular_velocities.data());
+  const int k = load_scale_exponent({forces, torques});
+  if (k == 0) {
+    do_apply_rotation(forces.data(), torques.data(), velocities.data(), angular_velocities.data());
+  } else {
+    std::vector<double> f(forces.begin(), forces.end()), t(torques.begin(), torques.end());
+    for (double& v : f) v = std::ldexp(v, -k);
+    for (double& v : t) v = std::ldexp(v, -k);
+    do_apply_rotation(f.data(), t.data(), velocities.data(), angular_velocities.data());
+    for (double& v : velocities) v = std::ldexp(v, k);
+    for (double& v : angular_velocities) v = std::ldexp(v, k);
+  }
   require_finite_result(velocities, where, "velocities", "forces and torques");
   require_finite_result(angular_velocities, where, "angular velocities", "forces and torques");
 }

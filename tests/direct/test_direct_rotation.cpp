@@ -251,6 +251,25 @@ TEST(DirectRotation, ExtremeScalesGiveTheScaledBlocks) {
   }
 }
 
+// Loads near 1e308 (e . F and e . T of such entries overflowed) give the plain product scaled
+// exactly: forces and torques are applied in units of a common power of two.
+TEST(DirectRotation, HugeLoadsGiveTheScaledProduct) {
+  DirectRpy op;
+  // Particle 1 lies along (1, 1, 1) from particle 0, which carries F = T = 1.875 (1, 1, 1) x 2^1023: the
+  // pair's e . F and e . T are 3.2 x 2^1023, beyond double precision, although M [F; T] is not.
+  op.set_positions(std::vector<double>{0, 0, 0, 0.8, 0.8, 0.8, -1, 2, 0.25}, std::vector<double>{1.0, 0.5, 0.75});
+  const std::vector<double> f = {1.875, 1.875, 1.875, -0.5, 1, 0.25, 0.75, -1, 1},
+                            t = {1.875, 1.875, 1.875, 1, 1, -1, 0.25, 0.5, 1};
+  std::vector<double> u(9), w(9), u_big(9), w_big(9), f_big(9), t_big(9);
+  op.apply(f, t, u, w);
+  for (int i = 0; i < 9; ++i) f_big[i] = std::ldexp(f[i], 1023), t_big[i] = std::ldexp(t[i], 1023);
+  op.apply(f_big, t_big, u_big, w_big);
+  for (int i = 0; i < 9; ++i) {
+    EXPECT_EQ(std::ldexp(u_big[i], -1023), u[i]) << i;
+    EXPECT_EQ(std::ldexp(w_big[i], -1023), w[i]) << i;
+  }
+}
+
 // Operators without the rotational blocks refuse clearly; wrong sizes and non-finite torques too.
 TEST(DirectRotation, BadInputAndUnsupportedOperators) {
   const std::vector<double> x = {0, 0, 0, 3, 0, 0};
