@@ -12,32 +12,6 @@
 
 namespace rpyfmm::bd {
 
-namespace quaternion {
-
-std::array<double, 9> rotation_matrix(std::span<const double, 4> q) {
-  const double w = q[0], x = q[1], y = q[2], z = q[3];
-  return {1 - 2 * (y * y + z * z), 2 * (x * y - w * z),     2 * (x * z + w * y),
-          2 * (x * y + w * z),     1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-          2 * (x * z - w * y),     2 * (y * z + w * x),     1 - 2 * (x * x + y * y)};
-}
-
-void rotate(std::span<double, 4> q, const double phi[3]) {
-  // dq = (cos(theta/2), sin(theta/2) phi / theta), theta = |phi|; q <- dq q (Hamilton product),
-  // so that R(dq q) = R(dq) R(q): a rotation in the lab frame.
-  const double theta = std::sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]);
-  const double half = 0.5 * theta;
-  // sin(theta/2) / theta, by its series where theta is tiny.
-  const double s = theta > 1e-4 ? std::sin(half) / theta : 0.5 - theta * theta / 48.0;
-  const double a = std::cos(half), b = s * phi[0], c = s * phi[1], d = s * phi[2];
-  const double w = q[0], x = q[1], y = q[2], z = q[3];
-  double r[4] = {a * w - b * x - c * y - d * z, a * x + b * w + c * z - d * y, a * y - b * z + c * w + d * x,
-                 a * z + b * y - c * x + d * w};
-  const double norm = std::sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2] + r[3] * r[3]);
-  for (int i = 0; i < 4; ++i) q[i] = r[i] / norm;
-}
-
-}  // namespace quaternion
-
 namespace {
 
 constexpr const char* kWhere = "RigidBodyDynamics";
@@ -104,24 +78,7 @@ RigidBodyDynamics::RigidBodyDynamics(rpy::MobilityOperator& beads, std::vector<d
           "positions have " + std::to_string(q_.size()) + " entries for " + std::to_string(m) +
               " bodies (expected 3 per body)");
   require_finite(q_, kWhere, "positions", 3);
-  if (quat_.empty()) {
-    quat_.assign(4 * m, 0.0);
-    for (std::size_t k = 0; k < m; ++k) quat_[4 * k] = 1.0;
-  }
-  require(quat_.size() == 4 * m, ErrorCode::invalid_input, kWhere,
-          "orientations have " + std::to_string(quat_.size()) + " entries for " + std::to_string(m) +
-              " bodies (expected 4 per body: quaternions w, x, y, z)");
-  require_finite(quat_, kWhere, "orientations", 4);
-  for (std::size_t k = 0; k < m; ++k) {
-    double norm = 0.0;
-    for (int c = 0; c < 4; ++c) norm += quat_[4 * k + c] * quat_[4 * k + c];
-    norm = std::sqrt(norm);
-    require(norm > 1e-12, ErrorCode::invalid_input, kWhere,
-            "the orientation of body " + std::to_string(k) + " is a zero quaternion");
-    // Unit quaternions (a saved state) are kept as they are, so that a restart is bitwise.
-    if (std::abs(norm - 1.0) > 1e-14)
-      for (int c = 0; c < 4; ++c) quat_[4 * k + c] /= norm;
-  }
+  quat_ = quaternion::checked(std::move(quat_), m, kWhere, "body");
   // Lever arms l_k (validates offsets on the way: RigidBodies below names the problem).
   lever_.assign(m, 0.0);
   for (std::size_t k = 0; k < m; ++k) {

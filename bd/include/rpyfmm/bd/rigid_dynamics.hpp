@@ -41,20 +41,12 @@
 
 #include "rpyfmm/bd/force_field.hpp"
 #include "rpyfmm/bd/neighbour_list.hpp"
+#include "rpyfmm/bd/quaternion.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/rpy/mobility.hpp"
 #include "rpyfmm/rpy/rigid_bodies.hpp"
 
 namespace rpyfmm::bd {
-
-/// Unit quaternions (w, x, y, z) for orientations.
-namespace quaternion {
-/// Rotation matrix (row-major 3x3) of a unit quaternion.
-std::array<double, 9> rotation_matrix(std::span<const double, 4> q);
-/// q <- exp(phi) q: q rotated by the rotation vector phi (angle |phi| about phi / |phi|, in the
-/// lab frame), renormalized.
-void rotate(std::span<double, 4> q, const double phi[3]);
-}  // namespace quaternion
 
 enum class RigidDrift {
   random_finite_difference,  ///< the RFD of the header (two extra GMRES solves per step)
