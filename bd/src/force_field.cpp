@@ -86,6 +86,11 @@ double ForceField::max_cutoff() const {
   return rc;
 }
 
+void ForceField::set_torque_field(TorqueField torques) {
+  torques.check(types_.size());
+  torques_ = std::move(torques);
+}
+
 void ForceField::check(std::span<const std::uint32_t> particle_types) const {
   for (std::size_t i = 0; i < particle_types.size(); ++i) {
     require(particle_types[i] < types_.size(), ErrorCode::invalid_input, "particles",

@@ -5,6 +5,8 @@
 #include <limits>
 #include <sstream>
 
+#include "rpyfmm/bd/quaternion.hpp"
+#include "rpyfmm/bd/rotation_sampling.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/random.hpp"
 
@@ -15,11 +17,15 @@ NeighbourList make_list(const rpy::MobilityOperator* m, const ForceField& f, con
   require(m != nullptr, ErrorCode::invalid_argument, "Integrator", "no mobility operator given");
   return NeighbourList(m->geometry(), f.max_cutoff(), o);
 }
+
+double norm3(const double* v) {
+  return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+}
 }  // namespace
 
 Integrator::Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceField forces, IntegratorOptions options,
                        std::vector<double> positions, std::vector<std::uint32_t> types, NeighbourOptions neighbours,
-                       std::uint64_t first_step)
+                       std::uint64_t first_step, std::vector<double> orientations)
     : mobility_(std::move(mobility)),
       forces_(std::move(forces)),
       options_(options),
@@ -45,6 +51,19 @@ Integrator::Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceFie
   w_.assign(3 * n, 0.0);
   dx_.assign(3 * n, 0.0);
   if (options_.kT > 0.0) z_.assign(3 * n, 0.0);
+  if (options_.rotation) {
+    require(supports_rotational_dynamics(*mobility_), ErrorCode::invalid_argument, where,
+            "rotation needs a mobility that supports it (torques and angular velocities); '" + mobility_->name() +
+                "' does not (docs/bd-config.md, system.rotation)");
+    q_ = quaternion::checked(std::move(orientations), n, where, "particle");
+    for (auto* v : {&torque_, &omega_, &phi_}) v->assign(3 * n, 0.0);
+    if (options_.kT > 0.0) {
+      zr_.assign(3 * n, 0.0);
+      wr_.assign(3 * n, 0.0);
+    }
+  } else {
+    require(orientations.empty(), ErrorCode::invalid_argument, where, "orientations given but rotation is off");
+  }
   for (const char* part : {"neighbours", "forces", "plan", "drift", "sqrt", "update"}) totals_.seconds[part] = 0.0;
 }
 
@@ -52,10 +71,12 @@ void Integrator::drift_and_noise_products(StepReport& rep, bool fused, bool brow
   const double dt = options_.dt;
   StopWatch watch;
   if (brownian) rpy::fill_normal(z_, options_.seed, step_);
+  if (brownian && options_.rotation) rpy::fill_normal(zr_, options_.seed, step_, kRotationNoiseStream);
   const double noise_seconds = watch.seconds();
   const DriftNoiseReport dn =
-      fused ? fused_drift_and_noise(*mobility_, f_, noise / dt, options_.seed, step_, u_, options_.sqrt)
-            : drift_and_noise(*mobility_, f_, z_, u_, w_, options_.sqrt);
+      options_.rotation ? rotational_products(brownian)
+      : fused           ? fused_drift_and_noise(*mobility_, f_, noise / dt, options_.seed, step_, u_, options_.sqrt)
+                        : drift_and_noise(*mobility_, f_, z_, u_, w_, options_.sqrt);
   totals_.seconds["drift"] += dn.seconds_drift;
   totals_.seconds["sqrt"] += dn.seconds_sqrt + noise_seconds;  // drawing z counts as Brownian work
   rep.sqrt_iterations = dn.sqrt.iterations;
@@ -64,36 +85,53 @@ void Integrator::drift_and_noise_products(StepReport& rep, bool fused, bool brow
   rep.shared_first_product = dn.shared_first_product;
 }
 
+DriftNoiseReport Integrator::rotational_products(bool brownian) {
+  // z_t keeps the draws of a step without rotation; z_r has its own stream (rotation_sampling.hpp).
+  const std::span<const double> zt = brownian ? std::span<const double>(z_) : std::span<const double>();
+  return rotational_drift_and_noise(*mobility_, {f_, torque_}, {zt, zr_}, {u_, omega_}, {w_, wr_}, options_.sqrt);
+}
+
 void Integrator::checked_displacements(double dt, double noise, bool brownian) {
   const std::size_t n = size();
   constexpr std::size_t none = std::numeric_limits<std::size_t>::max();
   std::atomic<std::size_t> bad{none};
   const double frac2 = options_.max_displacement * options_.max_displacement;
+  const bool rotation = options_.rotation;
 #pragma omp parallel for schedule(static) if (n >= 4096)
   for (std::size_t i = 0; i < n; ++i) {
-    double d2 = 0.0;
-    for (int c = 0; c < 3; ++c) {
-      const double d = u_[3 * i + c] * dt + (brownian ? noise * w_[3 * i + c] : 0.0);
-      dx_[3 * i + c] = d;
+    double d2 = 0.0, turn2 = 0.0;
+    for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) {
+      const double d = u_[k] * dt + (brownian ? noise * w_[k] : 0.0);
+      dx_[k] = d;
       d2 += d * d;
+      if (!rotation) continue;
+      phi_[k] = omega_[k] * dt + (brownian ? noise * wr_[k] : 0.0);
+      turn2 += phi_[k] * phi_[k];
     }
-    if (!(d2 <= frac2 * radii_[i] * radii_[i])) {  // also catches NaN
+    if (!(d2 <= frac2 * radii_[i] * radii_[i]) || !(turn2 <= frac2)) {  // also catches NaN
       std::size_t cur = bad.load(std::memory_order_relaxed);
       while (i < cur && !bad.compare_exchange_weak(cur, i, std::memory_order_relaxed)) {
       }
     }
   }
-  if (bad.load() != none) {
-    const std::size_t i = bad.load();
-    const double d =
-        std::sqrt(dx_[3 * i] * dx_[3 * i] + dx_[3 * i + 1] * dx_[3 * i + 1] + dx_[3 * i + 2] * dx_[3 * i + 2]);
-    std::ostringstream msg;
-    msg << "blow-up at step " << step_ << ": particle " << i << " would move " << d << " > max_displacement ("
-        << options_.max_displacement << ") x radius " << radii_[i] << " in one step (|force| = "
-        << std::sqrt(f_[3 * i] * f_[3 * i] + f_[3 * i + 1] * f_[3 * i + 1] + f_[3 * i + 2] * f_[3 * i + 2])
-        << "); reduce dt or check the forces. State kept at the last good step";
-    fail(ErrorCode::numerical_failure, "bd", msg.str());
+  if (bad.load() != none) fail_blow_up(bad.load());
+}
+
+void Integrator::fail_blow_up(std::size_t i) const {
+  const double* dx = dx_.data() + 3 * i;
+  const double d = norm3(dx);
+  std::ostringstream msg;
+  msg << "blow-up at step " << step_ << ": particle " << i;
+  if (!q_.empty() && !(norm3(phi_.data() + 3 * i) <= options_.max_displacement) &&
+      d <= options_.max_displacement * radii_[i]) {
+    msg << " would turn by " << norm3(phi_.data() + 3 * i) << " rad > max_displacement (" << options_.max_displacement
+        << ") in one step (|torque| = " << norm3(torque_.data() + 3 * i) << ")";
+  } else {
+    msg << " would move " << d << " > max_displacement (" << options_.max_displacement << ") x radius " << radii_[i]
+        << " in one step (|force| = " << norm3(f_.data() + 3 * i) << ")";
   }
+  msg << "; reduce dt or check the forces. State kept at the last good step";
+  fail(ErrorCode::numerical_failure, "bd", msg.str());
 }
 
 const StepReport& Integrator::step() {
@@ -107,6 +145,7 @@ const StepReport& Integrator::step() {
   watch.restart();
   // 2. Forces.
   rep.potential_energy = forces_.compute(x_, types_, list_, step_, f_);
+  if (options_.rotation) rep.potential_energy += forces_.torque_field().compute(q_, types_, torque_);
   totals_.seconds["forces"] += watch.seconds();
   watch.restart();
   // 3. Mobility plan, built once per step.
@@ -117,12 +156,13 @@ const StepReport& Integrator::step() {
   const double noise = std::sqrt(2.0 * options_.kT * dt);
   // PSE: u = M F + (noise / dt) M^{1/2} z in one pass whose wave-space parts share their FFTs
   // (w = 0 then), unless the drift and Brownian parts are asked for separately.
-  const bool fused =
-      options_.kT > 0.0 && !options_.keep_split_displacements && fuses_drift_and_noise(*mobility_, options_.sqrt);
+  const bool fused = options_.kT > 0.0 && !options_.keep_split_displacements && !options_.rotation &&
+                     fuses_drift_and_noise(*mobility_, options_.sqrt);
   const bool brownian = options_.kT > 0.0 && !fused;
   drift_and_noise_products(rep, fused, brownian, noise);
   watch.restart();
-  // 5. dx = M F dt + sqrt(2 kT dt) M^{1/2} z, then the blow-up guard.
+  // 5. dx = M F dt + sqrt(2 kT dt) M^{1/2} z (with rotation also phi = W dt + sqrt(2 kT dt) w_r),
+  //    then the blow-up guard.
   checked_displacements(dt, noise, brownian);
   if (options_.keep_split_displacements) {
     dx_det_.resize(3 * n);
@@ -134,6 +174,10 @@ const StepReport& Integrator::step() {
   }
 #pragma omp parallel for schedule(static) if (n >= 4096)
   for (std::size_t k = 0; k < 3 * n; ++k) x_[k] += dx_[k];
+  if (options_.rotation) {
+#pragma omp parallel for schedule(static) if (n >= 4096)
+    for (std::size_t i = 0; i < n; ++i) quaternion::rotate(std::span<double, 4>(q_.data() + 4 * i, 4), &phi_[3 * i]);
+  }
   ++step_;
   totals_.seconds["update"] += watch.seconds();
   ++totals_.steps;

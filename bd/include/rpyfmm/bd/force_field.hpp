@@ -16,6 +16,7 @@
 
 #include "rpyfmm/bd/neighbour_list.hpp"
 #include "rpyfmm/bd/potentials.hpp"
+#include "rpyfmm/bd/torque_field.hpp"
 
 namespace rpyfmm::bd {
 
@@ -54,6 +55,11 @@ class ForceField {
   /// Constant force on every particle, added to the types' external forces.
   void set_global_force(const std::array<double, 3>& force);
   void add_callback(ForceCallback callback);
+  /// The torques on rotating particles (used by the integrator only with rotation on;
+  /// docs/theory/bd.md Sec. 7). Replaces an earlier one; throws unless it has no types or one
+  /// per particle type.
+  void set_torque_field(TorqueField torques);
+  [[nodiscard]] const TorqueField& torque_field() const { return torques_; }
 
   /// Largest pair cutoff (0 when no pair potential): the neighbour list's r_c.
   [[nodiscard]] double max_cutoff() const;
@@ -94,6 +100,7 @@ class ForceField {
   std::vector<Bond> bonds_;
   std::array<double, 3> global_force_{0, 0, 0};
   std::vector<ForceCallback> callbacks_;
+  TorqueField torques_;
   // Per-particle bond index (CSR), built lazily for N particles.
   mutable std::size_t bond_index_n_ = 0;
   mutable bool bond_index_valid_ = false;

@@ -10,6 +10,12 @@
 // One step: neighbour-list update (only when needed) -> forces -> mobility
 // plan (set_positions, once per step) -> M F and M^{1/2} z (drift_and_noise,
 // sharing the first Krylov product) -> blow-up check -> x += dx.
+//
+// With rotation (IntegratorOptions::rotation), every particle also carries an orientation, a
+// unit quaternion q, and the torques T of the force field's TorqueField; the step uses the grand
+// mobility [U; W] = M [F; T] and the 6N Brownian sample [w_t; w_r] (rotation_sampling.hpp) and
+// turns each particle by the exponential map, q <- exp(W dt + sqrt(2 kT dt) w_r) q
+// (docs/theory/bd.md Sec. 7). No drift term arises there either.
 // Everything that enters x is independent of the thread count, provided the
 // mobility operator's products are.
 #pragma once
@@ -44,6 +50,10 @@ struct IntegratorOptions {
   double max_displacement = 1.0;
   /// Keep the deterministic (M F dt) and Brownian parts of the last step separately.
   bool keep_split_displacements = false;
+  /// Rotational dynamics: orientations, torques, rotational diffusion (docs/theory/bd.md Sec. 7).
+  /// Needs an operator for which supports_rotational_dynamics() holds. max_displacement then
+  /// bounds each step's rotation angle too (in radians: a surface point moves a |phi|).
+  bool rotation = false;
 };
 
 /// What one step did (and cumulative counters in Integrator::totals()).
@@ -70,10 +80,12 @@ class Integrator {
   /// `positions` (3N, finite) and `types` (N, indices into forces.types()).
   /// Radii come from the particle types. Positions are kept unwrapped (for MSD);
   /// the mobility operator wraps them into a periodic box itself.
+  /// `orientations` (options.rotation only): 4N quaternions w x y z, or empty for the identity
+  /// (quaternion::checked: normalized unless already unit to 1e-14).
   /// Throws rpyfmm::Error naming the bad option or particle.
   Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceField forces, IntegratorOptions options,
              std::vector<double> positions, std::vector<std::uint32_t> types, NeighbourOptions neighbours = {},
-             std::uint64_t first_step = 0);
+             std::uint64_t first_step = 0, std::vector<double> orientations = {});
 
   /// Advances one step. On a blow-up or a force error the state is left at the
   /// last good step and rpyfmm::Error (numerical_failure / invalid_input) is thrown.
@@ -100,13 +112,25 @@ class Integrator {
   /// M F dt and sqrt(2 kT dt) M^{1/2} z of the last step (needs keep_split_displacements).
   [[nodiscard]] std::span<const double> deterministic_displacement() const { return dx_det_; }
   [[nodiscard]] std::span<const double> brownian_displacement() const { return dx_brown_; }
+  /// With rotation: the orientations (4N unit quaternions w x y z), the torques at the start of
+  /// the last step (3N), and the rotation vectors phi = W dt + sqrt(2 kT dt) w_r by which the
+  /// last step turned each particle (3N, lab frame). Empty without rotation.
+  [[nodiscard]] std::span<const double> orientations() const { return q_; }
+  [[nodiscard]] std::span<const double> last_torques() const { return torque_; }
+  [[nodiscard]] std::span<const double> last_rotations() const { return phi_; }
 
  private:
-  /// u = M F and w = M^{1/2} z (or, fused, u = M F + noise / dt M^{1/2} z) at the current state.
+  /// u = M F and w = M^{1/2} z (or, fused, u = M F + noise / dt M^{1/2} z; with rotation
+  /// rotational_products) at the current state.
   void drift_and_noise_products(StepReport& rep, bool fused, bool brownian, double noise);
-  /// dx = u dt + noise w, refused (numerical_failure, state unchanged) when a particle would move
-  /// more than max_displacement x its radius.
+  /// With rotation: u, omega = M [F; T] and w_t, w_r = B [z_t; z_r] (z drawn).
+  DriftNoiseReport rotational_products(bool brownian);
+  /// dx = u dt + noise w (and, with rotation, phi = omega dt + noise w_r), refused
+  /// (numerical_failure, state unchanged) when a particle would move more than
+  /// max_displacement x its radius, or turn by more than max_displacement radians.
   void checked_displacements(double dt, double noise, bool brownian);
+  /// The blow-up error for particle i (dx_ and phi_ hold its step).
+  [[noreturn]] void fail_blow_up(std::size_t i) const;
 
   std::unique_ptr<rpy::MobilityOperator> mobility_;
   ForceField forces_;
@@ -120,6 +144,9 @@ class Integrator {
   IntegratorTotals totals_;
   // work arrays
   std::vector<double> f_, z_, u_, w_, dx_, dx_det_, dx_brown_;
+  // rotation: orientations (4N), torques, angular velocities M_rt F + M_rr T, rotational noise,
+  // its sample, the rotation vectors of the step (3N each)
+  std::vector<double> q_, torque_, omega_, zr_, wr_, phi_;
 };
 
 }  // namespace rpyfmm::bd
