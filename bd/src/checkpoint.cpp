@@ -12,7 +12,8 @@ namespace rpyfmm::bd {
 
 namespace {
 constexpr char kMagic[8] = {'R', 'P', 'Y', 'F', 'M', 'M', 'B', 'D'};
-constexpr std::uint32_t kVersion = 2;  // 2: output hashes (version 1 could not identify its files)
+constexpr std::uint32_t kVersion = 2;          // 2: output hashes (version 1 could not identify its files)
+constexpr std::uint32_t kRotationVersion = 3;  // 3: version 2 with orientations (runs with rotation)
 
 std::uint64_t fnv1a(std::string_view bytes) {
   Fnv1a h;
@@ -83,8 +84,13 @@ void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c) {
   const std::size_t n = c.types.size();
   require(c.positions.size() == 3 * n && c.reference_positions.size() == 3 * n, ErrorCode::invalid_input,
           "write_checkpoint", "positions, reference positions and types disagree on N");
+  const bool rotation = !c.orientations.empty();
+  require(!rotation || (c.orientations.size() == 4 * n && c.reference_orientations.size() == 4 * n &&
+                        c.rotation_vectors.size() == 3 * n),
+          ErrorCode::invalid_input, "write_checkpoint",
+          "orientations, reference orientations, rotation vectors and types disagree on N");
   std::string out(kMagic, sizeof kMagic);
-  put(out, kVersion);
+  put(out, rotation ? kRotationVersion : kVersion);
   put(out, static_cast<std::uint64_t>(n));
   put(out, c.step);
   put(out, c.seed);
@@ -96,6 +102,11 @@ void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c) {
   put_vector(out, c.positions);
   put_vector(out, c.reference_positions);
   put_vector(out, c.types);
+  if (rotation) {
+    put_vector(out, c.orientations);
+    put_vector(out, c.reference_orientations);
+    put_vector(out, c.rotation_vectors);
+  }
   put(out, static_cast<std::uint64_t>(c.config.size()));
   out += c.config;
   put(out, fnv1a(out));
@@ -114,9 +125,10 @@ Checkpoint read_checkpoint(const std::filesystem::path& path) {
   Reader r(bytes, name);
   r.get_vector<char>(sizeof kMagic, "magic");
   const auto version = r.get<std::uint32_t>("version");
-  if (version != kVersion)
+  if (version != kVersion && version != kRotationVersion)
     fail(ErrorCode::io_error, "read_checkpoint",
          "'" + name + "' has format version " + std::to_string(version) + ", expected " + std::to_string(kVersion) +
+             " or " + std::to_string(kRotationVersion) +
              (version == 1 ? " (version 1 does not identify its output files; start the run afresh)" : ""));
   Checkpoint c;
   const auto n = r.get<std::uint64_t>("N");
@@ -131,6 +143,11 @@ Checkpoint read_checkpoint(const std::filesystem::path& path) {
   c.positions = r.get_vector<double>(3 * n, "positions");
   c.reference_positions = r.get_vector<double>(3 * n, "reference positions");
   c.types = r.get_vector<std::uint32_t>(n, "types");
+  if (version == kRotationVersion) {
+    c.orientations = r.get_vector<double>(4 * n, "orientations");
+    c.reference_orientations = r.get_vector<double>(4 * n, "reference orientations");
+    c.rotation_vectors = r.get_vector<double>(3 * n, "rotation vectors");
+  }
   const auto len = r.get<std::uint64_t>("config length");
   const auto cfg = r.get_vector<char>(len, "config");
   c.config.assign(cfg.begin(), cfg.end());

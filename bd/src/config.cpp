@@ -292,12 +292,19 @@ void require_known_sections(const toml::table& root) {
   }
 }
 
-/// [system]: geometry, box, viscosity, kT.
+/// Throws naming `key` (present in `s`) when rotation is off: it only acts on orientations.
+void require_rotation(const Section& s, const std::string& key, const RunConfig& c) {
+  if (s.has(key) && !c.integrator.rotation)
+    bad_key(s.key(key), "acts on orientations: it needs system.rotation = true");
+}
+
+/// [system]: geometry, box, viscosity, kT, rotation.
 void parse_system(const toml::table& root, RunConfig& c) {
   Section s(sub_table(root, "system"), "system");
   const std::string geometry = s.string("geometry", "open");
   c.viscosity = s.in("viscosity", ranges::kViscosity, 1.0);
   c.integrator.kT = s.non_negative("kT", 1.0);
+  c.integrator.rotation = s.boolean("rotation", false);
   if (geometry == "periodic") {
     if (!s.has("box")) bad_key("system.box", "is missing (required for a periodic geometry)");
     const auto box = s.vec3("box", {0, 0, 0});
@@ -316,7 +323,10 @@ void parse_system(const toml::table& root, RunConfig& c) {
 /// [[types]]: particle types (names unique); none keeps the default type.
 void parse_types(const toml::table& root, RunConfig& c) {
   const auto tables = table_array(root, "types");
-  if (!tables.empty()) c.types.clear();
+  if (!tables.empty()) {
+    c.types.clear();
+    c.type_torques.clear();
+  }
   for (std::size_t t = 0; t < tables.size(); ++t) {
     Section s(tables[t], "types[" + std::to_string(t) + "]");
     ParticleType p;
@@ -324,9 +334,14 @@ void parse_types(const toml::table& root, RunConfig& c) {
     p.radius = s.in("radius", ranges::kRadius, 1.0);
     p.external_force = s.vec3("external_force", {0, 0, 0});
     p.surface_potential = s.number("surface_potential", 0.0);
+    for (const char* key : {"external_torque", "dipole"}) require_rotation(s, key, c);
+    TypeTorque rotation;
+    rotation.torque = s.vec3("external_torque", {0, 0, 0});
+    rotation.dipole = s.non_negative("dipole", 0.0);
     for (const auto& q : c.types)
       if (q.name == p.name) bad_key(s.key("name"), "repeats type name '" + p.name + "'");
     c.types.push_back(p);
+    c.type_torques.push_back(rotation);
     s.finish();
   }
 }
@@ -436,10 +451,18 @@ void parse_bonds(const toml::table& root, RunConfig& c) {
     bad_key("bonds", "is missing (required with particles.source = \"chains\")");
 }
 
-/// [external]: a force on every particle.
+/// [external]: a force on every particle; with rotation a torque on every particle and the
+/// uniform field on the types' dipoles.
 void parse_external(const toml::table& root, RunConfig& c) {
   Section s(sub_table(root, "external"), "external");
   c.external_force = s.vec3("force", {0, 0, 0});
+  for (const char* key : {"torque", "dipole_field"}) require_rotation(s, key, c);
+  c.external_torque = s.vec3("torque", {0, 0, 0});
+  c.dipole_field = s.vec3("dipole_field", {0, 0, 0});
+  const bool dipoles =
+      std::any_of(c.type_torques.begin(), c.type_torques.end(), [](const TypeTorque& t) { return t.dipole > 0.0; });
+  if (s.has("dipole_field") && !dipoles)
+    bad_key("external.dipole_field", "acts on dipoles, but no [[types]] entry sets dipole > 0");
   s.finish();
 }
 
@@ -601,6 +624,8 @@ ForceField make_force_field(const RunConfig& config) {
   ForceField ff(config.types);
   for (const auto& p : config.pairs) ff.set_pair(ff.type_index(p.type1), ff.type_index(p.type2), p.potential);
   ff.set_global_force(config.external_force);
+  if (config.integrator.rotation)
+    ff.set_torque_field(TorqueField(config.type_torques, config.external_torque, config.dipole_field));
   if (config.chain_bond) ff.add_bond_potential(*config.chain_bond);
   return ff;
 }

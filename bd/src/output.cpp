@@ -84,7 +84,8 @@ void AppendFile::write(const std::string& record) {
 }
 
 std::string xyz_frame(std::span<const double> x, std::span<const std::uint32_t> types,
-                      const std::vector<ParticleType>& table, const rpy::Geometry& g, std::uint64_t step, double time) {
+                      const std::vector<ParticleType>& table, const rpy::Geometry& g, std::uint64_t step, double time,
+                      std::span<const double> orientations) {
   std::string s;
   s.reserve(types.size() * 64 + 256);
   char buf[256];
@@ -100,7 +101,8 @@ std::string xyz_frame(std::span<const double> x, std::span<const std::uint32_t> 
   // Shortest decimal that round-trips (Time=0.04, not 0.040000000000000001).
   char tbuf[64];
   const auto res = std::to_chars(tbuf, tbuf + sizeof tbuf, time);
-  s += "Properties=species:S:1:pos:R:3:radius:R:1 Time=";
+  s += orientations.empty() ? "Properties=species:S:1:pos:R:3:radius:R:1 Time="
+                            : "Properties=species:S:1:pos:R:3:radius:R:1:orientation:R:4 Time=";
   s.append(tbuf, res.ptr);
   s += " Step=" + std::to_string(step) + "\n";
   for (std::size_t i = 0; i < types.size(); ++i) {
@@ -108,18 +110,25 @@ std::string xyz_frame(std::span<const double> x, std::span<const std::uint32_t> 
     if (g.is_periodic())
       for (int c = 0; c < 3; ++c) p[c] -= g.box()[c] * std::floor(p[c] / g.box()[c]);
     const ParticleType& t = table[types[i]];
-    std::snprintf(buf, sizeof buf, "%s %.10g %.10g %.10g %.10g\n", t.name.c_str(), p[0], p[1], p[2], t.radius);
+    std::snprintf(buf, sizeof buf, "%s %.10g %.10g %.10g %.10g", t.name.c_str(), p[0], p[1], p[2], t.radius);
     s += buf;
+    if (!orientations.empty()) {  // x y z w (OVITO's component order)
+      const double* q = orientations.data() + 4 * i;
+      std::snprintf(buf, sizeof buf, " %.10g %.10g %.10g %.10g", q[1], q[2], q[3], q[0]);
+      s += buf;
+    }
+    s += '\n';
   }
   return s;
 }
 
-std::string csv_log_header(bool split_displacements) {
+std::string csv_log_header(bool split_displacements, bool rotation) {
   std::string h =
       "step,time,mean_displacement,msd,mean_vx,mean_vy,mean_vz,potential_energy,sqrt_iterations,"
       "mobility_products,neighbour_rebuilds,wall_neighbours,wall_forces,wall_plan,wall_drift,wall_sqrt,"
       "wall_update,wall_output";
   if (split_displacements) h += ",deterministic_rms,brownian_rms";
+  if (rotation) h += ",rotational_msd,orientation_correlation";
   return h + "\n";
 }
 

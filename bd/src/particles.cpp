@@ -162,6 +162,56 @@ std::vector<double> place(const RunConfig& c, const ForceField& ff, const std::v
 
 }  // namespace
 
+namespace {
+
+/// The number in `field` of row `where`; `what` names it in errors (non-numbers, NaN, Inf).
+double parse_number(const std::string& field, const std::string& where, const std::string& what) {
+  std::size_t used = 0;
+  double v = 0;
+  try {
+    v = std::stod(field, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used != field.size())
+    fail(ErrorCode::invalid_input, "particles.file", where + ": '" + field + "' is not a number");
+  if (!std::isfinite(v)) fail(ErrorCode::invalid_input, "particles.file", where + ": " + what + " is not finite");
+  return v;
+}
+
+/// The type in `field`: an index below the number of types, or a type name.
+std::uint32_t parse_type(const std::string& f, const ForceField& forces, const std::string& where) {
+  if (!f.empty() && std::all_of(f.begin(), f.end(), [](char ch) { return ch >= '0' && ch <= '9'; })) {
+    const unsigned long t = std::stoul(f);
+    if (t >= forces.types().size())
+      fail(ErrorCode::invalid_input, "particles.file", where + ": type index " + f + " is not defined");
+    return static_cast<std::uint32_t>(t);
+  }
+  try {
+    return forces.type_index(f);
+  } catch (const Error&) {
+    fail(ErrorCode::invalid_input, "particles.file", where + ": unknown type '" + f + "'");
+  }
+}
+
+/// Appends the orientation w x y z of `fields` [first, first + 4) to s (zero refused).
+void add_orientation(const std::vector<std::string>& fields, std::size_t first, const std::string& where,
+                     InitialState& s) {
+  double norm2 = 0.0;
+  for (std::size_t c = 0; c < 4; ++c) {
+    const double v =
+        parse_number(fields[first + c], where,
+                     "orientation component " + std::to_string(c) + " of particle " + std::to_string(s.types.size()));
+    s.orientations.push_back(v);
+    norm2 += v * v;
+  }
+  if (!(norm2 > 1e-24))
+    fail(ErrorCode::invalid_input, "particles.file",
+         where + ": the orientation of particle " + std::to_string(s.types.size()) + " is a zero quaternion");
+}
+
+}  // namespace
+
 InitialState read_particle_file(const std::filesystem::path& path, const ForceField& forces) {
   std::ifstream in(path);
   if (!in) fail(ErrorCode::io_error, "particles.file", "cannot read '" + path.string() + "'");
@@ -176,42 +226,20 @@ InitialState read_particle_file(const std::filesystem::path& path, const ForceFi
     for (std::string f; row >> f;) fields.push_back(f);
     if (fields.empty()) continue;
     const std::string where = path.string() + ":" + std::to_string(lineno);
-    if (fields.size() != 3 && fields.size() != 4)
+    const std::size_t count = fields.size();
+    if (count != 3 && count != 4 && count != 7 && count != 8)
       fail(ErrorCode::invalid_input, "particles.file",
-           where + ": expected 'x y z [type]', got " + std::to_string(fields.size()) + " fields");
-    for (int c = 0; c < 3; ++c) {
-      std::size_t used = 0;
-      double v = 0;
-      try {
-        v = std::stod(fields[c], &used);
-      } catch (const std::exception&) {
-        used = 0;
-      }
-      if (used != fields[c].size())
-        fail(ErrorCode::invalid_input, "particles.file", where + ": '" + fields[c] + "' is not a number");
-      if (!std::isfinite(v))
-        fail(ErrorCode::invalid_input, "particles.file",
-             where + ": coordinate " + std::to_string(c) + " of particle " + std::to_string(s.types.size()) +
-                 " is not finite");
-      s.positions.push_back(v);
-    }
-    std::uint32_t type = 0;
-    if (fields.size() == 4) {
-      const std::string& f = fields[3];
-      if (!f.empty() && std::all_of(f.begin(), f.end(), [](char ch) { return ch >= '0' && ch <= '9'; })) {
-        const unsigned long t = std::stoul(f);
-        if (t >= forces.types().size())
-          fail(ErrorCode::invalid_input, "particles.file", where + ": type index " + f + " is not defined");
-        type = static_cast<std::uint32_t>(t);
-      } else {
-        try {
-          type = forces.type_index(f);
-        } catch (const Error&) {
-          fail(ErrorCode::invalid_input, "particles.file", where + ": unknown type '" + f + "'");
-        }
-      }
-    }
-    s.types.push_back(type);
+           where + ": expected 'x y z [type] [qw qx qy qz]', got " + std::to_string(count) + " fields");
+    const bool oriented = count >= 7;
+    if (!s.types.empty() && oriented != !s.orientations.empty())
+      fail(ErrorCode::invalid_input, "particles.file",
+           where + ": orientation columns on some rows only (give them on every row or on none)");
+    for (int c = 0; c < 3; ++c)
+      s.positions.push_back(parse_number(
+          fields[c], where, "coordinate " + std::to_string(c) + " of particle " + std::to_string(s.types.size())));
+    const bool typed = count == 4 || count == 8;
+    if (oriented) add_orientation(fields, typed ? 4 : 3, where, s);
+    s.types.push_back(typed ? parse_type(fields[3], forces, where) : 0);
   }
   if (s.types.empty()) fail(ErrorCode::invalid_input, "particles.file", "'" + path.string() + "' has no particles");
   return s;
@@ -337,8 +365,13 @@ InitialState cluster_particles(const RunConfig& c, const ForceField& ff, std::mt
 InitialState make_particles(const RunConfig& c, const ForceField& ff) {
   std::mt19937_64 gen(c.particles.seed);
   switch (c.particles.source) {
-    case ParticleSpec::Source::file:
-      return read_particle_file(c.particles.file, ff);
+    case ParticleSpec::Source::file: {
+      InitialState s = read_particle_file(c.particles.file, ff);
+      if (!s.orientations.empty() && !c.integrator.rotation)
+        fail(ErrorCode::invalid_input, "particles.file",
+             "'" + c.particles.file.string() + "' has orientation columns, which need system.rotation = true");
+      return s;
+    }
     case ParticleSpec::Source::random:
       return random_particles(c, ff, gen);
     case ParticleSpec::Source::lattice:

@@ -10,6 +10,7 @@
 #include "rpyfmm/bd/checkpoint.hpp"
 #include "rpyfmm/bd/output.hpp"
 #include "rpyfmm/bd/particles.hpp"
+#include "rpyfmm/bd/quaternion.hpp"
 #include "rpyfmm/core/file_safety.hpp"
 #include "rpyfmm/core/validate.hpp"
 
@@ -19,6 +20,9 @@ namespace {
 
 struct Start {
   std::vector<double> positions, reference;
+  // rotation: orientations (4N; empty = identity), those at step 0 (4N), the summed rotation
+  // vectors (3N); the last two are filled by Run when a run starts
+  std::vector<double> orientations, reference_orientations, rotation_vectors;
   std::vector<std::uint32_t> types;
   std::vector<Bond> bonds;
   std::uint64_t step = 0;
@@ -93,6 +97,22 @@ std::array<double, 3> centre_of(std::span<const double> x, std::size_t n) {
   return c;
 }
 
+/// Rotational MSD (mean |sum of rotation vectors|^2) and orientation correlation (mean
+/// u(t) . u(0), u the body z axis) of the particles (docs/theory/bd.md Sec. 7).
+std::array<double, 2> rotation_moments(std::span<const double> orientations, const std::vector<double>& reference,
+                                       const std::vector<double>& rotation_vectors, std::size_t n) {
+  double msd = 0, correlation = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto u = quaternion::body_axis(std::span<const double, 4>(orientations.data() + 4 * i, 4));
+    const auto u0 = quaternion::body_axis(std::span<const double, 4>(reference.data() + 4 * i, 4));
+    for (int c = 0; c < 3; ++c) {
+      msd += rotation_vectors[3 * i + c] * rotation_vectors[3 * i + c];
+      correlation += u[c] * u0[c];
+    }
+  }
+  return {msd / static_cast<double>(n), correlation / static_cast<double>(n)};
+}
+
 /// Mean displacement and mean squared displacement from the reference positions.
 std::array<double, 2> displacement_moments(std::span<const double> x, const std::vector<double>& reference,
                                            std::size_t n) {
@@ -125,7 +145,11 @@ class Run {
         forces_(run_force_field(config, start_.bonds)),
         n_(start_.types.size()),
         bd_(rpy::make_mobility(config.mobility, n_), forces_, config.integrator, start_.positions, start_.types,
-            config.neighbours, start_.step) {
+            config.neighbours, start_.step, start_.orientations) {
+    if (config.integrator.rotation && !start_.restarted) {  // the reference state of the log's moments
+      start_.reference_orientations.assign(bd_.orientations().begin(), bd_.orientations().end());
+      start_.rotation_vectors.assign(3 * n_, 0.0);
+    }
     const auto dir = options.out_dir.value_or(config.output.dir);
     sum_.particles = n_;
     sum_.mobility = bd_.mobility().name();
@@ -186,7 +210,8 @@ class Run {
         log_.reopen(sum_.log, start_.log_bytes, start_.log_hash);
       else
         log_.create(sum_.log);
-      if (!start_.restarted) log_.write(csv_log_header(config_.integrator.keep_split_displacements));
+      if (!start_.restarted)
+        log_.write(csv_log_header(config_.integrator.keep_split_displacements, config_.integrator.rotation));
     }
   }
 
@@ -205,6 +230,11 @@ class Run {
     c.positions.assign(bd_.positions().begin(), bd_.positions().end());
     c.reference_positions = start_.reference;
     c.types = start_.types;
+    if (config_.integrator.rotation) {
+      c.orientations.assign(bd_.orientations().begin(), bd_.orientations().end());
+      c.reference_orientations = start_.reference_orientations;
+      c.rotation_vectors = start_.rotation_vectors;
+    }
     c.trajectory_bytes = traj_.bytes();
     c.trajectory_hash = traj_.hash();
     c.log_bytes = log_.bytes();
@@ -217,6 +247,8 @@ class Run {
   void step() {
     try {
       bd_.step();
+      const auto phi = bd_.last_rotations();  // empty without rotation
+      for (std::size_t k = 0; k < phi.size(); ++k) start_.rotation_vectors[k] += phi[k];
       if (config_.integrator.keep_split_displacements) {
         for (double d : bd_.deterministic_displacement()) last_.det2 += d * d;
         for (double d : bd_.brownian_displacement()) last_.brown2 += d * d;
@@ -237,7 +269,8 @@ class Run {
     const OutputSpec& out = config_.output;
     const std::uint64_t s = bd_.step_count();
     if (out.trajectory_every > 0 && s % out.trajectory_every == 0)
-      traj_.write(xyz_frame(bd_.positions(), bd_.types(), forces_.types(), config_.geometry, s, bd_.time()));
+      traj_.write(xyz_frame(bd_.positions(), bd_.types(), forces_.types(), config_.geometry, s, bd_.time(),
+                            bd_.orientations()));
     if (out.log_every > 0 && (s % out.log_every == 0 || s == total_)) write_log_row(first);
     const double sec = w.seconds();
     output_seconds_ += sec;
@@ -265,6 +298,11 @@ class Run {
     if (config_.integrator.keep_split_displacements) {  // rms of M F dt and of the Brownian part
       const double norm = static_cast<double>(std::max<std::uint64_t>(last_.split_steps, 1)) * static_cast<double>(n_);
       row << ',' << std::sqrt(last_.det2 / norm) << ',' << std::sqrt(last_.brown2 / norm);
+    }
+    if (config_.integrator.rotation) {
+      const auto [rmsd, correlation] =
+          rotation_moments(bd_.orientations(), start_.reference_orientations, start_.rotation_vectors, n_);
+      row << ',' << rmsd << ',' << correlation;
     }
     row << '\n';
     log_.write(row.str());
@@ -325,6 +363,7 @@ RunSummary run_bd(const RunConfig& config, const RunOptions& options) {
   s.reference = init.positions;
   s.types = std::move(init.types);
   s.bonds = std::move(init.bonds);
+  s.orientations = std::move(init.orientations);
   return execute(config, std::move(s), options);
 }
 
@@ -335,10 +374,15 @@ RunSummary restart_bd(const std::filesystem::path& path, const RunOptions& optio
   const RunConfig config = parse_config(c.config, source);
   if (c.seed != config.integrator.seed || c.dt != config.integrator.dt)
     fail(ErrorCode::io_error, "restart", source + ": seed/dt disagree with the checkpoint header");
+  if (config.integrator.rotation == c.orientations.empty())
+    fail(ErrorCode::io_error, "restart", source + ": system.rotation disagrees with the checkpoint's orientations");
   Start s;
   s.positions = c.positions;
   s.reference = c.reference_positions;
   s.types = c.types;
+  s.orientations = c.orientations;
+  s.reference_orientations = c.reference_orientations;
+  s.rotation_vectors = c.rotation_vectors;
   s.step = c.step;
   s.trajectory_bytes = c.trajectory_bytes;
   s.log_bytes = c.log_bytes;

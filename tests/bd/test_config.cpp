@@ -7,6 +7,7 @@
 #include <fstream>
 #include <string>
 
+#include "restart_pair.hpp"
 #include "rpyfmm/bd/checkpoint.hpp"
 #include "rpyfmm/bd/config.hpp"
 #include "rpyfmm/bd/particles.hpp"
@@ -228,13 +229,7 @@ TEST(BdRun, RestartEqualsUninterruptedRun) {
   text += "[output]\ntrajectory_every = 5\nlog_every = 5\ncheckpoint_every = 10\n";
   RunConfig c = parse_config(text, "run");
   const auto a = scratch("full"), b = scratch("split");
-  RunOptions full, part;
-  full.out_dir = a;
-  part.out_dir = b;
-  part.steps = 15;
-  (void)run_bd(c, full);
-  (void)run_bd(c, part);
-  const RunSummary s = restart_bd(b / "checkpoint.bin");
+  const RunSummary s = bdtest::run_whole_and_restarted(c, a, b, 15);
   EXPECT_EQ(s.first_step, 15u);
   EXPECT_EQ(s.last_step, 40u);
   const Checkpoint ca = read_checkpoint(a / "checkpoint.bin"), cb = read_checkpoint(b / "checkpoint.bin");

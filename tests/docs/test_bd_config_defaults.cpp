@@ -133,11 +133,16 @@ const std::map<std::string, Check>& checks() {
                              const std::string& l) { return c.geometry.is_periodic() == (unquoted(l) == "periodic"); }},
       {"system.viscosity", [](const RunConfig& c, const std::string& l) { return c.viscosity == number(l); }},
       {"system.kT", [](const RunConfig& c, const std::string& l) { return c.integrator.kT == number(l); }},
+      {"system.rotation", [](const RunConfig& c, const std::string& l) { return c.integrator.rotation == flag(l); }},
       {"types.radius", [](const RunConfig& c, const std::string& l) { return c.types.at(0).radius == number(l); }},
       {"types.external_force",
        [](const RunConfig& c, const std::string& l) { return vec3_equals(l, c.types.at(0).external_force); }},
       {"types.surface_potential",
        [](const RunConfig& c, const std::string& l) { return c.types.at(0).surface_potential == number(l); }},
+      {"types.external_torque",
+       [](const RunConfig& c, const std::string& l) { return vec3_equals(l, c.type_torques.at(0).torque); }},
+      {"types.dipole",
+       [](const RunConfig& c, const std::string& l) { return c.type_torques.at(0).dipole == number(l); }},
       {"particles.bond_length",
        [](const RunConfig&, const std::string& l) {
          return minimal_config("source = \"chains\"\nchains = 1\nbeads = 2\n").particles.bond_length == number(l);

@@ -7,6 +7,9 @@
 //   u64 trajectory_bytes, u64 trajectory_hash, u64 log_bytes, u64 log_hash,
 //   f64[3N] positions, f64[3N] reference_positions, u32[N] types,
 //   u64 len + config bytes, u64 checksum (FNV-1a of everything before it).
+// Runs with rotation write version 3: version 2 with, after the types,
+//   f64[4N] orientations, f64[4N] reference_orientations, f64[3N] rotation_vectors.
+// Runs without rotation still write version 2, byte for byte as before.
 // The hashes (FNV-1a of each output's first *_bytes bytes) identify the files
 // this run wrote: a restart refuses any other file instead of cutting it.
 // Written atomically (rpyfmm/core/atomic_file.hpp): a crash never leaves a
@@ -24,14 +27,17 @@ struct Checkpoint {
   std::uint64_t step = 0;
   std::uint64_t seed = 0;
   double dt = 0.0;
-  std::vector<double> positions;            ///< 3N, unwrapped
-  std::vector<double> reference_positions;  ///< 3N, positions at step 0 (for MSD)
-  std::vector<std::uint32_t> types;         ///< N
-  std::uint64_t trajectory_bytes = 0;       ///< trajectory length when this state was written
-  std::uint64_t trajectory_hash = 0;        ///< FNV-1a of those trajectory_bytes bytes
-  std::uint64_t log_bytes = 0;              ///< CSV log length when this state was written
-  std::uint64_t log_hash = 0;               ///< FNV-1a of those log_bytes bytes
-  std::string config;                       ///< the run's TOML config text
+  std::vector<double> positions;               ///< 3N, unwrapped
+  std::vector<double> reference_positions;     ///< 3N, positions at step 0 (for MSD)
+  std::vector<std::uint32_t> types;            ///< N
+  std::vector<double> orientations;            ///< rotation: 4N unit quaternions w x y z (else empty)
+  std::vector<double> reference_orientations;  ///< rotation: 4N, orientations at step 0
+  std::vector<double> rotation_vectors;        ///< rotation: 3N, sum of the steps' rotation vectors
+  std::uint64_t trajectory_bytes = 0;          ///< trajectory length when this state was written
+  std::uint64_t trajectory_hash = 0;           ///< FNV-1a of those trajectory_bytes bytes
+  std::uint64_t log_bytes = 0;                 ///< CSV log length when this state was written
+  std::uint64_t log_hash = 0;                  ///< FNV-1a of those log_bytes bytes
+  std::string config;                          ///< the run's TOML config text
 };
 
 void write_checkpoint(const std::filesystem::path& path, const Checkpoint& checkpoint);

@@ -60,6 +60,11 @@ struct RunConfig {
   std::vector<NamedPair> pairs;
   std::optional<BondPotential> chain_bond;  ///< bonds between consecutive beads of generated chains
   std::array<double, 3> external_force{0, 0, 0};
+  /// Rotation (integrator.rotation, from [system] rotation): per-type torques and dipoles (one
+  /// entry per entry of `types`), a torque on every particle, the uniform field on the dipoles.
+  std::vector<TypeTorque> type_torques{TypeTorque{}};
+  std::array<double, 3> external_torque{0, 0, 0};
+  std::array<double, 3> dipole_field{0, 0, 0};
   IntegratorOptions integrator;
   std::uint64_t steps = 0;
   rpy::MobilitySpec mobility;
@@ -76,7 +81,8 @@ RunConfig load_config(const std::filesystem::path& path);
 /// The built-in demo: a sedimenting cloud of 2000 spheres with HI (`rpyfmm bd`).
 std::string_view demo_config_text();
 
-/// Builds the force field (types, pairs, external force, chain bonds) of a config.
+/// Builds the force field (types, pairs, external force, chain bonds; the torque field when
+/// rotation is on) of a config.
 ForceField make_force_field(const RunConfig& config);
 
 }  // namespace rpyfmm::bd

@@ -62,13 +62,19 @@ class AppendFile {
 };
 
 /// One extended-XYZ frame: species = type name, pos, radius; Time and Step in the
-/// comment line; periodic boxes give Lattice and wrapped positions.
+/// comment line; periodic boxes give Lattice and wrapped positions. With `orientations` (4N
+/// quaternions w x y z; empty: none) a column orientation:R:4 follows, written x y z w: the
+/// order of OVITO's Orientation property (components X, Y, Z, W), which its extended-XYZ reader
+/// maps the column `orientation` to.
 std::string xyz_frame(std::span<const double> positions, std::span<const std::uint32_t> types,
                       const std::vector<ParticleType>& type_table, const rpy::Geometry& geometry, std::uint64_t step,
-                      double time);
+                      double time, std::span<const double> orientations = {});
 
 /// Columns of the CSV log (header line); with split displacements two more columns:
-/// the rms per particle and step of M F dt and of sqrt(2 kT dt) M^{1/2} z over the interval.
-std::string csv_log_header(bool split_displacements = false);
+/// the rms per particle and step of M F dt and of sqrt(2 kT dt) M^{1/2} z over the interval;
+/// with rotation two more: rotational_msd, the mean of |sum of the rotation vectors since step
+/// 0|^2 (4 D_r t for free spheres), and orientation_correlation, the mean of u(t) . u(0) for
+/// the body z axis u (exp(-2 D_r t) for free spheres; docs/theory/bd.md Sec. 7).
+std::string csv_log_header(bool split_displacements = false, bool rotation = false);
 
 }  // namespace rpyfmm::bd
