@@ -2,6 +2,7 @@
 #include "rpyfmm/rpy/mobility.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <initializer_list>
 #include <string>
@@ -37,6 +38,20 @@ void require_finite_result(std::span<const double> out, const std::string& where
              (std::isnan(out[i]) ? "NaN" : "infinite") + ": the product overflows double precision (scale the " +
              input + " down and the result up)");
   }
+}
+
+/// One argument of a product or sample with rotation, by name.
+struct NamedArray {
+  const char* name;
+  std::span<const double> values;
+};
+
+/// The two inputs and two outputs of a product or sample with rotation: n entries each, inputs finite.
+void require_rotation_arguments(const std::string& where, std::size_t n, const std::array<NamedArray, 2>& inputs,
+                                const std::array<NamedArray, 2>& outputs) {
+  for (const NamedArray& a : inputs) require_size(a.values, n, where, a.name);
+  for (const NamedArray& a : outputs) require_size(a.values, n, where, a.name);
+  for (const NamedArray& a : inputs) require_finite(a.values, where, a.name, 3);
 }
 
 /// Whether the sampler in `options` (method already resolved) runs preconditioned. `block` serves
@@ -166,14 +181,8 @@ void MobilityOperator::apply(std::span<const double> forces, std::span<const dou
   const std::string where = where_ + "::apply";
   require(supports_rotation(), ErrorCode::not_supported, where,
           "operator '" + name() + "' has no rotational mobility (torques and angular velocities); use 'direct'");
-  const std::size_t n = 3 * size();
-  require_size(forces, n, where, "forces");
-  require_size(torques, n, where, "torques");
-  require_size(std::span<const double>(velocities.data(), velocities.size()), n, where, "velocities");
-  require_size(std::span<const double>(angular_velocities.data(), angular_velocities.size()), n, where,
-               "angular velocities");
-  require_finite(forces, where, "forces", 3);
-  require_finite(torques, where, "torques", 3);
+  require_rotation_arguments(where, 3 * size(), {{{"forces", forces}, {"torques", torques}}},
+                             {{{"velocities", velocities}, {"angular velocities", angular_velocities}}});
   const int k = load_scale_exponent({forces, torques});
   if (k == 0) {
     do_apply_rotation(forces.data(), torques.data(), velocities.data(), angular_velocities.data());
@@ -227,6 +236,53 @@ SqrtReport MobilityOperator::do_apply_sqrt(std::span<const double> z, std::span<
   return preconditioner.sample(as_linear_operator(), z, w, nrhs, resolved);
 }
 
+SqrtReport MobilityOperator::apply_sqrt_rotation(std::span<const double> z_translation,
+                                                 std::span<const double> z_rotation, std::span<double> w_translation,
+                                                 std::span<double> w_rotation, const SqrtOptions& options) const {
+  require_positions("apply_sqrt_rotation");
+  const std::string where = where_ + "::apply_sqrt_rotation";
+  require(supports_rotation(), ErrorCode::not_supported, where,
+          "operator '" + name() + "' has no rotational mobility (torques and angular velocities) to sample");
+  require_rotation_arguments(where, 3 * size(),
+                             {{{"translational noise", z_translation}, {"rotational noise", z_rotation}}},
+                             {{{"translational output", w_translation}, {"rotational output", w_rotation}}});
+  const SqrtReport report = do_apply_sqrt_rotation(z_translation, z_rotation, w_translation, w_rotation, options);
+  require_finite_result(w_translation, where, "translational output", "noise");
+  require_finite_result(w_rotation, where, "rotational output", "noise");
+  return report;
+}
+
+SqrtReport MobilityOperator::do_apply_sqrt_rotation(std::span<const double> z_translation,
+                                                    std::span<const double> z_rotation, std::span<double> w_translation,
+                                                    std::span<double> w_rotation, const SqrtOptions& options) const {
+  const std::string where = where_ + "::apply_sqrt_rotation";
+  if (options.method == SqrtMethod::split) {
+    fail(ErrorCode::not_supported, where, "the split sampler is only available for the PSE operator's translations");
+  }
+  SqrtOptions resolved = options;
+  if (resolved.method == SqrtMethod::automatic) resolved.method = SqrtMethod::lanczos;
+  // w' = (S M S)^{1/2} z on z = [z_t; z_r], then [w_t; w_r] = S^{-1} w' (apply_sqrt_rotation).
+  const std::size_t n = 3 * size();
+  std::vector<double> z(2 * n), w(2 * n);
+  std::copy(z_translation.begin(), z_translation.end(), z.begin());
+  std::copy(z_rotation.begin(), z_rotation.end(), z.begin() + static_cast<std::ptrdiff_t>(n));
+  const LinearOperatorView scaled = scaled_grand_operator();
+  SqrtReport report;
+  if (!preconditioned(resolved, where)) {
+    resolved.preconditioner = SqrtPreconditioner::none;  // `automatic` where it does not apply
+    report = sqrt_apply(scaled, z, w, 1, resolved);
+  } else {
+    const BlockPreconditioner preconditioner(*this, resolved, PreconditionedMatrix::scaled_grand);
+    report = preconditioner.sample(scaled, z, w, 1, resolved);
+  }
+  const auto a = radii();
+  for (std::size_t k = 0; k < n; ++k) {
+    w_translation[k] = w[k];
+    w_rotation[k] = w[n + k] / a[k / 3];
+  }
+  return report;
+}
+
 SqrtReport MobilityOperator::apply_with_noise(std::span<const double>, double, std::uint64_t, std::uint64_t,
                                               std::span<double>) const {
   fail(ErrorCode::not_supported, where_ + "::apply_with_noise",
@@ -260,6 +316,24 @@ LinearOperatorView MobilityOperator::as_linear_operator() const {
   view.n = 3 * size();
   view.apply = [this](std::span<const double> x, std::span<double> y, std::size_t nrhs) {
     do_apply(x.data(), y.data(), nrhs);
+  };
+  return view;
+}
+
+LinearOperatorView MobilityOperator::scaled_grand_operator() const {
+  LinearOperatorView view;
+  const std::size_t n = 3 * size();
+  view.n = 2 * n;
+  view.apply = [this, n](std::span<const double> x, std::span<double> y, std::size_t nrhs) {
+    const auto a = radii();
+    std::vector<double> torques(n);
+    for (std::size_t r = 0; r < nrhs; ++r) {
+      const double* xr = x.data() + 2 * n * r;
+      double* yr = y.data() + 2 * n * r;
+      for (std::size_t k = 0; k < n; ++k) torques[k] = a[k / 3] * xr[n + k];  // S x
+      do_apply_rotation(xr, torques.data(), yr, yr + n);                      // M S x
+      for (std::size_t k = 0; k < n; ++k) yr[n + k] *= a[k / 3];              // S M S x
+    }
   };
   return view;
 }

@@ -12,6 +12,7 @@
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/mobility.hpp"
 #include "rpyfmm/rpy/rpy_kernel.hpp"
+#include "rpyfmm/rpy/rpy_rotation_kernel.hpp"
 
 namespace rpyfmm::rpy {
 namespace {
@@ -43,6 +44,29 @@ void bisect(std::span<const double> x, std::vector<std::size_t>& order, std::siz
                    [&](std::size_t i, std::size_t j) { return x[3 * i + axis] < x[3 * j + axis]; });
   bisect(x, order, begin, mid, max_block, offsets);
   bisect(x, order, mid, end, max_block, offsets);
+}
+
+/// The 6 x 6 block (row-major) of the scaled grand mobility S M S between spheres i and j at
+/// d = x_i - x_j (docs/theory/rpy.md section 7; rpy_rotation_kernel.hpp), S = diag(1, a) per particle:
+///     [ M^tt_ij          -c_ut(i, j) [e]_x a_j     ]
+///     [ -c_ut(j, i) [e]_x a_i   (h I + k e e^T) a_i a_j ] / eta,
+/// where [e]_x v = e x v, since T_j x e = -[e]_x T_j and F_j x e = -[e]_x F_j.
+void scaled_grand_pair(const double d[3], double ai, double aj, double viscosity, double out[36]) {
+  double tt[9];
+  rpy_tensor(d, ai, aj, viscosity, tt);
+  const double r = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+  const RpyRotationScalars q = rpy_rotation_scalars(r, ai, aj);
+  const double e[3] = {r > 0.0 ? d[0] / r : 0.0, r > 0.0 ? d[1] / r : 0.0, r > 0.0 ? d[2] / r : 0.0};
+  const double cross[9] = {0.0, -e[2], e[1], e[2], 0.0, -e[0], -e[1], e[0], 0.0};  // [e]_x, row-major
+  const double inv_eta = 1.0 / viscosity;
+  for (int a = 0; a < 3; ++a) {
+    for (int b = 0; b < 3; ++b) {
+      out[6 * a + b] = tt[3 * a + b];
+      out[6 * a + b + 3] = -q.ut * cross[3 * a + b] * aj * inv_eta;
+      out[6 * (a + 3) + b] = -q.wf * cross[3 * a + b] * ai * inv_eta;
+      out[6 * (a + 3) + b + 3] = ((a == b ? q.h : 0.0) + q.k * e[a] * e[b]) * ai * aj * inv_eta;
+    }
+  }
 }
 
 // The three triangular kernels on one block, L packed by rows (row i: L_i0 .. L_ii, in
@@ -85,8 +109,9 @@ void lower_product(const float* l, std::size_t m, const double* in,
 }  // namespace
 
 BlockPreconditioner::BlockPreconditioner(std::span<const double> positions, std::span<const double> radii,
-                                         double viscosity, const Geometry& geometry, std::size_t max_block)
-    : n_(radii.size()) {
+                                         double viscosity, const Geometry& geometry, std::size_t max_block,
+                                         PreconditionedMatrix matrix)
+    : n_(radii.size()), dofs_(matrix == PreconditionedMatrix::scaled_grand ? 6 : 3) {
   require(positions.size() == 3 * n_, ErrorCode::invalid_input, "BlockPreconditioner",
           "positions has " + std::to_string(positions.size()) + " entries for " + std::to_string(n_) + " radii");
   order_.resize(n_);
@@ -97,7 +122,7 @@ BlockPreconditioner::BlockPreconditioner(std::span<const double> positions, std:
   const std::size_t nb = blocks();
   factor_offset_.resize(nb + 1, 0);
   for (std::size_t b = 0; b < nb; ++b) {
-    const std::size_t m = 3 * (offsets_[b + 1] - offsets_[b]);
+    const std::size_t m = dofs_ * (offsets_[b + 1] - offsets_[b]);
     factor_offset_[b + 1] = factor_offset_[b] + m * (m + 1) / 2;
   }
   factors_.assign(factor_offset_[nb], 0.0f);
@@ -109,8 +134,9 @@ BlockPreconditioner::BlockPreconditioner(std::span<const double> positions, std:
   for (std::size_t b = 0; b < nb; ++b) {
     const std::size_t first = offsets_[b];
     const std::size_t count = offsets_[b + 1] - first;
-    const auto m = static_cast<Eigen::Index>(3 * count);
-    // The block of M (docs/theory/rpy.md; the lower triangle is all the factorization reads).
+    const auto dofs = static_cast<Eigen::Index>(dofs_);
+    const auto m = dofs * static_cast<Eigen::Index>(count);
+    // The block of M or S M S (docs/theory/rpy.md; the lower triangle is all the factorization reads).
     Matrix block(m, m);
     for (std::size_t q = 0; q < count; ++q) {
       const std::size_t j = order_[first + q];
@@ -121,12 +147,16 @@ BlockPreconditioner::BlockPreconditioner(std::span<const double> positions, std:
           d[c] = positions[3 * i + c] - positions[3 * j + c];
           if (periodic) d[c] -= box[c] * std::nearbyint(d[c] / box[c]);  // minimum image
         }
-        double t[9];
-        rpy_tensor(d, radii[i], radii[j], viscosity, t);
-        for (int r = 0; r < 3; ++r)
-          for (int c = 0; c < 3; ++c)
-            block(static_cast<Eigen::Index>(3 * p) + r, static_cast<Eigen::Index>(3 * q) + c) =
-                static_cast<float>(t[3 * r + c]);
+        double t[36];
+        if (dofs_ == 6) {
+          scaled_grand_pair(d, radii[i], radii[j], viscosity, t);
+        } else {
+          rpy_tensor(d, radii[i], radii[j], viscosity, t);
+        }
+        for (Eigen::Index r = 0; r < dofs; ++r)
+          for (Eigen::Index c = 0; c < dofs; ++c)
+            block(dofs * static_cast<Eigen::Index>(p) + r, dofs * static_cast<Eigen::Index>(q) + c) =
+                static_cast<float>(t[dofs * r + c]);
       }
     }
     Eigen::LLT<Matrix, Eigen::Lower> llt(block);
@@ -142,9 +172,10 @@ BlockPreconditioner::BlockPreconditioner(std::span<const double> positions, std:
   diagonal_blocks_ = diagonal;
 }
 
-BlockPreconditioner::BlockPreconditioner(const MobilityOperator& mobility, std::size_t max_block)
+BlockPreconditioner::BlockPreconditioner(const MobilityOperator& mobility, std::size_t max_block,
+                                         PreconditionedMatrix matrix)
     : BlockPreconditioner(mobility.positions(), mobility.radii(), mobility.viscosity(), mobility.geometry(),
-                          max_block == 0 ? automatic_block(mobility.size()) : max_block) {}
+                          max_block == 0 ? automatic_block(mobility.size()) : max_block, matrix) {}
 
 namespace {
 std::size_t checked_block(const SqrtOptions& options) {
@@ -154,8 +185,9 @@ std::size_t checked_block(const SqrtOptions& options) {
 }
 }  // namespace
 
-BlockPreconditioner::BlockPreconditioner(const MobilityOperator& mobility, const SqrtOptions& options)
-    : BlockPreconditioner(mobility, checked_block(options)) {}
+BlockPreconditioner::BlockPreconditioner(const MobilityOperator& mobility, const SqrtOptions& options,
+                                         PreconditionedMatrix matrix)
+    : BlockPreconditioner(mobility, checked_block(options), matrix) {}
 
 void BlockPreconditioner::apply(Op op, double* x) const {
   const std::size_t nb = blocks();
@@ -166,12 +198,12 @@ void BlockPreconditioner::apply(Op op, double* x) const {
     for (std::size_t b = 0; b < nb; ++b) {
       const std::size_t first = offsets_[b];
       const std::size_t count = offsets_[b + 1] - first;
-      const std::size_t m = 3 * count;
+      const std::size_t m = dofs_ * count;
       const float* l = factors_.data() + factor_offset_[b];
       in.resize(m);
       out.resize(m);
       for (std::size_t p = 0; p < count; ++p)
-        for (std::size_t c = 0; c < 3; ++c) in[3 * p + c] = x[3 * order_[first + p] + c];
+        for (std::size_t c = 0; c < dofs_; ++c) in[dofs_ * p + c] = x[entry(order_[first + p], c)];
       switch (op) {
         case Op::apply_g:
           forward_substitution(l, m, in.data(), out.data());
@@ -184,7 +216,7 @@ void BlockPreconditioner::apply(Op op, double* x) const {
           break;
       }
       for (std::size_t p = 0; p < count; ++p)
-        for (std::size_t c = 0; c < 3; ++c) x[3 * order_[first + p] + c] = out[3 * p + c];
+        for (std::size_t c = 0; c < dofs_; ++c) x[entry(order_[first + p], c)] = out[dofs_ * p + c];
     }
   }
 }
@@ -200,8 +232,9 @@ void BlockPreconditioner::solve_g(double* x) const {
 }
 
 LinearOperatorView BlockPreconditioner::precondition(const LinearOperatorView& m) const {
-  require(m.n == 3 * n_, ErrorCode::invalid_input, "BlockPreconditioner",
-          "operator of size " + std::to_string(m.n) + " for " + std::to_string(n_) + " particles");
+  require(m.n == rows(), ErrorCode::invalid_input, "BlockPreconditioner",
+          "operator of size " + std::to_string(m.n) + " for " + std::to_string(n_) + " particles (" +
+              std::to_string(rows()) + " rows)");
   LinearOperatorView a;
   a.n = m.n;
   a.apply = [this, m](std::span<const double> x, std::span<double> y, std::size_t nrhs) {

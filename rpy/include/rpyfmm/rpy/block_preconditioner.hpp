@@ -16,6 +16,11 @@
 // with it: they read a quarter of the memory of a double square block. The rounding makes L a
 // slightly different invertible matrix, and every operation uses that same L, so w w^T still
 // averages to M exactly.
+//
+// With rotation (PreconditionedMatrix::scaled_grand) the blocks are those of the scaled grand
+// mobility S M S that MobilityOperator::apply_sqrt_rotation samples (S = diag(I, a_i I)): every
+// particle of a spatial block contributes 6 rows, its translation and its scaled rotation, and
+// the vectors are [x_t; x_r] (3N each, particle-major) as there.
 #pragma once
 
 #include <algorithm>
@@ -30,6 +35,12 @@ namespace rpyfmm::rpy {
 
 class MobilityOperator;
 
+/// The matrix whose diagonal blocks the preconditioner factors.
+enum class PreconditionedMatrix {
+  translation,   ///< M, 3N x 3N (3 rows per particle)
+  scaled_grand,  ///< S M S with rotation, 6N x 6N (MobilityOperator::apply_sqrt_rotation; 6 rows per particle)
+};
+
 class BlockPreconditioner {
  public:
   /// Particles per block when none is asked for: N / 64, between 16 and 32. Small blocks are
@@ -42,16 +53,20 @@ class BlockPreconditioner {
   /// Partitions N = radii.size() particles into blocks of at most `max_block` particles and
   /// factors each diagonal block of the RPY mobility (viscosity eta; minimum-image separations
   /// in a periodic geometry). A block whose Cholesky factorization fails (coincident particles
-  /// make it singular) keeps only its diagonal, so L is always invertible.
+  /// make it singular) keeps only its diagonal, so L is always invertible. `matrix`: the blocks of
+  /// M, or of the scaled grand mobility with rotation.
   BlockPreconditioner(std::span<const double> positions, std::span<const double> radii, double viscosity,
-                      const Geometry& geometry, std::size_t max_block);
+                      const Geometry& geometry, std::size_t max_block,
+                      PreconditionedMatrix matrix = PreconditionedMatrix::translation);
   /// From an operator's positions, radii, viscosity and geometry; max_block 0 = automatic_block(N).
-  explicit BlockPreconditioner(const MobilityOperator& mobility, std::size_t max_block = 0);
+  explicit BlockPreconditioner(const MobilityOperator& mobility, std::size_t max_block = 0,
+                               PreconditionedMatrix matrix = PreconditionedMatrix::translation);
   /// The same with the block size of a sampler's options (options.preconditioner_block: >= 0,
   /// else rpyfmm::Error; 0 = automatic).
-  BlockPreconditioner(const MobilityOperator& mobility, const SqrtOptions& options);
+  BlockPreconditioner(const MobilityOperator& mobility, const SqrtOptions& options,
+                      PreconditionedMatrix matrix = PreconditionedMatrix::translation);
 
-  /// x <- G x = L^{-1} x, one vector of 3N entries.
+  /// x <- G x = L^{-1} x, one vector of rows() entries (3N, or 6N with rotation).
   void apply_g(double* x) const;
   /// x <- G^T x = L^{-T} x.
   void apply_g_transpose(double* x) const;
@@ -65,7 +80,10 @@ class BlockPreconditioner {
   SqrtReport sample(const LinearOperatorView& m, std::span<const double> z, std::span<double> w, std::size_t nrhs,
                     const SqrtOptions& options) const;
 
+  /// Particles N.
   [[nodiscard]] std::size_t size() const { return n_; }
+  /// Rows of the preconditioned matrix: 3N, or 6N for PreconditionedMatrix::scaled_grand.
+  [[nodiscard]] std::size_t rows() const { return dofs_ * n_; }
   [[nodiscard]] std::size_t blocks() const { return offsets_.size() - 1; }
   /// Blocks that fell back to their diagonal.
   [[nodiscard]] std::size_t diagonal_blocks() const { return diagonal_blocks_; }
@@ -73,8 +91,13 @@ class BlockPreconditioner {
  private:
   enum class Op { apply_g, apply_g_transpose, solve_g };
   void apply(Op op, double* x) const;
+  /// Entry of particle i's row c (0 <= c < dofs_) in a vector: translation 3i + c, rotation 3N + 3i + c - 3.
+  [[nodiscard]] std::size_t entry(std::size_t i, std::size_t c) const {
+    return c < 3 ? 3 * i + c : 3 * (n_ + i) + c - 3;
+  }
 
   std::size_t n_ = 0;
+  std::size_t dofs_ = 3;                    // rows per particle: 3, or 6 with rotation
   std::vector<std::size_t> order_;          // particle indices, block after block
   std::vector<std::size_t> offsets_;        // block b holds order_[offsets_[b] .. offsets_[b + 1])
   std::vector<std::size_t> factor_offset_;  // block b's L_b starts at factors_[factor_offset_[b]]

@@ -71,6 +71,22 @@ class MobilityOperator {
   SqrtReport apply_sqrt_block(std::span<const double> z, std::span<double> w, std::size_t nrhs,
                               const SqrtOptions& options = {}) const;
 
+  /// [w_t; w_r] = B [z_t; z_r] with B B^T = the grand mobility (rotation; 3N each), the Brownian
+  /// displacements and rotations of a step with rotational diffusion (docs/theory/samplers.md, "Rotation").
+  /// The samplers run on the scaled grand mobility S M S, S = diag(I_3N, diag(a_i) (x) I_3): its self
+  /// blocks are 1 / (6 pi eta a_i) and 1 / (8 pi eta a_i), of one magnitude, so the tolerance means
+  /// the same for translation and rotation. The result is B z = S^{-1} (S M S)^{1/2} z (covariance M),
+  /// which is M^{1/2} z when all radii are 1; a Lanczos / Chebyshev tolerance bounds the error
+  /// relative to |S B z|, i.e. with the rotations weighted by a_i. Methods and options as apply_sqrt:
+  /// automatic = the operator's own exact sampler where it has one (free draining), Lanczos otherwise;
+  /// `block` factors 6 x 6 per-particle blocks of S M S within each spatial block; cholesky / eigen
+  /// work up to 6N = kDenseSqrtMaxRows rows; split is not_supported.
+  /// Throws rpyfmm::Error (not_supported) unless supports_rotation(); sizes and finiteness as for
+  /// apply_sqrt.
+  SqrtReport apply_sqrt_rotation(std::span<const double> z_translation, std::span<const double> z_rotation,
+                                 std::span<double> w_translation, std::span<double> w_rotation,
+                                 const SqrtOptions& options = {}) const;
+
   // Capability queries: what an operator offers beyond U = M F, so that callers (the BD
   // engine) choose a path by asking the operator rather than by its name or type.
 
@@ -111,11 +127,19 @@ class MobilityOperator {
   /// Default: generic solvers on apply() (Lanczos for `automatic`).
   virtual SqrtReport do_apply_sqrt(std::span<const double> z, std::span<double> w, std::size_t nrhs,
                                    const SqrtOptions& options) const;
+  /// [w_t; w_r] = S^{-1} (S M S)^{1/2} [z_t; z_r] (3N each, see apply_sqrt_rotation); sizes and
+  /// rotation support already checked. Default: the generic solvers on do_apply_rotation (Lanczos
+  /// for `automatic`).
+  virtual SqrtReport do_apply_sqrt_rotation(std::span<const double> z_translation, std::span<const double> z_rotation,
+                                            std::span<double> w_translation, std::span<double> w_rotation,
+                                            const SqrtOptions& options) const;
 
   /// Throws unless N > 0 (called before every apply).
   void require_positions(const char* where) const;
 
  private:
+  /// S M S with rotation as a 6N operator on [x_t; x_r] (apply_sqrt_rotation's scaling).
+  [[nodiscard]] LinearOperatorView scaled_grand_operator() const;
   void store_positions(std::span<const double> positions, std::span<const double> radii, bool equal);
 
   Geometry geometry_;
