@@ -260,7 +260,7 @@ class Simulation {
     const std::size_t n = start.types.size();
     integrator_ =
         std::make_unique<bd::Integrator>(rpy::make_mobility(config.mobility, n), std::move(forces), config.integrator,
-                                         start.positions, start.types, config.neighbours, 0);
+                                         start.positions, start.types, config.neighbours, 0, start.orientations);
   }
 
   /// The Python force (None when there is none) for the cyclic garbage collector.
