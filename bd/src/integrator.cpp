@@ -52,7 +52,7 @@ Integrator::Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceFie
   dx_.assign(3 * n, 0.0);
   if (options_.kT > 0.0) z_.assign(3 * n, 0.0);
   if (options_.rotation) {
-    require(supports_rotational_dynamics(*mobility_), ErrorCode::invalid_argument, where,
+    require(mobility_->supports_rotation(), ErrorCode::invalid_argument, where,
             "rotation needs a mobility that supports it (torques and angular velocities); '" + mobility_->name() +
                 "' does not (docs/bd-config.md, system.rotation)");
     q_ = quaternion::checked(std::move(orientations), n, where, "particle");

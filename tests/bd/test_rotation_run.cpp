@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "one_thread.hpp"
 #include "restart_pair.hpp"
 #include "rpyfmm/bd/checkpoint.hpp"
 #include "rpyfmm/bd/config.hpp"
@@ -203,28 +204,32 @@ TEST(BdRotationRun, TrajectoryAndLogCarryTheRotation) {
 
 // Interrupted at step 15 and restarted to 40: orientations, the summed rotation vectors, the
 // trajectory and the log equal those of an uninterrupted run, bitwise (the dipole torques make
-// the dynamics depend on the orientations carried by the checkpoint).
+// the dynamics depend on the orientations carried by the checkpoint), free draining and with RPY
+// (direct: the grand mobility's Lanczos sample).
 TEST(BdRotationRun, RestartContinuesBitwise) {
-  const RunConfig c = parse_config(kRotating, "restart");
-  const auto a = scratch("full"), b = scratch("split");
-  EXPECT_EQ(bdtest::run_whole_and_restarted(c, a, b, 15).last_step, 40u);
-  const Checkpoint ca = read_checkpoint(a / "checkpoint.bin"), cb = read_checkpoint(b / "checkpoint.bin");
-  ASSERT_EQ(ca.orientations.size(), 4u * 64u);
-  EXPECT_EQ(ca.positions, cb.positions);
-  EXPECT_EQ(ca.orientations, cb.orientations);
-  EXPECT_EQ(ca.reference_orientations, cb.reference_orientations);
-  EXPECT_EQ(ca.rotation_vectors, cb.rotation_vectors);
-  EXPECT_NE(ca.orientations, ca.reference_orientations);
-  EXPECT_EQ(slurp(a / "trajectory.xyz"), slurp(b / "trajectory.xyz"));
-  // The log's rotational moments (its last two columns; wall times differ between the runs).
-  const auto log_a = lines_of(slurp(a / "log.csv")), log_b = lines_of(slurp(b / "log.csv"));
-  ASSERT_EQ(log_a.size(), log_b.size());
-  for (std::size_t row = 1; row < log_a.size(); ++row) {
-    const auto va = numbers_of(log_a[row], ','), vb = numbers_of(log_b[row], ',');
-    EXPECT_EQ(std::vector<double>(va.end() - 2, va.end()), std::vector<double>(vb.end() - 2, vb.end())) << row;
+  const bdtest::OneThread one;
+  for (const std::string method : {"none", "direct"}) {
+    const RunConfig c = parse_config(replace(kRotating, "method = \"none\"", "method = \"" + method + "\""), method);
+    const auto a = scratch("full"), b = scratch("split");
+    EXPECT_EQ(bdtest::run_whole_and_restarted(c, a, b, 15).last_step, 40u);
+    const Checkpoint ca = read_checkpoint(a / "checkpoint.bin"), cb = read_checkpoint(b / "checkpoint.bin");
+    ASSERT_EQ(ca.orientations.size(), 4u * 64u);
+    EXPECT_EQ(ca.positions, cb.positions) << method;
+    EXPECT_EQ(ca.orientations, cb.orientations) << method;
+    EXPECT_EQ(ca.reference_orientations, cb.reference_orientations) << method;
+    EXPECT_EQ(ca.rotation_vectors, cb.rotation_vectors) << method;
+    EXPECT_NE(ca.orientations, ca.reference_orientations) << method;
+    EXPECT_EQ(slurp(a / "trajectory.xyz"), slurp(b / "trajectory.xyz")) << method;
+    // The log's rotational moments (its last two columns; wall times differ between the runs).
+    const auto log_a = lines_of(slurp(a / "log.csv")), log_b = lines_of(slurp(b / "log.csv"));
+    ASSERT_EQ(log_a.size(), log_b.size());
+    for (std::size_t row = 1; row < log_a.size(); ++row) {
+      const auto va = numbers_of(log_a[row], ','), vb = numbers_of(log_b[row], ',');
+      EXPECT_EQ(std::vector<double>(va.end() - 2, va.end()), std::vector<double>(vb.end() - 2, vb.end())) << row;
+    }
+    std::filesystem::remove_all(a);
+    std::filesystem::remove_all(b);
   }
-  std::filesystem::remove_all(a);
-  std::filesystem::remove_all(b);
 }
 
 // Without rotation the checkpoint keeps format version 2, byte for byte the layout it had.

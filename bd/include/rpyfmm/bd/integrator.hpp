@@ -51,7 +51,7 @@ struct IntegratorOptions {
   /// Keep the deterministic (M F dt) and Brownian parts of the last step separately.
   bool keep_split_displacements = false;
   /// Rotational dynamics: orientations, torques, rotational diffusion (docs/theory/bd.md Sec. 7).
-  /// Needs an operator for which supports_rotational_dynamics() holds. max_displacement then
+  /// Needs an operator that supports_rotation() (none, direct, ...). max_displacement then
   /// bounds each step's rotation angle too (in radians: a surface point moves a |phi|).
   bool rotation = false;
 };

@@ -3,10 +3,12 @@
 //
 //     [U; W] = M [F; T],   [w_t; w_r] = B [z_t; z_r],   B B^T = M  (the 6N x 6N grand mobility)
 //
-// z_t is the translational noise of a step without rotation, fill_normal(seed, step) (stream 0);
-// z_r comes from its own stream, kRotationNoiseStream, so that turning rotation on draws the same
-// z_t. With free draining M is diagonal, w_t = z_t / sqrt(6 pi eta a) is then bitwise the
-// displacement of a step without rotation, and the rotations are independent of it.
+// by the operator's grand mobility (MobilityOperator::apply(F, T, U, W)) and its rotational
+// sampler (apply_sqrt_rotation). z_t is the translational noise of a step without rotation,
+// fill_normal(seed, step) (stream 0); z_r comes from its own stream, kRotationNoiseStream, so that
+// turning rotation on draws the same z_t. With free draining M is diagonal, w_t = z_t /
+// sqrt(6 pi eta a) is then bitwise the displacement of a step without rotation, and the rotations
+// are independent of it.
 #pragma once
 
 #include <cstdint>
@@ -28,13 +30,11 @@ struct GrandVector {
   std::span<T> translation, rotation;
 };
 
-/// True when BD with rotation can run on `mobility`: its operator gives torques and angular
-/// velocities (supports_rotation()), or it is free draining (a diagonal grand mobility).
-bool supports_rotational_dynamics(const rpy::MobilityOperator& mobility);
-
 /// velocities = M loads ([U; W] = M [F; T]) and, unless z.translation is empty (kT = 0), the
 /// Brownian sample w = B z with B B^T = M. Products are skipped (zeros) when every force and
-/// torque is zero. Throws not_supported unless supports_rotational_dynamics(mobility).
+/// torque is zero. The sampler follows `options` (apply_sqrt_rotation: the exact root for free
+/// draining, Lanczos with the block preconditioner by default otherwise). Throws not_supported
+/// unless mobility.supports_rotation().
 DriftNoiseReport rotational_drift_and_noise(const rpy::MobilityOperator& mobility, GrandVector<const double> loads,
                                             GrandVector<const double> z, GrandVector<double> velocities,
                                             GrandVector<double> w, const SqrtOptions& options);
