@@ -247,3 +247,18 @@ TEST(BdRotationRun, RunsWithoutRotationKeepCheckpointVersion2) {
   EXPECT_EQ(lines_of(slurp(dir / "log.csv"))[0].find("rotational_msd"), std::string::npos);
   std::filesystem::remove_all(dir);
 }
+
+// The shipped example runs (5 steps) and writes its rotation columns.
+TEST(BdRotationRun, ExampleRuns) {
+  const bdtest::OneThread one;
+  const RunConfig c =
+      load_config(std::filesystem::path(RPYFMM_SOURCE_DIR) / "examples" / "bd" / "rotation" / "dipoles.toml");
+  EXPECT_TRUE(c.integrator.rotation);
+  const auto dir = scratch("example");
+  RunOptions o;
+  o.steps = 5;
+  o.out_dir = dir;
+  EXPECT_EQ(run_bd(c, o).last_step, 5u);
+  EXPECT_NE(slurp(dir / "log.csv").find("orientation_correlation"), std::string::npos);
+  std::filesystem::remove_all(dir);
+}
