@@ -300,3 +300,19 @@ TEST(BdRotation, OperatorWithoutRotationIsRefusedByName) {
       Integrator(free_draining(), ForceField(), {.dt = 0.01, .rotation = true}, line(1), {0}, {}, 0, {0, 0, 0, 0}),
       Error);  // a zero quaternion
 }
+
+// The blow-up guard bounds the rotation angle too: a torque that would turn a sphere by more than
+// max_displacement radians in one step stops the step, naming the angle, with the state kept.
+TEST(BdRotation, BlowUpGuardBoundsTheRotationAngle) {
+  ForceField ff({ParticleType{.name = "A"}});
+  ff.set_torque_field(TorqueField({}, {0, 0, 100.0}, {0, 0, 0}));  // W = 100 / (8 pi) = 4 rad per unit time
+  Integrator bd(free_draining(), ff, {.dt = 0.2, .kT = 0.0, .max_displacement = 0.5, .rotation = true}, line(1), {0});
+  try {
+    bd.step();
+    FAIL() << "no blow-up";
+  } catch (const Error& err) {
+    EXPECT_NE(std::string(err.what()).find("particle 0 would turn by"), std::string::npos) << err.what();
+  }
+  EXPECT_EQ(bd.step_count(), 0u);
+  EXPECT_EQ(bd.orientations()[0], 1.0);
+}
