@@ -25,9 +25,9 @@
 #include "object_lock.hpp"
 #include "rpyfmm/bd/config.hpp"
 #include "rpyfmm/bd/integrator.hpp"
-#include "rpyfmm/rpy/mobility_factory.hpp"
 #include "rpyfmm/bd/particles.hpp"
 #include "rpyfmm/bd/run.hpp"
+#include "rpyfmm/rpy/mobility_factory.hpp"
 
 namespace rpyfmm::python {
 namespace {
@@ -286,8 +286,9 @@ class Simulation {
   std::unique_ptr<bd::Integrator> integrator_;
 };
 
-ArrayResult view_of(std::span<const double> values, nb::handle owner) {
-  const std::size_t shape[2] = {values.size() / 3, 3};
+/// A read-only (values.size() / columns, columns) view of values, kept alive by `owner`.
+ArrayResult view_of(std::span<const double> values, nb::handle owner, std::size_t columns = 3) {
+  const std::size_t shape[2] = {values.size() / columns, columns};
   return {nb::cast(nb::ndarray<nb::numpy, const double>(values.data(), 2, shape, owner), nb::rv_policy::reference)};
 }
 
@@ -347,6 +348,11 @@ void add_simulation_state(SimulationClass& cls) {
           "last_forces",
           [](nb::handle self) { return view_of(nb::cast<Simulation&>(self).integrator().last_forces(), self); },
           "Live read-only view (N, 3) of the forces at the start of the last step.")
+      .def_prop_ro(
+          "orientations",
+          [](nb::handle self) { return view_of(nb::cast<Simulation&>(self).integrator().orientations(), self, 4); },
+          "Live read-only view (N, 4) of the orientations, unit quaternions (w, x, y, z), of a config with\n"
+          "[system] rotation = true (docs/bd-config.md, Rotation); shape (0, 4) without rotation.")
       .def_prop_ro("radii",
                    locked_read(
                        "Simulation.radii",

@@ -68,6 +68,43 @@ def test_simulation_reproduces_run_bd(tmp_path: Path):
     assert sim.totals()["steps"] == 20
 
 
+ROTATING = """
+[system]
+rotation = true
+[[types]]
+name = "A"
+dipole = 2.0
+[particles]
+source = "lattice"
+count = 27
+[external]
+dipole_field = [0.0, 0.0, 1.0]
+[integrator]
+dt = 0.01
+steps = 10
+[mobility]
+method = "direct"
+[output]
+trajectory_every = 5
+"""
+
+
+def test_simulation_with_rotation_reproduces_run_bd(tmp_path: Path):
+    # Orientations (w, x, y, z) follow the trajectory's orientation column, written x y z w.
+    rpyfmm.run_bd(ROTATING, out_dir=str(tmp_path))
+    rows = (tmp_path / "trajectory.xyz").read_text().splitlines()
+    assert "orientation:R:4" in rows[1]
+    last = np.array([[float(v) for v in r.split()[5:9]] for r in rows[-27:]])
+    sim = rpyfmm.Simulation.from_config(ROTATING)
+    assert sim.orientations.shape == (27, 4)
+    np.testing.assert_array_equal(sim.orientations[:, 0], 1.0)  # the identity at the start
+    sim.run(10)
+    np.testing.assert_allclose(sim.orientations[:, [1, 2, 3, 0]], last, rtol=0, atol=1e-9)  # 10 digits
+    np.testing.assert_allclose(np.linalg.norm(sim.orientations, axis=1), 1.0, rtol=0, atol=1e-14)
+    plain = rpyfmm.Simulation(np.zeros((1, 3)), dt=0.01, mobility="none")
+    assert plain.orientations.shape == (0, 4)
+
+
 def test_python_force_gives_exact_drift():
     x0 = np.array([[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [0.0, 10.0, 0.0]])
     g = np.array([0.3, -0.2, 0.1])
