@@ -8,12 +8,17 @@
 //                 [--sqrt-tolerance 1e-3] [--max-iterations M] [--tolerance E]
 //                 [--wave-precision auto|single|double]
 //                 [--device cpu|cuda] [--preconditioner none|block|auto [--preconditioner-block B]]
-//                 [--viscosity 1]
+//                 [--viscosity 1] [--angular]
 //                 --out W.npy [--threads N] [--json]
 //
 // W has shape (N,3). Without --noise, z is drawn with the counter-based
 // generator (rpy/random.hpp) keyed by (seed, step, particle): the same on any
-// thread count. --tolerance is the operator's (fmm: default 1e-6); keep it below
+// thread count. --angular samples the grand mobility with rotation instead
+// (MobilityOperator::apply_sqrt_rotation; operators with supports_rotation()): W and the noise
+// Z then have shape (N,6), rows w_t (x y z) then w_r (x y z), as `rpyfmm mobility --angular`
+// writes U then W; the drawn z_t is the one without --angular (stream 0) and z_r comes from
+// the rotational stream of BD (rpyfmm/bd/rotation_sampling.hpp), so that --seed S --step K
+// gives the noise of BD step K. --tolerance is the operator's (fmm: default 1e-6); keep it below
 // --sqrt-tolerance, since the square root cannot be more accurate than M. With --json, one line reports the iterations,
 // the error estimate and the number of operator products. --preconditioner block (Lanczos, Chebyshev) gives w = B z
 // with B B^T = M instead of M^{1/2} z, in fewer products (rpy/block_preconditioner.hpp).
@@ -30,13 +35,14 @@
 #include "array_io.hpp"
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "rpyfmm/rpy/mobility_factory.hpp"
+#include "rpyfmm/bd/rotation_sampling.hpp"
 #include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/core/file_safety.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
+#include "rpyfmm/rpy/mobility_factory.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
 #include "rpyfmm/rpy/random.hpp"
@@ -61,6 +67,7 @@ struct SampleArgs {
   int max_iterations = 0;
   std::string preconditioner = "none";  // none | block | auto
   int preconditioner_block = 0;
+  bool angular = false;  // (N, 6): the grand mobility with rotation
   CommonOptions common;
 };
 
@@ -179,9 +186,10 @@ const OperatorEntry& operator_of(const SampleArgs& args) {
   return entry;
 }
 
-/// What `sample` reads: positions, radii (unless --radius) and the noise z.
+/// What `sample` reads: positions, radii (unless --radius) and the noise z (translational; with
+/// --angular also z_r, rotational).
 struct SampleInput {
-  std::vector<double> x, radii, z;
+  std::vector<double> x, radii, z, z_r;
 };
 
 SampleInput read_sample_input(const SampleArgs& args, bool radius_given) {
@@ -190,12 +198,27 @@ SampleInput read_sample_input(const SampleArgs& args, bool radius_given) {
   const std::size_t n = in.x.size() / 3;
   if (!radius_given) in.radii = as_vector(read_array(args.radii), n, "radii");
   in.z.resize(3 * n);
-  if (!args.noise.empty()) {
+  in.z_r.resize(args.angular ? 3 * n : 0);
+  if (!args.noise.empty() && args.angular) {
+    const Array z = read_array(args.noise);
+    const bool rows6 = z.shape.size() == 2 && z.shape[1] == 6;
+    require(rows6 && z.shape[0] == n, ErrorCode::invalid_input, "noise",
+            "with --angular must have shape (" + std::to_string(n) + ",6), one row z_t then z_r per particle, got " +
+                (rows6 ? std::to_string(z.shape[0]) + " rows" : std::to_string(z.shape.size()) + " dimensions") +
+                (z.shape.size() == 2 ? " of " + std::to_string(z.shape[1]) + " columns" : ""));
+    require_finite(z.data, "noise", "noise", 6);
+    for (std::size_t i = 0; i < n; ++i)
+      for (std::size_t c = 0; c < 3; ++c) {
+        in.z[3 * i + c] = z.data[6 * i + c];
+        in.z_r[3 * i + c] = z.data[6 * i + 3 + c];
+      }
+  } else if (!args.noise.empty()) {
     in.z = as_points(read_array(args.noise), "noise");
     require(in.z.size() == in.x.size(), ErrorCode::invalid_input, "noise",
             "has " + std::to_string(in.z.size() / 3) + " rows, expected " + std::to_string(n) + " (one per particle)");
   } else {
     rpy::fill_normal(in.z, args.seed, args.step);
+    if (args.angular) rpy::fill_normal(in.z_r, args.seed, args.step, bd::kRotationNoiseStream);
   }
   return in;
 }
@@ -214,6 +237,7 @@ void print_sample_json(const SampleArgs& args, const rpy::MobilityOperator& op, 
       .add("converged", report.converged)
       .add("breakdown", report.breakdown)
       .add("preconditioner_blocks", report.preconditioner_blocks)
+      .add("angular", args.angular)
       .add("noise", args.noise.empty() ? "philox" : args.noise)
       .add("viscosity", args.viscosity)
       .add("equal_radii", op.equal_radii())
@@ -258,6 +282,8 @@ void run_sample(const SampleArgs& given, bool radius_given, bool seed_given) {
 
   watch.restart();
   auto op = entry.make(args);
+  require(!args.angular || op->supports_rotation(), ErrorCode::not_supported, "sample",
+          "--angular needs an operator with rotation (torques and angular velocities); '" + op->name() + "' has none");
   if (radius_given) {
     op->set_positions(in.x, args.radius);
   } else {
@@ -266,13 +292,25 @@ void run_sample(const SampleArgs& given, bool radius_given, bool seed_given) {
   stages["setup"] = watch.seconds();
 
   watch.restart();
-  std::vector<double> w(3 * n);
-  const rpy::SqrtReport report = op->apply_sqrt(in.z, w, options);
+  std::vector<double> w(3 * n), w_r(args.angular ? 3 * n : 0);
+  const rpy::SqrtReport report =
+      args.angular ? op->apply_sqrt_rotation(in.z, in.z_r, w, w_r, options) : op->apply_sqrt(in.z, w, options);
   stages["sample"] = watch.seconds();
 
   watch.restart();
   require_finite_output(w, "sample");
-  write_npy(args.out, {n, 3}, w);
+  if (args.angular) {
+    require_finite_output(w_r, "sample");
+    std::vector<double> rows(6 * n);  // w_t then w_r per particle
+    for (std::size_t i = 0; i < n; ++i)
+      for (std::size_t c = 0; c < 3; ++c) {
+        rows[6 * i + c] = w[3 * i + c];
+        rows[6 * i + 3 + c] = w_r[3 * i + c];
+      }
+    write_npy(args.out, {n, 6}, rows);
+  } else {
+    write_npy(args.out, {n, 3}, w);
+  }
   stages["write"] = watch.seconds();
 
   if (args.common.json) print_sample_json(args, *op, report, n, radius_given, stages, total.seconds());
@@ -287,7 +325,9 @@ void register_sample(CLI::App& app) {
   auto* radius = cmd->add_option("--radius", args->radius, "common sphere radius a, in " + ranges::kRadius.str());
   auto* radii = cmd->add_option("--radii", args->radii, "per-particle radii (N,)");
   radius->excludes(radii);
-  auto* noise = cmd->add_option("--noise", args->noise, "noise z, (N,3); default: Philox normals from --seed");
+  auto* noise = cmd->add_option("--noise", args->noise,
+                                "noise z, (N,3), or (N,6) z_t then z_r with --angular; default: Philox normals "
+                                "from --seed");
   auto* seed = add_integer_option(*cmd, "--seed", args->seed, ranges::kSeed, "seed of the counter-based generator");
   noise->excludes(seed);
   add_integer_option(*cmd, "--step", args->step, ranges::kSeed, "time-step index (generator counter)");
@@ -318,7 +358,10 @@ void register_sample(CLI::App& app) {
                      "particles per block of the block preconditioner (0 = automatic)");
   cmd->add_option("--viscosity", args->viscosity, "solvent viscosity eta, in " + ranges::kViscosity.str())
       ->capture_default_str();
-  cmd->add_option("--out", args->out, "output .npy, shape (N,3)")->required();
+  cmd->add_flag("--angular", args->angular,
+                "sample the grand mobility with rotation (operators with rotation: direct): output (N,6), "
+                "displacements then rotations, B z with B B^T = M (docs/theory/samplers.md)");
+  cmd->add_option("--out", args->out, "output .npy, shape (N,3), or (N,6) with --angular")->required();
   add_common_options(*cmd, args->common);
   cmd->callback([args, radius, seed] {
     print_pending_warnings();

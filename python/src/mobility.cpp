@@ -11,12 +11,12 @@
 
 #include "common.hpp"
 #include "object_lock.hpp"
-#include "rpyfmm/rpy/free_draining.hpp"
-#include "rpyfmm/rpy/mobility_factory.hpp"
 #include "rpyfmm/core/threads.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
+#include "rpyfmm/rpy/free_draining.hpp"
+#include "rpyfmm/rpy/mobility_factory.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
 
@@ -119,6 +119,35 @@ ArrayAndReport<rpy::SqrtReport> apply_sqrt(const MobilityOperator& op, ArrayArg 
     report = Block ? op.apply_sqrt_block(zz.span(), w.span(), nrhs, o) : op.apply_sqrt(zz.span(), w.span(), o);
   }
   return array_and_report(w.object, report);
+}
+
+/// (w_t, w_r, report) of apply_sqrt_rotation.
+using RotationSample = nb::typed<nb::tuple, ArrayResult, ArrayResult, rpy::SqrtReport>;
+
+/// [w_t; w_r] = B [z_t; z_r], B B^T = the grand mobility (MobilityOperator::apply_sqrt_rotation).
+RotationSample apply_sqrt_rotation(const MobilityOperator& op, ArrayArg z_translation, ArrayArg z_rotation,
+                                   const std::string& method, std::optional<double> tolerance, int max_iterations,
+                                   bool reorthogonalize, bool throw_if_not_converged, double lambda_min,
+                                   double lambda_max, int bound_estimate_iterations, const std::string& preconditioner,
+                                   int preconditioner_block) {
+  const std::string where = "apply_sqrt_rotation";
+  const rpy::SqrtOptions o = sqrt_options(method, tolerance.value_or(rpy::SqrtOptions{}.tolerance), max_iterations,
+                                          reorthogonalize, throw_if_not_converged, lambda_min, lambda_max,
+                                          bound_estimate_iterations, preconditioner, preconditioner_block);
+  const InArray zt = as_input(z_translation, where, "z_translation");
+  const InArray zr = as_input(z_rotation, where, "z_rotation");
+  require_points(zt, where, "z_translation");
+  require(zr.shape == zt.shape, ErrorCode::invalid_input, where,
+          "z_rotation has shape " + shape_string(zr.shape) + ", expected the shape of z_translation " +
+              shape_string(zt.shape));
+  OutArray wt = make_output(nb::none(), zt.shape, where);
+  OutArray wr = make_output(nb::none(), zt.shape, where);
+  rpy::SqrtReport report;
+  {
+    nb::gil_scoped_release release;
+    report = op.apply_sqrt_rotation(zt.span(), zr.span(), wt.span(), wr.span(), o);
+  }
+  return nb::borrow<RotationSample>(nb::make_tuple(wt.object, wr.object, report));
 }
 
 nb::dict pse_parameters(const rpy::pse::PseParameters& p) {
@@ -243,14 +272,29 @@ void add_operator_products(OperatorClass& cls) {
            "`out` (writable float64, C-contiguous) is written in place and returned.\n"
            "With torques (same shape as forces): returns (U, W) = M (F, T), the velocities and angular\n"
            "velocities of the grand mobility with rotation (operators with supports_rotation only).")
-      .def_prop_ro("supports_rotation", [](const MobilityOperator& op) { return op.supports_rotation(); },
-                   "True when apply accepts torques (the grand mobility with rotation: DirectRpy).")
+      .def_prop_ro(
+          "supports_rotation", [](const MobilityOperator& op) { return op.supports_rotation(); },
+          "True when apply accepts torques and apply_sqrt_rotation samples (the grand mobility with\n"
+          "rotation: DirectRpy, FreeDraining).")
       .def("apply_block", locked("MobilityOperator.apply_block", &apply_block), nb::arg("forces"),
            nb::arg("out") = nb::none(), "U_k = M F_k for forces of shape (nrhs, N, 3) or (nrhs, 3N) in one pass.");
   add_apply_sqrt<false>(cls, "apply_sqrt", "MobilityOperator.apply_sqrt", kSqrtDoc);
   add_apply_sqrt<true>(
       cls, "apply_sqrt_block", "MobilityOperator.apply_sqrt_block",
       "Block apply_sqrt: z of shape (nrhs, N, 3) or (nrhs, 3N), one operator product per iteration for all.");
+  cls.def("apply_sqrt_rotation", locked("MobilityOperator.apply_sqrt_rotation", &apply_sqrt_rotation),
+          nb::arg("z_translation"), nb::arg("z_rotation"), nb::kw_only(), nb::arg("method") = "auto",
+          nb::arg("tolerance").sig("0.001") = nb::none(), nb::arg("max_iterations") = 0,
+          nb::arg("reorthogonalize") = true, nb::arg("throw_if_not_converged") = true, nb::arg("lambda_min") = 0.0,
+          nb::arg("lambda_max") = 0.0, nb::arg("bound_estimate_iterations") = 30, nb::arg("preconditioner") = "none",
+          nb::arg("preconditioner_block") = 0,
+          "Brownian displacements and rotations: (w_t, w_r) = B (z_t, z_r) with B B^T = the grand mobility\n"
+          "(operators with supports_rotation only). z_translation, z_rotation: (N, 3) or (3N,), the same shape.\n"
+          "Returns (w_t, w_r, SqrtReport), w_t and w_r in z's shape.\n\n"
+          "The sampler runs on S M S, S = diag(1, a_i) per particle, so that the tolerance weighs translations\n"
+          "and rotations (times the radius) alike; B = S^{-1} (S M S)^{1/2} (the principal root for unit radii).\n"
+          "Keywords as apply_sqrt ('block' preconditions with 6 x 6 per-particle blocks; given Chebyshev bounds\n"
+          "are those of S M S); free draining samples exactly (docs/theory/samplers.md, 'Rotation').");
   cls.def("divergence", locked("MobilityOperator.divergence", &divergence),
           "Divergence of M with respect to the positions, (N, 3); zero for RPY.")
       .def("assemble_dense", locked("MobilityOperator.assemble_dense", &assemble_dense),
@@ -433,7 +477,9 @@ void bind_pse_rpy(nb::module_& m) {
 
 void bind_free_draining(nb::module_& m) {
   nb::class_<rpy::FreeDrainingMobility, MobilityOperator>(
-      m, "FreeDraining", "No hydrodynamic interactions: M = diag(1 / (6 pi eta a_i)); exact square root.")
+      m, "FreeDraining",
+      "No hydrodynamic interactions: M = diag(1 / (6 pi eta a_i)), with rotation 1 / (8 pi eta a_i^3);\n"
+      "exact square roots.")
       .def(
           "__init__",
           [](rpy::FreeDrainingMobility* self, double viscosity, BoxArg box) {

@@ -2,7 +2,6 @@
 // written here, reads its .npy output, and compares with the library called
 // directly; bad input gives exit code 2, one line on stderr and no output file.
 #include <gtest/gtest.h>
-
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -17,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "rpyfmm/bd/rotation_sampling.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/random.hpp"
@@ -198,6 +198,65 @@ TEST_F(SampleCli, BlockPreconditionerMatchesLibrary) {
   }
 }
 
+/// The library's grand-mobility sample on the (N, 6) noise rows z (z_t then z_r per particle), as
+/// (N, 6) rows w_t then w_r.
+std::vector<double> rotation_rows(const MobilityOperator& op, const std::vector<double>& z,
+                                  const SqrtOptions& options) {
+  const std::size_t n = op.size();
+  std::vector<double> zt(3 * n), zr(3 * n), wt(3 * n), wr(3 * n), rows(6 * n);
+  for (std::size_t k = 0; k < 3 * n; ++k) {
+    zt[k] = z[6 * (k / 3) + k % 3];
+    zr[k] = z[6 * (k / 3) + 3 + k % 3];
+  }
+  op.apply_sqrt_rotation(zt, zr, wt, wr, options);
+  for (std::size_t k = 0; k < 3 * n; ++k) {
+    rows[6 * (k / 3) + k % 3] = wt[k];
+    rows[6 * (k / 3) + 3 + k % 3] = wr[k];
+  }
+  return rows;
+}
+
+// --angular: (N, 6) rows w_t then w_r, the library's apply_sqrt_rotation on the same noise (bit for
+// bit: the same code); drawn noise is z_t = the translational draw without --angular and z_r from
+// BD's rotational stream, so that --seed/--step give a BD step's noise.
+TEST_F(SampleCli, AngularMatchesLibrary) {
+  DirectRpy op(Geometry::open(), 1.0);
+  op.set_positions(x, a);
+  std::vector<double> z(6 * N), zt(3 * N), zr(3 * N);
+  fill_normal(zt, 11u, 2u);
+  fill_normal(zr, 11u, 2u, rpyfmm::bd::kRotationNoiseStream);
+  for (std::size_t k = 0; k < 3 * N; ++k) {
+    z[6 * (k / 3) + k % 3] = zt[k];
+    z[6 * (k / 3) + 3 + k % 3] = zr[k];
+  }
+  const CliResult r = run_cli("--positions " + xp.string() + " --radii " + ap.string() +
+                              " --seed 11 --step 2 --angular --sqrt-tolerance 1e-6 --out " + out.string() + " --json");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_NE(r.out.find("\"angular\":true"), std::string::npos) << r.out;
+  std::vector<std::size_t> shape;
+  const auto w = read_npy(out, shape);
+  EXPECT_EQ(shape, (std::vector<std::size_t>{N, 6}));
+  EXPECT_LE(max_rel_diff(w, rotation_rows(op, z, {.tolerance = 1e-6})), 1e-12);
+
+  const fs::path zp = scratch() / "z6.txt";
+  write_text(zp, z, 6);
+  for (const SqrtOptions& options :
+       {SqrtOptions{.method = SqrtMethod::eigen}, SqrtOptions{.method = SqrtMethod::chebyshev, .tolerance = 1e-6},
+        SqrtOptions{.method = SqrtMethod::lanczos,
+        .tolerance = 1e-6,
+        .preconditioner = SqrtPreconditioner::block,
+        .preconditioner_block = 8}}) {
+    fs::remove(out);
+    const bool block = options.preconditioner == SqrtPreconditioner::block;
+    const CliResult rf =
+        run_cli("--positions " + xp.string() + " --radii " + ap.string() + " --noise " + zp.string() +
+                " --angular --method " + to_string(options.method) + " --sqrt-tolerance 1e-6" +
+                (block ? " --preconditioner block --preconditioner-block 8" : "") + " --out " + out.string());
+    ASSERT_EQ(rf.rc, 0) << rf.err;
+    EXPECT_LE(max_rel_diff(read_npy(out, shape), rotation_rows(op, z, options)), 1e-12) << to_string(options.method);
+  }
+}
+
 TEST_F(SampleCli, BadInputExitTwoNoOutput) {
   const std::string base = "--positions " + xp.string() + " --out " + out.string() + " ";
   std::vector<double> zshort(3 * (N - 1), 0.5);
@@ -207,6 +266,11 @@ TEST_F(SampleCli, BadInputExitTwoNoOutput) {
   xnan[10] = std::nan("");
   const fs::path xn = scratch() / "xnan.txt";
   write_text(xn, xnan, 3);
+  const fs::path z3 = scratch() / "z3.txt", z6nan = scratch() / "z6nan.txt";
+  write_text(z3, std::vector<double>(3 * N, 0.5), 3);
+  std::vector<double> z6(6 * N, 0.5);
+  z6[6 * 2 + 4] = std::nan("");
+  write_text(z6nan, z6, 6);
   struct Bad {
     std::string args, needle;
   };
@@ -234,6 +298,11 @@ TEST_F(SampleCli, BadInputExitTwoNoOutput) {
            {base + "--radius 1 --wave-precision single", "pse operator only"},
            {base + "--radius 1 --method pse --box 60 --device gpu", "--device"},
            {base + "--radius 1 --device cuda", "pse operator only"},
+           {base + "--radius 1 --angular --method pse --box 60", "--angular needs an operator with rotation"},
+           {base + "--radius 1 --angular --operator pse --box 60", "'pse' has none"},
+           {base + "--radius 1 --angular --noise " + zs.string(), "with --angular must have shape (40,6)"},
+           {base + "--radius 1 --angular --noise " + z3.string(), "3 columns"},
+           {base + "--radius 1 --angular --noise " + z6nan.string(), "noise entry (2, 4) is NaN"},
            {"--positions " + xn.string() + " --radius 1 --out " + out.string(), "NaN"},
            {"--positions " + (scratch() / "missing.txt").string() + " --radius 1 --out " + out.string(), "missing.txt"},
        }) {
