@@ -7,13 +7,14 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
-#include <numbers>
 #include <span>
 #include <string>
 
+#include "fmm_far_field.hpp"
 #include "fmm_near_kernels.hpp"
 #include "length_units.hpp"
 #include "near_schedule.hpp"
+#include "near_sources.hpp"
 #include "rpyfmm/core/ranges.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
@@ -22,10 +23,6 @@
 
 namespace rpyfmm::rpy {
 namespace {
-
-constexpr double pi = std::numbers::pi;
-// Column of the FMM result row [pot, gx, gy, gz, hxx, hyy, hzz, hxy, hxz, hyz] holding H(k, m).
-constexpr std::array<std::array<int, 3>, 3> kHessianColumn = {{{4, 7, 8}, {7, 5, 9}, {8, 9, 6}}};
 
 // Leaf capacity when the user leaves it at 0 (bench/rpy/RESULTS.md at commit 010249d "Leaf capacity", 1 thread).
 // Four densities per product make the far field dearer relative to the near field than in one
@@ -153,97 +150,31 @@ std::span<const double> FmmRpy::unit_radii() const {
   return scale_exponent_ == 0 ? radii() : std::span<const double>(scaled_radii_);
 }
 
-namespace {
-
-// The Laplace densities of the far field (docs/theory/rpy.md; Guan, dissertation, Algorithm 2),
-// per right-hand side: F^(1..3) (potential, field, field gradient), x.F (field) and for different
-// radii a^2 F^(1..3) (field gradient). charges: nd x n, outputs: nd.
-void far_field_charges(const double* forces, std::size_t n, std::size_t nrhs, bool equal, std::span<const double> x,
-                       std::span<const double> a, std::vector<double>& charges, std::vector<unsigned>& outputs) {
-  const std::size_t per_rhs = equal ? 4 : 7;
-  for (std::size_t k = 0; k < nrhs; ++k) {
-    const double* f = forces + 3 * n * k;
-    double* q = charges.data() + per_rhs * n * k;
-    for (std::size_t m = 0; m < 3; ++m) {
-      outputs[per_rhs * k + m] = fmm::potential | fmm::gradient | fmm::hessian;
-      for (std::size_t j = 0; j < n; ++j) q[m * n + j] = f[3 * j + m];
-    }
-    outputs[per_rhs * k + 3] = fmm::gradient;
-    for (std::size_t j = 0; j < n; ++j) {
-      const double* xj = &x[3 * j];
-      q[3 * n + j] = xj[0] * f[3 * j] + xj[1] * f[3 * j + 1] + xj[2] * f[3 * j + 2];
-    }
-    if (!equal) {
-      for (std::size_t m = 0; m < 3; ++m) {
-        outputs[per_rhs * k + 4 + m] = fmm::hessian;
-        for (std::size_t j = 0; j < n; ++j) q[(4 + m) * n + j] = a[j] * a[j] * f[3 * j + m];
-      }
-    }
-  }
+std::vector<double> FmmRpy::far_field_pass(const std::vector<double>& charges, const std::vector<unsigned>& outputs,
+                                           double charge_seconds) const {
+  timings_.clear();
+  timings_["rpy_charges"] = charge_seconds;
+  std::vector<double> results(outputs.size() * size() * 10);
+  fmm_->evaluate(charges, outputs.size(), outputs, results);
+  for (const auto& [stage, seconds] : fmm_->last_timings()) timings_[stage] = seconds;
+  return results;
 }
-
-// The far-field velocities from the FMM results of far_field_charges (the formula in
-// fmm_operator.hpp; docs/theory/rpy.md; Guan, dissertation, §3.1.1); E = -g, T = -H.
-void combine_far_field(const std::vector<double>& results, std::size_t n, std::size_t nrhs, bool equal,
-                       std::span<const double> x, std::span<const double> a, double eta, double* velocities) {
-  const std::size_t per_rhs = equal ? 4 : 7;
-  const double c1 = 1.0 / (8.0 * pi * eta);
-  const double c2 = 1.0 / (24.0 * pi * eta);
-  const auto nn = static_cast<std::int64_t>(n);
-  for (std::size_t k = 0; k < nrhs; ++k) {
-    const double* r = results.data() + per_rhs * n * 10 * k;
-    double* u = velocities + 3 * n * k;
-#pragma omp parallel for schedule(static)
-    for (std::int64_t ii = 0; ii < nn; ++ii) {
-      const auto i = static_cast<std::size_t>(ii);
-      const double* xi = &x[3 * i];
-      const double ai2 = a[i] * a[i];
-      const double* rxF = r + (3 * n + i) * 10;  // results of x.F at target i
-      for (int c = 0; c < 3; ++c) {
-        double oseen = r[(c * n + i) * 10];  // phi(F^(c))
-        double dipole = 0.0;
-        for (int m = 0; m < 3; ++m) {
-          const double* rm = r + (m * n + i) * 10;
-          oseen -= xi[m] * rm[1 + c];          // + x_m E_c(F^m),  E = -g
-          dipole -= rm[kHessianColumn[c][m]];  // T_cm(F^m),       T = -H
-        }
-        oseen += rxF[1 + c];  // - E_c(x.F)
-        double value = c1 * oseen + c2 * ai2 * dipole;
-        if (equal) {
-          value += c2 * ai2 * dipole;  // a_j^2 = a_i^2
-        } else {
-          double dipole_a2 = 0.0;
-          for (int m = 0; m < 3; ++m) dipole_a2 -= r[((4 + m) * n + i) * 10 + kHessianColumn[c][m]];
-          value += c2 * dipole_a2;
-        }
-        u[3 * i + c] = value;
-      }
-    }
-  }
-}
-
-}  // namespace
 
 void FmmRpy::do_apply(const double* forces, double* velocities, std::size_t nrhs) const {
   StopWatch total;
   const std::size_t n = size();
   const bool equal = equal_radii();
-  const std::size_t nd = (equal ? 4 : 7) * nrhs;
+  const std::size_t nd = detail::translation_densities(equal) * nrhs;
   const auto a = unit_radii();
 
   StopWatch watch;
   std::vector<double> charges(nd * n);
   std::vector<unsigned> outputs(nd);
-  far_field_charges(forces, n, nrhs, equal, centered_, a, charges, outputs);
-  timings_.clear();
-  timings_["rpy_charges"] = watch.seconds();
-
-  std::vector<double> results(nd * n * 10);
-  fmm_->evaluate(charges, nd, outputs, results);
-  for (const auto& [stage, seconds] : fmm_->last_timings()) timings_[stage] = seconds;
+  detail::far_field_charges(forces, n, nrhs, equal, centered_, a, charges, outputs);
+  const std::vector<double> results = far_field_pass(charges, outputs, watch.seconds());
 
   watch.restart();
-  combine_far_field(results, n, nrhs, equal, centered_, a, viscosity(), velocities);
+  detail::combine_far_field(results, n, nrhs, equal, centered_, a, viscosity(), velocities);
   timings_["rpy_far"] = watch.seconds();
 
   watch.restart();
@@ -256,42 +187,6 @@ void FmmRpy::do_apply(const double* forces, double* velocities, std::size_t nrhs
 }
 
 namespace {
-
-// Sources of one or more leaves gathered into structure-of-arrays buffers (so that the pair
-// loops vectorize), with their forces for every right-hand side (rhs k, component c at
-// f[(3 k + c) m + q]) and, for symmetric blocks, velocity accumulators in the same layout.
-struct GatheredSources {
-  std::vector<double> x, y, z, a, f, u;
-  std::vector<std::size_t> id;
-
-  void gather(const fmm::NearField& near, std::span<const std::uint32_t> leaves, std::span<const double> pos,
-              std::span<const double> radii, const double* forces, std::size_t n, std::size_t nrhs) {
-    x.clear();
-    y.clear();
-    z.clear();
-    a.clear();
-    id.clear();
-    for (std::uint32_t leaf : leaves)
-      for (std::size_t j : near.sources(leaf)) {
-        x.push_back(pos[3 * j]);
-        y.push_back(pos[3 * j + 1]);
-        z.push_back(pos[3 * j + 2]);
-        a.push_back(radii[j]);
-        id.push_back(j);
-      }
-    const std::size_t m = id.size();
-    f.resize(3 * m * nrhs);
-    for (std::size_t k = 0; k < nrhs; ++k) {
-      const double* fk = forces + 3 * n * k;
-      double* sk = f.data() + 3 * m * k;
-      for (std::size_t q = 0; q < m; ++q)
-        for (int c = 0; c < 3; ++c) sk[c * m + q] = fk[3 * id[q] + c];
-    }
-  }
-  [[nodiscard]] std::size_t size() const noexcept { return id.size(); }
-  [[nodiscard]] const double* forces(std::size_t k, int c) const noexcept { return f.data() + (3 * k + c) * size(); }
-  [[nodiscard]] double* velocities(std::size_t k, int c) noexcept { return u.data() + (3 * k + c) * size(); }
-};
 
 // Stored pair scalars of one target against gathered sources (block products).
 struct PairScalars {
@@ -336,7 +231,7 @@ struct NearContext {
 // Block products (nrhs > 1) compute the pair scalars once per target and accumulate them per
 // rhs: the geometry is most of the work.
 template <bool kBothWays>
-void leaf_block(const NearContext& ctx, std::uint32_t leaf, GatheredSources& src, PairScalars& ps) {
+void leaf_block(const NearContext& ctx, std::uint32_t leaf, detail::GatheredSources& src, PairScalars& ps) {
   const std::size_t m = src.size();
   const double* sa = ctx.equal ? nullptr : src.a.data();
   const bool block = ctx.nrhs > 1;
@@ -387,40 +282,26 @@ void leaf_block(const NearContext& ctx, std::uint32_t leaf, GatheredSources& src
 }  // namespace
 
 void FmmRpy::apply_near_field(const double* forces, double* velocities, std::size_t nrhs) const {
-  const detail::NearSchedule& plan = *near_schedule_;
   // Unscaled, the exact input positions (the centred ones may be rounded); scaled, the exactly
   // translated and scaled ones of length_units.hpp.
   const std::span<const double> x = scale_exponent_ == 0 ? positions() : std::span<const double>(centered_);
   const NearContext ctx{fmm_->near_field(), x, unit_radii(), forces, velocities, size(), nrhs, 1.0 / viscosity(),
                         equal_radii()};
-  // Colours run in order, the tasks of one colour in parallel: no two of them write the same
-  // leaf (near_schedule.hpp), and each velocity receives its contributions in a fixed order, so
-  // results do not depend on the thread count.
-#pragma omp parallel
-  {
-    GatheredSources src;
+  struct ThreadState {
+    detail::GatheredSources src;
     PairScalars ps;
-    for (std::size_t c = 0; c < plan.num_colours(); ++c) {
-      const auto t0 = static_cast<std::int64_t>(plan.colour_begin[c]);
-      const auto t1 = static_cast<std::int64_t>(plan.colour_begin[c + 1]);
-#pragma omp for schedule(dynamic, 1)
-      for (std::int64_t tt = t0; tt < t1; ++tt) {
-        const auto t = static_cast<std::size_t>(tt);
-        const std::uint32_t leaf = plan.leaf[t];
-        const std::span<const std::uint32_t> one(plan.one_sided.data() + plan.one_begin[t],
-                                                 plan.one_begin[t + 1] - plan.one_begin[t]);
-        src.gather(ctx.near, one, ctx.x, ctx.a, forces, ctx.n, nrhs);
-        leaf_block<false>(ctx, leaf, src, ps);
+  };
+  detail::for_each_near_task<ThreadState>(
+      *near_schedule_, [&](ThreadState& state, std::uint32_t leaf, std::span<const std::uint32_t> one,
+                           std::span<const std::uint32_t> partners) {
+        state.src.gather(ctx.near, one, ctx.x, ctx.a, forces, ctx.n, nrhs);
+        leaf_block<false>(ctx, leaf, state.src, state.ps);
         // All symmetric partners at once: one long pair loop per target.
-        const std::span<const std::uint32_t> partners(plan.symmetric.data() + plan.sym_begin[t],
-                                                      plan.sym_begin[t + 1] - plan.sym_begin[t]);
         if (!partners.empty()) {
-          src.gather(ctx.near, partners, ctx.x, ctx.a, forces, ctx.n, nrhs);
-          leaf_block<true>(ctx, leaf, src, ps);
+          state.src.gather(ctx.near, partners, ctx.x, ctx.a, forces, ctx.n, nrhs);
+          leaf_block<true>(ctx, leaf, state.src, state.ps);
         }
-      }
-    }
-  }
+      });
 }
 
 }  // namespace rpyfmm::rpy

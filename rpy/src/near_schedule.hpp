@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <utility>
 #include <vector>
 
@@ -29,9 +30,7 @@ struct NearSchedule {
   std::vector<std::size_t> colour_begin;
 
   [[nodiscard]] std::size_t num_tasks() const noexcept { return leaf.size(); }
-  [[nodiscard]] std::size_t num_colours() const noexcept {
-    return colour_begin.empty() ? 0 : colour_begin.size() - 1;
-  }
+  [[nodiscard]] std::size_t num_colours() const noexcept { return colour_begin.empty() ? 0 : colour_begin.size() - 1; }
 };
 
 /// Schedule for the directed near-field leaf pairs (target leaf, source leaf), each listed once,
@@ -41,5 +40,30 @@ struct NearSchedule {
 /// leaf order so that no two tasks of a colour write a common leaf.
 NearSchedule make_near_schedule(const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairs,
                                 std::size_t num_leaves, bool use_symmetry);
+
+/// Runs task(state, leaf, one_sided, partners) for every task of the schedule: colours in order,
+/// the tasks of one colour in parallel, with one ThreadState per thread. No two tasks of a colour
+/// write the same leaf, and each output receives its contributions in a fixed order, so results
+/// do not depend on the thread count.
+template <class ThreadState, class Task>
+void for_each_near_task(const NearSchedule& plan, const Task& task) {
+#pragma omp parallel
+  {
+    ThreadState state;
+    for (std::size_t c = 0; c < plan.num_colours(); ++c) {
+      const auto t0 = static_cast<std::int64_t>(plan.colour_begin[c]);
+      const auto t1 = static_cast<std::int64_t>(plan.colour_begin[c + 1]);
+#pragma omp for schedule(dynamic, 1)
+      for (std::int64_t tt = t0; tt < t1; ++tt) {
+        const auto t = static_cast<std::size_t>(tt);
+        const std::span<const std::uint32_t> one(plan.one_sided.data() + plan.one_begin[t],
+                                                 plan.one_begin[t + 1] - plan.one_begin[t]);
+        const std::span<const std::uint32_t> partners(plan.symmetric.data() + plan.sym_begin[t],
+                                                      plan.sym_begin[t + 1] - plan.sym_begin[t]);
+        task(state, plan.leaf[t], one, partners);
+      }
+    }
+  }
+}
 
 }  // namespace rpyfmm::rpy::detail

@@ -211,8 +211,8 @@ TEST_F(Cli, MobilityWithTorquesWritesVelocitiesAndAngularVelocities) {
       }
     fs::remove(path("uw.npy"));
   }
-  expect_failure("mobility --positions " + path("x.npy") + " --forces " + path("f.npy") + " --radius 0.5 --method fmm" +
-                     " --torques " + path("t.npy") + " --out " + path("uw.npy"),
+  expect_failure("mobility --positions " + path("x.npy") + " --forces " + path("f.npy") +
+                     " --radius 0.5 --method pse --box 20" + " --torques " + path("t.npy") + " --out " + path("uw.npy"),
                  "need a mobility with rotation", "uw.npy");
 }
 

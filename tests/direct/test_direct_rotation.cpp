@@ -18,7 +18,7 @@
 
 #include "rpyfmm/core/error.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
-#include "rpyfmm/rpy/fmm_operator.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/rpy_rotation_kernel.hpp"
 
 using rpyfmm::Error;
@@ -274,12 +274,12 @@ TEST(DirectRotation, HugeLoadsGiveTheScaledProduct) {
 TEST(DirectRotation, BadInputAndUnsupportedOperators) {
   const std::vector<double> x = {0, 0, 0, 3, 0, 0};
   std::vector<double> f(6, 1.0), t(6, 1.0), u(6), w(6), short_t(5, 1.0);
-  rpyfmm::rpy::FmmRpy fmm;
-  fmm.set_positions(x, 1.0);
-  EXPECT_FALSE(fmm.supports_rotation());
+  rpyfmm::rpy::pse::PseRpy pse(Geometry::periodic(20.0), 1.0);
+  pse.set_positions(x, 1.0);
+  EXPECT_FALSE(pse.supports_rotation());
   try {
-    fmm.apply(f, t, u, w);
-    ADD_FAILURE() << "FmmRpy accepted torques";
+    pse.apply(f, t, u, w);
+    ADD_FAILURE() << "PseRpy accepted torques";
   } catch (const Error& e) {
     EXPECT_EQ(e.code(), ErrorCode::not_supported);
     EXPECT_NE(std::string(e.what()).find("has no rotational mobility"), std::string::npos) << e.what();

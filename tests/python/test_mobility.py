@@ -293,10 +293,17 @@ def test_apply_with_torques_gives_the_grand_mobility():
     np.testing.assert_allclose(W[1], T[1] / (8 * np.pi * eta * a**3) + np.cross(F[0], -e), rtol=1e-14, atol=1e-17)
     U0, _ = op.apply(F, np.zeros_like(T))
     np.testing.assert_allclose(U0, op.apply(F), rtol=1e-13, atol=1e-17)
-    fmm = rpyfmm.FmmRpy()
+    # The FMM operator's grand mobility: these two spheres are a near-field pair, summed exactly.
+    fmm = rpyfmm.FmmRpy(viscosity=eta)
     fmm.set_positions(x, a)
-    assert not fmm.supports_rotation
+    assert fmm.supports_rotation
+    U_fmm, W_fmm = fmm.apply(F, T)
+    np.testing.assert_allclose(U_fmm, U, rtol=1e-13, atol=1e-17)
+    np.testing.assert_allclose(W_fmm, W, rtol=1e-13, atol=1e-17)
+    pse = rpyfmm.PseRpy(box=20.0)
+    pse.set_positions(x + 10.0, a)
+    assert not pse.supports_rotation
     with pytest.raises(rpyfmm.NotSupportedError, match="has no rotational mobility"):
-        fmm.apply(F, T)
+        pse.apply(F, T)
     with pytest.raises(rpyfmm.InvalidInputError, match="torques has shape"):
         op.apply(F, T[:1])

@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <numbers>
 #include <random>
+#include <string>
 #include <vector>
 
 namespace rpyfmm::testing {
@@ -132,6 +133,35 @@ inline double relative_l2(const std::vector<double>& approx, const std::vector<d
     den += exact[i] * exact[i];
   }
   return std::sqrt(num / den);
+}
+
+/// A named configuration.
+struct Case {
+  std::string name;
+  Configuration config;
+};
+
+/// The accuracy tests' hard inputs: suspensions dilute and dense, radius ratio 16, mixed radii,
+/// a touching chain, surfaces, far-apart clusters, overlapping beads.
+inline std::vector<Case> accuracy_cases() {
+  std::vector<Case> v;
+  v.push_back({"suspension_phi005", random_suspension(1500, 1.0, 0.05, 1)});
+  v.push_back({"suspension_phi03", random_suspension(1500, 1.0, 0.3, 2)});
+  v.push_back({"bimodal_ratio16_phi01", bimodal_suspension(1500, 0.25, 16.0, 0.1, 3)});
+  {
+    auto c = random_suspension(1200, 1.0, 0.2, 4);
+    for (std::size_t i = 0; i < c.a.size(); ++i) c.a[i] = 0.5 + 1.0 * ((i * 7919) % 100) / 100.0;  // mixed radii
+    v.push_back({"polydisperse_phi02", c});
+  }
+  v.push_back({"touching_chain", touching_chain(1000, 1.0, 5)});
+  v.push_back({"cylinder_surface", cylinder_surface(2000, 0.01, 6)});
+  v.push_back({"eight_surface", eight_surface(2000, 0.01, 7)});
+  v.push_back({"two_far_clusters", two_clusters(1000, 0.05, 8)});
+  {
+    auto c = random_suspension(800, 1.0, 0.6, 9);  // dense: many overlapping beads
+    v.push_back({"overlapping_beads_phi06", c});
+  }
+  return v;
 }
 
 }  // namespace rpyfmm::testing

@@ -11,6 +11,11 @@
 // radii add a^2 F^(1..3) (field gradient only): seven. All charge vectors of
 // all right-hand sides travel one FMM pass together.
 //
+// Rotation (docs/theory/rpy.md, section 7): torques add three densities T^(1..3) to the same pass;
+// U from T = curl Phi_T / (8 pi eta), W from F = curl Phi_F / (8 pi eta), W from T =
+// grad div Phi_T / (16 pi eta) in the far field, exact pair couplings in the near field
+// (fmm_rotation.cpp).
+//
 // Near field: the FMM runs in "far field only" mode; every pair of adjacent
 // leaves (U list) is evaluated with the exact RPY pair block (rpy_kernel.hpp,
 // both overlap regimes), plus the self term F_i / (6 pi eta a_i). Leaves are
@@ -58,6 +63,9 @@ class FmmRpy final : public MobilityOperator {
   ~FmmRpy() override;
 
   [[nodiscard]] std::string name() const override { return "fmm"; }
+  /// The grand mobility with rotation (docs/theory/rpy.md, section 7): torques and angular
+  /// velocities from the same Laplace pass, to the same tolerance.
+  [[nodiscard]] bool supports_rotation() const override { return true; }
   [[nodiscard]] const FmmRpyOptions& options() const { return options_; }
   /// Tolerance handed to the Laplace FMM: options().tolerance (see on_positions_set).
   [[nodiscard]] double laplace_eps() const { return options_.tolerance; }
@@ -69,9 +77,16 @@ class FmmRpy final : public MobilityOperator {
  protected:
   void on_positions_set() override;
   void do_apply(const double* forces, double* velocities, std::size_t nrhs) const override;
+  void do_apply_rotation(const double* forces, const double* torques, double* velocities,
+                         double* angular_velocities) const override;
 
  private:
+  // One FMM pass over the far-field densities (nd = outputs.size()); records the stage times.
+  [[nodiscard]] std::vector<double> far_field_pass(const std::vector<double>& charges,
+                                                   const std::vector<unsigned>& outputs, double charge_seconds) const;
   void apply_near_field(const double* forces, double* velocities, std::size_t nrhs) const;
+  // Adds the near-field rotational sums (times eta) of the loads [F; T] (6N) to ut, wf, rr (3N each).
+  void apply_rotation_near_field(const double* loads, double* ut, double* wf, double* rr) const;
   [[nodiscard]] std::span<const double> unit_radii() const;
 
   FmmRpyOptions options_;

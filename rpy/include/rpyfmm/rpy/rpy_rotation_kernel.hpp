@@ -51,6 +51,28 @@ RPYFMM_HOST_DEVICE inline double coupling_inside(double r, double ai, double aj)
   return aj > ai ? r / (8.0 * pi * aj * aj * aj) : 0.0;
 }
 
+/// The partial-overlap coefficients, |ai - aj| < r <= ai + aj, evaluated in units of the larger
+/// radius L (c_ut, c_wf ~ 1/L^2, h, k ~ 1/L^3): the sixth powers of the forms stay normal for
+/// every radius the operators accept (down to 2^-300 of the suspension's size), where a_i^3 a_j^3
+/// itself would underflow. Branch-free, so that vectorized loops can use it.
+RPYFMM_HOST_DEVICE inline RpyRotationScalars rotation_overlap(double r, double ai, double aj) {
+  const double length = ai > aj ? ai : aj;
+  const double inv_l = 1.0 / length;
+  const double x = r * inv_l, bi = ai * inv_l, bj = aj * inv_l;
+  const double x2 = x * x, x3 = x2 * x;
+  const double bi2 = bi * bi, bj2 = bj * bj;
+  const double diff = bi - bj, d2 = diff * diff;
+  const double q = bi2 + 4.0 * bi * bj + bj2;
+  const double a_term = (5.0 * x3 * x3 - 27.0 * x2 * x2 * (bi2 + bj2) + 32.0 * x3 * (bi2 * bi + bj2 * bj) -
+                         9.0 * x2 * (bi2 - bj2) * (bi2 - bj2) - d2 * d2 * q) /
+                        (64.0 * x3);
+  const double w = d2 - x2;
+  const double b_term = 3.0 * w * w * (q - x2) / (64.0 * x3);
+  const double c = inv_l * inv_l * inv_l / (8.0 * pi * bi2 * bi * bj2 * bj);
+  return {coupling_overlap(x, bi, bj) * inv_l * inv_l, coupling_overlap(x, bj, bi) * inv_l * inv_l, c * a_term,
+          c * b_term};
+}
+
 }  // namespace rpy_detail
 
 /// Rotational self mobility times eta: 1 / (8 pi a^3).
@@ -60,7 +82,6 @@ RPYFMM_HOST_DEVICE inline double rpy_rotation_self(double a) {
 
 /// The rotational coefficients of the ordered pair (i, j) at distance r >= 0.
 RPYFMM_HOST_DEVICE inline RpyRotationScalars rpy_rotation_scalars(double r, double ai, double aj) {
-  using rpy_detail::pi;
   if (r > ai + aj) {
     const double c = rpy_detail::inv_8pi / (r * r);
     const double h = -0.5 * c / r;
@@ -73,17 +94,7 @@ RPYFMM_HOST_DEVICE inline RpyRotationScalars rpy_rotation_scalars(double r, doub
     return {rpy_detail::coupling_inside(r, ai, aj), rpy_detail::coupling_inside(r, aj, ai), rpy_rotation_self(amax),
             0.0};
   }
-  const double r2 = r * r, r3 = r2 * r;
-  const double ai2 = ai * ai, aj2 = aj * aj;
-  const double d2 = diff * diff;
-  const double q = ai2 + 4.0 * ai * aj + aj2;
-  const double a_term = (5.0 * r3 * r3 - 27.0 * r2 * r2 * (ai2 + aj2) + 32.0 * r3 * (ai2 * ai + aj2 * aj) -
-                         9.0 * r2 * (ai2 - aj2) * (ai2 - aj2) - d2 * d2 * q) /
-                        (64.0 * r3);
-  const double w = d2 - r2;
-  const double b_term = 3.0 * w * w * (q - r2) / (64.0 * r3);
-  const double c = 1.0 / (8.0 * pi * ai2 * ai * aj2 * aj);
-  return {rpy_detail::coupling_overlap(r, ai, aj), rpy_detail::coupling_overlap(r, aj, ai), c * a_term, c * b_term};
+  return rpy_detail::rotation_overlap(r, ai, aj);
 }
 
 }  // namespace rpyfmm::rpy
