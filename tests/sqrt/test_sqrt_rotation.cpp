@@ -147,6 +147,46 @@ TEST(SqrtRotation, UnitRadiiGivePrincipalRoot) {
   EXPECT_LE((sample(op, z, {.tolerance = 1e-6}) - ref).norm(), 1e-5 * ref.norm());
 }
 
+// The scaling makes the sampler independent of the length unit: a suspension and its copy scaled by
+// L (positions and radii) have M^tt / L, M^tr / L^2, M^rr / L^3, so S M S is the unit one divided by
+// L and Lanczos takes the same steps; the samples are the unit ones times L^{-1/2} (translations)
+// and L^{-3/2} (rotations) to rounding (L powers of two: 1e-12), and each half keeps the tolerance
+// (within 10 x tol of its dense reference, relative to its own norm). Unscaled, the rotations would
+// weigh L^{-2} times the translations in the stopping test.
+TEST(SqrtRotation, SameStepsAndToleranceAtEveryLengthScale) {
+  const std::size_t N = 30;
+  const Suspension unit = suspension(N, true, 35u);
+  const VectorXd z = philox_noise(N, 12u, 0u);
+  const double tol = 1e-4;
+  SqrtReport unit_report;
+  VectorXd unit_w;
+  for (double L : {1.0, 0.0625, 16.0}) {
+    Suspension s = unit;
+    for (double& v : s.x) v *= L;
+    for (double& v : s.a) v *= L;
+    DirectRpy op;
+    op.set_positions(s.x, s.a);
+    const VectorXd sd = scaling(s.a);
+    const VectorXd ref = sd.cwiseInverse().asDiagonal() *
+                         (sqrt_test::principal_sqrt(sd.asDiagonal() * grand_dense(op) * sd.asDiagonal()) * z);
+    SqrtReport report;
+    const VectorXd w = sample(op, z, {.tolerance = tol}, &report);
+    const auto h = static_cast<Index>(3 * N);
+    EXPECT_LE((w.head(h) - ref.head(h)).norm(), 10 * tol * ref.head(h).norm()) << "L " << L;
+    EXPECT_LE((w.tail(h) - ref.tail(h)).norm(), 10 * tol * ref.tail(h).norm()) << "L " << L;
+    if (L == 1.0) {
+      unit_report = report;
+      unit_w = w;
+      continue;
+    }
+    EXPECT_EQ(report.iterations, unit_report.iterations) << "L " << L;
+    VectorXd back = w;
+    back.head(h) *= std::sqrt(L);
+    back.tail(h) *= L * std::sqrt(L);
+    EXPECT_LE((back - unit_w).norm(), 1e-12 * unit_w.norm()) << "L " << L;
+  }
+}
+
 // The block preconditioner's factors on the 6N operator: L L^T equals the block diagonal of
 // S M S (6 rows per particle, the spatial blocks) to single precision; with one block holding all
 // particles, G S M S G^T = I up to that rounding, so Lanczos stops within 3 steps.
