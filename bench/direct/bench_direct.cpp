@@ -6,7 +6,8 @@
 // Laplace: N uniform points in the unit cube (mt19937_64, seed 1), charges in
 // [-1, 1], evaluated at the sources; prints the median of R runs for potential
 // only and for potential+gradient+Hessian. RPY: DirectRpy::apply on the same
-// points, equal radii (a = 0.001) and polydisperse radii. One CSV row per case:
+// points, equal radii (a = 0.001) and polydisperse radii, and rpy-rotation: DirectRpy's grand
+// mobility with torques, apply(F, T, U, W), on the same inputs. One CSV row per case:
 //   kernel,outputs,n,nd,threads,median_s,min_s,cpu_median_s,pairs_per_s,pairs_per_cpu_s
 // (CPU time = process CPU time over all threads: on a shared, loaded machine the
 // per-CPU-second rate is the steadier figure; wall time shows the parallel speed-up).
@@ -145,6 +146,14 @@ int main(int argc, char** argv) {
     row("rpy", "equal-radii", n, 1, threads, time_it(reps, [&] { op.apply(f, uvel); }), pairs);
     op.set_positions(x, a);
     row("rpy", "polydisperse", n, 1, threads, time_it(reps, [&] { op.apply(f, uvel); }), pairs);
+    // The grand mobility with rotation, [U; W] = M [F; T]: the translational product plus the
+    // rotational pair sums (UT, WF, WT blocks).
+    std::vector<double> torque(3 * n), wvel(3 * n);
+    for (auto& v : torque) v = 0.001 * um(rng);
+    op.set_positions(x, 0.001);
+    row("rpy-rotation", "equal-radii", n, 1, threads, time_it(reps, [&] { op.apply(f, torque, uvel, wvel); }), pairs);
+    op.set_positions(x, a);
+    row("rpy-rotation", "polydisperse", n, 1, threads, time_it(reps, [&] { op.apply(f, torque, uvel, wvel); }), pairs);
   }
   return 0;
 }

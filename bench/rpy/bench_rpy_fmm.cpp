@@ -4,7 +4,9 @@
 // measured error against an exact RPY sum at sampled targets, the time of one Laplace FMM
 // evaluation (pot + grad + Hessian, one charge vector)
 // on the same points, and the direct O(N^2) time (measured for N <= 20000,
-// extrapolated as N^2 above, marked so). Prints one CSV row per case.
+// extrapolated as N^2 above, marked so), and the product with torques [U; W] = M [F; T] (rot_s,
+// its ratio to the force-only product, and its error: the larger of U's and W's relative l2
+// errors against exact sums at the sampled targets). Prints one CSV row per case.
 //
 // usage: bench_rpy_fmm [dist=cylinder|eight|suspension] [N list] [eps list] [threads list] [repeats]
 //                      [points.bin or -] [leaf capacity list, 0 = the operator's default]
@@ -26,6 +28,7 @@
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
 #include "rpyfmm/rpy/rpy_kernel.hpp"
+#include "rpyfmm/rpy/rpy_rotation_kernel.hpp"
 
 namespace t = rpyfmm::testing;
 using rpyfmm::StopWatch;
@@ -85,6 +88,53 @@ double sampled_error(const t::Configuration& c, const std::vector<double>& f, co
   return std::sqrt(num / den);
 }
 
+struct Vec {
+  double x, y, z;
+};
+Vec cross(const double* a, const double e[3]) {
+  return {a[1] * e[2] - a[2] * e[1], a[2] * e[0] - a[0] * e[2], a[0] * e[1] - a[1] * e[0]};
+}
+
+// Exact [U; W] at sampled targets from the pair couplings of rpy_rotation_kernel.hpp; returns the
+// larger of the relative l2 errors of U and W.
+double sampled_rotation_error(const t::Configuration& c, const std::vector<double>& f, const std::vector<double>& tq,
+                              const std::vector<double>& u, const std::vector<double>& w, std::size_t samples) {
+  const std::size_t n = c.a.size();
+  double num_u = 0, den_u = 0, num_w = 0, den_w = 0;
+  for (std::size_t s = 0; s < std::min(samples, n); ++s) {
+    const std::size_t i = (s * 7919) % n;
+    double ui[3] = {0, 0, 0}, wi[3] = {0, 0, 0};
+    for (std::size_t j = 0; j < n; ++j) {
+      const double d[3] = {c.x[3 * i] - c.x[3 * j], c.x[3 * i + 1] - c.x[3 * j + 1], c.x[3 * i + 2] - c.x[3 * j + 2]};
+      if (i == j) {
+        for (int k = 0; k < 3; ++k) {
+          ui[k] += rpyfmm::rpy::rpy_self(c.a[i]) * f[3 * i + k];
+          wi[k] += rpyfmm::rpy::rpy_rotation_self(c.a[i]) * tq[3 * i + k];
+        }
+        continue;
+      }
+      rpyfmm::rpy::rpy_pair_add(d, c.a[i], c.a[j], 1.0, &f[3 * j], ui);
+      const double r = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+      const double e[3] = {d[0] / r, d[1] / r, d[2] / r};
+      const auto q = rpyfmm::rpy::rpy_rotation_scalars(r, c.a[i], c.a[j]);
+      const Vec te = cross(&tq[3 * j], e), fe = cross(&f[3 * j], e);
+      const double et = e[0] * tq[3 * j] + e[1] * tq[3 * j + 1] + e[2] * tq[3 * j + 2];
+      const double tev[3] = {te.x, te.y, te.z}, fev[3] = {fe.x, fe.y, fe.z};
+      for (int k = 0; k < 3; ++k) {
+        ui[k] += q.ut * tev[k];
+        wi[k] += q.wf * fev[k] + q.h * tq[3 * j + k] + q.k * et * e[k];
+      }
+    }
+    for (int k = 0; k < 3; ++k) {
+      num_u += (u[3 * i + k] - ui[k]) * (u[3 * i + k] - ui[k]);
+      den_u += ui[k] * ui[k];
+      num_w += (w[3 * i + k] - wi[k]) * (w[3 * i + k] - wi[k]);
+      den_w += wi[k] * wi[k];
+    }
+  }
+  return std::max(std::sqrt(num_u / den_u), std::sqrt(num_w / den_w));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -98,11 +148,14 @@ int main(int argc, char** argv) {
 
   std::printf(
       "dist,N,eps,threads,rpy_s,laplace1_s,ratio_rpy_laplace,direct_s,direct_kind,speedup_vs_direct,"
-      "rel_l2_err,levels,leaves,near_s,far_fmm_s,leaf_capacity\n");
+      "rel_l2_err,levels,leaves,near_s,far_fmm_s,leaf_capacity,rot_s,ratio_rot_forces,rot_rel_l2_err\n");
   for (std::size_t n : ns) {
     const auto c = make(dist, n);
     const auto f = t::random_vector(3 * n, 1);
-    if (!dump.empty()) {  // positions then forces, float64, for a peer code
+    auto tq = t::random_vector(3 * n, 2);
+    for (std::size_t j = 0; j < n; ++j)
+      for (int k = 0; k < 3; ++k) tq[3 * j + k] *= c.a[j];  // torques ~ force x radius
+    if (!dump.empty()) {                                    // positions then forces, float64, for a peer code
       std::ofstream out(dump + "." + std::to_string(n), std::ios::binary);
       out.write(reinterpret_cast<const char*>(c.x.data()), static_cast<std::streamsize>(c.x.size() * 8));
       out.write(reinterpret_cast<const char*>(f.data()), static_cast<std::streamsize>(f.size() * 8));
@@ -137,6 +190,13 @@ int main(int argc, char** argv) {
           far_t.push_back(tm.count("total") ? tm["total"] : 0.0);
         }
         const double err = sampled_error(c, f, u, 200);
+        std::vector<double> ur(3 * n), wr(3 * n), rot_t;
+        for (int r = 0; r < repeats; ++r) {
+          StopWatch w;
+          op.apply(f, tq, ur, wr);
+          rot_t.push_back(w.seconds());
+        }
+        const double rot_err = sampled_rotation_error(c, f, tq, ur, wr, 200);
 
         // One Laplace FMM evaluation, pot + grad + Hessian, one charge vector, same points and eps.
         rpyfmm::fmm::LaplaceFmm lap({.tolerance = eps});
@@ -151,9 +211,11 @@ int main(int argc, char** argv) {
         }
         const auto stats = op.laplace_plan()->stats();
         const double rpy_s = median(times), lap_s = median(lt);
-        std::printf("%s,%zu,%.0e,%d,%.4f,%.4f,%.2f,%.3f,%s,%.1f,%.2e,%d,%zu,%.4f,%.4f,%d\n", dist.c_str(), n, eps, nt,
-                    rpy_s, lap_s, rpy_s / lap_s, direct_s, direct_kind.c_str(), direct_s / rpy_s, err, stats.levels,
-                    stats.leaves, median(near_t), median(far_t), stats.leaf_capacity);
+        const double rot_s = median(rot_t);
+        std::printf("%s,%zu,%.0e,%d,%.4f,%.4f,%.2f,%.3f,%s,%.1f,%.2e,%d,%zu,%.4f,%.4f,%d,%.4f,%.2f,%.2e\n",
+                    dist.c_str(), n, eps, nt, rpy_s, lap_s, rpy_s / lap_s, direct_s, direct_kind.c_str(),
+                    direct_s / rpy_s, err, stats.levels, stats.leaves, median(near_t), median(far_t),
+                    stats.leaf_capacity, rot_s, rot_s / rpy_s, rot_err);
         std::fflush(stdout);
       }
     }

@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "fmm_far_field.hpp"
-#include "fmm_rotation_kernels.hpp"
+#include "rotation_pair_sums.hpp"
 #include "near_schedule.hpp"
 #include "near_sources.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"

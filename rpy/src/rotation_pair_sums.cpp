@@ -1,7 +1,7 @@
-// Near-field kernels of FmmRpy's rotational blocks (fmm_rotation_kernels.hpp): portable loops
+// Rotational pair sums (rotation_pair_sums.hpp): portable loops
 // that GCC vectorizes, compiled for AVX-512, AVX2 and the baseline and chosen by simd_level().
 // Every regime is evaluated branch-free and selected, as in fmm_near_kernels.cpp.
-#include "fmm_rotation_kernels.hpp"
+#include "rotation_pair_sums.hpp"
 
 #include <cmath>
 

@@ -1,6 +1,7 @@
-// Near-field kernels of FmmRpy's rotational blocks: sums of the exact pair couplings of
-// rpy_rotation_kernel.hpp (docs/theory/rpy.md, section 7; Wajnryb, Mizerski, Zuk & Szymczak 2013)
-// over gathered sources, for one target at a time.
+// Sums of the exact rotational pair couplings of rpy_rotation_kernel.hpp (docs/theory/rpy.md,
+// section 7; Wajnryb, Mizerski, Zuk & Szymczak 2013) over sources in structure-of-arrays form, for
+// one target at a time: DirectRpy's rotational blocks (all sources) and FmmRpy's near field
+// (gathered sources).
 //
 // For d = x_i - x_q the three sums of target i, times eta and grouped by the power of length they
 // carry (for the units of length_units.hpp):
