@@ -238,6 +238,13 @@ TEST_F(SampleCli, AngularMatchesLibrary) {
   EXPECT_EQ(shape, (std::vector<std::size_t>{N, 6}));
   EXPECT_LE(max_rel_diff(w, rotation_rows(op, z, {.tolerance = 1e-6})), 1e-12);
 
+  // The FMM operator with rotation: the direct result to about its tolerance.
+  const std::string fmm = " --angular --operator fmm --tolerance 1e-9 --sqrt-tolerance 1e-8 --out ";
+  const CliResult fmm_run =
+      run_cli("--positions " + xp.string() + " --radii " + ap.string() + " --seed 11 --step 2" + fmm + out.string());
+  ASSERT_EQ(fmm_run.rc, 0) << fmm_run.err;
+  EXPECT_LE(max_rel_diff(read_npy(out, shape), rotation_rows(op, z, {.tolerance = 1e-8})), 1e-6);
+
   const fs::path zp = scratch() / "z6.txt";
   write_text(zp, z, 6);
   for (const SqrtOptions& options :
@@ -299,6 +306,7 @@ TEST_F(SampleCli, BadInputExitTwoNoOutput) {
            {base + "--radius 1 --method pse --box 60 --device gpu", "--device"},
            {base + "--radius 1 --device cuda", "pse operator only"},
            {base + "--radius 1 --angular --method pse --box 60", "--angular needs an operator with rotation"},
+           {base + "--radius 1 --angular --method split", "PSE"},
            {base + "--radius 1 --angular --operator pse --box 60", "'pse' has none"},
            {base + "--radius 1 --angular --noise " + zs.string(), "with --angular must have shape (40,6)"},
            {base + "--radius 1 --angular --noise " + z3.string(), "3 columns"},
