@@ -4,8 +4,9 @@
 // U = (far translational field) + curl Phi_T / (8 pi eta), W = curl Phi_F / (8 pi eta) +
 // grad div Phi_T / (16 pi eta) over the far pairs, where the rotational blocks are exactly these
 // harmonic fields (no a^2 corrections for any radii). Every near-field pair (the FMM's U list and
-// the W/X pairs it hands back) is summed with the exact couplings of rpy_rotation_kernel.hpp, all
-// overlap regimes included, in the colour schedule of the translational near field: each velocity
+// the W/X pairs it hands back) is summed with the exact translational and rotational blocks in one
+// fused pass (rotation_pair_sums.hpp), all overlap regimes included, in the colour schedule of
+// the translational near field: each velocity
 // receives its contributions in a fixed order, so results do not depend on the thread count.
 #include <cmath>
 #include <cstdint>
@@ -13,94 +14,88 @@
 #include <vector>
 
 #include "fmm_far_field.hpp"
-#include "rotation_pair_sums.hpp"
 #include "near_schedule.hpp"
 #include "near_sources.hpp"
+#include "rotation_pair_sums.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
+#include "rpyfmm/rpy/rpy_kernel.hpp"
 #include "rpyfmm/rpy/rpy_rotation_kernel.hpp"
 
 namespace rpyfmm::rpy {
 namespace {
 
-// The rotational sums of every particle, times eta, by the power of length they carry (for the
-// units of length_units.hpp): ut ~ 1/L^2 (U from T), wf ~ 1/L^2 (W from F), rr ~ 1/L^3 (W from T).
-struct RotationBuffers {
-  std::vector<double> ut, wf, rr;
-  explicit RotationBuffers(std::size_t n) : ut(3 * n), wf(3 * n), rr(3 * n) {}
-};
-
 // What every near-field task reads and writes. Sources are gathered with the loads [F; T]
-// (two right-hand sides of GatheredSources: forces, then torques).
-struct RotationNearContext {
+// (two right-hand sides of GatheredSources: forces, then torques); u and w (3n each, times eta)
+// receive the near-field sums.
+struct GrandNearContext {
   const fmm::NearField& near;
   std::span<const double> x, a;
-  const double* loads;   // 6n: F then T
-  double *ut, *wf, *rr;  // 3n each (RotationBuffers)
+  const double* loads;  // 6n: F then T
+  double *u, *w;
   std::size_t n;
   bool equal;
 
-  [[nodiscard]] detail::RotationTarget target(std::size_t i) const {
+  [[nodiscard]] detail::GrandTarget target(std::size_t i) const {
     const double* f = loads + 3 * i;
     const double* t = loads + 3 * n + 3 * i;
     return {x[3 * i], x[3 * i + 1], x[3 * i + 2], a[i], i, {f[0], f[1], f[2]}, {t[0], t[1], t[2]}};
   }
-  void add(std::size_t i, const detail::RotationSums& s) const {
+  void add(std::size_t i, const detail::GrandSums& s) const {
     for (int c = 0; c < 3; ++c) {
-      ut[3 * i + c] += s.ut[c];
-      wf[3 * i + c] += s.wf[c];
-      rr[3 * i + c] += s.rr[c];
+      u[3 * i + c] += s.u[c];
+      w[3 * i + c] += s.w[c];
     }
   }
 };
 
-detail::RotationSources view(const detail::GatheredSources& src, bool equal) {
+detail::GrandSources view(const detail::GatheredSources& src, bool equal) {
   return {src.size(),       src.x.data(),     src.y.data(),     src.z.data(),     equal ? nullptr : src.a.data(),
           src.id.data(),    src.forces(0, 0), src.forces(0, 1), src.forces(0, 2), src.forces(1, 0),
           src.forces(1, 1), src.forces(1, 2)};
 }
 
-// The leaf's targets against one-sided sources (the leaf itself among them), plus the rotational
-// self term W_i += T_i / (8 pi eta a_i^3).
-void one_sided_block(const RotationNearContext& ctx, std::uint32_t leaf, const detail::GatheredSources& src) {
-  const detail::RotationSources s = view(src, ctx.equal);
+// The leaf's targets against one-sided sources (the leaf itself among them), plus the self terms
+// F_i / (6 pi eta a_i) and T_i / (8 pi eta a_i^3).
+void one_sided_block(const GrandNearContext& ctx, std::uint32_t leaf, const detail::GatheredSources& src) {
+  const detail::GrandSources s = view(src, ctx.equal);
   for (std::size_t i : ctx.near.targets(leaf)) {
-    const detail::RotationTarget t = ctx.target(i);
-    detail::RotationSums sums{};
-    detail::near_rotation_sum(s, t, sums);
-    const double self = rpy_rotation_self(t.a);
-    for (int c = 0; c < 3; ++c) sums.rr[c] += self * t.t[c];
+    const detail::GrandTarget t = ctx.target(i);
+    detail::GrandSums sums{};
+    detail::grand_pair_sum(s, t, sums);
+    const double self_t = rpy_self(t.a), self_r = rpy_rotation_self(t.a);
+    for (int c = 0; c < 3; ++c) {
+      sums.u[c] += self_t * t.f[c];
+      sums.w[c] += self_r * t.t[c];
+    }
     ctx.add(i, sums);
   }
 }
 
 // The leaf's targets against the sources of its symmetric partners, both directions at once;
 // the partners' sums are accumulated in src.u and added once at the end.
-void symmetric_block(const RotationNearContext& ctx, std::uint32_t leaf, detail::GatheredSources& src) {
+void symmetric_block(const GrandNearContext& ctx, std::uint32_t leaf, detail::GatheredSources& src) {
   const std::size_t m = src.size();
-  src.u.assign(9 * m, 0.0);
-  const detail::RotationSources s = view(src, ctx.equal);
-  const detail::RotationAccumulators acc{{src.velocities(0, 0), src.velocities(0, 1), src.velocities(0, 2)},
-                                         {src.velocities(1, 0), src.velocities(1, 1), src.velocities(1, 2)},
-                                         {src.velocities(2, 0), src.velocities(2, 1), src.velocities(2, 2)}};
+  src.u.assign(6 * m, 0.0);
+  const detail::GrandSources s = view(src, ctx.equal);
+  const detail::GrandAccumulators acc{{src.velocities(0, 0), src.velocities(0, 1), src.velocities(0, 2)},
+                                      {src.velocities(1, 0), src.velocities(1, 1), src.velocities(1, 2)}};
   for (std::size_t i : ctx.near.targets(leaf)) {
-    detail::RotationSums sums{};
-    detail::near_rotation_sum_symmetric(s, ctx.target(i), acc, sums);
+    detail::GrandSums sums{};
+    detail::grand_pair_sum_symmetric(s, ctx.target(i), acc, sums);
     ctx.add(i, sums);
   }
   for (std::size_t q = 0; q < m; ++q) {
-    const detail::RotationSums back{{acc.ut[0][q], acc.ut[1][q], acc.ut[2][q]},
-                                    {acc.wf[0][q], acc.wf[1][q], acc.wf[2][q]},
-                                    {acc.rr[0][q], acc.rr[1][q], acc.rr[2][q]}};
+    const detail::GrandSums back{{acc.u[0][q], acc.u[1][q], acc.u[2][q]}, {acc.w[0][q], acc.w[1][q], acc.w[2][q]}};
     ctx.add(src.id[q], back);
   }
 }
 
 }  // namespace
 
-void FmmRpy::apply_rotation_near_field(const double* loads, double* ut, double* wf, double* rr) const {
+void FmmRpy::apply_grand_near_field(const double* loads, double* u, double* w) const {
   const std::span<const double> x = scale_exponent_ == 0 ? positions() : std::span<const double>(centered_);
-  const RotationNearContext ctx{fmm_->near_field(), x, unit_radii(), loads, ut, wf, rr, size(), equal_radii()};
+  const GrandNearContext ctx{fmm_->near_field(), x, unit_radii(), loads, u, w, size(), equal_radii()};
   detail::for_each_near_task<detail::GatheredSources>(
       *near_schedule_, [&](detail::GatheredSources& src, std::uint32_t leaf, std::span<const std::uint32_t> one,
                            std::span<const std::uint32_t> partners) {
@@ -120,30 +115,33 @@ void FmmRpy::do_apply_rotation(const double* forces, const double* torques, doub
   const bool equal = equal_radii();
   const std::size_t nd = detail::rotation_densities(equal);
   const auto a = unit_radii();
+  // In the units 2^e of length_units.hpp the blocks carry 1/L (tt), 1/L^2 (ut, wf) and 1/L^3 (rr):
+  // with torques 2^-e T every sum below is 2^e U (velocities) or 2^(2e) W (angular velocities).
+  const int e = scale_exponent_;
+  std::vector<double> loads(forces, forces + 3 * n);
+  for (std::size_t j = 0; j < 3 * n; ++j) loads.push_back(std::ldexp(torques[j], -e));
+  const double* scaled_torques = loads.data() + 3 * n;
 
   StopWatch watch;
   std::vector<double> charges(nd * n);
   std::vector<unsigned> outputs(nd);
-  detail::rotation_far_field_charges(forces, torques, n, equal, centered_, a, charges, outputs);
+  detail::rotation_far_field_charges(forces, scaled_torques, n, equal, centered_, a, charges, outputs);
   const std::vector<double> results = far_field_pass(charges, outputs, watch.seconds());
 
   watch.restart();
   detail::combine_far_field(results, n, 1, equal, centered_, a, viscosity(), velocities);
-  RotationBuffers sums(n);
-  detail::combine_rotation_far_field(results, n, equal, sums.ut.data(), sums.wf.data(), sums.rr.data());
+  std::vector<double> ut(3 * n), wf(3 * n), rr(3 * n);
+  detail::combine_rotation_far_field(results, n, equal, ut.data(), wf.data(), rr.data());
   timings_["rpy_far"] = watch.seconds();
 
   watch.restart();
-  apply_near_field(forces, velocities, 1);
-  std::vector<double> loads(forces, forces + 3 * n);
-  loads.insert(loads.end(), torques, torques + 3 * n);
-  apply_rotation_near_field(loads.data(), sums.ut.data(), sums.wf.data(), sums.rr.data());
-  // Back from the units of length_units.hpp: the blocks carry 1/L (tt), 1/L^2 (ut, wf), 1/L^3 (rr).
+  // Near field into ut (U) and wf (W), on top of the far field's rotational sums.
+  for (std::size_t j = 0; j < 3 * n; ++j) wf[j] += rr[j];
+  apply_grand_near_field(loads.data(), ut.data(), wf.data());
   const double inv_eta = 1.0 / viscosity();
-  const int e = scale_exponent_;
   for (std::size_t j = 0; j < 3 * n; ++j) {
-    velocities[j] = std::ldexp(velocities[j], -e) + inv_eta * std::ldexp(sums.ut[j], -2 * e);
-    angular_velocities[j] = inv_eta * (std::ldexp(sums.wf[j], -2 * e) + std::ldexp(sums.rr[j], -3 * e));
+    velocities[j] = std::ldexp(velocities[j] + inv_eta * ut[j], -e);
+    angular_velocities[j] = std::ldexp(inv_eta * wf[j], -2 * e);
   }
   timings_["rpy_near"] = watch.seconds();
   timings_["rpy_total"] = total.seconds();

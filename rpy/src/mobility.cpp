@@ -180,7 +180,9 @@ void MobilityOperator::apply(std::span<const double> forces, std::span<const dou
   require_positions("apply");
   const std::string where = where_ + "::apply";
   require(supports_rotation(), ErrorCode::not_supported, where,
-          "operator '" + name() + "' has no rotational mobility (torques and angular velocities); use 'direct'");
+          "operator '" + name() +
+              "' has no rotational mobility (torques and angular velocities); use 'direct', 'fmm' or 'none' (free "
+              "draining)");
   require_rotation_arguments(where, 3 * size(), {{{"forces", forces}, {"torques", torques}}},
                              {{{"velocities", velocities}, {"angular velocities", angular_velocities}}});
   const int k = load_scale_exponent({forces, torques});

@@ -1,10 +1,11 @@
-// Rotational pair sums (rotation_pair_sums.hpp): portable loops
+// Grand-mobility pair sums (rotation_pair_sums.hpp): portable loops
 // that GCC vectorizes, compiled for AVX-512, AVX2 and the baseline and chosen by simd_level().
 // Every regime is evaluated branch-free and selected, as in fmm_near_kernels.cpp.
 #include "rotation_pair_sums.hpp"
 
 #include <cmath>
 
+#include "rpy_pair_scalars.hpp"
 #include "rpyfmm/core/simd_dispatch.hpp"
 #include "rpyfmm/rpy/rpy_kernel.hpp"
 #include "rpyfmm/rpy/rpy_rotation_kernel.hpp"
@@ -64,11 +65,12 @@ struct PairCoefficients {
 // the coefficients.
 struct PairGeometry {
   double dx, dy, dz, ex, ey, ez;
+  double f, gr;  // the translational block f I + gr d d^T
   PairCoefficients c;
 };
 
 template <bool kEqual>
-[[gnu::always_inline]] inline PairGeometry pair_at(const RotationSources& s, std::size_t q, const RotationTarget& t) {
+[[gnu::always_inline]] inline PairGeometry pair_at(const GrandSources& s, std::size_t q, const GrandTarget& t) {
   PairGeometry g;
   g.dx = t.x - s.x[q];
   g.dy = t.y - s.y[q];
@@ -81,8 +83,10 @@ template <bool kEqual>
   g.ey = g.dy * inv_r;
   g.ez = g.dz * inv_r;
   if constexpr (kEqual) {
+    pair_scalars_equal(r2, t.a, g.f, g.gr);
     g.c = pair_coefficients_equal(r, inv_r, inv_r2, t.a);
   } else {
+    pair_scalars(r2, t.a, s.a[q], g.f, g.gr);
     g.c = pair_coefficients(r, inv_r, inv_r2, t.a, s.a[q]);
   }
   return g;
@@ -93,94 +97,101 @@ template <bool kEqual>
   return vy * dz - vz * dy;
 }
 
-// The one-sided loop: the target's three sums over all sources but itself.
-template <bool kEqual>
-[[gnu::always_inline]] inline void rotation_sum_loop(const RotationSources& s, const RotationTarget& t,
-                                                     RotationSums& out) {
-  double ux = 0, uy = 0, uz = 0, fx = 0, fy = 0, fz = 0, rx = 0, ry = 0, rz = 0;
-#pragma omp simd reduction(+ : ux, uy, uz, fx, fy, fz, rx, ry, rz)
-  for (std::size_t q = 0; q < s.m; ++q) {
-    PairGeometry g = pair_at<kEqual>(s, q, t);
-    const double on = s.id[q] == t.i ? 0.0 : 1.0;  // the self pair is added by the caller
-    const double tqx = s.tx[q], tqy = s.ty[q], tqz = s.tz[q], fqx = s.fx[q], fqy = s.fy[q], fqz = s.fz[q];
-    const double ut = on * g.c.ut, wf = on * g.c.wf, h = on * g.c.h;
-    ux += ut * cross_x(tqy, tqz, g.dy, g.dz);
-    uy += ut * cross_x(tqz, tqx, g.dz, g.dx);
-    uz += ut * cross_x(tqx, tqy, g.dx, g.dy);
-    fx += wf * cross_x(fqy, fqz, g.dy, g.dz);
-    fy += wf * cross_x(fqz, fqx, g.dz, g.dx);
-    fz += wf * cross_x(fqx, fqy, g.dx, g.dy);
-    const double ket = on * g.c.k * (g.ex * tqx + g.ey * tqy + g.ez * tqz);
-    rx += h * tqx + ket * g.ex;
-    ry += h * tqy + ket * g.ey;
-    rz += h * tqz + ket * g.ez;
-  }
-  out = {{ux, uy, uz}, {fx, fy, fz}, {rx, ry, rz}};
+// The target's velocity and angular velocity from one source's F and T.
+struct PairContribution {
+  double ux, uy, uz, wx, wy, wz;
+};
+
+[[gnu::always_inline]] inline PairContribution contribution(const PairGeometry& g, double fx, double fy, double fz,
+                                                            double tx, double ty, double tz) {
+  const PairCoefficients& c = g.c;
+  const double gdf = g.gr * (g.dx * fx + g.dy * fy + g.dz * fz);
+  const double ket = c.k * (g.ex * tx + g.ey * ty + g.ez * tz);
+  return {g.f * fx + gdf * g.dx + c.ut * cross_x(ty, tz, g.dy, g.dz),
+          g.f * fy + gdf * g.dy + c.ut * cross_x(tz, tx, g.dz, g.dx),
+          g.f * fz + gdf * g.dz + c.ut * cross_x(tx, ty, g.dx, g.dy),
+          c.wf * cross_x(fy, fz, g.dy, g.dz) + c.h * tx + ket * g.ex,
+          c.wf * cross_x(fz, fx, g.dz, g.dx) + c.h * ty + ket * g.ey,
+          c.wf * cross_x(fx, fy, g.dx, g.dy) + c.h * tz + ket * g.ez};
 }
 
-// Both directions: q <- i sees d_qi = -d and swaps the couplings (c_ut(q, i) = c_wf(i, q)).
+// The one-sided loop: the target's sums over all sources but itself.
 template <bool kEqual>
-[[gnu::always_inline]] inline void rotation_sum_symmetric_loop(const RotationSources& s, const RotationTarget& t,
-                                                               const RotationAccumulators& acc, RotationSums& out) {
-  const double fix = t.f[0], fiy = t.f[1], fiz = t.f[2], tix = t.t[0], tiy = t.t[1], tiz = t.t[2];
-  double* __restrict aux = acc.ut[0];
-  double* __restrict auy = acc.ut[1];
-  double* __restrict auz = acc.ut[2];
-  double* __restrict afx = acc.wf[0];
-  double* __restrict afy = acc.wf[1];
-  double* __restrict afz = acc.wf[2];
-  double* __restrict arx = acc.rr[0];
-  double* __restrict ary = acc.rr[1];
-  double* __restrict arz = acc.rr[2];
-  double ux = 0, uy = 0, uz = 0, fx = 0, fy = 0, fz = 0, rx = 0, ry = 0, rz = 0;
-#pragma omp simd reduction(+ : ux, uy, uz, fx, fy, fz, rx, ry, rz)
+[[gnu::always_inline]] inline void grand_sum_loop(const GrandSources& s, const GrandTarget& t, GrandSums& out) {
+  double ux = 0, uy = 0, uz = 0, wx = 0, wy = 0, wz = 0;
+#pragma omp simd reduction(+ : ux, uy, uz, wx, wy, wz)
   for (std::size_t q = 0; q < s.m; ++q) {
     const PairGeometry g = pair_at<kEqual>(s, q, t);
-    const PairCoefficients& c = g.c;
-    const double tqx = s.tx[q], tqy = s.ty[q], tqz = s.tz[q], fqx = s.fx[q], fqy = s.fy[q], fqz = s.fz[q];
-    ux += c.ut * cross_x(tqy, tqz, g.dy, g.dz);
-    uy += c.ut * cross_x(tqz, tqx, g.dz, g.dx);
-    uz += c.ut * cross_x(tqx, tqy, g.dx, g.dy);
-    fx += c.wf * cross_x(fqy, fqz, g.dy, g.dz);
-    fy += c.wf * cross_x(fqz, fqx, g.dz, g.dx);
-    fz += c.wf * cross_x(fqx, fqy, g.dx, g.dy);
-    const double ket = c.k * (g.ex * tqx + g.ey * tqy + g.ez * tqz);
-    rx += c.h * tqx + ket * g.ex;
-    ry += c.h * tqy + ket * g.ey;
-    rz += c.h * tqz + ket * g.ez;
-    aux[q] -= c.wf * cross_x(tiy, tiz, g.dy, g.dz);
-    auy[q] -= c.wf * cross_x(tiz, tix, g.dz, g.dx);
-    auz[q] -= c.wf * cross_x(tix, tiy, g.dx, g.dy);
-    afx[q] -= c.ut * cross_x(fiy, fiz, g.dy, g.dz);
-    afy[q] -= c.ut * cross_x(fiz, fix, g.dz, g.dx);
-    afz[q] -= c.ut * cross_x(fix, fiy, g.dx, g.dy);
-    const double kei = c.k * (g.ex * tix + g.ey * tiy + g.ez * tiz);
-    arx[q] += c.h * tix + kei * g.ex;
-    ary[q] += c.h * tiy + kei * g.ey;
-    arz[q] += c.h * tiz + kei * g.ez;
+    const double on = s.id[q] == t.i ? 0.0 : 1.0;  // the self pair is added by the caller
+    const PairContribution p = contribution(g, s.fx[q], s.fy[q], s.fz[q], s.tx[q], s.ty[q], s.tz[q]);
+    ux += on * p.ux;
+    uy += on * p.uy;
+    uz += on * p.uz;
+    wx += on * p.wx;
+    wy += on * p.wy;
+    wz += on * p.wz;
   }
-  out = {{ux, uy, uz}, {fx, fy, fz}, {rx, ry, rz}};
+  out = {{ux, uy, uz}, {wx, wy, wz}};
+}
+
+// Both directions: q <- i sees d_qi = -d, e_qi = -e and swaps the couplings (c_ut(q, i) =
+// c_wf(i, q)); the translational block and h, k are symmetric.
+template <bool kEqual>
+[[gnu::always_inline]] inline void grand_sum_symmetric_loop(const GrandSources& s, const GrandTarget& t,
+                                                            const GrandAccumulators& acc, GrandSums& out) {
+  const double fix = t.f[0], fiy = t.f[1], fiz = t.f[2], tix = t.t[0], tiy = t.t[1], tiz = t.t[2];
+  double* __restrict aux = acc.u[0];
+  double* __restrict auy = acc.u[1];
+  double* __restrict auz = acc.u[2];
+  double* __restrict awx = acc.w[0];
+  double* __restrict awy = acc.w[1];
+  double* __restrict awz = acc.w[2];
+  double ux = 0, uy = 0, uz = 0, wx = 0, wy = 0, wz = 0;
+#pragma omp simd reduction(+ : ux, uy, uz, wx, wy, wz)
+  for (std::size_t q = 0; q < s.m; ++q) {
+    PairGeometry g = pair_at<kEqual>(s, q, t);
+    const PairContribution p = contribution(g, s.fx[q], s.fy[q], s.fz[q], s.tx[q], s.ty[q], s.tz[q]);
+    ux += p.ux;
+    uy += p.uy;
+    uz += p.uz;
+    wx += p.wx;
+    wy += p.wy;
+    wz += p.wz;
+    // Reverse direction: d -> -d (e -> -e) leaves the tt block, h and k e e^T unchanged and
+    // turns c_ut (T x d) into -c_wf (T x d), c_wf (F x d) into -c_ut (F x d).
+    const double ut = g.c.ut;
+    g.c.ut = -g.c.wf;
+    g.c.wf = -ut;
+    const PairContribution b = contribution(g, fix, fiy, fiz, tix, tiy, tiz);
+    aux[q] += b.ux;
+    auy[q] += b.uy;
+    auz[q] += b.uz;
+    awx[q] += b.wx;
+    awy[q] += b.wy;
+    awz[q] += b.wz;
+  }
+  out = {{ux, uy, uz}, {wx, wy, wz}};
 }
 
 }  // namespace
 
-void near_rotation_sum(const RotationSources& src, const RotationTarget& target, RotationSums& out) {
+void grand_pair_sum(const GrandSources& src, const GrandTarget& target, GrandSums& out) {
   simd_dispatch([src, target, &out]() RPYFMM_SIMD_BODY {
     if (src.a == nullptr) {
-      rotation_sum_loop<true>(src, target, out);
+      grand_sum_loop<true>(src, target, out);
     } else {
-      rotation_sum_loop<false>(src, target, out);
+      grand_sum_loop<false>(src, target, out);
     }
   });
 }
 
-void near_rotation_sum_symmetric(const RotationSources& src, const RotationTarget& target,
-                                 const RotationAccumulators& acc, RotationSums& out) {
+void grand_pair_sum_symmetric(const GrandSources& src, const GrandTarget& target, const GrandAccumulators& acc,
+                              GrandSums& out) {
   simd_dispatch([src, target, acc, &out]() RPYFMM_SIMD_BODY {
     if (src.a == nullptr) {
-      rotation_sum_symmetric_loop<true>(src, target, acc, out);
+      grand_sum_symmetric_loop<true>(src, target, acc, out);
     } else {
-      rotation_sum_symmetric_loop<false>(src, target, acc, out);
+      grand_sum_symmetric_loop<false>(src, target, acc, out);
     }
   });
 }

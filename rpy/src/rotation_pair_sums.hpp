@@ -1,20 +1,21 @@
-// Sums of the exact rotational pair couplings of rpy_rotation_kernel.hpp (docs/theory/rpy.md,
-// section 7; Wajnryb, Mizerski, Zuk & Szymczak 2013) over sources in structure-of-arrays form, for
-// one target at a time: DirectRpy's rotational blocks (all sources) and FmmRpy's near field
-// (gathered sources).
+// Sums of the exact grand-mobility pair blocks over sources in structure-of-arrays form, for one
+// target at a time: the translational block of rpy_kernel.hpp and the rotational couplings of
+// rpy_rotation_kernel.hpp (docs/theory/rpy.md, section 7; Wajnryb, Mizerski, Zuk & Szymczak 2013).
+// DirectRpy sums all sources, FmmRpy's near field the gathered sources of adjacent leaves.
 //
-// For d = x_i - x_q the three sums of target i, times eta and grouped by the power of length they
-// carry (for the units of length_units.hpp):
-//   ut_i += c_ut(i, q) (T_q x e),  wf_i += c_ut(q, i) (F_q x e),  rr_i += (h I + k e e^T) T_q.
+// For d = x_i - x_q, e = d / r, times eta:
+//   U_i += M^tt_iq F_q + c_ut(i, q) (T_q x e),   W_i += c_ut(q, i) (F_q x e) + (h I + k e e^T) T_q.
+// Length units (length_units.hpp): with lengths in units 2^s the blocks carry 1/L (tt), 1/L^2
+// (ut, wf) and 1/L^3 (rr); callers pass torques scaled by 2^-s, so that U and W come out as
+// 2^s U_true and 2^(2s) W_true (one power of two each, applied by the caller).
 #pragma once
 
 #include <cstddef>
 
 namespace rpyfmm::rpy::detail {
 
-/// Gathered sources in structure-of-arrays form; radius a == nullptr means equal radii (the
-/// target's).
-struct RotationSources {
+/// Sources in structure-of-arrays form; radius a == nullptr means equal radii (the target's).
+struct GrandSources {
   std::size_t m = 0;
   const double *x = nullptr, *y = nullptr, *z = nullptr, *a = nullptr;
   const std::size_t* id = nullptr;
@@ -22,27 +23,28 @@ struct RotationSources {
   const double *tx = nullptr, *ty = nullptr, *tz = nullptr;
 };
 
-struct RotationTarget {
+struct GrandTarget {
   double x, y, z, a;
   std::size_t i;
   double f[3], t[3];  // the target's own force and torque (symmetric blocks)
 };
 
-struct RotationSums {
-  double ut[3], wf[3], rr[3];
+/// Velocity and angular velocity sums of one target (times eta).
+struct GrandSums {
+  double u[3], w[3];
 };
 
-/// Per-source accumulators of the reverse direction (q <- i), in the sums' layout.
-struct RotationAccumulators {
-  double *ut[3], *wf[3], *rr[3];
+/// Per-source accumulators of the reverse direction (q <- i).
+struct GrandAccumulators {
+  double *u[3], *w[3];
 };
 
-/// out = the three sums of the target over the sources; the self pair (id[q] == target.i) skipped.
-void near_rotation_sum(const RotationSources& src, const RotationTarget& target, RotationSums& out);
+/// out = the target's sums over the sources; the self pair (id[q] == target.i) skipped.
+void grand_pair_sum(const GrandSources& src, const GrandTarget& target, GrandSums& out);
 
 /// Both directions between the target and sources of another leaf (never the target itself):
 /// out = the target's sums, and each source's sums from the target added to acc.
-void near_rotation_sum_symmetric(const RotationSources& src, const RotationTarget& target,
-                                 const RotationAccumulators& acc, RotationSums& out);
+void grand_pair_sum_symmetric(const GrandSources& src, const GrandTarget& target, const GrandAccumulators& acc,
+                              GrandSums& out);
 
 }  // namespace rpyfmm::rpy::detail

@@ -85,8 +85,9 @@ class FmmRpy final : public MobilityOperator {
   [[nodiscard]] std::vector<double> far_field_pass(const std::vector<double>& charges,
                                                    const std::vector<unsigned>& outputs, double charge_seconds) const;
   void apply_near_field(const double* forces, double* velocities, std::size_t nrhs) const;
-  // Adds the near-field rotational sums (times eta) of the loads [F; T] (6N) to ut, wf, rr (3N each).
-  void apply_rotation_near_field(const double* loads, double* ut, double* wf, double* rr) const;
+  // Adds the near-field grand-mobility sums (times eta, self terms included) of the loads [F; T]
+  // (6N) to u and w (3N each).
+  void apply_grand_near_field(const double* loads, double* u, double* w) const;
   [[nodiscard]] std::span<const double> unit_radii() const;
 
   FmmRpyOptions options_;
