@@ -69,9 +69,9 @@ struct PairGeometry {
   PairCoefficients c;
 };
 
-template <bool kEqual>
+template <bool kEqual, bool kTranslation = true>
 [[gnu::always_inline]] inline PairGeometry pair_at(const GrandSources& s, std::size_t q, const GrandTarget& t) {
-  PairGeometry g;
+  PairGeometry g{};
   g.dx = t.x - s.x[q];
   g.dy = t.y - s.y[q];
   g.dz = t.z - s.z[q];
@@ -83,10 +83,10 @@ template <bool kEqual>
   g.ey = g.dy * inv_r;
   g.ez = g.dz * inv_r;
   if constexpr (kEqual) {
-    pair_scalars_equal(r2, t.a, g.f, g.gr);
+    if constexpr (kTranslation) pair_scalars_equal(r2, t.a, g.f, g.gr);
     g.c = pair_coefficients_equal(r, inv_r, inv_r2, t.a);
   } else {
-    pair_scalars(r2, t.a, s.a[q], g.f, g.gr);
+    if constexpr (kTranslation) pair_scalars(r2, t.a, s.a[q], g.f, g.gr);
     g.c = pair_coefficients(r, inv_r, inv_r2, t.a, s.a[q]);
   }
   return g;
@@ -102,34 +102,45 @@ struct PairContribution {
   double ux, uy, uz, wx, wy, wz;
 };
 
+template <bool kTranslation = true>
 [[gnu::always_inline]] inline PairContribution contribution(const PairGeometry& g, double fx, double fy, double fz,
                                                             double tx, double ty, double tz) {
   const PairCoefficients& c = g.c;
-  const double gdf = g.gr * (g.dx * fx + g.dy * fy + g.dz * fz);
   const double ket = c.k * (g.ex * tx + g.ey * ty + g.ez * tz);
-  return {g.f * fx + gdf * g.dx + c.ut * cross_x(ty, tz, g.dy, g.dz),
-          g.f * fy + gdf * g.dy + c.ut * cross_x(tz, tx, g.dz, g.dx),
-          g.f * fz + gdf * g.dz + c.ut * cross_x(tx, ty, g.dx, g.dy),
-          c.wf * cross_x(fy, fz, g.dy, g.dz) + c.h * tx + ket * g.ex,
-          c.wf * cross_x(fz, fx, g.dz, g.dx) + c.h * ty + ket * g.ey,
-          c.wf * cross_x(fx, fy, g.dx, g.dy) + c.h * tz + ket * g.ez};
+  PairContribution p{c.ut * cross_x(ty, tz, g.dy, g.dz),
+                     c.ut * cross_x(tz, tx, g.dz, g.dx),
+                     c.ut * cross_x(tx, ty, g.dx, g.dy),
+                     c.wf * cross_x(fy, fz, g.dy, g.dz) + c.h * tx + ket * g.ex,
+                     c.wf * cross_x(fz, fx, g.dz, g.dx) + c.h * ty + ket * g.ey,
+                     c.wf * cross_x(fx, fy, g.dx, g.dy) + c.h * tz + ket * g.ez};
+  if constexpr (kTranslation) {  // without it U gets only c_ut (T x e)
+    const double gdf = g.gr * (g.dx * fx + g.dy * fy + g.dz * fz);
+    p.ux += g.f * fx + gdf * g.dx;
+    p.uy += g.f * fy + gdf * g.dy;
+    p.uz += g.f * fz + gdf * g.dz;
+  }
+  return p;
 }
 
 // The one-sided loop: the target's sums over all sources but itself.
-template <bool kEqual>
+template <bool kEqual, bool kTranslation>
 [[gnu::always_inline]] inline void grand_sum_loop(const GrandSources& s, const GrandTarget& t, GrandSums& out) {
   double ux = 0, uy = 0, uz = 0, wx = 0, wy = 0, wz = 0;
 #pragma omp simd reduction(+ : ux, uy, uz, wx, wy, wz)
   for (std::size_t q = 0; q < s.m; ++q) {
-    const PairGeometry g = pair_at<kEqual>(s, q, t);
-    const double on = s.id[q] == t.i ? 0.0 : 1.0;  // the self pair is added by the caller
-    const PairContribution p = contribution(g, s.fx[q], s.fy[q], s.fz[q], s.tx[q], s.ty[q], s.tz[q]);
-    ux += on * p.ux;
-    uy += on * p.uy;
-    uz += on * p.uz;
-    wx += on * p.wx;
-    wy += on * p.wy;
-    wz += on * p.wz;
+    PairGeometry g = pair_at<kEqual, kTranslation>(s, q, t);
+    // The self pair is added by the caller.
+    const bool self = s.id[q] == t.i;
+    g.f = self ? 0.0 : g.f;
+    g.gr = self ? 0.0 : g.gr;
+    g.c = self ? PairCoefficients{0.0, 0.0, 0.0, 0.0} : g.c;
+    const PairContribution p = contribution<kTranslation>(g, s.fx[q], s.fy[q], s.fz[q], s.tx[q], s.ty[q], s.tz[q]);
+    ux += p.ux;
+    uy += p.uy;
+    uz += p.uz;
+    wx += p.wx;
+    wy += p.wy;
+    wz += p.wz;
   }
   out = {{ux, uy, uz}, {wx, wy, wz}};
 }
@@ -178,9 +189,19 @@ template <bool kEqual>
 void grand_pair_sum(const GrandSources& src, const GrandTarget& target, GrandSums& out) {
   simd_dispatch([src, target, &out]() RPYFMM_SIMD_BODY {
     if (src.a == nullptr) {
-      grand_sum_loop<true>(src, target, out);
+      grand_sum_loop<true, true>(src, target, out);
     } else {
-      grand_sum_loop<false>(src, target, out);
+      grand_sum_loop<false, true>(src, target, out);
+    }
+  });
+}
+
+void rotation_pair_sum(const GrandSources& src, const GrandTarget& target, GrandSums& out) {
+  simd_dispatch([src, target, &out]() RPYFMM_SIMD_BODY {
+    if (src.a == nullptr) {
+      grand_sum_loop<true, false>(src, target, out);
+    } else {
+      grand_sum_loop<false, false>(src, target, out);
     }
   });
 }

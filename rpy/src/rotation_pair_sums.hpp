@@ -42,6 +42,10 @@ struct GrandAccumulators {
 /// out = the target's sums over the sources; the self pair (id[q] == target.i) skipped.
 void grand_pair_sum(const GrandSources& src, const GrandTarget& target, GrandSums& out);
 
+/// The same without the translational block: U gets c_ut (T x e) only (DirectRpy, whose
+/// translational product has its own kernels).
+void rotation_pair_sum(const GrandSources& src, const GrandTarget& target, GrandSums& out);
+
 /// Both directions between the target and sources of another leaf (never the target itself):
 /// out = the target's sums, and each source's sums from the target added to acc.
 void grand_pair_sum_symmetric(const GrandSources& src, const GrandTarget& target, const GrandAccumulators& acc,
