@@ -125,8 +125,13 @@ def direct_cases(full: bool) -> list[Case]:
 def rpy_cases(full: bool) -> list[Case]:
     dists, sizes, epss = (["suspension", "cylinder"], ["10000", "100000"], ["1e-3", "1e-6", "1e-9"]) if full else (
         ["suspension"], ["10000"], ["1e-3", "1e-6"])
-    return [Case(["rpy/bench_rpy_fmm", d, n, e, str(t), "3"], t, {}) for d in dists for n in sizes for e in epss
-            for t in THREADS]
+    cases = [Case(["rpy/bench_rpy_fmm", d, n, e, str(t), "3"], t, {}) for d in dists for n in sizes for e in epss
+             for t in THREADS]
+    # N = 1e6 at 1e-6, one thread: the automatic leaves and 100-point leaves (a tree one level
+    # deeper, which suits products with torques, whose near field costs ~3x the force-only one).
+    if full:
+        cases.append(Case(["rpy/bench_rpy_fmm", "suspension", "1000000", "1e-6", "1", "1", "-", "0,100"], 1, {}))
+    return cases
 
 
 def pse_cases(full: bool) -> list[Case]:
@@ -177,8 +182,9 @@ GROUPS = [
            ("fmm3dpy / rpyfmm", "fmm3d_over_rpyfmm", "{:.2f}")],
           keys=("N", "dist", "eps", "threads")),
     Group("direct", "Direct kernels",
-          "O(N^2) direct sums at N uniform points in the unit cube: Laplace (self pair skipped) and RPY "
-          "(equal and polydisperse radii); pairs per second of wall time.",
+          "O(N^2) direct sums at N uniform points in the unit cube: Laplace (self pair skipped), RPY "
+          "(equal and polydisperse radii) and rpy-rotation (the grand mobility with torques, apply(F, T, U, W)); "
+          "pairs per second of wall time.",
           ["bench_direct"], direct_cases, parse_csv, "median_s",
           [("kernel", "kernel", "{}"), ("outputs", "outputs", "{}"), ("N", "n", "{}"), ("threads", "threads", "{}"),
            ("median s", "median_s", "{:.4f}"), ("pairs/s", "pairs_per_s", "{:.3g}")],
@@ -186,13 +192,17 @@ GROUPS = [
     Group("rpy", "RPY operators",
           "One product U = M F with FmmRpy (four Laplace FMM densities, docs/theory/rpy.md) on a random "
           "suspension, its error against an exact RPY sum at 200 sampled targets, one Laplace FMM "
-          "evaluation on the same points, and the direct operator DirectRpy.",
+          "evaluation on the same points, and the direct operator DirectRpy; then the product with torques "
+          "[U; W] = M [F; T] (seven densities plus the rotational near field, docs/theory/rpy.md section 7), "
+          "its ratio to the force-only product and its error (the larger of U's and W's).",
           ["bench_rpy_fmm"], rpy_cases, parse_csv, "rpy_s",
           [("points", "dist", "{}"), ("N", "N", "{}"), ("eps", "eps", "{:.0e}"), ("threads", "threads", "{}"),
            ("FmmRpy s", "rpy_s", "{:.3f}"), ("rel err", "rel_l2_err", "{:.1e}"),
            ("Laplace FMM s", "laplace1_s", "{:.3f}"),
-           ("RPY / Laplace", "ratio_rpy_laplace", "{:.2f}"), ("DirectRpy s", "direct_s", "{:.3f}")],
-          keys=("dist", "N", "eps", "threads")),
+           ("RPY / Laplace", "ratio_rpy_laplace", "{:.2f}"), ("DirectRpy s", "direct_s", "{:.3f}"),
+           ("with torques s", "rot_s", "{:.3f}"), ("torques / forces", "ratio_rot_forces", "{:.2f}"),
+           ("rot err", "rot_rel_l2_err", "{:.1e}"), ("leaf cap", "leaf_capacity", "{}")],
+          keys=("dist", "N", "eps", "threads", "leaf_capacity")),
     Group("pse", "PSE on the CPU",
           "The setup of Table I of Fiore, Balboa Usabiaga, Donev & Swan, J. Chem. Phys. 146 (2017) 124116: hard "
           "spheres at "
