@@ -67,6 +67,29 @@ void row(const char* kernel, const char* outputs, std::size_t n, std::size_t nd,
   std::fflush(stdout);
 }
 
+// DirectRpy on the points x: U = M F with equal and polydisperse radii, then the grand mobility
+// with torques, [U; W] = M [F; T], on the same inputs.
+void rpy_rows(const std::vector<double>& x, std::size_t n, int threads, int reps, std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> u01(0.0, 1.0), um(-1.0, 1.0);
+  std::vector<double> f(3 * n), uvel(3 * n), a(n);
+  for (auto& v : f) v = um(rng);
+  for (auto& v : a) v = 0.0005 + 0.001 * u01(rng);
+  const double pairs = static_cast<double>(n) * static_cast<double>(n);
+  rpyfmm::rpy::DirectRpy op;
+  op.set_positions(x, 0.001);
+  row("rpy", "equal-radii", n, 1, threads, time_it(reps, [&] { op.apply(f, uvel); }), pairs);
+  op.set_positions(x, a);
+  row("rpy", "polydisperse", n, 1, threads, time_it(reps, [&] { op.apply(f, uvel); }), pairs);
+  // The grand mobility with rotation, [U; W] = M [F; T]: the translational product plus the
+  // rotational pair sums (UT, WF, WT blocks).
+  std::vector<double> torque(3 * n), wvel(3 * n);
+  for (auto& v : torque) v = 0.001 * um(rng);
+  op.set_positions(x, 0.001);
+  row("rpy-rotation", "equal-radii", n, 1, threads, time_it(reps, [&] { op.apply(f, torque, uvel, wvel); }), pairs);
+  op.set_positions(x, a);
+  row("rpy-rotation", "polydisperse", n, 1, threads, time_it(reps, [&] { op.apply(f, torque, uvel, wvel); }), pairs);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -136,24 +159,6 @@ int main(int argc, char** argv) {
       out.write(reinterpret_cast<const char*>(res.data()), static_cast<std::streamsize>(res.size() * 8));
     }
   }
-  if (kernel == "rpy" || kernel == "all") {
-    std::vector<double> f(3 * n), uvel(3 * n), a(n);
-    for (auto& v : f) v = um(rng);
-    for (auto& v : a) v = 0.0005 + 0.001 * u01(rng);
-    const double pairs = static_cast<double>(n) * static_cast<double>(n);
-    rpyfmm::rpy::DirectRpy op;
-    op.set_positions(x, 0.001);
-    row("rpy", "equal-radii", n, 1, threads, time_it(reps, [&] { op.apply(f, uvel); }), pairs);
-    op.set_positions(x, a);
-    row("rpy", "polydisperse", n, 1, threads, time_it(reps, [&] { op.apply(f, uvel); }), pairs);
-    // The grand mobility with rotation, [U; W] = M [F; T]: the translational product plus the
-    // rotational pair sums (UT, WF, WT blocks).
-    std::vector<double> torque(3 * n), wvel(3 * n);
-    for (auto& v : torque) v = 0.001 * um(rng);
-    op.set_positions(x, 0.001);
-    row("rpy-rotation", "equal-radii", n, 1, threads, time_it(reps, [&] { op.apply(f, torque, uvel, wvel); }), pairs);
-    op.set_positions(x, a);
-    row("rpy-rotation", "polydisperse", n, 1, threads, time_it(reps, [&] { op.apply(f, torque, uvel, wvel); }), pairs);
-  }
+  if (kernel == "rpy" || kernel == "all") rpy_rows(x, n, threads, reps, rng);
   return 0;
 }

@@ -135,6 +135,18 @@ double sampled_rotation_error(const t::Configuration& c, const std::vector<doubl
   return std::max(std::sqrt(num_u / den_u), std::sqrt(num_w / den_w));
 }
 
+// Median time of the product with torques; u, w hold the last result.
+double median_rotation_time(const rpyfmm::rpy::FmmRpy& op, const std::vector<double>& f, const std::vector<double>& tq,
+                            std::vector<double>& u, std::vector<double>& w, int repeats) {
+  std::vector<double> times;
+  for (int r = 0; r < repeats; ++r) {
+    StopWatch watch;
+    op.apply(f, tq, u, w);
+    times.push_back(watch.seconds());
+  }
+  return median(times);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -190,12 +202,8 @@ int main(int argc, char** argv) {
           far_t.push_back(tm.count("total") ? tm["total"] : 0.0);
         }
         const double err = sampled_error(c, f, u, 200);
-        std::vector<double> ur(3 * n), wr(3 * n), rot_t;
-        for (int r = 0; r < repeats; ++r) {
-          StopWatch w;
-          op.apply(f, tq, ur, wr);
-          rot_t.push_back(w.seconds());
-        }
+        std::vector<double> ur(3 * n), wr(3 * n);
+        const double rot_s = median_rotation_time(op, f, tq, ur, wr, repeats);
         const double rot_err = sampled_rotation_error(c, f, tq, ur, wr, 200);
 
         // One Laplace FMM evaluation, pot + grad + Hessian, one charge vector, same points and eps.
@@ -211,7 +219,6 @@ int main(int argc, char** argv) {
         }
         const auto stats = op.laplace_plan()->stats();
         const double rpy_s = median(times), lap_s = median(lt);
-        const double rot_s = median(rot_t);
         std::printf("%s,%zu,%.0e,%d,%.4f,%.4f,%.2f,%.3f,%s,%.1f,%.2e,%d,%zu,%.4f,%.4f,%d,%.4f,%.2f,%.2e\n",
                     dist.c_str(), n, eps, nt, rpy_s, lap_s, rpy_s / lap_s, direct_s, direct_kind.c_str(),
                     direct_s / rpy_s, err, stats.levels, stats.leaves, median(near_t), median(far_t),
