@@ -16,6 +16,7 @@
 #include "rpyfmm/core/error.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
+#include "simd_levels.hpp"
 
 using rpyfmm::rpy::DirectRpy;
 using rpyfmm::rpy::FmmRpy;
@@ -180,3 +181,32 @@ TEST(FmmRotation, BadInput) {
   tq[4] = std::nan("");
   EXPECT_THROW(op.apply(f, tq, u, w), rpyfmm::Error);
 }
+
+// Every instruction-set level this machine runs (the RPYFMM_SIMD override): the vectorized pair
+// sums of FmmRpy and DirectRpy give the grand mobility within FmmRpy's tolerance of the direct
+// product at the scalar level, a reference that does not share the level's kernels.
+class FmmRotationLevels : public rpyfmm::test::SimdLevelTest {};
+
+TEST_P(FmmRotationLevels, WithinToleranceOfTheScalarDirectProduct) {
+  t::Configuration c = t::random_suspension(600, 1.0, 0.4, 25);
+  for (std::size_t i = 0; i < c.a.size(); ++i) c.a[i] = 0.6 + 0.8 * static_cast<double>(i % 7) / 6.0;
+  const auto [f, tq] = loads(c, Loads::both, 6);
+  const rpyfmm::SimdLevel level = rpyfmm::simd_level();
+  rpyfmm::set_simd_level(rpyfmm::SimdLevel::scalar);
+  DirectRpy reference;
+  reference.set_positions(c.x, c.a);
+  const Motion exact = grand_product(reference, f, tq);
+  rpyfmm::set_simd_level(level);
+  DirectRpy direct;
+  FmmRpy fast(Geometry::open(), 1.0, FmmRpyOptions{.tolerance = 1e-6, .leaf_capacity = 24});
+  direct.set_positions(c.x, c.a);
+  fast.set_positions(c.x, c.a);
+  const Motion d = grand_product(direct, f, tq), m = grand_product(fast, f, tq);
+  EXPECT_LE(t::relative_l2(d.u, exact.u), 1e-13);  // rounding only
+  EXPECT_LE(t::relative_l2(d.w, exact.w), 1e-13);
+  EXPECT_LE(t::relative_l2(m.u, exact.u), 1e-6);
+  EXPECT_LE(t::relative_l2(m.w, exact.w), 1e-6);
+}
+
+INSTANTIATE_TEST_SUITE_P(Levels, FmmRotationLevels, ::testing::ValuesIn(rpyfmm::test::all_simd_levels()),
+                         rpyfmm::test::simd_level_param_name);
