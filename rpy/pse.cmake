@@ -3,7 +3,9 @@
 target_sources(rpyfmm_rpy PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/parameters.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/real_space.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/pse/rotation_real_space.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/real_space_sum.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/pse/rotation_real_space_sum.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/real_space_apply.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/neighbour_lists.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/list_filter.cpp

@@ -244,6 +244,34 @@ TEST(BdRotation, FmmStepMatchesDirect) {
   EXPECT_LE(relative(fmm.last_rotations(), direct.last_rotations()), 1e-8);
 }
 
+// PSE with rotation in a periodic box: one step without noise moves and turns the spheres by
+// dt [U; W] of the operator's own grand-mobility product (torques alone), to a few ulps.
+TEST(BdRotation, PseStepAppliesThePeriodicGrandMobility) {
+  const std::size_t n = 60;
+  const double L = 16.0;
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> coordinate(0.0, L);
+  std::vector<double> x(3 * n);
+  for (double& v : x) v = coordinate(rng);
+  const ForceField ff = rotating_field(1.0, TypeTorque{.torque = {0.3, -0.2, 0.5}}, {0, 0, 0});
+  const std::vector<std::uint32_t> types(n, 0);
+  const double dt = 0.01;
+  const auto geometry = rpyfmm::rpy::Geometry::periodic(L, L, L);
+  Integrator bd(std::make_unique<rpyfmm::rpy::pse::PseRpy>(geometry, 1.0), ff,
+                {.dt = dt, .kT = 0.0, .keep_split_displacements = true, .rotation = true}, x, types);
+  bd.step();
+  rpyfmm::rpy::pse::PseRpy op(geometry, 1.0);
+  op.set_positions(x, 1.0);
+  std::vector<double> f(3 * n, 0.0), t(3 * n), u(3 * n), w(3 * n);
+  for (std::size_t i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c) t[3 * i + c] = std::array{0.3, -0.2, 0.5}[c];
+  op.apply(f, t, u, w);
+  for (std::size_t k = 0; k < 3 * n; ++k) {
+    EXPECT_DOUBLE_EQ(bd.deterministic_displacement()[k], dt * u[k]) << k;
+    EXPECT_DOUBLE_EQ(bd.last_rotations()[k], dt * w[k]) << k;
+  }
+}
+
 // One step's 12 displacements [dx_0, dx_1, phi_0, phi_1] of two spheres (a = 1, eta = 1, kT = 1,
 // r = 2.5, RPY by DirectRpy) have covariance 2 kT dt M, M the grand mobility assembled here from
 // docs/theory/rpy.md Sec. 7's far-field closed forms: self blocks I / (6 pi), I / (8 pi); pair
@@ -316,14 +344,26 @@ TEST(BdRotation, TurningRotationOnLeavesFreeDrainingTranslationBitwise) {
   EXPECT_NE(on.orientations()[0], 1.0);  // and the spheres did turn
 }
 
-// Rotation needs an operator with torques: PSE has none, and the error names it and the key.
+// A mobility with translation only (supports_rotation() false), as a user's own operator may be.
+class TranslationOnly final : public rpyfmm::rpy::MobilityOperator {
+ public:
+  TranslationOnly() : MobilityOperator(rpyfmm::rpy::Geometry::open(), 1.0, "TranslationOnly") {}
+  [[nodiscard]] std::string name() const override { return "translation-only"; }
+
+ protected:
+  void on_positions_set() override {}
+  void do_apply(const double* forces, double* velocities, std::size_t nrhs) const override {
+    std::copy_n(forces, 3 * size() * nrhs, velocities);
+  }
+};
+
+// Rotation needs an operator with torques: one without is refused, the error naming it and the key.
 TEST(BdRotation, OperatorWithoutRotationIsRefusedByName) {
-  auto pse = std::make_unique<rpyfmm::rpy::pse::PseRpy>(rpyfmm::rpy::Geometry::periodic(20, 20, 20), 1.0);
   try {
-    Integrator bd(std::move(pse), ForceField(), {.dt = 0.01, .rotation = true}, line(2), {0, 0});
-    FAIL() << "rotation with PSE not refused";
+    Integrator bd(std::make_unique<TranslationOnly>(), ForceField(), {.dt = 0.01, .rotation = true}, line(2), {0, 0});
+    FAIL() << "rotation with an operator without it not refused";
   } catch (const Error& err) {
-    EXPECT_NE(std::string(err.what()).find("'pse'"), std::string::npos) << err.what();
+    EXPECT_NE(std::string(err.what()).find("'translation-only'"), std::string::npos) << err.what();
     EXPECT_NE(std::string(err.what()).find("system.rotation"), std::string::npos) << err.what();
   }
   EXPECT_THROW(Integrator(free_draining(), ForceField(), {.dt = 0.01}, line(1), {0}, {}, 0, {1, 0, 0, 0}), Error);

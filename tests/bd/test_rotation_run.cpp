@@ -134,12 +134,6 @@ TEST(BdRotationConfig, EveryBadRotationKeyIsNamed) {
                "external.dipole_field");
   expect_error(replace(kRotating, "torque = [0.05, 0.0, 0.0]", "torq = [0.05, 0.0, 0.0]"), "external.torq");
   expect_error(replace(kRotating, "dipole = 2.0\n", ""), "external.dipole_field");  // a field with no dipole
-  // An operator without rotation: the run is refused before it writes anything, naming it.
-  const std::string periodic =
-      replace(replace(kRotating, "rotation = true", "rotation = true\ngeometry = \"periodic\"\nbox = [20, 20, 20]"),
-              "method = \"none\"", "method = \"pse\"");
-  expect_error(periodic, "'pse'");
-  EXPECT_FALSE(std::filesystem::exists(std::filesystem::temp_directory_path() / "rpyfmm_bd_rotation_refused"));
 }
 
 // Rows "x y z [type] [qw qx qy qz]": normalized, written back as x y z w (OVITO's order); refused

@@ -21,6 +21,7 @@
 #include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/fmm/direct.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
 #include "rpyfmm/rpy/rigid_bodies.hpp"
 
@@ -184,7 +185,7 @@ TEST_F(Cli, LaplaceSeveralChargeVectorsAtTextTargets) {
 }
 
 // --torques: the grand mobility with rotation, (N, 6) rows Ux Uy Uz Wx Wy Wz, equal bit for bit to
-// DirectRpy::apply(F, T, U, W); --angular alone: T = 0; an operator without rotation refuses.
+// DirectRpy::apply(F, T, U, W) (and PseRpy's with --method pse); --angular alone: T = 0.
 TEST_F(Cli, MobilityWithTorquesWritesVelocitiesAndAngularVelocities) {
   const std::size_t n = 40;
   const auto x = random_vec(3 * n, 16, 0, 6);
@@ -211,9 +212,24 @@ TEST_F(Cli, MobilityWithTorquesWritesVelocitiesAndAngularVelocities) {
       }
     fs::remove(path("uw.npy"));
   }
-  expect_failure("mobility --positions " + path("x.npy") + " --forces " + path("f.npy") +
-                     " --radius 0.5 --method pse --box 20" + " --torques " + path("t.npy") + " --out " + path("uw.npy"),
-                 "need a mobility with rotation", "uw.npy");
+  // PSE (periodic) too: the same rows from PseRpy's grand mobility.
+  const Result r = run("mobility --positions " + path("x.npy") + " --forces " + path("f.npy") +
+                       " --radius 0.5 --viscosity 2 --method pse --tolerance 1e-4 --box 20 --torques " + path("t.npy") +
+                       " --out " + path("uw.npy"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const Npy uw = read_npy(path("uw.npy"));
+  ASSERT_EQ(uw.shape, (std::vector<std::size_t>{n, 6}));
+  rpyfmm::rpy::pse::PseOptions options;
+  options.tolerance = 1e-4;
+  rpyfmm::rpy::pse::PseRpy pse(rpyfmm::rpy::Geometry::periodic(20, 20, 20), 2.0, options);
+  pse.set_positions(x, 0.5);
+  std::vector<double> u(3 * n), w(3 * n);
+  pse.apply(f, t, u, w);
+  for (std::size_t i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_EQ(uw.data[6 * i + c], u[3 * i + c]) << i;
+      EXPECT_EQ(uw.data[6 * i + 3 + c], w[3 * i + c]) << i;
+    }
 }
 
 TEST_F(Cli, MobilityMatchesLibrary) {

@@ -31,4 +31,22 @@ inline Eigen::MatrixXd dense(const rpyfmm::rpy::MobilityOperator& op) {
   return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(d.data(), n, n);
 }
 
+/// The 6N matrix of the grand mobility from products with unit vectors, [U; W] rows, [F; T] columns.
+inline Eigen::MatrixXd grand_matrix(const rpyfmm::rpy::MobilityOperator& op) {
+  const std::size_t n3 = 3 * op.size();
+  Eigen::MatrixXd M(2 * n3, 2 * n3);
+  std::vector<double> F(n3), T(n3), U(n3), W(n3);
+  for (std::size_t c = 0; c < 2 * n3; ++c) {
+    std::fill(F.begin(), F.end(), 0.0);
+    std::fill(T.begin(), T.end(), 0.0);
+    (c < n3 ? F[c] : T[c - n3]) = 1.0;
+    op.apply(F, T, U, W);
+    for (std::size_t r = 0; r < n3; ++r) {
+      M(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = U[r];
+      M(static_cast<Eigen::Index>(n3 + r), static_cast<Eigen::Index>(c)) = W[r];
+    }
+  }
+  return M;
+}
+
 }  // namespace pse_test

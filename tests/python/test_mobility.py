@@ -300,10 +300,14 @@ def test_apply_with_torques_gives_the_grand_mobility():
     U_fmm, W_fmm = fmm.apply(F, T)
     np.testing.assert_allclose(U_fmm, U, rtol=1e-13, atol=1e-17)
     np.testing.assert_allclose(W_fmm, W, rtol=1e-13, atol=1e-17)
+    # PSE: the periodic grand mobility (a large box: close to the free-space pair, not equal).
     pse = rpyfmm.PseRpy(box=20.0)
     pse.set_positions(x + 10.0, a)
-    assert not pse.supports_rotation
-    with pytest.raises(rpyfmm.NotSupportedError, match="has no rotational mobility"):
-        pse.apply(F, T)
+    assert pse.supports_rotation
+    U_pse, W_pse = pse.apply(F, T)
+    assert U_pse.shape == U.shape and W_pse.shape == W.shape
+    assert np.all(np.isfinite(U_pse)) and np.all(np.isfinite(W_pse))
+    # W_1 is the torqued sphere's self rotation; the images change it by O(a^2 / L^2).
+    np.testing.assert_allclose(W_pse[1], W[1], rtol=2e-2)
     with pytest.raises(rpyfmm.InvalidInputError, match="torques has shape"):
         op.apply(F, T[:1])

@@ -7,6 +7,7 @@
 
 #include "real_space_sqrt.hpp"
 #include "real_space_sum.hpp"
+#include "rotation_real_space_sum.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/random.hpp"
 #include "wave_space.hpp"
@@ -46,7 +47,18 @@ struct PseRpy::Impl {
   std::size_t planned_n = 0;
   std::unique_ptr<detail::RealSpaceSum> real;
   std::unique_ptr<detail::WaveSpace> wave;
+  // The rotational real-space blocks: built on the first product with torques (their table).
+  mutable std::unique_ptr<detail::RotationRealSpaceSum> rotation;
   mutable StageTimes times;
+
+  const detail::RotationRealSpaceSum& rotation_sum(const std::array<double, 3>& box, double viscosity) const {
+    if (!rotation) {
+      StopWatch sw;
+      rotation = std::make_unique<detail::RotationRealSpaceSum>(params, box, viscosity);
+      times["plan"] += sw.seconds();
+    }
+    return *rotation;
+  }
 
   /// y = M_r^{1/2} z (nrhs vectors in input order) by Lanczos on the real-space part ([PSE]
   /// Sec. II.B; docs/theory/pse.md, split sampler), iterated in slot order: z is permuted once, the products then
@@ -105,6 +117,7 @@ void PseRpy::on_positions_set() {
     im.planned = false;
     im.real.reset();
     im.wave.reset();
+    im.rotation.reset();
     // All checks (box vs r_cut, window, memory) happen here, before any allocation.
     PseParameters p = choose_parameters(im.options, a, geometry().box(), n);
     // Pair cache (pair_cache.hpp): float with float wave grids, else double; within what the
@@ -142,6 +155,63 @@ void PseRpy::do_apply(const double* forces, double* velocities, std::size_t nrhs
   StopWatch sw;
   im.real->apply(forces, velocities, nrhs, true);
   im.times["real_space"] += sw.seconds();
+}
+
+void PseRpy::do_apply_rotation(const double* forces, const double* torques, double* velocities,
+                               double* angular_velocities) const {
+  auto& im = *impl_;
+  im.wave->apply_rotation(forces, torques, velocities, angular_velocities, false, nullptr, 0.0, &im.times);
+  StopWatch sw;
+  im.real->apply(forces, velocities, 1, true);
+  im.rotation_sum(geometry().box(), viscosity())
+      .apply(im.real->slot_lists(), positions(), forces, torques, velocities, angular_velocities);
+  im.times["real_space"] += sw.seconds();
+}
+
+SqrtReport PseRpy::do_apply_sqrt_rotation(std::span<const double> z_translation, std::span<const double> z_rotation,
+                                          std::span<double> w_translation, std::span<double> w_rotation,
+                                          const SqrtOptions& options) const {
+  if (options.method != SqrtMethod::automatic && options.method != SqrtMethod::split) {
+    return MobilityOperator::do_apply_sqrt_rotation(z_translation, z_rotation, w_translation, w_rotation, options);
+  }
+  require(options.preconditioner != SqrtPreconditioner::block, ErrorCode::invalid_argument,
+          "PseRpy::apply_sqrt_rotation",
+          "the block preconditioner serves the Lanczos and Chebyshev samplers only, not the split sampler");
+  auto& im = *impl_;
+  const std::size_t n3 = 3 * size();
+  const double a = im.params.radius;
+  const auto& rotation = im.rotation_sum(geometry().box(), viscosity());
+  // Real part: Lanczos on S M_r S, S = diag(I, a I), then [w_t; w_r] = S^-1 (S M_r S)^{1/2} z.
+  LinearOperatorView scaled;
+  scaled.n = 2 * n3;
+  std::vector<double> torques(n3);
+  scaled.apply = [&](std::span<const double> x, std::span<double> y, std::size_t nrhs) {
+    for (std::size_t r = 0; r < nrhs; ++r) {
+      const double* xr = x.data() + r * 2 * n3;
+      double* yr = y.data() + r * 2 * n3;
+      for (std::size_t k = 0; k < n3; ++k) torques[k] = a * xr[n3 + k];
+      std::fill(yr + n3, yr + 2 * n3, 0.0);
+      im.real->apply(xr, yr, 1, false);
+      rotation.apply(im.real->slot_lists(), positions(), xr, torques.data(), yr, yr + n3);
+      for (std::size_t k = 0; k < n3; ++k) yr[n3 + k] *= a;
+    }
+  };
+  std::vector<double> z(2 * n3), w(2 * n3);
+  std::copy(z_translation.begin(), z_translation.end(), z.begin());
+  std::copy(z_rotation.begin(), z_rotation.end(), z.begin() + static_cast<std::ptrdiff_t>(n3));
+  StopWatch sw;
+  SqrtReport rep = sqrt_apply(scaled, z, w, 1, detail::real_space_sqrt_options(im.params.lanczos_tolerance));
+  im.times["lanczos"] += sw.seconds();
+  for (std::size_t k = 0; k < n3; ++k) {
+    w_translation[k] = w[k];
+    w_rotation[k] = w[n3 + k] / a;
+  }
+  // Wave part: the translational noise field keyed by the hash of z (as apply_sqrt).
+  const detail::NoiseKey key{noise_hash(z), 0};
+  im.wave->apply_rotation(nullptr, nullptr, w_translation.data(), w_rotation.data(), true, &key, 1.0, &im.times);
+  rep.method = SqrtMethod::split;
+  rep.operator_applications += 1;
+  return rep;
 }
 
 void PseRpy::apply_real(std::span<const double> forces, std::span<double> velocities) const {

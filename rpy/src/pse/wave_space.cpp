@@ -11,6 +11,7 @@
 #include <span>
 #include <vector>
 
+#include "rotation_modes.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "scale_line.hpp"
 #include "window_avx2.hpp"
@@ -24,6 +25,20 @@ namespace {
 constexpr std::size_t kParallelWork = 32768;
 /// Particles ahead whose forces (outputs) spreading (interpolation) prefetches.
 constexpr std::size_t kPrefetchAhead = 8;
+
+/// Adds the seconds since the previous lap (or construction) to times[stage]; null times: none.
+class StageLaps {
+ public:
+  explicit StageLaps(StageTimes* times) : times_(times) {}
+  void operator()(const char* stage) {
+    if (times_) (*times_)[stage] += watch_.seconds();
+    watch_.restart();
+  }
+
+ private:
+  StageTimes* times_;
+  StopWatch watch_;
+};
 
 std::mutex& planner_mutex() {
   static std::mutex m;
@@ -200,13 +215,21 @@ class WaveGrid final : public WaveSpace {
   void set_positions(std::span<const double> x) override;
   void apply(const double* forces, double* out, bool accumulate, const NoiseKey* noise, double noise_scale,
              StageTimes* times) override;
+  void apply_rotation(const double* forces, const double* torques, double* velocities, double* angular, bool accumulate,
+                      const NoiseKey* noise, double noise_scale, StageTimes* times) override;
 
  private:
   using Plan = typename Fftw<Real>::Plan;
   using Complex = typename Fftw<Real>::Complex;
 
-  void spread(const double* forces);
-  void interpolate(double* out, bool accumulate) const;
+  /// Spreads three components per particle onto `grid` (grid_ or rotation_grid_).
+  void spread(const double* forces, Real* grid);
+  /// Interpolates the three components of `grid` (after the transform back) to the particles.
+  void interpolate(const Real* grid, double* out, bool accumulate) const;
+  /// apply_rotation's per-mode pass on spectrum_ (forces -> U) and rotation_spectrum_ (torques -> W).
+  void scale_rotation_modes(bool deterministic, const NoiseKey* noise, double noise_factor);
+  /// The second grid and spectrum of apply_rotation (the plans run on them by FFTW's new-array execute).
+  void allocate_rotation_buffers();
   // set_positions stages: window starts and offsets in input order, the tile order and colours,
   // the window weights in tile order.
   void window_starts(std::span<const double> x, std::vector<int>& start, std::vector<double>& offset) const;
@@ -229,8 +252,11 @@ class WaveGrid final : public WaveSpace {
   double dv_ = 0.0;
   double c3_ = 0.0;
   std::vector<double> ck_;
-  Real* grid_ = nullptr;      // 3 x Ng real (fftw_malloc)
-  Real* spectrum_ = nullptr;  // 3 x modes complex (fftw_malloc)
+  Real* grid_ = nullptr;           // 3 x Ng real (fftw_malloc)
+  Real* spectrum_ = nullptr;       // 3 x modes complex (fftw_malloc)
+  Real* rotation_grid_ = nullptr;  // the same for torques and angular velocities (apply_rotation)
+  Real* rotation_spectrum_ = nullptr;
+  RotationModeConstants rotation_constants_{};
   Plan plan_forward_ = nullptr;
   Plan plan_backward_ = nullptr;
   int fft_threads_ = 1;
@@ -298,6 +324,8 @@ WaveGrid<Real>::WaveGrid(const PseParameters& p, const std::array<double, 3>& bo
   P_ = p.support;
   ng_ = static_cast<std::size_t>(n_[0]) * static_cast<std::size_t>(n_[1]) * static_cast<std::size_t>(n_[2]);
   ck_ = wave_scaling_table(p, box, viscosity, modes_);
+  rotation_constants_ = {p.radius, 1.0 / (4.0 * p.xi * p.xi), 1.0 - p.window_eta,
+                         1.0 / (viscosity * static_cast<double>(ng_))};
   dv_ = p.spacing[0] * p.spacing[1] * p.spacing[2];
   c3_ = std::pow(2.0 * std::numbers::pi * p.sigma * p.sigma, -1.5);
   fft_threads_ = fft_threads > 0 ? fft_threads : (ng_ >= (std::size_t{1} << 20) ? omp_get_max_threads() : 1);
@@ -349,8 +377,10 @@ void WaveGrid<Real>::release() noexcept {
   if (plan_backward_) F::destroy(plan_backward_);
   F::free(grid_);
   F::free(spectrum_);
+  F::free(rotation_grid_);
+  F::free(rotation_spectrum_);
   plan_forward_ = plan_backward_ = nullptr;
-  grid_ = spectrum_ = nullptr;
+  grid_ = spectrum_ = rotation_grid_ = rotation_spectrum_ = nullptr;
 }
 
 template <class Real>
@@ -477,13 +507,13 @@ void WaveGrid<Real>::window_lines(std::size_t q, std::size_t* xline, std::size_t
 }
 
 template <class Real>
-void WaveGrid<Real>::spread(const double* forces) {
+void WaveGrid<Real>::spread(const double* forces, Real* grid) {
   // f_n = sum_j F_j g(x_n - x_j)  (spreading, D in [PSE] eq. 19), race-free and in a fixed
   // order: the result does not depend on the number of threads.
   const int pw = P_[0] + P_[1] + P_[2];
-  Real* g0 = grid_;
-  Real* g1 = grid_ + comp_dist_;
-  Real* g2 = grid_ + 2 * comp_dist_;
+  Real* g0 = grid;
+  Real* g1 = grid + comp_dist_;
+  Real* g2 = grid + 2 * comp_dist_;
   const auto total = static_cast<std::int64_t>(3 * comp_dist_);
   const std::size_t p3 = static_cast<std::size_t>(P_[0]) * P_[1] * P_[2];
   const bool par = np_ * p3 >= kParallelWork || ng_ >= 4 * kParallelWork;
@@ -491,7 +521,7 @@ void WaveGrid<Real>::spread(const double* forces) {
 #pragma omp parallel if (par)
   {
 #pragma omp for schedule(static)
-    for (std::int64_t q = 0; q < total; ++q) grid_[q] = Real(0);
+    for (std::int64_t q = 0; q < total; ++q) grid[q] = Real(0);
     std::vector<Real> wf(3 * static_cast<std::size_t>(P_[2]));  // wz * f, per component
     std::vector<std::size_t> xline(static_cast<std::size_t>(P_[0])), yline(static_cast<std::size_t>(P_[1]));
     for (const auto& colour : tiles_of_colour_) {
@@ -532,12 +562,12 @@ void WaveGrid<Real>::spread(const double* forces) {
 }
 
 template <class Real>
-void WaveGrid<Real>::interpolate(double* out, bool accumulate) const {
+void WaveGrid<Real>::interpolate(const Real* grid, double* out, bool accumulate) const {
   // U_j = dV sum_n g(x_n - x_j) u_n  (interpolation, D^-1 in [PSE] eq. 19).
   const int pw = P_[0] + P_[1] + P_[2];
-  const Real* g0 = grid_;
-  const Real* g1 = grid_ + ng_;
-  const Real* g2 = grid_ + 2 * ng_;
+  const Real* g0 = grid;
+  const Real* g1 = grid + ng_;
+  const Real* g2 = grid + 2 * ng_;
   const double scale = c3_ * dv_;
   const auto np = static_cast<std::int64_t>(np_);
   const bool par = np_ * static_cast<std::size_t>(P_[0]) * P_[1] * P_[2] >= kParallelWork;
@@ -586,14 +616,10 @@ void WaveGrid<Real>::interpolate(double* out, bool accumulate) const {
 template <class Real>
 void WaveGrid<Real>::apply(const double* forces, double* out, bool accumulate, const NoiseKey* noise,
                            double noise_scale, StageTimes* times) {
-  StopWatch sw;
-  auto lap = [&](const char* stage) {
-    if (times) (*times)[stage] += sw.seconds();
-    sw.restart();
-  };
+  StageLaps lap(times);
   const bool deterministic = forces != nullptr;
   if (deterministic) {
-    spread(forces);
+    spread(forces, grid_);
     lap("spread");
     Fftw<Real>::execute_r2c(plan_forward_, grid_, reinterpret_cast<Complex*>(spectrum_));
     lap("fft_forward");
@@ -654,7 +680,80 @@ void WaveGrid<Real>::apply(const double* forces, double* out, bool accumulate, c
   lap("scale");
   Fftw<Real>::execute_c2r(plan_backward_, reinterpret_cast<Complex*>(spectrum_), grid_);
   lap("fft_backward");
-  interpolate(out, accumulate);
+  interpolate(grid_, out, accumulate);
+  lap("interpolate");
+}
+
+template <class Real>
+void WaveGrid<Real>::allocate_rotation_buffers() {
+  if (rotation_grid_ != nullptr) return;
+  using F = Fftw<Real>;
+  rotation_grid_ = F::alloc_real(3 * comp_dist_);
+  rotation_spectrum_ = reinterpret_cast<Real*>(F::alloc_complex(3 * modes_.modes));
+  if (rotation_grid_ == nullptr || rotation_spectrum_ == nullptr) {
+    F::free(rotation_grid_);
+    F::free(rotation_spectrum_);
+    rotation_grid_ = rotation_spectrum_ = nullptr;
+    fail(ErrorCode::out_of_memory, "PseRpy", "could not allocate the FFT grids of the rotational wave space");
+  }
+}
+
+template <class Real>
+void WaveGrid<Real>::scale_rotation_modes(bool deterministic, const NoiseKey* noise, double noise_factor) {
+  // One (ix, iy) line per iteration, every mode on its own: the result does not depend on the
+  // thread count. The noise of a mode is the translational sampler's (normal6 / normal6f of its
+  // pair's representative, as scale_mode draws it).
+  const int ny = modes_.n[1];
+  const int nzh = modes_.nzh;
+  const auto lines = static_cast<std::int64_t>(modes_.n[0]) * ny;
+#pragma omp parallel for schedule(static) if (parallel_modes_)
+  for (std::int64_t line = 0; line < lines; ++line) {
+    const int ix = static_cast<int>(line / ny);
+    const int iy = static_cast<int>(line % ny);
+    for (int iz = 0; iz < nzh; ++iz) {
+      const std::size_t idx =
+          static_cast<std::size_t>(line) * static_cast<std::size_t>(nzh) + static_cast<std::size_t>(iz);
+      Real z[6];
+      bool representative = true;
+      if (noise != nullptr) {
+        std::uint64_t lin, rep;
+        mode_pair(ix, iy, iz, modes_, lin, rep);
+        if constexpr (sizeof(Real) == sizeof(float)) {
+          normal6f(noise->seed, noise->step, kStreamWave, rep, z);
+        } else {
+          normal6(noise->seed, noise->step, kStreamWave, rep, z);
+        }
+        representative = lin == rep;
+      }
+      scale_rotation_mode(ix, iy, iz, idx, modes_, ck_.data(), rotation_constants_, spectrum_, rotation_spectrum_,
+                          deterministic, noise != nullptr ? z : static_cast<const Real*>(nullptr), representative,
+                          noise_factor);
+    }
+  }
+}
+
+template <class Real>
+void WaveGrid<Real>::apply_rotation(const double* forces, const double* torques, double* velocities, double* angular,
+                                    bool accumulate, const NoiseKey* noise, double noise_scale, StageTimes* times) {
+  allocate_rotation_buffers();
+  StageLaps lap(times);
+  const bool deterministic = forces != nullptr;
+  if (deterministic) {
+    spread(forces, grid_);
+    spread(torques, rotation_grid_);
+    lap("spread");
+    Fftw<Real>::execute_r2c(plan_forward_, grid_, reinterpret_cast<Complex*>(spectrum_));
+    Fftw<Real>::execute_r2c(plan_forward_, rotation_grid_, reinterpret_cast<Complex*>(rotation_spectrum_));
+    lap("fft_forward");
+  }
+  const bool with_noise = noise != nullptr && noise_scale != 0.0;
+  scale_rotation_modes(deterministic, with_noise ? noise : nullptr, noise_scale / std::sqrt(dv_));
+  lap("scale");
+  Fftw<Real>::execute_c2r(plan_backward_, reinterpret_cast<Complex*>(spectrum_), grid_);
+  Fftw<Real>::execute_c2r(plan_backward_, reinterpret_cast<Complex*>(rotation_spectrum_), rotation_grid_);
+  lap("fft_backward");
+  interpolate(grid_, velocities, accumulate);
+  interpolate(rotation_grid_, angular, accumulate);
   lap("interpolate");
 }
 

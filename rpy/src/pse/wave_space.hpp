@@ -41,6 +41,14 @@ class WaveSpace {
   /// (noise only, the forward FFT is skipped); `noise` may be null (deterministic).
   virtual void apply(const double* forces, double* out, bool accumulate, const NoiseKey* noise, double noise_scale,
                      StageTimes* times) = 0;
+
+  /// [U; W] (+)= M_w [F; T] + noise_scale M_w^{1/2} z2(key) for the grand mobility with rotation
+  /// (rotation_modes.hpp), 3N each: spreads forces and torques, transforms six components each way.
+  /// `forces` and `torques` both null: noise only. The noise is the translational field z2, so the
+  /// U part of the noise equals apply()'s to round-off. The second set of grids is allocated on the
+  /// first call.
+  virtual void apply_rotation(const double* forces, const double* torques, double* velocities, double* angular,
+                              bool accumulate, const NoiseKey* noise, double noise_scale, StageTimes* times) = 0;
 };
 
 /// fft_measure: FFTW_MEASURE plans instead of FFTW_ESTIMATE (PseOptions::fft_measure).

@@ -21,6 +21,15 @@
 //   - SqrtMethod::lanczos / chebyshev / cholesky / eigen: the generic solvers on the full
 //     operator (MobilityOperator::do_apply_sqrt), e.g. for comparison as in [PSE] Fig. 6.
 //
+// Rotation (supports_rotation): the grand mobility [U; W] = M [F; T] with the same splitting
+// (docs/theory/pse.md, "Rotation"): the wave part spreads forces and torques and transforms six
+// components each way; the real part adds the rotational blocks' tabulated coefficients over the
+// same neighbour lists (the table is built on the first product with torques, ~0.2 s).
+// apply_sqrt_rotation with SqrtMethod::automatic or split is the split sampler on the 6N operator:
+// Lanczos on S M_r S (S = diag(I, a I), as MobilityOperator::apply_sqrt_rotation) with
+// z = [z_t; z_r], plus the wave part's noise from the translational field z2 keyed by the hash of
+// z, so that its translational part equals apply_sqrt's wave noise for the same key.
+//
 // Requirements: periodic geometry (open rejected), equal radii (PSE's assumption; unequal
 // radii -> ErrorCode::not_supported). Positions outside the box are wrapped into [0, L)
 // (MobilityOperator::set_positions). Parameters are chosen from PseOptions on the first
@@ -74,11 +83,18 @@ class PseRpy final : public PseOperator {
   [[nodiscard]] StageTimes stage_times() const override;
   void reset_stage_times() const override;
 
+  [[nodiscard]] bool supports_rotation() const override { return true; }
+
  protected:
   void on_positions_set() override;
   void do_apply(const double* forces, double* velocities, std::size_t nrhs) const override;
   SqrtReport do_apply_sqrt(std::span<const double> z, std::span<double> w, std::size_t nrhs,
                            const SqrtOptions& options) const override;
+  void do_apply_rotation(const double* forces, const double* torques, double* velocities,
+                         double* angular_velocities) const override;
+  SqrtReport do_apply_sqrt_rotation(std::span<const double> z_translation, std::span<const double> z_rotation,
+                                    std::span<double> w_translation, std::span<double> w_rotation,
+                                    const SqrtOptions& options) const override;
 
  private:
   struct Impl;
