@@ -207,11 +207,13 @@ GROUPS = [
           "The setup of Table I of Fiore, Balboa Usabiaga, Donev & Swan, J. Chem. Phys. 146 (2017) 124116: hard "
           "spheres at "
           "phi = 0.1, xi a = 0.5, tolerance 1e-3, periodic; particle-timesteps per second (PTPS = N / s) of "
-          "U = M F and of the split sampler M^{1/2} z (docs/theory/pse.md), each the first after set_positions.",
+          "U = M F and of the split sampler M^{1/2} z (docs/theory/pse.md), each the first after set_positions; "
+          "[U; W] = M [F; T] with torques (docs/theory/pse.md section 5) and its ratio to M F.",
           ["bench_pse"], pse_cases, parse_csv, "MF_s",
           [("N", "N", "{}"), ("threads", "threads", "{}"), ("grid", "grid", "{}"), ("M F s", "MF_s", "{:.4f}"),
            ("M F PTPS", "MF_PTPS", "{:.3g}"), ("sample s", "sample_s", "{:.4f}"),
-           ("sample PTPS", "sample_PTPS", "{:.3g}"), ("split its", "split_iters", "{}")],
+           ("sample PTPS", "sample_PTPS", "{:.3g}"), ("split its", "split_iters", "{}"),
+           ("[F; T] s", "MFT_s", "{:.4f}"), ("torques / forces", "torques_over_forces", "{:.2f}")],
           keys=("N", "threads")),
     Group("pse-gpu", "PSE on a GPU",
           "The same setup with the CUDA operator PseRpyCuda: host arrays in and out (transfers count) and device "

@@ -370,7 +370,7 @@ int main(int argc, char** argv) {
       "N,threads,grid,P,r_cut,MF_s,MF_PTPS,sample_s,sample_PTPS,sample_over_MF,split_iters,"
       "lanczos_full_s,lanczos_full_iters,spread,fft,scale,interp,real,lanczos_real,"
       "sample_noise_scale,sample_fft,sample_interp,plan_s,fft_measure,eta,MF_rel_error,xi_a,wave_single,"
-      "MF_cached_s,real_cache_MB\n");
+      "MF_cached_s,real_cache_MB,MFT_s,torques_over_forces\n");
   for (std::size_t n : sizes) {
     const double L = std::cbrt(static_cast<double>(n) * 4.0 / 3.0 * std::numbers::pi * a * a * a / phi);
     const auto x = hard_spheres(n, a, L, 7);
@@ -411,6 +411,12 @@ int main(int argc, char** argv) {
       const double t_mf = median_of(reps, fresh([&] { op.apply(f, u); }));
       StageTimes mf = op.stage_times();
       const double t_mf_cached = median_seconds(reps, [&] { op.apply(f, u); });
+      // [U; W] = M [F; T] (docs/theory/pse.md section 5), the first product after set_positions too;
+      // the warm-up builds the rotational table once per plan.
+      std::vector<double> torques(3 * n), angular(3 * n);
+      fill_normal(torques, 2, 0);
+      op.apply(f, torques, u, angular);
+      const double t_mft = median_of(reps, fresh([&] { op.apply(f, torques, u, angular); }));
       op.reset_stage_times();
       int iters = 0;
       std::uint64_t step = 0;
@@ -441,12 +447,13 @@ int main(int argc, char** argv) {
       };
       std::printf(
           "%zu,%d,%dx%dx%d,%d,%.3f,%.4g,%.4g,%.4g,%.4g,%.2f,%d,%.4g,%d,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,%.3g,"
-          "%.3g,%d,%.2f,%.3g,%.3g,%d,%.4g,%.1f\n",
+          "%.3g,%d,%.2f,%.3g,%.3g,%d,%.4g,%.1f,%.4g,%.2f\n",
           n, threads, p.grid[0], p.grid[1], p.grid[2], p.support[0], p.r_cut, t_mf, n / t_mf, t_s, n / t_s, t_s / t_mf,
           iters, t_full, full_iters, per(mf, "spread"), per(mf, "fft_forward") + per(mf, "fft_backward"),
           per(mf, "scale"), per(mf, "interpolate"), per(mf, "real_space"), per(st, "lanczos"), per(st, "scale"),
           per(st, "fft_backward"), per(st, "interpolate"), t_plan, fft_measure ? 1 : 0, p.window_eta, rel_error,
-          p.xi * a, p.wave_single ? 1 : 0, t_mf_cached, static_cast<double>(p.real_space_cache_bytes) / 1e6);
+          p.xi * a, p.wave_single ? 1 : 0, t_mf_cached, static_cast<double>(p.real_space_cache_bytes) / 1e6, t_mft,
+          t_mft / t_mf);
       if (!quick) {
         std::printf("# N=%zu threads=%d: block-preconditioned Lanczos on the full PSE operator %.4g s (%d its)\n", n,
                     threads, t_block, block_iters);
