@@ -130,17 +130,25 @@ inline void require_regular_or_absent(const std::filesystem::path& path) {
                                          ", not a regular file: refusing to replace it");
 }
 
-/// Creates a new, empty temporary file next to `target` ("<name>.tmp.<16 random hex
-/// digits>", mode 0666 less the umask) with O_CREAT | O_EXCL | O_NOFOLLOW. Returns its
-/// descriptor and sets `temporary` to its path.
-inline int create_temporary_next_to(const std::filesystem::path& target, std::filesystem::path& temporary) {
-  std::random_device entropy;  // unpredictable names: nothing can be planted in advance
+/// An unpredictable name for a temporary next to `target`: "<name>.tmp.<16 random hex digits>"
+/// (nothing can be planted there in advance). Create it with O_CREAT | O_EXCL and try another
+/// name when it exists.
+inline std::filesystem::path temporary_name_next_to(const std::filesystem::path& target) {
+  std::random_device entropy;
   const char* hex = "0123456789abcdef";
+  std::string suffix = ".tmp.";
+  for (int i = 0; i < 16; ++i) suffix += hex[entropy() & 15u];
+  std::filesystem::path temporary = target;
+  temporary += suffix;
+  return temporary;
+}
+
+/// Creates a new, empty temporary file next to `target` (temporary_name_next_to, mode 0666
+/// less the umask) with O_CREAT | O_EXCL | O_NOFOLLOW. Returns its descriptor and sets
+/// `temporary` to its path.
+inline int create_temporary_next_to(const std::filesystem::path& target, std::filesystem::path& temporary) {
   for (int attempt = 0; attempt < 64; ++attempt) {
-    std::string suffix = ".tmp.";
-    for (int i = 0; i < 16; ++i) suffix += hex[entropy() & 15u];
-    temporary = target;
-    temporary += suffix;
+    temporary = temporary_name_next_to(target);
     const int fd = ::open(temporary.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0666);
     if (fd >= 0) return fd;
     if (errno != EEXIST)
