@@ -10,7 +10,8 @@ libMobility       periodicity (X, Y, Z)      rpyfmm operator
 ``NBody``         open, open, open           ``make_mobility("auto")``: DirectRpy below
                                              the FMM crossover, FmmRpy above; or chosen by
                                              ``setParameters(algorithm="direct"|"fmm")``
-``PSE``           periodic x 3               ``PseRpy`` (box Lx, Ly, Lz; psi -> xi)
+``PSE``           periodic x 3               ``PseRpy`` (box Lx, Ly, Lz; psi -> xi),
+                                             with torques too
 ``SelfMobility``  open, open, open           ``FreeDraining`` (1/(6 pi eta a), rotation
                                              1/(8 pi eta a^3))
 ``DPStokes``      --                         refused (NotSupportedError)
@@ -46,9 +47,10 @@ What differs from libMobility:
 
 * Unsupported geometries and options are refused by name with
   :class:`rpyfmm.NotSupportedError` (a NotImplementedError): single_wall and
-  two_walls periodicities (NBody's wall, DPStokes), PSE with torques
-  (includeAngular=True, as libMobility's PSE also refuses), PSE's shearStrain,
+  two_walls periodicities (NBody's wall, DPStokes), PSE's shearStrain,
   NBody batches (Nbatch > 1), lanczos_callback.
+* PSE accepts torques (includeAngular=True: PseRpy's grand mobility with
+  rotation), where libMobility's PSE refuses them.
 * The noise: xi is rpyfmm's counter-based normal stream (Philox), keyed by the
   seed and a call counter (translations stream 0, rotations stream 3), not
   libMobility's generator: the same distribution, different numbers. seed = None
@@ -125,7 +127,6 @@ class _Solver:
 
     precision = "double"
     _geometry: Tuple[str, str, str] = ("open", "open", "open")
-    _supports_angular = True
 
     def __init__(self, periodicityX: str, periodicityY: str, periodicityZ: str) -> None:
         name = type(self).__name__
@@ -199,10 +200,6 @@ class _Solver:
         tol = _real(tolerance, "tolerance", where, 0.0)
         if tol >= 1.0:
             raise InvalidArgumentError(f"{where}: tolerance must be < 1 (got {tol:g})")
-        if includeAngular and not self._supports_angular:
-            raise NotSupportedError(
-                f"{where}: includeAngular=True (torques) is not supported by rpyfmm's {type(self).__name__} "
-                "(no rotation in the periodic PSE operator)")
         kT = None if temperature is None else _real(temperature, "temperature", where, 0.0, strict=False)
         if numberParticles is not None and (
                 isinstance(numberParticles, (bool, np.bool_)) or not isinstance(numberParticles, numbers.Integral)
@@ -214,6 +211,9 @@ class _Solver:
             raise InvalidArgumentError(f"{where}: seed must be None or a non-negative integer (got {seed!r})")
         self._check_parameters_for_initialize()
         op = self._make_operator(eta, tol)
+        if includeAngular and not op.supports_rotation:
+            raise NotSupportedError(
+                f"{where}: includeAngular=True (torques) is not supported by rpyfmm's {op.name} operator")
         self._op = op
         self._radius = a
         self._tolerance = tol
@@ -457,10 +457,10 @@ class NBody(_Solver):
 
 class PSE(_Solver):
     """RPY mobility in a triply periodic box by Positively Split Ewald (libMobility's PSE), rpyfmm's
-    PseRpy. setParameters(psi, Lx, Ly, Lz) is required; no torques."""
+    PseRpy. setParameters(psi, Lx, Ly, Lz) is required. includeAngular=True gives PseRpy's grand
+    mobility with rotation (libMobility's PSE refuses torques)."""
 
     _geometry = ("periodic", "periodic", "periodic")
-    _supports_angular = False
 
     def setParameters(self, psi: float, Lx: float, Ly: float, Lz: float,
                       shearStrain: Optional[float] = None) -> None:

@@ -113,6 +113,27 @@ def test_pse_mdot_is_pse_rpy(system):
     np.testing.assert_array_equal(u, op.apply(f).ravel())
 
 
+def test_pse_with_torques_is_pse_rpy_grand_mobility(system):
+    x, f, t = system
+    box = (16.0, 17.0, 18.0)
+    solver = PSE("periodic", "periodic", "periodic")
+    solver.setParameters(psi=0.0, Lx=box[0], Ly=box[1], Lz=box[2])
+    solver.initialize(viscosity=ETA, hydrodynamicRadius=A, includeAngular=True, tolerance=1e-5, seed=2)
+    solver.setPositions(x)
+    u, w = solver.Mdot(f, t)
+    op = rpyfmm.PseRpy(box=box, viscosity=ETA, tolerance=1e-5)
+    op.set_positions(x, A)
+    ref = op.apply(f, t)
+    np.testing.assert_array_equal(u, ref[0])
+    np.testing.assert_array_equal(w, ref[1])
+    du, dw = solver.sqrtMdotW()
+    n = len(x)
+    wt, wr, _ = op.apply_sqrt_rotation(rpyfmm.normal_noise(n, 2, 0), rpyfmm.normal_noise(n, 2, 0, stream=3),
+                                       tolerance=1e-5)
+    np.testing.assert_array_equal(du, wt)
+    np.testing.assert_array_equal(dw, wr)
+
+
 def test_self_mobility_is_free_draining(system):
     x, f, t = system
     solver = SelfMobility("open", "open", "open")
@@ -264,9 +285,6 @@ def test_unsupported_options_are_refused_by_name():
         pse.initialize(viscosity=1.0, hydrodynamicRadius=1.0)
     with pytest.raises(rpyfmm.NotSupportedError, match="shearStrain"):
         pse.setParameters(psi=0.5, Lx=10, Ly=10, Lz=10, shearStrain=0.1)
-    pse.setParameters(psi=0.5, Lx=10, Ly=10, Lz=10)
-    with pytest.raises(rpyfmm.NotSupportedError, match="includeAngular"):
-        pse.initialize(viscosity=1.0, hydrodynamicRadius=1.0, includeAngular=True)
     with pytest.raises(TypeError, match="bogus"):
         solver.initialize(viscosity=1.0, hydrodynamicRadius=1.0, bogus=3)
 
