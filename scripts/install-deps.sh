@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Installs every build and test dependency of rpyfmm from Debian's packages,
+# Installs every build and test dependency of rpyfmm from Debian's packages, the sources of
+# gsd's C library for GSD trajectories (fetch-gsd.sh: Debian packages only gsd's Python module),
 # then the Python module's build/test packages from PyPI (install-python-deps.sh).
 # Idempotent: packages already present are skipped quickly by apt.
 set -euo pipefail
@@ -7,6 +8,7 @@ set -euo pipefail
 packages=(
   build-essential cmake ninja-build pkg-config git
   ccache  # compiler cache used by .ci/run (its builds share most objects)
+  curl ca-certificates  # fetch-gsd.sh downloads gsd's source distribution
   libeigen3-dev libfftw3-dev libboost-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev libtomlplusplus-dev librandom123-dev libfmt-dev
@@ -30,4 +32,5 @@ if ((${#missing[@]})); then
   $SUDO apt-get install -y --no-install-recommends "${missing[@]}"
 fi
 
+bash "$(dirname "$0")/fetch-gsd.sh"
 bash "$(dirname "$0")/install-python-deps.sh"

@@ -12,6 +12,7 @@
 #include <set>
 #include <sstream>
 
+#include "rpyfmm/bd/gsd_trajectory.hpp"
 #include "rpyfmm/core/ranges.hpp"
 #include "rpyfmm/core/validate.hpp"
 
@@ -531,11 +532,21 @@ void parse_neighbours(const toml::table& root, RunConfig& c) {
   s.finish();
 }
 
-/// [output]: directory, file names and intervals.
+/// output.format: "xyz" or "gsd" (the latter only in builds with GSD support).
+TrajectoryFormat trajectory_format(const std::string& name) {
+  if (name == "xyz") return TrajectoryFormat::xyz;
+  if (name != "gsd") bad_key("output.format", "must be \"xyz\" or \"gsd\", got \"" + name + "\"");
+  if (!gsd_supported()) bad_key("output.format", "= \"gsd\" cannot be written: " + gsd_unsupported_reason());
+  return TrajectoryFormat::gsd;
+}
+
+/// [output]: directory, trajectory format, file names and intervals.
 void parse_output(const toml::table& root, RunConfig& c) {
   Section s(sub_table(root, "output"), "output");
   c.output.dir = s.string("dir", "bd-out");
-  c.output.trajectory = s.string("trajectory", "trajectory.xyz");
+  const std::string format = s.string("format", "xyz");
+  c.output.format = trajectory_format(format);
+  c.output.trajectory = s.string("trajectory", "trajectory." + format);
   c.output.log = s.string("log", "log.csv");
   c.output.checkpoint = s.string("checkpoint", "checkpoint.bin");
   c.output.trajectory_every = s.count("trajectory_every", 100);

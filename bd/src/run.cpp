@@ -11,6 +11,7 @@
 #include "rpyfmm/bd/output.hpp"
 #include "rpyfmm/bd/particles.hpp"
 #include "rpyfmm/bd/quaternion.hpp"
+#include "rpyfmm/bd/trajectory.hpp"
 #include "rpyfmm/core/file_safety.hpp"
 #include "rpyfmm/core/validate.hpp"
 
@@ -235,7 +236,8 @@ class Run {
       c.reference_orientations = start_.reference_orientations;
       c.rotation_vectors = start_.rotation_vectors;
     }
-    c.trajectory_bytes = traj_.bytes();
+    traj_.flush();  // the frames the checkpoint counts are in the file before it names them
+    c.trajectory_bytes = traj_.length();
     c.trajectory_hash = traj_.hash();
     c.log_bytes = log_.bytes();
     c.log_hash = log_.hash();
@@ -269,8 +271,7 @@ class Run {
     const OutputSpec& out = config_.output;
     const std::uint64_t s = bd_.step_count();
     if (out.trajectory_every > 0 && s % out.trajectory_every == 0)
-      traj_.write(xyz_frame(bd_.positions(), bd_.types(), forces_.types(), config_.geometry, s, bd_.time(),
-                            bd_.orientations()));
+      traj_.write(bd_.positions(), bd_.types(), forces_.types(), config_.geometry, s, bd_.time(), bd_.orientations());
     if (out.log_every > 0 && (s % out.log_every == 0 || s == total_)) write_log_row(first);
     const double sec = w.seconds();
     output_seconds_ += sec;
@@ -344,7 +345,8 @@ class Run {
   Integrator bd_;
   RunSummary sum_;
   std::optional<OutputDirectory> made_;  // before the files: they are removed first on failure
-  AppendFile traj_, log_;
+  TrajectoryFile traj_{config_.output.format};
+  AppendFile log_;
   Interval last_;
   double output_seconds_ = 0.0;
 };

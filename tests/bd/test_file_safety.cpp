@@ -14,6 +14,7 @@
 #include "rpyfmm/bd/config.hpp"
 #include "rpyfmm/bd/run.hpp"
 #include "rpyfmm/core/error.hpp"
+#include "run_files_fixture.hpp"
 
 namespace fs = std::filesystem;
 using namespace rpyfmm::bd;
@@ -27,7 +28,6 @@ RunOptions steps_to(std::uint64_t steps) {
   o.steps = steps;
   return o;
 }
-
 
 const std::string kRun = R"(
 [system]
@@ -54,40 +54,7 @@ std::string replace_seed(std::string text, int seed) {
   return text.replace(text.find("[integrator]\n"), 13, "[integrator]\nseed = " + std::to_string(seed) + "\n");
 }
 
-class BdFiles : public ::testing::Test {
- protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("rpyfmm_bd_files_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
-  static std::string slurp(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    return {std::istreambuf_iterator<char>(in), {}};
-  }
-  // Runs `config` into `out`, `steps` steps.
-  static RunSummary run(const RunConfig& config, const fs::path& out, std::uint64_t steps) {
-    RunOptions o;
-    o.out_dir = out;
-    o.steps = steps;
-    return run_bd(config, o);
-  }
-  // `f()` must throw an Error whose message contains every needle.
-  template <class F>
-  static void expect_error(F f, std::initializer_list<std::string> needles) {
-    try {
-      f();
-      ADD_FAILURE() << "no error";
-    } catch (const Error& e) {
-      for (const auto& n : needles) EXPECT_NE(std::string(e.what()).find(n), std::string::npos) << e.what();
-    }
-  }
-
-  fs::path dir_;
-};
+using BdFiles = bdtest::RunFiles;
 
 }  // namespace
 

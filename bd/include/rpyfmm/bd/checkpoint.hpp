@@ -11,7 +11,9 @@
 //   f64[4N] orientations, f64[4N] reference_orientations, f64[3N] rotation_vectors.
 // Runs without rotation still write version 2, byte for byte as before.
 // The hashes (FNV-1a of each output's first *_bytes bytes) identify the files
-// this run wrote: a restart refuses any other file instead of cutting it.
+// this run wrote: a restart refuses any other file instead of cutting it. A GSD
+// trajectory (`[output] format = "gsd"`) is counted in frames instead of bytes,
+// and hashed over those frames' chunks (gsd_trajectory.hpp).
 // Written atomically (rpyfmm/core/atomic_file.hpp): a crash never leaves a
 // truncated checkpoint in place of the previous good one.
 #pragma once
@@ -33,8 +35,8 @@ struct Checkpoint {
   std::vector<double> orientations;            ///< rotation: 4N unit quaternions w x y z (else empty)
   std::vector<double> reference_orientations;  ///< rotation: 4N, orientations at step 0
   std::vector<double> rotation_vectors;        ///< rotation: 3N, sum of the steps' rotation vectors
-  std::uint64_t trajectory_bytes = 0;          ///< trajectory length when this state was written
-  std::uint64_t trajectory_hash = 0;           ///< FNV-1a of those trajectory_bytes bytes
+  std::uint64_t trajectory_bytes = 0;          ///< trajectory length when this state was written (GSD: frames)
+  std::uint64_t trajectory_hash = 0;           ///< FNV-1a of those bytes (GSD: of those frames' chunks)
   std::uint64_t log_bytes = 0;                 ///< CSV log length when this state was written
   std::uint64_t log_hash = 0;                  ///< FNV-1a of those log_bytes bytes
   std::string config;                          ///< the run's TOML config text

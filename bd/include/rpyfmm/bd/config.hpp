@@ -37,9 +37,16 @@ struct ParticleSpec {
   std::uint64_t seed = 1;                      ///< generator seed
 };
 
+/// The trajectory's file format ([output] format).
+enum class TrajectoryFormat {
+  xyz,  ///< extended XYZ text (output.hpp)
+  gsd,  ///< HOOMD-blue's binary GSD (gsd_trajectory.hpp), in builds with GSD support
+};
+
 struct OutputSpec {
   std::filesystem::path dir = "bd-out";
-  std::string trajectory = "trajectory.xyz";  ///< extended XYZ
+  TrajectoryFormat format = TrajectoryFormat::xyz;
+  std::string trajectory = "trajectory.xyz";  ///< default: "trajectory." + the format's name
   std::string log = "log.csv";
   std::string checkpoint = "checkpoint.bin";
   std::uint64_t trajectory_every = 100;   ///< 0 = no trajectory
