@@ -218,6 +218,10 @@ const std::map<std::string, Check>& checks() {
       {"neighbours.fixed_interval",
        [](const RunConfig& c, const std::string& l) { return c.neighbours.fixed_interval == std::stoi(l); }},
       {"output.dir", [](const RunConfig& c, const std::string& l) { return c.output.dir == unquoted(l); }},
+      {"output.format",
+       [](const RunConfig& c, const std::string& l) {
+         return c.output.format == rpyfmm::bd::TrajectoryFormat::xyz && unquoted(l) == "xyz";
+       }},
       {"output.trajectory",
        [](const RunConfig& c, const std::string& l) { return c.output.trajectory == unquoted(l); }},
       {"output.trajectory_every",
