@@ -28,6 +28,19 @@ int load_scale_exponent(std::initializer_list<std::span<const double>> loads) {
   return std::ilogb(largest);
 }
 
+// The same for [F; T]: the torques measured as forces, T / l with l = 2^ilogb(largest radius) (a torque
+// is a force times a length). Lengths and torques of 2^(+-400) with forces of order one then need no
+// scaling, where scaling by the torques alone would push W (~ T / a^3) out of range inside the product.
+int rotation_load_scale_exponent(std::span<const double> forces, std::span<const double> torques,
+                                 std::span<const double> radii) {
+  double largest_radius = 0.0;
+  for (double a : radii) largest_radius = std::max(largest_radius, a);
+  const int length = std::ilogb(largest_radius);
+  std::vector<double> torque_as_force(torques.begin(), torques.end());
+  for (double& t : torque_as_force) t = std::ldexp(t, -length);
+  return load_scale_exponent({forces, torque_as_force});
+}
+
 // Finite inputs whose product overflows (forces so large, or radii so small, that M F is beyond
 // double precision) give Inf or NaN: refused, naming the first entry, rather than returned.
 void require_finite_result(std::span<const double> out, const std::string& where, const char* name, const char* input) {
@@ -181,11 +194,11 @@ void MobilityOperator::apply(std::span<const double> forces, std::span<const dou
   const std::string where = where_ + "::apply";
   require(supports_rotation(), ErrorCode::not_supported, where,
           "operator '" + name() +
-              "' has no rotational mobility (torques and angular velocities); use 'direct', 'fmm' or 'none' (free "
-              "draining)");
+              "' has no rotational mobility (torques and angular velocities); use 'direct', 'fmm', 'pse' (CPU) or "
+              "'none' (free draining)");
   require_rotation_arguments(where, 3 * size(), {{{"forces", forces}, {"torques", torques}}},
                              {{{"velocities", velocities}, {"angular velocities", angular_velocities}}});
-  const int k = load_scale_exponent({forces, torques});
+  const int k = rotation_load_scale_exponent(forces, torques, radii());
   if (k == 0) {
     do_apply_rotation(forces.data(), torques.data(), velocities.data(), angular_velocities.data());
   } else {

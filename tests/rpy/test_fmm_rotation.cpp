@@ -147,15 +147,16 @@ TEST(FmmRotation, GrandMatrixMatchesDirect) {
 }
 
 // Extreme length scales are evaluated in units of the suspension's size: the blocks scale as 1/L
-// (UF), 1/L^2 (UT, WF) and 1/L^3 (WT). Lengths 2^(+-300) with torques scaled alike reproduce the
-// plain product to the tolerance.
+// (UF), 1/L^2 (UT, WF) and 1/L^3 (WT). Lengths 2^(+-300) and 2^(+-400) with torques scaled alike
+// reproduce the plain product to the tolerance (at 2^(+-400), W ~ 2^(-+800) is in range although
+// a^3 and the torque's square are not).
 TEST(FmmRotation, ExtremeScalesGiveTheScaledProduct) {
   const t::Configuration c = t::random_suspension(400, 1.0, 0.3, 24);
   const auto [f, tq] = loads(c, Loads::both, 5);
   FmmRpy plain_op(Geometry::open(), 1.0, FmmRpyOptions{.tolerance = 1e-6});
   plain_op.set_positions(c.x, c.a);
   const Motion plain = grand_product(plain_op, f, tq);
-  for (int e : {300, -300}) {
+  for (int e : {300, -300, 400, -400}) {
     t::Configuration s = c;
     for (double& v : s.x) v = std::ldexp(v, e);
     for (double& v : s.a) v = std::ldexp(v, e);
