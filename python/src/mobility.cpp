@@ -275,7 +275,7 @@ void add_operator_products(OperatorClass& cls) {
       .def_prop_ro(
           "supports_rotation", [](const MobilityOperator& op) { return op.supports_rotation(); },
           "True when apply accepts torques and apply_sqrt_rotation samples (the grand mobility with\n"
-          "rotation: DirectRpy, FmmRpy, FreeDraining).")
+          "rotation: DirectRpy, FmmRpy, PseRpy, FreeDraining).")
       .def("apply_block", locked("MobilityOperator.apply_block", &apply_block), nb::arg("forces"),
            nb::arg("out") = nb::none(), "U_k = M F_k for forces of shape (nrhs, N, 3) or (nrhs, 3N) in one pass.");
   add_apply_sqrt<false>(cls, "apply_sqrt", "MobilityOperator.apply_sqrt", kSqrtDoc);
