@@ -7,8 +7,8 @@
 //                   [--torques T.npy | --angular] --out U.npy [--threads N] [--json]
 //
 // U has shape (N,3). With --torques (N,3) or --angular (T = 0), the grand mobility with rotation
-// (docs/theory/rpy.md section 7; operators with supports_rotation: --method direct, fmm, pse on the CPU, none): the output
-// has shape (N,6), columns Ux Uy Uz Wx Wy Wz.
+// (docs/theory/rpy.md section 7; operators with supports_rotation: --method direct, fmm, pse on the CPU, none): the
+// output has shape (N,6), columns Ux Uy Uz Wx Wy Wz.
 #include <CLI/CLI.hpp>
 #include <cstddef>
 #include <iostream>
@@ -106,7 +106,8 @@ void run_mobility(const MobilityArgs& args, bool radius_given) {
             "has " + std::to_string(t.size() / 3) + " rows, expected " + std::to_string(n) + " (one per particle)");
   }
   require(!rotation || op->supports_rotation(), ErrorCode::not_supported, "mobility",
-          "--torques and --angular need a mobility with rotation (--method direct, fmm, pse on the CPU or none); '" + op->name() + "' has none");
+          "--torques and --angular need a mobility with rotation (--method direct, fmm, pse on the CPU or none); '" +
+              op->name() + "' has none");
 
   apply_and_write(*op, f, t, args.out, stages);
 
@@ -140,7 +141,8 @@ void register_mobility(CLI::App& app) {
   radius->excludes(radii);
   add_mobility_options(*cmd, args->mobility);
   cmd->add_option("--torques", args->torques,
-                  "torques (N,3): the output is then (N,6), velocities and angular velocities (--method direct, fmm, pse on the CPU, none)");
+                  "torques (N,3): the output is then (N,6), velocities and angular velocities (--method direct, fmm, "
+                  "pse on the CPU, none)");
   cmd->add_flag("--angular", args->angular, "output (N,6) with angular velocities, torques zero unless --torques");
   cmd->add_option("--out", args->out, "output .npy, shape (N,3), or (N,6) with --torques / --angular")->required();
   add_common_options(*cmd, args->common);

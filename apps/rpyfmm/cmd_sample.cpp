@@ -359,7 +359,8 @@ void register_sample(CLI::App& app) {
   cmd->add_option("--viscosity", args->viscosity, "solvent viscosity eta, in " + ranges::kViscosity.str())
       ->capture_default_str();
   cmd->add_flag("--angular", args->angular,
-                "sample the grand mobility with rotation (operators with rotation: direct, fmm, pse on the CPU, none): output (N,6), "
+                "sample the grand mobility with rotation (operators with rotation: direct, fmm, pse on the CPU, none): "
+                "output (N,6), "
                 "displacements then rotations, B z with B B^T = M (docs/theory/samplers.md)");
   cmd->add_option("--out", args->out, "output .npy, shape (N,3), or (N,6) with --angular")->required();
   add_common_options(*cmd, args->common);
