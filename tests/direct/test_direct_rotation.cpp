@@ -9,6 +9,7 @@
 #include <omp.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <numbers>
@@ -271,15 +272,32 @@ TEST(DirectRotation, HugeLoadsGiveTheScaledProduct) {
 }
 
 // Operators without the rotational blocks refuse clearly; wrong sizes and non-finite torques too.
+namespace {
+
+/// A mobility with translation only (supports_rotation() false), as a user's own operator may be.
+class TranslationOnly final : public rpyfmm::rpy::MobilityOperator {
+ public:
+  TranslationOnly() : MobilityOperator(Geometry::open(), 1.0, "TranslationOnly") {}
+  [[nodiscard]] std::string name() const override { return "translation-only"; }
+
+ protected:
+  void on_positions_set() override {}
+  void do_apply(const double* forces, double* velocities, std::size_t nrhs) const override {
+    std::copy_n(forces, 3 * size() * nrhs, velocities);
+  }
+};
+
+}  // namespace
+
 TEST(DirectRotation, BadInputAndUnsupportedOperators) {
   const std::vector<double> x = {0, 0, 0, 3, 0, 0};
   std::vector<double> f(6, 1.0), t(6, 1.0), u(6), w(6), short_t(5, 1.0);
-  rpyfmm::rpy::pse::PseRpy pse(Geometry::periodic(20.0), 1.0);
-  pse.set_positions(x, 1.0);
-  EXPECT_FALSE(pse.supports_rotation());
+  TranslationOnly plain;
+  plain.set_positions(x, 1.0);
+  EXPECT_FALSE(plain.supports_rotation());
   try {
-    pse.apply(f, t, u, w);
-    ADD_FAILURE() << "PseRpy accepted torques";
+    plain.apply(f, t, u, w);
+    ADD_FAILURE() << "an operator without rotation accepted torques";
   } catch (const Error& e) {
     EXPECT_EQ(e.code(), ErrorCode::not_supported);
     EXPECT_NE(std::string(e.what()).find("has no rotational mobility"), std::string::npos) << e.what();

@@ -245,6 +245,23 @@ TEST_F(SampleCli, AngularMatchesLibrary) {
   ASSERT_EQ(fmm_run.rc, 0) << fmm_run.err;
   EXPECT_LE(max_rel_diff(read_npy(out, shape), rotation_rows(op, z, {.tolerance = 1e-8})), 1e-6);
 
+  // PSE (equal radii, periodic) with its split sampler on the 6N operator: the library's result on
+  // the same noise, bit for bit.
+  const CliResult pse_run =
+      run_cli("--positions " + xp.string() + " --radius 1 --seed 11 --step 2 --angular --method pse --box 60 --out " +
+              out.string());
+  ASSERT_EQ(pse_run.rc, 0) << pse_run.err;
+  rpyfmm::rpy::pse::PseRpy pse(Geometry::periodic(60.0), 1.0);
+  pse.set_positions(x, 1.0);
+  std::vector<double> pt(3 * N), pr(3 * N);
+  pse.apply_sqrt_rotation(zt, zr, pt, pr, {.method = SqrtMethod::split});
+  const auto pw = read_npy(out, shape);
+  for (std::size_t i = 0; i < N; ++i)
+    for (std::size_t c = 0; c < 3; ++c) {
+      EXPECT_EQ(pw[6 * i + c], pt[3 * i + c]) << i;
+      EXPECT_EQ(pw[6 * i + 3 + c], pr[3 * i + c]) << i;
+    }
+
   const fs::path zp = scratch() / "z6.txt";
   write_text(zp, z, 6);
   for (const SqrtOptions& options :
@@ -305,9 +322,7 @@ TEST_F(SampleCli, BadInputExitTwoNoOutput) {
            {base + "--radius 1 --wave-precision single", "pse operator only"},
            {base + "--radius 1 --method pse --box 60 --device gpu", "--device"},
            {base + "--radius 1 --device cuda", "pse operator only"},
-           {base + "--radius 1 --angular --method pse --box 60", "--angular needs an operator with rotation"},
            {base + "--radius 1 --angular --method split", "PSE"},
-           {base + "--radius 1 --angular --operator pse --box 60", "'pse' has none"},
            {base + "--radius 1 --angular --noise " + zs.string(), "with --angular must have shape (40,6)"},
            {base + "--radius 1 --angular --noise " + z3.string(), "3 columns"},
            {base + "--radius 1 --angular --noise " + z6nan.string(), "noise entry (2, 4) is NaN"},
