@@ -9,6 +9,10 @@ samplers (``apply_sqrt``, :func:`sqrt_apply`, :func:`normal_noise`,
 Brownian dynamics of beads (:func:`run_bd`,
 :class:`Simulation` with Python force callbacks).
 
+Drop-in modules for users of other libraries (docs/ecosystem.md):
+:mod:`rpyfmm.fmm3d` (fmm3dpy's ``lfmm3d``) and :mod:`rpyfmm.libmobility`
+(libMobility's ``NBody``, ``PSE``, ``SelfMobility``).
+
 Arrays: positions/forces/velocities are (N, 3) or (3N,), results come back in
 the input's shape as float64. A float64 C-contiguous array is used in place
 (no copy); float32, integer or strided inputs are converted once (a copy).
