@@ -301,7 +301,7 @@ def test_apply_with_torques_gives_the_grand_mobility():
     np.testing.assert_allclose(U_fmm, U, rtol=1e-13, atol=1e-17)
     np.testing.assert_allclose(W_fmm, W, rtol=1e-13, atol=1e-17)
     # PSE: the periodic grand mobility (a large box: close to the free-space pair, not equal).
-    pse = rpyfmm.PseRpy(box=20.0)
+    pse = rpyfmm.PseRpy(box=20.0, viscosity=eta)
     pse.set_positions(x + 10.0, a)
     assert pse.supports_rotation
     U_pse, W_pse = pse.apply(F, T)

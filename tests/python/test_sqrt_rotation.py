@@ -89,9 +89,11 @@ def test_refusals():
     z = np.ones((8, 3))
     pse = rpyfmm.PseRpy(box=40.0)
     pse.set_positions(x, 1.0)
-    if not pse.supports_rotation:
-        with pytest.raises(rpyfmm.NotSupportedError, match="'pse' has no rotational mobility"):
-            pse.apply_sqrt_rotation(z, z)
+    # PSE samples the grand mobility by its split sampler (docs/theory/pse.md section 5).
+    assert pse.supports_rotation
+    wt, wr, report = pse.apply_sqrt_rotation(z, z)
+    assert report.method == "split" and wt.shape == (8, 3) and wr.shape == (8, 3)
+    assert np.all(np.isfinite(wt)) and np.all(np.isfinite(wr))
     op = rpyfmm.DirectRpy()
     op.set_positions(x, 1.0)
     with pytest.raises(rpyfmm.InvalidInputError, match="z_rotation has shape"):
