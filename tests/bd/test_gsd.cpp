@@ -20,6 +20,7 @@
 #include "rpyfmm/bd/run.hpp"
 #include "rpyfmm/core/error.hpp"
 #include "run_files_fixture.hpp"
+#include "text_edit.hpp"
 
 #if RPYFMM_TEST_HAVE_GSD
 #include <gsd.h>
@@ -30,6 +31,8 @@ using namespace rpyfmm::bd;
 using rpyfmm::Error;
 
 namespace {
+
+using bdtest::replace;
 
 // Two types (names of different lengths), rotation, free space, free draining.
 const std::string kRun = R"(
@@ -56,12 +59,6 @@ trajectory_every = 5
 log_every = 5
 checkpoint_every = 10
 )";
-
-std::string replace(std::string s, const std::string& from, const std::string& to) {
-  const auto pos = s.find(from);
-  EXPECT_NE(pos, std::string::npos) << from;
-  return s.replace(pos, from.size(), to);
-}
 
 using BdGsd = bdtest::RunFiles;
 

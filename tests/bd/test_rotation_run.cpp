@@ -19,11 +19,14 @@
 #include "rpyfmm/bd/particles.hpp"
 #include "rpyfmm/bd/run.hpp"
 #include "rpyfmm/core/error.hpp"
+#include "text_edit.hpp"
 
 using namespace rpyfmm::bd;
 using rpyfmm::Error;
 
 namespace {
+
+using bdtest::replace;
 // Free-draining dipoles in a field with a torque, on a lattice: every rotation key in use.
 const std::string kRotating = R"(
 [system]
@@ -49,12 +52,6 @@ trajectory_every = 5
 log_every = 5
 checkpoint_every = 10
 )";
-
-std::string replace(std::string s, const std::string& from, const std::string& to) {
-  const auto pos = s.find(from);
-  EXPECT_NE(pos, std::string::npos) << from;
-  return s.replace(pos, from.size(), to);
-}
 
 // kRotating (or a variant) without its torques and dipoles: free rotating spheres.
 std::string without_torques(std::string text) {
