@@ -74,6 +74,12 @@ void ForceField::set_global_force(const std::array<double, 3>& force) {
   global_force_ = force;
 }
 
+void ForceField::set_trap(double stiffness) {
+  require(std::isfinite(stiffness) && stiffness >= 0.0, ErrorCode::invalid_argument, "ForceField::set_trap",
+          "stiffness must be finite and >= 0");
+  trap_ = stiffness;
+}
+
 void ForceField::add_callback(ForceCallback callback) {
   require(static_cast<bool>(callback), ErrorCode::invalid_argument, "ForceField::add_callback", "empty callback");
   callbacks_.push_back(std::move(callback));
@@ -223,6 +229,12 @@ double ForceField::compute(std::span<const double> x, std::span<const std::uint3
       const EnergyForce ef = evaluate_bond(bp, r);
       e += 0.5 * ef.energy;
       for (int c = 0; c < 3; ++c) f[c] += ef.s * d[c];
+    }
+    if (trap_ > 0.0) {
+      for (int c = 0; c < 3; ++c) {
+        f[c] -= trap_ * x[3 * i + c];
+        e += 0.5 * trap_ * x[3 * i + c] * x[3 * i + c];
+      }
     }
     for (int c = 0; c < 3; ++c) forces[3 * i + c] = f[c];
     energy += e;

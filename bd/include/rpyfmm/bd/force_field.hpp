@@ -1,6 +1,6 @@
 // rpyfmm::bd — the forces of a BD run: per-type pair potentials (mixtures),
 // bonds (bead-spring chains), constant external forces (gravity /
-// sedimentation) and user callbacks. compute() evaluates F_i particle by
+// sedimentation), a harmonic trap and user callbacks. compute() evaluates F_i particle by
 // particle (full neighbour lists, sorted), so the result does not depend on
 // the number of threads.
 #pragma once
@@ -54,6 +54,10 @@ class ForceField {
   void add_bonds(std::span<const Bond> bonds);
   /// Constant force on every particle, added to the types' external forces.
   void set_global_force(const std::array<double, 3>& force);
+  /// Harmonic trap at the origin on every particle: F = -stiffness x, energy stiffness |x|^2 / 2
+  /// (x unwrapped; 0 = none). Throws unless finite and >= 0.
+  void set_trap(double stiffness);
+  [[nodiscard]] double trap_stiffness() const { return trap_; }
   void add_callback(ForceCallback callback);
   /// The torques on rotating particles (used by the integrator only with rotation on;
   /// docs/theory/bd.md Sec. 7). Replaces an earlier one; throws unless it has no types or one
@@ -99,6 +103,7 @@ class ForceField {
   std::vector<BondPotential> bond_potentials_;
   std::vector<Bond> bonds_;
   std::array<double, 3> global_force_{0, 0, 0};
+  double trap_ = 0.0;
   std::vector<ForceCallback> callbacks_;
   TorqueField torques_;
   // Per-particle bond index (CSR), built lazily for N particles.
