@@ -25,7 +25,7 @@ double norm3(const double* v) {
 
 Integrator::Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceField forces, IntegratorOptions options,
                        std::vector<double> positions, std::vector<std::uint32_t> types, NeighbourOptions neighbours,
-                       std::uint64_t first_step, std::vector<double> orientations)
+                       std::uint64_t first_step, std::vector<double> orientations, std::vector<double> velocities)
     : mobility_(std::move(mobility)),
       forces_(std::move(forces)),
       options_(options),
@@ -64,7 +64,25 @@ Integrator::Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceFie
   } else {
     require(orientations.empty(), ErrorCode::invalid_argument, where, "orientations given but rotation is off");
   }
+  inertial_ = LangevinGroup(options_.inertia, types_);
+  if (!inertial_.empty()) {
+    check_inertia();
+    inertial_.set_velocities(std::move(velocities), options_.kT, options_.seed);
+  } else {
+    require(velocities.empty(), ErrorCode::invalid_argument, where, "velocities given but no particle is inertial");
+  }
   for (const char* part : {"neighbours", "forces", "plan", "drift", "sqrt", "update"}) totals_.seconds[part] = 0.0;
+}
+
+void Integrator::check_inertia() const {
+  const char* where = "Integrator";
+  require(mobility_->name() == "none", ErrorCode::invalid_argument, where,
+          "inertial (Langevin) particles need the free-draining mobility \"none\", not '" + mobility_->name() +
+              "': hydrodynamic interactions with inertia are not supported");
+  require(!options_.rotation, ErrorCode::invalid_argument, where,
+          "inertial (Langevin) particles do not support rotation yet");
+  require(!options_.keep_split_displacements, ErrorCode::invalid_argument, where,
+          "split displacements (M F dt and the Brownian part) do not apply to inertial (Langevin) particles");
 }
 
 void Integrator::drift_and_noise_products(StepReport& rep, bool fused, bool brownian, double noise) {
@@ -100,8 +118,9 @@ void Integrator::checked_displacements(double dt, double noise, bool brownian) {
 #pragma omp parallel for schedule(static) if (n >= 4096)
   for (std::size_t i = 0; i < n; ++i) {
     double d2 = 0.0, turn2 = 0.0;
+    const bool inertial = inertial_.contains(i);  // dx_ holds its Langevin step already
     for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) {
-      const double d = u_[k] * dt + (brownian ? noise * w_[k] : 0.0);
+      const double d = inertial ? dx_[k] : u_[k] * dt + (brownian ? noise * w_[k] : 0.0);
       dx_[k] = d;
       d2 += d * d;
       if (!rotation) continue;
@@ -161,9 +180,13 @@ const StepReport& Integrator::step() {
   const bool brownian = options_.kT > 0.0 && !fused;
   drift_and_noise_products(rep, fused, brownian, noise);
   watch.restart();
-  // 5. dx = M F dt + sqrt(2 kT dt) M^{1/2} z (with rotation also phi = W dt + sqrt(2 kT dt) w_r),
-  //    then the blow-up guard.
+  // 5. dx = M F dt + sqrt(2 kT dt) M^{1/2} z (with rotation also phi = W dt + sqrt(2 kT dt) w_r;
+  //    for inertial particles the Langevin step from the same F_n, langevin.hpp), then the
+  //    blow-up guard.
+  if (!inertial_.empty())
+    inertial_.displacements({.dt = dt, .kT = options_.kT, .seed = options_.seed, .step = step_}, f_, dx_);
   checked_displacements(dt, noise, brownian);
+  inertial_.commit();
   if (options_.keep_split_displacements) {
     dx_det_.resize(3 * n);
     dx_brown_.resize(3 * n);

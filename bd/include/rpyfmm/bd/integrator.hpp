@@ -16,17 +16,24 @@
 // mobility [U; W] = M [F; T] and the 6N Brownian sample [w_t; w_r] (rotation_sampling.hpp) and
 // turns each particle by the exponential map, q <- exp(W dt + sqrt(2 kT dt) w_r) q
 // (docs/theory/bd.md Sec. 7). No drift term arises there either.
+// With inertia (IntegratorOptions::inertia), the particles of the types given a mass move by the
+// Langevin step of langevin.hpp instead, from the same forces F_n, with their own noise (stream 4,
+// keyed by the particle's index in the system and the step) and half-step velocities; the others
+// move as above (docs/theory/bd.md Sec. 8). Only with free draining (method "none") and without
+// rotation: hydrodynamic interactions with inertia are not modelled.
 // Everything that enters x is independent of the thread count, provided the
 // mobility operator's products are.
 #pragma once
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
 
 #include "rpyfmm/bd/force_field.hpp"
+#include "rpyfmm/bd/langevin_group.hpp"
 #include "rpyfmm/bd/neighbour_list.hpp"
 #include "rpyfmm/bd/sampling.hpp"
 #include "rpyfmm/core/timer.hpp"
@@ -54,6 +61,10 @@ struct IntegratorOptions {
   /// Needs an operator that supports_rotation() (none, direct, ...). max_displacement then
   /// bounds each step's rotation angle too (in radians: a surface point moves a |phi|).
   bool rotation = false;
+  /// Inertial (Langevin) types: entry t set = particles of type t move by the Langevin step with
+  /// that mass and friction (langevin.hpp); unset, or past the end, = Brownian. Needs the
+  /// free-draining operator ("none"), no rotation and no split displacements.
+  std::vector<std::optional<LangevinParticle>> inertia{};
 };
 
 /// What one step did (and cumulative counters in Integrator::totals()).
@@ -82,10 +93,12 @@ class Integrator {
   /// the mobility operator wraps them into a periodic box itself.
   /// `orientations` (options.rotation only): 4N quaternions w x y z, or empty for the identity
   /// (quaternion::checked: normalized unless already unit to 1e-14).
+  /// `velocities` (with inertial types only): 3N half-step velocities v_{n-1/2} (0 for Brownian
+  /// particles), or empty for the Maxwell distribution at kT keyed by the seed.
   /// Throws rpyfmm::Error naming the bad option or particle.
   Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceField forces, IntegratorOptions options,
              std::vector<double> positions, std::vector<std::uint32_t> types, NeighbourOptions neighbours = {},
-             std::uint64_t first_step = 0, std::vector<double> orientations = {});
+             std::uint64_t first_step = 0, std::vector<double> orientations = {}, std::vector<double> velocities = {});
 
   /// Advances one step. On a blow-up or a force error the state is left at the
   /// last good step and rpyfmm::Error (numerical_failure / invalid_input) is thrown.
@@ -118,6 +131,9 @@ class Integrator {
   [[nodiscard]] std::span<const double> orientations() const { return q_; }
   [[nodiscard]] std::span<const double> last_torques() const { return torque_; }
   [[nodiscard]] std::span<const double> last_rotations() const { return phi_; }
+  /// The inertial particles, their half-step velocities and kinetic temperature (empty() when
+  /// every particle is Brownian).
+  [[nodiscard]] const LangevinGroup& inertial() const { return inertial_; }
 
  private:
   /// u = M F and w = M^{1/2} z (or, fused, u = M F + noise / dt M^{1/2} z; with rotation
@@ -125,9 +141,12 @@ class Integrator {
   void drift_and_noise_products(StepReport& rep, bool fused, bool brownian, double noise);
   /// With rotation: u, omega = M [F; T] and w_t, w_r = B [z_t; z_r] (z drawn).
   DriftNoiseReport rotational_products(bool brownian);
-  /// dx = u dt + noise w (and, with rotation, phi = omega dt + noise w_r), refused
-  /// (numerical_failure, state unchanged) when a particle would move more than
-  /// max_displacement x its radius, or turn by more than max_displacement radians.
+  /// Checks the inertia options against the operator and the other options.
+  void check_inertia() const;
+  /// dx = u dt + noise w (the Langevin step's displacement for inertial particles; with
+  /// rotation, phi = omega dt + noise w_r), refused (numerical_failure, state unchanged) when a
+  /// particle would move more than max_displacement x its radius, or turn by more than
+  /// max_displacement radians.
   void checked_displacements(double dt, double noise, bool brownian);
   /// The blow-up error for particle i (dx_ and phi_ hold its step).
   [[noreturn]] void fail_blow_up(std::size_t i) const;
@@ -147,6 +166,7 @@ class Integrator {
   // rotation: orientations (4N), torques, angular velocities M_rt F + M_rr T, rotational noise,
   // its sample, the rotation vectors of the step (3N each)
   std::vector<double> q_, torque_, omega_, zr_, wr_, phi_;
+  LangevinGroup inertial_;
 };
 
 }  // namespace rpyfmm::bd
