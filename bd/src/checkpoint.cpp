@@ -14,6 +14,7 @@ namespace {
 constexpr char kMagic[8] = {'R', 'P', 'Y', 'F', 'M', 'M', 'B', 'D'};
 constexpr std::uint32_t kVersion = 2;          // 2: output hashes (version 1 could not identify its files)
 constexpr std::uint32_t kRotationVersion = 3;  // 3: version 2 with orientations (runs with rotation)
+constexpr std::uint32_t kLangevinVersion = 4;  // 4: version 2 with velocities (runs with Langevin types)
 
 std::uint64_t fnv1a(std::string_view bytes) {
   Fnv1a h;
@@ -89,8 +90,11 @@ void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c) {
                         c.rotation_vectors.size() == 3 * n),
           ErrorCode::invalid_input, "write_checkpoint",
           "orientations, reference orientations, rotation vectors and types disagree on N");
+  const bool inertial = !c.velocities.empty();
+  require(!inertial || (c.velocities.size() == 3 * n && !rotation), ErrorCode::invalid_input, "write_checkpoint",
+          "velocities and types disagree on N, or come with orientations");
   std::string out(kMagic, sizeof kMagic);
-  put(out, rotation ? kRotationVersion : kVersion);
+  put(out, rotation ? kRotationVersion : inertial ? kLangevinVersion : kVersion);
   put(out, static_cast<std::uint64_t>(n));
   put(out, c.step);
   put(out, c.seed);
@@ -107,6 +111,7 @@ void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c) {
     put_vector(out, c.reference_orientations);
     put_vector(out, c.rotation_vectors);
   }
+  if (inertial) put_vector(out, c.velocities);
   put(out, static_cast<std::uint64_t>(c.config.size()));
   out += c.config;
   put(out, fnv1a(out));
@@ -125,10 +130,10 @@ Checkpoint read_checkpoint(const std::filesystem::path& path) {
   Reader r(bytes, name);
   r.get_vector<char>(sizeof kMagic, "magic");
   const auto version = r.get<std::uint32_t>("version");
-  if (version != kVersion && version != kRotationVersion)
+  if (version != kVersion && version != kRotationVersion && version != kLangevinVersion)
     fail(ErrorCode::io_error, "read_checkpoint",
          "'" + name + "' has format version " + std::to_string(version) + ", expected " + std::to_string(kVersion) +
-             " or " + std::to_string(kRotationVersion) +
+             ", " + std::to_string(kRotationVersion) + " or " + std::to_string(kLangevinVersion) +
              (version == 1 ? " (version 1 does not identify its output files; start the run afresh)" : ""));
   Checkpoint c;
   const auto n = r.get<std::uint64_t>("N");
@@ -148,6 +153,7 @@ Checkpoint read_checkpoint(const std::filesystem::path& path) {
     c.reference_orientations = r.get_vector<double>(4 * n, "reference orientations");
     c.rotation_vectors = r.get_vector<double>(3 * n, "rotation vectors");
   }
+  if (version == kLangevinVersion) c.velocities = r.get_vector<double>(3 * n, "velocities");
   const auto len = r.get<std::uint64_t>("config length");
   const auto cfg = r.get_vector<char>(len, "config");
   c.config.assign(cfg.begin(), cfg.end());

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <fstream>
 #include <limits>
+#include <numbers>
 #include <set>
 #include <sstream>
 
@@ -321,6 +322,27 @@ void parse_system(const toml::table& root, RunConfig& c) {
   s.finish();
 }
 
+/// A type's dynamics: "brownian" (no mass) or "langevin" with exactly one of mass and density;
+/// the friction of a Langevin type is 6 pi eta a (free draining; docs/theory/bd.md Sec. 8).
+std::optional<LangevinParticle> parse_dynamics(Section& s, const ParticleType& p, const RunConfig& c) {
+  const std::string dynamics = s.string("dynamics", "brownian");
+  const bool mass = s.has("mass"), density = s.has("density");
+  if (dynamics == "brownian") {
+    for (const char* key : {"mass", "density"})
+      if (s.has(key))
+        bad_key(s.key(key), "is only used with dynamics = \"langevin\" (Brownian particles have no mass)");
+    return std::nullopt;
+  }
+  if (dynamics != "langevin")
+    bad_key(s.key("dynamics"), "must be \"brownian\" or \"langevin\", got \"" + dynamics + "\"");
+  if (mass == density)
+    bad_key(s.key(mass ? "density" : "dynamics"), mass ? "cannot be given with mass (give one of them)"
+                                                       : "= \"langevin\" needs mass or density (exactly one)");
+  const double m = mass ? s.positive("mass") : sphere_mass(p.radius, s.positive("density"));
+  if (!std::isnormal(m)) bad_key(s.key(mass ? "mass" : "density"), "gives the mass " + num(m) + ", out of range");
+  return LangevinParticle{.mass = m, .friction = 6.0 * std::numbers::pi * c.viscosity * p.radius};
+}
+
 /// [[types]]: particle types (names unique); none keeps the default type.
 void parse_types(const toml::table& root, RunConfig& c) {
   const auto tables = table_array(root, "types");
@@ -341,6 +363,7 @@ void parse_types(const toml::table& root, RunConfig& c) {
     rotation.dipole = s.non_negative("dipole", 0.0);
     for (const auto& q : c.types)
       if (q.name == p.name) bad_key(s.key("name"), "repeats type name '" + p.name + "'");
+    c.integrator.inertia.push_back(parse_dynamics(s, p, c));
     c.types.push_back(p);
     c.type_torques.push_back(rotation);
     s.finish();
@@ -457,6 +480,9 @@ void parse_bonds(const toml::table& root, RunConfig& c) {
 void parse_external(const toml::table& root, RunConfig& c) {
   Section s(sub_table(root, "external"), "external");
   c.external_force = s.vec3("force", {0, 0, 0});
+  c.trap_stiffness = s.non_negative("trap_stiffness", 0.0);
+  if (c.trap_stiffness > 0.0 && c.geometry.is_periodic())
+    bad_key("external.trap_stiffness", "needs geometry = \"open\" (a trap at the origin has no periodic image)");
   for (const char* key : {"torque", "dipole_field"}) require_rotation(s, key, c);
   c.external_torque = s.vec3("torque", {0, 0, 0});
   c.dipole_field = s.vec3("dipole_field", {0, 0, 0});
@@ -524,6 +550,22 @@ void parse_mobility(const toml::table& root, RunConfig& c) {
   s.finish();
 }
 
+/// Langevin types move without hydrodynamic interactions, rotation or split displacements: each
+/// combination is refused naming the first Langevin type's dynamics key.
+void check_langevin(const RunConfig& c) {
+  const auto& inertia = c.integrator.inertia;
+  const auto first = std::find_if(inertia.begin(), inertia.end(), [](const auto& t) { return t.has_value(); });
+  if (first == inertia.end()) return;
+  const std::string key = "types[" + std::to_string(first - inertia.begin()) + "].dynamics";
+  if (c.mobility.method != rpy::MobilityMethod::none)
+    bad_key(key,
+            "= \"langevin\" needs [mobility] method = \"none\" (free draining): hydrodynamic interactions "
+            "with inertia are not supported");
+  if (c.integrator.rotation) bad_key(key, "= \"langevin\" does not support system.rotation yet");
+  if (c.integrator.keep_split_displacements)
+    bad_key(key, "= \"langevin\" cannot be used with integrator.split_displacements (it splits Brownian steps)");
+}
+
 /// [neighbours]: list skin and rebuild policy.
 void parse_neighbours(const toml::table& root, RunConfig& c) {
   Section s(sub_table(root, "neighbours"), "neighbours");
@@ -575,6 +617,7 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
   parse_external(root, c);
   parse_integrator(root, c);
   parse_mobility(root, c);
+  check_langevin(c);
   parse_neighbours(root, c);
   parse_output(root, c);
   return c;
@@ -635,6 +678,7 @@ ForceField make_force_field(const RunConfig& config) {
   ForceField ff(config.types);
   for (const auto& p : config.pairs) ff.set_pair(ff.type_index(p.type1), ff.type_index(p.type2), p.potential);
   ff.set_global_force(config.external_force);
+  ff.set_trap(config.trap_stiffness);
   if (config.integrator.rotation)
     ff.set_torque_field(TorqueField(config.type_torques, config.external_torque, config.dipole_field));
   if (config.chain_bond) ff.add_bond_potential(*config.chain_bond);

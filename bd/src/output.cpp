@@ -122,13 +122,14 @@ std::string xyz_frame(std::span<const double> x, std::span<const std::uint32_t> 
   return s;
 }
 
-std::string csv_log_header(bool split_displacements, bool rotation) {
+std::string csv_log_header(bool split_displacements, bool rotation, bool langevin) {
   std::string h =
       "step,time,mean_displacement,msd,mean_vx,mean_vy,mean_vz,potential_energy,sqrt_iterations,"
       "mobility_products,neighbour_rebuilds,wall_neighbours,wall_forces,wall_plan,wall_drift,wall_sqrt,"
       "wall_update,wall_output";
   if (split_displacements) h += ",deterministic_rms,brownian_rms";
   if (rotation) h += ",rotational_msd,orientation_correlation";
+  if (langevin) h += ",langevin_kT";
   return h + "\n";
 }
 

@@ -1,5 +1,6 @@
 #include "rpyfmm/bd/run.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -24,6 +25,7 @@ struct Start {
   // rotation: orientations (4N; empty = identity), those at step 0 (4N), the summed rotation
   // vectors (3N); the last two are filled by Run when a run starts
   std::vector<double> orientations, reference_orientations, rotation_vectors;
+  std::vector<double> velocities;  // Langevin types: 3N half-step velocities (empty: Maxwell at start)
   std::vector<std::uint32_t> types;
   std::vector<Bond> bonds;
   std::uint64_t step = 0;
@@ -146,7 +148,7 @@ class Run {
         forces_(run_force_field(config, start_.bonds)),
         n_(start_.types.size()),
         bd_(rpy::make_mobility(config.mobility, n_), forces_, config.integrator, start_.positions, start_.types,
-            config.neighbours, start_.step, start_.orientations) {
+            config.neighbours, start_.step, start_.orientations, start_.velocities) {
     if (config.integrator.rotation && !start_.restarted) {  // the reference state of the log's moments
       start_.reference_orientations.assign(bd_.orientations().begin(), bd_.orientations().end());
       start_.rotation_vectors.assign(3 * n_, 0.0);
@@ -212,7 +214,8 @@ class Run {
       else
         log_.create(sum_.log);
       if (!start_.restarted)
-        log_.write(csv_log_header(config_.integrator.keep_split_displacements, config_.integrator.rotation));
+        log_.write(csv_log_header(config_.integrator.keep_split_displacements, config_.integrator.rotation,
+                                  !bd_.inertial().empty()));
     }
   }
 
@@ -236,6 +239,7 @@ class Run {
       c.reference_orientations = start_.reference_orientations;
       c.rotation_vectors = start_.rotation_vectors;
     }
+    c.velocities.assign(bd_.inertial().velocities().begin(), bd_.inertial().velocities().end());
     traj_.flush();  // the frames the checkpoint counts are in the file before it names them
     c.trajectory_bytes = traj_.length();
     c.trajectory_hash = traj_.hash();
@@ -305,6 +309,7 @@ class Run {
           rotation_moments(bd_.orientations(), start_.reference_orientations, start_.rotation_vectors, n_);
       row << ',' << rmsd << ',' << correlation;
     }
+    if (!bd_.inertial().empty()) row << ',' << bd_.inertial().kinetic_temperature();
     row << '\n';
     log_.write(row.str());
     last_ = Interval{t, s, cnow};
@@ -378,6 +383,11 @@ RunSummary restart_bd(const std::filesystem::path& path, const RunOptions& optio
     fail(ErrorCode::io_error, "restart", source + ": seed/dt disagree with the checkpoint header");
   if (config.integrator.rotation == c.orientations.empty())
     fail(ErrorCode::io_error, "restart", source + ": system.rotation disagrees with the checkpoint's orientations");
+  const auto& inertia = config.integrator.inertia;
+  const bool langevin = std::any_of(c.types.begin(), c.types.end(),
+                                    [&](std::uint32_t t) { return t < inertia.size() && inertia[t].has_value(); });
+  if (langevin == c.velocities.empty())
+    fail(ErrorCode::io_error, "restart", source + ": the Langevin types disagree with the checkpoint's velocities");
   Start s;
   s.positions = c.positions;
   s.reference = c.reference_positions;
@@ -385,6 +395,7 @@ RunSummary restart_bd(const std::filesystem::path& path, const RunOptions& optio
   s.orientations = c.orientations;
   s.reference_orientations = c.reference_orientations;
   s.rotation_vectors = c.rotation_vectors;
+  s.velocities = c.velocities;
   s.step = c.step;
   s.trajectory_bytes = c.trajectory_bytes;
   s.log_bytes = c.log_bytes;

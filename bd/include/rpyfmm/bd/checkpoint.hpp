@@ -9,7 +9,9 @@
 //   u64 len + config bytes, u64 checksum (FNV-1a of everything before it).
 // Runs with rotation write version 3: version 2 with, after the types,
 //   f64[4N] orientations, f64[4N] reference_orientations, f64[3N] rotation_vectors.
-// Runs without rotation still write version 2, byte for byte as before.
+// Runs with Langevin types write version 4: version 2 with, after the types,
+//   f64[3N] half-step velocities v_{n-1/2} (0 for Brownian particles).
+// Other runs still write version 2, byte for byte as before.
 // The hashes (FNV-1a of each output's first *_bytes bytes) identify the files
 // this run wrote: a restart refuses any other file instead of cutting it. A GSD
 // trajectory (`[output] format = "gsd"`) is counted in frames instead of bytes,
@@ -35,6 +37,7 @@ struct Checkpoint {
   std::vector<double> orientations;            ///< rotation: 4N unit quaternions w x y z (else empty)
   std::vector<double> reference_orientations;  ///< rotation: 4N, orientations at step 0
   std::vector<double> rotation_vectors;        ///< rotation: 3N, sum of the steps' rotation vectors
+  std::vector<double> velocities;              ///< Langevin types: 3N half-step velocities (else empty)
   std::uint64_t trajectory_bytes = 0;          ///< trajectory length when this state was written (GSD: frames)
   std::uint64_t trajectory_hash = 0;           ///< FNV-1a of those bytes (GSD: of those frames' chunks)
   std::uint64_t log_bytes = 0;                 ///< CSV log length when this state was written

@@ -67,6 +67,7 @@ struct RunConfig {
   std::vector<NamedPair> pairs;
   std::optional<BondPotential> chain_bond;  ///< bonds between consecutive beads of generated chains
   std::array<double, 3> external_force{0, 0, 0};
+  double trap_stiffness = 0.0;  ///< [external] harmonic trap at the origin (0 = none)
   /// Rotation (integrator.rotation, from [system] rotation): per-type torques and dipoles (one
   /// entry per entry of `types`), a torque on every particle, the uniform field on the dipoles.
   std::vector<TypeTorque> type_torques{TypeTorque{}};

@@ -74,7 +74,8 @@ std::string xyz_frame(std::span<const double> positions, std::span<const std::ui
 /// the rms per particle and step of M F dt and of sqrt(2 kT dt) M^{1/2} z over the interval;
 /// with rotation two more: rotational_msd, the mean of |sum of the rotation vectors since step
 /// 0|^2 (4 D_r t for free spheres), and orientation_correlation, the mean of u(t) . u(0) for
-/// the body z axis u (exp(-2 D_r t) for free spheres; docs/theory/bd.md Sec. 7).
-std::string csv_log_header(bool split_displacements = false, bool rotation = false);
+/// the body z axis u (exp(-2 D_r t) for free spheres; docs/theory/bd.md Sec. 7); with Langevin
+/// particles one more: langevin_kT, the mean of m |v|^2 / 3 over them (kT at equilibrium, Sec. 8).
+std::string csv_log_header(bool split_displacements = false, bool rotation = false, bool langevin = false);
 
 }  // namespace rpyfmm::bd
