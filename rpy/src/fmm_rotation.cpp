@@ -93,12 +93,12 @@ void symmetric_block(const GrandNearContext& ctx, std::uint32_t leaf, detail::Ga
 
 }  // namespace
 
-void FmmRpy::apply_grand_near_field(const double* loads, double* u, double* w) const {
+void FmmRpy::apply_grand_near_field(const Plan& plan, const double* loads, double* u, double* w) const {
   const std::span<const double> x = scale_exponent_ == 0 ? positions() : std::span<const double>(centered_);
-  const GrandNearContext ctx{fmm_->near_field(), x, unit_radii(), loads, u, w, size(), equal_radii()};
+  const GrandNearContext ctx{plan.fmm->near_field(), x, unit_radii(), loads, u, w, size(), equal_radii()};
   detail::for_each_near_task<detail::GatheredSources>(
-      *near_schedule_, [&](detail::GatheredSources& src, std::uint32_t leaf, std::span<const std::uint32_t> one,
-                           std::span<const std::uint32_t> partners) {
+      *plan.near_schedule, [&](detail::GatheredSources& src, std::uint32_t leaf, std::span<const std::uint32_t> one,
+                               std::span<const std::uint32_t> partners) {
         src.gather(ctx.near, one, ctx.x, ctx.a, loads, ctx.n, 2);
         one_sided_block(ctx, leaf, src);
         if (!partners.empty()) {
@@ -123,10 +123,14 @@ void FmmRpy::do_apply_rotation(const double* forces, const double* torques, doub
   const double* scaled_torques = loads.data() + 3 * n;
 
   StopWatch watch;
+  const Plan& plan = rotation_plan();
+  const double plan_seconds = watch.seconds();
+  watch.restart();
   std::vector<double> charges(nd * n);
   std::vector<unsigned> outputs(nd);
   detail::rotation_far_field_charges(forces, scaled_torques, n, equal, centered_, a, charges, outputs);
-  const std::vector<double> results = far_field_pass(charges, outputs, watch.seconds());
+  const std::vector<double> results = far_field_pass(plan, charges, outputs, watch.seconds());
+  timings_["rpy_rotation_plan"] = plan_seconds;
 
   watch.restart();
   detail::combine_far_field(results, n, 1, equal, centered_, a, viscosity(), velocities);
@@ -137,7 +141,7 @@ void FmmRpy::do_apply_rotation(const double* forces, const double* torques, doub
   watch.restart();
   // Near field into ut (U) and wf (W), on top of the far field's rotational sums.
   for (std::size_t j = 0; j < 3 * n; ++j) wf[j] += rr[j];
-  apply_grand_near_field(loads.data(), ut.data(), wf.data());
+  apply_grand_near_field(plan, loads.data(), ut.data(), wf.data());
   const double inv_eta = 1.0 / viscosity();
   for (std::size_t j = 0; j < 3 * n; ++j) {
     velocities[j] = std::ldexp(velocities[j] + inv_eta * ut[j], -e);

@@ -82,11 +82,12 @@ TEST(FmmRotation, WithinToleranceOnABimodalSuspension) {
   }
 }
 
-// With T = 0 the velocities are the translational product, and repeated products agree bit for
-// bit whatever was called in between (translational products, other loads).
+// With T = 0 the velocities are the translational product (an explicit leaf capacity: both kinds
+// of product share one plan), and repeated products agree bit for bit whatever was called in
+// between (translational products, other loads).
 TEST(FmmRotation, RepeatableAndConsistentWithTheTranslationalProduct) {
   const t::Configuration c = t::bimodal_suspension(1500, 0.25, 4.0, 0.2, 21);
-  FmmRpy op(Geometry::open(), 1.0, FmmRpyOptions{.tolerance = 1e-6});
+  FmmRpy op(Geometry::open(), 1.0, FmmRpyOptions{.tolerance = 1e-6, .leaf_capacity = 400});
   op.set_positions(c.x, c.a);
   const auto [f, tq] = loads(c, Loads::both, 3);
   const Motion first = grand_product(op, f, tq);
@@ -99,6 +100,20 @@ TEST(FmmRotation, RepeatableAndConsistentWithTheTranslationalProduct) {
   EXPECT_EQ(first.w, again.w);
   const Motion forces_only = grand_product(op, f, std::vector<double>(f.size(), 0.0));
   EXPECT_LE(t::relative_l2(forces_only.u, u_tt), 1e-14);
+}
+
+// Below the sizes of rotation_plan_rule (fmm_operator.cpp) products with torques share the
+// force-only plan, as with an explicit leaf capacity; their own plan is checked in
+// test_fmm_rotation_accuracy.cpp (5e5 points).
+TEST(FmmRotation, SmallSuspensionsShareThePlan) {
+  const t::Configuration c = t::random_suspension(20000, 1.0, 0.1, 23);
+  const auto [f, tq] = loads(c, Loads::both, 5);
+  for (int leaf_capacity : {0, 100}) {
+    FmmRpy op(Geometry::open(), 1.0, FmmRpyOptions{.tolerance = 1e-6, .leaf_capacity = leaf_capacity});
+    op.set_positions(c.x, c.a);
+    (void)grand_product(op, f, tq);
+    EXPECT_EQ(op.rotation_laplace_plan(), op.laplace_plan()) << leaf_capacity;
+  }
 }
 
 TEST(FmmRotation, SameResultForAnyThreadCount) {
