@@ -96,9 +96,10 @@ fmm::FittedGridRule fitted_grid_rule(double eps) {
 //    dominates. Fitted leaves of 57 points on the 6-digit table: 1.40x, but U's error 1.02e-6 (the
 //    force-only product's is 9.05e-7 at 244 points per leaf: at this size the 6-digit plane-wave
 //    table sits near eps whatever the leaves; a higher order, 24, did not lower it at 1e5). Fitted
-//    leaves of 100 points on the 9-digit table at order 18: 2.10x and 2.34x (two runs; force-only
-//    97 s and 87 s on the loaded machine, 44 s unloaded), errors U 1.7e-7, W 4.8e-8; the plan
-//    holds 84 MB (the force-only one about as much) and takes 1.6 s to build.
+//    leaves of 100 points on the 9-digit table at order 18: 2.00x on the quieter machine (load
+//    3.5: force-only 46.5 s, with torques 92.9 s), 2.10x and 2.34x under load 7-9; errors U
+//    1.7e-7, W 4.8e-8; the plan holds 84 MB (the force-only one about as much) and takes 1-1.6 s
+//    to build.
 //  - N = 1e5 (force-only plan: fitted leaves of 58 points): 2.07x with the same plan; leaves of 30
 //    or 40 points 2.7-2.9x, the 9-digit table 2.9-3.4x. Below 5e5 products with torques share
 //    the force-only plan.
