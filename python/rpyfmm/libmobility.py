@@ -405,7 +405,7 @@ class NBody(_Solver):
 
     def _geometry_note(self, given: Tuple[str, str, str]) -> str:
         if given[2] in ("single_wall", "two_walls"):
-            return f" (the wall mobility, periodicityZ = {given[2]!r}, is not implemented)"
+            return " (rpyfmm has no wall mobility)"
         return ""
 
     def _default_parameters(self) -> Dict[str, Any]:
