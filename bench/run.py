@@ -2,8 +2,9 @@
 """Benchmark driver: builds the benchmark programs, runs them, writes bench/results/<group>.json and
 renders bench/README.md from those files.
 
-    python3 bench/run.py [--quick|--full] [--only GROUP ...] [--compare COMMIT] [--simd-levels]
-                         [--build build/release] [--rounds R] [--render-only]
+    python3 bench/run.py [--quick|--full|--isa-rows] [--only GROUP ...] [--compare COMMIT] [--simd-levels]
+                         [--levels L ...] [--concurrent] [--build build/release] [--rounds R] [--no-build]
+                         [--render-only]
 
 Groups: fmm (Laplace FMM, and fmm3dpy's lfmm3d on the same points when it imports), direct (direct
 kernels), rpy (RPY operators: FmmRpy, DirectRpy), pse (PSE on the CPU), pse-gpu (PSE with CUDA, only
@@ -14,8 +15,11 @@ Every case runs at 1 thread (the per-core figure) and at all cores; each program
 of its own repetitions and the driver the median over --rounds runs. --compare COMMIT builds COMMIT in
 a scratch worktree build/compare-<sha> (same preset) and runs every case on both builds in turn, so
 machine noise hits both alike; --simd-levels runs every case at each instruction-set level the CPU
-has (RPYFMM_SIMD, docs/reproducibility.md). Both write <group>.compare-<sha>.json or
-<group>.simd-levels.json next to the headline files, and the page shows their ratios.
+has (RPYFMM_SIMD, docs/reproducibility.md; --levels picks some, --isa-rows runs the sizes that page
+quotes). Both write <group>.compare-<sha>.json or <group>.simd-levels.json next to the headline
+files, and the page shows their ratios. --concurrent runs each one-thread case's rounds on every
+variant at once, each on its own physical core (a machine with many cores: the variants then share
+the memory system alike, and the rounds take the time of one).
 
 fmm3dpy (the peer code of the fmm group) is looked up in the virtual environment build/bench-venv:
     python3 -m venv --system-site-packages build/bench-venv && build/bench-venv/bin/pip install fmm3dpy
@@ -100,7 +104,7 @@ class Group:
     title: str
     about: str
     targets: list[str]
-    cases: object  # (full: bool) -> list[Case]
+    cases: object  # (mode: "quick" | "full" | "isa") -> list[Case]
     parse: object = parse_csv
     time_key: str = ""  # the column compared between variants (seconds, lower is better)
     columns: list = field(default_factory=list)  # (header, column, format)
@@ -108,7 +112,11 @@ class Group:
     needs_gpu: bool = False
 
 
-def fmm_cases(full: bool) -> list[Case]:
+def fmm_cases(mode: str) -> list[Case]:
+    if mode == "isa":
+        return [Case(["fmm/bench_fmm", "--n", "1e6", "--dist", "cube", "--eps", "1e-6", "--reps", "3", "--sample", "500"],
+                     1, {"N": 1000000, "dist": "cube", "eps": "1e-6"})]
+    full = mode == "full"
     sizes, dists, epss = (["1e5", "1e6"], ["cube", "sphere"], ["1e-3", "1e-6", "1e-9"]) if full else (
         ["1e5"], ["cube"], ["1e-3", "1e-6"])
     return [Case(["fmm/bench_fmm", "--n", n, "--dist", d, "--eps", e, "--reps", "3", "--sample", "500"], t,
@@ -116,13 +124,18 @@ def fmm_cases(full: bool) -> list[Case]:
             for n in sizes for d in dists for e in epss for t in THREADS]
 
 
-def direct_cases(full: bool) -> list[Case]:
-    n = "20000" if full else "4000"
+def direct_cases(mode: str) -> list[Case]:
+    if mode == "isa":
+        return [Case(["direct/bench_direct", "--n", "10000", "--threads", "1", "--reps", "3", "--kernel", "all"], 1, {})]
+    n = "20000" if mode == "full" else "4000"
     return [Case(["direct/bench_direct", "--n", n, "--threads", str(t), "--reps", "5", "--kernel", "all"], t, {})
             for t in THREADS]
 
 
-def rpy_cases(full: bool) -> list[Case]:
+def rpy_cases(mode: str) -> list[Case]:
+    if mode == "isa":
+        return [Case(["rpy/bench_rpy_fmm", "suspension", "1000000", "1e-6", "1", "1"], 1, {})]
+    full = mode == "full"
     dists, sizes, epss = (["suspension", "cylinder"], ["10000", "100000"], ["1e-3", "1e-6", "1e-9"]) if full else (
         ["suspension"], ["10000"], ["1e-3", "1e-6"])
     cases = [Case(["rpy/bench_rpy_fmm", d, n, e, str(t), "3"], t, {}) for d in dists for n in sizes for e in epss
@@ -134,31 +147,43 @@ def rpy_cases(full: bool) -> list[Case]:
     return cases
 
 
-def pse_cases(full: bool) -> list[Case]:
-    sizes = ["8000", "32000", "128000"] if full else ["8000", "32000"]
+def pse_cases(mode: str) -> list[Case]:
+    if mode == "isa":
+        return [Case(["pse/bench_pse", "--quick", "100000"], 1, {}, keep={"threads": 1})]
+    sizes = ["8000", "32000", "128000"] if mode == "full" else ["8000", "32000"]
     # bench_pse times every thread count from 1 to OMP_NUM_THREADS; keep the one asked for.
     return [Case(["pse/bench_pse", "--quick", n], t, {}, keep={"threads": t}) for n in sizes for t in THREADS]
 
 
-def pse_gpu_cases(full: bool) -> list[Case]:
-    sizes = ["32000", "128000", "512000"] if full else ["32000", "128000"]
+def pse_gpu_cases(mode: str) -> list[Case]:
+    if mode == "isa":
+        return []
+    sizes = ["32000", "128000", "512000"] if mode == "full" else ["32000", "128000"]
     return [Case(["pse/bench_pse", "--cuda", *sizes], CORES, {})]
 
 
-def sampler_cases(full: bool) -> list[Case]:
-    op, sizes, tols = ("fmm", "10000,100000", "1e-3,1e-5") if full else ("direct", "2000", "1e-3")
+def sampler_cases(mode: str) -> list[Case]:
+    if mode == "isa":
+        return []
+    op, sizes, tols = ("fmm", "10000,100000", "1e-3,1e-5") if mode == "full" else ("direct", "2000", "1e-3")
     return [Case(["sqrt/bench_sqrt", op, sizes, tols, str(t), "3", "1e-6", "all", "noblock"], t, {})
             for t in THREADS]
 
 
-def bd_cases(full: bool) -> list[Case]:
+def bd_cases(mode: str) -> list[Case]:
+    if mode == "isa":
+        return []
+    full = mode == "full"
     sizes = {"direct": "1000,3000", "fmm": "3000,10000,30000", "pse": "3000,10000,30000"} if full else {
         "direct": "2000", "fmm": "2000", "pse": "2000"}
     return [Case(["bd/bench_bd", "steps", "--method", m, "--n", n, "--steps", "5" if full else "3"], t, {})
             for m, n in sizes.items() for t in THREADS]
 
 
-def rigid_cases(full: bool) -> list[Case]:
+def rigid_cases(mode: str) -> list[Case]:
+    if mode == "isa":
+        return []
+    full = mode == "full"
     # Direct bead operators at <= 4000 beads also time the dense reference: small counts only.
     counts = {"direct": "8,64", "fmm": "64,512", "step": "8,64"} if full else {
         "direct": "8", "fmm": "8,64", "step": "8"}
@@ -277,6 +302,10 @@ def git(*args: str, cwd: Path = ROOT) -> str:
 
 
 def commit_of(tree: Path) -> str:
+    """The commit of the tree (+dirty where the programs' sources changed); RPYFMM_BENCH_COMMIT where the
+    tree is a copy without git (a machine the programs were carried to)."""
+    if os.environ.get("RPYFMM_BENCH_COMMIT"):
+        return os.environ["RPYFMM_BENCH_COMMIT"]
     try:
         sha = git("rev-parse", "--short=12", "HEAD", cwd=tree)
         # The driver and its outputs do not change the programs measured.
@@ -407,15 +436,17 @@ def run_peer(python: str, points: str, eps: str, threads: int) -> dict:
     return json.loads(out.splitlines()[-1])
 
 
-def run_case(group: Group, case: Case, variant: Variant, peer: str | None) -> list[dict]:
+def run_case(group: Group, case: Case, variant: Variant, peer: str | None, cpu: int | None = None) -> list[dict]:
+    """One run of a case on a variant (pinned to logical CPU `cpu` where given); its rows."""
     program = variant.build / "bench" / case.argv[0]
     if not program.exists():
         return []
     with tempfile.TemporaryDirectory() as tmp:
         points = str(Path(tmp) / "points.npy")
         argv = [str(program), *case.argv[1:], *(["--npy", points] if case.peer and peer else [])]
+        pin = (lambda: os.sched_setaffinity(0, {cpu})) if cpu is not None else None
         out = subprocess.run(argv, env=run_env(case.threads, variant.simd), capture_output=True, text=True,
-                             check=True).stdout
+                             check=True, preexec_fn=pin).stdout
         rows = [r for r in group.parse(out) if all(r.get(k) == v for k, v in case.keep.items())]
         extra = run_peer(peer, points, case.argv[case.argv.index("--eps") + 1], case.threads) if (
             case.peer and peer) else {}
@@ -455,12 +486,48 @@ def median_rows(group: Group, runs: list[dict]) -> list[dict]:
     return merged
 
 
-def run_group(group: Group, variants: list[Variant], full: bool, rounds: int) -> dict[str, list[dict]]:
+def one_cpu_per_core() -> list[int]:
+    """One logical CPU of each physical core this process may run on (the first of its siblings)."""
+    cpus = []
+    for cpu in sorted(os.sched_getaffinity(0)):
+        try:
+            siblings = Path(f"/sys/devices/system/cpu/cpu{cpu}/topology/thread_siblings_list").read_text()
+            first = int(siblings.replace("-", ",").split(",")[0])
+        except (OSError, ValueError):
+            first = cpu
+        if first == cpu:
+            cpus.append(cpu)
+    return cpus
+
+
+def run_group_concurrently(group: Group, variants: list[Variant], mode: str, rounds: int) -> dict[str, list[dict]]:
+    """--concurrent: for each case, its rounds on every variant at once, one-thread runs pinned to one
+    physical core each (so the variants share the machine's memory system alike); medians per variant."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    cpus = one_cpu_per_core()
+    runs: dict[str, list[dict]] = {v.name: [] for v in variants}
+    for case in group.cases(mode):
+        jobs = [(r, v) for r in range(rounds) for v in variants]
+        if case.threads != 1 or len(jobs) > len(cpus):
+            raise SystemExit(f"--concurrent needs one-thread cases and {len(jobs)} physical cores ({len(cpus)} here)")
+        start = datetime.datetime.now()
+        with ThreadPoolExecutor(len(jobs)) as pool:
+            futures = [(v, pool.submit(run_case, group, case, v, None, cpus[i])) for i, (r, v) in enumerate(jobs)]
+            for v, future in futures:
+                runs[v.name] += future.result()
+        seconds = (datetime.datetime.now() - start).total_seconds()
+        print(f"# {group.name}: {len(jobs)} runs at once of {' '.join(case.argv)}: {seconds:.1f} s", file=sys.stderr,
+              flush=True)
+    return {name: median_rows(group, rows) for name, rows in runs.items()}
+
+
+def run_group(group: Group, variants: list[Variant], mode: str, rounds: int) -> dict[str, list[dict]]:
     """Every case on every variant in turn, `rounds` times; medians per variant (the peer code: headline runs)."""
     peer = fmm3d_python() if group.name == "fmm" and len(variants) == 1 else None
     runs: dict[str, list[dict]] = {v.name: [] for v in variants}
     for r in range(rounds):
-        for case in group.cases(full):
+        for case in group.cases(mode):
             for i, variant in enumerate(variants):
                 start = datetime.datetime.now()
                 runs[variant.name] += run_case(group, case, variant, peer if i == 0 else None)
@@ -478,7 +545,8 @@ def record(group: Group, args, variants: list[Variant], rows: dict[str, list[dic
     return {
         "group": group.name,
         "generated_by": "python3 bench/run.py " + " ".join(sys.argv[1:]),
-        "mode": "full" if args.full else "quick",
+        "mode": size_mode(args),
+        "concurrent": bool(args.concurrent),
         "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
         "machine": machine(variants[0].build),
         "rounds": args.rounds,
@@ -573,8 +641,9 @@ every measured row). Regenerate everything with one command (about 10 minutes on
 
 `--only GROUP ...` runs some groups, `--compare COMMIT` runs every case on this tree and on COMMIT
 (built in `build/compare-<sha>`) in turn and shows the ratios, `--simd-levels` runs them at every
-instruction-set level of the CPU (`RPYFMM_SIMD`), `--render-only` redraws this page. Times are
-medians; 1-thread rows are the per-core figures, the rows at all cores show the parallel speed-up.
+instruction-set level of the CPU (`RPYFMM_SIMD`; with `--isa-rows` at the sizes that
+docs/reproducibility.md quotes, and with `--concurrent` each case's rounds on all levels at once, one
+physical core each), `--render-only` redraws this page. Times are medians; 1-thread rows are the per-core figures, the rows at all cores show the parallel speed-up.
 Where the machine was shared (load average above its cores), 1-thread figures are the steadier
 and rows at all cores mostly show the contention. The fmm3dpy peer comes from PyPI:
 
@@ -632,18 +701,31 @@ def parse_args() -> argparse.Namespace:
     size = ap.add_mutually_exclusive_group()
     size.add_argument("--quick", action="store_true", help="small sizes, about 10 minutes on 2 cores (default)")
     size.add_argument("--full", action="store_true", help="the sizes of the headline tables on a quiet machine")
+    size.add_argument("--isa-rows", action="store_true",
+                      help="with --simd-levels: the rows of docs/reproducibility.md (Laplace FMM and FmmRpy at 1e6 "
+                           "and 1e-6, the direct kernels at 1e4, PSE at 1e5; one thread)")
     ap.add_argument("--only", nargs="+", choices=[g.name for g in GROUPS], help="run these groups only")
     ap.add_argument("--compare", metavar="COMMIT", help="also build COMMIT and report new/old ratios")
     ap.add_argument("--simd-levels", action="store_true", help="run at every instruction-set level of the CPU")
     ap.add_argument("--build", default="build/release", help="build directory (configured if missing)")
     ap.add_argument("--rounds", type=int, help="runs of each case (default 1 quick, 3 full or side by side)")
     ap.add_argument("--no-build", action="store_true", help="use the programs as built")
+    ap.add_argument("--levels", nargs="+", choices=["avx512", "avx2", "scalar"],
+                    help="with --simd-levels: these levels only (where the CPU has them)")
+    ap.add_argument("--concurrent", action="store_true",
+                    help="run each case's rounds on every variant at once, one physical core each (one-thread cases)")
     ap.add_argument("--render-only", action="store_true", help="only redraw bench/README.md from the JSON files")
     ap.add_argument("--note", help="a sentence shown with this run's tables (e.g. what --compare compares)")
     args = ap.parse_args()
     if args.rounds is None:
         args.rounds = 3 if args.full or args.compare or args.simd_levels else 1
+    if args.isa_rows and not args.simd_levels:
+        ap.error("--isa-rows goes with --simd-levels")
     return args
+
+
+def size_mode(args) -> str:
+    return "isa" if args.isa_rows else "full" if args.full else "quick"
 
 
 def selected_groups(args) -> list[Group]:
@@ -661,7 +743,7 @@ def make_variants(args, build: Path) -> list[Variant]:
         return [Variant("new", build), Variant("old", tree / "build" / "release")]
     if args.simd_levels:
         levels = []
-        for level in ("avx512", "avx2", "scalar"):
+        for level in args.levels or ("avx512", "avx2", "scalar"):
             reported = simd_level(build, level)
             if reported == level:
                 levels.append(level)
@@ -689,7 +771,8 @@ def main() -> None:
         if args.compare and not args.no_build:
             build_targets(variants[1].build.parent.parent, variants[1].build, targets, like=build)
         for group in groups:
-            rec = record(group, args, variants, run_group(group, variants, args.full, args.rounds))
+            run = run_group_concurrently if args.concurrent else run_group
+            rec = record(group, args, variants, run(group, variants, size_mode(args), args.rounds))
             (RESULTS / results_name(group, variants, args)).write_text(json.dumps(rec, indent=1) + "\n")
             if len(variants) == 1:
                 plot(group, rec)

@@ -12,12 +12,8 @@
 # the benchmark finds the GPU and CPU products apart by more than round-off (N <= 250000).
 set -uo pipefail
 cd "$(dirname "$0")/.."
-out="${OUT:-gpu-out}"
-mkdir -p "$out"
-cufft_dir=$(dirname "$(find /usr/local /opt /usr/lib -name 'libcufft.so.12*' 2>/dev/null | head -1)")
-export LD_LIBRARY_PATH="$PWD/gpu-kit/lib:${cufft_dir}:/usr/local/cuda/lib64:${LD_LIBRARY_PATH:-}"
+source scripts/gpu-env.sh
 export OMP_NUM_THREADS="${OMP_NUM_THREADS:-8}"
-export RPYFMM_EXPECT_CUDA=1
 nvidia-smi -L 2>&1 | tee "$out/device.txt"
 echo "cuFFT from: $cufft_dir" | tee -a "$out/device.txt"
 nvidia-smi --query-gpu=name,driver_version,memory.total,clocks.max.sm --format=csv >> "$out/device.txt" 2>&1
@@ -42,7 +38,7 @@ run_sanitizer() {
   if [ -n "$sanitizer" ] && [ $((budget - SECONDS)) -gt 200 ]; then
     for tool in memcheck racecheck; do
       RPYFMM_CUDA_SYNC=1 timeout 90 "$sanitizer" --tool "$tool" --error-exitcode 9 gpu-kit/test_pse \
-        --gtest_filter='PseCuda.SinglePrecisionGridsAgree:PseCuda/WindowBins.*/rectangular_float_edge16:PseCuda/WindowBins.*/clustered_double_edge4' \
+        --gtest_filter='PseCuda.SinglePrecisionGridsAgree:PseCuda/WindowBins.*/rectangular_float_edge12:PseCuda/WindowBins.*/clustered_double_edge4' \
         > "$out/sanitizer_$tool.txt" 2>&1
       echo "gpu-check: compute-sanitizer $tool rc=$? (9: errors found, 124: timed out)" | tee -a "$out/sanitizer.txt"
     done

@@ -7,14 +7,17 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <functional>
+#include <limits>
 #include <ostream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "ewald_reference.hpp"
 #include "rpyfmm/bd/integrator.hpp"
-#include "rpyfmm/rpy/mobility_factory.hpp"
 #include "rpyfmm/core/error.hpp"
+#include "rpyfmm/rpy/mobility_factory.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
 
@@ -29,6 +32,37 @@ namespace {
 bool device_expected() {
   return std::getenv("RPYFMM_EXPECT_CUDA") != nullptr;
 }
+
+#ifdef RPYFMM_HAVE_CUDA_PSE
+/// A vector of doubles in device memory (freed at scope exit) for the device-array entry points;
+/// a failed CUDA call throws, which gtest reports as a failure.
+class DeviceVector {
+ public:
+  explicit DeviceVector(std::size_t n) : n_(n) {
+    if (cudaMalloc(reinterpret_cast<void**>(&p_), n * sizeof(double)) != cudaSuccess)
+      throw std::runtime_error("cudaMalloc");
+  }
+  explicit DeviceVector(const std::vector<double>& host) : DeviceVector(host.size()) { upload(host); }
+  DeviceVector(const DeviceVector&) = delete;
+  DeviceVector& operator=(const DeviceVector&) = delete;
+  ~DeviceVector() { cudaFree(p_); }
+  void upload(const std::vector<double>& host) {
+    if (host.size() != n_ || cudaMemcpy(p_, host.data(), n_ * sizeof(double), cudaMemcpyHostToDevice) != cudaSuccess)
+      throw std::runtime_error("upload to the device");
+  }
+  [[nodiscard]] std::vector<double> host() const {
+    std::vector<double> h(n_);
+    if (cudaMemcpy(h.data(), p_, n_ * sizeof(double), cudaMemcpyDeviceToHost) != cudaSuccess)
+      throw std::runtime_error("download from the device");
+    return h;
+  }
+  double* get() { return p_; }
+
+ private:
+  double* p_ = nullptr;
+  std::size_t n_;
+};
+#endif
 }  // namespace
 
 #define REQUIRE_DEVICE()                                                                       \
@@ -106,21 +140,13 @@ TEST(PseCuda, CpuAndGpuAgree) {
 #ifdef RPYFMM_HAVE_CUDA_PSE
     // The device-array entry points: the same products without host transfers.
     {
-      double *df = nullptr, *du = nullptr;
-      const std::size_t bytes = f.size() * sizeof(double);
-      ASSERT_EQ(cudaMalloc(reinterpret_cast<void**>(&df), bytes), cudaSuccess);
-      ASSERT_EQ(cudaMalloc(reinterpret_cast<void**>(&du), bytes), cudaSuccess);
-      ASSERT_EQ(cudaMemcpy(df, f.data(), bytes, cudaMemcpyHostToDevice), cudaSuccess);
+      DeviceVector df(f), du(f.size());
       cpu.apply(f, uc);
-      gpu.apply_device(df, du);
-      ASSERT_EQ(cudaMemcpy(ug.data(), du, bytes, cudaMemcpyDeviceToHost), cudaSuccess);
-      EXPECT_LT(pse_test::rel_l2(ug, uc), 1e-12) << "apply_device";
+      gpu.apply_device(df.get(), du.get());
+      EXPECT_LT(pse_test::rel_l2(du.host(), uc), 1e-12) << "apply_device";
       const SqrtReport dc = cpu.sample(23, 2, uc);
-      const SqrtReport dg = gpu.sample_device(23, 2, du);
-      ASSERT_EQ(cudaMemcpy(ug.data(), du, bytes, cudaMemcpyDeviceToHost), cudaSuccess);
-      EXPECT_LT(pse_test::rel_l2(ug, uc), sampler_bound(dc, dg)) << "sample_device";
-      cudaFree(df);
-      cudaFree(du);
+      const SqrtReport dg = gpu.sample_device(23, 2, du.get());
+      EXPECT_LT(pse_test::rel_l2(du.host(), uc), sampler_bound(dc, dg)) << "sample_device";
     }
     // Stage times from the device's events: every stage of a product and of a sample ran.
     const auto stages = gpu.stage_times();
@@ -205,7 +231,7 @@ TEST(PseCuda, DeviceCellListMatchesHostLists) {
 // Spreading and interpolation by bins through shared memory (PseCudaOptions::window_bin): the
 // same products as one block per particle and as the CPU (double grids: to round-off, 1e-12;
 // float grids: float round-off, 1e-5), for bin edges that divide the grid or not, a grid
-// smaller than one bin along an axis (the subgrid wraps onto itself: edge 16 on the explicit
+// no larger than one bin along an axis (the subgrid wraps onto itself: edge 12 on the explicit
 // 27x33x12 grid), a rectangular box with an explicit grid, particles piled into a few bins
 // (many particles per block), the split sampler (interpolation alone), and with pageable
 // instead of page-locked transfers. One instance per (box, precision, edge), so that
@@ -216,6 +242,7 @@ struct BinBox {
   std::array<int, 3> grid;  // {0, 0, 0}: from the tolerance
   std::size_t n;
   bool clustered;
+  int largest_edge;  // the largest edge whose 8-byte subgrids fit in an H100's or H200's 227 KiB
 };
 struct BinCase {
   BinBox box;
@@ -276,15 +303,15 @@ TEST_P(WindowBins, MatchPerParticleKernelsAndCpu) {
 
 std::vector<BinCase> bin_cases() {
   std::vector<BinCase> cases;
-  for (const BinBox& b : {BinBox{"cube", {14.0, 14.0, 14.0}, {0, 0, 0}, 600, false},
-                          BinBox{"rectangular", {12.0, 15.0, 10.0}, {27, 33, 12}, 500, false},
-                          BinBox{"clustered", {16.0, 16.0, 16.0}, {0, 0, 0}, 800, true}}) {
-    // Edges whose subgrids fit in shared memory (support 10-11 here): double up to 8, float 16.
-    for (const int edge : {4, 5, 8}) {
+  // Supports 11, 10 and 11 points: subgrids of (edge + 10)^3 or (edge + 9)^3 points, 8 bytes each.
+  // Edge 12 on the rectangular box's 12-point axis: one bin whose subgrid wraps onto itself.
+  for (const BinBox& b : {BinBox{"cube", {14.0, 14.0, 14.0}, {0, 0, 0}, 600, false, 10},
+                          BinBox{"rectangular", {12.0, 15.0, 10.0}, {27, 33, 12}, 500, false, 12},
+                          BinBox{"clustered", {16.0, 16.0, 16.0}, {0, 0, 0}, 800, true, 10}}) {
+    for (const int edge : {4, 5, 8, b.largest_edge}) {
       cases.push_back({b, WavePrecision::double_precision, edge});
       cases.push_back({b, WavePrecision::single_precision, edge});
     }
-    cases.push_back({b, WavePrecision::single_precision, 16});
   }
   return cases;
 }
@@ -317,7 +344,7 @@ TEST(PseCuda, BadWindowBinsAreRefused) {
 }
 
 // Single-precision wave grids (the automatic choice for tolerances >= 1e-5, on both back ends):
-// R2C / C2R transforms and float atomics on the GPU. GPU and CPU then agree to float round-off
+// R2C / C2R transforms on the GPU. GPU and CPU then agree to float round-off
 // (~1e-7 relative; bound 1e-5), and both stay within that of the double-precision product.
 TEST(PseCuda, SinglePrecisionGridsAgree) {
   REQUIRE_DEVICE();
@@ -351,7 +378,7 @@ TEST(PseCuda, SinglePrecisionGridsAgree) {
 
 // The BD engine on the GPU (mobility device "cuda"): a few steps of sedimenting, diffusing
 // particles give the CPU engine's trajectory (double-precision wave grids on both), to the
-// round-off of the atomics and the Lanczos tolerance (PSE tolerance 1e-7: the sampler's Lanczos
+// round-off of the fixed-point spreading and the Lanczos tolerance (PSE tolerance 1e-7: the sampler's Lanczos
 // stops at the same iteration or one apart, ~1e-7 of a displacement).
 TEST(PseCuda, BdStepsOnTheGpuMatchTheCpu) {
   REQUIRE_DEVICE();
@@ -384,4 +411,95 @@ TEST(PseCuda, BdStepsOnTheGpuMatchTheCpu) {
     dg[i] = gpu->positions()[i] - x0[i];
   }
   EXPECT_LT(pse_test::rel_l2(dg, dc), 1e-6);
+}
+
+// One configuration, one answer (docs/reproducibility.md): on the device the k-th product equals
+// the first bit for bit, whatever was called in between, for float and double grids, by bins and
+// per particle. Bit for bit because every stage sums in a fixed order (the real-space rows, the
+// interpolation's block sums and shuffles, the Lanczos inner products) or in integers (the
+// spreading's 64-bit fixed-point atomics), and cuFFT runs the same plan on the same data.
+TEST(PseCuda, ProductsDoNotDependOnCallHistory) {
+  REQUIRE_DEVICE();
+  const std::array<double, 3> L{18.0, 20.0, 19.0};
+  const std::size_t n = 3000;
+  const auto x = pse_test::random_points(n, L, 81);
+  auto f = pse_test::random_points(n, {2.0, 2.0, 2.0}, 82);
+  for (auto& v : f) v -= 1.0;
+  const auto z = pse_test::random_points(n, {1.0, 1.0, 1.0}, 83);
+  for (const WavePrecision precision : {WavePrecision::single_precision, WavePrecision::double_precision}) {
+    for (const int bin : {-1, 6}) {
+      SCOPED_TRACE(std::string(precision == WavePrecision::single_precision ? "float" : "double") + " grids, bin " +
+                   std::to_string(bin));
+      PseOptions o;
+      o.tolerance = precision == WavePrecision::single_precision ? 1e-4 : 1e-7;
+      o.wave_precision = precision;
+      PseRpyCuda gpu(Geometry::periodic(L[0], L[1], L[2]), 1.0, o, PseCudaOptions{.window_bin = bin});
+      gpu.set_positions(x, 1.0);
+      ASSERT_EQ(gpu.window_bin_edge(), bin < 0 ? 0 : bin);
+      std::vector<double> first(3 * n), again(3 * n), w(3 * n), block(6 * n);
+      gpu.apply(f, first);
+      std::vector<std::function<void()>> calls = {
+          [&] { gpu.apply_sqrt(z, w); },
+          [&] { gpu.sample(3, 4, w); },
+          [&] { gpu.apply_with_noise(f, 1.0, 3, 5, w); },
+          [&] {
+            std::vector<double> two(f);
+            two.insert(two.end(), z.begin(), z.end());
+            gpu.apply_block(two, block, 2);
+          },
+          [&] { gpu.set_positions(x, 1.0); },
+          [&] { gpu.apply(z, w); },
+      };
+      for (std::size_t k = 0; k < calls.size(); ++k) {
+        calls[k]();
+        gpu.apply(f, again);
+        EXPECT_EQ(again, first) << "after call " << k;
+      }
+      // Samples and noisy products repeat bit for bit too.
+      std::vector<double> s1(3 * n), s2(3 * n);
+      gpu.sample(7, 2, s1);
+      gpu.apply(z, w);
+      gpu.sample(7, 2, s2);
+      EXPECT_EQ(s1, s2) << "sample";
+      gpu.apply_with_noise(f, 0.5, 7, 3, s1);
+      gpu.apply_sqrt(z, w);
+      gpu.apply_with_noise(f, 0.5, 7, 3, s2);
+      EXPECT_EQ(s1, s2) << "apply_with_noise";
+#ifdef RPYFMM_HAVE_CUDA_PSE
+      // The device-array product equals the host-array one bit for bit.
+      DeviceVector df(f), du(f.size());
+      gpu.apply_device(df.get(), du.get());
+      EXPECT_EQ(du.host(), first) << "apply_device";
+#endif
+    }
+  }
+}
+
+// Non-finite forces reach the velocities as NaN (the fixed-point spreading cannot hold them, so
+// the grid is set to NaN instead of silently dropping them); finite forces after them give the
+// product of a fresh operator again.
+TEST(PseCuda, NonFiniteDeviceForcesGiveNaN) {
+  REQUIRE_DEVICE();
+#ifdef RPYFMM_HAVE_CUDA_PSE
+  const std::array<double, 3> L{12.0, 12.0, 12.0};
+  const std::size_t n = 200;
+  const auto x = pse_test::random_points(n, L, 91);
+  auto f = pse_test::random_points(n, {2.0, 2.0, 2.0}, 92);
+  for (auto& v : f) v -= 1.0;
+  PseOptions o;
+  o.tolerance = 1e-4;
+  PseRpyCuda gpu(Geometry::periodic(L[0], L[1], L[2]), 1.0, o);
+  gpu.set_positions(x, 1.0);
+  std::vector<double> u0(3 * n), u(3 * n);
+  gpu.apply(f, u0);
+  auto bad = f;
+  bad[7] = std::numeric_limits<double>::infinity();
+  DeviceVector df(bad), du(f.size());
+  gpu.apply_device(df.get(), du.get());
+  u = du.host();
+  EXPECT_TRUE(std::any_of(u.begin(), u.end(), [](double v) { return std::isnan(v); }));
+  df.upload(f);
+  gpu.apply_device(df.get(), du.get());
+  EXPECT_EQ(du.host(), u0);
+#endif
 }

@@ -1,19 +1,33 @@
 // rpyfmm — PSE on CUDA: Gaussian spreading and interpolation (D and D^-1 of [PSE] eq. 19;
 // docs/theory/pse.md), the device side of wave_space.cpp's windows. Included by pse_rpy_cuda.cu only.
 //
-// Two forms, same sums (to the order of the floating-point additions):
+// Two forms: the same grid bit for bit from spreading (integer sums, below), the same
+// interpolated sums to the order of the floating-point additions:
 // - per particle: one block per particle over its P^3 window, atomics straight into the grid;
 // - by bins (the default where it pays): the grid is cut into bins of B^3 points and the
 //   particles are sorted by the bin of their window's first point; one block per bin spreads
 //   into a subgrid of (B + P - 1)^3 points in shared memory and adds that to the grid once
 //   (interpolation: loads the subgrid once and reads the windows from shared memory). The
 //   global atomics fall from N P^3 to (B + P - 1)^3 per bin, about (1 + (P-1)/B)^3 per grid point
-//   (at Table I's N = 1e6, 320^3 points, P = 7, B = 14: 3.5x fewer). The shared-memory
+//   (at Table I's N = 1e6, 320^3 points, P = 7, B = 10: 2.6x fewer). The shared-memory
 //   subgrid is the "SM" method of cuFINUFFT (Shih et al., IPDPSW 2021), written here anew.
+//
+// Spreading sums in 64-bit fixed point, so that a product does not depend on the order in
+// which the atomics land (docs/reproducibility.md): each contribution c3 w f_c is rounded once
+// to an integer multiple of 2^-shift, integer addition is associative, and the sums are turned
+// back into the grid's Real at the end. The shift is chosen per product from max |f|: every
+// contribution is at most |c3| max|f| (w is a product of Gaussians <= 1), a grid point sums at
+// most N of them, so 2^shift |c3| max|f| N < 2^62 keeps every partial sum below 2^63. The
+// rounding is at most 2^-63 |c3| max|f| N per contribution (1.1e-13 of the largest
+// contribution at N = 1e6): below the float grids' own rounding, and far below the smallest
+// tolerance of the CUDA path (1e-8) on double grids. (Fixed-point accumulation for
+// reproducible GPU sums as in Le Grand, Goetz & Walker, Comput. Phys. Commun. 184 (2013) 374.)
 #pragma once
 
 #include <cuda_runtime.h>
 
+#include <climits>
+#include <cmath>
 #include <cstddef>
 
 #include "cuda_window_plan.hpp"
@@ -89,11 +103,65 @@ __device__ inline int window_point_in_subgrid(int t, const int o[3], const doubl
   return ((o[0] + a) * g.m[1] + (o[1] + b)) * g.m[2] + (o[2] + l);
 }
 
-/// grid_c += c3 w f_c over each particle's window (one block of kParticleThreads per particle);
-/// Real = float for single-precision wave grids (the products in double, the sums in Real).
+/// The fixed-point scale of one product: the bits of max |f| (written by max_abs_kernel; a
+/// non-negative double's bits order as its value, +inf's bits where some |f| is not finite) and
+/// the number of particles.
+struct FixedPointBound {
+  const unsigned long long* max_bits;
+  std::size_t np;
+};
+
+/// *max_bits = max(*max_bits, bits of max_q |f[q]|), the bits of +inf where an f[q] is not
+/// finite (grid-stride; *max_bits zeroed before). The maximum does not depend on the order.
+__global__ void max_abs_kernel(std::size_t n, const double* __restrict__ f, unsigned long long* max_bits) {
+  unsigned long long m = 0;
+  for (std::size_t q = blockIdx.x * std::size_t{blockDim.x} + threadIdx.x; q < n;
+       q += std::size_t{gridDim.x} * blockDim.x) {
+    const double a = fabs(f[q]);
+    const unsigned long long bits = isfinite(a) ? static_cast<unsigned long long>(__double_as_longlong(a))
+                                                : static_cast<unsigned long long>(__double_as_longlong(INFINITY));
+    m = bits > m ? bits : m;
+  }
+  for (unsigned offset = kWarp / 2; offset > 0; offset /= 2) {
+    const unsigned long long other = __shfl_down_sync(0xffffffffu, m, offset);
+    m = other > m ? other : m;
+  }
+  if (threadIdx.x % kWarp == 0 && m != 0) atomicMax(max_bits, m);
+}
+
+/// The shift of the fixed-point sums (see the top of this file): |c3| max|f| N < 2^(62 - shift);
+/// INT_MIN where max |f| is not finite (the grid is then NaN, as the sums in Real would be).
+__device__ inline int fixed_point_shift(const FixedPointBound& b, double c3) {
+  const double m = __longlong_as_double(static_cast<long long>(*b.max_bits));
+  if (!isfinite(m)) return INT_MIN;
+  if (m == 0.0 || b.np == 0) return 0;  // all forces zero: every contribution is 0
+  // ilogb(v) + 1 > log2(v) for each factor: the product stays below 2^e without overflowing.
+  const int e = (ilogb(fabs(c3)) + 1) + (ilogb(m) + 1) + (ilogb(static_cast<double>(b.np)) + 1);
+  return 62 - e;
+}
+
+/// One contribution in fixed point (two's complement in an unsigned word, as atomicAdd takes it).
+__device__ inline unsigned long long to_fixed(double v, int shift) {
+  return static_cast<unsigned long long>(__double2ll_rn(scalbn(v, shift)));
+}
+
+/// grid[k] = acc[k] 2^-shift in Real (grid-stride over n = 3 ng values). For double grids acc
+/// and grid are the same storage: each value is read before it is written, by the same thread.
 template <class Real>
-__global__ void spread_particles_kernel(int np, const double* __restrict__ x, const double* __restrict__ f, Real* grid,
-                                        WindowParams w) {
+__global__ void fixed_to_grid_kernel(std::size_t n, const unsigned long long* acc, Real* grid, WindowParams w,
+                                     FixedPointBound b) {
+  const int shift = fixed_point_shift(b, w.c3);
+  for (std::size_t k = blockIdx.x * std::size_t{blockDim.x} + threadIdx.x; k < n;
+       k += std::size_t{gridDim.x} * blockDim.x) {
+    const double v = shift == INT_MIN ? NAN : scalbn(static_cast<double>(static_cast<long long>(acc[k])), -shift);
+    grid[k] = static_cast<Real>(v);
+  }
+}
+
+/// acc_c += c3 w f_c over each particle's window in fixed point (one block of kParticleThreads
+/// per particle).
+__global__ void spread_particles_kernel(int np, const double* __restrict__ x, const double* __restrict__ f,
+                                        unsigned long long* acc, WindowParams w, FixedPointBound b) {
   const int i = blockIdx.x;
   if (i >= np) return;
   __shared__ double wts[3 * kMaxSupport];
@@ -103,14 +171,16 @@ __global__ void spread_particles_kernel(int np, const double* __restrict__ x, co
     start[d] = detail::window_weights(x[3 * i + d], w.h[d], w.P[d], w.n[d], w.inv_2s2, wts + d * kMaxSupport);
   }
   __syncthreads();
+  const int shift = fixed_point_shift(b, w.c3);
+  if (shift == INT_MIN) return;  // fixed_to_grid_kernel writes NaN
   const double f0 = w.c3 * f[3 * i], f1 = w.c3 * f[3 * i + 1], f2 = w.c3 * f[3 * i + 2];
   const int total = w.P[0] * w.P[1] * w.P[2];
   for (int t = threadIdx.x; t < total; t += blockDim.x) {
     double wt;
     const std::size_t k = window_point_in_grid(t, start, wts, kMaxSupport, w, wt);
-    atomicAdd(grid + k, static_cast<Real>(wt * f0));
-    atomicAdd(grid + w.ng + k, static_cast<Real>(wt * f1));
-    atomicAdd(grid + 2 * w.ng + k, static_cast<Real>(wt * f2));
+    atomicAdd(acc + k, to_fixed(wt * f0, shift));
+    atomicAdd(acc + w.ng + k, to_fixed(wt * f1, shift));
+    atomicAdd(acc + 2 * w.ng + k, to_fixed(wt * f2, shift));
   }
 }
 
@@ -184,22 +254,24 @@ __device__ inline void warp_window(int s, const double* __restrict__ x, const Wi
   for (int d = 0; d < 3; ++d) offset[d] = __shfl_sync(0xffffffffu, mine, d);
 }
 
-/// Spreading by bins: one block per bin (kBinThreads threads, g.shared_bytes<Real>() of dynamic
-/// shared memory), its particles (slots bin_slots[bin_begin[bin] .. bin_end[bin])) a warp each
-/// into the shared subgrid, then the subgrid added to the grid.
-template <class Real>
+/// Spreading by bins in fixed point: one block per bin (kBinThreads threads, g.shared_bytes()
+/// of dynamic shared memory), its particles (slots bin_slots[bin_begin[bin] .. bin_end[bin])) a
+/// warp each into the shared subgrid, then the subgrid added to the accumulator.
 __global__ void spread_bins_kernel(const int* __restrict__ bin_slots, const int* __restrict__ bin_begin,
                                    const int* __restrict__ bin_end, const double* __restrict__ x,
-                                   const double* __restrict__ f, Real* grid, WindowParams w, BinGrid g) {
+                                   const double* __restrict__ f, unsigned long long* acc, WindowParams w, BinGrid g,
+                                   FixedPointBound bound) {
   const int bin = blockIdx.x;
   const int first = bin_begin[bin], last = bin_end[bin];
   if (first >= last) return;  // the whole block: no barrier skipped
+  const int shift = fixed_point_shift(bound, w.c3);
+  if (shift == INT_MIN) return;  // the whole block; fixed_to_grid_kernel writes NaN
   extern __shared__ double shared[];
   const int warp = static_cast<int>(threadIdx.x / kWarp), warps = static_cast<int>(blockDim.x / kWarp);
   const int lane = static_cast<int>(threadIdx.x % kWarp);
   double* wts = shared + warp * 3 * g.max_support;
-  Real* sub = reinterpret_cast<Real*>(shared + warps * 3 * g.max_support);
-  for (int i = threadIdx.x; i < 3 * g.sub; i += blockDim.x) sub[i] = Real(0);
+  auto* sub = reinterpret_cast<unsigned long long*>(shared + warps * 3 * g.max_support);
+  for (int i = threadIdx.x; i < 3 * g.sub; i += blockDim.x) sub[i] = 0;
   int corner[3];
   bin_corner(bin, g, corner);
   __syncthreads();
@@ -212,9 +284,9 @@ __global__ void spread_bins_kernel(const int* __restrict__ bin_slots, const int*
     for (int t = lane; t < total; t += kWarp) {
       double wt;
       const int k = window_point_in_subgrid(t, o, wts, g, w, wt);
-      atomicAdd(sub + k, static_cast<Real>(wt * f0));
-      atomicAdd(sub + g.sub + k, static_cast<Real>(wt * f1));
-      atomicAdd(sub + 2 * g.sub + k, static_cast<Real>(wt * f2));
+      atomicAdd(sub + k, to_fixed(wt * f0, shift));
+      atomicAdd(sub + g.sub + k, to_fixed(wt * f1, shift));
+      atomicAdd(sub + 2 * g.sub + k, to_fixed(wt * f2, shift));
     }
     __syncwarp();  // the weights are rewritten for the warp's next particle
   }
@@ -222,14 +294,15 @@ __global__ void spread_bins_kernel(const int* __restrict__ bin_slots, const int*
   for (int i = threadIdx.x; i < g.sub; i += blockDim.x) {
     const std::size_t k = subgrid_to_grid(i, corner, g, w);
     for (int c = 0; c < 3; ++c) {
-      const Real v = sub[c * g.sub + i];
-      if (v != Real(0)) atomicAdd(grid + c * w.ng + k, v);
+      const unsigned long long v = sub[c * g.sub + i];
+      if (v != 0) atomicAdd(acc + c * w.ng + k, v);
     }
   }
 }
 
-/// Interpolation by bins: one block per bin loads the bin's subgrid into shared memory, then
-/// each warp sums a particle's window from there (shuffles; the sums in double).
+/// Interpolation by bins: one block per bin loads the bin's subgrid into shared memory
+/// (g.shared_bytes() holds it in either precision), then each warp sums a particle's window from there (shuffles; the
+/// sums in double).
 template <class Real>
 __global__ void interpolate_bins_kernel(const int* __restrict__ bin_slots, const int* __restrict__ bin_begin,
                                         const int* __restrict__ bin_end, const double* __restrict__ x,

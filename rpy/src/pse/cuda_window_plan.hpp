@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cstddef>
+#include <cstdint>
 
 namespace rpyfmm::rpy::pse::cuda_window {
 
@@ -33,11 +34,12 @@ struct BinGrid {
   int sub;          // m0 m1 m2 (points per component)
   int max_support;  // max P[d]: the stride of each warp's window weights in shared memory
   [[nodiscard]] std::size_t bins() const { return static_cast<std::size_t>(nb[0]) * nb[1] * nb[2]; }
-  /// Shared memory of a bin kernel on Real grids: the three subgrids and each warp's weights.
-  template <class Real>
+  /// Shared memory of the bin kernels: each warp's weights and the three subgrids, of 8 bytes per
+  /// point whatever the grid's precision (the spreading sums in 64-bit fixed point,
+  /// cuda_window.cuh; the interpolation's float or double subgrids fit in the same).
   [[nodiscard]] std::size_t shared_bytes() const {
     return (kBinThreads / kWarp) * 3 * static_cast<std::size_t>(max_support) * sizeof(double) +
-           3 * static_cast<std::size_t>(sub) * sizeof(Real);
+           3 * static_cast<std::size_t>(sub) * sizeof(std::uint64_t);
   }
 };
 
@@ -61,11 +63,9 @@ inline BinGrid make_bin_grid(const WindowParams& w, int B) {
 /// multiprocessor, and whose subgrids hold at most half the points of the particles' windows
 /// (else atomics per particle are as cheap: few particles per bin); 0 where none does (the
 /// per-particle kernels). `requested` < 0: 0.
-inline int choose_bin_edge(const WindowParams& w, std::size_t np, std::size_t real_bytes, int requested,
-                           int multiprocessors, std::size_t max_shared) {
-  const auto bytes = [&](const BinGrid& g) {
-    return real_bytes == sizeof(float) ? g.shared_bytes<float>() : g.shared_bytes<double>();
-  };
+inline int choose_bin_edge(const WindowParams& w, std::size_t np, int requested, int multiprocessors,
+                           std::size_t max_shared) {
+  const auto bytes = [](const BinGrid& g) { return g.shared_bytes(); };
   if (requested > 0) return bytes(make_bin_grid(w, requested)) <= max_shared ? requested : 0;
   if (requested < 0) return 0;
   const double window_points = static_cast<double>(np) * w.P[0] * w.P[1] * w.P[2];

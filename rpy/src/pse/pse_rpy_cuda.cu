@@ -5,7 +5,8 @@
 // in space are neighbours in memory: the spreading atomics and the neighbour reads stay in L2);
 // a product uploads its forces once and downloads its velocities once, gathered and scattered
 // between input and slot order on the device.
-//   spread:      by bins of grid points in shared memory, or one thread block per particle
+//   spread:      by bins of grid points in shared memory, or one thread block per particle,
+//                summed in 64-bit fixed point so that every product is the same bit for bit
 //                (cuda_window.cuh);
 //   FFT:         cuFFT D2Z / Z2D (R2C / C2R for single-precision grids, PseParameters::wave_single,
 //                as the CPU chooses them), batch of 3 components (same layout as FFTW);
@@ -92,6 +93,9 @@ struct PseRpyCuda::Impl {
   DeviceArray<double> ck, table;
   // Wave grids and their half spectra: double, or float where params.wave_single.
   DeviceArray<unsigned char> grid, spectrum;
+  // The fixed-point sums of spreading on float grids (3 ng; double grids sum in place) and the
+  // bits of max |f| of the product being spread (cuda_window.cuh).
+  DeviceArray<unsigned long long> accumulator, max_force_bits;
   DeviceArray<double> x;                // positions
   DeviceArray<double> io;               // one vector in input order: the transfers
   DeviceArray<double> f, u, z;          // forces, velocities, the real-space noise
@@ -219,9 +223,7 @@ struct PseRpyCuda::Impl {
   /// the edge from PseCudaOptions::window_bin, the slots sorted by the bin of their window's
   /// first point, each bin's slot range.
   void build_bins() {
-    const std::size_t real_bytes = params.wave_single ? sizeof(float) : sizeof(double);
-    bin_edge =
-        cuda_window::choose_bin_edge(window, np, real_bytes, cuda_options.window_bin, multiprocessors, max_shared);
+    bin_edge = cuda_window::choose_bin_edge(window, np, cuda_options.window_bin, multiprocessors, max_shared);
     if (cuda_options.window_bin > 0 && bin_edge == 0) {
       fail(ErrorCode::invalid_argument, kWhere,
            "window_bin " + std::to_string(cuda_options.window_bin) +
@@ -240,22 +242,20 @@ struct PseRpyCuda::Impl {
     check_kernel("bin key kernel");
     radix_sort(bin_keys_in, bin_keys_sorted, bin_values, bin_slots, key_bits(bins));
     key_ranges(bin_keys_sorted, bins, bin_begin, bin_end);
-    const auto bytes =
-        static_cast<int>(params.wave_single ? bin_grid.shared_bytes<float>() : bin_grid.shared_bytes<double>());
+    const auto bytes = static_cast<int>(bin_grid.shared_bytes());
+    check(cudaFuncSetAttribute(cuda_window::spread_bins_kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, bytes),
+          "shared memory of the bin kernels");
     if (params.wave_single) {
-      allow_bin_shared_memory<float>(bytes);
+      allow_interpolation_shared_memory<float>(bytes);
     } else {
-      allow_bin_shared_memory<double>(bytes);
+      allow_interpolation_shared_memory<double>(bytes);
     }
   }
 
-  /// Lets the bin kernels on Real grids use `bytes` of dynamic shared memory (above 48 KiB
-  /// needs the opt-in).
+  /// Lets the interpolation by bins on Real grids use `bytes` of dynamic shared memory (above
+  /// 48 KiB needs the opt-in).
   template <class Real>
-  static void allow_bin_shared_memory(int bytes) {
-    check(
-        cudaFuncSetAttribute(cuda_window::spread_bins_kernel<Real>, cudaFuncAttributeMaxDynamicSharedMemorySize, bytes),
-        "shared memory of the bin kernels");
+  static void allow_interpolation_shared_memory(int bytes) {
     check(cudaFuncSetAttribute(cuda_window::interpolate_bins_kernel<Real>, cudaFuncAttributeMaxDynamicSharedMemorySize,
                                bytes),
           "shared memory of the bin kernels");
@@ -325,6 +325,34 @@ struct PseRpyCuda::Impl {
     }
   }
 
+  /// grid_c = c3 sum_i w f_ic (device forces, slot order) in 64-bit fixed point
+  /// (cuda_window.cuh): the integer sums do not depend on the order of the atomics, so a product
+  /// is the same bit for bit on every call. Double grids accumulate in their own storage, float
+  /// grids in `accumulator`.
+  template <class Real>
+  void spread(const double* f_dev, Real* g) {
+    auto* acc = std::is_same_v<Real, double> ? reinterpret_cast<unsigned long long*>(g) : accumulator.get();
+    check(cudaMemset(acc, 0, 3 * window.ng * sizeof(unsigned long long)), "cudaMemset");
+    check(cudaMemset(max_force_bits.get(), 0, sizeof(unsigned long long)), "cudaMemset");
+    cuda_window::max_abs_kernel<<<blocks_for(std::min<std::size_t>(n3(), 256 * 1024), kThreads), kThreads>>>(
+        n3(), f_dev, max_force_bits.get());
+    check_kernel("max |f| kernel");
+    const cuda_window::FixedPointBound bound{max_force_bits.get(), np};
+    if (bin_edge > 0) {
+      cuda_window::spread_bins_kernel<<<static_cast<unsigned>(bin_grid.bins()), cuda_window::kBinThreads,
+                                        bin_grid.shared_bytes()>>>(bin_slots.get(), bin_begin.get(), bin_end.get(),
+                                                                   x.get(), f_dev, acc, window, bin_grid, bound);
+    } else {
+      cuda_window::spread_particles_kernel<<<static_cast<unsigned>(np), cuda_window::kParticleThreads>>>(
+          static_cast<int>(np), x.get(), f_dev, acc, window, bound);
+    }
+    check_kernel("spread kernel");
+    cuda_window::fixed_to_grid_kernel<Real>
+        <<<blocks_for(std::min<std::size_t>(3 * window.ng, 1024 * 1024), kThreads), kThreads>>>(3 * window.ng, acc, g,
+                                                                                                window, bound);
+    check_kernel("fixed-point conversion kernel");
+  }
+
   /// wave() on Real grids: cuFFT R2C / C2R for float, D2Z / Z2D for double.
   template <class Real>
   void wave_in(const double* f_dev, double* out, bool accumulate, const detail::NoiseKey* key, double noise_scale) {
@@ -333,16 +361,7 @@ struct PseRpyCuda::Impl {
     const bool deterministic = f_dev != nullptr;
     if (deterministic) {
       events.begin("spread");
-      check(cudaMemset(g, 0, 3 * window.ng * sizeof(Real)), "cudaMemset");
-      if (bin_edge > 0) {
-        cuda_window::spread_bins_kernel<Real>
-            <<<static_cast<unsigned>(bin_grid.bins()), cuda_window::kBinThreads, bin_grid.shared_bytes<Real>()>>>(
-                bin_slots.get(), bin_begin.get(), bin_end.get(), x.get(), f_dev, g, window, bin_grid);
-      } else {
-        cuda_window::spread_particles_kernel<Real><<<static_cast<unsigned>(np), cuda_window::kParticleThreads>>>(
-            static_cast<int>(np), x.get(), f_dev, g, window);
-      }
-      check_kernel("spread kernel");
+      spread(f_dev, g);
       events.end();
       events.begin("fft_forward");
       if constexpr (std::is_same_v<Real, float>) {
@@ -371,7 +390,7 @@ struct PseRpyCuda::Impl {
     events.begin("interpolate");
     if (bin_edge > 0) {
       cuda_window::interpolate_bins_kernel<Real>
-          <<<static_cast<unsigned>(bin_grid.bins()), cuda_window::kBinThreads, bin_grid.shared_bytes<Real>()>>>(
+          <<<static_cast<unsigned>(bin_grid.bins()), cuda_window::kBinThreads, bin_grid.shared_bytes()>>>(
               bin_slots.get(), bin_begin.get(), bin_end.get(), x.get(), g, out, window, bin_grid, dv, accumulate);
     } else {
       cuda_window::interpolate_particles_kernel<Real><<<static_cast<unsigned>(np), cuda_window::kParticleThreads>>>(
@@ -402,6 +421,7 @@ struct PseRpyCuda::Impl {
     planned = false;
     destroy_plans();
     grid.resize(0);  // the old plan's big arrays do not count against the new one's memory check
+    accumulator.resize(0);
     spectrum.resize(0);
     fft_work.resize(0);
     PseParameters p = choose_parameters(options, a, L, n);
@@ -466,7 +486,9 @@ struct PseRpyCuda::Impl {
   /// that cannot fit is refused before any of them is allocated (the CPU path's memory check).
   void allocate_wave(const PseParameters& p, std::size_t work) {
     const std::size_t real_bytes = p.wave_single ? sizeof(float) : sizeof(double);
-    const std::size_t need = (3 * window.ng + 2 * 3 * modes.modes) * real_bytes + work;
+    // Float grids spread into a separate 64-bit fixed-point accumulator; double grids in place.
+    const std::size_t accumulator_bytes = p.wave_single ? 3 * window.ng * sizeof(unsigned long long) : 0;
+    const std::size_t need = (3 * window.ng + 2 * 3 * modes.modes) * real_bytes + accumulator_bytes + work;
     std::size_t free_bytes = 0, total_bytes = 0;
     check(cudaMemGetInfo(&free_bytes, &total_bytes), "cudaMemGetInfo");
     require(need <= free_bytes, ErrorCode::out_of_memory, kWhere,
@@ -474,6 +496,8 @@ struct PseRpyCuda::Impl {
                 std::to_string(p.grid[2]) + " needs " + std::to_string(need >> 20) + " MiB on the device, " +
                 std::to_string(free_bytes >> 20) + " MiB are free; raise the tolerance or lower xi");
     grid.resize(3 * window.ng * real_bytes);
+    accumulator.resize(accumulator_bytes / sizeof(unsigned long long));
+    max_force_bits.resize(1);
     spectrum.resize(2 * 3 * modes.modes * real_bytes);
     fft_work.resize(work);
     if (work > 0) {

@@ -4,10 +4,11 @@
 // the CPU operator PseRpy (pse_rpy.hpp): the per-mode scaling, the window
 // weights, the real-space 3x3 blocks and the Philox streams are the same
 // __host__ __device__ functions, so for the same seed and step CPU and GPU
-// agree to round-off (spreading uses atomics on the GPU: the last bits of the
-// grid sums depend on the run). The wave grids' precision follows
+// agree to round-off. On one device every product is the same bit for bit on every call: the
+// spreading atomics add 64-bit fixed-point integers (rounded once, 2^-63 |c3| max|f| N per
+// contribution), whose sum does not depend on their order. The wave grids' precision follows
 // PseOptions::wave_precision as on the CPU (automatic: single precision for tolerances
-// >= 1e-5, cuFFT R2C / C2R and float atomics; double: D2Z / Z2D): with double grids both
+// >= 1e-5, cuFFT R2C / C2R; double: D2Z / Z2D): with double grids both
 // back ends agree to ~1e-12, with single grids to float round-off (~1e-7 relative, far
 // below the tolerance; there the CPU also rounds its real-space pair cache to float, while the
 // device keeps the real-space blocks in double). Plain C++ header (pimpl): no CUDA types leak.

@@ -1,0 +1,56 @@
+#!/usr/bin/env bash
+# Runs on the lent machine (16 cores; an AVX-512 CPU where it has one), in the repository root,
+# with gpu-kit/ carried (scripts/device-kit.sh builds it):
+#   1. the CUDA tests (test_pse PseCuda.*; RPYFMM_EXPECT_CUDA: no usable device is a failure);
+#   2. the whole C++ suite at the CPU's own instruction-set level (ctest, slow tests included;
+#      not the Python and package tests, which need the build dependencies);
+#   3. the instruction-set rows of bench/ (bench/run.py --simd-levels --isa-rows: Laplace FMM and
+#      FmmRpy at 1e6 and 1e-6, the direct kernels at 1e4, PSE at 1e5, one thread, the native level and
+#      AVX2 side by side, three rounds each, all at once on separate physical cores).
+# Output under $OUT (or ./gpu-out): device.txt, test_pse_cuda.txt, ctest.txt, bench.txt and
+# results.tar.gz (bench/results/*.simd-levels.json). Exit status non-zero if a test failed.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+source scripts/gpu-env.sh
+# ctest's files name the programs by the absolute paths of the build machine's checkout.
+[ -d /work/main ] || { mkdir -p /work && ln -sfn "$PWD" /work/main; }
+xz -dc gpu-kit/build.tar.xz | tar -xf -
+{
+  lscpu | grep -E "Model name|^CPU\(s\)|Thread|Core|Socket"
+  echo "vector extensions: $(grep -o -w -E 'avx2|fma|avx512f|avx512dq|avx512vl' /proc/cpuinfo | sort -u | tr '\n' ' ')"
+  nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv 2>&1
+  echo "commit: $(cat gpu-kit/COMMIT)"
+  command -v ctest cmake g++ python3
+  python3 -c "import sys, sysconfig; print(sys.version.split()[0], sysconfig.get_paths()['include'])"
+  ls "$(python3 -c "import sysconfig; print(sysconfig.get_paths()['include'])")/Python.h" 2>&1
+  python3 -c "import nanobind, cupy, torch; print('nanobind', nanobind.__version__, 'cupy', cupy.__version__, 'torch', torch.__version__)" 2>&1 | tail -1
+  g++ --version | head -1
+} >"$out/device.txt" 2>&1
+cat "$out/device.txt"
+status=0
+export OMP_NUM_THREADS=8
+RPYFMM_CUDA_SYNC=1 timeout 240 build/release/tests/pse/test_pse --gtest_filter='PseCuda*:PseBinPlan*' 2>&1 |
+  tee "$out/test_pse_cuda.txt" | grep -E "^\[  (FAILED|PASSED|SKIPPED) |Failure|error" | head -40
+[ "${PIPESTATUS[0]}" -eq 0 ] || status=1
+grep -q "SKIPPED \]" "$out/test_pse_cuda.txt" && { echo "device-suite: a CUDA test was skipped"; status=1; }
+echo "# CUDA tests: status $status at ${SECONDS} s"
+unset OMP_NUM_THREADS
+ctest_bin=$(command -v ctest || true)
+if [ -n "$ctest_bin" ]; then
+  timeout 300 "$ctest_bin" --test-dir build/release -j "$(nproc)" --timeout 280 -E "python|package|pip" \
+    --output-on-failure >"$out/ctest.txt" 2>&1
+  rc=$?
+  tail -n 25 "$out/ctest.txt"
+  [ "$rc" -eq 0 ] || status=1
+else
+  echo "device-suite: no ctest here" | tee "$out/ctest.txt"
+  status=1
+fi
+echo "# suite: status $status at ${SECONDS} s"
+RPYFMM_BENCH_COMMIT=$(cat gpu-kit/COMMIT) timeout "${RPYFMM_BENCH_BUDGET:-270}" python3 bench/run.py --no-build \
+  --simd-levels --levels avx512 avx2 --isa-rows --concurrent --only fmm direct rpy pse \
+  --note "A lent GPU machine's host CPU, carried programs built with GCC 12 on Debian 12" >"$out/bench.txt" 2>&1
+echo "# bench: rc $? at ${SECONDS} s"
+tail -n 12 "$out/bench.txt"
+tar -czf "$out/results.tar.gz" bench/results/*.simd-levels.json bench/README.md 2>/dev/null
+exit $status
