@@ -10,6 +10,7 @@ target_sources(rpyfmm_bd PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/src/integrator.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/langevin.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/langevin_group.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/sac.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/rigid_dynamics.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/checkpoint.cpp)
 target_sources(rpyfmm_bd PRIVATE

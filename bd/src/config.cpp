@@ -503,6 +503,13 @@ void parse_integrator(const toml::table& root, RunConfig& c) {
   c.integrator.seed = s.count("seed", 1);
   c.integrator.max_displacement = s.positive("max_displacement", 0.5);
   c.integrator.keep_split_displacements = s.boolean("split_displacements", false);
+  const std::string scheme = s.string("scheme", "naive");
+  if (scheme != "naive" && scheme != "sac")
+    bad_key("integrator.scheme", "must be \"naive\" or \"sac\", got \"" + scheme + "\"");
+  c.integrator.sac.enabled = scheme == "sac";
+  if (s.has("adsorption_factor") && !c.integrator.sac.enabled)
+    bad_key("integrator.adsorption_factor", "is only used with scheme = \"sac\"");
+  c.integrator.sac.adsorption_factor = s.positive("adsorption_factor", 1.05);
   s.finish();
 }
 
@@ -566,6 +573,23 @@ void check_langevin(const RunConfig& c) {
     bad_key(key, "= \"langevin\" cannot be used with integrator.split_displacements (it splits Brownian steps)");
 }
 
+/// The SAC scheme (Algorithm 2 of the GPU BD paper) needs carriers (Langevin types) and
+/// adsorbers (Brownian types), free draining, no rotation and no bonds: each is refused naming
+/// integrator.scheme.
+void check_sac(const RunConfig& c) {
+  if (!c.integrator.sac.enabled) return;
+  const auto& inertia = c.integrator.inertia;
+  const auto carriers = std::count_if(inertia.begin(), inertia.end(), [](const auto& t) { return t.has_value(); });
+  const std::string key = "integrator.scheme";
+  if (carriers == 0) bad_key(key, "= \"sac\" needs a carrier type ([[types]] dynamics = \"langevin\"); none is given");
+  if (static_cast<std::size_t>(carriers) == c.types.size())
+    bad_key(key, "= \"sac\" needs an adsorbing type ([[types]] dynamics = \"brownian\"); every type is Langevin");
+  if (c.mobility.method != rpy::MobilityMethod::none)
+    bad_key(key, "= \"sac\" needs [mobility] method = \"none\" (it replaces hydrodynamic interactions)");
+  if (c.integrator.rotation) bad_key(key, "= \"sac\" does not support system.rotation");
+  if (c.chain_bond) bad_key(key, "= \"sac\" does not support bonds ([bonds], particles.source = \"chains\")");
+}
+
 /// [neighbours]: list skin and rebuild policy.
 void parse_neighbours(const toml::table& root, RunConfig& c) {
   Section s(sub_table(root, "neighbours"), "neighbours");
@@ -617,6 +641,7 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
   parse_external(root, c);
   parse_integrator(root, c);
   parse_mobility(root, c);
+  check_sac(c);
   check_langevin(c);
   parse_neighbours(root, c);
   parse_output(root, c);

@@ -144,12 +144,12 @@ void record_bad(std::atomic<std::size_t>& bad, std::size_t i) {
 }  // namespace
 
 void ForceField::fail_overlap(std::size_t i, std::span<const double> x, std::span<const std::uint32_t> ptype,
-                              const NeighbourList& list, std::uint64_t step,
-                              std::span<const std::uint32_t> groups) const {
+                              const NeighbourList& list, std::uint64_t step, std::span<const std::uint32_t> groups,
+                              bool within) const {
   const std::size_t nt = types_.size();
   for (std::uint32_t j : list.neighbours(i)) {
     const PairTerm& p = pairs_[ptype[i] * nt + ptype[j]];
-    if (!p.active || (!groups.empty() && groups[i] == groups[j])) continue;
+    if (!p.active || (!groups.empty() && (groups[i] == groups[j]) != within)) continue;
     double d[3];
     list.separation(&x[3 * i], &x[3 * j], d);
     const double r = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
@@ -176,6 +176,30 @@ void ForceField::fail_bond(std::size_t k, std::span<const double> x, const Neigh
                            fmt_double(bond_potentials_[b.type].length)));
 }
 
+double ForceField::add_pair_forces(std::size_t i, std::span<const double> x, std::span<const std::uint32_t> ptype,
+                                   const NeighbourList& list, std::span<const std::uint32_t> groups, bool within,
+                                   double f[3], std::atomic<std::size_t>& bad_pair) const {
+  const std::size_t nt = types_.size();
+  const bool grouped = !groups.empty();
+  double e = 0.0;
+  for (std::uint32_t j : list.neighbours(i)) {
+    const PairTerm& p = pairs_[ptype[i] * nt + ptype[j]];
+    if (!p.active || (grouped && (groups[i] == groups[j]) != within)) continue;
+    double d[3];
+    list.separation(&x[3 * i], &x[3 * j], d);
+    const double r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    if (r2 >= p.cutoff * p.cutoff) continue;
+    if (r2 <= p.min_distance * p.min_distance || r2 == 0.0) {
+      record_bad(bad_pair, i);
+      continue;
+    }
+    const EnergyForce ef = evaluate_pair(p, std::sqrt(r2));
+    e += 0.5 * ef.energy;  // each pair is visited from both sides
+    for (int c = 0; c < 3; ++c) f[c] += ef.s * d[c];
+  }
+  return e;
+}
+
 double ForceField::compute(std::span<const double> x, std::span<const std::uint32_t> ptype, const NeighbourList& list,
                            std::uint64_t step, std::span<double> forces, std::span<const std::uint32_t> groups) const {
   const std::size_t n = ptype.size();
@@ -183,12 +207,10 @@ double ForceField::compute(std::span<const double> x, std::span<const std::uint3
           "positions, types and forces disagree on N");
   require(groups.empty() || groups.size() == n, ErrorCode::invalid_input, "ForceField::compute",
           "groups has " + std::to_string(groups.size()) + " entries for " + std::to_string(n) + " particles");
-  const bool grouped = !groups.empty();
   const double rc = max_cutoff();
   require(rc == 0.0 || (list.size() == n && list.cutoff() >= rc), ErrorCode::invalid_input, "ForceField::compute",
           "neighbour list is not built for these particles and cutoffs");
   if (!bond_index_valid_ || bond_index_n_ != n) rebuild_bond_index(n);
-  const std::size_t nt = types_.size();
   constexpr std::size_t none = std::numeric_limits<std::size_t>::max();
   std::atomic<std::size_t> bad_pair{none}, bad_bond{none};
   double energy = 0.0;
@@ -198,23 +220,7 @@ double ForceField::compute(std::span<const double> x, std::span<const std::uint3
     double f[3] = {ti.external_force[0] + global_force_[0], ti.external_force[1] + global_force_[1],
                    ti.external_force[2] + global_force_[2]};
     double e = 0.0;
-    if (rc > 0.0) {
-      for (std::uint32_t j : list.neighbours(i)) {
-        const PairTerm& p = pairs_[ptype[i] * nt + ptype[j]];
-        if (!p.active || (grouped && groups[i] == groups[j])) continue;
-        double d[3];
-        list.separation(&x[3 * i], &x[3 * j], d);
-        const double r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-        if (r2 >= p.cutoff * p.cutoff) continue;
-        if (r2 <= p.min_distance * p.min_distance || r2 == 0.0) {
-          record_bad(bad_pair, i);
-          continue;
-        }
-        const EnergyForce ef = evaluate_pair(p, std::sqrt(r2));
-        e += 0.5 * ef.energy;  // each pair is visited from both sides
-        for (int c = 0; c < 3; ++c) f[c] += ef.s * d[c];
-      }
-    }
+    if (rc > 0.0) e += add_pair_forces(i, x, ptype, list, groups, false, f, bad_pair);
     for (std::size_t k = bond_offsets_[i]; k < bond_offsets_[i + 1]; ++k) {
       const Bond& b = bonds_[bond_entries_[k]];
       const BondPotential& bp = bond_potentials_[b.type];
@@ -242,6 +248,30 @@ double ForceField::compute(std::span<const double> x, std::span<const std::uint3
   if (bad_pair.load() != none) fail_overlap(bad_pair.load(), x, ptype, list, step, groups);
   if (bad_bond.load() != none) fail_bond(bad_bond.load(), x, list, step);
   for (const auto& cb : callbacks_) cb(x, step, forces);
+  return energy;
+}
+
+double ForceField::compute_within_groups(std::span<const double> x, std::span<const std::uint32_t> ptype,
+                                         const NeighbourList& list, std::uint64_t step,
+                                         std::span<const std::uint32_t> groups, std::span<double> forces) const {
+  const std::size_t n = ptype.size();
+  require(x.size() == 3 * n && forces.size() == 3 * n && groups.size() == n, ErrorCode::invalid_input,
+          "ForceField::compute_within_groups", "positions, types, groups and forces disagree on N");
+  const double rc = max_cutoff();
+  require(rc == 0.0 || (list.size() == n && list.cutoff() >= rc), ErrorCode::invalid_input,
+          "ForceField::compute_within_groups", "neighbour list is not built for these particles and cutoffs");
+  constexpr std::size_t none = std::numeric_limits<std::size_t>::max();
+  std::atomic<std::size_t> bad_pair{none};
+  double energy = 0.0;
+#pragma omp parallel for schedule(dynamic, 256) reduction(+ : energy) if (n >= 1024)
+  for (std::size_t i = 0; i < n; ++i) {
+    double f[3] = {0.0, 0.0, 0.0};
+    double e = 0.0;
+    if (rc > 0.0) e += add_pair_forces(i, x, ptype, list, groups, true, f, bad_pair);
+    for (int c = 0; c < 3; ++c) forces[3 * i + c] = f[c];
+    energy += e;
+  }
+  if (bad_pair.load() != none) fail_overlap(bad_pair.load(), x, ptype, list, step, groups, true);
   return energy;
 }
 

@@ -71,6 +71,16 @@ Integrator::Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceFie
   } else {
     require(velocities.empty(), ErrorCode::invalid_argument, where, "velocities given but no particle is inertial");
   }
+  if (options_.sac.enabled) {
+    require(!inertial_.empty(), ErrorCode::invalid_argument, where,
+            "the SAC scheme needs carriers: particles of a Langevin type (none has one)");
+    require(forces_.bonds().empty(), ErrorCode::invalid_argument, where, "the SAC scheme does not support bonds");
+    complexes_ = Complexes(mobility_->geometry(), forces_.types(), options_.inertia, types_,
+                           options_.sac.adsorption_factor, neighbours);
+    complexes_.update(x_);
+    groups_.assign(n, 0);
+    f_within_.assign(3 * n, 0.0);
+  }
   for (const char* part : {"neighbours", "forces", "plan", "drift", "sqrt", "update"}) totals_.seconds[part] = 0.0;
 }
 
@@ -83,6 +93,39 @@ void Integrator::check_inertia() const {
           "inertial (Langevin) particles do not support rotation yet");
   require(!options_.keep_split_displacements, ErrorCode::invalid_argument, where,
           "split displacements (M F dt and the Brownian part) do not apply to inertial (Langevin) particles");
+}
+
+double Integrator::complex_forces() {
+  // Algorithm 2 of the GPU BD paper (Sec. 4.2). Each particle's group is its complex (named by its
+  // carrier) or, when free, itself. Step 1: f_ = the forces from outside the group (pair forces
+  // across groups, external forces, trap, callbacks). Step 2: f_within_ = the pair forces inside
+  // the group. The paper evaluates step 2 after step 1 has moved the complexes; the complexes move
+  // rigidly in step 1, so the separations inside a complex, and with them these forces, are those
+  // at the start of the step: one force pass over the step's positions serves both.
+  const std::size_t n = size();
+  const auto owner = complexes_.owner();
+  for (std::size_t i = 0; i < n; ++i)
+    groups_[i] = owner[i] == Complexes::kFree ? static_cast<std::uint32_t>(i) : owner[i];
+  double energy = forces_.compute(x_, types_, list_, step_, f_, groups_);
+  energy += forces_.compute_within_groups(x_, types_, list_, step_, groups_, f_within_);
+  // A complex's force: the sum over its members (carrier first, then adsorbed particles in
+  // ascending order: a fixed summation order). The forces between members cancel in the sum
+  // (Newton's third law) and are left out; the carrier does not feel its adsorbed particles.
+  const auto count = static_cast<std::int64_t>(n);
+#pragma omp parallel for schedule(dynamic, 64) if (count >= 4096)
+  for (std::int64_t cc = 0; cc < count; ++cc) {
+    const auto c = static_cast<std::size_t>(cc);
+    for (std::uint32_t a : complexes_.adsorbed(c))
+      for (std::size_t k = 0; k < 3; ++k) f_[3 * c + k] += f_[3 * a + k];
+  }
+  // Adsorbed particles move relative to their carrier under the forces inside the complex only.
+#pragma omp parallel for schedule(static) if (count >= 4096)
+  for (std::int64_t ii = 0; ii < count; ++ii) {
+    const auto i = static_cast<std::size_t>(ii);
+    if (owner[i] != Complexes::kFree && owner[i] != i)
+      for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) f_[k] = f_within_[k];
+  }
+  return energy;
 }
 
 void Integrator::drift_and_noise_products(StepReport& rep, bool fused, bool brownian, double noise) {
@@ -163,7 +206,7 @@ const StepReport& Integrator::step() {
   totals_.seconds["neighbours"] += watch.seconds();
   watch.restart();
   // 2. Forces.
-  rep.potential_energy = forces_.compute(x_, types_, list_, step_, f_);
+  rep.potential_energy = complexes_.empty() ? forces_.compute(x_, types_, list_, step_, f_) : complex_forces();
   if (options_.rotation) rep.potential_energy += forces_.torque_field().compute(q_, types_, torque_);
   totals_.seconds["forces"] += watch.seconds();
   watch.restart();
@@ -187,6 +230,13 @@ const StepReport& Integrator::step() {
     inertial_.displacements({.dt = dt, .kT = options_.kT, .seed = options_.seed, .step = step_}, f_, dx_);
   checked_displacements(dt, noise, brownian);
   inertial_.commit();
+  if (!complexes_.empty()) {  // SAC: adsorbed particles also take their carrier's displacement
+    const auto owner = complexes_.owner();
+#pragma omp parallel for schedule(static) if (n >= 4096)
+    for (std::size_t i = 0; i < n; ++i)
+      if (owner[i] != Complexes::kFree && owner[i] != i)
+        for (std::size_t k = 0; k < 3; ++k) dx_[3 * i + k] += dx_[3 * owner[i] + k];
+  }
   if (options_.keep_split_displacements) {
     dx_det_.resize(3 * n);
     dx_brown_.resize(3 * n);
@@ -203,6 +253,11 @@ const StepReport& Integrator::step() {
   }
   ++step_;
   totals_.seconds["update"] += watch.seconds();
+  if (!complexes_.empty()) {  // the membership of the new positions (that of the next step)
+    watch.restart();
+    complexes_.update(x_);
+    totals_.seconds["neighbours"] += watch.seconds();
+  }
   ++totals_.steps;
   totals_.sqrt_iterations += static_cast<std::uint64_t>(rep.sqrt_iterations);
   totals_.mobility_products += static_cast<std::uint64_t>(rep.mobility_products);

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 
 #include "rpyfmm/core/validate.hpp"
 
@@ -85,7 +86,7 @@ void AppendFile::write(const std::string& record) {
 
 std::string xyz_frame(std::span<const double> x, std::span<const std::uint32_t> types,
                       const std::vector<ParticleType>& table, const rpy::Geometry& g, std::uint64_t step, double time,
-                      std::span<const double> orientations) {
+                      std::span<const double> orientations, std::span<const std::uint32_t> complex_ids) {
   std::string s;
   s.reserve(types.size() * 64 + 256);
   char buf[256];
@@ -101,8 +102,10 @@ std::string xyz_frame(std::span<const double> x, std::span<const std::uint32_t> 
   // Shortest decimal that round-trips (Time=0.04, not 0.040000000000000001).
   char tbuf[64];
   const auto res = std::to_chars(tbuf, tbuf + sizeof tbuf, time);
-  s += orientations.empty() ? "Properties=species:S:1:pos:R:3:radius:R:1 Time="
-                            : "Properties=species:S:1:pos:R:3:radius:R:1:orientation:R:4 Time=";
+  s += "Properties=species:S:1:pos:R:3:radius:R:1";
+  if (!orientations.empty()) s += ":orientation:R:4";
+  if (!complex_ids.empty()) s += ":complex:I:1";
+  s += " Time=";
   s.append(tbuf, res.ptr);
   s += " Step=" + std::to_string(step) + "\n";
   for (std::size_t i = 0; i < types.size(); ++i) {
@@ -117,12 +120,16 @@ std::string xyz_frame(std::span<const double> x, std::span<const std::uint32_t> 
       std::snprintf(buf, sizeof buf, " %.10g %.10g %.10g %.10g", q[1], q[2], q[3], q[0]);
       s += buf;
     }
+    if (!complex_ids.empty()) {
+      s += ' ';
+      s += complex_ids[i] == std::numeric_limits<std::uint32_t>::max() ? "-1" : std::to_string(complex_ids[i]);
+    }
     s += '\n';
   }
   return s;
 }
 
-std::string csv_log_header(bool split_displacements, bool rotation, bool langevin) {
+std::string csv_log_header(bool split_displacements, bool rotation, bool langevin, bool sac) {
   std::string h =
       "step,time,mean_displacement,msd,mean_vx,mean_vy,mean_vz,potential_energy,sqrt_iterations,"
       "mobility_products,neighbour_rebuilds,wall_neighbours,wall_forces,wall_plan,wall_drift,wall_sqrt,"
@@ -130,6 +137,7 @@ std::string csv_log_header(bool split_displacements, bool rotation, bool langevi
   if (split_displacements) h += ",deterministic_rms,brownian_rms";
   if (rotation) h += ",rotational_msd,orientation_correlation";
   if (langevin) h += ",langevin_kT";
+  if (sac) h += ",complexes,mean_adsorbed";
   return h + "\n";
 }
 

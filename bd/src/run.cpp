@@ -215,7 +215,7 @@ class Run {
         log_.create(sum_.log);
       if (!start_.restarted)
         log_.write(csv_log_header(config_.integrator.keep_split_displacements, config_.integrator.rotation,
-                                  !bd_.inertial().empty()));
+                                  !bd_.inertial().empty(), config_.integrator.sac.enabled));
     }
   }
 
@@ -275,7 +275,8 @@ class Run {
     const OutputSpec& out = config_.output;
     const std::uint64_t s = bd_.step_count();
     if (out.trajectory_every > 0 && s % out.trajectory_every == 0)
-      traj_.write(bd_.positions(), bd_.types(), forces_.types(), config_.geometry, s, bd_.time(), bd_.orientations());
+      traj_.write(bd_.positions(), bd_.types(), forces_.types(), config_.geometry, s, bd_.time(), bd_.orientations(),
+                  bd_.complexes().owner());
     if (out.log_every > 0 && (s % out.log_every == 0 || s == total_)) write_log_row(first);
     const double sec = w.seconds();
     output_seconds_ += sec;
@@ -310,6 +311,7 @@ class Run {
       row << ',' << rmsd << ',' << correlation;
     }
     if (!bd_.inertial().empty()) row << ',' << bd_.inertial().kinetic_temperature();
+    if (config_.integrator.sac.enabled) row << ',' << bd_.complexes().count() << ',' << bd_.complexes().mean_adsorbed();
     row << '\n';
     log_.write(row.str());
     last_ = Interval{t, s, cnow};

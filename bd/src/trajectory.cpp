@@ -29,11 +29,12 @@ void TrajectoryFile::flush() {
 
 void TrajectoryFile::write(std::span<const double> positions, std::span<const std::uint32_t> types,
                            const std::vector<ParticleType>& type_table, const rpy::Geometry& geometry,
-                           std::uint64_t step, double time, std::span<const double> orientations) {
+                           std::uint64_t step, double time, std::span<const double> orientations,
+                           std::span<const std::uint32_t> complex_ids) {
   if (format_ == TrajectoryFormat::gsd)
     gsd_.write(hoomd_frame(positions, types, type_table, geometry, step, time, orientations, gsd_.frames() == 0));
   else
-    xyz_.write(xyz_frame(positions, types, type_table, geometry, step, time, orientations));
+    xyz_.write(xyz_frame(positions, types, type_table, geometry, step, time, orientations, complex_ids));
 }
 
 std::uint64_t TrajectoryFile::length() const {

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "config_helpers.hpp"
 #include "one_thread.hpp"
 #include "restart_pair.hpp"
 #include "rpyfmm/bd/checkpoint.hpp"
@@ -27,6 +28,8 @@ using rpyfmm::Error;
 
 namespace {
 
+using bdtest::expect_refused;
+using bdtest::make_integrator;
 using bdtest::replace;
 
 // Brownian "S" (radius 1, gamma = 6 pi) and Langevin "L" (radius 2, gamma = 12 pi, m = 7.5:
@@ -61,13 +64,6 @@ trajectory_every = 5
 log_every = 5
 checkpoint_every = 10
 )";
-
-/// The integrator of a parsed config from the given positions and types.
-Integrator make_integrator(const RunConfig& c, std::vector<double> x, std::vector<std::uint32_t> types) {
-  const std::size_t n = types.size();
-  return Integrator(rpyfmm::rpy::make_mobility(c.mobility, n), make_force_field(c), c.integrator, std::move(x),
-                    std::move(types), c.neighbours);
-}
 
 /// Means over the particles of one kind, per component and step.
 struct Moments {
@@ -197,33 +193,26 @@ TEST(LangevinConfig, MassFromDensityAndFrictionFromViscosity) {
 }
 
 TEST(LangevinConfig, BadCombinationsAreRefusedNamingTheKey) {
-  const auto refused = [](const std::string& text, const std::string& key, const std::string& why) {
-    try {
-      (void)parse_config(text, "bad");
-      ADD_FAILURE() << "accepted: " << key;
-    } catch (const Error& e) {
-      const std::string what = e.what();
-      EXPECT_NE(what.find("'" + key + "'"), std::string::npos) << key << ": " << what;
-      EXPECT_NE(what.find(why), std::string::npos) << what;
-    }
-  };
-  refused(replace(kMixed, "\"langevin\"", "\"inertial\""), "types[1].dynamics", "must be \"brownian\" or \"langevin\"");
-  refused(replace(kMixed, "mass = 7.5\n", ""), "types[1].dynamics", "needs mass or density");
-  refused(replace(kMixed, "mass = 7.5", "mass = 7.5\ndensity = 1.0"), "types[1].density", "cannot be given with mass");
-  refused(replace(kMixed, "mass = 7.5", "mass = -1.0"), "types[1].mass", "must be > 0");
-  refused(replace(kMixed, "mass = 7.5", "density = 0.0"), "types[1].density", "must be > 0");
-  refused(replace(kMixed, "radius = 1.0", "radius = 1.0\nmass = 1.0"), "types[0].mass", "only used with dynamics");
-  refused(replace(kMixed, "radius = 1.0", "radius = 1.0\ndensity = 1.0"), "types[0].density", "only used with");
-  refused(replace(kMixed, "method = \"none\"", "method = \"direct\""), "types[1].dynamics",
-          "hydrodynamic interactions with inertia are not supported");
-  refused(replace(kMixed, "method = \"none\"\n", ""), "types[1].dynamics", "method = \"none\"");
-  refused(replace(kMixed, "kT = 1.0", "kT = 1.0\nrotation = true"), "types[1].dynamics", "system.rotation");
-  refused(replace(kMixed, "seed = 5", "seed = 5\nsplit_displacements = true"), "types[1].dynamics",
-          "split_displacements");
-  refused(replace(kMixed, "trap_stiffness = 10.0", "trap_stiffness = -1.0"), "external.trap_stiffness", ">= 0");
-  refused(replace(replace(kMixed, "kT = 1.0", "kT = 1.0\ngeometry = \"periodic\"\nbox = [20.0, 20.0, 20.0]"),
-                  "volume_fraction = 0.25\n", ""),
-          "external.trap_stiffness", "geometry = \"open\"");
+  expect_refused(replace(kMixed, "\"langevin\"", "\"inertial\""), "types[1].dynamics",
+                 "must be \"brownian\" or \"langevin\"");
+  expect_refused(replace(kMixed, "mass = 7.5\n", ""), "types[1].dynamics", "needs mass or density");
+  expect_refused(replace(kMixed, "mass = 7.5", "mass = 7.5\ndensity = 1.0"), "types[1].density",
+                 "cannot be given with mass");
+  expect_refused(replace(kMixed, "mass = 7.5", "mass = -1.0"), "types[1].mass", "must be > 0");
+  expect_refused(replace(kMixed, "mass = 7.5", "density = 0.0"), "types[1].density", "must be > 0");
+  expect_refused(replace(kMixed, "radius = 1.0", "radius = 1.0\nmass = 1.0"), "types[0].mass",
+                 "only used with dynamics");
+  expect_refused(replace(kMixed, "radius = 1.0", "radius = 1.0\ndensity = 1.0"), "types[0].density", "only used with");
+  expect_refused(replace(kMixed, "method = \"none\"", "method = \"direct\""), "types[1].dynamics",
+                 "hydrodynamic interactions with inertia are not supported");
+  expect_refused(replace(kMixed, "method = \"none\"\n", ""), "types[1].dynamics", "method = \"none\"");
+  expect_refused(replace(kMixed, "kT = 1.0", "kT = 1.0\nrotation = true"), "types[1].dynamics", "system.rotation");
+  expect_refused(replace(kMixed, "seed = 5", "seed = 5\nsplit_displacements = true"), "types[1].dynamics",
+                 "split_displacements");
+  expect_refused(replace(kMixed, "trap_stiffness = 10.0", "trap_stiffness = -1.0"), "external.trap_stiffness", ">= 0");
+  expect_refused(replace(replace(kMixed, "kT = 1.0", "kT = 1.0\ngeometry = \"periodic\"\nbox = [20.0, 20.0, 20.0]"),
+                         "volume_fraction = 0.25\n", ""),
+                 "external.trap_stiffness", "geometry = \"open\"");
 }
 
 TEST(LangevinConfig, TheIntegratorRefusesInertiaWithHydrodynamicInteractions) {

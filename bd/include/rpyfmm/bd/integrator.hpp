@@ -21,6 +21,13 @@
 // keyed by the particle's index in the system and the step) and half-step velocities; the others
 // move as above (docs/theory/bd.md Sec. 8). Only with free draining (method "none") and without
 // rotation: hydrodynamic interactions with inertia are not modelled.
+// With the SAC scheme (IntegratorOptions::sac; Algorithm 2 of the GPU BD paper, Sec. 4.2, and
+// docs/theory/bd.md Sec. 9), the Brownian particles within the adsorption radius of a Langevin one
+// form a complex with it (sac.hpp). Each step: (1) a complex moves as one Langevin body, with the
+// carrier's mass and friction, under the sum of the forces on its members from outside the
+// complex; free particles move as above; (2) its adsorbed particles follow the carrier's
+// displacement rigidly, then take a Brownian step of their own under the pair forces from the
+// other members of their complex.
 // Everything that enters x is independent of the thread count, provided the
 // mobility operator's products are.
 #pragma once
@@ -35,6 +42,7 @@
 #include "rpyfmm/bd/force_field.hpp"
 #include "rpyfmm/bd/langevin_group.hpp"
 #include "rpyfmm/bd/neighbour_list.hpp"
+#include "rpyfmm/bd/sac.hpp"
 #include "rpyfmm/bd/sampling.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/rpy/mobility.hpp"
@@ -65,6 +73,10 @@ struct IntegratorOptions {
   /// that mass and friction (langevin.hpp); unset, or past the end, = Brownian. Needs the
   /// free-draining operator ("none"), no rotation and no split displacements.
   std::vector<std::optional<LangevinParticle>> inertia{};
+  /// The silica-alumina complex scheme (sac.hpp): carriers are the inertial types, adsorbers the
+  /// Brownian ones. Needs at least one of each, the free-draining operator, no rotation, no split
+  /// displacements and no bonds.
+  SacOptions sac{};
 };
 
 /// What one step did (and cumulative counters in Integrator::totals()).
@@ -120,7 +132,9 @@ class Integrator {
   [[nodiscard]] const NeighbourList& neighbour_list() const { return list_; }
   [[nodiscard]] const ForceField& force_field() const { return forces_; }
   [[nodiscard]] const rpy::MobilityOperator& mobility() const { return *mobility_; }
-  /// Forces at the start of the last step (3N).
+  /// Forces at the start of the last step (3N). With the SAC scheme, those the step used: on a
+  /// carrier with adsorbed particles the complex's force from outside it, on an adsorbed particle
+  /// the force from the other members of its complex.
   [[nodiscard]] std::span<const double> last_forces() const { return f_; }
   /// M F dt and sqrt(2 kT dt) M^{1/2} z of the last step (needs keep_split_displacements).
   [[nodiscard]] std::span<const double> deterministic_displacement() const { return dx_det_; }
@@ -134,6 +148,8 @@ class Integrator {
   /// The inertial particles, their half-step velocities and kinetic temperature (empty() when
   /// every particle is Brownian).
   [[nodiscard]] const LangevinGroup& inertial() const { return inertial_; }
+  /// With the SAC scheme, the complexes at the current positions (empty() otherwise).
+  [[nodiscard]] const Complexes& complexes() const { return complexes_; }
 
  private:
   /// u = M F and w = M^{1/2} z (or, fused, u = M F + noise / dt M^{1/2} z; with rotation
@@ -143,6 +159,8 @@ class Integrator {
   DriftNoiseReport rotational_products(bool brownian);
   /// Checks the inertia options against the operator and the other options.
   void check_inertia() const;
+  /// With the SAC scheme: the forces of step 1 and 2 of Algorithm 2 into f_ (see last_forces()).
+  double complex_forces();
   /// dx = u dt + noise w (the Langevin step's displacement for inertial particles; with
   /// rotation, phi = omega dt + noise w_r), refused (numerical_failure, state unchanged) when a
   /// particle would move more than max_displacement x its radius, or turn by more than
@@ -167,6 +185,11 @@ class Integrator {
   // its sample, the rotation vectors of the step (3N each)
   std::vector<double> q_, torque_, omega_, zr_, wr_, phi_;
   LangevinGroup inertial_;
+  // SAC scheme: the complexes, each particle's group (its carrier in a complex, else itself), the
+  // forces from inside its complex (3N)
+  Complexes complexes_;
+  std::vector<std::uint32_t> groups_;
+  std::vector<double> f_within_;
 };
 
 }  // namespace rpyfmm::bd

@@ -65,17 +65,23 @@ class AppendFile {
 /// comment line; periodic boxes give Lattice and wrapped positions. With `orientations` (4N
 /// quaternions w x y z; empty: none) a column orientation:R:4 follows, written x y z w: the
 /// order of OVITO's Orientation property (components X, Y, Z, W), which its extended-XYZ reader
-/// maps the column `orientation` to.
+/// maps the column `orientation` to. With `complex_ids` (N entries; empty: none) a last column
+/// complex:I:1 gives each particle's complex in the SAC scheme (sac.hpp): its carrier's index, or
+/// -1 for a particle in no complex (Complexes::kFree).
 std::string xyz_frame(std::span<const double> positions, std::span<const std::uint32_t> types,
                       const std::vector<ParticleType>& type_table, const rpy::Geometry& geometry, std::uint64_t step,
-                      double time, std::span<const double> orientations = {});
+                      double time, std::span<const double> orientations = {},
+                      std::span<const std::uint32_t> complex_ids = {});
 
 /// Columns of the CSV log (header line); with split displacements two more columns:
 /// the rms per particle and step of M F dt and of sqrt(2 kT dt) M^{1/2} z over the interval;
 /// with rotation two more: rotational_msd, the mean of |sum of the rotation vectors since step
 /// 0|^2 (4 D_r t for free spheres), and orientation_correlation, the mean of u(t) . u(0) for
 /// the body z axis u (exp(-2 D_r t) for free spheres; docs/theory/bd.md Sec. 7); with Langevin
-/// particles one more: langevin_kT, the mean of m |v|^2 / 3 over them (kT at equilibrium, Sec. 8).
-std::string csv_log_header(bool split_displacements = false, bool rotation = false, bool langevin = false);
+/// particles one more: langevin_kT, the mean of m |v|^2 / 3 over them (kT at equilibrium, Sec. 8);
+/// with the SAC scheme two more: complexes, the number of carriers with adsorbed particles, and
+/// mean_adsorbed, the mean number of adsorbed particles per complex (Sec. 9).
+std::string csv_log_header(bool split_displacements = false, bool rotation = false, bool langevin = false,
+                           bool sac = false);
 
 }  // namespace rpyfmm::bd

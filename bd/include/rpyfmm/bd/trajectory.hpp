@@ -28,10 +28,11 @@ class TrajectoryFile {
   void publish();
   /// Commits what was written to the file (GSD's write buffer; XYZ records are written through).
   void flush();
-  /// Appends the frame of one step (`orientations`: 4N quaternions w x y z, or empty).
+  /// Appends the frame of one step (`orientations`: 4N quaternions w x y z, or empty;
+  /// `complex_ids`: N SAC complex ids, or empty, written by the XYZ format only).
   void write(std::span<const double> positions, std::span<const std::uint32_t> types,
              const std::vector<ParticleType>& type_table, const rpy::Geometry& geometry, std::uint64_t step,
-             double time, std::span<const double> orientations);
+             double time, std::span<const double> orientations, std::span<const std::uint32_t> complex_ids = {});
 
   [[nodiscard]] std::uint64_t length() const;  ///< XYZ: bytes, GSD: frames
   [[nodiscard]] std::uint64_t hash() const;

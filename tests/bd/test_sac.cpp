@@ -1,0 +1,418 @@
+// The SAC scheme (Algorithm 2 of the GPU BD paper, Sec. 4.2; docs/theory/bd.md Sec. 9): complex
+// membership against a brute-force search (ties included), a complex of k adsorbed particles
+// diffusing as one body with the carrier's friction (and the naive scheme's caging drop beside it),
+// runs without complexes equal to naive runs bit for bit, results independent of the thread count,
+// restarts bit for bit, and the config errors naming their key. Fixed seeds.
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <numbers>
+#include <optional>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "config_helpers.hpp"
+#include "one_thread.hpp"
+#include "restart_pair.hpp"
+#include "rpyfmm/bd/checkpoint.hpp"
+#include "rpyfmm/bd/config.hpp"
+#include "rpyfmm/bd/integrator.hpp"
+#include "rpyfmm/bd/run.hpp"
+#include "rpyfmm/bd/sac.hpp"
+#include "rpyfmm/core/error.hpp"
+#include "rpyfmm/rpy/mobility_factory.hpp"
+#include "run_files_fixture.hpp"
+#include "text_edit.hpp"
+
+using namespace rpyfmm::bd;
+using rpyfmm::Error;
+
+namespace {
+
+using bdtest::expect_refused;
+using bdtest::make_integrator;
+using bdtest::replace;
+
+// Carriers "L" (Langevin, radius 1) and adsorbers "S" (Brownian, radius 0.25), free draining. The
+// L-S well (lj36_18, eps = 14 kT, minimum at 2^(1/18) 1.25 = 1.30) lies well inside
+// R_A = 1.2 x 1.25 = 1.5 (13 thermal widths sqrt(kT / V'') = 0.014): adsorbed particles stay.
+const std::string kComplex = R"(
+[system]
+kT = 1.0
+[[types]]
+name = "L"
+radius = 1.0
+dynamics = "langevin"
+mass = 0.000377
+[[types]]
+name = "S"
+radius = 0.25
+[particles]
+source = "random"
+count = 60
+volume_fraction = 0.2
+types = ["L", "S", "S", "S", "S"]
+[[pair]]
+types = ["L", "S"]
+kind = "soft"
+epsilon = 5.0
+[[pair]]
+types = ["S", "S"]
+kind = "soft"
+epsilon = 5.0
+[mobility]
+method = "none"
+[integrator]
+dt = 0.0001
+steps = 40
+seed = 11
+scheme = "sac"
+adsorption_factor = 1.5
+[output]
+trajectory_every = 5
+log_every = 5
+checkpoint_every = 10
+)";
+
+/// Brute-force membership: every adsorber against every carrier in index order, minimum image
+/// computed here (box 0: open); the nearest strictly, so ties stay with the lower index.
+std::vector<std::uint32_t> brute_force_owner(const std::vector<double>& x, const std::vector<std::uint32_t>& types,
+                                             const std::vector<bool>& carrier_type, const std::vector<double>& radius,
+                                             double factor, double box) {
+  const std::size_t n = types.size();
+  std::vector<std::uint32_t> owner(n, Complexes::kFree);
+  for (std::size_t s = 0; s < n; ++s) {
+    if (carrier_type[types[s]]) continue;
+    double best2 = 0.0;
+    for (std::size_t c = 0; c < n; ++c) {
+      if (!carrier_type[types[c]]) continue;
+      double r2 = 0.0;
+      for (int k = 0; k < 3; ++k) {
+        double d = x[3 * c + k] - x[3 * s + k];
+        if (box > 0.0) d -= box * std::nearbyint(d / box);
+        r2 += d * d;
+      }
+      const double ra = factor * (radius[types[c]] + radius[types[s]]);
+      if (r2 < ra * ra && (owner[s] == Complexes::kFree || r2 < best2)) {
+        owner[s] = static_cast<std::uint32_t>(c);
+        best2 = r2;
+      }
+    }
+  }
+  for (std::size_t s = 0; s < n; ++s)
+    if (owner[s] != Complexes::kFree) owner[owner[s]] = owner[s];
+  return owner;
+}
+
+/// Uniform numbers in [0, 1) from a fixed seed (mt19937_64's raw output: the same on every platform).
+std::vector<double> uniform(std::size_t count, std::uint64_t seed) {
+  std::mt19937_64 gen(seed);
+  std::vector<double> u(count);
+  for (double& v : u) v = static_cast<double>(gen() >> 11) * 0x1.0p-53;
+  return u;
+}
+
+class SacRun : public bdtest::RunFiles {};
+
+}  // namespace
+
+TEST(SacMembership, MatchesBruteForceWithTiesOpenAndPeriodic) {
+  // Two carrier types (radii 2 and 1) and two adsorber types (0.5, 0.25) on a grid of spacing
+  // 0.25 in a box of side 16: coordinates, their differences and squared distances are exact in
+  // binary, so many adsorbers lie at exactly equal distances from two carriers (ties) and both
+  // searches see the same numbers. Periodic runs add multiples of the box to half the positions
+  // (unwrapped positions, minimum image). Sizes 40 (all-pairs list) and 1500 (cell list).
+  const std::vector<ParticleType> table{{"L", 2.0}, {"S", 0.5}, {"M", 1.0}, {"T", 0.25}};
+  std::vector<std::optional<LangevinParticle>> inertia(4);
+  inertia[0] = LangevinParticle{1.0, 1.0};
+  inertia[2] = LangevinParticle{1.0, 1.0};
+  const std::vector<bool> carrier_type{true, false, true, false};
+  const std::vector<double> radius{2.0, 0.5, 1.0, 0.25};
+  const double box = 16.0, factor = 1.05;
+  std::size_t ties = 0, adsorbed = 0;
+  for (const std::size_t n : {std::size_t{40}, std::size_t{1500}}) {
+    for (const bool periodic : {false, true}) {
+      for (std::uint64_t seed = 1; seed <= 3; ++seed) {
+        const std::vector<double> u = uniform(3 * n, seed);
+        std::vector<double> x(3 * n);
+        std::vector<std::uint32_t> types(n);
+        for (std::size_t i = 0; i < n; ++i) {
+          types[i] = i % 7 == 0 ? 0 : i % 7 == 3 ? 2 : i % 2 == 0 ? 1 : 3;
+          for (int k = 0; k < 3; ++k) {
+            x[3 * i + k] = 0.25 * std::floor(u[3 * i + k] * 64.0 * (n < 100 ? 0.5 : 1.0));
+            if (periodic && i % 2 == 1) x[3 * i + k] += box * static_cast<double>(int(i % 5) - 2);
+          }
+        }
+        const auto geometry = periodic ? rpyfmm::rpy::Geometry::periodic(box, box, box) : rpyfmm::rpy::Geometry::open();
+        Complexes complexes(geometry, table, inertia, types, factor);
+        complexes.update(x);
+        const auto expected = brute_force_owner(x, types, carrier_type, radius, factor, periodic ? box : 0.0);
+        const auto owner = complexes.owner();
+        ASSERT_EQ(owner.size(), n);
+        std::size_t count = 0, members = 0;
+        for (std::size_t i = 0; i < n; ++i) {
+          EXPECT_EQ(owner[i], expected[i]) << "particle " << i << " n " << n << " periodic " << periodic;
+          if (owner[i] == i) ++count;
+          if (owner[i] != Complexes::kFree && owner[i] != i) ++members;
+        }
+        EXPECT_EQ(complexes.count(), count);
+        EXPECT_EQ(complexes.adsorbed_total(), members);
+        adsorbed += members;
+        for (std::size_t c = 0; c < n; ++c) {  // the groups list exactly the owners, ascending
+          const auto group = complexes.adsorbed(c);
+          for (std::size_t k = 0; k < group.size(); ++k) {
+            EXPECT_EQ(owner[group[k]], c);
+            if (k > 0) {
+              EXPECT_LT(group[k - 1], group[k]);
+            }
+          }
+        }
+        // Count the ties the rule decided: an adsorber at the same distance from its carrier and a
+        // carrier of higher index, both within R_A.
+        for (std::size_t s = 0; s < n; ++s) {
+          if (carrier_type[types[s]] || owner[s] == Complexes::kFree) continue;
+          const auto dist2 = [&](std::size_t c) {
+            double r2 = 0.0;
+            for (int k = 0; k < 3; ++k) {
+              double d = x[3 * c + k] - x[3 * s + k];
+              if (periodic) d -= box * std::nearbyint(d / box);
+              r2 += d * d;
+            }
+            return r2;
+          };
+          for (std::size_t c = owner[s] + 1; c < n; ++c) {
+            const double ra = factor * (radius[types[c]] + radius[types[s]]);
+            if (carrier_type[types[c]] && dist2(c) == dist2(owner[s]) && dist2(c) < ra * ra) ++ties;
+          }
+        }
+      }
+    }
+  }
+  EXPECT_GT(ties, 20u) << "the configurations must exercise the tie rule";
+  EXPECT_GT(adsorbed, 1000u);
+}
+
+TEST(SacMembership, RefusesRunsWithoutBothKinds) {
+  const std::vector<ParticleType> table{{"L", 2.0}, {"S", 0.5}};
+  std::vector<std::optional<LangevinParticle>> inertia(2);
+  inertia[0] = LangevinParticle{1.0, 1.0};
+  const auto geometry = rpyfmm::rpy::Geometry::open();
+  EXPECT_THROW(Complexes(geometry, table, inertia, std::vector<std::uint32_t>{1, 1}, 1.05), Error);
+  EXPECT_THROW(Complexes(geometry, table, inertia, std::vector<std::uint32_t>{0, 0}, 1.05), Error);
+  EXPECT_THROW(Complexes(geometry, table, inertia, std::vector<std::uint32_t>{0, 1}, 0.0), Error);
+  EXPECT_NO_THROW(Complexes(geometry, table, inertia, std::vector<std::uint32_t>{0, 1}, 1.05));
+}
+
+TEST(SacDynamics, AComplexDiffusesAsOneBodyWithTheCarriersFriction) {
+  // 27 carriers (gamma_L = 6 pi), each with k = 8 adsorbed particles (gamma_S = 6 pi / 4) held in
+  // the L-S well, 12 apart (no forces between complexes). D is estimated from the squared
+  // displacements over windows of T = 100 steps: 300 windows per carrier, 3 components each, so
+  // the relative standard error of the estimate is sqrt(2 / (3 x 8100)) = 0.9%. The velocity
+  // relaxation time m / gamma = 0.2 dt biases <dx^2> by tau / T = 0.2% (the GJF step keeps the
+  // long-time D = kT / gamma exactly). Bound: 5 standard errors + the bias, 5% of the expected D.
+  //   SAC: the complex moves with the carrier's friction, D = kT / gamma_L, and every adsorbed
+  //   particle stays (8 per complex).
+  //   Naive: the frictions add (the caging of the paper's Sec. 4.1). The internal forces cancel in
+  //   the sum of gamma_i dx_i, so the friction-weighted centre of a complex diffuses with
+  //   kT / (gamma_L + k gamma_S) = D0 / 3 at every time scale longer than m / gamma (the carrier
+  //   alone only at times beyond the adsorbed particles' sliding around it, R^2 / D_S ~ 8).
+  const bdtest::OneThread one;
+  const std::string text =
+      replace(replace(replace(kComplex, "kind = \"soft\"\nepsilon = 5.0", "kind = \"lj36_18\"\nepsilon = 14.0"),
+                      "[[pair]]\ntypes = [\"S\", \"S\"]\nkind = \"soft\"\nepsilon = 5.0\n", ""),
+              "adsorption_factor = 1.5", "adsorption_factor = 1.2");
+  const RunConfig sac = parse_config(text, "sac");
+  const RunConfig naive =
+      parse_config(replace(replace(text, "scheme = \"sac\"\n", ""), "adsorption_factor = 1.2\n", ""), "naive");
+  const std::size_t carriers = 27, k = 8, n = carriers * (k + 1);
+  const double r_min = std::pow(2.0, 1.0 / 18.0) * 1.25;
+  std::vector<double> x(3 * n);
+  std::vector<std::uint32_t> types(n, 1);
+  const double corner = r_min / std::sqrt(3.0);
+  for (std::size_t c = 0; c < carriers; ++c) {
+    const double centre[3] = {12.0 * double(c % 3), 12.0 * double(c / 3 % 3), 12.0 * double(c / 9)};
+    types[c * (k + 1)] = 0;
+    for (int d = 0; d < 3; ++d) x[3 * c * (k + 1) + d] = centre[d];
+    for (std::size_t s = 0; s < k; ++s) {  // the cube's corners at r_min
+      const std::size_t i = c * (k + 1) + 1 + s;
+      for (int d = 0; d < 3; ++d) x[3 * i + d] = centre[d] + ((s >> d) & 1 ? corner : -corner);
+    }
+  }
+  const double kT = 1.0, dt = sac.integrator.dt, gamma_l = 6.0 * std::numbers::pi, gamma_s = gamma_l / 4.0;
+  const int window = 100, windows = 300;
+  const auto diffusion = [&](const RunConfig& config, bool check_membership) {
+    Integrator bd = make_integrator(config, x, types);
+    bd.run(200);  // velocities and the particles in the wells settle
+    double sum_l = 0.0, sum_centre = 0.0;
+    std::vector<double> start(bd.positions().begin(), bd.positions().end());
+    for (int w = 0; w < windows; ++w) {
+      bd.run(window);
+      const auto now = bd.positions();
+      for (std::size_t c = 0; c < carriers; ++c) {
+        for (int d = 0; d < 3; ++d) {
+          const std::size_t l = 3 * c * (k + 1) + d;
+          double centre = gamma_l * (now[l] - start[l]);
+          for (std::size_t s = 1; s <= k; ++s) centre += gamma_s * (now[l + 3 * s] - start[l + 3 * s]);
+          centre /= gamma_l + k * gamma_s;
+          sum_l += std::pow(now[l] - start[l], 2);
+          sum_centre += centre * centre;
+        }
+      }
+      start.assign(now.begin(), now.end());
+      if (check_membership) {
+        EXPECT_EQ(bd.complexes().count(), carriers);
+        EXPECT_EQ(bd.complexes().mean_adsorbed(), double(k));
+      }
+    }
+    const double t = window * dt * windows;
+    return std::pair{sum_l / (2.0 * t * carriers * 3), sum_centre / (2.0 * t * carriers * 3)};
+  };
+  const double d0 = kT / gamma_l;
+  const auto sac_l = diffusion(sac, true).first;
+  EXPECT_NEAR(sac_l / d0, 1.0, 0.05);
+  const auto naive_centre = diffusion(naive, false).second;
+  const double caged = gamma_l / (gamma_l + k * gamma_s);
+  EXPECT_NEAR(naive_centre / d0, caged, 0.05 * caged);
+  std::printf("SAC D/D0 %.4f naive centre D/D0 %.4f expected %.4f\n", sac_l / d0, naive_centre / d0, caged);
+}
+
+TEST(SacDynamics, WithoutAdsorptionItIsTheNaiveSchemeBitForBit) {
+  // R_A below every distance (factor 0.01): no complexes, so each particle feels the same forces
+  // and noise as in the naive scheme, summed in the same order.
+  const RunConfig sac = parse_config(replace(kComplex, "adsorption_factor = 1.5", "adsorption_factor = 0.01"), "sac");
+  const RunConfig naive =
+      parse_config(replace(replace(kComplex, "scheme = \"sac\"\n", ""), "adsorption_factor = 1.5\n", ""), "naive");
+  std::vector<double> x(3 * 80);
+  for (std::size_t i = 0; i < 80; ++i)
+    for (int d = 0; d < 3; ++d)
+      x[3 * i + d] = 0.9 * double((i >> (2 * d)) % 4) + (d == 0 ? 0.9 * 4 * double(i / 64) : 0.0);
+  std::vector<std::uint32_t> types(80);
+  for (std::size_t i = 0; i < 80; ++i) types[i] = i % 5 == 0 ? 0 : 1;
+  Integrator a = make_integrator(sac, x, types), b = make_integrator(naive, x, types);
+  a.run(30);
+  b.run(30);
+  EXPECT_EQ(a.complexes().count(), 0u);
+  for (std::size_t k = 0; k < x.size(); ++k) {
+    EXPECT_EQ(a.positions()[k], b.positions()[k]) << k;
+    EXPECT_EQ(a.inertial().velocities()[k], b.inertial().velocities()[k]) << k;
+  }
+  EXPECT_NE(a.positions()[0], x[0]);
+}
+
+TEST(SacDynamics, AdsorbedParticlesDoNotPushTheirCarrier) {
+  // One carrier, one adsorbed particle pressed into the soft repulsion, kT = 0: in the SAC scheme
+  // the carrier does not move (no force from outside its complex), the adsorbed particle is pushed
+  // away by the carrier; in the naive scheme both move.
+  const std::string text = replace(kComplex, "kT = 1.0", "kT = 0.0");
+  const RunConfig sac = parse_config(text, "sac");
+  const RunConfig naive =
+      parse_config(replace(replace(text, "scheme = \"sac\"\n", ""), "adsorption_factor = 1.5\n", ""), "naive");
+  const std::vector<double> x{0, 0, 0, 1.0, 0, 0};
+  for (const RunConfig* c : {&sac, &naive}) {
+    Integrator bd = make_integrator(*c, x, {0, 1});
+    bd.run(5);
+    if (c == &sac) {
+      EXPECT_EQ(bd.complexes().count(), 1u);
+      EXPECT_EQ(bd.positions()[0], 0.0);
+    } else {
+      EXPECT_LT(bd.positions()[0], 0.0);
+    }
+    EXPECT_GT(bd.positions()[3], 1.0);
+  }
+}
+
+TEST(SacDynamics, SameResultWithOneTwoAndThreeThreads) {
+  // 6000 particles (above the threshold of every parallel loop of the step), 1 carrier in 10,
+  // soft pairs: positions, velocities and membership after 4 steps are identical.
+  const RunConfig c = parse_config(kComplex, "sac");
+  const std::size_t n = 6000;
+  std::vector<double> x = uniform(3 * n, 5);
+  for (double& v : x) v *= 30.0;
+  std::vector<std::uint32_t> types(n);
+  for (std::size_t i = 0; i < n; ++i) types[i] = i % 10 == 0 ? 0 : 1;
+  std::vector<std::vector<double>> positions, velocities;
+  std::vector<std::vector<std::uint32_t>> owners;
+  const int saved = omp_get_max_threads();
+  for (int threads = 1; threads <= 3; ++threads) {
+    omp_set_num_threads(threads);
+    Integrator bd = make_integrator(c, x, types);
+    bd.run(4);
+    positions.emplace_back(bd.positions().begin(), bd.positions().end());
+    velocities.emplace_back(bd.inertial().velocities().begin(), bd.inertial().velocities().end());
+    owners.emplace_back(bd.complexes().owner().begin(), bd.complexes().owner().end());
+    EXPECT_GT(bd.complexes().count(), 100u);
+  }
+  omp_set_num_threads(saved);
+  for (int t = 1; t < 3; ++t) {
+    EXPECT_TRUE(positions[t] == positions[0]) << t + 1 << " threads";
+    EXPECT_TRUE(velocities[t] == velocities[0]) << t + 1 << " threads";
+    EXPECT_TRUE(owners[t] == owners[0]) << t + 1 << " threads";
+  }
+}
+
+TEST_F(SacRun, RestartContinuesBitForBitWithComplexesInTheOutputs) {
+  // Interrupted at step 20 and restarted to 40: positions, velocities, the trajectory (with its
+  // complex column) and the log's complexes and mean_adsorbed columns equal those of the
+  // uninterrupted run, bitwise. Membership is recomputed from the positions, so the checkpoint
+  // stores none.
+  const bdtest::OneThread one;
+  const RunConfig c = parse_config(kComplex, "sac");
+  EXPECT_EQ(bdtest::run_whole_and_restarted(c, dir_ / "whole", dir_ / "split", 20).last_step, 40u);
+  const Checkpoint a = read_checkpoint(dir_ / "whole" / "checkpoint.bin");
+  const Checkpoint b = read_checkpoint(dir_ / "split" / "checkpoint.bin");
+  EXPECT_TRUE(a.positions == b.positions);
+  EXPECT_TRUE(a.velocities == b.velocities);
+  const std::string traj = slurp(dir_ / "whole" / "trajectory.xyz");
+  EXPECT_TRUE(traj == slurp(dir_ / "split" / "trajectory.xyz"));
+  EXPECT_NE(traj.find(":complex:I:1 "), std::string::npos);
+  const auto last_two = [](const std::string& log) {
+    std::vector<std::string> out;
+    for (std::size_t start = 0, end; (end = log.find('\n', start)) != std::string::npos; start = end + 1) {
+      const std::string line = log.substr(start, end - start);
+      out.push_back(line.substr(line.rfind(',', line.rfind(',') - 1) + 1));
+    }
+    return out;
+  };
+  const auto cols = last_two(slurp(dir_ / "whole" / "log.csv"));
+  EXPECT_EQ(cols, last_two(slurp(dir_ / "split" / "log.csv")));
+  ASSERT_EQ(cols.size(), 10u);  // header + steps 0, 5, ..., 40
+  EXPECT_EQ(cols.front(), "complexes,mean_adsorbed");
+  EXPECT_NE(cols.back().substr(0, 2), "0,") << "the run must have complexes";
+}
+
+TEST(SacConfig, BadCombinationsAreRefusedNamingTheKey) {
+  const std::string k = kComplex;
+  expect_refused(replace(k, "scheme = \"sac\"", "scheme = \"complex\""), "integrator.scheme",
+                 "must be \"naive\" or \"sac\"");
+  expect_refused(replace(k, "scheme = \"sac\"\n", ""), "integrator.adsorption_factor",
+                 "only used with scheme = \"sac\"");
+  expect_refused(replace(k, "adsorption_factor = 1.5", "adsorption_factor = 0.0"), "integrator.adsorption_factor",
+                 "> 0");
+  expect_refused(replace(replace(k, "dynamics = \"langevin\"\n", ""), "mass = 0.000377\n", ""), "integrator.scheme",
+                 "needs a carrier type");
+  expect_refused(replace(k, "radius = 0.25", "radius = 0.25\ndynamics = \"langevin\"\nmass = 1.0"), "integrator.scheme",
+                 "needs an adsorbing type");
+  expect_refused(replace(k, "method = \"none\"", "method = \"direct\""), "integrator.scheme", "method = \"none\"");
+  expect_refused(replace(k, "kT = 1.0", "kT = 1.0\nrotation = true"), "integrator.scheme", "system.rotation");
+  expect_refused(replace(k, "[mobility]", "[bonds]\nkind = \"harmonic\"\nk = 1.0\n[mobility]"), "integrator.scheme",
+                 "bonds");
+  const RunConfig c = parse_config(k, "good");
+  EXPECT_TRUE(c.integrator.sac.enabled);
+  EXPECT_EQ(c.integrator.sac.adsorption_factor, 1.5);
+  EXPECT_EQ(parse_config(replace(k, "adsorption_factor = 1.5\n", ""), "default").integrator.sac.adsorption_factor,
+            1.05);
+}
+
+TEST_F(SacRun, ARunWhoseParticlesHaveNoCarrierIsRefused) {
+  // The types allow complexes but the generated particles are all adsorbers: refused before any
+  // file is written.
+  const RunConfig c =
+      parse_config(replace(kComplex, "types = [\"L\", \"S\", \"S\", \"S\", \"S\"]", "types = [\"S\"]"), "no carriers");
+  expect_error([&] { (void)run(c, dir_ / "out", 5); }, {"carrier"});
+  EXPECT_FALSE(std::filesystem::exists(dir_ / "out"));
+}
