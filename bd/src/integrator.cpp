@@ -75,8 +75,9 @@ Integrator::Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceFie
     require(!inertial_.empty(), ErrorCode::invalid_argument, where,
             "the SAC scheme needs carriers: particles of a Langevin type (none has one)");
     require(forces_.bonds().empty(), ErrorCode::invalid_argument, where, "the SAC scheme does not support bonds");
-    complexes_ = Complexes(mobility_->geometry(), forces_.types(), options_.inertia, types_,
-                           options_.sac.adsorption_factor, neighbours);
+    // Its own list, always with the dynamic rebuild test (a fixed interval could miss adsorptions).
+    complexes_ =
+        Complexes(mobility_->geometry(), forces_.types(), options_.inertia, types_, options_.sac.adsorption_factor);
     complexes_.update(x_);
     groups_.assign(n, 0);
     f_within_.assign(3 * n, 0.0);
