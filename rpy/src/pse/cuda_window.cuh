@@ -17,7 +17,9 @@
 // to an integer multiple of 2^-shift, integer addition is associative, and the sums are turned
 // back into the grid's Real at the end. The shift is chosen per product from max |f|: every
 // contribution is at most |c3| max|f| (w is a product of Gaussians <= 1), a grid point sums at
-// most N of them, so 2^shift |c3| max|f| N < 2^62 keeps every partial sum below 2^63. The
+// most N of them (contributions_per_point: more only where a window wraps onto itself), so
+// 2^shift |c3| max|f| N < 2^62 keeps every partial sum below 2^63 (fixed_point_shift, tested on
+// the host with the other arithmetic in tests/pse/test_pse_bin_plan.cpp). The
 // rounding is at most 2^-63 |c3| max|f| N per contribution (1.1e-13 of the largest
 // contribution at N = 1e6): below the float grids' own rounding, and far below the smallest
 // tolerance of the CUDA path (1e-8) on double grids. (Fixed-point accumulation for
@@ -26,8 +28,6 @@
 
 #include <cuda_runtime.h>
 
-#include <climits>
-#include <cmath>
 #include <cstddef>
 
 #include "cuda_window_plan.hpp"
@@ -105,10 +105,10 @@ __device__ inline int window_point_in_subgrid(int t, const int o[3], const doubl
 
 /// The fixed-point scale of one product: the bits of max |f| (written by max_abs_kernel; a
 /// non-negative double's bits order as its value, +inf's bits where some |f| is not finite) and
-/// the number of particles.
+/// the contributions a grid point can receive (contributions_per_point).
 struct FixedPointBound {
   const unsigned long long* max_bits;
-  std::size_t np;
+  double contributions;
 };
 
 /// *max_bits = max(*max_bits, bits of max_q |f[q]|), the bits of +inf where an f[q] is not
@@ -118,8 +118,8 @@ __global__ void max_abs_kernel(std::size_t n, const double* __restrict__ f, unsi
   for (std::size_t q = blockIdx.x * std::size_t{blockDim.x} + threadIdx.x; q < n;
        q += std::size_t{gridDim.x} * blockDim.x) {
     const double a = fabs(f[q]);
-    const unsigned long long bits = isfinite(a) ? static_cast<unsigned long long>(__double_as_longlong(a))
-                                                : static_cast<unsigned long long>(__double_as_longlong(INFINITY));
+    const double kept = isfinite(a) ? a : static_cast<double>(INFINITY);
+    const auto bits = static_cast<unsigned long long>(__double_as_longlong(kept));
     m = bits > m ? bits : m;
   }
   for (unsigned offset = kWarp / 2; offset > 0; offset /= 2) {
@@ -129,20 +129,9 @@ __global__ void max_abs_kernel(std::size_t n, const double* __restrict__ f, unsi
   if (threadIdx.x % kWarp == 0 && m != 0) atomicMax(max_bits, m);
 }
 
-/// The shift of the fixed-point sums (see the top of this file): |c3| max|f| N < 2^(62 - shift);
-/// INT_MIN where max |f| is not finite (the grid is then NaN, as the sums in Real would be).
-__device__ inline int fixed_point_shift(const FixedPointBound& b, double c3) {
-  const double m = __longlong_as_double(static_cast<long long>(*b.max_bits));
-  if (!isfinite(m)) return INT_MIN;
-  if (m == 0.0 || b.np == 0) return 0;  // all forces zero: every contribution is 0
-  // ilogb(v) + 1 > log2(v) for each factor: the product stays below 2^e without overflowing.
-  const int e = (ilogb(fabs(c3)) + 1) + (ilogb(m) + 1) + (ilogb(static_cast<double>(b.np)) + 1);
-  return 62 - e;
-}
-
-/// One contribution in fixed point (two's complement in an unsigned word, as atomicAdd takes it).
-__device__ inline unsigned long long to_fixed(double v, int shift) {
-  return static_cast<unsigned long long>(__double2ll_rn(scalbn(v, shift)));
+/// fixed_point_shift of this product (cuda_window_plan.hpp).
+__device__ inline int product_shift(const FixedPointBound& b, double c3) {
+  return fixed_point_shift(c3, __longlong_as_double(static_cast<long long>(*b.max_bits)), b.contributions);
 }
 
 /// grid[k] = acc[k] 2^-shift in Real (grid-stride over n = 3 ng values). For double grids acc
@@ -150,12 +139,10 @@ __device__ inline unsigned long long to_fixed(double v, int shift) {
 template <class Real>
 __global__ void fixed_to_grid_kernel(std::size_t n, const unsigned long long* acc, Real* grid, WindowParams w,
                                      FixedPointBound b) {
-  const int shift = fixed_point_shift(b, w.c3);
+  const int shift = product_shift(b, w.c3);
   for (std::size_t k = blockIdx.x * std::size_t{blockDim.x} + threadIdx.x; k < n;
-       k += std::size_t{gridDim.x} * blockDim.x) {
-    const double v = shift == INT_MIN ? NAN : scalbn(static_cast<double>(static_cast<long long>(acc[k])), -shift);
-    grid[k] = static_cast<Real>(v);
-  }
+       k += std::size_t{gridDim.x} * blockDim.x)
+    grid[k] = static_cast<Real>(from_fixed(acc[k], shift));
 }
 
 /// acc_c += c3 w f_c over each particle's window in fixed point (one block of kParticleThreads
@@ -171,7 +158,7 @@ __global__ void spread_particles_kernel(int np, const double* __restrict__ x, co
     start[d] = detail::window_weights(x[3 * i + d], w.h[d], w.P[d], w.n[d], w.inv_2s2, wts + d * kMaxSupport);
   }
   __syncthreads();
-  const int shift = fixed_point_shift(b, w.c3);
+  const int shift = product_shift(b, w.c3);
   if (shift == INT_MIN) return;  // fixed_to_grid_kernel writes NaN
   const double f0 = w.c3 * f[3 * i], f1 = w.c3 * f[3 * i + 1], f2 = w.c3 * f[3 * i + 2];
   const int total = w.P[0] * w.P[1] * w.P[2];
@@ -264,7 +251,7 @@ __global__ void spread_bins_kernel(const int* __restrict__ bin_slots, const int*
   const int bin = blockIdx.x;
   const int first = bin_begin[bin], last = bin_end[bin];
   if (first >= last) return;  // the whole block: no barrier skipped
-  const int shift = fixed_point_shift(bound, w.c3);
+  const int shift = product_shift(bound, w.c3);
   if (shift == INT_MIN) return;  // the whole block; fixed_to_grid_kernel writes NaN
   extern __shared__ double shared[];
   const int warp = static_cast<int>(threadIdx.x / kWarp), warps = static_cast<int>(blockDim.x / kWarp);

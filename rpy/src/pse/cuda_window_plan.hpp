@@ -5,8 +5,16 @@
 #pragma once
 
 #include <algorithm>
+#include <climits>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
+
+#ifdef __CUDACC__
+#define RPYFMM_WINDOW_HD __host__ __device__
+#else
+#define RPYFMM_WINDOW_HD
+#endif
 
 namespace rpyfmm::rpy::pse::cuda_window {
 
@@ -78,6 +86,45 @@ inline int choose_bin_edge(const WindowParams& w, std::size_t np, int requested,
     return B;
   }
   return 0;
+}
+
+// Fixed-point spreading (cuda_window.cuh): the arithmetic, plain so that it is tested on the host.
+
+/// The contributions one grid point can receive: one per particle, times the number of times a
+/// window covers the point along each axis (ceil(P / n): more than once only where a window is
+/// longer than the grid and wraps onto itself).
+inline double contributions_per_point(const WindowParams& w, std::size_t np) {
+  double c = static_cast<double>(np);
+  for (int d = 0; d < 3; ++d) c *= static_cast<double>((w.P[d] + w.n[d] - 1) / w.n[d]);
+  return c;
+}
+
+/// The shift s of the fixed-point sums: every contribution c3 w f has |.| <= |c3| max_abs (w is
+/// a product of Gaussians <= 1), a grid point sums at most `contributions` of them, and
+/// 2^s |c3| max_abs contributions < 2^62, so the rounded sums stay below 2^63 (ilogb(v) + 1 >
+/// log2(v) for each factor: the bound holds without forming the product, which may overflow).
+/// INT_MIN where max_abs is not finite (the grid is then NaN); 0 where it is 0 (all zero).
+RPYFMM_WINDOW_HD inline int fixed_point_shift(double c3, double max_abs, double contributions) {
+  if (!(max_abs <= 1.7976931348623157e308)) return INT_MIN;  // inf or NaN
+  if (max_abs == 0.0 || contributions == 0.0) return 0;
+  const int e = (::ilogb(::fabs(c3)) + 1) + (::ilogb(max_abs) + 1) + (::ilogb(contributions) + 1);
+  return 62 - e;
+}
+
+/// One contribution v in fixed point: v 2^shift rounded to the nearest integer (ties to even), as
+/// a two's-complement word (the unsigned type atomicAdd takes; sums wrap as signed ones would).
+RPYFMM_WINDOW_HD inline unsigned long long to_fixed(double v, int shift) {
+#ifdef __CUDA_ARCH__
+  return static_cast<unsigned long long>(__double2ll_rn(::scalbn(v, shift)));
+#else
+  return static_cast<unsigned long long>(std::llrint(std::scalbn(v, shift)));
+#endif
+}
+
+/// A fixed-point sum back in floating point: q 2^-shift (NaN for shift INT_MIN).
+RPYFMM_WINDOW_HD inline double from_fixed(unsigned long long q, int shift) {
+  if (shift == INT_MIN) return NAN;
+  return ::scalbn(static_cast<double>(static_cast<long long>(q)), -shift);
 }
 
 }  // namespace rpyfmm::rpy::pse::cuda_window

@@ -334,10 +334,10 @@ struct PseRpyCuda::Impl {
     auto* acc = std::is_same_v<Real, double> ? reinterpret_cast<unsigned long long*>(g) : accumulator.get();
     check(cudaMemset(acc, 0, 3 * window.ng * sizeof(unsigned long long)), "cudaMemset");
     check(cudaMemset(max_force_bits.get(), 0, sizeof(unsigned long long)), "cudaMemset");
-    cuda_window::max_abs_kernel<<<blocks_for(std::min<std::size_t>(n3(), 256 * 1024), kThreads), kThreads>>>(
+    cuda_window::max_abs_kernel<<<blocks_for(std::clamp<std::size_t>(n3(), 1, 256 * 1024), kThreads), kThreads>>>(
         n3(), f_dev, max_force_bits.get());
     check_kernel("max |f| kernel");
-    const cuda_window::FixedPointBound bound{max_force_bits.get(), np};
+    const cuda_window::FixedPointBound bound{max_force_bits.get(), cuda_window::contributions_per_point(window, np)};
     if (bin_edge > 0) {
       cuda_window::spread_bins_kernel<<<static_cast<unsigned>(bin_grid.bins()), cuda_window::kBinThreads,
                                         bin_grid.shared_bytes()>>>(bin_slots.get(), bin_begin.get(), bin_end.get(),
