@@ -144,12 +144,12 @@ void record_bad(std::atomic<std::size_t>& bad, std::size_t i) {
 }  // namespace
 
 void ForceField::fail_overlap(std::size_t i, std::span<const double> x, std::span<const std::uint32_t> ptype,
-                              const NeighbourList& list, std::uint64_t step, std::span<const std::uint32_t> groups,
-                              bool within) const {
+                              const NeighbourList& list, std::uint64_t step,
+                              std::span<const std::uint32_t> groups) const {
   const std::size_t nt = types_.size();
   for (std::uint32_t j : list.neighbours(i)) {
     const PairTerm& p = pairs_[ptype[i] * nt + ptype[j]];
-    if (!p.active || (!groups.empty() && (groups[i] == groups[j]) != within)) continue;
+    if (!p.active || (!groups.empty() && groups[i] == groups[j])) continue;
     double d[3];
     list.separation(&x[3 * i], &x[3 * j], d);
     const double r = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
@@ -177,14 +177,19 @@ void ForceField::fail_bond(std::size_t k, std::span<const double> x, const Neigh
 }
 
 double ForceField::add_pair_forces(std::size_t i, std::span<const double> x, std::span<const std::uint32_t> ptype,
-                                   const NeighbourList& list, std::span<const std::uint32_t> groups, bool within,
-                                   double f[3], std::atomic<std::size_t>& bad_pair) const {
+                                   const NeighbourList& list, std::span<const std::uint32_t> groups, double f[3],
+                                   double* fw, std::atomic<std::size_t>& bad_pair) const {
   const std::size_t nt = types_.size();
   const bool grouped = !groups.empty();
   double e = 0.0;
   for (std::uint32_t j : list.neighbours(i)) {
     const PairTerm& p = pairs_[ptype[i] * nt + ptype[j]];
-    if (!p.active || (grouped && (groups[i] == groups[j]) != within)) continue;
+    if (!p.active) continue;
+    double* to = f;
+    if (grouped && groups[i] == groups[j]) {
+      if (fw == nullptr) continue;
+      to = fw;
+    }
     double d[3];
     list.separation(&x[3 * i], &x[3 * j], d);
     const double r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
@@ -195,18 +200,22 @@ double ForceField::add_pair_forces(std::size_t i, std::span<const double> x, std
     }
     const EnergyForce ef = evaluate_pair(p, std::sqrt(r2));
     e += 0.5 * ef.energy;  // each pair is visited from both sides
-    for (int c = 0; c < 3; ++c) f[c] += ef.s * d[c];
+    for (int c = 0; c < 3; ++c) to[c] += ef.s * d[c];
   }
   return e;
 }
 
 double ForceField::compute(std::span<const double> x, std::span<const std::uint32_t> ptype, const NeighbourList& list,
-                           std::uint64_t step, std::span<double> forces, std::span<const std::uint32_t> groups) const {
+                           std::uint64_t step, std::span<double> forces, std::span<const std::uint32_t> groups,
+                           std::span<double> within) const {
   const std::size_t n = ptype.size();
   require(x.size() == 3 * n && forces.size() == 3 * n, ErrorCode::invalid_input, "ForceField::compute",
           "positions, types and forces disagree on N");
   require(groups.empty() || groups.size() == n, ErrorCode::invalid_input, "ForceField::compute",
           "groups has " + std::to_string(groups.size()) + " entries for " + std::to_string(n) + " particles");
+  require(within.empty() || (within.size() == 3 * n && !groups.empty()), ErrorCode::invalid_input,
+          "ForceField::compute", "within needs groups and 3N entries");
+  const bool split = !within.empty();
   const double rc = max_cutoff();
   require(rc == 0.0 || (list.size() == n && list.cutoff() >= rc), ErrorCode::invalid_input, "ForceField::compute",
           "neighbour list is not built for these particles and cutoffs");
@@ -220,7 +229,8 @@ double ForceField::compute(std::span<const double> x, std::span<const std::uint3
     double f[3] = {ti.external_force[0] + global_force_[0], ti.external_force[1] + global_force_[1],
                    ti.external_force[2] + global_force_[2]};
     double e = 0.0;
-    if (rc > 0.0) e += add_pair_forces(i, x, ptype, list, groups, false, f, bad_pair);
+    double fw[3] = {0.0, 0.0, 0.0};
+    if (rc > 0.0) e += add_pair_forces(i, x, ptype, list, groups, f, split ? fw : nullptr, bad_pair);
     for (std::size_t k = bond_offsets_[i]; k < bond_offsets_[i + 1]; ++k) {
       const Bond& b = bonds_[bond_entries_[k]];
       const BondPotential& bp = bond_potentials_[b.type];
@@ -243,35 +253,15 @@ double ForceField::compute(std::span<const double> x, std::span<const std::uint3
       }
     }
     for (int c = 0; c < 3; ++c) forces[3 * i + c] = f[c];
+    if (split)
+      for (int c = 0; c < 3; ++c) within[3 * i + c] = fw[c];
     energy += e;
   }
-  if (bad_pair.load() != none) fail_overlap(bad_pair.load(), x, ptype, list, step, groups);
+  // With `within`, every pair was checked for overlaps: the search looks at all of them.
+  if (bad_pair.load() != none)
+    fail_overlap(bad_pair.load(), x, ptype, list, step, split ? std::span<const std::uint32_t>() : groups);
   if (bad_bond.load() != none) fail_bond(bad_bond.load(), x, list, step);
   for (const auto& cb : callbacks_) cb(x, step, forces);
-  return energy;
-}
-
-double ForceField::compute_within_groups(std::span<const double> x, std::span<const std::uint32_t> ptype,
-                                         const NeighbourList& list, std::uint64_t step,
-                                         std::span<const std::uint32_t> groups, std::span<double> forces) const {
-  const std::size_t n = ptype.size();
-  require(x.size() == 3 * n && forces.size() == 3 * n && groups.size() == n, ErrorCode::invalid_input,
-          "ForceField::compute_within_groups", "positions, types, groups and forces disagree on N");
-  const double rc = max_cutoff();
-  require(rc == 0.0 || (list.size() == n && list.cutoff() >= rc), ErrorCode::invalid_input,
-          "ForceField::compute_within_groups", "neighbour list is not built for these particles and cutoffs");
-  constexpr std::size_t none = std::numeric_limits<std::size_t>::max();
-  std::atomic<std::size_t> bad_pair{none};
-  double energy = 0.0;
-#pragma omp parallel for schedule(dynamic, 256) reduction(+ : energy) if (n >= 1024)
-  for (std::size_t i = 0; i < n; ++i) {
-    double f[3] = {0.0, 0.0, 0.0};
-    double e = 0.0;
-    if (rc > 0.0) e += add_pair_forces(i, x, ptype, list, groups, true, f, bad_pair);
-    for (int c = 0; c < 3; ++c) forces[3 * i + c] = f[c];
-    energy += e;
-  }
-  if (bad_pair.load() != none) fail_overlap(bad_pair.load(), x, ptype, list, step, groups, true);
   return energy;
 }
 

@@ -102,13 +102,12 @@ double Integrator::complex_forces() {
   // across groups, external forces, trap, callbacks). Step 2: f_within_ = the pair forces inside
   // the group. The paper evaluates step 2 after step 1 has moved the complexes; the complexes move
   // rigidly in step 1, so the separations inside a complex, and with them these forces, are those
-  // at the start of the step: one force pass over the step's positions serves both.
+  // at the start of the step: one pass over the neighbour list at the step's positions gives both.
   const std::size_t n = size();
   const auto owner = complexes_.owner();
   for (std::size_t i = 0; i < n; ++i)
     groups_[i] = owner[i] == Complexes::kFree ? static_cast<std::uint32_t>(i) : owner[i];
-  double energy = forces_.compute(x_, types_, list_, step_, f_, groups_);
-  energy += forces_.compute_within_groups(x_, types_, list_, step_, groups_, f_within_);
+  const double energy = forces_.compute(x_, types_, list_, step_, f_, groups_, f_within_);
   // A complex's force: the sum over its members (carrier first, then adsorbed particles in
   // ascending order: a fixed summation order). The forces between members cancel in the sum
   // (Newton's third law) and are left out; the carrier does not feel its adsorbed particles.

@@ -84,32 +84,26 @@ class ForceField {
   /// (r < min_distance_fraction * sigma), a FENE bond is stretched beyond R0,
   /// or bonded particles coincide. Returns the total potential energy.
   /// `groups` (empty, or N group indices): pairs of particles in the same group are skipped
-  /// (the beads of one rigid body, whose internal forces cancel anyway).
+  /// (the beads of one rigid body, whose internal forces cancel anyway), or, with `within` (3N),
+  /// their forces go to `within` instead (the SAC scheme's forces inside a complex, sac.hpp; their
+  /// energy counts in the result): one pass over the neighbour list for both.
   double compute(std::span<const double> positions, std::span<const std::uint32_t> particle_types,
                  const NeighbourList& list, std::uint64_t step, std::span<double> forces,
-                 std::span<const std::uint32_t> groups = {}) const;
-  /// The complement of compute(..., groups) for the pair potentials: F (3N) from the pairs of
-  /// particles in the same group only (no bonds, external forces, trap or callbacks; 0 for a
-  /// particle alone in its group), with the same checks on hard cores. Returns their energy. The
-  /// SAC scheme moves adsorbed particles by these forces relative to their carrier (sac.hpp).
-  double compute_within_groups(std::span<const double> positions, std::span<const std::uint32_t> particle_types,
-                               const NeighbourList& list, std::uint64_t step, std::span<const std::uint32_t> groups,
-                               std::span<double> forces) const;
+                 std::span<const std::uint32_t> groups = {}, std::span<double> within = {}) const;
 
  private:
   void rebuild_bond_index(std::size_t n) const;
-  /// Throws invalid_input naming the first neighbour of particle i within its hard core (none
-  /// found at the precision of r: returns).
-  /// Adds to f the pair forces on particle i (from pairs across groups, or with `within` inside
-  /// i's group; every pair when `groups` is empty); records i in bad_pair on a hard-core overlap.
-  /// Returns half the pairs' energy (each pair is visited from both sides).
+  /// Adds to f the pair forces on particle i, from the pairs across groups (every pair when
+  /// `groups` is empty); those inside i's group go to fw, or are skipped when fw is null. Records i
+  /// in bad_pair on a hard-core overlap. Returns half the pairs' energy (each pair is visited from
+  /// both sides).
   double add_pair_forces(std::size_t i, std::span<const double> x, std::span<const std::uint32_t> ptype,
-                         const NeighbourList& list, std::span<const std::uint32_t> groups, bool within, double f[3],
+                         const NeighbourList& list, std::span<const std::uint32_t> groups, double f[3], double* fw,
                          std::atomic<std::size_t>& bad_pair) const;
-  /// `within`: look at the pairs inside i's group instead of those across groups.
+  /// Throws invalid_input naming the first neighbour of particle i within its hard core, among the
+  /// pairs `groups` leaves in (none found at the precision of r: returns).
   void fail_overlap(std::size_t i, std::span<const double> x, std::span<const std::uint32_t> ptype,
-                    const NeighbourList& list, std::uint64_t step, std::span<const std::uint32_t> groups,
-                    bool within = false) const;
+                    const NeighbourList& list, std::uint64_t step, std::span<const std::uint32_t> groups) const;
   /// Throws invalid_input naming bond k (coincident ends, or a FENE bond at its maximum extension).
   [[noreturn]] void fail_bond(std::size_t k, std::span<const double> x, const NeighbourList& list,
                               std::uint64_t step) const;
