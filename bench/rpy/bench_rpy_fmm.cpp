@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "configurations.hpp"
+#include "fmm_rotation_test_util.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
@@ -88,54 +89,6 @@ double sampled_error(const t::Configuration& c, const std::vector<double>& f, co
     }
   }
   return std::sqrt(num / den);
-}
-
-struct Vec {
-  double x, y, z;
-};
-Vec cross(const double* a, const double e[3]) {
-  return {a[1] * e[2] - a[2] * e[1], a[2] * e[0] - a[0] * e[2], a[0] * e[1] - a[1] * e[0]};
-}
-
-// Exact [U; W] at sampled targets from the pair couplings of rpy_rotation_kernel.hpp; returns the
-// relative l2 errors of U and W.
-std::pair<double, double> sampled_rotation_error(const t::Configuration& c, const std::vector<double>& f,
-                                                 const std::vector<double>& tq, const std::vector<double>& u,
-                                                 const std::vector<double>& w, std::size_t samples) {
-  const std::size_t n = c.a.size();
-  double num_u = 0, den_u = 0, num_w = 0, den_w = 0;
-  for (std::size_t s = 0; s < std::min(samples, n); ++s) {
-    const std::size_t i = (s * 7919) % n;
-    double ui[3] = {0, 0, 0}, wi[3] = {0, 0, 0};
-    for (std::size_t j = 0; j < n; ++j) {
-      const double d[3] = {c.x[3 * i] - c.x[3 * j], c.x[3 * i + 1] - c.x[3 * j + 1], c.x[3 * i + 2] - c.x[3 * j + 2]};
-      if (i == j) {
-        for (int k = 0; k < 3; ++k) {
-          ui[k] += rpyfmm::rpy::rpy_self(c.a[i]) * f[3 * i + k];
-          wi[k] += rpyfmm::rpy::rpy_rotation_self(c.a[i]) * tq[3 * i + k];
-        }
-        continue;
-      }
-      rpyfmm::rpy::rpy_pair_add(d, c.a[i], c.a[j], 1.0, &f[3 * j], ui);
-      const double r = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-      const double e[3] = {d[0] / r, d[1] / r, d[2] / r};
-      const auto q = rpyfmm::rpy::rpy_rotation_scalars(r, c.a[i], c.a[j]);
-      const Vec te = cross(&tq[3 * j], e), fe = cross(&f[3 * j], e);
-      const double et = e[0] * tq[3 * j] + e[1] * tq[3 * j + 1] + e[2] * tq[3 * j + 2];
-      const double tev[3] = {te.x, te.y, te.z}, fev[3] = {fe.x, fe.y, fe.z};
-      for (int k = 0; k < 3; ++k) {
-        ui[k] += q.ut * tev[k];
-        wi[k] += q.wf * fev[k] + q.h * tq[3 * j + k] + q.k * et * e[k];
-      }
-    }
-    for (int k = 0; k < 3; ++k) {
-      num_u += (u[3 * i + k] - ui[k]) * (u[3 * i + k] - ui[k]);
-      den_u += ui[k] * ui[k];
-      num_w += (w[3 * i + k] - wi[k]) * (w[3 * i + k] - wi[k]);
-      den_w += wi[k] * wi[k];
-    }
-  }
-  return {std::sqrt(num_u / den_u), std::sqrt(num_w / den_w)};
 }
 
 // Median time of the product with torques, without building its plan (set-up, once per
@@ -214,7 +167,7 @@ int main(int argc, char** argv) {
         std::vector<double> ur(3 * n), wr(3 * n);
         double rot_plan_s = 0;
         const double rot_s = median_rotation_time(op, f, tq, ur, wr, repeats, rot_plan_s);
-        const auto [rot_u_err, rot_w_err] = sampled_rotation_error(c, f, tq, ur, wr, 200);
+        const auto [rot_u_err, rot_w_err] = t::sampled_rotation_errors(c, f, tq, ur, wr, 200);
         const auto rot_stats = op.rotation_laplace_plan()->stats();
 
         // One Laplace FMM evaluation, pot + grad + Hessian, one charge vector, same points and eps.
