@@ -85,9 +85,9 @@ void Complexes::update(std::span<const double> x) {
     offsets_[c + 1] += offsets_[c];
   }
   members_.resize(offsets_[n]);
-  std::vector<std::size_t> fill(offsets_.begin(), offsets_.end() - 1);
+  fill_.assign(offsets_.begin(), offsets_.end() - 1);
   for (std::size_t i = 0; i < n; ++i)
-    if (owner_[i] != kFree && !carrier_[i]) members_[fill[owner_[i]]++] = static_cast<std::uint32_t>(i);
+    if (owner_[i] != kFree && !carrier_[i]) members_[fill_[owner_[i]]++] = static_cast<std::uint32_t>(i);
 }
 
 }  // namespace rpyfmm::bd

@@ -22,6 +22,7 @@
 #include "rpyfmm/bd/checkpoint.hpp"
 #include "rpyfmm/bd/config.hpp"
 #include "rpyfmm/bd/integrator.hpp"
+#include "rpyfmm/bd/output.hpp"
 #include "rpyfmm/bd/run.hpp"
 #include "rpyfmm/bd/sac.hpp"
 #include "rpyfmm/core/error.hpp"
@@ -383,6 +384,21 @@ TEST_F(SacRun, RestartContinuesBitForBitWithComplexesInTheOutputs) {
   ASSERT_EQ(cols.size(), 10u);  // header + steps 0, 5, ..., 40
   EXPECT_EQ(cols.front(), "complexes,mean_adsorbed");
   EXPECT_NE(cols.back().substr(0, 2), "0,") << "the run must have complexes";
+}
+
+TEST(SacOutput, XyzFramesCarryTheComplexColumn) {
+  // A carrier (0) with one adsorbed particle (2) and a free particle (1): ids 0, -1, 0.
+  const std::vector<ParticleType> table{{"L", 2.0}, {"S", 0.5}};
+  const std::vector<double> x{0, 0, 0, 10, 0, 0, 2.5, 0, 0};
+  const std::vector<std::uint32_t> ids{0, Complexes::kFree, 0};
+  const std::string frame =
+      xyz_frame(x, std::vector<std::uint32_t>{0, 1, 1}, table, rpyfmm::rpy::Geometry::open(), 3, 0.5, {}, ids);
+  EXPECT_NE(frame.find("Properties=species:S:1:pos:R:3:radius:R:1:complex:I:1 Time=0.5 Step=3\n"), std::string::npos)
+      << frame;
+  EXPECT_NE(frame.find("\nL 0 0 0 2 0\nS 10 0 0 0.5 -1\nS 2.5 0 0 0.5 0\n"), std::string::npos) << frame;
+  EXPECT_EQ(
+      xyz_frame(x, std::vector<std::uint32_t>{0, 1, 1}, table, rpyfmm::rpy::Geometry::open(), 3, 0.5).find("complex"),
+      std::string::npos);
 }
 
 TEST(SacConfig, BadCombinationsAreRefusedNamingTheKey) {

@@ -83,6 +83,7 @@ class Complexes {
   std::vector<std::uint32_t> owner_;    // N
   std::vector<std::size_t> offsets_;    // N + 1: adsorbed particles of carrier c in members_
   std::vector<std::uint32_t> members_;  // adsorbed particles grouped by carrier, ascending
+  std::vector<std::size_t> fill_;       // N: work array of update()
   std::size_t complexes_ = 0;
 };
 
