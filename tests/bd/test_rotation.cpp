@@ -20,6 +20,7 @@
 #include "rpyfmm/rpy/fmm_operator.hpp"
 #include "rpyfmm/rpy/free_draining.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
+#include "translation_only_operator.hpp"
 
 using namespace rpyfmm::bd;
 using rpyfmm::Error;
@@ -344,18 +345,7 @@ TEST(BdRotation, TurningRotationOnLeavesFreeDrainingTranslationBitwise) {
   EXPECT_NE(on.orientations()[0], 1.0);  // and the spheres did turn
 }
 
-// A mobility with translation only (supports_rotation() false), as a user's own operator may be.
-class TranslationOnly final : public rpyfmm::rpy::MobilityOperator {
- public:
-  TranslationOnly() : MobilityOperator(rpyfmm::rpy::Geometry::open(), 1.0, "TranslationOnly") {}
-  [[nodiscard]] std::string name() const override { return "translation-only"; }
-
- protected:
-  void on_positions_set() override {}
-  void do_apply(const double* forces, double* velocities, std::size_t nrhs) const override {
-    std::copy_n(forces, 3 * size() * nrhs, velocities);
-  }
-};
+using rpyfmm::testing::TranslationOnly;
 
 // Rotation needs an operator with torques: one without is refused, the error naming it and the key.
 TEST(BdRotation, OperatorWithoutRotationIsRefusedByName) {

@@ -21,6 +21,7 @@
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/rpy_rotation_kernel.hpp"
+#include "translation_only_operator.hpp"
 
 using rpyfmm::Error;
 using rpyfmm::ErrorCode;
@@ -272,22 +273,7 @@ TEST(DirectRotation, HugeLoadsGiveTheScaledProduct) {
 }
 
 // Operators without the rotational blocks refuse clearly; wrong sizes and non-finite torques too.
-namespace {
-
-/// A mobility with translation only (supports_rotation() false), as a user's own operator may be.
-class TranslationOnly final : public rpyfmm::rpy::MobilityOperator {
- public:
-  TranslationOnly() : MobilityOperator(Geometry::open(), 1.0, "TranslationOnly") {}
-  [[nodiscard]] std::string name() const override { return "translation-only"; }
-
- protected:
-  void on_positions_set() override {}
-  void do_apply(const double* forces, double* velocities, std::size_t nrhs) const override {
-    std::copy_n(forces, 3 * size() * nrhs, velocities);
-  }
-};
-
-}  // namespace
+using rpyfmm::testing::TranslationOnly;
 
 TEST(DirectRotation, BadInputAndUnsupportedOperators) {
   const std::vector<double> x = {0, 0, 0, 3, 0, 0};

@@ -19,6 +19,7 @@
 #include "rpyfmm/rpy/free_draining.hpp"
 #include "rpyfmm/rpy/random.hpp"
 #include "sqrt_test_util.hpp"
+#include "translation_only_operator.hpp"
 
 using namespace rpyfmm::rpy;
 
@@ -402,18 +403,7 @@ TEST(SqrtRotation, FreeDrainingIsExact) {
   }
 }
 
-/// A mobility without rotation (the interface's default), to check the refusal.
-class TranslationOnly final : public MobilityOperator {
- public:
-  TranslationOnly() : MobilityOperator(Geometry::open(), 1.0, "TranslationOnly") {}
-  [[nodiscard]] std::string name() const override { return "translation-only"; }
-
- protected:
-  void on_positions_set() override {}
-  void do_apply(const double* f, double* u, std::size_t nrhs) const override {
-    for (std::size_t k = 0; k < 3 * size() * nrhs; ++k) u[k] = f[k];
-  }
-};
+using rpyfmm::testing::TranslationOnly;
 
 /// The code and message of the error `fn` throws (fails the test if it throws none).
 template <class Fn>
