@@ -73,7 +73,8 @@ Integrator::Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceFie
   }
   if (options_.sac.enabled) {
     require(!inertial_.empty(), ErrorCode::invalid_argument, where,
-            "the SAC scheme needs carriers: particles of a Langevin type (none has one)");
+            "the SAC scheme (integrator.scheme = \"sac\") needs carriers, particles of a Langevin type; "
+            "none of the particles has one");
     require(forces_.bonds().empty(), ErrorCode::invalid_argument, where, "the SAC scheme does not support bonds");
     // Its own list, always with the dynamic rebuild test (a fixed interval could miss adsorptions).
     complexes_ =

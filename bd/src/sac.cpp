@@ -13,7 +13,7 @@ Complexes::Complexes(const rpy::Geometry& geometry, const std::vector<ParticleTy
                      std::span<const std::optional<LangevinParticle>> inertia, std::span<const std::uint32_t> types,
                      double adsorption_factor, NeighbourOptions neighbours)
     : ntypes_(type_table.size()), types_(types.begin(), types.end()) {
-  const char* where = "SAC scheme";
+  const char* where = "SAC scheme (integrator.scheme = \"sac\")";
   require(std::isfinite(adsorption_factor) && adsorption_factor > 0.0, ErrorCode::invalid_argument, where,
           "adsorption_factor must be finite and > 0");
   const auto carrier_type = [&](std::size_t t) { return t < inertia.size() && inertia[t].has_value(); };
