@@ -9,6 +9,7 @@
 #include <string>
 
 #include "rpyfmm/core/validate.hpp"
+#include "table_refinement.hpp"
 
 namespace rpyfmm::rpy::pse {
 
@@ -112,38 +113,23 @@ PseRealSpaceTable::PseRealSpaceTable(double xi, double a, double r_cut, double e
   require_positive(eps_t, where, "table tolerance");
   // Linear interpolation error <= dr^2 max|F''| / 8 with max|F''| <~ 0.7 / a^2
   // (docs/theory/pse.md); start there and halve dr until every midpoint is within eps_t.
-  double dr = std::min(std::sqrt(8.0 * eps_t / 0.7) * a, r_cut / 16.0);
-  constexpr std::size_t kMaxEntries = std::size_t{1} << 24;
-  for (;;) {
-    const auto n = static_cast<std::size_t>(std::ceil(r_cut / dr)) + 1;  // cells 0..n-1 cover [0, n dr)
-    require(n < kMaxEntries, ErrorCode::out_of_memory, where,
-            "table for tolerance " + std::to_string(eps_t) + " would need more than 2^24 entries");
-    std::vector<double> node(2 * (n + 1));
-    for (std::size_t j = 0; j <= n; ++j) {
-      const FG v = real_space_fg(static_cast<double>(j) * dr, xi, a);
-      node[2 * j] = v.f;
-      node[2 * j + 1] = v.g;
-    }
-    double worst = 0.0;
-    for (std::size_t j = 0; j < n; ++j) {
-      const FG v = real_space_fg((static_cast<double>(j) + 0.5) * dr, xi, a);
-      worst = std::max({worst, std::abs(0.5 * (node[2 * j] + node[2 * j + 2]) - v.f),
-                        std::abs(0.5 * (node[2 * j + 1] + node[2 * j + 3]) - v.g)});
-    }
-    if (worst <= eps_t) {
-      dr_ = dr;
-      inv_dr_ = 1.0 / dr;
-      data_.resize(4 * n);
-      for (std::size_t j = 0; j < n; ++j) {
-        data_[4 * j + 0] = node[2 * j];
-        data_[4 * j + 1] = node[2 * j + 1];
-        data_[4 * j + 2] = node[2 * j + 2];
-        data_[4 * j + 3] = node[2 * j + 3];
-      }
-      return;
-    }
-    dr *= 0.5;
-  }
+  const double dr0 = std::min(std::sqrt(8.0 * eps_t / 0.7) * a, r_cut / 16.0);
+  const detail::RefinedTable t = detail::refine_linear_table(
+      dr0, r_cut, eps_t, 2, std::size_t{1} << 24, where, "2^24", [&](double dr, std::size_t n) {
+        std::vector<double> v(2 * (2 * n + 1));
+        for (std::size_t j = 0; j <= 2 * n; ++j) {
+          const FG fg = real_space_fg(static_cast<double>(j) * (0.5 * dr), xi, a);
+          v[2 * j] = fg.f;
+          v[2 * j + 1] = fg.g;
+        }
+        return v;
+      });
+  dr_ = t.dr;
+  inv_dr_ = 1.0 / t.dr;
+  // Per cell j its two nodes (f_j, g_j, f_j+1, g_j+1): one load per lookup.
+  const std::size_t cells = t.nodes - 1;
+  data_.resize(4 * cells);
+  for (std::size_t j = 0; j < cells; ++j) std::copy_n(&t.values[2 * j], 4, &data_[4 * j]);
 }
 
 }  // namespace rpyfmm::rpy::pse

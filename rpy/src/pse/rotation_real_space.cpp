@@ -9,9 +9,11 @@
 #include <cstdint>
 #include <numbers>
 #include <string>
+#include <utility>
 
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/rpy_rotation_kernel.hpp"
+#include "table_refinement.hpp"
 
 namespace rpyfmm::rpy::pse {
 
@@ -190,28 +192,12 @@ PseRotationTable::PseRotationTable(double xi, double a, double r_cut, double eps
   };
   // As the translational table (real_space.cpp): start near the spacing that the curvature allows
   // and halve until every midpoint is within eps_t.
-  double dr = std::min(std::sqrt(8.0 * eps_t / 2.0) * a, r_cut / 16.0);
-  constexpr std::size_t kMaxEntries = std::size_t{1} << 22;
-  for (;;) {
-    const auto n = static_cast<std::size_t>(std::ceil(r_cut / dr)) + 1;
-    require(n < kMaxEntries, ErrorCode::out_of_memory, where,
-            "table for tolerance " + std::to_string(eps_t) + " would need more than 2^22 entries");
-    const std::vector<double> v = sample(dr, n);
-    double worst = 0.0;
-    for (std::size_t j = 1; j < 2 * n; j += 2) {
-      for (std::size_t c = 0; c < 3; ++c) {
-        worst = std::max(worst, std::abs(0.5 * (v[3 * (j - 1) + c] + v[3 * (j + 1) + c]) - v[3 * j + c]));
-      }
-    }
-    if (worst <= eps_t) {
-      dr_ = dr;
-      inv_dr_ = 1.0 / dr;
-      data_.resize(3 * (n + 1));
-      for (std::size_t j = 0; j <= n; ++j) std::copy_n(&v[6 * j], 3, &data_[3 * j]);
-      return;
-    }
-    dr *= 0.5;
-  }
+  const double dr0 = std::min(std::sqrt(8.0 * eps_t / 2.0) * a, r_cut / 16.0);
+  detail::RefinedTable t =
+      detail::refine_linear_table(dr0, r_cut, eps_t, 3, std::size_t{1} << 22, where, "2^22", sample);
+  dr_ = t.dr;
+  inv_dr_ = 1.0 / t.dr;
+  data_ = std::move(t.values);
 }
 
 }  // namespace rpyfmm::rpy::pse
