@@ -26,7 +26,6 @@
 #include "rpyfmm/bd/run.hpp"
 #include "rpyfmm/bd/sac.hpp"
 #include "rpyfmm/core/error.hpp"
-#include "rpyfmm/rpy/mobility_factory.hpp"
 #include "run_files_fixture.hpp"
 #include "text_edit.hpp"
 
