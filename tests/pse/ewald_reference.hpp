@@ -12,6 +12,7 @@
 #include <numbers>
 #include <vector>
 
+#include "ewald_sums.hpp"
 #include "rpyfmm/rpy/pse/real_space.hpp"
 
 namespace pse_test {
@@ -29,12 +30,10 @@ inline double hasimoto(double a_over_L) {
 /// the angular average of e^{ik.r}(I - khat khat) is (j0 - j1/x)(I - rr) + (2 j1/x) rr, x = kr.
 /// Gauss-Legendre panels of width 0.25/a up to k = kmax.
 inline std::array<double, 2> fourier_fg(double r, double xi, double a, double kmax = 3000.0) {
-  static const double gx[8] = {-0.9602898564975363, -0.7966664774136267, -0.5255324099163290,
-                               -0.1834346424956498, 0.1834346424956498,  0.5255324099163290,
-                               0.7966664774136267,  0.9602898564975363};
-  static const double gw[8] = {0.1012285362903763, 0.2223810344533745, 0.3137066458778873,
-                               0.3626837833783620, 0.3626837833783620, 0.3137066458778873,
-                               0.2223810344533745, 0.1012285362903763};
+  static const double gx[8] = {-0.9602898564975363, -0.7966664774136267, -0.5255324099163290, -0.1834346424956498,
+                               0.1834346424956498,  0.5255324099163290,  0.7966664774136267,  0.9602898564975363};
+  static const double gw[8] = {0.1012285362903763, 0.2223810344533745, 0.3137066458778873, 0.3626837833783620,
+                               0.3626837833783620, 0.3137066458778873, 0.2223810344533745, 0.1012285362903763};
   double F = 0.0, G = 0.0;
   const double panel = 0.25 / a;
   for (double k0 = 0.0; k0 < kmax / a; k0 += panel) {
@@ -66,68 +65,47 @@ inline std::array<double, 2> fourier_fg(double r, double xi, double a, double km
 
 /// U = M F for the periodic RPY mobility by a direct Ewald sum ([PSE] eqs. 9-13).
 inline std::vector<double> ewald_reference(const std::vector<double>& x, double a, double mu,
-                                           const std::array<double, 3>& L, const std::vector<double>& f,
-                                           double xi) {
+                                           const std::array<double, 3>& L, const std::vector<double>& f, double xi) {
   using rpyfmm::rpy::pse::real_space_fg;
   const std::size_t n = x.size() / 3;
   std::vector<double> u(3 * n, 0.0);
   const double m0 = 1.0 / (6.0 * kPi * mu * a);
   // Real space: every image within rc(1e-16).
   const double rc = rpyfmm::rpy::pse::real_space_cutoff(1e-16, xi, a);
-  std::array<int, 3> nim{};
-  for (int d = 0; d < 3; ++d) nim[d] = static_cast<int>(std::ceil(rc / L[d])) + 1;
   const double self = rpyfmm::rpy::pse::real_space_self(xi, a);
-  for (std::size_t i = 0; i < n; ++i) {
-    for (std::size_t j = 0; j < n; ++j) {
-      for (int p = -nim[0]; p <= nim[0]; ++p)
-        for (int q = -nim[1]; q <= nim[1]; ++q)
-          for (int s = -nim[2]; s <= nim[2]; ++s) {
-            const double d[3] = {x[3 * i] - x[3 * j] + p * L[0], x[3 * i + 1] - x[3 * j + 1] + q * L[1],
-                                 x[3 * i + 2] - x[3 * j + 2] + s * L[2]};
-            const double r = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-            if (r >= rc) continue;
-            if (r == 0.0) {
-              for (int c = 0; c < 3; ++c) u[3 * i + c] += m0 * self * f[3 * j + c];
-              continue;
-            }
-            const auto v = real_space_fg(r, xi, a);
-            double rf = 0.0;
-            for (int c = 0; c < 3; ++c) rf += d[c] / r * f[3 * j + c];
-            for (int c = 0; c < 3; ++c) u[3 * i + c] += m0 * (v.f * f[3 * j + c] + (v.g - v.f) * d[c] / r * rf);
-          }
+  for_each_image_pair(x, L, rc, [&](std::size_t i, std::size_t j, const double* d, double r) {
+    if (r == 0.0) {
+      for (int c = 0; c < 3; ++c) u[3 * i + c] += m0 * self * f[3 * j + c];
+      return;
     }
-  }
+    const auto v = real_space_fg(r, xi, a);
+    double rf = 0.0;
+    for (int c = 0; c < 3; ++c) rf += d[c] / r * f[3 * j + c];
+    for (int c = 0; c < 3; ++c) u[3 * i + c] += m0 * (v.f * f[3 * j + c] + (v.g - v.f) * d[c] / r * rf);
+  });
   // Wave space: sum over k != 0 with |k| <= 2 xi sqrt(ln 1e16) (H < 1e-16 beyond).
   const double kmax = 2.0 * xi * std::sqrt(std::log(1e16));
-  std::array<int, 3> nk{};
-  for (int d = 0; d < 3; ++d) nk[d] = static_cast<int>(std::ceil(kmax * L[d] / (2.0 * kPi)));
   const double V = L[0] * L[1] * L[2];
-  for (int p = -nk[0]; p <= nk[0]; ++p)
-    for (int q = -nk[1]; q <= nk[1]; ++q)
-      for (int s = -nk[2]; s <= nk[2]; ++s) {
-        if (p == 0 && q == 0 && s == 0) continue;
-        const double k[3] = {2.0 * kPi * p / L[0], 2.0 * kPi * q / L[1], 2.0 * kPi * s / L[2]};
-        const double k2 = k[0] * k[0] + k[1] * k[1] + k[2] * k[2];
-        if (k2 > kmax * kmax) continue;
-        const double kk = std::sqrt(k2);
-        const double sinc = std::sin(kk * a) / (kk * a);
-        const double x2 = k2 / (4.0 * xi * xi);
-        const double c = sinc * sinc * (1.0 + x2) * std::exp(-x2) / (k2 * mu * V);
-        std::complex<double> S[3] = {0.0, 0.0, 0.0};  // S(k) = sum_j F_j exp(-i k.x_j)
-        for (std::size_t j = 0; j < n; ++j) {
-          const double ph = k[0] * x[3 * j] + k[1] * x[3 * j + 1] + k[2] * x[3 * j + 2];
-          const std::complex<double> e(std::cos(ph), -std::sin(ph));
-          for (int d = 0; d < 3; ++d) S[d] += e * f[3 * j + d];
-        }
-        const std::complex<double> kS = (k[0] * S[0] + k[1] * S[1] + k[2] * S[2]) / k2;
-        std::complex<double> P[3];
-        for (int d = 0; d < 3; ++d) P[d] = S[d] - k[d] * kS;
-        for (std::size_t i = 0; i < n; ++i) {
-          const double ph = k[0] * x[3 * i] + k[1] * x[3 * i + 1] + k[2] * x[3 * i + 2];
-          const std::complex<double> e(std::cos(ph), std::sin(ph));
-          for (int d = 0; d < 3; ++d) u[3 * i + d] += c * std::real(e * P[d]);
-        }
-      }
+  for_each_wave_vector(L, kmax, [&](const double* k, double k2) {
+    const double kk = std::sqrt(k2);
+    const double sinc = std::sin(kk * a) / (kk * a);
+    const double x2 = k2 / (4.0 * xi * xi);
+    const double c = sinc * sinc * (1.0 + x2) * std::exp(-x2) / (k2 * mu * V);
+    std::complex<double> S[3] = {0.0, 0.0, 0.0};  // S(k) = sum_j F_j exp(-i k.x_j)
+    for (std::size_t j = 0; j < n; ++j) {
+      const double ph = k[0] * x[3 * j] + k[1] * x[3 * j + 1] + k[2] * x[3 * j + 2];
+      const std::complex<double> e(std::cos(ph), -std::sin(ph));
+      for (int d = 0; d < 3; ++d) S[d] += e * f[3 * j + d];
+    }
+    const std::complex<double> kS = (k[0] * S[0] + k[1] * S[1] + k[2] * S[2]) / k2;
+    std::complex<double> P[3];
+    for (int d = 0; d < 3; ++d) P[d] = S[d] - k[d] * kS;
+    for (std::size_t i = 0; i < n; ++i) {
+      const double ph = k[0] * x[3 * i] + k[1] * x[3 * i + 1] + k[2] * x[3 * i + 2];
+      const std::complex<double> e(std::cos(ph), std::sin(ph));
+      for (int d = 0; d < 3; ++d) u[3 * i + d] += c * std::real(e * P[d]);
+    }
+  });
   return u;
 }
 

@@ -19,6 +19,7 @@
 #include <numbers>
 #include <vector>
 
+#include "ewald_sums.hpp"
 #include "rpyfmm/rpy/rpy_kernel.hpp"
 #include "rpyfmm/rpy/rpy_rotation_kernel.hpp"
 
@@ -88,84 +89,64 @@ inline GrandVectors ewald_rotation_reference(const std::vector<double>& x, doubl
   // Real space: the free kernel minus the wave factor's transform, every image with r < r_max (the
   // difference is below 1e-16 of the self terms beyond ~ 2a + 6.5 / xi).
   const double r_max = 2.0 * a + 6.5 / xi;
-  std::array<int, 3> nim{};
-  for (int d = 0; d < 3; ++d) nim[d] = static_cast<int>(std::ceil(r_max / L[d])) + 1;
-  for (std::size_t i = 0; i < n; ++i) {
-    for (std::size_t j = 0; j < n; ++j) {
-      for (int p = -nim[0]; p <= nim[0]; ++p)
-        for (int q = -nim[1]; q <= nim[1]; ++q)
-          for (int s = -nim[2]; s <= nim[2]; ++s) {
-            const double d[3] = {x[3 * i] - x[3 * j] + p * L[0], x[3 * i + 1] - x[3 * j + 1] + q * L[1],
-                                 x[3 * i + 2] - x[3 * j + 2] + s * L[2]};
-            const double r = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-            if (r >= r_max) continue;
-            const WaveInRealSpace wv = wave_in_real_space(r, xi, a);
-            const double* f = &F[3 * j];
-            const double* t = &T[3 * j];
-            if (r == 0.0) {
-              for (int c = 0; c < 3; ++c) {
-                out.u[3 * i + c] += (1.0 / (6.0 * pi * a) - wv.f) * f[c] / mu;
-                out.w[3 * i + c] += (1.0 / (8.0 * pi * a * a * a) - wv.h) * t[c] / mu;
-              }
-              continue;
-            }
-            const double e[3] = {d[0] / r, d[1] / r, d[2] / r};
-            const auto tt = rpyfmm::rpy::rpy_scalars(r, a, a);  // U = (f I + g ee) F / mu, free space
-            const auto rot = rpyfmm::rpy::rpy_rotation_scalars(r, a, a);
-            const double cf = tt.f - wv.f;
-            const double cg = tt.f + tt.g - wv.g;  // along e: f + g free, G wave
-            const double cc = rot.ut - wv.c, ch = rot.h - wv.h, ck = rot.k - wv.k;
-            const double ef = e[0] * f[0] + e[1] * f[1] + e[2] * f[2];
-            const double et = e[0] * t[0] + e[1] * t[1] + e[2] * t[2];
-            const double txe[3] = {t[1] * e[2] - t[2] * e[1], t[2] * e[0] - t[0] * e[2], t[0] * e[1] - t[1] * e[0]};
-            const double fxe[3] = {f[1] * e[2] - f[2] * e[1], f[2] * e[0] - f[0] * e[2], f[0] * e[1] - f[1] * e[0]};
-            for (int c = 0; c < 3; ++c) {
-              out.u[3 * i + c] += (cf * f[c] + (cg - cf) * ef * e[c] + cc * txe[c]) / mu;
-              out.w[3 * i + c] += (cc * fxe[c] + ch * t[c] + ck * et * e[c]) / mu;
-            }
-          }
+  for_each_image_pair(x, L, r_max, [&](std::size_t i, std::size_t j, const double* d, double r) {
+    const WaveInRealSpace wv = wave_in_real_space(r, xi, a);
+    const double* f = &F[3 * j];
+    const double* t = &T[3 * j];
+    if (r == 0.0) {
+      for (int c = 0; c < 3; ++c) {
+        out.u[3 * i + c] += (1.0 / (6.0 * pi * a) - wv.f) * f[c] / mu;
+        out.w[3 * i + c] += (1.0 / (8.0 * pi * a * a * a) - wv.h) * t[c] / mu;
+      }
+      return;
     }
-  }
+    const double e[3] = {d[0] / r, d[1] / r, d[2] / r};
+    const auto tt = rpyfmm::rpy::rpy_scalars(r, a, a);  // U = (f I + g ee) F / mu, free space
+    const auto rot = rpyfmm::rpy::rpy_rotation_scalars(r, a, a);
+    const double cf = tt.f - wv.f;
+    const double cg = tt.f + tt.g - wv.g;  // along e: f + g free, G wave
+    const double cc = rot.ut - wv.c, ch = rot.h - wv.h, ck = rot.k - wv.k;
+    const double ef = e[0] * f[0] + e[1] * f[1] + e[2] * f[2];
+    const double et = e[0] * t[0] + e[1] * t[1] + e[2] * t[2];
+    const double txe[3] = {t[1] * e[2] - t[2] * e[1], t[2] * e[0] - t[0] * e[2], t[0] * e[1] - t[1] * e[0]};
+    const double fxe[3] = {f[1] * e[2] - f[2] * e[1], f[2] * e[0] - f[0] * e[2], f[0] * e[1] - f[1] * e[0]};
+    for (int c = 0; c < 3; ++c) {
+      out.u[3 * i + c] += (cf * f[c] + (cg - cf) * ef * e[c] + cc * txe[c]) / mu;
+      out.w[3 * i + c] += (cc * fxe[c] + ch * t[c] + ck * et * e[c]) / mu;
+    }
+  });
   // Wave space: every k != 0 with H(k) > 1e-19.
   const double k_max = 14.0 * xi;
-  std::array<int, 3> nk{};
-  for (int d = 0; d < 3; ++d) nk[d] = static_cast<int>(std::ceil(k_max * L[d] / (2.0 * pi)));
   const double V = L[0] * L[1] * L[2];
   using C = std::complex<double>;
-  for (int p = -nk[0]; p <= nk[0]; ++p)
-    for (int q = -nk[1]; q <= nk[1]; ++q)
-      for (int s = -nk[2]; s <= nk[2]; ++s) {
-        if (p == 0 && q == 0 && s == 0) continue;
-        const double k[3] = {2.0 * pi * p / L[0], 2.0 * pi * q / L[1], 2.0 * pi * s / L[2]};
-        const double k2 = k[0] * k[0] + k[1] * k[1] + k[2] * k[2];
-        if (k2 > k_max * k_max) continue;
-        const double kk = std::sqrt(k2);
-        const auto ja = spherical_bessel012(kk * a);
-        const double sinc = ja[0], half_rot = 1.5 * ja[1] / (kk * a);
-        const double xq = k2 / (4.0 * xi * xi);
-        const double g = (1.0 + xq) * std::exp(-xq) / (k2 * mu * V);
-        // Force density f(k) = sum_j e^{-ik.x_j} (sinc F_j + (s/2) i k x T_j).
-        C fk[3] = {0.0, 0.0, 0.0};
-        for (std::size_t j = 0; j < n; ++j) {
-          const double ph = k[0] * x[3 * j] + k[1] * x[3 * j + 1] + k[2] * x[3 * j + 2];
-          const C e(std::cos(ph), -std::sin(ph));
-          const double* t = &T[3 * j];
-          const double kxt[3] = {k[1] * t[2] - k[2] * t[1], k[2] * t[0] - k[0] * t[2], k[0] * t[1] - k[1] * t[0]};
-          for (int d = 0; d < 3; ++d) fk[d] += e * (sinc * F[3 * j + d] + C(0.0, half_rot * kxt[d]));
-        }
-        const C kf = (k[0] * fk[0] + k[1] * fk[1] + k[2] * fk[2]) / k2;
-        C u[3];
-        for (int d = 0; d < 3; ++d) u[d] = g * (fk[d] - k[d] * kf);
-        const C kxu[3] = {k[1] * u[2] - k[2] * u[1], k[2] * u[0] - k[0] * u[2], k[0] * u[1] - k[1] * u[0]};
-        for (std::size_t i = 0; i < n; ++i) {
-          const double ph = k[0] * x[3 * i] + k[1] * x[3 * i + 1] + k[2] * x[3 * i + 2];
-          const C e(std::cos(ph), std::sin(ph));
-          for (int d = 0; d < 3; ++d) {
-            out.u[3 * i + d] += std::real(e * sinc * u[d]);
-            out.w[3 * i + d] += std::real(e * C(0.0, half_rot) * kxu[d]);
-          }
-        }
+  for_each_wave_vector(L, k_max, [&](const double* k, double k2) {
+    const double kk = std::sqrt(k2);
+    const auto ja = spherical_bessel012(kk * a);
+    const double sinc = ja[0], half_rot = 1.5 * ja[1] / (kk * a);
+    const double xq = k2 / (4.0 * xi * xi);
+    const double g = (1.0 + xq) * std::exp(-xq) / (k2 * mu * V);
+    // Force density f(k) = sum_j e^{-ik.x_j} (sinc F_j + (s/2) i k x T_j).
+    C fk[3] = {0.0, 0.0, 0.0};
+    for (std::size_t j = 0; j < n; ++j) {
+      const double ph = k[0] * x[3 * j] + k[1] * x[3 * j + 1] + k[2] * x[3 * j + 2];
+      const C e(std::cos(ph), -std::sin(ph));
+      const double* t = &T[3 * j];
+      const double kxt[3] = {k[1] * t[2] - k[2] * t[1], k[2] * t[0] - k[0] * t[2], k[0] * t[1] - k[1] * t[0]};
+      for (int d = 0; d < 3; ++d) fk[d] += e * (sinc * F[3 * j + d] + C(0.0, half_rot * kxt[d]));
+    }
+    const C kf = (k[0] * fk[0] + k[1] * fk[1] + k[2] * fk[2]) / k2;
+    C u[3];
+    for (int d = 0; d < 3; ++d) u[d] = g * (fk[d] - k[d] * kf);
+    const C kxu[3] = {k[1] * u[2] - k[2] * u[1], k[2] * u[0] - k[0] * u[2], k[0] * u[1] - k[1] * u[0]};
+    for (std::size_t i = 0; i < n; ++i) {
+      const double ph = k[0] * x[3 * i] + k[1] * x[3 * i + 1] + k[2] * x[3 * i + 2];
+      const C e(std::cos(ph), std::sin(ph));
+      for (int d = 0; d < 3; ++d) {
+        out.u[3 * i + d] += std::real(e * sinc * u[d]);
+        out.w[3 * i + d] += std::real(e * C(0.0, half_rot) * kxu[d]);
       }
+    }
+  });
   return out;
 }
 
