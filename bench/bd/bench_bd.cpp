@@ -20,14 +20,32 @@
 //       time per step, and
 //       for fixed intervals the steps on which some particle had moved more than skin/2
 //       since the last build (pairs may have been missed). --skin (default 1.0 a).
+//   bench_bd sac-table4 [--steps 20] [--warmup 3] [--scheme sac|naive] [--systems 0,1,2]
+//       The GPU BD paper's Table 4 (Sec. 4.3): alumina (a = 200 nm, Langevin) with silica
+//       (a = 12.5 nm, Brownian), 200 + 2969, 200 + 29699 and 300 + 44549 particles, dt = 5e-10 s.
+//       One CSV row per system: milliseconds per iteration (the mean over --steps steps after
+//       --warmup steps, neighbour rebuilds included, as the paper's average) next to the paper's
+//       K20m figure for that system. Potentials and units are those of
+//       examples/bd/alumina_silica (its README: the Annex's alumina-silica and silica-silica DLVO
+//       pairs diverge at contact, so a 36-18 well and WCA stand in for them); surface potentials
+//       from Table 5 at R = 0.2 %. Box: periodic cube with alumina volume fraction 0.03 (Annex 2:
+//       L^3 = n_A (4/3) pi a_A^3 / phi); random sequential addition, alumina first, then silica,
+//       with gaps of 2 % of the contact distance. --systems picks rows by index. Columns: the
+//       stages per iteration (neighbours with the SAC membership update, forces with the
+//       complex sums, the rest), the list radius (one list for all pairs: the largest cutoff,
+//       alumina-alumina, plus its skin) and list entries per particle, rebuilds while timed,
+//       complexes and adsorbed particles at the end.
 // Threads: OMP_NUM_THREADS.
 #include <omp.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <random>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -165,6 +183,148 @@ int bench_neighbours(int argc, char** argv) {
   }
   return 0;
 }
+// One row of the GPU BD paper's Table 4: particle counts and the K20m time per iteration.
+struct Table4System {
+  std::size_t alumina;
+  std::size_t silica;
+  double k20m_ms;
+};
+constexpr std::array<Table4System, 3> kTable4{{{200, 2969, 0.85}, {200, 29699, 2.92}, {300, 44549, 3.87}}};
+constexpr double kAluminaRadius = 200.0;  // nm
+constexpr double kSilicaRadius = 12.5;    // nm
+constexpr double kAluminaPhi = 0.03;      // Annex 2's volume fraction
+
+// examples/bd/alumina_silica/alumina_silica.toml in a periodic box of side L (nm), kT units at
+// 293 K, water viscosity 1: dt = 2.0226 time units = 5e-10 s (Sec. 4.1).
+RunConfig table4_config(double L, const std::string& scheme) {
+  std::ostringstream t;
+  t << "[system]\ngeometry = \"periodic\"\nbox = [" << L << ", " << L << ", " << L << "]\n"
+    << "viscosity = 1.0\nkT = 1.0\n"
+    << "[[types]]\nname = \"alumina\"\nradius = " << kAluminaRadius
+    << "\nsurface_potential = 0.045\ndynamics = \"langevin\"\ndensity = 0.01606\n"
+    << "[[types]]\nname = \"silica\"\nradius = " << kSilicaRadius << "\nsurface_potential = -0.020\n"
+    << "[particles]\nsource = \"random\"\ncount = 1\n"  // replaced by table4_particles
+    << "[[pair]]\ntypes = [\"alumina\", \"alumina\"]\nkind = \"dlvo\"\nhamaker = 11.77\npermittivity = 175.0\n"
+    << "kappa = 0.1\ncutoff = 500.0\n"
+    << "[[pair]]\ntypes = [\"silica\", \"silica\"]\nkind = \"wca\"\n"
+    << "[[pair]]\ntypes = [\"alumina\", \"silica\"]\nkind = \"lj36_18\"\nepsilon = 14.0\nsigma = 204.4\n"
+    << "[integrator]\ndt = 2.0226\nsteps = 1\nseed = 7\nscheme = \"" << scheme << "\"\n"
+    << "[mobility]\nmethod = \"none\"\n";
+  return parse_config(t.str(), "bench");
+}
+
+// Random sequential addition in the periodic cube [0, L)^3: alumina (type 0) first, then silica
+// (type 1), each at least 1.02 x the contact distance from every placed particle (minimum image).
+// Silica-silica checks go through a cell grid (cells >= 2.04 a_S wide), silica-alumina checks
+// over all alumina (at most 300).
+InitialState table4_particles(const Table4System& sys, double L, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, L);
+  auto d2 = [L](const double* a, const double* b) {
+    double s = 0;
+    for (int q = 0; q < 3; ++q) {
+      double d = a[q] - b[q];
+      d -= L * std::round(d / L);
+      s += d * d;
+    }
+    return s;
+  };
+  InitialState s;
+  auto place = [&](auto&& fits, std::uint32_t type) {
+    for (int tries = 0; tries < 1000000; ++tries) {
+      const double p[3] = {u(rng), u(rng), u(rng)};
+      if (!fits(p)) continue;
+      s.positions.insert(s.positions.end(), p, p + 3);
+      s.types.push_back(type);
+      return;
+    }
+    throw std::runtime_error("sac-table4: random placement failed");
+  };
+  const double aa = std::pow(1.02 * 2 * kAluminaRadius, 2);
+  const double as = std::pow(1.02 * (kAluminaRadius + kSilicaRadius), 2);
+  const double ss = std::pow(1.02 * 2 * kSilicaRadius, 2);
+  for (std::size_t i = 0; i < sys.alumina; ++i)
+    place(
+        [&](const double* p) {
+          for (std::size_t j = 0; j < s.types.size(); ++j)
+            if (d2(p, &s.positions[3 * j]) < aa) return false;
+          return true;
+        },
+        0);
+  const int m = std::max(3, std::min(64, static_cast<int>(L / (1.02 * 2 * kSilicaRadius))));
+  std::vector<std::vector<std::size_t>> cells(static_cast<std::size_t>(m) * m * m);
+  auto cell_of = [&](double x) { return std::min(m - 1, static_cast<int>(x / L * m)); };
+  auto flat = [&](int x, int y, int z) {
+    return static_cast<std::size_t>(((x + m) % m) * m * m + ((y + m) % m) * m + (z + m) % m);
+  };
+  for (std::size_t i = 0; i < sys.silica; ++i) {
+    place(
+        [&](const double* p) {
+          for (std::size_t j = 0; j < sys.alumina; ++j)
+            if (d2(p, &s.positions[3 * j]) < as) return false;
+          const int cx = cell_of(p[0]), cy = cell_of(p[1]), cz = cell_of(p[2]);
+          for (int dx = -1; dx <= 1; ++dx)
+            for (int dy = -1; dy <= 1; ++dy)
+              for (int dz = -1; dz <= 1; ++dz)
+                for (std::size_t j : cells[flat(cx + dx, cy + dy, cz + dz)])
+                  if (d2(p, &s.positions[3 * j]) < ss) return false;
+          return true;
+        },
+        1);
+    const double* p = &s.positions[s.positions.size() - 3];
+    cells[flat(cell_of(p[0]), cell_of(p[1]), cell_of(p[2]))].push_back(s.types.size() - 1);
+  }
+  return s;
+}
+
+int bench_sac_table4(int argc, char** argv) {
+  const int steps = std::stoi(arg(argc, argv, "--steps", "20"));
+  const int warmup = std::stoi(arg(argc, argv, "--warmup", "3"));
+  const std::string scheme = arg(argc, argv, "--scheme", "sac");
+  std::printf(
+      "system,alumina,silica,scheme,threads,box_nm,steps,ms_per_iteration,k20m_ms,neighbours_ms,forces_ms,"
+      "other_ms,list_radius_nm,list_entries_per_particle,rebuilds,complexes,adsorbed\n");
+  for (std::size_t k : sizes(arg(argc, argv, "--systems", "0,1,2"))) {
+    const Table4System& sys = kTable4.at(k);
+    const double L =
+        std::cbrt(static_cast<double>(sys.alumina) * 4.0 / 3.0 * M_PI * std::pow(kAluminaRadius, 3) / kAluminaPhi);
+    const RunConfig c = table4_config(L, scheme);
+    const ForceField ff = make_force_field(c);
+    InitialState s = table4_particles(sys, L, 11 + k);
+    const std::size_t n = s.types.size();
+    Integrator bd(make_mobility(c.mobility, n), ff, c.integrator, std::move(s.positions), std::move(s.types),
+                  c.neighbours);
+    for (int i = 0; i < warmup; ++i) bd.step();  // first neighbour builds, allocations
+    const std::size_t rebuilds = bd.neighbour_rebuilds();
+    const IntegratorTotals before = bd.totals();
+    rpyfmm::StopWatch w;
+    bd.run(static_cast<std::uint64_t>(steps));
+    const double ms = 1e3 * w.seconds() / steps;
+    // Stages per iteration: the neighbour list (with the SAC membership update), the pair forces
+    // (with the SAC complex sums), and the rest (displacements, update).
+    auto part_ms = [&](const char* p) { return 1e3 * (bd.totals().seconds.at(p) - before.seconds.at(p)) / steps; };
+    const double neighbours_ms = part_ms("neighbours"), forces_ms = part_ms("forces");
+    // Complexes at the final positions (the SAC scheme's membership; empty with naive).
+    std::size_t complexes = 0, adsorbed = 0;
+    if (!bd.complexes().empty()) {
+      const auto owner = bd.complexes().owner();
+      for (std::size_t i = 0; i < n; ++i) {
+        if (owner[i] == Complexes::kFree) continue;
+        if (owner[i] == i)
+          ++complexes;
+        else
+          ++adsorbed;
+      }
+    }
+    std::printf("%zu,%zu,%zu,%s,%d,%.0f,%d,%.4g,%.2f,%.3g,%.3g,%.3g,%.0f,%.1f,%zu,%zu,%zu\n", k + 1, sys.alumina,
+                sys.silica, scheme.c_str(), omp_get_max_threads(), L, steps, ms, sys.k20m_ms, neighbours_ms, forces_ms,
+                ms - neighbours_ms - forces_ms, bd.neighbour_list().list_radius(),
+                static_cast<double>(bd.neighbour_list().pair_entries()) / static_cast<double>(n),
+                bd.neighbour_rebuilds() - rebuilds, complexes, adsorbed);
+    std::fflush(stdout);
+  }
+  return 0;
+}
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -172,10 +332,11 @@ int main(int argc, char** argv) {
   try {
     if (mode == "steps") return bench_steps(argc, argv);
     if (mode == "neighbours") return bench_neighbours(argc, argv);
+    if (mode == "sac-table4") return bench_sac_table4(argc, argv);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_bd: %s\n", e.what());
     return 2;
   }
-  std::fprintf(stderr, "usage: bench_bd steps|neighbours [--method M] [--n N1,N2] [--steps S] [--tol T]\n");
+  std::fprintf(stderr, "usage: bench_bd steps|neighbours|sac-table4 [--method M] [--n N1,N2] [--steps S] [--tol T]\n");
   return 2;
 }
