@@ -184,6 +184,10 @@ const std::map<std::string, Check>& checks() {
        [](const RunConfig& c, const std::string& l) { return c.integrator.max_displacement == number(l); }},
       {"integrator.split_displacements",
        [](const RunConfig& c, const std::string& l) { return c.integrator.keep_split_displacements == flag(l); }},
+      {"integrator.scheme",
+       [](const RunConfig& c, const std::string& l) { return !c.integrator.sac.enabled && unquoted(l) == "naive"; }},
+      {"integrator.adsorption_factor",
+       [](const RunConfig& c, const std::string& l) { return c.integrator.sac.adsorption_factor == number(l); }},
       {"mobility.method",
        [](const RunConfig& c, const std::string& l) {
          return c.mobility.method == rpy::mobility_method_from_string(unquoted(l));
