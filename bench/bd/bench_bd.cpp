@@ -194,8 +194,10 @@ constexpr double kAluminaRadius = 200.0;  // nm
 constexpr double kSilicaRadius = 12.5;    // nm
 constexpr double kAluminaPhi = 0.03;      // Annex 2's volume fraction
 
-// examples/bd/alumina_silica/alumina_silica.toml in a periodic box of side L (nm), kT units at
-// 293 K, water viscosity 1: dt = 2.0226 time units = 5e-10 s (Sec. 4.1).
+// The types, pairs and units of examples/bd/alumina_silica/alumina_silica.toml (nm, kT at 293 K,
+// water viscosity 1: dt = 2.0226 time units = 5e-10 s, Sec. 4.1) in a periodic box of side L (nm),
+// with Table 5's surface potentials at R = 0.2 % (+45 / -20 mV; only the alumina-alumina DLVO
+// pair uses them).
 RunConfig table4_config(double L, const std::string& scheme) {
   std::ostringstream t;
   t << "[system]\ngeometry = \"periodic\"\nbox = [" << L << ", " << L << ", " << L << "]\n"
