@@ -92,6 +92,13 @@ double ForceField::max_cutoff() const {
   return rc;
 }
 
+std::vector<double> ForceField::pair_cutoffs() const {
+  std::vector<double> rc(pairs_.size(), 0.0);
+  for (std::size_t k = 0; k < pairs_.size(); ++k)
+    if (pairs_[k].active) rc[k] = pairs_[k].cutoff;
+  return rc;
+}
+
 void ForceField::set_torque_field(TorqueField torques) {
   torques.check(types_.size());
   torques_ = std::move(torques);
@@ -222,8 +229,11 @@ double ForceField::compute(std::span<const double> x, std::span<const std::uint3
   if (!bond_index_valid_ || bond_index_n_ != n) rebuild_bond_index(n);
   constexpr std::size_t none = std::numeric_limits<std::size_t>::max();
   std::atomic<std::size_t> bad_pair{none}, bad_bond{none};
-  double energy = 0.0;
-#pragma omp parallel for schedule(dynamic, 256) reduction(+ : energy) if (n >= 1024)
+  // Each particle's share of the energy, summed afterwards in particle order: an OpenMP reduction
+  // would add the threads' partial sums in an order that depends on the schedule, so the energy
+  // (the log's potential_energy) would change in its last bits with the thread count and the run.
+  std::vector<double> particle_energy(n);
+#pragma omp parallel for schedule(dynamic, 256) if (n >= 1024)
   for (std::size_t i = 0; i < n; ++i) {
     const ParticleType& ti = types_[ptype[i]];
     double f[3] = {ti.external_force[0] + global_force_[0], ti.external_force[1] + global_force_[1],
@@ -255,8 +265,10 @@ double ForceField::compute(std::span<const double> x, std::span<const std::uint3
     for (int c = 0; c < 3; ++c) forces[3 * i + c] = f[c];
     if (split)
       for (int c = 0; c < 3; ++c) within[3 * i + c] = fw[c];
-    energy += e;
+    particle_energy[i] = e;
   }
+  double energy = 0.0;
+  for (const double e : particle_energy) energy += e;
   // With `within`, every pair was checked for overlaps: the search looks at all of them.
   if (bad_pair.load() != none)
     fail_overlap(bad_pair.load(), x, ptype, list, step, split ? std::span<const std::uint32_t>() : groups);

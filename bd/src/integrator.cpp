@@ -44,6 +44,8 @@ Integrator::Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceFie
           "positions has " + std::to_string(x_.size()) + " entries, expected 3N = " + std::to_string(3 * n));
   require_finite(x_, where, "positions", 3);
   forces_.check(types_);
+  // Each interaction kind lists its pairs within its own cut-off + skin (same forces, shorter rows).
+  if (forces_.has_pairs()) list_.set_pair_cutoffs(types_, forces_.pair_cutoffs(), forces_.types().size());
   radii_.resize(n);
   for (std::size_t i = 0; i < n; ++i) radii_[i] = forces_.types()[types_[i]].radius;
   f_.assign(3 * n, 0.0);

@@ -67,6 +67,8 @@ void NeighbourList::build(std::span<const double> positions) {
   const std::size_t n = positions.size() / 3;
   require(n < std::numeric_limits<std::uint32_t>::max(), ErrorCode::invalid_input, "NeighbourList::build",
           "too many particles");
+  require(pair_rl2_.empty() || types_.size() == n, ErrorCode::invalid_input, "NeighbourList::build",
+          "the pair cut-offs were set for " + std::to_string(types_.size()) + " particles, not " + std::to_string(n));
   reference_.assign(positions.begin(), positions.end());
   steps_since_build_ = 1;
   ++rebuilds_;
@@ -80,15 +82,56 @@ void NeighbourList::build(std::span<const double> positions) {
   }
 }
 
+void NeighbourList::set_pair_cutoffs(std::span<const std::uint32_t> particle_types, std::span<const double> cutoffs,
+                                     std::size_t ntypes) {
+  const char* where = "NeighbourList::set_pair_cutoffs";
+  require(ntypes > 0 && cutoffs.size() == ntypes * ntypes, ErrorCode::invalid_argument, where,
+          "cutoffs must hold ntypes^2 = " + std::to_string(ntypes * ntypes) + " entries, got " +
+              std::to_string(cutoffs.size()));
+  for (std::size_t k = 0; k < cutoffs.size(); ++k) {
+    require(std::isfinite(cutoffs[k]) && cutoffs[k] >= 0.0 && cutoffs[k] <= cutoff_, ErrorCode::invalid_argument, where,
+            "cutoff of type pair (" + std::to_string(k / ntypes) + ", " + std::to_string(k % ntypes) +
+                ") must lie in [0, " + std::to_string(cutoff_) + "], got " + std::to_string(cutoffs[k]));
+  }
+  for (std::size_t i = 0; i < particle_types.size(); ++i) {
+    require(particle_types[i] < ntypes, ErrorCode::invalid_argument, where,
+            "particle " + std::to_string(i) + " has type " + std::to_string(particle_types[i]) + ", not below " +
+                std::to_string(ntypes));
+  }
+  types_.assign(particle_types.begin(), particle_types.end());
+  ntypes_ = ntypes;
+  pair_rl2_.resize(cutoffs.size());
+  for (std::size_t k = 0; k < cutoffs.size(); ++k) {
+    const double rl = cutoffs[k] + skin_;
+    pair_rl2_[k] = cutoffs[k] > 0.0 ? rl * rl : 0.0;
+  }
+}
+
+namespace {
+
+/// The squared list radius of each pair of types, and each particle's type (in the order rows
+/// read them): one type and one radius for all without set_pair_cutoffs.
+struct PairRadii {
+  std::vector<std::uint32_t> type;  // per particle, in the order of the positions given
+  std::vector<double> rl2;          // ntypes x ntypes
+  std::size_t ntypes = 1;
+  [[nodiscard]] const double* row(std::uint32_t t) const { return rl2.data() + t * ntypes; }
+};
+
+}  // namespace
+
 void NeighbourList::build_all_pairs(std::span<const double> x) {
   const std::size_t n = x.size() / 3;
+  const bool per_pair = !pair_rl2_.empty();
   const double rl2 = list_radius() * list_radius();
   for (std::size_t i = 0; i < n; ++i) {
+    const double* row = per_pair ? pair_rl2_.data() + types_[i] * ntypes_ : nullptr;
     for (std::size_t j = 0; j < n; ++j) {
       if (j == i) continue;
       double d[3];
       separation(&x[3 * i], &x[3 * j], d);
-      if (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] < rl2) indices_.push_back(static_cast<std::uint32_t>(j));
+      const double limit = per_pair ? row[types_[j]] : rl2;
+      if (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] < limit) indices_.push_back(static_cast<std::uint32_t>(j));
     }
     offsets_[i + 1] = indices_.size();
   }
@@ -181,12 +224,14 @@ std::vector<double> positions_in_cell_order(std::span<const double> x, const Cel
 }
 
 /// Appends to `buf` the neighbours (input indices, unsorted) of the particle in `slot`: the
-/// candidates of the 27 cells around its cell within r_L. A neighbour cell across a periodic face
-/// carries its image shift, so no rounding per candidate.
+/// candidates of the 27 cells around its cell within their pair's list radius (radii: types in
+/// cell order). A neighbour cell across a periodic face carries its image shift, so no rounding
+/// per candidate.
 inline void append_row(std::vector<std::uint32_t>& buf, std::size_t slot, const CellGrid& g, const CellBins& cs,
-                       const std::vector<double>& xs, double rl2) {
+                       const std::vector<double>& xs, const PairRadii& radii) {
   const std::array<long, 3>& home = cs.coord[cs.order[slot]];
   const double* xi = &xs[3 * slot];
+  const double* rl2 = radii.row(radii.type[slot]);
   for (long dx = -1; dx <= 1; ++dx) {
     for (long dy = -1; dy <= 1; ++dy) {
       for (long dz = -1; dz <= 1; ++dz) {
@@ -211,7 +256,8 @@ inline void append_row(std::vector<std::uint32_t>& buf, std::size_t slot, const 
         const double xi0 = xi[0] + shift[0], xi1 = xi[1] + shift[1], xi2 = xi[2] + shift[2];
         for (std::size_t t = cs.start[cell]; t < cs.start[cell + 1]; ++t) {
           const double d0 = xi0 - xs[3 * t], d1 = xi1 - xs[3 * t + 1], d2 = xi2 - xs[3 * t + 2];
-          if (d0 * d0 + d1 * d1 + d2 * d2 < rl2 && t != slot) buf.push_back(static_cast<std::uint32_t>(cs.order[t]));
+          if (d0 * d0 + d1 * d1 + d2 * d2 < rl2[radii.type[t]] && t != slot)
+            buf.push_back(static_cast<std::uint32_t>(cs.order[t]));
         }
       }
     }
@@ -223,7 +269,7 @@ constexpr std::size_t kChunk = 2048;  // slots per row buffer
 /// The rows in cell order, in chunks of consecutive slots (each chunk one growing buffer: no
 /// allocation per particle), each row sorted; count[i] = the length of particle i's row.
 std::vector<std::vector<std::uint32_t>> rows_by_chunk(const CellGrid& g, const CellBins& cs,
-                                                      const std::vector<double>& xs, double rl2,
+                                                      const std::vector<double>& xs, const PairRadii& radii,
                                                       std::vector<std::uint32_t>& count) {
   const std::size_t n = cs.order.size();
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
@@ -233,7 +279,7 @@ std::vector<std::vector<std::uint32_t>> rows_by_chunk(const CellGrid& g, const C
     auto& buf = chunk_lists[ch];
     for (std::size_t slot = ch * kChunk; slot < std::min(n, (ch + 1) * kChunk); ++slot) {
       const std::size_t before = buf.size();
-      append_row(buf, slot, g, cs, xs, rl2);
+      append_row(buf, slot, g, cs, xs, radii);
       std::sort(buf.begin() + static_cast<std::ptrdiff_t>(before), buf.end());
       count[cs.order[slot]] = static_cast<std::uint32_t>(buf.size() - before);
     }
@@ -275,8 +321,19 @@ void NeighbourList::build_cells(std::span<const double> x) {
   }
   const CellBins cells = sort_into_cells(x, grid);
   const std::vector<double> xs = positions_in_cell_order(x, grid, cells.order);
+  // The types in cell order with the radii of set_pair_cutoffs, or one type of radius r_L.
+  PairRadii radii;
+  if (pair_rl2_.empty()) {
+    radii.type.assign(cells.order.size(), 0);
+    radii.rl2 = {rl * rl};
+  } else {
+    radii.type.resize(cells.order.size());
+    for (std::size_t slot = 0; slot < cells.order.size(); ++slot) radii.type[slot] = types_[cells.order[slot]];
+    radii.rl2 = pair_rl2_;
+    radii.ntypes = ntypes_;
+  }
   std::vector<std::uint32_t> count(cells.order.size());
-  const auto chunk_lists = rows_by_chunk(grid, cells, xs, rl * rl, count);
+  const auto chunk_lists = rows_by_chunk(grid, cells, xs, radii, count);
   concatenate_rows(chunk_lists, cells.order, count, offsets_, indices_);
 }
 

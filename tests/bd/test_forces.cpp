@@ -1,6 +1,7 @@
 // Potentials, force field and neighbour lists against plain references:
 // finite differences of the energies, brute-force pair sums, O(N^2) pair searches.
 #include <gtest/gtest.h>
+#include <omp.h>
 
 #include <algorithm>
 #include <cmath>
@@ -119,6 +120,101 @@ TEST(NeighbourList, MatchesAllPairsOpenAndPeriodic) {
       count += expected.size();
     }
     EXPECT_GT(count, 600u);  // the test exercises real neighbours
+  }
+}
+
+// Per pair of types its own list radius (set_pair_cutoffs): each row holds exactly the pairs
+// within their pair's cut-off + skin (O(N^2) search), for both build paths (all pairs below 64
+// particles, cells above), open and periodic; a pair that does not interact is never listed.
+TEST(NeighbourList, PairCutoffsListEachKindWithinItsOwnRadius) {
+  const double skin = 0.4;
+  // Types 0 (large cut-off with itself), 1 (short with itself), 2 (interacts with nothing).
+  const std::vector<double> cutoffs = {3.0, 1.2, 0.0,  //
+                                       1.2, 0.8, 0.0,  //
+                                       0.0, 0.0, 0.0};
+  for (const std::size_t n : {50u, 700u}) {
+    for (const bool periodic : {false, true}) {
+      const double box = n < 64 ? 9.0 : 15.0;
+      auto g = periodic ? rpyfmm::rpy::Geometry::periodic(box) : rpyfmm::rpy::Geometry::open();
+      const auto x = random_points(n, box, 5);
+      std::vector<std::uint32_t> types(n);
+      for (std::size_t i = 0; i < n; ++i)
+        types[i] = static_cast<std::uint32_t>((i * 7) % 10 < 2 ? 0 : (i % 9 == 4 ? 2 : 1));
+      NeighbourList list(g, 3.0, {.skin = skin});
+      list.set_pair_cutoffs(types, cutoffs, 3);
+      list.build(x);
+      std::size_t listed = 0;
+      for (std::size_t i = 0; i < n; ++i) {
+        std::vector<std::uint32_t> expected;
+        for (std::size_t j = 0; j < n; ++j) {
+          const double rc = cutoffs[types[i] * 3 + types[j]];
+          if (i == j || rc == 0.0) continue;
+          double r2 = 0;
+          for (int c = 0; c < 3; ++c) {
+            double d = x[3 * i + c] - x[3 * j + c];
+            if (periodic) d -= box * std::round(d / box);
+            r2 += d * d;
+          }
+          if (r2 < (rc + skin) * (rc + skin)) expected.push_back(static_cast<std::uint32_t>(j));
+        }
+        const auto got = list.neighbours(i);
+        ASSERT_EQ(std::vector<std::uint32_t>(got.begin(), got.end()), expected) << "n " << n << " particle " << i;
+        listed += expected.size();
+      }
+      EXPECT_GT(listed, n);  // real neighbours of every kind
+    }
+  }
+  NeighbourList list(rpyfmm::rpy::Geometry::open(), 2.0, {});
+  const std::vector<std::uint32_t> two_types = {0, 1};
+  EXPECT_THROW(list.set_pair_cutoffs(two_types, std::vector<double>{2.0, 2.5, 2.5, 1.0}, 2), Error);  // above r_c
+  EXPECT_THROW(list.set_pair_cutoffs(two_types, std::vector<double>{2.0, 1.0, 1.0}, 2), Error);       // not 2^2
+  EXPECT_THROW(list.set_pair_cutoffs(std::vector<std::uint32_t>{0, 2}, std::vector<double>(4, 1.0), 2), Error);
+  list.set_pair_cutoffs(two_types, std::vector<double>(4, 1.0), 2);
+  EXPECT_THROW(list.build(random_points(3, 5.0, 1)), Error);  // types for 2 particles, 3 given
+}
+
+// The forces and the energy of a mixture whose kinds interact over very different ranges are the
+// same bit for bit from per-kind list radii as from one radius for all, after moves within half
+// the skin (no rebuild): the pairs left out are beyond their cut-offs until the rebuild test fires.
+TEST(ForceField, PerKindListRadiiGiveTheSameForces) {
+  ForceField ff({ParticleType{"big", 2.0, {0, 0, 0}, 0.0}, ParticleType{"small", 0.25, {0, 0, 0}, 0.0}});
+  // Soft repulsions (no hard core: random placement may overlap), cut off at contact: 4, 2.25, 0.5.
+  ff.set_pair(0, 0, {.kind = PairKind::soft, .epsilon = 2.0});
+  ff.set_pair(0, 1, {.kind = PairKind::soft, .epsilon = 1.0});
+  ff.set_pair(1, 1, {.kind = PairKind::soft, .epsilon = 1.0});
+  const std::size_t n = 1500;
+  const double box = 40.0;
+  auto x = random_points(n, box, 9);
+  std::vector<std::uint32_t> types(n);
+  for (std::size_t i = 0; i < n; ++i) types[i] = i % 25 == 0 ? 0 : 1;
+  const auto geometry = rpyfmm::rpy::Geometry::periodic(box);
+  NeighbourList one(geometry, ff.max_cutoff(), {}), per_kind(geometry, ff.max_cutoff(), {});
+  per_kind.set_pair_cutoffs(types, ff.pair_cutoffs(), 2);
+  one.build(x);
+  per_kind.build(x);
+  EXPECT_LT(per_kind.pair_entries() * 5, one.pair_entries());  // much shorter rows
+  std::mt19937_64 gen(3);
+  std::uniform_real_distribution<double> step(-1.0, 1.0);
+  for (int move = 0; move < 4; ++move) {
+    std::vector<double> f_one(3 * n), f_kind(3 * n);
+    const double e_one = ff.compute(x, types, one, 0, f_one);
+    const double e_kind = ff.compute(x, types, per_kind, 0, f_kind);
+    EXPECT_EQ(f_kind, f_one) << "move " << move;
+    EXPECT_EQ(e_kind, e_one);
+    // The energy is summed in particle order: the same with 1 and 3 threads.
+    const int threads = omp_get_max_threads();
+    omp_set_num_threads(1);
+    const double e_serial = ff.compute(x, types, per_kind, 0, f_kind);
+    omp_set_num_threads(3);
+    const double e_three = ff.compute(x, types, per_kind, 0, f_kind);
+    omp_set_num_threads(threads);
+    EXPECT_EQ(e_serial, e_kind);
+    EXPECT_EQ(e_three, e_kind);
+    // Moves of at most 0.05 per axis, 0.35 in all: below half the skin of the largest cut-off
+    // (0.3 * 4 / 2 = 0.6), so neither list rebuilds.
+    for (double& v : x) v += 0.05 * step(gen);
+    EXPECT_FALSE(one.update(x));
+    EXPECT_FALSE(per_kind.update(x));
   }
 }
 

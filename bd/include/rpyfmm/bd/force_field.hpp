@@ -69,6 +69,9 @@ class ForceField {
   /// Largest pair cutoff (0 when no pair potential): the neighbour list's r_c.
   [[nodiscard]] double max_cutoff() const;
   [[nodiscard]] bool has_pairs() const { return max_cutoff() > 0.0; }
+  /// The cut-off of every pair of types (types x types, 0 where the pair does not interact): the
+  /// neighbour list's radius per pair (NeighbourList::set_pair_cutoffs).
+  [[nodiscard]] std::vector<double> pair_cutoffs() const;
   [[nodiscard]] std::span<const Bond> bonds() const { return bonds_; }
   [[nodiscard]] std::span<const BondPotential> bond_potentials() const { return bond_potentials_; }
   /// Pair term between types (inactive when none set).

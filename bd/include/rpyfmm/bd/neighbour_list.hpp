@@ -43,6 +43,17 @@ class NeighbourList {
   bool update(std::span<const double> positions);
   /// Unconditional rebuild.
   void build(std::span<const double> positions);
+  /// A list radius per pair of particle types (each interaction kind with its own cut-off, as the
+  /// GPU BD paper's Sec. 4.2 keeps one list per kind): from the next build, a pair (i, j) is listed
+  /// only within cutoffs[t_i * ntypes + t_j] + skin (a cut-off of 0: never, the pair does not
+  /// interact). The skin and the rebuild test stay those of cutoff(), the largest, so no pair can
+  /// come within its own cut-off unlisted: sums over the rows skip the same pairs beyond their
+  /// cut-offs and give the same result bit for bit as with one radius for all, from much shorter
+  /// rows where small particles interact over shorter ranges than large ones. Throws unless
+  /// `cutoffs` holds ntypes^2 finite values in [0, cutoff()] and every type is < ntypes;
+  /// particle_types must hold one entry per particle of the positions built.
+  void set_pair_cutoffs(std::span<const std::uint32_t> particle_types, std::span<const double> cutoffs,
+                        std::size_t ntypes);
 
   [[nodiscard]] double cutoff() const { return cutoff_; }
   [[nodiscard]] double list_radius() const { return cutoff_ + skin_; }
@@ -80,6 +91,11 @@ class NeighbourList {
   std::vector<double> reference_;  // positions at the last build
   std::vector<std::size_t> offsets_;
   std::vector<std::uint32_t> indices_;
+  // set_pair_cutoffs: each particle's type and (r_c(t1, t2) + skin)^2 per pair of types (0: never
+  // listed); empty: one radius for all.
+  std::vector<std::uint32_t> types_;
+  std::vector<double> pair_rl2_;
+  std::size_t ntypes_ = 0;
 };
 
 }  // namespace rpyfmm::bd
