@@ -747,8 +747,8 @@ def parse_args() -> argparse.Namespace:
     args = ap.parse_args()
     if args.rounds is None:
         args.rounds = 3 if args.full or args.compare or args.simd_levels else 1
-    if args.isa_rows and not args.simd_levels:
-        ap.error("--isa-rows goes with --simd-levels")
+    if (args.isa_rows or args.levels) and not args.simd_levels:
+        ap.error("--isa-rows and --levels go with --simd-levels")
     return args
 
 
