@@ -180,6 +180,18 @@ def bd_cases(mode: str) -> list[Case]:
             for m, n in sizes.items() for t in THREADS]
 
 
+def bd_open_cases(mode: str) -> list[Case]:
+    """Free-space BD with HI at scale: PSE with open boundaries against the FMM + block-Lanczos path."""
+    if mode == "isa":
+        return []
+    full = mode == "full"
+    # direct at small N: the crossover of pse-open against exact sums with a dense-sized Lanczos.
+    sizes = {"direct": "1000,3000", "fmm": "10000,100000", "pse-open": "1000,3000,10000,100000,1000000"} if full else {
+        "direct": "1000", "fmm": "10000", "pse-open": "1000,10000,100000"}
+    return [Case(["bd/bench_bd", "steps", "--method", m, "--n", n, "--steps", "3"], t, {})
+            for m, n in sizes.items() for t in THREADS]
+
+
 def sac_cases(mode: str) -> list[Case]:
     if mode == "isa":
         return []
@@ -274,6 +286,17 @@ GROUPS = [
            ("s / step", "sec_per_step", "{:.4f}"), ("sampler its", "lanczos_its", "{:.1f}"),
            ("drift s", "drift", "{:.3g}"),
            ("sqrt s", "sqrt", "{:.3g}")],
+          keys=("method", "N", "threads")),
+    Group("bd-open", "Free-space BD with HI at scale",
+          "Seconds per step (median of 3 after one warm-up step) of the sedimenting cloud of group bd (phi = 0.05, "
+          "WCA, gravity, tolerance 1e-3) in free space: pse-open = PSE with open boundaries (docs/theory/pse.md "
+          "section 6: one fused pass, split sampler) against fmm = FmmRpy with the block-preconditioned Lanczos "
+          "sampler, the previous free-space path, and direct = exact sums with the same sampler (the crossover); "
+          "products = mobility products per step.",
+          ["bench_bd"], bd_open_cases, parse_csv, "sec_per_step",
+          [("method", "method", "{}"), ("N", "N", "{}"), ("threads", "threads", "{}"),
+           ("s / step", "sec_per_step", "{:.4f}"), ("products", "products", "{:.1f}"),
+           ("drift s", "drift", "{:.3g}"), ("sqrt s", "sqrt", "{:.3g}"), ("plan s", "plan", "{:.3g}")],
           keys=("method", "N", "threads")),
     Group("sac", "Alumina and silica: the GPU BD paper's Table 4 on the CPU",
           "The three systems of Table 4 of the GPU BD paper (Tran, Crespin, Cerbelaud & Videcoq, Eurographics "

@@ -17,7 +17,8 @@ target_sources(rpyfmm_rpy PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/scale_line.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/window_avx2.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/pse/window_avx512.cpp
-  ${CMAKE_CURRENT_LIST_DIR}/src/pse/pse_rpy.cpp)
+  ${CMAKE_CURRENT_LIST_DIR}/src/pse/pse_rpy.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/pse/open_pse_rpy.cpp)
 # The line loop's sqrt and selects vectorize only without errno and FP traps (no value changes).
 set_source_files_properties(${CMAKE_CURRENT_LIST_DIR}/src/pse/scale_line.cpp PROPERTIES
   COMPILE_OPTIONS "$<$<CXX_COMPILER_ID:GNU,Clang>:-fno-trapping-math;-fno-math-errno>")

@@ -43,6 +43,7 @@
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
 #include "rpyfmm/rpy/mobility_factory.hpp"
+#include "rpyfmm/rpy/pse/open_pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
 #include "rpyfmm/rpy/random.hpp"
@@ -74,7 +75,7 @@ struct SampleArgs {
 // ---- operators ----------------------------------------------------------
 // One entry per --operator value; an entry with an empty factory is known but
 // not built yet and is rejected with a clear message.
-// "pse" is the periodic PSE operator (needs --box); its own split sampler is
+// "pse" is the PSE operator, periodic with --box and with open boundaries without; its own split sampler is
 // used with --method auto (the default) or split.
 struct OperatorEntry {
   const char* name;
@@ -94,14 +95,20 @@ const std::vector<OperatorEntry>& operators() {
        }},
       {"pse", true,
        [](const SampleArgs& a) {
-         require(a.box.size() == 1 || a.box.size() == 3, ErrorCode::invalid_argument, "--box",
-                 "--operator pse needs a periodic box: --box L or --box Lx Ly Lz");
-         const rpy::Geometry g = a.box.size() == 1 ? rpy::Geometry::periodic(a.box[0])
-                                                   : rpy::Geometry::periodic(a.box[0], a.box[1], a.box[2]);
+         require(a.box.empty() || a.box.size() == 1 || a.box.size() == 3, ErrorCode::invalid_argument, "--box",
+                 "give one length L (cube) or three lengths Lx Ly Lz, got " + std::to_string(a.box.size()) + " values");
          rpy::pse::PseOptions o;  // tolerance default 1e-3 unless --tolerance
          if (a.tolerance != 0.0) o.tolerance = a.tolerance;
          o.wave_precision = rpy::pse::wave_precision_from_name(a.wave_precision, "--wave-precision");
-         if (rpy::compute_device_from_string(a.device, "--device") == rpy::ComputeDevice::cuda) {
+         const bool cuda = rpy::compute_device_from_string(a.device, "--device") == rpy::ComputeDevice::cuda;
+         if (a.box.empty()) {  // free space: PSE with open boundaries (CPU)
+           require(!cuda, ErrorCode::not_supported, "--device",
+                   "cuda needs a periodic box (--box); PSE with open boundaries runs on the CPU");
+           return std::unique_ptr<rpy::MobilityOperator>(std::make_unique<rpy::pse::OpenPseRpy>(a.viscosity, o));
+         }
+         const rpy::Geometry g = a.box.size() == 1 ? rpy::Geometry::periodic(a.box[0])
+                                                   : rpy::Geometry::periodic(a.box[0], a.box[1], a.box[2]);
+         if (cuda) {
            require(rpy::pse::PseRpyCuda::device_available(), ErrorCode::not_supported, "--device",
                    "cuda: no usable CUDA device (or a build without CUDA)");
            return std::unique_ptr<rpy::MobilityOperator>(std::make_unique<rpy::pse::PseRpyCuda>(g, a.viscosity, o));
@@ -335,7 +342,8 @@ void register_sample(CLI::App& app) {
                   "auto (operator's choice: Lanczos, or PSE's split sampler), lanczos, chebyshev, cholesky or "
                   "eigen (dense, N <= 2000), split (PSE only); pse = --operator pse --method split")
       ->capture_default_str();
-  cmd->add_option("--operator", args->op, "mobility operator: direct, fmm, or pse (periodic, needs --box)")
+  cmd->add_option("--operator", args->op,
+                  "mobility operator: direct, fmm, or pse (periodic with --box, open boundaries without)")
       ->capture_default_str();
   cmd->add_option("--box", args->box, "periodic box for --operator pse: L or Lx Ly Lz")->expected(1, 3);
   add_renamed_option(*cmd, "--sqrt-tolerance", "--tol", args->sqrt_tolerance,

@@ -4,18 +4,19 @@
 #include <CLI/CLI.hpp>
 
 #include "cli_common.hpp"
-#include "rpyfmm/rpy/mobility_factory.hpp"
 #include "rpyfmm/core/ranges.hpp"
 #include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/rpy/mobility_factory.hpp"
 
 namespace rpyfmm::cli {
 
 void add_mobility_options(CLI::App& cmd, MobilityChoice& choice) {
   cmd.add_option("--viscosity", choice.viscosity, "solvent viscosity eta, in " + ranges::kViscosity.str())
       ->capture_default_str();
-  cmd.add_option("--method", choice.method,
-                 "direct (exact O(N^2)), fmm (free space, O(N)), pse (periodic, needs --box), "
-                 "auto (direct for small N, fmm above; pse with --box), none (free draining)")
+  cmd.add_option(
+         "--method", choice.method,
+         "direct (exact O(N^2)), fmm (free space, O(N)), pse (periodic with --box, free space "
+         "without: open boundaries), auto (direct for small N, fmm above; pse with --box), none (free draining)")
       ->capture_default_str();
   add_renamed_option(cmd, "--tolerance", "--eps", choice.tolerance,
                      "relative tolerance of fmm/pse, in " + ranges::kMobilityTolerance.str())

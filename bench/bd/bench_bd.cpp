@@ -1,13 +1,14 @@
 // BD step throughput and where the time goes (integrator: docs/theory/bd.md).
 //
-//   bench_bd steps  --method none|direct|fmm|pse --n 1000,3000,10000 [--steps 5] [--tol 1e-3]
+//   bench_bd steps  --method none|direct|fmm|pse|pse-open --n 1000,3000,10000 [--steps 5] [--tol 1e-3]
 //                   [--split-displacements] [--preconditioner automatic|block|none] [--block B]
 //                   [--device cpu|cuda]
 //       one CSV row per N: seconds per step (median of the per-step times after one
 //       warm-up step), Lanczos iterations and mobility products per step, and the
 //       time split (neighbours, forces, plan, drift = M F or M [F, z], sqrt, update).
 //       System: random cloud at phi = 0.05 (radius 1, WCA, gravity 1, kT 1, dt 0.01);
-//       pse: the same particles at phi = 0.05 in a periodic cube. With pse a step is one
+//       pse: the same particles at phi = 0.05 in a periodic cube; pse-open: PSE in free space on
+//       the cloud itself (OpenPseRpy). With pse and pse-open a step is one
 //       fused pass (drift and noise share the wave-space FFTs, timed as drift);
 //       --split-displacements keeps the drift and Brownian parts apart, which takes the
 //       separate M F + split-sampler path. --preconditioner: the Lanczos sampler's block
@@ -104,7 +105,8 @@ int bench_steps(int argc, char** argv) {
       "drift,"
       "sqrt,update\n");
   for (std::size_t n : sizes(arg(argc, argv, "--n", "1000,3000"))) {
-    RunConfig c = cloud_config(n, method, tol, method == "pse", 0.05, split, device);
+    // pse-open: the pse method without a box, i.e. OpenPseRpy on the free-space cloud.
+    RunConfig c = cloud_config(n, method == "pse-open" ? "pse" : method, tol, method == "pse", 0.05, split, device);
     c.integrator.sqrt.preconditioner = rpyfmm::rpy::sqrt_preconditioner_from_string(preconditioner);
     c.integrator.sqrt.preconditioner_block = std::stoi(arg(argc, argv, "--block", "0"));
     const ForceField ff = make_force_field(c);

@@ -2,7 +2,7 @@
 
 The Laplace FMM (:class:`LaplaceFmm`, :func:`laplace_direct`), the RPY mobility
 operators behind one interface (:class:`DirectRpy`, :class:`FmmRpy`,
-:class:`PseRpy`, :class:`FreeDraining`, :func:`make_mobility`), the Brownian
+:class:`PseRpy`, :class:`OpenPseRpy`, :class:`FreeDraining`, :func:`make_mobility`), the Brownian
 samplers (``apply_sqrt``, :func:`sqrt_apply`, :func:`normal_noise`,
 :class:`SqrtReport`), rigid bodies of beads (:class:`RigidBodies`,
 :func:`icosphere_beads`, and their Brownian dynamics :class:`RigidBodyDynamics`) and
@@ -58,6 +58,7 @@ from ._rpyfmm import (
     NotSupportedError,
     NumericalFailureError,
     OutOfMemoryError,
+    OpenPseRpy,
     PseRpy,
     RigidBodies,
     RigidBodyDynamics,
@@ -109,6 +110,7 @@ __all__ = [
     "NotSupportedError",
     "NumericalFailureError",
     "OutOfMemoryError",
+    "OpenPseRpy",
     "PseRpy",
     "RigidBodies",
     "RigidBodyDynamics",

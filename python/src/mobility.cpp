@@ -17,6 +17,7 @@
 #include "rpyfmm/rpy/fmm_operator.hpp"
 #include "rpyfmm/rpy/free_draining.hpp"
 #include "rpyfmm/rpy/mobility_factory.hpp"
+#include "rpyfmm/rpy/pse/open_pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
 
@@ -171,6 +172,7 @@ nb::dict pse_parameters(const rpy::pse::PseParameters& p) {
   d["memory_bytes"] = p.memory_bytes;
   d["real_space_cache_bytes"] = p.real_space_cache_bytes;
   d["modelled_cost"] = p.modelled_cost;
+  d["open_truncation"] = p.open_truncation;  // R of the open-boundary kernel (0: periodic)
   d["summary"] = p.summary();
   return d;
 }
@@ -366,21 +368,30 @@ void bind_fmm_rpy(nb::module_& m) {
            "The Laplace FMM tree's statistics (as LaplaceFmm.stats()); empty before set_positions.");
 }
 
-void init_pse_rpy(rpy::pse::PseRpy* self, BoxArg box, double viscosity, double tolerance, double xi, double r_cut,
-                  double window_eta, int fft_threads, std::size_t max_memory_bytes, bool fft_measure,
-                  const std::string& wave_precision, bool real_space_cache) {
+/// PseOptions from the keyword arguments PseRpy and OpenPseRpy share.
+rpy::pse::PseOptions pse_options(const char* where, double tolerance, double xi, double r_cut, double window_eta,
+                                 int fft_threads, std::size_t max_memory_bytes, bool fft_measure,
+                                 const std::string& wave_precision, bool real_space_cache) {
   rpy::pse::PseOptions o;
   o.tolerance = tolerance;
   o.xi = xi;
   o.r_cut = r_cut;
   o.window_eta = window_eta;
-  require_thread_count(fft_threads, "PseRpy fft_threads", true);
+  require_thread_count(fft_threads, std::string(where) + " fft_threads", true);
   o.fft_threads = fft_threads;
   o.max_memory_bytes = max_memory_bytes;
   o.fft_measure = fft_measure;
-  o.wave_precision = rpy::pse::wave_precision_from_name(wave_precision, "PseRpy");
+  o.wave_precision = rpy::pse::wave_precision_from_name(wave_precision, where);
   o.real_space_cache = real_space_cache;
-  new (self) rpy::pse::PseRpy(geometry_from(box, "PseRpy"), viscosity, o);
+  return o;
+}
+
+void init_pse_rpy(rpy::pse::PseRpy* self, BoxArg box, double viscosity, double tolerance, double xi, double r_cut,
+                  double window_eta, int fft_threads, std::size_t max_memory_bytes, bool fft_measure,
+                  const std::string& wave_precision, bool real_space_cache) {
+  new (self) rpy::pse::PseRpy(geometry_from(box, "PseRpy"), viscosity,
+                              pse_options("PseRpy", tolerance, xi, r_cut, window_eta, fft_threads, max_memory_bytes,
+                                          fft_measure, wave_precision, real_space_cache));
 }
 
 using PseClass = nb::class_<rpy::pse::PseRpy, MobilityOperator>;
@@ -418,8 +429,9 @@ void add_pse_state(PseClass& cls) {
            "Sets the accumulated stage times to zero.");
 }
 
-ArrayAndReport<rpy::SqrtReport> pse_sample(const rpy::pse::PseRpy& op, std::uint64_t seed, std::uint64_t step,
-                                           OutArg out) {
+/// The split sampler keyed by (seed, step), for PseRpy and OpenPseRpy.
+template <class Op>
+ArrayAndReport<rpy::SqrtReport> pse_sample(const Op& op, std::uint64_t seed, std::uint64_t step, OutArg out) {
   OutArray w = make_output(out, {op.size(), 3}, "sample");
   rpy::SqrtReport report;
   {
@@ -429,7 +441,9 @@ ArrayAndReport<rpy::SqrtReport> pse_sample(const rpy::pse::PseRpy& op, std::uint
   return array_and_report(w.object, report);
 }
 
-ArrayAndReport<rpy::SqrtReport> pse_apply_with_noise(const rpy::pse::PseRpy& op, ArrayArg forces, double noise_scale,
+/// The fused drift-and-noise pass, for PseRpy and OpenPseRpy.
+template <class Op>
+ArrayAndReport<rpy::SqrtReport> pse_apply_with_noise(const Op& op, ArrayArg forces, double noise_scale,
                                                      std::uint64_t seed, std::uint64_t step, OutArg out) {
   const InArray f = as_input(forces, "apply_with_noise", "forces");
   require_points(f, "apply_with_noise", "forces");
@@ -458,11 +472,11 @@ void add_pse_products(PseClass& cls) {
                  return map_points("apply_wave", forces, out, [&](auto f, auto u) { op.apply_wave(f, u); });
                }),
            nb::arg("forces"), nb::arg("out") = nb::none(), "U = M_w F (wave-space part).")
-      .def("sample", locked("PseRpy.sample", &pse_sample), nb::arg("seed"), nb::arg("step") = 0,
+      .def("sample", locked("PseRpy.sample", &pse_sample<rpy::pse::PseRpy>), nb::arg("seed"), nb::arg("step") = 0,
            nb::arg("out") = nb::none(),
            "w = M^{1/2} z by the split sampler with noise keyed by (seed, step). Returns (w (N, 3), SqrtReport).")
-      .def("apply_with_noise", locked("PseRpy.apply_with_noise", &pse_apply_with_noise), nb::arg("forces"),
-           nb::arg("noise_scale"), nb::arg("seed"), nb::arg("step") = 0, nb::arg("out") = nb::none(),
+      .def("apply_with_noise", locked("PseRpy.apply_with_noise", &pse_apply_with_noise<rpy::pse::PseRpy>),
+           nb::arg("forces"), nb::arg("noise_scale"), nb::arg("seed"), nb::arg("step") = 0, nb::arg("out") = nb::none(),
            "U = M F + noise_scale M^{1/2} z in one fused pass (BD: noise_scale = sqrt(2 kT / dt)).");
 }
 
@@ -473,6 +487,59 @@ void bind_pse_rpy(nb::module_& m) {
                "seeded by a hash of z, so w is a deterministic function of z with covariance M.");
   add_pse_state(cls);
   add_pse_products(cls);
+}
+
+void init_open_pse_rpy(rpy::pse::OpenPseRpy* self, double viscosity, double tolerance, double xi, double r_cut,
+                       double window_eta, int fft_threads, std::size_t max_memory_bytes, bool fft_measure,
+                       const std::string& wave_precision, bool real_space_cache) {
+  new (self)
+      rpy::pse::OpenPseRpy(viscosity, pse_options("OpenPseRpy", tolerance, xi, r_cut, window_eta, fft_threads,
+                                                  max_memory_bytes, fft_measure, wave_precision, real_space_cache));
+}
+
+void bind_open_pse_rpy(nb::module_& m) {
+  using Op = rpy::pse::OpenPseRpy;
+  nb::class_<Op, MobilityOperator>(
+      m, "OpenPseRpy",
+      "RPY mobility in free space by Positively Split Ewald with open boundaries (docs/theory/pse.md,\n"
+      "section 6), equal radii: the periodic grid follows the particles, and the wave-space kernel is\n"
+      "compactly supported and positive, so the split sampler gives a Brownian displacement for about\n"
+      "the cost of one product. apply_sqrt with 'auto'/'split' as PseRpy.")
+      .def("__init__", &init_open_pse_rpy, nb::arg("viscosity") = 1.0, nb::arg("tolerance") = 1e-3, nb::arg("xi") = 0.0,
+           nb::arg("r_cut") = 0.0, nb::arg("window_eta") = 0.0, nb::arg("fft_threads") = 0,
+           nb::arg("max_memory_bytes") = std::size_t{16} << 30, nb::arg("fft_measure") = false,
+           nb::arg("wave_precision") = "auto", nb::arg("real_space_cache") = true,
+           "Options as PseRpy's, without a box: it is chosen from the particles' extent at set_positions.")
+      .def_prop_ro("parameters",
+                   locked_read(
+                       "OpenPseRpy.parameters", +[](const Op& op) { return pse_parameters(op.parameters()); }),
+                   "The choices of the current plan (xi, r_cut, grid, ..., open_truncation = R).")
+      .def_prop_ro("box",
+                   locked_read(
+                       "OpenPseRpy.box",
+                       +[](const Op& op) {
+                         const auto b = op.box();
+                         return nb::make_tuple(b[0], b[1], b[2]);
+                       }),
+                   "The periodic box of the current plan (Lx, Ly, Lz).")
+      .def_prop_ro("constant_part",
+                   locked_read(
+                       "OpenPseRpy.constant_part", +[](const Op& op) { return op.constant_part(); }),
+                   "c = 1 / (4 pi eta R): the common translation's part of M.")
+      .def("stage_times",
+           locked_read(
+               "OpenPseRpy.stage_times", +[](const Op& op) { return op.stage_times(); }),
+           "Accumulated seconds per stage.")
+      .def("reset_stage_times",
+           locked(
+               "OpenPseRpy.reset_stage_times", +[](Op& op) { op.reset_stage_times(); }),
+           "Sets the accumulated stage times to zero.")
+      .def("sample", locked("OpenPseRpy.sample", &pse_sample<Op>), nb::arg("seed"), nb::arg("step") = 0,
+           nb::arg("out") = nb::none(),
+           "w = M^{1/2} z by the split sampler with noise keyed by (seed, step). Returns (w (N, 3), SqrtReport).")
+      .def("apply_with_noise", locked("OpenPseRpy.apply_with_noise", &pse_apply_with_noise<Op>), nb::arg("forces"),
+           nb::arg("noise_scale"), nb::arg("seed"), nb::arg("step") = 0, nb::arg("out") = nb::none(),
+           "U = M F + noise_scale M^{1/2} z in one fused pass (BD: noise_scale = sqrt(2 kT / dt)).");
 }
 
 void bind_free_draining(nb::module_& m) {
@@ -543,6 +610,7 @@ void bind_mobility(nb::module_& m) {
   bind_direct_rpy(m);
   bind_fmm_rpy(m);
   bind_pse_rpy(m);
+  bind_open_pse_rpy(m);
   bind_free_draining(m);
   bind_mobility_factory(m);
 }

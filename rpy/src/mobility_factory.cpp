@@ -7,6 +7,7 @@
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
 #include "rpyfmm/rpy/free_draining.hpp"
+#include "rpyfmm/rpy/pse/open_pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
 
@@ -98,21 +99,25 @@ std::unique_ptr<MobilityOperator> make_mobility(const MobilitySpec& spec, std::s
         options.tolerance = spec.tolerance;  // relative l2 error of M F (FmmRpy accepts kMobilityTolerance)
         return std::make_unique<FmmRpy>(spec.geometry, spec.viscosity, options);
       }
-    case MobilityMethod::pse:
-      if (spec.geometry.is_open()) unavailable(method, "needs a periodic geometry");
-      {
-        pse::PseOptions options;
-        options.tolerance = spec.tolerance;  // PseRpy accepts [1e-8, 0.1)
-        options.fft_measure = spec.fft_measure;
-        options.wave_precision = spec.wave_precision;
+    case MobilityMethod::pse: {
+      pse::PseOptions options;
+      options.tolerance = spec.tolerance;  // PseRpy accepts [1e-8, 0.1)
+      options.fft_measure = spec.fft_measure;
+      options.wave_precision = spec.wave_precision;
+      if (spec.geometry.is_open()) {
         if (spec.device == ComputeDevice::cuda) {
-          if (!pse::PseRpyCuda::device_available()) {
-            unavailable(method, "on device 'cuda': no usable CUDA device (or a build without CUDA)");
-          }
-          return std::make_unique<pse::PseRpyCuda>(spec.geometry, spec.viscosity, options);
+          unavailable(method, "on device 'cuda' needs a periodic geometry (open boundaries run on the CPU)");
         }
-        return std::make_unique<pse::PseRpy>(spec.geometry, spec.viscosity, options);
+        return std::make_unique<pse::OpenPseRpy>(spec.viscosity, options);
       }
+      if (spec.device == ComputeDevice::cuda) {
+        if (!pse::PseRpyCuda::device_available()) {
+          unavailable(method, "on device 'cuda': no usable CUDA device (or a build without CUDA)");
+        }
+        return std::make_unique<pse::PseRpyCuda>(spec.geometry, spec.viscosity, options);
+      }
+      return std::make_unique<pse::PseRpy>(spec.geometry, spec.viscosity, options);
+    }
     case MobilityMethod::automatic:
       break;
   }

@@ -358,8 +358,10 @@ TEST(MobilityFactory, FreeDrainingAndUnavailableMethods) {
   EXPECT_NEAR(w[4], 5.0 / std::sqrt(12 * M_PI), 1e-15);
   EXPECT_THROW(mobility_method_from_string("magic"), Error);
   EXPECT_EQ(mobility_method_from_string("auto"), MobilityMethod::automatic);
+  // pse in open geometry: PSE with open boundaries; on a GPU not (yet) supported, by name.
+  EXPECT_EQ(make_mobility({.method = MobilityMethod::pse}, 10)->name(), "pse-open");
   try {
-    (void)make_mobility({.method = MobilityMethod::pse}, 10);  // open geometry
+    (void)make_mobility({.method = MobilityMethod::pse, .device = rpyfmm::rpy::ComputeDevice::cuda}, 10);
     FAIL();
   } catch (const Error& e) {
     EXPECT_EQ(e.code(), ErrorCode::not_supported);

@@ -456,7 +456,7 @@ TEST_F(Cli, MobilityBadInput) {
   expect_failure(good + " --radii " + path("a2.npy") + O, "radii", "u.npy");
   expect_failure(good + " --radii " + path("a_neg.npy") + O, "radius of particle 1", "u.npy");
   expect_failure(good + " --radius 1 --method warp" + O, "unknown method 'warp'", "u.npy");
-  expect_failure(good + " --radius 1 --method pse" + O, "periodic", "u.npy");
+  expect_failure(good + " --radius 1 --method pse --device cuda" + O, "periodic", "u.npy");  // open PSE: CPU only
   expect_failure(good + " --radius 1 --method fmm --box 10" + O, "open geometry", "u.npy");
   expect_failure(good + " --radius 1 --method fmm --tolerance 0.7" + O, "tolerance", "u.npy");
   expect_failure(good + " --radius 1 --box 10 20" + O, "--box", "u.npy");
@@ -553,7 +553,7 @@ TEST_F(Cli, RigidBadInput) {
                  "NaN", "uw.npy");
   expect_failure(base + " --body-sizes " + sizes + " --reference " + path("q2.npy") + O, "--reference", "uw.npy");
   expect_failure(base + " --body-sizes " + sizes + " --solver-tolerance 0" + O, "--solver-tolerance", "uw.npy");
-  expect_failure(base + " --body-sizes " + sizes + " --method pse" + O, "periodic", "uw.npy");
+  expect_failure(base + " --body-sizes " + sizes + " --method pse --device cuda" + O, "periodic", "uw.npy");
   expect_failure(base + " --body-sizes " + sizes + " --max-iterations 1 --solver-tolerance 1e-12" + O, "did not reach",
                  "uw.npy");
   expect_failure(base + O, "--body-sizes", "uw.npy");

@@ -66,7 +66,7 @@ CASES = [
     (lambda: ready(rpyfmm.DirectRpy()).apply_block(F.reshape(-1)), rpyfmm.InvalidInputError,
      "expected (nrhs, N, 3) or (nrhs, 3N)"),
     (lambda: rpyfmm.make_mobility("magic"), rpyfmm.InvalidArgumentError, "magic"),
-    (lambda: rpyfmm.make_mobility("pse"), rpyfmm.NotSupportedError, "periodic"),
+    (lambda: rpyfmm.make_mobility("pse", device="cuda"), rpyfmm.NotSupportedError, "periodic"),
     (lambda: rpyfmm.LaplaceFmm(tolerance=0.0).set_points(X), rpyfmm.InvalidArgumentError, "tolerance"),
     (lambda: rpyfmm.LaplaceFmm().evaluate(np.ones(4)), rpyfmm.InvalidInputError, "call set_points first"),
     (lambda: rpyfmm.laplace_direct(X, np.ones(4), outputs="flux"), rpyfmm.InvalidArgumentError,

@@ -19,6 +19,7 @@
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
 #include "rpyfmm/rpy/free_draining.hpp"
+#include "rpyfmm/rpy/pse/open_pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/rigid_bodies.hpp"
 #include "simd_levels.hpp"
@@ -38,7 +39,9 @@ std::vector<double> uniform(std::size_t n, double lo, double hi, unsigned seed) 
 
 /// Non-overlapping-ish random spheres in a box of edge L (overlaps allowed: every operator
 /// handles them).
-std::vector<double> suspension(std::size_t n, double L, unsigned seed) { return uniform(3 * n, 0.0, L, seed); }
+std::vector<double> suspension(std::size_t n, double L, unsigned seed) {
+  return uniform(3 * n, 0.0, L, seed);
+}
 
 /// Runs f with `threads` OpenMP threads and restores the previous count.
 template <class F>
@@ -93,6 +96,8 @@ std::vector<OperatorCase> operator_cases() {
       {"pse_1e-3_float", pse(1e-3, WavePrecision::automatic), 1200, 30.0, 1e-6},
       // Double grids: FFTW's threaded transforms round differently, to double round-off.
       {"pse_1e-6_double", pse(1e-6, WavePrecision::double_precision), 1200, 30.0, 1e-14},
+      // PSE with open boundaries: the same wave space on a box that follows the particles.
+      {"pse_open_1e-3_float", [] { return std::make_unique<rpyfmm::rpy::pse::OpenPseRpy>(1.0); }, 1200, 30.0, 1e-6},
   };
 }
 
@@ -114,9 +119,9 @@ TEST_P(Reproducible, ProductsDoNotDependOnCallHistory) {
     std::vector<std::function<void()>> calls = {
         [&] { op->apply_sqrt(z, w); },
         [&] {
-          op->apply_sqrt(z, w,
-                         {.method = rpyfmm::rpy::SqrtMethod::lanczos,
-                          .preconditioner = rpyfmm::rpy::SqrtPreconditioner::block});
+          op->apply_sqrt(
+              z, w,
+              {.method = rpyfmm::rpy::SqrtMethod::lanczos, .preconditioner = rpyfmm::rpy::SqrtPreconditioner::block});
         },
         [&] {
           std::vector<double> two(f);

@@ -18,6 +18,7 @@
 
 #include "rpyfmm/bd/rotation_sampling.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
+#include "rpyfmm/rpy/pse/open_pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/random.hpp"
 #include "sqrt_test_util.hpp"
@@ -174,6 +175,21 @@ TEST_F(SampleCli, PseSplitSamplerMatchesLibrary) {
   EXPECT_LE(max_rel_diff(read_npy(out, shape), w), 1e-12);
 }
 
+// Without --box, `--method pse` is PSE with open boundaries (OpenPseRpy), equal to the library's.
+TEST_F(SampleCli, OpenPseSplitSamplerMatchesLibrary) {
+  const CliResult r =
+      run_cli("--positions " + xp.string() + " --radius 1 --seed 9 --method pse --out " + out.string() + " --json");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_NE(r.out.find("\"method\":\"split\""), std::string::npos) << r.out;
+  std::vector<double> z(3 * N), w(3 * N);
+  fill_normal(z, 9u, 0u);
+  rpyfmm::rpy::pse::OpenPseRpy op(1.0);
+  op.set_positions(x, 1.0);
+  op.apply_sqrt(z, w);
+  std::vector<std::size_t> shape;
+  EXPECT_LE(max_rel_diff(read_npy(out, shape), w), 1e-12);
+}
+
 // --preconditioner block: the library's preconditioned sampler (B z, B B^T = M) on the same noise.
 TEST_F(SampleCli, BlockPreconditionerMatchesLibrary) {
   for (const SqrtMethod method : {SqrtMethod::lanczos, SqrtMethod::chebyshev}) {
@@ -315,7 +331,8 @@ TEST_F(SampleCli, BadInputExitTwoNoOutput) {
            {base + "--radius 1 --preconditioner block --method eigen", "Lanczos and Chebyshev samplers only"},
            {base + "--radius 1 --preconditioner-block -3", "--preconditioner-block"},
            {base + "--radius 1 --box 50", "--operator pse"},
-           {base + "--radius 1 --operator pse", "--box"},
+           {base + "--radius 1 --operator pse --box 30 40", "--box"},
+           {base + "--radius 1 --operator pse --device cuda", "periodic box"},  // open PSE runs on the CPU
            {base + "--radius 1 --method split", "PSE"},
            {base + "--radius 1 --method pse --operator fmm", "cannot be combined"},
            {base + "--radius 1 --method pse --box 60 --wave-precision quad", "--wave-precision"},

@@ -46,7 +46,7 @@ def main() -> int:
         n, R, u, du, t, vz = measure(args.out / name)
         theory = U0 * (1 + 1.2 * (n - 1) * A / R) if method != "none" else U0
         print(f"{name:8} {n:5d} {R:6.2f} {u / U0:8.2f} ± {du / U0:4.2f} {theory / U0:11.2f} {u / theory:6.3f}")
-        ax1.plot(t, vz / theory, label=f"N={n}" + (" free draining" if method == "none" else ""),
+        ax1.plot(t, vz / theory, label=f"N={n}" + {"none": " free draining", "pse": " PSE (open)"}.get(method, ""),
                  lw=0.8 if method == "none" else 1.5)
         if method != "none":
             pts.append((1 + 1.2 * (n - 1) * A / R, u / U0, du / U0, n))

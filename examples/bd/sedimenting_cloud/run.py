@@ -23,6 +23,8 @@ CASES = {  # name: (count, mobility)
     "hi_1000": (1000, "direct"),
     "hi_2000": (2000, "direct"),
     "fd_1000": (1000, "none"),
+    "pse_2000": (2000, "pse"),  # PSE with open boundaries (no box): the same cloud as hi_2000
+    "pse_20000": (20000, "pse"),
 }
 
 

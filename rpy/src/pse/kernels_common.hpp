@@ -16,6 +16,8 @@ namespace rpyfmm::rpy::pse::detail {
 /// (normal6, index = canonical mode: its three real parts, then its three imaginary parts).
 inline constexpr std::uint32_t kStreamReal = 1;
 inline constexpr std::uint32_t kStreamWave = 2;
+/// The common translation of OpenPseRpy's constant part (open_pse_rpy.hpp); streams 3-5 serve the BD engine.
+inline constexpr std::uint32_t kStreamOpenOffset = 6;
 
 /// First grid index of the P-point Gaussian support of coordinate x
 /// (docs/theory/pse.md): every grid point closer than P h / 2 is covered.

@@ -209,10 +209,11 @@ PseParameters parameters_for(const PseOptions& o, double a, const std::array<dou
   // combination of least modelled cost (5. with the support P_d covering +-m sigma on it).
   set_grid(p, o, L, n, cheapest_grid(o, p, L, n, candidate_lengths(o, L, h_max)));
   p.lanczos_tolerance = o.lanczos_tolerance > 0.0 ? o.lanczos_tolerance : eps;
+  p.open_truncation = o.open_truncation;
 
   // Cost model T(xi) ([PSE] eq. 22): real-space pairs (M_r F and the Lanczos iterations of the
   // sampler), plus the grid-dependent part.
-  const double density = static_cast<double>(n) / (L[0] * L[1] * L[2]);
+  const double density = o.pair_density > 0.0 ? o.pair_density : static_cast<double>(n) / (L[0] * L[1] * L[2]);
   const double neighbours = density * 4.0 / 3.0 * std::numbers::pi * p.r_cut * p.r_cut * p.r_cut;
   p.modelled_cost = o.cost_real_products * o.cost_real_pair * static_cast<double>(n) * (1.0 + neighbours) +
                     grid_cost(o, p.grid, p.support, n);
@@ -264,6 +265,10 @@ PseParameters choose_parameters(const PseOptions& o, double a, const std::array<
     require(o.grid[d] >= 0, ErrorCode::invalid_argument, kWhere, "grid override must be >= 0");
   require(std::isfinite(o.lanczos_tolerance) && o.lanczos_tolerance >= 0.0 && o.lanczos_tolerance < 1.0,
           ErrorCode::invalid_argument, kWhere, "lanczos_tolerance must lie in [0, 1), got " + fmt(o.lanczos_tolerance));
+  require(std::isfinite(o.pair_density) && o.pair_density >= 0.0, ErrorCode::invalid_argument, kWhere,
+          "pair_density must be finite and >= 0 (0 = N / box volume), got " + fmt(o.pair_density));
+  require(std::isfinite(o.open_truncation) && o.open_truncation >= 0.0, ErrorCode::invalid_argument, kWhere,
+          "open_truncation must be finite and >= 0 (0 = periodic), got " + fmt(o.open_truncation));
   for (double c : {o.cost_real_pair, o.cost_fft_point, o.cost_grid_point, o.cost_support_point, o.cost_real_products})
     require(std::isfinite(c) && c >= 0.0, ErrorCode::invalid_argument, kWhere,
             "cost-model constants (PseOptions::cost_*) must be finite and >= 0, got " + fmt(c));
@@ -333,6 +338,7 @@ std::string PseParameters::summary() const {
          ", eta = " + fmt(window_eta) + (eta_automatic ? " (auto)" : "") + ", m = " + fmt(window_m) +
          ", table dr = " + fmt(table_dr) + " (" + std::to_string(table_size) + " entries)" +
          ", lanczos tol = " + fmt(lanczos_tolerance) + ", wave grids " + (wave_single ? "single" : "double") +
+         (open_truncation > 0.0 ? ", open boundaries (R = " + fmt(open_truncation) + ")" : std::string()) +
          ", memory = " + fmt(static_cast<double>(memory_bytes) / 1e6) + " MB" +
          (real_space_cache_bytes > 0 ? ", pair cache " + fmt(static_cast<double>(real_space_cache_bytes) / 1e6) + " MB"
                                      : std::string());

@@ -16,15 +16,17 @@
 #include <cstddef>
 
 #include "kernels_common.hpp"
+#include "open_truncation.hpp"
 
 namespace rpyfmm::rpy::pse::detail {
 
 /// Per-plan constants of g(k) (see above).
 struct RotationModeConstants {
   double radius;
-  double inv_4xi2;       ///< 1 / (4 xi^2)
-  double one_minus_eta;  ///< 1 - window_eta
-  double inv_mu_ng;      ///< 1 / (mu Ng)
+  double inv_4xi2;               ///< 1 / (4 xi^2)
+  double one_minus_eta;          ///< 1 - window_eta
+  double inv_mu_ng;              ///< 1 / (mu Ng)
+  double open_truncation = 0.0;  ///< R of the open-boundary kernel (open_truncation.hpp; 0: periodic)
 };
 
 /// sinc(x) and s(x) / 2 = 3 j1(x) / (2x); below x = 0.5 from their series (the closed form of s
@@ -68,7 +70,8 @@ RPYFMM_HOST_DEVICE inline void scale_rotation_mode(int ix, int iy, int iz, std::
   double sinc, half_s;
   rotation_shape_factors(std::sqrt(k2) * rc.radius, sinc, half_s);
   const double q = k2 * rc.inv_4xi2;
-  const double gk = (1.0 + q) * std::exp(-rc.one_minus_eta * q) / k2 * rc.inv_mu_ng;
+  double gk = (1.0 + q) * std::exp(-rc.one_minus_eta * q) / k2 * rc.inv_mu_ng;
+  if (rc.open_truncation > 0.0) gk *= open_truncation_factor(std::sqrt(k2) * rc.open_truncation);
   const auto cross = [&k](const double* v, int d) {
     const int d1 = (d + 1) % 3, d2 = (d + 2) % 3;
     return k[d1] * v[d2] - k[d2] * v[d1];

@@ -11,6 +11,7 @@
 #include <span>
 #include <vector>
 
+#include "open_truncation.hpp"
 #include "rotation_modes.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "scale_line.hpp"
@@ -307,7 +308,9 @@ std::vector<double> wave_scaling_table(const PseParameters& p, const std::array<
         const double sinc = std::sin(k * a) / (k * a);
         const double x = k2sum * inv_4xi2;
         // sg(k) = sinc^2(ka) (1 + k^2/4xi^2) exp(-(1-eta) k^2/4xi^2) / k^2  ([PSE] eqs. 9 and 11)
-        const double sg = sinc * sinc * (1.0 + x) * std::exp(-(1.0 - p.window_eta) * x) / k2sum;
+        double sg = sinc * sinc * (1.0 + x) * std::exp(-(1.0 - p.window_eta) * x) / k2sum;
+        // Open boundaries: the compactly supported Stokeslet's factor (open_truncation.hpp).
+        if (p.open_truncation > 0.0) sg *= open_truncation_factor(k * p.open_truncation);
         ck[idx] = sg / (viscosity * ng);
       }
     }
@@ -325,7 +328,7 @@ WaveGrid<Real>::WaveGrid(const PseParameters& p, const std::array<double, 3>& bo
   ng_ = static_cast<std::size_t>(n_[0]) * static_cast<std::size_t>(n_[1]) * static_cast<std::size_t>(n_[2]);
   ck_ = wave_scaling_table(p, box, viscosity, modes_);
   rotation_constants_ = {p.radius, 1.0 / (4.0 * p.xi * p.xi), 1.0 - p.window_eta,
-                         1.0 / (viscosity * static_cast<double>(ng_))};
+                         1.0 / (viscosity * static_cast<double>(ng_)), p.open_truncation};
   dv_ = p.spacing[0] * p.spacing[1] * p.spacing[2];
   c3_ = std::pow(2.0 * std::numbers::pi * p.sigma * p.sigma, -1.5);
   fft_threads_ = fft_threads > 0 ? fft_threads : (ng_ >= (std::size_t{1} << 20) ? omp_get_max_threads() : 1);

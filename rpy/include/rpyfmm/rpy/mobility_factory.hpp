@@ -3,11 +3,12 @@
 //   "none"   free draining (FreeDrainingMobility), any geometry
 //   "direct" O(N^2) RPY sums (DirectRpy), open geometry
 //   "fmm"    FMM-accelerated RPY (FmmRpy), open geometry
-//   "pse"    Positively Split Ewald (pse::PseRpy), periodic geometry
+//   "pse"    Positively Split Ewald: pse::PseRpy in a periodic geometry, pse::OpenPseRpy (free
+//            space, a compactly supported wave-space kernel) in open geometry
 //   "auto"   open: direct below `fmm_crossover` particles (default: default_fmm_crossover),
 //            fmm from there on; periodic: pse
 //
-// Device "cuda" (pse only) builds pse::PseRpyCuda instead of PseRpy: the same operator on
+// Device "cuda" (pse only, periodic) builds pse::PseRpyCuda instead of PseRpy: the same operator on
 // a GPU (a build with CUDA and a usable device; wave_precision as on the CPU).
 //
 // A method that does not fit the geometry throws rpyfmm::Error(not_supported) naming it.

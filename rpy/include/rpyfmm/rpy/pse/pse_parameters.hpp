@@ -100,6 +100,13 @@ struct PseOptions {
   /// Real-space products per step assumed by the cost model: 1 for M F only,
   /// 1 + Lanczos iterations (~5) when the split sampler is used every step.
   double cost_real_products = 5.0;
+  /// Number density of particles around each particle as the cost model counts real-space
+  /// pairs; 0 = N / box volume. OpenPseRpy sets it, as its particles fill only part of the box.
+  double pair_density = 0.0;
+  /// Open boundaries (OpenPseRpy sets it; 0 = periodic): the wave-space part uses the Stokeslet
+  /// built from the compactly supported biharmonic kernel of radius R = open_truncation, i.e.
+  /// c(k) times q(kR) = 1 + cos(kR)/2 - 3 sin(kR)/(2kR) (docs/theory/pse.md, "Open boundaries").
+  double open_truncation = 0.0;
 };
 
 /// The choices made for one (radius, box, N) — reported by PseRpy::parameters().
@@ -123,6 +130,7 @@ struct PseParameters {
   std::size_t memory_bytes = 0;               ///< grids + spectra + tables
   std::size_t real_space_cache_bytes = 0;     ///< pair cache for the current positions (0: none)
   double modelled_cost = 0.0;                 ///< T(xi) of the cost model (s), for reference
+  double open_truncation = 0.0;               ///< R of the open-boundary kernel (0: periodic)
 
   /// One-line human-readable summary.
   [[nodiscard]] std::string summary() const;
