@@ -1,0 +1,272 @@
+// rpyfmm::mpi::DistributedDirectRpy against the serial DirectRpy on the concatenation of all ranks'
+// particles: bit for bit on uniform, strongly clustered and extreme-scale inputs, with equal and
+// different radii, empty ranks and more ranks than particles; and collective failure (every rank
+// throws the same message, none hangs) on bad input of one rank.
+#include <gtest/gtest.h>
+#include <mpi.h>
+
+#include <cmath>
+#include <limits>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "mpi_test_support.hpp"
+#include "rpyfmm/mpi/direct_operator.hpp"
+#include "rpyfmm/rpy/direct_operator.hpp"
+
+using rpyfmm::ErrorCode;
+using rpyfmm::mpi::DistributedDirectRpy;
+using rpyfmm::rpy::DirectRpy;
+using rpyfmm::rpy::Geometry;
+using namespace rpyfmm_mpi_test;
+
+namespace {
+
+constexpr double kViscosity = 0.7;
+
+enum class Radii { common, per_particle };
+
+// Distributes `p` by `split`, applies M on the shares and compares each rank's velocities with the
+// serial operator's on the whole set, bit for bit. With Radii::common every rank passes p.a[0].
+void expect_equal_to_serial(const Particles& p, Split split, Radii radii) {
+  const auto rank = static_cast<std::size_t>(world_rank());
+  const std::vector<std::size_t> counts = split_counts(p.size(), static_cast<std::size_t>(world_size()), split);
+  std::size_t offset = 0;
+  for (std::size_t r = 0; r < rank; ++r) offset += counts[r];
+  const std::size_t n = counts[rank];
+
+  DirectRpy serial(Geometry::open(), kViscosity);
+  if (radii == Radii::common) {
+    serial.set_positions(p.x, p.a[0]);
+  } else {
+    serial.set_positions(p.x, p.a);
+  }
+  std::vector<double> u_serial(3 * p.size());
+  serial.apply(p.f, u_serial);
+
+  DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
+  if (radii == Radii::common) {
+    op.set_positions(share(p.x, 3, offset, n), p.a[0]);
+  } else {
+    op.set_positions(share(p.x, 3, offset, n), share(p.a, 1, offset, n));
+  }
+  EXPECT_EQ(op.global_size(), p.size());
+  EXPECT_EQ(op.local_size(), n);
+  EXPECT_EQ(op.offset(), offset);
+  ASSERT_EQ(op.counts().size(), counts.size());
+  for (std::size_t r = 0; r < counts.size(); ++r) EXPECT_EQ(op.counts()[r], counts[r]) << "rank " << r;
+  std::vector<double> u(3 * n, std::numeric_limits<double>::quiet_NaN());
+  op.apply(share(p.f, 3, offset, n), u);
+  EXPECT_EQ(bitwise_mismatches(u, share(u_serial, 3, offset, n)), 0u) << "rank " << rank << " of " << world_size();
+}
+
+const Split kSplits[] = {Split::even, Split::first_empty, Split::last_only, Split::geometric};
+
+}  // namespace
+
+TEST(MpiDistributedDirect, UniformEqualRadiiEqualsSerialBitForBit) {
+  // 700 particles: more than two of DirectRpy's source blocks (256).
+  const Particles p = uniform_particles(700, 40.0, 1.0, 1.0, 11);
+  for (Split s : kSplits) expect_equal_to_serial(p, s, Radii::common);
+  for (Split s : kSplits) expect_equal_to_serial(p, s, Radii::per_particle);  // all equal: the equal-radii path
+}
+
+TEST(MpiDistributedDirect, UniformDifferentRadiiEqualsSerialBitForBit) {
+  const Particles p = uniform_particles(531, 25.0, 0.3, 1.7, 12);
+  for (Split s : kSplits) expect_equal_to_serial(p, s, Radii::per_particle);
+}
+
+TEST(MpiDistributedDirect, StronglyClusteredEqualsSerialBitForBit) {
+  // 400 overlapping spheres (partial overlap, one inside another, a coincident pair) and 60 far
+  // ones: with last_only / geometric the cluster lies on one rank's share.
+  const Particles p = clustered_particles(400, 60, 13);
+  for (Split s : kSplits) expect_equal_to_serial(p, s, Radii::per_particle);
+}
+
+TEST(MpiDistributedDirect, ExtremeLengthScalesEqualSerialBitForBit) {
+  // Extent 1e137 and radii 1e135: DirectRpy evaluates in units of a power of two chosen from all
+  // particles, which every rank sees after the gather.
+  Particles p = uniform_particles(300, 1.0, 0.002, 0.004, 14);
+  for (double& x : p.x) x *= 1e137;
+  for (double& a : p.a) a *= 1e137;
+  for (Split s : kSplits) expect_equal_to_serial(p, s, Radii::per_particle);
+  // Forces near 1e300: the product is evaluated on forces scaled by the largest of all ranks.
+  Particles q = uniform_particles(300, 30.0, 1.0, 1.0, 15);
+  for (double& f : q.f) f *= 1e300;
+  for (Split s : kSplits) expect_equal_to_serial(q, s, Radii::common);
+}
+
+TEST(MpiDistributedDirect, MoreRanksThanParticles) {
+  for (std::size_t n : {1, 2, 3}) {
+    const Particles p = uniform_particles(n, 3.0, 0.8, 1.2, 20 + n);
+    for (Split s : kSplits) expect_equal_to_serial(p, s, Radii::per_particle);
+  }
+}
+
+TEST(MpiDistributedDirect, DifferentCommonRadiusPerRankEqualsSerialWithPerParticleRadii) {
+  Particles p = uniform_particles(257, 20.0, 1.0, 1.0, 30);
+  const std::vector<std::size_t> counts = split_counts(p.size(), static_cast<std::size_t>(world_size()), Split::even);
+  std::size_t i = 0;
+  for (std::size_t r = 0; r < counts.size(); ++r)
+    for (std::size_t k = 0; k < counts[r]; ++k) p.a[i++] = 1.0 + 0.25 * static_cast<double>(r);
+  DirectRpy serial(Geometry::open(), kViscosity);
+  serial.set_positions(p.x, p.a);
+  std::vector<double> u_serial(3 * p.size());
+  serial.apply(p.f, u_serial);
+
+  const auto rank = static_cast<std::size_t>(world_rank());
+  std::size_t offset = 0;
+  for (std::size_t r = 0; r < rank; ++r) offset += counts[r];
+  DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
+  op.set_positions(share(p.x, 3, offset, counts[rank]), 1.0 + 0.25 * static_cast<double>(rank));
+  std::vector<double> u(3 * counts[rank]);
+  op.apply(share(p.f, 3, offset, counts[rank]), u);
+  EXPECT_EQ(bitwise_mismatches(u, share(u_serial, 3, offset, counts[rank])), 0u);
+}
+
+TEST(MpiDistributedDirect, RepeatedProductsAndNewPositions) {
+  const Particles p = uniform_particles(200, 15.0, 0.5, 1.0, 40);
+  const Particles q = clustered_particles(90, 10, 41);
+  // One operator, several configurations and right-hand sides: each product as on a fresh one.
+  DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
+  for (const auto& [particles, split] : {std::pair{&p, Split::even}, std::pair{&q, Split::geometric}}) {
+    const std::vector<std::size_t> counts =
+        split_counts(particles->size(), static_cast<std::size_t>(world_size()), split);
+    const auto rank = static_cast<std::size_t>(world_rank());
+    std::size_t offset = 0;
+    for (std::size_t r = 0; r < rank; ++r) offset += counts[r];
+    const std::size_t n = counts[rank];
+    op.set_positions(share(particles->x, 3, offset, n), share(particles->a, 1, offset, n));
+    DirectRpy serial(Geometry::open(), kViscosity);
+    serial.set_positions(particles->x, particles->a);
+    for (double scale : {1.0, -3.0}) {
+      std::vector<double> f = particles->f;
+      for (double& v : f) v *= scale;
+      std::vector<double> u_serial(f.size()), u(3 * n);
+      serial.apply(f, u_serial);
+      op.apply(share(f, 3, offset, n), u);
+      EXPECT_EQ(bitwise_mismatches(u, share(u_serial, 3, offset, n)), 0u);
+    }
+  }
+}
+
+// ----------------------------------------------------------------------- collective errors ---
+
+namespace {
+
+// This rank's share of a small uniform set, split evenly.
+struct Share {
+  std::vector<double> x, a, f;
+};
+
+Share even_share(std::size_t n_total) {
+  const Particles p = uniform_particles(n_total, 10.0, 1.0, 1.0, 50);
+  const std::vector<std::size_t> counts = split_counts(n_total, static_cast<std::size_t>(world_size()), Split::even);
+  const auto rank = static_cast<std::size_t>(world_rank());
+  std::size_t offset = 0;
+  for (std::size_t r = 0; r < rank; ++r) offset += counts[r];
+  return {share(p.x, 3, offset, counts[rank]), share(p.a, 1, offset, counts[rank]),
+          share(p.f, 3, offset, counts[rank])};
+}
+
+std::string rank_of(int r) {
+  return "rank " + std::to_string(r) + " of " + std::to_string(world_size()) + ": ";
+}
+
+}  // namespace
+
+TEST(MpiDistributedDirect, NanPositionOnOneRankFailsEveryRankThenRecovers) {
+  const int last = world_size() - 1;
+  Share s = even_share(40);  // every rank has at least 10
+  Share bad = s;
+  if (world_rank() == last) bad.x[3 * 2 + 1] = std::numeric_limits<double>::quiet_NaN();
+  DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
+  expect_collective_error([&] { op.set_positions(bad.x, bad.a); }, ErrorCode::invalid_input,
+                          rank_of(last) + "DistributedDirectRpy::set_positions: local positions entry (2, 1) is NaN");
+  EXPECT_EQ(op.global_size(), 0u);
+  std::vector<double> u(s.f.size());
+  expect_collective_error([&] { op.apply(s.f, u); }, ErrorCode::invalid_input, "positions not set");
+  // The ranks are in step: good input now succeeds everywhere.
+  op.set_positions(s.x, s.a);
+  EXPECT_EQ(op.global_size(), 40u);
+  EXPECT_NO_THROW(op.apply(s.f, u));
+  // A NaN on a rank that holds positions already set: the old positions are dropped everywhere.
+  expect_collective_error([&] { op.set_positions(bad.x, 1.0); }, ErrorCode::invalid_input, "is NaN");
+  EXPECT_EQ(op.global_size(), 0u);
+}
+
+TEST(MpiDistributedDirect, BadForcesOnOneRankFailEveryRank) {
+  Share s = even_share(40);
+  DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
+  op.set_positions(s.x, s.a);
+  std::vector<double> u(s.f.size());
+  std::vector<double> f = s.f;
+  if (world_rank() == 0) f[4] = std::numeric_limits<double>::infinity();
+  expect_collective_error([&] { op.apply(f, u); }, ErrorCode::invalid_input,
+                          rank_of(0) + "DistributedDirectRpy::apply: local forces entry (1, 1) is infinite");
+  EXPECT_NO_THROW(op.apply(s.f, u));
+}
+
+TEST(MpiDistributedDirect, WrongSizesOnOneRankFailEveryRank) {
+  const int last = world_size() - 1;
+  Share s = even_share(40);
+  DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
+  // Positions not a multiple of 3.
+  std::vector<double> x = s.x;
+  if (world_rank() == last) x.push_back(1.0);
+  // (the count in the message is the last rank's, so every rank's message names it)
+  const std::string message =
+      expect_collective_error([&] { op.set_positions(x, 1.0); }, ErrorCode::invalid_input,
+                              rank_of(last) + "DistributedDirectRpy::set_positions: local positions have ");
+  EXPECT_NE(message.find(" entries, not a multiple of 3"), std::string::npos) << message;
+  // Radii of the wrong count.
+  std::vector<double> a = s.a;
+  if (world_rank() == 0) a.pop_back();
+  expect_collective_error([&] { op.set_positions(s.x, a); }, ErrorCode::invalid_input,
+                          rank_of(0) + "DistributedDirectRpy::set_positions: local radii has");
+  // A radius that is not > 0, one common radius and one per particle.
+  expect_collective_error([&] { op.set_positions(s.x, world_rank() == last ? -1.0 : 1.0); },
+                          ErrorCode::invalid_argument, rank_of(last) + "DistributedDirectRpy::set_positions: radius");
+  a = s.a;
+  if (world_rank() == last) a[1] = 0.0;
+  expect_collective_error([&] { op.set_positions(s.x, a); }, ErrorCode::invalid_argument,
+                          rank_of(last) + "DistributedDirectRpy::set_positions: radius of local particle 1");
+  // Forces and velocities of the wrong size.
+  op.set_positions(s.x, s.a);
+  std::vector<double> f = s.f, u(s.f.size());
+  if (world_rank() == last) f.resize(f.size() - 3);
+  expect_collective_error([&] { op.apply(f, u); }, ErrorCode::invalid_input,
+                          rank_of(last) + "DistributedDirectRpy::apply: local forces has");
+  std::vector<double> u_wrong(world_rank() == 0 ? 0 : s.f.size());
+  expect_collective_error([&] { op.apply(s.f, u_wrong); }, ErrorCode::invalid_input,
+                          rank_of(0) + "DistributedDirectRpy::apply: local velocities has");
+  EXPECT_NO_THROW(op.apply(s.f, u));
+}
+
+TEST(MpiDistributedDirect, NoParticlesAnywhereFailsEveryRank) {
+  DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
+  expect_collective_error([&] { op.set_positions(std::vector<double>{}, 1.0); }, ErrorCode::invalid_input,
+                          "no particles on any of the " + std::to_string(world_size()) + " ranks");
+}
+
+TEST(MpiDistributedDirect, BadOrDifferentViscosityFailsEveryRank) {
+  const int last = world_size() - 1;
+  expect_collective_error([&] { DistributedDirectRpy op(MPI_COMM_WORLD, world_rank() == last ? std::nan("") : 1.0); },
+                          ErrorCode::invalid_argument,
+                          rank_of(last) + "DistributedDirectRpy: viscosity must be finite and > 0");
+  if (world_size() > 1) {
+    expect_collective_error([&] { DistributedDirectRpy op(MPI_COMM_WORLD, 1.0 + world_rank()); },
+                            ErrorCode::invalid_argument, "the ranks pass different viscosities");
+  }
+}
+
+TEST(MpiDistributedDirect, TooSmallRadiusOfTheGatheredSetFailsEveryRank) {
+  // Valid on each rank, refused by DirectRpy for the gathered set (a radius below 2^-300 of the
+  // suspension's size): every rank reports the same problem.
+  Share s = even_share(40);
+  if (world_rank() == 0) s.a[0] = 1e-300;
+  DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
+  expect_collective_error([&] { op.set_positions(s.x, s.a); }, ErrorCode::invalid_input, "DirectRpy::set_positions");
+  EXPECT_EQ(op.global_size(), 0u);
+}
