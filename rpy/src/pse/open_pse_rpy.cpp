@@ -197,7 +197,17 @@ struct OpenPseRpy::Impl {
     for (std::size_t i = 0; i < plans.size(); ++i)
       if (plans[i].extent == extent) return i;
     StopWatch sw;
-    const Candidate c = choose_plan(options, extent, cutoffs);
+    Candidate c;
+    try {
+      c = choose_plan(options, extent, cutoffs);
+    } catch (const Error& e) {
+      if (e.code() != ErrorCode::out_of_memory) throw;
+      // The grid grows with the configuration's extent: say so, and what suits spread-out particles.
+      throw Error(e.code(), std::string(e.what()) + " (OpenPseRpy: the particles span " +
+                                std::to_string(extent.diameter) +
+                                " lengths; the grid covers twice that: use the FMM operator for spread-out "
+                                "configurations)");
+    }
     Plan p;
     p.extent = extent;
     p.op = std::make_unique<PseRpy>(Geometry::periodic(c.box[0], c.box[1], c.box[2]), viscosity, c.options);
