@@ -1,4 +1,4 @@
-// rpyfmm — DistributedDirectRpy: all-gather, then the serial DirectRpy (direct_operator.hpp).
+// rpyfmm — DistributedDirectRpy: all-gather, then the serial DirectRpy's rows of this rank (direct_operator.hpp).
 #include "rpyfmm/mpi/direct_operator.hpp"
 
 #include <algorithm>
@@ -113,12 +113,14 @@ void DistributedDirectRpy::apply(std::span<const double> local_forces, std::span
                  "local velocities");
     require_finite(local_forces, kApply, "local forces", 3);
   });
-  std::vector<double> forces(3 * global_n_), velocities(3 * global_n_);
+  std::vector<double> forces(3 * global_n_);
   check_mpi(MPI_Allgatherv(local_forces.data(), counts3_[comm_.rank()], MPI_DOUBLE, forces.data(), counts3_.data(),
                            displs3_.data(), MPI_DOUBLE, comm_.get()),
             "MPI_Allgatherv");
-  comm_.run([&] { serial_.apply(forces, velocities); });
-  std::copy_n(velocities.begin() + static_cast<std::ptrdiff_t>(3 * offset_), 3 * local_n_, local_velocities.begin());
+  // This rank's rows only (DirectRpy::apply_rows): each target summed over all sources in
+  // the serial order, with the serial load scaling, so the rows equal the serial ones bit for bit
+  // and the N^2 pair work is divided by the number of ranks.
+  comm_.run([&] { serial_.apply_rows(offset_, local_n_, forces, local_velocities.first(3 * local_n_)); });
 }
 
 }  // namespace rpyfmm::mpi

@@ -13,8 +13,11 @@
 #include <cmath>
 #include <numbers>
 #include <span>
+#include <string>
+#include <vector>
 
 #include "length_units.hpp"
+#include "load_scaling.hpp"
 #include "pair_block_sum.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/fmm/direct_simd.hpp"
@@ -246,6 +249,35 @@ void DirectRpy::on_positions_set() {
 }
 
 void DirectRpy::do_apply(const double* forces, double* velocities, std::size_t nrhs) const {
+  sum_rows(forces, nrhs, 0, size(), velocities);
+}
+
+void DirectRpy::apply_rows(std::size_t first, std::size_t count, std::span<const double> forces,
+                           std::span<double> velocities) const {
+  require_positions("apply_rows");
+  const char* where = "DirectRpy::apply_rows";
+  require(first <= size() && count <= size() - first, ErrorCode::invalid_argument, where,
+          "rows [" + std::to_string(first) + ", " + std::to_string(first + count) + ") are not within the " +
+              std::to_string(size()) + " particles");
+  require_size(forces, 3 * size(), where, "forces");
+  require_size(std::span<const double>(velocities.data(), velocities.size()), 3 * count, where, "velocities");
+  require_finite(forces, where, "forces", 3);
+  if (count == 0) return;
+  // MobilityOperator::apply_block's load scaling, from all forces, so that the rows are apply()'s.
+  const int k = detail::load_scale_exponent({forces});
+  if (k == 0) {
+    sum_rows(forces.data(), 1, first, count, velocities.data());
+  } else {
+    std::vector<double> scaled(forces.begin(), forces.end());
+    for (double& f : scaled) f = std::ldexp(f, -k);
+    sum_rows(scaled.data(), 1, first, count, velocities.data());
+    for (double& u : velocities) u = std::ldexp(u, k);
+  }
+  detail::require_finite_result(velocities, where, "velocities", "forces");
+}
+
+void DirectRpy::sum_rows(const double* forces, std::size_t nrhs, std::size_t first, std::size_t count,
+                         double* velocities) const {
   const std::size_t n = size();
   const double inv_eta = 1.0 / viscosity();
   const bool equal = equal_radii();
@@ -272,7 +304,7 @@ void DirectRpy::do_apply(const double* forces, double* velocities, std::size_t n
     double* f = dz + kBlock;
     double* gr = f + kBlock;
 #pragma omp for schedule(dynamic, 16)
-    for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t i = first; i < first + count; ++i) {
       std::fill(acc.begin(), acc.end(), 0.0);
       for (std::size_t j0 = 0; j0 < n; j0 += kBlock) {
         const std::size_t nb = std::min(kBlock, n - j0);
@@ -301,7 +333,7 @@ void DirectRpy::do_apply(const double* forces, double* velocities, std::size_t n
         }
       }
       for (std::size_t k = 0; k < nrhs; ++k) {
-        double* u = velocities + 3 * n * k + 3 * i;
+        double* u = velocities + 3 * count * k + 3 * (i - first);
         // Back from the units of length_units.hpp: M(x, a) = 2^-e M(2^-e x, 2^-e a) (exact).
         for (int c = 0; c < 3; ++c) u[c] = std::ldexp(inv_eta * acc[3 * k + c], -scale_exponent_);
       }

@@ -8,25 +8,16 @@
 #include <string>
 #include <vector>
 
+#include "load_scaling.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/block_preconditioner.hpp"
 
 namespace rpyfmm::rpy {
-namespace {
 
-// Loads (forces, torques) whose largest entry lies outside [2^-100, 2^100] are applied as 2^-k F with that entry in
-// [1, 2), then scaled back: M is linear and scaling by a power of two is exact, so ordinary forces
-// keep their bitwise results, while forces near 1e308 (whose pair terms d (d . F) overflowed although
-// M F does not), beyond single precision (PSE's grids and pair cache for tolerances >= 1e-5) or near
-// 1e-300 (digits lost in those grids) are evaluated as accurately as ordinary ones. 0: no scaling.
-// Forces and torques share one power of two (M [F; T] is linear in both together).
-int load_scale_exponent(std::initializer_list<std::span<const double>> loads) {
-  double largest = 0.0;
-  for (const auto load : loads)
-    for (double f : load) largest = std::max(largest, std::abs(f));
-  if (largest == 0.0 || (largest >= 0x1p-100 && largest <= 0x1p100)) return 0;
-  return std::ilogb(largest);
-}
+using detail::load_scale_exponent;
+using detail::require_finite_result;
+
+namespace {
 
 // The same for [F; T]: the torques measured as forces, T / l with l = 2^ilogb(largest radius) (a torque
 // is a force times a length). Lengths and torques of 2^(+-400) with forces of order one then need no
@@ -39,18 +30,6 @@ int rotation_load_scale_exponent(std::span<const double> forces, std::span<const
   std::vector<double> torque_as_force(torques.begin(), torques.end());
   for (double& t : torque_as_force) t = std::ldexp(t, -length);
   return load_scale_exponent({forces, torque_as_force});
-}
-
-// Finite inputs whose product overflows (forces so large, or radii so small, that M F is beyond
-// double precision) give Inf or NaN: refused, naming the first entry, rather than returned.
-void require_finite_result(std::span<const double> out, const std::string& where, const char* name, const char* input) {
-  for (std::size_t i = 0; i < out.size(); ++i) {
-    if (std::isfinite(out[i])) continue;
-    fail(ErrorCode::numerical_failure, where,
-         std::string(name) + " entry (" + std::to_string(i / 3) + ", " + std::to_string(i % 3) + ") is " +
-             (std::isnan(out[i]) ? "NaN" : "infinite") + ": the product overflows double precision (scale the " +
-             input + " down and the result up)");
-  }
 }
 
 /// One argument of a product or sample with rotation, by name.

@@ -7,11 +7,11 @@
 // bit, what rpyfmm::rpy::DirectRpy gives for these particles on that concatenation (same binary,
 // same instruction-set level, rpyfmm/core/simd_dispatch.hpp).
 //
-// How: positions, radii and forces are all-gathered, and every rank evaluates the serial
-// DirectRpy on the gathered set, then keeps its own velocities. The work is replicated, not
-// divided: each rank holds O(N) data and does all N^2 pair blocks, so more ranks give no speed-up
-// (docs/mpi.md says why and what a divided version needs). The operator serves as the reference
-// that the distributed fast operators are to be checked against.
+// How: positions, radii and forces are all-gathered, and every rank sums the rows of its own
+// particles with the serial DirectRpy (DirectRpy::apply_rows: each target over all
+// sources, with the whole set's length units and load scale). The N^2 pair work is divided by the
+// number of ranks; every rank holds O(N) data (docs/mpi.md). The operator also serves as the
+// reference that the distributed fast operators are to be checked against.
 //
 // Every public call is collective over the communicator and fails collectively
 // (communicator.hpp): a bad input on one rank makes every rank throw the same rpyfmm::Error.

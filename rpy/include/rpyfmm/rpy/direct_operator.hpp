@@ -31,6 +31,14 @@ class DirectRpy final : public MobilityOperator {
   /// The grand mobility with torques (rpy_rotation_kernel.hpp): apply(F, T, U, W).
   [[nodiscard]] bool supports_rotation() const override { return true; }
 
+  /// The rows of particles [first, first + count) of U = M F: `forces` has 3N entries,
+  /// `velocities` 3 count. Bit for bit the same rows as apply(): each target is summed over all
+  /// sources in the same order, with the whole set's length units and load scaling; for callers
+  /// that split the targets (rpyfmm::mpi::DistributedDirectRpy). Validation as apply(), plus
+  /// first + count <= N.
+  void apply_rows(std::size_t first, std::size_t count, std::span<const double> forces,
+                  std::span<double> velocities) const;
+
  protected:
   void on_positions_set() override;
   void do_apply(const double* forces, double* velocities, std::size_t nrhs) const override;
@@ -43,6 +51,10 @@ class DirectRpy final : public MobilityOperator {
   // 2^scale_exponent_ (rpy/src/length_units.hpp; 0 for suspensions of ordinary lengths).
   std::vector<double> x_, y_, z_, a_, inv_a_;
   int scale_exponent_ = 0;
+
+  /// Rows [first, first + count) of M F for nrhs right-hand sides (forces already load-scaled);
+  /// right-hand side k's rows at velocities + 3 count k.
+  void sum_rows(const double* forces, std::size_t nrhs, std::size_t first, std::size_t count, double* velocities) const;
 };
 
 }  // namespace rpyfmm::rpy
