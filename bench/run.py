@@ -291,7 +291,7 @@ GROUPS = [
           "Seconds per step (median of 3 after one warm-up step) of the sedimenting cloud of group bd (phi = 0.05, "
           "WCA, gravity, tolerance 1e-3) in free space: pse-open = PSE with open boundaries (docs/theory/pse.md "
           "section 6: one fused pass, split sampler) against fmm = FmmRpy with the block-preconditioned Lanczos "
-          "sampler, the previous free-space path, and direct = exact sums with the same sampler (the crossover); "
+          "sampler (method fmm), and direct = exact sums with the same sampler (the crossover); "
           "products = mobility products per step.",
           ["bench_bd"], bd_open_cases, parse_csv, "sec_per_step",
           [("method", "method", "{}"), ("N", "N", "{}"), ("threads", "threads", "{}"),
