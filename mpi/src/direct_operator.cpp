@@ -1,13 +1,18 @@
-// rpyfmm — DistributedDirectRpy: all-gather, then the serial DirectRpy's rows of this rank (direct_operator.hpp).
+// rpyfmm — DistributedDirectRpy: source blocks passed in rank order, DirectRpy's sums on each
+// rank's own targets (direct_operator.hpp, docs/mpi.md).
 #include "rpyfmm/mpi/direct_operator.hpp"
 
 #include <algorithm>
 #include <array>
 #include <climits>
 #include <cmath>
-#include <cstdint>
 #include <string>
 
+// rpy/src (private to rpyfmm::rpy and this layer): DirectRpy's block sums, length units and load
+// scaling, so that the distributed sums are DirectRpy's operation for operation.
+#include "direct_block_sums.hpp"
+#include "length_units.hpp"
+#include "load_scaling.hpp"
 #include "rpyfmm/core/validate.hpp"
 
 namespace rpyfmm::mpi {
@@ -15,6 +20,23 @@ namespace {
 
 constexpr const char* kSetPositions = "DistributedDirectRpy::set_positions";
 constexpr const char* kApply = "DistributedDirectRpy::apply";
+constexpr std::size_t kBlock = rpy::detail::kDirectBlock;
+// Doubles per particle of a source block as broadcast: x, y, z, a (length units), fx, fy, fz
+// (load-scaled), each an array over the block's particles.
+constexpr std::size_t kPacked = 7;
+// Targets summed between two polls of the broadcast in flight (MPI_Test lets it progress).
+constexpr std::size_t kTargetBatch = 256;
+// A rank's summary for the whole set's bounding box and radius range: lo[3], hi[3], the global
+// indices of the particles on the box faces ilo[3], ihi[3] (exact as doubles), a_min, a_max, count.
+constexpr int kSummary = 15;
+
+// Runs the MPI calls of `body`, adding their wall time to `seconds`.
+template <class Body>
+void timed(double& seconds, Body&& body) {
+  const double start = MPI_Wtime();
+  body();
+  seconds += MPI_Wtime() - start;
+}
 
 // The viscosity, once every rank has checked its own and all ranks agree on one value.
 double agreed_viscosity(const Communicator& comm, double viscosity) {
@@ -42,10 +64,90 @@ void check_local_particles(std::span<const double> positions, std::span<const do
   }
 }
 
+std::array<double, kSummary> local_summary(std::span<const double> x, std::span<const double> a, std::size_t offset) {
+  std::array<double, kSummary> s{};
+  s[14] = static_cast<double>(a.size());
+  if (a.empty()) return s;
+  const rpy::detail::BoundingBox box = rpy::detail::bounding_box(x);
+  for (int c = 0; c < 3; ++c) {
+    s[c] = box.lo[c];
+    s[3 + c] = box.hi[c];
+    s[6 + c] = static_cast<double>(offset + box.ilo[c]);
+    s[9 + c] = static_cast<double>(offset + box.ihi[c]);
+  }
+  const auto [a_min, a_max] = std::minmax_element(a.begin(), a.end());
+  s[12] = *a_min;
+  s[13] = *a_max;
+  return s;
+}
+
+struct WholeSet {
+  rpy::detail::BoundingBox box;
+  rpy::detail::RadiiPiece radii;
+};
+
+// The whole set's bounding box and radius range from the ranks' summaries, merged in rank order
+// as bounding_box() scans the concatenation: a face moves only to a strictly lower (higher)
+// coordinate, so the first particle on it names it, and the box is bounding_box()'s bit for bit.
+WholeSet merge_summaries(const std::vector<double>& all, std::size_t ranks) {
+  WholeSet set;
+  bool first = true;
+  for (std::size_t r = 0; r < ranks; ++r) {
+    const double* s = all.data() + kSummary * r;
+    if (s[14] == 0.0) continue;
+    for (std::size_t c = 0; c < 3; ++c) {
+      if (first || s[c] < set.box.lo[c]) set.box.lo[c] = s[c], set.box.ilo[c] = static_cast<std::size_t>(s[6 + c]);
+      if (first || s[3 + c] > set.box.hi[c]) {
+        set.box.hi[c] = s[3 + c], set.box.ihi[c] = static_cast<std::size_t>(s[9 + c]);
+      }
+    }
+    set.radii.a_min = first ? s[12] : std::min(set.radii.a_min, s[12]);
+    set.radii.a_max = first ? s[13] : std::max(set.radii.a_max, s[13]);
+    first = false;
+  }
+  return set;
+}
+
 }  // namespace
 
+// Sources received and not summed yet: fewer than kBlock left over from earlier blocks (the start
+// of one of DirectRpy's source blocks that straddles two ranks' shares), then the latest block.
+// Structure of arrays; inv_a = 1 / a computed here as DirectRpy computes it.
+class DistributedDirectRpy::SourceWindow {
+ public:
+  explicit SourceWindow(std::size_t capacity) : data_(kColumns * capacity), capacity_(capacity) {}
+
+  // `packed`: kPacked arrays of n doubles (x, y, z, a, fx, fy, fz).
+  void append(const double* packed, std::size_t n) {
+    for (std::size_t k = 0; k < kPacked; ++k) std::copy_n(packed + k * n, n, column(k) + size_);
+    const double* a = column(kA) + size_;
+    double* inv_a = column(kInvA) + size_;
+    for (std::size_t j = 0; j < n; ++j) inv_a[j] = 1.0 / a[j];
+    size_ += n;
+  }
+  // Drops the first m sources (summed), keeping the rest at the front.
+  void drop_front(std::size_t m) {
+    for (std::size_t k = 0; k < kColumns; ++k) std::copy(column(k) + m, column(k) + size_, column(k));
+    size_ -= m;
+  }
+  [[nodiscard]] std::size_t size() const { return size_; }
+  [[nodiscard]] rpy::detail::DirectParticles particles() const {
+    return {column(0), column(1), column(2), column(kA), column(kInvA)};
+  }
+  [[nodiscard]] rpy::detail::DirectForces forces() const { return {column(4), column(5), column(6)}; }
+
+ private:
+  static constexpr std::size_t kA = 3, kInvA = kPacked, kColumns = kPacked + 1;
+  [[nodiscard]] double* column(std::size_t k) { return data_.data() + k * capacity_; }
+  [[nodiscard]] const double* column(std::size_t k) const { return data_.data() + k * capacity_; }
+
+  std::vector<double> data_;
+  std::size_t capacity_;
+  std::size_t size_ = 0;
+};
+
 DistributedDirectRpy::DistributedDirectRpy(MPI_Comm comm, double viscosity)
-    : comm_(comm), serial_(rpy::Geometry::open(), agreed_viscosity(comm_, viscosity)) {}
+    : comm_(comm), viscosity_(agreed_viscosity(comm_, viscosity)) {}
 
 void DistributedDirectRpy::set_positions(std::span<const double> local_positions, double radius) {
   global_n_ = 0;  // no positions until this call succeeds on every rank
@@ -57,51 +159,75 @@ void DistributedDirectRpy::set_positions(std::span<const double> local_positions
 
 void DistributedDirectRpy::set_positions(std::span<const double> local_positions, std::span<const double> local_radii) {
   global_n_ = 0;  // no positions until this call succeeds on every rank
+  stats_.set_positions_seconds = 0.0;
   comm_.run([&] { check_local_particles(local_positions, local_radii); });
-  gather_and_set(local_positions, local_radii);
-}
-
-void DistributedDirectRpy::gather_and_set(std::span<const double> local_positions,
-                                          std::span<const double> local_radii) {
   const auto ranks = static_cast<std::size_t>(comm_.size());
-  // Every rank's local size.
   const auto mine = static_cast<std::uint64_t>(local_radii.size());
   std::vector<std::uint64_t> all(ranks);
-  check_mpi(MPI_Allgather(&mine, 1, MPI_UINT64_T, all.data(), 1, MPI_UINT64_T, comm_.get()), "MPI_Allgather");
-  std::uint64_t total = 0;
-  for (std::uint64_t n : all) total += n;
+  timed(stats_.set_positions_seconds, [&] {
+    check_mpi(MPI_Allgather(&mine, 1, MPI_UINT64_T, all.data(), 1, MPI_UINT64_T, comm_.get()), "MPI_Allgather");
+  });
   // Same values on every rank, so every rank throws alike here without agreement.
+  std::uint64_t total = 0;
+  for (std::uint64_t n : all) {
+    require(n <= static_cast<std::uint64_t>(INT_MAX) / kPacked, ErrorCode::not_supported, kSetPositions,
+            "a rank holds " + std::to_string(n) + " particles: more than MPI's int counts address in one block (" +
+                std::to_string(INT_MAX / kPacked) + ")");
+    total += n;
+  }
   require(total > 0, ErrorCode::invalid_input, kSetPositions,
           "no particles on any of the " + std::to_string(ranks) + " ranks (N = 0)");
-  require(3 * total <= static_cast<std::uint64_t>(INT_MAX), ErrorCode::not_supported, kSetPositions,
-          std::to_string(total) + " particles in all: more than MPI's int counts address (" +
-              std::to_string(INT_MAX / 3) + ")");
   counts_.assign(all.begin(), all.end());
-  counts3_.resize(ranks);
-  displs3_.resize(ranks);
-  counts1_.resize(ranks);
-  displs1_.resize(ranks);
-  std::size_t offset = 0;
-  for (std::size_t r = 0; r < ranks; ++r) {
-    counts1_[r] = static_cast<int>(counts_[r]);
-    displs1_[r] = static_cast<int>(offset);
-    counts3_[r] = 3 * counts1_[r];
-    displs3_[r] = 3 * displs1_[r];
-    offset += counts_[r];
-  }
   local_n_ = counts_[static_cast<std::size_t>(comm_.rank())];
-  offset_ = static_cast<std::size_t>(displs1_[static_cast<std::size_t>(comm_.rank())]);
+  offset_ = 0;
+  for (int r = 0; r < comm_.rank(); ++r) offset_ += counts_[static_cast<std::size_t>(r)];
 
-  std::vector<double> positions(3 * total), radii(total);
-  check_mpi(MPI_Allgatherv(local_positions.data(), counts3_[comm_.rank()], MPI_DOUBLE, positions.data(),
-                           counts3_.data(), displs3_.data(), MPI_DOUBLE, comm_.get()),
-            "MPI_Allgatherv");
-  check_mpi(MPI_Allgatherv(local_radii.data(), counts1_[comm_.rank()], MPI_DOUBLE, radii.data(), counts1_.data(),
-                           displs1_.data(), MPI_DOUBLE, comm_.get()),
-            "MPI_Allgatherv");
-  // Deterministic on the same gathered data, but a rank may still run out of memory alone.
-  comm_.run([&] { serial_.set_positions(positions, radii); });
+  const std::array<double, kSummary> summary = local_summary(local_positions, local_radii, offset_);
+  std::vector<double> summaries(kSummary * ranks);
+  timed(stats_.set_positions_seconds, [&] {
+    check_mpi(MPI_Allgather(summary.data(), kSummary, MPI_DOUBLE, summaries.data(), kSummary, MPI_DOUBLE, comm_.get()),
+              "MPI_Allgather");
+  });
+  const WholeSet set = merge_summaries(summaries, ranks);
+  // MobilityOperator's flag: every radius equal to the first (radii are > 0, so no -0 == +0).
+  equal_radii_ = set.radii.a_min == set.radii.a_max;
+  comm_.run([&] {
+    // DirectRpy::on_positions_set on this rank's share, with the whole set's units.
+    rpy::detail::RadiiPiece piece = set.radii;
+    piece.first = offset_;
+    const rpy::detail::LengthUnits units = rpy::detail::choose_length_units(set.box, local_radii, piece, kSetPositions);
+    rpy::detail::store_direct_particles(local_positions, local_radii, units, {x_, y_, z_, a_, inv_a_});
+    scale_exponent_ = units.exponent;
+  });
   global_n_ = total;
+}
+
+std::vector<double> DistributedDirectRpy::packed_block(std::span<const double> local_forces, int load_exponent) const {
+  const std::size_t n = local_n_;
+  std::vector<double> packed(kPacked * n);
+  std::copy(x_.begin(), x_.end(), packed.begin());
+  std::copy(y_.begin(), y_.end(), packed.begin() + static_cast<std::ptrdiff_t>(n));
+  std::copy(z_.begin(), z_.end(), packed.begin() + static_cast<std::ptrdiff_t>(2 * n));
+  std::copy(a_.begin(), a_.end(), packed.begin() + static_cast<std::ptrdiff_t>(3 * n));
+  // MobilityOperator::apply_block's load scaling: 2^-k F, exact.
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t c = 0; c < 3; ++c) packed[(4 + c) * n + i] = std::ldexp(local_forces[3 * i + c], -load_exponent);
+  return packed;
+}
+
+void DistributedDirectRpy::sum_block(SourceWindow& window, std::size_t usable, std::vector<double>& acc,
+                                     MPI_Request* pending) const {
+  for (std::size_t first = 0; first < local_n_; first += kTargetBatch) {
+    const std::size_t count = std::min(kTargetBatch, local_n_ - first);
+    const rpy::detail::DirectParticles targets{x_.data() + first, y_.data() + first, z_.data() + first,
+                                               a_.data() + first, inv_a_.data() + first};
+    rpy::detail::add_direct_block_sums(targets, count, window.particles(), window.forces(), usable, equal_radii_,
+                                       acc.data() + 3 * first);
+    if (pending != nullptr) {
+      int done = 0;
+      timed(stats_.apply_seconds, [&] { check_mpi(MPI_Test(pending, &done, MPI_STATUS_IGNORE), "MPI_Test"); });
+    }
+  }
 }
 
 void DistributedDirectRpy::apply(std::span<const double> local_forces, std::span<double> local_velocities) const {
@@ -113,14 +239,61 @@ void DistributedDirectRpy::apply(std::span<const double> local_forces, std::span
                  "local velocities");
     require_finite(local_forces, kApply, "local forces", 3);
   });
-  std::vector<double> forces(3 * global_n_);
-  check_mpi(MPI_Allgatherv(local_forces.data(), counts3_[comm_.rank()], MPI_DOUBLE, forces.data(), counts3_.data(),
-                           displs3_.data(), MPI_DOUBLE, comm_.get()),
-            "MPI_Allgatherv");
-  // This rank's rows only (DirectRpy::apply_rows): each target summed over all sources in
-  // the serial order, with the serial load scaling, so the rows equal the serial ones bit for bit
-  // and the N^2 pair work is divided by the number of ranks.
-  comm_.run([&] { serial_.apply_rows(offset_, local_n_, forces, local_velocities.first(3 * local_n_)); });
+  stats_.apply_seconds = 0.0;
+  stats_.apply_bytes_received = 0;
+  // MobilityOperator::apply_block's load scale, from the largest force of all ranks.
+  double largest = 0.0, global_largest = 0.0;
+  for (double f : local_forces) largest = std::max(largest, std::abs(f));
+  timed(stats_.apply_seconds, [&] {
+    check_mpi(MPI_Allreduce(&largest, &global_largest, 1, MPI_DOUBLE, MPI_MAX, comm_.get()), "MPI_Allreduce");
+  });
+  const int k = rpy::detail::load_scale_exponent({std::span<const double>(&global_largest, 1)});
+  std::vector<double> own = packed_block(local_forces, k);
+
+  // The ranks' blocks in rank order (empty shares skipped), each broadcast by its owner; two
+  // receive buffers, the next block in flight while the current one is summed.
+  std::vector<int> roots;
+  for (std::size_t r = 0; r < counts_.size(); ++r)
+    if (counts_[r] > 0) roots.push_back(static_cast<int>(r));
+  const std::size_t largest_share = *std::max_element(counts_.begin(), counts_.end());
+  std::array<std::vector<double>, 2> buffers;
+  std::array<MPI_Request, 2> requests{MPI_REQUEST_NULL, MPI_REQUEST_NULL};
+  const auto block_of = [&](std::size_t step) {
+    return roots[step] == comm_.rank() ? own.data() : buffers[step % 2].data();
+  };
+  const auto post = [&](std::size_t step) {
+    const int root = roots[step];
+    if (root != comm_.rank()) buffers[step % 2].resize(kPacked * largest_share);
+    const auto count = static_cast<int>(kPacked * counts_[static_cast<std::size_t>(root)]);
+    timed(stats_.apply_seconds, [&] {
+      check_mpi(MPI_Ibcast(block_of(step), count, MPI_DOUBLE, root, comm_.get(), &requests[step % 2]), "MPI_Ibcast");
+    });
+  };
+
+  SourceWindow window(kBlock - 1 + largest_share);
+  std::vector<double> acc(3 * local_n_, 0.0);
+  post(0);
+  for (std::size_t step = 0; step < roots.size(); ++step) {
+    const bool last = step + 1 == roots.size();
+    if (!last) post(step + 1);
+    timed(stats_.apply_seconds, [&] { check_mpi(MPI_Wait(&requests[step % 2], MPI_STATUS_IGNORE), "MPI_Wait"); });
+    const std::size_t n = counts_[static_cast<std::size_t>(roots[step])];
+    if (roots[step] != comm_.rank()) stats_.apply_bytes_received += kPacked * n * sizeof(double);
+    window.append(block_of(step), n);
+    // Whole source blocks of DirectRpy only (counted from the first particle of the whole set),
+    // but for the set's last block.
+    const std::size_t usable = last ? window.size() : window.size() / kBlock * kBlock;
+    sum_block(window, usable, acc, last ? nullptr : &requests[(step + 1) % 2]);
+    window.drop_front(usable);
+  }
+
+  // Back from the length units (exact), then from the load scale: DirectRpy::sum_rows and
+  // MobilityOperator::apply_block.
+  const double inv_eta = 1.0 / viscosity_;
+  for (std::size_t i = 0; i < 3 * local_n_; ++i) {
+    local_velocities[i] = std::ldexp(std::ldexp(inv_eta * acc[i], -scale_exponent_), k);
+  }
+  comm_.run([&] { rpy::detail::require_finite_result(local_velocities, kApply, "velocities", "forces"); });
 }
 
 }  // namespace rpyfmm::mpi

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "direct_block_sums.hpp"
 #include "length_units.hpp"
 #include "load_scaling.hpp"
 #include "pair_block_sum.hpp"
@@ -25,7 +26,7 @@
 namespace rpyfmm::rpy {
 namespace {
 
-constexpr std::size_t kBlock = 256;  // sources per block: pair scalars stay in L1
+constexpr std::size_t kBlock = detail::kDirectBlock;
 constexpr double kInv6Pi = 1.0 / (6.0 * std::numbers::pi);
 constexpr double kInv8Pi = 1.0 / (8.0 * std::numbers::pi);
 
@@ -216,7 +217,86 @@ void accumulate(std::size_t nb, const double* __restrict dx, const double* __res
   });
 }
 
+// Per-block scratch of one thread: separations and pair scalars of up to kBlock sources.
+struct PairScratch {
+  PairScratch() = default;
+  PairScratch(const PairScratch&) = delete;
+  PairScratch& operator=(const PairScratch&) = delete;
+  std::vector<double> buf = std::vector<double>(5 * kBlock);
+  double* dx = buf.data();
+  double* dy = dx + kBlock;
+  double* dz = dy + kBlock;
+  double* f = dz + kBlock;
+  double* gr = f + kBlock;
+};
+
+// The pair scalars of target i of `t` against sources [j0, j0 + nb) of `s`, by the kernel of this
+// CPU's level; with equal radii every radius is t.a[i].
+void block_scalars(const detail::DirectParticles& t, std::size_t i, const detail::DirectParticles& s, std::size_t j0,
+                   std::size_t nb, bool equal, PairScratch& b) {
+#if defined(RPYFMM_HAVE_DIRECT_AVX512)
+  if (simd_level() == SimdLevel::avx512) {
+    if (equal) {
+      scalars_equal_avx512(t.x[i], t.y[i], t.z[i], s.x + j0, s.y + j0, s.z + j0, nb, t.a[i], b.dx, b.dy, b.dz, b.f,
+                           b.gr);
+    } else {
+      scalars_general_avx512(t.x[i], t.y[i], t.z[i], t.a[i], s.x + j0, s.y + j0, s.z + j0, s.a + j0, s.inv_a + j0, nb,
+                             b.dx, b.dy, b.dz, b.f, b.gr);
+    }
+    return;
+  }
+#endif
+  if (equal) {
+    scalars_equal(t.x[i], t.y[i], t.z[i], s.x + j0, s.y + j0, s.z + j0, nb, t.a[i], b.dx, b.dy, b.dz, b.f, b.gr);
+  } else {
+    scalars_general(t.x[i], t.y[i], t.z[i], t.a[i], s.x + j0, s.y + j0, s.z + j0, s.a + j0, s.inv_a + j0, nb, b.dx,
+                    b.dy, b.dz, b.f, b.gr);
+  }
+}
+
 }  // namespace
+
+void detail::store_direct_particles(std::span<const double> positions, std::span<const double> radii,
+                                    const LengthUnits& units, const DirectParticleArrays& out) {
+  std::vector<double> scaled_x, scaled_a;
+  if (units.exponent != 0) {
+    to_units(units, positions, radii, scaled_x, scaled_a);
+    positions = scaled_x;
+    radii = scaled_a;
+  }
+  const std::size_t n = radii.size();
+  out.x.resize(n);
+  out.y.resize(n);
+  out.z.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    out.x[i] = positions[3 * i];
+    out.y[i] = positions[3 * i + 1];
+    out.z[i] = positions[3 * i + 2];
+  }
+  out.a.assign(radii.begin(), radii.end());
+  out.inv_a.resize(n);
+  for (std::size_t i = 0; i < n; ++i) out.inv_a[i] = 1.0 / out.a[i];
+}
+
+void detail::add_direct_block_sums(const DirectParticles& targets, std::size_t n_targets,
+                                   const DirectParticles& sources, const DirectForces& forces, std::size_t n_sources,
+                                   bool equal_radii, double* acc) {
+  const auto n = static_cast<long long>(n_targets);
+#pragma omp parallel
+  {
+    PairScratch b;
+#pragma omp for schedule(dynamic, 16)
+    for (long long ii = 0; ii < n; ++ii) {
+      const auto i = static_cast<std::size_t>(ii);
+      for (std::size_t j0 = 0; j0 < n_sources; j0 += kBlock) {
+        const std::size_t nb = std::min(kBlock, n_sources - j0);
+        block_scalars(targets, i, sources, j0, nb, equal_radii, b);
+        accumulate(nb, b.dx, b.dy, b.dz, b.f, b.gr, forces.x + j0, forces.y + j0, forces.z + j0, acc[3 * i],
+                   acc[3 * i + 1], acc[3 * i + 2]);
+      }
+    }
+  }
+}
 
 DirectRpy::DirectRpy(Geometry geometry, double viscosity) : MobilityOperator(geometry, viscosity, "DirectRpy") {
   require(geometry.is_open(), ErrorCode::not_supported, "DirectRpy",
@@ -224,28 +304,10 @@ DirectRpy::DirectRpy(Geometry geometry, double viscosity) : MobilityOperator(geo
 }
 
 void DirectRpy::on_positions_set() {
-  const std::size_t n = size();
-  std::span<const double> p = positions();
-  std::span<const double> a = radii();
-  const detail::LengthUnits units = detail::choose_length_units(detail::bounding_box(p), a, "DirectRpy::set_positions");
+  const detail::LengthUnits units =
+      detail::choose_length_units(detail::bounding_box(positions()), radii(), "DirectRpy::set_positions");
   scale_exponent_ = units.exponent;
-  std::vector<double> scaled_x, scaled_a;
-  if (scale_exponent_ != 0) {
-    detail::to_units(units, p, a, scaled_x, scaled_a);
-    p = scaled_x;
-    a = scaled_a;
-  }
-  x_.resize(n);
-  y_.resize(n);
-  z_.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    x_[i] = p[3 * i];
-    y_[i] = p[3 * i + 1];
-    z_[i] = p[3 * i + 2];
-  }
-  a_.assign(a.begin(), a.end());
-  inv_a_.resize(n);
-  for (std::size_t i = 0; i < n; ++i) inv_a_[i] = 1.0 / a_[i];
+  detail::store_direct_particles(positions(), radii(), units, {x_, y_, z_, a_, inv_a_});
 }
 
 void DirectRpy::do_apply(const double* forces, double* velocities, std::size_t nrhs) const {
@@ -281,8 +343,7 @@ void DirectRpy::sum_rows(const double* forces, std::size_t nrhs, std::size_t fir
   const std::size_t n = size();
   const double inv_eta = 1.0 / viscosity();
   const bool equal = equal_radii();
-  const bool avx512 = simd_level() == SimdLevel::avx512;
-  (void)avx512;
+  const detail::DirectParticles p{x_.data(), y_.data(), z_.data(), a_.data(), inv_a_.data()};
   // Forces to structure-of-arrays, one (fx, fy, fz) triple of length n per right-hand side.
   std::vector<double> fsoa(3 * n * nrhs);
   for (std::size_t k = 0; k < nrhs; ++k) {
@@ -296,39 +357,17 @@ void DirectRpy::sum_rows(const double* forces, std::size_t nrhs, std::size_t fir
   }
 #pragma omp parallel
   {
-    std::vector<double> buf(5 * kBlock);
+    PairScratch b;
     std::vector<double> acc(3 * nrhs);
-    double* dx = buf.data();
-    double* dy = dx + kBlock;
-    double* dz = dy + kBlock;
-    double* f = dz + kBlock;
-    double* gr = f + kBlock;
 #pragma omp for schedule(dynamic, 16)
     for (std::size_t i = first; i < first + count; ++i) {
       std::fill(acc.begin(), acc.end(), 0.0);
       for (std::size_t j0 = 0; j0 < n; j0 += kBlock) {
         const std::size_t nb = std::min(kBlock, n - j0);
-#if defined(RPYFMM_HAVE_DIRECT_AVX512)
-        if (avx512) {
-          if (equal) {
-            scalars_equal_avx512(x_[i], y_[i], z_[i], x_.data() + j0, y_.data() + j0, z_.data() + j0, nb, a_[0], dx, dy,
-                                 dz, f, gr);
-          } else {
-            scalars_general_avx512(x_[i], y_[i], z_[i], a_[i], x_.data() + j0, y_.data() + j0, z_.data() + j0,
-                                   a_.data() + j0, inv_a_.data() + j0, nb, dx, dy, dz, f, gr);
-          }
-        } else
-#endif
-            if (equal) {
-          scalars_equal(x_[i], y_[i], z_[i], x_.data() + j0, y_.data() + j0, z_.data() + j0, nb, a_[0], dx, dy, dz, f,
-                        gr);
-        } else {
-          scalars_general(x_[i], y_[i], z_[i], a_[i], x_.data() + j0, y_.data() + j0, z_.data() + j0, a_.data() + j0,
-                          inv_a_.data() + j0, nb, dx, dy, dz, f, gr);
-        }
+        block_scalars(p, i, p, j0, nb, equal, b);
         for (std::size_t k = 0; k < nrhs; ++k) {
           const double* s = fsoa.data() + 3 * n * k;
-          accumulate(nb, dx, dy, dz, f, gr, s + j0, s + n + j0, s + 2 * n + j0, acc[3 * k], acc[3 * k + 1],
+          accumulate(nb, b.dx, b.dy, b.dz, b.f, b.gr, s + j0, s + n + j0, s + 2 * n + j0, acc[3 * k], acc[3 * k + 1],
                      acc[3 * k + 2]);
         }
       }

@@ -36,7 +36,8 @@ double half_extent(const BoundingBox& box, int& widest) {
   return half;
 }
 
-void require_size_ratio(const BoundingBox& box, std::span<const double> a, double a_max, const char* where) {
+void require_size_ratio(const BoundingBox& box, std::span<const double> a, double a_max, std::size_t first,
+                        const char* where) {
   int widest = 0;
   const double half = half_extent(box, widest);
   const double size = std::max(half, a_max);
@@ -51,7 +52,7 @@ void require_size_ratio(const BoundingBox& box, std::span<const double> a, doubl
                                        " (" + axis + " = " + format_length(box.hi[widest], 17) + ") span " +
                                        format_length(2.0 * half) + " along " + axis;
     fail(ErrorCode::invalid_input, where,
-         "radius of particle " + std::to_string(i) + " (" + format_length(a[i]) + ") is below 2^-" +
+         "radius of particle " + std::to_string(first + i) + " (" + format_length(a[i]) + ") is below 2^-" +
              std::to_string(kMaxSizeRatioLog2) + " of the size of the suspension: " + span +
              "; squared distances of its pairs would underflow where those of the suspension's extent do not " +
              "overflow (the RPY operators evaluate ratios of half the extent, or of the largest radius, to a radius " +
@@ -91,10 +92,15 @@ BoundingBox bounding_box(std::span<const double> x) {
 
 LengthUnits choose_length_units(const BoundingBox& box, std::span<const double> radii, const char* where) {
   const auto [a_min, a_max] = std::minmax_element(radii.begin(), radii.end());
-  require_size_ratio(box, radii, *a_max, where);
+  return choose_length_units(box, radii, {*a_min, *a_max, 0}, where);
+}
+
+LengthUnits choose_length_units(const BoundingBox& box, std::span<const double> radii, const RadiiPiece& piece,
+                                const char* where) {
+  require_size_ratio(box, radii, piece.a_max, piece.first, where);
   int widest = 0;
-  const double size = std::max(half_extent(box, widest), *a_max);
-  if (size >= kPlainScaleMin && size <= kPlainScaleMax && *a_min >= kPlainRadiusMin) return {};
+  const double size = std::max(half_extent(box, widest), piece.a_max);
+  if (size >= kPlainScaleMin && size <= kPlainScaleMax && piece.a_min >= kPlainRadiusMin) return {};
   return {std::ilogb(size), exact_shift(box)};
 }
 

@@ -39,6 +39,18 @@ struct LengthUnits {
 /// and that particle's squared pair distances normal.
 [[nodiscard]] LengthUnits choose_length_units(const BoundingBox& box, std::span<const double> radii, const char* where);
 
+/// Where the radii are held in pieces (rpyfmm::mpi::DistributedDirectRpy): `radii` are those of
+/// particles first, first + 1, ... of a suspension whose radii lie in [a_min, a_max] and whose
+/// centres have the bounding box `box` (its particle indices those of the whole suspension). Every
+/// piece gets the units choose_length_units gives for the whole suspension, and a piece holding a
+/// radius it refuses throws the same error, naming the particle by its index in the suspension.
+struct RadiiPiece {
+  double a_min = 0.0, a_max = 0.0;
+  std::size_t first = 0;
+};
+[[nodiscard]] LengthUnits choose_length_units(const BoundingBox& box, std::span<const double> radii,
+                                              const RadiiPiece& piece, const char* where);
+
 /// 2^-e (x - shift) and 2^-e a.
 void to_units(const LengthUnits& units, std::span<const double> x, std::span<const double> a, std::vector<double>& xs,
               std::vector<double>& as);

@@ -12,8 +12,10 @@
 #include <vector>
 
 #include "mpi_test_support.hpp"
+#include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/mpi/direct_operator.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
+#include "simd_levels.hpp"
 
 using rpyfmm::ErrorCode;
 using rpyfmm::mpi::DistributedDirectRpy;
@@ -95,6 +97,46 @@ TEST(MpiDistributedDirect, ExtremeLengthScalesEqualSerialBitForBit) {
   Particles q = uniform_particles(300, 30.0, 1.0, 1.0, 15);
   for (double& f : q.f) f *= 1e300;
   for (Split s : kSplits) expect_equal_to_serial(q, s, Radii::common);
+}
+
+TEST(MpiDistributedDirect, EveryKernelLevelEqualsSerialBitForBit) {
+  // 1100 particles: the shares start and end inside DirectRpy's source blocks of 256, which the
+  // operator completes across ranks; each instruction-set level's kernels on every rank.
+  const Particles p = uniform_particles(1100, 50.0, 0.4, 1.6, 16);
+  const Particles q = uniform_particles(900, 40.0, 1.0, 1.0, 17);
+  for (rpyfmm::SimdLevel level : rpyfmm::test::available_simd_levels()) {
+    const rpyfmm::ScopedSimdLevel scoped(level);
+    for (Split s : kSplits) expect_equal_to_serial(p, s, Radii::per_particle);
+    for (Split s : kSplits) expect_equal_to_serial(q, s, Radii::common);
+  }
+}
+
+TEST(MpiDistributedDirect, CoincidentParticlesOnDifferentRanksEqualSerialBitForBit) {
+  // Particle i + 150 sits on particle i (r = 0: the self-term limit with equal radii, one sphere
+  // inside the other with different radii); with the even split the partners lie on different ranks.
+  Particles p = uniform_particles(300, 12.0, 0.5, 1.5, 18);
+  for (std::size_t i = 0; i < 150; ++i)
+    for (std::size_t d = 0; d < 3; ++d) p.x[3 * (i + 150) + d] = p.x[3 * i + d];
+  for (Split s : kSplits) expect_equal_to_serial(p, s, Radii::per_particle);
+  for (Split s : kSplits) expect_equal_to_serial(p, s, Radii::common);
+}
+
+TEST(MpiDistributedDirect, EachRankReceivesEveryOtherShareOnce) {
+  // The source blocks pass once per product: 7 doubles per particle of the other ranks (positions,
+  // radius, force), and nothing is gathered in set_positions beyond counts and summaries.
+  const Particles p = uniform_particles(333, 20.0, 0.5, 1.5, 19);
+  const auto rank = static_cast<std::size_t>(world_rank());
+  const std::vector<std::size_t> counts =
+      split_counts(p.size(), static_cast<std::size_t>(world_size()), Split::geometric);
+  std::size_t offset = 0;
+  for (std::size_t r = 0; r < rank; ++r) offset += counts[r];
+  DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
+  op.set_positions(share(p.x, 3, offset, counts[rank]), share(p.a, 1, offset, counts[rank]));
+  std::vector<double> u(3 * counts[rank]);
+  op.apply(share(p.f, 3, offset, counts[rank]), u);
+  EXPECT_EQ(op.communication().apply_bytes_received, 7 * sizeof(double) * (p.size() - counts[rank]));
+  EXPECT_GE(op.communication().apply_seconds, 0.0);
+  EXPECT_GE(op.communication().set_positions_seconds, 0.0);
 }
 
 TEST(MpiDistributedDirect, MoreRanksThanParticles) {
@@ -208,6 +250,19 @@ TEST(MpiDistributedDirect, BadForcesOnOneRankFailEveryRank) {
   EXPECT_NO_THROW(op.apply(s.f, u));
 }
 
+TEST(MpiDistributedDirect, NanForceOnLastRankFailsEveryRank) {
+  const int last = world_size() - 1;
+  Share s = even_share(40);
+  DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
+  op.set_positions(s.x, s.a);
+  std::vector<double> u(s.f.size());
+  std::vector<double> f = s.f;
+  if (world_rank() == last) f[3 * 3 + 2] = std::numeric_limits<double>::quiet_NaN();
+  expect_collective_error([&] { op.apply(f, u); }, ErrorCode::invalid_input,
+                          rank_of(last) + "DistributedDirectRpy::apply: local forces entry (3, 2) is NaN");
+  EXPECT_NO_THROW(op.apply(s.f, u));
+}
+
 TEST(MpiDistributedDirect, WrongSizesOnOneRankFailEveryRank) {
   const int last = world_size() - 1;
   Share s = even_share(40);
@@ -269,4 +324,19 @@ TEST(MpiDistributedDirect, TooSmallRadiusOfTheGatheredSetFailsEveryRank) {
   DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
   expect_collective_error([&] { op.set_positions(s.x, s.a); }, ErrorCode::invalid_input, "DirectRpy::set_positions");
   EXPECT_EQ(op.global_size(), 0u);
+}
+
+TEST(MpiDistributedDirect, TooSmallRadiusIsNamedByItsGlobalIndex) {
+  // On the last rank's second particle: every rank names it by its index in the whole set, as the
+  // serial operator does.
+  const int last = world_size() - 1;
+  Share s = even_share(40);
+  const std::vector<std::size_t> counts = split_counts(40, static_cast<std::size_t>(world_size()), Split::even);
+  std::size_t offset_last = 0;
+  for (std::size_t r = 0; r + 1 < counts.size(); ++r) offset_last += counts[r];
+  if (world_rank() == last) s.a[1] = 1e-300;
+  DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
+  expect_collective_error([&] { op.set_positions(s.x, s.a); }, ErrorCode::invalid_input,
+                          rank_of(last) + "DistributedDirectRpy::set_positions: radius of particle " +
+                              std::to_string(offset_last + 1) + " (1e-300) is below 2^-300");
 }

@@ -7,11 +7,11 @@
 // bit, what rpyfmm::rpy::DirectRpy gives for these particles on that concatenation (same binary,
 // same instruction-set level, rpyfmm/core/simd_dispatch.hpp).
 //
-// How: positions, radii and forces are all-gathered, and every rank sums the rows of its own
-// particles with the serial DirectRpy (DirectRpy::apply_rows: each target over all
-// sources, with the whole set's length units and load scale). The N^2 pair work is divided by the
-// number of ranks; every rank holds O(N) data (docs/mpi.md). The operator also serves as the
-// reference that the distributed fast operators are to be checked against.
+// How: every rank keeps only its own particles. In apply() the ranks' source blocks (positions,
+// radii and forces) pass by every rank in rank order, one nonblocking broadcast per rank, the next
+// block in flight while the current one is summed; each rank adds every block's contribution to its
+// own targets in DirectRpy's order (source blocks of 256 counted from the first particle of rank 0).
+// Memory per rank: O(largest share); pair work: (local N) x N (docs/mpi.md).
 //
 // Every public call is collective over the communicator and fails collectively
 // (communicator.hpp): a bad input on one rank makes every rank throw the same rpyfmm::Error.
@@ -20,14 +20,22 @@
 #include <mpi.h>
 
 #include <cstddef>
+#include <cstdint>
 #include <span>
 #include <string>
 #include <vector>
 
 #include "rpyfmm/mpi/communicator.hpp"
-#include "rpyfmm/rpy/direct_operator.hpp"
 
 namespace rpyfmm::mpi {
+
+/// This rank's time in MPI calls (waits included) during the last set_positions and apply, and the
+/// bytes of other ranks' source blocks it received in the last apply.
+struct CommunicationStats {
+  double set_positions_seconds = 0.0;
+  double apply_seconds = 0.0;
+  std::uint64_t apply_bytes_received = 0;
+};
 
 class DistributedDirectRpy {
  public:
@@ -37,7 +45,7 @@ class DistributedDirectRpy {
 
   [[nodiscard]] std::string name() const { return "direct-mpi"; }
   [[nodiscard]] const Communicator& communicator() const { return comm_; }
-  [[nodiscard]] double viscosity() const { return serial_.viscosity(); }
+  [[nodiscard]] double viscosity() const { return viscosity_; }
 
   /// This rank's number of particles (0 before set_positions).
   [[nodiscard]] std::size_t local_size() const { return local_n_; }
@@ -47,12 +55,14 @@ class DistributedDirectRpy {
   [[nodiscard]] std::size_t offset() const { return offset_; }
   /// Every rank's local size, by rank (empty before set_positions).
   [[nodiscard]] std::span<const std::size_t> counts() const { return counts_; }
+  [[nodiscard]] const CommunicationStats& communication() const { return stats_; }
 
   /// Collective. This rank's positions (3 n, n >= 0) and one radius for them (> 0, finite; the
   /// ranks may pass different radii). Throws rpyfmm::Error on every rank when any rank's input is
   /// malformed (size not a multiple of 3, NaN/Inf, radius not > 0), when no rank has a particle,
-  /// and on what DirectRpy::set_positions refuses for the gathered set. After a failure the
-  /// operator holds no positions on any rank until a later set_positions succeeds.
+  /// and on what DirectRpy::set_positions refuses for the whole set (a radius below 2^-300 of the
+  /// suspension's size, named by its global index). After a failure the operator holds no
+  /// positions on any rank until a later set_positions succeeds.
   void set_positions(std::span<const double> local_positions, double radius);
   /// Same with one radius per local particle (n entries, each finite and > 0).
   void set_positions(std::span<const double> local_positions, std::span<const double> local_radii);
@@ -64,17 +74,23 @@ class DistributedDirectRpy {
   void apply(std::span<const double> local_forces, std::span<double> local_velocities) const;
 
  private:
-  void gather_and_set(std::span<const double> local_positions, std::span<const double> local_radii);
+  class SourceWindow;
+
+  [[nodiscard]] std::vector<double> packed_block(std::span<const double> local_forces, int load_exponent) const;
+  void sum_block(SourceWindow& window, std::size_t usable, std::vector<double>& acc, MPI_Request* pending) const;
 
   Communicator comm_;
-  rpy::DirectRpy serial_;  // the gathered particles; used only while global_n_ > 0
+  double viscosity_ = 1.0;
   std::size_t local_n_ = 0;
   std::size_t global_n_ = 0;
   std::size_t offset_ = 0;
   std::vector<std::size_t> counts_;
-  // MPI_Allgatherv's counts and displacements, in doubles, for 3-vectors per particle and for
-  // one value per particle.
-  std::vector<int> counts3_, displs3_, counts1_, displs1_;
+  // This rank's particles in the length units 2^scale_exponent_ (rpy/src/length_units.hpp), as
+  // structure of arrays, with inv_a_ = 1 / a_.
+  std::vector<double> x_, y_, z_, a_, inv_a_;
+  int scale_exponent_ = 0;
+  bool equal_radii_ = true;
+  mutable CommunicationStats stats_;
 };
 
 }  // namespace rpyfmm::mpi
