@@ -424,6 +424,21 @@ void parse_particles(const toml::table& root, RunConfig& c) {
   s.finish();
 }
 
+/// The DLVO pair's short-range repulsion: core = "none" | "born", born_sigma (docs/bd-config.md).
+void parse_dlvo_core(Section& s, PairPotential& p) {
+  const std::string core = s.string("core", "none");
+  try {
+    p.core = dlvo_core_from_string(core);
+  } catch (const Error&) {
+    bad_key(s.key("core"), "must be none or born, got \"" + core + "\"");
+  }
+  if (p.core == DlvoCore::born) {
+    p.born_sigma = s.has("born_sigma") ? s.positive("born_sigma") : 0.0;
+  } else if (s.has("born_sigma")) {
+    bad_key(s.key("born_sigma"), "needs core = \"born\"");
+  }
+}
+
 /// [[pair]]: pair potentials between named types.
 void parse_pairs(const toml::table& root, RunConfig& c) {
   const auto tables = table_array(root, "pair");
@@ -450,6 +465,7 @@ void parse_pairs(const toml::table& root, RunConfig& c) {
       np.potential.hamaker = s.non_negative("hamaker", 0.0);
       np.potential.permittivity = s.non_negative("permittivity", 0.0);
       np.potential.kappa = s.positive("kappa");
+      parse_dlvo_core(s, np.potential);
     }
     c.pairs.push_back(np);
     s.finish();

@@ -28,6 +28,16 @@ PairKind pair_kind_from_string(const std::string& name) {
        "unknown kind '" + name + "' (expected lj36_18, wca, soft or dlvo)");
 }
 
+const char* to_string(DlvoCore core) {
+  return core == DlvoCore::born ? "born" : "none";
+}
+
+DlvoCore dlvo_core_from_string(const std::string& name) {
+  for (auto c : {DlvoCore::none, DlvoCore::born})
+    if (name == to_string(c)) return c;
+  fail(ErrorCode::invalid_argument, "pair potential dlvo", "unknown core '" + name + "' (expected none or born)");
+}
+
 const char* to_string(BondKind kind) {
   return kind == BondKind::harmonic ? "harmonic" : "fene";
 }
@@ -78,6 +88,15 @@ PairTerm resolve_pair(const PairPotential& p, double ai, double aj, double psi_i
       // ratio 2 Psi_i Psi_j / (Psi_i^2 + Psi_j^2)
       t.el_prefactor = std::numbers::pi * p.permittivity * ai * aj / (ai + aj) * sum2;
       t.el_ratio = sum2 > 0.0 ? 2.0 * psi_i * psi_j / sum2 : 0.0;
+      if (p.core == DlvoCore::born) {
+        require(std::isfinite(p.born_sigma) && p.born_sigma >= 0.0, ErrorCode::invalid_argument, where,
+                "born_sigma must be finite and >= 0");
+        // Default sigma_B = 0.4 / kappa: the primary minimum stays wide enough for the GPU BD
+        // paper's time step (docs/theory/bd.md Sec. 4, DLVO with a Born core).
+        const double sigma_b = p.born_sigma > 0.0 ? p.born_sigma : 0.4 / p.kappa;
+        const double s3 = sigma_b * sigma_b * sigma_b;
+        t.born_prefactor = p.hamaker * s3 * s3 / 37800.0;
+      }
       break;
     }
   }
@@ -123,10 +142,34 @@ EnergyForce evaluate_pair(const PairTerm& t, double r) {
       const double v_el = t.el_prefactor * (t.el_ratio * std::log((1.0 + e) / (1.0 - e)) + std::log(one_m_e2));
       const double dv_el =
           t.el_prefactor * (t.el_ratio * (-2.0 * t.kappa * e / one_m_e2) + 2.0 * t.kappa * e * e / one_m_e2);
-      return {v_vdw + v_el, -(dv_vdw + dv_el) / r};
+      const EnergyForce born = t.born_prefactor > 0.0 ? born_repulsion(t.born_prefactor, ai, aj, r) : EnergyForce{0, 0};
+      return {v_vdw + v_el + born.energy, -(dv_vdw + dv_el) / r + born.s};
     }
   }
   return {0.0, 0.0};
+}
+
+EnergyForce born_repulsion(double prefactor, double ai, double aj, double r) {
+  // Feke et al. (1984): V = K/r sum_k c_k (r^2 - 7 b_k r + e_k) / (r - b_k)^7 over the four
+  // poles b = +-(a_i + a_j) (sign +1, e = 6 (a_i^2 + 7 a_i a_j + a_j^2)) and b = +-(a_i - a_j)
+  // (sign -1, e = 6 (a_i^2 - 7 a_i a_j + a_j^2)); near contact V -> K 30 a_i a_j / ((a_i + a_j) h^7).
+  const double s = ai + aj, d = ai - aj;
+  const double e_sum = 6.0 * (ai * ai + 7.0 * ai * aj + aj * aj);
+  const double e_diff = 6.0 * (ai * ai - 7.0 * ai * aj + aj * aj);
+  const struct {
+    double b, e, sign;
+  } poles[4] = {{s, e_sum, 1.0}, {-s, e_sum, 1.0}, {-d, e_diff, -1.0}, {d, e_diff, -1.0}};
+  double sum = 0.0, dsum = 0.0;  // S(r) and S'(r)
+  for (const auto& p : poles) {
+    const double x = r - p.b;
+    const double x2 = x * x, x7 = x2 * x2 * x2 * x;
+    const double num = r * r - 7.0 * p.b * r + p.e;
+    sum += p.sign * num / x7;
+    dsum += p.sign * ((2.0 * r - 7.0 * p.b) / x7 - 7.0 * num / (x7 * x));
+  }
+  const double energy = prefactor * sum / r;
+  const double dv = prefactor * (dsum / r - sum / (r * r));
+  return {energy, -dv / r};
 }
 
 EnergyForce evaluate_bond(const BondPotential& b, double r) {

@@ -123,6 +123,25 @@ TEST(BdConfig, EveryBadConfigNamesTheKey) {
   expect_error("[integrator\n", "test.toml:1");  // TOML syntax error with its position
 }
 
+// The DLVO pair's short-range repulsion: core = "none" (default) or "born", with born_sigma only
+// beside core = "born" (docs/bd-config.md).
+TEST(BdConfig, DlvoCoreKeys) {
+  const std::string dlvo = replace(kBase, "kind = \"wca\"", "kind = \"dlvo\"\nhamaker = 3.0\nkappa = 0.5");
+  EXPECT_EQ(parse_config(dlvo, "c").pairs[0].potential.core, DlvoCore::none);
+  const RunConfig born = parse_config(replace(dlvo, "kappa = 0.5", "kappa = 0.5\ncore = \"born\""), "c");
+  EXPECT_EQ(born.pairs[0].potential.core, DlvoCore::born);
+  EXPECT_EQ(born.pairs[0].potential.born_sigma, 0.0);  // resolved to 0.4 / kappa
+  EXPECT_EQ(parse_config(replace(dlvo, "kappa = 0.5", "kappa = 0.5\ncore = \"born\"\nborn_sigma = 0.2"), "c")
+                .pairs[0]
+                .potential.born_sigma,
+            0.2);
+  expect_error(replace(dlvo, "kappa = 0.5", "kappa = 0.5\ncore = \"hard\""), "pair[0].core");
+  expect_error(replace(dlvo, "kappa = 0.5", "kappa = 0.5\ncore = 1"), "pair[0].core");
+  expect_error(replace(dlvo, "kappa = 0.5", "kappa = 0.5\ncore = \"born\"\nborn_sigma = -1"), "pair[0].born_sigma");
+  expect_error(replace(dlvo, "kappa = 0.5", "kappa = 0.5\nborn_sigma = 0.2"), "pair[0].born_sigma");
+  expect_error(replace(kBase, "kind = \"wca\"", "kind = \"wca\"\ncore = \"born\""), "pair[0].core");
+}
+
 TEST(BdConfig, ParticleFileErrorsNameTheParticle) {
   const auto dir = scratch("file");
   std::filesystem::create_directories(dir);

@@ -17,8 +17,16 @@ enum class PairKind {
   dlvo,     ///< DLVO van der Waals + electrostatic (001 Annex 2, eqs. 9-11); hard (needs h > 0)
 };
 
+/// Short-range repulsion added to a DLVO pair (docs/theory/bd.md Sec. 4, DLVO with a Born core).
+enum class DlvoCore {
+  none,  ///< the Annex's eqs. 9-11 only: the van der Waals term diverges to -inf at contact
+  born,  ///< Born repulsion between two spheres (Feke, Prabhu, Mann & Mann 1984)
+};
+
 const char* to_string(PairKind kind);
 PairKind pair_kind_from_string(const std::string& name);  // throws naming the value
+const char* to_string(DlvoCore core);
+DlvoCore dlvo_core_from_string(const std::string& name);  // throws naming the value
 
 /// True for potentials that diverge at overlap (used for the overlap check).
 inline bool is_hard(PairKind kind) {
@@ -42,6 +50,10 @@ struct PairPotential {
   double hamaker = 0.0;
   double permittivity = 0.0;
   double kappa = 0.0;
+  /// Short-range repulsion of a DLVO pair, and the Born collision diameter sigma_B
+  /// (0 = default 0.4 / kappa, docs/theory/bd.md Sec. 4).
+  DlvoCore core = DlvoCore::none;
+  double born_sigma = 0.0;
 };
 
 /// One pair's resolved parameters (radii and defaults applied) for fast evaluation.
@@ -52,6 +64,7 @@ struct PairTerm {
   double ai = 0.0, aj = 0.0;
   // DLVO prefactors
   double hamaker = 0.0, kappa = 0.0, el_prefactor = 0.0, el_ratio = 0.0;
+  double born_prefactor = 0.0;  ///< A sigma_B^6 / 37800 (0: no Born core)
 };
 
 /// Resolves defaults for types with radii ai, aj and surface potentials psi_i, psi_j.
@@ -65,6 +78,11 @@ struct EnergyForce {
 
 /// V and -V'/r at distance r (0 < r < cutoff; beyond it the caller skips the pair).
 EnergyForce evaluate_pair(const PairTerm& t, double r);
+
+/// Born repulsion between spheres of radii ai, aj at centre distance r > ai + aj, for a
+/// Hamaker constant A and collision diameter sigma_B, with prefactor = A sigma_B^6 / 37800
+/// (Feke, Prabhu, Mann & Mann 1984, J. Phys. Chem. 88, 5735): V and -V'/r.
+EnergyForce born_repulsion(double prefactor, double ai, double aj, double r);
 
 enum class BondKind {
   harmonic,  ///< k/2 (r - r0)^2
