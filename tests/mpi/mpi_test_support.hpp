@@ -140,6 +140,20 @@ inline std::vector<std::size_t> split_counts(std::size_t n, std::size_t ranks, S
   return c;
 }
 
+/// This rank's share of N particles split by `split`: its first global index and its count.
+struct Partition {
+  std::size_t offset = 0, n = 0;
+};
+
+inline Partition partition_of(std::size_t n_total, Split split) {
+  const std::vector<std::size_t> counts = split_counts(n_total, static_cast<std::size_t>(world_size()), split);
+  Partition p;
+  const auto rank = static_cast<std::size_t>(world_rank());
+  for (std::size_t r = 0; r < rank; ++r) p.offset += counts[r];
+  p.n = counts[rank];
+  return p;
+}
+
 /// The entries [per * offset, per * (offset + count)) of v.
 inline std::vector<double> share(const std::vector<double>& v, std::size_t per, std::size_t offset, std::size_t count) {
   return std::vector<double>(v.begin() + static_cast<std::ptrdiff_t>(per * offset),

@@ -1,0 +1,40 @@
+// rpyfmm — Brownian displacements w = M^{1/2} z on particles distributed over MPI ranks
+// (docs/mpi.md): the Lanczos square root (Ando, Chow & Saad, J. Chem. Phys. 137, 064106 (2012);
+// docs/theory/samplers.md) with global inner products, and the serial samplers' noise for each
+// rank's share of the particles.
+//
+// Vectors are distributed as the operator's particles: each rank holds the 3 local_size()
+// entries of its own particles. Every call is collective and fails collectively
+// (communicator.hpp).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+
+#include "rpyfmm/mpi/communicator.hpp"
+#include "rpyfmm/mpi/direct_operator.hpp"
+#include "rpyfmm/rpy/sqrt.hpp"
+
+namespace rpyfmm::mpi {
+
+/// Not collective. local_z[3 i + c] = rpy::normal3(seed, step, stream, offset + i)[c]: the noise
+/// rpy::fill_normal draws for particles [offset, offset + local_z.size() / 3) of the whole set,
+/// bit for bit, so a particle's noise depends on (seed, step, stream, global index) only, not on
+/// the partition. Throws rpyfmm::Error as rpy::fill_normal does (size not a multiple of 3,
+/// stream >= 2^31).
+void fill_normal(std::span<double> local_z, std::size_t offset, std::uint64_t seed, std::uint64_t step,
+                 std::uint32_t stream = 0);
+
+/// Collective. w = M^{1/2} z on this rank's share (local_z, local_w: 3 op.local_size() entries)
+/// by the Lanczos square root of rpy::sqrt_apply (the same iteration, stopping test and errors:
+/// rpy/src/sqrt/lanczos.cpp), with every inner product reduced over the ranks. options.method
+/// must be lanczos or automatic (Lanczos) and options.preconditioner none or automatic (none:
+/// the block preconditioner is not offered across ranks); every rank must pass the same
+/// options. The result equals rpy::sqrt_apply's on the serial DirectRpy to round-off (the inner
+/// products are summed per rank, then over the ranks in rank order: docs/mpi.md), and is
+/// deterministic and the same on every rank for a given partition.
+rpy::SqrtReport sqrt_apply(const DistributedDirectRpy& op, std::span<const double> local_z, std::span<double> local_w,
+                           const rpy::SqrtOptions& options);
+
+}  // namespace rpyfmm::mpi
