@@ -834,3 +834,27 @@ TEST_F(Cli, SimdLevelIsReportedAndItsOverrideChecked) {
   EXPECT_NE(typo.err.find("RPYFMM_SIMD"), std::string::npos) << typo.err;
   EXPECT_FALSE(fs::exists(path("r.npy")));
 }
+
+// Under an MPI launcher (apps/rpyfmm/mpi_session.hpp): a build without MPI would run the serial
+// command once per process over one output file, so a launch on several processes and --mpi are
+// refused with one line and exit status 2; a launcher's single process runs as usual. (Builds
+// with MPI are tested under mpiexec: tests/mpi/cli_mobility.cmake.)
+#if !defined(RPYFMM_CLI_HAS_MPI)
+TEST_F(Cli, BuildWithoutMpiRefusesSeveralRanksAndTheMpiFlag) {
+  write_npy(path("x.npy"), {2, 3}, {0, 0, 0, 3, 0, 0});
+  write_npy(path("f.npy"), {2, 3}, {1, 0, 0, 0, 1, 0});
+  const std::string args =
+      "mobility --positions " + path("x.npy") + " --forces " + path("f.npy") + " --radius 1 --out " + path("u.npy");
+  for (const std::string env : {"OMPI_COMM_WORLD_SIZE=2", "PMI_SIZE=3"}) {
+    const Result r = run_with_env(env, args);
+    EXPECT_EQ(r.code, 2) << env << "\nstderr: " << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_NE(r.err.find("built without MPI"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(path("u.npy")));
+  }
+  expect_failure("--mpi " + args, "--mpi: this rpyfmm was built without MPI", "u.npy");
+  const Result one = run_with_env("OMPI_COMM_WORLD_SIZE=1", args);
+  EXPECT_EQ(one.code, 0) << one.err;
+  EXPECT_TRUE(fs::exists(path("u.npy")));
+}
+#endif

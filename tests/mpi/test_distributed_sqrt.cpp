@@ -80,11 +80,11 @@ TEST(MpiDistributedSqrt, NoiseOfEachShareIsTheSerialNoiseBitForBit) {
 
 TEST(MpiDistributedSqrt, LanczosEqualsSerialLanczosToRoundOffAndDenseRootToTolerance) {
   // Lanczos with full reorthogonalization is the serial iteration with inner products summed in
-  // another order: each differs by O(n eps) relative (n = 3N = 1200), so the samples agree to
+  // another order: each differs by O(n eps) relative (n = 3N = 600), so the samples agree to
   // ~1e-13 relative while both take the same number of steps; 1e-10 leaves room for the
   // conditioning of T_m's eigenvectors. Against the dense principal root (an independent
   // reference) the serial contract holds: within 10 x the tolerance (rpy/sqrt.hpp).
-  const Particles p = clustered_particles(340, 60, 61);
+  const Particles p = clustered_particles(170, 30, 61);
   DirectRpy serial(Geometry::open(), kViscosity);
   serial.set_positions(p.x, p.a);
   std::vector<double> z(3 * p.size());
@@ -117,14 +117,14 @@ TEST(MpiDistributedSqrt, LanczosEqualsSerialLanczosToRoundOffAndDenseRootToToler
 }
 
 TEST(MpiDistributedSqrt, SampleCovarianceMatchesTheMobilityMatrix) {
-  // Four overlapping and nearby spheres with different radii, 2000 samples w = M^{1/2} z with
-  // the noise of steps 0..1999: the sample covariance C = <w w^T> estimates M, each entry with
+  // Four overlapping and nearby spheres with different radii, 1500 samples w = M^{1/2} z with
+  // the noise of steps 0..1499: the sample covariance C = <w w^T> estimates M, each entry with
   // standard error sqrt((M_ii M_jj + M_ij^2) / S) (Wick's theorem for Gaussian w). Every entry
   // must lie within 5 standard errors (for the 78 distinct entries a false failure has
   // probability ~5e-5; the samples are fixed by the seed, so the outcome is reproducible).
   const std::vector<double> x = {0.0, 0.0, 0.0, 1.5, 0.2, 0.0, 0.3, 2.1, 0.4, 4.0, 1.0, -1.0};
   const std::vector<double> a = {1.0, 0.8, 1.2, 0.9};
-  constexpr std::size_t kN = 4, kDim = 3 * kN, kSamples = 2000;
+  constexpr std::size_t kN = 4, kDim = 3 * kN, kSamples = 1500;
   DirectRpy serial(Geometry::open(), kViscosity);
   serial.set_positions(x, a);
   std::vector<double> m(kDim * kDim), e(kDim, 0.0), col(kDim);

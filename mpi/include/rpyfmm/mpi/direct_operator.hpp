@@ -55,6 +55,8 @@ class DistributedDirectRpy {
   [[nodiscard]] std::size_t offset() const { return offset_; }
   /// Every rank's local size, by rank (empty before set_positions).
   [[nodiscard]] std::span<const std::size_t> counts() const { return counts_; }
+  /// Whether every particle on every rank has the same radius (DirectRpy's equal-radii path).
+  [[nodiscard]] bool equal_radii() const { return equal_radii_; }
   [[nodiscard]] const CommunicationStats& communication() const { return stats_; }
 
   /// Collective. This rank's positions (3 n, n >= 0) and one radius for them (> 0, finite; the

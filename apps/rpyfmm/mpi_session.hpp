@@ -1,0 +1,62 @@
+// rpyfmm CLI — running under an MPI launcher (docs/mpi.md, "The command-line tool").
+//
+// MPI starts only where a launcher (mpirun, mpiexec, srun) started this process, recognised by
+// the variables it sets, or where `rpyfmm --mpi ...` asks for it, and only in a build with MPI
+// (RPYFMM_USE_MPI). Everywhere else the tool runs exactly as without MPI. A build without MPI
+// refuses --mpi and a launch on more than one process, with one line and exit status 2, rather
+// than running the same serial command P times over the same output file.
+#pragma once
+
+#include <string>
+
+namespace CLI {
+class App;
+}
+
+namespace rpyfmm::cli {
+
+/// The number of processes a launcher started this one among: OMPI_COMM_WORLD_SIZE (Open MPI),
+/// PMI_SIZE (MPICH, Slurm), 1 where only PMIX_RANK says a launcher started it; 0 without one.
+int launcher_world_size();
+
+/// Adds the top-level flag --mpi: start MPI without a launcher (a single rank).
+void add_mpi_flag(CLI::App& app);
+/// True when --mpi was given (after parsing).
+bool mpi_flag_given();
+
+/// True when this run is under MPI. The first call starts MPI (MPI_Init_thread at
+/// MPI_THREAD_FUNNELED) where a launcher started this process or --mpi was given. Throws
+/// rpyfmm::Error (not_supported) in a build without MPI where --mpi was given or a launcher
+/// started more than one process.
+bool under_mpi();
+/// This process's rank in MPI_COMM_WORLD and the number of ranks (0 and 1 unless under_mpi()).
+int mpi_rank();
+int mpi_size();
+
+/// Called first by the commands that do not run across ranks: throws rpyfmm::Error
+/// (not_supported) naming `command` when the run is under MPI on more than one rank.
+void require_one_rank(const std::string& command);
+
+/// Ends MPI (MPI_Finalize) when under_mpi() started it: one object in main() outlives the command.
+class MpiSessionEnd {
+ public:
+  MpiSessionEnd() = default;
+  ~MpiSessionEnd();
+  MpiSessionEnd(const MpiSessionEnd&) = delete;
+  MpiSessionEnd& operator=(const MpiSessionEnd&) = delete;
+};
+
+/// `rpyfmm mobility --method direct` across the ranks (mobility_ranks.cpp, builds with MPI):
+/// rank 0 reads the files and scatters the particles, rpyfmm::mpi::DistributedDirectRpy applies
+/// M, rank 0 gathers U and writes it. Bit for bit the serial command's output.
+struct RanksMobilityArgs {
+  std::string positions, forces, radii, out;
+  double radius = 0.0;
+  bool radius_given = false;
+  double viscosity = 1.0;
+  double tolerance = 0.0;
+  bool json = false;
+};
+void run_mobility_across_ranks(const RanksMobilityArgs& args);
+
+}  // namespace rpyfmm::cli

@@ -1,0 +1,108 @@
+# `mpiexec -n NP rpyfmm mobility --method direct` against the serial `rpyfmm mobility` on the same
+# files (docs/mpi.md, "The command-line tool"): the distributed direct operator is the serial one
+# bit for bit, so the two .npy files must be identical byte for byte; --json must report the
+# ranks and the communication time per stage. Run by ctest as
+#   cmake -DRPYFMM=... -DMPIEXEC=... -DNP=... "-DMPI_FLAGS=..." -DWORK=... -P cli_mobility.cmake
+cmake_minimum_required(VERSION 3.20)
+foreach(var RPYFMM MPIEXEC NP WORK)
+  if(NOT DEFINED ${var})
+    message(FATAL_ERROR "cli_mobility.cmake: -D${var}=... is required")
+  endif()
+endforeach()
+separate_arguments(flags UNIX_COMMAND "${MPI_FLAGS}")
+file(REMOVE_RECURSE "${WORK}")
+file(MAKE_DIRECTORY "${WORK}")
+
+# 701 particles (not a multiple of NP, shares straddle DirectRpy's 256-source blocks), written as
+# text from a linear congruential generator: positions in [0, 40), radii in [0.5, 1.5) (overlaps
+# included), forces in [-1, 1].
+set(seed 12345)
+macro(next_value modulus out)
+  math(EXPR seed "(${seed} * 1103515245 + 12345) % 2147483648")
+  math(EXPR ${out} "${seed} % ${modulus}")
+endmacro()
+macro(decimal value out)  # value / 1000 with three decimals
+  math(EXPR _int "${value} / 1000")
+  math(EXPR _frac "${value} % 1000 + 1000")
+  string(SUBSTRING "${_frac}" 1 3 _frac)
+  set(${out} "${_int}.${_frac}")
+endmacro()
+set(x "")
+set(f "")
+set(a "")
+foreach(i RANGE 700)
+  set(row "")
+  set(frow "")
+  foreach(c 0 1 2)
+    next_value(40000 v)
+    decimal(${v} d)
+    string(APPEND row " ${d}")
+    next_value(2001 v)
+    if(v LESS 1000)
+      math(EXPR v "1000 - ${v}")
+      decimal(${v} d)
+      string(APPEND frow " -${d}")
+    else()
+      math(EXPR v "${v} - 1000")
+      decimal(${v} d)
+      string(APPEND frow " ${d}")
+    endif()
+  endforeach()
+  next_value(1000 v)
+  math(EXPR v "${v} + 500")
+  decimal(${v} d)
+  string(APPEND x "${row}\n")
+  string(APPEND f "${frow}\n")
+  string(APPEND a "${d}\n")
+endforeach()
+file(WRITE "${WORK}/x.txt" "${x}")
+file(WRITE "${WORK}/f.txt" "${f}")
+file(WRITE "${WORK}/a.txt" "${a}")
+
+function(run_case name radius_args)
+  set(common mobility --positions "${WORK}/x.txt" --forces "${WORK}/f.txt" ${radius_args} --viscosity 0.7
+             --method direct)
+  execute_process(COMMAND "${RPYFMM}" ${common} --out "${WORK}/${name}_serial.npy" RESULT_VARIABLE rc
+                  ERROR_VARIABLE err)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "${name}: serial rpyfmm failed (${rc}): ${err}")
+  endif()
+  execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" ${common} --out "${WORK}/${name}_mpi.npy" --json
+                  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "${name}: mpiexec -n ${NP} rpyfmm failed (${rc}): ${err}")
+  endif()
+  execute_process(COMMAND "${CMAKE_COMMAND}" -E compare_files "${WORK}/${name}_serial.npy" "${WORK}/${name}_mpi.npy"
+                  RESULT_VARIABLE differ)
+  if(NOT differ EQUAL 0)
+    message(FATAL_ERROR "${name}: the output of ${NP} ranks differs from the serial output")
+  endif()
+  string(REGEX MATCHALL "\"command\"" lines "${out}")
+  list(LENGTH lines count)
+  if(NOT count EQUAL 1 OR NOT out MATCHES "\"ranks\":${NP}," OR NOT out MATCHES "\"communication_seconds\":{\"apply\"")
+    message(FATAL_ERROR "${name}: --json is not one line with \"ranks\":${NP} and communication_seconds: ${out}")
+  endif()
+endfunction()
+
+run_case(common "--radius;1.1")
+run_case(per_particle "--radii;${WORK}/a.txt")
+
+# A bad input read by rank 0 fails every rank: exit status 2, one error line (printed by rank 0).
+execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" mobility --positions "${WORK}/missing.txt"
+                        --forces "${WORK}/f.txt" --radius 1 --out "${WORK}/never.npy"
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+string(REGEX MATCHALL "rpyfmm: error:" errors "${err}")
+list(LENGTH errors count)
+if(rc EQUAL 0 OR NOT count EQUAL 1 OR NOT err MATCHES "missing.txt" OR EXISTS "${WORK}/never.npy")
+  message(FATAL_ERROR "a missing input under ${NP} ranks: exit ${rc}, ${count} error lines: ${err}")
+endif()
+# A command that does not run across ranks refuses more than one, on every rank.
+if(NP GREATER 1)
+  execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" laplace --sources "${WORK}/x.txt"
+                          --charges "${WORK}/a.txt" --out "${WORK}/never.npy"
+                  RESULT_VARIABLE rc ERROR_VARIABLE err)
+  if(rc EQUAL 0 OR NOT err MATCHES "laplace: does not run across MPI ranks" OR EXISTS "${WORK}/never.npy")
+    message(FATAL_ERROR "laplace under ${NP} ranks: exit ${rc}: ${err}")
+  endif()
+endif()
+file(REMOVE_RECURSE "${WORK}")
