@@ -91,9 +91,9 @@ PairTerm resolve_pair(const PairPotential& p, double ai, double aj, double psi_i
       if (p.core == DlvoCore::born) {
         require(std::isfinite(p.born_sigma) && p.born_sigma >= 0.0, ErrorCode::invalid_argument, where,
                 "born_sigma must be finite and >= 0");
-        // Default sigma_B = 0.4 / kappa: the primary minimum stays wide enough for the GPU BD
+        // Default sigma_B = 0.8 / kappa: the primary minimum stays wide enough for the GPU BD
         // paper's time step (docs/theory/bd.md Sec. 4, DLVO with a Born core).
-        const double sigma_b = p.born_sigma > 0.0 ? p.born_sigma : 0.4 / p.kappa;
+        const double sigma_b = p.born_sigma > 0.0 ? p.born_sigma : 0.8 / p.kappa;
         const double s3 = sigma_b * sigma_b * sigma_b;
         t.born_prefactor = p.hamaker * s3 * s3 / 37800.0;
       }

@@ -130,7 +130,7 @@ TEST(BdConfig, DlvoCoreKeys) {
   EXPECT_EQ(parse_config(dlvo, "c").pairs[0].potential.core, DlvoCore::none);
   const RunConfig born = parse_config(replace(dlvo, "kappa = 0.5", "kappa = 0.5\ncore = \"born\""), "c");
   EXPECT_EQ(born.pairs[0].potential.core, DlvoCore::born);
-  EXPECT_EQ(born.pairs[0].potential.born_sigma, 0.0);  // resolved to 0.4 / kappa
+  EXPECT_EQ(born.pairs[0].potential.born_sigma, 0.0);  // resolved to 0.8 / kappa
   EXPECT_EQ(parse_config(replace(dlvo, "kappa = 0.5", "kappa = 0.5\ncore = \"born\"\nborn_sigma = 0.2"), "c")
                 .pairs[0]
                 .potential.born_sigma,

@@ -202,7 +202,7 @@ TEST(Potentials, DlvoBornForcesAreMinusEnergyGradient) {
 // Where the core puts the primary minimum. With van der Waals only (Psi = 0) and radii much
 // larger than sigma_B, Derjaguin's forms -A a_eff / (6 h) + A sigma_B^6 a_eff / (1260 h^7) give the
 // minimum at h = sigma_B / 30^(1/6) (tolerance 1e-3 relative: corrections O(h / a) = 1e-5). The
-// default sigma_B is 0.4 / kappa, and without the core the force stays attractive to contact.
+// default sigma_B is 0.8 / kappa, and without the core the force stays attractive to contact.
 TEST(Potentials, DlvoBornMinimumLocation) {
   const double a = 1e5, sigma_b = 2.0;
   const PairTerm t = dlvo_born(3.0, a, a, 0.0, 0.0, sigma_b);
@@ -216,7 +216,7 @@ TEST(Potentials, DlvoBornMinimumLocation) {
   EXPECT_NEAR(lo, sigma_b * std::pow(30.0, -1.0 / 6.0), 1e-3 * sigma_b);
 
   const PairTerm by_default = dlvo_born(3.0, a, a, 0.0, 0.0, 0.0);
-  const PairTerm explicit_sigma = dlvo_born(3.0, a, a, 0.0, 0.0, 0.4 / 0.1);
+  const PairTerm explicit_sigma = dlvo_born(3.0, a, a, 0.0, 0.0, 0.8 / 0.1);
   EXPECT_EQ(by_default.born_prefactor, explicit_sigma.born_prefactor);
   PairTerm bare = by_default;
   bare.born_prefactor = 0.0;

@@ -3,7 +3,10 @@
 and the naive scheme (scheme = "naive"), same initial state and noise seed;
 then the alumina's diffusion coefficient against D0 = kT / (6 pi eta a_A).
 
-    OMP_NUM_THREADS=1 python3 examples/bd/alumina_silica/run.py [--steps N] [--out DIR]
+    OMP_NUM_THREADS=1 python3 examples/bd/alumina_silica/run.py [--config TOML] [--steps N] [--out DIR]
+
+--config picks alumina_silica.toml (default: the 36-18 adsorption well) or
+alumina_silica_dlvo.toml (the paper's DLVO pairs with a Born core).
 
 D is estimated from the displacements over non-overlapping windows of
 --window steps (default 2000 = 1 us = 28 velocity relaxation times tau of the
@@ -19,6 +22,7 @@ from __future__ import annotations
 
 import math
 import sys
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -45,10 +49,12 @@ def diffusion(x: np.ndarray, window_frames: int, window_time: float, tau: float)
 
 def main() -> int:
     args = an.script_args(__doc__, HERE, steps=dict(type=int, default=None, help="steps (default: the config's)"),
-                          window=dict(type=int, default=2000, help="window in steps (default: %(default)s)"))
+                          window=dict(type=int, default=2000, help="window in steps (default: %(default)s)"),
+                          config=dict(type=Path, default=BASE, help="config (default: %(default)s)"))
+    particles = an.ROOT / tomllib.loads(args.config.read_text())["particles"]["file"]
     for scheme in SCHEMES:
-        cfg = an.derive_config(BASE, args.out / f"{scheme}.toml", {
-            "particles.file": str(HERE / "particles.txt"), "integrator.scheme": scheme})
+        cfg = an.derive_config(args.config, args.out / f"{scheme}.toml", {
+            "particles.file": str(particles), "integrator.scheme": scheme})
         seconds = an.run_bd(cfg, args.out / scheme, steps=args.steps, threads=args.threads)
         print(f"  {scheme}: {seconds:.0f} s")
     gamma_a, gamma_s = 6 * math.pi * ETA * A_ALUMINA, 6 * math.pi * ETA * A_SILICA

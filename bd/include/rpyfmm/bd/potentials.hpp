@@ -51,7 +51,7 @@ struct PairPotential {
   double permittivity = 0.0;
   double kappa = 0.0;
   /// Short-range repulsion of a DLVO pair, and the Born collision diameter sigma_B
-  /// (0 = default 0.4 / kappa, docs/theory/bd.md Sec. 4).
+  /// (0 = default 0.8 / kappa, docs/theory/bd.md Sec. 4).
   DlvoCore core = DlvoCore::none;
   double born_sigma = 0.0;
 };
