@@ -35,6 +35,7 @@
 #include "array_io.hpp"
 #include "cli_common.hpp"
 #include "commands.hpp"
+#include "mpi_session.hpp"
 #include "rpyfmm/bd/rotation_sampling.hpp"
 #include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/core/file_safety.hpp"
@@ -264,6 +265,19 @@ void print_sample_json(const SampleArgs& args, const rpy::MobilityOperator& op, 
   std::cout << line.str() << '\n';
 }
 
+/// Under MPI: whether this sample runs across the ranks (--operator direct with Lanczos, without
+/// preconditioner or rotation); otherwise it runs on one rank only and more ranks are refused.
+bool across_ranks(const SampleArgs& args, const rpy::SqrtOptions& options) {
+  const bool supported = args.op == "direct" && !args.angular &&
+                         (options.method == rpy::SqrtMethod::lanczos || options.method == rpy::SqrtMethod::automatic) &&
+                         options.preconditioner != rpy::SqrtPreconditioner::block;
+  require(supported || mpi_size() == 1, ErrorCode::not_supported, "sample",
+          "across " + std::to_string(mpi_size()) +
+              " MPI ranks runs --operator direct with --method auto or lanczos only, without --preconditioner "
+              "block and --angular (docs/mpi.md); run the others without mpirun");
+  return supported;
+}
+
 void run_sample(const SampleArgs& given, bool radius_given, bool seed_given) {
   require_distinct_files(
       std::vector<NamedPath>{{"--positions", given.positions}, {"--radii", given.radii}, {"--noise", given.noise}},
@@ -279,6 +293,11 @@ void run_sample(const SampleArgs& given, bool radius_given, bool seed_given) {
   ranges::require_in(ranges::kViscosity, args.viscosity, "--viscosity", "viscosity");
   const rpy::SqrtOptions options = sqrt_options_of(args);
   const OperatorEntry& entry = operator_of(args);
+  if (under_mpi() && across_ranks(args, options)) {
+    run_sample_across_ranks({args.positions, args.radii, args.noise, args.out, args.radius, radius_given,
+                             args.viscosity, args.seed, args.step, options, args.common.json});
+    return;
+  }
 
   StopWatch total;
   StopWatch watch;

@@ -1,16 +1,18 @@
-// rpyfmm CLI — `mpirun -np P rpyfmm mobility --method direct ...` (mpi_session.hpp, docs/mpi.md):
-// rank 0 reads the same files as the serial command and scatters the particles in P contiguous
-// shares, rpyfmm::mpi::DistributedDirectRpy applies M (bit for bit the serial DirectRpy), rank 0
-// gathers U and writes the same file (write_npy: a temporary file renamed into place). Every
-// step fails on every rank alike (rpyfmm::mpi::Communicator::run), so no rank waits for another
-// that gave up.
+// rpyfmm CLI — the commands that run across MPI ranks (mpi_session.hpp, docs/mpi.md):
+//   mpirun -np P rpyfmm mobility --method direct ...
+//   mpirun -np P rpyfmm sample --operator direct [--method lanczos] ...
+// Rank 0 reads the same files as the serial command and scatters the particles in P contiguous
+// shares; rpyfmm::mpi::DistributedDirectRpy applies M (bit for bit the serial DirectRpy) and
+// rpyfmm::mpi::sqrt_apply samples M^{1/2} z; rank 0 gathers the result and writes the same file
+// (write_npy: a temporary file renamed into place). Every step fails on every rank alike
+// (rpyfmm::mpi::Communicator::run), so no rank waits for another that gave up.
 #include <mpi.h>
 
-#include <algorithm>
 #include <climits>
 #include <cstddef>
 #include <cstdint>
 #include <iostream>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -22,24 +24,30 @@
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/mpi/communicator.hpp"
 #include "rpyfmm/mpi/direct_operator.hpp"
+#include "rpyfmm/mpi/sqrt.hpp"
 
 namespace rpyfmm::cli {
 namespace {
 
-// What rank 0 reads: the whole set.
+// What rank 0 reads: positions, radii (empty with a common radius) and one row of three values per
+// particle (forces, or noise; empty where none is read).
 struct WholeInput {
-  std::vector<double> x, f, radii;
+  std::vector<double> x, radii, rows;
 };
 
-WholeInput read_on_root(const RanksMobilityArgs& args) {
+WholeInput read_on_root(const std::string& positions, const std::string& radii, const std::string& rows,
+                        const std::string& rows_name) {
   WholeInput in;
-  in.x = as_points(read_array(args.positions), "positions");
+  in.x = as_points(read_array(positions), "positions");
   const std::size_t n = in.x.size() / 3;
-  in.f = as_points(read_array(args.forces), "forces");
-  require(in.f.size() == in.x.size(), ErrorCode::invalid_input, "forces",
-          "has " + std::to_string(in.f.size() / 3) + " rows, expected " + std::to_string(n) + " (one per particle)");
-  if (!args.radius_given) in.radii = as_vector(read_array(args.radii), n, "radii");
-  require(3 * n <= static_cast<std::size_t>(INT_MAX), ErrorCode::not_supported, "mobility",
+  if (!rows.empty()) {
+    in.rows = as_points(read_array(rows), rows_name);
+    require(
+        in.rows.size() == in.x.size(), ErrorCode::invalid_input, rows_name,
+        "has " + std::to_string(in.rows.size() / 3) + " rows, expected " + std::to_string(n) + " (one per particle)");
+  }
+  if (!radii.empty()) in.radii = as_vector(read_array(radii), n, "radii");
+  require(3 * n <= static_cast<std::size_t>(INT_MAX), ErrorCode::not_supported, "rpyfmm",
           std::to_string(n) + " particles: more than MPI's int counts address in one scatter");
   return in;
 }
@@ -71,6 +79,41 @@ std::vector<double> scatter(const std::vector<double>& whole, const Shares& s, c
   return local;
 }
 
+// This rank's share of what rank 0 read.
+struct LocalInput {
+  std::uint64_t n = 0;     // particles in all
+  std::size_t offset = 0;  // global index of this rank's first particle
+  Shares s3;               // 3 values per particle
+  std::vector<double> x, radii, rows;
+};
+
+LocalInput distribute(const WholeInput& in, bool radii, bool rows, const mpi::Communicator& comm) {
+  LocalInput local;
+  local.n = in.x.size() / 3;
+  mpi::check_mpi(MPI_Bcast(&local.n, 1, MPI_UINT64_T, 0, comm.get()), "MPI_Bcast");
+  local.s3 = shares_of(local.n, comm.size(), 3);
+  const Shares s1 = shares_of(local.n, comm.size(), 1);
+  local.offset = static_cast<std::size_t>(s1.displs[static_cast<std::size_t>(comm.rank())]);
+  local.x = scatter(in.x, local.s3, comm);
+  if (radii) local.radii = scatter(in.radii, s1, comm);
+  if (rows) local.rows = scatter(in.rows, local.s3, comm);
+  return local;
+}
+
+// Gathers the (N,3) result on rank 0, which checks and writes it; fails on every rank alike.
+void gather_and_write(const std::vector<double>& local, const LocalInput& in, const std::string& out,
+                      const std::string& what, const mpi::Communicator& comm) {
+  std::vector<double> whole(comm.rank() == 0 ? 3 * in.n : 0);
+  mpi::check_mpi(MPI_Gatherv(local.data(), static_cast<int>(local.size()), MPI_DOUBLE, whole.data(),
+                             in.s3.counts.data(), in.s3.displs.data(), MPI_DOUBLE, 0, comm.get()),
+                 "MPI_Gatherv");
+  comm.run([&] {
+    if (comm.rank() != 0) return;
+    require_finite_output(whole, what);
+    write_npy(out, {in.n, 3}, whole);
+  });
+}
+
 // The slowest rank's time of each stage, on rank 0.
 StageTimes slowest(const StageTimes& mine, const mpi::Communicator& comm) {
   std::vector<double> local, global;
@@ -85,77 +128,143 @@ StageTimes slowest(const StageTimes& mine, const mpi::Communicator& comm) {
   return out;
 }
 
+// Read by rank 0, scattered, and the operator set up on each rank's share: what both commands do
+// first, timed per stage.
+struct Prepared {
+  LocalInput in;
+  std::unique_ptr<mpi::DistributedDirectRpy> op;
+  StageTimes stages, communication;
+};
+
+struct Inputs {
+  const std::string& positions;
+  const std::string& radii;  // empty with a common radius
+  const std::string& rows;   // forces or noise; empty where none is read
+  const char* rows_name;
+  double radius;
+  double viscosity;
+};
+
+Prepared prepare(const Inputs& files, const mpi::Communicator& comm) {
+  Prepared p;
+  StopWatch watch;
+  WholeInput whole;
+  comm.run([&] {
+    if (comm.rank() == 0) whole = read_on_root(files.positions, files.radii, files.rows, files.rows_name);
+  });
+  p.stages["read"] = watch.seconds();
+
+  watch.restart();
+  p.in = distribute(whole, !files.radii.empty(), !files.rows.empty(), comm);
+  whole = WholeInput{};  // rank 0 keeps only its share from here on
+  p.communication["distribute"] = p.stages["distribute"] = watch.seconds();
+
+  watch.restart();
+  p.op = std::make_unique<mpi::DistributedDirectRpy>(comm.get(), files.viscosity);
+  if (files.radii.empty()) {
+    p.op->set_positions(p.in.x, files.radius);
+  } else {
+    p.op->set_positions(p.in.x, p.in.radii);
+  }
+  p.stages["setup"] = watch.seconds();
+  p.communication["setup"] = p.op->communication().set_positions_seconds;
+  return p;
+}
+
+// What both commands add to --json under MPI: the ranks and the slowest rank's times.
+void add_ranks(JsonLine& line, const StageTimes& stages, const StageTimes& communication,
+               const mpi::Communicator& comm) {
+  line.add("ranks", comm.size())
+      .add("threads", active_threads())
+      .add("simd", simd_level_name(simd_level()))
+      .add("seconds", slowest(stages, comm))
+      .add("communication_seconds", slowest(communication, comm));
+}
+
 }  // namespace
 
 void run_mobility_across_ranks(const RanksMobilityArgs& args) {
   const mpi::Communicator comm(MPI_COMM_WORLD);
-  const bool root = comm.rank() == 0;
   StopWatch total;
+  Prepared p = prepare({args.positions, args.radius_given ? std::string() : args.radii, args.forces, "forces",
+                        args.radius, args.viscosity},
+                       comm);
+  const LocalInput& in = p.in;
+  mpi::DistributedDirectRpy& op = *p.op;
+  StageTimes& stages = p.stages;
+  StageTimes& communication = p.communication;
+
   StopWatch watch;
-  WholeInput in;
-  comm.run([&] {
-    if (root) in = read_on_root(args);
-  });
-  StageTimes stages, communication;
-  stages["read"] = watch.seconds();
-
-  watch.restart();
-  std::uint64_t n = in.x.size() / 3;
-  mpi::check_mpi(MPI_Bcast(&n, 1, MPI_UINT64_T, 0, comm.get()), "MPI_Bcast");
-  const Shares s3 = shares_of(n, comm.size(), 3), s1 = shares_of(n, comm.size(), 1);
-  const std::vector<double> x = scatter(in.x, s3, comm), f = scatter(in.f, s3, comm);
-  const std::vector<double> radii = args.radius_given ? std::vector<double>{} : scatter(in.radii, s1, comm);
-  in = WholeInput{};  // rank 0 keeps only its share from here on
-  communication["distribute"] = stages["distribute"] = watch.seconds();
-
-  watch.restart();
-  mpi::DistributedDirectRpy op(comm.get(), args.viscosity);
-  if (args.radius_given) {
-    op.set_positions(x, args.radius);
-  } else {
-    op.set_positions(x, radii);
-  }
-  stages["setup"] = watch.seconds();
-  communication["setup"] = op.communication().set_positions_seconds;
-
-  watch.restart();
-  std::vector<double> u(x.size());
-  op.apply(f, u);
+  std::vector<double> u(in.x.size());
+  op.apply(in.rows, u);
   stages["apply"] = watch.seconds();
   communication["apply"] = op.communication().apply_seconds;
 
   watch.restart();
-  std::vector<double> whole(root ? 3 * n : 0);
-  mpi::check_mpi(MPI_Gatherv(u.data(), static_cast<int>(u.size()), MPI_DOUBLE, whole.data(), s3.counts.data(),
-                             s3.displs.data(), MPI_DOUBLE, 0, comm.get()),
-                 "MPI_Gatherv");
-  communication["collect"] = watch.seconds();
-  comm.run([&] {
-    if (!root) return;
-    require_finite_output(whole, "mobility");
-    write_npy(args.out, {n, 3}, whole);
-  });
+  gather_and_write(u, in, args.out, "mobility", comm);
   stages["write"] = watch.seconds();
 
-  const StageTimes slowest_stages = slowest(stages, comm), slowest_communication = slowest(communication, comm);
-  if (args.json && root) {
-    JsonLine line;
-    line.add("command", "mobility")
-        .add("method", "direct")
-        .add("n", n)
-        .add("ranks", comm.size())
-        .add("viscosity", args.viscosity)
-        .add("tolerance", args.tolerance)
-        .add("equal_radii", op.equal_radii())
-        .add("threads", active_threads())
-        .add("simd", simd_level_name(simd_level()))
-        .add("out", args.out)
-        .add("seconds", slowest_stages)
-        .add("communication_seconds", slowest_communication)
-        .add("total_seconds", total.seconds());
-    if (args.radius_given) line.add("radius", args.radius);
-    std::cout << line.str() << '\n';
+  JsonLine line;
+  line.add("command", "mobility")
+      .add("method", "direct")
+      .add("n", in.n)
+      .add("viscosity", args.viscosity)
+      .add("tolerance", args.tolerance)
+      .add("equal_radii", op.equal_radii())
+      .add("out", args.out);
+  if (args.radius_given) line.add("radius", args.radius);
+  add_ranks(line, stages, communication, comm);  // collective
+  if (args.json && comm.rank() == 0) std::cout << line.add("total_seconds", total.seconds()).str() << '\n';
+}
+
+void run_sample_across_ranks(const RanksSampleArgs& args) {
+  const mpi::Communicator comm(MPI_COMM_WORLD);
+  StopWatch total;
+  Prepared p = prepare({args.positions, args.radius_given ? std::string() : args.radii, args.noise, "noise",
+                        args.radius, args.viscosity},
+                       comm);
+  LocalInput& in = p.in;
+  const mpi::DistributedDirectRpy& op = *p.op;
+  StageTimes& stages = p.stages;
+  StageTimes& communication = p.communication;
+  if (args.noise.empty()) {  // the serial command's noise of this rank's particles
+    in.rows.resize(in.x.size());
+    mpi::fill_normal(in.rows, in.offset, args.seed, args.step);
   }
+
+  StopWatch watch;
+  std::vector<double> w(in.x.size());
+  double inner_products = 0.0;
+  const rpy::SqrtReport report = mpi::sqrt_apply(op, in.rows, w, args.options, &inner_products);
+  stages["sample"] = watch.seconds();
+  communication["products"] = op.communication().applies_seconds;
+  communication["inner_products"] = inner_products;
+
+  watch.restart();
+  gather_and_write(w, in, args.out, "sample", comm);
+  stages["write"] = watch.seconds();
+
+  JsonLine line;
+  line.add("command", "sample")
+      .add("operator", "direct")
+      .add("method", rpy::to_string(report.method))
+      .add("n", in.n)
+      .add("sqrt_tolerance", args.options.tolerance)
+      .add("iterations", report.iterations)
+      .add("error_estimate", report.error_estimate)
+      .add("operator_applications", report.operator_applications)
+      .add("converged", report.converged)
+      .add("breakdown", report.breakdown)
+      .add("preconditioner_blocks", report.preconditioner_blocks)
+      .add("angular", false)
+      .add("noise", args.noise.empty() ? "philox" : args.noise)
+      .add("viscosity", args.viscosity)
+      .add("equal_radii", op.equal_radii())
+      .add("out", args.out);
+  if (args.noise.empty()) line.add("seed", args.seed).add("step", args.step);
+  if (args.radius_given) line.add("radius", args.radius);
+  add_ranks(line, stages, communication, comm);  // collective
+  if (args.json && comm.rank() == 0) std::cout << line.add("total_seconds", total.seconds()).str() << '\n';
 }
 
 }  // namespace rpyfmm::cli

@@ -23,9 +23,9 @@ bool under_mpi() {
   // Every MPI call of rpyfmm comes from this thread, outside OpenMP regions (docs/mpi.md).
   int provided = 0;
   require(MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided) == MPI_SUCCESS, ErrorCode::io_error,
-          "rpyfmm", "MPI_Init_thread failed");
+          "MPI_Init_thread", "failed");
   started = true;
-  require(provided >= MPI_THREAD_FUNNELED, ErrorCode::not_supported, "rpyfmm",
+  require(provided >= MPI_THREAD_FUNNELED, ErrorCode::not_supported, "MPI_Init_thread",
           "the MPI library offers no MPI_THREAD_FUNNELED (OpenMP threads inside each rank need it)");
   return true;
 }

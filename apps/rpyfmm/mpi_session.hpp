@@ -7,7 +7,10 @@
 // than running the same serial command P times over the same output file.
 #pragma once
 
+#include <cstdint>
 #include <string>
+
+#include "rpyfmm/rpy/sqrt.hpp"
 
 namespace CLI {
 class App;
@@ -46,7 +49,7 @@ class MpiSessionEnd {
   MpiSessionEnd& operator=(const MpiSessionEnd&) = delete;
 };
 
-/// `rpyfmm mobility --method direct` across the ranks (mobility_ranks.cpp, builds with MPI):
+/// `rpyfmm mobility --method direct` across the ranks (commands_across_ranks.cpp, builds with MPI):
 /// rank 0 reads the files and scatters the particles, rpyfmm::mpi::DistributedDirectRpy applies
 /// M, rank 0 gathers U and writes it. Bit for bit the serial command's output.
 struct RanksMobilityArgs {
@@ -58,5 +61,20 @@ struct RanksMobilityArgs {
   bool json = false;
 };
 void run_mobility_across_ranks(const RanksMobilityArgs& args);
+
+/// `rpyfmm sample --operator direct` with Lanczos across the ranks (commands_across_ranks.cpp):
+/// rank 0 reads the files (and --noise) and scatters them, or each rank draws its share's noise
+/// (rpyfmm::mpi::fill_normal: the serial noise), rpyfmm::mpi::sqrt_apply samples, rank 0 gathers
+/// W and writes it. The serial command's output to round-off (docs/mpi.md).
+struct RanksSampleArgs {
+  std::string positions, radii, noise, out;
+  double radius = 0.0;
+  bool radius_given = false;
+  double viscosity = 1.0;
+  std::uint64_t seed = 0, step = 0;
+  rpy::SqrtOptions options;
+  bool json = false;
+};
+void run_sample_across_ranks(const RanksSampleArgs& args);
 
 }  // namespace rpyfmm::cli

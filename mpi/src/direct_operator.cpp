@@ -159,7 +159,7 @@ void DistributedDirectRpy::set_positions(std::span<const double> local_positions
 
 void DistributedDirectRpy::set_positions(std::span<const double> local_positions, std::span<const double> local_radii) {
   global_n_ = 0;  // no positions until this call succeeds on every rank
-  stats_.set_positions_seconds = 0.0;
+  stats_ = CommunicationStats{};
   comm_.run([&] { check_local_particles(local_positions, local_radii); });
   const auto ranks = static_cast<std::size_t>(comm_.size());
   const auto mine = static_cast<std::uint64_t>(local_radii.size());
@@ -289,6 +289,7 @@ void DistributedDirectRpy::apply(std::span<const double> local_forces, std::span
 
   // Back from the length units (exact), then from the load scale: DirectRpy::sum_rows and
   // MobilityOperator::apply_block.
+  stats_.applies_seconds += stats_.apply_seconds;
   const double inv_eta = 1.0 / viscosity_;
   for (std::size_t i = 0; i < 3 * local_n_; ++i) {
     local_velocities[i] = std::ldexp(std::ldexp(inv_eta * acc[i], -scale_exponent_), k);

@@ -130,7 +130,7 @@ void fill_normal(std::span<double> local_z, std::size_t offset, std::uint64_t se
 }
 
 rpy::SqrtReport sqrt_apply(const DistributedDirectRpy& op, std::span<const double> local_z, std::span<double> local_w,
-                           const rpy::SqrtOptions& options) {
+                           const rpy::SqrtOptions& options, double* inner_products_seconds) {
   const Communicator& comm = op.communicator();
   require(op.global_size() > 0, ErrorCode::invalid_input, kWhere, "positions not set (call set_positions first)");
   comm.run([&] {
@@ -151,6 +151,7 @@ rpy::SqrtReport sqrt_apply(const DistributedDirectRpy& op, std::span<const doubl
       space, [&](const double* x, double* y) { op.apply(std::span<const double>(x, n), std::span<double>(y, n)); },
       local_z.data(), local_w.data(), resolved);
   comm.run([&] { rpy::detail::require_finite_result(local_w, kWhere, "local output", "noise"); });
+  if (inner_products_seconds != nullptr) *inner_products_seconds = space.communication_seconds();
   return report;
 }
 

@@ -1,12 +1,16 @@
-# `mpiexec -n NP rpyfmm mobility --method direct` against the serial `rpyfmm mobility` on the same
-# files (docs/mpi.md, "The command-line tool"): the distributed direct operator is the serial one
-# bit for bit, so the two .npy files must be identical byte for byte; --json must report the
-# ranks and the communication time per stage. Run by ctest as
-#   cmake -DRPYFMM=... -DMPIEXEC=... -DNP=... "-DMPI_FLAGS=..." -DWORK=... -P cli_mobility.cmake
+# The commands across ranks against the serial commands on the same files (docs/mpi.md, "The
+# command-line tool"):
+#  - `mpiexec -n NP rpyfmm mobility --method direct`: the distributed direct operator is the serial
+#    one bit for bit, so the two .npy files must be identical byte for byte;
+#  - `mpiexec -n NP rpyfmm sample --operator direct`: the distributed Lanczos sampler equals the
+#    serial one to round-off (inner products summed per rank first): relative difference at most
+#    1e-10 (about 1e-14 measured), on the noise drawn by seed and on noise read from a file.
+# --json must report the ranks and the communication time per stage. Run by ctest as
+#   cmake -DRPYFMM=... -DCOMPARE=... -DMPIEXEC=... -DNP=... "-DMPI_FLAGS=..." -DWORK=... -P cli_across_ranks.cmake
 cmake_minimum_required(VERSION 3.20)
-foreach(var RPYFMM MPIEXEC NP WORK)
+foreach(var RPYFMM COMPARE MPIEXEC NP WORK)
   if(NOT DEFINED ${var})
-    message(FATAL_ERROR "cli_mobility.cmake: -D${var}=... is required")
+    message(FATAL_ERROR "cli_across_ranks.cmake: -D${var}=... is required")
   endif()
 endforeach()
 separate_arguments(flags UNIX_COMMAND "${MPI_FLAGS}")
@@ -86,6 +90,32 @@ endfunction()
 
 run_case(common "--radius;1.1")
 run_case(per_particle "--radii;${WORK}/a.txt")
+
+# sample: with the noise of (seed, step) and with the forces file read as noise.
+function(run_sample name args)
+  set(common sample --positions "${WORK}/x.txt" --radii "${WORK}/a.txt" --operator direct --method lanczos
+             --sqrt-tolerance 1e-6 --viscosity 0.7 ${args})
+  execute_process(COMMAND "${RPYFMM}" ${common} --out "${WORK}/${name}_serial.npy" RESULT_VARIABLE rc
+                  ERROR_VARIABLE err)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "${name}: serial rpyfmm sample failed (${rc}): ${err}")
+  endif()
+  execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" ${common} --out "${WORK}/${name}_mpi.npy" --json
+                  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "${name}: mpiexec -n ${NP} rpyfmm sample failed (${rc}): ${err}")
+  endif()
+  if(NOT out MATCHES "\"ranks\":${NP}," OR NOT out MATCHES "\"inner_products\":")
+    message(FATAL_ERROR "${name}: --json lacks \"ranks\":${NP} or the inner products' time: ${out}")
+  endif()
+  execute_process(COMMAND "${COMPARE}" "${WORK}/${name}_serial.npy" "${WORK}/${name}_mpi.npy" 1e-10
+                  RESULT_VARIABLE differ OUTPUT_VARIABLE measured)
+  if(NOT differ EQUAL 0)
+    message(FATAL_ERROR "${name}: ${NP} ranks against the serial sample: ${measured}")
+  endif()
+endfunction()
+run_sample(sample_seed "--seed;5;--step;3")
+run_sample(sample_noise "--noise;${WORK}/f.txt")
 
 # A bad input read by rank 0 fails every rank: exit status 2, one error line (printed by rank 0).
 execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" mobility --positions "${WORK}/missing.txt"

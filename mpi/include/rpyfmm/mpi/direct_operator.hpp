@@ -30,11 +30,13 @@
 namespace rpyfmm::mpi {
 
 /// This rank's time in MPI calls (waits included) during the last set_positions and apply, and the
-/// bytes of other ranks' source blocks it received in the last apply.
+/// bytes of other ranks' source blocks it received in the last apply; applies_seconds sums
+/// apply_seconds over every apply since the last set_positions (a sampler's many products).
 struct CommunicationStats {
   double set_positions_seconds = 0.0;
   double apply_seconds = 0.0;
   std::uint64_t apply_bytes_received = 0;
+  double applies_seconds = 0.0;
 };
 
 class DistributedDirectRpy {

@@ -34,7 +34,9 @@ void fill_normal(std::span<double> local_z, std::size_t offset, std::uint64_t se
 /// options. The result equals rpy::sqrt_apply's on the serial DirectRpy to round-off (the inner
 /// products are summed per rank, then over the ranks in rank order: docs/mpi.md), and is
 /// deterministic and the same on every rank for a given partition.
+/// `inner_products_seconds`, where not null, receives this rank's time in the all-gathers of the
+/// inner products (the products' own MPI time: op.communication().applies_seconds).
 rpy::SqrtReport sqrt_apply(const DistributedDirectRpy& op, std::span<const double> local_z, std::span<double> local_w,
-                           const rpy::SqrtOptions& options);
+                           const rpy::SqrtOptions& options, double* inner_products_seconds = nullptr);
 
 }  // namespace rpyfmm::mpi
