@@ -2,6 +2,8 @@
 // rank's own targets (direct_operator.hpp, docs/mpi.md).
 #include "rpyfmm/mpi/direct_operator.hpp"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <array>
 #include <climits>
@@ -24,8 +26,13 @@ constexpr std::size_t kBlock = rpy::detail::kDirectBlock;
 // Doubles per particle of a source block as broadcast: x, y, z, a (length units), fx, fy, fz
 // (load-scaled), each an array over the block's particles.
 constexpr std::size_t kPacked = 7;
-// Targets summed between two polls of the broadcast in flight (MPI_Test lets it progress).
-constexpr std::size_t kTargetBatch = 256;
+// The broadcast in flight is polled (MPI_Test lets it progress) between batches of targets: about
+// eight batches per block, each at least 64 targets per thread (add_direct_block_sums hands out
+// targets to the threads 16 at a time, so every thread stays busy).
+std::size_t target_batch(std::size_t local_n) {
+  const auto threads = static_cast<std::size_t>(std::max(1, omp_get_max_threads()));
+  return std::max(local_n / 8 + 1, 64 * threads);
+}
 // A rank's summary for the whole set's bounding box and radius range: lo[3], hi[3], the global
 // indices of the particles on the box faces ilo[3], ihi[3] (exact as doubles), a_min, a_max, count.
 constexpr int kSummary = 15;
@@ -217,8 +224,9 @@ std::vector<double> DistributedDirectRpy::packed_block(std::span<const double> l
 
 void DistributedDirectRpy::sum_block(SourceWindow& window, std::size_t usable, std::vector<double>& acc,
                                      MPI_Request* pending) const {
-  for (std::size_t first = 0; first < local_n_; first += kTargetBatch) {
-    const std::size_t count = std::min(kTargetBatch, local_n_ - first);
+  const std::size_t batch = target_batch(local_n_);
+  for (std::size_t first = 0; first < local_n_; first += batch) {
+    const std::size_t count = std::min(batch, local_n_ - first);
     const rpy::detail::DirectParticles targets{x_.data() + first, y_.data() + first, z_.data() + first,
                                                a_.data() + first, inv_a_.data() + first};
     rpy::detail::add_direct_block_sums(targets, count, window.particles(), window.forces(), usable, equal_radii_,
