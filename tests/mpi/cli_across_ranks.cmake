@@ -134,5 +134,14 @@ if(NP GREATER 1)
   if(rc EQUAL 0 OR NOT err MATCHES "laplace: does not run across MPI ranks" OR EXISTS "${WORK}/never.npy")
     message(FATAL_ERROR "laplace under ${NP} ranks: exit ${rc}: ${err}")
   endif()
+  # mobility and sample with what does not run across ranks refuse too.
+  foreach(case "mobility;--forces;${WORK}/f.txt;--method;fmm" "sample;--operator;direct;--method;chebyshev")
+    execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" ${case} --positions "${WORK}/x.txt" --radius 1
+                            --out "${WORK}/never.npy"
+                    RESULT_VARIABLE rc ERROR_VARIABLE err)
+    if(rc EQUAL 0 OR NOT err MATCHES "across ${NP} MPI ranks runs" OR EXISTS "${WORK}/never.npy")
+      message(FATAL_ERROR "${case} under ${NP} ranks: exit ${rc}: ${err}")
+    endif()
+  endforeach()
 endif()
 file(REMOVE_RECURSE "${WORK}")
