@@ -65,7 +65,7 @@ void run_mobility_across_ranks(const RanksMobilityArgs& args);
 /// `rpyfmm sample --operator direct` with Lanczos across the ranks (commands_across_ranks.cpp):
 /// rank 0 reads the files (and --noise) and scatters them, or each rank draws its share's noise
 /// (rpyfmm::mpi::fill_normal: the serial noise), rpyfmm::mpi::sqrt_apply samples, rank 0 gathers
-/// W and writes it. The serial command's output to round-off (docs/mpi.md).
+/// W and writes it. Bit for bit the serial command's output (docs/mpi.md).
 struct RanksSampleArgs {
   std::string positions, radii, noise, out;
   double radius = 0.0;

@@ -160,9 +160,8 @@ struct CellGrid {
   }
 };
 
-/// Bounds from all of x (so that any particle's cell is in range), at most ~ 2 `members` cells.
 CellGrid cell_grid(std::span<const double> x, double rl, bool periodic, const std::array<double, 3>& box,
-                   const std::array<double, 3>& inv_box, std::size_t members) {
+                   const std::array<double, 3>& inv_box) {
   const std::size_t n = x.size() / 3;
   CellGrid g;
   g.periodic = periodic;
@@ -184,7 +183,7 @@ CellGrid cell_grid(std::span<const double> x, double rl, bool periodic, const st
     g.nc[c] = std::max(1L, static_cast<long>(std::floor(g.extent[c] / rl)));
   }
   // Keep the grid at most ~ 2N cells (sparse open clouds).
-  while (static_cast<double>(g.nc[0]) * g.nc[1] * g.nc[2] > 2.0 * static_cast<double>(members) + 27.0) {
+  while (static_cast<double>(g.nc[0]) * g.nc[1] * g.nc[2] > 2.0 * static_cast<double>(n) + 27.0) {
     for (auto& v : g.nc) v = std::max(1L, v / 2);
   }
   g.wrap = periodic && g.nc[0] >= 3 && g.nc[1] >= 3 && g.nc[2] >= 3;
@@ -224,16 +223,20 @@ std::vector<double> positions_in_cell_order(std::span<const double> x, const Cel
   return xs;
 }
 
-/// Calls visit(cell, shift) for each of the 27 cells around `home` that exist: a neighbour cell
-/// across a periodic face carries its image shift (added to xi - xj), so no rounding per
-/// candidate.
-template <class Visit>
-inline void for_each_stencil_cell(const CellGrid& g, const std::array<long, 3>& home, Visit&& visit) {
+/// Appends to `buf` the neighbours (input indices, unsorted) of the particle in `slot`: the
+/// candidates of the 27 cells around its cell within their pair's list radius (radii: types in
+/// cell order). A neighbour cell across a periodic face carries its image shift, so no rounding
+/// per candidate.
+inline void append_row(std::vector<std::uint32_t>& buf, std::size_t slot, const CellGrid& g, const CellBins& cs,
+                       const std::vector<double>& xs, const PairRadii& radii) {
+  const std::array<long, 3>& home = cs.coord[cs.order[slot]];
+  const double* xi = &xs[3 * slot];
+  const double* rl2 = radii.row(radii.type[slot]);
   for (long dx = -1; dx <= 1; ++dx) {
     for (long dy = -1; dy <= 1; ++dy) {
       for (long dz = -1; dz <= 1; ++dz) {
         std::array<long, 3> k{home[0] + dx, home[1] + dy, home[2] + dz};
-        std::array<double, 3> shift{0.0, 0.0, 0.0};
+        std::array<double, 3> shift{0.0, 0.0, 0.0};  // added to xi - xj: the image across a face
         bool skip = false;
         for (int c = 0; c < 3; ++c) {
           if (g.wrap) {  // k in [-1, nc]
@@ -248,27 +251,17 @@ inline void for_each_stencil_cell(const CellGrid& g, const std::array<long, 3>& 
             skip = true;
           }
         }
-        if (!skip) visit(g.index(k), shift);
+        if (skip) continue;
+        const std::size_t cell = g.index(k);
+        const double xi0 = xi[0] + shift[0], xi1 = xi[1] + shift[1], xi2 = xi[2] + shift[2];
+        for (std::size_t t = cs.start[cell]; t < cs.start[cell + 1]; ++t) {
+          const double d0 = xi0 - xs[3 * t], d1 = xi1 - xs[3 * t + 1], d2 = xi2 - xs[3 * t + 2];
+          if (d0 * d0 + d1 * d1 + d2 * d2 < rl2[radii.type[t]] && t != slot)
+            buf.push_back(static_cast<std::uint32_t>(cs.order[t]));
+        }
       }
     }
   }
-}
-
-/// Appends to `buf` the neighbours (input indices, unsorted) of the particle in `slot`: the
-/// candidates of the 27 cells around its cell within their pair's list radius (radii: types in
-/// cell order).
-inline void append_row(std::vector<std::uint32_t>& buf, std::size_t slot, const CellGrid& g, const CellBins& cs,
-                       const std::vector<double>& xs, const PairRadii& radii) {
-  const double* xi = &xs[3 * slot];
-  const double* rl2 = radii.row(radii.type[slot]);
-  for_each_stencil_cell(g, cs.coord[cs.order[slot]], [&](std::size_t cell, const std::array<double, 3>& shift) {
-    const double xi0 = xi[0] + shift[0], xi1 = xi[1] + shift[1], xi2 = xi[2] + shift[2];
-    for (std::size_t t = cs.start[cell]; t < cs.start[cell + 1]; ++t) {
-      const double d0 = xi0 - xs[3 * t], d1 = xi1 - xs[3 * t + 1], d2 = xi2 - xs[3 * t + 2];
-      if (d0 * d0 + d1 * d1 + d2 * d2 < rl2[radii.type[t]] && t != slot)
-        buf.push_back(static_cast<std::uint32_t>(cs.order[t]));
-    }
-  });
 }
 
 constexpr std::size_t kChunk = 2048;  // slots per row buffer
@@ -313,103 +306,15 @@ void concatenate_rows(const std::vector<std::vector<std::uint32_t>>& chunk_lists
   }
 }
 
-/// One interaction kind's cell grid (GPU BD paper Sec. 4.2): the particles of one type in cells
-/// of side >= the kind's list radius, their positions in cell order and their input indices.
-struct KindGrid {
-  CellGrid grid;
-  CellBins bins;
-  std::vector<double> xs;
-  std::vector<std::uint32_t> index;
-  double rl2 = 0.0;
-};
-
-KindGrid kind_grid(std::span<const double> x, const std::vector<std::uint32_t>& members, double rl2, bool periodic,
-                   const std::array<double, 3>& box, const std::array<double, 3>& inv_box) {
-  KindGrid k;
-  k.rl2 = rl2;
-  k.grid = cell_grid(x, std::sqrt(rl2), periodic, box, inv_box, members.size());
-  std::vector<double> xm(3 * members.size());
-  for (std::size_t m = 0; m < members.size(); ++m)
-    for (int c = 0; c < 3; ++c) xm[3 * m + c] = x[3 * members[m] + c];
-  k.bins = sort_into_cells(xm, k.grid);
-  k.xs = positions_in_cell_order(xm, k.grid, k.bins.order);
-  k.index.resize(members.size());
-  for (std::size_t slot = 0; slot < members.size(); ++slot) k.index[slot] = members[k.bins.order[slot]];
-  return k;
-}
-
-/// Appends to `buf` the members of kind grid `k` within its list radius of particle i (input
-/// indices, unsorted), with the arithmetic of append_row, so the same pairs pass.
-inline void append_kind_row(std::vector<std::uint32_t>& buf, std::size_t i, std::span<const double> x,
-                            const KindGrid& k) {
-  const CellGrid& g = k.grid;
-  const double xi[3] = {g.wrapped(x[3 * i], 0), g.wrapped(x[3 * i + 1], 1), g.wrapped(x[3 * i + 2], 2)};
-  const std::array<long, 3> home{g.cell_coord(x[3 * i], 0), g.cell_coord(x[3 * i + 1], 1),
-                                 g.cell_coord(x[3 * i + 2], 2)};
-  for_each_stencil_cell(g, home, [&](std::size_t cell, const std::array<double, 3>& shift) {
-    const double xi0 = xi[0] + shift[0], xi1 = xi[1] + shift[1], xi2 = xi[2] + shift[2];
-    for (std::size_t t = k.bins.start[cell]; t < k.bins.start[cell + 1]; ++t) {
-      const double d0 = xi0 - k.xs[3 * t], d1 = xi1 - k.xs[3 * t + 1], d2 = xi2 - k.xs[3 * t + 2];
-      if (d0 * d0 + d1 * d1 + d2 * d2 < k.rl2 && k.index[t] != i) buf.push_back(k.index[t]);
-    }
-  });
-}
-
 }  // namespace
 
 // Cell-list build: sort the particles into cells of side >= r_L, then each row from the 27
 // cells around a particle's own, reading the candidates' positions from a copy in cell order
 // (a row's candidates then lie in a few contiguous runs; read in input order, the cache misses
 // dominated the build). Rows are built in cell order and concatenated in particle order.
-// Per-kind build (NeighbourOptions::kind_grids): one grid per (type b, list radius) pair, rows in
-// input order from the grids of the row's kinds. False (nothing built) where a periodic kind
-// grid has fewer than 3 cells a side: then the single grid builds the list.
-bool NeighbourList::build_kind_grids(std::span<const double> x) {
-  const std::size_t n = x.size() / 3;
-  std::vector<std::vector<std::uint32_t>> members(ntypes_);
-  for (std::size_t i = 0; i < n; ++i) members[types_[i]].push_back(static_cast<std::uint32_t>(i));
-  std::vector<KindGrid> grids;
-  std::vector<std::pair<std::size_t, double>> keys;           // (member type, rl2) of each grid
-  std::vector<std::ptrdiff_t> grid_of(pair_rl2_.size(), -1);  // per pair of types (a, b)
-  for (std::size_t a = 0; a < ntypes_; ++a) {
-    for (std::size_t b = 0; b < ntypes_; ++b) {
-      const double rl2 = pair_rl2_[a * ntypes_ + b];
-      if (rl2 == 0.0 || members[a].empty() || members[b].empty()) continue;
-      const auto it = std::find(keys.begin(), keys.end(), std::pair{b, rl2});
-      if (it == keys.end()) {
-        grids.push_back(kind_grid(x, members[b], rl2, periodic_, box_, inv_box_));
-        if (periodic_ && !grids.back().grid.wrap) return false;
-        keys.emplace_back(b, rl2);
-      }
-      grid_of[a * ntypes_ + b] = std::find(keys.begin(), keys.end(), std::pair{b, rl2}) - keys.begin();
-    }
-  }
-  std::vector<std::uint32_t> count(n);
-  const std::size_t chunks = (n + kChunk - 1) / kChunk;
-  std::vector<std::vector<std::uint32_t>> chunk_lists(chunks);
-#pragma omp parallel for schedule(dynamic, 1) if (n >= 1024)
-  for (std::size_t ch = 0; ch < chunks; ++ch) {
-    auto& buf = chunk_lists[ch];
-    for (std::size_t i = ch * kChunk; i < std::min(n, (ch + 1) * kChunk); ++i) {
-      const std::size_t before = buf.size();
-      for (std::size_t b = 0; b < ntypes_; ++b) {
-        const std::ptrdiff_t g = grid_of[types_[i] * ntypes_ + b];
-        if (g >= 0) append_kind_row(buf, i, x, grids[static_cast<std::size_t>(g)]);
-      }
-      std::sort(buf.begin() + static_cast<std::ptrdiff_t>(before), buf.end());
-      count[i] = static_cast<std::uint32_t>(buf.size() - before);
-    }
-  }
-  std::vector<std::size_t> order(n);
-  for (std::size_t i = 0; i < n; ++i) order[i] = i;
-  concatenate_rows(chunk_lists, order, count, offsets_, indices_);
-  return true;
-}
-
 void NeighbourList::build_cells(std::span<const double> x) {
-  if (options_.kind_grids && !pair_rl2_.empty() && build_kind_grids(x)) return;
   const double rl = list_radius();
-  const CellGrid grid = cell_grid(x, rl, periodic_, box_, inv_box_, x.size() / 3);
+  const CellGrid grid = cell_grid(x, rl, periodic_, box_, inv_box_);
   if (periodic_ && !grid.wrap) {  // too few cells for the 27-cell stencil to be distinct
     build_all_pairs(x);
     return;

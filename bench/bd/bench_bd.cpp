@@ -283,30 +283,13 @@ InitialState table4_particles(const Table4System& sys, double L, std::uint64_t s
   return s;
 }
 
-// Milliseconds of one build of the integrator's neighbour list at its current positions (the
-// median of 5), with one cell grid for all kinds or one per kind (NeighbourOptions::kind_grids).
-double list_build_ms(const Integrator& bd, const ForceField& ff, NeighbourOptions options, bool kind_grids) {
-  options.kind_grids = kind_grids;
-  NeighbourList list(bd.neighbour_list().geometry(), ff.max_cutoff(), options);
-  list.set_pair_cutoffs(bd.types(), ff.pair_cutoffs(), ff.types().size());
-  std::vector<double> ms;
-  for (int r = 0; r < 5; ++r) {
-    rpyfmm::StopWatch w;
-    list.build(bd.positions());
-    ms.push_back(1e3 * w.seconds());
-  }
-  std::nth_element(ms.begin(), ms.begin() + 2, ms.end());
-  return ms[2];
-}
-
 int bench_sac_table4(int argc, char** argv) {
   const int steps = std::stoi(arg(argc, argv, "--steps", "20"));
   const int warmup = std::stoi(arg(argc, argv, "--warmup", "3"));
   const std::string scheme = arg(argc, argv, "--scheme", "sac");
   std::printf(
       "system,alumina,silica,scheme,threads,box_nm,steps,ms_per_iteration,k20m_ms,neighbours_ms,forces_ms,"
-      "other_ms,list_radius_nm,list_entries_per_particle,rebuilds,complexes,adsorbed,build_one_grid_ms,"
-      "build_kind_grids_ms\n");
+      "other_ms,list_radius_nm,list_entries_per_particle,rebuilds,complexes,adsorbed\n");
   for (std::size_t k : sizes(arg(argc, argv, "--systems", "0,1,2"))) {
     const Table4System& sys = kTable4.at(k);
     const double L =
@@ -339,13 +322,11 @@ int bench_sac_table4(int argc, char** argv) {
           ++adsorbed;
       }
     }
-    const double one_grid_ms = list_build_ms(bd, ff, c.neighbours, false);
-    const double kind_grids_ms = list_build_ms(bd, ff, c.neighbours, true);
-    std::printf("%zu,%zu,%zu,%s,%d,%.0f,%d,%.4g,%.2f,%.3g,%.3g,%.3g,%.0f,%.1f,%zu,%zu,%zu,%.3g,%.3g\n", k + 1,
-                sys.alumina, sys.silica, scheme.c_str(), omp_get_max_threads(), L, steps, ms, sys.k20m_ms,
-                neighbours_ms, forces_ms, ms - neighbours_ms - forces_ms, bd.neighbour_list().list_radius(),
+    std::printf("%zu,%zu,%zu,%s,%d,%.0f,%d,%.4g,%.2f,%.3g,%.3g,%.3g,%.0f,%.1f,%zu,%zu,%zu\n", k + 1, sys.alumina,
+                sys.silica, scheme.c_str(), omp_get_max_threads(), L, steps, ms, sys.k20m_ms, neighbours_ms, forces_ms,
+                ms - neighbours_ms - forces_ms, bd.neighbour_list().list_radius(),
                 static_cast<double>(bd.neighbour_list().pair_entries()) / static_cast<double>(n),
-                bd.neighbour_rebuilds() - rebuilds, complexes, adsorbed, one_grid_ms, kind_grids_ms);
+                bd.neighbour_rebuilds() - rebuilds, complexes, adsorbed);
     std::fflush(stdout);
   }
   return 0;

@@ -8,7 +8,8 @@
 #include <vector>
 
 // rpy/src (private to rpyfmm::rpy and this layer): the Lanczos iteration on a KrylovSpace and the
-// load checks, so that the distributed sampler is the serial one with other inner products.
+// load checks, so that the distributed sampler is the serial one, on a distributed basis.
+#include "krylov_space.hpp"
 #include "load_scaling.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/random.hpp"
@@ -18,70 +19,6 @@ namespace rpyfmm::mpi {
 namespace {
 
 constexpr const char* kWhere = "rpyfmm::mpi::sqrt_apply";
-
-// A Lanczos basis distributed as the particles: each rank's entries in a HostKrylovSpace (the
-// serial kernels), inner products summed per rank and then over the ranks. The ranks' partial
-// sums are all-gathered and added in rank order on every rank, so every rank gets the same
-// value bit for bit (an MPI_Allreduce need not give every rank the same rounding) and takes the
-// same branches of the iteration. n() is the global length, which the iteration uses for its
-// bounds (iterations, a basis spanning R^n).
-class DistributedKrylovSpace final : public rpy::sqrt_detail::KrylovSpace {
- public:
-  DistributedKrylovSpace(const Communicator& comm, std::size_t local_n, std::size_t global_n)
-      : comm_(comm), local_(local_n), global_n_(global_n) {}
-
-  [[nodiscard]] std::size_t n() const override { return global_n_; }
-  void clear() override { local_.clear(); }
-  double* push() override { return local_.push(); }
-  [[nodiscard]] double* vector(std::size_t q) override { return local_.vector(q); }
-  [[nodiscard]] std::size_t basis_size() const override { return local_.basis_size(); }
-  [[nodiscard]] double* work() override { return local_.work(); }
-  double dot(const double* x, const double* y) override {
-    double partial = local_.dot(x, y);
-    double sum = 0.0;
-    sum_over_ranks(1, &partial, &sum);
-    return sum;
-  }
-  void dots(std::size_t k, const double* y, double* h) override {
-    std::vector<double> partial(k);
-    local_.dots(k, y, partial.data());
-    sum_over_ranks(k, partial.data(), h);
-  }
-  void subtract_combination(std::size_t k, const double* h, double* y) override {
-    local_.subtract_combination(k, h, y);
-  }
-  void axpy(double a, const double* x, double* y) override { local_.axpy(a, x, y); }
-  void scale_into(double a, const double* x, double* out) override { local_.scale_into(a, x, out); }
-  void combine(std::size_t k, const double* c, double* out) override { local_.combine(k, c, out); }
-  void require_finite(const double* y, const char* where, long long product) override {
-    comm_.run([&] { local_.require_finite(y, where, product); });
-  }
-
-  [[nodiscard]] double communication_seconds() const { return seconds_; }
-
- private:
-  // out[q] = sum over ranks r, in rank order, of rank r's partial[q], q < k.
-  void sum_over_ranks(std::size_t k, const double* partial, double* out) {
-    const auto ranks = static_cast<std::size_t>(comm_.size());
-    gathered_.resize(k * ranks);
-    const double start = MPI_Wtime();
-    check_mpi(MPI_Allgather(partial, static_cast<int>(k), MPI_DOUBLE, gathered_.data(), static_cast<int>(k), MPI_DOUBLE,
-                            comm_.get()),
-              "MPI_Allgather");
-    seconds_ += MPI_Wtime() - start;
-    for (std::size_t q = 0; q < k; ++q) {
-      double s = 0.0;
-      for (std::size_t r = 0; r < ranks; ++r) s += gathered_[r * k + q];
-      out[q] = s;
-    }
-  }
-
-  const Communicator& comm_;
-  rpy::sqrt_detail::HostKrylovSpace local_;
-  std::size_t global_n_;
-  std::vector<double> gathered_;
-  double seconds_ = 0.0;
-};
 
 // The options rpy::sqrt_apply accepts for Lanczos, checked on this rank.
 void check_options(const rpy::SqrtOptions& options) {
@@ -146,7 +83,7 @@ rpy::SqrtReport sqrt_apply(const DistributedDirectRpy& op, std::span<const doubl
   resolved.preconditioner = rpy::SqrtPreconditioner::none;
 
   const std::size_t n = 3 * op.local_size();
-  DistributedKrylovSpace space(comm, n, 3 * op.global_size());
+  DistributedKrylovSpace space(comm, op.counts());
   const rpy::SqrtReport report = rpy::sqrt_detail::lanczos_sqrt_in_space(
       space, [&](const double* x, double* y) { op.apply(std::span<const double>(x, n), std::span<double>(y, n)); },
       local_z.data(), local_w.data(), resolved);

@@ -281,17 +281,15 @@ TEST(NeighbourList, PairCutoffsListEachKindWithinItsOwnRadius) {
   const std::vector<double> cutoffs = {3.0, 1.2, 0.0,  //
                                        1.2, 0.8, 0.0,  //
                                        0.0, 0.0, 0.0};
-  // n = 50: all pairs; 700 in a box of 15: cells, one grid or one per kind (kind_grids); 700 in a
-  // periodic box of 9: the largest kind's grid has 2 cells a side, so the single grid's path.
-  for (const auto& [n, box_edge] : {std::pair<std::size_t, double>{50, 9.0}, {700, 15.0}, {700, 9.0}}) {
-    for (const auto& [periodic, kind_grids] : {std::pair{false, true}, {true, true}, {false, false}, {true, false}}) {
-      const double box = box_edge;
+  for (const std::size_t n : {50u, 700u}) {
+    for (const bool periodic : {false, true}) {
+      const double box = n < 64 ? 9.0 : 15.0;
       auto g = periodic ? rpyfmm::rpy::Geometry::periodic(box) : rpyfmm::rpy::Geometry::open();
       const auto x = random_points(n, box, 5);
       std::vector<std::uint32_t> types(n);
       for (std::size_t i = 0; i < n; ++i)
         types[i] = static_cast<std::uint32_t>((i * 7) % 10 < 2 ? 0 : (i % 9 == 4 ? 2 : 1));
-      NeighbourList list(g, 3.0, {.skin = skin, .kind_grids = kind_grids});
+      NeighbourList list(g, 3.0, {.skin = skin});
       list.set_pair_cutoffs(types, cutoffs, 3);
       list.build(x);
       std::size_t listed = 0;

@@ -15,6 +15,11 @@
 
 namespace rpyfmm::rpy::sqrt_detail {
 
+/// Fixed chunk length of the reductions: the summation order depends on n only, never on threads.
+/// Each chunk is summed in index order from 0, then the chunk sums in order (dots: always; dot:
+/// when there are several). rpyfmm::mpi's Krylov space reproduces this order across ranks.
+inline constexpr std::size_t kReductionChunk = 4096;
+
 /// Deterministic inner product x . y (length n).
 double dot(const double* x, const double* y, std::size_t n);
 /// Deterministic 2-norm.
@@ -37,8 +42,8 @@ void require_finite_product(const double* y, std::size_t n, std::size_t nrhs, co
 
 /// Applies `op` to `nrhs` vectors and counts the call in `report`; throws
 /// numerical_failure if the result holds NaN/Inf (names `where`).
-void apply_checked(const LinearOperatorView& op, const double* x, double* y, std::size_t nrhs,
-                   SqrtReport& report, const char* where);
+void apply_checked(const LinearOperatorView& op, const double* x, double* y, std::size_t nrhs, SqrtReport& report,
+                   const char* where);
 
 /// Solvers; inputs are already validated by sqrt_apply().
 /// lanczos_sqrt: `first_product` = op z (nrhs = 1) or empty, as in sqrt_apply.
@@ -46,8 +51,8 @@ SqrtReport lanczos_sqrt(const LinearOperatorView& op, std::span<const double> z,
                         const SqrtOptions& options, std::span<const double> first_product = {});
 SqrtReport chebyshev_sqrt(const LinearOperatorView& op, std::span<const double> z, std::span<double> w,
                           std::size_t nrhs, const SqrtOptions& options);
-SqrtReport dense_sqrt(const LinearOperatorView& op, std::span<const double> z, std::span<double> w,
-                      std::size_t nrhs, const SqrtOptions& options);
+SqrtReport dense_sqrt(const LinearOperatorView& op, std::span<const double> z, std::span<double> w, std::size_t nrhs,
+                      const SqrtOptions& options);
 
 /// Coefficients c_0..c_K of the Chebyshev interpolant of sqrt on [a, b] at
 /// K+1 Chebyshev points of the first kind (sqrt(x) = sum c_k T_k(t), with

@@ -11,8 +11,7 @@
 namespace rpyfmm::rpy::sqrt_detail {
 
 namespace {
-// Fixed chunk length: the summation order depends on n only, never on threads.
-constexpr std::size_t kChunk = 4096;
+constexpr std::size_t kChunk = kReductionChunk;
 }  // namespace
 
 double dot(const double* x, const double* y, std::size_t n) {
@@ -37,7 +36,9 @@ double dot(const double* x, const double* y, std::size_t n) {
   return s;
 }
 
-double norm2(const double* x, std::size_t n) { return std::sqrt(dot(x, x, n)); }
+double norm2(const double* x, std::size_t n) {
+  return std::sqrt(dot(x, x, n));
+}
 
 void axpy(double a, const double* x, double* y, std::size_t n) {
   const auto nn = static_cast<std::int64_t>(n);

@@ -31,10 +31,6 @@ struct NeighbourOptions {
   /// regardless (the fixed-interval strategy of its Table 1, for comparison only:
   /// it can miss pairs when particles move fast).
   int fixed_interval = 0;
-  /// With set_pair_cutoffs: one cell grid per interaction kind (pair of types), each particle of
-  /// type b in cells of side >= the kind's list radius (GPU BD paper Sec. 4.2), instead of one
-  /// grid sized by the largest radius. Both give the same list, entry for entry.
-  bool kind_grids = true;
 };
 
 class NeighbourList {
@@ -82,7 +78,6 @@ class NeighbourList {
  private:
   void build_all_pairs(std::span<const double> positions);
   void build_cells(std::span<const double> positions);
-  bool build_kind_grids(std::span<const double> positions);
 
   rpy::Geometry geometry_;
   bool periodic_;

@@ -31,10 +31,10 @@ void fill_normal(std::span<double> local_z, std::size_t offset, std::uint64_t se
 /// rpy/src/sqrt/lanczos.cpp), with every inner product reduced over the ranks. options.method
 /// must be lanczos or automatic (Lanczos) and options.preconditioner none or automatic (none:
 /// the block preconditioner is not offered across ranks); every rank must pass the same
-/// options. The result equals rpy::sqrt_apply's on the serial DirectRpy to round-off (the inner
-/// products are summed per rank, then over the ranks in rank order: docs/mpi.md), and is
-/// deterministic and the same on every rank for a given partition.
-/// `inner_products_seconds`, where not null, receives this rank's time in the all-gathers of the
+/// options. The result is, bit for bit, this rank's share of what rpy::sqrt_apply gives with
+/// the serial DirectRpy on the whole set, whatever the number of ranks and the partition: every
+/// inner product is summed in the serial order (mpi/src/krylov_space.hpp, docs/mpi.md).
+/// `inner_products_seconds`, where not null, receives this rank's time in the MPI calls of the
 /// inner products (the products' own MPI time: op.communication().applies_seconds).
 rpy::SqrtReport sqrt_apply(const DistributedDirectRpy& op, std::span<const double> local_z, std::span<double> local_w,
                            const rpy::SqrtOptions& options, double* inner_products_seconds = nullptr);
