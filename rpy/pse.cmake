@@ -24,6 +24,8 @@ set_source_files_properties(${CMAKE_CURRENT_LIST_DIR}/src/pse/scale_line.cpp PRO
   COMPILE_OPTIONS "$<$<CXX_COMPILER_ID:GNU,Clang>:-fno-trapping-math;-fno-math-errno>")
 target_link_libraries(rpyfmm_rpy PRIVATE PkgConfig::FFTW3 ${FFTW3_OMP_LIBRARY} PkgConfig::FFTW3F ${FFTW3F_OMP_LIBRARY})
 
+# The rotational real-space rows: branch-free pair loops (cmake/RpyfmmPairLoops.cmake).
+rpyfmm_vectorize_pair_loops(${CMAKE_CURRENT_LIST_DIR}/src/pse/rotation_real_space_sum.cpp)
 if(RPYFMM_USE_CUDA)
   target_sources(rpyfmm_rpy PRIVATE ${CMAKE_CURRENT_LIST_DIR}/src/pse/pse_rpy_cuda.cu
                                     ${CMAKE_CURRENT_LIST_DIR}/src/pse/host_copy.cpp)

@@ -1,10 +1,15 @@
 // rpyfmm — the rotational blocks of the PSE real-space part on the CPU (rotation_real_space_sum.hpp).
+// The rows are branch-free loops over a particle's neighbour slots that GCC vectorizes with
+// gathers (compiled per instruction-set level by simd_dispatch, with the pair-loop flags of
+// cmake/RpyfmmPairLoops.cmake): positions, forces and torques are first gathered into slot order,
+// one array per component.
 #include "rotation_real_space_sum.hpp"
 
 #include <cmath>
 #include <cstdint>
 
 #include "kernels_common.hpp"
+#include "rpyfmm/core/simd_dispatch.hpp"
 
 namespace rpyfmm::rpy::pse::detail {
 
@@ -13,11 +18,62 @@ namespace {
 /// Loops below this many list entries run serially.
 constexpr std::size_t kParallelPairs = 16384;
 
-/// a x b.
-inline void cross(const double* a, const double* b, double* out) {
-  out[0] = a[1] * b[2] - a[2] * b[1];
-  out[1] = a[2] * b[0] - a[0] * b[2];
-  out[2] = a[0] * b[1] - a[1] * b[0];
+/// Positions, forces and torques by slot, one array per component.
+struct RotationSlots {
+  const double* x[3];
+  const double* f[3];
+  const double* t[3];
+};
+
+/// The table's interpolation data (PseRotationTable) and the box.
+struct RotationFrame {
+  const double* table;
+  double inv_dr, unit_c, unit_hk;
+  double L[3], inv_L[3];
+};
+
+/// One row without the self block: u += sum_q c (T_q x e), w += sum_q c (F_q x e) + h T_q +
+/// k (e . T_q) e over the neighbour slots nb[0 .. count) of the particle at xi (docs/theory/pse.md,
+/// "Rotation"; rotation_real_space.hpp). A coincident neighbour (r = 0) gets e = 0 and the table's
+/// r = 0 node, h(0) = self: the self block's form h(0) T_q.
+void rotation_row(const int* nb, std::size_t count, const double xi[3], const RotationSlots& s, const RotationFrame& fr,
+                  double u[3], double w[3]) {
+  simd_dispatch([=]() RPYFMM_SIMD_BODY {
+    double ux = 0.0, uy = 0.0, uz = 0.0, wx = 0.0, wy = 0.0, wz = 0.0;
+#pragma omp simd reduction(+ : ux, uy, uz, wx, wy, wz)
+    for (std::size_t q = 0; q < count; ++q) {
+      const auto j = static_cast<std::size_t>(nb[q]);
+      const double dx = minimum_image(xi[0] - s.x[0][j], fr.L[0], fr.inv_L[0]);
+      const double dy = minimum_image(xi[1] - s.x[1][j], fr.L[1], fr.inv_L[1]);
+      const double dz = minimum_image(xi[2] - s.x[2][j], fr.L[2], fr.inv_L[2]);
+      const double r2 = dx * dx + dy * dy + dz * dz;
+      const double r = std::sqrt(r2);
+      const double inv_r = r2 > 0.0 ? 1.0 / r : 0.0;
+      double at = r * fr.inv_dr;
+      const int node = static_cast<int>(at);
+      at -= static_cast<double>(node);
+      const double* e = fr.table + 3 * node;
+      const double c = fr.unit_c * (e[0] + at * (e[3] - e[0]));
+      const double h = fr.unit_hk * (e[1] + at * (e[4] - e[1]));
+      const double k = fr.unit_hk * (e[2] + at * (e[5] - e[2]));
+      const double ex = dx * inv_r, ey = dy * inv_r, ez = dz * inv_r;
+      const double fx = s.f[0][j], fy = s.f[1][j], fz = s.f[2][j];
+      const double tx = s.t[0][j], ty = s.t[1][j], tz = s.t[2][j];
+      const double et = k * (ex * tx + ey * ty + ez * tz);
+      ux += c * (ty * ez - tz * ey);
+      uy += c * (tz * ex - tx * ez);
+      uz += c * (tx * ey - ty * ex);
+      wx += c * (fy * ez - fz * ey) + h * tx + et * ex;
+      wy += c * (fz * ex - fx * ez) + h * ty + et * ey;
+      wz += c * (fx * ey - fy * ex) + h * tz + et * ez;
+    }
+    u[0] = ux;
+    u[1] = uy;
+    u[2] = uz;
+    w[0] = wx;
+    w[1] = wy;
+    w[2] = wz;
+  });
 }
 
 }  // namespace
@@ -27,41 +83,37 @@ RotationRealSpaceSum::RotationRealSpaceSum(const PseParameters& p, const std::ar
 
 void RotationRealSpaceSum::apply(const RealSpaceSum::SlotLists& lists, std::span<const double> x, const double* forces,
                                  const double* torques, double* velocities, double* angular) const {
-  const auto slots = static_cast<std::int64_t>(lists.order.size());
-  const double inv_L[3] = {1.0 / box_[0], 1.0 / box_[1], 1.0 / box_[2]};
+  const std::size_t n = lists.order.size();
+  // x, y, z, fx, fy, fz, tx, ty, tz by slot.
+  work_.resize(9 * n);
+  for (std::size_t s = 0; s < n; ++s) {
+    const std::size_t i = lists.order[s];
+    for (int c = 0; c < 3; ++c) {
+      work_[c * n + s] = x[3 * i + c];
+      work_[(3 + c) * n + s] = forces[3 * i + c];
+      work_[(6 + c) * n + s] = torques[3 * i + c];
+    }
+  }
+  const double* wk = work_.data();
+  const RotationSlots slots{
+      {wk, wk + n, wk + 2 * n}, {wk + 3 * n, wk + 4 * n, wk + 5 * n}, {wk + 6 * n, wk + 7 * n, wk + 8 * n}};
+  const RotationFrame frame{table_.data(),
+                            table_.inv_dr(),
+                            table_.unit_c(),
+                            table_.unit_hk(),
+                            {box_[0], box_[1], box_[2]},
+                            {1.0 / box_[0], 1.0 / box_[1], 1.0 / box_[2]}};
   const double self = table_.self();
 #pragma omp parallel for schedule(dynamic, 64) if (lists.list.size() >= kParallelPairs)
-  for (std::int64_t s = 0; s < slots; ++s) {
-    const std::size_t i = lists.order[static_cast<std::size_t>(s)];
-    double u[3] = {0.0, 0.0, 0.0};
-    double w[3] = {self * torques[3 * i], self * torques[3 * i + 1], self * torques[3 * i + 2]};
-    for (std::size_t e = lists.begin[static_cast<std::size_t>(s)]; e < lists.begin[static_cast<std::size_t>(s) + 1];
-         ++e) {
-      const std::size_t j = lists.order[static_cast<std::size_t>(lists.list[e])];
-      double d[3];
-      for (int c = 0; c < 3; ++c) d[c] = minimum_image(x[3 * i + c] - x[3 * j + c], box_[c], inv_L[c]);
-      const double r = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-      const double* f = forces + 3 * j;
-      const double* t = torques + 3 * j;
-      if (r == 0.0) {  // coincident: the self block's form (c = k = 0 at r = 0)
-        for (int c = 0; c < 3; ++c) w[c] += self * t[c];
-        continue;
-      }
-      const RotationCoefficients k = table_(r);
-      const double inv_r = 1.0 / r;
-      const double e_ij[3] = {d[0] * inv_r, d[1] * inv_r, d[2] * inv_r};
-      double txe[3], fxe[3];
-      cross(t, e_ij, txe);
-      cross(f, e_ij, fxe);
-      const double et = e_ij[0] * t[0] + e_ij[1] * t[1] + e_ij[2] * t[2];
-      for (int c = 0; c < 3; ++c) {
-        u[c] += k.c * txe[c];
-        w[c] += k.c * fxe[c] + k.h * t[c] + k.k * et * e_ij[c];
-      }
-    }
+  for (std::int64_t ss = 0; ss < static_cast<std::int64_t>(n); ++ss) {
+    const auto s = static_cast<std::size_t>(ss);
+    const std::size_t i = lists.order[s];
+    const double xi[3] = {slots.x[0][s], slots.x[1][s], slots.x[2][s]};
+    double u[3], w[3];
+    rotation_row(lists.list.data() + lists.begin[s], lists.begin[s + 1] - lists.begin[s], xi, slots, frame, u, w);
     for (int c = 0; c < 3; ++c) {
       velocities[3 * i + c] += inv_mu_ * u[c];
-      angular[3 * i + c] += inv_mu_ * w[c];
+      angular[3 * i + c] += inv_mu_ * (self * torques[3 * i + c] + w[c]);
     }
   }
 }

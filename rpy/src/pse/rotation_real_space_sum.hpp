@@ -5,6 +5,7 @@
 
 #include <array>
 #include <span>
+#include <vector>
 
 #include "real_space_sum.hpp"
 #include "rpyfmm/rpy/pse/pse_parameters.hpp"
@@ -20,7 +21,8 @@ class RotationRealSpaceSum {
 
   /// U += M_r^{UT} T, W += M_r^{WF} F + M_r^{WT} T (3N each, input order) for positions x (wrapped
   /// into the box) with the neighbour lists `lists` of the same positions. Each particle's row is
-  /// summed by one thread in list order: the result does not depend on the thread count.
+  /// summed by one thread, in the vector lanes of its instruction-set level: the result does not
+  /// depend on the thread count or on earlier calls.
   void apply(const RealSpaceSum::SlotLists& lists, std::span<const double> x, const double* forces,
              const double* torques, double* velocities, double* angular) const;
 
@@ -30,6 +32,7 @@ class RotationRealSpaceSum {
   std::array<double, 3> box_;
   double inv_mu_;
   PseRotationTable table_;
+  mutable std::vector<double> work_;  // positions, forces and torques gathered into slot order
 };
 
 }  // namespace rpyfmm::rpy::pse::detail

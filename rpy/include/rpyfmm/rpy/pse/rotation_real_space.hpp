@@ -67,6 +67,12 @@ class PseRotationTable {
   [[nodiscard]] double self() const { return unit_hk_ * data_[1]; }
   [[nodiscard]] double dr() const { return dr_; }
   [[nodiscard]] std::size_t size() const { return data_.size() / 3 - 1; }
+  /// The nodes' (c, h, k), dimensionless, three per node (size() + 1 nodes), 1 / dr() and the
+  /// units of c and of h, k: for row kernels that interpolate several pairs at once.
+  [[nodiscard]] const double* data() const { return data_.data(); }
+  [[nodiscard]] double inv_dr() const { return inv_dr_; }
+  [[nodiscard]] double unit_c() const { return unit_c_; }
+  [[nodiscard]] double unit_hk() const { return unit_hk_; }
 
  private:
   double dr_ = 0.0;
