@@ -2,7 +2,8 @@
 """Aggregation of silica-covered alumina particles (alumina_silica.toml: the
 36-18 adsorption well; see the README for why not the DLVO config), by three
 methods from one initial state and noise seed, and the number of aggregates
-against time as a plot (aggregation.png):
+against time, with the aluminas' diffusion coefficient from their mean-squared
+displacement, as a plot (aggregation.png):
 
 * naive: free draining, alumina by Langevin dynamics, silica by Brownian
   dynamics (the paper's eqs. 3-5): each alumina drags its adsorbed silica's
@@ -23,6 +24,7 @@ radius R_A of the SAC scheme; an aggregate is a connected group holding at
 least two aluminas (linked directly or through adsorbed silica).
 
     OMP_NUM_THREADS=1 python3 examples/bd/alumina_silica/aggregation.py [--steps N] [--rpy_steps N]
+    python3 examples/bd/alumina_silica/aggregation.py --only     # the plot alone, from the runs in --out
 """
 
 from __future__ import annotations
@@ -99,6 +101,23 @@ def aggregates(traj: an.Trajectory) -> np.ndarray:
     return np.array(counts)
 
 
+def alumina_diffusion(traj: an.Trajectory, lags_us: list[float]) -> tuple[np.ndarray, np.ndarray]:
+    """D / D0 of the aluminas from their mean-squared displacement over each lag (all frame pairs,
+    all aluminas), with a standard error from the number of independent windows:
+    D sqrt(2 / (3 windows)). Lags >> m / gamma = 3.5e-8 s, so no inertia correction."""
+    x = traj.positions[:, traj.species == "alumina"]
+    step = traj.times[1] - traj.times[0]
+    d0 = 1.0 / (6.0 * math.pi * A_ALUMINA)  # kT / (6 pi eta a), kT = eta = 1
+    values, errors = [], []
+    for lag in lags_us:
+        k = max(1, int(round(lag * 1e-6 / TIME_UNIT / step)))
+        d = np.sum((x[k:] - x[:-k]) ** 2, axis=2).mean() / (6.0 * k * step) / d0
+        windows = max(1, (len(x) - 1) // k) * x.shape[1]
+        values.append(d)
+        errors.append(d * math.sqrt(2.0 / (3.0 * windows)))
+    return np.array(values), np.array(errors)
+
+
 def main() -> int:
     args = an.script_args(
         __doc__, HERE,
@@ -130,7 +149,8 @@ def main() -> int:
             print(f"  {name}: stopped before step {steps}; plotting its trajectory up to there")
         seconds = time.perf_counter() - start
         print(f"  {name}: {seconds:.0f} s ({1e3 * seconds / steps:.3f} ms per step of the {steps} asked for)")
-    plt, fig, ax = an.figure(1, 1, figsize=(7, 4.2))
+    plt, fig, (ax, bx) = an.figure(1, 2, figsize=(12, 4.2))
+    lags = [2.5, 5.0, 10.0, 20.0]  # us
     for name, (_, _, _, label) in CASES.items():
         path = args.out / name / "trajectory.xyz"
         if not path.is_file():
@@ -140,10 +160,22 @@ def main() -> int:
         print(f"{name}: aggregates {counts[0]} at t = 0, {counts.max()} at most, {counts[-1]} at "
               f"t = {traj.times[-1] * TIME_UNIT * 1e3:.3f} ms")
         ax.step(traj.times * TIME_UNIT * 1e3, counts, where="post", label=label)
+        d, err = alumina_diffusion(traj, lags)
+        print(f"{name}: alumina D / D0 at lags {lags} us: " + ", ".join(f"{v:.3f} ± {e:.3f}" for v, e in zip(d, err)))
+        bx.errorbar(lags, d, yerr=err, marker="o", capsize=3, label=label)
     ax.set_xlabel("time (ms)")
     ax.set_ylabel("aggregates (>= 2 aluminas)")
     ax.set_title(f"{args.aluminas} alumina + {args.aluminas * args.silica} silica, dt = 5e-10 s")
     ax.legend()
+    gamma_ratio = A_SILICA / A_ALUMINA * args.silica
+    for value, text in ((1.0, "free alumina"), (1.0 / (1.0 + gamma_ratio / 3.0), "radial drag"),
+                        (1.0 / (1.0 + gamma_ratio), "kT / sum gamma")):
+        bx.axhline(value, color="grey", lw=0.8, ls=":")
+        bx.text(lags[-1] * 1.05, value, text, va="center", fontsize=8)
+    bx.set_xscale("log")
+    bx.set_xlabel("lag (us)")
+    bx.set_ylabel("alumina D / D0 (MSD / 6 D0 t)")
+    bx.set_title("alumina mobility: caged by free draining only")
     return an.save_figure(fig, args.plot)
 
 
