@@ -26,6 +26,7 @@
 
 #include "configurations.hpp"
 #include "fmm_rotation_test_util.hpp"
+#include "fmm_rpy_test_util.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
@@ -65,30 +66,6 @@ t::Configuration make(const std::string& dist, std::size_t n) {
   if (dist == "cylinder") return t::cylinder_surface(n, 1e-4, 42);
   if (dist == "eight") return t::eight_surface(n, 1e-4, 42);
   return t::random_suspension(n, 1.0, 0.1, 42);
-}
-
-// Exact RPY velocity at sampled targets (independent of the operators).
-double sampled_error(const t::Configuration& c, const std::vector<double>& f, const std::vector<double>& u,
-                     std::size_t samples) {
-  const std::size_t n = c.a.size();
-  double num = 0, den = 0;
-  for (std::size_t s = 0; s < std::min(samples, n); ++s) {
-    const std::size_t i = (s * 7919) % n;
-    double ui[3] = {0, 0, 0};
-    for (std::size_t j = 0; j < n; ++j) {
-      const double d[3] = {c.x[3 * i] - c.x[3 * j], c.x[3 * i + 1] - c.x[3 * j + 1], c.x[3 * i + 2] - c.x[3 * j + 2]};
-      if (i == j) {
-        for (int k = 0; k < 3; ++k) ui[k] += rpyfmm::rpy::rpy_self(c.a[i]) * f[3 * i + k];
-      } else {
-        rpyfmm::rpy::rpy_pair_add(d, c.a[i], c.a[j], 1.0, &f[3 * j], ui);
-      }
-    }
-    for (int k = 0; k < 3; ++k) {
-      num += (u[3 * i + k] - ui[k]) * (u[3 * i + k] - ui[k]);
-      den += ui[k] * ui[k];
-    }
-  }
-  return std::sqrt(num / den);
 }
 
 // Median time of the product with torques, without building its plan (set-up, once per
@@ -163,7 +140,7 @@ int main(int argc, char** argv) {
           near_t.push_back(tm["rpy_near"]);
           far_t.push_back(tm.count("total") ? tm["total"] : 0.0);
         }
-        const double err = sampled_error(c, f, u, 200);
+        const double err = t::sampled_error(c, f, u, 200);
         std::vector<double> ur(3 * n), wr(3 * n);
         double rot_plan_s = 0;
         const double rot_s = median_rotation_time(op, f, tq, ur, wr, repeats, rot_plan_s);

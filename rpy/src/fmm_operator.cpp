@@ -64,7 +64,26 @@ int default_leaf_capacity(double eps) {
 // 1e4 ... 2e5 points, mostly slower (cylinder 1e5 at 1e-6: 0.82x at 60 points per leaf): the near
 // field is cheap enough there that large leaves pay. The exception is a partly split tree (leaves
 // on two levels): suspension 2e5 at 1e-6, share 0.67, 1.32x (Intel), 1.17-1.22x (AMD Zen-4).
-fmm::FittedGridRule fitted_grid_rule(double eps) {
+//
+// Large volume-filling clouds at 6 digits, with either kernel set: a uniform cloud's bounding-cube
+// tree jumps from ~120 points per leaf at 5e5 points to ~240 at 1e6 (4096 leaves), where the
+// near field outweighs the far field. Fitted leaves move work into the far field and here lower
+// the error as well. Measured with these leaves forced on commit 1cc8359, 2026-12-06, Intel Xeon
+// (AVX-512), 2 vCPUs, 1 thread, random suspension N = 1e6 at 1e-6, process CPU time of one product
+// (the machine was shared, so wall times were not comparable), medians of 3 per run:
+//  - AVX-512 kernels: bounding-cube tree 12.4-14.7 s (4 runs), 120 points per leaf (8000 leaves)
+//    11.0-11.1 s (3 runs), 100 points 13.0 s, 140 points 12.3 s, 80 points 12.3 s;
+//  - AVX2 level: bounding-cube tree 16.5 s, 120 points 15.3 s, 80 points (12167 leaves) 13.4 s;
+//  - U's error at 200 sampled rows: 9.05e-7 (bounding cube), 7.99e-7 (120), 8.30e-7 (80),
+//    9.33e-7 (100). Leaves of ~57 points exceeded eps at this size (1.03e-6, noted above).
+constexpr std::size_t kLargeCloud = 500000;
+constexpr double kVolumeFillingCloud = 0.5;  // fit_leaf_grid's fill above which a cloud counts as volume-filling
+
+fmm::FittedGridRule fitted_grid_rule(double eps, std::size_t n) {
+  if (fmm::fmm_table_digits_for(eps) == 6 && n >= kLargeCloud) {
+    const int occupancy = simd_level() == SimdLevel::avx512 ? 120 : 80;
+    return {occupancy, kLargeCloud, std::numeric_limits<std::size_t>::max(), kVolumeFillingCloud};
+  }
   if (simd_level() == SimdLevel::avx512) {
     // At 6 digits, partly split trees of volume-filling clouds only (AMD Zen-4 machine,
     // bench/rpy/RESULTS.md at commit 010249d "Partly split trees with the AVX-512 kernels"): uniform suspensions
@@ -165,7 +184,7 @@ void FmmRpy::on_positions_set() {
   }
   const double eps = options_.tolerance;
   plan_ = options_.leaf_capacity > 0 ? make_plan(options_.leaf_capacity, {}, eps, 0)
-                                     : make_plan(default_leaf_capacity(eps), fitted_grid_rule(eps), eps, 0);
+                                     : make_plan(default_leaf_capacity(eps), fitted_grid_rule(eps, size()), eps, 0);
 }
 
 FmmRpy::Plan FmmRpy::make_plan(int leaf_capacity, const fmm::FittedGridRule& fitted_grid, double laplace_eps,

@@ -55,7 +55,8 @@ struct FmmRpyOptions {
   double tolerance = 1e-6;
   /// Points per FMM leaf; 0 = automatic: a capacity measured per tolerance and, where it pays,
   /// a root box fitted so that leaves hold a measured best occupancy (fmm_operator.cpp; with the
-  /// AVX-512 kernels only at 6 digits where the bounding-cube tree is partly split).
+  /// AVX-512 kernels only at 6 digits, where the bounding-cube tree is partly split or a
+  /// volume-filling cloud has 5e5 points or more).
   int leaf_capacity = 0;
 };
 
