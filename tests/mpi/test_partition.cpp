@@ -1,0 +1,314 @@
+// rpyfmm::mpi::SfcPartition: Morton keys against a serial reference (a bit-by-bit interleave on the
+// whole set), the cuts against the serial rule on the whole sorted set (contiguous ranges covering
+// every particle once, the weight bound), independence of the input's distribution over the ranks,
+// the exchange to the owners and back bit for bit, edge cases and collective failure.
+#include <gtest/gtest.h>
+#include <mpi.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <numeric>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "mpi_test_support.hpp"
+#include "rpyfmm/mpi/partition.hpp"
+
+using rpyfmm::ErrorCode;
+using rpyfmm::mpi::Column;
+using rpyfmm::mpi::SfcKey;
+using rpyfmm::mpi::SfcPartition;
+using namespace rpyfmm_mpi_test;
+
+namespace {
+
+const Split kSplits[] = {Split::even, Split::first_empty, Split::last_only, Split::geometric};
+
+// The Morton key by the definition, one bit at a time: bit b of the cell index on axis d becomes
+// bit 3b + (2 - d) of the key.
+std::uint64_t reference_key(const std::uint32_t cell[3]) {
+  std::uint64_t key = 0;
+  for (int b = 0; b < 21; ++b) {
+    for (int d = 0; d < 3; ++d) key |= static_cast<std::uint64_t>((cell[d] >> b) & 1u) << (3 * b + 2 - d);
+  }
+  return key;
+}
+
+// The keys of the whole set (3N positions), with the cube taken serially over all of them.
+std::vector<std::uint64_t> reference_keys(const std::vector<double>& x) {
+  const std::size_t n = x.size() / 3;
+  double lo[3], hi[3];
+  for (int d = 0; d < 3; ++d) {
+    lo[d] = hi[d] = n > 0 ? x[static_cast<std::size_t>(d)] : 0.0;
+    for (std::size_t i = 0; i < n; ++i) lo[d] = std::min(lo[d], x[3 * i + d]), hi[d] = std::max(hi[d], x[3 * i + d]);
+  }
+  double half = 0.0;
+  for (int d = 0; d < 3; ++d) half = std::max(half, 0.5 * hi[d] - 0.5 * lo[d]);
+  std::vector<std::uint64_t> keys(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    std::uint32_t cell[3];
+    for (int d = 0; d < 3; ++d) {
+      const double c = half > 0.0 ? std::floor((0.5 * x[3 * i + d] - 0.5 * lo[d]) / half * 2097152.0) : 0.0;
+      cell[d] = static_cast<std::uint32_t>(std::clamp(c, 0.0, 2097151.0));
+    }
+    keys[i] = reference_key(cell);
+  }
+  return keys;
+}
+
+// Every rank's vector, concatenated in rank order, on every rank.
+template <class T>
+std::vector<T> all_gather(const std::vector<T>& local) {
+  const int ranks = world_size();
+  int mine = static_cast<int>(local.size() * sizeof(T));
+  std::vector<int> counts(static_cast<std::size_t>(ranks)), displs(static_cast<std::size_t>(ranks));
+  MPI_Allgather(&mine, 1, MPI_INT, counts.data(), 1, MPI_INT, MPI_COMM_WORLD);
+  int total = 0;
+  for (std::size_t r = 0; r < counts.size(); ++r) displs[r] = total, total += counts[r];
+  std::vector<T> all(static_cast<std::size_t>(total) / sizeof(T));
+  MPI_Allgatherv(local.data(), mine, MPI_BYTE, all.data(), counts.data(), displs.data(), MPI_BYTE, MPI_COMM_WORLD);
+  return all;
+}
+
+// The serial cut rule on the whole set: sorted by (key, index), q_i = w_i / unit (exact: the unit is
+// a power of two and w_i a double), rank r starting at the first particle with a weight of at least
+// ceil(r Q / P) before it. Returns the number of particles of each rank.
+std::vector<std::uint64_t> reference_counts(const std::vector<SfcKey>& sorted, const std::vector<double>& weights,
+                                            double unit, std::size_t parts) {
+  std::vector<std::uint64_t> q(sorted.size());
+  bool all_zero = true;
+  for (double w : weights) all_zero = all_zero && w == 0.0;
+  for (std::size_t s = 0; s < sorted.size(); ++s) {
+    const double w = weights.empty() ? 1.0 : weights[sorted[s].index];
+    q[s] = all_zero && !weights.empty() ? 1 : static_cast<std::uint64_t>(std::llround(w / unit));
+  }
+  const std::uint64_t total = std::accumulate(q.begin(), q.end(), std::uint64_t{0});
+  std::vector<std::uint64_t> start(parts + 1, sorted.size());
+  start[0] = 0;
+  for (std::size_t r = 1; r < parts; ++r) {
+    // ceil(r Q / P) in integers: r (Q div P) + ceil(r (Q mod P) / P)
+    const std::uint64_t target = r * (total / parts) + (r * (total % parts) + parts - 1) / parts;
+    std::uint64_t before = 0;
+    std::size_t s = 0;
+    while (s < sorted.size() && before < target) before += q[s++];
+    start[r] = s;
+  }
+  std::vector<std::uint64_t> counts(parts);
+  for (std::size_t r = 0; r < parts; ++r) counts[r] = start[r + 1] - start[r];
+  return counts;
+}
+
+// Partitions the global set (3N positions, N weights or none) given to the ranks as `split`, checks
+// it against the serial references and the exchange both ways, and returns this rank's owned list.
+std::vector<SfcKey> check_partition(const std::vector<double>& x, const std::vector<double>& weights, Split split) {
+  const std::size_t n = x.size() / 3;
+  const Partition part = partition_of(n, split);
+  const std::vector<double> local_x = share(x, 3, part.offset, part.n);
+  const std::vector<double> local_w = weights.empty() ? std::vector<double>{} : share(weights, 1, part.offset, part.n);
+  const SfcPartition p(MPI_COMM_WORLD, local_x, local_w);
+  EXPECT_EQ(p.global_size(), n);
+  EXPECT_EQ(p.input_size(), part.n);
+
+  // Keys: the serial reference's, each global index once, and the owned lists in rank order are the
+  // whole set sorted by (key, index): contiguous ranges that cover every particle once.
+  const std::vector<std::uint64_t> keys = reference_keys(x);
+  std::vector<SfcKey> sorted(n);
+  for (std::size_t i = 0; i < n; ++i) sorted[i] = SfcKey{keys[i], i};
+  std::sort(sorted.begin(), sorted.end());
+  const std::vector<SfcKey> owned(p.owned().begin(), p.owned().end());
+  const std::vector<SfcKey> all = all_gather(owned);
+  EXPECT_TRUE(all == sorted) << "the ranks' ranges are not the sorted global set";
+  EXPECT_EQ(p.owned_counts()[static_cast<std::size_t>(world_rank())], owned.size());
+
+  // Cuts: the serial rule's counts, and the bound max part <= ceil(Q / P) + max q_i.
+  const auto parts = static_cast<std::size_t>(world_size());
+  const std::vector<std::uint64_t> expected = reference_counts(sorted, weights, p.weight_unit(), parts);
+  EXPECT_TRUE(std::equal(expected.begin(), expected.end(), p.owned_counts().begin(), p.owned_counts().end()));
+  const auto units = p.owned_weight_units();
+  const std::uint64_t total = std::accumulate(units.begin(), units.end(), std::uint64_t{0});
+  const std::uint64_t largest = *std::max_element(units.begin(), units.end());
+  EXPECT_LE(largest, (total + parts - 1) / parts + p.max_weight_units());
+  if (total > 0) {
+    EXPECT_DOUBLE_EQ(p.imbalance(), static_cast<double>(largest) * static_cast<double>(parts) / total);
+  }
+  for (std::size_t r = 1; r < p.splitters().size(); ++r) EXPECT_LE(p.splitters()[r - 1], p.splitters()[r]);
+
+  // Exchange: positions, radii-like and two more columns (with -0, a subnormal and a NaN payload)
+  // arrive at the owners in owned order, bit for bit; and go back unchanged.
+  std::vector<double> local_a(part.n), local_v(2 * part.n);
+  for (std::size_t i = 0; i < part.n; ++i) {
+    const double g = static_cast<double>(part.offset + i);
+    local_a[i] = g;
+    local_v[2 * i] = i % 3 == 0 ? -0.0 : (i % 3 == 1 ? 4.9e-324 : std::numeric_limits<double>::quiet_NaN());
+    local_v[2 * i + 1] = -g;
+  }
+  const Column columns[] = {{local_x, 3}, {local_a, 1}, {local_v, 2}};
+  const std::vector<std::vector<double>> there = p.to_owners(columns);
+  EXPECT_EQ(there.size(), 3u);
+  std::size_t wrong = 0;
+  for (std::size_t j = 0; j < owned.size(); ++j) {
+    const std::size_t g = owned[j].index;
+    wrong += bitwise_mismatches(share(there[0], 3, j, 1), share(x, 3, g, 1));
+    wrong += there[1][j] != static_cast<double>(g);
+    wrong += there[2][2 * j + 1] != -static_cast<double>(g);
+  }
+  EXPECT_EQ(wrong, 0u) << "columns at the owners";
+  const Column back_columns[] = {{there[0], 3}, {there[1], 1}, {there[2], 2}};
+  const std::vector<std::vector<double>> back = p.to_origin(back_columns);
+  EXPECT_EQ(bitwise_mismatches(back[0], local_x), 0u);
+  EXPECT_EQ(bitwise_mismatches(back[1], local_a), 0u);
+  EXPECT_EQ(bitwise_mismatches(back[2], local_v), 0u);
+  return owned;
+}
+
+// N particles: uniform, or clustered (a few dense clumps and far points), as 3N positions.
+std::vector<double> uniform_positions(std::size_t n, double lo, double hi, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(lo, hi);
+  std::vector<double> x(3 * n);
+  for (double& c : x) c = u(rng);
+  return x;
+}
+
+// Weights spread over three decades, some 0, as measured per-leaf costs might be.
+std::vector<double> spread_weights(std::size_t n, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 3.0);
+  std::vector<double> w(n);
+  for (std::size_t i = 0; i < n; ++i) w[i] = i % 17 == 0 ? 0.0 : std::pow(10.0, u(rng));
+  return w;
+}
+
+// Checks every split and that they all give the same owned list on this rank.
+void check_all_splits(const std::vector<double>& x, const std::vector<double>& weights) {
+  const std::vector<SfcKey> first = check_partition(x, weights, Split::even);
+  for (Split s : kSplits) EXPECT_TRUE(check_partition(x, weights, s) == first) << "split " << static_cast<int>(s);
+}
+
+}  // namespace
+
+TEST(MpiPartition, MortonKeyInterleavesTheBits) {
+  EXPECT_EQ(rpyfmm::mpi::morton_key(1, 0, 0), 4u);
+  EXPECT_EQ(rpyfmm::mpi::morton_key(0, 1, 0), 2u);
+  EXPECT_EQ(rpyfmm::mpi::morton_key(0, 0, 1), 1u);
+  EXPECT_EQ(rpyfmm::mpi::morton_key(2097151, 2097151, 2097151), (std::uint64_t{1} << 63) - 1);
+  std::mt19937_64 rng(5);
+  for (int k = 0; k < 1000; ++k) {
+    const std::uint32_t cell[3] = {static_cast<std::uint32_t>(rng() & 0x1fffff),
+                                   static_cast<std::uint32_t>(rng() & 0x1fffff),
+                                   static_cast<std::uint32_t>(rng() & 0x1fffff)};
+    ASSERT_EQ(rpyfmm::mpi::morton_key(cell[0], cell[1], cell[2]), reference_key(cell));
+  }
+}
+
+TEST(MpiPartition, UniformSetWithUnitWeights) {
+  check_all_splits(uniform_positions(1001, -2.0, 3.0, 1), {});
+}
+
+TEST(MpiPartition, ClusteredSetWithSpreadWeights) {
+  const Particles p = clustered_particles(500, 80, 2);
+  check_all_splits(p.x, spread_weights(p.size(), 3));
+}
+
+TEST(MpiPartition, WeightBoundHoldsInTheInputUnits) {
+  // max part <= W / P + max w_i, up to the fixed point's rounding (at most unit / 2 per particle,
+  // N unit / 2 in all) and the rounding of the double sum W here (N 2^-52 W): the tolerance.
+  const std::vector<double> x = uniform_positions(800, 0.0, 1.0, 4);
+  const std::vector<double> w = spread_weights(800, 5);
+  const Partition part = partition_of(800, Split::geometric);
+  const SfcPartition p(MPI_COMM_WORLD, share(x, 3, part.offset, part.n), share(w, 1, part.offset, part.n));
+  const double total = std::accumulate(w.begin(), w.end(), 0.0);
+  const double largest_w = *std::max_element(w.begin(), w.end());
+  const double tolerance = 800 * p.weight_unit() / 2 + 800 * 0x1p-52 * total;
+  const std::vector<double> parts = p.owned_weights();
+  EXPECT_NEAR(std::accumulate(parts.begin(), parts.end(), 0.0), total, tolerance);
+  for (double part_weight : parts) EXPECT_LE(part_weight, total / world_size() + largest_w + tolerance);
+  EXPECT_LE(p.imbalance(), 1.0 + world_size() * (largest_w + tolerance) / total);
+}
+
+TEST(MpiPartition, CoincidentPointsAreOrderedByGlobalIndex) {
+  std::vector<double> x(3 * 37);
+  for (std::size_t i = 0; i < 37; ++i) x[3 * i] = 1.5, x[3 * i + 1] = -2.0, x[3 * i + 2] = 7.0;
+  check_all_splits(x, {});
+  // Half of them at a second point: two keys, ties within each.
+  for (std::size_t i = 0; i < 37; i += 2) x[3 * i + 2] = 8.0;
+  check_all_splits(x, spread_weights(37, 6));
+}
+
+TEST(MpiPartition, ZeroWeightsEverywhereCountAsOne) {
+  check_all_splits(uniform_positions(50, 0, 1, 7), std::vector<double>(50, 0.0));
+}
+
+TEST(MpiPartition, SingleParticleAndNoParticle) {
+  check_all_splits({0.25, -1.0, 3.0}, {});
+  const SfcPartition p(MPI_COMM_WORLD, {}, {});
+  EXPECT_EQ(p.global_size(), 0u);
+  EXPECT_EQ(p.owned_size(), 0u);
+  EXPECT_EQ(p.imbalance(), 1.0);
+  const Column none[] = {{{}, 3}};
+  EXPECT_TRUE(p.to_owners(none)[0].empty());
+}
+
+TEST(MpiPartition, ExtremeSpreads) {
+  check_all_splits(uniform_positions(300, -1e300, 1e300, 8), {});
+  std::vector<double> x = uniform_positions(300, -1.0, 1.0, 9);
+  for (double& c : x) c *= std::numeric_limits<double>::max();  // a spread that overflows a double
+  check_all_splits(x, {});
+  for (double& c : x) c = 1.0 + c / std::numeric_limits<double>::max() * 1e-13;  // a few ulps of 1
+  check_all_splits(x, {});
+  for (double& c : x) c = (c - 1.0) * 1e-295;  // tiny, partly subnormal
+  check_all_splits(x, {});
+}
+
+TEST(MpiPartition, BadInputFailsEveryRank) {
+  const int last = world_size() - 1;
+  const std::string on_last = "rank " + std::to_string(last) + " of " + std::to_string(world_size());
+  std::vector<double> x = uniform_positions(3, 0, 1, 10), w(3, 1.0);
+  auto make = [&](const std::vector<double>& xi, const std::vector<double>& wi) {
+    const SfcPartition p(MPI_COMM_WORLD, xi, wi);
+  };
+  std::vector<double> nan_x = x;
+  nan_x[4] = std::numeric_limits<double>::quiet_NaN();
+  expect_collective_error([&] { make(world_rank() == last ? nan_x : x, w); }, ErrorCode::invalid_input,
+                          on_last + ": rpyfmm::mpi::SfcPartition: local positions entry (1, 1) is NaN");
+  std::vector<double> inf_x = x;
+  inf_x[0] = -std::numeric_limits<double>::infinity();
+  expect_collective_error([&] { make(world_rank() == 0 ? inf_x : x, w); }, ErrorCode::invalid_input,
+                          "rank 0 of " + std::to_string(world_size()) +
+                              ": rpyfmm::mpi::SfcPartition: local positions entry (0, 0) is infinite");
+  expect_collective_error(
+      [&] {
+        make(x, world_rank() == last ? std::vector<double>{1, -1, 1} : w);
+      },
+      ErrorCode::invalid_input,
+      on_last + ": rpyfmm::mpi::SfcPartition: weight of local particle 1 must be finite and >= 0");
+  expect_collective_error(
+      [&] {
+        make(x, world_rank() == last ? std::vector<double>{1, 1} : w);
+      },
+      ErrorCode::invalid_input, "local weights has 2 entries, expected 3");
+  expect_collective_error(
+      [&] {
+        make(world_rank() == last ? std::vector<double>{1, 2} : x, {});
+      },
+      ErrorCode::invalid_input, "not a multiple of 3");
+
+  // Columns: a wrong size on the last rank, and different widths on different ranks.
+  const SfcPartition p(MPI_COMM_WORLD, x, w);
+  std::vector<double> short_column(world_rank() == last ? 2 : 3);
+  const Column bad_size[] = {{short_column, 1}};
+  expect_collective_error([&] { (void)p.to_owners(bad_size); }, ErrorCode::invalid_input,
+                          on_last + ": rpyfmm::mpi::SfcPartition::to_owners: column 0 has 2 entries, expected 3");
+  if (world_size() > 1) {
+    std::vector<double> wide(world_rank() == 0 ? 6 : 3);
+    const Column widths[] = {{wide, world_rank() == 0 ? 2u : 1u}};
+    expect_collective_error([&] { (void)p.to_owners(widths); }, ErrorCode::invalid_argument,
+                            "different numbers or widths of columns");
+  }
+  // The partition still works afterwards.
+  const Column ok[] = {{x, 3}};
+  EXPECT_EQ(bitwise_mismatches(p.to_origin(std::vector<Column>{{p.to_owners(ok)[0], 3}})[0], x), 0u);
+}
