@@ -223,7 +223,7 @@ SfcPartition::SfcPartition(MPI_Comm comm, std::span<const double> positions, std
   for (double w : weights) local_w_max = std::max(local_w_max, w);
   check_mpi(MPI_Allreduce(&local_w_max, &w_max, 1, MPI_DOUBLE, MPI_MAX, comm_.get()), "MPI_Allreduce");
   const WeightScale scale = weight_scale(w_max, global_size_);
-  weight_unit_ = scale.unit_weights ? 1.0 : std::ldexp(1.0, -scale.shift);
+  weight_shift_ = scale.unit_weights ? 0 : scale.shift;
   max_q_ = global_size_ == 0 ? 0 : scale.quantize(scale.unit_weights ? 1.0 : w_max);
 
   // This rank's particles in global order, with the prefix sums of their q.
@@ -295,7 +295,7 @@ SfcPartition::SfcPartition(MPI_Comm comm, std::span<const double> positions, std
 
 std::vector<double> SfcPartition::owned_weights() const {
   std::vector<double> w(owned_q_.size());
-  for (std::size_t r = 0; r < w.size(); ++r) w[r] = static_cast<double>(owned_q_[r]) * weight_unit_;
+  for (std::size_t r = 0; r < w.size(); ++r) w[r] = std::ldexp(static_cast<double>(owned_q_[r]), -weight_shift_);
   return w;
 }
 

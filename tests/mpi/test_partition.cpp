@@ -229,6 +229,29 @@ TEST(MpiPartition, WeightBoundHoldsInTheInputUnits) {
   EXPECT_LE(p.imbalance(), 1.0 + world_size() * (largest_w + tolerance) / total);
 }
 
+TEST(MpiPartition, OneDominantWeight) {
+  // One particle carries almost all the weight: its part is at the bound, the others share the rest.
+  std::vector<double> w(400, 1.0);
+  w[123] = 1e6;
+  check_all_splits(uniform_positions(400, 0.0, 1.0, 11), w);
+}
+
+TEST(MpiPartition, SubnormalWeights) {
+  // Weights near 1e-310: the fixed point's unit underflows, the owned weights stay exact sums.
+  std::vector<double> w = spread_weights(200, 12);
+  for (double& v : w) v *= 1e-313;
+  const std::vector<double> x = uniform_positions(200, 0.0, 1.0, 13);
+  const Partition part = partition_of(200, Split::even);
+  const SfcPartition p(MPI_COMM_WORLD, share(x, 3, part.offset, part.n), share(w, 1, part.offset, part.n));
+  const std::vector<double> parts = p.owned_weights();
+  // Subnormal weights are multiples of 2^-1074 below 2^-1029, so q_i = w_i exactly in the unit, the
+  // owned sums have at most 53 significant bits and are exact, as is the long double sum here:
+  // tolerance 0.
+  long double total = 0;
+  for (double v : w) total += v;
+  EXPECT_EQ(static_cast<long double>(std::accumulate(parts.begin(), parts.end(), 0.0L)), total);
+}
+
 TEST(MpiPartition, CoincidentPointsAreOrderedByGlobalIndex) {
   std::vector<double> x(3 * 37);
   for (std::size_t i = 0; i < 37; ++i) x[3 * i] = 1.5, x[3 * i + 1] = -2.0, x[3 * i + 2] = 7.0;

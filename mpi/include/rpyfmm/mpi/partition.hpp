@@ -17,6 +17,7 @@
 #include <mpi.h>
 
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -98,7 +99,8 @@ class SfcPartition {
   /// The weights are balanced as integers q_i = round(w_i / weight_unit()), with the unit a power of
   /// two chosen so that their sum fits 62 bits; integer sums make the partition independent of the
   /// distribution of the input. The largest weight is exact to 2^-(62 - ceil(log2 N)) of itself.
-  [[nodiscard]] double weight_unit() const { return weight_unit_; }
+  /// The unit underflows to 0 for a largest weight below about 2^-1010; owned_weights() does not.
+  [[nodiscard]] double weight_unit() const { return std::ldexp(1.0, -weight_shift_); }
   /// max over ranks of the owned weight / its mean (1 for no weight at all). The cuts guarantee
   /// max part <= ceil(Q / P) + max q_i in units of weight_unit(), Q the total.
   [[nodiscard]] double imbalance() const;
@@ -122,7 +124,7 @@ class SfcPartition {
   KeyCube cube_;
   std::size_t input_size_ = 0;
   std::uint64_t global_size_ = 0;
-  double weight_unit_ = 1.0;
+  int weight_shift_ = 0;  // weight_unit() = 2^-weight_shift_
   std::vector<SfcKey> owned_;
   std::vector<SfcKey> splitters_;
   std::vector<std::uint64_t> owned_counts_, owned_q_;
