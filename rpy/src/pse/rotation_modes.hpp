@@ -49,14 +49,37 @@ RPYFMM_HOST_DEVICE inline void rotation_shape_factors(double x, double& sinc, do
   half_s = 1.5 * (sinc - std::cos(x)) / (x * x);
 }
 
+/// The factors of one mode that depend on |k| only: g(k) (with the open-boundary truncation
+/// where rc has one), sinc(ka) and s(ka) / 2. Computed once per plan for every mode
+/// (WaveGrid::rotation_factors_), so that a product scales its modes without sin, cos and exp.
+struct RotationModeFactors {
+  double gk, sinc, half_s;
+};
+
+/// The factors of mode (ix, iy, iz); k = 0 gives zeros (that mode is cleared, scale_rotation_mode).
+RPYFMM_HOST_DEVICE inline RotationModeFactors rotation_mode_factors(int ix, int iy, int iz, const ModeGeometry& g,
+                                                                    const RotationModeConstants& rc) {
+  const double k[3] = {g.two_pi_L[0] * signed_index(ix, g.n[0]), g.two_pi_L[1] * signed_index(iy, g.n[1]),
+                       g.two_pi_L[2] * iz};
+  const double k2 = k[0] * k[0] + k[1] * k[1] + k[2] * k[2];
+  if (k2 == 0.0) return {0.0, 0.0, 0.0};
+  RotationModeFactors m{};
+  rotation_shape_factors(std::sqrt(k2) * rc.radius, m.sinc, m.half_s);
+  const double q = k2 * rc.inv_4xi2;
+  m.gk = (1.0 + q) * std::exp(-rc.one_minus_eta * q) / k2 * rc.inv_mu_ng;
+  if (rc.open_truncation > 0.0) m.gk *= open_truncation_factor(std::sqrt(k2) * rc.open_truncation);
+  return m;
+}
+
 /// Scales mode (ix, iy, iz), linear half-spectrum index idx, of the force spectrum `fs` and the
 /// torque spectrum `ts` in place: on return they hold U and W (see above). Layout, noise and
 /// representative as scale_mode_with; `ck` is the translational table (zero marks k = 0 and the
-/// Nyquist planes). deterministic = false: the spectra are overwritten with the noise alone.
+/// Nyquist planes), `m` the mode's rotation_mode_factors. deterministic = false: the spectra are
+/// overwritten with the noise alone.
 template <class Real, class Noise>
 RPYFMM_HOST_DEVICE inline void scale_rotation_mode(int ix, int iy, int iz, std::size_t idx, const ModeGeometry& g,
-                                                   const double* ck, const RotationModeConstants& rc, Real* fs,
-                                                   Real* ts, bool deterministic, const Noise* z, bool representative,
+                                                   const double* ck, const RotationModeFactors& m, Real* fs, Real* ts,
+                                                   bool deterministic, const Noise* z, bool representative,
                                                    double noise_factor) {
   Real* f[3] = {fs + 2 * idx, fs + 2 * idx + g.comp_stride, fs + 2 * idx + 2 * g.comp_stride};
   Real* t[3] = {ts + 2 * idx, ts + 2 * idx + g.comp_stride, ts + 2 * idx + 2 * g.comp_stride};
@@ -67,11 +90,7 @@ RPYFMM_HOST_DEVICE inline void scale_rotation_mode(int ix, int iy, int iz, std::
   const double k[3] = {g.two_pi_L[0] * signed_index(ix, g.n[0]), g.two_pi_L[1] * signed_index(iy, g.n[1]),
                        g.two_pi_L[2] * iz};
   const double k2 = k[0] * k[0] + k[1] * k[1] + k[2] * k[2];
-  double sinc, half_s;
-  rotation_shape_factors(std::sqrt(k2) * rc.radius, sinc, half_s);
-  const double q = k2 * rc.inv_4xi2;
-  double gk = (1.0 + q) * std::exp(-rc.one_minus_eta * q) / k2 * rc.inv_mu_ng;
-  if (rc.open_truncation > 0.0) gk *= open_truncation_factor(std::sqrt(k2) * rc.open_truncation);
+  const double gk = m.gk, sinc = m.sinc, half_s = m.half_s;
   const auto cross = [&k](const double* v, int d) {
     const int d1 = (d + 1) % 3, d2 = (d + 2) % 3;
     return k[d1] * v[d2] - k[d2] * v[d1];

@@ -231,6 +231,8 @@ class WaveGrid final : public WaveSpace {
   void scale_rotation_modes(bool deterministic, const NoiseKey* noise, double noise_factor);
   /// The second grid and spectrum of apply_rotation (the plans run on them by FFTW's new-array execute).
   void allocate_rotation_buffers();
+  /// rotation_factors_ for every mode (once per plan, with the buffers).
+  void tabulate_rotation_factors();
   // set_positions stages: window starts and offsets in input order, the tile order and colours,
   // the window weights in tile order.
   void window_starts(std::span<const double> x, std::vector<int>& start, std::vector<double>& offset) const;
@@ -258,6 +260,7 @@ class WaveGrid final : public WaveSpace {
   Real* rotation_grid_ = nullptr;  // the same for torques and angular velocities (apply_rotation)
   Real* rotation_spectrum_ = nullptr;
   RotationModeConstants rotation_constants_{};
+  std::vector<RotationModeFactors> rotation_factors_;  // per mode, with the rotation buffers
   Plan plan_forward_ = nullptr;
   Plan plan_backward_ = nullptr;
   int fft_threads_ = 1;
@@ -699,6 +702,23 @@ void WaveGrid<Real>::allocate_rotation_buffers() {
     rotation_grid_ = rotation_spectrum_ = nullptr;
     fail(ErrorCode::out_of_memory, "PseRpy", "could not allocate the FFT grids of the rotational wave space");
   }
+  tabulate_rotation_factors();
+}
+
+template <class Real>
+void WaveGrid<Real>::tabulate_rotation_factors() {
+  const int ny = modes_.n[1];
+  const int nzh = modes_.nzh;
+  const auto lines = static_cast<std::int64_t>(modes_.n[0]) * ny;
+  rotation_factors_.assign(static_cast<std::size_t>(lines) * static_cast<std::size_t>(nzh), RotationModeFactors{});
+#pragma omp parallel for schedule(static) if (parallel_modes_)
+  for (std::int64_t line = 0; line < lines; ++line) {
+    const int ix = static_cast<int>(line / ny);
+    const int iy = static_cast<int>(line % ny);
+    for (int iz = 0; iz < nzh; ++iz)
+      rotation_factors_[static_cast<std::size_t>(line) * static_cast<std::size_t>(nzh) + static_cast<std::size_t>(iz)] =
+          rotation_mode_factors(ix, iy, iz, modes_, rotation_constants_);
+  }
 }
 
 template <class Real>
@@ -728,7 +748,7 @@ void WaveGrid<Real>::scale_rotation_modes(bool deterministic, const NoiseKey* no
         }
         representative = lin == rep;
       }
-      scale_rotation_mode(ix, iy, iz, idx, modes_, ck_.data(), rotation_constants_, spectrum_, rotation_spectrum_,
+      scale_rotation_mode(ix, iy, iz, idx, modes_, ck_.data(), rotation_factors_[idx], spectrum_, rotation_spectrum_,
                           deterministic, noise != nullptr ? z : static_cast<const Real*>(nullptr), representative,
                           noise_factor);
     }
