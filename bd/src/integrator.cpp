@@ -100,12 +100,16 @@ void Integrator::check_inertia() const {
 }
 
 double Integrator::complex_forces() {
-  // Algorithm 2 of the GPU BD paper (Sec. 4.2). Each particle's group is its complex (named by its
-  // carrier) or, when free, itself. Step 1: f_ = the forces from outside the group (pair forces
-  // across groups, external forces, trap, callbacks). Step 2: f_within_ = the pair forces inside
-  // the group. The paper evaluates step 2 after step 1 has moved the complexes; the complexes move
-  // rigidly in step 1, so the separations inside a complex, and with them these forces, are those
-  // at the start of the step: one pass over the neighbour list at the step's positions gives both.
+  // Algorithm 2 of the GPU BD paper (Sec. 4.2) in the complexes' internal coordinates
+  // (docs/theory/bd.md Sec. 9). Each particle's group is its complex (named by its carrier) or,
+  // when free, itself. f_ = the forces from outside the group (pair forces across groups, external
+  // forces, trap, callbacks), f_within_ = the pair forces inside the group, in one pass over the
+  // neighbour list. Step 1 moves a complex, carrier position X_c, under -dU/dX_c at fixed relative
+  // positions: the sum of its members' forces from outside. Step 2 moves an adsorbed particle's
+  // position relative to its carrier, r_a = x_a - X_c, under -dU/dr_a at fixed X_c: the whole
+  // force on it. The paper evaluates step 2 after step 1 has moved the complexes; step 1
+  // translates each complex rigidly, so the forces inside a complex are those at the start of the
+  // step, and the forces from outside differ by the complexes' relative motion only, O(dt).
   const std::size_t n = size();
   const auto owner = complexes_.owner();
   for (std::size_t i = 0; i < n; ++i)
@@ -121,12 +125,12 @@ double Integrator::complex_forces() {
     for (std::uint32_t a : complexes_.adsorbed(c))
       for (std::size_t k = 0; k < 3; ++k) f_[3 * c + k] += f_[3 * a + k];
   }
-  // Adsorbed particles move relative to their carrier under the forces inside the complex only.
+  // Adsorbed particles move relative to their carrier under the whole force on them.
 #pragma omp parallel for schedule(static) if (count >= 4096)
   for (std::int64_t ii = 0; ii < count; ++ii) {
     const auto i = static_cast<std::size_t>(ii);
     if (owner[i] != Complexes::kFree && owner[i] != i)
-      for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) f_[k] = f_within_[k];
+      for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) f_[k] += f_within_[k];
   }
   return energy;
 }

@@ -2,7 +2,8 @@
 // membership against a brute-force search (ties included), a complex of k adsorbed particles
 // diffusing as one body with the carrier's friction (and the naive scheme's caging drop beside it),
 // runs without complexes equal to naive runs bit for bit, results independent of the thread count,
-// restarts bit for bit, and the config errors naming their key. Fixed seeds.
+// restarts bit for bit, touching complexes whose adsorbed particles repel, Boltzmann's distribution
+// of a trapped complex, and the config errors naming their key. Fixed seeds.
 #include <gtest/gtest.h>
 #include <omp.h>
 
@@ -430,4 +431,144 @@ TEST_F(SacRun, ARunWhoseParticlesHaveNoCarrierIsRefused) {
       parse_config(replace(kComplex, "types = [\"L\", \"S\", \"S\", \"S\", \"S\"]", "types = [\"S\"]"), "no carriers");
   expect_error([&] { (void)run(c, dir_ / "out", 5); }, {"carrier"});
   EXPECT_FALSE(std::filesystem::exists(dir_ / "out"));
+}
+
+namespace {
+
+// kComplex with the L-S well of the paper (lj36_18, eps = 14 kT, R_A = 1.2 (a_L + a_S) = 1.5),
+// WCA between adsorbers (eps = 1 kT) and between carriers (eps = 14 kT, sigma = 2 (a_L + a_S), so
+// that no adsorbed particle sits in both carriers' wells at once and pulls them into each other),
+// and a harmonic trap k |x|^2 / 2 on every particle.
+std::string touching_config(double trap, double dt) {
+  std::string text = replace(replace(kComplex, "kind = \"soft\"\nepsilon = 5.0", "kind = \"lj36_18\"\nepsilon = 14.0"),
+                             "kind = \"soft\"\nepsilon = 5.0", "kind = \"wca\"\nepsilon = 1.0");
+  text = replace(
+      text, "[mobility]",
+      "[[pair]]\ntypes = [\"L\", \"L\"]\nkind = \"wca\"\nepsilon = 14.0\nsigma = 2.5\n[external]\ntrap_stiffness = " +
+          std::to_string(trap) + "\n[mobility]");
+  return replace(replace(text, "adsorption_factor = 1.5", "adsorption_factor = 1.2"), "dt = 0.0001",
+                 "dt = " + std::to_string(dt));
+}
+
+/// The L-S well of touching_config: 4 eps [(s/r)^36 - (s/r)^18], eps = 14, s = a_L + a_S = 1.25.
+double ls_well(double r) {
+  const double q = std::pow(1.25 / r, 18);
+  return 56.0 * (q * q - q);
+}
+
+}  // namespace
+
+TEST(SacDynamics, TouchingComplexesKeepTheirAdsorbedParticlesApart) {
+  // Two carriers, each with 12 adsorbed particles at the well's minimum (a Fibonacci lattice about
+  // the axis joining them, mirrored), pressed together by the trap (k = 50: about 1000 kT / a_L on
+  // each complex) so that adsorbed particles of the two complexes touch (WCA, sigma = 0.5) and those
+  // of one complex also feel the other carrier. The forces from the other complex act on each
+  // adsorbed particle's own step (docs/theory/bd.md Sec. 9), so the adsorbed particles of the two
+  // complexes push each other aside: 4e4 steps (4 time units, 200 relaxation times gamma_L / 13k
+  // of a complex in the trap) pass the overlap check (r >= 0.8 sigma on every hard pair), keep all
+  // 24 adsorbed, and the complexes touch in most frames. When only the complexes as wholes feel
+  // those forces, two adsorbed particles overlap within 100 steps.
+  const bdtest::OneThread one;
+  const RunConfig c = parse_config(touching_config(50.0, 1e-4), "touching");
+  const std::size_t k = 12, n = 2 * (k + 1);
+  const double r_min = std::pow(2.0, 1.0 / 18.0) * 1.25, golden = std::numbers::pi * (3.0 - std::sqrt(5.0));
+  std::vector<double> x(3 * n, 0.0);
+  std::vector<std::uint32_t> types(n, 1);
+  for (std::size_t body = 0; body < 2; ++body) {
+    const double side = body == 0 ? 1.0 : -1.0;  // the lattice's pole points at the other carrier
+    const std::size_t c0 = body * (k + 1);
+    types[c0] = 0;
+    x[3 * c0] = -side * 1.5;
+    for (std::size_t s = 0; s < k; ++s) {
+      const double u = 1.0 - (2.0 * double(s) + 1.0) / double(k), rho = std::sqrt(1.0 - u * u);
+      const double phi = golden * double(s);
+      double* p = &x[3 * (c0 + 1 + s)];
+      p[0] = x[3 * c0] + side * r_min * u;
+      p[1] = r_min * rho * std::cos(phi);
+      p[2] = r_min * rho * std::sin(phi);
+    }
+  }
+  Integrator bd = make_integrator(c, x, types);
+  int touching = 0;
+  const int frames = 400;
+  for (int f = 0; f < frames; ++f) {
+    ASSERT_NO_THROW(bd.run(100)) << "frame " << f;
+    const auto p = bd.positions();
+    const auto owner = bd.complexes().owner();
+    double closest = 1e300;
+    for (std::size_t i = 0; i < n; ++i)
+      for (std::size_t j = i + 1; j < n; ++j)
+        if (types[i] == 1 && types[j] == 1 && owner[i] != owner[j])
+          closest = std::min(closest,
+                             std::hypot(p[3 * i] - p[3 * j], p[3 * i + 1] - p[3 * j + 1], p[3 * i + 2] - p[3 * j + 2]));
+    touching += closest < std::pow(2.0, 1.0 / 6.0) * 0.5 ? 1 : 0;  // within the WCA range
+    EXPECT_EQ(bd.complexes().count(), 2u);
+    EXPECT_EQ(bd.complexes().adsorbed_total(), 2 * k);
+  }
+  EXPECT_GT(touching, frames / 2) << "the complexes must touch through their adsorbed particles";
+  std::printf("adsorbed particles of the two complexes within the WCA range in %d of %d frames\n", touching, frames);
+}
+
+TEST(SacDynamics, OneComplexInATrapSamplesTheBoltzmannDistribution) {
+  // One carrier and one adsorbed particle, both in the trap U_t = k (|x_L|^2 + |x_S|^2) / 2, held by
+  // the L-S well V(r). In the coordinates of the SAC step, the complex's position X = x_L and the
+  // relative one r = x_S - x_L, U_t = k |X + r/2|^2 + k |r|^2 / 4: Boltzmann's distribution of
+  // r = |r| is r^2 exp(-(V(r) + k r^2 / 4) / kT), and <|X + r/2|^2> = 3 kT / (2 k). The SAC step
+  // samples it because the adsorbed particle's relative step feels the whole force on it, the
+  // trap's included (docs/theory/bd.md Sec. 9); with the forces inside its complex only, r would
+  // follow r^2 exp(-V(r) / kT), whose mean lies 0.013 (over 50 standard errors) higher.
+  // Expected <r> by the trapezoidal rule on [1.1, 1.5] (the density is < 1e-30 of its peak at
+  // both ends) with 4e4 intervals (error < 1e-10). Measured: 1e6 steps of dt = 2e-5, in 40 blocks
+  // of 2.5e4 steps, each 5 relaxation times of the trapped complex (gamma_L / 2k = 0.094) and
+  // ~5000 of r (gamma_S / V''); standard errors from the blocks' spread. The adsorbed particle's
+  // dt V'' / gamma_S = 0.02 biases <r> by about that fraction of <r> - r_min (Euler-Maruyama),
+  // 5e-5 here, a quarter of a standard error. Bounds: 4 standard errors.
+  const bdtest::OneThread one;
+  const double trap = 100.0, kT = 1.0;
+  const RunConfig c = parse_config(touching_config(trap, 2e-5), "trap");
+  const double r_min = std::pow(2.0, 1.0 / 18.0) * 1.25;
+  const auto mean_r = [&](double k) {
+    const auto energy = [&](double r) { return ls_well(r) + k * r * r / 4.0; };
+    double z = 0.0, m = 0.0;
+    const int intervals = 40000;
+    const double lo = 1.1, h = 0.4 / intervals;
+    for (int i = 0; i <= intervals; ++i) {
+      const double r = lo + h * i;
+      const double w = (i == 0 || i == intervals ? 0.5 : 1.0) * r * r * std::exp(-(energy(r) - energy(r_min)) / kT);
+      z += w;
+      m += w * r;
+    }
+    return m / z;
+  };
+  const double expected = mean_r(trap), forces_inside_only = mean_r(0.0);
+  Integrator bd = make_integrator(c, {0, 0, 0, r_min, 0, 0}, {0, 1});
+  bd.run(25000);
+  const int blocks = 40, per_block = 25000;
+  std::vector<double> block_r, block_centre;
+  for (int b = 0; b < blocks; ++b) {
+    double sum_r = 0.0, sum_centre = 0.0;
+    for (int s = 0; s < per_block; ++s) {
+      bd.step();
+      const auto p = bd.positions();
+      const double d[3] = {p[3] - p[0], p[4] - p[1], p[5] - p[2]};
+      sum_r += std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+      for (int a = 0; a < 3; ++a) sum_centre += std::pow(p[a] + 0.5 * d[a], 2);
+    }
+    ASSERT_EQ(bd.complexes().count(), 1u);
+    block_r.push_back(sum_r / per_block);
+    block_centre.push_back(sum_centre / per_block);
+  }
+  const auto mean_and_error = [&](const std::vector<double>& v) {
+    double m = 0.0, s2 = 0.0;
+    for (double e : v) m += e / blocks;
+    for (double e : v) s2 += (e - m) * (e - m) / (blocks - 1);
+    return std::pair{m, std::sqrt(s2 / blocks)};
+  };
+  const auto [r, r_err] = mean_and_error(block_r);
+  const auto [centre, centre_err] = mean_and_error(block_centre);
+  std::printf("<r> %.6f +- %.6f expected %.6f (forces inside only: %.6f); <|X + r/2|^2> %.5f +- %.5f expected %.5f\n",
+              r, r_err, expected, forces_inside_only, centre, centre_err, 1.5 * kT / trap);
+  EXPECT_NEAR(r, expected, 4.0 * r_err);
+  EXPECT_GT(std::abs(forces_inside_only - expected), 20.0 * r_err);
+  EXPECT_NEAR(centre, 1.5 * kT / trap, 4.0 * centre_err);
 }

@@ -26,8 +26,10 @@
 // form a complex with it (sac.hpp). Each step: (1) a complex moves as one Langevin body, with the
 // carrier's mass and friction, under the sum of the forces on its members from outside the
 // complex; free particles move as above; (2) its adsorbed particles follow the carrier's
-// displacement rigidly, then take a Brownian step of their own under the pair forces from the
-// other members of their complex.
+// displacement rigidly, then take a Brownian step of their own under the whole force on them
+// (from the other members of their complex and from outside it): Brownian motion of the adsorbed
+// particles' coordinates relative to the carrier, which samples the Boltzmann distribution also
+// where complexes touch (docs/theory/bd.md Sec. 9).
 // Everything that enters x is independent of the thread count, provided the
 // mobility operator's products are.
 #pragma once
@@ -134,7 +136,7 @@ class Integrator {
   [[nodiscard]] const rpy::MobilityOperator& mobility() const { return *mobility_; }
   /// Forces at the start of the last step (3N). With the SAC scheme, those the step used: on a
   /// carrier with adsorbed particles the complex's force from outside it, on an adsorbed particle
-  /// the force from the other members of its complex.
+  /// the whole force on it (its relative step's).
   [[nodiscard]] std::span<const double> last_forces() const { return f_; }
   /// M F dt and sqrt(2 kT dt) M^{1/2} z of the last step (needs keep_split_displacements).
   [[nodiscard]] std::span<const double> deterministic_displacement() const { return dx_det_; }
