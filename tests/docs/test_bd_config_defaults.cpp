@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "rpyfmm/bd/config.hpp"
+#include "rpyfmm/bd/potentials.hpp"
 #include "rpyfmm/rpy/mobility_factory.hpp"
 #include "rpyfmm/rpy/pse/pse_parameters.hpp"
 #include "rpyfmm/rpy/sqrt.hpp"
@@ -122,6 +123,15 @@ bool flag(const std::string& literal) {
   return literal == "true";
 }
 
+/// The DLVO pair of a config that names no core (kappa 0.5, Hamaker constant 3).
+rpyfmm::bd::PairPotential dlvo_pair() {
+  const std::string text =
+      "[particles]\nsource = \"random\"\ncount = 8\n"
+      "[[pair]]\ntypes = [\"A\", \"A\"]\nkind = \"dlvo\"\nhamaker = 3.0\nkappa = 0.5\n"
+      "[integrator]\ndt = 0.01\nsteps = 1\n";
+  return rpyfmm::bd::parse_config(text, "<dlvo>").pairs.at(0).potential;
+}
+
 using Check = std::function<bool(const RunConfig&, const std::string&)>;
 
 /// How each documented key is read back from a parsed config.
@@ -179,6 +189,17 @@ const std::map<std::string, Check>& checks() {
       {"pair.hamaker", [](const RunConfig&, const std::string& l) { return bd::PairPotential{}.hamaker == number(l); }},
       {"pair.permittivity",
        [](const RunConfig&, const std::string& l) { return bd::PairPotential{}.permittivity == number(l); }},
+      {"pair.core", [](const RunConfig&, const std::string& l) { return unquoted(l) == to_string(dlvo_pair().core); }},
+      // "0.8 / kappa": the resolved Born prefactor A sigma_B^6 / 37800 with sigma_B = 0.8 / kappa.
+      {"pair.born_sigma",
+       [](const RunConfig&, const std::string& l) {
+         bd::PairPotential p = dlvo_pair();
+         p.core = bd::DlvoCore::born;
+         const double sigma_b = 0.8 / p.kappa;
+         const double expected = p.hamaker * std::pow(sigma_b, 6) / 37800.0;
+         const double got = bd::resolve_pair(p, 1.0, 1.0, 0.0, 0.0).born_prefactor;
+         return l == "0.8 / kappa" && std::abs(got - expected) <= 1e-12 * expected;
+       }},
       {"integrator.seed", [](const RunConfig& c, const std::string& l) { return c.integrator.seed == std::stoull(l); }},
       {"integrator.max_displacement",
        [](const RunConfig& c, const std::string& l) { return c.integrator.max_displacement == number(l); }},
