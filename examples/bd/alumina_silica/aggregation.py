@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Aggregation of silica-covered alumina particles (alumina_silica.toml: the
 36-18 adsorption well; see the README for why not the DLVO config), by three
-methods from one initial state and noise seed, and the number of aggregates
-against time, with the aluminas' diffusion coefficient from their mean-squared
+methods from one initial state and noise seed, and the number of alumina
+clusters against time, with the aluminas' diffusion coefficient from their mean-squared
 displacement, as a plot (aggregation.png):
 
 * naive: free draining, alumina by Langevin dynamics, silica by Brownian
@@ -16,14 +16,23 @@ displacement, as a plot (aggregation.png):
 Initial state (make_state): --aluminas aluminas at random in a sphere at
 alumina volume fraction --phi, surface gaps between aluminas at least --gap nm,
 each carrying --silica silica at contact (the 36-18 well's minimum), spread by
-a Fibonacci lattice turned at random per alumina.
+a Fibonacci lattice turned at random per alumina. Open geometry (the HI
+methods for unequal radii, direct and fmm, are open-boundary), no confinement.
 
-Aggregates (the paper's Sec. 2.1 and 4.3, counting alumina only): particles
-are linked when their centres are closer than 1.05 (a_i + a_j), the adsorption
-radius R_A of the SAC scheme; an aggregate is a connected group holding at
-least two aluminas (linked directly or through adsorbed silica).
+Time step (--dt): 5e-9 s, ten times the paper's 5e-10 s, so that the
+aluminas aggregate within the run: an adsorbed silica relaxes in the well in
+gamma_S / V'' = 2.9e-7 s = 58 steps, its random step (0.4 nm) is a fifth of the
+well's thermal width, and the alumina's m / gamma = 7 dt, which the GJF
+Langevin step integrates at any dt (docs/theory/bd.md Sec. 8).
 
-    OMP_NUM_THREADS=1 python3 examples/bd/alumina_silica/aggregation.py [--steps N] [--rpy_steps N]
+Clusters (the paper's Sec. 2.1 and 4.3, counting alumina only): particles are
+linked when their centres are closer than 1.05 (a_i + a_j), the adsorption
+radius R_A of the SAC scheme; a cluster is a connected group holding at least
+one alumina (a single alumina is a cluster of one), linked directly or through
+adsorbed silica. The plot shows their number against time: --aluminas at the
+start, falling as the aluminas aggregate.
+
+    OMP_NUM_THREADS=2 python3 examples/bd/alumina_silica/aggregation.py [--steps N] [--rpy_steps N]
     python3 examples/bd/alumina_silica/aggregation.py --only     # the plot alone, from the runs in --out
 """
 
@@ -90,15 +99,17 @@ def make_state(path: Path, aluminas: int, silica: int, phi: float, gap: float, s
     path.write_text("\n".join(rows) + "\n")
 
 
-def aggregates(traj: an.Trajectory) -> np.ndarray:
-    """Per frame, the number of connected groups holding at least two aluminas."""
+def aggregates(traj: an.Trajectory) -> tuple[np.ndarray, np.ndarray]:
+    """Per frame, the number of clusters of aluminas (connected groups holding at least one
+    alumina: single aluminas count as clusters of one) and of aggregates (groups with >= 2)."""
     alumina = traj.species == "alumina"
-    counts = []
+    clusters, multi = [], []
     for x in traj.positions:
         labels = an.clusters(x, traj.radii, LINK)
         per_cluster = np.bincount(labels[alumina], minlength=labels.max() + 1)
-        counts.append(int(np.sum(per_cluster >= 2)))
-    return np.array(counts)
+        clusters.append(int(np.sum(per_cluster >= 1)))
+        multi.append(int(np.sum(per_cluster >= 2)))
+    return np.array(clusters), np.array(multi)
 
 
 def alumina_diffusion(traj: an.Trajectory, lags_us: list[float]) -> tuple[np.ndarray, np.ndarray]:
@@ -121,12 +132,14 @@ def alumina_diffusion(traj: an.Trajectory, lags_us: list[float]) -> tuple[np.nda
 def main() -> int:
     args = an.script_args(
         __doc__, HERE,
-        steps=dict(type=int, default=1000000, help="steps of the free-draining runs (default: %(default)s)"),
-        rpy_steps=dict(type=int, default=200000, help="steps of the RPY run (default: %(default)s)"),
-        aluminas=dict(type=int, default=8, help="aluminas (default: %(default)s)"),
+        steps=dict(type=int, default=200000, help="steps of the free-draining runs (default: %(default)s)"),
+        rpy_steps=dict(type=int, default=50000, help="steps of the RPY run (default: %(default)s)"),
+        aluminas=dict(type=int, default=27, help="aluminas (default: %(default)s)"),
         silica=dict(type=int, default=15, help="silica per alumina (default: %(default)s)"),
-        phi=dict(type=float, default=0.25, help="alumina volume fraction of the sphere (default: %(default)s)"),
+        phi=dict(type=float, default=0.35, help="alumina volume fraction of the sphere (default: %(default)s)"),
         gap=dict(type=float, default=45.0, help="smallest alumina-alumina gap, nm (default: %(default)s)"),
+        dt=dict(type=float, default=20.226,
+                help="time step, time units of 2.472e-10 s (default: %(default)s = 5e-9 s)"),
         frames=dict(type=int, default=200, help="frames per run (default: %(default)s)"),
         only=dict(nargs="*", default=list(CASES), help="cases to run (default: all)"),
         plot=dict(type=Path, default=HERE / "aggregation.png", help="plot file (default: %(default)s)"))
@@ -137,6 +150,7 @@ def main() -> int:
         steps = args.rpy_steps if method != "none" else args.steps
         cfg = an.derive_config(BASE, args.out / f"{name}.toml", {
             "particles.file": str(particles), "integrator.scheme": scheme, "integrator.steps": steps,
+            "integrator.dt": args.dt,
             "types.dynamics": dynamics, "mobility.method": method,
             "output.trajectory_every": max(1, steps // args.frames), "output.log_every": max(1, steps // 20),
             "output.checkpoint_every": steps})
@@ -156,16 +170,18 @@ def main() -> int:
         if not path.is_file():
             continue
         traj = an.Trajectory(path)
-        counts = aggregates(traj)
-        print(f"{name}: aggregates {counts[0]} at t = 0, {counts.max()} at most, {counts[-1]} at "
-              f"t = {traj.times[-1] * TIME_UNIT * 1e3:.3f} ms")
+        counts, multi = aggregates(traj)
+        print(f"{name}: alumina clusters {counts[0]} at t = 0, {counts[len(counts) // 2]} at "
+              f"t = {traj.times[len(counts) // 2] * TIME_UNIT * 1e3:.3f} ms, {counts[-1]} at "
+              f"t = {traj.times[-1] * TIME_UNIT * 1e3:.3f} ms; aggregates (>= 2) {multi[-1]} at the end")
         ax.step(traj.times * TIME_UNIT * 1e3, counts, where="post", label=label)
         d, err = alumina_diffusion(traj, lags)
         print(f"{name}: alumina D / D0 at lags {lags} us: " + ", ".join(f"{v:.3f} ± {e:.3f}" for v, e in zip(d, err)))
         bx.errorbar(lags, d, yerr=err, marker="o", capsize=3, label=label)
     ax.set_xlabel("time (ms)")
-    ax.set_ylabel("aggregates (>= 2 aluminas)")
-    ax.set_title(f"{args.aluminas} alumina + {args.aluminas * args.silica} silica, dt = 5e-10 s")
+    ax.set_ylabel("alumina clusters (single aluminas included)")
+    ax.set_title(f"{args.aluminas} alumina + {args.aluminas * args.silica} silica, phi = {args.phi:g}, "
+                 f"dt = {args.dt * TIME_UNIT:.2g} s")
     ax.legend()
     gamma_ratio = A_SILICA / A_ALUMINA * args.silica
     for value, text in ((1.0, "free alumina"), (1.0 / (1.0 + gamma_ratio / 3.0), "radial drag"),
