@@ -251,7 +251,9 @@ GROUPS = [
            ("RPY / Laplace", "ratio_rpy_laplace", "{:.2f}"), ("DirectRpy s", "direct_s", "{:.3f}"),
            ("with torques s", "rot_s", "{:.3f}"), ("torques / forces", "ratio_rot_forces", "{:.2f}"),
            ("rot err", "rot_rel_l2_err", "{:.1e}"), ("leaf cap", "leaf_capacity", "{}")],
-          keys=("dist", "N", "eps", "threads", "leaf_capacity")),
+          # leaf_option: the requested leaf capacity (0 = automatic); the tree's own capacity
+          # (leaf_capacity) may differ between instruction-set levels and commits.
+          keys=("dist", "N", "eps", "threads", "leaf_option")),
     Group("pse", "PSE on the CPU",
           "The setup of Table I of Fiore, Balboa Usabiaga, Donev & Swan, J. Chem. Phys. 146 (2017) 124116: hard "
           "spheres at "

@@ -8,7 +8,8 @@
 // its ratio to the force-only product, and its error: the larger of U's and W's relative l2
 // errors against exact sums at the sampled targets, then each; rot_s leaves out the build of the
 // plan of products with torques (rot_plan_s, set-up like set_positions), whose leaves and size
-// are rot_leaves and rot_plan_mb). Prints one CSV row per case.
+// are rot_leaves and rot_plan_mb). Prints one CSV row per case; leaf_capacity is the tree's, leaf_option
+// the capacity asked for (0: automatic).
 //
 // usage: bench_rpy_fmm [dist=cylinder|eight|suspension] [N list] [eps list] [threads list] [repeats]
 //                      [points.bin or -] [leaf capacity list, 0 = the operator's default]
@@ -99,7 +100,7 @@ int main(int argc, char** argv) {
   std::printf(
       "dist,N,eps,threads,rpy_s,laplace1_s,ratio_rpy_laplace,direct_s,direct_kind,speedup_vs_direct,"
       "rel_l2_err,levels,leaves,near_s,far_fmm_s,leaf_capacity,rot_s,ratio_rot_forces,rot_rel_l2_err,rot_u_err,"
-      "rot_w_err,rot_leaves,rot_plan_s,rot_plan_mb\n");
+      "rot_w_err,rot_leaves,rot_plan_s,rot_plan_mb,leaf_option\n");
   for (std::size_t n : ns) {
     const auto c = make(dist, n);
     const auto f = t::random_vector(3 * n, 1);
@@ -162,11 +163,11 @@ int main(int argc, char** argv) {
         const double rpy_s = median(times), lap_s = median(lt);
         std::printf(
             "%s,%zu,%.0e,%d,%.4f,%.4f,%.2f,%.3f,%s,%.1f,%.2e,%d,%zu,%.4f,%.4f,%d,%.4f,%.2f,%.2e,%.2e,%.2e,%zu,%.3f,%."
-            "1f\n",
+            "1f,%d\n",
             dist.c_str(), n, eps, nt, rpy_s, lap_s, rpy_s / lap_s, direct_s, direct_kind.c_str(), direct_s / rpy_s, err,
             stats.levels, stats.leaves, median(near_t), median(far_t), stats.leaf_capacity, rot_s, rot_s / rpy_s,
             std::max(rot_u_err, rot_w_err), rot_u_err, rot_w_err, rot_stats.leaves, rot_plan_s,
-            rot_stats.memory_bytes / 1e6);
+            rot_stats.memory_bytes / 1e6, leaf);
         std::fflush(stdout);
       }
     }
