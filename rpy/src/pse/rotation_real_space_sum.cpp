@@ -33,8 +33,8 @@ struct RotationFrame {
 };
 
 /// One row without the self block: u += sum_q c (T_q x e), w += sum_q c (F_q x e) + h T_q +
-/// k (e . T_q) e over the neighbour slots nb[0 .. count) of the particle at xi (docs/theory/pse.md,
-/// "Rotation"; rotation_real_space.hpp). A coincident neighbour (r = 0) gets e = 0 and the table's
+/// k (e . T_q) e over the neighbour slots nb[0 .. count) of the particle at xi (docs/theory/pse.md
+/// section 5; rotation_real_space.hpp). A coincident neighbour (r = 0) gets e = 0 and the table's
 /// r = 0 node, h(0) = self: the self block's form h(0) T_q.
 void rotation_row(const int* nb, std::size_t count, const double xi[3], const RotationSlots& s, const RotationFrame& fr,
                   double u[3], double w[3]) {
