@@ -1,0 +1,138 @@
+// rpyfmm — DistributedLaplaceFmm: the Laplace FMM (rpyfmm/fmm/laplace_fmm.hpp) on sources
+// distributed over the ranks of an MPI communicator, evaluated at every rank's own sources
+// (docs/mpi.md, "Distributed Laplace FMM").
+//
+//   phi(x_i) = sum_{j != i} q_j / |x_i - x_j|  and its gradient and Hessian, over all ranks' sources.
+//
+// Plan once, evaluate many times, as the serial LaplaceFmm:
+//   DistributedLaplaceFmm fmm(MPI_COMM_WORLD, {.fmm = {.tolerance = 1e-6}});  // collective
+//   fmm.set_points(local_sources);                          // collective: builds the plan
+//   fmm.evaluate(local_charges, nd, outputs, local_results); // collective, any number of times
+//
+// How: the sources are partitioned along the Morton curve (SfcPartition) and each owner builds a
+// tree of cells over its key range. Every rank publishes a coarse cover of its region by tight
+// boxes; for every other rank it walks its cells top down and sends a cell that is well separated
+// from that rank's region as p^3 equivalent charges at the tensor Chebyshev nodes of the cell's cube
+// (the anterpolation of the black-box FMM, Fong & Darve, J. Comput. Phys. 228 (2009) 8712, Sec. 2),
+// and a cell still close at the leaves as its particles (halo). The geometry of this locally
+// essential tree is exchanged once in set_points; every evaluate sends only the equivalent and halo
+// charges (one MPI_Alltoallv). Each owner then runs the serial LaplaceFmm, planned once, on its
+// own particles + halo particles + equivalent nodes as sources, with its own particles as targets,
+// and the results go back to the input ranks and order.
+//
+// Every public call is collective and fails collectively (communicator.hpp).
+#pragma once
+
+#include <mpi.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <span>
+
+#include "rpyfmm/core/timer.hpp"
+#include "rpyfmm/fmm/laplace_fmm.hpp"
+#include "rpyfmm/mpi/communicator.hpp"
+
+namespace rpyfmm::mpi {
+
+/// Options of the distributed plan. Every rank must pass the same.
+struct DistributedFmmOptions {
+  /// The serial FMM that every rank runs on its locally essential sources (tolerance, leaf capacity,
+  /// order, ...). near_field must be true and export_direct_far false.
+  fmm::FmmOptions fmm{};
+  /// Acceptance ratio eta: a cell whose cube (around its particles' tight box, half-side h) lies at a
+  /// distance d >= eta h from every box of another rank's region may be sent to it as equivalent
+  /// charges, with the Chebyshev order its own ratio d / h needs (chebyshev_order_for). 0 = automatic
+  /// (kDefaultSeparation).
+  double separation = 0.0;
+  /// > 0: this Chebyshev order for every compressed cell instead of the rule (for measuring the
+  /// compression error); 0 = the rule.
+  int chebyshev_order = 0;
+  /// Particles per leaf of the tree of cells that decides what is sent (not the serial FMM's tree).
+  /// 0 = automatic (kDefaultCellCapacity).
+  std::size_t cell_capacity = 0;
+};
+
+/// The acceptance ratio used when DistributedFmmOptions::separation is 0.
+inline constexpr double kDefaultSeparation = 2.0;
+/// The cell capacity used when DistributedFmmOptions::cell_capacity is 0.
+inline constexpr std::size_t kDefaultCellCapacity = 32;
+
+/// The Chebyshev order p of a cell at distance eta × its half-side from a rank's region: the
+/// smallest p >= 2 with rho^-p <= tolerance / 10, rho = eta + sqrt(1 + eta^2), at most 32
+/// (docs/mpi.md, "Error rule").
+[[nodiscard]] int chebyshev_order_for(double tolerance, double separation);
+
+/// This rank's share of the work and traffic of the plan and of the last evaluate. Seconds are
+/// wall time in MPI calls (waits included) per stage, or in the named local computation; bytes are
+/// what this rank received (its own share of the partition's exchanges included).
+struct FmmCommunication {
+  /// set_points: "partition" (SfcPartition and positions to the owners), "summaries" (the
+  /// all-gather of the regions), "geometry" (the locally essential tree's cells and halo).
+  StageTimes plan_seconds;
+  std::uint64_t plan_bytes_received = 0;
+  /// The last evaluate: "charges" (to the owners), "essential" (equivalent and halo charges),
+  /// "results" (back to the input ranks).
+  StageTimes evaluate_seconds;
+  std::uint64_t evaluate_bytes_received = 0;
+  /// Local work of the last set_points ("plan_fmm": the serial plan) and evaluate ("anterpolation",
+  /// "fmm").
+  StageTimes compute_seconds;
+  /// The locally essential tree of this rank: particles, equivalent cells and their nodes received
+  /// from the other ranks, and what this rank sends to them (counted once per receiving rank).
+  std::uint64_t halo_received = 0, cells_received = 0, nodes_received = 0;
+  std::uint64_t halo_sent = 0, cells_sent = 0, nodes_sent = 0;
+};
+
+class DistributedLaplaceFmm {
+ public:
+  /// Collective. Throws rpyfmm::Error on every rank for options the serial FMM refuses, for
+  /// near_field = false or export_direct_far = true, a separation that is not 0 or in [1, 100], a
+  /// Chebyshev order outside [0, 32], and for options that differ between ranks.
+  DistributedLaplaceFmm(MPI_Comm comm, const DistributedFmmOptions& options = {});
+  ~DistributedLaplaceFmm();
+  DistributedLaplaceFmm(DistributedLaplaceFmm&&) noexcept;
+  DistributedLaplaceFmm& operator=(DistributedLaplaceFmm&&) noexcept;
+
+  /// Collective. This rank's sources (3n, n >= 0 on any rank) and optional partition weights (n
+  /// entries, finite and >= 0; empty: 1 each, SfcPartition). Throws on every rank when any rank's
+  /// input is malformed (size, NaN/Inf, weights) and when no rank has a source. After a failure
+  /// no plan is held on any rank until a later set_points succeeds.
+  void set_points(std::span<const double> local_sources, std::span<const double> local_weights = {});
+
+  /// Collective. charges: nd x n (density d at charges[d n + j]); outputs: nd flags
+  /// (rpyfmm::fmm::potential | gradient | hessian); results: nd x n x 10, as LaplaceFmm::evaluate,
+  /// at this rank's sources in input order, the sum over all ranks' sources (pairs at distance 0
+  /// skipped). nd and outputs must be the same on every rank. Throws on every rank for wrong sizes,
+  /// NaN/Inf charges or bad flags on any rank, or before set_points.
+  void evaluate(std::span<const double> charges, std::size_t nd, std::span<const unsigned> outputs,
+                std::span<double> results) const;
+  /// The same output flags for every density.
+  void evaluate(std::span<const double> charges, std::size_t nd, unsigned outputs, std::span<double> results) const;
+
+  [[nodiscard]] const Communicator& communicator() const { return comm_; }
+  [[nodiscard]] const DistributedFmmOptions& options() const { return options_; }
+  /// The acceptance ratio in use.
+  [[nodiscard]] double separation() const { return separation_; }
+  /// This rank's sources in the last set_points (0 before), the sources it owns after the
+  /// partition, and the number on all ranks.
+  [[nodiscard]] std::size_t local_size() const;
+  [[nodiscard]] std::size_t owned_size() const;
+  [[nodiscard]] std::uint64_t global_size() const;
+  /// The serial FMM's sources on this rank: owned + halo + equivalent nodes (0 when it owns none).
+  [[nodiscard]] std::size_t essential_size() const;
+  [[nodiscard]] const FmmCommunication& communication() const { return stats_; }
+
+  struct Plan;  // implementation (mpi/src/laplace_fmm.cpp)
+
+ private:
+  Communicator comm_;
+  DistributedFmmOptions options_;
+  double separation_ = kDefaultSeparation;
+  std::size_t cell_capacity_ = kDefaultCellCapacity;
+  std::unique_ptr<Plan> plan_;
+  mutable FmmCommunication stats_;
+};
+
+}  // namespace rpyfmm::mpi

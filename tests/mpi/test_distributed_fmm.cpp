@@ -1,0 +1,331 @@
+// rpyfmm::mpi::DistributedLaplaceFmm against the serial LaplaceFmm and the direct sum on the whole
+// set, to the serial FMM's contract (docs/theory/fmm.md: the relative l2 error of each output,
+// measured on its own, at most the tolerance), on uniform and clustered sets, empty ranks and more
+// ranks than particles; the compression error against its rule (docs/mpi.md, "Error rule");
+// results independent of how the input is distributed, repeated evaluations bit for bit, new points
+// on one object, and collective failure.
+#include <gtest/gtest.h>
+#include <mpi.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "mpi_test_support.hpp"
+#include "rpyfmm/fmm/direct.hpp"
+#include "rpyfmm/fmm/laplace_fmm.hpp"
+#include "rpyfmm/mpi/laplace_fmm.hpp"
+
+using rpyfmm::ErrorCode;
+using rpyfmm::mpi::DistributedFmmOptions;
+using rpyfmm::mpi::DistributedLaplaceFmm;
+using namespace rpyfmm_mpi_test;
+namespace fmm = rpyfmm::fmm;
+
+namespace {
+
+constexpr std::size_t W = fmm::result_width;
+
+// N sources (3N positions) and nd charge vectors (nd x N), the same on every rank for one seed.
+struct Cloud {
+  std::vector<double> x, q;
+  std::size_t nd = 1;
+  [[nodiscard]] std::size_t size() const { return x.size() / 3; }
+};
+
+// Charges in [-1, 1] (zero mean: the relative error of a field with cancellations is the hard case).
+void add_charges(Cloud& c, std::size_t nd, std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  c.nd = nd;
+  c.q.resize(nd * c.size());
+  for (double& v : c.q) v = u(rng);
+}
+
+Cloud uniform_cloud(std::size_t n, std::size_t nd, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  Cloud c;
+  for (std::size_t i = 0; i < 3 * n; ++i) c.x.push_back(u(rng));
+  add_charges(c, nd, rng);
+  return c;
+}
+
+// `n_cluster` points in a ball of radius 3 (one pair coincident) and `n_rest` spread over a cube of
+// side 1000 at a distance of 5000 (clustered_particles): the cluster falls inside one rank's share
+// of the Morton order.
+Cloud clustered_cloud(std::size_t n_cluster, std::size_t n_rest, std::size_t nd, std::uint64_t seed) {
+  Cloud c;
+  c.x = clustered_particles(n_cluster, n_rest, seed).x;
+  std::mt19937_64 rng(seed + 1);
+  add_charges(c, nd, rng);
+  return c;
+}
+
+// This rank's share of a cloud split by `split`: positions and charges (nd x n).
+struct Share {
+  Partition part;
+  std::vector<double> x, q;
+};
+
+Share share_of(const Cloud& c, Split split) {
+  Share s;
+  s.part = partition_of(c.size(), split);
+  s.x = share(c.x, 3, s.part.offset, s.part.n);
+  for (std::size_t d = 0; d < c.nd; ++d) {
+    const auto first = c.q.begin() + static_cast<std::ptrdiff_t>(d * c.size() + s.part.offset);
+    s.q.insert(s.q.end(), first, first + static_cast<std::ptrdiff_t>(s.part.n));
+  }
+  return s;
+}
+
+// Every rank's results (nd x n x 10) assembled into the whole set's (nd x N x 10), on every rank.
+std::vector<double> gather_results(const std::vector<double>& local, std::size_t nd, std::size_t n_total, Split split) {
+  const auto ranks = static_cast<std::size_t>(world_size());
+  const std::vector<std::size_t> counts = split_counts(n_total, ranks, split);
+  std::vector<int> cnt(ranks), dsp(ranks);
+  for (std::size_t r = 0, at = 0; r < ranks; at += counts[r], ++r) {
+    cnt[r] = static_cast<int>(W * counts[r]);
+    dsp[r] = static_cast<int>(W * at);
+  }
+  const std::size_t mine = counts[static_cast<std::size_t>(world_rank())];
+  std::vector<double> all(nd * n_total * W);
+  for (std::size_t d = 0; d < nd; ++d) {
+    MPI_Allgatherv(local.data() + d * mine * W, static_cast<int>(mine * W), MPI_DOUBLE, all.data() + d * n_total * W,
+                   cnt.data(), dsp.data(), MPI_DOUBLE, MPI_COMM_WORLD);
+  }
+  return all;
+}
+
+// The distributed results on the whole set, gathered on every rank.
+std::vector<double> distributed(DistributedLaplaceFmm& f, const Cloud& c, std::span<const unsigned> outputs,
+                                Split split) {
+  const Share s = share_of(c, split);
+  f.set_points(s.x);
+  std::vector<double> local(c.nd * s.part.n * W);
+  f.evaluate(s.q, c.nd, outputs, local);
+  return gather_results(local, c.nd, c.size(), split);
+}
+
+std::vector<double> serial_fmm(const Cloud& c, std::span<const unsigned> outputs, double tolerance) {
+  fmm::LaplaceFmm f({.tolerance = tolerance});
+  f.set_points(c.x);
+  std::vector<double> r(c.nd * c.size() * W);
+  f.evaluate(c.q, c.nd, outputs, r);
+  return r;
+}
+
+std::vector<double> direct(const Cloud& c, std::span<const unsigned> outputs) {
+  std::vector<double> r(c.nd * c.size() * W), one(c.size() * W);
+  for (std::size_t d = 0; d < c.nd; ++d) {
+    fmm::laplace_direct(c.x, std::span<const double>(c.q).subspan(d * c.size(), c.size()), 1, {}, outputs[d], one);
+    std::copy(one.begin(), one.end(), r.begin() + static_cast<std::ptrdiff_t>(d * c.size() * W));
+  }
+  return r;
+}
+
+// The largest relative l2 error over densities and requested outputs (potential, gradient and
+// Hessian each measured on its own, docs/theory/fmm.md).
+double worst_error(const std::vector<double>& got, const std::vector<double>& ref, std::span<const unsigned> outputs,
+                   std::size_t n) {
+  struct Group {
+    unsigned flag;
+    std::size_t first, last;
+  };
+  const Group groups[] = {{fmm::potential, 0, 1}, {fmm::gradient, 1, 4}, {fmm::hessian, 4, 10}};
+  double worst = 0.0;
+  for (std::size_t d = 0; d < outputs.size(); ++d) {
+    for (const Group& g : groups) {
+      if ((outputs[d] & g.flag) == 0) continue;
+      double num = 0.0, den = 0.0;
+      for (std::size_t i = 0; i < n; ++i) {
+        for (std::size_t k = g.first; k < g.last; ++k) {
+          const double a = got[(d * n + i) * W + k], b = ref[(d * n + i) * W + k];
+          num += (a - b) * (a - b);
+          den += b * b;
+        }
+      }
+      worst = std::max(worst, std::sqrt(num / den));
+    }
+  }
+  return worst;
+}
+
+// The sum over ranks of a count.
+std::uint64_t total(std::uint64_t mine) {
+  std::uint64_t sum = 0;
+  MPI_Allreduce(&mine, &sum, 1, MPI_UINT64_T, MPI_SUM, MPI_COMM_WORLD);
+  return sum;
+}
+
+DistributedFmmOptions with_tolerance(double tolerance) {
+  DistributedFmmOptions o;
+  o.fmm.tolerance = tolerance;
+  return o;
+}
+
+const unsigned kTwoOutputs[] = {fmm::potential | fmm::gradient, fmm::all_outputs};
+
+// The distributed FMM within `tolerance` of the direct sum and of the serial FMM, and the same bits
+// for every distribution of the input (the partition and so the plan depend on the global set only).
+void expect_contract(const Cloud& c, double tolerance, std::span<const unsigned> outputs) {
+  const std::vector<double> exact = direct(c, outputs), serial = serial_fmm(c, outputs, tolerance);
+  DistributedLaplaceFmm f(MPI_COMM_WORLD, with_tolerance(tolerance));
+  const std::vector<double> even = distributed(f, c, outputs, Split::even);
+  EXPECT_LE(worst_error(even, exact, outputs, c.size()), tolerance) << "against the direct sum, eps " << tolerance;
+  EXPECT_LE(worst_error(even, serial, outputs, c.size()), tolerance) << "against the serial FMM, eps " << tolerance;
+  for (Split split : {Split::last_only, Split::first_empty}) {
+    EXPECT_EQ(bitwise_mismatches(distributed(f, c, outputs, split), even), 0u) << "split " << static_cast<int>(split);
+  }
+}
+
+TEST(DistributedFmm, UniformMatchesDirectAndSerial) {
+  const Cloud c = uniform_cloud(3000, 2, 11);
+  for (double tolerance : {1e-3, 1e-6, 1e-9}) expect_contract(c, tolerance, kTwoOutputs);
+}
+
+TEST(DistributedFmm, ClusterInsideOneShareIsCompressed) {
+  // 1200 points in a ball of radius 3 and 4800 in a cube of side 1000: on two or more ranks the
+  // cluster's cells reach the other ranks as equivalent charges.
+  const Cloud c = clustered_cloud(1200, 4800, 2, 12);
+  for (double tolerance : {1e-3, 1e-6}) {
+    expect_contract(c, tolerance, kTwoOutputs);
+    DistributedLaplaceFmm f(MPI_COMM_WORLD, with_tolerance(tolerance));
+    (void)distributed(f, c, kTwoOutputs, Split::even);
+    const std::uint64_t cells = total(f.communication().cells_received);
+    if (world_size() > 1) {
+      EXPECT_GT(cells, 0u) << "no cell was compressed at eps " << tolerance;
+    }
+    if (world_size() == 1) {
+      EXPECT_EQ(cells + total(f.communication().halo_received), 0u);
+    }
+  }
+}
+
+TEST(DistributedFmm, CompressionErrorBelowTheRuleAtFixedOrders) {
+  // The serial FMM at 1e-12, so that the error measured is the compression's: with order p for every
+  // compressed cell at a distance of at least eta h, within rho^-p (docs/mpi.md, "Error rule"), and
+  // compression really used (an error well above the serial FMM's) on more than one rank.
+  const Cloud c = uniform_cloud(4000, 1, 13);
+  const unsigned outputs[] = {fmm::potential | fmm::gradient};
+  const std::vector<double> exact = direct(c, outputs);
+  for (int p : {2, 3, 4}) {
+    DistributedFmmOptions o = with_tolerance(1e-12);
+    o.separation = 2.0;
+    o.chebyshev_order = p;
+    DistributedLaplaceFmm f(MPI_COMM_WORLD, o);
+    const double error = worst_error(distributed(f, c, outputs, Split::even), exact, outputs, c.size());
+    const double rho = 2.0 + std::sqrt(5.0);
+    EXPECT_LE(error, std::pow(rho, -p)) << "order " << p;
+    if (world_size() > 1) {
+      EXPECT_GT(error, 1e-10) << "order " << p << ": no compression error at all";
+    }
+  }
+}
+
+TEST(DistributedFmm, EmptyRanksAndMoreRanksThanParticles) {
+  const unsigned outputs[] = {fmm::all_outputs};
+  for (std::size_t n : {1u, 2u, 3u, 5u, 40u}) {
+    const Cloud c = uniform_cloud(n, 1, 14 + n);
+    DistributedLaplaceFmm f(MPI_COMM_WORLD, with_tolerance(1e-6));
+    for (Split split : {Split::even, Split::last_only, Split::geometric}) {
+      const std::vector<double> got = distributed(f, c, outputs, split);
+      const std::vector<double> exact = direct(c, outputs);
+      if (n == 1) {
+        EXPECT_TRUE(std::all_of(got.begin(), got.end(), [](double v) { return v == 0.0; })) << "a lone source";
+      } else {
+        EXPECT_LE(worst_error(got, exact, outputs, n), 1e-6) << n << " particles";
+      }
+      EXPECT_EQ(total(f.owned_size()), n);
+    }
+  }
+}
+
+TEST(DistributedFmm, WeightsThatLeaveOwnersEmpty) {
+  // One weight 1e9 and the others 1: every cut falls just after that particle, so on three or more
+  // ranks some own nothing.
+  const Cloud c = uniform_cloud(1500, 1, 15);
+  const unsigned outputs[] = {fmm::potential | fmm::gradient};
+  const Share s = share_of(c, Split::even);
+  std::vector<double> weights(s.part.n, 1.0);
+  if (s.part.offset == 0 && s.part.n > 0) weights[0] = 1e9;
+  DistributedLaplaceFmm f(MPI_COMM_WORLD, with_tolerance(1e-6));
+  f.set_points(s.x, weights);
+  std::vector<double> local(s.part.n * W);
+  f.evaluate(s.q, 1, outputs, local);
+  const std::vector<double> got = gather_results(local, 1, c.size(), Split::even);
+  EXPECT_LE(worst_error(got, direct(c, outputs), outputs, c.size()), 1e-6);
+  std::uint64_t fewest = f.owned_size();
+  MPI_Allreduce(MPI_IN_PLACE, &fewest, 1, MPI_UINT64_T, MPI_MIN, MPI_COMM_WORLD);
+  if (world_size() >= 3) {
+    EXPECT_EQ(fewest, 0u);
+  }
+}
+
+TEST(DistributedFmm, RepeatedEvaluationsAndNewPoints) {
+  const Cloud a = uniform_cloud(2000, 3, 16), b = clustered_cloud(500, 1500, 3, 17);
+  const unsigned outputs[] = {fmm::potential, fmm::gradient, fmm::all_outputs};
+  DistributedLaplaceFmm f(MPI_COMM_WORLD, with_tolerance(1e-6));
+  const Share s = share_of(a, Split::geometric);
+  f.set_points(s.x);
+  std::vector<double> first(a.nd * s.part.n * W), again(first.size());
+  f.evaluate(s.q, a.nd, outputs, first);
+  f.evaluate(s.q, a.nd, outputs, again);
+  EXPECT_EQ(bitwise_mismatches(first, again), 0u) << "a repeated evaluation differs";
+  EXPECT_LE(worst_error(gather_results(first, a.nd, a.size(), Split::geometric), direct(a, outputs), outputs, a.size()),
+            1e-6);
+  // New points on the same object, then the first ones again: the same plan, the same bits.
+  EXPECT_LE(worst_error(distributed(f, b, outputs, Split::even), direct(b, outputs), outputs, b.size()), 1e-6);
+  f.set_points(s.x);
+  f.evaluate(s.q, a.nd, outputs, again);
+  EXPECT_EQ(bitwise_mismatches(first, again), 0u) << "the same points planned again give other bits";
+  EXPECT_GT(f.communication().evaluate_seconds.count("essential"), 0u);
+}
+
+TEST(DistributedFmm, FailsOnEveryRank) {
+  const int last = world_size() - 1;
+  const Cloud c = uniform_cloud(300, 1, 18);
+  const Share s = share_of(c, Split::even);
+  DistributedLaplaceFmm f(MPI_COMM_WORLD);
+  std::vector<double> out(s.part.n * W);
+  expect_collective_error([&] { f.evaluate(s.q, 1, fmm::potential, out); }, ErrorCode::invalid_input,
+                          "set_points has not succeeded");
+
+  std::vector<double> bad_x = s.x;
+  if (world_rank() == last && !bad_x.empty()) bad_x[1] = std::numeric_limits<double>::quiet_NaN();
+  expect_collective_error([&] { f.set_points(bad_x); }, ErrorCode::invalid_input,
+                          "rank " + std::to_string(last) + " of " + std::to_string(world_size()) +
+                              ": rpyfmm::mpi::DistributedLaplaceFmm::set_points: local sources entry (0, 1) is NaN");
+  expect_collective_error([&] { f.set_points({}); }, ErrorCode::invalid_input, "no rank has a source");
+
+  f.set_points(s.x);
+  std::vector<double> bad_q = s.q;
+  if (world_rank() == last && !bad_q.empty()) bad_q.back() = std::numeric_limits<double>::infinity();
+  expect_collective_error([&] { f.evaluate(bad_q, 1, fmm::potential, out); }, ErrorCode::invalid_input,
+                          "rank " + std::to_string(last) + " of " + std::to_string(world_size()) +
+                              ": rpyfmm::mpi::DistributedLaplaceFmm::evaluate: local charges entry");
+  std::vector<double> short_out(world_rank() == 0 ? out.size() + 1 : out.size());
+  expect_collective_error([&] { f.evaluate(s.q, 1, fmm::potential, short_out); }, ErrorCode::invalid_input,
+                          "rank 0 of " + std::to_string(world_size()) +
+                              ": rpyfmm::mpi::DistributedLaplaceFmm::evaluate: local results have");
+  const unsigned flags = world_rank() == last ? fmm::gradient : fmm::potential;
+  if (world_size() > 1) {
+    expect_collective_error([&] { f.evaluate(s.q, 1, flags, out); }, ErrorCode::invalid_argument,
+                            "the ranks pass different outputs");
+  }
+  DistributedFmmOptions mixed;
+  mixed.fmm.tolerance = world_rank() == last ? 1e-3 : 1e-6;
+  if (world_size() > 1) {
+    expect_collective_error([&] { DistributedLaplaceFmm g(MPI_COMM_WORLD, mixed); }, ErrorCode::invalid_argument,
+                            "the ranks pass different options");
+  }
+  // Still usable after the failures.
+  f.evaluate(s.q, 1, fmm::potential, out);
+  const unsigned pot[] = {fmm::potential};
+  EXPECT_LE(worst_error(gather_results(out, 1, c.size(), Split::even), direct(c, pot), pot, c.size()), 1e-6);
+}
+
+}  // namespace
