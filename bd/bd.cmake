@@ -28,3 +28,23 @@ if(RPYFMM_HAVE_GSD)
 else()
   target_sources(rpyfmm_bd PRIVATE ${CMAKE_CURRENT_LIST_DIR}/src/gsd_unavailable.cpp)
 endif()
+# BD stages as host-device functions (bd/src/device, docs/gpu-bd.md): the host launcher always,
+# the CUDA engine where RPYFMM_USE_CUDA. The launcher keeps a * b + c unfused, as nvcc's
+# --fmad=false keeps the kernels, so that host and device compute the same bits.
+target_sources(rpyfmm_bd PRIVATE
+  ${CMAKE_CURRENT_LIST_DIR}/src/device/engine_tables.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/device/step_status.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/device/host_engine.cpp)
+set_source_files_properties(${CMAKE_CURRENT_LIST_DIR}/src/device/host_engine.cpp PROPERTIES
+  COMPILE_OPTIONS "$<$<CXX_COMPILER_ID:GNU,Clang>:-ffp-contract=off>")
+if(RPYFMM_USE_CUDA)
+  target_sources(rpyfmm_bd PRIVATE ${CMAKE_CURRENT_LIST_DIR}/src/device/device_engine.cu)
+  target_link_libraries(rpyfmm_bd PRIVATE CUDA::cudart)
+  # As rpy/pse.cmake: -std=c++20 passed directly (CMake 3.25 lacks nvcc's C++20 dialect).
+  set_target_properties(rpyfmm_bd PROPERTIES CUDA_SEPARABLE_COMPILATION OFF CUDA_STANDARD_REQUIRED OFF)
+  set_property(TARGET rpyfmm_bd PROPERTY CUDA_STANDARD)
+  target_compile_options(rpyfmm_bd PRIVATE
+    $<$<COMPILE_LANGUAGE:CUDA>:-std=c++20 --expt-relaxed-constexpr --fmad=false -lineinfo>)
+else()
+  target_sources(rpyfmm_bd PRIVATE ${CMAKE_CURRENT_LIST_DIR}/src/device/device_engine_unavailable.cpp)
+endif()

@@ -1,0 +1,75 @@
+// rpyfmm::bd::device — one particle's free-draining Euler-Maruyama step (the GPU BD paper,
+// Eurographics 2015, eq. 3; docs/theory/bd.md):
+//
+//     dx = mu F dt + sqrt(2 kT dt) sqrt(mu) z,   mu = 1 / (6 pi eta a),  z = brownian_normals
+//
+// with the blow-up guard of Integrator::checked_displacements (a step moving a particle more than
+// max_displacement x its radius, or not finite, is refused), and, as the GPU BD paper's update
+// kernel does (Algorithm 1, lines 14-16), the rebuild test of the next step on the new position.
+// Positions stay unwrapped, as in the CPU engine (mean-square displacements); the minimum image
+// is taken where pairs are measured (minimum_image.hpp) and the wrap where particles are binned
+// (cell_binning.hpp). The operations of the CPU engine's step, in its order.
+#pragma once
+
+#include <cstdint>
+
+#include "atomics.hpp"
+#include "brownian_noise.hpp"
+#include "host_device.hpp"
+#include "rebuild_test.hpp"
+
+namespace rpyfmm::bd::device {
+
+/// The per-type mobilities and the step's constants.
+struct MotionTables {
+  const std::uint32_t* type = nullptr;    ///< per particle
+  const double* mobility = nullptr;       ///< per type: 1 / (6 pi eta a)
+  const double* sqrt_mobility = nullptr;  ///< per type: its square root
+  const double* radius = nullptr;         ///< per type
+  double dt = 0.0;
+  double noise = 0.0;              ///< sqrt(2 kT dt)
+  bool brownian = false;           ///< kT > 0
+  double max_displacement2 = 1.0;  ///< (max_displacement)^2, in radii
+  std::uint64_t seed = 0;
+  std::uint64_t step = 0;
+};
+
+/// Where a step goes: the new positions (kept only when no particle failed the guard), the
+/// positions of the last list build, and the store_min slots of the lowest particle refused by
+/// the guard and the lowest one beyond skin/2 (limit2 = (skin/2)^2; 0 slots: no list).
+struct MotionOutput {
+  double* x_next = nullptr;
+  const double* reference = nullptr;
+  double limit2 = 0.0;
+  std::uint64_t* bad_move = nullptr;
+  std::uint64_t* moved = nullptr;
+};
+
+/// dx of particle i from its force f (3 per particle); false when the guard refuses it.
+RPYFMM_HOST_DEVICE inline bool displacement(std::uint32_t i, const double* f, const MotionTables& m, double dx[3]) {
+  const std::uint32_t t = m.type[i];
+  double z[3] = {0.0, 0.0, 0.0};
+  if (m.brownian) brownian_normals(m.seed, m.step, i, z);
+  double d2 = 0.0;
+  for (int c = 0; c < 3; ++c) {
+    const double u = m.mobility[t] * f[3 * static_cast<std::uint64_t>(i) + c];
+    const double w = m.sqrt_mobility[t] * z[c];
+    const double d = u * m.dt + (m.brownian ? m.noise * w : 0.0);
+    dx[c] = d;
+    d2 += d * d;
+  }
+  return d2 <= m.max_displacement2 * m.radius[t] * m.radius[t];  // false for NaN too
+}
+
+/// x_next = x + dx for particle i, the guard and the next step's rebuild test.
+RPYFMM_HOST_DEVICE inline void advance_particle(std::uint32_t i, const double* x, const double* f,
+                                                const MotionTables& m, const MotionOutput& out) {
+  double dx[3];
+  if (!displacement(i, f, m, dx)) store_min(out.bad_move, i);
+  const std::uint64_t k = 3 * static_cast<std::uint64_t>(i);
+  for (int c = 0; c < 3; ++c) out.x_next[k + c] = x[k + c] + dx[c];
+  if (out.reference != nullptr && moved_beyond_half_skin(i, out.x_next, out.reference, out.limit2))
+    store_min(out.moved, i);
+}
+
+}  // namespace rpyfmm::bd::device
