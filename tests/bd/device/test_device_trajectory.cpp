@@ -47,11 +47,11 @@ EngineOptions engine_options(const IntegratorOptions& io, double viscosity,
 
 /// Runs both engines `steps` steps, comparing after each. Builds that fuse: positions within
 /// 1e-12 of the box scale per step taken (docs/gpu-bd.md), checked over the first 10 steps only.
-/// A skin of 0.1 makes the lists rebuild every few steps.
+/// A skin of 0.1 (the default `neighbours`) makes the lists rebuild every few steps.
 void run_side_by_side(const ForceField& forces, const std::vector<std::uint32_t>& types, const Geometry& geometry,
-                      const std::vector<double>& x, const IntegratorOptions& io, int steps, const char* what) {
+                      const std::vector<double>& x, const IntegratorOptions& io, int steps, const char* what,
+                      const rpyfmm::bd::NeighbourOptions& neighbours = {.skin = 0.1}) {
   const double eta = 0.7;
-  const rpyfmm::bd::NeighbourOptions neighbours{.skin = 0.1};
   Integrator cpu(std::make_unique<rpyfmm::rpy::FreeDrainingMobility>(geometry, eta), forces, io, x, types, neighbours);
   HostEngine host(forces, types, geometry, engine_options(io, eta, neighbours), x);
   double scale = 1.0;
@@ -119,6 +119,13 @@ TEST(DeviceTrajectory, WcaDlvoAndDeterministicSoft) {
   // Deterministic: soft spheres overlapping by a quarter of sigma push the lattice's surface out.
   run_side_by_side(single_type(PairKind::soft), types, Geometry::open(), jittered_lattice(side, 1.5, 0.03, 55),
                    integrator_options(0.5, 0.0, 7), 30, "soft, kT = 0");
+}
+
+TEST(DeviceTrajectory, FixedIntervalRebuildsAtTheSameSteps) {
+  // The GPU BD paper's fixed-interval strategy (Table 1), every 7 steps, with the default skin.
+  auto x = jittered_lattice(8, spacing(PairKind::wca), 0.03, 57);
+  run_side_by_side(single_type(PairKind::wca), std::vector<std::uint32_t>(x.size() / 3, 0), Geometry::open(), x,
+                   integrator_options(2e-4, 1.0, 9), 40, "fixed interval", {.fixed_interval = 7});
 }
 
 TEST(DeviceTrajectory, BlowUpRefusedAtTheSameStep) {
