@@ -85,13 +85,11 @@ Cube cell_cube(const Cell& cell) {
 }
 
 double distance(const Cube& cube, const Box& box) {
-  double sum = 0.0;
+  std::array<double, 3> gap{};
   for (std::size_t d = 0; d < 3; ++d) {
-    const double gap =
-        std::max({0.0, box.lo[d] - (cube.center[d] + cube.half), (cube.center[d] - cube.half) - box.hi[d]});
-    sum += gap * gap;
+    gap[d] = std::max({0.0, box.lo[d] - (cube.center[d] + cube.half), (cube.center[d] - cube.half) - box.hi[d]});
   }
-  return std::sqrt(sum);
+  return std::hypot(gap[0], gap[1], gap[2]);  // without overflow of the squares
 }
 
 }  // namespace rpyfmm::mpi::detail

@@ -282,7 +282,16 @@ TEST(DistributedFmm, RepeatedEvaluationsAndNewPoints) {
   f.set_points(s.x);
   f.evaluate(s.q, a.nd, outputs, again);
   EXPECT_EQ(bitwise_mismatches(first, again), 0u) << "the same points planned again give other bits";
-  EXPECT_GT(f.communication().evaluate_seconds.count("essential"), 0u);
+  // Bytes received per evaluation: the charges of the owned sources, the halo and equivalent
+  // charges, and the results of this rank's sources.
+  const rpyfmm::mpi::FmmCommunication& comm = f.communication();
+  EXPECT_EQ(comm.evaluate_bytes_received,
+            8 * a.nd * (f.owned_size() + comm.halo_received + comm.nodes_received) + 80 * a.nd * s.part.n);
+  EXPECT_EQ(f.essential_size(), f.owned_size() == 0 ? 0 : f.owned_size() + comm.halo_received + comm.nodes_received);
+  EXPECT_EQ(total(comm.halo_sent), total(comm.halo_received));
+  EXPECT_EQ(total(comm.nodes_sent), total(comm.nodes_received));
+  EXPECT_EQ(total(comm.cells_sent), total(comm.cells_received));
+  for (const char* stage : {"charges", "essential", "results"}) EXPECT_EQ(comm.evaluate_seconds.count(stage), 1u);
 }
 
 TEST(DistributedFmm, FailsOnEveryRank) {
