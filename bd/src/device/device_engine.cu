@@ -2,7 +2,9 @@
 // CUDA kernel of one thread per particle (slot, cell) calling the same host-device function.
 // The positions stay on the device; per step the host reads one StepStatus (the failure slots
 // and the next step's rebuild test, as the GPU BD paper's update kernel sets its flag, Algorithm
-// 1, lines 14-16), and per rebuild the grid bounds and the number of pairs. Scans by CUB.
+// 1, lines 14-16), and per rebuild the grid bounds and the number of pairs. Scans by CUB. The
+// force and update kernels take the particles in the slot order of the last build (along the
+// grid: the GPU BD paper's locality), which changes which thread computes a particle, not what.
 // Compiled with --fmad=false: the kernels' a * b + c stay unfused, as on the host, so that
 // host and device agree bit for bit but for the device's own exp and log (DLVO, FENE).
 #include <cuda_runtime.h>
@@ -114,14 +116,22 @@ __global__ void fill_all_kernel(std::uint32_t n, const double* x, const std::uin
   if (i < n) fill_row_from_all(i, n, x, type, image, radii, rows);
 }
 
-__global__ void forces_kernel(std::uint32_t n, const double* x, ForceTables t, RowsView rows, ForceOutput out) {
-  const std::uint32_t i = thread_item();
-  if (i < n) particle_force(i, x, t, rows, out);
+/// The particle of thread item k: along the grid (the slots of the last build) when `order` is
+/// set, so that a warp's particles share neighbours in cache; else k.
+__device__ std::uint32_t particle_of(std::uint32_t k, const std::uint32_t* order) {
+  return order != nullptr ? order[k] : k;
 }
 
-__global__ void advance_kernel(std::uint32_t n, const double* x, const double* f, MotionTables m, MotionOutput out) {
-  const std::uint32_t i = thread_item();
-  if (i < n) advance_particle(i, x, f, m, out);
+__global__ void forces_kernel(std::uint32_t n, const std::uint32_t* order, const double* x, ForceTables t,
+                              RowsView rows, ForceOutput out) {
+  const std::uint32_t k = thread_item();
+  if (k < n) particle_force(particle_of(k, order), x, t, rows, out);
+}
+
+__global__ void advance_kernel(std::uint32_t n, const std::uint32_t* order, const double* x, const double* f,
+                               MotionTables m, MotionOutput out) {
+  const std::uint32_t k = thread_item();
+  if (k < n) advance_particle(particle_of(k, order), x, f, m, out);
 }
 
 void check_launch(const char* what) {
@@ -154,6 +164,7 @@ struct DeviceEngine::Impl {
   RebuildSchedule schedule{0.0, 0};
   bool rebuilt = false;
   std::uint64_t pairs = 0;  // entries of the rows
+  bool along_grid = false;  // order holds the slots of the last build
   // tables
   DeviceBuffer<std::uint32_t> type, bond_begin;
   DeviceBuffer<PairTerm> pair_terms;
@@ -255,6 +266,7 @@ struct DeviceEngine::Impl {
     rows.indices = indices.get();
     fill_cells_kernel<<<blocks_for(n), kThreads>>>(n, g, slots, radii, rows);
     check_launch("row fill kernel");
+    along_grid = true;
   }
 
   void build_lists() {
@@ -262,6 +274,7 @@ struct DeviceEngine::Impl {
                "reference positions");
     cuda_check(cudaMemset(offsets.get(), 0, (n + 1ull) * sizeof(std::uint64_t)), "cudaMemset");
     pairs = 0;
+    along_grid = false;
     if (t.cutoff == 0.0) return;
     const CellGrid g = grid();
     const ListRadii radii{list_rl2.get(), t.ntypes};
@@ -285,14 +298,15 @@ struct DeviceEngine::Impl {
     cuda_check(cudaMemcpy(status.get(), &fresh, sizeof fresh, cudaMemcpyHostToDevice), "step status");
     StepStatus* s = status.get();
     const RowsView rows{offsets.get(), indices.get()};
-    forces_kernel<<<blocks_for(n), kThreads>>>(n, x.get(), force_tables(), rows,
+    const std::uint32_t* slots = along_grid ? order.get() : nullptr;
+    forces_kernel<<<blocks_for(n), kThreads>>>(n, slots, x.get(), force_tables(), rows,
                                                ForceOutput{f.get(), energy.get(), &s->bad_pair, &s->bad_bond});
     check_launch("forces kernel");
     const MotionTables m{type.get(), mobility.get(), sqrt_mobility.get(), radius.get(), t.dt,
                          t.noise,    t.brownian,     t.max_displacement2, t.seed,       step};
     const MotionOutput out{x_next.get(), schedule.dynamic() ? reference.get() : nullptr, t.rebuild_limit2(),
                            &s->bad_move, &s->moved};
-    advance_kernel<<<blocks_for(n), kThreads>>>(n, x.get(), f.get(), m, out);
+    advance_kernel<<<blocks_for(n), kThreads>>>(n, slots, x.get(), f.get(), m, out);
     check_launch("advance kernel");
     StepStatus found;
     cuda_check(cudaMemcpy(&found, status.get(), sizeof found, cudaMemcpyDeviceToHost), "step status");

@@ -12,6 +12,7 @@
 #include "compare.hpp"
 #include "device/host_engine.hpp"
 #include "device_systems.hpp"
+#include "rpyfmm/bd/device/device_support.hpp"
 #include "rpyfmm/bd/integrator.hpp"
 #include "rpyfmm/core/error.hpp"
 #include "rpyfmm/rpy/free_draining.hpp"
@@ -19,7 +20,7 @@
 using namespace device_test;
 using rpyfmm::bd::Integrator;
 using rpyfmm::bd::IntegratorOptions;
-using rpyfmm::bd::device::EngineOptions;
+using rpyfmm::bd::device::engine_options_for;
 using rpyfmm::bd::device::HostEngine;
 using rpyfmm::rpy::Geometry;
 
@@ -33,18 +34,6 @@ IntegratorOptions integrator_options(double dt, double kT, std::uint64_t seed) {
   return o;
 }
 
-EngineOptions engine_options(const IntegratorOptions& io, double viscosity,
-                             const rpyfmm::bd::NeighbourOptions& neighbours = {}) {
-  EngineOptions o;
-  o.neighbours = neighbours;
-  o.dt = io.dt;
-  o.kT = io.kT;
-  o.seed = io.seed;
-  o.max_displacement = io.max_displacement;
-  o.viscosity = viscosity;
-  return o;
-}
-
 /// Runs both engines `steps` steps, comparing after each. Builds that fuse: positions within
 /// 1e-12 of the box scale per step taken (docs/gpu-bd.md), checked over the first 10 steps only.
 /// A skin of 0.1 (the default `neighbours`) makes the lists rebuild every few steps.
@@ -53,7 +42,7 @@ void run_side_by_side(const ForceField& forces, const std::vector<std::uint32_t>
                       const rpyfmm::bd::NeighbourOptions& neighbours = {.skin = 0.1}) {
   const double eta = 0.7;
   Integrator cpu(std::make_unique<rpyfmm::rpy::FreeDrainingMobility>(geometry, eta), forces, io, x, types, neighbours);
-  HostEngine host(forces, types, geometry, engine_options(io, eta, neighbours), x);
+  HostEngine host(forces, types, geometry, engine_options_for(io, cpu.mobility(), neighbours), x);
   double scale = 1.0;
   for (double v : x) scale = std::max(scale, std::abs(v));
   std::size_t rebuilds = 0;
@@ -135,7 +124,7 @@ TEST(DeviceTrajectory, BlowUpRefusedAtTheSameStep) {
   const auto io = integrator_options(5.0, 1.0, 8);
   Integrator cpu(std::make_unique<rpyfmm::rpy::FreeDrainingMobility>(Geometry::open(), 1.0), single_type(PairKind::wca),
                  io, x, types);
-  HostEngine host(single_type(PairKind::wca), types, Geometry::open(), engine_options(io, 1.0), x);
+  HostEngine host(single_type(PairKind::wca), types, Geometry::open(), engine_options_for(io, cpu.mobility(), {}), x);
   rpyfmm::ErrorCode cpu_code{}, host_code{};
   try {
     cpu.step();
