@@ -322,7 +322,13 @@ void DistributedLaplaceFmm::set_points(std::span<const double> local_sources, st
   plan->fmm = fmm::LaplaceFmm(options_.fmm);
   timed(stats_.compute_seconds, "plan_fmm", [&] {
     comm_.run([&] {
-      if (!plan->owned_x.empty()) plan->fmm.set_points(sources, plan->owned_x);
+      // Targets at the sources when nothing came from the other ranks (one rank, or an isolated
+      // owner): the serial FMM's own mode, one tree of m points instead of 2m.
+      if (sources.size() == plan->owned_x.size()) {
+        if (!sources.empty()) plan->fmm.set_points(sources);
+      } else {
+        plan->fmm.set_points(sources, plan->owned_x);
+      }
     });
   });
   plan_ = std::move(plan);
