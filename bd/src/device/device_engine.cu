@@ -294,8 +294,9 @@ struct DeviceEngine::Impl {
   void step_once() {
     rebuilt = schedule.next_step();
     if (rebuilt) build_lists();
-    const StepStatus fresh;
-    cuda_check(cudaMemcpy(status.get(), &fresh, sizeof fresh, cudaMemcpyHostToDevice), "step status");
+    // Every slot kNone (all bits set): a memset, no copy from the host.
+    static_assert(sizeof(StepStatus) == 4 * sizeof(std::uint64_t) && kNone == ~std::uint64_t{0});
+    cuda_check(cudaMemsetAsync(status.get(), 0xFF, sizeof(StepStatus)), "step status");
     StepStatus* s = status.get();
     const RowsView rows{offsets.get(), indices.get()};
     const std::uint32_t* slots = along_grid ? order.get() : nullptr;
