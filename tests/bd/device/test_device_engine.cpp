@@ -6,14 +6,11 @@
 // by about an ulp, so those runs compare within the bound of docs/gpu-bd.md.
 // The scenarios also run on the host launcher against the CPU Integrator where no device is
 // (DeviceScenarios.*), so that they are known to be valid runs: no overlap, no blow-up, rebuilds.
-// Without a usable device (cudaGetDeviceCount failing, e.g. "insufficient driver", no device, or
-// no kernel image) the device tests skip, saying why; RPYFMM_EXPECT_CUDA set (the GPU machine's
-// check script) turns that into a failure, as for the PSE CUDA tests.
+// Without a usable device the device tests skip, saying why (require_device.hpp).
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <limits>
 #include <memory>
 #include <string>
@@ -21,6 +18,7 @@
 #include "compare.hpp"
 #include "device/host_engine.hpp"
 #include "device_systems.hpp"
+#include "require_device.hpp"
 #include "rpyfmm/bd/device/device_engine.hpp"
 #include "rpyfmm/bd/integrator.hpp"
 #include "rpyfmm/core/error.hpp"
@@ -33,18 +31,6 @@ using rpyfmm::bd::device::HostEngine;
 using rpyfmm::rpy::Geometry;
 
 namespace {
-
-bool device_expected() {
-  return std::getenv("RPYFMM_EXPECT_CUDA") != nullptr;
-}
-
-#define REQUIRE_BD_DEVICE()                                                                            \
-  do {                                                                                                 \
-    if (!DeviceEngine::device_available()) {                                                           \
-      if (device_expected()) FAIL() << "RPYFMM_EXPECT_CUDA is set, but no usable CUDA device";         \
-      GTEST_SKIP() << "no usable CUDA device (or a build without CUDA): the device engine is not run"; \
-    }                                                                                                  \
-  } while (false)
 
 EngineOptions options(double dt, std::uint64_t seed) {
   EngineOptions o;

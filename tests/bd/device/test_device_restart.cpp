@@ -6,11 +6,11 @@
 #include <gtest/gtest.h>
 #include <omp.h>
 
-#include <cstdlib>
 #include <vector>
 
 #include "device/host_engine.hpp"
 #include "device_systems.hpp"
+#include "require_device.hpp"
 #include "rpyfmm/bd/device/device_engine.hpp"
 
 using namespace device_test;
@@ -91,9 +91,6 @@ TEST(DeviceRestart, HostLauncherIndependentOfThreads) {
 }
 
 TEST(DeviceRestart, DeviceEngineContinuesBitForBit) {
-  if (!DeviceEngine::device_available()) {
-    if (std::getenv("RPYFMM_EXPECT_CUDA") != nullptr) FAIL() << "RPYFMM_EXPECT_CUDA is set, but no usable CUDA device";
-    GTEST_SKIP() << "no usable CUDA device (or a build without CUDA): the device engine is not run";
-  }
+  REQUIRE_BD_DEVICE();
   expect_restart_continues<DeviceEngine>(lattice_system(), 23, 60, [](const DeviceEngine& e) { return e.positions(); });
 }
