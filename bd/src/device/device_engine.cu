@@ -17,6 +17,7 @@
 
 #include "cell_binning.hpp"
 #include "cuda_buffer.cuh"
+#include "cuda_events.cuh"
 #include "engine_tables.hpp"
 #include "euler_maruyama.hpp"
 #include "particle_force.hpp"
@@ -177,6 +178,8 @@ struct DeviceEngine::Impl {
   DeviceBuffer<std::uint32_t> indices, cell_of, rank, count, start, order, ts;
   DeviceBuffer<StepStatus> status;
   DeviceBuffer<unsigned char> scratch;
+  StageEvents marks;
+  StageTimes times{{"neighbours", 0.0}, {"forces", 0.0}, {"update", 0.0}};
 
   void upload_tables() {
     type.upload(t.type);
@@ -292,8 +295,10 @@ struct DeviceEngine::Impl {
   }
 
   void step_once() {
+    marks.mark(0);
     rebuilt = schedule.next_step();
     if (rebuilt) build_lists();
+    marks.mark(1);
     // Every slot kNone (all bits set): a memset, no copy from the host.
     static_assert(sizeof(StepStatus) == 4 * sizeof(std::uint64_t) && kNone == ~std::uint64_t{0});
     cuda_check(cudaMemsetAsync(status.get(), 0xFF, sizeof(StepStatus)), "step status");
@@ -303,14 +308,19 @@ struct DeviceEngine::Impl {
     forces_kernel<<<blocks_for(n), kThreads>>>(n, slots, x.get(), force_tables(), rows,
                                                ForceOutput{f.get(), energy.get(), &s->bad_pair, &s->bad_bond});
     check_launch("forces kernel");
+    marks.mark(2);
     const MotionTables m{type.get(), mobility.get(), sqrt_mobility.get(), radius.get(), t.dt,
                          t.noise,    t.brownian,     t.max_displacement2, t.seed,       step};
     const MotionOutput out{x_next.get(), schedule.dynamic() ? reference.get() : nullptr, t.rebuild_limit2(),
                            &s->bad_move, &s->moved};
     advance_kernel<<<blocks_for(n), kThreads>>>(n, slots, x.get(), f.get(), m, out);
     check_launch("advance kernel");
+    marks.mark(3);
     StepStatus found;
     cuda_check(cudaMemcpy(&found, status.get(), sizeof found, cudaMemcpyDeviceToHost), "step status");
+    times["neighbours"] += marks.seconds(0, 1);
+    times["forces"] += marks.seconds(1, 2);
+    times["update"] += marks.seconds(2, 3);
     throw_if_failed(found, step);
     swap(x, x_next);
     schedule.set_moved(found.moved != kNone);
@@ -323,10 +333,11 @@ bool DeviceEngine::device_available() {
 }
 
 DeviceEngine::DeviceEngine(const ForceField& forces, std::vector<std::uint32_t> types, rpy::Geometry geometry,
-                           const EngineOptions& options, std::span<const double> positions, std::uint64_t first_step)
-    : impl_(std::make_unique<Impl>()) {
+                           const EngineOptions& options, std::span<const double> positions, std::uint64_t first_step) {
+  // Before any CUDA call of Impl (its events): without a device, the reason, not the call's error.
   const std::string reason = unavailable_reason();
   require(reason.empty(), ErrorCode::not_supported, "bd device engine", "no usable CUDA device: " + reason);
+  impl_ = std::make_unique<Impl>();
   Impl& d = *impl_;
   d.t = make_engine_tables(forces, types, geometry, options);
   check_positions(positions, d.t.n);
@@ -384,6 +395,10 @@ std::size_t DeviceEngine::rebuilds() const {
 
 bool DeviceEngine::last_step_rebuilt() const {
   return impl_->rebuilt;
+}
+
+StageTimes DeviceEngine::stage_times() const {
+  return impl_->times;
 }
 
 }  // namespace rpyfmm::bd::device

@@ -41,5 +41,8 @@ std::size_t DeviceEngine::rebuilds() const {
 bool DeviceEngine::last_step_rebuilt() const {
   return false;
 }
+StageTimes DeviceEngine::stage_times() const {
+  return {};
+}
 
 }  // namespace rpyfmm::bd::device

@@ -97,8 +97,11 @@ void HostEngine::rows_from_cells(const CellGrid& g) {
 }
 
 void HostEngine::step() {
+  StopWatch watch;
   rebuilt_ = schedule_.next_step();
   if (rebuilt_) build_lists();
+  times_["neighbours"] += watch.seconds();
+  watch.restart();
   StepStatus status;
   const ForceTables ft{t_.ntypes,
                        t_.type.data(),
@@ -113,11 +116,14 @@ void HostEngine::step() {
   const RowsView rows{rows_.offsets.data(), rows_.indices.data()};
   const ForceOutput fo{f_.data(), energy_.data(), &status.bad_pair, &status.bad_bond};
   for_each_item(t_.n, [&](std::uint32_t i) { particle_force(i, x_.data(), ft, rows, fo); });
+  times_["forces"] += watch.seconds();
+  watch.restart();
   const MotionTables mt{t_.type.data(), t_.mobility.data(), t_.sqrt_mobility.data(), t_.radius.data(), t_.dt,
                         t_.noise,       t_.brownian,        t_.max_displacement2,    t_.seed,          step_};
   const MotionOutput mo{x_next_.data(), schedule_.dynamic() ? reference_.data() : nullptr, t_.rebuild_limit2(),
                         &status.bad_move, &status.moved};
   for_each_item(t_.n, [&](std::uint32_t i) { advance_particle(i, x_.data(), f_.data(), mt, mo); });
+  times_["update"] += watch.seconds();
   throw_if_failed(status, step_);
   x_.swap(x_next_);
   schedule_.set_moved(status.moved != kNone);

@@ -36,6 +36,8 @@ class HostEngine {
   [[nodiscard]] std::uint64_t step_count() const { return step_; }
   [[nodiscard]] std::size_t rebuilds() const { return schedule_.rebuilds(); }
   [[nodiscard]] bool last_step_rebuilt() const { return rebuilt_; }
+  /// Seconds per part over the steps taken (DeviceEngine::stage_times; wall clock).
+  [[nodiscard]] const StageTimes& stage_times() const { return times_; }
   [[nodiscard]] const EngineTables& tables() const { return t_; }
 
  private:
@@ -51,6 +53,7 @@ class HostEngine {
   std::uint64_t step_;
   RebuildSchedule schedule_;
   bool rebuilt_ = false;
+  StageTimes times_{{"neighbours", 0.0}, {"forces", 0.0}, {"update", 0.0}};
 };
 
 }  // namespace rpyfmm::bd::device

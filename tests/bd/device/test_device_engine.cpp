@@ -185,3 +185,27 @@ TEST(DeviceScenarios, HostLauncherMatchesCpuEngine) {
                  c.name.c_str());
   }
 }
+
+namespace {
+
+/// The three parts, each counted (> 0: every part of these steps does work).
+void expect_stage_times(const rpyfmm::StageTimes& times, const char* engine) {
+  for (const char* part : {"neighbours", "forces", "update"}) {
+    ASSERT_EQ(times.count(part), 1u) << engine << ": no " << part;
+    EXPECT_GT(times.at(part), 0.0) << engine << ": " << part;
+  }
+  EXPECT_EQ(times.size(), 3u) << engine;
+}
+
+}  // namespace
+
+TEST(DeviceEngine, StageTimesPerPart) {
+  const Scenario c = scenarios().front();
+  HostEngine host(c.forces, c.types, c.geometry, c.options, c.x);
+  host.run(5);
+  expect_stage_times(host.stage_times(), "host launcher");
+  REQUIRE_BD_DEVICE();
+  DeviceEngine dev(c.forces, c.types, c.geometry, c.options, c.x);
+  dev.run(5);
+  expect_stage_times(dev.stage_times(), "device engine");
+}

@@ -19,6 +19,7 @@
 
 #include "rpyfmm/bd/force_field.hpp"
 #include "rpyfmm/bd/neighbour_list.hpp"
+#include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/rpy/geometry.hpp"
 
 namespace rpyfmm::bd::device {
@@ -75,6 +76,10 @@ class DeviceEngine {
   [[nodiscard]] std::uint64_t step_count() const;
   [[nodiscard]] std::size_t rebuilds() const;
   [[nodiscard]] bool last_step_rebuilt() const;
+  /// Seconds spent per part over the steps taken, by CUDA events: "neighbours" (rebuilds),
+  /// "forces", "update" (noise, update, guard and the next rebuild test), the parts of the GPU BD
+  /// paper's Table 2 and the keys of IntegratorTotals::seconds.
+  [[nodiscard]] StageTimes stage_times() const;
 
  private:
   struct Impl;
