@@ -103,6 +103,32 @@ bool same_on_every_rank(const Communicator& comm, std::vector<double> values) {
   return true;
 }
 
+// Collective: translates the owned positions next to the origin where the whole cloud lies far
+// from it (its centre at least 4 extents out along an axis), by the centre of the global box on
+// that axis, as the serial FMM does (exact_shifts in fmm/src/laplace_fmm.cpp): every coordinate is
+// then within a factor 2 of the centre, so x - centre is exact (Sterbenz) and pair differences do
+// not change, while the cells' cubes and Chebyshev nodes are rounded to the cloud's scale instead
+// of the coordinates'. Potentials and fields are invariant under the translation. One allreduce.
+void shift_to_centre(const Communicator& comm, std::vector<double>& x) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  std::array<double, 6> local{kInf, kInf, kInf, kInf, kInf, kInf}, box{};  // minima, minus maxima
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    local[i % 3] = std::min(local[i % 3], x[i]);
+    local[3 + i % 3] = std::min(local[3 + i % 3], -x[i]);
+  }
+  check_mpi(MPI_Allreduce(local.data(), box.data(), 6, MPI_DOUBLE, MPI_MIN, comm.get()), "MPI_Allreduce");
+  if (box[0] == kInf) return;  // no source anywhere
+  double extent = 0.0;
+  for (std::size_t d = 0; d < 3; ++d) extent = std::max(extent, 0.5 * -box[3 + d] - 0.5 * box[d]);
+  extent *= 2.0;
+  std::array<double, 3> shift{};
+  for (std::size_t d = 0; d < 3; ++d) {
+    const double mid = 0.5 * box[d] + 0.5 * -box[3 + d];
+    if (std::abs(mid) >= 4.0 * extent) shift[d] = mid;
+  }
+  for (std::size_t i = 0; i < x.size(); ++i) x[i] -= shift[i % 3];
+}
+
 void check_sources(std::span<const double> sources) {
   require(sources.size() % 3 == 0, ErrorCode::invalid_input, kSetPoints,
           "local sources have " + std::to_string(sources.size()) + " entries, not a multiple of 3");
@@ -294,6 +320,7 @@ void DistributedLaplaceFmm::set_points(std::span<const double> local_sources, st
     plan->partition = std::make_unique<SfcPartition>(comm_.get(), local_sources, local_weights);
     const Column positions[] = {{local_sources, 3}};
     plan->owned_x = plan->partition->to_owners(positions)[0];
+    shift_to_centre(comm_, plan->owned_x);
   });
   if (plan->partition->global_size() == 0) fail(ErrorCode::invalid_input, kSetPoints, "no rank has a source");
   stats_.plan_bytes_received += plan->owned_x.size() * sizeof(double);
