@@ -38,7 +38,6 @@ class HostEngine {
   [[nodiscard]] bool last_step_rebuilt() const { return rebuilt_; }
   /// Seconds per part over the steps taken (DeviceEngine::stage_times; wall clock).
   [[nodiscard]] const StageTimes& stage_times() const { return times_; }
-  [[nodiscard]] const EngineTables& tables() const { return t_; }
 
  private:
   [[nodiscard]] CellGrid grid() const;
