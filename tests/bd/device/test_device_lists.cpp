@@ -70,6 +70,17 @@ TEST(DeviceLists, PeriodicClusteredAcrossFaces) {
   compare_build(forces, std::vector<std::uint32_t>(2000, 0), Geometry::periodic(L), x, "periodic clusters");
 }
 
+TEST(DeviceLists, LargeSystemsBinnedInParallel) {
+  // 20000 particles: the launcher's loops run on the OpenMP threads (atomic ranks in any order,
+  // then each cell sorted), open and periodic.
+  const auto forces = mixture();
+  const auto types = alternating_types(20000);
+  compare_build(forces, types, Geometry::open(), uniform_cloud(20000, 60.0, 9), "20000 open");
+  auto x = uniform_cloud(20000, 50.0, 10);
+  unwrap_some(x, 50.0);
+  compare_build(forces, types, Geometry::periodic(50.0), x, "20000 periodic");
+}
+
 TEST(DeviceLists, AllPairsPaths) {
   // Fewer than 64 particles, and a periodic box of fewer than 3 cells a side: the CPU compares all
   // pairs there, and so does the launcher.
