@@ -199,12 +199,16 @@ void expect_stage_times(const rpyfmm::StageTimes& times, const char* engine) {
 
 }  // namespace
 
-TEST(DeviceEngine, StageTimesPerPart) {
+TEST(DeviceEngine, HostStageTimesPerPart) {
   const Scenario c = scenarios().front();
   HostEngine host(c.forces, c.types, c.geometry, c.options, c.x);
   host.run(5);
   expect_stage_times(host.stage_times(), "host launcher");
+}
+
+TEST(DeviceEngine, DeviceStageTimesPerPart) {
   REQUIRE_BD_DEVICE();
+  const Scenario c = scenarios().front();
   DeviceEngine dev(c.forces, c.types, c.geometry, c.options, c.x);
   dev.run(5);
   expect_stage_times(dev.stage_times(), "device engine");
