@@ -103,18 +103,20 @@ bool same_on_every_rank(const Communicator& comm, std::vector<double> values) {
   return true;
 }
 
-// Collective: translates the owned positions next to the origin where the whole cloud lies far
+// Collective: translates the owned sources x and targets y next to the origin where the whole cloud lies far
 // from it (its centre at least 4 extents out along an axis), by the centre of the global box on
 // that axis, as the serial FMM does (exact_shifts in fmm/src/laplace_fmm.cpp): every coordinate is
 // then within a factor 2 of the centre, so x - centre is exact (Sterbenz) and pair differences do
 // not change, while the cells' cubes and Chebyshev nodes are rounded to the cloud's scale instead
 // of the coordinates'. Potentials and fields are invariant under the translation. One allreduce.
-void shift_to_centre(const Communicator& comm, std::vector<double>& x) {
+void shift_to_centre(const Communicator& comm, std::vector<double>& x, std::vector<double>& y) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
   std::array<double, 6> local{kInf, kInf, kInf, kInf, kInf, kInf}, box{};  // minima, minus maxima
-  for (std::size_t i = 0; i < x.size(); ++i) {
-    local[i % 3] = std::min(local[i % 3], x[i]);
-    local[3 + i % 3] = std::min(local[3 + i % 3], -x[i]);
+  for (const std::vector<double>* points : {&x, &y}) {
+    for (std::size_t i = 0; i < points->size(); ++i) {
+      local[i % 3] = std::min(local[i % 3], (*points)[i]);
+      local[3 + i % 3] = std::min(local[3 + i % 3], -(*points)[i]);
+    }
   }
   check_mpi(MPI_Allreduce(local.data(), box.data(), 6, MPI_DOUBLE, MPI_MIN, comm.get()), "MPI_Allreduce");
   if (box[0] == kInf) return;  // no source anywhere
@@ -127,12 +129,13 @@ void shift_to_centre(const Communicator& comm, std::vector<double>& x) {
     if (std::abs(mid) >= 4.0 * extent) shift[d] = mid;
   }
   for (std::size_t i = 0; i < x.size(); ++i) x[i] -= shift[i % 3];
+  for (std::size_t i = 0; i < y.size(); ++i) y[i] -= shift[i % 3];
 }
 
-void check_sources(std::span<const double> sources) {
-  require(sources.size() % 3 == 0, ErrorCode::invalid_input, kSetPoints,
-          "local sources have " + std::to_string(sources.size()) + " entries, not a multiple of 3");
-  require_finite(sources, kSetPoints, "local sources", 3);
+void check_points(std::span<const double> points, const char* name) {
+  require(points.size() % 3 == 0, ErrorCode::invalid_input, kSetPoints,
+          std::string(name) + " have " + std::to_string(points.size()) + " entries, not a multiple of 3");
+  require_finite(points, kSetPoints, name, 3);
 }
 
 }  // namespace
@@ -153,6 +156,9 @@ std::size_t cube_nodes(int order) {
 struct DistributedLaplaceFmm::Plan {
   std::unique_ptr<SfcPartition> partition;
   std::vector<double> owned_x;  // 3 per owned source, in the owned (key) order
+  // Separate targets: their own partition and the owned targets; null and empty at the sources.
+  std::unique_ptr<SfcPartition> target_partition;
+  std::vector<double> owned_targets;
   detail::CellTree tree;
   // Per rank: the cells this rank sends to it, with the slot of each compressed one in `jobs`; the
   // particles, cells and nodes it receives from it.
@@ -163,8 +169,12 @@ struct DistributedLaplaceFmm::Plan {
   // equivalent charges in units of nd values (the sum of the earlier ones' p^3).
   std::vector<detail::Compressed> jobs;
   std::vector<std::size_t> job_offset;
-  std::size_t sources = 0;  // owned + halo + equivalent nodes
+  std::size_t sources = 0;  // of the serial FMM: owned + halo + equivalent nodes; 0 when it does not run
   fmm::LaplaceFmm fmm;
+
+  // The partition and owned positions of the targets (the sources' when evaluating at them).
+  [[nodiscard]] const SfcPartition& targets() const { return target_partition ? *target_partition : *partition; }
+  [[nodiscard]] const std::vector<double>& target_x() const { return target_partition ? owned_targets : owned_x; }
 };
 
 DistributedLaplaceFmm::DistributedLaplaceFmm(MPI_Comm comm, const DistributedFmmOptions& options)
@@ -189,6 +199,12 @@ std::size_t DistributedLaplaceFmm::owned_size() const {
 }
 std::uint64_t DistributedLaplaceFmm::global_size() const {
   return plan_ ? plan_->partition->global_size() : 0;
+}
+std::size_t DistributedLaplaceFmm::local_target_size() const {
+  return plan_ ? plan_->targets().input_size() : 0;
+}
+std::size_t DistributedLaplaceFmm::owned_target_size() const {
+  return plan_ ? plan_->targets().owned_size() : 0;
 }
 std::size_t DistributedLaplaceFmm::essential_size() const {
   return plan_ ? plan_->sources : 0;
@@ -311,60 +327,103 @@ std::vector<double> exchange_geometry(const Communicator& comm, DistributedLapla
 
 }  // namespace
 
-void DistributedLaplaceFmm::set_points(std::span<const double> local_sources, std::span<const double> local_weights) {
+namespace {
+
+std::vector<std::uint64_t> owned_keys(const SfcPartition& partition) {
+  std::vector<std::uint64_t> keys;
+  keys.reserve(partition.owned_size());
+  for (const SfcKey& k : partition.owned()) keys.push_back(k.key);
+  return keys;
+}
+
+// The locally essential tree's counts in the statistics.
+void count_essential(const DistributedLaplaceFmm::Plan& plan, FmmCommunication& stats) {
+  for (std::size_t r = 0; r < plan.sent.size(); ++r) {
+    for (std::uint32_t c : plan.sent[r].halo) stats.halo_sent += plan.tree.cells[c].size();
+    for (const detail::Compressed& c : plan.sent[r].compressed) stats.nodes_sent += cube_nodes(c.order);
+    stats.cells_sent += plan.sent[r].compressed.size();
+    stats.halo_received += plan.recv_halo[r];
+    stats.cells_received += plan.recv_cells[r];
+    stats.nodes_received += plan.recv_nodes[r];
+  }
+}
+
+// Collective: partitions the sources (and separate targets, when any rank passes one) and moves
+// their positions to the owners, next to the origin (shift_to_centre).
+void partition_points(const Communicator& comm, DistributedLaplaceFmm::Plan& plan, std::span<const double> sources,
+                      std::span<const double> targets, std::span<const double> weights) {
+  plan.partition = std::make_unique<SfcPartition>(comm.get(), sources, weights);
+  const Column source_column[] = {{sources, 3}};
+  plan.owned_x = plan.partition->to_owners(source_column)[0];
+  const int mine = targets.empty() ? 0 : 1;
+  int separate = 0;
+  check_mpi(MPI_Allreduce(&mine, &separate, 1, MPI_INT, MPI_MAX, comm.get()), "MPI_Allreduce");
+  if (separate != 0) {
+    plan.target_partition = std::make_unique<SfcPartition>(comm.get(), targets);
+    const Column target_column[] = {{targets, 3}};
+    plan.owned_targets = plan.target_partition->to_owners(target_column)[0];
+  }
+  shift_to_centre(comm, plan.owned_x, plan.owned_targets);
+}
+
+// Collective: the serial FMM on this rank's essential sources and owned targets; none where either
+// is empty (its targets' results are then 0). Targets at the sources when nothing came from the
+// other ranks (one rank, or an isolated owner): the serial FMM's own mode, one tree of m points.
+void plan_serial_fmm(const Communicator& comm, DistributedLaplaceFmm::Plan& plan, const fmm::FmmOptions& options,
+                     const std::vector<double>& sources) {
+  plan.fmm = fmm::LaplaceFmm(options);
+  const std::vector<double>& targets = plan.target_x();
+  plan.sources = sources.empty() || targets.empty() ? 0 : sources.size() / 3;
+  comm.run([&] {
+    if (plan.sources == 0) return;
+    if (!plan.target_partition && sources.size() == plan.owned_x.size()) {
+      plan.fmm.set_points(sources);
+    } else {
+      plan.fmm.set_points(sources, targets);
+    }
+  });
+}
+
+}  // namespace
+
+void DistributedLaplaceFmm::set_points(std::span<const double> local_sources, std::span<const double> local_targets,
+                                       std::span<const double> local_weights) {
   plan_.reset();
   stats_ = {};
-  comm_.run([&] { check_sources(local_sources); });
-  auto plan = std::make_unique<Plan>();
-  timed(stats_.plan_seconds, "partition", [&] {
-    plan->partition = std::make_unique<SfcPartition>(comm_.get(), local_sources, local_weights);
-    const Column positions[] = {{local_sources, 3}};
-    plan->owned_x = plan->partition->to_owners(positions)[0];
-    shift_to_centre(comm_, plan->owned_x);
+  comm_.run([&] {
+    check_points(local_sources, "local sources");
+    check_points(local_targets, "local targets");
   });
+  auto plan = std::make_unique<Plan>();
+  timed(stats_.plan_seconds, "partition",
+        [&] { partition_points(comm_, *plan, local_sources, local_targets, local_weights); });
   if (plan->partition->global_size() == 0) fail(ErrorCode::invalid_input, kSetPoints, "no rank has a source");
-  stats_.plan_bytes_received += plan->owned_x.size() * sizeof(double);
+  stats_.plan_bytes_received += (plan->owned_x.size() + plan->owned_targets.size()) * sizeof(double);
 
-  std::vector<std::uint64_t> keys;
-  for (const SfcKey& k : plan->partition->owned()) keys.push_back(k.key);
-  plan->tree = detail::build_cell_tree(keys, plan->owned_x, cell_capacity_);
+  plan->tree = detail::build_cell_tree(owned_keys(*plan->partition), plan->owned_x, cell_capacity_);
+  // The region this rank publishes is that of its targets.
+  const detail::CellTree target_tree =
+      plan->target_partition
+          ? detail::build_cell_tree(owned_keys(*plan->target_partition), plan->owned_targets, cell_capacity_)
+          : detail::CellTree{};
   std::vector<std::vector<detail::Box>> regions;
-  timed(stats_.plan_seconds, "summaries",
-        [&] { regions = gather_regions(comm_, plan->tree, stats_.plan_bytes_received); });
+  timed(stats_.plan_seconds, "summaries", [&] {
+    regions = gather_regions(comm_, plan->target_partition ? target_tree : plan->tree, stats_.plan_bytes_received);
+  });
   const detail::Acceptance acceptance{options_.fmm.tolerance, separation_, 32, options_.chebyshev_order};
   select_cells(*plan, regions, comm_.rank(), acceptance);
   std::vector<double> sources;
   timed(stats_.plan_seconds, "geometry",
         [&] { sources = exchange_geometry(comm_, *plan, stats_.plan_bytes_received); });
-  for (std::size_t r = 0; r < plan->sent.size(); ++r) {
-    for (std::uint32_t c : plan->sent[r].halo) stats_.halo_sent += plan->tree.cells[c].size();
-    for (const detail::Compressed& c : plan->sent[r].compressed) stats_.nodes_sent += cube_nodes(c.order);
-    stats_.cells_sent += plan->sent[r].compressed.size();
-    stats_.halo_received += plan->recv_halo[r];
-    stats_.cells_received += plan->recv_cells[r];
-    stats_.nodes_received += plan->recv_nodes[r];
-  }
-
-  plan->sources = plan->owned_x.empty() ? 0 : sources.size() / 3;
-  plan->fmm = fmm::LaplaceFmm(options_.fmm);
-  timed(stats_.compute_seconds, "plan_fmm", [&] {
-    comm_.run([&] {
-      // Targets at the sources when nothing came from the other ranks (one rank, or an isolated
-      // owner): the serial FMM's own mode, one tree of m points instead of 2m.
-      if (sources.size() == plan->owned_x.size()) {
-        if (!sources.empty()) plan->fmm.set_points(sources);
-      } else {
-        plan->fmm.set_points(sources, plan->owned_x);
-      }
-    });
-  });
+  count_essential(*plan, stats_);
+  timed(stats_.compute_seconds, "plan_fmm", [&] { plan_serial_fmm(comm_, *plan, options_.fmm, sources); });
   plan_ = std::move(plan);
 }
 
 namespace {
 
 void check_evaluation(std::span<const double> charges, std::size_t nd, std::span<const unsigned> outputs,
-                      std::span<double> results, std::size_t n) {
+                      std::span<double> results, std::size_t n, std::size_t n_targets) {
   require(nd >= 1, ErrorCode::invalid_argument, kEvaluate, "nd must be >= 1");
   require_size(charges, nd * n, kEvaluate, "local charges (nd x n)");
   require_finite(charges, kEvaluate, "local charges", std::max<std::size_t>(n, 1));
@@ -375,9 +434,9 @@ void check_evaluation(std::span<const double> charges, std::size_t nd, std::span
             "outputs[" + std::to_string(d) + "] must be a non-empty subset of potential|gradient|hessian, got " +
                 std::to_string(outputs[d]));
   }
-  require(results.size() == nd * n * fmm::result_width, ErrorCode::invalid_input, kEvaluate,
+  require(results.size() == nd * n_targets * fmm::result_width, ErrorCode::invalid_input, kEvaluate,
           "local results have " + std::to_string(results.size()) +
-              " entries, expected nd x n x 10 = " + std::to_string(nd * n * fmm::result_width));
+              " entries, expected nd x targets x 10 = " + std::to_string(nd * n_targets * fmm::result_width));
 }
 
 // The equivalent charges of every (cell, order) in plan.jobs: job j's nd x p^3 values at
@@ -447,7 +506,7 @@ void DistributedLaplaceFmm::evaluate(std::span<const double> charges, std::size_
                                      std::span<double> results) const {
   comm_.run([&] {
     require(plan_ != nullptr, ErrorCode::invalid_input, kEvaluate, "set_points has not succeeded");
-    check_evaluation(charges, nd, outputs, results, plan_->partition->input_size());
+    check_evaluation(charges, nd, outputs, results, plan_->partition->input_size(), plan_->targets().input_size());
   });
   std::vector<double> signature{static_cast<double>(nd)};
   if (!same_on_every_rank(comm_, signature))
@@ -461,7 +520,8 @@ void DistributedLaplaceFmm::evaluate(std::span<const double> charges, std::size_
   stats_.compute_seconds.erase("anterpolation");
   stats_.compute_seconds.erase("fmm");
   stats_.evaluate_bytes_received = 0;
-  const std::size_t n = plan.partition->input_size(), m = plan.owned_x.size() / 3;
+  const std::size_t n = plan.partition->input_size(), n_targets = plan.targets().input_size();
+  const std::size_t m_targets = plan.targets().owned_size();
 
   std::vector<double> owned_q;
   timed(stats_.evaluate_seconds, "charges", [&] {
@@ -487,24 +547,27 @@ void DistributedLaplaceFmm::evaluate(std::span<const double> charges, std::size_
         [&] { got = alltoallv(comm_, send, recv_counts, "the essential charges"); });
   stats_.evaluate_bytes_received += got.size() * sizeof(double);
 
-  std::vector<double> owned_results(nd * m * fmm::result_width);
+  std::vector<double> owned_results(nd * m_targets * fmm::result_width, 0.0);
   timed(stats_.compute_seconds, "fmm", [&] {
     comm_.run([&] {
-      if (m > 0) plan.fmm.evaluate(assemble_charges(plan, owned_q, got, per_density, nd), nd, outputs, owned_results);
+      if (plan.sources > 0) {
+        plan.fmm.evaluate(assemble_charges(plan, owned_q, got, per_density, nd), nd, outputs, owned_results);
+      }
     });
   });
 
   timed(stats_.evaluate_seconds, "results", [&] {
     std::vector<Column> columns;
-    const std::size_t width = m * fmm::result_width;
+    const std::size_t width = m_targets * fmm::result_width;
     for (std::size_t d = 0; d < nd; ++d)
       columns.push_back({std::span<const double>(owned_results).subspan(d * width, width), fmm::result_width});
-    const std::vector<std::vector<double>> back = plan.partition->to_origin(columns);
-    for (std::size_t d = 0; d < nd; ++d)
+    const std::vector<std::vector<double>> back = plan.targets().to_origin(columns);
+    for (std::size_t d = 0; d < nd; ++d) {
       std::copy(back[d].begin(), back[d].end(),
-                results.begin() + static_cast<std::ptrdiff_t>(d * n * fmm::result_width));
+                results.begin() + static_cast<std::ptrdiff_t>(d * n_targets * fmm::result_width));
+    }
   });
-  stats_.evaluate_bytes_received += nd * n * fmm::result_width * sizeof(double);
+  stats_.evaluate_bytes_received += nd * n_targets * fmm::result_width * sizeof(double);
 }
 
 void DistributedLaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, unsigned outputs,

@@ -110,19 +110,22 @@ std::vector<double> distributed(DistributedLaplaceFmm& f, const Cloud& c, std::s
   return gather_results(local, c.nd, c.size(), split);
 }
 
-std::vector<double> serial_fmm(const Cloud& c, std::span<const unsigned> outputs, double tolerance) {
+// The serial FMM and the direct sum on the whole set, at the sources or at `targets` (3M).
+std::vector<double> serial_fmm(const Cloud& c, std::span<const unsigned> outputs, double tolerance,
+                               std::span<const double> targets = {}) {
   fmm::LaplaceFmm f({.tolerance = tolerance});
-  f.set_points(c.x);
-  std::vector<double> r(c.nd * c.size() * W);
+  f.set_points(c.x, targets);
+  std::vector<double> r(c.nd * f.num_targets() * W);
   f.evaluate(c.q, c.nd, outputs, r);
   return r;
 }
 
-std::vector<double> direct(const Cloud& c, std::span<const unsigned> outputs) {
-  std::vector<double> r(c.nd * c.size() * W), one(c.size() * W);
+std::vector<double> direct(const Cloud& c, std::span<const unsigned> outputs, std::span<const double> targets = {}) {
+  const std::size_t m = targets.empty() ? c.size() : targets.size() / 3;
+  std::vector<double> r(c.nd * m * W), one(m * W);
   for (std::size_t d = 0; d < c.nd; ++d) {
-    fmm::laplace_direct(c.x, std::span<const double>(c.q).subspan(d * c.size(), c.size()), 1, {}, outputs[d], one);
-    std::copy(one.begin(), one.end(), r.begin() + static_cast<std::ptrdiff_t>(d * c.size() * W));
+    fmm::laplace_direct(c.x, std::span<const double>(c.q).subspan(d * c.size(), c.size()), 1, targets, outputs[d], one);
+    std::copy(one.begin(), one.end(), r.begin() + static_cast<std::ptrdiff_t>(d * m * W));
   }
   return r;
 }
@@ -252,6 +255,44 @@ TEST(DistributedFmm, FarFromTheOrigin) {
   EXPECT_LE(error_far, 1.01 * error_near + 1e-12);
 }
 
+TEST(DistributedFmm, TargetsDistributedApartFromSources) {
+  // Sources: the clustered set (split evenly); targets: 600 in the far cube, 300 in a cube of side
+  // 5.8 around the cluster and 10 on sources (those pairs skipped), split two other ways.
+  const Cloud c = clustered_cloud(800, 2200, 2, 20);
+  std::mt19937_64 rng(21);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<double> targets;
+  for (int i = 0; i < 600; ++i) {
+    for (int d = 0; d < 3; ++d) targets.push_back(5000.0 + 500.0 * u(rng));
+  }
+  for (int i = 0; i < 900; ++i) targets.push_back(5.0 * u(rng) / std::sqrt(3.0));
+  targets.insert(targets.end(), c.x.begin(), c.x.begin() + 30);
+  const std::size_t m = targets.size() / 3;
+  const std::vector<double> exact = direct(c, kTwoOutputs, targets);
+  const Share s = share_of(c, Split::even);
+  for (double tolerance : {1e-3, 1e-6}) {
+    const std::vector<double> serial = serial_fmm(c, kTwoOutputs, tolerance, targets);
+    DistributedLaplaceFmm f(MPI_COMM_WORLD, with_tolerance(tolerance));
+    std::vector<double> first;
+    for (Split split : {Split::last_only, Split::geometric}) {
+      const Partition t = partition_of(m, split);
+      f.set_points(s.x, share(targets, 3, t.offset, t.n));
+      ASSERT_EQ(f.local_target_size(), t.n);
+      std::vector<double> local(c.nd * t.n * W);
+      f.evaluate(s.q, c.nd, kTwoOutputs, local);
+      const std::vector<double> all = gather_results(local, c.nd, m, split);
+      EXPECT_LE(worst_error(all, exact, kTwoOutputs, m), tolerance) << "against the direct sum, eps " << tolerance;
+      EXPECT_LE(worst_error(all, serial, kTwoOutputs, m), tolerance) << "against the serial FMM, eps " << tolerance;
+      if (first.empty()) {
+        first = all;
+      } else {
+        EXPECT_EQ(bitwise_mismatches(all, first), 0u) << "the targets' distribution changed the bits";
+      }
+      EXPECT_EQ(total(f.owned_target_size()), m);
+    }
+  }
+}
+
 TEST(DistributedFmm, EmptyRanksAndMoreRanksThanParticles) {
   const unsigned outputs[] = {fmm::all_outputs};
   for (std::size_t n : {1u, 2u, 3u, 5u, 40u}) {
@@ -279,7 +320,7 @@ TEST(DistributedFmm, WeightsThatLeaveOwnersEmpty) {
   std::vector<double> weights(s.part.n, 1.0);
   if (s.part.offset == 0 && s.part.n > 0) weights[0] = 1e9;
   DistributedLaplaceFmm f(MPI_COMM_WORLD, with_tolerance(1e-6));
-  f.set_points(s.x, weights);
+  f.set_points(s.x, {}, weights);
   std::vector<double> local(s.part.n * W);
   f.evaluate(s.q, 1, outputs, local);
   const std::vector<double> got = gather_results(local, 1, c.size(), Split::even);

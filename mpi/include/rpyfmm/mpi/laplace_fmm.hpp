@@ -1,8 +1,9 @@
 // rpyfmm — DistributedLaplaceFmm: the Laplace FMM (rpyfmm/fmm/laplace_fmm.hpp) on sources
-// distributed over the ranks of an MPI communicator, evaluated at every rank's own sources
-// (docs/mpi.md, "Distributed Laplace FMM").
+// distributed over the ranks of an MPI communicator, evaluated at every rank's own sources or at
+// targets distributed independently of them (docs/mpi.md, "Distributed Laplace FMM").
 //
-//   phi(x_i) = sum_{j != i} q_j / |x_i - x_j|  and its gradient and Hessian, over all ranks' sources.
+//   phi(x) = sum_j q_j / |x - y_j|  and its gradient and Hessian, over all ranks' sources y_j
+//   (pairs at distance 0 skipped).
 //
 // Plan once, evaluate many times, as the serial LaplaceFmm:
 //   DistributedLaplaceFmm fmm(MPI_COMM_WORLD, {.fmm = {.tolerance = 1e-6}});  // collective
@@ -17,8 +18,8 @@
 // and a cell still close at the leaves as its particles (halo). The geometry of this locally
 // essential tree is exchanged once in set_points; every evaluate sends only the equivalent and halo
 // charges (one MPI_Alltoallv). Each owner then runs the serial LaplaceFmm, planned once, on its
-// own particles + halo particles + equivalent nodes as sources, with its own particles as targets,
-// and the results go back to the input ranks and order.
+// own sources + halo sources + equivalent nodes, with its owned targets (its own sources, or the
+// targets' own partition), and the results go back to the input ranks and order.
 //
 // Every public call is collective and fails collectively (communicator.hpp).
 #pragma once
@@ -95,17 +96,21 @@ class DistributedLaplaceFmm {
   DistributedLaplaceFmm(DistributedLaplaceFmm&&) noexcept;
   DistributedLaplaceFmm& operator=(DistributedLaplaceFmm&&) noexcept;
 
-  /// Collective. This rank's sources (3n, n >= 0 on any rank) and optional partition weights (n
-  /// entries, finite and >= 0; empty: 1 each, SfcPartition). Throws on every rank when any rank's
-  /// input is malformed (size, NaN/Inf, weights) and when no rank has a source. After a failure
-  /// no plan is held on any rank until a later set_points succeeds.
-  void set_points(std::span<const double> local_sources, std::span<const double> local_weights = {});
+  /// Collective. This rank's sources (3n, n >= 0 on any rank), targets (3t) and optional partition
+  /// weights of the sources (n entries, finite and >= 0; empty: 1 each, SfcPartition). When no rank
+  /// passes a target the results are at the sources (the self pair skipped); when any rank does,
+  /// every rank's results are at its own targets (t may be 0), partitioned apart from the sources.
+  /// Throws on every rank when any rank's input is malformed (size, NaN/Inf, weights) and when no
+  /// rank has a source. After a failure no plan is held on any rank until a later set_points
+  /// succeeds.
+  void set_points(std::span<const double> local_sources, std::span<const double> local_targets = {},
+                  std::span<const double> local_weights = {});
 
   /// Collective. charges: nd x n (density d at charges[d n + j]); outputs: nd flags
-  /// (rpyfmm::fmm::potential | gradient | hessian); results: nd x n x 10, as LaplaceFmm::evaluate,
-  /// at this rank's sources in input order, the sum over all ranks' sources (pairs at distance 0
-  /// skipped). nd and outputs must be the same on every rank. Throws on every rank for wrong sizes,
-  /// NaN/Inf charges or bad flags on any rank, or before set_points.
+  /// (rpyfmm::fmm::potential | gradient | hessian); results: nd x local_target_size() x 10, as
+  /// LaplaceFmm::evaluate, at this rank's targets (or sources) in input order, the sum over all
+  /// ranks' sources (pairs at distance 0 skipped). nd and outputs must be the same on every rank. Throws on every rank
+  /// for wrong sizes, NaN/Inf charges or bad flags on any rank, or before set_points.
   void evaluate(std::span<const double> charges, std::size_t nd, std::span<const unsigned> outputs,
                 std::span<double> results) const;
   /// The same output flags for every density.
@@ -120,7 +125,12 @@ class DistributedLaplaceFmm {
   [[nodiscard]] std::size_t local_size() const;
   [[nodiscard]] std::size_t owned_size() const;
   [[nodiscard]] std::uint64_t global_size() const;
-  /// The serial FMM's sources on this rank: owned + halo + equivalent nodes (0 when it owns none).
+  /// This rank's rows of results (its targets, or its sources when there are none) and the targets
+  /// it owns (the owned sources when there are none).
+  [[nodiscard]] std::size_t local_target_size() const;
+  [[nodiscard]] std::size_t owned_target_size() const;
+  /// The serial FMM's sources on this rank: owned + halo + equivalent nodes (0 where it runs no
+  /// serial FMM: no owned target or no source to sum).
   [[nodiscard]] std::size_t essential_size() const;
   [[nodiscard]] const FmmCommunication& communication() const { return stats_; }
 
