@@ -66,7 +66,7 @@ inline constexpr std::size_t kDefaultCellCapacity = 32;
 [[nodiscard]] int chebyshev_order_for(double tolerance, double separation);
 
 /// This rank's share of the work and traffic of the plan and of the last evaluate. Seconds are
-/// wall time in MPI calls (waits included) per stage, or in the named local computation; bytes are
+/// wall time of each exchange (packing, MPI calls and waits) or of the named local computation; bytes are
 /// what this rank received (its own share of the partition's exchanges included).
 struct FmmCommunication {
   /// set_points: "partition" (SfcPartition and positions to the owners), "summaries" (the

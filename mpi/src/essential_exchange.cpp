@@ -1,0 +1,212 @@
+// rpyfmm — the locally essential tree of DistributedLaplaceFmm: regions, the cells sent to every
+// rank, the geometry exchanged once per plan, and the charges exchanged per evaluation
+// (fmm_plan.hpp, docs/mpi.md).
+#include <algorithm>
+#include <numeric>
+#include <string>
+
+#include "alltoallv.hpp"
+#include "chebyshev.hpp"
+#include "fmm_plan.hpp"
+
+namespace rpyfmm::mpi::detail {
+namespace {
+
+constexpr const char* kWhere = "rpyfmm::mpi::DistributedLaplaceFmm";
+// Boxes per rank in the published cover of its region (region_cover): more boxes describe a
+// region more tightly (fewer cells opened for it) at 48 bytes each in the all-gather; 512 instead
+// of 64 changed no essential source at 4e5 sources on 4 ranks (docs/mpi.md).
+constexpr std::size_t kRegionBoxes = 64;
+constexpr std::size_t kBoxDoubles = 6;   // lo, hi
+constexpr std::size_t kCubeDoubles = 5;  // center, half-side, order
+
+// The geometry sent to rank r: the halo particles' positions, then each compressed cell's cube.
+std::vector<double> geometry_for(const Plan& plan, std::size_t r, std::size_t& halo) {
+  std::vector<double> out;
+  halo = 0;
+  for (std::uint32_t c : plan.sent[r].halo) {
+    const Cell& cell = plan.tree.cells[c];
+    out.insert(out.end(), plan.owned_x.begin() + static_cast<std::ptrdiff_t>(3 * cell.begin),
+               plan.owned_x.begin() + static_cast<std::ptrdiff_t>(3 * cell.end));
+    halo += cell.size();
+  }
+  for (const Compressed& c : plan.sent[r].compressed) {
+    const Cube cube = cell_cube(plan.tree.cells[c.cell]);
+    out.insert(out.end(), {cube.center[0], cube.center[1], cube.center[2], cube.half, static_cast<double>(c.order)});
+  }
+  return out;
+}
+
+// The charges sent to rank r: per density, the halo particles' charges, then the cells' equivalent
+// charges (the layout of exchange_geometry's sources).
+std::vector<double> charges_for(const Plan& plan, std::size_t r, std::span<const double> owned_q,
+                                std::span<const double> eq, std::size_t nd) {
+  const std::size_t m = plan.owned_x.size() / 3;
+  std::vector<double> out;
+  for (std::size_t d = 0; d < nd; ++d) {
+    for (std::uint32_t c : plan.sent[r].halo) {
+      const Cell& cell = plan.tree.cells[c];
+      out.insert(out.end(), owned_q.begin() + static_cast<std::ptrdiff_t>(d * m + cell.begin),
+                 owned_q.begin() + static_cast<std::ptrdiff_t>(d * m + cell.end));
+    }
+    for (std::size_t slot : plan.slots[r]) {
+      const std::size_t nodes = cube_nodes(plan.jobs[slot].order);
+      const auto first = eq.begin() + static_cast<std::ptrdiff_t>(nd * plan.job_offset[slot] + d * nodes);
+      out.insert(out.end(), first, first + static_cast<std::ptrdiff_t>(nodes));
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+std::vector<std::vector<Box>> gather_regions(const Communicator& comm, const CellTree& tree, std::uint64_t& bytes) {
+  const std::vector<Box> mine = region_cover(tree, kRegionBoxes);
+  const auto ranks = static_cast<std::size_t>(comm.size());
+  const int count = static_cast<int>(kBoxDoubles * mine.size());
+  std::vector<int> counts(ranks), displs(ranks);
+  check_mpi(MPI_Allgather(&count, 1, MPI_INT, counts.data(), 1, MPI_INT, comm.get()), "MPI_Allgather");
+  std::partial_sum(counts.begin(), counts.end() - 1, displs.begin() + 1);
+  std::vector<double> packed, all(static_cast<std::size_t>(displs.back() + counts.back()));
+  for (const Box& b : mine) {
+    packed.insert(packed.end(), b.lo.begin(), b.lo.end());
+    packed.insert(packed.end(), b.hi.begin(), b.hi.end());
+  }
+  check_mpi(MPI_Allgatherv(packed.data(), count, MPI_DOUBLE, all.data(), counts.data(), displs.data(), MPI_DOUBLE,
+                           comm.get()),
+            "MPI_Allgatherv");
+  bytes += all.size() * sizeof(double);
+  std::vector<std::vector<Box>> regions(ranks);
+  for (std::size_t r = 0; r < ranks; ++r) {
+    for (int i = displs[r]; i < displs[r] + counts[r]; i += static_cast<int>(kBoxDoubles)) {
+      const double* v = all.data() + i;
+      regions[r].push_back(Box{{v[0], v[1], v[2]}, {v[3], v[4], v[5]}});
+    }
+  }
+  return regions;
+}
+
+void select_cells(Plan& plan, const std::vector<std::vector<Box>>& regions, int rank, const Acceptance& acceptance) {
+  plan.sent.assign(regions.size(), {});
+  for (std::size_t r = 0; r < regions.size(); ++r) {
+    if (static_cast<int>(r) == rank) continue;
+    plan.sent[r] = essential_cells(plan.tree, regions[r], acceptance);
+    plan.jobs.insert(plan.jobs.end(), plan.sent[r].compressed.begin(), plan.sent[r].compressed.end());
+  }
+  std::sort(plan.jobs.begin(), plan.jobs.end());
+  plan.jobs.erase(std::unique(plan.jobs.begin(), plan.jobs.end()), plan.jobs.end());
+  plan.job_offset.assign(plan.jobs.size() + 1, 0);
+  for (std::size_t j = 0; j < plan.jobs.size(); ++j)
+    plan.job_offset[j + 1] = plan.job_offset[j] + cube_nodes(plan.jobs[j].order);
+  plan.slots.assign(regions.size(), {});
+  for (std::size_t r = 0; r < regions.size(); ++r) {
+    for (const Compressed& c : plan.sent[r].compressed) {
+      plan.slots[r].push_back(
+          static_cast<std::size_t>(std::lower_bound(plan.jobs.begin(), plan.jobs.end(), c) - plan.jobs.begin()));
+    }
+  }
+}
+
+std::vector<double> exchange_geometry(const Communicator& comm, Plan& plan, std::uint64_t& bytes) {
+  const auto ranks = static_cast<std::size_t>(comm.size());
+  std::vector<std::vector<double>> send(ranks);
+  std::vector<std::uint64_t> counts(2 * ranks), recv(2 * ranks);  // (halo particles, cells) per rank
+  for (std::size_t r = 0; r < ranks; ++r) {
+    send[r] = geometry_for(plan, r, counts[2 * r]);
+    counts[2 * r + 1] = plan.sent[r].compressed.size();
+  }
+  check_mpi(MPI_Alltoall(counts.data(), 2, MPI_UINT64_T, recv.data(), 2, MPI_UINT64_T, comm.get()), "MPI_Alltoall");
+  plan.recv_halo.resize(ranks);
+  plan.recv_cells.resize(ranks);
+  std::vector<std::size_t> recv_doubles(ranks);
+  for (std::size_t r = 0; r < ranks; ++r) {
+    plan.recv_halo[r] = recv[2 * r];
+    plan.recv_cells[r] = recv[2 * r + 1];
+    recv_doubles[r] = 3 * plan.recv_halo[r] + kCubeDoubles * plan.recv_cells[r];
+  }
+  const std::vector<double> got = alltoallv(comm, send, recv_doubles, kWhere, "the essential tree's geometry");
+  bytes += got.size() * sizeof(double);
+
+  std::vector<double> sources = plan.owned_x, cell_nodes;
+  plan.recv_nodes.assign(ranks, 0);
+  std::size_t at = 0;
+  for (std::size_t r = 0; r < ranks; ++r) {
+    sources.insert(sources.end(), got.begin() + static_cast<std::ptrdiff_t>(at),
+                   got.begin() + static_cast<std::ptrdiff_t>(at + 3 * plan.recv_halo[r]));
+    at += 3 * plan.recv_halo[r];
+    for (std::size_t c = 0; c < plan.recv_cells[r]; ++c, at += kCubeDoubles) {
+      const Cube cube{{got[at], got[at + 1], got[at + 2]}, got[at + 3]};
+      const int order = static_cast<int>(got[at + 4]);
+      cell_nodes.resize(3 * cube_nodes(order));
+      chebyshev_nodes(cube, order, cell_nodes);
+      sources.insert(sources.end(), cell_nodes.begin(), cell_nodes.end());
+      plan.recv_nodes[r] += cube_nodes(order);
+    }
+  }
+  return sources;
+}
+
+void count_essential(const Plan& plan, FmmCommunication& stats) {
+  for (std::size_t r = 0; r < plan.sent.size(); ++r) {
+    for (std::uint32_t c : plan.sent[r].halo) stats.halo_sent += plan.tree.cells[c].size();
+    for (const Compressed& c : plan.sent[r].compressed) stats.nodes_sent += cube_nodes(c.order);
+    stats.cells_sent += plan.sent[r].compressed.size();
+    stats.halo_received += plan.recv_halo[r];
+    stats.cells_received += plan.recv_cells[r];
+    stats.nodes_received += plan.recv_nodes[r];
+  }
+}
+
+std::vector<double> anterpolate_cells(const Plan& plan, std::span<const double> owned_q, std::size_t nd) {
+  const std::size_t m = plan.owned_x.size() / 3;
+  std::vector<double> eq(nd * plan.job_offset.back());
+  const auto jobs = static_cast<std::ptrdiff_t>(plan.jobs.size());
+#pragma omp parallel for schedule(dynamic, 1)
+  for (std::ptrdiff_t i = 0; i < jobs; ++i) {
+    const auto j = static_cast<std::size_t>(i);
+    const Cell& cell = plan.tree.cells[plan.jobs[j].cell];
+    const std::span<const double> x(plan.owned_x.data() + 3 * cell.begin, 3 * cell.size());
+    const std::size_t nodes = cube_nodes(plan.jobs[j].order);
+    anterpolate(cell_cube(cell), plan.jobs[j].order, x, owned_q.data() + cell.begin, m, nd,
+                std::span<double>(eq.data() + nd * plan.job_offset[j], nd * nodes));
+  }
+  return eq;
+}
+
+ReceivedCharges exchange_charges(const Communicator& comm, const Plan& plan, std::span<const double> owned_q,
+                                 std::span<const double> equivalent, std::size_t nd) {
+  const auto ranks = static_cast<std::size_t>(comm.size());
+  std::vector<std::vector<double>> send(ranks);
+  ReceivedCharges received;
+  received.per_density.resize(ranks);
+  std::vector<std::size_t> recv_counts(ranks);
+  for (std::size_t r = 0; r < ranks; ++r) {
+    send[r] = charges_for(plan, r, owned_q, equivalent, nd);
+    received.per_density[r] = plan.recv_halo[r] + plan.recv_nodes[r];
+    recv_counts[r] = nd * received.per_density[r];
+  }
+  received.values = alltoallv(comm, send, recv_counts, kWhere, "the essential charges");
+  return received;
+}
+
+std::vector<double> assemble_charges(const Plan& plan, std::span<const double> owned_q, const ReceivedCharges& received,
+                                     std::size_t nd) {
+  const std::size_t m = plan.owned_x.size() / 3;
+  std::vector<double> q(nd * plan.sources);
+  for (std::size_t d = 0; d < nd; ++d) {
+    std::copy_n(owned_q.begin() + static_cast<std::ptrdiff_t>(d * m), m,
+                q.begin() + static_cast<std::ptrdiff_t>(d * plan.sources));
+  }
+  std::size_t at = 0, offset = m;
+  for (std::size_t r = 0; r < received.per_density.size(); ++r) {
+    const std::size_t block = received.per_density[r];
+    for (std::size_t d = 0; d < nd; ++d, at += block) {
+      std::copy_n(received.values.begin() + static_cast<std::ptrdiff_t>(at), block,
+                  q.begin() + static_cast<std::ptrdiff_t>(d * plan.sources + offset));
+    }
+    offset += block;
+  }
+  return q;
+}
+
+}  // namespace rpyfmm::mpi::detail

@@ -1,0 +1,92 @@
+// rpyfmm — the plan of DistributedLaplaceFmm (laplace_fmm.hpp, docs/mpi.md): the partitions, the
+// owner's cells, what it sends to and receives from every rank, and the serial FMM; and the stages
+// that build the locally essential tree and exchange its charges (essential_exchange.cpp).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "cell_tree.hpp"
+#include "essential_tree.hpp"
+#include "rpyfmm/fmm/laplace_fmm.hpp"
+#include "rpyfmm/mpi/laplace_fmm.hpp"
+#include "rpyfmm/mpi/partition.hpp"
+
+namespace rpyfmm::mpi {
+
+struct DistributedLaplaceFmm::Plan {
+  std::unique_ptr<SfcPartition> partition;
+  std::vector<double> owned_x;  // 3 per owned source, in the owned (key) order
+  // Separate targets: their own partition and the owned targets; null and empty at the sources.
+  std::unique_ptr<SfcPartition> target_partition;
+  std::vector<double> owned_targets;
+  detail::CellTree tree;
+  // Per rank: the cells this rank sends to it, with the slot of each compressed one in `jobs`; the
+  // particles, cells and nodes it receives from it.
+  std::vector<detail::EssentialCells> sent;
+  std::vector<std::vector<std::size_t>> slots;
+  std::vector<std::size_t> recv_halo, recv_cells, recv_nodes;
+  // The distinct (cell, order) compressed for any rank, increasing, and the offset of each one's
+  // equivalent charges in units of nd values (the sum of the earlier ones' p^3).
+  std::vector<detail::Compressed> jobs;
+  std::vector<std::size_t> job_offset;
+  std::size_t sources = 0;  // of the serial FMM: owned + halo + equivalent nodes; 0 when it does not run
+  fmm::LaplaceFmm fmm;
+
+  // The partition and owned positions of the targets (the sources' when evaluating at them).
+  [[nodiscard]] const SfcPartition& targets() const { return target_partition ? *target_partition : *partition; }
+  [[nodiscard]] const std::vector<double>& target_x() const { return target_partition ? owned_targets : owned_x; }
+};
+
+namespace detail {
+
+using Plan = DistributedLaplaceFmm::Plan;
+
+/// The p^3 nodes of a cell compressed with order p.
+[[nodiscard]] inline std::size_t cube_nodes(int order) {
+  const auto p = static_cast<std::size_t>(order);
+  return p * p * p;
+}
+
+/// Collective: every rank's cover of its region (region_cover of `tree`, at most 64 boxes), by
+/// rank: one all-gather of counts and one of the boxes; adds the bytes received to `bytes`.
+[[nodiscard]] std::vector<std::vector<Box>> gather_regions(const Communicator& comm, const CellTree& tree,
+                                                           std::uint64_t& bytes);
+
+/// Not collective: the cells this rank sends to every other rank (essential_cells against its
+/// region), the distinct (cell, order) compressed, and the slot of each sent one among them.
+void select_cells(Plan& plan, const std::vector<std::vector<Box>>& regions, int rank, const Acceptance& acceptance);
+
+/// Collective: the locally essential geometry (halo positions and cubes) from every rank, one
+/// all-to-all of counts and one of the geometry; returns the serial FMM's sources: owned, then
+/// per rank in rank order its halo sources and the nodes of its cells.
+[[nodiscard]] std::vector<double> exchange_geometry(const Communicator& comm, Plan& plan, std::uint64_t& bytes);
+
+/// The locally essential tree's counts in the statistics.
+void count_essential(const Plan& plan, FmmCommunication& stats);
+
+/// The equivalent charges of every (cell, order) in plan.jobs from the owned charges (nd x m):
+/// job j's nd x p^3 values at nd × job_offset[j]. OpenMP over the jobs.
+[[nodiscard]] std::vector<double> anterpolate_cells(const Plan& plan, std::span<const double> owned_q, std::size_t nd);
+
+/// What exchange_charges received: per rank in rank order, per density, its halo charges and then
+/// its cells' equivalent charges (per_density[r] values each).
+struct ReceivedCharges {
+  std::vector<double> values;
+  std::vector<std::size_t> per_density;
+};
+
+/// Collective: the halo and equivalent charges to every rank and from every rank, one all-to-all.
+[[nodiscard]] ReceivedCharges exchange_charges(const Communicator& comm, const Plan& plan,
+                                               std::span<const double> owned_q, std::span<const double> equivalent,
+                                               std::size_t nd);
+
+/// The serial FMM's charges (nd x plan.sources): owned, then what came from each rank.
+[[nodiscard]] std::vector<double> assemble_charges(const Plan& plan, std::span<const double> owned_q,
+                                                   const ReceivedCharges& received, std::size_t nd);
+
+}  // namespace detail
+}  // namespace rpyfmm::mpi
