@@ -6,10 +6,9 @@
 // on the same points, and the direct O(N^2) time (measured for N <= 20000,
 // extrapolated as N^2 above, marked so), and the product with torques [U; W] = M [F; T] (rot_s,
 // its ratio to the force-only product, and its error: the larger of U's and W's relative l2
-// errors against exact sums at the sampled targets, then each; rot_s leaves out the build of the
-// plan of products with torques (rot_plan_s, set-up like set_positions), whose leaves and size
-// are rot_leaves and rot_plan_mb). Prints one CSV row per case; leaf_capacity is the tree's, leaf_option
-// the capacity asked for (0: automatic).
+// errors against exact sums at the sampled targets, then each; it runs on the force-only plan).
+// Prints one CSV row per case; leaf_capacity is the tree's, leaf_option the capacity asked for
+// (0: automatic).
 //
 // usage: bench_rpy_fmm [dist=cylinder|eight|suspension] [N list] [eps list] [threads list] [repeats]
 //                      [points.bin or -] [leaf capacity list, 0 = the operator's default]
@@ -69,19 +68,14 @@ t::Configuration make(const std::string& dist, std::size_t n) {
   return t::random_suspension(n, 1.0, 0.1, 42);
 }
 
-// Median time of the product with torques, without building its plan (set-up, once per
-// configuration, as set_positions for the force-only product: rpy_rotation_plan, returned in
-// plan_s); u, w hold the last result.
+// Median time of the product with torques; u, w hold the last result.
 double median_rotation_time(const rpyfmm::rpy::FmmRpy& op, const std::vector<double>& f, const std::vector<double>& tq,
-                            std::vector<double>& u, std::vector<double>& w, int repeats, double& plan_s) {
+                            std::vector<double>& u, std::vector<double>& w, int repeats) {
   std::vector<double> times;
-  plan_s = 0;
   for (int r = 0; r < repeats; ++r) {
     StopWatch watch;
     op.apply(f, tq, u, w);
-    const double plan = op.last_timings()["rpy_rotation_plan"];
-    plan_s += plan;
-    times.push_back(watch.seconds() - plan);
+    times.push_back(watch.seconds());
   }
   return median(times);
 }
@@ -100,7 +94,7 @@ int main(int argc, char** argv) {
   std::printf(
       "dist,N,eps,threads,rpy_s,laplace1_s,ratio_rpy_laplace,direct_s,direct_kind,speedup_vs_direct,"
       "rel_l2_err,levels,leaves,near_s,far_fmm_s,leaf_capacity,rot_s,ratio_rot_forces,rot_rel_l2_err,rot_u_err,"
-      "rot_w_err,rot_leaves,rot_plan_s,rot_plan_mb,leaf_option\n");
+      "rot_w_err,leaf_option\n");
   for (std::size_t n : ns) {
     const auto c = make(dist, n);
     const auto f = t::random_vector(3 * n, 1);
@@ -143,10 +137,8 @@ int main(int argc, char** argv) {
         }
         const double err = t::sampled_error(c, f, u, 200);
         std::vector<double> ur(3 * n), wr(3 * n);
-        double rot_plan_s = 0;
-        const double rot_s = median_rotation_time(op, f, tq, ur, wr, repeats, rot_plan_s);
+        const double rot_s = median_rotation_time(op, f, tq, ur, wr, repeats);
         const auto [rot_u_err, rot_w_err] = t::sampled_rotation_errors(c, f, tq, ur, wr, 200);
-        const auto rot_stats = op.rotation_laplace_plan()->stats();
 
         // One Laplace FMM evaluation, pot + grad + Hessian, one charge vector, same points and eps.
         rpyfmm::fmm::LaplaceFmm lap({.tolerance = eps});
@@ -161,13 +153,11 @@ int main(int argc, char** argv) {
         }
         const auto stats = op.laplace_plan()->stats();
         const double rpy_s = median(times), lap_s = median(lt);
-        std::printf(
-            "%s,%zu,%.0e,%d,%.4f,%.4f,%.2f,%.3f,%s,%.1f,%.2e,%d,%zu,%.4f,%.4f,%d,%.4f,%.2f,%.2e,%.2e,%.2e,%zu,%.3f,%."
-            "1f,%d\n",
-            dist.c_str(), n, eps, nt, rpy_s, lap_s, rpy_s / lap_s, direct_s, direct_kind.c_str(), direct_s / rpy_s, err,
-            stats.levels, stats.leaves, median(near_t), median(far_t), stats.leaf_capacity, rot_s, rot_s / rpy_s,
-            std::max(rot_u_err, rot_w_err), rot_u_err, rot_w_err, rot_stats.leaves, rot_plan_s,
-            rot_stats.memory_bytes / 1e6, leaf);
+        std::printf("%s,%zu,%.0e,%d,%.4f,%.4f,%.2f,%.3f,%s,%.1f,%.2e,%d,%zu,%.4f,%.4f,%d,%.4f,%.2f,%.2e,%.2e,%.2e,%d\n",
+                    dist.c_str(), n, eps, nt, rpy_s, lap_s, rpy_s / lap_s, direct_s, direct_kind.c_str(),
+                    direct_s / rpy_s, err, stats.levels, stats.leaves, median(near_t), median(far_t),
+                    stats.leaf_capacity, rot_s, rot_s / rpy_s, std::max(rot_u_err, rot_w_err), rot_u_err, rot_w_err,
+                    leaf);
         std::fflush(stdout);
       }
     }

@@ -8,7 +8,6 @@
 #include <cstdint>
 #include <cstdio>
 #include <limits>
-#include <optional>
 #include <span>
 #include <string>
 
@@ -104,41 +103,6 @@ fmm::FittedGridRule fitted_grid_rule(double eps, std::size_t n) {
   }
 }
 
-// The plan of the products with torques where it differs from the force-only one (automatic
-// leaves only; FmmRpy::rotation_plan). They carry 7 or 10 densities instead of 4 and a fused near
-// field that costs ~3x the force-only one.
-//
-// Measured at commit dcd1028, 2026-12-05, AMD EPYC Zen-1 (AVX2), 1 thread, random suspension,
-// tolerance 1e-6, bench/rpy/bench_rpy_fmm (ratio: product with torques / force-only product, the
-// same run; the machine was shared, so single timings are noisy and only the ratios compare):
-//  - N = 1e6, the force-only plan (bounding-cube tree, 244 points per leaf): 3.30x; the near field
-//    dominates. Fitted leaves of 57 points on the 6-digit table: 1.40x, but U's error 1.02e-6 (the
-//    force-only product's is 9.05e-7 at 244 points per leaf: at this size the 6-digit plane-wave
-//    table sits near eps whatever the leaves; a higher order, 24, did not lower it at 1e5). Fitted
-//    leaves of 100 points on the 9-digit table at order 18: 2.00x on the quieter machine (load
-//    3.5: force-only 46.5 s, with torques 92.9 s), 2.10x and 2.34x under load 7-9; errors U
-//    1.7e-7, W 4.8e-8; the plan holds 84 MB (the force-only one about as much) and takes 1-1.6 s
-//    to build.
-//  - N = 1e5 (force-only plan: fitted leaves of 58 points): 2.07x with the same plan; leaves of 30
-//    or 40 points 2.7-2.9x, the 9-digit table 2.9-3.4x. Below 5e5 products with torques share
-//    the force-only plan.
-// The order stays at 18, the 6-digit table's cap (fmm_order_for: the worst case within eps/2 at
-// 1e-6); the table's own order, 29, was 1.35x slower at 1e5.
-struct RotationPlanRule {
-  int capacity = 0;
-  fmm::FittedGridRule fitted_grid{};
-  double laplace_eps = 0.0;
-  int order = 0;
-};
-
-std::optional<RotationPlanRule> rotation_plan_rule(double eps, std::size_t n) {
-  constexpr std::size_t kMinPoints = 500000;
-  if (fmm::fmm_table_digits_for(eps) != 6 || n < kMinPoints) return std::nullopt;
-  constexpr double kNineDigitTable = 1e-9;  // the Laplace tolerance picks the table; the order is set apart
-  return RotationPlanRule{
-      default_leaf_capacity(eps), {100, kMinPoints, std::numeric_limits<std::size_t>::max(), 0.0}, kNineDigitTable, 18};
-}
-
 // Trees with fewer leaves evaluate each directed leaf pair on its own (one colour, parallel over
 // target leaves): with few leaves per colour the symmetric schedule would leave threads idle.
 // A property of the tree only, never of the thread count, so results stay thread-invariant.
@@ -178,26 +142,19 @@ void FmmRpy::on_positions_set() {
   } else {
     detail::to_units(units, x, radii(), centered_, scaled_radii_);
   }
-  {
-    const std::lock_guard lock(rotation_plan_mutex_);
-    rotation_plan_ = {};  // of the previous configuration
-  }
   const double eps = options_.tolerance;
-  plan_ = options_.leaf_capacity > 0 ? make_plan(options_.leaf_capacity, {}, eps, 0)
-                                     : make_plan(default_leaf_capacity(eps), fitted_grid_rule(eps, size()), eps, 0);
+  plan_ = options_.leaf_capacity > 0 ? make_plan(options_.leaf_capacity, {})
+                                     : make_plan(default_leaf_capacity(eps), fitted_grid_rule(eps, size()));
 }
 
-FmmRpy::Plan FmmRpy::make_plan(int leaf_capacity, const fmm::FittedGridRule& fitted_grid, double laplace_eps,
-                               int order) const {
+FmmRpy::Plan FmmRpy::make_plan(int leaf_capacity, const fmm::FittedGridRule& fitted_grid) const {
   const std::span<const double> a = unit_radii();
-  // The Laplace FMM runs at the requested tolerance (the plan of products with torques may take a
-  // tighter table, rotation_plan_rule): the far field combines up to 7 outputs with partial
-  // cancellation (x_m E_k(F^m) - E_k(x.F)), and its errors measured on the test configurations stay
-  // below the FMM's own eps (tests/rpy/test_fmm_operator.cpp holds the contract). order 0: from the
-  // tolerance.
+  // The Laplace FMM runs at the requested tolerance: the far field combines up to 7 outputs with
+  // partial cancellation (x_m E_k(F^m) - E_k(x.F)), and its errors measured on the test
+  // configurations stay below the FMM's own eps (tests/rpy/test_fmm_operator.cpp holds the
+  // contract). The expansion order follows from the tolerance.
   fmm::FmmOptions fo;
-  fo.tolerance = laplace_eps;
-  fo.order = order;
+  fo.tolerance = options_.tolerance;
   fo.leaf_capacity = leaf_capacity;
   // Automatic leaves: the bounding-cube tree's mean leaf occupancy (or with AVX-512 its leaf-level
   // share) decides whether the fitted grid pays, within the one set_points.
@@ -215,22 +172,6 @@ FmmRpy::Plan FmmRpy::make_plan(int leaf_capacity, const fmm::FittedGridRule& fit
   plan.near_schedule = std::make_unique<detail::NearSchedule>(
       detail::make_near_schedule(near.pairs, near.num_leaves(), near.num_leaves() >= kSymmetricMinLeaves));
   return plan;
-}
-
-const FmmRpy::Plan& FmmRpy::rotation_plan() const {
-  if (options_.leaf_capacity > 0) return plan_;
-  const std::optional<RotationPlanRule> rule = rotation_plan_rule(options_.tolerance, size());
-  if (!rule) return plan_;
-  const std::lock_guard lock(rotation_plan_mutex_);
-  if (!rotation_plan_.fmm)
-    rotation_plan_ = make_plan(rule->capacity, rule->fitted_grid, rule->laplace_eps, rule->order);
-  return rotation_plan_;
-}
-
-const fmm::LaplaceFmm* FmmRpy::rotation_laplace_plan() const {
-  if (options_.leaf_capacity > 0 || !rotation_plan_rule(options_.tolerance, size())) return plan_.fmm.get();
-  const std::lock_guard lock(rotation_plan_mutex_);
-  return rotation_plan_.fmm.get();
 }
 
 std::span<const double> FmmRpy::unit_radii() const {

@@ -6,8 +6,17 @@
 // harmonic fields (no a^2 corrections for any radii). Every near-field pair (the FMM's U list and
 // the W/X pairs it hands back) is summed with the exact translational and rotational blocks in one
 // fused pass (rotation_pair_sums.hpp), all overlap regimes included, in the colour schedule of
-// the translational near field: each velocity
-// receives its contributions in a fixed order, so results do not depend on the thread count.
+// the translational near field: each velocity receives its contributions in a fixed order, so
+// results do not depend on the thread count.
+//
+// The products with torques run on the force-only plan (leaves and plane-wave table). Measured on
+// 2026-12-06, Intel Xeon (AVX-512), 2 vCPUs shared with other work, 1 thread, random suspension N =
+// 1e6 at 1e-6 (fitted leaves of 120 points with the AVX-512 kernels, 80 at the AVX2 level): torques
+// / forces 1.92 with the AVX-512 kernels (20.7 s / 10.8 s) and 1.94 at the AVX2 level (23.6 s /
+// 12.2 s), process CPU time, medians of 3; one wall-time run of bench/rpy/bench_rpy_fmm with
+// AVX-512 gave 1.76. Plans of their own were slower at the AVX2 level: leaves of 120 points 2.05,
+// the 9-digit table with leaves of 100 points 2.57; leaves of 60 points left U's error at 1.02e-6.
+// Errors on the force-only plan: U 8.0e-7 (8.3e-7 at the AVX2 level), W 1.2e-7 (1.6e-7).
 #include <cmath>
 #include <cstdint>
 #include <span>
@@ -123,14 +132,10 @@ void FmmRpy::do_apply_rotation(const double* forces, const double* torques, doub
   const double* scaled_torques = loads.data() + 3 * n;
 
   StopWatch watch;
-  const Plan& plan = rotation_plan();
-  const double plan_seconds = watch.seconds();
-  watch.restart();
   std::vector<double> charges(nd * n);
   std::vector<unsigned> outputs(nd);
   detail::rotation_far_field_charges(forces, scaled_torques, n, equal, centered_, a, charges, outputs);
-  const std::vector<double> results = far_field_pass(plan, charges, outputs, watch.seconds());
-  timings_["rpy_rotation_plan"] = plan_seconds;
+  const std::vector<double> results = far_field_pass(plan_, charges, outputs, watch.seconds());
 
   watch.restart();
   detail::combine_far_field(results, n, 1, equal, centered_, a, viscosity(), velocities);
@@ -141,7 +146,7 @@ void FmmRpy::do_apply_rotation(const double* forces, const double* torques, doub
   watch.restart();
   // Near field into ut (U) and wf (W), on top of the far field's rotational sums.
   for (std::size_t j = 0; j < 3 * n; ++j) wf[j] += rr[j];
-  apply_grand_near_field(plan, loads.data(), ut.data(), wf.data());
+  apply_grand_near_field(plan_, loads.data(), ut.data(), wf.data());
   const double inv_eta = 1.0 / viscosity();
   for (std::size_t j = 0; j < 3 * n; ++j) {
     velocities[j] = std::ldexp(velocities[j] + inv_eta * ut[j], -e);

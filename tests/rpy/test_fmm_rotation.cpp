@@ -102,20 +102,6 @@ TEST(FmmRotation, RepeatableAndConsistentWithTheTranslationalProduct) {
   EXPECT_LE(t::relative_l2(forces_only.u, u_tt), 1e-14);
 }
 
-// Below the sizes of rotation_plan_rule (fmm_operator.cpp) products with torques share the
-// force-only plan, as with an explicit leaf capacity; their own plan is checked in
-// test_fmm_rotation_accuracy.cpp (5e5 points).
-TEST(FmmRotation, SmallSuspensionsShareThePlan) {
-  const t::Configuration c = t::random_suspension(20000, 1.0, 0.1, 23);
-  const auto [f, tq] = loads(c, Loads::both, 5);
-  for (int leaf_capacity : {0, 100}) {
-    FmmRpy op(Geometry::open(), 1.0, FmmRpyOptions{.tolerance = 1e-6, .leaf_capacity = leaf_capacity});
-    op.set_positions(c.x, c.a);
-    (void)grand_product(op, f, tq);
-    EXPECT_EQ(op.rotation_laplace_plan(), op.laplace_plan()) << leaf_capacity;
-  }
-}
-
 TEST(FmmRotation, SameResultForAnyThreadCount) {
   const t::Configuration c = t::random_suspension(3000, 1.0, 0.3, 22);
   FmmRpy op(Geometry::open(), 1.0, FmmRpyOptions{.tolerance = 1e-3});

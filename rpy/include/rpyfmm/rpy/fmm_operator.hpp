@@ -14,9 +14,7 @@
 // Rotation (docs/theory/rpy.md, section 7): torques add three densities T^(1..3) to the same pass;
 // U from T = curl Phi_T / (8 pi eta), W from F = curl Phi_F / (8 pi eta), W from T =
 // grad div Phi_T / (16 pi eta) in the far field, exact pair couplings in the near field
-// (fmm_rotation.cpp). With automatic leaves at 6 digits from 5e5 points they run on a second plan
-// with smaller leaves for their near field, about 3x dearer than the force-only one, on the 9-digit
-// plane-wave table for accuracy (fmm_operator.cpp, rotation_plan_rule).
+// (fmm_rotation.cpp), on the force-only plan.
 //
 // Near field: the FMM runs in "far field only" mode; every pair of adjacent
 // leaves (U list) is evaluated with the exact RPY pair block (rpy_kernel.hpp,
@@ -31,7 +29,6 @@
 #include <array>
 #include <cstddef>
 #include <memory>
-#include <mutex>
 #include <span>
 #include <string>
 #include <vector>
@@ -72,19 +69,13 @@ class FmmRpy final : public MobilityOperator {
   /// velocities from the same Laplace pass, to the same tolerance.
   [[nodiscard]] bool supports_rotation() const override { return true; }
   [[nodiscard]] const FmmRpyOptions& options() const { return options_; }
-  /// Tolerance handed to the Laplace FMM of laplace_plan(): options().tolerance (see on_positions_set;
-  /// rotation_laplace_plan() may run on a tighter plane-wave table).
+  /// Tolerance handed to the Laplace FMM of laplace_plan(): options().tolerance (see on_positions_set).
   [[nodiscard]] double laplace_eps() const { return options_.tolerance; }
-  /// Stage times of the last apply: the FMM's stages plus "rpy_charges", "rpy_far", "rpy_near", "rpy_total";
-  /// with torques also "rpy_rotation_plan" (building rotation_laplace_plan(); a look-up once built).
+  /// Stage times of the last apply: the FMM's stages plus "rpy_charges", "rpy_far", "rpy_near", "rpy_total".
   [[nodiscard]] StageTimes last_timings() const;
-  /// The Laplace FMM plan (tree statistics, near-field structure); null before set_positions.
+  /// The Laplace FMM plan of every product, with and without torques (tree statistics, near-field
+  /// structure); null before set_positions.
   [[nodiscard]] const fmm::LaplaceFmm* laplace_plan() const { return plan_.fmm.get(); }
-  /// The plan of the products with torques: where the automatic leaves (leaf_capacity = 0) call
-  /// for one (fmm_operator.cpp, rotation_plan_rule: 6 digits, 5e5 points or more) a second plan,
-  /// built on the first product with torques after set_positions and kept until the next (null
-  /// before); otherwise laplace_plan() itself.
-  [[nodiscard]] const fmm::LaplaceFmm* rotation_laplace_plan() const;
 
  protected:
   void on_positions_set() override;
@@ -98,10 +89,7 @@ class FmmRpy final : public MobilityOperator {
     std::unique_ptr<fmm::LaplaceFmm> fmm;
     std::unique_ptr<detail::NearSchedule> near_schedule;
   };
-  [[nodiscard]] Plan make_plan(int leaf_capacity, const fmm::FittedGridRule& fitted_grid, double laplace_eps,
-                               int order) const;
-  // The plan of the products with torques (rotation_laplace_plan), built here on first use.
-  [[nodiscard]] const Plan& rotation_plan() const;
+  [[nodiscard]] Plan make_plan(int leaf_capacity, const fmm::FittedGridRule& fitted_grid) const;
   // One FMM pass over the far-field densities (nd = outputs.size()); records the stage times.
   [[nodiscard]] std::vector<double> far_field_pass(const Plan& plan, const std::vector<double>& charges,
                                                    const std::vector<unsigned>& outputs, double charge_seconds) const;
@@ -113,9 +101,6 @@ class FmmRpy final : public MobilityOperator {
 
   FmmRpyOptions options_;
   Plan plan_;
-  // Automatic leaves only: the plan of the products with torques, empty until the first one.
-  mutable Plan rotation_plan_;
-  mutable std::mutex rotation_plan_mutex_;
   std::vector<double> centered_;  // positions relative to the bounding-box centre (3N); scaled: see length_units.hpp
   // Clouds far outside the lengths 2^-150 ... 2^199 are evaluated in units of 2^e (length_units.hpp):
   // centered_ then holds 2^-e (x - shift), translated only where exact, and scaled_radii_ 2^-e a.
