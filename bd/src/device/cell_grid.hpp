@@ -1,8 +1,9 @@
-// rpyfmm::bd::device — the cell grid of a neighbour-list build (the GPU BD paper, Eurographics
-// 2015, Sec. 3.1: a uniform grid of cells of edge >= r_L = r_c + skin, so that a particle's
-// neighbours lie in the 27 cells around its own). The grid, the cell of a position and the
-// wrapped coordinates follow bd/src/neighbour_list.cpp's CellGrid exactly: the same cells give
-// the same image shifts and so the same in-or-out decisions for every pair, bit for bit.
+// rpyfmm::bd::device — the cell grid of a neighbour-list build (Tran et al. (2015), Sec. 3.1: a
+// uniform grid of cells of edge >= r_L = r_c + skin, so that a particle's neighbours lie in the
+// 27 cells around its own): the grid, the cell of a position and the wrapped coordinates. One
+// implementation for all engines: the CPU engine's NeighbourList (bd/src/neighbour_list.cpp)
+// and the device engines bin with it, so the same cells give the same image shifts and the same
+// in-or-out decisions for every pair, bit for bit.
 #pragma once
 
 #include <math.h>  // ::floor
@@ -66,6 +67,21 @@ inline CellGrid make_cell_grid(const double lo[3], const double hi[3], double rl
   }
   g.wrap = periodic && g.nc[0] >= 3 && g.nc[1] >= 3 && g.nc[2] >= 3;
   return g;
+}
+
+/// The grid of a build of the n particles at x (3n unwrapped coordinates): open geometry, their
+/// bounding box; periodic, the box.
+inline CellGrid cell_grid_of(const double* x, std::uint64_t n, double rl, bool periodic, const double box[3]) {
+  double lo[3] = {x[0], x[1], x[2]}, hi[3] = {x[0], x[1], x[2]};
+  if (!periodic) {
+    for (std::uint64_t i = 0; i < n; ++i) {
+      for (int c = 0; c < 3; ++c) {
+        lo[c] = std::min(lo[c], x[3 * i + c]);
+        hi[c] = std::max(hi[c], x[3 * i + c]);
+      }
+    }
+  }
+  return make_cell_grid(lo, hi, rl, n, periodic, box);
 }
 
 }  // namespace rpyfmm::bd::device

@@ -38,16 +38,7 @@ HostEngine::HostEngine(const ForceField& forces, std::vector<std::uint32_t> type
 }
 
 CellGrid HostEngine::grid() const {
-  double lo[3] = {x_[0], x_[1], x_[2]}, hi[3] = {x_[0], x_[1], x_[2]};
-  if (!t_.image.periodic) {
-    for (std::size_t i = 0; i < t_.n; ++i) {
-      for (int c = 0; c < 3; ++c) {
-        lo[c] = std::min(lo[c], x_[3 * i + c]);
-        hi[c] = std::max(hi[c], x_[3 * i + c]);
-      }
-    }
-  }
-  return make_cell_grid(lo, hi, t_.list_radius(), t_.n, t_.image.periodic, t_.image.box);
+  return cell_grid_of(x_.data(), t_.n, t_.list_radius(), t_.image.periodic, t_.image.box);
 }
 
 void HostEngine::build_lists() {

@@ -1,17 +1,22 @@
-// rpyfmm::bd::device — the pair and bond potentials of bd/src/potentials.cpp as host-device
-// functions: the energy V(r) and s = -V'(r)/r (force on i: s (x_i - x_j)), from the parameters
-// resolve_pair gives (PairTerm) and the bond potentials (BondPotential). The CPU functions live
-// in a .cpp, out of a kernel's reach, so the formulas are written here again with the same
-// operations in the same order (tests/bd/device/test_device_forces.cpp checks every kind against
-// evaluate_pair / evaluate_bond bit for bit, the logarithms and exponentials aside on the
-// device, whose libm differs from the host's by an ulp).
+// rpyfmm::bd::device — the pair and bond potentials, one implementation for both engines: the
+// energy V(r) and s = -V'(r)/r (force on i: s (x_i - x_j)), from the parameters resolve_pair
+// gives (PairTerm) and the bond potentials (BondPotential). The CPU engine's evaluate_pair,
+// born_repulsion and evaluate_bond (bd/src/potentials.cpp) call these functions; the device
+// stages (particle_force.hpp) call them in a kernel and in the host launcher. On the device
+// only the logarithms and exponentials (DLVO, FENE) differ, by about an ulp, from the host's
+// libm (docs/gpu-bd.md, bounds).
 //
-//   lj36_18  4 eps [(s/r)^36 - (s/r)^18]     (GPU BD paper, Eurographics 2015, Annex 1, eq. 8)
+//   lj36_18  4 eps [(s/r)^36 - (s/r)^18]     (Tran et al. (2015), Annex 1, eq. 8)
 //   wca      4 eps [(s/r)^12 - (s/r)^6] + eps
 //   soft     eps (1 - r/s)^2
-//   dlvo     van der Waals + electrostatic (the paper's Annex 2, eqs. 10-11), plus the Born core
-//            of Feke, Prabhu, Mann & Mann (1984) when set (docs/theory/bd.md Sec. 4)
+//   dlvo     van der Waals + electrostatic (Tran et al. (2015), Annex 2, eqs. 10-11), plus the
+//            Born core of Feke, Prabhu, Mann & Mann (1984) when set (docs/theory/bd.md Sec. 4)
 //   harmonic k/2 (r - r0)^2;  fene -k R0^2/2 ln(1 - (r/R0)^2)
+//
+// Internal linkage (static): each translation unit compiles its own copy under its own
+// floating-point flags (potentials.cpp as the CPU engine always has been, host_engine.cpp with
+// -ffp-contract=off, bd/bd.cmake), so that on a target with FMA the linker cannot substitute
+// one unit's copy for the other's.
 #pragma once
 
 #include <math.h>  // ::exp, ::log: CUDA builtins in device code too
@@ -23,7 +28,7 @@ namespace rpyfmm::bd::device {
 
 /// Born repulsion between spheres of radii ai, aj at centre distance r (potentials.hpp,
 /// born_repulsion): the four poles b = +-(ai + aj), +-(ai - aj) of Feke et al. (1984).
-RPYFMM_HOST_DEVICE inline EnergyForce born_energy_force(double prefactor, double ai, double aj, double r) {
+RPYFMM_HOST_DEVICE static inline EnergyForce born_energy_force(double prefactor, double ai, double aj, double r) {
   const double s = ai + aj, d = ai - aj;
   const double e_sum = 6.0 * (ai * ai + 7.0 * ai * aj + aj * aj);
   const double e_diff = 6.0 * (ai * ai - 7.0 * ai * aj + aj * aj);
@@ -45,7 +50,7 @@ RPYFMM_HOST_DEVICE inline EnergyForce born_energy_force(double prefactor, double
 
 /// DLVO: van der Waals (eq. 10, s = a_i + a_j, d = a_i - a_j) and electrostatic (eq. 11,
 /// h = r - a_i - a_j) terms, plus the Born core when t.born_prefactor > 0.
-RPYFMM_HOST_DEVICE inline EnergyForce dlvo_energy_force(const PairTerm& t, double r) {
+RPYFMM_HOST_DEVICE static inline EnergyForce dlvo_energy_force(const PairTerm& t, double r) {
   const double ai = t.ai, aj = t.aj;
   const double r2 = r * r;
   const double ps = r2 - (ai + aj) * (ai + aj);
@@ -65,7 +70,7 @@ RPYFMM_HOST_DEVICE inline EnergyForce dlvo_energy_force(const PairTerm& t, doubl
 }
 
 /// V and -V'/r of pair term t at 0 < r < t.cutoff (evaluate_pair).
-RPYFMM_HOST_DEVICE inline EnergyForce pair_energy_force(const PairTerm& t, double r) {
+RPYFMM_HOST_DEVICE static inline EnergyForce pair_energy_force(const PairTerm& t, double r) {
   switch (t.kind) {
     case PairKind::lj36_18: {
       const double x2 = (t.sigma / r) * (t.sigma / r);
@@ -91,7 +96,7 @@ RPYFMM_HOST_DEVICE inline EnergyForce pair_energy_force(const PairTerm& t, doubl
 }
 
 /// V and -V'/r of a bond at r > 0 (fene: r < R0; evaluate_bond).
-RPYFMM_HOST_DEVICE inline EnergyForce bond_energy_force(const BondPotential& b, double r) {
+RPYFMM_HOST_DEVICE static inline EnergyForce bond_energy_force(const BondPotential& b, double r) {
   if (b.kind == BondKind::harmonic) {
     const double d = r - b.length;
     return {0.5 * b.k * d * d, -b.k * d / r};

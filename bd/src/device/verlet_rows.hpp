@@ -1,16 +1,16 @@
 // rpyfmm::bd::device — one particle's Verlet row: every j != i within its pair's list radius
-// r_c(t_i, t_j) + skin at the build, sorted by j (the GPU BD paper, Eurographics 2015, Sec. 3.1
-// and Algorithm 1, line 7; docs/theory/bd.md). Rows are built in two passes, count then fill, so
-// that they sit in one array at offsets from a prefix sum (the CPU engine's layout). Sorted
-// rows make the order of a particle's pair-force sum that of the CPU engine.
+// r_c(t_i, t_j) + skin at the build, sorted by j (Tran et al. (2015), Sec. 3.1 and Algorithm 1,
+// line 7; docs/theory/bd.md). One implementation for all engines: the CPU engine's NeighbourList
+// (bd/src/neighbour_list.cpp) visits the same cells and pairs with its own sink (rows appended
+// to per-thread buffers), the device engines in two passes, count then fill, so that the rows
+// sit in one array at offsets from a prefix sum (the CPU engine's layout). Sorted rows make the
+// order of a particle's pair-force sum that of the CPU engine.
 //
-// Candidates come from the 27 cells around the particle's own (cell_binning.hpp) with the
-// arithmetic of bd/src/neighbour_list.cpp's append_row: a neighbour cell across a periodic face
-// carries its image shift, added to x_i, and the test d^2 < r_L^2 reads the wrapped positions in
-// slot order. Where the CPU engine compares all pairs instead (fewer than 64 particles, or a
-// periodic grid with fewer than 3 cells a side), visit_all_pairs does so with the minimum image,
-// as NeighbourList::build_all_pairs does. Same grid, same operations: the same pairs in or out,
-// bit for bit.
+// Candidates come from the 27 cells around the particle's own (cell_binning.hpp): a neighbour
+// cell across a periodic face carries its image shift, added to x_i, and the test d^2 < r_L^2
+// reads the wrapped positions in slot order. Where the rows come from all pairs instead (fewer
+// than 64 particles, or a periodic grid with fewer than 3 cells a side), visit_all_pairs
+// compares every pair with the minimum image.
 #pragma once
 
 #include <cstdint>
@@ -48,10 +48,11 @@ struct RowSink {
   }
 };
 
-/// Adds to `sink` the neighbours (particle indices, unsorted) of the particle in `slot` from the
-/// 27 cells around its cell.
+/// Adds to `sink` (RowSink, or any type with add(j)) the neighbours (particle indices, unsorted)
+/// of the particle in `slot` from the 27 cells around its cell.
+template <class Sink>
 RPYFMM_HOST_DEVICE inline void visit_stencil(std::uint32_t slot, const CellGrid& g, const SlotView& s,
-                                             const ListRadii& radii, RowSink& sink) {
+                                             const ListRadii& radii, Sink& sink) {
   const std::uint64_t home = s.cell_of[s.order[slot]];
   const std::int64_t h[3] = {
       static_cast<std::int64_t>(home / static_cast<std::uint64_t>(g.nc[1] * g.nc[2])),
@@ -93,9 +94,10 @@ RPYFMM_HOST_DEVICE inline void visit_stencil(std::uint32_t slot, const CellGrid&
 
 /// Adds to `sink` the neighbours of particle i among all n particles (unwrapped positions x,
 /// types by particle), the minimum image in a periodic box.
+template <class Sink>
 RPYFMM_HOST_DEVICE inline void visit_all_pairs(std::uint32_t i, std::uint32_t n, const double* x,
                                                const std::uint32_t* type, const MinimumImage& image,
-                                               const ListRadii& radii, RowSink& sink) {
+                                               const ListRadii& radii, Sink& sink) {
   const double* rl2 = radii.rl2 + static_cast<std::uint64_t>(type[i]) * radii.ntypes;
   for (std::uint32_t j = 0; j < n; ++j) {
     if (j == i) continue;

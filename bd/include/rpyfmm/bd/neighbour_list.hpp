@@ -1,5 +1,5 @@
-// rpyfmm::bd — cell list + Verlet neighbour list with a skin (GPU BD paper, Eurographics
-// 2015, Sec. 3.1 and Algorithm 1; docs/theory/bd.md).
+// rpyfmm::bd — cell list + Verlet neighbour list with a skin (Tran et al. (2015), Sec. 3.1 and
+// Algorithm 1; docs/theory/bd.md).
 //
 // Every particle i stores all j != i with |x_i - x_j| < r_L = r_c + skin at the
 // last build, sorted by j. The list is rebuilt only when some particle has moved
@@ -27,7 +27,7 @@ namespace rpyfmm::bd {
 struct NeighbourOptions {
   /// Skin r_L - r_c (> 0 when a cutoff is set). 0 = automatic: 0.3 r_c.
   double skin = 0.0;
-  /// 0 = dynamic rebuild test (GPU BD paper, Algorithm 1); n > 0 = rebuild every n steps
+  /// 0 = dynamic rebuild test (Tran et al. (2015), Algorithm 1); n > 0 = rebuild every n steps
   /// regardless (the fixed-interval strategy of its Table 1, for comparison only:
   /// it can miss pairs when particles move fast).
   int fixed_interval = 0;
@@ -43,8 +43,8 @@ class NeighbourList {
   bool update(std::span<const double> positions);
   /// Unconditional rebuild.
   void build(std::span<const double> positions);
-  /// A list radius per pair of particle types (each interaction kind with its own cut-off, as the
-  /// GPU BD paper's Sec. 4.2 keeps one list per kind): from the next build, a pair (i, j) is listed
+  /// A list radius per pair of particle types (each interaction kind with its own cut-off, as
+  /// Tran et al. (2015), Sec. 4.2, keep one list per kind): from the next build, a pair (i, j) is listed
   /// only within cutoffs[t_i * ntypes + t_j] + skin (a cut-off of 0: never, the pair does not
   /// interact). The skin and the rebuild test stay those of cutoff(), the largest, so no pair can
   /// come within its own cut-off unlisted: sums over the rows skip the same pairs beyond their
@@ -78,6 +78,11 @@ class NeighbourList {
  private:
   void build_all_pairs(std::span<const double> positions);
   void build_cells(std::span<const double> positions);
+  /// The squared list radius of each pair of types (set_pair_cutoffs), or `single` set to the one
+  /// r_L^2 of all pairs without them.
+  [[nodiscard]] std::span<const double> squared_list_radii(std::vector<double>& single) const;
+  /// Each particle's type (all 0 without set_pair_cutoffs).
+  [[nodiscard]] std::vector<std::uint32_t> particle_types(std::size_t n) const;
 
   rpy::Geometry geometry_;
   bool periodic_;
