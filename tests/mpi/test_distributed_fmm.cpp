@@ -376,6 +376,10 @@ TEST(DistributedFmm, FailsOnEveryRank) {
                           "rank " + std::to_string(last) + " of " + std::to_string(world_size()) +
                               ": rpyfmm::mpi::DistributedLaplaceFmm::set_points: local sources entry (0, 1) is NaN");
   expect_collective_error([&] { f.set_points({}); }, ErrorCode::invalid_input, "no rank has a source");
+  std::vector<double> ragged_targets(world_rank() == last ? 4 : 3, 0.25);
+  expect_collective_error([&] { f.set_points(s.x, ragged_targets); }, ErrorCode::invalid_input,
+                          "rank " + std::to_string(last) + " of " + std::to_string(world_size()) +
+                              ": rpyfmm::mpi::DistributedLaplaceFmm::set_points: local targets have 4 entries");
 
   f.set_points(s.x);
   std::vector<double> bad_q = s.q;
@@ -387,6 +391,13 @@ TEST(DistributedFmm, FailsOnEveryRank) {
   expect_collective_error([&] { f.evaluate(s.q, 1, fmm::potential, short_out); }, ErrorCode::invalid_input,
                           "rank 0 of " + std::to_string(world_size()) +
                               ": rpyfmm::mpi::DistributedLaplaceFmm::evaluate: local results have");
+  if (world_size() > 1) {
+    // nd = 2 on the last rank (with arrays of that size), 1 elsewhere.
+    const std::size_t nd = world_rank() == last ? 2 : 1;
+    std::vector<double> q2(nd * s.part.n, 0.5), out2(nd * s.part.n * W);
+    expect_collective_error([&] { f.evaluate(q2, nd, fmm::potential, out2); }, ErrorCode::invalid_argument,
+                            "the ranks pass different nd");
+  }
   const unsigned flags = world_rank() == last ? fmm::gradient : fmm::potential;
   if (world_size() > 1) {
     expect_collective_error([&] { f.evaluate(s.q, 1, flags, out); }, ErrorCode::invalid_argument,
