@@ -52,10 +52,13 @@ void rotation_row(const int* nb, std::size_t count, const double xi[3], const Ro
       double at = r * fr.inv_dr;
       const int node = static_cast<int>(at);
       at -= static_cast<double>(node);
-      const double* e = fr.table + 3 * node;
-      const double c = fr.unit_c * (e[0] + at * (e[3] - e[0]));
-      const double h = fr.unit_hk * (e[1] + at * (e[4] - e[1]));
-      const double k = fr.unit_hk * (e[2] + at * (e[5] - e[2]));
+      // Indexed loads from the table's base (not through a pointer to the node): GCC turns only
+      // these into gathers.
+      const int b = 3 * node;
+      const double* tab = fr.table;
+      const double c = fr.unit_c * (tab[b] + at * (tab[b + 3] - tab[b]));
+      const double h = fr.unit_hk * (tab[b + 1] + at * (tab[b + 4] - tab[b + 1]));
+      const double k = fr.unit_hk * (tab[b + 2] + at * (tab[b + 5] - tab[b + 2]));
       const double ex = dx * inv_r, ey = dy * inv_r, ez = dz * inv_r;
       const double fx = s.f[0][j], fy = s.f[1][j], fz = s.f[2][j];
       const double tx = s.t[0][j], ty = s.t[1][j], tz = s.t[2][j];
