@@ -11,15 +11,17 @@
 //   fmm.evaluate(local_charges, nd, outputs, local_results); // collective, any number of times
 //
 // How: the sources are partitioned along the Morton curve (SfcPartition) and each owner builds a
-// tree of cells over its key range. Every rank publishes a coarse cover of its region by tight
-// boxes; for every other rank it walks its cells top down and sends a cell that is well separated
-// from that rank's region as p^3 equivalent charges at the tensor Chebyshev nodes of the cell's cube
-// (the anterpolation of the black-box FMM, Fong & Darve, J. Comput. Phys. 228 (2009) 8712, Sec. 2),
-// and a cell still close at the leaves as its particles (halo). The geometry of this locally
-// essential tree is exchanged once in set_points; every evaluate sends only the equivalent and halo
-// charges (one MPI_Alltoallv). Each owner then runs the serial LaplaceFmm, planned once, on its
-// own sources + halo sources + equivalent nodes, with its owned targets (its own sources, or the
-// targets' own partition), and the results go back to the input ranks and order.
+// tree of cells over its key range. Every rank publishes a coarse cover of its targets' region by
+// tight boxes; for every other rank it walks its cells top down and sends a cell that is well
+// separated from that rank's region, where the p^3 nodes its distance needs are fewer than its
+// particles, as equivalent charges at the tensor Chebyshev nodes of the cell's cube (the
+// anterpolation of the black-box FMM, Fong & Darve, J. Comput. Phys. 228 (2009) 8712, Sec. 2);
+// other cells are opened, and leaves not compressed are sent as their particles (halo). The
+// geometry of this locally essential tree is exchanged once in set_points; every evaluate sends
+// only the equivalent and halo charges (one MPI_Alltoallv). Each owner then runs the serial
+// LaplaceFmm, planned once, on its own sources + halo sources + equivalent nodes, with its owned
+// targets (its own sources, or the targets' own partition), and the results go back to the input
+// ranks and order.
 //
 // Every public call is collective and fails collectively (communicator.hpp).
 #pragma once
@@ -65,9 +67,9 @@ inline constexpr std::size_t kDefaultCellCapacity = 32;
 /// (docs/mpi.md, "Error rule").
 [[nodiscard]] int chebyshev_order_for(double tolerance, double separation);
 
-/// This rank's share of the work and traffic of the plan and of the last evaluate. Seconds are
-/// wall time of each exchange (packing, MPI calls and waits) or of the named local computation; bytes are
-/// what this rank received (its own share of the partition's exchanges included).
+/// This rank's share of the work and traffic of the plan and of the last evaluate. Seconds are the
+/// wall time of each exchange (packing, MPI calls and waits) or of this rank's named local work;
+/// bytes are what this rank received (its own share of the partition's exchanges included).
 struct FmmCommunication {
   /// set_points: "partition" (SfcPartition and positions to the owners), "summaries" (the
   /// all-gather of the regions), "geometry" (the locally essential tree's cells and halo).
