@@ -35,6 +35,7 @@ target_sources(rpyfmm_bd PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/src/device/engine_tables.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/device/step_status.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/device/device_support.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/device/device_stepper.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/device/host_engine.cpp)
 set_source_files_properties(${CMAKE_CURRENT_LIST_DIR}/src/device/host_engine.cpp PROPERTIES
   COMPILE_OPTIONS "$<$<CXX_COMPILER_ID:GNU,Clang>:-ffp-contract=off>")
