@@ -22,6 +22,10 @@ rm -rf gpu-kit && mkdir -p gpu-kit/lib
   find build/release -path '*/CMakeFiles' -prune -o -path build/release/tests/package -prune -o \
     -path build/release/python -prune -o -path 'build/release/_deps' -prune -o -type f -perm -u+x ! -name '*.so*' -print
 } | sort -u >gpu-kit/files.txt
+# The device tests scripts/device-suite.sh runs by path.
+for program in build/release/tests/pse/test_pse build/release/tests/bd/test_bd_device; do
+  grep -qx "$program" gpu-kit/files.txt || { echo "device-kit: $program is not packed" >&2; exit 1; }
+done
 tar -cf - -T gpu-kit/files.txt | xz -T2 -6 >gpu-kit/build.tar.xz
 cp build/release/tests/pse/test_pse build/release/bench/pse/bench_pse build/release/bench/bd/bench_bd gpu-kit/
 for lib in $(ldd gpu-kit/test_pse gpu-kit/bench_pse gpu-kit/bench_bd build/release/apps/rpyfmm |

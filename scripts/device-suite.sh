@@ -2,13 +2,18 @@
 # Runs on the lent machine (16 cores; an AVX-512 CPU where it has one), in the repository root,
 # with gpu-kit/ carried (scripts/device-kit.sh builds it):
 #   1. the CUDA tests (test_pse PseCuda.*; RPYFMM_EXPECT_CUDA: no usable device is a failure);
+#      the BD device engine's tests (test_bd_device DeviceEngine.*, DeviceRestart.*, DeviceRun.*:
+#      against the host launcher bit for bit, docs/gpu-bd.md), then compute-sanitizer memcheck and
+#      racecheck on two short ones where compute-sanitizer is installed (errors fail the suite;
+#      each tool within 60 s);
 #   2. the whole C++ suite at the CPU's own instruction-set level (ctest, slow tests included;
 #      not the Python and package tests, which need the build dependencies);
 #   3. the instruction-set rows of bench/ (bench/run.py --simd-levels --isa-rows: Laplace FMM and
 #      FmmRpy at 1e6 and 1e-6, the direct kernels at 1e4, PSE at 1e5, one thread, the native level and
 #      AVX2 side by side, three rounds each, all at once on separate physical cores; each group
 #      within what is left of RPYFMM_BENCH_BUDGET seconds).
-# Output under $OUT (or ./gpu-out): device.txt, test_pse_cuda.txt, ctest.txt, bench.txt and
+# Output under $OUT (or ./gpu-out): device.txt, test_pse_cuda.txt, test_bd_device.txt,
+# sanitizer_bd_*.txt, ctest.txt, bench.txt and
 # results.tar.gz (bench/results/*.simd-levels.json). Exit status non-zero if a test failed.
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -34,6 +39,27 @@ RPYFMM_CUDA_SYNC=1 timeout 150 build/release/tests/pse/test_pse --gtest_filter='
   tee "$out/test_pse_cuda.txt" | grep -E "^\[  (FAILED|PASSED|SKIPPED) |Failure|error" | head -40
 [ "${PIPESTATUS[0]}" -eq 0 ] || status=1
 grep -q "SKIPPED \]" "$out/test_pse_cuda.txt" && { echo "device-suite: a CUDA test was skipped"; status=1; }
+# The BD device engine's tests that need a device (those of a machine without one skip here).
+bd_device_filter='DeviceEngine.*:DeviceRestart.*:DeviceRun.*-DeviceEngine.RefusedWithoutDevice:DeviceRun.WithoutADevice*'
+RPYFMM_EXPECT_CUDA=1 timeout 90 build/release/tests/bd/test_bd_device --gtest_filter="$bd_device_filter" 2>&1 |
+  tee "$out/test_bd_device.txt" | grep -E "^\[  (FAILED|PASSED|SKIPPED) |Failure|error" | head -40
+[ "${PIPESTATUS[0]}" -eq 0 ] || status=1
+grep -q "SKIPPED \]" "$out/test_bd_device.txt" && { echo "device-suite: a BD device test was skipped"; status=1; }
+# Kernel bounds and races of the BD device engine: one step refused by the guard, and a restart
+# with rebuilds (binning, rows, forces, update). Exit 9: errors found (a failure); 124: timed out.
+sanitizer=$(command -v compute-sanitizer || ls /usr/local/cuda*/bin/compute-sanitizer 2>/dev/null | head -1 || true)
+if [ -n "$sanitizer" ]; then
+  for tool in memcheck racecheck; do
+    RPYFMM_EXPECT_CUDA=1 timeout 60 "$sanitizer" --tool "$tool" --error-exitcode 9 build/release/tests/bd/test_bd_device \
+      --gtest_filter='DeviceEngine.BlowUpKeepsState:DeviceRestart.DeviceEngineContinuesBitForBit' \
+      >"$out/sanitizer_bd_$tool.txt" 2>&1
+    rc=$?
+    echo "device-suite: compute-sanitizer $tool on test_bd_device rc=$rc (9: errors found, 124: timed out)"
+    [ "$rc" -eq 0 ] || [ "$rc" -eq 124 ] || status=1
+  done
+else
+  echo "device-suite: compute-sanitizer not found, BD device kernels not checked"
+fi
 echo "# CUDA tests: status $status at ${SECONDS} s"
 unset OMP_NUM_THREADS
 ctest_bin=$(command -v ctest || true)
