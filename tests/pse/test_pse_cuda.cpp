@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "cuda_test_device.hpp"
 #include "ewald_reference.hpp"
 #include "rpyfmm/bd/integrator.hpp"
 #include "rpyfmm/core/error.hpp"
@@ -21,57 +22,13 @@
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
 
-#ifdef RPYFMM_HAVE_CUDA_PSE
-#include <cuda_runtime.h>
-#endif
-
 using namespace rpyfmm::rpy;
 using namespace rpyfmm::rpy::pse;
 
-namespace {
-bool device_expected() {
-  return std::getenv("RPYFMM_EXPECT_CUDA") != nullptr;
-}
-
+using pse_test::device_expected;
 #ifdef RPYFMM_HAVE_CUDA_PSE
-/// A vector of doubles in device memory (freed at scope exit) for the device-array entry points;
-/// a failed CUDA call throws, which gtest reports as a failure.
-class DeviceVector {
- public:
-  explicit DeviceVector(std::size_t n) : n_(n) {
-    if (cudaMalloc(reinterpret_cast<void**>(&p_), n * sizeof(double)) != cudaSuccess)
-      throw std::runtime_error("cudaMalloc");
-  }
-  explicit DeviceVector(const std::vector<double>& host) : DeviceVector(host.size()) { upload(host); }
-  DeviceVector(const DeviceVector&) = delete;
-  DeviceVector& operator=(const DeviceVector&) = delete;
-  ~DeviceVector() { cudaFree(p_); }
-  void upload(const std::vector<double>& host) {
-    if (host.size() != n_ || cudaMemcpy(p_, host.data(), n_ * sizeof(double), cudaMemcpyHostToDevice) != cudaSuccess)
-      throw std::runtime_error("upload to the device");
-  }
-  [[nodiscard]] std::vector<double> host() const {
-    std::vector<double> h(n_);
-    if (cudaMemcpy(h.data(), p_, n_ * sizeof(double), cudaMemcpyDeviceToHost) != cudaSuccess)
-      throw std::runtime_error("download from the device");
-    return h;
-  }
-  double* get() { return p_; }
-
- private:
-  double* p_ = nullptr;
-  std::size_t n_;
-};
+using pse_test::DeviceVector;
 #endif
-}  // namespace
-
-#define REQUIRE_DEVICE()                                                                       \
-  do {                                                                                         \
-    if (!PseRpyCuda::device_available()) {                                                     \
-      if (device_expected()) FAIL() << "RPYFMM_EXPECT_CUDA is set, but no usable CUDA device"; \
-      GTEST_SKIP() << "no usable CUDA device";                                                 \
-    }                                                                                          \
-  } while (false)
 
 // Without a device the operator refuses at construction; with one it constructs (no skip on the
 // GPU machine, where gpu-check.sh treats any skipped test as a failure).

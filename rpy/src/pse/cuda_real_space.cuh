@@ -78,17 +78,12 @@ __global__ void cell_key_kernel(int np, const double* __restrict__ x, CellGrid c
   value[i] = i;
 }
 
-/// out = M_r f in slot order from the cell list: each row scans the 27 cells around its own
-/// and takes the pairs with |r|^2 < rc2 (coincident particles included, as the lists do).
-__global__ void real_space_cells_kernel(int np, const double* __restrict__ x, const double* __restrict__ f, double* out,
-                                        const unsigned* __restrict__ sorted_key, const int* __restrict__ cell_begin,
-                                        const int* __restrict__ cell_end, CellGrid cg, double rc2,
-                                        const double* __restrict__ table, double inv_dr, double self, double m0,
-                                        double3 L, double3 inv_L) {
-  const int i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i >= np) return;
-  double u[3] = {self * f[3 * i], self * f[3 * i + 1], self * f[3 * i + 2]};
-  const double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2];
+/// visit(j) for every slot j != i in the 27 cells around slot i's cell (cells of the sorted keys;
+/// the caller filters by distance).
+template <class Visit>
+__device__ inline void for_each_cell_neighbour(int i, const unsigned* __restrict__ sorted_key,
+                                               const int* __restrict__ cell_begin, const int* __restrict__ cell_end,
+                                               const CellGrid& cg, Visit&& visit) {
   const int key = static_cast<int>(sorted_key[i]);
   const int cz = key % cg.nc[2];
   const int cy = (key / cg.nc[2]) % cg.nc[1];
@@ -100,24 +95,39 @@ __global__ void real_space_cells_kernel(int np, const double* __restrict__ x, co
       for (int oz = -1; oz <= 1; ++oz) {
         const int c = (nx * cg.nc[1] + ny) * cg.nc[2] + (cz + oz + cg.nc[2]) % cg.nc[2];
         for (int j = cell_begin[c]; j < cell_end[c]; ++j) {
-          if (j == i) continue;
-          const double dx = detail::minimum_image(xi - x[3 * j], L.x, inv_L.x);
-          const double dy = detail::minimum_image(yi - x[3 * j + 1], L.y, inv_L.y);
-          const double dz = detail::minimum_image(zi - x[3 * j + 2], L.z, inv_L.z);
-          const double r2 = dx * dx + dy * dy + dz * dz;
-          if (!(r2 < rc2)) continue;
-          if (r2 == 0.0) {
-            for (int q = 0; q < 3; ++q) u[q] += self * f[3 * j + q];
-            continue;
-          }
-          const double r = sqrt(r2);
-          double F, G;
-          detail::table_fg(table, inv_dr, r, F, G);
-          detail::pair_block_add(dx, dy, dz, r, F, G, f + 3 * j, u);
+          if (j != i) visit(j);
         }
       }
     }
   }
+}
+
+/// out = M_r f in slot order from the cell list: each row scans the 27 cells around its own
+/// and takes the pairs with |r|^2 < rc2 (coincident particles included, as the lists do).
+__global__ void real_space_cells_kernel(int np, const double* __restrict__ x, const double* __restrict__ f, double* out,
+                                        const unsigned* __restrict__ sorted_key, const int* __restrict__ cell_begin,
+                                        const int* __restrict__ cell_end, CellGrid cg, double rc2,
+                                        const double* __restrict__ table, double inv_dr, double self, double m0,
+                                        double3 L, double3 inv_L) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= np) return;
+  double u[3] = {self * f[3 * i], self * f[3 * i + 1], self * f[3 * i + 2]};
+  const double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2];
+  for_each_cell_neighbour(i, sorted_key, cell_begin, cell_end, cg, [&](int j) {
+    const double dx = detail::minimum_image(xi - x[3 * j], L.x, inv_L.x);
+    const double dy = detail::minimum_image(yi - x[3 * j + 1], L.y, inv_L.y);
+    const double dz = detail::minimum_image(zi - x[3 * j + 2], L.z, inv_L.z);
+    const double r2 = dx * dx + dy * dy + dz * dz;
+    if (!(r2 < rc2)) return;
+    if (r2 == 0.0) {
+      for (int q = 0; q < 3; ++q) u[q] += self * f[3 * j + q];
+      return;
+    }
+    const double r = sqrt(r2);
+    double F, G;
+    detail::table_fg(table, inv_dr, r, F, G);
+    detail::pair_block_add(dx, dy, dz, r, F, G, f + 3 * j, u);
+  });
   for (int q = 0; q < 3; ++q) out[3 * i + q] = m0 * u[q];
 }
 

@@ -37,12 +37,14 @@
 #include "cuda_device.cuh"
 #include "cuda_krylov.cuh"
 #include "cuda_real_space.cuh"
+#include "cuda_rotation.cuh"
 #include "cuda_wave_space.cuh"
 #include "cuda_window.cuh"
 #include "host_copy.hpp"
 #include "kernels_common.hpp"
 #include "real_space_sqrt.hpp"
 #include "real_space_sum.hpp"
+#include "rotation_real_space_sum.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
@@ -104,6 +106,16 @@ struct PseRpyCuda::Impl {
   DeviceArray<unsigned long long> begin;
   DeviceArray<int> list, order;
   DeviceKrylovSpace krylov;
+  // Rotation (products with torques, the 6N split sampler), set up by the first such call of a
+  // plan: the rotational real-space table (host, and its nodes on the device), the per-mode
+  // factors, the second grid and spectrum (torques -> angular velocities), torques and angular
+  // velocities in slot order, the sampler's 6N vectors.
+  std::unique_ptr<detail::RotationRealSpaceSum> rotation;
+  DeviceArray<double> rotation_table;
+  DeviceArray<detail::RotationModeFactors> rotation_factors;
+  DeviceArray<unsigned char> rotation_grid, rotation_spectrum;
+  DeviceArray<double> torque, angular, z6, w6;
+  double viscosity = 1.0;
   StageEvents events;
   StageTimes times;
   std::size_t np = 0;
@@ -120,12 +132,17 @@ struct PseRpyCuda::Impl {
   /// dst (slot order) = src (input order), both on the device.
   void gather(const double* src, DeviceArray<double>& dst) {
     dst.resize(n3());
-    gather3_kernel<<<blocks_for(np, kThreads), kThreads>>>(static_cast<int>(np), order.get(), src, dst.get());
+    gather_into(src, dst.get());
+  }
+  /// dst[0 .. 3N) (slot order) = src (input order), both on the device.
+  void gather_into(const double* src, double* dst) {
+    gather3_kernel<<<blocks_for(np, kThreads), kThreads>>>(static_cast<int>(np), order.get(), src, dst);
     check_kernel("gather kernel");
   }
   /// dst (input order) = src (slot order), both on the device.
-  void scatter(const DeviceArray<double>& src, double* dst) {
-    scatter3_kernel<<<blocks_for(np, kThreads), kThreads>>>(static_cast<int>(np), order.get(), src.get(), dst);
+  void scatter(const DeviceArray<double>& src, double* dst) { scatter(src.get(), dst); }
+  void scatter(const double* src, double* dst) {
+    scatter3_kernel<<<blocks_for(np, kThreads), kThreads>>>(static_cast<int>(np), order.get(), src, dst);
     check_kernel("scatter kernel");
   }
 
@@ -143,14 +160,21 @@ struct PseRpyCuda::Impl {
 
   /// dst (slot order, device) = host (input order).
   void upload_to_slots(const double* host, DeviceArray<double>& dst) {
+    dst.resize(n3());
+    upload_to_slots(host, dst.get());
+  }
+  /// dst[0 .. 3N) (slot order, device) = host (input order).
+  void upload_to_slots(const double* host, double* dst) {
     events.begin("transfer");
     upload_input(host);
-    gather(io.get(), dst);
+    gather_into(io.get(), dst);
     events.end();
   }
 
   /// host (input order) = src (slot order, device); then the stage times of the work so far.
-  void download_from_slots(const DeviceArray<double>& src, double* host) {
+  void download_from_slots(const DeviceArray<double>& src, double* host) { download_from_slots(src.get(), host); }
+  /// host (input order) = src[0 .. 3N) (slot order, device); then the stage times of the work so far.
+  void download_from_slots(const double* src, double* host) {
     events.begin("transfer");
     io.resize(n3());
     scatter(src, io.get());
@@ -364,12 +388,7 @@ struct PseRpyCuda::Impl {
       spread(f_dev, g);
       events.end();
       events.begin("fft_forward");
-      if constexpr (std::is_same_v<Real, float>) {
-        check_fft(cufftExecR2C(plan_fwd, g, reinterpret_cast<cufftComplex*>(spec)), "R2C");
-      } else {
-        check_fft(cufftExecD2Z(plan_fwd, g, reinterpret_cast<cufftDoubleComplex*>(spec)), "D2Z");
-      }
-      check_kernel("forward FFT");  // cuFFT faults are asynchronous: name them here, not at the next kernel
+      forward_fft(g, spec);
       events.end();
     }
     const bool with_noise = key != nullptr && noise_scale != 0.0;
@@ -380,23 +399,10 @@ struct PseRpyCuda::Impl {
     check_kernel("scale kernel");
     events.end();
     events.begin("fft_backward");
-    if constexpr (std::is_same_v<Real, float>) {
-      check_fft(cufftExecC2R(plan_bwd, reinterpret_cast<cufftComplex*>(spec), g), "C2R");
-    } else {
-      check_fft(cufftExecZ2D(plan_bwd, reinterpret_cast<cufftDoubleComplex*>(spec), g), "Z2D");
-    }
-    check_kernel("backward FFT");
+    backward_fft(spec, g);
     events.end();
     events.begin("interpolate");
-    if (bin_edge > 0) {
-      cuda_window::interpolate_bins_kernel<Real>
-          <<<static_cast<unsigned>(bin_grid.bins()), cuda_window::kBinThreads, bin_grid.shared_bytes()>>>(
-              bin_slots.get(), bin_begin.get(), bin_end.get(), x.get(), g, out, window, bin_grid, dv, accumulate);
-    } else {
-      cuda_window::interpolate_particles_kernel<Real><<<static_cast<unsigned>(np), cuda_window::kParticleThreads>>>(
-          static_cast<int>(np), x.get(), g, out, window, dv, accumulate);
-    }
-    check_kernel("interpolate kernel");
+    interpolate(g, out, accumulate);
     events.end();
   }
 
@@ -414,12 +420,195 @@ struct PseRpyCuda::Impl {
     return rep;
   }
 
+  // ---- Rotation (docs/theory/pse.md section 5; Fiore & Swan 2018) ----
+
+  /// Frees the rotation state of the current plan (a new plan builds its own on first use).
+  void release_rotation() {
+    rotation.reset();
+    rotation_table.resize(0);
+    rotation_factors.resize(0);
+    rotation_grid.resize(0);
+    rotation_spectrum.resize(0);
+  }
+
+  /// The rotation state of the current plan: the CPU's rotational table (RotationRealSpaceSum's,
+  /// the same nodes), its nodes on the device, the second grid and spectrum (refused, before any
+  /// allocation, where they do not fit) and the per-mode factors.
+  void prepare_rotation() {
+    if (rotation) return;
+    const auto t0 = std::chrono::steady_clock::now();
+    auto sum = std::make_unique<detail::RotationRealSpaceSum>(params, box, viscosity);
+    const PseRotationTable& tab = sum->table();
+    const std::size_t real_bytes = params.wave_single ? sizeof(float) : sizeof(double);
+    const std::size_t need =
+        (3 * window.ng + 2 * 3 * modes.modes) * real_bytes + modes.modes * sizeof(detail::RotationModeFactors);
+    std::size_t free_bytes = 0, total_bytes = 0;
+    check(cudaMemGetInfo(&free_bytes, &total_bytes), "cudaMemGetInfo");
+    require(need <= free_bytes, ErrorCode::out_of_memory, kWhere,
+            "the rotational wave space needs " + std::to_string(need >> 20) + " MiB more on the device, " +
+                std::to_string(free_bytes >> 20) + " MiB are free; raise the tolerance or lower xi");
+    rotation_table.upload(tab.data(), 3 * (tab.size() + 1));
+    rotation_grid.resize(3 * window.ng * real_bytes);
+    rotation_spectrum.resize(2 * 3 * modes.modes * real_bytes);
+    rotation_factors.resize(modes.modes);
+    const detail::RotationModeConstants rc{params.radius, 1.0 / (4.0 * params.xi * params.xi), 1.0 - params.window_eta,
+                                           1.0 / (viscosity * static_cast<double>(window.ng)), params.open_truncation};
+    rotation_factors_kernel<<<blocks_for(modes.modes, 256), 256>>>(modes, rc, rotation_factors.get());
+    check_kernel("rotation factors kernel");
+    rotation = std::move(sum);
+    times["plan"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
+
+  /// u += M_r^{UT} (s t), w = s (M_r^{WF} f + M_r^{WT} (s t)) (device vectors, slot order; s = 1 for
+  /// a product, a for the sampler's S M_r S): RotationRows.
+  void rotation_real_space(const double* f_dev, const double* t_dev, double* u_dev, double* w_dev, double s) {
+    events.begin("real_space");
+    const PseRotationTable& tab = rotation->table();
+    const RotationRows rows{x.get(),
+                            f_dev,
+                            t_dev,
+                            u_dev,
+                            w_dev,
+                            {rotation_table.get(), tab.inv_dr(), tab.unit_c(), tab.unit_hk()},
+                            tab.self(),
+                            1.0 / viscosity,
+                            s,
+                            s,
+                            make_double3(box[0], box[1], box[2]),
+                            make_double3(1.0 / box[0], 1.0 / box[1], 1.0 / box[2])};
+    if (cells_active) {
+      rotation_real_space_cells_kernel<<<blocks_for(np, 128), 128>>>(static_cast<int>(np), rows, keys_sorted.get(),
+                                                                     cell_begin.get(), cell_end.get(), cell_grid,
+                                                                     params.r_cut * params.r_cut);
+    } else {
+      rotation_real_space_kernel<<<blocks_for(np, 128), 128>>>(static_cast<int>(np), rows, begin.get(), list.get());
+    }
+    check_kernel("rotational real-space kernel");
+    events.end();
+  }
+
+  /// [u; angular] = M [f; torque] (the members, device vectors in slot order).
+  void product_rotation() {
+    u.resize(n3());
+    angular.resize(n3());
+    real_space(f.get(), u.get());
+    rotation_real_space(f.get(), torque.get(), u.get(), angular.get(), 1.0);
+    wave_rotation(f.get(), torque.get(), u.get(), angular.get(), nullptr, 0.0);
+  }
+
+  /// u += M_w^{UF} f + M_w^{UT} t + noise_scale (M_w^{1/2} z2(key))_U, w likewise (device vectors,
+  /// slot order); f and t null: the noise only (the translational field z2, rotation_modes.hpp).
+  void wave_rotation(const double* f_dev, const double* t_dev, double* u_dev, double* w_dev,
+                     const detail::NoiseKey* key, double noise_scale) {
+    if (params.wave_single) {
+      wave_rotation_in<float>(f_dev, t_dev, u_dev, w_dev, key, noise_scale);
+    } else {
+      wave_rotation_in<double>(f_dev, t_dev, u_dev, w_dev, key, noise_scale);
+    }
+  }
+
+  /// grid -> spectrum (cuFFT R2C for float grids, D2Z for double).
+  template <class Real>
+  void forward_fft(Real* g, Real* spec) {
+    if constexpr (std::is_same_v<Real, float>) {
+      check_fft(cufftExecR2C(plan_fwd, g, reinterpret_cast<cufftComplex*>(spec)), "R2C");
+    } else {
+      check_fft(cufftExecD2Z(plan_fwd, g, reinterpret_cast<cufftDoubleComplex*>(spec)), "D2Z");
+    }
+    check_kernel("forward FFT");  // cuFFT faults are asynchronous: name them here, not at the next kernel
+  }
+
+  /// spectrum -> grid (cuFFT C2R for float grids, Z2D for double).
+  template <class Real>
+  void backward_fft(Real* spec, Real* g) {
+    if constexpr (std::is_same_v<Real, float>) {
+      check_fft(cufftExecC2R(plan_bwd, reinterpret_cast<cufftComplex*>(spec), g), "C2R");
+    } else {
+      check_fft(cufftExecZ2D(plan_bwd, reinterpret_cast<cufftDoubleComplex*>(spec), g), "Z2D");
+    }
+    check_kernel("backward FFT");
+  }
+
+  /// out (+)= the interpolation of grid g at the particles (slot order).
+  template <class Real>
+  void interpolate(const Real* g, double* out, bool accumulate) {
+    if (bin_edge > 0) {
+      cuda_window::interpolate_bins_kernel<Real>
+          <<<static_cast<unsigned>(bin_grid.bins()), cuda_window::kBinThreads, bin_grid.shared_bytes()>>>(
+              bin_slots.get(), bin_begin.get(), bin_end.get(), x.get(), g, out, window, bin_grid, dv, accumulate);
+    } else {
+      cuda_window::interpolate_particles_kernel<Real><<<static_cast<unsigned>(np), cuda_window::kParticleThreads>>>(
+          static_cast<int>(np), x.get(), g, out, window, dv, accumulate);
+    }
+    check_kernel("interpolate kernel");
+  }
+
+  /// wave_rotation() on Real grids: the CPU's WaveGrid::apply_rotation, stage by stage.
+  template <class Real>
+  void wave_rotation_in(const double* f_dev, const double* t_dev, double* u_dev, double* w_dev,
+                        const detail::NoiseKey* key, double noise_scale) {
+    auto* g = reinterpret_cast<Real*>(grid.get());
+    auto* spec = reinterpret_cast<Real*>(spectrum.get());
+    auto* rg = reinterpret_cast<Real*>(rotation_grid.get());
+    auto* rspec = reinterpret_cast<Real*>(rotation_spectrum.get());
+    const bool deterministic = f_dev != nullptr;
+    if (deterministic) {
+      events.begin("spread");
+      spread(f_dev, g);
+      spread(t_dev, rg);
+      events.end();
+      events.begin("fft_forward");
+      forward_fft(g, spec);
+      forward_fft(rg, rspec);
+      events.end();
+    }
+    const bool with_noise = key != nullptr && noise_scale != 0.0;
+    events.begin("scale");
+    scale_rotation_kernel<Real><<<blocks_for(modes.modes, 256), 256>>>(
+        modes, ck.get(), rotation_factors.get(), spec, rspec, deterministic, with_noise, with_noise ? key->seed : 0,
+        with_noise ? key->step : 0, noise_scale / std::sqrt(dv));
+    check_kernel("rotation scale kernel");
+    events.end();
+    events.begin("fft_backward");
+    backward_fft(spec, g);
+    backward_fft(rspec, rg);
+    events.end();
+    events.begin("interpolate");
+    interpolate(g, u_dev, true);
+    interpolate(rg, w_dev, true);
+    events.end();
+  }
+
+  /// [w_t; w_r] = S^-1 (S M_r S)^{1/2} z6 by Lanczos on device vectors (6N, slot order, translation
+  /// then rotation; S = diag(I, a I)): PseRpy::do_apply_sqrt_rotation's real part. w6 holds the
+  /// result, unscaled rotation included.
+  SqrtReport real_sqrt_rotation(const DeviceArray<double>& zin, DeviceArray<double>& wout) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const std::size_t n3 = this->n3();
+    const double a = params.radius;
+    wout.resize(2 * n3);
+    krylov.set_size(2 * n3);
+    const SqrtReport rep = sqrt_detail::lanczos_sqrt_in_space(
+        krylov,
+        [this, n3, a](const double* in, double* out) {
+          real_space(in, out);
+          rotation_real_space(in, in + n3, out, out + n3, a);
+        },
+        zin.get(), wout.get(), detail::real_space_sqrt_options(params.lanczos_tolerance));
+    scale_into_kernel<<<blocks_for(n3, kThreads), kThreads>>>(n3, 1.0 / a, wout.get() + n3, wout.get() + n3);
+    check_kernel("scale kernel (rotation)");
+    check(cudaDeviceSynchronize(), "Lanczos");
+    times["lanczos"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return rep;
+  }
+
   /// Parameters, tables, window, FFT plans and the wave grids for radius a, box L and n
   /// particles (PseOptions; the parameters as the CPU chooses them).
   void plan(double a, const std::array<double, 3>& L, std::size_t n, double viscosity) {
     const auto t0 = std::chrono::steady_clock::now();
     planned = false;
     destroy_plans();
+    release_rotation();
     grid.resize(0);  // the old plan's big arrays do not count against the new one's memory check
     accumulator.resize(0);
     spectrum.resize(0);
@@ -439,6 +628,7 @@ struct PseRpyCuda::Impl {
     allocate_wave(p, make_fft_plans(p));
     params = p;
     box = L;
+    this->viscosity = viscosity;
     planned = true;
     planned_n = n;
     times["plan"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -653,6 +843,63 @@ SqrtReport PseRpyCuda::sample_device(std::uint64_t seed, std::uint64_t step, dou
   im.scatter(im.u, w_device);
   check(cudaDeviceSynchronize(), "sample_device");
   im.events.collect(im.times);
+  return rep;
+}
+
+void PseRpyCuda::do_apply_rotation(const double* forces, const double* torques, double* velocities,
+                                   double* angular_velocities) const {
+  auto& im = *impl_;
+  im.prepare_rotation();
+  im.upload_to_slots(forces, im.f);
+  im.upload_to_slots(torques, im.torque);
+  im.product_rotation();
+  im.download_from_slots(im.u, velocities);
+  im.download_from_slots(im.angular, angular_velocities);
+}
+
+void PseRpyCuda::apply_device(const double* forces_device, const double* torques_device, double* velocities_device,
+                              double* angular_device) const {
+  require_positions("apply_device");
+  require(forces_device != nullptr && torques_device != nullptr && velocities_device != nullptr &&
+              angular_device != nullptr,
+          ErrorCode::invalid_argument, "PseRpyCuda::apply_device", "null device pointer");
+  auto& im = *impl_;
+  im.prepare_rotation();
+  im.gather(forces_device, im.f);
+  im.gather(torques_device, im.torque);
+  im.product_rotation();
+  im.scatter(im.u, velocities_device);
+  im.scatter(im.angular, angular_device);
+  check(cudaDeviceSynchronize(), "apply_device");
+  im.events.collect(im.times);
+}
+
+SqrtReport PseRpyCuda::do_apply_sqrt_rotation(std::span<const double> z_translation, std::span<const double> z_rotation,
+                                              std::span<double> w_translation, std::span<double> w_rotation,
+                                              const SqrtOptions& options) const {
+  if (options.method != SqrtMethod::automatic && options.method != SqrtMethod::split) {
+    return MobilityOperator::do_apply_sqrt_rotation(z_translation, z_rotation, w_translation, w_rotation, options);
+  }
+  require(options.preconditioner != SqrtPreconditioner::block, ErrorCode::invalid_argument,
+          "PseRpyCuda::apply_sqrt_rotation",
+          "the block preconditioner serves the Lanczos and Chebyshev samplers only, not the split sampler");
+  auto& im = *impl_;
+  const std::size_t n3 = im.n3();
+  im.prepare_rotation();
+  im.z6.resize(2 * n3);
+  im.upload_to_slots(z_translation.data(), im.z6.get());
+  im.upload_to_slots(z_rotation.data(), im.z6.get() + n3);
+  SqrtReport rep = im.real_sqrt_rotation(im.z6, im.w6);
+  // Wave part: the translational noise field keyed by the hash of [z_t; z_r], as PseRpy.
+  std::vector<double> z(2 * n3);
+  std::copy(z_translation.begin(), z_translation.end(), z.begin());
+  std::copy(z_rotation.begin(), z_rotation.end(), z.begin() + static_cast<std::ptrdiff_t>(n3));
+  const detail::NoiseKey key{noise_hash(z), 0};
+  im.wave_rotation(nullptr, nullptr, im.w6.get(), im.w6.get() + n3, &key, 1.0);
+  im.download_from_slots(im.w6.get(), w_translation.data());
+  im.download_from_slots(im.w6.get() + n3, w_rotation.data());
+  rep.method = SqrtMethod::split;
+  rep.operator_applications += 1;
   return rep;
 }
 

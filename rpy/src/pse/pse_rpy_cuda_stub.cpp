@@ -8,7 +8,9 @@ struct PseRpyCuda::Impl {
   PseParameters params;
 };
 
-bool PseRpyCuda::device_available() { return false; }
+bool PseRpyCuda::device_available() {
+  return false;
+}
 
 PseRpyCuda::PseRpyCuda(Geometry geometry, double viscosity, const PseOptions&, const PseCudaOptions&)
     : PseOperator(geometry, viscosity, "PseRpyCuda") {
@@ -42,6 +44,9 @@ void PseRpyCuda::apply_device(const double*, double*) const {
 SqrtReport PseRpyCuda::sample_device(std::uint64_t, std::uint64_t, double*) const {
   fail(ErrorCode::not_supported, "PseRpyCuda::sample_device", "no CUDA support in this build");
 }
+void PseRpyCuda::apply_device(const double*, const double*, double*, double*) const {
+  fail(ErrorCode::not_supported, "PseRpyCuda::apply_device", "no CUDA support in this build");
+}
 
 StageTimes PseRpyCuda::stage_times() const {
   return {};
@@ -55,6 +60,13 @@ void PseRpyCuda::do_apply(const double*, double*, std::size_t) const {
 SqrtReport PseRpyCuda::do_apply_sqrt(std::span<const double>, std::span<double>, std::size_t,
                                      const SqrtOptions&) const {
   fail(ErrorCode::not_supported, "PseRpyCuda::apply_sqrt", "no CUDA support in this build");
+}
+void PseRpyCuda::do_apply_rotation(const double*, const double*, double*, double*) const {
+  fail(ErrorCode::not_supported, "PseRpyCuda::apply", "no CUDA support in this build");
+}
+SqrtReport PseRpyCuda::do_apply_sqrt_rotation(std::span<const double>, std::span<const double>, std::span<double>,
+                                              std::span<double>, const SqrtOptions&) const {
+  fail(ErrorCode::not_supported, "PseRpyCuda::apply_sqrt_rotation", "no CUDA support in this build");
 }
 
 }  // namespace rpyfmm::rpy::pse

@@ -14,6 +14,7 @@
 
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 
 #include "kernels_common.hpp"
 #include "open_truncation.hpp"
@@ -127,6 +128,50 @@ RPYFMM_HOST_DEVICE inline void scale_rotation_mode(int ix, int iy, int iz, std::
     t[d][0] = static_cast<Real>(-half_s * cross(im, d));
     t[d][1] = static_cast<Real>(half_s * cross(re, d));
   }
+}
+
+/// (ix, iy, iz) of linear half-spectrum index idx = (ix ny + iy) nzh + iz.
+RPYFMM_HOST_DEVICE inline void half_spectrum_mode(std::size_t idx, const ModeGeometry& g, int& ix, int& iy, int& iz) {
+  iz = static_cast<int>(idx % static_cast<std::size_t>(g.nzh));
+  const std::size_t rest = idx / static_cast<std::size_t>(g.nzh);
+  iy = static_cast<int>(rest % static_cast<std::size_t>(g.n[1]));
+  ix = static_cast<int>(rest / static_cast<std::size_t>(g.n[1]));
+}
+
+/// The mode of linear half-spectrum index idx with its own noise draw, for one GPU thread per mode
+/// (as scale_mode for the translational spectrum): the (ix, iy, iz) of idx, normal6 / normal6f
+/// (Real = float) of the mode pair's representative under (seed, step, kStreamWave), as
+/// WaveGrid::scale_rotation_modes draws them on the CPU, then scale_rotation_mode. `factors` holds
+/// rotation_mode_factors per mode, indexed by idx.
+template <class Real>
+RPYFMM_HOST_DEVICE inline void scale_rotation_mode_at(std::size_t idx, const ModeGeometry& g, const double* ck,
+                                                      const RotationModeFactors* factors, Real* fs, Real* ts,
+                                                      bool deterministic, bool noise, std::uint64_t seed,
+                                                      std::uint64_t step, double noise_factor) {
+  int ix, iy, iz;
+  half_spectrum_mode(idx, g, ix, iy, iz);
+  Real z[6];
+  bool representative = true;
+  if (noise) {
+    std::uint64_t lin, rep;
+    mode_pair(ix, iy, iz, g, lin, rep);
+    if constexpr (sizeof(Real) == sizeof(float)) {
+      normal6f(seed, step, kStreamWave, rep, z);
+    } else {
+      normal6(seed, step, kStreamWave, rep, z);
+    }
+    representative = lin == rep;
+  }
+  scale_rotation_mode(ix, iy, iz, idx, g, ck, factors[idx], fs, ts, deterministic, noise ? z : nullptr, representative,
+                      noise_factor);
+}
+
+/// rotation_mode_factors of linear half-spectrum index idx (one GPU thread per mode).
+RPYFMM_HOST_DEVICE inline RotationModeFactors rotation_mode_factors_at(std::size_t idx, const ModeGeometry& g,
+                                                                       const RotationModeConstants& rc) {
+  int ix, iy, iz;
+  half_spectrum_mode(idx, g, ix, iy, iz);
+  return rotation_mode_factors(ix, iy, iz, g, rc);
 }
 
 }  // namespace rpyfmm::rpy::pse::detail

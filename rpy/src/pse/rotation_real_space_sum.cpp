@@ -9,6 +9,7 @@
 #include <cstdint>
 
 #include "kernels_common.hpp"
+#include "rotation_pair_device.hpp"
 #include "rpyfmm/core/simd_dispatch.hpp"
 
 namespace rpyfmm::rpy::pse::detail {
@@ -27,15 +28,13 @@ struct RotationSlots {
 
 /// The table's interpolation data (PseRotationTable) and the box.
 struct RotationFrame {
-  const double* table;
-  double inv_dr, unit_c, unit_hk;
+  RotationTableView table;
   double L[3], inv_L[3];
 };
 
 /// One row without the self block: u += sum_q c (T_q x e), w += sum_q c (F_q x e) + h T_q +
 /// k (e . T_q) e over the neighbour slots nb[0 .. count) of the particle at xi (docs/theory/pse.md
-/// section 5; rotation_real_space.hpp). A coincident neighbour (r = 0) gets e = 0 and the table's
-/// r = 0 node, h(0) = self: the self block's form h(0) T_q.
+/// section 5; rotation_pair_terms, which the CUDA rows share).
 void rotation_row(const int* nb, std::size_t count, const double xi[3], const RotationSlots& s, const RotationFrame& fr,
                   double u[3], double w[3]) {
   simd_dispatch([=]() RPYFMM_SIMD_BODY {
@@ -46,29 +45,14 @@ void rotation_row(const int* nb, std::size_t count, const double xi[3], const Ro
       const double dx = minimum_image(xi[0] - s.x[0][j], fr.L[0], fr.inv_L[0]);
       const double dy = minimum_image(xi[1] - s.x[1][j], fr.L[1], fr.inv_L[1]);
       const double dz = minimum_image(xi[2] - s.x[2][j], fr.L[2], fr.inv_L[2]);
-      const double r2 = dx * dx + dy * dy + dz * dz;
-      const double r = std::sqrt(r2);
-      const double inv_r = r2 > 0.0 ? 1.0 / r : 0.0;
-      double at = r * fr.inv_dr;
-      const int node = static_cast<int>(at);
-      at -= static_cast<double>(node);
-      // Indexed loads from the table's base (not through a pointer to the node): GCC turns only
-      // these into gathers.
-      const int b = 3 * node;
-      const double* tab = fr.table;
-      const double c = fr.unit_c * (tab[b] + at * (tab[b + 3] - tab[b]));
-      const double h = fr.unit_hk * (tab[b + 1] + at * (tab[b + 4] - tab[b + 1]));
-      const double k = fr.unit_hk * (tab[b + 2] + at * (tab[b + 5] - tab[b + 2]));
-      const double ex = dx * inv_r, ey = dy * inv_r, ez = dz * inv_r;
-      const double fx = s.f[0][j], fy = s.f[1][j], fz = s.f[2][j];
-      const double tx = s.t[0][j], ty = s.t[1][j], tz = s.t[2][j];
-      const double et = k * (ex * tx + ey * ty + ez * tz);
-      ux += c * (ty * ez - tz * ey);
-      uy += c * (tz * ex - tx * ez);
-      uz += c * (tx * ey - ty * ex);
-      wx += c * (fy * ez - fz * ey) + h * tx + et * ex;
-      wy += c * (fz * ex - fx * ez) + h * ty + et * ey;
-      wz += c * (fx * ey - fy * ex) + h * tz + et * ez;
+      const RotationPairTerms p =
+          rotation_pair_terms(dx, dy, dz, s.f[0][j], s.f[1][j], s.f[2][j], s.t[0][j], s.t[1][j], s.t[2][j], fr.table);
+      ux += p.ux;
+      uy += p.uy;
+      uz += p.uz;
+      wx += p.wx;
+      wy += p.wy;
+      wz += p.wz;
     }
     u[0] = ux;
     u[1] = uy;
@@ -100,10 +84,7 @@ void RotationRealSpaceSum::apply(const RealSpaceSum::SlotLists& lists, std::span
   const double* wk = work_.data();
   const RotationSlots slots{
       {wk, wk + n, wk + 2 * n}, {wk + 3 * n, wk + 4 * n, wk + 5 * n}, {wk + 6 * n, wk + 7 * n, wk + 8 * n}};
-  const RotationFrame frame{table_.data(),
-                            table_.inv_dr(),
-                            table_.unit_c(),
-                            table_.unit_hk(),
+  const RotationFrame frame{{table_.data(), table_.inv_dr(), table_.unit_c(), table_.unit_hk()},
                             {box_[0], box_[1], box_[2]},
                             {1.0 / box_[0], 1.0 / box_[1], 1.0 / box_[2]}};
   const double self = table_.self();

@@ -34,6 +34,17 @@
 // 16 host cores). All work runs on
 // the legacy default stream: callers that write the device arrays of apply_device /
 // sample_device on other streams synchronise first.
+//
+// Rotation (supports_rotation) as in PseRpy (docs/theory/pse.md section 5): the wave part spreads
+// forces and torques onto two grids with the same window and fixed-point sums, scales each mode
+// by the CPU's scale_rotation_mode (rotation_modes.hpp: the same per-mode factors and noise draw)
+// and interpolates velocities and angular velocities; the real part adds the rotational rows of
+// rotation_pair_terms (the CPU rows' per-pair arithmetic) over the same neighbours and the CPU's
+// rotational table. apply_sqrt_rotation (automatic or split) is the split sampler on the 6N
+// operator with PseRpy's noise key (the hash of [z_t; z_r]): Lanczos on S M_r S on device vectors,
+// S = diag(I, a I). The second grid, its spectrum and the per-mode factors (24 bytes a mode) are
+// allocated by the first call with torques of a plan; the 6N Lanczos basis doubles the
+// translational one.
 #pragma once
 
 #include <cstdint>
@@ -104,6 +115,12 @@ class PseRpyCuda final : public PseOperator {
   void apply_device(const double* forces_device, double* velocities_device) const;
   /// w = M^{1/2} z by the split sampler keyed by (seed, step), as sample(), w in device memory.
   SqrtReport sample_device(std::uint64_t seed, std::uint64_t step, double* w_device) const;
+  /// [U; W] = M [F; T] with all four in device memory (3N doubles each, input order), as
+  /// apply_device. The pointers are not checked beyond null.
+  void apply_device(const double* forces_device, const double* torques_device, double* velocities_device,
+                    double* angular_device) const;
+
+  [[nodiscard]] bool supports_rotation() const override { return true; }
 
   /// Accumulated seconds per stage, from CUDA events on the device's timeline: transfer (host
   /// <-> device copies with the gathers into and scatters from slot order), real_space, spread,
@@ -119,6 +136,11 @@ class PseRpyCuda final : public PseOperator {
   void do_apply(const double* forces, double* velocities, std::size_t nrhs) const override;
   SqrtReport do_apply_sqrt(std::span<const double> z, std::span<double> w, std::size_t nrhs,
                            const SqrtOptions& options) const override;
+  void do_apply_rotation(const double* forces, const double* torques, double* velocities,
+                         double* angular_velocities) const override;
+  SqrtReport do_apply_sqrt_rotation(std::span<const double> z_translation, std::span<const double> z_rotation,
+                                    std::span<double> w_translation, std::span<double> w_rotation,
+                                    const SqrtOptions& options) const override;
 
  private:
   struct Impl;
