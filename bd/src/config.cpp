@@ -589,7 +589,7 @@ void check_langevin(const RunConfig& c) {
     bad_key(key, "= \"langevin\" cannot be used with integrator.split_displacements (it splits Brownian steps)");
 }
 
-/// The SAC scheme (Algorithm 2 of the GPU BD paper) needs carriers (Langevin types) and
+/// The SAC scheme (Algorithm 2 of Tran et al. (2015)) needs carriers (Langevin types) and
 /// adsorbers (Brownian types), free draining, no rotation and no bonds: each is refused naming
 /// integrator.scheme.
 void check_sac(const RunConfig& c) {

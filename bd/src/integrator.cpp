@@ -100,7 +100,7 @@ void Integrator::check_inertia() const {
 }
 
 double Integrator::complex_forces() {
-  // Algorithm 2 of the GPU BD paper (Sec. 4.2) in the complexes' internal coordinates
+  // Algorithm 2 of Tran et al. (2015) (Sec. 4.2) in the complexes' internal coordinates
   // (docs/theory/bd.md Sec. 9). Each particle's group is its complex (named by its carrier) or,
   // when free, itself. f_ = the forces from outside the group (pair forces across groups, external
   // forces, trap, callbacks), f_within_ = the pair forces inside the group, in one pass over the
@@ -207,7 +207,7 @@ const StepReport& Integrator::step() {
   const std::size_t n = size();
   StepReport rep;
   StopWatch watch;
-  // 1. Neighbour list, rebuilt only when needed (GPU BD paper, Eurographics 2015, Algorithm 1;
+  // 1. Neighbour list, rebuilt only when needed (Tran et al. (2015), Algorithm 1;
   //    docs/theory/bd.md).
   rep.neighbour_rebuild = list_.update(x_);
   totals_.seconds["neighbours"] += watch.seconds();

@@ -56,7 +56,8 @@ TEST(Potentials, ForcesAreMinusEnergyGradient) {
       expect_consistent(evaluate_pair(t, r), r, [&](double q) { return evaluate_pair(t, q).energy; });
     }
   }
-  // DLVO, 001 Annex 2 in SI units (alumina-silica, radii 200 nm / 50 nm), energies in joules scaled to kT.
+  // DLVO, Tran et al. (2015), Annex 2 in SI units (alumina-silica, radii 200 nm / 50 nm), energies in joules scaled to
+  // kT.
   PairPotential d;
   d.kind = PairKind::dlvo;
   d.hamaker = 1.48e-20 / 4.05e-21;
@@ -79,7 +80,7 @@ TEST(Potentials, ClosedFormValues) {
   p.kind = PairKind::lj36_18;
   p.epsilon = 14.0;
   const PairTerm t = resolve_pair(p, 1.0, 1.0, 0, 0);
-  EXPECT_DOUBLE_EQ(t.sigma, 2.0);                                              // s = d_A, GPU BD paper eq. 8
+  EXPECT_DOUBLE_EQ(t.sigma, 2.0);                                              // s = d_A, Tran et al. (2015) eq. 8
   EXPECT_NEAR(evaluate_pair(t, 2.0).energy, 0.0, 1e-12);                       // V(s) = 0
   EXPECT_NEAR(evaluate_pair(t, 2.0 * std::pow(2.0, 1.0 / 18)).s, 0.0, 1e-10);  // minimum at 2^(1/18) s
   PairPotential w;
@@ -182,7 +183,7 @@ TEST(Potentials, BornRepulsionMatchesTheVolumeIntegral) {
   EXPECT_NEAR(born_repulsion(k, 1.0, 0.5, far).energy, points, 1e-2 * points);
 }
 
-// DLVO with the Born core (the GPU BD paper's alumina-silica and silica-silica pairs, Annex 2,
+// DLVO with the Born core (the alumina-silica and silica-silica pairs of Tran et al. (2015), Annex 2,
 // Table 5 R = 1.1 %, in nm and kT): the force is -dV/dr, inside the core, at the primary minimum
 // and up to the cut-off. Central differences with step 1e-5 h, where the h^-7 core varies:
 // truncation ~1e-9 and rounding ~1e-8 relative (tolerance 1e-6).
@@ -373,7 +374,7 @@ TEST(NeighbourList, RebuildsOnlyAfterHalfSkin) {
   EXPECT_TRUE(list.update(x));
   x[0] += 0.49;  // < skin / 2
   EXPECT_FALSE(list.update(x));
-  x[0] += 0.02;  // now 0.51 > skin / 2 (GPU BD paper, Algorithm 1, line 15)
+  x[0] += 0.02;  // now 0.51 > skin / 2 (Tran et al. (2015), Algorithm 1, line 15)
   EXPECT_TRUE(list.update(x));
   EXPECT_EQ(list.rebuilds(), 2u);
   NeighbourList fixed(rpyfmm::rpy::Geometry::open(), 2.0, {.skin = 1.0, .fixed_interval = 3});

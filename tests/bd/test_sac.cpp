@@ -1,4 +1,4 @@
-// The SAC scheme (Algorithm 2 of the GPU BD paper, Sec. 4.2; docs/theory/bd.md Sec. 9): complex
+// The SAC scheme (Algorithm 2 of Tran et al. (2015), Sec. 4.2; docs/theory/bd.md Sec. 9): complex
 // membership against a brute-force search (ties included), a complex of k adsorbed particles
 // diffusing as one body with the carrier's friction (and the naive scheme's caging drop beside it),
 // runs without complexes equal to naive runs bit for bit, results independent of the thread count,

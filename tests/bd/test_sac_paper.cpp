@@ -1,4 +1,4 @@
-// The caging comparison of the GPU BD paper (Sec. 4.1-4.2) at its sizes and units, from
+// The caging comparison of Tran et al. (2015) (Sec. 4.1-4.2) at its sizes and units, from
 // examples/bd/alumina_silica: one alumina (a = 200 nm, Langevin) with 82 adsorbed silica
 // (a = 12.5 nm, Brownian), dt = 5e-10 s, free draining. The naive scheme cages the complex: its
 // friction-weighted centre diffuses with kT / (gamma_A + 82 gamma_S) = 0.163 D0 (the paper measures

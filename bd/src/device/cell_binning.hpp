@@ -10,8 +10,8 @@
 //   gather_slot    the wrapped position and the type of the particle in each slot.
 //
 // The slots run along the grid, so that the rows built from them (verlet_rows.hpp) read their
-// candidates from a few contiguous runs: the locality of the GPU BD paper's sort by hash key
-// (Eurographics 2015, Algorithm 1, line 4).
+// candidates from a few contiguous runs: the locality of the sort by hash key of Tran et al. (2015)
+// (Algorithm 1, line 4).
 #pragma once
 
 #include <cstdint>

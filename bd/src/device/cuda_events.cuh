@@ -1,7 +1,7 @@
 // rpyfmm::bd::device — the device engine's stage timer: CUDA events recorded between a step's
 // stages (before the lists, after them, after the forces, after the update), read once the step's
 // status has come back (the events have completed by then), for the seconds per part that the
-// GPU BD paper's Table 2 reports and the CPU engine's IntegratorTotals keeps ("neighbours",
+// Table 2 of Tran et al. (2015) reports and the CPU engine's IntegratorTotals keeps ("neighbours",
 // "forces", "update"). Included by device_engine.cu only.
 #pragma once
 

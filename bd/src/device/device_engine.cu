@@ -1,7 +1,7 @@
 // rpyfmm::bd::device — DeviceEngine: the host launcher's step (host_engine.cpp) with each stage a
 // CUDA kernel of one thread per particle (slot, cell) calling the same host-device function.
 // The positions stay on the device; per step the host reads one StepStatus (the failure slots
-// and the next step's rebuild test, as the GPU BD paper's update kernel sets its flag, Algorithm
+// and the next step's rebuild test, as the update kernel of Tran et al. (2015) sets its flag, Algorithm
 // 1, lines 14-16), and per rebuild the grid bounds and the number of pairs. Scans by CUB; the
 // kernels are in device_kernels.cuh.
 // Compiled with --fmad=false: the kernels' a * b + c stay unfused, as on the host, so that

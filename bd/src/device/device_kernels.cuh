@@ -1,8 +1,8 @@
 // rpyfmm::bd::device — the device engine's kernels: one item (particle, slot or cell) per thread,
 // each a call of its stage's host-device function (the same the host launcher loops over), and a
 // bounding-box reduction for the cell grid of open geometry. The force and update kernels take the
-// particles in the slot order of the last build when given it (along the grid: the GPU BD paper's
-// locality), which changes which thread computes a particle, not what. Included by
+// particles in the slot order of the last build when given it (along the grid: the locality of
+// Tran et al. (2015)), which changes which thread computes a particle, not what. Included by
 // device_engine.cu only.
 #pragma once
 

@@ -1,11 +1,11 @@
-// rpyfmm::bd::device — one particle's free-draining Euler-Maruyama step (the GPU BD paper,
-// Eurographics 2015, eq. 3; docs/theory/bd.md):
+// rpyfmm::bd::device — one particle's free-draining Euler-Maruyama step (Tran et al. (2015),
+// eq. 3; docs/theory/bd.md):
 //
 //     dx = mu F dt + sqrt(2 kT dt) sqrt(mu) z,   mu = 1 / (6 pi eta a),  z = brownian_normals
 //
 // with the blow-up guard of Integrator::checked_displacements (a step moving a particle more than
-// max_displacement x its radius, or not finite, is refused), and, as the GPU BD paper's update
-// kernel does (Algorithm 1, lines 14-16), the rebuild test of the next step on the new position.
+// max_displacement x its radius, or not finite, is refused), and, as the update kernel of
+// Tran et al. (2015) does (Algorithm 1, lines 14-16), the rebuild test of the next step on the new position.
 // Positions stay unwrapped, as in the CPU engine (mean-square displacements); the minimum image
 // is taken where pairs are measured (minimum_image.hpp) and the wrap where particles are binned
 // (cell_binning.hpp). The operations of the CPU engine's step, in its order.

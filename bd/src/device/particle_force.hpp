@@ -1,7 +1,7 @@
 // rpyfmm::bd::device — the force on one particle and its share of the potential energy, in the
 // order of ForceField::compute (bd/src/force_field.cpp): its type's external force (plus the
 // global force), then the pair forces over its sorted Verlet row (pairs beyond their cut-off
-// skipped, the GPU BD paper's Algorithm 1, lines 11-13), then its bonds in bond order, then the
+// skipped, Tran et al. (2015), Algorithm 1, lines 11-13), then its bonds in bond order, then the
 // harmonic trap. Each pair and bond is visited from both sides, so each side counts half its
 // energy. The same operations in the same order as the CPU engine: the same bits where neither
 // side contracts multiply-adds (docs/gpu-bd.md).

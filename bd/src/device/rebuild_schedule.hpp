@@ -1,6 +1,6 @@
 // rpyfmm::bd::device — when the Verlet lists are rebuilt: NeighbourList::update's decision, kept on
 // the host. The first step builds; then, without pair forces never again; with a fixed interval
-// every `interval` steps (the GPU BD paper's Table 1 strategy, for comparison); otherwise when the
+// every `interval` steps (the Table 1 strategy of Tran et al. (2015), for comparison); otherwise when the
 // last step's update found a particle beyond skin/2 of its position at the last build (its
 // Algorithm 1, lines 15-16: the device reports that in the step's status, one read per step).
 #pragma once

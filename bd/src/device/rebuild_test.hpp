@@ -1,5 +1,5 @@
-// rpyfmm::bd::device — the dynamic rebuild test of the GPU BD paper (Eurographics 2015,
-// Algorithm 1, lines 15-16): the Verlet lists must be rebuilt once some particle has moved
+// rpyfmm::bd::device — the dynamic rebuild test of Tran et al. (2015)
+// (Algorithm 1, lines 15-16): the Verlet lists must be rebuilt once some particle has moved
 // more than skin/2 since the last build, for only then can a pair have come from beyond the list
 // radius r_c + skin to within r_c unseen. The arithmetic of NeighbourList::update (unwrapped
 // positions, no minimum image), so both engines rebuild at the same steps.

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Number of aggregates against time (paper 001 Fig. 3) from the runs of
+"""Number of aggregates against time (Tran et al. (2015), Fig. 3) from the runs of
 run.py. An aggregate is a connected group of at least two particles, two
 particles being connected when their centres are closer than 1.1 (a_i + a_j)
 (the 36-18 well, 14 kT deep at 1.039 (a_i + a_j), is still -8 kT at 1.1 and
@@ -70,7 +70,7 @@ def main() -> int:
             ax2.plot(t / TAU_D, n_agg, style, label=f"{label}: aggregates")
             ax2.plot(t / TAU_D, free * count, style, lw=0.8, label=f"{label}: single particles")
     ax1.set(xscale="log", xlabel=r"time $t\,D_0/a^2$", ylabel="number of aggregates (≥ 2 particles)",
-            title="1000 particles, free draining (cf. 001 Fig. 3)")
+            title="1000 particles, free draining (cf. Tran et al. (2015), Fig. 3)")
     ax1.legend(fontsize=8)
     ax2.set(xscale="log", yscale="log", xlabel=r"time $t\,D_0/a^2$", ylabel="count",
             title=r"300 particles, $\phi = 0.10$: HI vs free draining")

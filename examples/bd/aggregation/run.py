@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Aggregation with the 36-18 potential: three densities without HI (as in
-001 Fig. 3) and one small system with and without HI (PSE), all derived from
+Tran et al. (2015), Fig. 3) and one small system with and without HI (PSE), all derived from
 aggregation.toml. Each case runs in four pieces of 10x more steps and 10x
 sparser frames (100 frames a decade: a log-spaced time axis); the pieces are
 bitwise identical over their common steps (noise keyed by step), so together

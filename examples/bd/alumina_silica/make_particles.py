@@ -5,7 +5,7 @@ surface gap --gap (default 0: contact, r = a_A + a_S = 212.5 nm; the DLVO config
 alumina_silica_dlvo.toml takes its primary minimum, --gap 3.16 --out
 particles_dlvo.txt), spread evenly over its surface (a
 Fibonacci lattice: deterministic, nearest silica ~80 nm apart). 82 silica per
-alumina is the composition R = 1.1 % of the GPU BD paper (Annex 2, Table 5).
+alumina is the composition R = 1.1 % of Tran et al. (2015) (Annex 2, Table 5).
 
     python3 examples/bd/alumina_silica/make_particles.py [--silica 82] [--gap 0] [--out particles.txt]
 """

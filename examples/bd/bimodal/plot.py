@@ -6,7 +6,7 @@ the large particles, over D0 = kT/(6 pi eta a_L).
 Long-time limits of a bound complex (large + n small), drawn as lines:
   * free draining: the friction-weighted centre sum_i zeta_i x_i / sum_i zeta_i
     moves only by noise, so D = kT / sum_i zeta_i = D0 a_L / (a_L + n a_S)
-    exactly (the "caging" artefact of 001 section 4.1);
+    exactly (the "caging" artefact of Tran et al. (2015), section 4.1);
   * RPY: the rigid-complex estimate D = (kT/3) tr[(sum_ij (M^-1)_ij)^-1], the
     translational mobility of the complex frozen in its sampled shapes
     (M = the complex's RPY matrix; the same formula gives the free-draining

@@ -83,8 +83,8 @@ inline void unwrap_some(std::vector<double>& x, double L) {
   }
 }
 
-/// One type of radius 1 with the pair potential `kind` (epsilon 14 kT for lj36_18, as the GPU BD
-/// paper; DLVO with a Born core in reduced units).
+/// One type of radius 1 with the pair potential `kind` (epsilon 14 kT for lj36_18, as
+/// Tran et al. (2015); DLVO with a Born core in reduced units).
 inline ForceField single_type(PairKind kind) {
   ForceField f({ParticleType{"A", 1.0, {0.0, 0.0, 0.0}, 0.04}});
   PairPotential p;

@@ -76,7 +76,7 @@ void run_side_by_side(const ForceField& forces, const std::vector<std::uint32_t>
 // below the guard (max_displacement = 1 radius) over the runs.
 
 TEST(DeviceTrajectory, Lj3618PeriodicHundredSteps) {
-  // 001's potential (eps = 14 kT), positions unwrapped across the faces, 100 steps.
+  // The potential of Tran et al. (2015) (eps = 14 kT), positions unwrapped across the faces, 100 steps.
   const int side = 9;
   const double L = side * spacing(PairKind::lj36_18);
   auto x = jittered_lattice(side, spacing(PairKind::lj36_18), 0.03, 51);
@@ -111,7 +111,7 @@ TEST(DeviceTrajectory, WcaDlvoAndDeterministicSoft) {
 }
 
 TEST(DeviceTrajectory, FixedIntervalRebuildsAtTheSameSteps) {
-  // The GPU BD paper's fixed-interval strategy (Table 1), every 7 steps, with the default skin.
+  // The fixed-interval strategy of Tran et al. (2015) (Table 1), every 7 steps, with the default skin.
   auto x = jittered_lattice(8, spacing(PairKind::wca), 0.03, 57);
   run_side_by_side(single_type(PairKind::wca), std::vector<std::uint32_t>(x.size() / 3, 0), Geometry::open(), x,
                    integrator_options(2e-4, 1.0, 9), 40, "fixed interval", {.fixed_interval = 7});

@@ -26,7 +26,7 @@ struct ParticleType {
   std::string name = "A";
   double radius = 1.0;                            ///< hydrodynamic radius a (> 0)
   std::array<double, 3> external_force{0, 0, 0};  ///< constant force, e.g. buoyant weight (m - m_f) g
-  double surface_potential = 0.0;                 ///< Psi, used by DLVO pairs (001 Annex 2)
+  double surface_potential = 0.0;                 ///< Psi, used by DLVO pairs (Tran et al. (2015), Annex 2)
 };
 
 struct Bond {

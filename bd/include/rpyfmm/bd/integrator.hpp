@@ -4,8 +4,8 @@
 //     dx = M F dt + sqrt(2 kT dt) M^{1/2} z,   z ~ N(0, I) keyed by (seed, step, particle)
 //
 // RPY is divergence-free, so no drift term kT div M dt is needed (docs/theory/rpy.md).
-// With the free-draining operator (method "none") this is eq. 3 of the GPU BD paper
-// (Eurographics 2015; docs/theory/bd.md).
+// With the free-draining operator (method "none") this is eq. 3 of Tran et al. (2015)
+// (docs/theory/bd.md).
 //
 // One step: neighbour-list update (only when needed) -> forces -> mobility
 // plan (set_positions, once per step) -> M F and M^{1/2} z (drift_and_noise,
@@ -21,7 +21,7 @@
 // keyed by the particle's index in the system and the step) and half-step velocities; the others
 // move as above (docs/theory/bd.md Sec. 8). Only with free draining (method "none") and without
 // rotation: hydrodynamic interactions with inertia are not modelled.
-// With the SAC scheme (IntegratorOptions::sac; Algorithm 2 of the GPU BD paper, Sec. 4.2, and
+// With the SAC scheme (IntegratorOptions::sac; Algorithm 2 of Tran et al. (2015), Sec. 4.2, and
 // docs/theory/bd.md Sec. 9), the Brownian particles within the adsorption radius of a Langevin one
 // form a complex with it (sac.hpp). Each step: (1) a complex moves as one Langevin body, with the
 // carrier's mass and friction, under the sum of the forces on its members from outside the

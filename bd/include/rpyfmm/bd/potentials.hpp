@@ -11,10 +11,11 @@
 namespace rpyfmm::bd {
 
 enum class PairKind {
-  lj36_18,  ///< generalized Lennard-Jones 4 eps [(s/r)^36 - (s/r)^18], r < r_c (001 Annex 1, eq. 8); hard
+  lj36_18,  ///< generalized Lennard-Jones 4 eps [(s/r)^36 - (s/r)^18], r < r_c (Tran et al. (2015), Annex 1, eq. 8);
+            ///< hard
   wca,      ///< Weeks-Chandler-Andersen: LJ 12-6 shifted by +eps, cut at 2^(1/6) s; hard
   soft,     ///< soft repulsion eps (1 - r/s)^2 for r < s (finite at overlap; for relaxing overlaps)
-  dlvo,     ///< DLVO van der Waals + electrostatic (001 Annex 2, eqs. 9-11); hard (needs h > 0)
+  dlvo,     ///< DLVO van der Waals + electrostatic (Tran et al. (2015), Annex 2, eqs. 9-11); hard (needs h > 0)
 };
 
 /// Short-range repulsion added to a DLVO pair (docs/theory/bd.md Sec. 4, DLVO with a Born core).
@@ -36,16 +37,16 @@ inline bool is_hard(PairKind kind) {
 /// Parameters of one pair interaction between two particle types.
 struct PairPotential {
   PairKind kind = PairKind::wca;
-  /// Energy scale eps (lj36_18: 001 uses eps = 14 kT; wca, soft). Not used by dlvo.
+  /// Energy scale eps (lj36_18: Tran et al. (2015) use eps = 14 kT; wca, soft). Not used by dlvo.
   double epsilon = 1.0;
-  /// Length scale s; 0 = contact distance a_i + a_j (001: s = d_A, the diameter).
+  /// Length scale s; 0 = contact distance a_i + a_j (Tran et al. (2015): s = d_A, the diameter).
   double sigma = 0.0;
   /// Cutoff r_c; 0 = default: lj36_18 1.5 s, wca 2^(1/6) s, soft s, dlvo a_i + a_j + 10/kappa.
   double cutoff = 0.0;
   /// Hard potentials reject pairs closer than this fraction of s (dlvo: of a_i + a_j)
   /// as overlapping particles, instead of blowing up. In (0, 1].
   double min_distance_fraction = 0.8;
-  // DLVO (001 Annex 2): Hamaker constant A_ij, solvent permittivity eps_r eps_0,
+  // DLVO (Tran et al. (2015), Annex 2): Hamaker constant A_ij, solvent permittivity eps_r eps_0,
   // inverse Debye length kappa. Surface potentials Psi come from the particle types.
   double hamaker = 0.0;
   double permittivity = 0.0;

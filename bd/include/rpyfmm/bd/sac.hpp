@@ -1,5 +1,5 @@
-// rpyfmm::bd — the silica-alumina complexes (SACs) of Algorithm 2 of the GPU BD paper
-// (Eurographics 2015, Sec. 4.2; docs/theory/bd.md Sec. 9).
+// rpyfmm::bd — the silica-alumina complexes (SACs) of Algorithm 2 of Tran et al. (2015)
+// (Sec. 4.2; docs/theory/bd.md Sec. 9).
 //
 // Large inertial particles (the Langevin types, "carriers": alumina in the paper) adsorb small
 // Brownian ones ("adsorbers": silica). A small particle whose centre lies closer than

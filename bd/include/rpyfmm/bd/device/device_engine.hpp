@@ -1,6 +1,6 @@
 // rpyfmm::bd::device — free-draining Brownian dynamics with every stage of a step on a CUDA
 // device (docs/gpu-bd.md): the dynamic Verlet-list rebuild test, cell binning and Verlet rows
-// (the GPU BD paper, Eurographics 2015, Sec. 3.1 and Algorithm 1), pair forces (LJ 36-18, WCA,
+// (Tran et al. (2015), Sec. 3.1 and Algorithm 1), pair forces (LJ 36-18, WCA,
 // soft, DLVO), bonds, external forces and the trap, the Philox noise keyed by (seed, step,
 // particle) and the Euler-Maruyama update with the blow-up guard, with the physics of the CPU
 // engine (Integrator with the free-draining mobility "none"). Positions stay on the device; they
@@ -77,8 +77,8 @@ class DeviceEngine {
   [[nodiscard]] std::size_t rebuilds() const;
   [[nodiscard]] bool last_step_rebuilt() const;
   /// Seconds spent per part over the steps taken, by CUDA events: "neighbours" (rebuilds),
-  /// "forces", "update" (noise, update, guard and the next rebuild test), the parts of the GPU BD
-  /// paper's Table 2 and the keys of IntegratorTotals::seconds.
+  /// "forces", "update" (noise, update, guard and the next rebuild test), the parts of
+  /// Table 2 of Tran et al. (2015) and the keys of IntegratorTotals::seconds.
   [[nodiscard]] StageTimes stage_times() const;
 
  private:
