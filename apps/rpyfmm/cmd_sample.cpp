@@ -49,6 +49,7 @@
 #include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
 #include "rpyfmm/rpy/random.hpp"
 #include "rpyfmm/rpy/sqrt.hpp"
+#include "sqrt_report_json.hpp"
 
 namespace rpyfmm::cli {
 namespace {
@@ -238,14 +239,9 @@ void print_sample_json(const SampleArgs& args, const rpy::MobilityOperator& op, 
       .add("operator", op.name())
       .add("method", rpy::to_string(report.method))
       .add("n", n)
-      .add("sqrt_tolerance", args.sqrt_tolerance)
-      .add("iterations", report.iterations)
-      .add("error_estimate", report.error_estimate)
-      .add("operator_applications", report.operator_applications)
-      .add("converged", report.converged)
-      .add("breakdown", report.breakdown)
-      .add("preconditioner_blocks", report.preconditioner_blocks)
-      .add("angular", args.angular)
+      .add("sqrt_tolerance", args.sqrt_tolerance);
+  add_sqrt_report(line, report);
+  line.add("angular", args.angular)
       .add("noise", args.noise.empty() ? "philox" : args.noise)
       .add("viscosity", args.viscosity)
       .add("equal_radii", op.equal_radii())

@@ -25,6 +25,7 @@
 #include "rpyfmm/mpi/communicator.hpp"
 #include "rpyfmm/mpi/direct_operator.hpp"
 #include "rpyfmm/mpi/sqrt.hpp"
+#include "sqrt_report_json.hpp"
 
 namespace rpyfmm::cli {
 namespace {
@@ -249,14 +250,9 @@ void run_sample_across_ranks(const RanksSampleArgs& args) {
       .add("operator", "direct")
       .add("method", rpy::to_string(report.method))
       .add("n", in.n)
-      .add("sqrt_tolerance", args.options.tolerance)
-      .add("iterations", report.iterations)
-      .add("error_estimate", report.error_estimate)
-      .add("operator_applications", report.operator_applications)
-      .add("converged", report.converged)
-      .add("breakdown", report.breakdown)
-      .add("preconditioner_blocks", report.preconditioner_blocks)
-      .add("angular", false)
+      .add("sqrt_tolerance", args.options.tolerance);
+  add_sqrt_report(line, report);
+  line.add("angular", false)
       .add("noise", args.noise.empty() ? "philox" : args.noise)
       .add("viscosity", args.viscosity)
       .add("equal_radii", op.equal_radii())
