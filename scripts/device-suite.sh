@@ -35,7 +35,7 @@ xz -dc gpu-kit/build.tar.xz | tar -xf -
 cat "$out/device.txt"
 status=0
 export OMP_NUM_THREADS=8
-RPYFMM_CUDA_SYNC=1 timeout 150 build/release/tests/pse/test_pse --gtest_filter='PseCuda*:PseBinPlan*' 2>&1 |
+RPYFMM_CUDA_SYNC=1 timeout 210 build/release/tests/pse/test_pse --gtest_filter='PseCuda*:PseRotationDevice*:PseBinPlan*' 2>&1 |
   tee "$out/test_pse_cuda.txt" | grep -E "^\[  (FAILED|PASSED|SKIPPED) |Failure|error" | head -40
 [ "${PIPESTATUS[0]}" -eq 0 ] || status=1
 grep -q "SKIPPED \]" "$out/test_pse_cuda.txt" && { echo "device-suite: a CUDA test was skipped"; status=1; }
