@@ -1,8 +1,8 @@
 // The host-device functions of the CUDA rotation path (rpy/src/pse/rotation_pair_device.hpp,
 // rpy/src/pse/rotation_modes.hpp), run on the host against the CPU operator's code: the device
-// rows' per-pair sums over every pair within r_cut give the CPU rows' rotational real-space
-// product, and the per-mode scaling by linear index with its own noise draw gives the CPU's
-// line-by-line pass bit for bit.
+// rows (per pair and per row, over the lists or every pair within r_cut) give the CPU rows'
+// rotational real-space product and its sampler scaling, and the per-mode scaling by linear index
+// with its own noise draw gives the CPU's line-by-line pass bit for bit.
 #include <gtest/gtest.h>
 
 #include <array>
@@ -27,36 +27,70 @@ namespace {
 
 constexpr double kViscosity = 1.3;
 
-/// [u; w] += the rotational real-space rows as the CUDA cell-list kernel sums them: every pair
-/// j != i with |d|^2 < r_cut^2 (minimum image) by rotation_pair_terms, plus h(0) T_i, over eta.
-void device_rows_on_host(const PseRotationTable& tab, const PseParameters& p, const std::array<double, 3>& L,
-                         const std::vector<double>& x, const std::vector<double>& f, const std::vector<double>& t,
-                         std::vector<double>& u, std::vector<double>& w) {
-  const detail::RotationTableView view{tab.data(), tab.inv_dr(), tab.unit_c(), tab.unit_hk()};
-  const std::size_t n = x.size() / 3;
+/// Host copies of the device rows' inputs and outputs in slot order (3 doubles per particle), with
+/// their RotationRows for torque and angular scale s.
+struct SlotRows {
+  std::vector<double> x, f, t, u, w;
+  detail::RotationRows rows{};
+
+  SlotRows(const detail::RealSpaceSum::SlotLists& lists, const PseRotationTable& tab, const std::array<double, 3>& L,
+           const std::vector<double>& xin, const std::vector<double>& fin, const std::vector<double>& tin, double s)
+      : x(xin.size()), f(xin.size()), t(xin.size()), u(xin.size(), 0.0), w(xin.size(), 0.0) {
+    for (std::size_t slot = 0; slot < lists.order.size(); ++slot)
+      for (int c = 0; c < 3; ++c) {
+        x[3 * slot + c] = xin[3 * lists.order[slot] + c];
+        f[3 * slot + c] = fin[3 * lists.order[slot] + c];
+        t[3 * slot + c] = tin[3 * lists.order[slot] + c];
+      }
+    rows = {x.data(),   f.data(),           t.data(),
+            u.data(),   w.data(),           {tab.data(), tab.inv_dr(), tab.unit_c(), tab.unit_hk()},
+            tab.self(), 1.0 / kViscosity,   s,
+            s,          {L[0], L[1], L[2]}, {1.0 / L[0], 1.0 / L[1], 1.0 / L[2]}};
+  }
+  /// out (input order) = v (slot order).
+  static std::vector<double> to_input(const detail::RealSpaceSum::SlotLists& lists, const std::vector<double>& v) {
+    std::vector<double> out(v.size());
+    for (std::size_t slot = 0; slot < lists.order.size(); ++slot)
+      for (int c = 0; c < 3; ++c) out[3 * lists.order[slot] + c] = v[3 * slot + c];
+    return out;
+  }
+};
+
+/// The CUDA list kernel's rows on the host: slot i over its neighbour list.
+void list_rows(const detail::RealSpaceSum::SlotLists& lists, const detail::RotationRows& r) {
+  for (std::size_t i = 0; i < lists.order.size(); ++i) {
+    double acc[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+    const double xi[3] = {r.x[3 * i], r.x[3 * i + 1], r.x[3 * i + 2]};
+    for (std::size_t q = lists.begin[i]; q < lists.begin[i + 1]; ++q)
+      detail::rotation_pair_add(r, lists.list[q], xi, acc);
+    detail::rotation_row_store(r, static_cast<int>(i), acc);
+  }
+}
+
+/// The CUDA cell-list kernel's rows on the host: every slot j != i with |d|^2 < rc2.
+void all_pair_rows(std::size_t n, double rc2, const detail::RotationRows& r) {
   for (std::size_t i = 0; i < n; ++i) {
     double acc[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+    const double xi[3] = {r.x[3 * i], r.x[3 * i + 1], r.x[3 * i + 2]};
     for (std::size_t j = 0; j < n; ++j) {
       if (j == i) continue;
       double d[3];
-      for (int c = 0; c < 3; ++c) d[c] = detail::minimum_image(x[3 * i + c] - x[3 * j + c], L[c], 1.0 / L[c]);
-      if (!(d[0] * d[0] + d[1] * d[1] + d[2] * d[2] < p.r_cut * p.r_cut)) continue;
-      const detail::RotationPairTerms q = detail::rotation_pair_terms(
-          d[0], d[1], d[2], f[3 * j], f[3 * j + 1], f[3 * j + 2], t[3 * j], t[3 * j + 1], t[3 * j + 2], view);
-      const double terms[6] = {q.ux, q.uy, q.uz, q.wx, q.wy, q.wz};
-      for (int c = 0; c < 6; ++c) acc[c] += terms[c];
+      detail::rotation_displacement(r, static_cast<int>(j), xi, d);
+      if (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] < rc2) detail::rotation_pair_add(r, static_cast<int>(j), xi, acc);
     }
-    for (int c = 0; c < 3; ++c) {
-      u[3 * i + c] += acc[c] / kViscosity;
-      w[3 * i + c] += (tab.self() * t[3 * i + c] + acc[3 + c]) / kViscosity;
-    }
+    detail::rotation_row_store(r, static_cast<int>(i), acc);
   }
 }
 
 }  // namespace
 
-TEST(PseRotationDeviceFunctions, PairSumsOverAllPairsGiveTheCpuRows) {
+// The device rows (over the host's lists and over every pair within r_cut, as the device cell list
+// finds them) give the CPU rows' product, and with scale a the CPU's S M_r S of the split sampler
+// (torques times a in, angular velocities times a out). The same pairs and per-pair terms summed in
+// another order: 1e-13 relative.
+TEST(PseRotationDeviceFunctions, DeviceRowsGiveTheCpuRows) {
   const std::array<double, 3> L = {14.0, 12.0, 15.0};
+  const double a = 0.9;
   auto x = pse_test::random_points(300, L, 61);
   for (int d = 0; d < 3; ++d) {
     x[3 * 5 + d] = x[3 * 2 + d];                  // coincident
@@ -68,16 +102,26 @@ TEST(PseRotationDeviceFunctions, PairSumsOverAllPairsGiveTheCpuRows) {
   PseOptions o;
   o.tolerance = 1e-6;
   o.xi = 1.0;
-  const PseParameters p = choose_parameters(o, 1.0, L, 300);
+  const PseParameters p = choose_parameters(o, a, L, 300);
   detail::RealSpaceSum real(p, L, kViscosity, true, detail::PairCache::off, 0, true);
   real.set_positions(x);
+  const auto lists = real.slot_lists();
   const detail::RotationRealSpaceSum rotation(p, L, kViscosity);
-  std::vector<double> uc(x.size(), 0.0), wc(x.size(), 0.0), ud(x.size(), 0.0), wd(x.size(), 0.0);
-  rotation.apply(real.slot_lists(), x, f.data(), t.data(), uc.data(), wc.data());
-  device_rows_on_host(rotation.table(), p, L, x, f, t, ud, wd);
-  // The same pairs and per-pair terms, summed in another order.
-  EXPECT_LT(pse_test::rel_l2(ud, uc), 1e-13);
-  EXPECT_LT(pse_test::rel_l2(wd, wc), 1e-13);
+  for (const double s : {1.0, a}) {
+    SCOPED_TRACE(s == 1.0 ? "product" : "sampler scaling");
+    std::vector<double> ts(t.size());
+    for (std::size_t k = 0; k < t.size(); ++k) ts[k] = s * t[k];
+    std::vector<double> uc(x.size(), 0.0), wc(x.size(), 0.0);
+    rotation.apply(lists, x, f.data(), ts.data(), uc.data(), wc.data());
+    for (auto& v : wc) v *= s;
+    SlotRows by_list(lists, rotation.table(), L, x, f, t, s), by_pair(lists, rotation.table(), L, x, f, t, s);
+    list_rows(lists, by_list.rows);
+    all_pair_rows(lists.order.size(), p.r_cut * p.r_cut, by_pair.rows);
+    for (const SlotRows* rows : {&by_list, &by_pair}) {
+      EXPECT_LT(pse_test::rel_l2(SlotRows::to_input(lists, rows->u), uc), 1e-13);
+      EXPECT_LT(pse_test::rel_l2(SlotRows::to_input(lists, rows->w), wc), 1e-13);
+    }
+  }
 }
 
 namespace {

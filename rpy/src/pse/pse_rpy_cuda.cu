@@ -460,22 +460,22 @@ struct PseRpyCuda::Impl {
   }
 
   /// u += M_r^{UT} (s t), w = s (M_r^{WF} f + M_r^{WT} (s t)) (device vectors, slot order; s = 1 for
-  /// a product, a for the sampler's S M_r S): RotationRows.
+  /// a product, a for the sampler's S M_r S): detail::RotationRows.
   void rotation_real_space(const double* f_dev, const double* t_dev, double* u_dev, double* w_dev, double s) {
     events.begin("real_space");
     const PseRotationTable& tab = rotation->table();
-    const RotationRows rows{x.get(),
-                            f_dev,
-                            t_dev,
-                            u_dev,
-                            w_dev,
-                            {rotation_table.get(), tab.inv_dr(), tab.unit_c(), tab.unit_hk()},
-                            tab.self(),
-                            1.0 / viscosity,
-                            s,
-                            s,
-                            make_double3(box[0], box[1], box[2]),
-                            make_double3(1.0 / box[0], 1.0 / box[1], 1.0 / box[2])};
+    const detail::RotationRows rows{x.get(),
+                                    f_dev,
+                                    t_dev,
+                                    u_dev,
+                                    w_dev,
+                                    {rotation_table.get(), tab.inv_dr(), tab.unit_c(), tab.unit_hk()},
+                                    tab.self(),
+                                    1.0 / viscosity,
+                                    s,
+                                    s,
+                                    {box[0], box[1], box[2]},
+                                    {1.0 / box[0], 1.0 / box[1], 1.0 / box[2]}};
     if (cells_active) {
       rotation_real_space_cells_kernel<<<blocks_for(np, 128), 128>>>(static_cast<int>(np), rows, keys_sorted.get(),
                                                                      cell_begin.get(), cell_end.get(), cell_grid,
