@@ -20,9 +20,9 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/bd/config.hpp"
 #include "rpyfmm/bd/run.hpp"
+#include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/core/validate.hpp"
 
 namespace rpyfmm::cli {
@@ -66,6 +66,7 @@ void run_bd_command(const BdArgs& args) {
         .add("config", source)
         .add("n", s.particles)
         .add("mobility", s.mobility)
+        .add("engine", s.engine)
         .add("threads", active_threads())
         .add("simd", simd_level_name(simd_level()))
         .add("first_step", static_cast<long long>(s.first_step))
@@ -80,9 +81,9 @@ void run_bd_command(const BdArgs& args) {
         .add("out_dir", s.out_dir.string());
     std::cout << line.str() << '\n';
   } else if (!args.quiet) {
-    std::printf("%zu particles, steps %llu -> %llu in %.2f s (%.3g steps/s), %s mobility\n", s.particles,
+    std::printf("%zu particles, steps %llu -> %llu in %.2f s (%.3g steps/s), %s mobility, %s engine\n", s.particles,
                 static_cast<unsigned long long>(s.first_step), static_cast<unsigned long long>(s.last_step),
-                s.wall_seconds, s.steps_per_second, s.mobility.c_str());
+                s.wall_seconds, s.steps_per_second, s.mobility.c_str(), s.engine.c_str());
     const std::string blocks = s.preconditioner_blocks > 0
                                    ? " (block-preconditioned, " + std::to_string(s.preconditioner_blocks) + " blocks)"
                                    : "";

@@ -187,6 +187,7 @@ class Run {
     const auto dir = options.out_dir.value_or(config.output.dir);
     sum_.particles = n_;
     sum_.mobility = bd_.mobility().name();
+    if (device_) sum_.engine = options.device_launcher == DeviceLauncher::cuda ? "cuda" : "host launcher";
     sum_.first_step = start_.step;
     sum_.out_dir = dir;
     sum_.trajectory = dir / config.output.trajectory;

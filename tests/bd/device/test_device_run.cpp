@@ -163,6 +163,8 @@ TEST_F(DeviceRun, HostLauncherWritesTheCpuEnginesFiles) {
     EXPECT_EQ(b.neighbour_rebuilds, a.neighbour_rebuilds);
     EXPECT_GE(a.neighbour_rebuilds, 2u) << "the run must rebuild its lists";
     EXPECT_EQ(b.mobility, a.mobility);
+    EXPECT_EQ(a.engine, "cpu");
+    EXPECT_EQ(b.engine, "host launcher");
     for (const char* part : {"neighbours", "forces", "update"}) EXPECT_GT(b.seconds.at(part), 0.0) << part;
     expect_same_files(dev, cpu, true);
   }

@@ -34,6 +34,9 @@ struct RunOptions {
 struct RunSummary {
   std::size_t particles = 0;
   std::string mobility;  ///< operator name
+  /// What ran the steps: "cpu" (Integrator), "cuda" (the device engine) or "host launcher" (the
+  /// device engine's stages on the host, RunOptions::device_launcher).
+  std::string engine = "cpu";
   std::uint64_t first_step = 0, last_step = 0;
   double wall_seconds = 0.0;
   double steps_per_second = 0.0;
