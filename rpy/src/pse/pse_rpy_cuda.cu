@@ -115,7 +115,7 @@ struct PseRpyCuda::Impl {
   DeviceArray<detail::RotationModeFactors> rotation_factors;
   DeviceArray<unsigned char> rotation_grid, rotation_spectrum;
   DeviceArray<double> torque, angular, z6, w6;
-  double viscosity = 1.0;
+  double mu = 1.0;  // the plan's viscosity
   StageEvents events;
   StageTimes times;
   std::size_t np = 0;
@@ -437,7 +437,7 @@ struct PseRpyCuda::Impl {
   void prepare_rotation() {
     if (rotation) return;
     const auto t0 = std::chrono::steady_clock::now();
-    auto sum = std::make_unique<detail::RotationRealSpaceSum>(params, box, viscosity);
+    auto sum = std::make_unique<detail::RotationRealSpaceSum>(params, box, mu);
     const PseRotationTable& tab = sum->table();
     const std::size_t real_bytes = params.wave_single ? sizeof(float) : sizeof(double);
     const std::size_t need =
@@ -452,7 +452,7 @@ struct PseRpyCuda::Impl {
     rotation_spectrum.resize(2 * 3 * modes.modes * real_bytes);
     rotation_factors.resize(modes.modes);
     const detail::RotationModeConstants rc{params.radius, 1.0 / (4.0 * params.xi * params.xi), 1.0 - params.window_eta,
-                                           1.0 / (viscosity * static_cast<double>(window.ng)), params.open_truncation};
+                                           1.0 / (mu * static_cast<double>(window.ng)), params.open_truncation};
     rotation_factors_kernel<<<blocks_for(modes.modes, 256), 256>>>(modes, rc, rotation_factors.get());
     check_kernel("rotation factors kernel");
     rotation = std::move(sum);
@@ -471,7 +471,7 @@ struct PseRpyCuda::Impl {
                                     w_dev,
                                     {rotation_table.get(), tab.inv_dr(), tab.unit_c(), tab.unit_hk()},
                                     tab.self(),
-                                    1.0 / viscosity,
+                                    1.0 / mu,
                                     s,
                                     s,
                                     {box[0], box[1], box[2]},
@@ -628,7 +628,7 @@ struct PseRpyCuda::Impl {
     allocate_wave(p, make_fft_plans(p));
     params = p;
     box = L;
-    this->viscosity = viscosity;
+    mu = viscosity;
     planned = true;
     planned_n = n;
     times["plan"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
