@@ -189,6 +189,31 @@ TEST_F(DeviceRun, RestartFromTheCheckpointContinuesBitForBit) {
   }
 }
 
+// A step refused by the blow-up guard stops the run with the CPU engine's error code and the last
+// good state in the checkpoint.
+TEST_F(DeviceRun, BlowUpSavesTheLastGoodStateAsTheCpuEngine) {
+  std::string text = kChains;
+  text.replace(text.find("dt = 1e-3"), 9, "dt = 5.0");
+  rpyfmm::ErrorCode codes[2] = {};
+  const fs::path dirs[2] = {dir_ / "cpu", dir_ / "device"};
+  for (int k = 0; k < 2; ++k) {
+    try {
+      (void)(k == 0 ? run(on_cpu(text), dirs[k], 60) : run_bd(on_device(text), host_launcher(dirs[k], 60)));
+      ADD_FAILURE() << dirs[k] << ": no blow-up";
+    } catch (const rpyfmm::Error& e) {
+      codes[k] = e.code();
+      EXPECT_NE(std::string(e.what()).find("last good state (step 0) saved"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_EQ(codes[0], rpyfmm::ErrorCode::numerical_failure);
+  EXPECT_EQ(codes[1], codes[0]);
+  const Checkpoint a = read_checkpoint(dirs[1] / "checkpoint.bin");
+  const Checkpoint b = read_checkpoint(dirs[0] / "checkpoint.bin");
+  EXPECT_EQ(a.step, 0u);
+  EXPECT_EQ(a.positions, b.positions);
+  EXPECT_EQ(a.trajectory_hash, b.trajectory_hash);
+}
+
 // Each feature the device engine lacks stops the run at start-up, naming it, before any file.
 TEST_F(DeviceRun, RefusesWhatTheDeviceEngineLacksByName) {
   const std::string langevin = R"(
