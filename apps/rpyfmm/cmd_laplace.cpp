@@ -1,6 +1,6 @@
 // rpyfmm CLI — `rpyfmm laplace`: Laplace potentials, gradients and Hessians
 // (kernel 1/r, no 1/(4 pi)) of charges at sources, evaluated at the sources
-// or at separate targets.
+// or at separate targets. Under mpirun the FMM runs across the ranks (laplace_across_ranks.hpp).
 //
 //   rpyfmm laplace --sources S.npy [--targets T.npy] --charges Q.npy
 //                  (--direct | --tolerance E) --out R.npy [--threads N] [--json]
@@ -17,6 +17,9 @@
 #include "array_io.hpp"
 #include "cli_common.hpp"
 #include "commands.hpp"
+#include "laplace_across_ranks.hpp"
+#include "laplace_problem.hpp"
+#include "mpi_session.hpp"
 #include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/core/file_safety.hpp"
 #include "rpyfmm/core/timer.hpp"
@@ -33,40 +36,6 @@ struct LaplaceArgs {
   double tolerance = 0.0;  // FMM relative tolerance; 0 = not requested
   CommonOptions common;
 };
-
-// The input, validated: sources/targets as flat 3N/3M, charges nd x N.
-struct LaplaceProblem {
-  std::vector<double> sources, targets, charges;
-  std::size_t n = 0, m = 0, nd = 1;
-  bool charges_2d = false;  // Q given as (nd, N): output (nd, M, 10)
-};
-
-LaplaceProblem read_problem(const LaplaceArgs& args) {
-  LaplaceProblem p;
-  p.sources = as_points(read_array(args.sources), "sources");
-  p.n = p.sources.size() / 3;
-  if (!args.targets.empty()) p.targets = as_points(read_array(args.targets), "targets");
-  p.m = args.targets.empty() ? p.n : p.targets.size() / 3;
-
-  const Array q = read_array(args.charges);
-  const auto& s = q.shape;
-  if (s.size() == 1 || (s.size() == 2 && s[1] == 1 && s[0] == p.n)) {
-    p.charges = as_vector(q, p.n, "charges");
-    p.nd = 1;
-  } else if (s.size() == 2 && s[1] == p.n && s[0] >= 1) {
-    p.nd = s[0];
-    p.charges_2d = true;
-    require_finite(q.data, "charges", "charges", p.n);
-    p.charges = q.data;
-  } else {
-    std::string shape = "(";
-    for (std::size_t i = 0; i < s.size(); ++i) shape += (i ? "," : "") + std::to_string(s[i]);
-    fail(ErrorCode::invalid_input, "charges",
-         "must have shape (" + std::to_string(p.n) + ",) or (nd," + std::to_string(p.n) + ") to match " +
-             std::to_string(p.n) + " sources, got " + shape + ")");
-  }
-  return p;
-}
 
 // ---- evaluation methods -------------------------------------------------
 // Each fills `results` (nd x M x 10) and adds its stage timings to `stages`.
@@ -90,6 +59,16 @@ void evaluate_fmm(const LaplaceProblem& p, double tolerance, std::vector<double>
 }
 // -------------------------------------------------------------------------
 
+// Under MPI: the FMM runs across the ranks (laplace_across_ranks.hpp); --direct runs on one rank
+// only and more ranks are refused.
+bool across_ranks(const LaplaceArgs& args) {
+  require(!args.direct || mpi_size() == 1, ErrorCode::not_supported, "laplace",
+          "across " + std::to_string(mpi_size()) +
+              " MPI ranks runs the FMM (--tolerance E) only, not --direct (docs/mpi.md); run --direct without "
+              "mpirun");
+  return !args.direct;
+}
+
 void run_laplace(const LaplaceArgs& args, bool fmm_requested) {
   require_distinct_files(
       std::vector<NamedPath>{{"--sources", args.sources}, {"--targets", args.targets}, {"--charges", args.charges}},
@@ -98,9 +77,13 @@ void run_laplace(const LaplaceArgs& args, bool fmm_requested) {
   require(args.direct != fmm_requested, ErrorCode::invalid_argument, "laplace",
           "choose exactly one method: --direct or --tolerance E");
   if (fmm_requested) ranges::require_in(ranges::kLaplaceTolerance, args.tolerance, "--tolerance", "tolerance");
+  if (under_mpi() && across_ranks(args)) {
+    run_laplace_across_ranks({args.sources, args.targets, args.charges, args.out, args.tolerance, args.common.json});
+    return;
+  }
   StopWatch total;
   StopWatch watch;
-  const LaplaceProblem p = read_problem(args);
+  const LaplaceProblem p = read_laplace_problem(args.sources, args.targets, args.charges);
   StageTimes stages;
   stages["read"] = watch.seconds();
 
@@ -115,9 +98,7 @@ void run_laplace(const LaplaceArgs& args, bool fmm_requested) {
 
   watch.restart();
   require_finite_output(results, "laplace");
-  std::vector<std::size_t> shape = {p.m, fmm::result_width};
-  if (p.charges_2d) shape.insert(shape.begin(), p.nd);
-  write_npy(args.out, shape, results);
+  write_npy(args.out, laplace_output_shape(p), results);
   stages["write"] = watch.seconds();
 
   if (args.common.json) {

@@ -8,7 +8,6 @@
 // (rpyfmm::mpi::Communicator::run), so no rank waits for another that gave up.
 #include <mpi.h>
 
-#include <climits>
 #include <cstddef>
 #include <cstdint>
 #include <iostream>
@@ -19,6 +18,7 @@
 #include "array_io.hpp"
 #include "cli_common.hpp"
 #include "mpi_session.hpp"
+#include "rank_shares.hpp"
 #include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
@@ -48,36 +48,7 @@ WholeInput read_on_root(const std::string& positions, const std::string& radii, 
         "has " + std::to_string(in.rows.size() / 3) + " rows, expected " + std::to_string(n) + " (one per particle)");
   }
   if (!radii.empty()) in.radii = as_vector(read_array(radii), n, "radii");
-  require(3 * n <= static_cast<std::size_t>(INT_MAX), ErrorCode::not_supported, "rpyfmm",
-          std::to_string(n) + " particles: more than MPI's int counts address in one scatter");
   return in;
-}
-
-// N particles in P contiguous shares, the remainder on the lowest ranks, in entries of `per`
-// values per particle: counts and displacements for MPI_Scatterv / MPI_Gatherv.
-struct Shares {
-  std::vector<int> counts, displs;
-};
-
-Shares shares_of(std::size_t n, int ranks, int per) {
-  Shares s;
-  int offset = 0;
-  for (int r = 0; r < ranks; ++r) {
-    const auto share = static_cast<int>(n / static_cast<std::size_t>(ranks) +
-                                        (static_cast<std::size_t>(r) < n % static_cast<std::size_t>(ranks) ? 1 : 0));
-    s.counts.push_back(per * share);
-    s.displs.push_back(offset);
-    offset += per * share;
-  }
-  return s;
-}
-
-std::vector<double> scatter(const std::vector<double>& whole, const Shares& s, const mpi::Communicator& comm) {
-  std::vector<double> local(static_cast<std::size_t>(s.counts[static_cast<std::size_t>(comm.rank())]));
-  mpi::check_mpi(MPI_Scatterv(whole.data(), s.counts.data(), s.displs.data(), MPI_DOUBLE, local.data(),
-                              static_cast<int>(local.size()), MPI_DOUBLE, 0, comm.get()),
-                 "MPI_Scatterv");
-  return local;
 }
 
 // This rank's share of what rank 0 read.
@@ -92,12 +63,12 @@ LocalInput distribute(const WholeInput& in, bool radii, bool rows, const mpi::Co
   LocalInput local;
   local.n = in.x.size() / 3;
   mpi::check_mpi(MPI_Bcast(&local.n, 1, MPI_UINT64_T, 0, comm.get()), "MPI_Bcast");
-  local.s3 = shares_of(local.n, comm.size(), 3);
+  comm.run([&] { local.s3 = shares_of(local.n, comm.size(), 3); });
   const Shares s1 = shares_of(local.n, comm.size(), 1);
   local.offset = static_cast<std::size_t>(s1.displs[static_cast<std::size_t>(comm.rank())]);
-  local.x = scatter(in.x, local.s3, comm);
-  if (radii) local.radii = scatter(in.radii, s1, comm);
-  if (rows) local.rows = scatter(in.rows, local.s3, comm);
+  local.x = scatter(in.x.data(), local.s3, comm);
+  if (radii) local.radii = scatter(in.radii.data(), s1, comm);
+  if (rows) local.rows = scatter(in.rows.data(), local.s3, comm);
   return local;
 }
 
@@ -105,28 +76,12 @@ LocalInput distribute(const WholeInput& in, bool radii, bool rows, const mpi::Co
 void gather_and_write(const std::vector<double>& local, const LocalInput& in, const std::string& out,
                       const std::string& what, const mpi::Communicator& comm) {
   std::vector<double> whole(comm.rank() == 0 ? 3 * in.n : 0);
-  mpi::check_mpi(MPI_Gatherv(local.data(), static_cast<int>(local.size()), MPI_DOUBLE, whole.data(),
-                             in.s3.counts.data(), in.s3.displs.data(), MPI_DOUBLE, 0, comm.get()),
-                 "MPI_Gatherv");
+  gather(local, in.s3, whole.data(), comm);
   comm.run([&] {
     if (comm.rank() != 0) return;
     require_finite_output(whole, what);
     write_npy(out, {in.n, 3}, whole);
   });
-}
-
-// The slowest rank's time of each stage, on rank 0.
-StageTimes slowest(const StageTimes& mine, const mpi::Communicator& comm) {
-  std::vector<double> local, global;
-  for (const auto& [stage, seconds] : mine) local.push_back(seconds);
-  global.resize(local.size());
-  mpi::check_mpi(
-      MPI_Reduce(local.data(), global.data(), static_cast<int>(local.size()), MPI_DOUBLE, MPI_MAX, 0, comm.get()),
-      "MPI_Reduce");
-  StageTimes out;
-  std::size_t i = 0;
-  for (const auto& [stage, seconds] : mine) out[stage] = global[i++];
-  return out;
 }
 
 // Read by rank 0, scattered, and the operator set up on each rank's share: what both commands do

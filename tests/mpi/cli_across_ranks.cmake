@@ -4,11 +4,15 @@
 #    one bit for bit, so the two .npy files must be identical byte for byte;
 #  - `mpiexec -n NP rpyfmm sample --operator direct`: the distributed Lanczos sampler is the serial
 #    one bit for bit too (its inner products are the serial ones), on the noise drawn by seed and
-#    on noise read from a file: identical files.
+#    on noise read from a file: identical files;
+#  - `mpiexec -n NP rpyfmm laplace --tolerance E`: DistributedLaplaceFmm meets the serial FMM's
+#    contract (relative l2 error of each output at most E), not its bits, so the output must lie
+#    within E of the serial direct sum and within 2E of the serial FMM (both within E of the exact
+#    sums), output by output and density by density (laplace_agree, -DAGREE=...).
 # --json must report the ranks and the communication time per stage. Run by ctest as
 #   cmake -DRPYFMM=... -DMPIEXEC=... -DNP=... "-DMPI_FLAGS=..." -DWORK=... -P cli_across_ranks.cmake
 cmake_minimum_required(VERSION 3.20)
-foreach(var RPYFMM MPIEXEC NP WORK)
+foreach(var RPYFMM MPIEXEC NP AGREE WORK)
   if(NOT DEFINED ${var})
     message(FATAL_ERROR "cli_across_ranks.cmake: -D${var}=... is required")
   endif()
@@ -34,6 +38,7 @@ endmacro()
 set(x "")
 set(f "")
 set(a "")
+set(q2 "")
 foreach(i RANGE 700)
   set(row "")
   set(frow "")
@@ -58,10 +63,15 @@ foreach(i RANGE 700)
   string(APPEND x "${row}\n")
   string(APPEND f "${frow}\n")
   string(APPEND a "${d}\n")
+  string(APPEND q2 " ${d}")
 endforeach()
+# Two densities for laplace: the radii's values and their negatives.
+string(REPLACE " " " -" q2neg "${q2}")
+string(APPEND q2 "\n${q2neg}\n")
 file(WRITE "${WORK}/x.txt" "${x}")
 file(WRITE "${WORK}/f.txt" "${f}")
 file(WRITE "${WORK}/a.txt" "${a}")
+file(WRITE "${WORK}/q2.txt" "${q2}")
 
 function(run_case name radius_args)
   set(common mobility --positions "${WORK}/x.txt" --forces "${WORK}/f.txt" ${radius_args} --viscosity 0.7
@@ -117,6 +127,39 @@ endfunction()
 run_sample(sample_seed "--seed;5;--step;3")
 run_sample(sample_noise "--noise;${WORK}/f.txt")
 
+# laplace with the FMM: at the sources (one density) and at separate targets (two densities).
+function(agree name a b bound)
+  execute_process(COMMAND "${AGREE}" "${a}" "${b}" ${bound} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "${name}: ${NP} ranks against ${b} beyond ${bound} (${rc}): ${out}${err}")
+  endif()
+endfunction()
+function(run_laplace name tolerance twice args)
+  set(common laplace --sources "${WORK}/x.txt" ${args})
+  foreach(method "direct;--direct" "fmm;--tolerance;${tolerance}")
+    list(POP_FRONT method label)
+    execute_process(COMMAND "${RPYFMM}" ${common} ${method} --out "${WORK}/${name}_${label}.npy" RESULT_VARIABLE rc
+                    ERROR_VARIABLE err)
+    if(NOT rc EQUAL 0)
+      message(FATAL_ERROR "${name}: serial rpyfmm laplace ${label} failed (${rc}): ${err}")
+    endif()
+  endforeach()
+  execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" ${common} --tolerance ${tolerance}
+                          --out "${WORK}/${name}_mpi.npy" --json
+                  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "${name}: mpiexec -n ${NP} rpyfmm laplace failed (${rc}): ${err}")
+  endif()
+  if(NOT out MATCHES "\"ranks\":${NP}," OR NOT out MATCHES "\"communication_seconds\":{[^}]*\"evaluate\":[^}]*\"plan\":"
+     OR NOT out MATCHES "\"communication_bytes\":{\"evaluate\":[0-9]")
+    message(FATAL_ERROR "${name}: --json lacks \"ranks\":${NP} or the plan's and evaluation's communication: ${out}")
+  endif()
+  agree(${name} "${WORK}/${name}_mpi.npy" "${WORK}/${name}_direct.npy" ${tolerance})
+  agree(${name} "${WORK}/${name}_mpi.npy" "${WORK}/${name}_fmm.npy" ${twice})
+endfunction()
+run_laplace(laplace_sources 1e-6 2e-6 "--charges;${WORK}/a.txt")
+run_laplace(laplace_targets 1e-3 2e-3 "--charges;${WORK}/q2.txt;--targets;${WORK}/f.txt")
+
 # A bad input read by rank 0 fails every rank: exit status 2, one error line (printed by rank 0).
 execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" mobility --positions "${WORK}/missing.txt"
                         --forces "${WORK}/f.txt" --radius 1 --out "${WORK}/never.npy"
@@ -126,18 +169,29 @@ list(LENGTH errors count)
 if(rc EQUAL 0 OR NOT count EQUAL 1 OR NOT err MATCHES "missing.txt" OR EXISTS "${WORK}/never.npy")
   message(FATAL_ERROR "a missing input under ${NP} ranks: exit ${rc}, ${count} error lines: ${err}")
 endif()
+# So does a missing input of laplace.
+execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" laplace --sources "${WORK}/x.txt"
+                        --charges "${WORK}/q2.txt" --targets "${WORK}/missing.txt" --tolerance 1e-6
+                        --out "${WORK}/never.npy"
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+string(REGEX MATCHALL "rpyfmm: error:" errors "${err}")
+list(LENGTH errors count)
+if(NOT rc EQUAL 2 OR NOT count EQUAL 1 OR NOT err MATCHES "missing.txt" OR EXISTS "${WORK}/never.npy")
+  message(FATAL_ERROR "laplace with a missing input under ${NP} ranks: exit ${rc}, ${count} error lines: ${err}")
+endif()
 # A command that does not run across ranks refuses more than one, on every rank.
 if(NP GREATER 1)
-  execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" laplace --sources "${WORK}/x.txt"
-                          --charges "${WORK}/a.txt" --out "${WORK}/never.npy"
+  execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" rigid --positions "${WORK}/x.txt" --radius 1
+                          --body-sizes "${WORK}/a.txt" --forces "${WORK}/f.txt" --out "${WORK}/never.npy"
                   RESULT_VARIABLE rc ERROR_VARIABLE err)
-  if(rc EQUAL 0 OR NOT err MATCHES "laplace: does not run across MPI ranks" OR EXISTS "${WORK}/never.npy")
-    message(FATAL_ERROR "laplace under ${NP} ranks: exit ${rc}: ${err}")
+  if(rc EQUAL 0 OR NOT err MATCHES "rigid: does not run across MPI ranks" OR EXISTS "${WORK}/never.npy")
+    message(FATAL_ERROR "rigid under ${NP} ranks: exit ${rc}: ${err}")
   endif()
-  # mobility and sample with what does not run across ranks refuse too.
-  foreach(case "mobility;--forces;${WORK}/f.txt;--method;fmm" "sample;--operator;direct;--method;chebyshev")
-    execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" ${case} --positions "${WORK}/x.txt" --radius 1
-                            --out "${WORK}/never.npy"
+  # laplace, mobility and sample with what does not run across ranks refuse too.
+  foreach(case "laplace;--sources;${WORK}/x.txt;--charges;${WORK}/a.txt;--direct"
+               "mobility;--positions;${WORK}/x.txt;--radius;1;--forces;${WORK}/f.txt;--method;fmm"
+               "sample;--positions;${WORK}/x.txt;--radius;1;--operator;direct;--method;chebyshev")
+    execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" ${case} --out "${WORK}/never.npy"
                     RESULT_VARIABLE rc ERROR_VARIABLE err)
     if(rc EQUAL 0 OR NOT err MATCHES "across ${NP} MPI ranks runs" OR EXISTS "${WORK}/never.npy")
       message(FATAL_ERROR "${case} under ${NP} ranks: exit ${rc}: ${err}")
