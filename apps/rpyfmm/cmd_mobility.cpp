@@ -7,7 +7,7 @@
 //                   [--torques T.npy | --angular] --out U.npy [--threads N] [--json]
 //
 // U has shape (N,3). With --torques (N,3) or --angular (T = 0), the grand mobility with rotation
-// (docs/theory/rpy.md section 7; operators with supports_rotation: --method direct, fmm, pse on the CPU, none): the
+// (docs/theory/rpy.md section 7; operators with supports_rotation: --method direct, fmm, pse (CPU and CUDA), none): the
 // output has shape (N,6), columns Ux Uy Uz Wx Wy Wz.
 #include <CLI/CLI.hpp>
 #include <cstddef>

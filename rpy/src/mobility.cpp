@@ -173,8 +173,8 @@ void MobilityOperator::apply(std::span<const double> forces, std::span<const dou
   const std::string where = where_ + "::apply";
   require(supports_rotation(), ErrorCode::not_supported, where,
           "operator '" + name() +
-              "' has no rotational mobility (torques and angular velocities); use 'direct', 'fmm', 'pse' (CPU) or "
-              "'none' (free draining)");
+              "' has no rotational mobility (torques and angular velocities); use 'direct', 'fmm', 'pse' or 'none' "
+              "(free draining)");
   require_rotation_arguments(where, 3 * size(), {{{"forces", forces}, {"torques", torques}}},
                              {{{"velocities", velocities}, {"angular velocities", angular_velocities}}});
   const int k = rotation_load_scale_exponent(forces, torques, radii());
