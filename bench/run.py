@@ -9,7 +9,7 @@ renders bench/README.md from those files.
 Groups: fmm (Laplace FMM, and fmm3dpy's lfmm3d on the same points when it imports), direct (direct
 kernels), rpy (RPY operators: FmmRpy, DirectRpy), pse (PSE on the CPU), pse-gpu (PSE with CUDA, only
 where a GPU is present), samplers (Lanczos, Chebyshev, block preconditioner), bd (BD steps), sac
-(the GPU BD paper's Table 4 alumina-silica systems), rigid (rigid-body mobility solves and steps).
+(Tran et al. (2015)'s Table 4 alumina-silica systems), rigid (rigid-body mobility solves and steps).
 
 Every case runs at 1 thread (the per-core figure) and at all cores; each program reports the median
 of its own repetitions and the driver the median over --rounds runs. --compare COMMIT builds COMMIT in
@@ -304,8 +304,8 @@ GROUPS = [
            ("s / step", "sec_per_step", "{:.4f}"), ("products", "products", "{:.1f}"),
            ("drift s", "drift", "{:.3g}"), ("sqrt s", "sqrt", "{:.3g}"), ("plan s", "plan", "{:.3g}")],
           keys=("method", "N", "threads")),
-    Group("sac", "Alumina and silica: the GPU BD paper's Table 4 on the CPU",
-          "The three systems of Table 4 of the GPU BD paper (Tran, Crespin, Cerbelaud & Videcoq, Eurographics "
+    Group("sac", "Alumina and silica: Table 4 of Tran et al. (2015) on the CPU",
+          "The three systems of Table 4 of Tran, Crespin, Cerbelaud & Videcoq (Eurographics "
           "2015, Sec. 4.3): alumina (a = 200 nm, Langevin) with silica (a = 12.5 nm, Brownian), dt = 5e-10 s, "
           "free draining, the SAC scheme (docs/theory/bd.md Sec. 9) and the naive one, through the same "
           "Integrator as `rpyfmm bd`. Potentials and units of examples/bd/alumina_silica (a 36-18 well and WCA "

@@ -16,13 +16,13 @@
 //       without the block preconditioner), column `preconditioner`; --block: particles per
 //       block (0 = automatic). --device cuda: the mobility on a GPU (pse only; column `device`).
 //   bench_bd neighbours --n 20000 [--steps 400]
-//       The GPU BD paper's Tables 1-3 (docs/theory/bd.md): dynamic rebuild test (skin/2)
+//       Tran et al. (2015)'s Tables 1-3 (docs/theory/bd.md): dynamic rebuild test (skin/2)
 //       against fixed intervals, free draining, WCA at phi = 0.15 in a periodic box: rebuilds,
 //       time per step, and
 //       for fixed intervals the steps on which some particle had moved more than skin/2
 //       since the last build (pairs may have been missed). --skin (default 1.0 a).
 //   bench_bd sac-table4 [--steps 20] [--warmup 3] [--scheme sac|naive] [--systems 0,1,2]
-//       The GPU BD paper's Table 4 (Sec. 4.3): alumina (a = 200 nm, Langevin) with silica
+//       Tran et al. (2015)'s Table 4 (Sec. 4.3): alumina (a = 200 nm, Langevin) with silica
 //       (a = 12.5 nm, Brownian), 200 + 2969, 200 + 29699 and 300 + 44549 particles, dt = 5e-10 s.
 //       One CSV row per system: milliseconds per iteration (the mean over --steps steps after
 //       --warmup steps, neighbour rebuilds included, as the paper's average) next to the paper's
@@ -166,7 +166,7 @@ int bench_neighbours(int argc, char** argv) {
           ref = before;
         }
         double worst =
-            0;  // displacement since the last build (the GPU BD paper's Algorithm 1, line 15; docs/theory/bd.md)
+            0;  // displacement since the last build (Tran et al. (2015)'s Algorithm 1, line 15; docs/theory/bd.md)
         for (std::size_t i = 0; i < n; ++i) {
           double d2 = 0;
           for (int q = 0; q < 3; ++q) d2 += std::pow(bd.positions()[3 * i + q] - ref[3 * i + q], 2);
@@ -187,7 +187,7 @@ int bench_neighbours(int argc, char** argv) {
   }
   return 0;
 }
-// One row of the GPU BD paper's Table 4: particle counts and the K20m time per iteration.
+// One row of Tran et al. (2015)'s Table 4: particle counts and the K20m time per iteration.
 struct Table4System {
   std::size_t alumina;
   std::size_t silica;
