@@ -1,5 +1,6 @@
 # The `docs` target: the API reference, Doxygen over the public headers
-# (<module>/include/rpyfmm/**), written to <build>/docs/html. Any Doxygen warning (an undocumented
+# (<module>/include/rpyfmm/**; mpi/include/rpyfmm where the MPI layer is built), written to
+# <build>/docs/html. Any Doxygen warning (an undocumented
 # parameter name, a broken \ref, malformed markup) fails the build (WARN_AS_ERROR =
 # FAIL_ON_WARNINGS: every warning is listed, then the target fails). The target exists only where
 # Doxygen is installed (Debian package `doxygen`, scripts/install-deps.sh).
@@ -21,24 +22,29 @@ set(DOXYGEN_FILE_PATTERNS "*.hpp")
 # the same name stay apart.
 set(DOXYGEN_FULL_PATH_NAMES YES)
 set(DOXYGEN_STRIP_FROM_PATH "${PROJECT_SOURCE_DIR}")
-set(DOXYGEN_STRIP_FROM_INC_PATH core/include fmm/include rpy/include bd/include)
+set(_rpyfmm_doc_modules core fmm rpy bd)
+if(RPYFMM_USE_MPI)
+  list(APPEND _rpyfmm_doc_modules mpi)
+endif()
+set(_rpyfmm_doc_include_dirs ${_rpyfmm_doc_modules})
+list(TRANSFORM _rpyfmm_doc_include_dirs APPEND /include)
+set(DOXYGEN_STRIP_FROM_INC_PATH ${_rpyfmm_doc_include_dirs})
 # `#include "rpyfmm/..."` resolves against the module include folders; macros are expanded so
 # that host/device qualifiers do not hide declarations.
 set(DOXYGEN_ENABLE_PREPROCESSING YES)
 set(DOXYGEN_MACRO_EXPANSION YES)
 set(DOXYGEN_PREDEFINED "RPYFMM_HOST_DEVICE=" "__CUDACC__=0")
-set(DOXYGEN_INCLUDE_PATH core/include fmm/include rpy/include bd/include)
+set(DOXYGEN_INCLUDE_PATH ${_rpyfmm_doc_include_dirs})
 set(DOXYGEN_WARN_IF_UNDOCUMENTED NO)
 set(DOXYGEN_WARN_AS_ERROR FAIL_ON_WARNINGS)
 set(DOXYGEN_QUIET YES)
 set(DOXYGEN_HAVE_DOT NO)
 set(DOXYGEN_USE_MDFILE_AS_MAINPAGE "${PROJECT_SOURCE_DIR}/docs/api.md")
 
+set(_rpyfmm_doc_inputs ${_rpyfmm_doc_include_dirs})
+list(TRANSFORM _rpyfmm_doc_inputs REPLACE "(.+)" "${PROJECT_SOURCE_DIR}/\\1/rpyfmm")
 doxygen_add_docs(docs
   "${PROJECT_SOURCE_DIR}/docs/api.md"
-  "${PROJECT_SOURCE_DIR}/core/include/rpyfmm"
-  "${PROJECT_SOURCE_DIR}/fmm/include/rpyfmm"
-  "${PROJECT_SOURCE_DIR}/rpy/include/rpyfmm"
-  "${PROJECT_SOURCE_DIR}/bd/include/rpyfmm"
+  ${_rpyfmm_doc_inputs}
   WORKING_DIRECTORY "${PROJECT_SOURCE_DIR}"
   COMMENT "API reference (Doxygen over the public headers, warnings are errors)")

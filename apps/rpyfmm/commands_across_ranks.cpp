@@ -73,8 +73,10 @@ LocalInput distribute(const WholeInput& in, bool radii, bool rows, const mpi::Co
 }
 
 // Gathers the (N,3) result on rank 0, which checks and writes it; fails on every rank alike.
-void gather_and_write(const std::vector<double>& local, const LocalInput& in, const std::string& out,
-                      const std::string& what, const mpi::Communicator& comm) {
+// Returns the seconds this took (the "write" stage).
+double gather_and_write(const std::vector<double>& local, const LocalInput& in, const std::string& out,
+                        const std::string& what, const mpi::Communicator& comm) {
+  const StopWatch watch;
   std::vector<double> whole(comm.rank() == 0 ? 3 * in.n : 0);
   gather(local, in.s3, whole.data(), comm);
   comm.run([&] {
@@ -82,6 +84,7 @@ void gather_and_write(const std::vector<double>& local, const LocalInput& in, co
     require_finite_output(whole, what);
     write_npy(out, {in.n, 3}, whole);
   });
+  return watch.seconds();
 }
 
 // Read by rank 0, scattered, and the operator set up on each rank's share: what both commands do
@@ -156,9 +159,7 @@ void run_mobility_across_ranks(const RanksMobilityArgs& args) {
   stages["apply"] = watch.seconds();
   communication["apply"] = op.communication().apply_seconds;
 
-  watch.restart();
-  gather_and_write(u, in, args.out, "mobility", comm);
-  stages["write"] = watch.seconds();
+  stages["write"] = gather_and_write(u, in, args.out, "mobility", comm);
 
   JsonLine line;
   line.add("command", "mobility")
@@ -196,9 +197,7 @@ void run_sample_across_ranks(const RanksSampleArgs& args) {
   communication["products"] = op.communication().applies_seconds;
   communication["inner_products"] = inner_products;
 
-  watch.restart();
-  gather_and_write(w, in, args.out, "sample", comm);
-  stages["write"] = watch.seconds();
+  stages["write"] = gather_and_write(w, in, args.out, "sample", comm);
 
   JsonLine line;
   line.add("command", "sample")

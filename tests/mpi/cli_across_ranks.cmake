@@ -73,59 +73,60 @@ file(WRITE "${WORK}/f.txt" "${f}")
 file(WRITE "${WORK}/a.txt" "${a}")
 file(WRITE "${WORK}/q2.txt" "${q2}")
 
-function(run_case name radius_args)
-  set(common mobility --positions "${WORK}/x.txt" --forces "${WORK}/f.txt" ${radius_args} --viscosity 0.7
-             --method direct)
-  execute_process(COMMAND "${RPYFMM}" ${common} --out "${WORK}/${name}_serial.npy" RESULT_VARIABLE rc
-                  ERROR_VARIABLE err)
+# The serial command `args` writing ${WORK}/<out>.npy, and the same across NP ranks with --json
+# writing ${WORK}/<name>_mpi.npy, its JSON line in the caller's `json`.
+function(run_serial name out)
+  execute_process(COMMAND "${RPYFMM}" ${ARGN} --out "${WORK}/${out}.npy" RESULT_VARIABLE rc ERROR_VARIABLE err)
   if(NOT rc EQUAL 0)
-    message(FATAL_ERROR "${name}: serial rpyfmm failed (${rc}): ${err}")
+    message(FATAL_ERROR "${name}: serial rpyfmm ${ARGN} failed (${rc}): ${err}")
   endif()
-  execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" ${common} --out "${WORK}/${name}_mpi.npy" --json
+endfunction()
+function(run_across name)
+  execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" ${ARGN} --out "${WORK}/${name}_mpi.npy" --json
                   RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
   if(NOT rc EQUAL 0)
-    message(FATAL_ERROR "${name}: mpiexec -n ${NP} rpyfmm failed (${rc}): ${err}")
+    message(FATAL_ERROR "${name}: mpiexec -n ${NP} rpyfmm ${ARGN} failed (${rc}): ${err}")
   endif()
+  string(REGEX MATCHALL "\"command\"" lines "${out}")
+  list(LENGTH lines count)
+  if(NOT count EQUAL 1 OR NOT out MATCHES "\"ranks\":${NP},")
+    message(FATAL_ERROR "${name}: --json is not one line with \"ranks\":${NP}: ${out}")
+  endif()
+  set(json "${out}" PARENT_SCOPE)
+endfunction()
+# The serial command and its run across ranks write the same bytes.
+function(run_identical name)
+  run_serial(${name} ${name}_serial ${ARGN})
+  run_across(${name} ${ARGN})
   execute_process(COMMAND "${CMAKE_COMMAND}" -E compare_files "${WORK}/${name}_serial.npy" "${WORK}/${name}_mpi.npy"
                   RESULT_VARIABLE differ)
   if(NOT differ EQUAL 0)
     message(FATAL_ERROR "${name}: the output of ${NP} ranks differs from the serial output")
   endif()
-  string(REGEX MATCHALL "\"command\"" lines "${out}")
-  list(LENGTH lines count)
-  if(NOT count EQUAL 1 OR NOT out MATCHES "\"ranks\":${NP}," OR NOT out MATCHES "\"communication_seconds\":{\"apply\"")
-    message(FATAL_ERROR "${name}: --json is not one line with \"ranks\":${NP} and communication_seconds: ${out}")
-  endif()
+  set(json "${json}" PARENT_SCOPE)
 endfunction()
 
-run_case(common "--radius;1.1")
-run_case(per_particle "--radii;${WORK}/a.txt")
+# mobility with a common radius and with per-particle radii.
+foreach(radius_args "--radius;1.1" "--radii;${WORK}/a.txt")
+  list(GET radius_args 0 name)
+  string(REPLACE "-" "" name "mobility${name}")
+  run_identical(${name} mobility --positions "${WORK}/x.txt" --forces "${WORK}/f.txt" ${radius_args} --viscosity 0.7
+                --method direct)
+  if(NOT json MATCHES "\"communication_seconds\":{\"apply\"")
+    message(FATAL_ERROR "${name}: --json lacks communication_seconds: ${json}")
+  endif()
+endforeach()
 
 # sample: with the noise of (seed, step) and with the forces file read as noise.
-function(run_sample name args)
-  set(common sample --positions "${WORK}/x.txt" --radii "${WORK}/a.txt" --operator direct --method lanczos
-             --sqrt-tolerance 1e-6 --viscosity 0.7 ${args})
-  execute_process(COMMAND "${RPYFMM}" ${common} --out "${WORK}/${name}_serial.npy" RESULT_VARIABLE rc
-                  ERROR_VARIABLE err)
-  if(NOT rc EQUAL 0)
-    message(FATAL_ERROR "${name}: serial rpyfmm sample failed (${rc}): ${err}")
+foreach(noise_args "--seed;5;--step;3" "--noise;${WORK}/f.txt")
+  list(GET noise_args 0 name)
+  string(REPLACE "-" "" name "sample${name}")
+  run_identical(${name} sample --positions "${WORK}/x.txt" --radii "${WORK}/a.txt" --operator direct --method lanczos
+                --sqrt-tolerance 1e-6 --viscosity 0.7 ${noise_args})
+  if(NOT json MATCHES "\"inner_products\":")
+    message(FATAL_ERROR "${name}: --json lacks the inner products' time: ${json}")
   endif()
-  execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" ${common} --out "${WORK}/${name}_mpi.npy" --json
-                  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
-  if(NOT rc EQUAL 0)
-    message(FATAL_ERROR "${name}: mpiexec -n ${NP} rpyfmm sample failed (${rc}): ${err}")
-  endif()
-  if(NOT out MATCHES "\"ranks\":${NP}," OR NOT out MATCHES "\"inner_products\":")
-    message(FATAL_ERROR "${name}: --json lacks \"ranks\":${NP} or the inner products' time: ${out}")
-  endif()
-  execute_process(COMMAND "${CMAKE_COMMAND}" -E compare_files "${WORK}/${name}_serial.npy" "${WORK}/${name}_mpi.npy"
-                  RESULT_VARIABLE differ)
-  if(NOT differ EQUAL 0)
-    message(FATAL_ERROR "${name}: the sample of ${NP} ranks differs from the serial sample")
-  endif()
-endfunction()
-run_sample(sample_seed "--seed;5;--step;3")
-run_sample(sample_noise "--noise;${WORK}/f.txt")
+endforeach()
 
 # laplace with the FMM: at the sources (one density) and at separate targets (two densities).
 function(agree name a b bound)
@@ -134,31 +135,20 @@ function(agree name a b bound)
     message(FATAL_ERROR "${name}: ${NP} ranks against ${b} beyond ${bound} (${rc}): ${out}${err}")
   endif()
 endfunction()
-function(run_laplace name tolerance twice args)
-  set(common laplace --sources "${WORK}/x.txt" ${args})
-  foreach(method "direct;--direct" "fmm;--tolerance;${tolerance}")
-    list(POP_FRONT method label)
-    execute_process(COMMAND "${RPYFMM}" ${common} ${method} --out "${WORK}/${name}_${label}.npy" RESULT_VARIABLE rc
-                    ERROR_VARIABLE err)
-    if(NOT rc EQUAL 0)
-      message(FATAL_ERROR "${name}: serial rpyfmm laplace ${label} failed (${rc}): ${err}")
-    endif()
-  endforeach()
-  execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" ${common} --tolerance ${tolerance}
-                          --out "${WORK}/${name}_mpi.npy" --json
-                  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
-  if(NOT rc EQUAL 0)
-    message(FATAL_ERROR "${name}: mpiexec -n ${NP} rpyfmm laplace failed (${rc}): ${err}")
-  endif()
-  if(NOT out MATCHES "\"ranks\":${NP}," OR NOT out MATCHES "\"communication_seconds\":{[^}]*\"evaluate\":[^}]*\"plan\":"
-     OR NOT out MATCHES "\"communication_bytes\":{\"evaluate\":[0-9]")
-    message(FATAL_ERROR "${name}: --json lacks \"ranks\":${NP} or the plan's and evaluation's communication: ${out}")
+function(run_laplace name tolerance twice)
+  set(common laplace --sources "${WORK}/x.txt" ${ARGN})
+  run_serial(${name} ${name}_direct ${common} --direct)
+  run_serial(${name} ${name}_fmm ${common} --tolerance ${tolerance})
+  run_across(${name} ${common} --tolerance ${tolerance})
+  if(NOT json MATCHES "\"communication_seconds\":{[^}]*\"evaluate\":[^}]*\"plan\":"
+     OR NOT json MATCHES "\"communication_bytes\":{\"evaluate\":[0-9]")
+    message(FATAL_ERROR "${name}: --json lacks the plan's and evaluation's communication: ${json}")
   endif()
   agree(${name} "${WORK}/${name}_mpi.npy" "${WORK}/${name}_direct.npy" ${tolerance})
   agree(${name} "${WORK}/${name}_mpi.npy" "${WORK}/${name}_fmm.npy" ${twice})
 endfunction()
-run_laplace(laplace_sources 1e-6 2e-6 "--charges;${WORK}/a.txt")
-run_laplace(laplace_targets 1e-3 2e-3 "--charges;${WORK}/q2.txt;--targets;${WORK}/f.txt")
+run_laplace(laplace_sources 1e-6 2e-6 --charges "${WORK}/a.txt")
+run_laplace(laplace_targets 1e-3 2e-3 --charges "${WORK}/q2.txt" --targets "${WORK}/f.txt")
 
 # A bad input read by rank 0 fails every rank: exit status 2, one error line (printed by rank 0).
 execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" mobility --positions "${WORK}/missing.txt"

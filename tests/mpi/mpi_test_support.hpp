@@ -109,6 +109,10 @@ enum class Split {
   last_only,    // all on the last rank
   geometric,    // rank r gets about half of what is left, the last rank the rest
 };
+/// Every split, for the tests that run each.
+inline constexpr Split kSplits[] = {Split::even, Split::first_empty, Split::last_only, Split::geometric};
+/// The solvent viscosity of the tests of the distributed RPY operators.
+inline constexpr double kViscosity = 0.7;
 
 inline std::vector<std::size_t> split_counts(std::size_t n, std::size_t ranks, Split split) {
   std::vector<std::size_t> c(ranks, 0);

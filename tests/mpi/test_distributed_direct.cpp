@@ -25,8 +25,6 @@ using namespace rpyfmm_mpi_test;
 
 namespace {
 
-constexpr double kViscosity = 0.7;
-
 enum class Radii { common, per_particle };
 
 // Distributes `p` by `split`, applies M on the shares and compares each rank's velocities with the
@@ -62,8 +60,6 @@ void expect_equal_to_serial(const Particles& p, Split split, Radii radii) {
   op.apply(share(p.f, 3, offset, n), u);
   EXPECT_EQ(bitwise_mismatches(u, share(u_serial, 3, offset, n)), 0u) << "rank " << rank << " of " << world_size();
 }
-
-const Split kSplits[] = {Split::even, Split::first_empty, Split::last_only, Split::geometric};
 
 }  // namespace
 

@@ -30,9 +30,6 @@ using namespace rpyfmm_mpi_test;
 
 namespace {
 
-constexpr double kViscosity = 0.7;
-const Split kSplits[] = {Split::even, Split::first_empty, Split::last_only, Split::geometric};
-
 SqrtOptions lanczos(double tolerance) {
   SqrtOptions o;
   o.method = SqrtMethod::lanczos;

@@ -25,8 +25,6 @@ using namespace rpyfmm_mpi_test;
 
 namespace {
 
-const Split kSplits[] = {Split::even, Split::first_empty, Split::last_only, Split::geometric};
-
 // The Morton key by the definition, one bit at a time: bit b of the cell index on axis d becomes
 // bit 3b + (2 - d) of the key.
 std::uint64_t reference_key(const std::uint32_t cell[3]) {
