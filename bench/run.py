@@ -220,12 +220,14 @@ def rigid_cases(mode: str) -> list[Case]:
 
 
 def mpi_cases(mode: str) -> list[Case]:
-    """DistributedLaplaceFmm on P = 1..4 ranks of one thread each (mpiexec --oversubscribe): strong scaling at
-    fixed N, weak scaling at fixed N / P (bench/mpi)."""
-    n_strong, n_weak = ("4e5", "1e5") if mode == "full" else ("1e5", "2.5e4")
-    return [Case(["mpi/bench_mpi_fmm_ranks", str(p), "--n", n, "--eps", "1e-6", "--scaling", scaling, "--reps", "3"], 1,
-                 {})
-            for scaling, n in (("strong", n_strong), ("weak", n_weak)) for p in (1, 2, 3, 4)]
+    """DistributedLaplaceFmm and DistributedDirectRpy on P = 1..4 ranks of one thread each (mpiexec
+    --oversubscribe): strong scaling at fixed N, weak scaling at fixed N / P (bench/mpi)."""
+    sizes = {"fmm": ("4e5", "1e5"), "direct": ("2e4", "5e3")} if mode == "full" else {
+        "fmm": ("1e5", "2.5e4"), "direct": ("1e4", "2.5e3")}
+    return [Case(["mpi/bench_mpi_ranks", str(p), f"bench_mpi_{method}", "--n", n, "--eps", "1e-6", "--scaling",
+                  scaling, "--reps", "3"], 1, {})
+            for method, (strong, weak) in sizes.items() for scaling, n in (("strong", strong), ("weak", weak))
+            for p in (1, 2, 3, 4)]
 
 
 GROUPS = [
@@ -341,20 +343,20 @@ GROUPS = [
            ("beads", "beads", "{}"), ("threads", "threads", "{}"), ("drift", "drift", "{}"),
            ("GMRES its", "iterations", "{}"), ("s", "time_s", "{:.4f}"), ("setup s", "setup_s", "{:.4f}")],
           keys=("benchmark", "operator", "bodies", "beads", "threads", "drift")),
-    Group("mpi", "Laplace FMM across MPI ranks",
-          "DistributedLaplaceFmm (docs/mpi.md) on P ranks of one OpenMP thread each, uniform sources in the unit "
-          "cube, eps 1e-6, one density, potential and gradient: strong scaling at fixed N and weak scaling at fixed "
-          "N / P. eval s = median of 3 evaluations (the slowest rank's); comm s = the slowest rank's time in the "
-          "evaluation's exchanges (charges, essential, results); MB = bytes received by all ranks per evaluation; "
-          "essential = the largest serial-FMM source set of a rank (own + halo + equivalent nodes). On the 2-core "
-          "development machine 3 and 4 ranks oversubscribe the cores: their times show the work per rank and "
-          "the volume, not a speedup.",
-          ["bench_mpi_fmm"], mpi_cases, parse_json_lines, "eval_s",
-          [("scaling", "scaling", "{}"), ("ranks", "ranks", "{}"), ("N", "N", "{:.2g}"), ("plan s", "plan_s", "{:.3f}"),
-           ("eval s", "eval_s", "{:.3f}"), ("serial FMM s", "eval_work_fmm_s", "{:.3f}"),
-           ("anterp. s", "eval_work_anterpolation_s", "{:.3f}"), ("comm s", "eval_comm_s", "{:.4f}"),
-           ("plan MB", "plan_MB", "{:.2f}"), ("eval MB", "eval_MB", "{:.2f}"), ("essential", "essential_max", "{:.0f}")],
-          keys=("scaling", "ranks", "N")),
+    Group("mpi", "Laplace FMM and direct RPY across MPI ranks",
+          "DistributedLaplaceFmm (fmm, docs/mpi.md) and DistributedDirectRpy (direct, one product U = M F) on P "
+          "ranks of one OpenMP thread each, uniform sources in the unit cube; fmm: eps 1e-6, one density, potential "
+          "and gradient: strong scaling at fixed N and weak scaling at fixed N / P. plan s = set_points or "
+          "set_positions; eval s = median of 3 evaluations or products (the slowest rank's); comm s = the slowest "
+          "rank's time in the exchanges of one; MB = bytes received by all ranks in one; essential = the largest "
+          "serial-FMM source set of a rank (own + halo + equivalent nodes). On the 2-core development machine 3 and "
+          "4 ranks oversubscribe the cores: their times show the work per rank and the volume, not a speed-up.",
+          ["bench_mpi_fmm", "bench_mpi_direct"], mpi_cases, parse_json_lines, "eval_s",
+          [("method", "method", "{}"), ("scaling", "scaling", "{}"), ("ranks", "ranks", "{}"), ("N", "N", "{:.2g}"),
+           ("plan s", "plan_s", "{:.3f}"), ("eval s", "eval_s", "{:.3f}"), ("serial FMM s", "eval_work_fmm_s", "{:.3f}"),
+           ("comm s", "eval_comm_s", "{:.4f}"), ("plan MB", "plan_MB", "{:.2f}"), ("eval MB", "eval_MB", "{:.2f}"),
+           ("essential", "essential_max", "{:.0f}")],
+          keys=("method", "scaling", "ranks", "N")),
 ]
 GROUP_BY_NAME = {g.name: g for g in GROUPS}
 TIME_COLUMNS = {"solve": "solve_s", "step": "step_s"}  # rigid: the time column of each program
