@@ -6,7 +6,7 @@
 #include <atomic>
 #include <cstdint>
 
-#include "host_device.hpp"
+#include "rpyfmm/core/host_device.hpp"
 
 namespace rpyfmm::bd::device {
 

@@ -8,7 +8,7 @@
 
 #include <cstdint>
 
-#include "host_device.hpp"
+#include "rpyfmm/core/host_device.hpp"
 #include "rpyfmm/rpy/random.hpp"
 
 namespace rpyfmm::bd::device {

@@ -18,8 +18,8 @@
 
 #include "atomics.hpp"
 #include "cell_grid.hpp"
-#include "host_device.hpp"
 #include "insertion_sort.hpp"
+#include "rpyfmm/core/host_device.hpp"
 
 namespace rpyfmm::bd::device {
 

@@ -11,7 +11,7 @@
 #include <algorithm>
 #include <cstdint>
 
-#include "host_device.hpp"
+#include "rpyfmm/core/host_device.hpp"
 
 namespace rpyfmm::bd::device {
 

@@ -15,8 +15,8 @@
 
 #include "atomics.hpp"
 #include "brownian_noise.hpp"
-#include "host_device.hpp"
 #include "rebuild_test.hpp"
+#include "rpyfmm/core/host_device.hpp"
 
 namespace rpyfmm::bd::device {
 

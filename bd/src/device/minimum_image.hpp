@@ -6,7 +6,7 @@
 
 #include <math.h>  // ::nearbyint, a CUDA builtin in device code too
 
-#include "host_device.hpp"
+#include "rpyfmm/core/host_device.hpp"
 
 namespace rpyfmm::bd::device {
 

@@ -21,8 +21,8 @@
 
 #include <math.h>  // ::exp, ::log: CUDA builtins in device code too
 
-#include "host_device.hpp"
 #include "rpyfmm/bd/potentials.hpp"
+#include "rpyfmm/core/host_device.hpp"
 
 namespace rpyfmm::bd::device {
 

@@ -12,10 +12,10 @@
 #include <cstdint>
 
 #include "atomics.hpp"
-#include "host_device.hpp"
 #include "minimum_image.hpp"
 #include "pair_potentials.hpp"
 #include "rpyfmm/bd/potentials.hpp"
+#include "rpyfmm/core/host_device.hpp"
 
 namespace rpyfmm::bd::device {
 

@@ -7,7 +7,7 @@
 
 #include <cstdint>
 
-#include "host_device.hpp"
+#include "rpyfmm/core/host_device.hpp"
 
 namespace rpyfmm::bd::device {
 

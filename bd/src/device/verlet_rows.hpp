@@ -16,9 +16,9 @@
 #include <cstdint>
 
 #include "cell_grid.hpp"
-#include "host_device.hpp"
 #include "insertion_sort.hpp"
 #include "minimum_image.hpp"
+#include "rpyfmm/core/host_device.hpp"
 
 namespace rpyfmm::bd::device {
 

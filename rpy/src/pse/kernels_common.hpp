@@ -167,6 +167,31 @@ RPYFMM_HOST_DEVICE inline void scale_mode_with(int ix, int iy, int iz, std::size
   s2[1] = static_cast<Real>(im[2] - k2 * pi);
 }
 
+/// (ix, iy, iz) of linear half-spectrum index idx = (ix ny + iy) nzh + iz.
+RPYFMM_HOST_DEVICE inline void half_spectrum_mode(std::size_t idx, const ModeGeometry& g, int& ix, int& iy, int& iz) {
+  iz = static_cast<int>(idx % static_cast<std::size_t>(g.nzh));
+  const std::size_t rest = idx / static_cast<std::size_t>(g.nzh);
+  iy = static_cast<int>(rest % static_cast<std::size_t>(g.n[1]));
+  ix = static_cast<int>(rest / static_cast<std::size_t>(g.n[1]));
+}
+
+/// The wave-space noise of mode (ix, iy, iz), drawn by one GPU thread per mode as the CPU draws
+/// lines of modes with fill_normal6: normal6f (Real = float) or normal6 of the mode pair's
+/// representative under (seed, step, kStreamWave). Returns whether the mode is its pair's
+/// representative.
+template <class Real>
+RPYFMM_HOST_DEVICE inline bool draw_mode_noise(int ix, int iy, int iz, const ModeGeometry& g, std::uint64_t seed,
+                                               std::uint64_t step, Real z[6]) {
+  std::uint64_t lin, rep;
+  mode_pair(ix, iy, iz, g, lin, rep);
+  if constexpr (sizeof(Real) == sizeof(float)) {
+    normal6f(seed, step, kStreamWave, rep, z);
+  } else {
+    normal6(seed, step, kStreamWave, rep, z);
+  }
+  return lin == rep;
+}
+
 /// scale_mode_with for linear half-spectrum index idx, drawing the mode's noise itself
 /// (one GPU thread per mode; the CPU draws lines of modes at once with fill_normal6):
 /// normal6f for single-precision grids (Real = float), normal6 for double ones.
@@ -174,22 +199,10 @@ template <class Real>
 RPYFMM_HOST_DEVICE inline void scale_mode(std::size_t idx, const ModeGeometry& g, const double* ck, Real* spec,
                                           bool deterministic, bool noise, std::uint64_t seed, std::uint64_t step,
                                           double noise_factor) {
-  const int iz = static_cast<int>(idx % static_cast<std::size_t>(g.nzh));
-  const std::size_t rest = idx / static_cast<std::size_t>(g.nzh);
-  const int iy = static_cast<int>(rest % static_cast<std::size_t>(g.n[1]));
-  const int ix = static_cast<int>(rest / static_cast<std::size_t>(g.n[1]));
+  int ix, iy, iz;
+  half_spectrum_mode(idx, g, ix, iy, iz);
   Real z[6];
-  bool representative = true;
-  if (noise) {
-    std::uint64_t lin, rep;
-    mode_pair(ix, iy, iz, g, lin, rep);
-    if constexpr (sizeof(Real) == sizeof(float)) {
-      normal6f(seed, step, kStreamWave, rep, z);
-    } else {
-      normal6(seed, step, kStreamWave, rep, z);
-    }
-    representative = lin == rep;
-  }
+  const bool representative = noise ? draw_mode_noise(ix, iy, iz, g, seed, step, z) : true;
   scale_mode_with(ix, iy, iz, idx, g, ck, spec, deterministic, noise ? z : nullptr, representative, noise_factor);
 }
 

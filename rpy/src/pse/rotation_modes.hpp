@@ -130,14 +130,6 @@ RPYFMM_HOST_DEVICE inline void scale_rotation_mode(int ix, int iy, int iz, std::
   }
 }
 
-/// (ix, iy, iz) of linear half-spectrum index idx = (ix ny + iy) nzh + iz.
-RPYFMM_HOST_DEVICE inline void half_spectrum_mode(std::size_t idx, const ModeGeometry& g, int& ix, int& iy, int& iz) {
-  iz = static_cast<int>(idx % static_cast<std::size_t>(g.nzh));
-  const std::size_t rest = idx / static_cast<std::size_t>(g.nzh);
-  iy = static_cast<int>(rest % static_cast<std::size_t>(g.n[1]));
-  ix = static_cast<int>(rest / static_cast<std::size_t>(g.n[1]));
-}
-
 /// The mode of linear half-spectrum index idx with its own noise draw, for one GPU thread per mode
 /// (as scale_mode for the translational spectrum): the (ix, iy, iz) of idx, normal6 / normal6f
 /// (Real = float) of the mode pair's representative under (seed, step, kStreamWave), as
@@ -151,17 +143,7 @@ RPYFMM_HOST_DEVICE inline void scale_rotation_mode_at(std::size_t idx, const Mod
   int ix, iy, iz;
   half_spectrum_mode(idx, g, ix, iy, iz);
   Real z[6];
-  bool representative = true;
-  if (noise) {
-    std::uint64_t lin, rep;
-    mode_pair(ix, iy, iz, g, lin, rep);
-    if constexpr (sizeof(Real) == sizeof(float)) {
-      normal6f(seed, step, kStreamWave, rep, z);
-    } else {
-      normal6(seed, step, kStreamWave, rep, z);
-    }
-    representative = lin == rep;
-  }
+  const bool representative = noise ? draw_mode_noise(ix, iy, iz, g, seed, step, z) : true;
   scale_rotation_mode(ix, iy, iz, idx, g, ck, factors[idx], fs, ts, deterministic, noise ? z : nullptr, representative,
                       noise_factor);
 }

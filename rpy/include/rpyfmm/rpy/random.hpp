@@ -17,11 +17,7 @@
 #include <span>
 #include <type_traits>
 
-#ifdef __CUDACC__
-#define RPYFMM_HOST_DEVICE __host__ __device__
-#else
-#define RPYFMM_HOST_DEVICE
-#endif
+#include "rpyfmm/core/host_device.hpp"
 
 namespace rpyfmm::rpy {
 

@@ -14,13 +14,7 @@
 
 #include <math.h>  // ::sqrt, usable in host code and (as a CUDA builtin) in device code
 
-#ifndef RPYFMM_HOST_DEVICE
-#ifdef __CUDACC__
-#define RPYFMM_HOST_DEVICE __host__ __device__
-#else
-#define RPYFMM_HOST_DEVICE
-#endif
-#endif
+#include "rpyfmm/core/host_device.hpp"
 
 namespace rpyfmm::rpy {
 
