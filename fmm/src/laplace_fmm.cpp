@@ -21,10 +21,14 @@ int fmm_order_for(double eps) {
   // Truncation bound of the multipole expansion (Guan, Theorem 2.2.2; docs/theory/fmm.md, error
   // control; FMM3D's l3dterms): sources within sqrt(3)/2, nearest target at 1.5 (box units). Beyond
   // some order the error saturates at the plane-wave table's own error, so the bound is capped per
-  // table. The caps 8 / 18 / 32 / 42 for the 3 / 6 / 9 / 12-digit tables are the smallest orders
-  // that keep the worst case within eps/2 (one source box with charges at its corners, every V-list offset:
-  // FmmBlocks.PlaneWaveM2LAllOffsetsAllTables) and pass 200 coincident charges at 1e-9
-  // (FmmFeatures.DuplicatedPoints); random distributions saturate earlier (p = 8/16/26/36).
+  // table. The caps 18 / 32 / 42 for the 6 / 9 / 12-digit tables are the smallest orders that keep
+  // the potential's worst case within eps/2 (one source box with charges at its corners, every V-list
+  // offset: FmmBlocks.PlaneWaveM2LAllOffsetsAllTables) and pass 200 coincident charges at 1e-9
+  // (FmmFeatures.DuplicatedPoints); random distributions saturate earlier (p = 8/16/26/36). The
+  // 3-digit cap is 9, one above the potential's 8, for the Hessian: at order 8 its relative error
+  // reached 1.58e-3 at 1e-3 (701 sources, 350 targets on one side of them, AVX2 level; the targets
+  // of tests/mpi/cli_across_ranks.cmake), 3.9e-4 at order 9; order 9 costs 4-12 % more than 8 at
+  // 1e5 points.
   int p = 80;
   for (int q = 2; q < 80; ++q)
     if (std::pow(std::sqrt(3.0) / 2.0, q) / std::pow(1.5, q + 1) < eps) {
@@ -32,7 +36,7 @@ int fmm_order_for(double eps) {
       break;
     }
   const int digits = fmm_table_digits_for(eps);
-  const int cap = digits <= 3 ? 8 : digits <= 6 ? 18 : digits <= 9 ? 32 : 42;
+  const int cap = digits <= 3 ? 9 : digits <= 6 ? 18 : digits <= 9 ? 32 : 42;
   return std::min(p, cap);
 }
 
