@@ -11,7 +11,8 @@ void require_device_support(const IntegratorOptions& options, const rpy::Mobilit
   const char* where = "bd device engine";
   require(mobility.name() == "none", ErrorCode::not_supported, where,
           "the device engine runs free draining (mobility \"none\") only, not '" + mobility.name() +
-              "': hydrodynamic interactions on the device are not implemented yet (docs/gpu-bd.md)");
+              "' (with hydrodynamic interactions use the CPU engine, or method \"pse\" with PSE mobility on the GPU; "
+              "docs/gpu-bd.md)");
   require(!options.rotation, ErrorCode::not_supported, where, "rotation is not supported on the device");
   const bool inertial =
       std::any_of(options.inertia.begin(), options.inertia.end(), [](const auto& type) { return type.has_value(); });

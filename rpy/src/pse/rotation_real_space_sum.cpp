@@ -34,7 +34,7 @@ struct RotationFrame {
 
 /// One row without the self block: u += sum_q c (T_q x e), w += sum_q c (F_q x e) + h T_q +
 /// k (e . T_q) e over the neighbour slots nb[0 .. count) of the particle at xi (docs/theory/pse.md
-/// section 5; rotation_pair_terms, which the CUDA rows share).
+/// "Rotation"; rotation_pair_terms, which the CUDA rows share).
 void rotation_row(const int* nb, std::size_t count, const double xi[3], const RotationSlots& s, const RotationFrame& fr,
                   double u[3], double w[3]) {
   simd_dispatch([=]() RPYFMM_SIMD_BODY {
