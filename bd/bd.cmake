@@ -8,6 +8,8 @@ target_sources(rpyfmm_bd PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/src/force_field.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/neighbour_list.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/integrator.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/integrator_device.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/step_engine.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/langevin.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/langevin_group.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/sac.cpp

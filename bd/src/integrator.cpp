@@ -5,6 +5,7 @@
 #include <limits>
 #include <sstream>
 
+#include "device/device_stepper.hpp"
 #include "rpyfmm/bd/quaternion.hpp"
 #include "rpyfmm/bd/rotation_sampling.hpp"
 #include "rpyfmm/core/validate.hpp"
@@ -48,6 +49,20 @@ Integrator::Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceFie
   if (forces_.has_pairs()) list_.set_pair_cutoffs(types_, forces_.pair_cutoffs(), forces_.types().size());
   radii_.resize(n);
   for (std::size_t i = 0; i < n; ++i) radii_[i] = forces_.types()[types_[i]].radius;
+  for (const char* part : {"neighbours", "forces", "plan", "drift", "sqrt", "update"}) totals_.seconds[part] = 0.0;
+  if (options_.engine == StepEngine::cpu)
+    start_cpu_engine(std::move(orientations), std::move(velocities));
+  else
+    start_device_engine(neighbours, !orientations.empty(), !velocities.empty());
+}
+
+Integrator::Integrator(Integrator&&) noexcept = default;
+Integrator& Integrator::operator=(Integrator&&) noexcept = default;
+Integrator::~Integrator() = default;
+
+void Integrator::start_cpu_engine(std::vector<double> orientations, std::vector<double> velocities) {
+  const char* where = "Integrator";
+  const std::size_t n = types_.size();
   f_.assign(3 * n, 0.0);
   u_.assign(3 * n, 0.0);
   w_.assign(3 * n, 0.0);
@@ -85,7 +100,6 @@ Integrator::Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceFie
     groups_.assign(n, 0);
     f_within_.assign(3 * n, 0.0);
   }
-  for (const char* part : {"neighbours", "forces", "plan", "drift", "sqrt", "update"}) totals_.seconds[part] = 0.0;
 }
 
 void Integrator::check_inertia() const {
@@ -204,6 +218,7 @@ void Integrator::fail_blow_up(std::size_t i) const {
 }
 
 const StepReport& Integrator::step() {
+  if (device_) return device_step();
   const std::size_t n = size();
   StepReport rep;
   StopWatch watch;

@@ -9,9 +9,7 @@
 #include <span>
 #include <sstream>
 
-#include "device/device_stepper.hpp"
 #include "rpyfmm/bd/checkpoint.hpp"
-#include "rpyfmm/bd/device/device_support.hpp"
 #include "rpyfmm/bd/output.hpp"
 #include "rpyfmm/bd/particles.hpp"
 #include "rpyfmm/bd/quaternion.hpp"
@@ -138,31 +136,15 @@ ForceField run_force_field(const RunConfig& config, const std::vector<Bond>& bon
   return forces;
 }
 
-/// [mobility] device = "cuda" with method = "none": the whole step on the device engine
-/// (docs/gpu-bd.md); with method = "pse" the device runs the mobility operator alone.
-bool runs_on_device_engine(const RunConfig& config) {
-  return config.mobility.device == rpy::ComputeDevice::cuda && config.mobility.method == rpy::MobilityMethod::none;
-}
-
-/// The mobility operator of the Integrator: on the device engine's runs the free-draining
-/// operator of the CPU, whose viscosity and checks the device engine takes.
-std::unique_ptr<rpy::MobilityOperator> run_mobility(const RunConfig& config, std::size_t n) {
-  rpy::MobilitySpec spec = config.mobility;
-  if (runs_on_device_engine(config)) spec.device = rpy::ComputeDevice::cpu;
-  return rpy::make_mobility(spec, n);
-}
-
-/// The device engine of a run on it, or null for the CPU engine. Refuses (not_supported) the
-/// first feature of the run that the device engine lacks, then, without a usable device, says
-/// why (no device, or a build without CUDA).
-std::unique_ptr<device::Stepper> run_device_engine(const RunConfig& config, const RunOptions& options,
-                                                   const Integrator& bd, const ForceField& forces) {
-  if (!runs_on_device_engine(config)) return nullptr;
-  const device::EngineOptions engine =
-      device::engine_options_for(config.integrator, bd.mobility(), config.neighbours, config.external_force);
-  const std::vector<std::uint32_t> types(bd.types().begin(), bd.types().end());
-  return device::make_stepper(options.device_launcher, forces, types, config.geometry, engine, bd.positions(),
-                              bd.step_count());
+/// The Integrator of a run from `start`: the config's options with the engine its mobility asks
+/// for ([mobility] device = "cuda" with method = "none": the device engine, docs/gpu-bd.md) and
+/// that engine's mobility operator.
+Integrator run_integrator(const RunConfig& config, const RunOptions& options, const ForceField& forces,
+                          const Start& start) {
+  IntegratorOptions o = config.integrator;
+  o.engine = step_engine_for(config.mobility, options.device_launcher);
+  return Integrator(engine_mobility(config.mobility, o.engine, start.types.size()), forces, o, start.positions,
+                    start.types, config.neighbours, start.step, start.orientations, start.velocities);
 }
 
 /// One run from `start`: the integrator, its output files and the statistics of the log rows.
@@ -177,9 +159,7 @@ class Run {
         total_(options.steps.value_or(config.steps)),
         forces_(run_force_field(config, start_.bonds)),
         n_(start_.types.size()),
-        bd_(run_mobility(config, n_), forces_, config.integrator, start_.positions, start_.types, config.neighbours,
-            start_.step, start_.orientations, start_.velocities),
-        device_(run_device_engine(config, options, bd_, forces_)) {
+        bd_(run_integrator(config, options, forces_, start_)) {
     if (config.integrator.rotation && !start_.restarted) {  // the reference state of the log's moments
       start_.reference_orientations.assign(bd_.orientations().begin(), bd_.orientations().end());
       start_.rotation_vectors.assign(3 * n_, 0.0);
@@ -187,7 +167,7 @@ class Run {
     const auto dir = options.out_dir.value_or(config.output.dir);
     sum_.particles = n_;
     sum_.mobility = bd_.mobility().name();
-    if (device_) sum_.engine = options.device_launcher == DeviceLauncher::cuda ? "cuda" : "host launcher";
+    sum_.engine = to_string(bd_.options().engine);
     sum_.first_step = start_.step;
     sum_.out_dir = dir;
     sum_.trajectory = dir / config.output.trajectory;
@@ -198,17 +178,17 @@ class Run {
 
   RunSummary execute() {
     open_outputs();
-    last_.totals = totals();
-    last_.step = step_count();
-    last_.centre = centre_of(positions(), n_);
+    last_.totals = bd_.totals();
+    last_.step = bd_.step_count();
+    last_.centre = centre_of(bd_.positions(), n_);
     if (!start_.restarted) write_records(true);
     StopWatch wall;
     double last_progress = -1.0;
-    while (step_count() < total_) {
+    while (bd_.step_count() < total_) {
       step();
       commit();
       write_records(false);
-      const std::uint64_t s = step_count();
+      const std::uint64_t s = bd_.step_count();
       if (config_.output.checkpoint_every > 0 && s % config_.output.checkpoint_every == 0 && s != total_)
         save_checkpoint();
       if (options_.progress) report_progress(wall.seconds(), last_progress);
@@ -260,10 +240,10 @@ class Run {
   void save_checkpoint() {
     commit();
     Checkpoint c;
-    c.step = step_count();
+    c.step = bd_.step_count();
     c.seed = config_.integrator.seed;
     c.dt = config_.integrator.dt;
-    c.positions.assign(positions().begin(), positions().end());
+    c.positions.assign(bd_.positions().begin(), bd_.positions().end());
     c.reference_positions = start_.reference;
     c.types = start_.types;
     if (config_.integrator.rotation) {
@@ -284,10 +264,6 @@ class Run {
   /// One step; on failure after the run has started, the last good state is saved first.
   void step() {
     try {
-      if (device_) {
-        device_->step();
-        return;
-      }
       bd_.step();
       const auto phi = bd_.last_rotations();  // empty without rotation
       for (std::size_t k = 0; k < phi.size(); ++k) start_.rotation_vectors[k] += phi[k];
@@ -297,10 +273,10 @@ class Run {
         ++last_.split_steps;
       }
     } catch (const Error& e) {
-      const bool fresh_start = !start_.restarted && step_count() == 0;
+      const bool fresh_start = !start_.restarted && bd_.step_count() == 0;
       if (fresh_start && e.code() != ErrorCode::numerical_failure) throw;  // bad initial state: nothing to save
       save_checkpoint();
-      throw Error(e.code(), std::string(e.what()) + "; last good state (step " + std::to_string(step_count()) +
+      throw Error(e.code(), std::string(e.what()) + "; last good state (step " + std::to_string(bd_.step_count()) +
                                 ") saved to '" + sum_.checkpoint.string() + "'");
     }
   }
@@ -309,9 +285,9 @@ class Run {
   void write_records(bool first) {
     StopWatch w;
     const OutputSpec& out = config_.output;
-    const std::uint64_t s = step_count();
+    const std::uint64_t s = bd_.step_count();
     if (out.trajectory_every > 0 && s % out.trajectory_every == 0)
-      traj_.write(positions(), bd_.types(), forces_.types(), config_.geometry, s, time(), bd_.orientations(),
+      traj_.write(bd_.positions(), bd_.types(), forces_.types(), config_.geometry, s, bd_.time(), bd_.orientations(),
                   bd_.complexes().owner());
     if (out.log_every > 0 && (s % out.log_every == 0 || s == total_)) write_log_row(first);
     const double sec = w.seconds();
@@ -320,20 +296,20 @@ class Run {
   }
 
   void write_log_row(bool first) {
-    const std::uint64_t s = step_count();
-    const auto [md, msd] = displacement_moments(positions(), start_.reference, n_);
-    const auto cnow = centre_of(positions(), n_);
+    const std::uint64_t s = bd_.step_count();
+    const auto [md, msd] = displacement_moments(bd_.positions(), start_.reference, n_);
+    const auto cnow = centre_of(bd_.positions(), n_);
     const double elapsed = static_cast<double>(s - last_.step) * config_.integrator.dt;
-    const IntegratorTotals t = totals();
+    const IntegratorTotals t = bd_.totals();
     const double steps = first ? 1.0 : std::max<double>(1.0, static_cast<double>(t.steps - last_.totals.steps));
     std::ostringstream row;
     row.precision(10);
-    row << s << ',' << time() << ',' << md << ',' << msd;
+    row << s << ',' << bd_.time() << ',' << md << ',' << msd;
     for (int c = 0; c < 3; ++c) row << ',' << (elapsed > 0 ? (cnow[c] - last_.centre[c]) / elapsed : 0.0);
-    row << ',' << potential_energy() << ','
+    row << ',' << bd_.last_report().potential_energy << ','
         << static_cast<double>(t.sqrt_iterations - last_.totals.sqrt_iterations) / steps << ','
         << static_cast<double>(t.mobility_products - last_.totals.mobility_products) / steps << ','
-        << neighbour_rebuilds();
+        << bd_.neighbour_rebuilds();
     for (const char* part : {"neighbours", "forces", "plan", "drift", "sqrt", "update"})
       row << ',' << t.seconds.at(part) - last_.totals.seconds.at(part);
     row << ',' << last_.output_seconds;
@@ -354,7 +330,7 @@ class Run {
   }
 
   void report_progress(double seconds, double& last_progress) {
-    const std::uint64_t s = step_count();
+    const std::uint64_t s = bd_.step_count();
     if (seconds - last_progress < 0.5 && s != total_) return;
     last_progress = seconds;
     const double rate = static_cast<double>(s - start_.step) / std::max(seconds, 1e-9);
@@ -365,11 +341,11 @@ class Run {
 
   RunSummary summary(double wall_seconds) {
     RunSummary sum = sum_;
-    sum.last_step = step_count();
+    sum.last_step = bd_.step_count();
     sum.wall_seconds = wall_seconds;
-    const IntegratorTotals t = totals();
+    const IntegratorTotals t = bd_.totals();
     sum.steps_per_second = t.steps > 0 ? static_cast<double>(t.steps) / sum.wall_seconds : 0.0;
-    sum.neighbour_rebuilds = neighbour_rebuilds();
+    sum.neighbour_rebuilds = bd_.neighbour_rebuilds();
     const double steps = std::max<double>(1.0, static_cast<double>(t.steps));
     sum.mean_sqrt_iterations = static_cast<double>(t.sqrt_iterations) / steps;
     sum.mean_mobility_products = static_cast<double>(t.mobility_products) / steps;
@@ -379,33 +355,6 @@ class Run {
     return sum;
   }
 
-  // The engine's state: the device engine's where the run is on it, else the Integrator's.
-  [[nodiscard]] std::span<const double> positions() const {
-    return device_ ? std::span<const double>(device_->positions()) : bd_.positions();
-  }
-  [[nodiscard]] std::uint64_t step_count() const { return device_ ? device_->step_count() : bd_.step_count(); }
-  [[nodiscard]] double time() const {  // Integrator::time()
-    return static_cast<double>(step_count()) * config_.integrator.dt;
-  }
-  [[nodiscard]] double potential_energy() const {
-    return device_ ? device_->potential_energy() : bd_.last_report().potential_energy;
-  }
-  [[nodiscard]] std::size_t neighbour_rebuilds() const {
-    return device_ ? device_->rebuilds() : bd_.neighbour_rebuilds();
-  }
-  /// The device engine's totals: its steps, one product with the free-draining mobility per step
-  /// (each particle's mu F and sqrt(mu) z in one pass, as the CPU engine counts for method
-  /// "none"), no square-root iterations, and its seconds per part.
-  [[nodiscard]] IntegratorTotals totals() const {
-    if (!device_) return bd_.totals();
-    IntegratorTotals t;
-    t.steps = device_->step_count() - start_.step;
-    t.mobility_products = t.steps;
-    t.seconds = {{"neighbours", 0.0}, {"forces", 0.0}, {"plan", 0.0}, {"drift", 0.0}, {"sqrt", 0.0}, {"update", 0.0}};
-    for (const auto& [part, seconds] : device_->stage_times()) t.seconds[part] = seconds;
-    return t;
-  }
-
   const RunConfig& config_;
   const RunOptions& options_;
   Start start_;
@@ -413,7 +362,6 @@ class Run {
   ForceField forces_;
   std::size_t n_;
   Integrator bd_;
-  std::unique_ptr<device::Stepper> device_;  // null: the steps are bd_'s
   RunSummary sum_;
   std::optional<OutputDirectory> made_;  // before the files: they are removed first on failure
   TrajectoryFile traj_{config_.output.format};

@@ -27,6 +27,7 @@
 #include "rpyfmm/bd/integrator.hpp"
 #include "rpyfmm/bd/particles.hpp"
 #include "rpyfmm/bd/run.hpp"
+#include "rpyfmm/bd/step_engine.hpp"
 #include "rpyfmm/rpy/mobility_factory.hpp"
 
 namespace rpyfmm::python {
@@ -66,6 +67,7 @@ nb::dict summary_dict(const bd::RunSummary& s) {
   nb::dict d;
   d["particles"] = s.particles;
   d["mobility"] = s.mobility;
+  d["engine"] = s.engine;
   d["first_step"] = s.first_step;
   d["last_step"] = s.last_step;
   d["wall_seconds"] = s.wall_seconds;
@@ -216,6 +218,26 @@ rpy::SqrtOptions simulation_sqrt(const std::string& method, double tolerance, co
   return o;
 }
 
+/// "cuda" | "host": what runs the device engine's stages (bd::DeviceLauncher).
+bd::DeviceLauncher launcher_from(const std::string& name) {
+  if (name == "cuda") return bd::DeviceLauncher::cuda;
+  if (name == "host") return bd::DeviceLauncher::host;
+  fail(ErrorCode::invalid_argument, "Simulation", "unknown device_launcher '" + name + "' (expected cuda or host)");
+}
+
+/// The engine `spec` asks for (device 'cuda' with mobility 'none': the device engine, run by
+/// `launcher`; docs/gpu-bd.md). A Python force is refused there: the device step has no host
+/// round trip to call it.
+bd::StepEngine simulation_engine(const rpy::MobilitySpec& spec, const std::string& launcher, nb::handle force) {
+  const bd::StepEngine engine = bd::step_engine_for(spec, launcher_from(launcher));
+  require(force.is_none() || engine == bd::StepEngine::cpu, ErrorCode::not_supported, "Simulation",
+          "a Python force callback (force=...) cannot run on the device engine (device 'cuda' with mobility "
+          "'none' runs the whole step on the GPU, without a host round trip); give the forces as pair potentials, "
+          "bonds or external forces (pair=, external_force=; a config's [[pair]], [bonds], [external]), or use "
+          "device='cpu'");
+  return engine;
+}
+
 class Simulation {
  public:
   /// From arrays and keywords (see the binding's docstring); `sqrt_tol` is the deprecated spelling of
@@ -224,13 +246,12 @@ class Simulation {
              const std::string& mobility, double viscosity, BoxArg box, double tolerance,
              const std::string& sqrt_method, std::optional<double> sqrt_tolerance, double max_displacement,
              OptArrayArg external_force, nb::handle force, nb::handle pair, std::uint64_t first_step,
-             std::size_t fmm_crossover, const std::string& sqrt_preconditioner, std::optional<double> sqrt_tol) {
+             std::size_t fmm_crossover, const std::string& sqrt_preconditioner, std::optional<double> sqrt_tol,
+             const std::string& device, const std::string& device_launcher) {
     const std::string where = "Simulation";
     const InArray x = as_input(positions, where, "positions");
     const std::size_t n = require_points(x, where, "positions");
     auto [types, type_of] = types_of(simulation_radii(radius, n, where));
-    bd::ForceField forces = simulation_forces(std::move(types), pair, external_force, where);
-    add_force(forces, force);
 
     rpy::MobilitySpec spec;
     spec.method = rpy::mobility_method_from_string(mobility);
@@ -238,7 +259,11 @@ class Simulation {
     spec.viscosity = viscosity;
     spec.geometry = geometry_from(box, where);
     spec.fmm_crossover = fmm_crossover;
+    spec.device = rpy::compute_device_from_string(device, "Simulation");
     bd::IntegratorOptions o;
+    o.engine = simulation_engine(spec, device_launcher, force);
+    bd::ForceField forces = simulation_forces(std::move(types), pair, external_force, where);
+    add_force(forces, force);
     o.dt = dt;
     o.kT = kT;
     o.seed = seed;
@@ -246,20 +271,22 @@ class Simulation {
     o.sqrt = simulation_sqrt(sqrt_method, sqrt_t, sqrt_preconditioner, where);
     o.max_displacement = max_displacement;
     bd::NeighbourOptions neighbours;
-    integrator_ = std::make_unique<bd::Integrator>(rpy::make_mobility(spec, n), std::move(forces), o,
+    integrator_ = std::make_unique<bd::Integrator>(bd::engine_mobility(spec, o.engine, n), std::move(forces), o,
                                                    std::vector<double>(x.data, x.data + x.size), std::move(type_of),
                                                    neighbours, first_step);
   }
 
-  /// From a run config: the same particles, forces and mobility as `rpyfmm bd` (run.cpp).
-  Simulation(const bd::RunConfig& config, nb::handle force) {
+  /// From a run config: the same particles, forces, mobility and engine as `rpyfmm bd` (run.cpp).
+  Simulation(const bd::RunConfig& config, nb::handle force, const std::string& device_launcher) {
+    bd::IntegratorOptions o = config.integrator;
+    o.engine = simulation_engine(config.mobility, device_launcher, force);
     bd::ForceField forces = bd::make_force_field(config);
     const bd::InitialState start = bd::make_particles(config, forces);
     forces.add_bonds(start.bonds);
     add_force(forces, force);
     const std::size_t n = start.types.size();
     integrator_ =
-        std::make_unique<bd::Integrator>(rpy::make_mobility(config.mobility, n), std::move(forces), config.integrator,
+        std::make_unique<bd::Integrator>(bd::engine_mobility(config.mobility, o.engine, n), std::move(forces), o,
                                          start.positions, start.types, config.neighbours, 0, start.orientations);
   }
 
@@ -271,6 +298,12 @@ class Simulation {
   }
 
   bd::Integrator& integrator() { return *integrator_; }
+  /// After steps on the device engine: its positions and forces copied to the host arrays that
+  /// the live views show (a no-op on the CPU engine, whose arrays they are).
+  void refresh_views() const {
+    (void)integrator_->positions();
+    (void)integrator_->last_forces();
+  }
   [[nodiscard]] const bd::Integrator& integrator() const { return *integrator_; }
 
  private:
@@ -323,6 +356,7 @@ void add_simulation_steps(SimulationClass& cls) {
                 {
                   nb::gil_scoped_release release;
                   r = s.integrator().step();
+                  s.refresh_views();
                 }
                 return r;
               }),
@@ -334,6 +368,7 @@ void add_simulation_steps(SimulationClass& cls) {
                +[](Simulation& s, std::uint64_t count) {
                  nb::gil_scoped_release release;
                  s.integrator().run(count);
+                 s.refresh_views();
                }),
            nb::arg("count"), "Advances `count` steps.");
 }
@@ -380,6 +415,10 @@ void add_simulation_state(SimulationClass& cls) {
       .def_prop_ro(
           "mobility", [](const Simulation& s) { return s.integrator().mobility().name(); },
           "Name of the mobility operator in use ('none', 'direct', 'fmm', 'pse').")
+      .def_prop_ro(
+          "engine", [](const Simulation& s) { return std::string(bd::to_string(s.integrator().options().engine)); },
+          "What runs the steps: 'cpu', 'cuda' (the device engine, docs/gpu-bd.md) or 'host launcher' (the\n"
+          "device engine's stages on the CPU, device_launcher='host').")
       .def_prop_ro("neighbour_rebuilds",
                    locked_read(
                        "Simulation.neighbour_rebuilds",
@@ -495,31 +534,42 @@ void bind_simulation(nb::module_& m) {
                       "Steppable Brownian dynamics with hydrodynamic interactions (bd::Integrator):\n"
                       "  dx = M F dt + sqrt(2 kT dt) M^{1/2} z.\n"
                       "The GIL is released while stepping and taken only to call the Python force.");
-  cls.def(nb::init<ArrayArg, RadiusArg, double, double, std::uint64_t, const std::string&, double, BoxArg, double,
-                   const std::string&, std::optional<double>, double, OptArrayArg, nb::handle, nb::handle,
-                   std::uint64_t, std::size_t, const std::string&, std::optional<double>>(),
-          nb::arg("positions"), nb::arg("radius") = 1.0, nb::kw_only(), nb::arg("dt"), nb::arg("kT") = 1.0,
-          nb::arg("seed") = 1, nb::arg("mobility") = "auto", nb::arg("viscosity") = 1.0, nb::arg("box") = nb::none(),
-          nb::arg("tolerance") = 1e-3, nb::arg("sqrt_method") = "auto",
-          nb::arg("sqrt_tolerance").sig("0.001") = nb::none(), nb::arg("max_displacement") = 1.0,
-          nb::arg("external_force") = nb::none(), nb::arg("force") = nb::none(), nb::arg("pair") = nb::none(),
-          nb::arg("first_step") = 0, nb::arg("fmm_crossover") = 0, nb::arg("sqrt_preconditioner") = "auto",
-          nb::arg("sqrt_tol") = nb::none(),
-          "positions: (N, 3) (length units, copied); radius: a number or (N,) radii; dt: time step; kT: thermal\n"
-          "energy; mobility: 'none', 'direct', 'fmm', 'pse', 'auto'; box: None, L or (Lx, Ly, Lz);\n"
-          "tolerance: of the fmm/pse product; sqrt_method/sqrt_tolerance: Brownian square root (sqrt_tol:\n"
-          "the deprecated spelling of sqrt_tolerance);\n"
-          "sqrt_preconditioner: 'auto' (block-preconditioned Krylov, direct/fmm), 'block' or 'none';\n"
-          "max_displacement: blow-up guard in radii per step; external_force: (3,) force on every particle;\n"
-          "force: callable f(positions, step, forces) adding into forces (N, 3) in place and/or returning an\n"
-          "array to add (energy/length; both arrays are copies it may keep);\n"
-          "pair: None, 'wca', 'lj36_18', 'soft' or a dict of PairPotential fields;\n"
-          "fmm_crossover: particles from which 'auto' uses fmm (0 = default_fmm_crossover(tolerance)).")
+  cls.def(
+         nb::init<ArrayArg, RadiusArg, double, double, std::uint64_t, const std::string&, double, BoxArg, double,
+                  const std::string&, std::optional<double>, double, OptArrayArg, nb::handle, nb::handle, std::uint64_t,
+                  std::size_t, const std::string&, std::optional<double>, const std::string&, const std::string&>(),
+         nb::arg("positions"), nb::arg("radius") = 1.0, nb::kw_only(), nb::arg("dt"), nb::arg("kT") = 1.0,
+         nb::arg("seed") = 1, nb::arg("mobility") = "auto", nb::arg("viscosity") = 1.0, nb::arg("box") = nb::none(),
+         nb::arg("tolerance") = 1e-3, nb::arg("sqrt_method") = "auto",
+         nb::arg("sqrt_tolerance").sig("0.001") = nb::none(), nb::arg("max_displacement") = 1.0,
+         nb::arg("external_force") = nb::none(), nb::arg("force") = nb::none(), nb::arg("pair") = nb::none(),
+         nb::arg("first_step") = 0, nb::arg("fmm_crossover") = 0, nb::arg("sqrt_preconditioner") = "auto",
+         nb::arg("sqrt_tol") = nb::none(), nb::arg("device") = "cpu", nb::arg("device_launcher") = "cuda",
+         "positions: (N, 3) (length units, copied); radius: a number or (N,) radii; dt: time step; kT: thermal\n"
+         "energy; mobility: 'none', 'direct', 'fmm', 'pse', 'auto'; box: None, L or (Lx, Ly, Lz);\n"
+         "tolerance: of the fmm/pse product; sqrt_method/sqrt_tolerance: Brownian square root (sqrt_tol:\n"
+         "the deprecated spelling of sqrt_tolerance);\n"
+         "sqrt_preconditioner: 'auto' (block-preconditioned Krylov, direct/fmm), 'block' or 'none';\n"
+         "max_displacement: blow-up guard in radii per step; external_force: (3,) force on every particle;\n"
+         "force: callable f(positions, step, forces) adding into forces (N, 3) in place and/or returning an\n"
+         "array to add (energy/length; both arrays are copies it may keep);\n"
+         "pair: None, 'wca', 'lj36_18', 'soft' or a dict of PairPotential fields;\n"
+         "fmm_crossover: particles from which 'auto' uses fmm (0 = default_fmm_crossover(tolerance));\n"
+         "device: 'cpu', or 'cuda': with mobility 'none' the device engine runs the whole step on the GPU\n"
+         "(docs/gpu-bd.md; no force callable there), with 'pse' the PSE operator runs on the GPU;\n"
+         "device_launcher: what runs the device engine, 'cuda', or 'host': its stages on the CPU with the same\n"
+         "results bit for bit (for machines without a GPU).")
       .def_static(
-          "from_config", [](nb::handle config, nb::handle force) { return new Simulation(config_from(config), force); },
-          nb::arg("config"), nb::arg("force") = nb::none(), nb::rv_policy::take_ownership,
-          "The particles, forces and mobility of a BD config (RunConfig, path or TOML text), plus an optional\n"
-          "Python force; stepping it reproduces `run_bd` bitwise when force is None.");
+          "from_config",
+          [](nb::handle config, nb::handle force, const std::string& device_launcher) {
+            return new Simulation(config_from(config), force, device_launcher);
+          },
+          nb::arg("config"), nb::arg("force") = nb::none(), nb::kw_only(), nb::arg("device_launcher") = "cuda",
+          nb::rv_policy::take_ownership,
+          "The particles, forces, mobility and engine of a BD config (RunConfig, path or TOML text), plus an\n"
+          "optional Python force; stepping it reproduces `run_bd` bitwise when force is None. [mobility]\n"
+          "device = \"cuda\" with method = \"none\" runs the device engine (no force callable there),\n"
+          "device_launcher='host' its stages on the CPU.");
   add_simulation_steps(cls);
   add_simulation_state(cls);
 }

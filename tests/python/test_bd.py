@@ -48,6 +48,7 @@ def test_run_bd_equals_cli(cli, tmp_path: Path):
     cli("bd", "--config", cfg, "--out-dir", tmp_path / "cli", "--quiet")
     summary = rpyfmm.run_bd(CONFIG, out_dir=str(tmp_path / "py"))
     assert summary["particles"] == 30 and summary["mobility"] == "direct" and summary["last_step"] == 20
+    assert summary["engine"] == "cpu"
     assert (tmp_path / "py" / "trajectory.xyz").read_bytes() == (tmp_path / "cli" / "trajectory.xyz").read_bytes()
     # A path and a RunConfig work too.
     config = rpyfmm.load_config(cfg)

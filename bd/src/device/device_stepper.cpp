@@ -8,6 +8,27 @@ namespace rpyfmm::bd::device {
 
 namespace {
 
+/// A host copy of one of an engine's arrays, refreshed when read at a step other than the copy's.
+class StepCopy {
+ public:
+  StepCopy(std::vector<double> values, std::uint64_t step) : values_(std::move(values)), step_(step) {}
+
+  /// The copy at `step`; read() gives the engine's array when the copy is older.
+  template <class Read>
+  const std::vector<double>& at(std::uint64_t step, Read&& read) {
+    if (step_ != step) {
+      const auto fresh = read();
+      values_.assign(fresh.begin(), fresh.end());  // same size: the array stays where it is
+      step_ = step;
+    }
+    return values_;
+  }
+
+ private:
+  std::vector<double> values_;
+  std::uint64_t step_;
+};
+
 /// Stepper over an engine with DeviceEngine's members (DeviceEngine, HostEngine).
 template <class Engine>
 class EngineStepper final : public Stepper {
@@ -16,18 +37,16 @@ class EngineStepper final : public Stepper {
                 const EngineOptions& options, std::span<const double> positions, std::uint64_t first_step)
       : engine_(forces, std::move(types), geometry, options, positions, first_step),
         first_step_(first_step),
-        x_(positions.begin(), positions.end()),
-        x_step_(first_step) {}
+        x_(std::vector<double>(positions.begin(), positions.end()), first_step),
+        f_(std::vector<double>(positions.size(), 0.0), first_step) {}
 
   void step() override { engine_.step(); }
 
-  const std::vector<double>& positions() override {
-    if (x_step_ != engine_.step_count()) {
-      const auto x = engine_.positions();
-      x_.assign(x.begin(), x.end());
-      x_step_ = engine_.step_count();
-    }
-    return x_;
+  [[nodiscard]] const std::vector<double>& positions() const override {
+    return x_.at(engine_.step_count(), [this] { return engine_.positions(); });
+  }
+  [[nodiscard]] const std::vector<double>& forces() const override {
+    return f_.at(engine_.step_count(), [this] { return engine_.forces(); });
   }
 
   [[nodiscard]] std::uint64_t step_count() const override { return engine_.step_count(); }
@@ -40,8 +59,7 @@ class EngineStepper final : public Stepper {
  private:
   Engine engine_;
   std::uint64_t first_step_;
-  std::vector<double> x_;  // the positions at step x_step_
-  std::uint64_t x_step_;
+  mutable StepCopy x_, f_;  // host copies, read on request (const reads refresh them)
 };
 
 }  // namespace

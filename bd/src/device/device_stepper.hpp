@@ -1,7 +1,7 @@
-// rpyfmm::bd::device — the device engine as the run driver (bd/src/run.cpp) steps it: the CUDA
-// engine (DeviceEngine) or the same stages on the host launcher (HostEngine, tests without a
-// GPU) behind one interface, with the positions copied to the host only when a frame, a log row
-// or a checkpoint asks for them (docs/gpu-bd.md).
+// rpyfmm::bd::device — the device engine as the Integrator steps it (IntegratorOptions::engine):
+// the CUDA engine (DeviceEngine) or the same stages on the host launcher (HostEngine, tests
+// without a GPU) behind one interface, with the positions and forces copied to the host only when
+// they are read (a trajectory frame, a log row, a checkpoint; docs/gpu-bd.md).
 #pragma once
 
 #include <cstdint>
@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "rpyfmm/bd/device/device_engine.hpp"
-#include "rpyfmm/bd/run.hpp"
+#include "rpyfmm/bd/step_engine.hpp"
 
 namespace rpyfmm::bd::device {
 
@@ -19,8 +19,11 @@ class Stepper {
   virtual ~Stepper() = default;
   /// One step (DeviceEngine::step): on an error the positions stay at the last good step.
   virtual void step() = 0;
-  /// The positions at the current step (3N, unwrapped), copied to the host once per step asked.
-  virtual const std::vector<double>& positions() = 0;
+  /// The positions at the current step (3N, unwrapped), copied to the host once per step asked
+  /// (into the same array: a view of it shows the step it was last read at).
+  [[nodiscard]] virtual const std::vector<double>& positions() const = 0;
+  /// The forces at the start of the last step (3N; 0 before the first), copied as positions().
+  [[nodiscard]] virtual const std::vector<double>& forces() const = 0;
   [[nodiscard]] virtual std::uint64_t step_count() const = 0;
   /// The potential energy at the start of the last step; 0 before the first (as
   /// Integrator::last_report() before a step).

@@ -22,6 +22,13 @@ void require_device_support(const IntegratorOptions& options, const rpy::Mobilit
           "split displacements (keep_split_displacements) are not kept on the device");
 }
 
+void require_device_forces(const ForceField& forces) {
+  require(!forces.has_callbacks(), ErrorCode::not_supported, "bd device engine",
+          "force callbacks (ForceField::add_callback) run on the host and are not supported on the device "
+          "(its step has no host round trip); give the forces as pair potentials, bonds, external forces or the "
+          "trap, or use the CPU engine");
+}
+
 EngineOptions engine_options_for(const IntegratorOptions& options, const rpy::MobilityOperator& mobility,
                                  const NeighbourOptions& neighbours, const std::array<double, 3>& global_force) {
   require_device_support(options, mobility);

@@ -1,7 +1,7 @@
 // Test systems for the BD device stages (bd/src/device): configurations (random, clustered,
 // jittered lattices, open or periodic, positions unwrapped across the faces) and force fields
 // with every pair potential the CPU engine has, mixtures with a cut-off per pair of types, bonds,
-// external forces and a trap.
+// external forces and a trap; the Integrator options of their free-draining runs.
 #pragma once
 
 #include <array>
@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "rpyfmm/bd/force_field.hpp"
+#include "rpyfmm/bd/integrator.hpp"
 #include "rpyfmm/bd/potentials.hpp"
 
 namespace device_test {
@@ -21,6 +22,17 @@ using rpyfmm::bd::ForceField;
 using rpyfmm::bd::PairKind;
 using rpyfmm::bd::PairPotential;
 using rpyfmm::bd::ParticleType;
+
+/// The Integrator options of a run with time step dt at kT, keyed by seed, on `engine`.
+inline rpyfmm::bd::IntegratorOptions integrator_options(double dt, double kT, std::uint64_t seed,
+                                                        rpyfmm::bd::StepEngine engine = rpyfmm::bd::StepEngine::cpu) {
+  rpyfmm::bd::IntegratorOptions o;
+  o.dt = dt;
+  o.kT = kT;
+  o.seed = seed;
+  o.engine = engine;
+  return o;
+}
 
 /// n points uniform in [0, L)^3.
 inline std::vector<double> uniform_cloud(std::size_t n, double L, unsigned seed) {

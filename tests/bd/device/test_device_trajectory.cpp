@@ -26,14 +26,6 @@ using rpyfmm::rpy::Geometry;
 
 namespace {
 
-IntegratorOptions integrator_options(double dt, double kT, std::uint64_t seed) {
-  IntegratorOptions o;
-  o.dt = dt;
-  o.kT = kT;
-  o.seed = seed;
-  return o;
-}
-
 /// Runs both engines `steps` steps, comparing after each. Builds that fuse: positions within
 /// 1e-12 of the box scale per step taken (docs/gpu-bd.md), checked over the first 10 steps only.
 /// A skin of 0.1 (the default `neighbours`) makes the lists rebuild every few steps.

@@ -55,11 +55,13 @@ class ForceField {
   void add_bonds(std::span<const Bond> bonds);
   /// Constant force on every particle, added to the types' external forces.
   void set_global_force(const std::array<double, 3>& force);
+  [[nodiscard]] const std::array<double, 3>& global_force() const { return global_force_; }
   /// Harmonic trap at the origin on every particle: F = -stiffness x, energy stiffness |x|^2 / 2
   /// (x unwrapped; 0 = none). Throws unless finite and >= 0.
   void set_trap(double stiffness);
   [[nodiscard]] double trap_stiffness() const { return trap_; }
   void add_callback(ForceCallback callback);
+  [[nodiscard]] bool has_callbacks() const { return !callbacks_.empty(); }
   /// The torques on rotating particles (used by the integrator only with rotation on;
   /// docs/theory/bd.md Sec. 7). Replaces an earlier one; throws unless it has no types or one
   /// per particle type.

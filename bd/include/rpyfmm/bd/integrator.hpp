@@ -32,6 +32,9 @@
 // where complexes touch (docs/theory/bd.md Sec. 9).
 // Everything that enters x is independent of the thread count, provided the
 // mobility operator's products are.
+// With IntegratorOptions::engine set to the device engine (docs/gpu-bd.md), free-draining steps
+// run entirely on a CUDA device (or on its host launcher) with the same physics, bit for bit where
+// neither side fuses multiply-adds; features the device engine lacks are refused by name.
 #pragma once
 
 #include <cstdint>
@@ -46,10 +49,15 @@
 #include "rpyfmm/bd/neighbour_list.hpp"
 #include "rpyfmm/bd/sac.hpp"
 #include "rpyfmm/bd/sampling.hpp"
+#include "rpyfmm/bd/step_engine.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/rpy/mobility.hpp"
 
 namespace rpyfmm::bd {
+
+namespace device {
+class Stepper;
+}
 
 struct IntegratorOptions {
   /// Time step (> 0). No default: it must come from the user.
@@ -79,6 +87,10 @@ struct IntegratorOptions {
   /// Brownian ones. Needs at least one of each, the free-draining operator, no rotation, no split
   /// displacements and no bonds.
   SacOptions sac{};
+  /// What runs the steps (step_engine.hpp): the CPU engine, or the device engine, which takes the
+  /// free-draining operator ("none") without rotation, inertial particles, the SAC scheme, split
+  /// displacements or force callbacks, and refuses the others (not_supported, naming the feature).
+  StepEngine engine = StepEngine::cpu;
 };
 
 /// What one step did (and cumulative counters in Integrator::totals()).
@@ -109,10 +121,14 @@ class Integrator {
   /// (quaternion::checked: normalized unless already unit to 1e-14).
   /// `velocities` (with inertial types only): 3N half-step velocities v_{n-1/2} (0 for Brownian
   /// particles), or empty for the Maxwell distribution at kT keyed by the seed.
-  /// Throws rpyfmm::Error naming the bad option or particle.
+  /// Throws rpyfmm::Error naming the bad option or particle. With options.engine on the device
+  /// engine, also not_supported naming the first feature it lacks, or why no device is usable.
   Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceField forces, IntegratorOptions options,
              std::vector<double> positions, std::vector<std::uint32_t> types, NeighbourOptions neighbours = {},
              std::uint64_t first_step = 0, std::vector<double> orientations = {}, std::vector<double> velocities = {});
+  Integrator(Integrator&&) noexcept;
+  Integrator& operator=(Integrator&&) noexcept;
+  ~Integrator();
 
   /// Advances one step. On a blow-up or a force error the state is left at the
   /// last good step and rpyfmm::Error (numerical_failure / invalid_input) is thrown.
@@ -120,7 +136,9 @@ class Integrator {
   /// Advances `count` steps.
   void run(std::uint64_t count);
 
-  [[nodiscard]] std::span<const double> positions() const { return x_; }
+  /// The positions (3N, unwrapped). On the device engine, copied from the device when read at a
+  /// step not copied yet, into one host array: a span kept across steps shows the last read.
+  [[nodiscard]] std::span<const double> positions() const;
   [[nodiscard]] std::span<const std::uint32_t> types() const { return types_; }
   [[nodiscard]] std::span<const double> radii() const { return radii_; }
   [[nodiscard]] std::size_t size() const { return types_.size(); }
@@ -130,14 +148,16 @@ class Integrator {
   [[nodiscard]] const IntegratorOptions& options() const { return options_; }
   [[nodiscard]] const StepReport& last_report() const { return report_; }
   [[nodiscard]] const IntegratorTotals& totals() const { return totals_; }
-  [[nodiscard]] std::size_t neighbour_rebuilds() const { return list_.rebuilds(); }
-  [[nodiscard]] const NeighbourList& neighbour_list() const { return list_; }
+  [[nodiscard]] std::size_t neighbour_rebuilds() const;
+  /// The CPU engine's list; the device engine keeps its Verlet rows on the device and refuses
+  /// (not_supported).
+  [[nodiscard]] const NeighbourList& neighbour_list() const;
   [[nodiscard]] const ForceField& force_field() const { return forces_; }
   [[nodiscard]] const rpy::MobilityOperator& mobility() const { return *mobility_; }
   /// Forces at the start of the last step (3N). With the SAC scheme, those the step used: on a
   /// carrier with adsorbed particles the complex's force from outside it, on an adsorbed particle
-  /// the whole force on it (its relative step's).
-  [[nodiscard]] std::span<const double> last_forces() const { return f_; }
+  /// the whole force on it (its relative step's). On the device engine, copied as positions().
+  [[nodiscard]] std::span<const double> last_forces() const;
   /// M F dt and sqrt(2 kT dt) M^{1/2} z of the last step (needs keep_split_displacements).
   [[nodiscard]] std::span<const double> deterministic_displacement() const { return dx_det_; }
   [[nodiscard]] std::span<const double> brownian_displacement() const { return dx_brown_; }
@@ -170,6 +190,13 @@ class Integrator {
   void checked_displacements(double dt, double noise, bool brownian);
   /// The blow-up error for particle i (dx_ and phi_ hold its step).
   [[noreturn]] void fail_blow_up(std::size_t i) const;
+  /// The CPU engine's state: work arrays, orientations, inertial particles, SAC complexes.
+  void start_cpu_engine(std::vector<double> orientations, std::vector<double> velocities);
+  /// The device engine (integrator_device.cpp) from the checked particles and forces; refuses
+  /// what it lacks, orientations and velocities included.
+  void start_device_engine(const NeighbourOptions& neighbours, bool orientations, bool velocities);
+  /// One step of the device engine, with the report and totals the CPU engine gives for "none".
+  const StepReport& device_step();
 
   std::unique_ptr<rpy::MobilityOperator> mobility_;
   ForceField forces_;
@@ -192,6 +219,8 @@ class Integrator {
   Complexes complexes_;
   std::vector<std::uint32_t> groups_;
   std::vector<double> f_within_;
+  // The device engine (null: the CPU engine's steps); it holds the positions then.
+  std::unique_ptr<device::Stepper> device_;
 };
 
 }  // namespace rpyfmm::bd

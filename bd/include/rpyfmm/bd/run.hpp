@@ -10,14 +10,10 @@
 #include <string>
 
 #include "rpyfmm/bd/config.hpp"
+#include "rpyfmm/bd/step_engine.hpp"
 #include "rpyfmm/core/timer.hpp"
 
 namespace rpyfmm::bd {
-
-/// What runs the steps of a run with [mobility] device = "cuda" and method = "none"
-/// (docs/gpu-bd.md): the CUDA engine (DeviceEngine), or the same stages on the host (the host
-/// launcher, for tests of the run driver on machines without a GPU).
-enum class DeviceLauncher { cuda, host };
 
 struct RunOptions {
   /// Total number of steps of the run (overrides integrator.steps); a restarted run
@@ -27,7 +23,8 @@ struct RunOptions {
   std::optional<std::filesystem::path> out_dir;
   /// Progress line ("\r step k/n, rate, ETA") on this stream, or none.
   std::ostream* progress = nullptr;
-  /// The device engine's launcher (runs with device = "cuda" and method = "none" only).
+  /// The device engine's launcher (runs with device = "cuda" and method = "none" only;
+  /// step_engine_for).
   DeviceLauncher device_launcher = DeviceLauncher::cuda;
 };
 

@@ -6,9 +6,9 @@
 // engine (Integrator with the free-draining mobility "none"). Positions stay on the device; they
 // come to the host on request.
 //
-// Not (yet) covered: hydrodynamic interactions (PSE), rotation, inertial / SAC particles, force
-// callbacks, checkpoints of the device state and the [mobility] device switch of the run
-// configuration (docs/gpu-bd.md lists what remains).
+// Not covered: hydrodynamic interactions (PSE), rotation, inertial / SAC particles and force
+// callbacks. Library users reach the engine through Integrator (IntegratorOptions::engine), which
+// refuses those by name (docs/gpu-bd.md).
 #pragma once
 
 #include <array>

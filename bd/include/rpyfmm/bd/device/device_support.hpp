@@ -1,6 +1,6 @@
 // rpyfmm::bd::device — which CPU engine runs the device engine can take over (docs/gpu-bd.md):
 // free draining (the mobility "none") without rotation, inertial (Langevin) particles, the SAC
-// scheme or split displacements; and the device engine's options for such a run.
+// scheme, split displacements or force callbacks; and the device engine's options for such a run.
 #pragma once
 
 #include <array>
@@ -13,9 +13,12 @@
 namespace rpyfmm::bd::device {
 
 /// Throws rpyfmm::Error (not_supported) naming the first feature of the run that the device
-/// engine lacks. Force callbacks cannot be checked here (ForceField does not report them): the
-/// caller must refuse them.
+/// engine lacks (the forces: require_device_forces).
 void require_device_support(const IntegratorOptions& options, const rpy::MobilityOperator& mobility);
+
+/// Throws rpyfmm::Error (not_supported) when `forces` has callbacks: they run on the host, and the
+/// device engine's step has no host round trip.
+void require_device_forces(const ForceField& forces);
 
 /// The device engine's options for the Integrator run given by `options`, `mobility` (its
 /// viscosity), `neighbours` and the force field's global force (ForceField::set_global_force),

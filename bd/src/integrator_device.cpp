@@ -1,0 +1,60 @@
+// rpyfmm::bd — the Integrator on the device engine (IntegratorOptions::engine; docs/gpu-bd.md):
+// its start-up, its step with the report and totals of the CPU engine's free-draining step, and
+// the accessors that read whichever engine holds the state.
+#include <string>
+#include <utility>
+
+#include "device/device_stepper.hpp"
+#include "rpyfmm/bd/device/device_support.hpp"
+#include "rpyfmm/bd/integrator.hpp"
+#include "rpyfmm/core/validate.hpp"
+
+namespace rpyfmm::bd {
+
+void Integrator::start_device_engine(const NeighbourOptions& neighbours, bool orientations, bool velocities) {
+  const char* where = "Integrator";
+  const device::EngineOptions engine =
+      device::engine_options_for(options_, *mobility_, neighbours, forces_.global_force());
+  device::require_device_forces(forces_);
+  require(!orientations, ErrorCode::invalid_argument, where, "orientations given but rotation is off");
+  require(!velocities, ErrorCode::invalid_argument, where, "velocities given but no particle is inertial");
+  const DeviceLauncher launcher = options_.engine == StepEngine::cuda ? DeviceLauncher::cuda : DeviceLauncher::host;
+  device_ = device::make_stepper(launcher, forces_, types_, mobility_->geometry(), engine, x_, step_);
+  std::vector<double>().swap(x_);  // the engine holds the positions
+}
+
+const StepReport& Integrator::device_step() {
+  const std::size_t rebuilds = device_->rebuilds();
+  device_->step();  // on an error the engine stays at the last good step
+  StepReport rep;
+  rep.neighbour_rebuild = device_->rebuilds() != rebuilds;
+  rep.potential_energy = device_->potential_energy();
+  rep.mobility_products = 1;  // mu F and sqrt(mu) z in one pass, as the CPU engine counts "none"
+  step_ = device_->step_count();
+  ++totals_.steps;
+  totals_.mobility_products += 1;
+  for (const auto& [part, seconds] : device_->stage_times()) totals_.seconds[part] = seconds;
+  report_ = rep;
+  return report_;
+}
+
+std::span<const double> Integrator::positions() const {
+  return device_ ? std::span<const double>(device_->positions()) : std::span<const double>(x_);
+}
+
+std::span<const double> Integrator::last_forces() const {
+  return device_ ? std::span<const double>(device_->forces()) : std::span<const double>(f_);
+}
+
+std::size_t Integrator::neighbour_rebuilds() const {
+  return device_ ? device_->rebuilds() : list_.rebuilds();
+}
+
+const NeighbourList& Integrator::neighbour_list() const {
+  require(!device_, ErrorCode::not_supported, "Integrator",
+          std::string("neighbour_list(): the device engine (") + to_string(options_.engine) +
+              ") keeps its Verlet rows on the device (neighbour_rebuilds() counts its builds)");
+  return list_;
+}
+
+}  // namespace rpyfmm::bd
