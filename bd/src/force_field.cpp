@@ -151,8 +151,9 @@ void record_bad(std::atomic<std::size_t>& bad, std::size_t i) {
 }  // namespace
 
 void ForceField::fail_overlap(std::size_t i, std::span<const double> x, std::span<const std::uint32_t> ptype,
-                              const NeighbourList& list, std::uint64_t step,
-                              std::span<const std::uint32_t> groups) const {
+                              const NeighbourList& list, std::uint64_t step, std::span<const std::uint32_t> groups,
+                              std::span<const std::uint64_t> ids) const {
+  const auto name = [&](std::size_t k) { return std::to_string(ids.empty() ? k : ids[k]); };
   const std::size_t nt = types_.size();
   for (std::uint32_t j : list.neighbours(i)) {
     const PairTerm& p = pairs_[ptype[i] * nt + ptype[j]];
@@ -162,9 +163,9 @@ void ForceField::fail_overlap(std::size_t i, std::span<const double> x, std::spa
     const double r = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
     if (r <= p.min_distance || r == 0.0) {
       fail(ErrorCode::invalid_input, "forces",
-           "particles " + std::to_string(i) + " and " + std::to_string(j) + " overlap at step " + std::to_string(step) +
-               ": distance " + fmt_double(r) + " <= " + fmt_double(p.min_distance) + " allowed by the hard '" +
-               to_string(p.kind) + "' potential (sigma " + fmt_double(p.sigma) + ")");
+           "particles " + name(i) + " and " + name(j) + " overlap at step " + std::to_string(step) + ": distance " +
+               fmt_double(r) + " <= " + fmt_double(p.min_distance) + " allowed by the hard '" + to_string(p.kind) +
+               "' potential (sigma " + fmt_double(p.sigma) + ")");
     }
   }
 }
@@ -212,6 +213,37 @@ double ForceField::add_pair_forces(std::size_t i, std::span<const double> x, std
   return e;
 }
 
+double ForceField::particle_row(std::size_t i, std::span<const double> x, std::span<const std::uint32_t> ptype,
+                                const NeighbourList& list, std::span<const std::uint32_t> groups, double f[3],
+                                double* fw, RowFailures& bad) const {
+  const ParticleType& ti = types_[ptype[i]];
+  for (int c = 0; c < 3; ++c) f[c] = ti.external_force[c] + global_force_[c];
+  double e = 0.0;
+  if (max_cutoff() > 0.0) e += add_pair_forces(i, x, ptype, list, groups, f, fw, bad.pair);
+  for (std::size_t k = bond_offsets_[i]; k < bond_offsets_[i + 1]; ++k) {
+    const Bond& b = bonds_[bond_entries_[k]];
+    const BondPotential& bp = bond_potentials_[b.type];
+    const std::uint32_t j = b.i == i ? b.j : b.i;
+    double d[3];
+    list.separation(&x[3 * i], &x[3 * j], d);
+    const double r = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    if (r == 0.0 || (bp.kind == BondKind::fene && r >= bp.length)) {
+      record_bad(bad.bond, bond_entries_[k]);
+      continue;
+    }
+    const EnergyForce ef = evaluate_bond(bp, r);
+    e += 0.5 * ef.energy;
+    for (int c = 0; c < 3; ++c) f[c] += ef.s * d[c];
+  }
+  if (trap_ > 0.0) {
+    for (int c = 0; c < 3; ++c) {
+      f[c] -= trap_ * x[3 * i + c];
+      e += 0.5 * trap_ * x[3 * i + c] * x[3 * i + c];
+    }
+  }
+  return e;
+}
+
 double ForceField::compute(std::span<const double> x, std::span<const std::uint32_t> ptype, const NeighbourList& list,
                            std::uint64_t step, std::span<double> forces, std::span<const std::uint32_t> groups,
                            std::span<double> within) const {
@@ -223,58 +255,59 @@ double ForceField::compute(std::span<const double> x, std::span<const std::uint3
   require(within.empty() || (within.size() == 3 * n && !groups.empty()), ErrorCode::invalid_input,
           "ForceField::compute", "within needs groups and 3N entries");
   const bool split = !within.empty();
-  const double rc = max_cutoff();
-  require(rc == 0.0 || (list.size() == n && list.cutoff() >= rc), ErrorCode::invalid_input, "ForceField::compute",
-          "neighbour list is not built for these particles and cutoffs");
+  check_list(list, n, "ForceField::compute");
   if (!bond_index_valid_ || bond_index_n_ != n) rebuild_bond_index(n);
-  constexpr std::size_t none = std::numeric_limits<std::size_t>::max();
-  std::atomic<std::size_t> bad_pair{none}, bad_bond{none};
+  RowFailures bad;
   // Each particle's share of the energy, summed afterwards in particle order: an OpenMP reduction
   // would add the threads' partial sums in an order that depends on the schedule, so the energy
   // (the log's potential_energy) would change in its last bits with the thread count and the run.
   std::vector<double> particle_energy(n);
 #pragma omp parallel for schedule(dynamic, 256) if (n >= 1024)
   for (std::size_t i = 0; i < n; ++i) {
-    const ParticleType& ti = types_[ptype[i]];
-    double f[3] = {ti.external_force[0] + global_force_[0], ti.external_force[1] + global_force_[1],
-                   ti.external_force[2] + global_force_[2]};
-    double e = 0.0;
+    double f[3];
     double fw[3] = {0.0, 0.0, 0.0};
-    if (rc > 0.0) e += add_pair_forces(i, x, ptype, list, groups, f, split ? fw : nullptr, bad_pair);
-    for (std::size_t k = bond_offsets_[i]; k < bond_offsets_[i + 1]; ++k) {
-      const Bond& b = bonds_[bond_entries_[k]];
-      const BondPotential& bp = bond_potentials_[b.type];
-      const std::uint32_t j = b.i == i ? b.j : b.i;
-      double d[3];
-      list.separation(&x[3 * i], &x[3 * j], d);
-      const double r = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-      if (r == 0.0 || (bp.kind == BondKind::fene && r >= bp.length)) {
-        record_bad(bad_bond, bond_entries_[k]);
-        continue;
-      }
-      const EnergyForce ef = evaluate_bond(bp, r);
-      e += 0.5 * ef.energy;
-      for (int c = 0; c < 3; ++c) f[c] += ef.s * d[c];
-    }
-    if (trap_ > 0.0) {
-      for (int c = 0; c < 3; ++c) {
-        f[c] -= trap_ * x[3 * i + c];
-        e += 0.5 * trap_ * x[3 * i + c] * x[3 * i + c];
-      }
-    }
+    particle_energy[i] = particle_row(i, x, ptype, list, groups, f, split ? fw : nullptr, bad);
     for (int c = 0; c < 3; ++c) forces[3 * i + c] = f[c];
     if (split)
       for (int c = 0; c < 3; ++c) within[3 * i + c] = fw[c];
-    particle_energy[i] = e;
   }
   double energy = 0.0;
   for (const double e : particle_energy) energy += e;
   // With `within`, every pair was checked for overlaps: the search looks at all of them.
-  if (bad_pair.load() != none)
-    fail_overlap(bad_pair.load(), x, ptype, list, step, split ? std::span<const std::uint32_t>() : groups);
-  if (bad_bond.load() != none) fail_bond(bad_bond.load(), x, list, step);
+  if (bad.pair.load() != RowFailures::kNone)
+    fail_overlap(bad.pair.load(), x, ptype, list, step, split ? std::span<const std::uint32_t>() : groups);
+  if (bad.bond.load() != RowFailures::kNone) fail_bond(bad.bond.load(), x, list, step);
   for (const auto& cb : callbacks_) cb(x, step, forces);
   return energy;
+}
+
+void ForceField::compute_rows(std::span<const double> x, std::span<const std::uint32_t> ptype,
+                              const NeighbourList& list, std::uint64_t step, std::span<const std::uint32_t> rows,
+                              std::span<const std::uint64_t> ids, std::span<double> forces,
+                              std::span<double> energies) const {
+  const std::size_t n = ptype.size(), m = rows.size();
+  require(x.size() == 3 * n && ids.size() == n, ErrorCode::invalid_input, "ForceField::compute_rows",
+          "positions, types and ids disagree on N");
+  require(forces.size() == 3 * m && energies.size() == m, ErrorCode::invalid_input, "ForceField::compute_rows",
+          "forces and energies must have 3 and 1 entries per row");
+  require(bonds_.empty() && callbacks_.empty(), ErrorCode::not_supported, "ForceField::compute_rows",
+          "bonds and force callbacks index the whole system, not a part of it");
+  require(std::all_of(rows.begin(), rows.end(), [n](std::uint32_t i) { return i < n; }), ErrorCode::invalid_input,
+          "ForceField::compute_rows", "a row index is beyond N");
+  check_list(list, n, "ForceField::compute_rows");
+  if (!bond_index_valid_ || bond_index_n_ != n) rebuild_bond_index(n);
+  RowFailures bad;
+#pragma omp parallel for schedule(dynamic, 256) if (m >= 1024)
+  for (std::size_t k = 0; k < m; ++k) {
+    energies[k] = particle_row(rows[k], x, ptype, list, {}, &forces[3 * k], nullptr, bad);
+  }
+  if (bad.pair.load() != RowFailures::kNone) fail_overlap(bad.pair.load(), x, ptype, list, step, {}, ids);
+}
+
+void ForceField::check_list(const NeighbourList& list, std::size_t n, const char* where) const {
+  const double rc = max_cutoff();
+  require(rc == 0.0 || (list.size() == n && list.cutoff() >= rc), ErrorCode::invalid_input, where,
+          "neighbour list is not built for these particles and cutoffs");
 }
 
 }  // namespace rpyfmm::bd

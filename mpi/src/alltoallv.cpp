@@ -3,7 +3,9 @@
 
 #include <algorithm>
 #include <climits>
+#include <cstdint>
 #include <string>
+#include <utility>
 
 #include "rpyfmm/core/validate.hpp"
 
@@ -44,6 +46,17 @@ std::vector<double> alltoallv(const Communicator& comm, const std::vector<std::v
                           MPI_DOUBLE, comm.get()),
             "MPI_Alltoallv");
   return received;
+}
+
+std::vector<double> alltoallv(const Communicator& comm, const std::vector<std::vector<double>>& send, const char* where,
+                              const char* what, std::vector<std::size_t>* recv_counts) {
+  std::vector<std::uint64_t> sent(send.size()), received(send.size());
+  for (std::size_t r = 0; r < send.size(); ++r) sent[r] = send[r].size();
+  check_mpi(MPI_Alltoall(sent.data(), 1, MPI_UINT64_T, received.data(), 1, MPI_UINT64_T, comm.get()), "MPI_Alltoall");
+  std::vector<std::size_t> counts(received.begin(), received.end());
+  std::vector<double> values = alltoallv(comm, send, counts, where, what);
+  if (recv_counts != nullptr) *recv_counts = std::move(counts);
+  return values;
 }
 
 }  // namespace rpyfmm::mpi::detail

@@ -17,4 +17,10 @@ namespace rpyfmm::mpi::detail {
                                             std::span<const std::size_t> recv_counts, const char* where,
                                             const char* what);
 
+/// Collective: as above, with the receive counts first exchanged by one MPI_Alltoall; recv_counts,
+/// where not null, receives them (doubles from each rank).
+[[nodiscard]] std::vector<double> alltoallv(const Communicator& comm, const std::vector<std::vector<double>>& send,
+                                            const char* where, const char* what,
+                                            std::vector<std::size_t>* recv_counts = nullptr);
+
 }  // namespace rpyfmm::mpi::detail

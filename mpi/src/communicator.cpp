@@ -66,4 +66,16 @@ void Communicator::agree(const std::optional<Error>& local_problem) const {
   throw Error(static_cast<ErrorCode>(header[0]), text);
 }
 
+bool same_on_every_rank(const Communicator& comm, std::vector<double> values) {
+  const std::size_t n = values.size();
+  for (std::size_t i = 0; i < n; ++i) values.push_back(-values[i]);
+  std::vector<double> seen(values.size());
+  check_mpi(MPI_Allreduce(values.data(), seen.data(), static_cast<int>(values.size()), MPI_DOUBLE, MPI_MIN, comm.get()),
+            "MPI_Allreduce");
+  for (std::size_t i = 0; i < n; ++i) {
+    if (seen[i] != -seen[n + i]) return false;
+  }
+  return true;
+}
+
 }  // namespace rpyfmm::mpi

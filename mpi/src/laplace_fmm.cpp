@@ -40,19 +40,6 @@ std::vector<double> option_signature(const DistributedFmmOptions& o) {
           o.separation,     static_cast<double>(o.chebyshev_order),   static_cast<double>(o.cell_capacity)};
 }
 
-// Collective: whether every rank passed the same values (min and max of each entry agree).
-bool same_on_every_rank(const Communicator& comm, std::vector<double> values) {
-  const std::size_t n = values.size();
-  for (std::size_t i = 0; i < n; ++i) values.push_back(-values[i]);
-  std::vector<double> seen(values.size());
-  check_mpi(MPI_Allreduce(values.data(), seen.data(), static_cast<int>(values.size()), MPI_DOUBLE, MPI_MIN, comm.get()),
-            "MPI_Allreduce");
-  for (std::size_t i = 0; i < n; ++i) {
-    if (seen[i] != -seen[n + i]) return false;
-  }
-  return true;
-}
-
 // Collective: translates the owned sources x and targets y next to the origin where the whole cloud lies far
 // from it (its centre at least 4 extents out along an axis), by the centre of the global box on
 // that axis, as the serial FMM does (exact_shifts in fmm/src/laplace_fmm.cpp): every coordinate is

@@ -497,6 +497,66 @@ TEST(ForceField, OverlapAndOverstretchedBondNameTheParticles) {
   EXPECT_THROW(ForceField({ParticleType{"A", -1.0}}), Error);
 }
 
+// compute_rows on a part of a system (the particles of one MPI rank with its halo): the rows' forces
+// and energy shares are compute()'s bit for bit, whatever subset of rows is asked for and in which
+// order; errors name the particles by their ids; bonds and callbacks are refused.
+TEST(ForceField, RowsOfAPartEqualTheWholeSystemsForcesBitForBit) {
+  ForceField ff({ParticleType{"A", 0.5, {0.0, 0.1, 0.0}, 0.0}, ParticleType{"B", 0.7, {0, 0, 0}, 0.0}});
+  ff.set_pair(0, 0, {.kind = PairKind::lj36_18, .epsilon = 1.0});
+  ff.set_pair(0, 1, {.kind = PairKind::wca});
+  ff.set_pair(1, 1, {.kind = PairKind::soft, .epsilon = 2.0});
+  ff.set_trap(0.1);
+  const std::size_t n = 125;
+  std::vector<double> x(3 * n);
+  std::vector<std::uint32_t> types(n);
+  std::mt19937_64 gen(3);
+  std::uniform_real_distribution<double> jitter(-0.1, 0.1);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t c = 0, k = i; c < 3; ++c, k /= 5) x[3 * i + c] = 1.5 * static_cast<double>(k % 5) + jitter(gen);
+    types[i] = static_cast<std::uint32_t>(i % 2);
+  }
+  NeighbourList list(rpyfmm::rpy::Geometry::open(), ff.max_cutoff(), {});
+  list.set_pair_cutoffs(types, ff.pair_cutoffs(), 2);
+  list.build(x);
+  std::vector<double> f(3 * n);
+  const double energy = ff.compute(x, types, list, 0, f);
+  std::vector<std::uint64_t> ids(n);
+  for (std::size_t i = 0; i < n; ++i) ids[i] = 1000 + i;
+  const std::vector<std::uint32_t> rows{77, 3, 124, 0, 50};
+  std::vector<double> fr(3 * rows.size()), er(rows.size());
+  ff.compute_rows(x, types, list, 0, rows, ids, fr, er);
+  for (std::size_t k = 0; k < rows.size(); ++k)
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(fr[3 * k + c], f[3 * rows[k] + c]) << "row " << rows[k];
+  std::vector<std::uint32_t> all(n);
+  for (std::size_t i = 0; i < n; ++i) all[i] = static_cast<std::uint32_t>(i);
+  std::vector<double> fa(3 * n), ea(n);
+  ff.compute_rows(x, types, list, 0, all, ids, fa, ea);
+  double sum = 0.0;
+  for (const double e : ea) sum += e;
+  EXPECT_EQ(sum, energy);  // compute() sums the same shares in the same order
+  EXPECT_EQ(fa, f);
+  // An overlap is named by the ids.
+  std::vector<double> y = x;
+  for (int c = 0; c < 3; ++c) y[3 * 6 + c] = y[3 * 5 + c] + (c == 1 ? 0.2 : 0.0);
+  list.build(y);
+  try {
+    ff.compute_rows(y, types, list, 4, all, ids, fa, ea);
+    FAIL() << "overlap not detected";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("particles 1005 and 1006 overlap at step 4"), std::string::npos) << e.what();
+  }
+  const std::vector<std::uint32_t> beyond{0, 125};
+  EXPECT_THROW(ff.compute_rows(x, types, list, 0, beyond, ids, fr, er), Error);
+  ForceField bonded = ff;
+  bonded.add_bonds(std::vector<Bond>{{0, 1, bonded.add_bond_potential({})}});
+  try {
+    bonded.compute_rows(x, types, list, 0, rows, ids, fr, er);
+    FAIL() << "bonds not refused";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::not_supported);
+  }
+}
+
 TEST(MobilityFactory, FreeDrainingAndUnavailableMethods) {
   auto m = make_mobility({.method = MobilityMethod::none}, 2);
   m->set_positions(std::vector<double>{0, 0, 0, 1, 0, 0}, std::vector<double>{1.0, 2.0});

@@ -92,6 +92,13 @@ void fill_motion(const ForceField& forces, const EngineOptions& o, EngineTables&
 
 }  // namespace
 
+EngineTables make_motion_tables(const ForceField& forces, const EngineOptions& options) {
+  check_options(options);
+  EngineTables t;
+  fill_motion(forces, options, t);
+  return t;
+}
+
 EngineTables make_engine_tables(const ForceField& forces, std::span<const std::uint32_t> types,
                                 const rpy::Geometry& geometry, const EngineOptions& options) {
   check_options(options);

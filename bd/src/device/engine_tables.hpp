@@ -55,6 +55,12 @@ struct EngineTables {
 EngineTables make_engine_tables(const ForceField& forces, std::span<const std::uint32_t> types,
                                 const rpy::Geometry& geometry, const EngineOptions& options);
 
+/// The free-draining motion of particles of `forces`' types under `options` alone (mobility,
+/// sqrt_mobility, radius per type and the step's constants; no particle, force or list tables), after
+/// the checks of make_engine_tables on the options. For steps on a part of a system
+/// (rpyfmm/mpi/brownian_dynamics.hpp).
+EngineTables make_motion_tables(const ForceField& forces, const EngineOptions& options);
+
 /// Throws unless positions holds 3n finite values.
 void check_positions(std::span<const double> positions, std::size_t n);
 

@@ -10,6 +10,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <optional>
 #include <span>
 #include <string>
@@ -95,9 +96,32 @@ class ForceField {
   double compute(std::span<const double> positions, std::span<const std::uint32_t> particle_types,
                  const NeighbourList& list, std::uint64_t step, std::span<double> forces,
                  std::span<const std::uint32_t> groups = {}, std::span<double> within = {}) const;
+  /// compute() for some particles of a part of a larger system (a rank's own particles among its
+  /// own and halo particles, rpyfmm/mpi/brownian_dynamics.hpp): forces (3 per row) and energies (one
+  /// per row: the particle's share, half of each pair's energy and its trap energy, the terms that
+  /// compute() sums) of the particles `rows` (indices < N), each summed in compute()'s order, so
+  /// bit for bit compute()'s values where the part holds every neighbour of the row's particle in
+  /// the whole system's order. ids (N): each particle's index in the whole system, named in errors
+  /// instead of its index here. Bonds and callbacks index the whole system and are refused
+  /// (not_supported).
+  void compute_rows(std::span<const double> positions, std::span<const std::uint32_t> particle_types,
+                    const NeighbourList& list, std::uint64_t step, std::span<const std::uint32_t> rows,
+                    std::span<const std::uint64_t> ids, std::span<double> forces, std::span<double> energies) const;
 
  private:
   void rebuild_bond_index(std::size_t n) const;
+  /// The lowest particle with a hard-core overlap and the lowest bad bond found by any thread.
+  struct RowFailures {
+    static constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
+    std::atomic<std::size_t> pair{kNone}, bond{kNone};
+  };
+  /// Particle i's force into f (external, pair, bond and trap terms; pairs inside its group into fw
+  /// or skipped, as add_pair_forces) and its share of the energy (returned); failures into bad.
+  double particle_row(std::size_t i, std::span<const double> x, std::span<const std::uint32_t> ptype,
+                      const NeighbourList& list, std::span<const std::uint32_t> groups, double f[3], double* fw,
+                      RowFailures& bad) const;
+  /// Throws unless the list is built for n particles and the pair cut-offs (with pairs).
+  void check_list(const NeighbourList& list, std::size_t n, const char* where) const;
   /// Adds to f the pair forces on particle i, from the pairs across groups (every pair when
   /// `groups` is empty); those inside i's group go to fw, or are skipped when fw is null. Records i
   /// in bad_pair on a hard-core overlap. Returns half the pairs' energy (each pair is visited from
@@ -106,9 +130,11 @@ class ForceField {
                          const NeighbourList& list, std::span<const std::uint32_t> groups, double f[3], double* fw,
                          std::atomic<std::size_t>& bad_pair) const;
   /// Throws invalid_input naming the first neighbour of particle i within its hard core, among the
-  /// pairs `groups` leaves in (none found at the precision of r: returns).
+  /// pairs `groups` leaves in (none found at the precision of r: returns); particles named by ids
+  /// where given.
   void fail_overlap(std::size_t i, std::span<const double> x, std::span<const std::uint32_t> ptype,
-                    const NeighbourList& list, std::uint64_t step, std::span<const std::uint32_t> groups) const;
+                    const NeighbourList& list, std::uint64_t step, std::span<const std::uint32_t> groups,
+                    std::span<const std::uint64_t> ids = {}) const;
   /// Throws invalid_input naming bond k (coincident ends, or a FENE bond at its maximum extension).
   [[noreturn]] void fail_bond(std::size_t k, std::span<const double> x, const NeighbourList& list,
                               std::uint64_t step) const;

@@ -15,6 +15,7 @@
 #include <new>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "rpyfmm/core/error.hpp"
 
@@ -62,6 +63,10 @@ class Communicator {
   int rank_ = 0;
   int size_ = 1;
 };
+
+/// Collective: whether every rank passed the same values (the minimum and the maximum of each entry
+/// over the ranks agree; one MPI_Allreduce). Every rank must pass as many values.
+[[nodiscard]] bool same_on_every_rank(const Communicator& comm, std::vector<double> values);
 
 /// Throws rpyfmm::Error (io_error) naming `call` when an MPI call returned an error code
 /// (reachable only where the communicator's error handler returns errors instead of aborting).

@@ -1,0 +1,163 @@
+// rpyfmm — free-draining Brownian dynamics on particles distributed over the ranks of an MPI
+// communicator (docs/mpi.md, "Brownian dynamics across ranks"): the Euler-Maruyama step of
+// rpyfmm::bd::Integrator with the free-draining mobility (Tran et al. (2015), eq. 3),
+//
+//     dx_i = F_i dt / (6 pi eta a_i) + sqrt(2 kT dt / (6 pi eta a_i)) z_i,
+//
+// z_i keyed by (seed, step, global index i) as the serial engine keys it.
+//
+// Each rank owns a share of the particles, contiguous along the Morton curve (SfcPartition), and
+// keeps a halo: the other ranks' particles within the list radius r_L = r_c + skin of its owned
+// particles' box, found when the lists are built and refreshed (positions only) every step. Its
+// own and halo particles, in increasing global index, form the part of the system on which it
+// builds the Verlet lists of bd::NeighbourList, so every owned particle's force is summed over the
+// same neighbours in the same order as in the serial engine (bd::ForceField::compute_rows). The
+// lists, the halo and the partition are rebuilt together by the dynamic test of Tran et al. (2015),
+// Algorithm 1, taken over all ranks: once any particle has moved more than skin/2 since the last
+// build. At a rebuild the particles migrate along the Morton curve when the ranks' costs (their
+// particles plus their neighbour-list entries) are imbalanced beyond a threshold.
+//
+// So the positions after every step are, bit for bit, those of bd::Integrator with
+// rpy::FreeDrainingMobility on the whole set, on any number of ranks and for any partition (same
+// binary). The potential energy is the sum over the ranks of their particles' shares, equal to the
+// serial engine's to round-off (a sum in another order).
+//
+// Checkpoints hold the whole state in global index order (bd::Checkpoint, gathered on one rank),
+// so a run written on P ranks restarts on any other number (restart_distributed_bd).
+//
+// Every public call is collective and fails collectively (communicator.hpp): a bad input or a
+// blow-up on one rank makes every rank throw the same rpyfmm::Error, state kept at the last good
+// step.
+#pragma once
+
+#include <mpi.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "rpyfmm/bd/checkpoint.hpp"
+#include "rpyfmm/bd/force_field.hpp"
+#include "rpyfmm/bd/integrator.hpp"
+#include "rpyfmm/bd/neighbour_list.hpp"
+#include "rpyfmm/core/timer.hpp"
+#include "rpyfmm/mpi/communicator.hpp"
+#include "rpyfmm/rpy/geometry.hpp"
+
+namespace rpyfmm::mpi {
+
+/// Options of a distributed run. Every rank must pass the same.
+struct DistributedBdOptions {
+  /// dt, kT, seed and max_displacement as for bd::Integrator. Rotation, inertial types, the SAC
+  /// scheme and split displacements are refused (not_supported): the serial engine has them.
+  bd::IntegratorOptions integrator{};
+  /// The skin (0: 0.3 r_c) and the rebuild strategy (fixed_interval), as bd::NeighbourList's.
+  bd::NeighbourOptions neighbours{};
+  /// eta of the free-draining mobility 1 / (6 pi eta a) (> 0).
+  double viscosity = 1.0;
+  /// A rebuild moves the particles along the Morton curve when the largest rank's cost exceeds this
+  /// multiple of the mean (>= 1; 1: at every rebuild; infinity: never after the first partition).
+  double repartition_imbalance = 1.25;
+};
+
+/// This rank's particles.
+struct BdShare {
+  std::vector<double> positions;              ///< 3n, finite, unwrapped
+  std::vector<std::uint32_t> types;           ///< n indices into the force field's types
+  std::vector<std::uint64_t> ids;             ///< n global indices (empty: the ranks' shares in rank order)
+  std::vector<double> reference_positions{};  ///< 3n positions at step 0 (empty: the positions)
+};
+
+/// What the run did on this rank, and its share of the work.
+struct DistributedBdStats {
+  std::uint64_t steps = 0;
+  std::uint64_t rebuilds = 0;      ///< list, halo and (maybe) partition rebuilds, the same on every rank
+  std::uint64_t repartitions = 0;  ///< rebuilds that moved particles between ranks
+  std::size_t halo_size = 0;       ///< this rank's halo particles since the last rebuild
+  double imbalance = 1.0;          ///< max / mean cost over the ranks at the last rebuild
+  /// This rank's seconds: "rebuild" (test, partition, halo search and exchange, lists), "halo" (the
+  /// halo's positions every step), "forces", "update" (step, guard and the collective checks).
+  StageTimes seconds;
+};
+
+class DistributedBd {
+ public:
+  /// Collective. Throws rpyfmm::Error on every rank for options the serial engine refuses or this
+  /// one does not support, for a wrong size, a non-finite coordinate or an unknown type on any
+  /// rank, for ids that are not a permutation of 0 ... N - 1, for a force field with bonds or
+  /// callbacks (they index the whole system), and when no rank has a particle.
+  DistributedBd(MPI_Comm comm, bd::ForceField forces, rpy::Geometry geometry, DistributedBdOptions options,
+                BdShare share, std::uint64_t first_step = 0);
+  ~DistributedBd();
+  DistributedBd(DistributedBd&&) noexcept;
+  DistributedBd& operator=(DistributedBd&&) noexcept;
+
+  /// Collective: one step. On a blow-up (a particle moving more than max_displacement × its radius,
+  /// or NaN) or a hard-core overlap every rank throws the same Error, naming the particle by its
+  /// global index, and the state stays at the last good step.
+  void step();
+  /// Collective: `count` steps.
+  void run(std::uint64_t count);
+
+  [[nodiscard]] const Communicator& communicator() const { return comm_; }
+  [[nodiscard]] const DistributedBdOptions& options() const { return options_; }
+  /// This rank's particles (they change at repartitions): positions (3n, unwrapped), types, global
+  /// indices and positions at step 0, in increasing global index.
+  [[nodiscard]] std::size_t local_size() const { return ids_.size(); }
+  [[nodiscard]] std::span<const double> positions() const { return x_; }
+  [[nodiscard]] std::span<const std::uint32_t> types() const { return types_; }
+  [[nodiscard]] std::span<const std::uint64_t> ids() const { return ids_; }
+  [[nodiscard]] std::span<const double> reference_positions() const { return reference_; }
+  [[nodiscard]] std::uint64_t global_size() const { return global_n_; }
+  [[nodiscard]] std::uint64_t step_count() const { return step_; }
+  /// The potential energy at the start of the last step, summed over the ranks (0 before a step).
+  [[nodiscard]] double potential_energy() const { return energy_; }
+  [[nodiscard]] const DistributedBdStats& stats() const { return stats_; }
+
+  /// Collective: the whole state on `root` in global index order (positions, types, positions at
+  /// step 0, step, seed, dt); an empty checkpoint on the other ranks.
+  [[nodiscard]] bd::Checkpoint checkpoint(int root = 0) const;
+
+  struct Halo;  // mpi/src/bd_halo.hpp
+
+ private:
+  /// The lists, the halo and, when the costs are imbalanced (or at the first), the partition.
+  void rebuild();
+  /// Moves the particles to their owners along the Morton curve, balancing `weights` (per owned particle).
+  void repartition(std::span<const double> weights);
+  /// f_ and particle_energy_ of the owned particles; energy_ over all ranks.
+  void compute_forces();
+  /// The Euler-Maruyama step with the blow-up guard, and the next step's rebuild test.
+  void advance();
+  /// Throws on every rank the blow-up error of particle `id` (next: the refused positions).
+  void fail_blow_up(std::uint64_t id, std::span<const double> next) const;
+
+  Communicator comm_;
+  bd::ForceField forces_;
+  rpy::Geometry geometry_;
+  DistributedBdOptions options_;
+  std::uint64_t global_n_ = 0;
+  std::uint64_t step_ = 0;
+  double energy_ = 0.0;
+  bool rebuild_due_ = true;
+  std::uint64_t steps_since_rebuild_ = 0;
+  // owned particles, increasing global index
+  std::vector<double> x_, reference_, list_reference_, f_, particle_energy_;
+  std::vector<std::uint32_t> types_;
+  std::vector<std::uint64_t> ids_;
+  std::unique_ptr<Halo> halo_;
+  DistributedBdStats stats_;
+};
+
+/// Collective: the run of `checkpoint` (read on `root`; ignored elsewhere) continued on the ranks
+/// of `comm`, whatever number of ranks wrote it: the particles are dealt to the ranks in blocks of
+/// global indices, and the first rebuild partitions them. Throws on every rank when the
+/// checkpoint's seed or dt differ from the options', or it holds rotations or velocities.
+[[nodiscard]] DistributedBd restart_distributed_bd(MPI_Comm comm, bd::ForceField forces, rpy::Geometry geometry,
+                                                   DistributedBdOptions options, const bd::Checkpoint& checkpoint,
+                                                   int root = 0);
+
+}  // namespace rpyfmm::mpi

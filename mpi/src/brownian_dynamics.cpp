@@ -1,0 +1,410 @@
+// rpyfmm — free-draining Brownian dynamics across MPI ranks (rpyfmm/mpi/brownian_dynamics.hpp;
+// docs/mpi.md, "Brownian dynamics across ranks").
+#include "rpyfmm/mpi/brownian_dynamics.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <utility>
+
+#include "alltoallv.hpp"
+#include "bd_halo.hpp"
+#include "device/engine_tables.hpp"
+#include "device/euler_maruyama.hpp"
+#include "device/rebuild_test.hpp"
+#include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/mpi/partition.hpp"
+
+namespace rpyfmm::mpi {
+namespace {
+
+constexpr const char* kWhere = "DistributedBd";
+constexpr std::uint64_t kNoParticle = std::numeric_limits<std::uint64_t>::max();
+
+// The features of bd::Integrator that this engine does not have.
+void require_supported(const DistributedBdOptions& o, const bd::ForceField& forces) {
+  const bd::IntegratorOptions& i = o.integrator;
+  require(!i.rotation, ErrorCode::not_supported, kWhere, "rotation is not supported across ranks");
+  const bool inertial = std::any_of(i.inertia.begin(), i.inertia.end(), [](const auto& t) { return t.has_value(); });
+  require(!inertial, ErrorCode::not_supported, kWhere, "inertial (Langevin) particles are not supported across ranks");
+  require(!i.sac.enabled, ErrorCode::not_supported, kWhere, "the SAC scheme is not supported across ranks");
+  require(!i.keep_split_displacements, ErrorCode::not_supported, kWhere,
+          "split displacements (keep_split_displacements) are not kept across ranks");
+  require(forces.bonds().empty(), ErrorCode::not_supported, kWhere,
+          "bonds are not supported across ranks (they index the whole system)");
+  require(!forces.has_callbacks(), ErrorCode::not_supported, kWhere,
+          "force callbacks are not supported across ranks (they take the whole system's positions)");
+  require(o.repartition_imbalance >= 1.0, ErrorCode::invalid_argument, kWhere,
+          "repartition_imbalance must be >= 1 (infinity: never), got " + std::to_string(o.repartition_imbalance));
+}
+
+// The step's constants as the device stages take them (the serial engine's arithmetic,
+// bd/src/device/euler_maruyama.hpp); checks dt, kT, max_displacement and the viscosity.
+bd::device::EngineTables motion_tables(const DistributedBdOptions& o, const bd::ForceField& forces) {
+  bd::device::EngineOptions e;
+  e.dt = o.integrator.dt;
+  e.kT = o.integrator.kT;
+  e.seed = o.integrator.seed;
+  e.max_displacement = o.integrator.max_displacement;
+  e.viscosity = o.viscosity;
+  return bd::device::make_motion_tables(forces, e);
+}
+
+std::vector<double> option_signature(const DistributedBdOptions& o, const rpy::Geometry& g,
+                                     const bd::ForceField& forces) {
+  const bd::IntegratorOptions& i = o.integrator;
+  return {i.dt,
+          i.kT,
+          static_cast<double>(i.seed & 0xFFFFFFFFu),
+          static_cast<double>(i.seed >> 32),
+          i.max_displacement,
+          o.viscosity,
+          o.neighbours.skin,
+          static_cast<double>(o.neighbours.fixed_interval),
+          o.repartition_imbalance,
+          g.is_periodic() ? 1.0 : 0.0,
+          g.box()[0],
+          g.box()[1],
+          g.box()[2],
+          static_cast<double>(forces.types().size()),
+          forces.max_cutoff(),
+          forces.trap_stiffness()};
+}
+
+// Collective: the exclusive prefix sum and the total of this rank's count.
+std::pair<std::uint64_t, std::uint64_t> offset_and_total(const Communicator& comm, std::uint64_t count) {
+  std::uint64_t offset = 0, total = 0;
+  check_mpi(MPI_Exscan(&count, &offset, 1, MPI_UINT64_T, MPI_SUM, comm.get()), "MPI_Exscan");
+  if (comm.rank() == 0) offset = 0;  // MPI_Exscan leaves rank 0's result undefined
+  check_mpi(MPI_Allreduce(&count, &total, 1, MPI_UINT64_T, MPI_SUM, comm.get()), "MPI_Allreduce");
+  return {offset, total};
+}
+
+// This rank's checks of its share (not collective).
+void check_share(const BdShare& s, const bd::ForceField& forces) {
+  const std::size_t n = s.types.size();
+  require(s.positions.size() == 3 * n, ErrorCode::invalid_input, kWhere,
+          "positions must hold 3 values per particle: " + std::to_string(s.positions.size()) + " for " +
+              std::to_string(n) + " types");
+  require(
+      s.ids.empty() || s.ids.size() == n, ErrorCode::invalid_input, kWhere,
+      "ids must be empty or hold one per particle, got " + std::to_string(s.ids.size()) + " for " + std::to_string(n));
+  require(s.reference_positions.empty() || s.reference_positions.size() == 3 * n, ErrorCode::invalid_input, kWhere,
+          "reference_positions must be empty or hold 3 values per particle");
+  for (std::size_t k = 0; k < s.positions.size(); ++k) {
+    require(std::isfinite(s.positions[k]), ErrorCode::invalid_input, kWhere,
+            "position of particle " + std::to_string(k / 3) + " (of this rank's share) is not finite");
+  }
+  for (const double r : s.reference_positions)
+    require(std::isfinite(r), ErrorCode::invalid_input, kWhere, "a reference position is not finite");
+  forces.check(s.types);
+}
+
+// Collective: throws on every rank unless the ids of all ranks are 0 ... total - 1, each once. Each
+// id goes to the rank of its block of the range, which checks its block.
+void check_permutation(const Communicator& comm, std::span<const std::uint64_t> ids, std::uint64_t total) {
+  const auto p = static_cast<std::uint64_t>(comm.size());
+  const auto block_of = [&](std::uint64_t id) { return static_cast<std::size_t>((id * p) / total); };
+  std::optional<Error> problem;
+  std::vector<std::vector<double>> send(comm.size());
+  for (const std::uint64_t id : ids) {
+    if (id >= total) {
+      if (!problem)
+        problem = Error(ErrorCode::invalid_input, std::string(kWhere) + ": particle id " + std::to_string(id) +
+                                                      " is not below the number of particles " + std::to_string(total));
+      continue;
+    }
+    send[block_of(id)].push_back(static_cast<double>(id));
+  }
+  comm.agree(problem);
+  std::vector<double> mine = detail::alltoallv(comm, send, kWhere, "the particle ids");
+  std::sort(mine.begin(), mine.end());
+  const std::uint64_t first = (static_cast<std::uint64_t>(comm.rank()) * total + p - 1) / p;
+  for (std::size_t k = 0; k < mine.size() && !problem; ++k) {
+    if (static_cast<std::uint64_t>(mine[k]) != first + k)
+      problem = Error(ErrorCode::invalid_input, std::string(kWhere) + ": particle id " +
+                                                    std::to_string(static_cast<std::uint64_t>(mine[k])) +
+                                                    " is given twice (ids must number the particles 0 ... N - 1)");
+  }
+  comm.agree(problem);
+}
+
+// The owned arrays sorted by global index (their order everywhere in the engine).
+template <class T>
+std::vector<T> permuted(const std::vector<T>& v, std::span<const std::size_t> order, std::size_t per) {
+  std::vector<T> out(v.size());
+  for (std::size_t i = 0; i < order.size(); ++i)
+    for (std::size_t c = 0; c < per; ++c) out[per * i + c] = v[per * order[i] + c];
+  return out;
+}
+
+}  // namespace
+
+DistributedBd::DistributedBd(MPI_Comm comm, bd::ForceField forces, rpy::Geometry geometry, DistributedBdOptions options,
+                             BdShare share, std::uint64_t first_step)
+    : comm_(comm), forces_(std::move(forces)), geometry_(geometry), options_(std::move(options)), step_(first_step) {
+  comm_.run([&] {
+    require_supported(options_, forces_);
+    (void)motion_tables(options_, forces_);
+    (void)bd::NeighbourList(geometry_, forces_.max_cutoff(), options_.neighbours);  // its checks of the skin and box
+    check_share(share, forces_);
+  });
+  require(same_on_every_rank(comm_, option_signature(options_, geometry_, forces_)), ErrorCode::invalid_argument,
+          kWhere, "the ranks passed different options, geometries or force fields");
+  // Ranks with particles give ids on all of them or on none (ranks without particles count as both).
+  const bool empty = share.types.empty(), given = !share.ids.empty();
+  const double flags[2] = {empty || given ? 1.0 : 0.0, empty || !given ? 1.0 : 0.0};
+  double all[2] = {0.0, 0.0};
+  check_mpi(MPI_Allreduce(flags, all, 2, MPI_DOUBLE, MPI_MIN, comm_.get()), "MPI_Allreduce");
+  require(all[0] == 1.0 || all[1] == 1.0, ErrorCode::invalid_input, kWhere,
+          "some ranks gave particle ids and others did not (give them on every rank with particles, or on none)");
+  const auto [offset, total] = offset_and_total(comm_, share.types.size());
+  require(total > 0, ErrorCode::invalid_input, kWhere, "no particles on any rank (N = 0)");
+  require(total < (std::uint64_t{1} << 53), ErrorCode::not_supported, kWhere,
+          "more than 2^53 particles (ids travel as doubles)");
+  global_n_ = total;
+  if (share.ids.empty()) {
+    share.ids.resize(share.types.size());
+    std::iota(share.ids.begin(), share.ids.end(), offset);
+  }
+  check_permutation(comm_, share.ids, total);
+  if (share.reference_positions.empty()) share.reference_positions = share.positions;
+  std::vector<std::size_t> order(share.ids.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return share.ids[a] < share.ids[b]; });
+  x_ = permuted(share.positions, order, 3);
+  reference_ = permuted(share.reference_positions, order, 3);
+  types_ = permuted(share.types, order, 1);
+  ids_ = permuted(share.ids, order, 1);
+  for (const char* part : {"rebuild", "halo", "forces", "update"}) stats_.seconds[part] = 0.0;
+}
+
+DistributedBd::~DistributedBd() = default;
+DistributedBd::DistributedBd(DistributedBd&&) noexcept = default;
+DistributedBd& DistributedBd::operator=(DistributedBd&&) noexcept = default;
+
+void DistributedBd::step() {
+  // 1. Lists, halo and partition when the rebuild test asked for them (Tran et al. (2015),
+  //    Algorithm 1), else the halo's new positions.
+  StopWatch watch;
+  if (rebuild_due_) {
+    rebuild();
+    stats_.seconds["rebuild"] += watch.seconds();
+  } else {
+    halo_->refresh(comm_, x_);
+    stats_.seconds["halo"] += watch.seconds();
+  }
+  // 2. Forces on the owned particles, from the part in the serial engine's order.
+  watch.restart();
+  compute_forces();
+  stats_.seconds["forces"] += watch.seconds();
+  // 3. dx = mu F dt + sqrt(2 kT dt mu) z, the blow-up guard, x += dx and the next rebuild test.
+  watch.restart();
+  advance();
+  stats_.seconds["update"] += watch.seconds();
+}
+
+void DistributedBd::run(std::uint64_t count) {
+  for (std::uint64_t k = 0; k < count; ++k) step();
+}
+
+void DistributedBd::rebuild() {
+  // The ranks' costs: their particles and their list entries (the forces' pair work).
+  const std::vector<double> rows = halo_ ? halo_->row_lengths() : std::vector<double>(ids_.size(), 0.0);
+  const double cost = static_cast<double>(ids_.size()) + std::accumulate(rows.begin(), rows.end(), 0.0);
+  double max_cost = 0.0, total_cost = 0.0;
+  check_mpi(MPI_Allreduce(&cost, &max_cost, 1, MPI_DOUBLE, MPI_MAX, comm_.get()), "MPI_Allreduce");
+  check_mpi(MPI_Allreduce(&cost, &total_cost, 1, MPI_DOUBLE, MPI_SUM, comm_.get()), "MPI_Allreduce");
+  const double mean = total_cost / comm_.size();
+  stats_.imbalance = mean > 0.0 ? max_cost / mean : 1.0;
+  if (!halo_ || (comm_.size() > 1 && stats_.imbalance > options_.repartition_imbalance)) {
+    std::vector<double> weights(rows.size());
+    for (std::size_t i = 0; i < rows.size(); ++i) weights[i] = 1.0 + rows[i];
+    repartition(weights);
+  }
+  halo_ = std::make_unique<Halo>(Halo::build(comm_, forces_, geometry_, options_.neighbours, x_, types_, ids_));
+  list_reference_ = x_;
+  rebuild_due_ = false;
+  steps_since_rebuild_ = 0;
+  ++stats_.rebuilds;
+  stats_.halo_size = halo_->halo_rows.size();
+}
+
+void DistributedBd::repartition(std::span<const double> weights) {
+  // Keys from the wrapped positions in a periodic box (the curve runs through the box once); the
+  // unwrapped positions move as a column.
+  const std::size_t n = ids_.size();
+  std::vector<double> keyed(3 * n), id(n), type(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::array<double, 3> w = detail::wrapped(&x_[3 * i], geometry_);
+    for (int c = 0; c < 3; ++c) keyed[3 * i + c] = w[c];
+    id[i] = static_cast<double>(ids_[i]);
+    type[i] = static_cast<double>(types_[i]);
+  }
+  const SfcPartition partition(comm_.get(), keyed, weights);
+  const Column columns[] = {{x_, 3}, {reference_, 3}, {id, 1}, {type, 1}};
+  std::vector<std::vector<double>> moved = partition.to_owners(columns);
+  const std::size_t m = partition.owned_size();
+  std::vector<std::size_t> order(m);
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return moved[2][a] < moved[2][b]; });
+  x_ = permuted(moved[0], order, 3);
+  reference_ = permuted(moved[1], order, 3);
+  ids_.resize(m);
+  types_.resize(m);
+  for (std::size_t i = 0; i < m; ++i) {
+    ids_[i] = static_cast<std::uint64_t>(moved[2][order[i]]);
+    types_[i] = static_cast<std::uint32_t>(moved[3][order[i]]);
+  }
+  ++stats_.repartitions;
+}
+
+void DistributedBd::compute_forces() {
+  const std::size_t n = ids_.size();
+  f_.assign(3 * n, 0.0);
+  particle_energy_.assign(n, 0.0);
+  comm_.run([&] {
+    forces_.compute_rows(halo_->x, halo_->types, halo_->list, step_, halo_->owned_rows, halo_->ids, f_,
+                         particle_energy_);
+  });
+  double mine = 0.0;
+  for (const double e : particle_energy_) mine += e;
+  check_mpi(MPI_Allreduce(&mine, &energy_, 1, MPI_DOUBLE, MPI_SUM, comm_.get()), "MPI_Allreduce");
+}
+
+void DistributedBd::advance() {
+  const std::size_t n = ids_.size();
+  const bd::device::EngineTables t = motion_tables(options_, forces_);
+  const bd::device::MotionTables m{types_.data(), t.mobility.data(), t.sqrt_mobility.data(), t.radius.data(), t.dt,
+                                   t.noise,       t.brownian,        t.max_displacement2,    t.seed,          step_};
+  std::vector<double> next(3 * n);
+  std::uint64_t refused = kNoParticle;  // the lowest global index the guard refuses
+  for (std::size_t i = 0; i < n; ++i) {
+    double dx[3];
+    if (!bd::device::displacement(static_cast<std::uint32_t>(i), ids_[i], f_.data(), m, dx))
+      refused = std::min(refused, ids_[i]);
+    for (int c = 0; c < 3; ++c) next[3 * i + c] = x_[3 * i + c] + dx[c];
+  }
+  std::uint64_t lowest = kNoParticle;
+  check_mpi(MPI_Allreduce(&refused, &lowest, 1, MPI_UINT64_T, MPI_MIN, comm_.get()), "MPI_Allreduce");
+  if (lowest != kNoParticle) fail_blow_up(lowest, next);
+  x_.swap(next);
+  ++step_;
+  ++stats_.steps;
+  ++steps_since_rebuild_;
+  // The next step's rebuild test over every rank's particles (or the fixed interval).
+  const int interval = options_.neighbours.fixed_interval;
+  const double limit2 = 0.25 * halo_->list.skin() * halo_->list.skin();
+  int moved = 0;
+  for (std::size_t i = 0; i < n && !moved && interval == 0; ++i)
+    moved = bd::device::moved_beyond_half_skin(i, x_.data(), list_reference_.data(), limit2) ? 1 : 0;
+  int any = 0;
+  check_mpi(MPI_Allreduce(&moved, &any, 1, MPI_INT, MPI_MAX, comm_.get()), "MPI_Allreduce");
+  rebuild_due_ = halo_->pairs && (interval > 0 ? steps_since_rebuild_ >= static_cast<std::uint64_t>(interval) : any);
+}
+
+void DistributedBd::fail_blow_up(std::uint64_t id, std::span<const double> next) const {
+  // The rank that owns the particle words the error (bd::Integrator's), every rank throws it.
+  std::optional<Error> problem;
+  const auto it = std::lower_bound(ids_.begin(), ids_.end(), id);
+  if (it != ids_.end() && *it == id) {
+    const auto i = static_cast<std::size_t>(it - ids_.begin());
+    double d2 = 0.0, f2 = 0.0;
+    for (int c = 0; c < 3; ++c) {
+      const double d = next[3 * i + c] - x_[3 * i + c];
+      d2 += d * d;
+      f2 += f_[3 * i + c] * f_[3 * i + c];
+    }
+    std::ostringstream msg;
+    msg << kWhere << ": blow-up at step " << step_ << ": particle " << id << " would move " << std::sqrt(d2)
+        << " > max_displacement (" << options_.integrator.max_displacement << ") x radius "
+        << forces_.types()[types_[i]].radius << " in one step (|force| = " << std::sqrt(f2)
+        << "); reduce dt or check the forces. State kept at the last good step";
+    problem = Error(ErrorCode::numerical_failure, msg.str());
+  }
+  comm_.agree(problem);
+}
+
+bd::Checkpoint DistributedBd::checkpoint(int root) const {
+  require(root >= 0 && root < comm_.size(), ErrorCode::invalid_argument, kWhere,
+          "checkpoint root " + std::to_string(root) + " is not a rank of the communicator");
+  constexpr int kValues = 8;  // id, type, x (3), reference (3)
+  std::vector<double> packed;
+  packed.reserve(kValues * ids_.size());
+  for (std::size_t i = 0; i < ids_.size(); ++i) {
+    packed.insert(packed.end(), {static_cast<double>(ids_[i]), static_cast<double>(types_[i])});
+    packed.insert(packed.end(), &x_[3 * i], &x_[3 * i + 3]);
+    packed.insert(packed.end(), &reference_[3 * i], &reference_[3 * i + 3]);
+  }
+  std::vector<std::vector<double>> send(comm_.size());
+  send[root] = std::move(packed);
+  const std::vector<double> all = detail::alltoallv(comm_, send, kWhere, "the checkpoint's particles");
+  bd::Checkpoint c;
+  if (comm_.rank() != root) return c;
+  const std::size_t n = global_n_;
+  c.step = step_;
+  c.seed = options_.integrator.seed;
+  c.dt = options_.integrator.dt;
+  c.positions.resize(3 * n);
+  c.reference_positions.resize(3 * n);
+  c.types.resize(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const double* v = &all[kValues * k];
+    const auto id = static_cast<std::size_t>(v[0]);
+    c.types[id] = static_cast<std::uint32_t>(v[1]);
+    for (int a = 0; a < 3; ++a) {
+      c.positions[3 * id + a] = v[2 + a];
+      c.reference_positions[3 * id + a] = v[5 + a];
+    }
+  }
+  return c;
+}
+
+DistributedBd restart_distributed_bd(MPI_Comm comm_handle, bd::ForceField forces, rpy::Geometry geometry,
+                                     DistributedBdOptions options, const bd::Checkpoint& checkpoint, int root) {
+  const Communicator comm(comm_handle);
+  require(root >= 0 && root < comm.size(), ErrorCode::invalid_argument, kWhere,
+          "restart root " + std::to_string(root) + " is not a rank of the communicator");
+  comm.run([&] {
+    if (comm.rank() != root) return;
+    require(checkpoint.orientations.empty() && checkpoint.velocities.empty(), ErrorCode::not_supported, kWhere,
+            "the checkpoint holds orientations or velocities, which runs across ranks do not have");
+    require(checkpoint.seed == options.integrator.seed && checkpoint.dt == options.integrator.dt,
+            ErrorCode::invalid_argument, kWhere, "the checkpoint's seed and dt differ from the options'");
+    require(checkpoint.positions.size() == 3 * checkpoint.types.size() &&
+                checkpoint.reference_positions.size() == checkpoint.positions.size(),
+            ErrorCode::invalid_input, kWhere, "the checkpoint's positions and types disagree on N");
+  });
+  std::uint64_t header[2] = {checkpoint.types.size(), checkpoint.step};
+  check_mpi(MPI_Bcast(header, 2, MPI_UINT64_T, root, comm.get()), "MPI_Bcast");
+  // Blocks of global indices: rank r gets [r N / P, (r + 1) N / P).
+  const auto p = static_cast<std::uint64_t>(comm.size()), total = header[0];
+  const auto first = [&](std::uint64_t r) { return (r * total) / p; };
+  constexpr int kValues = 7;  // type, x (3), reference (3)
+  std::vector<std::vector<double>> blocks(comm.size());
+  for (std::uint64_t r = 0; r < blocks.size() && comm.rank() == root; ++r) {
+    for (std::uint64_t i = first(r); i < first(r + 1); ++i) {
+      blocks[r].push_back(static_cast<double>(checkpoint.types[i]));
+      blocks[r].insert(blocks[r].end(), &checkpoint.positions[3 * i], &checkpoint.positions[3 * i + 3]);
+      blocks[r].insert(blocks[r].end(), &checkpoint.reference_positions[3 * i],
+                       &checkpoint.reference_positions[3 * i + 3]);
+    }
+  }
+  const std::vector<double> mine = detail::alltoallv(comm, blocks, kWhere, "the checkpoint's particles");
+  const auto r = static_cast<std::uint64_t>(comm.rank());
+  BdShare share;
+  for (std::uint64_t i = first(r); i < first(r + 1); ++i) {
+    const double* v = &mine[kValues * (i - first(r))];
+    share.types.push_back(static_cast<std::uint32_t>(v[0]));
+    share.positions.insert(share.positions.end(), v + 1, v + 4);
+    share.reference_positions.insert(share.reference_positions.end(), v + 4, v + 7);
+    share.ids.push_back(i);
+  }
+  return DistributedBd(comm_handle, std::move(forces), geometry, std::move(options), std::move(share), header[1]);
+}
+
+}  // namespace rpyfmm::mpi

@@ -1,0 +1,339 @@
+// Free-draining Brownian dynamics across ranks (rpyfmm/mpi/brownian_dynamics.hpp) against the
+// serial engine, bd::Integrator with rpy::FreeDrainingMobility on the whole set: the positions after
+// every step agree bit for bit on any number of ranks, for any input split, with repartitions, and
+// across a checkpoint written on 2 ranks and continued on P. The reason the agreement is exact: each
+// owned particle's force is summed over the same neighbours in the same order (its halo holds every
+// neighbour, its part is ordered by global index) and its noise is keyed by its global index.
+#include <gtest/gtest.h>
+#include <mpi.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <numeric>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "mpi_test_support.hpp"
+#include "rpyfmm/bd/checkpoint.hpp"
+#include "rpyfmm/bd/integrator.hpp"
+#include "rpyfmm/mpi/brownian_dynamics.hpp"
+#include "rpyfmm/rpy/free_draining.hpp"
+
+namespace {
+
+using rpyfmm::ErrorCode;
+using rpyfmm::bd::ForceField;
+using rpyfmm::bd::PairKind;
+using rpyfmm::mpi::BdShare;
+using rpyfmm::mpi::DistributedBd;
+using rpyfmm::mpi::DistributedBdOptions;
+using rpyfmm::rpy::Geometry;
+using namespace rpyfmm_mpi_test;
+
+// A whole system: positions and types, the same on every rank.
+struct System {
+  std::vector<double> x;
+  std::vector<std::uint32_t> types;
+  [[nodiscard]] std::size_t size() const { return types.size(); }
+};
+
+// k^3 particles on a cubic lattice of spacing h from the origin, jittered by up to 0.1 h, the type
+// alternating between `ntypes` types.
+System lattice(int k, double h, std::uint32_t ntypes, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> jitter(-0.1 * h, 0.1 * h);
+  System s;
+  for (int i = 0; i < k; ++i)
+    for (int j = 0; j < k; ++j)
+      for (int l = 0; l < k; ++l) {
+        for (const int c : {i, j, l}) s.x.push_back((c + 0.5) * h + jitter(rng));
+        s.types.push_back(static_cast<std::uint32_t>(s.types.size() % ntypes));
+      }
+  return s;
+}
+
+// Two types (radii 0.5 and 0.7) with WCA pairs: a suspension in a periodic box or a cluster.
+ForceField wca_mixture() {
+  rpyfmm::bd::ParticleType a{.name = "A", .radius = 0.5};
+  rpyfmm::bd::ParticleType b{.name = "B", .radius = 0.7};
+  ForceField forces({a, b});
+  for (std::uint32_t t1 = 0; t1 < 2; ++t1)
+    for (std::uint32_t t2 = t1; t2 < 2; ++t2) forces.set_pair(t1, t2, {.kind = PairKind::wca});
+  return forces;
+}
+
+// Attractive LJ 36-18 spheres of radius 0.5 in a harmonic trap, pulled along x.
+ForceField sticky_trapped() {
+  rpyfmm::bd::ParticleType a{.name = "A", .radius = 0.5};
+  ForceField forces({a});
+  forces.set_pair(0, 0, {.kind = PairKind::lj36_18, .epsilon = 1.0});
+  forces.set_trap(0.05);
+  forces.set_global_force({0.3, 0.0, 0.0});
+  return forces;
+}
+
+DistributedBdOptions options_with(double dt, std::uint64_t seed = 7) {
+  DistributedBdOptions o;
+  o.integrator.dt = dt;
+  o.integrator.kT = 1.0;
+  o.integrator.seed = seed;
+  o.viscosity = kViscosity;
+  return o;
+}
+
+// The serial engine's positions after `steps` steps from step 0.
+std::vector<double> serial_run(const ForceField& forces, const Geometry& geometry, const DistributedBdOptions& o,
+                               const System& s, std::uint64_t steps) {
+  rpyfmm::bd::Integrator bd(std::make_unique<rpyfmm::rpy::FreeDrainingMobility>(geometry, o.viscosity), forces,
+                            o.integrator, s.x, s.types, o.neighbours);
+  bd.run(steps);
+  return {bd.positions().begin(), bd.positions().end()};
+}
+
+// This rank's share: the particles whose position in `order` (a permutation of the global indices)
+// falls in its contiguous piece of `split`, with their global indices when `with_ids`.
+BdShare share_of(const System& s, Split split, const std::vector<std::size_t>& order, bool with_ids) {
+  const auto counts = split_counts(s.size(), static_cast<std::size_t>(world_size()), split);
+  const std::size_t first = std::accumulate(counts.begin(), counts.begin() + world_rank(), std::size_t{0});
+  BdShare share;
+  for (std::size_t k = first; k < first + counts[static_cast<std::size_t>(world_rank())]; ++k) {
+    const std::size_t i = order[k];
+    share.positions.insert(share.positions.end(), &s.x[3 * i], &s.x[3 * i + 3]);
+    share.types.push_back(s.types[i]);
+    if (with_ids) share.ids.push_back(i);
+  }
+  return share;
+}
+
+std::vector<std::size_t> identity(std::size_t n) {
+  std::vector<std::size_t> v(n);
+  std::iota(v.begin(), v.end(), std::size_t{0});
+  return v;
+}
+
+std::vector<std::size_t> shuffled(std::size_t n, std::uint64_t seed) {
+  std::vector<std::size_t> v = identity(n);
+  std::shuffle(v.begin(), v.end(), std::mt19937_64(seed));
+  return v;
+}
+
+// Every rank: the gathered positions equal `expected` bit for bit (checked on rank 0, its verdict
+// broadcast so that every rank reports it).
+void expect_positions_bitwise(const DistributedBd& bd, const std::vector<double>& expected, const std::string& what) {
+  const rpyfmm::bd::Checkpoint c = bd.checkpoint(0);
+  int mismatches = 0;
+  double worst = 0.0;
+  if (world_rank() == 0) {
+    EXPECT_EQ(c.positions.size(), expected.size()) << what;
+    for (std::size_t k = 0; k < std::min(c.positions.size(), expected.size()); ++k) {
+      if (c.positions[k] != expected[k]) {
+        ++mismatches;
+        worst = std::max(worst, std::abs(c.positions[k] - expected[k]));
+      }
+    }
+  }
+  MPI_Bcast(&mismatches, 1, MPI_INT, 0, MPI_COMM_WORLD);
+  MPI_Bcast(&worst, 1, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+  EXPECT_EQ(mismatches, 0) << what << ": " << mismatches << " coordinates differ, by up to " << worst;
+}
+
+TEST(MpiDistributedBd, PeriodicSuspensionEqualsTheSerialEngineBitForBitForEverySplit) {
+  // 512 spheres of two sizes, volume fraction 0.12 in a periodic box; 60 steps with several list
+  // rebuilds (the skin is crossed every ~10 steps).
+  const System s = lattice(8, 1.6, 2, 11);
+  const Geometry box = Geometry::periodic(8 * 1.6);
+  const DistributedBdOptions o = options_with(4e-3);
+  const std::vector<double> expected = serial_run(wca_mixture(), box, o, s, 60);
+  for (const Split split : kSplits) {
+    DistributedBd bd(MPI_COMM_WORLD, wca_mixture(), box, o, share_of(s, split, identity(s.size()), false));
+    bd.run(60);
+    expect_positions_bitwise(bd, expected, "split " + std::to_string(static_cast<int>(split)));
+    EXPECT_EQ(bd.step_count(), 60u);
+    EXPECT_GE(bd.stats().rebuilds, 3u);
+    EXPECT_EQ(bd.global_size(), s.size());
+  }
+}
+
+TEST(MpiDistributedBd, ShuffledIdsAndARepartitionAtEveryRebuildKeepTheSerialTrajectory) {
+  // An open cluster of sticky spheres in a trap, drifting along x; the input shares are a random
+  // permutation of the particles, and every rebuild moves particles between ranks.
+  const System s = lattice(7, 1.3, 1, 5);
+  const Geometry open = Geometry::open();
+  DistributedBdOptions o = options_with(1e-3, 99);
+  o.repartition_imbalance = 1.0;
+  const std::vector<double> expected = serial_run(sticky_trapped(), open, o, s, 80);
+  DistributedBd bd(MPI_COMM_WORLD, sticky_trapped(), open, o, share_of(s, Split::even, shuffled(s.size(), 3), true));
+  bd.run(80);
+  expect_positions_bitwise(bd, expected, "shuffled ids");
+  EXPECT_GE(bd.stats().rebuilds, 2u);
+  if (world_size() > 1) EXPECT_EQ(bd.stats().repartitions, bd.stats().rebuilds);
+  // The ranks' particles are a partition of the whole set.
+  unsigned long long local = bd.local_size(), total = 0;
+  MPI_Allreduce(&local, &total, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, MPI_COMM_WORLD);
+  EXPECT_EQ(total, s.size());
+}
+
+TEST(MpiDistributedBd, EnergyIsTheSerialEnergyToRoundOff) {
+  // The sum over ranks adds the particles' shares in another order: agreement to a few ulps of the
+  // sum of their magnitudes, here bounded by 1e-12 relative.
+  const System s = lattice(7, 1.3, 1, 5);
+  const DistributedBdOptions o = options_with(1e-3, 99);
+  rpyfmm::bd::Integrator serial(std::make_unique<rpyfmm::rpy::FreeDrainingMobility>(Geometry::open(), o.viscosity),
+                                sticky_trapped(), o.integrator, s.x, s.types, o.neighbours);
+  DistributedBd bd(MPI_COMM_WORLD, sticky_trapped(), Geometry::open(), o,
+                   share_of(s, Split::geometric, identity(s.size()), false));
+  for (int k = 0; k < 5; ++k) {
+    const double e = serial.step().potential_energy;
+    bd.step();
+    EXPECT_NEAR(bd.potential_energy(), e, 1e-12 * std::abs(e)) << "step " << k;
+  }
+}
+
+TEST(MpiDistributedBd, CheckpointWrittenOnTwoRanksContinuesOnAllRanksBitForBit) {
+  const System s = lattice(6, 1.6, 2, 23);
+  const Geometry box = Geometry::periodic(6 * 1.6);
+  const DistributedBdOptions o = options_with(4e-3, 5);
+  const std::vector<double> expected = serial_run(wca_mixture(), box, o, s, 40);
+  // The first 20 steps on ranks 0 and 1 only (rank 0 alone on one rank).
+  const int writers = std::min(2, world_size());
+  MPI_Comm first;
+  MPI_Comm_split(MPI_COMM_WORLD, world_rank() < writers ? 0 : MPI_UNDEFINED, world_rank(), &first);
+  const auto path = std::filesystem::temp_directory_path() / ("rpyfmm_mpi_bd_" + std::to_string(::getpid()) + ".chk");
+  std::string path_text = broadcast_from_root(path.string());
+  if (first != MPI_COMM_NULL) {
+    const std::size_t n = s.size(), half = n / 2;
+    BdShare share;
+    const std::size_t lo = world_rank() == 0 ? 0 : half, hi = writers == 1 || world_rank() == 1 ? n : half;
+    for (std::size_t i = lo; i < hi; ++i) {
+      share.positions.insert(share.positions.end(), &s.x[3 * i], &s.x[3 * i + 3]);
+      share.types.push_back(s.types[i]);
+    }
+    DistributedBd bd(first, wca_mixture(), box, o, std::move(share));
+    bd.run(20);
+    const rpyfmm::bd::Checkpoint c = bd.checkpoint(0);
+    if (world_rank() == 0) rpyfmm::bd::write_checkpoint(path_text, c);
+    MPI_Comm_free(&first);
+  }
+  const rpyfmm::bd::Checkpoint read =
+      world_rank() == 0 ? rpyfmm::bd::read_checkpoint(path_text) : rpyfmm::bd::Checkpoint{};
+  DistributedBd bd = rpyfmm::mpi::restart_distributed_bd(MPI_COMM_WORLD, wca_mixture(), box, o, read);
+  EXPECT_EQ(bd.step_count(), 20u);
+  bd.run(20);
+  expect_positions_bitwise(bd, expected, "restarted on " + std::to_string(world_size()) + " ranks");
+  // The positions at step 0 travel with the particles.
+  const rpyfmm::bd::Checkpoint end = bd.checkpoint(0);
+  if (world_rank() == 0) {
+    EXPECT_EQ(end.reference_positions, s.x);
+    std::filesystem::remove(path_text);
+  }
+}
+
+TEST(MpiDistributedBd, FewerParticlesThanRanksAndNoPairs) {
+  // 3 particles, all on the last rank's input; without pair potentials there is no halo.
+  System s{{0.0, 0.0, 0.0, 1.0, 0.5, 0.0, -2.0, 0.0, 1.0}, {0, 0, 0}};
+  rpyfmm::bd::ParticleType a{.name = "A", .radius = 0.5, .external_force = {0.0, 0.0, -1.0}};
+  ForceField forces({a});
+  forces.set_trap(0.2);
+  const DistributedBdOptions o = options_with(1e-2);
+  const std::vector<double> expected = serial_run(forces, Geometry::open(), o, s, 25);
+  DistributedBd bd(MPI_COMM_WORLD, forces, Geometry::open(), o, share_of(s, Split::last_only, identity(3), false));
+  bd.run(25);
+  expect_positions_bitwise(bd, expected, "3 particles");
+  EXPECT_EQ(bd.stats().halo_size, 0u);
+}
+
+TEST(MpiDistributedBd, BadInputOnOneRankFailsEveryRank) {
+  const System s = lattice(4, 1.6, 2, 1);
+  const Geometry box = Geometry::periodic(4 * 1.6);
+  const DistributedBdOptions o = options_with(1e-3);
+  const int last = world_size() - 1;
+  {  // a NaN coordinate on the last rank
+    BdShare share = share_of(s, Split::even, identity(s.size()), false);
+    if (world_rank() == last) share.positions[1] = std::nan("");
+    expect_collective_error([&] { DistributedBd bd(MPI_COMM_WORLD, wca_mixture(), box, o, share); },
+                            ErrorCode::invalid_input, "is not finite");
+  }
+  {  // an id given twice
+    BdShare share = share_of(s, Split::even, identity(s.size()), true);
+    if (world_rank() == last) share.ids.back() = 0;
+    expect_collective_error([&] { DistributedBd bd(MPI_COMM_WORLD, wca_mixture(), box, o, share); },
+                            ErrorCode::invalid_input, "given twice");
+  }
+  {  // an id beyond N
+    BdShare share = share_of(s, Split::even, identity(s.size()), true);
+    if (world_rank() == last) share.ids.back() = 1000;
+    expect_collective_error([&] { DistributedBd bd(MPI_COMM_WORLD, wca_mixture(), box, o, share); },
+                            ErrorCode::invalid_input, "is not below the number of particles");
+  }
+  {  // a dt that differs between ranks
+    DistributedBdOptions other = o;
+    if (world_rank() == last && world_size() > 1) other.integrator.dt = 2e-3;
+    if (world_size() > 1) {
+      expect_collective_error(
+          [&] {
+            DistributedBd bd(MPI_COMM_WORLD, wca_mixture(), box, other, share_of(s, Split::even, identity(64), false));
+          },
+          ErrorCode::invalid_argument, "different options");
+    }
+  }
+  {  // features of the serial engine that runs across ranks do not have
+    DistributedBdOptions rotating = o;
+    rotating.integrator.rotation = true;
+    expect_collective_error(
+        [&] {
+          DistributedBd bd(MPI_COMM_WORLD, wca_mixture(), box, rotating, share_of(s, Split::even, identity(64), false));
+        },
+        ErrorCode::not_supported, "rotation");
+    ForceField bonded = wca_mixture();
+    bonded.add_bonds(std::vector<rpyfmm::bd::Bond>{{0, 1, bonded.add_bond_potential({})}});
+    expect_collective_error(
+        [&] { DistributedBd bd(MPI_COMM_WORLD, bonded, box, o, share_of(s, Split::even, identity(64), false)); },
+        ErrorCode::not_supported, "bonds");
+    ForceField called = wca_mixture();
+    called.add_callback([](auto, auto, auto) {});
+    expect_collective_error(
+        [&] { DistributedBd bd(MPI_COMM_WORLD, called, box, o, share_of(s, Split::even, identity(64), false)); },
+        ErrorCode::not_supported, "callbacks");
+  }
+  {  // no particle anywhere
+    expect_collective_error([&] { DistributedBd bd(MPI_COMM_WORLD, wca_mixture(), box, o, BdShare{}); },
+                            ErrorCode::invalid_input, "no particles");
+  }
+}
+
+TEST(MpiDistributedBd, BlowUpAndOverlapFailEveryRankAndKeepTheState) {
+  // Particle 37 pushed hard: the guard refuses the step on every rank, naming it by global index.
+  System s = lattice(4, 1.6, 1, 2);
+  rpyfmm::bd::ParticleType a{.name = "A", .radius = 0.5};
+  rpyfmm::bd::ParticleType pushed{.name = "pushed", .radius = 0.5, .external_force = {1e4, 0.0, 0.0}};
+  ForceField forces({a, pushed});
+  for (std::uint32_t t1 = 0; t1 < 2; ++t1)
+    for (std::uint32_t t2 = t1; t2 < 2; ++t2) forces.set_pair(t1, t2, {.kind = PairKind::wca});
+  s.types[37] = 1;
+  const Geometry box = Geometry::periodic(4 * 1.6);
+  const DistributedBdOptions o = options_with(1e-2);
+  DistributedBd bd(MPI_COMM_WORLD, forces, box, o, share_of(s, Split::geometric, shuffled(64, 8), true));
+  const rpyfmm::bd::Checkpoint before = bd.checkpoint(0);
+  expect_collective_error([&] { bd.step(); }, ErrorCode::numerical_failure, "blow-up at step 0: particle 37");
+  const rpyfmm::bd::Checkpoint after = bd.checkpoint(0);
+  if (world_rank() == 0) EXPECT_EQ(before.positions, after.positions);
+  EXPECT_EQ(bd.step_count(), 0u);
+
+  // Particles 5 and 40 inside each other's hard core: named by their global indices.
+  System overlapping = lattice(4, 1.6, 2, 2);
+  for (int c = 0; c < 3; ++c) overlapping.x[3 * 40 + c] = overlapping.x[3 * 5 + c] + (c == 0 ? 0.3 : 0.0);
+  DistributedBd hard(MPI_COMM_WORLD, wca_mixture(), box, o, share_of(overlapping, Split::even, shuffled(64, 4), true));
+  // The lowest failing rank words the error, from the side of the pair it owns.
+  const std::string message =
+      expect_collective_error([&] { hard.step(); }, ErrorCode::invalid_input, "overlap at step 0");
+  EXPECT_TRUE(message.find("particles 5 and 40") != std::string::npos ||
+              message.find("particles 40 and 5") != std::string::npos)
+      << message;
+}
+
+}  // namespace
