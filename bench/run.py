@@ -220,10 +220,10 @@ def rigid_cases(mode: str) -> list[Case]:
 
 
 def mpi_cases(mode: str) -> list[Case]:
-    """DistributedLaplaceFmm and DistributedDirectRpy on P = 1..4 ranks of one thread each (mpiexec
-    --oversubscribe): strong scaling at fixed N, weak scaling at fixed N / P (bench/mpi)."""
-    sizes = {"fmm": ("4e5", "1e5"), "direct": ("2e4", "5e3")} if mode == "full" else {
-        "fmm": ("1e5", "2.5e4"), "direct": ("1e4", "2.5e3")}
+    """DistributedLaplaceFmm, DistributedDirectRpy and DistributedBd on P = 1..4 ranks of one thread
+    each (mpiexec --oversubscribe): strong scaling at fixed N, weak scaling at fixed N / P (bench/mpi)."""
+    sizes = {"fmm": ("4e5", "1e5"), "direct": ("2e4", "5e3"), "bd": ("1e6", "2.5e5")} if mode == "full" else {
+        "fmm": ("1e5", "2.5e4"), "direct": ("1e4", "2.5e3"), "bd": ("1e5", "2.5e4")}
     return [Case(["mpi/bench_mpi_ranks", str(p), f"bench_mpi_{method}", "--n", n, "--eps", "1e-6", "--scaling",
                   scaling, "--reps", "3"], 1, {})
             for method, (strong, weak) in sizes.items() for scaling, n in (("strong", strong), ("weak", weak))
@@ -343,19 +343,22 @@ GROUPS = [
            ("beads", "beads", "{}"), ("threads", "threads", "{}"), ("drift", "drift", "{}"),
            ("GMRES its", "iterations", "{}"), ("s", "time_s", "{:.4f}"), ("setup s", "setup_s", "{:.4f}")],
           keys=("benchmark", "operator", "bodies", "beads", "threads", "drift")),
-    Group("mpi", "Laplace FMM and direct RPY across MPI ranks",
-          "DistributedLaplaceFmm (fmm, docs/mpi.md) and DistributedDirectRpy (direct, one product U = M F) on P "
+    Group("mpi", "Laplace FMM, direct RPY and free-draining BD across MPI ranks",
+          "DistributedLaplaceFmm (fmm, docs/mpi.md), DistributedDirectRpy (direct, one product U = M F) and "
+          "DistributedBd (bd: WCA spheres of radius 0.5 at volume fraction 0.15 in a periodic box, dt 1e-3, "
+          "eval s = seconds per step over 20 steps, comm s = the halo's positions per step, essential = the largest "
+          "part of a rank, own + halo particles, serial s = bd::Integrator per step on one rank) on P "
           "ranks of one OpenMP thread each, uniform sources in the unit cube; fmm: eps 1e-6, one density, potential "
           "and gradient: strong scaling at fixed N and weak scaling at fixed N / P. plan s = set_points or "
           "set_positions; eval s = median of 3 evaluations or products (the slowest rank's); comm s = the slowest "
           "rank's time in the exchanges of one; MB = bytes received by all ranks in one; essential = the largest "
           "serial-FMM source set of a rank (own + halo + equivalent nodes). On the 2-core development machine 3 and "
           "4 ranks oversubscribe the cores: their times show the work per rank and the volume, not a speed-up.",
-          ["bench_mpi_fmm", "bench_mpi_direct"], mpi_cases, parse_json_lines, "eval_s",
+          ["bench_mpi_fmm", "bench_mpi_direct", "bench_mpi_bd"], mpi_cases, parse_json_lines, "eval_s",
           [("method", "method", "{}"), ("scaling", "scaling", "{}"), ("ranks", "ranks", "{}"), ("N", "N", "{:.2g}"),
            ("plan s", "plan_s", "{:.3f}"), ("eval s", "eval_s", "{:.3f}"), ("serial FMM s", "eval_work_fmm_s", "{:.3f}"),
            ("comm s", "eval_comm_s", "{:.4f}"), ("plan MB", "plan_MB", "{:.2f}"), ("eval MB", "eval_MB", "{:.2f}"),
-           ("essential", "essential_max", "{:.0f}")],
+           ("essential", "essential_max", "{:.0f}"), ("serial s", "serial_s", "{:.4f}")],
           keys=("method", "scaling", "ranks", "N")),
 ]
 GROUP_BY_NAME = {g.name: g for g in GROUPS}

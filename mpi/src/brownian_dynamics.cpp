@@ -18,6 +18,7 @@
 #include "device/rebuild_test.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/mpi/partition.hpp"
+#include "rpyfmm/rpy/random.hpp"
 
 namespace rpyfmm::mpi {
 namespace {
@@ -279,13 +280,18 @@ void DistributedBd::compute_forces() {
 void DistributedBd::advance() {
   const std::size_t n = ids_.size();
   const bd::device::EngineTables t = motion_tables(options_, forces_);
+  z_.resize(3 * n);
   const bd::device::MotionTables m{types_.data(), t.mobility.data(), t.sqrt_mobility.data(), t.radius.data(), t.dt,
                                    t.noise,       t.brownian,        t.max_displacement2,    t.seed,          step_};
+  // z_i keyed by the global index, drawn as the serial engine draws it (rpy::fill_normal).
+  if (t.brownian) rpy::fill_normal(ids_, z_, t.seed, step_);
   std::vector<double> next(3 * n);
   std::uint64_t refused = kNoParticle;  // the lowest global index the guard refuses
   for (std::size_t i = 0; i < n; ++i) {
     double dx[3];
-    if (!bd::device::displacement(static_cast<std::uint32_t>(i), ids_[i], f_.data(), m, dx))
+    constexpr double kNoNoise[3] = {0.0, 0.0, 0.0};
+    const double* z = t.brownian ? &z_[3 * i] : kNoNoise;
+    if (!bd::device::displacement_with(static_cast<std::uint32_t>(i), z, f_.data(), m, dx))
       refused = std::min(refused, ids_[i]);
     for (int c = 0; c < 3; ++c) next[3 * i + c] = x_[3 * i + c] + dx[c];
   }

@@ -66,8 +66,12 @@ void philox_portable(const std::uint64_t* index, std::size_t m, std::uint64_t se
 struct Avx2Lanes {
   static constexpr std::size_t width = 8;
   using V = __m256i;
-  RPYFMM_RANDOM_TARGET_AVX2 static V load(const std::uint32_t* p) { return _mm256_load_si256(reinterpret_cast<const V*>(p)); }
-  RPYFMM_RANDOM_TARGET_AVX2 static void store(std::uint32_t* p, V v) { _mm256_storeu_si256(reinterpret_cast<V*>(p), v); }
+  RPYFMM_RANDOM_TARGET_AVX2 static V load(const std::uint32_t* p) {
+    return _mm256_load_si256(reinterpret_cast<const V*>(p));
+  }
+  RPYFMM_RANDOM_TARGET_AVX2 static void store(std::uint32_t* p, V v) {
+    _mm256_storeu_si256(reinterpret_cast<V*>(p), v);
+  }
   RPYFMM_RANDOM_TARGET_AVX2 static V set1(std::uint32_t v) { return _mm256_set1_epi32(static_cast<int>(v)); }
   RPYFMM_RANDOM_TARGET_AVX2 static V bxor(V a, V b) { return _mm256_xor_si256(a, b); }
   RPYFMM_RANDOM_TARGET_AVX2 static V add(V a, V b) { return _mm256_add_epi32(a, b); }
@@ -144,13 +148,13 @@ struct Avx512Lanes {
     }                                                                                  \
   }
 
-RPYFMM_RANDOM_TARGET_AVX2 void philox_avx2(const std::uint64_t* index, std::size_t m, std::uint64_t seed, std::uint64_t step,
-                                    const Blocks& blocks, ChunkWords& out) {
+RPYFMM_RANDOM_TARGET_AVX2 void philox_avx2(const std::uint64_t* index, std::size_t m, std::uint64_t seed,
+                                           std::uint64_t step, const Blocks& blocks, ChunkWords& out) {
   RPYFMM_PHILOX_CHUNK_BODY(Avx2Lanes);
 }
 
 RPYFMM_RANDOM_TARGET_AVX512 void philox_avx512(const std::uint64_t* index, std::size_t m, std::uint64_t seed,
-                                        std::uint64_t step, const Blocks& blocks, ChunkWords& out) {
+                                               std::uint64_t step, const Blocks& blocks, ChunkWords& out) {
   RPYFMM_PHILOX_CHUNK_BODY(Avx512Lanes);
 }
 
@@ -192,7 +196,7 @@ void box_muller_portable(const ChunkWords& words, std::size_t m, std::uint32_t b
 #ifdef RPYFMM_RANDOM_X86
 template <Mapping M, class Real>
 RPYFMM_RANDOM_TARGET_AVX2 void box_muller_avx2(const ChunkWords& words, std::size_t m, std::uint32_t blocks, Real* g0,
-                                        Real* g1) {
+                                               Real* g1) {
   box_muller_chunk<M>(words, m, blocks, g0, g1);
 }
 template <Mapping M, class Real>
@@ -280,12 +284,15 @@ void fill_normal6(std::span<const std::uint64_t> index, std::uint64_t seed, std:
   fill_normal6_impl<float, false>(index, seed, step, stream, out);
 }
 
-void fill_normal(std::span<double> z, std::uint64_t seed, std::uint64_t step, std::uint32_t stream) {
-  require(z.size() % 3 == 0, ErrorCode::invalid_input, "fill_normal",
-          "noise length " + std::to_string(z.size()) + " is not a multiple of 3");
+namespace {
+
+/// z[3 k + c] = normal3(seed, step, stream, index_of(k))[c] for k < n, in chunks of kChunk indices
+/// (in parallel from 16384 indices: each chunk's values depend on its indices only).
+template <class IndexOf>
+void fill_normal3(std::size_t n, IndexOf index_of, std::span<double> z, std::uint64_t seed, std::uint64_t step,
+                  std::uint32_t stream) {
   require(stream < 0x80000000u, ErrorCode::invalid_argument, "fill_normal",
           "stream " + std::to_string(stream) + " must be below 2^31 (the top bit selects the third component)");
-  const std::size_t n = z.size() / 3;
   const Blocks blocks{{stream, stream ^ 0x80000000u, 0}, 2};
   const auto chunks = static_cast<std::int64_t>((n + kChunk - 1) / kChunk);
 #pragma omp parallel if (n >= 16384)
@@ -298,7 +305,7 @@ void fill_normal(std::span<double> z, std::uint64_t seed, std::uint64_t step, st
     for (std::int64_t c = 0; c < chunks; ++c) {
       const std::size_t start = static_cast<std::size_t>(c) * kChunk;
       const std::size_t m = std::min(kChunk, n - start);
-      for (std::size_t k = 0; k < m; ++k) index[k] = start + k;
+      for (std::size_t k = 0; k < m; ++k) index[k] = index_of(start + k);
       draw_chunk<Mapping::r123>(index, m, seed, step, blocks, words, g0, g1);
       double* o = z.data() + 3 * start;
       for (std::size_t k = 0; k < m; ++k) {
@@ -308,6 +315,23 @@ void fill_normal(std::span<double> z, std::uint64_t seed, std::uint64_t step, st
       }
     }
   }
+}
+
+}  // namespace
+
+void fill_normal(std::span<double> z, std::uint64_t seed, std::uint64_t step, std::uint32_t stream) {
+  require(z.size() % 3 == 0, ErrorCode::invalid_input, "fill_normal",
+          "noise length " + std::to_string(z.size()) + " is not a multiple of 3");
+  fill_normal3(
+      z.size() / 3, [](std::size_t k) { return static_cast<std::uint64_t>(k); }, z, seed, step, stream);
+}
+
+void fill_normal(std::span<const std::uint64_t> index, std::span<double> z, std::uint64_t seed, std::uint64_t step,
+                 std::uint32_t stream) {
+  require(z.size() == 3 * index.size(), ErrorCode::invalid_input, "fill_normal",
+          "noise length " + std::to_string(z.size()) + " is not 3 x " + std::to_string(index.size()) + " indices");
+  fill_normal3(
+      index.size(), [index](std::size_t k) { return index[k]; }, z, seed, step, stream);
 }
 
 namespace random_detail {

@@ -323,6 +323,27 @@ TEST(Random, Normal3FollowsRandom123BoxMuller) {
   }
 }
 
+// fill_normal at a list of particle indices (a rank's particles under MPI) gives, bit for bit, the
+// values fill_normal gives those particles in the whole set: the same chunked Philox and Box-Muller
+// on the same counters, at every instruction-set level.
+TEST(Random, FillNormalAtIndicesEqualsTheWholeSetsValues) {
+  const std::size_t n = 20011;
+  std::vector<std::uint64_t> index;
+  for (std::size_t i = n - 1; i < n; i -= 3) index.push_back(i);  // descending, every third
+  for (const rpyfmm::SimdLevel level : rpyfmm::test::available_simd_levels()) {
+    const rpyfmm::ScopedSimdLevel scope(level);
+    std::vector<double> whole(3 * n), part(3 * index.size());
+    fill_normal(whole, 77u, 5u, 2u);
+    fill_normal(index, part, 77u, 5u, 2u);
+    std::size_t differ = 0;
+    for (std::size_t k = 0; k < index.size(); ++k)
+      for (std::size_t c = 0; c < 3; ++c) differ += part[3 * k + c] != whole[3 * index[k] + c] ? 1 : 0;
+    EXPECT_EQ(differ, 0u) << rpyfmm::simd_level_name(level);
+  }
+  std::vector<double> wrong(5);
+  EXPECT_THROW(fill_normal(std::vector<std::uint64_t>{1, 2}, wrong, 1u, 1u), rpyfmm::Error);
+}
+
 TEST(Random, BadSize) {
   std::vector<double> z(10);
   try {

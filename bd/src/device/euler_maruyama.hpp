@@ -45,14 +45,11 @@ struct MotionOutput {
   std::uint64_t* moved = nullptr;
 };
 
-/// dx of particle i from its force f (3 per particle), its noise keyed by `particle` (its index in
-/// the whole system: i itself, or under MPI its global index, rpyfmm/mpi/brownian_dynamics.hpp);
-/// false when the guard refuses it.
-RPYFMM_HOST_DEVICE inline bool displacement(std::uint32_t i, std::uint64_t particle, const double* f,
-                                            const MotionTables& m, double dx[3]) {
+/// dx of particle i from its force f (3 per particle) and its noise z (ignored without Brownian
+/// motion); false when the guard refuses it.
+RPYFMM_HOST_DEVICE inline bool displacement_with(std::uint32_t i, const double z[3], const double* f,
+                                                 const MotionTables& m, double dx[3]) {
   const std::uint32_t t = m.type[i];
-  double z[3] = {0.0, 0.0, 0.0};
-  if (m.brownian) brownian_normals(m.seed, m.step, particle, z);
   double d2 = 0.0;
   for (int c = 0; c < 3; ++c) {
     const double u = m.mobility[t] * f[3 * static_cast<std::uint64_t>(i) + c];
@@ -64,9 +61,11 @@ RPYFMM_HOST_DEVICE inline bool displacement(std::uint32_t i, std::uint64_t parti
   return d2 <= m.max_displacement2 * m.radius[t] * m.radius[t];  // false for NaN too
 }
 
-/// dx of particle i of the whole system.
+/// dx of particle i of the whole system, its noise drawn from its index.
 RPYFMM_HOST_DEVICE inline bool displacement(std::uint32_t i, const double* f, const MotionTables& m, double dx[3]) {
-  return displacement(i, i, f, m, dx);
+  double z[3] = {0.0, 0.0, 0.0};
+  if (m.brownian) brownian_normals(m.seed, m.step, i, z);
+  return displacement_with(i, z, f, m, dx);
 }
 
 /// x_next = x + dx for particle i, the guard and the next step's rebuild test.

@@ -145,7 +145,7 @@ class DistributedBd {
   bool rebuild_due_ = true;
   std::uint64_t steps_since_rebuild_ = 0;
   // owned particles, increasing global index
-  std::vector<double> x_, reference_, list_reference_, f_, particle_energy_;
+  std::vector<double> x_, reference_, list_reference_, f_, z_, particle_energy_;
   std::vector<std::uint32_t> types_;
   std::vector<std::uint64_t> ids_;
   std::unique_ptr<Halo> halo_;

@@ -311,4 +311,10 @@ void fill_normal6_planar(std::span<const std::uint64_t> index, std::uint64_t see
 /// z.size() must be a multiple of 3 and stream < 2^31 (throws rpyfmm::Error otherwise).
 void fill_normal(std::span<double> z, std::uint64_t seed, std::uint64_t step, std::uint32_t stream = 0);
 
+/// z[3 k + c] = normal3(seed, step, stream, index[k])[c] for every k: fill_normal's values for any
+/// particle indices (a rank's particles under MPI, rpyfmm/mpi/brownian_dynamics.hpp), computed as
+/// fill_normal computes them. z.size() must be 3 index.size() and stream < 2^31.
+void fill_normal(std::span<const std::uint64_t> index, std::span<double> z, std::uint64_t seed, std::uint64_t step,
+                 std::uint32_t stream = 0);
+
 }  // namespace rpyfmm::rpy
