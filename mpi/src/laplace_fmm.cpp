@@ -14,6 +14,7 @@
 #include "fmm_plan.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/mpi/partition.hpp"
+#include "same_on_every_rank.hpp"
 #include "stage_timer.hpp"
 
 namespace rpyfmm::mpi {
@@ -38,19 +39,6 @@ std::vector<double> option_signature(const DistributedFmmOptions& o) {
   return {o.fmm.tolerance,  static_cast<double>(o.fmm.leaf_capacity), o.fmm.min_leaf_side,
           o.fmm.root_scale, static_cast<double>(o.fmm.order),         static_cast<double>(o.fmm.fitted_grid.occupancy),
           o.separation,     static_cast<double>(o.chebyshev_order),   static_cast<double>(o.cell_capacity)};
-}
-
-// Collective: whether every rank passed the same values (min and max of each entry agree).
-bool same_on_every_rank(const Communicator& comm, std::vector<double> values) {
-  const std::size_t n = values.size();
-  for (std::size_t i = 0; i < n; ++i) values.push_back(-values[i]);
-  std::vector<double> seen(values.size());
-  check_mpi(MPI_Allreduce(values.data(), seen.data(), static_cast<int>(values.size()), MPI_DOUBLE, MPI_MIN, comm.get()),
-            "MPI_Allreduce");
-  for (std::size_t i = 0; i < n; ++i) {
-    if (seen[i] != -seen[n + i]) return false;
-  }
-  return true;
 }
 
 // Collective: translates the owned sources x and targets y next to the origin where the whole cloud lies far
@@ -97,7 +85,7 @@ int chebyshev_order_for(double tolerance, double separation) {
 DistributedLaplaceFmm::DistributedLaplaceFmm(MPI_Comm comm, const DistributedFmmOptions& options)
     : comm_(comm), options_(options) {
   comm_.run([&] { check_options(options_); });
-  if (!same_on_every_rank(comm_, option_signature(options_))) {
+  if (!detail::same_on_every_rank(comm_, option_signature(options_))) {
     fail(ErrorCode::invalid_argument, kWhere, "the ranks pass different options");
   }
   separation_ = options_.separation > 0.0 ? options_.separation : kDefaultSeparation;
@@ -239,10 +227,10 @@ void DistributedLaplaceFmm::evaluate(std::span<const double> charges, std::size_
     check_evaluation(charges, nd, outputs, results, plan_->partition->input_size(), plan_->targets().input_size());
   });
   std::vector<double> signature{static_cast<double>(nd)};
-  if (!same_on_every_rank(comm_, signature))
+  if (!detail::same_on_every_rank(comm_, signature))
     fail(ErrorCode::invalid_argument, kEvaluate, "the ranks pass different nd");
   signature.assign(outputs.begin(), outputs.end());
-  if (!same_on_every_rank(comm_, signature)) {
+  if (!detail::same_on_every_rank(comm_, signature)) {
     fail(ErrorCode::invalid_argument, kEvaluate, "the ranks pass different outputs");
   }
   const Plan& plan = *plan_;
