@@ -100,16 +100,22 @@ void DistributedFmmRpy::set_positions(std::span<const double> local_positions, s
     if (scale_exponent_ == 0) a_.assign(local_radii.begin(), local_radii.end());
   });
   const double a_max = std::ldexp(set.radii.a_max, -scale_exponent_);
-  // Leaves of each owner's serial FMM at least 2 a_max wide, as in FmmRpy: every overlapping pair
-  // is then a near-field pair there, summed exactly. Its far form grows as (a / r)^2 above the
-  // exact block, which the overlap correction takes back: a far-field (expansion) error on it would
-  // be amplified by that ratio (measured: 3 times the tolerance on 300 spheres overlapping in a
-  // ball of radius 3 with leaves of 24 points and no minimum side).
+  // Leaves of each owner's serial FMM at least 2 a_max wide, as in FmmRpy, and no cell within 2 a_max
+  // of a rank's region compressed for it (DistributedFmmOptions): every overlapping pair is summed
+  // exactly. Its far form exceeds the exact block by up to (a / r)^2, which the overlap correction
+  // takes back, so an expansion error on it would be amplified by that ratio (measured: 3 times the
+  // tolerance on 300 spheres overlapping in a ball of radius 3 with leaves of 24 points and no
+  // minimum side).
   DistributedFmmOptions laplace = laplace_options_;
   laplace.fmm.min_leaf_side = 2.0 * a_max;
   laplace_ = DistributedLaplaceFmm(comm_.get(), laplace);
   laplace_.set_points(x_);
-  overlap_ = std::make_unique<detail::OverlapCorrection>(comm_, x_, a_, a_max);
+  // The largest |x_c| of all ranks' positions in the far field's frame (the rounding bound's |x|).
+  double reach = 0.0, global_reach = 0.0;
+  for (double c : x_) reach = std::max(reach, std::abs(c));
+  check_mpi(MPI_Allreduce(&reach, &global_reach, 1, MPI_DOUBLE, MPI_MAX, comm_.get()), "MPI_Allreduce");
+  const detail::RoundingLimits limits{options_.tolerance, global_reach};
+  overlap_ = std::make_unique<detail::OverlapCorrection>(comm_, x_, a_, a_max, limits);
   global_n_ = total;
 }
 

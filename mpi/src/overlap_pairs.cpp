@@ -12,6 +12,7 @@
 #include "alltoallv.hpp"
 #include "cell_tree.hpp"
 #include "fmm_plan.hpp"
+#include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/rpy_kernel.hpp"
 
 namespace rpyfmm::mpi::detail {
@@ -24,6 +25,8 @@ constexpr std::size_t kRegionCellCapacity = 32;
 // The halo test uses a distance a hair larger than a_j + a_max: a particle sent in excess is only
 // tested again by the pair search, one missed would lose a pair.
 constexpr double kHaloSlack = 1.0 + 0x1p-40;
+// A halo particle as sent: position, radius and global index (exact as a double below 2^53).
+constexpr std::size_t kHaloRecord = 5;
 // At most 2^20 grid cells per axis (keys of 3 x 21 bits).
 constexpr int kGridBits = 21;
 constexpr double kMaxCellsPerAxis = 0x1p20;
@@ -136,14 +139,16 @@ void far_form_scalars(double r, double ai, double aj, double& f, double& g) {
 }
 
 OverlapCorrection::OverlapCorrection(const Communicator& comm, std::span<const double> x, std::span<const double> a,
-                                     double a_max)
+                                     double a_max, const RoundingLimits& limits)
     : comm_(comm) {
   partition_ = std::make_unique<SfcPartition>(comm_.get(), x);
   const Column columns[] = {{x, 3}, {a, 1}};
   const std::vector<std::vector<double>> owned = partition_->to_owners(columns);
   owned_n_ = partition_->owned_size();
+  for (const SfcKey& k : partition_->owned()) index_.push_back(k.index);
   exchange_halo(owned[0], owned[1], a_max);
   find_pairs(owned[1], a_max);
+  comm_.run([&] { require_resolvable(limits); });
   const std::uint64_t mine = pairs_.size();
   check_mpi(MPI_Allreduce(&mine, &global_pairs_, 1, MPI_UINT64_T, MPI_SUM, comm_.get()), "MPI_Allreduce");
 }
@@ -162,22 +167,24 @@ void OverlapCorrection::exchange_halo(std::span<const double> owned_x, std::span
     for (std::size_t j = 0; j < owned_n_; ++j) {
       if (!near_region(&owned_x[3 * j], (owned_a[j] + a_max) * kHaloSlack, regions[r], around)) continue;
       sent_[r].push_back(j);
-      send[r].insert(send[r].end(), {owned_x[3 * j], owned_x[3 * j + 1], owned_x[3 * j + 2], owned_a[j]});
+      send[r].insert(send[r].end(), {owned_x[3 * j], owned_x[3 * j + 1], owned_x[3 * j + 2], owned_a[j],
+                                     static_cast<double>(index_[j])});
     }
     counts[r] = sent_[r].size();
   }
   check_mpi(MPI_Alltoall(counts.data(), 1, MPI_UINT64_T, recv.data(), 1, MPI_UINT64_T, comm_.get()), "MPI_Alltoall");
   halo_counts_.assign(recv.begin(), recv.end());
   std::vector<std::size_t> recv_doubles(ranks);
-  for (std::size_t r = 0; r < ranks; ++r) recv_doubles[r] = 4 * halo_counts_[r];
+  for (std::size_t r = 0; r < ranks; ++r) recv_doubles[r] = kHaloRecord * halo_counts_[r];
   const std::vector<double> halo = alltoallv(comm_, send, recv_doubles, kWhere, "halo particles");
-  halo_n_ = halo.size() / 4;
+  halo_n_ = halo.size() / kHaloRecord;
   points_.assign(owned_x.begin(), owned_x.end());
   radii_.assign(owned_a.begin(), owned_a.end());
   for (std::size_t k = 0; k < halo_n_; ++k) {
-    points_.insert(points_.end(), halo.begin() + static_cast<std::ptrdiff_t>(4 * k),
-                   halo.begin() + static_cast<std::ptrdiff_t>(4 * k + 3));
-    radii_.push_back(halo[4 * k + 3]);
+    const double* record = &halo[kHaloRecord * k];
+    points_.insert(points_.end(), record, record + 3);
+    radii_.push_back(record[3]);
+    index_.push_back(static_cast<std::uint64_t>(record[4]));
   }
 }
 
@@ -204,6 +211,39 @@ void OverlapCorrection::find_pairs(std::span<const double> owned_a, double a_max
     pairs_.insert(pairs_.end(), of[i].begin(), of[i].end());
     first_[i + 1] = pairs_.size();
   }
+}
+
+double cancellation_error(const double* d, double ai, double aj, double reach) {
+  const double r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+  if (r2 == 0.0) return 0.0;  // coincident: no Laplace term
+  const double r = std::sqrt(r2), a = std::max(ai, aj);
+  return 0x1p-52 * a * ((ai * ai + aj * aj) / (r2 * r) + reach / r2);
+}
+
+void OverlapCorrection::require_resolvable(const RoundingLimits& limits) const {
+  std::size_t worst_i = 0, worst_k = 0;
+  double worst = 0.0;
+  for (std::size_t i = 0; i < owned_n_; ++i) {
+    const double* xi = &points_[3 * i];
+    for (std::size_t k = first_[i]; k < first_[i + 1]; ++k) {
+      const double* xj = &points_[3 * pairs_[k].j];
+      const double d[3] = {xi[0] - xj[0], xi[1] - xj[1], xi[2] - xj[2]};
+      const double e = cancellation_error(d, radii_[i], radii_[pairs_[k].j], limits.reach);
+      if (e > worst) worst = e, worst_i = i, worst_k = k;
+    }
+  }
+  if (worst <= limits.tolerance) return;
+  const std::size_t j = pairs_[worst_k].j;
+  double r2 = 0.0;
+  for (std::size_t c = 0; c < 3; ++c) r2 += std::pow(points_[3 * worst_i + c] - points_[3 * j + c], 2);
+  fail(ErrorCode::not_supported, kWhere,
+       "particles " + std::to_string(index_[worst_i]) + " and " + std::to_string(index_[j]) + " (radii " +
+           format_number(radii_[worst_i]) + " and " + format_number(radii_[j]) + ") overlap at distance " +
+           format_number(std::sqrt(r2)) +
+           ": the Laplace sums give such a pair its far form, up to (a / r)^3 times its exact block, and the "
+           "rounding left after the overlap correction takes it back (estimated " +
+           format_number(worst) + ") exceeds the tolerance " + format_number(limits.tolerance) +
+           " (coincident points are exact; rpyfmm::mpi::DistributedDirectRpy sums any pair exactly)");
 }
 
 void OverlapCorrection::add(std::span<const double> f, std::span<double> u) const {

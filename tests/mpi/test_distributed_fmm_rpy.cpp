@@ -161,6 +161,33 @@ TEST(MpiDistributedFmmRpy, CoincidentPointsWithinToleranceOfDirect) {
   expect_contract(p, Split::first_empty, 1e-6, "coincident, equal radii");
 }
 
+// Particle i + 150 at `ratio` a_i from particle i (along x).
+Particles nearly_coincident(double ratio) {
+  Particles p = uniform_particles(300, 12.0, 0.5, 1.5, 67);
+  for (std::size_t i = 0; i < 150; ++i)
+    for (std::size_t d = 0; d < 3; ++d) p.x[3 * (i + 150) + d] = p.x[3 * i + d] + (d == 0 ? ratio * p.a[i] : 0.0);
+  return p;
+}
+
+TEST(MpiDistributedFmmRpy, NearlyCoincidentPointsWithinToleranceOrRefused) {
+  // The Laplace sums give a pair at r << a its far form, up to (a / r)^3 times its exact block; the
+  // correction takes it back, leaving rounding of about 2^-53 (a / r)^3 (mpi/src/overlap_pairs.hpp).
+  // At r = 0.05 a the estimate stays below 1e-9 (at most 6e-11 here): within every tolerance.
+  const Particles near = nearly_coincident(0.05);
+  for (double eps : kTolerances) expect_contract(near, Split::even, eps, "r = 0.05 a");
+  // At r = 1e-3 a it is up to 7e-6 (measured without the refusal: 1.8e-7 over all particles): the
+  // product is within 1e-3, and at 1e-9 the operator refuses the set on every rank.
+  const Particles closer = nearly_coincident(1e-3);
+  expect_contract(closer, Split::even, 1e-3, "r = 1e-3 a");
+  const Partition part = partition_of(closer.size(), Split::even);
+  DistributedFmmRpy op(MPI_COMM_WORLD, kViscosity, {.tolerance = 1e-9});
+  const std::string message = expect_collective_error(
+      [&] { op.set_positions(share(closer.x, 3, part.offset, part.n), share(closer.a, 1, part.offset, part.n)); },
+      ErrorCode::not_supported, "exceeds the tolerance 1e-09");
+  if (world_rank() == 0) std::printf("[fmm-rpy] refused: %s\n", message.c_str());
+  EXPECT_EQ(op.global_size(), 0u);
+}
+
 TEST(MpiDistributedFmmRpy, MoreRanksThanParticles) {
   for (std::size_t n : {1, 2, 3}) {
     const Particles p = uniform_particles(n, 3.0, 0.8, 1.2, 66 + n);  // overlapping

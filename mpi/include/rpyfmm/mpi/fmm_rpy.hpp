@@ -86,9 +86,12 @@ class DistributedFmmRpy {
   /// Collective. This rank's positions (3n, n >= 0) and one radius for them (> 0, finite; ranks may
   /// pass different radii), or one radius per particle. Throws rpyfmm::Error on every rank when
   /// any rank's input is malformed (size, NaN/Inf, radius not > 0), when no rank has a particle,
-  /// and on what rpy::FmmRpy refuses for the whole set (a radius below 2^-300 of the suspension's
-  /// size, named by its global index). After a failure the operator holds no positions on any rank
-  /// until a later set_positions succeeds.
+  /// on what rpy::FmmRpy refuses for the whole set (a radius below 2^-300 of the suspension's size,
+  /// named by its global index), and (not_supported) on an overlapping pair so close, yet not
+  /// coincident, that the rounding of its far form in the Laplace sums may exceed the tolerance
+  /// (for equal radii r < a (2^-51 / tolerance)^(1/3): 8e-5 a at 1e-3, 8e-4 a at 1e-6, 8e-3 a at
+  /// 1e-9; docs/mpi.md). After a failure the operator holds no positions on any rank until a later
+  /// set_positions succeeds.
   void set_positions(std::span<const double> local_positions, double radius);
   void set_positions(std::span<const double> local_positions, std::span<const double> local_radii);
 
