@@ -49,9 +49,10 @@ class MpiSessionEnd {
   MpiSessionEnd& operator=(const MpiSessionEnd&) = delete;
 };
 
-/// `rpyfmm mobility --method direct` across the ranks (commands_across_ranks.cpp, builds with MPI):
-/// rank 0 reads the files and scatters the particles, rpyfmm::mpi::DistributedDirectRpy applies
-/// M, rank 0 gathers U and writes it. Bit for bit the serial command's output.
+/// `rpyfmm mobility --method direct|fmm` across the ranks (commands_across_ranks.cpp, builds with
+/// MPI): rank 0 reads the files and scatters the particles, rpyfmm::mpi::DistributedDirectRpy
+/// (bit for bit the serial command's output) or rpyfmm::mpi::DistributedFmmRpy (within the
+/// tolerance of the exact product) applies M, rank 0 gathers U and writes it.
 struct RanksMobilityArgs {
   std::string positions, forces, radii, out;
   double radius = 0.0;
@@ -59,6 +60,7 @@ struct RanksMobilityArgs {
   double viscosity = 1.0;
   double tolerance = 0.0;
   bool json = false;
+  std::string method = "direct";  // "direct" (DistributedDirectRpy) or "fmm" (DistributedFmmRpy)
 };
 void run_mobility_across_ranks(const RanksMobilityArgs& args);
 
