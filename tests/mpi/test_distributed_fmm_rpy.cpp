@@ -175,7 +175,7 @@ TEST(MpiDistributedFmmRpy, NearlyCoincidentPointsWithinToleranceOrRefused) {
   // At r = 0.05 a the estimate stays below 1e-9 (at most 6e-11 here): within every tolerance.
   const Particles near = nearly_coincident(0.05);
   for (double eps : kTolerances) expect_contract(near, Split::even, eps, "r = 0.05 a");
-  // At r = 1e-3 a it is up to 7e-6 (measured without the refusal: 1.8e-7 over all particles): the
+  // At r = 1e-3 a it reaches 4e-6 (measured without the refusal: 1.8e-7 over all particles): the
   // product is within 1e-3, and at 1e-9 the operator refuses the set on every rank.
   const Particles closer = nearly_coincident(1e-3);
   expect_contract(closer, Split::even, 1e-3, "r = 1e-3 a");
