@@ -1,6 +1,6 @@
 // rpyfmm CLI — the commands that run across MPI ranks (mpi_session.hpp, docs/mpi.md):
 //   mpirun -np P rpyfmm mobility --method direct|fmm ...
-//   mpirun -np P rpyfmm sample --operator direct [--method lanczos] ...
+//   mpirun -np P rpyfmm sample --operator direct|fmm [--method lanczos] ...
 // Rank 0 reads the same files as the serial command and scatters the particles in P contiguous
 // shares; rpyfmm::mpi::DistributedDirectRpy applies M (bit for bit the serial DirectRpy), or
 // rpyfmm::mpi::DistributedFmmRpy (within --tolerance of it), and rpyfmm::mpi::sqrt_apply samples
@@ -155,6 +155,24 @@ Prepared<Operator> prepare(const Inputs& files, const mpi::Communicator& comm, M
   return p;
 }
 
+// Prepares the operator `name` selects ("fmm": DistributedFmmRpy at `tolerance`; otherwise
+// DistributedDirectRpy) and calls body(prepared).
+template <class Body>
+void with_operator(const std::string& name, double tolerance, double viscosity, const Inputs& files,
+                   const mpi::Communicator& comm, Body&& body) {
+  if (name == "fmm") {
+    auto p = prepare<mpi::DistributedFmmRpy>(files, comm, [&] {
+      return std::make_unique<mpi::DistributedFmmRpy>(comm.get(), viscosity,
+                                                      mpi::DistributedFmmRpyOptions{.tolerance = tolerance});
+    });
+    body(p);
+  } else {
+    auto p = prepare<mpi::DistributedDirectRpy>(
+        files, comm, [&] { return std::make_unique<mpi::DistributedDirectRpy>(comm.get(), viscosity); });
+    body(p);
+  }
+}
+
 // What both commands add to --json under MPI: the ranks and the slowest rank's times.
 void add_ranks(JsonLine& line, const StageTimes& stages, const StageTimes& communication,
                const mpi::Communicator& comm) {
@@ -202,29 +220,24 @@ void run_mobility_across_ranks(const RanksMobilityArgs& args) {
   const StopWatch total;
   const Inputs files{args.positions, args.radius_given ? std::string() : args.radii, args.forces, "forces",
                      args.radius};
-  if (args.method == "fmm") {
-    auto p = prepare<mpi::DistributedFmmRpy>(files, comm, [&] {
-      return std::make_unique<mpi::DistributedFmmRpy>(comm.get(), args.viscosity,
-                                                      mpi::DistributedFmmRpyOptions{.tolerance = args.tolerance});
-    });
-    apply_and_write(p, args, comm, total);
-  } else {
-    auto p = prepare<mpi::DistributedDirectRpy>(
-        files, comm, [&] { return std::make_unique<mpi::DistributedDirectRpy>(comm.get(), args.viscosity); });
-    apply_and_write(p, args, comm, total);
-  }
+  with_operator(args.method, args.tolerance, args.viscosity, files, comm,
+                [&](auto& p) { apply_and_write(p, args, comm, total); });
 }
 
-void run_sample_across_ranks(const RanksSampleArgs& args) {
-  const mpi::Communicator comm(MPI_COMM_WORLD);
-  StopWatch total;
-  auto p = prepare<mpi::DistributedDirectRpy>(
-      {args.positions, args.radius_given ? std::string() : args.radii, args.noise, "noise", args.radius}, comm,
-      [&] { return std::make_unique<mpi::DistributedDirectRpy>(comm.get(), args.viscosity); });
+namespace {
+
+// The MPI time of every product of a sampler (DistributedDirectRpy keeps it; DistributedFmmRpy
+// reports its Laplace FMM's last evaluation only, so nothing is added for it).
+void add_products_communication(const mpi::DistributedDirectRpy& op, StageTimes& communication) {
+  communication["products"] = op.communication().applies_seconds;
+}
+void add_products_communication(const mpi::DistributedFmmRpy&, StageTimes&) {}
+
+// W = M^{1/2} Z with the prepared operator; rank 0 writes W and prints --json.
+template <class Operator>
+void sample_and_write(Prepared<Operator>& p, const RanksSampleArgs& args, const mpi::Communicator& comm,
+                      const StopWatch& total) {
   LocalInput& in = p.in;
-  const mpi::DistributedDirectRpy& op = *p.op;
-  StageTimes& stages = p.stages;
-  StageTimes& communication = p.communication;
   if (args.noise.empty()) {  // the serial command's noise of this rank's particles
     in.rows.resize(in.x.size());
     mpi::fill_normal(in.rows, in.offset, args.seed, args.step);
@@ -233,16 +246,16 @@ void run_sample_across_ranks(const RanksSampleArgs& args) {
   StopWatch watch;
   std::vector<double> w(in.x.size());
   double inner_products = 0.0;
-  const rpy::SqrtReport report = mpi::sqrt_apply(op, in.rows, w, args.options, &inner_products);
-  stages["sample"] = watch.seconds();
-  communication["products"] = op.communication().applies_seconds;
-  communication["inner_products"] = inner_products;
+  const rpy::SqrtReport report = mpi::sqrt_apply(*p.op, in.rows, w, args.options, &inner_products);
+  p.stages["sample"] = watch.seconds();
+  add_products_communication(*p.op, p.communication);
+  p.communication["inner_products"] = inner_products;
 
-  stages["write"] = gather_and_write(w, in, args.out, "sample", comm);
+  p.stages["write"] = gather_and_write(w, in, args.out, "sample", comm);
 
   JsonLine line;
   line.add("command", "sample")
-      .add("operator", "direct")
+      .add("operator", args.op)
       .add("method", rpy::to_string(report.method))
       .add("n", in.n)
       .add("sqrt_tolerance", args.options.tolerance);
@@ -250,12 +263,23 @@ void run_sample_across_ranks(const RanksSampleArgs& args) {
   line.add("angular", false)
       .add("noise", args.noise.empty() ? "philox" : args.noise)
       .add("viscosity", args.viscosity)
-      .add("equal_radii", op.equal_radii())
+      .add("equal_radii", p.op->equal_radii())
       .add("out", args.out);
   if (args.noise.empty()) line.add("seed", args.seed).add("step", args.step);
   if (args.radius_given) line.add("radius", args.radius);
-  add_ranks(line, stages, communication, comm);  // collective
+  if (args.op == "fmm") line.add("tolerance", args.tolerance);
+  add_ranks(line, p.stages, p.communication, comm);  // collective
   if (args.json && comm.rank() == 0) std::cout << line.add("total_seconds", total.seconds()).str() << '\n';
+}
+
+}  // namespace
+
+void run_sample_across_ranks(const RanksSampleArgs& args) {
+  const mpi::Communicator comm(MPI_COMM_WORLD);
+  const StopWatch total;
+  const Inputs files{args.positions, args.radius_given ? std::string() : args.radii, args.noise, "noise", args.radius};
+  with_operator(args.op, args.tolerance, args.viscosity, files, comm,
+                [&](auto& p) { sample_and_write(p, args, comm, total); });
 }
 
 }  // namespace rpyfmm::cli

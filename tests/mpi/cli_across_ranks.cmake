@@ -5,6 +5,8 @@
 #  - `mpiexec -n NP rpyfmm mobility --method fmm --tolerance E`: DistributedFmmRpy meets FmmRpy's
 #    contract (relative l2 error of U at most E), so U must lie within E of the serial direct file
 #    and within 2E of the serial FMM's (laplace_agree);
+#  - `mpiexec -n NP rpyfmm sample --operator fmm`: Lanczos on DistributedFmmRpy, within 1e-5 of the
+#    serial direct sampler's file (see below);
 #  - `mpiexec -n NP rpyfmm sample --operator direct`: the distributed Lanczos sampler is the serial
 #    one bit for bit too (its inner products are the serial ones), on the noise drawn by seed and
 #    on noise read from a file: identical files;
@@ -150,6 +152,18 @@ if(NOT json MATCHES "\"method\":\"fmm\"" OR NOT json MATCHES "\"communication_se
 endif()
 agree(mobility_fmm "${WORK}/mobility_fmm_mpi.npy" "${WORK}/mobility_fmm_direct.npy" 1e-6)
 agree(mobility_fmm "${WORK}/mobility_fmm_mpi.npy" "${WORK}/mobility_fmm_serial.npy" 2e-6)
+
+# sample with the FMM operator at 1e-9 and Lanczos at 1e-6, against the serial direct sampler's
+# file: the operators differ by at most 1e-9 relative, far below the iteration's tolerance, and each
+# iteration stops within its tolerance of its own operator's root, so the two lie within 1e-5.
+set(sample_common sample --positions "${WORK}/x.txt" --radii "${WORK}/a.txt" --method lanczos --sqrt-tolerance 1e-6
+                  --viscosity 0.7 --seed 5 --step 3)
+run_serial(sample_fmm sample_fmm_direct ${sample_common} --operator direct)
+run_across(sample_fmm ${sample_common} --operator fmm --tolerance 1e-9)
+if(NOT json MATCHES "\"operator\":\"fmm\"" OR NOT json MATCHES "\"inner_products\":")
+  message(FATAL_ERROR "sample_fmm: --json lacks the operator or the inner products' time: ${json}")
+endif()
+agree(sample_fmm "${WORK}/sample_fmm_mpi.npy" "${WORK}/sample_fmm_direct.npy" 1e-5)
 
 # laplace with the FMM: at the sources (one density) and at separate targets (two densities).
 function(run_laplace name tolerance twice)
