@@ -261,15 +261,16 @@ void print_sample_json(const SampleArgs& args, const rpy::MobilityOperator& op, 
   std::cout << line.str() << '\n';
 }
 
-/// Under MPI: whether this sample runs across the ranks (--operator direct with Lanczos, without
-/// preconditioner or rotation); otherwise it runs on one rank only and more ranks are refused.
+/// Under MPI: whether this sample runs across the ranks (--operator direct or fmm with Lanczos,
+/// without preconditioner or rotation); otherwise it runs on one rank only and more ranks are
+/// refused.
 bool across_ranks(const SampleArgs& args, const rpy::SqrtOptions& options) {
-  const bool supported = args.op == "direct" && !args.angular &&
+  const bool supported = (args.op == "direct" || args.op == "fmm") && !args.angular &&
                          (options.method == rpy::SqrtMethod::lanczos || options.method == rpy::SqrtMethod::automatic) &&
                          options.preconditioner != rpy::SqrtPreconditioner::block;
   require(supported || mpi_size() == 1, ErrorCode::not_supported, "sample",
           "across " + std::to_string(mpi_size()) +
-              " MPI ranks runs --operator direct with --method auto or lanczos only, without --preconditioner "
+              " MPI ranks runs --operator direct or fmm with --method auto or lanczos only, without --preconditioner "
               "block and --angular (docs/mpi.md); run the others without mpirun");
   return supported;
 }
@@ -291,7 +292,8 @@ void run_sample(const SampleArgs& given, bool radius_given, bool seed_given) {
   const OperatorEntry& entry = operator_of(args);
   if (under_mpi() && across_ranks(args, options)) {
     run_sample_across_ranks({args.positions, args.radii, args.noise, args.out, args.radius, radius_given,
-                             args.viscosity, args.seed, args.step, options, args.common.json});
+                             args.viscosity, args.seed, args.step, options, args.common.json, args.op,
+                             args.tolerance != 0.0 ? args.tolerance : rpy::FmmRpyOptions{}.tolerance});
     return;
   }
 

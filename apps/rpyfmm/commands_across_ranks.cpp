@@ -1,10 +1,11 @@
 // rpyfmm CLI — the commands that run across MPI ranks (mpi_session.hpp, docs/mpi.md):
-//   mpirun -np P rpyfmm mobility --method direct ...
-//   mpirun -np P rpyfmm sample --operator direct [--method lanczos] ...
+//   mpirun -np P rpyfmm mobility --method direct|fmm ...
+//   mpirun -np P rpyfmm sample --operator direct|fmm [--method lanczos] ...
 // Rank 0 reads the same files as the serial command and scatters the particles in P contiguous
-// shares; rpyfmm::mpi::DistributedDirectRpy applies M (bit for bit the serial DirectRpy) and
-// rpyfmm::mpi::sqrt_apply samples M^{1/2} z; rank 0 gathers the result and writes the same file
-// (write_npy: a temporary file renamed into place). Every step fails on every rank alike
+// shares; rpyfmm::mpi::DistributedDirectRpy applies M (bit for bit the serial DirectRpy), or
+// rpyfmm::mpi::DistributedFmmRpy (within --tolerance of it), and rpyfmm::mpi::sqrt_apply samples
+// M^{1/2} z; rank 0 gathers the result and writes the same file (write_npy: a temporary file
+// renamed into place). Every step fails on every rank alike
 // (rpyfmm::mpi::Communicator::run), so no rank waits for another that gave up.
 #include <mpi.h>
 
@@ -24,6 +25,7 @@
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/mpi/communicator.hpp"
 #include "rpyfmm/mpi/direct_operator.hpp"
+#include "rpyfmm/mpi/fmm_rpy.hpp"
 #include "rpyfmm/mpi/sqrt.hpp"
 #include "sqrt_report_json.hpp"
 
@@ -89,9 +91,10 @@ double gather_and_write(const std::vector<double>& local, const LocalInput& in, 
 
 // Read by rank 0, scattered, and the operator set up on each rank's share: what both commands do
 // first, timed per stage.
+template <class Operator>
 struct Prepared {
   LocalInput in;
-  std::unique_ptr<mpi::DistributedDirectRpy> op;
+  std::unique_ptr<Operator> op;
   StageTimes stages, communication;
 };
 
@@ -101,11 +104,33 @@ struct Inputs {
   const std::string& rows;   // forces or noise; empty where none is read
   const char* rows_name;
   double radius;
-  double viscosity;
 };
 
-Prepared prepare(const Inputs& files, const mpi::Communicator& comm) {
-  Prepared p;
+double sum(const StageTimes& times) {
+  double total = 0.0;
+  for (const auto& [stage, seconds] : times) total += seconds;
+  return total;
+}
+
+// The operators' time in MPI calls in set_positions and in the last apply (for DistributedFmmRpy,
+// the exchanges of its Laplace FMM: the overlap correction's are not timed).
+double setup_communication(const mpi::DistributedDirectRpy& op) {
+  return op.communication().set_positions_seconds;
+}
+double setup_communication(const mpi::DistributedFmmRpy& op) {
+  return sum(op.laplace().communication().plan_seconds);
+}
+double apply_communication(const mpi::DistributedDirectRpy& op) {
+  return op.communication().apply_seconds;
+}
+double apply_communication(const mpi::DistributedFmmRpy& op) {
+  return sum(op.laplace().communication().evaluate_seconds);
+}
+
+// `make()` constructs the operator (collective).
+template <class Operator, class Make>
+Prepared<Operator> prepare(const Inputs& files, const mpi::Communicator& comm, Make&& make) {
+  Prepared<Operator> p;
   StopWatch watch;
   WholeInput whole;
   comm.run([&] {
@@ -119,15 +144,33 @@ Prepared prepare(const Inputs& files, const mpi::Communicator& comm) {
   p.communication["distribute"] = p.stages["distribute"] = watch.seconds();
 
   watch.restart();
-  p.op = std::make_unique<mpi::DistributedDirectRpy>(comm.get(), files.viscosity);
+  p.op = make();
   if (files.radii.empty()) {
     p.op->set_positions(p.in.x, files.radius);
   } else {
     p.op->set_positions(p.in.x, p.in.radii);
   }
   p.stages["setup"] = watch.seconds();
-  p.communication["setup"] = p.op->communication().set_positions_seconds;
+  p.communication["setup"] = setup_communication(*p.op);
   return p;
+}
+
+// Prepares the operator `name` selects ("fmm": DistributedFmmRpy at `tolerance`; otherwise
+// DistributedDirectRpy) and calls body(prepared).
+template <class Body>
+void with_operator(const std::string& name, double tolerance, double viscosity, const Inputs& files,
+                   const mpi::Communicator& comm, Body&& body) {
+  if (name == "fmm") {
+    auto p = prepare<mpi::DistributedFmmRpy>(files, comm, [&] {
+      return std::make_unique<mpi::DistributedFmmRpy>(comm.get(), viscosity,
+                                                      mpi::DistributedFmmRpyOptions{.tolerance = tolerance});
+    });
+    body(p);
+  } else {
+    auto p = prepare<mpi::DistributedDirectRpy>(
+        files, comm, [&] { return std::make_unique<mpi::DistributedDirectRpy>(comm.get(), viscosity); });
+    body(p);
+  }
 }
 
 // What both commands add to --json under MPI: the ranks and the slowest rank's times.
@@ -142,48 +185,59 @@ void add_ranks(JsonLine& line, const StageTimes& stages, const StageTimes& commu
 
 }  // namespace
 
-void run_mobility_across_ranks(const RanksMobilityArgs& args) {
-  const mpi::Communicator comm(MPI_COMM_WORLD);
-  StopWatch total;
-  Prepared p = prepare({args.positions, args.radius_given ? std::string() : args.radii, args.forces, "forces",
-                        args.radius, args.viscosity},
-                       comm);
-  const LocalInput& in = p.in;
-  mpi::DistributedDirectRpy& op = *p.op;
-  StageTimes& stages = p.stages;
-  StageTimes& communication = p.communication;
+namespace {
 
+// U = M F with the prepared operator; rank 0 writes U and prints --json.
+template <class Operator>
+void apply_and_write(Prepared<Operator>& p, const RanksMobilityArgs& args, const mpi::Communicator& comm,
+                     const StopWatch& total) {
+  const LocalInput& in = p.in;
   StopWatch watch;
   std::vector<double> u(in.x.size());
-  op.apply(in.rows, u);
-  stages["apply"] = watch.seconds();
-  communication["apply"] = op.communication().apply_seconds;
+  p.op->apply(in.rows, u);
+  p.stages["apply"] = watch.seconds();
+  p.communication["apply"] = apply_communication(*p.op);
 
-  stages["write"] = gather_and_write(u, in, args.out, "mobility", comm);
+  p.stages["write"] = gather_and_write(u, in, args.out, "mobility", comm);
 
   JsonLine line;
   line.add("command", "mobility")
-      .add("method", "direct")
+      .add("method", args.method)
       .add("n", in.n)
       .add("viscosity", args.viscosity)
       .add("tolerance", args.tolerance)
-      .add("equal_radii", op.equal_radii())
+      .add("equal_radii", p.op->equal_radii())
       .add("out", args.out);
   if (args.radius_given) line.add("radius", args.radius);
-  add_ranks(line, stages, communication, comm);  // collective
+  add_ranks(line, p.stages, p.communication, comm);  // collective
   if (args.json && comm.rank() == 0) std::cout << line.add("total_seconds", total.seconds()).str() << '\n';
 }
 
-void run_sample_across_ranks(const RanksSampleArgs& args) {
+}  // namespace
+
+void run_mobility_across_ranks(const RanksMobilityArgs& args) {
   const mpi::Communicator comm(MPI_COMM_WORLD);
-  StopWatch total;
-  Prepared p = prepare({args.positions, args.radius_given ? std::string() : args.radii, args.noise, "noise",
-                        args.radius, args.viscosity},
-                       comm);
+  const StopWatch total;
+  const Inputs files{args.positions, args.radius_given ? std::string() : args.radii, args.forces, "forces",
+                     args.radius};
+  with_operator(args.method, args.tolerance, args.viscosity, files, comm,
+                [&](auto& p) { apply_and_write(p, args, comm, total); });
+}
+
+namespace {
+
+// The MPI time of every product of a sampler (DistributedDirectRpy keeps it; DistributedFmmRpy
+// reports its Laplace FMM's last evaluation only, so nothing is added for it).
+void add_products_communication(const mpi::DistributedDirectRpy& op, StageTimes& communication) {
+  communication["products"] = op.communication().applies_seconds;
+}
+void add_products_communication(const mpi::DistributedFmmRpy&, StageTimes&) {}
+
+// W = M^{1/2} Z with the prepared operator; rank 0 writes W and prints --json.
+template <class Operator>
+void sample_and_write(Prepared<Operator>& p, const RanksSampleArgs& args, const mpi::Communicator& comm,
+                      const StopWatch& total) {
   LocalInput& in = p.in;
-  const mpi::DistributedDirectRpy& op = *p.op;
-  StageTimes& stages = p.stages;
-  StageTimes& communication = p.communication;
   if (args.noise.empty()) {  // the serial command's noise of this rank's particles
     in.rows.resize(in.x.size());
     mpi::fill_normal(in.rows, in.offset, args.seed, args.step);
@@ -192,16 +246,16 @@ void run_sample_across_ranks(const RanksSampleArgs& args) {
   StopWatch watch;
   std::vector<double> w(in.x.size());
   double inner_products = 0.0;
-  const rpy::SqrtReport report = mpi::sqrt_apply(op, in.rows, w, args.options, &inner_products);
-  stages["sample"] = watch.seconds();
-  communication["products"] = op.communication().applies_seconds;
-  communication["inner_products"] = inner_products;
+  const rpy::SqrtReport report = mpi::sqrt_apply(*p.op, in.rows, w, args.options, &inner_products);
+  p.stages["sample"] = watch.seconds();
+  add_products_communication(*p.op, p.communication);
+  p.communication["inner_products"] = inner_products;
 
-  stages["write"] = gather_and_write(w, in, args.out, "sample", comm);
+  p.stages["write"] = gather_and_write(w, in, args.out, "sample", comm);
 
   JsonLine line;
   line.add("command", "sample")
-      .add("operator", "direct")
+      .add("operator", args.op)
       .add("method", rpy::to_string(report.method))
       .add("n", in.n)
       .add("sqrt_tolerance", args.options.tolerance);
@@ -209,12 +263,23 @@ void run_sample_across_ranks(const RanksSampleArgs& args) {
   line.add("angular", false)
       .add("noise", args.noise.empty() ? "philox" : args.noise)
       .add("viscosity", args.viscosity)
-      .add("equal_radii", op.equal_radii())
+      .add("equal_radii", p.op->equal_radii())
       .add("out", args.out);
   if (args.noise.empty()) line.add("seed", args.seed).add("step", args.step);
   if (args.radius_given) line.add("radius", args.radius);
-  add_ranks(line, stages, communication, comm);  // collective
+  if (args.op == "fmm") line.add("tolerance", args.tolerance);
+  add_ranks(line, p.stages, p.communication, comm);  // collective
   if (args.json && comm.rank() == 0) std::cout << line.add("total_seconds", total.seconds()).str() << '\n';
+}
+
+}  // namespace
+
+void run_sample_across_ranks(const RanksSampleArgs& args) {
+  const mpi::Communicator comm(MPI_COMM_WORLD);
+  const StopWatch total;
+  const Inputs files{args.positions, args.radius_given ? std::string() : args.radii, args.noise, "noise", args.radius};
+  with_operator(args.op, args.tolerance, args.viscosity, files, comm,
+                [&](auto& p) { sample_and_write(p, args, comm, total); });
 }
 
 }  // namespace rpyfmm::cli

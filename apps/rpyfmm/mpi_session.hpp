@@ -49,9 +49,10 @@ class MpiSessionEnd {
   MpiSessionEnd& operator=(const MpiSessionEnd&) = delete;
 };
 
-/// `rpyfmm mobility --method direct` across the ranks (commands_across_ranks.cpp, builds with MPI):
-/// rank 0 reads the files and scatters the particles, rpyfmm::mpi::DistributedDirectRpy applies
-/// M, rank 0 gathers U and writes it. Bit for bit the serial command's output.
+/// `rpyfmm mobility --method direct|fmm` across the ranks (commands_across_ranks.cpp, builds with
+/// MPI): rank 0 reads the files and scatters the particles, rpyfmm::mpi::DistributedDirectRpy
+/// (bit for bit the serial command's output) or rpyfmm::mpi::DistributedFmmRpy (within the
+/// tolerance of the exact product) applies M, rank 0 gathers U and writes it.
 struct RanksMobilityArgs {
   std::string positions, forces, radii, out;
   double radius = 0.0;
@@ -59,13 +60,15 @@ struct RanksMobilityArgs {
   double viscosity = 1.0;
   double tolerance = 0.0;
   bool json = false;
+  std::string method = "direct";  // "direct" (DistributedDirectRpy) or "fmm" (DistributedFmmRpy)
 };
 void run_mobility_across_ranks(const RanksMobilityArgs& args);
 
-/// `rpyfmm sample --operator direct` with Lanczos across the ranks (commands_across_ranks.cpp):
+/// `rpyfmm sample --operator direct|fmm` with Lanczos across the ranks (commands_across_ranks.cpp):
 /// rank 0 reads the files (and --noise) and scatters them, or each rank draws its share's noise
 /// (rpyfmm::mpi::fill_normal: the serial noise), rpyfmm::mpi::sqrt_apply samples, rank 0 gathers
-/// W and writes it. Bit for bit the serial command's output (docs/mpi.md).
+/// W and writes it. With the direct operator bit for bit the serial command's output; with the
+/// FMM the square root of the FMM product (docs/mpi.md).
 struct RanksSampleArgs {
   std::string positions, radii, noise, out;
   double radius = 0.0;
@@ -74,6 +77,8 @@ struct RanksSampleArgs {
   std::uint64_t seed = 0, step = 0;
   rpy::SqrtOptions options;
   bool json = false;
+  std::string op = "direct";  // "direct" (DistributedDirectRpy) or "fmm" (DistributedFmmRpy)
+  double tolerance = 1e-6;    // of the fmm operator
 };
 void run_sample_across_ranks(const RanksSampleArgs& args);
 

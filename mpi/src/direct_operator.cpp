@@ -15,6 +15,7 @@
 #include "direct_block_sums.hpp"
 #include "length_units.hpp"
 #include "load_scaling.hpp"
+#include "particle_set.hpp"
 #include "rpyfmm/core/validate.hpp"
 
 namespace rpyfmm::mpi {
@@ -33,86 +34,12 @@ std::size_t target_batch(std::size_t local_n) {
   const auto threads = static_cast<std::size_t>(std::max(1, omp_get_max_threads()));
   return std::max(local_n / 8 + 1, 64 * threads);
 }
-// A rank's summary for the whole set's bounding box and radius range: lo[3], hi[3], the global
-// indices of the particles on the box faces ilo[3], ihi[3] (exact as doubles), a_min, a_max, count.
-constexpr int kSummary = 15;
-
 // Runs the MPI calls of `body`, adding their wall time to `seconds`.
 template <class Body>
 void timed(double& seconds, Body&& body) {
   const double start = MPI_Wtime();
   body();
   seconds += MPI_Wtime() - start;
-}
-
-// The viscosity, once every rank has checked its own and all ranks agree on one value.
-double agreed_viscosity(const Communicator& comm, double viscosity) {
-  comm.run([&] { require_positive(viscosity, "DistributedDirectRpy", "viscosity"); });
-  std::array<double, 2> local{viscosity, -viscosity}, global{};
-  check_mpi(MPI_Allreduce(local.data(), global.data(), 2, MPI_DOUBLE, MPI_MIN, comm.get()), "MPI_Allreduce");
-  require(global[0] == -global[1], ErrorCode::invalid_argument, "DistributedDirectRpy",
-          "the ranks pass different viscosities (from " + format_number(global[0]) + " to " +
-              format_number(-global[1]) + "); every rank must pass the same one");
-  return viscosity;
-}
-
-// This rank's positions and radii as set_positions requires them (the message names no rank:
-// Communicator::agree adds it).
-void check_local_particles(std::span<const double> positions, std::span<const double> radii) {
-  require(positions.size() % 3 == 0, ErrorCode::invalid_input, kSetPositions,
-          "local positions have " + std::to_string(positions.size()) + " entries, not a multiple of 3");
-  require_size(radii, positions.size() / 3, kSetPositions, "local radii");
-  require_finite(positions, kSetPositions, "local positions", 3);
-  for (std::size_t i = 0; i < radii.size(); ++i) {
-    if (!(std::isfinite(radii[i]) && radii[i] > 0.0)) {
-      fail(ErrorCode::invalid_argument, kSetPositions,
-           "radius of local particle " + std::to_string(i) + " must be finite and > 0, got " + format_number(radii[i]));
-    }
-  }
-}
-
-std::array<double, kSummary> local_summary(std::span<const double> x, std::span<const double> a, std::size_t offset) {
-  std::array<double, kSummary> s{};
-  s[14] = static_cast<double>(a.size());
-  if (a.empty()) return s;
-  const rpy::detail::BoundingBox box = rpy::detail::bounding_box(x);
-  for (int c = 0; c < 3; ++c) {
-    s[c] = box.lo[c];
-    s[3 + c] = box.hi[c];
-    s[6 + c] = static_cast<double>(offset + box.ilo[c]);
-    s[9 + c] = static_cast<double>(offset + box.ihi[c]);
-  }
-  const auto [a_min, a_max] = std::minmax_element(a.begin(), a.end());
-  s[12] = *a_min;
-  s[13] = *a_max;
-  return s;
-}
-
-struct WholeSet {
-  rpy::detail::BoundingBox box;
-  rpy::detail::RadiiPiece radii;
-};
-
-// The whole set's bounding box and radius range from the ranks' summaries, merged in rank order
-// as bounding_box() scans the concatenation: a face moves only to a strictly lower (higher)
-// coordinate, so the first particle on it names it, and the box is bounding_box()'s bit for bit.
-WholeSet merge_summaries(const std::vector<double>& all, std::size_t ranks) {
-  WholeSet set;
-  bool first = true;
-  for (std::size_t r = 0; r < ranks; ++r) {
-    const double* s = all.data() + kSummary * r;
-    if (s[14] == 0.0) continue;
-    for (std::size_t c = 0; c < 3; ++c) {
-      if (first || s[c] < set.box.lo[c]) set.box.lo[c] = s[c], set.box.ilo[c] = static_cast<std::size_t>(s[6 + c]);
-      if (first || s[3 + c] > set.box.hi[c]) {
-        set.box.hi[c] = s[3 + c], set.box.ihi[c] = static_cast<std::size_t>(s[9 + c]);
-      }
-    }
-    set.radii.a_min = first ? s[12] : std::min(set.radii.a_min, s[12]);
-    set.radii.a_max = first ? s[13] : std::max(set.radii.a_max, s[13]);
-    first = false;
-  }
-  return set;
 }
 
 }  // namespace
@@ -154,55 +81,44 @@ class DistributedDirectRpy::SourceWindow {
 };
 
 DistributedDirectRpy::DistributedDirectRpy(MPI_Comm comm, double viscosity)
-    : comm_(comm), viscosity_(agreed_viscosity(comm_, viscosity)) {}
+    : comm_(comm), viscosity_(detail::agreed_viscosity(comm_, viscosity, "DistributedDirectRpy")) {}
 
 void DistributedDirectRpy::set_positions(std::span<const double> local_positions, double radius) {
   global_n_ = 0;  // no positions until this call succeeds on every rank
-  // Checked first so that the message speaks of the radius, not of a radius per particle.
-  comm_.run([&] { require_positive(radius, kSetPositions, "radius"); });
-  const std::vector<double> radii(local_positions.size() / 3, radius);
-  set_positions(local_positions, radii);
+  set_positions(local_positions, detail::common_radii(comm_, local_positions, radius, kSetPositions));
 }
 
 void DistributedDirectRpy::set_positions(std::span<const double> local_positions, std::span<const double> local_radii) {
   global_n_ = 0;  // no positions until this call succeeds on every rank
   stats_ = CommunicationStats{};
-  comm_.run([&] { check_local_particles(local_positions, local_radii); });
+  comm_.run([&] { detail::check_local_particles(local_positions, local_radii, kSetPositions); });
   const auto ranks = static_cast<std::size_t>(comm_.size());
-  const auto mine = static_cast<std::uint64_t>(local_radii.size());
-  std::vector<std::uint64_t> all(ranks);
-  timed(stats_.set_positions_seconds, [&] {
-    check_mpi(MPI_Allgather(&mine, 1, MPI_UINT64_T, all.data(), 1, MPI_UINT64_T, comm_.get()), "MPI_Allgather");
-  });
+  std::vector<std::size_t> all;
+  timed(stats_.set_positions_seconds, [&] { all = detail::gather_counts(comm_, local_radii.size()); });
   // Same values on every rank, so every rank throws alike here without agreement.
   std::uint64_t total = 0;
-  for (std::uint64_t n : all) {
-    require(n <= static_cast<std::uint64_t>(INT_MAX) / kPacked, ErrorCode::not_supported, kSetPositions,
+  for (std::size_t n : all) {
+    require(n <= static_cast<std::size_t>(INT_MAX) / kPacked, ErrorCode::not_supported, kSetPositions,
             "a rank holds " + std::to_string(n) + " particles: more than MPI's int counts address in one block (" +
                 std::to_string(INT_MAX / kPacked) + ")");
     total += n;
   }
   require(total > 0, ErrorCode::invalid_input, kSetPositions,
           "no particles on any of the " + std::to_string(ranks) + " ranks (N = 0)");
-  counts_.assign(all.begin(), all.end());
+  counts_ = std::move(all);
   local_n_ = counts_[static_cast<std::size_t>(comm_.rank())];
   offset_ = 0;
   for (int r = 0; r < comm_.rank(); ++r) offset_ += counts_[static_cast<std::size_t>(r)];
 
-  const std::array<double, kSummary> summary = local_summary(local_positions, local_radii, offset_);
-  std::vector<double> summaries(kSummary * ranks);
-  timed(stats_.set_positions_seconds, [&] {
-    check_mpi(MPI_Allgather(summary.data(), kSummary, MPI_DOUBLE, summaries.data(), kSummary, MPI_DOUBLE, comm_.get()),
-              "MPI_Allgather");
-  });
-  const WholeSet set = merge_summaries(summaries, ranks);
+  detail::WholeSet set;
+  timed(stats_.set_positions_seconds,
+        [&] { set = detail::gather_whole_set(comm_, local_positions, local_radii, offset_); });
   // MobilityOperator's flag: every radius equal to the first (radii are > 0, so no -0 == +0).
   equal_radii_ = set.radii.a_min == set.radii.a_max;
   comm_.run([&] {
     // DirectRpy::on_positions_set on this rank's share, with the whole set's units.
-    rpy::detail::RadiiPiece piece = set.radii;
-    piece.first = offset_;
-    const rpy::detail::LengthUnits units = rpy::detail::choose_length_units(set.box, local_radii, piece, kSetPositions);
+    const rpy::detail::LengthUnits units =
+        rpy::detail::choose_length_units(set.box, local_radii, set.radii, kSetPositions);
     rpy::detail::store_direct_particles(local_positions, local_radii, units, {x_, y_, z_, a_, inv_a_});
     scale_exponent_ = units.exponent;
   });

@@ -8,11 +8,15 @@
 namespace rpyfmm::mpi::detail {
 namespace {
 
-// The distance from a cube to the nearest box of a region, in units of the cube's half-side
-// (infinite for a cube of side 0 away from every box).
-double relative_distance(const Cube& cube, std::span<const Box> region) {
+// The distance from a cube to the nearest box of a region.
+double nearest_distance(const Cube& cube, std::span<const Box> region) {
   double nearest = std::numeric_limits<double>::infinity();
   for (const Box& box : region) nearest = std::min(nearest, distance(cube, box));
+  return nearest;
+}
+
+// A distance in units of the cube's half-side (infinite for a cube of side 0 away from every box).
+double relative_distance(double nearest, const Cube& cube) {
   if (nearest == 0.0) return 0.0;
   return cube.half > 0.0 ? nearest / cube.half : std::numeric_limits<double>::infinity();
 }
@@ -34,8 +38,10 @@ EssentialCells essential_cells(const CellTree& tree, std::span<const Box> region
     const std::uint32_t c = stack.back();
     stack.pop_back();
     const Cell& cell = tree.cells[c];
-    const double eta = relative_distance(cell_cube(cell), region);
-    if (eta >= acceptance.separation) {
+    const Cube cube = cell_cube(cell);
+    const double nearest = nearest_distance(cube, region);
+    const double eta = relative_distance(nearest, cube);
+    if (eta >= acceptance.separation && nearest >= acceptance.min_distance) {
       const int p = acceptance.fixed_order > 0 ? acceptance.fixed_order
                                                : order_at(acceptance.tolerance, eta, acceptance.max_order);
       const auto nodes = static_cast<std::size_t>(p) * static_cast<std::size_t>(p) * static_cast<std::size_t>(p);

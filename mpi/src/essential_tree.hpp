@@ -31,6 +31,9 @@ struct Acceptance {
   double separation = 2.0;  // smallest distance / half-side of a compressed cell (eta)
   int max_order = 32;
   int fixed_order = 0;  // > 0: this order for every compressed cell instead of order_at
+  // Smallest distance of a compressed cell from the region (the serial FMM's min_leaf_side): pairs
+  // closer than it are never in a compressed cell (DistributedFmmRpy: no overlapping pair).
+  double min_distance = 0.0;
 };
 
 /// The smallest Chebyshev order p >= 2 with rho^-p <= tolerance / 10, rho = eta + sqrt(1 + eta^2)
@@ -38,9 +41,9 @@ struct Acceptance {
 [[nodiscard]] int order_at(double tolerance, double eta, int max_order);
 
 /// Not collective. The cells of `tree` that a rank with particles in `region` needs, top down: a
-/// cell whose cube lies at a distance of at least separation × its half-side from every box of the
-/// region is compressed with the order its distance needs when that order's p^3 nodes are fewer than
-/// its particles; any other cell is opened, and a leaf that is not compressed is sent as its
+/// cell whose cube lies at a distance of at least separation × its half-side, and at least
+/// min_distance, from every box of the region is compressed with the order its distance needs when that order's p^3
+/// nodes are fewer than its particles; any other cell is opened, and a leaf that is not compressed is sent as its
 /// particles (halo). Every particle of the tree is in exactly one cell sent. Empty for an empty
 /// region.
 [[nodiscard]] EssentialCells essential_cells(const CellTree& tree, std::span<const Box> region,

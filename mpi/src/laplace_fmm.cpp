@@ -188,7 +188,8 @@ void DistributedLaplaceFmm::set_points(std::span<const double> local_sources, st
     regions =
         detail::gather_regions(comm_, plan->target_partition ? target_tree : plan->tree, stats_.plan_bytes_received);
   });
-  const detail::Acceptance acceptance{options_.fmm.tolerance, separation_, 32, options_.chebyshev_order};
+  const detail::Acceptance acceptance{options_.fmm.tolerance, separation_, 32, options_.chebyshev_order,
+                                      options_.fmm.min_leaf_side};
   detail::select_cells(*plan, regions, comm_.rank(), acceptance);
   std::vector<double> sources;
   detail::timed(stats_.plan_seconds, "geometry",

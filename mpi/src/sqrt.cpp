@@ -66,8 +66,13 @@ void fill_normal(std::span<double> local_z, std::size_t offset, std::uint64_t se
   }
 }
 
-rpy::SqrtReport sqrt_apply(const DistributedDirectRpy& op, std::span<const double> local_z, std::span<double> local_w,
-                           const rpy::SqrtOptions& options, double* inner_products_seconds) {
+namespace {
+
+// The Lanczos square root on a distributed operator: DistributedDirectRpy or DistributedFmmRpy
+// (the same interface: communicator, global_size, local_size, counts, apply).
+template <class Operator>
+rpy::SqrtReport lanczos_across_ranks(const Operator& op, std::span<const double> local_z, std::span<double> local_w,
+                                     const rpy::SqrtOptions& options, double* inner_products_seconds) {
   const Communicator& comm = op.communicator();
   require(op.global_size() > 0, ErrorCode::invalid_input, kWhere, "positions not set (call set_positions first)");
   comm.run([&] {
@@ -90,6 +95,18 @@ rpy::SqrtReport sqrt_apply(const DistributedDirectRpy& op, std::span<const doubl
   comm.run([&] { rpy::detail::require_finite_result(local_w, kWhere, "local output", "noise"); });
   if (inner_products_seconds != nullptr) *inner_products_seconds = space.communication_seconds();
   return report;
+}
+
+}  // namespace
+
+rpy::SqrtReport sqrt_apply(const DistributedDirectRpy& op, std::span<const double> local_z, std::span<double> local_w,
+                           const rpy::SqrtOptions& options, double* inner_products_seconds) {
+  return lanczos_across_ranks(op, local_z, local_w, options, inner_products_seconds);
+}
+
+rpy::SqrtReport sqrt_apply(const DistributedFmmRpy& op, std::span<const double> local_z, std::span<double> local_w,
+                           const rpy::SqrtOptions& options, double* inner_products_seconds) {
+  return lanczos_across_ranks(op, local_z, local_w, options, inner_products_seconds);
 }
 
 }  // namespace rpyfmm::mpi

@@ -126,22 +126,13 @@ StageTimes FmmRpy::last_timings() const {
 }
 
 void FmmRpy::on_positions_set() {
-  const std::size_t n = size();
   const auto x = positions();
-  // Centre the coordinates: the far field subtracts x_i,m E_k(F^m) and E_k(x.F), whose
-  // FMM errors scale with |x|; centring keeps them at the scale of the cloud (translation invariance).
-  // Suspensions at extreme length scales are evaluated in units of their size (length_units.hpp).
+  // Centred coordinates, or at extreme length scales units of the suspension's size
+  // (length_units.hpp, to_fmm_frame).
   const detail::BoundingBox box = detail::bounding_box(x);
   const detail::LengthUnits units = detail::choose_length_units(box, radii(), "FmmRpy::set_positions");
   scale_exponent_ = units.exponent;
-  centered_.resize(3 * n);
-  if (scale_exponent_ == 0) {
-    for (std::size_t i = 0; i < n; ++i)
-      for (int c = 0; c < 3; ++c) centered_[3 * i + c] = x[3 * i + c] - 0.5 * (box.lo[c] + box.hi[c]);
-    scaled_radii_.clear();
-  } else {
-    detail::to_units(units, x, radii(), centered_, scaled_radii_);
-  }
+  detail::to_fmm_frame(units, box, x, radii(), centered_, scaled_radii_);
   const double eps = options_.tolerance;
   plan_ = options_.leaf_capacity > 0 ? make_plan(options_.leaf_capacity, {})
                                      : make_plan(default_leaf_capacity(eps), fitted_grid_rule(eps, size()));

@@ -116,4 +116,16 @@ void to_units(const LengthUnits& units, std::span<const double> x, std::span<con
   for (std::size_t i = 0; i < a.size(); ++i) as[i] = std::ldexp(a[i], -e);
 }
 
+void to_fmm_frame(const LengthUnits& units, const BoundingBox& box, std::span<const double> x,
+                  std::span<const double> a, std::vector<double>& xs, std::vector<double>& as) {
+  if (units.exponent != 0) {
+    to_units(units, x, a, xs, as);
+    return;
+  }
+  xs.resize(x.size());
+  for (std::size_t i = 0; i < x.size() / 3; ++i)
+    for (int c = 0; c < 3; ++c) xs[3 * i + c] = x[3 * i + c] - 0.5 * (box.lo[c] + box.hi[c]);
+  as.clear();
+}
+
 }  // namespace rpyfmm::rpy::detail

@@ -55,4 +55,11 @@ struct RadiiPiece {
 void to_units(const LengthUnits& units, std::span<const double> x, std::span<const double> a, std::vector<double>& xs,
               std::vector<double>& as);
 
+/// The positions and radii an FMM far field evaluates (FmmRpy, rpyfmm::mpi::DistributedFmmRpy): in
+/// plain units (exponent 0) the centres minus the midpoint of `box` (rounded: the far field's
+/// errors scale with |x| through x_m E(F^m) - E(x.F), so centring keeps them at the scale of the
+/// cloud) and `as` empty (the radii as given); otherwise to_units, exact.
+void to_fmm_frame(const LengthUnits& units, const BoundingBox& box, std::span<const double> x,
+                  std::span<const double> a, std::vector<double>& xs, std::vector<double>& as);
+
 }  // namespace rpyfmm::rpy::detail

@@ -2,6 +2,11 @@
 # command-line tool"):
 #  - `mpiexec -n NP rpyfmm mobility --method direct`: the distributed direct operator is the serial
 #    one bit for bit, so the two .npy files must be identical byte for byte;
+#  - `mpiexec -n NP rpyfmm mobility --method fmm --tolerance E`: DistributedFmmRpy meets FmmRpy's
+#    contract (relative l2 error of U at most E), so U must lie within E of the serial direct file
+#    and within 2E of the serial FMM's (laplace_agree);
+#  - `mpiexec -n NP rpyfmm sample --operator fmm`: Lanczos on DistributedFmmRpy, within 1e-5 of the
+#    serial direct sampler's file (see below);
 #  - `mpiexec -n NP rpyfmm sample --operator direct`: the distributed Lanczos sampler is the serial
 #    one bit for bit too (its inner products are the serial ones), on the noise drawn by seed and
 #    on noise read from a file: identical files;
@@ -128,13 +133,39 @@ foreach(noise_args "--seed;5;--step;3" "--noise;${WORK}/f.txt")
   endif()
 endforeach()
 
-# laplace with the FMM: at the sources (one density) and at separate targets (two densities).
+# Outputs that agree to a tolerance contract (laplace_agree).
 function(agree name a b bound)
   execute_process(COMMAND "${AGREE}" "${a}" "${b}" ${bound} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
   if(NOT rc EQUAL 0)
     message(FATAL_ERROR "${name}: ${NP} ranks against ${b} beyond ${bound} (${rc}): ${out}${err}")
   endif()
 endfunction()
+
+# mobility with the FMM at 1e-6 (per-particle radii, overlapping pairs among them), against the
+# serial direct and FMM files.
+set(fmm_common mobility --positions "${WORK}/x.txt" --forces "${WORK}/f.txt" --radii "${WORK}/a.txt" --viscosity 0.7)
+run_serial(mobility_fmm mobility_fmm_direct ${fmm_common} --method direct)
+run_serial(mobility_fmm mobility_fmm_serial ${fmm_common} --method fmm --tolerance 1e-6)
+run_across(mobility_fmm ${fmm_common} --method fmm --tolerance 1e-6)
+if(NOT json MATCHES "\"method\":\"fmm\"" OR NOT json MATCHES "\"communication_seconds\":{\"apply\"")
+  message(FATAL_ERROR "mobility_fmm: --json lacks the method or communication_seconds: ${json}")
+endif()
+agree(mobility_fmm "${WORK}/mobility_fmm_mpi.npy" "${WORK}/mobility_fmm_direct.npy" 1e-6)
+agree(mobility_fmm "${WORK}/mobility_fmm_mpi.npy" "${WORK}/mobility_fmm_serial.npy" 2e-6)
+
+# sample with the FMM operator at 1e-9 and Lanczos at 1e-6, against the serial direct sampler's
+# file: the operators differ by at most 1e-9 relative, far below the iteration's tolerance, and each
+# iteration stops within its tolerance of its own operator's root, so the two lie within 1e-5.
+set(sample_common sample --positions "${WORK}/x.txt" --radii "${WORK}/a.txt" --method lanczos --sqrt-tolerance 1e-6
+                  --viscosity 0.7 --seed 5 --step 3)
+run_serial(sample_fmm sample_fmm_direct ${sample_common} --operator direct)
+run_across(sample_fmm ${sample_common} --operator fmm --tolerance 1e-9)
+if(NOT json MATCHES "\"operator\":\"fmm\"" OR NOT json MATCHES "\"inner_products\":")
+  message(FATAL_ERROR "sample_fmm: --json lacks the operator or the inner products' time: ${json}")
+endif()
+agree(sample_fmm "${WORK}/sample_fmm_mpi.npy" "${WORK}/sample_fmm_direct.npy" 1e-5)
+
+# laplace with the FMM: at the sources (one density) and at separate targets (two densities).
 function(run_laplace name tolerance twice)
   set(common laplace --sources "${WORK}/x.txt" ${ARGN})
   run_serial(${name} ${name}_direct ${common} --direct)
@@ -179,7 +210,7 @@ if(NP GREATER 1)
   endif()
   # laplace, mobility and sample with what does not run across ranks refuse too.
   foreach(case "laplace;--sources;${WORK}/x.txt;--charges;${WORK}/a.txt;--direct"
-               "mobility;--positions;${WORK}/x.txt;--radius;1;--forces;${WORK}/f.txt;--method;fmm"
+               "mobility;--positions;${WORK}/x.txt;--radius;1;--forces;${WORK}/f.txt;--method;pse"
                "sample;--positions;${WORK}/x.txt;--radius;1;--operator;direct;--method;chebyshev")
     execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" ${case} --out "${WORK}/never.npy"
                     RESULT_VARIABLE rc ERROR_VARIABLE err)

@@ -124,6 +124,19 @@ TEST(EssentialTree, EveryParticleIsSentOnceAndCompressedCellsAreFarAndWorthIt) {
   EXPECT_EQ(far.compressed[0].cell, 0u);
   EXPECT_TRUE(far.halo.empty());
   EXPECT_TRUE(rpyfmm::mpi::detail::essential_cells(tree, {}, loose).halo.empty());
+  // No cell closer than min_distance to the region is compressed: the slab beside the cloud at
+  // min_distance 0.3 gets only cells at least 0.3 away, and every particle still once.
+  const rpyfmm::mpi::detail::Acceptance kept{1e-3, 2.0, 32, 0, 0.3};
+  const auto beside = rpyfmm::mpi::detail::essential_cells(tree, regions[0], kept);
+  EXPECT_FALSE(beside.compressed.empty());
+  std::size_t particles = 0;
+  for (std::uint32_t c : beside.halo) particles += tree.cells[c].size();
+  for (const rpyfmm::mpi::detail::Compressed& c : beside.compressed) {
+    const Cube cube = rpyfmm::mpi::detail::cell_cube(tree.cells[c.cell]);
+    EXPECT_GE(rpyfmm::mpi::detail::distance(cube, regions[0][0]), 0.3);
+    particles += tree.cells[c.cell].size();
+  }
+  EXPECT_EQ(particles, 4000u);
 }
 
 TEST(EssentialTree, OrderRule) {

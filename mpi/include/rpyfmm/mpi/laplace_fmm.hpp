@@ -42,7 +42,9 @@ namespace rpyfmm::mpi {
 /// Options of the distributed plan. Every rank must pass the same.
 struct DistributedFmmOptions {
   /// The serial FMM that every rank runs on its locally essential sources (tolerance, leaf capacity,
-  /// order, ...). near_field must be true and export_direct_far false.
+  /// order, ...). near_field must be true and export_direct_far false. A min_leaf_side > 0 also
+  /// keeps every cell closer than it to a rank's region from being compressed for that rank, so
+  /// that pairs closer than it are summed exactly, as in the serial FMM's near field.
   fmm::FmmOptions fmm{};
   /// Acceptance ratio eta: a cell whose cube (around its particles' tight box, half-side h) lies at a
   /// distance d >= eta h from every box of another rank's region may be sent to it as equivalent

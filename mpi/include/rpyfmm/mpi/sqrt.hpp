@@ -14,6 +14,7 @@
 
 #include "rpyfmm/mpi/communicator.hpp"
 #include "rpyfmm/mpi/direct_operator.hpp"
+#include "rpyfmm/mpi/fmm_rpy.hpp"
 #include "rpyfmm/rpy/sqrt.hpp"
 
 namespace rpyfmm::mpi {
@@ -37,6 +38,12 @@ void fill_normal(std::span<double> local_z, std::size_t offset, std::uint64_t se
 /// `inner_products_seconds`, where not null, receives this rank's time in the MPI calls of the
 /// inner products (the products' own MPI time: op.communication().applies_seconds).
 rpy::SqrtReport sqrt_apply(const DistributedDirectRpy& op, std::span<const double> local_z, std::span<double> local_w,
+                           const rpy::SqrtOptions& options, double* inner_products_seconds = nullptr);
+
+/// Collective. The same Lanczos iteration on a DistributedFmmRpy: w = M_fmm^{1/2} z with M_fmm the
+/// FMM product (within its tolerance of M), not bit for bit any serial result (the operator's own
+/// bits depend on the number of ranks). `inner_products_seconds` as above.
+rpy::SqrtReport sqrt_apply(const DistributedFmmRpy& op, std::span<const double> local_z, std::span<double> local_w,
                            const rpy::SqrtOptions& options, double* inner_products_seconds = nullptr);
 
 }  // namespace rpyfmm::mpi

@@ -1,0 +1,119 @@
+// rpyfmm — DistributedFmmRpy: the RPY mobility U = M F by the Laplace FMM on particles distributed
+// over the ranks of an MPI communicator (docs/mpi.md, "Distributed FmmRpy").
+//
+// For every pair that does not overlap (r >= a_i + a_j) the RPY block is a combination of Laplace
+// sums of four densities (seven with different radii) and their gradients and Hessians
+// (docs/theory/rpy.md; Zuk, Wajnryb, Mizerski & Szymczak, J. Fluid Mech. 741, R5 (2014), eq. (10);
+// Guan, dissertation, Algorithm 2). The operator evaluates those sums over all pairs with
+// DistributedLaplaceFmm, combines them as the serial FmmRpy does, and adds for every overlapping
+// pair (r < a_i + a_j, coincident points included) the exact RPY block minus the far form the sums
+// gave it, and the self term I / (6 pi eta a_i). Overlapping partners lie within 2 a_max of each
+// other: they are found once per set_positions through a halo exchange around each owner's region.
+//
+//   DistributedFmmRpy op(MPI_COMM_WORLD, viscosity, {.tolerance = 1e-6});  // collective
+//   op.set_positions(local_x, local_radii);   // collective: plans once
+//   op.apply(local_f, local_u);               // collective, any number of times
+//
+// Contract: on every rank the relative l2 error of U over all particles against the exact product
+// (rpy::DirectRpy on the concatenation of the ranks' shares) is at most the tolerance (tested at
+// 1e-3, 1e-6 and 1e-9). Results are deterministic: the same input on the same number of ranks
+// gives the same bits, whatever the thread count; a different number of ranks gives other bits
+// within the contract.
+//
+// Every public call is collective and fails collectively (communicator.hpp).
+#pragma once
+
+#include <mpi.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "rpyfmm/mpi/communicator.hpp"
+#include "rpyfmm/mpi/laplace_fmm.hpp"
+
+namespace rpyfmm::mpi {
+
+namespace detail {
+class OverlapCorrection;
+}
+
+/// Options of DistributedFmmRpy. Every rank must pass the same.
+struct DistributedFmmRpyOptions {
+  /// Requested relative l2 error of U against the exact product, in [1e-12, 1e-1] (as FmmRpy's).
+  double tolerance = 1e-6;
+  /// Points per leaf of each owner's serial Laplace FMM; 0 = its automatic capacity.
+  int leaf_capacity = 0;
+  /// DistributedFmmOptions::separation and cell_capacity of the Laplace FMM (0 = automatic).
+  double separation = 0.0;
+  std::size_t cell_capacity = 0;
+};
+
+class DistributedFmmRpy {
+ public:
+  /// Collective. Throws rpyfmm::Error (invalid_argument) on every rank when the viscosity of any
+  /// rank is not finite and > 0, the tolerance lies outside [1e-12, 1e-1], the leaf capacity is
+  /// negative, or the ranks pass different viscosities or options.
+  DistributedFmmRpy(MPI_Comm comm, double viscosity = 1.0, const DistributedFmmRpyOptions& options = {});
+  ~DistributedFmmRpy();
+  DistributedFmmRpy(DistributedFmmRpy&&) noexcept;
+  DistributedFmmRpy& operator=(DistributedFmmRpy&&) noexcept;
+
+  [[nodiscard]] std::string name() const { return "fmm-mpi"; }
+  [[nodiscard]] const Communicator& communicator() const { return comm_; }
+  [[nodiscard]] double viscosity() const { return viscosity_; }
+  [[nodiscard]] const DistributedFmmRpyOptions& options() const { return options_; }
+
+  /// This rank's particles, all ranks' together, the global index of this rank's first particle
+  /// (the ranks' shares concatenated in rank order) and every rank's count (0 / empty before
+  /// set_positions).
+  [[nodiscard]] std::size_t local_size() const { return local_n_; }
+  [[nodiscard]] std::size_t global_size() const { return global_n_; }
+  [[nodiscard]] std::size_t offset() const { return offset_; }
+  [[nodiscard]] std::span<const std::size_t> counts() const { return counts_; }
+  /// Whether every particle on every rank has the same radius (four Laplace densities, not seven).
+  [[nodiscard]] bool equal_radii() const { return equal_radii_; }
+  /// Overlapping ordered pairs (i, j) on all ranks, and the halo particles this rank received for
+  /// them (0 before set_positions).
+  [[nodiscard]] std::uint64_t overlapping_pairs() const;
+  [[nodiscard]] std::size_t halo_size() const;
+  /// The Laplace FMM of the far field: its plan's and last evaluation's communication and work.
+  [[nodiscard]] const DistributedLaplaceFmm& laplace() const { return laplace_; }
+
+  /// Collective. This rank's positions (3n, n >= 0) and one radius for them (> 0, finite; ranks may
+  /// pass different radii), or one radius per particle. Throws rpyfmm::Error on every rank when
+  /// any rank's input is malformed (size, NaN/Inf, radius not > 0), when no rank has a particle,
+  /// on what rpy::FmmRpy refuses for the whole set (a radius below 2^-300 of the suspension's size,
+  /// named by its global index), and (not_supported) on an overlapping pair so close, yet not
+  /// coincident, that the rounding of its far form in the Laplace sums may exceed the tolerance
+  /// (for equal radii r < a (2^-51 / tolerance)^(1/3): 8e-5 a at 1e-3, 8e-4 a at 1e-6, 8e-3 a at
+  /// 1e-9; docs/mpi.md). After a failure the operator holds no positions on any rank until a later
+  /// set_positions succeeds.
+  void set_positions(std::span<const double> local_positions, double radius);
+  void set_positions(std::span<const double> local_positions, std::span<const double> local_radii);
+
+  /// Collective. U = M F for this rank's particles (3 local_size() entries each, input order).
+  /// Throws rpyfmm::Error on every rank before set_positions, for wrong sizes or NaN/Inf forces on
+  /// any rank, and for a product beyond double precision.
+  void apply(std::span<const double> local_forces, std::span<double> local_velocities) const;
+
+ private:
+  Communicator comm_;
+  double viscosity_ = 1.0;
+  DistributedFmmRpyOptions options_;
+  DistributedFmmOptions laplace_options_;  // of the far field; min_leaf_side set per configuration
+  DistributedLaplaceFmm laplace_;
+  std::unique_ptr<detail::OverlapCorrection> overlap_;
+  std::size_t local_n_ = 0, global_n_ = 0, offset_ = 0;
+  std::vector<std::size_t> counts_;
+  // This rank's particles in the frame of the far field (rpy/src/length_units.hpp, to_fmm_frame):
+  // centred positions, or positions and radii in units of 2^scale_exponent_.
+  std::vector<double> x_, a_;
+  int scale_exponent_ = 0;
+  bool equal_radii_ = true;
+};
+
+}  // namespace rpyfmm::mpi

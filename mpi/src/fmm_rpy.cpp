@@ -1,0 +1,164 @@
+// rpyfmm — DistributedFmmRpy: the far field by DistributedLaplaceFmm on FmmRpy's densities, the
+// overlap correction and the self term (fmm_rpy.hpp, docs/mpi.md "Distributed FmmRpy").
+#include "rpyfmm/mpi/fmm_rpy.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <utility>
+
+// rpy/src (private to rpyfmm::rpy and this layer): FmmRpy's far-field densities and their
+// combination, the length units and the load scaling, shared with the serial operators.
+#include "fmm_far_field.hpp"
+#include "length_units.hpp"
+#include "load_scaling.hpp"
+#include "overlap_pairs.hpp"
+#include "particle_set.hpp"
+#include "rpyfmm/core/ranges.hpp"
+#include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/rpy/rpy_kernel.hpp"
+
+namespace rpyfmm::mpi {
+namespace {
+
+constexpr const char* kWhere = "rpyfmm::mpi::DistributedFmmRpy";
+constexpr const char* kSetPositions = "rpyfmm::mpi::DistributedFmmRpy::set_positions";
+constexpr const char* kApply = "rpyfmm::mpi::DistributedFmmRpy::apply";
+
+// The Laplace FMM's options, once every rank has checked its own and all ranks agree on them.
+DistributedFmmOptions laplace_options(const Communicator& comm, const DistributedFmmRpyOptions& o) {
+  comm.run([&] {
+    ranges::require_in(ranges::kMobilityTolerance, o.tolerance, kWhere, "tolerance");
+    require(o.leaf_capacity >= 0, ErrorCode::invalid_argument, kWhere,
+            "leaf_capacity must be >= 0 (0 = automatic), got " + std::to_string(o.leaf_capacity));
+  });
+  const std::vector<double> signature{o.tolerance, static_cast<double>(o.leaf_capacity), o.separation,
+                                      static_cast<double>(o.cell_capacity)};
+  require(same_on_every_rank(comm, signature), ErrorCode::invalid_argument, kWhere,
+          "the ranks pass different options (tolerance, leaf_capacity, separation or cell_capacity); every rank "
+          "must pass the same ones");
+  DistributedFmmOptions laplace;
+  // The Laplace sums run at the requested tolerance, as in FmmRpy (rpy/src/fmm_operator.cpp); the
+  // combination's errors stay below it in the tests (tests/mpi/test_distributed_fmm_rpy.cpp).
+  // min_leaf_side is set per configuration (set_positions).
+  laplace.fmm.tolerance = o.tolerance;
+  laplace.fmm.leaf_capacity = o.leaf_capacity;
+  laplace.separation = o.separation;
+  laplace.cell_capacity = o.cell_capacity;
+  return laplace;
+}
+
+}  // namespace
+
+DistributedFmmRpy::DistributedFmmRpy(MPI_Comm comm, double viscosity, const DistributedFmmRpyOptions& options)
+    : comm_(comm),
+      viscosity_(detail::agreed_viscosity(comm_, viscosity, kWhere)),
+      options_(options),
+      laplace_options_(laplace_options(comm_, options)),
+      laplace_(comm, laplace_options_) {}
+
+DistributedFmmRpy::~DistributedFmmRpy() = default;
+DistributedFmmRpy::DistributedFmmRpy(DistributedFmmRpy&&) noexcept = default;
+DistributedFmmRpy& DistributedFmmRpy::operator=(DistributedFmmRpy&&) noexcept = default;
+
+std::uint64_t DistributedFmmRpy::overlapping_pairs() const {
+  return overlap_ ? overlap_->global_pairs() : 0;
+}
+std::size_t DistributedFmmRpy::halo_size() const {
+  return overlap_ ? overlap_->halo_size() : 0;
+}
+
+void DistributedFmmRpy::set_positions(std::span<const double> local_positions, double radius) {
+  global_n_ = 0;  // no positions until this call succeeds on every rank
+  set_positions(local_positions, detail::common_radii(comm_, local_positions, radius, kSetPositions));
+}
+
+void DistributedFmmRpy::set_positions(std::span<const double> local_positions, std::span<const double> local_radii) {
+  global_n_ = 0;  // no positions until this call succeeds on every rank
+  overlap_.reset();
+  comm_.run([&] { detail::check_local_particles(local_positions, local_radii, kSetPositions); });
+  counts_ = detail::gather_counts(comm_, local_radii.size());
+  std::size_t total = 0;
+  offset_ = 0;
+  for (std::size_t r = 0; r < counts_.size(); ++r) {
+    if (static_cast<int>(r) < comm_.rank()) offset_ += counts_[r];
+    total += counts_[r];
+  }
+  // Same values on every rank, so every rank throws alike here without agreement.
+  require(total > 0, ErrorCode::invalid_input, kSetPositions,
+          "no particles on any of the " + std::to_string(counts_.size()) + " ranks (N = 0)");
+  local_n_ = local_radii.size();
+  const detail::WholeSet set = detail::gather_whole_set(comm_, local_positions, local_radii, offset_);
+  equal_radii_ = set.radii.a_min == set.radii.a_max;
+  // FmmRpy::on_positions_set on this rank's share, with the whole set's box and units.
+  comm_.run([&] {
+    const rpy::detail::LengthUnits units =
+        rpy::detail::choose_length_units(set.box, local_radii, set.radii, kSetPositions);
+    scale_exponent_ = units.exponent;
+    rpy::detail::to_fmm_frame(units, set.box, local_positions, local_radii, x_, a_);
+    if (scale_exponent_ == 0) a_.assign(local_radii.begin(), local_radii.end());
+  });
+  const double a_max = std::ldexp(set.radii.a_max, -scale_exponent_);
+  // Leaves of each owner's serial FMM at least 2 a_max wide, as in FmmRpy, and no cell within 2 a_max
+  // of a rank's region compressed for it (DistributedFmmOptions): every overlapping pair is summed
+  // exactly. Its far form exceeds the exact block by up to (a / r)^2, which the overlap correction
+  // takes back, so an expansion error on it would be amplified by that ratio (measured: 3 times the
+  // tolerance on 300 spheres overlapping in a ball of radius 3 with leaves of 24 points and no
+  // minimum side).
+  DistributedFmmOptions laplace = laplace_options_;
+  laplace.fmm.min_leaf_side = 2.0 * a_max;
+  laplace_ = DistributedLaplaceFmm(comm_.get(), laplace);
+  laplace_.set_points(x_);
+  // The largest |x_c| of all ranks' positions in the far field's frame (the rounding bound's |x|).
+  double reach = 0.0, global_reach = 0.0;
+  for (double c : x_) reach = std::max(reach, std::abs(c));
+  check_mpi(MPI_Allreduce(&reach, &global_reach, 1, MPI_DOUBLE, MPI_MAX, comm_.get()), "MPI_Allreduce");
+  const detail::RoundingLimits limits{options_.tolerance, global_reach};
+  overlap_ = std::make_unique<detail::OverlapCorrection>(comm_, x_, a_, a_max, limits);
+  global_n_ = total;
+}
+
+void DistributedFmmRpy::apply(std::span<const double> local_forces, std::span<double> local_velocities) const {
+  // global_n_ is the same on every rank (set_positions succeeds or fails on all of them).
+  require(global_n_ > 0, ErrorCode::invalid_input, kApply, "positions not set (call set_positions first)");
+  const std::size_t n = local_n_;
+  comm_.run([&] {
+    require_size(local_forces, 3 * n, kApply, "local forces");
+    require_size(std::span<const double>(local_velocities.data(), local_velocities.size()), 3 * n, kApply,
+                 "local velocities");
+    require_finite(local_forces, kApply, "local forces", 3);
+  });
+  // MobilityOperator::apply_block's load scale, from the largest force of all ranks.
+  double largest = 0.0, global_largest = 0.0;
+  for (double f : local_forces) largest = std::max(largest, std::abs(f));
+  check_mpi(MPI_Allreduce(&largest, &global_largest, 1, MPI_DOUBLE, MPI_MAX, comm_.get()), "MPI_Allreduce");
+  const int k = rpy::detail::load_scale_exponent({std::span<const double>(&global_largest, 1)});
+  std::vector<double> f(3 * n);
+  for (std::size_t i = 0; i < 3 * n; ++i) f[i] = std::ldexp(local_forces[i], -k);
+
+  // The far form of every pair with r > 0 (FmmRpy::do_apply's far field, all pairs).
+  const std::size_t nd = rpy::detail::translation_densities(equal_radii_);
+  std::vector<double> charges(nd * n);
+  std::vector<unsigned> outputs(nd);
+  rpy::detail::far_field_charges(f.data(), n, 1, equal_radii_, x_, a_, charges, outputs);
+  std::vector<double> results(nd * n * fmm::result_width);
+  laplace_.evaluate(charges, nd, outputs, results);
+  std::vector<double> u(3 * n);
+  rpy::detail::combine_far_field(results, n, 1, equal_radii_, x_, a_, viscosity_, u.data());
+
+  // The overlapping pairs' exact blocks in place of their far form, and the self term.
+  std::vector<double> near(3 * n, 0.0);
+  overlap_->add(f, near);
+  const double inv_eta = 1.0 / viscosity_;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double self = rpy::rpy_self(a_[i]);
+    for (std::size_t c = 0; c < 3; ++c) near[3 * i + c] += self * f[3 * i + c];
+  }
+  // Back from the length units (M(x, a) = 2^-e M(2^-e x, 2^-e a)) and the load scale, exactly.
+  for (std::size_t i = 0; i < 3 * n; ++i) {
+    local_velocities[i] = std::ldexp(std::ldexp(u[i] + inv_eta * near[i], -scale_exponent_), k);
+  }
+  comm_.run([&] { rpy::detail::require_finite_result(local_velocities, kApply, "velocities", "forces"); });
+}
+
+}  // namespace rpyfmm::mpi

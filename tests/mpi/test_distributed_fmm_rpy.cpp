@@ -1,0 +1,315 @@
+// rpyfmm::mpi::DistributedFmmRpy against independent references on the whole set: the exact
+// product of the serial rpy::DirectRpy (the contract: relative l2 error over all particles at most
+// the tolerance) and the serial rpy::FmmRpy (both within the tolerance of the exact product, so
+// within twice it of each other). Uniform, strongly clustered and polydisperse sets, overlapping
+// and touching pairs whose partners lie on different ranks, coincident points, more ranks than
+// particles, extreme length scales and loads; repeated products and thread counts bit for bit; the
+// sampler on the operator; and collective failure on bad input of one rank.
+#include <gtest/gtest.h>
+#include <mpi.h>
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "mpi_test_support.hpp"
+#include "rpyfmm/mpi/direct_operator.hpp"
+#include "rpyfmm/mpi/fmm_rpy.hpp"
+#include "rpyfmm/mpi/sqrt.hpp"
+#include "rpyfmm/rpy/direct_operator.hpp"
+#include "rpyfmm/rpy/fmm_operator.hpp"
+
+using rpyfmm::ErrorCode;
+using rpyfmm::mpi::DistributedFmmRpy;
+using rpyfmm::mpi::DistributedFmmRpyOptions;
+using rpyfmm::rpy::DirectRpy;
+using rpyfmm::rpy::FmmRpy;
+using rpyfmm::rpy::Geometry;
+using namespace rpyfmm_mpi_test;
+
+namespace {
+
+constexpr double kTolerances[] = {1e-3, 1e-6, 1e-9};
+constexpr int kLeaf = 24;
+
+// Collective: ||a - b|| / ||b|| over all ranks' shares (scaled by the largest |b_i|: no overflow
+// for velocities near 1e300).
+double global_relative_error(const std::vector<double>& a, const std::vector<double>& b) {
+  double largest = 0.0, scale = 0.0;
+  for (double v : b) largest = std::max(largest, std::abs(v));
+  MPI_Allreduce(&largest, &scale, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+  double local[2] = {0.0, 0.0}, global[2] = {0.0, 0.0};
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const double d = (a[i] - b[i]) / scale, v = b[i] / scale;
+    local[0] += d * d;
+    local[1] += v * v;
+  }
+  MPI_Allreduce(local, global, 2, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+  return std::sqrt(global[0] / global[1]);
+}
+
+// The serial products on the whole set: exact (DirectRpy) and FmmRpy at `tolerance`.
+struct SerialProducts {
+  std::vector<double> exact, fmm;
+};
+
+SerialProducts serial_products(const Particles& p, double tolerance) {
+  SerialProducts s{std::vector<double>(3 * p.size()), std::vector<double>(3 * p.size())};
+  DirectRpy direct(Geometry::open(), kViscosity);
+  direct.set_positions(p.x, p.a);
+  direct.apply(p.f, s.exact);
+  FmmRpy fmm(Geometry::open(), kViscosity, {.tolerance = tolerance, .leaf_capacity = kLeaf});
+  fmm.set_positions(p.x, p.a);
+  fmm.apply(p.f, s.fmm);
+  return s;
+}
+
+// Distributes `p` by `split`, applies the operator at `tolerance` and checks the contract on every
+// rank: error against the exact product <= tolerance, against serial FmmRpy <= 2 tolerance, and a
+// repeated product bit for bit. Rank 0 prints the measured errors. Returns this rank's velocities.
+// Each owner's serial Laplace FMM runs with leaves of kLeaf points, so that at these sizes most pairs
+// are in its far field (its automatic leaves hold hundreds of points at 1e-6 and 1e-9).
+std::vector<double> expect_contract(const Particles& p, Split split, double tolerance, const char* label) {
+  const Partition part = partition_of(p.size(), split);
+  const SerialProducts serial = serial_products(p, tolerance);
+  DistributedFmmRpy op(MPI_COMM_WORLD, kViscosity, {.tolerance = tolerance, .leaf_capacity = kLeaf});
+  op.set_positions(share(p.x, 3, part.offset, part.n), share(p.a, 1, part.offset, part.n));
+  EXPECT_EQ(op.global_size(), p.size());
+  EXPECT_EQ(op.local_size(), part.n);
+  EXPECT_EQ(op.offset(), part.offset);
+  const std::vector<double> f = share(p.f, 3, part.offset, part.n);
+  std::vector<double> u(3 * part.n, std::numeric_limits<double>::quiet_NaN()), again(u.size());
+  op.apply(f, u);
+  op.apply(f, again);
+  EXPECT_EQ(bitwise_mismatches(u, again), 0u) << "repeated product, rank " << world_rank();
+  const double to_exact = global_relative_error(u, share(serial.exact, 3, part.offset, part.n));
+  const double to_fmm = global_relative_error(u, share(serial.fmm, 3, part.offset, part.n));
+  EXPECT_LE(to_exact, tolerance) << label << " against DirectRpy";
+  EXPECT_LE(to_fmm, 2.0 * tolerance) << label << " against FmmRpy";
+  if (world_rank() == 0) {
+    std::printf("[fmm-rpy] %-22s P=%d eps=%.0e: error vs DirectRpy %.2e, vs FmmRpy %.2e, pairs %llu\n", label,
+                world_size(), tolerance, to_exact, to_fmm, static_cast<unsigned long long>(op.overlapping_pairs()));
+  }
+  return u;
+}
+
+// n pairs with centres uniform in a cube of side `side`: particle k + n at distance
+// `gap` x (a_k + a_{k+n}) from particle k in a random direction (gap 1: touching), radii in
+// [0.5, 1.5]. With the even split, the partners lie on different ranks.
+Particles pairs_at(std::size_t n, double side, double gap, std::uint64_t seed) {
+  Particles p = uniform_particles(2 * n, side, 0.5, 1.5, seed);
+  std::mt19937_64 rng(seed + 1);
+  std::normal_distribution<double> normal;
+  for (std::size_t k = 0; k < n; ++k) {
+    double d[3] = {normal(rng), normal(rng), normal(rng)};
+    const double norm = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    const double r = gap * (p.a[k] + p.a[k + n]);
+    for (std::size_t c = 0; c < 3; ++c) p.x[3 * (k + n) + c] = p.x[3 * k + c] + r * d[c] / norm;
+  }
+  return p;
+}
+
+}  // namespace
+
+TEST(MpiDistributedFmmRpy, UniformCloudWithinToleranceOfDirect) {
+  // Equal radii, volume fraction about 0.09: a few overlapping pairs.
+  const Particles p = uniform_particles(600, 30.0, 1.0, 1.0, 61);
+  for (double eps : kTolerances) {
+    expect_contract(p, Split::even, eps, "uniform, even");
+    expect_contract(p, Split::last_only, eps, "uniform, last only");
+  }
+}
+
+TEST(MpiDistributedFmmRpy, StronglyClusteredWithinToleranceOfDirect) {
+  // 300 overlapping spheres of radii 0.5 ... 2 in a ball of radius 3 (partial overlaps, spheres
+  // inside others, a coincident pair) and 60 far away; with last_only the cluster is on one rank.
+  const Particles p = clustered_particles(300, 60, 62);
+  for (double eps : kTolerances) {
+    expect_contract(p, Split::geometric, eps, "clustered, geometric");
+    expect_contract(p, Split::last_only, eps, "clustered, last only");
+  }
+}
+
+TEST(MpiDistributedFmmRpy, PolydisperseRadiiRatio16WithinToleranceOfDirect) {
+  // Radii from 0.25 to 4 (ratio 16): seven Laplace densities, small spheres inside large ones; a
+  // cube of side 70, so that the FMM's leaves (at least 2 a_max = 8 wide) leave pairs to its far field.
+  const Particles p = uniform_particles(500, 70.0, 0.25, 4.0, 63);
+  for (double eps : kTolerances) expect_contract(p, Split::even, eps, "polydisperse 16");
+}
+
+TEST(MpiDistributedFmmRpy, OverlappingAndTouchingPairsAcrossRanks) {
+  // 150 pairs overlapping at 0.6 (a_i + a_j), 150 touching (r = a_i + a_j): with the even split each
+  // pair's partners are on different ranks of the input, and across the owners' cuts for some.
+  for (double gap : {0.6, 1.0}) {
+    const Particles p = pairs_at(150, 40.0, gap, 64);
+    for (double eps : kTolerances) expect_contract(p, Split::even, eps, gap < 1.0 ? "overlapping pairs" : "touching");
+  }
+}
+
+TEST(MpiDistributedFmmRpy, CoincidentPointsWithinToleranceOfDirect) {
+  // Particle i + 150 on particle i (r = 0: skipped by the Laplace sums, the exact block added).
+  Particles p = uniform_particles(300, 12.0, 0.5, 1.5, 65);
+  for (std::size_t i = 0; i < 150; ++i)
+    for (std::size_t d = 0; d < 3; ++d) p.x[3 * (i + 150) + d] = p.x[3 * i + d];
+  for (double eps : kTolerances) expect_contract(p, Split::even, eps, "coincident");
+  for (double& a : p.a) a = 1.0;
+  expect_contract(p, Split::first_empty, 1e-6, "coincident, equal radii");
+}
+
+// Particle i + 150 at `ratio` a_i from particle i (along x).
+Particles nearly_coincident(double ratio) {
+  Particles p = uniform_particles(300, 12.0, 0.5, 1.5, 67);
+  for (std::size_t i = 0; i < 150; ++i)
+    for (std::size_t d = 0; d < 3; ++d) p.x[3 * (i + 150) + d] = p.x[3 * i + d] + (d == 0 ? ratio * p.a[i] : 0.0);
+  return p;
+}
+
+TEST(MpiDistributedFmmRpy, NearlyCoincidentPointsWithinToleranceOrRefused) {
+  // The Laplace sums give a pair at r << a its far form, up to (a / r)^3 times its exact block; the
+  // correction takes it back, leaving rounding of about 2^-53 (a / r)^3 (mpi/src/overlap_pairs.hpp).
+  // At r = 0.05 a the estimate stays below 1e-9 (at most 6e-11 here): within every tolerance.
+  const Particles near = nearly_coincident(0.05);
+  for (double eps : kTolerances) expect_contract(near, Split::even, eps, "r = 0.05 a");
+  // At r = 1e-3 a it reaches 4e-6 (measured without the refusal: 1.8e-7 over all particles): the
+  // product is within 1e-3, and at 1e-9 the operator refuses the set on every rank.
+  const Particles closer = nearly_coincident(1e-3);
+  expect_contract(closer, Split::even, 1e-3, "r = 1e-3 a");
+  const Partition part = partition_of(closer.size(), Split::even);
+  DistributedFmmRpy op(MPI_COMM_WORLD, kViscosity, {.tolerance = 1e-9});
+  const std::string message = expect_collective_error(
+      [&] { op.set_positions(share(closer.x, 3, part.offset, part.n), share(closer.a, 1, part.offset, part.n)); },
+      ErrorCode::not_supported, "exceeds the tolerance 1e-09");
+  if (world_rank() == 0) std::printf("[fmm-rpy] refused: %s\n", message.c_str());
+  EXPECT_EQ(op.global_size(), 0u);
+}
+
+TEST(MpiDistributedFmmRpy, MoreRanksThanParticles) {
+  for (std::size_t n : {1, 2, 3}) {
+    const Particles p = uniform_particles(n, 3.0, 0.8, 1.2, 66 + n);  // overlapping
+    for (Split s : kSplits) expect_contract(p, s, 1e-6, "1-3 particles");
+  }
+}
+
+TEST(MpiDistributedFmmRpy, ExtremeLengthScalesAndLoads) {
+  // Extent 1e137 and radii 1e135 (the far field's a^2 T terms underflow in plain units: evaluated
+  // in units of a power of two, as FmmRpy does), and forces near 1e300 (scaled by a power of two).
+  Particles p = uniform_particles(300, 1.0, 0.002, 0.004, 70);
+  for (double& x : p.x) x *= 1e137;
+  for (double& a : p.a) a *= 1e137;
+  expect_contract(p, Split::geometric, 1e-6, "extent 1e137");
+  Particles q = uniform_particles(300, 30.0, 1.0, 1.0, 71);
+  for (double& f : q.f) f *= 1e300;
+  expect_contract(q, Split::even, 1e-6, "forces 1e300");
+}
+
+TEST(MpiDistributedFmmRpy, ResultsIndependentOfThreadCountAndDistribution) {
+  const Particles p = clustered_particles(200, 40, 72);
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(1);
+  const std::vector<double> one = expect_contract(p, Split::even, 1e-6, "1 thread");
+  omp_set_num_threads(3);
+  const std::vector<double> three = expect_contract(p, Split::even, 1e-6, "3 threads");
+  omp_set_num_threads(saved);
+  EXPECT_EQ(bitwise_mismatches(one, three), 0u);
+  // The same global input distributed otherwise over the same ranks: the same bits.
+  const std::vector<double> other = expect_contract(p, Split::last_only, 1e-6, "last only");
+  const Partition even = partition_of(p.size(), Split::even), last = partition_of(p.size(), Split::last_only);
+  std::vector<double> all_even(3 * p.size(), 0.0), all_last(3 * p.size(), 0.0), sum_even(all_even.size()),
+      sum_last(all_last.size());
+  std::copy(one.begin(), one.end(), all_even.begin() + static_cast<std::ptrdiff_t>(3 * even.offset));
+  std::copy(other.begin(), other.end(), all_last.begin() + static_cast<std::ptrdiff_t>(3 * last.offset));
+  MPI_Allreduce(all_even.data(), sum_even.data(), static_cast<int>(all_even.size()), MPI_DOUBLE, MPI_SUM,
+                MPI_COMM_WORLD);
+  MPI_Allreduce(all_last.data(), sum_last.data(), static_cast<int>(all_last.size()), MPI_DOUBLE, MPI_SUM,
+                MPI_COMM_WORLD);
+  EXPECT_EQ(bitwise_mismatches(sum_even, sum_last), 0u);
+}
+
+TEST(MpiDistributedFmmRpy, LanczosSamplerOnTheOperator) {
+  // w = M^{1/2} z by Lanczos at 1e-6 on the FMM operator at 1e-9 against the same sampler on the
+  // exact DistributedDirectRpy: the operators differ by <= 1e-9 relative, which moves the root by
+  // about that over the smallest eigenvalue's square root, far below the iteration's 1e-6; each
+  // iteration stops within its tolerance of its own root, so the two lie within 1e-5 of each other.
+  const Particles p = clustered_particles(150, 30, 73);
+  const Partition part = partition_of(p.size(), Split::even);
+  const std::vector<double> x = share(p.x, 3, part.offset, part.n), a = share(p.a, 1, part.offset, part.n);
+  DistributedFmmRpy fmm(MPI_COMM_WORLD, kViscosity, {.tolerance = 1e-9});
+  fmm.set_positions(x, a);
+  rpyfmm::mpi::DistributedDirectRpy direct(MPI_COMM_WORLD, kViscosity);
+  direct.set_positions(x, a);
+  std::vector<double> z(3 * part.n), w_fmm(z.size()), w_direct(z.size());
+  rpyfmm::mpi::fill_normal(z, part.offset, 5, 0);
+  rpyfmm::rpy::SqrtOptions options;
+  options.tolerance = 1e-6;
+  rpyfmm::mpi::sqrt_apply(fmm, z, w_fmm, options);
+  rpyfmm::mpi::sqrt_apply(direct, z, w_direct, options);
+  const double difference = global_relative_error(w_fmm, w_direct);
+  EXPECT_LE(difference, 1e-5);
+  if (world_rank() == 0) std::printf("[fmm-rpy] Lanczos on FMM vs direct: %.2e\n", difference);
+}
+
+// ----------------------------------------------------------------------- collective errors ---
+
+namespace {
+
+std::string rank_of(int r) {
+  return "rank " + std::to_string(r) + " of " + std::to_string(world_size()) + ": ";
+}
+
+}  // namespace
+
+TEST(MpiDistributedFmmRpy, BadInputOnOneRankFailsEveryRankThenRecovers) {
+  const int last = world_size() - 1;
+  const Particles p = uniform_particles(40, 10.0, 1.0, 1.0, 80);
+  const Partition part = partition_of(p.size(), Split::even);
+  const std::vector<double> x = share(p.x, 3, part.offset, part.n), a = share(p.a, 1, part.offset, part.n);
+  const std::vector<double> f = share(p.f, 3, part.offset, part.n);
+  DistributedFmmRpy op(MPI_COMM_WORLD, kViscosity, {.tolerance = 1e-6});
+  std::vector<double> u(f.size());
+  expect_collective_error([&] { op.apply(f, u); }, ErrorCode::invalid_input, "positions not set");
+
+  std::vector<double> bad_x = x;
+  if (world_rank() == last) bad_x[3 * 2 + 1] = std::numeric_limits<double>::quiet_NaN();
+  expect_collective_error(
+      [&] { op.set_positions(bad_x, a); }, ErrorCode::invalid_input,
+      rank_of(last) + "rpyfmm::mpi::DistributedFmmRpy::set_positions: local positions entry (2, 1) is NaN");
+  EXPECT_EQ(op.global_size(), 0u);
+  std::vector<double> bad_a = a;
+  if (world_rank() == 0) bad_a[0] = -1.0;
+  expect_collective_error([&] { op.set_positions(x, bad_a); }, ErrorCode::invalid_argument,
+                          rank_of(0) + "rpyfmm::mpi::DistributedFmmRpy::set_positions: radius of local particle 0");
+  std::vector<double> short_a = a;
+  if (world_rank() == last) short_a.pop_back();
+  expect_collective_error([&] { op.set_positions(x, short_a); }, ErrorCode::invalid_input, rank_of(last));
+
+  op.set_positions(x, a);
+  std::vector<double> bad_f = f;
+  if (world_rank() == 0) bad_f[4] = std::numeric_limits<double>::infinity();
+  expect_collective_error([&] { op.apply(bad_f, u); }, ErrorCode::invalid_input,
+                          rank_of(0) + "rpyfmm::mpi::DistributedFmmRpy::apply: local forces entry (1, 1) is infinite");
+  std::vector<double> short_u(world_rank() == last ? u.size() + 3 : u.size());
+  expect_collective_error([&] { op.apply(f, short_u); }, ErrorCode::invalid_input, rank_of(last));
+  EXPECT_NO_THROW(op.apply(f, u));
+  const std::vector<double> none;
+  expect_collective_error([&] { op.set_positions(none, none); }, ErrorCode::invalid_input, "no particles on any");
+}
+
+TEST(MpiDistributedFmmRpy, DifferentOptionsOrViscositiesFailEveryRank) {
+  const int last = world_size() - 1;
+  const double tolerance = world_rank() == last && world_size() > 1 ? 1e-3 : 1e-6;
+  if (world_size() > 1) {
+    expect_collective_error([&] { DistributedFmmRpy op(MPI_COMM_WORLD, kViscosity, {.tolerance = tolerance}); },
+                            ErrorCode::invalid_argument, "the ranks pass different options");
+    const double viscosity = world_rank() == last ? 2.0 : 1.0;
+    expect_collective_error([&] { DistributedFmmRpy op(MPI_COMM_WORLD, viscosity); }, ErrorCode::invalid_argument,
+                            "the ranks pass different viscosities");
+  }
+  const double bad = world_rank() == last ? 0.5 : 1e-6;
+  expect_collective_error([&] { DistributedFmmRpy op(MPI_COMM_WORLD, kViscosity, {.tolerance = bad}); },
+                          ErrorCode::invalid_argument, rank_of(last) + "rpyfmm::mpi::DistributedFmmRpy");
+}
