@@ -8,8 +8,10 @@ renders bench/README.md from those files.
 
 Groups: fmm (Laplace FMM, and fmm3dpy's lfmm3d on the same points when it imports), direct (direct
 kernels), rpy (RPY operators: FmmRpy, DirectRpy), pse (PSE on the CPU), pse-gpu (PSE with CUDA, only
-where a GPU is present), samplers (Lanczos, Chebyshev, block preconditioner), bd (BD steps), sac
-(Tran et al. (2015)'s Table 4 alumina-silica systems), rigid (rigid-body mobility solves and steps).
+where a GPU is present), bd-gpu (the device BD engine at 1e6 particles and the CPU engine beside it,
+only where a GPU is present), samplers (Lanczos, Chebyshev, block preconditioner), bd (BD steps), sac
+(Tran et al. (2015)'s Table 4 alumina-silica systems), rigid (rigid-body mobility solves and steps),
+mpi (the distributed FMM, direct RPY operator and free-draining BD on 1-4 ranks).
 
 Every case runs at 1 thread (the per-core figure) and at all cores; each program reports the median
 of its own repetitions and the driver the median over --rounds runs. --compare COMMIT builds COMMIT in
@@ -166,6 +168,17 @@ def pse_gpu_cases(mode: str) -> list[Case]:
     return [Case(["pse/bench_pse", "--cuda", *sizes], CORES, {})]
 
 
+def bd_gpu_cases(mode: str) -> list[Case]:
+    """The device BD engine at Tran et al. (2015)'s Tables 1-3 size (1e6 free-draining WCA spheres at
+    phi = 0.15), each rebuild strategy, and the CPU engine on all host cores for the ratio."""
+    if mode == "isa":
+        return []
+    steps = "100" if mode == "full" else "50"
+    return [Case(["bd/bench_bd", "engine", "--engine", "cuda", "--n", "1e6", "--steps", steps], CORES, {}),
+            Case(["bd/bench_bd", "engine", "--engine", "cpu", "--n", "1e6", "--steps", "10", "--strategies",
+                  "dynamic"], CORES, {})]
+
+
 def sampler_cases(mode: str) -> list[Case]:
     if mode == "isa":
         return []
@@ -286,6 +299,18 @@ GROUPS = [
            ("M F PTPS device", "MF_dev_PTPS", "{:.3g}"),
            ("sample PTPS", "sample_PTPS", "{:.3g}")],
           needs_gpu=True, keys=("N", "wave", "lists", "bin", "transfers")),
+    Group("bd-gpu", "Brownian dynamics on a GPU",
+          "Free-draining BD of 1e6 WCA spheres at phi = 0.15 in a periodic box (Tran et al. (2015), Tables 1-3; "
+          "dt 0.01, skin 1.0 a), the whole step on the device engine (docs/gpu-bd.md), per rebuild strategy: the "
+          "dynamic test (skin/2), every 10 steps, every step; and the CPU engine on all host cores. ms per step: "
+          "the mean over the timed steps, rebuilds included; update: the rest of the step (noise, mobility, "
+          "position update, blow-up guard). Target on the GPU: 1.25 ms per step (10x the K20m's 12.5 ms).",
+          ["bench_bd"], bd_gpu_cases, parse_csv, "ms_per_step",
+          [("engine", "engine", "{}"), ("strategy", "strategy", "{}"), ("N", "N", "{}"), ("threads", "threads", "{}"),
+           ("rebuilds", "rebuilds", "{}"), ("ms/step", "ms_per_step", "{:.3f}"),
+           ("neighbours ms", "neighbours_ms", "{:.3f}"), ("forces ms", "forces_ms", "{:.3f}"),
+           ("update ms", "update_ms", "{:.3f}")],
+          needs_gpu=True, keys=("engine", "strategy", "N", "threads")),
     Group("samplers", "Square-root samplers",
           "One Brownian sample M^{1/2} z at tolerance 1e-3 (docs/theory/samplers.md): Lanczos, Chebyshev (spectrum "
           "bounds estimated once, not timed) and both with the block preconditioner (blocks of 48 particles); "

@@ -9,13 +9,15 @@
 #      each tool within 60 s);
 #   2. the whole C++ suite at the CPU's own instruction-set level (ctest, slow tests included;
 #      not the Python and package tests, which need the build dependencies);
-#   3. the instruction-set rows of bench/ (bench/run.py --simd-levels --isa-rows: Laplace FMM and
+#   3. the GPU benchmark groups (bd-gpu: the device BD engine at 1e6 particles per rebuild strategy
+#      and the CPU engine on the host's cores; pse-gpu), within 120 s;
+#   4. the instruction-set rows of bench/ (bench/run.py --simd-levels --isa-rows: Laplace FMM and
 #      FmmRpy at 1e6 and 1e-6, the direct kernels at 1e4, PSE at 1e5, one thread, the native level and
 #      AVX2 side by side, three rounds each, all at once on separate physical cores; each group
 #      within what is left of RPYFMM_BENCH_BUDGET seconds).
 # Output under $OUT (or ./gpu-out): device.txt, test_pse_cuda.txt, test_bd_device.txt,
 # sanitizer_bd_*.txt, ctest.txt, bench.txt and
-# results.tar.gz (bench/results/*.simd-levels.json). Exit status non-zero if a test failed.
+# results.tar.gz (bench/results/*.simd-levels.json, bd-gpu.json, pse-gpu.json). Exit status non-zero if a test failed.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 source scripts/gpu-env.sh
@@ -81,6 +83,15 @@ else
   status=1
 fi
 echo "# suite: status $status at ${SECONDS} s"
+# The GPU groups first, within 120 s: PSE on the device and the device BD engine at 1e6 particles
+# against the CPU engine on the host's cores (bench/run.py groups pse-gpu and bd-gpu).
+gpu_budget=$(( ${RPYFMM_DEVICE_BUDGET:-540} - SECONDS - 100 ))
+[ "$gpu_budget" -le 120 ] || gpu_budget=120
+if [ "$gpu_budget" -gt 20 ]; then
+  RPYFMM_BENCH_COMMIT=$(cat gpu-kit/COMMIT) timeout "$gpu_budget" python3 bench/run.py --no-build --quick \
+    --only bd-gpu pse-gpu --rounds 1 >>"$out/bench.txt" 2>&1
+  echo "# bench bd-gpu pse-gpu: rc $? at ${SECONDS} s" | tee -a "$out/bench.txt"
+fi
 # One group at a time within RPYFMM_BENCH_BUDGET seconds (default 220) or what is left of
 # RPYFMM_DEVICE_BUDGET, the longest (rpy) last, so that a budget spent keeps the groups already
 # measured.
@@ -96,5 +107,6 @@ for group in fmm direct pse rpy; do
     >>"$out/bench.txt" 2>&1
   echo "# bench $group: rc $? at ${SECONDS} s" | tee -a "$out/bench.txt"
 done
-tar -czf "$out/results.tar.gz" bench/results/*.simd-levels.json bench/README.md 2>/dev/null
+tar -czf "$out/results.tar.gz" bench/results/*.simd-levels.json bench/results/bd-gpu.json bench/results/pse-gpu.json \
+  bench/README.md 2>/dev/null
 exit $status

@@ -21,6 +21,16 @@
 //       time per step, and
 //       for fixed intervals the steps on which some particle had moved more than skin/2
 //       since the last build (pairs may have been missed). --skin (default 1.0 a).
+//   bench_bd engine --engine cpu|cuda|host --n 1000000 [--steps 50] [--strategies dynamic,fixed-10,every]
+//       Tran et al. (2015)'s Tables 1-3 setup on a whole engine: free-draining WCA spheres (radius 1)
+//       at phi = 0.15 in a periodic box, dt 0.01 (rms step 0.033 a per axis), skin 1.0 a, stepped by
+//       the Integrator on the CPU engine, the device engine on a CUDA device, or the device engine's
+//       stages on the host (host launcher). One CSV row per rebuild strategy: the dynamic test
+//       (skin/2, Algorithm 1), a fixed interval, or a rebuild every step; milliseconds per step
+//       (the mean over --steps steps after 5 warm-up steps, rebuilds included, as the paper's
+//       average) and its parts: neighbours (rebuild test and lists), forces, and update, the rest of
+//       the step (noise, mobility, the position update and the blow-up guard; Table 2's
+//       updatePosition).
 //   bench_bd sac-table4 [--steps 20] [--warmup 3] [--scheme sac|naive] [--systems 0,1,2]
 //       Tran et al. (2015)'s Table 4 (Sec. 4.3): alumina (a = 200 nm, Langevin) with silica
 //       (a = 12.5 nm, Brownian), 200 + 2969, 200 + 29699 and 300 + 44549 particles, dt = 5e-10 s.
@@ -53,6 +63,7 @@
 #include "rpyfmm/bd/config.hpp"
 #include "rpyfmm/bd/integrator.hpp"
 #include "rpyfmm/bd/particles.hpp"
+#include "rpyfmm/bd/step_engine.hpp"
 #include "rpyfmm/core/timer.hpp"
 
 using namespace rpyfmm::bd;
@@ -183,6 +194,54 @@ int bench_neighbours(int argc, char** argv) {
     std::printf("%s,%zu,%d,%d,%zu,%.1f,%.4g,%.4g,%d\n", name.c_str(), n, omp_get_max_threads(), steps,
                 bd.neighbour_rebuilds(), static_cast<double>(steps) / static_cast<double>(bd.neighbour_rebuilds()),
                 sec / steps, bd.totals().seconds.at("neighbours") / steps, interval == 0 ? 0 : unsafe);
+    std::fflush(stdout);
+  }
+  return 0;
+}
+// The device engine's choice by name: "cpu", "cuda" or "host" (the host launcher).
+StepEngine engine_named(const std::string& name) {
+  if (name == "cpu") return StepEngine::cpu;
+  if (name == "cuda") return StepEngine::cuda;
+  if (name == "host") return StepEngine::host_launcher;
+  throw std::invalid_argument("--engine must be cpu, cuda or host, got '" + name + "'");
+}
+
+// The fixed interval of a strategy's name: dynamic = 0 (the test), every = 1, fixed-K = K.
+int rebuild_interval(const std::string& strategy) {
+  if (strategy == "dynamic") return 0;
+  if (strategy == "every") return 1;
+  if (strategy.rfind("fixed-", 0) == 0) return std::stoi(strategy.substr(6));
+  throw std::invalid_argument("strategy must be dynamic, every or fixed-K, got '" + strategy + "'");
+}
+
+int bench_engine(int argc, char** argv) {
+  const std::string engine_name = arg(argc, argv, "--engine", "cpu");
+  const StepEngine engine = engine_named(engine_name);
+  const std::size_t n = sizes(arg(argc, argv, "--n", "1000000")).front();
+  const int steps = std::stoi(arg(argc, argv, "--steps", "50"));
+  std::printf("engine,strategy,N,threads,steps,rebuilds,ms_per_step,neighbours_ms,forces_ms,update_ms\n");
+  RunConfig c = cloud_config(n, "none", 1e-3, true, 0.15);
+  c.neighbours.skin = 1.0;
+  c.external_force = {0, 0, 0};
+  c.types[0].external_force = {0, 0, 0};
+  c.integrator.engine = engine;
+  const ForceField ff = make_force_field(c);
+  const InitialState s = make_particles(c, ff);  // once: the same start for every strategy
+  std::stringstream list(arg(argc, argv, "--strategies", "dynamic,fixed-10,every"));
+  for (std::string strategy; std::getline(list, strategy, ',');) {
+    c.neighbours.fixed_interval = rebuild_interval(strategy);
+    Integrator bd(engine_mobility(c.mobility, engine, n), ff, c.integrator, s.positions, s.types, c.neighbours);
+    bd.run(5);  // warm-up: the first lists, allocations, the device's first launches
+    const IntegratorTotals before = bd.totals();
+    const std::size_t builds = bd.neighbour_rebuilds();
+    rpyfmm::StopWatch w;
+    bd.run(static_cast<std::uint64_t>(steps));
+    const double ms = 1e3 * w.seconds() / steps;
+    auto part = [&](const char* p) { return 1e3 * (bd.totals().seconds.at(p) - before.seconds.at(p)) / steps; };
+    const double neighbours = part("neighbours"), forces = part("forces");
+    std::printf("%s,%s,%zu,%d,%d,%zu,%.4g,%.4g,%.4g,%.4g\n", engine_name.c_str(), strategy.c_str(), n,
+                omp_get_max_threads(), steps, bd.neighbour_rebuilds() - builds, ms, neighbours, forces,
+                ms - neighbours - forces);
     std::fflush(stdout);
   }
   return 0;
@@ -338,11 +397,13 @@ int main(int argc, char** argv) {
   try {
     if (mode == "steps") return bench_steps(argc, argv);
     if (mode == "neighbours") return bench_neighbours(argc, argv);
+    if (mode == "engine") return bench_engine(argc, argv);
     if (mode == "sac-table4") return bench_sac_table4(argc, argv);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_bd: %s\n", e.what());
     return 2;
   }
-  std::fprintf(stderr, "usage: bench_bd steps|neighbours|sac-table4 [--method M] [--n N1,N2] [--steps S] [--tol T]\n");
+  std::fprintf(stderr,
+               "usage: bench_bd steps|neighbours|engine|sac-table4 [--method M] [--n N1,N2] [--steps S] [--tol T]\n");
   return 2;
 }
