@@ -13,6 +13,7 @@
 
 #include "alltoallv.hpp"
 #include "bd_halo.hpp"
+#include "bd_hydrodynamics.hpp"
 #include "device/engine_tables.hpp"
 #include "device/euler_maruyama.hpp"
 #include "device/rebuild_test.hpp"
@@ -73,7 +74,11 @@ std::vector<double> option_signature(const DistributedBdOptions& o, const rpy::G
           g.box()[2],
           static_cast<double>(forces.types().size()),
           forces.max_cutoff(),
-          forces.trap_stiffness()};
+          forces.trap_stiffness(),
+          static_cast<double>(o.method),
+          o.fmm.tolerance,
+          static_cast<double>(o.fmm.leaf_capacity),
+          i.sqrt.tolerance};
 }
 
 // Collective: the exclusive prefix sum and the total of this rank's count.
@@ -181,6 +186,7 @@ DistributedBd::DistributedBd(MPI_Comm comm, bd::ForceField forces, rpy::Geometry
   reference_ = permuted(share.reference_positions, order, 3);
   types_ = permuted(share.types, order, 1);
   ids_ = permuted(share.ids, order, 1);
+  hydrodynamics_ = Hydrodynamics::make(comm_.get(), options_, geometry_);
   for (const char* part : {"rebuild", "halo", "forces", "update"}) stats_.seconds[part] = 0.0;
 }
 
@@ -279,22 +285,11 @@ void DistributedBd::compute_forces() {
 
 void DistributedBd::advance() {
   const std::size_t n = ids_.size();
-  const bd::device::EngineTables t = motion_tables(options_, forces_);
-  z_.resize(3 * n);
-  const bd::device::MotionTables m{types_.data(), t.mobility.data(), t.sqrt_mobility.data(), t.radius.data(), t.dt,
-                                   t.noise,       t.brownian,        t.max_displacement2,    t.seed,          step_};
   // z_i keyed by the global index, drawn as the serial engine draws it (rpy::fill_normal).
-  if (t.brownian) rpy::fill_normal(ids_, z_, t.seed, step_);
+  z_.assign(options_.integrator.kT > 0.0 ? 3 * n : 0, 0.0);
+  if (!z_.empty()) rpy::fill_normal(ids_, z_, options_.integrator.seed, step_);
   std::vector<double> next(3 * n);
-  std::uint64_t refused = kNoParticle;  // the lowest global index the guard refuses
-  for (std::size_t i = 0; i < n; ++i) {
-    double dx[3];
-    constexpr double kNoNoise[3] = {0.0, 0.0, 0.0};
-    const double* z = t.brownian ? &z_[3 * i] : kNoNoise;
-    if (!bd::device::displacement_with(static_cast<std::uint32_t>(i), z, f_.data(), m, dx))
-      refused = std::min(refused, ids_[i]);
-    for (int c = 0; c < 3; ++c) next[3 * i + c] = x_[3 * i + c] + dx[c];
-  }
+  const std::uint64_t refused = hydrodynamics_ ? displace_with_hydrodynamics(next) : displace_free_draining(next);
   std::uint64_t lowest = kNoParticle;
   check_mpi(MPI_Allreduce(&refused, &lowest, 1, MPI_UINT64_T, MPI_MIN, comm_.get()), "MPI_Allreduce");
   if (lowest != kNoParticle) fail_blow_up(lowest, next);
@@ -311,6 +306,46 @@ void DistributedBd::advance() {
   int any = 0;
   check_mpi(MPI_Allreduce(&moved, &any, 1, MPI_INT, MPI_MAX, comm_.get()), "MPI_Allreduce");
   rebuild_due_ = halo_->pairs && (interval > 0 ? steps_since_rebuild_ >= static_cast<std::uint64_t>(interval) : any);
+}
+
+std::uint64_t DistributedBd::displace_free_draining(std::vector<double>& next) {
+  const bd::device::EngineTables t = motion_tables(options_, forces_);
+  const bd::device::MotionTables m{types_.data(), t.mobility.data(), t.sqrt_mobility.data(), t.radius.data(), t.dt,
+                                   t.noise,       t.brownian,        t.max_displacement2,    t.seed,          step_};
+  std::uint64_t refused = kNoParticle;
+  for (std::size_t i = 0; i < ids_.size(); ++i) {
+    constexpr double kNoNoise[3] = {0.0, 0.0, 0.0};
+    double dx[3];
+    if (!bd::device::displacement_with(static_cast<std::uint32_t>(i), t.brownian ? &z_[3 * i] : kNoNoise, f_.data(), m,
+                                       dx))
+      refused = std::min(refused, ids_[i]);
+    for (int c = 0; c < 3; ++c) next[3 * i + c] = x_[3 * i + c] + dx[c];
+  }
+  return refused;
+}
+
+std::uint64_t DistributedBd::displace_with_hydrodynamics(std::vector<double>& next) {
+  // u = M F, w = M^{1/2} z over all ranks' particles, then bd::Integrator's step and guard:
+  // dx = u dt + sqrt(2 kT dt) w, refused beyond max_displacement x the radius (docs/theory/bd.md).
+  const std::size_t n = ids_.size();
+  radii_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) radii_[i] = forces_.types()[types_[i]].radius;
+  u_.assign(3 * n, 0.0);
+  w_.assign(z_.size(), 0.0);
+  hydrodynamics_->products(x_, radii_, f_, z_, u_, w_);
+  const double dt = options_.integrator.dt, noise = std::sqrt(2.0 * options_.integrator.kT * dt);
+  const double frac2 = options_.integrator.max_displacement * options_.integrator.max_displacement;
+  std::uint64_t refused = kNoParticle;
+  for (std::size_t i = 0; i < n; ++i) {
+    double d2 = 0.0;
+    for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) {
+      const double d = u_[k] * dt + (z_.empty() ? 0.0 : noise * w_[k]);
+      next[k] = x_[k] + d;
+      d2 += d * d;
+    }
+    if (!(d2 <= frac2 * radii_[i] * radii_[i])) refused = std::min(refused, ids_[i]);  // also catches NaN
+  }
+  return refused;
 }
 
 void DistributedBd::fail_blow_up(std::uint64_t id, std::span<const double> next) const {

@@ -1,10 +1,12 @@
-// rpyfmm — free-draining Brownian dynamics on particles distributed over the ranks of an MPI
-// communicator (docs/mpi.md, "Brownian dynamics across ranks"): the Euler-Maruyama step of
-// rpyfmm::bd::Integrator with the free-draining mobility (Tran et al. (2015), eq. 3),
+// rpyfmm — Brownian dynamics on particles distributed over the ranks of an MPI communicator
+// (docs/mpi.md, "Brownian dynamics across ranks"): the Euler-Maruyama step of rpyfmm::bd::Integrator,
 //
-//     dx_i = F_i dt / (6 pi eta a_i) + sqrt(2 kT dt / (6 pi eta a_i)) z_i,
+//     dx = M F dt + sqrt(2 kT dt) M^{1/2} z,
 //
-// z_i keyed by (seed, step, global index i) as the serial engine keys it.
+// z_i keyed by (seed, step, global index i) as the serial engine keys it, with the free-draining
+// mobility M = 1 / (6 pi eta a_i) (Tran et al. (2015), eq. 3) or, in free space, the RPY mobility of
+// all ranks' particles (DistributedDirectRpy, DistributedFmmRpy) and its Lanczos square root across
+// ranks.
 //
 // Each rank owns a share of the particles, contiguous along the Morton curve (SfcPartition), and
 // keeps a halo: the other ranks' particles within the list radius r_L = r_c + skin of its owned
@@ -17,10 +19,12 @@
 // build. At a rebuild the particles migrate along the Morton curve when the ranks' costs (their
 // particles plus their neighbour-list entries) are imbalanced beyond a threshold.
 //
-// So the positions after every step are, bit for bit, those of bd::Integrator with
-// rpy::FreeDrainingMobility on the whole set, on any number of ranks and for any partition (same
-// binary). The potential energy is the sum over the ranks of their particles' shares, equal to the
-// serial engine's to round-off (a sum in another order).
+// So with free draining the positions after every step are, bit for bit, those of bd::Integrator
+// with rpy::FreeDrainingMobility on the whole set, on any number of ranks and for any partition
+// (same binary). With hydrodynamic interactions they are the serial engine's with the same operator
+// to round-off (direct: products summed in another order) or to the FMM's tolerance (fmm). The
+// potential energy is the sum over the ranks of their particles' shares, equal to the serial
+// engine's to round-off (a sum in another order).
 //
 // Checkpoints hold the whole state in global index order (bd::Checkpoint, gathered on one rank),
 // so a run written on P ranks restarts on any other number (restart_distributed_bd).
@@ -45,7 +49,9 @@
 #include "rpyfmm/bd/neighbour_list.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/mpi/communicator.hpp"
+#include "rpyfmm/mpi/fmm_rpy.hpp"
 #include "rpyfmm/rpy/geometry.hpp"
+#include "rpyfmm/rpy/mobility_factory.hpp"
 
 namespace rpyfmm::mpi {
 
@@ -56,7 +62,14 @@ struct DistributedBdOptions {
   bd::IntegratorOptions integrator{};
   /// The skin (0: 0.3 r_c) and the rebuild strategy (fixed_interval), as bd::NeighbourList's.
   bd::NeighbourOptions neighbours{};
-  /// eta of the free-draining mobility 1 / (6 pi eta a) (> 0).
+  /// The mobility: none (free draining, 1 / (6 pi eta a)), or the RPY mobility of all ranks'
+  /// particles by direct (DistributedDirectRpy) or fmm (DistributedFmmRpy), open geometry only, with
+  /// the Brownian displacement by the Lanczos sampler across ranks (integrator.sqrt: method
+  /// automatic or lanczos, its tolerance; rpyfmm/mpi/sqrt.hpp).
+  rpy::MobilityMethod method = rpy::MobilityMethod::none;
+  /// The fmm method's operator options (tolerance, leaf capacity, ...).
+  DistributedFmmRpyOptions fmm{.tolerance = 1e-3};
+  /// Solvent viscosity eta (> 0).
   double viscosity = 1.0;
   /// A rebuild moves the particles along the Morton curve when the largest rank's cost exceeds this
   /// multiple of the mean (>= 1; 1: at every rebuild; infinity: never after the first partition).
@@ -121,7 +134,8 @@ class DistributedBd {
   /// step 0, step, seed, dt); an empty checkpoint on the other ranks.
   [[nodiscard]] bd::Checkpoint checkpoint(int root = 0) const;
 
-  struct Halo;  // mpi/src/bd_halo.hpp
+  struct Halo;           // mpi/src/bd_halo.hpp
+  struct Hydrodynamics;  // mpi/src/bd_hydrodynamics.hpp
 
  private:
   /// The lists, the halo and, when the costs are imbalanced (or at the first), the partition.
@@ -132,6 +146,11 @@ class DistributedBd {
   void compute_forces();
   /// The Euler-Maruyama step with the blow-up guard, and the next step's rebuild test.
   void advance();
+  /// The step's new positions (3 per owned particle) and the lowest global index the guard refuses
+  /// (kNoParticle: none): free draining by the device stage, or dx = u dt + sqrt(2 kT dt) w from
+  /// the products of the hydrodynamic interactions.
+  std::uint64_t displace_free_draining(std::vector<double>& next);
+  std::uint64_t displace_with_hydrodynamics(std::vector<double>& next);
   /// Throws on every rank the blow-up error of particle `id` (next: the refused positions).
   void fail_blow_up(std::uint64_t id, std::span<const double> next) const;
 
@@ -149,6 +168,8 @@ class DistributedBd {
   std::vector<std::uint32_t> types_;
   std::vector<std::uint64_t> ids_;
   std::unique_ptr<Halo> halo_;
+  std::unique_ptr<Hydrodynamics> hydrodynamics_;  // null: free draining
+  std::vector<double> radii_, u_, w_;             // with hydrodynamics: per owned particle
   DistributedBdStats stats_;
 };
 
