@@ -20,6 +20,7 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
+#include "mpi_session.hpp"
 #include "rpyfmm/bd/config.hpp"
 #include "rpyfmm/bd/run.hpp"
 #include "rpyfmm/core/cpu_features.hpp"
@@ -45,6 +46,11 @@ void run_bd_command(const BdArgs& args) {
   if (!args.out_dir.empty()) options.out_dir = args.out_dir;
   const bool terminal = ::isatty(STDOUT_FILENO) != 0;
   if (terminal && !args.quiet && !args.common.json) options.progress = &std::cerr;
+  // Under mpirun: DistributedBd across the ranks takes the steps, rank 0 writes the files and
+  // prints (docs/mpi.md, "The command-line tool under mpirun").
+  const bool ranks = under_mpi();
+  if (ranks) options = bd_options_across_ranks(options);
+  const bool prints = mpi_rank() == 0;
 
   bd::RunSummary s;
   std::string source;
@@ -55,11 +61,12 @@ void run_bd_command(const BdArgs& args) {
     const bd::RunConfig config = args.config.empty() ? bd::parse_config(bd::demo_config_text(), "<built-in demo>")
                                                      : bd::load_config(args.config);
     source = config.source;
-    if (!args.quiet && !args.common.json)
+    if (!args.quiet && !args.common.json && prints)
       std::cout << "rpyfmm bd: " << source << " (" << rpy::to_string(config.mobility.method) << " mobility, "
                 << active_threads() << " threads)" << std::endl;
     s = bd::run_bd(config, options);
   }
+  if (!prints) return;
   if (args.common.json) {
     JsonLine line;
     line.add("command", "bd")
@@ -79,6 +86,7 @@ void run_bd_command(const BdArgs& args) {
         .add("mobility_products_per_step", s.mean_mobility_products)
         .add("seconds", s.seconds)
         .add("out_dir", s.out_dir.string());
+    if (ranks) line.add("ranks", mpi_size());
     std::cout << line.str() << '\n';
   } else if (!args.quiet) {
     std::printf("%zu particles, steps %llu -> %llu in %.2f s (%.3g steps/s), %s mobility, %s engine\n", s.particles,

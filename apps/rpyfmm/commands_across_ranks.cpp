@@ -23,6 +23,7 @@
 #include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/mpi/bd_stepper.hpp"
 #include "rpyfmm/mpi/communicator.hpp"
 #include "rpyfmm/mpi/direct_operator.hpp"
 #include "rpyfmm/mpi/fmm_rpy.hpp"
@@ -280,6 +281,10 @@ void run_sample_across_ranks(const RanksSampleArgs& args) {
   const Inputs files{args.positions, args.radius_given ? std::string() : args.radii, args.noise, "noise", args.radius};
   with_operator(args.op, args.tolerance, args.viscosity, files, comm,
                 [&](auto& p) { sample_and_write(p, args, comm, total); });
+}
+
+bd::RunOptions bd_options_across_ranks(bd::RunOptions options) {
+  return mpi::across_ranks(MPI_COMM_WORLD, std::move(options));
 }
 
 }  // namespace rpyfmm::cli

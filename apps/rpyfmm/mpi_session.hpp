@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <string>
 
+#include "rpyfmm/bd/run.hpp"
 #include "rpyfmm/rpy/sqrt.hpp"
 
 namespace CLI {
@@ -81,5 +82,8 @@ struct RanksSampleArgs {
   double tolerance = 1e-6;    // of the fmm operator
 };
 void run_sample_across_ranks(const RanksSampleArgs& args);
+/// `rpyfmm bd` across the ranks (commands_across_ranks.cpp): `options` with the engine across the
+/// ranks (rpyfmm::mpi::across_ranks: DistributedBd takes the steps, rank 0 writes the files).
+bd::RunOptions bd_options_across_ranks(bd::RunOptions options);
 
 }  // namespace rpyfmm::cli

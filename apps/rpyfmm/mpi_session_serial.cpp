@@ -35,4 +35,8 @@ void run_sample_across_ranks(const RanksSampleArgs&) {
   fail(ErrorCode::not_supported, "sample", "this rpyfmm was built without MPI");
 }
 
+bd::RunOptions bd_options_across_ranks(bd::RunOptions) {
+  fail(ErrorCode::not_supported, "bd", "this rpyfmm was built without MPI");
+}
+
 }  // namespace rpyfmm::cli

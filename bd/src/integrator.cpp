@@ -24,9 +24,9 @@ double norm3(const double* v) {
 }
 }  // namespace
 
-Integrator::Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceField forces, IntegratorOptions options,
-                       std::vector<double> positions, std::vector<std::uint32_t> types, NeighbourOptions neighbours,
-                       std::uint64_t first_step, std::vector<double> orientations, std::vector<double> velocities)
+Integrator::Integrator(Unstarted, std::unique_ptr<rpy::MobilityOperator> mobility, ForceField forces,
+                       IntegratorOptions options, std::vector<double> positions, std::vector<std::uint32_t> types,
+                       const NeighbourOptions& neighbours, std::uint64_t first_step)
     : mobility_(std::move(mobility)),
       forces_(std::move(forces)),
       options_(options),
@@ -50,10 +50,34 @@ Integrator::Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceFie
   radii_.resize(n);
   for (std::size_t i = 0; i < n; ++i) radii_[i] = forces_.types()[types_[i]].radius;
   for (const char* part : {"neighbours", "forces", "plan", "drift", "sqrt", "update"}) totals_.seconds[part] = 0.0;
+}
+
+Integrator::Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceField forces, IntegratorOptions options,
+                       std::vector<double> positions, std::vector<std::uint32_t> types, NeighbourOptions neighbours,
+                       std::uint64_t first_step, std::vector<double> orientations, std::vector<double> velocities)
+    : Integrator(Unstarted{}, std::move(mobility), std::move(forces), options, std::move(positions), std::move(types),
+                 neighbours, first_step) {
+  require(options_.engine != StepEngine::external, ErrorCode::invalid_argument, "Integrator",
+          "StepEngine::external needs the constructor that takes the engine");
   if (options_.engine == StepEngine::cpu)
     start_cpu_engine(std::move(orientations), std::move(velocities));
   else
     start_device_engine(neighbours, !orientations.empty(), !velocities.empty());
+}
+
+Integrator::Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceField forces, IntegratorOptions options,
+                       std::vector<double> positions, std::vector<std::uint32_t> types, NeighbourOptions neighbours,
+                       std::uint64_t first_step, std::unique_ptr<Stepper> engine)
+    : Integrator(Unstarted{}, std::move(mobility), std::move(forces), options, std::move(positions), std::move(types),
+                 neighbours, first_step) {
+  const char* where = "Integrator";
+  require(options_.engine == StepEngine::external, ErrorCode::invalid_argument, where,
+          "an engine given to the Integrator needs options.engine = StepEngine::external");
+  require(engine != nullptr, ErrorCode::invalid_argument, where, "no engine given");
+  require(engine->step_count() == step_ && engine->positions().size() == x_.size(), ErrorCode::invalid_argument, where,
+          "the engine given holds other particles or another step than the Integrator's");
+  device_ = std::move(engine);
+  std::vector<double>().swap(x_);  // the engine holds the positions
 }
 
 Integrator::Integrator(Integrator&&) noexcept = default;

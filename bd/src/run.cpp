@@ -142,6 +142,12 @@ ForceField run_force_field(const RunConfig& config, const std::vector<Bond>& bon
 Integrator run_integrator(const RunConfig& config, const RunOptions& options, const ForceField& forces,
                           const Start& start) {
   IntegratorOptions o = config.integrator;
+  if (options.engine) {  // an engine the caller makes (across MPI ranks): the operator it applies is named
+    o.engine = StepEngine::external;
+    return Integrator(rpy::make_mobility(config.mobility, start.types.size()), forces, o, start.positions, start.types,
+                      config.neighbours, start.step,
+                      options.engine(config, forces, start.positions, start.types, start.step));
+  }
   o.engine = step_engine_for(config.mobility, options.device_launcher);
   return Integrator(engine_mobility(config.mobility, o.engine, start.types.size()), forces, o, start.positions,
                     start.types, config.neighbours, start.step, start.orientations, start.velocities);
@@ -173,7 +179,7 @@ class Run {
     sum_.trajectory = dir / config.output.trajectory;
     sum_.log = dir / config.output.log;
     sum_.checkpoint = dir / config.output.checkpoint;
-    check_run_files(config, sum_);
+    on_writer([&] { check_run_files(config, sum_); });
   }
 
   RunSummary execute() {
@@ -213,6 +219,26 @@ class Run {
   // has then started (a step succeeded, or a checkpoint is due). Before that, a refusal
   // removes what was created and changes nothing else.
   void open_outputs() {
+    on_writer([&] { open_files(); });
+  }
+
+  // Runs `write` on the process that writes the files; across processes, every one then learns
+  // whether it failed (RunOptions::agree), so that all stop together.
+  template <class Write>
+  void on_writer(Write&& write) const {
+    std::optional<Error> problem;
+    if (options_.writes_files) {
+      try {
+        write();
+      } catch (const Error& e) {
+        if (!options_.agree) throw;
+        problem = e;
+      }
+    }
+    if (options_.agree) options_.agree(problem);
+  }
+
+  void open_files() {
     made_.emplace(sum_.out_dir);
     if (config_.output.trajectory_every > 0) {
       if (start_.restarted)
@@ -232,14 +258,16 @@ class Run {
   }
 
   void commit() {
-    traj_.publish();
-    log_.publish();
-    made_->keep();
+    on_writer([&] {
+      traj_.publish();
+      log_.publish();
+      made_->keep();
+    });
   }
 
   void save_checkpoint() {
     commit();
-    Checkpoint c;
+    Checkpoint c;  // on every process: reading the engine's state may be collective
     c.step = bd_.step_count();
     c.seed = config_.integrator.seed;
     c.dt = config_.integrator.dt;
@@ -252,13 +280,15 @@ class Run {
       c.rotation_vectors = start_.rotation_vectors;
     }
     c.velocities.assign(bd_.inertial().velocities().begin(), bd_.inertial().velocities().end());
-    traj_.flush();  // the frames the checkpoint counts are in the file before it names them
-    c.trajectory_bytes = traj_.length();
-    c.trajectory_hash = traj_.hash();
-    c.log_bytes = log_.bytes();
-    c.log_hash = log_.hash();
-    c.config = config_.text;
-    write_checkpoint(sum_.checkpoint, c);
+    on_writer([&] {
+      traj_.flush();  // the frames the checkpoint counts are in the file before it names them
+      c.trajectory_bytes = traj_.length();
+      c.trajectory_hash = traj_.hash();
+      c.log_bytes = log_.bytes();
+      c.log_hash = log_.hash();
+      c.config = config_.text;
+      write_checkpoint(sum_.checkpoint, c);
+    });
   }
 
   /// One step; on failure after the run has started, the last good state is saved first.
@@ -286,9 +316,13 @@ class Run {
     StopWatch w;
     const OutputSpec& out = config_.output;
     const std::uint64_t s = bd_.step_count();
-    if (out.trajectory_every > 0 && s % out.trajectory_every == 0)
-      traj_.write(bd_.positions(), bd_.types(), forces_.types(), config_.geometry, s, bd_.time(), bd_.orientations(),
-                  bd_.complexes().owner());
+    if (out.trajectory_every > 0 && s % out.trajectory_every == 0) {
+      const auto x = bd_.positions();  // on every process: the read may be collective
+      on_writer([&] {
+        traj_.write(x, bd_.types(), forces_.types(), config_.geometry, s, bd_.time(), bd_.orientations(),
+                    bd_.complexes().owner());
+      });
+    }
     if (out.log_every > 0 && (s % out.log_every == 0 || s == total_)) write_log_row(first);
     const double sec = w.seconds();
     output_seconds_ += sec;
@@ -325,7 +359,7 @@ class Run {
     if (!bd_.inertial().empty()) row << ',' << bd_.inertial().kinetic_temperature();
     if (config_.integrator.sac.enabled) row << ',' << bd_.complexes().count() << ',' << bd_.complexes().mean_adsorbed();
     row << '\n';
-    log_.write(row.str());
+    on_writer([&] { log_.write(row.str()); });
     last_ = Interval{t, s, cnow};
   }
 

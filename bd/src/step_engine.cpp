@@ -8,6 +8,8 @@ const char* to_string(StepEngine engine) {
       return "cuda";
     case StepEngine::host_launcher:
       return "host launcher";
+    case StepEngine::external:
+      return "external";
     case StepEngine::cpu:
       break;
   }

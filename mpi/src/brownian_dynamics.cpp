@@ -267,6 +267,7 @@ void DistributedBd::repartition(std::span<const double> weights) {
     ids_[i] = static_cast<std::uint64_t>(moved[2][order[i]]);
     types_[i] = static_cast<std::uint32_t>(moved[3][order[i]]);
   }
+  f_.assign(3 * m, 0.0);  // the forces of the last step belong to the particles held before
   ++stats_.repartitions;
 }
 

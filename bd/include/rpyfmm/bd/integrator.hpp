@@ -50,14 +50,11 @@
 #include "rpyfmm/bd/sac.hpp"
 #include "rpyfmm/bd/sampling.hpp"
 #include "rpyfmm/bd/step_engine.hpp"
+#include "rpyfmm/bd/stepper.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/rpy/mobility.hpp"
 
 namespace rpyfmm::bd {
-
-namespace device {
-class Stepper;
-}
 
 struct IntegratorOptions {
   /// Time step (> 0). No default: it must come from the user.
@@ -126,6 +123,14 @@ class Integrator {
   Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceField forces, IntegratorOptions options,
              std::vector<double> positions, std::vector<std::uint32_t> types, NeighbourOptions neighbours = {},
              std::uint64_t first_step = 0, std::vector<double> orientations = {}, std::vector<double> velocities = {});
+  /// An Integrator whose steps `engine` takes, an engine the caller made for these particles
+  /// (options.engine must be StepEngine::external; e.g. rpyfmm/mpi/bd_stepper.hpp across MPI ranks):
+  /// the particles, forces and options are checked as above, and the Integrator reads the state
+  /// through the engine as it reads the device engine's (the CPU engine's features refused alike).
+  /// `mobility`: the operator the engine applies, whose name and viscosity the Integrator reports.
+  Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceField forces, IntegratorOptions options,
+             std::vector<double> positions, std::vector<std::uint32_t> types, NeighbourOptions neighbours,
+             std::uint64_t first_step, std::unique_ptr<Stepper> engine);
   Integrator(Integrator&&) noexcept;
   Integrator& operator=(Integrator&&) noexcept;
   ~Integrator();
@@ -190,6 +195,11 @@ class Integrator {
   void checked_displacements(double dt, double noise, bool brownian);
   /// The blow-up error for particle i (dx_ and phi_ hold its step).
   [[noreturn]] void fail_blow_up(std::size_t i) const;
+  /// The checks and state of every engine (the particles, forces and options), none started.
+  struct Unstarted {};
+  Integrator(Unstarted, std::unique_ptr<rpy::MobilityOperator> mobility, ForceField forces, IntegratorOptions options,
+             std::vector<double> positions, std::vector<std::uint32_t> types, const NeighbourOptions& neighbours,
+             std::uint64_t first_step);
   /// The CPU engine's state: work arrays, orientations, inertial particles, SAC complexes.
   void start_cpu_engine(std::vector<double> orientations, std::vector<double> velocities);
   /// The device engine (integrator_device.cpp) from the checked particles and forces; refuses
@@ -220,7 +230,7 @@ class Integrator {
   std::vector<std::uint32_t> groups_;
   std::vector<double> f_within_;
   // The device engine (null: the CPU engine's steps); it holds the positions then.
-  std::unique_ptr<device::Stepper> device_;
+  std::unique_ptr<Stepper> device_;
 };
 
 }  // namespace rpyfmm::bd

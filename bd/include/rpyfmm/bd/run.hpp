@@ -5,12 +5,18 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
+#include <memory>
 #include <optional>
 #include <ostream>
+#include <span>
 #include <string>
 
 #include "rpyfmm/bd/config.hpp"
+#include "rpyfmm/bd/force_field.hpp"
 #include "rpyfmm/bd/step_engine.hpp"
+#include "rpyfmm/bd/stepper.hpp"
+#include "rpyfmm/core/error.hpp"
 #include "rpyfmm/core/timer.hpp"
 
 namespace rpyfmm::bd {
@@ -26,6 +32,20 @@ struct RunOptions {
   /// The device engine's launcher (runs with device = "cuda" and method = "none" only;
   /// step_engine_for).
   DeviceLauncher device_launcher = DeviceLauncher::cuda;
+  /// Where set, an engine the caller makes takes the run's steps (StepEngine::external; e.g. the
+  /// engine across MPI ranks of rpyfmm/mpi/bd_stepper.hpp). Called on every process of the run with
+  /// the config, the run's force field, the whole system's positions and types and the first step.
+  std::function<std::unique_ptr<Stepper>(const RunConfig&, const ForceField&, std::span<const double> positions,
+                                         std::span<const std::uint32_t> types, std::uint64_t first_step)>
+      engine;
+  /// False on the processes of a run across MPI ranks other than the one that writes its files:
+  /// they take every step and read every record's state with the writer (the engine's reads may be
+  /// collective), but create no file.
+  bool writes_files = true;
+  /// Where set (runs across processes), called on every process after each of the writer's file
+  /// operations with its error, if any; it throws the error on every process (MPI:
+  /// Communicator::agree), so that all stop together. Unset: the error propagates as it is.
+  std::function<void(const std::optional<Error>&)> agree;
 };
 
 struct RunSummary {

@@ -14,16 +14,17 @@ namespace rpyfmm::bd {
 
 /// The engine of IntegratorOptions::engine.
 enum class StepEngine {
-  cpu,           ///< the Integrator's own step, any mobility operator and feature
-  cuda,          ///< the device engine on a CUDA device (free draining only; docs/gpu-bd.md)
-  host_launcher  ///< the device engine's stages run on the host: its results bit for bit, no GPU needed
+  cpu,            ///< the Integrator's own step, any mobility operator and feature
+  cuda,           ///< the device engine on a CUDA device (free draining only; docs/gpu-bd.md)
+  host_launcher,  ///< the device engine's stages run on the host: its results bit for bit, no GPU needed
+  external        ///< an engine the caller gives the Integrator (rpyfmm/bd/stepper.hpp; e.g. across MPI ranks)
 };
 
 /// What runs the device engine's stages when a mobility spec asks for it: CUDA, or the host
 /// launcher (tests and machines without a GPU).
 enum class DeviceLauncher { cuda, host };
 
-/// "cpu", "cuda" or "host launcher".
+/// "cpu", "cuda", "host launcher" or "external".
 const char* to_string(StepEngine engine);
 
 /// The engine for `spec`: the device engine, run by `launcher`, where spec asks for the whole step

@@ -121,6 +121,9 @@ class DistributedBd {
   /// indices and positions at step 0, in increasing global index.
   [[nodiscard]] std::size_t local_size() const { return ids_.size(); }
   [[nodiscard]] std::span<const double> positions() const { return x_; }
+  /// The forces on this rank's particles at the start of the last step (3n; 0 before the first and
+  /// after a repartition until the next step).
+  [[nodiscard]] std::span<const double> last_forces() const { return f_; }
   [[nodiscard]] std::span<const std::uint32_t> types() const { return types_; }
   [[nodiscard]] std::span<const std::uint64_t> ids() const { return ids_; }
   [[nodiscard]] std::span<const double> reference_positions() const { return reference_; }

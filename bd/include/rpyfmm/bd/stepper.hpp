@@ -1,0 +1,34 @@
+// rpyfmm::bd — an engine that takes an Integrator's steps in its place (docs/gpu-bd.md, docs/mpi.md):
+// the device engine (CUDA, or its stages on the host), or an engine given by the caller
+// (StepEngine::external, e.g. the engine across MPI ranks of rpyfmm/mpi/bd_stepper.hpp). The
+// Integrator reads the state through this interface; the positions and forces are copied to the
+// caller only when read (a trajectory frame, a log row, a checkpoint).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "rpyfmm/core/timer.hpp"
+
+namespace rpyfmm::bd {
+
+class Stepper {
+ public:
+  virtual ~Stepper() = default;
+  /// One step: on an error the positions stay at the last good step.
+  virtual void step() = 0;
+  /// The positions at the current step (3N, unwrapped, the whole system), copied once per step
+  /// asked (into the same array: a view of it shows the step it was last read at).
+  [[nodiscard]] virtual const std::vector<double>& positions() const = 0;
+  /// The forces at the start of the last step (3N; 0 before the first), copied as positions().
+  [[nodiscard]] virtual const std::vector<double>& forces() const = 0;
+  [[nodiscard]] virtual std::uint64_t step_count() const = 0;
+  /// The potential energy at the start of the last step; 0 before the first (as
+  /// Integrator::last_report() before a step).
+  [[nodiscard]] virtual double potential_energy() const = 0;
+  [[nodiscard]] virtual std::size_t rebuilds() const = 0;
+  /// Seconds per part: "neighbours", "forces", "update".
+  [[nodiscard]] virtual StageTimes stage_times() const = 0;
+};
+
+}  // namespace rpyfmm::bd

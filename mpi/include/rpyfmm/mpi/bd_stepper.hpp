@@ -1,0 +1,43 @@
+// rpyfmm — a BD run of a configuration across the ranks of an MPI communicator (docs/mpi.md,
+// "Brownian dynamics across ranks"): DistributedBd behind the Integrator's engine interface
+// (rpyfmm/bd/stepper.hpp), and the run options that make bd::run_bd and bd::restart_bd take their
+// steps with it, rank 0 writing the trajectory, log and checkpoints.
+//
+//   bd::RunSummary s = bd::run_bd(config, mpi::across_ranks(MPI_COMM_WORLD));  // collective
+//
+// The run's files are those of the serial run with the same engine's state: with free draining
+// the trajectory and the checkpoints are the serial run's byte for byte, on any number of ranks.
+#pragma once
+
+#include <mpi.h>
+
+#include <cstdint>
+#include <memory>
+#include <span>
+
+#include "rpyfmm/bd/config.hpp"
+#include "rpyfmm/bd/force_field.hpp"
+#include "rpyfmm/bd/run.hpp"
+#include "rpyfmm/bd/stepper.hpp"
+
+namespace rpyfmm::mpi {
+
+/// Collective: DistributedBd for the run of `config` (its geometry, integrator, neighbour options,
+/// viscosity and mobility method: none, direct or fmm at its tolerance; automatic counts as fmm
+/// in free space), from the whole system's positions and types at first_step, the same on every
+/// rank: rank r takes the particles of its block of global indices. Reading positions() or
+/// forces() gathers the whole system on every rank (collective, once per step). Throws on every
+/// rank what DistributedBd refuses.
+[[nodiscard]] std::unique_ptr<bd::Stepper> make_distributed_stepper(MPI_Comm comm, const bd::RunConfig& config,
+                                                                    const bd::ForceField& forces,
+                                                                    std::span<const double> positions,
+                                                                    std::span<const std::uint32_t> types,
+                                                                    std::uint64_t first_step);
+
+/// `options` for a run across the ranks of `comm` (every rank calls run_bd or restart_bd with
+/// them): the engine above, the files written by rank 0 alone (no progress line elsewhere), and a
+/// failure of rank 0's file operations made every rank's (Communicator::agree). The communicator
+/// must outlive the run.
+[[nodiscard]] bd::RunOptions across_ranks(MPI_Comm comm, bd::RunOptions options = {});
+
+}  // namespace rpyfmm::mpi

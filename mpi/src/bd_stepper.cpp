@@ -1,0 +1,127 @@
+// rpyfmm — a BD run of a configuration across MPI ranks (rpyfmm/mpi/bd_stepper.hpp).
+#include "rpyfmm/mpi/bd_stepper.hpp"
+
+#include <climits>
+#include <limits>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/mpi/brownian_dynamics.hpp"
+
+namespace rpyfmm::mpi {
+namespace {
+
+constexpr const char* kWhere = "bd across ranks";
+
+// Collective: the values (3 per particle) of every rank's particles, on every rank, placed by
+// global index (3 N entries). An empty `values` counts as zeros.
+std::vector<double> gather_by_index(const Communicator& comm, std::span<const std::uint64_t> ids,
+                                    std::span<const double> values, std::uint64_t total) {
+  std::vector<double> packed;
+  packed.reserve(4 * ids.size());
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    packed.push_back(static_cast<double>(ids[i]));
+    for (std::size_t c = 0; c < 3; ++c) packed.push_back(values.empty() ? 0.0 : values[3 * i + c]);
+  }
+  require(4 * total <= static_cast<std::uint64_t>(INT_MAX), ErrorCode::not_supported, kWhere,
+          "gathering more than (2^31 - 1) / 4 particles on every rank");
+  const int mine = static_cast<int>(packed.size());
+  std::vector<int> counts(static_cast<std::size_t>(comm.size())), displs(counts.size(), 0);
+  check_mpi(MPI_Allgather(&mine, 1, MPI_INT, counts.data(), 1, MPI_INT, comm.get()), "MPI_Allgather");
+  for (std::size_t r = 1; r < counts.size(); ++r) displs[r] = displs[r - 1] + counts[r - 1];
+  std::vector<double> all(4 * total);
+  check_mpi(
+      MPI_Allgatherv(packed.data(), mine, MPI_DOUBLE, all.data(), counts.data(), displs.data(), MPI_DOUBLE, comm.get()),
+      "MPI_Allgatherv");
+  std::vector<double> placed(3 * total);
+  for (std::size_t k = 0; k < total; ++k) {
+    const auto id = static_cast<std::size_t>(all[4 * k]);
+    for (std::size_t c = 0; c < 3; ++c) placed[3 * id + c] = all[4 * k + 1 + c];
+  }
+  return placed;
+}
+
+// DistributedBd behind the Integrator's engine interface; the whole system's positions and forces
+// gathered on every rank once per step they are read at.
+class DistributedStepper final : public bd::Stepper {
+ public:
+  explicit DistributedStepper(DistributedBd bd) : bd_(std::move(bd)) {}
+
+  void step() override { bd_.step(); }
+  [[nodiscard]] const std::vector<double>& positions() const override {
+    if (positions_step_ != bd_.step_count()) {
+      positions_ = gather_by_index(bd_.communicator(), bd_.ids(), bd_.positions(), bd_.global_size());
+      positions_step_ = bd_.step_count();
+    }
+    return positions_;
+  }
+  [[nodiscard]] const std::vector<double>& forces() const override {
+    if (forces_step_ != bd_.step_count()) {
+      forces_ = gather_by_index(bd_.communicator(), bd_.ids(), bd_.last_forces(), bd_.global_size());
+      forces_step_ = bd_.step_count();
+    }
+    return forces_;
+  }
+  [[nodiscard]] std::uint64_t step_count() const override { return bd_.step_count(); }
+  [[nodiscard]] double potential_energy() const override { return bd_.potential_energy(); }
+  [[nodiscard]] std::size_t rebuilds() const override { return bd_.stats().rebuilds; }
+  /// This rank's seconds: the lists, halo and partition as "neighbours", the halo's positions with
+  /// the step as "update".
+  [[nodiscard]] StageTimes stage_times() const override {
+    const StageTimes& t = bd_.stats().seconds;
+    return {{"neighbours", t.at("rebuild")}, {"forces", t.at("forces")}, {"update", t.at("update") + t.at("halo")}};
+  }
+
+ private:
+  static constexpr std::uint64_t kNever = std::numeric_limits<std::uint64_t>::max();
+  DistributedBd bd_;
+  mutable std::vector<double> positions_, forces_;
+  mutable std::uint64_t positions_step_ = kNever, forces_step_ = kNever;
+};
+
+// The mobility of a run across ranks: its method, automatic counting as fmm (free space).
+rpy::MobilityMethod method_across_ranks(const bd::RunConfig& config) {
+  const rpy::MobilityMethod m = config.mobility.method;
+  return m == rpy::MobilityMethod::automatic && config.geometry.is_open() ? rpy::MobilityMethod::fmm : m;
+}
+
+}  // namespace
+
+std::unique_ptr<bd::Stepper> make_distributed_stepper(MPI_Comm comm, const bd::RunConfig& config,
+                                                      const bd::ForceField& forces, std::span<const double> positions,
+                                                      std::span<const std::uint32_t> types, std::uint64_t first_step) {
+  const Communicator world(comm);
+  DistributedBdOptions options;
+  options.integrator = config.integrator;
+  options.neighbours = config.neighbours;
+  options.viscosity = config.mobility.viscosity;
+  options.method = method_across_ranks(config);
+  options.fmm.tolerance = config.mobility.tolerance;
+  // Blocks of global indices: rank r takes [r N / P, (r + 1) N / P).
+  const auto p = static_cast<std::uint64_t>(world.size()), r = static_cast<std::uint64_t>(world.rank());
+  const std::uint64_t n = types.size(), first = r * n / p, last = (r + 1) * n / p;
+  BdShare share;
+  share.positions.assign(positions.begin() + static_cast<std::ptrdiff_t>(3 * first),
+                         positions.begin() + static_cast<std::ptrdiff_t>(3 * last));
+  share.types.assign(types.begin() + static_cast<std::ptrdiff_t>(first),
+                     types.begin() + static_cast<std::ptrdiff_t>(last));
+  for (std::uint64_t i = first; i < last; ++i) share.ids.push_back(i);
+  return std::make_unique<DistributedStepper>(
+      DistributedBd(comm, forces, config.geometry, std::move(options), std::move(share), first_step));
+}
+
+bd::RunOptions across_ranks(MPI_Comm comm, bd::RunOptions options) {
+  const Communicator world(comm);
+  options.engine = [comm](const bd::RunConfig& config, const bd::ForceField& forces, std::span<const double> x,
+                          std::span<const std::uint32_t> types, std::uint64_t first_step) {
+    return make_distributed_stepper(comm, config, forces, x, types, first_step);
+  };
+  options.writes_files = world.rank() == 0;
+  if (world.rank() != 0) options.progress = nullptr;
+  options.agree = [world](const std::optional<Error>& problem) { world.agree(problem); };
+  return options;
+}
+
+}  // namespace rpyfmm::mpi
