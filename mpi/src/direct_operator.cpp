@@ -15,6 +15,7 @@
 #include "direct_block_sums.hpp"
 #include "length_units.hpp"
 #include "load_scaling.hpp"
+#include "local_particles.hpp"
 #include "rpyfmm/core/validate.hpp"
 
 namespace rpyfmm::mpi {
@@ -54,21 +55,6 @@ double agreed_viscosity(const Communicator& comm, double viscosity) {
           "the ranks pass different viscosities (from " + format_number(global[0]) + " to " +
               format_number(-global[1]) + "); every rank must pass the same one");
   return viscosity;
-}
-
-// This rank's positions and radii as set_positions requires them (the message names no rank:
-// Communicator::agree adds it).
-void check_local_particles(std::span<const double> positions, std::span<const double> radii) {
-  require(positions.size() % 3 == 0, ErrorCode::invalid_input, kSetPositions,
-          "local positions have " + std::to_string(positions.size()) + " entries, not a multiple of 3");
-  require_size(radii, positions.size() / 3, kSetPositions, "local radii");
-  require_finite(positions, kSetPositions, "local positions", 3);
-  for (std::size_t i = 0; i < radii.size(); ++i) {
-    if (!(std::isfinite(radii[i]) && radii[i] > 0.0)) {
-      fail(ErrorCode::invalid_argument, kSetPositions,
-           "radius of local particle " + std::to_string(i) + " must be finite and > 0, got " + format_number(radii[i]));
-    }
-  }
 }
 
 std::array<double, kSummary> local_summary(std::span<const double> x, std::span<const double> a, std::size_t offset) {
@@ -167,7 +153,7 @@ void DistributedDirectRpy::set_positions(std::span<const double> local_positions
 void DistributedDirectRpy::set_positions(std::span<const double> local_positions, std::span<const double> local_radii) {
   global_n_ = 0;  // no positions until this call succeeds on every rank
   stats_ = CommunicationStats{};
-  comm_.run([&] { check_local_particles(local_positions, local_radii); });
+  comm_.run([&] { detail::check_local_particles(local_positions, local_radii, kSetPositions); });
   const auto ranks = static_cast<std::size_t>(comm_.size());
   const auto mine = static_cast<std::uint64_t>(local_radii.size());
   std::vector<std::uint64_t> all(ranks);

@@ -1,0 +1,92 @@
+// rpyfmm — DistributedPseRpy: the periodic RPY mobility U = M F by Positively Split Ewald
+// (rpyfmm/rpy/pse/pse_rpy.hpp; Fiore, Balboa Usabiaga, Donev & Swan, J. Chem. Phys. 146, 124116
+// (2017), "[PSE]"; docs/theory/pse.md) on particles distributed over the ranks of an MPI
+// communicator (docs/mpi.md, "Distributed PSE").
+//
+// Each rank passes its own particles (its local N may be 0) and receives the velocities of its own
+// particles in input order. The global particle set is the concatenation of the ranks' shares in
+// rank order; the operator uses the parameters rpyfmm::rpy::pse::PseRpy chooses for that whole set
+// (splitting xi, grid, Gaussian support, real-space cutoff), and its result equals PseRpy's on the
+// whole set to round-off (the same sums, added in another order).
+//
+// How ([PSE] eq. 10 and 19): M = M_r + M_w.
+//  - M_w: the grid is split into slabs of x planes by FFTW-MPI. Each particle's position goes, once
+//    per set_positions, to the ranks whose slabs its Gaussian window touches; in apply its force
+//    follows, each slab owner spreads onto its own planes, the transforms and the scaling run on the
+//    slabs, and each slab owner sends back its planes' share of the interpolation, which the
+//    particle's rank adds up in rank order.
+//  - M_r (with the self term): each rank receives the other ranks' particles within r_cut of the
+//    box of its own particles (a halo, positions once per set_positions, forces in every apply) and
+//    runs the serial real-space sum on its particles and the halo, keeping its own rows.
+//
+// Every public call is collective over the communicator and fails collectively
+// (communicator.hpp): a bad input on one rank makes every rank throw the same rpyfmm::Error.
+#pragma once
+
+#include <mpi.h>
+
+#include <cstddef>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "rpyfmm/mpi/communicator.hpp"
+#include "rpyfmm/rpy/geometry.hpp"
+#include "rpyfmm/rpy/pse/pse_parameters.hpp"
+
+namespace rpyfmm::mpi {
+
+/// What one rank exchanged in the last set_positions (counts of particles): the positions it sent to
+/// other ranks' slabs and received for its own slab, and the halo particles it received.
+struct PseExchangeCounts {
+  std::size_t wave_sent = 0;
+  std::size_t wave_received = 0;
+  std::size_t halo_received = 0;
+};
+
+class DistributedPseRpy {
+ public:
+  /// Collective. Throws rpyfmm::Error on every rank when any rank passes what PseRpy's constructor
+  /// refuses (an open geometry, a viscosity not finite and > 0, a tolerance out of range, ...), or
+  /// when the ranks pass different boxes, viscosities or options.
+  DistributedPseRpy(MPI_Comm comm, rpy::Geometry geometry, double viscosity, const rpy::pse::PseOptions& options = {});
+  ~DistributedPseRpy();
+  DistributedPseRpy(const DistributedPseRpy&) = delete;
+  DistributedPseRpy& operator=(const DistributedPseRpy&) = delete;
+
+  [[nodiscard]] std::string name() const { return "pse-mpi"; }
+  [[nodiscard]] const Communicator& communicator() const;
+  [[nodiscard]] double viscosity() const;
+
+  /// This rank's number of particles, all ranks' together, this rank's first global index (0 before
+  /// set_positions).
+  [[nodiscard]] std::size_t local_size() const;
+  [[nodiscard]] std::size_t global_size() const;
+  [[nodiscard]] std::size_t offset() const;
+  /// The parameters PseRpy chooses for the whole set (throws before set_positions). The wave-space
+  /// grids are double precision whatever wave_single says (FFTW-MPI's double transforms).
+  [[nodiscard]] const rpy::pse::PseParameters& parameters() const;
+  [[nodiscard]] const PseExchangeCounts& exchange_counts() const;
+
+  /// Collective. This rank's positions (3 n, n >= 0) and one radius for them. Positions are wrapped
+  /// into the box as PseRpy wraps them. Throws rpyfmm::Error on every rank when any rank's input is
+  /// malformed (size not a multiple of 3, NaN/Inf, radius not finite and > 0), when no rank has a
+  /// particle, when the radii differ (PSE supports equal radii only, as PseRpy), and on what
+  /// PseRpy's parameter choice refuses for the whole set. After a failure the operator holds no
+  /// positions on any rank until a later set_positions succeeds.
+  void set_positions(std::span<const double> local_positions, double radius);
+  /// Same with one radius per local particle (n entries, all equal on all ranks).
+  void set_positions(std::span<const double> local_positions, std::span<const double> local_radii);
+
+  /// Collective. U = M F for this rank's particles (3 local_size() entries each). Throws
+  /// rpyfmm::Error on every rank when positions are not set, or when any rank passes arrays of the
+  /// wrong size or forces with NaN/Inf.
+  void apply(std::span<const double> local_forces, std::span<double> local_velocities) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace rpyfmm::mpi

@@ -1,0 +1,217 @@
+// rpyfmm — DistributedPseRpy: PseRpy's parameters for the whole set, the wave space on FFTW-MPI
+// slabs and the real space on each rank's particles and halo (pse_operator.hpp, docs/mpi.md).
+#include "rpyfmm/mpi/pse_operator.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <string>
+
+// rpy/src (private to rpyfmm::rpy and this layer): the load scaling and the wrap of the serial
+// operators, so that every particle sits on the serial operator's grid points.
+#include "load_scaling.hpp"
+#include "local_particles.hpp"
+#include "pse_real_halo.hpp"
+#include "pse_slab_wave.hpp"
+#include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy.hpp"
+#include "wrap_into_box.hpp"
+
+namespace rpyfmm::mpi {
+namespace {
+
+constexpr const char* kWhere = "DistributedPseRpy";
+constexpr const char* kSetPositions = "DistributedPseRpy::set_positions";
+constexpr const char* kApply = "DistributedPseRpy::apply";
+
+// Everything that decides the parameters and the products: it must be the same on every rank.
+std::vector<double> agreed_values(const rpy::Geometry& g, double viscosity, const rpy::pse::PseOptions& o) {
+  return {g.is_periodic() ? 1.0 : 0.0,
+          g.box()[0],
+          g.box()[1],
+          g.box()[2],
+          viscosity,
+          o.tolerance,
+          o.xi,
+          o.r_cut,
+          static_cast<double>(o.grid[0]),
+          static_cast<double>(o.grid[1]),
+          static_cast<double>(o.grid[2]),
+          static_cast<double>(o.support),
+          o.window_eta,
+          o.real_space_table ? 1.0 : 0.0,
+          o.real_space_cache ? 1.0 : 0.0,
+          static_cast<double>(o.max_memory_bytes),
+          o.cost_real_pair,
+          o.cost_fft_point,
+          o.cost_grid_point,
+          o.cost_support_point,
+          o.cost_real_products,
+          o.pair_density};
+}
+
+}  // namespace
+
+struct DistributedPseRpy::Impl {
+  Communicator comm;
+  rpy::Geometry geometry;
+  double viscosity;
+  rpy::pse::PseOptions options;
+  rpy::pse::PseParameters params;
+  std::unique_ptr<detail::SlabWaveSpace> wave;
+  std::unique_ptr<detail::RealSpaceHalo> real;
+  std::size_t planned_n = 0;  // the N of the plan (0: none)
+  std::size_t local_n = 0, global_n = 0, offset = 0;
+  PseExchangeCounts counts;
+
+  Impl(MPI_Comm c, rpy::Geometry g, double eta, const rpy::pse::PseOptions& o)
+      : comm(c), geometry(g), viscosity(eta), options(o) {}
+
+  // The rank's share in the global order (local_n, offset; one MPI_Allgather), returning N; throws
+  // alike on every rank when no rank has a particle.
+  [[nodiscard]] std::size_t share(std::size_t n);
+  // The common radius (one MPI_Allreduce); throws alike on every rank when the radii differ.
+  [[nodiscard]] double common_radius(std::span<const double> radii) const;
+  // PseRpy::on_positions_set's plan for the whole set: again when the radius changes, or N with
+  // automatic xi.
+  void plan(double radius);
+};
+
+std::size_t DistributedPseRpy::Impl::share(std::size_t n) {
+  const auto mine = static_cast<std::uint64_t>(n);
+  std::vector<std::uint64_t> all(static_cast<std::size_t>(comm.size()));
+  check_mpi(MPI_Allgather(&mine, 1, MPI_UINT64_T, all.data(), 1, MPI_UINT64_T, comm.get()), "MPI_Allgather");
+  std::uint64_t total = 0;
+  offset = 0;
+  for (std::size_t r = 0; r < all.size(); ++r) {
+    if (static_cast<int>(r) < comm.rank()) offset += all[r];
+    total += all[r];
+  }
+  require(total > 0, ErrorCode::invalid_input, kSetPositions,
+          "no particles on any of the " + std::to_string(comm.size()) + " ranks (N = 0)");
+  local_n = n;
+  return total;
+}
+
+double DistributedPseRpy::Impl::common_radius(std::span<const double> radii) const {
+  constexpr double inf = std::numeric_limits<double>::infinity();
+  std::array<double, 2> local{inf, inf}, global{};  // min a, min -a
+  for (const double a : radii) local = {std::min(local[0], a), std::min(local[1], -a)};
+  check_mpi(MPI_Allreduce(local.data(), global.data(), 2, MPI_DOUBLE, MPI_MIN, comm.get()), "MPI_Allreduce");
+  require(global[0] == -global[1], ErrorCode::not_supported, kSetPositions,
+          "PSE supports equal radii only (the paper's assumption); the radii given differ (from " +
+              format_number(global[0]) + " to " + format_number(-global[1]) + ")");
+  return global[0];
+}
+
+void DistributedPseRpy::Impl::plan(double radius) {
+  if (planned_n != 0 && params.radius == radius && (options.xi != 0.0 || planned_n == global_n)) return;
+  planned_n = 0;
+  wave.reset();
+  real.reset();
+  // PseRpy's choice for the whole set (the same data on every rank: it succeeds or fails alike).
+  rpy::pse::PseParameters p = rpy::pse::choose_parameters(options, radius, geometry.box(), global_n);
+  // Double-precision grids and pair cache throughout (FFTW-MPI's double transforms).
+  p.wave_single = false;
+  const auto cache =
+      options.real_space_cache ? rpy::pse::detail::PairCache::double_precision : rpy::pse::detail::PairCache::off;
+  comm.run([&] {
+    real = std::make_unique<detail::RealSpaceHalo>(p, geometry.box(), viscosity, options.real_space_table, cache,
+                                                   options.max_memory_bytes - p.memory_bytes);
+  });
+  wave = std::make_unique<detail::SlabWaveSpace>(comm, p, geometry.box(), viscosity);
+  params = p;
+  planned_n = global_n;
+}
+
+DistributedPseRpy::DistributedPseRpy(MPI_Comm comm, rpy::Geometry geometry, double viscosity,
+                                     const rpy::pse::PseOptions& options)
+    : impl_(std::make_unique<Impl>(comm, geometry, viscosity, options)) {
+  // PseRpy's own checks of the geometry, viscosity and options, on every rank.
+  impl_->comm.run([&] { const rpy::pse::PseRpy check(geometry, viscosity, options); });
+  require(same_on_every_rank(impl_->comm, agreed_values(geometry, viscosity, options)), ErrorCode::invalid_argument,
+          kWhere, "the ranks pass different boxes, viscosities or options; every rank must pass the same ones");
+}
+
+DistributedPseRpy::~DistributedPseRpy() = default;
+
+const Communicator& DistributedPseRpy::communicator() const {
+  return impl_->comm;
+}
+double DistributedPseRpy::viscosity() const {
+  return impl_->viscosity;
+}
+std::size_t DistributedPseRpy::local_size() const {
+  return impl_->global_n > 0 ? impl_->local_n : 0;
+}
+std::size_t DistributedPseRpy::global_size() const {
+  return impl_->global_n;
+}
+std::size_t DistributedPseRpy::offset() const {
+  return impl_->global_n > 0 ? impl_->offset : 0;
+}
+const PseExchangeCounts& DistributedPseRpy::exchange_counts() const {
+  return impl_->counts;
+}
+
+const rpy::pse::PseParameters& DistributedPseRpy::parameters() const {
+  require(impl_->global_n > 0, ErrorCode::invalid_input, "DistributedPseRpy::parameters",
+          "positions not set (call set_positions first)");
+  return impl_->params;
+}
+
+void DistributedPseRpy::set_positions(std::span<const double> local_positions, double radius) {
+  impl_->global_n = 0;  // no positions until this call succeeds on every rank
+  impl_->comm.run([&] { require_positive(radius, kSetPositions, "radius"); });
+  const std::vector<double> radii(local_positions.size() / 3, radius);
+  set_positions(local_positions, radii);
+}
+
+void DistributedPseRpy::set_positions(std::span<const double> local_positions, std::span<const double> local_radii) {
+  Impl& im = *impl_;
+  im.global_n = 0;  // no positions until this call succeeds on every rank
+  im.comm.run([&] { detail::check_local_particles(local_positions, local_radii, kSetPositions); });
+  const std::size_t total = im.share(local_radii.size());
+  const double radius = im.common_radius(local_radii);
+  // Into [0, L) as MobilityOperator::set_positions wraps them (the serial operator's grid windows).
+  std::vector<double> x(local_positions.begin(), local_positions.end());
+  for (std::size_t k = 0; k < x.size(); ++k) x[k] = rpy::detail::wrap_into_box(x[k], im.geometry.box()[k % 3]);
+  im.global_n = total;  // plan() reads it
+  try {
+    im.plan(radius);
+    im.wave->set_positions(x);
+    im.real->set_positions(im.comm, im.geometry, x);
+  } catch (...) {
+    im.global_n = 0;
+    throw;
+  }
+  im.counts = {im.wave->sent(), im.wave->received(), im.real->halo_size()};
+}
+
+void DistributedPseRpy::apply(std::span<const double> local_forces, std::span<double> local_velocities) const {
+  const Impl& im = *impl_;
+  // global_n is the same on every rank (set_positions succeeds or fails on all of them).
+  require(im.global_n > 0, ErrorCode::invalid_input, kApply, "positions not set (call set_positions first)");
+  im.comm.run([&] {
+    require_size(local_forces, 3 * im.local_n, kApply, "local forces");
+    require_size(std::span<const double>(local_velocities.data(), local_velocities.size()), 3 * im.local_n, kApply,
+                 "local velocities");
+    require_finite(local_forces, kApply, "local forces", 3);
+  });
+  // MobilityOperator::apply_block's load scale 2^k (exact), from the largest force of all ranks.
+  double largest = 0.0, global_largest = 0.0;
+  for (const double f : local_forces) largest = std::max(largest, std::abs(f));
+  check_mpi(MPI_Allreduce(&largest, &global_largest, 1, MPI_DOUBLE, MPI_MAX, im.comm.get()), "MPI_Allreduce");
+  const int k = rpy::detail::load_scale_exponent({std::span<const double>(&global_largest, 1)});
+  std::vector<double> forces(local_forces.begin(), local_forces.end());
+  for (double& f : forces) f = std::ldexp(f, -k);
+  // [PSE] eq. 10: M_w F, then M_r F added (the order of PseRpy::do_apply).
+  im.wave->apply(forces.data(), local_velocities.data(), im.local_n);
+  im.real->apply(im.comm, forces.data(), local_velocities.data());
+  for (double& u : local_velocities) u = std::ldexp(u, k);
+  im.comm.run([&] { rpy::detail::require_finite_result(local_velocities, kApply, "velocities", "forces"); });
+}
+
+}  // namespace rpyfmm::mpi
