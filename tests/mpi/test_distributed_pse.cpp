@@ -175,6 +175,17 @@ TEST(MpiDistributedPse, EmptyRanksAndMoreRanksThanParticles) {
   expect_round_off(uniform_set(1, box.box(), 1.0, 15), box, double_grids(1e-4));
 }
 
+TEST(MpiDistributedPse, FewGridPlanesLeaveRanksWithoutSlab) {
+  // A grid of 6 x 8 x 10 points (override): FFTW-MPI gives slabs of 2 planes on 3 and 4 ranks
+  // (the fourth rank owns none), 3 on 2 ranks; windows of P_x points then span several slabs.
+  const Geometry box = Geometry::periodic(10.0, 12.0, 14.0);
+  PseOptions options = double_grids(1e-3);
+  options.grid = {6, 8, 10};
+  options.support = 4;
+  options.xi = 1.2;
+  expect_round_off(uniform_set(80, box.box(), 0.5, 18), box, options);
+}
+
 TEST(MpiDistributedPse, AccuracyAgainstSerialSinglePrecisionGrids) {
   // At tolerance 1e-3 the serial operator takes float grids (WavePrecision::automatic), the
   // distributed one double grids: they differ by the serial grids' float round-off, ~1e-7
