@@ -1,8 +1,10 @@
 // rpyfmm CLI — the commands that run across MPI ranks (mpi_session.hpp, docs/mpi.md):
 //   mpirun -np P rpyfmm mobility --method direct ...
+//   mpirun -np P rpyfmm mobility --method pse --box L ...
 //   mpirun -np P rpyfmm sample --operator direct [--method lanczos] ...
 // Rank 0 reads the same files as the serial command and scatters the particles in P contiguous
-// shares; rpyfmm::mpi::DistributedDirectRpy applies M (bit for bit the serial DirectRpy) and
+// shares; rpyfmm::mpi::DistributedDirectRpy applies M (bit for bit the serial DirectRpy), or
+// rpyfmm::mpi::DistributedPseRpy (the serial PseRpy with double grids to round-off), and
 // rpyfmm::mpi::sqrt_apply samples M^{1/2} z; rank 0 gathers the result and writes the same file
 // (write_npy: a temporary file renamed into place). Every step fails on every rank alike
 // (rpyfmm::mpi::Communicator::run), so no rank waits for another that gave up.
@@ -13,6 +15,7 @@
 #include <iostream>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "array_io.hpp"
@@ -24,6 +27,7 @@
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/mpi/communicator.hpp"
 #include "rpyfmm/mpi/direct_operator.hpp"
+#include "rpyfmm/mpi/pse_operator.hpp"
 #include "rpyfmm/mpi/sqrt.hpp"
 #include "sqrt_report_json.hpp"
 
@@ -87,8 +91,14 @@ double gather_and_write(const std::vector<double>& local, const LocalInput& in, 
   return watch.seconds();
 }
 
-// Read by rank 0, scattered, and the operator set up on each rank's share: what both commands do
-// first, timed per stage.
+// Read by rank 0 and scattered, timed per stage.
+struct Distributed {
+  LocalInput in;
+  StageTimes stages, communication;
+};
+
+// Distributed, and the direct operator set up on each rank's share: what both commands with the
+// direct operator do first.
 struct Prepared {
   LocalInput in;
   std::unique_ptr<mpi::DistributedDirectRpy> op;
@@ -104,8 +114,8 @@ struct Inputs {
   double viscosity;
 };
 
-Prepared prepare(const Inputs& files, const mpi::Communicator& comm) {
-  Prepared p;
+Distributed read_and_distribute(const Inputs& files, const mpi::Communicator& comm) {
+  Distributed p;
   StopWatch watch;
   WholeInput whole;
   comm.run([&] {
@@ -117,8 +127,13 @@ Prepared prepare(const Inputs& files, const mpi::Communicator& comm) {
   p.in = distribute(whole, !files.radii.empty(), !files.rows.empty(), comm);
   whole = WholeInput{};  // rank 0 keeps only its share from here on
   p.communication["distribute"] = p.stages["distribute"] = watch.seconds();
+  return p;
+}
 
-  watch.restart();
+Prepared prepare(const Inputs& files, const mpi::Communicator& comm) {
+  Distributed d = read_and_distribute(files, comm);
+  Prepared p{std::move(d.in), nullptr, std::move(d.stages), std::move(d.communication)};
+  StopWatch watch;
   p.op = std::make_unique<mpi::DistributedDirectRpy>(comm.get(), files.viscosity);
   if (files.radii.empty()) {
     p.op->set_positions(p.in.x, files.radius);
@@ -140,10 +155,55 @@ void add_ranks(JsonLine& line, const StageTimes& stages, const StageTimes& commu
       .add("communication_seconds", slowest(communication, comm));
 }
 
+// `mobility --method pse --box ...`: rpyfmm::mpi::DistributedPseRpy on each rank's share (equal to
+// the serial PseRpy with double-precision grids to round-off).
+void run_pse_mobility_across_ranks(const RanksMobilityArgs& args, const mpi::Communicator& comm) {
+  StopWatch total;
+  Distributed d = read_and_distribute({args.positions, args.radius_given ? std::string() : args.radii, args.forces,
+                                       "forces", args.radius, args.viscosity},
+                                      comm);
+  const LocalInput& in = d.in;
+  StopWatch watch;
+  rpy::pse::PseOptions options;
+  options.tolerance = args.tolerance;
+  require(args.box.size() == 1 || args.box.size() == 3, ErrorCode::invalid_argument, "--box",
+          "give one length L (cube) or three lengths Lx Ly Lz, got " + std::to_string(args.box.size()) + " values");
+  const rpy::Geometry box = args.box.size() == 1 ? rpy::Geometry::periodic(args.box[0])
+                                                 : rpy::Geometry::periodic(args.box[0], args.box[1], args.box[2]);
+  mpi::DistributedPseRpy op(comm.get(), box, args.viscosity, options);
+  if (args.radius_given) {
+    op.set_positions(in.x, args.radius);
+  } else {
+    op.set_positions(in.x, in.radii);
+  }
+  d.stages["setup"] = watch.seconds();
+  watch.restart();
+  std::vector<double> u(in.x.size());
+  op.apply(in.rows, u);
+  d.stages["apply"] = watch.seconds();
+  d.stages["write"] = gather_and_write(u, in, args.out, "mobility", comm);
+
+  JsonLine line;
+  line.add("command", "mobility")
+      .add("method", "pse")
+      .add("n", in.n)
+      .add("viscosity", args.viscosity)
+      .add("tolerance", args.tolerance)
+      .add("wave_precision", "double")
+      .add("out", args.out);
+  if (args.radius_given) line.add("radius", args.radius);
+  add_ranks(line, d.stages, d.communication, comm);  // collective
+  if (args.json && comm.rank() == 0) std::cout << line.add("total_seconds", total.seconds()).str() << '\n';
+}
+
 }  // namespace
 
 void run_mobility_across_ranks(const RanksMobilityArgs& args) {
   const mpi::Communicator comm(MPI_COMM_WORLD);
+  if (args.method == "pse") {
+    run_pse_mobility_across_ranks(args, comm);
+    return;
+  }
   StopWatch total;
   Prepared p = prepare({args.positions, args.radius_given ? std::string() : args.radii, args.forces, "forces",
                         args.radius, args.viscosity},

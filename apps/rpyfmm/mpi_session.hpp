@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "rpyfmm/rpy/sqrt.hpp"
 
@@ -49,9 +50,11 @@ class MpiSessionEnd {
   MpiSessionEnd& operator=(const MpiSessionEnd&) = delete;
 };
 
-/// `rpyfmm mobility --method direct` across the ranks (commands_across_ranks.cpp, builds with MPI):
-/// rank 0 reads the files and scatters the particles, rpyfmm::mpi::DistributedDirectRpy applies
-/// M, rank 0 gathers U and writes it. Bit for bit the serial command's output.
+/// `rpyfmm mobility --method direct` or `--method pse --box ...` across the ranks
+/// (commands_across_ranks.cpp, builds with MPI): rank 0 reads the files and scatters the particles,
+/// rpyfmm::mpi::DistributedDirectRpy or DistributedPseRpy applies M, rank 0 gathers U and writes
+/// it. direct: bit for bit the serial command's output; pse: the serial output with
+/// --wave-precision double to round-off (docs/mpi.md).
 struct RanksMobilityArgs {
   std::string positions, forces, radii, out;
   double radius = 0.0;
@@ -59,6 +62,8 @@ struct RanksMobilityArgs {
   double viscosity = 1.0;
   double tolerance = 0.0;
   bool json = false;
+  std::string method = "direct";  // direct | pse
+  std::vector<double> box;        // pse: L or Lx Ly Lz
 };
 void run_mobility_across_ranks(const RanksMobilityArgs& args);
 

@@ -1,14 +1,15 @@
 // laplace_agree A.npy B.npy BOUND — whether two outputs of `rpyfmm laplace` ((M,10) or
 // (nd,M,10), columns pot, gx, gy, gz, hxx, hyy, hzz, hxy, hxz, hyz) agree to BOUND in the relative
 // l2 norm of each output of each density (the potential, the gradient, the Hessian): the FMM's
-// tolerance contract (rpyfmm/fmm/laplace_fmm.hpp). Prints the differences; exits 0 when every one
-// is at most BOUND, 1 otherwise and 2 for unreadable or mismatched files. Used by
-// tests/mpi/cli_across_ranks.cmake.
+// tolerance contract (rpyfmm/fmm/laplace_fmm.hpp); or two outputs of `rpyfmm mobility` ((N,3): the
+// velocities as one output). Prints the differences; exits 0 when every one is at most BOUND, 1
+// otherwise and 2 for unreadable or mismatched files. Used by tests/mpi/cli_across_ranks.cmake.
 #include <cmath>
 #include <cstddef>
 #include <cstdlib>
 #include <exception>
 #include <iostream>
+#include <span>
 #include <string>
 
 #include "array_io.hpp"
@@ -19,18 +20,20 @@ struct Output {
   const char* name;
   std::size_t first, count;  // columns
 };
-constexpr Output kOutputs[] = {{"potential", 0, 1}, {"gradient", 1, 3}, {"hessian", 4, 6}};
-constexpr std::size_t kWidth = 10;
+constexpr Output kLaplaceOutputs[] = {{"potential", 0, 1}, {"gradient", 1, 3}, {"hessian", 4, 6}};
+constexpr std::size_t kLaplaceWidth = 10;
+constexpr Output kMobilityOutputs[] = {{"velocity", 0, 3}};
+constexpr std::size_t kMobilityWidth = 3;
 
-// || a - b || / || b || over the rows [row0, row0 + rows) and the output's columns.
-double relative_difference(const rpyfmm::cli::Array& a, const rpyfmm::cli::Array& b, std::size_t row0, std::size_t rows,
-                           const Output& out) {
+// || a - b || / || b || over the rows [row0, row0 + rows) (of `width` columns) and the output's columns.
+double relative_difference(const rpyfmm::cli::Array& a, const rpyfmm::cli::Array& b, std::size_t width,
+                           std::size_t row0, std::size_t rows, const Output& out) {
   double diff = 0.0, norm = 0.0;
   for (std::size_t i = row0; i < row0 + rows; ++i)
     for (std::size_t c = out.first; c < out.first + out.count; ++c) {
-      const double d = a.data[i * kWidth + c] - b.data[i * kWidth + c];
+      const double d = a.data[i * width + c] - b.data[i * width + c];
       diff += d * d;
-      norm += b.data[i * kWidth + c] * b.data[i * kWidth + c];
+      norm += b.data[i * width + c] * b.data[i * width + c];
     }
   return std::sqrt(diff / norm);
 }
@@ -46,16 +49,19 @@ int main(int argc, char** argv) {
     const rpyfmm::cli::Array a = rpyfmm::cli::read_array(argv[1]);
     const rpyfmm::cli::Array b = rpyfmm::cli::read_array(argv[2]);
     const double bound = std::stod(argv[3]);
-    if (a.shape != b.shape || a.shape.size() < 2 || a.shape.back() != kWidth) {
-      std::cerr << "laplace_agree: the files' shapes differ or are not (M,10) or (nd,M,10)\n";
+    const std::size_t width = a.shape.empty() ? 0 : a.shape.back();
+    if (a.shape != b.shape || a.shape.size() < 2 || (width != kLaplaceWidth && width != kMobilityWidth)) {
+      std::cerr << "laplace_agree: the files' shapes differ or are not (M,10), (nd,M,10) or (N,3)\n";
       return 2;
     }
+    const std::span<const Output> outputs =
+        width == kLaplaceWidth ? std::span<const Output>(kLaplaceOutputs) : std::span<const Output>(kMobilityOutputs);
     const std::size_t rows = a.shape[a.shape.size() - 2];
-    const std::size_t densities = a.data.size() / (rows * kWidth);
+    const std::size_t densities = a.data.size() / (rows * width);
     bool agree = true;
     for (std::size_t d = 0; d < densities; ++d)
-      for (const Output& out : kOutputs) {
-        const double e = relative_difference(a, b, d * rows, rows, out);
+      for (const Output& out : outputs) {
+        const double e = relative_difference(a, b, width, d * rows, rows, out);
         std::cout << "density " << d << ' ' << out.name << ": " << e << '\n';
         agree = agree && e <= bound;  // NaN fails
       }
