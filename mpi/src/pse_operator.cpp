@@ -11,12 +11,17 @@
 
 // rpy/src (private to rpyfmm::rpy and this layer): the load scaling and the wrap of the serial
 // operators, so that every particle sits on the serial operator's grid points.
+#include "krylov_space.hpp"
 #include "load_scaling.hpp"
 #include "local_particles.hpp"
+#include "pse/kernels_common.hpp"
+#include "pse/real_space_sqrt.hpp"
 #include "pse_real_halo.hpp"
 #include "pse_slab_wave.hpp"
 #include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/mpi/sqrt.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
+#include "sqrt/krylov_space.hpp"
 #include "wrap_into_box.hpp"
 
 namespace rpyfmm::mpi {
@@ -64,6 +69,7 @@ struct DistributedPseRpy::Impl {
   std::unique_ptr<detail::RealSpaceHalo> real;
   std::size_t planned_n = 0;  // the N of the plan (0: none)
   std::size_t local_n = 0, global_n = 0, offset = 0;
+  std::vector<std::size_t> rank_counts;  // every rank's local N, in rank order
   PseExchangeCounts counts;
 
   Impl(MPI_Comm c, rpy::Geometry g, double eta, const rpy::pse::PseOptions& o)
@@ -92,6 +98,7 @@ std::size_t DistributedPseRpy::Impl::share(std::size_t n) {
   require(total > 0, ErrorCode::invalid_input, kSetPositions,
           "no particles on any of the " + std::to_string(comm.size()) + " ranks (N = 0)");
   local_n = n;
+  rank_counts.assign(all.begin(), all.end());
   return total;
 }
 
@@ -212,6 +219,33 @@ void DistributedPseRpy::apply(std::span<const double> local_forces, std::span<do
   im.real->apply(im.comm, forces.data(), local_velocities.data());
   for (double& u : local_velocities) u = std::ldexp(u, k);
   im.comm.run([&] { rpy::detail::require_finite_result(local_velocities, kApply, "velocities", "forces"); });
+}
+
+rpy::SqrtReport DistributedPseRpy::sample(std::uint64_t seed, std::uint64_t step, std::span<double> local_w) const {
+  constexpr const char* where = "DistributedPseRpy::sample";
+  const Impl& im = *impl_;
+  require(im.global_n > 0, ErrorCode::invalid_input, where, "positions not set (call set_positions first)");
+  const std::size_t n3 = 3 * im.local_n;
+  im.comm.run(
+      [&] { require_size(std::span<const double>(local_w.data(), local_w.size()), n3, where, "local output"); });
+  // z1: PseRpy's real-space noise of this rank's particles, by global index.
+  std::vector<double> z1(n3);
+  fill_normal(z1, im.offset, seed, step, rpy::pse::detail::kStreamReal);
+  // M_r^{1/2} z1 by the serial Lanczos iteration on a basis distributed as the particles, its inner
+  // products reduced over the ranks (krylov_space.hpp), with PseRpy's real-space options.
+  DistributedKrylovSpace space(im.comm, im.rank_counts);
+  const auto product = [&](const double* x, double* y) {
+    std::fill(y, y + n3, 0.0);
+    im.real->apply(im.comm, x, y);
+  };
+  rpy::SqrtReport report =
+      rpy::sqrt_detail::lanczos_sqrt_in_space(space, product, z1.data(), local_w.data(),
+                                              rpy::pse::detail::real_space_sqrt_options(im.params.lanczos_tolerance));
+  // + M_w^{1/2} z2, z2 keyed by (seed, step) as PseRpy::sample keys it.
+  im.wave->add_noise({seed, step}, local_w.data(), im.local_n);
+  report.method = rpy::SqrtMethod::split;
+  report.operator_applications += 1;
+  return report;
 }
 
 }  // namespace rpyfmm::mpi

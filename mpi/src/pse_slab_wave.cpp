@@ -78,8 +78,9 @@ struct SlabWaveSpace::Slab {
   [[nodiscard]] std::vector<std::vector<std::uint32_t>> destinations(std::span<const double> x) const;
   void windows(const std::vector<double>& received);
   void spread(const std::vector<double>& forces);
-  void scale();
+  void scale(const rpy::pse::detail::NoiseKey* noise);
   [[nodiscard]] std::vector<double> interpolate() const;
+  void to_particles(double* out, std::size_t n, bool accumulate);
 };
 
 void SlabWaveSpace::Slab::plan(const std::array<double, 3>& box, double viscosity) {
@@ -171,20 +172,29 @@ void SlabWaveSpace::Slab::spread(const std::vector<double>& forces) {
   }
 }
 
-// B of [PSE] eq. 19 on the slab's modes: scale_mode_with, the serial operator's per-mode scaling.
-void SlabWaveSpace::Slab::scale() {
+// B of [PSE] eq. 19 on the slab's modes (scale_mode_with, the serial operator's per-mode scaling),
+// or, with a noise key, B^{1/2} z2 of eq. 21 in place of the spectrum: each mode's z2 is normal6 of
+// its pair's representative under (seed, step) (draw_mode_noise, as the serial double grids draw
+// it), a function of the mode alone, so the field is the serial one whatever the slabs.
+void SlabWaveSpace::Slab::scale(const rpy::pse::detail::NoiseKey* noise) {
   auto* spec = reinterpret_cast<double*>(data);
+  const double noise_factor = 1.0 / std::sqrt(dv);
   const auto planes = static_cast<std::int64_t>(nx);
 #pragma omp parallel for schedule(static)
   for (std::int64_t lx = 0; lx < planes; ++lx)
     for (int iy = 0; iy < n[1]; ++iy)
       for (int iz = 0; iz < nzh; ++iz) {
+        const int ix = static_cast<int>(x0 + lx);
         const std::size_t idx =
             (static_cast<std::size_t>(lx) * static_cast<std::size_t>(n[1]) + static_cast<std::size_t>(iy)) *
                 static_cast<std::size_t>(nzh) +
             static_cast<std::size_t>(iz);
-        rpy::pse::detail::scale_mode_with(static_cast<int>(x0 + lx), iy, iz, idx, modes, ck.data(), spec, true,
-                                          static_cast<const double*>(nullptr), true, 0.0);
+        double z[6];
+        const bool representative =
+            noise == nullptr || rpy::pse::detail::draw_mode_noise(ix, iy, iz, modes, noise->seed, noise->step, z);
+        rpy::pse::detail::scale_mode_with(ix, iy, iz, idx, modes, ck.data(), spec, noise == nullptr,
+                                          noise != nullptr ? z : static_cast<const double*>(nullptr), representative,
+                                          noise_factor);
       }
 }
 
@@ -228,25 +238,36 @@ void SlabWaveSpace::set_positions(std::span<const double> x) {
   s.windows(s.exchange.forward(s.comm, x.data(), 3, kWhere, "the positions sent to the grid's slabs"));
 }
 
+// The transform back, the slabs' interpolation shares to the particles' ranks, each particle's
+// shares added in rank order of the slabs (a fixed order: repeated products agree bit for bit),
+// then U_j (+)= c3 dV sum (every window touches at least one slab).
+void SlabWaveSpace::Slab::to_particles(double* out, std::size_t n, bool accumulate) {
+  for (int c = 0; c < 3; ++c) fftw_mpi_execute_dft_c2r(backward, spectrum(c), component(c));
+  const std::vector<double> shares =
+      exchange.backward(comm, interpolate(), 3, kWhere, "the velocities sent back from the grid's slabs");
+  std::vector<double> sum(3 * n, 0.0);
+  std::size_t at = 0;
+  for (const auto& list : exchange.send)
+    for (const std::uint32_t i : list) {
+      for (std::size_t c = 0; c < 3; ++c) sum[3 * i + c] += shares[at + c];
+      at += 3;
+    }
+  const double factor = c3 * dv;
+  for (std::size_t k = 0; k < 3 * n; ++k) out[k] = accumulate ? out[k] + factor * sum[k] : factor * sum[k];
+}
+
 void SlabWaveSpace::apply(const double* forces, double* out, std::size_t n) {
   Slab& s = *slab_;
   s.spread(s.exchange.forward(s.comm, forces, 3, kWhere, "the forces sent to the grid's slabs"));
   for (int c = 0; c < 3; ++c) fftw_mpi_execute_dft_r2c(s.forward, s.component(c), s.spectrum(c));
-  s.scale();
-  for (int c = 0; c < 3; ++c) fftw_mpi_execute_dft_c2r(s.backward, s.spectrum(c), s.component(c));
-  const std::vector<double> shares =
-      s.exchange.backward(s.comm, s.interpolate(), 3, kWhere, "the velocities sent back from the grid's slabs");
-  // Each particle's shares added in rank order of the slabs (a fixed order: repeated products agree
-  // bit for bit), then U_j = c3 dV sum (every window touches at least one slab).
-  std::fill(out, out + 3 * n, 0.0);
-  std::size_t at = 0;
-  for (const auto& list : s.exchange.send)
-    for (const std::uint32_t i : list) {
-      for (std::size_t c = 0; c < 3; ++c) out[3 * i + c] += shares[at + c];
-      at += 3;
-    }
-  const double scale = s.c3 * s.dv;
-  for (std::size_t k = 0; k < 3 * n; ++k) out[k] *= scale;
+  s.scale(nullptr);
+  s.to_particles(out, n, false);
+}
+
+void SlabWaveSpace::add_noise(const rpy::pse::detail::NoiseKey& key, double* out, std::size_t n) {
+  Slab& s = *slab_;
+  s.scale(&key);
+  s.to_particles(out, n, true);
 }
 
 std::size_t SlabWaveSpace::sent() const {

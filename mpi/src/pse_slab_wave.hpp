@@ -9,6 +9,7 @@
 #include <span>
 #include <vector>
 
+#include "pse/wave_space.hpp"
 #include "rpyfmm/mpi/communicator.hpp"
 #include "rpyfmm/rpy/pse/pse_parameters.hpp"
 
@@ -28,6 +29,9 @@ class SlabWaveSpace {
   void set_positions(std::span<const double> x);
   /// Collective: out = M_w F for this rank's n particles (3 n each).
   void apply(const double* forces, double* out, std::size_t n);
+  /// Collective: out += M_w^{1/2} z2 for this rank's n particles, z2 the wave-space noise of `key`
+  /// ([PSE] eq. 21; the serial double grids' field, mode by mode).
+  void add_noise(const rpy::pse::detail::NoiseKey& key, double* out, std::size_t n);
 
   /// Particles (with multiplicity) this rank sent to other slabs and received from other ranks.
   [[nodiscard]] std::size_t sent() const;

@@ -1,8 +1,9 @@
 // rpyfmm::mpi::DistributedPseRpy against the serial PseRpy on the concatenation of all ranks'
 // particles: the same parameters, and velocities equal to round-off (uniform, clustered in one
 // slab, on slab boundaries and box faces, other radii, empty ranks, each split four ways);
-// repeated products bit for bit; the accuracy against the serial operator's single-precision grids
-// at its tolerance; and collective failure (every rank throws the same message, none hangs) on bad
+// repeated products bit for bit; the split sampler against PseRpy::sample to round-off; the
+// accuracy against the serial operator's single-precision grids at its tolerance; and collective
+// failure (every rank throws the same message, none hangs) on bad
 // input of one rank.
 #include <gtest/gtest.h>
 #include <mpi.h>
@@ -203,6 +204,37 @@ TEST(MpiDistributedPse, AccuracyAgainstSerialSinglePrecisionGrids) {
   if (world_rank() == 0) std::printf("  [pse] against float grids at tolerance 1e-3: %.2e\n", d);
 }
 
+TEST(MpiDistributedPse, SplitSamplerEqualsSerialToRoundOff) {
+  // PseRpy::sample on the whole set against DistributedPseRpy::sample on the shares: the same noise
+  // (z1 by global index, z2 by mode), the same Lanczos iteration on M_r (its products and inner
+  // products equal to round-off, so the same number of iterations) and the same wave-space field;
+  // the bound is kRoundOff's, for the same reasons.
+  const Geometry box = Geometry::periodic(16.0);
+  const Particles p = uniform_set(300, box.box(), 1.0, 19);
+  const PseOptions options = double_grids(1e-6);
+  PseRpy serial(box, kViscosity, options);
+  serial.set_positions(p.x, 1.0);
+  std::vector<double> w_serial(3 * p.size());
+  const rpyfmm::rpy::SqrtReport serial_report = serial.sample(7, 3, w_serial);
+  for (const Split split : kSplits) {
+    const Shares s = shares_of(p.size(), split);
+    DistributedPseRpy op(MPI_COMM_WORLD, box, kViscosity, options);
+    op.set_positions(share(p.x, 3, s.offset, s.n), 1.0);
+    std::vector<double> w(3 * s.n, std::numeric_limits<double>::quiet_NaN()), again(w);
+    const rpyfmm::rpy::SqrtReport report = op.sample(7, 3, w);
+    op.sample(7, 3, again);
+    EXPECT_EQ(bitwise_mismatches(w, again), 0U) << "a repeated sample differs";
+    EXPECT_EQ(report.iterations, serial_report.iterations);
+    EXPECT_EQ(report.method, rpyfmm::rpy::SqrtMethod::split);
+    const double d = global_relative_difference(w, share(w_serial, 3, s.offset, s.n));
+    EXPECT_LE(d, kRoundOff) << "split " << static_cast<int>(split);
+    if (world_rank() == 0) {
+      std::printf("  [pse] sample, split %d: %d Lanczos iterations, relative difference %.2e\n",
+                  static_cast<int>(split), report.iterations, d);
+    }
+  }
+}
+
 TEST(MpiDistributedPse, BadInputOnOneRankFailsEveryRank) {
   const Geometry box = Geometry::periodic(12.0);
   const Particles p = uniform_set(60, box.box(), 1.0, 17);
@@ -211,6 +243,7 @@ TEST(MpiDistributedPse, BadInputOnOneRankFailsEveryRank) {
   DistributedPseRpy op(MPI_COMM_WORLD, box, kViscosity, double_grids(1e-4));
   std::vector<double> x = share(p.x, 3, s.offset, s.n), f = share(p.f, 3, s.offset, s.n), u(3 * s.n);
   expect_collective_error([&] { op.apply(f, u); }, ErrorCode::invalid_input, "positions not set");
+  expect_collective_error([&] { op.sample(1, 0, u); }, ErrorCode::invalid_input, "positions not set");
 
   std::vector<double> bad_x = x;
   if (world_rank() == last && !bad_x.empty()) bad_x[1] = std::numeric_limits<double>::quiet_NaN();
@@ -232,6 +265,8 @@ TEST(MpiDistributedPse, BadInputOnOneRankFailsEveryRank) {
   std::vector<double> nan_f = f;
   if (world_rank() == last && !nan_f.empty()) nan_f[0] = std::numeric_limits<double>::quiet_NaN();
   expect_collective_error([&] { op.apply(nan_f, u); }, ErrorCode::invalid_input, "NaN");
+  std::vector<double> long_w(u.size() + (world_rank() == last ? 3 : 0));
+  expect_collective_error([&] { op.sample(1, 0, long_w); }, ErrorCode::invalid_input, "local output");
   // Usable afterwards, and equal to the serial operator.
   op.apply(f, u);
   EXPECT_LE(global_relative_difference(u, share(serial_velocities(p, box, double_grids(1e-4)), 3, s.offset, s.n)),

@@ -18,6 +18,8 @@
 //  - M_r (with the self term): each rank receives the other ranks' particles within r_cut of the
 //    box of its own particles (a halo, positions once per set_positions, forces in every apply) and
 //    runs the serial real-space sum on its particles and the halo, keeping its own rows.
+//  - sample(): PseRpy's split sampler ([PSE] eqs. 17-21), Lanczos on M_r with inner products over
+//    all ranks and the wave-space noise drawn mode by mode on the slabs.
 //
 // Every public call is collective over the communicator and fails collectively
 // (communicator.hpp): a bad input on one rank makes every rank throw the same rpyfmm::Error.
@@ -26,6 +28,7 @@
 #include <mpi.h>
 
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <span>
 #include <string>
@@ -34,6 +37,7 @@
 #include "rpyfmm/mpi/communicator.hpp"
 #include "rpyfmm/rpy/geometry.hpp"
 #include "rpyfmm/rpy/pse/pse_parameters.hpp"
+#include "rpyfmm/rpy/sqrt.hpp"
 
 namespace rpyfmm::mpi {
 
@@ -83,6 +87,15 @@ class DistributedPseRpy {
   /// rpyfmm::Error on every rank when positions are not set, or when any rank passes arrays of the
   /// wrong size or forces with NaN/Inf.
   void apply(std::span<const double> local_forces, std::span<double> local_velocities) const;
+
+  /// Collective. w = M^{1/2} z for this rank's particles (3 local_size() entries) by PseRpy::sample's
+  /// split sampler ([PSE] eqs. 17-21): w = M_r^{1/2} z1 + M_w^{1/2} z2, z1 the noise of
+  /// (seed, step, stream 1) of each particle by its global index (rpyfmm::mpi::fill_normal), M_r^{1/2}
+  /// z1 by Lanczos to the PSE's Lanczos tolerance with inner products over all ranks, z2 the
+  /// wave-space field of (seed, step) drawn mode by mode on the slabs. Equal to PseRpy::sample on
+  /// the whole set (double grids) to round-off, whatever the partition. Throws rpyfmm::Error on
+  /// every rank when positions are not set or any rank's output has the wrong size.
+  rpy::SqrtReport sample(std::uint64_t seed, std::uint64_t step, std::span<double> local_w) const;
 
  private:
   struct Impl;
