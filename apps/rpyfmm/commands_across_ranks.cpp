@@ -2,11 +2,12 @@
 //   mpirun -np P rpyfmm mobility --method direct ...
 //   mpirun -np P rpyfmm mobility --method pse --box L ...
 //   mpirun -np P rpyfmm sample --operator direct [--method lanczos] ...
+//   mpirun -np P rpyfmm sample --operator pse --box L [--method split] ...
 // Rank 0 reads the same files as the serial command and scatters the particles in P contiguous
 // shares; rpyfmm::mpi::DistributedDirectRpy applies M (bit for bit the serial DirectRpy), or
 // rpyfmm::mpi::DistributedPseRpy (the serial PseRpy with double grids to round-off), and
-// rpyfmm::mpi::sqrt_apply samples M^{1/2} z; rank 0 gathers the result and writes the same file
-// (write_npy: a temporary file renamed into place). Every step fails on every rank alike
+// rpyfmm::mpi::sqrt_apply or DistributedPseRpy::apply_sqrt samples M^{1/2} z; rank 0 gathers the result and writes the
+// same file (write_npy: a temporary file renamed into place). Every step fails on every rank alike
 // (rpyfmm::mpi::Communicator::run), so no rank waits for another that gave up.
 #include <mpi.h>
 
@@ -155,6 +156,48 @@ void add_ranks(JsonLine& line, const StageTimes& stages, const StageTimes& commu
       .add("communication_seconds", slowest(communication, comm));
 }
 
+// The start of sample's --json line, as the serial command's (its operator, sampler and noise).
+JsonLine sample_json(const RanksSampleArgs& args, const char* op, const rpy::SqrtReport& report, std::uint64_t n) {
+  JsonLine line;
+  line.add("command", "sample")
+      .add("operator", op)
+      .add("method", rpy::to_string(report.method))
+      .add("n", n)
+      .add("sqrt_tolerance", args.options.tolerance);
+  add_sqrt_report(line, report);
+  line.add("angular", false).add("noise", args.noise.empty() ? "philox" : args.noise).add("viscosity", args.viscosity);
+  return line;
+}
+
+// The PSE operator across the ranks on their shares (Inputs: the radius unless --radii was read),
+// set up as the serial command sets up PseRpy; the time in the "setup" stage.
+struct PseSetup {
+  const std::vector<double>& box;  // --box: L or Lx Ly Lz
+  double tolerance;                // the operator's (PseOptions::tolerance)
+  bool radius_given;
+  double radius;
+  double viscosity;
+};
+
+std::unique_ptr<mpi::DistributedPseRpy> pse_on_shares(const PseSetup& setup, const LocalInput& in, StageTimes& stages,
+                                                      const mpi::Communicator& comm) {
+  StopWatch watch;
+  require(setup.box.size() == 1 || setup.box.size() == 3, ErrorCode::invalid_argument, "--box",
+          "give one length L (cube) or three lengths Lx Ly Lz, got " + std::to_string(setup.box.size()) + " values");
+  const rpy::Geometry box = setup.box.size() == 1 ? rpy::Geometry::periodic(setup.box[0])
+                                                  : rpy::Geometry::periodic(setup.box[0], setup.box[1], setup.box[2]);
+  rpy::pse::PseOptions options;
+  options.tolerance = setup.tolerance;
+  auto op = std::make_unique<mpi::DistributedPseRpy>(comm.get(), box, setup.viscosity, options);
+  if (setup.radius_given) {
+    op->set_positions(in.x, setup.radius);
+  } else {
+    op->set_positions(in.x, in.radii);
+  }
+  stages["setup"] = watch.seconds();
+  return op;
+}
+
 // `mobility --method pse --box ...`: rpyfmm::mpi::DistributedPseRpy on each rank's share (equal to
 // the serial PseRpy with double-precision grids to round-off).
 void run_pse_mobility_across_ranks(const RanksMobilityArgs& args, const mpi::Communicator& comm) {
@@ -163,23 +206,11 @@ void run_pse_mobility_across_ranks(const RanksMobilityArgs& args, const mpi::Com
                                        "forces", args.radius, args.viscosity},
                                       comm);
   const LocalInput& in = d.in;
+  const auto op =
+      pse_on_shares({args.box, args.tolerance, args.radius_given, args.radius, args.viscosity}, in, d.stages, comm);
   StopWatch watch;
-  rpy::pse::PseOptions options;
-  options.tolerance = args.tolerance;
-  require(args.box.size() == 1 || args.box.size() == 3, ErrorCode::invalid_argument, "--box",
-          "give one length L (cube) or three lengths Lx Ly Lz, got " + std::to_string(args.box.size()) + " values");
-  const rpy::Geometry box = args.box.size() == 1 ? rpy::Geometry::periodic(args.box[0])
-                                                 : rpy::Geometry::periodic(args.box[0], args.box[1], args.box[2]);
-  mpi::DistributedPseRpy op(comm.get(), box, args.viscosity, options);
-  if (args.radius_given) {
-    op.set_positions(in.x, args.radius);
-  } else {
-    op.set_positions(in.x, in.radii);
-  }
-  d.stages["setup"] = watch.seconds();
-  watch.restart();
   std::vector<double> u(in.x.size());
-  op.apply(in.rows, u);
+  op->apply(in.rows, u);
   d.stages["apply"] = watch.seconds();
   d.stages["write"] = gather_and_write(u, in, args.out, "mobility", comm);
 
@@ -191,6 +222,36 @@ void run_pse_mobility_across_ranks(const RanksMobilityArgs& args, const mpi::Com
       .add("tolerance", args.tolerance)
       .add("wave_precision", "double")
       .add("out", args.out);
+  if (args.radius_given) line.add("radius", args.radius);
+  add_ranks(line, d.stages, d.communication, comm);  // collective
+  if (args.json && comm.rank() == 0) std::cout << line.add("total_seconds", total.seconds()).str() << '\n';
+}
+
+// `sample --operator pse --box ...` (the split sampler): DistributedPseRpy::apply_sqrt on each rank's
+// share of the noise, read by rank 0 or drawn as the serial command draws it (stream 0 by global
+// index); equal to the serial PseRpy::apply_sqrt with double grids to round-off.
+void run_pse_sample_across_ranks(const RanksSampleArgs& args, const mpi::Communicator& comm) {
+  StopWatch total;
+  Distributed d = read_and_distribute({args.positions, args.radius_given ? std::string() : args.radii, args.noise,
+                                       "noise", args.radius, args.viscosity},
+                                      comm);
+  LocalInput& in = d.in;
+  const double tolerance = args.tolerance != 0.0 ? args.tolerance : rpy::pse::PseOptions{}.tolerance;
+  const auto op =
+      pse_on_shares({args.box, tolerance, args.radius_given, args.radius, args.viscosity}, in, d.stages, comm);
+  if (args.noise.empty()) {  // the serial command's noise of this rank's particles
+    in.rows.resize(in.x.size());
+    mpi::fill_normal(in.rows, in.offset, args.seed, args.step);
+  }
+  StopWatch watch;
+  std::vector<double> w(in.x.size());
+  const rpy::SqrtReport report = op->apply_sqrt(in.rows, w, args.options);
+  d.stages["sample"] = watch.seconds();
+  d.stages["write"] = gather_and_write(w, in, args.out, "sample", comm);
+
+  JsonLine line = sample_json(args, "pse", report, in.n);
+  line.add("tolerance", tolerance).add("wave_precision", "double").add("out", args.out);
+  if (args.noise.empty()) line.add("seed", args.seed).add("step", args.step);
   if (args.radius_given) line.add("radius", args.radius);
   add_ranks(line, d.stages, d.communication, comm);  // collective
   if (args.json && comm.rank() == 0) std::cout << line.add("total_seconds", total.seconds()).str() << '\n';
@@ -236,6 +297,10 @@ void run_mobility_across_ranks(const RanksMobilityArgs& args) {
 
 void run_sample_across_ranks(const RanksSampleArgs& args) {
   const mpi::Communicator comm(MPI_COMM_WORLD);
+  if (args.op == "pse") {
+    run_pse_sample_across_ranks(args, comm);
+    return;
+  }
   StopWatch total;
   Prepared p = prepare({args.positions, args.radius_given ? std::string() : args.radii, args.noise, "noise",
                         args.radius, args.viscosity},
@@ -259,18 +324,8 @@ void run_sample_across_ranks(const RanksSampleArgs& args) {
 
   stages["write"] = gather_and_write(w, in, args.out, "sample", comm);
 
-  JsonLine line;
-  line.add("command", "sample")
-      .add("operator", "direct")
-      .add("method", rpy::to_string(report.method))
-      .add("n", in.n)
-      .add("sqrt_tolerance", args.options.tolerance);
-  add_sqrt_report(line, report);
-  line.add("angular", false)
-      .add("noise", args.noise.empty() ? "philox" : args.noise)
-      .add("viscosity", args.viscosity)
-      .add("equal_radii", op.equal_radii())
-      .add("out", args.out);
+  JsonLine line = sample_json(args, "direct", report, in.n);
+  line.add("equal_radii", op.equal_radii()).add("out", args.out);
   if (args.noise.empty()) line.add("seed", args.seed).add("step", args.step);
   if (args.radius_given) line.add("radius", args.radius);
   add_ranks(line, stages, communication, comm);  // collective

@@ -67,7 +67,9 @@ struct RanksMobilityArgs {
 };
 void run_mobility_across_ranks(const RanksMobilityArgs& args);
 
-/// `rpyfmm sample --operator direct` with Lanczos across the ranks (commands_across_ranks.cpp):
+/// `rpyfmm sample --operator direct` with Lanczos, or `--operator pse --box ...` with the split
+/// sampler (DistributedPseRpy::apply_sqrt: the serial output with --wave-precision double to
+/// round-off), across the ranks (commands_across_ranks.cpp):
 /// rank 0 reads the files (and --noise) and scatters them, or each rank draws its share's noise
 /// (rpyfmm::mpi::fill_normal: the serial noise), rpyfmm::mpi::sqrt_apply samples, rank 0 gathers
 /// W and writes it. Bit for bit the serial command's output (docs/mpi.md).
@@ -79,6 +81,9 @@ struct RanksSampleArgs {
   std::uint64_t seed = 0, step = 0;
   rpy::SqrtOptions options;
   bool json = false;
+  std::string op = "direct";  // direct | pse (the split sampler)
+  std::vector<double> box;    // pse: L or Lx Ly Lz
+  double tolerance = 0.0;     // pse: the operator's tolerance (0: PseOptions' default)
 };
 void run_sample_across_ranks(const RanksSampleArgs& args);
 

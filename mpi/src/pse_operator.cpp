@@ -15,6 +15,7 @@
 #include "load_scaling.hpp"
 #include "local_particles.hpp"
 #include "pse/kernels_common.hpp"
+#include "pse/noise_hash.hpp"
 #include "pse/real_space_sqrt.hpp"
 #include "pse_real_halo.hpp"
 #include "pse_slab_wave.hpp"
@@ -46,6 +47,7 @@ std::vector<double> agreed_values(const rpy::Geometry& g, double viscosity, cons
           static_cast<double>(o.grid[2]),
           static_cast<double>(o.support),
           o.window_eta,
+          o.lanczos_tolerance,
           o.real_space_table ? 1.0 : 0.0,
           o.real_space_cache ? 1.0 : 0.0,
           static_cast<double>(o.max_memory_bytes),
@@ -83,7 +85,54 @@ struct DistributedPseRpy::Impl {
   // PseRpy::on_positions_set's plan for the whole set: again when the radius changes, or N with
   // automatic xi.
   void plan(double radius);
+  // w = M_r^{1/2} z1 + M_w^{1/2} z2(key): the split sampler's two parts ([PSE] eqs. 17-21).
+  [[nodiscard]] rpy::SqrtReport split_sample(const std::vector<double>& z1, const rpy::pse::detail::NoiseKey& key,
+                                             std::span<double> w) const;
+  // pse::noise_hash of the concatenation of the ranks' z (collective).
+  [[nodiscard]] std::uint64_t noise_hash(std::span<const double> local_z) const;
 };
+
+rpy::SqrtReport DistributedPseRpy::Impl::split_sample(const std::vector<double>& z1,
+                                                      const rpy::pse::detail::NoiseKey& key,
+                                                      std::span<double> w) const {
+  const std::size_t n3 = 3 * local_n;
+  // M_r^{1/2} z1 by the serial Lanczos iteration on a basis distributed as the particles, its inner
+  // products reduced over the ranks (krylov_space.hpp), with PseRpy's real-space options.
+  DistributedKrylovSpace space(comm, rank_counts);
+  const auto product = [&](const double* x, double* y) {
+    std::fill(y, y + n3, 0.0);
+    real->apply(comm, x, y);
+  };
+  rpy::SqrtReport report = rpy::sqrt_detail::lanczos_sqrt_in_space(
+      space, product, z1.data(), w.data(), rpy::pse::detail::real_space_sqrt_options(params.lanczos_tolerance));
+  // + M_w^{1/2} z2 (the slabs' field of `key`).
+  wave->add_noise(key, w.data(), local_n);
+  report.method = rpy::SqrtMethod::split;
+  report.operator_applications += 1;
+  return report;
+}
+
+std::uint64_t DistributedPseRpy::Impl::noise_hash(std::span<const double> local_z) const {
+  // The chain passes the ranks with particles in rank order; the last of them broadcasts the end.
+  constexpr int kTag = 19283;
+  int previous = -1, next = -1, last = -1;
+  for (int r = 0; r < comm.size(); ++r) {
+    if (rank_counts[static_cast<std::size_t>(r)] == 0) continue;
+    if (r < comm.rank()) previous = r;
+    if (r > comm.rank() && next < 0) next = r;
+    last = r;
+  }
+  std::uint64_t h = rpy::pse::detail::noise_hash_start(3 * global_n);
+  if (local_n > 0) {
+    if (previous >= 0) {
+      check_mpi(MPI_Recv(&h, 1, MPI_UINT64_T, previous, kTag, comm.get(), MPI_STATUS_IGNORE), "MPI_Recv");
+    }
+    h = rpy::pse::detail::noise_hash_extend(h, local_z);
+    if (next >= 0) check_mpi(MPI_Send(&h, 1, MPI_UINT64_T, next, kTag, comm.get()), "MPI_Send");
+  }
+  check_mpi(MPI_Bcast(&h, 1, MPI_UINT64_T, last, comm.get()), "MPI_Bcast");
+  return h;
+}
 
 std::size_t DistributedPseRpy::Impl::share(std::size_t n) {
   const auto mine = static_cast<std::uint64_t>(n);
@@ -225,26 +274,36 @@ rpy::SqrtReport DistributedPseRpy::sample(std::uint64_t seed, std::uint64_t step
   constexpr const char* where = "DistributedPseRpy::sample";
   const Impl& im = *impl_;
   require(im.global_n > 0, ErrorCode::invalid_input, where, "positions not set (call set_positions first)");
-  const std::size_t n3 = 3 * im.local_n;
-  im.comm.run(
-      [&] { require_size(std::span<const double>(local_w.data(), local_w.size()), n3, where, "local output"); });
-  // z1: PseRpy's real-space noise of this rank's particles, by global index.
-  std::vector<double> z1(n3);
+  im.comm.run([&] {
+    require_size(std::span<const double>(local_w.data(), local_w.size()), 3 * im.local_n, where, "local output");
+  });
+  // z1: PseRpy's real-space noise of this rank's particles, by global index; z2 keyed by
+  // (seed, step) as PseRpy::sample keys it.
+  std::vector<double> z1(3 * im.local_n);
   fill_normal(z1, im.offset, seed, step, rpy::pse::detail::kStreamReal);
-  // M_r^{1/2} z1 by the serial Lanczos iteration on a basis distributed as the particles, its inner
-  // products reduced over the ranks (krylov_space.hpp), with PseRpy's real-space options.
-  DistributedKrylovSpace space(im.comm, im.rank_counts);
-  const auto product = [&](const double* x, double* y) {
-    std::fill(y, y + n3, 0.0);
-    im.real->apply(im.comm, x, y);
-  };
-  rpy::SqrtReport report =
-      rpy::sqrt_detail::lanczos_sqrt_in_space(space, product, z1.data(), local_w.data(),
-                                              rpy::pse::detail::real_space_sqrt_options(im.params.lanczos_tolerance));
-  // + M_w^{1/2} z2, z2 keyed by (seed, step) as PseRpy::sample keys it.
-  im.wave->add_noise({seed, step}, local_w.data(), im.local_n);
-  report.method = rpy::SqrtMethod::split;
-  report.operator_applications += 1;
+  return im.split_sample(z1, {seed, step}, local_w);
+}
+
+rpy::SqrtReport DistributedPseRpy::apply_sqrt(std::span<const double> local_z, std::span<double> local_w,
+                                              const rpy::SqrtOptions& options) const {
+  constexpr const char* where = "DistributedPseRpy::apply_sqrt";
+  const Impl& im = *impl_;
+  require(im.global_n > 0, ErrorCode::invalid_input, where, "positions not set (call set_positions first)");
+  im.comm.run([&] {
+    require(options.method == rpy::SqrtMethod::automatic || options.method == rpy::SqrtMethod::split,
+            ErrorCode::not_supported, where,
+            std::string("method '") + rpy::to_string(options.method) +
+                "' is not offered across ranks (automatic or split: the PSE split sampler)");
+    require(options.preconditioner != rpy::SqrtPreconditioner::block, ErrorCode::not_supported, where,
+            "the block preconditioner serves the Lanczos and Chebyshev samplers only, not the split sampler");
+    require_size(local_z, 3 * im.local_n, where, "local noise");
+    require_size(std::span<const double>(local_w.data(), local_w.size()), 3 * im.local_n, where, "local output");
+    require_finite(local_z, where, "local noise", 3);
+  });
+  // PseRpy::do_apply_sqrt: z is z1, z2 keyed by the hash of the whole z and step 0.
+  const std::vector<double> z1(local_z.begin(), local_z.end());
+  const rpy::SqrtReport report = im.split_sample(z1, {im.noise_hash(local_z), 0}, local_w);
+  im.comm.run([&] { rpy::detail::require_finite_result(local_w, where, "local output", "noise"); });
   return report;
 }
 

@@ -16,6 +16,7 @@
 #include "mpi_test_support.hpp"
 #include "rpyfmm/mpi/pse_operator.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
+#include "rpyfmm/rpy/random.hpp"
 
 using rpyfmm::ErrorCode;
 using rpyfmm::mpi::DistributedPseRpy;
@@ -214,8 +215,10 @@ TEST(MpiDistributedPse, SplitSamplerEqualsSerialToRoundOff) {
   const PseOptions options = double_grids(1e-6);
   PseRpy serial(box, kViscosity, options);
   serial.set_positions(p.x, 1.0);
-  std::vector<double> w_serial(3 * p.size());
+  std::vector<double> w_serial(3 * p.size()), z(3 * p.size()), wz_serial(3 * p.size());
   const rpyfmm::rpy::SqrtReport serial_report = serial.sample(7, 3, w_serial);
+  rpyfmm::rpy::fill_normal(z, 5, 2);
+  serial.apply_sqrt(z, wz_serial);
   for (const Split split : kSplits) {
     const Shares s = shares_of(p.size(), split);
     DistributedPseRpy op(MPI_COMM_WORLD, box, kViscosity, options);
@@ -228,9 +231,14 @@ TEST(MpiDistributedPse, SplitSamplerEqualsSerialToRoundOff) {
     EXPECT_EQ(report.method, rpyfmm::rpy::SqrtMethod::split);
     const double d = global_relative_difference(w, share(w_serial, 3, s.offset, s.n));
     EXPECT_LE(d, kRoundOff) << "split " << static_cast<int>(split);
+    // apply_sqrt(z): z as z1, z2 keyed by the hash of the whole z (chained over the ranks).
+    std::vector<double> wz(3 * s.n);
+    op.apply_sqrt(share(z, 3, s.offset, s.n), wz);
+    const double dz = global_relative_difference(wz, share(wz_serial, 3, s.offset, s.n));
+    EXPECT_LE(dz, kRoundOff) << "apply_sqrt, split " << static_cast<int>(split);
     if (world_rank() == 0) {
-      std::printf("  [pse] sample, split %d: %d Lanczos iterations, relative difference %.2e\n",
-                  static_cast<int>(split), report.iterations, d);
+      std::printf("  [pse] sample, split %d: %d Lanczos iterations, relative difference %.2e; apply_sqrt %.2e\n",
+                  static_cast<int>(split), report.iterations, d, dz);
     }
   }
 }
@@ -267,6 +275,10 @@ TEST(MpiDistributedPse, BadInputOnOneRankFailsEveryRank) {
   expect_collective_error([&] { op.apply(nan_f, u); }, ErrorCode::invalid_input, "NaN");
   std::vector<double> long_w(u.size() + (world_rank() == last ? 3 : 0));
   expect_collective_error([&] { op.sample(1, 0, long_w); }, ErrorCode::invalid_input, "local output");
+  expect_collective_error([&] { op.apply_sqrt(nan_f, u); }, ErrorCode::invalid_input, "NaN");
+  rpyfmm::rpy::SqrtOptions lanczos;
+  lanczos.method = world_rank() == last ? rpyfmm::rpy::SqrtMethod::lanczos : rpyfmm::rpy::SqrtMethod::split;
+  expect_collective_error([&] { op.apply_sqrt(f, u, lanczos); }, ErrorCode::not_supported, "not offered across ranks");
   // Usable afterwards, and equal to the serial operator.
   op.apply(f, u);
   EXPECT_LE(global_relative_difference(u, share(serial_velocities(p, box, double_grids(1e-4)), 3, s.offset, s.n)),

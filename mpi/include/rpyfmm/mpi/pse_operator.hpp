@@ -96,6 +96,15 @@ class DistributedPseRpy {
   /// the whole set (double grids) to round-off, whatever the partition. Throws rpyfmm::Error on
   /// every rank when positions are not set or any rank's output has the wrong size.
   rpy::SqrtReport sample(std::uint64_t seed, std::uint64_t step, std::span<double> local_w) const;
+  /// Collective. PseRpy::apply_sqrt's split sampler (options.method automatic or split) on this
+  /// rank's share of z (3 local_size() entries): z is z1, and z2 is keyed by pse::noise_hash of the
+  /// whole z, which the ranks compute as a chain over their shares in rank order (point-to-point
+  /// messages with tag 19283 on the operator's communicator). Equal to PseRpy::apply_sqrt on the
+  /// whole set (double grids) to round-off. Throws rpyfmm::Error on every rank when positions are
+  /// not set, any rank's arrays have the wrong size or z has NaN/Inf, or for another method or the
+  /// block preconditioner (not_supported: the generic solvers are not offered across ranks).
+  rpy::SqrtReport apply_sqrt(std::span<const double> local_z, std::span<double> local_w,
+                             const rpy::SqrtOptions& options = {}) const;
 
  private:
   struct Impl;
