@@ -6,8 +6,8 @@
 // share of the interpolated velocity. FFTW-MPI transforms the slabs (non-transposed: the spectrum
 // keeps the grid's slab of x planes), and the scaling B of each mode is the serial one
 // (kernels_common.hpp's scale_mode_with, with the serial operator's c(k) table restricted to the
-// slab). The window weights are the serial ones bit for bit (window_weights_recurrence on the
-// positions wrapped as the serial operator wraps them); the grid sums are added in another order.
+// slab). The window weights come from the serial formulas (window_weights_recurrence) on the
+// positions wrapped as the serial operator wraps them; the grid sums are added in another order.
 #include "pse_slab_wave.hpp"
 
 #include <fftw3-mpi.h>

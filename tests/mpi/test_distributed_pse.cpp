@@ -29,7 +29,7 @@ using namespace rpyfmm_mpi_test;
 namespace {
 
 // The bound of the comparison with double-precision grids on both sides. Both operators evaluate
-// the same terms (window weights and pair blocks bit for bit, the same c(k) per mode) and differ
+// the same terms by the same code (window weights, pair blocks, c(k) per mode) and differ
 // only in the order of additions: grid points summed over particles in another order, FFTW-MPI's
 // slab transforms instead of the serial plan, a particle's interpolation summed slab by slab, a
 // real-space row over its neighbours in another cell order. Each is a sum of O(10^2 - 10^4) terms
