@@ -90,21 +90,40 @@ struct DistributedPseRpy::Impl {
                                              std::span<double> w) const;
   // pse::noise_hash of the concatenation of the ranks' z (collective).
   [[nodiscard]] std::uint64_t noise_hash(std::span<const double> local_z) const;
+  // apply()'s and apply_with_noise's checks of this rank's arrays (collective).
+  void check_arrays(std::span<const double> forces, std::span<double> velocities, const char* where) const;
+  // M_r^{1/2} z1 by the serial Lanczos iteration on a distributed basis (w: 3 local_n).
+  [[nodiscard]] rpy::SqrtReport real_sqrt(const std::vector<double>& z1, double* w) const;
 };
 
-rpy::SqrtReport DistributedPseRpy::Impl::split_sample(const std::vector<double>& z1,
-                                                      const rpy::pse::detail::NoiseKey& key,
-                                                      std::span<double> w) const {
+void DistributedPseRpy::Impl::check_arrays(std::span<const double> forces, std::span<double> velocities,
+                                           const char* where) const {
+  // global_n is the same on every rank (set_positions succeeds or fails on all of them).
+  require(global_n > 0, ErrorCode::invalid_input, where, "positions not set (call set_positions first)");
+  comm.run([&] {
+    require_size(forces, 3 * local_n, where, "local forces");
+    require_size(std::span<const double>(velocities.data(), velocities.size()), 3 * local_n, where, "local velocities");
+    require_finite(forces, where, "local forces", 3);
+  });
+}
+
+rpy::SqrtReport DistributedPseRpy::Impl::real_sqrt(const std::vector<double>& z1, double* w) const {
   const std::size_t n3 = 3 * local_n;
-  // M_r^{1/2} z1 by the serial Lanczos iteration on a basis distributed as the particles, its inner
-  // products reduced over the ranks (krylov_space.hpp), with PseRpy's real-space options.
+  // The basis distributed as the particles, its inner products reduced over the ranks
+  // (krylov_space.hpp), with PseRpy's real-space options.
   DistributedKrylovSpace space(comm, rank_counts);
   const auto product = [&](const double* x, double* y) {
     std::fill(y, y + n3, 0.0);
     real->apply(comm, x, y);
   };
-  rpy::SqrtReport report = rpy::sqrt_detail::lanczos_sqrt_in_space(
-      space, product, z1.data(), w.data(), rpy::pse::detail::real_space_sqrt_options(params.lanczos_tolerance));
+  return rpy::sqrt_detail::lanczos_sqrt_in_space(space, product, z1.data(), w,
+                                                 rpy::pse::detail::real_space_sqrt_options(params.lanczos_tolerance));
+}
+
+rpy::SqrtReport DistributedPseRpy::Impl::split_sample(const std::vector<double>& z1,
+                                                      const rpy::pse::detail::NoiseKey& key,
+                                                      std::span<double> w) const {
+  rpy::SqrtReport report = real_sqrt(z1, w.data());
   // + M_w^{1/2} z2 (the slabs' field of `key`).
   wave->add_noise(key, w.data(), local_n);
   report.method = rpy::SqrtMethod::split;
@@ -248,14 +267,7 @@ void DistributedPseRpy::set_positions(std::span<const double> local_positions, s
 
 void DistributedPseRpy::apply(std::span<const double> local_forces, std::span<double> local_velocities) const {
   const Impl& im = *impl_;
-  // global_n is the same on every rank (set_positions succeeds or fails on all of them).
-  require(im.global_n > 0, ErrorCode::invalid_input, kApply, "positions not set (call set_positions first)");
-  im.comm.run([&] {
-    require_size(local_forces, 3 * im.local_n, kApply, "local forces");
-    require_size(std::span<const double>(local_velocities.data(), local_velocities.size()), 3 * im.local_n, kApply,
-                 "local velocities");
-    require_finite(local_forces, kApply, "local forces", 3);
-  });
+  im.check_arrays(local_forces, local_velocities, kApply);
   // MobilityOperator::apply_block's load scale 2^k (exact), from the largest force of all ranks.
   double largest = 0.0, global_largest = 0.0;
   for (const double f : local_forces) largest = std::max(largest, std::abs(f));
@@ -304,6 +316,37 @@ rpy::SqrtReport DistributedPseRpy::apply_sqrt(std::span<const double> local_z, s
   const std::vector<double> z1(local_z.begin(), local_z.end());
   const rpy::SqrtReport report = im.split_sample(z1, {im.noise_hash(local_z), 0}, local_w);
   im.comm.run([&] { rpy::detail::require_finite_result(local_w, where, "local output", "noise"); });
+  return report;
+}
+
+rpy::SqrtReport DistributedPseRpy::apply_with_noise(std::span<const double> local_forces, double noise_scale,
+                                                    std::uint64_t seed, std::uint64_t step,
+                                                    std::span<double> local_velocities) const {
+  constexpr const char* where = "DistributedPseRpy::apply_with_noise";
+  const Impl& im = *impl_;
+  im.check_arrays(local_forces, local_velocities, where);
+  im.comm.run([&] {
+    require(std::isfinite(noise_scale) && noise_scale >= 0.0, ErrorCode::invalid_argument, where,
+            "noise_scale must be finite and >= 0, got " + format_number(noise_scale));
+  });
+  // PseRpy::apply_with_noise: y = M_r^{1/2} z1 (z1 of (seed, step)), one wave-space pass for
+  // M_w F + noise_scale M_w^{1/2} z2, then M_r F, then noise_scale y.
+  rpy::SqrtReport report;
+  report.method = rpy::SqrtMethod::split;
+  std::vector<double> y;
+  if (noise_scale > 0.0) {
+    std::vector<double> z1(3 * im.local_n);
+    fill_normal(z1, im.offset, seed, step, rpy::pse::detail::kStreamReal);
+    y.resize(z1.size());
+    report = im.real_sqrt(z1, y.data());
+    report.method = rpy::SqrtMethod::split;
+  }
+  const rpy::pse::detail::NoiseKey key{seed, step};
+  im.wave->apply(local_forces.data(), local_velocities.data(), im.local_n, noise_scale > 0.0 ? &key : nullptr,
+                 noise_scale);
+  im.real->apply(im.comm, local_forces.data(), local_velocities.data());
+  for (std::size_t i = 0; i < y.size(); ++i) local_velocities[i] += noise_scale * y[i];
+  report.operator_applications += 1;
   return report;
 }
 

@@ -78,7 +78,7 @@ struct SlabWaveSpace::Slab {
   [[nodiscard]] std::vector<std::vector<std::uint32_t>> destinations(std::span<const double> x) const;
   void windows(const std::vector<double>& received);
   void spread(const std::vector<double>& forces);
-  void scale(const rpy::pse::detail::NoiseKey* noise);
+  void scale(bool deterministic, const rpy::pse::detail::NoiseKey* noise, double noise_scale);
   [[nodiscard]] std::vector<double> interpolate() const;
   void to_particles(double* out, std::size_t n, bool accumulate);
 };
@@ -172,13 +172,14 @@ void SlabWaveSpace::Slab::spread(const std::vector<double>& forces) {
   }
 }
 
-// B of [PSE] eq. 19 on the slab's modes (scale_mode_with, the serial operator's per-mode scaling),
-// or, with a noise key, B^{1/2} z2 of eq. 21 in place of the spectrum: each mode's z2 is normal6 of
-// its pair's representative under (seed, step) (draw_mode_noise, as the serial double grids draw
-// it), a function of the mode alone, so the field is the serial one whatever the slabs.
-void SlabWaveSpace::Slab::scale(const rpy::pse::detail::NoiseKey* noise) {
+// B of [PSE] eq. 19 on the slab's modes (scale_mode_with, the serial operator's per-mode scaling)
+// where `deterministic`, plus (or, without it, in place of the spectrum) noise_scale B^{1/2} z2 of
+// eq. 21 with a noise key: each mode's z2 is normal6 of its pair's representative under
+// (seed, step) (draw_mode_noise, as the serial double grids draw it), a function of the mode
+// alone, so the field is the serial one whatever the slabs.
+void SlabWaveSpace::Slab::scale(bool deterministic, const rpy::pse::detail::NoiseKey* noise, double noise_scale) {
   auto* spec = reinterpret_cast<double*>(data);
-  const double noise_factor = 1.0 / std::sqrt(dv);
+  const double noise_factor = noise_scale / std::sqrt(dv);
   const auto planes = static_cast<std::int64_t>(nx);
 #pragma omp parallel for schedule(static)
   for (std::int64_t lx = 0; lx < planes; ++lx)
@@ -192,7 +193,7 @@ void SlabWaveSpace::Slab::scale(const rpy::pse::detail::NoiseKey* noise) {
         double z[6];
         const bool representative =
             noise == nullptr || rpy::pse::detail::draw_mode_noise(ix, iy, iz, modes, noise->seed, noise->step, z);
-        rpy::pse::detail::scale_mode_with(ix, iy, iz, idx, modes, ck.data(), spec, noise == nullptr,
+        rpy::pse::detail::scale_mode_with(ix, iy, iz, idx, modes, ck.data(), spec, deterministic,
                                           noise != nullptr ? z : static_cast<const double*>(nullptr), representative,
                                           noise_factor);
       }
@@ -256,17 +257,18 @@ void SlabWaveSpace::Slab::to_particles(double* out, std::size_t n, bool accumula
   for (std::size_t k = 0; k < 3 * n; ++k) out[k] = accumulate ? out[k] + factor * sum[k] : factor * sum[k];
 }
 
-void SlabWaveSpace::apply(const double* forces, double* out, std::size_t n) {
+void SlabWaveSpace::apply(const double* forces, double* out, std::size_t n, const rpy::pse::detail::NoiseKey* noise,
+                          double noise_scale) {
   Slab& s = *slab_;
   s.spread(s.exchange.forward(s.comm, forces, 3, kWhere, "the forces sent to the grid's slabs"));
   for (int c = 0; c < 3; ++c) fftw_mpi_execute_dft_r2c(s.forward, s.component(c), s.spectrum(c));
-  s.scale(nullptr);
+  s.scale(true, noise_scale != 0.0 ? noise : nullptr, noise_scale);
   s.to_particles(out, n, false);
 }
 
 void SlabWaveSpace::add_noise(const rpy::pse::detail::NoiseKey& key, double* out, std::size_t n) {
   Slab& s = *slab_;
-  s.scale(&key);
+  s.scale(false, &key, 1.0);
   s.to_particles(out, n, true);
 }
 

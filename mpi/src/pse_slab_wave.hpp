@@ -27,8 +27,10 @@ class SlabWaveSpace {
   /// Collective: this rank's positions (wrapped into the box) to the owners of the slabs their
   /// windows touch, and the windows of the particles this rank's slab receives.
   void set_positions(std::span<const double> x);
-  /// Collective: out = M_w F for this rank's n particles (3 n each).
-  void apply(const double* forces, double* out, std::size_t n);
+  /// Collective: out = M_w F for this rank's n particles (3 n each), plus noise_scale M_w^{1/2} z2
+  /// with a noise key (the transforms shared, as PseRpy::apply_with_noise shares them).
+  void apply(const double* forces, double* out, std::size_t n, const rpy::pse::detail::NoiseKey* noise = nullptr,
+             double noise_scale = 0.0);
   /// Collective: out += M_w^{1/2} z2 for this rank's n particles, z2 the wave-space noise of `key`
   /// ([PSE] eq. 21; the serial double grids' field, mode by mode).
   void add_noise(const rpy::pse::detail::NoiseKey& key, double* out, std::size_t n);

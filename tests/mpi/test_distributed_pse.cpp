@@ -1,10 +1,10 @@
 // rpyfmm::mpi::DistributedPseRpy against the serial PseRpy on the concatenation of all ranks'
 // particles: the same parameters, and velocities equal to round-off (uniform, clustered in one
 // slab, on slab boundaries and box faces, other radii, empty ranks, each split four ways);
-// repeated products bit for bit; the split sampler against PseRpy::sample to round-off; the
-// accuracy against the serial operator's single-precision grids at its tolerance; and collective
-// failure (every rank throws the same message, none hangs) on bad
-// input of one rank.
+// repeated products bit for bit; the split sampler (sample, apply_sqrt, apply_with_noise) against
+// PseRpy's to round-off; the accuracy against the serial operator's single-precision grids at its
+// tolerance; and collective failure (every rank throws the same message, none hangs) on bad input
+// of one rank.
 #include <gtest/gtest.h>
 #include <mpi.h>
 
@@ -219,6 +219,8 @@ TEST(MpiDistributedPse, SplitSamplerEqualsSerialToRoundOff) {
   const rpyfmm::rpy::SqrtReport serial_report = serial.sample(7, 3, w_serial);
   rpyfmm::rpy::fill_normal(z, 5, 2);
   serial.apply_sqrt(z, wz_serial);
+  std::vector<double> un_serial(3 * p.size());
+  serial.apply_with_noise(p.f, 0.8, 7, 3, un_serial);
   for (const Split split : kSplits) {
     const Shares s = shares_of(p.size(), split);
     DistributedPseRpy op(MPI_COMM_WORLD, box, kViscosity, options);
@@ -236,9 +238,14 @@ TEST(MpiDistributedPse, SplitSamplerEqualsSerialToRoundOff) {
     op.apply_sqrt(share(z, 3, s.offset, s.n), wz);
     const double dz = global_relative_difference(wz, share(wz_serial, 3, s.offset, s.n));
     EXPECT_LE(dz, kRoundOff) << "apply_sqrt, split " << static_cast<int>(split);
+    // apply_with_noise: M F + 0.8 M^{1/2} z with the noise of sample(7, 3).
+    std::vector<double> un(3 * s.n);
+    op.apply_with_noise(share(p.f, 3, s.offset, s.n), 0.8, 7, 3, un);
+    const double dn = global_relative_difference(un, share(un_serial, 3, s.offset, s.n));
+    EXPECT_LE(dn, kRoundOff) << "apply_with_noise, split " << static_cast<int>(split);
     if (world_rank() == 0) {
-      std::printf("  [pse] sample, split %d: %d Lanczos iterations, relative difference %.2e; apply_sqrt %.2e\n",
-                  static_cast<int>(split), report.iterations, d, dz);
+      std::printf("  [pse] split %d: %d Lanczos iterations; sample %.2e, apply_sqrt %.2e, apply_with_noise %.2e\n",
+                  static_cast<int>(split), report.iterations, d, dz, dn);
     }
   }
 }
@@ -276,6 +283,8 @@ TEST(MpiDistributedPse, BadInputOnOneRankFailsEveryRank) {
   std::vector<double> long_w(u.size() + (world_rank() == last ? 3 : 0));
   expect_collective_error([&] { op.sample(1, 0, long_w); }, ErrorCode::invalid_input, "local output");
   expect_collective_error([&] { op.apply_sqrt(nan_f, u); }, ErrorCode::invalid_input, "NaN");
+  expect_collective_error([&] { op.apply_with_noise(f, world_rank() == last ? -1.0 : 1.0, 1, 0, u); },
+                          ErrorCode::invalid_argument, "noise_scale");
   rpyfmm::rpy::SqrtOptions lanczos;
   lanczos.method = world_rank() == last ? rpyfmm::rpy::SqrtMethod::lanczos : rpyfmm::rpy::SqrtMethod::split;
   expect_collective_error([&] { op.apply_sqrt(f, u, lanczos); }, ErrorCode::not_supported, "not offered across ranks");

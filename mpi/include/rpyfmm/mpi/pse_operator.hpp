@@ -105,6 +105,13 @@ class DistributedPseRpy {
   /// block preconditioner (not_supported: the generic solvers are not offered across ranks).
   rpy::SqrtReport apply_sqrt(std::span<const double> local_z, std::span<double> local_w,
                              const rpy::SqrtOptions& options = {}) const;
+  /// Collective. U = M F + noise_scale M^{1/2} z for this rank's particles, as
+  /// PseRpy::apply_with_noise: z as sample(seed, step) draws it, the deterministic and the Brownian
+  /// wave parts in one wave-space pass. For BD: noise_scale = sqrt(2 kT / dt). Equal to
+  /// PseRpy::apply_with_noise on the whole set (double grids) to round-off. Throws rpyfmm::Error on
+  /// every rank as apply() does, and for a noise_scale not finite and >= 0 on any rank.
+  rpy::SqrtReport apply_with_noise(std::span<const double> local_forces, double noise_scale, std::uint64_t seed,
+                                   std::uint64_t step, std::span<double> local_velocities) const;
 
  private:
   struct Impl;
