@@ -12,7 +12,7 @@ packages=(
   libeigen3-dev libfftw3-dev libboost-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev libtomlplusplus-dev librandom123-dev libfmt-dev
-  libopenmpi-dev openmpi-bin  # the optional MPI layer (RPYFMM_USE_MPI, docs/mpi.md) and its tests
+  libopenmpi-dev openmpi-bin libfftw3-mpi-dev  # the optional MPI layer (RPYFMM_USE_MPI, docs/mpi.md), its tests
   python3 python3-dev python3-pip python3-venv
   doxygen  # the API reference (`docs` target, built in CI with warnings as errors)
   clang libclang-rt-14-dev  # libFuzzer and sanitizer runtimes for tests/fuzz/run.sh (Debian 12: clang 14)

@@ -65,15 +65,19 @@ void apply_and_write(const rpy::MobilityOperator& op, const std::vector<double>&
   stages["write"] = watch.seconds();
 }
 
-/// Under MPI: whether this product runs across the ranks (--method direct or fmm, translations,
-/// free space on the CPU); otherwise it runs on one rank only and more ranks are refused.
+/// Under MPI: whether this product runs across the ranks (translations on the CPU: --method direct
+/// or fmm in free space, or --method pse with --box and wave grids auto or double); otherwise it runs
+/// on one rank only and more ranks are refused.
 bool across_ranks(const MobilityArgs& args) {
-  const bool supported = (args.mobility.method == "direct" || args.mobility.method == "fmm") && !args.angular &&
-                         args.torques.empty() && args.mobility.box.empty() && args.mobility.device == "cpu";
+  const MobilityChoice& m = args.mobility;
+  const bool free_space = (m.method == "direct" || m.method == "fmm") && m.box.empty();
+  const bool pse = m.method == "pse" && !m.box.empty() && m.wave_precision != "single";
+  const bool supported = (free_space || pse) && !args.angular && args.torques.empty() && m.device == "cpu";
   require(supported || mpi_size() == 1, ErrorCode::not_supported, "mobility",
           "across " + std::to_string(mpi_size()) +
-              " MPI ranks runs --method direct or fmm only, without --torques, --angular and --box, on the CPU "
-              "(docs/mpi.md); run other methods without mpirun");
+              " MPI ranks runs --method direct or fmm without --box, or --method pse with --box (double-precision "
+              "wave grids), without --torques and --angular, on the CPU (docs/mpi.md); run other methods without "
+              "mpirun");
   return supported;
 }
 
@@ -90,8 +94,8 @@ void run_mobility(const MobilityArgs& args, bool radius_given) {
   ranges::require_in(ranges::kViscosity, args.mobility.viscosity, "--viscosity", "viscosity");
   if (under_mpi() && across_ranks(args)) {
     run_mobility_across_ranks({args.positions, args.forces, args.radii, args.out, args.radius, radius_given,
-                               args.mobility.viscosity, args.mobility.tolerance, args.common.json,
-                               args.mobility.method});
+                               args.mobility.viscosity, args.mobility.tolerance, args.common.json, args.mobility.method,
+                               args.mobility.box});
     return;
   }
 

@@ -261,17 +261,22 @@ void print_sample_json(const SampleArgs& args, const rpy::MobilityOperator& op, 
   std::cout << line.str() << '\n';
 }
 
-/// Under MPI: whether this sample runs across the ranks (--operator direct or fmm with Lanczos,
-/// without preconditioner or rotation); otherwise it runs on one rank only and more ranks are
-/// refused.
+/// Under MPI: whether this sample runs across the ranks (--operator direct or fmm with Lanczos, or
+/// --operator pse with --box and the split sampler on double wave grids on the CPU; without
+/// preconditioner or rotation); otherwise it runs on one rank only and more ranks are refused.
 bool across_ranks(const SampleArgs& args, const rpy::SqrtOptions& options) {
-  const bool supported = (args.op == "direct" || args.op == "fmm") && !args.angular &&
-                         (options.method == rpy::SqrtMethod::lanczos || options.method == rpy::SqrtMethod::automatic) &&
-                         options.preconditioner != rpy::SqrtPreconditioner::block;
+  const auto method = options.method;
+  const bool free_space = (args.op == "direct" || args.op == "fmm") &&
+                          (method == rpy::SqrtMethod::lanczos || method == rpy::SqrtMethod::automatic);
+  const bool pse = args.op == "pse" && !args.box.empty() && args.wave_precision != "single" && args.device == "cpu" &&
+                   (method == rpy::SqrtMethod::split || method == rpy::SqrtMethod::automatic);
+  const bool supported =
+      (free_space || pse) && !args.angular && options.preconditioner != rpy::SqrtPreconditioner::block;
   require(supported || mpi_size() == 1, ErrorCode::not_supported, "sample",
           "across " + std::to_string(mpi_size()) +
-              " MPI ranks runs --operator direct or fmm with --method auto or lanczos only, without --preconditioner "
-              "block and --angular (docs/mpi.md); run the others without mpirun");
+              " MPI ranks runs --operator direct or fmm with --method auto or lanczos, or --operator pse with --box "
+              "and --method auto or split (double-precision wave grids, CPU), without --preconditioner block and "
+              "--angular (docs/mpi.md); run the others without mpirun");
   return supported;
 }
 
@@ -292,8 +297,8 @@ void run_sample(const SampleArgs& given, bool radius_given, bool seed_given) {
   const OperatorEntry& entry = operator_of(args);
   if (under_mpi() && across_ranks(args, options)) {
     run_sample_across_ranks({args.positions, args.radii, args.noise, args.out, args.radius, radius_given,
-                             args.viscosity, args.seed, args.step, options, args.common.json, args.op,
-                             args.tolerance != 0.0 ? args.tolerance : rpy::FmmRpyOptions{}.tolerance});
+                             args.viscosity, args.seed, args.step, options, args.common.json, args.op, args.box,
+                             args.tolerance});
     return;
   }
 

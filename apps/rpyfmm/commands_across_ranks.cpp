@@ -1,11 +1,15 @@
 // rpyfmm CLI — the commands that run across MPI ranks (mpi_session.hpp, docs/mpi.md):
 //   mpirun -np P rpyfmm mobility --method direct|fmm ...
+//   mpirun -np P rpyfmm mobility --method pse --box L ...
 //   mpirun -np P rpyfmm sample --operator direct|fmm [--method lanczos] ...
+//   mpirun -np P rpyfmm sample --operator pse --box L [--method split] ...
+//   mpirun -np P rpyfmm bd ...
 // Rank 0 reads the same files as the serial command and scatters the particles in P contiguous
-// shares; rpyfmm::mpi::DistributedDirectRpy applies M (bit for bit the serial DirectRpy), or
-// rpyfmm::mpi::DistributedFmmRpy (within --tolerance of it), and rpyfmm::mpi::sqrt_apply samples
-// M^{1/2} z; rank 0 gathers the result and writes the same file (write_npy: a temporary file
-// renamed into place). Every step fails on every rank alike
+// shares; rpyfmm::mpi::DistributedDirectRpy applies M (bit for bit the serial DirectRpy),
+// rpyfmm::mpi::DistributedFmmRpy (within --tolerance of it) or rpyfmm::mpi::DistributedPseRpy (the
+// serial PseRpy with double grids to round-off), and rpyfmm::mpi::sqrt_apply or
+// DistributedPseRpy::apply_sqrt samples M^{1/2} z; rank 0 gathers the result and writes the same
+// file (write_npy: a temporary file renamed into place). Every step fails on every rank alike
 // (rpyfmm::mpi::Communicator::run), so no rank waits for another that gave up.
 #include <mpi.h>
 
@@ -13,6 +17,7 @@
 #include <cstdint>
 #include <iostream>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -27,6 +32,7 @@
 #include "rpyfmm/mpi/communicator.hpp"
 #include "rpyfmm/mpi/direct_operator.hpp"
 #include "rpyfmm/mpi/fmm_rpy.hpp"
+#include "rpyfmm/mpi/pse_operator.hpp"
 #include "rpyfmm/mpi/sqrt.hpp"
 #include "sqrt_report_json.hpp"
 
@@ -127,6 +133,32 @@ double apply_communication(const mpi::DistributedDirectRpy& op) {
 double apply_communication(const mpi::DistributedFmmRpy& op) {
   return sum(op.laplace().communication().evaluate_seconds);
 }
+// DistributedPseRpy does not time its exchanges apart.
+double setup_communication(const mpi::DistributedPseRpy&) {
+  return 0.0;
+}
+double apply_communication(const mpi::DistributedPseRpy&) {
+  return 0.0;
+}
+
+// What --json says of the radii: equal_radii for the free-space operators (nothing for PSE, whose
+// serial command does not report it).
+void add_radii(JsonLine& line, const mpi::DistributedDirectRpy& op) {
+  line.add("equal_radii", op.equal_radii());
+}
+void add_radii(JsonLine& line, const mpi::DistributedFmmRpy& op) {
+  line.add("equal_radii", op.equal_radii());
+}
+void add_radii(JsonLine& line, const mpi::DistributedPseRpy&) {
+  line.add("wave_precision", "double");
+}
+
+// --box: L (a cube) or Lx Ly Lz.
+rpy::Geometry periodic_box(const std::vector<double>& box) {
+  require(box.size() == 1 || box.size() == 3, ErrorCode::invalid_argument, "--box",
+          "give one length L (cube) or three lengths Lx Ly Lz, got " + std::to_string(box.size()) + " values");
+  return box.size() == 1 ? rpy::Geometry::periodic(box[0]) : rpy::Geometry::periodic(box[0], box[1], box[2]);
+}
 
 // `make()` constructs the operator (collective).
 template <class Operator, class Make>
@@ -156,15 +188,31 @@ Prepared<Operator> prepare(const Inputs& files, const mpi::Communicator& comm, M
   return p;
 }
 
-// Prepares the operator `name` selects ("fmm": DistributedFmmRpy at `tolerance`; otherwise
-// DistributedDirectRpy) and calls body(prepared).
+// The operator a command names: "direct", "fmm" or "pse" (with its --box), its tolerance (0: the
+// operator's default) and the viscosity.
+struct OperatorChoice {
+  const std::string& name;
+  double tolerance;
+  double viscosity;
+  const std::vector<double>& box;
+};
+
+// Prepares the operator `choice` selects ("fmm": DistributedFmmRpy, "pse": DistributedPseRpy in
+// the --box, each at its tolerance; otherwise DistributedDirectRpy) and calls body(prepared).
 template <class Body>
-void with_operator(const std::string& name, double tolerance, double viscosity, const Inputs& files,
-                   const mpi::Communicator& comm, Body&& body) {
-  if (name == "fmm") {
-    auto p = prepare<mpi::DistributedFmmRpy>(files, comm, [&] {
-      return std::make_unique<mpi::DistributedFmmRpy>(comm.get(), viscosity,
-                                                      mpi::DistributedFmmRpyOptions{.tolerance = tolerance});
+void with_operator(const OperatorChoice& choice, const Inputs& files, const mpi::Communicator& comm, Body&& body) {
+  const double viscosity = choice.viscosity;
+  if (choice.name == "fmm") {
+    mpi::DistributedFmmRpyOptions options;
+    if (choice.tolerance != 0.0) options.tolerance = choice.tolerance;
+    auto p = prepare<mpi::DistributedFmmRpy>(
+        files, comm, [&] { return std::make_unique<mpi::DistributedFmmRpy>(comm.get(), viscosity, options); });
+    body(p);
+  } else if (choice.name == "pse") {
+    rpy::pse::PseOptions options;
+    if (choice.tolerance != 0.0) options.tolerance = choice.tolerance;
+    auto p = prepare<mpi::DistributedPseRpy>(files, comm, [&] {
+      return std::make_unique<mpi::DistributedPseRpy>(comm.get(), periodic_box(choice.box), viscosity, options);
     });
     body(p);
   } else {
@@ -206,9 +254,9 @@ void apply_and_write(Prepared<Operator>& p, const RanksMobilityArgs& args, const
       .add("method", args.method)
       .add("n", in.n)
       .add("viscosity", args.viscosity)
-      .add("tolerance", args.tolerance)
-      .add("equal_radii", p.op->equal_radii())
-      .add("out", args.out);
+      .add("tolerance", args.tolerance);
+  add_radii(line, *p.op);
+  line.add("out", args.out);
   if (args.radius_given) line.add("radius", args.radius);
   add_ranks(line, p.stages, p.communication, comm);  // collective
   if (args.json && comm.rank() == 0) std::cout << line.add("total_seconds", total.seconds()).str() << '\n';
@@ -221,7 +269,7 @@ void run_mobility_across_ranks(const RanksMobilityArgs& args) {
   const StopWatch total;
   const Inputs files{args.positions, args.radius_given ? std::string() : args.radii, args.forces, "forces",
                      args.radius};
-  with_operator(args.method, args.tolerance, args.viscosity, files, comm,
+  with_operator({args.method, args.tolerance, args.viscosity, args.box}, files, comm,
                 [&](auto& p) { apply_and_write(p, args, comm, total); });
 }
 
@@ -233,6 +281,18 @@ void add_products_communication(const mpi::DistributedDirectRpy& op, StageTimes&
   communication["products"] = op.communication().applies_seconds;
 }
 void add_products_communication(const mpi::DistributedFmmRpy&, StageTimes&) {}
+void add_products_communication(const mpi::DistributedPseRpy&, StageTimes&) {}
+
+// M^{1/2} z across the ranks: the Lanczos sampler on the free-space operators, PSE's split sampler.
+template <class Operator>
+rpy::SqrtReport sample_across(const Operator& op, std::span<const double> z, std::span<double> w,
+                              const rpy::SqrtOptions& options, double* inner_products) {
+  return mpi::sqrt_apply(op, z, w, options, inner_products);
+}
+rpy::SqrtReport sample_across(const mpi::DistributedPseRpy& op, std::span<const double> z, std::span<double> w,
+                              const rpy::SqrtOptions& options, double*) {
+  return op.apply_sqrt(z, w, options);
+}
 
 // W = M^{1/2} Z with the prepared operator; rank 0 writes W and prints --json.
 template <class Operator>
@@ -247,7 +307,7 @@ void sample_and_write(Prepared<Operator>& p, const RanksSampleArgs& args, const 
   StopWatch watch;
   std::vector<double> w(in.x.size());
   double inner_products = 0.0;
-  const rpy::SqrtReport report = mpi::sqrt_apply(*p.op, in.rows, w, args.options, &inner_products);
+  const rpy::SqrtReport report = sample_across(*p.op, in.rows, w, args.options, &inner_products);
   p.stages["sample"] = watch.seconds();
   add_products_communication(*p.op, p.communication);
   p.communication["inner_products"] = inner_products;
@@ -263,23 +323,27 @@ void sample_and_write(Prepared<Operator>& p, const RanksSampleArgs& args, const 
   add_sqrt_report(line, report);
   line.add("angular", false)
       .add("noise", args.noise.empty() ? "philox" : args.noise)
-      .add("viscosity", args.viscosity)
-      .add("equal_radii", p.op->equal_radii())
-      .add("out", args.out);
+      .add("viscosity", args.viscosity);
+  add_radii(line, *p.op);
+  line.add("out", args.out);
   if (args.noise.empty()) line.add("seed", args.seed).add("step", args.step);
   if (args.radius_given) line.add("radius", args.radius);
-  if (args.op == "fmm") line.add("tolerance", args.tolerance);
+  if (args.op != "direct") line.add("tolerance", args.tolerance);
   add_ranks(line, p.stages, p.communication, comm);  // collective
   if (args.json && comm.rank() == 0) std::cout << line.add("total_seconds", total.seconds()).str() << '\n';
 }
 
 }  // namespace
 
-void run_sample_across_ranks(const RanksSampleArgs& args) {
+void run_sample_across_ranks(const RanksSampleArgs& given) {
+  // The operator's tolerance where none was given: its options' default (reported by --json).
+  RanksSampleArgs args = given;
+  if (args.tolerance == 0.0)
+    args.tolerance = args.op == "pse" ? rpy::pse::PseOptions{}.tolerance : mpi::DistributedFmmRpyOptions{}.tolerance;
   const mpi::Communicator comm(MPI_COMM_WORLD);
   const StopWatch total;
   const Inputs files{args.positions, args.radius_given ? std::string() : args.radii, args.noise, "noise", args.radius};
-  with_operator(args.op, args.tolerance, args.viscosity, files, comm,
+  with_operator({args.op, args.tolerance, args.viscosity, args.box}, files, comm,
                 [&](auto& p) { sample_and_write(p, args, comm, total); });
 }
 

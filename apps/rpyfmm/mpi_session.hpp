@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "rpyfmm/bd/run.hpp"
 #include "rpyfmm/rpy/sqrt.hpp"
@@ -50,10 +51,12 @@ class MpiSessionEnd {
   MpiSessionEnd& operator=(const MpiSessionEnd&) = delete;
 };
 
-/// `rpyfmm mobility --method direct|fmm` across the ranks (commands_across_ranks.cpp, builds with
-/// MPI): rank 0 reads the files and scatters the particles, rpyfmm::mpi::DistributedDirectRpy
-/// (bit for bit the serial command's output) or rpyfmm::mpi::DistributedFmmRpy (within the
-/// tolerance of the exact product) applies M, rank 0 gathers U and writes it.
+/// `rpyfmm mobility --method direct|fmm` or `--method pse --box ...` across the ranks
+/// (commands_across_ranks.cpp, builds with MPI): rank 0 reads the files and scatters the particles,
+/// rpyfmm::mpi::DistributedDirectRpy, DistributedFmmRpy or DistributedPseRpy applies M, rank 0
+/// gathers U and writes it. direct: bit for bit the serial command's output; fmm: within the
+/// tolerance of the exact product; pse: the serial output with --wave-precision double to
+/// round-off (docs/mpi.md).
 struct RanksMobilityArgs {
   std::string positions, forces, radii, out;
   double radius = 0.0;
@@ -61,11 +64,14 @@ struct RanksMobilityArgs {
   double viscosity = 1.0;
   double tolerance = 0.0;
   bool json = false;
-  std::string method = "direct";  // "direct" (DistributedDirectRpy) or "fmm" (DistributedFmmRpy)
+  std::string method = "direct";  // direct | fmm | pse
+  std::vector<double> box;        // pse: L or Lx Ly Lz
 };
 void run_mobility_across_ranks(const RanksMobilityArgs& args);
 
-/// `rpyfmm sample --operator direct|fmm` with Lanczos across the ranks (commands_across_ranks.cpp):
+/// `rpyfmm sample --operator direct|fmm` with Lanczos, or `--operator pse --box ...` with the split
+/// sampler (DistributedPseRpy::apply_sqrt: the serial output with --wave-precision double to
+/// round-off), across the ranks (commands_across_ranks.cpp):
 /// rank 0 reads the files (and --noise) and scatters them, or each rank draws its share's noise
 /// (rpyfmm::mpi::fill_normal: the serial noise), rpyfmm::mpi::sqrt_apply samples, rank 0 gathers
 /// W and writes it. With the direct operator bit for bit the serial command's output; with the
@@ -78,8 +84,9 @@ struct RanksSampleArgs {
   std::uint64_t seed = 0, step = 0;
   rpy::SqrtOptions options;
   bool json = false;
-  std::string op = "direct";  // "direct" (DistributedDirectRpy) or "fmm" (DistributedFmmRpy)
-  double tolerance = 1e-6;    // of the fmm operator
+  std::string op = "direct";  // direct | fmm | pse (the split sampler)
+  std::vector<double> box;    // pse: L or Lx Ly Lz
+  double tolerance = 0.0;     // fmm, pse: the operator's tolerance (0: its options' default)
 };
 void run_sample_across_ranks(const RanksSampleArgs& args);
 /// `rpyfmm bd` across the ranks (commands_across_ranks.cpp): `options` with the engine across the

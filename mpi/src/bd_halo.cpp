@@ -49,13 +49,8 @@ double distance2_to(const std::array<double, 3>& p, const RegionBox& box, const 
   return d2;
 }
 
-}  // namespace detail
-
-namespace {
-
 constexpr int kBoxValues = 7;  // lo, hi, empty flag
 
-// Collective: every rank's region box.
 std::vector<RegionBox> gather_regions(const Communicator& comm, const RegionBox& mine) {
   std::array<double, kBoxValues> packed{
       mine.lo[0], mine.lo[1], mine.lo[2], mine.hi[0], mine.hi[1], mine.hi[2], mine.empty ? 1.0 : 0.0};
@@ -70,9 +65,6 @@ std::vector<RegionBox> gather_regions(const Communicator& comm, const RegionBox&
   return boxes;
 }
 
-// The owned particles (indices) each other rank needs: those within the list radius of its box.
-// The radius is widened by a relative 1e-12 so that rounding in the wrap and the gaps can only add
-// particles (a larger halo changes no sum: the lists keep pairs by their own distances).
 std::vector<std::vector<std::uint32_t>> select_halo(const Communicator& comm, std::span<const double> positions,
                                                     const std::vector<RegionBox>& regions,
                                                     const rpy::Geometry& geometry, double list_radius) {
@@ -81,14 +73,18 @@ std::vector<std::vector<std::uint32_t>> select_halo(const Communicator& comm, st
   const double reach = list_radius * (1.0 + 1e-12);
   const double reach2 = reach * reach;
   for (std::size_t i = 0; 3 * i < positions.size(); ++i) {
-    const std::array<double, 3> p = detail::wrapped(&positions[3 * i], geometry);
+    const std::array<double, 3> p = wrapped(&positions[3 * i], geometry);
     for (std::size_t r = 0; r < regions.size(); ++r) {
       if (static_cast<int>(r) == comm.rank()) continue;
-      if (detail::distance2_to(p, regions[r], geometry) <= reach2) send[r].push_back(static_cast<std::uint32_t>(i));
+      if (distance2_to(p, regions[r], geometry) <= reach2) send[r].push_back(static_cast<std::uint32_t>(i));
     }
   }
   return send;
 }
+
+}  // namespace detail
+
+namespace {
 
 constexpr int kHaloValues = 5;  // id, type, x, y, z
 
@@ -131,8 +127,8 @@ DistributedBd::Halo DistributedBd::Halo::build(const Communicator& comm, const b
                                                std::span<const std::uint64_t> ids) {
   Halo h{.list = bd::NeighbourList(geometry, forces.max_cutoff(), neighbours), .pairs = forces.has_pairs()};
   const double list_radius = h.pairs ? h.list.list_radius() : 0.0;
-  const std::vector<RegionBox> regions = gather_regions(comm, detail::region_of(positions, geometry));
-  h.send = select_halo(comm, positions, regions, geometry, list_radius);
+  const std::vector<RegionBox> regions = detail::gather_regions(comm, detail::region_of(positions, geometry));
+  h.send = detail::select_halo(comm, positions, regions, geometry, list_radius);
   std::vector<std::vector<double>> packed(h.send.size());
   for (std::size_t r = 0; r < h.send.size(); ++r) {
     for (const std::uint32_t i : h.send[r]) {

@@ -32,6 +32,16 @@ namespace detail {
 /// The squared distance from p (wrapped) to the box, over the periodic images of p in a periodic
 /// geometry (the minimum image); infinity for an empty box.
 [[nodiscard]] double distance2_to(const std::array<double, 3>& p, const RegionBox& box, const rpy::Geometry& geometry);
+/// Collective: every rank's region box (one MPI_Allgather).
+[[nodiscard]] std::vector<RegionBox> gather_regions(const Communicator& comm, const RegionBox& mine);
+/// This rank's particles (indices into positions, 3n) that each other rank needs: those within
+/// `radius` of its region (over the periodic images in a periodic geometry); none for radius <= 0.
+/// The radius is widened by a relative 1e-12 so that rounding in the wrap and the gaps can only add
+/// particles (a larger halo changes no sum: the pair lists keep pairs by their own distances).
+[[nodiscard]] std::vector<std::vector<std::uint32_t>> select_halo(const Communicator& comm,
+                                                                  std::span<const double> positions,
+                                                                  const std::vector<RegionBox>& regions,
+                                                                  const rpy::Geometry& geometry, double radius);
 
 }  // namespace detail
 

@@ -11,6 +11,7 @@
 #include "load_scaling.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/block_preconditioner.hpp"
+#include "wrap_into_box.hpp"
 
 namespace rpyfmm::rpy {
 
@@ -109,16 +110,7 @@ void MobilityOperator::store_positions(std::span<const double> positions, std::s
     double* x = positions_.data();
 #pragma omp parallel for schedule(static) if (n > 100000)
     for (long long i = 0; i < n; ++i) {
-      for (int d = 0; d < 3; ++d) {
-        double& v = x[3 * i + d];
-        if (v >= 0.0 && v < L[d]) continue;
-        // fmod is exact (the remainder of two doubles is a double), so a position any number of
-        // box lengths away wraps to the same point; v - L floor(v / L) lost all bits of v past
-        // ~1e16 box lengths (floor of a rounded quotient, then a cancelling difference).
-        v = std::fmod(v, L[d]);              // in (-L, L), sign of v, exact
-        if (v < 0.0) v += L[d];              // -tiny wraps to L - tiny (or to L: then below)
-        if (v >= L[d] || v == 0.0) v = 0.0;  // guards results that round to L exactly; -0 to +0
-      }
+      for (int d = 0; d < 3; ++d) x[3 * i + d] = detail::wrap_into_box(x[3 * i + d], L[d]);
     }
   }
   if (radii.size() == 1) {

@@ -13,7 +13,10 @@
 #  - `mpiexec -n NP rpyfmm laplace --tolerance E`: DistributedLaplaceFmm meets the serial FMM's
 #    contract (relative l2 error of each output at most E), not its bits, so the output must lie
 #    within E of the serial direct sum and within 2E of the serial FMM (both within E of the exact
-#    sums), output by output and density by density (laplace_agree, -DAGREE=...).
+#    sums), output by output and density by density (laplace_agree, -DAGREE=...);
+#  - `mpiexec -n NP rpyfmm mobility --method pse --box L` and `sample --operator pse --box L`:
+#    DistributedPseRpy is the serial PseRpy with double wave grids to round-off, so within 1e-12
+#    relative of that serial output.
 # --json must report the ranks and the communication time per stage. Run by ctest as
 #   cmake -DRPYFMM=... -DMPIEXEC=... -DNP=... "-DMPI_FLAGS=..." -DWORK=... -P cli_across_ranks.cmake
 cmake_minimum_required(VERSION 3.20)
@@ -181,6 +184,23 @@ endfunction()
 run_laplace(laplace_sources 1e-6 2e-6 --charges "${WORK}/a.txt")
 run_laplace(laplace_targets 1e-3 2e-3 --charges "${WORK}/q2.txt" --targets "${WORK}/f.txt")
 
+# mobility and sample (the split sampler, noise by seed) with PSE in the box [0, 40)^3:
+# DistributedPseRpy is the serial PseRpy with double wave grids to round-off (the same terms summed
+# in another order; tests/mpi/test_distributed_pse.cpp), so within 1e-12 relative of the serial
+# command with --wave-precision double; --json names `pattern`.
+function(run_pse name pattern)
+  run_serial(${name} ${name}_serial ${ARGN} --wave-precision double)
+  run_across(${name} ${ARGN})
+  if(NOT json MATCHES "${pattern}")
+    message(FATAL_ERROR "${name}: --json lacks ${pattern}: ${json}")
+  endif()
+  agree(${name} "${WORK}/${name}_mpi.npy" "${WORK}/${name}_serial.npy" 1e-12)
+endfunction()
+run_pse(mobility_pse "\"method\":\"pse\"" mobility --positions "${WORK}/x.txt" --forces "${WORK}/f.txt" --radius 1.1
+        --viscosity 0.7 --method pse --box 40 --tolerance 1e-4)
+run_pse(sample_pse "\"operator\":\"pse\",\"method\":\"split\"" sample --positions "${WORK}/x.txt" --radius 1.1
+        --viscosity 0.7 --operator pse --box 40 --tolerance 1e-4 --seed 5 --step 3)
+
 # A bad input read by rank 0 fails every rank: exit status 2, one error line (printed by rank 0).
 execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" mobility --positions "${WORK}/missing.txt"
                         --forces "${WORK}/f.txt" --radius 1 --out "${WORK}/never.npy"
@@ -210,7 +230,7 @@ if(NP GREATER 1)
   endif()
   # laplace, mobility and sample with what does not run across ranks refuse too.
   foreach(case "laplace;--sources;${WORK}/x.txt;--charges;${WORK}/a.txt;--direct"
-               "mobility;--positions;${WORK}/x.txt;--radius;1;--forces;${WORK}/f.txt;--method;pse"
+               "mobility;--positions;${WORK}/x.txt;--radius;1;--forces;${WORK}/f.txt;--method;pse;--box;40;--wave-precision;single"
                "sample;--positions;${WORK}/x.txt;--radius;1;--operator;direct;--method;chebyshev")
     execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" ${case} --out "${WORK}/never.npy"
                     RESULT_VARIABLE rc ERROR_VARIABLE err)

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <vector>
 
 #include "rpyfmm/rpy/random.hpp"  // normal3 (Philox4x32-10), RPYFMM_HOST_DEVICE
 
@@ -65,6 +66,16 @@ inline void window_weights_from_offset(double d0, double h, int P, double inv_2s
     w[l] = g * tail[l];
     g *= step;
   }
+}
+
+/// The recurrence's tail[l] = exp(-l^2 h^2 inv_2s2), l < P (the same for every particle).
+inline std::vector<double> window_tail(double h, int P, double inv_2s2) {
+  std::vector<double> tail(static_cast<std::size_t>(P));
+  for (int l = 0; l < P; ++l) {
+    const double lh = l * h;
+    tail[static_cast<std::size_t>(l)] = std::exp(-lh * lh * inv_2s2);
+  }
+  return tail;
 }
 
 /// window_weights by the fast Gaussian gridding recurrence (Greengard & Lee, SIAM Rev. 46

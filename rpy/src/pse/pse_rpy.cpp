@@ -2,9 +2,9 @@
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
 
 #include <algorithm>
-#include <cstring>
 #include <vector>
 
+#include "noise_hash.hpp"
 #include "real_space_sqrt.hpp"
 #include "real_space_sum.hpp"
 #include "rotation_real_space_sum.hpp"
@@ -15,20 +15,8 @@
 namespace rpyfmm::rpy::pse {
 
 std::uint64_t noise_hash(std::span<const double> z) {
-  // splitmix64 finaliser chained over the 64-bit patterns of z.
-  auto mix = [](std::uint64_t x) {
-    x += 0x9E3779B97F4A7C15ull;
-    x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-    x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-    return x ^ (x >> 31);
-  };
-  std::uint64_t h = mix(z.size());
-  for (double v : z) {
-    std::uint64_t bits;
-    std::memcpy(&bits, &v, sizeof bits);
-    h = mix(h ^ bits);
-  }
-  return h;
+  // splitmix64 finaliser chained over the 64-bit patterns of z (noise_hash.hpp).
+  return detail::noise_hash_extend(detail::noise_hash_start(z.size()), z);
 }
 
 namespace {

@@ -280,7 +280,7 @@ class WaveGrid final : public WaveSpace {
 }  // namespace
 
 std::vector<double> wave_scaling_table(const PseParameters& p, const std::array<double, 3>& box, double viscosity,
-                                       ModeGeometry& g) {
+                                       ModeGeometry& g, int x_begin, int x_end) {
   for (int d = 0; d < 3; ++d) {
     g.n[d] = p.grid[d];
     g.two_pi_L[d] = 2.0 * std::numbers::pi / box[d];
@@ -291,13 +291,16 @@ std::vector<double> wave_scaling_table(const PseParameters& p, const std::array<
   const double ng = static_cast<double>(g.n[0]) * g.n[1] * g.n[2];
   const double a = p.radius;
   const double inv_4xi2 = 1.0 / (4.0 * p.xi * p.xi);
-  std::vector<double> ck(g.modes);
-  const auto nx = static_cast<std::int64_t>(g.n[0]);
-#pragma omp parallel for schedule(static) if (g.modes >= kParallelWork)
-  for (std::int64_t ix = 0; ix < nx; ++ix) {
+  if (x_end < 0) x_end = g.n[0];
+  const auto planes = static_cast<std::int64_t>(x_end - x_begin);
+  std::vector<double> ck(static_cast<std::size_t>(planes) * static_cast<std::size_t>(g.n[1]) *
+                         static_cast<std::size_t>(g.nzh));
+#pragma omp parallel for schedule(static) if (ck.size() >= kParallelWork)
+  for (std::int64_t lx = 0; lx < planes; ++lx) {
+    const std::int64_t ix = x_begin + lx;
     for (int iy = 0; iy < g.n[1]; ++iy) {
       for (int iz = 0; iz < g.nzh; ++iz) {
-        const std::size_t idx = (static_cast<std::size_t>(ix) * g.n[1] + iy) * g.nzh + iz;
+        const std::size_t idx = (static_cast<std::size_t>(lx) * g.n[1] + iy) * g.nzh + iz;
         const bool nyquist = 2 * ix == g.n[0] || 2 * iy == g.n[1] || 2 * iz == g.n[2];
         if (nyquist || (ix == 0 && iy == 0 && iz == 0)) {
           ck[idx] = 0.0;
@@ -471,13 +474,7 @@ void WaveGrid<Real>::weights_in_tile_order(const std::vector<int>& start, const 
   weights_.resize(static_cast<std::size_t>(pw) * np_);
   const double inv_2s2 = 1.0 / (2.0 * p_.sigma * p_.sigma);
   std::array<std::vector<double>, 3> tail;  // exp(-l^2 h_d^2 / (2 sigma^2)), l < P_d
-  for (std::size_t d = 0; d < 3; ++d) {
-    tail[d].resize(static_cast<std::size_t>(P_[d]));
-    for (int l = 0; l < P_[d]; ++l) {
-      const double lh = l * p_.spacing[d];
-      tail[d][static_cast<std::size_t>(l)] = std::exp(-lh * lh * inv_2s2);
-    }
-  }
+  for (std::size_t d = 0; d < 3; ++d) tail[d] = window_tail(p_.spacing[d], P_[d], inv_2s2);
 #pragma omp parallel for schedule(static) if (np_ >= 1024)
   for (std::int64_t q = 0; q < np; ++q) {
     const std::size_t i = order_[static_cast<std::size_t>(q)];

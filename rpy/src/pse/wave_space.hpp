@@ -25,8 +25,11 @@ struct NoiseKey {
 
 /// c(k) = sinc^2(ka) (1 + k^2/4xi^2) exp(-(1-eta) k^2/4xi^2) / (k^2 mu Ng) on the half
 /// spectrum, zero at k = 0 and on Nyquist planes (docs/theory/pse.md). Shared with CUDA.
+/// With x_end >= 0 only the planes x_begin <= ix < x_end (a slab of the MPI layer's distributed
+/// grid), mode (ix, iy, iz) at ((ix - x_begin) n_y + iy) nzh + iz; `geometry` describes the whole
+/// spectrum either way.
 std::vector<double> wave_scaling_table(const PseParameters& p, const std::array<double, 3>& box, double viscosity,
-                                       ModeGeometry& geometry);
+                                       ModeGeometry& geometry, int x_begin = 0, int x_end = -1);
 
 /// The wave-space part M_w of one PSE plan: grids, FFT plans, the per-particle window cache.
 /// make_wave_space picks the grid precision (PseParameters::wave_single).

@@ -1,0 +1,121 @@
+// rpyfmm — DistributedPseRpy: the periodic RPY mobility U = M F by Positively Split Ewald
+// (rpyfmm/rpy/pse/pse_rpy.hpp; Fiore, Balboa Usabiaga, Donev & Swan, J. Chem. Phys. 146, 124116
+// (2017), "[PSE]"; docs/theory/pse.md) on particles distributed over the ranks of an MPI
+// communicator (docs/mpi.md, "Distributed PSE").
+//
+// Each rank passes its own particles (its local N may be 0) and receives the velocities of its own
+// particles in input order. The global particle set is the concatenation of the ranks' shares in
+// rank order; the operator uses the parameters rpyfmm::rpy::pse::PseRpy chooses for that whole set
+// (splitting xi, grid, Gaussian support, real-space cutoff), and its result equals PseRpy's on the
+// whole set to round-off (the same sums, added in another order).
+//
+// How ([PSE] eq. 10 and 19): M = M_r + M_w.
+//  - M_w: the grid is split into slabs of x planes by FFTW-MPI. Each particle's position goes, once
+//    per set_positions, to the ranks whose slabs its Gaussian window touches; in apply its force
+//    follows, each slab owner spreads onto its own planes, the transforms and the scaling run on the
+//    slabs, and each slab owner sends back its planes' share of the interpolation, which the
+//    particle's rank adds up in rank order.
+//  - M_r (with the self term): each rank receives the other ranks' particles within r_cut of the
+//    box of its own particles (a halo, positions once per set_positions, forces in every apply) and
+//    runs the serial real-space sum on its particles and the halo, keeping its own rows.
+//  - sample(): PseRpy's split sampler ([PSE] eqs. 17-21), Lanczos on M_r with inner products over
+//    all ranks and the wave-space noise drawn mode by mode on the slabs.
+//
+// Every public call is collective over the communicator and fails collectively
+// (communicator.hpp): a bad input on one rank makes every rank throw the same rpyfmm::Error.
+#pragma once
+
+#include <mpi.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "rpyfmm/mpi/communicator.hpp"
+#include "rpyfmm/rpy/geometry.hpp"
+#include "rpyfmm/rpy/pse/pse_parameters.hpp"
+#include "rpyfmm/rpy/sqrt.hpp"
+
+namespace rpyfmm::mpi {
+
+/// What one rank exchanged in the last set_positions (counts of particles): the positions it sent to
+/// other ranks' slabs and received for its own slab, and the halo particles it received.
+struct PseExchangeCounts {
+  std::size_t wave_sent = 0;
+  std::size_t wave_received = 0;
+  std::size_t halo_received = 0;
+};
+
+class DistributedPseRpy {
+ public:
+  /// Collective. Throws rpyfmm::Error on every rank when any rank passes what PseRpy's constructor
+  /// refuses (an open geometry, a viscosity not finite and > 0, a tolerance out of range, ...), or
+  /// when the ranks pass different boxes, viscosities or options.
+  DistributedPseRpy(MPI_Comm comm, rpy::Geometry geometry, double viscosity, const rpy::pse::PseOptions& options = {});
+  ~DistributedPseRpy();
+  DistributedPseRpy(const DistributedPseRpy&) = delete;
+  DistributedPseRpy& operator=(const DistributedPseRpy&) = delete;
+
+  [[nodiscard]] std::string name() const { return "pse-mpi"; }
+  [[nodiscard]] const Communicator& communicator() const;
+  [[nodiscard]] double viscosity() const;
+
+  /// This rank's number of particles, all ranks' together, this rank's first global index (0 before
+  /// set_positions).
+  [[nodiscard]] std::size_t local_size() const;
+  [[nodiscard]] std::size_t global_size() const;
+  [[nodiscard]] std::size_t offset() const;
+  /// The parameters PseRpy chooses for the whole set (throws before set_positions). The wave-space
+  /// grids are double precision whatever wave_single says (FFTW-MPI's double transforms).
+  [[nodiscard]] const rpy::pse::PseParameters& parameters() const;
+  [[nodiscard]] const PseExchangeCounts& exchange_counts() const;
+
+  /// Collective. This rank's positions (3 n, n >= 0) and one radius for them. Positions are wrapped
+  /// into the box as PseRpy wraps them. Throws rpyfmm::Error on every rank when any rank's input is
+  /// malformed (size not a multiple of 3, NaN/Inf, radius not finite and > 0), when no rank has a
+  /// particle, when the radii differ (PSE supports equal radii only, as PseRpy), and on what
+  /// PseRpy's parameter choice refuses for the whole set. After a failure the operator holds no
+  /// positions on any rank until a later set_positions succeeds.
+  void set_positions(std::span<const double> local_positions, double radius);
+  /// Same with one radius per local particle (n entries, all equal on all ranks).
+  void set_positions(std::span<const double> local_positions, std::span<const double> local_radii);
+
+  /// Collective. U = M F for this rank's particles (3 local_size() entries each). Throws
+  /// rpyfmm::Error on every rank when positions are not set, or when any rank passes arrays of the
+  /// wrong size or forces with NaN/Inf.
+  void apply(std::span<const double> local_forces, std::span<double> local_velocities) const;
+
+  /// Collective. w = M^{1/2} z for this rank's particles (3 local_size() entries) by PseRpy::sample's
+  /// split sampler ([PSE] eqs. 17-21): w = M_r^{1/2} z1 + M_w^{1/2} z2, z1 the noise of
+  /// (seed, step, stream 1) of each particle by its global index (rpyfmm::mpi::fill_normal), M_r^{1/2}
+  /// z1 by Lanczos to the PSE's Lanczos tolerance with inner products over all ranks, z2 the
+  /// wave-space field of (seed, step) drawn mode by mode on the slabs. Equal to PseRpy::sample on
+  /// the whole set (double grids) to round-off, whatever the partition. Throws rpyfmm::Error on
+  /// every rank when positions are not set or any rank's output has the wrong size.
+  rpy::SqrtReport sample(std::uint64_t seed, std::uint64_t step, std::span<double> local_w) const;
+  /// Collective. PseRpy::apply_sqrt's split sampler (options.method automatic or split) on this
+  /// rank's share of z (3 local_size() entries): z is z1, and z2 is keyed by pse::noise_hash of the
+  /// whole z, which the ranks compute as a chain over their shares in rank order (point-to-point
+  /// messages with tag 19283 on the operator's communicator). Equal to PseRpy::apply_sqrt on the
+  /// whole set (double grids) to round-off. Throws rpyfmm::Error on every rank when positions are
+  /// not set, any rank's arrays have the wrong size or z has NaN/Inf, or for another method or the
+  /// block preconditioner (not_supported: the generic solvers are not offered across ranks).
+  rpy::SqrtReport apply_sqrt(std::span<const double> local_z, std::span<double> local_w,
+                             const rpy::SqrtOptions& options = {}) const;
+  /// Collective. U = M F + noise_scale M^{1/2} z for this rank's particles, as
+  /// PseRpy::apply_with_noise: z as sample(seed, step) draws it, the deterministic and the Brownian
+  /// wave parts in one wave-space pass. For BD: noise_scale = sqrt(2 kT / dt). Equal to
+  /// PseRpy::apply_with_noise on the whole set (double grids) to round-off. Throws rpyfmm::Error on
+  /// every rank as apply() does, and for a noise_scale not finite and >= 0 on any rank.
+  rpy::SqrtReport apply_with_noise(std::span<const double> local_forces, double noise_scale, std::uint64_t seed,
+                                   std::uint64_t step, std::span<double> local_velocities) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace rpyfmm::mpi

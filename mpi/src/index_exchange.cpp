@@ -1,0 +1,54 @@
+// rpyfmm — particle values sent by fixed lists and back (index_exchange.hpp).
+#include "index_exchange.hpp"
+
+#include "alltoallv.hpp"
+
+namespace rpyfmm::mpi::detail {
+
+std::vector<double> IndexExchange::forward(const Communicator& comm, const double* values, std::size_t width,
+                                           const char* where, const char* what) {
+  std::vector<std::vector<double>> packed(send.size());
+  for (std::size_t r = 0; r < send.size(); ++r) {
+    packed[r].reserve(width * send[r].size());
+    for (const std::uint32_t i : send[r])
+      packed[r].insert(packed[r].end(), values + width * i, values + width * (i + 1));
+  }
+  if (recv_counts.empty()) {
+    std::vector<double> received = alltoallv(comm, packed, where, what, &recv_counts);
+    for (std::size_t& count : recv_counts) count /= width;
+    return received;
+  }
+  std::vector<std::size_t> counts(recv_counts);
+  for (std::size_t& count : counts) count *= width;
+  return alltoallv(comm, packed, counts, where, what);
+}
+
+std::vector<double> IndexExchange::backward(const Communicator& comm, const std::vector<double>& values,
+                                            std::size_t width, const char* where, const char* what) const {
+  std::vector<std::vector<double>> packed(recv_counts.size());
+  std::size_t at = 0;
+  for (std::size_t r = 0; r < recv_counts.size(); ++r) {
+    packed[r].assign(values.begin() + static_cast<std::ptrdiff_t>(at),
+                     values.begin() + static_cast<std::ptrdiff_t>(at + width * recv_counts[r]));
+    at += width * recv_counts[r];
+  }
+  std::vector<std::size_t> counts(send.size());
+  for (std::size_t r = 0; r < send.size(); ++r) counts[r] = width * send[r].size();
+  return alltoallv(comm, packed, counts, where, what);
+}
+
+std::size_t IndexExchange::sent() const {
+  std::size_t n = 0;
+  for (std::size_t r = 0; r < send.size(); ++r)
+    if (static_cast<int>(r) != self) n += send[r].size();
+  return n;
+}
+
+std::size_t IndexExchange::received() const {
+  std::size_t n = 0;
+  for (std::size_t r = 0; r < recv_counts.size(); ++r)
+    if (static_cast<int>(r) != self) n += recv_counts[r];
+  return n;
+}
+
+}  // namespace rpyfmm::mpi::detail

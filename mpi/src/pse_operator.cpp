@@ -1,0 +1,353 @@
+// rpyfmm — DistributedPseRpy: PseRpy's parameters for the whole set, the wave space on FFTW-MPI
+// slabs and the real space on each rank's particles and halo (pse_operator.hpp, docs/mpi.md).
+#include "rpyfmm/mpi/pse_operator.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <string>
+
+// rpy/src (private to rpyfmm::rpy and this layer): the load scaling and the wrap of the serial
+// operators, so that every particle sits on the serial operator's grid points.
+#include "krylov_space.hpp"
+#include "load_scaling.hpp"
+#include "particle_set.hpp"
+#include "pse/kernels_common.hpp"
+#include "pse/noise_hash.hpp"
+#include "pse/real_space_sqrt.hpp"
+#include "pse_real_halo.hpp"
+#include "pse_slab_wave.hpp"
+#include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/mpi/sqrt.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy.hpp"
+#include "sqrt/krylov_space.hpp"
+#include "wrap_into_box.hpp"
+
+namespace rpyfmm::mpi {
+namespace {
+
+constexpr const char* kWhere = "DistributedPseRpy";
+constexpr const char* kSetPositions = "DistributedPseRpy::set_positions";
+constexpr const char* kApply = "DistributedPseRpy::apply";
+
+// Everything that decides the parameters and the products: it must be the same on every rank.
+std::vector<double> agreed_values(const rpy::Geometry& g, double viscosity, const rpy::pse::PseOptions& o) {
+  return {g.is_periodic() ? 1.0 : 0.0,
+          g.box()[0],
+          g.box()[1],
+          g.box()[2],
+          viscosity,
+          o.tolerance,
+          o.xi,
+          o.r_cut,
+          static_cast<double>(o.grid[0]),
+          static_cast<double>(o.grid[1]),
+          static_cast<double>(o.grid[2]),
+          static_cast<double>(o.support),
+          o.window_eta,
+          o.lanczos_tolerance,
+          o.real_space_table ? 1.0 : 0.0,
+          o.real_space_cache ? 1.0 : 0.0,
+          static_cast<double>(o.max_memory_bytes),
+          o.cost_real_pair,
+          o.cost_fft_point,
+          o.cost_grid_point,
+          o.cost_support_point,
+          o.cost_real_products,
+          o.pair_density};
+}
+
+}  // namespace
+
+struct DistributedPseRpy::Impl {
+  Communicator comm;
+  rpy::Geometry geometry;
+  double viscosity;
+  rpy::pse::PseOptions options;
+  rpy::pse::PseParameters params;
+  std::unique_ptr<detail::SlabWaveSpace> wave;
+  std::unique_ptr<detail::RealSpaceHalo> real;
+  std::size_t planned_n = 0;  // the N of the plan (0: none)
+  std::size_t local_n = 0, global_n = 0, offset = 0;
+  std::vector<std::size_t> rank_counts;  // every rank's local N, in rank order
+  PseExchangeCounts counts;
+
+  Impl(MPI_Comm c, rpy::Geometry g, double eta, const rpy::pse::PseOptions& o)
+      : comm(c), geometry(g), viscosity(eta), options(o) {}
+
+  // The rank's share in the global order (local_n, offset; one MPI_Allgather), returning N; throws
+  // alike on every rank when no rank has a particle.
+  [[nodiscard]] std::size_t share(std::size_t n);
+  // The common radius (one MPI_Allreduce); throws alike on every rank when the radii differ.
+  [[nodiscard]] double common_radius(std::span<const double> radii) const;
+  // PseRpy::on_positions_set's plan for the whole set: again when the radius changes, or N with
+  // automatic xi.
+  void plan(double radius);
+  // w = M_r^{1/2} z1 + M_w^{1/2} z2(key): the split sampler's two parts ([PSE] eqs. 17-21).
+  [[nodiscard]] rpy::SqrtReport split_sample(const std::vector<double>& z1, const rpy::pse::detail::NoiseKey& key,
+                                             std::span<double> w) const;
+  // pse::noise_hash of the concatenation of the ranks' z (collective).
+  [[nodiscard]] std::uint64_t noise_hash(std::span<const double> local_z) const;
+  // apply()'s and apply_with_noise's checks of this rank's arrays (collective).
+  void check_arrays(std::span<const double> forces, std::span<double> velocities, const char* where) const;
+  // M_r^{1/2} z1 by the serial Lanczos iteration on a distributed basis (w: 3 local_n).
+  [[nodiscard]] rpy::SqrtReport real_sqrt(const std::vector<double>& z1, double* w) const;
+};
+
+void DistributedPseRpy::Impl::check_arrays(std::span<const double> forces, std::span<double> velocities,
+                                           const char* where) const {
+  // global_n is the same on every rank (set_positions succeeds or fails on all of them).
+  require(global_n > 0, ErrorCode::invalid_input, where, "positions not set (call set_positions first)");
+  comm.run([&] {
+    require_size(forces, 3 * local_n, where, "local forces");
+    require_size(std::span<const double>(velocities.data(), velocities.size()), 3 * local_n, where, "local velocities");
+    require_finite(forces, where, "local forces", 3);
+  });
+}
+
+rpy::SqrtReport DistributedPseRpy::Impl::real_sqrt(const std::vector<double>& z1, double* w) const {
+  const std::size_t n3 = 3 * local_n;
+  // The basis distributed as the particles, its inner products reduced over the ranks
+  // (krylov_space.hpp), with PseRpy's real-space options.
+  DistributedKrylovSpace space(comm, rank_counts);
+  const auto product = [&](const double* x, double* y) {
+    std::fill(y, y + n3, 0.0);
+    real->apply(comm, x, y);
+  };
+  return rpy::sqrt_detail::lanczos_sqrt_in_space(space, product, z1.data(), w,
+                                                 rpy::pse::detail::real_space_sqrt_options(params.lanczos_tolerance));
+}
+
+rpy::SqrtReport DistributedPseRpy::Impl::split_sample(const std::vector<double>& z1,
+                                                      const rpy::pse::detail::NoiseKey& key,
+                                                      std::span<double> w) const {
+  rpy::SqrtReport report = real_sqrt(z1, w.data());
+  // + M_w^{1/2} z2 (the slabs' field of `key`).
+  wave->add_noise(key, w.data(), local_n);
+  report.method = rpy::SqrtMethod::split;
+  report.operator_applications += 1;
+  return report;
+}
+
+std::uint64_t DistributedPseRpy::Impl::noise_hash(std::span<const double> local_z) const {
+  // The chain passes the ranks with particles in rank order; the last of them broadcasts the end.
+  constexpr int kTag = 19283;
+  int previous = -1, next = -1, last = -1;
+  for (int r = 0; r < comm.size(); ++r) {
+    if (rank_counts[static_cast<std::size_t>(r)] == 0) continue;
+    if (r < comm.rank()) previous = r;
+    if (r > comm.rank() && next < 0) next = r;
+    last = r;
+  }
+  std::uint64_t h = rpy::pse::detail::noise_hash_start(3 * global_n);
+  if (local_n > 0) {
+    if (previous >= 0) {
+      check_mpi(MPI_Recv(&h, 1, MPI_UINT64_T, previous, kTag, comm.get(), MPI_STATUS_IGNORE), "MPI_Recv");
+    }
+    h = rpy::pse::detail::noise_hash_extend(h, local_z);
+    if (next >= 0) check_mpi(MPI_Send(&h, 1, MPI_UINT64_T, next, kTag, comm.get()), "MPI_Send");
+  }
+  check_mpi(MPI_Bcast(&h, 1, MPI_UINT64_T, last, comm.get()), "MPI_Bcast");
+  return h;
+}
+
+std::size_t DistributedPseRpy::Impl::share(std::size_t n) {
+  const auto mine = static_cast<std::uint64_t>(n);
+  std::vector<std::uint64_t> all(static_cast<std::size_t>(comm.size()));
+  check_mpi(MPI_Allgather(&mine, 1, MPI_UINT64_T, all.data(), 1, MPI_UINT64_T, comm.get()), "MPI_Allgather");
+  std::uint64_t total = 0;
+  offset = 0;
+  for (std::size_t r = 0; r < all.size(); ++r) {
+    if (static_cast<int>(r) < comm.rank()) offset += all[r];
+    total += all[r];
+  }
+  require(total > 0, ErrorCode::invalid_input, kSetPositions,
+          "no particles on any of the " + std::to_string(comm.size()) + " ranks (N = 0)");
+  local_n = n;
+  rank_counts.assign(all.begin(), all.end());
+  return total;
+}
+
+double DistributedPseRpy::Impl::common_radius(std::span<const double> radii) const {
+  constexpr double inf = std::numeric_limits<double>::infinity();
+  std::array<double, 2> local{inf, inf}, global{};  // min a, min -a
+  for (const double a : radii) local = {std::min(local[0], a), std::min(local[1], -a)};
+  check_mpi(MPI_Allreduce(local.data(), global.data(), 2, MPI_DOUBLE, MPI_MIN, comm.get()), "MPI_Allreduce");
+  require(global[0] == -global[1], ErrorCode::not_supported, kSetPositions,
+          "PSE supports equal radii only (the paper's assumption); the radii given differ (from " +
+              format_number(global[0]) + " to " + format_number(-global[1]) + ")");
+  return global[0];
+}
+
+void DistributedPseRpy::Impl::plan(double radius) {
+  if (planned_n != 0 && params.radius == radius && (options.xi != 0.0 || planned_n == global_n)) return;
+  planned_n = 0;
+  wave.reset();
+  real.reset();
+  // PseRpy's choice for the whole set (the same data on every rank: it succeeds or fails alike).
+  rpy::pse::PseParameters p = rpy::pse::choose_parameters(options, radius, geometry.box(), global_n);
+  // Double-precision grids and pair cache throughout (FFTW-MPI's double transforms).
+  p.wave_single = false;
+  const auto cache =
+      options.real_space_cache ? rpy::pse::detail::PairCache::double_precision : rpy::pse::detail::PairCache::off;
+  comm.run([&] {
+    real = std::make_unique<detail::RealSpaceHalo>(p, geometry.box(), viscosity, options.real_space_table, cache,
+                                                   options.max_memory_bytes - p.memory_bytes);
+  });
+  wave = std::make_unique<detail::SlabWaveSpace>(comm, p, geometry.box(), viscosity);
+  params = p;
+  planned_n = global_n;
+}
+
+DistributedPseRpy::DistributedPseRpy(MPI_Comm comm, rpy::Geometry geometry, double viscosity,
+                                     const rpy::pse::PseOptions& options)
+    : impl_(std::make_unique<Impl>(comm, geometry, viscosity, options)) {
+  // PseRpy's own checks of the geometry, viscosity and options, on every rank.
+  impl_->comm.run([&] { const rpy::pse::PseRpy check(geometry, viscosity, options); });
+  require(same_on_every_rank(impl_->comm, agreed_values(geometry, viscosity, options)), ErrorCode::invalid_argument,
+          kWhere, "the ranks pass different boxes, viscosities or options; every rank must pass the same ones");
+}
+
+DistributedPseRpy::~DistributedPseRpy() = default;
+
+const Communicator& DistributedPseRpy::communicator() const {
+  return impl_->comm;
+}
+double DistributedPseRpy::viscosity() const {
+  return impl_->viscosity;
+}
+std::size_t DistributedPseRpy::local_size() const {
+  return impl_->global_n > 0 ? impl_->local_n : 0;
+}
+std::size_t DistributedPseRpy::global_size() const {
+  return impl_->global_n;
+}
+std::size_t DistributedPseRpy::offset() const {
+  return impl_->global_n > 0 ? impl_->offset : 0;
+}
+const PseExchangeCounts& DistributedPseRpy::exchange_counts() const {
+  return impl_->counts;
+}
+
+const rpy::pse::PseParameters& DistributedPseRpy::parameters() const {
+  require(impl_->global_n > 0, ErrorCode::invalid_input, "DistributedPseRpy::parameters",
+          "positions not set (call set_positions first)");
+  return impl_->params;
+}
+
+void DistributedPseRpy::set_positions(std::span<const double> local_positions, double radius) {
+  impl_->global_n = 0;  // no positions until this call succeeds on every rank
+  impl_->comm.run([&] { require_positive(radius, kSetPositions, "radius"); });
+  const std::vector<double> radii(local_positions.size() / 3, radius);
+  set_positions(local_positions, radii);
+}
+
+void DistributedPseRpy::set_positions(std::span<const double> local_positions, std::span<const double> local_radii) {
+  Impl& im = *impl_;
+  im.global_n = 0;  // no positions until this call succeeds on every rank
+  im.comm.run([&] { detail::check_local_particles(local_positions, local_radii, kSetPositions); });
+  const std::size_t total = im.share(local_radii.size());
+  const double radius = im.common_radius(local_radii);
+  // Into [0, L) as MobilityOperator::set_positions wraps them (the serial operator's grid windows).
+  std::vector<double> x(local_positions.begin(), local_positions.end());
+  for (std::size_t k = 0; k < x.size(); ++k) x[k] = rpy::detail::wrap_into_box(x[k], im.geometry.box()[k % 3]);
+  im.global_n = total;  // plan() reads it
+  try {
+    im.plan(radius);
+    im.wave->set_positions(x);
+    im.real->set_positions(im.comm, im.geometry, x);
+  } catch (...) {
+    im.global_n = 0;
+    throw;
+  }
+  im.counts = {im.wave->sent(), im.wave->received(), im.real->halo_size()};
+}
+
+void DistributedPseRpy::apply(std::span<const double> local_forces, std::span<double> local_velocities) const {
+  const Impl& im = *impl_;
+  im.check_arrays(local_forces, local_velocities, kApply);
+  // MobilityOperator::apply_block's load scale 2^k (exact), from the largest force of all ranks.
+  double largest = 0.0, global_largest = 0.0;
+  for (const double f : local_forces) largest = std::max(largest, std::abs(f));
+  check_mpi(MPI_Allreduce(&largest, &global_largest, 1, MPI_DOUBLE, MPI_MAX, im.comm.get()), "MPI_Allreduce");
+  const int k = rpy::detail::load_scale_exponent({std::span<const double>(&global_largest, 1)});
+  std::vector<double> forces(local_forces.begin(), local_forces.end());
+  for (double& f : forces) f = std::ldexp(f, -k);
+  // [PSE] eq. 10: M_w F, then M_r F added (the order of PseRpy::do_apply).
+  im.wave->apply(forces.data(), local_velocities.data(), im.local_n);
+  im.real->apply(im.comm, forces.data(), local_velocities.data());
+  for (double& u : local_velocities) u = std::ldexp(u, k);
+  im.comm.run([&] { rpy::detail::require_finite_result(local_velocities, kApply, "velocities", "forces"); });
+}
+
+rpy::SqrtReport DistributedPseRpy::sample(std::uint64_t seed, std::uint64_t step, std::span<double> local_w) const {
+  constexpr const char* where = "DistributedPseRpy::sample";
+  const Impl& im = *impl_;
+  require(im.global_n > 0, ErrorCode::invalid_input, where, "positions not set (call set_positions first)");
+  im.comm.run([&] {
+    require_size(std::span<const double>(local_w.data(), local_w.size()), 3 * im.local_n, where, "local output");
+  });
+  // z1: PseRpy's real-space noise of this rank's particles, by global index; z2 keyed by
+  // (seed, step) as PseRpy::sample keys it.
+  std::vector<double> z1(3 * im.local_n);
+  fill_normal(z1, im.offset, seed, step, rpy::pse::detail::kStreamReal);
+  return im.split_sample(z1, {seed, step}, local_w);
+}
+
+rpy::SqrtReport DistributedPseRpy::apply_sqrt(std::span<const double> local_z, std::span<double> local_w,
+                                              const rpy::SqrtOptions& options) const {
+  constexpr const char* where = "DistributedPseRpy::apply_sqrt";
+  const Impl& im = *impl_;
+  require(im.global_n > 0, ErrorCode::invalid_input, where, "positions not set (call set_positions first)");
+  im.comm.run([&] {
+    require(options.method == rpy::SqrtMethod::automatic || options.method == rpy::SqrtMethod::split,
+            ErrorCode::not_supported, where,
+            std::string("method '") + rpy::to_string(options.method) +
+                "' is not offered across ranks (automatic or split: the PSE split sampler)");
+    require(options.preconditioner != rpy::SqrtPreconditioner::block, ErrorCode::not_supported, where,
+            "the block preconditioner serves the Lanczos and Chebyshev samplers only, not the split sampler");
+    require_size(local_z, 3 * im.local_n, where, "local noise");
+    require_size(std::span<const double>(local_w.data(), local_w.size()), 3 * im.local_n, where, "local output");
+    require_finite(local_z, where, "local noise", 3);
+  });
+  // PseRpy::do_apply_sqrt: z is z1, z2 keyed by the hash of the whole z and step 0.
+  const std::vector<double> z1(local_z.begin(), local_z.end());
+  const rpy::SqrtReport report = im.split_sample(z1, {im.noise_hash(local_z), 0}, local_w);
+  im.comm.run([&] { rpy::detail::require_finite_result(local_w, where, "local output", "noise"); });
+  return report;
+}
+
+rpy::SqrtReport DistributedPseRpy::apply_with_noise(std::span<const double> local_forces, double noise_scale,
+                                                    std::uint64_t seed, std::uint64_t step,
+                                                    std::span<double> local_velocities) const {
+  constexpr const char* where = "DistributedPseRpy::apply_with_noise";
+  const Impl& im = *impl_;
+  im.check_arrays(local_forces, local_velocities, where);
+  im.comm.run([&] {
+    require(std::isfinite(noise_scale) && noise_scale >= 0.0, ErrorCode::invalid_argument, where,
+            "noise_scale must be finite and >= 0, got " + format_number(noise_scale));
+  });
+  // PseRpy::apply_with_noise: y = M_r^{1/2} z1 (z1 of (seed, step)), one wave-space pass for
+  // M_w F + noise_scale M_w^{1/2} z2, then M_r F, then noise_scale y.
+  rpy::SqrtReport report;
+  report.method = rpy::SqrtMethod::split;
+  std::vector<double> y;
+  if (noise_scale > 0.0) {
+    std::vector<double> z1(3 * im.local_n);
+    fill_normal(z1, im.offset, seed, step, rpy::pse::detail::kStreamReal);
+    y.resize(z1.size());
+    report = im.real_sqrt(z1, y.data());
+    report.method = rpy::SqrtMethod::split;
+  }
+  const rpy::pse::detail::NoiseKey key{seed, step};
+  im.wave->apply(local_forces.data(), local_velocities.data(), im.local_n, noise_scale > 0.0 ? &key : nullptr,
+                 noise_scale);
+  im.real->apply(im.comm, local_forces.data(), local_velocities.data());
+  for (std::size_t i = 0; i < y.size(); ++i) local_velocities[i] += noise_scale * y[i];
+  report.operator_applications += 1;
+  return report;
+}
+
+}  // namespace rpyfmm::mpi

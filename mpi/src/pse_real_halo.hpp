@@ -1,0 +1,39 @@
+// rpyfmm — the real-space part M_r of DistributedPseRpy ([PSE] eq. 10 with App. A; docs/mpi.md
+// "Distributed PSE"): the serial real-space sum on a rank's particles and its halo.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <span>
+#include <vector>
+
+#include "index_exchange.hpp"
+#include "pse/real_space_sum.hpp"
+#include "rpyfmm/mpi/communicator.hpp"
+#include "rpyfmm/rpy/geometry.hpp"
+
+namespace rpyfmm::mpi::detail {
+
+class RealSpaceHalo {
+ public:
+  /// The serial operator's real-space sum for these parameters (PseRpy's table and cache choices).
+  RealSpaceHalo(const rpy::pse::PseParameters& p, const std::array<double, 3>& box, double viscosity, bool use_table,
+                rpy::pse::detail::PairCache cache, std::size_t cache_limit_bytes);
+
+  /// Collective: this rank's positions (wrapped into the box, 3 n), the halo of the other ranks'
+  /// particles within r_cut of their box, and the pair lists on both.
+  void set_positions(const Communicator& comm, const rpy::Geometry& geometry, std::span<const double> x);
+  /// Collective: out += M_r F for this rank's particles (3 n each; the self term included), the
+  /// halo's forces from their ranks.
+  void apply(const Communicator& comm, const double* forces, double* out) const;
+
+  [[nodiscard]] std::size_t halo_size() const { return exchange_.received(); }
+
+ private:
+  rpy::pse::detail::RealSpaceSum sum_;
+  double r_cut_;
+  mutable IndexExchange exchange_;
+  std::size_t n_ = 0;  // this rank's particles; the halo's follow them in the sum's input order
+};
+
+}  // namespace rpyfmm::mpi::detail

@@ -1,0 +1,47 @@
+// rpyfmm — the wave-space part M_w of DistributedPseRpy ([PSE] eq. 19; docs/mpi.md "Distributed
+// PSE"): the grid split into slabs of x planes by FFTW-MPI, spreading and interpolation on the
+// slab owners.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "pse/wave_space.hpp"
+#include "rpyfmm/mpi/communicator.hpp"
+#include "rpyfmm/rpy/pse/pse_parameters.hpp"
+
+namespace rpyfmm::mpi::detail {
+
+class SlabWaveSpace {
+ public:
+  /// Collective: this rank's slab and the FFTW-MPI plans of the grid p.grid (double precision).
+  SlabWaveSpace(const Communicator& comm, const rpy::pse::PseParameters& p, const std::array<double, 3>& box,
+                double viscosity);
+  ~SlabWaveSpace();
+  SlabWaveSpace(const SlabWaveSpace&) = delete;
+  SlabWaveSpace& operator=(const SlabWaveSpace&) = delete;
+
+  /// Collective: this rank's positions (wrapped into the box) to the owners of the slabs their
+  /// windows touch, and the windows of the particles this rank's slab receives.
+  void set_positions(std::span<const double> x);
+  /// Collective: out = M_w F for this rank's n particles (3 n each), plus noise_scale M_w^{1/2} z2
+  /// with a noise key (the transforms shared, as PseRpy::apply_with_noise shares them).
+  void apply(const double* forces, double* out, std::size_t n, const rpy::pse::detail::NoiseKey* noise = nullptr,
+             double noise_scale = 0.0);
+  /// Collective: out += M_w^{1/2} z2 for this rank's n particles, z2 the wave-space noise of `key`
+  /// ([PSE] eq. 21; the serial double grids' field, mode by mode).
+  void add_noise(const rpy::pse::detail::NoiseKey& key, double* out, std::size_t n);
+
+  /// Particles (with multiplicity) this rank sent to other slabs and received from other ranks.
+  [[nodiscard]] std::size_t sent() const;
+  [[nodiscard]] std::size_t received() const;
+
+ private:
+  struct Slab;
+  std::unique_ptr<Slab> slab_;
+};
+
+}  // namespace rpyfmm::mpi::detail

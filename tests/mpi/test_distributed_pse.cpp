@@ -1,0 +1,304 @@
+// rpyfmm::mpi::DistributedPseRpy against the serial PseRpy on the concatenation of all ranks'
+// particles: the same parameters, and velocities equal to round-off (uniform, clustered in one
+// slab, on slab boundaries and box faces, other radii, empty ranks, each split four ways);
+// repeated products bit for bit; the split sampler (sample, apply_sqrt, apply_with_noise) against
+// PseRpy's to round-off; the accuracy against the serial operator's single-precision grids at its
+// tolerance; and collective failure (every rank throws the same message, none hangs) on bad input
+// of one rank.
+#include <gtest/gtest.h>
+#include <mpi.h>
+
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "mpi_test_support.hpp"
+#include "rpyfmm/mpi/pse_operator.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy.hpp"
+#include "rpyfmm/rpy/random.hpp"
+
+using rpyfmm::ErrorCode;
+using rpyfmm::mpi::DistributedPseRpy;
+using rpyfmm::rpy::Geometry;
+using rpyfmm::rpy::pse::PseOptions;
+using rpyfmm::rpy::pse::PseRpy;
+using rpyfmm::rpy::pse::WavePrecision;
+using namespace rpyfmm_mpi_test;
+
+namespace {
+
+// The bound of the comparison with double-precision grids on both sides. Both operators evaluate
+// the same terms by the same code (window weights, pair blocks, c(k) per mode) and differ
+// only in the order of additions: grid points summed over particles in another order, FFTW-MPI's
+// slab transforms instead of the serial plan, a particle's interpolation summed slab by slab, a
+// real-space row over its neighbours in another cell order. Each is a sum of O(10^2 - 10^4) terms
+// rounded at 2^-53 relative per addition: a relative 2-norm difference of order 1e-16 - 1e-15,
+// measured 6e-17 - 3e-16 on 1-4 ranks (docs/mpi.md); 1e-12 leaves three orders of margin and still
+// fails on any missing or doubled term (its size is that of one term, far above 1e-12 here).
+constexpr double kRoundOff = 1e-12;
+
+PseOptions double_grids(double tolerance) {
+  PseOptions o;
+  o.tolerance = tolerance;
+  o.wave_precision = WavePrecision::double_precision;
+  return o;
+}
+
+// Collective: sqrt(sum over ranks |a - b|^2 / sum over ranks |b|^2) of the ranks' shares.
+double global_relative_difference(const std::vector<double>& a, const std::vector<double>& b) {
+  double local[2] = {0.0, 0.0}, global[2] = {0.0, 0.0};
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    local[0] += (a[i] - b[i]) * (a[i] - b[i]);
+    local[1] += b[i] * b[i];
+  }
+  MPI_Allreduce(local, global, 2, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+  return std::sqrt(global[0] / global[1]);
+}
+
+struct Shares {
+  std::size_t offset = 0, n = 0;
+};
+
+Shares shares_of(std::size_t total, Split split) {
+  const Partition part = partition_of(total, split);
+  return {part.offset, part.n};
+}
+
+// M F of the serial operator on the whole set (every rank computes it: the sets are small).
+std::vector<double> serial_velocities(const Particles& p, const Geometry& box, const PseOptions& options,
+                                      rpyfmm::rpy::pse::PseParameters* parameters = nullptr) {
+  PseRpy serial(box, kViscosity, options);
+  serial.set_positions(p.x, p.a[0]);
+  std::vector<double> u(3 * p.size());
+  serial.apply(p.f, u);
+  if (parameters != nullptr) *parameters = serial.parameters();
+  return u;
+}
+
+// Distributes `p` by `split`, applies M on the shares and returns the relative 2-norm difference
+// from the serial operator's velocities of the whole set; checks the parameters, the sizes and that
+// a second product gives the same bits.
+double difference_from_serial(const Particles& p, const Geometry& box, const PseOptions& options, Split split,
+                              const std::vector<double>& u_serial, const rpyfmm::rpy::pse::PseParameters& serial_p) {
+  const Shares s = shares_of(p.size(), split);
+  DistributedPseRpy op(MPI_COMM_WORLD, box, kViscosity, options);
+  op.set_positions(share(p.x, 3, s.offset, s.n), share(p.a, 1, s.offset, s.n));
+  EXPECT_EQ(op.global_size(), p.size());
+  EXPECT_EQ(op.local_size(), s.n);
+  EXPECT_EQ(op.offset(), s.offset);
+  const auto& q = op.parameters();
+  EXPECT_EQ(q.xi, serial_p.xi);
+  EXPECT_EQ(q.r_cut, serial_p.r_cut);
+  EXPECT_EQ(q.grid, serial_p.grid);
+  EXPECT_EQ(q.support, serial_p.support);
+  EXPECT_EQ(q.sigma, serial_p.sigma);
+  const std::vector<double> f = share(p.f, 3, s.offset, s.n);
+  std::vector<double> u(3 * s.n, std::numeric_limits<double>::quiet_NaN()), again(u);
+  op.apply(f, u);
+  op.apply(f, again);
+  EXPECT_EQ(bitwise_mismatches(u, again), 0U) << "a repeated product differs";
+  // On several ranks the exchanges run: windows cross to other ranks' slabs (every split), and
+  // with the even split of 100 or more particles every rank has a halo from its neighbours.
+  const auto& c = op.exchange_counts();
+  const unsigned long local[2] = {c.wave_sent + c.wave_received, c.halo_received};
+  unsigned long global[2] = {0, 0};
+  MPI_Allreduce(local, global, 2, MPI_UNSIGNED_LONG, MPI_SUM, MPI_COMM_WORLD);
+  if (world_size() > 1 && p.size() >= 100) {
+    EXPECT_GT(global[0], 0UL);
+    if (split == Split::even) {
+      EXPECT_GT(global[1], 0UL);
+    }
+  }
+  return global_relative_difference(u, share(u_serial, 3, s.offset, s.n));
+}
+
+void expect_round_off(const Particles& p, const Geometry& box, const PseOptions& options) {
+  rpyfmm::rpy::pse::PseParameters serial_p;
+  const std::vector<double> u_serial = serial_velocities(p, box, options, &serial_p);
+  for (const Split split : kSplits) {
+    const double d = difference_from_serial(p, box, options, split, u_serial, serial_p);
+    EXPECT_LE(d, kRoundOff) << "split " << static_cast<int>(split);
+    if (world_rank() == 0)
+      std::printf("  [pse] N = %zu, split %d: relative difference %.2e\n", p.size(), static_cast<int>(split), d);
+  }
+}
+
+Particles uniform_set(std::size_t n, const std::array<double, 3>& box, double a, std::uint64_t seed) {
+  Particles p = uniform_particles(n, 1.0, a, a, seed);
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t d = 0; d < 3; ++d) p.x[3 * i + d] *= box[d];
+  return p;
+}
+
+}  // namespace
+
+TEST(MpiDistributedPse, UniformSuspensionEqualsSerialToRoundOff) {
+  const Geometry box = Geometry::periodic(16.0);
+  expect_round_off(uniform_set(300, box.box(), 1.0, 11), box, double_grids(1e-6));
+}
+
+TEST(MpiDistributedPse, ClusterInOneSlabAndOtherRadiusEqualToSerial) {
+  // Every particle within x in [1, 2.5] of a box 24 x 16 x 20: all in the lowest rank's slab (and
+  // windows wrapping through x = 0 into the last rank's), none elsewhere; radius 0.6.
+  const Geometry box = Geometry::periodic(24.0, 16.0, 20.0);
+  Particles p = uniform_set(200, {1.5, 16.0, 20.0}, 0.6, 12);
+  for (std::size_t i = 0; i < p.size(); ++i) p.x[3 * i] += 1.0;
+  expect_round_off(p, box, double_grids(1e-5));
+}
+
+TEST(MpiDistributedPse, SlabBoundariesAndBoxFacesEqualToSerial) {
+  // A particle on every x plane of the grid (so on every slab boundary for any number of ranks),
+  // and on the box faces: 0, L, -L, 2L, L - ulp, -0 and far outside (wrapped as PseRpy wraps).
+  const double L = 14.0;
+  const Geometry box = Geometry::periodic(L);
+  const PseOptions options = double_grids(1e-4);
+  Particles p = uniform_set(120, box.box(), 1.3, 13);
+  PseRpy probe(box, kViscosity, options);
+  probe.set_positions(p.x, 1.3);
+  const auto& q = probe.parameters();
+  for (int g = 0; g < q.grid[0]; ++g) {
+    p.x[3 * static_cast<std::size_t>(g)] = g * q.spacing[0];
+  }
+  const double faces[] = {0.0, L, -L, 2.0 * L, std::nextafter(L, 0.0), -0.0, -1e3 * L + 0.25};
+  std::size_t i = static_cast<std::size_t>(q.grid[0]);
+  for (const double v : faces) {
+    p.x[3 * i] = v;
+    p.x[3 * i + 1] = faces[(i + 1) % 7];
+    p.x[3 * i + 2] = faces[(i + 3) % 7];
+    ++i;
+  }
+  expect_round_off(p, box, options);
+}
+
+TEST(MpiDistributedPse, EmptyRanksAndMoreRanksThanParticles) {
+  const Geometry box = Geometry::periodic(10.0);
+  expect_round_off(uniform_set(2, box.box(), 1.0, 14), box, double_grids(1e-4));
+  expect_round_off(uniform_set(1, box.box(), 1.0, 15), box, double_grids(1e-4));
+}
+
+TEST(MpiDistributedPse, FewGridPlanesLeaveRanksWithoutSlab) {
+  // A grid of 6 x 8 x 10 points (override): FFTW-MPI gives slabs of 2 planes on 3 and 4 ranks
+  // (the fourth rank owns none), 3 on 2 ranks; windows of P_x points then span several slabs.
+  const Geometry box = Geometry::periodic(10.0, 12.0, 14.0);
+  PseOptions options = double_grids(1e-3);
+  options.grid = {6, 8, 10};
+  options.support = 4;
+  options.xi = 1.2;
+  expect_round_off(uniform_set(80, box.box(), 0.5, 18), box, options);
+}
+
+TEST(MpiDistributedPse, AccuracyAgainstSerialSinglePrecisionGrids) {
+  // At tolerance 1e-3 the serial operator takes float grids (WavePrecision::automatic), the
+  // distributed one double grids: they differ by the serial grids' float round-off, ~1e-7
+  // relative (tests/pse/test_pse_precision.cpp), which the serial design keeps 100 x below the
+  // tolerance (kSingleWaveTolerance = 1e-5): that is the bound tested.
+  const Geometry box = Geometry::periodic(16.0);
+  const Particles p = uniform_set(300, box.box(), 1.0, 16);
+  PseOptions options;
+  options.tolerance = 1e-3;
+  rpyfmm::rpy::pse::PseParameters serial_p;
+  const std::vector<double> u_single = serial_velocities(p, box, options, &serial_p);
+  ASSERT_TRUE(serial_p.wave_single);
+  const double d = difference_from_serial(p, box, options, Split::even, u_single, serial_p);
+  EXPECT_LE(d, rpyfmm::rpy::pse::kSingleWaveTolerance);
+  if (world_rank() == 0) std::printf("  [pse] against float grids at tolerance 1e-3: %.2e\n", d);
+}
+
+TEST(MpiDistributedPse, SplitSamplerEqualsSerialToRoundOff) {
+  // PseRpy::sample on the whole set against DistributedPseRpy::sample on the shares: the same noise
+  // (z1 by global index, z2 by mode), the same Lanczos iteration on M_r (its products and inner
+  // products equal to round-off, so the same number of iterations) and the same wave-space field;
+  // the bound is kRoundOff's, for the same reasons.
+  const Geometry box = Geometry::periodic(16.0);
+  const Particles p = uniform_set(300, box.box(), 1.0, 19);
+  const PseOptions options = double_grids(1e-6);
+  PseRpy serial(box, kViscosity, options);
+  serial.set_positions(p.x, 1.0);
+  std::vector<double> w_serial(3 * p.size()), z(3 * p.size()), wz_serial(3 * p.size());
+  const rpyfmm::rpy::SqrtReport serial_report = serial.sample(7, 3, w_serial);
+  rpyfmm::rpy::fill_normal(z, 5, 2);
+  serial.apply_sqrt(z, wz_serial);
+  std::vector<double> un_serial(3 * p.size());
+  serial.apply_with_noise(p.f, 0.8, 7, 3, un_serial);
+  for (const Split split : kSplits) {
+    const Shares s = shares_of(p.size(), split);
+    DistributedPseRpy op(MPI_COMM_WORLD, box, kViscosity, options);
+    op.set_positions(share(p.x, 3, s.offset, s.n), 1.0);
+    std::vector<double> w(3 * s.n, std::numeric_limits<double>::quiet_NaN()), again(w);
+    const rpyfmm::rpy::SqrtReport report = op.sample(7, 3, w);
+    op.sample(7, 3, again);
+    EXPECT_EQ(bitwise_mismatches(w, again), 0U) << "a repeated sample differs";
+    EXPECT_EQ(report.iterations, serial_report.iterations);
+    EXPECT_EQ(report.method, rpyfmm::rpy::SqrtMethod::split);
+    const double d = global_relative_difference(w, share(w_serial, 3, s.offset, s.n));
+    EXPECT_LE(d, kRoundOff) << "split " << static_cast<int>(split);
+    // apply_sqrt(z): z as z1, z2 keyed by the hash of the whole z (chained over the ranks).
+    std::vector<double> wz(3 * s.n);
+    op.apply_sqrt(share(z, 3, s.offset, s.n), wz);
+    const double dz = global_relative_difference(wz, share(wz_serial, 3, s.offset, s.n));
+    EXPECT_LE(dz, kRoundOff) << "apply_sqrt, split " << static_cast<int>(split);
+    // apply_with_noise: M F + 0.8 M^{1/2} z with the noise of sample(7, 3).
+    std::vector<double> un(3 * s.n);
+    op.apply_with_noise(share(p.f, 3, s.offset, s.n), 0.8, 7, 3, un);
+    const double dn = global_relative_difference(un, share(un_serial, 3, s.offset, s.n));
+    EXPECT_LE(dn, kRoundOff) << "apply_with_noise, split " << static_cast<int>(split);
+    if (world_rank() == 0) {
+      std::printf("  [pse] split %d: %d Lanczos iterations; sample %.2e, apply_sqrt %.2e, apply_with_noise %.2e\n",
+                  static_cast<int>(split), report.iterations, d, dz, dn);
+    }
+  }
+}
+
+TEST(MpiDistributedPse, BadInputOnOneRankFailsEveryRank) {
+  const Geometry box = Geometry::periodic(12.0);
+  const Particles p = uniform_set(60, box.box(), 1.0, 17);
+  const Shares s = shares_of(p.size(), Split::even);
+  const int last = world_size() - 1;
+  DistributedPseRpy op(MPI_COMM_WORLD, box, kViscosity, double_grids(1e-4));
+  std::vector<double> x = share(p.x, 3, s.offset, s.n), f = share(p.f, 3, s.offset, s.n), u(3 * s.n);
+  expect_collective_error([&] { op.apply(f, u); }, ErrorCode::invalid_input, "positions not set");
+  expect_collective_error([&] { op.sample(1, 0, u); }, ErrorCode::invalid_input, "positions not set");
+
+  std::vector<double> bad_x = x;
+  if (world_rank() == last && !bad_x.empty()) bad_x[1] = std::numeric_limits<double>::quiet_NaN();
+  expect_collective_error([&] { op.set_positions(bad_x, 1.0); }, ErrorCode::invalid_input,
+                          "rank " + std::to_string(last) + " of " + std::to_string(world_size()));
+  expect_collective_error([&] { op.set_positions(x, world_rank() == last ? 0.0 : 1.0); }, ErrorCode::invalid_argument,
+                          "radius");
+  std::vector<double> radii(s.n, 1.0);
+  if (world_rank() == last) radii.back() = 1.5;  // the last rank holds particles (even split of 60)
+  expect_collective_error([&] { op.set_positions(x, radii); }, ErrorCode::not_supported, "equal radii only");
+  std::vector<double> short_x(x.begin(), x.end() - (world_rank() == 0 && !x.empty() ? 1 : 0));
+  expect_collective_error([&] { op.set_positions(short_x, 1.0); }, ErrorCode::invalid_input, "multiple of 3");
+  expect_collective_error([&] { op.set_positions(std::vector<double>{}, 1.0); }, ErrorCode::invalid_input,
+                          "no particles");
+
+  op.set_positions(x, 1.0);
+  std::vector<double> short_f(f.begin(), f.end() - (world_rank() == 0 && !f.empty() ? 1 : 0));
+  expect_collective_error([&] { op.apply(short_f, u); }, ErrorCode::invalid_input, "local forces");
+  std::vector<double> nan_f = f;
+  if (world_rank() == last && !nan_f.empty()) nan_f[0] = std::numeric_limits<double>::quiet_NaN();
+  expect_collective_error([&] { op.apply(nan_f, u); }, ErrorCode::invalid_input, "NaN");
+  std::vector<double> long_w(u.size() + (world_rank() == last ? 3 : 0));
+  expect_collective_error([&] { op.sample(1, 0, long_w); }, ErrorCode::invalid_input, "local output");
+  expect_collective_error([&] { op.apply_sqrt(nan_f, u); }, ErrorCode::invalid_input, "NaN");
+  expect_collective_error([&] { op.apply_with_noise(f, world_rank() == last ? -1.0 : 1.0, 1, 0, u); },
+                          ErrorCode::invalid_argument, "noise_scale");
+  rpyfmm::rpy::SqrtOptions lanczos;
+  lanczos.method = world_rank() == last ? rpyfmm::rpy::SqrtMethod::lanczos : rpyfmm::rpy::SqrtMethod::split;
+  expect_collective_error([&] { op.apply_sqrt(f, u, lanczos); }, ErrorCode::not_supported, "not offered across ranks");
+  // Usable afterwards, and equal to the serial operator.
+  op.apply(f, u);
+  EXPECT_LE(global_relative_difference(u, share(serial_velocities(p, box, double_grids(1e-4)), 3, s.offset, s.n)),
+            kRoundOff);
+
+  expect_collective_error([&] { DistributedPseRpy o(MPI_COMM_WORLD, Geometry::open(), kViscosity); },
+                          ErrorCode::not_supported, "periodic");
+  PseOptions other = double_grids(1e-4);
+  if (world_rank() == last) other.tolerance = 1e-5;
+  if (world_size() > 1) {
+    expect_collective_error([&] { DistributedPseRpy o(MPI_COMM_WORLD, box, kViscosity, other); },
+                            ErrorCode::invalid_argument, "different");
+  }
+}
