@@ -253,25 +253,24 @@ void print_sample_json(const SampleArgs& args, const rpy::MobilityOperator& op, 
   if (args.noise.empty()) {
     line.add("seed", args.seed).add("step", args.step);
   }
-  if (report.method == rpy::SqrtMethod::chebyshev) {
-    line.add("lambda_min", report.lambda_min).add("lambda_max", report.lambda_max);
-  }
+  add_chebyshev_bounds(line, report);
   if (radius_given) line.add("radius", args.radius);
   if (args.tolerance != 0.0) line.add("tolerance", args.tolerance);
   std::cout << line.str() << '\n';
 }
 
-/// Under MPI: whether this sample runs across the ranks (--operator direct or fmm with Lanczos,
-/// without preconditioner or rotation); otherwise it runs on one rank only and more ranks are
-/// refused.
+/// Under MPI: whether this sample runs across the ranks (--operator direct or fmm with Lanczos or
+/// Chebyshev, with or without the block preconditioner, without rotation); otherwise it runs on one
+/// rank only and more ranks are refused.
 bool across_ranks(const SampleArgs& args, const rpy::SqrtOptions& options) {
+  const rpy::SqrtMethod method = options.method;
   const bool supported = (args.op == "direct" || args.op == "fmm") && !args.angular &&
-                         (options.method == rpy::SqrtMethod::lanczos || options.method == rpy::SqrtMethod::automatic) &&
-                         options.preconditioner != rpy::SqrtPreconditioner::block;
+                         (method == rpy::SqrtMethod::lanczos || method == rpy::SqrtMethod::chebyshev ||
+                          method == rpy::SqrtMethod::automatic);
   require(supported || mpi_size() == 1, ErrorCode::not_supported, "sample",
           "across " + std::to_string(mpi_size()) +
-              " MPI ranks runs --operator direct or fmm with --method auto or lanczos only, without --preconditioner "
-              "block and --angular (docs/mpi.md); run the others without mpirun");
+              " MPI ranks runs --operator direct or fmm with --method auto, lanczos or chebyshev only, without "
+              "--angular (docs/mpi.md); run the others without mpirun");
   return supported;
 }
 

@@ -1,6 +1,7 @@
 // rpyfmm CLI — the commands that run across MPI ranks (mpi_session.hpp, docs/mpi.md):
 //   mpirun -np P rpyfmm mobility --method direct|fmm ...
-//   mpirun -np P rpyfmm sample --operator direct|fmm [--method lanczos] ...
+//   mpirun -np P rpyfmm sample --operator direct|fmm [--method lanczos|chebyshev]
+//                              [--preconditioner none|block] ...
 // Rank 0 reads the same files as the serial command and scatters the particles in P contiguous
 // shares; rpyfmm::mpi::DistributedDirectRpy applies M (bit for bit the serial DirectRpy), or
 // rpyfmm::mpi::DistributedFmmRpy (within --tolerance of it), and rpyfmm::mpi::sqrt_apply samples
@@ -266,6 +267,7 @@ void sample_and_write(Prepared<Operator>& p, const RanksSampleArgs& args, const 
       .add("equal_radii", p.op->equal_radii())
       .add("out", args.out);
   if (args.noise.empty()) line.add("seed", args.seed).add("step", args.step);
+  add_chebyshev_bounds(line, report);
   if (args.radius_given) line.add("radius", args.radius);
   if (args.op == "fmm") line.add("tolerance", args.tolerance);
   add_ranks(line, p.stages, p.communication, comm);  // collective
