@@ -1,8 +1,7 @@
-// rpyfmm — the distributed Lanczos square root and the noise of a rank's share (sqrt.hpp).
+// rpyfmm — the distributed Lanczos and Chebyshev square roots, with or without the block
+// preconditioner of each rank's particles, and the noise of a rank's share (sqrt.hpp).
 #include "rpyfmm/mpi/sqrt.hpp"
 
-#include <algorithm>
-#include <array>
 #include <cmath>
 #include <optional>
 #include <string>
