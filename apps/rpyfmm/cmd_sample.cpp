@@ -253,29 +253,30 @@ void print_sample_json(const SampleArgs& args, const rpy::MobilityOperator& op, 
   if (args.noise.empty()) {
     line.add("seed", args.seed).add("step", args.step);
   }
-  if (report.method == rpy::SqrtMethod::chebyshev) {
-    line.add("lambda_min", report.lambda_min).add("lambda_max", report.lambda_max);
-  }
+  add_chebyshev_bounds(line, report);
   if (radius_given) line.add("radius", args.radius);
   if (args.tolerance != 0.0) line.add("tolerance", args.tolerance);
   std::cout << line.str() << '\n';
 }
 
-/// Under MPI: whether this sample runs across the ranks (--operator direct or fmm with Lanczos, or
-/// --operator pse with --box and the split sampler on double wave grids on the CPU; without
-/// preconditioner or rotation); otherwise it runs on one rank only and more ranks are refused.
+/// Under MPI: whether this sample runs across the ranks (--operator direct or fmm with Lanczos or
+/// Chebyshev, with or without the block preconditioner, or --operator pse with --box and the split
+/// sampler on double wave grids on the CPU; without rotation); otherwise it runs on one rank only
+/// and more ranks are refused.
 bool across_ranks(const SampleArgs& args, const rpy::SqrtOptions& options) {
-  const auto method = options.method;
+  const rpy::SqrtMethod method = options.method;
   const bool free_space = (args.op == "direct" || args.op == "fmm") &&
-                          (method == rpy::SqrtMethod::lanczos || method == rpy::SqrtMethod::automatic);
+                          (method == rpy::SqrtMethod::lanczos || method == rpy::SqrtMethod::chebyshev ||
+                           method == rpy::SqrtMethod::automatic);
   const bool pse = args.op == "pse" && !args.box.empty() && args.wave_precision != "single" && args.device == "cpu" &&
-                   (method == rpy::SqrtMethod::split || method == rpy::SqrtMethod::automatic);
-  const bool supported =
-      (free_space || pse) && !args.angular && options.preconditioner != rpy::SqrtPreconditioner::block;
+                   (method == rpy::SqrtMethod::split || method == rpy::SqrtMethod::automatic) &&
+                   options.preconditioner != rpy::SqrtPreconditioner::block;
+  const bool supported = (free_space || pse) && !args.angular;
   require(supported || mpi_size() == 1, ErrorCode::not_supported, "sample",
           "across " + std::to_string(mpi_size()) +
-              " MPI ranks runs --operator direct or fmm with --method auto or lanczos, or --operator pse with --box "
-              "and --method auto or split (double-precision wave grids, CPU), without --preconditioner block and "
+              " MPI ranks runs --operator direct or fmm with --method auto, lanczos or chebyshev, or --operator pse "
+              "with --box and --method auto or split (double-precision wave grids, CPU, no --preconditioner block), "
+              "without "
               "--angular (docs/mpi.md); run the others without mpirun");
   return supported;
 }

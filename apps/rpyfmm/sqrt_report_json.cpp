@@ -12,4 +12,10 @@ void add_sqrt_report(JsonLine& line, const rpy::SqrtReport& report) {
       .add("preconditioner_blocks", report.preconditioner_blocks);
 }
 
+void add_chebyshev_bounds(JsonLine& line, const rpy::SqrtReport& report) {
+  if (report.method == rpy::SqrtMethod::chebyshev) {
+    line.add("lambda_min", report.lambda_min).add("lambda_max", report.lambda_max);
+  }
+}
+
 }  // namespace rpyfmm::cli

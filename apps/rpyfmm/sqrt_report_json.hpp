@@ -11,4 +11,8 @@ namespace rpyfmm::cli {
 /// preconditioner_blocks of `report` to `line`.
 void add_sqrt_report(JsonLine& line, const rpy::SqrtReport& report);
 
+/// Adds lambda_min and lambda_max of `report` to `line` where the sampler was Chebyshev (the
+/// eigenvalue bounds it used).
+void add_chebyshev_bounds(JsonLine& line, const rpy::SqrtReport& report);
+
 }  // namespace rpyfmm::cli

@@ -122,6 +122,8 @@ void DistributedDirectRpy::set_positions(std::span<const double> local_positions
     rpy::detail::store_direct_particles(local_positions, local_radii, units, {x_, y_, z_, a_, inv_a_});
     scale_exponent_ = units.exponent;
   });
+  positions_.assign(local_positions.begin(), local_positions.end());
+  radii_.assign(local_radii.begin(), local_radii.end());
   global_n_ = total;
 }
 

@@ -98,6 +98,8 @@ void DistributedFmmRpy::set_positions(std::span<const double> local_positions, s
     rpy::detail::to_fmm_frame(units, set.box, local_positions, local_radii, x_, a_);
     if (scale_exponent_ == 0) a_.assign(local_radii.begin(), local_radii.end());
   });
+  positions_.assign(local_positions.begin(), local_positions.end());
+  radii_.assign(local_radii.begin(), local_radii.end());
   const double a_max = std::ldexp(set.radii.a_max, -scale_exponent_);
   // Leaves of each owner's serial FMM at least 2 a_max wide, as in FmmRpy, and no cell within 2 a_max
   // of a rank's region compressed for it (DistributedFmmOptions): every overlapping pair is summed

@@ -10,6 +10,8 @@
 #  - `mpiexec -n NP rpyfmm sample --operator direct`: the distributed Lanczos sampler is the serial
 #    one bit for bit too (its inner products are the serial ones), on the noise drawn by seed and
 #    on noise read from a file: identical files;
+#  - `mpiexec -n NP rpyfmm sample --method chebyshev`: the serial Chebyshev sampler bit for bit,
+#    identical files; `--preconditioner block` runs with the blocks of each rank's particles;
 #  - `mpiexec -n NP rpyfmm laplace --tolerance E`: DistributedLaplaceFmm meets the serial FMM's
 #    contract (relative l2 error of each output at most E), not its bits, so the output must lie
 #    within E of the serial direct sum and within 2E of the serial FMM (both within E of the exact
@@ -156,6 +158,23 @@ endif()
 agree(mobility_fmm "${WORK}/mobility_fmm_mpi.npy" "${WORK}/mobility_fmm_direct.npy" 1e-6)
 agree(mobility_fmm "${WORK}/mobility_fmm_mpi.npy" "${WORK}/mobility_fmm_serial.npy" 2e-6)
 
+# sample with Chebyshev: the distributed Chebyshev sampler is the serial one bit for bit (the bound
+# estimate's inner products are the serial ones, the recurrence elementwise): identical files.
+run_identical(samplechebyshev sample --positions "${WORK}/x.txt" --radii "${WORK}/a.txt" --operator direct
+              --method chebyshev --sqrt-tolerance 1e-6 --viscosity 0.7 --seed 5 --step 3)
+if(NOT json MATCHES "\"method\":\"chebyshev\"" OR NOT json MATCHES "\"lambda_min\":")
+  message(FATAL_ERROR "samplechebyshev: --json lacks the method or the eigenvalue bounds: ${json}")
+endif()
+# sample with the block preconditioner: each rank factors the blocks of its own particles, so the
+# file is another valid sample than the serial command's (docs/mpi.md; test_mpi checks its bits
+# against the serial sampler with the same blocks, and its covariance). Here it runs across the
+# ranks and reports the blocks of all of them.
+run_across(sampleblock sample --positions "${WORK}/x.txt" --radii "${WORK}/a.txt" --operator direct --method lanczos
+           --preconditioner block --sqrt-tolerance 1e-6 --viscosity 0.7 --seed 5 --step 3)
+if(NOT json MATCHES "\"preconditioner_blocks\":[1-9]" OR NOT EXISTS "${WORK}/sampleblock_mpi.npy")
+  message(FATAL_ERROR "sampleblock: no output or no preconditioner blocks in --json: ${json}")
+endif()
+
 # sample with the FMM operator at 1e-9 and Lanczos at 1e-6, against the serial direct sampler's
 # file: the operators differ by at most 1e-9 relative, far below the iteration's tolerance, and each
 # iteration stops within its tolerance of its own operator's root, so the two lie within 1e-5.
@@ -231,7 +250,7 @@ if(NP GREATER 1)
   # laplace, mobility and sample with what does not run across ranks refuse too.
   foreach(case "laplace;--sources;${WORK}/x.txt;--charges;${WORK}/a.txt;--direct"
                "mobility;--positions;${WORK}/x.txt;--radius;1;--forces;${WORK}/f.txt;--method;pse;--box;40;--wave-precision;single"
-               "sample;--positions;${WORK}/x.txt;--radius;1;--operator;direct;--method;chebyshev")
+               "sample;--positions;${WORK}/x.txt;--radius;1;--operator;direct;--method;eigen")
     execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" ${case} --out "${WORK}/never.npy"
                     RESULT_VARIABLE rc ERROR_VARIABLE err)
     if(rc EQUAL 0 OR NOT err MATCHES "across ${NP} MPI ranks runs" OR EXISTS "${WORK}/never.npy")

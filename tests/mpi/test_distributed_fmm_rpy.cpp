@@ -4,7 +4,7 @@
 // within twice it of each other). Uniform, strongly clustered and polydisperse sets, overlapping
 // and touching pairs whose partners lie on different ranks, coincident points, more ranks than
 // particles, extreme length scales and loads; repeated products and thread counts bit for bit; the
-// sampler on the operator; and collective failure on bad input of one rank.
+// samplers on the operator; and collective failure on bad input of one rank.
 #include <gtest/gtest.h>
 #include <mpi.h>
 #include <omp.h>
@@ -30,6 +30,9 @@ using rpyfmm::mpi::DistributedFmmRpyOptions;
 using rpyfmm::rpy::DirectRpy;
 using rpyfmm::rpy::FmmRpy;
 using rpyfmm::rpy::Geometry;
+using rpyfmm::rpy::SqrtMethod;
+using rpyfmm::rpy::SqrtPreconditioner;
+using rpyfmm::rpy::to_string;
 using namespace rpyfmm_mpi_test;
 
 namespace {
@@ -230,11 +233,13 @@ TEST(MpiDistributedFmmRpy, ResultsIndependentOfThreadCountAndDistribution) {
   EXPECT_EQ(bitwise_mismatches(sum_even, sum_last), 0u);
 }
 
-TEST(MpiDistributedFmmRpy, LanczosSamplerOnTheOperator) {
-  // w = M^{1/2} z by Lanczos at 1e-6 on the FMM operator at 1e-9 against the same sampler on the
-  // exact DistributedDirectRpy: the operators differ by <= 1e-9 relative, which moves the root by
-  // about that over the smallest eigenvalue's square root, far below the iteration's 1e-6; each
-  // iteration stops within its tolerance of its own root, so the two lie within 1e-5 of each other.
+TEST(MpiDistributedFmmRpy, SamplersOnTheOperator) {
+  // w by Lanczos and Chebyshev at 1e-6, each without and with the block preconditioner of each
+  // rank's particles, on the FMM operator at 1e-9 against the same sampler on the exact
+  // DistributedDirectRpy (the same blocks: the same particles). The operators differ by <= 1e-9
+  // relative, which moves the root (and the estimated Chebyshev bounds) by about that over the
+  // smallest eigenvalue's square root, far below the samplers' 1e-6; each sampler stops within its
+  // tolerance of its own root, so the two lie within 1e-5 of each other.
   const Particles p = clustered_particles(150, 30, 73);
   const Partition part = partition_of(p.size(), Split::even);
   const std::vector<double> x = share(p.x, 3, part.offset, part.n), a = share(p.a, 1, part.offset, part.n);
@@ -244,13 +249,23 @@ TEST(MpiDistributedFmmRpy, LanczosSamplerOnTheOperator) {
   direct.set_positions(x, a);
   std::vector<double> z(3 * part.n), w_fmm(z.size()), w_direct(z.size());
   rpyfmm::mpi::fill_normal(z, part.offset, 5, 0);
-  rpyfmm::rpy::SqrtOptions options;
-  options.tolerance = 1e-6;
-  rpyfmm::mpi::sqrt_apply(fmm, z, w_fmm, options);
-  rpyfmm::mpi::sqrt_apply(direct, z, w_direct, options);
-  const double difference = global_relative_error(w_fmm, w_direct);
-  EXPECT_LE(difference, 1e-5);
-  if (world_rank() == 0) std::printf("[fmm-rpy] Lanczos on FMM vs direct: %.2e\n", difference);
+  for (SqrtMethod method : {SqrtMethod::lanczos, SqrtMethod::chebyshev}) {
+    for (SqrtPreconditioner preconditioner : {SqrtPreconditioner::none, SqrtPreconditioner::block}) {
+      rpyfmm::rpy::SqrtOptions options;
+      options.method = method;
+      options.preconditioner = preconditioner;
+      options.tolerance = 1e-6;
+      const rpyfmm::rpy::SqrtReport on_fmm = rpyfmm::mpi::sqrt_apply(fmm, z, w_fmm, options);
+      const rpyfmm::rpy::SqrtReport on_direct = rpyfmm::mpi::sqrt_apply(direct, z, w_direct, options);
+      EXPECT_EQ(on_fmm.preconditioner_blocks, on_direct.preconditioner_blocks);
+      const double difference = global_relative_error(w_fmm, w_direct);
+      EXPECT_LE(difference, 1e-5) << to_string(method) << ", " << to_string(preconditioner);
+      if (world_rank() == 0) {
+        std::printf("[fmm-rpy] %s (%s) on FMM vs direct: %.2e\n", to_string(method), to_string(preconditioner),
+                    difference);
+      }
+    }
+  }
 }
 
 // ----------------------------------------------------------------------- collective errors ---

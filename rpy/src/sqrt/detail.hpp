@@ -45,6 +45,10 @@ void require_finite_product(const double* y, std::size_t n, std::size_t nrhs, co
 void apply_checked(const LinearOperatorView& op, const double* x, double* y, std::size_t nrhs, SqrtReport& report,
                    const char* where);
 
+/// Throws invalid_argument naming `where` unless options.lambda_min / lambda_max are both 0 (then
+/// bound_estimate_iterations >= 2) or finite with 0 < lambda_min < lambda_max.
+void require_chebyshev_bounds(const SqrtOptions& options, const char* where);
+
 /// Solvers; inputs are already validated by sqrt_apply().
 /// lanczos_sqrt: `first_product` = op z (nrhs = 1) or empty, as in sqrt_apply.
 SqrtReport lanczos_sqrt(const LinearOperatorView& op, std::span<const double> z, std::span<double> w, std::size_t nrhs,

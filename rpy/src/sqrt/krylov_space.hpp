@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <functional>
 #include <memory>
+#include <span>
 #include <vector>
 
 #include "rpyfmm/rpy/sqrt.hpp"
@@ -80,5 +81,36 @@ using KrylovProduct = std::function<void(const double* x, double* y)>;
 /// M (z / |z|) is then scaled from it instead of calling `product`.
 SqrtReport lanczos_sqrt_in_space(KrylovSpace& space, const KrylovProduct& product, const double* z, double* w,
                                  const SqrtOptions& options, const double* first_product = nullptr);
+
+/// The fixed start vector of the spectrum-bound estimate, entries [first_entry, first_entry +
+/// start.size()) of it: entry e is normal3(0x5eedb0cd, 0, 2^31 - 1, e / 3)[e % 3] (rpy/random.hpp),
+/// so a rank's share of it is the serial vector's, whatever the partition.
+void fill_bound_start(std::span<double> start, std::size_t first_entry);
+
+/// estimate_spectrum_bounds (rpy/sqrt.hpp) on a Krylov space: `iterations` (>= 2) steps of
+/// reorthogonalized Lanczos from `start` (in the space's memory), the Ritz values padded.
+SpectrumBounds estimate_spectrum_bounds_in_space(KrylovSpace& space, const KrylovProduct& product, const double* start,
+                                                 int iterations);
+
+/// The products of the Chebyshev square root: `one` multiplies one vector of `space` (the bound
+/// estimate's Lanczos steps), `all` the recurrence's vectors of `len` entries (one right-hand
+/// side, several one after another, or a rank's share), counting the call in the report and
+/// checking the result. `first_entry` / `entries`: the global index of the space's first entry in
+/// this memory and their number (the bound estimate's start vector).
+struct ChebyshevProducts {
+  KrylovSpace& space;
+  KrylovProduct one;
+  std::size_t first_entry = 0;
+  std::size_t entries = 0;
+  std::function<void(const double* x, double* y, SqrtReport& report)> all;
+  std::size_t len = 0;
+};
+
+/// w = p_d(M) z by the Chebyshev square root (Fixman 1986; chebyshev_sqrt's bounds, degree,
+/// recurrence and errors): the bounds of `options`, or estimated by estimate_spectrum_bounds_in_space
+/// when both are 0; then the three-term recurrence, elementwise but for the products, so that a
+/// rank's share of the vectors recurs as the serial vectors do.
+SqrtReport chebyshev_sqrt_in_space(const ChebyshevProducts& products, const double* z, double* w,
+                                   const SqrtOptions& options);
 
 }  // namespace rpyfmm::rpy::sqrt_detail

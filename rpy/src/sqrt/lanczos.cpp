@@ -45,8 +45,8 @@ Eigen::VectorXd sqrt_coefficients(const LanczosProcess& p, double znorm, std::si
   const Eigen::VectorXd& theta = es.eigenvalues();
   if (!(theta[0] > 0.0)) {
     std::ostringstream msg;
-    msg << "the operator is not positive definite: Ritz value " << theta[0] << " <= 0 at Lanczos iteration "
-        << m - 1 << " (alpha_" << m - 1 << " = " << p.alpha().back();
+    msg << "the operator is not positive definite: Ritz value " << theta[0] << " <= 0 at Lanczos iteration " << m - 1
+        << " (alpha_" << m - 1 << " = " << p.alpha().back();
     if (m > 1) msg << ", beta_" << m - 2 << " = " << p.beta()[static_cast<std::size_t>(m - 2)];
     msg << ", right-hand side " << rhs << ")";
     fail(ErrorCode::numerical_failure, kWhere, msg.str());
@@ -181,42 +181,36 @@ SqrtReport lanczos_sqrt(const LinearOperatorView& op, std::span<const double> z,
   return report;
 }
 
-}  // namespace rpyfmm::rpy::sqrt_detail
-
-namespace rpyfmm::rpy {
-
-SpectrumBounds estimate_spectrum_bounds(const LinearOperatorView& op, int iterations) {
-  constexpr const char* where = "estimate_spectrum_bounds";
-  require(op.n > 0 && static_cast<bool>(op.apply), ErrorCode::invalid_argument, where,
-          "the operator is empty (n = 0 or no apply function)");
-  require(iterations >= 2, ErrorCode::invalid_argument, where,
-          "iterations must be >= 2, got " + std::to_string(iterations));
-  const std::size_t n = op.n;
+void fill_bound_start(std::span<double> start, std::size_t first_entry) {
   // Fixed pseudo-random start vector: reproducible, and almost surely not
   // deficient in any eigenvector (unlike e.g. the noise vector itself).
-  std::vector<double> start(n);
-  for (std::size_t i = 0; i < n; i += 3) {
+  for (std::size_t i = 0; i < start.size(); ++i) {
+    const std::size_t e = first_entry + i;
     double g[3];
-    normal3(0x5eedb0cdULL, 0, 0x7fffffffu, i / 3, g);
-    for (std::size_t c = 0; c < 3 && i + c < n; ++c) start[i + c] = g[c];
+    normal3(0x5eedb0cdULL, 0, 0x7fffffffu, e / 3, g);
+    start[i] = g[e % 3];
   }
-  sqrt_detail::LanczosProcess p(n, true);
-  p.start(start.data());
-  SqrtReport dummy;
-  std::vector<double> y(n);
+}
+
+SpectrumBounds estimate_spectrum_bounds_in_space(KrylovSpace& space, const KrylovProduct& product, const double* start,
+                                                 int iterations) {
+  constexpr const char* where = "estimate_spectrum_bounds";
+  LanczosProcess p(space, true);
+  p.start(start);
+  double* y = space.work();
   bool breakdown = false;
-  const int steps = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(iterations), n));
+  const int steps = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(iterations), space.n()));
   for (int it = 0; it < steps && !breakdown; ++it) {
-    sqrt_detail::apply_checked(op, p.current(), y.data(), 1, dummy, where);
-    breakdown = p.step(y.data(), where, 0);
+    product(p.current(), y);
+    space.require_finite(y, where, it + 1);
+    breakdown = p.step(y, where, 0);
   }
   const int m = p.size();
-  const auto es = sqrt_detail::tridiagonal_eigen(p.alpha(), p.beta(), m);
+  const auto es = tridiagonal_eigen(p.alpha(), p.beta(), m);
   const Eigen::VectorXd& theta = es.eigenvalues();
   if (!(theta[0] > 0.0)) {
     std::ostringstream msg;
-    msg << "the operator is not positive definite: Ritz value " << theta[0] << " <= 0 after " << m
-        << " Lanczos steps";
+    msg << "the operator is not positive definite: Ritz value " << theta[0] << " <= 0 after " << m << " Lanczos steps";
     fail(ErrorCode::numerical_failure, where, msg.str());
   }
   SpectrumBounds b;
@@ -228,6 +222,25 @@ SpectrumBounds estimate_spectrum_bounds(const LinearOperatorView& op, int iterat
   b.lambda_max = 1.01 * (b.ritz_max + resid);
   b.lambda_min = 0.5 * b.ritz_min;
   return b;
+}
+
+}  // namespace rpyfmm::rpy::sqrt_detail
+
+namespace rpyfmm::rpy {
+
+SpectrumBounds estimate_spectrum_bounds(const LinearOperatorView& op, int iterations) {
+  constexpr const char* where = "estimate_spectrum_bounds";
+  require(op.n > 0 && static_cast<bool>(op.apply), ErrorCode::invalid_argument, where,
+          "the operator is empty (n = 0 or no apply function)");
+  require(iterations >= 2, ErrorCode::invalid_argument, where,
+          "iterations must be >= 2, got " + std::to_string(iterations));
+  std::vector<double> start(op.n);
+  sqrt_detail::fill_bound_start(start, 0);
+  sqrt_detail::HostKrylovSpace space(op.n);
+  return sqrt_detail::estimate_spectrum_bounds_in_space(
+      space,
+      [&op](const double* x, double* y) { op.apply(std::span<const double>(x, op.n), std::span<double>(y, op.n), 1); },
+      start.data(), iterations);
 }
 
 }  // namespace rpyfmm::rpy

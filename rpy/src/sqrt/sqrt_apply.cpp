@@ -8,16 +8,39 @@
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/sqrt.hpp"
 
+namespace rpyfmm::rpy::sqrt_detail {
+
+void require_chebyshev_bounds(const SqrtOptions& options, const char* where) {
+  const double a = options.lambda_min, b = options.lambda_max;
+  if (a == 0.0 && b == 0.0) {
+    require(options.bound_estimate_iterations >= 2, ErrorCode::invalid_argument, where,
+            "bound_estimate_iterations must be >= 2, got " + std::to_string(options.bound_estimate_iterations));
+  } else if (!(std::isfinite(a) && std::isfinite(b) && a > 0.0 && b > a)) {
+    std::ostringstream msg;
+    msg << "Chebyshev eigenvalue bounds must satisfy 0 < lambda_min < lambda_max (or both 0 = estimate), got [" << a
+        << ", " << b << "]";
+    fail(ErrorCode::invalid_argument, where, msg.str());
+  }
+}
+
+}  // namespace rpyfmm::rpy::sqrt_detail
+
 namespace rpyfmm::rpy {
 
 const char* to_string(SqrtMethod method) {
   switch (method) {
-    case SqrtMethod::automatic: return "automatic";
-    case SqrtMethod::lanczos: return "lanczos";
-    case SqrtMethod::chebyshev: return "chebyshev";
-    case SqrtMethod::cholesky: return "cholesky";
-    case SqrtMethod::eigen: return "eigen";
-    case SqrtMethod::split: return "split";
+    case SqrtMethod::automatic:
+      return "automatic";
+    case SqrtMethod::lanczos:
+      return "lanczos";
+    case SqrtMethod::chebyshev:
+      return "chebyshev";
+    case SqrtMethod::cholesky:
+      return "cholesky";
+    case SqrtMethod::eigen:
+      return "eigen";
+    case SqrtMethod::split:
+      return "split";
   }
   return "unknown";
 }
@@ -79,22 +102,14 @@ SqrtReport sqrt_apply(const LinearOperatorView& op, std::span<const double> z, s
 
   switch (options.method) {
     case SqrtMethod::automatic:
-    case SqrtMethod::lanczos: return sqrt_detail::lanczos_sqrt(op, z, w, nrhs, options, first_product);
-    case SqrtMethod::chebyshev: {
-      const double a = options.lambda_min, b = options.lambda_max;
-      if (a == 0.0 && b == 0.0) {
-        require(options.bound_estimate_iterations >= 2, ErrorCode::invalid_argument, where,
-                "bound_estimate_iterations must be >= 2, got " + std::to_string(options.bound_estimate_iterations));
-      } else if (!(std::isfinite(a) && std::isfinite(b) && a > 0.0 && b > a)) {
-        std::ostringstream msg;
-        msg << "Chebyshev eigenvalue bounds must satisfy 0 < lambda_min < lambda_max (or both 0 = estimate), got ["
-            << a << ", " << b << "]";
-        fail(ErrorCode::invalid_argument, where, msg.str());
-      }
+    case SqrtMethod::lanczos:
+      return sqrt_detail::lanczos_sqrt(op, z, w, nrhs, options, first_product);
+    case SqrtMethod::chebyshev:
+      sqrt_detail::require_chebyshev_bounds(options, where);
       return sqrt_detail::chebyshev_sqrt(op, z, w, nrhs, options);
-    }
     case SqrtMethod::cholesky:
-    case SqrtMethod::eigen: return sqrt_detail::dense_sqrt(op, z, w, nrhs, options);
+    case SqrtMethod::eigen:
+      return sqrt_detail::dense_sqrt(op, z, w, nrhs, options);
     case SqrtMethod::split:
       fail(ErrorCode::not_supported, where, "the split sampler is only available for the PSE operator");
   }

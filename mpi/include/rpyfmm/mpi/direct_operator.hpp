@@ -60,6 +60,10 @@ class DistributedDirectRpy {
   /// Whether every particle on every rank has the same radius (DirectRpy's equal-radii path).
   [[nodiscard]] bool equal_radii() const { return equal_radii_; }
   [[nodiscard]] const CommunicationStats& communication() const { return stats_; }
+  /// This rank's positions (3 local_size()) and radii (local_size()) as passed to set_positions
+  /// (the block preconditioner of mpi::sqrt_apply factors their blocks; empty before).
+  [[nodiscard]] std::span<const double> local_positions() const { return positions_; }
+  [[nodiscard]] std::span<const double> local_radii() const { return radii_; }
 
   /// Collective. This rank's positions (3 n, n >= 0) and one radius for them (> 0, finite; the
   /// ranks may pass different radii). Throws rpyfmm::Error on every rank when any rank's input is
@@ -92,6 +96,7 @@ class DistributedDirectRpy {
   // This rank's particles in the length units 2^scale_exponent_ (rpy/src/length_units.hpp), as
   // structure of arrays, with inv_a_ = 1 / a_.
   std::vector<double> x_, y_, z_, a_, inv_a_;
+  std::vector<double> positions_, radii_;  // as passed to set_positions
   int scale_exponent_ = 0;
   bool equal_radii_ = true;
   mutable CommunicationStats stats_;

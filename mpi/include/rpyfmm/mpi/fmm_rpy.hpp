@@ -76,6 +76,10 @@ class DistributedFmmRpy {
   [[nodiscard]] std::span<const std::size_t> counts() const { return counts_; }
   /// Whether every particle on every rank has the same radius (four Laplace densities, not seven).
   [[nodiscard]] bool equal_radii() const { return equal_radii_; }
+  /// This rank's positions (3 local_size()) and radii (local_size()) as passed to set_positions
+  /// (the block preconditioner of mpi::sqrt_apply factors their blocks; empty before).
+  [[nodiscard]] std::span<const double> local_positions() const { return positions_; }
+  [[nodiscard]] std::span<const double> local_radii() const { return radii_; }
   /// Overlapping ordered pairs (i, j) on all ranks, and the halo particles this rank received for
   /// them (0 before set_positions).
   [[nodiscard]] std::uint64_t overlapping_pairs() const;
@@ -112,6 +116,7 @@ class DistributedFmmRpy {
   // This rank's particles in the frame of the far field (rpy/src/length_units.hpp, to_fmm_frame):
   // centred positions, or positions and radii in units of 2^scale_exponent_.
   std::vector<double> x_, a_;
+  std::vector<double> positions_, radii_;  // as passed to set_positions
   int scale_exponent_ = 0;
   bool equal_radii_ = true;
 };
