@@ -22,10 +22,17 @@ Evaluation::Evaluation(const LaplaceFmm::Plan& plan_, std::size_t nd_, std::span
       N(plan_.n),
       M(plan_.m),
       stride(nd_ * std::size_t(ncoef(plan_.p))),
-      outputs(outputs_),
+      requested(outputs_),
+      outputs(outputs_.begin(), outputs_.end()),
       mp(boxes.size() * stride),
       lp(boxes.size() * stride),
       has_local(boxes.size(), 0) {
+  for (std::size_t d = 0; d < nd; ++d)
+    if (outputs[d] == kCurlGradDiv) {
+      groups.push_back(d);
+      for (std::size_t k = d; k < d + 3; ++k) outputs[k] = kGradient | kHessian;
+      d += 2;
+    }
   for (unsigned f : outputs) any_flags |= f;
   uniform_flags = std::all_of(outputs.begin(), outputs.end(), [&](unsigned f) { return f == outputs[0]; });
 }
@@ -172,7 +179,8 @@ void x_list_to_locals(Evaluation& ev, int l) {
 }
 
 // L2P (Guan, §2.3: potential, field and field gradient from the local expansion): targets taken
-// kL2PLanes at a time, the expansion's coefficients b = Lh c formed once per leaf.
+// kL2PLanes at a time, the expansion's coefficients b = Lh c, and the combined coefficients of the
+// curl_grad_div groups (docs/theory/fmm.md, section 2), formed once per leaf.
 void evaluate_leaf_locals(Evaluation& ev) {
   const auto& P = ev.plan;
   const auto& tree = ev.tree;
@@ -184,7 +192,7 @@ void evaluate_leaf_locals(Evaluation& ev) {
 #pragma omp parallel if (leaves.size() >= kMinParallel)
   {
     std::vector<cplx> bcoef(stride);
-    std::vector<double> scratch(2 * nc * kL2PLanes);
+    std::vector<double> scratch(2 * nc * kL2PLanes), combined(ev.groups.size() * kCombinedPerGroup * nc);
     const double* rec = H.regular_recurrence();
 #pragma omp for schedule(dynamic, 4)
     for (std::size_t i = 0; i < leaves.size(); ++i) {
@@ -194,11 +202,13 @@ void evaluate_leaf_locals(Evaluation& ev) {
       const double s = tree.side(bx.level), inv_s = 1.0 / s;
       const auto c = tree.center(b);
       for (std::size_t d = 0; d < nd; ++d) local_to_b(H, p, &ev.lp[std::size_t(b) * stride + d * nc], &bcoef[d * nc]);
+      for (std::size_t g = 0; g < ev.groups.size(); ++g)
+        curl_grad_div_coefficients(p, s, &bcoef[ev.groups[g] * nc], &combined[g * kCombinedPerGroup * nc]);
       for (std::size_t t0 = bx.tgt_begin; t0 < bx.tgt_end; t0 += kL2PLanes) {
         double ux[kL2PLanes], uy[kL2PLanes], uz[kL2PLanes];
         const int nt = scaled_offsets(P.tx, P.ty, P.tz, t0, bx.tgt_end, c, inv_s, ux, uy, uz);
-        l2p_block(p, s, rec, bcoef.data(), nd, ev.outputs.data(), nt, ux, uy, uz, &ev.res[t0 * result_width],
-                  M * result_width, scratch.data());
+        l2p_block(p, s, rec, bcoef.data(), nd, ev.requested.data(), nt, ux, uy, uz, &ev.res[t0 * result_width],
+                  M * result_width, scratch.data(), combined.data());
       }
     }
   }
@@ -293,6 +303,33 @@ void u_list_direct(Evaluation& ev) {
     if (bx.ntgt() == 0) continue;
     for (int u : tree.ulist().of(b))
       if (boxes[u].nsrc() > 0) add_direct(ev, boxes[u], bx.tgt_begin, bx.ntgt());
+  }
+}
+
+// Every column of the group's rows enters one sum at most with weight +-1 (laplace_fmm.hpp), so the
+// L2P part, written into one column per sum (l2p_block), is counted once.
+void fold_curl_grad_div(Evaluation& ev) {
+  const std::size_t M = ev.M;
+  for (std::size_t d : ev.groups) {
+    double* r0 = &ev.res[d * M * result_width];
+    double* r1 = r0 + M * result_width;
+    double* r2 = r1 + M * result_width;
+#pragma omp parallel for if (M >= 4096) schedule(static)
+    for (std::size_t t = 0; t < M; ++t) {
+      double* a = r0 + t * result_width;
+      double* b = r1 + t * result_width;
+      double* c = r2 + t * result_width;
+      const double folded[6] = {c[col_gy] - b[col_gz],
+                                a[col_gz] - c[col_gx],
+                                b[col_gx] - a[col_gy],
+                                a[col_hxx] + b[col_hxy] + c[col_hxz],
+                                a[col_hxy] + b[col_hyy] + c[col_hyz],
+                                a[col_hxz] + b[col_hyz] + c[col_hzz]};
+      std::fill_n(a, result_width, 0.0);
+      std::fill_n(b, result_width, 0.0);
+      std::fill_n(c, result_width, 0.0);
+      std::copy_n(folded, 6, a + 1);
+    }
   }
 }
 

@@ -6,6 +6,7 @@
 //   upward pass:    P2M at the leaves, M2M towards the root
 //   downward pass, level by level: L2L from the parent, X-list P2L, plane-wave M2L (V list)
 //   leaves:         L2P, W-list M2P and the W/X pairs summed directly, U-list P2P
+//   curl_grad_div groups folded into curl and grad div (docs/theory/fmm.md, section 2)
 //   results back into the caller's order
 //
 // Each stage is one parallel loop over the boxes of a level or over the leaves; every output of a
@@ -58,11 +59,15 @@ struct Evaluation {
   const std::vector<Box>& boxes;
   int p = 0, nc = 0;  // order, coefficients per density
   std::size_t nd = 0, N = 0, M = 0, stride = 0;
-  std::span<const unsigned> outputs;  // per density: potential | gradient | hessian
-  unsigned any_flags = 0;             // union of outputs
-  bool uniform_flags = false;         // every density asks for the same outputs
-  std::vector<double> qs;             // charges in tree order, nd x N
-  std::vector<double> res;            // results in tree order, nd x M x result_width
+  std::span<const unsigned> requested;  // per density: the caller's flags
+  // Per density: potential | gradient | hessian, what every stage but L2P evaluates; a
+  // curl_grad_div group asks for gradient | hessian (folded by fold_curl_grad_div).
+  std::vector<unsigned> outputs;
+  std::vector<std::size_t> groups;  // first density of every curl_grad_div group
+  unsigned any_flags = 0;           // union of outputs
+  bool uniform_flags = false;       // every density asks for the same outputs
+  std::vector<double> qs;           // charges in tree order, nd x N
+  std::vector<double> res;          // results in tree order, nd x M x result_width
   std::vector<cplx> mp, lp;
   std::vector<char> has_local;  // the box's local expansion has received a contribution
 };
@@ -86,6 +91,9 @@ void evaluate_leaf_locals(Evaluation& ev);
 void w_list_and_direct_far(Evaluation& ev);
 /// Leaves, U list: P2P with the adjacent leaves.
 void u_list_direct(Evaluation& ev);
+/// curl_grad_div groups: curl and grad div (laplace_fmm.hpp) from their gradient and Hessian
+/// columns into the group's first row, the rest of its rows zeroed.
+void fold_curl_grad_div(Evaluation& ev);
 /// Results back into the caller's order.
 void unsort_results(const Evaluation& ev, std::span<double> results);
 

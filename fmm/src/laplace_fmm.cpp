@@ -482,6 +482,8 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, unsig
 
 namespace {
 
+static_assert(curl_grad_div == detail::kCurlGradDiv && (curl_grad_div & all_outputs) == 0);
+
 void require_evaluation_arguments(std::span<const double> charges, std::size_t nd, std::span<const unsigned> outputs,
                                   std::span<double> results, std::size_t N, std::size_t M) {
   constexpr const char* where = "LaplaceFmm::evaluate";
@@ -490,10 +492,19 @@ void require_evaluation_arguments(std::span<const double> charges, std::size_t n
   require_finite(charges, where, "charges", N);
   require(outputs.size() == nd, ErrorCode::invalid_input, where,
           "outputs has " + std::to_string(outputs.size()) + " entries, expected nd = " + std::to_string(nd));
-  for (std::size_t d = 0; d < nd; ++d)
+  for (std::size_t d = 0; d < nd; ++d) {
+    if (outputs[d] == curl_grad_div) {  // a group of three (laplace_fmm.hpp)
+      require(d + 2 < nd && outputs[d + 1] == curl_grad_div && outputs[d + 2] == curl_grad_div,
+              ErrorCode::invalid_argument, where,
+              "curl_grad_div must flag groups of three consecutive densities, from outputs[" + std::to_string(d) + "]");
+      d += 2;
+      continue;
+    }
     require(outputs[d] >= 1 && outputs[d] <= all_outputs, ErrorCode::invalid_argument, where,
-            "outputs[" + std::to_string(d) + "] must be a non-empty subset of potential|gradient|hessian, got " +
+            "outputs[" + std::to_string(d) +
+                "] must be a non-empty subset of potential|gradient|hessian or curl_grad_div, got " +
                 std::to_string(outputs[d]));
+  }
   require_size(results, nd * M * result_width, where, "results (nd x M x 10)");
 }
 
@@ -530,6 +541,7 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
   timed(times, "p2p", [&] {
     if (options_.near_field) detail::u_list_direct(ev);
   });
+  timed(times, "l2p", [&] { detail::fold_curl_grad_div(ev); });
   timed(times, "sort", [&] { detail::unsort_results(ev, results); });
   times["total"] = total.seconds();
 

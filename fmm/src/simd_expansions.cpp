@@ -2,6 +2,8 @@
 // Guan, dissertation, Theorems 2.2.2 and 2.3.1).
 // The sums of the one-point forms (tests/fmm/expansion_reference.hpp), reorganized: SIMD lanes =
 // points, regular solid harmonics in structure-of-arrays form, coefficients broadcast.
+#include <algorithm>
+
 #include "rpyfmm/core/simd_dispatch.hpp"
 #include "rpyfmm/fmm/detail/expansions.hpp"
 
@@ -159,7 +161,84 @@ inline void regular_soa(int p, const double* rec, const double* x, const double*
     r[9] += Ji;
   }
 }
+// The six sums of a curl_grad_div group from its combined coefficients (curl_grad_div_coefficients),
+// added to the columns l2p_block names (expansions.hpp); o: the group's first row, ld apart.
+[[gnu::always_inline]] inline void l2p_curl_grad_div(int p, const double* ab, const double* Rr, const double* Ri,
+                                                     int nt, double* o, std::size_t ld) noexcept {
+  const int nc = ncoef(p), used = ncoef(p - 1);  // the sums stop at degree p - 1
+  double acc[6][W] = {};
+  for (int i = 0; i < used; ++i)
+    for (int k = 0; k < 6; ++k) {
+      const double al = ab[2 * k * nc + i], be = ab[(2 * k + 1) * nc + i];
+      for (int t = 0; t < W; ++t) acc[k][t] += al * Rr[i * W + t] + be * Ri[i * W + t];
+    }
+  constexpr std::size_t row[6] = {2, 0, 1, 0, 1, 2}, column[6] = {2, 3, 1, 4, 5, 6};
+  for (int k = 0; k < 6; ++k)
+    for (int t = 0; t < nt; ++t) o[row[k] * ld + t * 10 + column[k]] += acc[k][t];
+}
+
+// b_n^m of one density (zero outside 0 <= m <= n), as the lane formulas read it.
+inline cplx coef(const cplx* b, int n, int m) noexcept {
+  return m < 0 || m > n ? cplx{} : b[idx(n, m)];
+}
+
+// alpha_i, beta_i with sum_i alpha_i Re R_i + beta_i Im R_i = w . grad phi, added: the lane
+// formula of l2p_gradient (gx = Re G1 - Re G2, gy = Im G1 + Im G2, gz = Re' c0 R) read per R_n^m.
+void add_gradient_functional(int p, double inv_s, const cplx* bd, const double (&w)[3], double* al, double* be) {
+  for (int n = 0; n + 1 <= p; ++n)
+    for (int m = 0; m <= n; ++m) {
+      const int i = idx(n, m);
+      const double wm = m ? 2.0 : 1.0;
+      const cplx c0 = coef(bd, n + 1, m), cp = coef(bd, n + 1, m + 1), cm = coef(bd, n + 1, m - 1);
+      al[i] += inv_s * (w[0] * (cm.real() - cp.real()) + w[1] * (cm.imag() + cp.imag()) + w[2] * wm * c0.real());
+      be[i] += inv_s * (w[0] * (cp.imag() - cm.imag()) + w[1] * (cm.real() + cp.real()) - w[2] * wm * c0.imag());
+    }
+}
+
+// The same for w . (Hxx, Hyy, Hzz, Hxy, Hxz, Hyz) from the lane formula of l2p_hessian:
+// Hxx = (Re K - zz)/2, Hyy = -(Re K + zz)/2, Hzz = zz, Hxy = Im K / 2, Hxz = Re J, Hyz = Im J.
+void add_hessian_functional(int p, double inv_s2, const cplx* bd, const double (&w)[6], double* al, double* be) {
+  const double czz = w[2] - 0.5 * (w[0] + w[1]), cKr = 0.5 * (w[0] - w[1]), cKi = 0.5 * w[3];
+  const double cJr = w[4], cJi = w[5];
+  for (int n = 0; n + 2 <= p; ++n)
+    for (int m = 0; m <= n; ++m) {
+      const int i = idx(n, m);
+      const double wm = m ? 2.0 : 1.0;
+      const cplx c0 = coef(bd, n + 2, m), cp = coef(bd, n + 2, m + 1), cpp = coef(bd, n + 2, m + 2);
+      const cplx cm = coef(bd, n + 2, m - 1);
+      // K1's term: b_{n+2}^{m-2} R_n^m, and for m = 1 - conj(b_{n+2}^1) R_n^1.
+      const cplx k1 = m >= 2   ? coef(bd, n + 2, m - 2)
+                      : m == 1 ? cplx(-bd[idx(n + 2, 1)].real(), bd[idx(n + 2, 1)].imag())
+                               : cplx{};
+      al[i] += inv_s2 * (czz * wm * c0.real() + cJr * (cm.real() - cp.real()) + cJi * (cm.imag() + cp.imag()) +
+                         cKr * (k1.real() + cpp.real()) + cKi * (k1.imag() - cpp.imag()));
+      be[i] += inv_s2 * (-czz * wm * c0.imag() + cJr * (cp.imag() - cm.imag()) + cJi * (cm.real() + cp.real()) -
+                         cKr * (k1.imag() + cpp.imag()) + cKi * (k1.real() - cpp.real()));
+    }
+}
 }  // namespace
+
+// curl_x = d_y phi_3 - d_z phi_2, curl_y = d_z phi_1 - d_x phi_3, curl_z = d_x phi_2 - d_y phi_1;
+// (grad div)_c = sum_m H(phi_m)_cm (laplace_fmm.hpp), each a linear form in the b coefficients.
+void curl_grad_div_coefficients(int p, double s, const cplx* b, double* ab) noexcept {
+  const int nc = ncoef(p);
+  std::fill_n(ab, kCombinedPerGroup * std::size_t(nc), 0.0);
+  const double inv_s = 1.0 / s, inv_s2 = inv_s * inv_s;
+  const cplx* phi[3] = {b, b + nc, b + 2 * nc};
+  const auto grad = [&](int k, int m, const double(&w)[3]) {
+    add_gradient_functional(p, inv_s, phi[m], w, ab + 2 * k * nc, ab + (2 * k + 1) * nc);
+  };
+  grad(0, 2, {0, 1, 0}), grad(0, 1, {0, 0, -1});
+  grad(1, 0, {0, 0, 1}), grad(1, 2, {-1, 0, 0});
+  grad(2, 1, {1, 0, 0}), grad(2, 0, {0, -1, 0});
+  // Hessian columns xx, yy, zz, xy, xz, yz: row c of H(phi_m) in column m.
+  constexpr double rows[3][3][6] = {{{1, 0, 0, 0, 0, 0}, {0, 0, 0, 1, 0, 0}, {0, 0, 0, 0, 1, 0}},
+                                    {{0, 0, 0, 1, 0, 0}, {0, 1, 0, 0, 0, 0}, {0, 0, 0, 0, 0, 1}},
+                                    {{0, 0, 0, 0, 1, 0}, {0, 0, 0, 0, 0, 1}, {0, 0, 1, 0, 0, 0}}};
+  for (int c = 0; c < 3; ++c)
+    for (int m = 0; m < 3; ++m)
+      add_hessian_functional(p, inv_s2, phi[m], rows[c][m], ab + 2 * (3 + c) * nc, ab + (2 * (3 + c) + 1) * nc);
+}
 
 void p2m_block(int p, const double* rec, const double* cn, int np, const double* ux, const double* uy, const double* uz,
                const double* q, std::size_t ldq, std::size_t nd, cplx* Mh, double* scratch) noexcept {
@@ -185,17 +264,24 @@ void p2m_block(int p, const double* rec, const double* cn, int np, const double*
 }
 
 void l2p_block(int p, double s, const double* rec, const cplx* b, std::size_t nd, const unsigned* flags, int nt,
-               const double* ux, const double* uy, const double* uz, double* out, std::size_t ld,
-               double* scratch) noexcept {
+               const double* ux, const double* uy, const double* uz, double* out, std::size_t ld, double* scratch,
+               const double* combined) noexcept {
   return simd_dispatch([=]() RPYFMM_SIMD_BODY {
     const int nc = ncoef(p);
     double* Rr = scratch;
     double* Ri = scratch + std::size_t(nc) * W;
     regular_lanes(p, rec, nt, ux, uy, uz, Rr, Ri);
     const double inv_s = 1.0 / s, inv_s2 = inv_s * inv_s;
+    const double* group = combined;
     for (std::size_t d = 0; d < nd; ++d) {
       const cplx* bd = b + d * nc;
       double* o = out + d * ld;
+      if (flags[d] == kCurlGradDiv) {
+        l2p_curl_grad_div(p, group, Rr, Ri, nt, o, ld);
+        group += kCombinedPerGroup * std::size_t(nc);
+        d += 2;
+        continue;
+      }
       if (flags[d] & kPotential) l2p_potential(p, bd, Rr, Ri, nt, o);
       if (flags[d] & kGradient) l2p_gradient(p, inv_s, bd, Rr, Ri, nt, o);
       if (flags[d] & kHessian) l2p_hessian(p, inv_s2, bd, Rr, Ri, nt, o);

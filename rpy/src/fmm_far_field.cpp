@@ -84,14 +84,15 @@ void rotation_far_field_charges(const double* forces, const double* torques, std
   const std::size_t base = translation_densities(equal);
   far_field_charges(forces, n, 1, equal, x, a, charges, outputs);
   for (std::size_t m = 0; m < 3; ++m) {
-    outputs[base + m] = fmm::gradient | fmm::hessian;
+    outputs[base + m] = fmm::curl_grad_div;
     double* q = charges.data() + (base + m) * n;
     for (std::size_t j = 0; j < n; ++j) q[j] = torques[3 * j + m];
   }
 }
 
 // With phi_k = sum_j q_j,k / |x - x_j| and g(k)_m = d_m phi_k (the FMM's gradient column 1 + m):
-// (curl Phi)_c = g(c+2)_(c+1) - g(c+1)_(c+2) (indices mod 3), (grad div Phi)_c = sum_m H(m)_cm
+// (curl Phi)_c = g(c+2)_(c+1) - g(c+1)_(c+2) (indices mod 3); curl Phi_T and grad div Phi_T come
+// from the FMM (fmm::curl_grad_div) in the first torque row, columns 1..3 and 4..6
 // (docs/theory/rpy.md, section 7).
 void combine_rotation_far_field(const std::vector<double>& results, std::size_t n, bool equal, double* ut, double* wf,
                                 double* rr) {
@@ -102,14 +103,12 @@ void combine_rotation_far_field(const std::vector<double>& results, std::size_t 
   for (std::int64_t ii = 0; ii < nn; ++ii) {
     const auto i = static_cast<std::size_t>(ii);
     const auto force_row = [&](std::size_t m) { return results.data() + (m * n + i) * 10; };
-    const auto torque_row = [&](std::size_t m) { return results.data() + ((torque0 + m) * n + i) * 10; };
+    const double* torque = results.data() + (torque0 * n + i) * 10;
     for (std::size_t c = 0; c < 3; ++c) {
       const std::size_t c1 = (c + 1) % 3, c2 = (c + 2) % 3;
-      ut[3 * i + c] = c_curl * (torque_row(c2)[1 + c1] - torque_row(c1)[1 + c2]);
+      ut[3 * i + c] = c_curl * torque[1 + c];
       wf[3 * i + c] = c_curl * (force_row(c2)[1 + c1] - force_row(c1)[1 + c2]);
-      double grad_div = 0.0;
-      for (std::size_t m = 0; m < 3; ++m) grad_div += torque_row(m)[kHessianColumn[c][m]];
-      rr[3 * i + c] = c_grad_div * grad_div;
+      rr[3 * i + c] = c_grad_div * torque[4 + c];
     }
   }
 }

@@ -34,7 +34,7 @@ void combine_far_field(const std::vector<double>& results, std::size_t n, std::s
                        std::span<const double> x, std::span<const double> a, double eta, double* velocities);
 
 /// The densities of one force and torque pair: far_field_charges' for the forces, then T^(1..3)
-/// (gradient and Hessian). charges: rotation_densities(equal) x n.
+/// (curl and grad div, fmm::curl_grad_div). charges: rotation_densities(equal) x n.
 void rotation_far_field_charges(const double* forces, const double* torques, std::size_t n, bool equal,
                                 std::span<const double> x, std::span<const double> a, std::vector<double>& charges,
                                 std::vector<unsigned>& outputs);

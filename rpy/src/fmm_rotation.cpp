@@ -9,14 +9,16 @@
 // the translational near field: each velocity receives its contributions in a fixed order, so
 // results do not depend on the thread count.
 //
-// The products with torques run on the force-only plan (leaves and plane-wave table). Measured on
-// 2026-12-06, Intel Xeon (AVX-512), 2 vCPUs shared with other work, 1 thread, random suspension N =
-// 1e6 at 1e-6 (fitted leaves of 120 points with the AVX-512 kernels, 80 at the AVX2 level): torques
-// / forces 1.92 with the AVX-512 kernels (20.7 s / 10.8 s) and 1.94 at the AVX2 level (23.6 s /
-// 12.2 s), process CPU time, medians of 3; one wall-time run of bench/rpy/bench_rpy_fmm with
-// AVX-512 gave 1.76. Plans of their own were slower at the AVX2 level: leaves of 120 points 2.05,
-// the 9-digit table with leaves of 100 points 2.57; leaves of 60 points left U's error at 1.02e-6.
-// Errors on the force-only plan: U 8.0e-7 (8.3e-7 at the AVX2 level), W 1.2e-7 (1.6e-7).
+// The products with torques run on the force-only plan (leaves and plane-wave table); the torque
+// densities ask the FMM for curl Phi_T and grad div Phi_T only (fmm::curl_grad_div: six combined
+// sums per target in L2P instead of three gradients and Hessians). Measured on 2026-12-06, Intel
+// Xeon (AVX-512), 2 vCPUs shared with other work, 1 thread, random suspension N = 1e6 at 1e-6,
+// process CPU time, medians of 6 alternating with d22dc43 (gradients and Hessians): torques /
+// forces 1.88 with the AVX-512 kernels (19.1 s / 10.2 s; d22dc43 1.99) and 1.95 at the AVX2 level
+// (23.8 s / 12.2 s; d22dc43 2.01). With the gradients and Hessians, plans of their own were slower
+// at the AVX2 level: leaves of 120 points 2.05, the 9-digit table with leaves of 100 points 2.57;
+// leaves of 60 points left U's error at 1.02e-6. Errors on the force-only plan: U 8.0e-7 (8.3e-7
+// at the AVX2 level), W 1.2e-7 (1.6e-7).
 #include <cmath>
 #include <cstdint>
 #include <span>

@@ -1,6 +1,7 @@
 // LaplaceFmm features: separate targets, nd densities with per-density outputs, small N, duplicated
 // points, permutation and thread-count invariance, plan reuse, far-field-only mode with the near-field
-// structure, min_leaf_side guarantee, bad input. References: the plain double loop of fmm_test_util.hpp.
+// structure, min_leaf_side guarantee, curl_grad_div groups, bad input. References: the plain double loop of
+// fmm_test_util.hpp.
 #include <gtest/gtest.h>
 #include <omp.h>
 
@@ -12,6 +13,7 @@
 #include "fmm_test_util.hpp"
 #include "rpyfmm/core/error.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
+#include "simd_levels.hpp"
 
 using rpyfmm::Error;
 using rpyfmm::fmm::all_outputs;
@@ -306,6 +308,78 @@ TEST(FmmFeatures, RootScaleFitsTheLeafGrid) {
   EXPECT_LE(fitted.stats().leaves, 125u);
 }
 
+namespace {
+// curl and grad div of the group (phi_1, phi_2, phi_3) starting at density d, from its gradient
+// and Hessian columns, by their definitions: (curl Phi)_c = eps_cab d_a phi_b, (grad div Phi)_c =
+// sum_m d_c d_m phi_m. Returns m x 6.
+std::vector<double> curl_grad_div_of(const std::vector<double>& r, std::size_t d, std::size_t m) {
+  constexpr std::size_t hessian_column[3][3] = {{4, 7, 8}, {7, 5, 9}, {8, 9, 6}};
+  const auto row = [&](std::size_t k, std::size_t t) { return &r[((d + k) * m + t) * 10]; };
+  std::vector<double> out(6 * m, 0.0);
+  for (std::size_t t = 0; t < m; ++t)
+    for (std::size_t c = 0; c < 3; ++c) {
+      const std::size_t c1 = (c + 1) % 3, c2 = (c + 2) % 3;
+      out[6 * t + c] = row(c2, t)[1 + c1] - row(c1, t)[1 + c2];
+      for (std::size_t k = 0; k < 3; ++k) out[6 * t + 3 + c] += row(k, t)[hessian_column[c][k]];
+    }
+  return out;
+}
+}  // namespace
+
+// Groups flagged curl_grad_div give the curl and grad div of their gradient and Hessian columns to
+// rounding, at every instruction-set level, with the near field, without it and with the W/X direct
+// sums exported; the other densities are untouched, the rest of the group's rows zero.
+TEST(FmmFeatures, CurlGradDivGroupsFoldTheGradientsAndHessians) {
+  using rpyfmm::fmm::curl_grad_div;
+  const std::size_t n = 1500, nd = 7;
+  const auto src = fmmtest::plummer(n, 71);
+  const auto q = fmmtest::charges(n, nd, 72);
+  const std::vector<unsigned> grouped = {all_outputs,   curl_grad_div, curl_grad_div, curl_grad_div,
+                                         curl_grad_div, curl_grad_div, curl_grad_div};
+  const std::vector<unsigned> raw = {all_outputs, 6u, 6u, 6u, 6u, 6u, 6u};
+  const auto ref = fmmtest::direct(src, q, nd, {});
+  for (const rpyfmm::SimdLevel level : rpyfmm::test::available_simd_levels())
+    for (int mode = 0; mode < 3; ++mode) {  // near field; far field only; and W/X direct sums exported
+      const rpyfmm::ScopedSimdLevel scope(level);
+      FmmOptions o = opts(1e-6, 24);
+      o.near_field = mode == 0;
+      o.export_direct_far = mode == 2;
+      LaplaceFmm f(o);
+      f.set_points(src);
+      std::vector<double> r(nd * n * 10, 123.0), rr(nd * n * 10);
+      f.evaluate(q, nd, grouped, r);
+      f.evaluate(q, nd, raw, rr);
+      const std::string what = std::string(rpyfmm::simd_level_name(level)) + " mode " + std::to_string(mode);
+      for (std::size_t i = 0; i < n * 10; ++i) ASSERT_EQ(r[i], rr[i]) << what;
+      for (std::size_t d : {1u, 4u}) {
+        const auto expected = curl_grad_div_of(rr, d, n);
+        double scale = 0.0;
+        for (double v : expected) scale = std::max(scale, std::abs(v));
+        for (std::size_t t = 0; t < n; ++t) {
+          const double* row = &r[(d * n + t) * 10];
+          for (int k = 0; k < 6; ++k) ASSERT_NEAR(row[1 + k], expected[6 * t + std::size_t(k)], 1e-13 * scale) << what;
+          EXPECT_EQ(std::abs(row[0]) + std::abs(row[7]) + std::abs(row[8]) + std::abs(row[9]), 0.0) << what;
+          for (std::size_t k = 0; k < 10; ++k) {
+            ASSERT_EQ(r[((d + 1) * n + t) * 10 + k], 0.0) << what;
+            ASSERT_EQ(r[((d + 2) * n + t) * 10 + k], 0.0) << what;
+          }
+        }
+        if (mode == 0) {  // against the direct sums' curl and grad div
+          const auto exact = curl_grad_div_of(ref, d, n);
+          double err[2] = {}, norm[2] = {};
+          for (std::size_t t = 0; t < n; ++t)
+            for (int k = 0; k < 6; ++k) {
+              const double e = r[(d * n + t) * 10 + 1 + std::size_t(k)] - exact[6 * t + std::size_t(k)];
+              err[k / 3] += e * e;
+              norm[k / 3] += exact[6 * t + std::size_t(k)] * exact[6 * t + std::size_t(k)];
+            }
+          EXPECT_LE(std::sqrt(err[0] / norm[0]), 1e-6) << what << " curl";
+          EXPECT_LE(std::sqrt(err[1] / norm[1]), 1e-6) << what << " grad div";
+        }
+      }
+    }
+}
+
 TEST(FmmFeatures, BadInput) {
   auto expect_error = [](auto&& fn, const char* needle) {
     try {
@@ -340,6 +414,22 @@ TEST(FmmFeatures, BadInput) {
   expect_error([&] { f.evaluate(q, 1, all_outputs, r99); }, "results");
   expect_error([&] { f.evaluate(q, 1, 8u, r); }, "outputs[0]");
   expect_error([&] { f.evaluate(q, 1, 0u, r); }, "outputs[0]");
+  // curl_grad_div in groups of three: cut short at the end, or mixed with other flags.
+  const std::vector<double> q3(30, 1.0);
+  std::vector<double> r3(300);
+  using rpyfmm::fmm::curl_grad_div;
+  expect_error(
+      [&] {
+        f.evaluate(q3, 3, std::vector<unsigned>{all_outputs, curl_grad_div, curl_grad_div}, r3);
+      },
+      "groups of three consecutive densities, from outputs[1]");
+  expect_error(
+      [&] {
+        f.evaluate(q3, 3, std::vector<unsigned>{curl_grad_div, curl_grad_div, all_outputs}, r3);
+      },
+      "from outputs[0]");
+  expect_error([&] { f.evaluate(q3, 3, 9u, r3); }, "outputs[0]");
+  EXPECT_NO_THROW(f.evaluate(q3, 3, curl_grad_div, r3));
   auto qn = q;
   qn[3] = std::nan("");
   expect_error([&] { f.evaluate(qn, 1, all_outputs, r); }, "charges");

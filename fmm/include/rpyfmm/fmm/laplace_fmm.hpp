@@ -29,6 +29,14 @@
 
 namespace rpyfmm::fmm {
 
+/// Output flag of LaplaceFmm::evaluate for three consecutive densities phi_1..3 (all three carry
+/// it, alone): only (curl Phi)_c = d_(c+1) phi_(c+2) - d_(c+2) phi_(c+1) (indices mod 3) and
+/// (grad div Phi)_c = sum_m d_c d_m phi_m of the vector field Phi = (phi_1, phi_2, phi_3), in
+/// the first density's row, columns 1..3 (curl) and 4..6 (grad div); the rest of the three rows 0.
+/// L2P evaluates these six sums from combined local coefficients (docs/theory/fmm.md,
+/// section 2, "Combined outputs") instead of the 27 gradient and Hessian columns.
+inline constexpr unsigned curl_grad_div = 8u;
+
 /// Options of the FMM plan. Defaults give a relative l2 error <= tolerance for every output.
 struct FmmOptions {
   /// Requested relative l2 accuracy of each output, in [1e-15, 1e-1]. The plane-wave table is the
@@ -119,9 +127,9 @@ class LaplaceFmm {
   void set_points(std::span<const double> sources, std::span<const double> targets = {});
 
   /// charges: nd x N (density d at charges[d*N + j]); outputs: nd flags (potential|gradient|hessian,
-  /// at least one bit each); results: nd x M x 10 [pot, gx, gy, gz, hxx, hyy, hzz, hxy, hxz, hyz],
-  /// overwritten (unrequested columns = 0). const and thread-safe; results do not depend on the
-  /// number of OpenMP threads.
+  /// at least one bit each, or curl_grad_div on consecutive groups of three densities); results: nd x M x 10 [pot, gx,
+  /// gy, gz, hxx, hyy, hzz, hxy, hxz, hyz], overwritten (unrequested columns = 0). const and thread-safe; results do
+  /// not depend on the number of OpenMP threads.
   void evaluate(std::span<const double> charges, std::size_t nd, std::span<const unsigned> outputs,
                 std::span<double> results) const;
   /// Convenience: the same output flags for every density.

@@ -19,6 +19,8 @@ namespace rpyfmm::fmm::detail {
 
 /// Output selection flags (per density), the values of rpyfmm::fmm::Output.
 inline constexpr unsigned kPotential = potential, kGradient = gradient, kHessian = hessian;
+/// The value of rpyfmm::fmm::curl_grad_div (laplace_fmm.hpp).
+inline constexpr unsigned kCurlGradDiv = 8u;
 
 /// Accumulates charges q[d*ldq + j] (j < n, d < nd) at points xyz[3j..3j+2] into the scaled local
 /// expansions Lh[d*ncoef(p) ...] of a box with center `c` and side `s` (P2L, X list); points must be
@@ -54,10 +56,21 @@ inline constexpr int kL2PLanes = 8;
 /// built in structure-of-arrays form and each coefficient is broadcast over the lanes; the tables are
 /// shared by the nd densities. u{x,y,z}: scaled target offsets (x - c)/s (nt <= kL2PLanes valid lanes);
 /// b: nd x ncoef(p) (b = Lh c); result of density d, lane t added to out[d*ld + t*10 + column].
-/// scratch: 2 * ncoef(p) * kL2PLanes doubles.
+/// scratch: 2 * ncoef(p) * kL2PLanes doubles. A group of three densities flagged curl_grad_div
+/// (laplace_fmm.hpp) is evaluated from its combined coefficients, kCombinedPerGroup * ncoef(p)
+/// doubles per group in `combined` (curl_grad_div_coefficients), into the columns that
+/// fold_curl_grad_div counts once each: curl_x in (2, gy), curl_y in (0, gz), curl_z in (1, gx),
+/// (grad div)_x in (0, hxx), _y in (1, hyy), _z in (2, hzz) (density of the group, column).
 void l2p_block(int p, double s, const double* rec, const cplx* b, std::size_t nd, const unsigned* flags, int nt,
-               const double* ux, const double* uy, const double* uz, double* out, std::size_t ld,
-               double* scratch) noexcept;
+               const double* ux, const double* uy, const double* uz, double* out, std::size_t ld, double* scratch,
+               const double* combined = nullptr) noexcept;
+/// Doubles of combined coefficients per curl_grad_div group per ncoef(p): six sums, (alpha, beta) each.
+inline constexpr std::size_t kCombinedPerGroup = 12;
+/// The combined coefficients of a curl_grad_div group of scaled local coefficients b (3 x ncoef(p),
+/// b = Lh c) in a box of side s: sum_i alpha_k,i Re R_i + beta_k,i Im R_i at the scaled offset is
+/// the k-th of curl_x,y,z and (grad div)_x,y,z (docs/theory/fmm.md, section 2, "Combined outputs").
+/// ab: kCombinedPerGroup * ncoef(p) doubles, overwritten (alpha_k at ab[2k nc], beta_k at ab[(2k+1) nc]).
+void curl_grad_div_coefficients(int p, double s, const cplx* b, double* ab) noexcept;
 /// P2M for up to kL2PLanes sources at once (same layout as l2p_block): u = (y - c)/s scaled offsets,
 /// charges q[d*ldq + t]; adds to Mh[d*ncoef(p) + i]. cn = c_n^m table. scratch as l2p_block.
 void p2m_block(int p, const double* rec, const double* cn, int np, const double* ux, const double* uy, const double* uz,
