@@ -64,8 +64,9 @@ struct DistributedBdOptions {
   bd::NeighbourOptions neighbours{};
   /// The mobility: none (free draining, 1 / (6 pi eta a)), or the RPY mobility of all ranks'
   /// particles by direct (DistributedDirectRpy) or fmm (DistributedFmmRpy), open geometry only, with
-  /// the Brownian displacement by the Lanczos sampler across ranks (integrator.sqrt: method
-  /// automatic or lanczos, its tolerance; rpyfmm/mpi/sqrt.hpp).
+  /// the Brownian displacement by rpyfmm::mpi::sqrt_apply with integrator.sqrt (Lanczos or
+  /// Chebyshev, with or without the block preconditioner of each rank's particles; automatic:
+  /// Lanczos without it; rpyfmm/mpi/sqrt.hpp).
   rpy::MobilityMethod method = rpy::MobilityMethod::none;
   /// The fmm method's operator options (tolerance, leaf capacity, ...).
   DistributedFmmRpyOptions fmm{.tolerance = 1e-3};
