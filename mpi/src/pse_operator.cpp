@@ -1,5 +1,6 @@
 // rpyfmm — DistributedPseRpy: PseRpy's parameters for the whole set, the wave space on FFTW-MPI
 // slabs and the real space on each rank's particles and halo (pse_operator.hpp, docs/mpi.md).
+// [PSE]: Fiore, Balboa Usabiaga, Donev & Swan, J. Chem. Phys. 146, 124116 (2017).
 #include "rpyfmm/mpi/pse_operator.hpp"
 
 #include <algorithm>

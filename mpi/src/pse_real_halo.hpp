@@ -1,5 +1,6 @@
 // rpyfmm — the real-space part M_r of DistributedPseRpy ([PSE] eq. 10 with App. A; docs/mpi.md
 // "Distributed PSE"): the serial real-space sum on a rank's particles and its halo.
+// [PSE]: Fiore, Balboa Usabiaga, Donev & Swan, J. Chem. Phys. 146, 124116 (2017).
 #pragma once
 
 #include <array>

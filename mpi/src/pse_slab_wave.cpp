@@ -8,6 +8,7 @@
 // (kernels_common.hpp's scale_mode_with, with the serial operator's c(k) table restricted to the
 // slab). The window weights come from the serial formulas (window_weights_recurrence) on the
 // positions wrapped as the serial operator wraps them; the grid sums are added in another order.
+// [PSE]: Fiore, Balboa Usabiaga, Donev & Swan, J. Chem. Phys. 146, 124116 (2017).
 #include "pse_slab_wave.hpp"
 
 #include <fftw3-mpi.h>

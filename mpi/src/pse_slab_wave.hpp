@@ -1,6 +1,7 @@
 // rpyfmm — the wave-space part M_w of DistributedPseRpy ([PSE] eq. 19; docs/mpi.md "Distributed
 // PSE"): the grid split into slabs of x planes by FFTW-MPI, spreading and interpolation on the
 // slab owners.
+// [PSE]: Fiore, Balboa Usabiaga, Donev & Swan, J. Chem. Phys. 146, 124116 (2017).
 #pragma once
 
 #include <array>

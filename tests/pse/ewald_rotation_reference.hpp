@@ -2,7 +2,7 @@
 // spheres in a periodic box by a direct Ewald sum, written plainly (no table, no FFT, no window,
 // no grid, none of the operator's quadrature):
 //  - wave space: a plain sum over k-vectors of the Fourier form of the periodic RPY grand
-//    mobility (docs/theory/pse.md, "Rotation"): per mode the force density
+//    mobility (docs/theory/pse.md Sec. 5): per mode the force density
 //    sinc(ka) F + (s(ka)/2) i k x T, the Stokes solution H(k)/(mu V k^2) (I - khat khat), and
 //    U = sinc u, W = (s/2) i k x u, with s(x) = 3 j1(x)/x;
 //  - real space: per image pair, the free-space RPY grand mobility (rpy_kernel.hpp,

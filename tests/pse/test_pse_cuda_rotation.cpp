@@ -1,4 +1,4 @@
-// PSE with rotation on CUDA against the CPU operator (docs/theory/pse.md, "Rotation"): products with
+// PSE with rotation on CUDA against the CPU operator (docs/theory/pse.md Sec. 5): products with
 // torques, the device-array entry point and the 6N split sampler agree with PseRpy to the bounds of
 // the translational CUDA tests (test_pse_cuda.cpp), and the device sampler's covariance is the
 // grand mobility. Skips cleanly without a usable device (cuda_test_device.hpp).

@@ -1,4 +1,4 @@
-// rpyfmm — PSE on CUDA with rotation (docs/theory/pse.md, "Rotation"; Fiore & Swan 2018): the
+// rpyfmm — PSE on CUDA with rotation (docs/theory/pse.md Sec. 5; Fiore & Swan 2018): the
 // rotational real-space rows by rotation_pair_terms (the CPU rows' per-pair arithmetic), over the
 // host's neighbour lists or the device cell list, and the per-mode scaling of the force and
 // torque spectra by scale_rotation_mode_at (the CPU's scale_rotation_mode and noise draw).

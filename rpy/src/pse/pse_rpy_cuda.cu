@@ -420,7 +420,7 @@ struct PseRpyCuda::Impl {
     return rep;
   }
 
-  // ---- Rotation (docs/theory/pse.md, "Rotation"; Fiore & Swan 2018) ----
+  // ---- Rotation (docs/theory/pse.md Sec. 5; Fiore & Swan 2018) ----
 
   /// Frees the rotation state of the current plan (a new plan builds its own on first use).
   void release_rotation() {

@@ -1,5 +1,5 @@
 // rpyfmm — the rotational PSE real-space blocks per pair and per row, for host and device
-// (docs/theory/pse.md, "Rotation"; rotation_real_space.hpp): the CPU rows (rotation_real_space_sum.cpp)
+// (docs/theory/pse.md Sec. 5; rotation_real_space.hpp): the CPU rows (rotation_real_space_sum.cpp)
 // and the CUDA rows (cuda_rotation.cuh) add the same per-pair terms; the CUDA rows' accumulation and
 // store are here too, so that the host tests run them. Private.
 #pragma once

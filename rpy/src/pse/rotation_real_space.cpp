@@ -1,6 +1,6 @@
 // rpyfmm — PSE real-space kernel of the rotational blocks: the wave-space part in real space by
 // quadrature of its radial transforms, the real-space coefficients, their table
-// (rotation_real_space.hpp; docs/theory/pse.md, "Rotation").
+// (rotation_real_space.hpp; docs/theory/pse.md Sec. 5).
 #include "rpyfmm/rpy/pse/rotation_real_space.hpp"
 
 #include <algorithm>

@@ -1,5 +1,5 @@
 // rpyfmm — the rotational blocks of the PSE real-space part on the CPU (rotation_real_space.hpp;
-// docs/theory/pse.md, "Rotation"): U += M_r^{UT} T and W += M_r^{WF} F + M_r^{WT} T over the
+// docs/theory/pse.md Sec. 5): U += M_r^{UT} T and W += M_r^{WF} F + M_r^{WT} T over the
 // translational sum's neighbour lists (the UF block stays RealSpaceSum's). Private.
 #pragma once
 

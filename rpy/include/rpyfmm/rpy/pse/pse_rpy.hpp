@@ -22,7 +22,7 @@
 //     operator (MobilityOperator::do_apply_sqrt), e.g. for comparison as in [PSE] Fig. 6.
 //
 // Rotation (supports_rotation): the grand mobility [U; W] = M [F; T] with the same splitting
-// (docs/theory/pse.md, "Rotation"): the wave part spreads forces and torques and transforms six
+// (docs/theory/pse.md Sec. 5): the wave part spreads forces and torques and transforms six
 // components each way; the real part adds the rotational blocks' tabulated coefficients over the
 // same neighbour lists (the table is built on the first product with torques, ~0.2 s).
 // apply_sqrt_rotation with SqrtMethod::automatic or split is the split sampler on the 6N operator:

@@ -35,7 +35,7 @@
 // the legacy default stream: callers that write the device arrays of apply_device /
 // sample_device on other streams synchronise first.
 //
-// Rotation (supports_rotation) as in PseRpy (docs/theory/pse.md, "Rotation"): the wave part spreads
+// Rotation (supports_rotation) as in PseRpy (docs/theory/pse.md Sec. 5): the wave part spreads
 // forces and torques onto two grids with the same window and fixed-point sums, scales each mode
 // by the CPU's scale_rotation_mode (rotation_modes.hpp: the same per-mode factors and noise draw)
 // and interpolates velocities and angular velocities; the real part adds the rotational rows of
