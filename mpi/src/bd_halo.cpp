@@ -9,6 +9,7 @@
 #include <numeric>
 
 #include "alltoallv.hpp"
+#include "wrap_into_box.hpp"
 
 namespace rpyfmm::mpi {
 namespace detail {
@@ -16,11 +17,7 @@ namespace detail {
 std::array<double, 3> wrapped(const double* x, const rpy::Geometry& geometry) {
   std::array<double, 3> w{x[0], x[1], x[2]};
   if (!geometry.is_periodic()) return w;
-  for (int c = 0; c < 3; ++c) {
-    const double length = geometry.box()[c];
-    w[c] -= length * std::floor(w[c] / length);
-    if (w[c] >= length) w[c] = 0.0;  // x slightly below a multiple of L rounds up to L
-  }
+  for (int c = 0; c < 3; ++c) w[c] = rpy::detail::wrap_into_box(w[c], geometry.box()[c]);  // as MobilityOperator
   return w;
 }
 

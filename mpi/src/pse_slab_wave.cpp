@@ -81,7 +81,7 @@ struct SlabWaveSpace::Slab {
   void spread(const std::vector<double>& forces);
   void scale(bool deterministic, const rpy::pse::detail::NoiseKey* noise, double noise_scale);
   [[nodiscard]] std::vector<double> interpolate() const;
-  void to_particles(double* out, std::size_t n, bool accumulate);
+  void to_particles(double* out, std::size_t particles, bool accumulate);
 };
 
 void SlabWaveSpace::Slab::plan(const std::array<double, 3>& box, double viscosity) {
@@ -243,11 +243,11 @@ void SlabWaveSpace::set_positions(std::span<const double> x) {
 // The transform back, the slabs' interpolation shares to the particles' ranks, each particle's
 // shares added in rank order of the slabs (a fixed order: repeated products agree bit for bit),
 // then U_j (+)= c3 dV sum (every window touches at least one slab).
-void SlabWaveSpace::Slab::to_particles(double* out, std::size_t n, bool accumulate) {
+void SlabWaveSpace::Slab::to_particles(double* out, std::size_t particles, bool accumulate) {
   for (int c = 0; c < 3; ++c) fftw_mpi_execute_dft_c2r(backward, spectrum(c), component(c));
   const std::vector<double> shares =
       exchange.backward(comm, interpolate(), 3, kWhere, "the velocities sent back from the grid's slabs");
-  std::vector<double> sum(3 * n, 0.0);
+  std::vector<double> sum(3 * particles, 0.0);
   std::size_t at = 0;
   for (const auto& list : exchange.send)
     for (const std::uint32_t i : list) {
@@ -255,7 +255,7 @@ void SlabWaveSpace::Slab::to_particles(double* out, std::size_t n, bool accumula
       at += 3;
     }
   const double factor = c3 * dv;
-  for (std::size_t k = 0; k < 3 * n; ++k) out[k] = accumulate ? out[k] + factor * sum[k] : factor * sum[k];
+  for (std::size_t k = 0; k < 3 * particles; ++k) out[k] = accumulate ? out[k] + factor * sum[k] : factor * sum[k];
 }
 
 void SlabWaveSpace::apply(const double* forces, double* out, std::size_t n, const rpy::pse::detail::NoiseKey* noise,
