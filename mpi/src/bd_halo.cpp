@@ -9,10 +9,19 @@
 #include <numeric>
 
 #include "alltoallv.hpp"
+#include "rpyfmm/mpi/partition.hpp"
 #include "wrap_into_box.hpp"
 
 namespace rpyfmm::mpi {
 namespace detail {
+namespace {
+
+// Particles per leaf of the tree over a rank's particles, and boxes in the cover of its region
+// published to the other ranks (as the distributed Laplace FMM's regions).
+constexpr std::size_t kCellCapacity = 32;
+constexpr std::size_t kRegionBoxes = 64;
+
+}  // namespace
 
 std::array<double, 3> wrapped(const double* x, const rpy::Geometry& geometry) {
   std::array<double, 3> w{x[0], x[1], x[2]};
@@ -21,60 +30,116 @@ std::array<double, 3> wrapped(const double* x, const rpy::Geometry& geometry) {
   return w;
 }
 
-RegionBox region_of(std::span<const double> positions, const rpy::Geometry& geometry) {
-  RegionBox box;
-  for (std::size_t i = 0; 3 * i < positions.size(); ++i) {
+OwnedCells owned_cells(std::span<const double> positions, const rpy::Geometry& geometry) {
+  OwnedCells cells;
+  const std::size_t n = positions.size() / 3;
+  if (n == 0) return cells;
+  std::vector<double> w(3 * n);
+  for (std::size_t i = 0; i < n; ++i) {
     const std::array<double, 3> p = wrapped(&positions[3 * i], geometry);
-    for (int c = 0; c < 3; ++c) {
-      box.lo[c] = box.empty ? p[c] : std::min(box.lo[c], p[c]);
-      box.hi[c] = box.empty ? p[c] : std::max(box.hi[c], p[c]);
-    }
-    box.empty = false;
+    std::copy(p.begin(), p.end(), &w[3 * i]);
   }
-  return box;
+  // The keys in the cube of this rank's own wrapped positions (no communication).
+  KeyCube cube{{w[0], w[1], w[2]}, 0.0};
+  std::array<double, 3> hi = cube.origin;
+  for (std::size_t k = 0; k < 3 * n; ++k) {
+    cube.origin[k % 3] = std::min(cube.origin[k % 3], w[k]);
+    hi[k % 3] = std::max(hi[k % 3], w[k]);
+  }
+  for (int c = 0; c < 3; ++c) cube.half_side = std::max(cube.half_side, 0.5 * hi[c] - 0.5 * cube.origin[c]);
+  const std::vector<std::uint64_t> keys = morton_keys(cube, w);
+  cells.order.resize(n);
+  std::iota(cells.order.begin(), cells.order.end(), std::uint32_t{0});
+  std::sort(cells.order.begin(), cells.order.end(),
+            [&](std::uint32_t a, std::uint32_t b) { return keys[a] != keys[b] ? keys[a] < keys[b] : a < b; });
+  std::vector<std::uint64_t> sorted_keys(n);
+  cells.wrapped.resize(3 * n);
+  for (std::size_t k = 0; k < n; ++k) {
+    sorted_keys[k] = keys[cells.order[k]];
+    std::copy(&w[3 * cells.order[k]], &w[3 * cells.order[k] + 3], &cells.wrapped[3 * k]);
+  }
+  cells.tree = build_cell_tree(sorted_keys, cells.wrapped, kCellCapacity);
+  return cells;
 }
 
-double distance2_to(const std::array<double, 3>& p, const RegionBox& box, const rpy::Geometry& geometry) {
-  if (box.empty) return std::numeric_limits<double>::infinity();
+std::vector<Box> region_of(const OwnedCells& cells) {
+  return region_cover(cells.tree, kRegionBoxes);
+}
+
+double distance2(const Box& a, const Box& b, const rpy::Geometry& geometry) {
   double d2 = 0.0;
-  for (int c = 0; c < 3; ++c) {
-    const auto gap = [&](double v) { return std::max({box.lo[c] - v, v - box.hi[c], 0.0}); };
-    double g = gap(p[c]);
-    if (geometry.is_periodic()) g = std::min({g, gap(p[c] - geometry.box()[c]), gap(p[c] + geometry.box()[c])});
+  for (std::size_t c = 0; c < 3; ++c) {
+    const auto gap = [&](double shift) {
+      return std::max({b.lo[c] + shift - a.hi[c], a.lo[c] - b.hi[c] - shift, 0.0});
+    };
+    double g = gap(0.0);
+    if (geometry.is_periodic()) g = std::min({g, gap(-geometry.box()[c]), gap(geometry.box()[c])});
     d2 += g * g;
   }
   return d2;
 }
 
-constexpr int kBoxValues = 7;  // lo, hi, empty flag
-
-std::vector<RegionBox> gather_regions(const Communicator& comm, const RegionBox& mine) {
-  std::array<double, kBoxValues> packed{
-      mine.lo[0], mine.lo[1], mine.lo[2], mine.hi[0], mine.hi[1], mine.hi[2], mine.empty ? 1.0 : 0.0};
-  std::vector<double> all(kBoxValues * static_cast<std::size_t>(comm.size()));
-  check_mpi(MPI_Allgather(packed.data(), kBoxValues, MPI_DOUBLE, all.data(), kBoxValues, MPI_DOUBLE, comm.get()),
-            "MPI_Allgather");
-  std::vector<RegionBox> boxes(static_cast<std::size_t>(comm.size()));
-  for (std::size_t r = 0; r < boxes.size(); ++r) {
-    const double* v = &all[kBoxValues * r];
-    boxes[r] = {{v[0], v[1], v[2]}, {v[3], v[4], v[5]}, v[6] != 0.0};
+std::vector<std::vector<Box>> gather_regions(const Communicator& comm, const std::vector<Box>& mine) {
+  constexpr int kBoxValues = 6;  // lo, hi
+  std::vector<double> packed;
+  packed.reserve(kBoxValues * mine.size());
+  for (const Box& b : mine) packed.insert(packed.end(), {b.lo[0], b.lo[1], b.lo[2], b.hi[0], b.hi[1], b.hi[2]});
+  const int count = static_cast<int>(packed.size());
+  std::vector<int> counts(static_cast<std::size_t>(comm.size())), displs(counts.size(), 0);
+  check_mpi(MPI_Allgather(&count, 1, MPI_INT, counts.data(), 1, MPI_INT, comm.get()), "MPI_Allgather");
+  for (std::size_t r = 1; r < counts.size(); ++r) displs[r] = displs[r - 1] + counts[r - 1];
+  std::vector<double> all(static_cast<std::size_t>(displs.back() + counts.back()));
+  check_mpi(MPI_Allgatherv(packed.data(), count, MPI_DOUBLE, all.data(), counts.data(), displs.data(), MPI_DOUBLE,
+                           comm.get()),
+            "MPI_Allgatherv");
+  std::vector<std::vector<Box>> regions(counts.size());
+  for (std::size_t r = 0; r < regions.size(); ++r) {
+    for (int k = displs[r]; k < displs[r] + counts[r]; k += kBoxValues) {
+      const double* v = &all[static_cast<std::size_t>(k)];
+      regions[r].push_back(Box{{v[0], v[1], v[2]}, {v[3], v[4], v[5]}});
+    }
   }
-  return boxes;
+  return regions;
 }
 
-std::vector<std::vector<std::uint32_t>> select_halo(const Communicator& comm, std::span<const double> positions,
-                                                    const std::vector<RegionBox>& regions,
+namespace {
+
+// Appends to `out` the index of every particle of `cells` within sqrt(reach2) of `box`: a descent
+// of the cell tree that skips the cells whose tight box lies farther.
+void particles_near(const OwnedCells& cells, const Box& box, const rpy::Geometry& geometry, double reach2,
+                    std::vector<std::uint32_t>& out) {
+  if (cells.tree.cells.empty()) return;
+  std::vector<std::uint32_t> stack{0};
+  while (!stack.empty()) {
+    const Cell& cell = cells.tree.cells[stack.back()];
+    stack.pop_back();
+    if (distance2(cell.box, box, geometry) > reach2) continue;
+    if (!cell.leaf()) {
+      for (std::uint32_t k = 0; k < cell.child_count; ++k) stack.push_back(cell.first_child + k);
+      continue;
+    }
+    for (std::size_t k = cell.begin; k < cell.end; ++k) {
+      const double* p = &cells.wrapped[3 * k];
+      if (distance2(Box{{p[0], p[1], p[2]}, {p[0], p[1], p[2]}}, box, geometry) <= reach2)
+        out.push_back(cells.order[k]);
+    }
+  }
+}
+
+}  // namespace
+
+std::vector<std::vector<std::uint32_t>> select_halo(const Communicator& comm, const OwnedCells& cells,
+                                                    const std::vector<std::vector<Box>>& regions,
                                                     const rpy::Geometry& geometry, double list_radius) {
   std::vector<std::vector<std::uint32_t>> send(regions.size());
   if (list_radius <= 0.0) return send;
   const double reach = list_radius * (1.0 + 1e-12);
   const double reach2 = reach * reach;
-  for (std::size_t i = 0; 3 * i < positions.size(); ++i) {
-    const std::array<double, 3> p = wrapped(&positions[3 * i], geometry);
-    for (std::size_t r = 0; r < regions.size(); ++r) {
-      if (static_cast<int>(r) == comm.rank()) continue;
-      if (distance2_to(p, regions[r], geometry) <= reach2) send[r].push_back(static_cast<std::uint32_t>(i));
-    }
+  for (std::size_t r = 0; r < regions.size(); ++r) {
+    if (static_cast<int>(r) == comm.rank()) continue;
+    for (const Box& box : regions[r]) particles_near(cells, box, geometry, reach2, send[r]);
+    std::sort(send[r].begin(), send[r].end());  // a particle near several boxes is sent once
+    send[r].erase(std::unique(send[r].begin(), send[r].end()), send[r].end());
   }
   return send;
 }
@@ -124,8 +189,9 @@ DistributedBd::Halo DistributedBd::Halo::build(const Communicator& comm, const b
                                                std::span<const std::uint64_t> ids) {
   Halo h{.list = bd::NeighbourList(geometry, forces.max_cutoff(), neighbours), .pairs = forces.has_pairs()};
   const double list_radius = h.pairs ? h.list.list_radius() : 0.0;
-  const std::vector<RegionBox> regions = detail::gather_regions(comm, detail::region_of(positions, geometry));
-  h.send = detail::select_halo(comm, positions, regions, geometry, list_radius);
+  const detail::OwnedCells cells = detail::owned_cells(positions, geometry);
+  const std::vector<std::vector<detail::Box>> regions = detail::gather_regions(comm, detail::region_of(cells));
+  h.send = detail::select_halo(comm, cells, regions, geometry, list_radius);
   std::vector<std::vector<double>> packed(h.send.size());
   for (std::size_t r = 0; r < h.send.size(); ++r) {
     for (const std::uint32_t i : h.send[r]) {

@@ -1,6 +1,7 @@
 // rpyfmm — the halo of a rank in distributed Brownian dynamics (rpyfmm/mpi/brownian_dynamics.hpp,
 // docs/mpi.md "Brownian dynamics across ranks"): the other ranks' particles within the list
-// radius of the box of its own particles, and the part of the system its Verlet lists are built on.
+// radius of a cover of its own particles by tight boxes, and the part of the system its Verlet
+// lists are built on.
 #pragma once
 
 #include <array>
@@ -9,6 +10,7 @@
 #include <span>
 #include <vector>
 
+#include "cell_tree.hpp"
 #include "rpyfmm/bd/force_field.hpp"
 #include "rpyfmm/bd/neighbour_list.hpp"
 #include "rpyfmm/mpi/brownian_dynamics.hpp"
@@ -17,30 +19,38 @@
 
 namespace rpyfmm::mpi {
 
-/// The axis-aligned box of a rank's particles (in a periodic box, of their wrapped positions).
-struct RegionBox {
-  std::array<double, 3> lo{0.0, 0.0, 0.0}, hi{0.0, 0.0, 0.0};
-  bool empty = true;
-};
-
 namespace detail {
 
 /// x wrapped into [0, L) on each axis of a periodic geometry; x itself in an open one.
 [[nodiscard]] std::array<double, 3> wrapped(const double* x, const rpy::Geometry& geometry);
-/// The box of positions (3n; empty for n = 0), of their wrapped positions in a periodic geometry.
-[[nodiscard]] RegionBox region_of(std::span<const double> positions, const rpy::Geometry& geometry);
-/// The squared distance from p (wrapped) to the box, over the periodic images of p in a periodic
-/// geometry (the minimum image); infinity for an empty box.
-[[nodiscard]] double distance2_to(const std::array<double, 3>& p, const RegionBox& box, const rpy::Geometry& geometry);
-/// Collective: every rank's region box (one MPI_Allgather).
-[[nodiscard]] std::vector<RegionBox> gather_regions(const Communicator& comm, const RegionBox& mine);
-/// This rank's particles (indices into positions, 3n) that each other rank needs: those within
-/// `radius` of its region (over the periodic images in a periodic geometry); none for radius <= 0.
-/// The radius is widened by a relative 1e-12 so that rounding in the wrap and the gaps can only add
-/// particles (a larger halo changes no sum: the pair lists keep pairs by their own distances).
-[[nodiscard]] std::vector<std::vector<std::uint32_t>> select_halo(const Communicator& comm,
-                                                                  std::span<const double> positions,
-                                                                  const std::vector<RegionBox>& regions,
+
+/// A rank's particles (3n positions; wrapped in a periodic geometry) in Morton order in the cube
+/// of their own wrapped positions, and the tree of cells over them (cell_tree.hpp): the region a
+/// rank publishes is a cover of it by tight boxes, and the particles near another rank's region are
+/// found by descending it.
+struct OwnedCells {
+  CellTree tree{};
+  std::vector<std::uint32_t> order{};  // the index into the positions of each particle in tree order
+  std::vector<double> wrapped{};       // 3 per particle, in tree order
+};
+[[nodiscard]] OwnedCells owned_cells(std::span<const double> positions, const rpy::Geometry& geometry);
+
+/// The region of a rank: at most 64 tight boxes (region_cover) around its wrapped positions; no box
+/// for no particle. A box around all of a rank's particles spans the periodic cell as soon as its
+/// Morton range crosses a coarse cell boundary, so one box would make the halo the whole system.
+[[nodiscard]] std::vector<Box> region_of(const OwnedCells& cells);
+/// The squared distance between two boxes (of wrapped positions), over the periodic images of b in
+/// a periodic geometry (the minimum image on each axis).
+[[nodiscard]] double distance2(const Box& a, const Box& b, const rpy::Geometry& geometry);
+/// Collective: every rank's region (MPI_Allgather of the counts, MPI_Allgatherv of the boxes).
+[[nodiscard]] std::vector<std::vector<Box>> gather_regions(const Communicator& comm, const std::vector<Box>& mine);
+/// This rank's particles (indices into the positions of `cells`, increasing) that each other rank
+/// needs: those within `radius` of a box of its region (over the periodic images in a periodic
+/// geometry); none for radius <= 0. The radius is widened by a relative 1e-12 so that rounding in
+/// the wrap and the gaps can only add particles (a larger halo changes no sum: the pair lists keep
+/// pairs by their own distances).
+[[nodiscard]] std::vector<std::vector<std::uint32_t>> select_halo(const Communicator& comm, const OwnedCells& cells,
+                                                                  const std::vector<std::vector<Box>>& regions,
                                                                   const rpy::Geometry& geometry, double radius);
 
 }  // namespace detail

@@ -3,10 +3,10 @@
 //
 // Row i of M_r F sums over the particles within r_cut of particle i (minimum image; the box is at
 // least 2 r_cut wide, pse_parameters.hpp). Every such particle of another rank lies within r_cut of
-// this rank's box, so it is in the halo: the rows of this rank's particles in a sum over its
-// particles and the halo hold the same pairs, with the same displacements (the same wrapped
-// positions), as the serial sum's rows; only the order of the additions differs. The halo's own
-// rows are incomplete and dropped.
+// a box of this rank's region (a cover of its particles by tight boxes), so it is in the halo: the
+// rows of this rank's particles in a sum over its particles and the halo hold the same pairs, with
+// the same displacements (the same wrapped positions), as the serial sum's rows; only the order of
+// the additions differs. The halo's own rows are incomplete and dropped.
 #include "pse_real_halo.hpp"
 
 #include <algorithm>
@@ -24,9 +24,10 @@ RealSpaceHalo::RealSpaceHalo(const rpy::pse::PseParameters& p, const std::array<
 
 void RealSpaceHalo::set_positions(const Communicator& comm, const rpy::Geometry& geometry, std::span<const double> x) {
   n_ = x.size() / 3;
-  const std::vector<RegionBox> regions = gather_regions(comm, region_of(x, geometry));
-  exchange_ =
-      IndexExchange{.send = select_halo(comm, x, regions, geometry, r_cut_), .recv_counts = {}, .self = comm.rank()};
+  const OwnedCells cells = owned_cells(x, geometry);
+  const std::vector<std::vector<Box>> regions = gather_regions(comm, region_of(cells));
+  exchange_ = IndexExchange{
+      .send = select_halo(comm, cells, regions, geometry, r_cut_), .recv_counts = {}, .self = comm.rank()};
   std::vector<double> part(x.begin(), x.end());
   const std::vector<double> halo = exchange_.forward(comm, x.data(), 3, kWhere, "the real-space halo's positions");
   part.insert(part.end(), halo.begin(), halo.end());
