@@ -68,6 +68,7 @@ std::vector<double> option_signature(const DistributedBdOptions& o, const rpy::G
           o.neighbours.skin,
           static_cast<double>(o.neighbours.fixed_interval),
           o.repartition_imbalance,
+          static_cast<double>(o.repartition_cost),
           g.is_periodic() ? 1.0 : 0.0,
           g.box()[0],
           g.box()[1],
@@ -221,18 +222,23 @@ void DistributedBd::run(std::uint64_t count) {
 
 void DistributedBd::rebuild() {
   // The ranks' costs: their particles and their list entries (the forces' pair work).
+  // The ranks' costs: the model's (their particles and list entries, the forces' pair work) or the
+  // measured seconds of their own work, spread over their particles as the model's weights.
   const std::vector<double> rows = halo_ ? halo_->row_lengths() : std::vector<double>(ids_.size(), 0.0);
-  const double cost = static_cast<double>(ids_.size()) + std::accumulate(rows.begin(), rows.end(), 0.0);
+  std::vector<double> weights(rows.size());
+  for (std::size_t i = 0; i < rows.size(); ++i) weights[i] = 1.0 + rows[i];
+  const double model_cost = std::accumulate(weights.begin(), weights.end(), 0.0);
+  const bool measured = halo_ && options_.repartition_cost == DistributedBdOptions::Cost::measured_time;
+  const double cost = measured ? work_seconds_ : model_cost;
+  if (measured && model_cost > 0.0)
+    for (double& w : weights) w *= work_seconds_ / model_cost;
   double max_cost = 0.0, total_cost = 0.0;
   check_mpi(MPI_Allreduce(&cost, &max_cost, 1, MPI_DOUBLE, MPI_MAX, comm_.get()), "MPI_Allreduce");
   check_mpi(MPI_Allreduce(&cost, &total_cost, 1, MPI_DOUBLE, MPI_SUM, comm_.get()), "MPI_Allreduce");
   const double mean = total_cost / comm_.size();
   stats_.imbalance = mean > 0.0 ? max_cost / mean : 1.0;
-  if (!halo_ || (comm_.size() > 1 && stats_.imbalance > options_.repartition_imbalance)) {
-    std::vector<double> weights(rows.size());
-    for (std::size_t i = 0; i < rows.size(); ++i) weights[i] = 1.0 + rows[i];
-    repartition(weights);
-  }
+  if (!halo_ || (comm_.size() > 1 && stats_.imbalance > options_.repartition_imbalance)) repartition(weights);
+  work_seconds_ = 0.0;
   halo_ = std::make_unique<Halo>(Halo::build(comm_, forces_, geometry_, options_.neighbours, x_, types_, ids_));
   list_reference_ = x_;
   rebuild_due_ = false;
@@ -276,8 +282,10 @@ void DistributedBd::compute_forces() {
   f_.assign(3 * n, 0.0);
   particle_energy_.assign(n, 0.0);
   comm_.run([&] {
+    const StopWatch work;  // this rank's own work, without the agreement's wait for the others
     forces_.compute_rows(halo_->x, halo_->types, halo_->list, step_, halo_->owned_rows, halo_->ids, f_,
                          particle_energy_);
+    work_seconds_ += work.seconds();
   });
   double mine = 0.0;
   for (const double e : particle_energy_) mine += e;
@@ -290,7 +298,9 @@ void DistributedBd::advance() {
   z_.assign(options_.integrator.kT > 0.0 ? 3 * n : 0, 0.0);
   if (!z_.empty()) rpy::fill_normal(ids_, z_, options_.integrator.seed, step_);
   std::vector<double> next(3 * n);
+  StopWatch work;
   const std::uint64_t refused = hydrodynamics_ ? displace_with_hydrodynamics(next) : displace_free_draining(next);
+  if (!hydrodynamics_) work_seconds_ += work.seconds();  // the hydrodynamic products are collective
   std::uint64_t lowest = kNoParticle;
   check_mpi(MPI_Allreduce(&refused, &lowest, 1, MPI_UINT64_T, MPI_MIN, comm_.get()), "MPI_Allreduce");
   if (lowest != kNoParticle) fail_blow_up(lowest, next);

@@ -183,6 +183,28 @@ TEST(MpiDistributedBd, ShuffledIdsAndARepartitionAtEveryRebuildKeepTheSerialTraj
   EXPECT_EQ(total, s.size());
 }
 
+TEST(MpiDistributedBd, MeasuredTimeCostsRepartitionAndKeepTheSerialTrajectory) {
+  // Costs from each rank's measured seconds (partitions that follow the timings, different from run
+  // to run): free-draining positions do not depend on the partition, so they stay the serial
+  // engine's bit for bit; with threshold 1 every rebuild moves particles on more than one rank.
+  const System s = lattice(7, 1.3, 1, 5);
+  const Geometry open = Geometry::open();
+  DistributedBdOptions o = options_with(1e-3, 99);
+  o.repartition_imbalance = 1.0;
+  o.repartition_cost = DistributedBdOptions::Cost::measured_time;
+  const std::vector<double> expected = serial_run(sticky_trapped(), open, o, s, 80);
+  DistributedBd bd(MPI_COMM_WORLD, sticky_trapped(), open, o,
+                   share_of(s, Split::geometric, shuffled(s.size(), 8), true));
+  bd.run(80);
+  expect_positions_bitwise(bd, expected, "measured-time costs");
+  EXPECT_GE(bd.stats().rebuilds, 2u);
+  if (world_size() > 1) {
+    EXPECT_EQ(bd.stats().repartitions, bd.stats().rebuilds);
+  }
+  EXPECT_TRUE(std::isfinite(bd.stats().imbalance));
+  EXPECT_GE(bd.stats().imbalance, 1.0);
+}
+
 TEST(MpiDistributedBd, EnergyIsTheSerialEnergyToRoundOff) {
   // The sum over ranks adds the particles' shares in another order: agreement to a few ulps of the
   // sum of their magnitudes, here bounded by 1e-12 relative.

@@ -75,6 +75,18 @@ struct DistributedBdOptions {
   /// A rebuild moves the particles along the Morton curve when the largest rank's cost exceeds this
   /// multiple of the mean (>= 1; 1: at every rebuild; infinity: never after the first partition).
   double repartition_imbalance = 1.25;
+  /// What a rank's cost is, in the imbalance test and as the weights of the new partition.
+  enum class Cost {
+    /// Its particles plus their neighbour-list entries (the pair work): the same on every run.
+    model,
+    /// The seconds of its own force and update work since the last rebuild (no communication
+    /// counted), spread over its particles in proportion to the model's weights: follows what the
+    /// machine does (cores of different speed, other load on some). Partitions then differ from run
+    /// to run. Free-draining positions do not depend on the partition (bit for bit); with
+    /// hydrodynamic interactions the operators' sums do, at round-off.
+    measured_time,
+  };
+  Cost repartition_cost = Cost::model;
 };
 
 /// This rank's particles.
@@ -91,7 +103,7 @@ struct DistributedBdStats {
   std::uint64_t rebuilds = 0;      ///< list, halo and (maybe) partition rebuilds, the same on every rank
   std::uint64_t repartitions = 0;  ///< rebuilds that moved particles between ranks
   std::size_t halo_size = 0;       ///< this rank's halo particles since the last rebuild
-  double imbalance = 1.0;          ///< max / mean cost over the ranks at the last rebuild
+  double imbalance = 1.0;          ///< max / mean cost (repartition_cost) over the ranks at the last rebuild
   /// This rank's seconds: "rebuild" (test, partition, halo search and exchange, lists), "halo" (the
   /// halo's positions every step), "forces", "update" (step, guard and the collective checks).
   StageTimes seconds;
@@ -173,6 +185,7 @@ class DistributedBd {
   std::vector<std::uint64_t> ids_;
   std::unique_ptr<Halo> halo_;
   std::unique_ptr<Hydrodynamics> hydrodynamics_;  // null: free draining
+  double work_seconds_ = 0.0;                     // own force and update work since the last rebuild
   std::vector<double> radii_, u_, w_;             // with hydrodynamics: per owned particle
   DistributedBdStats stats_;
 };
