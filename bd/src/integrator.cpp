@@ -74,7 +74,9 @@ Integrator::Integrator(std::unique_ptr<rpy::MobilityOperator> mobility, ForceFie
   require(options_.engine == StepEngine::external, ErrorCode::invalid_argument, where,
           "an engine given to the Integrator needs options.engine = StepEngine::external");
   require(engine != nullptr, ErrorCode::invalid_argument, where, "no engine given");
-  require(engine->step_count() == step_ && engine->positions().size() == x_.size(), ErrorCode::invalid_argument, where,
+  // An engine across processes may hold the positions on one process alone (Stepper::positions).
+  const std::size_t held = engine->positions().size();
+  require(engine->step_count() == step_ && (held == x_.size() || held == 0), ErrorCode::invalid_argument, where,
           "the engine given holds other particles or another step than the Integrator's");
   device_ = std::move(engine);
   std::vector<double>().swap(x_);  // the engine holds the positions

@@ -186,7 +186,10 @@ class Run {
     open_outputs();
     last_.totals = bd_.totals();
     last_.step = bd_.step_count();
-    last_.centre = centre_of(bd_.positions(), n_);
+    // Read on every process (the read may be collective), used on the one that writes (an engine
+    // across processes may gather the positions there alone, Stepper::positions).
+    const auto x = bd_.positions();
+    if (options_.writes_files) last_.centre = centre_of(x, n_);
     if (!start_.restarted) write_records(true);
     StopWatch wall;
     double last_progress = -1.0;
@@ -331,8 +334,16 @@ class Run {
 
   void write_log_row(bool first) {
     const std::uint64_t s = bd_.step_count();
-    const auto [md, msd] = displacement_moments(bd_.positions(), start_.reference, n_);
-    const auto cnow = centre_of(bd_.positions(), n_);
+    // The positions are read on every process (the read may be collective) and used on the one
+    // that writes (an engine across processes may gather them there alone, Stepper::positions).
+    const auto x = bd_.positions();
+    std::array<double, 2> moments{};
+    std::array<double, 3> cnow{};
+    if (options_.writes_files) {
+      moments = displacement_moments(x, start_.reference, n_);
+      cnow = centre_of(x, n_);
+    }
+    const auto [md, msd] = moments;
     const double elapsed = static_cast<double>(s - last_.step) * config_.integrator.dt;
     const IntegratorTotals t = bd_.totals();
     const double steps = first ? 1.0 : std::max<double>(1.0, static_cast<double>(t.steps - last_.totals.steps));

@@ -15,8 +15,8 @@ namespace {
 
 constexpr const char* kWhere = "bd across ranks";
 
-// Collective: the values (3 per particle) of every rank's particles, on every rank, placed by
-// global index (3 N entries). An empty `values` counts as zeros.
+// Collective: the values (3 per particle) of every rank's particles on rank 0, placed by global
+// index (3 N entries); an empty array on the other ranks. An empty `values` counts as zeros.
 std::vector<double> gather_by_index(const Communicator& comm, std::span<const std::uint64_t> ids,
                                     std::span<const double> values, std::uint64_t total) {
   std::vector<double> packed;
@@ -26,17 +26,18 @@ std::vector<double> gather_by_index(const Communicator& comm, std::span<const st
     for (std::size_t c = 0; c < 3; ++c) packed.push_back(values.empty() ? 0.0 : values[3 * i + c]);
   }
   require(4 * total <= static_cast<std::uint64_t>(INT_MAX), ErrorCode::not_supported, kWhere,
-          "gathering more than (2^31 - 1) / 4 particles on every rank");
+          "gathering more than (2^31 - 1) / 4 particles on rank 0");
   const int mine = static_cast<int>(packed.size());
-  std::vector<int> counts(static_cast<std::size_t>(comm.size())), displs(counts.size(), 0);
-  check_mpi(MPI_Allgather(&mine, 1, MPI_INT, counts.data(), 1, MPI_INT, comm.get()), "MPI_Allgather");
+  const bool root = comm.rank() == 0;
+  std::vector<int> counts(root ? static_cast<std::size_t>(comm.size()) : 0), displs(counts.size(), 0);
+  check_mpi(MPI_Gather(&mine, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, comm.get()), "MPI_Gather");
   for (std::size_t r = 1; r < counts.size(); ++r) displs[r] = displs[r - 1] + counts[r - 1];
-  std::vector<double> all(4 * total);
+  std::vector<double> all(root ? 4 * total : 0);
   check_mpi(
-      MPI_Allgatherv(packed.data(), mine, MPI_DOUBLE, all.data(), counts.data(), displs.data(), MPI_DOUBLE, comm.get()),
-      "MPI_Allgatherv");
-  std::vector<double> placed(3 * total);
-  for (std::size_t k = 0; k < total; ++k) {
+      MPI_Gatherv(packed.data(), mine, MPI_DOUBLE, all.data(), counts.data(), displs.data(), MPI_DOUBLE, 0, comm.get()),
+      "MPI_Gatherv");
+  std::vector<double> placed(root ? 3 * total : 0);
+  for (std::size_t k = 0; 4 * k < all.size(); ++k) {
     const auto id = static_cast<std::size_t>(all[4 * k]);
     for (std::size_t c = 0; c < 3; ++c) placed[3 * id + c] = all[4 * k + 1 + c];
   }
@@ -44,7 +45,8 @@ std::vector<double> gather_by_index(const Communicator& comm, std::span<const st
 }
 
 // DistributedBd behind the Integrator's engine interface; the whole system's positions and forces
-// gathered on every rank once per step they are read at.
+// gathered on rank 0 (the rank that writes the files, across_ranks) once per step they are read at,
+// so that no other rank holds O(N) of them.
 class DistributedStepper final : public bd::Stepper {
  public:
   explicit DistributedStepper(DistributedBd bd) : bd_(std::move(bd)) {}

@@ -49,8 +49,9 @@ IntegratorOptions external_options() {
 
 Integrator make(const std::vector<double>& x, std::unique_ptr<rpyfmm::bd::Stepper> engine,
                 IntegratorOptions options = external_options(), std::uint64_t first_step = 4) {
-  return Integrator(std::make_unique<rpyfmm::rpy::FreeDrainingMobility>(rpyfmm::rpy::Geometry::open(), 1.0), {},
-                    options, x, std::vector<std::uint32_t>(x.size() / 3, 0), {}, first_step, std::move(engine));
+  return Integrator(std::make_unique<rpyfmm::rpy::FreeDrainingMobility>(rpyfmm::rpy::Geometry::open(), 1.0),
+                    rpyfmm::bd::ForceField(), options, x, std::vector<std::uint32_t>(x.size() / 3, 0), {}, first_step,
+                    std::move(engine));
 }
 
 TEST(ExternalEngine, TheIntegratorReadsTheEnginesState) {
@@ -81,8 +82,8 @@ TEST(ExternalEngine, MismatchesAreRefused) {
   cpu.engine = StepEngine::cpu;
   EXPECT_THROW(make(x, std::make_unique<ShiftEngine>(x, 4), cpu), rpyfmm::Error);
   try {
-    Integrator bd(std::make_unique<rpyfmm::rpy::FreeDrainingMobility>(rpyfmm::rpy::Geometry::open(), 1.0), {},
-                  external_options(), x, std::vector<std::uint32_t>(2, 0));
+    Integrator bd(std::make_unique<rpyfmm::rpy::FreeDrainingMobility>(rpyfmm::rpy::Geometry::open(), 1.0),
+                  rpyfmm::bd::ForceField(), external_options(), x, std::vector<std::uint32_t>(2, 0));
     FAIL() << "external without an engine accepted";
   } catch (const rpyfmm::Error& e) {
     EXPECT_NE(std::string(e.what()).find("needs the constructor that takes the engine"), std::string::npos);

@@ -142,7 +142,9 @@ class Integrator {
   void run(std::uint64_t count);
 
   /// The positions (3N, unwrapped). On the device engine, copied from the device when read at a
-  /// step not copied yet, into one host array: a span kept across steps shows the last read.
+  /// step not copied yet, into one host array: a span kept across steps shows the last read. On an
+  /// engine across processes (StepEngine::external), as its Stepper::positions gives them: maybe on
+  /// one process only (empty elsewhere), read on all of them.
   [[nodiscard]] std::span<const double> positions() const;
   [[nodiscard]] std::span<const std::uint32_t> types() const { return types_; }
   [[nodiscard]] std::span<const double> radii() const { return radii_; }

@@ -18,9 +18,11 @@ class Stepper {
   /// One step: on an error the positions stay at the last good step.
   virtual void step() = 0;
   /// The positions at the current step (3N, unwrapped, the whole system), copied once per step
-  /// asked (into the same array: a view of it shows the step it was last read at).
+  /// asked (into the same array: a view of it shows the step it was last read at). An engine across
+  /// processes may hold them on the process that writes the files alone (RunOptions::writes_files)
+  /// and return an empty array elsewhere; every process then calls it at the same steps.
   [[nodiscard]] virtual const std::vector<double>& positions() const = 0;
-  /// The forces at the start of the last step (3N; 0 before the first), copied as positions().
+  /// The forces at the start of the last step (3N; 0 before the first), copied and held as positions().
   [[nodiscard]] virtual const std::vector<double>& forces() const = 0;
   [[nodiscard]] virtual std::uint64_t step_count() const = 0;
   /// The potential energy at the start of the last step; 0 before the first (as
