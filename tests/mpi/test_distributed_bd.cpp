@@ -413,6 +413,13 @@ TEST(MpiDistributedBd, HydrodynamicsThatDoNotFitTheGeometryAreRefused) {
   o = pse_options();
   o.method = rpyfmm::rpy::MobilityMethod::automatic;
   refused(o, box, "is not run across ranks");
+  if (world_size() > 1) {  // a PSE option that differs between ranks
+    o = pse_options();
+    if (world_rank() == world_size() - 1) o.pse.tolerance = 1e-5;
+    expect_collective_error(
+        [&] { DistributedBd bd(MPI_COMM_WORLD, wca_pulled(), box, o, share_of(s, Split::even, identity(64), false)); },
+        ErrorCode::invalid_argument, "different options");
+  }
 }
 
 TEST(MpiDistributedBd, BadInputOnOneRankFailsEveryRank) {
