@@ -1,32 +1,56 @@
 // rpyfmm — the hydrodynamic interactions of distributed Brownian dynamics (rpyfmm/mpi/
 // brownian_dynamics.hpp, docs/mpi.md "Brownian dynamics across ranks"): the RPY mobility of the
-// particles of all ranks by DistributedDirectRpy or DistributedFmmRpy, and the Brownian
-// displacement w = M^{1/2} z by the Lanczos sampler across ranks (rpyfmm/mpi/sqrt.hpp).
+// particles of all ranks, in free space by DistributedDirectRpy or DistributedFmmRpy with the
+// Brownian displacement w = M^{1/2} z by the Lanczos sampler across ranks (rpyfmm/mpi/sqrt.hpp),
+// in a periodic box by DistributedPseRpy with drift and noise in one pass (Positively Split Ewald:
+// Fiore, Balboa Usabiaga, Donev & Swan, J. Chem. Phys. 146, 124116 (2017)).
 #pragma once
 
+#include <cstdint>
 #include <span>
+#include <utility>
 #include <variant>
 
 #include "rpyfmm/mpi/brownian_dynamics.hpp"
 #include "rpyfmm/mpi/direct_operator.hpp"
 #include "rpyfmm/mpi/fmm_rpy.hpp"
+#include "rpyfmm/mpi/pse_operator.hpp"
 #include "rpyfmm/rpy/sqrt.hpp"
 
 namespace rpyfmm::mpi {
 
 struct DistributedBd::Hydrodynamics {
-  std::variant<DistributedDirectRpy, DistributedFmmRpy> op;
+  /// The Brownian term that the pse operator draws itself, as bd::Integrator asks PseRpy for it
+  /// (bd::fused_drift_and_noise): u = M F + scale M^{1/2} z with scale = sqrt(2 kT dt) / dt (0: no
+  /// noise, u = M F) and z keyed by (seed, step) and the particles' global indices.
+  struct FusedNoise {
+    double scale = 0.0;
+    std::uint64_t seed = 0, step = 0;
+    std::span<const std::uint64_t> ids;
+  };
+
+  std::variant<DistributedDirectRpy, DistributedFmmRpy, DistributedPseRpy> op;
   rpy::SqrtOptions sqrt;
 
-  /// Collective: the operator of options.method (direct or fmm; none: nullptr). Throws on every
-  /// rank for a periodic geometry (the operators are free-space) and a sampler the ranks do not run.
+  template <class Operator, class... Args>
+  Hydrodynamics(std::in_place_type_t<Operator> type, const rpy::SqrtOptions& sampler, Args&&... args)
+      : op(type, std::forward<Args>(args)...), sqrt(sampler) {}
+
+  /// Collective: the operator of options.method (direct or fmm in open geometry, pse in a periodic
+  /// box; none: nullptr). Throws on every rank for a method the geometry or the ranks do not run,
+  /// and for pse with a sampler other than its split one.
   static std::unique_ptr<Hydrodynamics> make(MPI_Comm comm, const DistributedBdOptions& options,
                                              const rpy::Geometry& geometry);
 
-  /// Collective: u = M F and, where z is not empty, w = M^{1/2} z for this rank's particles at x
-  /// with radii a (3 values per particle each; one radius per particle).
+  /// Whether products() draws the noise itself (pse): the step then passes no z.
+  [[nodiscard]] bool fused() const { return std::holds_alternative<DistributedPseRpy>(op); }
+
+  /// Collective, for this rank's particles at x with radii a (3 values per particle each; one
+  /// radius per particle): direct, fmm: u = M F and, where z is not empty, w = M^{1/2} z; pse:
+  /// u = M F + noise.scale M^{1/2} z in one pass, w untouched.
   rpy::SqrtReport products(std::span<const double> x, std::span<const double> a, std::span<const double> f,
-                           std::span<const double> z, std::span<double> u, std::span<double> w);
+                           std::span<const double> z, const FusedNoise& noise, std::span<double> u,
+                           std::span<double> w);
 };
 
 }  // namespace rpyfmm::mpi

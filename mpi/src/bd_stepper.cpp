@@ -83,10 +83,28 @@ class DistributedStepper final : public bd::Stepper {
   mutable std::uint64_t positions_step_ = kNever, forces_step_ = kNever;
 };
 
-// The mobility of a run across ranks: its method, automatic counting as fmm (free space).
+// The mobility of a run across ranks: its method, automatic counting as fmm in free space and as
+// pse in a periodic box (rpy::make_mobility's choice for the serial run).
 rpy::MobilityMethod method_across_ranks(const bd::RunConfig& config) {
   const rpy::MobilityMethod m = config.mobility.method;
-  return m == rpy::MobilityMethod::automatic && config.geometry.is_open() ? rpy::MobilityMethod::fmm : m;
+  if (m != rpy::MobilityMethod::automatic) return m;
+  return config.geometry.is_open() ? rpy::MobilityMethod::fmm : rpy::MobilityMethod::pse;
+}
+
+// The pse method's options as rpy::make_mobility gives them to the serial run's PseRpy. Across
+// ranks the wave-space grids are double precision (DistributedPseRpy): wave_precision "single" and
+// the device "cuda" are refused, "auto" runs the double grids.
+rpy::pse::PseOptions pse_across_ranks(const rpy::MobilitySpec& spec) {
+  require(spec.wave_precision != rpy::pse::WavePrecision::single_precision, ErrorCode::not_supported, kWhere,
+          "mobility.wave_precision = \"single\" is not run across ranks (PSE across ranks has double-precision "
+          "grids: use \"auto\" or \"double\")");
+  require(spec.device == rpy::ComputeDevice::cpu, ErrorCode::not_supported, kWhere,
+          std::string("mobility.device = \"") + rpy::to_string(spec.device) + "\" is not run across ranks (cpu only)");
+  rpy::pse::PseOptions options;
+  options.tolerance = spec.tolerance;
+  options.fft_measure = spec.fft_measure;
+  options.wave_precision = spec.wave_precision;
+  return options;
 }
 
 }  // namespace
@@ -101,6 +119,7 @@ std::unique_ptr<bd::Stepper> make_distributed_stepper(MPI_Comm comm, const bd::R
   options.viscosity = config.mobility.viscosity;
   options.method = method_across_ranks(config);
   options.fmm.tolerance = config.mobility.tolerance;
+  if (options.method == rpy::MobilityMethod::pse) options.pse = pse_across_ranks(config.mobility);
   // Blocks of global indices: rank r takes [r N / P, (r + 1) N / P).
   const auto p = static_cast<std::uint64_t>(world.size()), r = static_cast<std::uint64_t>(world.rank());
   const std::uint64_t n = types.size(), first = r * n / p, last = (r + 1) * n / p;

@@ -1,4 +1,4 @@
-// rpyfmm — free-draining Brownian dynamics across MPI ranks (rpyfmm/mpi/brownian_dynamics.hpp;
+// rpyfmm — Brownian dynamics across MPI ranks (rpyfmm/mpi/brownian_dynamics.hpp;
 // docs/mpi.md, "Brownian dynamics across ranks").
 #include "rpyfmm/mpi/brownian_dynamics.hpp"
 
@@ -79,7 +79,17 @@ std::vector<double> option_signature(const DistributedBdOptions& o, const rpy::G
           static_cast<double>(o.method),
           o.fmm.tolerance,
           static_cast<double>(o.fmm.leaf_capacity),
-          i.sqrt.tolerance};
+          static_cast<double>(i.sqrt.method),
+          i.sqrt.tolerance,
+          o.pse.tolerance,
+          o.pse.xi,
+          o.pse.r_cut,
+          static_cast<double>(o.pse.grid[0]),
+          static_cast<double>(o.pse.grid[1]),
+          static_cast<double>(o.pse.grid[2]),
+          static_cast<double>(o.pse.support),
+          o.pse.window_eta,
+          o.pse.lanczos_tolerance};
 }
 
 // Collective: the exclusive prefix sum and the total of this rank's count.
@@ -294,8 +304,10 @@ void DistributedBd::compute_forces() {
 
 void DistributedBd::advance() {
   const std::size_t n = ids_.size();
-  // z_i keyed by the global index, drawn as the serial engine draws it (rpy::fill_normal).
-  z_.assign(options_.integrator.kT > 0.0 ? 3 * n : 0, 0.0);
+  // z_i keyed by the global index, drawn as the serial engine draws it (rpy::fill_normal); the pse
+  // operator draws its own.
+  const bool drawn = options_.integrator.kT > 0.0 && !(hydrodynamics_ && hydrodynamics_->fused());
+  z_.assign(drawn ? 3 * n : 0, 0.0);
   if (!z_.empty()) rpy::fill_normal(ids_, z_, options_.integrator.seed, step_);
   std::vector<double> next(3 * n);
   StopWatch work;
@@ -336,15 +348,18 @@ std::uint64_t DistributedBd::displace_free_draining(std::vector<double>& next) {
 }
 
 std::uint64_t DistributedBd::displace_with_hydrodynamics(std::vector<double>& next) {
-  // u = M F, w = M^{1/2} z over all ranks' particles, then bd::Integrator's step and guard:
-  // dx = u dt + sqrt(2 kT dt) w, refused beyond max_displacement x the radius (docs/theory/bd.md).
+  // u = M F, w = M^{1/2} z over all ranks' particles (pse: u = M F + (noise / dt) M^{1/2} z in one
+  // pass, z_ empty), then bd::Integrator's step and guard: dx = u dt + sqrt(2 kT dt) w, refused
+  // beyond max_displacement x the radius (docs/theory/bd.md).
   const std::size_t n = ids_.size();
   radii_.resize(n);
   for (std::size_t i = 0; i < n; ++i) radii_[i] = forces_.types()[types_[i]].radius;
   u_.assign(3 * n, 0.0);
   w_.assign(z_.size(), 0.0);
-  hydrodynamics_->products(x_, radii_, f_, z_, u_, w_);
   const double dt = options_.integrator.dt, noise = std::sqrt(2.0 * options_.integrator.kT * dt);
+  const Hydrodynamics::FusedNoise fused{
+      .scale = noise / dt, .seed = options_.integrator.seed, .step = step_, .ids = ids_};
+  hydrodynamics_->products(x_, radii_, f_, z_, fused, u_, w_);
   const double frac2 = options_.integrator.max_displacement * options_.integrator.max_displacement;
   std::uint64_t refused = kNoParticle;
   for (std::size_t i = 0; i < n; ++i) {

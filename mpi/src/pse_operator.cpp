@@ -23,6 +23,7 @@
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/mpi/sqrt.hpp"
 #include "rpyfmm/rpy/pse/pse_rpy.hpp"
+#include "rpyfmm/rpy/random.hpp"
 #include "sqrt/krylov_space.hpp"
 #include "wrap_into_box.hpp"
 
@@ -95,6 +96,10 @@ struct DistributedPseRpy::Impl {
   void check_arrays(std::span<const double> forces, std::span<double> velocities, const char* where) const;
   // M_r^{1/2} z1 by the serial Lanczos iteration on a distributed basis (w: 3 local_n).
   [[nodiscard]] rpy::SqrtReport real_sqrt(const std::vector<double>& z1, double* w) const;
+  // apply_with_noise, z1 keyed by the rank order (indices null) or by the given global indices.
+  [[nodiscard]] rpy::SqrtReport fused(std::span<const double> forces, double noise_scale, std::uint64_t seed,
+                                      std::uint64_t step, const std::span<const std::uint64_t>* indices,
+                                      std::span<double> velocities) const;
 };
 
 void DistributedPseRpy::Impl::check_arrays(std::span<const double> forces, std::span<double> velocities,
@@ -323,12 +328,32 @@ rpy::SqrtReport DistributedPseRpy::apply_sqrt(std::span<const double> local_z, s
 rpy::SqrtReport DistributedPseRpy::apply_with_noise(std::span<const double> local_forces, double noise_scale,
                                                     std::uint64_t seed, std::uint64_t step,
                                                     std::span<double> local_velocities) const {
+  return impl_->fused(local_forces, noise_scale, seed, step, nullptr, local_velocities);
+}
+
+rpy::SqrtReport DistributedPseRpy::apply_with_noise(std::span<const double> local_forces, double noise_scale,
+                                                    std::uint64_t seed, std::uint64_t step,
+                                                    std::span<const std::uint64_t> local_indices,
+                                                    std::span<double> local_velocities) const {
+  return impl_->fused(local_forces, noise_scale, seed, step, &local_indices, local_velocities);
+}
+
+rpy::SqrtReport DistributedPseRpy::Impl::fused(std::span<const double> forces, double noise_scale, std::uint64_t seed,
+                                               std::uint64_t step, const std::span<const std::uint64_t>* indices,
+                                               std::span<double> velocities) const {
   constexpr const char* where = "DistributedPseRpy::apply_with_noise";
-  const Impl& im = *impl_;
-  im.check_arrays(local_forces, local_velocities, where);
-  im.comm.run([&] {
+  check_arrays(forces, velocities, where);
+  comm.run([&] {
     require(std::isfinite(noise_scale) && noise_scale >= 0.0, ErrorCode::invalid_argument, where,
             "noise_scale must be finite and >= 0, got " + format_number(noise_scale));
+    if (indices == nullptr) return;
+    require(indices->size() == local_n, ErrorCode::invalid_input, where,
+            "local indices must hold one per local particle: " + std::to_string(indices->size()) + " for " +
+                std::to_string(local_n));
+    for (const std::uint64_t i : *indices)
+      require(
+          i < global_n, ErrorCode::invalid_input, where,
+          "global index " + std::to_string(i) + " is not below the number of particles " + std::to_string(global_n));
   });
   // PseRpy::apply_with_noise: y = M_r^{1/2} z1 (z1 of (seed, step)), one wave-space pass for
   // M_w F + noise_scale M_w^{1/2} z2, then M_r F, then noise_scale y.
@@ -336,17 +361,19 @@ rpy::SqrtReport DistributedPseRpy::apply_with_noise(std::span<const double> loca
   report.method = rpy::SqrtMethod::split;
   std::vector<double> y;
   if (noise_scale > 0.0) {
-    std::vector<double> z1(3 * im.local_n);
-    fill_normal(z1, im.offset, seed, step, rpy::pse::detail::kStreamReal);
+    std::vector<double> z1(3 * local_n);
+    if (indices == nullptr)
+      fill_normal(z1, offset, seed, step, rpy::pse::detail::kStreamReal);
+    else
+      rpy::fill_normal(*indices, z1, seed, step, rpy::pse::detail::kStreamReal);
     y.resize(z1.size());
-    report = im.real_sqrt(z1, y.data());
+    report = real_sqrt(z1, y.data());
     report.method = rpy::SqrtMethod::split;
   }
   const rpy::pse::detail::NoiseKey key{seed, step};
-  im.wave->apply(local_forces.data(), local_velocities.data(), im.local_n, noise_scale > 0.0 ? &key : nullptr,
-                 noise_scale);
-  im.real->apply(im.comm, local_forces.data(), local_velocities.data());
-  for (std::size_t i = 0; i < y.size(); ++i) local_velocities[i] += noise_scale * y[i];
+  wave->apply(forces.data(), velocities.data(), local_n, noise_scale > 0.0 ? &key : nullptr, noise_scale);
+  real->apply(comm, forces.data(), velocities.data());
+  for (std::size_t i = 0; i < y.size(); ++i) velocities[i] += noise_scale * y[i];
   report.operator_applications += 1;
   return report;
 }

@@ -3,8 +3,11 @@
 # serial engine's bit for bit, so the trajectory files must be identical byte for byte:
 #  - a run of 60 steps on NP ranks (frames every 10, a checkpoint every 30);
 #  - the first 30 steps on 2 ranks, then a restart from their checkpoint on NP ranks.
-# A configuration the ranks do not run (method pse; bonds) fails every rank: exit status 2, one
-# error line, no output directory. Run by ctest as
+# With PSE (spheres of one radius, double-precision wave grids) the positions are the serial
+# engine's to round-off (about 1e-15 of the coordinates; tests/mpi/test_distributed_bd.cpp), so
+# the printed coordinates (10 significant digits) agree to one unit of their last digit, allowed 2.
+# A configuration the ranks do not run (direct in a periodic box; PSE with single-precision grids;
+# bonds) fails every rank: exit status 2, one error line, no output directory. Run by ctest as
 #   cmake -DRPYFMM=... -DMPIEXEC=... -DNP=... "-DMPI_FLAGS=..." -DWORK=... -P bd_across_ranks.cmake
 cmake_minimum_required(VERSION 3.20)
 foreach(var RPYFMM MPIEXEC NP WORK)
@@ -83,13 +86,88 @@ run_bd(2 --config "${WORK}/run.toml" --out-dir "${WORK}/restarted" --steps 30 --
 run_bd(${NP} --restart "${WORK}/restarted/checkpoint.bin" --quiet)
 same_trajectory(serial restarted "30 steps on 2 ranks, 30 more on ${NP}")
 
-# Refused configurations: every rank fails, rank 0 prints one line, nothing is left behind.
+# Whether two coordinates printed with 10 significant digits differ by at most 2 units of their
+# last digit (the same number of decimals; as integers without the point).
+function(close_in_last_digit a b result)
+  set(${result} FALSE PARENT_SCOPE)
+  foreach(v a b)
+    if(NOT ${v} MATCHES "^(-?)([0-9]+)\\.([0-9]+)$")
+      return()
+    endif()
+    set(sign "${CMAKE_MATCH_1}")
+    set(${v}_decimals "${CMAKE_MATCH_3}")
+    string(REGEX REPLACE "^0+([0-9])" "\\1" digits "${CMAKE_MATCH_2}${CMAKE_MATCH_3}")
+    set(${v}_int "${sign}${digits}")
+  endforeach()
+  string(LENGTH "${a_decimals}" la)
+  string(LENGTH "${b_decimals}" lb)
+  if(NOT la EQUAL lb)
+    return()
+  endif()
+  math(EXPR d "${a_int} - (${b_int})")
+  if(d LESS_EQUAL 2 AND d GREATER_EQUAL -2)
+    set(${result} TRUE PARENT_SCOPE)
+  endif()
+endfunction()
+
+function(close_trajectory a b what)
+  file(STRINGS "${WORK}/${a}/trajectory.xyz" lines_a)
+  file(STRINGS "${WORK}/${b}/trajectory.xyz" lines_b)
+  list(LENGTH lines_a na)
+  list(LENGTH lines_b nb)
+  if(NOT na EQUAL nb OR na EQUAL 0)
+    message(FATAL_ERROR "${what}: ${na} lines against the serial run's ${nb}")
+  endif()
+  set(differing 0)
+  math(EXPR last "${na} - 1")
+  foreach(k RANGE ${last})
+    list(GET lines_a ${k} la)
+    list(GET lines_b ${k} lb)
+    if(la STREQUAL lb)
+      continue()
+    endif()
+    string(REPLACE " " ";" ta "${la}")
+    string(REPLACE " " ";" tb "${lb}")
+    list(LENGTH ta nta)
+    list(LENGTH tb ntb)
+    if(NOT nta EQUAL ntb)
+      message(FATAL_ERROR "${what}: line ${k} differs from the serial run's: ${la} | ${lb}")
+    endif()
+    math(EXPR tlast "${nta} - 1")
+    foreach(t RANGE ${tlast})
+      list(GET ta ${t} x)
+      list(GET tb ${t} y)
+      if(NOT x STREQUAL y)
+        close_in_last_digit("${x}" "${y}" close)
+        if(NOT close)
+          message(FATAL_ERROR "${what}: line ${k} differs from the serial run's: ${la} | ${lb}")
+        endif()
+        math(EXPR differing "${differing} + 1")
+      endif()
+    endforeach()
+  endforeach()
+  message(STATUS "${what}: ${differing} printed coordinates differ in their last digit")
+endfunction()
+
+# PSE: spheres of one radius, 1e-4, double-precision wave grids; 40 steps.
 file(READ "${WORK}/run.toml" text)
-string(REPLACE "method = \"none\"" "method = \"pse\"" pse "${text}")
+string(REPLACE "radius = 0.7" "radius = 0.5" pse "${text}")
+string(REPLACE "method = \"none\"" "method = \"pse\"\ntolerance = 1e-4\nwave_precision = \"double\"" pse "${pse}")
+string(REPLACE "steps = 60" "steps = 40" pse "${pse}")
 file(WRITE "${WORK}/pse.toml" "${pse}")
+run_bd(0 --config "${WORK}/pse.toml" --out-dir "${WORK}/pse_serial" --quiet)
+run_bd(${NP} --config "${WORK}/pse.toml" --out-dir "${WORK}/pse_ranks" --quiet)
+close_trajectory(pse_ranks pse_serial "PSE, 40 steps on ${NP} ranks")
+
+# Refused configurations: every rank fails, rank 0 prints one line, nothing is left behind.
+string(REPLACE "method = \"none\"" "method = \"direct\"" direct "${text}")
+file(WRITE "${WORK}/direct.toml" "${direct}")
+string(REPLACE "wave_precision = \"double\"" "wave_precision = \"single\"" single "${pse}")
+file(WRITE "${WORK}/single.toml" "${single}")
 string(REPLACE "source = \"random\"\ncount = 600" "source = \"chains\"\nchains = 20\nbeads = 10" chains "${text}")
 file(WRITE "${WORK}/chains.toml" "${chains}\n[bonds]\nkind = \"harmonic\"\nk = 100.0\nlength = 1.0\n")
-foreach(case "pse;method 'pse' is not run across ranks" "chains;bonds are not supported across ranks")
+foreach(case "direct;a periodic box needs pse" "single;wave_precision = \"single\" is not run across ranks"
+             "chains;bonds are not supported across ranks")
   list(GET case 0 name)
   list(GET case 1 expected)
   execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" bd --config "${WORK}/${name}.toml"

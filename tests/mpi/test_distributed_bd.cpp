@@ -3,7 +3,9 @@
 // every step agree bit for bit on any number of ranks, for any input split, with repartitions, and
 // across a checkpoint written on 2 ranks and continued on P. The reason the agreement is exact: each
 // owned particle's force is summed over the same neighbours in the same order (its halo holds every
-// neighbour, its part is ordered by global index) and its noise is keyed by its global index.
+// neighbour, its part is ordered by global index) and its noise is keyed by its global index. With
+// hydrodynamic interactions the positions follow the serial engine with the same operator to
+// round-off (direct in free space, pse in a periodic box) or to the FMM's tolerance.
 #include <gtest/gtest.h>
 #include <mpi.h>
 #include <unistd.h>
@@ -11,6 +13,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <filesystem>
 #include <memory>
 #include <numeric>
@@ -25,6 +28,7 @@
 #include "rpyfmm/mpi/brownian_dynamics.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/free_draining.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy.hpp"
 #include "rpyfmm/rpy/sqrt.hpp"
 
 namespace {
@@ -346,22 +350,98 @@ TEST(MpiDistributedBd, FmmHydrodynamicsFollowTheExactOperatorToTheTolerance) {
   EXPECT_LT(ratio, 1e-5);
 }
 
-TEST(MpiDistributedBd, HydrodynamicsInAPeriodicBoxAndOtherMethodsAreRefused) {
-  const System s = lattice(4, 1.6, 2, 1);
-  DistributedBdOptions o = hydrodynamic_options(rpyfmm::rpy::MobilityMethod::direct);
-  expect_collective_error(
-      [&] {
-        DistributedBd bd(MPI_COMM_WORLD, wca_mixture(), Geometry::periodic(6.4), o,
-                         share_of(s, Split::even, identity(64), false));
-      },
-      ErrorCode::not_supported, "periodic");
+// Spheres of radius 0.5 (PSE takes one radius) with WCA pairs, those of type B pulled along x: the
+// pulled spheres drag the others through the periodic flow.
+ForceField wca_pulled() {
+  rpyfmm::bd::ParticleType a{.name = "A", .radius = 0.5};
+  rpyfmm::bd::ParticleType b{.name = "B", .radius = 0.5, .external_force = {2.0, 0.0, 0.0}};
+  ForceField forces({a, b});
+  for (std::uint32_t t1 = 0; t1 < 2; ++t1)
+    for (std::uint32_t t2 = t1; t2 < 2; ++t2) forces.set_pair(t1, t2, {.kind = PairKind::wca});
+  return forces;
+}
+
+// The pse method with double wave-space grids (those of DistributedPseRpy) and the default sampler
+// (automatic: PSE's split sampler, drift and noise fused).
+DistributedBdOptions pse_options() {
+  DistributedBdOptions o = options_with(2e-3, 31);
   o.method = rpyfmm::rpy::MobilityMethod::pse;
-  expect_collective_error(
-      [&] {
-        DistributedBd bd(MPI_COMM_WORLD, wca_mixture(), Geometry::open(), o,
-                         share_of(s, Split::even, identity(64), false));
-      },
-      ErrorCode::not_supported, "'pse'");
+  o.pse.tolerance = 1e-4;
+  o.pse.wave_precision = rpyfmm::rpy::pse::WavePrecision::double_precision;
+  return o;
+}
+
+TEST(MpiDistributedBd, PseHydrodynamicsInAPeriodicBoxFollowTheSerialEngineToRoundOff) {
+  // 125 spheres at volume fraction 0.065 in a periodic box, 10 steps, against bd::Integrator with
+  // PseRpy on the whole set (the same options). DistributedPseRpy's fused drift and noise equal
+  // PseRpy::apply_with_noise to round-off (the same sums in another order; tests/mpi/
+  // test_distributed_pse.cpp), also with the real-space noise keyed by the global indices of
+  // particles that the ranks hold in Morton order; the forces are the serial engine's bit for bit.
+  // Ten steps of this smooth field carry the differences to about 1e-15 of the coordinates (of
+  // order 10), bounded here by 1e-12.
+  const System s = lattice(5, 2.0, 2, 13);
+  const Geometry box = Geometry::periodic(5 * 2.0);
+  const DistributedBdOptions o = pse_options();
+  rpyfmm::bd::Integrator serial(std::make_unique<rpyfmm::rpy::pse::PseRpy>(box, o.viscosity, o.pse), wca_pulled(),
+                                o.integrator, s.x, s.types, o.neighbours);
+  serial.run(10);
+  double moved = 0.0;
+  for (std::size_t k = 0; k < s.x.size(); ++k) moved = std::max(moved, std::abs(serial.positions()[k] - s.x[k]));
+  EXPECT_GT(moved, 1e-2);  // the comparison is not of the start
+  for (const Split split : kSplits) {
+    for (const bool shuffle : {false, true}) {
+      const std::vector<std::size_t> order = shuffle ? shuffled(s.size(), 6) : identity(s.size());
+      DistributedBd bd(MPI_COMM_WORLD, wca_pulled(), box, o, share_of(s, split, order, shuffle));
+      bd.run(10);
+      const double worst = largest_difference(bd, serial.positions());
+      EXPECT_LT(worst, 1e-12) << "split " << static_cast<int>(split) << (shuffle ? ", shuffled ids" : "");
+      if (world_rank() == 0 && split == Split::even)
+        std::printf("  [bd pse] %d ranks%s: largest coordinate difference %.2e\n", world_size(),
+                    shuffle ? ", shuffled ids" : "", worst);
+    }
+  }
+}
+
+TEST(MpiDistributedBd, PseWithoutNoiseIsTheSerialDrift) {
+  // kT = 0: u = M F alone (PseRpy::apply), no sampler; the same bound as with noise.
+  const System s = lattice(5, 2.0, 2, 3);
+  const Geometry box = Geometry::periodic(5 * 2.0);
+  DistributedBdOptions o = pse_options();
+  o.integrator.kT = 0.0;
+  rpyfmm::bd::Integrator serial(std::make_unique<rpyfmm::rpy::pse::PseRpy>(box, o.viscosity, o.pse), wca_pulled(),
+                                o.integrator, s.x, s.types, o.neighbours);
+  serial.run(5);
+  DistributedBd bd(MPI_COMM_WORLD, wca_pulled(), box, o, share_of(s, Split::geometric, shuffled(s.size(), 1), true));
+  bd.run(5);
+  EXPECT_LT(largest_difference(bd, serial.positions()), 1e-12);
+}
+
+TEST(MpiDistributedBd, HydrodynamicsThatDoNotFitTheGeometryAreRefused) {
+  const System s = lattice(4, 1.6, 2, 1);
+  const auto refused = [&](const DistributedBdOptions& o, const Geometry& geometry, const std::string& text) {
+    expect_collective_error(
+        [&] {
+          DistributedBd bd(MPI_COMM_WORLD, wca_mixture(), geometry, o, share_of(s, Split::even, identity(64), false));
+        },
+        ErrorCode::not_supported, text);
+  };
+  const Geometry box = Geometry::periodic(6.4);
+  refused(hydrodynamic_options(rpyfmm::rpy::MobilityMethod::direct), box, "a periodic box needs pse");
+  refused(hydrodynamic_options(rpyfmm::rpy::MobilityMethod::fmm), box, "a periodic box needs pse");
+  DistributedBdOptions o = pse_options();
+  refused(o, Geometry::open(), "'pse' across ranks needs a periodic box");
+  o.integrator.sqrt.method = rpyfmm::rpy::SqrtMethod::lanczos;
+  refused(o, box, "split sampler");
+  o = pse_options();
+  o.method = rpyfmm::rpy::MobilityMethod::automatic;
+  refused(o, box, "is not run across ranks");
+  if (world_size() > 1) {  // a PSE option that differs between ranks
+    o = pse_options();
+    if (world_rank() == world_size() - 1) o.pse.tolerance = 1e-5;
+    expect_collective_error(
+        [&] { DistributedBd bd(MPI_COMM_WORLD, wca_pulled(), box, o, share_of(s, Split::even, identity(64), false)); },
+        ErrorCode::invalid_argument, "different options");
+  }
 }
 
 TEST(MpiDistributedBd, BadInputOnOneRankFailsEveryRank) {

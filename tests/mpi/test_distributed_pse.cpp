@@ -1,15 +1,18 @@
 // rpyfmm::mpi::DistributedPseRpy against the serial PseRpy on the concatenation of all ranks'
 // particles: the same parameters, and velocities equal to round-off (uniform, clustered in one
 // slab, on slab boundaries and box faces, other radii, empty ranks, each split four ways);
-// repeated products bit for bit; the split sampler (sample, apply_sqrt, apply_with_noise) against
-// PseRpy's to round-off; the accuracy against the serial operator's single-precision grids at its
-// tolerance; and collective failure (every rank throws the same message, none hangs) on bad input
-// of one rank.
+// repeated products bit for bit; the split sampler (sample, apply_sqrt, apply_with_noise, also with
+// the noise keyed by given global indices) against PseRpy's to round-off; the accuracy against the
+// serial operator's single-precision grids at its tolerance; and collective failure (every rank
+// throws the same message, none hangs) on bad input of one rank.
 #include <gtest/gtest.h>
 #include <mpi.h>
 
 #include <cmath>
+#include <cstdint>
+#include <cstdio>
 #include <limits>
+#include <numeric>
 #include <string>
 #include <vector>
 
@@ -250,6 +253,42 @@ TEST(MpiDistributedPse, SplitSamplerEqualsSerialToRoundOff) {
   }
 }
 
+TEST(MpiDistributedPse, FusedNoiseKeyedByGivenGlobalIndicesEqualsSerialInThatOrder) {
+  // The ranks hold the particles in input order but number them backwards (global index N - 1 - k
+  // for the k-th of the concatenation): apply_with_noise with those indices equals PseRpy's on the
+  // whole set in the backward order, to kRoundOff (the Lanczos iteration on M_r of a permuted set:
+  // the same Krylov space, its sums in another order).
+  const Geometry box = Geometry::periodic(16.0);
+  const Particles p = uniform_set(300, box.box(), 1.0, 23);
+  const PseOptions options = double_grids(1e-6);
+  const std::size_t n = p.size();
+  std::vector<double> x_back(3 * n), f_back(3 * n), u_back(3 * n);
+  for (std::size_t k = 0; k < n; ++k)
+    for (std::size_t c = 0; c < 3; ++c) {
+      x_back[3 * (n - 1 - k) + c] = p.x[3 * k + c];
+      f_back[3 * (n - 1 - k) + c] = p.f[3 * k + c];
+    }
+  PseRpy serial(box, kViscosity, options);
+  serial.set_positions(x_back, 1.0);
+  serial.apply_with_noise(f_back, 0.8, 7, 3, u_back);
+  for (const Split split : kSplits) {
+    const Shares s = shares_of(n, split);
+    DistributedPseRpy op(MPI_COMM_WORLD, box, kViscosity, options);
+    op.set_positions(share(p.x, 3, s.offset, s.n), 1.0);
+    std::vector<std::uint64_t> indices(s.n);
+    std::vector<double> expected(3 * s.n), u(3 * s.n);
+    for (std::size_t k = 0; k < s.n; ++k) {
+      indices[k] = n - 1 - (s.offset + k);
+      for (std::size_t c = 0; c < 3; ++c) expected[3 * k + c] = u_back[3 * indices[k] + c];
+    }
+    op.apply_with_noise(share(p.f, 3, s.offset, s.n), 0.8, 7, 3, indices, u);
+    const double d = global_relative_difference(u, expected);
+    EXPECT_LE(d, kRoundOff) << "split " << static_cast<int>(split);
+    if (world_rank() == 0)
+      std::printf("  [pse] split %d, indices backwards: apply_with_noise %.2e\n", static_cast<int>(split), d);
+  }
+}
+
 TEST(MpiDistributedPse, BadInputOnOneRankFailsEveryRank) {
   const Geometry box = Geometry::periodic(12.0);
   const Particles p = uniform_set(60, box.box(), 1.0, 17);
@@ -285,6 +324,14 @@ TEST(MpiDistributedPse, BadInputOnOneRankFailsEveryRank) {
   expect_collective_error([&] { op.apply_sqrt(nan_f, u); }, ErrorCode::invalid_input, "NaN");
   expect_collective_error([&] { op.apply_with_noise(f, world_rank() == last ? -1.0 : 1.0, 1, 0, u); },
                           ErrorCode::invalid_argument, "noise_scale");
+  std::vector<std::uint64_t> indices(s.n);
+  std::iota(indices.begin(), indices.end(), std::uint64_t{s.offset});
+  if (world_rank() == last) indices.back() = p.size();
+  expect_collective_error([&] { op.apply_with_noise(f, 1.0, 1, 0, indices, u); }, ErrorCode::invalid_input,
+                          "is not below the number of particles");
+  if (world_rank() == last) indices.pop_back();
+  expect_collective_error([&] { op.apply_with_noise(f, 1.0, 1, 0, indices, u); }, ErrorCode::invalid_input,
+                          "one per local particle");
   rpyfmm::rpy::SqrtOptions lanczos;
   lanczos.method = world_rank() == last ? rpyfmm::rpy::SqrtMethod::lanczos : rpyfmm::rpy::SqrtMethod::split;
   expect_collective_error([&] { op.apply_sqrt(f, u, lanczos); }, ErrorCode::not_supported, "not offered across ranks");

@@ -6,7 +6,9 @@
 //   bd::RunSummary s = bd::run_bd(config, mpi::across_ranks(MPI_COMM_WORLD));  // collective
 //
 // The run's files are those of the serial run with the same engine's state: with free draining
-// the trajectory and the checkpoints are the serial run's byte for byte, on any number of ranks.
+// the trajectory and the checkpoints are the serial run's byte for byte, on any number of ranks;
+// with hydrodynamic interactions they follow it to round-off (direct, pse with double-precision
+// wave grids) or to the FMM's tolerance.
 #pragma once
 
 #include <mpi.h>
@@ -23,11 +25,13 @@
 namespace rpyfmm::mpi {
 
 /// Collective: DistributedBd for the run of `config` (its geometry, integrator, neighbour options,
-/// viscosity and mobility method: none, direct or fmm at its tolerance; automatic counts as fmm
-/// in free space), from the whole system's positions and types at first_step, the same on every
-/// rank: rank r takes the particles of its block of global indices. Reading positions() or
-/// forces() gathers the whole system on every rank (collective, once per step). Throws on every
-/// rank what DistributedBd refuses.
+/// viscosity and mobility method: none, direct or fmm at its tolerance in free space, pse at its
+/// tolerance in a periodic box with double-precision wave grids; automatic counts as fmm in free
+/// space and as pse in a periodic box), from the whole system's positions and types at
+/// first_step, the same on every rank: rank r takes the particles of its block of global indices.
+/// Reading positions() or forces() gathers the whole system on every rank (collective, once per
+/// step). Throws on every rank what DistributedBd refuses, and for pse with wave_precision single
+/// or the device cuda.
 [[nodiscard]] std::unique_ptr<bd::Stepper> make_distributed_stepper(MPI_Comm comm, const bd::RunConfig& config,
                                                                     const bd::ForceField& forces,
                                                                     std::span<const double> positions,

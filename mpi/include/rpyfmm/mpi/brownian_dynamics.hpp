@@ -4,9 +4,11 @@
 //     dx = M F dt + sqrt(2 kT dt) M^{1/2} z,
 //
 // z_i keyed by (seed, step, global index i) as the serial engine keys it, with the free-draining
-// mobility M = 1 / (6 pi eta a_i) (Tran et al. (2015), eq. 3) or, in free space, the RPY mobility of
-// all ranks' particles (DistributedDirectRpy, DistributedFmmRpy) and its Lanczos square root across
-// ranks.
+// mobility M = 1 / (6 pi eta a_i) (Tran et al. (2015), eq. 3) or the RPY mobility of all ranks'
+// particles: in free space by DistributedDirectRpy or DistributedFmmRpy with its Lanczos square root
+// across ranks, in a periodic box by DistributedPseRpy (Positively Split Ewald: Fiore, Balboa
+// Usabiaga, Donev & Swan, J. Chem. Phys. 146, 124116 (2017)) with its split sampler, drift and
+// noise in one pass as bd::Integrator takes them from PseRpy.
 //
 // Each rank owns a share of the particles, contiguous along the Morton curve (SfcPartition), and
 // keeps a halo: the other ranks' particles within the list radius r_L = r_c + skin of its owned
@@ -22,7 +24,8 @@
 // So with free draining the positions after every step are, bit for bit, those of bd::Integrator
 // with rpy::FreeDrainingMobility on the whole set, on any number of ranks and for any partition
 // (same binary). With hydrodynamic interactions they are the serial engine's with the same operator
-// to round-off (direct: products summed in another order) or to the FMM's tolerance (fmm). The
+// to round-off (direct: products summed in another order; pse: the serial PseRpy with double
+// wave-space grids, its sums in another order) or to the FMM's tolerance (fmm). The
 // potential energy is the sum over the ranks of their particles' shares, equal to the serial
 // engine's to round-off (a sum in another order).
 //
@@ -52,6 +55,7 @@
 #include "rpyfmm/mpi/fmm_rpy.hpp"
 #include "rpyfmm/rpy/geometry.hpp"
 #include "rpyfmm/rpy/mobility_factory.hpp"
+#include "rpyfmm/rpy/pse/pse_parameters.hpp"
 
 namespace rpyfmm::mpi {
 
@@ -63,13 +67,18 @@ struct DistributedBdOptions {
   /// The skin (0: 0.3 r_c) and the rebuild strategy (fixed_interval), as bd::NeighbourList's.
   bd::NeighbourOptions neighbours{};
   /// The mobility: none (free draining, 1 / (6 pi eta a)), or the RPY mobility of all ranks'
-  /// particles by direct (DistributedDirectRpy) or fmm (DistributedFmmRpy), open geometry only, with
+  /// particles: in open geometry by direct (DistributedDirectRpy) or fmm (DistributedFmmRpy), with
   /// the Brownian displacement by rpyfmm::mpi::sqrt_apply with integrator.sqrt (Lanczos or
   /// Chebyshev, with or without the block preconditioner of each rank's particles; automatic:
-  /// Lanczos without it; rpyfmm/mpi/sqrt.hpp).
+  /// Lanczos without it; rpyfmm/mpi/sqrt.hpp); in a periodic box by pse (DistributedPseRpy), drift
+  /// and noise in one pass, u = M F + sqrt(2 kT / dt) M^{1/2} z with PSE's split sampler, as
+  /// bd::Integrator takes them from PseRpy (integrator.sqrt.method automatic or split).
   rpy::MobilityMethod method = rpy::MobilityMethod::none;
   /// The fmm method's operator options (tolerance, leaf capacity, ...).
   DistributedFmmRpyOptions fmm{.tolerance = 1e-3};
+  /// The pse method's operator options (tolerance, xi, grid, ...). Its wave-space grids are double
+  /// precision whatever wave_precision says (DistributedPseRpy).
+  rpy::pse::PseOptions pse{};
   /// Solvent viscosity eta (> 0).
   double viscosity = 1.0;
   /// A rebuild moves the particles along the Morton curve when the largest rank's cost exceeds this

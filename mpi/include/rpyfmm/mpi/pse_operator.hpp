@@ -112,6 +112,16 @@ class DistributedPseRpy {
   /// every rank as apply() does, and for a noise_scale not finite and >= 0 on any rank.
   rpy::SqrtReport apply_with_noise(std::span<const double> local_forces, double noise_scale, std::uint64_t seed,
                                    std::uint64_t step, std::span<double> local_velocities) const;
+  /// Collective. The same with the real-space noise z1 of each particle keyed by the global index
+  /// it is given in `local_indices` (local_size() entries, together over all ranks a permutation of
+  /// 0 ... N - 1; each below N is checked, the permutation is not) instead of its place in the
+  /// concatenation of the ranks' shares: for callers whose global order is not the rank order
+  /// (DistributedBd's ranks hold stretches of a space-filling curve). Equal to
+  /// PseRpy::apply_with_noise on the whole set in that global order to round-off (the Lanczos
+  /// iteration of [PSE] eq. 19 on a permuted system: the same Krylov space, sums in another order).
+  rpy::SqrtReport apply_with_noise(std::span<const double> local_forces, double noise_scale, std::uint64_t seed,
+                                   std::uint64_t step, std::span<const std::uint64_t> local_indices,
+                                   std::span<double> local_velocities) const;
 
  private:
   struct Impl;
