@@ -69,20 +69,44 @@ def test_direct_equals_serial(radii: bool, empty_first: bool) -> None:
     assert (op.local_size, op.global_size, op.offset) == (part.stop - part.start, len(x), part.start)
 
 
-def test_direct_sqrt_equals_serial() -> None:
+@pytest.mark.parametrize(
+    "method, preconditioner", [("lanczos", "none"), ("chebyshev", "none"), ("lanczos", "block")]
+)
+def test_direct_sqrt_equals_serial(method: str, preconditioner: str) -> None:
     x, a, _ = system(200, seed=12, radii=True)
     z = rpyfmm.normal_noise(len(x), 5)
-    part = share(len(x))
+    # docs/mpi.md, "Brownian displacements": without a preconditioner every inner product is summed
+    # in the serial order, whatever the partition; the block preconditioner is that of each rank's
+    # particles, the serial one where one rank (here the last) holds every particle.
+    if preconditioner == "none":
+        part = share(len(x))
+    else:
+        part = slice(0, len(x)) if RANK == SIZE - 1 else slice(0, 0)
+    keywords = dict(method=method, preconditioner=preconditioner, tolerance=1e-6)
     op = rpyfmm.mpi.DistributedDirectRpy(COMM)
     op.set_positions(x[part], a[part])
-    w, report = op.apply_sqrt(z[part], method="lanczos", tolerance=1e-6)
+    w, report = op.apply_sqrt(z[part], **keywords)
     w = gathered(w)
     serial = rpyfmm.DirectRpy()
     serial.set_positions(x, a)
-    w_serial, report_serial = serial.apply_sqrt(z, method="lanczos", tolerance=1e-6)
-    # mpi::sqrt_apply sums every inner product in the serial order: the serial sampler's bits.
+    w_serial, report_serial = serial.apply_sqrt(z, **keywords)
     assert np.array_equal(w, w_serial)
     assert report.iterations == report_serial.iterations
+
+
+@pytest.mark.parametrize("kind", ["direct", "pse"])
+def test_unsupported_sampler_raises_on_every_rank(kind: str) -> None:
+    x = np.random.default_rng(16).uniform(0.0, 12.0, (40, 3))
+    part = share(len(x))
+    if kind == "direct":
+        op, method = rpyfmm.mpi.DistributedDirectRpy(COMM), "cholesky"
+    else:
+        op, method = rpyfmm.mpi.DistributedPseRpy(COMM, box=12.0), "lanczos"
+    op.set_positions(x[part], 1.0)
+    with pytest.raises(rpyfmm.NotSupportedError) as caught:
+        op.apply_sqrt(np.ones_like(x[part]), method=method)
+    messages = COMM.allgather(str(caught.value))
+    assert all(m == messages[0] for m in messages)
 
 
 @pytest.mark.parametrize("tolerance", [1e-3, 1e-6])
