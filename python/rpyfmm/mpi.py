@@ -1,4 +1,4 @@
-"""rpyfmm.mpi — the MPI layer's distributed mobility operators from Python via mpi4py.
+"""rpyfmm.mpi — the MPI layer's distributed operators from Python via mpi4py.
 
 Available where the module was built with the MPI layer (CMake option ``RPYFMM_USE_MPI``,
 on by default where MPI and FFTW-MPI are found) and mpi4py, built against the same MPI, is
@@ -11,6 +11,8 @@ initializes MPI. docs/mpi.md, "Python (mpi4py)", lists what is supported.
   (n may be 0); the global particle order is the ranks' shares concatenated in rank order.
 * :class:`DistributedPseRpy` also has the split sampler ``sample(seed, step)`` and
   ``apply_with_noise``.
+* :class:`DistributedLaplaceFmm`: ``set_points`` / ``evaluate`` with this rank's sources (and
+  targets) and charges, the layouts of :class:`rpyfmm.LaplaceFmm`.
 
 Constructors take an mpi4py communicator (``MPI.COMM_WORLD`` or any intra-communicator) and
 keep a reference to it (the object's ``comm``). Every method is collective: all ranks of the
@@ -54,5 +56,6 @@ except ImportError as e:
 DistributedDirectRpy = _rpyfmm.mpi.DistributedDirectRpy
 DistributedFmmRpy = _rpyfmm.mpi.DistributedFmmRpy
 DistributedPseRpy = _rpyfmm.mpi.DistributedPseRpy
+DistributedLaplaceFmm = _rpyfmm.mpi.DistributedLaplaceFmm
 
-__all__ = ["DistributedDirectRpy", "DistributedFmmRpy", "DistributedPseRpy"]
+__all__ = ["DistributedDirectRpy", "DistributedFmmRpy", "DistributedLaplaceFmm", "DistributedPseRpy"]

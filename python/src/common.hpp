@@ -162,6 +162,14 @@ rpy::pse::PseOptions pse_options(const char* where, double tolerance, double xi,
 /// A PSE plan's parameters (PseRpy.parameters) as a dict (mobility.cpp).
 nb::dict pse_parameters(const rpy::pse::PseParameters& p);
 
+/// The `outputs` of LaplaceFmm.evaluate: an int mask, "all", one name, "potential|gradient", or a
+/// sequence of names (fmm.cpp).
+unsigned outputs_from(nb::handle outputs, const std::string& where);
+/// Charges (N,) -> nd = 1; (nd, N) -> nd (fmm.cpp).
+std::size_t densities(const InArray& q, const std::string& where);
+/// The Laplace results' shape for charges q at m targets: (m, 10) or (nd, m, 10) (fmm.cpp).
+std::vector<std::size_t> result_shape(const InArray& q, std::size_t m);
+
 /// LaplaceFmm tree statistics (fmm::TreeStats) as a dict (fmm.cpp).
 nb::dict tree_stats_dict(const fmm::TreeStats& s);
 

@@ -1,7 +1,8 @@
-// rpyfmm Python bindings — the MPI layer's distributed mobility operators (rpyfmm::mpi, docs/mpi.md,
+// rpyfmm Python bindings — the MPI layer's distributed operators (rpyfmm::mpi, docs/mpi.md,
 // "Python (mpi4py)") as the submodule rpyfmm._rpyfmm.mpi, wrapped by python/rpyfmm/mpi.py:
-// DistributedDirectRpy, DistributedFmmRpy (with the samplers of mpi::sqrt_apply) and
-// DistributedPseRpy (with its split sampler). Compiled only where the MPI layer is built.
+// DistributedDirectRpy, DistributedFmmRpy (with the samplers of mpi::sqrt_apply),
+// DistributedPseRpy (with its split sampler) and DistributedLaplaceFmm. Compiled only where the MPI
+// layer is built.
 //
 // Communicator: the constructors take an mpi4py communicator and convert it with its Fortran handle,
 // comm.py2f() in Python and MPI_Comm_f2c here, which needs neither mpi4py's C headers at build time
@@ -28,6 +29,7 @@
 #include "object_lock.hpp"
 #include "rpyfmm/mpi/direct_operator.hpp"
 #include "rpyfmm/mpi/fmm_rpy.hpp"
+#include "rpyfmm/mpi/laplace_fmm.hpp"
 #include "rpyfmm/mpi/pse_operator.hpp"
 #include "rpyfmm/mpi/sqrt.hpp"
 
@@ -45,6 +47,7 @@ struct WithComm {
 using Direct = WithComm<mpi::DistributedDirectRpy>;
 using Fmm = WithComm<mpi::DistributedFmmRpy>;
 using Pse = WithComm<mpi::DistributedPseRpy>;
+using Laplace = WithComm<mpi::DistributedLaplaceFmm>;
 
 /// The MPI_Comm of an mpi4py communicator, through its Fortran handle.
 MPI_Comm comm_from(nb::handle comm, const char* where) {
@@ -291,6 +294,95 @@ void bind_distributed_pse(nb::module_& m) {
              "'auto' or 'split' only (others raise NotSupportedError); returns (w, SqrtReport).");
 }
 
+void init_laplace(Laplace* self, nb::object comm, double tolerance, int leaf_capacity, int order, double separation,
+                  std::size_t cell_capacity) {
+  mpi::DistributedFmmOptions o;
+  o.fmm.tolerance = tolerance;
+  o.fmm.leaf_capacity = leaf_capacity;
+  o.fmm.order = order;
+  o.separation = separation;
+  o.cell_capacity = cell_capacity;
+  new (self) Laplace{comm, mpi::DistributedLaplaceFmm(comm_from(comm, "DistributedLaplaceFmm"), o)};
+}
+
+/// Sources, and targets where given (None: none on this rank), as LaplaceFmm.set_points.
+void set_points(Laplace& self, ArrayArg sources, OptArrayArg targets) {
+  const std::string where = "set_points";
+  struct Args {
+    InArray s, t;
+  };
+  const Args a = agreed(self.op.communicator(), [&] {
+    Args r{as_input(sources, where, "sources"), InArray{}};
+    require_points(r.s, where, "sources");
+    if (!targets.is_none()) {
+      r.t = as_input(targets, where, "targets");
+      require_points(r.t, where, "targets");
+    }
+    return r;
+  });
+  nb::gil_scoped_release release;
+  self.op.set_points(a.s.span(), a.t.span());
+}
+
+ArrayResult evaluate(const Laplace& self, ArrayArg charges, nb::handle outputs, OutArg out) {
+  const std::string where = "evaluate";
+  struct Args {
+    unsigned mask;
+    std::size_t nd;
+    InArray q;
+    OutArray r;
+  };
+  Args a = agreed(self.op.communicator(), [&] {
+    const unsigned mask = outputs_from(outputs, where);
+    InArray q = as_input(charges, where, "charges");
+    const std::size_t nd = densities(q, where);
+    OutArray r = make_output(out, result_shape(q, self.op.local_target_size()), where, &q);
+    return Args{mask, nd, std::move(q), std::move(r)};
+  });
+  {
+    nb::gil_scoped_release release;
+    self.op.evaluate(a.q.span(), a.nd, a.mask, a.r.span());
+  }
+  return ArrayResult{a.r.object};
+}
+
+void bind_distributed_laplace(nb::module_& m) {
+  Class<mpi::DistributedLaplaceFmm>(
+      m, "DistributedLaplaceFmm",
+      "Laplace FMM phi(x) = sum_j q_j / |x - y_j| (no 1/(4 pi)) on sources distributed over the ranks, at\n"
+      "each rank's own sources or targets; relative l2 error of each output at most the tolerance.")
+      .def("__init__", &init_laplace, nb::arg("comm"), nb::arg("tolerance") = 1e-6, nb::arg("leaf_capacity") = 0,
+           nb::arg("order") = 0, nb::arg("separation") = 0.0, nb::arg("cell_capacity") = 0,
+           "Collective. comm: an mpi4py communicator; tolerance, leaf_capacity, order: each rank's serial\n"
+           "LaplaceFmm; separation (0 or in [1, 100]) and cell_capacity: the exchange of the essential tree\n"
+           "(0 = automatic; docs/mpi.md). Every rank must pass the same values.")
+      .def_prop_ro(
+          "comm", [](const Laplace& s) { return s.comm; }, "The mpi4py communicator the plan works on.")
+      .def_prop_ro(
+          "tolerance", [](const Laplace& s) { return s.op.options().fmm.tolerance; }, "Requested relative l2 accuracy.")
+      .def_prop_ro("local_size",
+                   locked_read(
+                       "local_size", +[](const Laplace& s) { return s.op.local_size(); }),
+                   "This rank's sources in the last set_points (0 before).")
+      .def_prop_ro("global_size",
+                   locked_read(
+                       "global_size", +[](const Laplace& s) { return s.op.global_size(); }),
+                   "The sources on all ranks together.")
+      .def_prop_ro("local_target_size",
+                   locked_read(
+                       "local_target_size", +[](const Laplace& s) { return s.op.local_target_size(); }),
+                   "This rank's rows of results: its targets, or its sources when no rank passed targets.")
+      .def("set_points", locked("set_points", &set_points), nb::arg("sources"), nb::arg("targets") = nb::none(),
+           "Collective. This rank's sources ((n, 3) or (3n,), n >= 0) and targets ((t, 3), or None). When no\n"
+           "rank passes targets, results are at each rank's sources (self pair skipped); when any rank\n"
+           "does, at each rank's targets (none on a rank passing None).")
+      .def("evaluate", locked("evaluate", &evaluate), nb::arg("charges"), nb::arg("outputs") = "all",
+           nb::arg("out") = nb::none(),
+           "Collective. charges: (n,) or (nd, n) for this rank's sources (nd and outputs the same on every\n"
+           "rank); outputs as LaplaceFmm.evaluate. Returns (t, 10) or (nd, t, 10) at this rank's rows, the\n"
+           "sums over every rank's sources.");
+}
+
 }  // namespace
 
 void bind_mpi(nb::module_& m) {
@@ -299,6 +391,7 @@ void bind_mpi(nb::module_& m) {
   bind_distributed_direct(sub);
   bind_distributed_fmm(sub);
   bind_distributed_pse(sub);
+  bind_distributed_laplace(sub);
 }
 
 }  // namespace rpyfmm::python

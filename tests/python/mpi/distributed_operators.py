@@ -182,6 +182,26 @@ def test_pse_apply_sqrt_equals_serial() -> None:
     assert np.max(np.abs(w - w_serial)) <= 1e-12 * np.max(np.abs(w_serial))
 
 
+@pytest.mark.parametrize("with_targets", [False, True])
+def test_laplace_within_tolerance(with_targets: bool) -> None:
+    rng = np.random.default_rng(17)
+    x, q, y = rng.uniform(0.0, 1.0, (4000, 3)), rng.standard_normal((2, 4000)), rng.uniform(0.0, 1.0, (500, 3))
+    part, tpart = share(len(x)), share(len(y), empty_first=True)
+    fmm = rpyfmm.mpi.DistributedLaplaceFmm(COMM, tolerance=1e-6)
+    # With targets, rank 0 passes None (no targets of its own) when there are several ranks.
+    local_targets = y[tpart] if with_targets and tpart.stop > tpart.start else None
+    fmm.set_points(x[part], local_targets)
+    r = fmm.evaluate(q[:, part], outputs="all")
+    r = np.concatenate(COMM.allgather(r), axis=1)
+    exact = rpyfmm.laplace_direct(x, q, y if with_targets else None)
+    assert r.shape == exact.shape
+    # The contract (docs/mpi.md, "Distributed Laplace FMM"): relative l2 error of each output.
+    for d in range(2):
+        for cols in (slice(0, 1), slice(1, 4), slice(4, 10)):
+            assert rel_err(r[d][:, cols], exact[d][:, cols]) <= 1e-6
+    assert fmm.global_size == len(x) and fmm.local_size == part.stop - part.start
+
+
 @pytest.mark.parametrize("kind", ["direct", "fmm", "pse"])
 def test_nan_on_one_rank_raises_on_every_rank(kind: str) -> None:
     x, a, f = system(100, seed=31, radii=False)
