@@ -13,6 +13,8 @@ initializes MPI. docs/mpi.md, "Python (mpi4py)", lists what is supported.
   ``apply_with_noise``.
 * :class:`DistributedLaplaceFmm`: ``set_points`` / ``evaluate`` with this rank's sources (and
   targets) and charges, the layouts of :class:`rpyfmm.LaplaceFmm`.
+* :func:`normal_noise` ``(n, offset, seed, step=0, stream=0)``: this rank's rows of
+  :func:`rpyfmm.normal_noise` (not collective).
 
 Constructors take an mpi4py communicator (``MPI.COMM_WORLD`` or any intra-communicator) and
 keep a reference to it (the object's ``comm``). Every method is collective: all ranks of the
@@ -57,5 +59,6 @@ DistributedDirectRpy = _rpyfmm.mpi.DistributedDirectRpy
 DistributedFmmRpy = _rpyfmm.mpi.DistributedFmmRpy
 DistributedPseRpy = _rpyfmm.mpi.DistributedPseRpy
 DistributedLaplaceFmm = _rpyfmm.mpi.DistributedLaplaceFmm
+normal_noise = _rpyfmm.mpi.normal_noise
 
-__all__ = ["DistributedDirectRpy", "DistributedFmmRpy", "DistributedLaplaceFmm", "DistributedPseRpy"]
+__all__ = ["DistributedDirectRpy", "DistributedFmmRpy", "DistributedLaplaceFmm", "DistributedPseRpy", "normal_noise"]

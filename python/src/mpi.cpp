@@ -1,8 +1,8 @@
 // rpyfmm Python bindings — the MPI layer's distributed operators (rpyfmm::mpi, docs/mpi.md,
 // "Python (mpi4py)") as the submodule rpyfmm._rpyfmm.mpi, wrapped by python/rpyfmm/mpi.py:
 // DistributedDirectRpy, DistributedFmmRpy (with the samplers of mpi::sqrt_apply),
-// DistributedPseRpy (with its split sampler) and DistributedLaplaceFmm. Compiled only where the MPI
-// layer is built.
+// DistributedPseRpy (with its split sampler), DistributedLaplaceFmm, and normal_noise for a rank's
+// share (mpi::fill_normal). Compiled only where the MPI layer is built.
 //
 // Communicator: the constructors take an mpi4py communicator and convert it with its Fortran handle,
 // comm.py2f() in Python and MPI_Comm_f2c here, which needs neither mpi4py's C headers at build time
@@ -383,6 +383,17 @@ void bind_distributed_laplace(nb::module_& m) {
            "sums over every rank's sources.");
 }
 
+/// Not collective: this rank's share of the serial noise, rows [offset, offset + n) of normal_noise.
+ArrayResult normal_noise(std::size_t n, std::size_t offset, std::uint64_t seed, std::uint64_t step,
+                         std::uint32_t stream, OutArg out) {
+  OutArray z = make_output(out, {n, 3}, "normal_noise");
+  {
+    nb::gil_scoped_release release;
+    mpi::fill_normal(z.span(), offset, seed, step, stream);
+  }
+  return ArrayResult{z.object};
+}
+
 }  // namespace
 
 void bind_mpi(nb::module_& m) {
@@ -392,6 +403,11 @@ void bind_mpi(nb::module_& m) {
   bind_distributed_fmm(sub);
   bind_distributed_pse(sub);
   bind_distributed_laplace(sub);
+  sub.def("normal_noise", &normal_noise, nb::arg("n"), nb::arg("offset"), nb::arg("seed"), nb::arg("step") = 0,
+          nb::arg("stream") = 0, nb::arg("out") = nb::none(),
+          "Not collective. (n, 3) standard normal values of particles offset ... offset + n - 1: rows\n"
+          "offset:offset + n of rpyfmm.normal_noise(N, seed, step, stream) bit for bit, so a particle's noise\n"
+          "depends on its global index only (an operator's offset gives this rank's).");
 }
 
 }  // namespace rpyfmm::python

@@ -202,6 +202,12 @@ def test_laplace_within_tolerance(with_targets: bool) -> None:
     assert fmm.global_size == len(x) and fmm.local_size == part.stop - part.start
 
 
+def test_normal_noise_is_the_serial_rows() -> None:
+    part = share(90, empty_first=True)
+    z = rpyfmm.mpi.normal_noise(part.stop - part.start, part.start, seed=7, step=3, stream=1)
+    assert np.array_equal(gathered(z), rpyfmm.normal_noise(90, 7, 3, stream=1))
+
+
 @pytest.mark.parametrize("kind", ["direct", "fmm", "pse"])
 def test_nan_on_one_rank_raises_on_every_rank(kind: str) -> None:
     x, a, f = system(100, seed=31, radii=False)
