@@ -4,9 +4,9 @@
 // DistributedPseRpy (with its split sampler), DistributedLaplaceFmm, and normal_noise for a rank's
 // share (mpi::fill_normal). Compiled only where the MPI layer is built.
 //
-// Communicator: the constructors take an mpi4py communicator and convert it with its Fortran handle,
-// comm.py2f() in Python and MPI_Comm_f2c here, which needs neither mpi4py's C headers at build time
-// nor mpi4py's C API at run time. Each object keeps a reference to the mpi4py communicator (its
+// Communicator: the constructors take an mpi4py communicator and convert it through its Fortran
+// handle, mpi4py's comm.py2f() then MPI_Comm_f2c here, which needs neither mpi4py's C headers at
+// build time nor mpi4py's C API at run time. Each object keeps a reference to the mpi4py communicator (its
 // `comm`), so that the communicator outlives the object (communicator.hpp).
 //
 // Collective errors: every call is collective. The arguments are checked here first (shapes,
