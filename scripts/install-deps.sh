@@ -14,6 +14,7 @@ packages=(
   libcli11-dev libtomlplusplus-dev librandom123-dev libfmt-dev
   libopenmpi-dev openmpi-bin libfftw3-mpi-dev  # the optional MPI layer (RPYFMM_USE_MPI, docs/mpi.md), its tests
   python3 python3-dev python3-pip python3-venv
+  python3-mpi4py  # rpyfmm.mpi, the MPI layer from Python (docs/mpi.md, "Python (mpi4py)"), and its tests
   doxygen  # the API reference (`docs` target, built in CI with warnings as errors)
   clang libclang-rt-14-dev  # libFuzzer and sanitizer runtimes for tests/fuzz/run.sh (Debian 12: clang 14)
 )

@@ -27,6 +27,7 @@
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
 #include "rpyfmm/rpy/geometry.hpp"
+#include "rpyfmm/rpy/pse/pse_parameters.hpp"
 #include "rpyfmm/rpy/sqrt.hpp"
 
 namespace nb = nanobind;
@@ -153,6 +154,22 @@ rpy::SqrtOptions sqrt_options(const std::string& method, double tolerance, int m
 /// PairPotential fields (bd.cpp); errors name `where`.
 bd::PairPotential pair_from(nb::handle pair, const std::string& where);
 
+/// PseOptions from the keyword arguments of PseRpy, OpenPseRpy and mpi.DistributedPseRpy
+/// (mobility.cpp); errors name `where`.
+rpy::pse::PseOptions pse_options(const char* where, double tolerance, double xi, double r_cut, double window_eta,
+                                 int fft_threads, std::size_t max_memory_bytes, bool fft_measure,
+                                 const std::string& wave_precision, bool real_space_cache);
+/// A PSE plan's parameters (PseRpy.parameters) as a dict (mobility.cpp).
+nb::dict pse_parameters(const rpy::pse::PseParameters& p);
+
+/// The `outputs` of LaplaceFmm.evaluate: an int mask, "all", one name, "potential|gradient", or a
+/// sequence of names (fmm.cpp).
+unsigned outputs_from(nb::handle outputs, const std::string& where);
+/// Charges (N,) -> nd = 1; (nd, N) -> nd (fmm.cpp).
+std::size_t densities(const InArray& q, const std::string& where);
+/// The Laplace results' shape for charges q at m targets: (m, 10) or (nd, m, 10) (fmm.cpp).
+std::vector<std::size_t> result_shape(const InArray& q, std::size_t m);
+
 /// LaplaceFmm tree statistics (fmm::TreeStats) as a dict (fmm.cpp).
 nb::dict tree_stats_dict(const fmm::TreeStats& s);
 
@@ -164,6 +181,8 @@ void bind_samplers(nb::module_& m);
 void bind_bd(nb::module_& m);
 void bind_rigid(nb::module_& m);
 void bind_rigid_dynamics(nb::module_& m);
+/// The submodule `mpi` (mpi.cpp; only in a build with the MPI layer, RPYFMM_PYTHON_MPI).
+void bind_mpi(nb::module_& m);
 
 }  // namespace rpyfmm::python
 

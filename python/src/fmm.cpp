@@ -14,9 +14,7 @@
 #include "rpyfmm/fmm/leaf_grid.hpp"
 
 namespace rpyfmm::python {
-namespace {
 
-/// int mask, "all", one name, "potential|gradient", or a sequence of names.
 unsigned outputs_from(nb::handle outputs, const std::string& where) {
   unsigned mask = 0;
   if (nb::try_cast(outputs, mask, false)) return mask;  // validated by the library
@@ -49,7 +47,6 @@ unsigned outputs_from(nb::handle outputs, const std::string& where) {
   return mask;
 }
 
-/// Charges (N,) -> nd = 1; (nd, N) -> nd. Result shape (M, 10) or (nd, M, 10).
 std::size_t densities(const InArray& q, const std::string& where) {
   if (q.ndim() == 1) return 1;
   if (q.ndim() == 2) return q.shape[0];
@@ -60,8 +57,6 @@ std::vector<std::size_t> result_shape(const InArray& q, std::size_t m) {
   if (q.ndim() == 1) return {m, fmm::result_width};
   return {q.shape[0], m, fmm::result_width};
 }
-
-}  // namespace
 
 nb::dict tree_stats_dict(const fmm::TreeStats& s) {
   nb::dict d;

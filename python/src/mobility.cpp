@@ -151,32 +151,6 @@ RotationSample apply_sqrt_rotation(const MobilityOperator& op, ArrayArg z_transl
   return nb::borrow<RotationSample>(nb::make_tuple(wt.object, wr.object, report));
 }
 
-nb::dict pse_parameters(const rpy::pse::PseParameters& p) {
-  nb::dict d;
-  d["radius"] = p.radius;
-  d["xi"] = p.xi;
-  d["xi_automatic"] = p.xi_automatic;
-  d["tolerance"] = p.tolerance;
-  d["r_cut"] = p.r_cut;
-  d["grid"] = nb::make_tuple(p.grid[0], p.grid[1], p.grid[2]);
-  d["spacing"] = nb::make_tuple(p.spacing[0], p.spacing[1], p.spacing[2]);
-  d["support"] = nb::make_tuple(p.support[0], p.support[1], p.support[2]);
-  d["window_eta"] = p.window_eta;
-  d["eta_automatic"] = p.eta_automatic;
-  d["sigma"] = p.sigma;
-  d["window_m"] = p.window_m;
-  d["table_dr"] = p.table_dr;
-  d["table_size"] = p.table_size;
-  d["lanczos_tolerance"] = p.lanczos_tolerance;
-  d["wave_precision"] = p.wave_single ? "single" : "double";
-  d["memory_bytes"] = p.memory_bytes;
-  d["real_space_cache_bytes"] = p.real_space_cache_bytes;
-  d["modelled_cost"] = p.modelled_cost;
-  d["open_truncation"] = p.open_truncation;  // R of the open-boundary kernel (0: periodic)
-  d["summary"] = p.summary();
-  return d;
-}
-
 const char* kSqrtDoc =
     "w = M^{1/2} z for z of shape (N, 3) or (3N,). Returns (w, SqrtReport).\n\n"
     "method: 'auto' (the operator's preferred: PSE split sampler, else Lanczos), 'lanczos', 'chebyshev',\n"
@@ -366,24 +340,6 @@ void bind_fmm_rpy(nb::module_& m) {
                  return op.laplace_plan() ? tree_stats_dict(op.laplace_plan()->stats()) : nb::dict();
                }),
            "The Laplace FMM tree's statistics (as LaplaceFmm.stats()); empty before set_positions.");
-}
-
-/// PseOptions from the keyword arguments PseRpy and OpenPseRpy share.
-rpy::pse::PseOptions pse_options(const char* where, double tolerance, double xi, double r_cut, double window_eta,
-                                 int fft_threads, std::size_t max_memory_bytes, bool fft_measure,
-                                 const std::string& wave_precision, bool real_space_cache) {
-  rpy::pse::PseOptions o;
-  o.tolerance = tolerance;
-  o.xi = xi;
-  o.r_cut = r_cut;
-  o.window_eta = window_eta;
-  require_thread_count(fft_threads, std::string(where) + " fft_threads", true);
-  o.fft_threads = fft_threads;
-  o.max_memory_bytes = max_memory_bytes;
-  o.fft_measure = fft_measure;
-  o.wave_precision = rpy::pse::wave_precision_from_name(wave_precision, where);
-  o.real_space_cache = real_space_cache;
-  return o;
 }
 
 void init_pse_rpy(rpy::pse::PseRpy* self, BoxArg box, double viscosity, double tolerance, double xi, double r_cut,
@@ -604,6 +560,49 @@ void bind_mobility_factory(nb::module_& m) {
 }
 
 }  // namespace
+
+nb::dict pse_parameters(const rpy::pse::PseParameters& p) {
+  nb::dict d;
+  d["radius"] = p.radius;
+  d["xi"] = p.xi;
+  d["xi_automatic"] = p.xi_automatic;
+  d["tolerance"] = p.tolerance;
+  d["r_cut"] = p.r_cut;
+  d["grid"] = nb::make_tuple(p.grid[0], p.grid[1], p.grid[2]);
+  d["spacing"] = nb::make_tuple(p.spacing[0], p.spacing[1], p.spacing[2]);
+  d["support"] = nb::make_tuple(p.support[0], p.support[1], p.support[2]);
+  d["window_eta"] = p.window_eta;
+  d["eta_automatic"] = p.eta_automatic;
+  d["sigma"] = p.sigma;
+  d["window_m"] = p.window_m;
+  d["table_dr"] = p.table_dr;
+  d["table_size"] = p.table_size;
+  d["lanczos_tolerance"] = p.lanczos_tolerance;
+  d["wave_precision"] = p.wave_single ? "single" : "double";
+  d["memory_bytes"] = p.memory_bytes;
+  d["real_space_cache_bytes"] = p.real_space_cache_bytes;
+  d["modelled_cost"] = p.modelled_cost;
+  d["open_truncation"] = p.open_truncation;  // R of the open-boundary kernel (0: periodic)
+  d["summary"] = p.summary();
+  return d;
+}
+
+rpy::pse::PseOptions pse_options(const char* where, double tolerance, double xi, double r_cut, double window_eta,
+                                 int fft_threads, std::size_t max_memory_bytes, bool fft_measure,
+                                 const std::string& wave_precision, bool real_space_cache) {
+  rpy::pse::PseOptions o;
+  o.tolerance = tolerance;
+  o.xi = xi;
+  o.r_cut = r_cut;
+  o.window_eta = window_eta;
+  require_thread_count(fft_threads, std::string(where) + " fft_threads", true);
+  o.fft_threads = fft_threads;
+  o.max_memory_bytes = max_memory_bytes;
+  o.fft_measure = fft_measure;
+  o.wave_precision = rpy::pse::wave_precision_from_name(wave_precision, where);
+  o.real_space_cache = real_space_cache;
+  return o;
+}
 
 void bind_mobility(nb::module_& m) {
   bind_mobility_operator(m);

@@ -3,7 +3,8 @@
 // One file per area: arrays.cpp (conversions), errors.cpp, fmm.cpp (Laplace
 // FMM and direct sums), mobility.cpp (the mobility operators), samplers.cpp
 // (square roots, noise, reports), bd.cpp (Brownian dynamics), rigid.cpp (rigid
-// bodies of beads), rigid_dynamics.cpp (their Brownian dynamics). The package `rpyfmm` (python/rpyfmm/__init__.py)
+// bodies of beads), rigid_dynamics.cpp (their Brownian dynamics), mpi.cpp (the MPI layer's operators,
+// in a build with it). The package `rpyfmm` (python/rpyfmm/__init__.py)
 // re-exports everything.
 #include <omp.h>
 
@@ -84,4 +85,7 @@ NB_MODULE(_rpyfmm, m) {
   bind_bd(m);
   bind_rigid(m);
   bind_rigid_dynamics(m);
+#ifdef RPYFMM_PYTHON_MPI
+  bind_mpi(m);
+#endif
 }

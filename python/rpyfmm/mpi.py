@@ -1,0 +1,64 @@
+"""rpyfmm.mpi — the MPI layer's distributed operators from Python via mpi4py.
+
+Available where the module was built with the MPI layer (CMake option ``RPYFMM_USE_MPI``,
+on by default where MPI and FFTW-MPI are found) and mpi4py, built against the same MPI, is
+installed (Debian: ``python3-mpi4py``). Importing this module imports ``mpi4py.MPI``, which
+initializes MPI. docs/mpi.md, "Python (mpi4py)", lists what is supported.
+
+* :class:`DistributedDirectRpy` (exact, free space), :class:`DistributedFmmRpy` (FMM, free
+  space) and :class:`DistributedPseRpy` (PSE, periodic): ``set_positions`` / ``apply`` /
+  ``apply_sqrt`` with this rank's share of the particles as (n, 3) or (3n,) NumPy arrays
+  (n may be 0); the global particle order is the ranks' shares concatenated in rank order.
+* :class:`DistributedPseRpy` also has the split sampler ``sample(seed, step)`` and
+  ``apply_with_noise``.
+* :class:`DistributedLaplaceFmm`: ``set_points`` / ``evaluate`` with this rank's sources (and
+  targets) and charges, the layouts of :class:`rpyfmm.LaplaceFmm`.
+* :func:`normal_noise` ``(n, offset, seed, step=0, stream=0)``: this rank's rows of
+  :func:`rpyfmm.normal_noise` (not collective).
+
+Constructors take an mpi4py communicator (``MPI.COMM_WORLD`` or any intra-communicator) and
+keep a reference to it (the object's ``comm``). Every method is collective: all ranks of the
+communicator call it in the same order. A bad argument or input on any rank raises the same
+:class:`rpyfmm.Error` subclass with the same message (naming the first failing rank) on every
+rank.
+
+Example (run with ``mpirun -n 2 python script.py``)::
+
+    from mpi4py import MPI
+    import numpy as np
+    import rpyfmm.mpi
+
+    comm = MPI.COMM_WORLD
+    op = rpyfmm.mpi.DistributedFmmRpy(comm, viscosity=1.0, tolerance=1e-6)
+    x = np.random.default_rng(comm.rank).uniform(0, 50, (1000, 3))  # this rank's particles
+    op.set_positions(x, 1.0)
+    u = op.apply(np.ones_like(x))  # velocities of this rank's particles
+"""
+
+from __future__ import annotations
+
+from . import _rpyfmm
+
+if not hasattr(_rpyfmm, "mpi"):
+    raise ImportError(
+        "rpyfmm.mpi: this rpyfmm module was built without MPI. Rebuild it with the MPI layer: "
+        "install an MPI and FFTW-MPI development environment (Debian: libopenmpi-dev openmpi-bin "
+        "libfftw3-mpi-dev), then configure with -DRPYFMM_USE_MPI=ON -DRPYFMM_BUILD_PYTHON=ON "
+        "(or `pip install .`, which turns MPI on where it finds both); docs/mpi.md"
+    )
+
+try:
+    from mpi4py import MPI  # noqa: F401  (initializes MPI before any operator is made)
+except ImportError as e:
+    raise ImportError(
+        "rpyfmm.mpi needs mpi4py, built against the MPI rpyfmm was built with "
+        "(Debian: apt-get install python3-mpi4py)"
+    ) from e
+
+DistributedDirectRpy = _rpyfmm.mpi.DistributedDirectRpy
+DistributedFmmRpy = _rpyfmm.mpi.DistributedFmmRpy
+DistributedPseRpy = _rpyfmm.mpi.DistributedPseRpy
+DistributedLaplaceFmm = _rpyfmm.mpi.DistributedLaplaceFmm
+normal_noise = _rpyfmm.mpi.normal_noise
+
+__all__ = ["DistributedDirectRpy", "DistributedFmmRpy", "DistributedLaplaceFmm", "DistributedPseRpy", "normal_noise"]

@@ -1,0 +1,413 @@
+// rpyfmm Python bindings — the MPI layer's distributed operators (rpyfmm::mpi, docs/mpi.md,
+// "Python (mpi4py)") as the submodule rpyfmm._rpyfmm.mpi, wrapped by python/rpyfmm/mpi.py:
+// DistributedDirectRpy, DistributedFmmRpy (with the samplers of mpi::sqrt_apply),
+// DistributedPseRpy (with its split sampler), DistributedLaplaceFmm, and normal_noise for a rank's
+// share (mpi::fill_normal). Compiled only where the MPI layer is built.
+//
+// Communicator: the constructors take an mpi4py communicator and convert it through its Fortran
+// handle, mpi4py's comm.py2f() then MPI_Comm_f2c here, which needs neither mpi4py's C headers at
+// build time nor mpi4py's C API at run time. Each object keeps a reference to the mpi4py communicator (its
+// `comm`), so that the communicator outlives the object (communicator.hpp).
+//
+// Collective errors: every call is collective. The arguments are checked here first (shapes,
+// conversions) and the ranks agree on the outcome (Communicator::agree, one allreduce) before the
+// collective C++ call, so that a bad argument on one rank raises the same exception on every rank
+// instead of leaving the others waiting; the C++ call itself fails collectively (NaN, sizes).
+//
+// Arrays and locks follow mobility.cpp: each rank's arrays are (n, 3) or (3n,) views (n may be 0),
+// results come back in the input's shape, the GIL is released during the C++ call, and calls on one
+// object are serialized by its lock (object_lock.hpp).
+#include <mpi.h>
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <type_traits>
+#include <utility>
+
+#include "common.hpp"
+#include "object_lock.hpp"
+#include "rpyfmm/mpi/direct_operator.hpp"
+#include "rpyfmm/mpi/fmm_rpy.hpp"
+#include "rpyfmm/mpi/laplace_fmm.hpp"
+#include "rpyfmm/mpi/pse_operator.hpp"
+#include "rpyfmm/mpi/sqrt.hpp"
+
+namespace rpyfmm::python {
+namespace {
+
+/// A distributed operator and the mpi4py communicator its MPI_Comm belongs to (declared first:
+/// released after the operator).
+template <class Op>
+struct WithComm {
+  nb::object comm;
+  Op op;
+};
+
+using Direct = WithComm<mpi::DistributedDirectRpy>;
+using Fmm = WithComm<mpi::DistributedFmmRpy>;
+using Pse = WithComm<mpi::DistributedPseRpy>;
+using Laplace = WithComm<mpi::DistributedLaplaceFmm>;
+
+/// The MPI_Comm of an mpi4py communicator, through its Fortran handle.
+MPI_Comm comm_from(nb::handle comm, const char* where) {
+  if (!nb::hasattr(comm, "py2f")) {
+    fail(ErrorCode::invalid_argument, where,
+         "comm must be an mpi4py communicator (mpi4py.MPI.Comm), got " +
+             std::string(nb::type_name(comm.type()).c_str()));
+  }
+  const auto handle = nb::cast<long long>(comm.attr("py2f")());
+  return MPI_Comm_f2c(static_cast<MPI_Fint>(handle));
+}
+
+/// Runs `prepare` (argument checks and conversions, GIL held) on this rank and agrees on its
+/// outcome over the ranks: returns its value when every rank succeeded, else every rank throws the
+/// first failing rank's error (Communicator::agree).
+template <class Prepare>
+auto agreed(const mpi::Communicator& comm, Prepare&& prepare) {
+  std::optional<decltype(prepare())> value;
+  std::optional<Error> problem;
+  try {
+    value.emplace(prepare());
+  } catch (const Error& e) {
+    problem = e;
+  } catch (const std::exception& e) {  // a failed conversion (nanobind, NumPy)
+    problem = Error(ErrorCode::invalid_input, e.what());
+  }
+  {
+    nb::gil_scoped_release release;
+    comm.agree(problem);
+  }
+  return std::move(*value);
+}
+
+/// A product's arrays on this rank: its input (n, 3) or (3n,), and the output in the same shape.
+struct InOut {
+  InArray in;
+  OutArray out;
+};
+
+/// Checks and converts a product's arrays on this rank (not collective).
+InOut points_in_out(const std::string& where, ArrayArg in, const char* name, OutArg out) {
+  InArray a = as_input(in, where, name);
+  require_points(a, where, name);
+  OutArray u = make_output(out, a.shape, where, &a);
+  return InOut{std::move(a), std::move(u)};
+}
+
+/// points_in_out, agreed over the ranks.
+InOut agreed_in_out(const mpi::Communicator& comm, const std::string& where, ArrayArg in, const char* name,
+                    OutArg out) {
+  return agreed(comm, [&] { return points_in_out(where, in, name, out); });
+}
+
+template <class Op>
+void set_positions(WithComm<Op>& self, ArrayArg positions, RadiusArg radius) {
+  const std::string where = "set_positions";
+  struct Args {
+    InArray x;
+    Radii r;
+  };
+  const Args a = agreed(self.op.communicator(), [&] {
+    InArray x = as_input(positions, where, "positions");
+    require_points(x, where, "positions");
+    return Args{std::move(x), radii_from(radius, where)};
+  });
+  nb::gil_scoped_release release;
+  if (a.r.scalar) {
+    self.op.set_positions(a.x.span(), a.r.values[0]);
+  } else {
+    self.op.set_positions(a.x.span(), a.r.values);
+  }
+}
+
+template <class Op>
+ArrayResult apply(const WithComm<Op>& self, ArrayArg forces, OutArg out) {
+  InOut a = agreed_in_out(self.op.communicator(), "apply", forces, "forces", out);
+  {
+    nb::gil_scoped_release release;
+    self.op.apply(a.in.span(), a.out.span());
+  }
+  return ArrayResult{a.out.object};
+}
+
+/// w = M^{1/2} z on this rank's share: mpi::sqrt_apply (direct, fmm) or the PSE's split sampler.
+template <class Op>
+ArrayAndReport<rpy::SqrtReport> apply_sqrt(const WithComm<Op>& self, ArrayArg z, OutArg out, const std::string& method,
+                                           double tolerance, int max_iterations, bool reorthogonalize,
+                                           bool throw_if_not_converged, double lambda_min, double lambda_max,
+                                           int bound_estimate_iterations, const std::string& preconditioner,
+                                           int preconditioner_block) {
+  const std::string where = "apply_sqrt";
+  struct Args {
+    rpy::SqrtOptions options;
+    InOut arrays;
+  };
+  Args a = agreed(self.op.communicator(), [&] {
+    return Args{sqrt_options(method, tolerance, max_iterations, reorthogonalize, throw_if_not_converged, lambda_min,
+                             lambda_max, bound_estimate_iterations, preconditioner, preconditioner_block),
+                points_in_out(where, z, "z", out)};
+  });
+  rpy::SqrtReport report;
+  {
+    nb::gil_scoped_release release;
+    if constexpr (std::is_same_v<Op, mpi::DistributedPseRpy>) {
+      report = self.op.apply_sqrt(a.arrays.in.span(), a.arrays.out.span(), a.options);
+    } else {
+      report = mpi::sqrt_apply(self.op, a.arrays.in.span(), a.arrays.out.span(), a.options);
+    }
+  }
+  return array_and_report(a.arrays.out.object, report);
+}
+
+template <class Op>
+using Class = nb::class_<WithComm<Op>>;
+
+/// What every distributed operator offers: its communicator, sizes, set_positions, apply, apply_sqrt.
+template <class Op>
+void add_common(Class<Op>& cls, const char* sqrt_doc) {
+  using Self = WithComm<Op>;
+  cls.def_prop_ro(
+         "comm", [](const Self& s) { return s.comm; }, "The mpi4py communicator the operator works on.")
+      .def_prop_ro(
+          "name", [](const Self& s) { return s.op.name(); }, "Solver name: 'direct-mpi', 'fmm-mpi', 'pse-mpi'.")
+      .def_prop_ro(
+          "viscosity", [](const Self& s) { return s.op.viscosity(); }, "Solvent viscosity eta.")
+      .def_prop_ro("local_size",
+                   locked_read(
+                       "local_size", +[](const Self& s) { return s.op.local_size(); }),
+                   "This rank's number of particles n (0 before set_positions).")
+      .def_prop_ro("global_size",
+                   locked_read(
+                       "global_size", +[](const Self& s) { return s.op.global_size(); }),
+                   "The number of particles on all ranks together N (0 before set_positions).")
+      .def_prop_ro("offset",
+                   locked_read(
+                       "offset", +[](const Self& s) { return s.op.offset(); }),
+                   "The global index of this rank's first particle (the ranks' shares in rank order).");
+  cls.def("set_positions", locked("set_positions", &set_positions<Op>), nb::arg("positions"), nb::arg("radius"),
+          "Collective. This rank's positions ((n, 3) or (3n,), n >= 0, length units) and radius: one number\n"
+          "for them or an array of n radii. The global set is the ranks' shares concatenated in rank order.")
+      .def("apply", locked("apply", &apply<Op>), nb::arg("forces"), nb::arg("out") = nb::none(),
+           "Collective. U = M F for this rank's particles: forces (n, 3) or (3n,); returns the velocities in\n"
+           "the same shape (float64); `out` (writable float64, C-contiguous) is written in place and returned.")
+      .def("apply_sqrt", locked("apply_sqrt", &apply_sqrt<Op>), nb::arg("z"), nb::arg("out") = nb::none(),
+           nb::kw_only(), nb::arg("method") = "auto", nb::arg("tolerance") = rpy::SqrtOptions{}.tolerance,
+           nb::arg("max_iterations") = 0, nb::arg("reorthogonalize") = true, nb::arg("throw_if_not_converged") = true,
+           nb::arg("lambda_min") = 0.0, nb::arg("lambda_max") = 0.0, nb::arg("bound_estimate_iterations") = 30,
+           nb::arg("preconditioner") = "none", nb::arg("preconditioner_block") = 0, sqrt_doc);
+}
+
+const char* kKrylovSqrtDoc =
+    "Collective. w = M^{1/2} z on this rank's share of z ((n, 3) or (3n,)); returns (w, SqrtReport).\n"
+    "mpi::sqrt_apply: method 'auto'/'lanczos' or 'chebyshev' (others raise NotSupportedError), keywords\n"
+    "as MobilityOperator.apply_sqrt; inner products are summed over all ranks (docs/mpi.md).";
+
+void init_direct(Direct* self, nb::object comm, double viscosity) {
+  new (self) Direct{comm, mpi::DistributedDirectRpy(comm_from(comm, "DistributedDirectRpy"), viscosity)};
+}
+
+void bind_distributed_direct(nb::module_& m) {
+  Class<mpi::DistributedDirectRpy> cls(m, "DistributedDirectRpy",
+                                       "Exact O(N^2) RPY mobility on particles distributed over the ranks (free "
+                                       "space); equal bit for bit\nto DirectRpy on the ranks' shares concatenated in "
+                                       "rank order.");
+  cls.def("__init__", &init_direct, nb::arg("comm"), nb::arg("viscosity") = 1.0,
+          "Collective. comm: an mpi4py communicator; viscosity: eta > 0.");
+  add_common(cls, kKrylovSqrtDoc);
+}
+
+void init_fmm(Fmm* self, nb::object comm, double viscosity, double tolerance, int leaf_capacity) {
+  mpi::DistributedFmmRpyOptions o;
+  o.tolerance = tolerance;
+  o.leaf_capacity = leaf_capacity;
+  new (self) Fmm{comm, mpi::DistributedFmmRpy(comm_from(comm, "DistributedFmmRpy"), viscosity, o)};
+}
+
+void bind_distributed_fmm(nb::module_& m) {
+  Class<mpi::DistributedFmmRpy> cls(m, "DistributedFmmRpy",
+                                    "Free-space RPY mobility in O(N) by the distributed Laplace FMM plus the exact "
+                                    "near field; relative l2\nerror of U over all particles at most the tolerance.");
+  cls.def("__init__", &init_fmm, nb::arg("comm"), nb::arg("viscosity") = 1.0, nb::arg("tolerance") = 1e-6,
+          nb::arg("leaf_capacity") = 0,
+          "Collective. comm: an mpi4py communicator; tolerance: relative l2 error of U in [1e-12, 1e-1];\n"
+          "leaf_capacity: 0 = automatic. Every rank must pass the same values.")
+      .def_prop_ro(
+          "tolerance", [](const Fmm& s) { return s.op.options().tolerance; }, "Requested relative l2 error of U.");
+  add_common(cls, kKrylovSqrtDoc);
+}
+
+void init_pse(Pse* self, nb::object comm, BoxArg box, double viscosity, double tolerance, double xi, double r_cut,
+              double window_eta, int fft_threads, std::size_t max_memory_bytes, bool fft_measure,
+              bool real_space_cache) {
+  const char* where = "DistributedPseRpy";
+  const rpy::pse::PseOptions o = pse_options(where, tolerance, xi, r_cut, window_eta, fft_threads, max_memory_bytes,
+                                             fft_measure, "double", real_space_cache);
+  new (self) Pse{comm, mpi::DistributedPseRpy(comm_from(comm, where), geometry_from(box, where), viscosity, o)};
+}
+
+/// The PSE's split sampler keyed by (seed, step): w (n, 3) on this rank.
+ArrayAndReport<rpy::SqrtReport> pse_sample(const Pse& self, std::uint64_t seed, std::uint64_t step, OutArg out) {
+  OutArray w = agreed(self.op.communicator(), [&] { return make_output(out, {self.op.local_size(), 3}, "sample"); });
+  rpy::SqrtReport report;
+  {
+    nb::gil_scoped_release release;
+    report = self.op.sample(seed, step, w.span());
+  }
+  return array_and_report(w.object, report);
+}
+
+ArrayAndReport<rpy::SqrtReport> pse_apply_with_noise(const Pse& self, ArrayArg forces, double noise_scale,
+                                                     std::uint64_t seed, std::uint64_t step, OutArg out) {
+  InOut a = agreed_in_out(self.op.communicator(), "apply_with_noise", forces, "forces", out);
+  rpy::SqrtReport report;
+  {
+    nb::gil_scoped_release release;
+    report = self.op.apply_with_noise(a.in.span(), noise_scale, seed, step, a.out.span());
+  }
+  return array_and_report(a.out.object, report);
+}
+
+void bind_distributed_pse(nb::module_& m) {
+  Class<mpi::DistributedPseRpy> cls(
+      m, "DistributedPseRpy",
+      "Periodic RPY mobility by Positively Split Ewald on particles distributed over the ranks, equal radii;\n"
+      "equal to PseRpy (double wave grids) on the ranks' shares concatenated in rank order to round-off.");
+  cls.def("__init__", &init_pse, nb::arg("comm"), nb::arg("box"), nb::arg("viscosity") = 1.0,
+          nb::arg("tolerance") = 1e-3, nb::arg("xi") = 0.0, nb::arg("r_cut") = 0.0, nb::arg("window_eta") = 0.0,
+          nb::arg("fft_threads") = 0, nb::arg("max_memory_bytes") = std::size_t{16} << 30,
+          nb::arg("fft_measure") = false, nb::arg("real_space_cache") = true,
+          "Collective. comm: an mpi4py communicator; the other keywords as PseRpy's (the wave-space grids\n"
+          "are double precision). Every rank must pass the same values.")
+      .def_prop_ro("parameters",
+                   locked_read(
+                       "parameters", +[](const Pse& s) { return pse_parameters(s.op.parameters()); }),
+                   "The parameters PseRpy chooses for the whole set (raises before set_positions).")
+      .def("sample", locked("sample", &pse_sample), nb::arg("seed"), nb::arg("step") = 0, nb::arg("out") = nb::none(),
+           "Collective. w = M^{1/2} z by PseRpy.sample's split sampler with noise keyed by (seed, step) and\n"
+           "each particle's global index; returns (w (n, 3), SqrtReport).")
+      .def("apply_with_noise", locked("apply_with_noise", &pse_apply_with_noise), nb::arg("forces"),
+           nb::arg("noise_scale"), nb::arg("seed"), nb::arg("step") = 0, nb::arg("out") = nb::none(),
+           "Collective. U = M F + noise_scale M^{1/2} z in one pass, z as sample(seed, step) draws it.");
+  add_common(cls,
+             "Collective. PseRpy.apply_sqrt's split sampler on this rank's share of z ((n, 3) or (3n,)): method\n"
+             "'auto' or 'split' only (others raise NotSupportedError); returns (w, SqrtReport).");
+}
+
+void init_laplace(Laplace* self, nb::object comm, double tolerance, int leaf_capacity, int order, double separation,
+                  std::size_t cell_capacity) {
+  mpi::DistributedFmmOptions o;
+  o.fmm.tolerance = tolerance;
+  o.fmm.leaf_capacity = leaf_capacity;
+  o.fmm.order = order;
+  o.separation = separation;
+  o.cell_capacity = cell_capacity;
+  new (self) Laplace{comm, mpi::DistributedLaplaceFmm(comm_from(comm, "DistributedLaplaceFmm"), o)};
+}
+
+/// Sources, and targets where given (None: none on this rank), as LaplaceFmm.set_points.
+void set_points(Laplace& self, ArrayArg sources, OptArrayArg targets) {
+  const std::string where = "set_points";
+  struct Args {
+    InArray s, t;
+  };
+  const Args a = agreed(self.op.communicator(), [&] {
+    Args r{as_input(sources, where, "sources"), InArray{}};
+    require_points(r.s, where, "sources");
+    if (!targets.is_none()) {
+      r.t = as_input(targets, where, "targets");
+      require_points(r.t, where, "targets");
+    }
+    return r;
+  });
+  nb::gil_scoped_release release;
+  self.op.set_points(a.s.span(), a.t.span());
+}
+
+ArrayResult evaluate(const Laplace& self, ArrayArg charges, nb::handle outputs, OutArg out) {
+  const std::string where = "evaluate";
+  struct Args {
+    unsigned mask;
+    std::size_t nd;
+    InArray q;
+    OutArray r;
+  };
+  Args a = agreed(self.op.communicator(), [&] {
+    const unsigned mask = outputs_from(outputs, where);
+    InArray q = as_input(charges, where, "charges");
+    const std::size_t nd = densities(q, where);
+    OutArray r = make_output(out, result_shape(q, self.op.local_target_size()), where, &q);
+    return Args{mask, nd, std::move(q), std::move(r)};
+  });
+  {
+    nb::gil_scoped_release release;
+    self.op.evaluate(a.q.span(), a.nd, a.mask, a.r.span());
+  }
+  return ArrayResult{a.r.object};
+}
+
+void bind_distributed_laplace(nb::module_& m) {
+  Class<mpi::DistributedLaplaceFmm>(
+      m, "DistributedLaplaceFmm",
+      "Laplace FMM phi(x) = sum_j q_j / |x - y_j| (no 1/(4 pi)) on sources distributed over the ranks, at\n"
+      "each rank's own sources or targets; relative l2 error of each output at most the tolerance.")
+      .def("__init__", &init_laplace, nb::arg("comm"), nb::arg("tolerance") = 1e-6, nb::arg("leaf_capacity") = 0,
+           nb::arg("order") = 0, nb::arg("separation") = 0.0, nb::arg("cell_capacity") = 0,
+           "Collective. comm: an mpi4py communicator; tolerance, leaf_capacity, order: each rank's serial\n"
+           "LaplaceFmm; separation (0 or in [1, 100]) and cell_capacity: the exchange of the essential tree\n"
+           "(0 = automatic; docs/mpi.md). Every rank must pass the same values.")
+      .def_prop_ro(
+          "comm", [](const Laplace& s) { return s.comm; }, "The mpi4py communicator the plan works on.")
+      .def_prop_ro(
+          "tolerance", [](const Laplace& s) { return s.op.options().fmm.tolerance; }, "Requested relative l2 accuracy.")
+      .def_prop_ro("local_size",
+                   locked_read(
+                       "local_size", +[](const Laplace& s) { return s.op.local_size(); }),
+                   "This rank's sources in the last set_points (0 before).")
+      .def_prop_ro("global_size",
+                   locked_read(
+                       "global_size", +[](const Laplace& s) { return s.op.global_size(); }),
+                   "The sources on all ranks together.")
+      .def_prop_ro("local_target_size",
+                   locked_read(
+                       "local_target_size", +[](const Laplace& s) { return s.op.local_target_size(); }),
+                   "This rank's rows of results: its targets, or its sources when no rank passed targets.")
+      .def("set_points", locked("set_points", &set_points), nb::arg("sources"), nb::arg("targets") = nb::none(),
+           "Collective. This rank's sources ((n, 3) or (3n,), n >= 0) and targets ((t, 3), or None). When no\n"
+           "rank passes targets, results are at each rank's sources (self pair skipped); when any rank\n"
+           "does, at each rank's targets (none on a rank passing None).")
+      .def("evaluate", locked("evaluate", &evaluate), nb::arg("charges"), nb::arg("outputs") = "all",
+           nb::arg("out") = nb::none(),
+           "Collective. charges: (n,) or (nd, n) for this rank's sources (nd and outputs the same on every\n"
+           "rank); outputs as LaplaceFmm.evaluate. Returns (t, 10) or (nd, t, 10) at this rank's rows, the\n"
+           "sums over every rank's sources.");
+}
+
+/// Not collective: this rank's share of the serial noise, rows [offset, offset + n) of normal_noise.
+ArrayResult normal_noise(std::size_t n, std::size_t offset, std::uint64_t seed, std::uint64_t step,
+                         std::uint32_t stream, OutArg out) {
+  OutArray z = make_output(out, {n, 3}, "normal_noise");
+  {
+    nb::gil_scoped_release release;
+    mpi::fill_normal(z.span(), offset, seed, step, stream);
+  }
+  return ArrayResult{z.object};
+}
+
+}  // namespace
+
+void bind_mpi(nb::module_& m) {
+  nb::module_ sub = m.def_submodule(
+      "mpi", "The MPI layer's distributed mobility operators (docs/mpi.md); use the package rpyfmm.mpi.");
+  bind_distributed_direct(sub);
+  bind_distributed_fmm(sub);
+  bind_distributed_pse(sub);
+  bind_distributed_laplace(sub);
+  sub.def("normal_noise", &normal_noise, nb::arg("n"), nb::arg("offset"), nb::arg("seed"), nb::arg("step") = 0,
+          nb::arg("stream") = 0, nb::arg("out") = nb::none(),
+          "Not collective. (n, 3) standard normal values of particles offset ... offset + n - 1: rows\n"
+          "offset:offset + n of rpyfmm.normal_noise(N, seed, step, stream) bit for bit, so a particle's noise\n"
+          "depends on its global index only (an operator's offset gives this rank's).");
+}
+
+}  // namespace rpyfmm::python

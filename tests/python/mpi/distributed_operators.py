@@ -1,0 +1,265 @@
+"""rpyfmm.mpi across ranks: each rank holds a share of one random suspension, and the ranks'
+results gathered in rank order are compared with the serial operators on the whole system.
+
+Run by ctest under mpirun on 1 and 2 ranks (tests/mpi/CMakeLists.txt, label mpi), every rank
+running pytest on this file: `mpirun -n 2 python -m pytest tests/python/mpi/distributed_operators.py`.
+Its name does not match test_*.py, so that a plain pytest run of tests/python (one process,
+no mpirun) does not collect it.
+
+The tests run in the same order on every rank and each one's collective calls all precede its
+asserts, so that a failing assert on one rank cannot leave another waiting in a collective.
+"""
+
+from __future__ import annotations
+
+import gc
+
+import numpy as np
+import pytest
+
+MPI = pytest.importorskip("mpi4py.MPI", reason="rpyfmm.mpi needs mpi4py")
+
+import rpyfmm  # noqa: E402
+import rpyfmm.mpi  # noqa: E402
+from conftest import rel_err, suspension  # noqa: E402
+
+COMM = MPI.COMM_WORLD
+RANK, SIZE = COMM.Get_rank(), COMM.Get_size()
+
+
+def share(n: int, empty_first: bool = False) -> slice:
+    """This rank's slice of n particles: uneven shares (rank r gets about r + 1 parts), or with
+    rank 0 holding none when `empty_first` (and more than one rank)."""
+    weights = np.arange(1, SIZE + 1, dtype=float)
+    if empty_first and SIZE > 1:
+        weights[0] = 0.0
+    bounds = np.rint(np.concatenate([[0.0], np.cumsum(weights)]) / weights.sum() * n).astype(int)
+    return slice(bounds[RANK], bounds[RANK + 1])
+
+
+def gathered(local: np.ndarray) -> np.ndarray:
+    """The ranks' (n, 3) arrays concatenated in rank order, on every rank."""
+    return np.concatenate(COMM.allgather(np.asarray(local).reshape(-1, 3)))
+
+
+def system(n: int, seed: int, radii: bool):
+    """Positions (n, 3), one radius or n radii in [0.8, 1.2], and forces, the same on every rank."""
+    x = suspension(n, seed=seed)
+    rng = np.random.default_rng(seed + 1)
+    a = rng.uniform(0.8, 1.2, n) if radii else 1.0
+    return x, a, rng.standard_normal((n, 3))
+
+
+def local_radius(a, part: slice):
+    return a[part] if isinstance(a, np.ndarray) else a
+
+
+@pytest.mark.parametrize("radii", [False, True])
+@pytest.mark.parametrize("empty_first", [False, True])
+def test_direct_equals_serial(radii: bool, empty_first: bool) -> None:
+    x, a, f = system(300, seed=11, radii=radii)
+    part = share(len(x), empty_first)
+    op = rpyfmm.mpi.DistributedDirectRpy(COMM, viscosity=0.7)
+    op.set_positions(x[part], local_radius(a, part))
+    u = gathered(op.apply(f[part]))
+    serial = rpyfmm.DirectRpy(viscosity=0.7)
+    serial.set_positions(x, a)
+    # docs/mpi.md: the distributed product equals DirectRpy's on the concatenated shares bit for bit.
+    assert np.array_equal(u, serial.apply(f))
+    assert (op.local_size, op.global_size, op.offset) == (part.stop - part.start, len(x), part.start)
+
+
+@pytest.mark.parametrize(
+    "method, preconditioner", [("lanczos", "none"), ("chebyshev", "none"), ("lanczos", "block")]
+)
+def test_direct_sqrt_equals_serial(method: str, preconditioner: str) -> None:
+    x, a, _ = system(200, seed=12, radii=True)
+    z = rpyfmm.normal_noise(len(x), 5)
+    # docs/mpi.md, "Brownian displacements": without a preconditioner every inner product is summed
+    # in the serial order, whatever the partition; the block preconditioner is that of each rank's
+    # particles, the serial one where one rank (here the last) holds every particle.
+    if preconditioner == "none":
+        part = share(len(x))
+    else:
+        part = slice(0, len(x)) if RANK == SIZE - 1 else slice(0, 0)
+    keywords = dict(method=method, preconditioner=preconditioner, tolerance=1e-6)
+    op = rpyfmm.mpi.DistributedDirectRpy(COMM)
+    op.set_positions(x[part], a[part])
+    w, report = op.apply_sqrt(z[part], **keywords)
+    w = gathered(w)
+    serial = rpyfmm.DirectRpy()
+    serial.set_positions(x, a)
+    w_serial, report_serial = serial.apply_sqrt(z, **keywords)
+    assert np.array_equal(w, w_serial)
+    assert report.iterations == report_serial.iterations
+
+
+@pytest.mark.parametrize("kind", ["direct", "pse"])
+def test_unsupported_sampler_raises_on_every_rank(kind: str) -> None:
+    x = np.random.default_rng(16).uniform(0.0, 12.0, (40, 3))
+    part = share(len(x))
+    if kind == "direct":
+        op, method = rpyfmm.mpi.DistributedDirectRpy(COMM), "cholesky"
+    else:
+        op, method = rpyfmm.mpi.DistributedPseRpy(COMM, box=12.0), "lanczos"
+    op.set_positions(x[part], 1.0)
+    with pytest.raises(rpyfmm.NotSupportedError) as caught:
+        op.apply_sqrt(np.ones_like(x[part]), method=method)
+    messages = COMM.allgather(str(caught.value))
+    assert all(m == messages[0] for m in messages)
+
+
+@pytest.mark.parametrize("tolerance", [1e-3, 1e-6])
+def test_fmm_within_tolerance(tolerance: float) -> None:
+    x, a, f = system(3000, seed=13, radii=True)
+    part = share(len(x))
+    op = rpyfmm.mpi.DistributedFmmRpy(COMM, tolerance=tolerance)
+    op.set_positions(x[part], a[part])
+    u = gathered(op.apply(f[part]))
+    exact = rpyfmm.DirectRpy()
+    exact.set_positions(x, a)
+    serial = rpyfmm.FmmRpy(tolerance=tolerance)
+    serial.set_positions(x, a)
+    u_exact = exact.apply(f)
+    # The contract (docs/mpi.md, "Distributed FmmRpy"): relative l2 error against the exact product
+    # at most the tolerance; the serial FmmRpy meets the same, so the two differ by at most twice it.
+    assert rel_err(u, u_exact) <= tolerance
+    assert rel_err(u, serial.apply(f)) <= 2 * tolerance
+    assert op.tolerance == tolerance
+
+
+def test_fmm_sqrt_covariance_product() -> None:
+    # w = M_fmm^{1/2} z on the ranks: M_fmm^{-1/2} cannot be checked directly, but w . w = z . M_fmm z
+    # up to the sampler's tolerance, with M_fmm z from apply.
+    x, a, _ = system(800, seed=14, radii=False)
+    z = rpyfmm.normal_noise(len(x), 9)
+    part = share(len(x))
+    op = rpyfmm.mpi.DistributedFmmRpy(COMM, tolerance=1e-8)
+    op.set_positions(x[part], a)
+    w, report = op.apply_sqrt(z[part], tolerance=1e-8)
+    mz = gathered(op.apply(z[part]))
+    w = gathered(w)
+    assert report.iterations > 0
+    assert abs(np.vdot(w, w) - np.vdot(z, mz)) <= 1e-6 * np.vdot(z, mz)
+
+
+def pse_pair(n: int, box: float, tolerance: float):
+    x = np.random.default_rng(21).uniform(0.0, box, (n, 3))
+    op = rpyfmm.mpi.DistributedPseRpy(COMM, box=box, viscosity=0.9, tolerance=tolerance)
+    serial = rpyfmm.PseRpy(box=box, viscosity=0.9, tolerance=tolerance, wave_precision="double")
+    serial.set_positions(x, 1.0)
+    return x, op, serial
+
+
+def test_pse_equals_serial() -> None:
+    x, op, serial = pse_pair(250, box=14.0, tolerance=1e-4)
+    f = np.random.default_rng(22).standard_normal(x.shape)
+    part = share(len(x))
+    op.set_positions(x[part], 1.0)
+    u = gathered(op.apply(f[part]))
+    w, _ = op.sample(seed=3, step=2)
+    w = gathered(w)
+    un = gathered(op.apply_with_noise(f[part], 0.5, seed=3, step=2)[0])
+    params = op.parameters
+    u_serial = serial.apply(f)
+    w_serial, _ = serial.sample(seed=3, step=2)
+    un_serial, _ = serial.apply_with_noise(f, 0.5, seed=3, step=2)
+    # docs/mpi.md, "Distributed PSE": PseRpy's sums on the whole set, added in another order.
+    assert np.max(np.abs(u - u_serial)) <= 1e-12 * np.max(np.abs(u_serial))
+    assert np.max(np.abs(w - w_serial)) <= 1e-12 * np.max(np.abs(w_serial))
+    assert np.max(np.abs(un - un_serial)) <= 1e-12 * np.max(np.abs(un_serial))
+    assert params["grid"] == serial.parameters["grid"]
+
+
+def test_pse_apply_sqrt_equals_serial() -> None:
+    x, op, serial = pse_pair(200, box=12.0, tolerance=1e-4)
+    z = rpyfmm.normal_noise(len(x), 4)
+    part = share(len(x), empty_first=True)
+    op.set_positions(x[part], 1.0)
+    w, _ = op.apply_sqrt(z[part])
+    w = gathered(w)
+    w_serial, _ = serial.apply_sqrt(z)
+    assert np.max(np.abs(w - w_serial)) <= 1e-12 * np.max(np.abs(w_serial))
+
+
+@pytest.mark.parametrize("with_targets", [False, True])
+def test_laplace_within_tolerance(with_targets: bool) -> None:
+    rng = np.random.default_rng(17)
+    x, q, y = rng.uniform(0.0, 1.0, (4000, 3)), rng.standard_normal((2, 4000)), rng.uniform(0.0, 1.0, (500, 3))
+    part, tpart = share(len(x)), share(len(y), empty_first=True)
+    fmm = rpyfmm.mpi.DistributedLaplaceFmm(COMM, tolerance=1e-6)
+    # With targets, rank 0 passes None (no targets of its own) when there are several ranks.
+    local_targets = y[tpart] if with_targets and tpart.stop > tpart.start else None
+    fmm.set_points(x[part], local_targets)
+    r = fmm.evaluate(q[:, part], outputs="all")
+    r = np.concatenate(COMM.allgather(r), axis=1)
+    exact = rpyfmm.laplace_direct(x, q, y if with_targets else None)
+    assert r.shape == exact.shape
+    # The contract (docs/mpi.md, "Distributed Laplace FMM"): relative l2 error of each output.
+    for d in range(2):
+        for cols in (slice(0, 1), slice(1, 4), slice(4, 10)):
+            assert rel_err(r[d][:, cols], exact[d][:, cols]) <= 1e-6
+    assert fmm.global_size == len(x) and fmm.local_size == part.stop - part.start
+
+
+def test_normal_noise_is_the_serial_rows() -> None:
+    part = share(90, empty_first=True)
+    z = rpyfmm.mpi.normal_noise(part.stop - part.start, part.start, seed=7, step=3, stream=1)
+    assert np.array_equal(gathered(z), rpyfmm.normal_noise(90, 7, 3, stream=1))
+
+
+@pytest.mark.parametrize("kind", ["direct", "fmm", "pse"])
+def test_nan_on_one_rank_raises_on_every_rank(kind: str) -> None:
+    x, a, f = system(100, seed=31, radii=False)
+    part = share(len(x))
+    op = {
+        "direct": lambda: rpyfmm.mpi.DistributedDirectRpy(COMM),
+        "fmm": lambda: rpyfmm.mpi.DistributedFmmRpy(COMM, tolerance=1e-4),
+        "pse": lambda: rpyfmm.mpi.DistributedPseRpy(COMM, box=20.0, tolerance=1e-3),
+    }[kind]()
+    bad = x[part].copy()
+    if RANK == SIZE - 1:
+        bad[0, 1] = np.nan
+    with pytest.raises(rpyfmm.InvalidInputError) as caught:
+        op.set_positions(bad, a)
+    messages = COMM.allgather(str(caught.value))
+    # The operator works again after the collective failure.
+    op.set_positions(x[part], a)
+    u = gathered(op.apply(f[part]))
+    assert all(m == messages[0] for m in messages)
+    assert f"rank {SIZE - 1} of {SIZE}" in messages[0] and "NaN" in messages[0]
+    assert u.shape == x.shape and np.all(np.isfinite(u))
+
+
+def test_bad_shape_on_one_rank_raises_on_every_rank() -> None:
+    x, a, f = system(60, seed=32, radii=False)
+    part = share(len(x))
+    op = rpyfmm.mpi.DistributedDirectRpy(COMM)
+    op.set_positions(x[part], a)
+    forces = f[part] if RANK != SIZE - 1 else f[part][:, :2]  # (n, 2) on the last rank only
+    with pytest.raises(rpyfmm.InvalidInputError) as caught:
+        op.apply(forces)
+    messages = COMM.allgather(str(caught.value))
+    assert all(m == messages[0] for m in messages)
+    assert f"rank {SIZE - 1} of {SIZE}" in messages[0] and "forces has shape" in messages[0]
+
+
+def test_operator_keeps_its_communicator() -> None:
+    x, a, f = system(50, seed=33, radii=False)
+    part = share(len(x))
+    dup = COMM.Dup()
+    op = rpyfmm.mpi.DistributedDirectRpy(dup)
+    del dup
+    gc.collect()
+    op.set_positions(x[part], a)
+    u = gathered(op.apply(f[part]))
+    comm = op.comm
+    serial = rpyfmm.DirectRpy()
+    serial.set_positions(x, a)
+    assert isinstance(comm, MPI.Intracomm) and comm != MPI.COMM_NULL
+    assert np.array_equal(u, serial.apply(f))
+
+
+def test_not_a_communicator() -> None:
+    with pytest.raises(rpyfmm.InvalidArgumentError, match="mpi4py communicator"):
+        rpyfmm.mpi.DistributedDirectRpy(42)
