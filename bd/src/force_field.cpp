@@ -68,6 +68,16 @@ void ForceField::add_bonds(std::span<const Bond> bonds) {
   bond_index_valid_ = false;
 }
 
+ForceField ForceField::with_bonds(std::span<const Bond> bonds, std::span<const std::uint64_t> names) const {
+  require(names.empty() || names.size() == bonds.size(), ErrorCode::invalid_argument, "ForceField::with_bonds",
+          "names must be empty or one per bond");
+  ForceField part = *this;
+  part.bonds_.clear();
+  part.add_bonds(bonds);
+  part.bond_names_.assign(names.begin(), names.end());
+  return part;
+}
+
 void ForceField::set_global_force(const std::array<double, 3>& force) {
   for (double f : force)
     require(std::isfinite(f), ErrorCode::invalid_argument, "ForceField::set_global_force", "force must be finite");
@@ -170,15 +180,16 @@ void ForceField::fail_overlap(std::size_t i, std::span<const double> x, std::spa
   }
 }
 
-void ForceField::fail_bond(std::size_t k, std::span<const double> x, const NeighbourList& list,
-                           std::uint64_t step) const {
+void ForceField::fail_bond(std::size_t k, std::span<const double> x, const NeighbourList& list, std::uint64_t step,
+                           std::span<const std::uint64_t> ids) const {
   const Bond& b = bonds_[k];
+  const auto name = [&](std::size_t i) { return std::to_string(ids.empty() ? i : ids[i]); };
   double d[3];
   list.separation(&x[3 * b.i], &x[3 * b.j], d);
   const double r = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
   fail(ErrorCode::invalid_input, "forces",
-       "bond " + std::to_string(k) + " between particles " + std::to_string(b.i) + " and " + std::to_string(b.j) +
-           " at step " + std::to_string(step) +
+       "bond " + std::to_string(k < bond_names_.size() ? bond_names_[k] : k) + " between particles " + name(b.i) +
+           " and " + name(b.j) + " at step " + std::to_string(step) +
            (r == 0.0 ? " joins coincident particles"
                      : " is stretched to " + fmt_double(r) + " >= FENE maximum extension " +
                            fmt_double(bond_potentials_[b.type].length)));
@@ -290,8 +301,11 @@ void ForceField::compute_rows(std::span<const double> x, std::span<const std::ui
           "positions, types and ids disagree on N");
   require(forces.size() == 3 * m && energies.size() == m, ErrorCode::invalid_input, "ForceField::compute_rows",
           "forces and energies must have 3 and 1 entries per row");
-  require(bonds_.empty() && callbacks_.empty(), ErrorCode::not_supported, "ForceField::compute_rows",
-          "bonds and force callbacks index the whole system, not a part of it");
+  require(callbacks_.empty(), ErrorCode::not_supported, "ForceField::compute_rows",
+          "force callbacks take the whole system, not a part of it");
+  for (const Bond& b : bonds_)
+    require(b.i < n && b.j < n, ErrorCode::invalid_input, "ForceField::compute_rows",
+            "a bond refers to a particle beyond the part's N = " + std::to_string(n));
   require(std::all_of(rows.begin(), rows.end(), [n](std::uint32_t i) { return i < n; }), ErrorCode::invalid_input,
           "ForceField::compute_rows", "a row index is beyond N");
   check_list(list, n, "ForceField::compute_rows");
@@ -302,6 +316,7 @@ void ForceField::compute_rows(std::span<const double> x, std::span<const std::ui
     energies[k] = particle_row(rows[k], x, ptype, list, {}, &forces[3 * k], nullptr, bad);
   }
   if (bad.pair.load() != RowFailures::kNone) fail_overlap(bad.pair.load(), x, ptype, list, step, {}, ids);
+  if (bad.bond.load() != RowFailures::kNone) fail_bond(bad.bond.load(), x, list, step, ids);
 }
 
 void ForceField::check_list(const NeighbourList& list, std::size_t n, const char* where) const {

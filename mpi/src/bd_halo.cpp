@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <limits>
 #include <numeric>
 
@@ -184,14 +185,26 @@ void assemble_part(DistributedBd::Halo& h, std::span<const double> positions, st
 }  // namespace
 
 DistributedBd::Halo DistributedBd::Halo::build(const Communicator& comm, const bd::ForceField& forces,
-                                               const rpy::Geometry& geometry, const bd::NeighbourOptions& neighbours,
+                                               const detail::BondIndex& bonds, const rpy::Geometry& geometry,
+                                               const bd::NeighbourOptions& neighbours,
                                                std::span<const double> positions, std::span<const std::uint32_t> types,
-                                               std::span<const std::uint64_t> ids) {
-  Halo h{.list = bd::NeighbourList(geometry, forces.max_cutoff(), neighbours), .pairs = forces.has_pairs()};
+                                               std::span<const std::uint64_t> ids, std::uint64_t total) {
+  Halo h{.list = bd::NeighbourList(geometry, forces.max_cutoff(), neighbours),
+         .pairs = forces.has_pairs(),
+         .exchanges = forces.has_pairs() || !bonds.empty()};
   const double list_radius = h.pairs ? h.list.list_radius() : 0.0;
   const detail::OwnedCells cells = detail::owned_cells(positions, geometry);
   const std::vector<std::vector<detail::Box>> regions = detail::gather_regions(comm, detail::region_of(cells));
   h.send = detail::select_halo(comm, cells, regions, geometry, list_radius);
+  // The bond partners that other ranks lack join what goes to them (each particle once).
+  const std::vector<std::vector<std::uint32_t>> partners = detail::bond_partners_wanted(comm, bonds, ids, total);
+  for (std::size_t r = 0; r < h.send.size(); ++r) {
+    if (partners[r].empty()) continue;
+    std::vector<std::uint32_t> merged;
+    std::set_union(h.send[r].begin(), h.send[r].end(), partners[r].begin(), partners[r].end(),
+                   std::back_inserter(merged));
+    h.send[r] = std::move(merged);
+  }
   std::vector<std::vector<double>> packed(h.send.size());
   for (std::size_t r = 0; r < h.send.size(); ++r) {
     for (const std::uint32_t i : h.send[r]) {
@@ -203,6 +216,10 @@ DistributedBd::Halo DistributedBd::Halo::build(const Communicator& comm, const b
       detail::alltoallv(comm, packed, "DistributedBd", "the halo's particles", &h.recv_counts);
   for (std::size_t& count : h.recv_counts) count /= kHaloValues;
   assemble_part(h, positions, types, ids, received);
+  if (!bonds.empty()) {
+    const detail::PartBonds part = detail::part_bonds(bonds, ids, h.ids);
+    h.part_forces = forces.with_bonds(part.bonds, part.names);
+  }
   if (h.pairs) {
     h.list.set_pair_cutoffs(h.types, forces.pair_cutoffs(), forces.types().size());
     h.list.build(h.x);
@@ -213,7 +230,7 @@ DistributedBd::Halo DistributedBd::Halo::build(const Communicator& comm, const b
 void DistributedBd::Halo::refresh(const Communicator& comm, std::span<const double> positions) {
   for (std::size_t i = 0; i < owned_rows.size(); ++i)
     for (int c = 0; c < 3; ++c) x[3 * owned_rows[i] + c] = positions[3 * i + c];
-  if (!pairs) return;  // no pair potential (the same force field on every rank): no halo anywhere
+  if (!exchanges) return;  // no pair potential and no bond (the same on every rank): no halo anywhere
   std::vector<std::vector<double>> packed(send.size());
   for (std::size_t r = 0; r < send.size(); ++r) {
     packed[r].reserve(3 * send[r].size());

@@ -7,9 +7,11 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
+#include "bd_bonds.hpp"
 #include "cell_tree.hpp"
 #include "rpyfmm/bd/force_field.hpp"
 #include "rpyfmm/bd/neighbour_list.hpp"
@@ -69,14 +71,19 @@ struct DistributedBd::Halo {
   std::vector<std::vector<std::uint32_t>> send{};
   std::vector<std::size_t> recv_counts{};
   bd::NeighbourList list;
-  bool pairs = false;  // the force field has pair potentials (else no halo and no lists)
+  bool pairs = false;      // the force field has pair potentials (else no lists, no rebuild test)
+  bool exchanges = false;  // pairs or bonds: a halo to refresh every step (the same on every rank)
+  /// With bonds: the force field with the bonds of the owned particles, their ends as part rows.
+  std::optional<bd::ForceField> part_forces{};
 
   /// Collective: finds the halo of this rank's owned particles (positions 3n, types, ids,
-  /// increasing), exchanges it and builds the lists on the part. list_radius: r_c + skin (0: no
-  /// pairs, no halo).
-  static Halo build(const Communicator& comm, const bd::ForceField& forces, const rpy::Geometry& geometry,
-                    const bd::NeighbourOptions& neighbours, std::span<const double> positions,
-                    std::span<const std::uint32_t> types, std::span<const std::uint64_t> ids);
+  /// increasing): the other ranks' particles within the list radius r_c + skin (none without pair
+  /// potentials) and the bond partners of the owned particles; exchanges it and builds the lists
+  /// and the part's bonds. total: N.
+  static Halo build(const Communicator& comm, const bd::ForceField& forces, const detail::BondIndex& bonds,
+                    const rpy::Geometry& geometry, const bd::NeighbourOptions& neighbours,
+                    std::span<const double> positions, std::span<const std::uint32_t> types,
+                    std::span<const std::uint64_t> ids, std::uint64_t total);
   /// Collective: the owned particles' current positions into the part, the halo's from its owners.
   void refresh(const Communicator& comm, std::span<const double> positions);
   /// Each owned particle's neighbour-list entries (its row length), the cost weights of a partition.

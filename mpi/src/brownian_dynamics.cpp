@@ -36,8 +36,6 @@ void require_supported(const DistributedBdOptions& o, const bd::ForceField& forc
   require(!i.sac.enabled, ErrorCode::not_supported, kWhere, "the SAC scheme is not supported across ranks");
   require(!i.keep_split_displacements, ErrorCode::not_supported, kWhere,
           "split displacements (keep_split_displacements) are not kept across ranks");
-  require(forces.bonds().empty(), ErrorCode::not_supported, kWhere,
-          "bonds are not supported across ranks (they index the whole system)");
   require(!forces.has_callbacks(), ErrorCode::not_supported, kWhere,
           "force callbacks are not supported across ranks (they take the whole system's positions)");
   require(o.repartition_imbalance >= 1.0, ErrorCode::invalid_argument, kWhere,
@@ -74,6 +72,7 @@ std::vector<double> option_signature(const DistributedBdOptions& o, const rpy::G
           g.box()[1],
           g.box()[2],
           static_cast<double>(forces.types().size()),
+          static_cast<double>(forces.bonds().size()),
           forces.max_cutoff(),
           forces.trap_stiffness(),
           static_cast<double>(o.method),
@@ -118,7 +117,7 @@ void check_share(const BdShare& s, const bd::ForceField& forces) {
   }
   for (const double r : s.reference_positions)
     require(std::isfinite(r), ErrorCode::invalid_input, kWhere, "a reference position is not finite");
-  forces.check(s.types);
+  forces.with_bonds({}).check(s.types);  // the types; the bonds index the whole system (BondIndex)
 }
 
 // Collective: throws on every rank unless the ids of all ranks are 0 ... total - 1, each once. Each
@@ -184,6 +183,7 @@ DistributedBd::DistributedBd(MPI_Comm comm, bd::ForceField forces, rpy::Geometry
   require(total < (std::uint64_t{1} << 53), ErrorCode::not_supported, kWhere,
           "more than 2^53 particles (ids travel as doubles)");
   global_n_ = total;
+  bonds_ = std::make_unique<detail::BondIndex>(forces_.bonds(), total);  // checks the bonds against N
   if (share.ids.empty()) {
     share.ids.resize(share.types.size());
     std::iota(share.ids.begin(), share.ids.end(), offset);
@@ -249,7 +249,8 @@ void DistributedBd::rebuild() {
   stats_.imbalance = mean > 0.0 ? max_cost / mean : 1.0;
   if (!halo_ || (comm_.size() > 1 && stats_.imbalance > options_.repartition_imbalance)) repartition(weights);
   work_seconds_ = 0.0;
-  halo_ = std::make_unique<Halo>(Halo::build(comm_, forces_, geometry_, options_.neighbours, x_, types_, ids_));
+  halo_ = std::make_unique<Halo>(
+      Halo::build(comm_, forces_, *bonds_, geometry_, options_.neighbours, x_, types_, ids_, global_n_));
   list_reference_ = x_;
   rebuild_due_ = false;
   steps_since_rebuild_ = 0;
@@ -293,8 +294,8 @@ void DistributedBd::compute_forces() {
   particle_energy_.assign(n, 0.0);
   comm_.run([&] {
     const StopWatch work;  // this rank's own work, without the agreement's wait for the others
-    forces_.compute_rows(halo_->x, halo_->types, halo_->list, step_, halo_->owned_rows, halo_->ids, f_,
-                         particle_energy_);
+    const bd::ForceField& part = halo_->part_forces ? *halo_->part_forces : forces_;  // bonds as part rows
+    part.compute_rows(halo_->x, halo_->types, halo_->list, step_, halo_->owned_rows, halo_->ids, f_, particle_energy_);
     work_seconds_ += work.seconds();
   });
   double mine = 0.0;

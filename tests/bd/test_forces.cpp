@@ -499,7 +499,7 @@ TEST(ForceField, OverlapAndOverstretchedBondNameTheParticles) {
 
 // compute_rows on a part of a system (the particles of one MPI rank with its halo): the rows' forces
 // and energy shares are compute()'s bit for bit, whatever subset of rows is asked for and in which
-// order; errors name the particles by their ids; bonds and callbacks are refused.
+// order, with bonds indexing the part; errors name the particles by their ids; callbacks are refused.
 TEST(ForceField, RowsOfAPartEqualTheWholeSystemsForcesBitForBit) {
   ForceField ff({ParticleType{"A", 0.5, {0.0, 0.1, 0.0}, 0.0}, ParticleType{"B", 0.7, {0, 0, 0}, 0.0}});
   ff.set_pair(0, 0, {.kind = PairKind::lj36_18, .epsilon = 1.0});
@@ -547,11 +547,30 @@ TEST(ForceField, RowsOfAPartEqualTheWholeSystemsForcesBitForBit) {
   }
   const std::vector<std::uint32_t> beyond{0, 125};
   EXPECT_THROW(ff.compute_rows(x, types, list, 0, beyond, ids, fr, er), Error);
+  // Bonds index the part: the rows with bonds are compute()'s bit for bit, and a FENE bond beyond
+  // its maximum extension is named by the name with_bonds gives it and by the particles' ids.
+  list.build(x);
   ForceField bonded = ff;
-  bonded.add_bonds(std::vector<Bond>{{0, 1, bonded.add_bond_potential({})}});
+  const auto spring = bonded.add_bond_potential({.kind = BondKind::harmonic, .k = 3.0, .length = 1.2});
+  const auto fene = bonded.add_bond_potential({.kind = BondKind::fene, .k = 2.0, .length = 2.5});
+  bonded.add_bonds(std::vector<Bond>{{0, 1, spring}, {77, 78, fene}, {3, 4, fene}, {124, 0, spring}, {50, 51, fene}});
+  bonded.compute(x, types, list, 0, f);
+  bonded.compute_rows(x, types, list, 0, rows, ids, fr, er);
+  for (std::size_t k = 0; k < rows.size(); ++k)
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(fr[3 * k + c], f[3 * rows[k] + c]) << "bonded row " << rows[k];
+  const std::vector<Bond> stretched{{0, 124, fene}};  // 8.5 apart
   try {
-    bonded.compute_rows(x, types, list, 0, rows, ids, fr, er);
-    FAIL() << "bonds not refused";
+    bonded.with_bonds(stretched, std::vector<std::uint64_t>{4000}).compute_rows(x, types, list, 2, rows, ids, fr, er);
+    FAIL() << "a FENE bond beyond its maximum extension not detected";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("bond 4000 between particles 1000 and 1124 at step 2"), std::string::npos)
+        << e.what();
+  }
+  ForceField called = ff;
+  called.add_callback([](auto, auto, auto) {});
+  try {
+    called.compute_rows(x, types, list, 0, rows, ids, fr, er);
+    FAIL() << "callbacks not refused";
   } catch (const Error& e) {
     EXPECT_EQ(e.code(), ErrorCode::not_supported);
   }

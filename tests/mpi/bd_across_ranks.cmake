@@ -6,8 +6,9 @@
 # With PSE (spheres of one radius, double-precision wave grids) the positions are the serial
 # engine's to round-off (about 1e-15 of the coordinates; tests/mpi/test_distributed_bd.cpp), so
 # the printed coordinates (10 significant digits) agree to one unit of their last digit, allowed 2.
-# A configuration the ranks do not run (direct in a periodic box; PSE with single-precision grids;
-# bonds) fails every rank: exit status 2, one error line, no output directory. Run by ctest as
+# Bead-spring chains: byte for byte as free draining. A configuration the ranks do not run (direct
+# in a periodic box; PSE with single-precision grids) fails every rank: exit status 2, one error
+# line, no output directory. Run by ctest as
 #   cmake -DRPYFMM=... -DMPIEXEC=... -DNP=... "-DMPI_FLAGS=..." -DWORK=... -P bd_across_ranks.cmake
 cmake_minimum_required(VERSION 3.20)
 foreach(var RPYFMM MPIEXEC NP WORK)
@@ -159,15 +160,20 @@ run_bd(0 --config "${WORK}/pse.toml" --out-dir "${WORK}/pse_serial" --quiet)
 run_bd(${NP} --config "${WORK}/pse.toml" --out-dir "${WORK}/pse_ranks" --quiet)
 close_trajectory(pse_ranks pse_serial "PSE, 40 steps on ${NP} ranks")
 
+# Bead-spring chains (harmonic bonds, WCA pairs): the bonds' partners travel with the halo, and the
+# trajectory is the serial run's byte for byte.
+string(REPLACE "source = \"random\"\ncount = 600" "source = \"chains\"\nchains = 20\nbeads = 10" chains "${text}")
+file(WRITE "${WORK}/chains.toml" "${chains}\n[bonds]\nkind = \"harmonic\"\nk = 100.0\nlength = 1.0\n")
+run_bd(0 --config "${WORK}/chains.toml" --out-dir "${WORK}/chains_serial" --quiet)
+run_bd(${NP} --config "${WORK}/chains.toml" --out-dir "${WORK}/chains_ranks" --quiet)
+same_trajectory(chains_serial chains_ranks "chains, 60 steps on ${NP} ranks")
+
 # Refused configurations: every rank fails, rank 0 prints one line, nothing is left behind.
 string(REPLACE "method = \"none\"" "method = \"direct\"" direct "${text}")
 file(WRITE "${WORK}/direct.toml" "${direct}")
 string(REPLACE "wave_precision = \"double\"" "wave_precision = \"single\"" single "${pse}")
 file(WRITE "${WORK}/single.toml" "${single}")
-string(REPLACE "source = \"random\"\ncount = 600" "source = \"chains\"\nchains = 20\nbeads = 10" chains "${text}")
-file(WRITE "${WORK}/chains.toml" "${chains}\n[bonds]\nkind = \"harmonic\"\nk = 100.0\nlength = 1.0\n")
-foreach(case "direct;a periodic box needs pse" "single;wave_precision = \"single\" is not run across ranks"
-             "chains;bonds are not supported across ranks")
+foreach(case "direct;a periodic box needs pse" "single;wave_precision = \"single\" is not run across ranks")
   list(GET case 0 name)
   list(GET case 1 expected)
   execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" bd --config "${WORK}/${name}.toml"

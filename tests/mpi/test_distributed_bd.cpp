@@ -209,6 +209,88 @@ TEST(MpiDistributedBd, MeasuredTimeCostsRepartitionAndKeepTheSerialTrajectory) {
   EXPECT_GE(bd.stats().imbalance, 1.0);
 }
 
+// One type of spheres of radius 0.5, no potentials.
+ForceField one_type() {
+  return ForceField({rpyfmm::bd::ParticleType{.name = "A", .radius = 0.5}});
+}
+
+// Bead-spring chains: FENE bonds between neighbours along each lattice row of k beads, and weak
+// harmonic bonds between particle p and p + N / 2 (half the system apart, so their partners lie on
+// other ranks and far outside the list radius).
+ForceField with_chains(ForceField forces, int k, bool long_bonds) {
+  const auto fene = forces.add_bond_potential({.kind = rpyfmm::bd::BondKind::fene, .k = 5.0, .length = 3.0});
+  const auto spring = forces.add_bond_potential({.kind = rpyfmm::bd::BondKind::harmonic, .k = 0.02, .length = 5.0});
+  std::vector<rpyfmm::bd::Bond> bonds;
+  const auto n = static_cast<std::uint32_t>(k * k * k);
+  for (std::uint32_t p = 0; p < n; ++p) {
+    if ((p + 1) % static_cast<std::uint32_t>(k) != 0) bonds.push_back({p, p + 1, fene});
+    if (long_bonds && p < n / 2 && p % 7 == 0) bonds.push_back({p, p + n / 2, spring});
+  }
+  forces.add_bonds(bonds);
+  return forces;
+}
+
+TEST(MpiDistributedBd, BondedChainsEqualTheSerialEngineBitForBit) {
+  // 512 beads in 64 FENE chains of 8 with WCA pairs in a periodic box, and long harmonic bonds: each
+  // bond's partner travels with the halo, and each owned bead sums its bonds in the serial order.
+  const System s = lattice(8, 1.6, 2, 13);
+  const Geometry box = Geometry::periodic(8 * 1.6);
+  DistributedBdOptions o = options_with(2e-3, 21);
+  const ForceField chains = with_chains(wca_mixture(), 8, true);
+  const std::vector<double> expected = serial_run(chains, box, o, s, 60);
+  for (const Split split : kSplits) {
+    DistributedBd bd(MPI_COMM_WORLD, chains, box, o, share_of(s, split, shuffled(s.size(), 5), true));
+    bd.run(60);
+    expect_positions_bitwise(bd, expected, "chains, split " + std::to_string(static_cast<int>(split)));
+    EXPECT_GE(bd.stats().rebuilds, 2u);
+  }
+  o.repartition_imbalance = 1.0;  // particles (and their bonds' partners) move at every rebuild
+  DistributedBd moving(MPI_COMM_WORLD, chains, box, o, share_of(s, Split::even, identity(s.size()), false));
+  moving.run(60);
+  expect_positions_bitwise(moving, expected, "chains, a repartition at every rebuild");
+}
+
+TEST(MpiDistributedBd, BondsWithoutPairPotentialsEqualTheSerialEngineBitForBit) {
+  // Harmonic chains in free space with no pair potential: no neighbour lists, a halo of bond
+  // partners alone.
+  const System s = lattice(5, 1.3, 1, 17);
+  ForceField forces = one_type();
+  const auto spring = forces.add_bond_potential({.kind = rpyfmm::bd::BondKind::harmonic, .k = 2.0, .length = 1.3});
+  std::vector<rpyfmm::bd::Bond> bonds;
+  for (std::uint32_t p = 0; p + 1 < 125; ++p) bonds.push_back({p, p + 1, spring});  // one chain through all
+  forces.add_bonds(bonds);
+  const DistributedBdOptions o = options_with(2e-3, 3);
+  const std::vector<double> expected = serial_run(forces, Geometry::open(), o, s, 40);
+  DistributedBd bd(MPI_COMM_WORLD, forces, Geometry::open(), o,
+                   share_of(s, Split::geometric, shuffled(s.size(), 9), true));
+  bd.run(40);
+  expect_positions_bitwise(bd, expected, "a chain without pair potentials");
+}
+
+TEST(MpiDistributedBd, AnOverstretchedBondFailsEveryRankNamingItsGlobalIndices) {
+  // Bond 1 joins particles 0 and 63, 8.3 apart, beyond its FENE maximum extension 3: the rank that
+  // owns either end words the serial engine's error with global indices, every rank throws it.
+  const System s = lattice(4, 1.6, 1, 2);
+  ForceField forces = one_type();
+  forces.set_pair(0, 0, {.kind = PairKind::wca});
+  const auto fene = forces.add_bond_potential({.kind = rpyfmm::bd::BondKind::fene, .k = 5.0, .length = 3.0});
+  forces.add_bonds(std::vector<rpyfmm::bd::Bond>{{0, 1, fene}, {0, 63, fene}});
+  const Geometry open = Geometry::open();
+  const DistributedBdOptions o = options_with(1e-3);
+  DistributedBd bd(MPI_COMM_WORLD, forces, open, o, share_of(s, Split::geometric, shuffled(64, 4), true));
+  expect_collective_error([&] { bd.step(); }, ErrorCode::invalid_input,
+                          "bond 1 between particles 0 and 63 at step 0 is stretched");
+  try {  // the serial engine's words
+    rpyfmm::bd::Integrator serial(std::make_unique<rpyfmm::rpy::FreeDrainingMobility>(open, o.viscosity), forces,
+                                  o.integrator, s.x, s.types, o.neighbours);
+    serial.step();
+    ADD_FAILURE() << "the serial engine took the step";
+  } catch (const rpyfmm::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("bond 1 between particles 0 and 63 at step 0 is stretched"), std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(MpiDistributedBd, EnergyIsTheSerialEnergyToRoundOff) {
   // The sum over ranks adds the particles' shares in another order: agreement to a few ulps of the
   // sum of their magnitudes, here bounded by 1e-12 relative.
@@ -487,10 +569,10 @@ TEST(MpiDistributedBd, BadInputOnOneRankFailsEveryRank) {
         },
         ErrorCode::not_supported, "rotation");
     ForceField bonded = wca_mixture();
-    bonded.add_bonds(std::vector<rpyfmm::bd::Bond>{{0, 1, bonded.add_bond_potential({})}});
+    bonded.add_bonds(std::vector<rpyfmm::bd::Bond>{{0, 64, bonded.add_bond_potential({})}});
     expect_collective_error(
         [&] { DistributedBd bd(MPI_COMM_WORLD, bonded, box, o, share_of(s, Split::even, identity(64), false)); },
-        ErrorCode::not_supported, "bonds");
+        ErrorCode::invalid_input, "bond (0, 64) refers to a particle >= N = 64");
     ForceField called = wca_mixture();
     called.add_callback([](auto, auto, auto) {});
     expect_collective_error(

@@ -54,6 +54,10 @@ class ForceField {
   std::uint32_t add_bond_potential(const BondPotential& potential);
   /// Adds bonds (validated against the particle count in check()).
   void add_bonds(std::span<const Bond> bonds);
+  /// A copy with `bonds` in place of this field's bonds (a part of a larger system: its bonds with
+  /// their ends as indices into the part, rpyfmm/mpi/brownian_dynamics.hpp). `names` (empty, or one
+  /// per bond): each bond's index in the whole system, named in errors instead of its index here.
+  [[nodiscard]] ForceField with_bonds(std::span<const Bond> bonds, std::span<const std::uint64_t> names = {}) const;
   /// Constant force on every particle, added to the types' external forces.
   void set_global_force(const std::array<double, 3>& force);
   [[nodiscard]] const std::array<double, 3>& global_force() const { return global_force_; }
@@ -102,7 +106,8 @@ class ForceField {
   /// compute() sums) of the particles `rows` (indices < N), each summed in compute()'s order, so
   /// bit for bit compute()'s values where the part holds every neighbour of the row's particle in
   /// the whole system's order. ids (N): each particle's index in the whole system, named in errors
-  /// instead of its index here. Bonds and callbacks index the whole system and are refused
+  /// instead of its index here. Bonds index the part (with_bonds), bit for bit compute()'s where they
+  /// keep the whole system's bond order; callbacks take the whole system and are refused
   /// (not_supported).
   void compute_rows(std::span<const double> positions, std::span<const std::uint32_t> particle_types,
                     const NeighbourList& list, std::uint64_t step, std::span<const std::uint32_t> rows,
@@ -136,13 +141,14 @@ class ForceField {
                     const NeighbourList& list, std::uint64_t step, std::span<const std::uint32_t> groups,
                     std::span<const std::uint64_t> ids = {}) const;
   /// Throws invalid_input naming bond k (coincident ends, or a FENE bond at its maximum extension).
-  [[noreturn]] void fail_bond(std::size_t k, std::span<const double> x, const NeighbourList& list,
-                              std::uint64_t step) const;
+  [[noreturn]] void fail_bond(std::size_t k, std::span<const double> x, const NeighbourList& list, std::uint64_t step,
+                              std::span<const std::uint64_t> ids = {}) const;
 
   std::vector<ParticleType> types_;
   std::vector<PairTerm> pairs_;  // types x types
   std::vector<BondPotential> bond_potentials_;
   std::vector<Bond> bonds_;
+  std::vector<std::uint64_t> bond_names_;  // empty, or each bond's index in a larger system (with_bonds)
   std::array<double, 3> global_force_{0, 0, 0};
   double trap_ = 0.0;
   std::vector<ForceCallback> callbacks_;

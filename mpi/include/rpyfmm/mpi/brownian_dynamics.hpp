@@ -11,11 +11,12 @@
 // noise in one pass as bd::Integrator takes them from PseRpy.
 //
 // Each rank owns a share of the particles, contiguous along the Morton curve (SfcPartition), and
-// keeps a halo: the other ranks' particles within the list radius r_L = r_c + skin of its owned
-// particles' box, found when the lists are built and refreshed (positions only) every step. Its
-// own and halo particles, in increasing global index, form the part of the system on which it
-// builds the Verlet lists of bd::NeighbourList, so every owned particle's force is summed over the
-// same neighbours in the same order as in the serial engine (bd::ForceField::compute_rows). The
+// keeps a halo: the other ranks' particles within the list radius r_L = r_c + skin of a cover of
+// its owned particles by tight boxes, and the bond partners of its owned particles, found when the
+// lists are built and refreshed (positions only) every step. Its own and halo particles, in
+// increasing global index, form the part of the system on which it builds the Verlet lists of
+// bd::NeighbourList and re-indexes the bonds, so every owned particle's force is summed over the
+// same neighbours and bonds in the same order as in the serial engine (bd::ForceField::compute_rows). The
 // lists, the halo and the partition are rebuilt together by the dynamic test of Tran et al. (2015),
 // Algorithm 1, taken over all ranks: once any particle has moved more than skin/2 since the last
 // build. At a rebuild the particles migrate along the Morton curve when the ranks' costs (their
@@ -118,12 +119,18 @@ struct DistributedBdStats {
   StageTimes seconds;
 };
 
+namespace detail {
+class BondIndex;  // mpi/src/bd_bonds.hpp
+}  // namespace detail
+
 class DistributedBd {
  public:
   /// Collective. Throws rpyfmm::Error on every rank for options the serial engine refuses or this
   /// one does not support, for a wrong size, a non-finite coordinate or an unknown type on any
-  /// rank, for ids that are not a permutation of 0 ... N - 1, for a force field with bonds or
-  /// callbacks (they index the whole system), and when no rank has a particle.
+  /// rank, for ids that are not a permutation of 0 ... N - 1, for bonds to a particle >= N, for a
+  /// force field with callbacks (they take the whole system), and when no rank has a particle.
+  /// Bonds (the force field's, the same on every rank) index the global particles; a bond's
+  /// partner on another rank travels with the halo.
   DistributedBd(MPI_Comm comm, bd::ForceField forces, rpy::Geometry geometry, DistributedBdOptions options,
                 BdShare share, std::uint64_t first_step = 0);
   ~DistributedBd();
@@ -192,6 +199,7 @@ class DistributedBd {
   std::vector<double> x_, reference_, list_reference_, f_, z_, particle_energy_;
   std::vector<std::uint32_t> types_;
   std::vector<std::uint64_t> ids_;
+  std::unique_ptr<detail::BondIndex> bonds_;  // the whole system's bonds by particle
   std::unique_ptr<Halo> halo_;
   std::unique_ptr<Hydrodynamics> hydrodynamics_;  // null: free draining
   double work_seconds_ = 0.0;                     // own force and update work since the last rebuild
