@@ -2,6 +2,8 @@
 // collectively.
 #pragma once
 
+#include <mpi.h>
+
 #include <cstddef>
 #include <span>
 #include <vector>
@@ -22,5 +24,29 @@ namespace rpyfmm::mpi::detail {
 [[nodiscard]] std::vector<double> alltoallv(const Communicator& comm, const std::vector<std::vector<double>>& send,
                                             const char* where, const char* what,
                                             std::vector<std::size_t>* recv_counts = nullptr);
+
+/// A non-blocking MPI_Ialltoallv of doubles, for communication that overlaps other work: the
+/// constructor (collective, with the counts checked as alltoallv checks them) posts it, test()
+/// lets MPI progress it between pieces of that work, wait() completes it and returns what came
+/// from every rank as alltoallv does. The buffers live in the object; its destructor completes a
+/// posted exchange that was not waited for.
+class PendingAlltoallv {
+ public:
+  PendingAlltoallv(const Communicator& comm, const std::vector<std::vector<double>>& send,
+                   std::span<const std::size_t> recv_counts, const char* where, const char* what);
+  ~PendingAlltoallv();
+  PendingAlltoallv(const PendingAlltoallv&) = delete;
+  PendingAlltoallv& operator=(const PendingAlltoallv&) = delete;
+
+  /// Not collective: one MPI_Test (progress of the exchange; a no-op once it completed).
+  void test();
+  /// Not collective: MPI_Wait, then the received values (once).
+  [[nodiscard]] std::vector<double> wait();
+
+ private:
+  std::vector<int> send_counts_, send_displs_, recv_counts_, recv_displs_;
+  std::vector<double> packed_, received_;
+  MPI_Request request_ = MPI_REQUEST_NULL;
+};
 
 }  // namespace rpyfmm::mpi::detail

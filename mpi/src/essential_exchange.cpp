@@ -2,6 +2,8 @@
 // rank, the geometry exchanged once per plan, and the charges exchanged per evaluation
 // (fmm_plan.hpp, docs/mpi.md).
 #include <algorithm>
+#include <functional>
+#include <memory>
 #include <numeric>
 #include <string>
 
@@ -37,10 +39,9 @@ std::vector<double> geometry_for(const Plan& plan, std::size_t r, std::size_t& h
   return out;
 }
 
-// The charges sent to rank r: per density, the halo particles' charges, then the cells' equivalent
-// charges (the layout of exchange_geometry's sources).
-std::vector<double> charges_for(const Plan& plan, std::size_t r, std::span<const double> owned_q,
-                                std::span<const double> eq, std::size_t nd) {
+// The halo charges sent to rank r: per density, the halo particles' charges (in the order of
+// exchange_geometry's halo sources).
+std::vector<double> halo_charges_for(const Plan& plan, std::size_t r, std::span<const double> owned_q, std::size_t nd) {
   const std::size_t m = plan.owned_x.size() / 3;
   std::vector<double> out;
   for (std::size_t d = 0; d < nd; ++d) {
@@ -49,6 +50,15 @@ std::vector<double> charges_for(const Plan& plan, std::size_t r, std::span<const
       out.insert(out.end(), owned_q.begin() + static_cast<std::ptrdiff_t>(d * m + cell.begin),
                  owned_q.begin() + static_cast<std::ptrdiff_t>(d * m + cell.end));
     }
+  }
+  return out;
+}
+
+// The equivalent charges sent to rank r: per density, each compressed cell's p^3 values (in the
+// order of exchange_geometry's node sources).
+std::vector<double> node_charges_for(const Plan& plan, std::size_t r, std::span<const double> eq, std::size_t nd) {
+  std::vector<double> out;
+  for (std::size_t d = 0; d < nd; ++d) {
     for (std::size_t slot : plan.slots[r]) {
       const std::size_t nodes = cube_nodes(plan.jobs[slot].order);
       const auto first = eq.begin() + static_cast<std::ptrdiff_t>(nd * plan.job_offset[slot] + d * nodes);
@@ -57,6 +67,9 @@ std::vector<double> charges_for(const Plan& plan, std::size_t r, std::span<const
   }
   return out;
 }
+
+// Jobs per piece of the anterpolation between two progress calls of the halo charges' exchange.
+constexpr std::size_t kJobsPerPiece = 64;
 
 }  // namespace
 
@@ -157,36 +170,59 @@ void count_essential(const Plan& plan, FmmCommunication& stats) {
   }
 }
 
-std::vector<double> anterpolate_cells(const Plan& plan, std::span<const double> owned_q, std::size_t nd) {
+std::vector<double> anterpolate_cells(const Plan& plan, std::span<const double> owned_q, std::size_t nd,
+                                      const std::function<void()>& between_pieces) {
   const std::size_t m = plan.owned_x.size() / 3;
   std::vector<double> eq(nd * plan.job_offset.back());
-  const auto jobs = static_cast<std::ptrdiff_t>(plan.jobs.size());
+  for (std::size_t begin = 0; begin < plan.jobs.size(); begin += kJobsPerPiece) {
+    const auto end = static_cast<std::ptrdiff_t>(std::min(plan.jobs.size(), begin + kJobsPerPiece));
 #pragma omp parallel for schedule(dynamic, 1)
-  for (std::ptrdiff_t i = 0; i < jobs; ++i) {
-    const auto j = static_cast<std::size_t>(i);
-    const Cell& cell = plan.tree.cells[plan.jobs[j].cell];
-    const std::span<const double> x(plan.owned_x.data() + 3 * cell.begin, 3 * cell.size());
-    const std::size_t nodes = cube_nodes(plan.jobs[j].order);
-    anterpolate(cell_cube(cell), plan.jobs[j].order, x, owned_q.data() + cell.begin, m, nd,
-                std::span<double>(eq.data() + nd * plan.job_offset[j], nd * nodes));
+    for (auto i = static_cast<std::ptrdiff_t>(begin); i < end; ++i) {
+      const auto j = static_cast<std::size_t>(i);
+      const Cell& cell = plan.tree.cells[plan.jobs[j].cell];
+      const std::span<const double> x(plan.owned_x.data() + 3 * cell.begin, 3 * cell.size());
+      const std::size_t nodes = cube_nodes(plan.jobs[j].order);
+      anterpolate(cell_cube(cell), plan.jobs[j].order, x, owned_q.data() + cell.begin, m, nd,
+                  std::span<double>(eq.data() + nd * plan.job_offset[j], nd * nodes));
+    }
+    if (between_pieces) between_pieces();  // on the calling thread, outside the parallel region
   }
   return eq;
 }
 
-ReceivedCharges exchange_charges(const Communicator& comm, const Plan& plan, std::span<const double> owned_q,
-                                 std::span<const double> equivalent, std::size_t nd) {
-  const auto ranks = static_cast<std::size_t>(comm.size());
-  std::vector<std::vector<double>> send(ranks);
-  ReceivedCharges received;
-  received.per_density.resize(ranks);
-  std::vector<std::size_t> recv_counts(ranks);
+namespace {
+
+// One exchange of charges: what charges_for(r) packs for each rank r, and nd x incoming[r] values
+// from each.
+struct ChargeExchange {
+  std::vector<std::vector<double>> send;
+  std::vector<std::size_t> recv_counts;
+};
+template <class Pack>
+ChargeExchange charge_exchange(std::size_t ranks, std::size_t nd, const std::vector<std::size_t>& incoming,
+                               Pack&& charges_for) {
+  ChargeExchange e{std::vector<std::vector<double>>(ranks), std::vector<std::size_t>(ranks)};
   for (std::size_t r = 0; r < ranks; ++r) {
-    send[r] = charges_for(plan, r, owned_q, equivalent, nd);
-    received.per_density[r] = plan.recv_halo[r] + plan.recv_nodes[r];
-    recv_counts[r] = nd * received.per_density[r];
+    e.send[r] = charges_for(r);
+    e.recv_counts[r] = nd * incoming[r];
   }
-  received.values = alltoallv(comm, send, recv_counts, kWhere, "the essential charges");
-  return received;
+  return e;
+}
+
+}  // namespace
+
+std::unique_ptr<PendingAlltoallv> post_halo_charges(const Communicator& comm, const Plan& plan,
+                                                    std::span<const double> owned_q, std::size_t nd) {
+  const ChargeExchange e = charge_exchange(static_cast<std::size_t>(comm.size()), nd, plan.recv_halo,
+                                           [&](std::size_t r) { return halo_charges_for(plan, r, owned_q, nd); });
+  return std::make_unique<PendingAlltoallv>(comm, e.send, e.recv_counts, kWhere, "the essential halo charges");
+}
+
+std::vector<double> exchange_node_charges(const Communicator& comm, const Plan& plan,
+                                          std::span<const double> equivalent, std::size_t nd) {
+  const ChargeExchange e = charge_exchange(static_cast<std::size_t>(comm.size()), nd, plan.recv_nodes,
+                                           [&](std::size_t r) { return node_charges_for(plan, r, equivalent, nd); });
+  return alltoallv(comm, e.send, e.recv_counts, kWhere, "the essential equivalent charges");
 }
 
 std::vector<double> assemble_charges(const Plan& plan, std::span<const double> owned_q, const ReceivedCharges& received,
@@ -197,14 +233,17 @@ std::vector<double> assemble_charges(const Plan& plan, std::span<const double> o
     std::copy_n(owned_q.begin() + static_cast<std::ptrdiff_t>(d * m), m,
                 q.begin() + static_cast<std::ptrdiff_t>(d * plan.sources));
   }
-  std::size_t at = 0, offset = m;
-  for (std::size_t r = 0; r < received.per_density.size(); ++r) {
-    const std::size_t block = received.per_density[r];
-    for (std::size_t d = 0; d < nd; ++d, at += block) {
-      std::copy_n(received.values.begin() + static_cast<std::ptrdiff_t>(at), block,
-                  q.begin() + static_cast<std::ptrdiff_t>(d * plan.sources + offset));
+  // Per rank in rank order: its halo sources, then its cells' nodes (exchange_geometry's order).
+  std::size_t at_halo = 0, at_nodes = 0, offset = m;
+  for (std::size_t r = 0; r < plan.recv_halo.size(); ++r) {
+    const std::size_t halo = plan.recv_halo[r], nodes = plan.recv_nodes[r];
+    for (std::size_t d = 0; d < nd; ++d, at_halo += halo, at_nodes += nodes) {
+      const auto to = q.begin() + static_cast<std::ptrdiff_t>(d * plan.sources + offset);
+      std::copy_n(received.halo.begin() + static_cast<std::ptrdiff_t>(at_halo), halo, to);
+      std::copy_n(received.nodes.begin() + static_cast<std::ptrdiff_t>(at_nodes), nodes,
+                  to + static_cast<std::ptrdiff_t>(halo));
     }
-    offset += block;
+    offset += halo + nodes;
   }
   return q;
 }

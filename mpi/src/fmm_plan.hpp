@@ -5,10 +5,12 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <span>
 #include <vector>
 
+#include "alltoallv.hpp"
 #include "cell_tree.hpp"
 #include "essential_tree.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
@@ -69,20 +71,26 @@ void select_cells(Plan& plan, const std::vector<std::vector<Box>>& regions, int 
 void count_essential(const Plan& plan, FmmCommunication& stats);
 
 /// The equivalent charges of every (cell, order) in plan.jobs from the owned charges (nd x m):
-/// job j's nd x p^3 values at nd × job_offset[j]. OpenMP over the jobs.
-[[nodiscard]] std::vector<double> anterpolate_cells(const Plan& plan, std::span<const double> owned_q, std::size_t nd);
+/// job j's nd x p^3 values at nd × job_offset[j]. OpenMP over the jobs, in pieces of 64 jobs with
+/// between_pieces (where given) called after each on the calling thread: the progress of an
+/// exchange that overlaps the anterpolation.
+[[nodiscard]] std::vector<double> anterpolate_cells(const Plan& plan, std::span<const double> owned_q, std::size_t nd,
+                                                    const std::function<void()>& between_pieces = {});
 
-/// What exchange_charges received: per rank in rank order, per density, its halo charges and then
-/// its cells' equivalent charges (per_density[r] values each).
+/// Collective: posts the exchange of the halo charges (per rank, per density, its halo particles'
+/// charges), which needs the owned charges only, so that it runs while the cells are anterpolated.
+[[nodiscard]] std::unique_ptr<PendingAlltoallv> post_halo_charges(const Communicator& comm, const Plan& plan,
+                                                                  std::span<const double> owned_q, std::size_t nd);
+
+/// Collective: the equivalent charges to every rank and from every rank (per rank, per density,
+/// its cells' nodes), one all-to-all.
+[[nodiscard]] std::vector<double> exchange_node_charges(const Communicator& comm, const Plan& plan,
+                                                        std::span<const double> equivalent, std::size_t nd);
+
+/// What came from the other ranks in an evaluation: the halo charges and the equivalent charges.
 struct ReceivedCharges {
-  std::vector<double> values;
-  std::vector<std::size_t> per_density;
+  std::vector<double> halo, nodes;
 };
-
-/// Collective: the halo and equivalent charges to every rank and from every rank, one all-to-all.
-[[nodiscard]] ReceivedCharges exchange_charges(const Communicator& comm, const Plan& plan,
-                                               std::span<const double> owned_q, std::span<const double> equivalent,
-                                               std::size_t nd);
 
 /// The serial FMM's charges (nd x plan.sources): owned, then what came from each rank.
 [[nodiscard]] std::vector<double> assemble_charges(const Plan& plan, std::span<const double> owned_q,

@@ -250,13 +250,20 @@ void DistributedLaplaceFmm::evaluate(std::span<const double> charges, std::size_
   });
   stats_.evaluate_bytes_received += owned_q.size() * sizeof(double);
 
+  // The halo charges travel while the cells are anterpolated (MPI progressed between pieces of
+  // it), then the equivalent charges; the serial FMM waits for both.
+  std::unique_ptr<detail::PendingAlltoallv> halo;
+  detail::timed(stats_.evaluate_seconds, "essential",
+                [&] { halo = detail::post_halo_charges(comm_, plan, owned_q, nd); });
   std::vector<double> equivalent;
   detail::timed(stats_.compute_seconds, "anterpolation",
-                [&] { equivalent = detail::anterpolate_cells(plan, owned_q, nd); });
+                [&] { equivalent = detail::anterpolate_cells(plan, owned_q, nd, [&] { halo->test(); }); });
   detail::ReceivedCharges got;
-  detail::timed(stats_.evaluate_seconds, "essential",
-                [&] { got = detail::exchange_charges(comm_, plan, owned_q, equivalent, nd); });
-  stats_.evaluate_bytes_received += got.values.size() * sizeof(double);
+  detail::timed(stats_.evaluate_seconds, "essential", [&] {
+    got.nodes = detail::exchange_node_charges(comm_, plan, equivalent, nd);
+    got.halo = halo->wait();
+  });
+  stats_.evaluate_bytes_received += (got.halo.size() + got.nodes.size()) * sizeof(double);
 
   std::vector<double> owned_results(nd * m_targets * fmm::result_width, 0.0);
   // Timed inside run(): the local work only, not the wait for the slower ranks in its agreement.
