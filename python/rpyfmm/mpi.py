@@ -15,6 +15,10 @@ initializes MPI. docs/mpi.md, "Python (mpi4py)", lists what is supported.
   targets) and charges, the layouts of :class:`rpyfmm.LaplaceFmm`.
 * :func:`normal_noise` ``(n, offset, seed, step=0, stream=0)``: this rank's rows of
   :func:`rpyfmm.normal_noise` (not collective).
+* :func:`run_bd` ``(comm, config, steps=None, out_dir=None, progress=False)`` and
+  :func:`restart_bd` ``(comm, checkpoint, ...)``: whole Brownian dynamics runs across the ranks,
+  as ``mpirun rpyfmm bd`` (``DistributedBd``; rank 0 writes the files; the summary has
+  ``"ranks"``).
 
 Constructors take an mpi4py communicator (``MPI.COMM_WORLD`` or any intra-communicator) and
 keep a reference to it (the object's ``comm``). Every method is collective: all ranks of the
@@ -60,5 +64,15 @@ DistributedFmmRpy = _rpyfmm.mpi.DistributedFmmRpy
 DistributedPseRpy = _rpyfmm.mpi.DistributedPseRpy
 DistributedLaplaceFmm = _rpyfmm.mpi.DistributedLaplaceFmm
 normal_noise = _rpyfmm.mpi.normal_noise
+run_bd = _rpyfmm.mpi.run_bd
+restart_bd = _rpyfmm.mpi.restart_bd
 
-__all__ = ["DistributedDirectRpy", "DistributedFmmRpy", "DistributedLaplaceFmm", "DistributedPseRpy", "normal_noise"]
+__all__ = [
+    "DistributedDirectRpy",
+    "DistributedFmmRpy",
+    "DistributedLaplaceFmm",
+    "DistributedPseRpy",
+    "normal_noise",
+    "restart_bd",
+    "run_bd",
+]

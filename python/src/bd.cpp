@@ -29,68 +29,10 @@
 #include "rpyfmm/bd/run.hpp"
 #include "rpyfmm/bd/step_engine.hpp"
 #include "rpyfmm/rpy/mobility_factory.hpp"
+#include "run_arguments.hpp"
 
 namespace rpyfmm::python {
 namespace {
-
-/// Runs fn() reading the file `path`: a directory, or a stream failure (whose message does not
-/// name the file), raises FileError naming `where` and the path.
-template <class Fn>
-auto reading_file(const char* where, const std::filesystem::path& path, Fn&& fn) {
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) {
-    fail(ErrorCode::io_error, where, "'" + path.string() + "' is a directory, expected a file");
-  }
-  try {
-    return fn();
-  } catch (const std::ios_base::failure& e) {
-    fail(ErrorCode::io_error, where, "reading '" + path.string() + "' failed: " + e.what());
-  }
-}
-
-/// A config argument: a bd::RunConfig, a path (str or os.PathLike) to a TOML file,
-/// or TOML text (a str containing a newline or '=').
-bd::RunConfig config_from(nb::handle config) {
-  bd::RunConfig parsed;
-  if (nb::try_cast(config, parsed, false)) return parsed;
-  std::string text;
-  if (nb::try_cast(config, text, false) &&
-      (text.find('\n') != std::string::npos || text.find('=') != std::string::npos)) {
-    return bd::parse_config(text, "<python string>");
-  }
-  std::filesystem::path path;
-  if (nb::try_cast(config, path, true)) return reading_file("config", path, [&] { return bd::load_config(path); });
-  fail(ErrorCode::invalid_argument, "config", "expected a RunConfig, a TOML file path or TOML text");
-}
-
-nb::dict summary_dict(const bd::RunSummary& s) {
-  nb::dict d;
-  d["particles"] = s.particles;
-  d["mobility"] = s.mobility;
-  d["engine"] = s.engine;
-  d["first_step"] = s.first_step;
-  d["last_step"] = s.last_step;
-  d["wall_seconds"] = s.wall_seconds;
-  d["steps_per_second"] = s.steps_per_second;
-  d["neighbour_rebuilds"] = s.neighbour_rebuilds;
-  d["mean_sqrt_iterations"] = s.mean_sqrt_iterations;
-  d["preconditioner_blocks"] = s.preconditioner_blocks;
-  d["mean_mobility_products"] = s.mean_mobility_products;
-  d["seconds"] = s.seconds;
-  d["out_dir"] = s.out_dir.string();
-  d["trajectory"] = s.trajectory.string();
-  d["log"] = s.log.string();
-  d["checkpoint"] = s.checkpoint.string();
-  return d;
-}
-
-bd::RunOptions run_options(std::optional<std::uint64_t> steps, std::optional<std::string> out_dir, bool progress) {
-  bd::RunOptions o;
-  o.steps = steps;
-  if (out_dir) o.out_dir = *out_dir;
-  if (progress) o.progress = &std::cerr;
-  return o;
-}
 
 /// The Python force callable of a Simulation; owned by it, outlives the integrator.
 struct PyForce {

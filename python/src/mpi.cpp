@@ -20,6 +20,8 @@
 #include <mpi.h>
 
 #include <cstdint>
+#include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <type_traits>
@@ -27,11 +29,14 @@
 
 #include "common.hpp"
 #include "object_lock.hpp"
+#include "rpyfmm/bd/run.hpp"
+#include "rpyfmm/mpi/bd_stepper.hpp"
 #include "rpyfmm/mpi/direct_operator.hpp"
 #include "rpyfmm/mpi/fmm_rpy.hpp"
 #include "rpyfmm/mpi/laplace_fmm.hpp"
 #include "rpyfmm/mpi/pse_operator.hpp"
 #include "rpyfmm/mpi/sqrt.hpp"
+#include "run_arguments.hpp"
 
 namespace rpyfmm::python {
 namespace {
@@ -394,6 +399,56 @@ ArrayResult normal_noise(std::size_t n, std::size_t offset, std::uint64_t seed, 
   return ArrayResult{z.object};
 }
 
+// A whole BD run across the ranks of `comm` (rpyfmm/mpi/bd_stepper.hpp): every rank steps its
+// share, rank 0 writes the files. The config is read on every rank, its failures agreed.
+nb::dict run_across_ranks(nb::handle comm, const char* where,
+                          const std::function<bd::RunSummary(const bd::RunOptions&)>& run,
+                          std::optional<std::uint64_t> steps, std::optional<std::string> out_dir, bool progress) {
+  const MPI_Comm handle = comm_from(comm, where);
+  const mpi::Communicator world(handle);
+  const bd::RunOptions options = mpi::across_ranks(handle, run_options(steps, out_dir, progress));
+  bd::RunSummary s;
+  {
+    nb::gil_scoped_release release;
+    s = run(options);
+  }
+  nb::dict d = summary_dict(s);
+  d["ranks"] = world.size();
+  return d;
+}
+
+void bind_runs(nb::module_& m) {
+  m.def(
+      "run_bd",
+      [](nb::object comm, nb::handle config, std::optional<std::uint64_t> steps, std::optional<std::string> out_dir,
+         bool progress) {
+        const mpi::Communicator world(comm_from(comm, "rpyfmm.mpi.run_bd"));
+        const bd::RunConfig parsed = agreed(world, [&] { return config_from(config); });
+        return run_across_ranks(
+            comm, "rpyfmm.mpi.run_bd", [&](const bd::RunOptions& o) { return bd::run_bd(parsed, o); }, steps, out_dir,
+            progress);
+      },
+      nb::arg("comm"), nb::arg("config"), nb::arg("steps") = nb::none(), nb::arg("out_dir") = nb::none(),
+      nb::arg("progress") = false,
+      "Collective. rpyfmm.run_bd across the ranks of comm (`mpirun rpyfmm bd`): DistributedBd steps each\n"
+      "rank's share, rank 0 writes the trajectory, log and checkpoint. Returns the summary with 'ranks'.");
+  m.def(
+      "restart_bd",
+      [](nb::object comm, const std::filesystem::path& checkpoint, std::optional<std::uint64_t> steps,
+         std::optional<std::string> out_dir, bool progress) {
+        return run_across_ranks(
+            comm, "rpyfmm.mpi.restart_bd",
+            [&](const bd::RunOptions& o) {
+              return reading_file("restart_bd", checkpoint, [&] { return bd::restart_bd(checkpoint, o); });
+            },
+            steps, out_dir, progress);
+      },
+      nb::arg("comm"), nb::arg("checkpoint"), nb::arg("steps") = nb::none(), nb::arg("out_dir") = nb::none(),
+      nb::arg("progress") = false,
+      "Collective. rpyfmm.restart_bd across the ranks of comm, on any number of ranks whatever number\n"
+      "wrote the checkpoint.");
+}
+
 }  // namespace
 
 void bind_mpi(nb::module_& m) {
@@ -403,6 +458,7 @@ void bind_mpi(nb::module_& m) {
   bind_distributed_fmm(sub);
   bind_distributed_pse(sub);
   bind_distributed_laplace(sub);
+  bind_runs(sub);
   sub.def("normal_noise", &normal_noise, nb::arg("n"), nb::arg("offset"), nb::arg("seed"), nb::arg("step") = 0,
           nb::arg("stream") = 0, nb::arg("out") = nb::none(),
           "Not collective. (n, 3) standard normal values of particles offset ... offset + n - 1: rows\n"
