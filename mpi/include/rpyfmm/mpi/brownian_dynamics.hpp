@@ -96,6 +96,7 @@ struct DistributedBdOptions {
     /// hydrodynamic interactions the operators' sums do, at round-off.
     measured_time,
   };
+  /// The cost of repartition_imbalance's test and the partition's weights (default: the model).
   Cost repartition_cost = Cost::model;
 };
 
