@@ -2,17 +2,21 @@
 // a performance model"), run under mpiexec by the launcher bench_mpi_ranks (bench/mpi/
 // CMakeLists.txt) for bench/run.py's group "mpi".
 //
-// usage: bench_mpi_fmm --n N --eps E [--scaling strong|weak] [--reps 3]
+// usage: bench_mpi_fmm --n N --eps E [--scaling strong|weak] [--reps 3] [--measured-weights 1]
 //   strong: N sources in all; weak: N sources per rank (N x P in all). Uniform in the unit cube,
 //   zero-mean charges; every rank draws its own contiguous share of the global sequence (fixed
 //   seed), so the input does not depend on P beyond its size.
 // Prints one JSON line (rank 0): the plan (set_points) time, the median over reps of one evaluate
 // (one density, potential and gradient), each the slowest rank's after a barrier, and per stage
 // of the plan and of the last evaluate the slowest rank's exchange seconds, the bytes received by
-// all ranks together, the slowest rank's local work and the largest essential set.
+// all ranks together, the slowest rank's local work and the largest essential set. With
+// --measured-weights 1, the plan is then rebuilt with the measured per-leaf weights of the last
+// evaluation (DistributedLaplaceFmm::measured_weights) and timed again: eval_measured_s and
+// essential_measured_max.
 #include <mpi.h>
 
 #include <cstdio>
+#include <string>
 #include <vector>
 
 #include "bench_mpi_common.hpp"
@@ -71,6 +75,16 @@ int main(int argc, char** argv) {
   const double essential = max_over_ranks(static_cast<double>(fmm.essential_size()));
   const double halo = sum_over_ranks(static_cast<double>(t.halo_received));
   const double nodes = sum_over_ranks(static_cast<double>(t.nodes_received));
+  bool measured = false;
+  for (int i = 1; i + 1 < argc; ++i)
+    measured = measured || (std::string(argv[i]) == "--measured-weights" && std::string(argv[i + 1]) == "1");
+  double eval_measured_s = 0.0, essential_measured = 0.0;
+  if (measured) {
+    fmm.set_points(share.x, {}, fmm.measured_weights());
+    eval_measured_s = bench_mpi::median_seconds(
+        a.reps, [&] { fmm.evaluate(share.q, 1, rpyfmm::fmm::potential | rpyfmm::fmm::gradient, results); });
+    essential_measured = max_over_ranks(static_cast<double>(fmm.essential_size()));
+  }
   if (rank == 0) {
     std::printf(
         "{\"method\":\"fmm\",\"scaling\":\"%s\",\"ranks\":%d,\"N\":%llu,\"eps\":%g,\"plan_s\":%.6g,\"eval_s\":%.6g",
@@ -82,6 +96,8 @@ int main(int argc, char** argv) {
     print_stages("eval_comm_", eval_comm);
     print_stages("plan_work_", plan_work);
     print_stages("eval_work_", eval_work);
+    if (measured)
+      std::printf(",\"eval_measured_s\":%.6g,\"essential_measured_max\":%.0f", eval_measured_s, essential_measured);
     std::printf("}\n");
   }
   MPI_Finalize();

@@ -26,7 +26,8 @@ Evaluation::Evaluation(const LaplaceFmm::Plan& plan_, std::size_t nd_, std::span
       outputs(outputs_.begin(), outputs_.end()),
       mp(boxes.size() * stride),
       lp(boxes.size() * stride),
-      has_local(boxes.size(), 0) {
+      has_local(boxes.size(), 0),
+      leaf_seconds(plan_.tree.leaves().size(), 0.0) {
   for (std::size_t d = 0; d < nd; ++d)
     if (outputs[d] == kCurlGradDiv) {
       groups.push_back(d);
@@ -196,6 +197,7 @@ void evaluate_leaf_locals(Evaluation& ev) {
     const double* rec = H.regular_recurrence();
 #pragma omp for schedule(dynamic, 4)
     for (std::size_t i = 0; i < leaves.size(); ++i) {
+      const LeafTimer timer(ev, i);
       const int b = leaves[i];
       const auto& bx = boxes[b];
       if (bx.ntgt() == 0 || !ev.has_local[b]) continue;
@@ -270,6 +272,7 @@ void w_list_and_direct_far(Evaluation& ev) {
     std::vector<cplx> S(ncoef(ev.p + 2)), acoef(ev.stride);
 #pragma omp for schedule(dynamic, 4)
     for (std::size_t i = 0; i < leaves.size(); ++i) {
+      const LeafTimer timer(ev, i);
       const int b = leaves[i];
       const auto& bx = boxes[b];
       if (bx.ntgt() == 0) continue;
@@ -298,6 +301,7 @@ void u_list_direct(Evaluation& ev) {
   const auto& leaves = tree.leaves();
 #pragma omp parallel for if (leaves.size() >= kMinParallel) schedule(dynamic, 4)
   for (std::size_t i = 0; i < leaves.size(); ++i) {
+    const LeafTimer timer(ev, i);
     const int b = leaves[i];
     const auto& bx = boxes[b];
     if (bx.ntgt() == 0) continue;
@@ -341,6 +345,19 @@ void unsort_results(const Evaluation& ev, std::span<double> results) {
   for (std::size_t t = 0; t < M; ++t)
     for (std::size_t d = 0; d < nd; ++d)
       std::copy_n(&res[(d * M + t) * result_width], result_width, &results[(d * M + tperm[t]) * result_width]);
+}
+
+std::vector<double> target_costs(const Evaluation& ev) {
+  std::vector<double> costs(ev.M, 0.0);
+  const auto& leaves = ev.tree.leaves();
+  const auto& tperm = ev.tree.target_order();
+  for (std::size_t i = 0; i < leaves.size(); ++i) {
+    const auto& bx = ev.boxes[leaves[i]];
+    if (bx.ntgt() == 0) continue;
+    const double share = ev.leaf_seconds[i] / static_cast<double>(bx.ntgt());
+    for (std::size_t t = bx.tgt_begin; t < bx.tgt_end; ++t) costs[tperm[t]] = share;
+  }
+  return costs;
 }
 
 }  // namespace rpyfmm::fmm::detail

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "rpyfmm/core/cpu_features.hpp"
+#include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/fmm/detail/expansions.hpp"
 #include "rpyfmm/fmm/detail/octree.hpp"
 #include "rpyfmm/fmm/detail/planewave.hpp"
@@ -69,7 +70,22 @@ struct Evaluation {
   std::vector<double> qs;           // charges in tree order, nd x N
   std::vector<double> res;          // results in tree order, nd x M x result_width
   std::vector<cplx> mp, lp;
-  std::vector<char> has_local;  // the box's local expansion has received a contribution
+  std::vector<char> has_local;       // the box's local expansion has received a contribution
+  std::vector<double> leaf_seconds;  // per leaf (tree.leaves() order): the leaf passes' wall time
+};
+
+/// Adds the wall time of its scope to ev.leaf_seconds[leaf]: the measured per-leaf cost
+/// (LaplaceFmm::last_target_costs). Each leaf is one thread's within a pass.
+class LeafTimer {
+ public:
+  LeafTimer(Evaluation& ev, std::size_t leaf) : slot_(&ev.leaf_seconds[leaf]) {}
+  LeafTimer(const LeafTimer&) = delete;
+  LeafTimer& operator=(const LeafTimer&) = delete;
+  ~LeafTimer() { *slot_ += watch_.seconds(); }
+
+ private:
+  double* slot_;
+  StopWatch watch_;
 };
 
 /// Charges into tree order (qs); results (res) zeroed.
@@ -96,6 +112,8 @@ void u_list_direct(Evaluation& ev);
 void fold_curl_grad_div(Evaluation& ev);
 /// Results back into the caller's order.
 void unsort_results(const Evaluation& ev, std::span<double> results);
+/// Each target's share of its leaf's measured seconds (leaf_seconds), in the caller's order.
+[[nodiscard]] std::vector<double> target_costs(const Evaluation& ev);
 
 }  // namespace detail
 }  // namespace rpyfmm::fmm

@@ -158,11 +158,16 @@ LaplaceFmm::LaplaceFmm(const FmmOptions& options) : options_(options) {
 
 LaplaceFmm::~LaplaceFmm() = default;
 LaplaceFmm::LaplaceFmm(LaplaceFmm&& o) noexcept
-    : options_(o.options_), plan_(std::move(o.plan_)), timings_(std::move(o.timings_)), near_(std::move(o.near_)) {}
+    : options_(o.options_),
+      plan_(std::move(o.plan_)),
+      timings_(std::move(o.timings_)),
+      target_costs_(std::move(o.target_costs_)),
+      near_(std::move(o.near_)) {}
 LaplaceFmm& LaplaceFmm::operator=(LaplaceFmm&& o) noexcept {
   options_ = o.options_;
   plan_ = std::move(o.plan_);
   timings_ = std::move(o.timings_);
+  target_costs_ = std::move(o.target_costs_);
   near_ = std::move(o.near_);
   return *this;
 }
@@ -376,8 +381,14 @@ void LaplaceFmm::set_points(std::span<const double> sources, std::span<const dou
   plan_ = std::move(plan);
   near_.reset();
   timings_.clear();
+  target_costs_.clear();
   timings_["tree"] = t_tree;
   timings_["tables"] = t_tables;
+}
+
+std::vector<double> LaplaceFmm::last_target_costs() const {
+  std::lock_guard lock(mutex_);
+  return target_costs_;
 }
 
 StageTimes LaplaceFmm::last_timings() const {
@@ -545,7 +556,9 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
   timed(times, "sort", [&] { detail::unsort_results(ev, results); });
   times["total"] = total.seconds();
 
+  std::vector<double> costs = detail::target_costs(ev);
   std::lock_guard lock(mutex_);
+  target_costs_ = std::move(costs);
   const double t_tree = timings_.count("tree") ? timings_["tree"] : 0.0;
   const double t_tab = timings_.count("tables") ? timings_["tables"] : 0.0;
   timings_ = times;

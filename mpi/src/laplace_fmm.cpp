@@ -289,6 +289,21 @@ void DistributedLaplaceFmm::evaluate(std::span<const double> charges, std::size_
   stats_.evaluate_bytes_received += nd * n_targets * fmm::result_width * sizeof(double);
 }
 
+std::vector<double> DistributedLaplaceFmm::measured_weights() const {
+  constexpr const char* where = "rpyfmm::mpi::DistributedLaplaceFmm::measured_weights";
+  comm_.run([&] {
+    require(plan_ != nullptr, ErrorCode::invalid_input, where, "set_points has not succeeded");
+    require(!plan_->target_partition, ErrorCode::not_supported, where,
+            "measured weights need results at the sources (set_points without targets)");
+  });
+  const Plan& plan = *plan_;
+  // The serial FMM's targets are the owned sources, in owned order (plan_serial_fmm).
+  std::vector<double> owned = plan.sources > 0 ? plan.fmm.last_target_costs() : std::vector<double>{};
+  owned.resize(plan.partition->owned_size(), 0.0);
+  const Column column{owned, 1};
+  return plan.partition->to_origin(std::span<const Column>(&column, 1))[0];
+}
+
 void DistributedLaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, unsigned outputs,
                                      std::span<double> results) const {
   const std::vector<unsigned> flags(nd, outputs);

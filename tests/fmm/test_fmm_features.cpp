@@ -6,6 +6,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <cmath>
 #include <numeric>
 #include <random>
 #include <set>
@@ -187,6 +188,33 @@ TEST(FmmFeatures, PlanReuse) {
   const auto st = f.stats();
   EXPECT_GE(st.levels, 3);
   EXPECT_GT(st.memory_bytes, 0u);
+}
+
+// The measured per-leaf cost: each target's share of its leaf's time in the leaf passes (L2P, W
+// list and far boxes summed directly, P2P), in input order. Bounded by those passes' wall time
+// times the threads (each leaf is timed on the thread that ran it), positive somewhere, cleared by
+// set_points; the results do not depend on it.
+TEST(FmmFeatures, LastTargetCostsShareTheLeafPassesMeasuredTime) {
+  const auto src = fmmtest::plummer(6000, 71), tgt = fmmtest::cube(3000, 72);
+  LaplaceFmm f(opts(1e-6, 20));
+  f.set_points(src, tgt);
+  EXPECT_TRUE(f.last_target_costs().empty());
+  const auto q = fmmtest::charges(6000, 1, 3);
+  const auto r = eval(f, q, 1);
+  const std::vector<double> costs = f.last_target_costs();
+  ASSERT_EQ(costs.size(), 3000u);
+  double sum = 0.0;
+  for (const double c : costs) {
+    EXPECT_TRUE(std::isfinite(c) && c >= 0.0) << c;
+    sum += c;
+  }
+  const auto t = f.last_timings();
+  const double leaf_passes = t.at("l2p") + t.at("wx_far") + t.at("p2p");
+  EXPECT_GT(sum, 0.0);
+  EXPECT_LE(sum, leaf_passes * omp_get_max_threads() * 1.05 + 1e-4);
+  EXPECT_EQ(eval(f, q, 1), r);  // measuring changes no result
+  f.set_points(src, tgt);
+  EXPECT_TRUE(f.last_target_costs().empty());
 }
 
 TEST(FmmFeatures, FarFieldOnlyPlusNearFieldStructureIsComplete) {

@@ -329,6 +329,35 @@ TEST(DistributedFmm, WeightsThatLeaveOwnersEmpty) {
   }
 }
 
+TEST(DistributedFmm, MeasuredWeightsRebalanceThePlan) {
+  // Weights from the measured per-leaf cost of an evaluation on a clustered cloud: one per input
+  // source, finite and >= 0, positive on some rank; a plan built with them meets the tolerance.
+  // With separate targets they are refused on every rank, as before any plan.
+  const Cloud c = clustered_cloud(800, 1200, 1, 23);
+  const unsigned outputs[] = {fmm::potential | fmm::gradient};
+  const Share s = share_of(c, Split::geometric);
+  DistributedLaplaceFmm f(MPI_COMM_WORLD, with_tolerance(1e-6));
+  expect_collective_error([&] { (void)f.measured_weights(); }, ErrorCode::invalid_input, "set_points");
+  f.set_points(s.x);
+  std::vector<double> local(s.part.n * W);
+  f.evaluate(s.q, 1, outputs, local);
+  const std::vector<double> weights = f.measured_weights();
+  ASSERT_EQ(weights.size(), s.part.n);
+  double total = 0.0;
+  for (const double w : weights) {
+    EXPECT_TRUE(std::isfinite(w) && w >= 0.0) << w;
+    total += w;
+  }
+  MPI_Allreduce(MPI_IN_PLACE, &total, 1, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+  EXPECT_GT(total, 0.0);
+  f.set_points(s.x, {}, weights);
+  f.evaluate(s.q, 1, outputs, local);
+  EXPECT_LE(worst_error(gather_results(local, 1, c.size(), Split::geometric), direct(c, outputs), outputs, c.size()),
+            1e-6);
+  f.set_points(s.x, s.x);
+  expect_collective_error([&] { (void)f.measured_weights(); }, ErrorCode::not_supported, "results at the sources");
+}
+
 TEST(DistributedFmm, RepeatedEvaluationsAndNewPoints) {
   const Cloud a = uniform_cloud(2000, 3, 16), b = clustered_cloud(500, 1500, 3, 17);
   const unsigned outputs[] = {fmm::potential, fmm::gradient, fmm::all_outputs};

@@ -142,6 +142,12 @@ class LaplaceFmm {
   /// per process) and of the last evaluate ("sort", "p2m", "m2m", "l2l", "x_p2l", "m2l" (plane waves),
   /// "l2p", "wx_far" (W-list M2P and the W/X boxes summed directly), "p2p" (U list), "total").
   [[nodiscard]] StageTimes last_timings() const;
+  /// The measured cost of each target in the last evaluate (input order, seconds): the wall time
+  /// of the leaf passes (L2P, W list and the far boxes summed directly, U-list P2P) on each target
+  /// leaf, shared equally by the leaf's targets; empty before the first evaluate after set_points.
+  /// A measurement, so it differs from run to run; results do not depend on it. The distributed
+  /// FMM weights its partition by it (rpyfmm/mpi/laplace_fmm.hpp, measured_weights).
+  [[nodiscard]] std::vector<double> last_target_costs() const;
   [[nodiscard]] TreeStats stats() const;
   /// Near-field structure (built on first call, then cached).
   [[nodiscard]] const NearField& near_field() const;
@@ -153,6 +159,7 @@ class LaplaceFmm {
   std::unique_ptr<Plan> plan_;
   mutable std::mutex mutex_;
   mutable StageTimes timings_;
+  mutable std::vector<double> target_costs_;
   mutable std::unique_ptr<NearField> near_;
 };
 

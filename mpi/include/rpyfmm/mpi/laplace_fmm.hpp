@@ -138,6 +138,16 @@ class DistributedLaplaceFmm {
   [[nodiscard]] std::size_t essential_size() const;
   [[nodiscard]] const FmmCommunication& communication() const { return stats_; }
 
+  /// Collective. Partition weights of this rank's sources (local_size() entries, input order) from
+  /// the measured per-leaf cost of the last evaluate: each owned source's share of the seconds its
+  /// owner's serial FMM spent on its target leaf (fmm::LaplaceFmm::last_target_costs; 0 where no
+  /// serial FMM ran or before an evaluate). Passed to set_points with the same sources, they
+  /// balance the next plan by the measured work of each leaf instead of by source counts. A
+  /// measurement: weights, and so partitions, differ from run to run (results stay within the
+  /// tolerance contract). Results at the sources only: with separate targets the work is the
+  /// targets', which do not follow the sources' partition (throws not_supported on every rank).
+  [[nodiscard]] std::vector<double> measured_weights() const;
+
   struct Plan;  // implementation (mpi/src/laplace_fmm.cpp)
 
  private:
