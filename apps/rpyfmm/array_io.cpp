@@ -20,6 +20,17 @@
 namespace rpyfmm::cli {
 namespace {
 
+/// "(d0,d1,...)", as NumPy prints a shape (appended piecewise: GCC 12 warns falsely (-Wrestrict)
+/// on `const char* + std::string&&`).
+std::string shape_text(const std::vector<std::size_t>& shape) {
+  std::string s = "(";
+  for (std::size_t i = 0; i < shape.size(); ++i) {
+    if (i) s += ',';
+    s += std::to_string(shape[i]);
+  }
+  return s + ")";
+}
+
 [[noreturn]] void bad(const std::string& name, const std::string& what) {
   throw Error(ErrorCode::io_error, "'" + name + "': " + what);
 }
@@ -287,7 +298,8 @@ Array read_array_bytes(std::string_view bytes, const std::string& name) {
 void write_npy(const std::filesystem::path& path, const std::vector<std::size_t>& shape,
                const std::vector<double>& data) {
   std::string dict = "{'descr': '<f8', 'fortran_order': False, 'shape': (";
-  for (std::size_t i = 0; i < shape.size(); ++i) dict += std::to_string(shape[i]) + (shape.size() == 1 ? "," : (i + 1 < shape.size() ? ", " : ""));
+  for (std::size_t i = 0; i < shape.size(); ++i)
+    dict += std::to_string(shape[i]) + (shape.size() == 1 ? "," : (i + 1 < shape.size() ? ", " : ""));
   dict += "), }";
   const std::size_t unpadded = 10 + dict.size() + 1;
   dict.append((64 - unpadded % 64) % 64, ' ');
@@ -306,9 +318,7 @@ std::vector<double> as_points(const Array& a, const std::string& what) {
   const bool n3 = a.shape.size() == 2 && a.shape[1] == 3;
   const bool flat = a.shape.size() == 1 && a.shape[0] % 3 == 0;
   if (!n3 && !flat) {
-    std::string s = "(";
-    for (std::size_t i = 0; i < a.shape.size(); ++i) s += (i ? "," : "") + std::to_string(a.shape[i]);
-    throw Error(ErrorCode::invalid_input, what + " must have shape (N,3) or (3N,), got " + s + ")");
+    throw Error(ErrorCode::invalid_input, what + " must have shape (N,3) or (3N,), got " + shape_text(a.shape));
   }
   if (a.data.empty()) throw Error(ErrorCode::invalid_input, what + " is empty (N = 0)");
   for (std::size_t i = 0; i < a.data.size(); ++i) {
@@ -324,9 +334,8 @@ std::vector<double> as_vector(const Array& a, std::size_t n, const std::string& 
   const bool ok =
       (a.shape.size() == 1 && a.shape[0] == n) || (a.shape.size() == 2 && a.shape[0] == n && a.shape[1] == 1);
   if (!ok) {
-    std::string s = "(";
-    for (std::size_t i = 0; i < a.shape.size(); ++i) s += (i ? "," : "") + std::to_string(a.shape[i]);
-    throw Error(ErrorCode::invalid_input, what + " must have shape (" + std::to_string(n) + ",), got " + s + ")");
+    throw Error(ErrorCode::invalid_input,
+                what + " must have shape (" + std::to_string(n) + ",), got " + shape_text(a.shape));
   }
   for (std::size_t i = 0; i < a.data.size(); ++i) {
     if (!std::isfinite(a.data[i])) {

@@ -216,9 +216,11 @@ DistributedBd::Halo DistributedBd::Halo::build(const Communicator& comm, const b
       detail::alltoallv(comm, packed, "DistributedBd", "the halo's particles", &h.recv_counts);
   for (std::size_t& count : h.recv_counts) count /= kHaloValues;
   assemble_part(h, positions, types, ids, received);
-  if (!bonds.empty()) {
-    const detail::PartBonds part = detail::part_bonds(bonds, ids, h.ids);
-    h.part_forces = forces.with_bonds(part.bonds, part.names);
+  if (!bonds.empty()) {  // the same bond list on every rank; a failure here fails every rank alike
+    comm.run([&] {
+      const detail::PartBonds part = detail::part_bonds(bonds, ids, h.ids);
+      h.part_forces = forces.with_bonds(part.bonds, part.names);
+    });
   }
   if (h.pairs) {
     h.list.set_pair_cutoffs(h.types, forces.pair_cutoffs(), forces.types().size());

@@ -141,15 +141,15 @@ __attribute__((target("avx512f,avx512vl,avx512dq,prefer-vector-width=512"))) voi
 }
 #endif
 
+#if defined(RPYFMM_HAVE_DIRECT_AVX512)
 /// Which build of a loop runs: the one simd_level() names (AVX-512, AVX2 with FMA, or portable).
 enum class LineKernels { portable, avx2, avx512 };
 LineKernels line_kernels() {
-#if defined(RPYFMM_HAVE_DIRECT_AVX512)
   if (simd_level() == SimdLevel::avx512) return LineKernels::avx512;
   if (simd_level() == SimdLevel::avx2) return LineKernels::avx2;
-#endif
   return LineKernels::portable;
 }
+#endif
 
 template <class Real>
 void scale_line_any(const ModeGeometry& g, const ModeLine<Real>& line) {
