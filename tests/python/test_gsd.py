@@ -1,5 +1,5 @@
 """GSD trajectories (`[output] format = "gsd"`) read with the gsd package (gsd.hoomd), and with
-MDAnalysis and freud where they are installed: every frame against the run's own state (a
+MDAnalysis, freud and OVITO where they are installed: every frame against the run's own state (a
 Simulation stepped alongside), the XYZ trajectory of the same run, and the run's log; restarts
 equal to uninterrupted runs frame by frame; the example script examples/python/ecosystem.py."""
 
@@ -205,6 +205,30 @@ def test_mdanalysis_reads_every_frame(open_runs: Path):
     assert len(universe.trajectory) == len(frames)
     for ts, frame in zip(universe.trajectory, frames):
         np.testing.assert_allclose(ts.positions, frame.particles.position, rtol=0, atol=1e-5)
+
+
+def test_ovito_reads_every_frame(open_runs: Path):
+    # OVITO's GSD reader (the `ovito` package on PyPI): positions, types, radii (diameter / 2),
+    # orientations (OVITO's (x, y, z, w) order), the box centred on the origin, the step and the
+    # logged time of every frame, against the gsd package's reading of the same file.
+    ovito_io = pytest.importorskip("ovito.io", reason="OVITO's Python module (pip install ovito)")
+    path = open_runs / "gsd" / "trajectory.gsd"
+    pipeline = ovito_io.import_file(str(path))
+    frames = _frames(path)
+    assert pipeline.num_frames == len(frames)
+    for k, frame in enumerate(frames):
+        data = pipeline.compute(k)
+        particles = data.particles
+        np.testing.assert_array_equal(np.asarray(particles.positions), frame.particles.position)
+        np.testing.assert_array_equal(2 * np.asarray(particles["Radius"]), frame.particles.diameter)
+        assert [t.name for t in particles.particle_types.types] == frame.particles.types
+        np.testing.assert_array_equal(np.asarray(particles.particle_types), frame.particles.typeid)
+        np.testing.assert_array_equal(np.asarray(particles["Orientation"]), frame.particles.orientation[:, [1, 2, 3, 0]])
+        cell = np.asarray(data.cell[:, :])
+        np.testing.assert_array_equal(np.diag(cell[:, :3]), frame.configuration.box[:3])
+        np.testing.assert_array_equal(cell[:, 3], -frame.configuration.box[:3] / 2)
+        assert data.attributes["Timestep"] == frame.configuration.step
+        assert data.attributes["bd/time"] == frame.log["bd/time"][0]
 
 
 def test_ecosystem_example_runs(tmp_path: Path):
