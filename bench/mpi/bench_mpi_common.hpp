@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace bench_mpi {
@@ -81,6 +82,12 @@ inline double sum_over_ranks(double v) {
   return reduce(v, MPI_SUM);
 }
 
+/// The median of `values` (not empty).
+inline double median(std::vector<double> values) {
+  std::sort(values.begin(), values.end());
+  return values[values.size() / 2];
+}
+
 /// The median of reps timings of `body`, each the slowest rank's after a barrier.
 template <class Body>
 double median_seconds(int reps, Body&& body) {
@@ -91,8 +98,7 @@ double median_seconds(int reps, Body&& body) {
     body();
     times.push_back(max_over_ranks(MPI_Wtime() - start));
   }
-  std::sort(times.begin(), times.end());
-  return times[times.size() / 2];
+  return median(std::move(times));
 }
 
 }  // namespace bench_mpi

@@ -3,6 +3,7 @@
 // CMakeLists.txt) for bench/run.py's group "mpi".
 //
 // usage: bench_mpi_fmm --n N --eps E [--scaling strong|weak] [--reps 3] [--measured-weights 1]
+//                      [--overlap-exchange 1]
 //   strong: N sources in all; weak: N sources per rank (N x P in all). Uniform in the unit cube,
 //   zero-mean charges; every rank draws its own contiguous share of the global sequence (fixed
 //   seed), so the input does not depend on P beyond its size.
@@ -12,10 +13,13 @@
 // all ranks together, the slowest rank's local work and the largest essential set. With
 // --measured-weights 1, the plan is then rebuilt with the measured per-leaf weights of the last
 // evaluation (DistributedLaplaceFmm::measured_weights) and timed again: eval_measured_s and
-// essential_measured_max.
+// essential_measured_max. With --overlap-exchange 1, a second plan with
+// DistributedFmmOptions::overlap_exchange (the serial FMM split to run during the exchanges) is
+// timed alternately with the first, rep by rep: eval_s and eval_overlap_s, medians of the same reps.
 #include <mpi.h>
 
 #include <cstdio>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -41,6 +45,13 @@ double slowest_total(const rpyfmm::StageTimes& mine) {
   return max_over_ranks(total);
 }
 
+// Whether the command line has "--name 1".
+bool flag_on(int argc, char** argv, const std::string& name) {
+  for (int i = 1; i + 1 < argc; ++i)
+    if (argv[i] == name && std::string(argv[i + 1]) == "1") return true;
+  return false;
+}
+
 rpyfmm::StageTimes slowest(const rpyfmm::StageTimes& mine) {
   rpyfmm::StageTimes out;
   for (const auto& [stage, seconds] : mine) out[stage] = max_over_ranks(seconds);
@@ -61,8 +72,23 @@ int main(int argc, char** argv) {
   const rpyfmm::mpi::FmmCommunication plan_traffic = fmm.communication();
 
   std::vector<double> results(fmm.local_target_size() * rpyfmm::fmm::result_width);
-  const double eval_s = bench_mpi::median_seconds(
-      a.reps, [&] { fmm.evaluate(share.q, 1, rpyfmm::fmm::potential | rpyfmm::fmm::gradient, results); });
+  const auto evaluate = [&](const rpyfmm::mpi::DistributedLaplaceFmm& f) {
+    f.evaluate(share.q, 1, rpyfmm::fmm::potential | rpyfmm::fmm::gradient, results);
+  };
+  const bool overlap = flag_on(argc, argv, "--overlap-exchange");
+  std::unique_ptr<rpyfmm::mpi::DistributedLaplaceFmm> split;
+  if (overlap) {
+    rpyfmm::mpi::DistributedFmmOptions split_options = options;
+    split_options.overlap_exchange = true;
+    split = std::make_unique<rpyfmm::mpi::DistributedLaplaceFmm>(MPI_COMM_WORLD, split_options);
+    split->set_points(share.x);
+  }
+  std::vector<double> one_times, split_times;
+  for (int r = 0; r < a.reps; ++r) {  // alternately, so that the machine's load falls on both alike
+    one_times.push_back(bench_mpi::median_seconds(1, [&] { evaluate(fmm); }));
+    if (split) split_times.push_back(bench_mpi::median_seconds(1, [&] { evaluate(*split); }));
+  }
+  const double eval_s = bench_mpi::median(one_times);
   const rpyfmm::mpi::FmmCommunication& t = fmm.communication();
   const rpyfmm::StageTimes plan_comm = slowest(plan_traffic.plan_seconds);
   const rpyfmm::StageTimes eval_comm = slowest(t.evaluate_seconds);
@@ -75,9 +101,7 @@ int main(int argc, char** argv) {
   const double essential = max_over_ranks(static_cast<double>(fmm.essential_size()));
   const double halo = sum_over_ranks(static_cast<double>(t.halo_received));
   const double nodes = sum_over_ranks(static_cast<double>(t.nodes_received));
-  bool measured = false;
-  for (int i = 1; i + 1 < argc; ++i)
-    measured = measured || (std::string(argv[i]) == "--measured-weights" && std::string(argv[i + 1]) == "1");
+  const bool measured = flag_on(argc, argv, "--measured-weights");
   double eval_measured_s = 0.0, essential_measured = 0.0;
   if (measured) {
     fmm.set_points(share.x, {}, fmm.measured_weights());
@@ -98,6 +122,7 @@ int main(int argc, char** argv) {
     print_stages("eval_work_", eval_work);
     if (measured)
       std::printf(",\"eval_measured_s\":%.6g,\"essential_measured_max\":%.0f", eval_measured_s, essential_measured);
+    if (overlap) std::printf(",\"eval_overlap_s\":%.6g", bench_mpi::median(split_times));
     std::printf("}\n");
   }
   MPI_Finalize();

@@ -218,12 +218,48 @@ std::unique_ptr<PendingAlltoallv> post_halo_charges(const Communicator& comm, co
   return std::make_unique<PendingAlltoallv>(comm, e.send, e.recv_counts, kWhere, "the essential halo charges");
 }
 
+namespace {
+
+ChargeExchange node_exchange(const Communicator& comm, const Plan& plan, std::span<const double> equivalent,
+                             std::size_t nd) {
+  return charge_exchange(static_cast<std::size_t>(comm.size()), nd, plan.recv_nodes,
+                         [&](std::size_t r) { return node_charges_for(plan, r, equivalent, nd); });
+}
+
+}  // namespace
+
 std::vector<double> exchange_node_charges(const Communicator& comm, const Plan& plan,
                                           std::span<const double> equivalent, std::size_t nd) {
-  const ChargeExchange e = charge_exchange(static_cast<std::size_t>(comm.size()), nd, plan.recv_nodes,
-                                           [&](std::size_t r) { return node_charges_for(plan, r, equivalent, nd); });
+  const ChargeExchange e = node_exchange(comm, plan, equivalent, nd);
   return alltoallv(comm, e.send, e.recv_counts, kWhere, "the essential equivalent charges");
 }
+
+std::unique_ptr<PendingAlltoallv> post_node_charges(const Communicator& comm, const Plan& plan,
+                                                    std::span<const double> equivalent, std::size_t nd) {
+  const ChargeExchange e = node_exchange(comm, plan, equivalent, nd);
+  return std::make_unique<PendingAlltoallv>(comm, e.send, e.recv_counts, kWhere, "the essential equivalent charges");
+}
+
+namespace {
+
+// Writes what came from the other ranks into q (nd rows of `width` values, from column `first`):
+// per rank in rank order its halo sources, then its cells' nodes (exchange_geometry's order).
+void place_received(const Plan& plan, const ReceivedCharges& received, std::size_t nd, std::size_t width,
+                    std::size_t first, std::vector<double>& q) {
+  std::size_t at_halo = 0, at_nodes = 0, offset = first;
+  for (std::size_t r = 0; r < plan.recv_halo.size(); ++r) {
+    const std::size_t halo = plan.recv_halo[r], nodes = plan.recv_nodes[r];
+    for (std::size_t d = 0; d < nd; ++d, at_halo += halo, at_nodes += nodes) {
+      const auto to = q.begin() + static_cast<std::ptrdiff_t>(d * width + offset);
+      std::copy_n(received.halo.begin() + static_cast<std::ptrdiff_t>(at_halo), halo, to);
+      std::copy_n(received.nodes.begin() + static_cast<std::ptrdiff_t>(at_nodes), nodes,
+                  to + static_cast<std::ptrdiff_t>(halo));
+    }
+    offset += halo + nodes;
+  }
+}
+
+}  // namespace
 
 std::vector<double> assemble_charges(const Plan& plan, std::span<const double> owned_q, const ReceivedCharges& received,
                                      std::size_t nd) {
@@ -233,18 +269,14 @@ std::vector<double> assemble_charges(const Plan& plan, std::span<const double> o
     std::copy_n(owned_q.begin() + static_cast<std::ptrdiff_t>(d * m), m,
                 q.begin() + static_cast<std::ptrdiff_t>(d * plan.sources));
   }
-  // Per rank in rank order: its halo sources, then its cells' nodes (exchange_geometry's order).
-  std::size_t at_halo = 0, at_nodes = 0, offset = m;
-  for (std::size_t r = 0; r < plan.recv_halo.size(); ++r) {
-    const std::size_t halo = plan.recv_halo[r], nodes = plan.recv_nodes[r];
-    for (std::size_t d = 0; d < nd; ++d, at_halo += halo, at_nodes += nodes) {
-      const auto to = q.begin() + static_cast<std::ptrdiff_t>(d * plan.sources + offset);
-      std::copy_n(received.halo.begin() + static_cast<std::ptrdiff_t>(at_halo), halo, to);
-      std::copy_n(received.nodes.begin() + static_cast<std::ptrdiff_t>(at_nodes), nodes,
-                  to + static_cast<std::ptrdiff_t>(halo));
-    }
-    offset += halo + nodes;
-  }
+  place_received(plan, received, nd, plan.sources, m, q);
+  return q;
+}
+
+std::vector<double> assemble_received(const Plan& plan, const ReceivedCharges& received, std::size_t nd) {
+  const std::size_t width = plan.sources - plan.owned_x.size() / 3;
+  std::vector<double> q(nd * width);
+  place_received(plan, received, nd, width, 0, q);
   return q;
 }
 

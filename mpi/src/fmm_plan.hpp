@@ -36,7 +36,12 @@ struct DistributedLaplaceFmm::Plan {
   std::vector<detail::Compressed> jobs;
   std::vector<std::size_t> job_offset;
   std::size_t sources = 0;  // of the serial FMM: owned + halo + equivalent nodes; 0 when it does not run
-  fmm::LaplaceFmm fmm;
+  fmm::LaplaceFmm fmm;      // on all `sources`, unless split
+  // DistributedFmmOptions::overlap_exchange: the serial FMM split into the owned sources' FMM and
+  // the received sources' FMM at the same targets, each planned where it has sources and targets.
+  bool split = false;
+  bool own_runs = false, received_runs = false;
+  fmm::LaplaceFmm own_fmm, received_fmm;
 
   // The partition and owned positions of the targets (the sources' when evaluating at them).
   [[nodiscard]] const SfcPartition& targets() const { return target_partition ? *target_partition : *partition; }
@@ -86,6 +91,9 @@ void count_essential(const Plan& plan, FmmCommunication& stats);
 /// its cells' nodes), one all-to-all.
 [[nodiscard]] std::vector<double> exchange_node_charges(const Communicator& comm, const Plan& plan,
                                                         std::span<const double> equivalent, std::size_t nd);
+/// Collective: posts the same exchange without waiting for it (the split serial FMM's overlap).
+[[nodiscard]] std::unique_ptr<PendingAlltoallv> post_node_charges(const Communicator& comm, const Plan& plan,
+                                                                  std::span<const double> equivalent, std::size_t nd);
 
 /// What came from the other ranks in an evaluation: the halo charges and the equivalent charges.
 struct ReceivedCharges {
@@ -95,6 +103,8 @@ struct ReceivedCharges {
 /// The serial FMM's charges (nd x plan.sources): owned, then what came from each rank.
 [[nodiscard]] std::vector<double> assemble_charges(const Plan& plan, std::span<const double> owned_q,
                                                    const ReceivedCharges& received, std::size_t nd);
+/// The received sources' charges alone (nd x (plan.sources - owned)), for the split serial FMM.
+[[nodiscard]] std::vector<double> assemble_received(const Plan& plan, const ReceivedCharges& received, std::size_t nd);
 
 }  // namespace detail
 }  // namespace rpyfmm::mpi

@@ -35,9 +35,16 @@ void check_options(const DistributedFmmOptions& o) {
 
 // The options as numbers, compared between ranks.
 std::vector<double> option_signature(const DistributedFmmOptions& o) {
-  return {o.fmm.tolerance,  static_cast<double>(o.fmm.leaf_capacity), o.fmm.min_leaf_side,
-          o.fmm.root_scale, static_cast<double>(o.fmm.order),         static_cast<double>(o.fmm.fitted_grid.occupancy),
-          o.separation,     static_cast<double>(o.chebyshev_order),   static_cast<double>(o.cell_capacity)};
+  return {o.fmm.tolerance,
+          static_cast<double>(o.fmm.leaf_capacity),
+          o.fmm.min_leaf_side,
+          o.fmm.root_scale,
+          static_cast<double>(o.fmm.order),
+          static_cast<double>(o.fmm.fitted_grid.occupancy),
+          o.separation,
+          static_cast<double>(o.chebyshev_order),
+          static_cast<double>(o.cell_capacity),
+          o.overlap_exchange ? 1.0 : 0.0};
 }
 
 // Collective: translates the owned sources x and targets y next to the origin where the whole cloud lies far
@@ -141,23 +148,47 @@ void partition_points(const Communicator& comm, DistributedLaplaceFmm::Plan& pla
   shift_to_centre(comm, plan.owned_x, plan.owned_targets);
 }
 
-// Collective: the serial FMM on this rank's essential sources and owned targets; none where either
-// is empty (its targets' results are then 0). Targets at the sources when nothing came from the
-// other ranks (one rank, or an isolated owner): the serial FMM's own mode, one tree of m points.
-void plan_serial_fmm(const Communicator& comm, DistributedLaplaceFmm::Plan& plan, const fmm::FmmOptions& options,
-                     const std::vector<double>& sources, StageTimes& times) {
-  plan.fmm = fmm::LaplaceFmm(options);
+// The serial FMM on this rank's essential sources and owned targets; none where either is empty
+// (its targets' results are then 0). Targets at the sources when nothing came from the other ranks
+// (one rank, or an isolated owner): the serial FMM's own mode, one tree of m points.
+void plan_one_fmm(DistributedLaplaceFmm::Plan& plan, std::span<const double> sources) {
   const std::vector<double>& targets = plan.target_x();
   plan.sources = sources.empty() || targets.empty() ? 0 : sources.size() / 3;
+  if (plan.sources == 0) return;
+  if (!plan.target_partition && sources.size() == plan.owned_x.size()) {
+    plan.fmm.set_points(sources);
+  } else {
+    plan.fmm.set_points(sources, targets);
+  }
+}
+
+// DistributedFmmOptions::overlap_exchange: the owned sources' FMM (own mode at the sources) and
+// the received sources' FMM, both at the owned targets.
+void plan_split_fmm(DistributedLaplaceFmm::Plan& plan, std::span<const double> sources) {
+  const std::vector<double>& targets = plan.target_x();
+  const std::size_t owned = plan.owned_x.size();
+  plan.split = true;
+  plan.sources = sources.empty() || targets.empty() ? 0 : sources.size() / 3;
+  plan.own_runs = owned > 0 && !targets.empty();
+  plan.received_runs = sources.size() > owned && !targets.empty();
+  if (plan.own_runs) {
+    if (plan.target_partition) {
+      plan.own_fmm.set_points(plan.owned_x, targets);
+    } else {
+      plan.own_fmm.set_points(plan.owned_x);
+    }
+  }
+  if (plan.received_runs) plan.received_fmm.set_points(sources.subspan(owned), targets);
+}
+
+// Collective: the serial FMM (one, or split in two) on this rank's essential sources.
+void plan_serial_fmm(const Communicator& comm, DistributedLaplaceFmm::Plan& plan, const fmm::FmmOptions& options,
+                     bool split, const std::vector<double>& sources, StageTimes& times) {
+  plan.fmm = fmm::LaplaceFmm(options);
+  plan.own_fmm = fmm::LaplaceFmm(options);
+  plan.received_fmm = fmm::LaplaceFmm(options);
   comm.run([&] {
-    detail::timed(times, "plan_fmm", [&] {
-      if (plan.sources == 0) return;
-      if (!plan.target_partition && sources.size() == plan.owned_x.size()) {
-        plan.fmm.set_points(sources);
-      } else {
-        plan.fmm.set_points(sources, targets);
-      }
-    });
+    detail::timed(times, "plan_fmm", [&] { split ? plan_split_fmm(plan, sources) : plan_one_fmm(plan, sources); });
   });
 }
 
@@ -195,7 +226,7 @@ void DistributedLaplaceFmm::set_points(std::span<const double> local_sources, st
   detail::timed(stats_.plan_seconds, "geometry",
                 [&] { sources = detail::exchange_geometry(comm_, *plan, stats_.plan_bytes_received); });
   detail::count_essential(*plan, stats_);
-  plan_serial_fmm(comm_, *plan, options_.fmm, sources, stats_.compute_seconds);
+  plan_serial_fmm(comm_, *plan, options_.fmm, options_.overlap_exchange, sources, stats_.compute_seconds);
   plan_ = std::move(plan);
 }
 
@@ -250,30 +281,12 @@ void DistributedLaplaceFmm::evaluate(std::span<const double> charges, std::size_
   });
   stats_.evaluate_bytes_received += owned_q.size() * sizeof(double);
 
-  // The halo charges travel while the cells are anterpolated (MPI progressed between pieces of
-  // it), then the equivalent charges; the serial FMM waits for both.
-  std::unique_ptr<detail::PendingAlltoallv> halo;
-  detail::timed(stats_.evaluate_seconds, "essential",
-                [&] { halo = detail::post_halo_charges(comm_, plan, owned_q, nd); });
-  std::vector<double> equivalent;
-  detail::timed(stats_.compute_seconds, "anterpolation",
-                [&] { equivalent = detail::anterpolate_cells(plan, owned_q, nd, [&] { halo->test(); }); });
-  detail::ReceivedCharges got;
-  detail::timed(stats_.evaluate_seconds, "essential", [&] {
-    got.nodes = detail::exchange_node_charges(comm_, plan, equivalent, nd);
-    got.halo = halo->wait();
-  });
-  stats_.evaluate_bytes_received += (got.halo.size() + got.nodes.size()) * sizeof(double);
-
   std::vector<double> owned_results(nd * m_targets * fmm::result_width, 0.0);
-  // Timed inside run(): the local work only, not the wait for the slower ranks in its agreement.
-  comm_.run([&] {
-    detail::timed(stats_.compute_seconds, "fmm", [&] {
-      if (plan.sources > 0) {
-        plan.fmm.evaluate(detail::assemble_charges(plan, owned_q, got, nd), nd, outputs, owned_results);
-      }
-    });
-  });
+  if (plan.split) {
+    evaluate_split(plan, owned_q, nd, outputs, owned_results);
+  } else {
+    evaluate_one(plan, owned_q, nd, outputs, owned_results);
+  }
 
   detail::timed(stats_.evaluate_seconds, "results", [&] {
     std::vector<Column> columns;
@@ -289,6 +302,68 @@ void DistributedLaplaceFmm::evaluate(std::span<const double> charges, std::size_
   stats_.evaluate_bytes_received += nd * n_targets * fmm::result_width * sizeof(double);
 }
 
+void DistributedLaplaceFmm::evaluate_one(const Plan& plan, std::span<const double> owned_q, std::size_t nd,
+                                         std::span<const unsigned> outputs, std::span<double> owned_results) const {
+  // The halo charges travel while the cells are anterpolated (MPI progressed between pieces of
+  // it), then the equivalent charges; the serial FMM waits for both.
+  std::unique_ptr<detail::PendingAlltoallv> halo;
+  detail::timed(stats_.evaluate_seconds, "essential",
+                [&] { halo = detail::post_halo_charges(comm_, plan, owned_q, nd); });
+  std::vector<double> equivalent;
+  detail::timed(stats_.compute_seconds, "anterpolation",
+                [&] { equivalent = detail::anterpolate_cells(plan, owned_q, nd, [&] { halo->test(); }); });
+  detail::ReceivedCharges got;
+  detail::timed(stats_.evaluate_seconds, "essential", [&] {
+    got.nodes = detail::exchange_node_charges(comm_, plan, equivalent, nd);
+    got.halo = halo->wait();
+  });
+  stats_.evaluate_bytes_received += (got.halo.size() + got.nodes.size()) * sizeof(double);
+  // Timed inside run(): the local work only, not the wait for the slower ranks in its agreement.
+  comm_.run([&] {
+    detail::timed(stats_.compute_seconds, "fmm", [&] {
+      if (plan.sources > 0) {
+        plan.fmm.evaluate(detail::assemble_charges(plan, owned_q, got, nd), nd, outputs, owned_results);
+      }
+    });
+  });
+}
+
+void DistributedLaplaceFmm::evaluate_split(const Plan& plan, std::span<const double> owned_q, std::size_t nd,
+                                           std::span<const unsigned> outputs, std::span<double> owned_results) const {
+  // Both exchanges are posted before the owned sources' FMM, which needs only the owned charges;
+  // the received sources' FMM waits for them and adds its results.
+  std::unique_ptr<detail::PendingAlltoallv> halo, nodes;
+  detail::timed(stats_.evaluate_seconds, "essential",
+                [&] { halo = detail::post_halo_charges(comm_, plan, owned_q, nd); });
+  std::vector<double> equivalent;
+  detail::timed(stats_.compute_seconds, "anterpolation",
+                [&] { equivalent = detail::anterpolate_cells(plan, owned_q, nd, [&] { halo->test(); }); });
+  detail::timed(stats_.evaluate_seconds, "essential", [&] {
+    nodes = detail::post_node_charges(comm_, plan, equivalent, nd);
+    halo->test();
+    nodes->test();
+  });
+  comm_.run([&] {
+    detail::timed(stats_.compute_seconds, "fmm", [&] {
+      if (plan.own_runs) plan.own_fmm.evaluate(owned_q, nd, outputs, owned_results);
+    });
+  });
+  detail::ReceivedCharges got;
+  detail::timed(stats_.evaluate_seconds, "essential", [&] {
+    got.halo = halo->wait();
+    got.nodes = nodes->wait();
+  });
+  stats_.evaluate_bytes_received += (got.halo.size() + got.nodes.size()) * sizeof(double);
+  comm_.run([&] {
+    detail::timed(stats_.compute_seconds, "fmm", [&] {
+      if (!plan.received_runs) return;
+      std::vector<double> received(owned_results.size());
+      plan.received_fmm.evaluate(detail::assemble_received(plan, got, nd), nd, outputs, received);
+      for (std::size_t i = 0; i < received.size(); ++i) owned_results[i] += received[i];
+    });
+  });
+}
+
 std::vector<double> DistributedLaplaceFmm::measured_weights() const {
   constexpr const char* where = "rpyfmm::mpi::DistributedLaplaceFmm::measured_weights";
   comm_.run([&] {
@@ -298,8 +373,14 @@ std::vector<double> DistributedLaplaceFmm::measured_weights() const {
   });
   const Plan& plan = *plan_;
   // The serial FMM's targets are the owned sources, in owned order (plan_serial_fmm).
-  std::vector<double> owned = plan.sources > 0 ? plan.fmm.last_target_costs() : std::vector<double>{};
-  owned.resize(plan.partition->owned_size(), 0.0);
+  std::vector<double> owned(plan.partition->owned_size(), 0.0);
+  const auto add_costs = [&](const fmm::LaplaceFmm& fmm) {
+    const std::vector<double> costs = fmm.last_target_costs();
+    for (std::size_t i = 0; i < std::min(costs.size(), owned.size()); ++i) owned[i] += costs[i];
+  };
+  if (!plan.split && plan.sources > 0) add_costs(plan.fmm);
+  if (plan.own_runs) add_costs(plan.own_fmm);
+  if (plan.received_runs) add_costs(plan.received_fmm);
   const Column column{owned, 1};
   return plan.partition->to_origin(std::span<const Column>(&column, 1))[0];
 }

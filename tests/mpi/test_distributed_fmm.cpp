@@ -3,7 +3,8 @@
 // measured on its own, at most the tolerance), on uniform and clustered sets, empty ranks and more
 // ranks than particles; the compression error against its rule (docs/mpi.md, "Error rule");
 // results independent of how the input is distributed, repeated evaluations bit for bit, new points
-// on one object, and collective failure.
+// on one object, the serial FMM split to overlap the exchanges (overlap_exchange), and collective
+// failure.
 #include <gtest/gtest.h>
 #include <mpi.h>
 
@@ -164,9 +165,10 @@ std::uint64_t total(std::uint64_t mine) {
   return sum;
 }
 
-DistributedFmmOptions with_tolerance(double tolerance) {
+DistributedFmmOptions with_tolerance(double tolerance, bool overlap_exchange = false) {
   DistributedFmmOptions o;
   o.fmm.tolerance = tolerance;
+  o.overlap_exchange = overlap_exchange;
   return o;
 }
 
@@ -176,15 +178,26 @@ const unsigned kTwoOutputs[] = {fmm::potential | fmm::gradient, fmm::all_outputs
 // when the input is all on the last rank (the partition and so the plan depend on the global set
 // only). Returns the compressed cells received, summed over the ranks.
 std::uint64_t expect_contract(const Cloud& c, const std::vector<double>& exact, double tolerance,
-                              std::span<const unsigned> outputs) {
+                              std::span<const unsigned> outputs, bool overlap_exchange = false) {
   const std::vector<double> serial = serial_fmm(c, outputs, tolerance);
-  DistributedLaplaceFmm f(MPI_COMM_WORLD, with_tolerance(tolerance));
+  DistributedLaplaceFmm f(MPI_COMM_WORLD, with_tolerance(tolerance, overlap_exchange));
   const std::vector<double> even = distributed(f, c, outputs, Split::even);
   EXPECT_LE(worst_error(even, exact, outputs, c.size()), tolerance) << "against the direct sum, eps " << tolerance;
   EXPECT_LE(worst_error(even, serial, outputs, c.size()), tolerance) << "against the serial FMM, eps " << tolerance;
   const std::uint64_t cells = total(f.communication().cells_received);
   EXPECT_EQ(bitwise_mismatches(distributed(f, c, outputs, Split::last_only), even), 0u) << "input on the last rank";
   return cells;
+}
+
+// Plans `s` and evaluates twice: the same bits both times (a failure otherwise); returns the results.
+std::vector<double> planned_and_evaluated_twice(DistributedLaplaceFmm& f, const Cloud& c, const Share& s,
+                                                std::span<const unsigned> outputs) {
+  f.set_points(s.x);
+  std::vector<double> first(c.nd * s.part.n * W), again(first.size());
+  f.evaluate(s.q, c.nd, outputs, first);
+  f.evaluate(s.q, c.nd, outputs, again);
+  EXPECT_EQ(bitwise_mismatches(first, again), 0u) << "a repeated evaluation differs";
+  return first;
 }
 
 TEST(DistributedFmm, UniformMatchesDirectAndSerial) {
@@ -363,11 +376,8 @@ TEST(DistributedFmm, RepeatedEvaluationsAndNewPoints) {
   const unsigned outputs[] = {fmm::potential, fmm::gradient, fmm::all_outputs};
   DistributedLaplaceFmm f(MPI_COMM_WORLD, with_tolerance(1e-6));
   const Share s = share_of(a, Split::geometric);
-  f.set_points(s.x);
-  std::vector<double> first(a.nd * s.part.n * W), again(first.size());
-  f.evaluate(s.q, a.nd, outputs, first);
-  f.evaluate(s.q, a.nd, outputs, again);
-  EXPECT_EQ(bitwise_mismatches(first, again), 0u) << "a repeated evaluation differs";
+  const std::vector<double> first = planned_and_evaluated_twice(f, a, s, outputs);
+  std::vector<double> again(first.size());
   EXPECT_LE(worst_error(gather_results(first, a.nd, a.size(), Split::geometric), direct(a, outputs), outputs, a.size()),
             1e-6);
   // New points on the same object, then the first ones again: the same plan, the same bits.
@@ -385,6 +395,47 @@ TEST(DistributedFmm, RepeatedEvaluationsAndNewPoints) {
   EXPECT_EQ(total(comm.nodes_sent), total(comm.nodes_received));
   EXPECT_EQ(total(comm.cells_sent), total(comm.cells_received));
   for (const char* stage : {"charges", "essential", "results"}) EXPECT_EQ(comm.evaluate_seconds.count(stage), 1u);
+}
+
+TEST(DistributedFmm, OverlappedExchangeMeetsTheSameContract) {
+  // The serial FMM split into the owned sources' pass (during the exchanges) and the received
+  // sources' pass: within the tolerance of the direct sum and the serial FMM on uniform and
+  // clustered sets, the same bits for the input on the last rank and on a repeated evaluation, and
+  // at separate targets, with per-leaf weights, and with ranks that own nothing.
+  const Cloud uniform = uniform_cloud(3000, 2, 11), clustered = clustered_cloud(1200, 4800, 2, 12);
+  for (const Cloud* c : {&uniform, &clustered}) {
+    const std::vector<double> exact = direct(*c, kTwoOutputs);
+    for (double tolerance : {1e-3, 1e-6, 1e-9}) expect_contract(*c, exact, tolerance, kTwoOutputs, true);
+  }
+  DistributedLaplaceFmm f(MPI_COMM_WORLD, with_tolerance(1e-6, true));
+  const Share s = share_of(clustered, Split::geometric);
+  std::vector<double> results = planned_and_evaluated_twice(f, clustered, s, kTwoOutputs);
+  const std::vector<double> weights = f.measured_weights();
+  ASSERT_EQ(weights.size(), s.part.n);
+  EXPECT_TRUE(std::all_of(weights.begin(), weights.end(), [](double w) { return std::isfinite(w) && w >= 0.0; }));
+  f.set_points(s.x, {}, weights);
+  f.evaluate(s.q, clustered.nd, kTwoOutputs, results);
+  EXPECT_LE(worst_error(gather_results(results, clustered.nd, clustered.size(), Split::geometric),
+                        direct(clustered, kTwoOutputs), kTwoOutputs, clustered.size()),
+            1e-6);
+  // Targets apart from the sources, and on some of them.
+  std::vector<double> targets(uniform.x.begin(), uniform.x.begin() + 30);
+  for (std::size_t i = 0; i < 1500; ++i) targets.push_back(0.37 * static_cast<double>(i % 50) - 5.0);
+  const std::size_t m = targets.size() / 3;
+  const Partition t = partition_of(m, Split::geometric);
+  const Share u = share_of(uniform, Split::even);
+  f.set_points(u.x, share(targets, 3, t.offset, t.n));
+  std::vector<double> local(uniform.nd * t.n * W);
+  f.evaluate(u.q, uniform.nd, kTwoOutputs, local);
+  EXPECT_LE(worst_error(gather_results(local, uniform.nd, m, Split::geometric), direct(uniform, kTwoOutputs, targets),
+                        kTwoOutputs, m),
+            1e-6);
+  // Fewer particles than ranks: owners without sources, or with nothing received.
+  const unsigned all[] = {fmm::all_outputs};
+  for (std::size_t n : {2u, 3u, 5u}) {
+    const Cloud c = uniform_cloud(n, 1, 14 + n);
+    EXPECT_LE(worst_error(distributed(f, c, all, Split::last_only), direct(c, all), all, n), 1e-6) << n;
+  }
 }
 
 TEST(DistributedFmm, FailsOnEveryRank) {
@@ -434,6 +485,10 @@ TEST(DistributedFmm, FailsOnEveryRank) {
   if (world_size() > 1) {
     expect_collective_error([&] { DistributedLaplaceFmm g(MPI_COMM_WORLD, mixed); }, ErrorCode::invalid_argument,
                             "the ranks pass different options");
+    DistributedFmmOptions overlap_on_one;
+    overlap_on_one.overlap_exchange = world_rank() == last;
+    expect_collective_error([&] { DistributedLaplaceFmm g(MPI_COMM_WORLD, overlap_on_one); },
+                            ErrorCode::invalid_argument, "the ranks pass different options");
   }
   // Still usable after the failures.
   f.evaluate(s.q, 1, fmm::potential, out);

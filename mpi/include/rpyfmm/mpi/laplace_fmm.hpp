@@ -57,6 +57,14 @@ struct DistributedFmmOptions {
   /// Particles per leaf of the tree of cells that decides what is sent (not the serial FMM's tree).
   /// 0 = automatic (kDefaultCellCapacity).
   std::size_t cell_capacity = 0;
+  /// Overlap the serial FMM with the exchange of the essential charges: the FMM of the owned
+  /// sources at the owned targets (its tree, M2L and P2P among them) runs while the halo and
+  /// equivalent charges travel, and the FMM of the received sources at the same targets after
+  /// they arrived; the two sum to the same contract. It costs a second tree and a second pass over
+  /// the targets' leaves, so it pays only where the exchanges take longer than that pass (few
+  /// sources per rank, slow networks); off by default (docs/mpi.md, "Overlapping the serial FMM
+  /// with the exchanges").
+  bool overlap_exchange = false;
 };
 
 /// The acceptance ratio used when DistributedFmmOptions::separation is 0.
@@ -151,6 +159,13 @@ class DistributedLaplaceFmm {
   struct Plan;  // implementation (mpi/src/laplace_fmm.cpp)
 
  private:
+  // The essential charges' exchanges and the serial FMM of evaluate: one FMM after the exchanges,
+  // or (overlap_exchange) the owned sources' FMM during them and the received sources' after.
+  void evaluate_one(const Plan& plan, std::span<const double> owned_q, std::size_t nd,
+                    std::span<const unsigned> outputs, std::span<double> owned_results) const;
+  void evaluate_split(const Plan& plan, std::span<const double> owned_q, std::size_t nd,
+                      std::span<const unsigned> outputs, std::span<double> owned_results) const;
+
   Communicator comm_;
   DistributedFmmOptions options_;
   double separation_ = kDefaultSeparation;
