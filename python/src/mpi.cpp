@@ -300,13 +300,14 @@ void bind_distributed_pse(nb::module_& m) {
 }
 
 void init_laplace(Laplace* self, nb::object comm, double tolerance, int leaf_capacity, int order, double separation,
-                  std::size_t cell_capacity) {
+                  std::size_t cell_capacity, bool overlap_exchange) {
   mpi::DistributedFmmOptions o;
   o.fmm.tolerance = tolerance;
   o.fmm.leaf_capacity = leaf_capacity;
   o.fmm.order = order;
   o.separation = separation;
   o.cell_capacity = cell_capacity;
+  o.overlap_exchange = overlap_exchange;
   new (self) Laplace{comm, mpi::DistributedLaplaceFmm(comm_from(comm, "DistributedLaplaceFmm"), o)};
 }
 
@@ -358,9 +359,11 @@ void bind_distributed_laplace(nb::module_& m) {
       "each rank's own sources or targets; relative l2 error of each output at most the tolerance.")
       .def("__init__", &init_laplace, nb::arg("comm"), nb::arg("tolerance") = 1e-6, nb::arg("leaf_capacity") = 0,
            nb::arg("order") = 0, nb::arg("separation") = 0.0, nb::arg("cell_capacity") = 0,
+           nb::arg("overlap_exchange") = false,
            "Collective. comm: an mpi4py communicator; tolerance, leaf_capacity, order: each rank's serial\n"
            "LaplaceFmm; separation (0 or in [1, 100]) and cell_capacity: the exchange of the essential tree\n"
-           "(0 = automatic; docs/mpi.md). Every rank must pass the same values.")
+           "(0 = automatic); overlap_exchange: the serial FMM split to run during the exchanges (docs/mpi.md).\n"
+           "Every rank must pass the same values.")
       .def_prop_ro(
           "comm", [](const Laplace& s) { return s.comm; }, "The mpi4py communicator the plan works on.")
       .def_prop_ro(

@@ -182,12 +182,13 @@ def test_pse_apply_sqrt_equals_serial() -> None:
     assert np.max(np.abs(w - w_serial)) <= 1e-12 * np.max(np.abs(w_serial))
 
 
+@pytest.mark.parametrize("overlap_exchange", [False, True])
 @pytest.mark.parametrize("with_targets", [False, True])
-def test_laplace_within_tolerance(with_targets: bool) -> None:
+def test_laplace_within_tolerance(with_targets: bool, overlap_exchange: bool) -> None:
     rng = np.random.default_rng(17)
     x, q, y = rng.uniform(0.0, 1.0, (4000, 3)), rng.standard_normal((2, 4000)), rng.uniform(0.0, 1.0, (500, 3))
     part, tpart = share(len(x)), share(len(y), empty_first=True)
-    fmm = rpyfmm.mpi.DistributedLaplaceFmm(COMM, tolerance=1e-6)
+    fmm = rpyfmm.mpi.DistributedLaplaceFmm(COMM, tolerance=1e-6, overlap_exchange=overlap_exchange)
     # With targets, rank 0 passes None (no targets of its own) when there are several ranks.
     local_targets = y[tpart] if with_targets and tpart.stop > tpart.start else None
     fmm.set_points(x[part], local_targets)
