@@ -33,10 +33,10 @@ DistributedFmmOptions laplace_options(const Communicator& comm, const Distribute
             "leaf_capacity must be >= 0 (0 = automatic), got " + std::to_string(o.leaf_capacity));
   });
   const std::vector<double> signature{o.tolerance, static_cast<double>(o.leaf_capacity), o.separation,
-                                      static_cast<double>(o.cell_capacity)};
+                                      static_cast<double>(o.cell_capacity), o.overlap_exchange ? 1.0 : 0.0};
   require(same_on_every_rank(comm, signature), ErrorCode::invalid_argument, kWhere,
-          "the ranks pass different options (tolerance, leaf_capacity, separation or cell_capacity); every rank "
-          "must pass the same ones");
+          "the ranks pass different options (tolerance, leaf_capacity, separation, cell_capacity or "
+          "overlap_exchange); every rank must pass the same ones");
   DistributedFmmOptions laplace;
   // The Laplace sums run at the requested tolerance, as in FmmRpy (rpy/src/fmm_operator.cpp); the
   // combination's errors stay below it in the tests (tests/mpi/test_distributed_fmm_rpy.cpp).
@@ -45,6 +45,7 @@ DistributedFmmOptions laplace_options(const Communicator& comm, const Distribute
   laplace.fmm.leaf_capacity = o.leaf_capacity;
   laplace.separation = o.separation;
   laplace.cell_capacity = o.cell_capacity;
+  laplace.overlap_exchange = o.overlap_exchange;
   return laplace;
 }
 

@@ -222,10 +222,12 @@ void bind_distributed_direct(nb::module_& m) {
   add_common(cls, kKrylovSqrtDoc);
 }
 
-void init_fmm(Fmm* self, nb::object comm, double viscosity, double tolerance, int leaf_capacity) {
+void init_fmm(Fmm* self, nb::object comm, double viscosity, double tolerance, int leaf_capacity,
+              bool overlap_exchange) {
   mpi::DistributedFmmRpyOptions o;
   o.tolerance = tolerance;
   o.leaf_capacity = leaf_capacity;
+  o.overlap_exchange = overlap_exchange;
   new (self) Fmm{comm, mpi::DistributedFmmRpy(comm_from(comm, "DistributedFmmRpy"), viscosity, o)};
 }
 
@@ -234,9 +236,10 @@ void bind_distributed_fmm(nb::module_& m) {
                                     "Free-space RPY mobility in O(N) by the distributed Laplace FMM plus the exact "
                                     "near field; relative l2\nerror of U over all particles at most the tolerance.");
   cls.def("__init__", &init_fmm, nb::arg("comm"), nb::arg("viscosity") = 1.0, nb::arg("tolerance") = 1e-6,
-          nb::arg("leaf_capacity") = 0,
+          nb::arg("leaf_capacity") = 0, nb::arg("overlap_exchange") = false,
           "Collective. comm: an mpi4py communicator; tolerance: relative l2 error of U in [1e-12, 1e-1];\n"
-          "leaf_capacity: 0 = automatic. Every rank must pass the same values.")
+          "leaf_capacity: 0 = automatic; overlap_exchange: the Laplace FMM's serial FMM split to run during\n"
+          "the exchanges (docs/mpi.md). Every rank must pass the same values.")
       .def_prop_ro(
           "tolerance", [](const Fmm& s) { return s.op.options().tolerance; }, "Requested relative l2 error of U.");
   add_common(cls, kKrylovSqrtDoc);

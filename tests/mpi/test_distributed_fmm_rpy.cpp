@@ -77,10 +77,12 @@ SerialProducts serial_products(const Particles& p, double tolerance) {
 // repeated product bit for bit. Rank 0 prints the measured errors. Returns this rank's velocities.
 // Each owner's serial Laplace FMM runs with leaves of kLeaf points, so that at these sizes most pairs
 // are in its far field (its automatic leaves hold hundreds of points at 1e-6 and 1e-9).
-std::vector<double> expect_contract(const Particles& p, Split split, double tolerance, const char* label) {
+std::vector<double> expect_contract(const Particles& p, Split split, double tolerance, const char* label,
+                                    bool overlap_exchange = false) {
   const Partition part = partition_of(p.size(), split);
   const SerialProducts serial = serial_products(p, tolerance);
-  DistributedFmmRpy op(MPI_COMM_WORLD, kViscosity, {.tolerance = tolerance, .leaf_capacity = kLeaf});
+  DistributedFmmRpy op(MPI_COMM_WORLD, kViscosity,
+                       {.tolerance = tolerance, .leaf_capacity = kLeaf, .overlap_exchange = overlap_exchange});
   op.set_positions(share(p.x, 3, part.offset, part.n), share(p.a, 1, part.offset, part.n));
   EXPECT_EQ(op.global_size(), p.size());
   EXPECT_EQ(op.local_size(), part.n);
@@ -125,6 +127,15 @@ TEST(MpiDistributedFmmRpy, UniformCloudWithinToleranceOfDirect) {
   for (double eps : kTolerances) {
     expect_contract(p, Split::even, eps, "uniform, even");
     expect_contract(p, Split::last_only, eps, "uniform, last only");
+  }
+}
+
+TEST(MpiDistributedFmmRpy, OverlappedExchangeWithinToleranceOfDirect) {
+  // The Laplace FMM's serial FMM split to run during the exchanges: the same contract.
+  const Particles uniform = uniform_particles(600, 30.0, 1.0, 1.0, 61), clustered = clustered_particles(300, 60, 62);
+  for (double eps : kTolerances) {
+    expect_contract(uniform, Split::even, eps, "uniform, overlapped", true);
+    expect_contract(clustered, Split::last_only, eps, "clustered, overlapped", true);
   }
 }
 

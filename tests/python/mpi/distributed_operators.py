@@ -109,11 +109,12 @@ def test_unsupported_sampler_raises_on_every_rank(kind: str) -> None:
     assert all(m == messages[0] for m in messages)
 
 
+@pytest.mark.parametrize("overlap_exchange", [False, True])
 @pytest.mark.parametrize("tolerance", [1e-3, 1e-6])
-def test_fmm_within_tolerance(tolerance: float) -> None:
+def test_fmm_within_tolerance(tolerance: float, overlap_exchange: bool) -> None:
     x, a, f = system(3000, seed=13, radii=True)
     part = share(len(x))
-    op = rpyfmm.mpi.DistributedFmmRpy(COMM, tolerance=tolerance)
+    op = rpyfmm.mpi.DistributedFmmRpy(COMM, tolerance=tolerance, overlap_exchange=overlap_exchange)
     op.set_positions(x[part], a[part])
     u = gathered(op.apply(f[part]))
     exact = rpyfmm.DirectRpy()

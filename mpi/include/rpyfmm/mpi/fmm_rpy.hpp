@@ -50,6 +50,9 @@ struct DistributedFmmRpyOptions {
   /// DistributedFmmOptions::separation and cell_capacity of the Laplace FMM (0 = automatic).
   double separation = 0.0;
   std::size_t cell_capacity = 0;
+  /// DistributedFmmOptions::overlap_exchange of the Laplace FMM: its serial FMM split to run during
+  /// the exchanges of the essential charges (docs/mpi.md).
+  bool overlap_exchange = false;
 };
 
 class DistributedFmmRpy {
