@@ -103,6 +103,7 @@ void MobilityOperator::store_positions(std::span<const double> positions, std::s
   require(!positions.empty(), ErrorCode::invalid_input, where, "no particles (N = 0)");
   require_finite(positions, where, "positions", 3);
   positions_.assign(positions.begin(), positions.end());
+  positions_moved_ = false;
   if (geometry_.is_periodic()) {
     // Into [0, L) per axis; most positions of a time step are inside already and stay bitwise.
     const auto& L = geometry_.box();
@@ -127,6 +128,19 @@ void MobilityOperator::store_positions(std::span<const double> positions, std::s
     radii_.clear();
     throw;
   }
+}
+
+std::span<const double> MobilityOperator::positions() const {
+  if (positions_moved_) {
+    read_positions(positions_);
+    positions_moved_ = false;
+  }
+  return positions_;
+}
+
+void MobilityOperator::read_positions(std::vector<double>&) const {
+  fail(ErrorCode::not_supported, where_ + "::positions",
+       "the operator marked its positions moved but cannot read them back");
 }
 
 void MobilityOperator::require_positions(const char* where) const {

@@ -34,6 +34,7 @@
 #include <vector>
 
 #include "../sqrt/krylov_space.hpp"
+#include "../wrap_into_box.hpp"
 #include "cuda_device.cuh"
 #include "cuda_krylov.cuh"
 #include "cuda_real_space.cuh"
@@ -59,6 +60,17 @@ using namespace cuda_detail;
 using cuda_window::BinGrid;
 using cuda_window::kMaxSupport;
 using cuda_window::WindowParams;
+
+namespace {
+/// out = x (3N, input order) with every coordinate wrapped into [0, L) as
+/// MobilityOperator::set_positions wraps the host's (detail::wrap_into_box, bit for bit).
+__global__ void wrap_positions_kernel(int n, const double* x, double lx, double ly, double lz, double* out) {
+  const int i = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
+  if (i >= n) return;
+  const double box[3] = {lx, ly, lz};
+  for (int d = 0; d < 3; ++d) out[3 * i + d] = rpy::detail::wrap_into_box(x[3 * i + d], box[d]);
+}
+}  // namespace
 
 struct PseRpyCuda::Impl {
   PseOptions options;
@@ -99,6 +111,7 @@ struct PseRpyCuda::Impl {
   // bits of max |f| of the product being spread (cuda_window.cuh).
   DeviceArray<unsigned long long> accumulator, max_force_bits;
   DeviceArray<double> x;                // positions
+  DeviceArray<double> xin;              // set_positions_device: the positions in input order, wrapped
   DeviceArray<double> io;               // one vector in input order: the transfers
   DeviceArray<double> f, u, z;          // forces, velocities, the real-space noise
   DeviceArray<double> noise;            // apply_with_noise: M_r^{1/2} z1
@@ -285,9 +298,9 @@ struct PseRpyCuda::Impl {
           "shared memory of the bin kernels");
   }
 
-  /// The slot order and cell ranges of the device cell list for the positions in `io` (input
+  /// The slot order and cell ranges of the device cell list for the positions at xin_dev (input
   /// order, wrapped into the box); false (nothing built) where a box side holds < 3 cells.
-  bool build_device_cells() {
+  bool build_device_cells(const double* xin_dev) {
     std::size_t total = 1;
     for (int d = 0; d < 3; ++d) {
       const int nc = static_cast<int>(box[d] / params.r_cut);  // cells of edge >= r_cut
@@ -310,7 +323,7 @@ struct PseRpyCuda::Impl {
     keys_sorted.resize(np);
     values_in.resize(np);
     order.resize(np);
-    cell_key_kernel<<<blocks_for(np, kThreads), kThreads>>>(static_cast<int>(np), io.get(), cell_grid, keys_in.get(),
+    cell_key_kernel<<<blocks_for(np, kThreads), kThreads>>>(static_cast<int>(np), xin_dev, cell_grid, keys_in.get(),
                                                             values_in.get());
     check_kernel("cell key kernel");
     radix_sort(keys_in, keys_sorted, values_in, order, key_bits(total));
@@ -706,18 +719,70 @@ struct PseRpyCuda::Impl {
       events.begin("transfer");
       upload_input(positions.data());
       events.end();
-      events.begin("positions_device");
-      cells_active = build_device_cells();
-      if (cells_active) gather(io.get(), x);  // positions in slot order
-      events.end();
+      cells_active = device_cells_of(io.get());
     }
     if (!cells_active) upload_host_lists(positions);
+    finish_placement(t0);
+  }
+
+  /// place_particles for the same N at positions in device memory (input order, any image):
+  /// wrapped into xin on the device; where the device cell list is off or does not fit (< 3
+  /// cells a side), the wrapped positions are copied to the host for the CPU's lists.
+  void place_particles_device(const double* positions_device) {
+    const auto t0 = std::chrono::steady_clock::now();
+    xin.resize(n3());
+    events.begin("positions_device");
+    wrap_positions_kernel<<<blocks_for(np, kThreads), kThreads>>>(static_cast<int>(np), positions_device, box[0],
+                                                                  box[1], box[2], xin.get());
+    check_kernel("wrap kernel");
+    events.end();
+    cells_active = cuda_options.device_cell_list && device_cells_of(xin.get());
+    if (!cells_active) {
+      std::vector<double> host(n3());
+      xin.download(host.data(), n3());
+      upload_host_lists(host);
+    }
+    finish_placement(t0);
+  }
+
+  /// The device cell list of the positions at xin_dev (input order, wrapped) and the positions
+  /// in its slot order; false (nothing built) where it does not fit.
+  bool device_cells_of(const double* xin_dev) {
+    events.begin("positions_device");
+    const bool built = build_device_cells(xin_dev);
+    if (built) gather(xin_dev, x);  // positions in slot order
+    events.end();
+    return built;
+  }
+
+  /// The window bins of the placed particles, then the placement's times.
+  void finish_placement(std::chrono::steady_clock::time_point t0) {
     events.begin("positions_device");
     build_bins();
     events.end();
     check(cudaDeviceSynchronize(), "set_positions");
     times["positions_real"] += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     events.collect(times);
+  }
+
+  /// u (slot order) = M f + noise_scale M^{1/2} z for f already in slot order: the split sampler's
+  /// real-space noise by Lanczos, then one wave pass for the drift and the wave noise ([PSE]
+  /// Sec. III), the noise keyed by (seed, step). apply_with_noise and apply_with_noise_device.
+  SqrtReport noisy_product(double noise_scale, std::uint64_t seed, std::uint64_t step) {
+    SqrtReport rep;
+    rep.method = SqrtMethod::split;
+    if (noise_scale > 0.0) {
+      draw_real_noise(seed, step, z);
+      rep = real_sqrt(z, noise);
+      rep.method = SqrtMethod::split;
+    }
+    u.resize(n3());
+    real_space(f.get(), u.get());
+    const detail::NoiseKey key{seed, step};
+    wave(f.get(), u.get(), true, noise_scale > 0.0 ? &key : nullptr, noise_scale);
+    if (noise_scale > 0.0) device_axpy(n3(), noise_scale, noise.get(), u.get());
+    rep.operator_applications += 1;
+    return rep;
   }
 
   /// The CPU's slot order and full neighbour lists, uploaded, and the positions in slot order.
@@ -939,6 +1004,13 @@ SqrtReport PseRpyCuda::sample(std::uint64_t seed, std::uint64_t step, std::span<
   return rep;
 }
 
+namespace {
+void require_noise_scale(double noise_scale, const char* where) {
+  require(std::isfinite(noise_scale) && noise_scale >= 0.0, ErrorCode::invalid_argument, where,
+          "noise_scale must be finite and >= 0");
+}
+}  // namespace
+
 SqrtReport PseRpyCuda::apply_with_noise(std::span<const double> forces, double noise_scale, std::uint64_t seed,
                                         std::uint64_t step, std::span<double> velocities) const {
   require_positions("apply_with_noise");
@@ -946,26 +1018,41 @@ SqrtReport PseRpyCuda::apply_with_noise(std::span<const double> forces, double n
   require_size(forces, 3 * size(), where, "forces");
   require_size(std::span<const double>(velocities.data(), velocities.size()), 3 * size(), where, "velocities");
   require_finite(forces, where, "forces", 3);
-  require(std::isfinite(noise_scale) && noise_scale >= 0.0, ErrorCode::invalid_argument, where,
-          "noise_scale must be finite and >= 0");
+  require_noise_scale(noise_scale, where);
   auto& im = *impl_;
-  const std::size_t n3 = 3 * size();
-  SqrtReport rep;
-  rep.method = SqrtMethod::split;
-  if (noise_scale > 0.0) {
-    im.draw_real_noise(seed, step, im.z);
-    rep = im.real_sqrt(im.z, im.noise);
-    rep.method = SqrtMethod::split;
-  }
-  im.upload_to_slots(forces.data(), im.f);
-  im.u.resize(n3);
-  im.real_space(im.f.get(), im.u.get());
-  const detail::NoiseKey key{seed, step};
-  im.wave(im.f.get(), im.u.get(), true, noise_scale > 0.0 ? &key : nullptr, noise_scale);
-  if (noise_scale > 0.0) device_axpy(n3, noise_scale, im.noise.get(), im.u.get());
+  im.upload_to_slots(forces.data(), im.f);  // read by the product only: the noise may be drawn after it
+  const SqrtReport rep = im.noisy_product(noise_scale, seed, step);
   im.download_from_slots(im.u, velocities.data());
-  rep.operator_applications += 1;
   return rep;
+}
+
+SqrtReport PseRpyCuda::apply_with_noise_device(const double* forces_device, double noise_scale, std::uint64_t seed,
+                                               std::uint64_t step, double* velocities_device) const {
+  require_positions("apply_with_noise_device");
+  const char* where = "PseRpyCuda::apply_with_noise_device";
+  require(forces_device != nullptr && velocities_device != nullptr, ErrorCode::invalid_argument, where,
+          "null device pointer");
+  require_noise_scale(noise_scale, where);
+  auto& im = *impl_;
+  im.gather(forces_device, im.f);
+  const SqrtReport rep = im.noisy_product(noise_scale, seed, step);
+  im.scatter(im.u, velocities_device);
+  check(cudaDeviceSynchronize(), "apply_with_noise_device");
+  im.events.collect(im.times);
+  return rep;
+}
+
+void PseRpyCuda::set_positions_device(const double* positions_device) {
+  require_positions("set_positions_device");
+  require(positions_device != nullptr, ErrorCode::invalid_argument, "PseRpyCuda::set_positions_device",
+          "null device pointer");
+  impl_->place_particles_device(positions_device);
+  mark_positions_moved();
+}
+
+void PseRpyCuda::read_positions(std::vector<double>& out) const {
+  out.resize(impl_->n3());
+  impl_->xin.download(out.data(), out.size());
 }
 
 }  // namespace rpyfmm::rpy::pse

@@ -38,6 +38,15 @@ SqrtReport PseRpyCuda::apply_with_noise(std::span<const double>, double, std::ui
   fail(ErrorCode::not_supported, "PseRpyCuda::apply_with_noise", "no CUDA support in this build");
 }
 
+SqrtReport PseRpyCuda::apply_with_noise_device(const double*, double, std::uint64_t, std::uint64_t, double*) const {
+  fail(ErrorCode::not_supported, "PseRpyCuda::apply_with_noise_device", "no CUDA support in this build");
+}
+void PseRpyCuda::set_positions_device(const double*) {
+  fail(ErrorCode::not_supported, "PseRpyCuda::set_positions_device", "no CUDA support in this build");
+}
+void PseRpyCuda::read_positions(std::vector<double>&) const {
+  fail(ErrorCode::not_supported, "PseRpyCuda::positions", "no CUDA support in this build");
+}
 void PseRpyCuda::apply_device(const double*, double*) const {
   fail(ErrorCode::not_supported, "PseRpyCuda::apply_device", "no CUDA support in this build");
 }

@@ -35,7 +35,10 @@ class MobilityOperator {
   [[nodiscard]] double viscosity() const { return viscosity_; }
   /// Number of particles N (0 before set_positions).
   [[nodiscard]] std::size_t size() const { return radii_.size(); }
-  [[nodiscard]] std::span<const double> positions() const { return positions_; }
+  /// The positions of the last set_positions, wrapped into the box in a periodic geometry. After
+  /// an operator moved its particles on a device (PseRpyCuda::set_positions_device) they are copied
+  /// from there on the first read.
+  [[nodiscard]] std::span<const double> positions() const;
   [[nodiscard]] std::span<const double> radii() const { return radii_; }
   /// True when every particle has the same radius (the solvers' fast path).
   [[nodiscard]] bool equal_radii() const { return equal_radii_; }
@@ -137,6 +140,14 @@ class MobilityOperator {
   /// Throws unless N > 0 (called before every apply).
   void require_positions(const char* where) const;
 
+  /// The operator placed the same particles at new positions held elsewhere (a device): the host
+  /// copy is out of date until positions() asks read_positions() for it.
+  void mark_positions_moved() { positions_moved_ = true; }
+  /// Writes the current positions (3N, wrapped into the box) into `out`. Called by positions()
+  /// after mark_positions_moved(); the default throws (no operator moves its particles but
+  /// through set_positions unless it overrides this).
+  virtual void read_positions(std::vector<double>& out) const;
+
  private:
   /// S M S with rotation as a 6N operator on [x_t; x_r] (apply_sqrt_rotation's scaling).
   [[nodiscard]] LinearOperatorView scaled_grand_operator() const;
@@ -145,7 +156,8 @@ class MobilityOperator {
   Geometry geometry_;
   double viscosity_;
   std::string where_;
-  std::vector<double> positions_;
+  mutable std::vector<double> positions_;  // refreshed by positions() after mark_positions_moved()
+  mutable bool positions_moved_ = false;
   std::vector<double> radii_;
   bool equal_radii_ = true;
 };

@@ -115,6 +115,21 @@ class PseRpyCuda final : public PseOperator {
   void apply_device(const double* forces_device, double* velocities_device) const;
   /// w = M^{1/2} z by the split sampler keyed by (seed, step), as sample(), w in device memory.
   SqrtReport sample_device(std::uint64_t seed, std::uint64_t step, double* w_device) const;
+  /// U = M F + noise_scale M^{1/2} z with F and U in device memory (3N doubles each, input
+  /// order), as apply_with_noise: the same operations on the same slot-order vectors, so for the
+  /// same forces, positions and key the same numbers. The pointers are not checked beyond null,
+  /// nor the forces for finiteness. For BD on the device (docs/gpu-bd.md):
+  /// noise_scale = sqrt(2 kT dt) / dt.
+  SqrtReport apply_with_noise_device(const double* forces_device, double noise_scale, std::uint64_t seed,
+                                     std::uint64_t step, double* velocities_device) const;
+  /// Moves the particles of the last set_positions (same N, same radius, hence the same plan) to
+  /// positions in device memory (3N doubles, input order, any periodic image): copied and wrapped
+  /// into the box on the device as set_positions wraps them on the host, then the device cell
+  /// list and the window bins rebuilt. Where the device cell list is off or does not fit (fewer
+  /// than 3 cells along a box side) the wrapped positions are copied to the host for the CPU's
+  /// neighbour lists, as set_positions builds them. positions() then copies them from the device
+  /// on its first read. Throws before any set_positions.
+  void set_positions_device(const double* positions_device);
   /// [U; W] = M [F; T] with all four in device memory (3N doubles each, input order), as
   /// apply_device. The pointers are not checked beyond null.
   void apply_device(const double* forces_device, const double* torques_device, double* velocities_device,
@@ -133,6 +148,7 @@ class PseRpyCuda final : public PseOperator {
 
  protected:
   void on_positions_set() override;
+  void read_positions(std::vector<double>& out) const override;
   void do_apply(const double* forces, double* velocities, std::size_t nrhs) const override;
   SqrtReport do_apply_sqrt(std::span<const double> z, std::span<double> w, std::size_t nrhs,
                            const SqrtOptions& options) const override;
