@@ -3,7 +3,7 @@
 # with gpu-kit/ carried (scripts/device-kit.sh builds it):
 #   1. the CUDA tests (test_pse PseCuda.*; RPYFMM_EXPECT_CUDA: no usable device is a failure);
 #      the BD device engine's tests (test_bd_device DeviceEngine.*, DeviceRestart.*, DeviceRun.*,
-#      DeviceIntegrator.*:
+#      DeviceIntegrator.*, DevicePse.*:
 #      against the host launcher bit for bit, docs/gpu-bd.md), then compute-sanitizer memcheck and
 #      racecheck on two short ones where compute-sanitizer is installed (errors fail the suite;
 #      each tool within 60 s);
@@ -43,7 +43,7 @@ RPYFMM_CUDA_SYNC=1 timeout 210 build/release/tests/pse/test_pse --gtest_filter='
 [ "${PIPESTATUS[0]}" -eq 0 ] || status=1
 grep -q "SKIPPED \]" "$out/test_pse_cuda.txt" && { echo "device-suite: a CUDA test was skipped"; status=1; }
 # The BD device engine's tests that need a device (those of a machine without one skip here).
-bd_device_filter='DeviceEngine.*:DeviceRestart.*:DeviceRun.*:DeviceIntegrator.*-DeviceEngine.RefusedWithoutDevice:DeviceRun.WithoutADevice*:DeviceIntegrator.CudaWithoutADevice*'
+bd_device_filter='DeviceEngine.*:DeviceRestart.*:DeviceRun.*:DeviceIntegrator.*:DevicePse.*-DeviceEngine.RefusedWithoutDevice:DeviceRun.WithoutADevice*:DeviceIntegrator.CudaWithoutADevice*'
 RPYFMM_EXPECT_CUDA=1 timeout 90 build/release/tests/bd/test_bd_device --gtest_filter="$bd_device_filter" 2>&1 |
   tee "$out/test_bd_device.txt" | grep -E "^\[  (FAILED|PASSED|SKIPPED) |Failure|error" | head -40
 [ "${PIPESTATUS[0]}" -eq 0 ] || status=1

@@ -1,6 +1,6 @@
 // rpyfmm::bd — the Integrator on the device engine (IntegratorOptions::engine; docs/gpu-bd.md):
-// its start-up, its step with the report and totals of the CPU engine's free-draining step, and
-// the accessors that read whichever engine holds the state.
+// its start-up, its step with the report and totals of the CPU engine's free-draining or PSE
+// step, and the accessors that read whichever engine holds the state.
 #include <string>
 #include <utility>
 
@@ -8,13 +8,15 @@
 #include "rpyfmm/bd/device/device_support.hpp"
 #include "rpyfmm/bd/integrator.hpp"
 #include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/rpy/pse/pse_operator.hpp"
 
 namespace rpyfmm::bd {
 
 void Integrator::start_device_engine(const NeighbourOptions& neighbours, bool orientations, bool velocities) {
   const char* where = "Integrator";
-  const device::EngineOptions engine =
-      device::engine_options_for(options_, *mobility_, neighbours, forces_.global_force());
+  device::EngineOptions engine = device::engine_options_for(options_, *mobility_, neighbours, forces_.global_force());
+  // Accepted above: "none", or a periodic PSE operator, which the engine's steps move.
+  if (mobility_->name() != "none") engine.pse = dynamic_cast<rpy::pse::PseOperator*>(mobility_.get());
   device::require_device_forces(forces_);
   require(!orientations, ErrorCode::invalid_argument, where, "orientations given but rotation is off");
   require(!velocities, ErrorCode::invalid_argument, where, "velocities given but no particle is inertial");
@@ -30,9 +32,16 @@ const StepReport& Integrator::device_step() {
   rep.neighbour_rebuild = device_->rebuilds() != rebuilds;
   rep.potential_energy = device_->potential_energy();
   rep.mobility_products = 1;  // mu F and sqrt(mu) z in one pass, as the CPU engine counts "none"
+  if (const auto products = device_->mobility_report()) {  // PSE: as drift_and_noise_products reports it
+    rep.sqrt_iterations = products->sqrt.iterations;
+    rep.preconditioner_blocks = products->sqrt.preconditioner_blocks;
+    rep.mobility_products = products->mobility_products;
+    rep.shared_first_product = products->shared_first_product;
+  }
   step_ = device_->step_count();
   ++totals_.steps;
-  totals_.mobility_products += 1;
+  totals_.sqrt_iterations += static_cast<std::uint64_t>(rep.sqrt_iterations);
+  totals_.mobility_products += static_cast<std::uint64_t>(rep.mobility_products);
   for (const auto& [part, seconds] : device_->stage_times()) totals_.seconds[part] = seconds;
   report_ = rep;
   return report_;

@@ -167,16 +167,16 @@ bd::DeviceLauncher launcher_from(const std::string& name) {
   fail(ErrorCode::invalid_argument, "Simulation", "unknown device_launcher '" + name + "' (expected cuda or host)");
 }
 
-/// The engine `spec` asks for (device 'cuda' with mobility 'none': the device engine, run by
-/// `launcher`; docs/gpu-bd.md). A Python force is refused there: the device step has no host
+/// The engine `spec` asks for (device 'cuda' with mobility 'none', or 'pse' in a periodic box: the
+/// device engine, run by `launcher`; docs/gpu-bd.md). A Python force is refused there: the device step has no host
 /// round trip to call it.
 bd::StepEngine simulation_engine(const rpy::MobilitySpec& spec, const std::string& launcher, nb::handle force) {
   const bd::StepEngine engine = bd::step_engine_for(spec, launcher_from(launcher));
   require(force.is_none() || engine == bd::StepEngine::cpu, ErrorCode::not_supported, "Simulation",
           "a Python force callback (force=...) cannot run on the device engine (device 'cuda' with mobility "
-          "'none' runs the whole step on the GPU, without a host round trip); give the forces as pair potentials, "
-          "bonds or external forces (pair=, external_force=; a config's [[pair]], [bonds], [external]), or use "
-          "device='cpu'");
+          "'none' or 'pse' runs the whole step on the GPU, without a host round trip); give the forces as pair "
+          "potentials, bonds or external forces (pair=, external_force=; a config's [[pair]], [bonds], "
+          "[external]), or use device='cpu'");
   return engine;
 }
 
@@ -497,8 +497,8 @@ void bind_simulation(nb::module_& m) {
          "array to add (energy/length; both arrays are copies it may keep);\n"
          "pair: None, 'wca', 'lj36_18', 'soft' or a dict of PairPotential fields;\n"
          "fmm_crossover: particles from which 'auto' uses fmm (0 = default_fmm_crossover(tolerance));\n"
-         "device: 'cpu', or 'cuda': with mobility 'none' the device engine runs the whole step on the GPU\n"
-         "(docs/gpu-bd.md; no force callable there), with 'pse' the PSE operator runs on the GPU;\n"
+         "device: 'cpu', or 'cuda': with mobility 'none', or 'pse' in a periodic box, the device engine runs\n"
+         "the whole step on the GPU (docs/gpu-bd.md; no force callable there);\n"
          "device_launcher: what runs the device engine, 'cuda', or 'host': its stages on the CPU with the same\n"
          "results bit for bit (for machines without a GPU).")
       .def_static(

@@ -13,7 +13,7 @@ namespace rpyfmm::bd::device {
 
 class StageEvents {
  public:
-  static constexpr int kMarks = 4;
+  static constexpr int kMarks = 5;
 
   StageEvents() {
     for (auto& e : events_) cuda_check(cudaEventCreate(&e), "cudaEventCreate");

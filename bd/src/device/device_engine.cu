@@ -19,6 +19,8 @@
 #include "engine_tables.hpp"
 #include "rebuild_schedule.hpp"
 #include "rpyfmm/bd/device/device_engine.hpp"
+#include "rpyfmm/core/timer.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy_cuda.hpp"
 #include "step_status.hpp"
 
 namespace rpyfmm::bd::device {
@@ -72,6 +74,45 @@ struct DeviceEngine::Impl {
   DeviceBuffer<unsigned char> scratch;
   StageEvents marks;
   StageTimes times{{"neighbours", 0.0}, {"forces", 0.0}, {"update", 0.0}};
+  // PSE (EngineOptions::pse): the operator, its velocities (input order) and the last report.
+  rpy::pse::PseRpyCuda* pse = nullptr;
+  DeviceBuffer<double> u;
+  std::optional<DriftNoiseReport> products;
+
+  /// The PSE operator of `options` as PseRpyCuda, placed at the initial positions (its plan; the
+  /// steps move it on the device). Throws naming the operator when it is another one.
+  void attach_pse(const EngineOptions& options, std::span<const double> positions) {
+    auto* cuda = dynamic_cast<rpy::pse::PseRpyCuda*>(options.pse);
+    require(cuda != nullptr, ErrorCode::not_supported, "bd device engine",
+            "PSE on the CUDA engine runs the operator 'pse-cuda' (PseRpyCuda, its device entry points), not '" +
+                options.pse->name() + "'");
+    pse = cuda;
+    cuda->set_positions(positions, particle_radii(t));
+    u.reserve(3ull * n);
+    times["plan"] = 0.0;
+    times["drift"] = 0.0;
+  }
+
+  /// The CPU engine's steps 3 and 4 (Integrator::step) on device arrays: the operator moved to
+  /// the positions x, then U = M F + sqrt(2 kT dt) / dt M^{1/2} z in one pass (U = M F without
+  /// noise). Both calls synchronise: timed on the host clock.
+  void hydrodynamic_velocities() {
+    StopWatch watch;
+    pse->set_positions_device(x.get());
+    times["plan"] += watch.seconds();
+    watch.restart();
+    DriftNoiseReport r;
+    if (t.brownian) {
+      r.sqrt = pse->apply_with_noise_device(f.get(), t.noise / t.dt, t.seed, step, u.get());
+      r.mobility_products = r.sqrt.operator_applications;
+    } else {
+      pse->apply_device(f.get(), u.get());
+      r.mobility_products = 1;
+    }
+    r.seconds_drift = watch.seconds();
+    products = r;
+    times["drift"] += r.seconds_drift;
+  }
 
   void upload_tables() {
     type.upload(t.type);
@@ -201,18 +242,24 @@ struct DeviceEngine::Impl {
                                                ForceOutput{f.get(), energy.get(), &s->bad_pair, &s->bad_bond});
     check_launch("forces kernel");
     marks.mark(2);
+    if (pse != nullptr) hydrodynamic_velocities();
+    marks.mark(3);
     const MotionTables m{type.get(), mobility.get(), sqrt_mobility.get(), radius.get(), t.dt,
                          t.noise,    t.brownian,     t.max_displacement2, t.seed,       step};
     const MotionOutput out{x_next.get(), schedule.dynamic() ? reference.get() : nullptr, t.rebuild_limit2(),
                            &s->bad_move, &s->moved};
-    advance_kernel<<<blocks_for(n), kThreads>>>(n, slots, x.get(), f.get(), m, out);
+    if (pse != nullptr) {
+      advance_with_kernel<<<blocks_for(n), kThreads>>>(n, slots, x.get(), u.get(), m, out);
+    } else {
+      advance_kernel<<<blocks_for(n), kThreads>>>(n, slots, x.get(), f.get(), m, out);
+    }
     check_launch("advance kernel");
-    marks.mark(3);
+    marks.mark(4);
     StepStatus found;
     cuda_check(cudaMemcpy(&found, status.get(), sizeof found, cudaMemcpyDeviceToHost), "step status");
     times["neighbours"] += marks.seconds(0, 1);
     times["forces"] += marks.seconds(1, 2);
-    times["update"] += marks.seconds(2, 3);
+    times["update"] += marks.seconds(3, 4);
     throw_if_failed(found, step);
     swap(x, x_next);
     schedule.set_moved(found.moved != kNone);
@@ -247,6 +294,7 @@ DeviceEngine::DeviceEngine(const ForceField& forces, std::vector<std::uint32_t> 
   cuda_check(cudaMemset(d.f.get(), 0, 3ull * d.n * sizeof(double)), "cudaMemset");
   cuda_check(cudaMemset(d.energy.get(), 0, d.n * sizeof(double)), "cudaMemset");
   cuda_check(cudaMemset(d.offsets.get(), 0, (d.n + 1ull) * sizeof(std::uint64_t)), "cudaMemset");
+  if (options.pse != nullptr) d.attach_pse(options, positions);
 }
 
 DeviceEngine::~DeviceEngine() = default;
@@ -291,6 +339,10 @@ bool DeviceEngine::last_step_rebuilt() const {
 
 StageTimes DeviceEngine::stage_times() const {
   return impl_->times;
+}
+
+std::optional<DriftNoiseReport> DeviceEngine::mobility_report() const {
+  return impl_->products;
 }
 
 }  // namespace rpyfmm::bd::device

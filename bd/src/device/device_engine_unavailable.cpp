@@ -44,5 +44,8 @@ bool DeviceEngine::last_step_rebuilt() const {
 StageTimes DeviceEngine::stage_times() const {
   return {};
 }
+std::optional<DriftNoiseReport> DeviceEngine::mobility_report() const {
+  return std::nullopt;
+}
 
 }  // namespace rpyfmm::bd::device

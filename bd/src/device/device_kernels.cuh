@@ -121,4 +121,12 @@ __global__ void advance_kernel(std::uint32_t n, const std::uint32_t* order, cons
   if (k < n) advance_particle(particle_of(k, order), x, f, m, out);
 }
 
+/// The update from the velocities u of the step's PSE product (input order, as the engine keeps
+/// every per-particle array).
+__global__ void advance_with_kernel(std::uint32_t n, const std::uint32_t* order, const double* x, const double* u,
+                                    MotionTables m, MotionOutput out) {
+  const std::uint32_t k = thread_item();
+  if (k < n) advance_particle_with(particle_of(k, order), x, u, m, out);
+}
+
 }  // namespace rpyfmm::bd::device::kernels

@@ -55,6 +55,7 @@ class EngineStepper final : public Stepper {
   }
   [[nodiscard]] std::size_t rebuilds() const override { return engine_.rebuilds(); }
   [[nodiscard]] StageTimes stage_times() const override { return engine_.stage_times(); }
+  [[nodiscard]] std::optional<DriftNoiseReport> mobility_report() const override { return engine_.mobility_report(); }
 
  private:
   Engine engine_;

@@ -115,6 +115,12 @@ EngineTables make_engine_tables(const ForceField& forces, std::span<const std::u
   return t;
 }
 
+std::vector<double> particle_radii(const EngineTables& t) {
+  std::vector<double> radii(t.n);
+  for (std::size_t i = 0; i < t.n; ++i) radii[i] = t.radius[t.type[i]];
+  return radii;
+}
+
 void check_positions(std::span<const double> positions, std::size_t n) {
   require(positions.size() == 3 * n, ErrorCode::invalid_input, kWhere,
           "positions has " + std::to_string(positions.size()) + " entries, expected 3N = " + std::to_string(3 * n));

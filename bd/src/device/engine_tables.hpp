@@ -61,6 +61,9 @@ EngineTables make_engine_tables(const ForceField& forces, std::span<const std::u
 /// (rpyfmm/mpi/brownian_dynamics.hpp).
 EngineTables make_motion_tables(const ForceField& forces, const EngineOptions& options);
 
+/// Each particle's radius (its type's), as Integrator hands them to its mobility.
+std::vector<double> particle_radii(const EngineTables& t);
+
 /// Throws unless positions holds 3n finite values.
 void check_positions(std::span<const double> positions, std::size_t n);
 

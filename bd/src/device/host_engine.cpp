@@ -35,6 +35,26 @@ HostEngine::HostEngine(const ForceField& forces, std::vector<std::uint32_t> type
   x_next_.resize(x_.size());
   f_.assign(x_.size(), 0.0);
   energy_.assign(t_.n, 0.0);
+  if (options.pse != nullptr) {
+    pse_ = options.pse;
+    sqrt_ = options.sqrt;
+    radii_ = particle_radii(t_);
+    u_.assign(x_.size(), 0.0);
+    times_["plan"] = 0.0;
+    times_["drift"] = 0.0;
+  }
+}
+
+void HostEngine::hydrodynamic_velocities() {
+  // The CPU engine's steps 3 and 4 (Integrator::step): the plan at the step's positions, then
+  // U = M F + sqrt(2 kT dt) / dt M^{1/2} z in one pass (or U = M F without noise).
+  StopWatch watch;
+  pse_->set_positions(x_, radii_);
+  times_["plan"] += watch.seconds();
+  watch.restart();
+  products_ = t_.brownian ? fused_drift_and_noise(*pse_, f_, t_.noise / t_.dt, t_.seed, step_, u_, sqrt_)
+                          : drift_and_noise(*pse_, f_, {}, u_, {}, sqrt_);
+  times_["drift"] += watch.seconds();
 }
 
 CellGrid HostEngine::grid() const {
@@ -108,12 +128,17 @@ void HostEngine::step() {
   const ForceOutput fo{f_.data(), energy_.data(), &status.bad_pair, &status.bad_bond};
   for_each_item(t_.n, [&](std::uint32_t i) { particle_force(i, x_.data(), ft, rows, fo); });
   times_["forces"] += watch.seconds();
+  if (pse_ != nullptr) hydrodynamic_velocities();
   watch.restart();
   const MotionTables mt{t_.type.data(), t_.mobility.data(), t_.sqrt_mobility.data(), t_.radius.data(), t_.dt,
                         t_.noise,       t_.brownian,        t_.max_displacement2,    t_.seed,          step_};
   const MotionOutput mo{x_next_.data(), schedule_.dynamic() ? reference_.data() : nullptr, t_.rebuild_limit2(),
                         &status.bad_move, &status.moved};
-  for_each_item(t_.n, [&](std::uint32_t i) { advance_particle(i, x_.data(), f_.data(), mt, mo); });
+  if (pse_ != nullptr) {
+    for_each_item(t_.n, [&](std::uint32_t i) { advance_particle_with(i, x_.data(), u_.data(), mt, mo); });
+  } else {
+    for_each_item(t_.n, [&](std::uint32_t i) { advance_particle(i, x_.data(), f_.data(), mt, mo); });
+  }
   times_["update"] += watch.seconds();
   throw_if_failed(status, step_);
   x_.swap(x_next_);

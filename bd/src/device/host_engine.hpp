@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -22,7 +23,8 @@ class HostEngine {
   HostEngine(const ForceField& forces, std::vector<std::uint32_t> types, rpy::Geometry geometry,
              const EngineOptions& options, std::span<const double> positions, std::uint64_t first_step = 0);
 
-  /// One step: rebuild test -> lists when needed -> forces -> noise and update (DeviceEngine::step).
+  /// One step: rebuild test -> lists when needed -> forces -> (PSE: the product) -> noise and update
+  /// (DeviceEngine::step).
   void step();
   void run(std::uint64_t count);
   /// Builds the Verlet rows at the current positions (the schedule's builds; tests call it to
@@ -38,13 +40,14 @@ class HostEngine {
   [[nodiscard]] bool last_step_rebuilt() const { return rebuilt_; }
   /// Seconds per part over the steps taken (DeviceEngine::stage_times; wall clock).
   [[nodiscard]] const StageTimes& stage_times() const { return times_; }
+  /// The last step's PSE product (EngineOptions::pse); nullopt for free draining.
+  [[nodiscard]] std::optional<DriftNoiseReport> mobility_report() const { return products_; }
 
  private:
   [[nodiscard]] CellGrid grid() const;
   void rows_from_all_pairs();
   void rows_from_cells(const CellGrid& g);
-  void compute_forces();
-  void advance();
+  void hydrodynamic_velocities();
 
   EngineTables t_;
   std::vector<double> x_, x_next_, reference_, f_, energy_;
@@ -53,6 +56,12 @@ class HostEngine {
   RebuildSchedule schedule_;
   bool rebuilt_ = false;
   StageTimes times_{{"neighbours", 0.0}, {"forces", 0.0}, {"update", 0.0}};
+  // PSE (EngineOptions::pse): the operator, its sampler options, the radii, the velocities and
+  // the last product's report.
+  rpy::pse::PseOperator* pse_ = nullptr;
+  SqrtOptions sqrt_{};
+  std::vector<double> radii_, u_;
+  std::optional<DriftNoiseReport> products_;
 };
 
 }  // namespace rpyfmm::bd::device

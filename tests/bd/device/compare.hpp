@@ -1,5 +1,5 @@
 // Comparisons of the BD device stages with the CPU engine: rows, and arrays either bit for bit or
-// within a bound (docs/gpu-bd.md, bounds).
+// within a bound (docs/gpu-bd.md, bounds); the message of a refusal; a step refused by the guard.
 #pragma once
 
 #include <gtest/gtest.h>
@@ -7,10 +7,13 @@
 #include <cmath>
 #include <cstddef>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "rpyfmm/bd/device/device_engine.hpp"
+#include "rpyfmm/bd/integrator.hpp"
 #include "rpyfmm/bd/neighbour_list.hpp"
+#include "rpyfmm/core/error.hpp"
 
 namespace device_test {
 
@@ -53,6 +56,37 @@ inline void expect_close(std::span<const double> a, std::span<const double> b, s
                     << ", bound " << (bitwise ? 0.0 : bound[k]) << ")";
   }
   EXPECT_EQ(bad, 0u) << what;
+}
+
+/// A copy of an engine's array (compared with ==).
+inline std::vector<double> copy(std::span<const double> v) {
+  return {v.begin(), v.end()};
+}
+
+/// The not_supported refusal's message of make(), or "" when it is accepted.
+template <class Make>
+std::string refusal(Make&& make) {
+  try {
+    (void)make();
+  } catch (const rpyfmm::Error& e) {
+    EXPECT_EQ(e.code(), rpyfmm::ErrorCode::not_supported) << e.what();
+    return e.what();
+  }
+  return "";
+}
+
+/// The first step of `dev` refused by the blow-up guard (numerical_failure), the engine left at
+/// step 0 with the positions x, as on the CPU.
+inline void expect_blow_up_keeps_the_start(rpyfmm::bd::Integrator& dev, const std::vector<double>& x) {
+  try {
+    dev.step();
+    ADD_FAILURE() << "no blow-up";
+  } catch (const rpyfmm::Error& e) {
+    EXPECT_EQ(e.code(), rpyfmm::ErrorCode::numerical_failure) << e.what();
+  }
+  EXPECT_EQ(dev.step_count(), 0u);
+  EXPECT_EQ(dev.totals().steps, 0u);
+  EXPECT_EQ(copy(dev.positions()), x);
 }
 
 }  // namespace device_test

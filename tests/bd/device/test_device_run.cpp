@@ -214,6 +214,35 @@ TEST_F(DeviceRun, BlowUpSavesTheLastGoodStateAsTheCpuEngine) {
   EXPECT_EQ(a.trajectory_hash, b.trajectory_hash);
 }
 
+// With [mobility] method = "pse" the run on the host launcher writes the CPU engine's files, and a
+// restart from its checkpoint at step 30 ends with the files of the run straight through.
+TEST_F(DeviceRun, PseRunOnTheHostLauncherWritesTheCpuEnginesFiles) {
+  std::string text = kPeriodic;
+  text.replace(text.find("count = 400"), 11, "count = 100");
+  text.replace(text.find("box = [16.0, 16.0, 16.0]"), 24, "box = [12.0, 12.0, 12.0]");
+  text.replace(text.find("skin = 0.3"), 10, "skin = 0.1");  // rebuilds within the short run
+  std::string outputs = kOutputs;
+  outputs.replace(outputs.find("method = \"none\""), 15,
+                  "method = \"pse\"\ntolerance = 1e-4\nwave_precision = \"double\"");
+  const RunConfig cpu_config = parse_config(text + outputs, "cpu run");
+  const RunConfig device_config = parse_config(text + outputs + "device = \"cuda\"\n", "device run");
+  const fs::path cpu = dir_ / "cpu", dev = dir_ / "device", split = dir_ / "split";
+  const RunSummary a = run(cpu_config, cpu, 60);
+  const RunSummary b = run_bd(device_config, host_launcher(dev, 60));
+  EXPECT_EQ(a.engine, "cpu");
+  EXPECT_EQ(b.engine, "host launcher");
+  EXPECT_EQ(b.mobility, a.mobility);
+  EXPECT_EQ(b.neighbour_rebuilds, a.neighbour_rebuilds);
+  EXPECT_GE(a.neighbour_rebuilds, 2u) << "the run must rebuild its lists";
+  expect_same_files(dev, cpu, true);
+  (void)run_bd(device_config, host_launcher(split, 30));
+  RunOptions resume;
+  resume.device_launcher = DeviceLauncher::host;
+  const RunSummary r = restart_bd(split / "checkpoint.bin", resume);
+  EXPECT_EQ(r.last_step, 60u);
+  expect_same_files(split, cpu, false);
+}
+
 // Each feature the device engine lacks stops the run at start-up, naming it, before any file.
 TEST_F(DeviceRun, RefusesWhatTheDeviceEngineLacksByName) {
   const std::string langevin = R"(

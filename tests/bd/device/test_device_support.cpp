@@ -1,6 +1,6 @@
 // Which Integrator runs the device engine takes (rpyfmm/bd/device/device_support.hpp): free
-// draining is accepted and its options carried over; every other feature is refused with
-// not_supported and a message naming it.
+// draining and periodic PSE with its split sampler are accepted and their options carried over;
+// every other feature is refused with not_supported and a message naming it.
 #include <gtest/gtest.h>
 
 #include <string>
@@ -9,6 +9,8 @@
 #include "rpyfmm/core/error.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/free_draining.hpp"
+#include "rpyfmm/rpy/pse/open_pse_rpy.hpp"
+#include "rpyfmm/rpy/pse/pse_rpy.hpp"
 
 using rpyfmm::bd::IntegratorOptions;
 using rpyfmm::bd::device::engine_options_for;
@@ -67,4 +69,21 @@ TEST(DeviceSupport, OtherFeaturesRefusedByName) {
   split.keep_split_displacements = true;
   EXPECT_NE(refusal(split, none).find("split"), std::string::npos);
   EXPECT_THROW(engine_options_for(rotation, none, {}), rpyfmm::Error);
+}
+
+TEST(DeviceSupport, PeriodicPseAcceptedWithItsSampler) {
+  IntegratorOptions o;
+  o.dt = 1e-3;
+  o.sqrt.method = rpyfmm::rpy::SqrtMethod::split;
+  const rpyfmm::rpy::pse::PseRpy pse(rpyfmm::rpy::Geometry::periodic(10.0), 0.9);
+  EXPECT_EQ(refusal(o, pse), "");
+  const auto e = engine_options_for(o, pse, {});
+  EXPECT_EQ(e.sqrt.method, rpyfmm::rpy::SqrtMethod::split);
+  EXPECT_EQ(e.viscosity, 0.9);
+  EXPECT_EQ(e.pse, nullptr) << "the caller hands the engine the operator it moves";
+  IntegratorOptions chebyshev = o;
+  chebyshev.sqrt.method = rpyfmm::rpy::SqrtMethod::chebyshev;
+  EXPECT_NE(refusal(chebyshev, pse).find("chebyshev"), std::string::npos);
+  const rpyfmm::rpy::pse::OpenPseRpy open(0.9);
+  EXPECT_NE(refusal(o, open).find("'pse-open'"), std::string::npos);
 }

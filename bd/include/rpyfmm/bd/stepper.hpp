@@ -6,8 +6,10 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
+#include "rpyfmm/bd/sampling.hpp"
 #include "rpyfmm/core/timer.hpp"
 
 namespace rpyfmm::bd {
@@ -29,8 +31,12 @@ class Stepper {
   /// Integrator::last_report() before a step).
   [[nodiscard]] virtual double potential_energy() const = 0;
   [[nodiscard]] virtual std::size_t rebuilds() const = 0;
-  /// Seconds per part: "neighbours", "forces", "update".
+  /// Seconds per part: "neighbours", "forces", "update" (with hydrodynamic interactions also
+  /// "plan" and "drift").
   [[nodiscard]] virtual StageTimes stage_times() const = 0;
+  /// The last step's mobility product (square-root iterations, products) where the engine runs
+  /// hydrodynamic interactions; nullopt for free draining (one pass of mu F and sqrt(mu) z).
+  [[nodiscard]] virtual std::optional<DriftNoiseReport> mobility_report() const { return std::nullopt; }
 };
 
 }  // namespace rpyfmm::bd

@@ -6,21 +6,28 @@
 // engine (Integrator with the free-draining mobility "none"). Positions stay on the device; they
 // come to the host on request.
 //
-// Not covered: hydrodynamic interactions (PSE), rotation, inertial / SAC particles and force
-// callbacks. Library users reach the engine through Integrator (IntegratorOptions::engine), which
-// refuses those by name (docs/gpu-bd.md).
+// With EngineOptions::pse the mobility stage is PSE's (periodic hydrodynamic interactions, Fiore,
+// Balboa Usabiaga, Donev & Swan (2017), J. Chem. Phys. 146, 124116) through the device entry
+// points of rpy::pse::PseRpyCuda, the positions and forces staying on the device.
+//
+// Not covered: rotation, inertial / SAC particles and force callbacks. Library users reach the
+// engine through Integrator (IntegratorOptions::engine), which refuses those by name
+// (docs/gpu-bd.md).
 #pragma once
 
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <vector>
 
 #include "rpyfmm/bd/force_field.hpp"
 #include "rpyfmm/bd/neighbour_list.hpp"
+#include "rpyfmm/bd/sampling.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/rpy/geometry.hpp"
+#include "rpyfmm/rpy/pse/pse_operator.hpp"
 
 namespace rpyfmm::bd::device {
 
@@ -35,6 +42,13 @@ struct EngineOptions {
   double viscosity = 1.0;         ///< eta of mu = 1 / (6 pi eta a) (> 0)
   std::array<double, 3> global_force{0.0, 0.0, 0.0};
   NeighbourOptions neighbours{};
+  /// PSE hydrodynamic interactions (docs/gpu-bd.md, "PSE"): the operator of the step's product
+  /// U = M F + sqrt(2 kT dt) / dt M^{1/2} z and dx = U dt, as the CPU engine's fused step. Not
+  /// owned (it outlives the engine). Null: free draining with `viscosity`. HostEngine uses its
+  /// host products (PseRpy); DeviceEngine needs rpy::pse::PseRpyCuda (its device entry points).
+  rpy::pse::PseOperator* pse = nullptr;
+  /// The sampler's options with pse: automatic or split (PSE's one-pass product).
+  SqrtOptions sqrt{};
 };
 
 /// Verlet rows copied to the host: row i is indices[offsets[i], offsets[i + 1]), sorted.
@@ -80,6 +94,9 @@ class DeviceEngine {
   /// "forces", "update" (noise, update, guard and the next rebuild test), the parts of
   /// Table 2 of Tran et al. (2015) and the keys of IntegratorTotals::seconds.
   [[nodiscard]] StageTimes stage_times() const;
+  /// The mobility product of the last step with EngineOptions::pse (as the CPU engine reports
+  /// it); nullopt for free draining or before the first step.
+  [[nodiscard]] std::optional<DriftNoiseReport> mobility_report() const;
 
  private:
   struct Impl;

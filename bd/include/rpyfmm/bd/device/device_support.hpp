@@ -1,6 +1,7 @@
 // rpyfmm::bd::device — which CPU engine runs the device engine can take over (docs/gpu-bd.md):
-// free draining (the mobility "none") without rotation, inertial (Langevin) particles, the SAC
-// scheme, split displacements or force callbacks; and the device engine's options for such a run.
+// free draining (the mobility "none") or PSE in a periodic box ("pse", "pse-cuda"; with the split
+// sampler), without rotation, inertial (Langevin) particles, the SAC scheme, split displacements
+// or force callbacks; and the device engine's options for such a run.
 #pragma once
 
 #include <array>
@@ -22,7 +23,8 @@ void require_device_forces(const ForceField& forces);
 
 /// The device engine's options for the Integrator run given by `options`, `mobility` (its
 /// viscosity), `neighbours` and the force field's global force (ForceField::set_global_force),
-/// after require_device_support.
+/// after require_device_support. With a PSE mobility the caller sets EngineOptions::pse to it
+/// (the engine's steps move that operator: it is taken by non-const pointer there).
 EngineOptions engine_options_for(const IntegratorOptions& options, const rpy::MobilityOperator& mobility,
                                  const NeighbourOptions& neighbours, const std::array<double, 3>& global_force = {});
 
