@@ -168,8 +168,8 @@ bd::DeviceLauncher launcher_from(const std::string& name) {
 }
 
 /// The engine `spec` asks for (device 'cuda' with mobility 'none', or 'pse' in a periodic box: the
-/// device engine, run by `launcher`; docs/gpu-bd.md). A Python force is refused there: the device step has no host
-/// round trip to call it.
+/// device engine, run by `launcher`; docs/gpu-bd.md). A Python force is refused there: the device
+/// step has no host round trip to call it.
 bd::StepEngine simulation_engine(const rpy::MobilitySpec& spec, const std::string& launcher, nb::handle force) {
   const bd::StepEngine engine = bd::step_engine_for(spec, launcher_from(launcher));
   require(force.is_none() || engine == bd::StepEngine::cpu, ErrorCode::not_supported, "Simulation",
