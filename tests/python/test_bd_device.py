@@ -1,5 +1,5 @@
 """The device BD engine behind Simulation (docs/gpu-bd.md): device='cuda' with mobility 'none'
-selects it, device_launcher='host' runs its stages on the CPU, where its trajectory is the CPU
+(or 'pse' in a periodic box) selects it, device_launcher='host' runs its stages on the CPU, where its trajectory is the CPU
 engine's bit for bit (x86-64 builds, which do not fuse multiply-adds); from_config takes it from
 [mobility] device = "cuda"; a Python force callback is refused there by name; and without a
 usable GPU device='cuda' raises, saying why."""
@@ -62,6 +62,18 @@ def test_host_launcher_steps_as_the_cpu_engine():
     totals = dev.totals()
     assert totals["steps"] == 65 and totals["mobility_products"] == cpu.totals()["mobility_products"]
     assert totals["seconds"]["forces"] > 0 and totals["seconds"]["sqrt"] == 0
+
+
+def test_pse_on_the_host_launcher_steps_as_the_cpu_engine():
+    """mobility 'pse' in a periodic box: the device engine's PSE stage (docs/gpu-bd.md, "PSE on
+    the device") on the host launcher makes the CPU engine's PSE calls, bit for bit."""
+    args = dict(mobility="pse", box=5 * 2.4, tolerance=1e-4, external_force=[0.0, 0.0, 0.0])
+    dev = simulation(device="cuda", device_launcher="host", **args)
+    cpu = simulation(**args)
+    assert dev.engine == "host launcher" and cpu.engine == "cpu" and dev.mobility == "pse"
+    expect_same_steps(dev, cpu, 25)
+    assert dev.last_report.sqrt_iterations == cpu.last_report.sqrt_iterations > 0
+    assert dev.totals()["seconds"]["drift"] > 0
 
 
 DEVICE_CONFIG = """
