@@ -78,8 +78,11 @@ void combine_far_field(const std::vector<double>& results, std::size_t n, std::s
         oseen += rxF[1 + c];                                                       // - E_c(x.F)
         const double dipole = minus_grad_div(r, 0, n, i, c, form);                 // sum_m T_cm(F^m)
         double value = c1 * oseen + c2 * ai2 * dipole;
-        // a_j^2 = a_i^2, or the a^2 F group
-        value += c2 * (equal ? ai2 * dipole : minus_grad_div(r, 4, n, i, c, form));
+        if (equal) {
+          value += c2 * ai2 * dipole;  // a_j^2 = a_i^2
+        } else {
+          value += c2 * minus_grad_div(r, 4, n, i, c, form);  // sum_m T_cm(a^2 F^m)
+        }
         u[3 * i + c] = value;
       }
     }
