@@ -28,12 +28,15 @@ Evaluation::Evaluation(const LaplaceFmm::Plan& plan_, std::size_t nd_, std::span
       lp(boxes.size() * stride),
       has_local(boxes.size(), 0),
       leaf_seconds(plan_.tree.leaves().size(), 0.0) {
-  for (std::size_t d = 0; d < nd; ++d)
-    if (outputs[d] == kCurlGradDiv) {
-      groups.push_back(d);
-      for (std::size_t k = d; k < d + 3; ++k) outputs[k] = kGradient | kHessian;
-      d += 2;
-    }
+  for (std::size_t d = 0; d < nd; ++d) {
+    const unsigned f = outputs[d];
+    if (f != kCurlGradDiv && !(f & kGradDiv)) continue;
+    groups.push_back(d);
+    combined_per_coef += combined_per_group(f);
+    for (std::size_t k = d; k < d + 3; ++k)
+      outputs[k] = f == kCurlGradDiv ? kGradient | kHessian : (outputs[k] & (kPotential | kGradient)) | kHessian;
+    d += 2;
+  }
   for (unsigned f : outputs) any_flags |= f;
   uniform_flags = std::all_of(outputs.begin(), outputs.end(), [&](unsigned f) { return f == outputs[0]; });
 }
@@ -179,9 +182,28 @@ void x_list_to_locals(Evaluation& ev, int l) {
   }
 }
 
+namespace {
+
+// The combined coefficients of every curl_grad_div and grad_div group of the local coefficients
+// bcoef (b = Lh c) of a box of side s, one group after the other (l2p_block's `combined`).
+void combined_group_coefficients(const Evaluation& ev, double s, const cplx* bcoef, double* combined) {
+  const std::size_t nc = std::size_t(ev.nc);
+  for (std::size_t g : ev.groups) {
+    const unsigned f = ev.requested[g];
+    if (f == kCurlGradDiv) {
+      curl_grad_div_coefficients(ev.p, s, bcoef + g * nc, combined);
+    } else {
+      grad_div_coefficients(ev.p, s, bcoef + g * nc, combined);
+    }
+    combined += combined_per_group(f) * nc;
+  }
+}
+
+}  // namespace
+
 // L2P (Guan, §2.3: potential, field and field gradient from the local expansion): targets taken
 // kL2PLanes at a time, the expansion's coefficients b = Lh c, and the combined coefficients of the
-// curl_grad_div groups (docs/theory/fmm.md, section 2), formed once per leaf.
+// curl_grad_div and grad_div groups (docs/theory/fmm.md, section 2), formed once per leaf.
 void evaluate_leaf_locals(Evaluation& ev) {
   const auto& P = ev.plan;
   const auto& tree = ev.tree;
@@ -193,7 +215,7 @@ void evaluate_leaf_locals(Evaluation& ev) {
 #pragma omp parallel if (leaves.size() >= kMinParallel)
   {
     std::vector<cplx> bcoef(stride);
-    std::vector<double> scratch(2 * nc * kL2PLanes), combined(ev.groups.size() * kCombinedPerGroup * nc);
+    std::vector<double> scratch(2 * nc * kL2PLanes), combined(ev.combined_per_coef * nc);
     const double* rec = H.regular_recurrence();
 #pragma omp for schedule(dynamic, 4)
     for (std::size_t i = 0; i < leaves.size(); ++i) {
@@ -204,8 +226,7 @@ void evaluate_leaf_locals(Evaluation& ev) {
       const double s = tree.side(bx.level), inv_s = 1.0 / s;
       const auto c = tree.center(b);
       for (std::size_t d = 0; d < nd; ++d) local_to_b(H, p, &ev.lp[std::size_t(b) * stride + d * nc], &bcoef[d * nc]);
-      for (std::size_t g = 0; g < ev.groups.size(); ++g)
-        curl_grad_div_coefficients(p, s, &bcoef[ev.groups[g] * nc], &combined[g * kCombinedPerGroup * nc]);
+      combined_group_coefficients(ev, s, bcoef.data(), combined.data());
       for (std::size_t t0 = bx.tgt_begin; t0 < bx.tgt_end; t0 += kL2PLanes) {
         double ux[kL2PLanes], uy[kL2PLanes], uz[kL2PLanes];
         const int nt = scaled_offsets(P.tx, P.ty, P.tz, t0, bx.tgt_end, c, inv_s, ux, uy, uz);
@@ -310,30 +331,43 @@ void u_list_direct(Evaluation& ev) {
   }
 }
 
+namespace {
+
 // Every column of the group's rows enters one sum at most with weight +-1 (laplace_fmm.hpp), so the
 // L2P part, written into one column per sum (l2p_block), is counted once.
-void fold_curl_grad_div(Evaluation& ev) {
+void fold_curl_grad_div(double* a, double* b, double* c) noexcept {
+  const double folded[6] = {c[col_gy] - b[col_gz],
+                            a[col_gz] - c[col_gx],
+                            b[col_gx] - a[col_gy],
+                            a[col_hxx] + b[col_hxy] + c[col_hxz],
+                            a[col_hxy] + b[col_hyy] + c[col_hyz],
+                            a[col_hxz] + b[col_hyz] + c[col_hzz]};
+  std::fill_n(a, result_width, 0.0);
+  std::fill_n(b, result_width, 0.0);
+  std::fill_n(c, result_width, 0.0);
+  std::copy_n(folded, 6, a + 1);
+}
+
+// The same for grad div alone: the Hessian columns of the three rows replaced by grad div in the
+// first row's columns 4..6; potentials and gradients stay.
+void fold_grad_div(double* a, double* b, double* c) noexcept {
+  const double folded[3] = {a[col_hxx] + b[col_hxy] + c[col_hxz], a[col_hxy] + b[col_hyy] + c[col_hyz],
+                            a[col_hxz] + b[col_hyz] + c[col_hzz]};
+  for (double* r : {a, b, c}) std::fill(r + col_hxx, r + result_width, 0.0);
+  std::copy_n(folded, 3, a + col_hxx);
+}
+
+}  // namespace
+
+void fold_combined_groups(Evaluation& ev) {
   const std::size_t M = ev.M;
   for (std::size_t d : ev.groups) {
+    const auto fold = ev.requested[d] == kCurlGradDiv ? fold_curl_grad_div : fold_grad_div;
     double* r0 = &ev.res[d * M * result_width];
     double* r1 = r0 + M * result_width;
     double* r2 = r1 + M * result_width;
 #pragma omp parallel for if (M >= 4096) schedule(static)
-    for (std::size_t t = 0; t < M; ++t) {
-      double* a = r0 + t * result_width;
-      double* b = r1 + t * result_width;
-      double* c = r2 + t * result_width;
-      const double folded[6] = {c[col_gy] - b[col_gz],
-                                a[col_gz] - c[col_gx],
-                                b[col_gx] - a[col_gy],
-                                a[col_hxx] + b[col_hxy] + c[col_hxz],
-                                a[col_hxy] + b[col_hyy] + c[col_hyz],
-                                a[col_hxz] + b[col_hyz] + c[col_hzz]};
-      std::fill_n(a, result_width, 0.0);
-      std::fill_n(b, result_width, 0.0);
-      std::fill_n(c, result_width, 0.0);
-      std::copy_n(folded, 6, a + 1);
-    }
+    for (std::size_t t = 0; t < M; ++t) fold(r0 + t * result_width, r1 + t * result_width, r2 + t * result_width);
   }
 }
 

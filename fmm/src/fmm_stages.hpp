@@ -6,7 +6,7 @@
 //   upward pass:    P2M at the leaves, M2M towards the root
 //   downward pass, level by level: L2L from the parent, X-list P2L, plane-wave M2L (V list)
 //   leaves:         L2P, W-list M2P and the W/X pairs summed directly, U-list P2P
-//   curl_grad_div groups folded into curl and grad div (docs/theory/fmm.md, section 2)
+//   curl_grad_div and grad_div groups folded (docs/theory/fmm.md, section 2)
 //   results back into the caller's order
 //
 // Each stage is one parallel loop over the boxes of a level or over the leaves; every output of a
@@ -62,13 +62,15 @@ struct Evaluation {
   std::size_t nd = 0, N = 0, M = 0, stride = 0;
   std::span<const unsigned> requested;  // per density: the caller's flags
   // Per density: potential | gradient | hessian, what every stage but L2P evaluates; a
-  // curl_grad_div group asks for gradient | hessian (folded by fold_curl_grad_div).
+  // curl_grad_div group asks for gradient | hessian, a grad_div group for hessian and its own
+  // potential | gradient (folded by fold_combined_groups).
   std::vector<unsigned> outputs;
-  std::vector<std::size_t> groups;  // first density of every curl_grad_div group
-  unsigned any_flags = 0;           // union of outputs
-  bool uniform_flags = false;       // every density asks for the same outputs
-  std::vector<double> qs;           // charges in tree order, nd x N
-  std::vector<double> res;          // results in tree order, nd x M x result_width
+  std::vector<std::size_t> groups;    // first density of every curl_grad_div and grad_div group
+  std::size_t combined_per_coef = 0;  // the groups' combined coefficients per ncoef(p)
+  unsigned any_flags = 0;             // union of outputs
+  bool uniform_flags = false;         // every density asks for the same outputs
+  std::vector<double> qs;             // charges in tree order, nd x N
+  std::vector<double> res;            // results in tree order, nd x M x result_width
   std::vector<cplx> mp, lp;
   std::vector<char> has_local;       // the box's local expansion has received a contribution
   std::vector<double> leaf_seconds;  // per leaf (tree.leaves() order): the leaf passes' wall time
@@ -108,8 +110,9 @@ void w_list_and_direct_far(Evaluation& ev);
 /// Leaves, U list: P2P with the adjacent leaves.
 void u_list_direct(Evaluation& ev);
 /// curl_grad_div groups: curl and grad div (laplace_fmm.hpp) from their gradient and Hessian
-/// columns into the group's first row, the rest of its rows zeroed.
-void fold_curl_grad_div(Evaluation& ev);
+/// columns into the group's first row, the rest of its rows zeroed; grad_div groups: grad div from
+/// their Hessian columns into the first row's columns 4..6, the other Hessian columns zeroed.
+void fold_combined_groups(Evaluation& ev);
 /// Results back into the caller's order.
 void unsort_results(const Evaluation& ev, std::span<double> results);
 /// Each target's share of its leaf's measured seconds (leaf_seconds), in the caller's order.

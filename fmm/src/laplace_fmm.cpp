@@ -494,6 +494,12 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, unsig
 namespace {
 
 static_assert(curl_grad_div == detail::kCurlGradDiv && (curl_grad_div & all_outputs) == 0);
+static_assert(grad_div == detail::kGradDiv && (grad_div & (all_outputs | curl_grad_div)) == 0);
+
+// A grad_div density's flags: grad_div with any of potential | gradient (laplace_fmm.hpp).
+bool is_grad_div(unsigned flags) noexcept {
+  return (flags & grad_div) && (flags & ~(grad_div | potential | gradient)) == 0;
+}
 
 void require_evaluation_arguments(std::span<const double> charges, std::size_t nd, std::span<const unsigned> outputs,
                                   std::span<double> results, std::size_t N, std::size_t M) {
@@ -511,9 +517,17 @@ void require_evaluation_arguments(std::span<const double> charges, std::size_t n
       d += 2;
       continue;
     }
+    if (outputs[d] & grad_div) {  // a group of three, each with its own potential | gradient
+      require(d + 2 < nd && is_grad_div(outputs[d]) && is_grad_div(outputs[d + 1]) && is_grad_div(outputs[d + 2]),
+              ErrorCode::invalid_argument, where,
+              "grad_div (with potential|gradient only) must flag groups of three consecutive densities, from outputs[" +
+                  std::to_string(d) + "]");
+      d += 2;
+      continue;
+    }
     require(outputs[d] >= 1 && outputs[d] <= all_outputs, ErrorCode::invalid_argument, where,
             "outputs[" + std::to_string(d) +
-                "] must be a non-empty subset of potential|gradient|hessian or curl_grad_div, got " +
+                "] must be a non-empty subset of potential|gradient|hessian, curl_grad_div or grad_div, got " +
                 std::to_string(outputs[d]));
   }
   require_size(results, nd * M * result_width, where, "results (nd x M x 10)");
@@ -552,7 +566,7 @@ void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::
   timed(times, "p2p", [&] {
     if (options_.near_field) detail::u_list_direct(ev);
   });
-  timed(times, "l2p", [&] { detail::fold_curl_grad_div(ev); });
+  timed(times, "l2p", [&] { detail::fold_combined_groups(ev); });
   timed(times, "sort", [&] { detail::unsort_results(ev, results); });
   times["total"] = total.seconds();
 

@@ -161,19 +161,21 @@ inline void regular_soa(int p, const double* rec, const double* x, const double*
     r[9] += Ji;
   }
 }
-// The six sums of a curl_grad_div group from its combined coefficients (curl_grad_div_coefficients),
-// added to the columns l2p_block names (expansions.hpp); o: the group's first row, ld apart.
-[[gnu::always_inline]] inline void l2p_curl_grad_div(int p, const double* ab, const double* Rr, const double* Ri,
-                                                     int nt, double* o, std::size_t ld) noexcept {
+// The K sums of a combined group from its coefficients (curl_grad_div_coefficients: K = 6,
+// grad_div_coefficients: K = 3), sum k added to o[row[k] * ld + t * 10 + column[k]], the columns
+// l2p_block names (expansions.hpp); o: the group's first row, ld apart.
+template <int K>
+[[gnu::always_inline]] inline void l2p_combined(int p, const double* ab, const double* Rr, const double* Ri, int nt,
+                                                double* o, std::size_t ld, const std::size_t (&row)[K],
+                                                const std::size_t (&column)[K]) noexcept {
   const int nc = ncoef(p), used = ncoef(p - 1);  // the sums stop at degree p - 1
-  double acc[6][W] = {};
+  double acc[K][W] = {};
   for (int i = 0; i < used; ++i)
-    for (int k = 0; k < 6; ++k) {
+    for (int k = 0; k < K; ++k) {
       const double al = ab[2 * k * nc + i], be = ab[(2 * k + 1) * nc + i];
       for (int t = 0; t < W; ++t) acc[k][t] += al * Rr[i * W + t] + be * Ri[i * W + t];
     }
-  constexpr std::size_t row[6] = {2, 0, 1, 0, 1, 2}, column[6] = {2, 3, 1, 4, 5, 6};
-  for (int k = 0; k < 6; ++k)
+  for (int k = 0; k < K; ++k)
     for (int t = 0; t < nt; ++t) o[row[k] * ld + t * 10 + column[k]] += acc[k][t];
 }
 
@@ -218,12 +220,26 @@ void add_hessian_functional(int p, double inv_s2, const cplx* bd, const double (
 }
 }  // namespace
 
-// curl_x = d_y phi_3 - d_z phi_2, curl_y = d_z phi_1 - d_x phi_3, curl_z = d_x phi_2 - d_y phi_1;
-// (grad div)_c = sum_m H(phi_m)_cm (laplace_fmm.hpp), each a linear form in the b coefficients.
+// (grad div)_c = sum_m H(phi_m)_cm (laplace_fmm.hpp), a linear form in the b coefficients.
+void grad_div_coefficients(int p, double s, const cplx* b, double* ab) noexcept {
+  const int nc = ncoef(p);
+  std::fill_n(ab, kGradDivPerGroup * std::size_t(nc), 0.0);
+  const double inv_s = 1.0 / s, inv_s2 = inv_s * inv_s;
+  // Hessian columns xx, yy, zz, xy, xz, yz: row c of H(phi_m) in column m.
+  constexpr double rows[3][3][6] = {{{1, 0, 0, 0, 0, 0}, {0, 0, 0, 1, 0, 0}, {0, 0, 0, 0, 1, 0}},
+                                    {{0, 0, 0, 1, 0, 0}, {0, 1, 0, 0, 0, 0}, {0, 0, 0, 0, 0, 1}},
+                                    {{0, 0, 0, 0, 1, 0}, {0, 0, 0, 0, 0, 1}, {0, 0, 1, 0, 0, 0}}};
+  for (int c = 0; c < 3; ++c)
+    for (int m = 0; m < 3; ++m)
+      add_hessian_functional(p, inv_s2, b + m * nc, rows[c][m], ab + 2 * c * nc, ab + (2 * c + 1) * nc);
+}
+
+// curl_x = d_y phi_3 - d_z phi_2, curl_y = d_z phi_1 - d_x phi_3, curl_z = d_x phi_2 - d_y phi_1,
+// each a linear form in the b coefficients, then the grad div sums (grad_div_coefficients).
 void curl_grad_div_coefficients(int p, double s, const cplx* b, double* ab) noexcept {
   const int nc = ncoef(p);
-  std::fill_n(ab, kCombinedPerGroup * std::size_t(nc), 0.0);
-  const double inv_s = 1.0 / s, inv_s2 = inv_s * inv_s;
+  std::fill_n(ab, (kCombinedPerGroup - kGradDivPerGroup) * std::size_t(nc), 0.0);
+  const double inv_s = 1.0 / s;
   const cplx* phi[3] = {b, b + nc, b + 2 * nc};
   const auto grad = [&](int k, int m, const double(&w)[3]) {
     add_gradient_functional(p, inv_s, phi[m], w, ab + 2 * k * nc, ab + (2 * k + 1) * nc);
@@ -231,13 +247,7 @@ void curl_grad_div_coefficients(int p, double s, const cplx* b, double* ab) noex
   grad(0, 2, {0, 1, 0}), grad(0, 1, {0, 0, -1});
   grad(1, 0, {0, 0, 1}), grad(1, 2, {-1, 0, 0});
   grad(2, 1, {1, 0, 0}), grad(2, 0, {0, -1, 0});
-  // Hessian columns xx, yy, zz, xy, xz, yz: row c of H(phi_m) in column m.
-  constexpr double rows[3][3][6] = {{{1, 0, 0, 0, 0, 0}, {0, 0, 0, 1, 0, 0}, {0, 0, 0, 0, 1, 0}},
-                                    {{0, 0, 0, 1, 0, 0}, {0, 1, 0, 0, 0, 0}, {0, 0, 0, 0, 0, 1}},
-                                    {{0, 0, 0, 0, 1, 0}, {0, 0, 0, 0, 0, 1}, {0, 0, 1, 0, 0, 0}}};
-  for (int c = 0; c < 3; ++c)
-    for (int m = 0; m < 3; ++m)
-      add_hessian_functional(p, inv_s2, phi[m], rows[c][m], ab + 2 * (3 + c) * nc, ab + (2 * (3 + c) + 1) * nc);
+  grad_div_coefficients(p, s, b, ab + (kCombinedPerGroup - kGradDivPerGroup) * nc);
 }
 
 void p2m_block(int p, const double* rec, const double* cn, int np, const double* ux, const double* uy, const double* uz,
@@ -273,18 +283,26 @@ void l2p_block(int p, double s, const double* rec, const cplx* b, std::size_t nd
     regular_lanes(p, rec, nt, ux, uy, uz, Rr, Ri);
     const double inv_s = 1.0 / s, inv_s2 = inv_s * inv_s;
     const double* group = combined;
+    std::size_t grad_div_member = 0;  // grad_div densities seen: groups of three
     for (std::size_t d = 0; d < nd; ++d) {
       const cplx* bd = b + d * nc;
       double* o = out + d * ld;
       if (flags[d] == kCurlGradDiv) {
-        l2p_curl_grad_div(p, group, Rr, Ri, nt, o, ld);
+        constexpr std::size_t row[6] = {2, 0, 1, 0, 1, 2}, column[6] = {2, 3, 1, 4, 5, 6};
+        l2p_combined<6>(p, group, Rr, Ri, nt, o, ld, row, column);
         group += kCombinedPerGroup * std::size_t(nc);
         d += 2;
         continue;
       }
+      // A grad_div density's potential and gradient take the same code as any other density's.
       if (flags[d] & kPotential) l2p_potential(p, bd, Rr, Ri, nt, o);
       if (flags[d] & kGradient) l2p_gradient(p, inv_s, bd, Rr, Ri, nt, o);
       if (flags[d] & kHessian) l2p_hessian(p, inv_s2, bd, Rr, Ri, nt, o);
+      if ((flags[d] & kGradDiv) && grad_div_member++ % 3 == 0) {  // the first density of its group
+        constexpr std::size_t row[3] = {0, 1, 2}, column[3] = {4, 5, 6};
+        l2p_combined<3>(p, group, Rr, Ri, nt, o, ld, row, column);
+        group += kGradDivPerGroup * std::size_t(nc);
+      }
     }
   });
 }

@@ -1,7 +1,7 @@
 // LaplaceFmm features: separate targets, nd densities with per-density outputs, small N, duplicated
 // points, permutation and thread-count invariance, plan reuse, far-field-only mode with the near-field
-// structure, min_leaf_side guarantee, curl_grad_div groups, bad input. References: the plain double loop of
-// fmm_test_util.hpp.
+// structure, min_leaf_side guarantee, curl_grad_div and grad_div groups, bad input. References: the
+// plain double loop of fmm_test_util.hpp.
 #include <gtest/gtest.h>
 #include <omp.h>
 
@@ -337,6 +337,30 @@ TEST(FmmFeatures, RootScaleFitsTheLeafGrid) {
 }
 
 namespace {
+// The results of the same densities with the `grouped` and with the `raw` flags on one plan
+// (leaves of 24 points, 1e-6) at an instruction-set level, in mode 0 (near field), 1 (far field
+// only) or 2 (W/X direct sums exported); `what` names the case.
+struct GroupedRuns {
+  std::vector<double> grouped, raw;
+  std::string what;
+};
+GroupedRuns grouped_and_raw(const std::vector<double>& src, const std::vector<double>& q, std::size_t nd,
+                            const std::vector<unsigned>& grouped, const std::vector<unsigned>& raw,
+                            rpyfmm::SimdLevel level, int mode) {
+  const rpyfmm::ScopedSimdLevel scope(level);
+  FmmOptions o = opts(1e-6, 24);
+  o.near_field = mode == 0;
+  o.export_direct_far = mode == 2;
+  LaplaceFmm f(o);
+  f.set_points(src);
+  const std::size_t n = src.size() / 3;
+  GroupedRuns runs{std::vector<double>(nd * n * 10, 123.0), std::vector<double>(nd * n * 10),
+                   std::string(rpyfmm::simd_level_name(level)) + " mode " + std::to_string(mode)};
+  f.evaluate(q, nd, grouped, runs.grouped);
+  f.evaluate(q, nd, raw, runs.raw);
+  return runs;
+}
+
 // curl and grad div of the group (phi_1, phi_2, phi_3) starting at density d, from its gradient
 // and Hessian columns, by their definitions: (curl Phi)_c = eps_cab d_a phi_b, (grad div Phi)_c =
 // sum_m d_c d_m phi_m. Returns m x 6.
@@ -367,17 +391,8 @@ TEST(FmmFeatures, CurlGradDivGroupsFoldTheGradientsAndHessians) {
   const std::vector<unsigned> raw = {all_outputs, 6u, 6u, 6u, 6u, 6u, 6u};
   const auto ref = fmmtest::direct(src, q, nd, {});
   for (const rpyfmm::SimdLevel level : rpyfmm::test::available_simd_levels())
-    for (int mode = 0; mode < 3; ++mode) {  // near field; far field only; and W/X direct sums exported
-      const rpyfmm::ScopedSimdLevel scope(level);
-      FmmOptions o = opts(1e-6, 24);
-      o.near_field = mode == 0;
-      o.export_direct_far = mode == 2;
-      LaplaceFmm f(o);
-      f.set_points(src);
-      std::vector<double> r(nd * n * 10, 123.0), rr(nd * n * 10);
-      f.evaluate(q, nd, grouped, r);
-      f.evaluate(q, nd, raw, rr);
-      const std::string what = std::string(rpyfmm::simd_level_name(level)) + " mode " + std::to_string(mode);
+    for (int mode = 0; mode < 3; ++mode) {
+      const auto [r, rr, what] = grouped_and_raw(src, q, nd, grouped, raw, level, mode);
       for (std::size_t i = 0; i < n * 10; ++i) ASSERT_EQ(r[i], rr[i]) << what;
       for (std::size_t d : {1u, 4u}) {
         const auto expected = curl_grad_div_of(rr, d, n);
@@ -403,6 +418,71 @@ TEST(FmmFeatures, CurlGradDivGroupsFoldTheGradientsAndHessians) {
             }
           EXPECT_LE(std::sqrt(err[0] / norm[0]), 1e-6) << what << " curl";
           EXPECT_LE(std::sqrt(err[1] / norm[1]), 1e-6) << what << " grad div";
+        }
+      }
+    }
+}
+
+namespace {
+// grad div of the group (phi_1, phi_2, phi_3) starting at density d, from its Hessian columns:
+// (grad div Phi)_c = sum_m d_c d_m phi_m. Returns m x 3.
+std::vector<double> grad_div_of(const std::vector<double>& r, std::size_t d, std::size_t m) {
+  const auto both = curl_grad_div_of(r, d, m);
+  std::vector<double> out(3 * m);
+  for (std::size_t t = 0; t < m; ++t) std::copy_n(&both[6 * t + 3], 3, &out[3 * t]);
+  return out;
+}
+}  // namespace
+
+// Groups flagged grad_div give grad div of their Hessian columns to rounding, and each density's
+// own potential and gradient exactly as without the flag, at every instruction-set level, with
+// the near field, without it and with the W/X direct sums exported; a curl_grad_div group ahead of
+// them and the ungrouped densities are untouched, the other Hessian columns of the group zero.
+TEST(FmmFeatures, GradDivGroupsFoldTheHessians) {
+  using rpyfmm::fmm::curl_grad_div;
+  using rpyfmm::fmm::grad_div;
+  constexpr unsigned pot = rpyfmm::fmm::potential, grad = rpyfmm::fmm::gradient, hess = rpyfmm::fmm::hessian;
+  const std::size_t n = 1500, nd = 11;
+  const auto src = fmmtest::plummer(n, 73);
+  const auto q = fmmtest::charges(n, nd, 74);
+  const std::vector<unsigned> grouped = {
+      all_outputs, curl_grad_div, curl_grad_div, curl_grad_div, grad_div | pot | grad, grad_div | grad, grad_div | pot,
+      grad_div,    grad_div,      grad_div,      pot | grad};
+  std::vector<unsigned> raw = {all_outputs, 6u, 6u, 6u, 0u, 0u, 0u, 0u, 0u, 0u, pot | grad};
+  for (std::size_t d = 4; d < 10; ++d) raw[d] = (grouped[d] & (pot | grad)) | hess;
+  const auto ref = fmmtest::direct(src, q, nd, {});
+  for (const rpyfmm::SimdLevel level : rpyfmm::test::available_simd_levels())
+    for (int mode = 0; mode < 3; ++mode) {
+      const auto [r, rr, what] = grouped_and_raw(src, q, nd, grouped, raw, level, mode);
+      for (std::size_t d : {0u, 10u})
+        for (std::size_t i = d * n * 10; i < (d + 1) * n * 10; ++i) ASSERT_EQ(r[i], rr[i]) << what << " density " << d;
+      const auto curl = curl_grad_div_of(rr, 1, n);
+      double curl_scale = 0.0;
+      for (double v : curl) curl_scale = std::max(curl_scale, std::abs(v));
+      for (std::size_t t = 0; t < n; ++t)
+        for (std::size_t k = 0; k < 6; ++k)
+          ASSERT_NEAR(r[(n + t) * 10 + 1 + k], curl[6 * t + k], 1e-13 * curl_scale) << what << " curl_grad_div group";
+      for (std::size_t d : {4u, 7u}) {
+        const auto expected = grad_div_of(rr, d, n);
+        double scale = 0.0;
+        for (double v : expected) scale = std::max(scale, std::abs(v));
+        for (std::size_t t = 0; t < n; ++t)
+          for (std::size_t k = 0; k < 3; ++k) {
+            const double* row = &r[((d + k) * n + t) * 10];
+            for (std::size_t c = 0; c < 4; ++c) ASSERT_EQ(row[c], rr[((d + k) * n + t) * 10 + c]) << what;
+            ASSERT_NEAR(r[(d * n + t) * 10 + 4 + k], expected[3 * t + k], 1e-13 * scale) << what;
+            for (std::size_t c = k == 0 ? 7 : 4; c < 10; ++c) ASSERT_EQ(row[c], 0.0) << what << " column " << c;
+          }
+        if (mode == 0) {  // against the direct sums' grad div
+          const auto exact = grad_div_of(ref, d, n);
+          double err = 0.0, norm = 0.0;
+          for (std::size_t t = 0; t < n; ++t)
+            for (std::size_t k = 0; k < 3; ++k) {
+              const double e = r[(d * n + t) * 10 + 4 + k] - exact[3 * t + k];
+              err += e * e;
+              norm += exact[3 * t + k] * exact[3 * t + k];
+            }
+          EXPECT_LE(std::sqrt(err / norm), 1e-6) << what << " grad div, group " << d;
         }
       }
     }
@@ -442,22 +522,24 @@ TEST(FmmFeatures, BadInput) {
   expect_error([&] { f.evaluate(q, 1, all_outputs, r99); }, "results");
   expect_error([&] { f.evaluate(q, 1, 8u, r); }, "outputs[0]");
   expect_error([&] { f.evaluate(q, 1, 0u, r); }, "outputs[0]");
-  // curl_grad_div in groups of three: cut short at the end, or mixed with other flags.
+  // curl_grad_div and grad_div in groups of three: cut short at the end, or mixed with other flags;
+  // grad_div with potential | gradient only.
   const std::vector<double> q3(30, 1.0);
   std::vector<double> r3(300);
   using rpyfmm::fmm::curl_grad_div;
-  expect_error(
-      [&] {
-        f.evaluate(q3, 3, std::vector<unsigned>{all_outputs, curl_grad_div, curl_grad_div}, r3);
-      },
-      "groups of three consecutive densities, from outputs[1]");
-  expect_error(
-      [&] {
-        f.evaluate(q3, 3, std::vector<unsigned>{curl_grad_div, curl_grad_div, all_outputs}, r3);
-      },
-      "from outputs[0]");
-  expect_error([&] { f.evaluate(q3, 3, 9u, r3); }, "outputs[0]");
+  using rpyfmm::fmm::grad_div;
+  const unsigned gpg = grad_div | rpyfmm::fmm::potential | rpyfmm::fmm::gradient;
+  const std::pair<std::vector<unsigned>, const char*> bad_groups[] = {
+      {{all_outputs, curl_grad_div, curl_grad_div}, "groups of three consecutive densities, from outputs[1]"},
+      {{curl_grad_div, curl_grad_div, all_outputs}, "from outputs[0]"},
+      {{9u, 9u, 9u}, "outputs[0]"},
+      {{all_outputs, grad_div, gpg}, "groups of three consecutive densities, from outputs[1]"},
+      {{grad_div, curl_grad_div, grad_div}, "from outputs[0]"},
+      {{grad_div | rpyfmm::fmm::hessian, grad_div, grad_div}, "from outputs[0]"},
+      {{grad_div | curl_grad_div, grad_div, grad_div}, "outputs[0]"}};
+  for (const auto& [flags, needle] : bad_groups) expect_error([&] { f.evaluate(q3, 3, flags, r3); }, needle);
   EXPECT_NO_THROW(f.evaluate(q3, 3, curl_grad_div, r3));
+  EXPECT_NO_THROW(f.evaluate(q3, 3, std::vector<unsigned>{gpg, grad_div, grad_div | rpyfmm::fmm::gradient}, r3));
   auto qn = q;
   qn[3] = std::nan("");
   expect_error([&] { f.evaluate(qn, 1, all_outputs, r); }, "charges");

@@ -37,6 +37,15 @@ namespace rpyfmm::fmm {
 /// section 2, "Combined outputs") instead of the 27 gradient and Hessian columns.
 inline constexpr unsigned curl_grad_div = 8u;
 
+/// Output flag of LaplaceFmm::evaluate for three consecutive densities phi_1..3 (all three carry
+/// it, each optionally with potential and/or gradient of its own): (grad div Phi)_c =
+/// sum_m d_c d_m phi_m of the vector field Phi = (phi_1, phi_2, phi_3) in the first density's row,
+/// columns 4..6 (c = x, y, z); the other Hessian columns of the three rows 0; each density's
+/// potential and gradient columns as it asks. L2P evaluates the three sums from combined local
+/// coefficients (docs/theory/fmm.md, section 2, "Combined outputs") instead of the 18 Hessian
+/// columns. FmmRpy's far field takes the Hessians of its force densities only in this form.
+inline constexpr unsigned grad_div = 16u;
+
 /// Options of the FMM plan. Defaults give a relative l2 error <= tolerance for every output.
 struct FmmOptions {
   /// Requested relative l2 accuracy of each output, in [1e-15, 1e-1]. The plane-wave table is the
@@ -127,7 +136,8 @@ class LaplaceFmm {
   void set_points(std::span<const double> sources, std::span<const double> targets = {});
 
   /// charges: nd x N (density d at charges[d*N + j]); outputs: nd flags (potential|gradient|hessian,
-  /// at least one bit each, or curl_grad_div on consecutive groups of three densities); results: nd x M x 10 [pot, gx,
+  /// at least one bit each, or curl_grad_div, or grad_div with any of potential|gradient, on consecutive
+  /// groups of three densities); results: nd x M x 10 [pot, gx,
   /// gy, gz, hxx, hyy, hzz, hxy, hxz, hyz], overwritten (unrequested columns = 0). const and thread-safe; results do
   /// not depend on the number of OpenMP threads.
   void evaluate(std::span<const double> charges, std::size_t nd, std::span<const unsigned> outputs,

@@ -19,8 +19,8 @@ namespace rpyfmm::fmm::detail {
 
 /// Output selection flags (per density), the values of rpyfmm::fmm::Output.
 inline constexpr unsigned kPotential = potential, kGradient = gradient, kHessian = hessian;
-/// The value of rpyfmm::fmm::curl_grad_div (laplace_fmm.hpp).
-inline constexpr unsigned kCurlGradDiv = 8u;
+/// The values of rpyfmm::fmm::curl_grad_div and rpyfmm::fmm::grad_div (laplace_fmm.hpp).
+inline constexpr unsigned kCurlGradDiv = 8u, kGradDiv = 16u;
 
 /// Accumulates charges q[d*ldq + j] (j < n, d < nd) at points xyz[3j..3j+2] into the scaled local
 /// expansions Lh[d*ncoef(p) ...] of a box with center `c` and side `s` (P2L, X list); points must be
@@ -59,8 +59,11 @@ inline constexpr int kL2PLanes = 8;
 /// scratch: 2 * ncoef(p) * kL2PLanes doubles. A group of three densities flagged curl_grad_div
 /// (laplace_fmm.hpp) is evaluated from its combined coefficients, kCombinedPerGroup * ncoef(p)
 /// doubles per group in `combined` (curl_grad_div_coefficients), into the columns that
-/// fold_curl_grad_div counts once each: curl_x in (2, gy), curl_y in (0, gz), curl_z in (1, gx),
-/// (grad div)_x in (0, hxx), _y in (1, hyy), _z in (2, hzz) (density of the group, column).
+/// the fold (fold_combined_groups) counts once each: curl_x in (2, gy), curl_y in (0, gz), curl_z in (1, gx),
+/// (grad div)_x in (0, hxx), _y in (1, hyy), _z in (2, hzz) (density of the group, column). A
+/// group flagged grad_div has its three densities' potential and gradient evaluated as asked and
+/// its grad div from kGradDivPerGroup * ncoef(p) doubles in `combined` (grad_div_coefficients), into
+/// the same three columns; `combined` holds the groups' coefficients one after the other.
 void l2p_block(int p, double s, const double* rec, const cplx* b, std::size_t nd, const unsigned* flags, int nt,
                const double* ux, const double* uy, const double* uz, double* out, std::size_t ld, double* scratch,
                const double* combined = nullptr) noexcept;
@@ -71,6 +74,15 @@ inline constexpr std::size_t kCombinedPerGroup = 12;
 /// the k-th of curl_x,y,z and (grad div)_x,y,z (docs/theory/fmm.md, section 2, "Combined outputs").
 /// ab: kCombinedPerGroup * ncoef(p) doubles, overwritten (alpha_k at ab[2k nc], beta_k at ab[(2k+1) nc]).
 void curl_grad_div_coefficients(int p, double s, const cplx* b, double* ab) noexcept;
+/// Doubles of combined coefficients per grad_div group per ncoef(p): three sums, (alpha, beta) each.
+inline constexpr std::size_t kGradDivPerGroup = 6;
+/// The combined coefficients of a grad_div group, as curl_grad_div_coefficients: the k-th sum is
+/// (grad div)_k, k = x, y, z. ab: kGradDivPerGroup * ncoef(p) doubles, overwritten.
+void grad_div_coefficients(int p, double s, const cplx* b, double* ab) noexcept;
+/// Doubles of combined coefficients per ncoef(p) of the group whose first density carries `flags`.
+[[nodiscard]] constexpr std::size_t combined_per_group(unsigned flags) noexcept {
+  return flags == kCurlGradDiv ? kCombinedPerGroup : kGradDivPerGroup;
+}
 /// P2M for up to kL2PLanes sources at once (same layout as l2p_block): u = (y - c)/s scaled offsets,
 /// charges q[d*ldq + t]; adds to Mh[d*ncoef(p) + i]. cn = c_n^m table. scratch as l2p_block.
 void p2m_block(int p, const double* rec, const double* cn, int np, const double* ux, const double* uy, const double* uz,
