@@ -509,6 +509,22 @@ void require_evaluation_arguments(std::span<const double> charges, std::size_t n
   require_finite(charges, where, "charges", N);
   require(outputs.size() == nd, ErrorCode::invalid_input, where,
           "outputs has " + std::to_string(outputs.size()) + " entries, expected nd = " + std::to_string(nd));
+  require_valid_outputs(outputs, where);
+  require_size(results, nd * M * result_width, where, "results (nd x M x 10)");
+}
+
+// Runs stage() and adds its time to times[name].
+template <class Stage>
+void timed(StageTimes& times, const char* name, Stage&& stage) {
+  const StopWatch sw;
+  stage();
+  times[name] += sw.seconds();
+}
+
+}  // namespace
+
+void require_valid_outputs(std::span<const unsigned> outputs, const char* where) {
+  const std::size_t nd = outputs.size();
   for (std::size_t d = 0; d < nd; ++d) {
     if (outputs[d] == curl_grad_div) {  // a group of three (laplace_fmm.hpp)
       require(d + 2 < nd && outputs[d + 1] == curl_grad_div && outputs[d + 2] == curl_grad_div,
@@ -530,18 +546,7 @@ void require_evaluation_arguments(std::span<const double> charges, std::size_t n
                 "] must be a non-empty subset of potential|gradient|hessian, curl_grad_div or grad_div, got " +
                 std::to_string(outputs[d]));
   }
-  require_size(results, nd * M * result_width, where, "results (nd x M x 10)");
 }
-
-// Runs stage() and adds its time to times[name].
-template <class Stage>
-void timed(StageTimes& times, const char* name, Stage&& stage) {
-  const StopWatch sw;
-  stage();
-  times[name] += sw.seconds();
-}
-
-}  // namespace
 
 // The FMM in the order of Guan's Algorithm 1 (docs/theory/fmm.md): upward pass, downward pass
 // level by level (L2L, X list, plane-wave M2L of the V list from level 2 on), then the leaves.

@@ -143,13 +143,11 @@ void DistributedFmmRpy::apply(std::span<const double> local_forces, std::span<do
   const std::size_t nd = rpy::detail::translation_densities(equal_radii_);
   std::vector<double> charges(nd * n);
   std::vector<unsigned> outputs(nd);
-  rpy::detail::far_field_charges(f.data(), n, 1, equal_radii_, x_, a_, rpy::detail::HessianForm::full, charges,
-                                 outputs);
+  rpy::detail::far_field_charges(f.data(), n, 1, equal_radii_, x_, a_, charges, outputs);
   std::vector<double> results(nd * n * fmm::result_width);
   laplace_.evaluate(charges, nd, outputs, results);
   std::vector<double> u(3 * n);
-  rpy::detail::combine_far_field(results, n, 1, equal_radii_, x_, a_, rpy::detail::HessianForm::full, viscosity_,
-                                 u.data());
+  rpy::detail::combine_far_field(results, n, 1, equal_radii_, x_, a_, viscosity_, u.data());
 
   // The overlapping pairs' exact blocks in place of their far form, and the self term.
   std::vector<double> near(3 * n, 0.0);

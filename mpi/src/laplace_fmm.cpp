@@ -239,11 +239,7 @@ void check_evaluation(std::span<const double> charges, std::size_t nd, std::span
   require_finite(charges, kEvaluate, "local charges", std::max<std::size_t>(n, 1));
   require(outputs.size() == nd, ErrorCode::invalid_input, kEvaluate,
           "outputs has " + std::to_string(outputs.size()) + " entries, expected nd = " + std::to_string(nd));
-  for (std::size_t d = 0; d < nd; ++d) {
-    require(outputs[d] >= 1 && outputs[d] <= fmm::all_outputs, ErrorCode::invalid_argument, kEvaluate,
-            "outputs[" + std::to_string(d) + "] must be a non-empty subset of potential|gradient|hessian, got " +
-                std::to_string(outputs[d]));
-  }
+  fmm::require_valid_outputs(outputs, kEvaluate);  // the serial FMM's flags, groups included
   require(results.size() == nd * n_targets * fmm::result_width, ErrorCode::invalid_input, kEvaluate,
           "local results have " + std::to_string(results.size()) +
               " entries, expected nd x targets x 10 = " + std::to_string(nd * n_targets * fmm::result_width));

@@ -12,18 +12,16 @@ constexpr double pi = std::numbers::pi;
 }  // namespace
 
 // The Laplace densities of the far field (docs/theory/rpy.md; Guan, dissertation, Algorithm 2),
-// per right-hand side: F^(1..3) (potential, field, field gradient), x.F (field) and for different
-// radii a^2 F^(1..3) (field gradient). charges: nd x n, outputs: nd.
+// per right-hand side: F^(1..3) (potential, field, grad div), x.F (field) and for different radii
+// a^2 F^(1..3) (grad div). charges: nd x n, outputs: nd.
 void far_field_charges(const double* forces, std::size_t n, std::size_t nrhs, bool equal, std::span<const double> x,
-                       std::span<const double> a, HessianForm form, std::vector<double>& charges,
-                       std::vector<unsigned>& outputs) {
+                       std::span<const double> a, std::vector<double>& charges, std::vector<unsigned>& outputs) {
   const std::size_t per_rhs = translation_densities(equal);
-  const unsigned hessian = form == HessianForm::grad_div ? fmm::grad_div : unsigned(fmm::hessian);
   for (std::size_t k = 0; k < nrhs; ++k) {
     const double* f = forces + 3 * n * k;
     double* q = charges.data() + per_rhs * n * k;
     for (std::size_t m = 0; m < 3; ++m) {
-      outputs[per_rhs * k + m] = fmm::potential | fmm::gradient | hessian;
+      outputs[per_rhs * k + m] = fmm::potential | fmm::gradient | fmm::grad_div;
       for (std::size_t j = 0; j < n; ++j) q[m * n + j] = f[3 * j + m];
     }
     outputs[per_rhs * k + 3] = fmm::gradient;
@@ -33,7 +31,7 @@ void far_field_charges(const double* forces, std::size_t n, std::size_t nrhs, bo
     }
     if (!equal) {
       for (std::size_t m = 0; m < 3; ++m) {
-        outputs[per_rhs * k + 4 + m] = hessian;
+        outputs[per_rhs * k + 4 + m] = fmm::grad_div;
         for (std::size_t j = 0; j < n; ++j) q[(4 + m) * n + j] = a[j] * a[j] * f[3 * j + m];
       }
     }
@@ -42,13 +40,10 @@ void far_field_charges(const double* forces, std::size_t n, std::size_t nrhs, bo
 
 namespace {
 
-// -(grad div Phi)_c at target i of the group of three densities from `first` (T = -H): the sum of
-// the Hessian columns, or the folded sum in the first row (fmm::grad_div).
-double minus_grad_div(const double* r, std::size_t first, std::size_t n, std::size_t i, int c, HessianForm form) {
-  if (form == HessianForm::grad_div) return -r[(first * n + i) * 10 + 4 + c];
-  double sum = 0.0;
-  for (std::size_t m = 0; m < 3; ++m) sum -= r[((first + m) * n + i) * 10 + kHessianColumn[c][m]];
-  return sum;
+// -(grad div Phi)_c at target i of the group of three densities from `first` (T = -H): the folded
+// sum in the group's first row (fmm::grad_div).
+double minus_grad_div(const double* r, std::size_t first, std::size_t n, std::size_t i, int c) {
+  return -r[(first * n + i) * 10 + 4 + c];
 }
 
 }  // namespace
@@ -57,8 +52,7 @@ double minus_grad_div(const double* r, std::size_t first, std::size_t n, std::si
 // fmm_operator.hpp; docs/theory/rpy.md; Guan, dissertation, §3.1.1); E = -g, T = -H, and the
 // dipole terms sum_m T_cm(F^m) = -(grad div Phi_F)_c.
 void combine_far_field(const std::vector<double>& results, std::size_t n, std::size_t nrhs, bool equal,
-                       std::span<const double> x, std::span<const double> a, HessianForm form, double eta,
-                       double* velocities) {
+                       std::span<const double> x, std::span<const double> a, double eta, double* velocities) {
   const std::size_t per_rhs = translation_densities(equal);
   const double c1 = 1.0 / (8.0 * pi * eta);
   const double c2 = 1.0 / (24.0 * pi * eta);
@@ -76,12 +70,12 @@ void combine_far_field(const std::vector<double>& results, std::size_t n, std::s
         double oseen = r[(c * n + i) * 10];                                        // phi(F^(c))
         for (int m = 0; m < 3; ++m) oseen -= xi[m] * r[(m * n + i) * 10 + 1 + c];  // + x_m E_c(F^m), E = -g
         oseen += rxF[1 + c];                                                       // - E_c(x.F)
-        const double dipole = minus_grad_div(r, 0, n, i, c, form);                 // sum_m T_cm(F^m)
+        const double dipole = minus_grad_div(r, 0, n, i, c);                       // sum_m T_cm(F^m)
         double value = c1 * oseen + c2 * ai2 * dipole;
         if (equal) {
           value += c2 * ai2 * dipole;  // a_j^2 = a_i^2
         } else {
-          value += c2 * minus_grad_div(r, 4, n, i, c, form);  // sum_m T_cm(a^2 F^m)
+          value += c2 * minus_grad_div(r, 4, n, i, c);  // sum_m T_cm(a^2 F^m)
         }
         u[3 * i + c] = value;
       }
@@ -93,7 +87,7 @@ void rotation_far_field_charges(const double* forces, const double* torques, std
                                 std::span<const double> x, std::span<const double> a, std::vector<double>& charges,
                                 std::vector<unsigned>& outputs) {
   const std::size_t base = translation_densities(equal);
-  far_field_charges(forces, n, 1, equal, x, a, HessianForm::grad_div, charges, outputs);
+  far_field_charges(forces, n, 1, equal, x, a, charges, outputs);
   for (std::size_t m = 0; m < 3; ++m) {
     outputs[base + m] = fmm::curl_grad_div;
     double* q = charges.data() + (base + m) * n;

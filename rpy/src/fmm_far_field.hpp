@@ -3,15 +3,11 @@
 // (docs/theory/rpy.md, sections 3 and 7; Guan, dissertation, §3.1.1 and Algorithm 2).
 #pragma once
 
-#include <array>
 #include <cstddef>
 #include <span>
 #include <vector>
 
 namespace rpyfmm::rpy::detail {
-
-/// Column of the FMM result row [pot, gx, gy, gz, hxx, hyy, hzz, hxy, hxz, hyz] holding H(k, m).
-inline constexpr std::array<std::array<int, 3>, 3> kHessianColumn = {{{4, 7, 8}, {7, 5, 9}, {8, 9, 6}}};
 
 /// Laplace densities per right-hand side of the translational far field: 4 for equal radii, 7 otherwise.
 [[nodiscard]] constexpr std::size_t translation_densities(bool equal) noexcept {
@@ -23,26 +19,18 @@ inline constexpr std::array<std::array<int, 3>, 3> kHessianColumn = {{{4, 7, 8},
   return translation_densities(equal) + 3;
 }
 
-/// How the far field asks for the Hessians of its groups F^(1..3) and a^2 F^(1..3), which it uses
-/// only through grad div of the group (docs/theory/rpy.md, section 3): grad_div as fmm::grad_div
-/// (three combined sums in L2P), full as the Hessian columns (for a Laplace FMM without that flag,
-/// the distributed one).
-enum class HessianForm { grad_div, full };
-
-/// The translational densities of nrhs force vectors: F^(1..3) (potential, gradient, Hessian),
-/// x.F (gradient) and for different radii a^2 F^(1..3) (Hessian), the Hessians in the given form.
-/// charges: nd x n, outputs: nd, with nd = translation_densities(equal) * nrhs.
+/// The translational densities of nrhs force vectors: F^(1..3) (potential, gradient, and grad div
+/// of the group, fmm::grad_div), x.F (gradient) and for different radii a^2 F^(1..3) (grad div of
+/// the group): the far field uses the groups' Hessians only through grad div (docs/theory/rpy.md,
+/// section 3). charges: nd x n, outputs: nd, with nd = translation_densities(equal) * nrhs.
 void far_field_charges(const double* forces, std::size_t n, std::size_t nrhs, bool equal, std::span<const double> x,
-                       std::span<const double> a, HessianForm form, std::vector<double>& charges,
-                       std::vector<unsigned>& outputs);
+                       std::span<const double> a, std::vector<double>& charges, std::vector<unsigned>& outputs);
 
-/// Velocities (3n per right-hand side, overwritten) from the results of far_field_charges with the
-/// same form.
+/// Velocities (3n per right-hand side, overwritten) from the results of far_field_charges.
 void combine_far_field(const std::vector<double>& results, std::size_t n, std::size_t nrhs, bool equal,
-                       std::span<const double> x, std::span<const double> a, HessianForm form, double eta,
-                       double* velocities);
+                       std::span<const double> x, std::span<const double> a, double eta, double* velocities);
 
-/// The densities of one force and torque pair: far_field_charges' for the forces (HessianForm::grad_div),
+/// The densities of one force and torque pair: far_field_charges' for the forces,
 /// then T^(1..3) (curl and grad div, fmm::curl_grad_div). charges: rotation_densities(equal) x n.
 void rotation_far_field_charges(const double* forces, const double* torques, std::size_t n, bool equal,
                                 std::span<const double> x, std::span<const double> a, std::vector<double>& charges,

@@ -189,12 +189,11 @@ void FmmRpy::do_apply(const double* forces, double* velocities, std::size_t nrhs
   StopWatch watch;
   std::vector<double> charges(nd * n);
   std::vector<unsigned> outputs(nd);
-  detail::far_field_charges(forces, n, nrhs, equal, centered_, a, detail::HessianForm::grad_div, charges, outputs);
+  detail::far_field_charges(forces, n, nrhs, equal, centered_, a, charges, outputs);
   const std::vector<double> results = far_field_pass(plan_, charges, outputs, watch.seconds());
 
   watch.restart();
-  detail::combine_far_field(results, n, nrhs, equal, centered_, a, detail::HessianForm::grad_div, viscosity(),
-                            velocities);
+  detail::combine_far_field(results, n, nrhs, equal, centered_, a, viscosity(), velocities);
   timings_["rpy_far"] = watch.seconds();
 
   watch.restart();

@@ -140,7 +140,7 @@ void FmmRpy::do_apply_rotation(const double* forces, const double* torques, doub
   const std::vector<double> results = far_field_pass(plan_, charges, outputs, watch.seconds());
 
   watch.restart();
-  detail::combine_far_field(results, n, 1, equal, centered_, a, detail::HessianForm::grad_div, viscosity(), velocities);
+  detail::combine_far_field(results, n, 1, equal, centered_, a, viscosity(), velocities);
   std::vector<double> ut(3 * n), wf(3 * n), rr(3 * n);
   detail::combine_rotation_far_field(results, n, equal, ut.data(), wf.data(), rr.data());
   timings_["rpy_far"] = watch.seconds();

@@ -438,6 +438,37 @@ TEST(DistributedFmm, OverlappedExchangeMeetsTheSameContract) {
   }
 }
 
+TEST(DistributedFmm, GroupedOutputsAsTheSerialFmm) {
+  // The serial FMM's grouped flags pass through: a grad_div group (with potentials and gradients),
+  // a plain density and a curl_grad_div group, within twice the tolerance of the serial FMM with
+  // the same flags (both within it of the exact sums), with and without the split serial FMM; a
+  // group of two refused on every rank.
+  const Cloud c = uniform_cloud(3000, 7, 24);
+  const unsigned pg = fmm::potential | fmm::gradient | fmm::grad_div;
+  const unsigned outputs[] = {
+      pg, pg, fmm::grad_div, fmm::gradient, fmm::curl_grad_div, fmm::curl_grad_div, fmm::curl_grad_div};
+  const std::vector<double> serial = serial_fmm(c, outputs, 1e-6);
+  for (bool overlap_exchange : {false, true}) {
+    DistributedLaplaceFmm f(MPI_COMM_WORLD, with_tolerance(1e-6, overlap_exchange));
+    const std::vector<double> got = distributed(f, c, outputs, Split::geometric);
+    double num = 0.0, den = 0.0;
+    for (std::size_t i = 0; i < got.size(); ++i) {
+      num += (got[i] - serial[i]) * (got[i] - serial[i]);
+      den += serial[i] * serial[i];
+    }
+    EXPECT_LE(std::sqrt(num / den), 2e-6) << "overlap_exchange " << overlap_exchange;
+    // Columns the groups leave at zero stay zero (the curl group's second and third rows).
+    for (std::size_t i = 0; i < c.size() * W; ++i) EXPECT_EQ(got[5 * c.size() * W + i], 0.0);
+  }
+  DistributedLaplaceFmm f(MPI_COMM_WORLD, with_tolerance(1e-6));
+  const Share s = share_of(c, Split::even);
+  f.set_points(s.x);
+  const unsigned two[] = {fmm::grad_div, fmm::grad_div};
+  std::vector<double> out(2 * s.part.n * W);
+  expect_collective_error([&] { f.evaluate(std::span<const double>(s.q).first(2 * s.part.n), 2, two, out); },
+                          ErrorCode::invalid_argument, "groups of three");
+}
+
 TEST(DistributedFmm, FailsOnEveryRank) {
   const int last = world_size() - 1;
   const Cloud c = uniform_cloud(300, 1, 18);

@@ -46,6 +46,12 @@ inline constexpr unsigned curl_grad_div = 8u;
 /// columns. FmmRpy's far field takes the Hessians of its force densities only in this form.
 inline constexpr unsigned grad_div = 16u;
 
+/// Throws rpyfmm::Error (invalid_argument, naming `where`) unless every entry of `outputs` is a
+/// non-empty subset of potential|gradient|hessian or belongs to a group of three consecutive
+/// densities flagged curl_grad_div, or grad_div (with potential|gradient only): the flags
+/// LaplaceFmm::evaluate accepts.
+void require_valid_outputs(std::span<const unsigned> outputs, const char* where);
+
 /// Options of the FMM plan. Defaults give a relative l2 error <= tolerance for every output.
 struct FmmOptions {
   /// Requested relative l2 accuracy of each output, in [1e-15, 1e-1]. The plane-wave table is the
