@@ -38,7 +38,7 @@ constexpr double kEta = 0.7;
 constexpr int kSide = 5;  // 125 WCA spheres of radius 1
 const NeighbourOptions kNeighbours{.skin = 0.1};
 
-/// PSE at 1e-4 with double-precision wave grids (the precision both back ends share; docs/theory/pse.md).
+/// PSE at 1e-4 with double-precision wave grids (the precision both back ends share; docs/theory/pse.md section 2).
 PseOptions pse_options() {
   PseOptions o;
   o.tolerance = 1e-4;
