@@ -322,9 +322,7 @@ void sample_and_write(Prepared<Operator>& p, const RanksSampleArgs& args, const 
       .add("n", in.n)
       .add("sqrt_tolerance", args.options.tolerance);
   add_sqrt_report(line, report);
-  line.add("angular", false)
-      .add("noise", args.noise.empty() ? "philox" : args.noise)
-      .add("viscosity", args.viscosity);
+  line.add("angular", false).add("noise", args.noise.empty() ? "philox" : args.noise).add("viscosity", args.viscosity);
   add_radii(line, *p.op);
   line.add("out", args.out);
   if (args.noise.empty()) line.add("seed", args.seed).add("step", args.step);

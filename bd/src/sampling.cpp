@@ -119,8 +119,8 @@ bool fuses_drift_and_noise(const rpy::MobilityOperator& mobility, const SqrtOpti
 }
 
 DriftNoiseReport fused_drift_and_noise(const rpy::MobilityOperator& mobility, std::span<const double> forces,
-                                       double noise_scale, std::uint64_t seed, std::uint64_t step,
-                                       std::span<double> v, const SqrtOptions& options) {
+                                       double noise_scale, std::uint64_t seed, std::uint64_t step, std::span<double> v,
+                                       const SqrtOptions& options) {
   require(fuses_drift_and_noise(mobility, options), ErrorCode::not_supported, "fused_drift_and_noise",
           "operator '" + mobility.name() + "' has no fused drift-and-noise pass (use drift_and_noise)");
   DriftNoiseReport report;

@@ -49,7 +49,9 @@ SimdLevel detected_simd_level() noexcept {
   return level;
 }
 
-SimdLevel simd_level() noexcept { return static_cast<SimdLevel>(level_in_use().load(std::memory_order_relaxed)); }
+SimdLevel simd_level() noexcept {
+  return static_cast<SimdLevel>(level_in_use().load(std::memory_order_relaxed));
+}
 
 bool x86_kernels_compiled() noexcept {
 #if defined(RPYFMM_HAVE_X86_KERNELS)

@@ -4,8 +4,10 @@
 // Data from FMM3D (flatironinstitute, commit 38c06557b1d8303b9341de689231aade221f576b,
 // src/Laplace/lwtsexp_sep1.f: vwts, numthetahalf, numthetafour); Cheng, Greengard &
 // Rokhlin, J. Comput. Phys. 155 (1999) 468, sec. 3.
+// One node per line, as the source tables list them.
 #include "planewave_tables.hpp"
 
+// clang-format off
 namespace rpyfmm::fmm::detail {
 namespace {
 constexpr PlaneWaveNode kNodes_1em3[] = {
@@ -127,3 +129,4 @@ std::span<const PlaneWaveNode> planewave_table(int digits) {
 }
 
 }  // namespace rpyfmm::fmm::detail
+// clang-format on

@@ -33,7 +33,9 @@ def main():
     print("// Data from FMM3D (flatironinstitute, commit 38c06557b1d8303b9341de689231aade221f576b,")
     print("// src/Laplace/lwtsexp_sep1.f: vwts, numthetahalf, numthetafour); Cheng, Greengard &")
     print("// Rokhlin, J. Comput. Phys. 155 (1999) 468, sec. 3.")
+    print("// One node per line, as the source tables list them.")
     print('#include "planewave_tables.hpp"\n')
+    print("// clang-format off")
     print("namespace rpyfmm::fmm::detail {\nnamespace {")
     for name, f in FILES:
         r = rows(os.path.join(d, f))
@@ -51,5 +53,6 @@ def main():
     print("    default: return {};")
     print("  }\n}\n")
     print("}  // namespace rpyfmm::fmm::detail")
+    print("// clang-format on")
 
 main()

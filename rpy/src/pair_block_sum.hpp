@@ -38,10 +38,10 @@ template <bool kBothWays>
 }
 
 /// One direction only (DirectRpy per source block, FmmRpy's one-sided block products).
-[[gnu::always_inline]] inline void sum_pair_blocks(std::size_t m, const double* dx, const double* dy,
-                                                   const double* dz, const double* f, const double* gr,
-                                                   const double* fx, const double* fy, const double* fz, double& sx,
-                                                   double& sy, double& sz) {
+[[gnu::always_inline]] inline void sum_pair_blocks(std::size_t m, const double* dx, const double* dy, const double* dz,
+                                                   const double* f, const double* gr, const double* fx,
+                                                   const double* fy, const double* fz, double& sx, double& sy,
+                                                   double& sz) {
   apply_pair_blocks<false>(m, dx, dy, dz, f, gr, fx, fy, fz, nullptr, nullptr, nullptr, nullptr, sx, sy, sz);
 }
 

@@ -330,7 +330,8 @@ TEST(BdReproducibility, PseStepsAgreeOnOneTwoAndThreeThreads) {
   std::vector<double> x0;
   for (int i = 0; i < 6; ++i)
     for (int j = 0; j < 6; ++j)
-      for (int k = 0; k < 6; ++k) x0.insert(x0.end(), {4.0 * i + 0.3 * (j % 2), 4.0 * j + 0.2 * (k % 3), 4.0 * k + 0.1});
+      for (int k = 0; k < 6; ++k)
+        x0.insert(x0.end(), {4.0 * i + 0.3 * (j % 2), 4.0 * j + 0.2 * (k % 3), 4.0 * k + 0.1});
   const std::vector<std::uint32_t> types(x0.size() / 3, 0);
   for (const auto& [tolerance, bound] : {std::pair{1e-3, 1e-5}, std::pair{1e-6, 1e-12}}) {
     SCOPED_TRACE(tolerance);

@@ -18,12 +18,12 @@
 #include "../../apps/rpyfmm/array_io.hpp"
 #include "rpyfmm/bd/checkpoint.hpp"
 #include "rpyfmm/bd/config.hpp"
-#include "rpyfmm/rpy/mobility_factory.hpp"
 #include "rpyfmm/core/error.hpp"
 #include "rpyfmm/core/ranges.hpp"
 #include "rpyfmm/core/threads.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
+#include "rpyfmm/rpy/mobility_factory.hpp"
 
 namespace fs = std::filesystem;
 namespace ranges = rpyfmm::ranges;

@@ -15,7 +15,9 @@ using namespace rpyfmm::rpy;
 constexpr double pi = std::numbers::pi;
 
 namespace {
-double rel(double a, double b) { return std::abs(a - b) / std::max(std::abs(b), 1e-300); }
+double rel(double a, double b) {
+  return std::abs(a - b) / std::max(std::abs(b), 1e-300);
+}
 }  // namespace
 
 // Rotne & Prager (1969) / Yamakawa (1970) in the textbook form, two spheres of
@@ -135,7 +137,7 @@ TEST(RpyKernel, TensorSymmetricAndPairAddConsistent) {
     for (int a = 0; a < 3; ++a) {
       double mf = 0;
       for (int b = 0; b < 3; ++b) {
-        EXPECT_EQ(m[3 * a + b], m[3 * b + a]);                       // M_ij symmetric block
+        EXPECT_EQ(m[3 * a + b], m[3 * b + a]);                            // M_ij symmetric block
         EXPECT_NEAR(m[3 * a + b], mt[3 * b + a], 1e-15 * m[0] + 1e-300);  // M_ij = M_ji^T
         mf += m[3 * a + b] * f[b];
       }
@@ -162,7 +164,7 @@ TEST(RpyKernel, DenseMatrixSpdForOverlappingPolydisperse) {
     op.set_positions(x, a);
     const auto dense = op.assemble_dense();
     Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> m(dense.data(), 3 * n,
-                                                                                                 3 * n);
+                                                                                               3 * n);
     EXPECT_LT((m - m.transpose()).cwiseAbs().maxCoeff(), 1e-15);
     Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(m);
     const double lmin = es.eigenvalues().minCoeff();

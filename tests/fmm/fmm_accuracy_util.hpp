@@ -3,12 +3,12 @@
 // plain direct sum at sampled targets.
 #pragma once
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "fmm_test_util.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
@@ -20,7 +20,7 @@ struct Errors {
 };
 
 inline Errors run(const std::vector<double>& src, const std::vector<double>& tgt, std::size_t nd, double eps,
-           int leaf = 0, std::size_t nsample = 400) {
+                  int leaf = 0, std::size_t nsample = 400) {
   const std::size_t n = src.size() / 3, m = tgt.empty() ? n : tgt.size() / 3;
   rpyfmm::fmm::FmmOptions o;
   o.tolerance = eps;

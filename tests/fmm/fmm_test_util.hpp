@@ -23,7 +23,8 @@ inline std::vector<double> direct(const std::vector<double>& src, const std::vec
   for (std::size_t ii = 0; ii < idx.size(); ++ii) {
     const std::size_t i = idx[ii];
     for (std::size_t j = 0; j < n; ++j) {
-      const double dx = tgt[3 * i] - src[3 * j], dy = tgt[3 * i + 1] - src[3 * j + 1], dz = tgt[3 * i + 2] - src[3 * j + 2];
+      const double dx = tgt[3 * i] - src[3 * j], dy = tgt[3 * i + 1] - src[3 * j + 1],
+                   dz = tgt[3 * i + 2] - src[3 * j + 2];
       const double r2 = dx * dx + dy * dy + dz * dz;
       if (r2 == 0.0) continue;
       const double r = std::sqrt(r2), r3 = r * r2, r5 = r3 * r2;

@@ -21,9 +21,12 @@ TEST(FmmAccuracyTight, UniformCube) {
 
 TEST(FmmAccuracyTight, SurfacesAndClusters) {
   const std::vector<std::pair<std::string, std::vector<double>>> cases = {
-      {"sphere", fmmtest::sphere(3000, 2)},     {"octant", fmmtest::sphere(3000, 3, true)},
-      {"cylinder", fmmtest::cylinder(3000, 4)}, {"plummer", fmmtest::plummer(3000, 5)},
-      {"two_clusters", fmmtest::two_clusters(2000, 6)}, {"line", fmmtest::line(2000, 7)}};
+      {"sphere", fmmtest::sphere(3000, 2)},
+      {"octant", fmmtest::sphere(3000, 3, true)},
+      {"cylinder", fmmtest::cylinder(3000, 4)},
+      {"plummer", fmmtest::plummer(3000, 5)},
+      {"two_clusters", fmmtest::two_clusters(2000, 6)},
+      {"line", fmmtest::line(2000, 7)}};
   for (const auto& [name, x] : cases)
     for (double eps : {1e-6, 1e-9, 1e-12}) {
       // Clusters of side 1e-4 at distance ~1 are conditioned to ~1e-12 by their coordinates alone:

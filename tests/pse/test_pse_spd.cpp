@@ -25,6 +25,8 @@ Eigen::MatrixXd assemble(const LinearOperatorView& op) {
 
 /// Configuration with pairs at r = 0, 0.1a, 1a, 1.99a, 2a, 2.01a, and across the boundary.
 std::vector<double> overlapping_configuration(const std::array<double, 3>& L, bool coincident) {
+  // One pair per row.
+  // clang-format off
   std::vector<double> x = {1.0, 1.0, 1.0,  1.0, 1.0, coincident ? 1.0 : 1.3,  // coincident (or 0.3a)
                            4.0, 4.0, 4.0,  4.1, 4.0, 4.0,         // 0.1a
                            7.0, 2.0, 3.0,  7.0, 3.0, 3.0,         // 1a
@@ -32,6 +34,7 @@ std::vector<double> overlapping_configuration(const std::array<double, 3>& L, bo
                            5.0, 8.0, 6.0,  7.0, 8.0, 6.0,         // 2a
                            8.0, 5.0, 8.0,  8.0, 7.01, 8.0,        // 2.01a
                            0.2, 6.0, 6.0,  L[0] - 0.5, 6.0, 6.0}; // across the x boundary, 0.7a
+  // clang-format on
   const auto extra = pse_test::random_points(10, L, 21);
   x.insert(x.end(), extra.begin(), extra.end());
   return x;

@@ -45,9 +45,9 @@ inline Eigen::MatrixXd rpy_matrix(const std::vector<double>& x, const std::vecto
     for (Eigen::Index j = 0; j < N; ++j) {
       const Eigen::Vector3d xi(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
       const Eigen::Vector3d xj(x[3 * j], x[3 * j + 1], x[3 * j + 2]);
-      M.block<3, 3>(3 * i, 3 * j) =
-          i == j ? Eigen::Matrix3d(Eigen::Matrix3d::Identity() / (6 * std::numbers::pi * a[i]))
-                 : rpy_pair(xi, xj, a[i], a[j], 1.0);
+      M.block<3, 3>(3 * i, 3 * j) = i == j
+                                        ? Eigen::Matrix3d(Eigen::Matrix3d::Identity() / (6 * std::numbers::pi * a[i]))
+                                        : rpy_pair(xi, xj, a[i], a[j], 1.0);
     }
   return M;
 }

@@ -11,8 +11,12 @@ using namespace rpyfmm::rpy;
 
 namespace {
 
-std::span<const double> cspan(const Eigen::VectorXd& v) { return {v.data(), static_cast<std::size_t>(v.size())}; }
-std::span<double> mspan(Eigen::VectorXd& v) { return {v.data(), static_cast<std::size_t>(v.size())}; }
+std::span<const double> cspan(const Eigen::VectorXd& v) {
+  return {v.data(), static_cast<std::size_t>(v.size())};
+}
+std::span<double> mspan(Eigen::VectorXd& v) {
+  return {v.data(), static_cast<std::size_t>(v.size())};
+}
 
 // The series sum c_k T_k(t) reproduces sqrt on [a, b] (checked at points
 // that are not interpolation nodes) to the size of the neglected tail.
@@ -35,7 +39,8 @@ TEST(Chebyshev, CoefficientsReproduceSqrt) {
 TEST(Chebyshev, EstimatedBoundsEncloseSpectrum) {
   for (bool mixed : {false, true})
     for (std::size_t N : {20, 200}) {
-      const Eigen::MatrixXd M = sqrt_test::rpy_matrix(sqrt_test::random_points(N, 0.1, 4u), sqrt_test::radii(N, mixed, 5u));
+      const Eigen::MatrixXd M =
+          sqrt_test::rpy_matrix(sqrt_test::random_points(N, 0.1, 4u), sqrt_test::radii(N, mixed, 5u));
       const SpectrumBounds b = estimate_spectrum_bounds(sqrt_test::view_of(M), 30);
       Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(M, Eigen::EigenvaluesOnly);
       EXPECT_LE(b.lambda_min, es.eigenvalues()[0]) << "N " << N << " mixed " << mixed;
@@ -53,8 +58,8 @@ TEST(Chebyshev, GivenBoundsDegreeFromTolerance) {
   const Eigen::MatrixXd M = sqrt_test::rpy_matrix(sqrt_test::random_points(N, 0.1, 9u), sqrt_test::radii(N, true, 1u));
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(M);
   const Eigen::VectorXd z = sqrt_test::gaussian(M.rows(), 4u);
-  const Eigen::VectorXd ref = es.eigenvectors() * es.eigenvalues().cwiseSqrt().asDiagonal() *
-                              es.eigenvectors().transpose() * z;
+  const Eigen::VectorXd ref =
+      es.eigenvectors() * es.eigenvalues().cwiseSqrt().asDiagonal() * es.eigenvectors().transpose() * z;
   SqrtOptions opt;
   opt.method = SqrtMethod::chebyshev;
   opt.lambda_min = es.eigenvalues()[0];

@@ -18,8 +18,12 @@ using namespace rpyfmm::rpy;
 
 namespace {
 
-std::span<const double> cspan(const Eigen::VectorXd& v) { return {v.data(), static_cast<std::size_t>(v.size())}; }
-std::span<double> mspan(Eigen::VectorXd& v) { return {v.data(), static_cast<std::size_t>(v.size())}; }
+std::span<const double> cspan(const Eigen::VectorXd& v) {
+  return {v.data(), static_cast<std::size_t>(v.size())};
+}
+std::span<double> mspan(Eigen::VectorXd& v) {
+  return {v.data(), static_cast<std::size_t>(v.size())};
+}
 
 /// Q diag(lambda) Q^T with a random orthogonal Q (fixed seed).
 Eigen::MatrixXd with_spectrum(const Eigen::VectorXd& lambda, std::uint32_t seed) {

@@ -35,7 +35,9 @@ const Case& rpy_case(std::size_t N, bool mixed) {
 // last change; the error left is of the same order, we allow 10 tol.
 // Chebyshev: error_estimate is an upper bound (given the bounds enclose the
 // spectrum), so the error must be <= tol (x 1.5 for the bound estimate).
-double slack(SqrtMethod m) { return m == SqrtMethod::lanczos ? 10.0 : 1.5; }
+double slack(SqrtMethod m) {
+  return m == SqrtMethod::lanczos ? 10.0 : 1.5;
+}
 
 void check(std::size_t N, bool mixed, SqrtMethod method, double tol) {
   const Case& c = rpy_case(N, mixed);
@@ -46,7 +48,8 @@ void check(std::size_t N, bool mixed, SqrtMethod method, double tol) {
   SqrtOptions opt;
   opt.method = method;
   opt.tolerance = tol;
-  const SqrtReport rep = sqrt_apply(op, std::span<const double>(z.data(), z.size()), std::span<double>(w.data(), w.size()), 1, opt);
+  const SqrtReport rep =
+      sqrt_apply(op, std::span<const double>(z.data(), z.size()), std::span<double>(w.data(), w.size()), 1, opt);
   const double err = (w - ref).norm() / ref.norm();
   EXPECT_LE(err, slack(method) * tol) << to_string(method) << " N=" << N << " mixed=" << mixed << " tol=" << tol
                                       << " iterations=" << rep.iterations << " estimate=" << rep.error_estimate;

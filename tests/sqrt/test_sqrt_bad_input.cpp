@@ -28,8 +28,8 @@ struct Fixture {
 
 TEST(SqrtBadInput, Tolerance) {
   Fixture f;
-  for (double tol : {0.0, -1e-3, 1.0, 2.0, std::numeric_limits<double>::quiet_NaN(),
-                     std::numeric_limits<double>::infinity()}) {
+  for (double tol :
+       {0.0, -1e-3, 1.0, 2.0, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
     for (SqrtMethod m : {SqrtMethod::lanczos, SqrtMethod::chebyshev, SqrtMethod::eigen}) {
       SqrtOptions opt;
       opt.method = m;
@@ -44,10 +44,16 @@ TEST(SqrtBadInput, Tolerance) {
 TEST(SqrtBadInput, Sizes) {
   Fixture f;
   Eigen::VectorXd shortz(29), longw(33);
-  expect_error([&] { sqrt_apply(f.op, {shortz.data(), 29}, f.ws(), 1, {}); }, ErrorCode::invalid_input,
-               "noise has 29 entries, expected 30");
-  expect_error([&] { sqrt_apply(f.op, f.zs(), {longw.data(), 33}, 1, {}); }, ErrorCode::invalid_input,
-               "output has 33 entries, expected 30");
+  expect_error(
+      [&] {
+        sqrt_apply(f.op, {shortz.data(), 29}, f.ws(), 1, {});
+      },
+      ErrorCode::invalid_input, "noise has 29 entries, expected 30");
+  expect_error(
+      [&] {
+        sqrt_apply(f.op, f.zs(), {longw.data(), 33}, 1, {});
+      },
+      ErrorCode::invalid_input, "output has 33 entries, expected 30");
   expect_error([&] { sqrt_apply(f.op, f.zs(), f.ws(), 2, {}); }, ErrorCode::invalid_input,
                "noise has 30 entries, expected 60");
   expect_error([&] { sqrt_apply(f.op, f.zs(), f.ws(), 0, {}); }, ErrorCode::invalid_argument,
@@ -56,8 +62,7 @@ TEST(SqrtBadInput, Sizes) {
   expect_error([&] { sqrt_apply(empty, {}, {}, 1, {}); }, ErrorCode::invalid_input, "size 0");
   LinearOperatorView noapply;
   noapply.n = 30;
-  expect_error([&] { sqrt_apply(noapply, f.zs(), f.ws(), 1, {}); }, ErrorCode::invalid_argument,
-               "no apply function");
+  expect_error([&] { sqrt_apply(noapply, f.zs(), f.ws(), 1, {}); }, ErrorCode::invalid_argument, "no apply function");
 }
 
 TEST(SqrtBadInput, NonFiniteNoise) {
@@ -65,8 +70,7 @@ TEST(SqrtBadInput, NonFiniteNoise) {
   f.z[7] = std::numeric_limits<double>::quiet_NaN();
   expect_error([&] { sqrt_apply(f.op, f.zs(), f.ws(), 1, {}); }, ErrorCode::invalid_input, "noise entry 7 is NaN");
   f.z[7] = -std::numeric_limits<double>::infinity();
-  expect_error([&] { sqrt_apply(f.op, f.zs(), f.ws(), 1, {}); }, ErrorCode::invalid_input,
-               "noise entry 7 is infinite");
+  expect_error([&] { sqrt_apply(f.op, f.zs(), f.ws(), 1, {}); }, ErrorCode::invalid_input, "noise entry 7 is infinite");
 }
 
 TEST(SqrtBadInput, Options) {
@@ -113,8 +117,8 @@ TEST(SqrtBadInput, IndefiniteOperator) {
     SqrtOptions opt;
     opt.method = m;
     f.w.setConstant(-7.0);
-    expect_error([&] { sqrt_apply(sqrt_test::view_of(ind), f.zs(), f.ws(), 1, opt); },
-                 ErrorCode::numerical_failure, "not positive definite");
+    expect_error([&] { sqrt_apply(sqrt_test::view_of(ind), f.zs(), f.ws(), 1, opt); }, ErrorCode::numerical_failure,
+                 "not positive definite");
     EXPECT_TRUE(f.w.allFinite());
   }
   SqrtOptions opt;

@@ -42,14 +42,14 @@ Eigen::MatrixXd assemble(const LinearOperatorView& op, SqrtReport& report, const
 
 }  // namespace
 
-SqrtReport dense_sqrt(const LinearOperatorView& op, std::span<const double> z, std::span<double> w,
-                      std::size_t nrhs, const SqrtOptions& options) {
+SqrtReport dense_sqrt(const LinearOperatorView& op, std::span<const double> z, std::span<double> w, std::size_t nrhs,
+                      const SqrtOptions& options) {
   const char* where = options.method == SqrtMethod::cholesky ? "sqrt_apply(cholesky)" : "sqrt_apply(eigen)";
   const std::size_t n = op.n;
   if (n > kDenseSqrtMaxRows) {
     fail(ErrorCode::out_of_memory, where,
-         "dense square roots are limited to " + std::to_string(kDenseSqrtMaxRows) + " rows (N = " +
-             std::to_string(kDenseSqrtMaxRows / 3) + " particles); got " + std::to_string(n) +
+         "dense square roots are limited to " + std::to_string(kDenseSqrtMaxRows) +
+             " rows (N = " + std::to_string(kDenseSqrtMaxRows / 3) + " particles); got " + std::to_string(n) +
              " rows: use lanczos or chebyshev");
   }
   SqrtReport report;
@@ -62,8 +62,7 @@ SqrtReport dense_sqrt(const LinearOperatorView& op, std::span<const double> z, s
   if (options.method == SqrtMethod::cholesky) {
     const Eigen::LLT<Eigen::MatrixXd> llt(M);
     if (llt.info() != Eigen::Success) {
-      fail(ErrorCode::numerical_failure, where,
-           "the operator is not positive definite: Cholesky factorization failed");
+      fail(ErrorCode::numerical_failure, where, "the operator is not positive definite: Cholesky factorization failed");
     }
     W = llt.matrixL() * Z;
   } else {

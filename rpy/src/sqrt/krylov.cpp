@@ -111,7 +111,7 @@ void HostKrylovSpace::require_finite(const double* y, const char* where, long lo
 }
 
 Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> tridiagonal_eigen(const std::vector<double>& alpha,
-                                                                const std::vector<double>& beta, int m) {
+                                                                 const std::vector<double>& beta, int m) {
   Eigen::VectorXd d = Eigen::Map<const Eigen::VectorXd>(alpha.data(), m);
   Eigen::VectorXd e(std::max(m - 1, 0));
   for (int i = 0; i + 1 < m; ++i) e[i] = beta[static_cast<std::size_t>(i)];

@@ -55,6 +55,6 @@ class LanczosProcess {
 
 /// Eigen-decomposition of the m x m tridiagonal T (alpha: m, beta: >= m-1).
 Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> tridiagonal_eigen(const std::vector<double>& alpha,
-                                                                const std::vector<double>& beta, int m);
+                                                                 const std::vector<double>& beta, int m);
 
 }  // namespace rpyfmm::rpy::sqrt_detail

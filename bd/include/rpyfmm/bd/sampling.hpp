@@ -58,7 +58,7 @@ bool fuses_drift_and_noise(const rpy::MobilityOperator& mobility, const SqrtOpti
 /// z1 from stream 1 for the real-space part, z2 from the wave-space stream; not the z of
 /// fill_normal(seed, step)). Requires fuses_drift_and_noise(); u and w are not separated.
 DriftNoiseReport fused_drift_and_noise(const rpy::MobilityOperator& mobility, std::span<const double> forces,
-                                       double noise_scale, std::uint64_t seed, std::uint64_t step,
-                                       std::span<double> v, const SqrtOptions& options);
+                                       double noise_scale, std::uint64_t seed, std::uint64_t step, std::span<double> v,
+                                       const SqrtOptions& options);
 
 }  // namespace rpyfmm::bd

@@ -21,12 +21,18 @@ enum class ErrorCode {
 
 inline const char* to_string(ErrorCode code) noexcept {
   switch (code) {
-    case ErrorCode::invalid_argument: return "invalid argument";
-    case ErrorCode::invalid_input: return "invalid input";
-    case ErrorCode::not_supported: return "not supported";
-    case ErrorCode::numerical_failure: return "numerical failure";
-    case ErrorCode::io_error: return "I/O error";
-    case ErrorCode::out_of_memory: return "out of memory";
+    case ErrorCode::invalid_argument:
+      return "invalid argument";
+    case ErrorCode::invalid_input:
+      return "invalid input";
+    case ErrorCode::not_supported:
+      return "not supported";
+    case ErrorCode::numerical_failure:
+      return "numerical failure";
+    case ErrorCode::io_error:
+      return "I/O error";
+    case ErrorCode::out_of_memory:
+      return "out of memory";
   }
   return "error";
 }
