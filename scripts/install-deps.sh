@@ -16,6 +16,7 @@ packages=(
   python3 python3-dev python3-pip python3-venv
   python3-mpi4py  # rpyfmm.mpi, the MPI layer from Python (docs/mpi.md, "Python (mpi4py)"), and its tests
   doxygen  # the API reference (`docs` target, built in CI with warnings as errors)
+  clang-format  # scripts/check-format.sh, run by .ci/run
   clang libclang-rt-14-dev  # libFuzzer and sanitizer runtimes for tests/fuzz/run.sh (Debian 12: clang 14)
 )
 
