@@ -10,6 +10,7 @@
 #include <numeric>
 #include <optional>
 #include <string>
+#include <utility>
 
 #include "rpyfmm/core/validate.hpp"
 
@@ -203,69 +204,120 @@ std::vector<std::uint64_t> morton_keys(const KeyCube& cube, std::span<const doub
   return keys;
 }
 
+namespace {
+
+// Collective: the global index of this rank's first particle (the input shares concatenated in
+// rank order) and the number of particles on all ranks.
+std::pair<std::uint64_t, std::uint64_t> global_offset_and_size(const Communicator& comm, std::uint64_t local_size) {
+  std::vector<std::uint64_t> counts(static_cast<std::size_t>(comm.size()));
+  check_mpi(MPI_Allgather(&local_size, 1, MPI_UINT64_T, counts.data(), 1, MPI_UINT64_T, comm.get()), "MPI_Allgather");
+  const std::uint64_t offset = std::accumulate(counts.begin(), counts.begin() + comm.rank(), std::uint64_t{0});
+  return {offset, std::accumulate(counts.begin(), counts.end(), std::uint64_t{0})};
+}
+
+// Collective: the largest weight on any rank (1 where a rank with particles passed none).
+double global_max_weight(const Communicator& comm, std::span<const double> weights, std::size_t local_size) {
+  double w_max = 0.0, local_w_max = weights.empty() && local_size > 0 ? 1.0 : 0.0;
+  for (double w : weights) local_w_max = std::max(local_w_max, w);
+  check_mpi(MPI_Allreduce(&local_w_max, &w_max, 1, MPI_DOUBLE, MPI_MAX, comm.get()), "MPI_Allreduce");
+  return w_max;
+}
+
+// This rank's particles sorted by (key, global index): their records, the input particle of each
+// slot (send_order) and the prefix sums of their quantized weights (prefix[s] = q of the first s).
+struct LocalOrder {
+  std::vector<SfcKey> sorted;
+  std::vector<std::size_t> send_order;
+  std::vector<std::uint64_t> prefix;
+};
+
+LocalOrder sort_local(const KeyCube& cube, std::span<const double> positions, std::span<const double> weights,
+                      std::uint64_t offset, const WeightScale& scale) {
+  const std::vector<std::uint64_t> keys = morton_keys(cube, positions);
+  const std::size_t n = keys.size();
+  LocalOrder local{std::vector<SfcKey>(n), std::vector<std::size_t>(n), std::vector<std::uint64_t>(n + 1, 0)};
+  std::iota(local.send_order.begin(), local.send_order.end(), std::size_t{0});  // keys ascend with index on ties
+  std::stable_sort(local.send_order.begin(), local.send_order.end(),
+                   [&](std::size_t a, std::size_t b) { return keys[a] < keys[b]; });
+  for (std::size_t s = 0; s < n; ++s) {
+    const std::size_t i = local.send_order[s];
+    local.sorted[s] = SfcKey{keys[i], offset + i};
+    local.prefix[s + 1] = local.prefix[s] + scale.quantize(weights.empty() ? 1.0 : weights[i]);
+  }
+  return local;
+}
+
+// The cuts as (key, index) records.
+std::vector<SfcKey> splitters_of(std::span<const Composite> cuts, std::uint64_t n_global) {
+  const std::uint64_t n = std::max<std::uint64_t>(n_global, 1);
+  std::vector<SfcKey> splitters;
+  for (Composite c : cuts) {
+    splitters.push_back(SfcKey{static_cast<std::uint64_t>(c / n), static_cast<std::uint64_t>(c % n)});
+  }
+  return splitters;
+}
+
+// Collective. Owners: rank r takes [cut r-1, cut r). How many of this rank's particles go to each
+// owner, and every owner's count and quantized weight over all ranks.
+struct Owners {
+  std::vector<std::size_t> send_count;
+  std::vector<std::uint64_t> counts, q;
+};
+
+Owners count_owners(const Communicator& comm, std::span<const Composite> cuts, std::span<const SfcKey> sorted,
+                    std::span<const std::uint64_t> prefix, std::uint64_t n_global) {
+  const auto parts = static_cast<std::size_t>(comm.size());
+  std::vector<std::uint64_t> local_totals(2 * parts, 0);  // counts, then q
+  Owners owners{std::vector<std::size_t>(parts, 0), {}, {}};
+  for (std::size_t s = 0, owner = 0; s < sorted.size(); ++s) {
+    const Composite c = composite(sorted[s], n_global);
+    while (owner + 1 < parts && cuts[owner] <= c) ++owner;
+    ++owners.send_count[owner];
+    local_totals[parts + owner] += prefix[s + 1] - prefix[s];
+  }
+  for (std::size_t r = 0; r < parts; ++r) local_totals[r] = owners.send_count[r];
+  std::vector<std::uint64_t> totals(2 * parts);
+  check_mpi(
+      MPI_Allreduce(local_totals.data(), totals.data(), static_cast<int>(2 * parts), MPI_UINT64_T, MPI_SUM, comm.get()),
+      "MPI_Allreduce");
+  owners.counts.assign(totals.begin(), totals.begin() + static_cast<std::ptrdiff_t>(parts));
+  owners.q.assign(totals.begin() + static_cast<std::ptrdiff_t>(parts), totals.end());
+  return owners;
+}
+
+}  // namespace
+
 SfcPartition::SfcPartition(MPI_Comm comm, std::span<const double> positions, std::span<const double> weights)
     : comm_(comm) {
   comm_.run([&] { check_input(positions, weights); });
-  const auto parts = static_cast<std::size_t>(comm_.size());
-  const auto rank = static_cast<std::size_t>(comm_.rank());
   input_size_ = positions.size() / 3;
-
-  // Global indices: the concatenation of the input shares in rank order.
-  std::vector<std::uint64_t> counts(parts);
-  const std::uint64_t mine = input_size_;
-  check_mpi(MPI_Allgather(&mine, 1, MPI_UINT64_T, counts.data(), 1, MPI_UINT64_T, comm_.get()), "MPI_Allgather");
-  const std::uint64_t offset =
-      std::accumulate(counts.begin(), counts.begin() + static_cast<std::ptrdiff_t>(rank), std::uint64_t{0});
-  global_size_ = std::accumulate(counts.begin(), counts.end(), std::uint64_t{0});
+  const auto [offset, global_size] = global_offset_and_size(comm_, input_size_);
+  global_size_ = global_size;
 
   cube_ = global_key_cube(comm_, positions);
-  double w_max = 0.0, local_w_max = weights.empty() && input_size_ > 0 ? 1.0 : 0.0;
-  for (double w : weights) local_w_max = std::max(local_w_max, w);
-  check_mpi(MPI_Allreduce(&local_w_max, &w_max, 1, MPI_DOUBLE, MPI_MAX, comm_.get()), "MPI_Allreduce");
+  const double w_max = global_max_weight(comm_, weights, input_size_);
   const WeightScale scale = weight_scale(w_max, global_size_);
   weight_shift_ = scale.unit_weights ? 0 : scale.shift;
   max_q_ = global_size_ == 0 ? 0 : scale.quantize(scale.unit_weights ? 1.0 : w_max);
 
-  // This rank's particles in global order, with the prefix sums of their q.
-  const std::vector<std::uint64_t> keys = morton_keys(cube_, positions);
-  send_order_.resize(input_size_);
-  std::iota(send_order_.begin(), send_order_.end(), std::size_t{0});  // keys ascend with index on ties
-  std::stable_sort(send_order_.begin(), send_order_.end(),
-                   [&](std::size_t a, std::size_t b) { return keys[a] < keys[b]; });
-  std::vector<SfcKey> sorted(input_size_);
-  std::vector<std::uint64_t> prefix(input_size_ + 1, 0);
-  for (std::size_t s = 0; s < input_size_; ++s) {
-    const std::size_t i = send_order_[s];
-    sorted[s] = SfcKey{keys[i], offset + i};
-    prefix[s + 1] = prefix[s] + scale.quantize(weights.empty() ? 1.0 : weights[i]);
-  }
+  LocalOrder local = sort_local(cube_, positions, weights, offset, scale);
+  send_order_ = std::move(local.send_order);
   std::uint64_t total_q = 0;
-  check_mpi(MPI_Allreduce(&prefix.back(), &total_q, 1, MPI_UINT64_T, MPI_SUM, comm_.get()), "MPI_Allreduce");
+  check_mpi(MPI_Allreduce(&local.prefix.back(), &total_q, 1, MPI_UINT64_T, MPI_SUM, comm_.get()), "MPI_Allreduce");
+  const std::vector<Composite> cuts = find_cuts(comm_, local.sorted, local.prefix, total_q, global_size_);
+  splitters_ = splitters_of(cuts, global_size_);
 
-  const std::vector<Composite> cuts = find_cuts(comm_, sorted, prefix, total_q, global_size_);
-  splitters_.clear();
-  for (Composite c : cuts) {
-    const std::uint64_t n = std::max<std::uint64_t>(global_size_, 1);
-    splitters_.push_back(SfcKey{static_cast<std::uint64_t>(c / n), static_cast<std::uint64_t>(c % n)});
-  }
+  Owners owners = count_owners(comm_, cuts, local.sorted, local.prefix, global_size_);
+  owned_counts_ = std::move(owners.counts);
+  owned_q_ = std::move(owners.q);
+  plan_exchange(owners.send_count);
+  receive_owned(local.sorted);
+}
 
-  // Owners: rank r takes [cut r-1, cut r); counts and weights per owner.
-  std::vector<std::uint64_t> local_totals(2 * parts, 0);  // counts, then q
-  std::vector<std::size_t> send_count(parts, 0);
-  for (std::size_t s = 0, owner = 0; s < input_size_; ++s) {
-    const Composite c = composite(sorted[s], global_size_);
-    while (owner + 1 < parts && cuts[owner] <= c) ++owner;
-    ++send_count[owner];
-    local_totals[parts + owner] += prefix[s + 1] - prefix[s];
-  }
-  for (std::size_t r = 0; r < parts; ++r) local_totals[r] = send_count[r];
-  std::vector<std::uint64_t> totals(2 * parts);
-  check_mpi(MPI_Allreduce(local_totals.data(), totals.data(), static_cast<int>(2 * parts), MPI_UINT64_T, MPI_SUM,
-                          comm_.get()),
-            "MPI_Allreduce");
-  owned_counts_.assign(totals.begin(), totals.begin() + static_cast<std::ptrdiff_t>(parts));
-  owned_q_.assign(totals.begin() + static_cast<std::ptrdiff_t>(parts), totals.end());
-
+// The counts and displacements of the exchange to the owners (MPI's int counts, checked).
+void SfcPartition::plan_exchange(std::span<const std::size_t> send_count) {
+  const auto parts = static_cast<std::size_t>(comm_.size());
+  const auto rank = static_cast<std::size_t>(comm_.rank());
   comm_.run([&] {
     (void)checked_int(input_size_, "sending this rank's share");
     (void)checked_int(static_cast<std::size_t>(owned_counts_[rank]), "receiving this rank's range");
@@ -277,9 +329,11 @@ SfcPartition::SfcPartition(MPI_Comm comm, std::span<const double> positions, std
             "MPI_Alltoall");
   plan_.send_displs = displacements(plan_.send_counts, "sending this rank's share");
   plan_.recv_displs = displacements(plan_.recv_counts, "receiving this rank's range");
+}
 
-  // The owned (key, index) records; each sender's block is sorted, so the owned order is their merge.
-  std::vector<SfcKey> received(static_cast<std::size_t>(owned_counts_[rank]));
+// The owned (key, index) records; each sender's block is sorted, so the owned order is their merge.
+void SfcPartition::receive_owned(std::span<const SfcKey> sorted) {
+  std::vector<SfcKey> received(static_cast<std::size_t>(owned_counts_[static_cast<std::size_t>(comm_.rank())]));
   const RecordType record(static_cast<int>(sizeof(SfcKey)));
   check_mpi(
       MPI_Alltoallv(sorted.data(), plan_.send_counts.data(), plan_.send_displs.data(), record.get(), received.data(),

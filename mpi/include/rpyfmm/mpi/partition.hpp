@@ -119,6 +119,11 @@ class SfcPartition {
     std::vector<int> send_counts, send_displs, recv_counts, recv_displs;
   };
   [[nodiscard]] std::vector<std::vector<double>> exchange(std::span<const Column> columns, bool forward) const;
+  // Construction's last stages: the counts and displacements of the exchange to the owners from
+  // how many particles go to each (MPI's int counts checked), then the owned records received in
+  // (key, index) order.
+  void plan_exchange(std::span<const std::size_t> send_count);
+  void receive_owned(std::span<const SfcKey> sorted);
 
   Communicator comm_;
   KeyCube cube_;
