@@ -7,6 +7,7 @@
 #include <exception>
 #include <limits>
 #include <numbers>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -245,8 +246,10 @@ int next_fast_size(int n) {
   }
 }
 
-PseParameters choose_parameters(const PseOptions& o, double a, const std::array<double, 3>& L,
-                                std::size_t n_particles) {
+namespace {
+
+// Every option and the radius and box checked, with the error naming the offending value.
+void check_options(const PseOptions& o, double a, const std::array<double, 3>& L) {
   require_positive(a, kWhere, "radius");
   if (!(std::isfinite(o.tolerance) && o.tolerance >= 1e-8 && o.tolerance < 0.1)) {
     fail(ErrorCode::invalid_argument, kWhere, "tolerance must lie in [1e-8, 0.1), got " + fmt(o.tolerance));
@@ -275,48 +278,47 @@ PseParameters choose_parameters(const PseOptions& o, double a, const std::array<
   const double min_L = std::min({L[0], L[1], L[2]});
   require(min_L > 2.0 * a, ErrorCode::invalid_argument, kWhere,
           "box length " + fmt(min_L) + " is not larger than the particle diameter " + fmt(2.0 * a));
+}
 
-  // Window shapes to try: the given one, or (automatic) the candidates, keeping the cheapest by
-  // the cost model. eta trades the grid (h_max ~ sqrt(eta (1 - eta/2))) against the support
-  // (P ~ m / sqrt(1 - eta/2) at h = h_max), and P moves in whole points.
-  std::vector<double> etas;
-  if (o.window_eta > 0.0) {
-    etas.push_back(o.window_eta);
-  } else {
-    etas.assign(std::begin(kEtaCandidates), std::end(kEtaCandidates));
-  }
-  // The cheapest feasible eta for one xi; if none is, the error of the last one tried
-  // (a fixed eta: its own error), so that its code (out_of_memory, ...) reaches the caller.
-  auto best_for_xi = [&](double xi) {
-    PseParameters best;
-    bool found = false;
-    std::exception_ptr last;
-    const double r_cut = cutoff_for_xi(o, a, xi);
-    for (double eta : etas) {
-      try {
-        PseParameters p = parameters_for(o, a, L, n_particles, xi, eta, r_cut);
-        if (!found || p.modelled_cost < best.modelled_cost) best = p;
-        found = true;
-      } catch (const Error&) {
-        last = std::current_exception();
-      }
+// Window shapes to try: the given one, or (automatic) the candidates, keeping the cheapest by the
+// cost model. eta trades the grid (h_max ~ sqrt(eta (1 - eta/2))) against the support
+// (P ~ m / sqrt(1 - eta/2) at h = h_max), and P moves in whole points.
+std::vector<double> window_shapes(const PseOptions& o) {
+  if (o.window_eta > 0.0) return {o.window_eta};
+  return {std::begin(kEtaCandidates), std::end(kEtaCandidates)};
+}
+
+// The cheapest feasible window shape for one xi; if none is, the error of the last one tried
+// (a fixed eta: its own error), so that its code (out_of_memory, ...) reaches the caller.
+PseParameters best_for_xi(const PseOptions& o, double a, const std::array<double, 3>& L, std::size_t n,
+                          std::span<const double> etas, double xi) {
+  PseParameters best;
+  bool found = false;
+  std::exception_ptr last;
+  const double r_cut = cutoff_for_xi(o, a, xi);
+  for (double eta : etas) {
+    try {
+      PseParameters p = parameters_for(o, a, L, n, xi, eta, r_cut);
+      if (!found || p.modelled_cost < best.modelled_cost) best = p;
+      found = true;
+    } catch (const Error&) {
+      last = std::current_exception();
     }
-    if (!found) std::rethrow_exception(last);
-    best.eta_automatic = etas.size() > 1;
-    return best;
-  };
-  if (o.xi != 0.0) {
-    require(std::isfinite(o.xi) && o.xi * a >= 0.05, ErrorCode::invalid_argument, kWhere,
-            "xi a must be >= 0.05 (closed forms lose accuracy below), got xi = " + fmt(o.xi));
-    return best_for_xi(o.xi);
   }
-  // Automatic xi: minimise the modelled cost over xi a in [0.2, 8] ([PSE] eq. 22; docs/theory/pse.md).
+  if (!found) std::rethrow_exception(last);
+  best.eta_automatic = etas.size() > 1;
+  return best;
+}
+
+// Automatic xi: minimise the modelled cost over xi a in [0.2, 8] ([PSE] eq. 22; docs/theory/pse.md).
+PseParameters cheapest_xi(const PseOptions& o, double a, const std::array<double, 3>& L, std::size_t n,
+                          std::span<const double> etas) {
   PseParameters best;
   bool found = false;
   std::string last_error;
   for (double xa = 0.2; xa <= 8.0 + 1e-12; xa += (xa < 2.5 ? 0.05 : 0.25)) {
     try {
-      const PseParameters p = best_for_xi(xa / a);
+      const PseParameters p = best_for_xi(o, a, L, n, etas, xa / a);
       if (!found || p.modelled_cost < best.modelled_cost) best = p;
       found = true;
     } catch (const Error& e) {
@@ -328,6 +330,18 @@ PseParameters choose_parameters(const PseOptions& o, double a, const std::array<
           "no Ewald parameter xi a in [0.2, 8] is feasible for this box and tolerance (" + last_error + ")");
   best.xi_automatic = true;
   return best;
+}
+
+}  // namespace
+
+PseParameters choose_parameters(const PseOptions& o, double a, const std::array<double, 3>& L,
+                                std::size_t n_particles) {
+  check_options(o, a, L);
+  const std::vector<double> etas = window_shapes(o);
+  if (o.xi == 0.0) return cheapest_xi(o, a, L, n_particles, etas);
+  require(std::isfinite(o.xi) && o.xi * a >= 0.05, ErrorCode::invalid_argument, kWhere,
+          "xi a must be >= 0.05 (closed forms lose accuracy below), got xi = " + fmt(o.xi));
+  return best_for_xi(o, a, L, n_particles, etas, o.xi);
 }
 
 std::string PseParameters::summary() const {
