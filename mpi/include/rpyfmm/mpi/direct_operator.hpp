@@ -23,8 +23,9 @@
 // result is DirectRpy's bit for bit; otherwise both are sums of the same N pair terms in two
 // orders, so each entry differs from DirectRpy's by at most about 2 N eps times the sum of the
 // terms' magnitudes, sum_j |M_ij| |[F_j; T_j]| (recursive and blocked summation, Higham (2002)
-// Accuracy and Stability of Numerical Algorithms, section 4.2), a few units in the last place for
-// ordinary inputs. Repeated products on the same shares give the same bits.
+// Accuracy and Stability of Numerical Algorithms, section 4.2); a few units in the last place on
+// the suspensions of tests/mpi/test_distributed_direct.cpp. Repeated products on the same shares
+// give the same bits.
 //
 // Every public call is collective over the communicator and fails collectively
 // (communicator.hpp): a bad input on one rank makes every rank throw the same rpyfmm::Error.
