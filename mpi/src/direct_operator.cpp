@@ -8,15 +8,20 @@
 #include <array>
 #include <climits>
 #include <cmath>
+#include <cstdint>
+#include <numeric>
 #include <string>
 
 // rpy/src (private to rpyfmm::rpy and this layer): DirectRpy's block sums, length units and load
-// scaling, so that the distributed sums are DirectRpy's operation for operation.
+// scaling, so that the distributed sums are DirectRpy's operation for operation; and its vectorized
+// rotational pair sums (rotation_pair_sums.hpp), on each block of sources.
 #include "direct_block_sums.hpp"
 #include "length_units.hpp"
 #include "load_scaling.hpp"
 #include "particle_set.hpp"
+#include "rotation_pair_sums.hpp"
 #include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/rpy/rpy_rotation_kernel.hpp"
 
 namespace rpyfmm::mpi {
 namespace {
@@ -25,8 +30,10 @@ constexpr const char* kSetPositions = "DistributedDirectRpy::set_positions";
 constexpr const char* kApply = "DistributedDirectRpy::apply";
 constexpr std::size_t kBlock = rpy::detail::kDirectBlock;
 // Doubles per particle of a source block as broadcast: x, y, z, a (length units), fx, fy, fz
-// (load-scaled), each an array over the block's particles.
+// (load-scaled), each an array over the block's particles; with rotation then tx, ty, tz
+// (load-scaled and divided by the length unit, as DirectRpy passes them to its rotational sums).
 constexpr std::size_t kPacked = 7;
+constexpr std::size_t kPackedRotation = 10;
 // The broadcast in flight is polled (MPI_Test lets it progress) between batches of targets: about
 // eight batches per block, each at least 64 targets per thread (add_direct_block_sums hands out
 // targets to the threads 16 at a time, so every thread stays busy).
@@ -51,7 +58,8 @@ class DistributedDirectRpy::SourceWindow {
  public:
   explicit SourceWindow(std::size_t capacity) : data_(kColumns * capacity), capacity_(capacity) {}
 
-  // `packed`: kPacked arrays of n doubles (x, y, z, a, fx, fy, fz).
+  // `packed`: kPacked arrays of n doubles (x, y, z, a, fx, fy, fz), then any further arrays (the
+  // torques), not kept.
   void append(const double* packed, std::size_t n) {
     for (std::size_t k = 0; k < kPacked; ++k) std::copy_n(packed + k * n, n, column(k) + size_);
     const double* a = column(kA) + size_;
@@ -98,9 +106,10 @@ void DistributedDirectRpy::set_positions(std::span<const double> local_positions
   // Same values on every rank, so every rank throws alike here without agreement.
   std::uint64_t total = 0;
   for (std::size_t n : all) {
-    require(n <= static_cast<std::size_t>(INT_MAX) / kPacked, ErrorCode::not_supported, kSetPositions,
+    // kPackedRotation: the blocks of a product with rotation are the larger ones.
+    require(n <= static_cast<std::size_t>(INT_MAX) / kPackedRotation, ErrorCode::not_supported, kSetPositions,
             "a rank holds " + std::to_string(n) + " particles: more than MPI's int counts address in one block (" +
-                std::to_string(INT_MAX / kPacked) + ")");
+                std::to_string(INT_MAX / kPackedRotation) + ")");
     total += n;
   }
   require(total > 0, ErrorCode::invalid_input, kSetPositions,
@@ -115,6 +124,7 @@ void DistributedDirectRpy::set_positions(std::span<const double> local_positions
         [&] { set = detail::gather_whole_set(comm_, local_positions, local_radii, offset_); });
   // MobilityOperator's flag: every radius equal to the first (radii are > 0, so no -0 == +0).
   equal_radii_ = set.radii.a_min == set.radii.a_max;
+  largest_radius_ = set.radii.a_max;
   comm_.run([&] {
     // DirectRpy::on_positions_set on this rank's share, with the whole set's units.
     const rpy::detail::LengthUnits units =
@@ -127,16 +137,24 @@ void DistributedDirectRpy::set_positions(std::span<const double> local_positions
   global_n_ = total;
 }
 
-std::vector<double> DistributedDirectRpy::packed_block(std::span<const double> local_forces, int load_exponent) const {
+std::vector<double> DistributedDirectRpy::packed_block(std::span<const double> local_forces,
+                                                       std::span<const double> local_torques, int load_exponent) const {
   const std::size_t n = local_n_;
-  std::vector<double> packed(kPacked * n);
+  const bool rotation = !local_torques.empty();
+  std::vector<double> packed((rotation ? kPackedRotation : kPacked) * n);
   std::copy(x_.begin(), x_.end(), packed.begin());
   std::copy(y_.begin(), y_.end(), packed.begin() + static_cast<std::ptrdiff_t>(n));
   std::copy(z_.begin(), z_.end(), packed.begin() + static_cast<std::ptrdiff_t>(2 * n));
   std::copy(a_.begin(), a_.end(), packed.begin() + static_cast<std::ptrdiff_t>(3 * n));
-  // MobilityOperator::apply_block's load scaling: 2^-k F, exact.
+  // MobilityOperator::apply_block's load scaling: 2^-k F, exact. The torques as
+  // DirectRpy::do_apply_rotation receives and stores them: 2^-k T, then 2^-e for the length units
+  // 2^e (two steps, as there, so that a subnormal rounds alike).
   for (std::size_t i = 0; i < n; ++i)
-    for (std::size_t c = 0; c < 3; ++c) packed[(4 + c) * n + i] = std::ldexp(local_forces[3 * i + c], -load_exponent);
+    for (std::size_t c = 0; c < 3; ++c) {
+      packed[(4 + c) * n + i] = std::ldexp(local_forces[3 * i + c], -load_exponent);
+      if (rotation)
+        packed[(7 + c) * n + i] = std::ldexp(std::ldexp(local_torques[3 * i + c], -load_exponent), -scale_exponent_);
+    }
   return packed;
 }
 
@@ -156,31 +174,89 @@ void DistributedDirectRpy::sum_block(SourceWindow& window, std::size_t usable, s
   }
 }
 
+// DirectRpy::do_apply_rotation's per-target rotational sums (rotation_pair_sum) over one rank's
+// block of n sources, global indices [first_index, first_index + n): acc[6 i ..] = (U, W) sums of
+// target i on the first block, += on later ones (assigned first, so that the sign of a zero sum
+// is DirectRpy's where one block holds every source).
+void DistributedDirectRpy::sum_rotation_block(const double* block, std::size_t n, std::size_t first_index,
+                                              bool first_block, std::vector<double>& acc, MPI_Request* pending) const {
+  std::vector<std::size_t> id(n);
+  std::iota(id.begin(), id.end(), first_index);
+  const double* b = block;
+  const rpy::detail::GrandSources src{n,         b,         b + n,     b + 2 * n, equal_radii_ ? nullptr : b + 3 * n,
+                                      id.data(), b + 4 * n, b + 5 * n, b + 6 * n, b + 7 * n,
+                                      b + 8 * n, b + 9 * n};
+  const std::size_t batch = target_batch(local_n_);
+  for (std::size_t first = 0; first < local_n_; first += batch) {
+    const auto end = static_cast<std::int64_t>(std::min(local_n_, first + batch));
+#pragma omp parallel for schedule(dynamic, 16)
+    for (auto ii = static_cast<std::int64_t>(first); ii < end; ++ii) {
+      const auto i = static_cast<std::size_t>(ii);
+      rpy::detail::GrandSums sums{};
+      rpy::detail::rotation_pair_sum(src, {x_[i], y_[i], z_[i], a_[i], offset_ + i, {}, {}}, sums);
+      double* out = acc.data() + 6 * i;
+      for (std::size_t c = 0; c < 3; ++c) {
+        out[c] = first_block ? sums.u[c] : out[c] + sums.u[c];
+        out[3 + c] = first_block ? sums.w[c] : out[3 + c] + sums.w[c];
+      }
+    }
+    if (pending != nullptr) {
+      int done = 0;
+      timed(stats_.apply_seconds, [&] { check_mpi(MPI_Test(pending, &done, MPI_STATUS_IGNORE), "MPI_Test"); });
+    }
+  }
+}
+
 void DistributedDirectRpy::apply(std::span<const double> local_forces, std::span<double> local_velocities) const {
+  product(false, local_forces, {}, local_velocities, {});
+}
+
+void DistributedDirectRpy::apply(std::span<const double> local_forces, std::span<const double> local_torques,
+                                 std::span<double> local_velocities, std::span<double> local_angular_velocities) const {
+  product(true, local_forces, local_torques, local_velocities, local_angular_velocities);
+}
+
+void DistributedDirectRpy::product(bool rotation, std::span<const double> local_forces,
+                                   std::span<const double> local_torques, std::span<double> local_velocities,
+                                   std::span<double> local_angular_velocities) const {
   // global_n_ is the same on every rank (set_positions succeeds or fails on all of them).
   require(global_n_ > 0, ErrorCode::invalid_input, kApply, "positions not set (call set_positions first)");
+  const std::size_t n3 = 3 * local_n_;
+  const auto output = [](std::span<double> out) { return std::span<const double>(out.data(), out.size()); };
+  // MobilityOperator::apply's order: every size, then the inputs' entries.
   comm_.run([&] {
-    require_size(local_forces, 3 * local_n_, kApply, "local forces");
-    require_size(std::span<const double>(local_velocities.data(), local_velocities.size()), 3 * local_n_, kApply,
-                 "local velocities");
+    require_size(local_forces, n3, kApply, "local forces");
+    if (rotation) require_size(local_torques, n3, kApply, "local torques");
+    require_size(output(local_velocities), n3, kApply, "local velocities");
+    if (rotation) require_size(output(local_angular_velocities), n3, kApply, "local angular velocities");
     require_finite(local_forces, kApply, "local forces", 3);
+    if (rotation) require_finite(local_torques, kApply, "local torques", 3);
   });
   stats_.apply_seconds = 0.0;
   stats_.apply_bytes_received = 0;
-  // MobilityOperator::apply_block's load scale, from the largest force of all ranks.
+  // MobilityOperator::apply_block's load scale, from the largest force of all ranks; with rotation
+  // MobilityOperator::apply's, from the largest force and torque (largest_rotation_load).
   double largest = 0.0, global_largest = 0.0;
-  for (double f : local_forces) largest = std::max(largest, std::abs(f));
+  if (rotation) {
+    largest = rpy::detail::largest_rotation_load(local_forces, local_torques, largest_radius_);
+  } else {
+    for (double f : local_forces) largest = std::max(largest, std::abs(f));
+  }
   timed(stats_.apply_seconds, [&] {
     check_mpi(MPI_Allreduce(&largest, &global_largest, 1, MPI_DOUBLE, MPI_MAX, comm_.get()), "MPI_Allreduce");
   });
   const int k = rpy::detail::load_scale_exponent({std::span<const double>(&global_largest, 1)});
-  std::vector<double> own = packed_block(local_forces, k);
+  std::vector<double> own = packed_block(local_forces, rotation ? local_torques : std::span<const double>{}, k);
+  const std::size_t columns = rotation ? kPackedRotation : kPacked;
 
   // The ranks' blocks in rank order (empty shares skipped), each broadcast by its owner; two
   // receive buffers, the next block in flight while the current one is summed.
   std::vector<int> roots;
-  for (std::size_t r = 0; r < counts_.size(); ++r)
+  std::vector<std::size_t> first_index(counts_.size(), 0);  // of each rank's first particle
+  for (std::size_t r = 0; r < counts_.size(); ++r) {
     if (counts_[r] > 0) roots.push_back(static_cast<int>(r));
+    if (r > 0) first_index[r] = first_index[r - 1] + counts_[r - 1];
+  }
   const std::size_t largest_share = *std::max_element(counts_.begin(), counts_.end());
   std::array<std::vector<double>, 2> buffers;
   std::array<MPI_Request, 2> requests{MPI_REQUEST_NULL, MPI_REQUEST_NULL};
@@ -189,38 +265,59 @@ void DistributedDirectRpy::apply(std::span<const double> local_forces, std::span
   };
   const auto post = [&](std::size_t step) {
     const int root = roots[step];
-    if (root != comm_.rank()) buffers[step % 2].resize(kPacked * largest_share);
-    const auto count = static_cast<int>(kPacked * counts_[static_cast<std::size_t>(root)]);
+    if (root != comm_.rank()) buffers[step % 2].resize(columns * largest_share);
+    const auto count = static_cast<int>(columns * counts_[static_cast<std::size_t>(root)]);
     timed(stats_.apply_seconds, [&] {
       check_mpi(MPI_Ibcast(block_of(step), count, MPI_DOUBLE, root, comm_.get(), &requests[step % 2]), "MPI_Ibcast");
     });
   };
 
   SourceWindow window(kBlock - 1 + largest_share);
-  std::vector<double> acc(3 * local_n_, 0.0);
+  std::vector<double> acc(n3, 0.0);
+  std::vector<double> rotation_acc(rotation ? 2 * n3 : 0, 0.0);
   post(0);
   for (std::size_t step = 0; step < roots.size(); ++step) {
     const bool last = step + 1 == roots.size();
     if (!last) post(step + 1);
     timed(stats_.apply_seconds, [&] { check_mpi(MPI_Wait(&requests[step % 2], MPI_STATUS_IGNORE), "MPI_Wait"); });
-    const std::size_t n = counts_[static_cast<std::size_t>(roots[step])];
-    if (roots[step] != comm_.rank()) stats_.apply_bytes_received += kPacked * n * sizeof(double);
+    const auto root = static_cast<std::size_t>(roots[step]);
+    const std::size_t n = counts_[root];
+    if (roots[step] != comm_.rank()) stats_.apply_bytes_received += columns * n * sizeof(double);
     window.append(block_of(step), n);
     // Whole source blocks of DirectRpy only (counted from the first particle of the whole set),
     // but for the set's last block.
     const std::size_t usable = last ? window.size() : window.size() / kBlock * kBlock;
-    sum_block(window, usable, acc, last ? nullptr : &requests[(step + 1) % 2]);
+    MPI_Request* pending = last ? nullptr : &requests[(step + 1) % 2];
+    sum_block(window, usable, acc, pending);
     window.drop_front(usable);
+    if (rotation) sum_rotation_block(block_of(step), n, first_index[root], step == 0, rotation_acc, pending);
   }
 
   // Back from the length units (exact), then from the load scale: DirectRpy::sum_rows and
-  // MobilityOperator::apply_block.
+  // MobilityOperator::apply_block; with rotation DirectRpy::do_apply_rotation (U: the
+  // translational sum, then the rotational one added, each in 2^e U; W: the sums and the self
+  // term T_i / (8 pi eta a_i^3) in 2^(2e) W) and MobilityOperator::apply.
   stats_.applies_seconds += stats_.apply_seconds;
   const double inv_eta = 1.0 / viscosity_;
-  for (std::size_t i = 0; i < 3 * local_n_; ++i) {
-    local_velocities[i] = std::ldexp(std::ldexp(inv_eta * acc[i], -scale_exponent_), k);
+  const int e = scale_exponent_;
+  for (std::size_t i = 0; i < local_n_; ++i) {
+    for (std::size_t c = 0; c < 3; ++c) {
+      double u = std::ldexp(inv_eta * acc[3 * i + c], -e);
+      if (rotation) {
+        const double* sums = rotation_acc.data() + 6 * i;
+        u += std::ldexp(inv_eta * sums[c], -e);
+        const double torque = own[(7 + c) * local_n_ + i];  // 2^-k 2^-e T, as DirectRpy holds it
+        const double w = std::ldexp(inv_eta * (sums[3 + c] + rpy::rpy_rotation_self(a_[i]) * torque), -2 * e);
+        local_angular_velocities[3 * i + c] = std::ldexp(w, k);
+      }
+      local_velocities[3 * i + c] = std::ldexp(u, k);
+    }
   }
-  comm_.run([&] { rpy::detail::require_finite_result(local_velocities, kApply, "velocities", "forces"); });
+  comm_.run([&] {
+    const char* input = rotation ? "forces and torques" : "forces";
+    rpy::detail::require_finite_result(local_velocities, kApply, "velocities", input);
+    if (rotation) rpy::detail::require_finite_result(local_angular_velocities, kApply, "angular velocities", input);
+  });
 }
 
 }  // namespace rpyfmm::mpi

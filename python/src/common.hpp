@@ -117,6 +117,15 @@ struct OutArray {
 OutArray make_output(nb::handle out, const std::vector<std::size_t>& shape, const std::string& where,
                      const InArray* input = nullptr);
 
+/// The arrays of a product with rotation: forces and torques of one shape, (N, 3) or (3N,), and new
+/// velocities and angular velocities of that shape. `out` must be None (not supported together with
+/// torques). MobilityOperator.apply and mpi.DistributedDirectRpy.apply with torques (mobility.cpp).
+struct RotationArrays {
+  InArray f, t;
+  OutArray u, w;
+};
+RotationArrays rotation_arrays(ArrayArg forces, OptArrayArg torques, OutArg out, const std::string& where);
+
 /// Wraps a vector's storage as a NumPy array without copying (the array owns it).
 ArrayResult adopt_vector(std::vector<double>&& values, const std::vector<std::size_t>& shape);
 

@@ -69,20 +69,12 @@ ArrayResult map_points(const std::string& where, ArrayArg forces, OutArg out, Fn
 /// U = M F; with torques, (U, W) = M (F, T) (MobilityOperator::apply with rotation).
 nb::object apply(const MobilityOperator& op, ArrayArg forces, OptArrayArg torques, OutArg out) {
   if (torques.is_none()) return map_points("apply", forces, out, [&](auto f, auto u) { op.apply(f, u); }).o;
-  const std::string where = "apply";
-  require(out.is_none(), ErrorCode::invalid_argument, where, "out is not supported together with torques");
-  const InArray f = as_input(forces, where, "forces");
-  const InArray t = as_input(torques, where, "torques");
-  require_points(f, where, "forces");
-  require(t.shape == f.shape, ErrorCode::invalid_input, where,
-          "torques has shape " + shape_string(t.shape) + ", expected the shape of forces " + shape_string(f.shape));
-  OutArray u = make_output(nb::none(), f.shape, where);
-  OutArray w = make_output(nb::none(), f.shape, where);
+  const RotationArrays a = rotation_arrays(forces, torques, out, "apply");
   {
     nb::gil_scoped_release release;
-    op.apply(f.span(), t.span(), u.span(), w.span());
+    op.apply(a.f.span(), a.t.span(), a.u.span(), a.w.span());
   }
-  return nb::make_tuple(u.object, w.object);
+  return nb::make_tuple(a.u.object, a.w.object);
 }
 
 ArrayResult apply_block(const MobilityOperator& op, ArrayArg forces, OutArg out) {
@@ -560,6 +552,18 @@ void bind_mobility_factory(nb::module_& m) {
 }
 
 }  // namespace
+
+RotationArrays rotation_arrays(ArrayArg forces, OptArrayArg torques, OutArg out, const std::string& where) {
+  require(out.is_none(), ErrorCode::invalid_argument, where, "out is not supported together with torques");
+  InArray f = as_input(forces, where, "forces");
+  InArray t = as_input(torques, where, "torques");
+  require_points(f, where, "forces");
+  require(t.shape == f.shape, ErrorCode::invalid_input, where,
+          "torques has shape " + shape_string(t.shape) + ", expected the shape of forces " + shape_string(f.shape));
+  OutArray u = make_output(nb::none(), f.shape, where);
+  OutArray w = make_output(nb::none(), f.shape, where);
+  return RotationArrays{std::move(f), std::move(t), std::move(u), std::move(w)};
+}
 
 nb::dict pse_parameters(const rpy::pse::PseParameters& p) {
   nb::dict d;

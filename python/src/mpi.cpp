@@ -168,9 +168,14 @@ ArrayAndReport<rpy::SqrtReport> apply_sqrt(const WithComm<Op>& self, ArrayArg z,
 template <class Op>
 using Class = nb::class_<WithComm<Op>>;
 
-/// What every distributed operator offers: its communicator, sizes, set_positions, apply, apply_sqrt.
+const char* kApplyDoc =
+    "Collective. U = M F for this rank's particles: forces (n, 3) or (3n,); returns the velocities in\n"
+    "the same shape (float64); `out` (writable float64, C-contiguous) is written in place and returned.";
+
+/// What every distributed operator offers: its communicator, sizes, set_positions, apply (U = M F;
+/// unless the class binds its own, with_apply = false), apply_sqrt.
 template <class Op>
-void add_common(Class<Op>& cls, const char* sqrt_doc) {
+void add_common(Class<Op>& cls, const char* sqrt_doc, bool with_apply = true) {
   using Self = WithComm<Op>;
   cls.def_prop_ro(
          "comm", [](const Self& s) { return s.comm; }, "The mpi4py communicator the operator works on.")
@@ -192,15 +197,15 @@ void add_common(Class<Op>& cls, const char* sqrt_doc) {
                    "The global index of this rank's first particle (the ranks' shares in rank order).");
   cls.def("set_positions", locked("set_positions", &set_positions<Op>), nb::arg("positions"), nb::arg("radius"),
           "Collective. This rank's positions ((n, 3) or (3n,), n >= 0, length units) and radius: one number\n"
-          "for them or an array of n radii. The global set is the ranks' shares concatenated in rank order.")
-      .def("apply", locked("apply", &apply<Op>), nb::arg("forces"), nb::arg("out") = nb::none(),
-           "Collective. U = M F for this rank's particles: forces (n, 3) or (3n,); returns the velocities in\n"
-           "the same shape (float64); `out` (writable float64, C-contiguous) is written in place and returned.")
-      .def("apply_sqrt", locked("apply_sqrt", &apply_sqrt<Op>), nb::arg("z"), nb::arg("out") = nb::none(),
-           nb::kw_only(), nb::arg("method") = "auto", nb::arg("tolerance") = rpy::SqrtOptions{}.tolerance,
-           nb::arg("max_iterations") = 0, nb::arg("reorthogonalize") = true, nb::arg("throw_if_not_converged") = true,
-           nb::arg("lambda_min") = 0.0, nb::arg("lambda_max") = 0.0, nb::arg("bound_estimate_iterations") = 30,
-           nb::arg("preconditioner") = "none", nb::arg("preconditioner_block") = 0, sqrt_doc);
+          "for them or an array of n radii. The global set is the ranks' shares concatenated in rank order.");
+  if (with_apply) {
+    cls.def("apply", locked("apply", &apply<Op>), nb::arg("forces"), nb::arg("out") = nb::none(), kApplyDoc);
+  }
+  cls.def("apply_sqrt", locked("apply_sqrt", &apply_sqrt<Op>), nb::arg("z"), nb::arg("out") = nb::none(), nb::kw_only(),
+          nb::arg("method") = "auto", nb::arg("tolerance") = rpy::SqrtOptions{}.tolerance,
+          nb::arg("max_iterations") = 0, nb::arg("reorthogonalize") = true, nb::arg("throw_if_not_converged") = true,
+          nb::arg("lambda_min") = 0.0, nb::arg("lambda_max") = 0.0, nb::arg("bound_estimate_iterations") = 30,
+          nb::arg("preconditioner") = "none", nb::arg("preconditioner_block") = 0, sqrt_doc);
 }
 
 const char* kKrylovSqrtDoc =
@@ -212,14 +217,37 @@ void init_direct(Direct* self, nb::object comm, double viscosity) {
   new (self) Direct{comm, mpi::DistributedDirectRpy(comm_from(comm, "DistributedDirectRpy"), viscosity)};
 }
 
+/// U = M F; with torques, (U, W) = M (F, T) (DistributedDirectRpy::apply with rotation), spelled
+/// as MobilityOperator.apply (mobility.cpp); the arrays' checks agreed over the ranks.
+nb::object direct_apply(const Direct& self, ArrayArg forces, OptArrayArg torques, OutArg out) {
+  if (torques.is_none()) return apply(self, forces, out).o;
+  const RotationArrays a =
+      agreed(self.op.communicator(), [&] { return rotation_arrays(forces, torques, out, "apply"); });
+  {
+    nb::gil_scoped_release release;
+    self.op.apply(a.f.span(), a.t.span(), a.u.span(), a.w.span());
+  }
+  return nb::make_tuple(a.u.object, a.w.object);
+}
+
 void bind_distributed_direct(nb::module_& m) {
   Class<mpi::DistributedDirectRpy> cls(m, "DistributedDirectRpy",
                                        "Exact O(N^2) RPY mobility on particles distributed over the ranks (free "
                                        "space); equal bit for bit\nto DirectRpy on the ranks' shares concatenated in "
-                                       "rank order.");
+                                       "rank order (with torques: within the\nsummation-order bound of docs/mpi.md).");
   cls.def("__init__", &init_direct, nb::arg("comm"), nb::arg("viscosity") = 1.0,
           "Collective. comm: an mpi4py communicator; viscosity: eta > 0.");
-  add_common(cls, kKrylovSqrtDoc);
+  add_common(cls, kKrylovSqrtDoc, false);
+  // Built once; nanobind keeps the pointer.
+  static const std::string direct_apply_doc =
+      std::string(kApplyDoc) +
+      "\nWith torques (same shape as forces): returns (U, W) = M (F, T), the velocities and angular\n"
+      "velocities of the grand mobility with rotation; `out` is not supported with torques.";
+  cls.def("apply", locked("apply", &direct_apply), nb::arg("forces"), nb::arg("torques") = nb::none(),
+          nb::arg("out") = nb::none(), direct_apply_doc.c_str())
+      .def_prop_ro(
+          "supports_rotation", [](const Direct& s) { return s.op.supports_rotation(); },
+          "True: apply accepts torques (the grand mobility with rotation).");
 }
 
 void init_fmm(Fmm* self, nb::object comm, double viscosity, double tolerance, int leaf_capacity,

@@ -27,6 +27,19 @@ inline int load_scale_exponent(std::initializer_list<std::span<const double>> lo
   return std::ilogb(largest);
 }
 
+// The largest load of [F; T] with the torques measured as forces, T / l with l = 2^ilogb(largest radius)
+// (a torque is a force times a length): its load_scale_exponent is the products' with rotation. Lengths
+// and torques of 2^(+-400) with forces of order one then need no scaling, where scaling by the torques
+// alone would push W (~ T / a^3) out of range inside the product.
+inline double largest_rotation_load(std::span<const double> forces, std::span<const double> torques,
+                                    double largest_radius) {
+  const int length = std::ilogb(largest_radius);
+  double largest = 0.0;
+  for (double f : forces) largest = std::max(largest, std::abs(f));
+  for (double t : torques) largest = std::max(largest, std::abs(std::ldexp(t, -length)));
+  return largest;
+}
+
 // Finite inputs whose product overflows (forces so large, or radii so small, that M F is beyond
 // double precision) give Inf or NaN: refused, naming the first entry, rather than returned.
 inline void require_finite_result(std::span<const double> out, const std::string& where, const char* name,

@@ -1,12 +1,17 @@
 // rpyfmm::mpi::DistributedDirectRpy against the serial DirectRpy on the concatenation of all ranks'
 // particles: bit for bit on uniform, strongly clustered and extreme-scale inputs, with equal and
 // different radii, empty ranks and more ranks than particles; and collective failure (every rank
-// throws the same message, none hangs) on bad input of one rank.
+// throws the same message, none hangs) on bad input of one rank. The grand mobility with rotation
+// against DirectRpy's within the summation-order bound of direct_operator.hpp (bit for bit where
+// one rank holds every particle), and the symmetry of the 6N matrix it assembles.
 #include <gtest/gtest.h>
 #include <mpi.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
+#include <random>
 #include <string>
 #include <utility>
 #include <vector>
@@ -15,6 +20,7 @@
 #include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/mpi/direct_operator.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
+#include "rpyfmm/rpy/rpy_rotation_kernel.hpp"
 #include "simd_levels.hpp"
 
 using rpyfmm::ErrorCode;
@@ -27,6 +33,19 @@ namespace {
 
 enum class Radii { common, per_particle };
 
+// The whole set on the serial operator and this rank's share (offset, n) on the distributed one;
+// with Radii::common every rank passes p.a[0].
+void set_positions(const Particles& p, Radii radii, std::size_t offset, std::size_t n, DirectRpy& serial,
+                   DistributedDirectRpy& op) {
+  if (radii == Radii::common) {
+    serial.set_positions(p.x, p.a[0]);
+    op.set_positions(share(p.x, 3, offset, n), p.a[0]);
+  } else {
+    serial.set_positions(p.x, p.a);
+    op.set_positions(share(p.x, 3, offset, n), share(p.a, 1, offset, n));
+  }
+}
+
 // Distributes `p` by `split`, applies M on the shares and compares each rank's velocities with the
 // serial operator's on the whole set, bit for bit. With Radii::common every rank passes p.a[0].
 void expect_equal_to_serial(const Particles& p, Split split, Radii radii) {
@@ -37,20 +56,11 @@ void expect_equal_to_serial(const Particles& p, Split split, Radii radii) {
   const std::size_t n = counts[rank];
 
   DirectRpy serial(Geometry::open(), kViscosity);
-  if (radii == Radii::common) {
-    serial.set_positions(p.x, p.a[0]);
-  } else {
-    serial.set_positions(p.x, p.a);
-  }
+  DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
+  set_positions(p, radii, offset, n, serial, op);
   std::vector<double> u_serial(3 * p.size());
   serial.apply(p.f, u_serial);
 
-  DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
-  if (radii == Radii::common) {
-    op.set_positions(share(p.x, 3, offset, n), p.a[0]);
-  } else {
-    op.set_positions(share(p.x, 3, offset, n), share(p.a, 1, offset, n));
-  }
   EXPECT_EQ(op.global_size(), p.size());
   EXPECT_EQ(op.local_size(), n);
   EXPECT_EQ(op.offset(), offset);
@@ -187,6 +197,264 @@ TEST(MpiDistributedDirect, RepeatedProductsAndNewPositions) {
       EXPECT_EQ(bitwise_mismatches(u, share(u_serial, 3, offset, n)), 0u);
     }
   }
+}
+
+// ------------------------------------------------------------------------------- rotation ---
+
+namespace {
+
+// Torques in [-scale, scale], one set for one seed on every rank.
+std::vector<double> random_torques(std::size_t n, double scale, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-scale, scale);
+  std::vector<double> t(3 * n);
+  for (double& v : t) v = u(rng);
+  return t;
+}
+
+// |v| without overflow for the torques near 1e300 (scaled by the largest component).
+double norm3(const double* v) {
+  const double m = std::max({std::abs(v[0]), std::abs(v[1]), std::abs(v[2])});
+  if (m == 0.0) return 0.0;
+  const double x = v[0] / m, y = v[1] / m, z = v[2] / m;
+  return m * std::sqrt(x * x + y * y + z * z);
+}
+
+// Per particle, the sums of the magnitudes of the rotational pair terms, which DirectRpy and the
+// distributed operator add in different orders (direct_operator.hpp), from the pair coefficients
+// of rpy_rotation_kernel.hpp evaluated one pair at a time in scalar code:
+//   u[i] = sum_j |c_ut(i, j)| |T_j| / eta,
+//   w[i] = sum_j (|c_wf(i, j)| |F_j| + (|h| + |k|) |T_j|) / eta + |T_i| / (8 pi eta a_i^3),
+// bounds of each entry's terms (|T x e| <= |T|, |(h I + k e e^T) T| <= (|h| + |k|) |T|).
+struct RotationMagnitudes {
+  std::vector<double> u, w;
+};
+
+RotationMagnitudes rotation_magnitudes(const Particles& p, const std::vector<double>& t) {
+  const std::size_t n = p.size();
+  RotationMagnitudes m{std::vector<double>(n, 0.0), std::vector<double>(n, 0.0)};
+  for (std::size_t i = 0; i < n; ++i) {
+    m.w[i] = rpyfmm::rpy::rpy_rotation_self(p.a[i]) * norm3(&t[3 * i]);
+    for (std::size_t j = 0; j < n; ++j) {
+      if (j == i) continue;
+      const double d[3] = {p.x[3 * i] - p.x[3 * j], p.x[3 * i + 1] - p.x[3 * j + 1], p.x[3 * i + 2] - p.x[3 * j + 2]};
+      const rpyfmm::rpy::RpyRotationScalars c = rpyfmm::rpy::rpy_rotation_scalars(norm3(d), p.a[i], p.a[j]);
+      m.u[i] += std::abs(c.ut) * norm3(&t[3 * j]);
+      m.w[i] += std::abs(c.wf) * norm3(&p.f[3 * j]) + (std::abs(c.h) + std::abs(c.k)) * norm3(&t[3 * j]);
+    }
+    m.u[i] /= kViscosity;
+    m.w[i] /= kViscosity;
+  }
+  return m;
+}
+
+// [U; W] of the shares split by `split` against DirectRpy's on the whole set. Where one rank holds
+// every particle its rotational sums are DirectRpy's single reduction: bit for bit. Otherwise the
+// same N pair terms are added in two orders, each within (N - 1) eps sum |terms| of the exact sum
+// (Higham (2002) Accuracy and Stability of Numerical Algorithms, section 4.2), and the terms
+// themselves are evaluated by one kernel, in vector lanes or a scalar remainder (a few dozen
+// roundings each, 64 eps allowed); U adds them to a translational sum that is the same bits on
+// both sides, one more rounding of |U|.
+void expect_rotation_matches_serial(const Particles& p, const std::vector<double>& t, Split split, Radii radii) {
+  const auto rank = static_cast<std::size_t>(world_rank());
+  const std::vector<std::size_t> counts = split_counts(p.size(), static_cast<std::size_t>(world_size()), split);
+  const auto [offset, n] = partition_of(p.size(), split);
+  DirectRpy serial(Geometry::open(), kViscosity);
+  DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
+  set_positions(p, radii, offset, n, serial, op);
+  ASSERT_TRUE(op.supports_rotation());
+  std::vector<double> u_serial(3 * p.size()), w_serial(3 * p.size());
+  serial.apply(p.f, t, u_serial, w_serial);
+  std::vector<double> u(3 * n, std::numeric_limits<double>::quiet_NaN()), w = u;
+  op.apply(share(p.f, 3, offset, n), share(t, 3, offset, n), u, w);
+
+  const std::vector<double> u_ref = share(u_serial, 3, offset, n), w_ref = share(w_serial, 3, offset, n);
+  const auto holders = std::count_if(counts.begin(), counts.end(), [](std::size_t c) { return c > 0; });
+  if (holders == 1) {
+    EXPECT_EQ(bitwise_mismatches(u, u_ref), 0u) << "rank " << rank << " of " << world_size();
+    EXPECT_EQ(bitwise_mismatches(w, w_ref), 0u) << "rank " << rank << " of " << world_size();
+    return;
+  }
+  const Particles mine{p.x, radii == Radii::common ? std::vector<double>(p.size(), p.a[0]) : p.a, p.f};
+  const RotationMagnitudes m = rotation_magnitudes(mine, t);
+  const double factor = (2.0 * static_cast<double>(p.size()) + 64.0) * std::numeric_limits<double>::epsilon();
+  std::size_t beyond = 0;
+  double worst = 0.0;  // the largest difference in units of its bound
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t c = 0; c < 3; ++c) {
+      const std::size_t g = offset + i;
+      const double bound_u = factor * (m.u[g] + std::abs(u_ref[3 * i + c]));
+      const double bound_w = factor * m.w[g];
+      const double du = std::abs(u[3 * i + c] - u_ref[3 * i + c]), dw = std::abs(w[3 * i + c] - w_ref[3 * i + c]);
+      beyond += (du <= bound_u ? 0 : 1) + (dw <= bound_w ? 0 : 1);
+      worst = std::max({worst, du / bound_u, dw / bound_w});
+    }
+  EXPECT_EQ(beyond, 0u) << "rank " << rank << " of " << world_size() << ": worst difference " << worst
+                        << " of its bound";
+}
+
+}  // namespace
+
+TEST(MpiDistributedDirect, RotationEqualRadiiMatchesSerial) {
+  // 700 particles: more than two of DirectRpy's source blocks; touching and overlapping pairs
+  // (r <= 2a) among them.
+  const Particles p = uniform_particles(700, 25.0, 1.0, 1.0, 60);
+  const std::vector<double> t = random_torques(p.size(), 1.0, 61);
+  for (Split s : kSplits) expect_rotation_matches_serial(p, t, s, Radii::common);
+  for (Split s : kSplits) expect_rotation_matches_serial(p, t, s, Radii::per_particle);
+}
+
+TEST(MpiDistributedDirect, RotationDifferentRadiiMatchesSerial) {
+  const Particles p = uniform_particles(531, 20.0, 0.3, 1.7, 62);
+  for (Split s : kSplits) expect_rotation_matches_serial(p, random_torques(p.size(), 1.0, 63), s, Radii::per_particle);
+  // Partial overlaps, spheres inside others and a coincident pair, with far ones on other ranks.
+  const Particles q = clustered_particles(400, 60, 64);
+  for (Split s : kSplits) expect_rotation_matches_serial(q, random_torques(q.size(), 2.0, 65), s, Radii::per_particle);
+}
+
+TEST(MpiDistributedDirect, RotationCoincidentParticlesOnDifferentRanksMatchSerial) {
+  // Particle i + 150 sits on particle i: the r = 0 limits (h = 1 / (8 pi max(a)^3), no coupling),
+  // with the even split across ranks.
+  Particles p = uniform_particles(300, 12.0, 0.5, 1.5, 66);
+  for (std::size_t i = 0; i < 150; ++i)
+    for (std::size_t d = 0; d < 3; ++d) p.x[3 * (i + 150) + d] = p.x[3 * i + d];
+  const std::vector<double> t = random_torques(p.size(), 1.0, 67);
+  for (Split s : kSplits) expect_rotation_matches_serial(p, t, s, Radii::per_particle);
+  for (Split s : kSplits) expect_rotation_matches_serial(p, t, s, Radii::common);
+}
+
+TEST(MpiDistributedDirect, RotationEveryKernelLevelMatchesSerial) {
+  const Particles p = uniform_particles(600, 20.0, 0.4, 1.6, 68);
+  const std::vector<double> t = random_torques(p.size(), 1.0, 69);
+  for (rpyfmm::SimdLevel level : rpyfmm::test::available_simd_levels()) {
+    const rpyfmm::ScopedSimdLevel scoped(level);
+    for (Split s : kSplits) expect_rotation_matches_serial(p, t, s, Radii::per_particle);
+    for (Split s : kSplits) expect_rotation_matches_serial(p, t, s, Radii::common);
+  }
+}
+
+TEST(MpiDistributedDirect, RotationLoadScaledAndMoreRanksThanParticles) {
+  // Torques near 1e300 against forces of order one: the load scale of MobilityOperator::apply
+  // from the largest force and torque of all ranks.
+  const Particles p = uniform_particles(300, 20.0, 0.5, 1.5, 70);
+  for (Split s : kSplits)
+    expect_rotation_matches_serial(p, random_torques(p.size(), 1e300, 71), s, Radii::per_particle);
+  for (std::size_t n : {1, 2, 3}) {
+    const Particles q = uniform_particles(n, 3.0, 0.8, 1.2, 72 + n);
+    for (Split s : kSplits) expect_rotation_matches_serial(q, random_torques(n, 1.0, 75 + n), s, Radii::per_particle);
+  }
+}
+
+TEST(MpiDistributedDirect, RotationRepeatedProductsBitForBit) {
+  const Particles p = uniform_particles(300, 15.0, 0.5, 1.0, 80);
+  const Particles q = clustered_particles(90, 10, 81);
+  DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
+  for (const auto& [particles, split] : {std::pair{&p, Split::even}, std::pair{&q, Split::geometric}}) {
+    const Partition part = partition_of(particles->size(), split);
+    const std::vector<double> t = random_torques(particles->size(), 1.0, 82);
+    const std::vector<double> f = share(particles->f, 3, part.offset, part.n), tl = share(t, 3, part.offset, part.n);
+    op.set_positions(share(particles->x, 3, part.offset, part.n), share(particles->a, 1, part.offset, part.n));
+    std::vector<double> u1(3 * part.n), w1(3 * part.n), u2(3 * part.n), w2(3 * part.n);
+    op.apply(f, tl, u1, w1);
+    op.apply(f, tl, u2, w2);
+    EXPECT_EQ(bitwise_mismatches(u1, u2), 0u);
+    EXPECT_EQ(bitwise_mismatches(w1, w2), 0u);
+    // The blocks of the same shares on a fresh operator: the same bits again.
+    DistributedDirectRpy fresh(MPI_COMM_WORLD, kViscosity);
+    fresh.set_positions(share(particles->x, 3, part.offset, part.n), share(particles->a, 1, part.offset, part.n));
+    fresh.apply(f, tl, u2, w2);
+    EXPECT_EQ(bitwise_mismatches(u1, u2), 0u);
+    EXPECT_EQ(bitwise_mismatches(w1, w2), 0u);
+  }
+}
+
+TEST(MpiDistributedDirect, RotationLeavesTheTranslationalProductUnchanged) {
+  const Particles p = uniform_particles(400, 15.0, 0.5, 1.5, 85);
+  const Partition part = partition_of(p.size(), Split::even);
+  DirectRpy serial(Geometry::open(), kViscosity);
+  serial.set_positions(p.x, p.a);
+  std::vector<double> u_serial(3 * p.size());
+  serial.apply(p.f, u_serial);
+  const std::vector<double> u_ref = share(u_serial, 3, part.offset, part.n);
+
+  DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
+  op.set_positions(share(p.x, 3, part.offset, part.n), share(p.a, 1, part.offset, part.n));
+  const std::vector<double> f = share(p.f, 3, part.offset, part.n);
+  std::vector<double> u(3 * part.n), w(3 * part.n);
+  op.apply(f, share(random_torques(p.size(), 1.0, 86), 3, part.offset, part.n), u, w);
+  // U = M F after a product with torques: DirectRpy's bits, as before.
+  op.apply(f, u);
+  EXPECT_EQ(bitwise_mismatches(u, u_ref), 0u);
+  // With zero torques the velocities are the translational product's: the rotational terms of U
+  // are all zero (c_ut (0 x e)), the load scale is the forces' alone.
+  std::vector<double> u_rotation(3 * part.n);
+  op.apply(f, std::vector<double>(3 * part.n, 0.0), u_rotation, w);
+  EXPECT_EQ(bitwise_mismatches(u_rotation, u_ref), 0u);
+}
+
+TEST(MpiDistributedDirect, RotationGrandMatrixIsSymmetric) {
+  // The 6N x 6N matrix [[M_tt, M_tr]; [M_rt, M_rr]] assembled column by column from the
+  // distributed products on unit loads, rows gathered from every rank: symmetric (the grand
+  // mobility is, Wajnryb et al. 2013; docs/theory/rpy.md section 7). Each entry is one pair term
+  // (the other sources' loads are zero), evaluated for (i, j) and (j, i) by the same formulas with
+  // the factors multiplied in other orders (e.g. (k e_b) e_c against (k e_c) e_b) and, in the
+  // rotational blocks, h + k e_b e_c summed: within 64 eps of the largest entry of the pair's 3 x 3
+  // blocks. A wrong sign or a swapped coupling (c_ut against c_wf, which differ for different radii)
+  // breaks the symmetry by the size of the entry.
+  const Particles p = clustered_particles(24, 6, 90);  // overlapping, inside, coincident; far ones
+  const std::size_t n_total = p.size(), rows = 6 * n_total;
+  const Partition part = partition_of(n_total, Split::geometric);
+  DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
+  op.set_positions(share(p.x, 3, part.offset, part.n), share(p.a, 1, part.offset, part.n));
+  std::vector<int> counts3, displs3;
+  for (std::size_t c : op.counts()) {
+    displs3.push_back(counts3.empty() ? 0 : displs3.back() + counts3.back());
+    counts3.push_back(static_cast<int>(3 * c));
+  }
+  std::vector<double> matrix(rows * rows);  // row-major, [U (3N); W (3N)] by [F (3N); T (3N)]
+  std::vector<double> f(3 * part.n), t(3 * part.n), u(3 * part.n), w(3 * part.n), column(rows);
+  for (std::size_t col = 0; col < rows; ++col) {
+    std::fill(f.begin(), f.end(), 0.0);
+    std::fill(t.begin(), t.end(), 0.0);
+    const std::size_t entry = col % (3 * n_total);  // of F or T
+    if (entry >= 3 * part.offset && entry < 3 * (part.offset + part.n))
+      (col < 3 * n_total ? f : t)[entry - 3 * part.offset] = 1.0;
+    op.apply(f, t, u, w);
+    MPI_Allgatherv(u.data(), static_cast<int>(u.size()), MPI_DOUBLE, column.data(), counts3.data(), displs3.data(),
+                   MPI_DOUBLE, MPI_COMM_WORLD);
+    MPI_Allgatherv(w.data(), static_cast<int>(w.size()), MPI_DOUBLE, column.data() + 3 * n_total, counts3.data(),
+                   displs3.data(), MPI_DOUBLE, MPI_COMM_WORLD);
+    for (std::size_t row = 0; row < rows; ++row) matrix[row * rows + col] = column[row];
+  }
+  // The largest entry of the 3 x 3 block holding (row, col) and of its transposed block.
+  const auto block_scale = [&](std::size_t row, std::size_t col) {
+    double largest = 0.0;
+    for (std::size_t a = 0; a < 3; ++a)
+      for (std::size_t b = 0; b < 3; ++b) {
+        const std::size_t r = row - row % 3 + a, c = col - col % 3 + b;
+        largest = std::max({largest, std::abs(matrix[r * rows + c]), std::abs(matrix[c * rows + r])});
+      }
+    return largest;
+  };
+  const double eps = std::numeric_limits<double>::epsilon();
+  std::size_t asymmetric = 0, nonzero = 0;
+  for (std::size_t row = 0; row < rows; ++row)
+    for (std::size_t col = row + 1; col < rows; ++col) {
+      const double a = matrix[row * rows + col], b = matrix[col * rows + row];
+      nonzero += a != 0.0 ? 1 : 0;
+      if (std::abs(a - b) > 64.0 * eps * block_scale(row, col)) {
+        if (asymmetric++ < 5)
+          ADD_FAILURE() << "entry (" << row << ", " << col << ") = " << a << ", (" << col << ", " << row << ") = " << b;
+      }
+    }
+  EXPECT_EQ(asymmetric, 0u);
+  // Not vacuous: the couplings between translation and rotation are there.
+  EXPECT_GT(nonzero, rows * rows / 4);
+  double coupling = 0.0;
+  for (std::size_t row = 0; row < 3 * n_total; ++row)
+    for (std::size_t col = 3 * n_total; col < rows; ++col)
+      coupling = std::max(coupling, std::abs(matrix[row * rows + col]));
+  EXPECT_GT(coupling, 0.0);
 }
 
 // ----------------------------------------------------------------------- collective errors ---
@@ -335,4 +603,60 @@ TEST(MpiDistributedDirect, TooSmallRadiusIsNamedByItsGlobalIndex) {
   expect_collective_error([&] { op.set_positions(s.x, s.a); }, ErrorCode::invalid_input,
                           rank_of(last) + "DistributedDirectRpy::set_positions: radius of particle " +
                               std::to_string(offset_last + 1) + " (1e-300) is below 2^-300");
+}
+
+TEST(MpiDistributedDirect, RotationBadTorquesOnOneRankFailEveryRank) {
+  const int last = world_size() - 1;
+  Share s = even_share(40);
+  DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
+  std::vector<double> u(s.f.size()), w(s.f.size()), t(s.f.size(), 0.5);
+  expect_collective_error([&] { op.apply(s.f, t, u, w); }, ErrorCode::invalid_input,
+                          "DistributedDirectRpy::apply: positions not set");
+  op.set_positions(s.x, s.a);
+  std::vector<double> bad = t;
+  if (world_rank() == last) bad[3 * 1 + 2] = std::numeric_limits<double>::quiet_NaN();
+  expect_collective_error([&] { op.apply(s.f, bad, u, w); }, ErrorCode::invalid_input,
+                          rank_of(last) + "DistributedDirectRpy::apply: local torques entry (1, 2) is NaN");
+  bad = t;
+  if (world_rank() == 0) bad[0] = -std::numeric_limits<double>::infinity();
+  expect_collective_error([&] { op.apply(s.f, bad, u, w); }, ErrorCode::invalid_input,
+                          rank_of(0) + "DistributedDirectRpy::apply: local torques entry (0, 0) is infinite");
+  // NaN forces are refused by the product with rotation as by the translational one.
+  std::vector<double> f = s.f;
+  if (world_rank() == last) f[5] = std::numeric_limits<double>::quiet_NaN();
+  expect_collective_error([&] { op.apply(f, t, u, w); }, ErrorCode::invalid_input,
+                          rank_of(last) + "DistributedDirectRpy::apply: local forces entry (1, 2) is NaN");
+  EXPECT_NO_THROW(op.apply(s.f, t, u, w));
+}
+
+TEST(MpiDistributedDirect, RotationWrongSizesOnOneRankFailEveryRank) {
+  const int last = world_size() - 1;
+  Share s = even_share(40);
+  DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
+  op.set_positions(s.x, s.a);
+  std::vector<double> u(s.f.size()), w(s.f.size()), t(s.f.size(), 0.5);
+  std::vector<double> t_wrong = t;
+  if (world_rank() == last) t_wrong.push_back(1.0);
+  expect_collective_error([&] { op.apply(s.f, t_wrong, u, w); }, ErrorCode::invalid_input,
+                          rank_of(last) + "DistributedDirectRpy::apply: local torques has");
+  std::vector<double> w_wrong(world_rank() == 0 ? 3 : w.size());
+  expect_collective_error([&] { op.apply(s.f, t, u, w_wrong); }, ErrorCode::invalid_input,
+                          rank_of(0) + "DistributedDirectRpy::apply: local angular velocities has");
+  std::vector<double> u_wrong(world_rank() == last ? 0 : u.size());
+  expect_collective_error([&] { op.apply(s.f, t, u_wrong, w); }, ErrorCode::invalid_input,
+                          rank_of(last) + "DistributedDirectRpy::apply: local velocities has");
+  EXPECT_NO_THROW(op.apply(s.f, t, u, w));
+}
+
+TEST(MpiDistributedDirect, RotationProductBeyondDoublePrecisionFailsEveryRank) {
+  // Radii of 1e-105 (a suspension of side 1e-104): W ~ T / (8 pi eta a^3) ~ 1e313 for torques of
+  // order one, beyond double precision. DirectRpy refuses it; so does every rank here.
+  Share s = even_share(40);
+  for (double& x : s.x) x *= 1e-105;
+  for (double& a : s.a) a *= 1e-105;
+  DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
+  op.set_positions(s.x, s.a);
+  std::vector<double> u(s.f.size()), w(s.f.size()), t(s.f.size(), 1.0);
+  expect_collective_error([&] { op.apply(s.f, t, u, w); }, ErrorCode::numerical_failure,
+                          "DistributedDirectRpy::apply: angular velocities entry (0, 0) is infinite");
 }

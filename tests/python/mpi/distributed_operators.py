@@ -69,6 +69,65 @@ def test_direct_equals_serial(radii: bool, empty_first: bool) -> None:
     assert (op.local_size, op.global_size, op.offset) == (part.stop - part.start, len(x), part.start)
 
 
+@pytest.mark.parametrize("radii", [False, True])
+@pytest.mark.parametrize("empty_first", [False, True])
+def test_direct_rotation_against_serial(radii: bool, empty_first: bool) -> None:
+    x, a, f = system(200, seed=12, radii=radii)
+    t = np.random.default_rng(13).uniform(-1.0, 1.0, (len(x), 3))
+    part = share(len(x), empty_first)
+    op = rpyfmm.mpi.DistributedDirectRpy(COMM, viscosity=0.7)
+    op.set_positions(x[part], local_radius(a, part))
+    u_local, w_local = op.apply(f[part], t[part])
+    u, w = gathered(u_local), gathered(w_local)
+    serial = rpyfmm.DirectRpy(viscosity=0.7)
+    serial.set_positions(x, a)
+    u_serial, w_serial = serial.apply(f, t)
+    holders = sum(1 for n in COMM.allgather(part.stop - part.start) if n > 0)
+    assert op.supports_rotation
+    assert u_local.shape == f[part].shape and w_local.shape == f[part].shape
+    if holders == 1:
+        # docs/mpi.md: one rank holding every particle sums DirectRpy's single reduction.
+        assert np.array_equal(u, u_serial) and np.array_equal(w, w_serial)
+        return
+    # docs/mpi.md: the same N pair terms summed in another order, each entry within about
+    # (2N + 64) eps of the sum of the terms' magnitudes. Every entry of a pair block, times eta, is
+    # at most 1 / (pi a_min^3) for radii >= 0.8 (self and overlap values 1 / (6 pi a),
+    # 1 / (8 pi a^2), 2 / (8 pi a^3) and below), so the sum is at most that times the loads' l1 norm
+    # over eta.
+    n = len(x)
+    terms = (np.abs(f).sum() + np.abs(t).sum()) / (np.pi * 0.8**3 * 0.7)
+    bound = (2 * n + 64) * np.finfo(float).eps * terms
+    assert np.max(np.abs(u - u_serial)) <= bound
+    assert np.max(np.abs(w - w_serial)) <= bound
+
+
+def test_direct_rotation_bad_input_raises_on_every_rank() -> None:
+    x, a, f = system(60, seed=34, radii=False)
+    t = np.ones_like(f)
+    part = share(len(x))
+    op = rpyfmm.mpi.DistributedDirectRpy(COMM)
+    op.set_positions(x[part], a)
+    last = RANK == SIZE - 1
+    messages = []
+    # Torques of another shape than the forces, a NaN torque, `out` with torques: on one rank.
+    for torques, out, error in [
+        (t[part][:, :2] if last else t[part], None, rpyfmm.InvalidInputError),
+        (np.where(last, np.nan, t[part]), None, rpyfmm.InvalidInputError),
+        (t[part], np.empty_like(f[part]) if RANK == 0 else None, rpyfmm.InvalidArgumentError),
+    ]:
+        with pytest.raises(error) as caught:
+            op.apply(f[part], torques, out=out)
+        messages.append(COMM.allgather(str(caught.value)))
+    u, w = op.apply(f[part], t[part])  # and the operator works after each failure
+    for ranks in messages:
+        assert all(m == ranks[0] for m in ranks)
+    shape, nan, out = (ranks[0] for ranks in messages)
+    assert f"rank {SIZE - 1} of {SIZE}" in shape and "torques has shape" in shape
+    assert f"rank {SIZE - 1} of {SIZE}" in nan and "local torques entry (0, 0) is NaN" in nan
+    assert "rank 0 of" in out and "out is not supported together with torques" in out
+    assert np.all(np.isfinite(u)) and np.all(np.isfinite(w))
+
+
 @pytest.mark.parametrize(
     "method, preconditioner", [("lanczos", "none"), ("chebyshev", "none"), ("lanczos", "block")]
 )

@@ -13,6 +13,20 @@
 // own targets in DirectRpy's order (source blocks of 256 counted from the first particle of rank 0).
 // Memory per rank: O(largest share); pair work: (local N) x N (docs/mpi.md).
 //
+// With rotation ([U; W] = M [F; T], docs/theory/rpy.md section 7; Wajnryb, Mizerski, Zuk &
+// Szymczak (2013) J. Fluid Mech. 731 R3) the blocks carry the torques as well. The translational
+// sums of U are DirectRpy's bit for bit as above. DirectRpy sums the rotational pair terms of a
+// target (c_ut (T x e) in U; the couplings and h I + k e e^T in W) over all sources in one
+// vectorized reduction, whose order of addition depends on the vector width and the source count,
+// so a sum over the sources in pieces cannot repeat it: here each rank's block is one such
+// reduction and the blocks' sums are added in rank order. Where one rank holds every particle the
+// result is DirectRpy's bit for bit; otherwise both are sums of the same N pair terms in two
+// orders, so each entry differs from DirectRpy's by at most about 2 N eps times the sum of the
+// terms' magnitudes, sum_j |M_ij| |[F_j; T_j]| (recursive and blocked summation, Higham (2002)
+// Accuracy and Stability of Numerical Algorithms, section 4.2); a few units in the last place on
+// the suspensions of tests/mpi/test_distributed_direct.cpp. Repeated products on the same shares
+// give the same bits.
+//
 // Every public call is collective over the communicator and fails collectively
 // (communicator.hpp): a bad input on one rank makes every rank throw the same rpyfmm::Error.
 #pragma once
@@ -81,11 +95,27 @@ class DistributedDirectRpy {
   /// (a product beyond double precision).
   void apply(std::span<const double> local_forces, std::span<double> local_velocities) const;
 
+  /// Collective. [U; W] = M [F; T], the grand mobility with rotation, for this rank's particles:
+  /// forces, torques, velocities and angular velocities of 3 local_size() entries each (see the
+  /// header comment for how the result compares with DirectRpy's). Throws rpyfmm::Error on every
+  /// rank when positions are not set, or when any rank passes arrays of the wrong size or forces or
+  /// torques with NaN/Inf, and on what DirectRpy::apply refuses (a product beyond double precision).
+  void apply(std::span<const double> local_forces, std::span<const double> local_torques,
+             std::span<double> local_velocities, std::span<double> local_angular_velocities) const;
+  /// True: the four-argument apply is available (as rpy::MobilityOperator::supports_rotation).
+  [[nodiscard]] bool supports_rotation() const { return true; }
+
  private:
   class SourceWindow;
 
-  [[nodiscard]] std::vector<double> packed_block(std::span<const double> local_forces, int load_exponent) const;
+  // Both products: empty torques and angular velocities for U = M F.
+  void product(bool rotation, std::span<const double> local_forces, std::span<const double> local_torques,
+               std::span<double> local_velocities, std::span<double> local_angular_velocities) const;
+  [[nodiscard]] std::vector<double> packed_block(std::span<const double> local_forces,
+                                                 std::span<const double> local_torques, int load_exponent) const;
   void sum_block(SourceWindow& window, std::size_t usable, std::vector<double>& acc, MPI_Request* pending) const;
+  void sum_rotation_block(const double* block, std::size_t n, std::size_t first_index, bool first_block,
+                          std::vector<double>& acc, MPI_Request* pending) const;
 
   Communicator comm_;
   double viscosity_ = 1.0;
@@ -98,6 +128,7 @@ class DistributedDirectRpy {
   std::vector<double> x_, y_, z_, a_, inv_a_;
   std::vector<double> positions_, radii_;  // as passed to set_positions
   int scale_exponent_ = 0;
+  double largest_radius_ = 0.0;  // of all ranks, for the load scale with rotation
   bool equal_radii_ = true;
   mutable CommunicationStats stats_;
 };
