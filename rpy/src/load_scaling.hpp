@@ -8,6 +8,7 @@
 #include <initializer_list>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "rpyfmm/core/validate.hpp"
 
@@ -25,6 +26,17 @@ inline int load_scale_exponent(std::initializer_list<std::span<const double>> lo
     for (double f : load) largest = std::max(largest, std::abs(f));
   if (largest == 0.0 || (largest >= 0x1p-100 && largest <= 0x1p100)) return 0;
   return std::ilogb(largest);
+}
+
+// The same for [F; T]: the torques measured as forces, T / l with l = 2^ilogb(largest radius) (a torque
+// is a force times a length). Lengths and torques of 2^(+-400) with forces of order one then need no
+// scaling, where scaling by the torques alone would push W (~ T / a^3) out of range inside the product.
+inline int rotation_load_scale_exponent(std::span<const double> forces, std::span<const double> torques,
+                                        double largest_radius) {
+  const int length = std::ilogb(largest_radius);
+  std::vector<double> torque_as_force(torques.begin(), torques.end());
+  for (double& t : torque_as_force) t = std::ldexp(t, -length);
+  return load_scale_exponent({forces, torque_as_force});
 }
 
 // Finite inputs whose product overflows (forces so large, or radii so small, that M F is beyond

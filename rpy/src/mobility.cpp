@@ -20,17 +20,12 @@ using detail::require_finite_result;
 
 namespace {
 
-// The same for [F; T]: the torques measured as forces, T / l with l = 2^ilogb(largest radius) (a torque
-// is a force times a length). Lengths and torques of 2^(+-400) with forces of order one then need no
-// scaling, where scaling by the torques alone would push W (~ T / a^3) out of range inside the product.
+// rotation_load_scale_exponent of load_scaling.hpp with the largest radius of the set.
 int rotation_load_scale_exponent(std::span<const double> forces, std::span<const double> torques,
                                  std::span<const double> radii) {
   double largest_radius = 0.0;
   for (double a : radii) largest_radius = std::max(largest_radius, a);
-  const int length = std::ilogb(largest_radius);
-  std::vector<double> torque_as_force(torques.begin(), torques.end());
-  for (double& t : torque_as_force) t = std::ldexp(t, -length);
-  return load_scale_exponent({forces, torque_as_force});
+  return detail::rotation_load_scale_exponent(forces, torques, largest_radius);
 }
 
 /// One argument of a product or sample with rotation, by name.
