@@ -380,6 +380,17 @@ TEST(MpiDistributedFmmRpyRotation, OverlappingTouchingAndCoincidentPairs) {
   expect_rotation_contract(p, torques_of(p, 266), Split::first_empty, 1e-6, "coincident, equal radii");
 }
 
+TEST(MpiDistributedFmmRpyRotation, NearlyCoincidentPointsWithinTolerance) {
+  // The rotational far forms exceed their exact blocks by at most (a / r)^2 (couplings) and
+  // (a / r)^3 (rotation-rotation), within the translational dipole term that set_positions' refusal
+  // bounds (mpi/src/overlap_pairs.hpp, cancellation_error): the sets it accepts are within the
+  // tolerance for W too. At r = 0.05 a at every tolerance; at r = 1e-3 a (refused at 1e-9) at 1e-3.
+  const Particles near = nearly_coincident(0.05), closer = nearly_coincident(1e-3);
+  const std::vector<double> t = torques_of(near, 267);
+  for (double eps : kTolerances) expect_rotation_contract(near, t, Split::even, eps, "r = 0.05 a");
+  expect_rotation_contract(closer, t, Split::even, 1e-3, "r = 1e-3 a");
+}
+
 TEST(MpiDistributedFmmRpyRotation, MoreRanksThanParticles) {
   for (std::size_t n : {1, 2, 3}) {
     const Particles p = uniform_particles(n, 3.0, 0.8, 1.2, 166 + n);  // overlapping
