@@ -293,8 +293,10 @@ std::vector<double> torques_of(const Particles& p, std::uint64_t seed) {
   return t;
 }
 
-struct GrandErrors {
-  double u = 0.0, w = 0.0;
+// This rank's U and W, and the errors of each against the exact product.
+struct GrandResult {
+  std::vector<double> u, w;
+  double u_error = 0.0, w_error = 0.0;
 };
 
 // Distributes `p` with torques `t` by `split`, applies [U; W] = M [F; T] at `tolerance` and checks on
@@ -304,7 +306,7 @@ struct GrandErrors {
 // torques the velocities of the translational apply bit for bit (the torque densities are zero, so
 // the far field's translational sums and the corrections are the same operations on the same values,
 // each plus an exact zero). Rank 0 prints the errors.
-GrandErrors expect_rotation_contract(const Particles& p, const std::vector<double>& t, Split split, double tolerance,
+GrandResult expect_rotation_contract(const Particles& p, const std::vector<double>& t, Split split, double tolerance,
                                      const char* label) {
   const Partition part = partition_of(p.size(), split);
   DirectRpy direct(Geometry::open(), kViscosity);
@@ -320,11 +322,11 @@ GrandErrors expect_rotation_contract(const Particles& p, const std::vector<doubl
   op.apply(f, tl, u, w);
   op.apply(f, tl, u2, w2);
   EXPECT_EQ(bitwise_mismatches(u, u2) + bitwise_mismatches(w, w2), 0u) << "repeated product, rank " << world_rank();
-  GrandErrors e;
-  e.u = global_relative_error(u, share(exact_u, 3, part.offset, part.n));
-  e.w = global_relative_error(w, share(exact_w, 3, part.offset, part.n));
-  EXPECT_LE(e.u, tolerance) << label << ": U against DirectRpy";
-  EXPECT_LE(e.w, tolerance) << label << ": W against DirectRpy";
+  GrandResult e{u, w};
+  e.u_error = global_relative_error(u, share(exact_u, 3, part.offset, part.n));
+  e.w_error = global_relative_error(w, share(exact_w, 3, part.offset, part.n));
+  EXPECT_LE(e.u_error, tolerance) << label << ": U against DirectRpy";
+  EXPECT_LE(e.w_error, tolerance) << label << ": W against DirectRpy";
   const std::vector<double> zero(tl.size(), 0.0);
   std::vector<double> translational(u.size(), nan);
   op.apply(f, zero, u2, w2);
@@ -332,7 +334,7 @@ GrandErrors expect_rotation_contract(const Particles& p, const std::vector<doubl
   EXPECT_EQ(bitwise_mismatches(u2, translational), 0u) << label << ": zero torques, rank " << world_rank();
   if (world_rank() == 0) {
     std::printf("[fmm-rpy] rotation %-22s P=%d eps=%.0e: error vs DirectRpy U %.2e, W %.2e\n", label, world_size(),
-                tolerance, e.u, e.w);
+                tolerance, e.u_error, e.w_error);
   }
   return e;
 }
@@ -410,6 +412,31 @@ TEST(MpiDistributedFmmRpyRotation, ExtremeLengthScalesAndLoads) {
   std::vector<double> t = torques_of(q, 271);
   for (double& v : t) v *= 1e300;
   expect_rotation_contract(q, t, Split::even, 1e-6, "loads 1e300");
+}
+
+TEST(MpiDistributedFmmRpyRotation, ResultsIndependentOfThreadCountAndDistribution) {
+  // U and W on 1 and 3 threads, and with the input on the last rank only, the same bits (the
+  // Laplace FMM's and the overlap correction's sums run in a fixed order per particle).
+  const Particles p = clustered_particles(200, 40, 172);
+  const std::vector<double> t = torques_of(p, 272);
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(1);
+  const GrandResult one = expect_rotation_contract(p, t, Split::even, 1e-6, "1 thread");
+  omp_set_num_threads(3);
+  const GrandResult three = expect_rotation_contract(p, t, Split::even, 1e-6, "3 threads");
+  omp_set_num_threads(saved);
+  EXPECT_EQ(bitwise_mismatches(one.u, three.u) + bitwise_mismatches(one.w, three.w), 0u);
+  const GrandResult other = expect_rotation_contract(p, t, Split::last_only, 1e-6, "last only");
+  const Partition even = partition_of(p.size(), Split::even), last = partition_of(p.size(), Split::last_only);
+  // Both distributions' results gathered into the global order on every rank.
+  const auto gathered = [&](const std::vector<double>& mine, const Partition& part) {
+    std::vector<double> all(3 * p.size(), 0.0), sum(all.size());
+    std::copy(mine.begin(), mine.end(), all.begin() + static_cast<std::ptrdiff_t>(3 * part.offset));
+    MPI_Allreduce(all.data(), sum.data(), static_cast<int>(all.size()), MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+    return sum;
+  };
+  EXPECT_EQ(bitwise_mismatches(gathered(one.u, even), gathered(other.u, last)), 0u);
+  EXPECT_EQ(bitwise_mismatches(gathered(one.w, even), gathered(other.w, last)), 0u);
 }
 
 // ----------------------------------------------------------------------- collective errors ---

@@ -24,9 +24,9 @@
 //
 // Contract: on every rank the relative l2 error of U over all particles against the exact product
 // (rpy::DirectRpy on the concatenation of the ranks' shares) is at most the tolerance, and with
-// rotation that of U and that of W each (tested at 1e-3, 1e-6 and 1e-9). Results are deterministic: the same input on
-// the same number of ranks gives the same bits, whatever the thread count; a different number of ranks gives other bits
-// within the contract.
+// rotation that of U and that of W each (tested at 1e-3, 1e-6 and 1e-9). Results are deterministic:
+// the same input on the same number of ranks gives the same bits, whatever the thread count; a
+// different number of ranks gives other bits within the contract.
 //
 // Every public call is collective and fails collectively (communicator.hpp).
 #pragma once
