@@ -17,6 +17,7 @@
 #include "rpyfmm/core/ranges.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/rpy_kernel.hpp"
+#include "rpyfmm/rpy/rpy_rotation_kernel.hpp"
 
 namespace rpyfmm::mpi {
 namespace {
@@ -101,6 +102,7 @@ void DistributedFmmRpy::set_positions(std::span<const double> local_positions, s
   });
   positions_.assign(local_positions.begin(), local_positions.end());
   radii_.assign(local_radii.begin(), local_radii.end());
+  largest_radius_ = set.radii.a_max;
   const double a_max = std::ldexp(set.radii.a_max, -scale_exponent_);
   // Leaves of each owner's serial FMM at least 2 a_max wide, as in FmmRpy, and no cell within 2 a_max
   // of a rank's region compressed for it (DistributedFmmOptions): every overlapping pair is summed
@@ -162,6 +164,68 @@ void DistributedFmmRpy::apply(std::span<const double> local_forces, std::span<do
     local_velocities[i] = std::ldexp(std::ldexp(u[i] + inv_eta * near[i], -scale_exponent_), k);
   }
   comm_.run([&] { rpy::detail::require_finite_result(local_velocities, kApply, "velocities", "forces"); });
+}
+
+void DistributedFmmRpy::apply(std::span<const double> local_forces, std::span<const double> local_torques,
+                              std::span<double> local_velocities, std::span<double> local_angular_velocities) const {
+  require(global_n_ > 0, ErrorCode::invalid_input, kApply, "positions not set (call set_positions first)");
+  const std::size_t n = local_n_;
+  comm_.run([&] {
+    require_size(local_forces, 3 * n, kApply, "local forces");
+    require_size(local_torques, 3 * n, kApply, "local torques");
+    require_size(std::span<const double>(local_velocities.data(), local_velocities.size()), 3 * n, kApply,
+                 "local velocities");
+    require_size(std::span<const double>(local_angular_velocities.data(), local_angular_velocities.size()), 3 * n,
+                 kApply, "local angular velocities");
+    require_finite(local_forces, kApply, "local forces", 3);
+    require_finite(local_torques, kApply, "local torques", 3);
+  });
+  // MobilityOperator::apply's load scale for [F; T], from the largest load of all ranks
+  // (largest_rotation_load, with the largest radius of all ranks).
+  const double largest = rpy::detail::largest_rotation_load(local_forces, local_torques, largest_radius_);
+  double global_largest = 0.0;
+  check_mpi(MPI_Allreduce(&largest, &global_largest, 1, MPI_DOUBLE, MPI_MAX, comm_.get()), "MPI_Allreduce");
+  const int k = rpy::detail::load_scale_exponent({std::span<const double>(&global_largest, 1)});
+  // In the length units 2^e the blocks carry 1/L (tt), 1/L^2 (ut, wf) and 1/L^3 (rr): with the
+  // torques as 2^-e T every sum below is 2^e U or 2^(2e) W (FmmRpy::do_apply_rotation).
+  const int e = scale_exponent_;
+  std::vector<double> f(3 * n), t(3 * n);
+  for (std::size_t i = 0; i < 3 * n; ++i) {
+    f[i] = std::ldexp(local_forces[i], -k);
+    t[i] = std::ldexp(local_torques[i], -k - e);
+  }
+
+  // The far form of every pair with r > 0: FmmRpy's densities with rotation in one evaluation.
+  const std::size_t nd = rpy::detail::rotation_densities(equal_radii_);
+  std::vector<double> charges(nd * n);
+  std::vector<unsigned> outputs(nd);
+  rpy::detail::rotation_far_field_charges(f.data(), t.data(), n, equal_radii_, x_, a_, charges, outputs);
+  std::vector<double> results(nd * n * fmm::result_width);
+  laplace_.evaluate(charges, nd, outputs, results);
+  std::vector<double> u(3 * n), ut(3 * n), wf(3 * n), rr(3 * n);
+  rpy::detail::combine_far_field(results, n, 1, equal_radii_, x_, a_, viscosity_, u.data());
+  rpy::detail::combine_rotation_far_field(results, n, equal_radii_, ut.data(), wf.data(), rr.data());
+
+  // The overlapping pairs' exact grand blocks in place of their far form, and the self terms.
+  std::vector<double> near_u(3 * n, 0.0), near_w(3 * n, 0.0);
+  overlap_->add(f, t, near_u, near_w);
+  const double inv_eta = 1.0 / viscosity_;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double self_t = rpy::rpy_self(a_[i]), self_r = rpy::rpy_rotation_self(a_[i]);
+    for (std::size_t c = 0; c < 3; ++c) {
+      near_u[3 * i + c] += self_t * f[3 * i + c];
+      near_w[3 * i + c] += self_r * t[3 * i + c];
+    }
+  }
+  // Back from the length units and the load scale, exactly.
+  for (std::size_t i = 0; i < 3 * n; ++i) {
+    local_velocities[i] = std::ldexp(std::ldexp(u[i] + inv_eta * (ut[i] + near_u[i]), -e), k);
+    local_angular_velocities[i] = std::ldexp(std::ldexp(inv_eta * (wf[i] + rr[i] + near_w[i]), -2 * e), k);
+  }
+  comm_.run([&] {
+    rpy::detail::require_finite_result(local_velocities, kApply, "velocities", "forces and torques");
+    rpy::detail::require_finite_result(local_angular_velocities, kApply, "angular velocities", "forces and torques");
+  });
 }
 
 }  // namespace rpyfmm::mpi

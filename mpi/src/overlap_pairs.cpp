@@ -14,6 +14,7 @@
 #include "fmm_plan.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/rpy_kernel.hpp"
+#include "rpyfmm/rpy/rpy_rotation_kernel.hpp"
 
 namespace rpyfmm::mpi::detail {
 namespace {
@@ -131,6 +132,13 @@ bool pair_correction(const double* d, double ai, double aj, OverlapPair& pair) {
 
 }  // namespace
 
+RotationCorrection rotation_correction(double r, double ai, double aj) {
+  const rpy::RpyRotationScalars exact = rpy::rpy_rotation_scalars(r, ai, aj);
+  if (r == 0.0) return {0.0, 0.0, exact.h, 0.0};  // coincident: no Laplace term to take back
+  const rpy::RpyRotationScalars far = rpy::rpy_rotation_far(r);
+  return {(exact.ut - far.ut) / r, (exact.wf - far.wf) / r, exact.h - far.h, (exact.k - far.k) / (r * r)};
+}
+
 void far_form_scalars(double r, double ai, double aj, double& f, double& g) {
   const double c = rpy::rpy_detail::inv_8pi / r;
   const double s = (ai * ai + aj * aj) / (r * r);
@@ -246,39 +254,99 @@ void OverlapCorrection::require_resolvable(const RoundingLimits& limits) const {
            " (coincident points are exact; rpyfmm::mpi::DistributedDirectRpy sums any pair exactly)");
 }
 
-void OverlapCorrection::add(std::span<const double> f, std::span<double> u) const {
-  if (global_pairs_ == 0) return;
-  const Column in[] = {{f, 3}};
-  std::vector<double> forces = partition_->to_owners(in)[0];
+std::vector<std::vector<double>> OverlapCorrection::owned_and_halo(std::span<const Column> columns) const {
+  std::vector<std::vector<double>> values = partition_->to_owners(columns);
+  std::size_t width = 0;
+  for (const Column& c : columns) width += c.per;
   const auto ranks = static_cast<std::size_t>(comm_.size());
   std::vector<std::vector<double>> send(ranks);
   std::vector<std::size_t> recv_doubles(ranks);
   for (std::size_t r = 0; r < ranks; ++r) {
-    for (std::size_t j : sent_[r]) send[r].insert(send[r].end(), &forces[3 * j], &forces[3 * j] + 3);
-    recv_doubles[r] = 3 * halo_counts_[r];
+    for (std::size_t j : sent_[r]) {
+      for (std::size_t c = 0; c < columns.size(); ++c) {
+        const double* v = &values[c][columns[c].per * j];
+        send[r].insert(send[r].end(), v, v + columns[c].per);
+      }
+    }
+    recv_doubles[r] = width * halo_counts_[r];
   }
-  const std::vector<double> halo = alltoallv(comm_, send, recv_doubles, kApply, "halo forces");
-  forces.insert(forces.end(), halo.begin(), halo.end());
+  const std::vector<double> halo = alltoallv(comm_, send, recv_doubles, kApply, "halo loads");
+  for (std::size_t q = 0; q < halo_n_; ++q) {
+    const double* record = &halo[width * q];
+    for (std::size_t c = 0; c < columns.size(); ++c) {
+      values[c].insert(values[c].end(), record, record + columns[c].per);
+      record += columns[c].per;
+    }
+  }
+  return values;
+}
 
+void OverlapCorrection::add_translation(std::size_t i, const double* f, double* ui) const {
+  const double* xi = &points_[3 * i];
+  for (std::size_t k = first_[i]; k < first_[i + 1]; ++k) {
+    const OverlapPair& p = pairs_[k];
+    const double* xj = &points_[3 * p.j];
+    const double* fj = &f[3 * p.j];
+    const double d[3] = {xi[0] - xj[0], xi[1] - xj[1], xi[2] - xj[2]};
+    const double df = p.dgr * (d[0] * fj[0] + d[1] * fj[1] + d[2] * fj[2]);
+    for (std::size_t c = 0; c < 3; ++c) ui[c] += p.df * fj[c] + df * d[c];
+  }
+}
+
+void OverlapCorrection::add_rotation(std::size_t i, const double* f, const double* t, double* ui, double* wi) const {
+  const double* xi = &points_[3 * i];
+  for (std::size_t k = first_[i]; k < first_[i + 1]; ++k) {
+    const std::size_t j = pairs_[k].j;
+    const double* xj = &points_[3 * j];
+    const double* fj = &f[3 * j];
+    const double* tj = &t[3 * j];
+    const double d[3] = {xi[0] - xj[0], xi[1] - xj[1], xi[2] - xj[2]};
+    const double r = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    const RotationCorrection q = rotation_correction(r, radii_[i], radii_[j]);
+    const double dt = q.k * (d[0] * tj[0] + d[1] * tj[1] + d[2] * tj[2]);
+    for (std::size_t c = 0; c < 3; ++c) {
+      const std::size_t c1 = (c + 1) % 3, c2 = (c + 2) % 3;
+      ui[c] += q.ut * (tj[c1] * d[c2] - tj[c2] * d[c1]);
+      wi[c] += q.wf * (fj[c1] * d[c2] - fj[c2] * d[c1]) + q.h * tj[c] + dt * d[c];
+    }
+  }
+}
+
+void OverlapCorrection::add(std::span<const double> f, std::span<double> u) const {
+  if (global_pairs_ == 0) return;
+  const Column in[] = {{f, 3}};
+  const std::vector<std::vector<double>> loads = owned_and_halo(in);
   std::vector<double> correction(3 * owned_n_, 0.0);
   const auto m = static_cast<std::int64_t>(owned_n_);
 #pragma omp parallel for schedule(static)
   for (std::int64_t ii = 0; ii < m; ++ii) {
     const auto i = static_cast<std::size_t>(ii);
-    const double* xi = &points_[3 * i];
-    double* ui = &correction[3 * i];
-    for (std::size_t k = first_[i]; k < first_[i + 1]; ++k) {
-      const OverlapPair& p = pairs_[k];
-      const double* xj = &points_[3 * p.j];
-      const double* fj = &forces[3 * p.j];
-      const double d[3] = {xi[0] - xj[0], xi[1] - xj[1], xi[2] - xj[2]};
-      const double df = p.dgr * (d[0] * fj[0] + d[1] * fj[1] + d[2] * fj[2]);
-      for (std::size_t c = 0; c < 3; ++c) ui[c] += p.df * fj[c] + df * d[c];
-    }
+    add_translation(i, loads[0].data(), &correction[3 * i]);
   }
   const Column out[] = {{correction, 3}};
   const std::vector<double> back = partition_->to_origin(out)[0];
   for (std::size_t k = 0; k < back.size(); ++k) u[k] += back[k];
+}
+
+void OverlapCorrection::add(std::span<const double> f, std::span<const double> t, std::span<double> u,
+                            std::span<double> w) const {
+  if (global_pairs_ == 0) return;
+  const Column in[] = {{f, 3}, {t, 3}};
+  const std::vector<std::vector<double>> loads = owned_and_halo(in);
+  std::vector<double> cu(3 * owned_n_, 0.0), cw(3 * owned_n_, 0.0);
+  const auto m = static_cast<std::int64_t>(owned_n_);
+#pragma omp parallel for schedule(static)
+  for (std::int64_t ii = 0; ii < m; ++ii) {
+    const auto i = static_cast<std::size_t>(ii);
+    add_translation(i, loads[0].data(), &cu[3 * i]);
+    add_rotation(i, loads[0].data(), loads[1].data(), &cu[3 * i], &cw[3 * i]);
+  }
+  const Column out[] = {{cu, 3}, {cw, 3}};
+  const std::vector<std::vector<double>> back = partition_->to_origin(out);
+  for (std::size_t k = 0; k < back[0].size(); ++k) {
+    u[k] += back[0][k];
+    w[k] += back[1][k];
+  }
 }
 
 }  // namespace rpyfmm::mpi::detail

@@ -36,6 +36,18 @@ struct OverlapPair {
 ///   f = (1 + (ai^2 + aj^2) / (3 r^2)) / (8 pi r),  g = (1 - (ai^2 + aj^2) / r^2) / (8 pi r).
 void far_form_scalars(double r, double ai, double aj, double& f, double& g);
 
+/// The rotational correction of the ordered pair (i, j) at distance r < ai + aj, times eta: the
+/// coefficients of rpy::rpy_rotation_scalars minus their far form rpy::rpy_rotation_far (what the
+/// curl and grad div sums of the far field give every pair at r > 0; docs/theory/rpy.md, section 7),
+/// in the form applied to d = x_i - x_j:
+///   U_i += ut (T_j x d),   W_i += wf (F_j x d) + h T_j + k d (d . T_j),
+/// i.e. the couplings divided by r and k by r^2. Coincident points (r = 0, skipped by the Laplace
+/// sums) carry the exact block: h = 1 / (8 pi max(ai, aj)^3), the rest 0.
+struct RotationCorrection {
+  double ut = 0.0, wf = 0.0, h = 0.0, k = 0.0;
+};
+[[nodiscard]] RotationCorrection rotation_correction(double r, double ai, double aj);
+
 /// What bounds the rounding the correction leaves: the requested tolerance and the largest |x_c| of
 /// all ranks' positions in the far field's frame (about half the extent of the whole set).
 struct RoundingLimits {
@@ -49,6 +61,10 @@ struct RoundingLimits {
 /// block of order 1 / max(ai, aj):
 ///   2^-52 max(ai, aj) ((ai^2 + aj^2) / r^3 + reach / r^2)   (0 for coincident points).
 /// Measured: 1.8e-7 for 150 pairs at r = 1e-3 a among 300 particles, where this gives 4.4e-7.
+/// It bounds the rotational blocks' rounding too: their far forms are harmonic fields of the
+/// forces and torques themselves (no x-weighted densities), which exceed the exact blocks (of
+/// order 1 / max(ai, aj)^2 and 1 / max(ai, aj)^3) by at most (max(ai, aj) / r)^2 and
+/// (max(ai, aj) / r)^3, within the dipole term 2^-52 max(ai, aj) (ai^2 + aj^2) / r^3 above.
 [[nodiscard]] double cancellation_error(const double* d, double ai, double aj, double reach);
 
 class OverlapCorrection {
@@ -65,6 +81,12 @@ class OverlapCorrection {
   /// of this rank's particles. Nothing is exchanged when no rank has an overlapping pair.
   void add(std::span<const double> f, std::span<double> u) const;
 
+  /// Collective. The same with rotation, for the torques t (3n) beside the forces: u += the
+  /// corrections of add(f, u) plus sum_j ut (t_j x d), and w (3n) += sum_j wf (f_j x d) + h t_j +
+  /// k d (d . t_j) with the rotation_correction of each pair (times eta). One halo exchange of
+  /// forces and torques together.
+  void add(std::span<const double> f, std::span<const double> t, std::span<double> u, std::span<double> w) const;
+
   /// Overlapping pairs (ordered: (i, j) and (j, i) count twice) of all ranks; halo particles received.
   [[nodiscard]] std::uint64_t global_pairs() const { return global_pairs_; }
   [[nodiscard]] std::size_t halo_size() const { return halo_n_; }
@@ -73,6 +95,12 @@ class OverlapCorrection {
   void exchange_halo(std::span<const double> owned_x, std::span<const double> owned_a, double a_max);
   void find_pairs(std::span<const double> owned_a, double a_max);
   void require_resolvable(const RoundingLimits& limits) const;
+  // The columns of the owned particles (to the owners), each followed by the halo particles' values.
+  [[nodiscard]] std::vector<std::vector<double>> owned_and_halo(std::span<const Column> columns) const;
+  // Owned particle i's translational corrections for the forces f (owned, then halo) into ui (3).
+  void add_translation(std::size_t i, const double* f, double* ui) const;
+  // Its rotational corrections for the forces f and torques t into ui and wi (3 each).
+  void add_rotation(std::size_t i, const double* f, const double* t, double* ui, double* wi) const;
 
   Communicator comm_;
   std::unique_ptr<SfcPartition> partition_;

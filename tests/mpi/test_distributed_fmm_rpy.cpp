@@ -279,6 +279,166 @@ TEST(MpiDistributedFmmRpy, SamplersOnTheOperator) {
   }
 }
 
+// ------------------------------------------------------------------------------- rotation ---
+
+namespace {
+
+// Torques of the whole set: a_i times uniform entries in [-1, 1] (a torque is a force times a
+// length, so that U's parts from F and from T, and W's from F and from T, are of one order).
+std::vector<double> torques_of(const Particles& p, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<double> t(3 * p.size());
+  for (std::size_t i = 0; i < t.size(); ++i) t[i] = p.a[i / 3] * u(rng);
+  return t;
+}
+
+// This rank's U and W, and the errors of each against the exact product.
+struct GrandResult {
+  std::vector<double> u, w;
+  double u_error = 0.0, w_error = 0.0;
+};
+
+// Distributes `p` with torques `t` by `split`, applies [U; W] = M [F; T] at `tolerance` and checks on
+// every rank: the relative l2 errors of U and of W (each over all particles) against the exact
+// grand product of the serial DirectRpy (independent: every pair's exact blocks summed directly,
+// rpy/src/direct_rotation.cpp) at most the tolerance; a repeated product bit for bit; and with zero
+// torques the velocities of the translational apply bit for bit (the torque densities are zero, so
+// the far field's translational sums and the corrections are the same operations on the same values,
+// each plus an exact zero). Rank 0 prints the errors.
+GrandResult expect_rotation_contract(const Particles& p, const std::vector<double>& t, Split split, double tolerance,
+                                     const char* label) {
+  const Partition part = partition_of(p.size(), split);
+  DirectRpy direct(Geometry::open(), kViscosity);
+  direct.set_positions(p.x, p.a);
+  std::vector<double> exact_u(3 * p.size()), exact_w(3 * p.size());
+  direct.apply(p.f, t, exact_u, exact_w);
+  DistributedFmmRpy op(MPI_COMM_WORLD, kViscosity, {.tolerance = tolerance, .leaf_capacity = kLeaf});
+  EXPECT_TRUE(op.supports_rotation());
+  op.set_positions(share(p.x, 3, part.offset, part.n), share(p.a, 1, part.offset, part.n));
+  const std::vector<double> f = share(p.f, 3, part.offset, part.n), tl = share(t, 3, part.offset, part.n);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  std::vector<double> u(3 * part.n, nan), w(3 * part.n, nan), u2(u.size(), nan), w2(u.size(), nan);
+  op.apply(f, tl, u, w);
+  op.apply(f, tl, u2, w2);
+  EXPECT_EQ(bitwise_mismatches(u, u2) + bitwise_mismatches(w, w2), 0u) << "repeated product, rank " << world_rank();
+  GrandResult e{u, w};
+  e.u_error = global_relative_error(u, share(exact_u, 3, part.offset, part.n));
+  e.w_error = global_relative_error(w, share(exact_w, 3, part.offset, part.n));
+  EXPECT_LE(e.u_error, tolerance) << label << ": U against DirectRpy";
+  EXPECT_LE(e.w_error, tolerance) << label << ": W against DirectRpy";
+  const std::vector<double> zero(tl.size(), 0.0);
+  std::vector<double> translational(u.size(), nan);
+  op.apply(f, zero, u2, w2);
+  op.apply(f, translational);
+  EXPECT_EQ(bitwise_mismatches(u2, translational), 0u) << label << ": zero torques, rank " << world_rank();
+  if (world_rank() == 0) {
+    std::printf("[fmm-rpy] rotation %-22s P=%d eps=%.0e: error vs DirectRpy U %.2e, W %.2e\n", label, world_size(),
+                tolerance, e.u_error, e.w_error);
+  }
+  return e;
+}
+
+}  // namespace
+
+TEST(MpiDistributedFmmRpyRotation, UniformAndClusteredWithinToleranceOfDirect) {
+  // Equal radii at volume fraction 0.09 (a few overlapping pairs); the cluster of 300 spheres of radii
+  // 0.5 ... 2 in a ball of radius 3 (partial overlaps, spheres inside others, a coincident pair) with
+  // 60 far away, on one rank (last only) or cut across the ranks (geometric).
+  const Particles uniform = uniform_particles(600, 30.0, 1.0, 1.0, 161), clustered = clustered_particles(300, 60, 162);
+  const std::vector<double> tu = torques_of(uniform, 261), tc = torques_of(clustered, 262);
+  for (double eps : kTolerances) {
+    expect_rotation_contract(uniform, tu, Split::even, eps, "uniform, even");
+    expect_rotation_contract(uniform, tu, Split::last_only, eps, "uniform, last only");
+    expect_rotation_contract(clustered, tc, Split::geometric, eps, "clustered, geometric");
+    expect_rotation_contract(clustered, tc, Split::last_only, eps, "clustered, last only");
+  }
+}
+
+TEST(MpiDistributedFmmRpyRotation, PolydisperseRadiiRatio16WithinToleranceOfDirect) {
+  // Radii 0.25 ... 4: seven translational densities and the torques', small spheres inside large
+  // ones (the coupling r / (8 pi a_j^3) of a sphere inside another, the far form's 1 / r^2 taken back).
+  const Particles p = uniform_particles(500, 70.0, 0.25, 4.0, 163);
+  const std::vector<double> t = torques_of(p, 263);
+  for (double eps : kTolerances) expect_rotation_contract(p, t, Split::even, eps, "polydisperse 16");
+}
+
+TEST(MpiDistributedFmmRpyRotation, OverlappingTouchingAndCoincidentPairs) {
+  // 150 pairs overlapping at 0.6 (a_i + a_j) and 150 touching, partners on different ranks; then 150
+  // coincident pairs (r = 0: skipped by the Laplace sums, the exact block 1 / (8 pi eta max(a)^3)
+  // added), with rank 0 owning nothing in the equal-radii case.
+  for (double gap : {0.6, 1.0}) {
+    const Particles p = pairs_at(150, 40.0, gap, 164);
+    const std::vector<double> t = torques_of(p, 264);
+    for (double eps : kTolerances)
+      expect_rotation_contract(p, t, Split::even, eps, gap < 1.0 ? "overlapping pairs" : "touching");
+  }
+  Particles p = uniform_particles(300, 12.0, 0.5, 1.5, 65);
+  for (std::size_t i = 0; i < 150; ++i)
+    for (std::size_t d = 0; d < 3; ++d) p.x[3 * (i + 150) + d] = p.x[3 * i + d];
+  const std::vector<double> t = torques_of(p, 265);
+  for (double eps : kTolerances) expect_rotation_contract(p, t, Split::even, eps, "coincident");
+  for (double& a : p.a) a = 1.0;
+  expect_rotation_contract(p, torques_of(p, 266), Split::first_empty, 1e-6, "coincident, equal radii");
+}
+
+TEST(MpiDistributedFmmRpyRotation, NearlyCoincidentPointsWithinTolerance) {
+  // The rotational far forms exceed their exact blocks by at most (a / r)^2 (couplings) and
+  // (a / r)^3 (rotation-rotation), within the translational dipole term that set_positions' refusal
+  // bounds (mpi/src/overlap_pairs.hpp, cancellation_error): the sets it accepts are within the
+  // tolerance for W too. At r = 0.05 a at every tolerance; at r = 1e-3 a (refused at 1e-9) at 1e-3.
+  const Particles near = nearly_coincident(0.05), closer = nearly_coincident(1e-3);
+  const std::vector<double> t = torques_of(near, 267);
+  for (double eps : kTolerances) expect_rotation_contract(near, t, Split::even, eps, "r = 0.05 a");
+  expect_rotation_contract(closer, t, Split::even, 1e-3, "r = 1e-3 a");
+}
+
+TEST(MpiDistributedFmmRpyRotation, MoreRanksThanParticles) {
+  for (std::size_t n : {1, 2, 3}) {
+    const Particles p = uniform_particles(n, 3.0, 0.8, 1.2, 166 + n);  // overlapping
+    for (Split s : kSplits) expect_rotation_contract(p, torques_of(p, 266 + n), s, 1e-6, "1-3 particles");
+  }
+}
+
+TEST(MpiDistributedFmmRpyRotation, ExtremeLengthScalesAndLoads) {
+  // Extent 1e137 and radii 1e135 (in units of a power of two 2^e: U carries 2^-e, W 2^-2e), torques
+  // of the same length scale; loads near 1e300 (one power of two for forces and torques).
+  Particles p = uniform_particles(300, 1.0, 0.002, 0.004, 170);
+  for (double& x : p.x) x *= 1e137;
+  for (double& a : p.a) a *= 1e137;
+  expect_rotation_contract(p, torques_of(p, 270), Split::geometric, 1e-6, "extent 1e137");
+  Particles q = uniform_particles(300, 30.0, 1.0, 1.0, 171);
+  for (double& f : q.f) f *= 1e300;
+  std::vector<double> t = torques_of(q, 271);
+  for (double& v : t) v *= 1e300;
+  expect_rotation_contract(q, t, Split::even, 1e-6, "loads 1e300");
+}
+
+TEST(MpiDistributedFmmRpyRotation, ResultsIndependentOfThreadCountAndDistribution) {
+  // U and W on 1 and 3 threads, and with the input on the last rank only, the same bits (the
+  // Laplace FMM's and the overlap correction's sums run in a fixed order per particle).
+  const Particles p = clustered_particles(200, 40, 172);
+  const std::vector<double> t = torques_of(p, 272);
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(1);
+  const GrandResult one = expect_rotation_contract(p, t, Split::even, 1e-6, "1 thread");
+  omp_set_num_threads(3);
+  const GrandResult three = expect_rotation_contract(p, t, Split::even, 1e-6, "3 threads");
+  omp_set_num_threads(saved);
+  EXPECT_EQ(bitwise_mismatches(one.u, three.u) + bitwise_mismatches(one.w, three.w), 0u);
+  const GrandResult other = expect_rotation_contract(p, t, Split::last_only, 1e-6, "last only");
+  const Partition even = partition_of(p.size(), Split::even), last = partition_of(p.size(), Split::last_only);
+  // Both distributions' results gathered into the global order on every rank.
+  const auto gathered = [&](const std::vector<double>& mine, const Partition& part) {
+    std::vector<double> all(3 * p.size(), 0.0), sum(all.size());
+    std::copy(mine.begin(), mine.end(), all.begin() + static_cast<std::ptrdiff_t>(3 * part.offset));
+    MPI_Allreduce(all.data(), sum.data(), static_cast<int>(all.size()), MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+    return sum;
+  };
+  EXPECT_EQ(bitwise_mismatches(gathered(one.u, even), gathered(other.u, last)), 0u);
+  EXPECT_EQ(bitwise_mismatches(gathered(one.w, even), gathered(other.w, last)), 0u);
+}
+
 // ----------------------------------------------------------------------- collective errors ---
 
 namespace {
@@ -323,6 +483,35 @@ TEST(MpiDistributedFmmRpy, BadInputOnOneRankFailsEveryRankThenRecovers) {
   EXPECT_NO_THROW(op.apply(f, u));
   const std::vector<double> none;
   expect_collective_error([&] { op.set_positions(none, none); }, ErrorCode::invalid_input, "no particles on any");
+}
+
+TEST(MpiDistributedFmmRpyRotation, BadInputOnOneRankFailsEveryRank) {
+  const int last = world_size() - 1;
+  const Particles p = uniform_particles(40, 10.0, 1.0, 1.0, 180);
+  const Partition part = partition_of(p.size(), Split::even);
+  const std::vector<double> x = share(p.x, 3, part.offset, part.n), a = share(p.a, 1, part.offset, part.n);
+  const std::vector<double> f = share(p.f, 3, part.offset, part.n),
+                            t = share(torques_of(p, 280), 3, part.offset, part.n);
+  DistributedFmmRpy op(MPI_COMM_WORLD, kViscosity, {.tolerance = 1e-6});
+  std::vector<double> u(f.size()), w(f.size());
+  expect_collective_error([&] { op.apply(f, t, u, w); }, ErrorCode::invalid_input, "positions not set");
+  op.set_positions(x, a);
+  std::vector<double> bad_t = t;
+  if (world_rank() == last) bad_t[3 * 1 + 2] = std::numeric_limits<double>::quiet_NaN();
+  expect_collective_error([&] { op.apply(f, bad_t, u, w); }, ErrorCode::invalid_input,
+                          rank_of(last) + "rpyfmm::mpi::DistributedFmmRpy::apply: local torques entry (1, 2) is NaN");
+  std::vector<double> bad_f = f;
+  if (world_rank() == 0) bad_f[4] = std::numeric_limits<double>::infinity();
+  expect_collective_error([&] { op.apply(bad_f, t, u, w); }, ErrorCode::invalid_input,
+                          rank_of(0) + "rpyfmm::mpi::DistributedFmmRpy::apply: local forces entry (1, 1) is infinite");
+  std::vector<double> short_t = t;
+  if (world_rank() == last) short_t.pop_back();
+  expect_collective_error([&] { op.apply(f, short_t, u, w); }, ErrorCode::invalid_input,
+                          rank_of(last) + "rpyfmm::mpi::DistributedFmmRpy::apply: local torques");
+  std::vector<double> long_w(world_rank() == 0 ? w.size() + 3 : w.size());
+  expect_collective_error([&] { op.apply(f, t, u, long_w); }, ErrorCode::invalid_input,
+                          rank_of(0) + "rpyfmm::mpi::DistributedFmmRpy::apply: local angular velocities");
+  EXPECT_NO_THROW(op.apply(f, t, u, w));
 }
 
 TEST(MpiDistributedFmmRpy, DifferentOptionsOrViscositiesFailEveryRank) {

@@ -13,12 +13,20 @@
 //   DistributedFmmRpy op(MPI_COMM_WORLD, viscosity, {.tolerance = 1e-6});  // collective
 //   op.set_positions(local_x, local_radii);   // collective: plans once
 //   op.apply(local_f, local_u);               // collective, any number of times
+//   op.apply(local_f, local_t, local_u, local_w);  // with torques and angular velocities
+//
+// With rotation, [U; W] = M [F; T] (the grand mobility of Wajnryb, Mizerski, Zuk & Szymczak,
+// J. Fluid Mech. 731, R3 (2013)): the far form of the rotational blocks is exactly the harmonic
+// fields curl Phi / (8 pi eta) and grad div Phi_T / (16 pi eta) (docs/theory/rpy.md, section 7), so
+// the same Laplace evaluation carries the three torque components beside the translational
+// densities, as in FmmRpy, and the overlap correction takes back the rotational far form of every
+// overlapping pair as it does the translational one.
 //
 // Contract: on every rank the relative l2 error of U over all particles against the exact product
-// (rpy::DirectRpy on the concatenation of the ranks' shares) is at most the tolerance (tested at
-// 1e-3, 1e-6 and 1e-9). Results are deterministic: the same input on the same number of ranks
-// gives the same bits, whatever the thread count; a different number of ranks gives other bits
-// within the contract.
+// (rpy::DirectRpy on the concatenation of the ranks' shares) is at most the tolerance, and with
+// rotation that of U and that of W each (tested at 1e-3, 1e-6 and 1e-9). Results are deterministic:
+// the same input on the same number of ranks gives the same bits, whatever the thread count; a
+// different number of ranks gives other bits within the contract.
 //
 // Every public call is collective and fails collectively (communicator.hpp).
 #pragma once
@@ -107,6 +115,14 @@ class DistributedFmmRpy {
   /// any rank, and for a product beyond double precision.
   void apply(std::span<const double> local_forces, std::span<double> local_velocities) const;
 
+  /// The grand mobility with rotation (rpy::MobilityOperator::apply's).
+  [[nodiscard]] bool supports_rotation() const { return true; }
+  /// Collective. [U; W] = M [F; T] for this rank's particles (3 local_size() entries each, input
+  /// order). Throws rpyfmm::Error on every rank before set_positions, for wrong sizes or NaN/Inf
+  /// forces or torques on any rank, and for a product beyond double precision.
+  void apply(std::span<const double> local_forces, std::span<const double> local_torques,
+             std::span<double> local_velocities, std::span<double> local_angular_velocities) const;
+
  private:
   Communicator comm_;
   double viscosity_ = 1.0;
@@ -121,6 +137,7 @@ class DistributedFmmRpy {
   std::vector<double> x_, a_;
   std::vector<double> positions_, radii_;  // as passed to set_positions
   int scale_exponent_ = 0;
+  double largest_radius_ = 0.0;  // of all ranks, as passed (the load scale of torques)
   bool equal_radii_ = true;
 };
 

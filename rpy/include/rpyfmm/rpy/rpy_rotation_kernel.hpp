@@ -80,13 +80,19 @@ RPYFMM_HOST_DEVICE inline double rpy_rotation_self(double a) {
   return rpy_detail::inv_8pi / (a * a * a);
 }
 
+/// The far form of the rotational coefficients at r > 0, the same for any radii: c_ut = c_wf =
+/// 1 / (8 pi r^2), h = -1 / (16 pi r^3), k = 3 / (16 pi r^3). These are the harmonic fields
+/// curl (T / r) / (8 pi) and grad div (T / r) / (16 pi) (docs/theory/rpy.md, section 7), which a
+/// Laplace far field sums for every pair at r > 0, overlapping ones included.
+RPYFMM_HOST_DEVICE inline RpyRotationScalars rpy_rotation_far(double r) {
+  const double c = rpy_detail::inv_8pi / (r * r);
+  const double h = -0.5 * c / r;
+  return {c, c, h, -3.0 * h};
+}
+
 /// The rotational coefficients of the ordered pair (i, j) at distance r >= 0.
 RPYFMM_HOST_DEVICE inline RpyRotationScalars rpy_rotation_scalars(double r, double ai, double aj) {
-  if (r > ai + aj) {
-    const double c = rpy_detail::inv_8pi / (r * r);
-    const double h = -0.5 * c / r;
-    return {c, c, h, -3.0 * h};
-  }
+  if (r > ai + aj) return rpy_rotation_far(r);
   const double diff = ai - aj;
   const double adiff = diff < 0.0 ? -diff : diff;
   if (r <= adiff) {
