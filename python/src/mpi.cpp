@@ -217,9 +217,10 @@ void init_direct(Direct* self, nb::object comm, double viscosity) {
   new (self) Direct{comm, mpi::DistributedDirectRpy(comm_from(comm, "DistributedDirectRpy"), viscosity)};
 }
 
-/// U = M F; with torques, (U, W) = M (F, T) (DistributedDirectRpy::apply with rotation), spelled
-/// as MobilityOperator.apply (mobility.cpp); the arrays' checks agreed over the ranks.
-nb::object direct_apply(const Direct& self, ArrayArg forces, OptArrayArg torques, OutArg out) {
+/// U = M F; with torques, (U, W) = M (F, T) (the operator's apply with rotation), spelled as
+/// MobilityOperator.apply (mobility.cpp); the arrays' checks agreed over the ranks.
+template <class Op>
+nb::object apply_with_rotation(const WithComm<Op>& self, ArrayArg forces, OptArrayArg torques, OutArg out) {
   if (torques.is_none()) return apply(self, forces, out).o;
   const RotationArrays a =
       agreed(self.op.communicator(), [&] { return rotation_arrays(forces, torques, out, "apply"); });
@@ -230,6 +231,21 @@ nb::object direct_apply(const Direct& self, ArrayArg forces, OptArrayArg torques
   return nb::make_tuple(a.u.object, a.w.object);
 }
 
+const std::string kRotationApplyDoc =
+    std::string(kApplyDoc) +
+    "\nWith torques (same shape as forces): returns (U, W) = M (F, T), the velocities and angular\n"
+    "velocities of the grand mobility with rotation; `out` is not supported with torques.";
+
+/// apply with optional torques and supports_rotation, for the operators with rotation.
+template <class Op>
+void add_rotation_apply(Class<Op>& cls) {
+  cls.def("apply", locked("apply", &apply_with_rotation<Op>), nb::arg("forces"), nb::arg("torques") = nb::none(),
+          nb::arg("out") = nb::none(), kRotationApplyDoc.c_str())
+      .def_prop_ro(
+          "supports_rotation", [](const WithComm<Op>& s) { return s.op.supports_rotation(); },
+          "True: apply accepts torques (the grand mobility with rotation).");
+}
+
 void bind_distributed_direct(nb::module_& m) {
   Class<mpi::DistributedDirectRpy> cls(m, "DistributedDirectRpy",
                                        "Exact O(N^2) RPY mobility on particles distributed over the ranks (free "
@@ -238,16 +254,7 @@ void bind_distributed_direct(nb::module_& m) {
   cls.def("__init__", &init_direct, nb::arg("comm"), nb::arg("viscosity") = 1.0,
           "Collective. comm: an mpi4py communicator; viscosity: eta > 0.");
   add_common(cls, kKrylovSqrtDoc, false);
-  // Built once; nanobind keeps the pointer.
-  static const std::string direct_apply_doc =
-      std::string(kApplyDoc) +
-      "\nWith torques (same shape as forces): returns (U, W) = M (F, T), the velocities and angular\n"
-      "velocities of the grand mobility with rotation; `out` is not supported with torques.";
-  cls.def("apply", locked("apply", &direct_apply), nb::arg("forces"), nb::arg("torques") = nb::none(),
-          nb::arg("out") = nb::none(), direct_apply_doc.c_str())
-      .def_prop_ro(
-          "supports_rotation", [](const Direct& s) { return s.op.supports_rotation(); },
-          "True: apply accepts torques (the grand mobility with rotation).");
+  add_rotation_apply(cls);
 }
 
 void init_fmm(Fmm* self, nb::object comm, double viscosity, double tolerance, int leaf_capacity,
@@ -260,17 +267,20 @@ void init_fmm(Fmm* self, nb::object comm, double viscosity, double tolerance, in
 }
 
 void bind_distributed_fmm(nb::module_& m) {
-  Class<mpi::DistributedFmmRpy> cls(m, "DistributedFmmRpy",
-                                    "Free-space RPY mobility in O(N) by the distributed Laplace FMM plus the exact "
-                                    "near field; relative l2\nerror of U over all particles at most the tolerance.");
+  Class<mpi::DistributedFmmRpy> cls(
+      m, "DistributedFmmRpy",
+      "Free-space RPY mobility in O(N) by the distributed Laplace FMM plus the exact "
+      "near field; relative l2\nerror of U (and of W with torques) over all particles at most the tolerance.");
   cls.def("__init__", &init_fmm, nb::arg("comm"), nb::arg("viscosity") = 1.0, nb::arg("tolerance") = 1e-6,
           nb::arg("leaf_capacity") = 0, nb::arg("overlap_exchange") = false,
           "Collective. comm: an mpi4py communicator; tolerance: relative l2 error of U in [1e-12, 1e-1];\n"
           "leaf_capacity: 0 = automatic; overlap_exchange: the Laplace FMM's serial FMM split to run during\n"
           "the exchanges (docs/mpi.md). Every rank must pass the same values.")
       .def_prop_ro(
-          "tolerance", [](const Fmm& s) { return s.op.options().tolerance; }, "Requested relative l2 error of U.");
-  add_common(cls, kKrylovSqrtDoc);
+          "tolerance", [](const Fmm& s) { return s.op.options().tolerance; },
+          "Requested relative l2 error of U (and of W with torques).");
+  add_common(cls, kKrylovSqrtDoc, false);
+  add_rotation_apply(cls);
 }
 
 void init_pse(Pse* self, nb::object comm, BoxArg box, double viscosity, double tolerance, double xi, double r_cut,
