@@ -8,7 +8,8 @@
 //
 // U has shape (N,3). With --torques (N,3) or --angular (T = 0), the grand mobility with rotation
 // (docs/theory/rpy.md section 7; operators with supports_rotation: --method direct, fmm, pse (CPU and CUDA), none): the
-// output has shape (N,6), columns Ux Uy Uz Wx Wy Wz.
+// output has shape (N,6), columns Ux Uy Uz Wx Wy Wz. Under mpirun (docs/mpi.md) --method direct and fmm run across
+// the ranks with or without rotation, --method pse --box without it (commands_across_ranks.cpp).
 #include <CLI/CLI.hpp>
 #include <cstddef>
 #include <iostream>
@@ -65,19 +66,26 @@ void apply_and_write(const rpy::MobilityOperator& op, const std::vector<double>&
   stages["write"] = watch.seconds();
 }
 
-/// Under MPI: whether this product runs across the ranks (translations on the CPU: --method direct
-/// or fmm in free space, or --method pse with --box and wave grids auto or double); otherwise it runs
-/// on one rank only and more ranks are refused.
+/// Under MPI: whether this product runs across the ranks (on the CPU: --method direct or fmm in free
+/// space, with --torques or --angular too, or --method pse with --box and wave grids auto or double,
+/// translations only: DistributedPseRpy has no rotation); otherwise it runs on one rank only and more
+/// ranks are refused. Every rank parses the same options, so every rank refuses alike.
 bool across_ranks(const MobilityArgs& args) {
   const MobilityChoice& m = args.mobility;
+  const bool rotation = args.angular || !args.torques.empty();
   const bool free_space = (m.method == "direct" || m.method == "fmm") && m.box.empty();
   const bool pse = m.method == "pse" && !m.box.empty() && m.wave_precision != "single";
-  const bool supported = (free_space || pse) && !args.angular && args.torques.empty() && m.device == "cpu";
+  const std::string ranks = "across " + std::to_string(mpi_size()) + " MPI ranks runs ";
+  require(!(pse && rotation) || mpi_size() == 1, ErrorCode::not_supported, "mobility",
+          ranks +
+              "--method pse without --torques and --angular: the distributed PSE operator (DistributedPseRpy) has no "
+              "rotation (docs/mpi.md); use --method direct or fmm, or run --method pse without mpirun");
+  const bool supported = (free_space || (pse && !rotation)) && m.device == "cpu";
   require(supported || mpi_size() == 1, ErrorCode::not_supported, "mobility",
-          "across " + std::to_string(mpi_size()) +
-              " MPI ranks runs --method direct or fmm without --box, or --method pse with --box (double-precision "
-              "wave grids), without --torques and --angular, on the CPU (docs/mpi.md); run other methods without "
-              "mpirun");
+          ranks +
+              "--method direct or fmm without --box (--torques and --angular included), or --method pse with "
+              "--box (double-precision wave grids) without --torques and --angular, on the CPU (docs/mpi.md); run "
+              "other methods without mpirun");
   return supported;
 }
 
@@ -93,9 +101,9 @@ void run_mobility(const MobilityArgs& args, bool radius_given) {
   if (radius_given) ranges::require_in(ranges::kRadius, args.radius, "--radius", "radius");
   ranges::require_in(ranges::kViscosity, args.mobility.viscosity, "--viscosity", "viscosity");
   if (under_mpi() && across_ranks(args)) {
-    run_mobility_across_ranks({args.positions, args.forces, args.radii, args.out, args.radius, radius_given,
-                               args.mobility.viscosity, args.mobility.tolerance, args.common.json, args.mobility.method,
-                               args.mobility.box});
+    run_mobility_across_ranks({args.positions, args.forces, args.radii, args.out, args.torques, args.angular,
+                               args.radius, radius_given, args.mobility.viscosity, args.mobility.tolerance,
+                               args.common.json, args.mobility.method, args.mobility.box});
     return;
   }
 

@@ -1,12 +1,13 @@
 // rpyfmm CLI — the commands that run across MPI ranks (mpi_session.hpp, docs/mpi.md):
-//   mpirun -np P rpyfmm mobility --method direct|fmm ...
+//   mpirun -np P rpyfmm mobility --method direct|fmm [--torques T.npy | --angular] ...
 //   mpirun -np P rpyfmm mobility --method pse --box L ...
 //   mpirun -np P rpyfmm sample --operator direct|fmm [--method lanczos|chebyshev]
 //                              [--preconditioner none|block] ...
 //   mpirun -np P rpyfmm sample --operator pse --box L [--method split] ...
 //   mpirun -np P rpyfmm bd ...
 // Rank 0 reads the same files as the serial command and scatters the particles in P contiguous
-// shares; rpyfmm::mpi::DistributedDirectRpy applies M (bit for bit the serial DirectRpy),
+// shares; rpyfmm::mpi::DistributedDirectRpy applies M (bit for bit the serial DirectRpy; with
+// --torques or --angular to round-off, rpyfmm/mpi/direct_operator.hpp),
 // rpyfmm::mpi::DistributedFmmRpy (within --tolerance of it) or rpyfmm::mpi::DistributedPseRpy (the
 // serial PseRpy with double grids to round-off), and rpyfmm::mpi::sqrt_apply or
 // DistributedPseRpy::apply_sqrt samples M^{1/2} z; rank 0 gathers the result and writes the same
@@ -40,24 +41,39 @@
 namespace rpyfmm::cli {
 namespace {
 
-// What rank 0 reads: positions, radii (empty with a common radius) and one row of three values per
-// particle (forces, or noise; empty where none is read).
-struct WholeInput {
-  std::vector<double> x, radii, rows;
+// The files a command reads on rank 0.
+struct Inputs {
+  const std::string& positions;
+  const std::string& radii;  // empty with a common radius
+  const std::string& rows;   // forces or noise; empty where none is read
+  const char* rows_name;
+  double radius;
+  const std::string& torques;  // empty where none is read
 };
 
-WholeInput read_on_root(const std::string& positions, const std::string& radii, const std::string& rows,
-                        const std::string& rows_name) {
+// What rank 0 reads: positions, radii (empty with a common radius), one row of three values per
+// particle (forces, or noise; empty where none is read) and the torques (empty where none are read).
+struct WholeInput {
+  std::vector<double> x, radii, rows, torques;
+};
+
+// `name`'s rows of three values, one per particle of x.
+std::vector<double> read_rows(const std::string& path, const std::string& name, const std::vector<double>& x) {
+  std::vector<double> rows = as_points(read_array(path), name);
+  require(rows.size() == x.size(), ErrorCode::invalid_input, name,
+          "has " + std::to_string(rows.size() / 3) + " rows, expected " + std::to_string(x.size() / 3) +
+              " (one per particle)");
+  return rows;
+}
+
+// In the serial command's order: positions, forces (or noise), radii, torques.
+WholeInput read_on_root(const Inputs& files) {
   WholeInput in;
-  in.x = as_points(read_array(positions), "positions");
+  in.x = as_points(read_array(files.positions), "positions");
   const std::size_t n = in.x.size() / 3;
-  if (!rows.empty()) {
-    in.rows = as_points(read_array(rows), rows_name);
-    require(
-        in.rows.size() == in.x.size(), ErrorCode::invalid_input, rows_name,
-        "has " + std::to_string(in.rows.size() / 3) + " rows, expected " + std::to_string(n) + " (one per particle)");
-  }
-  if (!radii.empty()) in.radii = as_vector(read_array(radii), n, "radii");
+  if (!files.rows.empty()) in.rows = read_rows(files.rows, files.rows_name, in.x);
+  if (!files.radii.empty()) in.radii = as_vector(read_array(files.radii), n, "radii");
+  if (!files.torques.empty()) in.torques = read_rows(files.torques, "torques", in.x);
   return in;
 }
 
@@ -66,10 +82,10 @@ struct LocalInput {
   std::uint64_t n = 0;     // particles in all
   std::size_t offset = 0;  // global index of this rank's first particle
   Shares s3;               // 3 values per particle
-  std::vector<double> x, radii, rows;
+  std::vector<double> x, radii, rows, torques;
 };
 
-LocalInput distribute(const WholeInput& in, bool radii, bool rows, const mpi::Communicator& comm) {
+LocalInput distribute(const WholeInput& in, const Inputs& files, const mpi::Communicator& comm) {
   LocalInput local;
   local.n = in.x.size() / 3;
   mpi::check_mpi(MPI_Bcast(&local.n, 1, MPI_UINT64_T, 0, comm.get()), "MPI_Bcast");
@@ -77,22 +93,39 @@ LocalInput distribute(const WholeInput& in, bool radii, bool rows, const mpi::Co
   const Shares s1 = shares_of(local.n, comm.size(), 1);
   local.offset = static_cast<std::size_t>(s1.displs[static_cast<std::size_t>(comm.rank())]);
   local.x = scatter(in.x.data(), local.s3, comm);
-  if (radii) local.radii = scatter(in.radii.data(), s1, comm);
-  if (rows) local.rows = scatter(in.rows.data(), local.s3, comm);
+  if (!files.radii.empty()) local.radii = scatter(in.radii.data(), s1, comm);
+  if (!files.rows.empty()) local.rows = scatter(in.rows.data(), local.s3, comm);
+  if (!files.torques.empty()) local.torques = scatter(in.torques.data(), local.s3, comm);
   return local;
 }
 
-// Gathers the (N,3) result on rank 0, which checks and writes it; fails on every rank alike.
-// Returns the seconds this took (the "write" stage).
-double gather_and_write(const std::vector<double>& local, const LocalInput& in, const std::string& out,
-                        const std::string& what, const mpi::Communicator& comm) {
+// Gathers the result on rank 0, which checks and writes it: (N,3) rows of `local`, or with
+// `local_angular` (not null on every rank) the serial command's (N,6) rows Ux Uy Uz Wx Wy Wz; fails
+// on every rank alike. Returns the seconds this took (the "write" stage).
+double gather_and_write(const std::vector<double>& local, const std::vector<double>* local_angular,
+                        const LocalInput& in, const std::string& out, const std::string& what,
+                        const mpi::Communicator& comm) {
   const StopWatch watch;
+  const bool angular = local_angular != nullptr;
   std::vector<double> whole(comm.rank() == 0 ? 3 * in.n : 0);
+  std::vector<double> whole_angular(comm.rank() == 0 && angular ? 3 * in.n : 0);
   gather(local, in.s3, whole.data(), comm);
+  if (angular) gather(*local_angular, in.s3, whole_angular.data(), comm);
   comm.run([&] {
     if (comm.rank() != 0) return;
     require_finite_output(whole, what);
-    write_npy(out, {in.n, 3}, whole);
+    if (!angular) {
+      write_npy(out, {in.n, 3}, whole);
+      return;
+    }
+    require_finite_output(whole_angular, what);
+    std::vector<double> rows(6 * in.n);
+    for (std::size_t i = 0; i < in.n; ++i)
+      for (std::size_t c = 0; c < 3; ++c) {
+        rows[6 * i + c] = whole[3 * i + c];
+        rows[6 * i + 3 + c] = whole_angular[3 * i + c];
+      }
+    write_npy(out, {in.n, 6}, rows);
   });
   return watch.seconds();
 }
@@ -104,14 +137,6 @@ struct Prepared {
   LocalInput in;
   std::unique_ptr<Operator> op;
   StageTimes stages, communication;
-};
-
-struct Inputs {
-  const std::string& positions;
-  const std::string& radii;  // empty with a common radius
-  const std::string& rows;   // forces or noise; empty where none is read
-  const char* rows_name;
-  double radius;
 };
 
 double sum(const StageTimes& times) {
@@ -168,12 +193,12 @@ Prepared<Operator> prepare(const Inputs& files, const mpi::Communicator& comm, M
   StopWatch watch;
   WholeInput whole;
   comm.run([&] {
-    if (comm.rank() == 0) whole = read_on_root(files.positions, files.radii, files.rows, files.rows_name);
+    if (comm.rank() == 0) whole = read_on_root(files);
   });
   p.stages["read"] = watch.seconds();
 
   watch.restart();
-  p.in = distribute(whole, !files.radii.empty(), !files.rows.empty(), comm);
+  p.in = distribute(whole, files, comm);
   whole = WholeInput{};  // rank 0 keeps only its share from here on
   p.communication["distribute"] = p.stages["distribute"] = watch.seconds();
 
@@ -237,18 +262,37 @@ void add_ranks(JsonLine& line, const StageTimes& stages, const StageTimes& commu
 
 namespace {
 
-// U = M F with the prepared operator; rank 0 writes U and prints --json.
+// U = M F, or with `rotation` [U; W] = M [F; T], on this rank's share (collective: every rank
+// passes the same `rotation`, whatever its share's size).
+template <class Operator>
+void product(const Operator& op, bool rotation, const LocalInput& in, std::vector<double>& u, std::vector<double>& w) {
+  if (rotation) {
+    op.apply(in.rows, in.torques, u, w);
+  } else {
+    op.apply(in.rows, u);
+  }
+}
+// DistributedPseRpy has no rotation (run_mobility refuses --torques and --angular with it).
+void product(const mpi::DistributedPseRpy& op, bool, const LocalInput& in, std::vector<double>& u,
+             std::vector<double>&) {
+  op.apply(in.rows, u);
+}
+
+// U = M F with the prepared operator, or with rotation [U; W] = M [F; T] (T = 0 with --angular alone);
+// rank 0 writes U, or U and W, and prints --json.
 template <class Operator>
 void apply_and_write(Prepared<Operator>& p, const RanksMobilityArgs& args, const mpi::Communicator& comm,
                      const StopWatch& total) {
-  const LocalInput& in = p.in;
+  LocalInput& in = p.in;
+  const bool rotation = args.angular || !args.torques.empty();
+  if (rotation && args.torques.empty()) in.torques.assign(in.x.size(), 0.0);
   StopWatch watch;
-  std::vector<double> u(in.x.size());
-  p.op->apply(in.rows, u);
+  std::vector<double> u(in.x.size()), w(rotation ? in.x.size() : 0);
+  product(*p.op, rotation, in, u, w);
   p.stages["apply"] = watch.seconds();
   p.communication["apply"] = apply_communication(*p.op);
 
-  p.stages["write"] = gather_and_write(u, in, args.out, "mobility", comm);
+  p.stages["write"] = gather_and_write(u, rotation ? &w : nullptr, in, args.out, "mobility", comm);
 
   JsonLine line;
   line.add("command", "mobility")
@@ -268,8 +312,8 @@ void apply_and_write(Prepared<Operator>& p, const RanksMobilityArgs& args, const
 void run_mobility_across_ranks(const RanksMobilityArgs& args) {
   const mpi::Communicator comm(MPI_COMM_WORLD);
   const StopWatch total;
-  const Inputs files{args.positions, args.radius_given ? std::string() : args.radii, args.forces, "forces",
-                     args.radius};
+  const Inputs files{args.positions, args.radius_given ? std::string() : args.radii, args.forces, "forces", args.radius,
+                     args.torques};
   with_operator({args.method, args.tolerance, args.viscosity, args.box}, files, comm,
                 [&](auto& p) { apply_and_write(p, args, comm, total); });
 }
@@ -313,7 +357,7 @@ void sample_and_write(Prepared<Operator>& p, const RanksSampleArgs& args, const 
   add_products_communication(*p.op, p.communication);
   p.communication["inner_products"] = inner_products;
 
-  p.stages["write"] = gather_and_write(w, in, args.out, "sample", comm);
+  p.stages["write"] = gather_and_write(w, nullptr, in, args.out, "sample", comm);
 
   JsonLine line;
   line.add("command", "sample")
@@ -342,7 +386,8 @@ void run_sample_across_ranks(const RanksSampleArgs& given) {
     args.tolerance = args.op == "pse" ? rpy::pse::PseOptions{}.tolerance : mpi::DistributedFmmRpyOptions{}.tolerance;
   const mpi::Communicator comm(MPI_COMM_WORLD);
   const StopWatch total;
-  const Inputs files{args.positions, args.radius_given ? std::string() : args.radii, args.noise, "noise", args.radius};
+  const Inputs files{args.positions, args.radius_given ? std::string() : args.radii, args.noise, "noise", args.radius,
+                     std::string()};
   with_operator({args.op, args.tolerance, args.viscosity, args.box}, files, comm,
                 [&](auto& p) { sample_and_write(p, args, comm, total); });
 }

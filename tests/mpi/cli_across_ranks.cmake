@@ -5,6 +5,9 @@
 #  - `mpiexec -n NP rpyfmm mobility --method fmm --tolerance E`: DistributedFmmRpy meets FmmRpy's
 #    contract (relative l2 error of U at most E), so U must lie within E of the serial direct file
 #    and within 2E of the serial FMM's (laplace_agree);
+#  - `mpiexec -n NP rpyfmm mobility --torques T` or `--angular` (N,6): direct within 1e-13 of the
+#    serial file, U and W each; fmm within E of the serial direct file; --angular the same file as
+#    zero torques; --method pse refuses rotation (DistributedPseRpy has none);
 #  - `mpiexec -n NP rpyfmm sample --operator fmm`: Lanczos on DistributedFmmRpy, within 1e-5 of the
 #    serial direct sampler's file (see below);
 #  - `mpiexec -n NP rpyfmm sample --operator direct`: the distributed Lanczos sampler is the serial
@@ -45,6 +48,17 @@ macro(decimal value out)  # value / 1000 with three decimals
   string(SUBSTRING "${_frac}" 1 3 _frac)
   set(${out} "${_int}.${_frac}")
 endmacro()
+macro(signed_decimal out)  # the next value in [-1, 1] with three decimals
+  next_value(2001 _v)
+  if(_v LESS 1000)
+    math(EXPR _v "1000 - ${_v}")
+    decimal(${_v} _d)
+    set(${out} "-${_d}")
+  else()
+    math(EXPR _v "${_v} - 1000")
+    decimal(${_v} ${out})
+  endif()
+endmacro()
 set(x "")
 set(f "")
 set(a "")
@@ -56,16 +70,8 @@ foreach(i RANGE 700)
     next_value(40000 v)
     decimal(${v} d)
     string(APPEND row " ${d}")
-    next_value(2001 v)
-    if(v LESS 1000)
-      math(EXPR v "1000 - ${v}")
-      decimal(${v} d)
-      string(APPEND frow " -${d}")
-    else()
-      math(EXPR v "${v} - 1000")
-      decimal(${v} d)
-      string(APPEND frow " ${d}")
-    endif()
+    signed_decimal(d)
+    string(APPEND frow " ${d}")
   endforeach()
   next_value(1000 v)
   math(EXPR v "${v} + 500")
@@ -82,6 +88,24 @@ file(WRITE "${WORK}/x.txt" "${x}")
 file(WRITE "${WORK}/f.txt" "${f}")
 file(WRITE "${WORK}/a.txt" "${a}")
 file(WRITE "${WORK}/q2.txt" "${q2}")
+# Torques in [-1, 1] drawn after the particles, the same torques but the last row (a wrong row
+# count), and zero torques.
+set(t "")
+foreach(i RANGE 700)
+  set(trow "")
+  foreach(c 0 1 2)
+    signed_decimal(d)
+    string(APPEND trow " ${d}")
+  endforeach()
+  if(i EQUAL 700)
+    set(t_short "${t}")
+  endif()
+  string(APPEND t "${trow}\n")
+endforeach()
+string(REPEAT "0 0 0\n" 701 t0)
+file(WRITE "${WORK}/t.txt" "${t}")
+file(WRITE "${WORK}/t_short.txt" "${t_short}")
+file(WRITE "${WORK}/t0.txt" "${t0}")
 
 # The serial command `args` writing ${WORK}/<out>.npy, and the same across NP ranks with --json
 # writing ${WORK}/<name>_mpi.npy, its JSON line in the caller's `json`.
@@ -158,6 +182,38 @@ endif()
 agree(mobility_fmm "${WORK}/mobility_fmm_mpi.npy" "${WORK}/mobility_fmm_direct.npy" 1e-6)
 agree(mobility_fmm "${WORK}/mobility_fmm_mpi.npy" "${WORK}/mobility_fmm_serial.npy" 2e-6)
 
+# mobility with rotation, (N,6) rows Ux Uy Uz Wx Wy Wz. direct: DistributedDirectRpy sums the
+# rotational pair terms of each rank's share apart and adds the shares in rank order
+# (rpyfmm/mpi/direct_operator.hpp), so U and W are the serial DirectRpy's to round-off: each within
+# 1e-13 relative. fmm --tolerance E: DistributedFmmRpy's contract with rotation, U and W each
+# within E of the exact product (the serial direct file).
+set(rotation_common mobility --positions "${WORK}/x.txt" --forces "${WORK}/f.txt" --radii "${WORK}/a.txt"
+                    --viscosity 0.7 --torques "${WORK}/t.txt")
+run_serial(torques_direct torques_direct_serial ${rotation_common} --method direct)
+run_across(torques_direct ${rotation_common} --method direct)
+if(NOT json MATCHES "\"method\":\"direct\"" OR NOT json MATCHES "\"communication_seconds\":{\"apply\"")
+  message(FATAL_ERROR "torques_direct: --json lacks the method or communication_seconds: ${json}")
+endif()
+agree(torques_direct "${WORK}/torques_direct_mpi.npy" "${WORK}/torques_direct_serial.npy" 1e-13)
+run_across(torques_fmm ${rotation_common} --method fmm --tolerance 1e-6)
+if(NOT json MATCHES "\"method\":\"fmm\"" OR NOT json MATCHES "\"communication_seconds\":{\"apply\"")
+  message(FATAL_ERROR "torques_fmm: --json lacks the method or communication_seconds: ${json}")
+endif()
+agree(torques_fmm "${WORK}/torques_fmm_mpi.npy" "${WORK}/torques_direct_serial.npy" 1e-6)
+# --angular: the torques are zero, the same file as --torques with zeros, and the serial --angular
+# to round-off (with a common radius).
+set(angular_common mobility --positions "${WORK}/x.txt" --forces "${WORK}/f.txt" --radius 1.1 --viscosity 0.7
+                   --method direct)
+run_serial(angular angular_serial ${angular_common} --angular)
+run_across(angular ${angular_common} --angular)
+run_across(angular_zeros ${angular_common} --torques "${WORK}/t0.txt")
+execute_process(COMMAND "${CMAKE_COMMAND}" -E compare_files "${WORK}/angular_mpi.npy" "${WORK}/angular_zeros_mpi.npy"
+                RESULT_VARIABLE differ)
+if(NOT differ EQUAL 0)
+  message(FATAL_ERROR "angular: --angular on ${NP} ranks differs from --torques with zero torques")
+endif()
+agree(angular "${WORK}/angular_mpi.npy" "${WORK}/angular_serial.npy" 1e-13)
+
 # sample with Chebyshev: the distributed Chebyshev sampler is the serial one bit for bit (the bound
 # estimate's inner products are the serial ones, the recurrence elementwise): identical files.
 run_identical(samplechebyshev sample --positions "${WORK}/x.txt" --radii "${WORK}/a.txt" --operator direct
@@ -229,6 +285,16 @@ list(LENGTH errors count)
 if(rc EQUAL 0 OR NOT count EQUAL 1 OR NOT err MATCHES "missing.txt" OR EXISTS "${WORK}/never.npy")
   message(FATAL_ERROR "a missing input under ${NP} ranks: exit ${rc}, ${count} error lines: ${err}")
 endif()
+# So does a torques file with a row too few: the serial command's message.
+execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" mobility --positions "${WORK}/x.txt"
+                        --forces "${WORK}/f.txt" --radius 1 --torques "${WORK}/t_short.txt" --out "${WORK}/never.npy"
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+string(REGEX MATCHALL "rpyfmm: error:" errors "${err}")
+list(LENGTH errors count)
+if(NOT rc EQUAL 2 OR NOT count EQUAL 1 OR NOT err MATCHES "torques: has 700 rows, expected 701"
+   OR EXISTS "${WORK}/never.npy")
+  message(FATAL_ERROR "torques with 700 rows under ${NP} ranks: exit ${rc}, ${count} error lines: ${err}")
+endif()
 # So does a missing input of laplace.
 execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" laplace --sources "${WORK}/x.txt"
                         --charges "${WORK}/q2.txt" --targets "${WORK}/missing.txt" --tolerance 1e-6
@@ -255,6 +321,18 @@ if(NP GREATER 1)
                     RESULT_VARIABLE rc ERROR_VARIABLE err)
     if(rc EQUAL 0 OR NOT err MATCHES "across ${NP} MPI ranks runs" OR EXISTS "${WORK}/never.npy")
       message(FATAL_ERROR "${case} under ${NP} ranks: exit ${rc}: ${err}")
+    endif()
+  endforeach()
+  # mobility --method pse with rotation: DistributedPseRpy has none; one line, exit status 2.
+  foreach(rotation "--torques;${WORK}/t.txt" "--angular")
+    execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" mobility --positions "${WORK}/x.txt" --radius 1
+                            --forces "${WORK}/f.txt" --method pse --box 40 ${rotation} --out "${WORK}/never.npy"
+                    RESULT_VARIABLE rc ERROR_VARIABLE err)
+    string(REGEX MATCHALL "rpyfmm: error:" errors "${err}")
+    list(LENGTH errors count)
+    if(NOT rc EQUAL 2 OR NOT count EQUAL 1 OR NOT err MATCHES "across ${NP} MPI ranks runs --method pse without"
+       OR NOT err MATCHES "has no rotation" OR EXISTS "${WORK}/never.npy")
+      message(FATAL_ERROR "pse with ${rotation} under ${NP} ranks: exit ${rc}, ${count} error lines: ${err}")
     endif()
   endforeach()
 endif()

@@ -2,7 +2,8 @@
 // (nd,M,10), columns pot, gx, gy, gz, hxx, hyy, hzz, hxy, hxz, hyz) agree to BOUND in the relative
 // l2 norm of each output of each density (the potential, the gradient, the Hessian): the FMM's
 // tolerance contract (rpyfmm/fmm/laplace_fmm.hpp); or two outputs of `rpyfmm mobility` ((N,3)) in
-// the relative l2 norm of U, the contract of the FMM mobility. Prints the differences; exits 0
+// the relative l2 norm of U, the contract of the FMM mobility, or with rotation ((N,6), columns Ux Uy
+// Uz Wx Wy Wz) in that of U and that of W each. Prints the differences; exits 0
 // when every one is at most BOUND, 1 otherwise and 2 for unreadable or mismatched files. Used by
 // tests/mpi/cli_across_ranks.cmake.
 #include <cmath>
@@ -23,7 +24,8 @@ struct Output {
 };
 constexpr Output kLaplaceOutputs[] = {{"potential", 0, 1}, {"gradient", 1, 3}, {"hessian", 4, 6}};
 constexpr Output kMobilityOutputs[] = {{"velocity", 0, 3}};
-constexpr std::size_t kLaplaceWidth = 10, kMobilityWidth = 3;
+constexpr Output kRotationOutputs[] = {{"velocity", 0, 3}, {"angular velocity", 3, 3}};
+constexpr std::size_t kLaplaceWidth = 10, kMobilityWidth = 3, kRotationWidth = 6;
 
 // || a - b || / || b || over the rows [row0, row0 + rows) and the output's columns.
 double relative_difference(const rpyfmm::cli::Array& a, const rpyfmm::cli::Array& b, std::size_t row0, std::size_t rows,
@@ -51,12 +53,14 @@ int main(int argc, char** argv) {
     const double bound = std::stod(argv[3]);
     const std::size_t width = a.shape.empty() ? 0 : a.shape.back();
     const bool mobility = a.shape.size() == 2 && width == kMobilityWidth;
-    if (a.shape != b.shape || a.shape.size() < 2 || (width != kLaplaceWidth && !mobility)) {
-      std::cerr << "laplace_agree: the files' shapes differ or are not (M,10), (nd,M,10) or (N,3)\n";
+    const bool rotation = a.shape.size() == 2 && width == kRotationWidth;
+    if (a.shape != b.shape || a.shape.size() < 2 || (width != kLaplaceWidth && !mobility && !rotation)) {
+      std::cerr << "laplace_agree: the files' shapes differ or are not (M,10), (nd,M,10), (N,3) or (N,6)\n";
       return 2;
     }
-    const std::span<const Output> outputs =
-        mobility ? std::span<const Output>(kMobilityOutputs) : std::span<const Output>(kLaplaceOutputs);
+    std::span<const Output> outputs(kLaplaceOutputs);
+    if (mobility) outputs = kMobilityOutputs;
+    if (rotation) outputs = kRotationOutputs;
     const std::size_t rows = a.shape[a.shape.size() - 2];
     const std::size_t densities = a.data.size() / (rows * width);
     bool agree = true;
