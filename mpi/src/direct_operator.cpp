@@ -12,14 +12,13 @@
 #include <numeric>
 #include <string>
 
-// rpy/src (private to rpyfmm::rpy and this layer): DirectRpy's block sums, length units and load
-// scaling, so that the distributed sums are DirectRpy's operation for operation; and its vectorized
-// rotational pair sums (rotation_pair_sums.hpp), on each block of sources.
+// rpy/src (private to rpyfmm::rpy and this layer): DirectRpy's block sums, translational and
+// rotational, length units and load scaling, so that the distributed sums are DirectRpy's
+// operation for operation.
 #include "direct_block_sums.hpp"
 #include "length_units.hpp"
 #include "load_scaling.hpp"
 #include "particle_set.hpp"
-#include "rotation_pair_sums.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/rpy_rotation_kernel.hpp"
 
@@ -53,39 +52,54 @@ void timed(double& seconds, Body&& body) {
 
 // Sources received and not summed yet: fewer than kBlock left over from earlier blocks (the start
 // of one of DirectRpy's source blocks that straddles two ranks' shares), then the latest block.
-// Structure of arrays; inv_a = 1 / a computed here as DirectRpy computes it.
+// Structure of arrays: the columns of the broadcast blocks (kPacked, or kPackedRotation with the
+// torques), then inv_a = 1 / a computed here as DirectRpy computes it; and the sources' global
+// indices, by which the rotational sums skip the self pair.
 class DistributedDirectRpy::SourceWindow {
  public:
-  explicit SourceWindow(std::size_t capacity) : data_(kColumns * capacity), capacity_(capacity) {}
+  SourceWindow(std::size_t capacity, std::size_t packed)
+      : packed_(packed), data_((packed + 1) * capacity), id_(capacity), capacity_(capacity) {}
 
-  // `packed`: kPacked arrays of n doubles (x, y, z, a, fx, fy, fz), then any further arrays (the
-  // torques), not kept.
+  // `packed`: the packed_ arrays of n doubles of the next sources in the global order.
   void append(const double* packed, std::size_t n) {
-    for (std::size_t k = 0; k < kPacked; ++k) std::copy_n(packed + k * n, n, column(k) + size_);
+    for (std::size_t k = 0; k < packed_; ++k) std::copy_n(packed + k * n, n, column(k) + size_);
     const double* a = column(kA) + size_;
-    double* inv_a = column(kInvA) + size_;
+    double* inv_a = column(packed_) + size_;
     for (std::size_t j = 0; j < n; ++j) inv_a[j] = 1.0 / a[j];
+    std::iota(id_.data() + size_, id_.data() + size_ + n, first_ + size_);
     size_ += n;
   }
   // Drops the first m sources (summed), keeping the rest at the front.
   void drop_front(std::size_t m) {
-    for (std::size_t k = 0; k < kColumns; ++k) std::copy(column(k) + m, column(k) + size_, column(k));
+    for (std::size_t k = 0; k <= packed_; ++k) std::copy(column(k) + m, column(k) + size_, column(k));
+    std::copy(id_.data() + m, id_.data() + size_, id_.data());
     size_ -= m;
+    first_ += m;
   }
   [[nodiscard]] std::size_t size() const { return size_; }
   [[nodiscard]] rpy::detail::DirectParticles particles() const {
-    return {column(0), column(1), column(2), column(kA), column(kInvA)};
+    return {column(0), column(1), column(2), column(kA), column(packed_)};
   }
   [[nodiscard]] rpy::detail::DirectForces forces() const { return {column(4), column(5), column(6)}; }
+  // The first m sources with their torques (packed_ == kPackedRotation); radii nullptr with
+  // equal_radii, as DirectRpy passes them.
+  [[nodiscard]] rpy::detail::GrandSources grand_sources(std::size_t m, bool equal_radii) const {
+    return {m,          column(0), column(1), column(2), equal_radii ? nullptr : column(kA),
+            id_.data(), column(4), column(5), column(6), column(7),
+            column(8),  column(9)};
+  }
 
  private:
-  static constexpr std::size_t kA = 3, kInvA = kPacked, kColumns = kPacked + 1;
+  static constexpr std::size_t kA = 3;
   [[nodiscard]] double* column(std::size_t k) { return data_.data() + k * capacity_; }
   [[nodiscard]] const double* column(std::size_t k) const { return data_.data() + k * capacity_; }
 
+  std::size_t packed_;
   std::vector<double> data_;
+  std::vector<std::size_t> id_;
   std::size_t capacity_;
   std::size_t size_ = 0;
+  std::size_t first_ = 0;  // the global index of the first source held
 };
 
 DistributedDirectRpy::DistributedDirectRpy(MPI_Comm comm, double viscosity)
@@ -158,8 +172,8 @@ std::vector<double> DistributedDirectRpy::packed_block(std::span<const double> l
   return packed;
 }
 
-void DistributedDirectRpy::sum_block(SourceWindow& window, std::size_t usable, std::vector<double>& acc,
-                                     MPI_Request* pending) const {
+void DistributedDirectRpy::sum_block(const SourceWindow& window, std::size_t usable, std::vector<double>& acc,
+                                     std::vector<double>& rotation_acc, MPI_Request* pending) const {
   const std::size_t batch = target_batch(local_n_);
   for (std::size_t first = 0; first < local_n_; first += batch) {
     const std::size_t count = std::min(batch, local_n_ - first);
@@ -167,39 +181,9 @@ void DistributedDirectRpy::sum_block(SourceWindow& window, std::size_t usable, s
                                                a_.data() + first, inv_a_.data() + first};
     rpy::detail::add_direct_block_sums(targets, count, window.particles(), window.forces(), usable, equal_radii_,
                                        acc.data() + 3 * first);
-    if (pending != nullptr) {
-      int done = 0;
-      timed(stats_.apply_seconds, [&] { check_mpi(MPI_Test(pending, &done, MPI_STATUS_IGNORE), "MPI_Test"); });
-    }
-  }
-}
-
-// DirectRpy::do_apply_rotation's per-target rotational sums (rotation_pair_sum) over one rank's
-// block of n sources, global indices [first_index, first_index + n): acc[6 i ..] = (U, W) sums of
-// target i on the first block, += on later ones (assigned first, so that the sign of a zero sum
-// is DirectRpy's where one block holds every source).
-void DistributedDirectRpy::sum_rotation_block(const double* block, std::size_t n, std::size_t first_index,
-                                              bool first_block, std::vector<double>& acc, MPI_Request* pending) const {
-  std::vector<std::size_t> id(n);
-  std::iota(id.begin(), id.end(), first_index);
-  const double* b = block;
-  const rpy::detail::GrandSources src{n,         b,         b + n,     b + 2 * n, equal_radii_ ? nullptr : b + 3 * n,
-                                      id.data(), b + 4 * n, b + 5 * n, b + 6 * n, b + 7 * n,
-                                      b + 8 * n, b + 9 * n};
-  const std::size_t batch = target_batch(local_n_);
-  for (std::size_t first = 0; first < local_n_; first += batch) {
-    const auto end = static_cast<std::int64_t>(std::min(local_n_, first + batch));
-#pragma omp parallel for schedule(dynamic, 16)
-    for (auto ii = static_cast<std::int64_t>(first); ii < end; ++ii) {
-      const auto i = static_cast<std::size_t>(ii);
-      rpy::detail::GrandSums sums{};
-      rpy::detail::rotation_pair_sum(src, {x_[i], y_[i], z_[i], a_[i], offset_ + i, {}, {}}, sums);
-      double* out = acc.data() + 6 * i;
-      for (std::size_t c = 0; c < 3; ++c) {
-        out[c] = first_block ? sums.u[c] : out[c] + sums.u[c];
-        out[3 + c] = first_block ? sums.w[c] : out[3 + c] + sums.w[c];
-      }
-    }
+    if (!rotation_acc.empty())
+      rpy::detail::add_rotation_block_sums(targets, offset_ + first, count, window.grand_sources(usable, equal_radii_),
+                                           rotation_acc.data() + 6 * first);
     if (pending != nullptr) {
       int done = 0;
       timed(stats_.apply_seconds, [&] { check_mpi(MPI_Test(pending, &done, MPI_STATUS_IGNORE), "MPI_Test"); });
@@ -252,11 +236,8 @@ void DistributedDirectRpy::product(bool rotation, std::span<const double> local_
   // The ranks' blocks in rank order (empty shares skipped), each broadcast by its owner; two
   // receive buffers, the next block in flight while the current one is summed.
   std::vector<int> roots;
-  std::vector<std::size_t> first_index(counts_.size(), 0);  // of each rank's first particle
-  for (std::size_t r = 0; r < counts_.size(); ++r) {
+  for (std::size_t r = 0; r < counts_.size(); ++r)
     if (counts_[r] > 0) roots.push_back(static_cast<int>(r));
-    if (r > 0) first_index[r] = first_index[r - 1] + counts_[r - 1];
-  }
   const std::size_t largest_share = *std::max_element(counts_.begin(), counts_.end());
   std::array<std::vector<double>, 2> buffers;
   std::array<MPI_Request, 2> requests{MPI_REQUEST_NULL, MPI_REQUEST_NULL};
@@ -272,7 +253,7 @@ void DistributedDirectRpy::product(bool rotation, std::span<const double> local_
     });
   };
 
-  SourceWindow window(kBlock - 1 + largest_share);
+  SourceWindow window(kBlock - 1 + largest_share, columns);
   std::vector<double> acc(n3, 0.0);
   std::vector<double> rotation_acc(rotation ? 2 * n3 : 0, 0.0);
   post(0);
@@ -288,9 +269,8 @@ void DistributedDirectRpy::product(bool rotation, std::span<const double> local_
     // but for the set's last block.
     const std::size_t usable = last ? window.size() : window.size() / kBlock * kBlock;
     MPI_Request* pending = last ? nullptr : &requests[(step + 1) % 2];
-    sum_block(window, usable, acc, pending);
+    sum_block(window, usable, acc, rotation_acc, pending);
     window.drop_front(usable);
-    if (rotation) sum_rotation_block(block_of(step), n, first_index[root], step == 0, rotation_acc, pending);
   }
 
   // Back from the length units (exact), then from the load scale: DirectRpy::sum_rows and

@@ -250,7 +250,7 @@ void bind_distributed_direct(nb::module_& m) {
   Class<mpi::DistributedDirectRpy> cls(m, "DistributedDirectRpy",
                                        "Exact O(N^2) RPY mobility on particles distributed over the ranks (free "
                                        "space); equal bit for bit\nto DirectRpy on the ranks' shares concatenated in "
-                                       "rank order (with torques: within the\nsummation-order bound of docs/mpi.md).");
+                                       "rank order (with torques too).");
   cls.def("__init__", &init_direct, nb::arg("comm"), nb::arg("viscosity") = 1.0,
           "Collective. comm: an mpi4py communicator; viscosity: eta > 0.");
   add_common(cls, kKrylovSqrtDoc, false);

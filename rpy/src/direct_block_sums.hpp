@@ -1,10 +1,11 @@
 // rpyfmm — DirectRpy's pair sums on sources held in pieces (private to the library and rpyfmm::mpi).
 //
 // DirectRpy sums the velocity of each target over source blocks of kDirectBlock in increasing
-// order (direct_operator.cpp). A caller that receives the sources in pieces in their global order,
-// each piece starting at a multiple of kDirectBlock, and adds every piece with
-// add_direct_block_sums to the same accumulators, performs the same operations in the same order:
-// its sums are DirectRpy's bit for bit (rpyfmm::mpi::DistributedDirectRpy, docs/mpi.md).
+// order (direct_operator.cpp), and with rotation the rotational pair terms of U and W likewise
+// (direct_rotation.cpp). A caller that receives the sources in pieces in their global order, each
+// piece starting at a multiple of kDirectBlock, and adds every piece with add_direct_block_sums
+// (and add_rotation_block_sums) to the same accumulators, performs the same operations in the same
+// order: its sums are DirectRpy's bit for bit (rpyfmm::mpi::DistributedDirectRpy, docs/mpi.md).
 #pragma once
 
 #include <cstddef>
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include "length_units.hpp"
+#include "rotation_pair_sums.hpp"
 
 namespace rpyfmm::rpy::detail {
 
@@ -56,5 +58,14 @@ void store_direct_particles(std::span<const double> positions, std::span<const d
 /// with OpenMP; each target is summed by one thread, so the result does not depend on the threads.
 void add_direct_block_sums(const DirectParticles& targets, std::size_t n_targets, const DirectParticles& sources,
                            const DirectForces& forces, std::size_t n_sources, bool equal_radii, double* acc);
+
+/// acc[6 i + c] += the rotational sums of target i (i < n_targets) of rotation_pair_sum, U for
+/// c < 3 and W for c >= 3, over the sources [0, sources.m), block by block of kDirectBlock (the last
+/// one may be shorter), each block's sums added in increasing order as DirectRpy does. Target i is
+/// particle first_target + i of the whole set, sources.id the sources' indices in it (the self pair
+/// is skipped by index); targets.inv_a is not read. In the units of rotation_pair_sums.hpp, not yet
+/// divided by the viscosity. Parallel over targets with OpenMP, each target summed by one thread.
+void add_rotation_block_sums(const DirectParticles& targets, std::size_t first_target, std::size_t n_targets,
+                             const GrandSources& sources, double* acc);
 
 }  // namespace rpyfmm::rpy::detail

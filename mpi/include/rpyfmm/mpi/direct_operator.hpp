@@ -14,18 +14,12 @@
 // Memory per rank: O(largest share); pair work: (local N) x N (docs/mpi.md).
 //
 // With rotation ([U; W] = M [F; T], docs/theory/rpy.md section 7; Wajnryb, Mizerski, Zuk &
-// Szymczak (2013) J. Fluid Mech. 731 R3) the blocks carry the torques as well. The translational
-// sums of U are DirectRpy's bit for bit as above. DirectRpy sums the rotational pair terms of a
-// target (c_ut (T x e) in U; the couplings and h I + k e e^T in W) over all sources in one
-// vectorized reduction, whose order of addition depends on the vector width and the source count,
-// so a sum over the sources in pieces cannot repeat it: here each rank's block is one such
-// reduction and the blocks' sums are added in rank order. Where one rank holds every particle the
-// result is DirectRpy's bit for bit; otherwise both are sums of the same N pair terms in two
-// orders, so each entry differs from DirectRpy's by at most about 2 N eps times the sum of the
-// terms' magnitudes, sum_j |M_ij| |[F_j; T_j]| (recursive and blocked summation, Higham (2002)
-// Accuracy and Stability of Numerical Algorithms, section 4.2); a few units in the last place on
-// the suspensions of tests/mpi/test_distributed_direct.cpp. Repeated products on the same shares
-// give the same bits.
+// Szymczak (2013) J. Fluid Mech. 731 R3) the blocks carry the torques as well. DirectRpy sums the
+// rotational pair terms of a target (c_ut (T x e) in U; the couplings and h I + k e e^T in W) over
+// the same source blocks of 256 in increasing order as the translational ones; here the window of
+// sources that completes a block straddling ranks' shares carries the torques too, and every block
+// is summed whole by DirectRpy's own rotational block sums. So U and W are DirectRpy's bit for bit
+// as well, for every number of ranks and every partition.
 //
 // Every public call is collective over the communicator and fails collectively
 // (communicator.hpp): a bad input on one rank makes every rank throw the same rpyfmm::Error.
@@ -113,9 +107,10 @@ class DistributedDirectRpy {
                std::span<double> local_velocities, std::span<double> local_angular_velocities) const;
   [[nodiscard]] std::vector<double> packed_block(std::span<const double> local_forces,
                                                  std::span<const double> local_torques, int load_exponent) const;
-  void sum_block(SourceWindow& window, std::size_t usable, std::vector<double>& acc, MPI_Request* pending) const;
-  void sum_rotation_block(const double* block, std::size_t n, std::size_t first_index, bool first_block,
-                          std::vector<double>& acc, MPI_Request* pending) const;
+  // Adds the window's first `usable` sources to every own target's sums: acc (3 per target) and,
+  // unless empty, rotation_acc (6 per target: U, W), polling `pending` between batches of targets.
+  void sum_block(const SourceWindow& window, std::size_t usable, std::vector<double>& acc,
+                 std::vector<double>& rotation_acc, MPI_Request* pending) const;
 
   Communicator comm_;
   double viscosity_ = 1.0;
