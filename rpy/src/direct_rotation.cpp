@@ -1,13 +1,13 @@
 // rpyfmm — DirectRpy's grand mobility with rotation: [U; W] = M [F; T] over all pairs
-// (docs/theory/rpy.md, "Rotation"; Wajnryb, Mizerski, Zuk & Szymczak 2013).
+// (docs/theory/rpy.md, section 7; Wajnryb, Mizerski, Zuk & Szymczak, J. Fluid Mech. 731, R3 (2013)).
 //
 // The translational product (DirectRpy::do_apply), then per target the vectorized rotational pair
 // sums of rotation_pair_sums.hpp over source blocks of kDirectBlock in increasing order, as the
 // translational sums go (add_rotation_block_sums, direct_block_sums.hpp), plus the self term
-// T_i / (8 pi eta a_i^3). (One fused pass over both was measured slower: 0.55 s against 0.37 s for
-// N = 4000, AVX2, 1 thread.) Each target is summed by one thread in a fixed order, so results do
-// not depend on the thread count; and a caller holding the sources in pieces that start at
-// multiples of kDirectBlock gets the same bits (rpyfmm::mpi::DistributedDirectRpy, docs/mpi.md).
+// T_i / (8 pi eta a_i^3). (One fused pass over both was slower: 0.55 s against 0.37 s for
+// N = 4000 at the AVX2 level, 1 thread; ac13890, 2026-12-05, 2-vCPU Intel Xeon with AVX-512.) Each target is summed by
+// one thread in a fixed order, so results do not depend on the thread count; and a caller holding the sources in pieces
+// that start at multiples of kDirectBlock gets the same bits (rpyfmm::mpi::DistributedDirectRpy, docs/mpi.md).
 #include <algorithm>
 #include <cmath>
 #include <cstddef>

@@ -1,5 +1,6 @@
 // rpyfmm — PSE parameter selection from a tolerance and the cost model for automatic xi
-// ([PSE] eqs. 22-23; docs/theory/pse.md).
+// ([PSE]: Fiore, Balboa Usabiaga, Donev & Swan, J. Chem. Phys. 146, 124116 (2017), eqs. 22-23;
+// docs/theory/pse.md section 2).
 #include <algorithm>
 #include <boost/math/special_functions/erf.hpp>
 #include <cmath>
@@ -310,7 +311,7 @@ PseParameters best_for_xi(const PseOptions& o, double a, const std::array<double
   return best;
 }
 
-// Automatic xi: minimise the modelled cost over xi a in [0.2, 8] ([PSE] eq. 22; docs/theory/pse.md).
+// Automatic xi: minimise the modelled cost over xi a in [0.2, 8] ([PSE] eq. 22; docs/theory/pse.md section 2).
 PseParameters cheapest_xi(const PseOptions& o, double a, const std::array<double, 3>& L, std::size_t n,
                           std::span<const double> etas) {
   PseParameters best;
