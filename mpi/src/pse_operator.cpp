@@ -271,6 +271,43 @@ void DistributedPseRpy::set_positions(std::span<const double> local_positions, s
   im.counts = {im.wave->sent(), im.wave->received(), im.real->halo_size()};
 }
 
+void DistributedPseRpy::apply(std::span<const double> local_forces, std::span<const double> local_torques,
+                              std::span<double> local_velocities, std::span<double> local_angular_velocities) const {
+  const Impl& im = *impl_;
+  require(im.global_n > 0, ErrorCode::invalid_input, kApply, "positions not set (call set_positions first)");
+  const std::size_t n3 = 3 * im.local_n;
+  im.comm.run([&] {
+    require_size(local_forces, n3, kApply, "local forces");
+    require_size(local_torques, n3, kApply, "local torques");
+    require_size(std::span<const double>(local_velocities.data(), local_velocities.size()), n3, kApply,
+                 "local velocities");
+    require_size(std::span<const double>(local_angular_velocities.data(), local_angular_velocities.size()), n3, kApply,
+                 "local angular velocities");
+    require_finite(local_forces, kApply, "local forces", 3);
+    require_finite(local_torques, kApply, "local torques", 3);
+  });
+  // MobilityOperator::apply's load scale for [F; T] (largest_rotation_load with the common radius),
+  // from the largest load of all ranks.
+  const double largest = rpy::detail::largest_rotation_load(local_forces, local_torques, im.params.radius);
+  double global_largest = 0.0;
+  check_mpi(MPI_Allreduce(&largest, &global_largest, 1, MPI_DOUBLE, MPI_MAX, im.comm.get()), "MPI_Allreduce");
+  const int k = rpy::detail::load_scale_exponent({std::span<const double>(&global_largest, 1)});
+  std::vector<double> f(n3), t(n3);
+  for (std::size_t i = 0; i < n3; ++i) {
+    f[i] = std::ldexp(local_forces[i], -k);
+    t[i] = std::ldexp(local_torques[i], -k);
+  }
+  // PseRpy::do_apply_rotation: M_w [F; T], then M_r's translational and rotational blocks added.
+  im.wave->apply_rotation(f.data(), t.data(), local_velocities.data(), local_angular_velocities.data(), im.local_n);
+  im.real->apply_rotation(im.comm, f.data(), t.data(), local_velocities.data(), local_angular_velocities.data());
+  for (double& u : local_velocities) u = std::ldexp(u, k);
+  for (double& w : local_angular_velocities) w = std::ldexp(w, k);
+  im.comm.run([&] {
+    rpy::detail::require_finite_result(local_velocities, kApply, "velocities", "forces and torques");
+    rpy::detail::require_finite_result(local_angular_velocities, kApply, "angular velocities", "forces and torques");
+  });
+}
+
 void DistributedPseRpy::apply(std::span<const double> local_forces, std::span<double> local_velocities) const {
   const Impl& im = *impl_;
   im.check_arrays(local_forces, local_velocities, kApply);

@@ -45,6 +45,12 @@ struct SlabWaveSpace::Slab {
   std::vector<int> plane_owner;   // rank of every x plane
   std::size_t comp = 0;           // complex values between components (a multiple of 4: 64-byte aligned)
   fftw_complex* data = nullptr;   // 3 components, each the slab in place (real, padded z; or spectrum)
+  // apply_rotation's torque (then angular velocity) components, laid out as `data`, and the
+  // rotational factors of the slab's modes (rotation_modes.hpp): allocated by the first product
+  // with torques.
+  fftw_complex* rotation_data = nullptr;
+  rpy::pse::detail::RotationModeConstants rotation_constants{};
+  std::vector<rpy::pse::detail::RotationModeFactors> rotation_factors;
   fftw_plan forward = nullptr, backward = nullptr;
   rpy::pse::detail::ModeGeometry modes{};
   std::vector<double> ck;  // c(k) of the slab's modes
@@ -61,12 +67,17 @@ struct SlabWaveSpace::Slab {
     if (forward != nullptr) fftw_destroy_plan(forward);
     if (backward != nullptr) fftw_destroy_plan(backward);
     fftw_free(data);
+    fftw_free(rotation_data);
   }
 
-  [[nodiscard]] double* component(int c) const {
-    return reinterpret_cast<double*>(data + comp * static_cast<std::size_t>(c));
+  // Component c of the three at `base` (data or rotation_data) as real slab and as spectrum.
+  [[nodiscard]] double* component(const fftw_complex* base, int c) const {
+    return reinterpret_cast<double*>(const_cast<fftw_complex*>(base) + comp * static_cast<std::size_t>(c));
   }
-  [[nodiscard]] fftw_complex* spectrum(int c) const { return data + comp * static_cast<std::size_t>(c); }
+  [[nodiscard]] double* component(int c) const { return component(data, c); }
+  [[nodiscard]] fftw_complex* spectrum(fftw_complex* base, int c) const {
+    return base + comp * static_cast<std::size_t>(c);
+  }
   [[nodiscard]] bool owns(int gx) const { return gx >= x0 && gx < x0 + nx; }
   // Index of real grid point (gx, gy, gz) in a component (gx in the slab; z padded to 2 nzh).
   [[nodiscard]] std::size_t real_index(int gx, int gy, int gz) const {
@@ -78,10 +89,14 @@ struct SlabWaveSpace::Slab {
   void plan(const std::array<double, 3>& box, double viscosity);
   [[nodiscard]] std::vector<std::vector<std::uint32_t>> destinations(std::span<const double> x) const;
   void windows(const std::vector<double>& received);
-  void spread(const std::vector<double>& forces);
+  void spread(const std::vector<double>& loads, std::size_t width, std::size_t at, fftw_complex* base);
+  void transform_forward(fftw_complex* base);
   void scale(bool deterministic, const rpy::pse::detail::NoiseKey* noise, double noise_scale);
-  [[nodiscard]] std::vector<double> interpolate() const;
-  void to_particles(double* out, std::size_t particles, bool accumulate);
+  void allocate_rotation();
+  void scale_rotation();
+  void interpolate(const fftw_complex* base, std::vector<double>& shares, std::size_t width, std::size_t at) const;
+  void to_particles(std::span<fftw_complex* const> grids, std::span<double* const> outs, std::size_t particles,
+                    bool accumulate);
 };
 
 void SlabWaveSpace::Slab::plan(const std::array<double, 3>& box, double viscosity) {
@@ -112,6 +127,7 @@ void SlabWaveSpace::Slab::plan(const std::array<double, 3>& box, double viscosit
   modes.comp_stride = 2 * comp;  // the slab's components, not the whole spectrum's
   c3 = std::pow(2.0 * std::numbers::pi * p.sigma * p.sigma, -1.5);
   dv = p.spacing[0] * p.spacing[1] * p.spacing[2];
+  rotation_constants = rpy::pse::detail::rotation_mode_constants(p, viscosity);
 }
 
 // The ranks owning the x planes of each particle's window (each rank once, in rank order).
@@ -150,21 +166,24 @@ void SlabWaveSpace::Slab::windows(const std::vector<double>& received) {
   }
 }
 
-// f_n = sum_j c3 F_j g(x_n - x_j) on this slab's planes ([PSE] eq. 19, D; docs/theory/pse.md).
-void SlabWaveSpace::Slab::spread(const std::vector<double>& forces) {
-  std::fill(component(0), component(0) + 6 * comp, 0.0);
+// f_n = sum_j c3 F_j g(x_n - x_j) on this slab's planes ([PSE] eq. 19, D; docs/theory/pse.md), onto
+// the three components at `base`; F_j = loads[width j + at ...] (forces, or with rotation torques).
+void SlabWaveSpace::Slab::spread(const std::vector<double>& loads, std::size_t width, std::size_t at,
+                                 fftw_complex* base) {
+  std::fill(component(base, 0), component(base, 0) + 6 * comp, 0.0);
   const int pw = P[0] + P[1] + P[2];
-  for (std::size_t k = 0; 3 * k < forces.size(); ++k) {
+  for (std::size_t k = 0; width * k < loads.size(); ++k) {
     const double* wx = &weights[static_cast<std::size_t>(pw) * k];
     const double* wy = wx + P[0];
     const double* wz = wy + P[1];
-    const double fc[3] = {c3 * forces[3 * k], c3 * forces[3 * k + 1], c3 * forces[3 * k + 2]};
+    const double* f = &loads[width * k + at];
+    const double fc[3] = {c3 * f[0], c3 * f[1], c3 * f[2]};
     for (int a = 0, gx = start[3 * k]; a < P[0]; ++a, gx = gx + 1 == n[0] ? 0 : gx + 1) {
       if (!owns(gx)) continue;
       for (int b = 0, gy = start[3 * k + 1]; b < P[1]; ++b, gy = gy + 1 == n[1] ? 0 : gy + 1) {
         const double wxy = wx[a] * wy[b];
         for (int c = 0; c < 3; ++c) {
-          double* line = component(c) + real_index(gx, gy, 0);
+          double* line = component(base, c) + real_index(gx, gy, 0);
           for (int l = 0, gz = start[3 * k + 2]; l < P[2]; ++l, gz = gz + 1 == n[2] ? 0 : gz + 1)
             line[gz] += wxy * (wz[l] * fc[c]);
         }
@@ -200,12 +219,13 @@ void SlabWaveSpace::Slab::scale(bool deterministic, const rpy::pse::detail::Nois
       }
 }
 
-// This slab's share of sum_n g(x_n - x_j) u_n for every received particle (3 each; [PSE] eq. 19,
-// D^-1, without its factor c3 dV, which the particle's rank applies to the sum of the shares).
-std::vector<double> SlabWaveSpace::Slab::interpolate() const {
+// This slab's share of sum_n g(x_n - x_j) u_n for every received particle from the three
+// components at `base` ([PSE] eq. 19, D^-1, without its factor c3 dV, which the particle's rank
+// applies to the sum of the shares), added to shares[width j + at ...] (zeroed by the caller).
+void SlabWaveSpace::Slab::interpolate(const fftw_complex* base, std::vector<double>& shares, std::size_t width,
+                                      std::size_t at) const {
   const int pw = P[0] + P[1] + P[2];
   const std::size_t m = start.size() / 3;
-  std::vector<double> u(3 * m, 0.0);
   for (std::size_t k = 0; k < m; ++k) {
     const double* wx = &weights[static_cast<std::size_t>(pw) * k];
     const double* wy = wx + P[0];
@@ -215,15 +235,14 @@ std::vector<double> SlabWaveSpace::Slab::interpolate() const {
       for (int b = 0, gy = start[3 * k + 1]; b < P[1]; ++b, gy = gy + 1 == n[1] ? 0 : gy + 1) {
         const double wxy = wx[a] * wy[b];
         for (int c = 0; c < 3; ++c) {
-          const double* line = component(c) + real_index(gx, gy, 0);
+          const double* line = component(base, c) + real_index(gx, gy, 0);
           double s = 0.0;
           for (int l = 0, gz = start[3 * k + 2]; l < P[2]; ++l, gz = gz + 1 == n[2] ? 0 : gz + 1) s += wz[l] * line[gz];
-          u[3 * k + static_cast<std::size_t>(c)] += wxy * s;
+          shares[width * k + at + static_cast<std::size_t>(c)] += wxy * s;
         }
       }
     }
   }
-  return u;
 }
 
 SlabWaveSpace::SlabWaveSpace(const Communicator& comm, const rpy::pse::PseParameters& p,
@@ -240,37 +259,122 @@ void SlabWaveSpace::set_positions(std::span<const double> x) {
   s.windows(s.exchange.forward(s.comm, x.data(), 3, kWhere, "the positions sent to the grid's slabs"));
 }
 
-// The transform back, the slabs' interpolation shares to the particles' ranks, each particle's
-// shares added in rank order of the slabs (a fixed order: repeated products agree bit for bit),
-// then U_j (+)= c3 dV sum (every window touches at least one slab).
-void SlabWaveSpace::Slab::to_particles(double* out, std::size_t particles, bool accumulate) {
-  for (int c = 0; c < 3; ++c) fftw_mpi_execute_dft_c2r(backward, spectrum(c), component(c));
+// The transform back of each of `grids` (three components each), the slabs' interpolation shares
+// of all of them to the particles' ranks in one exchange, each particle's shares added in rank
+// order of the slabs (a fixed order: repeated products agree bit for bit), then out_g (+)= c3 dV
+// sum_g for grid g (every window touches at least one slab).
+void SlabWaveSpace::Slab::to_particles(std::span<fftw_complex* const> grids, std::span<double* const> outs,
+                                       std::size_t particles, bool accumulate) {
+  const std::size_t width = 3 * grids.size();
+  std::vector<double> mine(width * (start.size() / 3), 0.0);
+  for (std::size_t g = 0; g < grids.size(); ++g) {
+    for (int c = 0; c < 3; ++c) fftw_mpi_execute_dft_c2r(backward, spectrum(grids[g], c), component(grids[g], c));
+    interpolate(grids[g], mine, width, 3 * g);
+  }
   const std::vector<double> shares =
-      exchange.backward(comm, interpolate(), 3, kWhere, "the velocities sent back from the grid's slabs");
-  std::vector<double> sum(3 * particles, 0.0);
+      exchange.backward(comm, mine, width, kWhere, "the velocities sent back from the grid's slabs");
+  std::vector<double> sum(width * particles, 0.0);
   std::size_t at = 0;
   for (const auto& list : exchange.send)
     for (const std::uint32_t i : list) {
-      for (std::size_t c = 0; c < 3; ++c) sum[3 * i + c] += shares[at + c];
-      at += 3;
+      for (std::size_t c = 0; c < width; ++c) sum[width * i + c] += shares[at + c];
+      at += width;
     }
   const double factor = c3 * dv;
-  for (std::size_t k = 0; k < 3 * particles; ++k) out[k] = accumulate ? out[k] + factor * sum[k] : factor * sum[k];
+  for (std::size_t g = 0; g < outs.size(); ++g)
+    for (std::size_t i = 0; i < particles; ++i)
+      for (std::size_t c = 0; c < 3; ++c) {
+        double& o = outs[g][3 * i + c];
+        const double v = factor * sum[width * i + 3 * g + c];
+        o = accumulate ? o + v : v;
+      }
+}
+
+void SlabWaveSpace::Slab::transform_forward(fftw_complex* base) {
+  for (int c = 0; c < 3; ++c) fftw_mpi_execute_dft_r2c(forward, component(base, c), spectrum(base, c));
+}
+
+// The torque slabs (the plans run on them by FFTW's new-array execute: the same in-place layout
+// and alignment as `data`) and the rotational factors of the slab's modes, once.
+void SlabWaveSpace::Slab::allocate_rotation() {
+  if (rotation_data != nullptr) return;
+  comm.run([&] {
+    rotation_data = fftw_alloc_complex(3 * comp);
+    require(rotation_data != nullptr, ErrorCode::out_of_memory, kWhere,
+            "could not allocate the FFT slabs of the rotational wave space");
+  });
+  const std::size_t modes_here =
+      static_cast<std::size_t>(nx) * static_cast<std::size_t>(n[1]) * static_cast<std::size_t>(nzh);
+  rotation_factors.resize(modes_here);
+  for (std::size_t idx = 0; idx < modes_here; ++idx) {
+    const std::size_t line = idx / static_cast<std::size_t>(nzh);
+    const int ix = static_cast<int>(x0 + static_cast<std::ptrdiff_t>(line / static_cast<std::size_t>(n[1])));
+    const int iy = static_cast<int>(line % static_cast<std::size_t>(n[1]));
+    const int iz = static_cast<int>(idx % static_cast<std::size_t>(nzh));
+    rotation_factors[idx] = rpy::pse::detail::rotation_mode_factors(ix, iy, iz, modes, rotation_constants);
+  }
+}
+
+// [U; W] of every slab mode from the force and torque spectra (scale_rotation_mode, the serial
+// operator's per-mode scaling with rotation; deterministic, no noise).
+void SlabWaveSpace::Slab::scale_rotation() {
+  auto* fs = reinterpret_cast<double*>(data);
+  auto* ts = reinterpret_cast<double*>(rotation_data);
+  const auto planes = static_cast<std::int64_t>(nx);
+#pragma omp parallel for schedule(static)
+  for (std::int64_t lx = 0; lx < planes; ++lx)
+    for (int iy = 0; iy < n[1]; ++iy)
+      for (int iz = 0; iz < nzh; ++iz) {
+        const std::size_t idx =
+            (static_cast<std::size_t>(lx) * static_cast<std::size_t>(n[1]) + static_cast<std::size_t>(iy)) *
+                static_cast<std::size_t>(nzh) +
+            static_cast<std::size_t>(iz);
+        rpy::pse::detail::scale_rotation_mode(static_cast<int>(x0 + lx), iy, iz, idx, modes, ck.data(),
+                                              rotation_factors[idx], fs, ts, true, static_cast<const double*>(nullptr),
+                                              true, 0.0);
+      }
 }
 
 void SlabWaveSpace::apply(const double* forces, double* out, std::size_t n, const rpy::pse::detail::NoiseKey* noise,
                           double noise_scale) {
   Slab& s = *slab_;
-  s.spread(s.exchange.forward(s.comm, forces, 3, kWhere, "the forces sent to the grid's slabs"));
-  for (int c = 0; c < 3; ++c) fftw_mpi_execute_dft_r2c(s.forward, s.component(c), s.spectrum(c));
+  s.spread(s.exchange.forward(s.comm, forces, 3, kWhere, "the forces sent to the grid's slabs"), 3, 0, s.data);
+  s.transform_forward(s.data);
   s.scale(true, noise_scale != 0.0 ? noise : nullptr, noise_scale);
-  s.to_particles(out, n, false);
+  fftw_complex* const grids[] = {s.data};
+  double* const outs[] = {out};
+  s.to_particles(grids, outs, n, false);
+}
+
+void SlabWaveSpace::apply_rotation(const double* forces, const double* torques, double* velocities, double* angular,
+                                   std::size_t n) {
+  Slab& s = *slab_;
+  s.allocate_rotation();
+  // Forces and torques in one exchange, six values per particle.
+  std::vector<double> loads(6 * n);
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t c = 0; c < 3; ++c) {
+      loads[6 * i + c] = forces[3 * i + c];
+      loads[6 * i + 3 + c] = torques[3 * i + c];
+    }
+  const std::vector<double> received =
+      s.exchange.forward(s.comm, loads.data(), 6, kWhere, "the forces and torques sent to the grid's slabs");
+  s.spread(received, 6, 0, s.data);
+  s.spread(received, 6, 3, s.rotation_data);
+  s.transform_forward(s.data);
+  s.transform_forward(s.rotation_data);
+  s.scale_rotation();
+  fftw_complex* const grids[] = {s.data, s.rotation_data};
+  double* const outs[] = {velocities, angular};
+  s.to_particles(grids, outs, n, false);
 }
 
 void SlabWaveSpace::add_noise(const rpy::pse::detail::NoiseKey& key, double* out, std::size_t n) {
   Slab& s = *slab_;
   s.scale(false, &key, 1.0);
-  s.to_particles(out, n, true);
+  fftw_complex* const grids[] = {s.data};
+  double* const outs[] = {out};
+  s.to_particles(grids, outs, n, true);
 }
 
 std::size_t SlabWaveSpace::sent() const {

@@ -32,6 +32,11 @@ class SlabWaveSpace {
   /// with a noise key (the transforms shared, as PseRpy::apply_with_noise shares them).
   void apply(const double* forces, double* out, std::size_t n, const rpy::pse::detail::NoiseKey* noise = nullptr,
              double noise_scale = 0.0);
+  /// Collective: [U; W] = M_w [F; T] for this rank's n particles (3 n each), the grand mobility with
+  /// rotation as the serial WaveSpace::apply_rotation forms it (rotation_modes.hpp): forces and
+  /// torques spread onto two sets of slabs, six transforms each way, U and W interpolated. The
+  /// torque slabs are allocated by the first call.
+  void apply_rotation(const double* forces, const double* torques, double* velocities, double* angular, std::size_t n);
   /// Collective: out += M_w^{1/2} z2 for this rank's n particles, z2 the wave-space noise of `key`
   /// ([PSE] eq. 21; the serial double grids' field, mode by mode).
   void add_noise(const rpy::pse::detail::NoiseKey& key, double* out, std::size_t n);

@@ -324,6 +324,11 @@ std::vector<double> wave_scaling_table(const PseParameters& p, const std::array<
   return ck;
 }
 
+RotationModeConstants rotation_mode_constants(const PseParameters& p, double viscosity) {
+  const double ng = static_cast<double>(p.grid[0]) * p.grid[1] * p.grid[2];
+  return {p.radius, 1.0 / (4.0 * p.xi * p.xi), 1.0 - p.window_eta, 1.0 / (viscosity * ng), p.open_truncation};
+}
+
 template <class Real>
 WaveGrid<Real>::WaveGrid(const PseParameters& p, const std::array<double, 3>& box, double viscosity, int fft_threads,
                          bool fft_measure)
@@ -333,8 +338,7 @@ WaveGrid<Real>::WaveGrid(const PseParameters& p, const std::array<double, 3>& bo
   P_ = p.support;
   ng_ = static_cast<std::size_t>(n_[0]) * static_cast<std::size_t>(n_[1]) * static_cast<std::size_t>(n_[2]);
   ck_ = wave_scaling_table(p, box, viscosity, modes_);
-  rotation_constants_ = {p.radius, 1.0 / (4.0 * p.xi * p.xi), 1.0 - p.window_eta,
-                         1.0 / (viscosity * static_cast<double>(ng_)), p.open_truncation};
+  rotation_constants_ = rotation_mode_constants(p, viscosity);
   dv_ = p.spacing[0] * p.spacing[1] * p.spacing[2];
   c3_ = std::pow(2.0 * std::numbers::pi * p.sigma * p.sigma, -1.5);
   fft_threads_ = fft_threads > 0 ? fft_threads : (ng_ >= (std::size_t{1} << 20) ? omp_get_max_threads() : 1);

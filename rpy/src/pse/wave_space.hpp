@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "kernels_common.hpp"
+#include "rotation_modes.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/rpy/pse/pse_parameters.hpp"
 
@@ -30,6 +31,11 @@ struct NoiseKey {
 /// spectrum either way.
 std::vector<double> wave_scaling_table(const PseParameters& p, const std::array<double, 3>& box, double viscosity,
                                        ModeGeometry& geometry, int x_begin = 0, int x_end = -1);
+
+/// The constants of the rotational factors g(k) of one plan (rotation_modes.hpp): radius, 1 / (4 xi^2),
+/// 1 - window_eta, 1 / (viscosity Ng) with Ng the grid's points, the open-boundary truncation. Shared
+/// with the MPI layer's slabs.
+RotationModeConstants rotation_mode_constants(const PseParameters& p, double viscosity);
 
 /// The wave-space part M_w of one PSE plan: grids, FFT plans, the per-particle window cache.
 /// make_wave_space picks the grid precision (PseParameters::wave_single).

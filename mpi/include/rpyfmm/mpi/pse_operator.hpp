@@ -18,6 +18,12 @@
 //  - M_r (with the self term): each rank receives the other ranks' particles within r_cut of the
 //    box of its own particles (a halo, positions once per set_positions, forces in every apply) and
 //    runs the serial real-space sum on its particles and the halo, keeping its own rows.
+//  - with rotation ([U; W] = M [F; T], PseRpy's grand mobility; docs/theory/pse.md Sec. 5): the
+//    torques travel with the forces to the slabs and the halo; the slab owners spread them onto a
+//    second set of slabs and scale both spectra mode by mode as PseRpy does (rotation_modes), and
+//    each rank adds the rotational real-space blocks over the same neighbour lists of its particles
+//    and halo (PseRpy's RotationRealSpaceSum). Equal to PseRpy's product with rotation on the whole
+//    set (double grids) to round-off, as U = M F is.
 //  - sample(): PseRpy's split sampler ([PSE] eqs. 17-21), Lanczos on M_r with inner products over
 //    all ranks and the wave-space noise drawn mode by mode on the slabs.
 //
@@ -87,6 +93,18 @@ class DistributedPseRpy {
   /// rpyfmm::Error on every rank when positions are not set, or when any rank passes arrays of the
   /// wrong size or forces with NaN/Inf.
   void apply(std::span<const double> local_forces, std::span<double> local_velocities) const;
+
+  /// Collective. [U; W] = M [F; T], the grand mobility with rotation, for this rank's particles:
+  /// forces, torques, velocities and angular velocities of 3 local_size() entries each (see the
+  /// header comment for how; equal to PseRpy's product with rotation on the whole set, double
+  /// grids, to round-off). The first call builds the rotational real-space table and allocates the
+  /// torque slabs (PseRpy does the same on its first product with torques). Throws rpyfmm::Error on
+  /// every rank when positions are not set, or when any rank passes arrays of the wrong size or
+  /// forces or torques with NaN/Inf, and for a product beyond double precision.
+  void apply(std::span<const double> local_forces, std::span<const double> local_torques,
+             std::span<double> local_velocities, std::span<double> local_angular_velocities) const;
+  /// True: the four-argument apply is available (as rpy::MobilityOperator::supports_rotation).
+  [[nodiscard]] bool supports_rotation() const { return true; }
 
   /// Collective. w = M^{1/2} z for this rank's particles (3 local_size() entries) by PseRpy::sample's
   /// split sampler ([PSE] eqs. 17-21): w = M_r^{1/2} z1 + M_w^{1/2} z2, z1 the noise of
