@@ -67,25 +67,19 @@ void apply_and_write(const rpy::MobilityOperator& op, const std::vector<double>&
 }
 
 /// Under MPI: whether this product runs across the ranks (on the CPU: --method direct or fmm in free
-/// space, with --torques or --angular too, or --method pse with --box and wave grids auto or double,
-/// translations only: DistributedPseRpy has no rotation); otherwise it runs on one rank only and more
-/// ranks are refused. Every rank parses the same options, so every rank refuses alike.
+/// space, or --method pse with --box and wave grids auto or double; each with --torques or --angular
+/// too); otherwise it runs on one rank only and more ranks are refused. Every rank parses the same
+/// options, so every rank refuses alike.
 bool across_ranks(const MobilityArgs& args) {
   const MobilityChoice& m = args.mobility;
-  const bool rotation = args.angular || !args.torques.empty();
   const bool free_space = (m.method == "direct" || m.method == "fmm") && m.box.empty();
   const bool pse = m.method == "pse" && !m.box.empty() && m.wave_precision != "single";
-  const std::string ranks = "across " + std::to_string(mpi_size()) + " MPI ranks runs ";
-  require(!(pse && rotation) || mpi_size() == 1, ErrorCode::not_supported, "mobility",
-          ranks +
-              "--method pse without --torques and --angular: the distributed PSE operator (DistributedPseRpy) has no "
-              "rotation (docs/mpi.md); use --method direct or fmm, or run --method pse without mpirun");
-  const bool supported = (free_space || (pse && !rotation)) && m.device == "cpu";
+  const bool supported = (free_space || pse) && m.device == "cpu";
   require(supported || mpi_size() == 1, ErrorCode::not_supported, "mobility",
-          ranks +
-              "--method direct or fmm without --box (--torques and --angular included), or --method pse with "
-              "--box (double-precision wave grids) without --torques and --angular, on the CPU (docs/mpi.md); run "
-              "other methods without mpirun");
+          "across " + std::to_string(mpi_size()) +
+              " MPI ranks runs --method direct or fmm without --box, or --method pse with --box (double-precision "
+              "wave grids), --torques and --angular included, on the CPU (docs/mpi.md); run other methods without "
+              "mpirun");
   return supported;
 }
 

@@ -1,6 +1,6 @@
 // rpyfmm CLI — the commands that run across MPI ranks (mpi_session.hpp, docs/mpi.md):
 //   mpirun -np P rpyfmm mobility --method direct|fmm [--torques T.npy | --angular] ...
-//   mpirun -np P rpyfmm mobility --method pse --box L ...
+//   mpirun -np P rpyfmm mobility --method pse --box L [--torques T.npy | --angular] ...
 //   mpirun -np P rpyfmm sample --operator direct|fmm [--method lanczos|chebyshev]
 //                              [--preconditioner none|block] ...
 //   mpirun -np P rpyfmm sample --operator pse --box L [--method split] ...
@@ -9,7 +9,7 @@
 // shares; rpyfmm::mpi::DistributedDirectRpy applies M (bit for bit the serial DirectRpy; with
 // --torques or --angular to round-off, rpyfmm/mpi/direct_operator.hpp),
 // rpyfmm::mpi::DistributedFmmRpy (within --tolerance of it) or rpyfmm::mpi::DistributedPseRpy (the
-// serial PseRpy with double grids to round-off), and rpyfmm::mpi::sqrt_apply or
+// serial PseRpy with double grids to round-off, with --torques or --angular too), and rpyfmm::mpi::sqrt_apply or
 // DistributedPseRpy::apply_sqrt samples M^{1/2} z; rank 0 gathers the result and writes the same
 // file (write_npy: a temporary file renamed into place). Every step fails on every rank alike
 // (rpyfmm::mpi::Communicator::run), so no rank waits for another that gave up.
@@ -271,11 +271,6 @@ void product(const Operator& op, bool rotation, const LocalInput& in, std::vecto
   } else {
     op.apply(in.rows, u);
   }
-}
-// DistributedPseRpy has no rotation (run_mobility refuses --torques and --angular with it).
-void product(const mpi::DistributedPseRpy& op, bool, const LocalInput& in, std::vector<double>& u,
-             std::vector<double>&) {
-  op.apply(in.rows, u);
 }
 
 // U = M F with the prepared operator, or with rotation [U; W] = M [F; T] (T = 0 with --angular alone);
