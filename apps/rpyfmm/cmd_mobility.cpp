@@ -8,8 +8,8 @@
 //
 // U has shape (N,3). With --torques (N,3) or --angular (T = 0), the grand mobility with rotation
 // (docs/theory/rpy.md section 7; operators with supports_rotation: --method direct, fmm, pse (CPU and CUDA), none): the
-// output has shape (N,6), columns Ux Uy Uz Wx Wy Wz. Under mpirun (docs/mpi.md) --method direct and fmm run across
-// the ranks with or without rotation, --method pse --box without it (commands_across_ranks.cpp).
+// output has shape (N,6), columns Ux Uy Uz Wx Wy Wz. Under mpirun (docs/mpi.md) --method direct and fmm, and
+// --method pse --box, run across the ranks with or without rotation (commands_across_ranks.cpp).
 #include <CLI/CLI.hpp>
 #include <cstddef>
 #include <iostream>

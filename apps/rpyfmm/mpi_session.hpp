@@ -56,10 +56,10 @@ class MpiSessionEnd {
 /// rpyfmm::mpi::DistributedDirectRpy, DistributedFmmRpy or DistributedPseRpy applies M, rank 0
 /// gathers U and writes it. direct: bit for bit the serial command's output; fmm: within the
 /// tolerance of the exact product; pse: the serial output with --wave-precision double to
-/// round-off (docs/mpi.md). With --torques or --angular (direct and fmm only: DistributedPseRpy has
-/// no rotation) [U; W] = M [F; T], written as the serial command's (N,6) rows Ux Uy Uz Wx Wy Wz;
-/// direct: the serial output to round-off (rpyfmm/mpi/direct_operator.hpp), fmm: U and W each
-/// within the tolerance of the exact product.
+/// round-off (docs/mpi.md). With --torques or --angular [U; W] = M [F; T], written as the serial
+/// command's (N,6) rows Ux Uy Uz Wx Wy Wz; direct: the serial output to round-off
+/// (rpyfmm/mpi/direct_operator.hpp), fmm: U and W each within the tolerance of the exact product,
+/// pse: U and W each the serial output with --wave-precision double to round-off.
 struct RanksMobilityArgs {
   std::string positions, forces, radii, out;
   std::string torques;   // (N,3) torques; empty: none read
