@@ -9,8 +9,8 @@ initializes MPI. docs/mpi.md, "Python (mpi4py)", lists what is supported.
   space) and :class:`DistributedPseRpy` (PSE, periodic): ``set_positions`` / ``apply`` /
   ``apply_sqrt`` with this rank's share of the particles as (n, 3) or (3n,) NumPy arrays
   (n may be 0); the global particle order is the ranks' shares concatenated in rank order.
-* :class:`DistributedDirectRpy` also has the grand mobility with rotation, ``apply(forces,
-  torques)`` returning ``(U, W)`` as :meth:`rpyfmm.DirectRpy.apply` does (``supports_rotation``).
+* All three also have the grand mobility with rotation, ``apply(forces, torques)`` returning
+  ``(U, W)`` as :meth:`rpyfmm.DirectRpy.apply` does (``supports_rotation``).
 * :class:`DistributedPseRpy` also has the split sampler ``sample(seed, step)`` and
   ``apply_with_noise``.
 * :class:`DistributedLaplaceFmm`: ``set_points`` / ``evaluate`` with this rank's sources (and

@@ -318,7 +318,8 @@ void bind_distributed_pse(nb::module_& m) {
   Class<mpi::DistributedPseRpy> cls(
       m, "DistributedPseRpy",
       "Periodic RPY mobility by Positively Split Ewald on particles distributed over the ranks, equal radii;\n"
-      "equal to PseRpy (double wave grids) on the ranks' shares concatenated in rank order to round-off.");
+      "equal to PseRpy (double wave grids) on the ranks' shares concatenated in rank order to round-off\n"
+      "(with torques too).");
   cls.def("__init__", &init_pse, nb::arg("comm"), nb::arg("box"), nb::arg("viscosity") = 1.0,
           nb::arg("tolerance") = 1e-3, nb::arg("xi") = 0.0, nb::arg("r_cut") = 0.0, nb::arg("window_eta") = 0.0,
           nb::arg("fft_threads") = 0, nb::arg("max_memory_bytes") = std::size_t{16} << 30,
@@ -337,7 +338,9 @@ void bind_distributed_pse(nb::module_& m) {
            "Collective. U = M F + noise_scale M^{1/2} z in one pass, z as sample(seed, step) draws it.");
   add_common(cls,
              "Collective. PseRpy.apply_sqrt's split sampler on this rank's share of z ((n, 3) or (3n,)): method\n"
-             "'auto' or 'split' only (others raise NotSupportedError); returns (w, SqrtReport).");
+             "'auto' or 'split' only (others raise NotSupportedError); returns (w, SqrtReport).",
+             false);
+  add_rotation_apply(cls);
 }
 
 void init_laplace(Laplace* self, nb::object comm, double tolerance, int leaf_capacity, int order, double separation,

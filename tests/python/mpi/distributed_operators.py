@@ -241,6 +241,22 @@ def test_pse_equals_serial() -> None:
     assert params["grid"] == serial.parameters["grid"]
 
 
+def test_pse_rotation_equals_serial() -> None:
+    x, op, serial = pse_pair(250, box=14.0, tolerance=1e-4)
+    rng = np.random.default_rng(23)
+    f, t = rng.standard_normal(x.shape), rng.standard_normal(x.shape)
+    part = share(len(x), empty_first=True)
+    op.set_positions(x[part], 1.0)
+    u_local, w_local = op.apply(f[part], t[part])
+    u, w = gathered(u_local), gathered(w_local)
+    u_serial, w_serial = serial.apply(f, t)
+    assert op.supports_rotation
+    assert u_local.shape == f[part].shape and w_local.shape == f[part].shape
+    # docs/mpi.md, "Distributed PSE", Rotation: PseRpy's grand product, its sums added in another order.
+    assert np.max(np.abs(u - u_serial)) <= 1e-12 * np.max(np.abs(u_serial))
+    assert np.max(np.abs(w - w_serial)) <= 1e-12 * np.max(np.abs(w_serial))
+
+
 def test_pse_apply_sqrt_equals_serial() -> None:
     x, op, serial = pse_pair(200, box=12.0, tolerance=1e-4)
     z = rpyfmm.normal_noise(len(x), 4)
