@@ -8,6 +8,9 @@
 // (kernels_common.hpp's scale_mode_with, with the serial operator's c(k) table restricted to the
 // slab). The window weights come from the serial formulas (window_weights_recurrence) on the
 // positions wrapped as the serial operator wraps them; the grid sums are added in another order.
+// With rotation the torques travel with the forces, are spread onto a second set of slabs, and both
+// spectra are scaled mode by mode by the serial scale_rotation_mode (rotation_modes.hpp), whose
+// factors g(k), sinc and s/2 the slab tabulates for its modes once.
 // [PSE]: Fiore, Balboa Usabiaga, Donev & Swan, J. Chem. Phys. 146, 124116 (2017).
 #include "pse_slab_wave.hpp"
 
@@ -71,8 +74,11 @@ struct SlabWaveSpace::Slab {
   }
 
   // Component c of the three at `base` (data or rotation_data) as real slab and as spectrum.
-  [[nodiscard]] double* component(const fftw_complex* base, int c) const {
-    return reinterpret_cast<double*>(const_cast<fftw_complex*>(base) + comp * static_cast<std::size_t>(c));
+  [[nodiscard]] double* component(fftw_complex* base, int c) const {
+    return reinterpret_cast<double*>(base + comp * static_cast<std::size_t>(c));
+  }
+  [[nodiscard]] const double* component(const fftw_complex* base, int c) const {
+    return reinterpret_cast<const double*>(base + comp * static_cast<std::size_t>(c));
   }
   [[nodiscard]] double* component(int c) const { return component(data, c); }
   [[nodiscard]] fftw_complex* spectrum(fftw_complex* base, int c) const {
