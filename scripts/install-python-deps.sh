@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs what the Python module and its tests need into the `python3` on PATH
 # (or $PYTHON): nanobind and scikit-build-core (build), NumPy and pytest (tests), gsd (the GSD
-# tests; optional).
+# tests; optional), mpi4py where MPI is installed (the rpyfmm.mpi tests).
 # matplotlib is optional (examples/python). Called by scripts/install-deps.sh.
 # Idempotent: nothing is downloaded when everything imports already.
 set -euo pipefail
@@ -30,4 +30,10 @@ fi
 # gsd reads the GSD trajectories in tests/python/test_gsd.py; optional: those tests skip without it.
 if ! "$PY" -c "import gsd.hoomd" 2>/dev/null; then
   pip_install gsd || echo "install-python-deps: gsd not installed; the Python GSD tests will skip" >&2
+fi
+# mpi4py runs the rpyfmm.mpi tests (tests/mpi/CMakeLists.txt registers them only where this
+# interpreter imports it). Debian's python3-mpi4py serves Debian's python3 only; another
+# interpreter (pyenv, a venv) gets PyPI's, which loads the system Open MPI (libopenmpi-dev).
+if command -v mpiexec >/dev/null && ! "$PY" -c "import mpi4py" 2>/dev/null; then
+  pip_install mpi4py || echo "install-python-deps: mpi4py not installed; the rpyfmm.mpi Python tests are not registered" >&2
 fi
