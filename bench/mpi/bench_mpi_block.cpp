@@ -8,7 +8,9 @@
 //   (bench_mpi_common.hpp: N in all, uniform in the unit cube, radius 0.001 as bench_mpi_direct,
 //   forces in [-0.5, 0.5)).
 // Prints one JSON line (rank 0): "block_s" = the median over reps of one apply_block, "singles_s" =
-// the median over reps of nrhs applies, each the slowest rank's, and "speedup" = singles_s / block_s.
+// the median over reps of nrhs applies, each the slowest rank's, and "speedup" = singles_s / block_s;
+// for fmm also the slowest rank's seconds in the owners' serial Laplace FMM ("fmm" of
+// DistributedLaplaceFmm's compute_seconds) of one apply_block and of one apply.
 #include <mpi.h>
 
 #include <cstdio>
@@ -56,11 +58,19 @@ int main(int argc, char** argv) {
   for (std::size_t k = 0; k < nrhs; ++k)
     for (std::size_t i = 0; i < 3 * n; ++i) f[3 * n * k + i] = s.q[3 * nrhs * (i / 3) + 3 * k + i % 3];
 
-  double block_s = 0.0, singles_s = 0.0;
+  double block_s = 0.0, singles_s = 0.0, block_fmm_s = 0.0, single_fmm_s = 0.0;
   if (method == "fmm") {
     rpyfmm::mpi::DistributedFmmRpy op(MPI_COMM_WORLD, 1.0, {.tolerance = a.eps});
     op.set_positions(s.x, 0.001);
     time_block_and_singles(op, f, nrhs, a.reps, block_s, singles_s);
+    const auto serial_fmm = [&] {
+      return bench_mpi::max_over_ranks(op.laplace().communication().compute_seconds.at("fmm"));
+    };
+    std::vector<double> u(f.size());
+    op.apply_block(f, u, nrhs);
+    block_fmm_s = serial_fmm();
+    op.apply(std::span<const double>(f).first(f.size() / nrhs), std::span<double>(u).first(f.size() / nrhs));
+    single_fmm_s = serial_fmm();
   } else {
     rpyfmm::mpi::DistributedDirectRpy op(MPI_COMM_WORLD, 1.0);
     op.set_positions(s.x, 0.001);
@@ -69,9 +79,9 @@ int main(int argc, char** argv) {
   if (rank == 0)
     std::printf(
         "{\"method\":\"%s\",\"ranks\":%d,\"N\":%llu,\"nrhs\":%zu,\"eps\":%.3g,\"block_s\":%.6g,\"singles_s\":%.6g,"
-        "\"speedup\":%.3f}\n",
+        "\"speedup\":%.3f,\"block_fmm_s\":%.6g,\"single_fmm_s\":%.6g}\n",
         method.c_str(), ranks, static_cast<unsigned long long>(s.total), nrhs, a.eps, block_s, singles_s,
-        singles_s / block_s);
+        singles_s / block_s, block_fmm_s, single_fmm_s);
   MPI_Finalize();
   return 0;
 }
