@@ -14,6 +14,7 @@
 //   op.set_positions(local_x, local_radii);   // collective: plans once
 //   op.apply(local_f, local_u);               // collective, any number of times
 //   op.apply(local_f, local_t, local_u, local_w);  // with torques and angular velocities
+//   op.apply_block(local_fs, local_us, nrhs);  // nrhs right-hand sides in one Laplace evaluation
 //
 // With rotation, [U; W] = M [F; T] (the grand mobility of Wajnryb, Mizerski, Zuk & Szymczak,
 // J. Fluid Mech. 731, R3 (2013)): the far form of the rotational blocks is exactly the harmonic
