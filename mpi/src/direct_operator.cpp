@@ -27,12 +27,17 @@ namespace {
 
 constexpr const char* kSetPositions = "DistributedDirectRpy::set_positions";
 constexpr const char* kApply = "DistributedDirectRpy::apply";
+constexpr const char* kApplyBlock = "DistributedDirectRpy::apply_block";
 constexpr std::size_t kBlock = rpy::detail::kDirectBlock;
-// Doubles per particle of a source block as broadcast: x, y, z, a (length units), fx, fy, fz
-// (load-scaled), each an array over the block's particles; with rotation then tx, ty, tz
-// (load-scaled and divided by the length unit, as DirectRpy passes them to its rotational sums).
-constexpr std::size_t kPacked = 7;
-constexpr std::size_t kPackedRotation = 10;
+// Doubles per particle of a source block as broadcast: x, y, z, a (length units), then fx, fy, fz
+// (load-scaled) of each of the nrhs right-hand sides, each an array over the block's particles; with
+// rotation (one right-hand side) then tx, ty, tz (load-scaled and divided by the length unit, as
+// DirectRpy passes them to its rotational sums).
+constexpr std::size_t kPositionColumns = 4;
+constexpr std::size_t packed_columns(std::size_t nrhs, bool rotation) {
+  return kPositionColumns + 3 * nrhs + (rotation ? 3 : 0);
+}
+constexpr std::size_t kPackedRotation = packed_columns(1, true);
 // The broadcast in flight is polled (MPI_Test lets it progress) between batches of targets: about
 // eight batches per block, each at least 64 targets per thread (add_direct_block_sums hands out
 // targets to the threads 16 at a time, so every thread stays busy).
@@ -52,9 +57,9 @@ void timed(double& seconds, Body&& body) {
 
 // Sources received and not summed yet: fewer than kBlock left over from earlier blocks (the start
 // of one of DirectRpy's source blocks that straddles two ranks' shares), then the latest block.
-// Structure of arrays: the columns of the broadcast blocks (kPacked, or kPackedRotation with the
-// torques), then inv_a = 1 / a computed here as DirectRpy computes it; and the sources' global
-// indices, by which the rotational sums skip the self pair.
+// Structure of arrays: the columns of the broadcast blocks (packed_columns), then inv_a = 1 / a
+// computed here as DirectRpy computes it; and the sources' global indices, by which the rotational
+// sums skip the self pair.
 class DistributedDirectRpy::SourceWindow {
  public:
   SourceWindow(std::size_t capacity, std::size_t packed)
@@ -80,9 +85,17 @@ class DistributedDirectRpy::SourceWindow {
   [[nodiscard]] rpy::detail::DirectParticles particles() const {
     return {column(0), column(1), column(2), column(kA), column(packed_)};
   }
-  [[nodiscard]] rpy::detail::DirectForces forces() const { return {column(4), column(5), column(6)}; }
-  // The first m sources with their torques (packed_ == kPackedRotation); radii nullptr with
-  // equal_radii, as DirectRpy passes them.
+  // The forces of the nrhs right-hand sides the window holds.
+  [[nodiscard]] std::vector<rpy::detail::DirectForces> forces(std::size_t nrhs) const {
+    std::vector<rpy::detail::DirectForces> out(nrhs);
+    for (std::size_t k = 0; k < nrhs; ++k) {
+      const std::size_t f = kPositionColumns + 3 * k;
+      out[k] = {column(f), column(f + 1), column(f + 2)};
+    }
+    return out;
+  }
+  // The first m sources with their torques (packed_ == kPackedRotation, one right-hand side); radii
+  // nullptr with equal_radii, as DirectRpy passes them.
   [[nodiscard]] rpy::detail::GrandSources grand_sources(std::size_t m, bool equal_radii) const {
     return {m,          column(0), column(1), column(2), equal_radii ? nullptr : column(kA),
             id_.data(), column(4), column(5), column(6), column(7),
@@ -152,35 +165,46 @@ void DistributedDirectRpy::set_positions(std::span<const double> local_positions
 }
 
 std::vector<double> DistributedDirectRpy::packed_block(std::span<const double> local_forces,
-                                                       std::span<const double> local_torques, int load_exponent) const {
+                                                       std::span<const double> local_torques,
+                                                       std::span<const int> load_exponents) const {
   const std::size_t n = local_n_;
+  const std::size_t nrhs = load_exponents.size();
   const bool rotation = !local_torques.empty();
-  std::vector<double> packed((rotation ? kPackedRotation : kPacked) * n);
+  std::vector<double> packed(packed_columns(nrhs, rotation) * n);
   std::copy(x_.begin(), x_.end(), packed.begin());
   std::copy(y_.begin(), y_.end(), packed.begin() + static_cast<std::ptrdiff_t>(n));
   std::copy(z_.begin(), z_.end(), packed.begin() + static_cast<std::ptrdiff_t>(2 * n));
   std::copy(a_.begin(), a_.end(), packed.begin() + static_cast<std::ptrdiff_t>(3 * n));
-  // MobilityOperator::apply_block's load scaling: 2^-k F, exact. The torques as
-  // DirectRpy::do_apply_rotation receives and stores them: 2^-k T, then 2^-e for the length units
-  // 2^e (two steps, as there, so that a subnormal rounds alike).
-  for (std::size_t i = 0; i < n; ++i)
-    for (std::size_t c = 0; c < 3; ++c) {
-      packed[(4 + c) * n + i] = std::ldexp(local_forces[3 * i + c], -load_exponent);
-      if (rotation)
-        packed[(7 + c) * n + i] = std::ldexp(std::ldexp(local_torques[3 * i + c], -load_exponent), -scale_exponent_);
-    }
+  // MobilityOperator::apply_block's load scaling: 2^-k F, exact, with each right-hand side's own k
+  // (as a product of it alone). The torques as DirectRpy::do_apply_rotation receives and stores
+  // them: 2^-k T, then 2^-e for the length units 2^e (two steps, as there, so that a subnormal
+  // rounds alike).
+  for (std::size_t r = 0; r < nrhs; ++r) {
+    const double* f = local_forces.data() + 3 * n * r;
+    double* out = packed.data() + (kPositionColumns + 3 * r) * n;
+    for (std::size_t i = 0; i < n; ++i)
+      for (std::size_t c = 0; c < 3; ++c) out[c * n + i] = std::ldexp(f[3 * i + c], -load_exponents[r]);
+  }
+  if (rotation) {
+    double* out = packed.data() + packed_columns(nrhs, false) * n;
+    for (std::size_t i = 0; i < n; ++i)
+      for (std::size_t c = 0; c < 3; ++c)
+        out[c * n + i] = std::ldexp(std::ldexp(local_torques[3 * i + c], -load_exponents[0]), -scale_exponent_);
+  }
   return packed;
 }
 
-void DistributedDirectRpy::sum_block(const SourceWindow& window, std::size_t usable, std::vector<double>& acc,
-                                     std::vector<double>& rotation_acc, MPI_Request* pending) const {
+void DistributedDirectRpy::sum_block(const SourceWindow& window, std::size_t nrhs, std::size_t usable,
+                                     std::vector<double>& acc, std::vector<double>& rotation_acc,
+                                     MPI_Request* pending) const {
   const std::size_t batch = target_batch(local_n_);
+  const std::vector<rpy::detail::DirectForces> forces = window.forces(nrhs);
   for (std::size_t first = 0; first < local_n_; first += batch) {
     const std::size_t count = std::min(batch, local_n_ - first);
     const rpy::detail::DirectParticles targets{x_.data() + first, y_.data() + first, z_.data() + first,
                                                a_.data() + first, inv_a_.data() + first};
-    rpy::detail::add_direct_block_sums(targets, count, window.particles(), window.forces(), usable, equal_radii_,
-                                       acc.data() + 3 * first);
+    rpy::detail::add_direct_block_sums(targets, count, window.particles(), forces, usable, equal_radii_,
+                                       acc.data() + 3 * nrhs * first);
     if (!rotation_acc.empty())
       rpy::detail::add_rotation_block_sums(targets, offset_ + first, count, window.grand_sources(usable, equal_radii_),
                                            rotation_acc.data() + 6 * first);
@@ -192,46 +216,75 @@ void DistributedDirectRpy::sum_block(const SourceWindow& window, std::size_t usa
 }
 
 void DistributedDirectRpy::apply(std::span<const double> local_forces, std::span<double> local_velocities) const {
-  product(false, local_forces, {}, local_velocities, {});
+  product(kApply, 1, false, local_forces, {}, local_velocities, {});
+}
+
+void DistributedDirectRpy::apply_block(std::span<const double> local_forces, std::span<double> local_velocities,
+                                       std::size_t nrhs) const {
+  require(global_n_ > 0, ErrorCode::invalid_input, kApplyBlock, "positions not set (call set_positions first)");
+  detail::agree_on_nrhs(comm_, nrhs, kApplyBlock);
+  // A rank's source block carries packed_columns(nrhs) doubles per particle in one broadcast of an
+  // int count. counts_ and nrhs are the same on every rank, so every rank throws alike here.
+  const std::size_t largest_share = *std::max_element(counts_.begin(), counts_.end());
+  const std::size_t most = (static_cast<std::size_t>(INT_MAX) / largest_share - kPositionColumns) / 3;
+  require(nrhs <= most, ErrorCode::not_supported, kApplyBlock,
+          std::to_string(nrhs) + " right-hand sides: a source block of a rank holding " +
+              std::to_string(largest_share) + " particles would carry more doubles than MPI's int counts address (" +
+              std::to_string(INT_MAX) + "); at most " + std::to_string(most) + " right-hand sides per call here");
+  product(kApplyBlock, nrhs, false, local_forces, {}, local_velocities, {});
 }
 
 void DistributedDirectRpy::apply(std::span<const double> local_forces, std::span<const double> local_torques,
                                  std::span<double> local_velocities, std::span<double> local_angular_velocities) const {
-  product(true, local_forces, local_torques, local_velocities, local_angular_velocities);
+  product(kApply, 1, true, local_forces, local_torques, local_velocities, local_angular_velocities);
 }
 
-void DistributedDirectRpy::product(bool rotation, std::span<const double> local_forces,
-                                   std::span<const double> local_torques, std::span<double> local_velocities,
+std::vector<int> DistributedDirectRpy::load_exponents(bool rotation, std::span<const double> local_forces,
+                                                      std::span<const double> local_torques, std::size_t nrhs) const {
+  // MobilityOperator::apply_block's load scale of each right-hand side, from its largest force of
+  // all ranks; with rotation MobilityOperator::apply's, from the largest force and torque
+  // (largest_rotation_load).
+  std::vector<double> largest(nrhs, 0.0), global_largest(nrhs, 0.0);
+  if (rotation) {
+    largest[0] = rpy::detail::largest_rotation_load(local_forces, local_torques, largest_radius_);
+  } else {
+    for (std::size_t r = 0; r < nrhs; ++r)
+      for (double f : local_forces.subspan(3 * local_n_ * r, 3 * local_n_))
+        largest[r] = std::max(largest[r], std::abs(f));
+  }
+  timed(stats_.apply_seconds, [&] {
+    check_mpi(
+        MPI_Allreduce(largest.data(), global_largest.data(), static_cast<int>(nrhs), MPI_DOUBLE, MPI_MAX, comm_.get()),
+        "MPI_Allreduce");
+  });
+  std::vector<int> k(nrhs);
+  for (std::size_t r = 0; r < nrhs; ++r)
+    k[r] = rpy::detail::load_scale_exponent({std::span<const double>(&global_largest[r], 1)});
+  return k;
+}
+
+void DistributedDirectRpy::product(const char* where, std::size_t nrhs, bool rotation,
+                                   std::span<const double> local_forces, std::span<const double> local_torques,
+                                   std::span<double> local_velocities,
                                    std::span<double> local_angular_velocities) const {
   // global_n_ is the same on every rank (set_positions succeeds or fails on all of them).
-  require(global_n_ > 0, ErrorCode::invalid_input, kApply, "positions not set (call set_positions first)");
+  require(global_n_ > 0, ErrorCode::invalid_input, where, "positions not set (call set_positions first)");
   const std::size_t n3 = 3 * local_n_;
   const auto output = [](std::span<double> out) { return std::span<const double>(out.data(), out.size()); };
   // MobilityOperator::apply's order: every size, then the inputs' entries.
   comm_.run([&] {
-    require_size(local_forces, n3, kApply, "local forces");
-    if (rotation) require_size(local_torques, n3, kApply, "local torques");
-    require_size(output(local_velocities), n3, kApply, "local velocities");
-    if (rotation) require_size(output(local_angular_velocities), n3, kApply, "local angular velocities");
-    require_finite(local_forces, kApply, "local forces", 3);
-    if (rotation) require_finite(local_torques, kApply, "local torques", 3);
+    require_size(local_forces, n3 * nrhs, where, "local forces");
+    if (rotation) require_size(local_torques, n3, where, "local torques");
+    require_size(output(local_velocities), n3 * nrhs, where, "local velocities");
+    if (rotation) require_size(output(local_angular_velocities), n3, where, "local angular velocities");
+    require_finite(local_forces, where, "local forces", 3);
+    if (rotation) require_finite(local_torques, where, "local torques", 3);
   });
   stats_.apply_seconds = 0.0;
   stats_.apply_bytes_received = 0;
-  // MobilityOperator::apply_block's load scale, from the largest force of all ranks; with rotation
-  // MobilityOperator::apply's, from the largest force and torque (largest_rotation_load).
-  double largest = 0.0, global_largest = 0.0;
-  if (rotation) {
-    largest = rpy::detail::largest_rotation_load(local_forces, local_torques, largest_radius_);
-  } else {
-    for (double f : local_forces) largest = std::max(largest, std::abs(f));
-  }
-  timed(stats_.apply_seconds, [&] {
-    check_mpi(MPI_Allreduce(&largest, &global_largest, 1, MPI_DOUBLE, MPI_MAX, comm_.get()), "MPI_Allreduce");
-  });
-  const int k = rpy::detail::load_scale_exponent({std::span<const double>(&global_largest, 1)});
+  const std::vector<int> k = load_exponents(rotation, local_forces, local_torques, nrhs);
   std::vector<double> own = packed_block(local_forces, rotation ? local_torques : std::span<const double>{}, k);
-  const std::size_t columns = rotation ? kPackedRotation : kPacked;
+  const std::size_t columns = packed_columns(nrhs, rotation);
 
   // The ranks' blocks in rank order (empty shares skipped), each broadcast by its owner; two
   // receive buffers, the next block in flight while the current one is summed.
@@ -254,7 +307,7 @@ void DistributedDirectRpy::product(bool rotation, std::span<const double> local_
   };
 
   SourceWindow window(kBlock - 1 + largest_share, columns);
-  std::vector<double> acc(n3, 0.0);
+  std::vector<double> acc(n3 * nrhs, 0.0);
   std::vector<double> rotation_acc(rotation ? 2 * n3 : 0, 0.0);
   post(0);
   for (std::size_t step = 0; step < roots.size(); ++step) {
@@ -269,7 +322,7 @@ void DistributedDirectRpy::product(bool rotation, std::span<const double> local_
     // but for the set's last block.
     const std::size_t usable = last ? window.size() : window.size() / kBlock * kBlock;
     MPI_Request* pending = last ? nullptr : &requests[(step + 1) % 2];
-    sum_block(window, usable, acc, rotation_acc, pending);
+    sum_block(window, nrhs, usable, acc, rotation_acc, pending);
     window.drop_front(usable);
   }
 
@@ -281,22 +334,26 @@ void DistributedDirectRpy::product(bool rotation, std::span<const double> local_
   const double inv_eta = 1.0 / viscosity_;
   const int e = scale_exponent_;
   for (std::size_t i = 0; i < local_n_; ++i) {
+    for (std::size_t r = 0; r < nrhs; ++r) {
+      const double* sums = acc.data() + 3 * (nrhs * i + r);
+      for (std::size_t c = 0; c < 3; ++c)
+        local_velocities[n3 * r + 3 * i + c] = std::ldexp(std::ldexp(inv_eta * sums[c], -e), k[r]);
+    }
+    if (!rotation) continue;
+    const double* sums = rotation_acc.data() + 6 * i;
     for (std::size_t c = 0; c < 3; ++c) {
-      double u = std::ldexp(inv_eta * acc[3 * i + c], -e);
-      if (rotation) {
-        const double* sums = rotation_acc.data() + 6 * i;
-        u += std::ldexp(inv_eta * sums[c], -e);
-        const double torque = own[(7 + c) * local_n_ + i];  // 2^-k 2^-e T, as DirectRpy holds it
-        const double w = std::ldexp(inv_eta * (sums[3 + c] + rpy::rpy_rotation_self(a_[i]) * torque), -2 * e);
-        local_angular_velocities[3 * i + c] = std::ldexp(w, k);
-      }
-      local_velocities[3 * i + c] = std::ldexp(u, k);
+      const double u = std::ldexp(inv_eta * acc[3 * i + c], -e) + std::ldexp(inv_eta * sums[c], -e);
+      // 2^-k 2^-e T, as DirectRpy holds it
+      const double torque = own[(packed_columns(1, false) + c) * local_n_ + i];
+      const double w = std::ldexp(inv_eta * (sums[3 + c] + rpy::rpy_rotation_self(a_[i]) * torque), -2 * e);
+      local_velocities[3 * i + c] = std::ldexp(u, k[0]);
+      local_angular_velocities[3 * i + c] = std::ldexp(w, k[0]);
     }
   }
   comm_.run([&] {
     const char* input = rotation ? "forces and torques" : "forces";
-    rpy::detail::require_finite_result(local_velocities, kApply, "velocities", input);
-    if (rotation) rpy::detail::require_finite_result(local_angular_velocities, kApply, "angular velocities", input);
+    rpy::detail::require_finite_result(local_velocities, where, "velocities", input);
+    if (rotation) rpy::detail::require_finite_result(local_angular_velocities, where, "angular velocities", input);
   });
 }
 

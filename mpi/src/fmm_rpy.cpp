@@ -3,6 +3,7 @@
 #include "rpyfmm/mpi/fmm_rpy.hpp"
 
 #include <algorithm>
+#include <climits>
 #include <cmath>
 #include <string>
 #include <utility>
@@ -25,6 +26,7 @@ namespace {
 constexpr const char* kWhere = "rpyfmm::mpi::DistributedFmmRpy";
 constexpr const char* kSetPositions = "rpyfmm::mpi::DistributedFmmRpy::set_positions";
 constexpr const char* kApply = "rpyfmm::mpi::DistributedFmmRpy::apply";
+constexpr const char* kApplyBlock = "rpyfmm::mpi::DistributedFmmRpy::apply_block";
 
 // The Laplace FMM's options, once every rank has checked its own and all ranks agree on them.
 DistributedFmmOptions laplace_options(const Communicator& comm, const DistributedFmmRpyOptions& o) {
@@ -124,46 +126,73 @@ void DistributedFmmRpy::set_positions(std::span<const double> local_positions, s
 }
 
 void DistributedFmmRpy::apply(std::span<const double> local_forces, std::span<double> local_velocities) const {
-  // global_n_ is the same on every rank (set_positions succeeds or fails on all of them).
-  require(global_n_ > 0, ErrorCode::invalid_input, kApply, "positions not set (call set_positions first)");
-  const std::size_t n = local_n_;
-  comm_.run([&] {
-    require_size(local_forces, 3 * n, kApply, "local forces");
-    require_size(std::span<const double>(local_velocities.data(), local_velocities.size()), 3 * n, kApply,
-                 "local velocities");
-    require_finite(local_forces, kApply, "local forces", 3);
-  });
-  // MobilityOperator::apply_block's load scale, from the largest force of all ranks.
-  double largest = 0.0, global_largest = 0.0;
-  for (double f : local_forces) largest = std::max(largest, std::abs(f));
-  check_mpi(MPI_Allreduce(&largest, &global_largest, 1, MPI_DOUBLE, MPI_MAX, comm_.get()), "MPI_Allreduce");
-  const int k = rpy::detail::load_scale_exponent({std::span<const double>(&global_largest, 1)});
-  std::vector<double> f(3 * n);
-  for (std::size_t i = 0; i < 3 * n; ++i) f[i] = std::ldexp(local_forces[i], -k);
+  product(kApply, local_forces, local_velocities, 1);
+}
 
-  // The far form of every pair with r > 0 (FmmRpy::do_apply's far field, all pairs).
-  const std::size_t nd = rpy::detail::translation_densities(equal_radii_);
+void DistributedFmmRpy::apply_block(std::span<const double> local_forces, std::span<double> local_velocities,
+                                    std::size_t nrhs) const {
+  require(global_n_ > 0, ErrorCode::invalid_input, kApplyBlock, "positions not set (call set_positions first)");
+  detail::agree_on_nrhs(comm_, nrhs, kApplyBlock);
+  // nrhs is the same on every rank, so every rank throws alike here.
+  require(
+      nrhs <= static_cast<std::size_t>(INT_MAX), ErrorCode::not_supported, kApplyBlock,
+      std::to_string(nrhs) + " right-hand sides: more than MPI's int counts address (" + std::to_string(INT_MAX) + ")");
+  product(kApplyBlock, local_forces, local_velocities, nrhs);
+}
+
+void DistributedFmmRpy::product(const char* where, std::span<const double> local_forces,
+                                std::span<double> local_velocities, std::size_t nrhs) const {
+  // global_n_ is the same on every rank (set_positions succeeds or fails on all of them).
+  require(global_n_ > 0, ErrorCode::invalid_input, where, "positions not set (call set_positions first)");
+  const std::size_t n = local_n_;
+  const std::size_t n3 = 3 * n;
+  comm_.run([&] {
+    require_size(local_forces, n3 * nrhs, where, "local forces");
+    require_size(std::span<const double>(local_velocities.data(), local_velocities.size()), n3 * nrhs, where,
+                 "local velocities");
+    require_finite(local_forces, where, "local forces", 3);
+  });
+  // MobilityOperator::apply_block's load scale of each right-hand side, from its largest force of
+  // all ranks: each right-hand side is scaled as in a product of it alone.
+  std::vector<double> largest(nrhs, 0.0), global_largest(nrhs, 0.0);
+  for (std::size_t r = 0; r < nrhs; ++r)
+    for (double f : local_forces.subspan(n3 * r, n3)) largest[r] = std::max(largest[r], std::abs(f));
+  check_mpi(
+      MPI_Allreduce(largest.data(), global_largest.data(), static_cast<int>(nrhs), MPI_DOUBLE, MPI_MAX, comm_.get()),
+      "MPI_Allreduce");
+  std::vector<int> k(nrhs);
+  std::vector<double> f(n3 * nrhs);
+  for (std::size_t r = 0; r < nrhs; ++r) {
+    k[r] = rpy::detail::load_scale_exponent({std::span<const double>(&global_largest[r], 1)});
+    for (std::size_t i = n3 * r; i < n3 * (r + 1); ++i) f[i] = std::ldexp(local_forces[i], -k[r]);
+  }
+
+  // The far form of every pair with r > 0 (FmmRpy::do_apply's far field, all pairs): the densities
+  // of every right-hand side in one Laplace evaluation.
+  const std::size_t nd = rpy::detail::translation_densities(equal_radii_) * nrhs;
   std::vector<double> charges(nd * n);
   std::vector<unsigned> outputs(nd);
-  rpy::detail::far_field_charges(f.data(), n, 1, equal_radii_, x_, a_, charges, outputs);
+  rpy::detail::far_field_charges(f.data(), n, nrhs, equal_radii_, x_, a_, charges, outputs);
   std::vector<double> results(nd * n * fmm::result_width);
   laplace_.evaluate(charges, nd, outputs, results);
-  std::vector<double> u(3 * n);
-  rpy::detail::combine_far_field(results, n, 1, equal_radii_, x_, a_, viscosity_, u.data());
+  std::vector<double> u(n3 * nrhs);
+  rpy::detail::combine_far_field(results, n, nrhs, equal_radii_, x_, a_, viscosity_, u.data());
 
-  // The overlapping pairs' exact blocks in place of their far form, and the self term.
-  std::vector<double> near(3 * n, 0.0);
-  overlap_->add(f, near);
+  // The overlapping pairs' exact blocks in place of their far form (one halo exchange for every
+  // right-hand side), and the self term.
+  std::vector<double> near(n3 * nrhs, 0.0);
+  overlap_->add(f, near, nrhs);
   const double inv_eta = 1.0 / viscosity_;
-  for (std::size_t i = 0; i < n; ++i) {
-    const double self = rpy::rpy_self(a_[i]);
-    for (std::size_t c = 0; c < 3; ++c) near[3 * i + c] += self * f[3 * i + c];
-  }
+  for (std::size_t r = 0; r < nrhs; ++r)
+    for (std::size_t i = 0; i < n; ++i) {
+      const double self = rpy::rpy_self(a_[i]);
+      for (std::size_t c = 0; c < 3; ++c) near[n3 * r + 3 * i + c] += self * f[n3 * r + 3 * i + c];
+    }
   // Back from the length units (M(x, a) = 2^-e M(2^-e x, 2^-e a)) and the load scale, exactly.
-  for (std::size_t i = 0; i < 3 * n; ++i) {
-    local_velocities[i] = std::ldexp(std::ldexp(u[i] + inv_eta * near[i], -scale_exponent_), k);
+  for (std::size_t i = 0; i < n3 * nrhs; ++i) {
+    local_velocities[i] = std::ldexp(std::ldexp(u[i] + inv_eta * near[i], -scale_exponent_), k[i / n3]);
   }
-  comm_.run([&] { rpy::detail::require_finite_result(local_velocities, kApply, "velocities", "forces"); });
+  comm_.run([&] { rpy::detail::require_finite_result(local_velocities, where, "velocities", "forces"); });
 }
 
 void DistributedFmmRpy::apply(std::span<const double> local_forces, std::span<const double> local_torques,

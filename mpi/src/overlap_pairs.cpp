@@ -312,20 +312,24 @@ void OverlapCorrection::add_rotation(std::size_t i, const double* f, const doubl
   }
 }
 
-void OverlapCorrection::add(std::span<const double> f, std::span<double> u) const {
+void OverlapCorrection::add(std::span<const double> f, std::span<double> u, std::size_t nrhs) const {
   if (global_pairs_ == 0) return;
-  const Column in[] = {{f, 3}};
+  const std::size_t n3 = f.size() / nrhs;
+  std::vector<Column> in;
+  for (std::size_t r = 0; r < nrhs; ++r) in.push_back({f.subspan(r * n3, n3), 3});
   const std::vector<std::vector<double>> loads = owned_and_halo(in);
-  std::vector<double> correction(3 * owned_n_, 0.0);
+  std::vector<std::vector<double>> correction(nrhs, std::vector<double>(3 * owned_n_, 0.0));
   const auto m = static_cast<std::int64_t>(owned_n_);
 #pragma omp parallel for schedule(static)
   for (std::int64_t ii = 0; ii < m; ++ii) {
     const auto i = static_cast<std::size_t>(ii);
-    add_translation(i, loads[0].data(), &correction[3 * i]);
+    for (std::size_t r = 0; r < nrhs; ++r) add_translation(i, loads[r].data(), &correction[r][3 * i]);
   }
-  const Column out[] = {{correction, 3}};
-  const std::vector<double> back = partition_->to_origin(out)[0];
-  for (std::size_t k = 0; k < back.size(); ++k) u[k] += back[k];
+  std::vector<Column> out;
+  for (const auto& c : correction) out.push_back({c, 3});
+  const std::vector<std::vector<double>> back = partition_->to_origin(out);
+  for (std::size_t r = 0; r < nrhs; ++r)
+    for (std::size_t k = 0; k < back[r].size(); ++k) u[r * n3 + k] += back[r][k];
 }
 
 void OverlapCorrection::add(std::span<const double> f, std::span<const double> t, std::span<double> u,

@@ -78,8 +78,10 @@ class OverlapCorrection {
 
   /// Collective. u (3n, this rank's particles in input order) += sum over the overlapping partners j
   /// of particle i of (df f_j + dgr d (d . f_j)): the corrections times eta, for the forces f (3n)
-  /// of this rank's particles. Nothing is exchanged when no rank has an overlapping pair.
-  void add(std::span<const double> f, std::span<double> u) const;
+  /// of this rank's particles; for nrhs such vectors one after another in f and u (3n nrhs each),
+  /// with one halo exchange for all of them, each corrected as it would be alone. Nothing is
+  /// exchanged when no rank has an overlapping pair.
+  void add(std::span<const double> f, std::span<double> u, std::size_t nrhs) const;
 
   /// Collective. The same with rotation, for the torques t (3n) beside the forces: u += the
   /// corrections of add(f, u) plus sum_j ut (t_j x d), and w (3n) += sum_j wf (f_j x d) + h t_j +

@@ -66,6 +66,12 @@ double agreed_viscosity(const Communicator& comm, double viscosity, const char* 
   return viscosity;
 }
 
+void agree_on_nrhs(const Communicator& comm, std::size_t nrhs, const char* where) {
+  comm.run([&] { require(nrhs > 0, ErrorCode::invalid_argument, where, "number of right-hand sides must be > 0"); });
+  require(same_on_every_rank(comm, {static_cast<double>(nrhs)}), ErrorCode::invalid_argument, where,
+          "the ranks pass different numbers of right-hand sides (nrhs); every rank must pass the same");
+}
+
 void check_local_particles(std::span<const double> positions, std::span<const double> radii, const char* where) {
   require(positions.size() % 3 == 0, ErrorCode::invalid_input, where,
           "local positions have " + std::to_string(positions.size()) + " entries, not a multiple of 3");

@@ -18,6 +18,11 @@ namespace rpyfmm::mpi::detail {
 /// otherwise.
 [[nodiscard]] double agreed_viscosity(const Communicator& comm, double viscosity, const char* where);
 
+/// Collective: returns when every rank's number of right-hand sides of a block product is > 0 and
+/// all ranks pass the same; throws rpyfmm::Error (invalid_argument) naming `where`
+/// on every rank otherwise.
+void agree_on_nrhs(const Communicator& comm, std::size_t nrhs, const char* where);
+
 /// Not collective (run it inside Communicator::run): this rank's positions (3n) and radii (n,
 /// each finite and > 0) as set_positions requires them; the message names `where`, not the rank.
 void check_local_particles(std::span<const double> positions, std::span<const double> radii, const char* where);

@@ -51,13 +51,16 @@ struct DirectParticleArrays {
 void store_direct_particles(std::span<const double> positions, std::span<const double> radii, const LengthUnits& units,
                             const DirectParticleArrays& out);
 
-/// acc[3 i + c] += the sums of target i (i < n_targets) over sources [0, n_sources), block by block
-/// of kDirectBlock (the last one may be shorter), each block's sum added in increasing order as
-/// DirectRpy does. Not yet divided by the viscosity nor scaled back from the length units. With
-/// equal_radii every radius is targets.a[0] (DirectRpy's equal-radii path). Parallel over targets
-/// with OpenMP; each target is summed by one thread, so the result does not depend on the threads.
+/// acc[3 (nrhs i + k) + c] += the sums of target i (i < n_targets) for the right-hand side
+/// forces[k] (k < nrhs = forces.size()) over sources [0, n_sources), block by block of kDirectBlock
+/// (the last one may be shorter), each block's sum added in increasing order as DirectRpy does. The
+/// pair scalars of a block are evaluated once for all right-hand sides, and each right-hand side's
+/// sums are the operations of a product with it alone. Not yet divided by the viscosity nor scaled
+/// back from the length units. With equal_radii every radius is targets.a[0] (DirectRpy's
+/// equal-radii path). Parallel over targets with OpenMP; each target is summed by one thread, so
+/// the result does not depend on the threads.
 void add_direct_block_sums(const DirectParticles& targets, std::size_t n_targets, const DirectParticles& sources,
-                           const DirectForces& forces, std::size_t n_sources, bool equal_radii, double* acc);
+                           std::span<const DirectForces> forces, std::size_t n_sources, bool equal_radii, double* acc);
 
 /// acc[6 i + c] += the rotational sums of target i (i < n_targets) of rotation_pair_sum, U for
 /// c < 3 and W for c >= 3, over the sources [0, sources.m), block by block of kDirectBlock (the last

@@ -279,9 +279,10 @@ void detail::store_direct_particles(std::span<const double> positions, std::span
 }
 
 void detail::add_direct_block_sums(const DirectParticles& targets, std::size_t n_targets,
-                                   const DirectParticles& sources, const DirectForces& forces, std::size_t n_sources,
-                                   bool equal_radii, double* acc) {
+                                   const DirectParticles& sources, std::span<const DirectForces> forces,
+                                   std::size_t n_sources, bool equal_radii, double* acc) {
   const auto n = static_cast<long long>(n_targets);
+  const std::size_t nrhs = forces.size();
 #pragma omp parallel
   {
     PairScratch b;
@@ -291,8 +292,11 @@ void detail::add_direct_block_sums(const DirectParticles& targets, std::size_t n
       for (std::size_t j0 = 0; j0 < n_sources; j0 += kBlock) {
         const std::size_t nb = std::min(kBlock, n_sources - j0);
         block_scalars(targets, i, sources, j0, nb, equal_radii, b);
-        accumulate(nb, b.dx, b.dy, b.dz, b.f, b.gr, forces.x + j0, forces.y + j0, forces.z + j0, acc[3 * i],
-                   acc[3 * i + 1], acc[3 * i + 2]);
+        for (std::size_t k = 0; k < nrhs; ++k) {
+          double* u = acc + 3 * (nrhs * i + k);
+          accumulate(nb, b.dx, b.dy, b.dz, b.f, b.gr, forces[k].x + j0, forces[k].y + j0, forces[k].z + j0, u[0], u[1],
+                     u[2]);
+        }
       }
     }
   }
@@ -342,10 +346,9 @@ void DirectRpy::sum_rows(const double* forces, std::size_t nrhs, std::size_t fir
                          double* velocities) const {
   const std::size_t n = size();
   const double inv_eta = 1.0 / viscosity();
-  const bool equal = equal_radii();
-  const detail::DirectParticles p{x_.data(), y_.data(), z_.data(), a_.data(), inv_a_.data()};
   // Forces to structure-of-arrays, one (fx, fy, fz) triple of length n per right-hand side.
   std::vector<double> fsoa(3 * n * nrhs);
+  std::vector<detail::DirectForces> columns(nrhs);
   for (std::size_t k = 0; k < nrhs; ++k) {
     const double* fk = forces + 3 * n * k;
     double* s = fsoa.data() + 3 * n * k;
@@ -354,30 +357,20 @@ void DirectRpy::sum_rows(const double* forces, std::size_t nrhs, std::size_t fir
       s[n + j] = fk[3 * j + 1];
       s[2 * n + j] = fk[3 * j + 2];
     }
+    columns[k] = {s, s + n, s + 2 * n};
   }
-#pragma omp parallel
-  {
-    PairScratch b;
-    std::vector<double> acc(3 * nrhs);
-#pragma omp for schedule(dynamic, 16)
-    for (std::size_t i = first; i < first + count; ++i) {
-      std::fill(acc.begin(), acc.end(), 0.0);
-      for (std::size_t j0 = 0; j0 < n; j0 += kBlock) {
-        const std::size_t nb = std::min(kBlock, n - j0);
-        block_scalars(p, i, p, j0, nb, equal, b);
-        for (std::size_t k = 0; k < nrhs; ++k) {
-          const double* s = fsoa.data() + 3 * n * k;
-          accumulate(nb, b.dx, b.dy, b.dz, b.f, b.gr, s + j0, s + n + j0, s + 2 * n + j0, acc[3 * k], acc[3 * k + 1],
-                     acc[3 * k + 2]);
-        }
-      }
-      for (std::size_t k = 0; k < nrhs; ++k) {
-        double* u = velocities + 3 * count * k + 3 * (i - first);
-        // Back from the units of length_units.hpp: M(x, a) = 2^-e M(2^-e x, 2^-e a) (exact).
-        for (int c = 0; c < 3; ++c) u[c] = std::ldexp(inv_eta * acc[3 * k + c], -scale_exponent_);
-      }
+  std::vector<double> acc(3 * nrhs * count, 0.0);
+  const detail::DirectParticles targets{x_.data() + first, y_.data() + first, z_.data() + first, a_.data() + first,
+                                        inv_a_.data() + first};
+  detail::add_direct_block_sums(targets, count, {x_.data(), y_.data(), z_.data(), a_.data(), inv_a_.data()}, columns, n,
+                                equal_radii(), acc.data());
+  for (std::size_t i = 0; i < count; ++i)
+    for (std::size_t k = 0; k < nrhs; ++k) {
+      double* u = velocities + 3 * count * k + 3 * i;
+      const double* sums = acc.data() + 3 * (nrhs * i + k);
+      // Back from the units of length_units.hpp: M(x, a) = 2^-e M(2^-e x, 2^-e a) (exact).
+      for (int c = 0; c < 3; ++c) u[c] = std::ldexp(inv_eta * sums[c], -scale_exponent_);
     }
-  }
 }
 
 }  // namespace rpyfmm::rpy

@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 #include <mpi.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -170,6 +172,22 @@ inline std::size_t bitwise_mismatches(const std::vector<double>& a, const std::v
   std::size_t bad = 0;
   for (std::size_t i = 0; i < a.size(); ++i) bad += std::memcmp(&a[i], &b[i], sizeof(double)) != 0 ? 1 : 0;
   return bad;
+}
+
+/// Collective: ||a - b|| / ||b|| over all ranks' shares (scaled by the largest |b_i|: no overflow
+/// for velocities near 1e300).
+inline double global_relative_error(const std::vector<double>& a, const std::vector<double>& b) {
+  double largest = 0.0, scale = 0.0;
+  for (double v : b) largest = std::max(largest, std::abs(v));
+  MPI_Allreduce(&largest, &scale, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+  double local[2] = {0.0, 0.0}, global[2] = {0.0, 0.0};
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const double d = (a[i] - b[i]) / scale, v = b[i] / scale;
+    local[0] += d * d;
+    local[1] += v * v;
+  }
+  MPI_Allreduce(local, global, 2, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+  return std::sqrt(global[0] / global[1]);
 }
 
 }  // namespace rpyfmm_mpi_test

@@ -40,22 +40,6 @@ namespace {
 constexpr double kTolerances[] = {1e-3, 1e-6, 1e-9};
 constexpr int kLeaf = 24;
 
-// Collective: ||a - b|| / ||b|| over all ranks' shares (scaled by the largest |b_i|: no overflow
-// for velocities near 1e300).
-double global_relative_error(const std::vector<double>& a, const std::vector<double>& b) {
-  double largest = 0.0, scale = 0.0;
-  for (double v : b) largest = std::max(largest, std::abs(v));
-  MPI_Allreduce(&largest, &scale, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
-  double local[2] = {0.0, 0.0}, global[2] = {0.0, 0.0};
-  for (std::size_t i = 0; i < a.size(); ++i) {
-    const double d = (a[i] - b[i]) / scale, v = b[i] / scale;
-    local[0] += d * d;
-    local[1] += v * v;
-  }
-  MPI_Allreduce(local, global, 2, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
-  return std::sqrt(global[0] / global[1]);
-}
-
 // The serial products on the whole set: exact (DirectRpy) and FmmRpy at `tolerance`.
 struct SerialProducts {
   std::vector<double> exact, fmm;

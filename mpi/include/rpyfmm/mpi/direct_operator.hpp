@@ -11,6 +11,8 @@
 // radii and forces) pass by every rank in rank order, one nonblocking broadcast per rank, the next
 // block in flight while the current one is summed; each rank adds every block's contribution to its
 // own targets in DirectRpy's order (source blocks of 256 counted from the first particle of rank 0).
+// apply_block passes the blocks once for nrhs right-hand sides, each block carrying the forces of
+// all of them, and evaluates the pair terms of each source block once for all of them.
 // Memory per rank: O(largest share); pair work: (local N) x N (docs/mpi.md).
 //
 // With rotation ([U; W] = M [F; T], docs/theory/rpy.md section 7; Wajnryb, Mizerski, Zuk &
@@ -96,20 +98,39 @@ class DistributedDirectRpy {
   /// torques with NaN/Inf, and on what DirectRpy::apply refuses (a product beyond double precision).
   void apply(std::span<const double> local_forces, std::span<const double> local_torques,
              std::span<double> local_velocities, std::span<double> local_angular_velocities) const;
+  /// Collective. U_r = M F_r for nrhs right-hand sides (r < nrhs) in one pass of the source blocks:
+  /// forces and velocities of 3 local_size() nrhs entries each, one right-hand side after another
+  /// (rpy::MobilityOperator::apply_block's layout, on this rank's particles). Each block broadcast
+  /// carries the forces of every right-hand side, and each source block's pair terms are evaluated
+  /// once for all of them. Each right-hand side is load-scaled by itself, so U_r is apply(F_r) bit
+  /// for bit (docs/mpi.md). Throws rpyfmm::Error on every rank when positions are not set, when
+  /// any rank passes nrhs = 0 or the ranks pass different nrhs, when a source block would exceed
+  /// MPI's int count (not_supported: (4 + 3 nrhs) x the largest share > INT_MAX), for wrong sizes
+  /// or NaN/Inf forces on any rank, and for a product beyond double precision.
+  void apply_block(std::span<const double> local_forces, std::span<double> local_velocities, std::size_t nrhs) const;
+
   /// True: the four-argument apply is available (as rpy::MobilityOperator::supports_rotation).
   [[nodiscard]] bool supports_rotation() const { return true; }
 
  private:
   class SourceWindow;
 
-  // Both products: empty torques and angular velocities for U = M F.
-  void product(bool rotation, std::span<const double> local_forces, std::span<const double> local_torques,
-               std::span<double> local_velocities, std::span<double> local_angular_velocities) const;
+  // Every product: nrhs right-hand sides of forces, or with rotation one of forces and torques
+  // (empty torques and angular velocities for U = M F). `where` names the call in errors.
+  void product(const char* where, std::size_t nrhs, bool rotation, std::span<const double> local_forces,
+               std::span<const double> local_torques, std::span<double> local_velocities,
+               std::span<double> local_angular_velocities) const;
+  // The load scale exponent of each right-hand side (collective).
+  [[nodiscard]] std::vector<int> load_exponents(bool rotation, std::span<const double> local_forces,
+                                                std::span<const double> local_torques, std::size_t nrhs) const;
+  // This rank's source block as broadcast, one load exponent per right-hand side.
   [[nodiscard]] std::vector<double> packed_block(std::span<const double> local_forces,
-                                                 std::span<const double> local_torques, int load_exponent) const;
-  // Adds the window's first `usable` sources to every own target's sums: acc (3 per target) and,
-  // unless empty, rotation_acc (6 per target: U, W), polling `pending` between batches of targets.
-  void sum_block(const SourceWindow& window, std::size_t usable, std::vector<double>& acc,
+                                                 std::span<const double> local_torques,
+                                                 std::span<const int> load_exponents) const;
+  // Adds the window's first `usable` sources to every own target's sums: acc (3 nrhs per target)
+  // and, unless empty, rotation_acc (6 per target: U, W), polling `pending` between batches of
+  // targets.
+  void sum_block(const SourceWindow& window, std::size_t nrhs, std::size_t usable, std::vector<double>& acc,
                  std::vector<double>& rotation_acc, MPI_Request* pending) const;
 
   Communicator comm_;

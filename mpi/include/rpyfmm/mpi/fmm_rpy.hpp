@@ -14,6 +14,7 @@
 //   op.set_positions(local_x, local_radii);   // collective: plans once
 //   op.apply(local_f, local_u);               // collective, any number of times
 //   op.apply(local_f, local_t, local_u, local_w);  // with torques and angular velocities
+//   op.apply_block(local_fs, local_us, nrhs);  // nrhs right-hand sides in one Laplace evaluation
 //
 // With rotation, [U; W] = M [F; T] (the grand mobility of Wajnryb, Mizerski, Zuk & Szymczak,
 // J. Fluid Mech. 731, R3 (2013)): the far form of the rotational blocks is exactly the harmonic
@@ -115,6 +116,16 @@ class DistributedFmmRpy {
   /// any rank, and for a product beyond double precision.
   void apply(std::span<const double> local_forces, std::span<double> local_velocities) const;
 
+  /// Collective. U_r = M F_r for nrhs right-hand sides (r < nrhs), forces and velocities of
+  /// 3 local_size() nrhs entries each, one right-hand side after another
+  /// (rpy::MobilityOperator::apply_block's layout, on this rank's particles): the densities of every
+  /// right-hand side in one Laplace evaluation, and one halo exchange for the overlap correction of
+  /// all of them. Each right-hand side is load-scaled by itself; the Laplace FMM treats each density
+  /// alike whatever their number, so U_r is apply(F_r) bit for bit (tested; docs/mpi.md). Throws rpyfmm::Error on every
+  /// rank before set_positions, when any rank passes nrhs = 0 or the ranks pass different nrhs, for wrong sizes or
+  /// NaN/Inf forces on any rank, and for a product beyond double precision.
+  void apply_block(std::span<const double> local_forces, std::span<double> local_velocities, std::size_t nrhs) const;
+
   /// The grand mobility with rotation (rpy::MobilityOperator::apply's).
   [[nodiscard]] bool supports_rotation() const { return true; }
   /// Collective. [U; W] = M [F; T] for this rank's particles (3 local_size() entries each, input
@@ -124,6 +135,10 @@ class DistributedFmmRpy {
              std::span<double> local_velocities, std::span<double> local_angular_velocities) const;
 
  private:
+  // U = M F for nrhs right-hand sides (nrhs agreed); `where` names the call in errors.
+  void product(const char* where, std::span<const double> local_forces, std::span<double> local_velocities,
+               std::size_t nrhs) const;
+
   Communicator comm_;
   double viscosity_ = 1.0;
   DistributedFmmRpyOptions options_;
