@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 #include <initializer_list>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -62,6 +63,13 @@ bool preconditioned(const SqrtOptions& options, const std::string& where) {
       return lanczos || (chebyshev && options.lambda_min == 0.0 && options.lambda_max == 0.0);
   }
   return false;
+}
+
+// Multiplies column j (entries [j column, (j + 1) column)) of v by 2^(sign exponents[j]): exact
+// unless it under- or overflows.
+void scale_columns(std::span<double> v, std::size_t column, std::span<const int> exponents, int sign) {
+  for (std::size_t j = 0; j < exponents.size(); ++j)
+    for (double& x : v.subspan(j * column, column)) x = std::ldexp(x, sign * exponents[j]);
 }
 
 }  // namespace
@@ -157,14 +165,18 @@ void MobilityOperator::apply_block(std::span<const double> forces, std::span<dou
   require_size(forces, n, where, "forces");
   require_size(std::span<const double>(velocities.data(), velocities.size()), n, where, "velocities");
   require_finite(forces, where, "forces", 3);
-  const int k = load_scale_exponent({forces});
-  if (k == 0) {
+  // Each right-hand side is scaled by its own power of two, as apply() scales it alone: a column of
+  // loads near 1e-300 beside one near 1e300 keeps its digits instead of underflowing to zero.
+  const std::size_t column = 3 * size();
+  std::vector<int> exponents(nrhs);
+  for (std::size_t j = 0; j < nrhs; ++j) exponents[j] = load_scale_exponent({forces.subspan(j * column, column)});
+  if (std::ranges::all_of(exponents, [](int k) { return k == 0; })) {
     do_apply(forces.data(), velocities.data(), nrhs);
   } else {
     std::vector<double> scaled(forces.begin(), forces.end());
-    for (double& f : scaled) f = std::ldexp(f, -k);
+    scale_columns(scaled, column, exponents, -1);
     do_apply(scaled.data(), velocities.data(), nrhs);
-    for (double& u : velocities) u = std::ldexp(u, k);
+    scale_columns(velocities, column, exponents, 1);
   }
   require_finite_result(velocities, where, "velocities", "forces");
 }

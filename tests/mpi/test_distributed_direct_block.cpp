@@ -107,10 +107,10 @@ TEST(MpiDistributedDirectBlock, EveryKernelLevelEqualsSerialBitForBit) {
 
 TEST(MpiDistributedDirectBlock, EachRightHandSideLoadScaledByItself) {
   // Right-hand sides near 1e300, 1 and 1e-300: each is scaled by its own largest force (of all
-  // ranks), so each equals the distributed apply of it alone and DirectRpy::apply of it, bit for
-  // bit. (DirectRpy::apply_block scales a block by one power of two from its largest force of all
-  // right-hand sides, MobilityOperator::apply_block: there the 1e-300 right-hand side would be
-  // scaled by about 2^-997 and underflow, so the serial block is not the reference here.)
+  // ranks), so each equals the distributed apply of it alone, DirectRpy::apply of it and
+  // DirectRpy::apply_block's right-hand side (which scales each by itself too), bit for bit. One
+  // power of two for the whole block would scale the 1e-300 right-hand side by about 2^-997 and
+  // underflow its velocities to 0.
   const Particles p = uniform_particles(500, 30.0, 0.5, 1.5, 83);
   const std::size_t n3 = 3 * p.size();
   std::vector<double> f;
@@ -118,6 +118,8 @@ TEST(MpiDistributedDirectBlock, EachRightHandSideLoadScaledByItself) {
     for (double v : p.f) f.push_back(s * v);
   DirectRpy serial(Geometry::open(), kViscosity);
   serial.set_positions(p.x, p.a);
+  std::vector<double> serial_block(3 * n3);
+  serial.apply_block(f, serial_block, 3);
   for (Split split : kSplits) {
     const Partition part = partition_of(p.size(), split);
     const std::size_t m3 = 3 * part.n;
@@ -133,6 +135,9 @@ TEST(MpiDistributedDirectBlock, EachRightHandSideLoadScaledByItself) {
       EXPECT_EQ(bitwise_mismatches(column_of(u, m3, k), single), 0u) << "rhs " << k << ", rank " << world_rank();
       EXPECT_EQ(bitwise_mismatches(column_of(u, m3, k), share(serial_single, 3, part.offset, part.n)), 0u)
           << "rhs " << k << ", rank " << world_rank();
+      EXPECT_EQ(bitwise_mismatches(column_of(u, m3, k), share(column_of(serial_block, n3, k), 3, part.offset, part.n)),
+                0u)
+          << "serial block, rhs " << k << ", rank " << world_rank();
     }
   }
 }

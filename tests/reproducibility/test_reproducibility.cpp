@@ -143,6 +143,36 @@ TEST_P(Reproducible, ProductsDoNotDependOnCallHistory) {
   }
 }
 
+TEST_P(Reproducible, BlockColumnsDoNotDependOnTheOtherColumns) {
+  // A right-hand side of a block is scaled by its own power of two, as apply() scales it alone
+  // (rpy/src/mobility.cpp): loads near 1e-298 beside loads near 1e298 keep their digits. Columns
+  // 2^-990 f, f and 2^990 f: each column's velocities are those of its block with ordinary
+  // companions (2^-990 f beside f and f) times its power of two, bit for bit, on every operator
+  // (the scaling is exact and every do_apply treats its columns alike).
+  for (const auto& c : operator_cases()) {
+    SCOPED_TRACE(c.name);
+    const auto op = c.make();
+    op->set_positions(suspension(c.n, c.box, 51), 1.0);
+    const auto f = uniform(3 * c.n, -1.0, 1.0, 52);
+    const std::size_t m = f.size();
+    auto block_of = [&](std::initializer_list<int> exponents) {
+      std::vector<double> forces, velocities(m * exponents.size());
+      for (const int e : exponents)
+        for (double v : f) forces.push_back(std::ldexp(v, e));
+      op->apply_block(forces, velocities, exponents.size());
+      return velocities;
+    };
+    const auto ordinary = block_of({0, 0, 0});
+    const auto extreme = block_of({-990, 0, 990});
+    for (std::size_t j = 0; j < 3; ++j) {
+      const int e = j == 0 ? -990 : (j == 1 ? 0 : 990);
+      std::size_t differing = 0;
+      for (std::size_t i = 0; i < m; ++i) differing += extreme[j * m + i] != std::ldexp(ordinary[j * m + i], e) ? 1 : 0;
+      EXPECT_EQ(differing, 0u) << "column " << j << " (2^" << e << " f)";
+    }
+  }
+}
+
 TEST_P(Reproducible, ProductsDoNotDependOnThreadCount) {
   for (const auto& c : operator_cases()) {
     SCOPED_TRACE(c.name);

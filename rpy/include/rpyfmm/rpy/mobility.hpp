@@ -55,7 +55,9 @@ class MobilityOperator {
 
   /// U = M F (3N each).
   void apply(std::span<const double> forces, std::span<double> velocities) const;
-  /// U_k = M F_k for nrhs right-hand sides stored one after another.
+  /// U_k = M F_k for nrhs right-hand sides stored one after another. Each F_k is load-scaled by its
+  /// own power of two, as apply() scales it alone, so a right-hand side's result does not depend on
+  /// the magnitude of the others.
   void apply_block(std::span<const double> forces, std::span<double> velocities, std::size_t nrhs) const;
 
   /// [U; W] = M [F; T]: the grand mobility with rotation (docs/theory/rpy.md, "Rotation"):
