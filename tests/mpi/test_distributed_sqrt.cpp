@@ -103,9 +103,10 @@ std::vector<double> all_gather(const std::vector<double>& local) {
 }  // namespace
 
 TEST(MpiDistributedSqrt, NoiseOfEachShareIsTheSerialNoiseBitForBit) {
-  // A particle's noise depends on (seed, step, stream, global index) only.
+  // A particle's noise depends on (seed, step, stream, global index) only. Streams 0 and
+  // bd::kRotationNoiseStream: the serial BD engine's z_t and z_r of a step with rotation.
   constexpr std::size_t kN = 1003;
-  for (std::uint32_t stream : {0u, 5u}) {
+  for (std::uint32_t stream : {0u, rpyfmm::bd::kRotationNoiseStream, 5u}) {
     std::vector<double> serial(3 * kN);
     rpyfmm::rpy::fill_normal(serial, 42, 17, stream);
     for (Split s : kSplits) {
