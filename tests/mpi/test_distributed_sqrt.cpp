@@ -693,43 +693,88 @@ namespace {
 
 // G = diag(G_0, ..., G_{P-1}) with G_r the serial BlockPreconditioner of the scaled grand mobility
 // of rank r's particles under a split (blocks of at most `block` particles, on [x_t; x_r] of the
-// rank's share), the preconditioner the distributed sampler builds, as a dense 6N x 6N matrix on
-// [x_t; x_r] of the whole set, with G^{-1}; and the number of blocks.
-struct DenseBlocks {
-  MatrixXd g, g_inverse;
-  std::size_t blocks = 0;
+// rank's share): the preconditioner the distributed sampler builds, here on one rank, acting on
+// [x_t; x_r] of the whole set.
+struct GrandShareBlocks {
+  std::vector<BlockPreconditioner> g;
+  std::vector<std::size_t> first, count;  // rank r's first particle and number of particles
+  std::size_t n = 0;                      // 3N
+
+  GrandShareBlocks(const Particles& p, Split s, std::size_t block) : n(3 * p.size()) {
+    std::size_t offset = 0;
+    for (std::size_t c : split_counts(p.size(), static_cast<std::size_t>(world_size()), s)) {
+      if (c > 0) {
+        g.emplace_back(share(p.x, 3, offset, c), share(p.a, 1, offset, c), kViscosity, Geometry::open(), block,
+                       rpyfmm::rpy::PreconditionedMatrix::scaled_grand);
+        first.push_back(offset);
+        count.push_back(c);
+      }
+      offset += c;
+    }
+  }
+  // x <- f(G_r, rank r's [x_t; x_r]) for every rank r, each share gathered and put back.
+  template <class F>
+  void each(double* x, F&& f) const {
+    for (std::size_t r = 0; r < g.size(); ++r) {
+      const std::size_t m = 3 * count[r];
+      double* t = x + 3 * first[r];
+      double* rot = x + n + 3 * first[r];
+      std::vector<double> local(t, t + m);
+      local.insert(local.end(), rot, rot + m);
+      f(g[r], local.data());
+      std::copy(local.begin(), local.begin() + static_cast<std::ptrdiff_t>(m), t);
+      std::copy(local.begin() + static_cast<std::ptrdiff_t>(m), local.end(), rot);
+    }
+  }
+  [[nodiscard]] std::size_t blocks() const {
+    std::size_t b = 0;
+    for (const BlockPreconditioner& gr : g) b += gr.blocks();
+    return b;
+  }
+  // The matrix of x <- f(G_r, .) on every share, column by column.
+  template <class F>
+  [[nodiscard]] MatrixXd dense(F&& f) const {
+    const auto rows = static_cast<Eigen::Index>(2 * n);
+    MatrixXd d(rows, rows);
+    for (Eigen::Index k = 0; k < rows; ++k) {
+      VectorXd e = VectorXd::Unit(rows, k);
+      each(e.data(), f);
+      d.col(k) = e;
+    }
+    return d;
+  }
 };
 
-DenseBlocks dense_blocks(const Particles& p, Split s, std::size_t block) {
-  const auto n = static_cast<Eigen::Index>(3 * p.size());
-  DenseBlocks d{MatrixXd::Zero(2 * n, 2 * n), MatrixXd::Zero(2 * n, 2 * n)};
-  std::size_t offset = 0;
-  for (std::size_t count : split_counts(p.size(), static_cast<std::size_t>(world_size()), s)) {
-    if (count > 0) {
-      const BlockPreconditioner g(share(p.x, 3, offset, count), share(p.a, 1, offset, count), kViscosity,
-                                  Geometry::open(), block, rpyfmm::rpy::PreconditionedMatrix::scaled_grand);
-      d.blocks += g.blocks();
-      std::vector<Eigen::Index> rows;  // the rank's rows of [x_t; x_r], in its own order
-      for (const Eigen::Index half : {Eigen::Index{0}, n})
-        for (std::size_t k = 0; k < 3 * count; ++k) rows.push_back(half + static_cast<Eigen::Index>(3 * offset + k));
-      for (std::size_t k = 0; k < rows.size(); ++k) {
-        std::vector<double> col(rows.size(), 0.0), inv(rows.size(), 0.0);
-        col[k] = inv[k] = 1.0;
-        g.apply_g(col.data());
-        g.solve_g(inv.data());
-        for (std::size_t i = 0; i < rows.size(); ++i) {
-          d.g(rows[i], rows[k]) = col[i];
-          d.g_inverse(rows[i], rows[k]) = inv[i];
-        }
-      }
-    }
-    offset += count;
-  }
-  return d;
+// [w_t; w_r] = S^{-1} G^{-1} (G S M S G^T)^{1/2} [z_t; z_r] on one rank: rpy::sqrt_apply on
+// A = G S M S G^T, with S M S by the serial DirectRpy's product with rotation and the scaling of
+// MobilityOperator::apply_sqrt_rotation, as BlockPreconditioner::sample composes them.
+GrandVectors serial_share_rotation(const DirectRpy& serial, const GrandShareBlocks& b, const GrandVectors& z,
+                                   const SqrtOptions& options) {
+  const std::size_t n = b.n;
+  const std::span<const double> radii = serial.radii();
+  rpyfmm::rpy::LinearOperatorView a;
+  a.n = 2 * n;
+  a.apply = [&](std::span<const double> x, std::span<double> y, std::size_t) {
+    std::vector<double> v(x.begin(), x.end()), torques(n);
+    b.each(v.data(), [](const BlockPreconditioner& g, double* u) { g.apply_g_transpose(u); });
+    for (std::size_t k = 0; k < n; ++k) torques[k] = radii[k / 3] * v[n + k];
+    serial.apply(std::span<const double>(v).first(n), torques, y.first(n), y.subspan(n));
+    for (std::size_t k = 0; k < n; ++k) y[n + k] *= radii[k / 3];
+    b.each(y.data(), [](const BlockPreconditioner& g, double* u) { g.apply_g(u); });
+  };
+  SqrtOptions plain = options;
+  plain.preconditioner = SqrtPreconditioner::none;
+  std::vector<double> zz(z.t), w(2 * n);
+  zz.insert(zz.end(), z.r.begin(), z.r.end());
+  rpyfmm::rpy::sqrt_apply(a, zz, w, 1, plain);
+  b.each(w.data(), [](const BlockPreconditioner& g, double* u) { g.solve_g(u); });
+  GrandVectors out{std::vector<double>(w.begin(), w.begin() + static_cast<std::ptrdiff_t>(n)), std::vector<double>(n)};
+  for (std::size_t k = 0; k < n; ++k) out.r[k] = w[n + k] / radii[k / 3];
+  return out;
 }
 
 // The block-preconditioned samplers (blocks of at most 4 particles) on `op`, the particles split
-// by `s`: w = B z with B = S^{-1} G^{-1} (G S M S G^T)^{1/2}, G the ranks' blocks (dense_blocks).
+// by `s`: w = B z with B = S^{-1} G^{-1} (G S M S G^T)^{1/2}, G the ranks' blocks (GrandShareBlocks).
 // B is a square root of M (B B^T = M to rounding: 1e-10 relative), so the samples have covariance
 // M; Lanczos and Chebyshev at 1e-6 give G S w within slack(method) x 1e-6 plus `product_error` of
 // (G S M S G^T)^{1/2} z, the root their tolerances refer to.
@@ -737,9 +782,11 @@ template <class Operator>
 void expect_block_root(const Operator& op, const Particles& p, Split s, const DenseGrand& dense, double product_error) {
   constexpr double kTolerance = 1e-6;
   const Partition part = partition_of(p.size(), s);
-  const DenseBlocks g = dense_blocks(p, s, 4);
-  const MatrixXd root = sqrt_test::principal_sqrt(g.g * dense.a * g.g.transpose());
-  const MatrixXd b = dense.s.cwiseInverse().asDiagonal() * g.g_inverse * root;
+  const GrandShareBlocks blocks(p, s, 4);
+  const MatrixXd g = blocks.dense([](const BlockPreconditioner& gr, double* x) { gr.apply_g(x); });
+  const MatrixXd g_inverse = blocks.dense([](const BlockPreconditioner& gr, double* x) { gr.solve_g(x); });
+  const MatrixXd root = sqrt_test::principal_sqrt(g * dense.a * g.transpose());
+  const MatrixXd b = dense.s.cwiseInverse().asDiagonal() * g_inverse * root;
   EXPECT_LE((b * b.transpose() - dense.m).norm(), 1e-10 * dense.m.norm());
   const GrandVectors z = grand_noise(p.size(), 9, 4);
   const VectorXd ref = root * stacked(z.t, z.r);
@@ -747,8 +794,8 @@ void expect_block_root(const Operator& op, const Particles& p, Split s, const De
     SqrtOptions options = sampler(method, SqrtPreconditioner::block, kTolerance);
     options.preconditioner_block = 4;
     const auto [w, report] = distributed_rotation(op, part, z, options);
-    EXPECT_EQ(report.preconditioner_blocks, g.blocks);
-    const VectorXd whitened = g.g * (dense.s.asDiagonal() * gathered(w));
+    EXPECT_EQ(report.preconditioner_blocks, blocks.blocks());
+    const VectorXd whitened = g * (dense.s.asDiagonal() * gathered(w));
     const double error = (whitened - ref).norm() / ref.norm();
     EXPECT_LE(error, slack(method) * kTolerance + product_error) << rpyfmm::rpy::to_string(method);
     if (world_rank() == 0) {
@@ -763,8 +810,10 @@ void expect_block_root(const Operator& op, const Particles& p, Split s, const De
 TEST(MpiDistributedSqrt, RotationBlockPreconditionedSampleIsASquareRootOfTheGrandMobility) {
   // Each rank factors the 6 x 6 per-particle blocks of S M S within spatial blocks of its own
   // particles (blocks never straddle ranks), so the sample depends on the partition and its
-  // covariance does not (expect_block_root). Where one rank holds every particle, G is the serial
-  // preconditioner's and w the serial DirectRpy::apply_sqrt_rotation's bit for bit.
+  // covariance does not (expect_block_root). With the serial sampler run on one rank with the same
+  // G (GrandShareBlocks) the distributed one agrees bit for bit on every split: the same products,
+  // inner products and G. Where one rank holds every particle, G is the serial preconditioner's
+  // and w the serial DirectRpy::apply_sqrt_rotation's bit for bit.
   const Particles p = suspension(40, true, 27u);
   const DenseGrand dense(p);
   DirectRpy serial(Geometry::open(), kViscosity);
@@ -775,6 +824,17 @@ TEST(MpiDistributedSqrt, RotationBlockPreconditionedSampleIsASquareRootOfTheGran
     DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
     place(op, p, part);
     expect_block_root(op, p, s, dense, 0.0);
+    const GrandShareBlocks blocks(p, s, 4);
+    for (SqrtMethod method : {SqrtMethod::lanczos, SqrtMethod::chebyshev}) {
+      SqrtOptions options = sampler(method, SqrtPreconditioner::block, 1e-6);
+      options.preconditioner_block = 4;
+      const GrandVectors expected = serial_share_rotation(serial, blocks, z, options);
+      const auto [w, report] = distributed_rotation(op, part, z, options);
+      EXPECT_EQ(bitwise_mismatches(w.t, share(expected.t, 3, part.offset, part.n)) +
+                    bitwise_mismatches(w.r, share(expected.r, 3, part.offset, part.n)),
+                0u)
+          << rpyfmm::rpy::to_string(method) << " with the same G, rank " << world_rank() << " of " << world_size();
+    }
     if (s != Split::last_only && world_size() > 1) continue;
     for (SqrtMethod method : {SqrtMethod::lanczos, SqrtMethod::chebyshev}) {
       const SqrtOptions options = sampler(method, SqrtPreconditioner::block, 1e-6);  // automatic block size
