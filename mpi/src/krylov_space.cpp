@@ -28,78 +28,103 @@ void continue_sums(std::size_t k, const double* const* x, const double* y, std::
 
 }  // namespace
 
-DistributedKrylovSpace::DistributedKrylovSpace(const Communicator& comm, std::span<const std::size_t> counts)
-    : comm_(comm), local_(3 * counts[static_cast<std::size_t>(comm.rank())]) {
-  const auto rank = static_cast<std::size_t>(comm.rank());
+DistributedKrylovSpace::DistributedKrylovSpace(const Communicator& comm, std::span<const std::size_t> counts,
+                                               std::size_t segments)
+    : comm_(comm), local_(3 * segments * counts[static_cast<std::size_t>(comm.rank())]) {
+  // Every nonempty share in global order: segment after segment, rank after rank.
+  struct Piece {
+    int owner;
+    std::size_t global, n;
+  };
+  std::vector<Piece> pieces;
+  for (std::size_t s = 0; s < segments; ++s) {
+    for (std::size_t r = 0; r < counts.size(); ++r) {
+      const std::size_t n = 3 * counts[r];
+      if (n > 0) pieces.push_back({static_cast<int>(r), total_, n});
+      total_ += n;
+    }
+  }
+  std::size_t local = 0;
+  for (std::size_t p = 0; p < pieces.size(); ++p) {
+    if (pieces[p].owner != comm.rank()) continue;
+    shares_.push_back({pieces[p].global, local, pieces[p].n, p > 0 ? pieces[p - 1].owner : -1,
+                       p + 1 < pieces.size() ? pieces[p + 1].owner : -1});
+    local += pieces[p].n;
+  }
+  // A chunk ends on the rank that holds its last entry; the gathered sums come rank after rank,
+  // each rank's in chunk order.
+  std::vector<int> owner;
   finished_.assign(counts.size(), 0);
-  std::size_t start = 0;
-  for (std::size_t r = 0; r < counts.size(); ++r) {
-    const std::size_t n = 3 * counts[r];
-    if (r == rank) offset_ = start, local_n_ = n;
-    if (n > 0 && r < rank) previous_ = static_cast<int>(r);
-    if (n > 0 && r > rank && next_ < 0) next_ = static_cast<int>(r);
-    start += n;
-  }
-  total_ = start;
-  // A chunk ends on the rank that holds its last entry.
-  for (std::size_t c = 0; c * kChunk < total_; ++c) {
+  for (std::size_t c = 0, p = 0; c * kChunk < total_; ++c) {
     const std::size_t last = std::min(total_, (c + 1) * kChunk) - 1;
-    std::size_t r = 0, end = 3 * counts[0];
-    while (last >= end) end += 3 * counts[++r];
-    ++finished_[r];
+    while (last >= pieces[p].global + pieces[p].n) ++p;
+    owner.push_back(pieces[p].owner);
+    ++finished_[static_cast<std::size_t>(pieces[p].owner)];
   }
+  std::vector<std::size_t> next_slot(counts.size(), 0);
+  for (std::size_t r = 1; r < counts.size(); ++r)
+    next_slot[r] = next_slot[r - 1] + static_cast<std::size_t>(finished_[r - 1]);
+  for (int r : owner) chunk_slot_.push_back(next_slot[static_cast<std::size_t>(r)]++);
 }
 
 std::vector<double> DistributedKrylovSpace::chunk_sums(std::size_t k, const double* const* x, const double* y) {
   std::vector<double> mine;
-  if (local_n_ == 0) return mine;
-  const std::size_t first = offset_ / kChunk, last = (offset_ + local_n_ - 1) / kChunk;
-  const bool started_before = offset_ % kChunk != 0;  // the first chunk began on `previous_`
-  const bool goes_on = (offset_ + local_n_) % kChunk != 0 && offset_ + local_n_ < total_;  // to `next_`
-  std::vector<double> s(k), passed(k);
-  MPI_Request send = MPI_REQUEST_NULL;
-  const auto range = [&](std::size_t c) {  // this rank's entries of chunk c, local indices
-    return std::array<std::size_t, 2>{std::max(offset_, c * kChunk) - offset_,
-                                      std::min(offset_ + local_n_, (c + 1) * kChunk) - offset_};
+  std::vector<std::vector<double>> sent;  // at most one per share
+  std::vector<MPI_Request> sends;
+  sent.reserve(shares_.size());
+  for (const Share& share : shares_) share_sums(share, k, x, y, mine, sent, sends);
+  timed([&] {
+    check_mpi(MPI_Waitall(static_cast<int>(sends.size()), sends.data(), MPI_STATUSES_IGNORE), "MPI_Waitall");
+  });
+  return mine;
+}
+
+void DistributedKrylovSpace::share_sums(const Share& share, std::size_t k, const double* const* x, const double* y,
+                                        std::vector<double>& mine, std::vector<std::vector<double>>& sent,
+                                        std::vector<MPI_Request>& sends) {
+  const std::size_t end = share.global + share.n;
+  const std::size_t first = share.global / kChunk, last = (end - 1) / kChunk;
+  const bool started_before = share.global % kChunk != 0;  // the first chunk began in the previous share
+  const bool goes_on = end % kChunk != 0 && end < total_;  // the last chunk goes on in the next share
+  // The last chunk first where it needs nothing from the previous share: its sum leaves early.
+  const bool early = goes_on && !(started_before && first == last);
+  const auto range = [&](std::size_t c) {  // this share's entries of chunk c, local indices
+    return std::array<std::size_t, 2>{share.local + std::max(share.global, c * kChunk) - share.global,
+                                      share.local + std::min(end, (c + 1) * kChunk) - share.global};
   };
-  const auto timed = [&](auto&& body) {
-    const double t0 = MPI_Wtime();
-    body();
-    seconds_ += MPI_Wtime() - t0;
-  };
-  // The last chunk first where it needs nothing from `previous_`: its sum leaves early.
-  if (goes_on && !(started_before && first == last)) {
-    const auto [lo, hi] = range(last);
-    std::fill(passed.begin(), passed.end(), 0.0);
-    continue_sums(k, x, y, lo, hi, passed.data());
+  const auto pass_on = [&](const std::vector<double>& s) {
+    sent.push_back(s);
+    sends.push_back(MPI_REQUEST_NULL);
     timed([&] {
-      check_mpi(MPI_Isend(passed.data(), static_cast<int>(k), MPI_DOUBLE, next_, kTag, comm_.get(), &send),
-                "MPI_Isend");
+      check_mpi(
+          MPI_Isend(sent.back().data(), static_cast<int>(k), MPI_DOUBLE, share.next, kTag, comm_.get(), &sends.back()),
+          "MPI_Isend");
     });
+  };
+  std::vector<double> s(k);
+  if (early) {
+    const auto [lo, hi] = range(last);
+    continue_sums(k, x, y, lo, hi, s.data());
+    pass_on(s);
   }
   for (std::size_t c = first; c <= last; ++c) {
-    if (c == last && goes_on && !(started_before && first == last)) break;  // sent above
+    if (c == last && early) break;  // passed on above
     std::fill(s.begin(), s.end(), 0.0);
     if (c == first && started_before) {
       timed([&] {
-        check_mpi(MPI_Recv(s.data(), static_cast<int>(k), MPI_DOUBLE, previous_, kTag, comm_.get(), MPI_STATUS_IGNORE),
-                  "MPI_Recv");
+        check_mpi(
+            MPI_Recv(s.data(), static_cast<int>(k), MPI_DOUBLE, share.previous, kTag, comm_.get(), MPI_STATUS_IGNORE),
+            "MPI_Recv");
       });
     }
     const auto [lo, hi] = range(c);
     continue_sums(k, x, y, lo, hi, s.data());
-    if (c == last && goes_on) {  // a chunk passing through this rank
-      passed = s;
-      timed([&] {
-        check_mpi(MPI_Isend(passed.data(), static_cast<int>(k), MPI_DOUBLE, next_, kTag, comm_.get(), &send),
-                  "MPI_Isend");
-      });
+    if (c == last && goes_on) {  // a chunk passing through this share
+      pass_on(s);
     } else {
       mine.insert(mine.end(), s.begin(), s.end());
     }
   }
-  timed([&] { check_mpi(MPI_Wait(&send, MPI_STATUS_IGNORE), "MPI_Wait"); });
-  return mine;
 }
 
 void DistributedKrylovSpace::sum_chunks(std::size_t k, const std::vector<double>& mine, bool always_fold, double* out) {
@@ -113,19 +138,19 @@ void DistributedKrylovSpace::sum_chunks(std::size_t k, const std::vector<double>
     total += counts[r];
   }
   std::vector<double> all(static_cast<std::size_t>(total));
-  const double t0 = MPI_Wtime();
-  check_mpi(MPI_Allgatherv(mine.data(), static_cast<int>(mine.size()), MPI_DOUBLE, all.data(), counts.data(),
-                           displs.data(), MPI_DOUBLE, comm_.get()),
-            "MPI_Allgatherv");
-  seconds_ += MPI_Wtime() - t0;
-  const std::size_t chunks = all.size() / k;
+  timed([&] {
+    check_mpi(MPI_Allgatherv(mine.data(), static_cast<int>(mine.size()), MPI_DOUBLE, all.data(), counts.data(),
+                             displs.data(), MPI_DOUBLE, comm_.get()),
+              "MPI_Allgatherv");
+  });
+  const std::size_t chunks = chunk_slot_.size();
   for (std::size_t q = 0; q < k; ++q) {
     if (chunks == 1 && !always_fold) {
       out[q] = all[q];
       continue;
     }
     double s = 0.0;
-    for (std::size_t c = 0; c < chunks; ++c) s += all[c * k + q];
+    for (std::size_t c = 0; c < chunks; ++c) s += all[chunk_slot_[c] * k + q];
     out[q] = s;
   }
 }

@@ -2,7 +2,9 @@
 // preconditioner of each rank's particles, and the noise of a rank's share (sqrt.hpp).
 #include "rpyfmm/mpi/sqrt.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <initializer_list>
 #include <optional>
 #include <string>
 #include <vector>
@@ -22,34 +24,35 @@ namespace rpyfmm::mpi {
 namespace {
 
 constexpr const char* kWhere = "rpyfmm::mpi::sqrt_apply";
+constexpr const char* kWhereRotation = "rpyfmm::mpi::sqrt_apply_rotation";
 
 // The options of the samplers offered across ranks, checked on this rank: Lanczos or Chebyshev,
 // with or without the block preconditioner, as rpy::sqrt_apply and MobilityOperator::apply_sqrt
-// check them.
-void check_options(const rpy::SqrtOptions& options) {
+// check them. `where` names the sampler in the messages.
+void check_options(const rpy::SqrtOptions& options, const char* where) {
   const rpy::SqrtMethod method = options.method;
   require(method == rpy::SqrtMethod::lanczos || method == rpy::SqrtMethod::chebyshev ||
               method == rpy::SqrtMethod::automatic,
-          ErrorCode::not_supported, kWhere,
+          ErrorCode::not_supported, where,
           std::string("method '") + rpy::to_string(method) +
               "' is not offered across ranks (lanczos, chebyshev or automatic: Lanczos)");
   require(std::isfinite(options.tolerance) && options.tolerance > 0.0 && options.tolerance < 1.0,
-          ErrorCode::invalid_argument, kWhere, "tolerance must lie in (0, 1), got " + format_number(options.tolerance));
-  require(options.max_iterations >= 0, ErrorCode::invalid_argument, kWhere,
+          ErrorCode::invalid_argument, where, "tolerance must lie in (0, 1), got " + format_number(options.tolerance));
+  require(options.max_iterations >= 0, ErrorCode::invalid_argument, where,
           "max_iterations must be >= 0 (0 = automatic), got " + std::to_string(options.max_iterations));
-  require(options.preconditioner_block >= 0, ErrorCode::invalid_argument, kWhere,
+  require(options.preconditioner_block >= 0, ErrorCode::invalid_argument, where,
           "preconditioner_block must be >= 0 (0 = automatic), got " + std::to_string(options.preconditioner_block));
-  if (method == rpy::SqrtMethod::chebyshev) rpy::sqrt_detail::require_chebyshev_bounds(options, kWhere);
+  if (method == rpy::SqrtMethod::chebyshev) rpy::sqrt_detail::require_chebyshev_bounds(options, where);
 }
 
 // What steers the iteration must be the same on every rank, or the ranks would part ways.
-void require_same_options(const Communicator& comm, const rpy::SqrtOptions& o) {
+void require_same_options(const Communicator& comm, const rpy::SqrtOptions& o, const char* where) {
   const bool same =
       same_on_every_rank(comm, {static_cast<double>(o.method), static_cast<double>(o.preconditioner), o.tolerance,
                                 static_cast<double>(o.max_iterations), o.reorthogonalize ? 1.0 : 0.0,
                                 o.throw_if_not_converged ? 1.0 : 0.0, static_cast<double>(o.preconditioner_block),
                                 o.lambda_min, o.lambda_max, static_cast<double>(o.bound_estimate_iterations)});
-  require(same, ErrorCode::invalid_argument, kWhere,
+  require(same, ErrorCode::invalid_argument, where,
           "the ranks pass different options (method, preconditioner, tolerance, max_iterations, reorthogonalize, "
           "throw_if_not_converged, preconditioner_block, lambda_min, lambda_max or bound_estimate_iterations); "
           "every rank must pass the same ones");
@@ -62,6 +65,38 @@ rpy::SqrtOptions resolved(const rpy::SqrtOptions& options) {
   if (r.method == rpy::SqrtMethod::automatic) r.method = rpy::SqrtMethod::lanczos;
   if (r.preconditioner == rpy::SqrtPreconditioner::automatic) r.preconditioner = rpy::SqrtPreconditioner::none;
   return r;
+}
+
+// One array of a sampler's call, by name.
+struct NamedArray {
+  const char* name;
+  std::span<const double> values;
+};
+
+// The collective checks of a sampler's call (`where`): positions set, every input and output of
+// n = 3 op.local_size() entries, the inputs finite, the options valid and the same on every rank.
+// Returns the resolved options.
+template <class Operator>
+rpy::SqrtOptions checked_call(const Operator& op, const char* where, std::initializer_list<NamedArray> inputs,
+                              std::initializer_list<NamedArray> outputs, const rpy::SqrtOptions& options) {
+  const Communicator& comm = op.communicator();
+  require(op.global_size() > 0, ErrorCode::invalid_input, where, "positions not set (call set_positions first)");
+  const std::size_t n = 3 * op.local_size();
+  comm.run([&] {
+    check_options(options, where);
+    for (const NamedArray& a : inputs) require_size(a.values, n, where, a.name);
+    for (const NamedArray& a : outputs) require_size(a.values, n, where, a.name);
+    for (const NamedArray& a : inputs) require_finite(a.values, where, a.name, 3);
+  });
+  require_same_options(comm, options, where);
+  return resolved(options);
+}
+
+// Collective: throws numerical_failure on every rank where an output of any rank holds NaN/Inf.
+void require_finite_outputs(const Communicator& comm, const char* where, std::initializer_list<NamedArray> outputs) {
+  comm.run([&] {
+    for (const NamedArray& a : outputs) rpy::detail::require_finite_result(a.values, where, a.name, "noise");
+  });
 }
 
 }  // namespace
@@ -84,14 +119,17 @@ void fill_normal(std::span<double> local_z, std::size_t offset, std::uint64_t se
 
 namespace {
 
-// The Chebyshev square root (rpy/src/sqrt/chebyshev.cpp) on this rank's share: the bound
-// estimate's Lanczos steps in the distributed space, from the serial start vector's share.
+// The Chebyshev square root (rpy/src/sqrt/chebyshev.cpp) on this rank's shares of `segments`
+// segments of 3 op.local_size() entries each: the bound estimate's Lanczos steps in the
+// distributed space, from the serial start vector's shares.
+template <class Operator>
 rpy::SqrtReport chebyshev_across_ranks(DistributedKrylovSpace& space, const rpy::sqrt_detail::KrylovProduct& product,
-                                       std::size_t offset, std::size_t n, const double* z, double* w,
+                                       const Operator& op, std::size_t segments, const double* z, double* w,
                                        const rpy::SqrtOptions& options) {
+  const std::size_t n = 3 * op.local_size();
   const rpy::sqrt_detail::ChebyshevProducts products{space,
                                                      product,
-                                                     3 * offset,
+                                                     3 * op.offset(),
                                                      n,
                                                      [&](const double* x, double* y, rpy::SqrtReport& report) {
                                                        product(x, y);
@@ -100,7 +138,9 @@ rpy::SqrtReport chebyshev_across_ranks(DistributedKrylovSpace& space, const rpy:
                                                        space.require_finite(y, "sqrt_apply(chebyshev)",
                                                                             report.operator_applications);
                                                      },
-                                                     n};
+                                                     segments * n,
+                                                     segments,
+                                                     3 * op.global_size()};
   return rpy::sqrt_detail::chebyshev_sqrt_in_space(products, z, w, options);
 }
 
@@ -112,54 +152,104 @@ std::size_t global_count(const Communicator& comm, std::size_t mine) {
   return static_cast<std::size_t>(total);
 }
 
-// The block preconditioner of this rank's particles (blocks never straddle ranks), with the
-// serial sampler's block size: options.preconditioner_block, or automatic_block of the whole set.
+// The block preconditioner of this rank's particles (blocks never straddle ranks) for `matrix`,
+// with the serial sampler's block size: options.preconditioner_block, or automatic_block of the
+// whole set.
 template <class Operator>
-rpy::BlockPreconditioner local_blocks(const Operator& op, const rpy::SqrtOptions& options) {
+rpy::BlockPreconditioner local_blocks(const Operator& op, const rpy::SqrtOptions& options,
+                                      rpy::PreconditionedMatrix matrix) {
   const std::size_t block = options.preconditioner_block > 0
                                 ? static_cast<std::size_t>(options.preconditioner_block)
                                 : rpy::BlockPreconditioner::automatic_block(op.global_size());
-  return rpy::BlockPreconditioner(op.local_positions(), op.local_radii(), op.viscosity(), rpy::Geometry::open(), block);
+  return rpy::BlockPreconditioner(op.local_positions(), op.local_radii(), op.viscosity(), rpy::Geometry::open(), block,
+                                  matrix);
 }
 
 // The Krylov samplers on a distributed operator, DistributedDirectRpy or DistributedFmmRpy (the
-// same interface). With the block preconditioner G = L^{-1} of this rank's blocks they run on
-// A = G M G^T (G applied to this rank's share alone: no communication) and return
-// w = G^{-1} A^{1/2} z, as BlockPreconditioner::sample does.
+// same interface), w = m^{1/2} z for `m` the product on this rank's share: M (3 op.local_size()
+// entries), or with rotation S M S on [x_t; x_r] (twice that; `matrix` scaled_grand). With the
+// block preconditioner G = L^{-1} of this rank's blocks of `matrix` they run on A = G m G^T (G
+// applied to this rank's share alone: no communication) and return w = G^{-1} A^{1/2} z, as
+// BlockPreconditioner::sample does.
 template <class Operator>
-rpy::SqrtReport sample_across_ranks(const Operator& op, std::span<const double> local_z, std::span<double> local_w,
-                                    const rpy::SqrtOptions& options, double* inner_products_seconds) {
+rpy::SqrtReport sample_across_ranks(const Operator& op, const rpy::LinearOperatorView& m,
+                                    rpy::PreconditionedMatrix matrix, const double* z, double* w,
+                                    const rpy::SqrtOptions& r, double* inner_products_seconds) {
   const Communicator& comm = op.communicator();
-  require(op.global_size() > 0, ErrorCode::invalid_input, kWhere, "positions not set (call set_positions first)");
-  const std::size_t n = 3 * op.local_size();
-  comm.run([&] {
-    check_options(options);
-    require_size(local_z, n, kWhere, "local noise");
-    require_size(std::span<const double>(local_w.data(), local_w.size()), n, kWhere, "local output");
-    require_finite(local_z, kWhere, "local noise", 3);
-  });
-  require_same_options(comm, options);
-  const rpy::SqrtOptions r = resolved(options);
-
-  const rpy::LinearOperatorView m{
-      n, [&op](std::span<const double> x, std::span<double> y, std::size_t) { op.apply(x, y); }};
+  const std::size_t segments = matrix == rpy::PreconditionedMatrix::scaled_grand ? 2 : 1;
   std::optional<rpy::BlockPreconditioner> blocks;
-  if (r.preconditioner == rpy::SqrtPreconditioner::block) comm.run([&] { blocks.emplace(local_blocks(op, r)); });
+  if (r.preconditioner == rpy::SqrtPreconditioner::block) {
+    comm.run([&] { blocks.emplace(local_blocks(op, r, matrix)); });
+  }
   const rpy::LinearOperatorView a = blocks ? blocks->precondition(m) : m;
-  const rpy::sqrt_detail::KrylovProduct product = [&a, n](const double* x, double* y) {
-    a.apply(std::span<const double>(x, n), std::span<double>(y, n), 1);
+  const rpy::sqrt_detail::KrylovProduct product = [&a](const double* x, double* y) {
+    a.apply(std::span<const double>(x, a.n), std::span<double>(y, a.n), 1);
   };
-  DistributedKrylovSpace space(comm, op.counts());
-  rpy::SqrtReport report =
-      r.method == rpy::SqrtMethod::chebyshev
-          ? chebyshev_across_ranks(space, product, op.offset(), n, local_z.data(), local_w.data(), r)
-          : rpy::sqrt_detail::lanczos_sqrt_in_space(space, product, local_z.data(), local_w.data(), r);
+  DistributedKrylovSpace space(comm, op.counts(), segments);
+  rpy::SqrtReport report = r.method == rpy::SqrtMethod::chebyshev
+                               ? chebyshev_across_ranks(space, product, op, segments, z, w, r)
+                               : rpy::sqrt_detail::lanczos_sqrt_in_space(space, product, z, w, r);
   if (blocks) {
-    blocks->solve_g(local_w.data());
+    blocks->solve_g(w);
     report.preconditioner_blocks = global_count(comm, blocks->blocks());
   }
-  comm.run([&] { rpy::detail::require_finite_result(local_w, kWhere, "local output", "noise"); });
   if (inner_products_seconds != nullptr) *inner_products_seconds = space.communication_seconds();
+  return report;
+}
+
+// sqrt_apply: this rank's share of w = M^{1/2} z (or the preconditioned sample).
+template <class Operator>
+rpy::SqrtReport translation_sample(const Operator& op, std::span<const double> local_z, std::span<double> local_w,
+                                   const rpy::SqrtOptions& options, double* inner_products_seconds) {
+  const rpy::SqrtOptions r = checked_call(op, kWhere, {{"local noise", local_z}}, {{"local output", local_w}}, options);
+  const rpy::LinearOperatorView m{
+      3 * op.local_size(), [&op](std::span<const double> x, std::span<double> y, std::size_t) { op.apply(x, y); }};
+  const rpy::SqrtReport report = sample_across_ranks(op, m, rpy::PreconditionedMatrix::translation, local_z.data(),
+                                                     local_w.data(), r, inner_products_seconds);
+  require_finite_outputs(op.communicator(), kWhere, {{"local output", local_w}});
+  return report;
+}
+
+// S M S on this rank's share of [x_t; x_r] (S = diag(I, a_i I)): rpy::MobilityOperator's scaled
+// grand mobility (mobility.hpp, apply_sqrt_rotation) by the distributed product with rotation.
+template <class Operator>
+rpy::LinearOperatorView scaled_grand(const Operator& op) {
+  const std::size_t n = 3 * op.local_size();
+  return {2 * n, [&op, n](std::span<const double> x, std::span<double> y, std::size_t) {
+            const std::span<const double> a = op.local_radii();
+            std::vector<double> torques(n);
+            for (std::size_t k = 0; k < n; ++k) torques[k] = a[k / 3] * x[n + k];  // S x
+            op.apply(x.first(n), torques, y.first(n), y.subspan(n));               // M S x
+            for (std::size_t k = 0; k < n; ++k) y[n + k] *= a[k / 3];              // S M S x
+          }};
+}
+
+// sqrt_apply_rotation: this rank's shares of [w_t; w_r] = S^{-1} (S M S)^{1/2} [z_t; z_r] (or the
+// preconditioned sample), packed into [x_t; x_r] and unpacked as rpy::MobilityOperator's
+// do_apply_sqrt_rotation does.
+template <class Operator>
+rpy::SqrtReport rotation_sample(const Operator& op, std::span<const double> local_z_t,
+                                std::span<const double> local_z_r, std::span<double> local_w_t,
+                                std::span<double> local_w_r, const rpy::SqrtOptions& options,
+                                double* inner_products_seconds) {
+  const std::initializer_list<NamedArray> outputs = {{"local translational output", local_w_t},
+                                                     {"local rotational output", local_w_r}};
+  const rpy::SqrtOptions r =
+      checked_call(op, kWhereRotation,
+                   {{"local translational noise", local_z_t}, {"local rotational noise", local_z_r}}, outputs, options);
+  // w' = (S M S)^{1/2} z on z = [z_t; z_r], then [w_t; w_r] = S^{-1} w', as the serial sampler.
+  const std::size_t n = 3 * op.local_size();
+  std::vector<double> z(2 * n), w(2 * n);
+  std::copy(local_z_t.begin(), local_z_t.end(), z.begin());
+  std::copy(local_z_r.begin(), local_z_r.end(), z.begin() + static_cast<std::ptrdiff_t>(n));
+  const rpy::SqrtReport report = sample_across_ranks(op, scaled_grand(op), rpy::PreconditionedMatrix::scaled_grand,
+                                                     z.data(), w.data(), r, inner_products_seconds);
+  const std::span<const double> a = op.local_radii();
+  for (std::size_t k = 0; k < n; ++k) {
+    local_w_t[k] = w[k];
+    local_w_r[k] = w[n + k] / a[k / 3];
+  }
+  require_finite_outputs(op.communicator(), kWhereRotation, outputs);
   return report;
 }
 
@@ -167,12 +257,28 @@ rpy::SqrtReport sample_across_ranks(const Operator& op, std::span<const double> 
 
 rpy::SqrtReport sqrt_apply(const DistributedDirectRpy& op, std::span<const double> local_z, std::span<double> local_w,
                            const rpy::SqrtOptions& options, double* inner_products_seconds) {
-  return sample_across_ranks(op, local_z, local_w, options, inner_products_seconds);
+  return translation_sample(op, local_z, local_w, options, inner_products_seconds);
 }
 
 rpy::SqrtReport sqrt_apply(const DistributedFmmRpy& op, std::span<const double> local_z, std::span<double> local_w,
                            const rpy::SqrtOptions& options, double* inner_products_seconds) {
-  return sample_across_ranks(op, local_z, local_w, options, inner_products_seconds);
+  return translation_sample(op, local_z, local_w, options, inner_products_seconds);
+}
+
+rpy::SqrtReport sqrt_apply_rotation(const DistributedDirectRpy& op, std::span<const double> local_z_translation,
+                                    std::span<const double> local_z_rotation, std::span<double> local_w_translation,
+                                    std::span<double> local_w_rotation, const rpy::SqrtOptions& options,
+                                    double* inner_products_seconds) {
+  return rotation_sample(op, local_z_translation, local_z_rotation, local_w_translation, local_w_rotation, options,
+                         inner_products_seconds);
+}
+
+rpy::SqrtReport sqrt_apply_rotation(const DistributedFmmRpy& op, std::span<const double> local_z_translation,
+                                    std::span<const double> local_z_rotation, std::span<double> local_w_translation,
+                                    std::span<double> local_w_rotation, const rpy::SqrtOptions& options,
+                                    double* inner_products_seconds) {
+  return rotation_sample(op, local_z_translation, local_z_rotation, local_w_translation, local_w_rotation, options,
+                         inner_products_seconds);
 }
 
 }  // namespace rpyfmm::mpi

@@ -3,26 +3,40 @@
 // the serial samplers on DirectRpy (bit for bit) and the dense principal square root (the serial
 // contracts); the block preconditioner of each rank's particles against the serial preconditioned
 // sampler with the same blocks (bit for bit) and the dense root of G M G^T; the covariance of the
-// samples against the dense mobility matrix; and collective failure. (The samplers on
-// DistributedFmmRpy: test_distributed_fmm_rpy.cpp.)
+// samples against the dense mobility matrix; and collective failure. With rotation
+// (sqrt_apply_rotation): the serial DirectRpy::apply_sqrt_rotation bit for bit on every partition,
+// the dense scaled root S^{-1} (S M S)^{1/2} z of the grand mobility, the block-preconditioned
+// sample against a dense square root of M, the samplers on DistributedFmmRpy against the dense
+// root, and collective failure. (The translational samplers on DistributedFmmRpy:
+// test_distributed_fmm_rpy.cpp.)
 #include <gtest/gtest.h>
 #include <mpi.h>
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
 #include <limits>
+#include <random>
 #include <span>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "krylov_space.hpp"
 #include "mpi_test_support.hpp"
+#include "rpyfmm/bd/rotation_sampling.hpp"
 #include "rpyfmm/mpi/direct_operator.hpp"
+#include "rpyfmm/mpi/fmm_rpy.hpp"
 #include "rpyfmm/mpi/sqrt.hpp"
 #include "rpyfmm/rpy/block_preconditioner.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/random.hpp"
 #include "rpyfmm/rpy/sqrt.hpp"
+#include "sqrt/detail.hpp"
+#include "sqrt_test_util.hpp"
 
 using rpyfmm::ErrorCode;
 using rpyfmm::mpi::DistributedDirectRpy;
@@ -89,9 +103,10 @@ std::vector<double> all_gather(const std::vector<double>& local) {
 }  // namespace
 
 TEST(MpiDistributedSqrt, NoiseOfEachShareIsTheSerialNoiseBitForBit) {
-  // A particle's noise depends on (seed, step, stream, global index) only.
+  // A particle's noise depends on (seed, step, stream, global index) only. Streams 0 and
+  // bd::kRotationNoiseStream: the serial BD engine's z_t and z_r of a step with rotation.
   constexpr std::size_t kN = 1003;
-  for (std::uint32_t stream : {0u, 5u}) {
+  for (std::uint32_t stream : {0u, rpyfmm::bd::kRotationNoiseStream, 5u}) {
     std::vector<double> serial(3 * kN);
     rpyfmm::rpy::fill_normal(serial, 42, 17, stream);
     for (Split s : kSplits) {
@@ -413,4 +428,479 @@ TEST(MpiDistributedSqrt, BadInputOnOneRankFailsEveryRank) {
     }
   }
   EXPECT_NO_THROW(rpyfmm::mpi::sqrt_apply(op, z, w, lanczos(1e-3)));
+}
+
+// ------------------------------------------------------------------------------- rotation ---
+
+namespace {
+
+// A vector of n entries in [-1, 1), the same on every rank for one seed.
+std::vector<double> random_vector(std::size_t n, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<double> v(n);
+  for (double& x : v) x = u(rng);
+  return v;
+}
+
+// This rank's shares of the `segments` segments of v (3 counts[r] entries of rank r in each),
+// one after another: the layout of DistributedKrylovSpace.
+std::vector<double> segment_shares(const std::vector<double>& v, std::span<const std::size_t> counts,
+                                   std::size_t segments) {
+  const std::size_t length = v.size() / segments;
+  std::size_t offset = 0;
+  for (int r = 0; r < world_rank(); ++r) offset += 3 * counts[static_cast<std::size_t>(r)];
+  const std::size_t mine = 3 * counts[static_cast<std::size_t>(world_rank())];
+  std::vector<double> out;
+  for (std::size_t s = 0; s < segments; ++s) {
+    const auto first = v.begin() + static_cast<std::ptrdiff_t>(s * length + offset);
+    out.insert(out.end(), first, first + static_cast<std::ptrdiff_t>(mine));
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(MpiDistributedSqrt, GrandInnerProductsAreTheSerialOnesBitForBit) {
+  // The distributed basis's dot and dots (mpi/src/krylov_space.hpp) against the serial kernels
+  // (rpy/src/sqrt/kernels.cpp) on the whole vector, bit for bit, for the translations alone and
+  // for [x_t; x_r], at every split. N = 1 and 4: one chunk through every share (twice with
+  // rotation); 700: two chunks, the first straddling the halves; 3000 (18000 entries, 5 chunks):
+  // with two ranks split evenly the chunks end on ranks 0, 1, 0, 1, 1, so the gathered chunk sums
+  // come out of chunk order and must be added in it. Random vectors (most orders of a few chunk
+  // sums round alike), and x_0 = 1 with y holding 1, -1 and 2^-60 at the starts of chunks 0, 1
+  // and 2: chunk sums whose sum is 2^-60 in chunk order and 0 in the order (c0 + c2) + c1.
+  for (std::size_t n : {std::size_t{1}, std::size_t{4}, std::size_t{700}, std::size_t{3000}}) {
+    for (std::size_t segments : {std::size_t{1}, std::size_t{2}}) {
+      const std::size_t length = 3 * n * segments;
+      for (bool cancelling : {false, true}) {
+        std::vector<double> y = random_vector(length, 7 * n + segments);
+        std::vector<std::vector<double>> x;
+        for (std::uint64_t q = 0; q < 3; ++q) x.push_back(random_vector(length, 1000 * q + n + segments));
+        if (cancelling) {
+          std::fill(x[0].begin(), x[0].end(), 1.0);
+          std::fill(y.begin(), y.end(), 0.0);
+          const double starts[] = {1.0, -1.0, std::ldexp(1.0, -60)};
+          for (std::size_t c = 0; c < 3 && c * 4096 < length; ++c) y[c * 4096] = starts[c];
+        }
+        const double dot = rpyfmm::rpy::sqrt_detail::dot(x[0].data(), y.data(), length);
+        std::vector<double> dots(3);
+        rpyfmm::rpy::sqrt_detail::dots(x, y.data(), length, dots.data());
+        for (Split s : kSplits) {
+          const std::vector<std::size_t> counts = split_counts(n, static_cast<std::size_t>(world_size()), s);
+          const rpyfmm::mpi::Communicator comm(MPI_COMM_WORLD);
+          rpyfmm::mpi::DistributedKrylovSpace space(comm, counts, segments);
+          ASSERT_EQ(space.n(), length);
+          const std::vector<double> y_mine = segment_shares(y, counts, segments);
+          for (const std::vector<double>& xq : x) {
+            const std::vector<double> mine = segment_shares(xq, counts, segments);
+            std::copy(mine.begin(), mine.end(), space.push());
+          }
+          const std::string what = "N " + std::to_string(n) + ", segments " + std::to_string(segments) +
+                                   (cancelling ? ", cancelling" : ", random") + ", rank " +
+                                   std::to_string(world_rank()) + " of " + std::to_string(world_size());
+          const double d = space.dot(space.vector(0), y_mine.data());
+          EXPECT_EQ(std::memcmp(&d, &dot, sizeof d), 0) << what << ": " << d << " vs " << dot;
+          std::vector<double> h(3);
+          space.dots(3, y_mine.data(), h.data());
+          EXPECT_EQ(bitwise_mismatches(h, dots), 0u) << what;
+        }
+      }
+    }
+  }
+}
+
+namespace {
+
+// The noise of a Brownian step with rotation on the whole set: z_t from stream 0 and z_r from the
+// serial BD engine's rotational stream (bd/rotation_sampling.hpp), as a rank draws its shares by
+// mpi::fill_normal (sqrt.hpp).
+struct GrandVectors {
+  std::vector<double> t, r;
+};
+
+GrandVectors grand_noise(std::size_t n, std::uint64_t seed, std::uint64_t step) {
+  GrandVectors z{std::vector<double>(3 * n), std::vector<double>(3 * n)};
+  rpyfmm::rpy::fill_normal(z.t, seed, step);
+  rpyfmm::rpy::fill_normal(z.r, seed, step, rpyfmm::bd::kRotationNoiseStream);
+  return z;
+}
+
+// The serial sampler with rotation on the whole set.
+std::pair<GrandVectors, SqrtReport> serial_rotation(const DirectRpy& op, const GrandVectors& z,
+                                                    const SqrtOptions& options) {
+  GrandVectors w{std::vector<double>(z.t.size()), std::vector<double>(z.r.size())};
+  const SqrtReport report = op.apply_sqrt_rotation(z.t, z.r, w.t, w.r, options);
+  return {w, report};
+}
+
+// The distributed sampler with rotation on `op` (holding the particles of `part`): this rank's
+// shares of w_t and w_r.
+template <class Operator>
+std::pair<GrandVectors, SqrtReport> distributed_rotation(const Operator& op, const Partition& part,
+                                                         const GrandVectors& z, const SqrtOptions& options) {
+  GrandVectors w{std::vector<double>(3 * part.n), std::vector<double>(3 * part.n)};
+  const SqrtReport report = rpyfmm::mpi::sqrt_apply_rotation(op, share(z.t, 3, part.offset, part.n),
+                                                             share(z.r, 3, part.offset, part.n), w.t, w.r, options);
+  return {w, report};
+}
+
+// This rank's share `part` of the positions and radii of `p` on a DistributedDirectRpy.
+void place(DistributedDirectRpy& op, const Particles& p, const Partition& part) {
+  op.set_positions(share(p.x, 3, part.offset, part.n), share(p.a, 1, part.offset, part.n));
+}
+
+// The distributed sampler with rotation on DistributedDirectRpy, `p` split by every split, against
+// the serial DirectRpy::apply_sqrt_rotation on the whole set bit for bit: the same iterations,
+// products, bounds and both halves of w, and the same bits again on a second call.
+void expect_serial_rotation(const Particles& p, const SqrtOptions& options, std::uint64_t step) {
+  DirectRpy serial(Geometry::open(), kViscosity);
+  serial.set_positions(p.x, p.a);
+  const GrandVectors z = grand_noise(p.size(), 5, step);
+  const auto [expected, serial_report] = serial_rotation(serial, z, options);
+  const std::string what = std::string(rpyfmm::rpy::to_string(options.method)) + ", N " + std::to_string(p.size()) +
+                           ", tolerance " + std::to_string(options.tolerance) + ", rank " +
+                           std::to_string(world_rank()) + " of " + std::to_string(world_size());
+  for (Split s : kSplits) {
+    const Partition part = partition_of(p.size(), s);
+    DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
+    place(op, p, part);
+    const auto [w, report] = distributed_rotation(op, part, z, options);
+    EXPECT_EQ(report.iterations, serial_report.iterations) << what;
+    EXPECT_EQ(report.operator_applications, serial_report.operator_applications) << what;
+    EXPECT_EQ(report.lambda_min, serial_report.lambda_min) << what;
+    EXPECT_EQ(report.lambda_max, serial_report.lambda_max) << what;
+    EXPECT_EQ(report.converged, serial_report.converged) << what;
+    EXPECT_EQ(bitwise_mismatches(w.t, share(expected.t, 3, part.offset, part.n)), 0u) << what;
+    EXPECT_EQ(bitwise_mismatches(w.r, share(expected.r, 3, part.offset, part.n)), 0u) << what;
+    const auto [again, again_report] = distributed_rotation(op, part, z, options);
+    EXPECT_EQ(bitwise_mismatches(again.t, w.t) + bitwise_mismatches(again.r, w.r), 0u) << what;
+  }
+}
+
+// The particle sets of the bitwise tests, 6N entries in [x_t; x_r] against the reduction chunks of
+// 4096: 200 clustered spheres of different radii, overlapping, one pair coincident, and 200 equal
+// spheres (1200 entries: one chunk whose sum passes through every rank twice, translations then
+// rotations); 700 equal spheres (4200 entries: the first chunk ends in the rotations, the
+// translations' end inside it). More chunks, out of chunk order on the gather:
+// GrandInnerProductsAreTheSerialOnesBitForBit.
+std::vector<Particles> rotation_sets() {
+  return {clustered_particles(170, 30, 61), uniform_particles(200, 25.0, 1.0, 1.0, 64),
+          uniform_particles(700, 45.0, 1.0, 1.0, 65)};
+}
+
+}  // namespace
+
+TEST(MpiDistributedSqrt, RotationLanczosEqualsSerialBitForBitOnEveryPartition) {
+  for (const Particles& p : rotation_sets()) expect_serial_rotation(p, lanczos(1e-3), 1);
+  expect_serial_rotation(clustered_particles(170, 30, 61), lanczos(1e-6), 2);
+}
+
+TEST(MpiDistributedSqrt, RotationChebyshevEqualsSerialBitForBitOnEveryPartition) {
+  // The bound estimate's start vector: each rank's shares of the serial one in both halves. The
+  // sets of 200 (different and equal radii): the degree on 700 makes that one slow on a shared
+  // machine, and the chunks are the Lanczos test's.
+  const SqrtOptions options = sampler(SqrtMethod::chebyshev, SqrtPreconditioner::none, 1e-3);
+  const std::vector<Particles> sets = rotation_sets();
+  for (std::size_t k = 0; k < 2; ++k) expect_serial_rotation(sets[k], options, 3);
+}
+
+namespace {
+
+using Eigen::MatrixXd;
+using Eigen::VectorXd;
+
+// A suspension of the serial samplers' tests with rotation (tests/sqrt/test_sqrt_rotation.cpp): N
+// spheres at volume fraction 0.15 (some overlapping), radii 1 or uniform in [0.5, 2].
+Particles suspension(std::size_t n, bool mixed, std::uint32_t seed) {
+  Particles p;
+  p.x = sqrt_test::random_points(n, 0.15, seed);
+  p.a = sqrt_test::radii(n, mixed, seed + 1);
+  return p;
+}
+
+// [v_t; v_r] as one 6N vector.
+VectorXd stacked(const std::vector<double>& t, const std::vector<double>& r) {
+  VectorXd v(static_cast<Eigen::Index>(t.size() + r.size()));
+  std::copy(t.begin(), t.end(), v.data());
+  std::copy(r.begin(), r.end(), v.data() + t.size());
+  return v;
+}
+
+// Every rank's shares of w, gathered into [w_t; w_r] on every rank.
+VectorXd gathered(const GrandVectors& w) {
+  return stacked(all_gather(w.t), all_gather(w.r));
+}
+
+// The dense references of the whole set: S = diag(I, a_i I) and S M S with M the grand mobility
+// assembled from the serial DirectRpy's products with unit forces and torques.
+struct DenseGrand {
+  VectorXd s;
+  MatrixXd m, a;  // M and S M S
+  explicit DenseGrand(const Particles& p) : s(sqrt_test::scaling(p.a)) {
+    DirectRpy serial(Geometry::open(), kViscosity);
+    serial.set_positions(p.x, p.a);
+    m = sqrt_test::grand_dense(serial);
+    a = s.asDiagonal() * m * s.asDiagonal();
+  }
+  // S^{-1} (S M S)^{1/2} z: the principal root's sample.
+  [[nodiscard]] VectorXd principal(const VectorXd& z) const {
+    return s.cwiseInverse().asDiagonal() * (sqrt_test::principal_sqrt(a) * z);
+  }
+};
+
+// Lanczos at 1e-3 and 1e-6 and Chebyshev at 1e-5 (the serial test's cases) on `op` against the
+// dense principal root, each within slack(method) x its tolerance plus `product_error` (the
+// operator's, 0 for the exact product), in the norm |S x| the tolerances refer to.
+template <class Operator>
+void expect_principal_root(const Operator& op, const Partition& part, const Particles& p, const DenseGrand& dense,
+                           double product_error) {
+  const GrandVectors z = grand_noise(p.size(), 3, 0);
+  const VectorXd ref = dense.principal(stacked(z.t, z.r));
+  const std::pair<SqrtMethod, double> cases[] = {
+      {SqrtMethod::lanczos, 1e-3}, {SqrtMethod::lanczos, 1e-6}, {SqrtMethod::chebyshev, 1e-5}};
+  for (const auto& [method, tolerance] : cases) {
+    const auto [w, report] = distributed_rotation(op, part, z, sampler(method, SqrtPreconditioner::none, tolerance));
+    const double error = sqrt_test::scaled_error(gathered(w), ref, dense.s);
+    EXPECT_LE(error, slack(method) * tolerance + product_error)
+        << rpyfmm::rpy::to_string(method) << ", tolerance " << tolerance << ", N " << p.size();
+    if (world_rank() == 0) {
+      std::printf("[sqrt-rotation] %s %s tol %.0e: %.2e against the dense root\n", op.name().c_str(),
+                  rpyfmm::rpy::to_string(method), tolerance, error);
+    }
+  }
+}
+
+}  // namespace
+
+TEST(MpiDistributedSqrt, RotationSamplesAgreeWithDenseScaledRoot) {
+  // 40 spheres, equal and different radii: 240 x 240 dense S M S and its principal root by the
+  // symmetric eigensolver. The distributed samples are the serial ones bit for bit (above), so the
+  // serial contracts hold: Lanczos within 10 x, Chebyshev within 1.5 x the tolerance.
+  for (bool mixed : {false, true}) {
+    const Particles p = suspension(40, mixed, mixed ? 21u : 23u);
+    const DenseGrand dense(p);
+    for (Split s : kSplits) {
+      const Partition part = partition_of(p.size(), s);
+      DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
+      place(op, p, part);
+      expect_principal_root(op, part, p, dense, 0.0);
+    }
+  }
+}
+
+namespace {
+
+// G = diag(G_0, ..., G_{P-1}) with G_r the serial BlockPreconditioner of the scaled grand mobility
+// of rank r's particles under a split (blocks of at most `block` particles, on [x_t; x_r] of the
+// rank's share): the preconditioner the distributed sampler builds, here on one rank, acting on
+// [x_t; x_r] of the whole set.
+struct GrandShareBlocks {
+  std::vector<BlockPreconditioner> g;
+  std::vector<std::size_t> first, count;  // rank r's first particle and number of particles
+  std::size_t n = 0;                      // 3N
+
+  GrandShareBlocks(const Particles& p, Split s, std::size_t block) : n(3 * p.size()) {
+    std::size_t offset = 0;
+    for (std::size_t c : split_counts(p.size(), static_cast<std::size_t>(world_size()), s)) {
+      if (c > 0) {
+        g.emplace_back(share(p.x, 3, offset, c), share(p.a, 1, offset, c), kViscosity, Geometry::open(), block,
+                       rpyfmm::rpy::PreconditionedMatrix::scaled_grand);
+        first.push_back(offset);
+        count.push_back(c);
+      }
+      offset += c;
+    }
+  }
+  // x <- f(G_r, rank r's [x_t; x_r]) for every rank r, each share gathered and put back.
+  template <class F>
+  void each(double* x, F&& f) const {
+    for (std::size_t r = 0; r < g.size(); ++r) {
+      const std::size_t m = 3 * count[r];
+      double* t = x + 3 * first[r];
+      double* rot = x + n + 3 * first[r];
+      std::vector<double> local(t, t + m);
+      local.insert(local.end(), rot, rot + m);
+      f(g[r], local.data());
+      std::copy(local.begin(), local.begin() + static_cast<std::ptrdiff_t>(m), t);
+      std::copy(local.begin() + static_cast<std::ptrdiff_t>(m), local.end(), rot);
+    }
+  }
+  [[nodiscard]] std::size_t blocks() const {
+    std::size_t b = 0;
+    for (const BlockPreconditioner& gr : g) b += gr.blocks();
+    return b;
+  }
+  // The matrix of x <- f(G_r, .) on every share, column by column.
+  template <class F>
+  [[nodiscard]] MatrixXd dense(F&& f) const {
+    const auto rows = static_cast<Eigen::Index>(2 * n);
+    MatrixXd d(rows, rows);
+    for (Eigen::Index k = 0; k < rows; ++k) {
+      VectorXd e = VectorXd::Unit(rows, k);
+      each(e.data(), f);
+      d.col(k) = e;
+    }
+    return d;
+  }
+};
+
+// [w_t; w_r] = S^{-1} G^{-1} (G S M S G^T)^{1/2} [z_t; z_r] on one rank: rpy::sqrt_apply on
+// A = G S M S G^T, with S M S by the serial DirectRpy's product with rotation and the scaling of
+// MobilityOperator::apply_sqrt_rotation, as BlockPreconditioner::sample composes them.
+GrandVectors serial_share_rotation(const DirectRpy& serial, const GrandShareBlocks& b, const GrandVectors& z,
+                                   const SqrtOptions& options) {
+  const std::size_t n = b.n;
+  const std::span<const double> radii = serial.radii();
+  rpyfmm::rpy::LinearOperatorView a;
+  a.n = 2 * n;
+  a.apply = [&](std::span<const double> x, std::span<double> y, std::size_t) {
+    std::vector<double> v(x.begin(), x.end()), torques(n);
+    b.each(v.data(), [](const BlockPreconditioner& g, double* u) { g.apply_g_transpose(u); });
+    for (std::size_t k = 0; k < n; ++k) torques[k] = radii[k / 3] * v[n + k];
+    serial.apply(std::span<const double>(v).first(n), torques, y.first(n), y.subspan(n));
+    for (std::size_t k = 0; k < n; ++k) y[n + k] *= radii[k / 3];
+    b.each(y.data(), [](const BlockPreconditioner& g, double* u) { g.apply_g(u); });
+  };
+  SqrtOptions plain = options;
+  plain.preconditioner = SqrtPreconditioner::none;
+  std::vector<double> zz(z.t), w(2 * n);
+  zz.insert(zz.end(), z.r.begin(), z.r.end());
+  rpyfmm::rpy::sqrt_apply(a, zz, w, 1, plain);
+  b.each(w.data(), [](const BlockPreconditioner& g, double* u) { g.solve_g(u); });
+  GrandVectors out{std::vector<double>(w.begin(), w.begin() + static_cast<std::ptrdiff_t>(n)), std::vector<double>(n)};
+  for (std::size_t k = 0; k < n; ++k) out.r[k] = w[n + k] / radii[k / 3];
+  return out;
+}
+
+// The block-preconditioned samplers (blocks of at most 4 particles) on `op`, the particles split
+// by `s`: w = B z with B = S^{-1} G^{-1} (G S M S G^T)^{1/2}, G the ranks' blocks (GrandShareBlocks).
+// B is a square root of M (B B^T = M to rounding: 1e-10 relative), so the samples have covariance
+// M; Lanczos and Chebyshev at 1e-6 give G S w within slack(method) x 1e-6 plus `product_error` of
+// (G S M S G^T)^{1/2} z, the root their tolerances refer to.
+template <class Operator>
+void expect_block_root(const Operator& op, const Particles& p, Split s, const DenseGrand& dense, double product_error) {
+  constexpr double kTolerance = 1e-6;
+  const Partition part = partition_of(p.size(), s);
+  const GrandShareBlocks blocks(p, s, 4);
+  const MatrixXd g = blocks.dense([](const BlockPreconditioner& gr, double* x) { gr.apply_g(x); });
+  const MatrixXd g_inverse = blocks.dense([](const BlockPreconditioner& gr, double* x) { gr.solve_g(x); });
+  const MatrixXd root = sqrt_test::principal_sqrt(g * dense.a * g.transpose());
+  const MatrixXd b = dense.s.cwiseInverse().asDiagonal() * g_inverse * root;
+  EXPECT_LE((b * b.transpose() - dense.m).norm(), 1e-10 * dense.m.norm());
+  const GrandVectors z = grand_noise(p.size(), 9, 4);
+  const VectorXd ref = root * stacked(z.t, z.r);
+  for (SqrtMethod method : {SqrtMethod::lanczos, SqrtMethod::chebyshev}) {
+    SqrtOptions options = sampler(method, SqrtPreconditioner::block, kTolerance);
+    options.preconditioner_block = 4;
+    const auto [w, report] = distributed_rotation(op, part, z, options);
+    EXPECT_EQ(report.preconditioner_blocks, blocks.blocks());
+    const VectorXd whitened = g * (dense.s.asDiagonal() * gathered(w));
+    const double error = (whitened - ref).norm() / ref.norm();
+    EXPECT_LE(error, slack(method) * kTolerance + product_error) << rpyfmm::rpy::to_string(method);
+    if (world_rank() == 0) {
+      std::printf("[sqrt-rotation] %s %s block tol %.0e: %.2e against the dense preconditioned root\n",
+                  op.name().c_str(), rpyfmm::rpy::to_string(method), kTolerance, error);
+    }
+  }
+}
+
+}  // namespace
+
+TEST(MpiDistributedSqrt, RotationBlockPreconditionedSampleIsASquareRootOfTheGrandMobility) {
+  // Each rank factors the 6 x 6 per-particle blocks of S M S within spatial blocks of its own
+  // particles (blocks never straddle ranks), so the sample depends on the partition and its
+  // covariance does not (expect_block_root). With the serial sampler run on one rank with the same
+  // G (GrandShareBlocks) the distributed one agrees bit for bit on every split: the same products,
+  // inner products and G. Where one rank holds every particle, G is the serial preconditioner's
+  // and w the serial DirectRpy::apply_sqrt_rotation's bit for bit.
+  const Particles p = suspension(40, true, 27u);
+  const DenseGrand dense(p);
+  DirectRpy serial(Geometry::open(), kViscosity);
+  serial.set_positions(p.x, p.a);
+  const GrandVectors z = grand_noise(p.size(), 9, 4);
+  for (Split s : kSplits) {
+    const Partition part = partition_of(p.size(), s);
+    DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
+    place(op, p, part);
+    expect_block_root(op, p, s, dense, 0.0);
+    const GrandShareBlocks blocks(p, s, 4);
+    for (SqrtMethod method : {SqrtMethod::lanczos, SqrtMethod::chebyshev}) {
+      SqrtOptions options = sampler(method, SqrtPreconditioner::block, 1e-6);
+      options.preconditioner_block = 4;
+      const GrandVectors expected = serial_share_rotation(serial, blocks, z, options);
+      const auto [w, report] = distributed_rotation(op, part, z, options);
+      EXPECT_EQ(bitwise_mismatches(w.t, share(expected.t, 3, part.offset, part.n)) +
+                    bitwise_mismatches(w.r, share(expected.r, 3, part.offset, part.n)),
+                0u)
+          << rpyfmm::rpy::to_string(method) << " with the same G, rank " << world_rank() << " of " << world_size();
+    }
+    if (s != Split::last_only && world_size() > 1) continue;
+    for (SqrtMethod method : {SqrtMethod::lanczos, SqrtMethod::chebyshev}) {
+      const SqrtOptions options = sampler(method, SqrtPreconditioner::block, 1e-6);  // automatic block size
+      const auto [expected, serial_report] = serial_rotation(serial, z, options);
+      const auto [w, report] = distributed_rotation(op, part, z, options);
+      EXPECT_EQ(report.iterations, serial_report.iterations);
+      EXPECT_EQ(report.preconditioner_blocks, serial_report.preconditioner_blocks);
+      EXPECT_EQ(bitwise_mismatches(w.t, share(expected.t, 3, part.offset, part.n)) +
+                    bitwise_mismatches(w.r, share(expected.r, 3, part.offset, part.n)),
+                0u)
+          << rpyfmm::rpy::to_string(method) << ", rank " << world_rank();
+    }
+  }
+}
+
+TEST(MpiDistributedSqrt, RotationOnFmmAgreesWithDenseScaledRoot) {
+  // DistributedFmmRpy at tolerance eps = 1e-8 (relative error of its products): the samplers run
+  // on the FMM's S M S + E, |E| <~ eps |S M S|, so the sample moves by at most about
+  // |E| / (2 sqrt(lambda_min)) |z| from the exact root's (the derivative of the matrix square root
+  // at an SPD matrix is bounded by 1 / (2 sqrt(lambda_min)); Higham, Functions of Matrices, SIAM
+  // 2008, Sec. 6.1), i.e. eps kappa / 2 relative to |(S M S)^{1/2} z| >= sqrt(lambda_min) |z|, with
+  // kappa the condition number of S M S from the dense eigenvalues. The bounds: the sampler's
+  // (as with the exact product) plus eps kappa / 2. 100 spheres of different radii, split evenly
+  // and geometrically.
+  const Particles p = suspension(100, true, 25u);
+  const DenseGrand dense(p);
+  const VectorXd eigenvalues = Eigen::SelfAdjointEigenSolver<MatrixXd>(dense.a, Eigen::EigenvaluesOnly).eigenvalues();
+  constexpr double kFmmTolerance = 1e-8;
+  const double product_error = 0.5 * kFmmTolerance * eigenvalues.maxCoeff() / eigenvalues.minCoeff();
+  for (Split s : {Split::even, Split::geometric}) {
+    const Partition part = partition_of(p.size(), s);
+    rpyfmm::mpi::DistributedFmmRpy op(MPI_COMM_WORLD, kViscosity, {.tolerance = kFmmTolerance});
+    op.set_positions(share(p.x, 3, part.offset, part.n), share(p.a, 1, part.offset, part.n));
+    expect_principal_root(op, part, p, dense, product_error);
+    expect_block_root(op, p, s, dense, product_error);
+  }
+  if (world_rank() == 0) std::printf("[sqrt-rotation] FMM product term eps kappa / 2 = %.2e\n", product_error);
+}
+
+TEST(MpiDistributedSqrt, RotationBadInputOnOneRankFailsEveryRank) {
+  const int last = world_size() - 1;
+  const Particles p = uniform_particles(40, 10.0, 1.0, 1.0, 62);
+  const Partition part = partition_of(p.size(), Split::even);
+  DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
+  place(op, p, part);
+  const std::size_t n = 3 * part.n;
+  std::vector<double> zt(n, 1.0), zr(n, 1.0), wt(n), wr(n);
+  std::vector<double> bad = zr, long_output(n + (world_rank() == last ? 3 : 0));
+  if (world_rank() == last) bad[4] = std::numeric_limits<double>::quiet_NaN();
+  const std::string prefix = "rank " + std::to_string(last) + " of " + std::to_string(world_size()) + ": ";
+  const auto call = [&](std::span<const double> z_r, std::span<double> w_r, const SqrtOptions& options) {
+    rpyfmm::mpi::sqrt_apply_rotation(op, zt, z_r, wt, w_r, options);
+  };
+  expect_collective_error([&] { call(bad, wr, lanczos(1e-3)); }, ErrorCode::invalid_input,
+                          prefix + "rpyfmm::mpi::sqrt_apply_rotation: local rotational noise entry (1, 1) is NaN");
+  expect_collective_error([&] { call(zr, long_output, lanczos(1e-3)); }, ErrorCode::invalid_input,
+                          prefix + "rpyfmm::mpi::sqrt_apply_rotation: local rotational output has");
+  SqrtOptions dense = lanczos(1e-3);
+  if (world_rank() == last) dense.method = SqrtMethod::eigen;
+  expect_collective_error([&] { call(zr, wr, dense); }, ErrorCode::not_supported,
+                          prefix + "rpyfmm::mpi::sqrt_apply_rotation: method 'eigen' is not offered across ranks");
+  if (world_size() > 1) {
+    SqrtOptions block = lanczos(1e-3);
+    if (world_rank() == last) block.preconditioner = SqrtPreconditioner::block;
+    expect_collective_error([&] { call(zr, wr, block); }, ErrorCode::invalid_argument,
+                            "rpyfmm::mpi::sqrt_apply_rotation: the ranks pass different options");
+  }
+  EXPECT_NO_THROW(call(zr, wr, lanczos(1e-3)));
 }

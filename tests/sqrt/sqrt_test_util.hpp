@@ -4,6 +4,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <numbers>
@@ -98,6 +99,38 @@ inline rpyfmm::rpy::LinearOperatorView view_of(const Eigen::MatrixXd& M) {
 inline Eigen::MatrixXd principal_sqrt(const Eigen::MatrixXd& M) {
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(M);
   return es.eigenvectors() * es.eigenvalues().cwiseSqrt().asDiagonal() * es.eigenvectors().transpose();
+}
+
+/// The grand mobility [U; W] = M [F; T] as a dense 6N x 6N matrix, rows and columns ordered
+/// [translation (3N); rotation (3N)], one column per unit force or torque.
+inline Eigen::MatrixXd grand_dense(const rpyfmm::rpy::MobilityOperator& op) {
+  const std::size_t n = 3 * op.size();
+  Eigen::MatrixXd M(2 * n, 2 * n);
+  std::vector<double> f(n), t(n), u(n), w(n);
+  for (std::size_t col = 0; col < 2 * n; ++col) {
+    std::fill(f.begin(), f.end(), 0.0);
+    std::fill(t.begin(), t.end(), 0.0);
+    (col < n ? f[col] : t[col - n]) = 1.0;
+    op.apply(f, t, u, w);
+    for (std::size_t k = 0; k < n; ++k) {
+      M(static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(col)) = u[k];
+      M(static_cast<Eigen::Index>(n + k), static_cast<Eigen::Index>(col)) = w[k];
+    }
+  }
+  return M;
+}
+
+/// The diagonal of S = diag(I_3N, a_i I_3) (the scaling documented in mobility.hpp).
+inline Eigen::VectorXd scaling(const std::vector<double>& a) {
+  const auto n = static_cast<Eigen::Index>(3 * a.size());
+  Eigen::VectorXd s = Eigen::VectorXd::Ones(2 * n);
+  for (Eigen::Index k = 0; k < n; ++k) s(n + k) = a[static_cast<std::size_t>(k / 3)];
+  return s;
+}
+
+/// |S (w - ref)| / |S ref|: the relative error in the norm the tolerance refers to.
+inline double scaled_error(const Eigen::VectorXd& w, const Eigen::VectorXd& ref, const Eigen::VectorXd& s) {
+  return (s.asDiagonal() * (w - ref)).norm() / (s.asDiagonal() * ref).norm();
 }
 
 /// Standard normal vector from a fixed-seed std generator (test-only).

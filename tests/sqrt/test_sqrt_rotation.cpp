@@ -29,32 +29,9 @@ using Eigen::Index;
 using Eigen::MatrixXd;
 using Eigen::VectorXd;
 
-/// The grand mobility [U; W] = M [F; T] as a dense 6N x 6N matrix, rows and columns ordered
-/// [translation (3N); rotation (3N)], one column per unit force or torque.
-MatrixXd grand_dense(const MobilityOperator& op) {
-  const std::size_t n = 3 * op.size();
-  MatrixXd M(2 * n, 2 * n);
-  std::vector<double> f(n), t(n), u(n), w(n);
-  for (std::size_t col = 0; col < 2 * n; ++col) {
-    std::fill(f.begin(), f.end(), 0.0);
-    std::fill(t.begin(), t.end(), 0.0);
-    (col < n ? f[col] : t[col - n]) = 1.0;
-    op.apply(f, t, u, w);
-    for (std::size_t k = 0; k < n; ++k) {
-      M(static_cast<Index>(k), static_cast<Index>(col)) = u[k];
-      M(static_cast<Index>(n + k), static_cast<Index>(col)) = w[k];
-    }
-  }
-  return M;
-}
-
-/// The diagonal of S = diag(I_3N, a_i I_3) (the scaling documented in mobility.hpp).
-VectorXd scaling(const std::vector<double>& a) {
-  const auto n = static_cast<Index>(3 * a.size());
-  VectorXd s = VectorXd::Ones(2 * n);
-  for (Index k = 0; k < n; ++k) s(n + k) = a[static_cast<std::size_t>(k / 3)];
-  return s;
-}
+using sqrt_test::grand_dense;
+using sqrt_test::scaled_error;
+using sqrt_test::scaling;
 
 /// One sample: [w_t; w_r] for the noise [z_t; z_r] = z (6N).
 VectorXd sample(const MobilityOperator& op, const VectorXd& z, const SqrtOptions& options,
@@ -78,11 +55,6 @@ VectorXd philox_noise(std::size_t N, std::uint64_t seed, std::uint64_t step) {
   fill_normal(std::span<double>(z.data(), 3 * N), seed, step);
   fill_normal(std::span<double>(z.data() + 3 * N, 3 * N), seed, step + (std::uint64_t{1} << 32));
   return z;
-}
-
-/// |S (w - ref)| / |S ref|: the relative error in the norm the tolerance refers to.
-double scaled_error(const VectorXd& w, const VectorXd& ref, const VectorXd& s) {
-  return (s.asDiagonal() * (w - ref)).norm() / (s.asDiagonal() * ref).norm();
 }
 
 struct Suspension {

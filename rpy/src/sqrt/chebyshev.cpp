@@ -14,6 +14,7 @@
 // the spectrum lies in [a, b] (reported as error_estimate).
 #include <cmath>
 #include <numbers>
+#include <span>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -89,8 +90,11 @@ SqrtReport chebyshev_sqrt_in_space(const ChebyshevProducts& products, const doub
   double a = options.lambda_min;
   double b = options.lambda_max;
   if (a == 0.0 && b == 0.0) {
-    std::vector<double> start(products.entries);
-    fill_bound_start(start, products.first_entry);
+    std::vector<double> start(products.segments * products.entries);
+    for (std::size_t s = 0; s < products.segments; ++s) {
+      fill_bound_start(std::span<double>(start).subspan(s * products.entries, products.entries),
+                       products.first_entry + s * products.segment_stride);
+    }
     const SpectrumBounds est = estimate_spectrum_bounds_in_space(products.space, products.one, start.data(),
                                                                  options.bound_estimate_iterations);
     a = est.lambda_min;

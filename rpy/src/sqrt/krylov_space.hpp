@@ -96,7 +96,9 @@ SpectrumBounds estimate_spectrum_bounds_in_space(KrylovSpace& space, const Krylo
 /// estimate's Lanczos steps), `all` the recurrence's vectors of `len` entries (one right-hand
 /// side, several one after another, or a rank's share), counting the call in the report and
 /// checking the result. `first_entry` / `entries`: the global index of the space's first entry in
-/// this memory and their number (the bound estimate's start vector).
+/// this memory and their number (the bound estimate's start vector). Where this memory holds
+/// `segments` such runs of `entries` one after another (a rank's shares of the translations and
+/// the rotations), run s starts at global entry first_entry + s * segment_stride.
 struct ChebyshevProducts {
   KrylovSpace& space;
   KrylovProduct one;
@@ -104,6 +106,8 @@ struct ChebyshevProducts {
   std::size_t entries = 0;
   std::function<void(const double* x, double* y, SqrtReport& report)> all;
   std::size_t len = 0;
+  std::size_t segments = 1;
+  std::size_t segment_stride = 0;
 };
 
 /// w = p_d(M) z by the Chebyshev square root (Fixman 1986; chebyshev_sqrt's bounds, degree,

@@ -1,5 +1,6 @@
-// rpyfmm — Brownian displacements w = M^{1/2} z on particles distributed over MPI ranks
-// (docs/mpi.md): the Lanczos square root (Ando, Chow & Saad, J. Chem. Phys. 137, 064106 (2012)) and
+// rpyfmm — Brownian displacements w = M^{1/2} z on particles distributed over MPI ranks, and with
+// rotation the displacements and rotations of the grand mobility (docs/mpi.md, "Samplers"): the
+// Lanczos square root (Ando, Chow & Saad, J. Chem. Phys. 137, 064106 (2012)) and
 // the Chebyshev square root (Fixman, Macromolecules 19, 1204 (1986); docs/theory/samplers.md) with
 // global inner products, optionally with the block preconditioner of each rank's particles, and the
 // serial samplers' noise for each rank's share of the particles.
@@ -24,7 +25,10 @@ namespace rpyfmm::mpi {
 /// rpy::fill_normal draws for particles [offset, offset + local_z.size() / 3) of the whole set,
 /// bit for bit, so a particle's noise depends on (seed, step, stream, global index) only, not on
 /// the partition. Throws rpyfmm::Error as rpy::fill_normal does (size not a multiple of 3,
-/// stream >= 2^31).
+/// stream >= 2^31). The serial BD engine's noise of a step with rotation (bd/rotation_sampling.hpp)
+/// is stream 0 for z_t and stream bd::kRotationNoiseStream (3) for z_r: fill_normal(local_z_t,
+/// offset, seed, step) and fill_normal(local_z_r, offset, seed, step, bd::kRotationNoiseStream),
+/// with offset = op.offset(), are the rank's shares of that z_t and z_r.
 void fill_normal(std::span<double> local_z, std::size_t offset, std::uint64_t seed, std::uint64_t step,
                  std::uint32_t stream = 0);
 
@@ -54,5 +58,31 @@ rpy::SqrtReport sqrt_apply(const DistributedDirectRpy& op, std::span<const doubl
 /// depend on the number of ranks). `inner_products_seconds` as above.
 rpy::SqrtReport sqrt_apply(const DistributedFmmRpy& op, std::span<const double> local_z, std::span<double> local_w,
                            const rpy::SqrtOptions& options, double* inner_products_seconds = nullptr);
+
+/// Collective. [w_t; w_r] = S^{-1} (S M S)^{1/2} [z_t; z_r] on this rank's share (each array
+/// 3 op.local_size() entries): the Brownian displacements and rotations of the grand mobility M
+/// with rotation (covariance M), by the serial rpy::MobilityOperator::apply_sqrt_rotation's
+/// scaling S = diag(I, a_i I) and samplers (the tolerance bounds the error relative to |S B z|, the
+/// rotations weighted by a_i). The global vector is [x_t; x_r], the translations of all ranks in
+/// rank order and then their scaled rotations, as the serial sampler's; every inner product over it
+/// is summed in the serial order (mpi/src/krylov_space.hpp). Methods, options and their checks as
+/// sqrt_apply:
+/// - preconditioner none or automatic (none): with DistributedDirectRpy, bit for bit this rank's
+///   share of what DirectRpy::apply_sqrt_rotation gives on the whole set, for Lanczos and
+///   Chebyshev, whatever the number of ranks and the partition.
+/// - block: G the rpy::BlockPreconditioner of this rank's own particles for the scaled grand
+///   mobility (rpy::PreconditionedMatrix::scaled_grand: 6 rows per particle); the sample depends on
+///   the partition, its covariance does not. Where one rank holds every particle it is bit for bit
+///   the serial preconditioned sampler.
+/// With DistributedFmmRpy the product is the FMM's (within its tolerance of M).
+/// `inner_products_seconds` as above.
+rpy::SqrtReport sqrt_apply_rotation(const DistributedDirectRpy& op, std::span<const double> local_z_translation,
+                                    std::span<const double> local_z_rotation, std::span<double> local_w_translation,
+                                    std::span<double> local_w_rotation, const rpy::SqrtOptions& options,
+                                    double* inner_products_seconds = nullptr);
+rpy::SqrtReport sqrt_apply_rotation(const DistributedFmmRpy& op, std::span<const double> local_z_translation,
+                                    std::span<const double> local_z_rotation, std::span<double> local_w_translation,
+                                    std::span<double> local_w_rotation, const rpy::SqrtOptions& options,
+                                    double* inner_products_seconds = nullptr);
 
 }  // namespace rpyfmm::mpi
