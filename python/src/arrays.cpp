@@ -79,6 +79,12 @@ std::size_t require_points(const InArray& a, const std::string& where, const std
   fail(ErrorCode::invalid_input, where, name + " has shape " + shape_string(a.shape) + ", expected (N, 3) or (3N,)");
 }
 
+std::size_t block_count(const InArray& a, const std::string& where, const std::string& name) {
+  if ((a.ndim() == 3 && a.shape[2] == 3) || a.ndim() == 2) return a.shape[0];
+  fail(ErrorCode::invalid_input, where,
+       name + " has shape " + shape_string(a.shape) + ", expected (nrhs, N, 3) or (nrhs, 3N)");
+}
+
 OutArray make_output(nb::handle out, const std::vector<std::size_t>& shape, const std::string& where,
                      const InArray* input) {
   OutArray result;

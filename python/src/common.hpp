@@ -104,6 +104,9 @@ Radii radii_from(RadiusArg radius, const std::string& where);
 /// Checks that `a` is points data: (N, 3) or (3N,); returns N.
 std::size_t require_points(const InArray& a, const std::string& where, const std::string& name);
 
+/// Checks that `a` is a block of right-hand sides: (nrhs, N, 3) or (nrhs, 3N); returns nrhs.
+std::size_t block_count(const InArray& a, const std::string& where, const std::string& name);
+
 /// An output buffer: a new NumPy array or the caller's `out`.
 struct OutArray {
   nb::object object;  ///< what the binding returns (`out` itself when given)

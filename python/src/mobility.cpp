@@ -46,13 +46,6 @@ void set_positions(MobilityOperator& op, ArrayArg positions, RadiusArg radius) {
   op.set_positions(x.span(), a);
 }
 
-/// Shape checks of a block argument: (nrhs, N, 3) or (nrhs, 3N); returns nrhs.
-std::size_t block_count(const InArray& a, const std::string& where, const std::string& name) {
-  if ((a.ndim() == 3 && a.shape[2] == 3) || a.ndim() == 2) return a.shape[0];
-  fail(ErrorCode::invalid_input, where,
-       name + " has shape " + shape_string(a.shape) + ", expected (nrhs, N, 3) or (nrhs, 3N)");
-}
-
 /// The shape of every U = A F binding: forces (N, 3) or (3N,) in, the same shape out, GIL released.
 template <class Fn>
 ArrayResult map_points(const std::string& where, ArrayArg forces, OutArg out, Fn&& fn) {

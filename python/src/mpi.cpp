@@ -246,6 +246,41 @@ void add_rotation_apply(Class<Op>& cls) {
           "True: apply accepts torques (the grand mobility with rotation).");
 }
 
+/// U_r = M F_r for a block of right-hand sides on this rank's share ((nrhs, n, 3) or (nrhs, 3n)), one
+/// pass for all of them (the operator's apply_block); the arrays' checks agreed over the ranks.
+template <class Op>
+ArrayResult apply_block(const WithComm<Op>& self, ArrayArg forces, OutArg out) {
+  const std::string where = "apply_block";
+  struct Args {
+    InArray f;
+    OutArray u;
+    std::size_t nrhs = 0;
+  };
+  Args a = agreed(self.op.communicator(), [&] {
+    InArray f = as_input(forces, where, "forces");
+    const std::size_t nrhs = block_count(f, where, "forces");
+    OutArray u = make_output(out, f.shape, where, &f);
+    return Args{std::move(f), std::move(u), nrhs};
+  });
+  {
+    nb::gil_scoped_release release;
+    self.op.apply_block(a.f.span(), a.u.span(), a.nrhs);
+  }
+  return ArrayResult{a.u.object};
+}
+
+const char* kApplyBlockDoc =
+    "Collective. U_r = M F_r for nrhs right-hand sides on this rank's particles: forces (nrhs, n, 3) or\n"
+    "(nrhs, 3n), every rank the same nrhs; returns the velocities in the same shape. One pass over the\n"
+    "ranks for all of them; each right-hand side equals apply of it alone bit for bit (docs/mpi.md).";
+
+/// apply_block, for the operators that offer several right-hand sides per pass.
+template <class Op>
+void add_apply_block(Class<Op>& cls) {
+  cls.def("apply_block", locked("apply_block", &apply_block<Op>), nb::arg("forces"), nb::arg("out") = nb::none(),
+          kApplyBlockDoc);
+}
+
 void bind_distributed_direct(nb::module_& m) {
   Class<mpi::DistributedDirectRpy> cls(m, "DistributedDirectRpy",
                                        "Exact O(N^2) RPY mobility on particles distributed over the ranks (free "
@@ -255,6 +290,7 @@ void bind_distributed_direct(nb::module_& m) {
           "Collective. comm: an mpi4py communicator; viscosity: eta > 0.");
   add_common(cls, kKrylovSqrtDoc, false);
   add_rotation_apply(cls);
+  add_apply_block(cls);
 }
 
 void init_fmm(Fmm* self, nb::object comm, double viscosity, double tolerance, int leaf_capacity,
@@ -281,6 +317,7 @@ void bind_distributed_fmm(nb::module_& m) {
           "Requested relative l2 error of U (and of W with torques).");
   add_common(cls, kKrylovSqrtDoc, false);
   add_rotation_apply(cls);
+  add_apply_block(cls);
 }
 
 void init_pse(Pse* self, nb::object comm, BoxArg box, double viscosity, double tolerance, double xi, double r_cut,

@@ -198,6 +198,41 @@ def test_fmm_rotation_within_tolerance(tolerance: float) -> None:
     assert np.array_equal(op.apply(f[part], np.zeros_like(t[part]))[0], op.apply(f[part]))
 
 
+@pytest.mark.parametrize("kind", ["direct", "fmm"])
+@pytest.mark.parametrize("flat", [False, True])
+def test_apply_block_columns_are_single_products(kind: str, flat: bool) -> None:
+    x, a, f = system(400, seed=17, radii=True)
+    # Three right-hand sides with loads near 1e300, 1 and 1e-300: each is scaled by its own power
+    # of two, so none underflows or overflows beside the others.
+    block = np.stack([1e300 * f, f[::-1].copy(), 1e-300 * np.roll(f, 1, axis=0)])
+    part = share(len(x), empty_first=True)
+    op = {
+        "direct": lambda: rpyfmm.mpi.DistributedDirectRpy(COMM, viscosity=0.7),
+        "fmm": lambda: rpyfmm.mpi.DistributedFmmRpy(COMM, viscosity=0.7, tolerance=1e-6),
+    }[kind]()
+    op.set_positions(x[part], a[part])
+    local = block[:, part, :]
+    if flat:
+        local = local.reshape(3, -1)
+    u = op.apply_block(local)
+    singles = [op.apply(local[r]) for r in range(3)]
+    out = np.empty_like(local)
+    same_out = op.apply_block(local, out=out)
+    with pytest.raises(rpyfmm.InvalidInputError) as caught:
+        op.apply_block(local[:, :-1] if RANK == SIZE - 1 else local)
+    messages = COMM.allgather(str(caught.value))
+    # docs/mpi.md: each right-hand side of apply_block equals apply of it alone, bit for bit.
+    assert u.shape == local.shape
+    assert all(np.array_equal(u[r], singles[r]) for r in range(3))
+    assert same_out is out and np.array_equal(out, u)
+    assert all(m == messages[0] for m in messages) and f"rank {SIZE - 1} of {SIZE}" in messages[0]
+    if kind == "direct":
+        serial = rpyfmm.DirectRpy(viscosity=0.7)
+        serial.set_positions(x, a)
+        whole = np.concatenate(COMM.allgather(u.reshape(3, -1, 3)), axis=1)
+        assert np.array_equal(whole, serial.apply_block(block))
+
+
 def test_fmm_sqrt_covariance_product() -> None:
     # w = M_fmm^{1/2} z on the ranks: M_fmm^{-1/2} cannot be checked directly, but w . w = z . M_fmm z
     # up to the sampler's tolerance, with M_fmm z from apply.
