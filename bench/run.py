@@ -11,7 +11,8 @@ kernels), rpy (RPY operators: FmmRpy, DirectRpy), pse (PSE on the CPU), pse-gpu 
 where a GPU is present), bd-gpu (the device BD engine at 1e6 particles and the CPU engine beside it,
 only where a GPU is present), samplers (Lanczos, Chebyshev, block preconditioner), bd (BD steps), sac
 (Tran et al. (2015)'s Table 4 alumina-silica systems), rigid (rigid-body mobility solves and steps),
-mpi (the distributed FMM, direct RPY operator and free-draining BD on 1-4 ranks).
+mpi (the distributed FMM, direct RPY operator and free-draining BD on 1-4 ranks), mpi-block
+(apply_block against single products of the distributed RPY operators on 1 and 2 ranks).
 
 Every case runs at 1 thread (the per-core figure) and at all cores; each program reports the median
 of its own repetitions and the driver the median over --rounds runs. --compare COMMIT builds COMMIT in
@@ -245,6 +246,15 @@ def mpi_cases(mode: str) -> list[Case]:
             for p in (1, 2, 3, 4)]
 
 
+def mpi_block_cases(mode: str) -> list[Case]:
+    """apply_block with 4 right-hand sides against 4 applies, DistributedDirectRpy and DistributedFmmRpy on
+    1 and 2 ranks of one thread each (bench/mpi/bench_mpi_block)."""
+    sizes = {"direct": "2e4", "fmm": "1e5"} if mode == "full" else {"direct": "1e4", "fmm": "5e4"}
+    return [Case(["mpi/bench_mpi_ranks", str(p), "bench_mpi_block", "--method", method, "--n", n, "--nrhs", "4",
+                  "--eps", "1e-6", "--reps", "3"], 1, {})
+            for method, n in sizes.items() for p in (1, 2)]
+
+
 GROUPS = [
     Group("fmm", "Laplace FMM against fmm3dpy",
           "One evaluation of potential, gradient and Hessian at the sources (LaplaceFmm, adaptive plane-wave "
@@ -390,6 +400,19 @@ GROUPS = [
            ("comm s", "eval_comm_s", "{:.4f}"), ("plan MB", "plan_MB", "{:.2f}"), ("eval MB", "eval_MB", "{:.2f}"),
            ("essential", "essential_max", "{:.0f}"), ("serial s", "serial_s", "{:.4f}")],
           keys=("method", "scaling", "ranks", "N")),
+    Group("mpi-block", "Several right-hand sides per product across MPI ranks",
+          "apply_block with nrhs = 4 right-hand sides against 4 calls of apply on the same operator and shares "
+          "(docs/mpi.md, \"Several right-hand sides\"): DistributedDirectRpy (one pass of the source blocks for "
+          "every right-hand side) and DistributedFmmRpy at eps 1e-6 (one distributed Laplace evaluation carrying "
+          "the densities of every right-hand side), N spheres of radius 0.001 uniform in the unit cube, P ranks of "
+          "one OpenMP thread each. block s and 4 x apply s = medians of 3 (the slowest rank's); serial FMM s = the "
+          "owners' serial Laplace FMM inside one apply_block and one apply (fmm only).",
+          ["bench_mpi_block"], mpi_block_cases, parse_json_lines, "block_s",
+          [("method", "method", "{}"), ("ranks", "ranks", "{}"), ("N", "N", "{:.2g}"), ("nrhs", "nrhs", "{}"),
+           ("block s", "block_s", "{:.3f}"), ("4 x apply s", "singles_s", "{:.3f}"),
+           ("speed-up", "speedup", "{:.2f}"), ("serial FMM s, block", "block_fmm_s", "{:.3f}"),
+           ("serial FMM s, apply", "single_fmm_s", "{:.3f}")],
+          keys=("method", "ranks", "N", "nrhs")),
 ]
 GROUP_BY_NAME = {g.name: g for g in GROUPS}
 TIME_COLUMNS = {"solve": "solve_s", "step": "step_s"}  # rigid: the time column of each program
@@ -476,8 +499,11 @@ def configure(source: Path, build: Path, like: Path | None) -> None:
 
 
 def available_targets(build: Path) -> set[str]:
+    """The targets of a build: Makefiles list them as "... NAME", Ninja as "NAME: RULE"."""
     out = subprocess.run(["cmake", "--build", str(build), "--target", "help"], capture_output=True, text=True).stdout
-    return {line.split()[-1].split(":")[0] for line in out.splitlines() if line.startswith("...") or ":" in line}
+    lines = out.splitlines()
+    return {line.split()[1] for line in lines if line.startswith("... ")} | {
+        line.split(":")[0].strip() for line in lines if not line.startswith("...") and ":" in line}
 
 
 def build_targets(source: Path, build: Path, targets: list[str], like: Path | None = None) -> None:
