@@ -37,6 +37,7 @@ constexpr std::size_t kPositionColumns = 4;
 constexpr std::size_t packed_columns(std::size_t nrhs, bool rotation) {
   return kPositionColumns + 3 * nrhs + (rotation ? 3 : 0);
 }
+constexpr std::size_t kPackedForces = packed_columns(1, false);
 constexpr std::size_t kPackedRotation = packed_columns(1, true);
 // The broadcast in flight is polled (MPI_Test lets it progress) between batches of targets: about
 // eight batches per block, each at least 64 targets per thread (add_direct_block_sums hands out
@@ -133,10 +134,11 @@ void DistributedDirectRpy::set_positions(std::span<const double> local_positions
   // Same values on every rank, so every rank throws alike here without agreement.
   std::uint64_t total = 0;
   for (std::size_t n : all) {
-    // kPackedRotation: the blocks of a product with rotation are the larger ones.
-    require(n <= static_cast<std::size_t>(INT_MAX) / kPackedRotation, ErrorCode::not_supported, kSetPositions,
+    // The blocks of a force-only product (kPackedForces doubles per particle); a product with
+    // torques, whose blocks are larger, checks its own (apply with rotation).
+    require(n <= static_cast<std::size_t>(INT_MAX) / kPackedForces, ErrorCode::not_supported, kSetPositions,
             "a rank holds " + std::to_string(n) + " particles: more than MPI's int counts address in one block (" +
-                std::to_string(INT_MAX / kPackedRotation) + ")");
+                std::to_string(INT_MAX / kPackedForces) + ")");
     total += n;
   }
   require(total > 0, ErrorCode::invalid_input, kSetPositions,
@@ -236,6 +238,13 @@ void DistributedDirectRpy::apply_block(std::span<const double> local_forces, std
 
 void DistributedDirectRpy::apply(std::span<const double> local_forces, std::span<const double> local_torques,
                                  std::span<double> local_velocities, std::span<double> local_angular_velocities) const {
+  // A source block with torques carries kPackedRotation doubles per particle in one broadcast of an
+  // int count. counts_ is the same on every rank, so every rank throws alike here.
+  const std::size_t largest_share = global_n_ > 0 ? *std::max_element(counts_.begin(), counts_.end()) : 0;
+  require(largest_share <= static_cast<std::size_t>(INT_MAX) / kPackedRotation, ErrorCode::not_supported, kApply,
+          "with torques: a rank holds " + std::to_string(largest_share) +
+              " particles, more than MPI's int counts address in one block with torques (" +
+              std::to_string(INT_MAX / kPackedRotation) + ")");
   product(kApply, 1, true, local_forces, local_torques, local_velocities, local_angular_velocities);
 }
 

@@ -94,8 +94,10 @@ class DistributedDirectRpy {
   /// Collective. [U; W] = M [F; T], the grand mobility with rotation, for this rank's particles:
   /// forces, torques, velocities and angular velocities of 3 local_size() entries each (see the
   /// header comment for how the result compares with DirectRpy's). Throws rpyfmm::Error on every
-  /// rank when positions are not set, or when any rank passes arrays of the wrong size or forces or
-  /// torques with NaN/Inf, and on what DirectRpy::apply refuses (a product beyond double precision).
+  /// rank when positions are not set, when a rank holds more than INT_MAX / 10 particles (a source
+  /// block with torques beyond MPI's int count: not_supported), or when any rank passes arrays of
+  /// the wrong size or forces or torques with NaN/Inf, and on what DirectRpy::apply refuses (a
+  /// product beyond double precision).
   void apply(std::span<const double> local_forces, std::span<const double> local_torques,
              std::span<double> local_velocities, std::span<double> local_angular_velocities) const;
   /// Collective. U_r = M F_r for nrhs right-hand sides (r < nrhs) in one pass of the source blocks:
