@@ -7,8 +7,7 @@
 // ([U; W] = M [F; T]) against PseRpy's to round-off on the same sets and splits, zero torques against
 // the translational product; the split sampler with rotation (apply_sqrt_rotation) against PseRpy's
 // to round-off with the same Lanczos iteration count, also with zero rotational noise; and
-// collective failure (every rank throws the same message, none
-// hangs) on bad input of one rank.
+// collective failure (every rank throws the same message, none hangs) on bad input of one rank.
 #include <gtest/gtest.h>
 #include <mpi.h>
 
