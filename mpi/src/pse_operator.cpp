@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <initializer_list>
 #include <limits>
 #include <string>
 
@@ -61,6 +62,17 @@ std::vector<double> agreed_values(const rpy::Geometry& g, double viscosity, cons
           o.pair_density};
 }
 
+// The split sampler's options, checked on this rank (apply_sqrt, apply_sqrt_rotation): method
+// automatic or split (the generic solvers are not offered across ranks), no block preconditioner.
+void check_split_options(const rpy::SqrtOptions& options, const char* where) {
+  require(options.method == rpy::SqrtMethod::automatic || options.method == rpy::SqrtMethod::split,
+          ErrorCode::not_supported, where,
+          std::string("method '") + rpy::to_string(options.method) +
+              "' is not offered across ranks (automatic or split: the PSE split sampler)");
+  require(options.preconditioner != rpy::SqrtPreconditioner::block, ErrorCode::not_supported, where,
+          "the block preconditioner serves the Lanczos and Chebyshev samplers only, not the split sampler");
+}
+
 }  // namespace
 
 struct DistributedPseRpy::Impl {
@@ -90,12 +102,17 @@ struct DistributedPseRpy::Impl {
   // w = M_r^{1/2} z1 + M_w^{1/2} z2(key): the split sampler's two parts ([PSE] eqs. 17-21).
   [[nodiscard]] rpy::SqrtReport split_sample(const std::vector<double>& z1, const rpy::pse::detail::NoiseKey& key,
                                              std::span<double> w) const;
-  // pse::noise_hash of the concatenation of the ranks' z (collective).
-  [[nodiscard]] std::uint64_t noise_hash(std::span<const double> local_z) const;
+  // pse::noise_hash of the global vector whose segments are each the concatenation of the ranks'
+  // shares in rank order: [z] for apply_sqrt, [z_t; z_r] with rotation (collective).
+  [[nodiscard]] std::uint64_t noise_hash(std::initializer_list<std::span<const double>> local_segments) const;
+  // The hash chain h continued over one segment's shares in rank order (collective).
+  [[nodiscard]] std::uint64_t chain_hash(std::uint64_t h, std::span<const double> local_z) const;
   // apply()'s and apply_with_noise's checks of this rank's arrays (collective).
   void check_arrays(std::span<const double> forces, std::span<double> velocities, const char* where) const;
   // M_r^{1/2} z1 by the serial Lanczos iteration on a distributed basis (w: 3 local_n).
   [[nodiscard]] rpy::SqrtReport real_sqrt(const std::vector<double>& z1, double* w) const;
+  // (S M_r S)^{1/2} z with rotation, S = diag(I, a I), z and w this rank's [x_t; x_r] (6 local_n).
+  [[nodiscard]] rpy::SqrtReport real_sqrt_rotation(const std::vector<double>& z, double* w) const;
   // apply_with_noise, z1 keyed by the rank order (indices null) or by the given global indices.
   [[nodiscard]] rpy::SqrtReport fused(std::span<const double> forces, double noise_scale, std::uint64_t seed,
                                       std::uint64_t step, const std::span<const std::uint64_t>* indices,
@@ -137,7 +154,31 @@ rpy::SqrtReport DistributedPseRpy::Impl::split_sample(const std::vector<double>&
   return report;
 }
 
-std::uint64_t DistributedPseRpy::Impl::noise_hash(std::span<const double> local_z) const {
+rpy::SqrtReport DistributedPseRpy::Impl::real_sqrt_rotation(const std::vector<double>& z, double* w) const {
+  const std::size_t n3 = 3 * local_n;
+  const double a = params.radius;
+  // PseRpy::do_apply_sqrt_rotation's S M_r S: the translational sum and the rotational blocks over
+  // its neighbour lists, on x_t and the torques a x_r, the rotational rows scaled by a. The basis
+  // holds two segments, translations then rotations (krylov_space.hpp).
+  DistributedKrylovSpace space(comm, rank_counts, 2);
+  std::vector<double> torques(n3);
+  const auto product = [&](const double* x, double* y) {
+    for (std::size_t k = 0; k < n3; ++k) torques[k] = a * x[n3 + k];
+    std::fill(y, y + 2 * n3, 0.0);
+    real->apply_rotation(comm, x, torques.data(), y, y + n3);
+    for (std::size_t k = 0; k < n3; ++k) y[n3 + k] *= a;
+  };
+  return rpy::sqrt_detail::lanczos_sqrt_in_space(space, product, z.data(), w,
+                                                 rpy::pse::detail::real_space_sqrt_options(params.lanczos_tolerance));
+}
+
+std::uint64_t DistributedPseRpy::Impl::noise_hash(std::initializer_list<std::span<const double>> local_segments) const {
+  std::uint64_t h = rpy::pse::detail::noise_hash_start(3 * global_n * local_segments.size());
+  for (const std::span<const double> segment : local_segments) h = chain_hash(h, segment);
+  return h;
+}
+
+std::uint64_t DistributedPseRpy::Impl::chain_hash(std::uint64_t h, std::span<const double> local_z) const {
   // The chain passes the ranks with particles in rank order; the last of them broadcasts the end.
   constexpr int kTag = 19283;
   int previous = -1, next = -1, last = -1;
@@ -147,7 +188,6 @@ std::uint64_t DistributedPseRpy::Impl::noise_hash(std::span<const double> local_
     if (r > comm.rank() && next < 0) next = r;
     last = r;
   }
-  std::uint64_t h = rpy::pse::detail::noise_hash_start(3 * global_n);
   if (local_n > 0) {
     if (previous >= 0) {
       check_mpi(MPI_Recv(&h, 1, MPI_UINT64_T, previous, kTag, comm.get(), MPI_STATUS_IGNORE), "MPI_Recv");
@@ -345,20 +385,56 @@ rpy::SqrtReport DistributedPseRpy::apply_sqrt(std::span<const double> local_z, s
   const Impl& im = *impl_;
   require(im.global_n > 0, ErrorCode::invalid_input, where, "positions not set (call set_positions first)");
   im.comm.run([&] {
-    require(options.method == rpy::SqrtMethod::automatic || options.method == rpy::SqrtMethod::split,
-            ErrorCode::not_supported, where,
-            std::string("method '") + rpy::to_string(options.method) +
-                "' is not offered across ranks (automatic or split: the PSE split sampler)");
-    require(options.preconditioner != rpy::SqrtPreconditioner::block, ErrorCode::not_supported, where,
-            "the block preconditioner serves the Lanczos and Chebyshev samplers only, not the split sampler");
+    check_split_options(options, where);
     require_size(local_z, 3 * im.local_n, where, "local noise");
     require_size(std::span<const double>(local_w.data(), local_w.size()), 3 * im.local_n, where, "local output");
     require_finite(local_z, where, "local noise", 3);
   });
   // PseRpy::do_apply_sqrt: z is z1, z2 keyed by the hash of the whole z and step 0.
   const std::vector<double> z1(local_z.begin(), local_z.end());
-  const rpy::SqrtReport report = im.split_sample(z1, {im.noise_hash(local_z), 0}, local_w);
+  const rpy::SqrtReport report = im.split_sample(z1, {im.noise_hash({local_z}), 0}, local_w);
   im.comm.run([&] { rpy::detail::require_finite_result(local_w, where, "local output", "noise"); });
+  return report;
+}
+
+rpy::SqrtReport DistributedPseRpy::apply_sqrt_rotation(std::span<const double> local_z_translation,
+                                                       std::span<const double> local_z_rotation,
+                                                       std::span<double> local_w_translation,
+                                                       std::span<double> local_w_rotation,
+                                                       const rpy::SqrtOptions& options) const {
+  constexpr const char* where = "DistributedPseRpy::apply_sqrt_rotation";
+  const Impl& im = *impl_;
+  require(im.global_n > 0, ErrorCode::invalid_input, where, "positions not set (call set_positions first)");
+  const std::size_t n3 = 3 * im.local_n;
+  const auto output = [](std::span<double> w) { return std::span<const double>(w.data(), w.size()); };
+  im.comm.run([&] {
+    check_split_options(options, where);
+    require_size(local_z_translation, n3, where, "local translational noise");
+    require_size(local_z_rotation, n3, where, "local rotational noise");
+    require_size(output(local_w_translation), n3, where, "local translational output");
+    require_size(output(local_w_rotation), n3, where, "local rotational output");
+    require_finite(local_z_translation, where, "local translational noise", 3);
+    require_finite(local_z_rotation, where, "local rotational noise", 3);
+  });
+  // PseRpy::do_apply_sqrt_rotation: w' = (S M_r S)^{1/2} z on z = [z_t; z_r], [w_t; w_r] = S^-1 w'.
+  std::vector<double> z(2 * n3), w(2 * n3);
+  std::copy(local_z_translation.begin(), local_z_translation.end(), z.begin());
+  std::copy(local_z_rotation.begin(), local_z_rotation.end(), z.begin() + static_cast<std::ptrdiff_t>(n3));
+  rpy::SqrtReport report = im.real_sqrt_rotation(z, w.data());
+  for (std::size_t k = 0; k < n3; ++k) {
+    local_w_translation[k] = w[k];
+    local_w_rotation[k] = w[n3 + k] / im.params.radius;
+  }
+  // + the wave part's noise, the translational field keyed by the hash of the whole [z_t; z_r] and
+  // step 0 (as apply_sqrt keys it by the whole z).
+  const rpy::pse::detail::NoiseKey key{im.noise_hash({local_z_translation, local_z_rotation}), 0};
+  im.wave->add_noise_rotation(key, local_w_translation.data(), local_w_rotation.data(), im.local_n);
+  report.method = rpy::SqrtMethod::split;
+  report.operator_applications += 1;
+  im.comm.run([&] {
+    rpy::detail::require_finite_result(local_w_translation, where, "local translational output", "noise");
+    rpy::detail::require_finite_result(local_w_rotation, where, "local rotational output", "noise");
+  });
   return report;
 }
 

@@ -99,7 +99,7 @@ struct SlabWaveSpace::Slab {
   void transform_forward(fftw_complex* base);
   void scale(bool deterministic, const rpy::pse::detail::NoiseKey* noise, double noise_scale);
   void allocate_rotation();
-  void scale_rotation();
+  void scale_rotation(bool deterministic, const rpy::pse::detail::NoiseKey* noise, double noise_scale);
   void interpolate(const fftw_complex* base, std::vector<double>& shares, std::size_t width, std::size_t at) const;
   void to_particles(std::span<fftw_complex* const> grids, std::span<double* const> outs, std::size_t particles,
                     bool accumulate);
@@ -321,11 +321,15 @@ void SlabWaveSpace::Slab::allocate_rotation() {
   }
 }
 
-// [U; W] of every slab mode from the force and torque spectra (scale_rotation_mode, the serial
-// operator's per-mode scaling with rotation; deterministic, no noise).
-void SlabWaveSpace::Slab::scale_rotation() {
+// [U; W] of every slab mode (scale_rotation_mode, the serial operator's per-mode scaling with
+// rotation): from the force and torque spectra where `deterministic`, plus (or, without it, in
+// place of them) noise_scale times the wave noise of `noise`, the translational field z2 of each
+// mode as scale() draws it (draw_mode_noise), so that U's noise is the translational sampler's.
+void SlabWaveSpace::Slab::scale_rotation(bool deterministic, const rpy::pse::detail::NoiseKey* noise,
+                                         double noise_scale) {
   auto* fs = reinterpret_cast<double*>(data);
   auto* ts = reinterpret_cast<double*>(rotation_data);
+  const double noise_factor = noise_scale / std::sqrt(dv);
   const auto planes = static_cast<std::int64_t>(nx);
 #pragma omp parallel for schedule(static)
   for (std::int64_t lx = 0; lx < planes; ++lx)
@@ -335,9 +339,13 @@ void SlabWaveSpace::Slab::scale_rotation() {
             (static_cast<std::size_t>(lx) * static_cast<std::size_t>(n[1]) + static_cast<std::size_t>(iy)) *
                 static_cast<std::size_t>(nzh) +
             static_cast<std::size_t>(iz);
-        rpy::pse::detail::scale_rotation_mode(static_cast<int>(x0 + lx), iy, iz, idx, modes, ck.data(),
-                                              rotation_factors[idx], fs, ts, true, static_cast<const double*>(nullptr),
-                                              true, 0.0);
+        const int ix = static_cast<int>(x0 + lx);
+        double z[6];
+        const bool representative =
+            noise == nullptr || rpy::pse::detail::draw_mode_noise(ix, iy, iz, modes, noise->seed, noise->step, z);
+        rpy::pse::detail::scale_rotation_mode(ix, iy, iz, idx, modes, ck.data(), rotation_factors[idx], fs, ts,
+                                              deterministic, noise != nullptr ? z : static_cast<const double*>(nullptr),
+                                              representative, noise_factor);
       }
 }
 
@@ -369,10 +377,20 @@ void SlabWaveSpace::apply_rotation(const double* forces, const double* torques, 
   s.spread(received, 6, 3, s.rotation_data);
   s.transform_forward(s.data);
   s.transform_forward(s.rotation_data);
-  s.scale_rotation();
+  s.scale_rotation(true, nullptr, 0.0);
   fftw_complex* const grids[] = {s.data, s.rotation_data};
   double* const outs[] = {velocities, angular};
   s.to_particles(grids, outs, n, false);
+}
+
+void SlabWaveSpace::add_noise_rotation(const rpy::pse::detail::NoiseKey& key, double* velocities, double* angular,
+                                       std::size_t n) {
+  Slab& s = *slab_;
+  s.allocate_rotation();
+  s.scale_rotation(false, &key, 1.0);
+  fftw_complex* const grids[] = {s.data, s.rotation_data};
+  double* const outs[] = {velocities, angular};
+  s.to_particles(grids, outs, n, true);
 }
 
 void SlabWaveSpace::add_noise(const rpy::pse::detail::NoiseKey& key, double* out, std::size_t n) {

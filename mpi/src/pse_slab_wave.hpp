@@ -40,6 +40,11 @@ class SlabWaveSpace {
   /// Collective: out += M_w^{1/2} z2 for this rank's n particles, z2 the wave-space noise of `key`
   /// ([PSE] eq. 21; the serial double grids' field, mode by mode).
   void add_noise(const rpy::pse::detail::NoiseKey& key, double* out, std::size_t n);
+  /// Collective: [U; W] += M_w^{1/2} z2 with rotation for this rank's n particles (3 n each), as
+  /// the serial WaveSpace::apply_rotation forms the noise alone: the translational field z2 of
+  /// `key` scaled per mode by scale_rotation_mode (rotation_modes.hpp), so that U's part equals
+  /// add_noise's for the same key to round-off. Allocates the torque slabs on the first call, as apply_rotation.
+  void add_noise_rotation(const rpy::pse::detail::NoiseKey& key, double* velocities, double* angular, std::size_t n);
 
   /// Particles (with multiplicity) this rank sent to other slabs and received from other ranks.
   [[nodiscard]] std::size_t sent() const;

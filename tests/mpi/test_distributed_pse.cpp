@@ -5,8 +5,9 @@
 // the noise keyed by given global indices) against PseRpy's to round-off; the accuracy against the
 // serial operator's single-precision grids at its tolerance; the grand mobility with rotation
 // ([U; W] = M [F; T]) against PseRpy's to round-off on the same sets and splits, zero torques against
-// the translational product; and collective failure (every rank throws the same message, none
-// hangs) on bad input of one rank.
+// the translational product; the split sampler with rotation (apply_sqrt_rotation) against PseRpy's
+// to round-off with the same Lanczos iteration count, also with zero rotational noise; and
+// collective failure (every rank throws the same message, none hangs) on bad input of one rank.
 #include <gtest/gtest.h>
 #include <mpi.h>
 
@@ -179,6 +180,63 @@ void expect_grand_round_off(const Particles& p, const Geometry& box, const PseOp
     if (world_rank() == 0) {
       std::printf("  [pse rotation] N = %zu, split %d: relative difference U %.2e, W %.2e\n", p.size(),
                   static_cast<int>(split), du, dw);
+    }
+  }
+}
+
+// The split sampler with rotation on one operator: [w_t; w_r] for the noise [z_t; z_r] and its report.
+struct GrandSample {
+  Grand w;
+  rpyfmm::rpy::SqrtReport report;
+};
+
+// PseRpy::apply_sqrt_rotation (split) on the whole set (every rank computes it: the sets are small).
+GrandSample serial_grand_sample(const Particles& p, const std::vector<double>& zt, const std::vector<double>& zr,
+                                const Geometry& box, const PseOptions& options) {
+  PseRpy serial(box, kViscosity, options);
+  serial.set_positions(p.x, p.a[0]);
+  GrandSample g{{std::vector<double>(3 * p.size()), std::vector<double>(3 * p.size())}, {}};
+  rpyfmm::rpy::SqrtOptions split;
+  split.method = rpyfmm::rpy::SqrtMethod::split;
+  g.report = serial.apply_sqrt_rotation(zt, zr, g.w.u, g.w.w, split);
+  return g;
+}
+
+// Distributes `p` and the noise [z_t; z_r] (z_r zero where `zero_rotation`) by every split, samples
+// with apply_sqrt_rotation on the shares and expects w_t and w_r each within kRoundOff of PseRpy's
+// (relative 2-norm over all ranks), the serial Lanczos iteration count, and a repeated sample with
+// the same bits. The bound is kRoundOff's, for its reasons: the same Lanczos iteration on S M_r S
+// (products and inner products equal to round-off, so the same iterations), the same wave field
+// (z2 keyed by the hash of the whole z, drawn mode by mode), scaled per mode by the same code.
+// The sampler's covariance (E[w w^T] = M with rotation) is tested on the serial sampler that this
+// one equals: PseSampler.RotationSplitSampleCovarianceEqualsGrandMobility
+// (tests/pse/test_pse_statistics.cpp).
+void expect_grand_sample_round_off(const Particles& p, const Geometry& box, const PseOptions& options,
+                                   std::uint64_t seed, bool zero_rotation) {
+  std::vector<double> zt(3 * p.size()), zr(3 * p.size(), 0.0);
+  rpyfmm::rpy::fill_normal(zt, seed, 1);
+  if (!zero_rotation) rpyfmm::rpy::fill_normal(zr, seed, 2);
+  const GrandSample serial = serial_grand_sample(p, zt, zr, box, options);
+  for (const Split split : kSplits) {
+    const Shares s = shares_of(p.size(), split);
+    DistributedPseRpy op(MPI_COMM_WORLD, box, kViscosity, options);
+    op.set_positions(share(p.x, 3, s.offset, s.n), share(p.a, 1, s.offset, s.n));
+    const std::vector<double> zts = share(zt, 3, s.offset, s.n), zrs = share(zr, 3, s.offset, s.n);
+    std::vector<double> wt(3 * s.n, std::numeric_limits<double>::quiet_NaN()), wr(wt), wt2(wt), wr2(wt);
+    const rpyfmm::rpy::SqrtReport report = op.apply_sqrt_rotation(zts, zrs, wt, wr);
+    op.apply_sqrt_rotation(zts, zrs, wt2, wr2);
+    EXPECT_EQ(bitwise_mismatches(wt, wt2), 0U) << "a repeated sample differs in w_t";
+    EXPECT_EQ(bitwise_mismatches(wr, wr2), 0U) << "a repeated sample differs in w_r";
+    EXPECT_EQ(report.method, rpyfmm::rpy::SqrtMethod::split);
+    EXPECT_EQ(report.iterations, serial.report.iterations);
+    EXPECT_EQ(report.operator_applications, serial.report.operator_applications);
+    const double dt = global_relative_difference(wt, share(serial.w.u, 3, s.offset, s.n));
+    const double dr = global_relative_difference(wr, share(serial.w.w, 3, s.offset, s.n));
+    EXPECT_LE(dt, kRoundOff) << "w_t, split " << static_cast<int>(split);
+    EXPECT_LE(dr, kRoundOff) << "w_r, split " << static_cast<int>(split);
+    if (world_rank() == 0) {
+      std::printf("  [pse rotation sampler] N = %zu%s, split %d: %d Lanczos iterations; w_t %.2e, w_r %.2e\n", p.size(),
+                  zero_rotation ? " (z_r = 0)" : "", static_cast<int>(split), report.iterations, dt, dr);
     }
   }
 }
@@ -403,7 +461,15 @@ TEST(MpiDistributedPse, RotationBadInputOnOneRankFailsEveryRank) {
   DistributedPseRpy op(MPI_COMM_WORLD, box, kViscosity, double_grids(1e-4));
   std::vector<double> x = share(p.x, 3, s.offset, s.n), f = share(p.f, 3, s.offset, s.n);
   std::vector<double> t = share(torques_of(p.size(), 43), 3, s.offset, s.n), u(3 * s.n), w(3 * s.n);
+  // The split sampler with rotation's noise [z_t; z_r] and output [w_t; w_r] of this rank's share.
+  std::vector<double> zt(3 * p.size()), zr(3 * p.size());
+  rpyfmm::rpy::fill_normal(zt, 62, 1);
+  rpyfmm::rpy::fill_normal(zr, 62, 2);
+  const std::vector<double> zts = share(zt, 3, s.offset, s.n), zrs = share(zr, 3, s.offset, s.n);
+  std::vector<double> wt(3 * s.n), wr(3 * s.n);
   expect_collective_error([&] { op.apply(f, t, u, w); }, ErrorCode::invalid_input, "positions not set");
+  expect_collective_error([&] { op.apply_sqrt_rotation(zts, zrs, wt, wr); }, ErrorCode::invalid_input,
+                          "positions not set");
   op.set_positions(x, 1.0);
   // Every rank holds particles in the even split of 60 over 1-4 ranks.
   std::vector<double> short_t(t.begin(), t.end() - (world_rank() == last ? 1 : 0));
@@ -418,11 +484,76 @@ TEST(MpiDistributedPse, RotationBadInputOnOneRankFailsEveryRank) {
   std::vector<double> inf_f = f;
   if (world_rank() == 0) inf_f[2] = std::numeric_limits<double>::infinity();
   expect_collective_error([&] { op.apply(inf_f, t, u, w); }, ErrorCode::invalid_input, "local forces");
-  // Usable afterwards, and equal to the serial operator.
+  // apply_sqrt_rotation: sizes of noise and output, NaN/Inf in either noise, another method or the
+  // block preconditioner on one rank.
+  const auto longer_on = [](const std::vector<double>& v, int rank) {
+    std::vector<double> r(v);
+    if (world_rank() == rank) r.resize(r.size() + 3);
+    return r;
+  };
+  const std::vector<double> bad_zt = longer_on(zts, 0), bad_zr = longer_on(zrs, last);
+  std::vector<double> bad_wt = longer_on(wt, last), bad_wr = longer_on(wr, 0);
+  const char* const noise_t = "local translational noise";
+  expect_collective_error([&] { op.apply_sqrt_rotation(bad_zt, zrs, wt, wr); }, ErrorCode::invalid_input, noise_t);
+  expect_collective_error([&] { op.apply_sqrt_rotation(zts, bad_zr, wt, wr); }, ErrorCode::invalid_input,
+                          "local rotational noise");
+  expect_collective_error([&] { op.apply_sqrt_rotation(zts, zrs, bad_wt, wr); }, ErrorCode::invalid_input,
+                          "local translational output");
+  expect_collective_error([&] { op.apply_sqrt_rotation(zts, zrs, wt, bad_wr); }, ErrorCode::invalid_input,
+                          "local rotational output");
+  std::vector<double> nan_zr = zrs;
+  if (world_rank() == last) nan_zr[1] = std::numeric_limits<double>::quiet_NaN();
+  expect_collective_error([&] { op.apply_sqrt_rotation(zts, nan_zr, wt, wr); }, ErrorCode::invalid_input, "NaN");
+  std::vector<double> inf_zt = zts;
+  if (world_rank() == 0) inf_zt[2] = -std::numeric_limits<double>::infinity();
+  expect_collective_error([&] { op.apply_sqrt_rotation(inf_zt, zrs, wt, wr); }, ErrorCode::invalid_input, noise_t);
+  rpyfmm::rpy::SqrtOptions other;
+  other.method = world_rank() == last ? rpyfmm::rpy::SqrtMethod::lanczos : rpyfmm::rpy::SqrtMethod::split;
+  expect_collective_error([&] { op.apply_sqrt_rotation(zts, zrs, wt, wr, other); }, ErrorCode::not_supported,
+                          "not offered across ranks");
+  rpyfmm::rpy::SqrtOptions block;
+  if (world_rank() == 0) block.preconditioner = rpyfmm::rpy::SqrtPreconditioner::block;
+  expect_collective_error([&] { op.apply_sqrt_rotation(zts, zrs, wt, wr, block); }, ErrorCode::not_supported,
+                          "block preconditioner");
+  // Usable afterwards, and equal to the serial operator and sampler.
   op.apply(f, t, u, w);
   const Grand serial = serial_grand(p, torques_of(p.size(), 43), box, double_grids(1e-4));
   EXPECT_LE(global_relative_difference(u, share(serial.u, 3, s.offset, s.n)), kRoundOff);
   EXPECT_LE(global_relative_difference(w, share(serial.w, 3, s.offset, s.n)), kRoundOff);
+  op.apply_sqrt_rotation(zts, zrs, wt, wr);
+  const GrandSample sampled = serial_grand_sample(p, zt, zr, box, double_grids(1e-4));
+  EXPECT_LE(global_relative_difference(wt, share(sampled.w.u, 3, s.offset, s.n)), kRoundOff);
+  EXPECT_LE(global_relative_difference(wr, share(sampled.w.w, 3, s.offset, s.n)), kRoundOff);
+}
+
+TEST(MpiDistributedPse, GrandSplitSamplerEqualsSerialToRoundOff) {
+  const Geometry box = Geometry::periodic(16.0);
+  expect_grand_sample_round_off(uniform_set(300, box.box(), 1.0, 51), box, double_grids(1e-6), 52, false);
+}
+
+TEST(MpiDistributedPse, GrandSplitSamplerZeroRotationalNoise) {
+  // z_r = 0: w_r is not zero (the real part's coupling blocks and the wave noise's rotational
+  // part), and the hash of [z_t; 0] keys the wave field, as in PseRpy.
+  const Geometry box = Geometry::periodic(16.0);
+  expect_grand_sample_round_off(uniform_set(300, box.box(), 1.0, 53), box, double_grids(1e-6), 54, true);
+}
+
+TEST(MpiDistributedPse, GrandSplitSamplerClusterFewPlanesAndEmptyRanks) {
+  // All particles in the lowest rank's slab with radius 0.6 (S = diag(I, a I) with a != 1); ranks
+  // without a slab (6 x-planes over 4 ranks); 2 particles (most ranks empty, the hash chain
+  // skipping them).
+  const Geometry slab_box = Geometry::periodic(24.0, 16.0, 20.0);
+  Particles p = uniform_set(200, {1.5, 16.0, 20.0}, 0.6, 55);
+  for (std::size_t i = 0; i < p.size(); ++i) p.x[3 * i] += 1.0;
+  expect_grand_sample_round_off(p, slab_box, double_grids(1e-5), 56, false);
+  const Geometry box = Geometry::periodic(10.0, 12.0, 14.0);
+  PseOptions options = double_grids(1e-3);
+  options.grid = {6, 8, 10};
+  options.support = 4;
+  options.xi = 1.2;
+  expect_grand_sample_round_off(uniform_set(80, box.box(), 0.5, 57), box, options, 58, false);
+  const Geometry cube = Geometry::periodic(10.0);
+  expect_grand_sample_round_off(uniform_set(2, cube.box(), 1.0, 59), cube, double_grids(1e-4), 60, false);
 }
 
 TEST(MpiDistributedPse, BadInputOnOneRankFailsEveryRank) {

@@ -26,6 +26,11 @@
 //    set (double grids) to round-off, as U = M F is.
 //  - sample(): PseRpy's split sampler ([PSE] eqs. 17-21), Lanczos on M_r with inner products over
 //    all ranks and the wave-space noise drawn mode by mode on the slabs.
+//  - apply_sqrt_rotation(): the same split sampler on the grand mobility, as PseRpy's: Lanczos on
+//    S M_r S (S = diag(I, a I)) with z = [z_t; z_r] on a basis of two segments (translations, then
+//    rotations), and the wave noise of the translational field z2 keyed by the hash of the whole z,
+//    scaled per mode with rotation on the slabs, so that its translational part is apply_sqrt's
+//    wave noise for the same key.
 //
 // Every public call is collective over the communicator and fails collectively
 // (communicator.hpp): a bad input on one rank makes every rank throw the same rpyfmm::Error.
@@ -123,6 +128,20 @@ class DistributedPseRpy {
   /// block preconditioner (not_supported: the generic solvers are not offered across ranks).
   rpy::SqrtReport apply_sqrt(std::span<const double> local_z, std::span<double> local_w,
                              const rpy::SqrtOptions& options = {}) const;
+  /// Collective. PseRpy::apply_sqrt_rotation's split sampler on the grand mobility (options.method
+  /// automatic or split) for this rank's particles (3 local_size() entries each): w' = (S M_r S)^{1/2}
+  /// [z_t; z_r] with S = diag(I, a I) by Lanczos to the PSE's Lanczos tolerance (the basis and its
+  /// inner products over all ranks, translations then rotations), [w_t; w_r] = S^{-1} w', plus the
+  /// wave part's noise with rotation from the translational field z2 keyed by pse::noise_hash of the
+  /// whole [z_t; z_r] (all ranks' z_t in rank order, then all ranks' z_r; the chain of apply_sqrt
+  /// twice) and step 0. Equal to PseRpy::apply_sqrt_rotation on the whole set (double grids) to
+  /// round-off, with the same number of Lanczos iterations. This is what a Brownian dynamics step
+  /// with rotation samples besides the grand product apply(F, T, U, W)
+  /// (bd::rotational_drift_and_noise). Throws rpyfmm::Error on every rank as apply_sqrt does, for
+  /// either noise or output (wrong size, NaN/Inf in z_t or z_r).
+  rpy::SqrtReport apply_sqrt_rotation(std::span<const double> local_z_translation,
+                                      std::span<const double> local_z_rotation, std::span<double> local_w_translation,
+                                      std::span<double> local_w_rotation, const rpy::SqrtOptions& options = {}) const;
   /// Collective. U = M F + noise_scale M^{1/2} z for this rank's particles, as
   /// PseRpy::apply_with_noise: z as sample(seed, step) draws it, the deterministic and the Brownian
   /// wave parts in one wave-space pass. For BD: noise_scale = sqrt(2 kT / dt). Equal to
