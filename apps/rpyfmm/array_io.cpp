@@ -16,6 +16,7 @@
 
 #include "rpyfmm/core/atomic_file.hpp"
 #include "rpyfmm/core/error.hpp"
+#include "rpyfmm/core/validate.hpp"
 
 namespace rpyfmm::cli {
 namespace {
@@ -312,6 +313,23 @@ void write_npy(const std::filesystem::path& path, const std::vector<std::size_t>
     out.write(dict.data(), static_cast<std::streamsize>(dict.size()));
     out.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size() * sizeof(double)));
   });
+}
+
+std::pair<std::vector<double>, std::vector<double>> as_split_rows6(const Array& a, std::size_t n,
+                                                                   const std::string& what) {
+  const bool rows6 = a.shape.size() == 2 && a.shape[1] == 6;
+  require(rows6 && a.shape[0] == n, ErrorCode::invalid_input, what,
+          "with --angular must have shape (" + std::to_string(n) + ",6), one row z_t then z_r per particle, got " +
+              (rows6 ? std::to_string(a.shape[0]) + " rows" : std::to_string(a.shape.size()) + " dimensions") +
+              (a.shape.size() == 2 ? " of " + std::to_string(a.shape[1]) + " columns" : ""));
+  require_finite(a.data, what, what, 6);
+  std::pair<std::vector<double>, std::vector<double>> split{std::vector<double>(3 * n), std::vector<double>(3 * n)};
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t c = 0; c < 3; ++c) {
+      split.first[3 * i + c] = a.data[6 * i + c];
+      split.second[3 * i + c] = a.data[6 * i + 3 + c];
+    }
+  return split;
 }
 
 std::vector<double> as_points(const Array& a, const std::string& what) {

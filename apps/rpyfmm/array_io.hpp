@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 namespace rpyfmm::cli {
@@ -39,6 +40,11 @@ void write_npy(const std::filesystem::path& path, const std::vector<std::size_t>
 
 /// Interprets `a` as N x 3 points: shape (N,3) or (3N,). Throws naming `what`.
 std::vector<double> as_points(const Array& a, const std::string& what);
+/// Interprets `a` as N rows of six values, each a translational then a rotational triple (shape
+/// (N,6)), with every entry finite: returns {first triples, second triples}, 3N values each. Throws
+/// naming `what`.
+std::pair<std::vector<double>, std::vector<double>> as_split_rows6(const Array& a, std::size_t n,
+                                                                   const std::string& what);
 /// Interprets `a` as a vector of N values: shape (N,) or (N,1).
 std::vector<double> as_vector(const Array& a, std::size_t n, const std::string& what);
 

@@ -30,6 +30,7 @@
 #include <memory>
 #include <sstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "array_io.hpp"
@@ -209,18 +210,7 @@ SampleInput read_sample_input(const SampleArgs& args, bool radius_given) {
   in.z.resize(3 * n);
   in.z_r.resize(args.angular ? 3 * n : 0);
   if (!args.noise.empty() && args.angular) {
-    const Array z = read_array(args.noise);
-    const bool rows6 = z.shape.size() == 2 && z.shape[1] == 6;
-    require(rows6 && z.shape[0] == n, ErrorCode::invalid_input, "noise",
-            "with --angular must have shape (" + std::to_string(n) + ",6), one row z_t then z_r per particle, got " +
-                (rows6 ? std::to_string(z.shape[0]) + " rows" : std::to_string(z.shape.size()) + " dimensions") +
-                (z.shape.size() == 2 ? " of " + std::to_string(z.shape[1]) + " columns" : ""));
-    require_finite(z.data, "noise", "noise", 6);
-    for (std::size_t i = 0; i < n; ++i)
-      for (std::size_t c = 0; c < 3; ++c) {
-        in.z[3 * i + c] = z.data[6 * i + c];
-        in.z_r[3 * i + c] = z.data[6 * i + 3 + c];
-      }
+    std::tie(in.z, in.z_r) = as_split_rows6(read_array(args.noise), n, "noise");
   } else if (!args.noise.empty()) {
     in.z = as_points(read_array(args.noise), "noise");
     require(in.z.size() == in.x.size(), ErrorCode::invalid_input, "noise",
@@ -261,8 +251,8 @@ void print_sample_json(const SampleArgs& args, const rpy::MobilityOperator& op, 
 
 /// Under MPI: whether this sample runs across the ranks (--operator direct or fmm with Lanczos or
 /// Chebyshev, with or without the block preconditioner, or --operator pse with --box and the split
-/// sampler on double wave grids on the CPU; without rotation); otherwise it runs on one rank only
-/// and more ranks are refused.
+/// sampler on double wave grids on the CPU; with or without --angular); otherwise it runs on one
+/// rank only and more ranks are refused.
 bool across_ranks(const SampleArgs& args, const rpy::SqrtOptions& options) {
   const rpy::SqrtMethod method = options.method;
   const bool free_space = (args.op == "direct" || args.op == "fmm") &&
@@ -271,13 +261,12 @@ bool across_ranks(const SampleArgs& args, const rpy::SqrtOptions& options) {
   const bool pse = args.op == "pse" && !args.box.empty() && args.wave_precision != "single" && args.device == "cpu" &&
                    (method == rpy::SqrtMethod::split || method == rpy::SqrtMethod::automatic) &&
                    options.preconditioner != rpy::SqrtPreconditioner::block;
-  const bool supported = (free_space || pse) && !args.angular;
+  const bool supported = free_space || pse;
   require(supported || mpi_size() == 1, ErrorCode::not_supported, "sample",
           "across " + std::to_string(mpi_size()) +
               " MPI ranks runs --operator direct or fmm with --method auto, lanczos or chebyshev, or --operator pse "
               "with --box and --method auto or split (double-precision wave grids, CPU, no --preconditioner block), "
-              "without "
-              "--angular (docs/mpi.md); run the others without mpirun");
+              "with or without --angular (docs/mpi.md); run the others without mpirun");
   return supported;
 }
 
@@ -299,7 +288,7 @@ void run_sample(const SampleArgs& given, bool radius_given, bool seed_given) {
   if (under_mpi() && across_ranks(args, options)) {
     run_sample_across_ranks({args.positions, args.radii, args.noise, args.out, args.radius, radius_given,
                              args.viscosity, args.seed, args.step, options, args.common.json, args.op, args.box,
-                             args.tolerance});
+                             args.tolerance, args.angular});
     return;
   }
 

@@ -2,16 +2,17 @@
 //   mpirun -np P rpyfmm mobility --method direct|fmm [--torques T.npy | --angular] ...
 //   mpirun -np P rpyfmm mobility --method pse --box L [--torques T.npy | --angular] ...
 //   mpirun -np P rpyfmm sample --operator direct|fmm [--method lanczos|chebyshev]
-//                              [--preconditioner none|block] ...
-//   mpirun -np P rpyfmm sample --operator pse --box L [--method split] ...
+//                              [--preconditioner none|block] [--angular] ...
+//   mpirun -np P rpyfmm sample --operator pse --box L [--method split] [--angular] ...
 //   mpirun -np P rpyfmm bd ...
 // Rank 0 reads the same files as the serial command and scatters the particles in P contiguous
 // shares; rpyfmm::mpi::DistributedDirectRpy applies M (bit for bit the serial DirectRpy; with
 // --torques or --angular to round-off, rpyfmm/mpi/direct_operator.hpp),
 // rpyfmm::mpi::DistributedFmmRpy (within --tolerance of it) or rpyfmm::mpi::DistributedPseRpy (the
 // serial PseRpy with double grids to round-off, with --torques or --angular too), and rpyfmm::mpi::sqrt_apply or
-// DistributedPseRpy::apply_sqrt samples M^{1/2} z; rank 0 gathers the result and writes the same
-// file (write_npy: a temporary file renamed into place). Every step fails on every rank alike
+// DistributedPseRpy::apply_sqrt samples M^{1/2} z (with --angular the grand mobility's sampler,
+// rpyfmm::mpi::sqrt_apply_rotation or DistributedPseRpy::apply_sqrt_rotation); rank 0 gathers the result and writes the
+// same file (write_npy: a temporary file renamed into place). Every step fails on every rank alike
 // (rpyfmm::mpi::Communicator::run), so no rank waits for another that gave up.
 #include <mpi.h>
 
@@ -21,12 +22,14 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "array_io.hpp"
 #include "cli_common.hpp"
 #include "mpi_session.hpp"
 #include "rank_shares.hpp"
+#include "rpyfmm/bd/rotation_sampling.hpp"
 #include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
@@ -48,11 +51,16 @@ struct Inputs {
   const std::string& rows;   // forces or noise; empty where none is read
   const char* rows_name;
   double radius;
-  const std::string& torques;  // empty where none is read
+  const std::string& torques;       // empty where none is read
+  bool rows_with_rotation = false;  // rows of six: the rows' triple, then the torques' (sample --angular's noise)
+
+  // Whether a torques' triple (or z_r) per particle is read.
+  [[nodiscard]] bool reads_torques() const { return !torques.empty() || (rows_with_rotation && !rows.empty()); }
 };
 
 // What rank 0 reads: positions, radii (empty with a common radius), one row of three values per
-// particle (forces, or noise; empty where none is read) and the torques (empty where none are read).
+// particle (forces, or noise; empty where none is read) and the torques (empty where none are read;
+// with sample --angular the rotational noise z_r).
 struct WholeInput {
   std::vector<double> x, radii, rows, torques;
 };
@@ -71,7 +79,11 @@ WholeInput read_on_root(const Inputs& files) {
   WholeInput in;
   in.x = as_points(read_array(files.positions), "positions");
   const std::size_t n = in.x.size() / 3;
-  if (!files.rows.empty()) in.rows = read_rows(files.rows, files.rows_name, in.x);
+  if (files.rows_with_rotation && !files.rows.empty()) {
+    std::tie(in.rows, in.torques) = as_split_rows6(read_array(files.rows), n, files.rows_name);
+  } else if (!files.rows.empty()) {
+    in.rows = read_rows(files.rows, files.rows_name, in.x);
+  }
   if (!files.radii.empty()) in.radii = as_vector(read_array(files.radii), n, "radii");
   if (!files.torques.empty()) in.torques = read_rows(files.torques, "torques", in.x);
   return in;
@@ -95,7 +107,7 @@ LocalInput distribute(const WholeInput& in, const Inputs& files, const mpi::Comm
   local.x = scatter(in.x.data(), local.s3, comm);
   if (!files.radii.empty()) local.radii = scatter(in.radii.data(), s1, comm);
   if (!files.rows.empty()) local.rows = scatter(in.rows.data(), local.s3, comm);
-  if (!files.torques.empty()) local.torques = scatter(in.torques.data(), local.s3, comm);
+  if (files.reads_torques()) local.torques = scatter(in.torques.data(), local.s3, comm);
   return local;
 }
 
@@ -334,7 +346,23 @@ rpy::SqrtReport sample_across(const mpi::DistributedPseRpy& op, std::span<const 
   return op.apply_sqrt(z, w, options);
 }
 
-// W = M^{1/2} Z with the prepared operator; rank 0 writes W and prints --json.
+// [w_t; w_r] = S^{-1} (S M S)^{1/2} [z_t; z_r], the grand mobility's sampler across the ranks
+// (rpy::MobilityOperator::apply_sqrt_rotation's): Lanczos or Chebyshev on the free-space operators,
+// PSE's split sampler.
+template <class Operator>
+rpy::SqrtReport sample_across(const Operator& op, std::span<const double> z_t, std::span<const double> z_r,
+                              std::span<double> w_t, std::span<double> w_r, const rpy::SqrtOptions& options,
+                              double* inner_products) {
+  return mpi::sqrt_apply_rotation(op, z_t, z_r, w_t, w_r, options, inner_products);
+}
+rpy::SqrtReport sample_across(const mpi::DistributedPseRpy& op, std::span<const double> z_t,
+                              std::span<const double> z_r, std::span<double> w_t, std::span<double> w_r,
+                              const rpy::SqrtOptions& options, double*) {
+  return op.apply_sqrt_rotation(z_t, z_r, w_t, w_r, options);
+}
+
+// W = M^{1/2} Z with the prepared operator (with --angular [W_t; W_r] of the grand mobility); rank 0
+// writes W and prints --json.
 template <class Operator>
 void sample_and_write(Prepared<Operator>& p, const RanksSampleArgs& args, const mpi::Communicator& comm,
                       const StopWatch& total) {
@@ -342,17 +370,23 @@ void sample_and_write(Prepared<Operator>& p, const RanksSampleArgs& args, const 
   if (args.noise.empty()) {  // the serial command's noise of this rank's particles
     in.rows.resize(in.x.size());
     mpi::fill_normal(in.rows, in.offset, args.seed, args.step);
+    if (args.angular) {  // z_r: BD's rotational stream, as the serial command draws it
+      in.torques.resize(in.x.size());
+      mpi::fill_normal(in.torques, in.offset, args.seed, args.step, bd::kRotationNoiseStream);
+    }
   }
 
   StopWatch watch;
-  std::vector<double> w(in.x.size());
+  std::vector<double> w(in.x.size()), w_r(args.angular ? in.x.size() : 0);
   double inner_products = 0.0;
-  const rpy::SqrtReport report = sample_across(*p.op, in.rows, w, args.options, &inner_products);
+  const rpy::SqrtReport report = args.angular
+                                     ? sample_across(*p.op, in.rows, in.torques, w, w_r, args.options, &inner_products)
+                                     : sample_across(*p.op, in.rows, w, args.options, &inner_products);
   p.stages["sample"] = watch.seconds();
   add_products_communication(*p.op, p.communication);
   p.communication["inner_products"] = inner_products;
 
-  p.stages["write"] = gather_and_write(w, nullptr, in, args.out, "sample", comm);
+  p.stages["write"] = gather_and_write(w, args.angular ? &w_r : nullptr, in, args.out, "sample", comm);
 
   JsonLine line;
   line.add("command", "sample")
@@ -361,7 +395,9 @@ void sample_and_write(Prepared<Operator>& p, const RanksSampleArgs& args, const 
       .add("n", in.n)
       .add("sqrt_tolerance", args.options.tolerance);
   add_sqrt_report(line, report);
-  line.add("angular", false).add("noise", args.noise.empty() ? "philox" : args.noise).add("viscosity", args.viscosity);
+  line.add("angular", args.angular)
+      .add("noise", args.noise.empty() ? "philox" : args.noise)
+      .add("viscosity", args.viscosity);
   add_radii(line, *p.op);
   line.add("out", args.out);
   if (args.noise.empty()) line.add("seed", args.seed).add("step", args.step);
@@ -381,8 +417,9 @@ void run_sample_across_ranks(const RanksSampleArgs& given) {
     args.tolerance = args.op == "pse" ? rpy::pse::PseOptions{}.tolerance : mpi::DistributedFmmRpyOptions{}.tolerance;
   const mpi::Communicator comm(MPI_COMM_WORLD);
   const StopWatch total;
-  const Inputs files{args.positions, args.radius_given ? std::string() : args.radii, args.noise, "noise", args.radius,
-                     std::string()};
+  const Inputs files{
+      args.positions, args.radius_given ? std::string() : args.radii, args.noise, "noise", args.radius, std::string(),
+      args.angular};
   with_operator({args.op, args.tolerance, args.viscosity, args.box}, files, comm,
                 [&](auto& p) { sample_and_write(p, args, comm, total); });
 }

@@ -80,7 +80,8 @@ void run_mobility_across_ranks(const RanksMobilityArgs& args);
 /// rank 0 reads the files (and --noise) and scatters them, or each rank draws its share's noise
 /// (rpyfmm::mpi::fill_normal: the serial noise), rpyfmm::mpi::sqrt_apply samples, rank 0 gathers
 /// W and writes it. With the direct operator bit for bit the serial command's output; with the
-/// FMM the square root of the FMM product (docs/mpi.md).
+/// FMM the square root of the FMM product (docs/mpi.md). With --angular the grand mobility's
+/// sampler (rows w_t then w_r), keyed and laid out as the serial command's.
 struct RanksSampleArgs {
   std::string positions, radii, noise, out;
   double radius = 0.0;
@@ -92,6 +93,7 @@ struct RanksSampleArgs {
   std::string op = "direct";  // direct | fmm | pse (the split sampler)
   std::vector<double> box;    // pse: L or Lx Ly Lz
   double tolerance = 0.0;     // fmm, pse: the operator's tolerance (0: its options' default)
+  bool angular = false;       // the grand mobility with rotation: (N,6) noise and output
 };
 void run_sample_across_ranks(const RanksSampleArgs& args);
 /// `rpyfmm bd` across the ranks (commands_across_ranks.cpp): `options` with the engine across the

@@ -15,6 +15,9 @@
 #    on noise read from a file: identical files;
 #  - `mpiexec -n NP rpyfmm sample --method chebyshev`: the serial Chebyshev sampler bit for bit,
 #    identical files; `--preconditioner block` runs with the blocks of each rank's particles;
+#  - `mpiexec -n NP rpyfmm sample --angular` (N,6): direct the serial file byte for byte (noise by
+#    seed and from an (N,6) file), fmm within 1e-5 of the serial direct file, pse within 1e-12 of
+#    the serial file with double grids, w_t and w_r each;
 #  - `mpiexec -n NP rpyfmm laplace --tolerance E`: DistributedLaplaceFmm meets the serial FMM's
 #    contract (relative l2 error of each output at most E), not its bits, so the output must lie
 #    within E of the serial direct sum and within 2E of the serial FMM (both within E of the exact
@@ -89,14 +92,20 @@ file(WRITE "${WORK}/f.txt" "${f}")
 file(WRITE "${WORK}/a.txt" "${a}")
 file(WRITE "${WORK}/q2.txt" "${q2}")
 # Torques in [-1, 1] drawn after the particles, the same torques but the last row (a wrong row
-# count), and zero torques.
+# count), and zero torques; and noise of six columns for sample --angular, each particle's forces
+# then its torques (z_t then z_r).
+string(REGEX REPLACE "\n$" "" f_rows "${f}")
+string(REPLACE "\n" ";" f_rows "${f_rows}")
 set(t "")
+set(z6 "")
 foreach(i RANGE 700)
   set(trow "")
   foreach(c 0 1 2)
     signed_decimal(d)
     string(APPEND trow " ${d}")
   endforeach()
+  list(GET f_rows ${i} frow)
+  string(APPEND z6 "${frow}${trow}\n")
   if(i EQUAL 700)
     set(t_short "${t}")
   endif()
@@ -106,6 +115,7 @@ string(REPEAT "0 0 0\n" 701 t0)
 file(WRITE "${WORK}/t.txt" "${t}")
 file(WRITE "${WORK}/t_short.txt" "${t_short}")
 file(WRITE "${WORK}/t0.txt" "${t0}")
+file(WRITE "${WORK}/z6.txt" "${z6}")
 
 # The serial command `args` writing ${WORK}/<out>.npy, and the same across NP ranks with --json
 # writing ${WORK}/<name>_mpi.npy, its JSON line in the caller's `json`.
@@ -244,6 +254,25 @@ if(NOT json MATCHES "\"operator\":\"fmm\"" OR NOT json MATCHES "\"inner_products
 endif()
 agree(sample_fmm "${WORK}/sample_fmm_mpi.npy" "${WORK}/sample_fmm_direct.npy" 1e-5)
 
+# sample --angular, (N,6) rows w_t then w_r of the grand mobility. direct: the distributed
+# sampler with rotation is the serial DirectRpy::apply_sqrt_rotation bit for bit (its inner
+# products of [x_t; x_r] summed in the serial order; rpyfmm/mpi/sqrt.hpp), with the noise of
+# (seed, step) (z_r from BD's rotational stream on every rank's share) and with (N,6) noise read
+# from a file: identical files. fmm at 1e-9 against the serial direct file as above, w_t and w_r
+# each within 1e-5.
+foreach(noise_args "--seed;5;--step;3" "--noise;${WORK}/z6.txt")
+  list(GET noise_args 0 name)
+  string(REPLACE "-" "" name "sampleangular${name}")
+  run_identical(${name} sample --positions "${WORK}/x.txt" --radii "${WORK}/a.txt" --method lanczos
+                --sqrt-tolerance 1e-6 --viscosity 0.7 --operator direct --angular ${noise_args})
+  if(NOT json MATCHES "\"angular\":true")
+    message(FATAL_ERROR "${name}: --json does not report angular: ${json}")
+  endif()
+endforeach()
+run_serial(sample_angular_fmm sample_angular_fmm_direct ${sample_common} --operator direct --angular)
+run_across(sample_angular_fmm ${sample_common} --operator fmm --tolerance 1e-9 --angular)
+agree(sample_angular_fmm "${WORK}/sample_angular_fmm_mpi.npy" "${WORK}/sample_angular_fmm_direct.npy" 1e-5)
+
 # laplace with the FMM: at the sources (one density) and at separate targets (two densities).
 function(run_laplace name tolerance twice)
   set(common laplace --sources "${WORK}/x.txt" ${ARGN})
@@ -282,36 +311,28 @@ run_pse(angular_pse "\"method\":\"pse\"" mobility --positions "${WORK}/x.txt" --
         --viscosity 0.7 --method pse --box 40 --tolerance 1e-4 --angular)
 run_pse(sample_pse "\"operator\":\"pse\",\"method\":\"split\"" sample --positions "${WORK}/x.txt" --radius 1.1
         --viscosity 0.7 --operator pse --box 40 --tolerance 1e-4 --seed 5 --step 3)
+# The split sampler of the grand mobility (DistributedPseRpy::apply_sqrt_rotation, PseRpy's to
+# round-off: test_distributed_pse.cpp), w_t and w_r each within 1e-12.
+run_pse(sample_angular_pse "\"angular\":true" sample --positions "${WORK}/x.txt" --radius 1.1 --viscosity 0.7
+        --operator pse --box 40 --tolerance 1e-4 --seed 5 --step 3 --angular)
 
-# A bad input read by rank 0 fails every rank: exit status 2, one error line (printed by rank 0).
-execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" mobility --positions "${WORK}/missing.txt"
-                        --forces "${WORK}/f.txt" --radius 1 --out "${WORK}/never.npy"
-                RESULT_VARIABLE rc ERROR_VARIABLE err)
-string(REGEX MATCHALL "rpyfmm: error:" errors "${err}")
-list(LENGTH errors count)
-if(rc EQUAL 0 OR NOT count EQUAL 1 OR NOT err MATCHES "missing.txt" OR EXISTS "${WORK}/never.npy")
-  message(FATAL_ERROR "a missing input under ${NP} ranks: exit ${rc}, ${count} error lines: ${err}")
-endif()
+# A bad input read by rank 0 fails every rank: exit status 2, one error line (printed by rank 0),
+# no output.
+include("${CMAKE_CURRENT_LIST_DIR}/expect_one_error.cmake")
+set(never "${WORK}/never.npy")
+expect_one_error("a missing input" "missing.txt" ${never} "${RPYFMM}" mobility --positions "${WORK}/missing.txt"
+                 --forces "${WORK}/f.txt" --radius 1 --out ${never})
 # So does a torques file with a row too few: the serial command's message.
-execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" mobility --positions "${WORK}/x.txt"
-                        --forces "${WORK}/f.txt" --radius 1 --torques "${WORK}/t_short.txt" --out "${WORK}/never.npy"
-                RESULT_VARIABLE rc ERROR_VARIABLE err)
-string(REGEX MATCHALL "rpyfmm: error:" errors "${err}")
-list(LENGTH errors count)
-if(NOT rc EQUAL 2 OR NOT count EQUAL 1 OR NOT err MATCHES "torques: has 700 rows, expected 701"
-   OR EXISTS "${WORK}/never.npy")
-  message(FATAL_ERROR "torques with 700 rows under ${NP} ranks: exit ${rc}, ${count} error lines: ${err}")
-endif()
+expect_one_error("torques with 700 rows" "torques: has 700 rows, expected 701" ${never} "${RPYFMM}" mobility
+                 --positions "${WORK}/x.txt" --forces "${WORK}/f.txt" --radius 1 --torques "${WORK}/t_short.txt"
+                 --out ${never})
+# So does noise of three columns with sample --angular.
+expect_one_error("sample --angular with (N,3) noise" "noise: with --angular must have shape \\(701,6\\)" ${never}
+                 "${RPYFMM}" sample --positions "${WORK}/x.txt" --radius 1 --noise "${WORK}/f.txt" --angular
+                 --out ${never})
 # So does a missing input of laplace.
-execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" laplace --sources "${WORK}/x.txt"
-                        --charges "${WORK}/q2.txt" --targets "${WORK}/missing.txt" --tolerance 1e-6
-                        --out "${WORK}/never.npy"
-                RESULT_VARIABLE rc ERROR_VARIABLE err)
-string(REGEX MATCHALL "rpyfmm: error:" errors "${err}")
-list(LENGTH errors count)
-if(NOT rc EQUAL 2 OR NOT count EQUAL 1 OR NOT err MATCHES "missing.txt" OR EXISTS "${WORK}/never.npy")
-  message(FATAL_ERROR "laplace with a missing input under ${NP} ranks: exit ${rc}, ${count} error lines: ${err}")
-endif()
+expect_one_error("laplace with a missing input" "missing.txt" ${never} "${RPYFMM}" laplace --sources "${WORK}/x.txt"
+                 --charges "${WORK}/q2.txt" --targets "${WORK}/missing.txt" --tolerance 1e-6 --out ${never})
 # A command that does not run across ranks refuses more than one, on every rank.
 if(NP GREATER 1)
   execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" rigid --positions "${WORK}/x.txt" --radius 1
