@@ -128,6 +128,17 @@ struct RotationArrays {
   OutArray u, w;
 };
 RotationArrays rotation_arrays(ArrayArg forces, OptArrayArg torques, OutArg out, const std::string& where);
+/// The same for any pair of inputs of one shape named `first_name` and `second_name` (e.g. the
+/// noise z_translation, z_rotation of apply_sqrt_rotation), with new outputs of that shape.
+RotationArrays paired_arrays(ArrayArg first, ArrayArg second, const std::string& where, const std::string& first_name,
+                             const std::string& second_name);
+
+/// (w_t, w_r, report) of apply_sqrt_rotation.
+using RotationSample = nb::typed<nb::tuple, ArrayResult, ArrayResult, rpy::SqrtReport>;
+/// The outputs u (w_t) and w (w_r) of `arrays` with the sampler's report.
+inline RotationSample rotation_sample(const RotationArrays& arrays, const rpy::SqrtReport& report) {
+  return nb::borrow<RotationSample>(nb::make_tuple(arrays.u.object, arrays.w.object, report));
+}
 
 /// Wraps a vector's storage as a NumPy array without copying (the array owns it).
 ArrayResult adopt_vector(std::vector<double>&& values, const std::vector<std::size_t>& shape);

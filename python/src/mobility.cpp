@@ -107,9 +107,6 @@ ArrayAndReport<rpy::SqrtReport> apply_sqrt(const MobilityOperator& op, ArrayArg 
   return array_and_report(w.object, report);
 }
 
-/// (w_t, w_r, report) of apply_sqrt_rotation.
-using RotationSample = nb::typed<nb::tuple, ArrayResult, ArrayResult, rpy::SqrtReport>;
-
 /// [w_t; w_r] = B [z_t; z_r], B B^T = the grand mobility (MobilityOperator::apply_sqrt_rotation).
 RotationSample apply_sqrt_rotation(const MobilityOperator& op, ArrayArg z_translation, ArrayArg z_rotation,
                                    const std::string& method, std::optional<double> tolerance, int max_iterations,
@@ -120,20 +117,13 @@ RotationSample apply_sqrt_rotation(const MobilityOperator& op, ArrayArg z_transl
   const rpy::SqrtOptions o = sqrt_options(method, tolerance.value_or(rpy::SqrtOptions{}.tolerance), max_iterations,
                                           reorthogonalize, throw_if_not_converged, lambda_min, lambda_max,
                                           bound_estimate_iterations, preconditioner, preconditioner_block);
-  const InArray zt = as_input(z_translation, where, "z_translation");
-  const InArray zr = as_input(z_rotation, where, "z_rotation");
-  require_points(zt, where, "z_translation");
-  require(zr.shape == zt.shape, ErrorCode::invalid_input, where,
-          "z_rotation has shape " + shape_string(zr.shape) + ", expected the shape of z_translation " +
-              shape_string(zt.shape));
-  OutArray wt = make_output(nb::none(), zt.shape, where);
-  OutArray wr = make_output(nb::none(), zt.shape, where);
+  const RotationArrays a = paired_arrays(z_translation, z_rotation, where, "z_translation", "z_rotation");
   rpy::SqrtReport report;
   {
     nb::gil_scoped_release release;
-    report = op.apply_sqrt_rotation(zt.span(), zr.span(), wt.span(), wr.span(), o);
+    report = op.apply_sqrt_rotation(a.f.span(), a.t.span(), a.u.span(), a.w.span(), o);
   }
-  return nb::borrow<RotationSample>(nb::make_tuple(wt.object, wr.object, report));
+  return rotation_sample(a, report);
 }
 
 const char* kSqrtDoc =
@@ -546,16 +536,22 @@ void bind_mobility_factory(nb::module_& m) {
 
 }  // namespace
 
-RotationArrays rotation_arrays(ArrayArg forces, OptArrayArg torques, OutArg out, const std::string& where) {
-  require(out.is_none(), ErrorCode::invalid_argument, where, "out is not supported together with torques");
-  InArray f = as_input(forces, where, "forces");
-  InArray t = as_input(torques, where, "torques");
-  require_points(f, where, "forces");
+RotationArrays paired_arrays(ArrayArg first, ArrayArg second, const std::string& where, const std::string& first_name,
+                             const std::string& second_name) {
+  InArray f = as_input(first, where, first_name);
+  InArray t = as_input(second, where, second_name);
+  require_points(f, where, first_name);
   require(t.shape == f.shape, ErrorCode::invalid_input, where,
-          "torques has shape " + shape_string(t.shape) + ", expected the shape of forces " + shape_string(f.shape));
+          second_name + " has shape " + shape_string(t.shape) + ", expected the shape of " + first_name + " " +
+              shape_string(f.shape));
   OutArray u = make_output(nb::none(), f.shape, where);
   OutArray w = make_output(nb::none(), f.shape, where);
   return RotationArrays{std::move(f), std::move(t), std::move(u), std::move(w)};
+}
+
+RotationArrays rotation_arrays(ArrayArg forces, OptArrayArg torques, OutArg out, const std::string& where) {
+  require(out.is_none(), ErrorCode::invalid_argument, where, "out is not supported together with torques");
+  return paired_arrays(forces, ArrayArg{torques.h}, where, "forces", "torques");
 }
 
 nb::dict pse_parameters(const rpy::pse::PseParameters& p) {

@@ -236,6 +236,44 @@ const std::string kRotationApplyDoc =
     "\nWith torques (same shape as forces): returns (U, W) = M (F, T), the velocities and angular\n"
     "velocities of the grand mobility with rotation; `out` is not supported with torques.";
 
+/// [w_t; w_r] = B [z_t; z_r] with B B^T = the grand mobility, on this rank's share:
+/// mpi::sqrt_apply_rotation (direct, fmm) or the PSE's split sampler with rotation; the arguments'
+/// checks agreed over the ranks.
+template <class Op>
+RotationSample apply_sqrt_rotation(const WithComm<Op>& self, ArrayArg z_translation, ArrayArg z_rotation,
+                                   const std::string& method, double tolerance, int max_iterations,
+                                   bool reorthogonalize, bool throw_if_not_converged, double lambda_min,
+                                   double lambda_max, int bound_estimate_iterations, const std::string& preconditioner,
+                                   int preconditioner_block) {
+  const std::string where = "apply_sqrt_rotation";
+  struct Args {
+    rpy::SqrtOptions options;
+    RotationArrays arrays;
+  };
+  const Args a = agreed(self.op.communicator(), [&] {
+    return Args{sqrt_options(method, tolerance, max_iterations, reorthogonalize, throw_if_not_converged, lambda_min,
+                             lambda_max, bound_estimate_iterations, preconditioner, preconditioner_block),
+                paired_arrays(z_translation, z_rotation, where, "z_translation", "z_rotation")};
+  });
+  const RotationArrays& r = a.arrays;
+  rpy::SqrtReport report;
+  {
+    nb::gil_scoped_release release;
+    if constexpr (std::is_same_v<Op, mpi::DistributedPseRpy>) {
+      report = self.op.apply_sqrt_rotation(r.f.span(), r.t.span(), r.u.span(), r.w.span(), a.options);
+    } else {
+      report = mpi::sqrt_apply_rotation(self.op, r.f.span(), r.t.span(), r.u.span(), r.w.span(), a.options);
+    }
+  }
+  return rotation_sample(r, report);
+}
+
+const char* kSqrtRotationDoc =
+    "Collective. Brownian displacements and rotations of this rank's particles: (w_t, w_r) = B (z_t, z_r)\n"
+    "with B B^T = the grand mobility; z_translation, z_rotation: this rank's share, (n, 3) or (3n,), the\n"
+    "same shape. Returns (w_t, w_r, SqrtReport). Keywords and scaling as MobilityOperator.apply_sqrt_rotation;\n"
+    "the methods as apply_sqrt offers them on this operator (docs/mpi.md).";
+
 /// apply with optional torques and supports_rotation, for the operators with rotation.
 template <class Op>
 void add_rotation_apply(Class<Op>& cls) {
@@ -243,7 +281,13 @@ void add_rotation_apply(Class<Op>& cls) {
           nb::arg("out") = nb::none(), kRotationApplyDoc.c_str())
       .def_prop_ro(
           "supports_rotation", [](const WithComm<Op>& s) { return s.op.supports_rotation(); },
-          "True: apply accepts torques (the grand mobility with rotation).");
+          "True: apply accepts torques and apply_sqrt_rotation samples (the grand mobility with rotation).");
+  cls.def("apply_sqrt_rotation", locked("apply_sqrt_rotation", &apply_sqrt_rotation<Op>), nb::arg("z_translation"),
+          nb::arg("z_rotation"), nb::kw_only(), nb::arg("method") = "auto",
+          nb::arg("tolerance") = rpy::SqrtOptions{}.tolerance, nb::arg("max_iterations") = 0,
+          nb::arg("reorthogonalize") = true, nb::arg("throw_if_not_converged") = true, nb::arg("lambda_min") = 0.0,
+          nb::arg("lambda_max") = 0.0, nb::arg("bound_estimate_iterations") = 30, nb::arg("preconditioner") = "none",
+          nb::arg("preconditioner_block") = 0, kSqrtRotationDoc);
 }
 
 /// U_r = M F_r for a block of right-hand sides on this rank's share ((nrhs, n, 3) or (nrhs, 3n)), one

@@ -233,6 +233,40 @@ def test_apply_block_columns_are_single_products(kind: str, flat: bool) -> None:
         assert np.array_equal(whole, serial.apply_block(block))
 
 
+@pytest.mark.parametrize("kind", ["direct", "fmm", "pse"])
+def test_apply_sqrt_rotation_equals_serial(kind: str) -> None:
+    x, a, _ = system(240, seed=18, radii=kind != "pse")
+    rng = np.random.default_rng(19)
+    z_t, z_r = rng.standard_normal((len(x), 3)), rng.standard_normal((len(x), 3))
+    part = share(len(x), empty_first=True)
+    op, serial = {
+        "direct": lambda: (rpyfmm.mpi.DistributedDirectRpy(COMM, viscosity=0.7), rpyfmm.DirectRpy(viscosity=0.7)),
+        "fmm": lambda: (rpyfmm.mpi.DistributedFmmRpy(COMM, viscosity=0.7, tolerance=1e-9),
+                        rpyfmm.DirectRpy(viscosity=0.7)),
+        "pse": lambda: (rpyfmm.mpi.DistributedPseRpy(COMM, box=20.0, viscosity=0.7, tolerance=1e-6),
+                        rpyfmm.PseRpy(box=20.0, viscosity=0.7, tolerance=1e-6, wave_precision="double")),
+    }[kind]()
+    op.set_positions(x[part], local_radius(a, part))
+    w_t, w_r, report = op.apply_sqrt_rotation(z_t[part], z_r[part], tolerance=1e-6)
+    with pytest.raises(rpyfmm.InvalidInputError) as caught:
+        op.apply_sqrt_rotation(z_t[part], z_r[part][:, :2] if RANK == SIZE - 1 else z_r[part])
+    messages = COMM.allgather(str(caught.value))
+    serial.set_positions(x, a)
+    s_t, s_r, s_report = serial.apply_sqrt_rotation(z_t, z_r, tolerance=1e-6)
+    w_t, w_r = gathered(w_t), gathered(w_r)
+    # docs/mpi.md: with the direct operator the sampler is the serial one bit for bit; the PSE's is
+    # PseRpy's with double grids to round-off (1e-12); the FMM at 1e-9 is the direct operator to
+    # 1e-9, far below the sampler's 1e-6, and each stops within its tolerance of its own root: 1e-5.
+    if kind == "direct":
+        assert np.array_equal(w_t, s_t) and np.array_equal(w_r, s_r)
+        assert report.iterations == s_report.iterations
+    else:
+        bound = 1e-12 if kind == "pse" else 1e-5
+        assert rel_err(w_t, s_t) <= bound and rel_err(w_r, s_r) <= bound
+    assert all(m == messages[0] for m in messages) and f"rank {SIZE - 1} of {SIZE}" in messages[0]
+    assert "z_rotation has shape" in messages[0]
+
+
 def test_fmm_sqrt_covariance_product() -> None:
     # w = M_fmm^{1/2} z on the ranks: M_fmm^{-1/2} cannot be checked directly, but w . w = z . M_fmm z
     # up to the sampler's tolerance, with M_fmm z from apply.
