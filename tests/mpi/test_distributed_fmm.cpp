@@ -386,10 +386,12 @@ TEST(DistributedFmm, RepeatedEvaluationsAndNewPoints) {
   f.evaluate(s.q, a.nd, outputs, again);
   EXPECT_EQ(bitwise_mismatches(first, again), 0u) << "the same points planned again give other bits";
   // Bytes received per evaluation: the charges of the owned sources, the halo and equivalent
-  // charges, and the results of this rank's sources.
+  // charges, and the results of this rank's sources in the columns their flags fill (potential 1,
+  // gradient 3, all outputs 10 doubles).
   const rpyfmm::mpi::FmmCommunication& comm = f.communication();
+  ASSERT_EQ(a.nd, 3u);
   EXPECT_EQ(comm.evaluate_bytes_received,
-            8 * a.nd * (f.owned_size() + comm.halo_received + comm.nodes_received) + 80 * a.nd * s.part.n);
+            8 * a.nd * (f.owned_size() + comm.halo_received + comm.nodes_received) + 8 * (1 + 3 + 10) * s.part.n);
   EXPECT_EQ(f.essential_size(), f.owned_size() == 0 ? 0 : f.owned_size() + comm.halo_received + comm.nodes_received);
   EXPECT_EQ(total(comm.halo_sent), total(comm.halo_received));
   EXPECT_EQ(total(comm.nodes_sent), total(comm.nodes_received));
