@@ -105,15 +105,7 @@ std::array<double, 3> centre_of(std::span<const double> x, std::size_t n) {
 /// u(t) . u(0), u the body z axis) of the particles (docs/theory/bd.md Sec. 7).
 std::array<double, 2> rotation_moments(std::span<const double> orientations, const std::vector<double>& reference,
                                        const std::vector<double>& rotation_vectors, std::size_t n) {
-  double msd = 0, correlation = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const auto u = quaternion::body_axis(std::span<const double, 4>(orientations.data() + 4 * i, 4));
-    const auto u0 = quaternion::body_axis(std::span<const double, 4>(reference.data() + 4 * i, 4));
-    for (int c = 0; c < 3; ++c) {
-      msd += rotation_vectors[3 * i + c] * rotation_vectors[3 * i + c];
-      correlation += u[c] * u0[c];
-    }
-  }
+  const auto [msd, correlation] = rotation_moment_sums(orientations, reference, rotation_vectors);
   return {msd / static_cast<double>(n), correlation / static_cast<double>(n)};
 }
 
