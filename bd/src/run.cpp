@@ -138,7 +138,7 @@ Integrator run_integrator(const RunConfig& config, const RunOptions& options, co
     o.engine = StepEngine::external;
     return Integrator(rpy::make_mobility(config.mobility, start.types.size()), forces, o, start.positions, start.types,
                       config.neighbours, start.step,
-                      options.engine(config, forces, start.positions, start.types, start.step));
+                      options.engine(config, forces, start.positions, start.types, start.orientations, start.step));
   }
   o.engine = step_engine_for(config.mobility, options.device_launcher);
   return Integrator(engine_mobility(config.mobility, o.engine, start.types.size()), forces, o, start.positions,
@@ -312,10 +312,10 @@ class Run {
     const OutputSpec& out = config_.output;
     const std::uint64_t s = bd_.step_count();
     if (out.trajectory_every > 0 && s % out.trajectory_every == 0) {
-      const auto x = bd_.positions();  // on every process: the read may be collective
+      const auto x = bd_.positions();  // on every process: the reads may be collective
+      const auto q = bd_.orientations();
       on_writer([&] {
-        traj_.write(x, bd_.types(), forces_.types(), config_.geometry, s, bd_.time(), bd_.orientations(),
-                    bd_.complexes().owner());
+        traj_.write(x, bd_.types(), forces_.types(), config_.geometry, s, bd_.time(), q, bd_.complexes().owner());
       });
     }
     if (out.log_every > 0 && (s % out.log_every == 0 || s == total_)) write_log_row(first);
@@ -355,8 +355,10 @@ class Run {
       row << ',' << std::sqrt(last_.det2 / norm) << ',' << std::sqrt(last_.brown2 / norm);
     }
     if (config_.integrator.rotation) {
+      const auto q = bd_.orientations();  // on every process (the read may be collective), used on the writer
       const auto [rmsd, correlation] =
-          rotation_moments(bd_.orientations(), start_.reference_orientations, start_.rotation_vectors, n_);
+          options_.writes_files ? rotation_moments(q, start_.reference_orientations, start_.rotation_vectors, n_)
+                                : std::array<double, 2>{};
       row << ',' << rmsd << ',' << correlation;
     }
     if (!bd_.inertial().empty()) row << ',' << bd_.inertial().kinetic_temperature();
