@@ -78,15 +78,21 @@ function(same_trajectory a b what)
   endif()
 endfunction()
 
-run_bd(0 --config "${WORK}/run.toml" --out-dir "${WORK}/serial" --quiet)
-run_bd(${NP} --config "${WORK}/run.toml" --out-dir "${WORK}/ranks" --json)
-if(NOT run_output MATCHES "\"ranks\":${NP}" OR NOT run_output MATCHES "\"last_step\":60")
-  message(FATAL_ERROR "--json across ${NP} ranks: ${run_output}")
-endif()
-same_trajectory(serial ranks "60 steps on ${NP} ranks")
-run_bd(2 --config "${WORK}/run.toml" --out-dir "${WORK}/restarted" --steps 30 --quiet)
-run_bd(${NP} --restart "${WORK}/restarted/checkpoint.bin" --quiet)
-same_trajectory(serial restarted "30 steps on 2 ranks, 30 more on ${NP}")
+# The run of ${WORK}/NAME.toml (60 steps) on NP ranks, and its first 30 steps on 2 ranks restarted
+# from their checkpoint on NP, against the serial run: trajectories identical byte for byte.
+function(same_as_serial name what)
+  run_bd(0 --config "${WORK}/${name}.toml" --out-dir "${WORK}/${name}_serial" --quiet)
+  run_bd(${NP} --config "${WORK}/${name}.toml" --out-dir "${WORK}/${name}_ranks" --json)
+  if(NOT run_output MATCHES "\"ranks\":${NP}" OR NOT run_output MATCHES "\"last_step\":60")
+    message(FATAL_ERROR "${what}: --json across ${NP} ranks: ${run_output}")
+  endif()
+  same_trajectory(${name}_serial ${name}_ranks "${what}, 60 steps on ${NP} ranks")
+  run_bd(2 --config "${WORK}/${name}.toml" --out-dir "${WORK}/${name}_restarted" --steps 30 --quiet)
+  run_bd(${NP} --restart "${WORK}/${name}_restarted/checkpoint.bin" --quiet)
+  same_trajectory(${name}_serial ${name}_restarted "${what}, 30 steps on 2 ranks, 30 more on ${NP}")
+endfunction()
+
+same_as_serial(run "free draining")
 
 # Whether two coordinates printed with 10 significant digits differ by at most 2 units of their
 # last digit (the same number of decimals; as integers without the point).
@@ -167,12 +173,7 @@ close_trajectory(pse_ranks pse_serial "PSE, 40 steps on ${NP} ranks")
 string(REPLACE "geometry = \"periodic\"" "geometry = \"periodic\"\nrotation = true" rotation "${text}")
 string(REPLACE "name = \"A\"\nradius = 0.5" "name = \"A\"\nradius = 0.5\ndipole = 2.0" rotation "${rotation}")
 file(WRITE "${WORK}/rotation.toml" "${rotation}\n[external]\ndipole_field = [0.0, 0.0, 1.5]\n")
-run_bd(0 --config "${WORK}/rotation.toml" --out-dir "${WORK}/rotation_serial" --quiet)
-run_bd(${NP} --config "${WORK}/rotation.toml" --out-dir "${WORK}/rotation_ranks" --quiet)
-same_trajectory(rotation_serial rotation_ranks "rotation, 60 steps on ${NP} ranks")
-run_bd(2 --config "${WORK}/rotation.toml" --out-dir "${WORK}/rotation_restarted" --steps 30 --quiet)
-run_bd(${NP} --restart "${WORK}/rotation_restarted/checkpoint.bin" --quiet)
-same_trajectory(rotation_serial rotation_restarted "rotation, 30 steps on 2 ranks, 30 more on ${NP}")
+same_as_serial(rotation "rotation")
 
 # Bead-spring chains (harmonic bonds, WCA pairs): the bonds' partners travel with the halo, and the
 # trajectory is the serial run's byte for byte.

@@ -5,7 +5,9 @@
 // owned particle's force is summed over the same neighbours in the same order (its halo holds every
 // neighbour, its part is ordered by global index) and its noise is keyed by its global index. With
 // hydrodynamic interactions the positions follow the serial engine with the same operator to
-// round-off (direct in free space, pse in a periodic box) or to the FMM's tolerance.
+// round-off (direct in free space, pse in a periodic box) or to the FMM's tolerance. With rotation
+// the orientations agree as the positions do (free draining bit for bit, direct to round-off, fmm to
+// the tolerance), also across a version 3 checkpoint.
 #include <gtest/gtest.h>
 #include <mpi.h>
 #include <unistd.h>

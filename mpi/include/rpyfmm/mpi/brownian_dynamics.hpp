@@ -22,10 +22,10 @@
 // build. At a rebuild the particles migrate along the Morton curve when the ranks' costs (their
 // particles plus their neighbour-list entries) are imbalanced beyond a threshold.
 //
-// So with free draining the positions after every step are, bit for bit, those of bd::Integrator
-// with rpy::FreeDrainingMobility on the whole set, on any number of ranks and for any partition
-// (same binary). With hydrodynamic interactions they are the serial engine's with the same operator
-// to round-off (direct: products summed in another order; pse: the serial PseRpy with double
+// So with free draining the positions (and with rotation the orientations) after every step are,
+// bit for bit, those of bd::Integrator with rpy::FreeDrainingMobility on the whole set, on any
+// number of ranks and for any partition (same binary). With hydrodynamic interactions they are the serial engine's with
+// the same operator to round-off (direct: products summed in another order; pse: the serial PseRpy with double
 // wave-space grids, its sums in another order) or to the FMM's tolerance (fmm). The
 // potential energy is the sum over the ranks of their particles' shares, equal to the serial
 // engine's to round-off (a sum in another order).
