@@ -747,6 +747,24 @@ TEST(MpiDistributedBd, FreeDrainingRotationEqualsTheSerialEngineBitForBitForEver
   run(o, share_of(s, Split::geometric, shuffled(s.size(), 6), true, q), "shuffled ids, repartitions");
 }
 
+TEST(MpiDistributedBd, RotationAtZeroTemperatureIsTheSerialDeterministicTurnBitForBit) {
+  // kT = 0: no noise drawn, each particle turns by omega dt alone (dipoles aligning with the field,
+  // constant torques), bit for bit bd::Integrator's, with particles on every rank and on one only.
+  const System s = lattice(4, 1.6, 2, 31);
+  const ForceField forces = with_torques(wca_mixture());
+  const std::vector<double> q = random_orientations(s.size(), 9);
+  DistributedBdOptions o = rotating(options_with(4e-3, 3));
+  o.integrator.kT = 0.0;
+  const SerialRotation serial = serial_rotation_run(
+      std::make_unique<rpyfmm::rpy::FreeDrainingMobility>(Geometry::open(), o.viscosity), forces, o, s, q, 10);
+  EXPECT_GT(differences(serial.q, q).second, 1e-3);  // the torques turned the particles
+  for (const Split split : {Split::even, Split::last_only}) {
+    DistributedBd bd(MPI_COMM_WORLD, forces, Geometry::open(), o, share_of(s, split, identity(s.size()), false, q));
+    bd.run(10);
+    expect_rotation_state_bitwise(bd, serial, "kT = 0, split " + std::to_string(static_cast<int>(split)));
+  }
+}
+
 TEST(MpiDistributedBd, RotationCheckpointWrittenOnTwoRanksContinuesOnAllRanksBitForBit) {
   // 20 steps on ranks 0 and 1, a version 3 checkpoint (orientations, those at step 0, the summed
   // rotation vectors) through the file, 20 more on every rank: the serial 40 steps bit for bit.
