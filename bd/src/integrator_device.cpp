@@ -55,6 +55,14 @@ std::span<const double> Integrator::last_forces() const {
   return device_ ? std::span<const double>(device_->forces()) : std::span<const double>(f_);
 }
 
+std::span<const double> Integrator::orientations() const {
+  return device_ ? std::span<const double>(device_->orientations()) : std::span<const double>(q_);
+}
+
+std::span<const double> Integrator::last_rotations() const {
+  return device_ ? std::span<const double>(device_->rotations()) : std::span<const double>(phi_);
+}
+
 std::size_t Integrator::neighbour_rebuilds() const {
   return device_ ? device_->rebuilds() : list_.rebuilds();
 }

@@ -12,6 +12,7 @@
 #include <cstring>
 #include <limits>
 
+#include "rpyfmm/bd/quaternion.hpp"
 #include "rpyfmm/core/validate.hpp"
 
 namespace rpyfmm::bd {
@@ -139,6 +140,20 @@ std::string csv_log_header(bool split_displacements, bool rotation, bool langevi
   if (langevin) h += ",langevin_kT";
   if (sac) h += ",complexes,mean_adsorbed";
   return h + "\n";
+}
+
+std::array<double, 2> rotation_moment_sums(std::span<const double> orientations, std::span<const double> reference,
+                                           std::span<const double> rotation_vectors) {
+  double msd = 0, correlation = 0;
+  for (std::size_t i = 0; 3 * i < rotation_vectors.size(); ++i) {
+    const auto u = quaternion::body_axis(std::span<const double, 4>(orientations.data() + 4 * i, 4));
+    const auto u0 = quaternion::body_axis(std::span<const double, 4>(reference.data() + 4 * i, 4));
+    for (int c = 0; c < 3; ++c) {
+      msd += rotation_vectors[3 * i + c] * rotation_vectors[3 * i + c];
+      correlation += u[c] * u0[c];
+    }
+  }
+  return {msd, correlation};
 }
 
 }  // namespace rpyfmm::bd

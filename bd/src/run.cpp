@@ -105,15 +105,7 @@ std::array<double, 3> centre_of(std::span<const double> x, std::size_t n) {
 /// u(t) . u(0), u the body z axis) of the particles (docs/theory/bd.md Sec. 7).
 std::array<double, 2> rotation_moments(std::span<const double> orientations, const std::vector<double>& reference,
                                        const std::vector<double>& rotation_vectors, std::size_t n) {
-  double msd = 0, correlation = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const auto u = quaternion::body_axis(std::span<const double, 4>(orientations.data() + 4 * i, 4));
-    const auto u0 = quaternion::body_axis(std::span<const double, 4>(reference.data() + 4 * i, 4));
-    for (int c = 0; c < 3; ++c) {
-      msd += rotation_vectors[3 * i + c] * rotation_vectors[3 * i + c];
-      correlation += u[c] * u0[c];
-    }
-  }
+  const auto [msd, correlation] = rotation_moment_sums(orientations, reference, rotation_vectors);
   return {msd / static_cast<double>(n), correlation / static_cast<double>(n)};
 }
 
@@ -146,7 +138,7 @@ Integrator run_integrator(const RunConfig& config, const RunOptions& options, co
     o.engine = StepEngine::external;
     return Integrator(rpy::make_mobility(config.mobility, start.types.size()), forces, o, start.positions, start.types,
                       config.neighbours, start.step,
-                      options.engine(config, forces, start.positions, start.types, start.step));
+                      options.engine(config, forces, start.positions, start.types, start.orientations, start.step));
   }
   o.engine = step_engine_for(config.mobility, options.device_launcher);
   return Integrator(engine_mobility(config.mobility, o.engine, start.types.size()), forces, o, start.positions,
@@ -320,10 +312,10 @@ class Run {
     const OutputSpec& out = config_.output;
     const std::uint64_t s = bd_.step_count();
     if (out.trajectory_every > 0 && s % out.trajectory_every == 0) {
-      const auto x = bd_.positions();  // on every process: the read may be collective
+      const auto x = bd_.positions();  // on every process: the reads may be collective
+      const auto q = bd_.orientations();
       on_writer([&] {
-        traj_.write(x, bd_.types(), forces_.types(), config_.geometry, s, bd_.time(), bd_.orientations(),
-                    bd_.complexes().owner());
+        traj_.write(x, bd_.types(), forces_.types(), config_.geometry, s, bd_.time(), q, bd_.complexes().owner());
       });
     }
     if (out.log_every > 0 && (s % out.log_every == 0 || s == total_)) write_log_row(first);
@@ -363,8 +355,10 @@ class Run {
       row << ',' << std::sqrt(last_.det2 / norm) << ',' << std::sqrt(last_.brown2 / norm);
     }
     if (config_.integrator.rotation) {
+      const auto q = bd_.orientations();  // on every process (the read may be collective), used on the writer
       const auto [rmsd, correlation] =
-          rotation_moments(bd_.orientations(), start_.reference_orientations, start_.rotation_vectors, n_);
+          options_.writes_files ? rotation_moments(q, start_.reference_orientations, start_.rotation_vectors, n_)
+                                : std::array<double, 2>{};
       row << ',' << rmsd << ',' << correlation;
     }
     if (!bd_.inertial().empty()) row << ',' << bd_.inertial().kinetic_temperature();

@@ -11,6 +11,7 @@
 #include <utility>
 #include <variant>
 
+#include "rpyfmm/bd/rotation_sampling.hpp"
 #include "rpyfmm/mpi/brownian_dynamics.hpp"
 #include "rpyfmm/mpi/direct_operator.hpp"
 #include "rpyfmm/mpi/fmm_rpy.hpp"
@@ -38,7 +39,7 @@ struct DistributedBd::Hydrodynamics {
 
   /// Collective: the operator of options.method (direct or fmm in open geometry, pse in a periodic
   /// box; none: nullptr). Throws on every rank for a method the geometry or the ranks do not run,
-  /// and for pse with a sampler other than its split one.
+  /// for pse with a sampler other than its split one, and for pse with rotation.
   static std::unique_ptr<Hydrodynamics> make(MPI_Comm comm, const DistributedBdOptions& options,
                                              const rpy::Geometry& geometry);
 
@@ -51,6 +52,13 @@ struct DistributedBd::Hydrodynamics {
   rpy::SqrtReport products(std::span<const double> x, std::span<const double> a, std::span<const double> f,
                            std::span<const double> z, const FusedNoise& noise, std::span<double> u,
                            std::span<double> w);
+
+  /// Collective, with rotation (direct, fmm), as bd::rotational_drift_and_noise on the serial
+  /// operator: [u; omega] = M [f; t] by the operator's grand mobility and, where z.translation is
+  /// not empty, [w_t; w_r] = B [z_t; z_r] by rpyfmm::mpi::sqrt_apply_rotation.
+  rpy::SqrtReport grand_products(std::span<const double> x, std::span<const double> a,
+                                 bd::GrandVector<const double> loads, bd::GrandVector<const double> z,
+                                 bd::GrandVector<double> velocities, bd::GrandVector<double> w);
 };
 
 }  // namespace rpyfmm::mpi

@@ -15,56 +15,69 @@ namespace {
 
 constexpr const char* kWhere = "bd across ranks";
 
-// Collective: the values (3 per particle) of every rank's particles on rank 0, placed by global
-// index (3 N entries); an empty array on the other ranks. An empty `values` counts as zeros.
+// Collective: the values (`per` per particle: 3 for positions, 4 for orientations) of every rank's
+// particles on rank 0, placed by global index (per N entries); an empty array on the other ranks. An
+// empty `values` counts as zeros.
 std::vector<double> gather_by_index(const Communicator& comm, std::span<const std::uint64_t> ids,
-                                    std::span<const double> values, std::uint64_t total) {
+                                    std::span<const double> values, std::uint64_t total, std::size_t per = 3) {
+  const std::size_t stride = per + 1;  // the id, then the values
   std::vector<double> packed;
-  packed.reserve(4 * ids.size());
+  packed.reserve(stride * ids.size());
   for (std::size_t i = 0; i < ids.size(); ++i) {
     packed.push_back(static_cast<double>(ids[i]));
-    for (std::size_t c = 0; c < 3; ++c) packed.push_back(values.empty() ? 0.0 : values[3 * i + c]);
+    for (std::size_t c = 0; c < per; ++c) packed.push_back(values.empty() ? 0.0 : values[per * i + c]);
   }
-  require(4 * total <= static_cast<std::uint64_t>(INT_MAX), ErrorCode::not_supported, kWhere,
-          "gathering more than (2^31 - 1) / 4 particles on rank 0");
+  require(stride * total <= static_cast<std::uint64_t>(INT_MAX), ErrorCode::not_supported, kWhere,
+          "gathering more than (2^31 - 1) / " + std::to_string(stride) + " values on rank 0");
   const int mine = static_cast<int>(packed.size());
   const bool root = comm.rank() == 0;
   std::vector<int> counts(root ? static_cast<std::size_t>(comm.size()) : 0), displs(counts.size(), 0);
   check_mpi(MPI_Gather(&mine, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, comm.get()), "MPI_Gather");
   for (std::size_t r = 1; r < counts.size(); ++r) displs[r] = displs[r - 1] + counts[r - 1];
-  std::vector<double> all(root ? 4 * total : 0);
+  std::vector<double> all(root ? stride * total : 0);
   check_mpi(
       MPI_Gatherv(packed.data(), mine, MPI_DOUBLE, all.data(), counts.data(), displs.data(), MPI_DOUBLE, 0, comm.get()),
       "MPI_Gatherv");
-  std::vector<double> placed(root ? 3 * total : 0);
-  for (std::size_t k = 0; 4 * k < all.size(); ++k) {
-    const auto id = static_cast<std::size_t>(all[4 * k]);
-    for (std::size_t c = 0; c < 3; ++c) placed[3 * id + c] = all[4 * k + 1 + c];
+  std::vector<double> placed(root ? per * total : 0);
+  for (std::size_t k = 0; stride * k < all.size(); ++k) {
+    const auto id = static_cast<std::size_t>(all[stride * k]);
+    for (std::size_t c = 0; c < per; ++c) placed[per * id + c] = all[stride * k + 1 + c];
   }
   return placed;
 }
 
+// The whole system's values of one kind gathered on rank 0 once per step they are read at.
+struct GatheredPerStep {
+  static constexpr std::uint64_t kNever = std::numeric_limits<std::uint64_t>::max();
+  std::vector<double> values{};
+  std::uint64_t step = kNever;
+
+  // Collective: the values at the engine's current step (`local`: this rank's, per per particle).
+  const std::vector<double>& at(const DistributedBd& bd, std::span<const double> local, std::size_t per) {
+    if (step != bd.step_count()) {
+      values = gather_by_index(bd.communicator(), bd.ids(), local, bd.global_size(), per);
+      step = bd.step_count();
+    }
+    return values;
+  }
+};
+
 // DistributedBd behind the Integrator's engine interface; the whole system's positions and forces
-// gathered on rank 0 (the rank that writes the files, across_ranks) once per step they are read at,
-// so that no other rank holds O(N) of them.
+// (with rotation also the orientations and the last step's rotation vectors) gathered on rank 0 (the rank that writes
+// the files, across_ranks) once per step they are read at, so that no other rank holds O(N) of them.
 class DistributedStepper final : public bd::Stepper {
  public:
   explicit DistributedStepper(DistributedBd bd) : bd_(std::move(bd)) {}
 
   void step() override { bd_.step(); }
-  [[nodiscard]] const std::vector<double>& positions() const override {
-    if (positions_step_ != bd_.step_count()) {
-      positions_ = gather_by_index(bd_.communicator(), bd_.ids(), bd_.positions(), bd_.global_size());
-      positions_step_ = bd_.step_count();
-    }
-    return positions_;
+  [[nodiscard]] const std::vector<double>& positions() const override { return positions_.at(bd_, bd_.positions(), 3); }
+  [[nodiscard]] const std::vector<double>& forces() const override { return forces_.at(bd_, bd_.last_forces(), 3); }
+  /// With rotation (empty without): gathered on rank 0 as the positions.
+  [[nodiscard]] const std::vector<double>& orientations() const override {
+    return bd_.options().integrator.rotation ? orientations_.at(bd_, bd_.orientations(), 4) : orientations_.values;
   }
-  [[nodiscard]] const std::vector<double>& forces() const override {
-    if (forces_step_ != bd_.step_count()) {
-      forces_ = gather_by_index(bd_.communicator(), bd_.ids(), bd_.last_forces(), bd_.global_size());
-      forces_step_ = bd_.step_count();
-    }
-    return forces_;
+  [[nodiscard]] const std::vector<double>& rotations() const override {
+    return bd_.options().integrator.rotation ? rotations_.at(bd_, bd_.last_rotations(), 3) : rotations_.values;
   }
   [[nodiscard]] std::uint64_t step_count() const override { return bd_.step_count(); }
   [[nodiscard]] double potential_energy() const override { return bd_.potential_energy(); }
@@ -77,10 +90,8 @@ class DistributedStepper final : public bd::Stepper {
   }
 
  private:
-  static constexpr std::uint64_t kNever = std::numeric_limits<std::uint64_t>::max();
   DistributedBd bd_;
-  mutable std::vector<double> positions_, forces_;
-  mutable std::uint64_t positions_step_ = kNever, forces_step_ = kNever;
+  mutable GatheredPerStep positions_, forces_, orientations_, rotations_;
 };
 
 // The mobility of a run across ranks: its method, automatic counting as fmm in free space and as
@@ -111,7 +122,8 @@ rpy::pse::PseOptions pse_across_ranks(const rpy::MobilitySpec& spec) {
 
 std::unique_ptr<bd::Stepper> make_distributed_stepper(MPI_Comm comm, const bd::RunConfig& config,
                                                       const bd::ForceField& forces, std::span<const double> positions,
-                                                      std::span<const std::uint32_t> types, std::uint64_t first_step) {
+                                                      std::span<const std::uint32_t> types,
+                                                      std::span<const double> orientations, std::uint64_t first_step) {
   const Communicator world(comm);
   DistributedBdOptions options;
   options.integrator = config.integrator;
@@ -129,6 +141,9 @@ std::unique_ptr<bd::Stepper> make_distributed_stepper(MPI_Comm comm, const bd::R
   share.types.assign(types.begin() + static_cast<std::ptrdiff_t>(first),
                      types.begin() + static_cast<std::ptrdiff_t>(last));
   for (std::uint64_t i = first; i < last; ++i) share.ids.push_back(i);
+  if (config.integrator.rotation && !orientations.empty())  // else the identity (or refused without rotation)
+    share.orientations.assign(orientations.begin() + static_cast<std::ptrdiff_t>(4 * first),
+                              orientations.begin() + static_cast<std::ptrdiff_t>(4 * last));
   return std::make_unique<DistributedStepper>(
       DistributedBd(comm, forces, config.geometry, std::move(options), std::move(share), first_step));
 }
@@ -136,8 +151,9 @@ std::unique_ptr<bd::Stepper> make_distributed_stepper(MPI_Comm comm, const bd::R
 bd::RunOptions across_ranks(MPI_Comm comm, bd::RunOptions options) {
   const Communicator world(comm);
   options.engine = [comm](const bd::RunConfig& config, const bd::ForceField& forces, std::span<const double> x,
-                          std::span<const std::uint32_t> types, std::uint64_t first_step) {
-    return make_distributed_stepper(comm, config, forces, x, types, first_step);
+                          std::span<const std::uint32_t> types, std::span<const double> orientations,
+                          std::uint64_t first_step) {
+    return make_distributed_stepper(comm, config, forces, x, types, orientations, first_step);
   };
   options.writes_files = world.rank() == 0;
   if (world.rank() != 0) options.progress = nullptr;

@@ -17,8 +17,12 @@
 #include "device/engine_tables.hpp"
 #include "device/euler_maruyama.hpp"
 #include "device/rebuild_test.hpp"
+#include "rpyfmm/bd/output.hpp"
+#include "rpyfmm/bd/quaternion.hpp"
+#include "rpyfmm/bd/rotation_sampling.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/mpi/partition.hpp"
+#include "rpyfmm/rpy/free_draining.hpp"
 #include "rpyfmm/rpy/random.hpp"
 
 namespace rpyfmm::mpi {
@@ -30,7 +34,6 @@ constexpr std::uint64_t kNoParticle = std::numeric_limits<std::uint64_t>::max();
 // The features of bd::Integrator that this engine does not have.
 void require_supported(const DistributedBdOptions& o, const bd::ForceField& forces) {
   const bd::IntegratorOptions& i = o.integrator;
-  require(!i.rotation, ErrorCode::not_supported, kWhere, "rotation is not supported across ranks");
   const bool inertial = std::any_of(i.inertia.begin(), i.inertia.end(), [](const auto& t) { return t.has_value(); });
   require(!inertial, ErrorCode::not_supported, kWhere, "inertial (Langevin) particles are not supported across ranks");
   require(!i.sac.enabled, ErrorCode::not_supported, kWhere, "the SAC scheme is not supported across ranks");
@@ -88,7 +91,8 @@ std::vector<double> option_signature(const DistributedBdOptions& o, const rpy::G
           static_cast<double>(o.pse.grid[2]),
           static_cast<double>(o.pse.support),
           o.pse.window_eta,
-          o.pse.lanczos_tolerance};
+          o.pse.lanczos_tolerance,
+          i.rotation ? 1.0 : 0.0};
 }
 
 // Collective: the exclusive prefix sum and the total of this rank's count.
@@ -120,6 +124,28 @@ void check_share(const BdShare& s, const bd::ForceField& forces) {
   forces.with_bonds({}).check(s.types);  // the types; the bonds index the whole system (BondIndex)
 }
 
+// This rank's orientations, those at step 0 and summed rotation vectors checked and completed
+// (not collective): with rotation, quaternions as bd::Integrator takes them (quaternion::checked:
+// finite, not zero, normalized unless unit to 1e-14), empty ones the identity, the orientations and
+// zeros; without rotation all must be empty.
+void complete_rotation_state(BdShare& s, bool rotation) {
+  const std::size_t n = s.types.size();
+  if (!rotation) {
+    require(s.orientations.empty() && s.reference_orientations.empty() && s.rotation_vectors.empty(),
+            ErrorCode::invalid_argument, kWhere, "orientations or rotation vectors given but rotation is off");
+    return;
+  }
+  constexpr const char* kObject = "particle (index in this rank's share)";
+  s.orientations = bd::quaternion::checked(std::move(s.orientations), n, kWhere, kObject);
+  s.reference_orientations = s.reference_orientations.empty()
+                                 ? s.orientations
+                                 : bd::quaternion::checked(std::move(s.reference_orientations), n, kWhere, kObject);
+  if (s.rotation_vectors.empty()) s.rotation_vectors.assign(3 * n, 0.0);
+  require(s.rotation_vectors.size() == 3 * n, ErrorCode::invalid_input, kWhere,
+          "rotation_vectors must be empty or hold 3 values per particle");
+  require_finite(s.rotation_vectors, kWhere, "rotation_vectors", 3);
+}
+
 // Collective: throws on every rank unless the ids of all ranks are 0 ... total - 1, each once. Each
 // id goes to the rank of its block of the range, which checks its block.
 void check_permutation(const Communicator& comm, std::span<const std::uint64_t> ids, std::uint64_t total) {
@@ -149,6 +175,26 @@ void check_permutation(const Communicator& comm, std::span<const std::uint64_t> 
   comm.agree(problem);
 }
 
+// With rotation, the values of a particle that travel with it besides its position: orientation,
+// orientation at step 0 and summed rotation vector (4 + 4 + 3).
+constexpr std::size_t kRotationValues = 11;
+
+// Appends particle i's rotation values to `packed`.
+void pack_rotation(std::vector<double>& packed, std::span<const double> q, std::span<const double> reference,
+                   std::span<const double> sum, std::size_t i) {
+  packed.insert(packed.end(), &q[4 * i], &q[4 * i + 4]);
+  packed.insert(packed.end(), &reference[4 * i], &reference[4 * i + 4]);
+  packed.insert(packed.end(), &sum[3 * i], &sum[3 * i + 3]);
+}
+
+// Particle i's rotation values from v (pack_rotation's layout) into the arrays.
+void unpack_rotation(const double* v, std::size_t i, std::vector<double>& q, std::vector<double>& reference,
+                     std::vector<double>& sum) {
+  std::copy(v, v + 4, &q[4 * i]);
+  std::copy(v + 4, v + 8, &reference[4 * i]);
+  std::copy(v + 8, v + 11, &sum[3 * i]);
+}
+
 // The owned arrays sorted by global index (their order everywhere in the engine).
 template <class T>
 std::vector<T> permuted(const std::vector<T>& v, std::span<const std::size_t> order, std::size_t per) {
@@ -168,6 +214,7 @@ DistributedBd::DistributedBd(MPI_Comm comm, bd::ForceField forces, rpy::Geometry
     (void)motion_tables(options_, forces_);
     (void)bd::NeighbourList(geometry_, forces_.max_cutoff(), options_.neighbours);  // its checks of the skin and box
     check_share(share, forces_);
+    complete_rotation_state(share, options_.integrator.rotation);
   });
   require(same_on_every_rank(comm_, option_signature(options_, geometry_, forces_)), ErrorCode::invalid_argument,
           kWhere, "the ranks passed different options, geometries or force fields");
@@ -197,6 +244,13 @@ DistributedBd::DistributedBd(MPI_Comm comm, bd::ForceField forces, rpy::Geometry
   reference_ = permuted(share.reference_positions, order, 3);
   types_ = permuted(share.types, order, 1);
   ids_ = permuted(share.ids, order, 1);
+  if (options_.integrator.rotation) {
+    q_ = permuted(share.orientations, order, 4);
+    reference_q_ = permuted(share.reference_orientations, order, 4);
+    rotation_sum_ = permuted(share.rotation_vectors, order, 3);
+    torque_.assign(3 * ids_.size(), 0.0);
+    phi_.assign(3 * ids_.size(), 0.0);
+  }
   hydrodynamics_ = Hydrodynamics::make(comm_.get(), options_, geometry_);
   for (const char* part : {"rebuild", "halo", "forces", "update"}) stats_.seconds[part] = 0.0;
 }
@@ -270,7 +324,9 @@ void DistributedBd::repartition(std::span<const double> weights) {
     type[i] = static_cast<double>(types_[i]);
   }
   const SfcPartition partition(comm_.get(), keyed, weights);
-  const Column columns[] = {{x_, 3}, {reference_, 3}, {id, 1}, {type, 1}};
+  // With rotation the orientations, those at step 0 and the summed rotation vectors travel too.
+  std::vector<Column> columns = {{x_, 3}, {reference_, 3}, {id, 1}, {type, 1}};
+  if (options_.integrator.rotation) columns.insert(columns.end(), {{q_, 4}, {reference_q_, 4}, {rotation_sum_, 3}});
   std::vector<std::vector<double>> moved = partition.to_owners(columns);
   const std::size_t m = partition.owned_size();
   std::vector<std::size_t> order(m);
@@ -283,6 +339,13 @@ void DistributedBd::repartition(std::span<const double> weights) {
   for (std::size_t i = 0; i < m; ++i) {
     ids_[i] = static_cast<std::uint64_t>(moved[2][order[i]]);
     types_[i] = static_cast<std::uint32_t>(moved[3][order[i]]);
+  }
+  if (options_.integrator.rotation) {
+    q_ = permuted(moved[4], order, 4);
+    reference_q_ = permuted(moved[5], order, 4);
+    rotation_sum_ = permuted(moved[6], order, 3);
+    torque_.assign(3 * m, 0.0);  // as the forces below
+    phi_.assign(3 * m, 0.0);
   }
   f_.assign(3 * m, 0.0);  // the forces of the last step belong to the particles held before
   ++stats_.repartitions;
@@ -300,6 +363,8 @@ void DistributedBd::compute_forces() {
   });
   double mine = 0.0;
   for (const double e : particle_energy_) mine += e;
+  // The torques depend on each particle's own type and orientation alone (bd::TorqueField).
+  if (options_.integrator.rotation) mine += forces_.torque_field().compute(q_, types_, torque_);
   check_mpi(MPI_Allreduce(&mine, &energy_, 1, MPI_DOUBLE, MPI_SUM, comm_.get()), "MPI_Allreduce");
 }
 
@@ -310,14 +375,25 @@ void DistributedBd::advance() {
   const bool drawn = options_.integrator.kT > 0.0 && !(hydrodynamics_ && hydrodynamics_->fused());
   z_.assign(drawn ? 3 * n : 0, 0.0);
   if (!z_.empty()) rpy::fill_normal(ids_, z_, options_.integrator.seed, step_);
+  // With rotation z_r from its own stream (bd/rotation_sampling.hpp), keyed alike.
+  const bool rotation = options_.integrator.rotation;
+  zr_.assign(rotation && drawn ? 3 * n : 0, 0.0);
+  if (!zr_.empty()) rpy::fill_normal(ids_, zr_, options_.integrator.seed, step_, bd::kRotationNoiseStream);
   std::vector<double> next(3 * n);
   StopWatch work;
-  const std::uint64_t refused = hydrodynamics_ ? displace_with_hydrodynamics(next) : displace_free_draining(next);
+  std::uint64_t refused = hydrodynamics_ ? displace_with_hydrodynamics(next) : displace_free_draining(next);
+  if (rotation && !hydrodynamics_) free_draining_rotation();
+  if (rotation) refused = std::min(refused, turn_angles());
   if (!hydrodynamics_) work_seconds_ += work.seconds();  // the hydrodynamic products are collective
   std::uint64_t lowest = kNoParticle;
   check_mpi(MPI_Allreduce(&refused, &lowest, 1, MPI_UINT64_T, MPI_MIN, comm_.get()), "MPI_Allreduce");
   if (lowest != kNoParticle) fail_blow_up(lowest, next);
   x_.swap(next);
+  // q <- exp(phi) q (bd::Integrator's update), and the sums of the rotation vectors (the log's).
+  for (std::size_t i = 0; i < phi_.size() / 3; ++i) {
+    bd::quaternion::rotate(std::span<double, 4>(q_.data() + 4 * i, 4), &phi_[3 * i]);
+    for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) rotation_sum_[k] += phi_[k];
+  }
   ++step_;
   ++stats_.steps;
   ++steps_since_rebuild_;
@@ -360,7 +436,13 @@ std::uint64_t DistributedBd::displace_with_hydrodynamics(std::vector<double>& ne
   const double dt = options_.integrator.dt, noise = std::sqrt(2.0 * options_.integrator.kT * dt);
   const Hydrodynamics::FusedNoise fused{
       .scale = noise / dt, .seed = options_.integrator.seed, .step = step_, .ids = ids_};
-  hydrodynamics_->products(x_, radii_, f_, z_, fused, u_, w_);
+  if (options_.integrator.rotation) {
+    omega_.assign(3 * n, 0.0);
+    wr_.assign(zr_.size(), 0.0);
+    hydrodynamics_->grand_products(x_, radii_, {f_, torque_}, {z_, zr_}, {u_, omega_}, {w_, wr_});
+  } else {
+    hydrodynamics_->products(x_, radii_, f_, z_, fused, u_, w_);
+  }
   const double frac2 = options_.integrator.max_displacement * options_.integrator.max_displacement;
   std::uint64_t refused = kNoParticle;
   for (std::size_t i = 0; i < n; ++i) {
@@ -371,6 +453,39 @@ std::uint64_t DistributedBd::displace_with_hydrodynamics(std::vector<double>& ne
       d2 += d * d;
     }
     if (!(d2 <= frac2 * radii_[i] * radii_[i])) refused = std::min(refused, ids_[i]);  // also catches NaN
+  }
+  return refused;
+}
+
+void DistributedBd::free_draining_rotation() {
+  // The serial engine's operator on this rank's particles: it is diagonal, each particle's values
+  // its own (rpy::FreeDrainingMobility), so they are the serial ones bit for bit.
+  const std::size_t n = ids_.size();
+  radii_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) radii_[i] = forces_.types()[types_[i]].radius;
+  rpy::FreeDrainingMobility mobility(geometry_, options_.viscosity);
+  mobility.set_positions(x_, radii_);
+  std::vector<double> u(3 * n), w(zr_.size());
+  omega_.assign(3 * n, 0.0);
+  wr_.assign(zr_.size(), 0.0);
+  mobility.apply(f_, torque_, u, omega_);
+  if (!zr_.empty()) (void)mobility.apply_sqrt_rotation(z_, zr_, w, wr_, options_.integrator.sqrt);
+}
+
+std::uint64_t DistributedBd::turn_angles() {
+  // bd::Integrator's phi = omega dt + sqrt(2 kT dt) w_r and its guard on |phi| (docs/theory/bd.md Sec. 7).
+  const double dt = options_.integrator.dt, noise = std::sqrt(2.0 * options_.integrator.kT * dt);
+  const double frac2 = options_.integrator.max_displacement * options_.integrator.max_displacement;
+  const bool brownian = !zr_.empty();
+  std::uint64_t refused = kNoParticle;
+  phi_.resize(omega_.size());
+  for (std::size_t i = 0; i < ids_.size(); ++i) {
+    double turn2 = 0.0;
+    for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) {
+      phi_[k] = omega_[k] * dt + (brownian ? noise * wr_[k] : 0.0);
+      turn2 += phi_[k] * phi_[k];
+    }
+    if (!(turn2 <= frac2)) refused = std::min(refused, ids_[i]);  // also catches NaN
   }
   return refused;
 }
@@ -387,26 +502,48 @@ void DistributedBd::fail_blow_up(std::uint64_t id, std::span<const double> next)
       d2 += d * d;
       f2 += f_[3 * i + c] * f_[3 * i + c];
     }
+    const double radius = forces_.types()[types_[i]].radius, limit = options_.integrator.max_displacement;
+    double turn2 = 0.0, t2 = 0.0;
+    for (std::size_t k = 3 * i; k < 3 * i + 3 && !phi_.empty(); ++k) {
+      turn2 += phi_[k] * phi_[k];
+      t2 += torque_[k] * torque_[k];
+    }
     std::ostringstream msg;
-    msg << kWhere << ": blow-up at step " << step_ << ": particle " << id << " would move " << std::sqrt(d2)
-        << " > max_displacement (" << options_.integrator.max_displacement << ") x radius "
-        << forces_.types()[types_[i]].radius << " in one step (|force| = " << std::sqrt(f2)
-        << "); reduce dt or check the forces. State kept at the last good step";
+    msg << kWhere << ": blow-up at step " << step_ << ": particle " << id;
+    if (!phi_.empty() && !(std::sqrt(turn2) <= limit) && std::sqrt(d2) <= limit * radius)
+      msg << " would turn by " << std::sqrt(turn2) << " rad > max_displacement (" << limit
+          << ") in one step (|torque| = " << std::sqrt(t2) << ")";
+    else
+      msg << " would move " << std::sqrt(d2) << " > max_displacement (" << limit << ") x radius " << radius
+          << " in one step (|force| = " << std::sqrt(f2) << ")";
+    msg << "; reduce dt or check the forces. State kept at the last good step";
     problem = Error(ErrorCode::numerical_failure, msg.str());
   }
   comm_.agree(problem);
 }
 
+std::array<double, 2> DistributedBd::rotation_moments() const {
+  require(options_.integrator.rotation, ErrorCode::invalid_argument, kWhere, "rotation_moments needs rotation");
+  const std::array<double, 2> mine = bd::rotation_moment_sums(q_, reference_q_, rotation_sum_);
+  std::array<double, 2> all{};
+  check_mpi(MPI_Allreduce(mine.data(), all.data(), 2, MPI_DOUBLE, MPI_SUM, comm_.get()), "MPI_Allreduce");
+  const auto n = static_cast<double>(global_n_);
+  return {all[0] / n, all[1] / n};
+}
+
 bd::Checkpoint DistributedBd::checkpoint(int root) const {
   require(root >= 0 && root < comm_.size(), ErrorCode::invalid_argument, kWhere,
           "checkpoint root " + std::to_string(root) + " is not a rank of the communicator");
-  constexpr int kValues = 8;  // id, type, x (3), reference (3)
+  // id, type, x (3), reference (3); with rotation q (4), q at step 0 (4), summed rotation vector (3)
+  const bool rotation = options_.integrator.rotation;
+  const std::size_t values = rotation ? 8 + kRotationValues : 8;
   std::vector<double> packed;
-  packed.reserve(kValues * ids_.size());
+  packed.reserve(values * ids_.size());
   for (std::size_t i = 0; i < ids_.size(); ++i) {
     packed.insert(packed.end(), {static_cast<double>(ids_[i]), static_cast<double>(types_[i])});
     packed.insert(packed.end(), &x_[3 * i], &x_[3 * i + 3]);
     packed.insert(packed.end(), &reference_[3 * i], &reference_[3 * i + 3]);
+    if (rotation) pack_rotation(packed, q_, reference_q_, rotation_sum_, i);
   }
   std::vector<std::vector<double>> send(comm_.size());
   send[root] = std::move(packed);
@@ -420,14 +557,20 @@ bd::Checkpoint DistributedBd::checkpoint(int root) const {
   c.positions.resize(3 * n);
   c.reference_positions.resize(3 * n);
   c.types.resize(n);
+  if (rotation) {
+    c.orientations.resize(4 * n);
+    c.reference_orientations.resize(4 * n);
+    c.rotation_vectors.resize(3 * n);
+  }
   for (std::size_t k = 0; k < n; ++k) {
-    const double* v = &all[kValues * k];
+    const double* v = &all[values * k];
     const auto id = static_cast<std::size_t>(v[0]);
     c.types[id] = static_cast<std::uint32_t>(v[1]);
     for (int a = 0; a < 3; ++a) {
       c.positions[3 * id + a] = v[2 + a];
       c.reference_positions[3 * id + a] = v[5 + a];
     }
+    if (rotation) unpack_rotation(v + 8, id, c.orientations, c.reference_orientations, c.rotation_vectors);
   }
   return c;
 }
@@ -439,8 +582,17 @@ DistributedBd restart_distributed_bd(MPI_Comm comm_handle, bd::ForceField forces
           "restart root " + std::to_string(root) + " is not a rank of the communicator");
   comm.run([&] {
     if (comm.rank() != root) return;
-    require(checkpoint.orientations.empty() && checkpoint.velocities.empty(), ErrorCode::not_supported, kWhere,
-            "the checkpoint holds orientations or velocities, which runs across ranks do not have");
+    require(checkpoint.velocities.empty(), ErrorCode::not_supported, kWhere,
+            "the checkpoint holds velocities (inertial particles), which runs across ranks do not have");
+    require(checkpoint.orientations.empty() != options.integrator.rotation, ErrorCode::invalid_argument, kWhere,
+            options.integrator.rotation ? "the options have rotation but the checkpoint holds no orientations"
+                                        : "the checkpoint holds orientations but the options have no rotation");
+    const std::size_t n = checkpoint.types.size();
+    require(checkpoint.orientations.empty() ||
+                (checkpoint.orientations.size() == 4 * n && checkpoint.reference_orientations.size() == 4 * n &&
+                 checkpoint.rotation_vectors.size() == 3 * n),
+            ErrorCode::invalid_input, kWhere,
+            "the checkpoint's orientations, reference orientations, rotation vectors and types disagree on N");
     require(checkpoint.seed == options.integrator.seed && checkpoint.dt == options.integrator.dt,
             ErrorCode::invalid_argument, kWhere, "the checkpoint's seed and dt differ from the options'");
     require(checkpoint.positions.size() == 3 * checkpoint.types.size() &&
@@ -452,7 +604,9 @@ DistributedBd restart_distributed_bd(MPI_Comm comm_handle, bd::ForceField forces
   // Blocks of global indices: rank r gets [r N / P, (r + 1) N / P).
   const auto p = static_cast<std::uint64_t>(comm.size()), total = header[0];
   const auto first = [&](std::uint64_t r) { return (r * total) / p; };
-  constexpr int kValues = 7;  // type, x (3), reference (3)
+  // type, x (3), reference (3); with rotation q (4), q at step 0 (4), summed rotation vector (3)
+  const bool rotation = options.integrator.rotation;
+  const std::size_t values = rotation ? 7 + kRotationValues : 7;
   std::vector<std::vector<double>> blocks(comm.size());
   for (std::uint64_t r = 0; r < blocks.size() && comm.rank() == root; ++r) {
     for (std::uint64_t i = first(r); i < first(r + 1); ++i) {
@@ -460,17 +614,28 @@ DistributedBd restart_distributed_bd(MPI_Comm comm_handle, bd::ForceField forces
       blocks[r].insert(blocks[r].end(), &checkpoint.positions[3 * i], &checkpoint.positions[3 * i + 3]);
       blocks[r].insert(blocks[r].end(), &checkpoint.reference_positions[3 * i],
                        &checkpoint.reference_positions[3 * i + 3]);
+      if (rotation)
+        pack_rotation(blocks[r], checkpoint.orientations, checkpoint.reference_orientations,
+                      checkpoint.rotation_vectors, i);
     }
   }
   const std::vector<double> mine = detail::alltoallv(comm, blocks, kWhere, "the checkpoint's particles");
   const auto r = static_cast<std::uint64_t>(comm.rank());
   BdShare share;
+  const std::size_t count = first(r + 1) - first(r);
+  if (rotation) {
+    share.orientations.resize(4 * count);
+    share.reference_orientations.resize(4 * count);
+    share.rotation_vectors.resize(3 * count);
+  }
   for (std::uint64_t i = first(r); i < first(r + 1); ++i) {
-    const double* v = &mine[kValues * (i - first(r))];
+    const double* v = &mine[values * (i - first(r))];
     share.types.push_back(static_cast<std::uint32_t>(v[0]));
     share.positions.insert(share.positions.end(), v + 1, v + 4);
     share.reference_positions.insert(share.reference_positions.end(), v + 4, v + 7);
     share.ids.push_back(i);
+    if (rotation)
+      unpack_rotation(v + 7, i - first(r), share.orientations, share.reference_orientations, share.rotation_vectors);
   }
   return DistributedBd(comm_handle, std::move(forces), geometry, std::move(options), std::move(share), header[1]);
 }

@@ -6,7 +6,8 @@
 # With PSE (spheres of one radius, double-precision wave grids) the positions are the serial
 # engine's to round-off (about 1e-15 of the coordinates; tests/mpi/test_distributed_bd.cpp), so
 # the printed coordinates (10 significant digits) agree to one unit of their last digit, allowed 2.
-# Bead-spring chains: byte for byte as free draining. A configuration the ranks do not run (direct
+# Bead-spring chains and rotating dipoles (free draining, also restarted): byte for byte as free
+# draining. A configuration the ranks do not run (direct
 # in a periodic box; PSE with single-precision grids) fails every rank: exit status 2, one error
 # line, no output directory. Run by ctest as
 #   cmake -DRPYFMM=... -DMPIEXEC=... -DNP=... "-DMPI_FLAGS=..." -DWORK=... -P bd_across_ranks.cmake
@@ -77,15 +78,21 @@ function(same_trajectory a b what)
   endif()
 endfunction()
 
-run_bd(0 --config "${WORK}/run.toml" --out-dir "${WORK}/serial" --quiet)
-run_bd(${NP} --config "${WORK}/run.toml" --out-dir "${WORK}/ranks" --json)
-if(NOT run_output MATCHES "\"ranks\":${NP}" OR NOT run_output MATCHES "\"last_step\":60")
-  message(FATAL_ERROR "--json across ${NP} ranks: ${run_output}")
-endif()
-same_trajectory(serial ranks "60 steps on ${NP} ranks")
-run_bd(2 --config "${WORK}/run.toml" --out-dir "${WORK}/restarted" --steps 30 --quiet)
-run_bd(${NP} --restart "${WORK}/restarted/checkpoint.bin" --quiet)
-same_trajectory(serial restarted "30 steps on 2 ranks, 30 more on ${NP}")
+# The run of ${WORK}/NAME.toml (60 steps) on NP ranks, and its first 30 steps on 2 ranks restarted
+# from their checkpoint on NP, against the serial run: trajectories identical byte for byte.
+function(same_as_serial name what)
+  run_bd(0 --config "${WORK}/${name}.toml" --out-dir "${WORK}/${name}_serial" --quiet)
+  run_bd(${NP} --config "${WORK}/${name}.toml" --out-dir "${WORK}/${name}_ranks" --json)
+  if(NOT run_output MATCHES "\"ranks\":${NP}" OR NOT run_output MATCHES "\"last_step\":60")
+    message(FATAL_ERROR "${what}: --json across ${NP} ranks: ${run_output}")
+  endif()
+  same_trajectory(${name}_serial ${name}_ranks "${what}, 60 steps on ${NP} ranks")
+  run_bd(2 --config "${WORK}/${name}.toml" --out-dir "${WORK}/${name}_restarted" --steps 30 --quiet)
+  run_bd(${NP} --restart "${WORK}/${name}_restarted/checkpoint.bin" --quiet)
+  same_trajectory(${name}_serial ${name}_restarted "${what}, 30 steps on 2 ranks, 30 more on ${NP}")
+endfunction()
+
+same_as_serial(run "free draining")
 
 # Whether two coordinates printed with 10 significant digits differ by at most 2 units of their
 # last digit (the same number of decimals; as integers without the point).
@@ -159,6 +166,14 @@ file(WRITE "${WORK}/pse.toml" "${pse}")
 run_bd(0 --config "${WORK}/pse.toml" --out-dir "${WORK}/pse_serial" --quiet)
 run_bd(${NP} --config "${WORK}/pse.toml" --out-dir "${WORK}/pse_ranks" --quiet)
 close_trajectory(pse_ranks pse_serial "PSE, 40 steps on ${NP} ranks")
+
+# Rotation: dipoles of type A in a field, free draining: orientations, like positions, are the
+# serial engine's bit for bit, so the trajectory (with its orientation column) is identical byte for
+# byte; also after 30 steps on 2 ranks and a restart from their checkpoint (version 3) on NP.
+string(REPLACE "geometry = \"periodic\"" "geometry = \"periodic\"\nrotation = true" rotation "${text}")
+string(REPLACE "name = \"A\"\nradius = 0.5" "name = \"A\"\nradius = 0.5\ndipole = 2.0" rotation "${rotation}")
+file(WRITE "${WORK}/rotation.toml" "${rotation}\n[external]\ndipole_field = [0.0, 0.0, 1.5]\n")
+same_as_serial(rotation "rotation")
 
 # Bead-spring chains (harmonic bonds, WCA pairs): the bonds' partners travel with the halo, and the
 # trajectory is the serial run's byte for byte.

@@ -170,10 +170,12 @@ class Integrator {
   [[nodiscard]] std::span<const double> brownian_displacement() const { return dx_brown_; }
   /// With rotation: the orientations (4N unit quaternions w x y z), the torques at the start of
   /// the last step (3N), and the rotation vectors phi = W dt + sqrt(2 kT dt) w_r by which the
-  /// last step turned each particle (3N, lab frame). Empty without rotation.
-  [[nodiscard]] std::span<const double> orientations() const { return q_; }
+  /// last step turned each particle (3N, lab frame). Empty without rotation. On an engine across
+  /// processes the orientations and rotation vectors are read as positions() (Stepper), the
+  /// torques are not kept (empty).
+  [[nodiscard]] std::span<const double> orientations() const;
   [[nodiscard]] std::span<const double> last_torques() const { return torque_; }
-  [[nodiscard]] std::span<const double> last_rotations() const { return phi_; }
+  [[nodiscard]] std::span<const double> last_rotations() const;
   /// The inertial particles, their half-step velocities and kinetic temperature (empty() when
   /// every particle is Brownian).
   [[nodiscard]] const LangevinGroup& inertial() const { return inertial_; }

@@ -13,6 +13,7 @@
 // before that leaves nothing behind and the previous file untouched.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <span>
@@ -83,5 +84,12 @@ std::string xyz_frame(std::span<const double> positions, std::span<const std::ui
 /// mean_adsorbed, the mean number of adsorbed particles per complex (Sec. 9).
 std::string csv_log_header(bool split_displacements = false, bool rotation = false, bool langevin = false,
                            bool sac = false);
+
+/// The sums behind the log's rotation columns over the particles given (orientations and those at
+/// step 0: 4 values each, w x y z; rotation vectors summed since step 0: 3 each): sum_i |phi_i|^2
+/// and sum_i u_i(t) . u_i(0), u the body z axis (docs/theory/bd.md Sec. 7), in particle order.
+/// Divided by N they are the columns; a distributed run sums them over its ranks' shares.
+std::array<double, 2> rotation_moment_sums(std::span<const double> orientations, std::span<const double> reference,
+                                           std::span<const double> rotation_vectors);
 
 }  // namespace rpyfmm::bd

@@ -37,6 +37,14 @@ class Stepper {
   /// The last step's mobility product (square-root iterations, products) where the engine runs
   /// hydrodynamic interactions; nullopt for free draining (one pass of mu F and sqrt(mu) z).
   [[nodiscard]] virtual std::optional<DriftNoiseReport> mobility_report() const { return std::nullopt; }
+  /// With rotation (IntegratorOptions::rotation): the orientations at the current step (4N unit
+  /// quaternions w x y z) and the rotation vectors of the last step (3N; 0 before the first), held
+  /// and copied as positions(). An engine without rotation returns empty arrays.
+  [[nodiscard]] virtual const std::vector<double>& orientations() const { return none_; }
+  [[nodiscard]] virtual const std::vector<double>& rotations() const { return none_; }
+
+ private:
+  const std::vector<double> none_{};
 };
 
 }  // namespace rpyfmm::bd

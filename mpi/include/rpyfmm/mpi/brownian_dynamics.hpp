@@ -22,16 +22,29 @@
 // build. At a rebuild the particles migrate along the Morton curve when the ranks' costs (their
 // particles plus their neighbour-list entries) are imbalanced beyond a threshold.
 //
-// So with free draining the positions after every step are, bit for bit, those of bd::Integrator
-// with rpy::FreeDrainingMobility on the whole set, on any number of ranks and for any partition
-// (same binary). With hydrodynamic interactions they are the serial engine's with the same operator
-// to round-off (direct: products summed in another order; pse: the serial PseRpy with double
+// So with free draining the positions (and with rotation the orientations) after every step are,
+// bit for bit, those of bd::Integrator with rpy::FreeDrainingMobility on the whole set, on any
+// number of ranks and for any partition (same binary). With hydrodynamic interactions they are the serial engine's with
+// the same operator to round-off (direct: products summed in another order; pse: the serial PseRpy with double
 // wave-space grids, its sums in another order) or to the FMM's tolerance (fmm). The
 // potential energy is the sum over the ranks of their particles' shares, equal to the serial
 // engine's to round-off (a sum in another order).
 //
-// Checkpoints hold the whole state in global index order (bd::Checkpoint, gathered on one rank),
-// so a run written on P ranks restarts on any other number (restart_distributed_bd).
+// With rotation (IntegratorOptions::rotation; docs/theory/bd.md Sec. 7) every particle also carries
+// a unit quaternion, which travels with it at repartitions. The torques of the force field's
+// TorqueField (constant per type, dipoles in a uniform field) depend on the particle's own type and
+// orientation alone, so the halo carries none. The step takes the grand mobility [U; W] = M [F; T]
+// and the 6N Brownian sample [w_t; w_r], z_r keyed by (seed, step, bd::kRotationNoiseStream, global
+// index) as the serial engine keys it: with free draining omega = T / (8 pi eta a^3) and w_r =
+// z_r / sqrt(8 pi eta a^3) per particle by rpy::FreeDrainingMobility, so the orientations, like the
+// positions, are bd::Integrator's bit for bit; with direct or fmm by the operator's four-argument
+// apply and rpyfmm::mpi::sqrt_apply_rotation. Each particle turns by the exponential map, q <-
+// exp(phi) q with phi = W dt + sqrt(2 kT dt) w_r, max_displacement bounding |phi| too. The pse
+// method with rotation is refused: PSE's rotational sampler across ranks is not available.
+//
+// Checkpoints hold the whole state in global index order (bd::Checkpoint, gathered on one rank;
+// with rotation version 3: orientations, those at step 0 and the summed rotation vectors), so a run
+// written on P ranks restarts on any other number (restart_distributed_bd).
 //
 // Every public call is collective and fails collectively (communicator.hpp): a bad input or a
 // blow-up on one rank makes every rank throw the same rpyfmm::Error, state kept at the last good
@@ -40,6 +53,7 @@
 
 #include <mpi.h>
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
@@ -62,8 +76,9 @@ namespace rpyfmm::mpi {
 
 /// Options of a distributed run. Every rank must pass the same.
 struct DistributedBdOptions {
-  /// dt, kT, seed and max_displacement as for bd::Integrator. Rotation, inertial types, the SAC
-  /// scheme and split displacements are refused (not_supported): the serial engine has them.
+  /// dt, kT, seed, max_displacement and rotation as for bd::Integrator (rotation with the methods
+  /// none, direct and fmm). Inertial types, the SAC scheme and split displacements are refused
+  /// (not_supported): the serial engine has them.
   bd::IntegratorOptions integrator{};
   /// The skin (0: 0.3 r_c) and the rebuild strategy (fixed_interval), as bd::NeighbourList's.
   bd::NeighbourOptions neighbours{};
@@ -106,6 +121,12 @@ struct BdShare {
   std::vector<std::uint32_t> types;           ///< n indices into the force field's types
   std::vector<std::uint64_t> ids;             ///< n global indices (empty: the ranks' shares in rank order)
   std::vector<double> reference_positions{};  ///< 3n positions at step 0 (empty: the positions)
+  /// With rotation: 4n quaternions w x y z (empty: the identity), checked and normalized as
+  /// bd::Integrator checks them (quaternion::checked); those at step 0 (empty: the orientations);
+  /// the rotation vectors summed since step 0 (3n; empty: zeros). Without rotation all empty.
+  std::vector<double> orientations{};
+  std::vector<double> reference_orientations{};
+  std::vector<double> rotation_vectors{};
 };
 
 /// What the run did on this rank, and its share of the work.
@@ -157,6 +178,18 @@ class DistributedBd {
   [[nodiscard]] std::span<const std::uint32_t> types() const { return types_; }
   [[nodiscard]] std::span<const std::uint64_t> ids() const { return ids_; }
   [[nodiscard]] std::span<const double> reference_positions() const { return reference_; }
+  /// With rotation (empty without): this rank's orientations (4n unit quaternions w x y z), the
+  /// torques at the start of the last step (3n; 0 before the first and after a repartition until
+  /// the next step), the rotation vectors of the last step (3n, lab frame; the same) and their sums
+  /// since step 0 (3n), in increasing global index.
+  [[nodiscard]] std::span<const double> orientations() const { return q_; }
+  [[nodiscard]] std::span<const double> last_torques() const { return torque_; }
+  [[nodiscard]] std::span<const double> last_rotations() const { return phi_; }
+  [[nodiscard]] std::span<const double> rotation_vectors() const { return rotation_sum_; }
+  /// Collective, with rotation: the rotational MSD (mean |sum of the rotation vectors|^2) and the
+  /// orientation correlation (mean u(t) . u(0), u the body z axis) over every rank's particles, the
+  /// serial run's log columns (bd::rotation_moment_sums) to round-off (a sum in another order).
+  [[nodiscard]] std::array<double, 2> rotation_moments() const;
   [[nodiscard]] std::uint64_t global_size() const { return global_n_; }
   [[nodiscard]] std::uint64_t step_count() const { return step_; }
   /// The potential energy at the start of the last step, summed over the ranks (0 before a step).
@@ -164,7 +197,8 @@ class DistributedBd {
   [[nodiscard]] const DistributedBdStats& stats() const { return stats_; }
 
   /// Collective: the whole state on `root` in global index order (positions, types, positions at
-  /// step 0, step, seed, dt); an empty checkpoint on the other ranks.
+  /// step 0, step, seed, dt; with rotation the orientations, those at step 0 and the summed rotation
+  /// vectors, bd::Checkpoint's version 3); an empty checkpoint on the other ranks.
   [[nodiscard]] bd::Checkpoint checkpoint(int root = 0) const;
 
   struct Halo;           // mpi/src/bd_halo.hpp
@@ -184,6 +218,12 @@ class DistributedBd {
   /// the products of the hydrodynamic interactions.
   std::uint64_t displace_free_draining(std::vector<double>& next);
   std::uint64_t displace_with_hydrodynamics(std::vector<double>& next);
+  /// With rotation: phi = omega dt + sqrt(2 kT dt) w_r of the owned particles (omega_, wr_ filled),
+  /// and the lowest global index whose |phi| exceeds max_displacement (kNoParticle: none).
+  std::uint64_t turn_angles();
+  /// With free draining and rotation: omega_ = T / (8 pi eta a^3), wr_ = z_r / sqrt(8 pi eta a^3)
+  /// of the owned particles, as rpy::FreeDrainingMobility gives them to the serial engine.
+  void free_draining_rotation();
   /// Throws on every rank the blow-up error of particle `id` (next: the refused positions).
   void fail_blow_up(std::uint64_t id, std::span<const double> next) const;
 
@@ -205,13 +245,17 @@ class DistributedBd {
   std::unique_ptr<Hydrodynamics> hydrodynamics_;  // null: free draining
   double work_seconds_ = 0.0;                     // own force and update work since the last rebuild
   std::vector<double> radii_, u_, w_;             // with hydrodynamics: per owned particle
+  // rotation, per owned particle: orientations (4), those at step 0 (4), summed rotation vectors,
+  // torques, angular velocities, rotational noise and its sample, the step's rotation vectors (3)
+  std::vector<double> q_, reference_q_, rotation_sum_, torque_, omega_, zr_, wr_, phi_;
   DistributedBdStats stats_;
 };
 
 /// Collective: the run of `checkpoint` (read on `root`; ignored elsewhere) continued on the ranks
 /// of `comm`, whatever number of ranks wrote it: the particles are dealt to the ranks in blocks of
 /// global indices, and the first rebuild partitions them. Throws on every rank when the
-/// checkpoint's seed or dt differ from the options', or it holds rotations or velocities.
+/// checkpoint's seed or dt differ from the options', when it holds orientations and the options
+/// have no rotation or the reverse, or when it holds velocities.
 [[nodiscard]] DistributedBd restart_distributed_bd(MPI_Comm comm, bd::ForceField forces, rpy::Geometry geometry,
                                                    DistributedBdOptions options, const bd::Checkpoint& checkpoint,
                                                    int root = 0);
