@@ -23,9 +23,6 @@ std::unique_ptr<DistributedBd::Hydrodynamics> DistributedBd::Hydrodynamics::make
           std::string("mobility method '") + rpy::to_string(method) +
               "' is not run across ranks (none, direct or fmm in free space, pse in a periodic box)");
   if (method == MobilityMethod::pse) {
-    require(!options.integrator.rotation, ErrorCode::not_supported, where,
-            "rotation with mobility method 'pse' across ranks needs PSE's rotational sampler across ranks, which is "
-            "not available (rotation runs across ranks with none, direct or fmm)");
     require(geometry.is_periodic(), ErrorCode::not_supported, where,
             "mobility method 'pse' across ranks needs a periodic box (DistributedPseRpy); in free space use direct "
             "or fmm");
@@ -69,17 +66,19 @@ rpy::SqrtReport DistributedBd::Hydrodynamics::products(std::span<const double> x
 rpy::SqrtReport DistributedBd::Hydrodynamics::grand_products(std::span<const double> x, std::span<const double> a,
                                                              bd::GrandVector<const double> loads,
                                                              bd::GrandVector<const double> z,
+                                                             std::span<const std::uint64_t> ids,
                                                              bd::GrandVector<double> velocities,
                                                              bd::GrandVector<double> w) {
   return std::visit(
       [&](auto& mobility) {
+        mobility.set_positions(x, a);
+        mobility.apply(loads.translation, loads.rotation, velocities.translation, velocities.rotation);
+        if (z.translation.empty()) return rpy::SqrtReport{};
         if constexpr (std::is_same_v<std::decay_t<decltype(mobility)>, DistributedPseRpy>) {
-          fail(ErrorCode::not_supported, "DistributedBd", "rotation with mobility method 'pse' across ranks");
-          return rpy::SqrtReport{};
+          // PseRpy::apply_sqrt_rotation's wave noise is keyed by the hash of the whole z in the
+          // serial (global index) order.
+          return mobility.apply_sqrt_rotation(z.translation, z.rotation, ids, w.translation, w.rotation, sqrt);
         } else {
-          mobility.set_positions(x, a);
-          mobility.apply(loads.translation, loads.rotation, velocities.translation, velocities.rotation);
-          if (z.translation.empty()) return rpy::SqrtReport{};
           return sqrt_apply_rotation(mobility, z.translation, z.rotation, w.translation, w.rotation, sqrt);
         }
       },

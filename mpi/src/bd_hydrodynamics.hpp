@@ -39,11 +39,12 @@ struct DistributedBd::Hydrodynamics {
 
   /// Collective: the operator of options.method (direct or fmm in open geometry, pse in a periodic
   /// box; none: nullptr). Throws on every rank for a method the geometry or the ranks do not run,
-  /// for pse with a sampler other than its split one, and for pse with rotation.
+  /// and for pse with a sampler other than its split one.
   static std::unique_ptr<Hydrodynamics> make(MPI_Comm comm, const DistributedBdOptions& options,
                                              const rpy::Geometry& geometry);
 
-  /// Whether products() draws the noise itself (pse): the step then passes no z.
+  /// Whether products() draws the noise itself (pse): the step then passes no z (grand_products,
+  /// with rotation, is never fused: bd::Integrator draws z_t and z_r then).
   [[nodiscard]] bool fused() const { return std::holds_alternative<DistributedPseRpy>(op); }
 
   /// Collective, for this rank's particles at x with radii a (3 values per particle each; one
@@ -53,12 +54,14 @@ struct DistributedBd::Hydrodynamics {
                            std::span<const double> z, const FusedNoise& noise, std::span<double> u,
                            std::span<double> w);
 
-  /// Collective, with rotation (direct, fmm), as bd::rotational_drift_and_noise on the serial
-  /// operator: [u; omega] = M [f; t] by the operator's grand mobility and, where z.translation is
-  /// not empty, [w_t; w_r] = B [z_t; z_r] by rpyfmm::mpi::sqrt_apply_rotation.
+  /// Collective, with rotation, as bd::rotational_drift_and_noise on the serial operator:
+  /// [u; omega] = M [f; t] by the operator's grand mobility and, where z.translation is not empty,
+  /// [w_t; w_r] = B [z_t; z_r] by rpyfmm::mpi::sqrt_apply_rotation (direct, fmm) or
+  /// DistributedPseRpy::apply_sqrt_rotation with the particles' global indices `ids` (pse).
   rpy::SqrtReport grand_products(std::span<const double> x, std::span<const double> a,
                                  bd::GrandVector<const double> loads, bd::GrandVector<const double> z,
-                                 bd::GrandVector<double> velocities, bd::GrandVector<double> w);
+                                 std::span<const std::uint64_t> ids, bd::GrandVector<double> velocities,
+                                 bd::GrandVector<double> w);
 };
 
 }  // namespace rpyfmm::mpi

@@ -371,12 +371,12 @@ void DistributedBd::compute_forces() {
 void DistributedBd::advance() {
   const std::size_t n = ids_.size();
   // z_i keyed by the global index, drawn as the serial engine draws it (rpy::fill_normal); the pse
-  // operator draws its own.
-  const bool drawn = options_.integrator.kT > 0.0 && !(hydrodynamics_ && hydrodynamics_->fused());
+  // operator draws its own without rotation (bd::Integrator fuses drift and noise then only).
+  const bool rotation = options_.integrator.rotation;
+  const bool drawn = options_.integrator.kT > 0.0 && !(hydrodynamics_ && hydrodynamics_->fused() && !rotation);
   z_.assign(drawn ? 3 * n : 0, 0.0);
   if (!z_.empty()) rpy::fill_normal(ids_, z_, options_.integrator.seed, step_);
   // With rotation z_r from its own stream (bd/rotation_sampling.hpp), keyed alike.
-  const bool rotation = options_.integrator.rotation;
   zr_.assign(rotation && drawn ? 3 * n : 0, 0.0);
   if (!zr_.empty()) rpy::fill_normal(ids_, zr_, options_.integrator.seed, step_, bd::kRotationNoiseStream);
   std::vector<double> next(3 * n);
@@ -439,7 +439,7 @@ std::uint64_t DistributedBd::displace_with_hydrodynamics(std::vector<double>& ne
   if (options_.integrator.rotation) {
     omega_.assign(3 * n, 0.0);
     wr_.assign(zr_.size(), 0.0);
-    hydrodynamics_->grand_products(x_, radii_, {f_, torque_}, {z_, zr_}, {u_, omega_}, {w_, wr_});
+    hydrodynamics_->grand_products(x_, radii_, {f_, torque_}, {z_, zr_}, ids_, {u_, omega_}, {w_, wr_});
   } else {
     hydrodynamics_->products(x_, radii_, f_, z_, fused, u_, w_);
   }

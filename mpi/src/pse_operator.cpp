@@ -13,6 +13,7 @@
 
 // rpy/src (private to rpyfmm::rpy and this layer): the load scaling and the wrap of the serial
 // operators, so that every particle sits on the serial operator's grid points.
+#include "alltoallv.hpp"
 #include "krylov_space.hpp"
 #include "load_scaling.hpp"
 #include "particle_set.hpp"
@@ -105,8 +106,29 @@ struct DistributedPseRpy::Impl {
   // pse::noise_hash of the global vector whose segments are each the concatenation of the ranks'
   // shares in rank order: [z] for apply_sqrt, [z_t; z_r] with rotation (collective).
   [[nodiscard]] std::uint64_t noise_hash(std::initializer_list<std::span<const double>> local_segments) const;
-  // The hash chain h continued over one segment's shares in rank order (collective).
-  [[nodiscard]] std::uint64_t chain_hash(std::uint64_t h, std::span<const double> local_z) const;
+  // The same for segments whose global order is given by `indices` (this rank's entries' global
+  // indices, over all ranks a permutation of 0 ... N - 1): the entries are first sent to the ranks
+  // holding contiguous blocks of that order (collective).
+  [[nodiscard]] std::uint64_t noise_hash(std::initializer_list<std::span<const double>> local_segments,
+                                         std::span<const std::uint64_t> indices, const char* where) const;
+  // The hash chain h continued over one segment's pieces in rank order, rank r holding chain_counts[r]
+  // particles' entries (local_z this rank's) (collective).
+  [[nodiscard]] std::uint64_t chain_hash(std::uint64_t h, std::span<const double> local_z,
+                                         std::span<const std::size_t> chain_counts) const;
+  // The grand split sampler: Lanczos on S M_r S plus the wave noise keyed by `hash`.
+  [[nodiscard]] rpy::SqrtReport grand_split_sample(std::span<const double> z_t, std::span<const double> z_r,
+                                                   std::uint64_t hash, std::span<double> w_t,
+                                                   std::span<double> w_r) const;
+  // apply_sqrt_rotation: the wave noise keyed by the hash of [z_t; z_r] in rank order (indices
+  // null) or in the order of the given global indices.
+  [[nodiscard]] rpy::SqrtReport grand_sample(std::span<const double> z_t, std::span<const double> z_r,
+                                             const std::span<const std::uint64_t>* indices, std::span<double> w_t,
+                                             std::span<double> w_r, const rpy::SqrtOptions& sampler) const;
+  // apply_sqrt_rotation's checks of this rank's arrays and options (collective).
+  void check_grand_noise(std::span<const double> z_t, std::span<const double> z_r, std::span<double> w_t,
+                         std::span<double> w_r, const rpy::SqrtOptions& sampler, const char* where) const;
+  // Global indices of this rank's particles: one per particle, each below N (not collective).
+  void check_indices(std::span<const std::uint64_t> indices, const char* where) const;
   // apply()'s and apply_with_noise's checks of this rank's arrays (collective).
   void check_arrays(std::span<const double> forces, std::span<double> velocities, const char* where) const;
   // M_r^{1/2} z1 by the serial Lanczos iteration on a distributed basis (w: 3 local_n).
@@ -118,6 +140,15 @@ struct DistributedPseRpy::Impl {
                                       std::uint64_t step, const std::span<const std::uint64_t>* indices,
                                       std::span<double> velocities) const;
 };
+
+void DistributedPseRpy::Impl::check_indices(std::span<const std::uint64_t> indices, const char* where) const {
+  require(indices.size() == local_n, ErrorCode::invalid_input, where,
+          "local indices must hold one per local particle: " + std::to_string(indices.size()) + " for " +
+              std::to_string(local_n));
+  for (const std::uint64_t i : indices)
+    require(i < global_n, ErrorCode::invalid_input, where,
+            "global index " + std::to_string(i) + " is not below the number of particles " + std::to_string(global_n));
+}
 
 void DistributedPseRpy::Impl::check_arrays(std::span<const double> forces, std::span<double> velocities,
                                            const char* where) const {
@@ -174,21 +205,65 @@ rpy::SqrtReport DistributedPseRpy::Impl::real_sqrt_rotation(const std::vector<do
 
 std::uint64_t DistributedPseRpy::Impl::noise_hash(std::initializer_list<std::span<const double>> local_segments) const {
   std::uint64_t h = rpy::pse::detail::noise_hash_start(3 * global_n * local_segments.size());
-  for (const std::span<const double> segment : local_segments) h = chain_hash(h, segment);
+  for (const std::span<const double> segment : local_segments) h = chain_hash(h, segment, rank_counts);
   return h;
 }
 
-std::uint64_t DistributedPseRpy::Impl::chain_hash(std::uint64_t h, std::span<const double> local_z) const {
+std::uint64_t DistributedPseRpy::Impl::noise_hash(std::initializer_list<std::span<const double>> local_segments,
+                                                  std::span<const std::uint64_t> indices, const char* where) const {
+  // Rank r receives the entries of global indices [r b, (r + 1) b), b = ceil(N / P): the index and
+  // the particle's triple of every segment, and lays them out in that order.
+  const auto ranks = static_cast<std::size_t>(comm.size());
+  const std::uint64_t block = (global_n + ranks - 1) / ranks;
+  const std::size_t width = 1 + 3 * local_segments.size();
+  std::vector<std::vector<double>> send(ranks);
+  for (std::size_t i = 0; i < local_n; ++i) {
+    std::vector<double>& to = send[static_cast<std::size_t>(indices[i] / block)];
+    to.push_back(static_cast<double>(indices[i]));  // exact: N < 2^53
+    for (const std::span<const double> segment : local_segments)
+      to.insert(to.end(), segment.begin() + static_cast<std::ptrdiff_t>(3 * i),
+                segment.begin() + static_cast<std::ptrdiff_t>(3 * i + 3));
+  }
+  const std::vector<double> received = detail::alltoallv(comm, send, where, "the noise in global order");
+  const std::uint64_t first = std::min<std::uint64_t>(block * static_cast<std::uint64_t>(comm.rank()), global_n);
+  const std::uint64_t mine = std::min<std::uint64_t>(block, global_n - first);
+  std::vector<std::vector<double>> ordered(local_segments.size(), std::vector<double>(3 * mine));
+  std::vector<char> seen(mine, 0);
+  std::uint64_t repeated = global_n;
+  for (std::size_t k = 0; k < received.size(); k += width) {
+    const auto slot = static_cast<std::uint64_t>(received[k]) - first;
+    if (seen[slot] != 0) repeated = std::min(repeated, first + slot);
+    seen[slot] = 1;
+    for (std::size_t s = 0; s < ordered.size(); ++s)
+      std::copy_n(received.begin() + static_cast<std::ptrdiff_t>(k + 1 + 3 * s), 3, ordered[s].begin() + 3 * slot);
+  }
+  comm.run([&] {
+    require(repeated == global_n, ErrorCode::invalid_input, where,
+            "the local indices of all ranks are not a permutation of 0 ... N - 1: global index " +
+                std::to_string(repeated) + " is given more than once");
+  });
+  std::vector<std::size_t> block_counts(ranks);
+  for (std::size_t r = 0; r < ranks; ++r) {
+    const std::uint64_t begin = std::min<std::uint64_t>(block * r, global_n);
+    block_counts[r] = static_cast<std::size_t>(std::min<std::uint64_t>(block, global_n - begin));
+  }
+  std::uint64_t h = rpy::pse::detail::noise_hash_start(3 * global_n * local_segments.size());
+  for (const std::vector<double>& segment : ordered) h = chain_hash(h, segment, block_counts);
+  return h;
+}
+
+std::uint64_t DistributedPseRpy::Impl::chain_hash(std::uint64_t h, std::span<const double> local_z,
+                                                  std::span<const std::size_t> chain_counts) const {
   // The chain passes the ranks with particles in rank order; the last of them broadcasts the end.
   constexpr int kTag = 19283;
   int previous = -1, next = -1, last = -1;
   for (int r = 0; r < comm.size(); ++r) {
-    if (rank_counts[static_cast<std::size_t>(r)] == 0) continue;
+    if (chain_counts[static_cast<std::size_t>(r)] == 0) continue;
     if (r < comm.rank()) previous = r;
     if (r > comm.rank() && next < 0) next = r;
     last = r;
   }
-  if (local_n > 0) {
+  if (chain_counts[static_cast<std::size_t>(comm.rank())] > 0) {
     if (previous >= 0) {
       check_mpi(MPI_Recv(&h, 1, MPI_UINT64_T, previous, kTag, comm.get(), MPI_STATUS_IGNORE), "MPI_Recv");
     }
@@ -397,45 +472,77 @@ rpy::SqrtReport DistributedPseRpy::apply_sqrt(std::span<const double> local_z, s
   return report;
 }
 
+void DistributedPseRpy::Impl::check_grand_noise(std::span<const double> z_t, std::span<const double> z_r,
+                                                std::span<double> w_t, std::span<double> w_r,
+                                                const rpy::SqrtOptions& sampler, const char* where) const {
+  require(global_n > 0, ErrorCode::invalid_input, where, "positions not set (call set_positions first)");
+  const std::size_t n3 = 3 * local_n;
+  const auto output = [](std::span<double> w) { return std::span<const double>(w.data(), w.size()); };
+  comm.run([&] {
+    check_split_options(sampler, where);
+    require_size(z_t, n3, where, "local translational noise");
+    require_size(z_r, n3, where, "local rotational noise");
+    require_size(output(w_t), n3, where, "local translational output");
+    require_size(output(w_r), n3, where, "local rotational output");
+    require_finite(z_t, where, "local translational noise", 3);
+    require_finite(z_r, where, "local rotational noise", 3);
+  });
+}
+
+rpy::SqrtReport DistributedPseRpy::Impl::grand_split_sample(std::span<const double> z_t, std::span<const double> z_r,
+                                                            std::uint64_t hash, std::span<double> w_t,
+                                                            std::span<double> w_r) const {
+  // PseRpy::do_apply_sqrt_rotation: w' = (S M_r S)^{1/2} z on z = [z_t; z_r], [w_t; w_r] = S^-1 w'.
+  const std::size_t n3 = 3 * local_n;
+  std::vector<double> z(2 * n3), w(2 * n3);
+  std::copy(z_t.begin(), z_t.end(), z.begin());
+  std::copy(z_r.begin(), z_r.end(), z.begin() + static_cast<std::ptrdiff_t>(n3));
+  rpy::SqrtReport report = real_sqrt_rotation(z, w.data());
+  for (std::size_t k = 0; k < n3; ++k) {
+    w_t[k] = w[k];
+    w_r[k] = w[n3 + k] / params.radius;
+  }
+  // + the wave part's noise, the translational field keyed by the hash of the whole [z_t; z_r] and
+  // step 0 (as apply_sqrt keys it by the whole z).
+  wave->add_noise_rotation({hash, 0}, w_t.data(), w_r.data(), local_n);
+  report.method = rpy::SqrtMethod::split;
+  report.operator_applications += 1;
+  return report;
+}
+
+rpy::SqrtReport DistributedPseRpy::Impl::grand_sample(std::span<const double> z_t, std::span<const double> z_r,
+                                                      const std::span<const std::uint64_t>* indices,
+                                                      std::span<double> w_t, std::span<double> w_r,
+                                                      const rpy::SqrtOptions& sampler) const {
+  constexpr const char* where = "DistributedPseRpy::apply_sqrt_rotation";
+  check_grand_noise(z_t, z_r, w_t, w_r, sampler, where);
+  if (indices != nullptr) comm.run([&] { check_indices(*indices, where); });
+  const std::uint64_t hash = indices == nullptr ? noise_hash({z_t, z_r}) : noise_hash({z_t, z_r}, *indices, where);
+  const rpy::SqrtReport report = grand_split_sample(z_t, z_r, hash, w_t, w_r);
+  comm.run([&] {
+    rpy::detail::require_finite_result(w_t, where, "local translational output", "noise");
+    rpy::detail::require_finite_result(w_r, where, "local rotational output", "noise");
+  });
+  return report;
+}
+
 rpy::SqrtReport DistributedPseRpy::apply_sqrt_rotation(std::span<const double> local_z_translation,
                                                        std::span<const double> local_z_rotation,
                                                        std::span<double> local_w_translation,
                                                        std::span<double> local_w_rotation,
                                                        const rpy::SqrtOptions& options) const {
-  constexpr const char* where = "DistributedPseRpy::apply_sqrt_rotation";
-  const Impl& im = *impl_;
-  require(im.global_n > 0, ErrorCode::invalid_input, where, "positions not set (call set_positions first)");
-  const std::size_t n3 = 3 * im.local_n;
-  const auto output = [](std::span<double> w) { return std::span<const double>(w.data(), w.size()); };
-  im.comm.run([&] {
-    check_split_options(options, where);
-    require_size(local_z_translation, n3, where, "local translational noise");
-    require_size(local_z_rotation, n3, where, "local rotational noise");
-    require_size(output(local_w_translation), n3, where, "local translational output");
-    require_size(output(local_w_rotation), n3, where, "local rotational output");
-    require_finite(local_z_translation, where, "local translational noise", 3);
-    require_finite(local_z_rotation, where, "local rotational noise", 3);
-  });
-  // PseRpy::do_apply_sqrt_rotation: w' = (S M_r S)^{1/2} z on z = [z_t; z_r], [w_t; w_r] = S^-1 w'.
-  std::vector<double> z(2 * n3), w(2 * n3);
-  std::copy(local_z_translation.begin(), local_z_translation.end(), z.begin());
-  std::copy(local_z_rotation.begin(), local_z_rotation.end(), z.begin() + static_cast<std::ptrdiff_t>(n3));
-  rpy::SqrtReport report = im.real_sqrt_rotation(z, w.data());
-  for (std::size_t k = 0; k < n3; ++k) {
-    local_w_translation[k] = w[k];
-    local_w_rotation[k] = w[n3 + k] / im.params.radius;
-  }
-  // + the wave part's noise, the translational field keyed by the hash of the whole [z_t; z_r] and
-  // step 0 (as apply_sqrt keys it by the whole z).
-  const rpy::pse::detail::NoiseKey key{im.noise_hash({local_z_translation, local_z_rotation}), 0};
-  im.wave->add_noise_rotation(key, local_w_translation.data(), local_w_rotation.data(), im.local_n);
-  report.method = rpy::SqrtMethod::split;
-  report.operator_applications += 1;
-  im.comm.run([&] {
-    rpy::detail::require_finite_result(local_w_translation, where, "local translational output", "noise");
-    rpy::detail::require_finite_result(local_w_rotation, where, "local rotational output", "noise");
-  });
-  return report;
+  return impl_->grand_sample(local_z_translation, local_z_rotation, nullptr, local_w_translation, local_w_rotation,
+                             options);
+}
+
+rpy::SqrtReport DistributedPseRpy::apply_sqrt_rotation(std::span<const double> local_z_translation,
+                                                       std::span<const double> local_z_rotation,
+                                                       std::span<const std::uint64_t> local_indices,
+                                                       std::span<double> local_w_translation,
+                                                       std::span<double> local_w_rotation,
+                                                       const rpy::SqrtOptions& options) const {
+  return impl_->grand_sample(local_z_translation, local_z_rotation, &local_indices, local_w_translation,
+                             local_w_rotation, options);
 }
 
 rpy::SqrtReport DistributedPseRpy::apply_with_noise(std::span<const double> local_forces, double noise_scale,
@@ -459,14 +566,7 @@ rpy::SqrtReport DistributedPseRpy::Impl::fused(std::span<const double> forces, d
   comm.run([&] {
     require(std::isfinite(noise_scale) && noise_scale >= 0.0, ErrorCode::invalid_argument, where,
             "noise_scale must be finite and >= 0, got " + format_number(noise_scale));
-    if (indices == nullptr) return;
-    require(indices->size() == local_n, ErrorCode::invalid_input, where,
-            "local indices must hold one per local particle: " + std::to_string(indices->size()) + " for " +
-                std::to_string(local_n));
-    for (const std::uint64_t i : *indices)
-      require(
-          i < global_n, ErrorCode::invalid_input, where,
-          "global index " + std::to_string(i) + " is not below the number of particles " + std::to_string(global_n));
+    if (indices != nullptr) check_indices(*indices, where);
   });
   // PseRpy::apply_with_noise: y = M_r^{1/2} z1 (z1 of (seed, step)), one wave-space pass for
   // M_w F + noise_scale M_w^{1/2} z2, then M_r F, then noise_scale y.

@@ -453,6 +453,61 @@ TEST(MpiDistributedPse, ZeroTorquesGiveTheTranslationalVelocities) {
   }
 }
 
+TEST(MpiDistributedPse, GrandSplitSamplerKeyedByGivenGlobalIndicesEqualsSerialInThatOrder) {
+  // The ranks hold the particles in input order but number them backwards (global index N - 1 - k
+  // for the k-th of the concatenation): apply_sqrt_rotation with those indices keys the wave noise
+  // by the hash of [z_t; z_r] in that order, so it equals PseRpy::apply_sqrt_rotation on the whole
+  // set in the backward order to kRoundOff (the Lanczos iteration on S M_r S of a permuted set: the
+  // same Krylov space, its sums in another order). The overload without indices hashes the rank
+  // order instead and draws another wave field, far from this one. A repeated index fails every
+  // rank.
+  const Geometry box = Geometry::periodic(16.0);
+  const Particles p = uniform_set(300, box.box(), 1.0, 61);
+  const std::size_t n = p.size();
+  const std::vector<double> zt = torques_of(n, 62), zr = torques_of(n, 63);
+  Particles back = p;
+  std::vector<double> zt_back(3 * n), zr_back(3 * n);
+  for (std::size_t k = 0; k < n; ++k)
+    for (std::size_t c = 0; c < 3; ++c) {
+      back.x[3 * (n - 1 - k) + c] = p.x[3 * k + c];
+      zt_back[3 * (n - 1 - k) + c] = zt[3 * k + c];
+      zr_back[3 * (n - 1 - k) + c] = zr[3 * k + c];
+    }
+  const GrandSample serial = serial_grand_sample(back, zt_back, zr_back, box, double_grids(1e-6));
+  for (const Split split : kSplits) {
+    const Shares s = shares_of(n, split);
+    DistributedPseRpy op(MPI_COMM_WORLD, box, kViscosity, double_grids(1e-6));
+    op.set_positions(share(p.x, 3, s.offset, s.n), 1.0);
+    std::vector<std::uint64_t> indices(s.n);
+    std::vector<double> expected_t(3 * s.n), expected_r(3 * s.n), wt(3 * s.n), wr(3 * s.n), wt_rank(3 * s.n),
+        wr_rank(3 * s.n);
+    for (std::size_t k = 0; k < s.n; ++k) {
+      indices[k] = n - 1 - (s.offset + k);
+      for (std::size_t c = 0; c < 3; ++c) {
+        expected_t[3 * k + c] = serial.w.u[3 * indices[k] + c];
+        expected_r[3 * k + c] = serial.w.w[3 * indices[k] + c];
+      }
+    }
+    const std::vector<double> zts = share(zt, 3, s.offset, s.n), zrs = share(zr, 3, s.offset, s.n);
+    const rpyfmm::rpy::SqrtReport report = op.apply_sqrt_rotation(zts, zrs, indices, wt, wr);
+    op.apply_sqrt_rotation(zts, zrs, wt_rank, wr_rank);
+    const double dt = global_relative_difference(wt, expected_t), dr = global_relative_difference(wr, expected_r);
+    EXPECT_LE(dt, kRoundOff) << "split " << static_cast<int>(split);
+    EXPECT_LE(dr, kRoundOff) << "split " << static_cast<int>(split);
+    EXPECT_EQ(report.iterations, serial.report.iterations);
+    EXPECT_GT(global_relative_difference(wt_rank, expected_t), 1e-3) << "the rank order keys another wave field";
+    if (split == Split::even) {  // every rank holds about n / P >= 75 particles: repeat one on the last
+      std::vector<std::uint64_t> repeated = indices;
+      if (world_rank() == world_size() - 1) repeated[0] = repeated[1];
+      expect_collective_error([&] { op.apply_sqrt_rotation(zts, zrs, repeated, wt, wr); }, ErrorCode::invalid_input,
+                              "is given more than once");
+    }
+    if (world_rank() == 0)
+      std::printf("  [pse] split %d, indices backwards: apply_sqrt_rotation %.2e, %.2e\n", static_cast<int>(split), dt,
+                  dr);
+  }
+}
+
 TEST(MpiDistributedPse, RotationBadInputOnOneRankFailsEveryRank) {
   const Geometry box = Geometry::periodic(12.0);
   const Particles p = uniform_set(60, box.box(), 1.0, 42);

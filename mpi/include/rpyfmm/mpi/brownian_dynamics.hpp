@@ -38,9 +38,10 @@
 // index) as the serial engine keys it: with free draining omega = T / (8 pi eta a^3) and w_r =
 // z_r / sqrt(8 pi eta a^3) per particle by rpy::FreeDrainingMobility, so the orientations, like the
 // positions, are bd::Integrator's bit for bit; with direct or fmm by the operator's four-argument
-// apply and rpyfmm::mpi::sqrt_apply_rotation. Each particle turns by the exponential map, q <-
-// exp(phi) q with phi = W dt + sqrt(2 kT dt) w_r, max_displacement bounding |phi| too. The pse
-// method with rotation is refused: PSE's rotational sampler across ranks is not available.
+// apply and rpyfmm::mpi::sqrt_apply_rotation; with pse by DistributedPseRpy's grand product and its
+// split sampler with rotation, the wave noise keyed by the particles' global indices (the serial
+// key). Each particle turns by the exponential map, q <- exp(phi) q with phi = W dt + sqrt(2 kT dt)
+// w_r, max_displacement bounding |phi| too.
 //
 // Checkpoints hold the whole state in global index order (bd::Checkpoint, gathered on one rank;
 // with rotation version 3: orientations, those at step 0 and the summed rotation vectors), so a run

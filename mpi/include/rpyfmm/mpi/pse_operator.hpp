@@ -142,6 +142,19 @@ class DistributedPseRpy {
   rpy::SqrtReport apply_sqrt_rotation(std::span<const double> local_z_translation,
                                       std::span<const double> local_z_rotation, std::span<double> local_w_translation,
                                       std::span<double> local_w_rotation, const rpy::SqrtOptions& options = {}) const;
+  /// Collective. The same with the wave noise keyed by pse::noise_hash of [z_t; z_r] in the global
+  /// order `local_indices` gives (local_size() entries, together over all ranks a permutation of
+  /// 0 ... N - 1: each below N is checked, and a repeated index fails every rank) instead of the
+  /// concatenation of the ranks' shares: the entries are sent once to the ranks holding contiguous
+  /// blocks of that order (one MPI_Alltoallv of 7 doubles per particle) and hashed there in order.
+  /// Equal to PseRpy::apply_sqrt_rotation on the whole set in that global order (double grids) to
+  /// round-off: what DistributedBd's step with rotation samples, its ranks holding stretches of a
+  /// space-filling curve.
+  rpy::SqrtReport apply_sqrt_rotation(std::span<const double> local_z_translation,
+                                      std::span<const double> local_z_rotation,
+                                      std::span<const std::uint64_t> local_indices,
+                                      std::span<double> local_w_translation, std::span<double> local_w_rotation,
+                                      const rpy::SqrtOptions& options = {}) const;
   /// Collective. U = M F + noise_scale M^{1/2} z for this rank's particles, as
   /// PseRpy::apply_with_noise: z as sample(seed, step) draws it, the deterministic and the Brownian
   /// wave parts in one wave-space pass. For BD: noise_scale = sqrt(2 kT / dt). Equal to
