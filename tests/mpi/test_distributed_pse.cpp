@@ -663,6 +663,12 @@ TEST(MpiDistributedPse, LimitBelowOneRanksShareFailsEveryRank) {
   const double d = global_relative_difference(u, share(serial_velocities(p, box, unlimited), 3, even.offset, even.n));
   EXPECT_LE(d, kRoundOff);
   if (world_rank() == 0) std::printf("  [pse] even split after the refusal: relative difference %.2e\n", d);
+
+  // 1000 bytes a rank: even the budget of all ranks together (at most 4000 bytes) is below the whole
+  // grid's 1651904, so the parameter choice refuses it, naming that budget on several ranks.
+  DistributedPseRpy tiny(MPI_COMM_WORLD, box, kViscosity, memory_test_options(16, 1000));
+  expect_collective_error([&] { tiny.set_positions(share(p.x, 3, even.offset, even.n), p.a[0]); },
+                          ErrorCode::out_of_memory, world_size() == 1 ? "max_memory_bytes" : " x max_memory_bytes");
 }
 
 TEST(MpiDistributedPse, BadInputOnOneRankFailsEveryRank) {
