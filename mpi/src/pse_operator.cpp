@@ -20,6 +20,7 @@
 #include "pse/kernels_common.hpp"
 #include "pse/noise_hash.hpp"
 #include "pse/real_space_sqrt.hpp"
+#include "pse_memory.hpp"
 #include "pse_real_halo.hpp"
 #include "pse_slab_wave.hpp"
 #include "rpyfmm/core/validate.hpp"
@@ -87,6 +88,7 @@ struct DistributedPseRpy::Impl {
   std::size_t planned_n = 0;  // the N of the plan (0: none)
   std::size_t local_n = 0, global_n = 0, offset = 0;
   std::vector<std::size_t> rank_counts;  // every rank's local N, in rank order
+  std::size_t memory = 0;                // this rank's checked memory (pse_memory.hpp)
   PseExchangeCounts counts;
 
   Impl(MPI_Comm c, rpy::Geometry g, double eta, const rpy::pse::PseOptions& o)
@@ -97,8 +99,11 @@ struct DistributedPseRpy::Impl {
   [[nodiscard]] std::size_t share(std::size_t n);
   // The common radius (one MPI_Allreduce); throws alike on every rank when the radii differ.
   [[nodiscard]] double common_radius(std::span<const double> radii) const;
+  // PseRpy's parameter choice for the whole set, the budget of the whole grid that of all ranks
+  // together (collective only in failing alike: the same data on every rank).
+  [[nodiscard]] rpy::pse::PseParameters choose(double radius) const;
   // PseRpy::on_positions_set's plan for the whole set: again when the radius changes, or N with
-  // automatic xi.
+  // automatic xi; each rank's memory checked against the limit at every call (collective).
   void plan(double radius);
   // w = M_r^{1/2} z1 + M_w^{1/2} z2(key): the split sampler's two parts ([PSE] eqs. 17-21).
   [[nodiscard]] rpy::SqrtReport split_sample(const std::vector<double>& z1, const rpy::pse::detail::NoiseKey& key,
@@ -302,20 +307,41 @@ double DistributedPseRpy::Impl::common_radius(std::span<const double> radii) con
   return global[0];
 }
 
+rpy::pse::PseParameters DistributedPseRpy::Impl::choose(double radius) const {
+  // PseRpy's choice for the whole set (the same data on every rank: it succeeds or fails alike),
+  // with the memory of all ranks together as the whole grid's budget (pse_memory.hpp).
+  rpy::pse::PseOptions o = options;
+  o.max_memory_bytes = detail::whole_grid_budget(options.max_memory_bytes, comm.size());
+  try {
+    return rpy::pse::choose_parameters(o, radius, geometry.box(), global_n);
+  } catch (const Error& e) {
+    if (e.code() != ErrorCode::out_of_memory || comm.size() == 1) throw;
+    throw Error(e.code(), std::string(e.what()) + " (the budget of the whole grid on " + std::to_string(comm.size()) +
+                              " ranks: " + std::to_string(comm.size()) + " x max_memory_bytes)");
+  }
+}
+
 void DistributedPseRpy::Impl::plan(double radius) {
-  if (planned_n != 0 && params.radius == radius && (options.xi != 0.0 || planned_n == global_n)) return;
-  planned_n = 0;
-  wave.reset();
-  real.reset();
-  // PseRpy's choice for the whole set (the same data on every rank: it succeeds or fails alike).
-  rpy::pse::PseParameters p = rpy::pse::choose_parameters(options, radius, geometry.box(), global_n);
+  const bool planned = planned_n != 0 && params.radius == radius && (options.xi != 0.0 || planned_n == global_n);
+  if (!planned) {
+    planned_n = 0;
+    wave.reset();
+    real.reset();
+  }
+  rpy::pse::PseParameters p = planned ? params : choose(radius);
   // Double-precision grids and pair cache throughout (FFTW-MPI's double transforms).
   p.wave_single = false;
+  // Each rank's slab and windows within the limit, before any allocation; at every set_positions,
+  // since the windows follow this rank's share.
+  memory = detail::check_rank_memory(comm, p, local_n, options.max_memory_bytes, kSetPositions);
+  if (planned) return;
+  // The pair cache within what the limit leaves beside this rank's slab and windows, as PseRpy
+  // keeps its cache within what the limit leaves beside its grids.
   const auto cache =
       options.real_space_cache ? rpy::pse::detail::PairCache::double_precision : rpy::pse::detail::PairCache::off;
   comm.run([&] {
     real = std::make_unique<detail::RealSpaceHalo>(p, geometry.box(), viscosity, options.real_space_table, cache,
-                                                   options.max_memory_bytes - p.memory_bytes);
+                                                   options.max_memory_bytes - memory);
   });
   wave = std::make_unique<detail::SlabWaveSpace>(comm, p, geometry.box(), viscosity);
   params = p;
@@ -347,6 +373,11 @@ std::size_t DistributedPseRpy::global_size() const {
 }
 std::size_t DistributedPseRpy::offset() const {
   return impl_->global_n > 0 ? impl_->offset : 0;
+}
+std::size_t DistributedPseRpy::memory_bytes() const {
+  require(impl_->global_n > 0, ErrorCode::invalid_input, "DistributedPseRpy::memory_bytes",
+          "positions not set (call set_positions first)");
+  return impl_->memory;
 }
 const PseExchangeCounts& DistributedPseRpy::exchange_counts() const {
   return impl_->counts;

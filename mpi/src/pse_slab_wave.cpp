@@ -37,7 +37,32 @@ void init_fftw_mpi() {
   std::call_once(once, [] { fftw_mpi_init(); });
 }
 
+/// This rank's slab of an n[0] x n[1] x n[2] grid as FFTW-MPI distributes it
+/// (fftw_mpi_local_size_3d of the n[2] / 2 + 1 complex points per z line, in place): its planes
+/// [x0, x0 + nx) and the complex values between components, FFTW's local size (with the planes and
+/// padding it asks for) rounded up to a multiple of 4 (64-byte aligned components).
+struct SlabLayout {
+  std::ptrdiff_t x0 = 0, nx = 0;
+  std::size_t comp = 0;
+};
+
+SlabLayout slab_layout(const Communicator& comm, const std::array<int, 3>& n) {
+  init_fftw_mpi();
+  SlabLayout s;
+  const std::ptrdiff_t alloc = fftw_mpi_local_size_3d(n[0], n[1], n[2] / 2 + 1, comm.get(), &s.nx, &s.x0);
+  s.comp = (static_cast<std::size_t>(std::max<std::ptrdiff_t>(alloc, 1)) + 3) / 4 * 4;
+  return s;
+}
+
 }  // namespace
+
+std::size_t SlabWaveSpace::memory_bytes(const Communicator& comm, const rpy::pse::PseParameters& p) {
+  const SlabLayout s = slab_layout(comm, p.grid);
+  // Three in-place components of `comp` complex values (16 bytes), and c(k) of the slab's modes.
+  const std::size_t modes = static_cast<std::size_t>(s.nx) * static_cast<std::size_t>(p.grid[1]) *
+                            static_cast<std::size_t>(p.grid[2] / 2 + 1);
+  return 3 * s.comp * sizeof(fftw_complex) + modes * sizeof(double);
+}
 
 struct SlabWaveSpace::Slab {
   const Communicator& comm;
@@ -106,9 +131,11 @@ struct SlabWaveSpace::Slab {
 };
 
 void SlabWaveSpace::Slab::plan(const std::array<double, 3>& box, double viscosity) {
-  init_fftw_mpi();
   nzh = n[2] / 2 + 1;
-  const std::ptrdiff_t alloc = fftw_mpi_local_size_3d(n[0], n[1], nzh, comm.get(), &nx, &x0);
+  const SlabLayout layout = slab_layout(comm, n);
+  x0 = layout.x0;
+  nx = layout.nx;
+  comp = layout.comp;
   std::array<std::int64_t, 2> mine{x0, nx};
   std::vector<std::int64_t> all(2 * static_cast<std::size_t>(comm.size()));
   check_mpi(MPI_Allgather(mine.data(), 2, MPI_INT64_T, all.data(), 2, MPI_INT64_T, comm.get()), "MPI_Allgather");
@@ -116,7 +143,6 @@ void SlabWaveSpace::Slab::plan(const std::array<double, 3>& box, double viscosit
   for (std::size_t r = 0; r < static_cast<std::size_t>(comm.size()); ++r)
     for (std::int64_t gx = all[2 * r]; gx < all[2 * r] + all[2 * r + 1]; ++gx)
       plane_owner[static_cast<std::size_t>(gx)] = static_cast<int>(r);
-  comp = (static_cast<std::size_t>(std::max<std::ptrdiff_t>(alloc, 1)) + 3) / 4 * 4;
   comm.run([&] {
     data = fftw_alloc_complex(3 * comp);
     require(data != nullptr, ErrorCode::out_of_memory, kWhere, "could not allocate the FFT slabs");

@@ -46,6 +46,13 @@ class SlabWaveSpace {
   /// add_noise's for the same key to round-off. Allocates the torque slabs on the first call, as apply_rotation.
   void add_noise_rotation(const rpy::pse::detail::NoiseKey& key, double* velocities, double* angular, std::size_t n);
 
+  /// This rank's memory for the slab of p.grid (bytes; not collective): the three components as
+  /// FFTW-MPI's local size gives them (fftw_mpi_local_size_3d, with the planes and padding it asks
+  /// for) and c(k) of the slab's modes, what the constructor allocates. Not counted: the torque
+  /// slabs the first product with rotation allocates (as PseRpy's estimate leaves out its rotational
+  /// grids) and the windows of the particles the slab receives (counted per particle by the caller).
+  [[nodiscard]] static std::size_t memory_bytes(const Communicator& comm, const rpy::pse::PseParameters& p);
+
   /// Particles (with multiplicity) this rank sent to other slabs and received from other ranks.
   [[nodiscard]] std::size_t sent() const;
   [[nodiscard]] std::size_t received() const;

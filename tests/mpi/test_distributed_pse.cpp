@@ -7,7 +7,9 @@
 // ([U; W] = M [F; T]) against PseRpy's to round-off on the same sets and splits, zero torques against
 // the translational product; the split sampler with rotation (apply_sqrt_rotation) against PseRpy's
 // to round-off with the same Lanczos iteration count, also with zero rotational noise; and
-// collective failure (every rank throws the same message, none hangs) on bad input of one rank.
+// collective failure (every rank throws the same message, none hangs) on bad input of one rank; the
+// memory limit per rank (a grid refused whole but accepted in slabs, a rank's share over the limit
+// refused on every rank).
 #include <gtest/gtest.h>
 #include <mpi.h>
 
@@ -609,6 +611,119 @@ TEST(MpiDistributedPse, GrandSplitSamplerClusterFewPlanesAndEmptyRanks) {
   expect_grand_sample_round_off(uniform_set(80, box.box(), 0.5, 57), box, options, 58, false);
   const Geometry cube = Geometry::periodic(10.0);
   expect_grand_sample_round_off(uniform_set(2, cube.box(), 1.0, 59), cube, double_grids(1e-4), 60, false);
+}
+
+// The memory tests' configuration: box 12, xi 1.2, grid 24^3 and support 12 or 16 (overrides, so
+// that the bytes below follow from the formulas of docs/mpi.md, "Distributed PSE", Limits), double
+// grids. Per rank: 56 bytes per mode of its slab (three in-place components of 16 bytes, c(k) of 8;
+// 24 x 24 x 13 modes in all, 419328 bytes), plus 8 (3 P + 8) bytes per particle of the rank.
+// PseRpy's estimate of the whole grid adds separate real grids: 3 (8 x 24^3 + 64 x 25) = 336576
+// bytes more, plus 8 (3 P + 8) per particle of the set.
+PseOptions memory_test_options(int support, std::size_t max_memory_bytes) {
+  PseOptions o = double_grids(1e-4);
+  o.xi = 1.2;
+  o.grid = {24, 24, 24};
+  o.support = support;
+  o.max_memory_bytes = max_memory_bytes;
+  return o;
+}
+
+constexpr std::size_t kUnlimited = std::numeric_limits<std::size_t>::max();
+constexpr double kSlabBytesPerMode = 56.0;
+constexpr double kGridModes = 24.0 * 24.0 * 13.0;
+
+TEST(MpiDistributedPse, SlabsWithinTheMemoryLimitWhereTheWholeGridIsNot) {
+  // Support 12 (352 bytes per particle), 60 particles, limit 600000 bytes. The whole grid by
+  // PseRpy's estimate needs 755904 + 352 x 60 = 777024 bytes > 600000: PseRpy refuses it, and so
+  // does one rank. On P >= 2 ranks a rank's slab holds at most 12 of the 24 planes (FFTW-MPI's
+  // blocks of ceil(24 / P) planes): at most 12 x 24 x 13 x 56 + 352 x 60 = 230784 bytes < 600000,
+  // whatever the split; and the choice's budget for the whole grid, P x 600000 >= 1.2e6, holds it.
+  const Geometry box = Geometry::periodic(12.0);
+  const Particles p = uniform_set(60, box.box(), 0.5, 21);
+  const PseOptions limited = memory_test_options(12, 600000);
+  PseRpy serial_limited(box, kViscosity, limited);
+  try {
+    serial_limited.set_positions(p.x, p.a[0]);
+    ADD_FAILURE() << "PseRpy accepted the whole grid within 600000 bytes";
+  } catch (const rpyfmm::Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::out_of_memory) << e.what();
+  }
+  if (world_size() == 1) {
+    expect_collective_error(
+        [&] {
+          DistributedPseRpy op(MPI_COMM_WORLD, box, kViscosity, limited);
+          op.set_positions(p.x, p.a[0]);
+        },
+        ErrorCode::out_of_memory, "max_memory_bytes");
+    return;
+  }
+  rpyfmm::rpy::pse::PseParameters serial_p;
+  const std::vector<double> u_serial = serial_velocities(p, box, memory_test_options(12, kUnlimited), &serial_p);
+  for (const Split split : kSplits) {
+    // The same parameters as the unlimited PseRpy and its velocities to round-off (kRoundOff).
+    const double d = difference_from_serial(p, box, limited, split, u_serial, serial_p);
+    EXPECT_LE(d, kRoundOff) << "split " << static_cast<int>(split);
+    const Shares s = shares_of(p.size(), split);
+    DistributedPseRpy op(MPI_COMM_WORLD, box, kViscosity, limited);
+    op.set_positions(share(p.x, 3, s.offset, s.n), p.a[0]);
+    // Each rank within the limit; together the slabs hold every mode (FFTW's local sizes cover all
+    // planes) and the windows of every particle once.
+    const double mine = static_cast<double>(op.memory_bytes());
+    EXPECT_LE(mine, 600000.0);
+    double total = 0.0;
+    MPI_Allreduce(&mine, &total, 1, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+    EXPECT_GE(total, kSlabBytesPerMode * kGridModes + 352.0 * 60.0);
+    if (world_rank() == 0)
+      std::printf("  [pse] split %d: relative difference %.2e, rank 0 memory %.0f bytes\n", static_cast<int>(split), d,
+                  mine);
+  }
+}
+
+TEST(MpiDistributedPse, LimitBelowOneRanksShareFailsEveryRank) {
+  // Support 16 (448 bytes per particle), 2000 particles, limit 900000 bytes. PseRpy's estimate of
+  // the whole grid, 755904 + 448 x 2000 = 1651904 bytes, fits the choice's budget on P >= 2 ranks
+  // (P x 900000 >= 1.8e6) but not on one. All particles on the last rank: their windows alone,
+  // 896000 bytes, plus its slab (at least 6 planes, 104832 bytes) exceed the limit, so every rank
+  // fails with one message naming the last rank. The even split then fits: at most 12 planes and
+  // 1000 particles a rank, 209664 + 448000 = 657664 bytes.
+  const Geometry box = Geometry::periodic(12.0);
+  const Particles p = uniform_set(2000, box.box(), 0.5, 22);
+  const PseOptions limited = memory_test_options(16, 900000);
+  const PseOptions unlimited = memory_test_options(16, kUnlimited);
+  const int last = world_size() - 1;
+  DistributedPseRpy op(MPI_COMM_WORLD, box, kViscosity, limited);
+  const Shares all_last = shares_of(p.size(), Split::last_only);
+  const std::string needle = world_size() == 1
+                                 ? "max_memory_bytes"
+                                 : "rank " + std::to_string(last) + " of " + std::to_string(world_size()) + " needs";
+  const std::string message = expect_collective_error(
+      [&] { op.set_positions(share(p.x, 3, all_last.offset, all_last.n), p.a[0]); }, ErrorCode::out_of_memory, needle);
+  if (world_size() > 1) {
+    EXPECT_NE(message.find("the windows of its 2000 particles: 896000 bytes"), std::string::npos) << message;
+    EXPECT_NE(message.find("over the limit of 900000 bytes per rank"), std::string::npos) << message;
+  }
+  expect_collective_error([&] { (void)op.parameters(); }, ErrorCode::invalid_input, "positions not set");
+
+  // A later set_positions of the even split (or, on one rank, an operator with an adequate limit)
+  // works and equals the unlimited PseRpy to round-off (kRoundOff).
+  const Shares even = shares_of(p.size(), Split::even);
+  DistributedPseRpy adequate(MPI_COMM_WORLD, box, kViscosity, unlimited);
+  DistributedPseRpy& used = world_size() == 1 ? adequate : op;
+  used.set_positions(share(p.x, 3, even.offset, even.n), p.a[0]);
+  if (world_size() > 1) {
+    EXPECT_LE(op.memory_bytes(), 900000U);
+  }
+  std::vector<double> u(3 * even.n);
+  used.apply(share(p.f, 3, even.offset, even.n), u);
+  const double d = global_relative_difference(u, share(serial_velocities(p, box, unlimited), 3, even.offset, even.n));
+  EXPECT_LE(d, kRoundOff);
+  if (world_rank() == 0) std::printf("  [pse] even split after the refusal: relative difference %.2e\n", d);
+
+  // 1000 bytes a rank: even the budget of all ranks together (at most 4000 bytes) is below the whole
+  // grid's 1651904, so the parameter choice refuses it, naming that budget on several ranks.
+  DistributedPseRpy tiny(MPI_COMM_WORLD, box, kViscosity, memory_test_options(16, 1000));
+  expect_collective_error([&] { tiny.set_positions(share(p.x, 3, even.offset, even.n), p.a[0]); },
+                          ErrorCode::out_of_memory, world_size() == 1 ? "max_memory_bytes" : " x max_memory_bytes");
 }
 
 TEST(MpiDistributedPse, BadInputOnOneRankFailsEveryRank) {

@@ -9,6 +9,13 @@
 // (splitting xi, grid, Gaussian support, real-space cutoff), and its result equals PseRpy's on the
 // whole set to round-off (the same sums, added in another order).
 //
+// Memory: PseOptions::max_memory_bytes is the memory one rank may use (docs/mpi.md, "Distributed
+// PSE"). The parameter choice is PseRpy's with P x max_memory_bytes (the P ranks together) as the
+// budget of the whole grid, on one rank PseRpy's exactly; then each rank's own need, its slab of
+// the grid as FFTW-MPI's local size gives it (with c(k)) and its particles' windows as PseRpy's
+// estimate counts them, must fit in max_memory_bytes, and the pair cache is kept within what is
+// left beside it (memory_bytes()).
+//
 // How ([PSE] eq. 10 and 19): M = M_r + M_w.
 //  - M_w: the grid is split into slabs of x planes by FFTW-MPI. Each particle's position goes, once
 //    per set_positions, to the ranks whose slabs its Gaussian window touches; in apply its force
@@ -83,13 +90,24 @@ class DistributedPseRpy {
   /// grids are double precision whatever wave_single says (FFTW-MPI's double transforms).
   [[nodiscard]] const rpy::pse::PseParameters& parameters() const;
   [[nodiscard]] const PseExchangeCounts& exchange_counts() const;
+  /// This rank's memory (bytes) as set_positions checked it against PseOptions::max_memory_bytes:
+  /// its slab's three grid components as fftw_mpi_local_size_3d sizes them (with the planes and
+  /// padding FFTW asks for) and c(k) of its modes, plus 8 (P_x + P_y + P_z + 8) bytes per particle
+  /// of this rank (the windows, as PseRpy's estimate counts them). Not counted, as PseRpy's estimate
+  /// does not count them: the torque slabs of the first product with rotation, the neighbour lists,
+  /// the halo, and the pair cache (kept only within what the limit leaves beside this). Throws
+  /// before set_positions.
+  [[nodiscard]] std::size_t memory_bytes() const;
 
   /// Collective. This rank's positions (3 n, n >= 0) and one radius for them. Positions are wrapped
   /// into the box as PseRpy wraps them. Throws rpyfmm::Error on every rank when any rank's input is
   /// malformed (size not a multiple of 3, NaN/Inf, radius not finite and > 0), when no rank has a
-  /// particle, when the radii differ (PSE supports equal radii only, as PseRpy), and on what
-  /// PseRpy's parameter choice refuses for the whole set. After a failure the operator holds no
-  /// positions on any rank until a later set_positions succeeds.
+  /// particle, when the radii differ (PSE supports equal radii only, as PseRpy), on what
+  /// PseRpy's parameter choice refuses for the whole set (its memory budget that of all ranks
+  /// together, P x max_memory_bytes), and with out_of_memory when any rank's memory_bytes() would
+  /// exceed max_memory_bytes (the message names the rank of the largest need, its bytes and the
+  /// limit). After a failure the operator holds no positions on any rank until a later
+  /// set_positions succeeds.
   void set_positions(std::span<const double> local_positions, double radius);
   /// Same with one radius per local particle (n entries, all equal on all ranks).
   void set_positions(std::span<const double> local_positions, std::span<const double> local_radii);
