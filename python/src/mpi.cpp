@@ -406,7 +406,8 @@ void bind_distributed_pse(nb::module_& m) {
           nb::arg("fft_threads") = 0, nb::arg("max_memory_bytes") = std::size_t{16} << 30,
           nb::arg("fft_measure") = false, nb::arg("real_space_cache") = true,
           "Collective. comm: an mpi4py communicator; the other keywords as PseRpy's (the wave-space grids\n"
-          "are double precision). Every rank must pass the same values.")
+          "are double precision; max_memory_bytes bounds each rank's slab and windows, docs/mpi.md). Every\n"
+          "rank must pass the same values.")
       .def_prop_ro("parameters",
                    locked_read(
                        "parameters", +[](const Pse& s) { return pse_parameters(s.op.parameters()); }),
