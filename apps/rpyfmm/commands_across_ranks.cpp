@@ -151,25 +151,15 @@ struct Prepared {
   StageTimes stages, communication;
 };
 
-double sum(const StageTimes& times) {
-  double total = 0.0;
-  for (const auto& [stage, seconds] : times) total += seconds;
-  return total;
-}
-
 // The operators' time in MPI calls in set_positions and in the last apply (for DistributedFmmRpy,
-// the exchanges of its Laplace FMM: the overlap correction's are not timed).
-double setup_communication(const mpi::DistributedDirectRpy& op) {
+// the exchanges of its Laplace FMM and of its overlap correction).
+template <class Operator>
+double setup_communication(const Operator& op) {
   return op.communication().set_positions_seconds;
 }
-double setup_communication(const mpi::DistributedFmmRpy& op) {
-  return sum(op.laplace().communication().plan_seconds);
-}
-double apply_communication(const mpi::DistributedDirectRpy& op) {
+template <class Operator>
+double apply_communication(const Operator& op) {
   return op.communication().apply_seconds;
-}
-double apply_communication(const mpi::DistributedFmmRpy& op) {
-  return sum(op.laplace().communication().evaluate_seconds);
 }
 // DistributedPseRpy does not time its exchanges apart.
 double setup_communication(const mpi::DistributedPseRpy&) {
@@ -327,12 +317,11 @@ void run_mobility_across_ranks(const RanksMobilityArgs& args) {
 
 namespace {
 
-// The MPI time of every product of a sampler (DistributedDirectRpy keeps it; DistributedFmmRpy
-// reports its Laplace FMM's last evaluation only, so nothing is added for it).
-void add_products_communication(const mpi::DistributedDirectRpy& op, StageTimes& communication) {
+// The MPI time of every product of a sampler (DistributedDirectRpy and DistributedFmmRpy keep it).
+template <class Operator>
+void add_products_communication(const Operator& op, StageTimes& communication) {
   communication["products"] = op.communication().applies_seconds;
 }
-void add_products_communication(const mpi::DistributedFmmRpy&, StageTimes&) {}
 void add_products_communication(const mpi::DistributedPseRpy&, StageTimes&) {}
 
 // M^{1/2} z across the ranks: the Lanczos sampler on the free-space operators, PSE's split sampler.

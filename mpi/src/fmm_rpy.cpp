@@ -19,6 +19,7 @@
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/rpy_kernel.hpp"
 #include "rpyfmm/rpy/rpy_rotation_kernel.hpp"
+#include "stage_timer.hpp"
 
 namespace rpyfmm::mpi {
 namespace {
@@ -80,8 +81,9 @@ void DistributedFmmRpy::set_positions(std::span<const double> local_positions, d
 void DistributedFmmRpy::set_positions(std::span<const double> local_positions, std::span<const double> local_radii) {
   global_n_ = 0;  // no positions until this call succeeds on every rank
   overlap_.reset();
+  stats_ = FmmRpyCommunication{};
   comm_.run([&] { detail::check_local_particles(local_positions, local_radii, kSetPositions); });
-  counts_ = detail::gather_counts(comm_, local_radii.size());
+  detail::timed(stats_.set_positions_seconds, [&] { counts_ = detail::gather_counts(comm_, local_radii.size()); });
   std::size_t total = 0;
   offset_ = 0;
   for (std::size_t r = 0; r < counts_.size(); ++r) {
@@ -92,7 +94,9 @@ void DistributedFmmRpy::set_positions(std::span<const double> local_positions, s
   require(total > 0, ErrorCode::invalid_input, kSetPositions,
           "no particles on any of the " + std::to_string(counts_.size()) + " ranks (N = 0)");
   local_n_ = local_radii.size();
-  const detail::WholeSet set = detail::gather_whole_set(comm_, local_positions, local_radii, offset_);
+  detail::WholeSet set;
+  detail::timed(stats_.set_positions_seconds,
+                [&] { set = detail::gather_whole_set(comm_, local_positions, local_radii, offset_); });
   equal_radii_ = set.radii.a_min == set.radii.a_max;
   // FmmRpy::on_positions_set on this rank's share, with the whole set's box and units.
   comm_.run([&] {
@@ -116,12 +120,17 @@ void DistributedFmmRpy::set_positions(std::span<const double> local_positions, s
   laplace.fmm.min_leaf_side = 2.0 * a_max;
   laplace_ = DistributedLaplaceFmm(comm_.get(), laplace);
   laplace_.set_points(x_);
+  stats_.set_positions_seconds += detail::total_seconds(laplace_.communication().plan_seconds);
   // The largest |x_c| of all ranks' positions in the far field's frame (the rounding bound's |x|).
   double reach = 0.0, global_reach = 0.0;
   for (double c : x_) reach = std::max(reach, std::abs(c));
-  check_mpi(MPI_Allreduce(&reach, &global_reach, 1, MPI_DOUBLE, MPI_MAX, comm_.get()), "MPI_Allreduce");
+  detail::timed(stats_.set_positions_seconds, [&] {
+    check_mpi(MPI_Allreduce(&reach, &global_reach, 1, MPI_DOUBLE, MPI_MAX, comm_.get()), "MPI_Allreduce");
+  });
   const detail::RoundingLimits limits{options_.tolerance, global_reach};
   overlap_ = std::make_unique<detail::OverlapCorrection>(comm_, x_, a_, a_max, limits);
+  stats_.overlap_set_positions_seconds = overlap_->traffic().setup_seconds;
+  stats_.set_positions_seconds += stats_.overlap_set_positions_seconds;
   global_n_ = total;
 }
 
@@ -157,9 +166,12 @@ void DistributedFmmRpy::product(const char* where, std::span<const double> local
   std::vector<double> largest(nrhs, 0.0), global_largest(nrhs, 0.0);
   for (std::size_t r = 0; r < nrhs; ++r)
     for (double f : local_forces.subspan(n3 * r, n3)) largest[r] = std::max(largest[r], std::abs(f));
-  check_mpi(
-      MPI_Allreduce(largest.data(), global_largest.data(), static_cast<int>(nrhs), MPI_DOUBLE, MPI_MAX, comm_.get()),
-      "MPI_Allreduce");
+  double reduction_seconds = 0.0;
+  detail::timed(reduction_seconds, [&] {
+    check_mpi(
+        MPI_Allreduce(largest.data(), global_largest.data(), static_cast<int>(nrhs), MPI_DOUBLE, MPI_MAX, comm_.get()),
+        "MPI_Allreduce");
+  });
   std::vector<int> k(nrhs);
   std::vector<double> f(n3 * nrhs);
   for (std::size_t r = 0; r < nrhs; ++r) {
@@ -182,6 +194,7 @@ void DistributedFmmRpy::product(const char* where, std::span<const double> local
   // right-hand side), and the self term.
   std::vector<double> near(n3 * nrhs, 0.0);
   overlap_->add(f, near, nrhs);
+  record_product(reduction_seconds);
   const double inv_eta = 1.0 / viscosity_;
   for (std::size_t r = 0; r < nrhs; ++r)
     for (std::size_t i = 0; i < n; ++i) {
@@ -193,6 +206,17 @@ void DistributedFmmRpy::product(const char* where, std::span<const double> local
     local_velocities[i] = std::ldexp(std::ldexp(u[i] + inv_eta * near[i], -scale_exponent_), k[i / n3]);
   }
   comm_.run([&] { rpy::detail::require_finite_result(local_velocities, where, "velocities", "forces"); });
+}
+
+void DistributedFmmRpy::record_product(double reduction_seconds) const {
+  const FmmCommunication& far = laplace_.communication();
+  const detail::OverlapTraffic& near = overlap_->traffic();
+  stats_.overlap_apply_seconds = near.add_seconds;
+  stats_.overlap_apply_bytes_received = near.add_bytes_received;
+  stats_.overlap_halo_bytes_received = near.halo_bytes_received;
+  stats_.apply_seconds = reduction_seconds + detail::total_seconds(far.evaluate_seconds) + near.add_seconds;
+  stats_.apply_bytes_received = far.evaluate_bytes_received + near.add_bytes_received;
+  stats_.applies_seconds += stats_.apply_seconds;
 }
 
 void DistributedFmmRpy::apply(std::span<const double> local_forces, std::span<const double> local_torques,
@@ -212,8 +236,10 @@ void DistributedFmmRpy::apply(std::span<const double> local_forces, std::span<co
   // MobilityOperator::apply's load scale for [F; T], from the largest load of all ranks
   // (largest_rotation_load, with the largest radius of all ranks).
   const double largest = rpy::detail::largest_rotation_load(local_forces, local_torques, largest_radius_);
-  double global_largest = 0.0;
-  check_mpi(MPI_Allreduce(&largest, &global_largest, 1, MPI_DOUBLE, MPI_MAX, comm_.get()), "MPI_Allreduce");
+  double global_largest = 0.0, reduction_seconds = 0.0;
+  detail::timed(reduction_seconds, [&] {
+    check_mpi(MPI_Allreduce(&largest, &global_largest, 1, MPI_DOUBLE, MPI_MAX, comm_.get()), "MPI_Allreduce");
+  });
   const int k = rpy::detail::load_scale_exponent({std::span<const double>(&global_largest, 1)});
   // In the length units 2^e the blocks carry 1/L (tt), 1/L^2 (ut, wf) and 1/L^3 (rr): with the
   // torques as 2^-e T every sum below is 2^e U or 2^(2e) W (FmmRpy::do_apply_rotation).
@@ -238,6 +264,7 @@ void DistributedFmmRpy::apply(std::span<const double> local_forces, std::span<co
   // The overlapping pairs' exact grand blocks in place of their far form, and the self terms.
   std::vector<double> near_u(3 * n, 0.0), near_w(3 * n, 0.0);
   overlap_->add(f, t, near_u, near_w);
+  record_product(reduction_seconds);
   const double inv_eta = 1.0 / viscosity_;
   for (std::size_t i = 0; i < n; ++i) {
     const double self_t = rpy::rpy_self(a_[i]), self_r = rpy::rpy_rotation_self(a_[i]);

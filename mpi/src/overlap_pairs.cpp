@@ -15,6 +15,7 @@
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/rpy_kernel.hpp"
 #include "rpyfmm/rpy/rpy_rotation_kernel.hpp"
+#include "stage_timer.hpp"
 
 namespace rpyfmm::mpi::detail {
 namespace {
@@ -28,6 +29,7 @@ constexpr std::size_t kRegionCellCapacity = 32;
 constexpr double kHaloSlack = 1.0 + 0x1p-40;
 // A halo particle as sent: position, radius and global index (exact as a double below 2^53).
 constexpr std::size_t kHaloRecord = 5;
+constexpr std::uint64_t kDoubleBytes = sizeof(double);
 // At most 2^20 grid cells per axis (keys of 3 x 21 bits).
 constexpr int kGridBits = 21;
 constexpr double kMaxCellsPerAxis = 0x1p20;
@@ -149,22 +151,28 @@ void far_form_scalars(double r, double ai, double aj, double& f, double& g) {
 OverlapCorrection::OverlapCorrection(const Communicator& comm, std::span<const double> x, std::span<const double> a,
                                      double a_max, const RoundingLimits& limits)
     : comm_(comm) {
-  partition_ = std::make_unique<SfcPartition>(comm_.get(), x);
   const Column columns[] = {{x, 3}, {a, 1}};
-  const std::vector<std::vector<double>> owned = partition_->to_owners(columns);
+  std::vector<std::vector<double>> owned;
+  timed(traffic_.setup_seconds, [&] {
+    partition_ = std::make_unique<SfcPartition>(comm_.get(), x);
+    owned = partition_->to_owners(columns);
+  });
   owned_n_ = partition_->owned_size();
   for (const SfcKey& k : partition_->owned()) index_.push_back(k.index);
   exchange_halo(owned[0], owned[1], a_max);
   find_pairs(owned[1], a_max);
   comm_.run([&] { require_resolvable(limits); });
   const std::uint64_t mine = pairs_.size();
-  check_mpi(MPI_Allreduce(&mine, &global_pairs_, 1, MPI_UINT64_T, MPI_SUM, comm_.get()), "MPI_Allreduce");
+  timed(traffic_.setup_seconds, [&] {
+    check_mpi(MPI_Allreduce(&mine, &global_pairs_, 1, MPI_UINT64_T, MPI_SUM, comm_.get()), "MPI_Allreduce");
+  });
 }
 
 void OverlapCorrection::exchange_halo(std::span<const double> owned_x, std::span<const double> owned_a, double a_max) {
   std::uint64_t bytes = 0;
   const CellTree tree = build_cell_tree(keys_of(*partition_), owned_x, kRegionCellCapacity);
-  const std::vector<std::vector<Box>> regions = gather_regions(comm_, tree, bytes);
+  std::vector<std::vector<Box>> regions;
+  timed(traffic_.setup_seconds, [&] { regions = gather_regions(comm_, tree, bytes); });
   const auto ranks = static_cast<std::size_t>(comm_.size());
   sent_.assign(ranks, {});
   std::vector<std::vector<double>> send(ranks);
@@ -180,11 +188,14 @@ void OverlapCorrection::exchange_halo(std::span<const double> owned_x, std::span
     }
     counts[r] = sent_[r].size();
   }
-  check_mpi(MPI_Alltoall(counts.data(), 1, MPI_UINT64_T, recv.data(), 1, MPI_UINT64_T, comm_.get()), "MPI_Alltoall");
+  timed(traffic_.setup_seconds, [&] {
+    check_mpi(MPI_Alltoall(counts.data(), 1, MPI_UINT64_T, recv.data(), 1, MPI_UINT64_T, comm_.get()), "MPI_Alltoall");
+  });
   halo_counts_.assign(recv.begin(), recv.end());
   std::vector<std::size_t> recv_doubles(ranks);
   for (std::size_t r = 0; r < ranks; ++r) recv_doubles[r] = kHaloRecord * halo_counts_[r];
-  const std::vector<double> halo = alltoallv(comm_, send, recv_doubles, kWhere, "halo particles");
+  std::vector<double> halo;
+  timed(traffic_.setup_seconds, [&] { halo = alltoallv(comm_, send, recv_doubles, kWhere, "halo particles"); });
   halo_n_ = halo.size() / kHaloRecord;
   points_.assign(owned_x.begin(), owned_x.end());
   radii_.assign(owned_a.begin(), owned_a.end());
@@ -255,9 +266,11 @@ void OverlapCorrection::require_resolvable(const RoundingLimits& limits) const {
 }
 
 std::vector<std::vector<double>> OverlapCorrection::owned_and_halo(std::span<const Column> columns) const {
+  const StopWatch watch;
   std::vector<std::vector<double>> values = partition_->to_owners(columns);
   std::size_t width = 0;
   for (const Column& c : columns) width += c.per;
+  traffic_.add_bytes_received += width * owned_n_ * kDoubleBytes;
   const auto ranks = static_cast<std::size_t>(comm_.size());
   std::vector<std::vector<double>> send(ranks);
   std::vector<std::size_t> recv_doubles(ranks);
@@ -271,6 +284,9 @@ std::vector<std::vector<double>> OverlapCorrection::owned_and_halo(std::span<con
     recv_doubles[r] = width * halo_counts_[r];
   }
   const std::vector<double> halo = alltoallv(comm_, send, recv_doubles, kApply, "halo loads");
+  traffic_.add_seconds += watch.seconds();
+  traffic_.halo_bytes_received = halo.size() * kDoubleBytes;
+  traffic_.add_bytes_received += traffic_.halo_bytes_received;
   for (std::size_t q = 0; q < halo_n_; ++q) {
     const double* record = &halo[width * q];
     for (std::size_t c = 0; c < columns.size(); ++c) {
@@ -279,6 +295,13 @@ std::vector<std::vector<double>> OverlapCorrection::owned_and_halo(std::span<con
     }
   }
   return values;
+}
+
+std::vector<std::vector<double>> OverlapCorrection::to_origin(std::span<const Column> columns) const {
+  std::vector<std::vector<double>> back;
+  timed(traffic_.add_seconds, [&] { back = partition_->to_origin(columns); });
+  for (const std::vector<double>& column : back) traffic_.add_bytes_received += column.size() * kDoubleBytes;
+  return back;
 }
 
 void OverlapCorrection::add_translation(std::size_t i, const double* f, double* ui) const {
@@ -313,6 +336,7 @@ void OverlapCorrection::add_rotation(std::size_t i, const double* f, const doubl
 }
 
 void OverlapCorrection::add(std::span<const double> f, std::span<double> u, std::size_t nrhs) const {
+  traffic_ = OverlapTraffic{traffic_.setup_seconds};
   if (global_pairs_ == 0) return;
   const std::size_t n3 = f.size() / nrhs;
   std::vector<Column> in;
@@ -327,13 +351,14 @@ void OverlapCorrection::add(std::span<const double> f, std::span<double> u, std:
   }
   std::vector<Column> out;
   for (const auto& c : correction) out.push_back({c, 3});
-  const std::vector<std::vector<double>> back = partition_->to_origin(out);
+  const std::vector<std::vector<double>> back = to_origin(out);
   for (std::size_t r = 0; r < nrhs; ++r)
     for (std::size_t k = 0; k < back[r].size(); ++k) u[r * n3 + k] += back[r][k];
 }
 
 void OverlapCorrection::add(std::span<const double> f, std::span<const double> t, std::span<double> u,
                             std::span<double> w) const {
+  traffic_ = OverlapTraffic{traffic_.setup_seconds};
   if (global_pairs_ == 0) return;
   const Column in[] = {{f, 3}, {t, 3}};
   const std::vector<std::vector<double>> loads = owned_and_halo(in);
@@ -346,7 +371,7 @@ void OverlapCorrection::add(std::span<const double> f, std::span<const double> t
     add_rotation(i, loads[0].data(), loads[1].data(), &cu[3 * i], &cw[3 * i]);
   }
   const Column out[] = {{cu, 3}, {cw, 3}};
-  const std::vector<std::vector<double>> back = partition_->to_origin(out);
+  const std::vector<std::vector<double>> back = to_origin(out);
   for (std::size_t k = 0; k < back[0].size(); ++k) {
     u[k] += back[0][k];
     w[k] += back[1][k];

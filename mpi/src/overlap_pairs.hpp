@@ -9,7 +9,9 @@
 // halo: an overlapping partner of particle i lies within a_i + a_j <= a_max + a_j of it). Each
 // owner finds its particles' overlapping partners among its own and the halo particles in a grid
 // of cells of side >= 2 a_max and stores each pair's scalar corrections. Each product sends the
-// forces of the halo once (one MPI_Alltoallv) and the corrections back to the input ranks.
+// forces of the halo once (one MPI_Alltoallv) and the corrections back to the input ranks. The
+// wall time and received bytes of these exchanges are kept (OverlapTraffic) for
+// DistributedFmmRpy::communication().
 #pragma once
 
 #include <cstddef>
@@ -67,6 +69,19 @@ struct RoundingLimits {
 /// (max(ai, aj) / r)^3, within the dipole term 2^-52 max(ai, aj) (ai^2 + aj^2) / r^3 above.
 [[nodiscard]] double cancellation_error(const double* d, double ai, double aj, double reach);
 
+/// This rank's exchanges of the overlap correction: wall time (packing, MPI calls and waits) in
+/// the construction (the partition, the positions to the owners, the regions, the halo and the
+/// count of pairs) and in the last add; bytes received in the last add (forces to the owners, this
+/// rank's own share included as SfcPartition moves it; halo loads; corrections back), of which
+/// halo_bytes_received are the halo loads, all from other ranks. All 0 in an add when no rank has
+/// an overlapping pair (nothing is exchanged).
+struct OverlapTraffic {
+  double setup_seconds = 0.0;
+  double add_seconds = 0.0;
+  std::uint64_t add_bytes_received = 0;
+  std::uint64_t halo_bytes_received = 0;
+};
+
 class OverlapCorrection {
  public:
   /// Collective. This rank's positions (3n) and radii (n) in the operator's units; a_max: the
@@ -92,6 +107,7 @@ class OverlapCorrection {
   /// Overlapping pairs (ordered: (i, j) and (j, i) count twice) of all ranks; halo particles received.
   [[nodiscard]] std::uint64_t global_pairs() const { return global_pairs_; }
   [[nodiscard]] std::size_t halo_size() const { return halo_n_; }
+  [[nodiscard]] const OverlapTraffic& traffic() const { return traffic_; }
 
  private:
   void exchange_halo(std::span<const double> owned_x, std::span<const double> owned_a, double a_max);
@@ -99,6 +115,8 @@ class OverlapCorrection {
   void require_resolvable(const RoundingLimits& limits) const;
   // The columns of the owned particles (to the owners), each followed by the halo particles' values.
   [[nodiscard]] std::vector<std::vector<double>> owned_and_halo(std::span<const Column> columns) const;
+  // The owned particles' corrections back to the input ranks and order (SfcPartition::to_origin).
+  [[nodiscard]] std::vector<std::vector<double>> to_origin(std::span<const Column> columns) const;
   // Owned particle i's translational corrections for the forces f (owned, then halo) into ui (3).
   void add_translation(std::size_t i, const double* f, double* ui) const;
   // Its rotational corrections for the forces f and torques t into ui and wi (3 each).
@@ -114,6 +132,7 @@ class OverlapCorrection {
   std::vector<std::size_t> first_;              // pairs of owned i: [first_[i], first_[i + 1])
   std::vector<OverlapPair> pairs_;
   std::uint64_t global_pairs_ = 0;
+  mutable OverlapTraffic traffic_;
 };
 
 }  // namespace rpyfmm::mpi::detail

@@ -9,7 +9,7 @@
 #    for byte; fmm within E of the serial direct file, U and W each; --angular the same file as
 #    zero torques; --method pse --box L with --torques or --angular as below;
 #  - `mpiexec -n NP rpyfmm sample --operator fmm`: Lanczos on DistributedFmmRpy, within 1e-5 of the
-#    serial direct sampler's file (see below);
+#    serial direct sampler's file (see below), with the products' MPI time in --json;
 #  - `mpiexec -n NP rpyfmm sample --operator direct`: the distributed Lanczos sampler is the serial
 #    one bit for bit too (its inner products are the serial ones), on the noise drawn by seed and
 #    on noise read from a file: identical files;
@@ -249,8 +249,10 @@ set(sample_common sample --positions "${WORK}/x.txt" --radii "${WORK}/a.txt" --m
                   --viscosity 0.7 --seed 5 --step 3)
 run_serial(sample_fmm sample_fmm_direct ${sample_common} --operator direct)
 run_across(sample_fmm ${sample_common} --operator fmm --tolerance 1e-9)
-if(NOT json MATCHES "\"operator\":\"fmm\"" OR NOT json MATCHES "\"inner_products\":")
-  message(FATAL_ERROR "sample_fmm: --json lacks the operator or the inner products' time: ${json}")
+# DistributedFmmRpy sums its products' MPI time (communication_seconds.products).
+if(NOT json MATCHES "\"operator\":\"fmm\"" OR NOT json MATCHES "\"inner_products\":"
+   OR NOT json MATCHES "\"communication_seconds\":{[^}]*\"products\":[0-9]")
+  message(FATAL_ERROR "sample_fmm: --json lacks the operator, the inner products' or the products' time: ${json}")
 endif()
 agree(sample_fmm "${WORK}/sample_fmm_mpi.npy" "${WORK}/sample_fmm_direct.npy" 1e-5)
 

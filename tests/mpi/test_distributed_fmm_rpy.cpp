@@ -87,22 +87,6 @@ std::vector<double> expect_contract(const Particles& p, Split split, double tole
   return u;
 }
 
-// n pairs with centres uniform in a cube of side `side`: particle k + n at distance
-// `gap` x (a_k + a_{k+n}) from particle k in a random direction (gap 1: touching), radii in
-// [0.5, 1.5]. With the even split, the partners lie on different ranks.
-Particles pairs_at(std::size_t n, double side, double gap, std::uint64_t seed) {
-  Particles p = uniform_particles(2 * n, side, 0.5, 1.5, seed);
-  std::mt19937_64 rng(seed + 1);
-  std::normal_distribution<double> normal;
-  for (std::size_t k = 0; k < n; ++k) {
-    double d[3] = {normal(rng), normal(rng), normal(rng)};
-    const double norm = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-    const double r = gap * (p.a[k] + p.a[k + n]);
-    for (std::size_t c = 0; c < 3; ++c) p.x[3 * (k + n) + c] = p.x[3 * k + c] + r * d[c] / norm;
-  }
-  return p;
-}
-
 }  // namespace
 
 TEST(MpiDistributedFmmRpy, UniformCloudWithinToleranceOfDirect) {

@@ -29,6 +29,10 @@
 // the same input on the same number of ranks gives the same bits, whatever the thread count; a
 // different number of ranks gives other bits within the contract.
 //
+// communication() reports this rank's time in MPI exchanges of set_positions and of the last
+// product (the Laplace FMM's and the overlap correction's), the bytes received in it, and the sum
+// over the products since set_positions (a sampler's), as DistributedDirectRpy's does.
+//
 // Every public call is collective and fails collectively (communicator.hpp).
 #pragma once
 
@@ -62,6 +66,30 @@ struct DistributedFmmRpyOptions {
   /// DistributedFmmOptions::overlap_exchange of the Laplace FMM: its serial FMM split to run during
   /// the exchanges of the essential charges (docs/mpi.md).
   bool overlap_exchange = false;
+};
+
+/// This rank's exchanges, as DistributedDirectRpy's CommunicationStats (docs/mpi.md, "Distributed
+/// FmmRpy"). Seconds are wall time of the exchanges (packing, MPI calls and waits, as
+/// FmmCommunication times them): in the last set_positions the gathers of the counts and the
+/// summaries, the Laplace FMM's plan (its plan_seconds) and the overlap correction's partition,
+/// regions and halo; in the last apply, apply_block or apply with torques that completed its
+/// exchanges, the load scale's reduction, the Laplace FMM's evaluation (its evaluate_seconds) and the
+/// overlap correction's exchanges. applies_seconds sums apply_seconds over every such product since
+/// the last set_positions (a sampler's many products), in their order. Bytes received in the last
+/// product: the Laplace FMM's evaluate_bytes_received plus the overlap correction's (forces to
+/// their owners and corrections back, this rank's own share of these partition moves included as in
+/// FmmCommunication, and the halo loads). The overlap_ entries are the overlap correction's share;
+/// overlap_halo_bytes_received its halo loads, all from other ranks (0 on one rank). Nothing of
+/// the overlap correction is exchanged in a product when no rank has an overlapping pair.
+struct FmmRpyCommunication {
+  double set_positions_seconds = 0.0;
+  double apply_seconds = 0.0;
+  std::uint64_t apply_bytes_received = 0;
+  double applies_seconds = 0.0;
+  double overlap_set_positions_seconds = 0.0;
+  double overlap_apply_seconds = 0.0;
+  std::uint64_t overlap_apply_bytes_received = 0;
+  std::uint64_t overlap_halo_bytes_received = 0;
 };
 
 class DistributedFmmRpy {
@@ -98,6 +126,9 @@ class DistributedFmmRpy {
   [[nodiscard]] std::size_t halo_size() const;
   /// The Laplace FMM of the far field: its plan's and last evaluation's communication and work.
   [[nodiscard]] const DistributedLaplaceFmm& laplace() const { return laplace_; }
+  /// This rank's exchanges in set_positions and the products (zero before set_positions; reset by
+  /// each set_positions).
+  [[nodiscard]] const FmmRpyCommunication& communication() const { return stats_; }
 
   /// Collective. This rank's positions (3n, n >= 0) and one radius for them (> 0, finite; ranks may
   /// pass different radii), or one radius per particle. Throws rpyfmm::Error on every rank when
@@ -138,6 +169,9 @@ class DistributedFmmRpy {
   // U = M F for nrhs right-hand sides (nrhs agreed); `where` names the call in errors.
   void product(const char* where, std::span<const double> local_forces, std::span<double> local_velocities,
                std::size_t nrhs) const;
+  // The statistics of a product whose exchanges completed: `reduction_seconds` of the load scale's
+  // MPI_Allreduce, the Laplace evaluation's and the overlap correction's.
+  void record_product(double reduction_seconds) const;
 
   Communicator comm_;
   double viscosity_ = 1.0;
@@ -154,6 +188,7 @@ class DistributedFmmRpy {
   int scale_exponent_ = 0;
   double largest_radius_ = 0.0;  // of all ranks, as passed (the load scale of torques)
   bool equal_radii_ = true;
+  mutable FmmRpyCommunication stats_;
 };
 
 }  // namespace rpyfmm::mpi
