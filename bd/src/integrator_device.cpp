@@ -63,6 +63,14 @@ std::span<const double> Integrator::last_rotations() const {
   return device_ ? std::span<const double>(device_->rotations()) : std::span<const double>(phi_);
 }
 
+std::span<const double> Integrator::velocities() const {
+  return device_ ? std::span<const double>(device_->velocities()) : inertial_.velocities();
+}
+
+double Integrator::kinetic_temperature() const {
+  return device_ ? device_->kinetic_temperature() : inertial_.kinetic_temperature();
+}
+
 std::size_t Integrator::neighbour_rebuilds() const {
   return device_ ? device_->rebuilds() : list_.rebuilds();
 }

@@ -21,6 +21,13 @@ namespace rpyfmm::bd {
 
 namespace {
 
+// Whether any particle is of a Langevin type (inertia set for its type; LangevinGroup's reading).
+bool has_langevin_particles(std::span<const std::optional<LangevinParticle>> inertia,
+                            std::span<const std::uint32_t> types) {
+  return std::any_of(types.begin(), types.end(),
+                     [&](std::uint32_t t) { return t < inertia.size() && inertia[t].has_value(); });
+}
+
 struct Start {
   std::vector<double> positions, reference;
   // rotation: orientations (4N; empty = identity), those at step 0 (4N), the summed rotation
@@ -136,9 +143,10 @@ Integrator run_integrator(const RunConfig& config, const RunOptions& options, co
   IntegratorOptions o = config.integrator;
   if (options.engine) {  // an engine the caller makes (across MPI ranks): the operator it applies is named
     o.engine = StepEngine::external;
-    return Integrator(rpy::make_mobility(config.mobility, start.types.size()), forces, o, start.positions, start.types,
-                      config.neighbours, start.step,
-                      options.engine(config, forces, start.positions, start.types, start.orientations, start.step));
+    return Integrator(
+        rpy::make_mobility(config.mobility, start.types.size()), forces, o, start.positions, start.types,
+        config.neighbours, start.step,
+        options.engine(config, forces, start.positions, start.types, start.orientations, start.velocities, start.step));
   }
   o.engine = step_engine_for(config.mobility, options.device_launcher);
   return Integrator(engine_mobility(config.mobility, o.engine, start.types.size()), forces, o, start.positions,
@@ -157,6 +165,7 @@ class Run {
         total_(options.steps.value_or(config.steps)),
         forces_(run_force_field(config, start_.bonds)),
         n_(start_.types.size()),
+        langevin_(has_langevin_particles(config.integrator.inertia, start_.types)),
         bd_(run_integrator(config, options, forces_, start_)) {
     if (config.integrator.rotation && !start_.restarted) {  // the reference state of the log's moments
       start_.reference_orientations.assign(bd_.orientations().begin(), bd_.orientations().end());
@@ -247,8 +256,8 @@ class Run {
       else
         log_.create(sum_.log);
       if (!start_.restarted)
-        log_.write(csv_log_header(config_.integrator.keep_split_displacements, config_.integrator.rotation,
-                                  !bd_.inertial().empty(), config_.integrator.sac.enabled));
+        log_.write(csv_log_header(config_.integrator.keep_split_displacements, config_.integrator.rotation, langevin_,
+                                  config_.integrator.sac.enabled));
     }
   }
 
@@ -274,7 +283,8 @@ class Run {
       c.reference_orientations = start_.reference_orientations;
       c.rotation_vectors = start_.rotation_vectors;
     }
-    c.velocities.assign(bd_.inertial().velocities().begin(), bd_.inertial().velocities().end());
+    const auto v = bd_.velocities();  // on every process (the read may be collective), used on the writer
+    c.velocities.assign(v.begin(), v.end());
     on_writer([&] {
       traj_.flush();  // the frames the checkpoint counts are in the file before it names them
       c.trajectory_bytes = traj_.length();
@@ -361,7 +371,7 @@ class Run {
                                 : std::array<double, 2>{};
       row << ',' << rmsd << ',' << correlation;
     }
-    if (!bd_.inertial().empty()) row << ',' << bd_.inertial().kinetic_temperature();
+    if (langevin_) row << ',' << bd_.kinetic_temperature();  // on every process (may be collective)
     if (config_.integrator.sac.enabled) row << ',' << bd_.complexes().count() << ',' << bd_.complexes().mean_adsorbed();
     row << '\n';
     on_writer([&] { log_.write(row.str()); });
@@ -400,6 +410,7 @@ class Run {
   std::uint64_t total_;
   ForceField forces_;
   std::size_t n_;
+  bool langevin_;  // some particle is of a Langevin type: velocities, the log's kinetic temperature
   Integrator bd_;
   RunSummary sum_;
   std::optional<OutputDirectory> made_;  // before the files: they are removed first on failure
@@ -436,10 +447,7 @@ RunSummary restart_bd(const std::filesystem::path& path, const RunOptions& optio
     fail(ErrorCode::io_error, "restart", source + ": seed/dt disagree with the checkpoint header");
   if (config.integrator.rotation == c.orientations.empty())
     fail(ErrorCode::io_error, "restart", source + ": system.rotation disagrees with the checkpoint's orientations");
-  const auto& inertia = config.integrator.inertia;
-  const bool langevin = std::any_of(c.types.begin(), c.types.end(),
-                                    [&](std::uint32_t t) { return t < inertia.size() && inertia[t].has_value(); });
-  if (langevin == c.velocities.empty())
+  if (has_langevin_particles(config.integrator.inertia, c.types) == c.velocities.empty())
     fail(ErrorCode::io_error, "restart", source + ": the Langevin types disagree with the checkpoint's velocities");
   Start s;
   s.positions = c.positions;

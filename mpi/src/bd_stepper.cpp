@@ -79,6 +79,12 @@ class DistributedStepper final : public bd::Stepper {
   [[nodiscard]] const std::vector<double>& rotations() const override {
     return bd_.options().integrator.rotation ? rotations_.at(bd_, bd_.last_rotations(), 3) : rotations_.values;
   }
+  /// With inertial particles (empty without): gathered on rank 0 as the positions.
+  [[nodiscard]] const std::vector<double>& velocities() const override {
+    return bd_.inertial() ? velocities_.at(bd_, bd_.velocities(), 3) : velocities_.values;
+  }
+  /// Collective: summed over the ranks (DistributedBd::kinetic_temperature).
+  [[nodiscard]] double kinetic_temperature() const override { return bd_.kinetic_temperature(); }
   [[nodiscard]] std::uint64_t step_count() const override { return bd_.step_count(); }
   [[nodiscard]] double potential_energy() const override { return bd_.potential_energy(); }
   [[nodiscard]] std::size_t rebuilds() const override { return bd_.stats().rebuilds; }
@@ -91,7 +97,7 @@ class DistributedStepper final : public bd::Stepper {
 
  private:
   DistributedBd bd_;
-  mutable GatheredPerStep positions_, forces_, orientations_, rotations_;
+  mutable GatheredPerStep positions_, forces_, orientations_, rotations_, velocities_;
 };
 
 // The mobility of a run across ranks: its method, automatic counting as fmm in free space and as
@@ -123,7 +129,8 @@ rpy::pse::PseOptions pse_across_ranks(const rpy::MobilitySpec& spec) {
 std::unique_ptr<bd::Stepper> make_distributed_stepper(MPI_Comm comm, const bd::RunConfig& config,
                                                       const bd::ForceField& forces, std::span<const double> positions,
                                                       std::span<const std::uint32_t> types,
-                                                      std::span<const double> orientations, std::uint64_t first_step) {
+                                                      std::span<const double> orientations,
+                                                      std::span<const double> velocities, std::uint64_t first_step) {
   const Communicator world(comm);
   DistributedBdOptions options;
   options.integrator = config.integrator;
@@ -144,6 +151,9 @@ std::unique_ptr<bd::Stepper> make_distributed_stepper(MPI_Comm comm, const bd::R
   if (config.integrator.rotation && !orientations.empty())  // else the identity (or refused without rotation)
     share.orientations.assign(orientations.begin() + static_cast<std::ptrdiff_t>(4 * first),
                               orientations.begin() + static_cast<std::ptrdiff_t>(4 * last));
+  if (!velocities.empty())  // else the Maxwell draw (with inertial types; refused without)
+    share.velocities.assign(velocities.begin() + static_cast<std::ptrdiff_t>(3 * first),
+                            velocities.begin() + static_cast<std::ptrdiff_t>(3 * last));
   return std::make_unique<DistributedStepper>(
       DistributedBd(comm, forces, config.geometry, std::move(options), std::move(share), first_step));
 }
@@ -152,8 +162,8 @@ bd::RunOptions across_ranks(MPI_Comm comm, bd::RunOptions options) {
   const Communicator world(comm);
   options.engine = [comm](const bd::RunConfig& config, const bd::ForceField& forces, std::span<const double> x,
                           std::span<const std::uint32_t> types, std::span<const double> orientations,
-                          std::uint64_t first_step) {
-    return make_distributed_stepper(comm, config, forces, x, types, orientations, first_step);
+                          std::span<const double> velocities, std::uint64_t first_step) {
+    return make_distributed_stepper(comm, config, forces, x, types, orientations, velocities, first_step);
   };
   options.writes_files = world.rank() == 0;
   if (world.rank() != 0) options.progress = nullptr;

@@ -17,6 +17,7 @@
 #include "device/engine_tables.hpp"
 #include "device/euler_maruyama.hpp"
 #include "device/rebuild_test.hpp"
+#include "rpyfmm/bd/langevin.hpp"
 #include "rpyfmm/bd/output.hpp"
 #include "rpyfmm/bd/quaternion.hpp"
 #include "rpyfmm/bd/rotation_sampling.hpp"
@@ -34,8 +35,6 @@ constexpr std::uint64_t kNoParticle = std::numeric_limits<std::uint64_t>::max();
 // The features of bd::Integrator that this engine does not have.
 void require_supported(const DistributedBdOptions& o, const bd::ForceField& forces) {
   const bd::IntegratorOptions& i = o.integrator;
-  const bool inertial = std::any_of(i.inertia.begin(), i.inertia.end(), [](const auto& t) { return t.has_value(); });
-  require(!inertial, ErrorCode::not_supported, kWhere, "inertial (Langevin) particles are not supported across ranks");
   require(!i.sac.enabled, ErrorCode::not_supported, kWhere, "the SAC scheme is not supported across ranks");
   require(!i.keep_split_displacements, ErrorCode::not_supported, kWhere,
           "split displacements (keep_split_displacements) are not kept across ranks");
@@ -43,6 +42,72 @@ void require_supported(const DistributedBdOptions& o, const bd::ForceField& forc
           "force callbacks are not supported across ranks (they take the whole system's positions)");
   require(o.repartition_imbalance >= 1.0, ErrorCode::invalid_argument, kWhere,
           "repartition_imbalance must be >= 1 (infinity: never), got " + std::to_string(o.repartition_imbalance));
+}
+
+// Whether the particles of type t are inertial (IntegratorOptions::inertia, as bd::LangevinGroup
+// reads it: types past the end are Brownian).
+bool inertial_type(const bd::IntegratorOptions& o, std::uint32_t t) {
+  return t < o.inertia.size() && o.inertia[t].has_value();
+}
+
+// The owned inertial particles: their masses and frictions, global indices (the noise keys) and
+// places among the owned particles, in increasing global index.
+struct InertialSubset {
+  std::vector<bd::LangevinParticle> particles;
+  std::vector<std::uint64_t> index;
+  std::vector<std::size_t> local;
+};
+
+InertialSubset inertial_subset(const bd::IntegratorOptions& o, std::span<const std::uint32_t> types,
+                               std::span<const std::uint64_t> ids) {
+  InertialSubset s;
+  for (std::size_t i = 0; i < types.size(); ++i) {
+    if (!inertial_type(o, types[i])) continue;
+    s.particles.push_back(*o.inertia[types[i]]);
+    s.index.push_back(ids[i]);
+    s.local.push_back(i);
+  }
+  return s;
+}
+
+// The serial engine's conditions on inertial particles (bd::Integrator::check_inertia); the
+// options are the same on every rank, so every rank throws alike.
+void check_inertia(const DistributedBdOptions& o) {
+  require(o.method == rpy::MobilityMethod::none, ErrorCode::invalid_argument, kWhere,
+          "inertial (Langevin) particles need the free-draining mobility \"none\": hydrodynamic interactions "
+          "with inertia are not supported");
+  require(!o.integrator.rotation, ErrorCode::invalid_argument, kWhere,
+          "inertial (Langevin) particles do not support rotation yet");
+}
+
+// This rank's velocities and inertial types checked as bd::LangevinGroup checks them (not
+// collective): masses and frictions finite and > 0; velocities empty or 3 per particle, finite,
+// and 0 for Brownian particles.
+void check_inertial_share(const BdShare& s, const bd::IntegratorOptions& o) {
+  for (const std::uint32_t t : s.types)
+    require(!inertial_type(o, t) || (std::isfinite(o.inertia[t]->mass) && o.inertia[t]->mass > 0.0 &&
+                                     std::isfinite(o.inertia[t]->friction) && o.inertia[t]->friction > 0.0),
+            ErrorCode::invalid_argument, kWhere, "inertia: mass and friction must be finite and > 0");
+  if (s.velocities.empty()) return;
+  const std::size_t n = s.types.size();
+  require(s.velocities.size() == 3 * n, ErrorCode::invalid_input, kWhere,
+          "velocities has " + std::to_string(s.velocities.size()) + " entries, expected 3n = " + std::to_string(3 * n) +
+              " (this rank's share)");
+  require_finite(s.velocities, kWhere, "velocities", 3);
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t c = 0; c < 3 && !inertial_type(o, s.types[i]); ++c)
+      require(s.velocities[3 * i + c] == 0.0, ErrorCode::invalid_input, kWhere,
+              "particle " + std::to_string(i) + " (of this rank's share) is Brownian but has a non-zero velocity");
+}
+
+// Collective: throws on every rank unless the ranks with particles all give `what` or none does
+// (ranks without particles count as both).
+void require_all_or_none(const Communicator& comm, bool has_particles, bool given, const std::string& what) {
+  const double flags[2] = {!has_particles || given ? 1.0 : 0.0, !has_particles || !given ? 1.0 : 0.0};
+  double all[2] = {0.0, 0.0};
+  check_mpi(MPI_Allreduce(flags, all, 2, MPI_DOUBLE, MPI_MIN, comm.get()), "MPI_Allreduce");
+  require(all[0] == 1.0 || all[1] == 1.0, ErrorCode::invalid_input, kWhere,
+          "some ranks gave " + what + " and others did not (give them on every rank with particles, or on none)");
 }
 
 // The step's constants as the device stages take them (the serial engine's arithmetic,
@@ -93,6 +158,15 @@ std::vector<double> option_signature(const DistributedBdOptions& o, const rpy::G
           o.pse.window_eta,
           o.pse.lanczos_tolerance,
           i.rotation ? 1.0 : 0.0};
+}
+
+// option_signature with the inertial types' masses and frictions (0 for Brownian types).
+std::vector<double> full_signature(const DistributedBdOptions& o, const rpy::Geometry& g,
+                                   const bd::ForceField& forces) {
+  std::vector<double> s = option_signature(o, g, forces);
+  s.push_back(static_cast<double>(o.integrator.inertia.size()));
+  for (const auto& t : o.integrator.inertia) s.insert(s.end(), {t ? t->mass : 0.0, t ? t->friction : 0.0});
+  return s;
 }
 
 // Collective: the exclusive prefix sum and the total of this rank's count.
@@ -215,16 +289,24 @@ DistributedBd::DistributedBd(MPI_Comm comm, bd::ForceField forces, rpy::Geometry
     (void)bd::NeighbourList(geometry_, forces_.max_cutoff(), options_.neighbours);  // its checks of the skin and box
     check_share(share, forces_);
     complete_rotation_state(share, options_.integrator.rotation);
+    check_inertial_share(share, options_.integrator);
   });
-  require(same_on_every_rank(comm_, option_signature(options_, geometry_, forces_)), ErrorCode::invalid_argument,
-          kWhere, "the ranks passed different options, geometries or force fields");
-  // Ranks with particles give ids on all of them or on none (ranks without particles count as both).
-  const bool empty = share.types.empty(), given = !share.ids.empty();
-  const double flags[2] = {empty || given ? 1.0 : 0.0, empty || !given ? 1.0 : 0.0};
-  double all[2] = {0.0, 0.0};
-  check_mpi(MPI_Allreduce(flags, all, 2, MPI_DOUBLE, MPI_MIN, comm_.get()), "MPI_Allreduce");
-  require(all[0] == 1.0 || all[1] == 1.0, ErrorCode::invalid_input, kWhere,
-          "some ranks gave particle ids and others did not (give them on every rank with particles, or on none)");
+  require(same_on_every_rank(comm_, full_signature(options_, geometry_, forces_)), ErrorCode::invalid_argument, kWhere,
+          "the ranks passed different options, geometries or force fields");
+  require_all_or_none(comm_, !share.types.empty(), !share.ids.empty(), "particle ids");
+  require_all_or_none(comm_, !share.types.empty(), !share.velocities.empty(), "velocities");
+  const int mine_inertial = std::any_of(share.types.begin(), share.types.end(),
+                                        [&](std::uint32_t t) { return inertial_type(options_.integrator, t); })
+                                ? 1
+                                : 0;
+  int any_inertial = 0;
+  check_mpi(MPI_Allreduce(&mine_inertial, &any_inertial, 1, MPI_INT, MPI_MAX, comm_.get()), "MPI_Allreduce");
+  inertial_ = any_inertial != 0;
+  if (inertial_) check_inertia(options_);
+  comm_.run([&] {
+    require(inertial_ || share.velocities.empty(), ErrorCode::invalid_argument, kWhere,
+            "velocities given but no particle is inertial");
+  });
   const auto [offset, total] = offset_and_total(comm_, share.types.size());
   require(total > 0, ErrorCode::invalid_input, kWhere, "no particles on any rank (N = 0)");
   require(total < (std::uint64_t{1} << 53), ErrorCode::not_supported, kWhere,
@@ -251,6 +333,7 @@ DistributedBd::DistributedBd(MPI_Comm comm, bd::ForceField forces, rpy::Geometry
     torque_.assign(3 * ids_.size(), 0.0);
     phi_.assign(3 * ids_.size(), 0.0);
   }
+  if (inertial_) start_velocities(share.velocities, order);
   hydrodynamics_ = Hydrodynamics::make(comm_.get(), options_, geometry_);
   for (const char* part : {"rebuild", "halo", "forces", "update"}) stats_.seconds[part] = 0.0;
 }
@@ -327,6 +410,7 @@ void DistributedBd::repartition(std::span<const double> weights) {
   // With rotation the orientations, those at step 0 and the summed rotation vectors travel too.
   std::vector<Column> columns = {{x_, 3}, {reference_, 3}, {id, 1}, {type, 1}};
   if (options_.integrator.rotation) columns.insert(columns.end(), {{q_, 4}, {reference_q_, 4}, {rotation_sum_, 3}});
+  if (inertial_) columns.push_back({v_, 3});  // the half-step velocities travel too
   std::vector<std::vector<double>> moved = partition.to_owners(columns);
   const std::size_t m = partition.owned_size();
   std::vector<std::size_t> order(m);
@@ -347,6 +431,7 @@ void DistributedBd::repartition(std::span<const double> weights) {
     torque_.assign(3 * m, 0.0);  // as the forces below
     phi_.assign(3 * m, 0.0);
   }
+  if (inertial_) v_ = permuted(moved[4], order, 3);
   f_.assign(3 * m, 0.0);  // the forces of the last step belong to the particles held before
   ++stats_.repartitions;
 }
@@ -382,6 +467,8 @@ void DistributedBd::advance() {
   std::vector<double> next(3 * n);
   StopWatch work;
   std::uint64_t refused = hydrodynamics_ ? displace_with_hydrodynamics(next) : displace_free_draining(next);
+  std::vector<double> v_next;
+  if (inertial_) refused = std::min(refused, displace_inertial(next, v_next));
   if (rotation && !hydrodynamics_) free_draining_rotation();
   if (rotation) refused = std::min(refused, turn_angles());
   if (!hydrodynamics_) work_seconds_ += work.seconds();  // the hydrodynamic products are collective
@@ -389,6 +476,7 @@ void DistributedBd::advance() {
   check_mpi(MPI_Allreduce(&refused, &lowest, 1, MPI_UINT64_T, MPI_MIN, comm_.get()), "MPI_Allreduce");
   if (lowest != kNoParticle) fail_blow_up(lowest, next);
   x_.swap(next);
+  if (inertial_) v_.swap(v_next);  // kept only when the step is (bd::LangevinGroup::commit)
   // q <- exp(phi) q (bd::Integrator's update), and the sums of the rotation vectors (the log's).
   for (std::size_t i = 0; i < phi_.size() / 3; ++i) {
     bd::quaternion::rotate(std::span<double, 4>(q_.data() + 4 * i, 4), &phi_[3 * i]);
@@ -414,6 +502,7 @@ std::uint64_t DistributedBd::displace_free_draining(std::vector<double>& next) {
                                    t.noise,       t.brownian,        t.max_displacement2,    t.seed,          step_};
   std::uint64_t refused = kNoParticle;
   for (std::size_t i = 0; i < ids_.size(); ++i) {
+    if (inertial_type(options_.integrator, types_[i])) continue;  // the Langevin step moves it (displace_inertial)
     constexpr double kNoNoise[3] = {0.0, 0.0, 0.0};
     double dx[3];
     if (!bd::device::displacement_with(static_cast<std::uint32_t>(i), t.brownian ? &z_[3 * i] : kNoNoise, f_.data(), m,
@@ -455,6 +544,63 @@ std::uint64_t DistributedBd::displace_with_hydrodynamics(std::vector<double>& ne
     if (!(d2 <= frac2 * radii_[i] * radii_[i])) refused = std::min(refused, ids_[i]);  // also catches NaN
   }
   return refused;
+}
+
+std::uint64_t DistributedBd::displace_inertial(std::vector<double>& next, std::vector<double>& v_next) const {
+  // bd::Integrator's step of its inertial particles (bd::LangevinGroup::displacements): the GJF
+  // step on x = 0 gives the displacement exactly, x_{n+1} = x_n + dx, guarded as the others.
+  const bd::IntegratorOptions& o = options_.integrator;
+  const InertialSubset s = inertial_subset(o, types_, ids_);
+  const std::size_t m = s.local.size();
+  std::vector<double> f(3 * m), dx(3 * m, 0.0), v(3 * m);
+  for (std::size_t k = 0; k < m; ++k)
+    for (std::size_t c = 0; c < 3; ++c) {
+      f[3 * k + c] = f_[3 * s.local[k] + c];
+      v[3 * k + c] = v_[3 * s.local[k] + c];
+    }
+  bd::langevin_step({.dt = o.dt, .kT = o.kT, .seed = o.seed, .step = step_}, s.particles, s.index, f, dx, v);
+  v_next = v_;
+  const double frac2 = o.max_displacement * o.max_displacement;
+  std::uint64_t refused = kNoParticle;
+  for (std::size_t k = 0; k < m; ++k) {
+    const std::size_t i = s.local[k];
+    double d2 = 0.0;
+    for (std::size_t c = 0; c < 3; ++c) {
+      next[3 * i + c] = x_[3 * i + c] + dx[3 * k + c];
+      v_next[3 * i + c] = v[3 * k + c];
+      d2 += dx[3 * k + c] * dx[3 * k + c];
+    }
+    const double radius = forces_.types()[types_[i]].radius;
+    if (!(d2 <= frac2 * radius * radius)) refused = std::min(refused, ids_[i]);  // also catches NaN
+  }
+  return refused;
+}
+
+void DistributedBd::start_velocities(std::span<const double> given, std::span<const std::size_t> order) {
+  // Given (0 for Brownian particles, checked), or bd::LangevinGroup::set_velocities' Maxwell draw
+  // keyed by the global index.
+  if (!given.empty()) {
+    v_ = permuted(std::vector<double>(given.begin(), given.end()), order, 3);
+    return;
+  }
+  const InertialSubset s = inertial_subset(options_.integrator, types_, ids_);
+  std::vector<double> v(3 * s.local.size());
+  bd::maxwell_velocities(options_.integrator.kT, options_.integrator.seed, s.particles, s.index, v);
+  v_.assign(3 * ids_.size(), 0.0);
+  for (std::size_t k = 0; k < s.local.size(); ++k)
+    for (std::size_t c = 0; c < 3; ++c) v_[3 * s.local[k] + c] = v[3 * k + c];
+}
+
+double DistributedBd::kinetic_temperature() const {
+  const InertialSubset s = inertial_subset(options_.integrator, types_, ids_);
+  double mine[2] = {0.0, static_cast<double>(s.local.size())};  // sum of m |v|^2, inertial particles
+  for (std::size_t k = 0; k < s.local.size(); ++k) {
+    const double* v = v_.data() + 3 * s.local[k];
+    mine[0] += s.particles[k].mass * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+  }
+  double all[2] = {0.0, 0.0};
+  check_mpi(MPI_Allreduce(mine, all, 2, MPI_DOUBLE, MPI_SUM, comm_.get()), "MPI_Allreduce");
+  return all[1] > 0.0 ? all[0] / (3.0 * all[1]) : 0.0;
 }
 
 void DistributedBd::free_draining_rotation() {
@@ -534,9 +680,10 @@ std::array<double, 2> DistributedBd::rotation_moments() const {
 bd::Checkpoint DistributedBd::checkpoint(int root) const {
   require(root >= 0 && root < comm_.size(), ErrorCode::invalid_argument, kWhere,
           "checkpoint root " + std::to_string(root) + " is not a rank of the communicator");
-  // id, type, x (3), reference (3); with rotation q (4), q at step 0 (4), summed rotation vector (3)
+  // id, type, x (3), reference (3); with rotation q (4), q at step 0 (4), summed rotation vector
+  // (3); with inertial particles v (3)
   const bool rotation = options_.integrator.rotation;
-  const std::size_t values = rotation ? 8 + kRotationValues : 8;
+  const std::size_t values = rotation ? 8 + kRotationValues : inertial_ ? 11 : 8;
   std::vector<double> packed;
   packed.reserve(values * ids_.size());
   for (std::size_t i = 0; i < ids_.size(); ++i) {
@@ -544,6 +691,7 @@ bd::Checkpoint DistributedBd::checkpoint(int root) const {
     packed.insert(packed.end(), &x_[3 * i], &x_[3 * i + 3]);
     packed.insert(packed.end(), &reference_[3 * i], &reference_[3 * i + 3]);
     if (rotation) pack_rotation(packed, q_, reference_q_, rotation_sum_, i);
+    if (inertial_) packed.insert(packed.end(), &v_[3 * i], &v_[3 * i + 3]);
   }
   std::vector<std::vector<double>> send(comm_.size());
   send[root] = std::move(packed);
@@ -562,6 +710,7 @@ bd::Checkpoint DistributedBd::checkpoint(int root) const {
     c.reference_orientations.resize(4 * n);
     c.rotation_vectors.resize(3 * n);
   }
+  if (inertial_) c.velocities.resize(3 * n);
   for (std::size_t k = 0; k < n; ++k) {
     const double* v = &all[values * k];
     const auto id = static_cast<std::size_t>(v[0]);
@@ -571,6 +720,7 @@ bd::Checkpoint DistributedBd::checkpoint(int root) const {
       c.reference_positions[3 * id + a] = v[5 + a];
     }
     if (rotation) unpack_rotation(v + 8, id, c.orientations, c.reference_orientations, c.rotation_vectors);
+    if (inertial_) std::copy(v + 8, v + 11, &c.velocities[3 * id]);
   }
   return c;
 }
@@ -582,8 +732,11 @@ DistributedBd restart_distributed_bd(MPI_Comm comm_handle, bd::ForceField forces
           "restart root " + std::to_string(root) + " is not a rank of the communicator");
   comm.run([&] {
     if (comm.rank() != root) return;
-    require(checkpoint.velocities.empty(), ErrorCode::not_supported, kWhere,
-            "the checkpoint holds velocities (inertial particles), which runs across ranks do not have");
+    // bd::restart_bd's test: velocities exactly when the options make some of its particles inertial.
+    const bool langevin = std::any_of(checkpoint.types.begin(), checkpoint.types.end(),
+                                      [&](std::uint32_t t) { return inertial_type(options.integrator, t); });
+    require(langevin != checkpoint.velocities.empty(), ErrorCode::invalid_argument, kWhere,
+            "the options' inertial (Langevin) types disagree with the checkpoint's velocities");
     require(checkpoint.orientations.empty() != options.integrator.rotation, ErrorCode::invalid_argument, kWhere,
             options.integrator.rotation ? "the options have rotation but the checkpoint holds no orientations"
                                         : "the checkpoint holds orientations but the options have no rotation");
@@ -593,20 +746,23 @@ DistributedBd restart_distributed_bd(MPI_Comm comm_handle, bd::ForceField forces
                  checkpoint.rotation_vectors.size() == 3 * n),
             ErrorCode::invalid_input, kWhere,
             "the checkpoint's orientations, reference orientations, rotation vectors and types disagree on N");
+    require(checkpoint.velocities.empty() || checkpoint.velocities.size() == 3 * n, ErrorCode::invalid_input, kWhere,
+            "the checkpoint's velocities and types disagree on N");
     require(checkpoint.seed == options.integrator.seed && checkpoint.dt == options.integrator.dt,
             ErrorCode::invalid_argument, kWhere, "the checkpoint's seed and dt differ from the options'");
     require(checkpoint.positions.size() == 3 * checkpoint.types.size() &&
                 checkpoint.reference_positions.size() == checkpoint.positions.size(),
             ErrorCode::invalid_input, kWhere, "the checkpoint's positions and types disagree on N");
   });
-  std::uint64_t header[2] = {checkpoint.types.size(), checkpoint.step};
-  check_mpi(MPI_Bcast(header, 2, MPI_UINT64_T, root, comm.get()), "MPI_Bcast");
+  std::uint64_t header[3] = {checkpoint.types.size(), checkpoint.step, checkpoint.velocities.empty() ? 0u : 1u};
+  check_mpi(MPI_Bcast(header, 3, MPI_UINT64_T, root, comm.get()), "MPI_Bcast");
   // Blocks of global indices: rank r gets [r N / P, (r + 1) N / P).
   const auto p = static_cast<std::uint64_t>(comm.size()), total = header[0];
   const auto first = [&](std::uint64_t r) { return (r * total) / p; };
-  // type, x (3), reference (3); with rotation q (4), q at step 0 (4), summed rotation vector (3)
-  const bool rotation = options.integrator.rotation;
-  const std::size_t values = rotation ? 7 + kRotationValues : 7;
+  // type, x (3), reference (3); with rotation q (4), q at step 0 (4), summed rotation vector (3);
+  // with velocities v (3)
+  const bool rotation = options.integrator.rotation, velocities = header[2] != 0;
+  const std::size_t values = rotation ? 7 + kRotationValues : velocities ? 10 : 7;
   std::vector<std::vector<double>> blocks(comm.size());
   for (std::uint64_t r = 0; r < blocks.size() && comm.rank() == root; ++r) {
     for (std::uint64_t i = first(r); i < first(r + 1); ++i) {
@@ -617,6 +773,8 @@ DistributedBd restart_distributed_bd(MPI_Comm comm_handle, bd::ForceField forces
       if (rotation)
         pack_rotation(blocks[r], checkpoint.orientations, checkpoint.reference_orientations,
                       checkpoint.rotation_vectors, i);
+      if (velocities)
+        blocks[r].insert(blocks[r].end(), &checkpoint.velocities[3 * i], &checkpoint.velocities[3 * i + 3]);
     }
   }
   const std::vector<double> mine = detail::alltoallv(comm, blocks, kWhere, "the checkpoint's particles");
@@ -636,6 +794,7 @@ DistributedBd restart_distributed_bd(MPI_Comm comm_handle, bd::ForceField forces
     share.ids.push_back(i);
     if (rotation)
       unpack_rotation(v + 7, i - first(r), share.orientations, share.reference_orientations, share.rotation_vectors);
+    if (velocities) share.velocities.insert(share.velocities.end(), v + 7, v + 10);
   }
   return DistributedBd(comm_handle, std::move(forces), geometry, std::move(options), std::move(share), header[1]);
 }

@@ -6,7 +6,8 @@
 # With PSE (spheres of one radius, double-precision wave grids) the positions are the serial
 # engine's to round-off (about 1e-15 of the coordinates; tests/mpi/test_distributed_bd.cpp), so
 # the printed coordinates (10 significant digits) agree to one unit of their last digit, allowed 2.
-# Bead-spring chains and rotating dipoles (free draining, also restarted): byte for byte as free
+# Bead-spring chains, rotating dipoles and Langevin types (free draining; dipoles and Langevin
+# types also restarted, the latter from a checkpoint with velocities): byte for byte as free
 # draining; rotating dipoles with PSE: to round-off as PSE. A configuration the ranks do not run (direct
 # in a periodic box; PSE with single-precision grids) fails every rank: exit status 2, one error
 # line, no output directory. Run by ctest as
@@ -185,6 +186,21 @@ file(WRITE "${WORK}/pse_rotation.toml" "${pse_rotation}\n[external]\ndipole_fiel
 run_bd(0 --config "${WORK}/pse_rotation.toml" --out-dir "${WORK}/pse_rotation_serial" --quiet)
 run_bd(${NP} --config "${WORK}/pse_rotation.toml" --out-dir "${WORK}/pse_rotation_ranks" --quiet)
 close_trajectory(pse_rotation_ranks pse_rotation_serial "PSE with rotation, 20 steps on ${NP} ranks")
+
+# Langevin types: the spheres alternate between A and B, the larger (B) inertial (gamma dt / m =
+# 0.92), free draining: positions and half-step velocities are the serial engine's bit for bit, so
+# the trajectory is identical byte for byte; also after 30 steps on 2 ranks and a restart from
+# their checkpoint (version 4, with the velocities) on NP. The log across ranks has the kinetic
+# temperature column (some particles are inertial).
+string(REPLACE "name = \"B\"\nradius = 0.7" "name = \"B\"\nradius = 0.7\ndynamics = \"langevin\"\ndensity = 0.04"
+               langevin "${text}")
+string(REPLACE "count = 600" "count = 600\ntypes = [\"A\", \"B\"]" langevin "${langevin}")
+file(WRITE "${WORK}/langevin.toml" "${langevin}")
+same_as_serial(langevin "Langevin types")
+file(STRINGS "${WORK}/langevin_ranks/log.csv" langevin_header LIMIT_COUNT 1)
+if(NOT langevin_header MATCHES ",langevin_kT")
+  message(FATAL_ERROR "Langevin types: the log across ${NP} ranks has no langevin_kT column: ${langevin_header}")
+endif()
 
 # Bead-spring chains (harmonic bonds, WCA pairs): the bonds' partners travel with the halo, and the
 # trajectory is the serial run's byte for byte.

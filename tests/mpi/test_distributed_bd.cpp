@@ -7,7 +7,9 @@
 // hydrodynamic interactions the positions follow the serial engine with the same operator to
 // round-off (direct in free space, pse in a periodic box) or to the FMM's tolerance. With rotation
 // the orientations agree as the positions do (free draining bit for bit, direct to round-off, fmm to
-// the tolerance), also across a version 3 checkpoint.
+// the tolerance), also across a version 3 checkpoint. With inertial (Langevin) types beside
+// Brownian ones the positions and half-step velocities are the serial engine's bit for bit, also
+// across a version 4 checkpoint.
 #include <gtest/gtest.h>
 #include <mpi.h>
 #include <unistd.h>
@@ -19,7 +21,9 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <numbers>
 #include <numeric>
+#include <optional>
 #include <random>
 #include <span>
 #include <string>
@@ -139,24 +143,29 @@ std::vector<std::size_t> shuffled(std::size_t n, std::uint64_t seed) {
   return v;
 }
 
-// Every rank: the gathered positions equal `expected` bit for bit (checked on rank 0, its verdict
-// broadcast so that every rank reports it).
-void expect_positions_bitwise(const DistributedBd& bd, const std::vector<double>& expected, const std::string& what) {
-  const rpyfmm::bd::Checkpoint c = bd.checkpoint(0);
+// Every rank: `gathered` (rank 0's array; ignored elsewhere) equals `expected` bit for bit
+// (checked on rank 0, its verdict broadcast so that every rank reports it).
+void expect_gathered_bitwise(const std::vector<double>& gathered, const std::vector<double>& expected,
+                             const std::string& what) {
   int mismatches = 0;
   double worst = 0.0;
   if (world_rank() == 0) {
-    EXPECT_EQ(c.positions.size(), expected.size()) << what;
-    for (std::size_t k = 0; k < std::min(c.positions.size(), expected.size()); ++k) {
-      if (c.positions[k] != expected[k]) {
+    EXPECT_EQ(gathered.size(), expected.size()) << what;
+    for (std::size_t k = 0; k < std::min(gathered.size(), expected.size()); ++k) {
+      if (gathered[k] != expected[k]) {
         ++mismatches;
-        worst = std::max(worst, std::abs(c.positions[k] - expected[k]));
+        worst = std::max(worst, std::abs(gathered[k] - expected[k]));
       }
     }
   }
   MPI_Bcast(&mismatches, 1, MPI_INT, 0, MPI_COMM_WORLD);
   MPI_Bcast(&worst, 1, MPI_DOUBLE, 0, MPI_COMM_WORLD);
   EXPECT_EQ(mismatches, 0) << what << ": " << mismatches << " coordinates differ, by up to " << worst;
+}
+
+// Every rank: the gathered positions equal `expected` bit for bit.
+void expect_positions_bitwise(const DistributedBd& bd, const std::vector<double>& expected, const std::string& what) {
+  expect_gathered_bitwise(bd.checkpoint(0).positions, expected, what);
 }
 
 TEST(MpiDistributedBd, PeriodicSuspensionEqualsTheSerialEngineBitForBitForEverySplit) {
@@ -955,6 +964,141 @@ TEST(MpiDistributedBd, ATurnBeyondMaxDisplacementFailsEveryRankAndKeepsTheState)
     EXPECT_EQ(after.orientations, q);
   }
   EXPECT_EQ(bd.step_count(), 0u);
+}
+
+// Brownian spheres of type A beside inertial (Langevin) spheres of type B in a periodic box: the
+// mass of B makes gamma dt / m = 1, between the overdamped and the inertial regime (docs/theory/bd.md,
+// the Langevin section).
+DistributedBdOptions langevin_options(std::uint64_t seed) {
+  DistributedBdOptions o = options_with(4e-3, seed);
+  const double friction = 6.0 * std::numbers::pi * kViscosity * 0.7;
+  o.integrator.inertia = {std::nullopt, rpyfmm::bd::LangevinParticle{.mass = friction * 4e-3, .friction = friction}};
+  return o;
+}
+
+// The serial engine after `steps` steps: positions, half-step velocities and kinetic temperature.
+struct LangevinState {
+  std::vector<double> x, v;
+  double kinetic_temperature = 0.0;
+};
+
+LangevinState serial_langevin(const ForceField& forces, const Geometry& geometry, const DistributedBdOptions& o,
+                              const System& s, std::uint64_t steps) {
+  rpyfmm::bd::Integrator bd(std::make_unique<rpyfmm::rpy::FreeDrainingMobility>(geometry, o.viscosity), forces,
+                            o.integrator, s.x, s.types, o.neighbours);
+  bd.run(steps);
+  const auto v = bd.inertial().velocities();
+  return {{bd.positions().begin(), bd.positions().end()}, {v.begin(), v.end()}, bd.inertial().kinetic_temperature()};
+}
+
+// Every rank: positions and velocities bit for bit `expected`, the kinetic temperature to round-off.
+void expect_langevin_state(const DistributedBd& bd, const LangevinState& expected, const std::string& what) {
+  const rpyfmm::bd::Checkpoint c = bd.checkpoint(0);
+  expect_gathered_bitwise(c.positions, expected.x, what + ": positions");
+  expect_gathered_bitwise(c.velocities, expected.v, what + ": velocities");
+  // A mean of ~100 positive terms summed in another order: relative error <= N eps ~ 2e-14.
+  EXPECT_NEAR(bd.kinetic_temperature(), expected.kinetic_temperature, 1e-12 * expected.kinetic_temperature) << what;
+}
+
+TEST(MpiDistributedBdLangevin, MixtureEqualsTheSerialEngineBitForBitForEverySplit) {
+  // 216 spheres, half of them inertial, volume fraction 0.12 with WCA pairs; 40 steps. The shares
+  // are a random permutation of the particles, and every rebuild moves particles between ranks
+  // (the velocities with them).
+  const System s = lattice(6, 1.6, 2, 31);
+  const Geometry box = Geometry::periodic(6 * 1.6);
+  DistributedBdOptions o = langevin_options(17);
+  o.repartition_imbalance = 1.0;
+  const LangevinState expected = serial_langevin(wca_mixture(), box, o, s, 40);
+  ASSERT_GT(expected.kinetic_temperature, 0.0);
+  for (const Split split : kSplits) {
+    DistributedBd bd(MPI_COMM_WORLD, wca_mixture(), box, o, share_of(s, split, shuffled(s.size(), 8), true));
+    EXPECT_TRUE(bd.inertial());
+    bd.run(40);
+    expect_langevin_state(bd, expected, "split " + std::to_string(static_cast<int>(split)));
+    EXPECT_GE(bd.stats().rebuilds, 2u);
+    if (world_size() > 1) {
+      EXPECT_EQ(bd.stats().repartitions, bd.stats().rebuilds);
+    }
+  }
+}
+
+TEST(MpiDistributedBdLangevin, CheckpointWrittenOnTwoRanksContinuesOnAllRanksBitForBit) {
+  const System s = lattice(5, 1.6, 2, 37);
+  const Geometry box = Geometry::periodic(5 * 1.6);
+  const DistributedBdOptions o = langevin_options(3);
+  const LangevinState expected = serial_langevin(wca_mixture(), box, o, s, 40);
+  // The first 20 steps on ranks 0 and 1 only, through a version 4 file (with the velocities).
+  const rpyfmm::bd::Checkpoint read = checkpoint_from_two_ranks(s, {}, wca_mixture(), box, o, 20);
+  if (world_rank() == 0) {
+    EXPECT_EQ(read.velocities.size(), 3 * s.size());
+  }
+  DistributedBd bd = rpyfmm::mpi::restart_distributed_bd(MPI_COMM_WORLD, wca_mixture(), box, o, read);
+  EXPECT_EQ(bd.step_count(), 20u);
+  bd.run(20);
+  expect_langevin_state(bd, expected, "restarted on " + std::to_string(world_size()) + " ranks");
+  // Without the inertial types the checkpoint's velocities are refused on every rank.
+  expect_collective_error(
+      [&] {
+        (void)rpyfmm::mpi::restart_distributed_bd(MPI_COMM_WORLD, wca_mixture(), box, options_with(4e-3, 3), read);
+      },
+      ErrorCode::invalid_argument, "disagree with the checkpoint's velocities");
+}
+
+TEST(MpiDistributedBdLangevin, BadInertialInputOnOneRankFailsEveryRank) {
+  const System s = lattice(4, 1.6, 2, 1);
+  const Geometry box = Geometry::periodic(4 * 1.6);
+  const DistributedBdOptions o = langevin_options(5);
+  const int last = world_size() - 1;
+  // Velocities given on every rank: zeros (Brownian particles must have 0).
+  const auto with_velocities = [&] {
+    BdShare share = share_of(s, Split::even, identity(s.size()), false);
+    share.velocities.assign(3 * share.types.size(), 0.0);
+    return share;
+  };
+  {  // one velocity short on the last rank
+    BdShare share = with_velocities();
+    if (world_rank() == last) share.velocities.pop_back();
+    expect_collective_error([&] { DistributedBd bd(MPI_COMM_WORLD, wca_mixture(), box, o, share); },
+                            ErrorCode::invalid_input, "velocities has");
+  }
+  {  // a Brownian particle (type A) moving on the last rank
+    BdShare share = with_velocities();
+    const auto brownian = std::find(share.types.begin(), share.types.end(), 0u) - share.types.begin();
+    if (world_rank() == last) share.velocities[3 * static_cast<std::size_t>(brownian)] = 1.0;
+    expect_collective_error([&] { DistributedBd bd(MPI_COMM_WORLD, wca_mixture(), box, o, share); },
+                            ErrorCode::invalid_input, "is Brownian but has a non-zero velocity");
+  }
+  {  // velocities without inertial types
+    expect_collective_error(
+        [&] { DistributedBd bd(MPI_COMM_WORLD, wca_mixture(), box, options_with(4e-3), with_velocities()); },
+        ErrorCode::invalid_argument, "no particle is inertial");
+  }
+  if (world_size() > 1) {  // velocities on some ranks only
+    BdShare share = with_velocities();
+    if (world_rank() == last) share.velocities.clear();
+    expect_collective_error([&] { DistributedBd bd(MPI_COMM_WORLD, wca_mixture(), box, o, share); },
+                            ErrorCode::invalid_input, "some ranks gave velocities");
+  }
+  {  // a non-positive mass
+    DistributedBdOptions massless = o;
+    massless.integrator.inertia[1]->mass = 0.0;
+    expect_collective_error([&] { DistributedBd bd(MPI_COMM_WORLD, wca_mixture(), box, massless, with_velocities()); },
+                            ErrorCode::invalid_argument, "mass and friction must be finite and > 0");
+  }
+  {  // the serial engine's conditions: free draining, no rotation
+    DistributedBdOptions pse = o;
+    pse.method = rpyfmm::rpy::MobilityMethod::pse;
+    expect_collective_error([&] { DistributedBd bd(MPI_COMM_WORLD, wca_mixture(), box, pse, with_velocities()); },
+                            ErrorCode::invalid_argument, "free-draining mobility");
+    DistributedBdOptions rotation = o;
+    rotation.integrator.rotation = true;
+    expect_collective_error(
+        [&] {
+          DistributedBd bd(MPI_COMM_WORLD, wca_mixture(), box, rotation,
+                           share_of(s, Split::even, identity(s.size()), false));
+        },
+        ErrorCode::invalid_argument, "do not support rotation");
+  }
 }
 
 }  // namespace

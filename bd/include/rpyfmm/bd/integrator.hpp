@@ -179,6 +179,11 @@ class Integrator {
   /// The inertial particles, their half-step velocities and kinetic temperature (empty() when
   /// every particle is Brownian).
   [[nodiscard]] const LangevinGroup& inertial() const { return inertial_; }
+  /// The half-step velocities (3N; empty without inertial particles) and their kinetic temperature,
+  /// of the CPU engine's inertial() or of an engine that holds them (Stepper::velocities, read as
+  /// positions()).
+  [[nodiscard]] std::span<const double> velocities() const;
+  [[nodiscard]] double kinetic_temperature() const;
   /// With the SAC scheme, the complexes at the current positions (empty() otherwise).
   [[nodiscard]] const Complexes& complexes() const { return complexes_; }
 

@@ -34,11 +34,12 @@ struct RunOptions {
   DeviceLauncher device_launcher = DeviceLauncher::cuda;
   /// Where set, an engine the caller makes takes the run's steps (StepEngine::external; e.g. the
   /// engine across MPI ranks of rpyfmm/mpi/bd_stepper.hpp). Called on every process of the run with
-  /// the config, the run's force field, the whole system's positions, types and (with rotation;
-  /// empty: the identity) orientations, and the first step.
+  /// the config, the run's force field, the whole system's positions, types, (with rotation;
+  /// empty: the identity) orientations and (with Langevin types; empty: the Maxwell draw)
+  /// half-step velocities, and the first step.
   std::function<std::unique_ptr<Stepper>(const RunConfig&, const ForceField&, std::span<const double> positions,
                                          std::span<const std::uint32_t> types, std::span<const double> orientations,
-                                         std::uint64_t first_step)>
+                                         std::span<const double> velocities, std::uint64_t first_step)>
       engine;
   /// False on the processes of a run across MPI ranks other than the one that writes its files:
   /// they take every step and read every record's state with the writer (the engine's reads may be

@@ -42,6 +42,13 @@ class Stepper {
   /// and copied as positions(). An engine without rotation returns empty arrays.
   [[nodiscard]] virtual const std::vector<double>& orientations() const { return none_; }
   [[nodiscard]] virtual const std::vector<double>& rotations() const { return none_; }
+  /// With inertial (Langevin) particles: the half-step velocities at the current step (3N, 0 for
+  /// Brownian particles), held and copied as positions(), and their kinetic temperature
+  /// (LangevinGroup::kinetic_temperature; an engine across processes may compute it collectively,
+  /// every process then calls it at the same steps). An engine without them returns an empty array
+  /// and 0.
+  [[nodiscard]] virtual const std::vector<double>& velocities() const { return none_; }
+  [[nodiscard]] virtual double kinetic_temperature() const { return 0.0; }
 
  private:
   const std::vector<double> none_{};

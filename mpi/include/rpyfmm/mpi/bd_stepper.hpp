@@ -25,18 +25,20 @@
 namespace rpyfmm::mpi {
 
 /// Collective: DistributedBd for the run of `config` (its geometry, integrator with or without
-/// rotation, neighbour options,
-/// viscosity and mobility method: none, direct or fmm at its tolerance in free space, pse at its
-/// tolerance in a periodic box with double-precision wave grids; automatic counts as fmm in free
-/// space and as pse in a periodic box), from the whole system's positions and types at
-/// first_step, the same on every rank (with rotation also the orientations, 4 per particle; empty:
-/// the identity): rank r takes the particles of its block of global indices. Reading positions(),
-/// forces(), orientations() or rotations() gathers the whole system on rank 0 (collective, once per
-/// step). Throws on every rank what DistributedBd refuses, and for pse with wave_precision single
-/// or the device cuda.
+/// rotation or Langevin types, neighbour options, viscosity and mobility method: none, direct or
+/// fmm at its tolerance in free space, pse at its tolerance in a periodic box with double-precision
+/// wave grids; automatic counts as fmm in free space and as pse in a periodic box), from the whole
+/// system's positions and types at first_step, the same on every rank (with rotation also the
+/// orientations, 4 per particle; empty: the identity; with Langevin types the half-step
+/// velocities, 3 per particle; empty: the Maxwell draw): rank r takes the particles of its block of
+/// global indices. Reading positions(), forces(), orientations(), rotations() or velocities()
+/// gathers the whole system on rank 0 (collective, once per step); kinetic_temperature() is
+/// collective. Throws on every rank what DistributedBd refuses, and for pse with wave_precision
+/// single or the device cuda.
 [[nodiscard]] std::unique_ptr<bd::Stepper> make_distributed_stepper(
     MPI_Comm comm, const bd::RunConfig& config, const bd::ForceField& forces, std::span<const double> positions,
-    std::span<const std::uint32_t> types, std::span<const double> orientations, std::uint64_t first_step);
+    std::span<const std::uint32_t> types, std::span<const double> orientations, std::span<const double> velocities,
+    std::uint64_t first_step);
 
 /// `options` for a run across the ranks of `comm` (every rank calls run_bd or restart_bd with
 /// them): the engine above, the files written by rank 0 alone (no progress line elsewhere), and a

@@ -43,8 +43,18 @@
 // key). Each particle turns by the exponential map, q <- exp(phi) q with phi = W dt + sqrt(2 kT dt)
 // w_r, max_displacement bounding |phi| too.
 //
+// With inertial (Langevin) types (IntegratorOptions::inertia; docs/theory/bd.md, the Langevin
+// section) their particles move by the Gronbech-Jensen-Farago step of bd::langevin_step (Gronbech-Jensen
+// & Farago, Mol. Phys. 111, 983 (2013)) from the same forces F_n, its noise keyed by (seed, step,
+// bd::kLangevinNoiseStream, global index) and the initial Maxwell velocities by the global index as the
+// serial engine keys them; each particle's half-step velocity travels with it at repartitions. The
+// other particles take the free-draining step alongside, so positions and velocities are
+// bd::Integrator's bit for bit on any number of ranks. As in the serial engine, inertia needs the
+// mobility none and no rotation; the kinetic temperature is summed over the ranks.
+//
 // Checkpoints hold the whole state in global index order (bd::Checkpoint, gathered on one rank;
-// with rotation version 3: orientations, those at step 0 and the summed rotation vectors), so a run
+// with rotation version 3: orientations, those at step 0 and the summed rotation vectors; with
+// inertial particles version 4: the half-step velocities), so a run
 // written on P ranks restarts on any other number (restart_distributed_bd).
 //
 // Every public call is collective and fails collectively (communicator.hpp): a bad input or a
@@ -77,9 +87,10 @@ namespace rpyfmm::mpi {
 
 /// Options of a distributed run. Every rank must pass the same.
 struct DistributedBdOptions {
-  /// dt, kT, seed, max_displacement and rotation as for bd::Integrator (rotation with the methods
-  /// none, direct and fmm). Inertial types, the SAC scheme and split displacements are refused
-  /// (not_supported): the serial engine has them.
+  /// dt, kT, seed, max_displacement, rotation and inertia as for bd::Integrator (rotation with the
+  /// methods none, direct, fmm and pse; inertial types with none and without rotation, as the serial
+  /// engine). The SAC scheme and split displacements are refused (not_supported): the serial engine
+  /// has them.
   bd::IntegratorOptions integrator{};
   /// The skin (0: 0.3 r_c) and the rebuild strategy (fixed_interval), as bd::NeighbourList's.
   bd::NeighbourOptions neighbours{};
@@ -128,6 +139,10 @@ struct BdShare {
   std::vector<double> orientations{};
   std::vector<double> reference_orientations{};
   std::vector<double> rotation_vectors{};
+  /// With inertial particles: 3n half-step velocities v_{n-1/2} (0 for Brownian particles; empty:
+  /// the Maxwell distribution at kT keyed by the global index, bd::maxwell_velocities). Without
+  /// inertial particles on any rank: empty. Ranks with particles give them on all or on none.
+  std::vector<double> velocities{};
 };
 
 /// What the run did on this rank, and its share of the work.
@@ -191,6 +206,15 @@ class DistributedBd {
   /// orientation correlation (mean u(t) . u(0), u the body z axis) over every rank's particles, the
   /// serial run's log columns (bd::rotation_moment_sums) to round-off (a sum in another order).
   [[nodiscard]] std::array<double, 2> rotation_moments() const;
+  /// With inertial particles (empty without): this rank's half-step velocities (3n, 0 for
+  /// Brownian particles), in increasing global index.
+  [[nodiscard]] std::span<const double> velocities() const { return v_; }
+  /// Whether any rank has an inertial particle.
+  [[nodiscard]] bool inertial() const { return inertial_; }
+  /// Collective: the kinetic temperature of the half-step velocities, the mean of m |v|^2 / 3 over
+  /// every rank's inertial particles (bd::LangevinGroup::kinetic_temperature, the serial log's
+  /// column) to round-off (a sum in another order); 0 without inertial particles.
+  [[nodiscard]] double kinetic_temperature() const;
   [[nodiscard]] std::uint64_t global_size() const { return global_n_; }
   [[nodiscard]] std::uint64_t step_count() const { return step_; }
   /// The potential energy at the start of the last step, summed over the ranks (0 before a step).
@@ -199,7 +223,8 @@ class DistributedBd {
 
   /// Collective: the whole state on `root` in global index order (positions, types, positions at
   /// step 0, step, seed, dt; with rotation the orientations, those at step 0 and the summed rotation
-  /// vectors, bd::Checkpoint's version 3); an empty checkpoint on the other ranks.
+  /// vectors, bd::Checkpoint's version 3; with inertial particles the half-step velocities, version
+  /// 4); an empty checkpoint on the other ranks.
   [[nodiscard]] bd::Checkpoint checkpoint(int root = 0) const;
 
   struct Halo;           // mpi/src/bd_halo.hpp
@@ -219,6 +244,13 @@ class DistributedBd {
   /// the products of the hydrodynamic interactions.
   std::uint64_t displace_free_draining(std::vector<double>& next);
   std::uint64_t displace_with_hydrodynamics(std::vector<double>& next);
+  /// With inertial particles: the Langevin step of the owned inertial particles (bd::langevin_step
+  /// from F_n, noise keyed by the global index) replacing their entries of `next`, the new
+  /// velocities in `v_next` (3 per owned particle), and the lowest global index the guard refuses.
+  std::uint64_t displace_inertial(std::vector<double>& next, std::vector<double>& v_next) const;
+  /// With inertial particles: v_ from the share's velocities (`order`: the share's particles by
+  /// global index) or, when none are given, the Maxwell draw keyed by the global index.
+  void start_velocities(std::span<const double> given, std::span<const std::size_t> order);
   /// With rotation: phi = omega dt + sqrt(2 kT dt) w_r of the owned particles (omega_, wr_ filled),
   /// and the lowest global index whose |phi| exceeds max_displacement (kNoParticle: none).
   std::uint64_t turn_angles();
@@ -249,6 +281,9 @@ class DistributedBd {
   // rotation, per owned particle: orientations (4), those at step 0 (4), summed rotation vectors,
   // torques, angular velocities, rotational noise and its sample, the step's rotation vectors (3)
   std::vector<double> q_, reference_q_, rotation_sum_, torque_, omega_, zr_, wr_, phi_;
+  // inertial particles on any rank; then the half-step velocities of the owned particles (3 each)
+  bool inertial_ = false;
+  std::vector<double> v_;
   DistributedBdStats stats_;
 };
 
@@ -256,7 +291,8 @@ class DistributedBd {
 /// of `comm`, whatever number of ranks wrote it: the particles are dealt to the ranks in blocks of
 /// global indices, and the first rebuild partitions them. Throws on every rank when the
 /// checkpoint's seed or dt differ from the options', when it holds orientations and the options
-/// have no rotation or the reverse, or when it holds velocities.
+/// have no rotation or the reverse, or when it holds velocities and the options' inertial types
+/// give its particles none, or the reverse.
 [[nodiscard]] DistributedBd restart_distributed_bd(MPI_Comm comm, bd::ForceField forces, rpy::Geometry geometry,
                                                    DistributedBdOptions options, const bd::Checkpoint& checkpoint,
                                                    int root = 0);
