@@ -1,6 +1,7 @@
 // rpyfmm CLI — `rpyfmm laplace`: Laplace potentials, gradients and Hessians
 // (kernel 1/r, no 1/(4 pi)) of charges at sources, evaluated at the sources
-// or at separate targets. Under mpirun the FMM runs across the ranks (laplace_across_ranks.hpp).
+// or at separate targets. Under mpirun the FMM or the direct sums run across the ranks
+// (laplace_across_ranks.hpp).
 //
 //   rpyfmm laplace --sources S.npy [--targets T.npy] --charges Q.npy
 //                  (--direct | --tolerance E) --out R.npy [--threads N] [--json]
@@ -59,16 +60,6 @@ void evaluate_fmm(const LaplaceProblem& p, double tolerance, std::vector<double>
 }
 // -------------------------------------------------------------------------
 
-// Under MPI: the FMM runs across the ranks (laplace_across_ranks.hpp); --direct runs on one rank
-// only and more ranks are refused.
-bool across_ranks(const LaplaceArgs& args) {
-  require(!args.direct || mpi_size() == 1, ErrorCode::not_supported, "laplace",
-          "across " + std::to_string(mpi_size()) +
-              " MPI ranks runs the FMM (--tolerance E) only, not --direct (docs/mpi.md); run --direct without "
-              "mpirun");
-  return !args.direct;
-}
-
 void run_laplace(const LaplaceArgs& args, bool fmm_requested) {
   require_distinct_files(
       std::vector<NamedPath>{{"--sources", args.sources}, {"--targets", args.targets}, {"--charges", args.charges}},
@@ -77,8 +68,9 @@ void run_laplace(const LaplaceArgs& args, bool fmm_requested) {
   require(args.direct != fmm_requested, ErrorCode::invalid_argument, "laplace",
           "choose exactly one method: --direct or --tolerance E");
   if (fmm_requested) ranges::require_in(ranges::kLaplaceTolerance, args.tolerance, "--tolerance", "tolerance");
-  if (under_mpi() && across_ranks(args)) {
-    run_laplace_across_ranks({args.sources, args.targets, args.charges, args.out, args.tolerance, args.common.json});
+  if (under_mpi()) {
+    run_laplace_across_ranks(
+        {args.sources, args.targets, args.charges, args.out, args.tolerance, args.direct, args.common.json});
     return;
   }
   StopWatch total;

@@ -1,4 +1,4 @@
-// rpyfmm CLI — `rpyfmm laplace` with the FMM across MPI ranks (laplace_across_ranks.hpp).
+// rpyfmm CLI — `rpyfmm laplace` across MPI ranks, the FMM or direct sums (laplace_across_ranks.hpp).
 #include "laplace_across_ranks.hpp"
 
 #include <mpi.h>
@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <iostream>
+#include <limits>
 #include <span>
 #include <string>
 #include <vector>
@@ -38,6 +39,8 @@ Sizes broadcast_sizes(const LaplaceProblem& whole, bool targets, const mpi::Comm
 }
 
 // This rank's share: its sources, its targets (empty at the sources) and its charges, nd x share.
+// With --direct: every source and charge, and this rank's targets (its share of the sources when
+// the targets are the sources).
 struct LocalShare {
   std::vector<double> sources, targets, charges;
 };
@@ -59,6 +62,25 @@ LocalShare distribute(const LaplaceProblem& whole, const Sizes& z, const mpi::Co
   local.sources = scatter(whole.sources.data(), shares_of(z.n, comm.size(), 3), comm);
   if (z.targets) local.targets = scatter(whole.targets.data(), shares_of(z.m, comm.size(), 3), comm);
   local.charges = scatter_densities(whole.charges, z, comm);
+  return local;
+}
+
+// `count` values of rank 0's `whole` on every rank (one MPI_Bcast; MPI's int count bounds it).
+std::vector<double> broadcast(const std::vector<double>& whole, std::uint64_t count, const mpi::Communicator& comm) {
+  require(count <= static_cast<std::uint64_t>(std::numeric_limits<int>::max()), ErrorCode::not_supported, "laplace",
+          "--direct across ranks broadcasts every source and charge: " + std::to_string(count) +
+              " values exceed MPI's int count");
+  std::vector<double> all = comm.rank() == 0 ? whole : std::vector<double>(count);
+  mpi::check_mpi(MPI_Bcast(all.data(), static_cast<int>(count), MPI_DOUBLE, 0, comm.get()), "MPI_Bcast");
+  return all;
+}
+
+LocalShare distribute_for_direct(const LaplaceProblem& whole, const Sizes& z, const mpi::Communicator& comm) {
+  LocalShare local;
+  local.sources = broadcast(whole.sources, 3 * z.n, comm);
+  local.charges = broadcast(whole.charges, z.nd * z.n, comm);
+  local.targets = z.targets ? scatter(whole.targets.data(), shares_of(z.m, comm.size(), 3), comm)
+                            : scatter(whole.sources.data(), shares_of(z.n, comm.size(), 3), comm);
   return local;
 }
 
@@ -95,6 +117,43 @@ void add_ranks(JsonLine& line, const Measured& m, const mpi::Communicator& comm)
       .add("communication_bytes", summed(m.bytes, comm));
 }
 
+// The FMM across the ranks on this rank's share: its results, nd x share x 10.
+std::vector<double> evaluate_fmm(const LocalShare& local, const Sizes& z, double tolerance, Measured& measured,
+                                 const mpi::Communicator& comm) {
+  StopWatch watch;
+  mpi::DistributedFmmOptions options;
+  options.fmm.tolerance = tolerance;
+  mpi::DistributedLaplaceFmm fmm(comm.get(), options);
+  fmm.set_points(local.sources, local.targets);
+  measured.stages["plan"] = watch.seconds();
+
+  watch.restart();
+  std::vector<double> results(z.nd * fmm.local_target_size() * fmm::result_width);
+  fmm.evaluate(local.charges, z.nd, fmm::all_outputs, results);
+  measured.stages["evaluate"] = watch.seconds();
+  const mpi::FmmCommunication& traffic = fmm.communication();
+  measured.communication["plan"] = sum_of(traffic.plan_seconds);
+  measured.communication["evaluate"] = sum_of(traffic.evaluate_seconds);
+  measured.bytes["plan"] = static_cast<double>(traffic.plan_bytes_received);
+  measured.bytes["evaluate"] = static_cast<double>(traffic.evaluate_bytes_received);
+  return results;
+}
+
+// The direct sums over every source at this rank's targets, nd x share x 10: each target's sums are
+// the serial command's, in the same order (fmm::laplace_direct sums every target alone). A rank
+// without targets has nothing to sum. Failures (none expected: rank 0 validated the input) agreed.
+std::vector<double> evaluate_direct(const LocalShare& local, const Sizes& z, Measured& measured,
+                                    const mpi::Communicator& comm) {
+  StopWatch watch;
+  const std::size_t share = local.targets.size() / 3;
+  std::vector<double> results(z.nd * share * fmm::result_width);
+  comm.run([&] {
+    if (share > 0) fmm::laplace_direct(local.sources, local.charges, z.nd, local.targets, fmm::all_outputs, results);
+  });
+  measured.stages["evaluate"] = watch.seconds();
+  return results;
+}
+
 }  // namespace
 
 void run_laplace_across_ranks(const RanksLaplaceArgs& args) {
@@ -111,27 +170,13 @@ void run_laplace_across_ranks(const RanksLaplaceArgs& args) {
   watch.restart();
   const Sizes z = broadcast_sizes(whole, !args.targets.empty(), comm);
   LocalShare local;
-  comm.run([&] { local = distribute(whole, z, comm); });
+  comm.run([&] { local = args.direct ? distribute_for_direct(whole, z, comm) : distribute(whole, z, comm); });
   const std::vector<std::size_t> shape = laplace_output_shape(whole);
-  whole = LaplaceProblem{};  // rank 0 keeps only its share from here on
+  whole = LaplaceProblem{};  // rank 0 keeps only what it evaluates from here on
   measured.communication["distribute"] = measured.stages["distribute"] = watch.seconds();
 
-  watch.restart();
-  mpi::DistributedFmmOptions options;
-  options.fmm.tolerance = args.tolerance;
-  mpi::DistributedLaplaceFmm fmm(comm.get(), options);
-  fmm.set_points(local.sources, local.targets);
-  measured.stages["plan"] = watch.seconds();
-
-  watch.restart();
-  std::vector<double> results(z.nd * fmm.local_target_size() * fmm::result_width);
-  fmm.evaluate(local.charges, z.nd, fmm::all_outputs, results);
-  measured.stages["evaluate"] = watch.seconds();
-  const mpi::FmmCommunication& traffic = fmm.communication();
-  measured.communication["plan"] = sum_of(traffic.plan_seconds);
-  measured.communication["evaluate"] = sum_of(traffic.evaluate_seconds);
-  measured.bytes["plan"] = static_cast<double>(traffic.plan_bytes_received);
-  measured.bytes["evaluate"] = static_cast<double>(traffic.evaluate_bytes_received);
+  const std::vector<double> results =
+      args.direct ? evaluate_direct(local, z, measured, comm) : evaluate_fmm(local, z, args.tolerance, measured, comm);
 
   watch.restart();
   std::vector<double> gathered;
@@ -145,14 +190,14 @@ void run_laplace_across_ranks(const RanksLaplaceArgs& args) {
 
   JsonLine line;
   line.add("command", "laplace")
-      .add("method", "fmm")
+      .add("method", args.direct ? "direct" : "fmm")
       .add("n_sources", z.n)
       .add("n_targets", z.m)
       .add("at_sources", !z.targets)
       .add("nd", z.nd)
-      .add("tolerance", args.tolerance)
       .add("out", args.out)
       .add("pairs", static_cast<double>(z.n) * static_cast<double>(z.m) * static_cast<double>(z.nd));
+  if (!args.direct) line.add("tolerance", args.tolerance);
   add_ranks(line, measured, comm);  // collective
   if (args.json && comm.rank() == 0) std::cout << line.add("total_seconds", total.seconds()).str() << '\n';
 }

@@ -1,9 +1,12 @@
-// rpyfmm CLI — `mpirun -np P rpyfmm laplace --tolerance E ...` across MPI ranks (docs/mpi.md,
-// "The command-line tool under mpirun"). Rank 0 reads the files of the serial command and
-// scatters contiguous shares of the sources, the targets and every density's charges;
-// rpyfmm::mpi::DistributedLaplaceFmm plans and evaluates on the shares; rank 0 gathers the
-// results and writes the serial command's file (write_npy: a temporary file renamed into place).
-// The results meet the serial FMM's tolerance contract, not its bits (docs/mpi.md).
+// rpyfmm CLI — `mpirun -np P rpyfmm laplace (--tolerance E | --direct) ...` across MPI ranks
+// (docs/mpi.md, "The command-line tool under mpirun"). Rank 0 reads the files of the serial command.
+// With --tolerance it scatters contiguous shares of the sources, the targets and every density's
+// charges; rpyfmm::mpi::DistributedLaplaceFmm plans and evaluates on the shares. The results meet
+// the serial FMM's tolerance contract, not its bits. With --direct it broadcasts the sources and
+// charges and scatters the targets (the sources' shares when the targets are the sources); every
+// rank sums fmm::laplace_direct over all sources at its targets, each target in the serial order,
+// so the file is the serial command's byte for byte. Either way rank 0 gathers the results and
+// writes the serial command's file (write_npy: a temporary file renamed into place).
 #pragma once
 
 #include <string>
@@ -12,7 +15,8 @@ namespace rpyfmm::cli {
 
 struct RanksLaplaceArgs {
   std::string sources, targets, charges, out;  // targets empty: at the sources
-  double tolerance = 0.0;                      // the FMM's relative tolerance, validated
+  double tolerance = 0.0;                      // the FMM's relative tolerance, validated (not with direct)
+  bool direct = false;                         // exact direct sums instead of the FMM
   bool json = false;
 };
 

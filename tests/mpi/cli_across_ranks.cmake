@@ -22,6 +22,8 @@
 #    contract (relative l2 error of each output at most E), not its bits, so the output must lie
 #    within E of the serial direct sum and within 2E of the serial FMM (both within E of the exact
 #    sums), output by output and density by density (laplace_agree, -DAGREE=...);
+#  - `mpiexec -n NP rpyfmm laplace --direct`: every rank sums all sources at its targets in the
+#    serial order, so the files are identical byte for byte;
 #  - `mpiexec -n NP rpyfmm mobility --method pse --box L` (also with --torques or --angular, U and W
 #    each) and `sample --operator pse --box L`: DistributedPseRpy is the serial PseRpy with double
 #    wave grids to round-off, so within 1e-12 relative of that serial output.
@@ -290,6 +292,15 @@ function(run_laplace name tolerance twice)
 endfunction()
 run_laplace(laplace_sources 1e-6 2e-6 --charges "${WORK}/a.txt")
 run_laplace(laplace_targets 1e-3 2e-3 --charges "${WORK}/q2.txt" --targets "${WORK}/f.txt")
+# laplace --direct: every rank sums all sources at its share of the targets, each target alone and in
+# the serial order (fmm::laplace_direct), so the file is the serial command's byte for byte: at the
+# sources (one density, the self pairs skipped) and at separate targets (two densities).
+run_identical(laplace_direct_sources laplace --sources "${WORK}/x.txt" --charges "${WORK}/a.txt" --direct)
+if(NOT json MATCHES "\"method\":\"direct\"" OR json MATCHES "\"tolerance\"")
+  message(FATAL_ERROR "laplace_direct_sources: --json does not name the method direct alone: ${json}")
+endif()
+run_identical(laplace_direct_targets laplace --sources "${WORK}/x.txt" --charges "${WORK}/q2.txt" --targets
+              "${WORK}/f.txt" --direct)
 
 # mobility and sample (the split sampler, noise by seed) with PSE in the box [0, 40)^3:
 # DistributedPseRpy is the serial PseRpy with double wave grids to round-off (the same terms summed
@@ -343,9 +354,8 @@ if(NP GREATER 1)
   if(rc EQUAL 0 OR NOT err MATCHES "rigid: does not run across MPI ranks" OR EXISTS "${WORK}/never.npy")
     message(FATAL_ERROR "rigid under ${NP} ranks: exit ${rc}: ${err}")
   endif()
-  # laplace, mobility and sample with what does not run across ranks refuse too.
-  foreach(case "laplace;--sources;${WORK}/x.txt;--charges;${WORK}/a.txt;--direct"
-               "mobility;--positions;${WORK}/x.txt;--radius;1;--forces;${WORK}/f.txt;--method;pse;--box;40;--wave-precision;single"
+  # mobility and sample with what does not run across ranks refuse too.
+  foreach(case "mobility;--positions;${WORK}/x.txt;--radius;1;--forces;${WORK}/f.txt;--method;pse;--box;40;--wave-precision;single"
                "sample;--positions;${WORK}/x.txt;--radius;1;--operator;direct;--method;eigen")
     execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" ${case} --out "${WORK}/never.npy"
                     RESULT_VARIABLE rc ERROR_VARIABLE err)
