@@ -548,6 +548,29 @@ void require_valid_outputs(std::span<const unsigned> outputs, const char* where)
   }
 }
 
+std::vector<std::vector<std::size_t>> filled_result_columns(std::span<const unsigned> outputs) {
+  std::vector<std::vector<std::size_t>> columns(outputs.size());
+  const auto own = [&](std::size_t d) {
+    if (outputs[d] & potential) columns[d].push_back(col_pot);
+    if (outputs[d] & gradient) columns[d].insert(columns[d].end(), {col_gx, col_gy, col_gz});
+    if (outputs[d] & hessian)
+      columns[d].insert(columns[d].end(), {col_hxx, col_hyy, col_hzz, col_hxy, col_hxz, col_hyz});
+  };
+  for (std::size_t d = 0; d < outputs.size(); ++d) {
+    if (outputs[d] == curl_grad_div) {  // curl in 1..3, grad div in 4..6 of the first row
+      columns[d] = {1, 2, 3, 4, 5, 6};
+      d += 2;
+    } else if (outputs[d] & grad_div) {  // each its own potential | gradient, grad div in the first row
+      for (std::size_t g = d; g < d + 3; ++g) own(g);
+      columns[d].insert(columns[d].end(), {4, 5, 6});
+      d += 2;
+    } else {
+      own(d);
+    }
+  }
+  return columns;
+}
+
 // The FMM in the order of Guan's Algorithm 1 (docs/theory/fmm.md): upward pass, downward pass
 // level by level (L2L, X list, plane-wave M2L of the V list from level 2 on), then the leaves.
 void LaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::span<const unsigned> outputs,

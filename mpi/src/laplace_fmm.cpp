@@ -245,33 +245,6 @@ void check_evaluation(std::span<const double> charges, std::size_t nd, std::span
               " entries, expected nd x targets x 10 = " + std::to_string(nd * n_targets * fmm::result_width));
 }
 
-// The result columns each density's flags can fill (fmm/laplace_fmm.hpp): potential 0, gradient
-// 1..3, Hessian 4..9; in a grad_div group each density's own potential and gradient and the first
-// row's 4..6; in a curl_grad_div group the first row's 1..6. The serial FMM leaves every other
-// column 0, so the results travel back without them. Groups as fmm::require_valid_outputs reads
-// them (already checked).
-std::vector<std::vector<std::size_t>> result_columns(std::span<const unsigned> outputs) {
-  std::vector<std::vector<std::size_t>> columns(outputs.size());
-  const auto own = [&](std::size_t d) {
-    if (outputs[d] & fmm::potential) columns[d].push_back(0);
-    if (outputs[d] & fmm::gradient) columns[d].insert(columns[d].end(), {1, 2, 3});
-    if (outputs[d] & fmm::hessian) columns[d].insert(columns[d].end(), {4, 5, 6, 7, 8, 9});
-  };
-  for (std::size_t d = 0; d < outputs.size(); ++d) {
-    if (outputs[d] == fmm::curl_grad_div) {
-      columns[d] = {1, 2, 3, 4, 5, 6};
-      d += 2;
-    } else if (outputs[d] & fmm::grad_div) {
-      for (std::size_t g = d; g < d + 3; ++g) own(g);
-      columns[d].insert(columns[d].end(), {4, 5, 6});
-      d += 2;
-    } else {
-      own(d);
-    }
-  }
-  return columns;
-}
-
 }  // namespace
 
 void DistributedLaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::span<const unsigned> outputs,
@@ -311,8 +284,8 @@ void DistributedLaplaceFmm::evaluate(std::span<const double> charges, std::size_
     evaluate_one(plan, owned_q, nd, outputs, owned_results);
   }
 
-  // Back to the input ranks: only the columns the flags fill (result_columns), the others 0.
-  const std::vector<std::vector<std::size_t>> filled = result_columns(outputs);
+  // Back to the input ranks: only the columns the flags fill (fmm::filled_result_columns), the others 0.
+  const std::vector<std::vector<std::size_t>> filled = fmm::filled_result_columns(outputs);
   std::size_t filled_width = 0;
   detail::timed(stats_.evaluate_seconds, "results", [&] {
     std::vector<std::vector<double>> packed;

@@ -488,6 +488,44 @@ TEST(FmmFeatures, GradDivGroupsFoldTheHessians) {
     }
 }
 
+// filled_result_columns names exactly the columns evaluate fills: every other column is 0 at every
+// target, and each named column is nonzero at some target (random charges at distinct points give
+// nonzero sums almost surely), for plain, curl_grad_div and grad_div densities at every
+// instruction-set level, with the near field and without it. Callers move these columns alone
+// (DistributedLaplaceFmm's results between ranks), so a column evaluate fills but the list misses
+// would be lost there.
+TEST(FmmFeatures, FilledResultColumnsAreThoseEvaluateFills) {
+  using rpyfmm::fmm::curl_grad_div;
+  using rpyfmm::fmm::grad_div;
+  constexpr unsigned pot = rpyfmm::fmm::potential, grad = rpyfmm::fmm::gradient, hess = rpyfmm::fmm::hessian;
+  const std::size_t n = 800;
+  const std::vector<unsigned> outputs = {
+      all_outputs, curl_grad_div, curl_grad_div, curl_grad_div, grad_div | pot | grad, grad_div | grad, grad_div | pot,
+      pot,         grad,          hess,          pot | hess};
+  const std::size_t nd = outputs.size();
+  const auto src = fmmtest::plummer(n, 91);
+  const auto q = fmmtest::charges(n, nd, 92);
+  const auto filled = rpyfmm::fmm::filled_result_columns(outputs);
+  ASSERT_EQ(filled.size(), nd);
+  for (const rpyfmm::SimdLevel level : rpyfmm::test::available_simd_levels())
+    for (bool near : {true, false}) {
+      const rpyfmm::ScopedSimdLevel scoped(level);
+      FmmOptions o = opts(1e-6, 24);
+      o.near_field = near;
+      LaplaceFmm f(o);
+      f.set_points(src);
+      std::vector<double> r(nd * n * 10, 123.0);  // evaluate overwrites every column
+      f.evaluate(q, nd, outputs, r);
+      for (std::size_t d = 0; d < nd; ++d)
+        for (std::size_t c = 0; c < 10; ++c) {
+          const bool listed = std::ranges::find(filled[d], c) != filled[d].end();
+          bool nonzero = false;
+          for (std::size_t t = 0; t < n; ++t) nonzero = nonzero || r[(d * n + t) * 10 + c] != 0.0;
+          EXPECT_EQ(nonzero, listed) << "density " << d << " column " << c << " near field " << near;
+        }
+    }
+}
+
 TEST(FmmFeatures, BadInput) {
   auto expect_error = [](auto&& fn, const char* needle) {
     try {

@@ -52,6 +52,14 @@ inline constexpr unsigned grad_div = 16u;
 /// LaplaceFmm::evaluate accepts.
 void require_valid_outputs(std::span<const unsigned> outputs, const char* where);
 
+/// The result columns (0..9 of a row, fmm::Column) LaplaceFmm::evaluate can fill for each density
+/// of valid `outputs` (require_valid_outputs), in increasing order: potential 0, gradient 1..3,
+/// Hessian 4..9 as each density asks; a grad_div group each density's own potential and gradient
+/// columns and the first density's 4..6; a curl_grad_div group the first density's 1..6 and none
+/// of the other two. evaluate sets every other column to 0, so a caller that moves results (e.g.
+/// between MPI ranks) can move these columns alone.
+std::vector<std::vector<std::size_t>> filled_result_columns(std::span<const unsigned> outputs);
+
 /// Options of the FMM plan. Defaults give a relative l2 error <= tolerance for every output.
 struct FmmOptions {
   /// Requested relative l2 accuracy of each output, in [1e-15, 1e-1]. The plane-wave table is the
