@@ -25,6 +25,9 @@ initializes MPI. docs/mpi.md, "Python (mpi4py)", lists what is supported.
   holding its share of the particles (``positions``, ``ids``, ``types``, ``last_forces``, ...;
   copies), ``gather()`` the whole state on one rank; with free draining the positions are
   :meth:`rpyfmm.Simulation.from_config`'s bit for bit.
+* :class:`SfcPartition` ``(comm, positions, weights=None)``: the Morton-curve partition of the
+  particles the ranks hold (``owned_indices``, ``owned_counts``, ``splitters``, ...) and
+  ``to_owners`` / ``to_origin`` moving per-particle rows to the owners and back.
 
 Constructors take an mpi4py communicator (``MPI.COMM_WORLD`` or any intra-communicator) and
 keep a reference to it (the object's ``comm``). Every method is collective: all ranks of the
@@ -73,12 +76,14 @@ normal_noise = _rpyfmm.mpi.normal_noise
 run_bd = _rpyfmm.mpi.run_bd
 restart_bd = _rpyfmm.mpi.restart_bd
 Simulation = _rpyfmm.mpi.Simulation
+SfcPartition = _rpyfmm.mpi.SfcPartition
 
 __all__ = [
     "DistributedDirectRpy",
     "DistributedFmmRpy",
     "DistributedLaplaceFmm",
     "DistributedPseRpy",
+    "SfcPartition",
     "Simulation",
     "normal_noise",
     "restart_bd",

@@ -3,7 +3,7 @@
 // DistributedDirectRpy, DistributedFmmRpy (with the samplers of mpi::sqrt_apply),
 // DistributedPseRpy (with its split sampler), DistributedLaplaceFmm, and normal_noise for a rank's
 // share (mpi::fill_normal), the whole BD runs; rpyfmm.mpi.Simulation (BD step by step) is bound in
-// mpi_bd.cpp. Compiled only where the MPI layer is built.
+// mpi_bd.cpp, rpyfmm.mpi.SfcPartition in mpi_partition.cpp. Compiled only where the MPI layer is built.
 //
 // Communicator: the constructors take an mpi4py communicator and convert it through its Fortran
 // handle, mpi4py's comm.py2f() then MPI_Comm_f2c here, which needs neither mpi4py's C headers at
@@ -570,6 +570,7 @@ void bind_mpi(nb::module_& m) {
   bind_distributed_laplace(sub);
   bind_runs(sub);
   bind_mpi_bd(sub);
+  bind_mpi_partition(sub);
   sub.def("normal_noise", &normal_noise, nb::arg("n"), nb::arg("offset"), nb::arg("seed"), nb::arg("step") = 0,
           nb::arg("stream") = 0, nb::arg("out") = nb::none(),
           "Not collective. (n, 3) standard normal values of particles offset ... offset + n - 1: rows\n"

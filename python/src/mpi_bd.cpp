@@ -109,21 +109,6 @@ void init_simulation(DistributedSimulation* self, nb::object comm, nb::handle co
   new (self) DistributedSimulation{std::move(comm), std::move(made)};
 }
 
-/// A NumPy array of integers that owns `values`.
-template <class T>
-nb::object adopt_integers(std::vector<T>&& values) {
-  auto* heap = new std::vector<T>(std::move(values));
-  nb::capsule owner(heap, [](void* p) noexcept { delete static_cast<std::vector<T>*>(p); });
-  const std::size_t shape[1] = {heap->size()};
-  return nb::cast(nb::ndarray<nb::numpy, T>(heap->data(), 1, shape, owner));
-}
-
-/// A NumPy copy of integers that owns its memory.
-template <class T>
-nb::object copy_integers(std::span<const T> values) {
-  return adopt_integers(std::vector<T>(values.begin(), values.end()));
-}
-
 /// A copy (values.size() / per, per) of this rank's values that owns its memory.
 ArrayResult copy_of(std::span<const double> values, std::size_t per) {
   return adopt_vector(std::vector<double>(values.begin(), values.end()), {values.size() / per, per});

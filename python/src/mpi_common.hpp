@@ -1,13 +1,15 @@
 // rpyfmm Python bindings — what the bindings of the MPI layer share (mpi.cpp, mpi_bd.cpp): the
-// MPI_Comm of an mpi4py communicator, and the argument checks of a collective call agreed over the
-// ranks (docs/mpi.md, "Python (mpi4py)").
+// MPI_Comm of an mpi4py communicator, the argument checks of a collective call agreed over the
+// ranks (docs/mpi.md, "Python (mpi4py)"), and integer arrays (global indices, types, keys).
 #pragma once
 
 #include <mpi.h>
 
 #include <exception>
 #include <optional>
+#include <span>
 #include <utility>
+#include <vector>
 
 #include "common.hpp"
 #include "rpyfmm/mpi/communicator.hpp"
@@ -40,6 +42,22 @@ auto agreed(const mpi::Communicator& comm, Prepare&& prepare) {
   return std::move(*value);
 }
 
+/// A NumPy array of integers that owns `values`.
+template <class T>
+nb::object adopt_integers(std::vector<T>&& values) {
+  auto* heap = new std::vector<T>(std::move(values));
+  nb::capsule owner(heap, [](void* p) noexcept { delete static_cast<std::vector<T>*>(p); });
+  const std::size_t shape[1] = {heap->size()};
+  return nb::cast(nb::ndarray<nb::numpy, T>(heap->data(), 1, shape, owner));
+}
+
+/// A NumPy copy of integers that owns its memory.
+template <class T>
+nb::object copy_integers(std::span<const T> values) {
+  return adopt_integers(std::vector<T>(values.begin(), values.end()));
+}
+
 void bind_mpi_bd(nb::module_& m);
+void bind_mpi_partition(nb::module_& m);
 
 }  // namespace rpyfmm::python
