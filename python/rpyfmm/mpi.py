@@ -23,8 +23,8 @@ initializes MPI. docs/mpi.md, "Python (mpi4py)", lists what is supported.
   ``"ranks"``).
 * :class:`Simulation` ``(comm, config)``: the same runs step by step (``step`` / ``run``), each rank
   holding its share of the particles (``positions``, ``ids``, ``types``, ``last_forces``, ...;
-  copies), ``gather()`` the whole state on one rank; with free draining the positions are
-  :meth:`rpyfmm.Simulation.from_config`'s bit for bit.
+  copies; reading them is not collective), ``gather()`` the whole state on one rank; with free
+  draining the positions are :meth:`rpyfmm.Simulation.from_config`'s bit for bit.
 * :class:`SfcPartition` ``(comm, positions, weights=None)``: the Morton-curve partition of the
   particles the ranks hold (``owned_indices``, ``owned_counts``, ``splitters``, ...) and
   ``to_owners`` / ``to_origin`` moving per-particle rows to the owners and back.
