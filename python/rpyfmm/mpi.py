@@ -21,6 +21,13 @@ initializes MPI. docs/mpi.md, "Python (mpi4py)", lists what is supported.
   :func:`restart_bd` ``(comm, checkpoint, ...)``: whole Brownian dynamics runs across the ranks,
   as ``mpirun rpyfmm bd`` (``DistributedBd``; rank 0 writes the files; the summary has
   ``"ranks"``).
+* :class:`Simulation` ``(comm, config)``: the same runs step by step (``step`` / ``run``), each rank
+  holding its share of the particles (``positions``, ``ids``, ``types``, ``last_forces``, ...;
+  copies; reading them is not collective), ``gather()`` the whole state on one rank; with free
+  draining the positions are :meth:`rpyfmm.Simulation.from_config`'s bit for bit.
+* :class:`SfcPartition` ``(comm, positions, weights=None)``: the Morton-curve partition of the
+  particles the ranks hold (``owned_indices``, ``owned_counts``, ``splitters``, ...) and
+  ``to_owners`` / ``to_origin`` moving per-particle rows to the owners and back.
 
 Constructors take an mpi4py communicator (``MPI.COMM_WORLD`` or any intra-communicator) and
 keep a reference to it (the object's ``comm``). Every method is collective: all ranks of the
@@ -68,12 +75,16 @@ DistributedLaplaceFmm = _rpyfmm.mpi.DistributedLaplaceFmm
 normal_noise = _rpyfmm.mpi.normal_noise
 run_bd = _rpyfmm.mpi.run_bd
 restart_bd = _rpyfmm.mpi.restart_bd
+Simulation = _rpyfmm.mpi.Simulation
+SfcPartition = _rpyfmm.mpi.SfcPartition
 
 __all__ = [
     "DistributedDirectRpy",
     "DistributedFmmRpy",
     "DistributedLaplaceFmm",
     "DistributedPseRpy",
+    "SfcPartition",
+    "Simulation",
     "normal_noise",
     "restart_bd",
     "run_bd",

@@ -2,7 +2,8 @@
 // "Python (mpi4py)") as the submodule rpyfmm._rpyfmm.mpi, wrapped by python/rpyfmm/mpi.py:
 // DistributedDirectRpy, DistributedFmmRpy (with the samplers of mpi::sqrt_apply),
 // DistributedPseRpy (with its split sampler), DistributedLaplaceFmm, and normal_noise for a rank's
-// share (mpi::fill_normal). Compiled only where the MPI layer is built.
+// share (mpi::fill_normal), the whole BD runs; rpyfmm.mpi.Simulation (BD step by step) is bound in
+// mpi_bd.cpp, rpyfmm.mpi.SfcPartition in mpi_partition.cpp. Compiled only where the MPI layer is built.
 //
 // Communicator: the constructors take an mpi4py communicator and convert it through its Fortran
 // handle, mpi4py's comm.py2f() then MPI_Comm_f2c here, which needs neither mpi4py's C headers at
@@ -28,6 +29,7 @@
 #include <utility>
 
 #include "common.hpp"
+#include "mpi_common.hpp"
 #include "object_lock.hpp"
 #include "rpyfmm/bd/run.hpp"
 #include "rpyfmm/mpi/bd_stepper.hpp"
@@ -39,6 +41,17 @@
 #include "run_arguments.hpp"
 
 namespace rpyfmm::python {
+
+MPI_Comm comm_from(nb::handle comm, const char* where) {
+  if (!nb::hasattr(comm, "py2f")) {
+    fail(ErrorCode::invalid_argument, where,
+         "comm must be an mpi4py communicator (mpi4py.MPI.Comm), got " +
+             std::string(nb::type_name(comm.type()).c_str()));
+  }
+  const auto handle = nb::cast<long long>(comm.attr("py2f")());
+  return MPI_Comm_f2c(static_cast<MPI_Fint>(handle));
+}
+
 namespace {
 
 /// A distributed operator and the mpi4py communicator its MPI_Comm belongs to (declared first:
@@ -53,38 +66,6 @@ using Direct = WithComm<mpi::DistributedDirectRpy>;
 using Fmm = WithComm<mpi::DistributedFmmRpy>;
 using Pse = WithComm<mpi::DistributedPseRpy>;
 using Laplace = WithComm<mpi::DistributedLaplaceFmm>;
-
-/// The MPI_Comm of an mpi4py communicator, through its Fortran handle.
-MPI_Comm comm_from(nb::handle comm, const char* where) {
-  if (!nb::hasattr(comm, "py2f")) {
-    fail(ErrorCode::invalid_argument, where,
-         "comm must be an mpi4py communicator (mpi4py.MPI.Comm), got " +
-             std::string(nb::type_name(comm.type()).c_str()));
-  }
-  const auto handle = nb::cast<long long>(comm.attr("py2f")());
-  return MPI_Comm_f2c(static_cast<MPI_Fint>(handle));
-}
-
-/// Runs `prepare` (argument checks and conversions, GIL held) on this rank and agrees on its
-/// outcome over the ranks: returns its value when every rank succeeded, else every rank throws the
-/// first failing rank's error (Communicator::agree).
-template <class Prepare>
-auto agreed(const mpi::Communicator& comm, Prepare&& prepare) {
-  std::optional<decltype(prepare())> value;
-  std::optional<Error> problem;
-  try {
-    value.emplace(prepare());
-  } catch (const Error& e) {
-    problem = e;
-  } catch (const std::exception& e) {  // a failed conversion (nanobind, NumPy)
-    problem = Error(ErrorCode::invalid_input, e.what());
-  }
-  {
-    nb::gil_scoped_release release;
-    comm.agree(problem);
-  }
-  return std::move(*value);
-}
 
 /// A product's arrays on this rank: its input (n, 3) or (3n,), and the output in the same shape.
 struct InOut {
@@ -588,6 +569,8 @@ void bind_mpi(nb::module_& m) {
   bind_distributed_pse(sub);
   bind_distributed_laplace(sub);
   bind_runs(sub);
+  bind_mpi_bd(sub);
+  bind_mpi_partition(sub);
   sub.def("normal_noise", &normal_noise, nb::arg("n"), nb::arg("offset"), nb::arg("seed"), nb::arg("step") = 0,
           nb::arg("stream") = 0, nb::arg("out") = nb::none(),
           "Not collective. (n, 3) standard normal values of particles offset ... offset + n - 1: rows\n"

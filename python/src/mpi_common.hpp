@@ -1,0 +1,63 @@
+// rpyfmm Python bindings — what the bindings of the MPI layer share (mpi.cpp, mpi_bd.cpp): the
+// MPI_Comm of an mpi4py communicator, the argument checks of a collective call agreed over the
+// ranks (docs/mpi.md, "Python (mpi4py)"), and integer arrays (global indices, types, keys).
+#pragma once
+
+#include <mpi.h>
+
+#include <exception>
+#include <optional>
+#include <span>
+#include <utility>
+#include <vector>
+
+#include "common.hpp"
+#include "rpyfmm/mpi/communicator.hpp"
+
+namespace rpyfmm::python {
+
+/// The MPI_Comm of an mpi4py communicator, through its Fortran handle (comm.py2f(), then
+/// MPI_Comm_f2c): needs neither mpi4py's C headers at build time nor its C API at run time.
+/// Raises InvalidArgumentError naming `where` for anything else.
+MPI_Comm comm_from(nb::handle comm, const char* where);
+
+/// Runs `prepare` (argument checks and conversions, GIL held) on this rank and agrees on its
+/// outcome over the ranks: returns its value when every rank succeeded, else every rank throws the
+/// first failing rank's error (Communicator::agree).
+template <class Prepare>
+auto agreed(const mpi::Communicator& comm, Prepare&& prepare) {
+  std::optional<decltype(prepare())> value;
+  std::optional<Error> problem;
+  try {
+    value.emplace(prepare());
+  } catch (const Error& e) {
+    problem = e;
+  } catch (const std::exception& e) {  // a failed conversion (nanobind, NumPy)
+    problem = Error(ErrorCode::invalid_input, e.what());
+  }
+  {
+    nb::gil_scoped_release release;
+    comm.agree(problem);
+  }
+  return std::move(*value);
+}
+
+/// A NumPy array of integers that owns `values`.
+template <class T>
+nb::object adopt_integers(std::vector<T>&& values) {
+  auto* heap = new std::vector<T>(std::move(values));
+  nb::capsule owner(heap, [](void* p) noexcept { delete static_cast<std::vector<T>*>(p); });
+  const std::size_t shape[1] = {heap->size()};
+  return nb::cast(nb::ndarray<nb::numpy, T>(heap->data(), 1, shape, owner));
+}
+
+/// A NumPy copy of integers that owns its memory.
+template <class T>
+nb::object copy_integers(std::span<const T> values) {
+  return adopt_integers(std::vector<T>(values.begin(), values.end()));
+}
+
+void bind_mpi_bd(nb::module_& m);
+void bind_mpi_partition(nb::module_& m);
+
+}  // namespace rpyfmm::python
