@@ -292,6 +292,12 @@ double ForceField::compute(std::span<const double> x, std::span<const std::uint3
   return energy;
 }
 
+ForceField ForceField::without_callbacks() const {
+  ForceField copy = *this;
+  copy.callbacks_.clear();
+  return copy;
+}
+
 void ForceField::compute_rows(std::span<const double> x, std::span<const std::uint32_t> ptype,
                               const NeighbourList& list, std::uint64_t step, std::span<const std::uint32_t> rows,
                               std::span<const std::uint64_t> ids, std::span<double> forces,

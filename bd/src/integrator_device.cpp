@@ -63,6 +63,14 @@ std::span<const double> Integrator::last_rotations() const {
   return device_ ? std::span<const double>(device_->rotations()) : std::span<const double>(phi_);
 }
 
+std::span<const double> Integrator::deterministic_displacement() const {
+  return device_ ? std::span<const double>(device_->deterministic_displacements()) : std::span<const double>(dx_det_);
+}
+
+std::span<const double> Integrator::brownian_displacement() const {
+  return device_ ? std::span<const double>(device_->brownian_displacements()) : std::span<const double>(dx_brown_);
+}
+
 std::span<const double> Integrator::velocities() const {
   return device_ ? std::span<const double>(device_->velocities()) : inertial_.velocities();
 }

@@ -28,10 +28,12 @@ struct DistributedBd::Hydrodynamics {
     double scale = 0.0;
     std::uint64_t seed = 0, step = 0;
     std::span<const std::uint64_t> ids;
+    std::uint64_t total = 0;  ///< the particles of all ranks, N
   };
 
   std::variant<DistributedDirectRpy, DistributedFmmRpy, DistributedPseRpy> op;
   rpy::SqrtOptions sqrt;
+  MPI_Comm comm = MPI_COMM_NULL;  ///< the operator's
 
   template <class Operator, class... Args>
   Hydrodynamics(std::in_place_type_t<Operator> type, const rpy::SqrtOptions& sampler, Args&&... args)
@@ -43,13 +45,17 @@ struct DistributedBd::Hydrodynamics {
   static std::unique_ptr<Hydrodynamics> make(MPI_Comm comm, const DistributedBdOptions& options,
                                              const rpy::Geometry& geometry);
 
-  /// Whether products() draws the noise itself (pse): the step then passes no z (grand_products,
-  /// with rotation, is never fused: bd::Integrator draws z_t and z_r then).
+  /// Whether products() draws the noise itself (pse) where the step passes no z (grand_products,
+  /// with rotation, is never fused, nor are split displacements: bd::Integrator draws z then).
   [[nodiscard]] bool fused() const { return std::holds_alternative<DistributedPseRpy>(op); }
 
   /// Collective, for this rank's particles at x with radii a (3 values per particle each; one
   /// radius per particle): direct, fmm: u = M F and, where z is not empty, w = M^{1/2} z; pse:
-  /// u = M F + noise.scale M^{1/2} z in one pass, w untouched.
+  /// where z is empty u = M F + noise.scale M^{1/2} z in one pass, w untouched; where z is given
+  /// (split displacements) u = M F and w = M^{1/2} z by PseRpy::apply_sqrt's split sampler, its
+  /// wave noise keyed by the hash of the whole z in global index order (noise.ids) as the serial
+  /// engine's: the particles are sent to the ranks of their blocks of global indices, [r N / P,
+  /// (r + 1) N / P), for the two products (one MPI_Alltoallv each way).
   rpy::SqrtReport products(std::span<const double> x, std::span<const double> a, std::span<const double> f,
                            std::span<const double> z, const FusedNoise& noise, std::span<double> u,
                            std::span<double> w);

@@ -1,12 +1,12 @@
 // rpyfmm — a BD run of a configuration across MPI ranks (rpyfmm/mpi/bd_stepper.hpp).
 #include "rpyfmm/mpi/bd_stepper.hpp"
 
-#include <climits>
 #include <limits>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "bd_gather.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/mpi/brownian_dynamics.hpp"
 
@@ -14,37 +14,6 @@ namespace rpyfmm::mpi {
 namespace {
 
 constexpr const char* kWhere = "bd across ranks";
-
-// Collective: the values (`per` per particle: 3 for positions, 4 for orientations) of every rank's
-// particles on rank 0, placed by global index (per N entries); an empty array on the other ranks. An
-// empty `values` counts as zeros.
-std::vector<double> gather_by_index(const Communicator& comm, std::span<const std::uint64_t> ids,
-                                    std::span<const double> values, std::uint64_t total, std::size_t per = 3) {
-  const std::size_t stride = per + 1;  // the id, then the values
-  std::vector<double> packed;
-  packed.reserve(stride * ids.size());
-  for (std::size_t i = 0; i < ids.size(); ++i) {
-    packed.push_back(static_cast<double>(ids[i]));
-    for (std::size_t c = 0; c < per; ++c) packed.push_back(values.empty() ? 0.0 : values[per * i + c]);
-  }
-  require(stride * total <= static_cast<std::uint64_t>(INT_MAX), ErrorCode::not_supported, kWhere,
-          "gathering more than (2^31 - 1) / " + std::to_string(stride) + " values on rank 0");
-  const int mine = static_cast<int>(packed.size());
-  const bool root = comm.rank() == 0;
-  std::vector<int> counts(root ? static_cast<std::size_t>(comm.size()) : 0), displs(counts.size(), 0);
-  check_mpi(MPI_Gather(&mine, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, comm.get()), "MPI_Gather");
-  for (std::size_t r = 1; r < counts.size(); ++r) displs[r] = displs[r - 1] + counts[r - 1];
-  std::vector<double> all(root ? stride * total : 0);
-  check_mpi(
-      MPI_Gatherv(packed.data(), mine, MPI_DOUBLE, all.data(), counts.data(), displs.data(), MPI_DOUBLE, 0, comm.get()),
-      "MPI_Gatherv");
-  std::vector<double> placed(root ? per * total : 0);
-  for (std::size_t k = 0; stride * k < all.size(); ++k) {
-    const auto id = static_cast<std::size_t>(all[stride * k]);
-    for (std::size_t c = 0; c < per; ++c) placed[per * id + c] = all[stride * k + 1 + c];
-  }
-  return placed;
-}
 
 // The whole system's values of one kind gathered on rank 0 once per step they are read at.
 struct GatheredPerStep {
@@ -55,7 +24,7 @@ struct GatheredPerStep {
   // Collective: the values at the engine's current step (`local`: this rank's, per per particle).
   const std::vector<double>& at(const DistributedBd& bd, std::span<const double> local, std::size_t per) {
     if (step != bd.step_count()) {
-      values = gather_by_index(bd.communicator(), bd.ids(), local, bd.global_size(), per);
+      values = detail::gather_by_index(bd.communicator(), bd.ids(), local, bd.global_size(), per, 0, kWhere);
       step = bd.step_count();
     }
     return values;
@@ -63,8 +32,9 @@ struct GatheredPerStep {
 };
 
 // DistributedBd behind the Integrator's engine interface; the whole system's positions and forces
-// (with rotation also the orientations and the last step's rotation vectors) gathered on rank 0 (the rank that writes
-// the files, across_ranks) once per step they are read at, so that no other rank holds O(N) of them.
+// (with rotation also the orientations and the last step's rotation vectors, with split
+// displacements their two parts) gathered on rank 0 (the rank that writes the files, across_ranks)
+// once per step they are read at, so that no other rank holds O(N) of them.
 class DistributedStepper final : public bd::Stepper {
  public:
   explicit DistributedStepper(DistributedBd bd) : bd_(std::move(bd)) {}
@@ -85,6 +55,15 @@ class DistributedStepper final : public bd::Stepper {
   }
   /// Collective: summed over the ranks (DistributedBd::kinetic_temperature).
   [[nodiscard]] double kinetic_temperature() const override { return bd_.kinetic_temperature(); }
+  /// With split displacements (empty without): gathered on rank 0 as the positions.
+  [[nodiscard]] const std::vector<double>& deterministic_displacements() const override {
+    const bool split = bd_.options().integrator.keep_split_displacements;
+    return split ? deterministic_.at(bd_, bd_.deterministic_displacement(), 3) : deterministic_.values;
+  }
+  [[nodiscard]] const std::vector<double>& brownian_displacements() const override {
+    const bool split = bd_.options().integrator.keep_split_displacements;
+    return split ? brownian_.at(bd_, bd_.brownian_displacement(), 3) : brownian_.values;
+  }
   [[nodiscard]] std::uint64_t step_count() const override { return bd_.step_count(); }
   [[nodiscard]] double potential_energy() const override { return bd_.potential_energy(); }
   [[nodiscard]] std::size_t rebuilds() const override { return bd_.stats().rebuilds; }
@@ -97,7 +76,7 @@ class DistributedStepper final : public bd::Stepper {
 
  private:
   DistributedBd bd_;
-  mutable GatheredPerStep positions_, forces_, orientations_, rotations_, velocities_;
+  mutable GatheredPerStep positions_, forces_, orientations_, rotations_, velocities_, deterministic_, brownian_;
 };
 
 // The mobility of a run across ranks: its method, automatic counting as fmm in free space and as

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <numeric>
 #include <optional>
 #include <sstream>
@@ -12,6 +13,7 @@
 #include <utility>
 
 #include "alltoallv.hpp"
+#include "bd_gather.hpp"
 #include "bd_halo.hpp"
 #include "bd_hydrodynamics.hpp"
 #include "device/engine_tables.hpp"
@@ -23,7 +25,6 @@
 #include "rpyfmm/bd/rotation_sampling.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/mpi/partition.hpp"
-#include "rpyfmm/rpy/free_draining.hpp"
 #include "rpyfmm/rpy/random.hpp"
 
 namespace rpyfmm::mpi {
@@ -32,14 +33,9 @@ namespace {
 constexpr const char* kWhere = "DistributedBd";
 constexpr std::uint64_t kNoParticle = std::numeric_limits<std::uint64_t>::max();
 
-// The features of bd::Integrator that this engine does not have.
-void require_supported(const DistributedBdOptions& o, const bd::ForceField& forces) {
-  const bd::IntegratorOptions& i = o.integrator;
-  require(!i.sac.enabled, ErrorCode::not_supported, kWhere, "the SAC scheme is not supported across ranks");
-  require(!i.keep_split_displacements, ErrorCode::not_supported, kWhere,
-          "split displacements (keep_split_displacements) are not kept across ranks");
-  require(!forces.has_callbacks(), ErrorCode::not_supported, kWhere,
-          "force callbacks are not supported across ranks (they take the whole system's positions)");
+// The features of bd::Integrator that this engine does not have, and the imbalance threshold.
+void require_supported(const DistributedBdOptions& o) {
+  require(!o.integrator.sac.enabled, ErrorCode::not_supported, kWhere, "the SAC scheme is not supported across ranks");
   require(o.repartition_imbalance >= 1.0, ErrorCode::invalid_argument, kWhere,
           "repartition_imbalance must be >= 1 (infinity: never), got " + std::to_string(o.repartition_imbalance));
 }
@@ -78,6 +74,8 @@ void check_inertia(const DistributedBdOptions& o) {
           "with inertia are not supported");
   require(!o.integrator.rotation, ErrorCode::invalid_argument, kWhere,
           "inertial (Langevin) particles do not support rotation yet");
+  require(!o.integrator.keep_split_displacements, ErrorCode::invalid_argument, kWhere,
+          "split displacements (M F dt and the Brownian part) do not apply to inertial (Langevin) particles");
 }
 
 // This rank's velocities and inertial types checked as bd::LangevinGroup checks them (not
@@ -157,7 +155,9 @@ std::vector<double> option_signature(const DistributedBdOptions& o, const rpy::G
           static_cast<double>(o.pse.support),
           o.pse.window_eta,
           o.pse.lanczos_tolerance,
-          i.rotation ? 1.0 : 0.0};
+          i.rotation ? 1.0 : 0.0,
+          i.keep_split_displacements ? 1.0 : 0.0,
+          static_cast<double>(forces.callbacks().size())};
 }
 
 // option_signature with the inertial types' masses and frictions (0 for Brownian types).
@@ -282,16 +282,21 @@ std::vector<T> permuted(const std::vector<T>& v, std::span<const std::size_t> or
 
 DistributedBd::DistributedBd(MPI_Comm comm, bd::ForceField forces, rpy::Geometry geometry, DistributedBdOptions options,
                              BdShare share, std::uint64_t first_step)
-    : comm_(comm), forces_(std::move(forces)), geometry_(geometry), options_(std::move(options)), step_(first_step) {
+    : comm_(comm),
+      forces_(forces.without_callbacks()),  // compute_rows takes a part of the system; callbacks_ the whole
+      callbacks_(forces.callbacks().begin(), forces.callbacks().end()),
+      geometry_(geometry),
+      options_(std::move(options)),
+      step_(first_step) {
   comm_.run([&] {
-    require_supported(options_, forces_);
+    require_supported(options_);
     (void)motion_tables(options_, forces_);
     (void)bd::NeighbourList(geometry_, forces_.max_cutoff(), options_.neighbours);  // its checks of the skin and box
     check_share(share, forces_);
     complete_rotation_state(share, options_.integrator.rotation);
     check_inertial_share(share, options_.integrator);
   });
-  require(same_on_every_rank(comm_, full_signature(options_, geometry_, forces_)), ErrorCode::invalid_argument, kWhere,
+  require(same_on_every_rank(comm_, full_signature(options_, geometry_, forces)), ErrorCode::invalid_argument, kWhere,
           "the ranks passed different options, geometries or force fields");
   require_all_or_none(comm_, !share.types.empty(), !share.ids.empty(), "particle ids");
   require_all_or_none(comm_, !share.types.empty(), !share.velocities.empty(), "velocities");
@@ -433,6 +438,10 @@ void DistributedBd::repartition(std::span<const double> weights) {
   }
   if (inertial_) v_ = permuted(moved[4], order, 3);
   f_.assign(3 * m, 0.0);  // the forces of the last step belong to the particles held before
+  if (options_.integrator.keep_split_displacements) {  // so do its split displacements
+    dx_det_.assign(3 * m, 0.0);
+    dx_brown_.assign(3 * m, 0.0);
+  }
   ++stats_.repartitions;
 }
 
@@ -446,6 +455,7 @@ void DistributedBd::compute_forces() {
     part.compute_rows(halo_->x, halo_->types, halo_->list, step_, halo_->owned_rows, halo_->ids, f_, particle_energy_);
     work_seconds_ += work.seconds();
   });
+  if (!callbacks_.empty()) add_callback_forces();
   double mine = 0.0;
   for (const double e : particle_energy_) mine += e;
   // The torques depend on each particle's own type and orientation alone (bd::TorqueField).
@@ -453,12 +463,37 @@ void DistributedBd::compute_forces() {
   check_mpi(MPI_Allreduce(&mine, &energy_, 1, MPI_DOUBLE, MPI_SUM, comm_.get()), "MPI_Allreduce");
 }
 
+void DistributedBd::add_callback_forces() {
+  // bd::ForceField::compute calls the callbacks last, on the whole system's positions and the
+  // forces of the other terms: the same arrays, gathered in global index order (id, x, f: 7
+  // doubles per particle, one MPI_Allgatherv), so each callback does on every rank what it does
+  // in the serial engine, and the owned rows of its result are the serial forces bit for bit.
+  std::vector<double> packed(6 * ids_.size());
+  for (std::size_t i = 0; i < ids_.size(); ++i) {
+    std::copy(&x_[3 * i], &x_[3 * i + 3], &packed[6 * i]);
+    std::copy(&f_[3 * i], &f_[3 * i + 3], &packed[6 * i + 3]);
+  }
+  const std::vector<double> all =
+      detail::gather_by_index(comm_, ids_, packed, global_n_, 6, detail::kEveryRank, kWhere);
+  std::vector<double> x(3 * global_n_), f(3 * global_n_);
+  for (std::size_t k = 0; k < global_n_; ++k) {
+    std::copy(&all[6 * k], &all[6 * k + 3], &x[3 * k]);
+    std::copy(&all[6 * k + 3], &all[6 * k + 6], &f[3 * k]);
+  }
+  comm_.run([&] {  // a callback that throws on one rank fails every rank
+    for (const bd::ForceCallback& callback : callbacks_) callback(x, step_, f);
+  });
+  for (std::size_t i = 0; i < ids_.size(); ++i) std::copy(&f[3 * ids_[i]], &f[3 * ids_[i] + 3], &f_[3 * i]);
+}
+
 void DistributedBd::advance() {
   const std::size_t n = ids_.size();
   // z_i keyed by the global index, drawn as the serial engine draws it (rpy::fill_normal); the pse
   // operator draws its own without rotation (bd::Integrator fuses drift and noise then only).
-  const bool rotation = options_.integrator.rotation;
-  const bool drawn = options_.integrator.kT > 0.0 && !(hydrodynamics_ && hydrodynamics_->fused() && !rotation);
+  // With split displacements the drift and the noise are separate products (as bd::Integrator's).
+  const bool rotation = options_.integrator.rotation, split = options_.integrator.keep_split_displacements;
+  const bool fused = hydrodynamics_ && hydrodynamics_->fused() && !rotation && !split;
+  const bool drawn = options_.integrator.kT > 0.0 && !fused;
   z_.assign(drawn ? 3 * n : 0, 0.0);
   if (!z_.empty()) rpy::fill_normal(ids_, z_, options_.integrator.seed, step_);
   // With rotation z_r from its own stream (bd/rotation_sampling.hpp), keyed alike.
@@ -470,6 +505,7 @@ void DistributedBd::advance() {
   std::vector<double> v_next;
   if (inertial_) refused = std::min(refused, displace_inertial(next, v_next));
   if (rotation && !hydrodynamics_) free_draining_rotation();
+  if (split && !hydrodynamics_) free_draining_split();
   if (rotation) refused = std::min(refused, turn_angles());
   if (!hydrodynamics_) work_seconds_ += work.seconds();  // the hydrodynamic products are collective
   std::uint64_t lowest = kNoParticle;
@@ -524,7 +560,7 @@ std::uint64_t DistributedBd::displace_with_hydrodynamics(std::vector<double>& ne
   w_.assign(z_.size(), 0.0);
   const double dt = options_.integrator.dt, noise = std::sqrt(2.0 * options_.integrator.kT * dt);
   const Hydrodynamics::FusedNoise fused{
-      .scale = noise / dt, .seed = options_.integrator.seed, .step = step_, .ids = ids_};
+      .scale = noise / dt, .seed = options_.integrator.seed, .step = step_, .ids = ids_, .total = global_n_};
   if (options_.integrator.rotation) {
     omega_.assign(3 * n, 0.0);
     wr_.assign(zr_.size(), 0.0);
@@ -533,11 +569,19 @@ std::uint64_t DistributedBd::displace_with_hydrodynamics(std::vector<double>& ne
     hydrodynamics_->products(x_, radii_, f_, z_, fused, u_, w_);
   }
   const double frac2 = options_.integrator.max_displacement * options_.integrator.max_displacement;
+  const bool split = options_.integrator.keep_split_displacements;
+  dx_det_.resize(split ? 3 * n : 0);
+  dx_brown_.resize(split ? 3 * n : 0);
   std::uint64_t refused = kNoParticle;
   for (std::size_t i = 0; i < n; ++i) {
     double d2 = 0.0;
     for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) {
-      const double d = u_[k] * dt + (z_.empty() ? 0.0 : noise * w_[k]);
+      // bd::Integrator's dx and its split parts (u dt, noise w or 0), the same sum of them
+      const double drift = u_[k] * dt, brownian = z_.empty() ? 0.0 : noise * w_[k], d = drift + brownian;
+      if (split) {
+        dx_det_[k] = drift;
+        dx_brown_[k] = brownian;
+      }
       next[k] = x_[k] + d;
       d2 += d * d;
     }
@@ -604,18 +648,39 @@ double DistributedBd::kinetic_temperature() const {
 }
 
 void DistributedBd::free_draining_rotation() {
-  // The serial engine's operator on this rank's particles: it is diagonal, each particle's values
-  // its own (rpy::FreeDrainingMobility), so they are the serial ones bit for bit.
+  // The serial engine's operator is diagonal, each particle's values its own: its rotational
+  // mobility per type, 1 / (8 pi eta a^3) and its square root, evaluated as
+  // rpy::FreeDrainingMobility evaluates them, times the torque and z_r as its products take them,
+  // so they are the serial ones bit for bit.
+  const std::size_t ntypes = forces_.types().size();
+  std::vector<double> mobility(ntypes), sqrt_mobility(ntypes);
+  for (std::size_t t = 0; t < ntypes; ++t) {
+    const double a = forces_.types()[t].radius;
+    mobility[t] = 1.0 / (8.0 * std::numbers::pi * options_.viscosity * a * a * a);  // Stokes torque
+    sqrt_mobility[t] = std::sqrt(mobility[t]);
+  }
+  omega_.resize(torque_.size());
+  wr_.resize(zr_.size());
+  for (std::size_t i = 0; i < ids_.size(); ++i)
+    for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) {
+      omega_[k] = mobility[types_[i]] * torque_[k];
+      if (!zr_.empty()) wr_[k] = sqrt_mobility[types_[i]] * zr_[k];
+    }
+}
+
+void DistributedBd::free_draining_split() {
+  // rpy::FreeDrainingMobility's u = mu F and w = sqrt(mu) z with the device stage's per-type mu
+  // (the same values, bd::device::make_motion_tables), split as bd::Integrator splits dx = u dt +
+  // noise w: bd::device::displacement_with's terms, so their sum is its dx bit for bit.
+  const bd::device::EngineTables t = motion_tables(options_, forces_);
   const std::size_t n = ids_.size();
-  radii_.resize(n);
-  for (std::size_t i = 0; i < n; ++i) radii_[i] = forces_.types()[types_[i]].radius;
-  rpy::FreeDrainingMobility mobility(geometry_, options_.viscosity);
-  mobility.set_positions(x_, radii_);
-  std::vector<double> u(3 * n), w(zr_.size());
-  omega_.assign(3 * n, 0.0);
-  wr_.assign(zr_.size(), 0.0);
-  mobility.apply(f_, torque_, u, omega_);
-  if (!zr_.empty()) (void)mobility.apply_sqrt_rotation(z_, zr_, w, wr_, options_.integrator.sqrt);
+  dx_det_.assign(3 * n, 0.0);
+  dx_brown_.assign(3 * n, 0.0);
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) {
+      dx_det_[k] = t.mobility[types_[i]] * f_[k] * t.dt;
+      if (t.brownian) dx_brown_[k] = t.noise * (t.sqrt_mobility[types_[i]] * z_[k]);
+    }
 }
 
 std::uint64_t DistributedBd::turn_angles() {

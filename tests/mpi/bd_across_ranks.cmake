@@ -8,7 +8,8 @@
 # the printed coordinates (10 significant digits) agree to one unit of their last digit, allowed 2.
 # Bead-spring chains, rotating dipoles and Langevin types (free draining; dipoles and Langevin
 # types also restarted, the latter from a checkpoint with velocities): byte for byte as free
-# draining; rotating dipoles with PSE: to round-off as PSE. A configuration the ranks do not run (direct
+# draining; rotating dipoles with PSE: to round-off as PSE. With split displacements (free
+# draining) the trajectory byte for byte and the log's split columns character for character. A configuration the ranks do not run (direct
 # in a periodic box; PSE with single-precision grids) fails every rank: exit status 2, one error
 # line, no output directory. Run by ctest as
 #   cmake -DRPYFMM=... -DMPIEXEC=... -DNP=... "-DMPI_FLAGS=..." -DWORK=... -P bd_across_ranks.cmake
@@ -201,6 +202,37 @@ file(STRINGS "${WORK}/langevin_ranks/log.csv" langevin_header LIMIT_COUNT 1)
 if(NOT langevin_header MATCHES ",langevin_kT")
   message(FATAL_ERROR "Langevin types: the log across ${NP} ranks has no langevin_kT column: ${langevin_header}")
 endif()
+
+# Split displacements (free draining): the parts are the serial engine's bit for bit and rank 0
+# sums their squares in global index order, so the log's deterministic_rms and brownian_rms columns
+# (its last two) are the serial run's character for character (the other columns hold timings).
+string(REPLACE "seed = 11" "seed = 11\nsplit_displacements = true" split "${text}")
+file(WRITE "${WORK}/split.toml" "${split}")
+run_bd(0 --config "${WORK}/split.toml" --out-dir "${WORK}/split_serial" --quiet)
+run_bd(${NP} --config "${WORK}/split.toml" --out-dir "${WORK}/split_ranks" --quiet)
+same_trajectory(split_serial split_ranks "split displacements, 60 steps on ${NP} ranks")
+file(STRINGS "${WORK}/split_serial/log.csv" split_serial_rows)
+file(STRINGS "${WORK}/split_ranks/log.csv" split_ranks_rows)
+list(GET split_ranks_rows 0 split_header)
+if(NOT split_header MATCHES ",deterministic_rms,brownian_rms$")
+  message(FATAL_ERROR "split displacements: the log across ${NP} ranks has no split columns: ${split_header}")
+endif()
+list(LENGTH split_serial_rows split_rows)
+list(LENGTH split_ranks_rows split_rows_ranks)
+if(NOT split_rows EQUAL split_rows_ranks OR split_rows LESS 3)
+  message(FATAL_ERROR "split displacements: ${split_rows_ranks} log lines against the serial run's ${split_rows}")
+endif()
+math(EXPR split_last "${split_rows} - 1")
+foreach(k RANGE 2 ${split_last})  # rows from step 10 (the row of step 0 has no step behind it)
+  foreach(rows split_serial_rows split_ranks_rows)
+    list(GET ${rows} ${k} row)
+    string(REGEX MATCH "[^,]*,[^,]*$" ${rows}_tail "${row}")
+  endforeach()
+  if(NOT split_serial_rows_tail STREQUAL split_ranks_rows_tail OR split_serial_rows_tail MATCHES "^0,")
+    message(FATAL_ERROR "split displacements: log row ${k} ends '${split_ranks_rows_tail}' on ${NP} ranks, "
+                        "'${split_serial_rows_tail}' serially")
+  endif()
+endforeach()
 
 # Bead-spring chains (harmonic bonds, WCA pairs): the bonds' partners travel with the halo, and the
 # trajectory is the serial run's byte for byte.

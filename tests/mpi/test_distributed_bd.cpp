@@ -9,7 +9,9 @@
 // the orientations agree as the positions do (free draining bit for bit, direct to round-off, fmm to
 // the tolerance), also across a version 3 checkpoint. With inertial (Langevin) types beside
 // Brownian ones the positions and half-step velocities are the serial engine's bit for bit, also
-// across a version 4 checkpoint.
+// across a version 4 checkpoint. The split displacements (M F dt and the Brownian part) are the
+// serial engine's as the positions are, and sum to the step; force callbacks on the whole system
+// keep free-draining positions the serial engine's bit for bit.
 #include <gtest/gtest.h>
 #include <mpi.h>
 #include <unistd.h>
@@ -598,11 +600,13 @@ TEST(MpiDistributedBd, BadInputOnOneRankFailsEveryRank) {
     expect_collective_error(
         [&] { DistributedBd bd(MPI_COMM_WORLD, bonded, box, o, share_of(s, Split::even, identity(64), false)); },
         ErrorCode::invalid_input, "bond (0, 64) refers to a particle >= N = 64");
-    ForceField called = wca_mixture();
-    called.add_callback([](auto, auto, auto) {});
-    expect_collective_error(
-        [&] { DistributedBd bd(MPI_COMM_WORLD, called, box, o, share_of(s, Split::even, identity(64), false)); },
-        ErrorCode::not_supported, "callbacks");
+    if (world_size() > 1) {  // callbacks on some ranks only (each rank would gather, or not)
+      ForceField called = wca_mixture();
+      if (world_rank() == last) called.add_callback([](auto, auto, auto) {});
+      expect_collective_error(
+          [&] { DistributedBd bd(MPI_COMM_WORLD, called, box, o, share_of(s, Split::even, identity(64), false)); },
+          ErrorCode::invalid_argument, "different options");
+    }
   }
   {  // no particle anywhere
     expect_collective_error([&] { DistributedBd bd(MPI_COMM_WORLD, wca_mixture(), box, o, BdShare{}); },
@@ -1102,3 +1106,230 @@ TEST(MpiDistributedBdLangevin, BadInertialInputOnOneRankFailsEveryRank) {
 }
 
 }  // namespace
+
+// ---- Split displacements and force callbacks ----
+
+namespace {
+
+// Every rank: this rank's values (`per` per particle, in the order of its ids) of every rank placed
+// by global index.
+std::vector<double> all_by_index(const DistributedBd& bd, std::span<const double> local, std::size_t per) {
+  std::vector<double> packed;
+  for (std::size_t i = 0; i < bd.local_size(); ++i) {
+    packed.push_back(static_cast<double>(bd.ids()[i]));
+    packed.insert(packed.end(), &local[per * i], &local[per * i + per]);
+  }
+  const int mine = static_cast<int>(packed.size());
+  std::vector<int> counts(static_cast<std::size_t>(world_size())), displs(counts.size(), 0);
+  MPI_Allgather(&mine, 1, MPI_INT, counts.data(), 1, MPI_INT, MPI_COMM_WORLD);
+  for (std::size_t r = 1; r < counts.size(); ++r) displs[r] = displs[r - 1] + counts[r - 1];
+  std::vector<double> all(static_cast<std::size_t>(displs.back() + counts.back()));
+  MPI_Allgatherv(packed.data(), mine, MPI_DOUBLE, all.data(), counts.data(), displs.data(), MPI_DOUBLE, MPI_COMM_WORLD);
+  std::vector<double> placed(per * bd.global_size());
+  for (std::size_t k = 0; (per + 1) * k < all.size(); ++k) {
+    const auto id = static_cast<std::size_t>(all[(per + 1) * k]);
+    std::copy(&all[(per + 1) * k + 1], &all[(per + 1) * k + 1 + per], &placed[per * id]);
+  }
+  return placed;
+}
+
+// The largest difference between a and b (same size).
+double largest(const std::vector<double>& a, std::span<const double> b) {
+  double worst = a.size() == b.size() ? 0.0 : INFINITY;
+  for (std::size_t k = 0; k < std::min(a.size(), b.size()); ++k) worst = std::max(worst, std::abs(a[k] - b[k]));
+  return worst;
+}
+
+// One step of both engines: the distributed split displacements against the serial ones (within
+// `bound`; 0: bit for bit), and x_before + (drift + noise) == x_after bit for bit on every rank.
+// Returns the largest difference of the parts.
+double step_and_compare_split(DistributedBd& bd, rpyfmm::bd::Integrator& serial, double bound,
+                              const std::string& what) {
+  const std::vector<double> before = all_by_index(bd, bd.positions(), 3);
+  bd.step();
+  serial.step();
+  const std::vector<double> after = all_by_index(bd, bd.positions(), 3);
+  const std::vector<double> drift = all_by_index(bd, bd.deterministic_displacement(), 3);
+  const std::vector<double> noise = all_by_index(bd, bd.brownian_displacement(), 3);
+  const double d = largest(drift, serial.deterministic_displacement());
+  const double b = largest(noise, serial.brownian_displacement());
+  if (bound == 0.0) {
+    EXPECT_EQ(d, 0.0) << what;
+    EXPECT_EQ(b, 0.0) << what;
+    EXPECT_EQ(bitwise_mismatches(
+                  drift, {serial.deterministic_displacement().begin(), serial.deterministic_displacement().end()}),
+              0u)
+        << what;
+    EXPECT_EQ(bitwise_mismatches(noise, {serial.brownian_displacement().begin(), serial.brownian_displacement().end()}),
+              0u)
+        << what;
+  } else {
+    EXPECT_LT(d, bound) << what;
+    EXPECT_LT(b, bound) << what;
+  }
+  std::size_t off = 0;
+  for (std::size_t k = 0; k < after.size(); ++k)
+    if (before[k] + (drift[k] + noise[k]) != after[k]) ++off;
+  EXPECT_EQ(off, 0u) << what << ": drift + noise is not the step's displacement";
+  return std::max(d, b);
+}
+
+// `steps` steps of both engines with hydrodynamic interactions, the parts within `bound` of the
+// serial ones after each; prints the largest difference (rank 0) and checks that the serial noise
+// is a real sample (the comparison is not of zeros).
+void run_and_compare_split(DistributedBd& bd, rpyfmm::bd::Integrator& serial, int steps, double bound,
+                           const std::string& method) {
+  double worst = 0.0;
+  for (int k = 0; k < steps; ++k)
+    worst = std::max(worst, step_and_compare_split(bd, serial, bound, method + ", step " + std::to_string(k)));
+  if (world_rank() == 0)
+    std::printf("  [bd split %s] %d ranks: largest difference of the parts %.2e\n", method.c_str(), world_size(),
+                worst);
+  double noise = 0.0;
+  for (const double b : serial.brownian_displacement()) noise = std::max(noise, std::abs(b));
+  EXPECT_GT(noise, 1e-3) << method;
+}
+
+DistributedBdOptions splitting(DistributedBdOptions o) {
+  o.integrator.keep_split_displacements = true;
+  return o;
+}
+
+}  // namespace
+
+TEST(MpiDistributedBdSplit, FreeDrainingSplitDisplacementsEqualTheSerialEngineBitForBit) {
+  // The sticky cluster in a trap of the repartition test: shuffled ids, every rebuild moves
+  // particles between ranks. Each particle's mu F dt and sqrt(2 kT dt) sqrt(mu) z are products of
+  // its own force (the serial one bit for bit) and noise (keyed by its global index) with the same
+  // per-type constants, so they are the serial engine's bit for bit on every rank count.
+  const System s = lattice(6, 1.3, 1, 5);
+  DistributedBdOptions o = splitting(options_with(1e-3, 99));
+  o.repartition_imbalance = 1.0;
+  rpyfmm::bd::Integrator serial(std::make_unique<rpyfmm::rpy::FreeDrainingMobility>(Geometry::open(), o.viscosity),
+                                sticky_trapped(), o.integrator, s.x, s.types, o.neighbours);
+  DistributedBd bd(MPI_COMM_WORLD, sticky_trapped(), Geometry::open(), o,
+                   share_of(s, Split::even, shuffled(s.size(), 3), true));
+  EXPECT_EQ(bd.deterministic_displacement().size(), 0u);  // before the first step
+  for (int k = 0; k < 40; ++k) step_and_compare_split(bd, serial, 0.0, "step " + std::to_string(k));
+  EXPECT_GE(bd.stats().rebuilds, 2u);
+  if (world_size() > 1) {
+    EXPECT_GE(bd.stats().repartitions, 2u);
+  }
+}
+
+TEST(MpiDistributedBdSplit, FreeDrainingSplitWithRotationEqualsTheSerialEngineBitForBit) {
+  // With rotation the serial engine splits the translational step (u dt, noise w_t); the
+  // rotational part turns the particles as without the split (checked with the positions).
+  const System s = lattice(5, 1.6, 2, 4);
+  const Geometry box = Geometry::periodic(5 * 1.6);
+  const DistributedBdOptions o = splitting(rotating(options_with(2e-3, 21)));
+  const std::vector<double> q = random_orientations(s.size(), 8);
+  rpyfmm::bd::Integrator serial(std::make_unique<rpyfmm::rpy::FreeDrainingMobility>(box, o.viscosity),
+                                with_torques(wca_mixture()), o.integrator, s.x, s.types, o.neighbours, 0, q);
+  DistributedBd bd(MPI_COMM_WORLD, with_torques(wca_mixture()), box, o,
+                   share_of(s, Split::geometric, shuffled(s.size(), 4), true, q));
+  for (int k = 0; k < 10; ++k) step_and_compare_split(bd, serial, 0.0, "rotation, step " + std::to_string(k));
+  const std::vector<double> orientations = all_by_index(bd, bd.orientations(), 4);
+  EXPECT_EQ(bitwise_mismatches(orientations, {serial.orientations().begin(), serial.orientations().end()}), 0u);
+}
+
+TEST(MpiDistributedBdSplit, DirectSplitDisplacementsFollowTheSerialEngineToRoundOff) {
+  // As DirectHydrodynamicsFollowTheSerialEngineToRoundOff: u and w are products summed in another
+  // order, equal to round-off (about 1e-15 of the displacements, which are ~1e-2 here), and 6 steps
+  // of this smooth field keep the parts within the positions' bound of 1e-12.
+  const System s = lattice(5, 1.3, 1, 9);
+  const DistributedBdOptions o = splitting(hydrodynamic_options(rpyfmm::rpy::MobilityMethod::direct));
+  rpyfmm::bd::Integrator serial = serial_with_hi(sticky_trapped(), o, s);
+  DistributedBd bd(MPI_COMM_WORLD, sticky_trapped(), Geometry::open(), o,
+                   share_of(s, Split::geometric, shuffled(s.size(), 2), true));
+  run_and_compare_split(bd, serial, 6, 1e-12, "direct");
+}
+
+TEST(MpiDistributedBdSplit, PseSplitDisplacementsFollowTheSerialEngineToRoundOff) {
+  // The serial engine with split displacements samples PSE by PseRpy::apply_sqrt (no fused pass),
+  // its wave noise keyed by the hash of the whole z in global index order; across ranks the same
+  // products on the particles in blocks of global indices (DistributedPseRpy, double grids), equal
+  // to round-off as in PseHydrodynamicsInAPeriodicBoxFollowTheSerialEngineToRoundOff: the positions'
+  // bound of 1e-12 (a wrong noise key would differ by the noise itself, ~1e-2).
+  const System s = lattice(5, 2.0, 2, 13);
+  const Geometry box = Geometry::periodic(5 * 2.0);
+  const DistributedBdOptions o = splitting(pse_options());
+  rpyfmm::bd::Integrator serial(std::make_unique<rpyfmm::rpy::pse::PseRpy>(box, o.viscosity, o.pse), wca_pulled(),
+                                o.integrator, s.x, s.types, o.neighbours);
+  DistributedBd bd(MPI_COMM_WORLD, wca_pulled(), box, o, share_of(s, Split::geometric, shuffled(s.size(), 6), true));
+  run_and_compare_split(bd, serial, 5, 1e-12, "pse");
+}
+
+TEST(MpiDistributedBdSplit, SplitDisplacementsWithInertialTypesAreRefusedAsSerially) {
+  const System s = lattice(4, 1.6, 2, 1);
+  DistributedBdOptions o = splitting(options_with(1e-3));
+  o.integrator.inertia = {std::nullopt, rpyfmm::bd::LangevinParticle{.mass = 1.0, .friction = 1.0}};
+  expect_collective_error(
+      [&] {
+        DistributedBd bd(MPI_COMM_WORLD, wca_mixture(), Geometry::periodic(6.4), o,
+                         share_of(s, Split::even, identity(s.size()), false));
+      },
+      ErrorCode::invalid_argument, "do not apply to inertial");
+}
+
+namespace {
+
+// A harmonic pull of every particle towards the centre of mass of all of them: each force depends
+// on every position. Adds -k (x_i - c) to the forces there.
+void pull_to_centre(std::span<const double> x, std::uint64_t, std::span<double> f) {
+  constexpr double k = 0.4;
+  const std::size_t n = x.size() / 3;
+  double c[3] = {0.0, 0.0, 0.0};
+  for (std::size_t i = 0; i < n; ++i)
+    for (int a = 0; a < 3; ++a) c[a] += x[3 * i + a];
+  for (double& v : c) v /= static_cast<double>(n);
+  for (std::size_t i = 0; i < n; ++i)
+    for (int a = 0; a < 3; ++a) f[3 * i + a] += -k * (x[3 * i + a] - c[a]);
+}
+
+}  // namespace
+
+TEST(MpiDistributedBdCallbacks, APullToTheCentreOfMassEqualsTheSerialEngineBitForBit) {
+  // Two callbacks (the pull, then a force that reads the forces so far: it doubles the x component)
+  // on the sticky cluster with shuffled ids and a repartition at every rebuild: the callbacks see
+  // the serial engine's arrays (positions and forces in global index order), so the positions are
+  // bd::Integrator's bit for bit.
+  const System s = lattice(6, 1.3, 1, 5);
+  ForceField forces = sticky_trapped();
+  forces.add_callback(pull_to_centre);
+  forces.add_callback([](std::span<const double>, std::uint64_t, std::span<double> f) {
+    for (std::size_t k = 0; k < f.size(); k += 3) f[k] += 0.5 * f[k];
+  });
+  DistributedBdOptions o = options_with(1e-3, 42);
+  o.repartition_imbalance = 1.0;
+  const std::vector<double> expected = serial_run(forces, Geometry::open(), o, s, 50);
+  for (const bool shuffle : {false, true}) {
+    DistributedBd bd(MPI_COMM_WORLD, forces, Geometry::open(), o,
+                     share_of(s, shuffle ? Split::even : Split::geometric,
+                              shuffle ? shuffled(s.size(), 7) : identity(s.size()), shuffle));
+    bd.run(50);
+    expect_positions_bitwise(bd, expected, shuffle ? "callbacks, shuffled ids" : "callbacks");
+    if (world_size() > 1 && shuffle) {
+      EXPECT_GE(bd.stats().repartitions, 2u);
+    }
+  }
+  // The pull changes the trajectory: not the run without callbacks.
+  EXPECT_NE(bitwise_mismatches(expected, serial_run(sticky_trapped(), Geometry::open(), o, s, 50)), 0u);
+}
+
+TEST(MpiDistributedBdCallbacks, ACallbackThatThrowsOnOneRankFailsEveryRankAndKeepsTheState) {
+  const System s = lattice(4, 1.6, 2, 1);
+  const Geometry box = Geometry::periodic(4 * 1.6);
+  const int last = world_size() - 1;
+  ForceField forces = wca_mixture();
+  forces.add_callback([last](std::span<const double>, std::uint64_t step, std::span<double>) {
+    if (step == 3 && world_rank() == last) throw rpyfmm::Error(ErrorCode::invalid_input, "the callback refuses step 3");
+  });
+  DistributedBd bd(MPI_COMM_WORLD, forces, box, options_with(1e-3),
+                   share_of(s, Split::even, identity(s.size()), false));
+  bd.run(3);
+  const std::vector<double> kept = all_by_index(bd, bd.positions(), 3);
+  expect_collective_error([&] { bd.step(); }, ErrorCode::invalid_input, "the callback refuses step 3");
+  EXPECT_EQ(bd.step_count(), 3u);
+  EXPECT_EQ(bitwise_mismatches(all_by_index(bd, bd.positions(), 3), kept), 0u);
+}

@@ -67,6 +67,12 @@ class ForceField {
   [[nodiscard]] double trap_stiffness() const { return trap_; }
   void add_callback(ForceCallback callback);
   [[nodiscard]] bool has_callbacks() const { return !callbacks_.empty(); }
+  /// The callbacks, in the order compute() calls them (last, each adding to the forces of the
+  /// other terms).
+  [[nodiscard]] std::span<const ForceCallback> callbacks() const { return callbacks_; }
+  /// A copy without the callbacks (the forces of a part of a larger system, compute_rows, whose
+  /// callbacks the caller runs on the whole system: rpyfmm/mpi/brownian_dynamics.hpp).
+  [[nodiscard]] ForceField without_callbacks() const;
   /// The torques on rotating particles (used by the integrator only with rotation on;
   /// docs/theory/bd.md Sec. 7). Replaces an earlier one; throws unless it has no types or one
   /// per particle type.

@@ -165,9 +165,10 @@ class Integrator {
   /// carrier with adsorbed particles the complex's force from outside it, on an adsorbed particle
   /// the whole force on it (its relative step's). On the device engine, copied as positions().
   [[nodiscard]] std::span<const double> last_forces() const;
-  /// M F dt and sqrt(2 kT dt) M^{1/2} z of the last step (needs keep_split_displacements).
-  [[nodiscard]] std::span<const double> deterministic_displacement() const { return dx_det_; }
-  [[nodiscard]] std::span<const double> brownian_displacement() const { return dx_brown_; }
+  /// M F dt and sqrt(2 kT dt) M^{1/2} z of the last step (needs keep_split_displacements). On an
+  /// engine across processes, as its Stepper gives them (read as positions()).
+  [[nodiscard]] std::span<const double> deterministic_displacement() const;
+  [[nodiscard]] std::span<const double> brownian_displacement() const;
   /// With rotation: the orientations (4N unit quaternions w x y z), the torques at the start of
   /// the last step (3N), and the rotation vectors phi = W dt + sqrt(2 kT dt) w_r by which the
   /// last step turned each particle (3N, lab frame). Empty without rotation. On an engine across

@@ -48,6 +48,11 @@ class Stepper {
   /// every process then calls it at the same steps). An engine without them returns an empty array
   /// and 0.
   [[nodiscard]] virtual const std::vector<double>& velocities() const { return none_; }
+  /// With split displacements (IntegratorOptions::keep_split_displacements): M F dt and
+  /// sqrt(2 kT dt) M^{1/2} z of the last step (3N each), held and copied as positions(). An engine
+  /// without them returns empty arrays.
+  [[nodiscard]] virtual const std::vector<double>& deterministic_displacements() const { return none_; }
+  [[nodiscard]] virtual const std::vector<double>& brownian_displacements() const { return none_; }
   [[nodiscard]] virtual double kinetic_temperature() const { return 0.0; }
 
  private:

@@ -31,10 +31,11 @@ namespace rpyfmm::mpi {
 /// system's positions and types at first_step, the same on every rank (with rotation also the
 /// orientations, 4 per particle; empty: the identity; with Langevin types the half-step
 /// velocities, 3 per particle; empty: the Maxwell draw): rank r takes the particles of its block of
-/// global indices. Reading positions(), forces(), orientations(), rotations() or velocities()
-/// gathers the whole system on rank 0 (collective, once per step); kinetic_temperature() is
-/// collective. Throws on every rank what DistributedBd refuses, and for pse with wave_precision
-/// single or the device cuda.
+/// global indices. Reading positions(), forces(), orientations(), rotations(), velocities() or,
+/// with split displacements, deterministic_displacements() and brownian_displacements() gathers
+/// the whole system on rank 0 (collective, once per step; the run reads the split parts every step
+/// for the log's rms columns); kinetic_temperature() is collective. Throws on every rank what
+/// DistributedBd refuses, and for pse with wave_precision single or the device cuda.
 [[nodiscard]] std::unique_ptr<bd::Stepper> make_distributed_stepper(
     MPI_Comm comm, const bd::RunConfig& config, const bd::ForceField& forces, std::span<const double> positions,
     std::span<const std::uint32_t> types, std::span<const double> orientations, std::span<const double> velocities,

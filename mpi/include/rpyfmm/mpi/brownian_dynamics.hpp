@@ -52,6 +52,12 @@
 // bd::Integrator's bit for bit on any number of ranks. As in the serial engine, inertia needs the
 // mobility none and no rotation; the kinetic temperature is summed over the ranks.
 //
+// With split displacements (IntegratorOptions::keep_split_displacements) the step keeps M F dt and
+// sqrt(2 kT dt) M^{1/2} z of the owned particles as the serial engine splits them (pse then takes
+// the serial engine's unfused path, PSE's split sampler keyed in global index order). Force
+// callbacks see the whole system, gathered on every rank in global index order every step, and
+// give the owned particles the serial engine's forces bit for bit.
+//
 // Checkpoints hold the whole state in global index order (bd::Checkpoint, gathered on one rank;
 // with rotation version 3: orientations, those at step 0 and the summed rotation vectors; with
 // inertial particles version 4: the half-step velocities), so a run
@@ -87,10 +93,10 @@ namespace rpyfmm::mpi {
 
 /// Options of a distributed run. Every rank must pass the same.
 struct DistributedBdOptions {
-  /// dt, kT, seed, max_displacement, rotation and inertia as for bd::Integrator (rotation with the
-  /// methods none, direct, fmm and pse; inertial types with none and without rotation, as the serial
-  /// engine). The SAC scheme and split displacements are refused (not_supported): the serial engine
-  /// has them.
+  /// dt, kT, seed, max_displacement, rotation, inertia and keep_split_displacements as for
+  /// bd::Integrator (rotation and split displacements with the methods none, direct, fmm and pse;
+  /// inertial types with none, without rotation and without split displacements, as the serial
+  /// engine). The SAC scheme is refused (not_supported): the serial engine has it.
   bd::IntegratorOptions integrator{};
   /// The skin (0: 0.3 r_c) and the rebuild strategy (fixed_interval), as bd::NeighbourList's.
   bd::NeighbourOptions neighbours{};
@@ -165,10 +171,14 @@ class DistributedBd {
  public:
   /// Collective. Throws rpyfmm::Error on every rank for options the serial engine refuses or this
   /// one does not support, for a wrong size, a non-finite coordinate or an unknown type on any
-  /// rank, for ids that are not a permutation of 0 ... N - 1, for bonds to a particle >= N, for a
-  /// force field with callbacks (they take the whole system), and when no rank has a particle.
-  /// Bonds (the force field's, the same on every rank) index the global particles; a bond's
-  /// partner on another rank travels with the halo.
+  /// rank, for ids that are not a permutation of 0 ... N - 1, for bonds to a particle >= N, and when
+  /// no rank has a particle. Bonds (the force field's, the same on every rank) index the global
+  /// particles; a bond's partner on another rank travels with the halo. The force field's callbacks
+  /// (bd::ForceField::add_callback, the same number on every rank) take the whole system: every
+  /// step each rank gathers all particles' positions and forces in global index order (one
+  /// MPI_Allgatherv of 7 doubles per particle, O(N) memory and traffic per rank) and calls them
+  /// on it as the serial engine does; pair potentials, bonds, external forces and the trap need
+  /// no gather (prefer them where they express the force).
   DistributedBd(MPI_Comm comm, bd::ForceField forces, rpy::Geometry geometry, DistributedBdOptions options,
                 BdShare share, std::uint64_t first_step = 0);
   ~DistributedBd();
@@ -191,6 +201,15 @@ class DistributedBd {
   /// The forces on this rank's particles at the start of the last step (3n; 0 before the first and
   /// after a repartition until the next step).
   [[nodiscard]] std::span<const double> last_forces() const { return f_; }
+  /// With integrator.keep_split_displacements (empty without): the deterministic part M F dt and
+  /// the Brownian part sqrt(2 kT dt) M^{1/2} z of the last step's displacement of this rank's
+  /// particles (3n each, in increasing global index; 0 before the first step and after a
+  /// repartition until the next step), as bd::Integrator::deterministic_displacement and
+  /// brownian_displacement give them: their sum is the step's displacement, bit for bit
+  /// (x_next = x + (drift + noise)). With pse the Brownian part is PSE's split sampler on z as
+  /// PseRpy::apply_sqrt takes it (no fused pass, as the serial engine with split displacements).
+  [[nodiscard]] std::span<const double> deterministic_displacement() const { return dx_det_; }
+  [[nodiscard]] std::span<const double> brownian_displacement() const { return dx_brown_; }
   [[nodiscard]] std::span<const std::uint32_t> types() const { return types_; }
   [[nodiscard]] std::span<const std::uint64_t> ids() const { return ids_; }
   [[nodiscard]] std::span<const double> reference_positions() const { return reference_; }
@@ -257,11 +276,18 @@ class DistributedBd {
   /// With free draining and rotation: omega_ = T / (8 pi eta a^3), wr_ = z_r / sqrt(8 pi eta a^3)
   /// of the owned particles, as rpy::FreeDrainingMobility gives them to the serial engine.
   void free_draining_rotation();
+  /// With free draining and split displacements: dx_det_ = mu F dt and dx_brown_ = sqrt(2 kT dt)
+  /// sqrt(mu) z of the owned particles (mu = 1 / (6 pi eta a)), rpy::FreeDrainingMobility's u and w
+  /// as the serial engine splits them.
+  void free_draining_split();
+  /// With callbacks: adds their forces to f_, called on the whole system gathered on every rank.
+  void add_callback_forces();
   /// Throws on every rank the blow-up error of particle `id` (next: the refused positions).
   void fail_blow_up(std::uint64_t id, std::span<const double> next) const;
 
   Communicator comm_;
   bd::ForceField forces_;
+  std::vector<bd::ForceCallback> callbacks_;  // the force field's callbacks (forces_ holds none)
   rpy::Geometry geometry_;
   DistributedBdOptions options_;
   std::uint64_t global_n_ = 0;
@@ -278,6 +304,7 @@ class DistributedBd {
   std::unique_ptr<Hydrodynamics> hydrodynamics_;  // null: free draining
   double work_seconds_ = 0.0;                     // own force and update work since the last rebuild
   std::vector<double> radii_, u_, w_;             // with hydrodynamics: per owned particle
+  std::vector<double> dx_det_, dx_brown_;         // split displacements of the owned particles (3 each)
   // rotation, per owned particle: orientations (4), those at step 0 (4), summed rotation vectors,
   // torques, angular velocities, rotational noise and its sample, the step's rotation vectors (3)
   std::vector<double> q_, reference_q_, rotation_sum_, torque_, omega_, zr_, wr_, phi_;
