@@ -5,12 +5,14 @@
 
 #include <mpi.h>
 
+#include <cmath>
 #include <string>
 #include <vector>
 
 #include "rigid/body_system.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/mpi/sqrt.hpp"
 
 namespace rpyfmm::mpi {
 namespace {
@@ -90,18 +92,21 @@ void DistributedRigidBodies::set_configuration(std::span<const double> local_bea
   seconds_setup_ = watch.seconds();
 }
 
-rpy::RigidBodyReport DistributedRigidBodies::apply(std::span<const double> local_forces_torques,
-                                                   std::span<double> local_velocities,
-                                                   std::span<double> local_bead_forces) const {
+void DistributedRigidBodies::check_call(std::span<const double> local_forces_torques,
+                                        std::span<double> local_velocities, std::span<double> local_bead_forces) const {
   comm_.run([&] {
     require(system_ != nullptr, ErrorCode::invalid_input, kWhere, "apply before set_configuration");
     rpy::rigid_detail::require_call(*system_, local_forces_torques, local_velocities, local_bead_forces, kWhere);
   });
+}
+
+rpy::RigidBodyReport DistributedRigidBodies::solve(std::span<const double> local_forces_torques, std::vector<double>& b,
+                                                   std::span<double> local_velocities,
+                                                   std::span<double> local_bead_forces) const {
   StopWatch watch;
   const rpy::rigid_detail::BeadProduct product = [this](std::span<const double> x, std::span<double> y) {
     std::visit([&](auto* op) { op->apply(x, y); }, beads_);  // collective
   };
-  std::vector<double> b(3 * system_->beads() + 6 * system_->bodies(), 0.0);  // no slip
   const rpy::rigid_detail::SaddleSolution solution = rpy::rigid_detail::solve_saddle_point(
       *system_, product, options_, local_forces_torques, b, {}, {}, global_inner_product(comm_));
   rpy::RigidBodyReport report;
@@ -112,6 +117,45 @@ rpy::RigidBodyReport DistributedRigidBodies::apply(std::span<const double> local
   });
   report.seconds_setup = seconds_setup_;
   report.seconds_solve = watch.seconds();
+  return report;
+}
+
+rpy::RigidBodyReport DistributedRigidBodies::apply(std::span<const double> local_forces_torques,
+                                                   std::span<double> local_velocities,
+                                                   std::span<double> local_bead_forces) const {
+  check_call(local_forces_torques, local_velocities, local_bead_forces);
+  std::vector<double> b(3 * system_->beads() + 6 * system_->bodies(), 0.0);  // no slip
+  return solve(local_forces_torques, b, local_velocities, local_bead_forces);
+}
+
+rpy::RigidBodyReport DistributedRigidBodies::apply_with_noise(std::span<const double> local_forces_torques,
+                                                              double noise_scale, std::span<const double> local_z,
+                                                              std::span<double> local_velocities,
+                                                              const rpy::SqrtOptions& sqrt_options,
+                                                              std::span<double> local_bead_forces) const {
+  check_call(local_forces_torques, local_velocities, local_bead_forces);
+  const std::size_t n3 = 3 * system_->beads();
+  comm_.run([&] {
+    require_size(local_z, n3, kWhere, "bead noise z");
+    require_finite(local_z, kWhere, "bead noise z", 3);
+    require(std::isfinite(noise_scale) && noise_scale >= 0.0, ErrorCode::invalid_argument, kWhere,
+            "noise_scale must be finite and >= 0, got " + std::to_string(noise_scale));
+  });
+  comm_.run([&] {
+    require(same_on_every_rank(comm_, {noise_scale}), ErrorCode::invalid_argument, kWhere,
+            "the ranks pass different noise scales");
+  });
+  StopWatch watch;
+  // The random slip s = -c B z of RigidBodies::apply_with_noise (Sprinkle, Balboa Usabiaga,
+  // Patankar & Donev, J. Chem. Phys. 147, 244103 (2017)), B z across the ranks.
+  std::vector<double> b(n3 + 6 * system_->bodies(), 0.0), w(n3);
+  const rpy::SqrtReport sqrt_report =
+      std::visit([&](auto* op) { return sqrt_apply(*op, local_z, w, sqrt_options); }, beads_);
+  for (std::size_t i = 0; i < n3; ++i) b[i] = -noise_scale * w[i];
+  const double seconds_sqrt = watch.seconds();
+  rpy::RigidBodyReport report = solve(local_forces_torques, b, local_velocities, local_bead_forces);
+  report.sqrt = sqrt_report;
+  report.seconds_sqrt = seconds_sqrt;
   return report;
 }
 

@@ -22,11 +22,13 @@
 #include <memory>
 #include <span>
 #include <variant>
+#include <vector>
 
 #include "rpyfmm/mpi/communicator.hpp"
 #include "rpyfmm/mpi/direct_operator.hpp"
 #include "rpyfmm/mpi/fmm_rpy.hpp"
 #include "rpyfmm/rpy/rigid_bodies.hpp"
+#include "rpyfmm/rpy/sqrt.hpp"
 
 namespace rpyfmm::mpi {
 
@@ -60,6 +62,18 @@ class DistributedRigidBodies {
   rpy::RigidBodyReport apply(std::span<const double> local_forces_torques, std::span<double> local_velocities,
                              std::span<double> local_bead_forces = {}) const;
 
+  /// Collective. Velocities with Brownian noise, as RigidBodies::apply_with_noise: Y = N W +
+  /// noise_scale N K^T M^{-1} B z with B z (B B^T = M) by rpyfmm::mpi::sqrt_apply on the bead
+  /// operator (`sqrt_options` as there: Lanczos or Chebyshev, the block preconditioner of each
+  /// rank's beads; every rank passes the same), local_z this rank's beads' share of the bead noise
+  /// (3 n_local; mpi::fill_normal draws the serial noise by global index). Throws as apply, and on
+  /// every rank for a bad z or noise_scale < 0 on any rank, noise scales that differ between the
+  /// ranks, and what sqrt_apply refuses.
+  rpy::RigidBodyReport apply_with_noise(std::span<const double> local_forces_torques, double noise_scale,
+                                        std::span<const double> local_z, std::span<double> local_velocities,
+                                        const rpy::SqrtOptions& sqrt_options = {},
+                                        std::span<double> local_bead_forces = {}) const;
+
   [[nodiscard]] const Communicator& communicator() const { return comm_; }
   /// This rank's bodies and beads (0 before set_configuration).
   [[nodiscard]] std::size_t local_bodies() const;
@@ -71,6 +85,13 @@ class DistributedRigidBodies {
  private:
   using Operator = std::variant<DistributedDirectRpy*, DistributedFmmRpy*>;
   DistributedRigidBodies(Operator beads, const Communicator& comm, rpy::RigidBodyOptions options);
+  /// The collective checks of apply's arguments.
+  void check_call(std::span<const double> local_forces_torques, std::span<double> local_velocities,
+                  std::span<double> local_bead_forces) const;
+  /// GMRES across the ranks with the bead rows b[0, 3 n_local) given (the slip) and the body rows
+  /// from the forces and torques; velocities and bead forces from its solution (collective).
+  rpy::RigidBodyReport solve(std::span<const double> local_forces_torques, std::vector<double>& b,
+                             std::span<double> local_velocities, std::span<double> local_bead_forces) const;
 
   Operator beads_;
   Communicator comm_;
