@@ -5,7 +5,6 @@
 
 #include <mpi.h>
 
-#include <cmath>
 #include <string>
 #include <vector>
 
@@ -135,12 +134,7 @@ rpy::RigidBodyReport DistributedRigidBodies::apply_with_noise(std::span<const do
                                                               std::span<double> local_bead_forces) const {
   check_call(local_forces_torques, local_velocities, local_bead_forces);
   const std::size_t n3 = 3 * system_->beads();
-  comm_.run([&] {
-    require_size(local_z, n3, kWhere, "bead noise z");
-    require_finite(local_z, kWhere, "bead noise z", 3);
-    require(std::isfinite(noise_scale) && noise_scale >= 0.0, ErrorCode::invalid_argument, kWhere,
-            "noise_scale must be finite and >= 0, got " + std::to_string(noise_scale));
-  });
+  comm_.run([&] { rpy::rigid_detail::require_noise(*system_, local_z, noise_scale, kWhere); });
   comm_.run([&] {
     require(same_on_every_rank(comm_, {noise_scale}), ErrorCode::invalid_argument, kWhere,
             "the ranks pass different noise scales");

@@ -61,6 +61,10 @@ BodySystem make_body_system(std::span<const double> bead_positions, std::span<co
 void require_call(const BodySystem& s, std::span<const double> forces_torques, std::span<double> velocities,
                   std::span<double> bead_forces, std::string_view where);
 
+/// Throws naming `where` unless the bead noise z has 3 finite entries per bead of `s`
+/// (invalid_input) and noise_scale is finite and >= 0 (invalid_argument).
+void require_noise(const BodySystem& s, std::span<const double> z, double noise_scale, std::string_view where);
+
 /// y = M x on the beads of `s` (3 entries per bead each).
 using BeadProduct = std::function<void(std::span<const double> x, std::span<double> y)>;
 

@@ -2,7 +2,6 @@
 // the saddle-point system (see the header; the solve itself in body_system.hpp).
 #include "rpyfmm/rpy/rigid_bodies.hpp"
 
-#include <cmath>
 #include <string>
 
 #include "body_system.hpp"
@@ -100,10 +99,7 @@ RigidBodyReport RigidBodies::apply_with_noise(std::span<const double> forces_tor
                                               const SqrtOptions& sqrt_options, std::span<double> bead_forces) const {
   check_call(forces_torques, velocities, bead_forces);
   const std::size_t n3 = 3 * beads_.size();
-  require_size(z, n3, kWhere, "bead noise z");
-  require_finite(z, kWhere, "bead noise z", 3);
-  require(std::isfinite(noise_scale) && noise_scale >= 0.0, ErrorCode::invalid_argument, kWhere,
-          "noise_scale must be finite and >= 0, got " + std::to_string(noise_scale));
+  rigid_detail::require_noise(*system_, z, noise_scale, kWhere);
   StopWatch watch;
   // Random slip s = -c B z with B B^T = M: Y = N W + c N K^T M^{-1} B z, whose noise part has
   // covariance c^2 N K^T M^{-1} M M^{-1} K N = c^2 N (Sprinkle et al., J. Chem. Phys. 147, 244103 (2017)).

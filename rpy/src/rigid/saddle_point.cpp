@@ -105,6 +105,13 @@ void require_call(const BodySystem& s, std::span<const double> forces_torques, s
   require_finite(forces_torques, where, "forces and torques", 6);
 }
 
+void require_noise(const BodySystem& s, std::span<const double> z, double noise_scale, std::string_view where) {
+  require_size(z, 3 * s.beads(), where, "bead noise z");
+  require_finite(z, where, "bead noise z", 3);
+  require(std::isfinite(noise_scale) && noise_scale >= 0.0, ErrorCode::invalid_argument, where,
+          "noise_scale must be finite and >= 0, got " + std::to_string(noise_scale));
+}
+
 SaddleSolution solve_saddle_point(const BodySystem& s, const BeadProduct& beads, const RigidBodyOptions& options,
                                   std::span<const double> forces_torques, std::vector<double>& b,
                                   std::span<const double> guess_velocities, std::span<const double> guess_bead_forces,
