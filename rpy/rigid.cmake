@@ -2,5 +2,7 @@
 # rpy/include/rpyfmm/rpy/rigid_bodies.hpp.
 target_sources(rpyfmm_rpy PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/src/rigid/bead_shapes.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/rigid/body_system.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/rigid/gmres.cpp
-  ${CMAKE_CURRENT_LIST_DIR}/src/rigid/rigid_bodies.cpp)
+  ${CMAKE_CURRENT_LIST_DIR}/src/rigid/rigid_bodies.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/rigid/saddle_point.cpp)

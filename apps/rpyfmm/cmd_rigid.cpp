@@ -10,6 +10,8 @@
 // Beads are listed body after body; S holds the m body sizes (beads per body, each >= 3).
 // FT is (m,6): F_x F_y F_z T_x T_y T_z per body (torques about the reference points Q, (m,3),
 // default the bodies' centroids); UW is (m,6): U_x U_y U_z Omega_x Omega_y Omega_z.
+// Under mpirun, --method direct and fmm (free space) run across the ranks, each rank owning whole
+// bodies (rigid_across_ranks.hpp); other methods are refused on more than one rank.
 #include <CLI/CLI.hpp>
 #include <cmath>
 #include <cstddef>
@@ -23,6 +25,8 @@
 #include "cli_common.hpp"
 #include "commands.hpp"
 #include "mobility_choice.hpp"
+#include "mpi_session.hpp"
+#include "rigid_across_ranks.hpp"
 #include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/core/file_safety.hpp"
 #include "rpyfmm/core/timer.hpp"
@@ -42,6 +46,23 @@ struct RigidArgs {
   CommonOptions common;
 };
 
+/// Under MPI: whether this solve runs across the ranks (--method direct or fmm without --box, on the
+/// CPU); otherwise it runs on one rank only and more ranks are refused. Every rank parses the same
+/// options, so every rank refuses alike.
+bool across_ranks(const RigidArgs& args) {
+  const MobilityChoice& m = args.mobility;
+  const bool supported = (m.method == "direct" || m.method == "fmm") && m.box.empty() && m.device == "cpu";
+  require(supported || mpi_size() == 1, ErrorCode::not_supported, "rigid",
+          "across " + std::to_string(mpi_size()) +
+              " MPI ranks runs --method direct or fmm without --box, on the CPU (docs/mpi.md), not --method " +
+              m.method + (m.box.empty() ? "" : " with --box") + "; run other methods without mpirun");
+  if (supported) {  // as make_operator checks them for the serial command
+    ranges::require_in(ranges::kViscosity, m.viscosity, "--viscosity", "viscosity");
+    ranges::require_in(ranges::kMobilityTolerance, m.tolerance, "--tolerance", "tolerance");
+  }
+  return supported;
+}
+
 void run_rigid(const RigidArgs& args) {
   const BeadBodyArgs& b = args.bodies;
   require_distinct_files(std::vector<NamedPath>{{"--positions", b.positions},
@@ -52,6 +73,12 @@ void run_rigid(const RigidArgs& args) {
                          std::vector<NamedPath>{{"--out", args.out}, {"--bead-forces", args.bead_forces}});
   apply_threads(args.common);
   ranges::require_in(ranges::kSolverTolerance, args.solver_tolerance, "--solver-tolerance", "tolerance");
+  if (under_mpi() && across_ranks(args)) {
+    run_rigid_across_ranks({args.bodies, args.forces, args.out, args.bead_forces, args.solver_tolerance,
+                            args.max_iterations, !args.no_precondition, args.mobility.method, args.mobility.tolerance,
+                            args.mobility.viscosity, args.common.json});
+    return;
+  }
 
   StopWatch total;
   StopWatch watch;

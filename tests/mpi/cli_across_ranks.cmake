@@ -24,6 +24,9 @@
 #    sums), output by output and density by density (laplace_agree, -DAGREE=...);
 #  - `mpiexec -n NP rpyfmm laplace --direct`: every rank sums all sources at its targets in the
 #    serial order, so the files are identical byte for byte;
+#  - `mpiexec -n NP rpyfmm rigid --method direct`: within 1e-12 of the serial file (velocities and
+#    bead forces), the inner products summed in another order; `--method fmm --tolerance 1e-8`
+#    within 1e-7 of the serial direct solve (see below); `--method pse` and `rigid-bd` refuse;
 #  - `mpiexec -n NP rpyfmm mobility --method pse --box L` (also with --torques or --angular, U and W
 #    each) and `sample --operator pse --box L`: DistributedPseRpy is the serial PseRpy with double
 #    wave grids to round-off, so within 1e-12 relative of that serial output.
@@ -346,13 +349,90 @@ expect_one_error("sample --angular with (N,3) noise" "noise: with --angular must
 # So does a missing input of laplace.
 expect_one_error("laplace with a missing input" "missing.txt" ${never} "${RPYFMM}" laplace --sources "${WORK}/x.txt"
                  --charges "${WORK}/q2.txt" --targets "${WORK}/missing.txt" --tolerance 1e-6 --out ${never})
+# rigid: 27 bodies on a lattice of spacing 4 (cubes of 8 beads and tetrahedra of 4, side 2, beads
+# of radius 0.5, every coordinate shifted by a jitter in [0, 0.1)), forces and torques in [-1, 1];
+# the ranks own contiguous runs of whole bodies balanced by bead count. direct: DistributedRigidBodies
+# with DistributedDirectRpy differs from the serial solver only by the order of the inner products'
+# sums, so within 1e-12 of the serial file (velocities and bead forces; the bound of
+# tests/mpi/test_distributed_rigid.cpp). fmm at 1e-8, GMRES to 1e-8: within
+# 1e-7 of the serial direct solve to 1e-12 (as that test's bound).
+set(bodies "")
+set(body_sizes "")
+set(body_forces "")
+set(cube "-1,-1,-1;-1,-1,1;-1,1,-1;-1,1,1;1,-1,-1;1,-1,1;1,1,-1;1,1,1")
+set(tetrahedron "1,1,1;1,-1,-1;-1,1,-1;-1,-1,1")
+foreach(k RANGE 26)
+  math(EXPR centre_x "4 * (${k} % 3) + 2")
+  math(EXPR centre_y "4 * (${k} / 3 % 3) + 2")
+  math(EXPR centre_z "4 * (${k} / 9) + 2")
+  math(EXPR odd "${k} % 2")
+  if(odd)
+    set(corners "${tetrahedron}")
+  else()
+    set(corners "${cube}")
+  endif()
+  list(LENGTH corners size)
+  string(APPEND body_sizes "${size}\n")
+  foreach(corner ${corners})
+    string(REPLACE "," ";" corner "${corner}")
+    set(row "")
+    foreach(c 0 1 2)
+      list(GET corner ${c} d)
+      set(centre ${centre_x})
+      if(c EQUAL 1)
+        set(centre ${centre_y})
+      elseif(c EQUAL 2)
+        set(centre ${centre_z})
+      endif()
+      math(EXPR v "${centre} + ${d}")
+      next_value(100 jitter)
+      decimal(${jitter} jitter)
+      string(SUBSTRING "${jitter}" 2 3 jitter)
+      string(APPEND row " ${v}.${jitter}")
+    endforeach()
+    string(APPEND bodies "${row}\n")
+  endforeach()
+  set(row "")
+  foreach(c RANGE 5)
+    signed_decimal(d)
+    string(APPEND row " ${d}")
+  endforeach()
+  string(APPEND body_forces "${row}\n")
+endforeach()
+file(WRITE "${WORK}/bodies.txt" "${bodies}")
+file(WRITE "${WORK}/body_sizes.txt" "${body_sizes}")
+file(WRITE "${WORK}/body_forces.txt" "${body_forces}")
+set(rigid_common rigid --positions "${WORK}/bodies.txt" --radius 0.5 --body-sizes "${WORK}/body_sizes.txt" --forces
+                 "${WORK}/body_forces.txt" --viscosity 0.7)
+run_serial(rigid rigid_serial ${rigid_common} --method direct --solver-tolerance 1e-10 --bead-forces
+           "${WORK}/rigid_beads_serial.npy")
+run_across(rigid ${rigid_common} --method direct --solver-tolerance 1e-10 --bead-forces "${WORK}/rigid_beads_mpi.npy")
+if(NOT json MATCHES "\"iterations\":[1-9]" OR NOT json MATCHES "\"method\":\"direct\"" OR NOT json MATCHES
+                                                                                   "\"communication_seconds\":{")
+  message(FATAL_ERROR "rigid: --json lacks the iterations, the method or communication_seconds: ${json}")
+endif()
+agree(rigid "${WORK}/rigid_mpi.npy" "${WORK}/rigid_serial.npy" 1e-12)
+agree(rigid "${WORK}/rigid_beads_mpi.npy" "${WORK}/rigid_beads_serial.npy" 1e-12)
+run_serial(rigid_fmm rigid_fmm_direct ${rigid_common} --method direct --solver-tolerance 1e-12)
+run_across(rigid_fmm ${rigid_common} --method fmm --tolerance 1e-8 --solver-tolerance 1e-8)
+agree(rigid_fmm "${WORK}/rigid_fmm_mpi.npy" "${WORK}/rigid_fmm_direct.npy" 1e-7)
+
 # A command that does not run across ranks refuses more than one, on every rank.
 if(NP GREATER 1)
-  execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" rigid --positions "${WORK}/x.txt" --radius 1
-                          --body-sizes "${WORK}/a.txt" --forces "${WORK}/f.txt" --out "${WORK}/never.npy"
+  execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" rigid-bd --positions "${WORK}/bodies.txt"
+                          --radius 0.5 --body-sizes "${WORK}/body_sizes.txt" --dt 0.01 --steps 1
+                          --out "${WORK}/never.npy"
                   RESULT_VARIABLE rc ERROR_VARIABLE err)
-  if(rc EQUAL 0 OR NOT err MATCHES "rigid: does not run across MPI ranks" OR EXISTS "${WORK}/never.npy")
-    message(FATAL_ERROR "rigid under ${NP} ranks: exit ${rc}: ${err}")
+  if(rc EQUAL 0 OR NOT err MATCHES "rigid-bd: does not run across MPI ranks" OR EXISTS "${WORK}/never.npy")
+    message(FATAL_ERROR "rigid-bd under ${NP} ranks: exit ${rc}: ${err}")
+  endif()
+  # rigid with a bead method that does not run across ranks refuses, naming what does.
+  execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" ${rigid_common} --method pse --box 40
+                          --out "${WORK}/never.npy"
+                  RESULT_VARIABLE rc ERROR_VARIABLE err)
+  if(rc EQUAL 0 OR NOT err MATCHES "rigid: across ${NP} MPI ranks runs --method direct or fmm" OR EXISTS
+                                                                                          "${WORK}/never.npy")
+    message(FATAL_ERROR "rigid --method pse under ${NP} ranks: exit ${rc}: ${err}")
   endif()
   # mobility and sample with what does not run across ranks refuse too.
   foreach(case "mobility;--positions;${WORK}/x.txt;--radius;1;--forces;${WORK}/f.txt;--method;pse;--box;40;--wave-precision;single"

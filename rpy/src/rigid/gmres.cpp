@@ -6,19 +6,20 @@
 #include <vector>
 
 namespace rpyfmm::rpy::rigid_detail {
-namespace {
 
-/// Sequential sums: the same result for any thread count.
-double dot(const double* a, const double* b, std::size_t n) {
+double sequential_dot(const double* a, const double* b, std::size_t n) {
   double s = 0.0;
   for (std::size_t i = 0; i < n; ++i) s += a[i] * b[i];
   return s;
 }
 
+namespace {
+
 /// The workspace of one GMRES cycle of at most m columns on vectors of length n.
 struct Cycle {
-  Cycle(std::size_t size, std::size_t columns)
-      : n(size),
+  Cycle(std::size_t size, std::size_t columns, const InnerProduct& inner_product)
+      : inner(inner_product),
+        n(size),
         m(columns),
         basis(m + 1, std::vector<double>(n)),
         h((m + 1) * m, 0.0),
@@ -29,7 +30,12 @@ struct Cycle {
         z(n),
         w(n) {}
   [[nodiscard]] double* column(std::size_t j) { return h.data() + j * (m + 1); }
+  /// <a, b> by the hook, or sequentially without one.
+  [[nodiscard]] double dot(const double* a, const double* b) const {
+    return inner ? inner(a, b, n) : sequential_dot(a, b, n);
+  }
 
+  const InnerProduct& inner;
   std::size_t n, m;
   std::vector<std::vector<double>> basis;
   std::vector<double> h;  // Hessenberg matrix, column j at h[j * (m + 1)]
@@ -49,10 +55,10 @@ bool arnoldi_column(Cycle& c, std::size_t j, const VectorMap& apply, const Vecto
   }
   double* hj = c.column(j);
   for (std::size_t i = 0; i <= j; ++i) {
-    hj[i] = dot(c.w.data(), c.basis[i].data(), n);
+    hj[i] = c.dot(c.w.data(), c.basis[i].data());
     for (std::size_t k = 0; k < n; ++k) c.w[k] -= hj[i] * c.basis[i][k];
   }
-  hj[j + 1] = std::sqrt(dot(c.w.data(), c.w.data(), n));
+  hj[j + 1] = std::sqrt(c.dot(c.w.data(), c.w.data()));
   const bool breakdown = hj[j + 1] == 0.0;
   if (!breakdown)
     for (std::size_t k = 0; k < n; ++k) c.basis[j + 1][k] = c.w[k] / hj[j + 1];
@@ -99,16 +105,16 @@ void update_solution(Cycle& c, std::size_t j, const VectorMap& precondition, dou
 }  // namespace
 
 GmresResult gmres(std::size_t n, const VectorMap& apply, const VectorMap& precondition, const double* b, double* x,
-                  double tol, int max_iterations, int restart) {
+                  double tol, int max_iterations, int restart, const InnerProduct& inner_product) {
   GmresResult result;
-  const double bnorm = std::sqrt(dot(b, b, n));
+  Cycle c(n, static_cast<std::size_t>(std::max(restart, 1)), inner_product);
+  const double bnorm = std::sqrt(c.dot(b, b));
   if (bnorm == 0.0) {
     std::fill(x, x + n, 0.0);
     result.converged = true;
     return result;
   }
-  Cycle c(n, static_cast<std::size_t>(std::max(restart, 1)));
-  bool zero_guess = std::all_of(x, x + n, [](double v) { return v == 0.0; });
+  bool zero_guess = inner_product ? c.dot(x, x) == 0.0 : std::all_of(x, x + n, [](double v) { return v == 0.0; });
   while (true) {
     if (zero_guess) {  // r = b without a product
       std::copy(b, b + n, c.basis[0].begin());
@@ -118,7 +124,7 @@ GmresResult gmres(std::size_t n, const VectorMap& apply, const VectorMap& precon
       for (std::size_t i = 0; i < n; ++i) c.basis[0][i] = b[i] - c.w[i];
       ++result.iterations;
     }
-    const double beta = std::sqrt(dot(c.basis[0].data(), c.basis[0].data(), n));
+    const double beta = std::sqrt(c.dot(c.basis[0].data(), c.basis[0].data()));
     result.residual = beta / bnorm;
     if (beta <= tol * bnorm) {
       result.converged = true;

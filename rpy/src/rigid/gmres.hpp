@@ -14,6 +14,14 @@ namespace rpyfmm::rpy::rigid_detail {
 
 /// y = A x or y = P^{-1} x for vectors of length n.
 using VectorMap = std::function<void(const double* x, double* y)>;
+/// The inner product <a, b> of two vectors of length n. Empty: the sequential sum over the n
+/// entries. A hook sums over vectors distributed across MPI ranks (mpi::DistributedRigidBodies):
+/// each rank passes its own entries, the hook returns the global sum, the same on every rank.
+using InnerProduct = std::function<double(const double* a, const double* b, std::size_t n)>;
+
+/// sum_i a_i b_i in increasing i: the same result for any thread count (GMRES's inner product
+/// without a hook).
+double sequential_dot(const double* a, const double* b, std::size_t n);
 
 struct GmresResult {
   int iterations = 0;      ///< products with A
@@ -24,8 +32,12 @@ struct GmresResult {
 
 /// Solves A x = b from the initial guess in x, right-preconditioned (A P^{-1} u = b, x = P^{-1} u;
 /// `precondition` empty = none), restarting every `restart` iterations, at most
-/// `max_iterations` products in all.
+/// `max_iterations` products in all. `inner_product` empty: the sequential sums. Every decision
+/// (stopping, restarting, breakdown) follows from the inner products alone, so with a hook that
+/// returns the same value on every rank all ranks take the same steps and the same operator calls.
+/// Whether the guess is zero (no first product A x) is decided by every entry being 0 without a
+/// hook, and by <x, x> = 0 with one (the same on every rank).
 GmresResult gmres(std::size_t n, const VectorMap& apply, const VectorMap& precondition, const double* b, double* x,
-                  double tol, int max_iterations, int restart);
+                  double tol, int max_iterations, int restart, const InnerProduct& inner_product = {});
 
 }  // namespace rpyfmm::rpy::rigid_detail

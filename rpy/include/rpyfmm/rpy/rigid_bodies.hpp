@@ -24,12 +24,17 @@
 #pragma once
 
 #include <cstddef>
+#include <memory>
 #include <span>
 #include <vector>
 
 #include "rpyfmm/rpy/mobility.hpp"
 
 namespace rpyfmm::rpy {
+
+namespace rigid_detail {
+struct BodySystem;  // the bodies' frames and preconditioner (internal, rpy/src/rigid/body_system.hpp)
+}
 
 struct RigidBodyOptions {
   /// GMRES stops at ||r|| <= tolerance ||b||: r the residual of the saddle-point system above,
@@ -112,10 +117,10 @@ class RigidBodies {
   /// for more than `max_bodies` bodies (the cost is 6m solves).
   [[nodiscard]] std::vector<double> mobility_matrix(std::size_t max_bodies = 200) const;
 
-  [[nodiscard]] std::size_t bodies() const { return offsets_.empty() ? 0 : offsets_.size() - 1; }
+  [[nodiscard]] std::size_t bodies() const;
   [[nodiscard]] std::size_t beads() const { return beads_.size(); }
   /// Reference points q_k (3m) in use.
-  [[nodiscard]] std::span<const double> reference_points() const { return reference_; }
+  [[nodiscard]] std::span<const double> reference_points() const;
   [[nodiscard]] const RigidBodyOptions& options() const { return options_; }
   /// Time spent in the last set_configuration.
   [[nodiscard]] double seconds_setup() const { return seconds_setup_; }
@@ -128,23 +133,10 @@ class RigidBodies {
   RigidBodyReport solve(std::span<const double> forces_torques, std::vector<double>& b, std::span<double> velocities,
                         std::span<double> bead_forces, std::span<const double> guess_velocities = {},
                         std::span<const double> guess_bead_forces = {}) const;
-  /// y = K Y (bead velocities of rigid motions) and w = K^T lambda (forces and torques).
-  void rigid_velocities(const double* body, double* bead) const;
-  void forces_and_torques(const double* bead, double* body) const;
-  /// The saddle-point operator and its body-block preconditioner on x = [lambda; Y].
-  void saddle_apply(const double* x, double* y) const;
-  void precondition(const double* x, double* y) const;
 
   MobilityOperator& beads_;
   RigidBodyOptions options_;
-  std::vector<std::size_t> offsets_;
-  std::vector<double> arms_;                // (r_i - q_k) / l_k (minimum image), 3N
-  std::vector<double> scale_;               // l_k: body k's RMS lever arm (rotations in length units)
-  std::vector<double> reference_;           // q_k, 3m
-  std::vector<std::size_t> factor_offset_;  // body k's Cholesky factor of M_kk at factors_[factor_offset_[k]]
-  std::vector<double> factors_;             // lower triangles, column-major (3 n_k)^2 each
-  std::vector<double> minv_k_;              // M_kk^{-1} K_k (3 n_k x 6, column-major) per body
-  std::vector<double> body_mobility_;       // N_k (6x6 row-major) per body
+  std::shared_ptr<const rigid_detail::BodySystem> system_;  // null until set_configuration succeeds
   double seconds_setup_ = 0.0;
 };
 

@@ -1,0 +1,31 @@
+// rpyfmm CLI — `mpirun -np P rpyfmm rigid --method direct|fmm ...` across MPI ranks (docs/mpi.md,
+// "Rigid bodies across ranks"). Rank 0 reads the files of the serial command and scatters whole
+// bodies: contiguous runs of bodies, balanced by their bead count (a rank may get none).
+// rpyfmm::mpi::DistributedRigidBodies solves on the ranks' bodies with DistributedDirectRpy or
+// DistributedFmmRpy as the bead operator; rank 0 gathers the velocities (and the bead forces) and
+// writes the serial command's files (write_npy: a temporary file renamed into place).
+#pragma once
+
+#include <string>
+
+#include "bead_bodies.hpp"
+
+namespace rpyfmm::cli {
+
+struct RanksRigidArgs {
+  BeadBodyArgs bodies;
+  std::string forces, out, bead_forces;
+  double solver_tolerance = 1e-6;  // GMRES relative residual, validated
+  int max_iterations = 500;
+  bool precondition = true;
+  std::string method = "direct";  // direct | fmm (the caller refuses others)
+  double tolerance = 1e-6;        // fmm's
+  double viscosity = 1.0;
+  bool json = false;
+};
+
+/// Collective over MPI_COMM_WORLD; fails on every rank alike (rpyfmm::mpi::Communicator). A build
+/// without MPI throws rpyfmm::Error (not_supported).
+void run_rigid_across_ranks(const RanksRigidArgs& args);
+
+}  // namespace rpyfmm::cli

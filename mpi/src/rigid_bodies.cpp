@@ -1,0 +1,156 @@
+// rpyfmm — DistributedRigidBodies: the serial rigid-body solve (rpy/src/rigid/body_system.hpp) on
+// each rank's whole bodies, the bead products and the inner products across the ranks
+// (rpyfmm/mpi/rigid_bodies.hpp).
+#include "rpyfmm/mpi/rigid_bodies.hpp"
+
+#include <mpi.h>
+
+#include <string>
+#include <vector>
+
+#include "rigid/body_system.hpp"
+#include "rpyfmm/core/timer.hpp"
+#include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/mpi/sqrt.hpp"
+
+namespace rpyfmm::mpi {
+namespace {
+
+constexpr const char* kWhere = "DistributedRigidBodies";
+
+/// The options' numbers, for the check that every rank passes the same.
+std::vector<double> option_values(const rpy::RigidBodyOptions& o) {
+  return {o.tolerance, double(o.max_iterations), double(o.restart), o.precondition ? 1.0 : 0.0,
+          double(o.max_preconditioner_bytes)};
+}
+
+/// <a, b> over the vectors of all ranks: each rank's sequential sum over its own entries, the
+/// ranks' sums gathered and added in rank order on every rank, so every rank gets the same value.
+rpy::rigid_detail::InnerProduct global_inner_product(const Communicator& comm) {
+  return [&comm](const double* a, const double* b, std::size_t n) {
+    const double mine = rpy::rigid_detail::sequential_dot(a, b, n);
+    std::vector<double> sums(static_cast<std::size_t>(comm.size()));
+    check_mpi(MPI_Allgather(&mine, 1, MPI_DOUBLE, sums.data(), 1, MPI_DOUBLE, comm.get()), "MPI_Allgather");
+    double total = 0.0;
+    for (const double s : sums) total += s;
+    return total;
+  };
+}
+
+}  // namespace
+
+DistributedRigidBodies::DistributedRigidBodies(DistributedDirectRpy& beads, rpy::RigidBodyOptions options)
+    : DistributedRigidBodies(Operator(&beads), beads.communicator(), options) {}
+
+DistributedRigidBodies::DistributedRigidBodies(DistributedFmmRpy& beads, rpy::RigidBodyOptions options)
+    : DistributedRigidBodies(Operator(&beads), beads.communicator(), options) {}
+
+DistributedRigidBodies::DistributedRigidBodies(Operator beads, const Communicator& comm, rpy::RigidBodyOptions options)
+    : beads_(beads), comm_(comm), options_(options) {
+  comm_.run([&] { rpy::rigid_detail::require_options(options, kWhere); });
+  comm_.run([&] {
+    require(same_on_every_rank(comm_, option_values(options)), ErrorCode::invalid_argument, kWhere,
+            "the ranks pass different options (tolerance, max_iterations, restart, precondition, "
+            "max_preconditioner_bytes must agree)");
+  });
+}
+
+DistributedRigidBodies::~DistributedRigidBodies() = default;
+
+std::size_t DistributedRigidBodies::local_bodies() const {
+  return system_ ? system_->bodies() : 0;
+}
+std::size_t DistributedRigidBodies::local_beads() const {
+  return system_ ? system_->beads() : 0;
+}
+
+std::span<const double> DistributedRigidBodies::local_reference_points() const {
+  return system_ ? std::span<const double>(system_->reference) : std::span<const double>();
+}
+
+void DistributedRigidBodies::set_configuration(std::span<const double> local_bead_positions,
+                                               std::span<const double> local_radii,
+                                               std::span<const std::size_t> local_body_offsets,
+                                               std::span<const double> local_reference_points) {
+  StopWatch watch;
+  system_.reset();  // unconfigured on every rank until everything below succeeds on every rank
+  comm_.run([&] {
+    rpy::rigid_detail::require_bodies(local_bead_positions, local_radii.size(), local_body_offsets,
+                                      local_reference_points, options_, true, kWhere);
+  });
+  // Collective; validates positions and radii on every rank (NaN/Inf, radius <= 0, no bead at all).
+  std::visit([&](auto* op) { op->set_positions(local_bead_positions, local_radii); }, beads_);
+  const double eta = std::visit([](auto* op) { return op->viscosity(); }, beads_);
+  std::shared_ptr<const rpy::rigid_detail::BodySystem> system;
+  comm_.run([&] {
+    system = std::make_shared<const rpy::rigid_detail::BodySystem>(rpy::rigid_detail::make_body_system(
+        local_bead_positions, local_radii, local_body_offsets, local_reference_points, rpy::Geometry::open(), eta,
+        options_.precondition, kWhere));
+  });
+  system_ = std::move(system);
+  seconds_setup_ = watch.seconds();
+}
+
+void DistributedRigidBodies::check_call(std::span<const double> local_forces_torques,
+                                        std::span<double> local_velocities, std::span<double> local_bead_forces) const {
+  comm_.run([&] {
+    require(system_ != nullptr, ErrorCode::invalid_input, kWhere, "apply before set_configuration");
+    rpy::rigid_detail::require_call(*system_, local_forces_torques, local_velocities, local_bead_forces, kWhere);
+  });
+}
+
+rpy::RigidBodyReport DistributedRigidBodies::solve(std::span<const double> local_forces_torques, std::vector<double>& b,
+                                                   std::span<double> local_velocities,
+                                                   std::span<double> local_bead_forces) const {
+  StopWatch watch;
+  const rpy::rigid_detail::BeadProduct product = [this](std::span<const double> x, std::span<double> y) {
+    std::visit([&](auto* op) { op->apply(x, y); }, beads_);  // collective
+  };
+  const rpy::rigid_detail::SaddleSolution solution = rpy::rigid_detail::solve_saddle_point(
+      *system_, product, options_, local_forces_torques, b, {}, {}, global_inner_product(comm_));
+  rpy::RigidBodyReport report;
+  // GMRES's decisions follow the global inner products, so convergence is the same on every rank;
+  // a non-finite result on one rank fails all.
+  comm_.run([&] {
+    report = rpy::rigid_detail::finish_solve(*system_, solution, options_, local_velocities, local_bead_forces, kWhere);
+  });
+  report.seconds_setup = seconds_setup_;
+  report.seconds_solve = watch.seconds();
+  return report;
+}
+
+rpy::RigidBodyReport DistributedRigidBodies::apply(std::span<const double> local_forces_torques,
+                                                   std::span<double> local_velocities,
+                                                   std::span<double> local_bead_forces) const {
+  check_call(local_forces_torques, local_velocities, local_bead_forces);
+  std::vector<double> b(3 * system_->beads() + 6 * system_->bodies(), 0.0);  // no slip
+  return solve(local_forces_torques, b, local_velocities, local_bead_forces);
+}
+
+rpy::RigidBodyReport DistributedRigidBodies::apply_with_noise(std::span<const double> local_forces_torques,
+                                                              double noise_scale, std::span<const double> local_z,
+                                                              std::span<double> local_velocities,
+                                                              const rpy::SqrtOptions& sqrt_options,
+                                                              std::span<double> local_bead_forces) const {
+  check_call(local_forces_torques, local_velocities, local_bead_forces);
+  const std::size_t n3 = 3 * system_->beads();
+  comm_.run([&] { rpy::rigid_detail::require_noise(*system_, local_z, noise_scale, kWhere); });
+  comm_.run([&] {
+    require(same_on_every_rank(comm_, {noise_scale}), ErrorCode::invalid_argument, kWhere,
+            "the ranks pass different noise scales");
+  });
+  StopWatch watch;
+  // The random slip s = -c B z of RigidBodies::apply_with_noise (Sprinkle, Balboa Usabiaga,
+  // Patankar & Donev, J. Chem. Phys. 147, 244103 (2017)), B z across the ranks.
+  std::vector<double> b(n3 + 6 * system_->bodies(), 0.0), w(n3);
+  const rpy::SqrtReport sqrt_report =
+      std::visit([&](auto* op) { return sqrt_apply(*op, local_z, w, sqrt_options); }, beads_);
+  for (std::size_t i = 0; i < n3; ++i) b[i] = -noise_scale * w[i];
+  const double seconds_sqrt = watch.seconds();
+  rpy::RigidBodyReport report = solve(local_forces_torques, b, local_velocities, local_bead_forces);
+  report.sqrt = sqrt_report;
+  report.seconds_sqrt = seconds_sqrt;
+  return report;
+}
+
+}  // namespace rpyfmm::mpi
