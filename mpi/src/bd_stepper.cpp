@@ -1,6 +1,7 @@
 // rpyfmm — a BD run of a configuration across MPI ranks (rpyfmm/mpi/bd_stepper.hpp).
 #include "rpyfmm/mpi/bd_stepper.hpp"
 
+#include <cstddef>
 #include <limits>
 #include <string>
 #include <utility>
@@ -105,12 +106,7 @@ rpy::pse::PseOptions pse_across_ranks(const rpy::MobilitySpec& spec) {
 
 }  // namespace
 
-std::unique_ptr<bd::Stepper> make_distributed_stepper(MPI_Comm comm, const bd::RunConfig& config,
-                                                      const bd::ForceField& forces, std::span<const double> positions,
-                                                      std::span<const std::uint32_t> types,
-                                                      std::span<const double> orientations,
-                                                      std::span<const double> velocities, std::uint64_t first_step) {
-  const Communicator world(comm);
+DistributedBdOptions distributed_bd_options(const bd::RunConfig& config) {
   DistributedBdOptions options;
   options.integrator = config.integrator;
   options.neighbours = config.neighbours;
@@ -118,23 +114,37 @@ std::unique_ptr<bd::Stepper> make_distributed_stepper(MPI_Comm comm, const bd::R
   options.method = method_across_ranks(config);
   options.fmm.tolerance = config.mobility.tolerance;
   if (options.method == rpy::MobilityMethod::pse) options.pse = pse_across_ranks(config.mobility);
-  // Blocks of global indices: rank r takes [r N / P, (r + 1) N / P).
-  const auto p = static_cast<std::uint64_t>(world.size()), r = static_cast<std::uint64_t>(world.rank());
+  return options;
+}
+
+BdShare block_share(int rank, int ranks, std::span<const double> positions, std::span<const std::uint32_t> types,
+                    bool rotation, std::span<const double> orientations, std::span<const double> velocities) {
+  const auto p = static_cast<std::uint64_t>(ranks), r = static_cast<std::uint64_t>(rank);
   const std::uint64_t n = types.size(), first = r * n / p, last = (r + 1) * n / p;
+  const auto rows = [&](std::span<const double> values, std::uint64_t per) {
+    const std::span<const double> block = values.subspan(per * first, per * (last - first));
+    return std::vector<double>(block.begin(), block.end());
+  };
   BdShare share;
-  share.positions.assign(positions.begin() + static_cast<std::ptrdiff_t>(3 * first),
-                         positions.begin() + static_cast<std::ptrdiff_t>(3 * last));
+  share.positions = rows(positions, 3);
   share.types.assign(types.begin() + static_cast<std::ptrdiff_t>(first),
                      types.begin() + static_cast<std::ptrdiff_t>(last));
   for (std::uint64_t i = first; i < last; ++i) share.ids.push_back(i);
-  if (config.integrator.rotation && !orientations.empty())  // else the identity (or refused without rotation)
-    share.orientations.assign(orientations.begin() + static_cast<std::ptrdiff_t>(4 * first),
-                              orientations.begin() + static_cast<std::ptrdiff_t>(4 * last));
-  if (!velocities.empty())  // else the Maxwell draw (with inertial types; refused without)
-    share.velocities.assign(velocities.begin() + static_cast<std::ptrdiff_t>(3 * first),
-                            velocities.begin() + static_cast<std::ptrdiff_t>(3 * last));
+  if (rotation && !orientations.empty()) share.orientations = rows(orientations, 4);
+  if (!velocities.empty()) share.velocities = rows(velocities, 3);
+  return share;
+}
+
+std::unique_ptr<bd::Stepper> make_distributed_stepper(MPI_Comm comm, const bd::RunConfig& config,
+                                                      const bd::ForceField& forces, std::span<const double> positions,
+                                                      std::span<const std::uint32_t> types,
+                                                      std::span<const double> orientations,
+                                                      std::span<const double> velocities, std::uint64_t first_step) {
+  const Communicator world(comm);
+  BdShare share =
+      block_share(world.rank(), world.size(), positions, types, config.integrator.rotation, orientations, velocities);
   return std::make_unique<DistributedStepper>(
-      DistributedBd(comm, forces, config.geometry, std::move(options), std::move(share), first_step));
+      DistributedBd(comm, forces, config.geometry, distributed_bd_options(config), std::move(share), first_step));
 }
 
 bd::RunOptions across_ranks(MPI_Comm comm, bd::RunOptions options) {

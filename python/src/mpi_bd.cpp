@@ -27,6 +27,7 @@
 #include "rpyfmm/bd/config.hpp"
 #include "rpyfmm/bd/force_field.hpp"
 #include "rpyfmm/bd/particles.hpp"
+#include "rpyfmm/mpi/bd_stepper.hpp"
 #include "rpyfmm/mpi/brownian_dynamics.hpp"
 #include "run_arguments.hpp"
 
@@ -50,50 +51,14 @@ struct BdStart {
   mpi::BdShare share;
 };
 
-/// The operator of a run across ranks as `mpirun rpyfmm bd` chooses it (bd_stepper.hpp): automatic is
-/// fmm in free space and pse in a periodic box; pse runs double-precision wave grids on the CPU.
-mpi::DistributedBdOptions options_of(const bd::RunConfig& config) {
-  mpi::DistributedBdOptions o;
-  o.integrator = config.integrator;
-  o.neighbours = config.neighbours;
-  o.viscosity = config.mobility.viscosity;
-  o.method = config.mobility.method;
-  if (o.method == rpy::MobilityMethod::automatic)
-    o.method = config.geometry.is_open() ? rpy::MobilityMethod::fmm : rpy::MobilityMethod::pse;
-  o.fmm.tolerance = config.mobility.tolerance;
-  if (o.method != rpy::MobilityMethod::pse) return o;
-  const rpy::MobilitySpec& m = config.mobility;
-  require(m.wave_precision != rpy::pse::WavePrecision::single_precision && m.device == rpy::ComputeDevice::cpu,
-          ErrorCode::not_supported, kWhere,
-          "pse across ranks runs double-precision wave grids on the CPU: mobility.wave_precision = \"single\" "
-          "and mobility.device = \"cuda\" are refused");
-  o.pse.tolerance = m.tolerance;
-  o.pse.fft_measure = m.fft_measure;
-  o.pse.wave_precision = m.wave_precision;
-  return o;
-}
-
-/// Entries [per first, per last) of `values` (empty stays empty).
-template <class T>
-std::vector<T> block(const std::vector<T>& values, std::uint64_t first, std::uint64_t last, std::size_t per) {
-  if (values.empty()) return {};
-  return {values.begin() + static_cast<std::ptrdiff_t>(per * first),
-          values.begin() + static_cast<std::ptrdiff_t>(per * last)};
-}
-
 /// Not collective: the start of `config`'s run and this rank's block of its particles.
 BdStart start_of(const bd::RunConfig& config, const mpi::Communicator& world) {
   bd::ForceField forces = bd::make_force_field(config);
   const bd::InitialState init = bd::make_particles(config, forces);
   forces.add_bonds(init.bonds);
-  const auto p = static_cast<std::uint64_t>(world.size()), r = static_cast<std::uint64_t>(world.rank());
-  const std::uint64_t n = init.types.size(), first = r * n / p, last = (r + 1) * n / p;
-  mpi::BdShare share;
-  share.positions = block(init.positions, first, last, 3);
-  share.types = block(init.types, first, last, 1);
-  for (std::uint64_t i = first; i < last; ++i) share.ids.push_back(i);
-  if (config.integrator.rotation) share.orientations = block(init.orientations, first, last, 4);
-  return BdStart{std::move(forces), config.geometry, options_of(config), std::move(share)};
+  mpi::BdShare share = mpi::block_share(world.rank(), world.size(), init.positions, init.types,
+                                        config.integrator.rotation, init.orientations);
+  return BdStart{std::move(forces), config.geometry, mpi::distributed_bd_options(config), std::move(share)};
 }
 
 void init_simulation(DistributedSimulation* self, nb::object comm, nb::handle config) {

@@ -21,8 +21,25 @@
 #include "rpyfmm/bd/force_field.hpp"
 #include "rpyfmm/bd/run.hpp"
 #include "rpyfmm/bd/stepper.hpp"
+#include "rpyfmm/mpi/brownian_dynamics.hpp"
 
 namespace rpyfmm::mpi {
+
+/// Not collective: the DistributedBd options of `config`'s run across ranks: its integrator,
+/// neighbour options and viscosity, the mobility method with automatic counting as fmm in free
+/// space and as pse in a periodic box (rpy::make_mobility's choice for the serial run), the FMM's
+/// tolerance, and PSE's options as rpy::make_mobility gives them to PseRpy. Throws rpyfmm::Error
+/// (not_supported) for pse with wave_precision single or the device cuda (PSE across ranks runs
+/// double-precision grids on the CPU).
+[[nodiscard]] DistributedBdOptions distributed_bd_options(const bd::RunConfig& config);
+
+/// Not collective: rank `rank` of `ranks`' block of the whole system's particles, the global indices
+/// [rank N / ranks, (rank + 1) N / ranks): their positions (3 each), types, indices, orientations
+/// (4 each; only with `rotation` and given, else empty: the identity) and half-step velocities (3
+/// each; only when given, else empty: the Maxwell draw with inertial types).
+[[nodiscard]] BdShare block_share(int rank, int ranks, std::span<const double> positions,
+                                  std::span<const std::uint32_t> types, bool rotation,
+                                  std::span<const double> orientations = {}, std::span<const double> velocities = {});
 
 /// Collective: DistributedBd for the run of `config` (its geometry, integrator with or without
 /// rotation or Langevin types, neighbour options, viscosity and mobility method: none, direct or
