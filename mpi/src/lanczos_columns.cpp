@@ -93,8 +93,8 @@ rpy::SqrtReport lanczos_columns(const Communicator& comm, std::span<const std::s
   Columns cols;
   for (std::size_t c = 0; c < nrhs; ++c) {
     cols.spaces.push_back(std::make_unique<DistributedKrylovSpace>(comm, counts, segments));
-    cols.state.push_back(LanczosRhs{LanczosProcess(*cols.spaces[c], options.reorthogonalize), 0.0, {}, 0.0, true,
-                                    false});
+    cols.state.push_back(
+        LanczosRhs{LanczosProcess(*cols.spaces[c], options.reorthogonalize), 0.0, {}, 0.0, true, false});
   }
   const std::size_t n = 3 * segments * counts[static_cast<std::size_t>(comm.rank())];
   const int max_it = rpy::sqrt_detail::lanczos_max_iterations(options, cols.spaces.front()->n());
@@ -119,8 +119,8 @@ rpy::SqrtReport lanczos_columns(const Communicator& comm, std::span<const std::s
     step_columns(cols, active, y.data(), n);
     for (std::size_t a = 0; a < active.size(); ++a) {
       const std::size_t c = active[a];
-      rpy::sqrt_detail::conclude_lanczos_step(cols.state[c], cols.state[c].process.broke_down(), it, max_it, options,
-                                              c, w + c * n, report);
+      rpy::sqrt_detail::conclude_lanczos_step(cols.state[c], cols.state[c].process.broke_down(), it, max_it, options, c,
+                                              w + c * n, report);
     }
   }
   for (const LanczosRhs& s : cols.state) {
