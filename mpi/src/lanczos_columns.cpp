@@ -83,6 +83,43 @@ void start_columns(Columns& cols, std::size_t n, const double* z, double* w) {
   }
 }
 
+// The columns still iterating, in column order.
+std::vector<std::size_t> active_columns(const Columns& cols) {
+  std::vector<std::size_t> active;
+  for (std::size_t c = 0; c < cols.state.size(); ++c)
+    if (cols.state[c].active) active.push_back(c);
+  return active;
+}
+
+// y = A v for the current basis vector v of every column of `active` (n entries each, in that
+// order), in one product call, counted in the report and checked finite on every rank.
+void multiply(const Communicator& comm, const ColumnsProduct& product, const Columns& cols,
+              const std::vector<std::size_t>& active, std::size_t n, std::vector<double>& y, rpy::SqrtReport& report) {
+  std::vector<double> x(active.size() * n);
+  y.resize(active.size() * n);
+  for (std::size_t a = 0; a < active.size(); ++a) std::copy_n(cols.state[active[a]].process.current(), n, &x[a * n]);
+  product(x.data(), y.data(), active.size());
+  ++report.operator_applications;
+  report.vector_products += static_cast<long long>(active.size());
+  comm.run([&] {
+    rpy::sqrt_detail::require_finite_product(y.data(), n, active.size(), kWhere, report.operator_applications);
+  });
+}
+
+// The report's largest change and any breakdown over the columns, and the inner products' cost.
+void summarize(const Columns& cols, rpy::SqrtReport& report, InnerProductStats* stats) {
+  for (const LanczosRhs& s : cols.state) {
+    report.error_estimate = std::max(report.error_estimate, s.change);
+    report.breakdown = report.breakdown || s.breakdown;
+  }
+  if (stats == nullptr) return;
+  *stats = {};
+  for (const auto& space : cols.spaces) {
+    stats->seconds += space->communication_seconds();
+    stats->exchanges += space->exchanges();
+  }
+}
+
 }  // namespace
 
 rpy::SqrtReport lanczos_columns(const Communicator& comm, std::span<const std::size_t> counts, std::size_t segments,
@@ -99,23 +136,11 @@ rpy::SqrtReport lanczos_columns(const Communicator& comm, std::span<const std::s
   const std::size_t n = 3 * segments * counts[static_cast<std::size_t>(comm.rank())];
   const int max_it = rpy::sqrt_detail::lanczos_max_iterations(options, cols.spaces.front()->n());
   start_columns(cols, n, z, w);
-  std::vector<double> x, y;
-  std::vector<std::size_t> active;
+  std::vector<double> y;
   for (int it = 0; it < max_it; ++it) {
-    active.clear();
-    for (std::size_t c = 0; c < nrhs; ++c)
-      if (cols.state[c].active) active.push_back(c);
+    const std::vector<std::size_t> active = active_columns(cols);
     if (active.empty()) break;
-    // One product call for every column still iterating.
-    x.resize(active.size() * n);
-    y.resize(active.size() * n);
-    for (std::size_t a = 0; a < active.size(); ++a) std::copy_n(cols.state[active[a]].process.current(), n, &x[a * n]);
-    product(x.data(), y.data(), active.size());
-    ++report.operator_applications;
-    report.vector_products += static_cast<long long>(active.size());
-    comm.run([&] {
-      rpy::sqrt_detail::require_finite_product(y.data(), n, active.size(), kWhere, report.operator_applications);
-    });
+    multiply(comm, product, cols, active, n, y, report);
     step_columns(cols, active, y.data(), n);
     for (std::size_t a = 0; a < active.size(); ++a) {
       const std::size_t c = active[a];
@@ -123,17 +148,7 @@ rpy::SqrtReport lanczos_columns(const Communicator& comm, std::span<const std::s
                                               w + c * n, report);
     }
   }
-  for (const LanczosRhs& s : cols.state) {
-    report.error_estimate = std::max(report.error_estimate, s.change);
-    report.breakdown = report.breakdown || s.breakdown;
-  }
-  if (stats != nullptr) {
-    *stats = {};
-    for (const auto& space : cols.spaces) {
-      stats->seconds += space->communication_seconds();
-      stats->exchanges += space->exchanges();
-    }
-  }
+  summarize(cols, report, stats);
   return report;
 }
 
