@@ -16,12 +16,14 @@ namespace {
 constexpr std::size_t kChunk = rpy::sqrt_detail::kReductionChunk;
 constexpr int kTag = 0x4b52;  // the chain of a straddling chunk's sum (collectives do not match it)
 
-// s[q] continued over entries [lo, hi) of x_q . y, as kernels.cpp sums a chunk.
-void continue_sums(std::size_t k, const double* const* x, const double* y, std::size_t lo, std::size_t hi, double* s) {
+// s[q] continued over entries [lo, hi) of x_q . y_q, as kernels.cpp sums a chunk.
+void continue_sums(std::size_t k, const double* const* x, const double* const* y, std::size_t lo, std::size_t hi,
+                   double* s) {
   for (std::size_t q = 0; q < k; ++q) {
     double sum = s[q];
     const double* xq = x[q];
-    for (std::size_t i = lo; i < hi; ++i) sum += xq[i] * y[i];
+    const double* yq = y[q];
+    for (std::size_t i = lo; i < hi; ++i) sum += xq[i] * yq[i];
     s[q] = sum;
   }
 }
@@ -67,7 +69,7 @@ DistributedKrylovSpace::DistributedKrylovSpace(const Communicator& comm, std::sp
   for (int r : owner) chunk_slot_.push_back(next_slot[static_cast<std::size_t>(r)]++);
 }
 
-std::vector<double> DistributedKrylovSpace::chunk_sums(std::size_t k, const double* const* x, const double* y) {
+std::vector<double> DistributedKrylovSpace::chunk_sums(std::size_t k, const double* const* x, const double* const* y) {
   std::vector<double> mine;
   std::vector<std::vector<double>> sent;  // at most one per share
   std::vector<MPI_Request> sends;
@@ -79,9 +81,9 @@ std::vector<double> DistributedKrylovSpace::chunk_sums(std::size_t k, const doub
   return mine;
 }
 
-void DistributedKrylovSpace::share_sums(const Share& share, std::size_t k, const double* const* x, const double* y,
-                                        std::vector<double>& mine, std::vector<std::vector<double>>& sent,
-                                        std::vector<MPI_Request>& sends) {
+void DistributedKrylovSpace::share_sums(const Share& share, std::size_t k, const double* const* x,
+                                        const double* const* y, std::vector<double>& mine,
+                                        std::vector<std::vector<double>>& sent, std::vector<MPI_Request>& sends) {
   const std::size_t end = share.global + share.n;
   const std::size_t first = share.global / kChunk, last = (end - 1) / kChunk;
   const bool started_before = share.global % kChunk != 0;  // the first chunk began in the previous share
@@ -129,6 +131,7 @@ void DistributedKrylovSpace::share_sums(const Share& share, std::size_t k, const
 
 void DistributedKrylovSpace::sum_chunks(std::size_t k, const std::vector<double>& mine, bool always_fold, double* out) {
   if (k == 0) return;
+  ++exchanges_;
   const auto ranks = finished_.size();
   std::vector<int> counts(ranks), displs(ranks);
   int total = 0;
@@ -157,14 +160,21 @@ void DistributedKrylovSpace::sum_chunks(std::size_t k, const std::vector<double>
 
 double DistributedKrylovSpace::dot(const double* x, const double* y) {
   double out = 0.0;
-  sum_chunks(1, chunk_sums(1, &x, y), false, &out);
+  sum_chunks(1, chunk_sums(1, &x, &y), false, &out);
   return out;
 }
 
 void DistributedKrylovSpace::dots(std::size_t k, const double* y, double* h) {
   std::vector<const double*> v(k);
   for (std::size_t q = 0; q < k; ++q) v[q] = local_.vector(q);
-  sum_chunks(k, chunk_sums(k, v.data(), y), true, h);
+  const std::vector<const double*> ys(k, y);
+  sum_chunks(k, chunk_sums(k, v.data(), ys.data()), true, h);
+}
+
+void DistributedKrylovSpace::pair_dots(std::size_t k, const double* const* x, const double* const* y, double* out) {
+  // Folded always, as dots: a chunk sum starts from +0.0 and so is never -0.0, and 0.0 + s is s
+  // bit for bit, so a single chunk's value is also dot's.
+  sum_chunks(k, chunk_sums(k, x, y), true, out);
 }
 
 void DistributedKrylovSpace::require_finite(const double* y, const char* where, long long product) {

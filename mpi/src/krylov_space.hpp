@@ -47,8 +47,17 @@ class DistributedKrylovSpace final : public rpy::sqrt_detail::KrylovSpace {
   void combine(std::size_t k, const double* c, double* out) override { local_.combine(k, c, out); }
   void require_finite(const double* y, const char* where, long long product) override;
 
+  /// out[q] = x_q . y_q for k pairs of global vectors of this space's layout (any memory of this
+  /// rank's length, not only the basis), each bit for bit dot(x_q, y_q), all in one exchange: one
+  /// chain of the partial chunk sums and one MPI_Allgatherv whatever k. The samplers of several
+  /// right-hand sides reduce the inner products of all their columns' spaces (one per column,
+  /// all of one layout) with it (docs/mpi.md, "Samplers").
+  void pair_dots(std::size_t k, const double* const* x, const double* const* y, double* out);
+
   /// This rank's time in the MPI calls of the inner products.
   [[nodiscard]] double communication_seconds() const { return seconds_; }
+  /// The exchanges of inner products (each one MPI_Allgatherv of the chunk sums) so far.
+  [[nodiscard]] long long exchanges() const { return exchanges_; }
 
  private:
   // This rank's share of one segment: its entries [global, global + n) of the global vector,
@@ -58,12 +67,12 @@ class DistributedKrylovSpace final : public rpy::sqrt_detail::KrylovSpace {
     std::size_t global = 0, local = 0, n = 0;
     int previous = -1, next = -1;
   };
-  // The chunk sums of x_q . y (q < k) that end in this rank's shares, in chunk order, q fastest;
+  // The chunk sums of x_q . y_q (q < k) that end in this rank's shares, in chunk order, q fastest;
   // the sum of a chunk that goes on past a share is sent to the holder of the next one instead.
-  std::vector<double> chunk_sums(std::size_t k, const double* const* x, const double* y);
+  std::vector<double> chunk_sums(std::size_t k, const double* const* x, const double* const* y);
   // The same for one share; `sends` keeps the sent sums and requests until they are complete.
-  void share_sums(const Share& share, std::size_t k, const double* const* x, const double* y, std::vector<double>& mine,
-                  std::vector<std::vector<double>>& sent, std::vector<MPI_Request>& sends);
+  void share_sums(const Share& share, std::size_t k, const double* const* x, const double* const* y,
+                  std::vector<double>& mine, std::vector<std::vector<double>>& sent, std::vector<MPI_Request>& sends);
   // out[q] = the serial sum of the chunk sums of all ranks; `always_fold`: also for one chunk
   // (dots adds it to 0, dot returns it).
   void sum_chunks(std::size_t k, const std::vector<double>& mine, bool always_fold, double* out);
@@ -82,6 +91,7 @@ class DistributedKrylovSpace final : public rpy::sqrt_detail::KrylovSpace {
   std::vector<int> finished_;            // chunks that end on each rank
   std::vector<std::size_t> chunk_slot_;  // chunk c's place among the gathered chunk sums
   double seconds_ = 0.0;
+  long long exchanges_ = 0;
 };
 
 }  // namespace rpyfmm::mpi

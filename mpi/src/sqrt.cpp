@@ -13,6 +13,7 @@
 // KrylovSpace and the load checks, so that the distributed samplers are the serial ones, on a
 // distributed basis.
 #include "krylov_space.hpp"
+#include "lanczos_columns.hpp"
 #include "load_scaling.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/block_preconditioner.hpp"
@@ -45,17 +46,18 @@ void check_options(const rpy::SqrtOptions& options, const char* where) {
   if (method == rpy::SqrtMethod::chebyshev) rpy::sqrt_detail::require_chebyshev_bounds(options, where);
 }
 
-// What steers the iteration must be the same on every rank, or the ranks would part ways.
-void require_same_options(const Communicator& comm, const rpy::SqrtOptions& o, const char* where) {
-  const bool same =
-      same_on_every_rank(comm, {static_cast<double>(o.method), static_cast<double>(o.preconditioner), o.tolerance,
-                                static_cast<double>(o.max_iterations), o.reorthogonalize ? 1.0 : 0.0,
-                                o.throw_if_not_converged ? 1.0 : 0.0, static_cast<double>(o.preconditioner_block),
-                                o.lambda_min, o.lambda_max, static_cast<double>(o.bound_estimate_iterations)});
+// What steers the iteration must be the same on every rank, or the ranks would part ways: the
+// options and the number of right-hand sides.
+void require_same_options(const Communicator& comm, const rpy::SqrtOptions& o, std::size_t nrhs, const char* where) {
+  const bool same = same_on_every_rank(
+      comm, {static_cast<double>(o.method), static_cast<double>(o.preconditioner), o.tolerance,
+             static_cast<double>(o.max_iterations), o.reorthogonalize ? 1.0 : 0.0, o.throw_if_not_converged ? 1.0 : 0.0,
+             static_cast<double>(o.preconditioner_block), o.lambda_min, o.lambda_max,
+             static_cast<double>(o.bound_estimate_iterations), static_cast<double>(nrhs)});
   require(same, ErrorCode::invalid_argument, where,
           "the ranks pass different options (method, preconditioner, tolerance, max_iterations, reorthogonalize, "
-          "throw_if_not_converged, preconditioner_block, lambda_min, lambda_max or bound_estimate_iterations); "
-          "every rank must pass the same ones");
+          "throw_if_not_converged, preconditioner_block, lambda_min, lambda_max or bound_estimate_iterations) "
+          "or numbers of right-hand sides; every rank must pass the same ones");
 }
 
 // automatic: Lanczos without the preconditioner (block would make the sample depend on the
@@ -73,22 +75,36 @@ struct NamedArray {
   std::span<const double> values;
 };
 
+// The array sizes of a call with nrhs right-hand sides of n = 3 op.local_size() entries each.
+void check_sizes(std::initializer_list<NamedArray> arrays, std::size_t n, std::size_t nrhs, const char* where) {
+  require(nrhs > 0, ErrorCode::invalid_argument, where, "number of right-hand sides (nrhs) must be > 0");
+  for (const NamedArray& a : arrays) {
+    require(a.values.size() == n * nrhs, ErrorCode::invalid_input, where,
+            std::string(a.name) + " has " + std::to_string(a.values.size()) + " entries, expected " +
+                std::to_string(n * nrhs) +
+                (nrhs > 1 ? " (nrhs " + std::to_string(nrhs) + " x " + std::to_string(n) +
+                                ": 3 entries per particle of this rank)"
+                          : ""));
+  }
+}
+
 // The collective checks of a sampler's call (`where`): positions set, every input and output of
-// n = 3 op.local_size() entries, the inputs finite, the options valid and the same on every rank.
-// Returns the resolved options.
+// nrhs x 3 op.local_size() entries, the inputs finite, the options valid, and the options and
+// nrhs the same on every rank. Returns the resolved options.
 template <class Operator>
 rpy::SqrtOptions checked_call(const Operator& op, const char* where, std::initializer_list<NamedArray> inputs,
-                              std::initializer_list<NamedArray> outputs, const rpy::SqrtOptions& options) {
+                              std::initializer_list<NamedArray> outputs, const rpy::SqrtOptions& options,
+                              std::size_t nrhs = 1) {
   const Communicator& comm = op.communicator();
   require(op.global_size() > 0, ErrorCode::invalid_input, where, "positions not set (call set_positions first)");
   const std::size_t n = 3 * op.local_size();
   comm.run([&] {
     check_options(options, where);
-    for (const NamedArray& a : inputs) require_size(a.values, n, where, a.name);
-    for (const NamedArray& a : outputs) require_size(a.values, n, where, a.name);
+    check_sizes(inputs, n, nrhs, where);
+    check_sizes(outputs, n, nrhs, where);
     for (const NamedArray& a : inputs) require_finite(a.values, where, a.name, 3);
   });
-  require_same_options(comm, options, where);
+  require_same_options(comm, options, nrhs, where);
   return resolved(options);
 }
 
@@ -119,26 +135,30 @@ void fill_normal(std::span<double> local_z, std::size_t offset, std::uint64_t se
 
 namespace {
 
-// The Chebyshev square root (rpy/src/sqrt/chebyshev.cpp) on this rank's shares of `segments`
-// segments of 3 op.local_size() entries each: the bound estimate's Lanczos steps in the
-// distributed space, from the serial start vector's shares.
+// The Chebyshev square root (rpy/src/sqrt/chebyshev.cpp) on this rank's shares of nrhs columns
+// of `segments` segments of 3 op.local_size() entries each: the bound estimate's Lanczos steps in
+// the distributed space, from the serial start vector's shares, once for every column (the bounds
+// do not depend on z); then the recurrence on all the columns, one product call per degree.
 template <class Operator>
-rpy::SqrtReport chebyshev_across_ranks(DistributedKrylovSpace& space, const rpy::sqrt_detail::KrylovProduct& product,
-                                       const Operator& op, std::size_t segments, const double* z, double* w,
-                                       const rpy::SqrtOptions& options) {
+rpy::SqrtReport chebyshev_across_ranks(DistributedKrylovSpace& space, const detail::ColumnsProduct& product,
+                                       const Operator& op, std::size_t segments, std::size_t nrhs, const double* z,
+                                       double* w, const rpy::SqrtOptions& options) {
   const std::size_t n = 3 * op.local_size();
+  const auto all = [&](const double* x, double* y, rpy::SqrtReport& report) {
+    product(x, y, nrhs);
+    ++report.operator_applications;
+    report.vector_products += static_cast<long long>(nrhs);
+    op.communicator().run([&] {
+      rpy::sqrt_detail::require_finite_product(y, segments * n, nrhs, "sqrt_apply(chebyshev)",
+                                               report.operator_applications);
+    });
+  };
   const rpy::sqrt_detail::ChebyshevProducts products{space,
-                                                     product,
+                                                     [&product](const double* x, double* y) { product(x, y, 1); },
                                                      3 * op.offset(),
                                                      n,
-                                                     [&](const double* x, double* y, rpy::SqrtReport& report) {
-                                                       product(x, y);
-                                                       ++report.operator_applications;
-                                                       ++report.vector_products;
-                                                       space.require_finite(y, "sqrt_apply(chebyshev)",
-                                                                            report.operator_applications);
-                                                     },
-                                                     segments * n,
+                                                     all,
+                                                     segments * n * nrhs,
                                                      segments,
                                                      3 * op.global_size()};
   return rpy::sqrt_detail::chebyshev_sqrt_in_space(products, z, w, options);
@@ -166,15 +186,15 @@ rpy::BlockPreconditioner local_blocks(const Operator& op, const rpy::SqrtOptions
 }
 
 // The Krylov samplers on a distributed operator, DistributedDirectRpy or DistributedFmmRpy (the
-// same interface), w = m^{1/2} z for `m` the product on this rank's share: M (3 op.local_size()
-// entries), or with rotation S M S on [x_t; x_r] (twice that; `matrix` scaled_grand). With the
-// block preconditioner G = L^{-1} of this rank's blocks of `matrix` they run on A = G m G^T (G
-// applied to this rank's share alone: no communication) and return w = G^{-1} A^{1/2} z, as
-// BlockPreconditioner::sample does.
+// same interface), w_c = m^{1/2} z_c for the nrhs columns of z and w, `m` the product on this
+// rank's share: M (3 op.local_size() entries), or with rotation S M S on [x_t; x_r] (twice that;
+// `matrix` scaled_grand). With the block preconditioner G = L^{-1} of this rank's blocks of
+// `matrix` they run on A = G m G^T (G applied to this rank's share alone: no communication) and
+// return w = G^{-1} A^{1/2} z, as BlockPreconditioner::sample does.
 template <class Operator>
 rpy::SqrtReport sample_across_ranks(const Operator& op, const rpy::LinearOperatorView& m,
-                                    rpy::PreconditionedMatrix matrix, const double* z, double* w,
-                                    const rpy::SqrtOptions& r, double* inner_products_seconds) {
+                                    rpy::PreconditionedMatrix matrix, std::size_t nrhs, const double* z, double* w,
+                                    const rpy::SqrtOptions& r, InnerProductStats* stats) {
   const Communicator& comm = op.communicator();
   const std::size_t segments = matrix == rpy::PreconditionedMatrix::scaled_grand ? 2 : 1;
   std::optional<rpy::BlockPreconditioner> blocks;
@@ -182,30 +202,51 @@ rpy::SqrtReport sample_across_ranks(const Operator& op, const rpy::LinearOperato
     comm.run([&] { blocks.emplace(local_blocks(op, r, matrix)); });
   }
   const rpy::LinearOperatorView a = blocks ? blocks->precondition(m) : m;
-  const rpy::sqrt_detail::KrylovProduct product = [&a](const double* x, double* y) {
-    a.apply(std::span<const double>(x, a.n), std::span<double>(y, a.n), 1);
+  const detail::ColumnsProduct product = [&a](const double* x, double* y, std::size_t k) {
+    a.apply(std::span<const double>(x, k * a.n), std::span<double>(y, k * a.n), k);
   };
-  DistributedKrylovSpace space(comm, op.counts(), segments);
-  rpy::SqrtReport report = r.method == rpy::SqrtMethod::chebyshev
-                               ? chebyshev_across_ranks(space, product, op, segments, z, w, r)
-                               : rpy::sqrt_detail::lanczos_sqrt_in_space(space, product, z, w, r);
+  rpy::SqrtReport report;
+  if (r.method == rpy::SqrtMethod::chebyshev) {
+    DistributedKrylovSpace space(comm, op.counts(), segments);
+    report = chebyshev_across_ranks(space, product, op, segments, nrhs, z, w, r);
+    if (stats != nullptr) *stats = {space.communication_seconds(), space.exchanges()};
+  } else {
+    report = detail::lanczos_columns(comm, op.counts(), segments, product, nrhs, z, w, r, stats);
+  }
   if (blocks) {
-    blocks->solve_g(w);
+    for (std::size_t c = 0; c < nrhs; ++c) blocks->solve_g(w + c * a.n);
     report.preconditioner_blocks = global_count(comm, blocks->blocks());
   }
-  if (inner_products_seconds != nullptr) *inner_products_seconds = space.communication_seconds();
   return report;
 }
 
-// sqrt_apply: this rank's share of w = M^{1/2} z (or the preconditioned sample).
+// `sample(stats)`, and its inner products' time into `seconds` where not null (the
+// inner_products_seconds of the samplers of one right-hand side).
+template <class Sample>
+rpy::SqrtReport with_seconds(double* seconds, Sample&& sample) {
+  InnerProductStats stats;
+  const rpy::SqrtReport report = sample(&stats);
+  if (seconds != nullptr) *seconds = stats.seconds;
+  return report;
+}
+
+// sqrt_apply: this rank's shares of w_c = M^{1/2} z_c (or the preconditioned sample) for nrhs
+// columns.
 template <class Operator>
 rpy::SqrtReport translation_sample(const Operator& op, std::span<const double> local_z, std::span<double> local_w,
-                                   const rpy::SqrtOptions& options, double* inner_products_seconds) {
-  const rpy::SqrtOptions r = checked_call(op, kWhere, {{"local noise", local_z}}, {{"local output", local_w}}, options);
-  const rpy::LinearOperatorView m{
-      3 * op.local_size(), [&op](std::span<const double> x, std::span<double> y, std::size_t) { op.apply(x, y); }};
-  const rpy::SqrtReport report = sample_across_ranks(op, m, rpy::PreconditionedMatrix::translation, local_z.data(),
-                                                     local_w.data(), r, inner_products_seconds);
+                                   std::size_t nrhs, const rpy::SqrtOptions& options, InnerProductStats* stats) {
+  const rpy::SqrtOptions r =
+      checked_call(op, kWhere, {{"local noise", local_z}}, {{"local output", local_w}}, options, nrhs);
+  const rpy::LinearOperatorView m{3 * op.local_size(),
+                                  [&op](std::span<const double> x, std::span<double> y, std::size_t k) {
+                                    if (k == 1) {
+                                      op.apply(x, y);
+                                    } else {
+                                      op.apply_block(x, y, k);
+                                    }
+                                  }};
+  const rpy::SqrtReport report = sample_across_ranks(op, m, rpy::PreconditionedMatrix::translation, nrhs,
+                                                     local_z.data(), local_w.data(), r, stats);
   require_finite_outputs(op.communicator(), kWhere, {{"local output", local_w}});
   return report;
 }
@@ -242,8 +283,10 @@ rpy::SqrtReport rotation_sample(const Operator& op, std::span<const double> loca
   std::vector<double> z(2 * n), w(2 * n);
   std::copy(local_z_t.begin(), local_z_t.end(), z.begin());
   std::copy(local_z_r.begin(), local_z_r.end(), z.begin() + static_cast<std::ptrdiff_t>(n));
-  const rpy::SqrtReport report = sample_across_ranks(op, scaled_grand(op), rpy::PreconditionedMatrix::scaled_grand,
-                                                     z.data(), w.data(), r, inner_products_seconds);
+  const rpy::SqrtReport report = with_seconds(inner_products_seconds, [&](InnerProductStats* stats) {
+    return sample_across_ranks(op, scaled_grand(op), rpy::PreconditionedMatrix::scaled_grand, 1, z.data(), w.data(), r,
+                               stats);
+  });
   const std::span<const double> a = op.local_radii();
   for (std::size_t k = 0; k < n; ++k) {
     local_w_t[k] = w[k];
@@ -257,12 +300,26 @@ rpy::SqrtReport rotation_sample(const Operator& op, std::span<const double> loca
 
 rpy::SqrtReport sqrt_apply(const DistributedDirectRpy& op, std::span<const double> local_z, std::span<double> local_w,
                            const rpy::SqrtOptions& options, double* inner_products_seconds) {
-  return translation_sample(op, local_z, local_w, options, inner_products_seconds);
+  return with_seconds(inner_products_seconds, [&](InnerProductStats* stats) {
+    return translation_sample(op, local_z, local_w, 1, options, stats);
+  });
 }
 
 rpy::SqrtReport sqrt_apply(const DistributedFmmRpy& op, std::span<const double> local_z, std::span<double> local_w,
                            const rpy::SqrtOptions& options, double* inner_products_seconds) {
-  return translation_sample(op, local_z, local_w, options, inner_products_seconds);
+  return with_seconds(inner_products_seconds, [&](InnerProductStats* stats) {
+    return translation_sample(op, local_z, local_w, 1, options, stats);
+  });
+}
+
+rpy::SqrtReport sqrt_apply(const DistributedDirectRpy& op, std::span<const double> local_z, std::span<double> local_w,
+                           std::size_t nrhs, const rpy::SqrtOptions& options, InnerProductStats* stats) {
+  return translation_sample(op, local_z, local_w, nrhs, options, stats);
+}
+
+rpy::SqrtReport sqrt_apply(const DistributedFmmRpy& op, std::span<const double> local_z, std::span<double> local_w,
+                           std::size_t nrhs, const rpy::SqrtOptions& options, InnerProductStats* stats) {
+  return translation_sample(op, local_z, local_w, nrhs, options, stats);
 }
 
 rpy::SqrtReport sqrt_apply_rotation(const DistributedDirectRpy& op, std::span<const double> local_z_translation,

@@ -36,6 +36,7 @@
 #include "rpyfmm/rpy/random.hpp"
 #include "rpyfmm/rpy/sqrt.hpp"
 #include "sqrt/detail.hpp"
+#include "sqrt_test_support.hpp"
 #include "sqrt_test_util.hpp"
 
 using rpyfmm::ErrorCode;
@@ -51,14 +52,6 @@ using namespace rpyfmm_mpi_test;
 
 namespace {
 
-SqrtOptions sampler(SqrtMethod method, SqrtPreconditioner preconditioner, double tolerance) {
-  SqrtOptions o;
-  o.method = method;
-  o.preconditioner = preconditioner;
-  o.tolerance = tolerance;
-  return o;
-}
-
 SqrtOptions lanczos(double tolerance) {
   return sampler(SqrtMethod::lanczos, SqrtPreconditioner::none, tolerance);
 }
@@ -68,36 +61,6 @@ SqrtOptions lanczos(double tolerance) {
 // Chebyshev within 1.5 x (its error bound holds when the estimated bounds enclose the spectrum).
 double slack(SqrtMethod method) {
   return method == SqrtMethod::lanczos ? 10.0 : 1.5;
-}
-
-// The whole set on one rank: the serial DirectRpy and the noise of (seed, step).
-struct WholeSet {
-  DirectRpy op{Geometry::open(), kViscosity};
-  std::vector<double> z;
-  WholeSet(const Particles& p, std::uint64_t seed, std::uint64_t step) : z(3 * p.size()) {
-    op.set_positions(p.x, p.a);
-    rpyfmm::rpy::fill_normal(z, seed, step);
-  }
-};
-
-double relative_difference(const std::vector<double>& a, const std::vector<double>& b) {
-  double d = 0.0, s = 0.0;
-  for (std::size_t i = 0; i < a.size(); ++i) d += (a[i] - b[i]) * (a[i] - b[i]), s += b[i] * b[i];
-  return std::sqrt(d / s);
-}
-
-// The whole vector from every rank's share (in rank order), on every rank.
-std::vector<double> all_gather(const std::vector<double>& local) {
-  const int ranks = world_size();
-  int mine = static_cast<int>(local.size());
-  std::vector<int> counts(static_cast<std::size_t>(ranks)), displs(static_cast<std::size_t>(ranks));
-  MPI_Allgather(&mine, 1, MPI_INT, counts.data(), 1, MPI_INT, MPI_COMM_WORLD);
-  int total = 0;
-  for (int r = 0; r < ranks; ++r)
-    displs[static_cast<std::size_t>(r)] = total, total += counts[static_cast<std::size_t>(r)];
-  std::vector<double> all(static_cast<std::size_t>(total));
-  MPI_Allgatherv(local.data(), mine, MPI_DOUBLE, all.data(), counts.data(), displs.data(), MPI_DOUBLE, MPI_COMM_WORLD);
-  return all;
 }
 
 }  // namespace
@@ -545,11 +508,6 @@ std::pair<GrandVectors, SqrtReport> distributed_rotation(const Operator& op, con
   return {w, report};
 }
 
-// This rank's share `part` of the positions and radii of `p` on a DistributedDirectRpy.
-void place(DistributedDirectRpy& op, const Particles& p, const Partition& part) {
-  op.set_positions(share(p.x, 3, part.offset, part.n), share(p.a, 1, part.offset, part.n));
-}
-
 // The distributed sampler with rotation on DistributedDirectRpy, `p` split by every split, against
 // the serial DirectRpy::apply_sqrt_rotation on the whole set bit for bit: the same iterations,
 // products, bounds and both halves of w, and the same bits again on a second call.
@@ -876,11 +834,9 @@ TEST(MpiDistributedSqrt, RotationOnFmmAgreesWithDenseScaledRoot) {
 
 TEST(MpiDistributedSqrt, RotationBadInputOnOneRankFailsEveryRank) {
   const int last = world_size() - 1;
-  const Particles p = uniform_particles(40, 10.0, 1.0, 1.0, 62);
-  const Partition part = partition_of(p.size(), Split::even);
-  DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
-  place(op, p, part);
-  const std::size_t n = 3 * part.n;
+  BadInputSet set;
+  const DistributedDirectRpy& op = set.op;
+  const std::size_t n = 3 * set.part.n;
   std::vector<double> zt(n, 1.0), zr(n, 1.0), wt(n), wr(n);
   std::vector<double> bad = zr, long_output(n + (world_rank() == last ? 3 : 0));
   if (world_rank() == last) bad[4] = std::numeric_limits<double>::quiet_NaN();

@@ -12,54 +12,82 @@
 
 namespace rpyfmm::rpy::sqrt_detail {
 
-double LanczosProcess::start(const double* z) {
+double LanczosProcess::start(const double* z, double zz) {
   space_->clear();
   alpha_.clear();
   beta_.clear();
   tnorm_ = 0.0;
-  const double nz = std::sqrt(space_->dot(z, z));
+  const double nz = std::sqrt(zz);
   if (nz == 0.0) return 0.0;
   space_->scale_into(1.0 / nz, z, space_->push());
   return nz;
 }
 
 bool LanczosProcess::step(double* y, const std::string& where, std::size_t rhs) {
-  const std::size_t j = alpha_.size();
-  const std::size_t k = space_->basis_size();  // j + 1
-  const double* v = space_->vector(j);
+  std::vector<double> values;
+  for (Need need = begin_step(y); need.kind != Need::none; need = continue_step(values.data(), where, rhs)) {
+    values.resize(std::max<std::size_t>(need.k, 1));
+    if (need.kind == Need::basis) {
+      space_->dots(need.k, y, values.data());
+    } else {
+      values[0] = space_->dot(need.kind == Need::self ? y : space_->vector(alpha_.size()), y);
+    }
+  }
+  return breakdown_;
+}
+
+LanczosProcess::Need LanczosProcess::begin_step(double* y) {
+  y_ = y;
+  stage_ = Stage::first;
   // With reorthogonalization, h = V^T y in one pass; its last entry is alpha_j = v_j . y (bit
   // for bit dot(v_j, y)).
-  std::vector<double> h(reorthogonalize_ ? k : 0);
-  if (reorthogonalize_) space_->dots(k, y, h.data());
-  const double a = reorthogonalize_ ? h[j] : space_->dot(v, y);
-  // alpha_j = v_j^T M v_j is a Rayleigh quotient: <= 0 proves M is not SPD.
-  if (!(a > 0.0)) {
-    std::ostringstream msg;
-    msg << "the operator is not positive definite: Lanczos coefficient alpha_" << j << " = v^T M v = " << a
-        << " <= 0 at iteration " << j << " (right-hand side " << rhs << ")";
-    fail(ErrorCode::numerical_failure, where, msg.str());
-  }
-  alpha_.push_back(a);
-  if (reorthogonalize_) {
-    // Full reorthogonalization by classical Gram-Schmidt, twice ("twice is enough": Giraud,
-    // Langou & Rozloznik, Comput. Math. Appl. 50 (2005) 1069): the first pass, y -= V (V^T y),
-    // holds the three-term step (alpha_j v_j + beta_{j-1} v_{j-1}) and the reorthogonalization
-    // against the older vectors at once. Each pass reads y and the basis once for the
-    // products and once for the update, against five vector passes per basis vector for
-    // modified Gram-Schmidt (docs/theory/samplers.md).
-    space_->subtract_combination(k, h.data(), y);
-    space_->dots(k, y, h.data());
-    space_->subtract_combination(k, h.data(), y);
-  } else {
-    space_->axpy(-a, v, y);
+  if (reorthogonalize_) return {Need::basis, space_->basis_size()};
+  return {Need::current, 1};
+}
+
+LanczosProcess::Need LanczosProcess::continue_step(const double* values, const std::string& where, std::size_t rhs) {
+  const std::size_t j = alpha_.size();
+  const std::size_t k = space_->basis_size();  // j + 1
+  double* y = y_;
+  if (stage_ == Stage::first) {
+    const double a = reorthogonalize_ ? values[j] : values[0];
+    // alpha_j = v_j^T M v_j is a Rayleigh quotient: <= 0 proves M is not SPD.
+    if (!(a > 0.0)) {
+      std::ostringstream msg;
+      msg << "the operator is not positive definite: Lanczos coefficient alpha_" << j << " = v^T M v = " << a
+          << " <= 0 at iteration " << j << " (right-hand side " << rhs << ")";
+      fail(ErrorCode::numerical_failure, where, msg.str());
+    }
+    alpha_.push_back(a);
+    if (reorthogonalize_) {
+      // Full reorthogonalization by classical Gram-Schmidt, twice ("twice is enough": Giraud,
+      // Langou & Rozloznik, Comput. Math. Appl. 50 (2005) 1069): the first pass, y -= V (V^T y),
+      // holds the three-term step (alpha_j v_j + beta_{j-1} v_{j-1}) and the reorthogonalization
+      // against the older vectors at once. Each pass reads y and the basis once for the
+      // products and once for the update, against five vector passes per basis vector for
+      // modified Gram-Schmidt (docs/theory/samplers.md).
+      space_->subtract_combination(k, values, y);
+      stage_ = Stage::second_pass;
+      return {Need::basis, k};
+    }
+    space_->axpy(-a, space_->vector(j), y);
     if (j > 0) space_->axpy(-beta_[j - 1], space_->vector(j - 1), y);
+    stage_ = Stage::norm;
+    return {Need::self, 1};
   }
-  const double b = std::sqrt(space_->dot(y, y));
-  tnorm_ = std::max(tnorm_, std::abs(a) + 2.0 * std::max(b, j > 0 ? beta_[j - 1] : 0.0));
+  if (stage_ == Stage::second_pass) {
+    space_->subtract_combination(k, values, y);
+    stage_ = Stage::norm;
+    return {Need::self, 1};
+  }
+  const std::size_t jj = j - 1;  // alpha_j was pushed in the first stage
+  const double a = alpha_.back();
+  const double b = std::sqrt(values[0]);
+  tnorm_ = std::max(tnorm_, std::abs(a) + 2.0 * std::max(b, jj > 0 ? beta_[jj - 1] : 0.0));
   beta_.push_back(b);
-  if (b <= breakdown_tol * tnorm_ || j + 1 >= n_) return true;  // invariant subspace: T_m is exact
-  space_->scale_into(1.0 / b, y, space_->push());
-  return false;
+  breakdown_ = b <= breakdown_tol * tnorm_ || jj + 1 >= n_;  // invariant subspace: T_m is exact
+  if (!breakdown_) space_->scale_into(1.0 / b, y, space_->push());
+  return {};
 }
 
 void LanczosProcess::combine(const Eigen::VectorXd& coeff, double* out) const {

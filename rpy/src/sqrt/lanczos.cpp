@@ -29,15 +29,6 @@ namespace {
 
 constexpr const char* kWhere = "sqrt_apply(lanczos)";
 
-struct RhsState {
-  LanczosProcess process;
-  double znorm = 0.0;
-  Eigen::VectorXd coeff;  // c_m = |z| T_m^{1/2} e_1
-  double change = 0.0;    // last relative change
-  bool active = true;
-  bool breakdown = false;
-};
-
 /// c = |z| T^{1/2} e_1; throws if a Ritz value is <= 0 (M not SPD).
 Eigen::VectorXd sqrt_coefficients(const LanczosProcess& p, double znorm, std::size_t rhs) {
   const int m = p.size();
@@ -56,12 +47,10 @@ Eigen::VectorXd sqrt_coefficients(const LanczosProcess& p, double znorm, std::si
   return znorm * (Q * weights);
 }
 
-/// After the product y = M v_j of right-hand side k at iteration `it`: one Lanczos step, the new
-/// coefficients and the stopping test. When this right-hand side is done (converged, broken down
-/// or out of iterations), writes its w (in the process's memory) and marks it inactive.
-void advance(RhsState& s, double* y, int it, int max_it, const SqrtOptions& options, std::size_t k, double* w,
-             SqrtReport& report) {
-  const bool breakdown = s.process.step(y, kWhere, k);
+}  // namespace
+
+void conclude_lanczos_step(LanczosRhs& s, bool breakdown, int it, int max_it, const SqrtOptions& options, std::size_t k,
+                           double* w, SqrtReport& report) {
   Eigen::VectorXd c = sqrt_coefficients(s.process, s.znorm, k);
   if (s.coeff.size() > 0) {
     Eigen::VectorXd prev = Eigen::VectorXd::Zero(c.size());
@@ -90,18 +79,27 @@ void advance(RhsState& s, double* y, int it, int max_it, const SqrtOptions& opti
   }
 }
 
-int max_iterations(const SqrtOptions& options, std::size_t n) {
-  return options.max_iterations > 0 ? options.max_iterations : static_cast<int>(std::min<std::size_t>(n, 500));
+namespace {
+
+/// After the product y = M v_j of right-hand side k at iteration `it`: one Lanczos step, then
+/// conclude_lanczos_step.
+void advance(LanczosRhs& s, double* y, int it, int max_it, const SqrtOptions& options, std::size_t k, double* w,
+             SqrtReport& report) {
+  conclude_lanczos_step(s, s.process.step(y, kWhere, k), it, max_it, options, k, w, report);
 }
 
 }  // namespace
+
+int lanczos_max_iterations(const SqrtOptions& options, std::size_t n) {
+  return options.max_iterations > 0 ? options.max_iterations : static_cast<int>(std::min<std::size_t>(n, 500));
+}
 
 SqrtReport lanczos_sqrt_in_space(KrylovSpace& space, const KrylovProduct& product, const double* z, double* w,
                                  const SqrtOptions& options, const double* first_product) {
   SqrtReport report;
   report.method = SqrtMethod::lanczos;
-  const int max_it = max_iterations(options, space.n());
-  RhsState s{LanczosProcess(space, options.reorthogonalize), 0.0, {}, 0.0, true, false};
+  const int max_it = lanczos_max_iterations(options, space.n());
+  LanczosRhs s{LanczosProcess(space, options.reorthogonalize), 0.0, {}, 0.0, true, false};
   s.znorm = s.process.start(z);
   if (s.znorm == 0.0) {  // M^{1/2} 0 = 0 exactly
     space.combine(0, nullptr, w);
@@ -139,12 +137,12 @@ SqrtReport lanczos_sqrt(const LinearOperatorView& op, std::span<const double> z,
   }
   SqrtReport report;
   report.method = SqrtMethod::lanczos;
-  const int max_it = max_iterations(options, n);
+  const int max_it = lanczos_max_iterations(options, n);
 
-  std::vector<RhsState> state;
+  std::vector<LanczosRhs> state;
   state.reserve(nrhs);
   for (std::size_t k = 0; k < nrhs; ++k) {
-    state.push_back(RhsState{LanczosProcess(n, options.reorthogonalize), 0.0, {}, 0.0, true, false});
+    state.push_back(LanczosRhs{LanczosProcess(n, options.reorthogonalize), 0.0, {}, 0.0, true, false});
     state[k].znorm = state[k].process.start(&z[k * n]);
     if (state[k].znorm == 0.0) {  // M^{1/2} 0 = 0 exactly
       std::fill(&w[k * n], &w[k * n] + n, 0.0);

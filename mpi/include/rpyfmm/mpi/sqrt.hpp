@@ -59,6 +59,37 @@ rpy::SqrtReport sqrt_apply(const DistributedDirectRpy& op, std::span<const doubl
 rpy::SqrtReport sqrt_apply(const DistributedFmmRpy& op, std::span<const double> local_z, std::span<double> local_w,
                            const rpy::SqrtOptions& options, double* inner_products_seconds = nullptr);
 
+/// What a sampler's inner products cost this rank: its time in their MPI calls, and their
+/// exchanges, each one MPI_Allgatherv of chunk sums (after a point-to-point chain where a chunk
+/// straddles ranks: mpi/src/krylov_space.hpp). A Lanczos step with reorthogonalization takes three
+/// exchanges (alpha and the first Gram-Schmidt pass, the second pass, the norm), without it two;
+/// the start one. The same counts serve every column of a call with several right-hand sides.
+struct InnerProductStats {
+  double seconds = 0.0;
+  long long exchanges = 0;
+};
+
+/// Collective. The same samplers for nrhs right-hand sides in one call, as rpy::sqrt_apply's block
+/// variant: local_z and local_w hold nrhs vectors of 3 op.local_size() entries one after another
+/// (apply_block's layout). Lanczos: each column runs its own Krylov process and stopping test (a
+/// column that converged stops changing), each iteration multiplies the columns still iterating in
+/// one op.apply_block, and each stage of their steps' inner products is one exchange for all of
+/// them, so a call takes as many exchanges as the column with the most iterations would alone.
+/// Chebyshev: one bound estimate (the bounds do not depend on z) and the recurrence on all columns,
+/// one op.apply_block per degree. Column c of w is, bit for bit, what sqrt_apply gives on column c
+/// alone (apply_block is apply on every column bit for bit), with or without the block
+/// preconditioner. The report aggregates as the serial block variant's: iterations and
+/// error_estimate the largest over the columns, operator_applications the product calls (the bound
+/// estimate's included), vector_products the columns multiplied. Throws rpyfmm::Error on every
+/// rank, as sqrt_apply does, and where nrhs is 0, differs between the ranks, or an array is not
+/// nrhs x 3 op.local_size() entries. With rotation (sqrt_apply_rotation) one right-hand side per
+/// call only. `stats`, where not null, receives the inner products' cost (the products' own MPI
+/// time: op.communication().applies_seconds).
+rpy::SqrtReport sqrt_apply(const DistributedDirectRpy& op, std::span<const double> local_z, std::span<double> local_w,
+                           std::size_t nrhs, const rpy::SqrtOptions& options, InnerProductStats* stats = nullptr);
+rpy::SqrtReport sqrt_apply(const DistributedFmmRpy& op, std::span<const double> local_z, std::span<double> local_w,
+                           std::size_t nrhs, const rpy::SqrtOptions& options, InnerProductStats* stats = nullptr);
+
 /// Collective. [w_t; w_r] = S^{-1} (S M S)^{1/2} [z_t; z_r] on this rank's share (each array
 /// 3 op.local_size() entries): the Brownian displacements and rotations of the grand mobility M
 /// with rotation (covariance M), by the serial rpy::MobilityOperator::apply_sqrt_rotation's
