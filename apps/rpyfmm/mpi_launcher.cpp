@@ -35,16 +35,16 @@ int launcher_world_size() {
 void add_mpi_flag(CLI::App& app) {
   app.add_flag("--mpi", flag_given,
                "start MPI without a launcher (one rank); under mpirun/mpiexec MPI starts by itself (builds with MPI; "
-               "mobility --method direct and sample --operator direct run across the ranks, other commands on one "
-               "rank only)");
+               "laplace, mobility, sample, bd and rigid run across the ranks with the methods docs/mpi.md lists, other "
+               "commands on one rank only)");
 }
 
 void require_one_rank(const std::string& command) {
   if (!under_mpi() || mpi_size() == 1) return;
   fail(ErrorCode::not_supported, command,
        "does not run across MPI ranks yet (" + std::to_string(mpi_size()) +
-           " ranks); run it without mpirun, or with one rank (docs/mpi.md: mobility --method direct and sample "
-           "--operator direct run across ranks)");
+           " ranks); run it without mpirun, or with one rank (docs/mpi.md: laplace, mobility, sample, bd and rigid "
+           "run across ranks)");
 }
 
 }  // namespace rpyfmm::cli
