@@ -208,6 +208,9 @@ TEST(MpiDistributedRigid, NoiseMatchesTheSerialSolver) {
 // bound 1e-12 (a hundred times below the GMRES tolerance 1e-10, over a hundred times the few
 // rounding errors the order of the inner products' sums makes) and the same iteration count, bit
 // for bit where one rank holds every body; the guess saves iterations against the solve from zero.
+// Measured (AMD EPYC, AVX-512, 1-4 ranks, every split): 21 iterations from the guess against 25
+// from zero, as the serial solver, relative differences of at most 1.1e-16 in the velocities and
+// 8.5e-17 in the bead forces.
 TEST(MpiDistributedRigid, ApplyFromMatchesTheSerialSolver) {
   const Bodies b = shell_lattice(kBodies, 13u);
   const RigidBodyOptions options{.tolerance = 1e-10};
@@ -249,7 +252,8 @@ TEST(MpiDistributedRigid, ApplyFromMatchesTheSerialSolver) {
 // each column is a solve that differs from the serial one only as in DirectMatchesTheSerialSolver,
 // and the symmetrization is the same, so the same bound 1e-12 relative (Frobenius norm) with GMRES
 // to 1e-10, bit for bit where one rank holds every body; the matrix is exactly symmetric and the
-// same bits on every rank.
+// same bits on every rank. Measured (AMD EPYC, AVX-512, 1-4 ranks, three splits): relative
+// differences of at most 5.3e-16, zero where one rank holds every body.
 TEST(MpiDistributedRigid, MobilityMatrixMatchesTheSerialMatrix) {
   const Bodies b = shell_lattice(5, 19u);  // 30 solves
   const RigidBodyOptions options{.tolerance = 1e-10};
