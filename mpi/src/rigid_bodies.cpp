@@ -5,9 +5,13 @@
 
 #include <mpi.h>
 
+#include <algorithm>
+#include <cstdint>
+#include <numeric>
 #include <string>
 #include <vector>
 
+#include "bd_gather.hpp"
 #include "rigid/body_system.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
@@ -35,6 +39,27 @@ rpy::rigid_detail::InnerProduct global_inner_product(const Communicator& comm) {
     for (const double s : sums) total += s;
     return total;
   };
+}
+
+/// This rank's bodies in the global body order (the ranks' bodies in rank order): its first global
+/// index, their global indices, and the number of bodies on all ranks.
+struct BodyIndex {
+  std::size_t first = 0, total = 0;
+  std::vector<std::uint64_t> ids;
+};
+
+BodyIndex body_index(const Communicator& comm, std::size_t local_bodies) {
+  const auto mine = static_cast<std::uint64_t>(local_bodies);
+  std::vector<std::uint64_t> counts(static_cast<std::size_t>(comm.size()));
+  check_mpi(MPI_Allgather(&mine, 1, MPI_UINT64_T, counts.data(), 1, MPI_UINT64_T, comm.get()), "MPI_Allgather");
+  BodyIndex index;
+  for (std::size_t r = 0; r < counts.size(); ++r) {
+    if (r == static_cast<std::size_t>(comm.rank())) index.first = index.total;
+    index.total += counts[r];
+  }
+  index.ids.resize(local_bodies);
+  std::iota(index.ids.begin(), index.ids.end(), std::uint64_t{index.first});
+  return index;
 }
 
 }  // namespace
@@ -101,13 +126,16 @@ void DistributedRigidBodies::check_call(std::span<const double> local_forces_tor
 
 rpy::RigidBodyReport DistributedRigidBodies::solve(std::span<const double> local_forces_torques, std::vector<double>& b,
                                                    std::span<double> local_velocities,
-                                                   std::span<double> local_bead_forces) const {
+                                                   std::span<double> local_bead_forces,
+                                                   std::span<const double> local_guess_velocities,
+                                                   std::span<const double> local_guess_bead_forces) const {
   StopWatch watch;
   const rpy::rigid_detail::BeadProduct product = [this](std::span<const double> x, std::span<double> y) {
     std::visit([&](auto* op) { op->apply(x, y); }, beads_);  // collective
   };
   const rpy::rigid_detail::SaddleSolution solution = rpy::rigid_detail::solve_saddle_point(
-      *system_, product, options_, local_forces_torques, b, {}, {}, global_inner_product(comm_));
+      *system_, product, options_, local_forces_torques, b, local_guess_velocities, local_guess_bead_forces,
+      global_inner_product(comm_));
   rpy::RigidBodyReport report;
   // GMRES's decisions follow the global inner products, so convergence is the same on every rank;
   // a non-finite result on one rank fails all.
@@ -125,6 +153,45 @@ rpy::RigidBodyReport DistributedRigidBodies::apply(std::span<const double> local
   check_call(local_forces_torques, local_velocities, local_bead_forces);
   std::vector<double> b(3 * system_->beads() + 6 * system_->bodies(), 0.0);  // no slip
   return solve(local_forces_torques, b, local_velocities, local_bead_forces);
+}
+
+rpy::RigidBodyReport DistributedRigidBodies::apply_from(std::span<const double> local_forces_torques,
+                                                        std::span<const double> local_guess_velocities,
+                                                        std::span<const double> local_guess_bead_forces,
+                                                        std::span<double> local_velocities,
+                                                        std::span<double> local_bead_forces) const {
+  check_call(local_forces_torques, local_velocities, local_bead_forces);
+  comm_.run(
+      [&] { rpy::rigid_detail::require_guesses(*system_, local_guess_velocities, local_guess_bead_forces, kWhere); });
+  // A rank without bodies passes empty guesses and starts from its (empty) zero share; the bead
+  // product of the initial residual is collective on every rank alike (gmres.hpp).
+  std::vector<double> b(3 * system_->beads() + 6 * system_->bodies(), 0.0);  // no slip
+  return solve(local_forces_torques, b, local_velocities, local_bead_forces, local_guess_velocities,
+               local_guess_bead_forces);
+}
+
+std::vector<double> DistributedRigidBodies::mobility_matrix(std::size_t max_bodies) const {
+  comm_.run([&] {
+    require(system_ != nullptr, ErrorCode::invalid_input, kWhere, "mobility_matrix before set_configuration");
+  });
+  comm_.run([&] {
+    require(same_on_every_rank(comm_, {double(max_bodies)}), ErrorCode::invalid_argument, kWhere,
+            "the ranks pass different max_bodies");
+  });
+  const BodyIndex index = body_index(comm_, system_->bodies());
+  comm_.run([&] { rpy::rigid_detail::require_matrix_bodies(index.total, max_bodies, kWhere); });
+  const std::size_t m_local = system_->bodies();
+  std::vector<double> unit(6 * m_local, 0.0), local(6 * m_local);
+  return rpy::rigid_detail::symmetric_mobility_matrix(6 * index.total, [&](std::size_t c, std::span<double> column) {
+    // Column c: a unit force or torque on entry c of the global order, on the rank holding it.
+    const bool mine = c >= 6 * index.first && c < 6 * (index.first + m_local);
+    if (mine) unit[c - 6 * index.first] = 1.0;
+    apply(unit, local);
+    if (mine) unit[c - 6 * index.first] = 0.0;
+    const std::vector<double> all =
+        detail::gather_by_index(comm_, index.ids, local, index.total, 6, detail::kEveryRank, kWhere);
+    std::copy(all.begin(), all.end(), column.begin());
+  });
 }
 
 rpy::RigidBodyReport DistributedRigidBodies::apply_with_noise(std::span<const double> local_forces_torques,

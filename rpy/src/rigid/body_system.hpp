@@ -61,6 +61,11 @@ BodySystem make_body_system(std::span<const double> bead_positions, std::span<co
 void require_call(const BodySystem& s, std::span<const double> forces_torques, std::span<double> velocities,
                   std::span<double> bead_forces, std::string_view where);
 
+/// Throws invalid_input naming `where` unless the guesses of apply_from have 6 finite entries per
+/// body (velocities) and 3 finite entries per bead (bead forces) of `s`.
+void require_guesses(const BodySystem& s, std::span<const double> guess_velocities,
+                     std::span<const double> guess_bead_forces, std::string_view where);
+
 /// Throws naming `where` unless the bead noise z has 3 finite entries per bead of `s`
 /// (invalid_input) and noise_scale is finite and >= 0 (invalid_argument).
 void require_noise(const BodySystem& s, std::span<const double> z, double noise_scale, std::string_view where);
@@ -86,5 +91,18 @@ SaddleSolution solve_saddle_point(const BodySystem& s, const BeadProduct& beads,
 /// returns the report's iterations, restarts and residual.
 RigidBodyReport finish_solve(const BodySystem& s, const SaddleSolution& solution, const RigidBodyOptions& options,
                              std::span<double> velocities, std::span<double> bead_forces, std::string_view where);
+
+/// Throws invalid_argument naming `where` when the mobility matrix of m bodies (6m solves) is asked
+/// for with more than max_bodies bodies.
+void require_matrix_bodies(std::size_t m, std::size_t max_bodies, std::string_view where);
+
+/// Writes column c of the body mobility matrix (6m entries: the velocities under a unit force or
+/// torque c, one solve).
+using MobilityColumn = std::function<void(std::size_t c, std::span<double> column)>;
+
+/// The body mobility matrix N (n x n row-major, n = 6m) from its n columns, computed in order
+/// c = 0 ... n - 1, then symmetrized: N_rc = N_cr = (N_rc + N_cr) / 2, so N = N^T exactly (the
+/// solves leave an asymmetry of about the GMRES tolerance).
+std::vector<double> symmetric_mobility_matrix(std::size_t n, const MobilityColumn& column);
 
 }  // namespace rpyfmm::rpy::rigid_detail

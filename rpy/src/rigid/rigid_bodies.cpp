@@ -86,10 +86,7 @@ RigidBodyReport RigidBodies::apply_from(std::span<const double> forces_torques,
                                         std::span<const double> guess_bead_forces, std::span<double> velocities,
                                         std::span<double> bead_forces) const {
   check_call(forces_torques, velocities, bead_forces);
-  require_size(guess_velocities, 6 * bodies(), kWhere, "guess velocities");
-  require_finite(guess_velocities, kWhere, "guess velocities", 6);
-  require_size(guess_bead_forces, 3 * beads_.size(), kWhere, "guess bead forces");
-  require_finite(guess_bead_forces, kWhere, "guess bead forces", 3);
+  rigid_detail::require_guesses(*system_, guess_velocities, guess_bead_forces, kWhere);
   std::vector<double> b(3 * beads_.size() + 6 * bodies(), 0.0);  // no slip
   return solve(forces_torques, b, velocities, bead_forces, guess_velocities, guess_bead_forces);
 }
@@ -116,21 +113,13 @@ RigidBodyReport RigidBodies::apply_with_noise(std::span<const double> forces_tor
 std::vector<double> RigidBodies::mobility_matrix(std::size_t max_bodies) const {
   require(system_ != nullptr, ErrorCode::invalid_input, kWhere, "mobility_matrix before set_configuration");
   const std::size_t m = bodies();
-  require(m <= max_bodies, ErrorCode::invalid_argument, kWhere,
-          "mobility_matrix of " + std::to_string(m) + " bodies needs " + std::to_string(6 * m) +
-              " solves; raise max_bodies (" + std::to_string(max_bodies) + ") to allow it");
-  const std::size_t n = 6 * m;
-  std::vector<double> matrix(n * n), unit(n, 0.0), column(n);
-  for (std::size_t c = 0; c < n; ++c) {
+  rigid_detail::require_matrix_bodies(m, max_bodies, kWhere);
+  std::vector<double> unit(6 * m, 0.0);
+  return rigid_detail::symmetric_mobility_matrix(6 * m, [&](std::size_t c, std::span<double> column) {
     unit[c] = 1.0;
     apply(unit, column);
     unit[c] = 0.0;
-    for (std::size_t r = 0; r < n; ++r) matrix[r * n + c] = column[r];
-  }
-  for (std::size_t r = 0; r < n; ++r)
-    for (std::size_t c = r + 1; c < n; ++c)
-      matrix[r * n + c] = matrix[c * n + r] = 0.5 * (matrix[r * n + c] + matrix[c * n + r]);
-  return matrix;
+  });
 }
 
 }  // namespace rpyfmm::rpy

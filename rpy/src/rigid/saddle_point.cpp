@@ -105,6 +105,14 @@ void require_call(const BodySystem& s, std::span<const double> forces_torques, s
   require_finite(forces_torques, where, "forces and torques", 6);
 }
 
+void require_guesses(const BodySystem& s, std::span<const double> guess_velocities,
+                     std::span<const double> guess_bead_forces, std::string_view where) {
+  require_size(guess_velocities, 6 * s.bodies(), where, "guess velocities");
+  require_finite(guess_velocities, where, "guess velocities", 6);
+  require_size(guess_bead_forces, 3 * s.beads(), where, "guess bead forces");
+  require_finite(guess_bead_forces, where, "guess bead forces", 3);
+}
+
 void require_noise(const BodySystem& s, std::span<const double> z, double noise_scale, std::string_view where) {
   require_size(z, 3 * s.beads(), where, "bead noise z");
   require_finite(z, where, "bead noise z", 3);

@@ -62,6 +62,24 @@ class DistributedRigidBodies {
   rpy::RigidBodyReport apply(std::span<const double> local_forces_torques, std::span<double> local_velocities,
                              std::span<double> local_bead_forces = {}) const;
 
+  /// Collective. apply() with GMRES started from a guess, as RigidBodies::apply_from: this rank's
+  /// share of the velocities (6 m_local) and bead forces (3 n_local) of a nearby problem. The
+  /// result meets the same tolerance, in fewer iterations the better the guess. Throws as apply,
+  /// and on every rank for guesses of the wrong size or with NaN/Inf on any rank.
+  rpy::RigidBodyReport apply_from(std::span<const double> local_forces_torques,
+                                  std::span<const double> local_guess_velocities,
+                                  std::span<const double> local_guess_bead_forces, std::span<double> local_velocities,
+                                  std::span<double> local_bead_forces = {}) const;
+
+  /// Collective. The body mobility matrix N of all ranks' bodies (6m x 6m, m = the sum of
+  /// m_local; row-major, bodies in rank order, rows and columns (U, Omega) / (F, T) per body),
+  /// returned whole on every rank with the same bits, as RigidBodies::mobility_matrix: 6m collective
+  /// solves, each with a unit force or torque on one body of one rank, the column's shares
+  /// gathered on every rank, then symmetrized (N = N^T exactly). Memory 288 m^2 bytes per rank.
+  /// Throws on every rank for more than `max_bodies` bodies in all, max_bodies that differ between
+  /// the ranks, a call before set_configuration, and as apply.
+  [[nodiscard]] std::vector<double> mobility_matrix(std::size_t max_bodies = 200) const;
+
   /// Collective. Velocities with Brownian noise, as RigidBodies::apply_with_noise: Y = N W +
   /// noise_scale N K^T M^{-1} B z with B z (B B^T = M) by rpyfmm::mpi::sqrt_apply on the bead
   /// operator (`sqrt_options` as there: Lanczos or Chebyshev, the block preconditioner of each
@@ -90,8 +108,11 @@ class DistributedRigidBodies {
                   std::span<double> local_bead_forces) const;
   /// GMRES across the ranks with the bead rows b[0, 3 n_local) given (the slip) and the body rows
   /// from the forces and torques; velocities and bead forces from its solution (collective).
+  /// Started from the guesses of this rank's velocities and bead forces (empty: zero).
   rpy::RigidBodyReport solve(std::span<const double> local_forces_torques, std::vector<double>& b,
-                             std::span<double> local_velocities, std::span<double> local_bead_forces) const;
+                             std::span<double> local_velocities, std::span<double> local_bead_forces,
+                             std::span<const double> local_guess_velocities = {},
+                             std::span<const double> local_guess_bead_forces = {}) const;
 
   Operator beads_;
   Communicator comm_;
