@@ -54,14 +54,6 @@ MPI_Comm comm_from(nb::handle comm, const char* where) {
 
 namespace {
 
-/// A distributed operator and the mpi4py communicator its MPI_Comm belongs to (declared first:
-/// released after the operator).
-template <class Op>
-struct WithComm {
-  nb::object comm;
-  Op op;
-};
-
 using Direct = WithComm<mpi::DistributedDirectRpy>;
 using Fmm = WithComm<mpi::DistributedFmmRpy>;
 using Pse = WithComm<mpi::DistributedPseRpy>;
@@ -608,6 +600,7 @@ void bind_mpi(nb::module_& m) {
   bind_runs(sub);
   bind_mpi_bd(sub);
   bind_mpi_partition(sub);
+  bind_mpi_rigid(sub);
   sub.def("normal_noise", &normal_noise, nb::arg("n"), nb::arg("offset"), nb::arg("seed"), nb::arg("step") = 0,
           nb::arg("stream") = 0, nb::arg("out") = nb::none(),
           "Not collective. (n, 3) standard normal values of particles offset ... offset + n - 1: rows\n"
