@@ -182,6 +182,8 @@ def test_bad_input_on_one_rank_raises_on_every_rank() -> None:
         raised(lambda: rigid.set_configuration(lx[:, :2] if last else lx, lr, list(lo)),
                rpyfmm.InvalidInputError),
         raised(lambda: rigid.set_configuration(lx, lr, list(lo[:-1]) + [lo[-1] + 1] if last else list(lo))),
+        raised(lambda: rigid.set_configuration(lx, lr, list(lo), np.zeros((len(lo) - 1, 2)) if last else None),
+               rpyfmm.InvalidInputError),
     ]
     rigid.set_configuration(lx, lr, list(lo))
     bad_ft = ft[bodies].copy()
@@ -195,7 +197,11 @@ def test_bad_input_on_one_rank_raises_on_every_rank() -> None:
         raised(lambda: rigid.apply_with_noise(ft[bodies], -1.0 if last else 1.0, z)),
     ]
     u, _ = rigid.apply(ft[bodies])  # and the solver works after each failure
-    for ranks in messages:
+    # GMRES options that differ between the ranks (the constructor's collective check).
+    differ = []
+    if SIZE > 1:
+        differ.append(raised(lambda: rpyfmm.mpi.DistributedRigidBodies(op, tolerance=1e-7 if last else 1e-6)))
+    for ranks in messages + differ:
         assert all(m == ranks[0] for m in ranks), ranks
     for ranks in messages[1:]:
         assert f"rank {SIZE - 1} of {SIZE}" in ranks[0], ranks[0]
