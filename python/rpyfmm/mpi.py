@@ -11,6 +11,13 @@ initializes MPI. docs/mpi.md, "Python (mpi4py)", lists what is supported.
   (n may be 0); the global particle order is the ranks' shares concatenated in rank order.
 * All three also have the grand mobility with rotation, ``apply(forces, torques)`` returning
   ``(U, W)`` as :meth:`rpyfmm.DirectRpy.apply` does (``supports_rotation``).
+* :class:`DistributedDirectRpy` and :class:`DistributedFmmRpy` also sample several right-hand
+  sides in one call, ``apply_sqrt_block(z)`` with z of shape (nrhs, n, 3) or (nrhs, 3n), as
+  :meth:`rpyfmm.DirectRpy.apply_sqrt_block`; each column equals ``apply_sqrt`` of it alone bit for bit.
+* :class:`DistributedRigidBodies` ``(beads, tolerance=..., ...)``: :class:`rpyfmm.RigidBodies`
+  with whole bodies per rank and the bead products across the ranks (``beads`` a
+  :class:`DistributedDirectRpy` or :class:`DistributedFmmRpy`, kept alive); ``set_configuration``,
+  ``apply``, ``apply_with_bead_forces``, ``apply_with_noise`` with this rank's bodies and beads.
 * :class:`DistributedPseRpy` also has the split sampler ``sample(seed, step)`` and
   ``apply_with_noise``.
 * :class:`DistributedLaplaceFmm`: ``set_points`` / ``evaluate`` with this rank's sources (and
@@ -77,12 +84,14 @@ run_bd = _rpyfmm.mpi.run_bd
 restart_bd = _rpyfmm.mpi.restart_bd
 Simulation = _rpyfmm.mpi.Simulation
 SfcPartition = _rpyfmm.mpi.SfcPartition
+DistributedRigidBodies = _rpyfmm.mpi.DistributedRigidBodies
 
 __all__ = [
     "DistributedDirectRpy",
     "DistributedFmmRpy",
     "DistributedLaplaceFmm",
     "DistributedPseRpy",
+    "DistributedRigidBodies",
     "SfcPartition",
     "Simulation",
     "normal_noise",

@@ -149,6 +149,10 @@ ArrayResult adopt_vector(std::vector<double>&& values, const std::vector<std::si
   return {nb::cast(nb::ndarray<nb::numpy, double>(heap->data(), shape.size(), shape.data(), owner))};
 }
 
+ArrayResult copy_rows(std::span<const double> values, std::size_t columns) {
+  return adopt_vector(std::vector<double>(values.begin(), values.end()), {values.size() / columns, columns});
+}
+
 ArrayResult read_only_copy(std::span<const double> values, const std::vector<std::size_t>& shape) {
   auto* heap = new std::vector<double>(values.begin(), values.end());
   nb::capsule owner(heap, [](void* p) noexcept { delete static_cast<std::vector<double>*>(p); });

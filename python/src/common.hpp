@@ -143,6 +143,9 @@ inline RotationSample rotation_sample(const RotationArrays& arrays, const rpy::S
 /// Wraps a vector's storage as a NumPy array without copying (the array owns it).
 ArrayResult adopt_vector(std::vector<double>&& values, const std::vector<std::size_t>& shape);
 
+/// A NumPy array (values.size() / columns, columns) that owns a copy of `values`.
+ArrayResult copy_rows(std::span<const double> values, std::size_t columns);
+
 /// A read-only NumPy array that owns a copy of `values`: what Python callbacks receive, so that
 /// an array they keep stays valid after the C++ buffer behind `values` is gone.
 ArrayResult read_only_copy(std::span<const double> values, const std::vector<std::size_t>& shape);

@@ -54,14 +54,6 @@ MPI_Comm comm_from(nb::handle comm, const char* where) {
 
 namespace {
 
-/// A distributed operator and the mpi4py communicator its MPI_Comm belongs to (declared first:
-/// released after the operator).
-template <class Op>
-struct WithComm {
-  nb::object comm;
-  Op op;
-};
-
 using Direct = WithComm<mpi::DistributedDirectRpy>;
 using Fmm = WithComm<mpi::DistributedFmmRpy>;
 using Pse = WithComm<mpi::DistributedPseRpy>;
@@ -117,37 +109,70 @@ ArrayResult apply(const WithComm<Op>& self, ArrayArg forces, OutArg out) {
   return ArrayResult{a.out.object};
 }
 
-/// w = M^{1/2} z on this rank's share: mpi::sqrt_apply (direct, fmm) or the PSE's split sampler.
-template <class Op>
+/// The arrays of a sample on this rank: z, w in z's shape, and the number of columns: one for
+/// apply_sqrt ((n, 3) or (3n,)), nrhs for apply_sqrt_block ((nrhs, n, 3) or (nrhs, 3n), as the
+/// serial MobilityOperator.apply_sqrt_block). Not collective.
+struct SampleArrays {
+  InOut arrays;
+  std::size_t nrhs = 1;
+};
+
+template <bool Block>
+SampleArrays sample_arrays(const std::string& where, ArrayArg z, OutArg out) {
+  if constexpr (!Block) return SampleArrays{points_in_out(where, z, "z", out), 1};
+  InArray a = as_input(z, where, "z");
+  const std::size_t nrhs = block_count(a, where, "z");
+  OutArray w = make_output(out, a.shape, where, &a);
+  return SampleArrays{InOut{std::move(a), std::move(w)}, nrhs};
+}
+
+/// w = M^{1/2} z on this rank's share: mpi::sqrt_apply (direct, fmm; with Block, its variant for
+/// several right-hand sides) or the PSE's split sampler (one column).
+template <class Op, bool Block = false>
 ArrayAndReport<rpy::SqrtReport> apply_sqrt(const WithComm<Op>& self, ArrayArg z, OutArg out, const std::string& method,
                                            double tolerance, int max_iterations, bool reorthogonalize,
                                            bool throw_if_not_converged, double lambda_min, double lambda_max,
                                            int bound_estimate_iterations, const std::string& preconditioner,
                                            int preconditioner_block) {
-  const std::string where = "apply_sqrt";
+  const std::string where = Block ? "apply_sqrt_block" : "apply_sqrt";
   struct Args {
     rpy::SqrtOptions options;
-    InOut arrays;
+    SampleArrays sample;
   };
   Args a = agreed(self.op.communicator(), [&] {
     return Args{sqrt_options(method, tolerance, max_iterations, reorthogonalize, throw_if_not_converged, lambda_min,
                              lambda_max, bound_estimate_iterations, preconditioner, preconditioner_block),
-                points_in_out(where, z, "z", out)};
+                sample_arrays<Block>(where, z, out)};
   });
+  InOut& io = a.sample.arrays;
   rpy::SqrtReport report;
   {
     nb::gil_scoped_release release;
     if constexpr (std::is_same_v<Op, mpi::DistributedPseRpy>) {
-      report = self.op.apply_sqrt(a.arrays.in.span(), a.arrays.out.span(), a.options);
+      static_assert(!Block, "the PSE's split sampler takes one column");
+      report = self.op.apply_sqrt(io.in.span(), io.out.span(), a.options);
+    } else if constexpr (Block) {
+      report = mpi::sqrt_apply(self.op, io.in.span(), io.out.span(), a.sample.nrhs, a.options);
     } else {
-      report = mpi::sqrt_apply(self.op, a.arrays.in.span(), a.arrays.out.span(), a.options);
+      report = mpi::sqrt_apply(self.op, io.in.span(), io.out.span(), a.options);
     }
   }
-  return array_and_report(a.arrays.out.object, report);
+  return array_and_report(io.out.object, report);
 }
 
 template <class Op>
 using Class = nb::class_<WithComm<Op>>;
+
+/// apply_sqrt (Block = false) or apply_sqrt_block (Block = true) with their keywords (the same for
+/// both, as the serial MobilityOperator's).
+template <class Op, bool Block>
+void add_apply_sqrt(Class<Op>& cls, const char* name, const char* doc) {
+  cls.def(name, locked(name, &apply_sqrt<Op, Block>), nb::arg("z"), nb::arg("out") = nb::none(), nb::kw_only(),
+          nb::arg("method") = "auto", nb::arg("tolerance") = rpy::SqrtOptions{}.tolerance,
+          nb::arg("max_iterations") = 0, nb::arg("reorthogonalize") = true, nb::arg("throw_if_not_converged") = true,
+          nb::arg("lambda_min") = 0.0, nb::arg("lambda_max") = 0.0, nb::arg("bound_estimate_iterations") = 30,
+          nb::arg("preconditioner") = "none", nb::arg("preconditioner_block") = 0, doc);
+}
 
 const char* kApplyDoc =
     "Collective. U = M F for this rank's particles: forces (n, 3) or (3n,); returns the velocities in\n"
@@ -182,11 +207,7 @@ void add_common(Class<Op>& cls, const char* sqrt_doc, bool with_apply = true) {
   if (with_apply) {
     cls.def("apply", locked("apply", &apply<Op>), nb::arg("forces"), nb::arg("out") = nb::none(), kApplyDoc);
   }
-  cls.def("apply_sqrt", locked("apply_sqrt", &apply_sqrt<Op>), nb::arg("z"), nb::arg("out") = nb::none(), nb::kw_only(),
-          nb::arg("method") = "auto", nb::arg("tolerance") = rpy::SqrtOptions{}.tolerance,
-          nb::arg("max_iterations") = 0, nb::arg("reorthogonalize") = true, nb::arg("throw_if_not_converged") = true,
-          nb::arg("lambda_min") = 0.0, nb::arg("lambda_max") = 0.0, nb::arg("bound_estimate_iterations") = 30,
-          nb::arg("preconditioner") = "none", nb::arg("preconditioner_block") = 0, sqrt_doc);
+  add_apply_sqrt<Op, false>(cls, "apply_sqrt", sqrt_doc);
 }
 
 const char* kKrylovSqrtDoc =
@@ -299,11 +320,19 @@ const char* kApplyBlockDoc =
     "(nrhs, 3n), every rank the same nrhs; returns the velocities in the same shape. One pass over the\n"
     "ranks for all of them; each right-hand side equals apply of it alone bit for bit (docs/mpi.md).";
 
+const char* kSqrtBlockDoc =
+    "Collective. w_r = M^{1/2} z_r for nrhs right-hand sides on this rank's share: z (nrhs, n, 3) or\n"
+    "(nrhs, 3n), every rank the same nrhs, as MobilityOperator.apply_sqrt_block; returns (w in z's shape,\n"
+    "SqrtReport). mpi::sqrt_apply with several right-hand sides: one apply_block per iteration for the\n"
+    "columns still iterating; each column equals apply_sqrt of it alone bit for bit; the report's\n"
+    "iterations and error_estimate are the largest over the columns (docs/mpi.md).";
+
 /// apply_block, for the operators that offer several right-hand sides per pass.
 template <class Op>
 void add_apply_block(Class<Op>& cls) {
   cls.def("apply_block", locked("apply_block", &apply_block<Op>), nb::arg("forces"), nb::arg("out") = nb::none(),
           kApplyBlockDoc);
+  add_apply_sqrt<Op, true>(cls, "apply_sqrt_block", kSqrtBlockDoc);
 }
 
 void bind_distributed_direct(nb::module_& m) {
@@ -571,6 +600,7 @@ void bind_mpi(nb::module_& m) {
   bind_runs(sub);
   bind_mpi_bd(sub);
   bind_mpi_partition(sub);
+  bind_mpi_rigid(sub);
   sub.def("normal_noise", &normal_noise, nb::arg("n"), nb::arg("offset"), nb::arg("seed"), nb::arg("step") = 0,
           nb::arg("stream") = 0, nb::arg("out") = nb::none(),
           "Not collective. (n, 3) standard normal values of particles offset ... offset + n - 1: rows\n"

@@ -1,6 +1,7 @@
-// rpyfmm Python bindings — what the bindings of the MPI layer share (mpi.cpp, mpi_bd.cpp): the
-// MPI_Comm of an mpi4py communicator, the argument checks of a collective call agreed over the
-// ranks (docs/mpi.md, "Python (mpi4py)"), and integer arrays (global indices, types, keys).
+// rpyfmm Python bindings — what the bindings of the MPI layer share (mpi.cpp, mpi_bd.cpp, mpi_rigid.cpp): the
+// MPI_Comm of an mpi4py communicator, the bound operators, the argument checks of a collective call
+// agreed over the ranks (docs/mpi.md, "Python (mpi4py)"), and integer arrays (global indices,
+// types, keys).
 #pragma once
 
 #include <mpi.h>
@@ -20,6 +21,15 @@ namespace rpyfmm::python {
 /// MPI_Comm_f2c): needs neither mpi4py's C headers at build time nor its C API at run time.
 /// Raises InvalidArgumentError naming `where` for anything else.
 MPI_Comm comm_from(nb::handle comm, const char* where);
+
+/// A distributed operator and the mpi4py communicator its MPI_Comm belongs to (declared first:
+/// released after the operator). The Python classes DistributedDirectRpy, DistributedFmmRpy, ...
+/// (mpi.cpp) bind WithComm<Op>; mpi_rigid.cpp takes them as bead operators.
+template <class Op>
+struct WithComm {
+  nb::object comm;
+  Op op;
+};
 
 /// Runs `prepare` (argument checks and conversions, GIL held) on this rank and agrees on its
 /// outcome over the ranks: returns its value when every rank succeeded, else every rank throws the
@@ -59,5 +69,6 @@ nb::object copy_integers(std::span<const T> values) {
 
 void bind_mpi_bd(nb::module_& m);
 void bind_mpi_partition(nb::module_& m);
+void bind_mpi_rigid(nb::module_& m);
 
 }  // namespace rpyfmm::python

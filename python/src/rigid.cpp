@@ -157,10 +157,7 @@ void add_bodies_state(BodiesClass& cls) {
       .def_prop_ro("reference_points",
                    locked_read(
                        "RigidBodies.reference_points",
-                       +[](const BoundRigidBodies& b) {
-                         const auto q = b.bodies.reference_points();
-                         return adopt_vector(std::vector<double>(q.begin(), q.end()), {q.size() / 3, 3});
-                       }),
+                       +[](const BoundRigidBodies& b) { return copy_rows(b.bodies.reference_points(), 3); }),
                    "The reference points in use (m, 3).");
 }
 

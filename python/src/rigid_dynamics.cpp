@@ -35,10 +35,6 @@ std::vector<double> to_vector(ArrayArg a, const std::string& where, const std::s
   return {in.data, in.data + in.size};
 }
 
-ArrayResult copy_rows(std::span<const double> v, std::size_t columns) {
-  return adopt_vector(std::vector<double>(v.begin(), v.end()), {v.size() / columns, columns});
-}
-
 /// (m, 4) quaternions, or none (identity orientations).
 std::vector<double> orientations_from(OptArrayArg orientations, const std::string& where) {
   if (orientations.is_none()) return {};
