@@ -12,6 +12,8 @@
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
+#include <cmath>
+#include <cstddef>
 #include <optional>
 #include <string>
 #include <variant>
@@ -138,6 +140,17 @@ nb::tuple apply_with_noise(const BoundDistributedRigid& bound, ArrayArg forces_t
   return nb::make_tuple(a.y.object, report);
 }
 
+/// The whole body mobility matrix (6m, 6m) on every rank (collective, refusals agreed in C++).
+ArrayResult mobility_matrix(const BoundDistributedRigid& bound, std::size_t max_bodies) {
+  std::vector<double> n;
+  {
+    nb::gil_scoped_release release;
+    n = bound.bodies.mobility_matrix(max_bodies);
+  }
+  auto rows = static_cast<std::size_t>(std::llround(std::sqrt(static_cast<double>(n.size()))));
+  return adopt_vector(std::move(n), {rows, rows});
+}
+
 using RigidClass = nb::class_<BoundDistributedRigid>;
 
 /// __init__ for a bead operator of type Op: collective (the C++ constructor agrees on the options).
@@ -188,7 +201,11 @@ void add_products(RigidClass& cls) {
            "Collective. (velocities (m, 6), RigidBodyReport): as RigidBodies.apply_with_noise, z this rank's\n"
            "beads' noise (n, 3) (rpyfmm.mpi.normal_noise with the bead operator's offset draws the serial\n"
            "noise's rows); B z by rpyfmm.mpi's Lanczos sampler across the ranks at sqrt_tolerance ('auto' is\n"
-           "'none' across ranks, the serial order of sums; 'block' preconditions each rank's beads).");
+           "'none' across ranks, the serial order of sums; 'block' preconditions each rank's beads).")
+      .def("mobility_matrix", locked("DistributedRigidBodies.mobility_matrix", &mobility_matrix),
+           nb::arg("max_bodies") = 200,
+           "Collective. The body mobility matrix N (6m, 6m) of all ranks' bodies (m in all, in rank order),\n"
+           "the same on every rank, as RigidBodies.mobility_matrix: 6m solves, symmetrized.");
 }
 
 void add_state(RigidClass& cls) {
