@@ -60,7 +60,7 @@ void step_columns(Columns& cols, const std::vector<std::size_t>& active, double*
     for (std::size_t a = 0; a < active.size(); ++a) {
       if (needs[a].kind == LanczosProcess::Need::none) continue;
       const std::size_t count = needs[a].kind == LanczosProcess::Need::basis ? needs[a].k : 1;
-      needs[a] = cols.state[active[a]].process.continue_step(&values[first], kWhere, active[a]);
+      needs[a] = cols.state[active[a]].process.continue_step(values.data() + first, kWhere, active[a]);
       first += count;
     }
   }
@@ -97,7 +97,8 @@ void multiply(const Communicator& comm, const ColumnsProduct& product, const Col
               const std::vector<std::size_t>& active, std::size_t n, std::vector<double>& y, rpy::SqrtReport& report) {
   std::vector<double> x(active.size() * n);
   y.resize(active.size() * n);
-  for (std::size_t a = 0; a < active.size(); ++a) std::copy_n(cols.state[active[a]].process.current(), n, &x[a * n]);
+  for (std::size_t a = 0; a < active.size(); ++a)
+    std::copy_n(cols.state[active[a]].process.current(), n, x.data() + a * n);
   product(x.data(), y.data(), active.size());
   ++report.operator_applications;
   report.vector_products += static_cast<long long>(active.size());
