@@ -85,6 +85,11 @@ std::size_t block_count(const InArray& a, const std::string& where, const std::s
        name + " has shape " + shape_string(a.shape) + ", expected (nrhs, N, 3) or (nrhs, 3N)");
 }
 
+void require_body_rows(const InArray& a, const std::string& where, const std::string& name) {
+  require((a.ndim() == 2 && a.shape[1] == 6) || a.ndim() == 1, ErrorCode::invalid_input, where,
+          name + " has shape " + shape_string(a.shape) + ", expected (m, 6) or (6m,)");
+}
+
 OutArray make_output(nb::handle out, const std::vector<std::size_t>& shape, const std::string& where,
                      const InArray* input) {
   OutArray result;

@@ -107,6 +107,10 @@ std::size_t require_points(const InArray& a, const std::string& where, const std
 /// Checks that `a` is a block of right-hand sides: (nrhs, N, 3) or (nrhs, 3N); returns nrhs.
 std::size_t block_count(const InArray& a, const std::string& where, const std::string& name);
 
+/// Checks that `a` holds six values per rigid body: (m, 6) or (6m,) (forces and torques, velocities
+/// and angular velocities; the solver checks the entry count).
+void require_body_rows(const InArray& a, const std::string& where, const std::string& name);
+
 /// An output buffer: a new NumPy array or the caller's `out`.
 struct OutArray {
   nb::object object;  ///< what the binding returns (`out` itself when given)

@@ -60,8 +60,7 @@ nb::tuple apply(const BoundRigidBodies& bound, ArrayArg forces_torques, bool wit
   const RigidBodies& bodies = bound.bodies;
   const InArray w = as_input(forces_torques, where, "forces_torques");
   const std::size_t m = bodies.bodies();
-  require((w.ndim() == 2 && w.shape[1] == 6) || w.ndim() == 1, ErrorCode::invalid_input, where,
-          "forces_torques has shape " + shape_string(w.shape) + ", expected (m, 6) or (6m,)");
+  require_body_rows(w, where, "forces_torques");
   OutArray y = make_output(nb::none(), {m, 6}, where);
   std::vector<double> lambda(with_bead_forces ? 3 * bodies.beads() : 0);
   RigidBodyReport report;
@@ -74,6 +73,27 @@ nb::tuple apply(const BoundRigidBodies& bound, ArrayArg forces_torques, bool wit
   return nb::make_tuple(y.object, adopt_vector(std::move(lambda), {n, 3}).o, report);
 }
 
+/// (velocities (m, 6), bead forces (N, 3), report): GMRES started from the guesses.
+nb::tuple apply_from(const BoundRigidBodies& bound, ArrayArg forces_torques, ArrayArg guess_velocities,
+                     ArrayArg guess_bead_forces) {
+  const std::string where = "RigidBodies.apply_from";
+  const RigidBodies& bodies = bound.bodies;
+  const InArray w = as_input(forces_torques, where, "forces_torques");
+  require_body_rows(w, where, "forces_torques");
+  const InArray gy = as_input(guess_velocities, where, "guess_velocities");
+  require_body_rows(gy, where, "guess_velocities");
+  const InArray gl = as_input(guess_bead_forces, where, "guess_bead_forces");
+  require_points(gl, where, "guess_bead_forces");
+  OutArray y = make_output(nb::none(), {bodies.bodies(), 6}, where);
+  std::vector<double> lambda(3 * bodies.beads());
+  RigidBodyReport report;
+  {
+    nb::gil_scoped_release release;
+    report = bodies.apply_from(w.span(), gy.span(), gl.span(), y.span(), lambda);
+  }
+  return nb::make_tuple(y.object, adopt_vector(std::move(lambda), {bodies.beads(), 3}).o, report);
+}
+
 /// RigidBodies.apply_with_noise; `sqrt_tol` is the deprecated spelling of `sqrt_tolerance`.
 nb::tuple apply_with_noise(const BoundRigidBodies& bound, ArrayArg forces_torques, double noise_scale, ArrayArg z,
                            std::optional<double> sqrt_tolerance, const std::string& preconditioner,
@@ -84,8 +104,7 @@ nb::tuple apply_with_noise(const BoundRigidBodies& bound, ArrayArg forces_torque
   const InArray w = as_input(forces_torques, where, "forces_torques");
   const InArray zz = as_input(z, where, "z");
   require_points(zz, where, "z");
-  require((w.ndim() == 2 && w.shape[1] == 6) || w.ndim() == 1, ErrorCode::invalid_input, where,
-          "forces_torques has shape " + shape_string(w.shape) + ", expected (m, 6) or (6m,)");
+  require_body_rows(w, where, "forces_torques");
   const rpy::SqrtOptions options = sqrt_options("auto", sqrt_t, 0, true, true, 0.0, 0.0, 30, preconditioner, 0);
   OutArray y = make_output(nb::none(), {bodies.bodies(), 6}, where);
   RigidBodyReport report;
@@ -118,6 +137,12 @@ void add_bodies_products(BodiesClass& cls) {
            nb::arg("forces_torques"),
            "(velocities (m, 6), bead forces (N, 3), RigidBodyReport): also the forces the beads exert on the\n"
            "fluid to keep the bodies rigid.")
+      .def("apply_from", locked("RigidBodies.apply_from", &apply_from), nb::arg("forces_torques"),
+           nb::arg("guess_velocities"), nb::arg("guess_bead_forces"),
+           "(velocities (m, 6), bead forces (N, 3), RigidBodyReport) as apply_with_bead_forces, GMRES started\n"
+           "from a guess instead of zero: guess_velocities (m, 6) and guess_bead_forces (N, 3) of a nearby\n"
+           "problem (e.g. apply_with_bead_forces' results for nearby forces or a slightly moved\n"
+           "configuration). The result meets the same tolerance, in fewer iterations the better the guess.")
       .def("apply_with_noise", locked("RigidBodies.apply_with_noise", &apply_with_noise), nb::arg("forces_torques"),
            nb::arg("noise_scale"), nb::arg("z"), nb::arg("sqrt_tolerance").sig("0.001") = nb::none(),
            nb::arg("preconditioner") = "auto", nb::kw_only(), nb::arg("sqrt_tol") = nb::none(),
