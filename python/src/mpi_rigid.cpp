@@ -47,8 +47,7 @@ LockPtr inner_lock_of(const BoundDistributedRigid& b) {
 /// Checks forces_torques: (m, 6) or (6m,) (the sizes are the C++ call's collective check).
 InArray forces_torques_of(ArrayArg forces_torques, const std::string& where) {
   InArray w = as_input(forces_torques, where, "forces_torques");
-  require((w.ndim() == 2 && w.shape[1] == 6) || w.ndim() == 1, ErrorCode::invalid_input, where,
-          "forces_torques has shape " + shape_string(w.shape) + ", expected (m, 6) or (6m,)");
+  require_body_rows(w, where, "forces_torques");
   return w;
 }
 
@@ -110,6 +109,33 @@ nb::tuple apply(const BoundDistributedRigid& bound, ArrayArg forces_torques, boo
   if (!with_bead_forces) return nb::make_tuple(a.y.object, report);
   const std::size_t n = bodies.local_beads();
   return nb::make_tuple(a.y.object, adopt_vector(std::move(lambda), {n, 3}).o, report);
+}
+
+/// (velocities (m, 6), bead forces (n, 3), report) for this rank's bodies and beads, GMRES started
+/// from this rank's guesses (the C++ call checks their sizes and values collectively).
+nb::tuple apply_from(const BoundDistributedRigid& bound, ArrayArg forces_torques, ArrayArg guess_velocities,
+                     ArrayArg guess_bead_forces) {
+  const std::string where = "DistributedRigidBodies.apply_from";
+  const mpi::DistributedRigidBodies& bodies = bound.bodies;
+  struct Args {
+    InArray w, gy, gl;
+    OutArray y;
+  };
+  const Args a = agreed(bodies.communicator(), [&] {
+    Args r{forces_torques_of(forces_torques, where), as_input(guess_velocities, where, "guess_velocities"),
+           as_input(guess_bead_forces, where, "guess_bead_forces"), OutArray{}};
+    require_body_rows(r.gy, where, "guess_velocities");
+    require_points(r.gl, where, "guess_bead_forces");
+    r.y = make_output(nb::none(), {bodies.local_bodies(), 6}, where);
+    return r;
+  });
+  std::vector<double> lambda(3 * bodies.local_beads());
+  RigidBodyReport report;
+  {
+    nb::gil_scoped_release release;
+    report = bodies.apply_from(a.w.span(), a.gy.span(), a.gl.span(), a.y.span(), lambda);
+  }
+  return nb::make_tuple(a.y.object, adopt_vector(std::move(lambda), {bodies.local_beads(), 3}).o, report);
 }
 
 /// (velocities (m, 6), report): N W + noise_scale N K^T M^{-1} B z for this rank's bead noise z.
@@ -195,6 +221,11 @@ void add_products(RigidClass& cls) {
                +[](const BoundDistributedRigid& b, ArrayArg w) { return apply(b, w, true); }),
            nb::arg("forces_torques"),
            "Collective. (velocities (m, 6), bead forces (n, 3), RigidBodyReport) of this rank's bodies and beads.")
+      .def("apply_from", locked("DistributedRigidBodies.apply_from", &apply_from), nb::arg("forces_torques"),
+           nb::arg("guess_velocities"), nb::arg("guess_bead_forces"),
+           "Collective. (velocities (m, 6), bead forces (n, 3), RigidBodyReport) of this rank's bodies and\n"
+           "beads, as RigidBodies.apply_from: GMRES started from this rank's share of a guess,\n"
+           "guess_velocities (m, 6) and guess_bead_forces (n, 3) (a bad guess on any rank raises on every rank).")
       .def("apply_with_noise", locked("DistributedRigidBodies.apply_with_noise", &apply_with_noise),
            nb::arg("forces_torques"), nb::arg("noise_scale"), nb::arg("z"),
            nb::arg("sqrt_tolerance").sig("0.001") = nb::none(), nb::arg("preconditioner") = "auto",

@@ -1,7 +1,7 @@
 """rpyfmm.mpi.DistributedRigidBodies (docs/mpi.md, "Rigid bodies across ranks" and "Python
 (mpi4py)"): the bodies split over the ranks in uneven whole-body shares (rank 0 none where there
-are several ranks), against the serial rpyfmm.RigidBodies with DirectRpy on the whole set; the
-bead operator's lifetime; bad input on one rank.
+are several ranks), against the serial rpyfmm.RigidBodies with DirectRpy on the whole set (apply,
+apply_from, apply_with_noise, mobility_matrix); the bead operator's lifetime; bad input on one rank.
 
 Run by ctest under mpirun on 1, 2 and 3 ranks (tests/mpi/CMakeLists.txt):
 `mpirun -n 2 python -m pytest tests/python/mpi/distributed_rigid.py`. Its name does not match
@@ -136,6 +136,42 @@ def test_noise_matches_the_serial_solver() -> None:
     assert np.array_equal(again, u)
 
 
+def test_apply_from_matches_the_serial_solver() -> None:
+    x, radii, offsets, ft = shell_lattice(BODIES, seed=13)
+    serial = serial_bodies(x, radii, offsets, tolerance=1e-10)
+    # The guesses: the serial solution under forces and torques changed by 1 % (a nearby problem).
+    nearby = ft + 0.01 * np.random.default_rng(17).standard_normal(ft.shape)
+    u_guess, f_guess, from_zero = serial.apply_with_bead_forces(nearby)
+    u_serial, f_serial, report_serial = serial.apply_from(ft, u_guess, f_guess)
+    bodies = body_share(BODIES)
+    lx, lr, lo, beads = local_system(x, radii, offsets, bodies)
+    op = rpyfmm.mpi.DistributedDirectRpy(COMM, viscosity=VISCOSITY)
+    rigid = rpyfmm.mpi.DistributedRigidBodies(op, tolerance=1e-10)
+    rigid.set_configuration(lx, lr, list(lo))
+    u, f, report = rigid.apply_from(ft[bodies], u_guess[bodies], f_guess[beads])
+    flat_u, flat_f, _ = rigid.apply_from(ft[bodies].ravel(), u_guess[bodies].ravel(), f_guess[beads].ravel())
+    _, report_zero = rigid.apply(ft[bodies])
+    reports = COMM.allgather((report.iterations, report.restarts, report.residual))
+    assert u.shape == (rigid.local_bodies, 6) and f.shape == (rigid.local_beads, 3)
+    # The guess saves iterations, serially and across the ranks.
+    assert report_serial.iterations < from_zero.iterations
+    assert report.iterations < report_zero.iterations
+    # As test_direct_matches_the_serial_solver, and tests/mpi/test_distributed_rigid.cpp
+    # (ApplyFromMatchesTheSerialSolver): the iterates differ from the serial apply_from's with the
+    # same guesses only by the order of the inner products' sums, so the same iteration count, and
+    # bound 1e-12, a hundred times below the GMRES tolerance 1e-10 (two solves that each merely met
+    # it would fail) and far above the few rounding errors of the sums' order; bit for bit on one
+    # rank. Every rank takes the same GMRES steps: the same report everywhere.
+    assert report.iterations == report_serial.iterations
+    assert all(r == reports[0] for r in reports), reports
+    assert rel_err(gathered(u, 6), u_serial) <= 1e-12 and rel_err(gathered(f, 3), f_serial) <= 1e-12
+    if SIZE == 1:
+        assert np.array_equal(u, u_serial) and np.array_equal(f, f_serial)
+        assert report.residual == report_serial.residual
+    # The flat layouts (6m,) and (3n,) are the same call.
+    assert np.array_equal(flat_u, u) and np.array_equal(flat_f, f)
+
+
 def test_mobility_matrix_matches_the_serial_matrix() -> None:
     x, radii, offsets, _ = shell_lattice(3, seed=6)
     bodies = body_share(3)
@@ -206,14 +242,23 @@ def test_bad_input_on_one_rank_raises_on_every_rank() -> None:
     ]
     rigid.set_configuration(lx, lr, list(lo))
     bad_ft = ft[bodies].copy()
+    guess_u, guess_f = np.full((rigid.local_bodies, 6), 0.1), np.full((rigid.local_beads, 3), 0.1)
+    nan_guess_u = guess_u.copy()
     if last:
         bad_ft[0, 0] = np.nan
+        nan_guess_u[-1, -1] = np.nan
     messages += [
         raised(lambda: rigid.apply(ft[bodies][:, :5] if last else ft[bodies]), rpyfmm.InvalidInputError),
         raised(lambda: rigid.apply(bad_ft)),
         raised(lambda: rigid.apply_with_noise(ft[bodies], 1.0, z[:, :2] if last else z),
                rpyfmm.InvalidInputError),
         raised(lambda: rigid.apply_with_noise(ft[bodies], -1.0 if last else 1.0, z)),
+        raised(lambda: rigid.apply_from(ft[bodies], nan_guess_u, guess_f)),
+        raised(lambda: rigid.apply_from(ft[bodies], guess_u, guess_f[:-1] if last else guess_f)),
+        raised(lambda: rigid.apply_from(ft[bodies], guess_u[:, :5] if last else guess_u, guess_f),
+               rpyfmm.InvalidInputError),
+        raised(lambda: rigid.apply_from(ft[bodies], guess_u, guess_f[:, :2] if last else guess_f),
+               rpyfmm.InvalidInputError),
     ]
     u, _ = rigid.apply(ft[bodies])  # and the solver works after each failure
     # GMRES options that differ between the ranks (the constructor's collective check).
@@ -224,4 +269,7 @@ def test_bad_input_on_one_rank_raises_on_every_rank() -> None:
         assert all(m == ranks[0] for m in ranks), ranks
     for ranks in messages[1:]:
         assert f"rank {SIZE - 1} of {SIZE}" in ranks[0], ranks[0]
+    # The guesses' checks name them (the NaN velocity and the bead forces one bead short).
+    assert "guess velocities" in messages[-4][0] and "guess bead forces" in messages[-3][0], messages[-4:]
+    assert "guess_velocities" in messages[-2][0] and "guess_bead_forces" in messages[-1][0], messages[-2:]
     assert np.all(np.isfinite(u))
