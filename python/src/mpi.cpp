@@ -30,6 +30,7 @@
 
 #include "common.hpp"
 #include "mpi_common.hpp"
+#include "mpi_stats.hpp"
 #include "object_lock.hpp"
 #include "rpyfmm/bd/run.hpp"
 #include "rpyfmm/mpi/bd_stepper.hpp"
@@ -151,10 +152,12 @@ ArrayAndReport<rpy::SqrtReport> apply_sqrt(const WithComm<Op>& self, ArrayArg z,
     if constexpr (std::is_same_v<Op, mpi::DistributedPseRpy>) {
       static_assert(!Block, "the PSE's split sampler takes one column");
       report = self.op.apply_sqrt(io.in.span(), io.out.span(), a.options);
-    } else if constexpr (Block) {
-      report = mpi::sqrt_apply(self.op, io.in.span(), io.out.span(), a.sample.nrhs, a.options);
     } else {
-      report = mpi::sqrt_apply(self.op, io.in.span(), io.out.span(), a.options);
+      // One column is the call with nrhs = 1 (the same iteration and bits, rpyfmm/mpi/sqrt.hpp),
+      // which also counts the inner products' exchanges.
+      mpi::InnerProductStats stats;
+      report = mpi::sqrt_apply(self.op, io.in.span(), io.out.span(), a.sample.nrhs, a.options, &stats);
+      self.inner_products = {true, stats.seconds, stats.exchanges};
     }
   }
   return array_and_report(io.out.object, report);
@@ -264,7 +267,9 @@ RotationSample apply_sqrt_rotation(const WithComm<Op>& self, ArrayArg z_translat
     if constexpr (std::is_same_v<Op, mpi::DistributedPseRpy>) {
       report = self.op.apply_sqrt_rotation(r.f.span(), r.t.span(), r.u.span(), r.w.span(), a.options);
     } else {
-      report = mpi::sqrt_apply_rotation(self.op, r.f.span(), r.t.span(), r.u.span(), r.w.span(), a.options);
+      double seconds = 0.0;
+      report = mpi::sqrt_apply_rotation(self.op, r.f.span(), r.t.span(), r.u.span(), r.w.span(), a.options, &seconds);
+      self.inner_products = {true, seconds, std::nullopt};
     }
   }
   return rotation_sample(r, report);
@@ -345,6 +350,7 @@ void bind_distributed_direct(nb::module_& m) {
   add_common(cls, kKrylovSqrtDoc, false);
   add_rotation_apply(cls);
   add_apply_block(cls);
+  add_statistics(cls);
 }
 
 void init_fmm(Fmm* self, nb::object comm, double viscosity, double tolerance, int leaf_capacity,
@@ -372,6 +378,7 @@ void bind_distributed_fmm(nb::module_& m) {
   add_common(cls, kKrylovSqrtDoc, false);
   add_rotation_apply(cls);
   add_apply_block(cls);
+  add_statistics(cls);
 }
 
 void init_pse(Pse* self, nb::object comm, BoxArg box, double viscosity, double tolerance, double xi, double r_cut,
@@ -433,6 +440,7 @@ void bind_distributed_pse(nb::module_& m) {
              "'auto' or 'split' only (others raise NotSupportedError); returns (w, SqrtReport).",
              false);
   add_rotation_apply(cls);
+  add_statistics(cls);
 }
 
 void init_laplace(Laplace* self, nb::object comm, double tolerance, int leaf_capacity, int order, double separation,
@@ -489,17 +497,17 @@ ArrayResult evaluate(const Laplace& self, ArrayArg charges, nb::handle outputs, 
 }
 
 void bind_distributed_laplace(nb::module_& m) {
-  Class<mpi::DistributedLaplaceFmm>(
+  Class<mpi::DistributedLaplaceFmm> cls(
       m, "DistributedLaplaceFmm",
       "Laplace FMM phi(x) = sum_j q_j / |x - y_j| (no 1/(4 pi)) on sources distributed over the ranks, at\n"
-      "each rank's own sources or targets; relative l2 error of each output at most the tolerance.")
-      .def("__init__", &init_laplace, nb::arg("comm"), nb::arg("tolerance") = 1e-6, nb::arg("leaf_capacity") = 0,
-           nb::arg("order") = 0, nb::arg("separation") = 0.0, nb::arg("cell_capacity") = 0,
-           nb::arg("overlap_exchange") = false,
-           "Collective. comm: an mpi4py communicator; tolerance, leaf_capacity, order: each rank's serial\n"
-           "LaplaceFmm; separation (0 or in [1, 100]) and cell_capacity: the exchange of the essential tree\n"
-           "(0 = automatic); overlap_exchange: the serial FMM split to run during the exchanges (docs/mpi.md).\n"
-           "Every rank must pass the same values.")
+      "each rank's own sources or targets; relative l2 error of each output at most the tolerance.");
+  cls.def("__init__", &init_laplace, nb::arg("comm"), nb::arg("tolerance") = 1e-6, nb::arg("leaf_capacity") = 0,
+          nb::arg("order") = 0, nb::arg("separation") = 0.0, nb::arg("cell_capacity") = 0,
+          nb::arg("overlap_exchange") = false,
+          "Collective. comm: an mpi4py communicator; tolerance, leaf_capacity, order: each rank's serial\n"
+          "LaplaceFmm; separation (0 or in [1, 100]) and cell_capacity: the exchange of the essential tree\n"
+          "(0 = automatic); overlap_exchange: the serial FMM split to run during the exchanges (docs/mpi.md).\n"
+          "Every rank must pass the same values.")
       .def_prop_ro(
           "comm", [](const Laplace& s) { return s.comm; }, "The mpi4py communicator the plan works on.")
       .def_prop_ro(
@@ -525,6 +533,7 @@ void bind_distributed_laplace(nb::module_& m) {
            "Collective. charges: (n,) or (nd, n) for this rank's sources (nd and outputs the same on every\n"
            "rank); outputs as LaplaceFmm.evaluate. Returns (t, 10) or (nd, t, 10) at this rank's rows, the\n"
            "sums over every rank's sources.");
+  add_statistics(cls);
 }
 
 /// Not collective: this rank's share of the serial noise, rows [offset, offset + n) of normal_noise.

@@ -22,13 +22,25 @@ namespace rpyfmm::python {
 /// Raises InvalidArgumentError naming `where` for anything else.
 MPI_Comm comm_from(nb::handle comm, const char* where);
 
+/// What the last sampler call on an operator reported of its inner products on this rank
+/// (mpi::InnerProductStats): the seconds in their MPI calls and their exchanges, where the C++ call
+/// reports them (mpi::sqrt_apply_rotation reports the seconds only). `recorded` is false before any
+/// sampler call. The Python property inner_products (mpi_stats.cpp).
+struct InnerProductRecord {
+  bool recorded = false;
+  double seconds = 0.0;
+  std::optional<long long> exchanges;
+};
+
 /// A distributed operator and the mpi4py communicator its MPI_Comm belongs to (declared first:
 /// released after the operator). The Python classes DistributedDirectRpy, DistributedFmmRpy, ...
-/// (mpi.cpp) bind WithComm<Op>; mpi_rigid.cpp takes them as bead operators.
+/// (mpi.cpp) bind WithComm<Op>; mpi_rigid.cpp takes them as bead operators. `inner_products` is
+/// written by the samplers under the object's lock.
 template <class Op>
 struct WithComm {
   nb::object comm;
   Op op;
+  mutable InnerProductRecord inner_products{};
 };
 
 /// Runs `prepare` (argument checks and conversions, GIL held) on this rank and agrees on its
