@@ -17,11 +17,17 @@ initializes MPI. docs/mpi.md, "Python (mpi4py)", lists what is supported.
 * :class:`DistributedRigidBodies` ``(beads, tolerance=..., ...)``: :class:`rpyfmm.RigidBodies`
   with whole bodies per rank and the bead products across the ranks (``beads`` a
   :class:`DistributedDirectRpy` or :class:`DistributedFmmRpy`, kept alive); ``set_configuration``,
-  ``apply``, ``apply_with_bead_forces``, ``apply_with_noise`` with this rank's bodies and beads.
+  ``apply``, ``apply_with_bead_forces``, ``apply_from`` (GMRES from this rank's guesses),
+  ``apply_with_noise``, ``mobility_matrix`` with this rank's bodies and beads.
+* Statistics of this rank (copies; reading them is not collective): ``inner_products`` of the last
+  sampler call and ``counts`` on :class:`DistributedDirectRpy` and :class:`DistributedFmmRpy`,
+  ``communication`` (dicts of the C++ classes' ``communication()``) on those and
+  :class:`DistributedLaplaceFmm`, ``exchange_counts`` on :class:`DistributedPseRpy`.
 * :class:`DistributedPseRpy` also has the split sampler ``sample(seed, step)`` and
   ``apply_with_noise``.
 * :class:`DistributedLaplaceFmm`: ``set_points`` / ``evaluate`` with this rank's sources (and
-  targets) and charges, the layouts of :class:`rpyfmm.LaplaceFmm`.
+  targets, and partition weights) and charges, the layouts of :class:`rpyfmm.LaplaceFmm`;
+  ``measured_weights`` of the last evaluation balance the next plan by the work.
 * :func:`normal_noise` ``(n, offset, seed, step=0, stream=0)``: this rank's rows of
   :func:`rpyfmm.normal_noise` (not collective).
 * :func:`run_bd` ``(comm, config, steps=None, out_dir=None, progress=False)`` and

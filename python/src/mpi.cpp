@@ -353,12 +353,14 @@ void bind_distributed_direct(nb::module_& m) {
   add_statistics(cls);
 }
 
-void init_fmm(Fmm* self, nb::object comm, double viscosity, double tolerance, int leaf_capacity,
-              bool overlap_exchange) {
+void init_fmm(Fmm* self, nb::object comm, double viscosity, double tolerance, int leaf_capacity, bool overlap_exchange,
+              double separation, std::size_t cell_capacity) {
   mpi::DistributedFmmRpyOptions o;
   o.tolerance = tolerance;
   o.leaf_capacity = leaf_capacity;
   o.overlap_exchange = overlap_exchange;
+  o.separation = separation;
+  o.cell_capacity = cell_capacity;
   new (self) Fmm{comm, mpi::DistributedFmmRpy(comm_from(comm, "DistributedFmmRpy"), viscosity, o)};
 }
 
@@ -368,10 +370,12 @@ void bind_distributed_fmm(nb::module_& m) {
       "Free-space RPY mobility in O(N) by the distributed Laplace FMM plus the exact "
       "near field; relative l2\nerror of U (and of W with torques) over all particles at most the tolerance.");
   cls.def("__init__", &init_fmm, nb::arg("comm"), nb::arg("viscosity") = 1.0, nb::arg("tolerance") = 1e-6,
-          nb::arg("leaf_capacity") = 0, nb::arg("overlap_exchange") = false,
+          nb::arg("leaf_capacity") = 0, nb::arg("overlap_exchange") = false, nb::arg("separation") = 0.0,
+          nb::arg("cell_capacity") = 0,
           "Collective. comm: an mpi4py communicator; tolerance: relative l2 error of U in [1e-12, 1e-1];\n"
           "leaf_capacity: 0 = automatic; overlap_exchange: the Laplace FMM's serial FMM split to run during\n"
-          "the exchanges (docs/mpi.md). Every rank must pass the same values.")
+          "the exchanges; separation (0 or in [1, 100]) and cell_capacity (0 = automatic): the Laplace FMM's\n"
+          "exchange of the essential tree (docs/mpi.md). Every rank must pass the same values.")
       .def_prop_ro(
           "tolerance", [](const Fmm& s) { return s.op.options().tolerance; },
           "Requested relative l2 error of U (and of W with torques).");
@@ -456,22 +460,41 @@ void init_laplace(Laplace* self, nb::object comm, double tolerance, int leaf_cap
 }
 
 /// Sources, and targets where given (None: none on this rank), as LaplaceFmm.set_points.
-void set_points(Laplace& self, ArrayArg sources, OptArrayArg targets) {
+/// Sources, targets where given (None: none on this rank) and partition weights of the sources
+/// where given (None: 1 each), as LaplaceFmm.set_points; the weights' size and values are the C++
+/// call's collective checks.
+void set_points(Laplace& self, ArrayArg sources, OptArrayArg targets, OptArrayArg weights) {
   const std::string where = "set_points";
   struct Args {
-    InArray s, t;
+    InArray s, t, w;
   };
   const Args a = agreed(self.op.communicator(), [&] {
-    Args r{as_input(sources, where, "sources"), InArray{}};
+    Args r{as_input(sources, where, "sources"), InArray{}, InArray{}};
     require_points(r.s, where, "sources");
     if (!targets.is_none()) {
       r.t = as_input(targets, where, "targets");
       require_points(r.t, where, "targets");
     }
+    if (!weights.is_none()) {
+      r.w = as_input(weights, where, "weights");
+      require(r.w.ndim() == 1, ErrorCode::invalid_input, where,
+              "weights has shape " + shape_string(r.w.shape) + ", expected (n,)");
+    }
     return r;
   });
   nb::gil_scoped_release release;
-  self.op.set_points(a.s.span(), a.t.span());
+  self.op.set_points(a.s.span(), a.t.span(), a.w.span());
+}
+
+/// Collective: the partition weights of this rank's sources measured in the last evaluate.
+ArrayResult measured_weights(const Laplace& self) {
+  std::vector<double> w;
+  {
+    nb::gil_scoped_release release;
+    w = self.op.measured_weights();
+  }
+  const std::size_t n = w.size();
+  return adopt_vector(std::move(w), {n});
 }
 
 ArrayResult evaluate(const Laplace& self, ArrayArg charges, nb::handle outputs, OutArg out) {
@@ -525,9 +548,16 @@ void bind_distributed_laplace(nb::module_& m) {
                        "local_target_size", +[](const Laplace& s) { return s.op.local_target_size(); }),
                    "This rank's rows of results: its targets, or its sources when no rank passed targets.")
       .def("set_points", locked("set_points", &set_points), nb::arg("sources"), nb::arg("targets") = nb::none(),
+           nb::arg("weights") = nb::none(),
            "Collective. This rank's sources ((n, 3) or (3n,), n >= 0) and targets ((t, 3), or None). When no\n"
            "rank passes targets, results are at each rank's sources (self pair skipped); when any rank\n"
-           "does, at each rank's targets (none on a rank passing None).")
+           "does, at each rank's targets (none on a rank passing None). weights: (n,) finite, >= 0\n"
+           "partition weights of this rank's sources (None: 1 each), e.g. measured_weights().")
+      .def("measured_weights", locked("measured_weights", &measured_weights),
+           "Collective. (n,) partition weights of this rank's sources from the measured cost of the last\n"
+           "evaluate (each source's share of its leaf's seconds; a measurement, different from run to run):\n"
+           "passed to set_points with the same sources they balance the plan by the work. Results at the\n"
+           "sources only (with targets every rank raises NotSupportedError).")
       .def("evaluate", locked("evaluate", &evaluate), nb::arg("charges"), nb::arg("outputs") = "all",
            nb::arg("out") = nb::none(),
            "Collective. charges: (n,) or (nd, n) for this rank's sources (nd and outputs the same on every\n"

@@ -129,6 +129,10 @@ void add_statistics(nb::class_<Fmm>& cls) {
                        +[](const Fmm& s) { return communication_dict(s.op.laplace().communication()); }),
                    "The far field's DistributedLaplaceFmm.communication: its plan's and last evaluation's\n"
                    "exchanges and work on this rank. Not collective.")
+      .def_prop_ro("separation",
+                   locked_read(
+                       "separation", +[](const Fmm& s) { return s.op.laplace().separation(); }),
+                   "The far field's Laplace FMM's acceptance ratio in use.")
       .def_prop_ro("overlapping_pairs",
                    locked_read(
                        "overlapping_pairs", +[](const Fmm& s) { return s.op.overlapping_pairs(); }),

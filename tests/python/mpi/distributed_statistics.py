@@ -1,7 +1,9 @@
-"""What rpyfmm.mpi's operators report of their exchanges and work (docs/mpi.md, "Python (mpi4py)"):
-the samplers' inner products (`inner_products`), the operators' `communication`, `counts`,
-`exchange_counts` and sizes, checked against what the exchanges must carry, the same on every rank
-where the ranks take the same steps, and against the serial samplers' iteration counts.
+"""What rpyfmm.mpi's operators report of their exchanges and work, and the options that steer them
+(docs/mpi.md, "Python (mpi4py)"): the samplers' inner products (`inner_products`), the operators'
+`communication`, `counts`, `exchange_counts` and sizes, checked against what the exchanges must
+carry, the same on every rank where the ranks take the same steps, and against the serial
+samplers' iteration counts; the Laplace FMM's measured partition weights and the distributed
+FmmRpy's separation and cell capacity, within the FMMs' tolerance of direct sums.
 
 Run by ctest under mpirun on 1, 2 and 3 ranks (tests/mpi/CMakeLists.txt):
 `mpirun -n 2 python -m pytest tests/python/mpi/distributed_statistics.py`. Its name does not match
@@ -22,8 +24,8 @@ pytest.importorskip("mpi4py.MPI", reason="rpyfmm.mpi needs mpi4py")
 
 import rpyfmm  # noqa: E402
 import rpyfmm.mpi  # noqa: E402
-from conftest import suspension  # noqa: E402
-from mpi_shares import COMM, SIZE  # noqa: E402
+from conftest import rel_err, suspension  # noqa: E402
+from mpi_shares import COMM, RANK, SIZE, raised_on_every_rank  # noqa: E402
 from mpi_shares import share_without_first as share  # noqa: E402
 
 DOUBLE = 8  # bytes
@@ -207,3 +209,65 @@ def test_pse_exchange_counts() -> None:
     else:
         assert sent > 0
     assert memory > 0
+
+
+def test_laplace_measured_weights() -> None:
+    rng = np.random.default_rng(12)
+    # Half the sources in a small cluster: leaves of very different cost.
+    x = np.vstack([rng.uniform(0, 10, (1000, 3)), rng.uniform(4, 5, (1000, 3))])[rng.permutation(2000)]
+    q = rng.standard_normal(len(x))
+    part = share(len(x))
+    last = RANK == SIZE - 1
+    fmm = rpyfmm.mpi.DistributedLaplaceFmm(COMM, tolerance=1e-6)
+    fmm.set_points(x[part])
+    first = fmm.evaluate(q[part])
+    w = fmm.measured_weights()
+    fmm.set_points(x[part], None, w)
+    weighted = fmm.evaluate(q[part])
+    owned = COMM.allreduce(fmm.owned_size)
+    bad_w = w.copy()
+    if last:
+        bad_w[0] = np.nan
+    messages = [
+        raised_on_every_rank(lambda: fmm.set_points(x[part], None, bad_w)),
+        raised_on_every_rank(lambda: fmm.set_points(x[part], None, w[:-1] if last else w)),
+        raised_on_every_rank(lambda: fmm.set_points(x[part], None, w.reshape(-1, 1) if last else w),
+                             rpyfmm.InvalidInputError),
+    ]
+    fmm.set_points(x[part], x[part][:5])  # results at targets: no measured weights
+    messages.append(raised_on_every_rank(fmm.measured_weights, rpyfmm.NotSupportedError))
+    exact = rpyfmm.laplace_direct(x, q)
+    total = COMM.allreduce(float(np.sum(w)))
+
+    assert w.shape == (part.stop - part.start,) and np.all(np.isfinite(w)) and np.all(w >= 0)
+    assert total > 0 and owned == len(x)
+    # The contract (docs/mpi.md, "Distributed Laplace FMM"): relative l2 error of each output at
+    # most the tolerance, whatever the partition the weights give.
+    for r in (first, weighted):
+        r = np.concatenate(COMM.allgather(r))
+        for cols in (slice(0, 1), slice(1, 4), slice(4, 10)):
+            assert rel_err(r[:, cols], exact[:, cols]) <= 1e-6
+    for ranks in messages:
+        assert all(m == ranks[0] for m in ranks), ranks
+        assert f"rank {SIZE - 1} of {SIZE}" in ranks[0] or "measured weights" in ranks[0], ranks[0]
+    assert "weights has shape" in messages[2][0]
+
+
+def test_fmm_exchange_options() -> None:
+    x, a = system(150, seed=27)
+    part = share(len(x))
+    f = np.random.default_rng(5).standard_normal((len(x), 3))
+    default = rpyfmm.mpi.DistributedFmmRpy(COMM, tolerance=1e-6)
+    op = rpyfmm.mpi.DistributedFmmRpy(COMM, tolerance=1e-6, separation=3.0, cell_capacity=16)
+    op.set_positions(x[part], a[part])
+    u = np.concatenate(COMM.allgather(op.apply(f[part])))
+    refused = raised_on_every_rank(lambda: rpyfmm.mpi.DistributedFmmRpy(COMM, separation=0.5),
+                                   rpyfmm.InvalidArgumentError)
+    serial = rpyfmm.DirectRpy()
+    serial.set_positions(x, a)
+
+    assert default.separation == 2.0 and op.separation == 3.0
+    # The FMM's contract: relative l2 error of U at most the tolerance, whatever the acceptance
+    # ratio and cell capacity of the essential tree's exchange.
+    assert rel_err(u, serial.apply(f)) <= 1e-6
+    assert all(m == refused[0] for m in refused) and "separation" in refused[0]
