@@ -28,6 +28,7 @@ target_link_libraries(rpyfmm_rpy PRIVATE PkgConfig::FFTW3 ${FFTW3_OMP_LIBRARY} P
 rpyfmm_vectorize_pair_loops(${CMAKE_CURRENT_LIST_DIR}/src/pse/rotation_real_space_sum.cpp)
 if(RPYFMM_USE_CUDA)
   target_sources(rpyfmm_rpy PRIVATE ${CMAKE_CURRENT_LIST_DIR}/src/pse/pse_rpy_cuda.cu
+                                    ${CMAKE_CURRENT_LIST_DIR}/src/pse/device_checks.cu
                                     ${CMAKE_CURRENT_LIST_DIR}/src/pse/host_copy.cpp)
   target_link_libraries(rpyfmm_rpy PRIVATE CUDA::cufft CUDA::cudart)
   target_compile_definitions(rpyfmm_rpy PUBLIC RPYFMM_HAVE_CUDA_PSE=1)

@@ -13,14 +13,17 @@ cmake --preset release -DRPYFMM_USE_CUDA=ON >/dev/null
 cmake --build --preset release -j2
 grep -q "RPYFMM_USE_CUDA:BOOL=ON" build/release/CMakeCache.txt || { echo "device-kit: CUDA is off in build/release" >&2; exit 1; }
 rm -rf gpu-kit && mkdir -p gpu-kit/lib
-# ctest's files and the programs; not the object files, the libraries, the Python extension or
-# the package tests' install trees (those tests configure CMake projects and need the build
+# ctest's files and the programs; not the object files, the libraries or the package tests'
+# install trees (those tests configure CMake projects and need the build
 # dependencies, which the lent machine does not have).
 {
   find build/release -path '*/CMakeFiles' -prune -o -type f \
     \( -name CTestTestfile.cmake -o -name '*_tests.cmake' -o -name '*_include.cmake' \) -print
   find build/release -path '*/CMakeFiles' -prune -o -path build/release/tests/package -prune -o \
     -path build/release/python -prune -o -path 'build/release/_deps' -prune -o -type f -perm -u+x ! -name '*.so*' -print
+  # The Python package (its extension links the project's libraries statically): the device
+  # array tests (tests/python/test_device_arrays.py) run where the lent machine's Python matches.
+  find build/release/python/rpyfmm -maxdepth 1 -type f
 } | sort -u >gpu-kit/files.txt
 # The device tests scripts/device-suite.sh runs by path.
 for program in build/release/tests/pse/test_pse build/release/tests/bd/test_bd_device; do

@@ -6,7 +6,8 @@
 #      DeviceIntegrator.*, DevicePse.*:
 #      against the host launcher bit for bit, docs/gpu-bd.md), then compute-sanitizer memcheck and
 #      racecheck on two short ones where compute-sanitizer is installed (errors fail the suite;
-#      each tool within 60 s);
+#      each tool within 60 s); the Python device-array tests (tests/python/test_device_arrays.py)
+#      where this machine's Python imports the carried extension;
 #   2. the whole C++ suite at the CPU's own instruction-set level (ctest, slow tests included;
 #      not the Python and package tests, which need the build dependencies);
 #   3. the GPU benchmark groups (bd-gpu: the device BD engine at 1e6 particles per rebuild strategy
@@ -15,7 +16,7 @@
 #      FmmRpy at 1e6 and 1e-6, the direct kernels at 1e4, PSE at 1e5, one thread, the native level and
 #      AVX2 side by side, three rounds each, all at once on separate physical cores; each group
 #      within what is left of RPYFMM_BENCH_BUDGET seconds).
-# Output under $OUT (or ./gpu-out): device.txt, test_pse_cuda.txt, test_bd_device.txt,
+# Output under $OUT (or ./gpu-out): device.txt, test_pse_cuda.txt, test_bd_device.txt, test_python_device.txt,
 # sanitizer_bd_*.txt, ctest.txt, bench.txt and
 # results.tar.gz (bench/results/*.simd-levels.json, bd-gpu.json, pse-gpu.json). Exit status non-zero if a test failed.
 set -uo pipefail
@@ -62,6 +63,18 @@ if [ -n "$sanitizer" ]; then
   done
 else
   echo "device-suite: compute-sanitizer not found, BD device kernels not checked"
+fi
+# The Python device arrays (DLPack) on the CUDA PSE operator, where this machine's Python imports
+# the carried extension (the same Python version as the build machine's) and has NumPy and pytest.
+if PYTHONPATH=build/release/python python3 -c "import numpy, pytest, rpyfmm; assert rpyfmm.cuda_device_available()" \
+  >"$out/test_python_device.txt" 2>&1; then
+  PYTHONPATH=build/release/python timeout 120 python3 -m pytest -q -p no:cacheprovider -rs \
+    tests/python/test_device_arrays.py >>"$out/test_python_device.txt" 2>&1
+  rc=$?
+  tail -n 5 "$out/test_python_device.txt"
+  [ "$rc" -eq 0 ] || status=1
+else
+  echo "device-suite: Python device tests not run: $(tail -n 1 "$out/test_python_device.txt")"
 fi
 echo "# CUDA tests: status $status at ${SECONDS} s"
 unset OMP_NUM_THREADS

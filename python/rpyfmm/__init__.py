@@ -2,7 +2,8 @@
 
 The Laplace FMM (:class:`LaplaceFmm`, :func:`laplace_direct`), the RPY mobility
 operators behind one interface (:class:`DirectRpy`, :class:`FmmRpy`,
-:class:`PseRpy`, :class:`OpenPseRpy`, :class:`FreeDraining`, :func:`make_mobility`), the Brownian
+:class:`PseRpy`, :class:`OpenPseRpy`, :class:`FreeDraining`, :func:`make_mobility`; on a GPU
+:class:`PseRpyCuda`, which takes CuPy/PyTorch device arrays through DLPack, :mod:`rpyfmm.cuda`), the Brownian
 samplers (``apply_sqrt``, :func:`sqrt_apply`, :func:`normal_noise`,
 :class:`SqrtReport`), rigid bodies of beads (:class:`RigidBodies`,
 :func:`icosphere_beads`, and their Brownian dynamics :class:`RigidBodyDynamics`) and
@@ -60,6 +61,7 @@ from ._rpyfmm import (
     OutOfMemoryError,
     OpenPseRpy,
     PseRpy,
+    PseRpyCuda,
     RigidBodies,
     RigidBodyDynamics,
     RigidBodyReport,
@@ -90,6 +92,7 @@ from ._rpyfmm import (
     simd_level,
     sqrt_apply,
 )
+from . import cuda
 from ._helpers import msd, read_xyz, stokes_einstein
 
 __all__ = [
@@ -112,6 +115,7 @@ __all__ = [
     "OutOfMemoryError",
     "OpenPseRpy",
     "PseRpy",
+    "PseRpyCuda",
     "RigidBodies",
     "RigidBodyDynamics",
     "RigidBodyReport",
@@ -122,6 +126,7 @@ __all__ = [
     "SqrtReport",
     "StepReport",
     "__version__",
+    "cuda",
     "cuda_device_available",
     "default_fmm_crossover",
     "demo_config_text",

@@ -64,7 +64,9 @@ What differs from libMobility:
 * Accuracy: ``tolerance`` is also the requested relative error of the FMM and
   PSE products (clamped to the operators' ranges: FMM [1e-12, 1e-1], PSE
   [1e-8, 0.1)); libMobility's NBody is exact, and so is rpyfmm's DirectRpy.
-* Host NumPy arrays only (libMobility also takes CuPy / PyTorch device arrays).
+* Host NumPy arrays only (libMobility also takes CuPy / PyTorch device arrays); a device array
+  raises :class:`rpyfmm.InvalidInputError` naming it. :class:`rpyfmm.PseRpyCuda` reads CUDA
+  arrays in place (docs/python.md, "Device arrays").
 * Inputs are checked: wrong sizes, non-finite values, calls out of order and
   unknown periodicity names raise :class:`rpyfmm.InvalidArgumentError` or
   :class:`rpyfmm.InvalidInputError` (both ValueError) naming the problem.
@@ -110,6 +112,13 @@ def _real(value: object, name: str, where: str, minimum: Optional[float] = None,
 
 def _flat3(value: object, name: str, where: str) -> Tuple[np.ndarray, Tuple[int, ...]]:
     """A real (N, 3) or (3N,) array -> (float64 (N, 3) C-contiguous, original shape)."""
+    device = getattr(value, "__dlpack_device__", None)
+    if device is not None and not isinstance(value, np.ndarray) and device()[0] != 1:
+        raise InvalidInputError(
+            f"{where}: {name} is a device array (DLPack device {device()}); rpyfmm.libmobility takes host "
+            "arrays: copy it to the host (cupy.asnumpy(x), x.cpu().numpy()), or use rpyfmm.PseRpyCuda, which "
+            "reads CUDA arrays in place"
+        )
     a = np.asarray(value)
     if a.dtype.kind not in "biuf":
         raise InvalidArgumentError(f"{where}: {name} must be a real array (got dtype {a.dtype})")

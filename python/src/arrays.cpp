@@ -5,6 +5,7 @@
 #include <numeric>
 
 #include "common.hpp"
+#include "device_arrays.hpp"
 
 namespace rpyfmm::python {
 namespace {
@@ -44,7 +45,9 @@ InArray as_input(nb::handle obj, const std::string& where, const std::string& na
   if (obj.is_none()) fail(ErrorCode::invalid_input, where, name + " is None, expected an array");
   CView view;
   if (!nb::try_cast(obj, view, /*convert=*/false)) {
-    // Not a float64 C-contiguous CPU array: one conversion through NumPy (copies).
+    // Not a float64 C-contiguous CPU array: one conversion through NumPy (copies), which a device
+    // array (CuPy, PyTorch on a GPU) would refuse with its own words or copy implicitly.
+    if (const auto device = device_of(obj)) fail(ErrorCode::invalid_input, where, device_array_refusal(name, *device));
     nb::object np = nb::module_::import_("numpy");
     nb::object arr;
     try {
@@ -103,6 +106,7 @@ OutArray make_output(nb::handle out, const std::vector<std::size_t>& shape, cons
   }
   WView view;
   if (!nb::try_cast(out, view, /*convert=*/false)) {
+    if (const auto device = device_of(out)) fail(ErrorCode::invalid_input, where, device_array_refusal("out", *device));
     std::string got = py_type_name(out);
     if (nb::hasattr(out, "dtype")) {
       got += " of dtype " + str_of(out.attr("dtype"));

@@ -10,6 +10,7 @@
 #include <nanobind/stl/vector.h>
 
 #include "common.hpp"
+#include "device_arrays.hpp"
 #include "object_lock.hpp"
 #include "rpyfmm/core/threads.hpp"
 #include "rpyfmm/core/timer.hpp"
@@ -27,6 +28,7 @@ namespace {
 using rpy::MobilityOperator;
 
 void set_positions(MobilityOperator& op, ArrayArg positions, RadiusArg radius) {
+  if (device_of(positions)) return set_positions_on_device(op, positions, radius);
   const std::string where = "set_positions";
   const InArray x = as_input(positions, where, "positions");
   require_points(x, where, "positions");
@@ -61,6 +63,7 @@ ArrayResult map_points(const std::string& where, ArrayArg forces, OutArg out, Fn
 
 /// U = M F; with torques, (U, W) = M (F, T) (MobilityOperator::apply with rotation).
 nb::object apply(const MobilityOperator& op, ArrayArg forces, OptArrayArg torques, OutArg out) {
+  if (device_of(forces)) return apply_on_device(op, forces, torques, out);
   if (torques.is_none()) return map_points("apply", forces, out, [&](auto f, auto u) { op.apply(f, u); }).o;
   const RotationArrays a = rotation_arrays(forces, torques, out, "apply");
   {

@@ -16,6 +16,7 @@
 #include <system_error>
 
 #include "common.hpp"
+#include "device_arrays.hpp"
 #include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/core/threads.hpp"
 
@@ -81,6 +82,8 @@ NB_MODULE(_rpyfmm, m) {
   m.def("_throw", &throw_std, nb::arg("kind"));
   bind_fmm(m);
   bind_mobility(m);
+  bind_pse_cuda(m);
+  bind_device_arrays(m);
   bind_samplers(m);
   bind_bd(m);
   bind_rigid(m);

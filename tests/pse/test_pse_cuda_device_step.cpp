@@ -8,6 +8,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "cuda_test_device.hpp"
@@ -104,5 +105,28 @@ TEST(PseCudaDeviceStep, SetPositionsDeviceNeedsAPlan) {
   PseRpyCuda gpu(Geometry::periodic(kL), 0.8, options());
   pse_test::DeviceVector dx(3 * kN);
   EXPECT_THROW(gpu.set_positions_device(dx.get()), rpyfmm::Error);
+#endif
+}
+
+// The finiteness check of device arrays (what the Python bindings run on device inputs): finite
+// values pass, one NaN or Inf anywhere (first, middle, last entry; beyond one block of threads)
+// fails, an empty range passes.
+TEST(PseCudaDeviceStep, DeviceValuesFiniteFindsEveryNonFiniteEntry) {
+  REQUIRE_DEVICE();
+#ifdef RPYFMM_HAVE_CUDA_PSE
+  const std::size_t n = 3 * 100003;
+  std::vector<double> values = forces_of(n / 3);
+  pse_test::DeviceVector d(values);
+  EXPECT_TRUE(PseRpyCuda::device_values_finite(d.get(), n));
+  EXPECT_TRUE(PseRpyCuda::device_values_finite(d.get(), 0));
+  for (const std::size_t at : {std::size_t{0}, n / 2, n - 1}) {
+    for (const double bad : {std::numeric_limits<double>::quiet_NaN(), -std::numeric_limits<double>::infinity()}) {
+      std::vector<double> broken = values;
+      broken[at] = bad;
+      d.upload(broken);
+      EXPECT_FALSE(PseRpyCuda::device_values_finite(d.get(), n)) << "entry " << at;
+      EXPECT_TRUE(PseRpyCuda::device_values_finite(d.get(), at)) << "the entries before " << at;
+    }
+  }
 #endif
 }

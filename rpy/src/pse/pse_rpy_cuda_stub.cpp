@@ -12,6 +12,10 @@ bool PseRpyCuda::device_available() {
   return false;
 }
 
+bool PseRpyCuda::device_values_finite(const double*, std::size_t) {
+  fail(ErrorCode::not_supported, "PseRpyCuda::device_values_finite", "no CUDA support in this build");
+}
+
 PseRpyCuda::PseRpyCuda(Geometry geometry, double viscosity, const PseOptions&, const PseCudaOptions&)
     : PseOperator(geometry, viscosity, "PseRpyCuda") {
   fail(ErrorCode::not_supported, "PseRpyCuda", "this build of rpyfmm has no CUDA support (RPYFMM_USE_CUDA=OFF)");

@@ -87,6 +87,10 @@ class PseRpyCuda final : public PseOperator {
   /// True when the library was built with CUDA and a device can be used (any
   /// CUDA error, e.g. "insufficient driver", counts as no device).
   static bool device_available();
+  /// True when all `count` doubles at `values` (device memory on the current device) are finite:
+  /// one pass on the device, for callers that check device inputs as the host entry points check
+  /// theirs (the *_device entry points do not). Throws not_supported in a build without CUDA.
+  static bool device_values_finite(const double* values, std::size_t count);
 
   /// Throws rpyfmm::Error for an open geometry, bad options, a build without
   /// CUDA (not_supported) or no usable device.
