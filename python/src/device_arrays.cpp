@@ -67,7 +67,7 @@ std::pair<double*, nb::capsule> allocate_device(std::size_t size, const std::str
 #else
 [[noreturn]] void no_cuda(const std::string& where) {
   fail(ErrorCode::not_supported, where,
-       "device arrays need a build with CUDA (this rpyfmm was built without it; rpyfmm.cuda_device_available())");
+       "device arrays need a build with CUDA (this rpyfmm was built without CUDA; rpyfmm.cuda_device_available())");
 }
 #endif
 
