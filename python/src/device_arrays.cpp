@@ -76,8 +76,8 @@ nb::object wrap_device(double* data, const std::vector<std::size_t>& shape, cons
                        nb::handle like) {
   const std::string framework = framework_of(like);
   const auto make = [&]<class Framework>(Framework) {
-    return nb::cast(nb::ndarray<Framework, double, nb::device::cuda>(data, shape.size(), shape.data(), owner,
-                                                                       nullptr, nb::dtype<double>(), kDLCUDA, device));
+    return nb::cast(nb::ndarray<Framework, double, nb::device::cuda>(data, shape.size(), shape.data(), owner, nullptr,
+                                                                     nb::dtype<double>(), kDLCUDA, device));
   };
   if (framework == "torch") return make(nb::pytorch{});
   if (framework == "cupy") return make(nb::cupy{});
@@ -102,8 +102,9 @@ DeviceIn read_device_array(nb::handle obj, const std::string& where, const std::
   CudaView view;
   if (!nb::try_cast(obj, view, /*convert=*/false))
     fail(ErrorCode::invalid_input, where,
-         name + " must be a float64 C-contiguous CUDA array (e.g. cupy.ascontiguousarray(x, dtype=cupy.float64), "
-                "x.contiguous().double())");
+         name +
+             " must be a float64 C-contiguous CUDA array (e.g. cupy.ascontiguousarray(x, dtype=cupy.float64), "
+             "x.contiguous().double())");
   DeviceIn in;
   in.owner = nb::borrow(obj);
   in.data = view.data();

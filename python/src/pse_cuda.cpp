@@ -121,10 +121,10 @@ void init_pse_cuda(PseRpyCuda* self, BoxArg box, double viscosity, double tolera
   cuda.device_cell_list = device_cell_list;
   cuda.window_bin = window_bin;
   cuda.pinned_transfers = pinned_transfers;
-  new (self) PseRpyCuda(geometry_from(box, "PseRpyCuda"), viscosity,
-                        pse_options("PseRpyCuda", tolerance, xi, r_cut, window_eta, 0, max_memory_bytes, false,
-                                    wave_precision, true),
-                        cuda);
+  new (self) PseRpyCuda(
+      geometry_from(box, "PseRpyCuda"), viscosity,
+      pse_options("PseRpyCuda", tolerance, xi, r_cut, window_eta, 0, max_memory_bytes, false, wave_precision, true),
+      cuda);
 }
 
 }  // namespace
@@ -193,16 +193,15 @@ void bind_pse_cuda(nb::module_& m) {
            nb::arg("device_cell_list") = true, nb::arg("window_bin") = 0, nb::arg("pinned_transfers") = true,
            "Options as PseRpy's; device_cell_list, window_bin and pinned_transfers as PseCudaOptions\n"
            "(rpyfmm/rpy/pse/pse_rpy_cuda.hpp).")
-      .def_prop_ro(
-          "parameters",
-          locked_read(
-              "PseRpyCuda.parameters", +[](const PseRpyCuda& op) { return pse_parameters(op.parameters()); }),
-          "The choices made for the current radius, box and N.")
-      .def_prop_ro("device_cell_list_active",
+      .def_prop_ro("parameters",
                    locked_read(
-                       "PseRpyCuda.device_cell_list_active",
-                       +[](const PseRpyCuda& op) { return op.device_cell_list_active(); }),
-                   "True when the real-space part runs on the device cell list.")
+                       "PseRpyCuda.parameters", +[](const PseRpyCuda& op) { return pse_parameters(op.parameters()); }),
+                   "The choices made for the current radius, box and N.")
+      .def_prop_ro(
+          "device_cell_list_active",
+          locked_read(
+              "PseRpyCuda.device_cell_list_active", +[](const PseRpyCuda& op) { return op.device_cell_list_active(); }),
+          "True when the real-space part runs on the device cell list.")
       .def("stage_times",
            locked_read(
                "PseRpyCuda.stage_times", +[](const PseRpyCuda& op) { return op.stage_times(); }),
