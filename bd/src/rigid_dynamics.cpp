@@ -145,7 +145,7 @@ int RigidBodyDynamics::drift_estimate(std::span<const double> w, std::span<doubl
   require_size(drift, 6 * bodies(), kWhere, "drift");
   int iterations = perturbed_solve(rfd_solver_, w, +1.0, rfd_plus_, false);
   iterations += perturbed_solve(rfd_solver_, w, -1.0, rfd_minus_, true);
-  for (std::size_t i = 0; i < drift.size(); ++i) drift[i] = (rfd_plus_[i] - rfd_minus_[i]) / options_.rfd_delta;
+  rigid_detail::rfd_difference(rfd_plus_, rfd_minus_, options_.rfd_delta, drift);
   return iterations;
 }
 
@@ -164,24 +164,11 @@ void RigidBodyDynamics::gather_forces_and_torques() {
 }
 
 void RigidBodyDynamics::solve_velocities() {
-  const double kT = options_.kT;
   StopWatch watch;
   solver_.set_configuration(beads_now_, radii_, offsets_, q_);
   totals_.seconds["plan"] += watch.seconds();
-  rpy::RigidBodyReport solve;
-  if (kT > 0.0) {
-    watch.restart();
-    rpy::fill_normal(z_, options_.seed, step_, 0);
-    solve = solver_.apply_with_noise(w_, std::sqrt(2.0 * kT / options_.dt), z_, y_, options_.sqrt);
-    report_.sqrt_iterations = solve.sqrt.iterations;
-    totals_.seconds["sqrt"] += solve.seconds_sqrt;
-    totals_.seconds["solve"] += watch.seconds() - solve.seconds_sqrt;
-  } else {
-    watch.restart();
-    solve = solver_.apply(w_, y_);
-    totals_.seconds["solve"] += watch.seconds();
-  }
-  report_.solve_iterations = solve.iterations;
+  if (options_.kT > 0.0) rpy::fill_normal(z_, options_.seed, step_, 0);
+  rigid_detail::solve_velocities(solver_, w_, z_, y_, options_, report_, totals_);
 }
 
 void RigidBodyDynamics::estimate_drift() {
@@ -204,20 +191,13 @@ void RigidBodyDynamics::update_bodies() {
 
 const RigidStepReport& RigidBodyDynamics::step() {
   report_ = {};
-  StopWatch watch;
-  gather_forces_and_torques();  // at the current state
-  totals_.seconds["forces"] += watch.seconds();
-  solve_velocities();  // 1. velocities with the random slip, at the current configuration
-  estimate_drift();    // 2. the drift kT d/dQ . N by a random finite difference
-  watch.restart();
-  update_bodies();  // 3. the update, checked before it is committed
-  ++step_;
-  totals_.seconds["update"] += watch.seconds();
-
-  ++totals_.steps;
-  totals_.solve_iterations += static_cast<std::uint64_t>(report_.solve_iterations);
-  totals_.drift_iterations += static_cast<std::uint64_t>(report_.drift_iterations);
-  totals_.sqrt_iterations += static_cast<std::uint64_t>(report_.sqrt_iterations);
+  rigid_detail::take_step(
+      report_, totals_, [this] { gather_forces_and_torques(); }, [this] { solve_velocities(); },
+      [this] { estimate_drift(); },
+      [this] {
+        update_bodies();
+        ++step_;
+      });
   return report_;
 }
 

@@ -82,6 +82,11 @@ void perturb(std::span<const double> q, std::span<const double> quat, std::span<
   }
 }
 
+void rfd_difference(std::span<const double> plus, std::span<const double> minus, double delta,
+                    std::span<double> drift) {
+  for (std::size_t i = 0; i < drift.size(); ++i) drift[i] = (plus[i] - minus[i]) / delta;
+}
+
 void advance(std::span<const double> q, std::span<const double> quat, std::span<const double> lever,
              std::span<const double> velocities, std::span<const double> drift, const RigidDynamicsOptions& options,
              std::uint64_t step, std::size_t first_body, std::vector<double>& q_out, std::vector<double>& quat_out,

@@ -4,12 +4,14 @@
 // Private to the library: bd/src and mpi/src include it.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <span>
 #include <vector>
 
 #include "rpyfmm/bd/rigid_dynamics.hpp"
+#include "rpyfmm/core/timer.hpp"
 
 namespace rpyfmm::bd::rigid_detail {
 
@@ -47,5 +49,48 @@ void advance(std::span<const double> q, std::span<const double> quat, std::span<
              std::span<const double> velocities, std::span<const double> drift, const RigidDynamicsOptions& options,
              std::uint64_t step, std::size_t first_body, std::vector<double>& q_out, std::vector<double>& quat_out,
              const char* where);
+
+/// Step 1 of the header on `solver` (rpy::RigidBodies or mpi::DistributedRigidBodies, configured):
+/// y = N w, plus the random slip sqrt(2 kT / dt) N K^T M^{-1} B z with the bead noise z when
+/// kT > 0; its iterations into `report`, its seconds ("sqrt", "solve") into `totals`.
+template <class Solver>
+void solve_velocities(const Solver& solver, std::span<const double> w, std::span<const double> z, std::span<double> y,
+                      const RigidDynamicsOptions& options, RigidStepReport& report, RigidDynamicsTotals& totals) {
+  const StopWatch watch;
+  rpy::RigidBodyReport solve;
+  if (options.kT > 0.0) {
+    solve = solver.apply_with_noise(w, std::sqrt(2.0 * options.kT / options.dt), z, y, options.sqrt);
+    report.sqrt_iterations = solve.sqrt.iterations;
+    totals.seconds["sqrt"] += solve.seconds_sqrt;
+    totals.seconds["solve"] += watch.seconds() - solve.seconds_sqrt;
+  } else {
+    solve = solver.apply(w, y);
+    totals.seconds["solve"] += watch.seconds();
+  }
+  report.solve_iterations = solve.iterations;
+}
+
+/// Step 2's difference without the factor kT: drift = (plus - minus) / delta (6m), plus and minus
+/// the solves at the two perturbed configurations.
+void rfd_difference(std::span<const double> plus, std::span<const double> minus, double delta, std::span<double> drift);
+
+/// One step in the header's order, each stage a callable: forces (timed as "forces"), velocities,
+/// drift, then update (timed as "update"); then the step's iterations added to `totals`.
+template <class Forces, class Velocities, class Drift, class Update>
+void take_step(const RigidStepReport& report, RigidDynamicsTotals& totals, Forces&& forces, Velocities&& velocities,
+               Drift&& drift, Update&& update) {
+  StopWatch watch;
+  forces();  // at the current state
+  totals.seconds["forces"] += watch.seconds();
+  velocities();  // 1. velocities with the random slip, at the current configuration
+  drift();       // 2. the drift kT d/dQ . N by a random finite difference
+  watch.restart();
+  update();  // 3. the update, checked before it is committed
+  totals.seconds["update"] += watch.seconds();
+  ++totals.steps;
+  totals.solve_iterations += static_cast<std::uint64_t>(report.solve_iterations);
+  totals.drift_iterations += static_cast<std::uint64_t>(report.drift_iterations);
+  totals.sqrt_iterations += static_cast<std::uint64_t>(report.sqrt_iterations);
+}
 
 }  // namespace rpyfmm::bd::rigid_detail
