@@ -14,6 +14,7 @@ target_sources(rpyfmm_bd PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/src/langevin_group.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/sac.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/rigid_dynamics.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/rigid/rigid_stages.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/checkpoint.cpp)
 target_sources(rpyfmm_bd PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/src/config.cpp

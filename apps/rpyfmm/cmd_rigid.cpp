@@ -50,17 +50,7 @@ struct RigidArgs {
 /// CPU); otherwise it runs on one rank only and more ranks are refused. Every rank parses the same
 /// options, so every rank refuses alike.
 bool across_ranks(const RigidArgs& args) {
-  const MobilityChoice& m = args.mobility;
-  const bool supported = (m.method == "direct" || m.method == "fmm") && m.box.empty() && m.device == "cpu";
-  require(supported || mpi_size() == 1, ErrorCode::not_supported, "rigid",
-          "across " + std::to_string(mpi_size()) +
-              " MPI ranks runs --method direct or fmm without --box, on the CPU (docs/mpi.md), not --method " +
-              m.method + (m.box.empty() ? "" : " with --box") + "; run other methods without mpirun");
-  if (supported) {  // as make_operator checks them for the serial command
-    ranges::require_in(ranges::kViscosity, m.viscosity, "--viscosity", "viscosity");
-    ranges::require_in(ranges::kMobilityTolerance, m.tolerance, "--tolerance", "tolerance");
-  }
-  return supported;
+  return bodies_across_ranks(args.mobility, mpi_size(), "rigid");
 }
 
 void run_rigid(const RigidArgs& args) {

@@ -5,7 +5,8 @@
 //                   [--reference Q.npy] --dt DT --steps N [--kT 1] [--seed 1] [--drift rfd|none]
 //                   [--rfd-delta 1e-3] [--body-force Fx Fy Fz] [--body-torque Tx Ty Tz]
 //                   [--pair none|wca|soft|lj36_18] [--pair-epsilon 1] [--pair-sigma 0]
-//                   [--solver-tolerance 1e-6] [--sqrt-tolerance 1e-3] [--every K] [--method ...]
+//                   [--solver-tolerance 1e-6] [--sqrt-tolerance 1e-3]
+//                   [--sqrt-preconditioner auto|none|block] [--every K] [--method ...]
 //                   [--tolerance ...]
 //                   [--box ...] --out TRAJ.npy [--beads-out B.npy] [--restart OLD.npy
 //                   --first-step S] [--threads N] [--json]
@@ -20,6 +21,10 @@
 // Restart: --restart OLD.npy starts from OLD's last frame (with the original --positions,
 // --body-sizes and --reference, which define the bodies' shapes); with --first-step S, S the
 // last step of the earlier run, the continuation equals one longer run bit for bit.
+//
+// Under mpirun, --method direct and fmm (free space, on the CPU) without --pair run across the ranks,
+// each rank owning whole bodies (rigid_bd_across_ranks.hpp); other methods and --pair are refused on
+// more than one rank.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <array>
@@ -36,6 +41,9 @@
 #include "cli_common.hpp"
 #include "commands.hpp"
 #include "mobility_choice.hpp"
+#include "mpi_session.hpp"
+#include "rigid_bd_across_ranks.hpp"
+#include "rigid_bd_run.hpp"
 #include "rpyfmm/bd/rigid_dynamics.hpp"
 #include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/core/file_safety.hpp"
@@ -54,6 +62,7 @@ struct RigidBdArgs {
   long long steps = 0, every = 0;
   std::uint64_t seed = 1;
   std::string drift = "rfd", pair = "none";
+  std::string sqrt_preconditioner = "auto";  // auto | none | block
   double pair_epsilon = 1.0, pair_sigma = 0.0;
   std::vector<double> body_force{0, 0, 0}, body_torque{0, 0, 0};
   MobilityChoice mobility;
@@ -74,42 +83,28 @@ void validate(const RigidBdArgs& args) {
   ranges::require_in(ranges::kSolverTolerance, args.sqrt_tolerance, "--sqrt-tolerance", "tolerance");
   require(args.drift == "rfd" || args.drift == "none", ErrorCode::invalid_argument, "--drift",
           "must be rfd or none, got '" + args.drift + "'");
+  require(
+      args.sqrt_preconditioner == "auto" || args.sqrt_preconditioner == "none" || args.sqrt_preconditioner == "block",
+      ErrorCode::invalid_argument, "--sqrt-preconditioner",
+      "must be auto, none or block, got '" + args.sqrt_preconditioner + "'");
   require(args.body_force.size() == 3 && args.body_torque.size() == 3, ErrorCode::invalid_argument, "rigid-bd",
           "--body-force and --body-torque take three numbers");
   require_finite(args.body_force, "--body-force", "force", 3);
   require_finite(args.body_torque, "--body-torque", "torque", 3);
 }
 
-/// The bodies' positions and orientations to start from: `reference` with identity orientations
-/// (none given), or the last frame of --restart.
-struct BodyState {
-  std::vector<double> positions, orientations;
-};
-
-BodyState initial_state(const RigidBdArgs& args, const std::vector<double>& reference, std::size_t m) {
-  BodyState state{reference, {}};
-  if (args.restart.empty()) return state;
-  const Array old = read_array(args.restart);
-  require(old.shape.size() == 3 && old.shape[1] == m && old.shape[2] == 7 && old.shape[0] >= 1,
-          ErrorCode::invalid_input, "--restart",
-          "expected a trajectory of shape (frames, " + std::to_string(m) + ", 7) from rpyfmm rigid-bd");
-  const std::size_t last = (old.shape[0] - 1) * m * 7;
-  for (std::size_t k = 0; k < m; ++k) {
-    for (std::size_t c = 0; c < 3; ++c) state.positions[3 * k + c] = old.data[last + 7 * k + c];
-    for (std::size_t c = 0; c < 4; ++c) state.orientations.push_back(old.data[last + 7 * k + 3 + c]);
-  }
-  return state;
+/// --body-force and --body-torque, F then T.
+std::array<double, 6> load_of(const RigidBdArgs& args) {
+  return {args.body_force[0],  args.body_force[1],  args.body_force[2],
+          args.body_torque[0], args.body_torque[1], args.body_torque[2]};
 }
 
-/// --body-force and --body-torque on every body (none when both are zero).
-bd::BodyForceFunction constant_load(const RigidBdArgs& args) {
-  const std::array<double, 6> load{args.body_force[0],  args.body_force[1],  args.body_force[2],
-                                   args.body_torque[0], args.body_torque[1], args.body_torque[2]};
-  if (std::none_of(load.begin(), load.end(), [](double v) { return v != 0.0; })) return {};
-  return [load](const bd::RigidBodyState&, std::span<double> w) {
-    for (std::size_t k = 0; k < w.size(); k += 6)
-      for (std::size_t c = 0; c < 6; ++c) w[k + c] = load[c];
-  };
+/// --sqrt-preconditioner: auto (the serial engine's block preconditioner; none across ranks), none
+/// (the principal root) or block.
+rpy::SqrtPreconditioner sqrt_preconditioner(const std::string& name) {
+  if (name == "none") return rpy::SqrtPreconditioner::none;
+  if (name == "block") return rpy::SqrtPreconditioner::block;
+  return rpy::SqrtPreconditioner::automatic;
 }
 
 bd::RigidDynamicsOptions dynamics_options(const RigidBdArgs& args) {
@@ -120,7 +115,7 @@ bd::RigidDynamicsOptions dynamics_options(const RigidBdArgs& args) {
           .drift = args.drift == "none" ? bd::RigidDrift::none : bd::RigidDrift::random_finite_difference,
           .rfd_delta = args.rfd_delta,
           .solver = {.tolerance = args.solver_tolerance},
-          .sqrt = {.tolerance = args.sqrt_tolerance, .preconditioner = rpy::SqrtPreconditioner::automatic}};
+          .sqrt = {.tolerance = args.sqrt_tolerance, .preconditioner = sqrt_preconditioner(args.sqrt_preconditioner)}};
 }
 
 /// --pair between beads of different bodies (one bead type, the first bead's radius).
@@ -138,8 +133,6 @@ void add_bead_pair(bd::RigidBodyDynamics& sim, const RigidBdArgs& args, double r
 /// of --every and at the last step.
 std::vector<double> run_and_record(bd::RigidBodyDynamics& sim, const RigidBdArgs& args) {
   const std::size_t m = sim.bodies();
-  const auto every = static_cast<std::uint64_t>(args.every > 0 ? args.every : args.steps);
-  const auto steps = static_cast<std::uint64_t>(args.steps);
   std::vector<double> frames;
   const auto record = [&] {
     for (std::size_t k = 0; k < m; ++k) {
@@ -149,11 +142,9 @@ std::vector<double> run_and_record(bd::RigidBodyDynamics& sim, const RigidBdArgs
                     sim.orientations().begin() + std::ptrdiff_t(4 * k + 4));
     }
   };
-  record();
-  for (std::uint64_t s = 1; s <= steps; ++s) {
-    sim.step();
-    if (sim.step_count() % every == 0 || s == steps) record();
-  }
+  step_and_record(
+      static_cast<std::uint64_t>(args.steps), static_cast<std::uint64_t>(args.every), [&] { sim.step(); },
+      [&] { return sim.step_count(); }, record);
   return frames;
 }
 
@@ -194,8 +185,26 @@ void report_rigid_bd(const RigidBdArgs& args, const bd::RigidBodyDynamics& sim, 
   }
 }
 
+/// Under MPI: whether this run goes across the ranks (--method direct or fmm without --box, on the
+/// CPU, without --pair); otherwise more than one rank is refused. Every rank parses the same
+/// options, so every rank refuses alike.
+bool across_ranks(const RigidBdArgs& args) {
+  const bool method = bodies_across_ranks(args.mobility, mpi_size(), "rigid-bd");
+  require(args.pair == "none" || mpi_size() == 1, ErrorCode::not_supported, "rigid-bd",
+          "--pair " + args.pair + " (bead pair potentials between bodies) does not run across " +
+              std::to_string(mpi_size()) + " MPI ranks (docs/mpi.md); run it without mpirun");
+  return method && args.pair == "none";
+}
+
 void run_rigid_bd(const RigidBdArgs& args) {
   validate(args);
+  if (under_mpi() && across_ranks(args)) {
+    run_rigid_bd_across_ranks({args.bodies, args.out, args.beads_out, args.restart,
+                               static_cast<std::uint64_t>(args.steps), static_cast<std::uint64_t>(args.every),
+                               dynamics_options(args), load_of(args), args.mobility.method, args.mobility.tolerance,
+                               args.mobility.viscosity, args.common.json});
+    return;
+  }
   StopWatch total;
   StopWatch watch;
   const BeadBodies bodies = read_bead_bodies(args.bodies);
@@ -204,13 +213,13 @@ void run_rigid_bd(const RigidBdArgs& args) {
   auto beads = make_operator(args.mobility, n);
   std::vector<double> reference = bodies.reference;
   const std::vector<double> shape = body_frame_shape(beads->geometry(), bodies, reference);
-  const BodyState start = initial_state(args, reference, m);
+  const BodyState start = initial_state(args.restart, reference, m);
   StageTimes stages;
   stages["read"] = watch.seconds();
 
   watch.restart();
   bd::RigidBodyDynamics sim(std::move(beads), shape, bodies.radii, bodies.offsets, start.positions, start.orientations,
-                            dynamics_options(args), constant_load(args));
+                            dynamics_options(args), constant_load(load_of(args)));
   add_bead_pair(sim, args, bodies.radii[0]);
   stages["setup"] = watch.seconds();
 
@@ -259,6 +268,9 @@ void register_rigid_bd(CLI::App& app) {
       *cmd, "--sqrt-tolerance", "--sqrt-tol", args->sqrt_tolerance,
       "tolerance of the bead noise B z (block-preconditioned Lanczos), in " + ranges::kSolverTolerance.str())
       .option->capture_default_str();
+  cmd->add_option("--sqrt-preconditioner", args->sqrt_preconditioner,
+                  "bead noise B z: auto (block; none across MPI ranks), none (M^{1/2} z) or block")
+      ->capture_default_str();
   add_integer_option(*cmd, "--every", args->every, ranges::kSteps,
                      "record a frame every K steps (0: first and last only)");
   add_mobility_options(*cmd, args->mobility);

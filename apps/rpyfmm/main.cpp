@@ -20,7 +20,8 @@ namespace {
 
 // The commands that run across MPI ranks; the others refuse a run on more than one.
 bool runs_across_ranks(const std::string& command) {
-  return command == "laplace" || command == "mobility" || command == "sample" || command == "bd" || command == "rigid";
+  return command == "laplace" || command == "mobility" || command == "sample" || command == "bd" ||
+         command == "rigid" || command == "rigid-bd";
 }
 
 // Errors are printed once: by rank 0 (every rank fails alike, rpyfmm::mpi::Communicator).

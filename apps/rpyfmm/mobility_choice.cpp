@@ -2,6 +2,7 @@
 #include "mobility_choice.hpp"
 
 #include <CLI/CLI.hpp>
+#include <string>
 
 #include "cli_common.hpp"
 #include "rpyfmm/core/ranges.hpp"
@@ -28,6 +29,20 @@ void add_mobility_options(CLI::App& cmd, MobilityChoice& choice) {
       ->capture_default_str();
   cmd.add_option("--device", choice.device, "pse: cpu, or cuda (on a GPU, in a build with CUDA)")
       ->capture_default_str();
+}
+
+bool bodies_across_ranks(const MobilityChoice& choice, int ranks, const std::string& command) {
+  const bool supported =
+      (choice.method == "direct" || choice.method == "fmm") && choice.box.empty() && choice.device == "cpu";
+  require(supported || ranks == 1, ErrorCode::not_supported, command,
+          "across " + std::to_string(ranks) +
+              " MPI ranks runs --method direct or fmm without --box, on the CPU (docs/mpi.md), not --method " +
+              choice.method + (choice.box.empty() ? "" : " with --box") + "; run other methods without mpirun");
+  if (supported) {  // as make_operator checks them
+    ranges::require_in(ranges::kViscosity, choice.viscosity, "--viscosity", "viscosity");
+    ranges::require_in(ranges::kMobilityTolerance, choice.tolerance, "--tolerance", "tolerance");
+  }
+  return supported;
 }
 
 std::unique_ptr<rpy::MobilityOperator> make_operator(const MobilityChoice& choice, std::size_t n) {

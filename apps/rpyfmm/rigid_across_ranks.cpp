@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "array_io.hpp"
+#include "body_shares.hpp"
 #include "cli_common.hpp"
 #include "rank_shares.hpp"
 #include "rpyfmm/core/cpu_features.hpp"
@@ -53,62 +54,19 @@ WholeProblem read_on_rank_zero(const RanksRigidArgs& args, const mpi::Communicat
   return whole;
 }
 
-// Rank r owns bodies [cuts[r], cuts[r + 1]): contiguous runs of bodies balanced by bead count,
-// cuts[r] the first body whose first bead has a global index of at least r N / P.
-std::vector<std::uint64_t> body_cuts(const std::vector<std::size_t>& offsets, int ranks) {
-  const auto p = static_cast<std::size_t>(ranks);
-  const std::size_t n = offsets.back();
-  std::vector<std::uint64_t> cuts(p + 1, offsets.size() - 1);
-  std::size_t k = 0;
-  for (std::size_t r = 0; r < p; ++r) {
-    while (k + 1 < offsets.size() && offsets[k] * p < r * n) ++k;
-    cuts[r] = k;
-  }
-  return cuts;
-}
-
-// Every rank's knowledge of the layout after rank 0's broadcasts: the body offsets (m + 1), the
-// cuts (P + 1) and whether reference points were given.
-struct Layout {
-  std::vector<std::uint64_t> offsets, cuts;
+// The bodies' layout (body_shares.hpp) and whether reference points were given, after rank 0's
+// broadcasts.
+struct Layout : BodyLayout {
   bool reference = false;
-  [[nodiscard]] std::uint64_t bodies() const { return offsets.size() - 1; }
-  [[nodiscard]] std::uint64_t beads() const { return offsets.back(); }
 };
-
-void broadcast_u64(std::vector<std::uint64_t>& v, const mpi::Communicator& comm) {
-  std::uint64_t size = v.size();
-  mpi::check_mpi(MPI_Bcast(&size, 1, MPI_UINT64_T, 0, comm.get()), "MPI_Bcast");
-  v.resize(size);
-  mpi::check_mpi(MPI_Bcast(v.data(), static_cast<int>(size), MPI_UINT64_T, 0, comm.get()), "MPI_Bcast");
-}
 
 Layout broadcast_layout(const WholeProblem& whole, const mpi::Communicator& comm) {
   Layout z;
-  if (comm.rank() == 0) {
-    z.offsets.assign(whole.bodies.offsets.begin(), whole.bodies.offsets.end());
-    z.cuts = body_cuts(whole.bodies.offsets, comm.size());
-    z.reference = !whole.bodies.reference.empty();
-  }
-  broadcast_u64(z.offsets, comm);
-  broadcast_u64(z.cuts, comm);
-  int reference = z.reference ? 1 : 0;
+  static_cast<BodyLayout&>(z) = broadcast_body_layout(whole.bodies.offsets, comm);
+  int reference = comm.rank() == 0 && !whole.bodies.reference.empty() ? 1 : 0;
   mpi::check_mpi(MPI_Bcast(&reference, 1, MPI_INT, 0, comm.get()), "MPI_Bcast");
   z.reference = reference != 0;
   return z;
-}
-
-// Scatter and gather counts of `per` values per body (by_beads false) or per bead of each rank.
-Shares shares_by(const Layout& z, int per, bool by_beads) {
-  Shares s;
-  int offset = 0;
-  for (std::size_t r = 0; r + 1 < z.cuts.size(); ++r) {
-    const std::uint64_t rows = by_beads ? z.offsets[z.cuts[r + 1]] - z.offsets[z.cuts[r]] : z.cuts[r + 1] - z.cuts[r];
-    s.counts.push_back(per * static_cast<int>(rows));
-    s.displs.push_back(offset);
-    offset += s.counts.back();
-  }
-  return s;
 }
 
 // This rank's whole bodies: beads, radii, body offsets from 0, forces and torques, reference
@@ -121,13 +79,11 @@ struct LocalProblem {
 LocalProblem distribute(const WholeProblem& whole, const Layout& z, const mpi::Communicator& comm) {
   const BeadBodies& b = whole.bodies;
   LocalProblem local;
-  local.x = scatter(b.x.data(), shares_by(z, 3, true), comm);
-  local.radii = scatter(b.radii.data(), shares_by(z, 1, true), comm);
-  local.forces_torques = scatter(whole.forces_torques.data(), shares_by(z, 6, false), comm);
-  if (z.reference) local.reference = scatter(b.reference.data(), shares_by(z, 3, false), comm);
-  const auto r = static_cast<std::size_t>(comm.rank());
-  for (std::uint64_t k = z.cuts[r]; k <= z.cuts[r + 1]; ++k)
-    local.offsets.push_back(z.offsets[k] - z.offsets[z.cuts[r]]);
+  local.x = scatter(b.x.data(), body_shares(z, 3, true), comm);
+  local.radii = scatter(b.radii.data(), body_shares(z, 1, true), comm);
+  local.forces_torques = scatter(whole.forces_torques.data(), body_shares(z, 6, false), comm);
+  if (z.reference) local.reference = scatter(b.reference.data(), body_shares(z, 3, false), comm);
+  local.offsets = local_body_offsets(z, comm.rank());
   return local;
 }
 
@@ -177,7 +133,7 @@ void gather_and_write(const std::string& path, const std::vector<double>& local,
                       bool by_beads, const mpi::Communicator& comm) {
   const std::uint64_t rows = by_beads ? z.beads() : z.bodies();
   std::vector<double> whole(comm.rank() == 0 ? rows * static_cast<std::uint64_t>(per) : 0);
-  comm.run([&] { gather(local, shares_by(z, per, by_beads), whole.data(), comm); });
+  comm.run([&] { gather(local, body_shares(z, per, by_beads), whole.data(), comm); });
   comm.run([&] {
     if (comm.rank() != 0) return;
     require_finite_output(whole, kCommand);

@@ -4,9 +4,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <sstream>
 #include <string>
 
+#include "rigid/rigid_stages.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/random.hpp"
 
@@ -23,18 +23,7 @@ rpy::MobilityOperator& checked(const std::unique_ptr<rpy::MobilityOperator>& bea
 
 /// The options, checked; used before the solvers are built from them.
 const RigidDynamicsOptions& checked(const RigidDynamicsOptions& options) {
-  require_positive(options.dt, kWhere, "dt");
-  require(std::isfinite(options.kT) && options.kT >= 0.0, ErrorCode::invalid_argument, kWhere,
-          "kT must be finite and >= 0, got " + std::to_string(options.kT));
-  require_in_range(options.rfd_delta, 1e-6, 0.1, kWhere, "rfd_delta");
-  require_positive(options.max_displacement, kWhere, "max_displacement");
-  return options;
-}
-
-rpy::RigidBodyOptions rfd_options(const RigidDynamicsOptions& options) {
-  rpy::RigidBodyOptions o = options.solver;
-  o.tolerance = std::min(o.tolerance, 1e-3 * options.rfd_delta);
-  return o;
+  return rigid_detail::checked_options(options, kWhere);
 }
 
 }  // namespace
@@ -61,7 +50,7 @@ RigidBodyDynamics::RigidBodyDynamics(rpy::MobilityOperator& beads, std::vector<d
       q_(std::move(positions)),
       quat_(std::move(orientations)),
       solver_(beads, options.solver),
-      rfd_solver_(beads, rfd_options(options)),
+      rfd_solver_(beads, rigid_detail::rfd_options(options)),
       step_(options.first_step) {
   require(shape_.size() % 3 == 0 && !shape_.empty(), ErrorCode::invalid_input, kWhere,
           "the body-frame shape has " + std::to_string(shape_.size()) + " entries (expected 3 per bead, N >= 3)");
@@ -80,17 +69,7 @@ RigidBodyDynamics::RigidBodyDynamics(rpy::MobilityOperator& beads, std::vector<d
   require_finite(q_, kWhere, "positions", 3);
   quat_ = quaternion::checked(std::move(quat_), m, kWhere, "body");
   // Lever arms l_k (validates offsets on the way: RigidBodies below names the problem).
-  lever_.assign(m, 0.0);
-  for (std::size_t k = 0; k < m; ++k) {
-    require(offsets_[k + 1] > offsets_[k], ErrorCode::invalid_input, kWhere,
-            "body " + std::to_string(k) + " has no beads (body offsets must increase strictly)");
-    double sum = 0.0;
-    for (std::size_t i = offsets_[k]; i < offsets_[k + 1]; ++i)
-      for (int c = 0; c < 3; ++c) sum += shape_[3 * i + c] * shape_[3 * i + c];
-    lever_[k] = std::sqrt(sum / double(offsets_[k + 1] - offsets_[k]));
-    require(lever_[k] > 0.0, ErrorCode::invalid_input, kWhere,
-            "body " + std::to_string(k) + " has all its beads at its reference point");
-  }
+  lever_ = rigid_detail::lever_arms(shape_, offsets_, 0, kWhere);
   w_.assign(6 * m, 0.0);
   y_.assign(6 * m, 0.0);
   drift_.assign(6 * m, 0.0);
@@ -129,16 +108,7 @@ double RigidBodyDynamics::rfd_tolerance() const {
 
 void RigidBodyDynamics::place_beads(std::span<const double> positions, std::span<const double> orientations,
                                     std::vector<double>& out) const {
-  out.resize(shape_.size());
-  const std::size_t m = bodies();
-  for (std::size_t k = 0; k < m; ++k) {
-    const auto r = quaternion::rotation_matrix(std::span<const double, 4>(orientations.data() + 4 * k, 4));
-    for (std::size_t i = offsets_[k]; i < offsets_[k + 1]; ++i) {
-      const double* rho = &shape_[3 * i];
-      for (int c = 0; c < 3; ++c)
-        out[3 * i + c] = positions[3 * k + c] + r[3 * c] * rho[0] + r[3 * c + 1] * rho[1] + r[3 * c + 2] * rho[2];
-    }
-  }
+  rigid_detail::place_beads(shape_, offsets_, positions, orientations, out);
 }
 
 void RigidBodyDynamics::bead_forces_to_bodies(std::span<const double> bead_forces,
@@ -161,19 +131,7 @@ void RigidBodyDynamics::bead_forces_to_bodies(std::span<const double> bead_force
 
 int RigidBodyDynamics::perturbed_solve(rpy::RigidBodies& solver, std::span<const double> w, double sign,
                                        std::span<double> out, bool warm) {
-  const std::size_t m = bodies();
-  const double half = 0.5 * sign * options_.rfd_delta;
-  q_work_.assign(q_.begin(), q_.end());
-  quat_work_.assign(quat_.begin(), quat_.end());
-  for (std::size_t k = 0; k < m; ++k) {
-    const double phi[3] = {half * w[6 * k + 3], half * w[6 * k + 4], half * w[6 * k + 5]};
-    for (int c = 0; c < 3; ++c) {
-      q_work_[3 * k + c] += half * lever_[k] * w[6 * k + c];
-      rfd_v_[6 * k + c] = w[6 * k + c] / lever_[k];  // S^{-1} w
-      rfd_v_[6 * k + 3 + c] = w[6 * k + 3 + c];
-    }
-    quaternion::rotate(std::span<double, 4>(quat_work_.data() + 4 * k, 4), phi);
-  }
+  rigid_detail::perturb(q_, quat_, lever_, w, 0.5 * sign * options_.rfd_delta, q_work_, quat_work_, rfd_v_);
   place_beads(q_work_, quat_work_, beads_work_);
   solver.set_configuration(beads_work_, radii_, offsets_, q_work_);
   if (!warm) return solver.apply(rfd_v_, out, rfd_lambda_).iterations;
@@ -187,7 +145,7 @@ int RigidBodyDynamics::drift_estimate(std::span<const double> w, std::span<doubl
   require_size(drift, 6 * bodies(), kWhere, "drift");
   int iterations = perturbed_solve(rfd_solver_, w, +1.0, rfd_plus_, false);
   iterations += perturbed_solve(rfd_solver_, w, -1.0, rfd_minus_, true);
-  for (std::size_t i = 0; i < drift.size(); ++i) drift[i] = (rfd_plus_[i] - rfd_minus_[i]) / options_.rfd_delta;
+  rigid_detail::rfd_difference(rfd_plus_, rfd_minus_, options_.rfd_delta, drift);
   return iterations;
 }
 
@@ -195,11 +153,7 @@ void RigidBodyDynamics::gather_forces_and_torques() {
   std::fill(w_.begin(), w_.end(), 0.0);
   if (forces_) {
     forces_(RigidBodyState{time(), q_, quat_, beads_now_}, w_);
-    for (std::size_t k = 0; k < bodies(); ++k)
-      for (int c = 0; c < 6; ++c)
-        require(std::isfinite(w_[6 * k + c]), ErrorCode::invalid_input, kWhere,
-                "step " + std::to_string(step_) + ": the force function gave a non-finite " +
-                    (c < 3 ? "force" : "torque") + " on body " + std::to_string(k));
+    rigid_detail::require_finite_loads(w_, step_, 0, kWhere);
   }
   if (bead_field_) {
     report_.neighbour_rebuild = bead_list_->update(beads_now_);
@@ -210,24 +164,11 @@ void RigidBodyDynamics::gather_forces_and_torques() {
 }
 
 void RigidBodyDynamics::solve_velocities() {
-  const double kT = options_.kT;
   StopWatch watch;
   solver_.set_configuration(beads_now_, radii_, offsets_, q_);
   totals_.seconds["plan"] += watch.seconds();
-  rpy::RigidBodyReport solve;
-  if (kT > 0.0) {
-    watch.restart();
-    rpy::fill_normal(z_, options_.seed, step_, 0);
-    solve = solver_.apply_with_noise(w_, std::sqrt(2.0 * kT / options_.dt), z_, y_, options_.sqrt);
-    report_.sqrt_iterations = solve.sqrt.iterations;
-    totals_.seconds["sqrt"] += solve.seconds_sqrt;
-    totals_.seconds["solve"] += watch.seconds() - solve.seconds_sqrt;
-  } else {
-    watch.restart();
-    solve = solver_.apply(w_, y_);
-    totals_.seconds["solve"] += watch.seconds();
-  }
-  report_.solve_iterations = solve.iterations;
+  if (options_.kT > 0.0) rpy::fill_normal(z_, options_.seed, step_, 0);
+  rigid_detail::solve_velocities(solver_, w_, z_, y_, options_, report_, totals_);
 }
 
 void RigidBodyDynamics::estimate_drift() {
@@ -242,28 +183,7 @@ void RigidBodyDynamics::estimate_drift() {
 }
 
 void RigidBodyDynamics::update_bodies() {
-  const double dt = options_.dt;
-  q_work_.assign(q_.begin(), q_.end());
-  quat_work_.assign(quat_.begin(), quat_.end());
-  for (std::size_t k = 0; k < bodies(); ++k) {
-    double move = 0.0, turn = 0.0, phi[3];
-    for (int c = 0; c < 3; ++c) {
-      const double dq = dt * (y_[6 * k + c] + drift_[6 * k + c]);
-      phi[c] = dt * (y_[6 * k + 3 + c] + drift_[6 * k + 3 + c]);
-      q_work_[3 * k + c] += dq;
-      move += dq * dq;
-      turn += phi[c] * phi[c];
-    }
-    const double moved = std::sqrt(move) + lever_[k] * std::sqrt(turn);
-    if (!(moved <= options_.max_displacement * lever_[k])) {
-      std::ostringstream what;
-      what << "step " << step_ << ": body " << k << " would move its beads by " << moved
-           << " (translation + lever arm x rotation), above max_displacement x lever arm = "
-           << options_.max_displacement * lever_[k] << "; reduce dt";
-      fail(ErrorCode::numerical_failure, kWhere, what.str());
-    }
-    quaternion::rotate(std::span<double, 4>(quat_work_.data() + 4 * k, 4), phi);
-  }
+  rigid_detail::advance(q_, quat_, lever_, y_, drift_, options_, step_, 0, q_work_, quat_work_, kWhere);
   q_.swap(q_work_);
   quat_.swap(quat_work_);
   place_beads(q_, quat_, beads_now_);
@@ -271,20 +191,13 @@ void RigidBodyDynamics::update_bodies() {
 
 const RigidStepReport& RigidBodyDynamics::step() {
   report_ = {};
-  StopWatch watch;
-  gather_forces_and_torques();  // at the current state
-  totals_.seconds["forces"] += watch.seconds();
-  solve_velocities();  // 1. velocities with the random slip, at the current configuration
-  estimate_drift();    // 2. the drift kT d/dQ . N by a random finite difference
-  watch.restart();
-  update_bodies();  // 3. the update, checked before it is committed
-  ++step_;
-  totals_.seconds["update"] += watch.seconds();
-
-  ++totals_.steps;
-  totals_.solve_iterations += static_cast<std::uint64_t>(report_.solve_iterations);
-  totals_.drift_iterations += static_cast<std::uint64_t>(report_.drift_iterations);
-  totals_.sqrt_iterations += static_cast<std::uint64_t>(report_.sqrt_iterations);
+  rigid_detail::take_step(
+      report_, totals_, [this] { gather_forces_and_torques(); }, [this] { solve_velocities(); },
+      [this] { estimate_drift(); },
+      [this] {
+        update_bodies();
+        ++step_;
+      });
   return report_;
 }
 

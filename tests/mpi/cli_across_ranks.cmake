@@ -26,7 +26,9 @@
 #    serial order, so the files are identical byte for byte;
 #  - `mpiexec -n NP rpyfmm rigid --method direct`: within 1e-12 of the serial file (velocities and
 #    bead forces), the inner products summed in another order; `--method fmm --tolerance 1e-8`
-#    within 1e-7 of the serial direct solve (see below); `--method pse` and `rigid-bd` refuse;
+#    within 1e-7 of the serial direct solve (see below); `--method pse` refuses;
+#  - `mpiexec -n NP rpyfmm rigid-bd --method direct|fmm`: the serial trajectory to round-off (direct)
+#    or to the FMMs' tolerance (see below), a restart byte for byte; `--pair` and `--method pse` refuse;
 #  - `mpiexec -n NP rpyfmm mobility --method pse --box L` (also with --torques or --angular, U and W
 #    each) and `sample --operator pse --box L`: DistributedPseRpy is the serial PseRpy with double
 #    wave grids to round-off, so within 1e-12 relative of that serial output.
@@ -417,15 +419,54 @@ run_serial(rigid_fmm rigid_fmm_direct ${rigid_common} --method direct --solver-t
 run_across(rigid_fmm ${rigid_common} --method fmm --tolerance 1e-8 --solver-tolerance 1e-8)
 agree(rigid_fmm "${WORK}/rigid_fmm_mpi.npy" "${WORK}/rigid_fmm_direct.npy" 1e-7)
 
-# A command that does not run across ranks refuses more than one, on every rank.
+# rigid-bd on the same bodies: 4 steps at kT 1 with the RFD drift, under gravity and a torque.
+# Across the ranks the bead noise is the principal root (--sqrt-preconditioner auto is none there),
+# the serial sampler's bits, so with --method direct the trajectory differs from the serial
+# command's with --sqrt-preconditioner none only by the order of GMRES's inner-product sums: within
+# 1e-11 per frame (positions and orientations, relative; the bound of
+# tests/mpi/test_distributed_rigid_bd.cpp), and so the final beads. A restart from the state after
+# step 2 on NP ranks ends at the beads of the 4-step run, byte for byte. --method fmm at 1e-8
+# against the serial FMM at 1e-8: the two FMMs' products differ by up to their tolerances
+# (different trees), so the trajectories by the solve's error at 1e-8 carried through 4 steps
+# and the RFD's 1 / delta = 1e3 on the difference of two solves: within 1e-5. Measured at 2 and 3
+# ranks (shared 2-core AMD EPYC, AVX-512, 2026-12-07): direct at most 7.4e-16 per frame and 3.5e-16
+# in the final beads; fmm 5.9e-16 (at 162 beads the two FMMs' products differ by round-off).
+set(rigid_bd_common rigid-bd --positions "${WORK}/bodies.txt" --radius 0.5 --body-sizes "${WORK}/body_sizes.txt"
+                    --viscosity 0.7 --dt 0.02 --kT 1 --seed 3 --body-force 0 0 -1 --body-torque 0.1 0 0
+                    --solver-tolerance 1e-8 --sqrt-tolerance 1e-6)
+run_serial(rigid_bd rigid_bd_serial ${rigid_bd_common} --steps 4 --every 2 --method direct --sqrt-preconditioner none
+           --beads-out "${WORK}/rigid_bd_beads_serial.npy")
+run_across(rigid_bd ${rigid_bd_common} --steps 4 --every 2 --method direct --beads-out "${WORK}/rigid_bd_beads_mpi.npy")
+if(NOT json MATCHES "\"drift_iterations_per_step\":[1-9]" OR NOT json MATCHES "\"frames\":3,")
+  message(FATAL_ERROR "rigid-bd: --json lacks the drift iterations or the 3 frames: ${json}")
+endif()
+agree(rigid_bd "${WORK}/rigid_bd_mpi.npy" "${WORK}/rigid_bd_serial.npy" 1e-11)
+agree(rigid_bd "${WORK}/rigid_bd_beads_mpi.npy" "${WORK}/rigid_bd_beads_serial.npy" 1e-11)
+run_across(rigid_bd_half ${rigid_bd_common} --steps 2 --method direct)
+run_across(rigid_bd_rest ${rigid_bd_common} --steps 2 --method direct --restart "${WORK}/rigid_bd_half_mpi.npy"
+           --first-step 2 --beads-out "${WORK}/rigid_bd_beads_rest.npy")
+execute_process(COMMAND ${CMAKE_COMMAND} -E compare_files "${WORK}/rigid_bd_beads_rest.npy"
+                        "${WORK}/rigid_bd_beads_mpi.npy" RESULT_VARIABLE rc)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "rigid-bd: the restart on ${NP} ranks does not end at the beads of the longer run")
+endif()
+run_serial(rigid_bd_fmm rigid_bd_fmm_serial ${rigid_bd_common} --steps 4 --method fmm --tolerance 1e-8
+           --sqrt-preconditioner none)
+run_across(rigid_bd_fmm ${rigid_bd_common} --steps 4 --method fmm --tolerance 1e-8)
+agree(rigid_bd_fmm "${WORK}/rigid_bd_fmm_mpi.npy" "${WORK}/rigid_bd_fmm_serial.npy" 1e-5)
+
+# Across ranks rigid-bd refuses bead pair potentials and the methods that do not run there, and
+# fails every rank alike on bad input: exit status 2, one error line, no output.
 if(NP GREATER 1)
-  execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" rigid-bd --positions "${WORK}/bodies.txt"
-                          --radius 0.5 --body-sizes "${WORK}/body_sizes.txt" --dt 0.01 --steps 1
-                          --out "${WORK}/never.npy"
-                  RESULT_VARIABLE rc ERROR_VARIABLE err)
-  if(rc EQUAL 0 OR NOT err MATCHES "rigid-bd: does not run across MPI ranks" OR EXISTS "${WORK}/never.npy")
-    message(FATAL_ERROR "rigid-bd under ${NP} ranks: exit ${rc}: ${err}")
-  endif()
+  expect_one_error("rigid-bd --pair" "--pair wca \\(bead pair potentials between bodies\\) does not run across ${NP}"
+                   "${WORK}/never.npy" "${RPYFMM}" ${rigid_bd_common} --steps 1 --pair wca --out "${WORK}/never.npy")
+  expect_one_error("rigid-bd --method pse" "rigid-bd: across ${NP} MPI ranks runs --method direct or fmm"
+                   "${WORK}/never.npy" "${RPYFMM}" ${rigid_bd_common} --steps 1 --method pse --box 40
+                   --out "${WORK}/never.npy")
+  expect_one_error("rigid-bd --rfd-delta" "rfd_delta" "${WORK}/never.npy" "${RPYFMM}" ${rigid_bd_common} --steps 1
+                   --rfd-delta 0.5 --out "${WORK}/never.npy")
+  expect_one_error("rigid-bd --restart" "--restart: expected a trajectory of shape" "${WORK}/never.npy" "${RPYFMM}"
+                   ${rigid_bd_common} --steps 1 --restart "${WORK}/rigid_beads_mpi.npy" --out "${WORK}/never.npy")
   # rigid with a bead method that does not run across ranks refuses, naming what does.
   execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" ${rigid_common} --method pse --box 40
                           --out "${WORK}/never.npy"

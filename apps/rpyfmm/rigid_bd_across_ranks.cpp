@@ -1,0 +1,207 @@
+// rpyfmm CLI — `rpyfmm rigid-bd` across MPI ranks (rigid_bd_across_ranks.hpp).
+#include "rigid_bd_across_ranks.hpp"
+
+#include <mpi.h>
+
+#include <climits>
+#include <cstddef>
+#include <cstdint>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "array_io.hpp"
+#include "body_shares.hpp"
+#include "cli_common.hpp"
+#include "rank_shares.hpp"
+#include "rigid_bd_run.hpp"
+#include "rpyfmm/core/cpu_features.hpp"
+#include "rpyfmm/core/timer.hpp"
+#include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/mpi/communicator.hpp"
+#include "rpyfmm/mpi/direct_operator.hpp"
+#include "rpyfmm/mpi/fmm_rpy.hpp"
+#include "rpyfmm/mpi/rigid_dynamics.hpp"
+
+namespace rpyfmm::cli {
+namespace {
+
+constexpr const char* kCommand = "rigid-bd";
+
+// The bodies as the engine takes them: body-frame shapes (3 per bead), radii, body offsets, and the
+// state to start from (3 and 4 per body). Rank 0 holds all of them, then each rank its own.
+struct Start {
+  std::vector<double> shape, radii, positions, orientations;
+  std::vector<std::size_t> offsets;
+};
+
+// What the serial command builds from the files, in free space: shapes relative to the reference
+// points (default: centroids), the state of --restart or the identity orientations.
+Start read_start(const RanksRigidBdArgs& args) {
+  const BeadBodies bodies = read_bead_bodies(args.bodies);
+  const std::size_t n = bodies.beads(), m = bodies.bodies();
+  require(3 * n <= static_cast<std::size_t>(INT_MAX) && 7 * m <= static_cast<std::size_t>(INT_MAX),
+          ErrorCode::not_supported, kCommand,
+          std::to_string(n) + " beads: more than MPI's int counts address in one scatter");
+  std::vector<double> reference = bodies.reference;
+  Start s;
+  s.shape = body_frame_shape(rpy::Geometry::open(), bodies, reference);
+  BodyState state = initial_state(args.restart, reference, m);
+  s.positions = std::move(state.positions);
+  s.orientations = std::move(state.orientations);
+  if (s.orientations.empty())
+    for (std::size_t k = 0; k < m; ++k) s.orientations.insert(s.orientations.end(), {1.0, 0.0, 0.0, 0.0});
+  s.radii = bodies.radii;
+  s.offsets = bodies.offsets;
+  return s;
+}
+
+// This rank's bodies of rank 0's whole set.
+Start distribute(const Start& whole, const BodyLayout& z, const mpi::Communicator& comm) {
+  Start local;
+  local.shape = scatter(whole.shape.data(), body_shares(z, 3, true), comm);
+  local.radii = scatter(whole.radii.data(), body_shares(z, 1, true), comm);
+  local.positions = scatter(whole.positions.data(), body_shares(z, 3, false), comm);
+  local.orientations = scatter(whole.orientations.data(), body_shares(z, 4, false), comm);
+  local.offsets = local_body_offsets(z, comm.rank());
+  return local;
+}
+
+// What a run leaves on this rank: its bodies' frames (7 values per body per frame), its final bead
+// positions, the iteration totals and the stage times.
+struct LocalRun {
+  std::vector<double> frames, beads;
+  std::size_t frame_count = 0;
+  bd::RigidDynamicsTotals totals;
+  std::uint64_t last_step = 0;
+};
+
+template <class Operator>
+LocalRun run_engine(Operator& op, const RanksRigidBdArgs& args, Start& local, StageTimes& stages) {
+  StopWatch watch;
+  mpi::DistributedRigidBodyDynamics sim(op, std::move(local.shape), std::move(local.radii), std::move(local.offsets),
+                                        std::move(local.positions), std::move(local.orientations), args.options,
+                                        constant_load(args.load));
+  stages["setup"] = watch.seconds();
+  watch.restart();
+  LocalRun run;
+  const auto record = [&] {
+    const auto q = sim.local_positions();
+    const auto quat = sim.local_orientations();
+    for (std::size_t k = 0; k < sim.local_bodies(); ++k) {
+      run.frames.insert(run.frames.end(), q.begin() + std::ptrdiff_t(3 * k), q.begin() + std::ptrdiff_t(3 * k + 3));
+      run.frames.insert(run.frames.end(), quat.begin() + std::ptrdiff_t(4 * k),
+                        quat.begin() + std::ptrdiff_t(4 * k + 4));
+    }
+    ++run.frame_count;
+  };
+  step_and_record(
+      args.steps, args.every, [&] { sim.step(); }, [&] { return sim.step_count(); }, record);
+  stages["run"] = watch.seconds();
+  run.beads.assign(sim.local_bead_positions().begin(), sim.local_bead_positions().end());
+  run.totals = sim.totals();
+  run.last_step = sim.step_count();
+  return run;
+}
+
+LocalRun run_across_ranks(const RanksRigidBdArgs& args, Start& local, StageTimes& stages) {
+  if (args.method == "fmm") {
+    mpi::DistributedFmmRpy fmm(MPI_COMM_WORLD, args.viscosity, {.tolerance = args.tolerance});
+    return run_engine(fmm, args, local, stages);
+  }
+  mpi::DistributedDirectRpy direct(MPI_COMM_WORLD, args.viscosity);
+  return run_engine(direct, args, local, stages);
+}
+
+// Rank 0 gathers the frames (each frame's bodies in rank order) and the final beads, checks them
+// and writes the serial command's files.
+void gather_and_write(const RanksRigidBdArgs& args, const LocalRun& run, const BodyLayout& z,
+                      const mpi::Communicator& comm) {
+  const std::size_t m = z.bodies(), per_frame = 7 * m;
+  const Shares frame_shares = body_shares(z, 7, false);
+  const std::size_t mine = frame_shares.count(comm.rank());
+  std::vector<double> frames(comm.rank() == 0 ? run.frame_count * per_frame : 0);
+  for (std::size_t f = 0; f < run.frame_count; ++f) {
+    const std::vector<double> local(run.frames.begin() + std::ptrdiff_t(f * mine),
+                                    run.frames.begin() + std::ptrdiff_t((f + 1) * mine));
+    gather(local, frame_shares, comm.rank() == 0 ? frames.data() + f * per_frame : nullptr, comm);
+  }
+  std::vector<double> beads(comm.rank() == 0 && !args.beads_out.empty() ? 3 * z.beads() : 0);
+  if (!args.beads_out.empty()) gather(run.beads, body_shares(z, 3, true), beads.data(), comm);
+  comm.run([&] {
+    if (comm.rank() != 0) return;
+    require_finite_output(frames, "rigid-bd (trajectory)");
+    require_finite_output(beads, "rigid-bd (bead positions)");
+    write_npy(args.out, {run.frame_count, m, 7}, frames);
+    if (!args.beads_out.empty()) write_npy(args.beads_out, {z.beads(), 3}, beads);
+  });
+}
+
+void report(const RanksRigidBdArgs& args, const BodyLayout& z, const LocalRun& run, const StageTimes& stages,
+            double total_seconds, const mpi::Communicator& comm) {
+  const StageTimes slowest_stages = slowest(stages, comm);  // collective
+  const StageTimes slowest_steps = slowest(run.totals.seconds, comm);
+  if (comm.rank() != 0) return;
+  const auto steps = static_cast<double>(args.steps);
+  const bd::RigidDynamicsTotals& t = run.totals;  // iterations: the same on every rank
+  const double per_step = slowest_stages.at("run") / steps;
+  if (!args.json) {
+    std::cout << "rigid-bd: " << z.bodies() << " bodies, " << z.beads() << " beads on " << comm.size() << " ranks, "
+              << args.steps << " steps in " << slowest_stages.at("run") << " s (" << per_step << " s/step; GMRES "
+              << double(t.solve_iterations) / steps << " + " << double(t.drift_iterations) / steps << " drift, sampler "
+              << double(t.sqrt_iterations) / steps << " iterations per step); " << run.frame_count << " frames -> "
+              << args.out << '\n';
+    return;
+  }
+  JsonLine line;
+  line.add("command", "rigid-bd")
+      .add("method", args.method)
+      .add("drift", args.options.drift == bd::RigidDrift::none ? "none" : "rfd")
+      .add("bodies", z.bodies())
+      .add("beads", z.beads())
+      .add("steps", static_cast<std::size_t>(args.steps))
+      .add("last_step", static_cast<std::size_t>(run.last_step))
+      .add("frames", run.frame_count)
+      .add("dt", args.options.dt)
+      .add("kT", args.options.kT)
+      .add("solve_iterations_per_step", double(t.solve_iterations) / steps)
+      .add("drift_iterations_per_step", double(t.drift_iterations) / steps)
+      .add("sqrt_iterations_per_step", double(t.sqrt_iterations) / steps)
+      .add("seconds_per_step", per_step)
+      .add("ranks", comm.size())
+      .add("threads", active_threads())
+      .add("simd", simd_level_name(simd_level()))
+      .add("out", args.out)
+      .add("seconds", slowest_stages)
+      .add("step_seconds", slowest_steps)
+      .add("total_seconds", total_seconds);
+  std::cout << line.str() << '\n';
+}
+
+}  // namespace
+
+void run_rigid_bd_across_ranks(const RanksRigidBdArgs& args) {
+  const mpi::Communicator comm(MPI_COMM_WORLD);
+  StopWatch total;
+  StageTimes stages;
+  Start whole;
+  comm.run([&] {
+    if (comm.rank() == 0) whole = read_start(args);
+  });
+  stages["read"] = total.seconds();
+  StopWatch watch;
+  const BodyLayout z = broadcast_body_layout(whole.offsets, comm);
+  Start local;
+  comm.run([&] { local = distribute(whole, z, comm); });
+  whole = Start{};  // rank 0 keeps only its own bodies from here on
+  stages["distribute"] = watch.seconds();
+
+  const LocalRun run = run_across_ranks(args, local, stages);
+
+  watch.restart();
+  gather_and_write(args, run, z, comm);
+  stages["write"] = watch.seconds();
+  report(args, z, run, stages, total.seconds(), comm);
+}
+
+}  // namespace rpyfmm::cli

@@ -1,0 +1,37 @@
+// rpyfmm CLI — `mpirun -np P rpyfmm rigid-bd --method direct|fmm ...` across MPI ranks (docs/mpi.md,
+// "Rigid bodies across ranks"). Rank 0 reads the files of the serial command (and --restart) and
+// scatters whole bodies, contiguous runs balanced by their bead count (a rank may get none), with
+// their body-frame shapes and starting state; rpyfmm::mpi::DistributedRigidBodyDynamics takes the
+// steps with DistributedDirectRpy or DistributedFmmRpy as the bead operator; rank 0 gathers each
+// frame and writes the serial command's files (write_npy: a temporary file renamed into place).
+// --sqrt-preconditioner auto is none across the ranks (the principal root, the serial sampler's
+// bits: rpyfmm/mpi/sqrt.hpp), so with --method direct the trajectory is the serial command's with
+// --sqrt-preconditioner none up to the order of GMRES's inner-product sums.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+
+#include "bead_bodies.hpp"
+#include "rpyfmm/bd/rigid_dynamics.hpp"
+
+namespace rpyfmm::cli {
+
+struct RanksRigidBdArgs {
+  BeadBodyArgs bodies;
+  std::string out, beads_out, restart;
+  std::uint64_t steps = 0, every = 0;
+  bd::RigidDynamicsOptions options;  // validated by the engine (collectively)
+  std::array<double, 6> load{};      // --body-force then --body-torque
+  std::string method = "direct";     // direct | fmm (the caller refuses others)
+  double tolerance = 1e-6;           // fmm's
+  double viscosity = 1.0;
+  bool json = false;
+};
+
+/// Collective over MPI_COMM_WORLD; fails on every rank alike (rpyfmm::mpi::Communicator). A build
+/// without MPI throws rpyfmm::Error (not_supported).
+void run_rigid_bd_across_ranks(const RanksRigidBdArgs& args);
+
+}  // namespace rpyfmm::cli

@@ -1,0 +1,271 @@
+// rpyfmm::mpi::DistributedRigidBodyDynamics (rpyfmm/mpi/rigid_dynamics.hpp) against the serial
+// bd::RigidBodyDynamics with DirectRpy on the same bodies, split over the ranks in uneven contiguous
+// shares of whole bodies (some ranks own none): trajectories with kT > 0 and the RFD drift on
+// DistributedDirectRpy and DistributedFmmRpy, a restart against one longer run, and bad input on
+// one rank.
+#include <gtest/gtest.h>
+#include <mpi.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "mpi_test_support.hpp"
+#include "rpyfmm/bd/rigid_dynamics.hpp"
+#include "rpyfmm/mpi/direct_operator.hpp"
+#include "rpyfmm/mpi/fmm_rpy.hpp"
+#include "rpyfmm/mpi/rigid_dynamics.hpp"
+#include "rpyfmm/rpy/direct_operator.hpp"
+#include "rpyfmm/rpy/rigid_bodies.hpp"
+
+using rpyfmm::ErrorCode;
+using rpyfmm::bd::RigidBodyDynamics;
+using rpyfmm::bd::RigidDynamicsOptions;
+using rpyfmm::mpi::DistributedDirectRpy;
+using rpyfmm::mpi::DistributedFmmRpy;
+using rpyfmm::mpi::DistributedRigidBodyDynamics;
+using namespace rpyfmm_mpi_test;
+
+namespace {
+
+/// The whole set of bodies: body-frame shapes (beads relative to each reference point, body after
+/// body), one radius per bead, body offsets, reference points and orientations.
+struct Bodies {
+  std::vector<double> shape, radii, positions, orientations;
+  std::vector<std::size_t> offsets{0};
+  [[nodiscard]] std::size_t bodies() const { return offsets.size() - 1; }
+};
+
+/// m bodies on a cubic lattice of spacing 3.2: icosphere shells of 12 touching beads (radius 1.2)
+/// and tetrahedra of 4 beads (side 2.3, bead radius 0.5) alternately, each tracked at a point 0.3
+/// off its centroid (so the drift does not vanish) and turned to a random orientation.
+Bodies lattice(std::size_t m, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> g;
+  const std::vector<double> shell = rpyfmm::rpy::icosphere_beads(0);
+  const double shell_bead = 1.2 * rpyfmm::rpy::icosphere_bead_radius(0);
+  const std::vector<double> tetrahedron{0.8, 0.8, 0.8, 0.8, -0.8, -0.8, -0.8, 0.8, -0.8, -0.8, -0.8, 0.8};
+  Bodies b;
+  for (std::size_t k = 0; k < m; ++k) {
+    const bool sphere = k % 2 == 0;
+    const std::vector<double>& beads = sphere ? shell : tetrahedron;
+    for (std::size_t i = 0; i < beads.size(); i += 3) {
+      for (int c = 0; c < 3; ++c) b.shape.push_back((sphere ? 1.2 : 1.0) * beads[i + c] - (c == 0 ? 0.3 : 0.0));
+      b.radii.push_back(sphere ? shell_bead : 0.5);
+    }
+    b.offsets.push_back(b.radii.size());
+    b.positions.insert(b.positions.end(), {3.2 * double(k % 3), 3.2 * double(k / 3 % 3), 3.2 * double(k / 9)});
+    const Eigen::Quaterniond q = Eigen::Quaterniond(g(rng), g(rng), g(rng), g(rng)).normalized();
+    b.orientations.insert(b.orientations.end(), {q.w(), q.x(), q.y(), q.z()});
+  }
+  return b;
+}
+
+/// This rank's whole bodies of the set split by `split`.
+struct LocalBodies {
+  std::vector<double> shape, radii, positions, orientations;
+  std::vector<std::size_t> offsets{0};
+  std::size_t first_body = 0, bodies = 0;
+};
+
+LocalBodies local_bodies(const Bodies& b, Split split) {
+  const Partition p = partition_of(b.bodies(), split);
+  LocalBodies l;
+  l.first_body = p.offset;
+  l.bodies = p.n;
+  const std::size_t first_bead = b.offsets[p.offset], beads = b.offsets[p.offset + p.n] - first_bead;
+  l.shape = share(b.shape, 3, first_bead, beads);
+  l.radii = share(b.radii, 1, first_bead, beads);
+  l.positions = share(b.positions, 3, p.offset, p.n);
+  l.orientations = share(b.orientations, 4, p.offset, p.n);
+  for (std::size_t k = 1; k <= p.n; ++k) l.offsets.push_back(b.offsets[p.offset + k] - first_bead);
+  return l;
+}
+
+/// A harmonic trap about the origin on each reference point and a torque from the orientation: loads
+/// that depend on the state, so a wrong body's state in the function changes the trajectory.
+void trap(const rpyfmm::bd::RigidBodyState& state, std::span<double> w) {
+  for (std::size_t k = 0; 6 * k < w.size(); ++k)
+    for (int c = 0; c < 3; ++c) {
+      w[6 * k + c] = -0.4 * state.positions[3 * k + c];
+      w[6 * k + 3 + c] = 0.5 * state.orientations[4 * k + 1 + c];
+    }
+}
+
+/// kT 1 with the RFD drift, GMRES to 1e-8 (the RFD solves to 1e-9: min(1e-8, 1e-3 delta)), and
+/// the principal square root by Lanczos to 1e-6: across the ranks its inner products are summed
+/// in the serial order (rpyfmm/mpi/sqrt.hpp), so B z is the serial sampler's bit for bit.
+RigidDynamicsOptions options(std::uint64_t first_step = 0) {
+  return {.dt = 0.02,
+          .kT = 1.0,
+          .seed = 17,
+          .first_step = first_step,
+          .rfd_delta = 1e-3,
+          .solver = {.tolerance = 1e-8},
+          .sqrt = {.method = rpyfmm::rpy::SqrtMethod::lanczos,
+                   .tolerance = 1e-6,
+                   .preconditioner = rpyfmm::rpy::SqrtPreconditioner::none}};
+}
+
+constexpr std::size_t kBodies = 7;  // 4 shells of 12 beads and 3 tetrahedra: 60 beads
+constexpr std::uint64_t kSteps = 3;
+
+/// The serial engine's state after kSteps steps: positions, orientations, and iterations per step.
+struct Trajectory {
+  std::vector<double> positions, orientations;
+  std::vector<int> iterations;  // GMRES, RFD and sampler iterations of each step
+};
+
+Trajectory serial_run(const Bodies& b) {
+  rpyfmm::rpy::DirectRpy direct(rpyfmm::rpy::Geometry::open(), kViscosity);
+  RigidBodyDynamics sim(direct, b.shape, b.radii, b.offsets, b.positions, b.orientations, options(), trap);
+  Trajectory t;
+  for (std::uint64_t s = 0; s < kSteps; ++s) {
+    const auto& r = sim.step();
+    t.iterations.insert(t.iterations.end(), {r.solve_iterations, r.drift_iterations, r.sqrt_iterations});
+  }
+  t.positions.assign(sim.positions().begin(), sim.positions().end());
+  t.orientations.assign(sim.orientations().begin(), sim.orientations().end());
+  return t;
+}
+
+/// This rank's state after `steps` steps of the distributed engine started from `l`, with
+/// DistributedDirectRpy, or with DistributedFmmRpy at 1e-8 (leaves of 16 beads, so that far-field
+/// interactions are in use) where `fmm`.
+Trajectory distributed_run(const LocalBodies& l, std::uint64_t first_step, std::uint64_t steps, bool fmm = false) {
+  DistributedDirectRpy direct(MPI_COMM_WORLD, kViscosity);
+  DistributedFmmRpy fmm_beads(MPI_COMM_WORLD, kViscosity, {.tolerance = 1e-8, .leaf_capacity = 16});
+  std::unique_ptr<DistributedRigidBodyDynamics> made;
+  if (fmm) {
+    made = std::make_unique<DistributedRigidBodyDynamics>(fmm_beads, l.shape, l.radii, l.offsets, l.positions,
+                                                          l.orientations, options(first_step), trap);
+  } else {
+    made = std::make_unique<DistributedRigidBodyDynamics>(direct, l.shape, l.radii, l.offsets, l.positions,
+                                                          l.orientations, options(first_step), trap);
+  }
+  DistributedRigidBodyDynamics& sim = *made;
+  Trajectory t;
+  for (std::uint64_t s = 0; s < steps; ++s) {
+    const auto& r = sim.step();
+    t.iterations.insert(t.iterations.end(), {r.solve_iterations, r.drift_iterations, r.sqrt_iterations});
+  }
+  t.positions.assign(sim.local_positions().begin(), sim.local_positions().end());
+  t.orientations.assign(sim.local_orientations().begin(), sim.local_orientations().end());
+  return t;
+}
+
+}  // namespace
+
+// The step's products are DirectRpy's bit for bit (DistributedDirectRpy), the bead noise z and the
+// RFD direction w are the serial engine's draws by global index, and B z is the serial sampler's
+// bit for bit (principal root: inner products summed in the serial order). What differs is the
+// order in which GMRES sums its inner products (each rank's share, then the ranks' sums), in the
+// three solves of a step: each differs from the serial solve by a few rounding errors
+// (tests/mpi/test_distributed_rigid.cpp measures at most 5.6e-15 relative), and the RFD divides
+// the difference of two solves by delta = 1e-3, so the drift may carry up to a thousand times
+// that. Measured (AMD EPYC, AVX-512, 1-4 ranks, every split, three steps): the same GMRES and
+// Lanczos iteration counts as the serial engine in every step, positions within 8.2e-16 and
+// orientations within 9.6e-16 relative. Bound: 1e-11, the rounding of a solve times the RFD's
+// 1e3 with a margin of over ten, and far below what a noise or RFD direction drawn for the wrong
+// body or bead changes (measured 1.7e-4 with w keyed by the body index instead of two triples
+// per body). Where one rank holds every body (and on one rank) the other ranks add exact zeros to
+// every inner product: bit for bit.
+TEST(MpiDistributedRigidBd, MatchesTheSerialEngine) {
+  const Bodies b = lattice(kBodies, 5u);
+  const Trajectory serial = serial_run(b);
+  for (const Split split : kSplits) {
+    const LocalBodies l = local_bodies(b, split);
+    const Trajectory mine = distributed_run(l, 0, kSteps);
+    EXPECT_EQ(mine.iterations, serial.iterations) << "split " << int(split);
+    const std::vector<double> q_ref = share(serial.positions, 3, l.first_body, l.bodies);
+    const std::vector<double> quat_ref = share(serial.orientations, 4, l.first_body, l.bodies);
+    const double dq = global_relative_error(mine.positions, q_ref);
+    const double dquat = global_relative_error(mine.orientations, quat_ref);
+    EXPECT_LE(dq, 1e-11) << "split " << int(split);
+    EXPECT_LE(dquat, 1e-11) << "split " << int(split);
+    if (world_size() == 1 || split == Split::last_only) {
+      EXPECT_EQ(bitwise_mismatches(mine.positions, q_ref), 0U) << "split " << int(split);
+      EXPECT_EQ(bitwise_mismatches(mine.orientations, quat_ref), 0U) << "split " << int(split);
+    }
+  }
+}
+
+// The engine on DistributedFmmRpy at 1e-8 (leaves of 16 beads), split evenly, against the serial
+// engine with DirectRpy. Each product lies within 1e-8 relative of the exact one, so each solve
+// within a few times that, and the RFD divides the difference of its two solves by delta = 1e-3:
+// bound 1e-5 on positions and orientations after three steps. Measured (AMD EPYC, AVX-512, 1-4
+// ranks): at most 3.0e-13 (the FMM's error on 60 beads is far below its tolerance).
+TEST(MpiDistributedRigidBd, FmmFollowsTheSerialEngine) {
+  const Bodies b = lattice(kBodies, 5u);
+  const Trajectory serial = serial_run(b);
+  const LocalBodies l = local_bodies(b, Split::even);
+  const Trajectory mine = distributed_run(l, 0, kSteps, true);
+  const double dq = global_relative_error(mine.positions, share(serial.positions, 3, l.first_body, l.bodies));
+  const double dquat = global_relative_error(mine.orientations, share(serial.orientations, 4, l.first_body, l.bodies));
+  EXPECT_LE(dq, 1e-5);
+  EXPECT_LE(dquat, 1e-5);
+}
+
+// The noise of a step is keyed by (seed, step) and no other state carries over, so a restart from
+// the state after step 1 with first_step = 1 continues a run of three steps bit for bit.
+TEST(MpiDistributedRigidBd, RestartContinuesBitForBit) {
+  const Bodies b = lattice(kBodies, 6u);
+  LocalBodies l = local_bodies(b, Split::geometric);
+  const Trajectory whole = distributed_run(l, 0, kSteps);
+  const Trajectory first = distributed_run(l, 0, 1);
+  l.positions = first.positions;
+  l.orientations = first.orientations;
+  const Trajectory rest = distributed_run(l, 1, kSteps - 1);
+  EXPECT_EQ(bitwise_mismatches(rest.positions, whole.positions), 0U);
+  EXPECT_EQ(bitwise_mismatches(rest.orientations, whole.orientations), 0U);
+}
+
+// Bad input on one rank (the last) fails every rank with one message naming that rank; a force
+// error and the blow-up guard on one rank's body fail every rank and leave every rank's state at
+// the last good step.
+TEST(MpiDistributedRigidBd, BadInputOnOneRankFailsEveryRank) {
+  const Bodies b = lattice(kBodies, 7u);
+  const bool last = world_rank() == world_size() - 1;
+  const std::string who = "rank " + std::to_string(world_size() - 1) + " of " + std::to_string(world_size());
+  const LocalBodies l = local_bodies(b, Split::even);
+  DistributedDirectRpy direct(MPI_COMM_WORLD, kViscosity);
+  const auto make = [&](LocalBodies given, RigidDynamicsOptions o, rpyfmm::bd::BodyForceFunction f = trap) {
+    DistributedRigidBodyDynamics sim(direct, given.shape, given.radii, given.offsets, given.positions,
+                                     given.orientations, o, f);
+  };
+  LocalBodies nan = l;
+  if (last) nan.positions[1] = std::nan("");
+  expect_collective_error([&] { make(nan, options()); }, ErrorCode::invalid_input, who);
+  if (world_size() > 1) {
+    RigidDynamicsOptions differ = options();
+    if (last) differ.dt = 0.03;
+    expect_collective_error([&] { make(l, differ); }, ErrorCode::invalid_argument, "different options");
+  }
+  LocalBodies collapsed = l;  // the last rank's last body with every bead at its reference point
+  if (last)
+    for (std::size_t i = 3 * collapsed.offsets[l.bodies - 1]; i < collapsed.shape.size(); ++i) collapsed.shape[i] = 0;
+  expect_collective_error([&] { make(collapsed, options()); }, ErrorCode::invalid_input,
+                          "body " + std::to_string(kBodies - 1) + " has all its beads at its reference point");
+
+  // A non-finite force on the last body (on the last rank), then a push on it that moves the bodies
+  // too far.
+  for (const double load : {std::nan(""), 1e6}) {
+    DistributedRigidBodyDynamics sim(direct, l.shape, l.radii, l.offsets, l.positions, l.orientations, options(),
+                                     [&](const rpyfmm::bd::RigidBodyState& state, std::span<double> w) {
+                                       trap(state, w);
+                                       if (last && state.time > 0.0) w[w.size() - 6] = load;
+                                     });
+    sim.step();
+    const std::vector<double> q(sim.local_positions().begin(), sim.local_positions().end());
+    const std::string needle = std::isnan(load) ? "non-finite force on body " + std::to_string(kBodies - 1)
+                                                : "step 1: body";  // the push moves every body, through the fluid
+    expect_collective_error([&] { sim.step(); },
+                            std::isnan(load) ? ErrorCode::invalid_input : ErrorCode::numerical_failure, needle);
+    EXPECT_EQ(sim.step_count(), 1U);
+    EXPECT_EQ(bitwise_mismatches(std::vector<double>(sim.local_positions().begin(), sim.local_positions().end()), q),
+              0U);
+  }
+}
