@@ -42,13 +42,15 @@ std::unique_ptr<rpy::MobilityOperator> make_operator(const MobilityChoice& choic
               (spec.method == rpy::MobilityMethod::automatic && !choice.box.empty()),
           ErrorCode::invalid_argument, "--wave-precision", "applies to the pse method only");
   spec.device = rpy::compute_device_from_string(choice.device, "--device");
-  if (!choice.box.empty()) {
-    require(choice.box.size() == 1 || choice.box.size() == 3, ErrorCode::invalid_argument, "--box",
-            "give one length L (cube) or three lengths Lx Ly Lz, got " + std::to_string(choice.box.size()) + " values");
-    spec.geometry = choice.box.size() == 1 ? rpy::Geometry::periodic(choice.box[0])
-                                           : rpy::Geometry::periodic(choice.box[0], choice.box[1], choice.box[2]);
-  }
+  spec.geometry = box_geometry(choice.box);
   return rpy::make_mobility(spec, n);
+}
+
+rpy::Geometry box_geometry(const std::vector<double>& box) {
+  if (box.empty()) return rpy::Geometry::open();
+  require(box.size() == 1 || box.size() == 3, ErrorCode::invalid_argument, "--box",
+          "give one length L (cube) or three lengths Lx Ly Lz, got " + std::to_string(box.size()) + " values");
+  return box.size() == 1 ? rpy::Geometry::periodic(box[0]) : rpy::Geometry::periodic(box[0], box[1], box[2]);
 }
 
 }  // namespace rpyfmm::cli

@@ -30,5 +30,8 @@ struct MobilityChoice {
 void add_mobility_options(CLI::App& cmd, MobilityChoice& choice);
 /// The operator for n particles (validates the choice; rpyfmm::Error naming the option).
 std::unique_ptr<rpy::MobilityOperator> make_operator(const MobilityChoice& choice, std::size_t n);
+/// --box as a geometry: open space when empty, else the periodic box of L (a cube) or Lx Ly Lz
+/// (rpyfmm::Error naming --box for another number of lengths or what Geometry::periodic refuses).
+rpy::Geometry box_geometry(const std::vector<double>& box);
 
 }  // namespace rpyfmm::cli
