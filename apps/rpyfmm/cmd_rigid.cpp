@@ -10,8 +10,9 @@
 // Beads are listed body after body; S holds the m body sizes (beads per body, each >= 3).
 // FT is (m,6): F_x F_y F_z T_x T_y T_z per body (torques about the reference points Q, (m,3),
 // default the bodies' centroids); UW is (m,6): U_x U_y U_z Omega_x Omega_y Omega_z.
-// Under mpirun, --method direct and fmm (free space) run across the ranks, each rank owning whole
-// bodies (rigid_across_ranks.hpp); other methods are refused on more than one rank.
+// Under mpirun, --method direct and fmm (free space) and --method pse with --box (double-precision
+// wave grids) run across the ranks, each rank owning whole bodies (rigid_across_ranks.hpp); other
+// methods are refused on more than one rank.
 #include <CLI/CLI.hpp>
 #include <cmath>
 #include <cstddef>
@@ -46,11 +47,11 @@ struct RigidArgs {
   CommonOptions common;
 };
 
-/// Under MPI: whether this solve runs across the ranks (--method direct or fmm without --box, on the
-/// CPU); otherwise it runs on one rank only and more ranks are refused. Every rank parses the same
-/// options, so every rank refuses alike.
+/// Under MPI: whether this solve runs across the ranks (on the CPU: --method direct or fmm without
+/// --box, or --method pse with --box and wave grids auto or double); otherwise it runs on one rank
+/// only and more ranks are refused. Every rank parses the same options, so every rank refuses alike.
 bool across_ranks(const RigidArgs& args) {
-  return bodies_across_ranks(args.mobility, mpi_size(), "rigid");
+  return bodies_across_ranks(args.mobility, mpi_size(), "rigid", /*periodic_pse=*/true);
 }
 
 void run_rigid(const RigidArgs& args) {
@@ -66,7 +67,7 @@ void run_rigid(const RigidArgs& args) {
   if (under_mpi() && across_ranks(args)) {
     run_rigid_across_ranks({args.bodies, args.forces, args.out, args.bead_forces, args.solver_tolerance,
                             args.max_iterations, !args.no_precondition, args.mobility.method, args.mobility.tolerance,
-                            args.mobility.viscosity, args.common.json});
+                            args.mobility.viscosity, box_geometry(args.mobility.box), args.common.json});
     return;
   }
 

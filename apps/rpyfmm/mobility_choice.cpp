@@ -31,13 +31,15 @@ void add_mobility_options(CLI::App& cmd, MobilityChoice& choice) {
       ->capture_default_str();
 }
 
-bool bodies_across_ranks(const MobilityChoice& choice, int ranks, const std::string& command) {
-  const bool supported =
-      (choice.method == "direct" || choice.method == "fmm") && choice.box.empty() && choice.device == "cpu";
+bool bodies_across_ranks(const MobilityChoice& choice, int ranks, const std::string& command, bool periodic_pse) {
+  const bool free_space = (choice.method == "direct" || choice.method == "fmm") && choice.box.empty();
+  const bool pse = periodic_pse && choice.method == "pse" && !choice.box.empty() && choice.wave_precision != "single";
+  const bool supported = (free_space || pse) && choice.device == "cpu";
   require(supported || ranks == 1, ErrorCode::not_supported, command,
-          "across " + std::to_string(ranks) +
-              " MPI ranks runs --method direct or fmm without --box, on the CPU (docs/mpi.md), not --method " +
-              choice.method + (choice.box.empty() ? "" : " with --box") + "; run other methods without mpirun");
+          "across " + std::to_string(ranks) + " MPI ranks runs --method direct or fmm without --box" +
+              (periodic_pse ? ", or --method pse with --box (double-precision wave grids)," : ",") +
+              " on the CPU (docs/mpi.md), not --method " + choice.method + (choice.box.empty() ? "" : " with --box") +
+              "; run other methods without mpirun");
   if (supported) {  // as make_operator checks them
     ranges::require_in(ranges::kViscosity, choice.viscosity, "--viscosity", "viscosity");
     ranges::require_in(ranges::kMobilityTolerance, choice.tolerance, "--tolerance", "tolerance");
@@ -57,13 +59,15 @@ std::unique_ptr<rpy::MobilityOperator> make_operator(const MobilityChoice& choic
               (spec.method == rpy::MobilityMethod::automatic && !choice.box.empty()),
           ErrorCode::invalid_argument, "--wave-precision", "applies to the pse method only");
   spec.device = rpy::compute_device_from_string(choice.device, "--device");
-  if (!choice.box.empty()) {
-    require(choice.box.size() == 1 || choice.box.size() == 3, ErrorCode::invalid_argument, "--box",
-            "give one length L (cube) or three lengths Lx Ly Lz, got " + std::to_string(choice.box.size()) + " values");
-    spec.geometry = choice.box.size() == 1 ? rpy::Geometry::periodic(choice.box[0])
-                                           : rpy::Geometry::periodic(choice.box[0], choice.box[1], choice.box[2]);
-  }
+  spec.geometry = box_geometry(choice.box);
   return rpy::make_mobility(spec, n);
+}
+
+rpy::Geometry box_geometry(const std::vector<double>& box) {
+  if (box.empty()) return rpy::Geometry::open();
+  require(box.size() == 1 || box.size() == 3, ErrorCode::invalid_argument, "--box",
+          "give one length L (cube) or three lengths Lx Ly Lz, got " + std::to_string(box.size()) + " values");
+  return box.size() == 1 ? rpy::Geometry::periodic(box[0]) : rpy::Geometry::periodic(box[0], box[1], box[2]);
 }
 
 }  // namespace rpyfmm::cli

@@ -1,14 +1,16 @@
-// rpyfmm CLI — `mpirun -np P rpyfmm rigid --method direct|fmm ...` across MPI ranks (docs/mpi.md,
-// "Rigid bodies across ranks"). Rank 0 reads the files of the serial command and scatters whole
-// bodies: contiguous runs of bodies, balanced by their bead count (a rank may get none).
-// rpyfmm::mpi::DistributedRigidBodies solves on the ranks' bodies with DistributedDirectRpy or
-// DistributedFmmRpy as the bead operator; rank 0 gathers the velocities (and the bead forces) and
-// writes the serial command's files (write_npy: a temporary file renamed into place).
+// rpyfmm CLI — `mpirun -np P rpyfmm rigid --method direct|fmm|pse ...` across MPI ranks
+// (docs/mpi.md, "Rigid bodies across ranks"). Rank 0 reads the files of the serial command and
+// scatters whole bodies: contiguous runs of bodies, balanced by their bead count (a rank may get
+// none). rpyfmm::mpi::DistributedRigidBodies solves on the ranks' bodies with DistributedDirectRpy,
+// DistributedFmmRpy or DistributedPseRpy (in the --box) as the bead operator; rank 0 gathers the
+// velocities (and the bead forces) and writes the serial command's files (write_npy: a temporary
+// file renamed into place).
 #pragma once
 
 #include <string>
 
 #include "bead_bodies.hpp"
+#include "rpyfmm/rpy/geometry.hpp"
 
 namespace rpyfmm::cli {
 
@@ -18,9 +20,10 @@ struct RanksRigidArgs {
   double solver_tolerance = 1e-6;  // GMRES relative residual, validated
   int max_iterations = 500;
   bool precondition = true;
-  std::string method = "direct";  // direct | fmm (the caller refuses others)
-  double tolerance = 1e-6;        // fmm's
+  std::string method = "direct";  // direct | fmm | pse (the caller refuses others)
+  double tolerance = 1e-6;        // fmm's or pse's
   double viscosity = 1.0;
+  rpy::Geometry box = rpy::Geometry::open();  // pse's periodic box (--box)
   bool json = false;
 };
 

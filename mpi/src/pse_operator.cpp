@@ -365,6 +365,9 @@ const Communicator& DistributedPseRpy::communicator() const {
 double DistributedPseRpy::viscosity() const {
   return impl_->viscosity;
 }
+const rpy::Geometry& DistributedPseRpy::geometry() const {
+  return impl_->geometry;
+}
 std::size_t DistributedPseRpy::local_size() const {
   return impl_->global_n > 0 ? impl_->local_n : 0;
 }

@@ -62,12 +62,43 @@ BodyIndex body_index(const Communicator& comm, std::size_t local_bodies) {
   return index;
 }
 
+/// The bead operator's geometry, in which the lever arms are minimum images: DistributedPseRpy's
+/// periodic box, open space for the others (as RigidBodies takes MobilityOperator::geometry()).
+rpy::Geometry bead_geometry(const DistributedDirectRpy&) {
+  return rpy::Geometry::open();
+}
+rpy::Geometry bead_geometry(const DistributedFmmRpy&) {
+  return rpy::Geometry::open();
+}
+rpy::Geometry bead_geometry(const DistributedPseRpy& op) {
+  return op.geometry();
+}
+
+/// B z (B B^T = M) across the ranks, as RigidBodies::apply_with_noise takes it from the serial
+/// operator's apply_sqrt: mpi::sqrt_apply's samplers for the direct and FMM operators, the split
+/// sampler of DistributedPseRpy::apply_sqrt (PseRpy::apply_sqrt's) for PSE.
+rpy::SqrtReport bead_sqrt(const DistributedDirectRpy& op, std::span<const double> z, std::span<double> w,
+                          const rpy::SqrtOptions& options) {
+  return sqrt_apply(op, z, w, options);
+}
+rpy::SqrtReport bead_sqrt(const DistributedFmmRpy& op, std::span<const double> z, std::span<double> w,
+                          const rpy::SqrtOptions& options) {
+  return sqrt_apply(op, z, w, options);
+}
+rpy::SqrtReport bead_sqrt(const DistributedPseRpy& op, std::span<const double> z, std::span<double> w,
+                          const rpy::SqrtOptions& options) {
+  return op.apply_sqrt(z, w, options);
+}
+
 }  // namespace
 
 DistributedRigidBodies::DistributedRigidBodies(DistributedDirectRpy& beads, rpy::RigidBodyOptions options)
     : DistributedRigidBodies(Operator(&beads), beads.communicator(), options) {}
 
 DistributedRigidBodies::DistributedRigidBodies(DistributedFmmRpy& beads, rpy::RigidBodyOptions options)
+    : DistributedRigidBodies(Operator(&beads), beads.communicator(), options) {}
+
+DistributedRigidBodies::DistributedRigidBodies(DistributedPseRpy& beads, rpy::RigidBodyOptions options)
     : DistributedRigidBodies(Operator(&beads), beads.communicator(), options) {}
 
 DistributedRigidBodies::DistributedRigidBodies(Operator beads, const Communicator& comm, rpy::RigidBodyOptions options)
@@ -106,11 +137,12 @@ void DistributedRigidBodies::set_configuration(std::span<const double> local_bea
   // Collective; validates positions and radii on every rank (NaN/Inf, radius <= 0, no bead at all).
   std::visit([&](auto* op) { op->set_positions(local_bead_positions, local_radii); }, beads_);
   const double eta = std::visit([](auto* op) { return op->viscosity(); }, beads_);
+  const rpy::Geometry geometry = std::visit([](auto* op) { return bead_geometry(*op); }, beads_);
   std::shared_ptr<const rpy::rigid_detail::BodySystem> system;
   comm_.run([&] {
-    system = std::make_shared<const rpy::rigid_detail::BodySystem>(rpy::rigid_detail::make_body_system(
-        local_bead_positions, local_radii, local_body_offsets, local_reference_points, rpy::Geometry::open(), eta,
-        options_.precondition, kWhere));
+    system = std::make_shared<const rpy::rigid_detail::BodySystem>(
+        rpy::rigid_detail::make_body_system(local_bead_positions, local_radii, local_body_offsets,
+                                            local_reference_points, geometry, eta, options_.precondition, kWhere));
   });
   system_ = std::move(system);
   seconds_setup_ = watch.seconds();
@@ -211,7 +243,7 @@ rpy::RigidBodyReport DistributedRigidBodies::apply_with_noise(std::span<const do
   // Patankar & Donev, J. Chem. Phys. 147, 244103 (2017)), B z across the ranks.
   std::vector<double> b(n3 + 6 * system_->bodies(), 0.0), w(n3);
   const rpy::SqrtReport sqrt_report =
-      std::visit([&](auto* op) { return sqrt_apply(*op, local_z, w, sqrt_options); }, beads_);
+      std::visit([&](auto* op) { return bead_sqrt(*op, local_z, w, sqrt_options); }, beads_);
   for (std::size_t i = 0; i < n3; ++i) b[i] = -noise_scale * w[i];
   const double seconds_sqrt = watch.seconds();
   rpy::RigidBodyReport report = solve(local_forces_torques, b, local_velocities, local_bead_forces);

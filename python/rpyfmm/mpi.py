@@ -16,7 +16,8 @@ initializes MPI. docs/mpi.md, "Python (mpi4py)", lists what is supported.
   :meth:`rpyfmm.DirectRpy.apply_sqrt_block`; each column equals ``apply_sqrt`` of it alone bit for bit.
 * :class:`DistributedRigidBodies` ``(beads, tolerance=..., ...)``: :class:`rpyfmm.RigidBodies`
   with whole bodies per rank and the bead products across the ranks (``beads`` a
-  :class:`DistributedDirectRpy` or :class:`DistributedFmmRpy`, kept alive); ``set_configuration``,
+  :class:`DistributedDirectRpy`, :class:`DistributedFmmRpy` or, in a periodic box with equal radii,
+  :class:`DistributedPseRpy`, kept alive); ``set_configuration``,
   ``apply``, ``apply_with_bead_forces``, ``apply_from`` (GMRES from this rank's guesses),
   ``apply_with_noise``, ``mobility_matrix`` with this rank's bodies and beads.
 * Statistics of this rank (copies; reading them is not collective): ``inner_products`` of the last

@@ -4,7 +4,7 @@
 // rank's share of the bodies: its beads body after body, its body offsets from 0, its bodies'
 // forces and torques.
 //
-// The bead operator (a bound DistributedDirectRpy or DistributedFmmRpy) is kept alive by the
+// The bead operator (a bound DistributedDirectRpy, DistributedFmmRpy or DistributedPseRpy) is kept alive by the
 // Python object (keep_alive), since the C++ object only points to it, and every call also takes
 // the operator's lock (object_lock.hpp), as RigidBodies does. Every call is collective; its
 // arguments are checked and converted on each rank and the ranks agree on the outcome before the
@@ -29,6 +29,7 @@ namespace {
 
 using Direct = WithComm<mpi::DistributedDirectRpy>;
 using Fmm = WithComm<mpi::DistributedFmmRpy>;
+using Pse = WithComm<mpi::DistributedPseRpy>;
 using rpy::RigidBodyReport;
 
 /// The Python DistributedRigidBodies: the solver and the bound bead operator it drives (kept alive
@@ -36,7 +37,7 @@ using rpy::RigidBodyReport;
 struct BoundDistributedRigid {
   template <class Op>
   BoundDistributedRigid(WithComm<Op>& op, const rpy::RigidBodyOptions& options) : beads(&op), bodies(op.op, options) {}
-  std::variant<Direct*, Fmm*> beads;
+  std::variant<Direct*, Fmm*, Pse*> beads;
   mpi::DistributedRigidBodies bodies;
 };
 
@@ -194,8 +195,9 @@ void add_init(RigidClass& cls) {
       },
       nb::arg("beads"), nb::kw_only(), nb::arg("tolerance") = 1e-6, nb::arg("max_iterations") = 500,
       nb::arg("restart") = 60, nb::arg("precondition") = true, nb::keep_alive<1, 2>(),
-      "Collective. beads: a DistributedDirectRpy or DistributedFmmRpy (kept alive; set_configuration sets\n"
-      "its positions); tolerance: GMRES relative residual in (0, 1); max_iterations: bead products at most;\n"
+      "Collective. beads: a DistributedDirectRpy, DistributedFmmRpy or DistributedPseRpy (periodic box: lever\n"
+      "arms are minimum images; equal radii) (kept alive; set_configuration sets its positions); tolerance: GMRES "
+      "relative residual in (0, 1); max_iterations: bead products at most;\n"
       "restart: Krylov vectors kept; precondition: the body-block preconditioner. Every rank must pass the\n"
       "same values (else every rank raises).");
 }
@@ -232,7 +234,8 @@ void add_products(RigidClass& cls) {
            "Collective. (velocities (m, 6), RigidBodyReport): as RigidBodies.apply_with_noise, z this rank's\n"
            "beads' noise (n, 3) (rpyfmm.mpi.normal_noise with the bead operator's offset draws the serial\n"
            "noise's rows); B z by rpyfmm.mpi's Lanczos sampler across the ranks at sqrt_tolerance ('auto' is\n"
-           "'none' across ranks, the serial order of sums; 'block' preconditions each rank's beads).")
+           "'none' across ranks, the serial order of sums; 'block' preconditions each rank's beads), with\n"
+           "DistributedPseRpy by its split sampler, as RigidBodies with PseRpy ('block' refused).")
       .def("mobility_matrix", locked("DistributedRigidBodies.mobility_matrix", &mobility_matrix),
            nb::arg("max_bodies") = 200,
            "Collective. The body mobility matrix N (6m, 6m) of all ranks' bodies (m in all, in rank order),\n"
@@ -270,6 +273,7 @@ void bind_mpi_rigid(nb::module_& m) {
                  "the whole set only by the order of GMRES's inner-product sums (bit for bit on one rank).");
   add_init<mpi::DistributedDirectRpy>(cls);
   add_init<mpi::DistributedFmmRpy>(cls);
+  add_init<mpi::DistributedPseRpy>(cls);
   add_products(cls);
   add_state(cls);
 }

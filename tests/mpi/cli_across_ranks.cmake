@@ -26,7 +26,8 @@
 #    serial order, so the files are identical byte for byte;
 #  - `mpiexec -n NP rpyfmm rigid --method direct`: within 1e-12 of the serial file (velocities and
 #    bead forces), the inner products summed in another order; `--method fmm --tolerance 1e-8`
-#    within 1e-7 of the serial direct solve (see below); `--method pse` refuses;
+#    within 1e-7 of the serial direct solve (see below); `--method pse --box L` within 1e-9 of the
+#    serial file with double wave grids (see below); `--wave-precision single` refuses;
 #  - `mpiexec -n NP rpyfmm rigid-bd --method direct|fmm`: the serial trajectory to round-off (direct)
 #    or to the FMMs' tolerance (see below), a restart byte for byte; `--pair` and `--method pse` refuse;
 #  - `mpiexec -n NP rpyfmm mobility --method pse --box L` (also with --torques or --angular, U and W
@@ -418,6 +419,19 @@ agree(rigid "${WORK}/rigid_beads_mpi.npy" "${WORK}/rigid_beads_serial.npy" 1e-12
 run_serial(rigid_fmm rigid_fmm_direct ${rigid_common} --method direct --solver-tolerance 1e-12)
 run_across(rigid_fmm ${rigid_common} --method fmm --tolerance 1e-8 --solver-tolerance 1e-8)
 agree(rigid_fmm "${WORK}/rigid_fmm_mpi.npy" "${WORK}/rigid_fmm_direct.npy" 1e-7)
+# pse in the periodic box of side 11: the bodies centred at 10 reach 11.1 and are wrapped, so they
+# straddle the faces. DistributedRigidBodies with DistributedPseRpy (the serial PseRpy with double
+# wave grids to round-off) and GMRES to 1e-10: within 1e-9 of the serial file with double grids,
+# velocities and bead forces (the bound of tests/mpi/test_distributed_rigid_periodic.cpp).
+set(rigid_pse ${rigid_common} --method pse --box 11 --solver-tolerance 1e-10)
+run_serial(rigid_pse rigid_pse_serial ${rigid_pse} --wave-precision double --bead-forces
+           "${WORK}/rigid_pse_beads_serial.npy")
+run_across(rigid_pse ${rigid_pse} --bead-forces "${WORK}/rigid_pse_beads_mpi.npy")
+if(NOT json MATCHES "\"iterations\":[1-9]" OR NOT json MATCHES "\"method\":\"pse\"")
+  message(FATAL_ERROR "rigid_pse: --json lacks the iterations or the method: ${json}")
+endif()
+agree(rigid_pse "${WORK}/rigid_pse_mpi.npy" "${WORK}/rigid_pse_serial.npy" 1e-9)
+agree(rigid_pse "${WORK}/rigid_pse_beads_mpi.npy" "${WORK}/rigid_pse_beads_serial.npy" 1e-9)
 
 # rigid-bd on the same bodies: 4 steps at kT 1 with the RFD drift, under gravity and a torque.
 # Across the ranks the bead noise is the principal root (--sqrt-preconditioner auto is none there),
@@ -469,11 +483,11 @@ if(NP GREATER 1)
                    ${rigid_bd_common} --steps 1 --restart "${WORK}/rigid_beads_mpi.npy" --out "${WORK}/never.npy")
   # rigid with a bead method that does not run across ranks refuses, naming what does.
   execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" ${rigid_common} --method pse --box 40
-                          --out "${WORK}/never.npy"
+                          --wave-precision single --out "${WORK}/never.npy"
                   RESULT_VARIABLE rc ERROR_VARIABLE err)
-  if(rc EQUAL 0 OR NOT err MATCHES "rigid: across ${NP} MPI ranks runs --method direct or fmm" OR EXISTS
+  if(rc EQUAL 0 OR NOT err MATCHES "rigid: across ${NP} MPI ranks runs --method direct or fmm without --box, or --method pse with --box" OR EXISTS
                                                                                           "${WORK}/never.npy")
-    message(FATAL_ERROR "rigid --method pse under ${NP} ranks: exit ${rc}: ${err}")
+    message(FATAL_ERROR "rigid --method pse --wave-precision single under ${NP} ranks: exit ${rc}: ${err}")
   endif()
   # mobility and sample with what does not run across ranks refuse too.
   foreach(case "mobility;--positions;${WORK}/x.txt;--radius;1;--forces;${WORK}/f.txt;--method;pse;--box;40;--wave-precision;single"

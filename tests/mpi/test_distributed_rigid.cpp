@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "mpi_test_support.hpp"
+#include "rigid_test_support.hpp"
 #include "rpyfmm/mpi/direct_operator.hpp"
 #include "rpyfmm/mpi/fmm_rpy.hpp"
 #include "rpyfmm/mpi/rigid_bodies.hpp"
@@ -29,14 +30,6 @@ using rpyfmm::rpy::RigidBodyReport;
 using namespace rpyfmm_mpi_test;
 
 namespace {
-
-/// The whole set of bodies: beads body after body, one radius per bead, body offsets, and the
-/// forces and torques (6 per body).
-struct Bodies {
-  std::vector<double> x, radii, forces_torques;
-  std::vector<std::size_t> offsets{0};
-  [[nodiscard]] std::size_t bodies() const { return offsets.size() - 1; }
-};
 
 /// m bead-shell spheres (icosphere shells of 12 and 42 beads alternately, radius 1.5, touching
 /// beads) at random orientations on a cubic lattice of spacing 3.6 (gaps of 0.6 radius: strong
@@ -60,27 +53,6 @@ Bodies shell_lattice(std::size_t m, unsigned seed) {
     for (int c = 0; c < 6; ++c) b.forces_torques.push_back(g(rng));
   }
   return b;
-}
-
-/// This rank's whole bodies [first, first + count) of the set split by `split` over the ranks.
-struct LocalBodies {
-  std::vector<double> x, radii, forces_torques;
-  std::vector<std::size_t> offsets{0};
-  std::size_t first_body = 0, bodies = 0, first_bead = 0, beads = 0;
-};
-
-LocalBodies local_bodies(const Bodies& b, Split split) {
-  const Partition p = partition_of(b.bodies(), split);
-  LocalBodies l;
-  l.first_body = p.offset;
-  l.bodies = p.n;
-  l.first_bead = b.offsets[p.offset];
-  l.beads = b.offsets[p.offset + p.n] - l.first_bead;
-  l.x = share(b.x, 3, l.first_bead, l.beads);
-  l.radii = share(b.radii, 1, l.first_bead, l.beads);
-  l.forces_torques = share(b.forces_torques, 6, p.offset, p.n);
-  for (std::size_t k = 1; k <= p.n; ++k) l.offsets.push_back(b.offsets[p.offset + k] - l.first_bead);
-  return l;
 }
 
 /// The serial solve on the whole set: velocities (6m), bead forces (3N) and the report.

@@ -80,6 +80,8 @@ class DistributedPseRpy {
   [[nodiscard]] std::string name() const { return "pse-mpi"; }
   [[nodiscard]] const Communicator& communicator() const;
   [[nodiscard]] double viscosity() const;
+  /// The periodic box the operator was built with (the same on every rank).
+  [[nodiscard]] const rpy::Geometry& geometry() const;
 
   /// This rank's number of particles, all ranks' together, this rank's first global index (0 before
   /// set_positions).

@@ -5,10 +5,12 @@
 // Each rank owns whole bodies: its beads are those of its bodies, body after body, and its share
 // of the saddle-point vector [lambda; Y] is its beads' forces and its bodies' velocities. The bead
 // products M lambda run across the ranks by the distributed operator it is given
-// (DistributedDirectRpy or DistributedFmmRpy: the global bead order is the ranks' beads in rank
-// order). K Y, K^T lambda, the lever-arm scaling and the body-block preconditioner (a dense
-// Cholesky factor per body) are the serial RigidBodies' own code on each rank's bodies, with no
-// communication: blocks never straddle ranks. GMRES is the serial solver's with every inner
+// (DistributedDirectRpy, DistributedFmmRpy, or DistributedPseRpy in a periodic box: the global
+// bead order is the ranks' beads in rank order). K Y, K^T lambda, the lever-arm scaling and the
+// body-block preconditioner (a dense Cholesky factor per body) are the serial RigidBodies' own code
+// on each rank's bodies, with no communication: blocks never straddle ranks. In a periodic box the
+// lever arms are minimum images in the bead operator's box, as RigidBodies takes them from
+// PseRpy's geometry, so a body may straddle the box. GMRES is the serial solver's with every inner
 // product the sum of the ranks' partial sums, added in rank order on every rank (one
 // MPI_Allgather of one double per rank), so every rank takes the same steps.
 //
@@ -27,6 +29,7 @@
 #include "rpyfmm/mpi/communicator.hpp"
 #include "rpyfmm/mpi/direct_operator.hpp"
 #include "rpyfmm/mpi/fmm_rpy.hpp"
+#include "rpyfmm/mpi/pse_operator.hpp"
 #include "rpyfmm/rpy/rigid_bodies.hpp"
 #include "rpyfmm/rpy/sqrt.hpp"
 
@@ -40,6 +43,11 @@ class DistributedRigidBodies {
   /// between the ranks.
   DistributedRigidBodies(DistributedDirectRpy& beads, rpy::RigidBodyOptions options = {});
   DistributedRigidBodies(DistributedFmmRpy& beads, rpy::RigidBodyOptions options = {});
+  /// The bodies in DistributedPseRpy's periodic box: lever arms r_i - q_k are minimum images in
+  /// its box, and bead products and the bead noise are the distributed PSE's (equal radii only: a
+  /// set_configuration with different radii fails every rank, as DistributedPseRpy::set_positions
+  /// refuses them).
+  DistributedRigidBodies(DistributedPseRpy& beads, rpy::RigidBodyOptions options = {});
   ~DistributedRigidBodies();
   DistributedRigidBodies(const DistributedRigidBodies&) = delete;
   DistributedRigidBodies& operator=(const DistributedRigidBodies&) = delete;
@@ -83,10 +91,11 @@ class DistributedRigidBodies {
   /// Collective. Velocities with Brownian noise, as RigidBodies::apply_with_noise: Y = N W +
   /// noise_scale N K^T M^{-1} B z with B z (B B^T = M) by rpyfmm::mpi::sqrt_apply on the bead
   /// operator (`sqrt_options` as there: Lanczos or Chebyshev, the block preconditioner of each
-  /// rank's beads; every rank passes the same), local_z this rank's beads' share of the bead noise
-  /// (3 n_local; mpi::fill_normal draws the serial noise by global index). Throws as apply, and on
-  /// every rank for a bad z or noise_scale < 0 on any rank, noise scales that differ between the
-  /// ranks, and what sqrt_apply refuses.
+  /// rank's beads; every rank passes the same), or with DistributedPseRpy by its apply_sqrt (the
+  /// split sampler PseRpy::apply_sqrt uses in RigidBodies; methods automatic or split), local_z this
+  /// rank's beads' share of the bead noise (3 n_local; mpi::fill_normal draws the serial noise by
+  /// global index). Throws as apply, and on every rank for a bad z or noise_scale < 0 on any rank,
+  /// noise scales that differ between the ranks, and what sqrt_apply or apply_sqrt refuses.
   rpy::RigidBodyReport apply_with_noise(std::span<const double> local_forces_torques, double noise_scale,
                                         std::span<const double> local_z, std::span<double> local_velocities,
                                         const rpy::SqrtOptions& sqrt_options = {},
@@ -101,7 +110,7 @@ class DistributedRigidBodies {
   [[nodiscard]] const rpy::RigidBodyOptions& options() const { return options_; }
 
  private:
-  using Operator = std::variant<DistributedDirectRpy*, DistributedFmmRpy*>;
+  using Operator = std::variant<DistributedDirectRpy*, DistributedFmmRpy*, DistributedPseRpy*>;
   DistributedRigidBodies(Operator beads, const Communicator& comm, rpy::RigidBodyOptions options);
   /// The collective checks of apply's arguments.
   void check_call(std::span<const double> local_forces_torques, std::span<double> local_velocities,
