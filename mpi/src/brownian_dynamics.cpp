@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <numbers>
 #include <numeric>
 #include <optional>
 #include <sstream>
@@ -25,6 +24,7 @@
 #include "rpyfmm/bd/rotation_sampling.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/mpi/partition.hpp"
+#include "rpyfmm/rpy/free_draining.hpp"
 #include "rpyfmm/rpy/random.hpp"
 
 namespace rpyfmm::mpi {
@@ -649,22 +649,19 @@ double DistributedBd::kinetic_temperature() const {
 
 void DistributedBd::free_draining_rotation() {
   // The serial engine's operator is diagonal, each particle's values its own: its rotational
-  // mobility per type, 1 / (8 pi eta a^3) and its square root, evaluated as
-  // rpy::FreeDrainingMobility evaluates them, times the torque and z_r as its products take them,
-  // so they are the serial ones bit for bit.
+  // mobility per type, 1 / (8 pi eta a^3) and its square root, rpy::FreeDrainingMobility's values
+  // (rpy::sphere_mobility), times the torque and z_r as its products take them, so they are the
+  // serial ones bit for bit.
   const std::size_t ntypes = forces_.types().size();
-  std::vector<double> mobility(ntypes), sqrt_mobility(ntypes);
-  for (std::size_t t = 0; t < ntypes; ++t) {
-    const double a = forces_.types()[t].radius;
-    mobility[t] = 1.0 / (8.0 * std::numbers::pi * options_.viscosity * a * a * a);  // Stokes torque
-    sqrt_mobility[t] = std::sqrt(mobility[t]);
-  }
+  std::vector<rpy::SphereMobility> mobility(ntypes);
+  for (std::size_t t = 0; t < ntypes; ++t)
+    mobility[t] = rpy::sphere_mobility(forces_.types()[t].radius, options_.viscosity);
   omega_.resize(torque_.size());
   wr_.resize(zr_.size());
   for (std::size_t i = 0; i < ids_.size(); ++i)
     for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) {
-      omega_[k] = mobility[types_[i]] * torque_[k];
-      if (!zr_.empty()) wr_[k] = sqrt_mobility[types_[i]] * zr_[k];
+      omega_[k] = mobility[types_[i]].rotation * torque_[k];
+      if (!zr_.empty()) wr_[k] = mobility[types_[i]].sqrt_rotation * zr_[k];
     }
 }
 
