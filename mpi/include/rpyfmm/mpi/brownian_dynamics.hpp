@@ -52,6 +52,14 @@
 // bd::Integrator's bit for bit on any number of ranks. As in the serial engine, inertia needs the
 // mobility none and no rotation; the kinetic temperature is summed over the ranks.
 //
+// With the SAC scheme (IntegratorOptions::sac; Algorithm 2 of Tran et al. (2015), Sec. 4.2, and
+// docs/theory/bd.md Sec. 9) the inertial particles carry the adsorbers within R_A as the serial
+// engine's bd::Complexes finds them: the halo also reaches max R_A + skin (rebuilt by the dynamic
+// test), a carrier's owner sums its complex's forces from outside the complex, fetched from the
+// adsorbed particles' owners, and an adsorbed particle adds its carrier's displacement, fetched
+// from the carrier's owner (mpi/src/bd_complexes.cpp). Positions, velocities and complexes are
+// bd::Integrator's bit for bit on any number of ranks.
+//
 // With split displacements (IntegratorOptions::keep_split_displacements) the step keeps M F dt and
 // sqrt(2 kT dt) M^{1/2} z of the owned particles as the serial engine splits them (pse then takes
 // the serial engine's unfused path, PSE's split sampler keyed in global index order). Force
