@@ -78,8 +78,10 @@ System complexes_in_a_box(std::uint64_t seed) {
 
 // Soft repulsion between carriers and adsorbers and among adsorbers (cut-offs 1.25 and 0.5, both
 // below R_A: the halo's reach is the adsorption radius), or no pair potentials at all (the halo is
-// there for the complexes alone); a constant pull along x in both.
-ForceField sac_forces(bool pairs) {
+// there for the complexes alone); a constant pull along x in both. With `callback` also a force
+// callback on the whole system, 0.2 sin(x) per coordinate (it sees the forces from outside the
+// complexes, as serially).
+ForceField sac_forces(bool pairs, bool callback = false) {
   rpyfmm::bd::ParticleType l{.name = "L", .radius = 1.0};
   rpyfmm::bd::ParticleType a{.name = "S", .radius = 0.25};
   ForceField forces({l, a});
@@ -88,6 +90,10 @@ ForceField sac_forces(bool pairs) {
     forces.set_pair(1, 1, {.kind = PairKind::soft, .epsilon = 5.0});
   }
   forces.set_global_force({0.5, 0.0, 0.0});
+  if (callback)
+    forces.add_callback([](std::span<const double> x, std::uint64_t, std::span<double> f) {
+      for (std::size_t k = 0; k < x.size(); ++k) f[k] += 0.2 * std::sin(x[k]);
+    });
   return forces;
 }
 
@@ -177,16 +183,18 @@ std::uint64_t expect_lockstep(DistributedBd& bd, rpyfmm::bd::Integrator& serial,
 
 TEST(MpiDistributedBdSac, TrajectoryAndComplexesEqualTheSerialEngineBitForBitForEverySplit) {
   // 162 particles (27 complexes of 1 + 4, 27 free adsorbers), 30 steps, with and without pair
-  // potentials. Equality is exact: each particle's forces, noise and step are the serial engine's
-  // arithmetic on the same values in the same order (bd_complexes.cpp).
+  // potentials, and with pairs and a callback. Equality is exact: each particle's forces, noise
+  // and step are the serial engine's arithmetic on the same values in the same order
+  // (bd_complexes.cpp).
   const System s = complexes_in_a_box(5);
-  for (const bool pairs : {true, false}) {
-    const DistributedBdOptions o = sac_options(pairs ? 23 : 29);
+  for (const int variant : {0, 1, 2}) {
+    const bool pairs = variant != 1, callback = variant == 2;
+    const DistributedBdOptions o = sac_options(23 + static_cast<std::uint64_t>(variant));
     for (const Split split : kSplits) {
-      const std::string what =
-          std::string(pairs ? "soft pairs" : "no pairs") + ", split " + std::to_string(static_cast<int>(split));
-      rpyfmm::bd::Integrator serial = serial_engine(sac_forces(pairs), o, s);
-      DistributedBd bd(MPI_COMM_WORLD, sac_forces(pairs), kBox, o, shuffled_share(s, split, 9));
+      const std::string what = std::string(pairs ? "soft pairs" : "no pairs") + (callback ? " and a callback" : "") +
+                               ", split " + std::to_string(static_cast<int>(split));
+      rpyfmm::bd::Integrator serial = serial_engine(sac_forces(pairs, callback), o, s);
+      DistributedBd bd(MPI_COMM_WORLD, sac_forces(pairs, callback), kBox, o, shuffled_share(s, split, 9));
       // The complexes at the start (27 carriers with 4 each), before any step.
       EXPECT_EQ(compare(bd, serial).differences, 0u) << what;
       EXPECT_EQ(bd.complex_counts(), (std::array<std::uint64_t, 2>{27, 108})) << what;
