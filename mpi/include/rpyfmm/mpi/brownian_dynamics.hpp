@@ -209,7 +209,8 @@ class DistributedBd {
   [[nodiscard]] std::size_t local_size() const { return ids_.size(); }
   [[nodiscard]] std::span<const double> positions() const { return x_; }
   /// The forces on this rank's particles at the start of the last step (3n; 0 before the first and
-  /// after a repartition until the next step).
+  /// after a repartition until the next step; with the SAC scheme they travel with the particles,
+  /// and are those the step used, as bd::Integrator::last_forces() gives them).
   [[nodiscard]] std::span<const double> last_forces() const { return f_; }
   /// With integrator.keep_split_displacements (empty without): the deterministic part M F dt and
   /// the Brownian part sqrt(2 kT dt) M^{1/2} z of the last step's displacement of this rank's
