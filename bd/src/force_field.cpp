@@ -300,13 +300,18 @@ ForceField ForceField::without_callbacks() const {
 
 void ForceField::compute_rows(std::span<const double> x, std::span<const std::uint32_t> ptype,
                               const NeighbourList& list, std::uint64_t step, std::span<const std::uint32_t> rows,
-                              std::span<const std::uint64_t> ids, std::span<double> forces,
-                              std::span<double> energies) const {
+                              std::span<const std::uint64_t> ids, std::span<double> forces, std::span<double> energies,
+                              std::span<const std::uint32_t> groups, std::span<double> within) const {
   const std::size_t n = ptype.size(), m = rows.size();
   require(x.size() == 3 * n && ids.size() == n, ErrorCode::invalid_input, "ForceField::compute_rows",
           "positions, types and ids disagree on N");
   require(forces.size() == 3 * m && energies.size() == m, ErrorCode::invalid_input, "ForceField::compute_rows",
           "forces and energies must have 3 and 1 entries per row");
+  require(groups.empty() || groups.size() == n, ErrorCode::invalid_input, "ForceField::compute_rows",
+          "groups has " + std::to_string(groups.size()) + " entries for " + std::to_string(n) + " particles");
+  require(within.empty() || (within.size() == 3 * m && !groups.empty()), ErrorCode::invalid_input,
+          "ForceField::compute_rows", "within needs groups and 3 entries per row");
+  const bool split = !within.empty();
   require(callbacks_.empty(), ErrorCode::not_supported, "ForceField::compute_rows",
           "force callbacks take the whole system, not a part of it");
   for (const Bond& b : bonds_)
@@ -319,9 +324,14 @@ void ForceField::compute_rows(std::span<const double> x, std::span<const std::ui
   RowFailures bad;
 #pragma omp parallel for schedule(dynamic, 256) if (m >= 1024)
   for (std::size_t k = 0; k < m; ++k) {
-    energies[k] = particle_row(rows[k], x, ptype, list, {}, &forces[3 * k], nullptr, bad);
+    double fw[3] = {0.0, 0.0, 0.0};
+    energies[k] = particle_row(rows[k], x, ptype, list, groups, &forces[3 * k], split ? fw : nullptr, bad);
+    if (split)
+      for (int c = 0; c < 3; ++c) within[3 * k + c] = fw[c];
   }
-  if (bad.pair.load() != RowFailures::kNone) fail_overlap(bad.pair.load(), x, ptype, list, step, {}, ids);
+  // As compute(): with `within` every pair was checked for overlaps.
+  if (bad.pair.load() != RowFailures::kNone)
+    fail_overlap(bad.pair.load(), x, ptype, list, step, split ? std::span<const std::uint32_t>() : groups, ids);
   if (bad.bond.load() != RowFailures::kNone) fail_bond(bad.bond.load(), x, list, step, ids);
 }
 

@@ -1,6 +1,7 @@
 // rpyfmm::bd — the Integrator on the device engine (IntegratorOptions::engine; docs/gpu-bd.md):
 // its start-up, its step with the report and totals of the CPU engine's free-draining or PSE
 // step, and the accessors that read whichever engine holds the state.
+#include <array>
 #include <string>
 #include <utility>
 
@@ -77,6 +78,15 @@ std::span<const double> Integrator::velocities() const {
 
 double Integrator::kinetic_temperature() const {
   return device_ ? device_->kinetic_temperature() : inertial_.kinetic_temperature();
+}
+
+std::span<const std::uint32_t> Integrator::complex_ids() const {
+  return device_ ? std::span<const std::uint32_t>(device_->complex_ids()) : complexes_.owner();
+}
+
+std::array<std::uint64_t, 2> Integrator::complex_counts() const {
+  return device_ ? device_->complex_counts()
+                 : std::array<std::uint64_t, 2>{complexes_.count(), complexes_.adsorbed_total()};
 }
 
 std::size_t Integrator::neighbour_rebuilds() const {

@@ -324,9 +324,8 @@ class Run {
     if (out.trajectory_every > 0 && s % out.trajectory_every == 0) {
       const auto x = bd_.positions();  // on every process: the reads may be collective
       const auto q = bd_.orientations();
-      on_writer([&] {
-        traj_.write(x, bd_.types(), forces_.types(), config_.geometry, s, bd_.time(), q, bd_.complexes().owner());
-      });
+      const auto complex_ids = bd_.complex_ids();
+      on_writer([&] { traj_.write(x, bd_.types(), forces_.types(), config_.geometry, s, bd_.time(), q, complex_ids); });
     }
     if (out.log_every > 0 && (s % out.log_every == 0 || s == total_)) write_log_row(first);
     const double sec = w.seconds();
@@ -372,7 +371,11 @@ class Run {
       row << ',' << rmsd << ',' << correlation;
     }
     if (langevin_) row << ',' << bd_.kinetic_temperature();  // on every process (may be collective)
-    if (config_.integrator.sac.enabled) row << ',' << bd_.complexes().count() << ',' << bd_.complexes().mean_adsorbed();
+    if (config_.integrator.sac.enabled) {  // on every process (may be collective); Complexes::mean_adsorbed()
+      const auto [complexes, adsorbed] = bd_.complex_counts();
+      row << ',' << complexes << ','
+          << (complexes == 0 ? 0.0 : static_cast<double>(adsorbed) / static_cast<double>(complexes));
+    }
     row << '\n';
     on_writer([&] { log_.write(row.str()); });
     last_ = Interval{t, s, cnow};

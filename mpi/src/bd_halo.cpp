@@ -188,11 +188,12 @@ DistributedBd::Halo DistributedBd::Halo::build(const Communicator& comm, const b
                                                const detail::BondIndex& bonds, const rpy::Geometry& geometry,
                                                const bd::NeighbourOptions& neighbours,
                                                std::span<const double> positions, std::span<const std::uint32_t> types,
-                                               std::span<const std::uint64_t> ids, std::uint64_t total) {
+                                               std::span<const std::uint64_t> ids, std::uint64_t total, double reach) {
   Halo h{.list = bd::NeighbourList(geometry, forces.max_cutoff(), neighbours),
          .pairs = forces.has_pairs(),
-         .exchanges = forces.has_pairs() || !bonds.empty()};
-  const double list_radius = h.pairs ? h.list.list_radius() : 0.0;
+         .exchanges = forces.has_pairs() || !bonds.empty() || reach > 0.0};
+  h.skin = h.list.skin() > 0.0 ? h.list.skin() : 0.3 * reach;
+  const double list_radius = std::max(h.pairs ? h.list.list_radius() : 0.0, reach > 0.0 ? reach + h.skin : 0.0);
   const detail::OwnedCells cells = detail::owned_cells(positions, geometry);
   const std::vector<std::vector<detail::Box>> regions = detail::gather_regions(comm, detail::region_of(cells));
   h.send = detail::select_halo(comm, cells, regions, geometry, list_radius);
@@ -230,19 +231,31 @@ DistributedBd::Halo DistributedBd::Halo::build(const Communicator& comm, const b
 }
 
 void DistributedBd::Halo::refresh(const Communicator& comm, std::span<const double> positions) {
+  if (!exchanges) {  // no pair potential, bond or complex (the same on every rank): no halo anywhere
+    for (std::size_t i = 0; i < owned_rows.size(); ++i)
+      for (int c = 0; c < 3; ++c) x[3 * owned_rows[i] + c] = positions[3 * i + c];
+    return;
+  }
+  x = part_values(comm, positions, 3);
+}
+
+std::vector<double> DistributedBd::Halo::part_values(const Communicator& comm, std::span<const double> owned,
+                                                     std::size_t per) const {
+  std::vector<double> part(per * ids.size());
   for (std::size_t i = 0; i < owned_rows.size(); ++i)
-    for (int c = 0; c < 3; ++c) x[3 * owned_rows[i] + c] = positions[3 * i + c];
-  if (!exchanges) return;  // no pair potential and no bond (the same on every rank): no halo anywhere
+    std::copy(&owned[per * i], &owned[per * i] + per, &part[per * owned_rows[i]]);
+  if (!exchanges) return part;
   std::vector<std::vector<double>> packed(send.size());
   for (std::size_t r = 0; r < send.size(); ++r) {
-    packed[r].reserve(3 * send[r].size());
-    for (const std::uint32_t i : send[r]) packed[r].insert(packed[r].end(), &positions[3 * i], &positions[3 * i + 3]);
+    packed[r].reserve(per * send[r].size());
+    for (const std::uint32_t i : send[r]) packed[r].insert(packed[r].end(), &owned[per * i], &owned[per * i] + per);
   }
   std::vector<std::size_t> counts(recv_counts);
-  for (std::size_t& c : counts) c *= 3;
-  const std::vector<double> received = detail::alltoallv(comm, packed, counts, "DistributedBd", "the halo's positions");
+  for (std::size_t& c : counts) c *= per;
+  const std::vector<double> received = detail::alltoallv(comm, packed, counts, "DistributedBd", "the halo's values");
   for (std::size_t k = 0; k < halo_rows.size(); ++k)
-    for (int c = 0; c < 3; ++c) x[3 * halo_rows[k] + c] = received[3 * k + c];
+    std::copy(&received[per * k], &received[per * k] + per, &part[per * halo_rows[k]]);
+  return part;
 }
 
 std::vector<double> DistributedBd::Halo::row_lengths() const {

@@ -72,20 +72,28 @@ struct DistributedBd::Halo {
   std::vector<std::size_t> recv_counts{};
   bd::NeighbourList list;
   bool pairs = false;      // the force field has pair potentials (else no lists, no rebuild test)
-  bool exchanges = false;  // pairs or bonds: a halo to refresh every step (the same on every rank)
+  bool exchanges = false;  // pairs, bonds or complexes: a halo to refresh every step (the same on every rank)
+  /// The skin of the rebuild test (a particle moved more than skin/2 since the build): the list's,
+  /// or without pair potentials 0.3 x the reach of build() (options.skin where given).
+  double skin = 0.0;
   /// With bonds: the force field with the bonds of the owned particles, their ends as part rows.
   std::optional<bd::ForceField> part_forces{};
 
   /// Collective: finds the halo of this rank's owned particles (positions 3n, types, ids,
   /// increasing): the other ranks' particles within the list radius r_c + skin (none without pair
-  /// potentials) and the bond partners of the owned particles; exchanges it and builds the lists
-  /// and the part's bonds. total: N.
+  /// potentials) or, where larger, `reach` + skin (the SAC scheme's max R_A; 0: none), and the bond
+  /// partners of the owned particles; exchanges it and builds the lists and the part's bonds.
+  /// total: N.
   static Halo build(const Communicator& comm, const bd::ForceField& forces, const detail::BondIndex& bonds,
                     const rpy::Geometry& geometry, const bd::NeighbourOptions& neighbours,
                     std::span<const double> positions, std::span<const std::uint32_t> types,
-                    std::span<const std::uint64_t> ids, std::uint64_t total);
+                    std::span<const std::uint64_t> ids, std::uint64_t total, double reach = 0.0);
   /// Collective: the owned particles' current positions into the part, the halo's from its owners.
   void refresh(const Communicator& comm, std::span<const double> positions);
+  /// Collective: `per` values of each part particle (in part order), the owned particles' from
+  /// `owned` (per per owned particle), the halo's from their owners' `owned`.
+  [[nodiscard]] std::vector<double> part_values(const Communicator& comm, std::span<const double> owned,
+                                                std::size_t per) const;
   /// Each owned particle's neighbour-list entries (its row length), the cost weights of a partition.
   [[nodiscard]] std::vector<double> row_lengths() const;
 };

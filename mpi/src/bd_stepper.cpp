@@ -1,6 +1,8 @@
 // rpyfmm — a BD run of a configuration across MPI ranks (rpyfmm/mpi/bd_stepper.hpp).
 #include "rpyfmm/mpi/bd_stepper.hpp"
 
+#include <algorithm>
+#include <array>
 #include <cstddef>
 #include <limits>
 #include <string>
@@ -65,6 +67,18 @@ class DistributedStepper final : public bd::Stepper {
     const bool split = bd_.options().integrator.keep_split_displacements;
     return split ? brownian_.at(bd_, bd_.brownian_displacement(), 3) : brownian_.values;
   }
+  /// With the SAC scheme (empty without): gathered on rank 0 as the positions.
+  [[nodiscard]] const std::vector<std::uint32_t>& complex_ids() const override {
+    if (!bd_.options().integrator.sac.enabled) return complex_ids_;
+    const std::vector<double> mine(bd_.complex_ids().begin(), bd_.complex_ids().end());
+    const std::vector<double>& all = complexes_.at(bd_, mine, 1);
+    complex_ids_.resize(all.size());
+    std::transform(all.begin(), all.end(), complex_ids_.begin(),
+                   [](double id) { return static_cast<std::uint32_t>(id); });
+    return complex_ids_;
+  }
+  /// Collective: summed over the ranks (DistributedBd::complex_counts).
+  [[nodiscard]] std::array<std::uint64_t, 2> complex_counts() const override { return bd_.complex_counts(); }
   [[nodiscard]] std::uint64_t step_count() const override { return bd_.step_count(); }
   [[nodiscard]] double potential_energy() const override { return bd_.potential_energy(); }
   [[nodiscard]] std::size_t rebuilds() const override { return bd_.stats().rebuilds; }
@@ -77,7 +91,9 @@ class DistributedStepper final : public bd::Stepper {
 
  private:
   DistributedBd bd_;
-  mutable GatheredPerStep positions_, forces_, orientations_, rotations_, velocities_, deterministic_, brownian_;
+  mutable GatheredPerStep positions_, forces_, orientations_, rotations_, velocities_, deterministic_, brownian_,
+      complexes_;
+  mutable std::vector<std::uint32_t> complex_ids_;
 };
 
 // The mobility of a run across ranks: its method, automatic counting as fmm in free space and as

@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <numbers>
 #include <numeric>
 #include <optional>
 #include <sstream>
@@ -25,6 +24,7 @@
 #include "rpyfmm/bd/rotation_sampling.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/mpi/partition.hpp"
+#include "rpyfmm/rpy/free_draining.hpp"
 #include "rpyfmm/rpy/random.hpp"
 
 namespace rpyfmm::mpi {
@@ -33,9 +33,8 @@ namespace {
 constexpr const char* kWhere = "DistributedBd";
 constexpr std::uint64_t kNoParticle = std::numeric_limits<std::uint64_t>::max();
 
-// The features of bd::Integrator that this engine does not have, and the imbalance threshold.
+// The imbalance threshold.
 void require_supported(const DistributedBdOptions& o) {
-  require(!o.integrator.sac.enabled, ErrorCode::not_supported, kWhere, "the SAC scheme is not supported across ranks");
   require(o.repartition_imbalance >= 1.0, ErrorCode::invalid_argument, kWhere,
           "repartition_imbalance must be >= 1 (infinity: never), got " + std::to_string(o.repartition_imbalance));
 }
@@ -157,7 +156,9 @@ std::vector<double> option_signature(const DistributedBdOptions& o, const rpy::G
           o.pse.lanczos_tolerance,
           i.rotation ? 1.0 : 0.0,
           i.keep_split_displacements ? 1.0 : 0.0,
-          static_cast<double>(forces.callbacks().size())};
+          static_cast<double>(forces.callbacks().size()),
+          i.sac.enabled ? 1.0 : 0.0,
+          i.sac.adsorption_factor};
 }
 
 // option_signature with the inertial types' masses and frictions (0 for Brownian types).
@@ -308,6 +309,7 @@ DistributedBd::DistributedBd(MPI_Comm comm, bd::ForceField forces, rpy::Geometry
   check_mpi(MPI_Allreduce(&mine_inertial, &any_inertial, 1, MPI_INT, MPI_MAX, comm_.get()), "MPI_Allreduce");
   inertial_ = any_inertial != 0;
   if (inertial_) check_inertia(options_);
+  if (options_.integrator.sac.enabled) check_sac(share.types);
   comm_.run([&] {
     require(inertial_ || share.velocities.empty(), ErrorCode::invalid_argument, kWhere,
             "velocities given but no particle is inertial");
@@ -341,6 +343,10 @@ DistributedBd::DistributedBd(MPI_Comm comm, bd::ForceField forces, rpy::Geometry
   if (inertial_) start_velocities(share.velocities, order);
   hydrodynamics_ = Hydrodynamics::make(comm_.get(), options_, geometry_);
   for (const char* part : {"rebuild", "halo", "forces", "update"}) stats_.seconds[part] = 0.0;
+  if (sac_) {  // the complexes at the starting positions, as the serial engine finds them
+    prepare_part();
+    part_ready_ = true;
+  }
 }
 
 DistributedBd::~DistributedBd() = default;
@@ -349,7 +355,27 @@ DistributedBd& DistributedBd::operator=(DistributedBd&&) noexcept = default;
 
 void DistributedBd::step() {
   // 1. Lists, halo and partition when the rebuild test asked for them (Tran et al. (2015),
-  //    Algorithm 1), else the halo's new positions.
+  //    Algorithm 1), else the halo's new positions; with the SAC scheme the part was prepared at
+  //    the end of the last step (the complexes at the current positions).
+  if (!part_ready_) prepare_part();
+  part_ready_ = false;
+  // 2. Forces on the owned particles, from the part in the serial engine's order.
+  StopWatch watch;
+  compute_forces();
+  stats_.seconds["forces"] += watch.seconds();
+  // 3. dx = mu F dt + sqrt(2 kT dt mu) z, the blow-up guard, x += dx and the next rebuild test.
+  watch.restart();
+  advance();
+  stats_.seconds["update"] += watch.seconds();
+  // 4. With the SAC scheme, the complexes of the new positions (those of the next step, which
+  //    bd::Integrator also finds at the end of its step).
+  if (sac_) {
+    prepare_part();
+    part_ready_ = true;
+  }
+}
+
+void DistributedBd::prepare_part() {
   StopWatch watch;
   if (rebuild_due_) {
     rebuild();
@@ -358,14 +384,7 @@ void DistributedBd::step() {
     halo_->refresh(comm_, x_);
     stats_.seconds["halo"] += watch.seconds();
   }
-  // 2. Forces on the owned particles, from the part in the serial engine's order.
-  watch.restart();
-  compute_forces();
-  stats_.seconds["forces"] += watch.seconds();
-  // 3. dx = mu F dt + sqrt(2 kT dt mu) z, the blow-up guard, x += dx and the next rebuild test.
-  watch.restart();
-  advance();
-  stats_.seconds["update"] += watch.seconds();
+  if (sac_) update_complexes();
 }
 
 void DistributedBd::run(std::uint64_t count) {
@@ -392,7 +411,7 @@ void DistributedBd::rebuild() {
   if (!halo_ || (comm_.size() > 1 && stats_.imbalance > options_.repartition_imbalance)) repartition(weights);
   work_seconds_ = 0.0;
   halo_ = std::make_unique<Halo>(
-      Halo::build(comm_, forces_, *bonds_, geometry_, options_.neighbours, x_, types_, ids_, global_n_));
+      Halo::build(comm_, forces_, *bonds_, geometry_, options_.neighbours, x_, types_, ids_, global_n_, sac_reach_));
   list_reference_ = x_;
   rebuild_due_ = false;
   steps_since_rebuild_ = 0;
@@ -416,6 +435,12 @@ void DistributedBd::repartition(std::span<const double> weights) {
   std::vector<Column> columns = {{x_, 3}, {reference_, 3}, {id, 1}, {type, 1}};
   if (options_.integrator.rotation) columns.insert(columns.end(), {{q_, 4}, {reference_q_, 4}, {rotation_sum_, 3}});
   if (inertial_) columns.push_back({v_, 3});  // the half-step velocities travel too
+  // With the SAC scheme the rebuild follows a step (step 4): the forces of that step travel too
+  // (0 before the first).
+  if (sac_) {
+    f_.resize(3 * n, 0.0);
+    columns.push_back({f_, 3});
+  }
   std::vector<std::vector<double>> moved = partition.to_owners(columns);
   const std::size_t m = partition.owned_size();
   std::vector<std::size_t> order(m);
@@ -437,7 +462,8 @@ void DistributedBd::repartition(std::span<const double> weights) {
     phi_.assign(3 * m, 0.0);
   }
   if (inertial_) v_ = permuted(moved[4], order, 3);
-  f_.assign(3 * m, 0.0);  // the forces of the last step belong to the particles held before
+  // Without the SAC scheme the forces of the last step belong to the particles held before.
+  f_ = sac_ ? permuted(moved[5], order, 3) : std::vector<double>(3 * m, 0.0);
   if (options_.integrator.keep_split_displacements) {  // so do its split displacements
     dx_det_.assign(3 * m, 0.0);
     dx_brown_.assign(3 * m, 0.0);
@@ -452,10 +478,14 @@ void DistributedBd::compute_forces() {
   comm_.run([&] {
     const StopWatch work;  // this rank's own work, without the agreement's wait for the others
     const bd::ForceField& part = halo_->part_forces ? *halo_->part_forces : forces_;  // bonds as part rows
-    part.compute_rows(halo_->x, halo_->types, halo_->list, step_, halo_->owned_rows, halo_->ids, f_, particle_energy_);
+    // With the SAC scheme: f_ from outside each particle's complex, f_within_ from inside it.
+    if (sac_) f_within_.assign(3 * n, 0.0);
+    part.compute_rows(halo_->x, halo_->types, halo_->list, step_, halo_->owned_rows, halo_->ids, f_, particle_energy_,
+                      groups_, f_within_);
     work_seconds_ += work.seconds();
   });
   if (!callbacks_.empty()) add_callback_forces();
+  if (sac_) complex_forces();
   double mine = 0.0;
   for (const double e : particle_energy_) mine += e;
   // The torques depend on each particle's own type and orientation alone (bd::TorqueField).
@@ -500,6 +530,7 @@ void DistributedBd::advance() {
   zr_.assign(rotation && drawn ? 3 * n : 0, 0.0);
   if (!zr_.empty()) rpy::fill_normal(ids_, zr_, options_.integrator.seed, step_, bd::kRotationNoiseStream);
   std::vector<double> next(3 * n);
+  if (sac_) dx_.assign(3 * n, 0.0);
   StopWatch work;
   std::uint64_t refused = hydrodynamics_ ? displace_with_hydrodynamics(next) : displace_free_draining(next);
   std::vector<double> v_next;
@@ -511,6 +542,7 @@ void DistributedBd::advance() {
   std::uint64_t lowest = kNoParticle;
   check_mpi(MPI_Allreduce(&refused, &lowest, 1, MPI_UINT64_T, MPI_MIN, comm_.get()), "MPI_Allreduce");
   if (lowest != kNoParticle) fail_blow_up(lowest, next);
+  if (sac_) follow_carriers(next);  // after the guard, as bd::Integrator adds the carrier's step
   x_.swap(next);
   if (inertial_) v_.swap(v_next);  // kept only when the step is (bd::LangevinGroup::commit)
   // q <- exp(phi) q (bd::Integrator's update), and the sums of the rotation vectors (the log's).
@@ -523,13 +555,16 @@ void DistributedBd::advance() {
   ++steps_since_rebuild_;
   // The next step's rebuild test over every rank's particles (or the fixed interval).
   const int interval = options_.neighbours.fixed_interval;
-  const double limit2 = 0.25 * halo_->list.skin() * halo_->list.skin();
+  // With the SAC scheme always the dynamic test: the halo must hold every carrier within R_A of an
+  // owned adsorber (bd::Complexes' own list has the dynamic test whatever the options).
+  const double limit2 = 0.25 * halo_->skin * halo_->skin;
   int moved = 0;
-  for (std::size_t i = 0; i < n && !moved && interval == 0; ++i)
+  for (std::size_t i = 0; i < n && !moved && (interval == 0 || sac_); ++i)
     moved = bd::device::moved_beyond_half_skin(i, x_.data(), list_reference_.data(), limit2) ? 1 : 0;
   int any = 0;
   check_mpi(MPI_Allreduce(&moved, &any, 1, MPI_INT, MPI_MAX, comm_.get()), "MPI_Allreduce");
-  rebuild_due_ = halo_->pairs && (interval > 0 ? steps_since_rebuild_ >= static_cast<std::uint64_t>(interval) : any);
+  rebuild_due_ = (halo_->pairs || sac_) &&
+                 ((interval > 0 && steps_since_rebuild_ >= static_cast<std::uint64_t>(interval)) || any != 0);
 }
 
 std::uint64_t DistributedBd::displace_free_draining(std::vector<double>& next) {
@@ -545,6 +580,7 @@ std::uint64_t DistributedBd::displace_free_draining(std::vector<double>& next) {
                                        dx))
       refused = std::min(refused, ids_[i]);
     for (int c = 0; c < 3; ++c) next[3 * i + c] = x_[3 * i + c] + dx[c];
+    if (sac_) std::copy(dx, dx + 3, &dx_[3 * i]);  // an adsorbed particle adds its carrier's
   }
   return refused;
 }
@@ -590,7 +626,7 @@ std::uint64_t DistributedBd::displace_with_hydrodynamics(std::vector<double>& ne
   return refused;
 }
 
-std::uint64_t DistributedBd::displace_inertial(std::vector<double>& next, std::vector<double>& v_next) const {
+std::uint64_t DistributedBd::displace_inertial(std::vector<double>& next, std::vector<double>& v_next) {
   // bd::Integrator's step of its inertial particles (bd::LangevinGroup::displacements): the GJF
   // step on x = 0 gives the displacement exactly, x_{n+1} = x_n + dx, guarded as the others.
   const bd::IntegratorOptions& o = options_.integrator;
@@ -611,6 +647,7 @@ std::uint64_t DistributedBd::displace_inertial(std::vector<double>& next, std::v
     double d2 = 0.0;
     for (std::size_t c = 0; c < 3; ++c) {
       next[3 * i + c] = x_[3 * i + c] + dx[3 * k + c];
+      if (sac_) dx_[3 * i + c] = dx[3 * k + c];  // the carrier's step, which its adsorbed particles take
       v_next[3 * i + c] = v[3 * k + c];
       d2 += dx[3 * k + c] * dx[3 * k + c];
     }
@@ -649,22 +686,19 @@ double DistributedBd::kinetic_temperature() const {
 
 void DistributedBd::free_draining_rotation() {
   // The serial engine's operator is diagonal, each particle's values its own: its rotational
-  // mobility per type, 1 / (8 pi eta a^3) and its square root, evaluated as
-  // rpy::FreeDrainingMobility evaluates them, times the torque and z_r as its products take them,
-  // so they are the serial ones bit for bit.
+  // mobility per type, 1 / (8 pi eta a^3) and its square root, rpy::FreeDrainingMobility's values
+  // (rpy::sphere_mobility), times the torque and z_r as its products take them, so they are the
+  // serial ones bit for bit.
   const std::size_t ntypes = forces_.types().size();
-  std::vector<double> mobility(ntypes), sqrt_mobility(ntypes);
-  for (std::size_t t = 0; t < ntypes; ++t) {
-    const double a = forces_.types()[t].radius;
-    mobility[t] = 1.0 / (8.0 * std::numbers::pi * options_.viscosity * a * a * a);  // Stokes torque
-    sqrt_mobility[t] = std::sqrt(mobility[t]);
-  }
+  std::vector<rpy::SphereMobility> mobility(ntypes);
+  for (std::size_t t = 0; t < ntypes; ++t)
+    mobility[t] = rpy::sphere_mobility(forces_.types()[t].radius, options_.viscosity);
   omega_.resize(torque_.size());
   wr_.resize(zr_.size());
   for (std::size_t i = 0; i < ids_.size(); ++i)
     for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) {
-      omega_[k] = mobility[types_[i]] * torque_[k];
-      if (!zr_.empty()) wr_[k] = sqrt_mobility[types_[i]] * zr_[k];
+      omega_[k] = mobility[types_[i]].rotation * torque_[k];
+      if (!zr_.empty()) wr_[k] = mobility[types_[i]].sqrt_rotation * zr_[k];
     }
 }
 

@@ -5,6 +5,15 @@
 
 namespace rpyfmm::rpy {
 
+SphereMobility sphere_mobility(double radius, double viscosity) {
+  SphereMobility m;
+  m.translation = 1.0 / (6.0 * std::numbers::pi * viscosity * radius);  // Stokes drag
+  m.sqrt_translation = std::sqrt(m.translation);
+  m.rotation = 1.0 / (8.0 * std::numbers::pi * viscosity * radius * radius * radius);  // Stokes torque
+  m.sqrt_rotation = std::sqrt(m.rotation);
+  return m;
+}
+
 FreeDrainingMobility::FreeDrainingMobility(Geometry geometry, double viscosity)
     : MobilityOperator(geometry, viscosity, "FreeDrainingMobility") {}
 
@@ -15,10 +24,11 @@ void FreeDrainingMobility::on_positions_set() {
   rotation_mobility_.resize(a.size());
   sqrt_rotation_mobility_.resize(a.size());
   for (std::size_t i = 0; i < a.size(); ++i) {
-    mobility_[i] = 1.0 / (6.0 * std::numbers::pi * viscosity() * a[i]);  // Stokes drag
-    sqrt_mobility_[i] = std::sqrt(mobility_[i]);
-    rotation_mobility_[i] = 1.0 / (8.0 * std::numbers::pi * viscosity() * a[i] * a[i] * a[i]);  // Stokes torque
-    sqrt_rotation_mobility_[i] = std::sqrt(rotation_mobility_[i]);
+    const SphereMobility m = sphere_mobility(a[i], viscosity());
+    mobility_[i] = m.translation;
+    sqrt_mobility_[i] = m.sqrt_translation;
+    rotation_mobility_[i] = m.rotation;
+    sqrt_rotation_mobility_[i] = m.sqrt_rotation;
   }
 }
 

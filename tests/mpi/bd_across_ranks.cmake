@@ -9,9 +9,11 @@
 # Bead-spring chains, rotating dipoles and Langevin types (free draining; dipoles and Langevin
 # types also restarted, the latter from a checkpoint with velocities): byte for byte as free
 # draining; rotating dipoles with PSE: to round-off as PSE. With split displacements (free
-# draining) the trajectory byte for byte and the log's split columns character for character. A configuration the ranks do not run (direct
-# in a periodic box; PSE with single-precision grids) fails every rank: exit status 2, one error
-# line, no output directory. Run by ctest as
+# draining) the trajectory byte for byte and the log's split columns character for character. The
+# SAC scheme (free draining, also restarted): the trajectory with its complex column byte for byte,
+# the log's complexes and mean_adsorbed columns character for character. A configuration the
+# ranks do not run (direct in a periodic box; PSE with single-precision grids) fails every rank:
+# exit status 2, one error line, no output directory. Run by ctest as
 #   cmake -DRPYFMM=... -DMPIEXEC=... -DNP=... "-DMPI_FLAGS=..." -DWORK=... -P bd_across_ranks.cmake
 cmake_minimum_required(VERSION 3.20)
 foreach(var RPYFMM MPIEXEC NP WORK)
@@ -203,6 +205,44 @@ if(NOT langevin_header MATCHES ",langevin_kT")
   message(FATAL_ERROR "Langevin types: the log across ${NP} ranks has no langevin_kT column: ${langevin_header}")
 endif()
 
+# The last two columns of the logs of ${WORK}/SERIAL and ${WORK}/RANKS agree character for
+# character from row FIRST on (row 0 is the header, which must end with HEADER), and the serial
+# run's are never "0,..." (the columns hold something).
+function(same_log_tail serial ranks header first what)
+  file(STRINGS "${WORK}/${serial}/log.csv" serial_rows)
+  file(STRINGS "${WORK}/${ranks}/log.csv" ranks_rows)
+  list(GET ranks_rows 0 ranks_header)
+  if(NOT ranks_header MATCHES "${header}$")
+    message(FATAL_ERROR "${what}: the log across ${NP} ranks has no columns ${header}: ${ranks_header}")
+  endif()
+  list(LENGTH serial_rows rows)
+  list(LENGTH ranks_rows rows_ranks)
+  if(NOT rows EQUAL rows_ranks OR rows LESS 3)
+    message(FATAL_ERROR "${what}: ${rows_ranks} log lines against the serial run's ${rows}")
+  endif()
+  math(EXPR last "${rows} - 1")
+  foreach(k RANGE ${first} ${last})
+    foreach(r serial_rows ranks_rows)
+      list(GET ${r} ${k} row)
+      string(REGEX MATCH "[^,]*,[^,]*$" ${r}_tail "${row}")
+    endforeach()
+    if(NOT serial_rows_tail STREQUAL ranks_rows_tail OR serial_rows_tail MATCHES "^0,")
+      message(FATAL_ERROR "${what}: log row ${k} ends '${ranks_rows_tail}' on ${NP} ranks, "
+                          "'${serial_rows_tail}' serially")
+    endif()
+  endforeach()
+endfunction()
+
+# The SAC scheme on the Langevin types' configuration (B carriers, A adsorbers within
+# R_A = 1.5 (a_A + a_B) = 1.8): positions, velocities and complexes are the serial engine's bit for
+# bit, so the trajectory (with each particle's complex) is identical byte for byte, also after a
+# restart, and the log's complexes and mean_adsorbed columns (its last two; the others hold
+# timings) are the serial run's character for character.
+string(REPLACE "seed = 11" "seed = 11\nscheme = \"sac\"\nadsorption_factor = 1.5" sac "${langevin}")
+file(WRITE "${WORK}/sac.toml" "${sac}")
+same_as_serial(sac "SAC scheme")
+same_log_tail(sac_serial sac_ranks ",complexes,mean_adsorbed" 1 "SAC scheme")
+
 # Split displacements (free draining): the parts are the serial engine's bit for bit and rank 0
 # sums their squares in global index order, so the log's deterministic_rms and brownian_rms columns
 # (its last two) are the serial run's character for character (the other columns hold timings).
@@ -211,28 +251,8 @@ file(WRITE "${WORK}/split.toml" "${split}")
 run_bd(0 --config "${WORK}/split.toml" --out-dir "${WORK}/split_serial" --quiet)
 run_bd(${NP} --config "${WORK}/split.toml" --out-dir "${WORK}/split_ranks" --quiet)
 same_trajectory(split_serial split_ranks "split displacements, 60 steps on ${NP} ranks")
-file(STRINGS "${WORK}/split_serial/log.csv" split_serial_rows)
-file(STRINGS "${WORK}/split_ranks/log.csv" split_ranks_rows)
-list(GET split_ranks_rows 0 split_header)
-if(NOT split_header MATCHES ",deterministic_rms,brownian_rms$")
-  message(FATAL_ERROR "split displacements: the log across ${NP} ranks has no split columns: ${split_header}")
-endif()
-list(LENGTH split_serial_rows split_rows)
-list(LENGTH split_ranks_rows split_rows_ranks)
-if(NOT split_rows EQUAL split_rows_ranks OR split_rows LESS 3)
-  message(FATAL_ERROR "split displacements: ${split_rows_ranks} log lines against the serial run's ${split_rows}")
-endif()
-math(EXPR split_last "${split_rows} - 1")
-foreach(k RANGE 2 ${split_last})  # rows from step 10 (the row of step 0 has no step behind it)
-  foreach(rows split_serial_rows split_ranks_rows)
-    list(GET ${rows} ${k} row)
-    string(REGEX MATCH "[^,]*,[^,]*$" ${rows}_tail "${row}")
-  endforeach()
-  if(NOT split_serial_rows_tail STREQUAL split_ranks_rows_tail OR split_serial_rows_tail MATCHES "^0,")
-    message(FATAL_ERROR "split displacements: log row ${k} ends '${split_ranks_rows_tail}' on ${NP} ranks, "
-                        "'${split_serial_rows_tail}' serially")
-  endif()
-endforeach()
+# rows from step 10 (the row of step 0 has no step behind it)
+same_log_tail(split_serial split_ranks ",deterministic_rms,brownian_rms" 2 "split displacements")
 
 # Bead-spring chains (harmonic bonds, WCA pairs): the bonds' partners travel with the halo, and the
 # trajectory is the serial run's byte for byte.

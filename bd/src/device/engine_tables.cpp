@@ -1,10 +1,10 @@
 #include "engine_tables.hpp"
 
 #include <cmath>
-#include <numbers>
 #include <string>
 
 #include "rpyfmm/core/validate.hpp"
+#include "rpyfmm/rpy/free_draining.hpp"
 
 namespace rpyfmm::bd::device {
 
@@ -78,9 +78,9 @@ void fill_lists(const ForceField& forces, const rpy::Geometry& geometry, const E
 /// rpy::FreeDrainingMobility's mu = 1 / (6 pi eta a) and its square root, per type.
 void fill_motion(const ForceField& forces, const EngineOptions& o, EngineTables& t) {
   for (const ParticleType& type : forces.types()) {
-    const double mu = 1.0 / (6.0 * std::numbers::pi * o.viscosity * type.radius);
-    t.mobility.push_back(mu);
-    t.sqrt_mobility.push_back(std::sqrt(mu));
+    const rpy::SphereMobility m = rpy::sphere_mobility(type.radius, o.viscosity);
+    t.mobility.push_back(m.translation);
+    t.sqrt_mobility.push_back(m.sqrt_translation);
     t.radius.push_back(type.radius);
   }
   t.dt = o.dt;

@@ -114,10 +114,11 @@ class ForceField {
   /// the whole system's order. ids (N): each particle's index in the whole system, named in errors
   /// instead of its index here. Bonds index the part (with_bonds), bit for bit compute()'s where they
   /// keep the whole system's bond order; callbacks take the whole system and are refused
-  /// (not_supported).
+  /// (not_supported). `groups` (empty, or N) and `within` (empty, or 3 per row) as compute()'s.
   void compute_rows(std::span<const double> positions, std::span<const std::uint32_t> particle_types,
                     const NeighbourList& list, std::uint64_t step, std::span<const std::uint32_t> rows,
-                    std::span<const std::uint64_t> ids, std::span<double> forces, std::span<double> energies) const;
+                    std::span<const std::uint64_t> ids, std::span<double> forces, std::span<double> energies,
+                    std::span<const std::uint32_t> groups = {}, std::span<double> within = {}) const;
 
  private:
   void rebuild_bond_index(std::size_t n) const;

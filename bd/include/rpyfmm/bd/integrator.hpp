@@ -37,6 +37,7 @@
 // neither side fuses multiply-adds; features the device engine lacks are refused by name.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -187,6 +188,12 @@ class Integrator {
   [[nodiscard]] double kinetic_temperature() const;
   /// With the SAC scheme, the complexes at the current positions (empty() otherwise).
   [[nodiscard]] const Complexes& complexes() const { return complexes_; }
+  /// With the SAC scheme: each particle's complex (Complexes::owner()) and the numbers of complexes
+  /// and of adsorbed particles (Complexes::count(), adsorbed_total()) at the current positions, of
+  /// the CPU engine's complexes() or of an engine that holds them (Stepper::complex_ids, read as
+  /// positions(), and Stepper::complex_counts); empty and {0, 0} otherwise.
+  [[nodiscard]] std::span<const std::uint32_t> complex_ids() const;
+  [[nodiscard]] std::array<std::uint64_t, 2> complex_counts() const;
 
  private:
   /// u = M F and w = M^{1/2} z (or, fused, u = M F + noise / dt M^{1/2} z; with rotation

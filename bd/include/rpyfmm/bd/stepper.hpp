@@ -5,6 +5,7 @@
 // caller only when read (a trajectory frame, a log row, a checkpoint).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <vector>
@@ -54,9 +55,17 @@ class Stepper {
   [[nodiscard]] virtual const std::vector<double>& deterministic_displacements() const { return none_; }
   [[nodiscard]] virtual const std::vector<double>& brownian_displacements() const { return none_; }
   [[nodiscard]] virtual double kinetic_temperature() const { return 0.0; }
+  /// With the SAC scheme (IntegratorOptions::sac): each particle's complex at the current positions
+  /// (N entries, Complexes::owner()'s values), held and copied as positions(), and the numbers of
+  /// complexes and of adsorbed particles there (Complexes::count() and adsorbed_total(); an engine
+  /// across processes may compute them collectively, every process then calls it at the same
+  /// steps). An engine without the scheme returns an empty array and {0, 0}.
+  [[nodiscard]] virtual const std::vector<std::uint32_t>& complex_ids() const { return no_ids_; }
+  [[nodiscard]] virtual std::array<std::uint64_t, 2> complex_counts() const { return {0, 0}; }
 
  private:
   const std::vector<double> none_{};
+  const std::vector<std::uint32_t> no_ids_{};
 };
 
 }  // namespace rpyfmm::bd

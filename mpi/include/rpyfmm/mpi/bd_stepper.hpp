@@ -49,9 +49,10 @@ namespace rpyfmm::mpi {
 /// orientations, 4 per particle; empty: the identity; with Langevin types the half-step
 /// velocities, 3 per particle; empty: the Maxwell draw): rank r takes the particles of its block of
 /// global indices. Reading positions(), forces(), orientations(), rotations(), velocities() or,
-/// with split displacements, deterministic_displacements() and brownian_displacements() gathers
-/// the whole system on rank 0 (collective, once per step; the run reads the split parts every step
-/// for the log's rms columns); kinetic_temperature() is collective. Throws on every rank what
+/// with split displacements, deterministic_displacements() and brownian_displacements() or, with
+/// the SAC scheme, complex_ids() gathers the whole system on rank 0 (collective, once per step; the
+/// run reads the split parts every step for the log's rms columns); kinetic_temperature() and
+/// complex_counts() are collective. Throws on every rank what
 /// DistributedBd refuses, and for pse with wave_precision single or the device cuda.
 [[nodiscard]] std::unique_ptr<bd::Stepper> make_distributed_stepper(
     MPI_Comm comm, const bd::RunConfig& config, const bd::ForceField& forces, std::span<const double> positions,

@@ -52,6 +52,14 @@
 // bd::Integrator's bit for bit on any number of ranks. As in the serial engine, inertia needs the
 // mobility none and no rotation; the kinetic temperature is summed over the ranks.
 //
+// With the SAC scheme (IntegratorOptions::sac; Algorithm 2 of Tran et al. (2015), Sec. 4.2, and
+// docs/theory/bd.md Sec. 9) the inertial particles carry the adsorbers within R_A as the serial
+// engine's bd::Complexes finds them: the halo also reaches max R_A + skin (rebuilt by the dynamic
+// test), a carrier's owner sums its complex's forces from outside the complex, fetched from the
+// adsorbed particles' owners, and an adsorbed particle adds its carrier's displacement, fetched
+// from the carrier's owner (mpi/src/bd_complexes.cpp). Positions, velocities and complexes are
+// bd::Integrator's bit for bit on any number of ranks.
+//
 // With split displacements (IntegratorOptions::keep_split_displacements) the step keeps M F dt and
 // sqrt(2 kT dt) M^{1/2} z of the owned particles as the serial engine splits them (pse then takes
 // the serial engine's unfused path, PSE's split sampler keyed in global index order). Force
@@ -75,6 +83,7 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -82,6 +91,7 @@
 #include "rpyfmm/bd/force_field.hpp"
 #include "rpyfmm/bd/integrator.hpp"
 #include "rpyfmm/bd/neighbour_list.hpp"
+#include "rpyfmm/bd/sac.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/mpi/communicator.hpp"
 #include "rpyfmm/mpi/fmm_rpy.hpp"
@@ -93,10 +103,10 @@ namespace rpyfmm::mpi {
 
 /// Options of a distributed run. Every rank must pass the same.
 struct DistributedBdOptions {
-  /// dt, kT, seed, max_displacement, rotation, inertia and keep_split_displacements as for
+  /// dt, kT, seed, max_displacement, rotation, inertia, keep_split_displacements and sac as for
   /// bd::Integrator (rotation and split displacements with the methods none, direct, fmm and pse;
   /// inertial types with none, without rotation and without split displacements, as the serial
-  /// engine). The SAC scheme is refused (not_supported): the serial engine has it.
+  /// engine; the SAC scheme with inertial types and without bonds, as the serial engine).
   bd::IntegratorOptions integrator{};
   /// The skin (0: 0.3 r_c) and the rebuild strategy (fixed_interval), as bd::NeighbourList's.
   bd::NeighbourOptions neighbours{};
@@ -199,7 +209,8 @@ class DistributedBd {
   [[nodiscard]] std::size_t local_size() const { return ids_.size(); }
   [[nodiscard]] std::span<const double> positions() const { return x_; }
   /// The forces on this rank's particles at the start of the last step (3n; 0 before the first and
-  /// after a repartition until the next step).
+  /// after a repartition until the next step; with the SAC scheme they travel with the particles,
+  /// and are those the step used, as bd::Integrator::last_forces() gives them).
   [[nodiscard]] std::span<const double> last_forces() const { return f_; }
   /// With integrator.keep_split_displacements (empty without): the deterministic part M F dt and
   /// the Brownian part sqrt(2 kT dt) M^{1/2} z of the last step's displacement of this rank's
@@ -234,6 +245,14 @@ class DistributedBd {
   /// every rank's inertial particles (bd::LangevinGroup::kinetic_temperature, the serial log's
   /// column) to round-off (a sum in another order); 0 without inertial particles.
   [[nodiscard]] double kinetic_temperature() const;
+  /// With the SAC scheme (empty without): each owned particle's complex at the current positions,
+  /// in increasing global index, as bd::Complexes::owner() gives it for the whole system: the global
+  /// index of its carrier (a carrier with adsorbed particles: its own), or bd::Complexes::kFree.
+  [[nodiscard]] std::span<const std::uint32_t> complex_ids() const { return complex_ids_; }
+  /// Collective, with the SAC scheme: the complexes (carriers with adsorbed particles) and the
+  /// adsorbed particles over every rank at the current positions (bd::Complexes::count() and
+  /// adsorbed_total() of the serial engine); {0, 0} without.
+  [[nodiscard]] std::array<std::uint64_t, 2> complex_counts() const;
   [[nodiscard]] std::uint64_t global_size() const { return global_n_; }
   [[nodiscard]] std::uint64_t step_count() const { return step_; }
   /// The potential energy at the start of the last step, summed over the ranks (0 before a step).
@@ -265,8 +284,9 @@ class DistributedBd {
   std::uint64_t displace_with_hydrodynamics(std::vector<double>& next);
   /// With inertial particles: the Langevin step of the owned inertial particles (bd::langevin_step
   /// from F_n, noise keyed by the global index) replacing their entries of `next`, the new
-  /// velocities in `v_next` (3 per owned particle), and the lowest global index the guard refuses.
-  std::uint64_t displace_inertial(std::vector<double>& next, std::vector<double>& v_next) const;
+  /// velocities in `v_next` (3 per owned particle), and the lowest global index the guard refuses;
+  /// with the SAC scheme also their displacements into dx_.
+  std::uint64_t displace_inertial(std::vector<double>& next, std::vector<double>& v_next);
   /// With inertial particles: v_ from the share's velocities (`order`: the share's particles by
   /// global index) or, when none are given, the Maxwell draw keyed by the global index.
   void start_velocities(std::span<const double> given, std::span<const std::size_t> order);
@@ -282,6 +302,23 @@ class DistributedBd {
   void free_draining_split();
   /// With callbacks: adds their forces to f_, called on the whole system gathered on every rank.
   void add_callback_forces();
+  /// The lists, halo and partition when the rebuild test asked for them, else the halo's positions;
+  /// with the SAC scheme then the complexes (update_complexes).
+  void prepare_part();
+  /// With the SAC scheme (bd_complexes.cpp): the serial engine's checks of its options and of the
+  /// whole system's carriers and adsorbers (collective).
+  void check_sac(std::span<const std::uint32_t> share_types);
+  /// With the SAC scheme: the complexes at the current positions: each owned adsorber's nearest
+  /// carrier within R_A (bd::Complexes on the part), groups_ of every part particle from its
+  /// owner, complex_ids_ of the owned particles.
+  void update_complexes();
+  /// With the SAC scheme: bd::Integrator's forces of Algorithm 2 from f_ (the forces from outside
+  /// each particle's complex) and f_within_: a carrier's force summed over its complex, an
+  /// adsorbed particle's the whole force on it.
+  void complex_forces();
+  /// With the SAC scheme: each owned adsorbed particle's new position x + (dx + dx_carrier), its
+  /// carrier's displacement from the carrier's owner (dx_: the owned particles' own displacements).
+  void follow_carriers(std::vector<double>& next) const;
   /// Throws on every rank the blow-up error of particle `id` (next: the refused positions).
   void fail_blow_up(std::uint64_t id, std::span<const double> next) const;
 
@@ -311,6 +348,17 @@ class DistributedBd {
   // inertial particles on any rank; then the half-step velocities of the owned particles (3 each)
   bool inertial_ = false;
   std::vector<double> v_;
+  // the SAC scheme: whether on, max R_A, the part's complexes (none when the part lacks a carrier
+  // or an adsorber), each part particle's group (its carrier's global index in a complex, else its
+  // own), per owned particle its complex id, its forces from inside its complex and its own
+  // displacement (3 each); whether the part is ready for the next step (prepared after a step)
+  bool sac_ = false;
+  double sac_reach_ = 0.0;
+  std::optional<bd::Complexes> part_complexes_;
+  std::uint64_t complexes_rebuild_ = 0;  // the rebuild whose part part_complexes_ was made for
+  std::vector<std::uint32_t> groups_, complex_ids_;
+  std::vector<double> f_within_, dx_;
+  bool part_ready_ = false;
   DistributedBdStats stats_;
 };
 

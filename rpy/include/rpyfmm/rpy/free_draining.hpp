@@ -12,6 +12,18 @@
 
 namespace rpyfmm::rpy {
 
+/// The free-draining mobilities of one sphere of radius a in a solvent of viscosity eta: the
+/// Stokes drag's 1 / (6 pi eta a), the Stokes torque's 1 / (8 pi eta a^3), and their square roots
+/// (docs/theory/bd.md). FreeDrainingMobility and the engines that tabulate them per particle type
+/// take them from here, so their values agree bit for bit.
+struct SphereMobility {
+  double translation = 0.0;
+  double sqrt_translation = 0.0;
+  double rotation = 0.0;
+  double sqrt_rotation = 0.0;
+};
+[[nodiscard]] SphereMobility sphere_mobility(double radius, double viscosity);
+
 class FreeDrainingMobility final : public MobilityOperator {
  public:
   explicit FreeDrainingMobility(Geometry geometry = Geometry::open(), double viscosity = 1.0);
