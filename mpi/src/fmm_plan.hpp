@@ -42,6 +42,11 @@ struct DistributedLaplaceFmm::Plan {
   bool split = false;
   bool own_runs = false, received_runs = false;
   fmm::LaplaceFmm own_fmm, received_fmm;
+  // FmmOptions::near_field = false: the serial FMM's source positions (3 per source) and, where
+  // any node was received, whether each source is an equivalent node (1) or a particle (0), for
+  // the near pairs left out of it (essential_near.hpp); empty otherwise.
+  std::vector<double> essential_x;
+  std::vector<std::uint8_t> node;
 
   // The partition and owned positions of the targets (the sources' when evaluating at them).
   [[nodiscard]] const SfcPartition& targets() const { return target_partition ? *target_partition : *partition; }

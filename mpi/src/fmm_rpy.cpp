@@ -1,5 +1,5 @@
-// rpyfmm — DistributedFmmRpy: the far field by DistributedLaplaceFmm on FmmRpy's densities, the
-// overlap correction and the self term (fmm_rpy.hpp, docs/mpi.md "Distributed FmmRpy").
+// rpyfmm — DistributedFmmRpy: the far field by DistributedLaplaceFmm on FmmRpy's densities and the
+// exact near field on each owner (fmm_rpy.hpp, docs/mpi.md "Distributed FmmRpy").
 #include "rpyfmm/mpi/fmm_rpy.hpp"
 
 #include <algorithm>
@@ -9,16 +9,15 @@
 #include <utility>
 
 // rpy/src (private to rpyfmm::rpy and this layer): FmmRpy's far-field densities and their
-// combination, the length units and the load scaling, shared with the serial operators.
+// combination, its leaves, the length units and the load scaling, shared with the serial operators.
 #include "fmm_far_field.hpp"
+#include "fmm_leaf_rules.hpp"
+#include "fmm_rpy_near.hpp"
 #include "length_units.hpp"
 #include "load_scaling.hpp"
-#include "overlap_pairs.hpp"
 #include "particle_set.hpp"
 #include "rpyfmm/core/ranges.hpp"
 #include "rpyfmm/core/validate.hpp"
-#include "rpyfmm/rpy/rpy_kernel.hpp"
-#include "rpyfmm/rpy/rpy_rotation_kernel.hpp"
 #include "stage_timer.hpp"
 
 namespace rpyfmm::mpi {
@@ -43,9 +42,11 @@ DistributedFmmOptions laplace_options(const Communicator& comm, const Distribute
           "overlap_exchange); every rank must pass the same ones");
   DistributedFmmOptions laplace;
   // The Laplace sums run at the requested tolerance, as in FmmRpy (rpy/src/fmm_operator.cpp); the
-  // combination's errors stay below it in the tests (tests/mpi/test_distributed_fmm_rpy.cpp).
-  // min_leaf_side is set per configuration (set_positions).
+  // combination's errors stay below it in the tests (tests/mpi/test_distributed_fmm_rpy.cpp). The
+  // near field is summed as RPY blocks (fmm_rpy_near.hpp). min_leaf_side and the automatic leaves
+  // are set per configuration (set_positions).
   laplace.fmm.tolerance = o.tolerance;
+  laplace.fmm.near_field = false;
   laplace.fmm.leaf_capacity = o.leaf_capacity;
   laplace.separation = o.separation;
   laplace.cell_capacity = o.cell_capacity;
@@ -66,11 +67,8 @@ DistributedFmmRpy::~DistributedFmmRpy() = default;
 DistributedFmmRpy::DistributedFmmRpy(DistributedFmmRpy&&) noexcept = default;
 DistributedFmmRpy& DistributedFmmRpy::operator=(DistributedFmmRpy&&) noexcept = default;
 
-std::uint64_t DistributedFmmRpy::overlapping_pairs() const {
-  return overlap_ ? overlap_->global_pairs() : 0;
-}
 std::size_t DistributedFmmRpy::halo_size() const {
-  return overlap_ ? overlap_->halo_size() : 0;
+  return near_ ? near_->halo_size() : 0;
 }
 
 void DistributedFmmRpy::set_positions(std::span<const double> local_positions, double radius) {
@@ -80,7 +78,7 @@ void DistributedFmmRpy::set_positions(std::span<const double> local_positions, d
 
 void DistributedFmmRpy::set_positions(std::span<const double> local_positions, std::span<const double> local_radii) {
   global_n_ = 0;  // no positions until this call succeeds on every rank
-  overlap_.reset();
+  near_.reset();
   stats_ = FmmRpyCommunication{};
   comm_.run([&] { detail::check_local_particles(local_positions, local_radii, kSetPositions); });
   detail::timed(stats_.set_positions_seconds, [&] { counts_ = detail::gather_counts(comm_, local_radii.size()); });
@@ -111,26 +109,24 @@ void DistributedFmmRpy::set_positions(std::span<const double> local_positions, s
   largest_radius_ = set.radii.a_max;
   const double a_max = std::ldexp(set.radii.a_max, -scale_exponent_);
   // Leaves of each owner's serial FMM at least 2 a_max wide, as in FmmRpy, and no cell within 2 a_max
-  // of a rank's region compressed for it (DistributedFmmOptions): every overlapping pair is summed
-  // exactly. Its far form exceeds the exact block by up to (a / r)^2, which the overlap correction
-  // takes back, so an expansion error on it would be amplified by that ratio (measured: 3 times the
-  // tolerance on 300 spheres overlapping in a ball of radius 3 with leaves of 24 points and no
-  // minimum side).
+  // of a rank's region compressed for it (DistributedFmmOptions): every overlapping pair (r <
+  // a_i + a_j <= 2 a_max, coincident points included) joins two particles, owned or halo, in
+  // adjacent leaves, and so lies in the exact near field (docs/mpi.md). Automatic leaves are
+  // FmmRpy's (rpy/src/fmm_leaf_rules.hpp), for a near field of RPY blocks; the fitted grid's rule by
+  // the whole set's size, the same on every rank.
   DistributedFmmOptions laplace = laplace_options_;
   laplace.fmm.min_leaf_side = 2.0 * a_max;
+  if (options_.leaf_capacity == 0) {
+    laplace.fmm.leaf_capacity = rpy::detail::default_leaf_capacity(options_.tolerance);
+    laplace.fmm.fitted_grid = rpy::detail::fitted_grid_rule(options_.tolerance, total);
+  }
   laplace_ = DistributedLaplaceFmm(comm_.get(), laplace);
   laplace_.set_points(x_);
   stats_.set_positions_seconds += detail::total_seconds(laplace_.communication().plan_seconds);
-  // The largest |x_c| of all ranks' positions in the far field's frame (the rounding bound's |x|).
-  double reach = 0.0, global_reach = 0.0;
-  for (double c : x_) reach = std::max(reach, std::abs(c));
-  detail::timed(stats_.set_positions_seconds, [&] {
-    check_mpi(MPI_Allreduce(&reach, &global_reach, 1, MPI_DOUBLE, MPI_MAX, comm_.get()), "MPI_Allreduce");
-  });
-  const detail::RoundingLimits limits{options_.tolerance, global_reach};
-  overlap_ = std::make_unique<detail::OverlapCorrection>(comm_, x_, a_, a_max, limits);
-  stats_.overlap_set_positions_seconds = overlap_->traffic().setup_seconds;
-  stats_.set_positions_seconds += stats_.overlap_set_positions_seconds;
+  near_ = std::make_unique<detail::RpyNearField>(comm_, laplace_, a_, equal_radii_, a_max);
+  stats_.near_set_positions_seconds = near_->setup().seconds;
+  stats_.near_set_positions_bytes_received = near_->setup().bytes_received;
+  stats_.set_positions_seconds += stats_.near_set_positions_seconds;
   global_n_ = total;
 }
 
@@ -179,43 +175,36 @@ void DistributedFmmRpy::product(const char* where, std::span<const double> local
     for (std::size_t i = n3 * r; i < n3 * (r + 1); ++i) f[i] = std::ldexp(local_forces[i], -k[r]);
   }
 
-  // The far form of every pair with r > 0 (FmmRpy::do_apply's far field, all pairs): the densities
-  // of every right-hand side in one Laplace evaluation.
-  const std::size_t nd = rpy::detail::translation_densities(equal_radii_) * nrhs;
+  // The far pairs (FmmRpy::do_apply's far field): the densities of every right-hand side in one
+  // Laplace evaluation, whose owners leave out their near pairs between particles.
+  const std::size_t per_rhs = rpy::detail::translation_densities(equal_radii_);
+  const std::size_t nd = per_rhs * nrhs;
   std::vector<double> charges(nd * n);
   std::vector<unsigned> outputs(nd);
   rpy::detail::far_field_charges(f.data(), n, nrhs, equal_radii_, x_, a_, charges, outputs);
-  std::vector<double> results(nd * n * fmm::result_width);
-  laplace_.evaluate(charges, nd, outputs, results);
+  std::vector<double> results(nd * n * fmm::result_width), essential;
+  laplace_.evaluate(charges, nd, outputs, results, essential);
   std::vector<double> u(n3 * nrhs);
   rpy::detail::combine_far_field(results, n, nrhs, equal_radii_, x_, a_, viscosity_, u.data());
 
-  // The overlapping pairs' exact blocks in place of their far form (one halo exchange for every
-  // right-hand side), and the self term.
-  std::vector<double> near(n3 * nrhs, 0.0);
-  overlap_->add(f, near, nrhs);
+  // The near pairs as exact RPY blocks and the self terms, on the owners, from the forces among
+  // the essential charges (densities 0..2 of each right-hand side).
+  near_->add_velocities(essential, per_rhs, nrhs, 1.0 / viscosity_, u);
   record_product(reduction_seconds);
-  const double inv_eta = 1.0 / viscosity_;
-  for (std::size_t r = 0; r < nrhs; ++r)
-    for (std::size_t i = 0; i < n; ++i) {
-      const double self = rpy::rpy_self(a_[i]);
-      for (std::size_t c = 0; c < 3; ++c) near[n3 * r + 3 * i + c] += self * f[n3 * r + 3 * i + c];
-    }
   // Back from the length units (M(x, a) = 2^-e M(2^-e x, 2^-e a)) and the load scale, exactly.
   for (std::size_t i = 0; i < n3 * nrhs; ++i) {
-    local_velocities[i] = std::ldexp(std::ldexp(u[i] + inv_eta * near[i], -scale_exponent_), k[i / n3]);
+    local_velocities[i] = std::ldexp(std::ldexp(u[i], -scale_exponent_), k[i / n3]);
   }
   comm_.run([&] { rpy::detail::require_finite_result(local_velocities, where, "velocities", "forces"); });
 }
 
 void DistributedFmmRpy::record_product(double reduction_seconds) const {
   const FmmCommunication& far = laplace_.communication();
-  const detail::OverlapTraffic& near = overlap_->traffic();
-  stats_.overlap_apply_seconds = near.add_seconds;
-  stats_.overlap_apply_bytes_received = near.add_bytes_received;
-  stats_.overlap_halo_bytes_received = near.halo_bytes_received;
-  stats_.apply_seconds = reduction_seconds + detail::total_seconds(far.evaluate_seconds) + near.add_seconds;
-  stats_.apply_bytes_received = far.evaluate_bytes_received + near.add_bytes_received;
+  const detail::RpyNearExchange& near = near_->back();
+  stats_.near_apply_seconds = near.seconds;
+  stats_.near_apply_bytes_received = near.bytes_received;
+  stats_.apply_seconds = reduction_seconds + detail::total_seconds(far.evaluate_seconds) + near.seconds;
+  stats_.apply_bytes_received = far.evaluate_bytes_received + near.bytes_received;
   stats_.applies_seconds += stats_.apply_seconds;
 }
 
@@ -250,33 +239,27 @@ void DistributedFmmRpy::apply(std::span<const double> local_forces, std::span<co
     t[i] = std::ldexp(local_torques[i], -k - e);
   }
 
-  // The far form of every pair with r > 0: FmmRpy's densities with rotation in one evaluation.
+  // The far pairs: FmmRpy's densities with rotation in one evaluation.
   const std::size_t nd = rpy::detail::rotation_densities(equal_radii_);
   std::vector<double> charges(nd * n);
   std::vector<unsigned> outputs(nd);
   rpy::detail::rotation_far_field_charges(f.data(), t.data(), n, equal_radii_, x_, a_, charges, outputs);
-  std::vector<double> results(nd * n * fmm::result_width);
-  laplace_.evaluate(charges, nd, outputs, results);
+  std::vector<double> results(nd * n * fmm::result_width), essential;
+  laplace_.evaluate(charges, nd, outputs, results, essential);
   std::vector<double> u(3 * n), ut(3 * n), wf(3 * n), rr(3 * n);
   rpy::detail::combine_far_field(results, n, 1, equal_radii_, x_, a_, viscosity_, u.data());
   rpy::detail::combine_rotation_far_field(results, n, equal_radii_, ut.data(), wf.data(), rr.data());
 
-  // The overlapping pairs' exact grand blocks in place of their far form, and the self terms.
-  std::vector<double> near_u(3 * n, 0.0), near_w(3 * n, 0.0);
-  overlap_->add(f, t, near_u, near_w);
-  record_product(reduction_seconds);
+  // The near pairs' exact blocks and the self terms, on the owners, from the forces and torques
+  // among the essential charges: the translational ones into u as in the product without torques,
+  // the rotational ones into ut (U) and wf (W).
   const double inv_eta = 1.0 / viscosity_;
-  for (std::size_t i = 0; i < n; ++i) {
-    const double self_t = rpy::rpy_self(a_[i]), self_r = rpy::rpy_rotation_self(a_[i]);
-    for (std::size_t c = 0; c < 3; ++c) {
-      near_u[3 * i + c] += self_t * f[3 * i + c];
-      near_w[3 * i + c] += self_r * t[3 * i + c];
-    }
-  }
+  near_->add_grand(essential, rpy::detail::translation_densities(equal_radii_), inv_eta, u, ut, wf);
+  record_product(reduction_seconds);
   // Back from the length units and the load scale, exactly.
   for (std::size_t i = 0; i < 3 * n; ++i) {
-    local_velocities[i] = std::ldexp(std::ldexp(u[i] + inv_eta * (ut[i] + near_u[i]), -e), k);
-    local_angular_velocities[i] = std::ldexp(std::ldexp(inv_eta * (wf[i] + rr[i] + near_w[i]), -2 * e), k);
+    local_velocities[i] = std::ldexp(std::ldexp(u[i] + inv_eta * ut[i], -e), k);
+    local_angular_velocities[i] = std::ldexp(std::ldexp(inv_eta * (wf[i] + rr[i]), -2 * e), k);
   }
   comm_.run([&] {
     rpy::detail::require_finite_result(local_velocities, kApply, "velocities", "forces and torques");

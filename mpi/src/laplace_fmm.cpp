@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "essential_near.hpp"
 #include "fmm_plan.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/mpi/partition.hpp"
@@ -24,8 +25,8 @@ constexpr const char* kSetPoints = "rpyfmm::mpi::DistributedLaplaceFmm::set_poin
 constexpr const char* kEvaluate = "rpyfmm::mpi::DistributedLaplaceFmm::evaluate";
 
 void check_options(const DistributedFmmOptions& o) {
-  require(o.fmm.near_field && !o.fmm.export_direct_far, ErrorCode::invalid_argument, kWhere,
-          "the serial FMM must evaluate the near field (near_field = true, export_direct_far = false)");
+  require(!o.fmm.export_direct_far, ErrorCode::invalid_argument, kWhere,
+          "the serial FMM must sum its W/X pairs itself (export_direct_far = false)");
   require(o.separation == 0.0 || (o.separation >= 1.0 && o.separation <= 100.0), ErrorCode::invalid_argument, kWhere,
           "separation must be 0 (automatic) or in [1, 100], got " + format_number(o.separation));
   require(o.chebyshev_order >= 0 && o.chebyshev_order <= 32, ErrorCode::invalid_argument, kWhere,
@@ -44,7 +45,8 @@ std::vector<double> option_signature(const DistributedFmmOptions& o) {
           o.separation,
           static_cast<double>(o.chebyshev_order),
           static_cast<double>(o.cell_capacity),
-          o.overlap_exchange ? 1.0 : 0.0};
+          o.overlap_exchange ? 1.0 : 0.0,
+          o.fmm.near_field ? 1.0 : 0.0};
 }
 
 // Collective: translates the owned sources x and targets y next to the origin where the whole cloud lies far
@@ -226,6 +228,12 @@ void DistributedLaplaceFmm::set_points(std::span<const double> local_sources, st
   detail::timed(stats_.plan_seconds, "geometry",
                 [&] { sources = detail::exchange_geometry(comm_, *plan, stats_.plan_bytes_received); });
   detail::count_essential(*plan, stats_);
+  if (!options_.fmm.near_field) {
+    // The near pairs left out of the serial FMM: those with equivalent nodes are summed by the
+    // evaluation (essential_near.hpp), the others by the caller (plan()).
+    plan->essential_x = sources;
+    if (stats_.nodes_received > 0) plan->node = detail::node_sources(*plan);
+  }
   plan_serial_fmm(comm_, *plan, options_.fmm, options_.overlap_exchange, sources, stats_.compute_seconds);
   plan_ = std::move(plan);
 }
@@ -249,6 +257,18 @@ void check_evaluation(std::span<const double> charges, std::size_t nd, std::span
 
 void DistributedLaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::span<const unsigned> outputs,
                                      std::span<double> results) const {
+  evaluate_impl(charges, nd, outputs, results, nullptr);
+}
+
+void DistributedLaplaceFmm::evaluate(std::span<const double> charges, std::size_t nd, std::span<const unsigned> outputs,
+                                     std::span<double> results, std::vector<double>& essential_charges) const {
+  essential_charges.clear();
+  evaluate_impl(charges, nd, outputs, results, &essential_charges);
+}
+
+void DistributedLaplaceFmm::evaluate_impl(std::span<const double> charges, std::size_t nd,
+                                          std::span<const unsigned> outputs, std::span<double> results,
+                                          std::vector<double>* essential) const {
   comm_.run([&] {
     require(plan_ != nullptr, ErrorCode::invalid_input, kEvaluate, "set_points has not succeeded");
     check_evaluation(charges, nd, outputs, results, plan_->partition->input_size(), plan_->targets().input_size());
@@ -279,9 +299,9 @@ void DistributedLaplaceFmm::evaluate(std::span<const double> charges, std::size_
 
   std::vector<double> owned_results(nd * m_targets * fmm::result_width, 0.0);
   if (plan.split) {
-    evaluate_split(plan, owned_q, nd, outputs, owned_results);
+    evaluate_split(plan, owned_q, nd, outputs, owned_results, essential);
   } else {
-    evaluate_one(plan, owned_q, nd, outputs, owned_results);
+    evaluate_one(plan, owned_q, nd, outputs, owned_results, essential);
   }
 
   // Back to the input ranks: only the columns the flags fill (fmm::filled_result_columns), the others 0.
@@ -314,7 +334,8 @@ void DistributedLaplaceFmm::evaluate(std::span<const double> charges, std::size_
 }
 
 void DistributedLaplaceFmm::evaluate_one(const Plan& plan, std::span<const double> owned_q, std::size_t nd,
-                                         std::span<const unsigned> outputs, std::span<double> owned_results) const {
+                                         std::span<const unsigned> outputs, std::span<double> owned_results,
+                                         std::vector<double>* essential) const {
   // The halo charges travel while the cells are anterpolated (MPI progressed between pieces of
   // it), then the equivalent charges; the serial FMM waits for both.
   std::unique_ptr<detail::PendingAlltoallv> halo;
@@ -332,15 +353,21 @@ void DistributedLaplaceFmm::evaluate_one(const Plan& plan, std::span<const doubl
   // Timed inside run(): the local work only, not the wait for the slower ranks in its agreement.
   comm_.run([&] {
     detail::timed(stats_.compute_seconds, "fmm", [&] {
-      if (plan.sources > 0) {
-        plan.fmm.evaluate(detail::assemble_charges(plan, owned_q, got, nd), nd, outputs, owned_results);
+      if (plan.sources == 0) return;
+      std::vector<double> q = detail::assemble_charges(plan, owned_q, got, nd);
+      plan.fmm.evaluate(q, nd, outputs, owned_results);
+      if (!plan.node.empty()) {
+        for (const detail::NearPiece& piece : detail::near_pieces(plan))
+          detail::add_node_near_field(plan, piece, q, plan.sources, nd, outputs, owned_results);
       }
+      if (essential != nullptr) *essential = std::move(q);
     });
   });
 }
 
 void DistributedLaplaceFmm::evaluate_split(const Plan& plan, std::span<const double> owned_q, std::size_t nd,
-                                           std::span<const unsigned> outputs, std::span<double> owned_results) const {
+                                           std::span<const unsigned> outputs, std::span<double> owned_results,
+                                           std::vector<double>* essential) const {
   // Both exchanges are posted before the owned sources' FMM, which needs only the owned charges;
   // the received sources' FMM waits for them and adds its results.
   std::unique_ptr<detail::PendingAlltoallv> halo, nodes;
@@ -367,10 +394,18 @@ void DistributedLaplaceFmm::evaluate_split(const Plan& plan, std::span<const dou
   stats_.evaluate_bytes_received += (got.halo.size() + got.nodes.size()) * sizeof(double);
   comm_.run([&] {
     detail::timed(stats_.compute_seconds, "fmm", [&] {
+      if (essential != nullptr && plan.sources > 0) *essential = detail::assemble_charges(plan, owned_q, got, nd);
       if (!plan.received_runs) return;
       std::vector<double> received(owned_results.size());
-      plan.received_fmm.evaluate(detail::assemble_received(plan, got, nd), nd, outputs, received);
+      const std::vector<double> q = detail::assemble_received(plan, got, nd);
+      plan.received_fmm.evaluate(q, nd, outputs, received);
       for (std::size_t i = 0; i < received.size(); ++i) owned_results[i] += received[i];
+      if (plan.node.empty()) return;
+      // The owned sources' FMM holds no node; the received sources' is numbered from the owned count.
+      const std::size_t m = plan.owned_x.size() / 3;
+      for (const detail::NearPiece& piece : detail::near_pieces(plan))
+        if (piece.offset == m)
+          detail::add_node_near_field(plan, piece, q, plan.sources - m, nd, outputs, owned_results);
     });
   });
 }

@@ -44,10 +44,10 @@ nb::dict communication_dict(const mpi::CommunicationStats& s) {
 
 nb::dict communication_dict(const mpi::FmmRpyCommunication& s) {
   nb::dict d = product_dict(s);
-  d["overlap_set_positions_seconds"] = s.overlap_set_positions_seconds;
-  d["overlap_apply_seconds"] = s.overlap_apply_seconds;
-  d["overlap_apply_bytes_received"] = s.overlap_apply_bytes_received;
-  d["overlap_halo_bytes_received"] = s.overlap_halo_bytes_received;
+  d["near_set_positions_seconds"] = s.near_set_positions_seconds;
+  d["near_set_positions_bytes_received"] = s.near_set_positions_bytes_received;
+  d["near_apply_seconds"] = s.near_apply_seconds;
+  d["near_apply_bytes_received"] = s.near_apply_bytes_received;
   return d;
 }
 
@@ -122,7 +122,8 @@ void add_statistics(nb::class_<Fmm>& cls) {
                   locked_read(
                       "communication", +[](const Fmm& s) { return communication_dict(s.op.communication()); }),
                   "This rank's exchanges in set_positions and the products (seconds, bytes received; the\n"
-                  "overlap_ entries the overlap correction's), reset by each set_positions. Not collective.")
+                  "near_ entries the exact near field's: the radii to the owners and halo, the near velocities\n"
+                  "back), reset by each set_positions. Not collective.")
       .def_prop_ro("laplace_communication",
                    locked_read(
                        "laplace_communication",
@@ -133,14 +134,14 @@ void add_statistics(nb::class_<Fmm>& cls) {
                    locked_read(
                        "separation", +[](const Fmm& s) { return s.op.laplace().separation(); }),
                    "The far field's Laplace FMM's acceptance ratio in use.")
-      .def_prop_ro("overlapping_pairs",
+      .def_prop_ro("owned_size",
                    locked_read(
-                       "overlapping_pairs", +[](const Fmm& s) { return s.op.overlapping_pairs(); }),
-                   "Overlapping ordered pairs (i, j) on all ranks (0 before set_positions).")
+                       "owned_size", +[](const Fmm& s) { return s.op.laplace().owned_size(); }),
+                   "The particles this rank owns in the FMM's partition (its near field's targets).")
       .def_prop_ro("halo_size",
                    locked_read(
                        "halo_size", +[](const Fmm& s) { return s.op.halo_size(); }),
-                   "The halo particles this rank received for the overlapping pairs.");
+                   "The halo particles of this rank's exact near field (received with their loads in each product).");
 }
 
 void add_statistics(nb::class_<Pse>& cls) {

@@ -25,98 +25,18 @@
 #include <vector>
 
 #include "fmm_far_field.hpp"
-#include "near_schedule.hpp"
-#include "near_sources.hpp"
-#include "rotation_pair_sums.hpp"
+#include "fmm_near_field.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
 #include "rpyfmm/rpy/rpy_kernel.hpp"
 #include "rpyfmm/rpy/rpy_rotation_kernel.hpp"
 
 namespace rpyfmm::rpy {
-namespace {
-
-// What every near-field task reads and writes. Sources are gathered with the loads [F; T]
-// (two right-hand sides of GatheredSources: forces, then torques); u and w (3n each, times eta)
-// receive the near-field sums.
-struct GrandNearContext {
-  const fmm::NearField& near;
-  std::span<const double> x, a;
-  const double* loads;  // 6n: F then T
-  double *u, *w;
-  std::size_t n;
-  bool equal;
-
-  [[nodiscard]] detail::GrandTarget target(std::size_t i) const {
-    const double* f = loads + 3 * i;
-    const double* t = loads + 3 * n + 3 * i;
-    return {x[3 * i], x[3 * i + 1], x[3 * i + 2], a[i], i, {f[0], f[1], f[2]}, {t[0], t[1], t[2]}};
-  }
-  void add(std::size_t i, const detail::GrandSums& s) const {
-    for (int c = 0; c < 3; ++c) {
-      u[3 * i + c] += s.u[c];
-      w[3 * i + c] += s.w[c];
-    }
-  }
-};
-
-detail::GrandSources view(const detail::GatheredSources& src, bool equal) {
-  return {src.size(),       src.x.data(),     src.y.data(),     src.z.data(),     equal ? nullptr : src.a.data(),
-          src.id.data(),    src.forces(0, 0), src.forces(0, 1), src.forces(0, 2), src.forces(1, 0),
-          src.forces(1, 1), src.forces(1, 2)};
-}
-
-// The leaf's targets against one-sided sources (the leaf itself among them), plus the self terms
-// F_i / (6 pi eta a_i) and T_i / (8 pi eta a_i^3).
-void one_sided_block(const GrandNearContext& ctx, std::uint32_t leaf, const detail::GatheredSources& src) {
-  const detail::GrandSources s = view(src, ctx.equal);
-  for (std::size_t i : ctx.near.targets(leaf)) {
-    const detail::GrandTarget t = ctx.target(i);
-    detail::GrandSums sums{};
-    detail::grand_pair_sum(s, t, sums);
-    const double self_t = rpy_self(t.a), self_r = rpy_rotation_self(t.a);
-    for (int c = 0; c < 3; ++c) {
-      sums.u[c] += self_t * t.f[c];
-      sums.w[c] += self_r * t.t[c];
-    }
-    ctx.add(i, sums);
-  }
-}
-
-// The leaf's targets against the sources of its symmetric partners, both directions at once;
-// the partners' sums are accumulated in src.u and added once at the end.
-void symmetric_block(const GrandNearContext& ctx, std::uint32_t leaf, detail::GatheredSources& src) {
-  const std::size_t m = src.size();
-  src.u.assign(6 * m, 0.0);
-  const detail::GrandSources s = view(src, ctx.equal);
-  const detail::GrandAccumulators acc{{src.velocities(0, 0), src.velocities(0, 1), src.velocities(0, 2)},
-                                      {src.velocities(1, 0), src.velocities(1, 1), src.velocities(1, 2)}};
-  for (std::size_t i : ctx.near.targets(leaf)) {
-    detail::GrandSums sums{};
-    detail::grand_pair_sum_symmetric(s, ctx.target(i), acc, sums);
-    ctx.add(i, sums);
-  }
-  for (std::size_t q = 0; q < m; ++q) {
-    const detail::GrandSums back{{acc.u[0][q], acc.u[1][q], acc.u[2][q]}, {acc.w[0][q], acc.w[1][q], acc.w[2][q]}};
-    ctx.add(src.id[q], back);
-  }
-}
-
-}  // namespace
-
 void FmmRpy::apply_grand_near_field(const Plan& plan, const double* loads, double* u, double* w) const {
   const std::span<const double> x = scale_exponent_ == 0 ? positions() : std::span<const double>(centered_);
-  const GrandNearContext ctx{plan.fmm->near_field(), x, unit_radii(), loads, u, w, size(), equal_radii()};
-  detail::for_each_near_task<detail::GatheredSources>(
-      *plan.near_schedule, [&](detail::GatheredSources& src, std::uint32_t leaf, std::span<const std::uint32_t> one,
-                               std::span<const std::uint32_t> partners) {
-        src.gather(ctx.near, one, ctx.x, ctx.a, loads, ctx.n, 2);
-        one_sided_block(ctx, leaf, src);
-        if (!partners.empty()) {
-          src.gather(ctx.near, partners, ctx.x, ctx.a, loads, ctx.n, 2);
-          symmetric_block(ctx, leaf, src);
-        }
-      });
+  const detail::NearPoints points{
+      plan.fmm->near_field(), *plan.near_schedule, x, unit_radii(), size(), equal_radii(), true};
+  detail::add_grand_near_field(points, loads, u, w);
 }
 
 void FmmRpy::do_apply_rotation(const double* forces, const double* torques, double* velocities,

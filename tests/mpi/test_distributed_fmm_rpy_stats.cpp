@@ -1,6 +1,6 @@
 // rpyfmm::mpi::DistributedFmmRpy::communication(): the bookkeeping of its exchanges (docs/mpi.md,
-// "Distributed FmmRpy"). Bytes are checked exactly against what the exchanges must carry (halo
-// sizes, particle counts, the Laplace FMM's own statistics); seconds only where an exchange
+// "Distributed FmmRpy"). Bytes are checked exactly against what the exchanges must carry (owned
+// and halo particle counts, the Laplace FMM's own statistics); seconds only where an exchange
 // certainly runs (> 0), as sums of their parts (floating-point addition is monotone, so a sum of
 // non-negative terms is at least any sub-sum taken in the same order) and as the exact running sum
 // over the products since set_positions.
@@ -36,25 +36,25 @@ std::uint64_t sum_over_ranks(std::uint64_t mine) {
   return all;
 }
 
-// The statistics of a product with `per_particle` doubles of load per particle (3 nrhs, or 6 with
-// torques), on an operator with overlapping pairs: the overlap correction's bytes are the forces
-// to the owners (all ranks together: every particle once), the halo loads and the corrections
-// back (this rank's particles); the totals add the Laplace FMM's evaluation.
-void expect_product_counted(const DistributedFmmRpy& op, std::uint64_t per_particle) {
+// The statistics of a product whose near field moves `blocks` blocks of 3 doubles per particle back
+// to the input ranks (nrhs; 3 with torques: U from the forces, U from the torques, W): the near
+// field's bytes are this rank's particles' blocks (its own share of the partition's move counted,
+// as SfcPartition counts it); the totals add the Laplace FMM's evaluation, which carries the halo
+// particles' loads among its essential charges.
+void expect_product_counted(const DistributedFmmRpy& op, std::uint64_t blocks) {
   const FmmRpyCommunication& s = op.communication();
   const auto& far = op.laplace().communication();
-  EXPECT_EQ(s.overlap_halo_bytes_received, op.halo_size() * per_particle * kDouble);
-  EXPECT_EQ(sum_over_ranks(s.overlap_apply_bytes_received),
-            (2 * op.global_size() + sum_over_ranks(op.halo_size())) * per_particle * kDouble);
-  EXPECT_EQ(s.apply_bytes_received, far.evaluate_bytes_received + s.overlap_apply_bytes_received);
-  EXPECT_GT(s.overlap_apply_seconds, 0.0);
-  EXPECT_GE(s.apply_seconds, total(far.evaluate_seconds) + s.overlap_apply_seconds);
+  EXPECT_EQ(s.near_apply_bytes_received, op.local_size() * 3 * blocks * kDouble);
+  EXPECT_EQ(s.apply_bytes_received, far.evaluate_bytes_received + s.near_apply_bytes_received);
+  EXPECT_GT(s.near_apply_seconds, 0.0);
+  EXPECT_GE(s.apply_seconds, total(far.evaluate_seconds) + s.near_apply_seconds);
 }
 
 }  // namespace
 
-TEST(MpiDistributedFmmRpyCommunication, OverlapExchangesCountedInSetPositionsAndEveryProduct) {
-  // 150 pairs overlapping at 0.6 (a_i + a_j), partners on different input ranks.
+TEST(MpiDistributedFmmRpyCommunication, NearFieldExchangesCountedInSetPositionsAndEveryProduct) {
+  // 150 pairs overlapping at 0.6 (a_i + a_j), partners on different input ranks; radii 0.5 ... 1.5,
+  // so the radii travel to the owners and the halo once per set_positions.
   const Particles p = pairs_at(150, 20.0, 0.6, 91);
   const Partition part = partition_of(p.size(), Split::even);
   const std::vector<double> x = share(p.x, 3, part.offset, part.n), a = share(p.a, 1, part.offset, part.n);
@@ -62,7 +62,7 @@ TEST(MpiDistributedFmmRpyCommunication, OverlapExchangesCountedInSetPositionsAnd
   DistributedFmmRpy op(MPI_COMM_WORLD, kViscosity, {.tolerance = 1e-6});
   EXPECT_EQ(op.communication().set_positions_seconds, 0.0);
   op.set_positions(x, a);
-  ASSERT_GT(op.overlapping_pairs(), 0u);
+  ASSERT_FALSE(op.equal_radii());
   const std::uint64_t halo = sum_over_ranks(op.halo_size());
   // On one rank nothing comes from another rank; on more, particles of every owner's region lie
   // within reach of its neighbours' (radii >= 0.5 in a cube of side 20 cut into adjacent regions).
@@ -71,11 +71,13 @@ TEST(MpiDistributedFmmRpyCommunication, OverlapExchangesCountedInSetPositionsAnd
   } else {
     ASSERT_GT(halo, 0u);
   }
+  EXPECT_EQ(op.halo_size(), op.laplace().communication().halo_received);
 
+  // The radii: one double per owned particle (its own share included) and per halo particle.
   const FmmRpyCommunication& s = op.communication();
-  EXPECT_GT(s.overlap_set_positions_seconds, 0.0);
-  EXPECT_GE(s.set_positions_seconds,
-            total(op.laplace().communication().plan_seconds) + s.overlap_set_positions_seconds);
+  EXPECT_EQ(s.near_set_positions_bytes_received, (op.laplace().owned_size() + op.halo_size()) * kDouble);
+  EXPECT_GT(s.near_set_positions_seconds, 0.0);
+  EXPECT_GE(s.set_positions_seconds, total(op.laplace().communication().plan_seconds) + s.near_set_positions_seconds);
   EXPECT_EQ(s.apply_seconds, 0.0);
   EXPECT_EQ(s.applies_seconds, 0.0);
   EXPECT_EQ(s.apply_bytes_received, 0u);
@@ -85,29 +87,25 @@ TEST(MpiDistributedFmmRpyCommunication, OverlapExchangesCountedInSetPositionsAnd
   for (std::size_t i = 0; i < f.size(); ++i) block[i] = block[f.size() + i] = f[i];
   double sum = 0.0;
   op.apply(f, u);
-  expect_product_counted(op, 3);
+  expect_product_counted(op, 1);
   sum += s.apply_seconds;
   EXPECT_EQ(s.applies_seconds, sum);
   op.apply_block(block, us, 2);
-  expect_product_counted(op, 6);
+  expect_product_counted(op, 2);
   sum += s.apply_seconds;
   EXPECT_EQ(s.applies_seconds, sum);
   op.apply(f, t, u, w);
-  expect_product_counted(op, 6);
+  expect_product_counted(op, 3);
   sum += s.apply_seconds;
   EXPECT_EQ(s.applies_seconds, sum);
   EXPECT_GE(s.applies_seconds, s.apply_seconds);
   if (world_rank() == 0) {
     std::printf(
-        "[fmm-rpy-stats] P=%d rank 0: set_positions %.2e s (overlap %.2e s), last apply %.2e s "
-        "(overlap %.2e s), %llu bytes (overlap %llu, halo %llu), 3 applies %.2e s\n",
-        world_size(), s.set_positions_seconds, s.overlap_set_positions_seconds, s.apply_seconds,
-        s.overlap_apply_seconds, static_cast<unsigned long long>(s.apply_bytes_received),
-        static_cast<unsigned long long>(s.overlap_apply_bytes_received),
-        static_cast<unsigned long long>(s.overlap_halo_bytes_received), s.applies_seconds);
-  }
-  if (world_size() == 1) {
-    EXPECT_EQ(s.overlap_halo_bytes_received, 0u);
+        "[fmm-rpy-stats] P=%d rank 0: set_positions %.2e s (near %.2e s), last apply %.2e s "
+        "(near %.2e s), %llu bytes (near %llu), halo %zu, 3 applies %.2e s\n",
+        world_size(), s.set_positions_seconds, s.near_set_positions_seconds, s.apply_seconds, s.near_apply_seconds,
+        static_cast<unsigned long long>(s.apply_bytes_received),
+        static_cast<unsigned long long>(s.near_apply_bytes_received), op.halo_size(), s.applies_seconds);
   }
 
   // A product refused on every rank (forces of the wrong size) leaves the statistics as they were.
@@ -122,12 +120,12 @@ TEST(MpiDistributedFmmRpyCommunication, OverlapExchangesCountedInSetPositionsAnd
   EXPECT_GT(s.set_positions_seconds, 0.0);
   EXPECT_EQ(s.apply_seconds, 0.0);
   EXPECT_EQ(s.applies_seconds, 0.0);
-  EXPECT_EQ(s.overlap_apply_bytes_received, 0u);
+  EXPECT_EQ(s.near_apply_bytes_received, 0u);
 }
 
-TEST(MpiDistributedFmmRpyCommunication, NoOverlapCorrectionExchangedWithoutOverlappingPairs) {
-  // Radius 0.5 on a lattice of spacing 2: no pair overlaps, so the correction exchanges nothing and
-  // the product's bytes are the Laplace FMM's.
+TEST(MpiDistributedFmmRpyCommunication, NoRadiiExchangedWithEqualRadii) {
+  // Radius 0.5 on a lattice of spacing 2: with equal radii every particle's radius is known, so
+  // set_positions exchanges none, and the product's bytes are the Laplace FMM's and the velocities back.
   Particles p;
   for (int i = 0; i < 216; ++i) {
     for (int v : {i % 6, (i / 6) % 6, i / 36}) p.x.push_back(2.0 * v);
@@ -137,13 +135,13 @@ TEST(MpiDistributedFmmRpyCommunication, NoOverlapCorrectionExchangedWithoutOverl
   const Partition part = partition_of(p.size(), Split::even);
   DistributedFmmRpy op(MPI_COMM_WORLD, kViscosity, {.tolerance = 1e-6});
   op.set_positions(share(p.x, 3, part.offset, part.n), share(p.a, 1, part.offset, part.n));
-  ASSERT_EQ(op.overlapping_pairs(), 0u);
+  ASSERT_TRUE(op.equal_radii());
+  const FmmRpyCommunication& s = op.communication();
+  EXPECT_EQ(s.near_set_positions_seconds, 0.0);
+  EXPECT_EQ(s.near_set_positions_bytes_received, 0u);
   std::vector<double> u(3 * part.n);
   op.apply(share(p.f, 3, part.offset, part.n), u);
-  const FmmRpyCommunication& s = op.communication();
-  EXPECT_EQ(s.overlap_apply_seconds, 0.0);
-  EXPECT_EQ(s.overlap_apply_bytes_received, 0u);
-  EXPECT_EQ(s.apply_bytes_received, op.laplace().communication().evaluate_bytes_received);
+  expect_product_counted(op, 1);
   EXPECT_GT(s.apply_seconds, 0.0);
   EXPECT_EQ(s.applies_seconds, s.apply_seconds);
 }

@@ -4,11 +4,13 @@
 // For every pair that does not overlap (r >= a_i + a_j) the RPY block is a combination of Laplace
 // sums of four densities (seven with different radii) and their gradients and Hessians
 // (docs/theory/rpy.md; Zuk, Wajnryb, Mizerski & Szymczak, J. Fluid Mech. 741, R5 (2014), eq. (10);
-// Guan, dissertation, Algorithm 2). The operator evaluates those sums over all pairs with
-// DistributedLaplaceFmm, combines them as the serial FmmRpy does, and adds for every overlapping
-// pair (r < a_i + a_j, coincident points included) the exact RPY block minus the far form the sums
-// gave it, and the self term I / (6 pi eta a_i). Overlapping partners lie within 2 a_max of each
-// other: they are found once per set_positions through a halo exchange around each owner's region.
+// Guan, dissertation, Algorithm 2). The operator evaluates those sums over the far pairs with
+// DistributedLaplaceFmm, combines them as the serial FmmRpy does, and sums the near pairs on each
+// owner as exact RPY blocks with FmmRpy's own near-field code: the pairs of the owner's serial FMM
+// leaves that it leaves out (near_field = false) between its particles and the halo particles
+// received with their loads, and the self terms I / (6 pi eta a_i). Leaves at least 2 a_max wide
+// and no compressed cell within 2 a_max of a rank's region put every overlapping pair (r < a_i +
+// a_j, coincident points included) there.
 //
 //   DistributedFmmRpy op(MPI_COMM_WORLD, viscosity, {.tolerance = 1e-6});  // collective
 //   op.set_positions(local_x, local_radii);   // collective: plans once
@@ -20,8 +22,7 @@
 // J. Fluid Mech. 731, R3 (2013)): the far form of the rotational blocks is exactly the harmonic
 // fields curl Phi / (8 pi eta) and grad div Phi_T / (16 pi eta) (docs/theory/rpy.md, section 7), so
 // the same Laplace evaluation carries the three torque components beside the translational
-// densities, as in FmmRpy, and the overlap correction takes back the rotational far form of every
-// overlapping pair as it does the translational one.
+// densities, as in FmmRpy, and the near pairs are summed with the exact grand blocks.
 //
 // Contract: on every rank the relative l2 error of U over all particles against the exact product
 // (rpy::DirectRpy on the concatenation of the ranks' shares) is at most the tolerance, and with
@@ -30,8 +31,8 @@
 // different number of ranks gives other bits within the contract.
 //
 // communication() reports this rank's time in MPI exchanges of set_positions and of the last
-// product (the Laplace FMM's and the overlap correction's), the bytes received in it, and the sum
-// over the products since set_positions (a sampler's), as DistributedDirectRpy's does.
+// product (the Laplace FMM's and the near field's), the bytes received in it, and the sum over the
+// products since set_positions (a sampler's), as DistributedDirectRpy's does.
 //
 // Every public call is collective and fails collectively (communicator.hpp).
 #pragma once
@@ -51,7 +52,7 @@
 namespace rpyfmm::mpi {
 
 namespace detail {
-class OverlapCorrection;
+class RpyNearField;
 }
 
 /// Options of DistributedFmmRpy. Every rank must pass the same.
@@ -71,25 +72,25 @@ struct DistributedFmmRpyOptions {
 /// This rank's exchanges, as DistributedDirectRpy's CommunicationStats (docs/mpi.md, "Distributed
 /// FmmRpy"). Seconds are wall time of the exchanges (packing, MPI calls and waits, as
 /// FmmCommunication times them): in the last set_positions the gathers of the counts and the
-/// summaries, the Laplace FMM's plan (its plan_seconds) and the overlap correction's partition,
-/// regions and halo; in the last apply, apply_block or apply with torques that completed its
-/// exchanges, the load scale's reduction, the Laplace FMM's evaluation (its evaluate_seconds) and the
-/// overlap correction's exchanges. applies_seconds sums apply_seconds over every such product since
-/// the last set_positions (a sampler's many products), in their order. Bytes received in the last
-/// product: the Laplace FMM's evaluate_bytes_received plus the overlap correction's (forces to
-/// their owners and corrections back, this rank's own share of these partition moves included as in
-/// FmmCommunication, and the halo loads). The overlap_ entries are the overlap correction's share;
-/// overlap_halo_bytes_received its halo loads, all from other ranks (0 on one rank). Nothing of
-/// the overlap correction is exchanged in a product when no rank has an overlapping pair.
+/// summaries, the Laplace FMM's plan (its plan_seconds) and the near field's radii (to the owners
+/// and the halo; none with equal radii); in the last apply, apply_block or apply with torques that
+/// completed its exchanges, the load scale's reduction, the Laplace FMM's evaluation (its
+/// evaluate_seconds, which moves the halo particles' loads among the essential charges) and the
+/// near field's velocities back to the input ranks. applies_seconds sums apply_seconds over every
+/// such product since the last set_positions (a sampler's many products), in their order. Bytes
+/// received in the last product: the Laplace FMM's evaluate_bytes_received plus the near field's
+/// velocities back (3 doubles per particle and right-hand side, 6 with torques; this rank's own
+/// share of the partition's move included, as in FmmCommunication). The near_ entries are the near
+/// field's share.
 struct FmmRpyCommunication {
   double set_positions_seconds = 0.0;
   double apply_seconds = 0.0;
   std::uint64_t apply_bytes_received = 0;
   double applies_seconds = 0.0;
-  double overlap_set_positions_seconds = 0.0;
-  double overlap_apply_seconds = 0.0;
-  std::uint64_t overlap_apply_bytes_received = 0;
-  std::uint64_t overlap_halo_bytes_received = 0;
+  double near_set_positions_seconds = 0.0;
+  std::uint64_t near_set_positions_bytes_received = 0;
+  double near_apply_seconds = 0.0;
+  std::uint64_t near_apply_bytes_received = 0;
 };
 
 class DistributedFmmRpy {
@@ -120,11 +121,11 @@ class DistributedFmmRpy {
   /// (the block preconditioner of mpi::sqrt_apply factors their blocks; empty before).
   [[nodiscard]] std::span<const double> local_positions() const { return positions_; }
   [[nodiscard]] std::span<const double> local_radii() const { return radii_; }
-  /// Overlapping ordered pairs (i, j) on all ranks, and the halo particles this rank received for
-  /// them (0 before set_positions).
-  [[nodiscard]] std::uint64_t overlapping_pairs() const;
+  /// The halo particles of this rank's near field: received as particles, with their loads in
+  /// each product (0 before set_positions).
   [[nodiscard]] std::size_t halo_size() const;
-  /// The Laplace FMM of the far field: its plan's and last evaluation's communication and work.
+  /// The Laplace FMM of the far field (and of the halo loads): its plan's and last evaluation's
+  /// communication and work.
   [[nodiscard]] const DistributedLaplaceFmm& laplace() const { return laplace_; }
   /// This rank's exchanges in set_positions and the products (zero before set_positions; reset by
   /// each set_positions).
@@ -134,11 +135,8 @@ class DistributedFmmRpy {
   /// pass different radii), or one radius per particle. Throws rpyfmm::Error on every rank when
   /// any rank's input is malformed (size, NaN/Inf, radius not > 0), when no rank has a particle,
   /// on what rpy::FmmRpy refuses for the whole set (a radius below 2^-300 of the suspension's size,
-  /// named by its global index), and (not_supported) on an overlapping pair so close, yet not
-  /// coincident, that the rounding of its far form in the Laplace sums may exceed the tolerance
-  /// (for equal radii r < a (2^-51 / tolerance)^(1/3): 8e-5 a at 1e-3, 8e-4 a at 1e-6, 8e-3 a at
-  /// 1e-9; docs/mpi.md). After a failure the operator holds no positions on any rank until a later
-  /// set_positions succeeds.
+  /// named by its global index). After a failure the operator holds no positions on any rank until
+  /// a later set_positions succeeds.
   void set_positions(std::span<const double> local_positions, double radius);
   void set_positions(std::span<const double> local_positions, std::span<const double> local_radii);
 
@@ -150,9 +148,10 @@ class DistributedFmmRpy {
   /// Collective. U_r = M F_r for nrhs right-hand sides (r < nrhs), forces and velocities of
   /// 3 local_size() nrhs entries each, one right-hand side after another
   /// (rpy::MobilityOperator::apply_block's layout, on this rank's particles): the densities of every
-  /// right-hand side in one Laplace evaluation, and one halo exchange for the overlap correction of
+  /// right-hand side in one Laplace evaluation, and one move of the near field's velocities back for
   /// all of them. Each right-hand side is load-scaled by itself; the Laplace FMM treats each density
-  /// alike whatever their number, so U_r is apply(F_r) bit for bit (tested; docs/mpi.md). Throws rpyfmm::Error on every
+  /// alike whatever their number and the near field sums each right-hand side as apply does, so U_r
+  /// is apply(F_r) bit for bit (tested; docs/mpi.md). Throws rpyfmm::Error on every
   /// rank before set_positions, when any rank passes nrhs = 0 or the ranks pass different nrhs, for wrong sizes or
   /// NaN/Inf forces on any rank, and for a product beyond double precision.
   void apply_block(std::span<const double> local_forces, std::span<double> local_velocities, std::size_t nrhs) const;
@@ -170,15 +169,15 @@ class DistributedFmmRpy {
   void product(const char* where, std::span<const double> local_forces, std::span<double> local_velocities,
                std::size_t nrhs) const;
   // The statistics of a product whose exchanges completed: `reduction_seconds` of the load scale's
-  // MPI_Allreduce, the Laplace evaluation's and the overlap correction's.
+  // MPI_Allreduce, the Laplace evaluation's and the near field's.
   void record_product(double reduction_seconds) const;
 
   Communicator comm_;
   double viscosity_ = 1.0;
   DistributedFmmRpyOptions options_;
-  DistributedFmmOptions laplace_options_;  // of the far field; min_leaf_side set per configuration
+  DistributedFmmOptions laplace_options_;  // of the far field; min_leaf_side and leaves per configuration
   DistributedLaplaceFmm laplace_;
-  std::unique_ptr<detail::OverlapCorrection> overlap_;
+  std::unique_ptr<detail::RpyNearField> near_;  // on laplace_'s plan
   std::size_t local_n_ = 0, global_n_ = 0, offset_ = 0;
   std::vector<std::size_t> counts_;
   // This rank's particles in the frame of the far field (rpy/src/length_units.hpp, to_fmm_frame):

@@ -32,6 +32,7 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <vector>
 
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
@@ -42,9 +43,12 @@ namespace rpyfmm::mpi {
 /// Options of the distributed plan. Every rank must pass the same.
 struct DistributedFmmOptions {
   /// The serial FMM that every rank runs on its locally essential sources (tolerance, leaf capacity,
-  /// order, ...). near_field must be true and export_direct_far false. A min_leaf_side > 0 also
-  /// keeps every cell closer than it to a rank's region from being compressed for that rank, so
-  /// that pairs closer than it are summed exactly, as in the serial FMM's near field.
+  /// order, ...). export_direct_far must be false. A min_leaf_side > 0 also keeps every cell closer
+  /// than it to a rank's region from being compressed for that rank, so that pairs closer than it
+  /// are summed exactly, as in the serial FMM's near field. near_field = false (for
+  /// DistributedFmmRpy, which sums them as RPY blocks): the owners' serial FMMs leave out the pairs
+  /// of their near fields between particles (owned or halo) and sum only their near pairs with
+  /// equivalent nodes; the results then lack those pairs.
   fmm::FmmOptions fmm{};
   /// Acceptance ratio eta: a cell whose cube (around its particles' tight box, half-side h) lies at a
   /// distance d >= eta h from every box of another rank's region may be sent to it as equivalent
@@ -101,7 +105,7 @@ struct FmmCommunication {
 class DistributedLaplaceFmm {
  public:
   /// Collective. Throws rpyfmm::Error on every rank for options the serial FMM refuses, for
-  /// near_field = false or export_direct_far = true, a separation that is not 0 or in [1, 100], a
+  /// export_direct_far = true, a separation that is not 0 or in [1, 100], a
   /// Chebyshev order outside [0, 32], and for options that differ between ranks.
   DistributedLaplaceFmm(MPI_Comm comm, const DistributedFmmOptions& options = {});
   ~DistributedLaplaceFmm();
@@ -127,6 +131,11 @@ class DistributedLaplaceFmm {
                 std::span<double> results) const;
   /// The same output flags for every density.
   void evaluate(std::span<const double> charges, std::size_t nd, unsigned outputs, std::span<double> results) const;
+  /// Collective. evaluate, also returning this rank's essential charges: nd x essential_size()
+  /// (density d of the serial FMM's source j at d essential_size() + j; empty where no serial FMM
+  /// runs), for a caller that sums the near field itself (near_field = false; plan()).
+  void evaluate(std::span<const double> charges, std::size_t nd, std::span<const unsigned> outputs,
+                std::span<double> results, std::vector<double>& essential_charges) const;
 
   [[nodiscard]] const Communicator& communicator() const { return comm_; }
   [[nodiscard]] const DistributedFmmOptions& options() const { return options_; }
@@ -157,14 +166,21 @@ class DistributedLaplaceFmm {
   [[nodiscard]] std::vector<double> measured_weights() const;
 
   struct Plan;  // implementation (mpi/src/laplace_fmm.cpp)
+  /// The plan (null before set_points succeeds), for the layer's own operators (mpi/src/fmm_plan.hpp).
+  [[nodiscard]] const Plan* plan() const noexcept { return plan_.get(); }
 
  private:
   // The essential charges' exchanges and the serial FMM of evaluate: one FMM after the exchanges,
   // or (overlap_exchange) the owned sources' FMM during them and the received sources' after.
+  // The essential charges are kept in `essential` where it is given.
   void evaluate_one(const Plan& plan, std::span<const double> owned_q, std::size_t nd,
-                    std::span<const unsigned> outputs, std::span<double> owned_results) const;
+                    std::span<const unsigned> outputs, std::span<double> owned_results,
+                    std::vector<double>* essential) const;
   void evaluate_split(const Plan& plan, std::span<const double> owned_q, std::size_t nd,
-                      std::span<const unsigned> outputs, std::span<double> owned_results) const;
+                      std::span<const unsigned> outputs, std::span<double> owned_results,
+                      std::vector<double>* essential) const;
+  void evaluate_impl(std::span<const double> charges, std::size_t nd, std::span<const unsigned> outputs,
+                     std::span<double> results, std::vector<double>* essential) const;
 
   Communicator comm_;
   DistributedFmmOptions options_;
