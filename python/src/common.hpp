@@ -32,6 +32,10 @@
 
 namespace nb = nanobind;
 
+namespace rpyfmm::bd {
+struct RigidDynamicsTotals;
+}  // namespace rpyfmm::bd
+
 namespace rpyfmm::python {
 
 // Argument/result wrappers that only give the stubs precise types (the casters
@@ -202,6 +206,10 @@ std::vector<std::size_t> result_shape(const InArray& q, std::size_t m);
 
 /// LaplaceFmm tree statistics (fmm::TreeStats) as a dict (fmm.cpp).
 nb::dict tree_stats_dict(const fmm::TreeStats& s);
+
+/// Rigid-body Brownian dynamics counters and seconds per stage (bd::RigidDynamicsTotals) as a dict
+/// (rigid_dynamics.cpp; RigidBodyDynamics.totals, serial and across ranks).
+nb::dict rigid_totals_dict(const bd::RigidDynamicsTotals& t);
 
 /// Registers the exception classes and the rpyfmm::Error translator (errors.cpp).
 void bind_errors(nb::module_& m);

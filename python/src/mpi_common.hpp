@@ -1,4 +1,4 @@
-// rpyfmm Python bindings — what the bindings of the MPI layer share (mpi.cpp, mpi_bd.cpp, mpi_rigid.cpp): the
+// rpyfmm Python bindings — what the bindings of the MPI layer share (mpi.cpp, mpi_bd.cpp, mpi_rigid*.cpp): the
 // MPI_Comm of an mpi4py communicator, the bound operators, the argument checks of a collective call
 // agreed over the ranks (docs/mpi.md, "Python (mpi4py)"), and integer arrays (global indices,
 // types, keys).
@@ -9,6 +9,7 @@
 #include <exception>
 #include <optional>
 #include <span>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -81,6 +82,12 @@ nb::object copy_integers(std::span<const T> values) {
 
 void bind_mpi_bd(nb::module_& m);
 void bind_mpi_partition(nb::module_& m);
+/// body_offsets as indices (a sequence of non-negative integers, as RigidBodies takes them); not
+/// collective (mpi_rigid.cpp, mpi_rigid_dynamics.cpp call it inside `agreed`).
+std::vector<std::size_t> offsets_of(nb::handle body_offsets, const std::string& where);
+
 void bind_mpi_rigid(nb::module_& m);
+/// rpyfmm.mpi.RigidBodyDynamics (mpi_rigid_dynamics.cpp); bind_mpi_rigid calls it.
+void bind_mpi_rigid_dynamics(nb::module_& m);
 
 }  // namespace rpyfmm::python

@@ -52,17 +52,6 @@ InArray forces_torques_of(ArrayArg forces_torques, const std::string& where) {
   return w;
 }
 
-/// body_offsets as indices (a sequence of non-negative integers, as RigidBodies takes them).
-std::vector<std::size_t> offsets_of(nb::handle body_offsets, const std::string& where) {
-  std::vector<std::size_t> offsets;
-  if (!nb::try_cast(body_offsets, offsets)) {
-    fail(ErrorCode::invalid_input, where,
-         "body_offsets must be a sequence of non-negative integers, got " +
-             std::string(nb::type_name(body_offsets.type()).c_str()));
-  }
-  return offsets;
-}
-
 void set_configuration(BoundDistributedRigid& bound, ArrayArg positions, RadiusArg radius, nb::handle body_offsets,
                        OptArrayArg reference_points) {
   const std::string where = "DistributedRigidBodies.set_configuration";
@@ -265,6 +254,16 @@ void add_state(RigidClass& cls) {
 
 }  // namespace
 
+std::vector<std::size_t> offsets_of(nb::handle body_offsets, const std::string& where) {
+  std::vector<std::size_t> offsets;
+  if (!nb::try_cast(body_offsets, offsets)) {
+    fail(ErrorCode::invalid_input, where,
+         "body_offsets must be a sequence of non-negative integers, got " +
+             std::string(nb::type_name(body_offsets.type()).c_str()));
+  }
+  return offsets;
+}
+
 void bind_mpi_rigid(nb::module_& m) {
   RigidClass cls(m, "DistributedRigidBodies",
                  "Mobility of rigid bodies made of beads, the bodies distributed over the ranks (whole bodies per\n"
@@ -276,6 +275,7 @@ void bind_mpi_rigid(nb::module_& m) {
   add_init<mpi::DistributedPseRpy>(cls);
   add_products(cls);
   add_state(cls);
+  bind_mpi_rigid_dynamics(m);
 }
 
 }  // namespace rpyfmm::python

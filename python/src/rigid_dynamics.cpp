@@ -229,21 +229,11 @@ void add_dynamics_last_step(DynamicsClass& cls) {
                        "RigidBodyDynamics.last_forces_torques",
                        +[](PyRigidBodyDynamics& s) { return copy_rows(sim(s).last_forces_torques(), 6); }),
                    "Forces and torques (m, 6) of the last step (force function plus bead pair forces).")
-      .def_prop_ro("totals",
-                   locked_read(
-                       "RigidBodyDynamics.totals",
-                       +[](PyRigidBodyDynamics& s) {
-                         const auto& t = sim(s).totals();
-                         nb::dict d, seconds;
-                         d["steps"] = t.steps;
-                         d["solve_iterations"] = t.solve_iterations;
-                         d["drift_iterations"] = t.drift_iterations;
-                         d["sqrt_iterations"] = t.sqrt_iterations;
-                         for (const auto& [name, value] : t.seconds) seconds[name.c_str()] = value;
-                         d["seconds"] = seconds;
-                         return d;
-                       }),
-                   "Counters and seconds per stage ('forces', 'plan', 'sqrt', 'solve', 'drift', 'update').");
+      .def_prop_ro(
+          "totals",
+          locked_read(
+              "RigidBodyDynamics.totals", +[](PyRigidBodyDynamics& s) { return rigid_totals_dict(sim(s).totals()); }),
+          "Counters and seconds per stage ('forces', 'plan', 'sqrt', 'solve', 'drift', 'update').");
 }
 
 void bind_rigid_step_report(nb::module_& m) {
@@ -295,6 +285,17 @@ void bind_rigid_body_dynamics(nb::module_& m) {
 }
 
 }  // namespace
+
+nb::dict rigid_totals_dict(const bd::RigidDynamicsTotals& t) {
+  nb::dict d, seconds;
+  d["steps"] = t.steps;
+  d["solve_iterations"] = t.solve_iterations;
+  d["drift_iterations"] = t.drift_iterations;
+  d["sqrt_iterations"] = t.sqrt_iterations;
+  for (const auto& [name, value] : t.seconds) seconds[name.c_str()] = value;
+  d["seconds"] = seconds;
+  return d;
+}
 
 void bind_rigid_dynamics(nb::module_& m) {
   bind_rigid_step_report(m);
