@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "mpi_test_support.hpp"
+#include "pse_test_support.hpp"
 #include "rigid_test_support.hpp"
 #include "rpyfmm/mpi/pse_operator.hpp"
 #include "rpyfmm/mpi/rigid_bodies.hpp"
@@ -27,7 +28,6 @@ using rpyfmm::rpy::Geometry;
 using rpyfmm::rpy::RigidBodies;
 using rpyfmm::rpy::RigidBodyOptions;
 using rpyfmm::rpy::RigidBodyReport;
-using rpyfmm::rpy::pse::PseOptions;
 using rpyfmm::rpy::pse::PseRpy;
 using namespace rpyfmm_mpi_test;
 
@@ -35,14 +35,6 @@ namespace {
 
 constexpr double kBox = 10.0;
 const Geometry kGeometry = Geometry::periodic(kBox);
-
-/// PSE at 1e-6 with double-precision wave grids, as DistributedPseRpy's grids are.
-PseOptions pse_options() {
-  PseOptions o;
-  o.tolerance = 1e-6;
-  o.wave_precision = rpyfmm::rpy::pse::WavePrecision::double_precision;
-  return o;
-}
 
 /// 8 icosahedral shells of 12 touching beads (shell radius 1.5, bead radius 0.79) at random
 /// orientations, centred on a 2 x 2 x 2 lattice of spacing 5 in the box of side 10 shifted so that
@@ -87,7 +79,7 @@ bool some_body_straddles(const Bodies& b) {
 
 /// The serial solver on the whole set with its PseRpy beads.
 struct SerialPse {
-  PseRpy beads{kGeometry, kViscosity, pse_options()};
+  PseRpy beads{kGeometry, kViscosity, double_grid_pse_options()};
   RigidBodies bodies;
   SerialPse(const Bodies& b, const RigidBodyOptions& options) : bodies(beads, options) {
     bodies.set_configuration(b.x, b.radii, b.offsets);
@@ -96,7 +88,7 @@ struct SerialPse {
 
 /// The distributed solver on this rank's share, with its DistributedPseRpy beads.
 struct DistributedPse {
-  DistributedPseRpy beads{MPI_COMM_WORLD, kGeometry, kViscosity, pse_options()};
+  DistributedPseRpy beads{MPI_COMM_WORLD, kGeometry, kViscosity, double_grid_pse_options()};
   DistributedRigidBodies bodies;
   DistributedPse(const LocalBodies& l, const RigidBodyOptions& options) : bodies(beads, options) {
     bodies.set_configuration(l.x, l.radii, l.offsets);

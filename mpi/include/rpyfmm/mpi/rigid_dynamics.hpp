@@ -19,7 +19,15 @@
 // principal root, bit for bit the serial sampler's), the trajectory differs from the serial
 // engine's with DirectRpy and preconditioner none only by the order of GMRES's inner-product sums;
 // on one rank it is the serial trajectory bit for bit. The block preconditioner is that of each
-// rank's beads (mpi/sqrt.hpp), so its noise depends on the partition. Bead force fields
+// rank's beads (mpi/sqrt.hpp), so its noise depends on the partition.
+//
+// With DistributedPseRpy beads the bodies live in its periodic box as bd::RigidBodyDynamics's do
+// with PseRpy: reference points and beads are never wrapped (the bead operator wraps its positions,
+// DistributedRigidBodies takes the lever arms as minimum images), so a body may straddle the box,
+// and the bead noise is the split sampler of DistributedPseRpy::apply_sqrt (PseRpy::apply_sqrt's;
+// options.sqrt method automatic or split, not the block preconditioner). The trajectory agrees
+// with the serial engine's with PseRpy (double wave grids) to the round-off of the PSE sums
+// (docs/mpi.md "Rigid-body Brownian dynamics across ranks"). Bead force fields
 // (RigidBodyDynamics::set_bead_forces) are not offered across ranks. Every public call is
 // collective and fails collectively (communicator.hpp).
 #pragma once
@@ -37,13 +45,14 @@
 #include "rpyfmm/mpi/communicator.hpp"
 #include "rpyfmm/mpi/direct_operator.hpp"
 #include "rpyfmm/mpi/fmm_rpy.hpp"
+#include "rpyfmm/mpi/pse_operator.hpp"
 #include "rpyfmm/mpi/rigid_bodies.hpp"
 
 namespace rpyfmm::mpi {
 
 class DistributedRigidBodyDynamics {
  public:
-  /// Collective; `beads` a DistributedDirectRpy or DistributedFmmRpy. This rank's bodies, as
+  /// Collective; `beads` a DistributedDirectRpy, DistributedFmmRpy or DistributedPseRpy. This rank's bodies, as
   /// bd::RigidBodyDynamics takes all of them: `local_shape`
   /// (3 n_local body-frame bead positions, body after body), `local_radii` (one or n_local; one
   /// radius is spread over this rank's beads), `local_body_offsets` (m_local + 1 entries from 0 to
@@ -56,7 +65,8 @@ class DistributedRigidBodyDynamics {
   /// engine: sizes, NaN/Inf, options, bodies RigidBodies refuses; and options that differ between
   /// the ranks, no body on any rank).
   template <class BeadOperator>
-  requires(std::same_as<BeadOperator, DistributedDirectRpy> || std::same_as<BeadOperator, DistributedFmmRpy>)
+  requires(std::same_as<BeadOperator, DistributedDirectRpy> || std::same_as<BeadOperator, DistributedFmmRpy> ||
+           std::same_as<BeadOperator, DistributedPseRpy>)
       DistributedRigidBodyDynamics(BeadOperator& beads, std::vector<double> local_shape,
                                    std::vector<double> local_radii, std::vector<std::size_t> local_body_offsets,
                                    std::vector<double> local_positions, std::vector<double> local_orientations,
@@ -98,7 +108,7 @@ class DistributedRigidBodyDynamics {
   [[nodiscard]] const bd::RigidDynamicsTotals& totals() const { return totals_; }
 
  private:
-  using Operator = std::variant<DistributedDirectRpy*, DistributedFmmRpy*>;
+  using Operator = std::variant<DistributedDirectRpy*, DistributedFmmRpy*, DistributedPseRpy*>;
   DistributedRigidBodyDynamics(Operator beads, const Communicator& comm, std::vector<double> local_shape,
                                std::vector<double> local_radii, std::vector<std::size_t> local_body_offsets,
                                std::vector<double> local_positions, std::vector<double> local_orientations,
