@@ -22,9 +22,9 @@
 // --body-sizes and --reference, which define the bodies' shapes); with --first-step S, S the
 // last step of the earlier run, the continuation equals one longer run bit for bit.
 //
-// Under mpirun, --method direct and fmm (free space, on the CPU) without --pair run across the ranks,
-// each rank owning whole bodies (rigid_bd_across_ranks.hpp); other methods and --pair are refused on
-// more than one rank.
+// Under mpirun, --method direct and fmm (free space) and --method pse with --box (double-precision
+// wave grids), on the CPU and without --pair, run across the ranks, each rank owning whole bodies
+// (rigid_bd_across_ranks.hpp); other methods and --pair are refused on more than one rank.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <array>
@@ -185,11 +185,11 @@ void report_rigid_bd(const RigidBdArgs& args, const bd::RigidBodyDynamics& sim, 
   }
 }
 
-/// Under MPI: whether this run goes across the ranks (--method direct or fmm without --box, on the
-/// CPU, without --pair); otherwise more than one rank is refused. Every rank parses the same
-/// options, so every rank refuses alike.
+/// Under MPI: whether this run goes across the ranks (--method direct or fmm without --box, or pse
+/// with --box and wave grids auto or double, on the CPU, without --pair); otherwise more than one
+/// rank is refused. Every rank parses the same options, so every rank refuses alike.
 bool across_ranks(const RigidBdArgs& args) {
-  const bool method = bodies_across_ranks(args.mobility, mpi_size(), "rigid-bd");
+  const bool method = bodies_across_ranks(args.mobility, mpi_size(), "rigid-bd", /*periodic_pse=*/true);
   require(args.pair == "none" || mpi_size() == 1, ErrorCode::not_supported, "rigid-bd",
           "--pair " + args.pair + " (bead pair potentials between bodies) does not run across " +
               std::to_string(mpi_size()) + " MPI ranks (docs/mpi.md); run it without mpirun");
@@ -202,7 +202,7 @@ void run_rigid_bd(const RigidBdArgs& args) {
     run_rigid_bd_across_ranks({args.bodies, args.out, args.beads_out, args.restart,
                                static_cast<std::uint64_t>(args.steps), static_cast<std::uint64_t>(args.every),
                                dynamics_options(args), load_of(args), args.mobility.method, args.mobility.tolerance,
-                               args.mobility.viscosity, args.common.json});
+                               args.mobility.viscosity, box_geometry(args.mobility.box), args.common.json});
     return;
   }
   StopWatch total;

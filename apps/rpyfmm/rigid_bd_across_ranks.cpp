@@ -21,6 +21,7 @@
 #include "rpyfmm/mpi/communicator.hpp"
 #include "rpyfmm/mpi/direct_operator.hpp"
 #include "rpyfmm/mpi/fmm_rpy.hpp"
+#include "rpyfmm/mpi/pse_operator.hpp"
 #include "rpyfmm/mpi/rigid_dynamics.hpp"
 
 namespace rpyfmm::cli {
@@ -35,8 +36,8 @@ struct Start {
   std::vector<std::size_t> offsets;
 };
 
-// What the serial command builds from the files, in free space: shapes relative to the reference
-// points (default: centroids), the state of --restart or the identity orientations.
+// What the serial command builds from the files: shapes relative to the reference points (default:
+// centroids; minimum images in pse's --box), the state of --restart or the identity orientations.
 Start read_start(const RanksRigidBdArgs& args) {
   const BeadBodies bodies = read_bead_bodies(args.bodies);
   const std::size_t n = bodies.beads(), m = bodies.bodies();
@@ -45,7 +46,7 @@ Start read_start(const RanksRigidBdArgs& args) {
           std::to_string(n) + " beads: more than MPI's int counts address in one scatter");
   std::vector<double> reference = bodies.reference;
   Start s;
-  s.shape = body_frame_shape(rpy::Geometry::open(), bodies, reference);
+  s.shape = body_frame_shape(args.box, bodies, reference);
   BodyState state = initial_state(args.restart, reference, m);
   s.positions = std::move(state.positions);
   s.orientations = std::move(state.orientations);
@@ -105,6 +106,10 @@ LocalRun run_engine(Operator& op, const RanksRigidBdArgs& args, Start& local, St
 }
 
 LocalRun run_across_ranks(const RanksRigidBdArgs& args, Start& local, StageTimes& stages) {
+  if (args.method == "pse") {  // PseRpy's options but the tolerance, as the serial command's PseRpy
+    mpi::DistributedPseRpy pse(MPI_COMM_WORLD, args.box, args.viscosity, {.tolerance = args.tolerance});
+    return run_engine(pse, args, local, stages);
+  }
   if (args.method == "fmm") {
     mpi::DistributedFmmRpy fmm(MPI_COMM_WORLD, args.viscosity, {.tolerance = args.tolerance});
     return run_engine(fmm, args, local, stages);

@@ -1,12 +1,15 @@
-// rpyfmm CLI — `mpirun -np P rpyfmm rigid-bd --method direct|fmm ...` across MPI ranks (docs/mpi.md,
-// "Rigid bodies across ranks"). Rank 0 reads the files of the serial command (and --restart) and
-// scatters whole bodies, contiguous runs balanced by their bead count (a rank may get none), with
-// their body-frame shapes and starting state; rpyfmm::mpi::DistributedRigidBodyDynamics takes the
-// steps with DistributedDirectRpy or DistributedFmmRpy as the bead operator; rank 0 gathers each
-// frame and writes the serial command's files (write_npy: a temporary file renamed into place).
+// rpyfmm CLI — `mpirun -np P rpyfmm rigid-bd --method direct|fmm|pse ...` across MPI ranks
+// (docs/mpi.md, "Rigid-body Brownian dynamics across ranks"). Rank 0 reads the files of the serial
+// command (and --restart) and scatters whole bodies, contiguous runs balanced by their bead count (a
+// rank may get none), with their body-frame shapes and starting state;
+// rpyfmm::mpi::DistributedRigidBodyDynamics takes the steps with DistributedDirectRpy,
+// DistributedFmmRpy or DistributedPseRpy (in the --box: shapes from minimum images as the serial
+// command takes them, nothing wrapped) as the bead operator; rank 0 gathers each frame and writes
+// the serial command's files (write_npy: a temporary file renamed into place).
 // --sqrt-preconditioner auto is none across the ranks (the principal root, the serial sampler's
 // bits: rpyfmm/mpi/sqrt.hpp), so with --method direct the trajectory is the serial command's with
-// --sqrt-preconditioner none up to the order of GMRES's inner-product sums.
+// --sqrt-preconditioner none up to the order of GMRES's inner-product sums; with --method pse the
+// noise is the split sampler, as in the serial command.
 #pragma once
 
 #include <array>
@@ -15,6 +18,7 @@
 
 #include "bead_bodies.hpp"
 #include "rpyfmm/bd/rigid_dynamics.hpp"
+#include "rpyfmm/rpy/geometry.hpp"
 
 namespace rpyfmm::cli {
 
@@ -24,9 +28,10 @@ struct RanksRigidBdArgs {
   std::uint64_t steps = 0, every = 0;
   bd::RigidDynamicsOptions options;  // validated by the engine (collectively)
   std::array<double, 6> load{};      // --body-force then --body-torque
-  std::string method = "direct";     // direct | fmm (the caller refuses others)
-  double tolerance = 1e-6;           // fmm's
+  std::string method = "direct";     // direct | fmm | pse (the caller refuses others)
+  double tolerance = 1e-6;           // fmm's or pse's
   double viscosity = 1.0;
+  rpy::Geometry box = rpy::Geometry::open();  // pse's periodic box (--box)
   bool json = false;
 };
 

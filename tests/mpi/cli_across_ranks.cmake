@@ -28,8 +28,10 @@
 #    bead forces), the inner products summed in another order; `--method fmm --tolerance 1e-8`
 #    within 1e-7 of the serial direct solve (see below); `--method pse --box L` within 1e-9 of the
 #    serial file with double wave grids (see below); `--wave-precision single` refuses;
-#  - `mpiexec -n NP rpyfmm rigid-bd --method direct|fmm`: the serial trajectory to round-off (direct)
-#    or to the FMMs' tolerance (see below), a restart byte for byte; `--pair` and `--method pse` refuse;
+#  - `mpiexec -n NP rpyfmm rigid-bd --method direct|fmm|pse`: the serial trajectory to round-off
+#    (direct), to the FMMs' tolerance, or with `--method pse --box L` within 1e-6 of the serial file
+#    with double wave grids (see below), a restart byte for byte; `--pair` and
+#    `--method pse --wave-precision single` refuse;
 #  - `mpiexec -n NP rpyfmm mobility --method pse --box L` (also with --torques or --angular, U and W
 #    each) and `sample --operator pse --box L`: DistributedPseRpy is the serial PseRpy with double
 #    wave grids to round-off, so within 1e-12 relative of that serial output.
@@ -362,6 +364,7 @@ expect_one_error("laplace with a missing input" "missing.txt" ${never} "${RPYFMM
 set(bodies "")
 set(body_sizes "")
 set(body_forces "")
+set(bodies_wrapped "")  # the same beads wrapped into the box of side 11 (rigid-bd --method pse)
 set(cube "-1,-1,-1;-1,-1,1;-1,1,-1;-1,1,1;1,-1,-1;1,-1,1;1,1,-1;1,1,1")
 set(tetrahedron "1,1,1;1,-1,-1;-1,1,-1;-1,-1,1")
 foreach(k RANGE 26)
@@ -379,6 +382,7 @@ foreach(k RANGE 26)
   foreach(corner ${corners})
     string(REPLACE "," ";" corner "${corner}")
     set(row "")
+    set(wrapped_row "")
     foreach(c 0 1 2)
       list(GET corner ${c} d)
       set(centre ${centre_x})
@@ -392,8 +396,11 @@ foreach(k RANGE 26)
       decimal(${jitter} jitter)
       string(SUBSTRING "${jitter}" 2 3 jitter)
       string(APPEND row " ${v}.${jitter}")
+      math(EXPR wrapped "${v} % 11")
+      string(APPEND wrapped_row " ${wrapped}.${jitter}")
     endforeach()
     string(APPEND bodies "${row}\n")
+    string(APPEND bodies_wrapped "${wrapped_row}\n")
   endforeach()
   set(row "")
   foreach(c RANGE 5)
@@ -403,6 +410,7 @@ foreach(k RANGE 26)
   string(APPEND body_forces "${row}\n")
 endforeach()
 file(WRITE "${WORK}/bodies.txt" "${bodies}")
+file(WRITE "${WORK}/bodies_wrapped.txt" "${bodies_wrapped}")
 file(WRITE "${WORK}/body_sizes.txt" "${body_sizes}")
 file(WRITE "${WORK}/body_forces.txt" "${body_forces}")
 set(rigid_common rigid --positions "${WORK}/bodies.txt" --radius 0.5 --body-sizes "${WORK}/body_sizes.txt" --forces
@@ -468,15 +476,36 @@ run_serial(rigid_bd_fmm rigid_bd_fmm_serial ${rigid_bd_common} --steps 4 --metho
            --sqrt-preconditioner none)
 run_across(rigid_bd_fmm ${rigid_bd_common} --steps 4 --method fmm --tolerance 1e-8)
 agree(rigid_bd_fmm "${WORK}/rigid_bd_fmm_mpi.npy" "${WORK}/rigid_bd_fmm_serial.npy" 1e-5)
+# --method pse in the periodic box of side 11 on the bodies given wrapped into it (the bodies
+# centred at 10 straddle the faces, so their beads lie at both ends of the box: only minimum-image
+# shapes, which both commands take, describe them; nothing else is wrapped) against the serial
+# command with double wave grids, 3 steps: the bead products agree to 1e-12 (docs/mpi.md
+# "Distributed PSE"), the split sampler's B z to round-off, each solve to 1e-9 (the bound of
+# tests/mpi/test_distributed_rigid_periodic.cpp), and the RFD divides the difference of two solves
+# by delta = 1e-3: within 1e-6 per frame and in the final beads (the bound of
+# tests/mpi/test_distributed_rigid_bd.cpp). Measured at 2 and 3 ranks (shared 2-core AMD EPYC,
+# AVX-512, 2026-12-07): at most 5.4e-16 (positions) and 1.7e-15 (orientations) per frame, 6.1e-16
+# in the final beads; with the shapes taken in open space (no minimum images) 0.56.
+string(REPLACE "bodies.txt" "bodies_wrapped.txt" rigid_bd_wrapped "${rigid_bd_common}")
+run_serial(rigid_bd_pse rigid_bd_pse_serial ${rigid_bd_wrapped} --steps 3 --method pse --box 11 --wave-precision double
+           --beads-out "${WORK}/rigid_bd_pse_beads_serial.npy")
+run_across(rigid_bd_pse ${rigid_bd_wrapped} --steps 3 --method pse --box 11
+           --beads-out "${WORK}/rigid_bd_pse_beads_mpi.npy")
+if(NOT json MATCHES "\"method\":\"pse\"" OR NOT json MATCHES "\"drift_iterations_per_step\":[1-9]")
+  message(FATAL_ERROR "rigid_bd_pse: --json lacks the method or the drift iterations: ${json}")
+endif()
+agree(rigid_bd_pse "${WORK}/rigid_bd_pse_mpi.npy" "${WORK}/rigid_bd_pse_serial.npy" 1e-6)
+agree(rigid_bd_pse "${WORK}/rigid_bd_pse_beads_mpi.npy" "${WORK}/rigid_bd_pse_beads_serial.npy" 1e-6)
 
 # Across ranks rigid-bd refuses bead pair potentials and the methods that do not run there, and
 # fails every rank alike on bad input: exit status 2, one error line, no output.
 if(NP GREATER 1)
   expect_one_error("rigid-bd --pair" "--pair wca \\(bead pair potentials between bodies\\) does not run across ${NP}"
                    "${WORK}/never.npy" "${RPYFMM}" ${rigid_bd_common} --steps 1 --pair wca --out "${WORK}/never.npy")
-  expect_one_error("rigid-bd --method pse" "rigid-bd: across ${NP} MPI ranks runs --method direct or fmm"
+  expect_one_error("rigid-bd --method pse --wave-precision single"
+                   "rigid-bd: across ${NP} MPI ranks runs --method direct or fmm without --box, or --method pse with --box"
                    "${WORK}/never.npy" "${RPYFMM}" ${rigid_bd_common} --steps 1 --method pse --box 40
-                   --out "${WORK}/never.npy")
+                   --wave-precision single --out "${WORK}/never.npy")
   expect_one_error("rigid-bd --rfd-delta" "rfd_delta" "${WORK}/never.npy" "${RPYFMM}" ${rigid_bd_common} --steps 1
                    --rfd-delta 0.5 --out "${WORK}/never.npy")
   expect_one_error("rigid-bd --restart" "--restart: expected a trajectory of shape" "${WORK}/never.npy" "${RPYFMM}"
