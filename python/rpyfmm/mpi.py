@@ -22,13 +22,14 @@ initializes MPI. docs/mpi.md, "Python (mpi4py)", lists what is supported.
   ``apply_with_noise``, ``mobility_matrix`` with this rank's bodies and beads.
 * :class:`RigidBodyDynamics` ``(beads, shape, radius, body_offsets, positions, orientations=None, *,
   dt, kT, seed, ..., forces=None)``: :class:`rpyfmm.RigidBodyDynamics` with whole bodies per rank
-  (``beads`` a :class:`DistributedDirectRpy` or :class:`DistributedFmmRpy`, kept alive; no pair
-  potential): ``step`` / ``run``, this rank's ``positions``, ``orientations``, ``bead_positions``,
+  (``beads`` a :class:`DistributedDirectRpy`, :class:`DistributedFmmRpy` or
+  :class:`DistributedPseRpy`, kept alive; no pair potential): ``step`` / ``run``, this rank's ``positions``, ``orientations``, ``bead_positions``,
   ``lever_arms`` (copies), ``last_report``, ``totals``; ``forces`` is called on every rank with its
   own bodies' state, and an exception in it raises :class:`rpyfmm.InvalidInputError` on every rank.
   With :class:`DistributedDirectRpy` and ``preconditioner="none"`` the trajectory is
   :class:`rpyfmm.RigidBodyDynamics`'s with :class:`rpyfmm.DirectRpy` to round-off (bit for bit on
-  one rank).
+  one rank); with :class:`DistributedPseRpy` (its periodic box, nothing wrapped, its split
+  sampler) that with :class:`rpyfmm.PseRpy` (``wave_precision="double"``) to round-off.
 * Statistics of this rank (copies; reading them is not collective): ``inner_products`` of the last
   sampler call and ``counts`` on :class:`DistributedDirectRpy` and :class:`DistributedFmmRpy`,
   ``communication`` (dicts of the C++ classes' ``communication()``) on those and

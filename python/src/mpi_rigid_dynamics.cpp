@@ -4,8 +4,8 @@
 // (rigid_dynamics.cpp) with each rank's share of the bodies: its body-frame beads body after body,
 // its body offsets from 0, its reference points and orientations.
 //
-// Conventions of mpi_rigid.cpp: the bead operator (a bound DistributedDirectRpy or DistributedFmmRpy,
-// the two the C++ class takes) is kept alive by the Python object and its lock is taken with this
+// Conventions of mpi_rigid.cpp: the bead operator (a bound DistributedDirectRpy, DistributedFmmRpy or
+// DistributedPseRpy, the three the C++ class takes) is kept alive by the Python object and its lock is taken with this
 // object's; the arguments are checked and converted on each rank and the ranks agree on the outcome
 // before the collective C++ constructor (mpi_common.hpp `agreed`), so that a bad argument on one
 // rank raises on all. The force function runs under the GIL inside the C++ step's collective
@@ -30,6 +30,7 @@ namespace {
 
 using Direct = WithComm<mpi::DistributedDirectRpy>;
 using Fmm = WithComm<mpi::DistributedFmmRpy>;
+using Pse = WithComm<mpi::DistributedPseRpy>;
 using mpi::DistributedRigidBodyDynamics;
 
 constexpr const char* kWhere = "rpyfmm.mpi.RigidBodyDynamics";
@@ -38,7 +39,7 @@ constexpr const char* kWhere = "rpyfmm.mpi.RigidBodyDynamics";
 /// drives (kept alive by the Python object; its lock is taken with this object's).
 struct BoundRigidDynamics {
   nb::object forces;  ///< None or forces(time, positions (m,3), orientations (m,4), beads (n,3)) -> (m,6)
-  std::variant<Direct*, Fmm*> beads;
+  std::variant<Direct*, Fmm*, Pse*> beads;
   std::unique_ptr<DistributedRigidBodyDynamics> sim;
 };
 
@@ -182,7 +183,9 @@ void add_init(DynamicsClass& cls) {
       nb::arg("first_step") = 0, nb::arg("drift") = "rfd", nb::arg("rfd_delta") = 1e-3, nb::arg("tolerance") = 1e-6,
       nb::arg("max_iterations") = 500, nb::arg("sqrt_tolerance") = 1e-3, nb::arg("preconditioner") = "auto",
       nb::arg("max_displacement") = 1.0, nb::arg("forces") = nb::none(), nb::keep_alive<1, 2>(),
-      "Collective. beads: a DistributedDirectRpy or DistributedFmmRpy (kept alive); this rank's bodies as\n"
+      "Collective. beads: a DistributedDirectRpy, DistributedFmmRpy or DistributedPseRpy (kept alive; in\n"
+      "its periodic box nothing is wrapped, lever arms are minimum images, the noise is its split sampler\n"
+      "and preconditioner='block' is refused); this rank's bodies as\n"
       "rpyfmm.RigidBodyDynamics takes all of them: shape (n, 3) body-frame beads, body after body (n may\n"
       "be 0); radius: a number or (n,) radii; body_offsets: m + 1 increasing indices (first 0, last n;\n"
       "[0] on a rank without bodies); positions (m, 3); orientations (m, 4) (w, x, y, z) or None\n"
@@ -290,9 +293,11 @@ void bind_mpi_rigid_dynamics(nb::module_& m) {
       "Brownian dynamics of rigid bodies made of beads, whole bodies per rank: rpyfmm.RigidBodyDynamics's\n"
       "step with the solves across the ranks (docs/mpi.md). With DistributedDirectRpy and\n"
       "preconditioner='none' its trajectory differs from rpyfmm.RigidBodyDynamics's with DirectRpy only\n"
-      "by the order of GMRES's inner-product sums (bit for bit on one rank).");
+      "by the order of GMRES's inner-product sums (bit for bit on one rank); with DistributedPseRpy it is\n"
+      "rpyfmm.RigidBodyDynamics's with PseRpy (double wave grids) to round-off.");
   add_init<mpi::DistributedDirectRpy>(cls);
   add_init<mpi::DistributedFmmRpy>(cls);
+  add_init<mpi::DistributedPseRpy>(cls);
   add_steps(cls);
   add_local_state(cls);
   add_shared_state(cls);
