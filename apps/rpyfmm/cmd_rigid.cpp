@@ -51,7 +51,7 @@ struct RigidArgs {
 /// --box, or --method pse with --box and wave grids auto or double); otherwise it runs on one rank
 /// only and more ranks are refused. Every rank parses the same options, so every rank refuses alike.
 bool across_ranks(const RigidArgs& args) {
-  return bodies_across_ranks(args.mobility, mpi_size(), "rigid", /*periodic_pse=*/true);
+  return bodies_across_ranks(args.mobility, mpi_size(), "rigid");
 }
 
 void run_rigid(const RigidArgs& args) {

@@ -189,7 +189,7 @@ void report_rigid_bd(const RigidBdArgs& args, const bd::RigidBodyDynamics& sim, 
 /// with --box and wave grids auto or double, on the CPU, without --pair); otherwise more than one
 /// rank is refused. Every rank parses the same options, so every rank refuses alike.
 bool across_ranks(const RigidBdArgs& args) {
-  const bool method = bodies_across_ranks(args.mobility, mpi_size(), "rigid-bd", /*periodic_pse=*/true);
+  const bool method = bodies_across_ranks(args.mobility, mpi_size(), "rigid-bd");
   require(args.pair == "none" || mpi_size() == 1, ErrorCode::not_supported, "rigid-bd",
           "--pair " + args.pair + " (bead pair potentials between bodies) does not run across " +
               std::to_string(mpi_size()) + " MPI ranks (docs/mpi.md); run it without mpirun");

@@ -31,15 +31,15 @@ void add_mobility_options(CLI::App& cmd, MobilityChoice& choice) {
       ->capture_default_str();
 }
 
-bool bodies_across_ranks(const MobilityChoice& choice, int ranks, const std::string& command, bool periodic_pse) {
+bool bodies_across_ranks(const MobilityChoice& choice, int ranks, const std::string& command) {
   const bool free_space = (choice.method == "direct" || choice.method == "fmm") && choice.box.empty();
-  const bool pse = periodic_pse && choice.method == "pse" && !choice.box.empty() && choice.wave_precision != "single";
+  const bool pse = choice.method == "pse" && !choice.box.empty() && choice.wave_precision != "single";
   const bool supported = (free_space || pse) && choice.device == "cpu";
   require(supported || ranks == 1, ErrorCode::not_supported, command,
-          "across " + std::to_string(ranks) + " MPI ranks runs --method direct or fmm without --box" +
-              (periodic_pse ? ", or --method pse with --box (double-precision wave grids)," : ",") +
-              " on the CPU (docs/mpi.md), not --method " + choice.method + (choice.box.empty() ? "" : " with --box") +
-              "; run other methods without mpirun");
+          "across " + std::to_string(ranks) +
+              " MPI ranks runs --method direct or fmm without --box, or --method pse with --box "
+              "(double-precision wave grids), on the CPU (docs/mpi.md), not --method " +
+              choice.method + (choice.box.empty() ? "" : " with --box") + "; run other methods without mpirun");
   if (supported) {  // as make_operator checks them
     ranges::require_in(ranges::kViscosity, choice.viscosity, "--viscosity", "viscosity");
     ranges::require_in(ranges::kMobilityTolerance, choice.tolerance, "--tolerance", "tolerance");

@@ -29,11 +29,10 @@ struct MobilityChoice {
 /// Adds --viscosity, --method, --tolerance (former spelling --eps), --box, --wave-precision and --device to `cmd`.
 void add_mobility_options(CLI::App& cmd, MobilityChoice& choice);
 /// Whether the bodies of `command` (rigid, rigid-bd) run across `ranks` MPI ranks with this choice:
-/// --method direct or fmm without --box, or with `periodic_pse` --method pse with --box and wave
+/// --method direct or fmm without --box, or --method pse with --box and wave
 /// grids auto or double, on the CPU, whose viscosity and tolerance it checks as make_operator does.
 /// Throws rpyfmm::Error (not_supported) naming `command` for another choice on more than one rank.
-bool bodies_across_ranks(const MobilityChoice& choice, int ranks, const std::string& command,
-                         bool periodic_pse = false);
+bool bodies_across_ranks(const MobilityChoice& choice, int ranks, const std::string& command);
 /// The operator for n particles (validates the choice; rpyfmm::Error naming the option).
 std::unique_ptr<rpy::MobilityOperator> make_operator(const MobilityChoice& choice, std::size_t n);
 /// --box as a geometry: open space when empty, else the periodic box of L (a cube) or Lx Ly Lz
