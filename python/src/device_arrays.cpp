@@ -30,6 +30,13 @@ std::vector<std::size_t> shape_of(const View& v) {
   return shape;
 }
 
+/// True for NumPy arrays (host memory), by one type check: the products' fast path.
+bool is_numpy_array(nb::handle obj) {
+  // numpy.ndarray, looked up once with the GIL held and kept for the module's lifetime.
+  static PyObject* const ndarray = nb::object(nb::module_::import_("numpy").attr("ndarray")).release().ptr();
+  return PyObject_TypeCheck(obj.ptr(), reinterpret_cast<PyTypeObject*>(ndarray)) != 0;
+}
+
 /// The module name of obj's type ("torch", "cupy", "numpy", ...), its first component.
 std::string framework_of(nb::handle obj) {
   nb::handle type(reinterpret_cast<PyObject*>(Py_TYPE(obj.ptr())));
@@ -84,8 +91,9 @@ nb::object wrap_device(double* data, const std::vector<std::size_t>& shape, cons
   return make(nb::no_framework{});
 }
 
-/// The device of a DLPack capable object, read before any import (host arrays keep the fast path).
-DeviceIn read_device_array(nb::handle obj, const std::string& where, const std::string& name) {
+}  // namespace
+
+DeviceIn device_input(nb::handle obj, const std::string& where, const std::string& name) {
   const std::optional<DlpackDevice> device = device_of(obj);
   if (!device)
     fail(ErrorCode::invalid_input, where,
@@ -116,10 +124,8 @@ DeviceIn read_device_array(nb::handle obj, const std::string& where, const std::
 #endif
 }
 
-}  // namespace
-
 std::optional<DlpackDevice> device_of(nb::handle obj) {
-  if (obj.is_none() || !nb::hasattr(obj, "__dlpack_device__")) return std::nullopt;
+  if (obj.is_none() || is_numpy_array(obj) || !nb::hasattr(obj, "__dlpack_device__")) return std::nullopt;
   DlpackDevice device;
   try {
     const nb::tuple d = nb::cast<nb::tuple>(obj.attr("__dlpack_device__")());
@@ -153,10 +159,6 @@ std::string device_array_refusal(const std::string& name, const DlpackDevice& de
          " device array, but this call takes host arrays: copy it to the host first (cupy.asnumpy(x), "
          "x.cpu().numpy(), rpyfmm.cuda.to_host(x)); device arrays are read in place by the CUDA PSE operator "
          "(rpyfmm.PseRpyCuda, make_mobility(..., device='cuda'))";
-}
-
-DeviceIn device_input(nb::handle obj, const std::string& where, const std::string& name) {
-  return read_device_array(obj, where, name);
 }
 
 DeviceOut device_output(nb::handle out, const std::vector<std::size_t>& shape, const std::string& where,

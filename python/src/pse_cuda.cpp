@@ -4,7 +4,7 @@
 // Host arrays take the operator's host entry points (transfers included), as every operator's.
 // Device arrays take its *_device entry points, read and written in place on the current device:
 // the same operations on the same vectors, so the same numbers as the host path for the same
-// inputs (docs/theory/pse.md; tests/python/test_device_arrays.py checks it on a device). The
+// inputs (docs/python.md, "Device arrays"; docs/theory/pse.md). The
 // device entry points do not check their inputs; the bindings check them as the host ones are
 // checked (shapes, sizes, NaN/Inf by one pass on the device) before the operator runs.
 #include <nanobind/stl/map.h>
@@ -183,7 +183,7 @@ void bind_pse_cuda(nb::module_& m) {
   nb::class_<PseRpyCuda, rpy::MobilityOperator>(
       m, "PseRpyCuda",
       "Periodic RPY mobility by Positively Split Ewald on a CUDA GPU (the algorithm and results of PseRpy,\n"
-      "docs/theory/pse.md). apply, set_positions, sample and apply_with_noise take host arrays (NumPy;\n"
+      "docs/python.md, \"Device arrays\"). apply, set_positions, sample and apply_with_noise take host arrays (NumPy;\n"
       "copied to and from the device) or CUDA device arrays (CuPy, PyTorch, rpyfmm.cuda.to_device; read and\n"
       "written in place through DLPack, results in the input's framework). NotSupportedError in a build\n"
       "without CUDA or without a usable device (cuda_device_available()).")
