@@ -153,24 +153,6 @@ struct Prepared {
   StageTimes stages, communication;
 };
 
-// The operators' time in MPI calls in set_positions and in the last apply (for DistributedFmmRpy,
-// the exchanges of its Laplace FMM and of its overlap correction).
-template <class Operator>
-double setup_communication(const Operator& op) {
-  return op.communication().set_positions_seconds;
-}
-template <class Operator>
-double apply_communication(const Operator& op) {
-  return op.communication().apply_seconds;
-}
-// DistributedPseRpy does not time its exchanges apart.
-double setup_communication(const mpi::DistributedPseRpy&) {
-  return 0.0;
-}
-double apply_communication(const mpi::DistributedPseRpy&) {
-  return 0.0;
-}
-
 // What --json says of the radii: equal_radii for the free-space operators (nothing for PSE, whose
 // serial command does not report it).
 void add_radii(JsonLine& line, const mpi::DistributedDirectRpy& op) {
@@ -214,7 +196,7 @@ Prepared<Operator> prepare(const Inputs& files, const mpi::Communicator& comm, M
     p.op->set_positions(p.in.x, p.in.radii);
   }
   p.stages["setup"] = watch.seconds();
-  p.communication["setup"] = setup_communication(*p.op);
+  p.communication["setup"] = p.op->communication().set_positions_seconds;
   return p;
 }
 
@@ -289,7 +271,7 @@ void apply_and_write(Prepared<Operator>& p, const RanksMobilityArgs& args, const
   std::vector<double> u(in.x.size()), w(rotation ? in.x.size() : 0);
   product(*p.op, rotation, in, u, w);
   p.stages["apply"] = watch.seconds();
-  p.communication["apply"] = apply_communication(*p.op);
+  p.communication["apply"] = p.op->communication().apply_seconds;
 
   p.stages["write"] = gather_and_write(u, rotation ? &w : nullptr, in, args.out, "mobility", comm);
 
@@ -318,13 +300,6 @@ void run_mobility_across_ranks(const RanksMobilityArgs& args) {
 }
 
 namespace {
-
-// The MPI time of every product of a sampler (DistributedDirectRpy and DistributedFmmRpy keep it).
-template <class Operator>
-void add_products_communication(const Operator& op, StageTimes& communication) {
-  communication["products"] = op.communication().applies_seconds;
-}
-void add_products_communication(const mpi::DistributedPseRpy&, StageTimes&) {}
 
 // M^{1/2} z across the ranks: the Lanczos sampler on the free-space operators, PSE's split sampler.
 template <class Operator>
@@ -374,7 +349,7 @@ void sample_and_write(Prepared<Operator>& p, const RanksSampleArgs& args, const 
                                      ? sample_across(*p.op, in.rows, in.torques, w, w_r, args.options, &inner_products)
                                      : sample_across(*p.op, in.rows, w, args.options, &inner_products);
   p.stages["sample"] = watch.seconds();
-  add_products_communication(*p.op, p.communication);
+  p.communication["products"] = p.op->communication().applies_seconds;  // every product of the sampler
   p.communication["inner_products"] = inner_products;
 
   p.stages["write"] = gather_and_write(w, args.angular ? &w_r : nullptr, in, args.out, "sample", comm);

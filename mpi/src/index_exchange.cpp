@@ -1,9 +1,32 @@
 // rpyfmm — particle values sent by fixed lists and back (index_exchange.hpp).
 #include "index_exchange.hpp"
 
+#include <mpi.h>
+
 #include "alltoallv.hpp"
 
 namespace rpyfmm::mpi::detail {
+namespace {
+
+// Runs the exchange `body`, adding its wall time to `traffic`.
+template <class Body>
+std::vector<double> timed_exchange(IndexExchange::Traffic& traffic, Body&& body) {
+  const double start = MPI_Wtime();
+  std::vector<double> received = body();
+  traffic.seconds += MPI_Wtime() - start;
+  return received;
+}
+
+// The bytes of `width` values per particle from every rank but `self`.
+template <class Count>
+std::uint64_t bytes_from_others(std::size_t ranks, int self, std::size_t width, Count&& particles_from) {
+  std::uint64_t bytes = 0;
+  for (std::size_t r = 0; r < ranks; ++r)
+    if (static_cast<int>(r) != self) bytes += width * particles_from(r) * sizeof(double);
+  return bytes;
+}
+
+}  // namespace
 
 std::vector<double> IndexExchange::forward(const Communicator& comm, const double* values, std::size_t width,
                                            const char* where, const char* what) {
@@ -13,14 +36,18 @@ std::vector<double> IndexExchange::forward(const Communicator& comm, const doubl
     for (const std::uint32_t i : send[r])
       packed[r].insert(packed[r].end(), values + width * i, values + width * (i + 1));
   }
+  std::vector<double> received;
   if (recv_counts.empty()) {
-    std::vector<double> received = alltoallv(comm, packed, where, what, &recv_counts);
+    received = timed_exchange(traffic, [&] { return alltoallv(comm, packed, where, what, &recv_counts); });
     for (std::size_t& count : recv_counts) count /= width;
-    return received;
+  } else {
+    std::vector<std::size_t> counts(recv_counts);
+    for (std::size_t& count : counts) count *= width;
+    received = timed_exchange(traffic, [&] { return alltoallv(comm, packed, counts, where, what); });
   }
-  std::vector<std::size_t> counts(recv_counts);
-  for (std::size_t& count : counts) count *= width;
-  return alltoallv(comm, packed, counts, where, what);
+  traffic.bytes_received +=
+      bytes_from_others(recv_counts.size(), self, width, [&](std::size_t r) { return recv_counts[r]; });
+  return received;
 }
 
 std::vector<double> IndexExchange::backward(const Communicator& comm, const std::vector<double>& values,
@@ -34,7 +61,9 @@ std::vector<double> IndexExchange::backward(const Communicator& comm, const std:
   }
   std::vector<std::size_t> counts(send.size());
   for (std::size_t r = 0; r < send.size(); ++r) counts[r] = width * send[r].size();
-  return alltoallv(comm, packed, counts, where, what);
+  std::vector<double> received = timed_exchange(traffic, [&] { return alltoallv(comm, packed, counts, where, what); });
+  traffic.bytes_received += bytes_from_others(send.size(), self, width, [&](std::size_t r) { return send[r].size(); });
+  return received;
 }
 
 std::size_t IndexExchange::sent() const {

@@ -18,6 +18,14 @@ struct IndexExchange {
   std::vector<std::size_t> recv_counts;
   /// This rank (its own list, if any, passes through the exchange too but is not counted below).
   int self = -1;
+  /// The wall time of every exchange's MPI call (forward and backward) and the bytes received from
+  /// other ranks in them, summed since the plan was made (its owners report differences:
+  /// DistributedPseRpy::communication()).
+  struct Traffic {
+    double seconds = 0.0;
+    std::uint64_t bytes_received = 0;
+  };
+  mutable Traffic traffic;
 
   /// Collective: `width` values per listed particle (values[width i + c]) to the ranks of the lists;
   /// returns the received values, rank by rank in rank order, each rank's in its list order. With

@@ -90,9 +90,26 @@ struct DistributedPseRpy::Impl {
   std::vector<std::size_t> rank_counts;  // every rank's local N, in rank order
   std::size_t memory = 0;                // this rank's checked memory (pse_memory.hpp)
   PseExchangeCounts counts;
+  // The exchanges' statistics (communication()) and the exchanges' traffic when the last product began.
+  mutable CommunicationStats stats;
+  mutable detail::IndexExchange::Traffic traffic_before;
 
   Impl(MPI_Comm c, rpy::Geometry g, double eta, const rpy::pse::PseOptions& o)
       : comm(c), geometry(g), viscosity(eta), options(o) {}
+
+  // The slabs' and the halo's exchanges together since set_positions.
+  [[nodiscard]] detail::IndexExchange::Traffic traffic() const;
+  // set_positions' exchanges as communication() reports them, the products' counted from here.
+  void record_set_positions() const;
+  // Records the exchanges of one product (the public call that holds it) when it ends, also by an
+  // exception.
+  struct ProductRecord {
+    const Impl& im;
+    explicit ProductRecord(const Impl& owner) : im(owner) { im.traffic_before = im.traffic(); }
+    ~ProductRecord();
+    ProductRecord(const ProductRecord&) = delete;
+    ProductRecord& operator=(const ProductRecord&) = delete;
+  };
 
   // The rank's share in the global order (local_n, offset; one MPI_Allgather), returning N; throws
   // alike on every rank when no rank has a particle.
@@ -145,6 +162,27 @@ struct DistributedPseRpy::Impl {
                                       std::uint64_t step, const std::span<const std::uint64_t>* indices,
                                       std::span<double> velocities) const;
 };
+
+detail::IndexExchange::Traffic DistributedPseRpy::Impl::traffic() const {
+  detail::IndexExchange::Traffic sum;
+  for (const detail::IndexExchange::Traffic t : {wave ? wave->traffic() : sum, real ? real->traffic() : sum}) {
+    sum.seconds += t.seconds;
+    sum.bytes_received += t.bytes_received;
+  }
+  return sum;
+}
+
+void DistributedPseRpy::Impl::record_set_positions() const {
+  traffic_before = traffic();
+  stats = CommunicationStats{.set_positions_seconds = traffic_before.seconds};
+}
+
+DistributedPseRpy::Impl::ProductRecord::~ProductRecord() {
+  const detail::IndexExchange::Traffic now = im.traffic();
+  im.stats.apply_seconds = now.seconds - im.traffic_before.seconds;
+  im.stats.apply_bytes_received = now.bytes_received - im.traffic_before.bytes_received;
+  im.stats.applies_seconds += im.stats.apply_seconds;
+}
 
 void DistributedPseRpy::Impl::check_indices(std::span<const std::uint64_t> indices, const char* where) const {
   require(indices.size() == local_n, ErrorCode::invalid_input, where,
@@ -382,6 +420,10 @@ std::size_t DistributedPseRpy::memory_bytes() const {
           "positions not set (call set_positions first)");
   return impl_->memory;
 }
+const CommunicationStats& DistributedPseRpy::communication() const {
+  return impl_->stats;
+}
+
 const PseExchangeCounts& DistributedPseRpy::exchange_counts() const {
   return impl_->counts;
 }
@@ -418,6 +460,7 @@ void DistributedPseRpy::set_positions(std::span<const double> local_positions, s
     throw;
   }
   im.counts = {im.wave->sent(), im.wave->received(), im.real->halo_size()};
+  im.record_set_positions();
 }
 
 void DistributedPseRpy::apply(std::span<const double> local_forces, std::span<const double> local_torques,
@@ -425,6 +468,7 @@ void DistributedPseRpy::apply(std::span<const double> local_forces, std::span<co
   const Impl& im = *impl_;
   require(im.global_n > 0, ErrorCode::invalid_input, kApply, "positions not set (call set_positions first)");
   const std::size_t n3 = 3 * im.local_n;
+  const Impl::ProductRecord record(im);
   im.comm.run([&] {
     require_size(local_forces, n3, kApply, "local forces");
     require_size(local_torques, n3, kApply, "local torques");
@@ -460,6 +504,7 @@ void DistributedPseRpy::apply(std::span<const double> local_forces, std::span<co
 void DistributedPseRpy::apply(std::span<const double> local_forces, std::span<double> local_velocities) const {
   const Impl& im = *impl_;
   im.check_arrays(local_forces, local_velocities, kApply);
+  const Impl::ProductRecord record(im);
   // MobilityOperator::apply_block's load scale 2^k (exact), from the largest force of all ranks.
   double largest = 0.0, global_largest = 0.0;
   for (const double f : local_forces) largest = std::max(largest, std::abs(f));
@@ -478,6 +523,7 @@ rpy::SqrtReport DistributedPseRpy::sample(std::uint64_t seed, std::uint64_t step
   constexpr const char* where = "DistributedPseRpy::sample";
   const Impl& im = *impl_;
   require(im.global_n > 0, ErrorCode::invalid_input, where, "positions not set (call set_positions first)");
+  const Impl::ProductRecord record(im);
   im.comm.run([&] {
     require_size(std::span<const double>(local_w.data(), local_w.size()), 3 * im.local_n, where, "local output");
   });
@@ -493,6 +539,7 @@ rpy::SqrtReport DistributedPseRpy::apply_sqrt(std::span<const double> local_z, s
   constexpr const char* where = "DistributedPseRpy::apply_sqrt";
   const Impl& im = *impl_;
   require(im.global_n > 0, ErrorCode::invalid_input, where, "positions not set (call set_positions first)");
+  const Impl::ProductRecord record(im);
   im.comm.run([&] {
     check_split_options(options, where);
     require_size(local_z, 3 * im.local_n, where, "local noise");
@@ -550,6 +597,7 @@ rpy::SqrtReport DistributedPseRpy::Impl::grand_sample(std::span<const double> z_
                                                       const rpy::SqrtOptions& sampler) const {
   constexpr const char* where = "DistributedPseRpy::apply_sqrt_rotation";
   check_grand_noise(z_t, z_r, w_t, w_r, sampler, where);
+  const ProductRecord record(*this);
   if (indices != nullptr) comm.run([&] { check_indices(*indices, where); });
   const std::uint64_t hash = indices == nullptr ? noise_hash({z_t, z_r}) : noise_hash({z_t, z_r}, *indices, where);
   const rpy::SqrtReport report = grand_split_sample(z_t, z_r, hash, w_t, w_r);
@@ -597,6 +645,7 @@ rpy::SqrtReport DistributedPseRpy::Impl::fused(std::span<const double> forces, d
                                                std::span<double> velocities) const {
   constexpr const char* where = "DistributedPseRpy::apply_with_noise";
   check_arrays(forces, velocities, where);
+  const ProductRecord record(*this);
   comm.run([&] {
     require(std::isfinite(noise_scale) && noise_scale >= 0.0, ErrorCode::invalid_argument, where,
             "noise_scale must be finite and >= 0, got " + format_number(noise_scale));

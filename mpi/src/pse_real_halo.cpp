@@ -30,8 +30,10 @@ void RealSpaceHalo::set_positions(const Communicator& comm, const rpy::Geometry&
   n_ = x.size() / 3;
   const OwnedCells cells = owned_cells(x, geometry);
   const std::vector<std::vector<Box>> regions = gather_regions(comm, region_of(cells));
-  exchange_ = IndexExchange{
-      .send = select_halo(comm, cells, regions, geometry, r_cut_), .recv_counts = {}, .self = comm.rank()};
+  exchange_ = IndexExchange{.send = select_halo(comm, cells, regions, geometry, r_cut_),
+                            .recv_counts = {},
+                            .self = comm.rank(),
+                            .traffic = {}};
   x_.assign(x.begin(), x.end());
   const std::vector<double> halo = exchange_.forward(comm, x.data(), 3, kWhere, "the real-space halo's positions");
   x_.insert(x_.end(), halo.begin(), halo.end());

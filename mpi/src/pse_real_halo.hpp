@@ -37,6 +37,8 @@ class RealSpaceHalo {
                       double* angular) const;
 
   [[nodiscard]] std::size_t halo_size() const { return exchange_.received(); }
+  /// The halo's exchanges since set_positions (its positions', then every product's loads).
+  [[nodiscard]] IndexExchange::Traffic traffic() const { return exchange_.traffic; }
 
  private:
   rpy::pse::detail::RealSpaceSum sum_;

@@ -287,7 +287,7 @@ SlabWaveSpace::~SlabWaveSpace() = default;
 
 void SlabWaveSpace::set_positions(std::span<const double> x) {
   Slab& s = *slab_;
-  s.exchange = IndexExchange{.send = s.destinations(x), .recv_counts = {}, .self = s.comm.rank()};
+  s.exchange = IndexExchange{.send = s.destinations(x), .recv_counts = {}, .self = s.comm.rank(), .traffic = {}};
   s.windows(s.exchange.forward(s.comm, x.data(), 3, kWhere, "the positions sent to the grid's slabs"));
 }
 
@@ -432,6 +432,9 @@ std::size_t SlabWaveSpace::sent() const {
 }
 std::size_t SlabWaveSpace::received() const {
   return slab_->exchange.received();
+}
+IndexExchange::Traffic SlabWaveSpace::traffic() const {
+  return slab_->exchange.traffic;
 }
 
 }  // namespace rpyfmm::mpi::detail

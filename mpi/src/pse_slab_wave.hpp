@@ -10,6 +10,7 @@
 #include <span>
 #include <vector>
 
+#include "index_exchange.hpp"
 #include "pse/wave_space.hpp"
 #include "rpyfmm/mpi/communicator.hpp"
 #include "rpyfmm/rpy/pse/pse_parameters.hpp"
@@ -56,6 +57,9 @@ class SlabWaveSpace {
   /// Particles (with multiplicity) this rank sent to other slabs and received from other ranks.
   [[nodiscard]] std::size_t sent() const;
   [[nodiscard]] std::size_t received() const;
+  /// The slabs' particle exchanges since set_positions (the positions, then every product's loads
+  /// and velocities); not FFTW-MPI's transposes inside the transforms.
+  [[nodiscard]] IndexExchange::Traffic traffic() const;
 
  private:
   struct Slab;

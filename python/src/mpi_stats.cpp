@@ -26,7 +26,7 @@ nb::dict stage_dict(const StageTimes& t) {
   return d;
 }
 
-/// The fields the direct and FMM operators' statistics share (mpi::CommunicationStats and
+/// The fields the RPY operators' statistics share (mpi::CommunicationStats and
 /// mpi::FmmRpyCommunication).
 template <class Stats>
 nb::dict product_dict(const Stats& s) {
@@ -154,7 +154,14 @@ void add_statistics(nb::class_<Pse>& cls) {
                    locked_read(
                        "memory_bytes", +[](const Pse& s) { return s.op.memory_bytes(); }),
                    "This rank's memory as set_positions checked it against max_memory_bytes (raises before\n"
-                   "set_positions; docs/mpi.md, \"Distributed PSE\").");
+                   "set_positions; docs/mpi.md, \"Distributed PSE\").")
+      .def_prop_ro("communication",
+                   locked_read(
+                       "communication", +[](const Pse& s) { return communication_dict(s.op.communication()); }),
+                   "This rank's time in the particle exchanges (slabs and halo) of the last set_positions and\n"
+                   "product (apply, sample, apply_sqrt, apply_with_noise), the bytes received from other ranks\n"
+                   "in that product, and applies_seconds, summed over every product since set_positions; not\n"
+                   "FFTW-MPI's transposes inside the transforms. Not collective.");
 }
 
 void add_statistics(nb::class_<Laplace>& cls) {

@@ -209,6 +209,24 @@ def test_pse_exchange_counts() -> None:
     assert memory > 0
 
 
+def test_pse_communication() -> None:
+    x = suspension(120, seed=32)
+    part = share(len(x))
+    op = rpyfmm.mpi.DistributedPseRpy(COMM, box=20.0, tolerance=1e-3)
+    op.set_positions(x[part], 1.0)
+    fresh, c = op.communication, op.exchange_counts
+    _ = op.apply(np.ones_like(x[part]))
+    after = op.communication
+
+    assert set(fresh) == {"set_positions_seconds", "apply_seconds", "apply_bytes_received", "applies_seconds"}
+    assert fresh["applies_seconds"] == 0.0 and fresh["apply_bytes_received"] == 0
+    assert sane_seconds(fresh["set_positions_seconds"]) and sane_seconds(after["apply_seconds"])
+    # Three doubles per particle each exchange carries from another rank: forces to the slabs and
+    # the halo, velocities back from the slabs.
+    assert after["apply_bytes_received"] == DOUBLE * 3 * (c["wave_received"] + c["wave_sent"] + c["halo_received"])
+    assert after["applies_seconds"] == after["apply_seconds"]
+
+
 def test_laplace_measured_weights() -> None:
     rng = np.random.default_rng(12)
     # Half the sources in a small cluster: leaves of very different cost.

@@ -35,19 +35,10 @@
 #include <string>
 #include <vector>
 
+#include "rpyfmm/mpi/communication_stats.hpp"
 #include "rpyfmm/mpi/communicator.hpp"
 
 namespace rpyfmm::mpi {
-
-/// This rank's time in MPI calls (waits included) during the last set_positions and apply, and the
-/// bytes of other ranks' source blocks it received in the last apply; applies_seconds sums
-/// apply_seconds over every apply since the last set_positions (a sampler's many products).
-struct CommunicationStats {
-  double set_positions_seconds = 0.0;
-  double apply_seconds = 0.0;
-  std::uint64_t apply_bytes_received = 0;
-  double applies_seconds = 0.0;
-};
 
 class DistributedDirectRpy {
  public:
@@ -69,6 +60,8 @@ class DistributedDirectRpy {
   [[nodiscard]] std::span<const std::size_t> counts() const { return counts_; }
   /// Whether every particle on every rank has the same radius (DirectRpy's equal-radii path).
   [[nodiscard]] bool equal_radii() const { return equal_radii_; }
+  /// This rank's time in MPI calls (waits included) during the last set_positions and apply, and the
+  /// bytes of other ranks' source blocks it received in the last apply (or apply_block).
   [[nodiscard]] const CommunicationStats& communication() const { return stats_; }
   /// This rank's positions (3 local_size()) and radii (local_size()) as passed to set_positions
   /// (the block preconditioner of mpi::sqrt_apply factors their blocks; empty before).

@@ -52,6 +52,7 @@
 #include <string>
 #include <vector>
 
+#include "rpyfmm/mpi/communication_stats.hpp"
 #include "rpyfmm/mpi/communicator.hpp"
 #include "rpyfmm/rpy/geometry.hpp"
 #include "rpyfmm/rpy/pse/pse_parameters.hpp"
@@ -92,6 +93,15 @@ class DistributedPseRpy {
   /// grids are double precision whatever wave_single says (FFTW-MPI's double transforms).
   [[nodiscard]] const rpy::pse::PseParameters& parameters() const;
   [[nodiscard]] const PseExchangeCounts& exchange_counts() const;
+  /// This rank's time in the particle exchanges (MPI_Alltoallv of the slabs' and the halo's lists,
+  /// waits included) of the last set_positions and of the last product, and the bytes it received
+  /// from other ranks in that product. A product is one call of apply, sample, apply_sqrt,
+  /// apply_sqrt_rotation or apply_with_noise (with the samplers' Lanczos products inside it);
+  /// applies_seconds sums them since the last set_positions. Not counted: FFTW-MPI's transposes
+  /// inside the distributed transforms (communication and work in one call), the small collectives
+  /// (the load scale, the Lanczos inner products) and the noise hash's messages (its chain, or its
+  /// entries sent in global order).
+  [[nodiscard]] const CommunicationStats& communication() const;
   /// This rank's memory (bytes) as set_positions checked it against PseOptions::max_memory_bytes:
   /// its slab's three grid components as fftw_mpi_local_size_3d sizes them (with the planes and
   /// padding FFTW asks for) and c(k) of its modes, plus 8 (P_x + P_y + P_z + 8) bytes per particle
