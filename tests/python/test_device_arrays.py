@@ -12,8 +12,9 @@ set_positions); bad device inputs (NaN, shape, dtype, size) raise before the ope
 Simulation's device engine: device_positions() and device_forces() are read-only views of the
 engine's own arrays, no copy, in the particle order given. On the host launcher (no GPU needed)
 they are kDLCPU arrays equal bit for bit to positions and last_forces at every step, two views at
-one step share their memory, and a view keeps the Simulation alive; on the CUDA engine the same
-checks run on kDLCUDA arrays (rpyfmm.cuda.to_host reads them)."""
+one step share their memory, and a view keeps the Simulation alive; the engine takes host
+positions only. On the CUDA engine the same checks run on kDLCUDA arrays (rpyfmm.cuda.to_host
+reads them)."""
 
 from __future__ import annotations
 
@@ -188,6 +189,12 @@ def test_cpu_engine_offers_no_device_views():
         sim.device_positions()
     with pytest.raises(rpyfmm.NotSupportedError, match=r"device_forces: the 'cpu' engine"):
         sim.device_forces()
+
+
+def test_device_engine_takes_host_positions_only():
+    """The engine has no setter: its positions come from the constructor's host array."""
+    with pytest.raises(rpyfmm.InvalidInputError, match=r"positions is a cuda:0 device array, but this call takes host"):
+        rpyfmm.Simulation(FakeDeviceArray(), 1.0, dt=5e-3, mobility="none", device="cuda", device_launcher="host")
 
 
 # ---- on a GPU -------------------------------------------------------------------------------
