@@ -402,11 +402,12 @@ void add_simulation_device_views(SimulationClass& cls) {
           locked_read(
               "Simulation.device_positions",
               +[](const Simulation& s) { return engine_view(s, "Simulation.device_positions", false); }),
-          "The device engine's positions (N, 3) in place, with no copy: a read-only DLPack array on the\n"
-          "GPU (kDLCUDA; cupy.from_dlpack, torch.from_dlpack) or, with device_launcher='host', in host memory\n"
-          "(kDLCPU; numpy.from_dlpack). Particle order as given (the engine does not reorder them). Valid\n"
-          "until the next step, which writes the positions into the engine's other buffer: take a new view\n"
-          "after each step. It keeps the Simulation alive. NotSupportedError on the CPU engine.")
+          "The device engine's positions (N, 3) in place, with no copy: a DLPack array flagged read-only\n"
+          "(DLPack 1.0; not to be written) on the GPU (kDLCUDA; cupy.from_dlpack, torch.from_dlpack) or,\n"
+          "with device_launcher='host', in host memory (kDLCPU; numpy.from_dlpack). Particle order as given\n"
+          "(the engine does not reorder them). Valid until the next step, which writes the positions into\n"
+          "the engine's other buffer: take a new view after each step. It keeps the Simulation alive.\n"
+          "NotSupportedError on the CPU engine.")
       .def("device_forces",
            locked_read(
                "Simulation.device_forces",
