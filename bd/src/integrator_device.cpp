@@ -93,6 +93,10 @@ std::size_t Integrator::neighbour_rebuilds() const {
   return device_ ? device_->rebuilds() : list_.rebuilds();
 }
 
+std::optional<Stepper::StateView> Integrator::engine_state() const {
+  return device_ ? device_->state_view() : std::nullopt;
+}
+
 const NeighbourList& Integrator::neighbour_list() const {
   require(!device_, ErrorCode::not_supported, "Integrator",
           std::string("neighbour_list(): the device engine (") + to_string(options_.engine) +

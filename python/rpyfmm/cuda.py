@@ -3,8 +3,11 @@
 :class:`rpyfmm.PseRpyCuda` reads and writes CUDA device arrays in place through DLPack: CuPy
 arrays, PyTorch CUDA tensors, and the arrays :func:`to_device` returns (which CuPy's and
 PyTorch's ``from_dlpack`` import without a copy). Results of a product on device arrays are
-device arrays in the input's framework. Every other call takes host (NumPy) arrays and refuses
-device arrays with an :class:`rpyfmm.InvalidInputError` that names them.
+device arrays in the input's framework. :class:`rpyfmm.libmobility.PSE` with
+``setParameters(..., device="cuda")`` takes CuPy and PyTorch arrays through it, and the device BD
+engine gives its own arrays as views (``Simulation.device_positions()``, ``device_forces()``).
+Every other call takes host (NumPy) arrays and refuses device arrays with an
+:class:`rpyfmm.InvalidInputError` that names them.
 
 * :func:`to_device` ``(array)``: a float64 copy of a host array on the current device.
 * :func:`to_host` ``(array)``: a NumPy copy of a float64 C-contiguous CUDA array.

@@ -11,7 +11,8 @@ libMobility       periodicity (X, Y, Z)      rpyfmm operator
                                              the FMM crossover, FmmRpy above; or chosen by
                                              ``setParameters(algorithm="direct"|"fmm")``
 ``PSE``           periodic x 3               ``PseRpy`` (box Lx, Ly, Lz; psi -> xi),
-                                             with torques too
+                                             with torques too; ``PseRpyCuda`` with
+                                             ``setParameters(..., device="cuda")``
 ``SelfMobility``  open, open, open           ``FreeDraining`` (1/(6 pi eta a), rotation
                                              1/(8 pi eta a^3))
 ``DPStokes``      --                         refused (NotSupportedError)
@@ -64,9 +65,18 @@ What differs from libMobility:
 * Accuracy: ``tolerance`` is also the requested relative error of the FMM and
   PSE products (clamped to the operators' ranges: FMM [1e-12, 1e-1], PSE
   [1e-8, 0.1)); libMobility's NBody is exact, and so is rpyfmm's DirectRpy.
-* Host NumPy arrays only (libMobility also takes CuPy / PyTorch device arrays); a device array
-  raises :class:`rpyfmm.InvalidInputError` naming it. :class:`rpyfmm.PseRpyCuda` reads CUDA
-  arrays in place (docs/python.md, "Device arrays").
+* Device arrays: ``PSE`` with ``setParameters(..., device="cuda")`` (the operator
+  :class:`rpyfmm.PseRpyCuda`) takes CuPy arrays and PyTorch tensors on the GPU (float64,
+  C-contiguous, the current device) in setPositions, Mdot, sqrtMdotW, LangevinVelocities,
+  hydrodynamicVelocities and divM, read and written in place, and returns arrays of the input's
+  framework (of the positions' where the call has no array argument); host arrays work as
+  before. The first setPositions, and one that changes N, builds the operator's plan from a
+  host copy of the positions; later ones move the particles on the device. Its noise is
+  PseRpyCuda.sample's (PSE's split sampler keyed by (seed, call)) for host and device arrays
+  alike, so both give the same numbers; with includeAngular=True device arrays are taken by
+  Mdot only (the rotational square root has no device entry point). Every other solver takes
+  host arrays only and raises :class:`rpyfmm.InvalidInputError` naming a device array
+  (docs/python.md, "Device arrays").
 * Inputs are checked: wrong sizes, non-finite values, calls out of order and
   unknown periodicity names raise :class:`rpyfmm.InvalidArgumentError` or
   :class:`rpyfmm.InvalidInputError` (both ValueError) naming the problem.
@@ -77,6 +87,7 @@ from __future__ import annotations
 import math
 import numbers
 import secrets
+import sys
 from typing import Any, Dict, Optional, Tuple
 
 import numpy as np
@@ -89,6 +100,8 @@ from ._rpyfmm import (
     MobilityOperator,
     NotSupportedError,
     PseRpy,
+    PseRpyCuda,
+    cuda,
     make_mobility,
     normal_noise,
 )
@@ -110,14 +123,23 @@ def _real(value: object, name: str, where: str, minimum: Optional[float] = None,
     return v
 
 
+def _dlpack_device(value: object) -> Optional[Tuple[int, int]]:
+    """The DLPack device of a device array; None for host arrays (kDLCPU = 1) and non-arrays."""
+    device = getattr(value, "__dlpack_device__", None)
+    if device is None or isinstance(value, np.ndarray):
+        return None
+    d = tuple(device())
+    return None if d[0] == 1 else d
+
+
 def _flat3(value: object, name: str, where: str) -> Tuple[np.ndarray, Tuple[int, ...]]:
     """A real (N, 3) or (3N,) array -> (float64 (N, 3) C-contiguous, original shape)."""
-    device = getattr(value, "__dlpack_device__", None)
-    if device is not None and not isinstance(value, np.ndarray) and device()[0] != 1:
+    device = _dlpack_device(value)
+    if device is not None:
         raise InvalidInputError(
-            f"{where}: {name} is a device array (DLPack device {device()}); rpyfmm.libmobility takes host "
-            "arrays: copy it to the host (cupy.asnumpy(x), x.cpu().numpy()), or use rpyfmm.PseRpyCuda, which "
-            "reads CUDA arrays in place"
+            f"{where}: {name} is a device array (DLPack device {device}); this solver takes host "
+            "arrays: copy it to the host (cupy.asnumpy(x), x.cpu().numpy()), or use PSE with "
+            "setParameters(..., device='cuda') or rpyfmm.PseRpyCuda, which read CUDA arrays in place"
         )
     a = np.asarray(value)
     if a.dtype.kind not in "biuf":
@@ -131,11 +153,24 @@ def _flat3(value: object, name: str, where: str) -> Tuple[np.ndarray, Tuple[int,
     return x, a.shape
 
 
+def _array_module(value: object, name: str, where: str) -> Any:
+    """cupy or torch, the framework of a device argument (its zeros_like and arithmetic make the
+    results of the CUDA solver)."""
+    module = sys.modules.get(type(value).__module__.split(".")[0])
+    if module is None or module.__name__ not in ("cupy", "torch"):
+        raise InvalidInputError(
+            f"{where}: {name} is a device array of type {type(value).__module__}.{type(value).__name__}; "
+            "rpyfmm.libmobility's CUDA solver takes CuPy arrays and PyTorch tensors")
+    return module
+
+
 class _Solver:
     """Common libMobility interface; subclasses build the rpyfmm operator."""
 
     precision = "double"
     _geometry: Tuple[str, str, str] = ("open", "open", "open")
+    # True where the operator reads CUDA device arrays in place (PSE with device="cuda").
+    _device_arrays = False
 
     def __init__(self, periodicityX: str, periodicityY: str, periodicityZ: str) -> None:
         name = type(self).__name__
@@ -155,6 +190,7 @@ class _Solver:
         self._initialized = False
         self._n = 0
         self._shape: Tuple[int, ...] = ()
+        self._like: Any = None  # the device positions of the last setPositions (None: host)
 
     # -- solver-specific hooks ---------------------------------------------------------------
     def _geometry_note(self, given: Tuple[str, str, str]) -> str:
@@ -232,25 +268,30 @@ class _Solver:
         self._seed = int(seed)
         self._calls = 0
         self._n = 0
+        self._like = None
         self._initialized = True
 
     def setPositions(self, positions: npt.ArrayLike) -> None:
         """Positions (N, 3) or (3N,), length units; later results take this shape when no forces are given."""
         where = f"{type(self).__name__}.setPositions"
         self._require_initialized(where)
+        if self._device_arrays and _dlpack_device(positions) is not None:
+            self._set_device_positions(positions, where)
+            return
         x, shape = _flat3(positions, "positions", where)
-        if self._number_particles is not None and len(x) != self._number_particles:
-            raise InvalidInputError(
-                f"{where}: {len(x)} positions, but initialize(numberParticles={self._number_particles})")
+        self._check_number(len(x), where)
         self._op.set_positions(x, self._radius)
         self._n = len(x)
         self._shape = shape
+        self._like = None
 
     def Mdot(self, forces: Optional[npt.ArrayLike] = None,
              torques: Optional[npt.ArrayLike] = None) -> Tuple[np.ndarray, ArrayOrNone]:
         """(U, W) = M (F, T): velocities in the shape of the forces, angular velocities (None without
         includeAngular). At least one of forces and torques; torques need includeAngular=True."""
         where = f"{type(self).__name__}.Mdot"
+        if self._device_call(where, forces=forces, torques=torques):
+            return self._device_apply(forces, torques, where, need_one=True)
         f, t, f_shape, t_shape = self._loads(forces, torques, where, need_one=True)
         u, w = self._apply(f, t)
         return self._results(u, w, f_shape, t_shape)
@@ -261,6 +302,8 @@ class _Solver:
         where = f"{type(self).__name__}.sqrtMdotW"
         self._require_positions(where)
         scale = self._noise_scale(_real(prefactor, "prefactor", where))
+        if self._like is not None:
+            return self._device_sqrt(scale, where)
         u, w = self._sqrt(scale)
         return self._results(u, w, self._shape, self._shape)
 
@@ -278,6 +321,8 @@ class _Solver:
         where = f"{type(self).__name__}.divM"
         self._require_positions(where)
         c = _real(prefactor, "prefactor", where)
+        if self._like is not None:  # div M = 0 (one radius, periodic box), as divergence() gives on the host
+            return self._device_zeros()
         u, w = self._zeros()
         u += c * self._op.divergence()
         return self._results(u, w, self._shape, self._shape)
@@ -302,6 +347,7 @@ class _Solver:
         self._op = None
         self._initialized = False
         self._n = 0
+        self._like = None
 
     def getNumberParticles(self) -> int:
         """N of the last setPositions (0 before)."""
@@ -335,19 +381,27 @@ class _Solver:
                 f"{where} is libMobility's spelling before 0.9 and needs initialize(temperature=...); "
                 f"with initialize(viscosity, hydrodynamicRadius, ...) use {instead}")
 
+    def _check_number(self, n: int, where: str) -> None:
+        if self._number_particles is not None and n != self._number_particles:
+            raise InvalidInputError(f"{where}: {n} positions, but initialize(numberParticles={self._number_particles})")
+
     def _noise_scale(self, prefactor: float) -> float:
         if self._temperature is None:
             return prefactor
         return prefactor * math.sqrt(2.0 * self._temperature)
 
-    def _loads(self, forces: Optional[npt.ArrayLike], torques: Optional[npt.ArrayLike], where: str,
-               need_one: bool) -> Tuple[ArrayOrNone, ArrayOrNone, Tuple[int, ...], Tuple[int, ...]]:
+    def _check_loads(self, forces: Any, torques: Any, where: str, need_one: bool) -> None:
+        """Positions set, forces and/or torques given as the call needs, torques only with includeAngular."""
         self._require_positions(where)
         if need_one and forces is None and torques is None:
             raise InvalidArgumentError(f"{where}: give forces, torques or both")
         if torques is not None and not self._angular:
             raise InvalidArgumentError(
                 f"{where}: torques given but the solver was initialized with includeAngular=False")
+
+    def _loads(self, forces: Optional[npt.ArrayLike], torques: Optional[npt.ArrayLike], where: str,
+               need_one: bool) -> Tuple[ArrayOrNone, ArrayOrNone, Tuple[int, ...], Tuple[int, ...]]:
+        self._check_loads(forces, torques, where, need_one)
         f = t = None
         f_shape = t_shape = self._shape
         if forces is not None:
@@ -366,6 +420,12 @@ class _Solver:
     def _velocities(self, forces: Optional[npt.ArrayLike], torques: Optional[npt.ArrayLike], where: str,
                     noise_scale: float) -> Tuple[np.ndarray, ArrayOrNone]:
         """M (F, T) (zero without forces and torques) + noise_scale * M^{1/2} xi (none for a zero scale)."""
+        given = forces is not None or torques is not None
+        if self._device_call(where, forces=forces, torques=torques) or (not given and self._like is not None):
+            u, w = self._device_apply(forces, torques, where, need_one=False) if given else self._device_zeros()
+            if noise_scale != 0.0:
+                u += self._device_sqrt(noise_scale, where)[0]
+            return u, w
         f, t, f_shape, t_shape = self._loads(forces, torques, where, need_one=False)
         u, w = self._apply(f, t) if (f is not None or t is not None) else self._zeros()
         if noise_scale != 0.0:
@@ -397,6 +457,61 @@ class _Solver:
             return scale * wt, scale * wr
         w, _ = self._op.apply_sqrt(zt, tolerance=self._tolerance)
         return scale * w, None
+
+    # -- device arrays (PSE with device="cuda"): the same products as the host path, in place ------
+    def _device_call(self, where: str, **arrays: Any) -> bool:
+        """True when the given arrays are device arrays the operator takes (all of them; a mix of
+        host and device arrays is refused). Device arrays for a host operator take the host path,
+        whose _flat3 refuses them."""
+        on = {name: _dlpack_device(a) is not None for name, a in arrays.items() if a is not None}
+        if not self._device_arrays or not any(on.values()):
+            return False
+        if not all(on.values()):
+            raise InvalidInputError(f"{where}: {' and '.join(on)} must be all device arrays or all host arrays")
+        return True
+
+    def _set_device_positions(self, positions: Any, where: str) -> None:
+        """Moves the operator to device positions in place; the plan of a new N comes from a host copy
+        (PseRpyCuda builds its grids and splitting from host positions, docs/python.md)."""
+        _array_module(positions, "positions", where)
+        shape = tuple(positions.shape)
+        n = math.prod(shape) // 3
+        self._check_number(n, where)
+        if n != self._n:
+            host, shape = _flat3(cuda.to_host(positions), "positions", where)
+            self._op.set_positions(host, self._radius)
+        else:
+            self._op.set_positions(positions, self._radius)  # shape, size and values checked there
+        self._n, self._shape, self._like = n, shape, positions
+
+    def _device_apply(self, forces: Any, torques: Any, where: str, need_one: bool) -> Tuple[Any, Any]:
+        """M (F, T) on device arrays, in their framework; a missing one of F, T is zero."""
+        self._check_loads(forces, torques, where, need_one)
+        given, name = (forces, "forces") if forces is not None else (torques, "torques")
+        xp = _array_module(given, name, where)
+        f = xp.zeros_like(torques) if forces is None else forces
+        if not self._angular:
+            return self._op.apply(f), None
+        return self._op.apply(f, xp.zeros_like(f) if torques is None else torques)
+
+    def _device_zeros(self) -> Tuple[Any, Any]:
+        xp = _array_module(self._like, "positions", "zeros")
+        return xp.zeros_like(self._like), (xp.zeros_like(self._like) if self._angular else None)
+
+    def _device_sqrt(self, scale: float, where: str) -> Tuple[Any, Any]:
+        """scale * M^{1/2} xi written on the device in the positions' framework, by the operator's
+        sample (keyed by (seed, call), as the host path of the CUDA solver)."""
+        if self._angular:
+            raise NotSupportedError(
+                f"{where}: with includeAngular=True the noise takes host arrays (the rotational square root "
+                "has no device entry point); device arrays are taken by Mdot")
+        step = self._calls
+        self._calls += 1
+        w, _ = self._device_zeros()
+        if scale != 0.0:
+            self._op.sample(self._seed, step, out=w)
+            w *= scale
+        return w, None
 
     @staticmethod
     def _results(u: np.ndarray, w: ArrayOrNone, u_shape: Tuple[int, ...],
@@ -444,6 +559,8 @@ class NBody(_Solver):
     setParametersNBody = setParameters
 
     def setPositions(self, positions: npt.ArrayLike) -> None:
+        if _dlpack_device(positions) is not None:
+            _flat3(positions, "positions", "NBody.setPositions")  # refuses it, before any conversion
         per = self._params.get("NperBatch", -1)
         n = np.asarray(positions).size // 3
         if per != -1 and n != per:
@@ -472,15 +589,20 @@ class PSE(_Solver):
     _geometry = ("periodic", "periodic", "periodic")
 
     def setParameters(self, psi: float, Lx: float, Ly: float, Lz: float,
-                      shearStrain: Optional[float] = None) -> None:
+                      shearStrain: Optional[float] = None, *, device: str = "cpu") -> None:
         """psi: Ewald splitting parameter (1/length; rpyfmm's xi; 0 = automatic); Lx, Ly, Lz: box
-        sides. shearStrain: not supported (None or 0 only). Takes effect at the next initialize."""
+        sides. shearStrain: not supported (None or 0 only). device (rpyfmm's, keyword only): "cpu"
+        (PseRpy) or "cuda" (PseRpyCuda: CuPy / PyTorch device arrays read in place, see the module
+        docstring; NotSupportedError at initialize without a usable GPU). Takes effect at the next
+        initialize."""
         where = "PSE.setParameters"
         xi = _real(psi, "psi", where, 0.0, strict=False)
         box = tuple(_real(v, n, where, 0.0) for n, v in (("Lx", Lx), ("Ly", Ly), ("Lz", Lz)))
         if shearStrain is not None and _real(shearStrain, "shearStrain", where) != 0.0:
             raise NotSupportedError(f"{where}: shearStrain (a sheared box) is not supported by rpyfmm's PSE")
-        self._set_parameters(xi=xi, box=box)
+        if device not in ("cpu", "cuda"):
+            raise InvalidArgumentError(f"{where}: device = {device!r}, expected 'cpu' or 'cuda'")
+        self._set_parameters(xi=xi, box=box, device=device)
 
     setParametersPSE = setParameters
 
@@ -489,8 +611,22 @@ class PSE(_Solver):
             raise InvalidArgumentError("PSE.initialize: call setParameters(psi, Lx, Ly, Lz) first")
 
     def _make_operator(self, viscosity: float, tolerance: float) -> MobilityOperator:
-        return PseRpy(box=self._params["box"], viscosity=viscosity, tolerance=min(max(tolerance, 1e-8), 0.099),
-                      xi=self._params["xi"])
+        kind = PseRpyCuda if self._params["device"] == "cuda" else PseRpy
+        op = kind(box=self._params["box"], viscosity=viscosity, tolerance=min(max(tolerance, 1e-8), 0.099),
+                  xi=self._params["xi"])
+        self._device_arrays = kind is PseRpyCuda
+        return op
+
+    def _sqrt(self, scale: float) -> Tuple[np.ndarray, ArrayOrNone]:
+        if not self._device_arrays or self._angular:
+            return super()._sqrt(scale)
+        # The CUDA operator's sampler, keyed by (seed, call) as on device arrays: the same numbers.
+        step = self._calls
+        self._calls += 1
+        if scale == 0.0:
+            return self._zeros()
+        w, _ = self._op.sample(self._seed, step)
+        return scale * w, None
 
 
 class SelfMobility(_Solver):

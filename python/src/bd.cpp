@@ -22,6 +22,7 @@
 #include <system_error>
 
 #include "common.hpp"
+#include "device_arrays.hpp"
 #include "object_lock.hpp"
 #include "rpyfmm/bd/config.hpp"
 #include "rpyfmm/bd/integrator.hpp"
@@ -385,6 +386,36 @@ void add_simulation_state(SimulationClass& cls) {
            "Cumulative counters and seconds per part.");
 }
 
+/// A view of the device engine's positions or forces in place (docs/python.md, "Device arrays").
+nb::object engine_view(const Simulation& s, const char* where, bool forces) {
+  const std::optional<bd::Stepper::StateView> state = s.integrator().engine_state();
+  require(state.has_value(), ErrorCode::not_supported, where,
+          std::string("the '") + bd::to_string(s.integrator().options().engine) +
+              "' engine keeps its state in its own host arrays: read Simulation.positions and last_forces; "
+              "device views are offered by the device engine (device='cuda', docs/gpu-bd.md)");
+  return read_only_view(forces ? state->forces : state->positions, state->size, state->device, nb::find(s));
+}
+
+/// Views of the device engine's state, no copy: its positions and forces in device memory.
+void add_simulation_device_views(SimulationClass& cls) {
+  cls.def("device_positions",
+          locked_read(
+              "Simulation.device_positions",
+              +[](const Simulation& s) { return engine_view(s, "Simulation.device_positions", false); }),
+          "The device engine's positions (N, 3) in place, with no copy: a DLPack array flagged read-only\n"
+          "(DLPack 1.0; not to be written) on the GPU (kDLCUDA; cupy.from_dlpack, torch.from_dlpack) or,\n"
+          "with device_launcher='host', in host memory (kDLCPU; numpy.from_dlpack). Particle order as given\n"
+          "(the engine does not reorder them). Valid until the next step, which writes the positions into\n"
+          "the engine's other buffer: take a new view after each step. It keeps the Simulation alive.\n"
+          "NotSupportedError on the CPU engine.")
+      .def("device_forces",
+           locked_read(
+               "Simulation.device_forces",
+               +[](const Simulation& s) { return engine_view(s, "Simulation.device_forces", true); }),
+           "The device engine's forces (N, 3) at the start of the last step, in place as device_positions\n"
+           "(each step rewrites them).");
+}
+
 void bind_run_config(nb::module_& m) {
   nb::class_<bd::RunConfig>(m, "RunConfig", "A parsed BD run configuration (docs/bd-config.md).")
       .def_prop_rw(
@@ -514,6 +545,7 @@ void bind_simulation(nb::module_& m) {
           "device_launcher='host' its stages on the CPU.");
   add_simulation_steps(cls);
   add_simulation_state(cls);
+  add_simulation_device_views(cls);
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 // in place: a float64, C-contiguous CUDA array on the current device is passed to its *_device
 // entry points as a pointer, with no host copy (pse_cuda.cpp). Every other call takes host arrays
 // and refuses a device array with a message that names it and says how to copy it (as_input).
+// The device BD engine's positions and forces leave as read-only views (read_only_view, bd.cpp).
 //
 // Streams: the operator runs on CUDA's legacy default stream. Before it reads a caller's device
 // array and before it hands results back, the whole device is synchronised, so work that CuPy or
@@ -57,7 +58,7 @@ DeviceIn device_input(nb::handle obj, const std::string& where, const std::strin
 /// A device output: the caller's `out` (a writable float64 C-contiguous CUDA array on the current
 /// device with the right number of entries) or a new array of `shape` allocated on the current
 /// device, returned in the framework of `like` (a torch.Tensor for a PyTorch argument, a
-/// cupy.ndarray for a CuPy one, else a nanobind ndarray that any DLPack consumer imports).
+/// cupy.ndarray for a CuPy one, else a nanobind array-API object that any DLPack consumer imports).
 struct DeviceOut {
   nb::object object;
   double* data = nullptr;
@@ -65,6 +66,13 @@ struct DeviceOut {
 };
 DeviceOut device_output(nb::handle out, const std::vector<std::size_t>& shape, const std::string& where,
                         nb::handle like, const DeviceIn* input = nullptr);
+
+/// A read-only (size / 3, 3) view of `size` doubles at `data` in host memory (device < 0) or on
+/// CUDA device `device`, with no copy, as an array-API object (__dlpack__, __dlpack_device__) that
+/// NumPy, CuPy and PyTorch import by from_dlpack; it keeps `owner` alive. Versioned DLPack exports
+/// (DLPack 1.0) carry the read-only flag; the unversioned protocol has none (docs/python.md,
+/// "Device arrays").
+nb::object read_only_view(const double* data, std::size_t size, int device, nb::handle owner);
 
 /// Waits for all work queued on the current device (any stream); rpyfmm::Error on a CUDA error.
 void synchronize_device(const std::string& where);

@@ -7,9 +7,19 @@ usable device. On a GPU (rpyfmm.cuda_device_available()): PseRpyCuda's products 
 (rpyfmm.cuda.to_device, CuPy, PyTorch, each where installed) equal its products on host arrays bit
 for bit, since the device entry points run the same operations on the same vectors as the host
 ones after their copies (the C++ tests PseCudaDeviceStep.* show the same for apply_with_noise and
-set_positions); bad device inputs (NaN, shape, dtype, size) raise before the operator runs."""
+set_positions); bad device inputs (NaN, shape, dtype, size) raise before the operator runs.
+
+Simulation's device engine: device_positions() and device_forces() are read-only views of the
+engine's own arrays, no copy, in the particle order given. On the host launcher (no GPU needed)
+they are kDLCPU arrays equal bit for bit to positions and last_forces at every step, two views at
+one step share their memory, and a view keeps the Simulation alive; the engine takes host
+positions only. On the CUDA engine the same checks run on kDLCUDA arrays (rpyfmm.cuda.to_host
+reads them)."""
 
 from __future__ import annotations
+
+import gc
+import sys
 
 import numpy as np
 import pytest
@@ -32,6 +42,10 @@ class FakeDeviceArray:
 
     def __dlpack__(self, **kwargs):
         raise AssertionError("the data of a refused device array was read")
+
+    def __array__(self, *args, **kwargs):
+        # As CuPy arrays and CUDA tensors: no implicit conversion to NumPy.
+        raise TypeError("implicit conversion of a device array to a NumPy array")
 
 
 def positions(n: int = 64, box: float = 12.0, seed: int = 3) -> np.ndarray:
@@ -74,17 +88,28 @@ def test_other_calls_refuse_device_arrays():
         pse.apply_with_noise(fake, 1.0, seed=1)
 
 
-def test_libmobility_refuses_device_arrays():
-    from rpyfmm.libmobility import NBody
+def libmobility_solvers():
+    from rpyfmm.libmobility import PSE, NBody, SelfMobility
 
-    solver = NBody("open", "open", "open")
-    solver.setParameters()
+    nbody, free, pse = NBody("open", "open", "open"), SelfMobility("open", "open", "open"), PSE(*["periodic"] * 3)
+    nbody.setParameters()
+    free.setParameters()
+    pse.setParameters(psi=0.5, Lx=20.0, Ly=20.0, Lz=20.0)  # device="cpu": PseRpy
+    return nbody, free, pse
+
+
+@pytest.mark.parametrize("solver", libmobility_solvers(), ids=["NBody", "SelfMobility", "PSE"])
+def test_libmobility_cpu_solvers_refuse_device_arrays(solver):
     solver.initialize(viscosity=1.0, hydrodynamicRadius=1.0)
     with pytest.raises(rpyfmm.InvalidInputError, match=r"positions is a device array \(DLPack device \(2, 0\)\)"):
         solver.setPositions(FakeDeviceArray())
     solver.setPositions(positions(8, 20.0))
-    with pytest.raises(rpyfmm.InvalidInputError, match=r"forces is a device array"):
+    with pytest.raises(rpyfmm.InvalidInputError, match=r"Mdot: forces is a device array.*this solver takes host"):
         solver.Mdot(FakeDeviceArray())
+    with pytest.raises(rpyfmm.InvalidInputError, match=r"LangevinVelocities: forces is a device array"):
+        solver.LangevinVelocities(0.1, 1.0, forces=FakeDeviceArray())
+    # The solver is untouched: host products go on.
+    assert solver.Mdot(np.ones((8, 3)))[0].shape == (8, 3)
 
 
 def test_host_arrays_with_dlpack_are_host_arrays(direct):
@@ -105,7 +130,92 @@ def test_without_a_device_the_cuda_calls_say_why():
         rpyfmm.cuda.to_host(FakeDeviceArray())
 
 
+def engine_simulation(**kw) -> rpyfmm.Simulation:
+    """64 WCA spheres of radius 1 under a constant force on the device engine (free draining, or
+    PSE with mobility='pse' and a box)."""
+    grid = np.stack(np.meshgrid(*[np.arange(4)] * 3, indexing="ij"), axis=-1).reshape(-1, 3) * 2.5
+    x = grid + np.random.default_rng(3).uniform(-0.05, 0.05, size=grid.shape)
+    args = dict(dt=5e-3, seed=7, mobility="none", pair="wca", external_force=[0.3, 0.0, -0.5], device="cuda")
+    args.update(kw)
+    return rpyfmm.Simulation(x, 1.0, **args)
+
+
+def host_view(view) -> np.ndarray:
+    """The values of a device-engine view: NumPy reads a kDLCPU one in place, a kDLCUDA one is copied."""
+    return np.from_dlpack(view) if view.__dlpack_device__()[0] == 1 else rpyfmm.cuda.to_host(view)
+
+
+def expect_views_follow_the_steps(sim: rpyfmm.Simulation, steps: int) -> None:
+    """A fresh view after each step equals positions / last_forces bit for bit."""
+    for s in range(steps):
+        sim.step()
+        np.testing.assert_array_equal(host_view(sim.device_positions()), sim.positions, err_msg=f"step {s}")
+        np.testing.assert_array_equal(host_view(sim.device_forces()), sim.last_forces, err_msg=f"step {s}")
+
+
+@pytest.mark.parametrize("mobility", [{}, dict(mobility="pse", box=10.0, tolerance=1e-4)])
+def test_device_engine_views_on_the_host_launcher(mobility):
+    sim = engine_simulation(device_launcher="host", **mobility)
+    view = sim.device_positions()
+    assert view.__dlpack_device__() == (1, 0)
+    x = np.from_dlpack(view)
+    assert x.shape == (64, 3) and x.dtype == np.float64
+    np.testing.assert_array_equal(x, sim.positions)  # the particle order given: no permutation
+    assert not x.flags.writeable and not np.asarray(sim.device_forces()).flags.writeable
+    with pytest.raises(ValueError, match="read-only"):
+        x[0, 0] = 1.0
+    # No copy: two views of one step share the engine's array.
+    assert np.from_dlpack(sim.device_positions()).ctypes.data == x.ctypes.data
+    expect_views_follow_the_steps(sim, 12)
+    assert np.abs(sim.last_forces).max() > 0, "the forces must act"
+
+
+def test_a_view_keeps_the_simulation_alive():
+    sim = engine_simulation(device_launcher="host")
+    sim.run(3)
+    before = sys.getrefcount(sim)
+    view, forces = sim.device_positions(), sim.device_forces()
+    assert sys.getrefcount(sim) == before + 2  # each view holds a reference to the Simulation
+    expected, expected_forces = np.array(sim.positions), np.array(sim.last_forces)
+    del sim
+    gc.collect()
+    np.testing.assert_array_equal(np.from_dlpack(view), expected)
+    np.testing.assert_array_equal(np.from_dlpack(forces), expected_forces)
+
+
+def test_cpu_engine_offers_no_device_views():
+    sim = engine_simulation(device="cpu")
+    with pytest.raises(rpyfmm.NotSupportedError, match=r"device_positions: the 'cpu' engine.*Simulation.positions"):
+        sim.device_positions()
+    with pytest.raises(rpyfmm.NotSupportedError, match=r"device_forces: the 'cpu' engine"):
+        sim.device_forces()
+
+
+def test_device_engine_takes_host_positions_only():
+    """The engine has no setter: its positions come from the constructor's host array."""
+    with pytest.raises(rpyfmm.InvalidInputError, match=r"positions is a cuda:0 device array, but this call takes host"):
+        rpyfmm.Simulation(FakeDeviceArray(), 1.0, dt=5e-3, mobility="none", device="cuda", device_launcher="host")
+
+
 # ---- on a GPU -------------------------------------------------------------------------------
+
+
+@needs_gpu
+def test_device_engine_views_on_the_gpu():
+    sim = engine_simulation()
+    assert sim.engine == "cuda"
+    assert sim.device_positions().__dlpack_device__()[0] == 2
+    np.testing.assert_array_equal(host_view(sim.device_positions()), sim.positions)
+    expect_views_follow_the_steps(sim, 12)
+    for framework in ("cupy", "torch"):
+        try:
+            xp = __import__(framework)
+        except ImportError:
+            continue
+        x = xp.from_dlpack(sim.device_positions())
+        back = x.cpu().numpy() if framework == "torch" else xp.asnumpy(x)
+        np.testing.assert_array_equal(back, sim.positions)
+
 
 
 def cuda_operator(n: int = 300, box: float = 16.0) -> tuple[rpyfmm.PseRpyCuda, np.ndarray]:

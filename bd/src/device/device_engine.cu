@@ -55,6 +55,7 @@ std::string unavailable_reason() {
 struct DeviceEngine::Impl {
   EngineTables t;
   std::uint32_t n = 0;
+  int device = 0;  // the CUDA ordinal current at construction
   std::uint64_t step = 0;
   RebuildSchedule schedule{0.0, 0};
   bool rebuilt = false;
@@ -278,6 +279,7 @@ DeviceEngine::DeviceEngine(const ForceField& forces, std::vector<std::uint32_t> 
   require(reason.empty(), ErrorCode::not_supported, "bd device engine", "no usable CUDA device: " + reason);
   impl_ = std::make_unique<Impl>();
   Impl& d = *impl_;
+  cuda_check(cudaGetDevice(&d.device), "cudaGetDevice");
   d.t = make_engine_tables(forces, types, geometry, options);
   check_positions(positions, d.t.n);
   d.n = static_cast<std::uint32_t>(d.t.n);
@@ -313,6 +315,18 @@ std::vector<double> DeviceEngine::positions() const {
 
 std::vector<double> DeviceEngine::forces() const {
   return impl_->f.download(3ull * impl_->n);
+}
+
+const double* DeviceEngine::device_positions() const {
+  return impl_->x.get();
+}
+
+const double* DeviceEngine::device_forces() const {
+  return impl_->f.get();
+}
+
+int DeviceEngine::device() const {
+  return impl_->device;
 }
 
 double DeviceEngine::potential_energy() const {

@@ -26,6 +26,15 @@ std::vector<double> DeviceEngine::positions() const {
 std::vector<double> DeviceEngine::forces() const {
   return {};
 }
+const double* DeviceEngine::device_positions() const {
+  return nullptr;
+}
+const double* DeviceEngine::device_forces() const {
+  return nullptr;
+}
+int DeviceEngine::device() const {
+  return -1;
+}
 double DeviceEngine::potential_energy() const {
   return 0.0;
 }

@@ -13,6 +13,8 @@ class StepCopy {
  public:
   StepCopy(std::vector<double> values, std::uint64_t step) : values_(std::move(values)), step_(step) {}
 
+  [[nodiscard]] std::size_t size() const { return values_.size(); }
+
   /// The copy at `step`; read() gives the engine's array when the copy is older.
   template <class Read>
   const std::vector<double>& at(std::uint64_t step, Read&& read) {
@@ -28,6 +30,15 @@ class StepCopy {
   std::vector<double> values_;
   std::uint64_t step_;
 };
+
+/// The engine's arrays in place: device memory on the CUDA engine, host memory on the host launcher.
+Stepper::StateView state_of(const DeviceEngine& engine, std::size_t size) {
+  return {engine.device_positions(), engine.device_forces(), size, engine.device()};
+}
+
+Stepper::StateView state_of(const HostEngine& engine, std::size_t size) {
+  return {engine.positions().data(), engine.forces().data(), size, -1};
+}
 
 /// Stepper over an engine with DeviceEngine's members (DeviceEngine, HostEngine).
 template <class Engine>
@@ -56,6 +67,7 @@ class EngineStepper final : public Stepper {
   [[nodiscard]] std::size_t rebuilds() const override { return engine_.rebuilds(); }
   [[nodiscard]] StageTimes stage_times() const override { return engine_.stage_times(); }
   [[nodiscard]] std::optional<DriftNoiseReport> mobility_report() const override { return engine_.mobility_report(); }
+  [[nodiscard]] std::optional<StateView> state_view() const override { return state_of(engine_, x_.size()); }
 
  private:
   Engine engine_;

@@ -3,9 +3,9 @@
 // reference) bit for bit, and the CPU engine's bit for bit where the build cannot fuse
 // multiply-adds (else within the bound of docs/gpu-bd.md over the first steps), with the CPU
 // engine's step reports and counters; a restart from positions and a step number continues bit
-// for bit; features the device engine lacks are refused by name; without a usable device the
-// CUDA engine is refused at construction, saying why; and the engine is chosen from a mobility
-// spec as a run configuration asks for it.
+// for bit; engine_state() gives the engine's arrays in place; features the device engine lacks
+// are refused by name; without a usable device the CUDA engine is refused at construction, saying
+// why; and the engine is chosen from a mobility spec as a run configuration asks for it.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -105,6 +105,31 @@ TEST(DeviceIntegrator, HostLauncherStepsAsTheLauncherAndTheCpuEngine) {
   EXPECT_EQ(dev.totals().sqrt_iterations, cpu.totals().sqrt_iterations);
   for (const char* part : {"neighbours", "forces", "update"}) EXPECT_GT(dev.totals().seconds.at(part), 0.0) << part;
   for (const char* part : {"plan", "drift", "sqrt"}) EXPECT_EQ(dev.totals().seconds.at(part), 0.0) << part;
+}
+
+// engine_state(): the engine's own arrays in place (docs/python.md, "Device arrays"), equal to
+// positions() and last_forces() at every step; the positions alternate between two arrays, the
+// forces stay at one address; the CPU engine has none.
+TEST(DeviceIntegrator, EngineStateIsTheEnginesArraysInPlace) {
+  const Mixture m;
+  Integrator dev = m.integrator(StepEngine::host_launcher);
+  EXPECT_FALSE(m.integrator(StepEngine::cpu).engine_state().has_value());
+  const auto first = dev.engine_state();
+  ASSERT_TRUE(first.has_value());
+  EXPECT_LT(first->device, 0) << "the host launcher's arrays are host memory";
+  ASSERT_EQ(first->size, m.x.size());
+  std::vector<const double*> addresses;
+  for (int s = 0; s < 6; ++s) {
+    dev.step();
+    const auto state = dev.engine_state();
+    ASSERT_TRUE(state.has_value());
+    EXPECT_EQ(copy({state->positions, state->size}), copy(dev.positions())) << "step " << s;
+    EXPECT_EQ(copy({state->forces, state->size}), copy(dev.last_forces())) << "step " << s;
+    EXPECT_EQ(state->forces, first->forces) << "step " << s;
+    addresses.push_back(state->positions);
+  }
+  for (std::size_t s = 2; s < addresses.size(); ++s) EXPECT_EQ(addresses[s], addresses[s - 2]) << "step " << s;
+  EXPECT_NE(addresses[0], addresses[1]);
 }
 
 // Restarted from the positions and step number at step 25, the host launcher continues as the run

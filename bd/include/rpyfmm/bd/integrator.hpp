@@ -160,6 +160,10 @@ class Integrator {
   /// The CPU engine's list; the device engine keeps its Verlet rows on the device and refuses
   /// (not_supported).
   [[nodiscard]] const NeighbourList& neighbour_list() const;
+  /// The engine's own positions and forces read in place (Stepper::StateView: the device
+  /// engine's device buffers, or its host launcher's arrays), valid until the next step; nullopt on
+  /// the CPU engine (its positions() are its own array) and on an engine without one address space.
+  [[nodiscard]] std::optional<Stepper::StateView> engine_state() const;
   [[nodiscard]] const ForceField& force_field() const { return forces_; }
   [[nodiscard]] const rpy::MobilityOperator& mobility() const { return *mobility_; }
   /// Forces at the start of the last step (3N). With the SAC scheme, those the step used: on a

@@ -17,6 +17,18 @@ namespace rpyfmm::bd {
 
 class Stepper {
  public:
+  /// An engine's own arrays of the current step, read in place (docs/python.md, "Device
+  /// arrays"): the positions (3N, unwrapped, particle order) and the forces at the start of the
+  /// last step (3N), in device memory on CUDA device `device`, or in host memory (device < 0).
+  /// Valid until the next step: a step may move the positions to another array and rewrites the
+  /// forces.
+  struct StateView {
+    const double* positions = nullptr;
+    const double* forces = nullptr;
+    std::size_t size = 0;  ///< 3N
+    int device = -1;       ///< CUDA ordinal; < 0: host memory
+  };
+
   virtual ~Stepper() = default;
   /// One step: on an error the positions stay at the last good step.
   virtual void step() = 0;
@@ -62,6 +74,9 @@ class Stepper {
   /// steps). An engine without the scheme returns an empty array and {0, 0}.
   [[nodiscard]] virtual const std::vector<std::uint32_t>& complex_ids() const { return no_ids_; }
   [[nodiscard]] virtual std::array<std::uint64_t, 2> complex_counts() const { return {0, 0}; }
+  /// The engine's arrays read in place (the device engine's buffers, or its host launcher's
+  /// arrays); nullopt for an engine that does not keep the whole system in one address space.
+  [[nodiscard]] virtual std::optional<StateView> state_view() const { return std::nullopt; }
 
  private:
   const std::vector<double> none_{};

@@ -83,6 +83,14 @@ class DeviceEngine {
 
   [[nodiscard]] std::vector<double> positions() const;  ///< 3N, unwrapped, copied from the device
   [[nodiscard]] std::vector<double> forces() const;     ///< at the start of the last step
+  /// The positions and the forces at the start of the last step in device memory (3N each, in
+  /// the particle order of the constructor: the cell sort works on a copy), on CUDA device
+  /// device(), read in place (docs/python.md, "Device arrays"). The positions alternate between two
+  /// arrays, one per step: the pointer holds the current step's positions until the next step; the
+  /// forces stay at one address and each step rewrites them.
+  [[nodiscard]] const double* device_positions() const;
+  [[nodiscard]] const double* device_forces() const;
+  [[nodiscard]] int device() const;  ///< the CUDA ordinal current at construction
   /// The potential energy at the start of the last step (each particle's share summed on the
   /// host in particle order, as ForceField::compute does).
   [[nodiscard]] double potential_energy() const;
