@@ -69,7 +69,7 @@ fi
 if PYTHONPATH=build/release/python python3 -c "import numpy, pytest, rpyfmm; assert rpyfmm.cuda_device_available()" \
   >"$out/test_python_device.txt" 2>&1; then
   PYTHONPATH=build/release/python timeout 120 python3 -m pytest -q -p no:cacheprovider -rs \
-    tests/python/test_device_arrays.py >>"$out/test_python_device.txt" 2>&1
+    tests/python/test_device_arrays.py tests/python/test_libmobility_device.py >>"$out/test_python_device.txt" 2>&1
   rc=$?
   tail -n 5 "$out/test_python_device.txt"
   [ "$rc" -eq 0 ] || status=1
