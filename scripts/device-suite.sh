@@ -6,8 +6,8 @@
 #      DeviceIntegrator.*, DevicePse.*:
 #      against the host launcher bit for bit, docs/gpu-bd.md), then compute-sanitizer memcheck and
 #      racecheck on two short ones where compute-sanitizer is installed (errors fail the suite;
-#      each tool within 60 s); the Python device-array tests (tests/python/test_device_arrays.py)
-#      where this machine's Python imports the carried extension;
+#      each tool within 60 s); the Python device-array tests (tests/python/test_device_arrays.py and
+#      test_libmobility_device.py) where this machine's Python imports the carried extension;
 #   2. the whole C++ suite at the CPU's own instruction-set level (ctest, slow tests included;
 #      not the Python and package tests, which need the build dependencies);
 #   3. the GPU benchmark groups (bd-gpu: the device BD engine at 1e6 particles per rebuild strategy
