@@ -108,14 +108,17 @@ void RpyNearField::translational_sums(const double* forces, double inv_eta, doub
 
 void RpyNearField::add_velocities(const std::vector<double>& essential, std::size_t per_rhs, std::size_t nrhs,
                                   double inv_eta, std::span<double> local_u) const {
-  std::vector<std::size_t> first(nrhs);
-  for (std::size_t k = 0; k < nrhs; ++k) first[k] = k * per_rhs;
-  const std::vector<double> forces = gather_loads(essential, first);
   std::vector<double> velocities(3 * particles_ * nrhs, 0.0);
-  // One right-hand side at a time, each as in a product of it alone (the kernels for several
-  // right-hand sides order their operations otherwise), so that each is apply's bit for bit.
-  for (std::size_t k = 0; k < nrhs; ++k)
-    translational_sums(forces.data() + 3 * particles_ * k, inv_eta, velocities.data() + 3 * particles_ * k);
+  sums_seconds_ = 0.0;
+  detail::timed(sums_seconds_, [&] {
+    std::vector<std::size_t> first(nrhs);
+    for (std::size_t k = 0; k < nrhs; ++k) first[k] = k * per_rhs;
+    const std::vector<double> forces = gather_loads(essential, first);
+    // One right-hand side at a time, each as in a product of it alone (the kernels for several
+    // right-hand sides order their operations otherwise), so that each is apply's bit for bit.
+    for (std::size_t k = 0; k < nrhs; ++k)
+      translational_sums(forces.data() + 3 * particles_ * k, inv_eta, velocities.data() + 3 * particles_ * k);
+  });
   const std::size_t n = plan_->partition->input_size();
   std::vector<double*> to(nrhs);
   for (std::size_t k = 0; k < nrhs; ++k) to[k] = local_u.data() + 3 * n * k;
@@ -124,15 +127,18 @@ void RpyNearField::add_velocities(const std::vector<double>& essential, std::siz
 
 void RpyNearField::add_grand(const std::vector<double>& essential, std::size_t per_rhs, double inv_eta,
                              std::span<double> local_u, std::span<double> local_ut, std::span<double> local_w) const {
-  const std::size_t first[] = {0, per_rhs};
-  const std::vector<double> loads = gather_loads(essential, first);  // F, then T
-  std::vector<double> sums(9 * particles_, 0.0);                     // U from F (times 1 / eta), U from T, W
-  translational_sums(loads.data(), inv_eta, sums.data());
-  for (std::size_t i = 0; i < pieces_.size(); ++i) {
-    const rpy::detail::NearPoints points{pieces_[i].near, pieces_[i].one_sided, x_, a_, particles_, equal_, i == 0};
-    rpy::detail::add_rotation_near_field(points, loads.data(), sums.data() + 3 * particles_,
-                                         sums.data() + 6 * particles_);
-  }
+  std::vector<double> sums(9 * particles_, 0.0);  // U from F (times 1 / eta), U from T, W
+  sums_seconds_ = 0.0;
+  detail::timed(sums_seconds_, [&] {
+    const std::size_t first[] = {0, per_rhs};
+    const std::vector<double> loads = gather_loads(essential, first);  // F, then T
+    translational_sums(loads.data(), inv_eta, sums.data());
+    for (std::size_t i = 0; i < pieces_.size(); ++i) {
+      const rpy::detail::NearPoints points{pieces_[i].near, pieces_[i].one_sided, x_, a_, particles_, equal_, i == 0};
+      rpy::detail::add_rotation_near_field(points, loads.data(), sums.data() + 3 * particles_,
+                                           sums.data() + 6 * particles_);
+    }
+  });
   double* const to[] = {local_u.data(), local_ut.data(), local_w.data()};
   add_back(sums, 3, to);
 }

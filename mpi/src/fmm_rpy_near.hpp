@@ -51,6 +51,9 @@ class RpyNearField {
   /// equal radii); the velocities back to the input ranks, in the last product.
   [[nodiscard]] const RpyNearExchange& setup() const { return setup_; }
   [[nodiscard]] const RpyNearExchange& back() const { return back_; }
+  /// Wall time of the last product's near sums on this rank (the loads gathered and the RPY blocks
+  /// summed; no exchange).
+  [[nodiscard]] double sums_seconds() const { return sums_seconds_; }
 
  private:
   // One serial FMM's near field with its sources renumbered as particles (nodes left out).
@@ -77,6 +80,7 @@ class RpyNearField {
   bool equal_ = true;
   RpyNearExchange setup_;
   mutable RpyNearExchange back_;
+  mutable double sums_seconds_ = 0.0;
 };
 
 }  // namespace rpyfmm::mpi::detail
