@@ -12,7 +12,8 @@ where a GPU is present), bd-gpu (the device BD engine at 1e6 particles and the C
 only where a GPU is present), samplers (Lanczos, Chebyshev, block preconditioner), bd (BD steps), sac
 (Tran et al. (2015)'s Table 4 alumina-silica systems), rigid (rigid-body mobility solves and steps),
 mpi (the distributed FMM, direct RPY operator and free-draining BD on 1-4 ranks), mpi-block
-(apply_block against single products of the distributed RPY operators on 1 and 2 ranks).
+(apply_block against single products of the distributed RPY operators on 1 and 2 ranks), mpi-fmm-rpy
+(one product of the distributed FmmRpy on 1 and 2 ranks beside the serial FmmRpy).
 
 Every case runs at 1 thread (the per-core figure) and at all cores; each program reports the median
 of its own repetitions and the driver the median over --rounds runs. --compare COMMIT builds COMMIT in
@@ -255,6 +256,14 @@ def mpi_block_cases(mode: str) -> list[Case]:
             for method, n in sizes.items() for p in (1, 2)]
 
 
+def mpi_fmm_rpy_cases(mode: str) -> list[Case]:
+    """One product of DistributedFmmRpy on 1 and 2 ranks of one thread each, the serial FmmRpy on the
+    whole set beside it on rank 0 (bench/mpi/bench_mpi_fmm_rpy)."""
+    n = "1e5" if mode == "full" else "2e4"
+    return [Case(["mpi/bench_mpi_ranks", str(p), "bench_mpi_fmm_rpy", "--n", n, "--eps", "1e-6", "--reps", "3"], 1,
+                 {}) for p in (1, 2)]
+
+
 GROUPS = [
     Group("fmm", "Laplace FMM against fmm3dpy",
           "One evaluation of potential, gradient and Hessian at the sources (LaplaceFmm, adaptive plane-wave "
@@ -413,6 +422,22 @@ GROUPS = [
            ("speed-up", "speedup", "{:.2f}"), ("serial FMM s, block", "block_fmm_s", "{:.3f}"),
            ("serial FMM s, apply", "single_fmm_s", "{:.3f}")],
           keys=("method", "ranks", "N", "nrhs")),
+    Group("mpi-fmm-rpy", "Distributed FmmRpy beside the serial FmmRpy",
+          "One product U = M F of DistributedFmmRpy (docs/mpi.md, \"Distributed FmmRpy\") at eps 1e-6 on P ranks of "
+          "one OpenMP thread each, N spheres of radius 1 uniform in a cube at volume fraction 0.1, automatic leaves. "
+          "eval s = median of 3 products after a first (the slowest rank's); far s = the owners' serial Laplace FMM, "
+          "near s = the near field's RPY blocks, other s = the rest of the product's local work, comm s = the "
+          "exchanges (near comm s: the near field's velocities back), each the slowest rank's in the last product; "
+          "halo = the largest halo of a rank; serial s = rpy::FmmRpy::apply on the whole set on rank 0 with the "
+          "other ranks asleep (median of 3 after a first), serial near s its near field; err = relative l2 "
+          "difference of U from the serial FmmRpy's (each within eps of the exact product).",
+          ["bench_mpi_fmm_rpy"], mpi_fmm_rpy_cases, parse_json_lines, "eval_s",
+          [("ranks", "ranks", "{}"), ("N", "N", "{:.2g}"), ("plan s", "plan_s", "{:.3f}"),
+           ("eval s", "eval_s", "{:.3f}"), ("far s", "far_s", "{:.3f}"), ("near s", "near_s", "{:.3f}"),
+           ("other s", "other_s", "{:.3f}"), ("comm s", "comm_s", "{:.3f}"), ("near comm s", "near_comm_s", "{:.4f}"),
+           ("halo", "halo_max", "{:.0f}"), ("serial s", "serial_s", "{:.3f}"),
+           ("serial near s", "serial_near_s", "{:.3f}"), ("err", "err_vs_serial", "{:.1e}")],
+          keys=("ranks", "N")),
 ]
 GROUP_BY_NAME = {g.name: g for g in GROUPS}
 TIME_COLUMNS = {"solve": "solve_s", "step": "step_s"}  # rigid: the time column of each program

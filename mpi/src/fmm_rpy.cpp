@@ -203,6 +203,7 @@ void DistributedFmmRpy::record_product(double reduction_seconds) const {
   const detail::RpyNearExchange& near = near_->back();
   stats_.near_apply_seconds = near.seconds;
   stats_.near_apply_bytes_received = near.bytes_received;
+  stats_.near_sums_seconds = near_->sums_seconds();
   stats_.apply_seconds = reduction_seconds + detail::total_seconds(far.evaluate_seconds) + near.seconds;
   stats_.apply_bytes_received = far.evaluate_bytes_received + near.bytes_received;
   stats_.applies_seconds += stats_.apply_seconds;

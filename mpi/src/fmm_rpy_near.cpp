@@ -1,6 +1,7 @@
 // rpyfmm — the exact near field of DistributedFmmRpy (fmm_rpy_near.hpp).
 #include "fmm_rpy_near.hpp"
 
+#include <algorithm>
 #include <limits>
 #include <memory>
 
@@ -29,6 +30,59 @@ std::vector<double> particle_radii(const Communicator& comm, const Plan& plan, s
   return radii;
 }
 
+// The near field of one serial FMM with its sources renumbered as particles (owned, then halo;
+// equivalent nodes left out): particle_of maps the plan's essential sources to particles.
+fmm::NearField over_particles(const NearPiece& in, std::span<const std::size_t> particle_of) {
+  fmm::NearField near;
+  near.target_begin = in.near->target_begin;
+  near.target_index = in.near->target_index;
+  near.pairs = in.near->pairs;
+  near.source_begin.push_back(0);
+  for (std::size_t leaf = 0; leaf < in.near->num_leaves(); ++leaf) {
+    for (std::size_t j : in.near->sources(leaf)) {
+      const std::size_t p = particle_of[in.offset + j];
+      if (p != kNone) near.source_index.push_back(p);
+    }
+    near.source_begin.push_back(near.source_index.size());
+  }
+  return near;
+}
+
+// The near field with the sources that `keep` accepts, and the pairs whose source leaf keeps one.
+template <class Keep>
+fmm::NearField with_sources(const fmm::NearField& near, const Keep& keep) {
+  fmm::NearField out;
+  out.target_begin = near.target_begin;
+  out.target_index = near.target_index;
+  out.source_begin.push_back(0);
+  for (std::size_t leaf = 0; leaf < near.num_leaves(); ++leaf) {
+    for (std::size_t p : near.sources(leaf))
+      if (keep(p)) out.source_index.push_back(p);
+    out.source_begin.push_back(out.source_index.size());
+  }
+  for (const auto& pair : near.pairs)
+    if (out.source_begin[pair.second + 1] > out.source_begin[pair.second]) out.pairs.push_back(pair);
+  return out;
+}
+
+// Whether the owned particles (0 .. owned - 1) among each leaf's sources are its targets: then the
+// owned pairs can be evaluated once for both directions (rpy/src/fmm_near_field.hpp's symmetric
+// tasks take a leaf's targets as its sources).
+bool owned_sources_are_targets(const fmm::NearField& near, std::size_t owned) {
+  std::vector<std::size_t> sources, targets;
+  for (std::size_t leaf = 0; leaf < near.num_leaves(); ++leaf) {
+    sources.clear();
+    for (std::size_t p : near.sources(leaf))
+      if (p < owned) sources.push_back(p);
+    const std::span<const std::size_t> at = near.targets(leaf);
+    targets.assign(at.begin(), at.end());
+    std::sort(sources.begin(), sources.end());
+    std::sort(targets.begin(), targets.end());
+    if (sources != targets) return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 RpyNearField::RpyNearField(const Communicator& comm, const DistributedLaplaceFmm& laplace,
@@ -54,22 +108,24 @@ RpyNearField::RpyNearField(const Communicator& comm, const DistributedLaplaceFmm
   particles_ = essential_of_.size();
   a_ = equal ? std::vector<double>(particles_, radius) : std::move(radii);
   for (const NearPiece& in : near_pieces(plan)) {
-    Piece& piece = pieces_.emplace_back();
-    piece.same_points = in.same_points;
-    piece.near.target_begin = in.near->target_begin;
-    piece.near.target_index = in.near->target_index;
-    piece.near.pairs = in.near->pairs;
-    piece.near.source_begin.push_back(0);
-    for (std::size_t leaf = 0; leaf < in.near->num_leaves(); ++leaf) {
-      for (std::size_t j : in.near->sources(leaf)) {
-        const std::size_t p = particle_of[in.offset + j];
-        if (p != kNone) piece.near.source_index.push_back(p);
-      }
-      piece.near.source_begin.push_back(piece.near.source_index.size());
+    fmm::NearField near = over_particles(in, particle_of);
+    if (in.same_points || !owned_sources_are_targets(near, owned_)) {
+      add_piece(std::move(near), in.same_points);
+      continue;
     }
-    piece.schedule = rpy::detail::near_schedule_for(piece.near, in.same_points);
-    piece.one_sided = rpy::detail::near_schedule_for(piece.near, false);
+    // Owned and halo sources: the owned pairs once for both directions, as at the serial FMM's own
+    // sources, then the halo particles on the owned targets, one-sided.
+    fmm::NearField halo = with_sources(near, [&](std::size_t p) { return p >= owned_; });
+    add_piece(with_sources(near, [&](std::size_t p) { return p < owned_; }), true);
+    if (!halo.pairs.empty()) add_piece(std::move(halo), false);
   }
+}
+
+void RpyNearField::add_piece(fmm::NearField near, bool same_points) {
+  Piece& piece = pieces_.emplace_back();
+  piece.near = std::move(near);
+  piece.schedule = rpy::detail::near_schedule_for(piece.near, same_points);
+  piece.one_sided = rpy::detail::near_schedule_for(piece.near, false);
 }
 
 std::vector<double> RpyNearField::gather_loads(const std::vector<double>& essential,
@@ -100,7 +156,7 @@ void RpyNearField::add_back(const std::vector<double>& owned, std::size_t blocks
 // same layout.
 void RpyNearField::translational_sums(const double* forces, double inv_eta, double* velocities) const {
   for (std::size_t i = 0; i < pieces_.size(); ++i) {
-    // The self terms once per target: every owned target lies in a leaf of the first near field.
+    // The self terms once per target: every owned target lies in a leaf of the first piece.
     const rpy::detail::NearPoints points{pieces_[i].near, pieces_[i].schedule, x_, a_, particles_, equal_, i == 0};
     rpy::detail::add_near_velocities(points, forces, velocities, 1, inv_eta);
   }
@@ -108,14 +164,17 @@ void RpyNearField::translational_sums(const double* forces, double inv_eta, doub
 
 void RpyNearField::add_velocities(const std::vector<double>& essential, std::size_t per_rhs, std::size_t nrhs,
                                   double inv_eta, std::span<double> local_u) const {
-  std::vector<std::size_t> first(nrhs);
-  for (std::size_t k = 0; k < nrhs; ++k) first[k] = k * per_rhs;
-  const std::vector<double> forces = gather_loads(essential, first);
   std::vector<double> velocities(3 * particles_ * nrhs, 0.0);
-  // One right-hand side at a time, each as in a product of it alone (the kernels for several
-  // right-hand sides order their operations otherwise), so that each is apply's bit for bit.
-  for (std::size_t k = 0; k < nrhs; ++k)
-    translational_sums(forces.data() + 3 * particles_ * k, inv_eta, velocities.data() + 3 * particles_ * k);
+  sums_seconds_ = 0.0;
+  detail::timed(sums_seconds_, [&] {
+    std::vector<std::size_t> first(nrhs);
+    for (std::size_t k = 0; k < nrhs; ++k) first[k] = k * per_rhs;
+    const std::vector<double> forces = gather_loads(essential, first);
+    // One right-hand side at a time, each as in a product of it alone (the kernels for several
+    // right-hand sides order their operations otherwise), so that each is apply's bit for bit.
+    for (std::size_t k = 0; k < nrhs; ++k)
+      translational_sums(forces.data() + 3 * particles_ * k, inv_eta, velocities.data() + 3 * particles_ * k);
+  });
   const std::size_t n = plan_->partition->input_size();
   std::vector<double*> to(nrhs);
   for (std::size_t k = 0; k < nrhs; ++k) to[k] = local_u.data() + 3 * n * k;
@@ -124,15 +183,18 @@ void RpyNearField::add_velocities(const std::vector<double>& essential, std::siz
 
 void RpyNearField::add_grand(const std::vector<double>& essential, std::size_t per_rhs, double inv_eta,
                              std::span<double> local_u, std::span<double> local_ut, std::span<double> local_w) const {
-  const std::size_t first[] = {0, per_rhs};
-  const std::vector<double> loads = gather_loads(essential, first);  // F, then T
-  std::vector<double> sums(9 * particles_, 0.0);                     // U from F (times 1 / eta), U from T, W
-  translational_sums(loads.data(), inv_eta, sums.data());
-  for (std::size_t i = 0; i < pieces_.size(); ++i) {
-    const rpy::detail::NearPoints points{pieces_[i].near, pieces_[i].one_sided, x_, a_, particles_, equal_, i == 0};
-    rpy::detail::add_rotation_near_field(points, loads.data(), sums.data() + 3 * particles_,
-                                         sums.data() + 6 * particles_);
-  }
+  std::vector<double> sums(9 * particles_, 0.0);  // U from F (times 1 / eta), U from T, W
+  sums_seconds_ = 0.0;
+  detail::timed(sums_seconds_, [&] {
+    const std::size_t first[] = {0, per_rhs};
+    const std::vector<double> loads = gather_loads(essential, first);  // F, then T
+    translational_sums(loads.data(), inv_eta, sums.data());
+    for (std::size_t i = 0; i < pieces_.size(); ++i) {
+      const rpy::detail::NearPoints points{pieces_[i].near, pieces_[i].one_sided, x_, a_, particles_, equal_, i == 0};
+      rpy::detail::add_rotation_near_field(points, loads.data(), sums.data() + 3 * particles_,
+                                           sums.data() + 6 * particles_);
+    }
+  });
   double* const to[] = {local_u.data(), local_ut.data(), local_w.data()};
   add_back(sums, 3, to);
 }

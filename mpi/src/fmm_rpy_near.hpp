@@ -1,7 +1,9 @@
 // rpyfmm — the exact near field of DistributedFmmRpy (docs/mpi.md, "Distributed FmmRpy"): on each
 // owner, the near pairs that its serial Laplace FMM (planned with near_field = false) leaves out
 // between particles, owned or halo, summed as RPY blocks by FmmRpy's own code
-// (rpy/src/fmm_near_field.hpp), and the velocities moved back to the input ranks.
+// (rpy/src/fmm_near_field.hpp): the pairs of owned particles once for both directions (as FmmRpy
+// at its own points), the halo particles on the owned ones one-sided; and the velocities moved back
+// to the input ranks.
 #pragma once
 
 #include <cstddef>
@@ -51,14 +53,20 @@ class RpyNearField {
   /// equal radii); the velocities back to the input ranks, in the last product.
   [[nodiscard]] const RpyNearExchange& setup() const { return setup_; }
   [[nodiscard]] const RpyNearExchange& back() const { return back_; }
+  /// Wall time of the last product's near sums on this rank (the loads gathered and the RPY blocks
+  /// summed; no exchange).
+  [[nodiscard]] double sums_seconds() const { return sums_seconds_; }
 
  private:
-  // One serial FMM's near field with its sources renumbered as particles (nodes left out).
+  // A near field over the particles (its sources renumbered as particles, nodes left out): one
+  // serial FMM's, or its owned or its halo sources alone.
   struct Piece {
     fmm::NearField near;
     rpy::detail::NearSchedule schedule, one_sided;  // the translational sums', the rotational ones'
-    bool same_points = false;
   };
+  // Appends a piece, scheduled once per leaf pair for both directions where same_points (its
+  // sources are its targets).
+  void add_piece(fmm::NearField near, bool same_points);
   // The loads of the particles (width per particle, one block of 3 columns per density triple
   // `first`) gathered from the essential charges.
   [[nodiscard]] std::vector<double> gather_loads(const std::vector<double>& essential,
@@ -77,6 +85,7 @@ class RpyNearField {
   bool equal_ = true;
   RpyNearExchange setup_;
   mutable RpyNearExchange back_;
+  mutable double sums_seconds_ = 0.0;
 };
 
 }  // namespace rpyfmm::mpi::detail

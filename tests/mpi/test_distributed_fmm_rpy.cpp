@@ -458,6 +458,31 @@ TEST(MpiDistributedFmmRpyRotation, ResultsIndependentOfThreadCountAndDistributio
   EXPECT_EQ(bitwise_mismatches(gathered(one.w, even), gathered(other.w, last)), 0u);
 }
 
+TEST(MpiDistributedFmmRpy, OwnedPairsOnceBesideHaloPairs) {
+  // Sets large enough that each owner's serial FMM has at least 64 leaves (FmmRpy's threshold for
+  // evaluating a leaf pair once for both directions, rpy/src/fmm_near_field.cpp), with halo particles
+  // among the near sources of its owned leaves on 2-4 ranks: the owned pairs are summed once for
+  // both directions, the halo particles one-sided (docs/mpi.md, "Distributed FmmRpy"). Equal radii
+  // (volume fraction about 0.09) and radii 0.5 - 1.5 (seven densities, the unequal-radii kernels):
+  // the contract of expect_contract, U and W against DirectRpy, and 1 and 3 threads bit for bit
+  // (the symmetric tasks run in colours, each velocity's contributions in a fixed order).
+  const Particles equal = uniform_particles(2000, 45.0, 1.0, 1.0, 73);
+  const Particles unequal = uniform_particles(2000, 45.0, 0.5, 1.5, 74);
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(1);
+  std::vector<double> one;
+  for (double eps : {1e-3, 1e-6}) {
+    expect_contract(equal, Split::even, eps, "2000, equal radii");
+    one = expect_contract(unequal, Split::even, eps, "2000, radii 0.5-1.5");
+  }
+  expect_rotation_contract(equal, torques_of(equal, 273), Split::even, 1e-6, "2000, equal radii");
+  expect_rotation_contract(unequal, torques_of(unequal, 274), Split::even, 1e-6, "2000, radii 0.5-1.5");
+  omp_set_num_threads(3);
+  const std::vector<double> three = expect_contract(unequal, Split::even, 1e-6, "3 threads");
+  omp_set_num_threads(saved);
+  EXPECT_EQ(bitwise_mismatches(one, three), 0u);
+}
+
 // ----------------------------------------------------------------------- collective errors ---
 
 namespace {

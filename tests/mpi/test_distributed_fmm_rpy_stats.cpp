@@ -48,6 +48,8 @@ void expect_product_counted(const DistributedFmmRpy& op, std::uint64_t blocks) {
   EXPECT_EQ(s.apply_bytes_received, far.evaluate_bytes_received + s.near_apply_bytes_received);
   EXPECT_GT(s.near_apply_seconds, 0.0);
   EXPECT_GE(s.apply_seconds, total(far.evaluate_seconds) + s.near_apply_seconds);
+  // The near sums' local work: on a rank that owns particles (its RPY blocks and self terms).
+  if (op.laplace().owned_size() > 0) EXPECT_GT(s.near_sums_seconds, 0.0);
 }
 
 }  // namespace
@@ -81,6 +83,7 @@ TEST(MpiDistributedFmmRpyCommunication, NearFieldExchangesCountedInSetPositionsA
   EXPECT_EQ(s.apply_seconds, 0.0);
   EXPECT_EQ(s.applies_seconds, 0.0);
   EXPECT_EQ(s.apply_bytes_received, 0u);
+  EXPECT_EQ(s.near_sums_seconds, 0.0);
 
   // Three kinds of product: their MPI seconds summed in order, exactly as the operator sums them.
   std::vector<double> u(f.size()), block(2 * f.size()), us(block.size()), t(f.size(), 0.5), w(f.size());

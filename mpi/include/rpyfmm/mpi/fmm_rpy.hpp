@@ -81,7 +81,8 @@ struct DistributedFmmRpyOptions {
 /// received in the last product: the Laplace FMM's evaluate_bytes_received plus the near field's
 /// velocities back (3 doubles per particle and right-hand side, 6 with torques; this rank's own
 /// share of the partition's move included, as in FmmCommunication). The near_ entries are the near
-/// field's share.
+/// field's share. near_sums_seconds is local work, not an exchange: this rank's wall time of the
+/// last product's near sums (the RPY blocks of its near pairs and the self terms).
 struct FmmRpyCommunication {
   double set_positions_seconds = 0.0;
   double apply_seconds = 0.0;
@@ -91,6 +92,7 @@ struct FmmRpyCommunication {
   std::uint64_t near_set_positions_bytes_received = 0;
   double near_apply_seconds = 0.0;
   std::uint64_t near_apply_bytes_received = 0;
+  double near_sums_seconds = 0.0;
 };
 
 class DistributedFmmRpy {
