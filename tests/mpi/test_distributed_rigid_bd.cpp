@@ -488,8 +488,8 @@ TEST(MpiDistributedRigidBd, PseBeadForcesMatchTheSerialEngine) {
 }
 
 // The serial engine's refusals of a bead force field, on every rank: a bead type beyond the field's
-// types on one rank (the last), bead types of the wrong count, a periodic box smaller than twice the
-// list radius (all ranks), and fields that differ between the ranks.
+// types on one rank (the last), bead types of the wrong count, fields that differ between the ranks,
+// a hard-core overlap in a step, and a periodic box smaller than twice the list radius (all ranks).
 TEST(MpiDistributedRigidBd, BadBeadForcesFailEveryRank) {
   const bool last = world_rank() == world_size() - 1;
   const Bodies b = lattice(kBodies, 7u);
@@ -510,6 +510,26 @@ TEST(MpiDistributedRigidBd, BadBeadForcesFailEveryRank) {
     expect_collective_error([&] { sim.set_bead_forces(field); }, ErrorCode::invalid_argument,
                             "different bead force fields");
   }
+  // A hard core wider than the gaps between the bodies: the first step fails every rank with the
+  // serial engine's message (the same pair of beads, by global index, and distance).
+  rpyfmm::bd::ForceField hard;
+  hard.set_pair(0, 0, {.kind = rpyfmm::bd::PairKind::wca, .epsilon = 1.0, .sigma = 3.0});
+  std::string serial_message;
+  try {
+    rpyfmm::rpy::DirectRpy serial_beads(rpyfmm::rpy::Geometry::open(), kViscosity);
+    RigidBodyDynamics serial(serial_beads, b.shape, b.radii, b.offsets, b.positions, b.orientations, options(), trap);
+    serial.set_bead_forces(hard);
+    serial.step();
+  } catch (const rpyfmm::Error& e) {
+    serial_message = e.what();
+  }
+  EXPECT_NE(serial_message.find("overlap at step 0"), std::string::npos) << serial_message;
+  DistributedRigidBodyDynamics overlapping(direct, l.shape, l.radii, l.offsets, l.positions, l.orientations, options(),
+                                           trap);
+  overlapping.set_bead_forces(hard);
+  expect_collective_error([&] { overlapping.step(); }, ErrorCode::invalid_input, serial_message);
+  EXPECT_EQ(overlapping.step_count(), 0U);
+
   const Bodies shells = periodic_shells(8u);
   const LocalBodies ls = local_bodies(shells, Split::even);
   DistributedPseRpy beads(MPI_COMM_WORLD, kPeriodic, kViscosity, double_grid_pse_options());
