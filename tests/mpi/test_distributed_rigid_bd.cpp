@@ -125,6 +125,7 @@ struct Trajectory {
   std::vector<double> positions, orientations;
   std::vector<int> iterations;   // GMRES, RFD and sampler iterations of each step
   std::vector<double> energies;  // the bead force field's potential energy of each step (run_steps)
+  std::vector<int> rebuilds;     // whether each step rebuilt the bead neighbour list (run_steps)
 };
 
 Trajectory serial_run(const Bodies& b) {
@@ -221,6 +222,7 @@ Trajectory run_steps(Engine& sim, std::span<const double> (Engine::*positions)()
     const auto& r = sim.step();
     t.iterations.insert(t.iterations.end(), {r.solve_iterations, r.drift_iterations, r.sqrt_iterations});
     t.energies.push_back(r.potential_energy);
+    t.rebuilds.push_back(r.neighbour_rebuild ? 1 : 0);
   }
   const auto q = (sim.*positions)(), quat = (sim.*orientations)();
   t.positions.assign(q.begin(), q.end());
@@ -384,9 +386,10 @@ namespace {
 /// The bead force field of the pair tests: two bead types (0 the shells', 1 the tetrahedra's; radii
 /// unused with sigma set), soft repulsion between all of them (shells 2.2, across 1.8, tetrahedra
 /// 1.4: the lattice's neighbouring bodies have beads within these), a weak WCA core between the
-/// tetrahedra's beads, a weak bead trap, a global force, and a callback on the whole system (each
-/// bead pulled towards the next bead in the global order), so that every kind of term of
-/// bd::ForceField::compute is present.
+/// tetrahedra's beads, a weak bead trap, a global force, two springs between beads of distant
+/// bodies (the first and the last body, the second and the fourth: partners on other ranks), and a
+/// callback on the whole system (each bead pulled towards the next bead in the global order), so
+/// that every kind of term of bd::ForceField::compute is present.
 rpyfmm::bd::ForceField pair_field() {
   using rpyfmm::bd::PairKind;
   rpyfmm::bd::ForceField field({rpyfmm::bd::ParticleType{.name = "S"}, rpyfmm::bd::ParticleType{.name = "T"}});
@@ -395,12 +398,20 @@ rpyfmm::bd::ForceField pair_field() {
   field.set_pair(1, 1, {.kind = PairKind::wca, .epsilon = 0.5, .sigma = 0.9});
   field.set_trap(0.05);
   field.set_global_force({0.0, 0.0, -0.2});
+  const std::uint32_t spring =
+      field.add_bond_potential({.kind = rpyfmm::bd::BondKind::harmonic, .k = 0.5, .length = 3.0});
+  const std::vector<rpyfmm::bd::Bond> bonds{{0, 59, spring}, {13, 30, spring}};
+  field.add_bonds(bonds);
   field.add_callback([](std::span<const double> x, std::uint64_t, std::span<double> f) {
     for (std::size_t i = 0; i + 3 < x.size(); i += 3)
       for (int c = 0; c < 3; ++c) f[i + c] += 0.01 * (x[i + 3 + c] - x[i + c]);
   });
   return field;
 }
+
+/// A skin of 0.005 (the default 0.3 r_c would keep the first step's lists): the halo and the lists
+/// are found again in every step, as the serial engine rebuilds its list.
+constexpr rpyfmm::bd::NeighbourOptions kThinSkin{.skin = 0.005};
 
 /// Each bead's type in the lattice (0 on the shells, 1 on the tetrahedra), beads first to last.
 std::vector<std::uint32_t> lattice_types(const Bodies& b) {
@@ -412,21 +423,24 @@ std::vector<std::uint32_t> lattice_types(const Bodies& b) {
 }  // namespace
 
 // Bead forces between bodies (set_bead_forces) across the ranks against the serial engine with the
-// same field. Every rank holds all beads and sums its own beads' rows in the serial order, so the
-// bead forces and the potential energy are the serial ones bit for bit at the same positions;
-// what differs is what MatchesTheSerialEngine bounds (GMRES's inner-product sums): the same bound
-// 1e-11, bit for bit on one rank and where one rank holds every body. The field changes the
-// trajectory (the energy is checked to be far from zero, and the bodies move differently without
-// it: at least 1e-3 relative). Measured (AMD EPYC, AVX-512, 2 cores shared, 1-4 ranks, three
-// splits): the same iteration counts, positions within 4.3e-16 and orientations within 8.8e-16
+// same field, with a thin skin so that the halo and the lists are found again in every step (the
+// same rebuilds as the serial list). Every rank sums its own beads' rows over its beads and the
+// halo within the list radius (and the bond partners) in the serial order, so the bead forces and
+// the potential energy are the serial ones bit for bit at the same positions; what differs is what
+// MatchesTheSerialEngine bounds (GMRES's inner-product sums): the same bound 1e-11, bit for bit on
+// one rank and where one rank holds every body. The field changes the trajectory (the energy is
+// checked to be far from zero, and the bodies move differently without it: at least 1e-3
+// relative). Measured (AMD EPYC, AVX-512, 2 cores shared, 1-4 ranks, three splits): the same
+// iteration counts and rebuilds, positions within 6.0e-16 and orientations within 1.1e-15
 // relative, bit for bit on one rank and where one rank holds every body.
 TEST(MpiDistributedRigidBd, BeadForcesMatchTheSerialEngine) {
   const Bodies b = lattice(kBodies, 5u);
   const std::vector<std::uint32_t> types = lattice_types(b);
   rpyfmm::rpy::DirectRpy direct(rpyfmm::rpy::Geometry::open(), kViscosity);
   RigidBodyDynamics serial_sim(direct, b.shape, b.radii, b.offsets, b.positions, b.orientations, options(), trap);
-  serial_sim.set_bead_forces(pair_field(), types);
+  serial_sim.set_bead_forces(pair_field(), types, kThinSkin);
   const Trajectory serial = run_steps(serial_sim, &RigidBodyDynamics::positions, &RigidBodyDynamics::orientations);
+  EXPECT_EQ(serial.rebuilds, (std::vector<int>{1, 1, 1}));  // the thin skin: a rebuild in every step
   const Trajectory without = serial_run(b);
   EXPECT_GE(global_relative_error(without.positions, serial.positions), 1e-3);
   for (const double e : serial.energies) EXPECT_GT(std::abs(e), 0.1);
@@ -437,9 +451,11 @@ TEST(MpiDistributedRigidBd, BeadForcesMatchTheSerialEngine) {
     const std::size_t first_bead = b.offsets[l.first_body];
     sim.set_bead_forces(pair_field(),
                         std::vector<std::uint32_t>(types.begin() + std::ptrdiff_t(first_bead),
-                                                   types.begin() + std::ptrdiff_t(first_bead + l.radii.size())));
+                                                   types.begin() + std::ptrdiff_t(first_bead + l.radii.size())),
+                        kThinSkin);
     const Trajectory mine = run_steps(sim, &DistributedRigidBodyDynamics::local_positions,
                                       &DistributedRigidBodyDynamics::local_orientations);
+    EXPECT_EQ(mine.rebuilds, serial.rebuilds) << "split " << int(split);
     // The first step's energy at the same positions: bit for bit. The later steps' at positions that
     // differ by up to 1e-11 relative (|q| up to 10): the soft forces are at most about 10 per unit
     // length, the energies about 1 or more, so within 1e-9 relative.

@@ -30,11 +30,12 @@
 // (docs/mpi.md "Rigid-body Brownian dynamics across ranks").
 //
 // Bead force fields (set_bead_forces, as RigidBodyDynamics::set_bead_forces) are evaluated at the
-// start of each step (not in the RFD configurations, as in serial): every rank gathers the whole
-// system's bead positions (O(N) per rank; no halo by cutoff), keeps a neighbour list over all beads
-// and sums the forces on its own beads in the serial order, bit for bit the serial bead forces, then
-// its bodies' forces and torques as the serial engine sums them. Every public call is collective and
-// fails collectively (communicator.hpp).
+// start of each step (not in the RFD configurations, as in serial): every rank sums the forces on
+// its own beads over them and the other ranks' beads within the list radius (a halo, found again
+// when a bead has moved more than half the skin, as the serial list is rebuilt) in the serial order,
+// bit for bit the serial bead forces, then its bodies' forces and torques as the serial engine sums
+// them (force callbacks take the whole system, gathered on every rank). Every public call is
+// collective and fails collectively (communicator.hpp).
 #pragma once
 
 #include <concepts>
