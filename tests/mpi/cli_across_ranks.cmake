@@ -499,17 +499,17 @@ agree(rigid_bd_pse "${WORK}/rigid_bd_pse_beads_mpi.npy" "${WORK}/rigid_bd_pse_be
 
 # rigid-bd --pair wca --pair-sigma 1.9 between the beads of different bodies (neighbouring bodies'
 # beads lie about 2 apart, within the cut-off 2^(1/6) 1.9 = 2.13 and outside the hard core 0.8 x
-# 1.9): every rank gathers all beads and sums its own beads' forces in the serial order, bit for
+# 1.9): every rank sums its own beads' forces over them and its halo in the serial order, bit for
 # bit the serial bead forces at the same positions, so the trajectory differs from the serial
 # command's only as without --pair: within 1e-11 with --method direct (4 steps); the field moves
 # the bodies (the direct trajectory differs from rigid_bd's by more than 1e-6). In the box of side
 # 11 with --method pse (3 steps), the bodies at both ends of the box lie 3 apart through its faces,
 # their beads 1 apart: --pair soft --pair-sigma 2.5 (no hard core) acts through the faces (minimum
 # images), within 1e-6 of the serial command with double wave grids, and moves the bodies by more
-# than that. Measured at 2 and 3 ranks (shared 2-core AMD EPYC, AVX-512, 2026-12-07; relative l2 per
-# frame): direct at most 2.3e-16 (positions) and 6.2e-16 (orientations), 2.9e-16 in the final
-# beads; pse 6.2e-16 and 1.5e-15; the pair potentials move the bodies by 2.2e-3 (direct) and
-# 1.1e-4 (pse).
+# than that. Measured at 2 and 3 ranks (shared 2-core AMD EPYC, AVX-512, 2026-12-07, b38316a;
+# relative l2 per frame): direct at most 2.3e-16 (positions) and 6.2e-16 (orientations), 2.9e-16
+# in the final beads; pse 6.2e-16 and 1.5e-15; the pair potentials move the bodies by 2.2e-3
+# (direct) and 1.1e-4 (pse).
 set(pair --pair wca --pair-sigma 1.9)
 run_serial(rigid_bd_pair rigid_bd_pair_serial ${rigid_bd_common} ${pair} --steps 4 --every 2 --method direct
            --sqrt-preconditioner none --beads-out "${WORK}/rigid_bd_pair_beads_serial.npy")
