@@ -23,8 +23,8 @@
 // last step of the earlier run, the continuation equals one longer run bit for bit.
 //
 // Under mpirun, --method direct and fmm (free space) and --method pse with --box (double-precision
-// wave grids), on the CPU and without --pair, run across the ranks, each rank owning whole bodies
-// (rigid_bd_across_ranks.hpp); other methods and --pair are refused on more than one rank.
+// wave grids), on the CPU, also with --pair, run across the ranks, each rank owning whole bodies
+// (rigid_bd_across_ranks.hpp); other methods are refused on more than one rank.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <array>
@@ -61,9 +61,9 @@ struct RigidBdArgs {
   double solver_tolerance = 1e-6, sqrt_tolerance = 1e-3;  // GMRES residual; bead noise B z
   long long steps = 0, every = 0;
   std::uint64_t seed = 1;
-  std::string drift = "rfd", pair = "none";
+  std::string drift = "rfd";
   std::string sqrt_preconditioner = "auto";  // auto | none | block
-  double pair_epsilon = 1.0, pair_sigma = 0.0;
+  BeadPairArgs pair;
   std::vector<double> body_force{0, 0, 0}, body_torque{0, 0, 0};
   MobilityChoice mobility;
   CommonOptions common;
@@ -116,17 +116,6 @@ bd::RigidDynamicsOptions dynamics_options(const RigidBdArgs& args) {
           .rfd_delta = args.rfd_delta,
           .solver = {.tolerance = args.solver_tolerance},
           .sqrt = {.tolerance = args.sqrt_tolerance, .preconditioner = sqrt_preconditioner(args.sqrt_preconditioner)}};
-}
-
-/// --pair between beads of different bodies (one bead type, the first bead's radius).
-void add_bead_pair(bd::RigidBodyDynamics& sim, const RigidBdArgs& args, double radius) {
-  if (args.pair == "none") return;
-  bd::ForceField field({bd::ParticleType{.radius = radius}});
-  field.set_pair(
-      0, 0,
-      bd::PairPotential{
-          .kind = bd::pair_kind_from_string(args.pair), .epsilon = args.pair_epsilon, .sigma = args.pair_sigma});
-  sim.set_bead_forces(std::move(field));
 }
 
 /// Runs --steps steps; returns the frames (q, quaternion per body) at the first step, at multiples
@@ -186,14 +175,10 @@ void report_rigid_bd(const RigidBdArgs& args, const bd::RigidBodyDynamics& sim, 
 }
 
 /// Under MPI: whether this run goes across the ranks (--method direct or fmm without --box, or pse
-/// with --box and wave grids auto or double, on the CPU, without --pair); otherwise more than one
-/// rank is refused. Every rank parses the same options, so every rank refuses alike.
+/// with --box and wave grids auto or double, on the CPU); otherwise more than one rank is refused.
+/// Every rank parses the same options, so every rank refuses alike.
 bool across_ranks(const RigidBdArgs& args) {
-  const bool method = bodies_across_ranks(args.mobility, mpi_size(), "rigid-bd");
-  require(args.pair == "none" || mpi_size() == 1, ErrorCode::not_supported, "rigid-bd",
-          "--pair " + args.pair + " (bead pair potentials between bodies) does not run across " +
-              std::to_string(mpi_size()) + " MPI ranks (docs/mpi.md); run it without mpirun");
-  return method && args.pair == "none";
+  return bodies_across_ranks(args.mobility, mpi_size(), "rigid-bd");
 }
 
 void run_rigid_bd(const RigidBdArgs& args) {
@@ -202,7 +187,7 @@ void run_rigid_bd(const RigidBdArgs& args) {
     run_rigid_bd_across_ranks({args.bodies, args.out, args.beads_out, args.restart,
                                static_cast<std::uint64_t>(args.steps), static_cast<std::uint64_t>(args.every),
                                dynamics_options(args), load_of(args), args.mobility.method, args.mobility.tolerance,
-                               args.mobility.viscosity, box_geometry(args.mobility.box), args.common.json});
+                               args.mobility.viscosity, box_geometry(args.mobility.box), args.pair, args.common.json});
     return;
   }
   StopWatch total;
@@ -220,7 +205,7 @@ void run_rigid_bd(const RigidBdArgs& args) {
   watch.restart();
   bd::RigidBodyDynamics sim(std::move(beads), shape, bodies.radii, bodies.offsets, start.positions, start.orientations,
                             dynamics_options(args), constant_load(load_of(args)));
-  add_bead_pair(sim, args, bodies.radii[0]);
+  if (auto field = bead_pair_field(args.pair, bodies.radii[0])) sim.set_bead_forces(std::move(*field));
   stages["setup"] = watch.seconds();
 
   watch.restart();
@@ -256,10 +241,10 @@ void register_rigid_bd(CLI::App& app) {
   cmd->add_option("--body-force", args->body_force, "constant force on every body (3 numbers), e.g. gravity")
       ->expected(3);
   cmd->add_option("--body-torque", args->body_torque, "constant torque on every body (3 numbers)")->expected(3);
-  cmd->add_option("--pair", args->pair, "pair potential between beads of different bodies: none|wca|soft|lj36_18")
+  cmd->add_option("--pair", args->pair.kind, "pair potential between beads of different bodies: none|wca|soft|lj36_18")
       ->capture_default_str();
-  cmd->add_option("--pair-epsilon", args->pair_epsilon, "its energy scale")->capture_default_str();
-  cmd->add_option("--pair-sigma", args->pair_sigma, "its length scale (0: twice the first bead's radius)")
+  cmd->add_option("--pair-epsilon", args->pair.epsilon, "its energy scale")->capture_default_str();
+  cmd->add_option("--pair-sigma", args->pair.sigma, "its length scale (0: twice the first bead's radius)")
       ->capture_default_str();
   add_renamed_option(*cmd, "--solver-tolerance", "--tol", args->solver_tolerance,
                      "GMRES relative residual, in " + ranges::kSolverTolerance.str())

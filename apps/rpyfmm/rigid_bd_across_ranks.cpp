@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <iostream>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -77,12 +78,20 @@ struct LocalRun {
   std::uint64_t last_step = 0;
 };
 
+// --pair's field (the serial command's, of the first bead's radius) on the engine, on every rank.
+void add_bead_pair(mpi::DistributedRigidBodyDynamics& sim, const RanksRigidBdArgs& args, double first_radius) {
+  std::optional<bd::ForceField> field;
+  sim.communicator().run([&] { field = bead_pair_field(args.pair, first_radius); });
+  if (field) sim.set_bead_forces(std::move(*field));
+}
+
 template <class Operator>
-LocalRun run_engine(Operator& op, const RanksRigidBdArgs& args, Start& local, StageTimes& stages) {
+LocalRun run_engine(Operator& op, const RanksRigidBdArgs& args, Start& local, double first_radius, StageTimes& stages) {
   StopWatch watch;
   mpi::DistributedRigidBodyDynamics sim(op, std::move(local.shape), std::move(local.radii), std::move(local.offsets),
                                         std::move(local.positions), std::move(local.orientations), args.options,
                                         constant_load(args.load));
+  add_bead_pair(sim, args, first_radius);
   stages["setup"] = watch.seconds();
   watch.restart();
   LocalRun run;
@@ -105,17 +114,17 @@ LocalRun run_engine(Operator& op, const RanksRigidBdArgs& args, Start& local, St
   return run;
 }
 
-LocalRun run_across_ranks(const RanksRigidBdArgs& args, Start& local, StageTimes& stages) {
+LocalRun run_across_ranks(const RanksRigidBdArgs& args, Start& local, double first_radius, StageTimes& stages) {
   if (args.method == "pse") {  // PseRpy's options but the tolerance, as the serial command's PseRpy
     mpi::DistributedPseRpy pse(MPI_COMM_WORLD, args.box, args.viscosity, {.tolerance = args.tolerance});
-    return run_engine(pse, args, local, stages);
+    return run_engine(pse, args, local, first_radius, stages);
   }
   if (args.method == "fmm") {
     mpi::DistributedFmmRpy fmm(MPI_COMM_WORLD, args.viscosity, {.tolerance = args.tolerance});
-    return run_engine(fmm, args, local, stages);
+    return run_engine(fmm, args, local, first_radius, stages);
   }
   mpi::DistributedDirectRpy direct(MPI_COMM_WORLD, args.viscosity);
-  return run_engine(direct, args, local, stages);
+  return run_engine(direct, args, local, first_radius, stages);
 }
 
 // Rank 0 gathers the frames (each frame's bodies in rank order) and the final beads, checks them
@@ -196,12 +205,14 @@ void run_rigid_bd_across_ranks(const RanksRigidBdArgs& args) {
   stages["read"] = total.seconds();
   StopWatch watch;
   const BodyLayout z = broadcast_body_layout(whole.offsets, comm);
+  double first_radius = comm.rank() == 0 ? whole.radii.front() : 0.0;  // --pair's bead type
+  mpi::check_mpi(MPI_Bcast(&first_radius, 1, MPI_DOUBLE, 0, comm.get()), "MPI_Bcast");
   Start local;
   comm.run([&] { local = distribute(whole, z, comm); });
   whole = Start{};  // rank 0 keeps only its own bodies from here on
   stages["distribute"] = watch.seconds();
 
-  const LocalRun run = run_across_ranks(args, local, stages);
+  const LocalRun run = run_across_ranks(args, local, first_radius, stages);
 
   watch.restart();
   gather_and_write(args, run, z, comm);

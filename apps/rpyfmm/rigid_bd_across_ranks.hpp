@@ -9,18 +9,42 @@
 // --sqrt-preconditioner auto is none across the ranks (the principal root, the serial sampler's
 // bits: rpyfmm/mpi/sqrt.hpp), so with --method direct the trajectory is the serial command's with
 // --sqrt-preconditioner none up to the order of GMRES's inner-product sums; with --method pse the
-// noise is the split sampler, as in the serial command.
+// noise is the split sampler, as in the serial command. --pair runs across the ranks with the serial
+// command's field (bead_pair_field; DistributedRigidBodyDynamics::set_bead_forces).
 #pragma once
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 
 #include "bead_bodies.hpp"
+#include "rpyfmm/bd/force_field.hpp"
+#include "rpyfmm/bd/potentials.hpp"
 #include "rpyfmm/bd/rigid_dynamics.hpp"
 #include "rpyfmm/rpy/geometry.hpp"
 
 namespace rpyfmm::cli {
+
+/// --pair between beads of different bodies: the potential (none|wca|soft|lj36_18), its energy and
+/// length scales.
+struct BeadPairArgs {
+  std::string kind = "none";
+  double epsilon = 1.0, sigma = 0.0;
+};
+
+/// The bead force field of --pair for the serial command and across the ranks alike: one bead type
+/// of radius `radius` (the first bead's: a sigma of 0 is the contact distance 2 radius) and the pair
+/// potential between the beads of different bodies; none for --pair none. Throws rpyfmm::Error on
+/// an unknown potential or bad scales.
+inline std::optional<bd::ForceField> bead_pair_field(const BeadPairArgs& pair, double radius) {
+  if (pair.kind == "none") return std::nullopt;
+  bd::ForceField field({bd::ParticleType{.radius = radius}});
+  field.set_pair(
+      0, 0,
+      bd::PairPotential{.kind = bd::pair_kind_from_string(pair.kind), .epsilon = pair.epsilon, .sigma = pair.sigma});
+  return field;
+}
 
 struct RanksRigidBdArgs {
   BeadBodyArgs bodies;
@@ -32,6 +56,7 @@ struct RanksRigidBdArgs {
   double tolerance = 1e-6;           // fmm's or pse's
   double viscosity = 1.0;
   rpy::Geometry box = rpy::Geometry::open();  // pse's periodic box (--box)
+  BeadPairArgs pair;                          // --pair (bead_pair_field)
   bool json = false;
 };
 

@@ -115,18 +115,7 @@ void RigidBodyDynamics::bead_forces_to_bodies(std::span<const double> bead_force
                                               std::span<double> forces_torques) const {
   require_size(bead_forces, shape_.size(), kWhere, "bead forces");
   require_size(forces_torques, 6 * bodies(), kWhere, "forces_torques");
-  for (std::size_t k = 0; k < bodies(); ++k) {
-    double* w = &forces_torques[6 * k];
-    for (std::size_t i = offsets_[k]; i < offsets_[k + 1]; ++i) {
-      const double* f = &bead_forces[3 * i];
-      double arm[3];
-      for (int c = 0; c < 3; ++c) arm[c] = beads_now_[3 * i + c] - q_[3 * k + c];
-      for (int c = 0; c < 3; ++c) w[c] += f[c];
-      w[3] += arm[1] * f[2] - arm[2] * f[1];
-      w[4] += arm[2] * f[0] - arm[0] * f[2];
-      w[5] += arm[0] * f[1] - arm[1] * f[0];
-    }
-  }
+  rigid_detail::add_bead_loads(offsets_, beads_now_, q_, bead_forces, forces_torques);
 }
 
 int RigidBodyDynamics::perturbed_solve(rpy::RigidBodies& solver, std::span<const double> w, double sign,

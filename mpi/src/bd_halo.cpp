@@ -223,7 +223,7 @@ DistributedBd::Halo DistributedBd::Halo::build(const Communicator& comm, const b
       h.part_forces = forces.with_bonds(part.bonds, part.names);
     });
   }
-  if (h.pairs) {
+  if (h.pairs && !h.ids.empty()) {  // an empty part (a rank without particles near any) has no list
     h.list.set_pair_cutoffs(h.types, forces.pair_cutoffs(), forces.types().size());
     h.list.build(h.x);
   }

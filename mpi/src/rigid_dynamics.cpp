@@ -7,9 +7,11 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <type_traits>
 #include <utility>
 
 #include "rigid/rigid_stages.hpp"
+#include "rigid_bead_forces.hpp"
 #include "rpyfmm/bd/quaternion.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/core/validate.hpp"
@@ -95,7 +97,7 @@ DistributedRigidBodyDynamics::DistributedRigidBodyDynamics(
   });
   comm_.run([&] { check_local_bodies(shape_, radii_, offsets_, q_, quat_); });
   std::tie(first_body_, total_bodies_) = first_and_total(comm_, local_bodies());
-  first_bead_ = first_and_total(comm_, local_beads()).first;
+  std::tie(first_bead_, total_beads_) = first_and_total(comm_, local_beads());
   comm_.run([&] { require(total_bodies_ > 0, ErrorCode::invalid_input, kWhere, "no body on any rank"); });
   comm_.run([&] { lever_ = bd::rigid_detail::lever_arms(shape_, offsets_, first_body_, kWhere); });
   const std::size_t m = local_bodies(), n = local_beads();
@@ -107,6 +109,7 @@ DistributedRigidBodyDynamics::DistributedRigidBodyDynamics(
       [&](auto* op) {
         solver_ = std::make_unique<DistributedRigidBodies>(*op, options_.solver);
         rfd_solver_ = std::make_unique<DistributedRigidBodies>(*op, bd::rigid_detail::rfd_options(options_));
+        if constexpr (std::is_same_v<decltype(op), DistributedPseRpy*>) geometry_ = op->geometry();
       },
       beads);
   // Plans once: DistributedRigidBodies refuses bad bodies (collinear, coincident beads, radii) here.
@@ -115,13 +118,28 @@ DistributedRigidBodyDynamics::DistributedRigidBodyDynamics(
 
 DistributedRigidBodyDynamics::~DistributedRigidBodyDynamics() = default;
 
+void DistributedRigidBodyDynamics::set_bead_forces(bd::ForceField field, std::vector<std::uint32_t> local_bead_types,
+                                                   bd::NeighbourOptions neighbours) {
+  const detail::RankBeads beads{first_body_, first_bead_, total_beads_, offsets_};
+  bead_field_ = std::make_unique<detail::RigidBeadForces>(comm_, std::move(field), std::move(local_bead_types), beads,
+                                                          geometry_, neighbours, kWhere);
+  bead_forces_.assign(3 * local_beads(), 0.0);
+}
+
 void DistributedRigidBodyDynamics::gather_forces_and_torques() {
   std::fill(w_.begin(), w_.end(), 0.0);
-  if (!forces_) return;
-  comm_.run([&] {
-    forces_(bd::RigidBodyState{time(), q_, quat_, beads_now_}, w_);
-    bd::rigid_detail::require_finite_loads(w_, step_, first_body_, kWhere);
-  });
+  if (forces_) {
+    comm_.run([&] {
+      forces_(bd::RigidBodyState{time(), q_, quat_, beads_now_}, w_);
+      bd::rigid_detail::require_finite_loads(w_, step_, first_body_, kWhere);
+    });
+  }
+  if (bead_field_) {
+    const detail::RigidBeadForces::Result result = bead_field_->compute(comm_, beads_now_, step_, bead_forces_);
+    report_.neighbour_rebuild = result.rebuilt;
+    report_.potential_energy = result.energy;
+    bd::rigid_detail::add_bead_loads(offsets_, beads_now_, q_, bead_forces_, w_);
+  }
 }
 
 void DistributedRigidBodyDynamics::solve_velocities() {

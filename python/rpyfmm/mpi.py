@@ -21,9 +21,10 @@ initializes MPI. docs/mpi.md, "Python (mpi4py)", lists what is supported.
   ``apply``, ``apply_with_bead_forces``, ``apply_from`` (GMRES from this rank's guesses),
   ``apply_with_noise``, ``mobility_matrix`` with this rank's bodies and beads.
 * :class:`RigidBodyDynamics` ``(beads, shape, radius, body_offsets, positions, orientations=None, *,
-  dt, kT, seed, ..., forces=None)``: :class:`rpyfmm.RigidBodyDynamics` with whole bodies per rank
-  (``beads`` a :class:`DistributedDirectRpy`, :class:`DistributedFmmRpy` or
-  :class:`DistributedPseRpy`, kept alive; no pair potential): ``step`` / ``run``, this rank's ``positions``, ``orientations``, ``bead_positions``,
+  dt, kT, seed, ..., forces=None, pair=None)``: :class:`rpyfmm.RigidBodyDynamics` with whole bodies
+  per rank (``beads`` a :class:`DistributedDirectRpy`, :class:`DistributedFmmRpy` or
+  :class:`DistributedPseRpy`, kept alive; ``pair`` the serial class's bead pair potential between
+  bodies on all ranks): ``step`` / ``run``, this rank's ``positions``, ``orientations``, ``bead_positions``,
   ``lever_arms`` (copies), ``last_report``, ``totals``; ``forces`` is called on every rank with its
   own bodies' state, and an exception in it raises :class:`rpyfmm.InvalidInputError` on every rank.
   With :class:`DistributedDirectRpy` and ``preconditioner="none"`` the trajectory is

@@ -10,7 +10,9 @@
 // before the collective C++ constructor (mpi_common.hpp `agreed`), so that a bad argument on one
 // rank raises on all. The force function runs under the GIL inside the C++ step's collective
 // force stage (Communicator::run): a Python exception in it on one rank becomes the same
-// rpyfmm Error on every rank, and every rank keeps the last good step.
+// rpyfmm Error on every rank, and every rank keeps the last good step. `pair` is the serial binding's
+// bead pair potential (DistributedRigidBodyDynamics::set_bead_forces).
+#include <mpi.h>
 #include <nanobind/stl/string.h>
 
 #include <cstdint>
@@ -130,10 +132,32 @@ void call_forces(const BoundRigidDynamics* self, const bd::RigidBodyState& state
   std::copy(f.data, f.data + f.size, w.begin());
 }
 
+/// Collective: the serial binding's bead pair potential `pair` (rigid_dynamics.cpp: None, or one bead
+/// type with the radius of the first bead in the global order, so a sigma of 0 is twice it) on `sim`.
+/// `first_radius`: this rank's first bead's radius (any value on a rank without beads).
+void add_bead_pair(const mpi::Communicator& comm, DistributedRigidBodyDynamics& sim, nb::handle pair,
+                   double first_radius) {
+  comm.run([&] {
+    require(mpi::same_on_every_rank(comm, {pair.is_none() ? 0.0 : 1.0}), ErrorCode::invalid_argument, kWhere,
+            "pair must be given on every rank or on none");
+  });
+  if (pair.is_none()) return;
+  const double mine = sim.first_bead() == 0 && sim.local_beads() > 0 ? first_radius : 0.0;  // radii are > 0
+  double radius = 0.0;
+  mpi::check_mpi(MPI_Allreduce(&mine, &radius, 1, MPI_DOUBLE, MPI_MAX, comm.get()), "MPI_Allreduce");
+  bd::ForceField field = agreed(comm, [&] {
+    bd::ForceField f({bd::ParticleType{.radius = radius}});
+    f.set_pair(0, 0, pair_from(pair, kWhere));
+    return f;
+  });
+  nb::gil_scoped_release release;
+  sim.set_bead_forces(std::move(field));
+}
+
 /// __init__ for a bead operator of type Op: collective.
 template <class Op>
 void init(BoundRigidDynamics* self, WithComm<Op>& beads, ArrayArg shape, RadiusArg radius, nb::handle body_offsets,
-          ArrayArg positions, OptArrayArg orientations, const Keywords& keywords, nb::object forces) {
+          ArrayArg positions, OptArrayArg orientations, const Keywords& keywords, nb::object forces, nb::handle pair) {
   const CallGuard hold = guard(kWhere, beads);
   const mpi::Communicator& comm = beads.op.communicator();
   LocalBodies b = agreed(comm, [&] {
@@ -146,6 +170,7 @@ void init(BoundRigidDynamics* self, WithComm<Op>& beads, ArrayArg shape, RadiusA
     // `self` is constructed below, before any step calls this.
     function = [self](const bd::RigidBodyState& state, std::span<double> w) { call_forces(self, state, w); };
   }
+  const double first_radius = b.radii.empty() ? 0.0 : b.radii.front();
   std::unique_ptr<DistributedRigidBodyDynamics> sim;
   {
     nb::gil_scoped_release release;
@@ -153,6 +178,7 @@ void init(BoundRigidDynamics* self, WithComm<Op>& beads, ArrayArg shape, RadiusA
                                                          std::move(b.offsets), std::move(b.positions),
                                                          std::move(b.orientations), b.options, std::move(function));
   }
+  add_bead_pair(comm, *sim, pair, first_radius);
   new (self) BoundRigidDynamics{std::move(forces), &beads, std::move(sim)};
 }
 
@@ -172,17 +198,19 @@ void add_init(DynamicsClass& cls) {
       [](BoundRigidDynamics* self, WithComm<Op>& beads, ArrayArg shape, RadiusArg radius, nb::handle body_offsets,
          ArrayArg positions, OptArrayArg orientations, double dt, double kT, std::uint64_t seed,
          std::uint64_t first_step, const std::string& drift, double rfd_delta, double tolerance, int max_iterations,
-         double sqrt_tolerance, const std::string& preconditioner, double max_displacement, nb::object forces) {
+         double sqrt_tolerance, const std::string& preconditioner, double max_displacement, nb::object forces,
+         nb::handle pair) {
         init(self, beads, shape, radius, body_offsets, positions, orientations,
              Keywords{dt, kT, seed, first_step, drift, rfd_delta, tolerance, max_iterations, sqrt_tolerance,
                       preconditioner, max_displacement},
-             std::move(forces));
+             std::move(forces), pair);
       },
       nb::arg("beads"), nb::arg("shape"), nb::arg("radius"), nb::arg("body_offsets").none(), nb::arg("positions"),
       nb::arg("orientations") = nb::none(), nb::kw_only(), nb::arg("dt"), nb::arg("kT") = 1.0, nb::arg("seed") = 1,
       nb::arg("first_step") = 0, nb::arg("drift") = "rfd", nb::arg("rfd_delta") = 1e-3, nb::arg("tolerance") = 1e-6,
       nb::arg("max_iterations") = 500, nb::arg("sqrt_tolerance") = 1e-3, nb::arg("preconditioner") = "auto",
-      nb::arg("max_displacement") = 1.0, nb::arg("forces") = nb::none(), nb::keep_alive<1, 2>(),
+      nb::arg("max_displacement") = 1.0, nb::arg("forces") = nb::none(), nb::arg("pair") = nb::none(),
+      nb::keep_alive<1, 2>(),
       "Collective. beads: a DistributedDirectRpy, DistributedFmmRpy or DistributedPseRpy (kept alive; in\n"
       "its periodic box nothing is wrapped, lever arms are minimum images, the noise is its split sampler\n"
       "and preconditioner='block' is refused); this rank's bodies as\n"
@@ -190,7 +218,9 @@ void add_init(DynamicsClass& cls) {
       "be 0); radius: a number or (n,) radii; body_offsets: m + 1 increasing indices (first 0, last n;\n"
       "[0] on a rank without bodies); positions (m, 3); orientations (m, 4) (w, x, y, z) or None\n"
       "(identity). The global body order is the ranks' bodies in rank order. The keywords are\n"
-      "rpyfmm.RigidBodyDynamics's (no pair potential across ranks) and must be the same on every rank.\n"
+      "rpyfmm.RigidBodyDynamics's and must be the same on every rank; pair (as rpyfmm.RigidBodyDynamics's:\n"
+      "between beads of different bodies on all ranks, one bead type of the first bead's radius in the\n"
+      "global order) is summed on each rank's beads in the serial order (docs/mpi.md).\n"
       "forces: None or forces(time, positions (m,3), orientations (m,4), bead_positions (n,3)) -> (m, 6)\n"
       "of this rank's bodies, called on every rank (also one without bodies) in every step; an exception\n"
       "in it raises rpyfmm.InvalidInputError on every rank. A bad argument on any rank raises on every rank.");

@@ -30,8 +30,8 @@
 #    serial file with double wave grids (see below); `--wave-precision single` refuses;
 #  - `mpiexec -n NP rpyfmm rigid-bd --method direct|fmm|pse`: the serial trajectory to round-off
 #    (direct), to the FMMs' tolerance, or with `--method pse --box L` within 1e-6 of the serial file
-#    with double wave grids (see below), a restart byte for byte; `--pair` and
-#    `--method pse --wave-precision single` refuse;
+#    with double wave grids (see below), a restart byte for byte; with `--pair wca` the same
+#    bounds; `--method pse --wave-precision single` refuses;
 #  - `mpiexec -n NP rpyfmm mobility --method pse --box L` (also with --torques or --angular, U and W
 #    each) and `sample --operator pse --box L`: DistributedPseRpy is the serial PseRpy with double
 #    wave grids to round-off, so within 1e-12 relative of that serial output.
@@ -497,11 +497,48 @@ endif()
 agree(rigid_bd_pse "${WORK}/rigid_bd_pse_mpi.npy" "${WORK}/rigid_bd_pse_serial.npy" 1e-6)
 agree(rigid_bd_pse "${WORK}/rigid_bd_pse_beads_mpi.npy" "${WORK}/rigid_bd_pse_beads_serial.npy" 1e-6)
 
-# Across ranks rigid-bd refuses bead pair potentials and the methods that do not run there, and
-# fails every rank alike on bad input: exit status 2, one error line, no output.
+# rigid-bd --pair wca --pair-sigma 1.9 between the beads of different bodies (neighbouring bodies'
+# beads lie about 2 apart, within the cut-off 2^(1/6) 1.9 = 2.13 and outside the hard core 0.8 x
+# 1.9): every rank sums its own beads' forces over them and its halo in the serial order, bit for
+# bit the serial bead forces at the same positions, so the trajectory differs from the serial
+# command's only as without --pair: within 1e-11 with --method direct (4 steps); the field moves
+# the bodies (the direct trajectory differs from rigid_bd's by more than 1e-6). In the box of side
+# 11 with --method pse (3 steps), the bodies at both ends of the box lie 3 apart through its faces,
+# their beads 1 apart: --pair soft --pair-sigma 2.5 (no hard core) acts through the faces (minimum
+# images), within 1e-6 of the serial command with double wave grids, and moves the bodies by more
+# than that. Measured at 2 and 3 ranks (shared 2-core AMD EPYC, AVX-512, 2026-12-07, b38316a;
+# relative l2 per frame): direct at most 2.3e-16 (positions) and 6.2e-16 (orientations), 2.9e-16
+# in the final beads; pse 6.2e-16 and 1.5e-15; the pair potentials move the bodies by 2.2e-3
+# (direct) and 1.1e-4 (pse).
+set(pair --pair wca --pair-sigma 1.9)
+run_serial(rigid_bd_pair rigid_bd_pair_serial ${rigid_bd_common} ${pair} --steps 4 --every 2 --method direct
+           --sqrt-preconditioner none --beads-out "${WORK}/rigid_bd_pair_beads_serial.npy")
+run_across(rigid_bd_pair ${rigid_bd_common} ${pair} --steps 4 --every 2 --method direct
+           --beads-out "${WORK}/rigid_bd_pair_beads_mpi.npy")
+agree(rigid_bd_pair "${WORK}/rigid_bd_pair_mpi.npy" "${WORK}/rigid_bd_pair_serial.npy" 1e-11)
+agree(rigid_bd_pair "${WORK}/rigid_bd_pair_beads_mpi.npy" "${WORK}/rigid_bd_pair_beads_serial.npy" 1e-11)
+# Fails unless the trajectory with a pair potential (serial) lies beyond `bound` of the one without.
+function(pair_moves name with without bound)
+  execute_process(COMMAND "${AGREE}" "${with}" "${without}" ${bound} RESULT_VARIABLE rc OUTPUT_QUIET ERROR_QUIET)
+  if(rc EQUAL 0)
+    message(FATAL_ERROR "${name}: the pair potential leaves the trajectory within ${bound} of the one without it")
+  endif()
+endfunction()
+pair_moves(rigid_bd_pair "${WORK}/rigid_bd_pair_serial.npy" "${WORK}/rigid_bd_serial.npy" 1e-6)
+set(soft --pair soft --pair-sigma 2.5)
+run_serial(rigid_bd_pair_pse rigid_bd_pair_pse_serial ${rigid_bd_wrapped} ${soft} --steps 3 --method pse --box 11
+           --wave-precision double)
+run_across(rigid_bd_pair_pse ${rigid_bd_wrapped} ${soft} --steps 3 --method pse --box 11)
+agree(rigid_bd_pair_pse "${WORK}/rigid_bd_pair_pse_mpi.npy" "${WORK}/rigid_bd_pair_pse_serial.npy" 1e-6)
+pair_moves(rigid_bd_pair_pse "${WORK}/rigid_bd_pair_pse_serial.npy" "${WORK}/rigid_bd_pse_serial.npy" 1e-6)
+
+# Across ranks rigid-bd refuses the methods that do not run there, and fails every rank alike on
+# bad input (also a --pair whose list radius exceeds half the box): exit status 2, one error line,
+# no output.
 if(NP GREATER 1)
-  expect_one_error("rigid-bd --pair" "--pair wca \\(bead pair potentials between bodies\\) does not run across ${NP}"
-                   "${WORK}/never.npy" "${RPYFMM}" ${rigid_bd_common} --steps 1 --pair wca --out "${WORK}/never.npy")
+  expect_one_error("rigid-bd --pair in a small box" "exceeds half the box length" "${WORK}/never.npy" "${RPYFMM}"
+                   ${rigid_bd_wrapped} --steps 1 --method pse --box 11 --pair soft --pair-sigma 5
+                   --out "${WORK}/never.npy")
   expect_one_error("rigid-bd --method pse --wave-precision single"
                    "rigid-bd: across ${NP} MPI ranks runs --method direct or fmm without --box, or --method pse with --box"
                    "${WORK}/never.npy" "${RPYFMM}" ${rigid_bd_common} --steps 1 --method pse --box 40

@@ -57,6 +57,22 @@ void place_beads(std::span<const double> shape, std::span<const std::size_t> off
   }
 }
 
+void add_bead_loads(std::span<const std::size_t> offsets, std::span<const double> beads, std::span<const double> q,
+                    std::span<const double> bead_forces, std::span<double> forces_torques) {
+  for (std::size_t k = 0; k + 1 < offsets.size(); ++k) {
+    double* w = &forces_torques[6 * k];
+    for (std::size_t i = offsets[k]; i < offsets[k + 1]; ++i) {
+      const double* f = &bead_forces[3 * i];
+      double arm[3];
+      for (int c = 0; c < 3; ++c) arm[c] = beads[3 * i + c] - q[3 * k + c];
+      for (int c = 0; c < 3; ++c) w[c] += f[c];
+      w[3] += arm[1] * f[2] - arm[2] * f[1];
+      w[4] += arm[2] * f[0] - arm[0] * f[2];
+      w[5] += arm[0] * f[1] - arm[1] * f[0];
+    }
+  }
+}
+
 void require_finite_loads(std::span<const double> forces_torques, std::uint64_t step, std::size_t first_body,
                           const char* where) {
   for (std::size_t k = 0; 6 * k < forces_torques.size(); ++k)

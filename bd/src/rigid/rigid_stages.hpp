@@ -31,6 +31,12 @@ std::vector<double> lever_arms(std::span<const double> shape, std::span<const st
 void place_beads(std::span<const double> shape, std::span<const std::size_t> offsets, std::span<const double> positions,
                  std::span<const double> orientations, std::vector<double>& out);
 
+/// F_k += sum f_i, T_k += sum (r_i - q_k) x f_i over the beads of each body of `offsets` (bead
+/// forces and positions 3 per bead, reference points 3 per body), added to forces_torques (6m), the
+/// beads summed in order.
+void add_bead_loads(std::span<const std::size_t> offsets, std::span<const double> beads, std::span<const double> q,
+                    std::span<const double> bead_forces, std::span<double> forces_torques);
+
 /// Refuses a non-finite force or torque in forces_torques (6m), naming the step and the body by
 /// first_body + k.
 void require_finite_loads(std::span<const double> forces_torques, std::uint64_t step, std::size_t first_body,

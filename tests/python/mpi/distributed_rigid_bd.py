@@ -1,9 +1,9 @@
 """rpyfmm.mpi.RigidBodyDynamics (docs/mpi.md, "Rigid-body Brownian dynamics across ranks" and
 "Python (mpi4py)"): the bodies split over the ranks in uneven whole-body shares (rank 0 none where
 there are several ranks), against the serial rpyfmm.RigidBodyDynamics with DirectRpy on the whole
-set, and with DistributedPseRpy in a periodic box against the serial engine with PseRpy; a restart
-by first_step; the bead operator's lifetime; bad input and a failing force function
-on one rank.
+set (also with a bead pair potential), and with DistributedPseRpy in a periodic box against the
+serial engine with PseRpy; a restart by first_step; the bead operator's lifetime; bad input and a
+failing force function on one rank.
 
 Run by ctest under mpirun on 1, 2 and 3 ranks (tests/mpi/CMakeLists.txt):
 `mpirun -n 2 python -m pytest tests/python/mpi/distributed_rigid_bd.py`. Its name does not match
@@ -182,6 +182,38 @@ def test_pse_in_a_periodic_box_matches_the_serial_engine() -> None:
     assert rel_err(bead_positions, serial.bead_positions) <= 1e-6
 
 
+def test_bead_pair_potential_matches_the_serial_engine() -> None:
+    # pair= as rpyfmm.RigidBodyDynamics takes it: soft repulsion with sigma 0, the contact distance
+    # of the first bead's radius in the global order (2 x 0.63 here, on rank 1 where rank 0 holds no
+    # body), between the beads of different bodies on all ranks. Every rank sums its own beads' rows
+    # of the serial bead forces in the serial order (tests/mpi/test_distributed_rigid_bd.cpp,
+    # BeadForcesMatchTheSerialEngine), so the first step's energy is the serial one bit for bit and
+    # the trajectory differs only as without pair: the bound 1e-11 of test_matches_the_serial_engine,
+    # bit for bit where one rank holds every body. The potential moves the bodies (by more than 1e-5
+    # relative against the run without it, far above that bound). Measured (2026-12-07, AMD EPYC,
+    # AVX-512, 2 cores shared with other jobs): energies 0.18, 0.25, 0.22, bit for bit on 1 and 2
+    # ranks, at most 2.9e-16 (positions) and 4.0e-16 (orientations) on 3 and 4 ranks; the
+    # potential moves the bodies by 1.2e-4.
+    pair = dict(kind="soft", epsilon=4.0)
+    bodies = body_share(BODIES)
+    op = rpyfmm.mpi.DistributedDirectRpy(COMM, viscosity=VISCOSITY)
+    sim = distributed(op, local_bodies(bodies), pair=pair)
+    energies = [sim.step().potential_energy for _ in range(STEPS)]
+    q, quat = gathered(sim.positions, 3), gathered(sim.orientations, 4)
+    holders = COMM.allreduce(int(sim.local_bodies > 0))
+    shape, radii, offsets, positions, orientations = lattice(BODIES, 7)
+    serial, without = (rpyfmm.RigidBodyDynamics(rpyfmm.DirectRpy(viscosity=VISCOSITY), shape, radii, list(offsets),
+                                                positions, orientations, forces=trap, pair=p, **OPTIONS)
+                       for p in (pair, None))
+    serial_energies = [serial.step().potential_energy for _ in range(STEPS)]
+    without.run(STEPS)
+    assert energies[0] == serial_energies[0] and serial_energies[0] > 0.1
+    assert rel_err(q, serial.positions) <= 1e-11 and rel_err(quat, serial.orientations) <= 1e-11
+    if holders == 1:
+        assert np.array_equal(q, serial.positions) and np.array_equal(quat, serial.orientations)
+    assert rel_err(without.positions, serial.positions) >= 1e-5
+
+
 def test_restart_continues_bit_for_bit() -> None:
     # The noise is keyed by (seed, step) and no other state carries over: the state after step 1,
     # restarted with first_step = 1 for two steps, is the three-step run's state bit for bit.
@@ -233,10 +265,14 @@ def test_bad_input_on_one_rank_raises_on_every_rank() -> None:
                rpyfmm.InvalidInputError),
         raised(lambda: distributed(op, local, drift=on_last("bogus", "rfd")), rpyfmm.InvalidArgumentError),
         raised(lambda: distributed(op, local, forces=on_last(3, trap)), rpyfmm.InvalidArgumentError),
+        raised(lambda: distributed(op, local, pair=on_last("bogus", "soft"))),
     ]
     # Options that differ between the ranks: every rank finds them (the message names the first).
     differ = [raised(lambda: distributed(op, local, dt=on_last(0.03, 0.02)), rpyfmm.InvalidArgumentError)
               ] if SIZE > 1 else []
+    # A pair potential on one rank alone: every rank finds it.
+    one_pair = raised(lambda: distributed(op, local, pair=on_last("soft", None)),
+                      rpyfmm.InvalidArgumentError) if SIZE > 1 else []
 
     # A force function that raises, then one of the wrong shape, on the last rank after step 1:
     # every rank raises and keeps the state of step 1.
@@ -261,6 +297,7 @@ def test_bad_input_on_one_rank_raises_on_every_rank() -> None:
         assert len(set(m)) == 1 and who in m[0], m
     for m in differ:
         assert len(set(m)) == 1 and "different options" in m[0], m
+    assert not one_pair or (len(set(one_pair)) == 1 and "pair must be given on every rank" in one_pair[0]), one_pair
     for needle, step_messages, count, same in kept:
         assert len(set(step_messages)) == 1 and needle in step_messages[0], step_messages
         assert count == 1 and same

@@ -27,8 +27,14 @@
 // and the bead noise is the split sampler of DistributedPseRpy::apply_sqrt (PseRpy::apply_sqrt's;
 // options.sqrt method automatic or split, not the block preconditioner). The trajectory agrees
 // with the serial engine's with PseRpy (double wave grids) to the round-off of the PSE sums
-// (docs/mpi.md "Rigid-body Brownian dynamics across ranks"). Bead force fields
-// (RigidBodyDynamics::set_bead_forces) are not offered across ranks. Every public call is
+// (docs/mpi.md "Rigid-body Brownian dynamics across ranks").
+//
+// Bead force fields (set_bead_forces, as RigidBodyDynamics::set_bead_forces) are evaluated at the
+// start of each step (not in the RFD configurations, as in serial): every rank sums the forces on
+// its own beads over them and the other ranks' beads within the list radius (a halo, found again
+// when a bead has moved more than half the skin, as the serial list is rebuilt) in the serial order,
+// bit for bit the serial bead forces, then its bodies' forces and torques as the serial engine sums
+// them (force callbacks take the whole system, gathered on every rank). Every public call is
 // collective and fails collectively (communicator.hpp).
 #pragma once
 
@@ -47,8 +53,13 @@
 #include "rpyfmm/mpi/fmm_rpy.hpp"
 #include "rpyfmm/mpi/pse_operator.hpp"
 #include "rpyfmm/mpi/rigid_bodies.hpp"
+#include "rpyfmm/rpy/geometry.hpp"
 
 namespace rpyfmm::mpi {
+
+namespace detail {
+class RigidBeadForces;  // mpi/src/rigid_bead_forces.hpp
+}  // namespace detail
 
 class DistributedRigidBodyDynamics {
  public:
@@ -77,6 +88,16 @@ class DistributedRigidBodyDynamics {
   ~DistributedRigidBodyDynamics();
   DistributedRigidBodyDynamics(const DistributedRigidBodyDynamics&) = delete;
   DistributedRigidBodyDynamics& operator=(const DistributedRigidBodyDynamics&) = delete;
+
+  /// Collective. Bead forces from a force field, as bd::RigidBodyDynamics::set_bead_forces (pair
+  /// potentials between beads of different bodies, on all ranks; per-type and global constant forces,
+  /// trap, bonds between global bead indices, callbacks on the whole system), added to the force
+  /// function's forces and torques every step. Every rank passes the same field and neighbour
+  /// options; `local_bead_types`: this rank's n_local beads' types (indices into field.types()), or
+  /// empty for type 0. Throws rpyfmm::Error on every rank on bad types, a periodic box smaller than
+  /// twice the list radius, or a field that differs between the ranks.
+  void set_bead_forces(bd::ForceField field, std::vector<std::uint32_t> local_bead_types = {},
+                       bd::NeighbourOptions neighbours = {});
 
   /// Collective. Advances one step. On a blow-up on any rank, a force error or an unconverged solve,
   /// every rank keeps the last good step and throws the same rpyfmm::Error.
@@ -123,13 +144,16 @@ class DistributedRigidBodyDynamics {
   int perturbed_solve(double sign, std::span<double> out, bool warm);
 
   Communicator comm_;
+  rpy::Geometry geometry_ = rpy::Geometry::open();  // the bead operator's (the bead force field's box)
   bd::RigidDynamicsOptions options_;
   bd::BodyForceFunction forces_;
   std::vector<double> shape_, radii_;
   std::vector<std::size_t> offsets_;
   std::vector<double> q_, quat_, lever_;
-  std::size_t first_body_ = 0, first_bead_ = 0, total_bodies_ = 0;
+  std::size_t first_body_ = 0, first_bead_ = 0, total_bodies_ = 0, total_beads_ = 0;
   std::unique_ptr<DistributedRigidBodies> solver_, rfd_solver_;
+  std::unique_ptr<detail::RigidBeadForces> bead_field_;
+  std::vector<double> bead_forces_;  // 3 n_local
   std::uint64_t step_ = 0;
   bd::RigidStepReport report_;
   bd::RigidDynamicsTotals totals_;
