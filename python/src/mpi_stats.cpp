@@ -48,6 +48,7 @@ nb::dict communication_dict(const mpi::FmmRpyCommunication& s) {
   d["near_set_positions_bytes_received"] = s.near_set_positions_bytes_received;
   d["near_apply_seconds"] = s.near_apply_seconds;
   d["near_apply_bytes_received"] = s.near_apply_bytes_received;
+  d["near_sums_seconds"] = s.near_sums_seconds;
   return d;
 }
 

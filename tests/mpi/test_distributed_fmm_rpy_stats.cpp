@@ -49,7 +49,9 @@ void expect_product_counted(const DistributedFmmRpy& op, std::uint64_t blocks) {
   EXPECT_GT(s.near_apply_seconds, 0.0);
   EXPECT_GE(s.apply_seconds, total(far.evaluate_seconds) + s.near_apply_seconds);
   // The near sums' local work: on a rank that owns particles (its RPY blocks and self terms).
-  if (op.laplace().owned_size() > 0) EXPECT_GT(s.near_sums_seconds, 0.0);
+  if (op.laplace().owned_size() > 0) {
+    EXPECT_GT(s.near_sums_seconds, 0.0);
+  }
 }
 
 }  // namespace

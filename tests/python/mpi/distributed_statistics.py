@@ -157,6 +157,7 @@ def test_fmm_communication() -> None:
     if SIZE == 1:
         assert halo_total == 0
     assert all(sane_seconds(v) for k, v in s.items() if k.endswith("seconds"))
+    assert (s["near_sums_seconds"] > 0) == (op.owned_size > 0)  # the near sums' own work
     assert set(far["evaluate_seconds"]) >= {"charges", "essential", "results"}
 
 
