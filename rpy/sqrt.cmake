@@ -6,4 +6,5 @@ target_sources(rpyfmm_rpy PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/src/sqrt/lanczos.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/sqrt/chebyshev.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/sqrt/dense.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/sqrt/block_factors.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/sqrt/block_preconditioner.cpp)

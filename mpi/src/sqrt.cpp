@@ -1,5 +1,5 @@
 // rpyfmm — the distributed Lanczos and Chebyshev square roots, with or without the block
-// preconditioner of each rank's particles, and the noise of a rank's share (sqrt.hpp).
+// preconditioner of the whole set, and the noise of a rank's share (sqrt.hpp).
 #include "rpyfmm/mpi/sqrt.hpp"
 
 #include <algorithm>
@@ -12,6 +12,7 @@
 // rpy/src (private to rpyfmm::rpy and this layer): the Lanczos and Chebyshev iterations on a
 // KrylovSpace and the load checks, so that the distributed samplers are the serial ones, on a
 // distributed basis.
+#include "global_blocks.hpp"
 #include "krylov_space.hpp"
 #include "lanczos_columns.hpp"
 #include "load_scaling.hpp"
@@ -60,8 +61,8 @@ void require_same_options(const Communicator& comm, const rpy::SqrtOptions& o, s
           "or numbers of right-hand sides; every rank must pass the same ones");
 }
 
-// automatic: Lanczos without the preconditioner (block would make the sample depend on the
-// partition: docs/mpi.md).
+// automatic: Lanczos without the preconditioner (docs/mpi.md, "Brownian displacements"; the
+// serial MobilityOperator::apply_sqrt's automatic preconditioner is block).
 rpy::SqrtOptions resolved(const rpy::SqrtOptions& options) {
   rpy::SqrtOptions r = options;
   if (r.method == rpy::SqrtMethod::automatic) r.method = rpy::SqrtMethod::lanczos;
@@ -164,47 +165,48 @@ rpy::SqrtReport chebyshev_across_ranks(DistributedKrylovSpace& space, const deta
   return rpy::sqrt_detail::chebyshev_sqrt_in_space(products, z, w, options);
 }
 
-// The sum of `mine` over the ranks, on every rank.
-std::size_t global_count(const Communicator& comm, std::size_t mine) {
-  const auto local = static_cast<std::uint64_t>(mine);
-  std::uint64_t total = 0;
-  check_mpi(MPI_Allreduce(&local, &total, 1, MPI_UINT64_T, MPI_SUM, comm.get()), "MPI_Allreduce");
-  return static_cast<std::size_t>(total);
-}
-
-// The block preconditioner of this rank's particles (blocks never straddle ranks) for `matrix`,
-// with the serial sampler's block size: options.preconditioner_block, or automatic_block of the
-// whole set.
+// The serial block preconditioner's blocks of the whole set for `matrix` (global_blocks.hpp), with
+// the serial sampler's block size: options.preconditioner_block, or automatic_block of the whole
+// set.
 template <class Operator>
-rpy::BlockPreconditioner local_blocks(const Operator& op, const rpy::SqrtOptions& options,
-                                      rpy::PreconditionedMatrix matrix) {
+detail::GlobalBlocks global_blocks(const Operator& op, const rpy::SqrtOptions& options,
+                                   rpy::PreconditionedMatrix matrix) {
   const std::size_t block = options.preconditioner_block > 0
                                 ? static_cast<std::size_t>(options.preconditioner_block)
                                 : rpy::BlockPreconditioner::automatic_block(op.global_size());
-  return rpy::BlockPreconditioner(op.local_positions(), op.local_radii(), op.viscosity(), rpy::Geometry::open(), block,
-                                  matrix);
+  return detail::GlobalBlocks(op.communicator(), op.counts(), op.local_positions(), op.local_radii(), op.viscosity(),
+                              block, matrix);
+}
+
+// A = G m G^T on nrhs columns of this rank's share, as rpy::BlockPreconditioner::precondition.
+detail::ColumnsProduct preconditioned(const detail::GlobalBlocks& blocks, const rpy::LinearOperatorView& m) {
+  return [&blocks, m](const double* x, double* y, std::size_t k) {
+    std::vector<double> t(x, x + k * m.n);
+    blocks.apply(rpy::BlockOp::apply_g_transpose, t.data(), k);  // G^T x
+    m.apply(t, std::span<double>(y, k * m.n), k);                // M G^T x
+    blocks.apply(rpy::BlockOp::apply_g, y, k);                   // G M G^T x
+  };
 }
 
 // The Krylov samplers on a distributed operator, DistributedDirectRpy or DistributedFmmRpy (the
 // same interface), w_c = m^{1/2} z_c for the nrhs columns of z and w, `m` the product on this
 // rank's share: M (3 op.local_size() entries), or with rotation S M S on [x_t; x_r] (twice that;
-// `matrix` scaled_grand). With the block preconditioner G = L^{-1} of this rank's blocks of
-// `matrix` they run on A = G m G^T (G applied to this rank's share alone: no communication) and
-// return w = G^{-1} A^{1/2} z, as BlockPreconditioner::sample does.
+// `matrix` scaled_grand). With the block preconditioner G = L^{-1} of the serial blocks of the
+// whole set (global_blocks.hpp) they run on A = G m G^T and return w = G^{-1} A^{1/2} z, as
+// BlockPreconditioner::sample does: each of G's entries is the serial one, so the product, and
+// with it every step, is bit for bit the serial preconditioned sampler's where m's is.
 template <class Operator>
 rpy::SqrtReport sample_across_ranks(const Operator& op, const rpy::LinearOperatorView& m,
                                     rpy::PreconditionedMatrix matrix, std::size_t nrhs, const double* z, double* w,
                                     const rpy::SqrtOptions& r, InnerProductStats* stats) {
   const Communicator& comm = op.communicator();
   const std::size_t segments = matrix == rpy::PreconditionedMatrix::scaled_grand ? 2 : 1;
-  std::optional<rpy::BlockPreconditioner> blocks;
-  if (r.preconditioner == rpy::SqrtPreconditioner::block) {
-    comm.run([&] { blocks.emplace(local_blocks(op, r, matrix)); });
-  }
-  const rpy::LinearOperatorView a = blocks ? blocks->precondition(m) : m;
-  const detail::ColumnsProduct product = [&a](const double* x, double* y, std::size_t k) {
-    a.apply(std::span<const double>(x, k * a.n), std::span<double>(y, k * a.n), k);
-  };
+  std::optional<detail::GlobalBlocks> blocks;
+  if (r.preconditioner == rpy::SqrtPreconditioner::block) blocks.emplace(global_blocks(op, r, matrix));
+  const detail::ColumnsProduct product =
+      blocks ? preconditioned(*blocks, m) : detail::ColumnsProduct([&m](const double* x, double* y, std::size_t k) {
+        m.apply(std::span<const double>(x, k * m.n), std::span<double>(y, k * m.n), k);
+      });
   rpy::SqrtReport report;
   if (r.method == rpy::SqrtMethod::chebyshev) {
     DistributedKrylovSpace space(comm, op.counts(), segments);
@@ -214,8 +216,8 @@ rpy::SqrtReport sample_across_ranks(const Operator& op, const rpy::LinearOperato
     report = detail::lanczos_columns(comm, op.counts(), segments, product, nrhs, z, w, r, stats);
   }
   if (blocks) {
-    for (std::size_t c = 0; c < nrhs; ++c) blocks->solve_g(w + c * a.n);
-    report.preconditioner_blocks = global_count(comm, blocks->blocks());
+    blocks->apply(rpy::BlockOp::solve_g, w, nrhs);  // w = G^{-1} A^{1/2} z
+    report.preconditioner_blocks = blocks->blocks();
   }
   return report;
 }

@@ -223,7 +223,7 @@ void add_products(RigidClass& cls) {
            "Collective. (velocities (m, 6), RigidBodyReport): as RigidBodies.apply_with_noise, z this rank's\n"
            "beads' noise (n, 3) (rpyfmm.mpi.normal_noise with the bead operator's offset draws the serial\n"
            "noise's rows); B z by rpyfmm.mpi's Lanczos sampler across the ranks at sqrt_tolerance ('auto' is\n"
-           "'none' across ranks, the serial order of sums; 'block' preconditions each rank's beads), with\n"
+           "'none' across ranks, the serial order of sums; 'block' the serial blocks of all ranks' beads), with\n"
            "DistributedPseRpy by its split sampler, as RigidBodies with PseRpy ('block' refused).")
       .def("mobility_matrix", locked("DistributedRigidBodies.mobility_matrix", &mobility_matrix),
            nb::arg("max_bodies") = 200,

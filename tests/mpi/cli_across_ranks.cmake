@@ -14,7 +14,7 @@
 #    one bit for bit too (its inner products are the serial ones), on the noise drawn by seed and
 #    on noise read from a file: identical files;
 #  - `mpiexec -n NP rpyfmm sample --method chebyshev`: the serial Chebyshev sampler bit for bit,
-#    identical files; `--preconditioner block` runs with the blocks of each rank's particles;
+#    identical files; with `--preconditioner block` (the serial blocks of the whole set) too;
 #  - `mpiexec -n NP rpyfmm sample --angular` (N,6): direct the serial file byte for byte (noise by
 #    seed and from an (N,6) file), fmm within 1e-5 of the serial direct file, pse within 1e-12 of
 #    the serial file with double grids, w_t and w_r each;
@@ -242,11 +242,10 @@ run_identical(samplechebyshev sample --positions "${WORK}/x.txt" --radii "${WORK
 if(NOT json MATCHES "\"method\":\"chebyshev\"" OR NOT json MATCHES "\"lambda_min\":")
   message(FATAL_ERROR "samplechebyshev: --json lacks the method or the eigenvalue bounds: ${json}")
 endif()
-# sample with the block preconditioner: each rank factors the blocks of its own particles, so the
-# file is another valid sample than the serial command's (docs/mpi.md; test_mpi checks its bits
-# against the serial sampler with the same blocks, and its covariance). Here it runs across the
-# ranks and reports the blocks of all of them.
-run_across(sampleblock sample --positions "${WORK}/x.txt" --radii "${WORK}/a.txt" --operator direct --method lanczos
+# sample with the block preconditioner: the blocks are the serial command's of the whole set on any
+# partition, each factored by one rank and applied there (docs/mpi.md), so the file is the serial
+# command's byte for byte and --json reports the blocks.
+run_identical(sampleblock sample --positions "${WORK}/x.txt" --radii "${WORK}/a.txt" --operator direct --method lanczos
            --preconditioner block --sqrt-tolerance 1e-6 --viscosity 0.7 --seed 5 --step 3)
 if(NOT json MATCHES "\"preconditioner_blocks\":[1-9]" OR NOT EXISTS "${WORK}/sampleblock_mpi.npy")
   message(FATAL_ERROR "sampleblock: no output or no preconditioner blocks in --json: ${json}")

@@ -265,8 +265,8 @@ TEST(MpiDistributedFmmRpy, ResultsIndependentOfThreadCountAndDistribution) {
 }
 
 TEST(MpiDistributedFmmRpy, SamplersOnTheOperator) {
-  // w by Lanczos and Chebyshev at 1e-6, each without and with the block preconditioner of each
-  // rank's particles, on the FMM operator at 1e-9 against the same sampler on the exact
+  // w by Lanczos and Chebyshev at 1e-6, each without and with the block preconditioner (the serial
+  // blocks of all ranks' particles), on the FMM operator at 1e-9 against the same sampler on the exact
   // DistributedDirectRpy (the same blocks: the same particles). The operators differ by <= 1e-9
   // relative, which moves the root (and the estimated Chebyshev bounds) by about that over the
   // smallest eigenvalue's square root, far below the samplers' 1e-6; each sampler stops within its

@@ -1,14 +1,14 @@
 // rpyfmm::mpi::sqrt_apply and rpyfmm::mpi::fill_normal: the noise of each rank's share against the
 // serial rpy::fill_normal (bit for bit); the distributed Lanczos and Chebyshev square roots against
 // the serial samplers on DirectRpy (bit for bit) and the dense principal square root (the serial
-// contracts); the block preconditioner of each rank's particles against the serial preconditioned
-// sampler with the same blocks (bit for bit) and the dense root of G M G^T; the covariance of the
+// contracts); the block preconditioner of the whole set's blocks against the serial preconditioned
+// sampler (bit for bit, every split) and the dense root of G M G^T; the covariance of the
 // samples against the dense mobility matrix; and collective failure. With rotation
 // (sqrt_apply_rotation): the serial DirectRpy::apply_sqrt_rotation bit for bit on every partition,
 // the dense scaled root S^{-1} (S M S)^{1/2} z of the grand mobility, the block-preconditioned
-// sample against a dense square root of M, the samplers on DistributedFmmRpy against the dense
-// root, and collective failure. (The translational samplers on DistributedFmmRpy:
-// test_distributed_fmm_rpy.cpp.)
+// sample against the serial one (bit for bit, every split) and a dense square root of M, the
+// samplers on DistributedFmmRpy against the dense root, and collective failure. (The
+// translational samplers on DistributedFmmRpy: test_distributed_fmm_rpy.cpp.)
 #include <gtest/gtest.h>
 #include <mpi.h>
 
@@ -197,101 +197,44 @@ TEST(MpiDistributedSqrt, ChebyshevEqualsSerialChebyshevBitForBitAndDenseRootToTo
 
 namespace {
 
-// G = diag(G_0, ..., G_{P-1}) with G_r the serial BlockPreconditioner of rank r's particles alone
-// under a split: the preconditioner the distributed sampler builds, here on one rank.
-struct ShareBlocks {
-  std::vector<BlockPreconditioner> g;
-  std::vector<std::size_t> first;  // the entry of rank r's first particle
-
-  template <class F>
-  void each(double* x, F&& f) const {
-    for (std::size_t r = 0; r < g.size(); ++r) f(g[r], x + first[r]);
-  }
-  [[nodiscard]] std::size_t blocks() const {
-    std::size_t b = 0;
-    for (const BlockPreconditioner& gr : g) b += gr.blocks();
-    return b;
-  }
-};
-
-ShareBlocks share_blocks(const Particles& p, Split s, std::size_t block) {
-  ShareBlocks b;
-  std::size_t offset = 0;
-  for (std::size_t n : split_counts(p.size(), static_cast<std::size_t>(world_size()), s)) {
-    b.g.emplace_back(share(p.x, 3, offset, n), share(p.a, 1, offset, n), kViscosity, Geometry::open(), block);
-    b.first.push_back(3 * offset);
-    offset += n;
-  }
-  return b;
-}
-
-// w = G^{-1} (G M G^T)^{1/2} z on one rank, with A = G M G^T by DirectRpy's products and its root
-// by rpy::sqrt_apply with `options` (lanczos, chebyshev or eigen), as BlockPreconditioner::sample
-// composes them.
-std::vector<double> serial_share_sample(const DirectRpy& serial, const ShareBlocks& b, const std::vector<double>& z,
-                                        const SqrtOptions& options) {
-  const rpyfmm::rpy::LinearOperatorView m = serial.as_linear_operator();
-  rpyfmm::rpy::LinearOperatorView a;
-  a.n = m.n;
-  a.apply = [&](std::span<const double> x, std::span<double> y, std::size_t nrhs) {  // nrhs: the dense method's
-    for (std::size_t k = 0; k < nrhs; ++k) {
-      std::vector<double> t(x.begin() + static_cast<std::ptrdiff_t>(k * m.n),
-                            x.begin() + static_cast<std::ptrdiff_t>((k + 1) * m.n));
-      const std::span<double> yk = y.subspan(k * m.n, m.n);
-      b.each(t.data(), [](const BlockPreconditioner& g, double* v) { g.apply_g_transpose(v); });
-      m.apply(t, yk, 1);
-      b.each(yk.data(), [](const BlockPreconditioner& g, double* v) { g.apply_g(v); });
-    }
-  };
-  SqrtOptions plain = options;
-  plain.preconditioner = SqrtPreconditioner::none;
-  std::vector<double> w(z.size());
-  rpyfmm::rpy::sqrt_apply(a, z, w, 1, plain);
-  b.each(w.data(), [](const BlockPreconditioner& g, double* v) { g.solve_g(v); });
-  return w;
-}
-
-// G w: the root A^{1/2} z that the samplers' tolerances refer to.
-std::vector<double> whitened(const ShareBlocks& b, std::vector<double> w) {
-  b.each(w.data(), [](const BlockPreconditioner& g, double* v) { g.apply_g(v); });
+// G w: the root A^{1/2} z (A = G M G^T) that the samplers' tolerances refer to.
+std::vector<double> whitened(const BlockPreconditioner& g, std::vector<double> w) {
+  g.apply_g(w.data());
   return w;
 }
 
 }  // namespace
 
-TEST(MpiDistributedSqrt, BlockPreconditionerOfEachRanksParticlesIsTheSerialSamplerWithTheSameBlocks) {
-  // Each rank factors the blocks of its own particles (blocks never straddle ranks), so G, and the
-  // sample, depend on the partition. With the serial sampler run on one rank with the same G
-  // (ShareBlocks), the distributed one agrees bit for bit: the same products, inner products summed
-  // in the serial order, and G applied to each share as there. Where one rank holds every particle
-  // (last only; every split on one rank) G is the serial preconditioner's, so w is the serial
-  // MobilityOperator::apply_sqrt's bit for bit. Against the dense principal root of A = G M G^T:
-  // the serial contract on A^{1/2} set.z.
+TEST(MpiDistributedSqrt, BlockPreconditionerIsTheSerialSamplerOnEveryPartition) {
+  // The blocks are the serial BlockPreconditioner's of the whole set whatever the partition
+  // (mpi/src/global_blocks.hpp; the geometric and even splits cut blocks between ranks), each
+  // factored by one rank with the serial code and applied there in the serial entry order, and the
+  // inner products are summed in the serial order: w is, bit for bit, the serial
+  // DirectRpy::apply_sqrt's with the block preconditioner on every split (so the same w for every
+  // split), with the serial iterations and number of blocks. Against the dense principal root of
+  // A = G M G^T: the serial contract on A^{1/2} set.z.
   const Particles p = clustered_particles(170, 30, 61);
   const WholeSet set(p, 11, 4);
   constexpr double kTolerance = 1e-6;
-  const std::size_t block = BlockPreconditioner::automatic_block(p.size());
-  std::vector<double> w_whole[2];
+  const BlockPreconditioner g(set.op);  // the automatic block size, as the samplers' 0
+  std::vector<double> root(set.z.size());
+  g.sample(set.op.as_linear_operator(), set.z, root, 1, sampler(SqrtMethod::eigen, SqrtPreconditioner::none, 1e-3));
+  root = whitened(g, root);
   const SqrtMethod methods[2] = {SqrtMethod::lanczos, SqrtMethod::chebyshev};
   for (int k = 0; k < 2; ++k) {
-    w_whole[k].resize(set.z.size());
-    set.op.apply_sqrt(set.z, w_whole[k], sampler(methods[k], SqrtPreconditioner::block, kTolerance));
-  }
-  for (Split s : kSplits) {
-    const Partition part = partition_of(p.size(), s);
-    const ShareBlocks g = share_blocks(p, s, block);
-    const std::vector<double> root =
-        whitened(g, serial_share_sample(set.op, g, set.z, sampler(SqrtMethod::eigen, SqrtPreconditioner::none, 1e-3)));
-    for (int k = 0; k < 2; ++k) {
-      const SqrtOptions options = sampler(methods[k], SqrtPreconditioner::block, kTolerance);
-      const std::vector<double> expected = serial_share_sample(set.op, g, set.z, options);
+    const SqrtOptions options = sampler(methods[k], SqrtPreconditioner::block, kTolerance);
+    std::vector<double> w_whole(set.z.size());
+    const SqrtReport serial = set.op.apply_sqrt(set.z, w_whole, options);
+    ASSERT_EQ(serial.preconditioner_blocks, g.blocks());
+    for (Split s : kSplits) {
+      const Partition part = partition_of(p.size(), s);
       const auto [w, report] = distributed_sample(p, s, set.z, options);
-      EXPECT_EQ(bitwise_mismatches(w, share(expected, 3, part.offset, part.n)), 0u)
-          << rpyfmm::rpy::to_string(methods[k]) << ", rank " << world_rank() << " of " << world_size();
-      EXPECT_EQ(report.preconditioner_blocks, g.blocks());
-      if (s == Split::last_only || world_size() == 1) {
-        EXPECT_EQ(bitwise_mismatches(w, share(w_whole[k], 3, part.offset, part.n)), 0u);
-      }
+      EXPECT_EQ(bitwise_mismatches(w, share(w_whole, 3, part.offset, part.n)), 0u)
+          << rpyfmm::rpy::to_string(methods[k]) << ", split " << static_cast<int>(s) << ", rank " << world_rank()
+          << " of " << world_size();
+      EXPECT_EQ(report.preconditioner_blocks, serial.preconditioner_blocks);
+      EXPECT_EQ(report.iterations, serial.iterations);
+      EXPECT_EQ(report.operator_applications, serial.operator_applications);
       EXPECT_LT(relative_difference(whitened(g, all_gather(w)), root), slack(methods[k]) * kTolerance)
           << rpyfmm::rpy::to_string(methods[k]);
     }
@@ -346,8 +289,9 @@ TEST(MpiDistributedSqrt, SampleCovarianceMatchesTheMobilityMatrix) {
 }
 
 TEST(MpiDistributedSqrt, BlockPreconditionedSampleCovarianceMatchesTheMobilityMatrix) {
-  // Blocks of at most 2 particles within each rank's share: w = L (L^{-1} M L^{-T})^{1/2} z, a
-  // different square root of M for each partition, with the covariance M all the same.
+  // Blocks of at most 2 particles of the whole set (the geometric split puts them on different
+  // ranks): w = L (L^{-1} M L^{-T})^{1/2} z, a square root of M other than the principal one, with
+  // the covariance M all the same.
   SqrtOptions options = sampler(SqrtMethod::lanczos, SqrtPreconditioner::block, 1e-8);
   options.preconditioner_block = 2;
   expect_covariance_of_mobility(options);
@@ -649,90 +593,29 @@ TEST(MpiDistributedSqrt, RotationSamplesAgreeWithDenseScaledRoot) {
 
 namespace {
 
-// G = diag(G_0, ..., G_{P-1}) with G_r the serial BlockPreconditioner of the scaled grand mobility
-// of rank r's particles under a split (blocks of at most `block` particles, on [x_t; x_r] of the
-// rank's share): the preconditioner the distributed sampler builds, here on one rank, acting on
-// [x_t; x_r] of the whole set.
-struct GrandShareBlocks {
-  std::vector<BlockPreconditioner> g;
-  std::vector<std::size_t> first, count;  // rank r's first particle and number of particles
-  std::size_t n = 0;                      // 3N
-
-  GrandShareBlocks(const Particles& p, Split s, std::size_t block) : n(3 * p.size()) {
-    std::size_t offset = 0;
-    for (std::size_t c : split_counts(p.size(), static_cast<std::size_t>(world_size()), s)) {
-      if (c > 0) {
-        g.emplace_back(share(p.x, 3, offset, c), share(p.a, 1, offset, c), kViscosity, Geometry::open(), block,
-                       rpyfmm::rpy::PreconditionedMatrix::scaled_grand);
-        first.push_back(offset);
-        count.push_back(c);
-      }
-      offset += c;
-    }
-  }
-  // x <- f(G_r, rank r's [x_t; x_r]) for every rank r, each share gathered and put back.
-  template <class F>
-  void each(double* x, F&& f) const {
-    for (std::size_t r = 0; r < g.size(); ++r) {
-      const std::size_t m = 3 * count[r];
-      double* t = x + 3 * first[r];
-      double* rot = x + n + 3 * first[r];
-      std::vector<double> local(t, t + m);
-      local.insert(local.end(), rot, rot + m);
-      f(g[r], local.data());
-      std::copy(local.begin(), local.begin() + static_cast<std::ptrdiff_t>(m), t);
-      std::copy(local.begin() + static_cast<std::ptrdiff_t>(m), local.end(), rot);
-    }
-  }
-  [[nodiscard]] std::size_t blocks() const {
-    std::size_t b = 0;
-    for (const BlockPreconditioner& gr : g) b += gr.blocks();
-    return b;
-  }
-  // The matrix of x <- f(G_r, .) on every share, column by column.
+// G, the serial BlockPreconditioner of the scaled grand mobility of the whole set (blocks of at
+// most `block` particles, on [x_t; x_r]): the preconditioner the distributed sampler applies on
+// every partition, here on one rank.
+struct GrandBlocks {
+  BlockPreconditioner g;
+  GrandBlocks(const Particles& p, std::size_t block)
+      : g(p.x, p.a, kViscosity, Geometry::open(), block, rpyfmm::rpy::PreconditionedMatrix::scaled_grand) {}
+  // The matrix of x <- f(G, x), column by column.
   template <class F>
   [[nodiscard]] MatrixXd dense(F&& f) const {
-    const auto rows = static_cast<Eigen::Index>(2 * n);
+    const auto rows = static_cast<Eigen::Index>(g.rows());
     MatrixXd d(rows, rows);
     for (Eigen::Index k = 0; k < rows; ++k) {
       VectorXd e = VectorXd::Unit(rows, k);
-      each(e.data(), f);
+      f(g, e.data());
       d.col(k) = e;
     }
     return d;
   }
 };
 
-// [w_t; w_r] = S^{-1} G^{-1} (G S M S G^T)^{1/2} [z_t; z_r] on one rank: rpy::sqrt_apply on
-// A = G S M S G^T, with S M S by the serial DirectRpy's product with rotation and the scaling of
-// MobilityOperator::apply_sqrt_rotation, as BlockPreconditioner::sample composes them.
-GrandVectors serial_share_rotation(const DirectRpy& serial, const GrandShareBlocks& b, const GrandVectors& z,
-                                   const SqrtOptions& options) {
-  const std::size_t n = b.n;
-  const std::span<const double> radii = serial.radii();
-  rpyfmm::rpy::LinearOperatorView a;
-  a.n = 2 * n;
-  a.apply = [&](std::span<const double> x, std::span<double> y, std::size_t) {
-    std::vector<double> v(x.begin(), x.end()), torques(n);
-    b.each(v.data(), [](const BlockPreconditioner& g, double* u) { g.apply_g_transpose(u); });
-    for (std::size_t k = 0; k < n; ++k) torques[k] = radii[k / 3] * v[n + k];
-    serial.apply(std::span<const double>(v).first(n), torques, y.first(n), y.subspan(n));
-    for (std::size_t k = 0; k < n; ++k) y[n + k] *= radii[k / 3];
-    b.each(y.data(), [](const BlockPreconditioner& g, double* u) { g.apply_g(u); });
-  };
-  SqrtOptions plain = options;
-  plain.preconditioner = SqrtPreconditioner::none;
-  std::vector<double> zz(z.t), w(2 * n);
-  zz.insert(zz.end(), z.r.begin(), z.r.end());
-  rpyfmm::rpy::sqrt_apply(a, zz, w, 1, plain);
-  b.each(w.data(), [](const BlockPreconditioner& g, double* u) { g.solve_g(u); });
-  GrandVectors out{std::vector<double>(w.begin(), w.begin() + static_cast<std::ptrdiff_t>(n)), std::vector<double>(n)};
-  for (std::size_t k = 0; k < n; ++k) out.r[k] = w[n + k] / radii[k / 3];
-  return out;
-}
-
 // The block-preconditioned samplers (blocks of at most 4 particles) on `op`, the particles split
-// by `s`: w = B z with B = S^{-1} G^{-1} (G S M S G^T)^{1/2}, G the ranks' blocks (GrandShareBlocks).
+// by `s`: w = B z with B = S^{-1} G^{-1} (G S M S G^T)^{1/2}, G the whole set's blocks (GrandBlocks).
 // B is a square root of M (B B^T = M to rounding: 1e-10 relative), so the samples have covariance
 // M; Lanczos and Chebyshev at 1e-6 give G S w within slack(method) x 1e-6 plus `product_error` of
 // (G S M S G^T)^{1/2} z, the root their tolerances refer to.
@@ -740,7 +623,7 @@ template <class Operator>
 void expect_block_root(const Operator& op, const Particles& p, Split s, const DenseGrand& dense, double product_error) {
   constexpr double kTolerance = 1e-6;
   const Partition part = partition_of(p.size(), s);
-  const GrandShareBlocks blocks(p, s, 4);
+  const GrandBlocks blocks(p, 4);
   const MatrixXd g = blocks.dense([](const BlockPreconditioner& gr, double* x) { gr.apply_g(x); });
   const MatrixXd g_inverse = blocks.dense([](const BlockPreconditioner& gr, double* x) { gr.solve_g(x); });
   const MatrixXd root = sqrt_test::principal_sqrt(g * dense.a * g.transpose());
@@ -752,7 +635,7 @@ void expect_block_root(const Operator& op, const Particles& p, Split s, const De
     SqrtOptions options = sampler(method, SqrtPreconditioner::block, kTolerance);
     options.preconditioner_block = 4;
     const auto [w, report] = distributed_rotation(op, part, z, options);
-    EXPECT_EQ(report.preconditioner_blocks, blocks.blocks());
+    EXPECT_EQ(report.preconditioner_blocks, blocks.g.blocks());
     const VectorXd whitened = g * (dense.s.asDiagonal() * gathered(w));
     const double error = (whitened - ref).norm() / ref.norm();
     EXPECT_LE(error, slack(method) * kTolerance + product_error) << rpyfmm::rpy::to_string(method);
@@ -765,13 +648,12 @@ void expect_block_root(const Operator& op, const Particles& p, Split s, const De
 
 }  // namespace
 
-TEST(MpiDistributedSqrt, RotationBlockPreconditionedSampleIsASquareRootOfTheGrandMobility) {
-  // Each rank factors the 6 x 6 per-particle blocks of S M S within spatial blocks of its own
-  // particles (blocks never straddle ranks), so the sample depends on the partition and its
-  // covariance does not (expect_block_root). With the serial sampler run on one rank with the same
-  // G (GrandShareBlocks) the distributed one agrees bit for bit on every split: the same products,
-  // inner products and G. Where one rank holds every particle, G is the serial preconditioner's
-  // and w the serial DirectRpy::apply_sqrt_rotation's bit for bit.
+TEST(MpiDistributedSqrt, RotationBlockPreconditionedSampleIsTheSerialSamplerOnEveryPartition) {
+  // The 6 x 6 per-particle blocks of S M S within the serial spatial blocks of the whole set,
+  // whatever the partition (mpi/src/global_blocks.hpp): the sample is a square root of the grand
+  // mobility's (expect_block_root), and bit for bit the serial DirectRpy::apply_sqrt_rotation's
+  // with the block preconditioner on every split, blocks of 4 and of the automatic size: the same
+  // G, products and inner products, the same iterations and number of blocks.
   const Particles p = suspension(40, true, 27u);
   const DenseGrand dense(p);
   DirectRpy serial(Geometry::open(), kViscosity);
@@ -782,28 +664,20 @@ TEST(MpiDistributedSqrt, RotationBlockPreconditionedSampleIsASquareRootOfTheGran
     DistributedDirectRpy op(MPI_COMM_WORLD, kViscosity);
     place(op, p, part);
     expect_block_root(op, p, s, dense, 0.0);
-    const GrandShareBlocks blocks(p, s, 4);
     for (SqrtMethod method : {SqrtMethod::lanczos, SqrtMethod::chebyshev}) {
-      SqrtOptions options = sampler(method, SqrtPreconditioner::block, 1e-6);
-      options.preconditioner_block = 4;
-      const GrandVectors expected = serial_share_rotation(serial, blocks, z, options);
-      const auto [w, report] = distributed_rotation(op, part, z, options);
-      EXPECT_EQ(bitwise_mismatches(w.t, share(expected.t, 3, part.offset, part.n)) +
-                    bitwise_mismatches(w.r, share(expected.r, 3, part.offset, part.n)),
-                0u)
-          << rpyfmm::rpy::to_string(method) << " with the same G, rank " << world_rank() << " of " << world_size();
-    }
-    if (s != Split::last_only && world_size() > 1) continue;
-    for (SqrtMethod method : {SqrtMethod::lanczos, SqrtMethod::chebyshev}) {
-      const SqrtOptions options = sampler(method, SqrtPreconditioner::block, 1e-6);  // automatic block size
-      const auto [expected, serial_report] = serial_rotation(serial, z, options);
-      const auto [w, report] = distributed_rotation(op, part, z, options);
-      EXPECT_EQ(report.iterations, serial_report.iterations);
-      EXPECT_EQ(report.preconditioner_blocks, serial_report.preconditioner_blocks);
-      EXPECT_EQ(bitwise_mismatches(w.t, share(expected.t, 3, part.offset, part.n)) +
-                    bitwise_mismatches(w.r, share(expected.r, 3, part.offset, part.n)),
-                0u)
-          << rpyfmm::rpy::to_string(method) << ", rank " << world_rank();
+      for (int block : {4, 0}) {  // 0: automatic
+        SqrtOptions options = sampler(method, SqrtPreconditioner::block, 1e-6);
+        options.preconditioner_block = block;
+        const auto [expected, serial_report] = serial_rotation(serial, z, options);
+        const auto [w, report] = distributed_rotation(op, part, z, options);
+        EXPECT_EQ(report.iterations, serial_report.iterations);
+        EXPECT_EQ(report.preconditioner_blocks, serial_report.preconditioner_blocks);
+        EXPECT_EQ(bitwise_mismatches(w.t, share(expected.t, 3, part.offset, part.n)) +
+                      bitwise_mismatches(w.r, share(expected.r, 3, part.offset, part.n)),
+                  0u)
+            << rpyfmm::rpy::to_string(method) << ", block " << block << ", split " << static_cast<int>(s) << ", rank "
+            << world_rank() << " of " << world_size();
+      }
     }
   }
 }

@@ -1,9 +1,9 @@
 // rpyfmm::mpi::sqrt_apply with several right-hand sides (nrhs): each column against the sampler of
 // one right-hand side on that column alone, bit for bit (Lanczos and Chebyshev, without and with
 // the block preconditioner, on every split); the whole set against the serial block sampler
-// DirectRpy::apply_sqrt_block, bit for bit; the exchanges of inner products, as many as the column
-// with the most iterations takes alone; the FMM operator against the direct one; and collective
-// failure on bad input.
+// DirectRpy::apply_sqrt_block, bit for bit, with and without the block preconditioner; the
+// exchanges of inner products, as many as the column with the most iterations takes alone; the
+// FMM operator against the direct one; and collective failure on bad input.
 #include <gtest/gtest.h>
 #include <mpi.h>
 
@@ -122,22 +122,15 @@ void expect_columns_are_singles(const ColumnsAndSingles& r, std::size_t n, const
   }
 }
 
-// Whether one rank holds every particle under the split (then the block preconditioner's blocks
-// are the serial sampler's).
-bool one_rank_holds_all(std::size_t particles, Split s) {
-  const std::vector<std::size_t> counts = split_counts(particles, static_cast<std::size_t>(world_size()), s);
-  return std::find(counts.begin(), counts.end(), particles) != counts.end();
-}
-
 }  // namespace
 
 TEST(MpiDistributedSqrtColumns, EachColumnIsTheSingleSampleAndTheSerialBlockSampleBitForBit) {
   // 200 clustered particles (one reduction chunk) at tolerance 1e-6, nrhs 3. Against
   // DirectRpy::apply_sqrt_block on the whole set (the serial block variant; independent of the
   // distributed code): bit for bit, since every inner product is summed in the serial order
-  // (krylov_space.hpp) and DirectRpy's block product is its single product on every column; with
-  // the block preconditioner only where one rank holds every particle (elsewhere G, and so the
-  // sample, depends on the partition: docs/mpi.md).
+  // (krylov_space.hpp), DirectRpy's block product is its single product on every column, and the
+  // block preconditioner's G is the serial one of the whole set on every split (its blocks cut
+  // between ranks: mpi/src/global_blocks.hpp).
   const Particles p = clustered_particles(170, 30, 61);
   const WholeSet set(p, 0, 0);
   const std::vector<double> z = whole_columns(p.size());
@@ -157,12 +150,11 @@ TEST(MpiDistributedSqrtColumns, EachColumnIsTheSingleSampleAndTheSerialBlockSamp
         std::vector<double> again(r.w.size());
         rpyfmm::mpi::sqrt_apply(op, column_shares(z, p.size(), part), again, kColumns, options);
         EXPECT_EQ(bitwise_mismatches(again, r.w), 0u) << label << ": a second call";
-        if (preconditioner == SqrtPreconditioner::none || one_rank_holds_all(p.size(), s)) {
-          EXPECT_EQ(bitwise_mismatches(r.w, column_shares(w_serial, p.size(), part)), 0u)
-              << label << ": against the serial block sampler, rank " << world_rank();
-          EXPECT_EQ(r.report.iterations, serial.iterations) << label;
-          EXPECT_EQ(r.report.vector_products, serial.vector_products) << label;
-        }
+        EXPECT_EQ(bitwise_mismatches(r.w, column_shares(w_serial, p.size(), part)), 0u)
+            << label << ": against the serial block sampler, rank " << world_rank();
+        EXPECT_EQ(r.report.iterations, serial.iterations) << label;
+        EXPECT_EQ(r.report.vector_products, serial.vector_products) << label;
+        EXPECT_EQ(r.report.preconditioner_blocks, serial.preconditioner_blocks) << label;
       }
     }
   }

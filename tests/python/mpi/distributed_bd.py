@@ -38,7 +38,7 @@ ROTATING = ROTATING_DIRECT.replace('method = "direct"', 'method = "none"')
 
 # Hydrodynamic interactions by the exact operator with the sampler of the C++ test
 # (tests/mpi/test_distributed_bd.cpp, DirectHydrodynamicsFollowTheSerialEngineToRoundOff): Lanczos
-# without preconditioner at 1e-8 (the block preconditioner's blocks would be each rank's particles).
+# without preconditioner at 1e-8.
 LANCZOS = 'sqrt_method = "lanczos"\nsqrt_tolerance = 1e-8\nsqrt_preconditioner = "none"'
 DIRECT = CONFIG.replace('method = "direct"', 'method = "direct"\n' + LANCZOS).replace("steps = 20", "steps = 12")
 

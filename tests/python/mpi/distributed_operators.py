@@ -123,13 +123,9 @@ def test_direct_rotation_bad_input_raises_on_every_rank() -> None:
 def test_direct_sqrt_equals_serial(method: str, preconditioner: str) -> None:
     x, a, _ = system(200, seed=12, radii=True)
     z = rpyfmm.normal_noise(len(x), 5)
-    # docs/mpi.md, "Brownian displacements": without a preconditioner every inner product is summed
-    # in the serial order, whatever the partition; the block preconditioner is that of each rank's
-    # particles, the serial one where one rank (here the last) holds every particle.
-    if preconditioner == "none":
-        part = share(len(x))
-    else:
-        part = slice(0, len(x)) if RANK == SIZE - 1 else slice(0, 0)
+    # docs/mpi.md, "Brownian displacements": every inner product is summed in the serial order and
+    # the block preconditioner's blocks are the serial ones of the whole set, whatever the partition.
+    part = share(len(x))
     keywords = dict(method=method, preconditioner=preconditioner, tolerance=1e-6)
     op = rpyfmm.mpi.DistributedDirectRpy(COMM)
     op.set_positions(x[part], a[part])

@@ -47,13 +47,9 @@ def test_direct_columns_are_singles_and_the_serial_block_sample(
     x = suspension(200, seed=21)
     a = np.random.default_rng(22).uniform(0.8, 1.2, len(x))
     z = columns(len(x))
-    # docs/mpi.md, "Several right-hand sides": without a preconditioner every inner product is
-    # summed in the serial order, whatever the partition; the block preconditioner is that of each
-    # rank's particles, the serial one where one rank (here the last) holds every particle.
-    if preconditioner == "none":
-        part = share(len(x))
-    else:
-        part = slice(0, len(x)) if RANK == SIZE - 1 else slice(0, 0)
+    # docs/mpi.md, "Several right-hand sides": every inner product is summed in the serial order and
+    # the block preconditioner's blocks are the serial ones of the whole set, whatever the partition.
+    part = share(len(x))
     keywords = dict(method=method, preconditioner=preconditioner, tolerance=1e-6)
     op = rpyfmm.mpi.DistributedDirectRpy(COMM, viscosity=0.7)
     op.set_positions(x[part], a[part])

@@ -113,7 +113,7 @@ struct DistributedBdOptions {
   /// The mobility: none (free draining, 1 / (6 pi eta a)), or the RPY mobility of all ranks'
   /// particles: in open geometry by direct (DistributedDirectRpy) or fmm (DistributedFmmRpy), with
   /// the Brownian displacement by rpyfmm::mpi::sqrt_apply with integrator.sqrt (Lanczos or
-  /// Chebyshev, with or without the block preconditioner of each rank's particles; automatic:
+  /// Chebyshev, with or without the block preconditioner of the whole set; automatic:
   /// Lanczos without it; rpyfmm/mpi/sqrt.hpp); in a periodic box by pse (DistributedPseRpy), drift
   /// and noise in one pass, u = M F + sqrt(2 kT / dt) M^{1/2} z with PSE's split sampler, as
   /// bd::Integrator takes them from PseRpy (integrator.sqrt.method automatic or split).

@@ -2,8 +2,8 @@
 // rotation the displacements and rotations of the grand mobility (docs/mpi.md, "Samplers"): the
 // Lanczos square root (Ando, Chow & Saad, J. Chem. Phys. 137, 064106 (2012)) and
 // the Chebyshev square root (Fixman, Macromolecules 19, 1204 (1986); docs/theory/samplers.md) with
-// global inner products, optionally with the block preconditioner of each rank's particles, and the
-// serial samplers' noise for each rank's share of the particles.
+// global inner products, optionally with the block preconditioner of the whole set's serial blocks,
+// and the serial samplers' noise for each rank's share of the particles.
 //
 // Vectors are distributed as the operator's particles: each rank holds the 3 local_size()
 // entries of its own particles. Every call is collective and fails collectively
@@ -42,11 +42,14 @@ void fill_normal(std::span<double> local_z, std::size_t offset, std::uint64_t se
 ///   bit, this rank's share of what rpy::sqrt_apply gives with the serial DirectRpy on the whole
 ///   set, whatever the number of ranks and the partition: every inner product is summed in the
 ///   serial order (mpi/src/krylov_space.hpp, docs/mpi.md).
-/// - block: w = G^{-1} (G M G^T)^{1/2} z with G the rpy::BlockPreconditioner of this rank's own
-///   particles (op.local_positions(), op.local_radii(); options.preconditioner_block, or
-///   automatic_block of the whole set when 0): blocks never straddle ranks, so G needs no
-///   communication, and G, with it the sample (not its covariance M), depends on the partition.
-///   Where one rank holds every particle it is bit for bit the serial preconditioned sampler.
+/// - block: w = G^{-1} (G M G^T)^{1/2} z with G the serial rpy::BlockPreconditioner of the whole
+///   set in the global order (options.preconditioner_block, or automatic_block of the whole set
+///   when 0), whatever the partition: every rank gathers all positions and radii (O(N) per rank and
+///   call) and bisects them as the serial code does; each block is factored by the rank holding
+///   most of its members, and G, G^T, G^{-1} gather each block's rows there and send the results
+///   back (docs/mpi.md, "Brownian displacements"). The result is, bit for bit, this rank's share of
+///   DirectRpy::apply_sqrt with the block preconditioner on the whole set, for every partition;
+///   report.preconditioner_blocks is the serial count.
 /// Every rank must pass the same options (checked collectively).
 /// `inner_products_seconds`, where not null, receives this rank's time in the MPI calls of the
 /// inner products (the products' own MPI time: op.communication().applies_seconds).
@@ -101,10 +104,10 @@ rpy::SqrtReport sqrt_apply(const DistributedFmmRpy& op, std::span<const double> 
 /// - preconditioner none or automatic (none): with DistributedDirectRpy, bit for bit this rank's
 ///   share of what DirectRpy::apply_sqrt_rotation gives on the whole set, for Lanczos and
 ///   Chebyshev, whatever the number of ranks and the partition.
-/// - block: G the rpy::BlockPreconditioner of this rank's own particles for the scaled grand
-///   mobility (rpy::PreconditionedMatrix::scaled_grand: 6 rows per particle); the sample depends on
-///   the partition, its covariance does not. Where one rank holds every particle it is bit for bit
-///   the serial preconditioned sampler.
+/// - block: G the serial rpy::BlockPreconditioner of the whole set for the scaled grand mobility
+///   (rpy::PreconditionedMatrix::scaled_grand: 6 rows per particle), across ranks as for
+///   sqrt_apply: with DistributedDirectRpy bit for bit DirectRpy::apply_sqrt_rotation with the
+///   block preconditioner, for every partition.
 /// With DistributedFmmRpy the product is the FMM's (within its tolerance of M).
 /// `inner_products_seconds` as above.
 rpy::SqrtReport sqrt_apply_rotation(const DistributedDirectRpy& op, std::span<const double> local_z_translation,

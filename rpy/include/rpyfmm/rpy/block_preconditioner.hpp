@@ -28,6 +28,7 @@
 #include <span>
 #include <vector>
 
+#include "rpyfmm/rpy/block_factors.hpp"
 #include "rpyfmm/rpy/geometry.hpp"
 #include "rpyfmm/rpy/sqrt.hpp"
 
@@ -89,8 +90,7 @@ class BlockPreconditioner {
   [[nodiscard]] std::size_t diagonal_blocks() const { return diagonal_blocks_; }
 
  private:
-  enum class Op { apply_g, apply_g_transpose, solve_g };
-  void apply(Op op, double* x) const;
+  void apply(BlockOp op, double* x) const;
   /// Entry of particle i's row c (0 <= c < dofs_) in a vector: translation 3i + c, rotation 3N + 3i + c - 3.
   [[nodiscard]] std::size_t entry(std::size_t i, std::size_t c) const {
     return c < 3 ? 3 * i + c : 3 * (n_ + i) + c - 3;

@@ -1,0 +1,59 @@
+// rpyfmm — the pieces of the block preconditioner (block_preconditioner.hpp) one block at a time:
+// the spatial blocks of a set of particles, one block's Cholesky factor, and the triangular
+// kernels with it. BlockPreconditioner is built from them; the distributed samplers use them to
+// factor and apply the serial blocks of the whole set across ranks (docs/mpi.md, "Brownian
+// displacements"), so both give the same bits.
+#pragma once
+
+#include <cstddef>
+#include <span>
+#include <vector>
+
+#include "rpyfmm/rpy/geometry.hpp"
+
+namespace rpyfmm::rpy {
+
+enum class PreconditionedMatrix;
+
+/// Spatial blocks of N particles: `order` lists the particle indices block after block, block b
+/// is order[offsets[b] .. offsets[b + 1]).
+struct BlockPartition {
+  std::vector<std::size_t> order;
+  std::vector<std::size_t> offsets{0};
+  [[nodiscard]] std::size_t blocks() const { return offsets.size() - 1; }
+};
+
+/// The recursive median bisection along the axis of widest extent of N = positions.size() / 3
+/// particles until every block has at most max(max_block, 1) particles. Deterministic: the same
+/// positions give the same blocks, members in the same order.
+[[nodiscard]] BlockPartition bisect_blocks(std::span<const double> positions, std::size_t max_block);
+
+/// Rows of the preconditioned matrix per particle: 3, or 6 for the scaled grand mobility.
+[[nodiscard]] std::size_t block_dofs(PreconditionedMatrix matrix);
+
+/// Entries of a packed lower triangle of m rows: m (m + 1) / 2.
+[[nodiscard]] constexpr std::size_t packed_entries(std::size_t m) {
+  return m * (m + 1) / 2;
+}
+
+/// Factors the diagonal block of `matrix` (M, or S M S with rotation) of the particles `members`
+/// (indices into positions and radii; rows particle after particle, dofs rows each) with viscosity
+/// eta and the minimum image of a periodic geometry: L L^T = the block, in single precision,
+/// packed by rows into `packed` (packed_entries(dofs x members.size()) entries). Where the
+/// Cholesky factorization fails (coincident particles) L = diag(sqrt(diagonal)); returns false
+/// then.
+bool factor_block(std::span<const double> positions, std::span<const double> radii, double viscosity,
+                  const Geometry& geometry, std::span<const std::size_t> members, PreconditionedMatrix matrix,
+                  float* packed);
+
+/// What a kernel does with a block's factor L (G = L^{-1}).
+enum class BlockOp {
+  apply_g,            ///< out = G in (forward substitution)
+  apply_g_transpose,  ///< out = G^T in (back substitution)
+  solve_g,            ///< out = G^{-1} in = L in
+};
+
+/// `op` with the packed factor l of m rows on the m entries of in; out has m entries (not in).
+void apply_block_factor(BlockOp op, const float* l, std::size_t m, const double* in, double* out);
+
+}  // namespace rpyfmm::rpy
