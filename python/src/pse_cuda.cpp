@@ -4,9 +4,9 @@
 // Host arrays take the operator's host entry points (transfers included), as every operator's.
 // Device arrays take its *_device entry points, read and written in place on the current device:
 // the same operations on the same vectors, so the same numbers as the host path for the same
-// inputs (docs/python.md, "Device arrays"; docs/theory/pse.md). The
-// device entry points do not check their inputs; the bindings check them as the host ones are
-// checked (shapes, sizes, NaN/Inf by one pass on the device) before the operator runs.
+// inputs (docs/python.md, "Device arrays"; docs/theory/pse.md). The device entry points do not
+// check their inputs; the bindings check them as the host ones are checked (shapes, sizes, NaN/Inf
+// by one pass on the device) before the operator runs.
 #include <nanobind/stl/map.h>
 #include <nanobind/stl/string.h>
 
