@@ -77,6 +77,10 @@ What differs from libMobility:
   Mdot only (the rotational square root has no device entry point). Every other solver takes
   host arrays only and raises :class:`rpyfmm.InvalidInputError` naming a device array
   (docs/python.md, "Device arrays").
+* Host arrays of another framework than NumPy (a PyTorch CPU tensor) are read as
+  NumPy reads them, and the results come back in that framework, without a copy
+  (of the positions' where the call has no array argument), as libMobility
+  returns its results; NumPy arrays and lists give NumPy arrays.
 * Inputs are checked: wrong sizes, non-finite values, calls out of order and
   unknown periodicity names raise :class:`rpyfmm.InvalidArgumentError` or
   :class:`rpyfmm.InvalidInputError` (both ValueError) naming the problem.
@@ -130,6 +134,18 @@ def _dlpack_device(value: object) -> Optional[Tuple[int, int]]:
         return None
     d = tuple(device())
     return None if d[0] == 1 else d
+
+
+def _host_framework(value: object) -> Optional[Any]:
+    """from_dlpack of the framework of a host array other than NumPy's (a PyTorch CPU tensor, ...),
+    which wraps a NumPy result without a copy; None for NumPy arrays, lists and device arrays.
+    libMobility returns its results in the input's framework on the host too."""
+    if value is None or isinstance(value, np.ndarray) or getattr(value, "__dlpack_device__", None) is None:
+        return None
+    if _dlpack_device(value) is not None:
+        return None
+    module = sys.modules.get(type(value).__module__.split(".")[0])
+    return getattr(module, "from_dlpack", None) if module is not None and module is not np else None
 
 
 def _flat3(value: object, name: str, where: str) -> Tuple[np.ndarray, Tuple[int, ...]]:
@@ -269,6 +285,7 @@ class _Solver:
         self._calls = 0
         self._n = 0
         self._like = None
+        self._host_like = None
         self._initialized = True
 
     def setPositions(self, positions: npt.ArrayLike) -> None:
@@ -284,6 +301,7 @@ class _Solver:
         self._n = len(x)
         self._shape = shape
         self._like = None
+        self._host_like = _host_framework(positions)
 
     def Mdot(self, forces: Optional[npt.ArrayLike] = None,
              torques: Optional[npt.ArrayLike] = None) -> Tuple[np.ndarray, ArrayOrNone]:
@@ -294,7 +312,7 @@ class _Solver:
             return self._device_apply(forces, torques, where, need_one=True)
         f, t, f_shape, t_shape = self._loads(forces, torques, where, need_one=True)
         u, w = self._apply(f, t)
-        return self._results(u, w, f_shape, t_shape)
+        return self._results(u, w, f_shape, t_shape, forces if forces is not None else torques)
 
     def sqrtMdotW(self, prefactor: float = 1.0) -> Tuple[np.ndarray, ArrayOrNone]:
         """prefactor * M^{1/2} xi (libMobility 1.x) or, after initialize(temperature=kT),
@@ -305,7 +323,7 @@ class _Solver:
         if self._like is not None:
             return self._device_sqrt(scale, where)
         u, w = self._sqrt(scale)
-        return self._results(u, w, self._shape, self._shape)
+        return self._results(u, w, self._shape, self._shape, None)
 
     def LangevinVelocities(self, dt: float, kbt: float, forces: Optional[npt.ArrayLike] = None,
                            torques: Optional[npt.ArrayLike] = None) -> Tuple[np.ndarray, ArrayOrNone]:
@@ -325,7 +343,7 @@ class _Solver:
             return self._device_zeros()
         u, w = self._zeros()
         u += c * self._op.divergence()
-        return self._results(u, w, self._shape, self._shape)
+        return self._results(u, w, self._shape, self._shape, None)
 
     def hydrodynamicVelocities(self, forces: Optional[npt.ArrayLike] = None, torques: Optional[npt.ArrayLike] = None,
                                prefactor: float = 1.0) -> Tuple[np.ndarray, ArrayOrNone]:
@@ -348,6 +366,7 @@ class _Solver:
         self._initialized = False
         self._n = 0
         self._like = None
+        self._host_like = None
 
     def getNumberParticles(self) -> int:
         """N of the last setPositions (0 before)."""
@@ -433,7 +452,7 @@ class _Solver:
             u += du
             if w is not None:
                 w += dw
-        return self._results(u, w, f_shape, t_shape)
+        return self._results(u, w, f_shape, t_shape, forces if forces is not None else torques)
 
     def _zeros(self) -> Tuple[np.ndarray, ArrayOrNone]:
         return np.zeros((self._n, 3)), (np.zeros((self._n, 3)) if self._angular else None)
@@ -513,10 +532,15 @@ class _Solver:
             w *= scale
         return w, None
 
-    @staticmethod
-    def _results(u: np.ndarray, w: ArrayOrNone, u_shape: Tuple[int, ...],
-                 w_shape: Tuple[int, ...]) -> Tuple[np.ndarray, ArrayOrNone]:
-        return u.reshape(u_shape), (None if w is None else w.reshape(w_shape))
+    def _results(self, u: np.ndarray, w: ArrayOrNone, u_shape: Tuple[int, ...], w_shape: Tuple[int, ...],
+                 given: Any) -> Tuple[Any, Any]:
+        """(U, W) in the given shapes, as NumPy arrays or in the framework of the host array `given`
+        (of the positions' where the call has none): a PyTorch CPU tensor in, PyTorch tensors out."""
+        wrap = _host_framework(given) if given is not None else self._host_like
+        u, w = u.reshape(u_shape), (None if w is None else w.reshape(w_shape))
+        if wrap is None:
+            return u, w
+        return wrap(np.ascontiguousarray(u)), (None if w is None else wrap(np.ascontiguousarray(w)))
 
 
 class NBody(_Solver):

@@ -170,6 +170,19 @@ def test_device_engine_views_on_the_host_launcher(mobility):
     assert np.abs(sim.last_forces).max() > 0, "the forces must act"
 
 
+def test_torch_imports_the_read_only_views_on_the_host_launcher():
+    # The views carry DLPack 1.0's read-only flag; PyTorch imports them (it has no read-only
+    # tensors, so the flag only tells it not to write), sharing the engine's memory.
+    torch = pytest.importorskip("torch")
+    sim = engine_simulation(device_launcher="host")
+    sim.run(2)
+    x = torch.from_dlpack(sim.device_positions())
+    assert x.shape == (64, 3) and x.dtype == torch.float64 and x.device.type == "cpu"
+    np.testing.assert_array_equal(x.numpy(), sim.positions)
+    assert x.data_ptr() == np.from_dlpack(sim.device_positions()).ctypes.data
+    np.testing.assert_array_equal(torch.from_dlpack(sim.device_forces()).numpy(), sim.last_forces)
+
+
 def test_a_view_keeps_the_simulation_alive():
     sim = engine_simulation(device_launcher="host")
     sim.run(3)

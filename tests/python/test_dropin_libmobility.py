@@ -6,6 +6,8 @@ what is not supported or malformed."""
 from __future__ import annotations
 
 import math
+import sys
+import types
 
 import numpy as np
 import pytest
@@ -319,3 +321,68 @@ def test_bad_input_raises_clear_errors(system):
     solver.clean()
     with pytest.raises(rpyfmm.InvalidArgumentError, match="call initialize first"):
         solver.Mdot(f)
+
+
+# ---- host arrays of other frameworks -------------------------------------------------------------
+
+
+class HostFrameArray:
+    """A host array of a stand-in framework "hostframe" (DLPack on kDLCPU, read by NumPy through
+    __array__), as a PyTorch CPU tensor presents itself."""
+
+    def __init__(self, a: np.ndarray) -> None:
+        self.a = a
+
+    def __array__(self, dtype=None, copy=None):
+        return self.a if dtype is None else self.a.astype(dtype)
+
+    def __dlpack__(self, **kwargs):
+        return self.a.__dlpack__(**kwargs)
+
+    def __dlpack_device__(self):
+        return self.a.__dlpack_device__()
+
+
+@pytest.fixture
+def hostframe(monkeypatch):
+    module = types.ModuleType("hostframe")
+    module.from_dlpack = lambda x: HostFrameArray(np.from_dlpack(x))
+    HostFrameArray.__module__ = "hostframe"
+    monkeypatch.setitem(sys.modules, "hostframe", module)
+    return HostFrameArray
+
+
+def test_host_arrays_of_another_framework_come_back_in_it(system, hostframe):
+    # libMobility returns its results in the input's framework: the values are the NumPy call's
+    # bits (the same operator and vectors), wrapped without a copy.
+    x, f, t = system
+    ref, solver = nbody(angular=True), nbody(angular=True)
+    ref.setPositions(x)
+    solver.setPositions(hostframe(x))
+    for got, want in ((solver.Mdot(hostframe(f)), ref.Mdot(f)),
+                      (solver.Mdot(torques=hostframe(t)), ref.Mdot(torques=t)),
+                      (solver.sqrtMdotW(0.5), ref.sqrtMdotW(0.5)),  # the positions' framework
+                      (solver.divM(), ref.divM())):
+        for g, w in zip(got, want):
+            assert isinstance(g, hostframe)
+            np.testing.assert_array_equal(g.a, w)
+    # NumPy forces on hostframe positions give NumPy, as the input's framework decides.
+    u, _ = solver.Mdot(f)
+    assert isinstance(u, np.ndarray)
+    # NumPy positions give NumPy for the calls without an array argument.
+    solver.setPositions(x)
+    assert isinstance(solver.sqrtMdotW()[0], np.ndarray)
+
+
+def test_torch_cpu_tensors_in_torch_tensors_out(system):
+    torch = pytest.importorskip("torch")
+    x, f, _ = system
+    ref, solver = nbody(), nbody()
+    ref.setPositions(x)
+    solver.setPositions(torch.from_numpy(x))
+    u, w = solver.Mdot(torch.from_numpy(f))
+    assert isinstance(u, torch.Tensor) and u.dtype == torch.float64 and w is None
+    np.testing.assert_array_equal(u.numpy(), ref.Mdot(f)[0])
+    noise = solver.sqrtMdotW()[0]
+    assert isinstance(noise, torch.Tensor)
+    np.testing.assert_array_equal(noise.numpy(), ref.sqrtMdotW()[0])
