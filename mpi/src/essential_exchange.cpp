@@ -132,44 +132,37 @@ int region_request(const double* summary, std::span<const Box> cover, const Acce
   return p > 0 ? p : -static_cast<int>(cover.size());
 }
 
-// Covers exchanged only with the ranks that walk them: one all-gather of every rank's summary, one
-// all-to-all of the requests, the covers point to point.
-std::vector<Region> neighbour_regions(const Communicator& comm, const std::vector<Box>& cover, const CellTree& tree,
-                                      const Acceptance& acceptance, FmmCommunication& stats) {
-  const auto ranks = static_cast<std::size_t>(comm.size());
-  const auto me = static_cast<std::size_t>(comm.rank());
+// Collective: every rank's summary (its root cell's cube and particles; 0 particles for an empty
+// tree), by rank, one all-gather.
+std::vector<double> gather_roots(const Communicator& comm, const CellTree& tree) {
   std::array<double, kSummaryDoubles> mine{};
   if (!tree.cells.empty()) {
     const Cube root = cell_cube(tree.cells[0]);
     mine = {root.center[0], root.center[1], root.center[2], root.half, static_cast<double>(tree.cells[0].size())};
   }
-  std::vector<double> summaries(kSummaryDoubles * ranks);
+  std::vector<double> summaries(kSummaryDoubles * static_cast<std::size_t>(comm.size()));
   check_mpi(MPI_Allgather(mine.data(), static_cast<int>(kSummaryDoubles), MPI_DOUBLE, summaries.data(),
                           static_cast<int>(kSummaryDoubles), MPI_DOUBLE, comm.get()),
             "MPI_Allgather");
-  // asked[s]: what this rank's region asks of rank s's cells; told[r]: what rank r's asks of this rank's.
-  std::vector<int> asked(ranks), told(ranks);
-  for (std::size_t s = 0; s < ranks; ++s)
-    asked[s] = s == me ? 0 : region_request(summaries.data() + kSummaryDoubles * s, cover, acceptance);
-  check_mpi(MPI_Alltoall(asked.data(), 1, MPI_INT, told.data(), 1, MPI_INT, comm.get()), "MPI_Alltoall");
-  stats.plan_bytes_received += summaries.size() * sizeof(double) + told.size() * sizeof(int);
+  return summaries;
+}
 
+// Collective: this rank's cover to every rank s with asked[s] < 0, and rank r's cover of -told[r]
+// boxes from every rank r with told[r] < 0, point to point; the covers received go into regions.
+void exchange_covers(const Communicator& comm, const std::vector<Box>& cover, const std::vector<int>& asked,
+                     const std::vector<int>& told, std::vector<Region>& regions, FmmCommunication& stats) {
   const std::vector<double> packed = pack_boxes(cover);
-  std::vector<std::vector<double>> got(ranks);
+  std::vector<std::vector<double>> got(told.size());
   std::vector<MPI_Request> requests;
-  std::vector<Region> regions(ranks);
-  for (std::size_t r = 0; r < ranks; ++r) {
-    if (told[r] >= 0) {
-      regions[r].root_order = told[r];
-      continue;
-    }
+  for (std::size_t r = 0; r < told.size(); ++r) {
+    if (told[r] >= 0) continue;
     got[r].resize(kBoxDoubles * static_cast<std::size_t>(-told[r]));
     requests.push_back(MPI_REQUEST_NULL);
     check_mpi(MPI_Irecv(got[r].data(), static_cast<int>(got[r].size()), MPI_DOUBLE, static_cast<int>(r), kCoverTag,
                         comm.get(), &requests.back()),
               "MPI_Irecv");
   }
-  for (std::size_t s = 0; s < ranks; ++s) {
+  for (std::size_t s = 0; s < asked.size(); ++s) {
     if (asked[s] >= 0) continue;
     requests.push_back(MPI_REQUEST_NULL);
     check_mpi(MPI_Isend(packed.data(), static_cast<int>(packed.size()), MPI_DOUBLE, static_cast<int>(s), kCoverTag,
@@ -178,13 +171,32 @@ std::vector<Region> neighbour_regions(const Communicator& comm, const std::vecto
     ++stats.region_sent_to;
   }
   check_mpi(MPI_Waitall(static_cast<int>(requests.size()), requests.data(), MPI_STATUSES_IGNORE), "MPI_Waitall");
-  for (std::size_t r = 0; r < ranks; ++r) {
+  for (std::size_t r = 0; r < got.size(); ++r) {
     if (got[r].empty()) continue;
     regions[r].cover = unpack_boxes(got[r].data(), got[r].size());
     ++stats.region_neighbours;
     stats.region_bytes_received += got[r].size() * sizeof(double);
   }
   stats.plan_bytes_received += stats.region_bytes_received;
+}
+
+// Covers exchanged only with the ranks that walk them: one all-gather of every rank's summary, one
+// all-to-all of the requests, the covers point to point.
+std::vector<Region> neighbour_regions(const Communicator& comm, const std::vector<Box>& cover, const CellTree& tree,
+                                      const Acceptance& acceptance, FmmCommunication& stats) {
+  const auto ranks = static_cast<std::size_t>(comm.size());
+  const auto me = static_cast<std::size_t>(comm.rank());
+  const std::vector<double> summaries = gather_roots(comm, tree);
+  // asked[s]: what this rank's region asks of rank s's cells; told[r]: what rank r's asks of this
+  // rank's (0 from itself).
+  std::vector<int> asked(ranks), told(ranks);
+  for (std::size_t s = 0; s < ranks; ++s)
+    asked[s] = s == me ? 0 : region_request(summaries.data() + kSummaryDoubles * s, cover, acceptance);
+  check_mpi(MPI_Alltoall(asked.data(), 1, MPI_INT, told.data(), 1, MPI_INT, comm.get()), "MPI_Alltoall");
+  stats.plan_bytes_received += summaries.size() * sizeof(double) + told.size() * sizeof(int);
+  std::vector<Region> regions(ranks);
+  for (std::size_t r = 0; r < ranks; ++r) regions[r].root_order = std::max(told[r], 0);
+  exchange_covers(comm, cover, asked, told, regions, stats);
   return regions;
 }
 
