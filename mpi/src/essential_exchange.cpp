@@ -16,9 +16,9 @@ namespace rpyfmm::mpi::detail {
 namespace {
 
 constexpr const char* kWhere = "rpyfmm::mpi::DistributedLaplaceFmm";
-// Boxes per rank in the published cover of its region (region_cover): more boxes describe a
-// region more tightly (fewer cells opened for it) at 48 bytes each in the all-gather; 512 instead
-// of 64 changed no essential source at 4e5 sources on 4 ranks (docs/mpi.md).
+// Boxes per rank in the cover of its region (region_cover): more boxes describe a region more
+// tightly (fewer cells opened for it) at 48 bytes each to every neighbour; 512 instead of 64
+// changed no essential source at 4e5 sources on 4 ranks (docs/mpi.md).
 constexpr std::size_t kRegionBoxes = 64;
 constexpr std::size_t kBoxDoubles = 6;   // lo, hi
 constexpr std::size_t kCubeDoubles = 5;  // center, half-side, order

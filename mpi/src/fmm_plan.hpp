@@ -76,8 +76,9 @@ struct Region {
 /// cover by one all-gather (each walked). Otherwise one all-gather of every rank's root cell (cube
 /// and particles), from which each rank decides which ranks' root cells its cover compresses (the
 /// first step of their walks, compressed_order) and tells them their orders in one all-to-all of
-/// one int per rank; its cover goes point to point to the others only. Both give every rank the
-/// same cells to send, bit for bit. Records the regions' counts and bytes in `stats`.
+/// one int per rank; its cover goes point to point only to the ranks whose root cells it does not
+/// compress. Both give every rank the same cells to send, bit for bit. Records the regions' counts
+/// and bytes in `stats`.
 [[nodiscard]] std::vector<Region> exchange_regions(const Communicator& comm, const CellTree& region_tree,
                                                    const CellTree& tree, const Acceptance& acceptance, bool gather_all,
                                                    FmmCommunication& stats);

@@ -94,8 +94,8 @@ inline constexpr std::size_t kDefaultCellCapacity = 32;
 /// bytes are what this rank received (its own share of the partition's exchanges included).
 struct FmmCommunication {
   /// set_points: "partition" (SfcPartition and positions to the owners), "summaries" (the
-  /// exchange of the regions: the root cells' all-gather, the requests and the covers), "geometry" (the locally
-  /// essential tree's cells and halo).
+  /// exchange of the regions: the root cells' all-gather, the requests and the covers),
+  /// "geometry" (the locally essential tree's cells and halo).
   StageTimes plan_seconds;
   std::uint64_t plan_bytes_received = 0;
   /// The last evaluate: "charges" (to the owners), "essential" (equivalent and halo charges),
