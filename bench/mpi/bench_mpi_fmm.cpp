@@ -3,7 +3,7 @@
 // CMakeLists.txt) for bench/run.py's group "mpi".
 //
 // usage: bench_mpi_fmm --n N --eps E [--scaling strong|weak] [--reps 3] [--measured-weights 1]
-//                      [--overlap-exchange 1]
+//                      [--overlap-exchange 1] [--gather-all-regions 1]
 //   strong: N sources in all; weak: N sources per rank (N x P in all). Uniform in the unit cube,
 //   zero-mean charges; every rank draws its own contiguous share of the global sequence (fixed
 //   seed), so the input does not depend on P beyond its size.
@@ -16,6 +16,9 @@
 // essential_measured_max. With --overlap-exchange 1, a second plan with
 // DistributedFmmOptions::overlap_exchange (the serial FMM split to run during the exchanges) is
 // timed alternately with the first, rep by rep: eval_s and eval_overlap_s, medians of the same reps.
+// The regions' exchange: the largest and the mean number of ranks whose covers a rank received
+// (region_neighbours_max, _mean) and the covers' bytes received by all ranks (region_MB); with
+// --gather-all-regions 1 every cover is gathered on every rank (the reference all-gather).
 #include <mpi.h>
 
 #include <cstdio>
@@ -67,6 +70,7 @@ int main(int argc, char** argv) {
 
   rpyfmm::mpi::DistributedFmmOptions options;
   options.fmm.tolerance = a.eps;
+  options.gather_all_regions = flag_on(argc, argv, "--gather-all-regions");
   rpyfmm::mpi::DistributedLaplaceFmm fmm(MPI_COMM_WORLD, options);
   const double plan_s = bench_mpi::median_seconds(1, [&] { fmm.set_points(share.x); });
   const rpyfmm::mpi::FmmCommunication plan_traffic = fmm.communication();
@@ -101,6 +105,9 @@ int main(int argc, char** argv) {
   const double essential = max_over_ranks(static_cast<double>(fmm.essential_size()));
   const double halo = sum_over_ranks(static_cast<double>(t.halo_received));
   const double nodes = sum_over_ranks(static_cast<double>(t.nodes_received));
+  const auto neighbours = static_cast<double>(plan_traffic.region_neighbours);
+  const double neighbours_max = max_over_ranks(neighbours), neighbours_sum = sum_over_ranks(neighbours);
+  const double region_bytes = sum_over_ranks(static_cast<double>(plan_traffic.region_bytes_received));
   const bool measured = flag_on(argc, argv, "--measured-weights");
   double eval_measured_s = 0.0, essential_measured = 0.0;
   if (measured) {
@@ -116,6 +123,9 @@ int main(int argc, char** argv) {
     std::printf(",\"plan_comm_s\":%.6g,\"eval_comm_s\":%.6g,\"plan_MB\":%.6g,\"eval_MB\":%.6g", plan_comm_s,
                 eval_comm_s, plan_bytes / 1e6, eval_bytes / 1e6);
     std::printf(",\"essential_max\":%.0f,\"halo\":%.0f,\"nodes\":%.0f", essential, halo, nodes);
+    std::printf(",\"gather_all_regions\":%d,\"region_neighbours_max\":%.0f,\"region_neighbours_mean\":%.3g",
+                options.gather_all_regions ? 1 : 0, neighbours_max, neighbours_sum / ranks);
+    std::printf(",\"region_MB\":%.6g", region_bytes / 1e6);
     print_stages("plan_comm_", plan_comm);
     print_stages("eval_comm_", eval_comm);
     print_stages("plan_work_", plan_work);

@@ -2,6 +2,7 @@
 // rank, the geometry exchanged once per plan, and the charges exchanged per evaluation
 // (fmm_plan.hpp, docs/mpi.md).
 #include <algorithm>
+#include <array>
 #include <functional>
 #include <memory>
 #include <numeric>
@@ -15,9 +16,9 @@ namespace rpyfmm::mpi::detail {
 namespace {
 
 constexpr const char* kWhere = "rpyfmm::mpi::DistributedLaplaceFmm";
-// Boxes per rank in the published cover of its region (region_cover): more boxes describe a
-// region more tightly (fewer cells opened for it) at 48 bytes each in the all-gather; 512 instead
-// of 64 changed no essential source at 4e5 sources on 4 ranks (docs/mpi.md).
+// Boxes per rank in the cover of its region (region_cover): more boxes describe a region more
+// tightly (fewer cells opened for it) at 48 bytes each to every neighbour; 512 instead of 64
+// changed no essential source at 4e5 sources on 4 ranks (docs/mpi.md).
 constexpr std::size_t kRegionBoxes = 64;
 constexpr std::size_t kBoxDoubles = 6;   // lo, hi
 constexpr std::size_t kCubeDoubles = 5;  // center, half-side, order
@@ -73,37 +74,148 @@ constexpr std::size_t kJobsPerPiece = 64;
 
 }  // namespace
 
-std::vector<std::vector<Box>> gather_regions(const Communicator& comm, const CellTree& tree, std::uint64_t& bytes) {
-  const std::vector<Box> mine = region_cover(tree, kRegionBoxes);
-  const auto ranks = static_cast<std::size_t>(comm.size());
-  const int count = static_cast<int>(kBoxDoubles * mine.size());
-  std::vector<int> counts(ranks), displs(ranks);
-  check_mpi(MPI_Allgather(&count, 1, MPI_INT, counts.data(), 1, MPI_INT, comm.get()), "MPI_Allgather");
-  std::partial_sum(counts.begin(), counts.end() - 1, displs.begin() + 1);
-  std::vector<double> packed, all(static_cast<std::size_t>(displs.back() + counts.back()));
-  for (const Box& b : mine) {
+namespace {
+
+constexpr std::size_t kSummaryDoubles = 5;  // the root cell's cube (centre, half-side) and particles
+constexpr int kCoverTag = 0x5247;           // a cover sent to a neighbour (collectives do not match it)
+
+std::vector<double> pack_boxes(const std::vector<Box>& boxes) {
+  std::vector<double> packed;
+  for (const Box& b : boxes) {
     packed.insert(packed.end(), b.lo.begin(), b.lo.end());
     packed.insert(packed.end(), b.hi.begin(), b.hi.end());
   }
+  return packed;
+}
+
+std::vector<Box> unpack_boxes(const double* v, std::size_t doubles) {
+  std::vector<Box> boxes;
+  for (std::size_t i = 0; i < doubles; i += kBoxDoubles, v += kBoxDoubles)
+    boxes.push_back(Box{{v[0], v[1], v[2]}, {v[3], v[4], v[5]}});
+  return boxes;
+}
+
+// Reference: every rank's cover on every rank, one all-gather of counts and one of the boxes; every
+// other rank's region is walked.
+std::vector<Region> all_regions(const Communicator& comm, const std::vector<Box>& cover, FmmCommunication& stats) {
+  const auto ranks = static_cast<std::size_t>(comm.size());
+  const int count = static_cast<int>(kBoxDoubles * cover.size());
+  std::vector<int> counts(ranks), displs(ranks);
+  check_mpi(MPI_Allgather(&count, 1, MPI_INT, counts.data(), 1, MPI_INT, comm.get()), "MPI_Allgather");
+  std::partial_sum(counts.begin(), counts.end() - 1, displs.begin() + 1);
+  std::vector<double> packed = pack_boxes(cover), all(static_cast<std::size_t>(displs.back() + counts.back()));
   check_mpi(MPI_Allgatherv(packed.data(), count, MPI_DOUBLE, all.data(), counts.data(), displs.data(), MPI_DOUBLE,
                            comm.get()),
             "MPI_Allgatherv");
-  bytes += all.size() * sizeof(double);
-  std::vector<std::vector<Box>> regions(ranks);
+  stats.plan_bytes_received += all.size() * sizeof(double);
+  std::vector<Region> regions(ranks);
   for (std::size_t r = 0; r < ranks; ++r) {
-    for (int i = displs[r]; i < displs[r] + counts[r]; i += static_cast<int>(kBoxDoubles)) {
-      const double* v = all.data() + i;
-      regions[r].push_back(Box{{v[0], v[1], v[2]}, {v[3], v[4], v[5]}});
-    }
+    if (static_cast<int>(r) == comm.rank()) continue;
+    regions[r].cover = unpack_boxes(all.data() + displs[r], static_cast<std::size_t>(counts[r]));
+    if (regions[r].cover.empty()) continue;
+    ++stats.region_neighbours;
+    stats.region_bytes_received += static_cast<std::uint64_t>(counts[r]) * sizeof(double);
   }
+  if (!cover.empty()) stats.region_sent_to = ranks - 1;
   return regions;
 }
 
-void select_cells(Plan& plan, const std::vector<std::vector<Box>>& regions, int rank, const Acceptance& acceptance) {
+// What a region (cover) asks of a rank's cells, from that rank's summary (root cube, particles): 0,
+// nothing (an empty region or tree, where essential_cells sends nothing); p > 0, its root cell
+// compressed at order p (where the walk would stop at the root); -k, a walk against the cover's k
+// boxes, which then goes to that rank.
+int region_request(const double* summary, std::span<const Box> cover, const Acceptance& acceptance) {
+  const auto particles = static_cast<std::size_t>(summary[4]);
+  if (cover.empty() || particles == 0) return 0;
+  const Cube root{{summary[0], summary[1], summary[2]}, summary[3]};
+  const int p = compressed_order(root, particles, cover, acceptance);
+  return p > 0 ? p : -static_cast<int>(cover.size());
+}
+
+// Collective: every rank's summary (its root cell's cube and particles; 0 particles for an empty
+// tree), by rank, one all-gather.
+std::vector<double> gather_roots(const Communicator& comm, const CellTree& tree) {
+  std::array<double, kSummaryDoubles> mine{};
+  if (!tree.cells.empty()) {
+    const Cube root = cell_cube(tree.cells[0]);
+    mine = {root.center[0], root.center[1], root.center[2], root.half, static_cast<double>(tree.cells[0].size())};
+  }
+  std::vector<double> summaries(kSummaryDoubles * static_cast<std::size_t>(comm.size()));
+  check_mpi(MPI_Allgather(mine.data(), static_cast<int>(kSummaryDoubles), MPI_DOUBLE, summaries.data(),
+                          static_cast<int>(kSummaryDoubles), MPI_DOUBLE, comm.get()),
+            "MPI_Allgather");
+  return summaries;
+}
+
+// Collective: this rank's cover to every rank s with asked[s] < 0, and rank r's cover of -told[r]
+// boxes from every rank r with told[r] < 0, point to point; the covers received go into regions.
+void exchange_covers(const Communicator& comm, const std::vector<Box>& cover, const std::vector<int>& asked,
+                     const std::vector<int>& told, std::vector<Region>& regions, FmmCommunication& stats) {
+  const std::vector<double> packed = pack_boxes(cover);
+  std::vector<std::vector<double>> got(told.size());
+  std::vector<MPI_Request> requests;
+  for (std::size_t r = 0; r < told.size(); ++r) {
+    if (told[r] >= 0) continue;
+    got[r].resize(kBoxDoubles * static_cast<std::size_t>(-told[r]));
+    requests.push_back(MPI_REQUEST_NULL);
+    check_mpi(MPI_Irecv(got[r].data(), static_cast<int>(got[r].size()), MPI_DOUBLE, static_cast<int>(r), kCoverTag,
+                        comm.get(), &requests.back()),
+              "MPI_Irecv");
+  }
+  for (std::size_t s = 0; s < asked.size(); ++s) {
+    if (asked[s] >= 0) continue;
+    requests.push_back(MPI_REQUEST_NULL);
+    check_mpi(MPI_Isend(packed.data(), static_cast<int>(packed.size()), MPI_DOUBLE, static_cast<int>(s), kCoverTag,
+                        comm.get(), &requests.back()),
+              "MPI_Isend");
+    ++stats.region_sent_to;
+  }
+  check_mpi(MPI_Waitall(static_cast<int>(requests.size()), requests.data(), MPI_STATUSES_IGNORE), "MPI_Waitall");
+  for (std::size_t r = 0; r < got.size(); ++r) {
+    if (got[r].empty()) continue;
+    regions[r].cover = unpack_boxes(got[r].data(), got[r].size());
+    ++stats.region_neighbours;
+    stats.region_bytes_received += got[r].size() * sizeof(double);
+  }
+  stats.plan_bytes_received += stats.region_bytes_received;
+}
+
+// Covers exchanged only with the ranks that walk them: one all-gather of every rank's summary, one
+// all-to-all of the requests, the covers point to point.
+std::vector<Region> neighbour_regions(const Communicator& comm, const std::vector<Box>& cover, const CellTree& tree,
+                                      const Acceptance& acceptance, FmmCommunication& stats) {
+  const auto ranks = static_cast<std::size_t>(comm.size());
+  const auto me = static_cast<std::size_t>(comm.rank());
+  const std::vector<double> summaries = gather_roots(comm, tree);
+  // asked[s]: what this rank's region asks of rank s's cells; told[r]: what rank r's asks of this
+  // rank's (0 from itself).
+  std::vector<int> asked(ranks), told(ranks);
+  for (std::size_t s = 0; s < ranks; ++s)
+    asked[s] = s == me ? 0 : region_request(summaries.data() + kSummaryDoubles * s, cover, acceptance);
+  check_mpi(MPI_Alltoall(asked.data(), 1, MPI_INT, told.data(), 1, MPI_INT, comm.get()), "MPI_Alltoall");
+  stats.plan_bytes_received += summaries.size() * sizeof(double) + told.size() * sizeof(int);
+  std::vector<Region> regions(ranks);
+  for (std::size_t r = 0; r < ranks; ++r) regions[r].root_order = std::max(told[r], 0);
+  exchange_covers(comm, cover, asked, told, regions, stats);
+  return regions;
+}
+
+}  // namespace
+
+std::vector<Region> exchange_regions(const Communicator& comm, const CellTree& region_tree, const CellTree& tree,
+                                     const Acceptance& acceptance, bool gather_all, FmmCommunication& stats) {
+  const std::vector<Box> cover = region_cover(region_tree, kRegionBoxes);
+  stats.region_boxes = cover.size();
+  return gather_all ? all_regions(comm, cover, stats) : neighbour_regions(comm, cover, tree, acceptance, stats);
+}
+
+void select_cells(Plan& plan, const std::vector<Region>& regions, int rank, const Acceptance& acceptance) {
   plan.sent.assign(regions.size(), {});
   for (std::size_t r = 0; r < regions.size(); ++r) {
     if (static_cast<int>(r) == rank) continue;
-    plan.sent[r] = essential_cells(plan.tree, regions[r], acceptance);
+    // A root compressed for r is what the walk against r's cover gives (its first step).
+    plan.sent[r] = regions[r].root_order > 0 ? EssentialCells{{}, {Compressed{0, regions[r].root_order}}}
+                                             : essential_cells(plan.tree, regions[r].cover, acceptance);
     plan.jobs.insert(plan.jobs.end(), plan.sent[r].compressed.begin(), plan.sent[r].compressed.end());
   }
   std::sort(plan.jobs.begin(), plan.jobs.end());

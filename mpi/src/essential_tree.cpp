@@ -30,6 +30,17 @@ int order_at(double tolerance, double eta, int max_order) {
   return p;
 }
 
+int compressed_order(const Cube& cube, std::size_t particles, std::span<const Box> region,
+                     const Acceptance& acceptance) {
+  const double nearest = nearest_distance(cube, region);
+  const double eta = relative_distance(nearest, cube);
+  if (eta < acceptance.separation || nearest < acceptance.min_distance) return 0;
+  const int p =
+      acceptance.fixed_order > 0 ? acceptance.fixed_order : order_at(acceptance.tolerance, eta, acceptance.max_order);
+  const auto nodes = static_cast<std::size_t>(p) * static_cast<std::size_t>(p) * static_cast<std::size_t>(p);
+  return particles > nodes ? p : 0;
+}
+
 EssentialCells essential_cells(const CellTree& tree, std::span<const Box> region, const Acceptance& acceptance) {
   EssentialCells sent;
   if (tree.cells.empty() || region.empty()) return sent;
@@ -38,19 +49,9 @@ EssentialCells essential_cells(const CellTree& tree, std::span<const Box> region
     const std::uint32_t c = stack.back();
     stack.pop_back();
     const Cell& cell = tree.cells[c];
-    const Cube cube = cell_cube(cell);
-    const double nearest = nearest_distance(cube, region);
-    const double eta = relative_distance(nearest, cube);
-    if (eta >= acceptance.separation && nearest >= acceptance.min_distance) {
-      const int p = acceptance.fixed_order > 0 ? acceptance.fixed_order
-                                               : order_at(acceptance.tolerance, eta, acceptance.max_order);
-      const auto nodes = static_cast<std::size_t>(p) * static_cast<std::size_t>(p) * static_cast<std::size_t>(p);
-      if (cell.size() > nodes) {
-        sent.compressed.push_back(Compressed{c, p});
-        continue;
-      }
-    }
-    if (cell.leaf()) {
+    if (const int p = compressed_order(cell_cube(cell), cell.size(), region, acceptance); p > 0) {
+      sent.compressed.push_back(Compressed{c, p});
+    } else if (cell.leaf()) {
       sent.halo.push_back(c);
     } else {
       // Opened: its children are smaller, so further in units of their size and of lower order, and

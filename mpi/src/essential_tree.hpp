@@ -40,12 +40,19 @@ struct Acceptance {
 /// for a cube at distance eta × its half-side (capped at max_order; docs/mpi.md, "Error rule").
 [[nodiscard]] int order_at(double tolerance, double eta, int max_order);
 
+/// The order at which a cell (its cube and number of particles) is compressed for a rank with
+/// particles in `region`: the order its distance needs where the cube lies at a distance of at
+/// least separation × its half-side, and at least min_distance, from every box of the region and
+/// that order's p^3 nodes are fewer than its particles; 0 where it is not (opened or halo).
+[[nodiscard]] int compressed_order(const Cube& cube, std::size_t particles, std::span<const Box> region,
+                                   const Acceptance& acceptance);
+
 /// Not collective. The cells of `tree` that a rank with particles in `region` needs, top down: a
 /// cell whose cube lies at a distance of at least separation × its half-side, and at least
-/// min_distance, from every box of the region is compressed with the order its distance needs when that order's p^3
-/// nodes are fewer than its particles; any other cell is opened, and a leaf that is not compressed is sent as its
-/// particles (halo). Every particle of the tree is in exactly one cell sent. Empty for an empty
-/// region.
+/// min_distance, from every box of the region is compressed with the order its distance needs when
+/// that order's p^3 nodes are fewer than its particles (compressed_order); any other cell is
+/// opened, and a leaf that is not compressed is sent as its particles (halo). Every particle of the
+/// tree is in exactly one cell sent. Empty for an empty region.
 [[nodiscard]] EssentialCells essential_cells(const CellTree& tree, std::span<const Box> region,
                                              const Acceptance& acceptance);
 

@@ -63,14 +63,30 @@ using Plan = DistributedLaplaceFmm::Plan;
   return p * p * p;
 }
 
-/// Collective: every rank's cover of its region (region_cover of `tree`, at most 64 boxes), by
-/// rank: one all-gather of counts and one of the boxes; adds the bytes received to `bytes`.
-[[nodiscard]] std::vector<std::vector<Box>> gather_regions(const Communicator& comm, const CellTree& tree,
-                                                           std::uint64_t& bytes);
+/// What this rank knows of another rank's region: the cover it walks its cells against
+/// (essential_cells), or, where its root cell is compressed for that rank as a whole, the order of
+/// that compression (the walk's result, without the cover); neither where nothing is sent.
+struct Region {
+  std::vector<Box> cover;
+  int root_order = 0;
+};
+
+/// Collective: every other rank's Region for this rank's cells `tree`, by rank, with this rank's
+/// region the cover of `region_tree` (region_cover, at most 64 boxes). gather_all: every rank's
+/// cover by one all-gather (each walked). Otherwise one all-gather of every rank's root cell (cube
+/// and particles), from which each rank decides which ranks' root cells its cover compresses (the
+/// first step of their walks, compressed_order) and tells them their orders in one all-to-all of
+/// one int per rank; its cover goes point to point only to the ranks whose root cells it does not
+/// compress. Both give every rank the same cells to send, bit for bit. Records the regions' counts
+/// and bytes in `stats`.
+[[nodiscard]] std::vector<Region> exchange_regions(const Communicator& comm, const CellTree& region_tree,
+                                                   const CellTree& tree, const Acceptance& acceptance, bool gather_all,
+                                                   FmmCommunication& stats);
 
 /// Not collective: the cells this rank sends to every other rank (essential_cells against its
-/// region), the distinct (cell, order) compressed, and the slot of each sent one among them.
-void select_cells(Plan& plan, const std::vector<std::vector<Box>>& regions, int rank, const Acceptance& acceptance);
+/// region, or its root cell alone where the region compresses it), the distinct (cell, order)
+/// compressed, and the slot of each sent one among them.
+void select_cells(Plan& plan, const std::vector<Region>& regions, int rank, const Acceptance& acceptance);
 
 /// Collective: the locally essential geometry (halo positions and cubes) from every rank, one
 /// all-to-all of counts and one of the geometry; returns the serial FMM's sources: owned, then

@@ -46,7 +46,8 @@ std::vector<double> option_signature(const DistributedFmmOptions& o) {
           static_cast<double>(o.chebyshev_order),
           static_cast<double>(o.cell_capacity),
           o.overlap_exchange ? 1.0 : 0.0,
-          o.fmm.near_field ? 1.0 : 0.0};
+          o.fmm.near_field ? 1.0 : 0.0,
+          o.gather_all_regions ? 1.0 : 0.0};
 }
 
 // Collective: translates the owned sources x and targets y next to the origin where the whole cloud lies far
@@ -216,13 +217,13 @@ void DistributedLaplaceFmm::set_points(std::span<const double> local_sources, st
       plan->target_partition
           ? detail::build_cell_tree(owned_keys(*plan->target_partition), plan->owned_targets, cell_capacity_)
           : detail::CellTree{};
-  std::vector<std::vector<detail::Box>> regions;
-  detail::timed(stats_.plan_seconds, "summaries", [&] {
-    regions =
-        detail::gather_regions(comm_, plan->target_partition ? target_tree : plan->tree, stats_.plan_bytes_received);
-  });
   const detail::Acceptance acceptance{options_.fmm.tolerance, separation_, 32, options_.chebyshev_order,
                                       options_.fmm.min_leaf_side};
+  std::vector<detail::Region> regions;
+  detail::timed(stats_.plan_seconds, "summaries", [&] {
+    regions = detail::exchange_regions(comm_, plan->target_partition ? target_tree : plan->tree, plan->tree, acceptance,
+                                       options_.gather_all_regions, stats_);
+  });
   detail::select_cells(*plan, regions, comm_.rank(), acceptance);
   std::vector<double> sources;
   detail::timed(stats_.plan_seconds, "geometry",

@@ -99,6 +99,13 @@ TEST(EssentialTree, EveryParticleIsSentOnceAndCompressedCellsAreFarAndWorthIt) {
     for (const std::vector<Box>& region : regions) {
       const rpyfmm::mpi::detail::Acceptance acceptance{tolerance, 2.0, 32, 0};
       const rpyfmm::mpi::detail::EssentialCells sent = rpyfmm::mpi::detail::essential_cells(tree, region, acceptance);
+      // The root test that decides the regions' neighbours (essential_exchange.cpp): where it
+      // compresses the root, the walk sends that one cell at that order and nothing else.
+      const int root_order = rpyfmm::mpi::detail::compressed_order(rpyfmm::mpi::detail::cell_cube(tree.cells[0]),
+                                                                   tree.cells[0].size(), region, acceptance);
+      const bool root_only = sent.halo.empty() && sent.compressed.size() == 1 && sent.compressed[0].cell == 0;
+      EXPECT_EQ(root_order > 0, root_only);
+      if (root_only) EXPECT_EQ(sent.compressed[0].order, root_order);
       std::vector<int> times(4000, 0);
       for (std::uint32_t c : sent.halo) {
         EXPECT_TRUE(tree.cells[c].leaf());
@@ -122,6 +129,9 @@ TEST(EssentialTree, EveryParticleIsSentOnceAndCompressedCellsAreFarAndWorthIt) {
   const auto far = rpyfmm::mpi::detail::essential_cells(tree, std::vector<Box>{Box{{90, 90, 90}, {91, 91, 91}}}, loose);
   ASSERT_EQ(far.compressed.size(), 1u);
   EXPECT_EQ(far.compressed[0].cell, 0u);
+  EXPECT_EQ(far.compressed[0].order,
+            rpyfmm::mpi::detail::compressed_order(rpyfmm::mpi::detail::cell_cube(tree.cells[0]), tree.cells[0].size(),
+                                                  std::vector<Box>{Box{{90, 90, 90}, {91, 91, 91}}}, loose));
   EXPECT_TRUE(far.halo.empty());
   EXPECT_TRUE(rpyfmm::mpi::detail::essential_cells(tree, {}, loose).halo.empty());
   // No cell closer than min_distance to the region is compressed: the slab beside the cloud at

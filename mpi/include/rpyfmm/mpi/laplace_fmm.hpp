@@ -11,8 +11,10 @@
 //   fmm.evaluate(local_charges, nd, outputs, local_results); // collective, any number of times
 //
 // How: the sources are partitioned along the Morton curve (SfcPartition) and each owner builds a
-// tree of cells over its key range. Every rank publishes a coarse cover of its targets' region by
-// tight boxes; for every other rank it walks its cells top down and sends a cell that is well
+// tree of cells over its key range. Every rank covers its targets' region by a few tight boxes and
+// sends the cover only to the ranks whose root cell it does not compress as a whole (decided from
+// an all-gather of the root cells); for each rank whose cover it receives it walks its cells top
+// down (for the others it sends its root cell compressed) and sends a cell that is well
 // separated from that rank's region, where the p^3 nodes its distance needs are fewer than its
 // particles, as equivalent charges at the tensor Chebyshev nodes of the cell's cube (the
 // anterpolation of the black-box FMM, Fong & Darve, J. Comput. Phys. 228 (2009) 8712, Sec. 2);
@@ -69,6 +71,12 @@ struct DistributedFmmOptions {
   /// sources per rank, slow networks); off by default (docs/mpi.md, "Overlapping the serial FMM
   /// with the exchanges").
   bool overlap_exchange = false;
+  /// Every rank gathers every other rank's cover of its region and walks its cells against each
+  /// (O(P) covers and walks per rank). Off (the default): a rank's cover goes only to the ranks
+  /// whose cells it needs beyond their root cell, decided from one all-gather of every rank's root
+  /// cell (docs/mpi.md, "Distributed Laplace FMM"). Both plans are the same bit for bit; the
+  /// gathered one is the reference that the tests compare with.
+  bool gather_all_regions = false;
 };
 
 /// The acceptance ratio used when DistributedFmmOptions::separation is 0.
@@ -86,7 +94,8 @@ inline constexpr std::size_t kDefaultCellCapacity = 32;
 /// bytes are what this rank received (its own share of the partition's exchanges included).
 struct FmmCommunication {
   /// set_points: "partition" (SfcPartition and positions to the owners), "summaries" (the
-  /// all-gather of the regions), "geometry" (the locally essential tree's cells and halo).
+  /// exchange of the regions: the root cells' all-gather, the requests and the covers),
+  /// "geometry" (the locally essential tree's cells and halo).
   StageTimes plan_seconds;
   std::uint64_t plan_bytes_received = 0;
   /// The last evaluate: "charges" (to the owners), "essential" (equivalent and halo charges),
@@ -100,6 +109,11 @@ struct FmmCommunication {
   /// from the other ranks, and what this rank sends to them (counted once per receiving rank).
   std::uint64_t halo_received = 0, cells_received = 0, nodes_received = 0;
   std::uint64_t halo_sent = 0, cells_sent = 0, nodes_sent = 0;
+  /// The regions in set_points: the boxes of this rank's cover; the other ranks whose covers it
+  /// received (and walked its cells against) and the bytes of those covers (48 per box); the other
+  /// ranks it sent its own cover to. With gather_all_regions every other rank with a non-empty
+  /// cover counts as received, and every other rank as sent to where this rank's cover is not empty.
+  std::uint64_t region_boxes = 0, region_neighbours = 0, region_bytes_received = 0, region_sent_to = 0;
 };
 
 class DistributedLaplaceFmm {
