@@ -3,9 +3,9 @@
 // (gather, bisection and factoring of the blocks, then the sample) against a second one on the same
 // configuration (the kept blocks). Run under mpiexec by bench_mpi_ranks (bench/mpi/CMakeLists.txt).
 //
-// usage: bench_mpi_block_cache --method direct|fmm --n N [--eps 1e-6] [--reps 3] [--tol 1e-3]
+// usage: bench_mpi_block_cache --method direct|fmm --n N [--eps 1e-6] [--reps 3] [--tol 1e-3] [--block 0]
 //   (bench_mpi_common.hpp: N in all, uniform in the unit cube, radius 0.001; the noise in
-//   [-0.5, 0.5); Lanczos, automatic block size).
+//   [-0.5, 0.5); Lanczos; --block: preconditioner_block, 0 the automatic size).
 // Prints one JSON line (rank 0): "first_s" and "second_s", the medians over reps (each rep a fresh
 // set_positions and one product, then the two calls) of the slowest rank's time of each call; "build_s" and
 // "gather_s", the medians of the slowest rank's build and gather in the first call
@@ -33,11 +33,12 @@ struct Timings {
 // reps x (set_positions, the first call, the second call) on `op`.
 template <class Operator>
 Timings time_first_and_second(Operator& op, const std::vector<double>& x, const std::vector<double>& z, int reps,
-                              double tol) {
+                              double tol, int block) {
   rpyfmm::rpy::SqrtOptions options;
   options.method = rpyfmm::rpy::SqrtMethod::lanczos;
   options.preconditioner = rpyfmm::rpy::SqrtPreconditioner::block;
   options.tolerance = tol;
+  options.preconditioner_block = block;
   std::vector<double> w(z.size());
   Timings t;
   rpyfmm::mpi::InnerProductStats stats;
@@ -64,25 +65,27 @@ int main(int argc, char** argv) {
   const bench_mpi::Args a = bench_mpi::parse(argc, argv);
   std::string method = "direct";
   double tol = 1e-3;
+  int block = 0;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string k = argv[i];
     if (k == "--method") method = argv[i + 1];
     if (k == "--tol") tol = std::atof(argv[i + 1]);
+    if (k == "--block") block = std::atoi(argv[i + 1]);
   }
   const bench_mpi::Share s = bench_mpi::make_share(a, rank, ranks, 3);
   Timings t;
   if (method == "fmm") {
     rpyfmm::mpi::DistributedFmmRpy op(MPI_COMM_WORLD, 1.0, {.tolerance = a.eps});
-    t = time_first_and_second(op, s.x, s.q, a.reps, tol);
+    t = time_first_and_second(op, s.x, s.q, a.reps, tol, block);
   } else {
     rpyfmm::mpi::DistributedDirectRpy op(MPI_COMM_WORLD, 1.0);
-    t = time_first_and_second(op, s.x, s.q, a.reps, tol);
+    t = time_first_and_second(op, s.x, s.q, a.reps, tol, block);
   }
   if (rank == 0)
     std::printf(
-        "{\"method\":\"%s\",\"ranks\":%d,\"N\":%llu,\"tol\":%.3g,\"first_s\":%.6g,\"second_s\":%.6g,"
+        "{\"method\":\"%s\",\"ranks\":%d,\"N\":%llu,\"tol\":%.3g,\"block\":%d,\"first_s\":%.6g,\"second_s\":%.6g,"
         "\"build_s\":%.6g,\"gather_s\":%.6g,\"exchange_s\":%.6g,\"iterations\":%d}\n",
-        method.c_str(), ranks, static_cast<unsigned long long>(s.total), tol, bench_mpi::median(t.first),
+        method.c_str(), ranks, static_cast<unsigned long long>(s.total), tol, block, bench_mpi::median(t.first),
         bench_mpi::median(t.second), bench_mpi::median(t.build), bench_mpi::median(t.gather),
         bench_mpi::median(t.exchange), t.iterations);
   MPI_Finalize();
