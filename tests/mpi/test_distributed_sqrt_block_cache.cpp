@@ -253,6 +253,9 @@ TEST(MpiDistributedSqrtBlockCache, StatisticsCountEachExchangeOfTheBlocks) {
     InnerProductStats rotation;
     const SqrtReport r = rpyfmm::mpi::sqrt_apply_rotation(
         op, z_t, z_r, w_t, w_r, block_sampler(SqrtMethod::lanczos, static_cast<int>(kBlock)), rotation);
+    // The inner products of the call with InnerProductStats&: the start and three exchanges per
+    // Lanczos step with reorthogonalization (rpyfmm/mpi/sqrt.hpp, InnerProductStats).
+    EXPECT_EQ(rotation.exchanges, 1 + 3 * static_cast<long long>(r.iterations)) << what;
     EXPECT_EQ(rotation.blocks.apply_g.applications, r.operator_applications) << what;
     EXPECT_EQ(rotation.blocks.solve_g.bytes_received, 8 * 6 * (m.sent + m.received)) << what;
     EXPECT_EQ(rotation.blocks.apply_g.bytes_received,
