@@ -121,11 +121,13 @@ DistributedDirectRpy::DistributedDirectRpy(MPI_Comm comm, double viscosity)
 
 void DistributedDirectRpy::set_positions(std::span<const double> local_positions, double radius) {
   global_n_ = 0;  // no positions until this call succeeds on every rank
+  sampler_blocks_.clear();
   set_positions(local_positions, detail::common_radii(comm_, local_positions, radius, kSetPositions));
 }
 
 void DistributedDirectRpy::set_positions(std::span<const double> local_positions, std::span<const double> local_radii) {
   global_n_ = 0;  // no positions until this call succeeds on every rank
+  sampler_blocks_.clear();
   stats_ = CommunicationStats{};
   comm_.run([&] { detail::check_local_particles(local_positions, local_radii, kSetPositions); });
   const auto ranks = static_cast<std::size_t>(comm_.size());

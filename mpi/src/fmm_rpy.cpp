@@ -73,11 +73,13 @@ std::size_t DistributedFmmRpy::halo_size() const {
 
 void DistributedFmmRpy::set_positions(std::span<const double> local_positions, double radius) {
   global_n_ = 0;  // no positions until this call succeeds on every rank
+  sampler_blocks_.clear();
   set_positions(local_positions, detail::common_radii(comm_, local_positions, radius, kSetPositions));
 }
 
 void DistributedFmmRpy::set_positions(std::span<const double> local_positions, std::span<const double> local_radii) {
   global_n_ = 0;  // no positions until this call succeeds on every rank
+  sampler_blocks_.clear();
   near_.reset();
   stats_ = FmmRpyCommunication{};
   comm_.run([&] { detail::check_local_particles(local_positions, local_radii, kSetPositions); });

@@ -8,6 +8,7 @@
 
 #include "bd_gather.hpp"
 #include "rpyfmm/core/validate.hpp"
+#include "stage_timer.hpp"
 
 namespace rpyfmm::mpi::detail {
 namespace {
@@ -68,7 +69,13 @@ std::vector<std::size_t> block_owners(const rpy::BlockPartition& blocks, const R
 GlobalBlocks::GlobalBlocks(const Communicator& comm, std::span<const std::size_t> counts,
                            std::span<const double> local_positions, std::span<const double> local_radii,
                            double viscosity, std::size_t max_block, rpy::PreconditionedMatrix matrix)
-    : comm_(&comm), local_n_(local_radii.size()), dofs_(rpy::block_dofs(matrix)) {
+    : comm_(comm),
+      viscosity_(viscosity),
+      max_block_(max_block),
+      matrix_(matrix),
+      local_n_(local_radii.size()),
+      dofs_(rpy::block_dofs(matrix)) {
+  const StopWatch build;
   comm.run([&] {  // the exchanges list this rank's particles by 32-bit index
     require(local_n_ <= std::numeric_limits<std::uint32_t>::max(), ErrorCode::not_supported, kWhere,
             std::to_string(local_n_) + " particles on one rank, more than 2^32 - 1");
@@ -77,7 +84,13 @@ GlobalBlocks::GlobalBlocks(const Communicator& comm, std::span<const std::size_t
   const auto ranks = static_cast<std::size_t>(comm.size());
   const RankOf rank_of(counts);
   const std::size_t offset = rank_of.starts[me];
-  const WholeSet set = gather_whole_set(comm, offset, rank_of.starts.back(), local_positions, local_radii);
+  WholeSet set;
+  timed(build_cost_.gather_seconds,
+        [&] { set = gather_whole_set(comm, offset, rank_of.starts.back(), local_positions, local_radii); });
+  // gather_by_index's receipts from the other ranks: one int count each, then 5 doubles (index,
+  // position, radius) per particle of theirs.
+  build_cost_.gather_bytes_received =
+      sizeof(int) * (ranks - 1) + sizeof(double) * 5 * (rank_of.starts.back() - local_n_);
   const rpy::BlockPartition partition = rpy::bisect_blocks(set.positions, max_block);
   blocks_ = partition.blocks();
   const std::vector<std::size_t> owners = block_owners(partition, rank_of, ranks);
@@ -116,9 +129,13 @@ GlobalBlocks::GlobalBlocks(const Communicator& comm, std::span<const std::size_t
     rpy::factor_block(set.positions, set.radii, viscosity, rpy::Geometry::open(), block, matrix,
                       factors_.data() + factor_offset_[k]);
   }
+  build_cost_.particles_sent = exchange_.sent();
+  build_cost_.particles_received = exchange_.received();
+  build_cost_.build_seconds = build.seconds();
 }
 
-void GlobalBlocks::apply(rpy::BlockOp op, double* x, std::size_t nrhs) const {
+void GlobalBlocks::apply(rpy::BlockOp op, double* x, std::size_t nrhs, BlockExchangeStats& tally) const {
+  const IndexExchange::Traffic before = exchange_.traffic;
   const std::size_t column = dofs_ * local_n_;
   const std::size_t width = dofs_ * nrhs;  // values per particle row in the exchanges
   // Row of particle i, component c, in one column: [x_t; x_r] as rpy::BlockPreconditioner's entry().
@@ -127,7 +144,7 @@ void GlobalBlocks::apply(rpy::BlockOp op, double* x, std::size_t nrhs) const {
   for (std::size_t i = 0; i < local_n_; ++i)
     for (std::size_t r = 0; r < nrhs; ++r)
       for (std::size_t c = 0; c < dofs_; ++c) rows[width * i + dofs_ * r + c] = x[column * r + entry(i, c)];
-  const std::vector<double> received = exchange_.forward(*comm_, rows.data(), width, kWhere, "block rows");
+  const std::vector<double> received = exchange_.forward(comm_, rows.data(), width, kWhere, "block rows");
   std::vector<double> results(received.size());
   const std::size_t owned = owned_blocks();
 #pragma omp parallel
@@ -150,7 +167,11 @@ void GlobalBlocks::apply(rpy::BlockOp op, double* x, std::size_t nrhs) const {
       }
     }
   }
-  const std::vector<double> back = exchange_.backward(*comm_, results, width, kWhere, "block rows");
+  const std::vector<double> back = exchange_.backward(comm_, results, width, kWhere, "block rows");
+  ++tally.applications;
+  tally.columns += static_cast<long long>(nrhs);
+  tally.seconds += exchange_.traffic.seconds - before.seconds;
+  tally.bytes_received += exchange_.traffic.bytes_received - before.bytes_received;
   std::size_t at = 0;
   for (const std::vector<std::uint32_t>& list : exchange_.send) {
     for (const std::uint32_t i : list) {

@@ -2,7 +2,9 @@
 // MPI ranks (private to rpyfmm::mpi; sqrt.cpp, docs/mpi.md "Brownian displacements"): the blocks
 // rpy::BlockPreconditioner builds on the whole set in the global order (the ranks' shares one after
 // another in rank order), each factored by one rank, and G, G^T, G^{-1} applied to a distributed
-// vector by gathering each block's entries to that rank and sending the results back.
+// vector by gathering each block's entries to that rank and sending the results back. Built once
+// per operator positions, block size and matrix, and kept by the operator for later sampler calls
+// (rpyfmm/mpi/sampler_blocks.hpp).
 #pragma once
 
 #include <cstddef>
@@ -11,6 +13,7 @@
 
 #include "index_exchange.hpp"
 #include "rpyfmm/mpi/communicator.hpp"
+#include "rpyfmm/mpi/sqrt.hpp"
 #include "rpyfmm/rpy/block_factors.hpp"
 #include "rpyfmm/rpy/block_preconditioner.hpp"
 
@@ -24,7 +27,7 @@ class GlobalBlocks {
   /// MPI_Allgatherv: O(N) memory and traffic per rank while it builds) and runs the serial median
   /// bisection on the whole set, so every rank knows every block; each block is factored by its
   /// owner, the rank holding most of its members (the lowest such rank on a tie), which keeps
-  /// only the factors of the blocks it owns.
+  /// only the factors of the blocks it owns. build_cost() reports what the build took.
   GlobalBlocks(const Communicator& comm, std::span<const std::size_t> counts, std::span<const double> local_positions,
                std::span<const double> local_radii, double viscosity, std::size_t max_block,
                rpy::PreconditionedMatrix matrix);
@@ -34,8 +37,18 @@ class GlobalBlocks {
   /// rpy::BlockPreconditioner's vectors restricted to this rank: [x_t; x_r] with rotation. Each
   /// entry's bits are those of the serial BlockPreconditioner's on the whole set (the same
   /// factors, kernels and entry order per block). Two fixed-list exchanges (IndexExchange) for all
-  /// nrhs vectors together.
-  void apply(rpy::BlockOp op, double* x, std::size_t nrhs) const;
+  /// nrhs vectors together, their time and bytes added to `tally` (their applications, columns,
+  /// seconds and bytes received from other ranks).
+  void apply(rpy::BlockOp op, double* x, std::size_t nrhs, BlockExchangeStats& tally) const;
+
+  /// Whether these are the blocks of at most max_block particles for `matrix` and `viscosity` (the
+  /// positions are the operator's until its set_positions drops them).
+  [[nodiscard]] bool built_for(std::size_t max_block, rpy::PreconditionedMatrix matrix, double viscosity) const {
+    return max_block == max_block_ && matrix == matrix_ && viscosity == viscosity_;
+  }
+  /// What the build cost this rank: build_seconds, gather_seconds, gather_bytes_received, and the
+  /// exchanges' lists (particles_sent, particles_received); reused false, no exchange counted.
+  [[nodiscard]] const BlockPreconditionerStats& build_cost() const { return build_cost_; }
 
   /// The blocks of the whole set (the serial count).
   [[nodiscard]] std::size_t blocks() const { return blocks_; }
@@ -43,7 +56,10 @@ class GlobalBlocks {
   [[nodiscard]] std::size_t owned_blocks() const { return owned_.size() - 1; }
 
  private:
-  const Communicator* comm_;
+  Communicator comm_;
+  double viscosity_;
+  std::size_t max_block_;
+  rpy::PreconditionedMatrix matrix_;
   std::size_t local_n_ = 0;
   std::size_t dofs_ = 3;
   std::size_t blocks_ = 0;
@@ -55,6 +71,7 @@ class GlobalBlocks {
   std::vector<std::size_t> factor_offset_{0};
   std::vector<float> factors_;
   mutable IndexExchange exchange_;
+  BlockPreconditionerStats build_cost_;
 };
 
 }  // namespace rpyfmm::mpi::detail

@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <initializer_list>
-#include <optional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -166,25 +166,44 @@ rpy::SqrtReport chebyshev_across_ranks(DistributedKrylovSpace& space, const deta
 }
 
 // The serial block preconditioner's blocks of the whole set for `matrix` (global_blocks.hpp), with
-// the serial sampler's block size: options.preconditioner_block, or automatic_block of the whole
-// set.
+// the serial sampler's block size (options.preconditioner_block, or automatic_block of the whole
+// set): those the operator keeps where they were built for its current positions, this block size,
+// matrix and viscosity, else built (collective) and kept in their place. `stats` receives the
+// build's cost, or reused. Every input of the decision is the same on every rank (set_positions and
+// the builds are collective, the options are checked alike), and one reduction confirms it, so no
+// rank gathers for a build that another skips.
 template <class Operator>
-detail::GlobalBlocks global_blocks(const Operator& op, const rpy::SqrtOptions& options,
-                                   rpy::PreconditionedMatrix matrix) {
+std::shared_ptr<const detail::GlobalBlocks> global_blocks(const Operator& op, const rpy::SqrtOptions& options,
+                                                          rpy::PreconditionedMatrix matrix,
+                                                          BlockPreconditionerStats& stats) {
   const std::size_t block = options.preconditioner_block > 0
                                 ? static_cast<std::size_t>(options.preconditioner_block)
                                 : rpy::BlockPreconditioner::automatic_block(op.global_size());
-  return detail::GlobalBlocks(op.communicator(), op.counts(), op.local_positions(), op.local_radii(), op.viscosity(),
-                              block, matrix);
+  SamplerBlocks& kept = op.sampler_blocks();
+  const bool here = kept.get() != nullptr && kept.get()->built_for(block, matrix, op.viscosity());
+  if (same_on_every_rank(op.communicator(), {here ? 1.0 : 0.0}) && here) {
+    stats = BlockPreconditionerStats{};
+    stats.reused = true;
+    stats.particles_sent = kept.get()->build_cost().particles_sent;
+    stats.particles_received = kept.get()->build_cost().particles_received;
+    return kept.get();
+  }
+  kept.clear();  // the old blocks' memory before the new ones'
+  kept.keep(std::make_shared<const detail::GlobalBlocks>(op.communicator(), op.counts(), op.local_positions(),
+                                                         op.local_radii(), op.viscosity(), block, matrix));
+  stats = kept.get()->build_cost();
+  return kept.get();
 }
 
-// A = G m G^T on nrhs columns of this rank's share, as rpy::BlockPreconditioner::precondition.
-detail::ColumnsProduct preconditioned(const detail::GlobalBlocks& blocks, const rpy::LinearOperatorView& m) {
-  return [&blocks, m](const double* x, double* y, std::size_t k) {
+// A = G m G^T on nrhs columns of this rank's share, as rpy::BlockPreconditioner::precondition; the
+// exchanges of G^T and G added to `stats`.
+detail::ColumnsProduct preconditioned(const detail::GlobalBlocks& blocks, const rpy::LinearOperatorView& m,
+                                      BlockPreconditionerStats& stats) {
+  return [&blocks, m, &stats](const double* x, double* y, std::size_t k) {
     std::vector<double> t(x, x + k * m.n);
-    blocks.apply(rpy::BlockOp::apply_g_transpose, t.data(), k);  // G^T x
-    m.apply(t, std::span<double>(y, k * m.n), k);                // M G^T x
-    blocks.apply(rpy::BlockOp::apply_g, y, k);                   // G M G^T x
+    blocks.apply(rpy::BlockOp::apply_g_transpose, t.data(), k, stats.apply_g_transpose);  // G^T x
+    m.apply(t, std::span<double>(y, k * m.n), k);                                         // M G^T x
+    blocks.apply(rpy::BlockOp::apply_g, y, k, stats.apply_g);                             // G M G^T x
   };
 }
 
@@ -201,24 +220,28 @@ rpy::SqrtReport sample_across_ranks(const Operator& op, const rpy::LinearOperato
                                     const rpy::SqrtOptions& r, InnerProductStats* stats) {
   const Communicator& comm = op.communicator();
   const std::size_t segments = matrix == rpy::PreconditionedMatrix::scaled_grand ? 2 : 1;
-  std::optional<detail::GlobalBlocks> blocks;
-  if (r.preconditioner == rpy::SqrtPreconditioner::block) blocks.emplace(global_blocks(op, r, matrix));
+  BlockPreconditionerStats block_stats;
+  std::shared_ptr<const detail::GlobalBlocks> blocks;
+  if (r.preconditioner == rpy::SqrtPreconditioner::block) blocks = global_blocks(op, r, matrix, block_stats);
   const detail::ColumnsProduct product =
-      blocks ? preconditioned(*blocks, m) : detail::ColumnsProduct([&m](const double* x, double* y, std::size_t k) {
-        m.apply(std::span<const double>(x, k * m.n), std::span<double>(y, k * m.n), k);
-      });
+      blocks ? preconditioned(*blocks, m, block_stats)
+             : detail::ColumnsProduct([&m](const double* x, double* y, std::size_t k) {
+                 m.apply(std::span<const double>(x, k * m.n), std::span<double>(y, k * m.n), k);
+               });
   rpy::SqrtReport report;
   if (r.method == rpy::SqrtMethod::chebyshev) {
     DistributedKrylovSpace space(comm, op.counts(), segments);
     report = chebyshev_across_ranks(space, product, op, segments, nrhs, z, w, r);
-    if (stats != nullptr) *stats = {space.communication_seconds(), space.exchanges()};
+    if (stats != nullptr)
+      *stats = {.seconds = space.communication_seconds(), .exchanges = space.exchanges(), .blocks = {}};
   } else {
     report = detail::lanczos_columns(comm, op.counts(), segments, product, nrhs, z, w, r, stats);
   }
   if (blocks) {
-    blocks->apply(rpy::BlockOp::solve_g, w, nrhs);  // w = G^{-1} A^{1/2} z
+    blocks->apply(rpy::BlockOp::solve_g, w, nrhs, block_stats.solve_g);  // w = G^{-1} A^{1/2} z
     report.preconditioner_blocks = blocks->blocks();
   }
+  if (stats != nullptr) stats->blocks = block_stats;
   return report;
 }
 
@@ -274,7 +297,7 @@ template <class Operator>
 rpy::SqrtReport rotation_sample(const Operator& op, std::span<const double> local_z_t,
                                 std::span<const double> local_z_r, std::span<double> local_w_t,
                                 std::span<double> local_w_r, const rpy::SqrtOptions& options,
-                                double* inner_products_seconds) {
+                                InnerProductStats* stats) {
   const std::initializer_list<NamedArray> outputs = {{"local translational output", local_w_t},
                                                      {"local rotational output", local_w_r}};
   const rpy::SqrtOptions r =
@@ -285,10 +308,8 @@ rpy::SqrtReport rotation_sample(const Operator& op, std::span<const double> loca
   std::vector<double> z(2 * n), w(2 * n);
   std::copy(local_z_t.begin(), local_z_t.end(), z.begin());
   std::copy(local_z_r.begin(), local_z_r.end(), z.begin() + static_cast<std::ptrdiff_t>(n));
-  const rpy::SqrtReport report = with_seconds(inner_products_seconds, [&](InnerProductStats* stats) {
-    return sample_across_ranks(op, scaled_grand(op), rpy::PreconditionedMatrix::scaled_grand, 1, z.data(), w.data(), r,
-                               stats);
-  });
+  const rpy::SqrtReport report = sample_across_ranks(op, scaled_grand(op), rpy::PreconditionedMatrix::scaled_grand, 1,
+                                                     z.data(), w.data(), r, stats);
   const std::span<const double> a = op.local_radii();
   for (std::size_t k = 0; k < n; ++k) {
     local_w_t[k] = w[k];
@@ -296,6 +317,16 @@ rpy::SqrtReport rotation_sample(const Operator& op, std::span<const double> loca
   }
   require_finite_outputs(op.communicator(), kWhereRotation, outputs);
   return report;
+}
+
+// rotation_sample with the inner products' time only, into `seconds` where not null.
+template <class Operator>
+rpy::SqrtReport rotation_with_seconds(const Operator& op, std::span<const double> local_z_t,
+                                      std::span<const double> local_z_r, std::span<double> local_w_t,
+                                      std::span<double> local_w_r, const rpy::SqrtOptions& options, double* seconds) {
+  return with_seconds(seconds, [&](InnerProductStats* stats) {
+    return rotation_sample(op, local_z_t, local_z_r, local_w_t, local_w_r, options, stats);
+  });
 }
 
 }  // namespace
@@ -328,16 +359,32 @@ rpy::SqrtReport sqrt_apply_rotation(const DistributedDirectRpy& op, std::span<co
                                     std::span<const double> local_z_rotation, std::span<double> local_w_translation,
                                     std::span<double> local_w_rotation, const rpy::SqrtOptions& options,
                                     double* inner_products_seconds) {
+  return rotation_with_seconds(op, local_z_translation, local_z_rotation, local_w_translation, local_w_rotation,
+                               options, inner_products_seconds);
+}
+
+rpy::SqrtReport sqrt_apply_rotation(const DistributedDirectRpy& op, std::span<const double> local_z_translation,
+                                    std::span<const double> local_z_rotation, std::span<double> local_w_translation,
+                                    std::span<double> local_w_rotation, const rpy::SqrtOptions& options,
+                                    InnerProductStats& stats) {
   return rotation_sample(op, local_z_translation, local_z_rotation, local_w_translation, local_w_rotation, options,
-                         inner_products_seconds);
+                         &stats);
 }
 
 rpy::SqrtReport sqrt_apply_rotation(const DistributedFmmRpy& op, std::span<const double> local_z_translation,
                                     std::span<const double> local_z_rotation, std::span<double> local_w_translation,
                                     std::span<double> local_w_rotation, const rpy::SqrtOptions& options,
                                     double* inner_products_seconds) {
+  return rotation_with_seconds(op, local_z_translation, local_z_rotation, local_w_translation, local_w_rotation,
+                               options, inner_products_seconds);
+}
+
+rpy::SqrtReport sqrt_apply_rotation(const DistributedFmmRpy& op, std::span<const double> local_z_translation,
+                                    std::span<const double> local_z_rotation, std::span<double> local_w_translation,
+                                    std::span<double> local_w_rotation, const rpy::SqrtOptions& options,
+                                    InnerProductStats& stats) {
   return rotation_sample(op, local_z_translation, local_z_rotation, local_w_translation, local_w_rotation, options,
-                         inner_products_seconds);
+                         &stats);
 }
 
 }  // namespace rpyfmm::mpi

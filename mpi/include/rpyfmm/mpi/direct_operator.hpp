@@ -37,6 +37,7 @@
 
 #include "rpyfmm/mpi/communication_stats.hpp"
 #include "rpyfmm/mpi/communicator.hpp"
+#include "rpyfmm/mpi/sampler_blocks.hpp"
 
 namespace rpyfmm::mpi {
 
@@ -67,6 +68,9 @@ class DistributedDirectRpy {
   /// (the block preconditioner of mpi::sqrt_apply factors their blocks; empty before).
   [[nodiscard]] std::span<const double> local_positions() const { return positions_; }
   [[nodiscard]] std::span<const double> local_radii() const { return radii_; }
+  /// The blocks of the block preconditioner that the samplers (rpyfmm/mpi/sqrt.hpp) built for these
+  /// positions, emptied by every set_positions (rpyfmm/mpi/sampler_blocks.hpp); for the samplers.
+  [[nodiscard]] SamplerBlocks& sampler_blocks() const { return sampler_blocks_; }
 
   /// Collective. This rank's positions (3 n, n >= 0) and one radius for them (> 0, finite; the
   /// ranks may pass different radii). Throws rpyfmm::Error on every rank when any rank's input is
@@ -142,6 +146,7 @@ class DistributedDirectRpy {
   double largest_radius_ = 0.0;  // of all ranks, for the load scale with rotation
   bool equal_radii_ = true;
   mutable CommunicationStats stats_;
+  mutable SamplerBlocks sampler_blocks_;
 };
 
 }  // namespace rpyfmm::mpi

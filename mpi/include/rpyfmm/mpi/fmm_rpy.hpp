@@ -48,6 +48,7 @@
 
 #include "rpyfmm/mpi/communicator.hpp"
 #include "rpyfmm/mpi/laplace_fmm.hpp"
+#include "rpyfmm/mpi/sampler_blocks.hpp"
 
 namespace rpyfmm::mpi {
 
@@ -123,6 +124,9 @@ class DistributedFmmRpy {
   /// (the block preconditioner of mpi::sqrt_apply factors their blocks; empty before).
   [[nodiscard]] std::span<const double> local_positions() const { return positions_; }
   [[nodiscard]] std::span<const double> local_radii() const { return radii_; }
+  /// The blocks of the block preconditioner that the samplers (rpyfmm/mpi/sqrt.hpp) built for these
+  /// positions, emptied by every set_positions (rpyfmm/mpi/sampler_blocks.hpp); for the samplers.
+  [[nodiscard]] SamplerBlocks& sampler_blocks() const { return sampler_blocks_; }
   /// The halo particles of this rank's near field: received as particles, with their loads in
   /// each product (0 before set_positions).
   [[nodiscard]] std::size_t halo_size() const;
@@ -190,6 +194,7 @@ class DistributedFmmRpy {
   double largest_radius_ = 0.0;  // of all ranks, as passed (the load scale of torques)
   bool equal_radii_ = true;
   mutable FmmRpyCommunication stats_;
+  mutable SamplerBlocks sampler_blocks_;
 };
 
 }  // namespace rpyfmm::mpi

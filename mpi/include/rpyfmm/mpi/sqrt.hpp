@@ -45,11 +45,14 @@ void fill_normal(std::span<double> local_z, std::size_t offset, std::uint64_t se
 /// - block: w = G^{-1} (G M G^T)^{1/2} z with G the serial rpy::BlockPreconditioner of the whole
 ///   set in the global order (options.preconditioner_block, or automatic_block of the whole set
 ///   when 0), whatever the partition: every rank gathers all positions and radii (O(N) per rank and
-///   call) and bisects them as the serial code does; each block is factored by the rank holding
+///   build) and bisects them as the serial code does; each block is factored by the rank holding
 ///   most of its members, and G, G^T, G^{-1} gather each block's rows there and send the results
-///   back (docs/mpi.md, "Brownian displacements"). The result is, bit for bit, this rank's share of
-///   DirectRpy::apply_sqrt with the block preconditioner on the whole set, for every partition;
-///   report.preconditioner_blocks is the serial count.
+///   back (docs/mpi.md, "Brownian displacements"). The operator keeps the blocks
+///   (op.sampler_blocks()), and later calls with the same block size and matrix use them again
+///   until its next set_positions (InnerProductStats::blocks.reused). The result is, bit for bit,
+///   this rank's share of DirectRpy::apply_sqrt with the block preconditioner on the whole set, for
+///   every partition, whether the blocks were built or kept; report.preconditioner_blocks is the
+///   serial count.
 /// Every rank must pass the same options (checked collectively).
 /// `inner_products_seconds`, where not null, receives this rank's time in the MPI calls of the
 /// inner products (the products' own MPI time: op.communication().applies_seconds).
@@ -62,6 +65,51 @@ rpy::SqrtReport sqrt_apply(const DistributedDirectRpy& op, std::span<const doubl
 rpy::SqrtReport sqrt_apply(const DistributedFmmRpy& op, std::span<const double> local_z, std::span<double> local_w,
                            const rpy::SqrtOptions& options, double* inner_products_seconds = nullptr);
 
+/// What one of G, G^T and G^{-1} of the block preconditioner (mpi/src/global_blocks.hpp) cost this
+/// rank over a sampler call: its applications, the columns they carried (summed over the
+/// applications), this rank's time in their MPI calls (one MPI_Alltoallv to the blocks' owners and
+/// one back per application, waits included) and the bytes it received from other ranks in them:
+/// 8 x dofs x columns x (particles_sent + particles_received) of BlockPreconditionerStats, dofs = 3
+/// (6 with rotation).
+struct BlockExchangeStats {
+  long long applications = 0;
+  long long columns = 0;
+  double seconds = 0.0;
+  std::uint64_t bytes_received = 0;
+};
+
+/// What the block preconditioner cost this rank in a sampler call (all zero without it;
+/// docs/mpi.md, "Brownian displacements").
+struct BlockPreconditionerStats {
+  /// The blocks an earlier call built for the operator's current positions, the same block size
+  /// and the same matrix (translation or scaled grand), used again: no build, its fields 0.
+  bool reused = false;
+  /// The build's wall time on this rank: the gather, the serial bisection of the whole set,
+  /// the factoring of this rank's blocks and the exchanges' lists.
+  double build_seconds = 0.0;
+  /// The build's gather of all positions and radii to every rank (mpi/src/bd_gather.hpp: one
+  /// MPI_Allgather of the ranks' int counts, one MPI_Allgatherv of 5 doubles per particle: the
+  /// index, the position, the radius), its time on this rank and the bytes this rank received from
+  /// the others: 40 (N - n_r) + 4 (P - 1), n_r this rank's particles, P the ranks.
+  double gather_seconds = 0.0;
+  std::uint64_t gather_bytes_received = 0;
+  /// This rank's particles in blocks owned by other ranks, and the other ranks' particles in the
+  /// blocks this rank owns: the rows each application sends and receives per column, each way.
+  std::size_t particles_sent = 0;
+  std::size_t particles_received = 0;
+  BlockExchangeStats apply_g;
+  BlockExchangeStats apply_g_transpose;
+  BlockExchangeStats solve_g;
+
+  /// The three exchanges' seconds and bytes together.
+  [[nodiscard]] double exchange_seconds() const {
+    return apply_g.seconds + apply_g_transpose.seconds + solve_g.seconds;
+  }
+  [[nodiscard]] std::uint64_t exchange_bytes_received() const {
+    return apply_g.bytes_received + apply_g_transpose.bytes_received + solve_g.bytes_received;
+  }
+};
+
 /// What a sampler's inner products cost this rank: its time in their MPI calls, and their
 /// exchanges, each one MPI_Allgatherv of chunk sums (after a point-to-point chain where a chunk
 /// straddles ranks: mpi/src/krylov_space.hpp). A Lanczos step with reorthogonalization takes three
@@ -70,6 +118,9 @@ rpy::SqrtReport sqrt_apply(const DistributedFmmRpy& op, std::span<const double> 
 struct InnerProductStats {
   double seconds = 0.0;
   long long exchanges = 0;
+  /// The block preconditioner's build and exchanges, which neither `seconds` nor the operator's
+  /// applies_seconds count.
+  BlockPreconditionerStats blocks;
 };
 
 /// Collective. The same samplers for nrhs right-hand sides in one call, as rpy::sqrt_apply's block
@@ -118,5 +169,16 @@ rpy::SqrtReport sqrt_apply_rotation(const DistributedFmmRpy& op, std::span<const
                                     std::span<const double> local_z_rotation, std::span<double> local_w_translation,
                                     std::span<double> local_w_rotation, const rpy::SqrtOptions& options,
                                     double* inner_products_seconds = nullptr);
+
+/// Collective. sqrt_apply_rotation as above, `stats` receiving the inner products' cost (seconds and
+/// exchanges, as InnerProductStats describes) and the block preconditioner's.
+rpy::SqrtReport sqrt_apply_rotation(const DistributedDirectRpy& op, std::span<const double> local_z_translation,
+                                    std::span<const double> local_z_rotation, std::span<double> local_w_translation,
+                                    std::span<double> local_w_rotation, const rpy::SqrtOptions& options,
+                                    InnerProductStats& stats);
+rpy::SqrtReport sqrt_apply_rotation(const DistributedFmmRpy& op, std::span<const double> local_z_translation,
+                                    std::span<const double> local_z_rotation, std::span<double> local_w_translation,
+                                    std::span<double> local_w_rotation, const rpy::SqrtOptions& options,
+                                    InnerProductStats& stats);
 
 }  // namespace rpyfmm::mpi
