@@ -157,7 +157,7 @@ ArrayAndReport<rpy::SqrtReport> apply_sqrt(const WithComm<Op>& self, ArrayArg z,
       // which also counts the inner products' exchanges.
       mpi::InnerProductStats stats;
       report = mpi::sqrt_apply(self.op, io.in.span(), io.out.span(), a.sample.nrhs, a.options, &stats);
-      self.inner_products = {true, stats.seconds, stats.exchanges};
+      self.inner_products = {true, stats};
     }
   }
   return array_and_report(io.out.object, report);
@@ -267,9 +267,9 @@ RotationSample apply_sqrt_rotation(const WithComm<Op>& self, ArrayArg z_translat
     if constexpr (std::is_same_v<Op, mpi::DistributedPseRpy>) {
       report = self.op.apply_sqrt_rotation(r.f.span(), r.t.span(), r.u.span(), r.w.span(), a.options);
     } else {
-      double seconds = 0.0;
-      report = mpi::sqrt_apply_rotation(self.op, r.f.span(), r.t.span(), r.u.span(), r.w.span(), a.options, &seconds);
-      self.inner_products = {true, seconds, std::nullopt};
+      mpi::InnerProductStats stats;
+      report = mpi::sqrt_apply_rotation(self.op, r.f.span(), r.t.span(), r.u.span(), r.w.span(), a.options, stats);
+      self.inner_products = {true, stats};
     }
   }
   return rotation_sample(r, report);

@@ -15,6 +15,7 @@
 
 #include "common.hpp"
 #include "rpyfmm/mpi/communicator.hpp"
+#include "rpyfmm/mpi/sqrt.hpp"
 
 namespace rpyfmm::python {
 
@@ -23,14 +24,12 @@ namespace rpyfmm::python {
 /// Raises InvalidArgumentError naming `where` for anything else.
 MPI_Comm comm_from(nb::handle comm, const char* where);
 
-/// What the last sampler call on an operator reported of its inner products on this rank
-/// (mpi::InnerProductStats): the seconds in their MPI calls and their exchanges, where the C++ call
-/// reports them (mpi::sqrt_apply_rotation reports the seconds only). `recorded` is false before any
-/// sampler call. The Python property inner_products (mpi_stats.cpp).
+/// What the last sampler call on an operator reported on this rank (mpi::InnerProductStats: its
+/// inner products' seconds and exchanges, and the block preconditioner's build and exchanges).
+/// `recorded` is false before any sampler call. The Python property inner_products (mpi_stats.cpp).
 struct InnerProductRecord {
   bool recorded = false;
-  double seconds = 0.0;
-  std::optional<long long> exchanges;
+  mpi::InnerProductStats stats;
 };
 
 /// A distributed operator and the mpi4py communicator its MPI_Comm belongs to (declared first:

@@ -65,6 +65,10 @@ nb::dict communication_dict(const mpi::FmmCommunication& s) {
   d["halo_sent"] = s.halo_sent;
   d["cells_sent"] = s.cells_sent;
   d["nodes_sent"] = s.nodes_sent;
+  d["region_boxes"] = s.region_boxes;
+  d["region_neighbours"] = s.region_neighbours;
+  d["region_bytes_received"] = s.region_bytes_received;
+  d["region_sent_to"] = s.region_sent_to;
   return d;
 }
 
@@ -76,23 +80,51 @@ nb::dict exchange_counts_dict(const mpi::PseExchangeCounts& s) {
   return d;
 }
 
-/// The inner products of the last sampler call on this rank; None before any.
+nb::dict block_exchange_dict(const mpi::BlockExchangeStats& s) {
+  nb::dict d;
+  d["applications"] = s.applications;
+  d["columns"] = s.columns;
+  d["seconds"] = s.seconds;
+  d["bytes_received"] = s.bytes_received;
+  return d;
+}
+
+/// mpi::BlockPreconditionerStats, keyed by its fields (all zero without the block preconditioner).
+nb::dict blocks_dict(const mpi::BlockPreconditionerStats& s) {
+  nb::dict d;
+  d["reused"] = s.reused;
+  d["build_seconds"] = s.build_seconds;
+  d["gather_seconds"] = s.gather_seconds;
+  d["gather_bytes_received"] = s.gather_bytes_received;
+  d["particles_sent"] = s.particles_sent;
+  d["particles_received"] = s.particles_received;
+  d["apply_g"] = block_exchange_dict(s.apply_g);
+  d["apply_g_transpose"] = block_exchange_dict(s.apply_g_transpose);
+  d["solve_g"] = block_exchange_dict(s.solve_g);
+  return d;
+}
+
+/// The inner products and blocks of the last sampler call on this rank; None before any.
 template <class Op>
 nb::object inner_products(const WithComm<Op>& s) {
   const InnerProductRecord& r = s.inner_products;
   if (!r.recorded) return nb::none();
   nb::dict d;
-  d["seconds"] = r.seconds;
-  d["exchanges"] = r.exchanges ? nb::cast(*r.exchanges) : nb::none();
+  d["seconds"] = r.stats.seconds;
+  d["exchanges"] = r.stats.exchanges;
+  d["blocks"] = blocks_dict(r.stats.blocks);
   return d;
 }
 
 const char* kInnerProductsDoc =
     "This rank's inner products in the last apply_sqrt, apply_sqrt_block or apply_sqrt_rotation (None\n"
     "before any): {'seconds': its time in their MPI calls, 'exchanges': their exchanges (MPI_Allgatherv\n"
-    "of chunk sums; the same on every rank; None after apply_sqrt_rotation, whose C++ call reports\n"
-    "the seconds only)}. Lanczos: 1 + 3 per iteration with reorthogonalization, 1 + 2 without\n"
-    "(docs/mpi.md, \"Brownian displacements\"). Not collective.";
+    "of chunk sums; the same on every rank), 'blocks': the block preconditioner's cost\n"
+    "(mpi::BlockPreconditionerStats: 'reused', 'build_seconds', 'gather_seconds',\n"
+    "'gather_bytes_received', 'particles_sent', 'particles_received', and 'apply_g',\n"
+    "'apply_g_transpose', 'solve_g', each {'applications', 'columns', 'seconds', 'bytes_received'};\n"
+    "all zero without it)}. Lanczos: 1 + 3 exchanges per iteration with reorthogonalization, 1 + 2\n"
+    "without (docs/mpi.md, \"Brownian displacements\"). Not collective.";
 
 /// The direct and FMM operators' every rank's counts and sampler statistics.
 template <class Op>

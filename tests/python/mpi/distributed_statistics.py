@@ -74,6 +74,12 @@ def test_sampler_inner_products(kind: str) -> None:
     runs["block"] = (block_report.iterations, op.inner_products)
     _, _, rotation_report = op.apply_sqrt_rotation(z[part], 0.5 * z[part], tolerance=1e-6)
     rotation = op.inner_products
+    # The block preconditioner twice on one configuration: built, then kept with the operator.
+    blocked = []
+    for _ in range(2):
+        _, report = op.apply_sqrt(z[part], tolerance=1e-6, preconditioner="block", preconditioner_block=16)
+        blocked.append((report, op.inner_products["blocks"]))
+    n = part.stop - part.start
     serial_iterations = None
     if kind == "direct":
         serial = rpyfmm.DirectRpy(viscosity=0.8)
@@ -85,7 +91,11 @@ def test_sampler_inner_products(kind: str) -> None:
     # Every rank takes the same Lanczos steps (global inner products), so the same exchanges.
     assert same_everywhere(exchanges), exchanges
     for label, (iterations, stats) in runs.items():
-        assert set(stats) == {"seconds", "exchanges"} and sane_seconds(stats["seconds"]), (label, stats)
+        assert set(stats) == {"seconds", "exchanges", "blocks"} and sane_seconds(stats["seconds"]), (label, stats)
+        # Without the block preconditioner its statistics are all zero (rpyfmm/mpi/sqrt.hpp).
+        b = stats["blocks"]
+        assert not b["reused"] and b["build_seconds"] == 0 and b["gather_bytes_received"] == 0, (label, b)
+        assert all(b[k]["applications"] == 0 for k in ("apply_g", "apply_g_transpose", "solve_g")), (label, b)
     # rpyfmm/mpi/sqrt.hpp, InnerProductStats: the start and three exchanges per Lanczos step with
     # reorthogonalization, two without; with several columns those of the column with the most
     # steps (the report's iterations, the largest over the columns).
@@ -96,11 +106,24 @@ def test_sampler_inner_products(kind: str) -> None:
     # Chebyshev's only inner products are the bound estimate's Lanczos steps (with
     # reorthogonalization; measured 30 steps, 91 exchanges, on 1-4 ranks).
     assert estimate_steps > 0 and exchanges["chebyshev"] == 1 + 3 * estimate_steps
-    # The rotation sampler reports the seconds only.
-    assert rotation["exchanges"] is None and sane_seconds(rotation["seconds"])
+    # The rotation sampler counts its exchanges as the translational one.
+    assert rotation["exchanges"] == 1 + 3 * rotation_report.iterations and sane_seconds(rotation["seconds"])
     assert rotation_report.iterations > 0
     if serial_iterations is not None:  # the serial sampler's steps (docs/mpi.md, "Brownian displacements")
         assert runs["lanczos"][0] == serial_iterations
+    # rpyfmm/mpi/sqrt.hpp, BlockPreconditionerStats: the first call gathers 5 doubles per particle of
+    # the other ranks and one int count per other rank; the second reuses the blocks, no gather.
+    # Each application of G moves 3 doubles per column and per particle sent or received.
+    (first_report, first), (second_report, second) = blocked
+    assert not first["reused"] and second["reused"]
+    assert first["gather_bytes_received"] == 5 * DOUBLE * (len(x) - n) + 4 * (SIZE - 1)
+    assert second["gather_bytes_received"] == 0 and second["build_seconds"] == 0
+    for report, b in blocked:
+        g = b["apply_g"]
+        assert g["applications"] == report.operator_applications > 0
+        assert g["bytes_received"] == 3 * DOUBLE * g["columns"] * (b["particles_sent"] + b["particles_received"])
+        assert all(sane_seconds(b[k]["seconds"]) for k in ("apply_g", "apply_g_transpose", "solve_g"))
+    assert first["particles_sent"] == second["particles_sent"]
 
 
 def test_direct_communication() -> None:
@@ -174,6 +197,7 @@ def test_laplace_communication() -> None:
     totals = COMM.allreduce(np.array([owned, c["halo_sent"], c["halo_received"], c["nodes_sent"],
                                       c["nodes_received"], c["cells_sent"], c["cells_received"]]))
     separation = fmm.separation
+    regions = COMM.allreduce(np.array([c["region_neighbours"], c["region_sent_to"]]))
 
     # tests/mpi/test_distributed_fmm.cpp: every source owned once, what is sent is received, the
     # serial FMM's sources owned + halo + equivalent nodes, and the bytes of an evaluation of one
@@ -188,6 +212,10 @@ def test_laplace_communication() -> None:
     assert all(sane_seconds(v) for stage in ("plan_seconds", "evaluate_seconds", "compute_seconds")
                for v in c[stage].values())
     assert separation >= 1.0 and same_everywhere(separation)
+    # The regions' covers (docs/mpi.md, "Distributed Laplace FMM"): each sent once and received
+    # once, from at most every other rank, 48 bytes per box.
+    assert regions[0] == regions[1] and c["region_neighbours"] <= SIZE - 1
+    assert c["region_bytes_received"] % 48 == 0 and c["region_boxes"] >= (1 if owned else 0)
 
 
 def test_pse_exchange_counts() -> None:
