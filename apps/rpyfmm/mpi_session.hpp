@@ -71,6 +71,7 @@ struct RanksMobilityArgs {
   bool json = false;
   std::string method = "direct";  // direct | fmm | pse
   std::vector<double> box;        // pse: L or Lx Ly Lz
+  std::string io = "collective";  // --io: root | collective (array_shares.hpp)
 };
 void run_mobility_across_ranks(const RanksMobilityArgs& args);
 
@@ -90,10 +91,11 @@ struct RanksSampleArgs {
   std::uint64_t seed = 0, step = 0;
   rpy::SqrtOptions options;
   bool json = false;
-  std::string op = "direct";  // direct | fmm | pse (the split sampler)
-  std::vector<double> box;    // pse: L or Lx Ly Lz
-  double tolerance = 0.0;     // fmm, pse: the operator's tolerance (0: its options' default)
-  bool angular = false;       // the grand mobility with rotation: (N,6) noise and output
+  std::string op = "direct";      // direct | fmm | pse (the split sampler)
+  std::vector<double> box;        // pse: L or Lx Ly Lz
+  double tolerance = 0.0;         // fmm, pse: the operator's tolerance (0: its options' default)
+  bool angular = false;           // the grand mobility with rotation: (N,6) noise and output
+  std::string io = "collective";  // --io: root | collective (array_shares.hpp)
 };
 void run_sample_across_ranks(const RanksSampleArgs& args);
 /// `rpyfmm bd` across the ranks (commands_across_ranks.cpp): `options` with the engine across the
