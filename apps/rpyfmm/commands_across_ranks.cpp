@@ -7,14 +7,17 @@
 //   mpirun -np P rpyfmm bd ...
 // (`laplace`, `rigid` and `rigid-bd` run across the ranks too: laplace_across_ranks.hpp,
 // rigid_across_ranks.hpp, rigid_bd_across_ranks.hpp.)
-// Rank 0 reads the same files as the serial command and scatters the particles in P contiguous
-// shares; rpyfmm::mpi::DistributedDirectRpy applies M (bit for bit the serial DirectRpy; with
-// --torques or --angular to round-off, rpyfmm/mpi/direct_operator.hpp),
-// rpyfmm::mpi::DistributedFmmRpy (within --tolerance of it) or rpyfmm::mpi::DistributedPseRpy (the
-// serial PseRpy with double grids to round-off, with --torques or --angular too), and rpyfmm::mpi::sqrt_apply or
-// DistributedPseRpy::apply_sqrt samples M^{1/2} z (with --angular the grand mobility's sampler,
-// rpyfmm::mpi::sqrt_apply_rotation or DistributedPseRpy::apply_sqrt_rotation); rank 0 gathers the result and writes the
-// same file (write_npy: a temporary file renamed into place). Every step fails on every rank alike
+// The ranks read the same files as the serial command in P contiguous shares of the particles
+// (array_shares.hpp: with --io collective every rank reads its share of a .npy file with MPI-IO,
+// with --io root rank 0 reads and scatters); rpyfmm::mpi::DistributedDirectRpy applies M (bit for
+// bit the serial DirectRpy; with --torques or --angular to round-off,
+// rpyfmm/mpi/direct_operator.hpp), rpyfmm::mpi::DistributedFmmRpy (within --tolerance of it) or
+// rpyfmm::mpi::DistributedPseRpy (the serial PseRpy with double grids to round-off, with --torques
+// or --angular too), and rpyfmm::mpi::sqrt_apply or DistributedPseRpy::apply_sqrt samples
+// M^{1/2} z (with --angular the grand mobility's sampler, rpyfmm::mpi::sqrt_apply_rotation or
+// DistributedPseRpy::apply_sqrt_rotation); the ranks write the serial command's file (with --io
+// collective every rank its rows, npy_collective_io.hpp; with --io root rank 0 gathers and calls
+// write_npy; either way a temporary file renamed into place). Every step fails on every rank alike
 // (rpyfmm::mpi::Communicator::run), so no rank waits for another that gave up.
 #include <mpi.h>
 
@@ -49,7 +52,7 @@
 namespace rpyfmm::cli {
 namespace {
 
-// The files a command reads on rank 0.
+// The files a command reads.
 struct Inputs {
   const std::string& positions;
   const std::string& radii;  // empty with a common radius
@@ -200,7 +203,7 @@ double write_result(const std::vector<double>& local, const std::vector<double>*
   return watch.seconds();
 }
 
-// Read by rank 0, scattered, and the operator set up on each rank's share: what both commands do
+// Read into each rank's share, and the operator set up on it: what both commands do
 // first, timed per stage.
 template <class Operator>
 struct Prepared {
