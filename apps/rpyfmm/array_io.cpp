@@ -321,6 +321,9 @@ Array read_array(const std::filesystem::path& path) {
 }
 
 std::optional<NpyLayout> npy_file_layout(const std::filesystem::path& path) {
+  // Anything but a regular file (a pipe read once, a missing file) is left to read_array.
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(std::filesystem::status(path, ec))) return std::nullopt;
   OpenedInput opened = open_input(path);
   if (!opened.size || opened.in.rdbuf()->sgetc() != 0x93) return std::nullopt;
   return read_npy_header(opened.in, path.string(), opened.size);

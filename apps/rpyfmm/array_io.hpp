@@ -43,8 +43,8 @@ struct NpyLayout {
 /// ragged text rows, non-numeric text, text beyond the limits above, and exhausted memory.
 Array read_array(const std::filesystem::path& path);
 /// The layout of a regular .npy file (first byte 0x93), with read_array's checks and messages on
-/// its header and size; nullopt for any other input (text, a pipe), which read_array reads. A
-/// directory or a file that cannot be opened throws as in read_array.
+/// its header and size; nullopt for any other input (text, a pipe, a directory, a missing file),
+/// which read_array reads or refuses. A regular file that cannot be opened throws as in read_array.
 std::optional<NpyLayout> npy_file_layout(const std::filesystem::path& path);
 /// The same reader over bytes in memory; `name` names the input in messages.
 Array read_array_bytes(std::string_view bytes, const std::string& name);
