@@ -13,8 +13,10 @@
 #include <vector>
 
 #include "array_io.hpp"
+#include "array_shares.hpp"
 #include "cli_common.hpp"
 #include "laplace_problem.hpp"
+#include "npy_collective_io.hpp"
 #include "rank_shares.hpp"
 #include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/core/timer.hpp"
@@ -95,6 +97,36 @@ std::vector<double> gather_results(const std::vector<double>& local, const Sizes
     gather(part, s10, comm.rank() == 0 ? whole.data() + d * z.m * fmm::result_width : nullptr, comm);
   }
   return whole;
+}
+
+// Rank 0 gathers every density's results, checks them and writes the serial command's file.
+void gather_and_write(const std::vector<double>& local, const Sizes& z, const std::vector<std::size_t>& shape,
+                      const std::string& out, const mpi::Communicator& comm) {
+  std::vector<double> gathered;
+  comm.run([&] { gathered = gather_results(local, z, comm); });
+  comm.run([&] {
+    if (comm.rank() != 0) return;
+    require_finite_output(gathered, "laplace");
+    write_npy(out, shape, gathered);
+  });
+}
+
+// Every rank checks its results (nd x share x 10) and writes them, one run per density, into the
+// same file (write_npy_at_all): the file and the messages of gather_and_write.
+void write_at_all(const std::vector<double>& local, const Sizes& z, const std::vector<std::size_t>& shape,
+                  const std::string& out, const mpi::Communicator& comm) {
+  const Shares s10 = shares_of(z.m, comm.size(), static_cast<int>(fmm::result_width));
+  const std::size_t share = s10.count(comm.rank());
+  const auto first = static_cast<std::size_t>(s10.displs[static_cast<std::size_t>(comm.rank())]);
+  std::vector<NpyRun> runs;
+  for (std::uint64_t d = 0; d < z.nd; ++d) {
+    const NpyRun run{d * z.m * fmm::result_width + first, std::span<const double>(local).subspan(d * share, share)};
+    // Density by density: the first non-finite entry of the whole file, as the serial check finds it.
+    require_finite_share(
+        run.values, run.first, [](std::size_t i, bool nan) { return nonfinite_output(i, nan, "laplace"); }, comm);
+    runs.push_back(run);
+  }
+  write_npy_at_all(out, shape, runs, comm);
 }
 
 double sum_of(const StageTimes& stages) {
@@ -179,13 +211,11 @@ void run_laplace_across_ranks(const RanksLaplaceArgs& args) {
       args.direct ? evaluate_direct(local, z, measured, comm) : evaluate_fmm(local, z, args.tolerance, measured, comm);
 
   watch.restart();
-  std::vector<double> gathered;
-  comm.run([&] { gathered = gather_results(results, z, comm); });
-  comm.run([&] {
-    if (comm.rank() != 0) return;
-    require_finite_output(gathered, "laplace");
-    write_npy(args.out, shape, gathered);
-  });
+  if (io_mode(args.io) == IoMode::root) {
+    gather_and_write(results, z, shape, args.out, comm);
+  } else {
+    write_at_all(results, z, shape, args.out, comm);
+  }
   measured.stages["write"] = watch.seconds();
 
   JsonLine line;

@@ -5,8 +5,9 @@
 // the serial FMM's tolerance contract, not its bits. With --direct it broadcasts the sources and
 // charges and scatters the targets (the sources' shares when the targets are the sources); every
 // rank sums fmm::laplace_direct over all sources at its targets, each target in the serial order,
-// so the file is the serial command's byte for byte. Either way rank 0 gathers the results and
-// writes the serial command's file (write_npy: a temporary file renamed into place).
+// so the file is the serial command's byte for byte. Either way the ranks write the serial
+// command's file (a temporary file renamed into place): with --io collective every rank its rows of
+// each density (npy_collective_io.hpp), with --io root rank 0 after a gather (write_npy).
 #pragma once
 
 #include <string>
@@ -18,6 +19,7 @@ struct RanksLaplaceArgs {
   double tolerance = 0.0;                      // the FMM's relative tolerance, validated (not with direct)
   bool direct = false;                         // exact direct sums instead of the FMM
   bool json = false;
+  std::string io = "collective";  // --io: who writes the result (array_shares.hpp)
 };
 
 /// Collective over MPI_COMM_WORLD; fails on every rank alike (rpyfmm::mpi::Communicator). A build

@@ -115,14 +115,18 @@ std::string temporary_with_header(const std::string& path, const std::string& he
   return std::string(bytes.begin(), bytes.end());
 }
 
-// Every rank's values at their offset after the header, written and synced.
-void write_values_at_all(const std::string& tmp, const std::string& path, MPI_Offset offset,
-                         std::span<const double> local, const mpi::Communicator& comm) {
+// Every rank's runs of values at their offsets after `header_bytes`, written and synced.
+void write_values_at_all(const std::string& tmp, const std::string& path, std::size_t header_bytes,
+                         std::span<const NpyRun> runs, const mpi::Communicator& comm) {
   MPI_File file = open_at_all(tmp, MPI_MODE_WRONLY, comm);
-  MPI_Status status;
-  std::optional<Error> problem =
-      io_problem(MPI_File_write_at_all(file, offset, local.data(), static_cast<int>(local.size()), MPI_DOUBLE, &status),
-                 "MPI_File_write_at_all", path);
+  std::optional<Error> problem;
+  for (const NpyRun& run : runs) {
+    MPI_Status status;
+    const auto offset = static_cast<MPI_Offset>(header_bytes + run.first * sizeof(double));
+    const int rc = MPI_File_write_at_all(file, offset, run.values.data(), static_cast<int>(run.values.size()),
+                                         MPI_DOUBLE, &status);
+    if (!problem) problem = io_problem(rc, "MPI_File_write_at_all", path);
+  }
   const int synced = MPI_File_sync(file);
   if (!problem) problem = io_problem(synced, "MPI_File_sync", path);
   close_and_agree(file, problem, path, comm);
@@ -163,15 +167,21 @@ std::vector<double> read_values_at_all(const std::string& path, const NpyLayout&
 
 void write_npy_at_all(const std::string& path, const std::vector<std::size_t>& shape, std::span<const double> local,
                       std::size_t first, const mpi::Communicator& comm) {
+  const NpyRun run{first, local};
+  write_npy_at_all(path, shape, std::span<const NpyRun>(&run, 1), comm);
+}
+
+void write_npy_at_all(const std::string& path, const std::vector<std::size_t>& shape, std::span<const NpyRun> runs,
+                      const mpi::Communicator& comm) {
   comm.run([&] {
-    require(local.size() <= static_cast<std::size_t>(INT_MAX), ErrorCode::not_supported, path,
-            "more values per rank than MPI's int counts address in one write");
+    for (const NpyRun& run : runs)
+      require(run.values.size() <= static_cast<std::size_t>(INT_MAX), ErrorCode::not_supported, path,
+              "more values per rank than MPI's int counts address in one write");
   });
   const std::string header = npy_header(shape);
   const std::string tmp = temporary_with_header(path, header, comm);
   removing_on_failure(tmp, comm, [&] {
-    const auto offset = static_cast<MPI_Offset>(header.size() + first * sizeof(double));
-    write_values_at_all(tmp, path, offset, local, comm);
+    write_values_at_all(tmp, path, header.size(), runs, comm);
     comm.run([&] {
       if (comm.rank() == 0) replace_with(tmp, path);
     });

@@ -35,4 +35,14 @@ std::vector<double> read_values_at_all(const std::string& path, const NpyLayout&
 void write_npy_at_all(const std::string& path, const std::vector<std::size_t>& shape, std::span<const double> local,
                       std::size_t first, const mpi::Communicator& comm);
 
+/// A run of a rank's values in the whole array: values [first, first + values.size()).
+struct NpyRun {
+  std::size_t first = 0;
+  std::span<const double> values;
+};
+/// write_npy_at_all with each rank's values in several runs (every rank passes as many runs, as
+/// each run is one MPI_File_write_at_all): e.g. one run per density of an (nd, M, 10) result.
+void write_npy_at_all(const std::string& path, const std::vector<std::size_t>& shape, std::span<const NpyRun> runs,
+                      const mpi::Communicator& comm);
+
 }  // namespace rpyfmm::cli

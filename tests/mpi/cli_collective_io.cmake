@@ -4,6 +4,8 @@
 #    with --radii, --torques, --noise, sample --angular's (N,6) noise, a text file beside .npy
 #    ones): the serial command's output byte for byte, with --io collective (the default) and with
 #    --io root (rank 0 reads and writes whole);
+#  - laplace (rank 0 reads; the ranks write the (nd,M,10) result): --direct the serial output byte
+#    for byte with either --io, --tolerance the same bytes with either --io;
 #  - bad inputs and outputs (NaN in a row that only rank 1 reads, NaN in a radius of the last
 #    rank's, a short file, an unsupported dtype, forces with a row too few, --out naming an input,
 #    a symbolic link or a directory): exit status 2, one error line holding the serial command's
@@ -23,6 +25,8 @@ file(MAKE_DIRECTORY "${WORK}")
 # 301 particles (not a multiple of 2 or 3: the shares differ in size) on a lattice of spacing 3
 # with a jitter below 0.1, forces and torques in [-1, 1], radii in [0.5, 1.5).
 set(x "")
+set(q2 "")
+set(q2_negative "")
 set(f "")
 set(a "")
 set(z6 "")
@@ -38,7 +42,11 @@ foreach(i RANGE 300)
   string(APPEND f "${fx}e-2 ${fy}e-2 ${fz}e-2\n")
   string(APPEND a "${ai}e-3\n")
   string(APPEND z6 "${fx}e-2 ${fy}e-2 ${fz}e-2 ${fz}e-2 ${fx}e-2 ${fy}e-2\n")
+  string(APPEND q2 " ${ai}e-3")
+  string(APPEND q2_negative " -${ai}e-3")
 endforeach()
+# Two densities for laplace: the radii's values and their negatives.
+file(WRITE "${WORK}/q2.txt" "${q2}\n${q2_negative}\n")
 string(REGEX REPLACE "[^\n]*\n$" "" f_short "${f}")
 file(WRITE "${WORK}/x.txt" "${x}")
 file(WRITE "${WORK}/f.txt" "${f}")
@@ -75,6 +83,23 @@ function(require_no_temporary name dir)
   endif()
 endfunction()
 
+# `args` across NP ranks with --io `io`, writing ${WORK}/<name>_<io>.npy.
+function(run_across name io)
+  execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" ${ARGN} --io ${io} --out "${WORK}/${name}_${io}.npy"
+                  RESULT_VARIABLE rc ERROR_VARIABLE err)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "${name}: mpiexec -n ${NP} rpyfmm ${ARGN} --io ${io} failed (${rc}): ${err}")
+  endif()
+  require_no_temporary(${name} "${WORK}")
+endfunction()
+# Files `a` and `b` in ${WORK} hold the same bytes.
+function(require_same name a b)
+  execute_process(COMMAND "${CMAKE_COMMAND}" -E compare_files "${WORK}/${a}.npy" "${WORK}/${b}.npy"
+                  RESULT_VARIABLE differ)
+  if(NOT differ EQUAL 0)
+    message(FATAL_ERROR "${name} under ${NP} ranks: ${a}.npy differs from ${b}.npy")
+  endif()
+endfunction()
 # The serial command `args` and the same across NP ranks with --io `io` write the same bytes.
 function(run_identical name io)
   execute_process(COMMAND "${RPYFMM}" ${ARGN} --out "${WORK}/${name}_serial.npy" RESULT_VARIABLE rc
@@ -82,17 +107,8 @@ function(run_identical name io)
   if(NOT rc EQUAL 0)
     message(FATAL_ERROR "${name}: serial rpyfmm ${ARGN} failed (${rc}): ${err}")
   endif()
-  execute_process(COMMAND "${MPIEXEC}" -n ${NP} ${flags} "${RPYFMM}" ${ARGN} --io ${io} --out "${WORK}/${name}_${io}.npy"
-                  RESULT_VARIABLE rc ERROR_VARIABLE err)
-  if(NOT rc EQUAL 0)
-    message(FATAL_ERROR "${name}: mpiexec -n ${NP} rpyfmm ${ARGN} --io ${io} failed (${rc}): ${err}")
-  endif()
-  execute_process(COMMAND "${CMAKE_COMMAND}" -E compare_files "${WORK}/${name}_serial.npy" "${WORK}/${name}_${io}.npy"
-                  RESULT_VARIABLE differ)
-  if(NOT differ EQUAL 0)
-    message(FATAL_ERROR "${name}: the output of ${NP} ranks with --io ${io} differs from the serial output")
-  endif()
-  require_no_temporary(${name} "${WORK}")
+  run_across(${name} ${io} ${ARGN})
+  require_same(${name} ${name}_serial ${name}_${io})
 endfunction()
 
 set(mobility mobility --positions "${WORK}/x.npy" --forces "${WORK}/f.npy" --viscosity 0.7 --method direct)
@@ -104,6 +120,15 @@ foreach(io collective root)
 endforeach()
 run_identical(mobility_torques collective ${mobility} --radius 1.1 --torques "${WORK}/f.npy")
 run_identical(sample_noise collective ${sample} --noise "${WORK}/f.npy")
+# laplace writes its (nd,M,10) result with every rank's rows of each density: --direct the serial
+# file byte for byte; the FMM across ranks is not the serial FMM's bits, but the same computation
+# writes the same bytes with either --io.
+set(laplace laplace --sources "${WORK}/x.npy" --charges "${WORK}/q2.txt" --targets "${WORK}/f.npy")
+run_identical(laplace_direct collective ${laplace} --direct)
+run_identical(laplace_direct root ${laplace} --direct)
+run_across(laplace_fmm collective ${laplace} --tolerance 1e-6)
+run_across(laplace_fmm root ${laplace} --tolerance 1e-6)
+require_same(laplace_fmm laplace_fmm_collective laplace_fmm_root)
 # float32 positions (widened as the serial reader does) and text forces beside .npy positions.
 run_identical(mobility_f4 collective mobility --positions "${WORK}/x4.npy" --forces "${WORK}/f.npy" --radius 1.1
               --method direct)
