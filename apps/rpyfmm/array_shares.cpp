@@ -17,16 +17,6 @@
 namespace rpyfmm::cli {
 namespace {
 
-// Rank 0 reads the whole array and broadcasts its shape; `whole` holds the values on rank 0.
-std::vector<std::size_t> read_on_root(const std::string& path, Array& whole, const mpi::Communicator& comm) {
-  comm.run([&] {
-    if (comm.rank() == 0) whole = read_array(path);
-  });
-  std::vector<std::uint64_t> shape(whole.shape.begin(), whole.shape.end());
-  broadcast(shape, comm);
-  return {shape.begin(), shape.end()};
-}
-
 // The shares of `shape`'s values in rows of `per`, after rank 0's `check` of the shape.
 Shares checked_shares(const std::vector<std::size_t>& shape, int per,
                       const std::function<void(const std::vector<std::size_t>&)>& check,
@@ -40,6 +30,26 @@ Shares checked_shares(const std::vector<std::size_t>& shape, int per,
 }
 
 }  // namespace
+
+std::vector<std::size_t> read_whole_on_root(const std::string& path, Array& whole, const mpi::Communicator& comm) {
+  comm.run([&] {
+    if (comm.rank() == 0) whole = read_array(path);
+  });
+  std::vector<std::uint64_t> shape(whole.shape.begin(), whole.shape.end());
+  broadcast(shape, comm);
+  return {shape.begin(), shape.end()};
+}
+
+ArrayShare read_points_share(const std::string& path, const std::string& name, IoMode mode, double& scatter_seconds,
+                             const mpi::Communicator& comm) {
+  ArrayShare points = read_share(
+      path, mode, 3, [&](const auto& shape) { require_points_shape(shape, name); }, scatter_seconds, comm);
+  require_finite_share(
+      points.local, points.first,
+      [&](std::size_t i, bool nan) { return Error(ErrorCode::invalid_input, name + " " + nonfinite_entry(i, 3, nan)); },
+      comm);
+  return points;
+}
 
 IoMode io_mode(const std::string& name) {
   if (name == "root") return IoMode::root;
@@ -60,7 +70,7 @@ ArrayShare read_share(const std::string& path, IoMode mode, int per,
       mode == IoMode::collective ? shared_npy_layout(path, comm) : std::optional<NpyLayout>();
   ArrayShare share;
   Array whole;
-  share.shape = layout ? layout->shape : read_on_root(path, whole, comm);
+  share.shape = layout ? layout->shape : read_whole_on_root(path, whole, comm);
   const Shares shares = checked_shares(share.shape, per, check, comm);
   const auto rank = static_cast<std::size_t>(comm.rank());
   share.first = static_cast<std::size_t>(shares.displs[rank]);

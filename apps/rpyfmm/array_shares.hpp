@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "array_io.hpp"
 #include "rpyfmm/core/error.hpp"
 #include "rpyfmm/mpi/communicator.hpp"
 
@@ -39,6 +40,15 @@ std::size_t values_of(const std::vector<std::size_t>& shape);
 ArrayShare read_share(const std::string& path, IoMode mode, int per,
                       const std::function<void(const std::vector<std::size_t>&)>& check, double& scatter_seconds,
                       const mpi::Communicator& comm);
+
+/// Collective: rank 0 reads `path` whole with read_array into `whole` (untouched elsewhere); returns
+/// its shape on every rank. Rank 0's errors fail every rank.
+std::vector<std::size_t> read_whole_on_root(const std::string& path, Array& whole, const mpi::Communicator& comm);
+
+/// Collective: N points read into shares of rows of three with as_points' checks and messages
+/// naming `name` (the shape on rank 0, the values on every rank's share).
+ArrayShare read_points_share(const std::string& path, const std::string& name, IoMode mode, double& scatter_seconds,
+                             const mpi::Communicator& comm);
 
 /// Collective: where any rank's `local` (values first, first + 1, ... of the whole array) holds a
 /// value that is not finite, every rank throws rank 0's `error(index, nan)` for the first such

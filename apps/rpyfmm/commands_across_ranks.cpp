@@ -75,19 +75,10 @@ struct LocalInput {
   double scatter_seconds = 0.0;  // in MPI_Scatterv (rank 0's reads)
 };
 
-// The serial checks' error for a non-finite entry of `name` (rows of `stride` values).
-std::function<Error(std::size_t, bool)> nonfinite_input(const std::string& name, std::size_t stride) {
-  return [name, stride](std::size_t i, bool nan) {
-    return Error(ErrorCode::invalid_input, name + " " + nonfinite_entry(i, stride, nan));
-  };
-}
-
 // `name`'s rows of three values, one per particle of `n`: as_points' checks, then the count.
 std::vector<double> read_rows(const std::string& path, const std::string& name, std::uint64_t n, IoMode mode,
                               LocalInput& in, const mpi::Communicator& comm) {
-  ArrayShare rows = read_share(
-      path, mode, 3, [&](const auto& shape) { require_points_shape(shape, name); }, in.scatter_seconds, comm);
-  require_finite_share(rows.local, rows.first, nonfinite_input(name, 3), comm);
+  ArrayShare rows = read_points_share(path, name, mode, in.scatter_seconds, comm);
   const std::size_t got = values_of(rows.shape) / 3;
   comm.run([&] {
     require(got == n, ErrorCode::invalid_input, name,
@@ -98,9 +89,7 @@ std::vector<double> read_rows(const std::string& path, const std::string& name, 
 
 // The positions, and the particles' shares they set.
 void read_positions(const std::string& path, IoMode mode, LocalInput& in, const mpi::Communicator& comm) {
-  ArrayShare x = read_share(
-      path, mode, 3, [](const auto& shape) { require_points_shape(shape, "positions"); }, in.scatter_seconds, comm);
-  require_finite_share(x.local, x.first, nonfinite_input("positions", 3), comm);
+  ArrayShare x = read_points_share(path, "positions", mode, in.scatter_seconds, comm);
   in.n = values_of(x.shape) / 3;
   in.s3 = shares_of(in.n, comm.size(), 3);  // within the int counts: read_share made these shares
   in.offset = x.first / 3;
@@ -137,7 +126,10 @@ LocalInput read_inputs(const Inputs& files, IoMode mode, const mpi::Communicator
     ArrayShare radii = read_share(
         files.radii, mode, 1, [&](const auto& shape) { require_vector_shape(shape, n, "radii"); }, in.scatter_seconds,
         comm);
-    require_finite_share(radii.local, radii.first, nonfinite_input("radii", 1), comm);
+    require_finite_share(
+        radii.local, radii.first,
+        [](std::size_t i, bool nan) { return Error(ErrorCode::invalid_input, "radii " + nonfinite_entry(i, 1, nan)); },
+        comm);
     in.radii = std::move(radii.local);
   }
   if (!files.torques.empty()) in.torques = read_rows(files.torques, "torques", in.n, mode, in, comm);

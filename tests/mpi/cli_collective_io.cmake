@@ -4,10 +4,11 @@
 #    with --radii, --torques, --noise, sample --angular's (N,6) noise, a text file beside .npy
 #    ones): the serial command's output byte for byte, with --io collective (the default) and with
 #    --io root (rank 0 reads and writes whole);
-#  - laplace (rank 0 reads; the ranks write the (nd,M,10) result): --direct the serial output byte
-#    for byte with either --io, --tolerance the same bytes with either --io;
+#  - laplace (the ranks write the (nd,M,10) result; with --tolerance they read their shares of the
+#    inputs, with --direct rank 0 reads): --direct the serial output byte for byte with either
+#    --io, --tolerance the same bytes with either --io;
 #  - bad inputs and outputs (NaN in a row that only rank 1 reads, NaN in a radius of the last
-#    rank's, a short file, an unsupported dtype, forces with a row too few, --out naming an input,
+#    rank's, NaN in a charge of the second density, a short file, an unsupported dtype, forces with a row too few, --out naming an input,
 #    a symbolic link or a directory): exit status 2, one error line holding the serial command's
 #    message, no output and no temporary file left.
 # Run by ctest as
@@ -68,12 +69,15 @@ fixture(f f f8)
 fixture(f_short f_short f8)
 fixture(a a f8)
 fixture(z6 z6 f8)
+fixture(q2 q2 f8)
 # Row 200 lies in rank 1's share on 2 and 3 ranks (rank 0 holds rows 0-150, or 0-100), radius 250
 # in the last rank's.
 fixture(x x_nan nan:601)
 fixture(a a_nan nan:250)
 fixture(x x_short short)
 fixture(x x_i4 i4)
+# Charge 249 of the second density: the last rank's share on 2 and 3 ranks.
+fixture(q2 q2_nan nan:550)
 
 # No temporary file (<name>.tmp.<hex>) left in ${WORK} or in `dir`.
 function(require_no_temporary name dir)
@@ -120,10 +124,11 @@ foreach(io collective root)
 endforeach()
 run_identical(mobility_torques collective ${mobility} --radius 1.1 --torques "${WORK}/f.npy")
 run_identical(sample_noise collective ${sample} --noise "${WORK}/f.npy")
-# laplace writes its (nd,M,10) result with every rank's rows of each density: --direct the serial
-# file byte for byte; the FMM across ranks is not the serial FMM's bits, but the same computation
-# writes the same bytes with either --io.
-set(laplace laplace --sources "${WORK}/x.npy" --charges "${WORK}/q2.txt" --targets "${WORK}/f.npy")
+# laplace writes its (nd,M,10) result with every rank's rows of each density: --direct (rank 0
+# reads) the serial file byte for byte; the FMM across ranks (each rank reading its shares of the
+# sources, the targets and each density's charges) is not the serial FMM's bits, but the same
+# computation writes the same bytes with either --io.
+set(laplace laplace --sources "${WORK}/x.npy" --charges "${WORK}/q2.npy" --targets "${WORK}/f.npy")
 run_identical(laplace_direct collective ${laplace} --direct)
 run_identical(laplace_direct root ${laplace} --direct)
 run_across(laplace_fmm collective ${laplace} --tolerance 1e-6)
@@ -168,6 +173,7 @@ expect_no_output(radii_nan mobility --positions "${WORK}/x.npy" --forces "${WORK
 expect_no_output(positions_short mobility --positions "${WORK}/x_short.npy" --forces "${WORK}/f.npy" --radius 1)
 expect_no_output(positions_i4 mobility --positions "${WORK}/x_i4.npy" --forces "${WORK}/f.npy" --radius 1)
 expect_no_output(forces_short mobility --positions "${WORK}/x.npy" --forces "${WORK}/f_short.npy" --radius 1)
+expect_no_output(charges_nan laplace --sources "${WORK}/x.npy" --charges "${WORK}/q2_nan.npy" --tolerance 1e-6)
 expect_no_output(noise_short sample --positions "${WORK}/x.npy" --radius 1 --noise "${WORK}/f_short.npy")
 # --out naming an input, a symbolic link (to a good file, left as it was) and a directory.
 set(good "${WORK}/mobility_radii_serial.npy")
