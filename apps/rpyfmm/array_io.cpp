@@ -142,61 +142,69 @@ void read_npy_data(std::istream& in, std::size_t count, std::size_t item, Array&
   }
 }
 
-// `size`: the input's total size in bytes when known (a regular file, bytes in memory).
-Array read_npy(std::istream& in, const std::string& name, std::optional<std::uint64_t> size) {
+// The header of a .npy input, checked: magic, version, dict, dtype, C order, and (with `size`, the
+// input's total size in bytes when known: a regular file, bytes in memory) the shape against the
+// bytes the input holds, before anything is allocated. Leaves `in` at the first value.
+NpyLayout read_npy_header(std::istream& in, const std::string& name, std::optional<std::uint64_t> size) {
   char magic[8];
   in.read(magic, 8);
   if (!in || std::memcmp(magic, "\x93NUMPY", 6) != 0) bad(name, "not a .npy file (bad magic)");
   const int major = static_cast<unsigned char>(magic[6]);
   std::uint32_t header_len = 0;
-  std::uint64_t data_offset = 0;
+  NpyLayout layout;
   if (major == 1) {
     unsigned char b[2];
     in.read(reinterpret_cast<char*>(b), 2);
     header_len = b[0] | (b[1] << 8);
-    data_offset = 10 + std::uint64_t(header_len);
+    layout.data_offset = 10 + std::uint64_t(header_len);
   } else if (major == 2 || major == 3) {
     unsigned char b[4];
     in.read(reinterpret_cast<char*>(b), 4);
     header_len = b[0] | (b[1] << 8) | (b[2] << 16) | (std::uint32_t(b[3]) << 24);
-    data_offset = 12 + std::uint64_t(header_len);
+    layout.data_offset = 12 + std::uint64_t(header_len);
   } else {
     bad(name, "unsupported .npy version " + std::to_string(major));
   }
   if (!in || header_len > (1u << 20)) bad(name, "truncated or malformed .npy header");
-  if (size && data_offset > *size) bad(name, "truncated .npy header");
+  if (size && layout.data_offset > *size) bad(name, "truncated .npy header");
   std::string header(header_len, '\0');
   in.read(header.data(), header_len);
   if (!in) bad(name, "truncated .npy header");
 
   const std::string descr = header_value(header, "descr", name);
   const std::string fortran = header_value(header, "fortran_order", name);
-  Array a;
-  a.shape = parse_shape(header_value(header, "shape", name), name);
+  layout.shape = parse_shape(header_value(header, "shape", name), name);
   if (fortran.find("True") != std::string::npos) bad(name, "Fortran-order arrays are not supported (use C order)");
-  std::size_t item = 0;
   if (descr == "<f8" || descr == "=f8" || descr == "f8")
-    item = 8;
+    layout.item = 8;
   else if (descr == "<f4" || descr == "=f4" || descr == "f4")
-    item = 4;
+    layout.item = 4;
   else
     bad(name, "unsupported dtype '" + excerpt(descr, 32) + "' (need little-endian float64 or float32)");
   // The data's size, overflow-checked, against what the input holds: before allocating anything.
   std::uint64_t count = 1;
-  for (std::size_t s : a.shape) {
-    if (s != 0 && count > std::numeric_limits<std::uint64_t>::max() / item / s)
-      bad(name, "the .npy shape " + shape_str(a.shape) + " is too large");
+  for (std::size_t s : layout.shape) {
+    if (s != 0 && count > std::numeric_limits<std::uint64_t>::max() / layout.item / s)
+      bad(name, "the .npy shape " + shape_str(layout.shape) + " is too large");
     count *= s;
   }
-  const std::uint64_t bytes = count * item;
-  if (size && bytes != *size - data_offset) {
-    bad(name, std::string(bytes > *size - data_offset ? "truncated .npy data" : ".npy data followed by extra bytes") +
-                  ": the header declares shape " + shape_str(a.shape) + ", " + bytes_str(bytes) +
-                  ", but the input holds " + bytes_str(*size - data_offset) + " after the header");
+  const std::uint64_t bytes = count * layout.item;
+  if (size && bytes != *size - layout.data_offset) {
+    bad(name,
+        std::string(bytes > *size - layout.data_offset ? "truncated .npy data" : ".npy data followed by extra bytes") +
+            ": the header declares shape " + shape_str(layout.shape) + ", " + bytes_str(bytes) +
+            ", but the input holds " + bytes_str(*size - layout.data_offset) + " after the header");
   }
   if (count > std::numeric_limits<std::size_t>::max() / sizeof(double))
-    bad(name, "the .npy shape " + shape_str(a.shape) + " is too large");
-  read_npy_data(in, static_cast<std::size_t>(count), item, a, name);
+    bad(name, "the .npy shape " + shape_str(layout.shape) + " is too large");
+  return layout;
+}
+
+Array read_npy(std::istream& in, const std::string& name, std::optional<std::uint64_t> size) {
+  const NpyLayout layout = read_npy_header(in, name, size);
+  Array a;
+  a.shape = layout.shape;
+  read_npy_data(in, static_cast<std::size_t>(layout.values()), layout.item, a, name);
   return a;
 }
 
@@ -276,19 +284,49 @@ Array read_stream(std::istream& in, const std::string& name, std::optional<std::
 
 }  // namespace
 
-Array read_array(const std::filesystem::path& path) {
+namespace {
+
+// An input file opened for reading, with its size where it is a regular file; a directory or a
+// file that cannot be opened throws.
+struct OpenedInput {
+  std::ifstream in;
+  std::optional<std::uint64_t> size;
+};
+
+OpenedInput open_input(const std::filesystem::path& path) {
   const std::string name = path.string();
   std::error_code ec;
   const auto status = std::filesystem::status(path, ec);
   if (std::filesystem::is_directory(status)) bad(name, "is a directory, not an array file");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) bad(name, "cannot open file (does it exist?)");
-  std::optional<std::uint64_t> size;
+  OpenedInput opened{std::ifstream(path, std::ios::binary), std::nullopt};
+  if (!opened.in) bad(name, "cannot open file (does it exist?)");
   if (std::filesystem::is_regular_file(status)) {
     const auto bytes = std::filesystem::file_size(path, ec);
-    if (!ec) size = bytes;
+    if (!ec) opened.size = bytes;
   }
-  return read_stream(in, name, size);
+  return opened;
+}
+
+}  // namespace
+
+std::uint64_t NpyLayout::values() const {
+  std::uint64_t count = 1;
+  for (std::size_t s : shape) count *= s;
+  return count;
+}
+
+Array read_array(const std::filesystem::path& path) {
+  OpenedInput opened = open_input(path);
+  return read_stream(opened.in, path.string(), opened.size);
+}
+
+std::optional<NpyLayout> npy_file_layout(const std::filesystem::path& path) {
+  // Anything but a regular file (a pipe read once, a missing file) is left to read_array.
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(std::filesystem::status(path, ec))) return std::nullopt;
+  OpenedInput opened = open_input(path);
+  if (!opened.size || opened.in.rdbuf()->sgetc() != 0x93) return std::nullopt;
+  return read_npy_header(opened.in, path.string(), opened.size);
 }
 
 Array read_array_bytes(std::string_view bytes, const std::string& name) {
@@ -296,8 +334,7 @@ Array read_array_bytes(std::string_view bytes, const std::string& name) {
   return read_stream(in, name, bytes.size());
 }
 
-void write_npy(const std::filesystem::path& path, const std::vector<std::size_t>& shape,
-               const std::vector<double>& data) {
+std::string npy_header(const std::vector<std::size_t>& shape) {
   std::string dict = "{'descr': '<f8', 'fortran_order': False, 'shape': (";
   for (std::size_t i = 0; i < shape.size(); ++i)
     dict += std::to_string(shape[i]) + (shape.size() == 1 ? "," : (i + 1 < shape.size() ? ", " : ""));
@@ -305,62 +342,94 @@ void write_npy(const std::filesystem::path& path, const std::vector<std::size_t>
   const std::size_t unpadded = 10 + dict.size() + 1;
   dict.append((64 - unpadded % 64) % 64, ' ');
   dict += '\n';
+  const auto len = static_cast<std::uint16_t>(dict.size());
+  return std::string("\x93NUMPY\x01\x00", 8) + static_cast<char>(len & 0xff) + static_cast<char>(len >> 8) + dict;
+}
+
+void write_npy(const std::filesystem::path& path, const std::vector<std::size_t>& shape,
+               const std::vector<double>& data) {
+  const std::string header = npy_header(shape);
   write_file_atomically(path, [&](std::ostream& out) {
-    out.write("\x93NUMPY\x01\x00", 8);
-    const auto len = static_cast<std::uint16_t>(dict.size());
-    const char lb[2] = {static_cast<char>(len & 0xff), static_cast<char>(len >> 8)};
-    out.write(lb, 2);
-    out.write(dict.data(), static_cast<std::streamsize>(dict.size()));
+    out.write(header.data(), static_cast<std::streamsize>(header.size()));
     out.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size() * sizeof(double)));
   });
 }
 
-std::pair<std::vector<double>, std::vector<double>> as_split_rows6(const Array& a, std::size_t n,
-                                                                   const std::string& what) {
-  const bool rows6 = a.shape.size() == 2 && a.shape[1] == 6;
-  require(rows6 && a.shape[0] == n, ErrorCode::invalid_input, what,
+std::string nonfinite_entry(std::size_t index, std::size_t stride, bool nan) {
+  // Appended piecewise: GCC 12 warns falsely (-Wrestrict) on `const char* + std::string&&`.
+  std::string entry = "entry ";
+  if (stride > 1) {
+    entry += '(';
+    entry += std::to_string(index / stride);
+    entry += ", ";
+    entry += std::to_string(index % stride);
+    entry += ')';
+  } else {
+    entry += std::to_string(index);
+  }
+  return entry + (nan ? " is NaN" : " is infinite");
+}
+
+std::optional<std::size_t> first_nonfinite(std::span<const double> values) {
+  for (std::size_t i = 0; i < values.size(); ++i)
+    if (!std::isfinite(values[i])) return i;
+  return std::nullopt;
+}
+
+void require_rows6_shape(const std::vector<std::size_t>& shape, std::size_t n, const std::string& what) {
+  const bool rows6 = shape.size() == 2 && shape[1] == 6;
+  require(rows6 && shape[0] == n, ErrorCode::invalid_input, what,
           "with --angular must have shape (" + std::to_string(n) + ",6), one row z_t then z_r per particle, got " +
-              (rows6 ? std::to_string(a.shape[0]) + " rows" : std::to_string(a.shape.size()) + " dimensions") +
-              (a.shape.size() == 2 ? " of " + std::to_string(a.shape[1]) + " columns" : ""));
-  require_finite(a.data, what, what, 6);
+              (rows6 ? std::to_string(shape[0]) + " rows" : std::to_string(shape.size()) + " dimensions") +
+              (shape.size() == 2 ? " of " + std::to_string(shape[1]) + " columns" : ""));
+}
+
+std::pair<std::vector<double>, std::vector<double>> split_rows6(std::span<const double> rows) {
+  const std::size_t n = rows.size() / 6;
   std::pair<std::vector<double>, std::vector<double>> split{std::vector<double>(3 * n), std::vector<double>(3 * n)};
   for (std::size_t i = 0; i < n; ++i)
     for (std::size_t c = 0; c < 3; ++c) {
-      split.first[3 * i + c] = a.data[6 * i + c];
-      split.second[3 * i + c] = a.data[6 * i + 3 + c];
+      split.first[3 * i + c] = rows[6 * i + c];
+      split.second[3 * i + c] = rows[6 * i + 3 + c];
     }
   return split;
 }
 
-std::vector<double> as_points(const Array& a, const std::string& what) {
-  const bool n3 = a.shape.size() == 2 && a.shape[1] == 3;
-  const bool flat = a.shape.size() == 1 && a.shape[0] % 3 == 0;
+std::pair<std::vector<double>, std::vector<double>> as_split_rows6(const Array& a, std::size_t n,
+                                                                   const std::string& what) {
+  require_rows6_shape(a.shape, n, what);
+  require_finite(a.data, what, what, 6);
+  return split_rows6(a.data);
+}
+
+void require_points_shape(const std::vector<std::size_t>& shape, const std::string& what) {
+  const bool n3 = shape.size() == 2 && shape[1] == 3;
+  const bool flat = shape.size() == 1 && shape[0] % 3 == 0;
   if (!n3 && !flat) {
-    throw Error(ErrorCode::invalid_input, what + " must have shape (N,3) or (3N,), got " + shape_text(a.shape));
+    throw Error(ErrorCode::invalid_input, what + " must have shape (N,3) or (3N,), got " + shape_text(shape));
   }
-  if (a.data.empty()) throw Error(ErrorCode::invalid_input, what + " is empty (N = 0)");
-  for (std::size_t i = 0; i < a.data.size(); ++i) {
-    if (!std::isfinite(a.data[i])) {
-      throw Error(ErrorCode::invalid_input, what + " entry (" + std::to_string(i / 3) + ", " + std::to_string(i % 3) +
-                                                ") is " + (std::isnan(a.data[i]) ? "NaN" : "infinite"));
-    }
-  }
+  if (shape[0] == 0) throw Error(ErrorCode::invalid_input, what + " is empty (N = 0)");
+}
+
+std::vector<double> as_points(const Array& a, const std::string& what) {
+  require_points_shape(a.shape, what);
+  if (const auto i = first_nonfinite(a.data))
+    throw Error(ErrorCode::invalid_input, what + " " + nonfinite_entry(*i, 3, std::isnan(a.data[*i])));
   return a.data;
 }
 
-std::vector<double> as_vector(const Array& a, std::size_t n, const std::string& what) {
-  const bool ok =
-      (a.shape.size() == 1 && a.shape[0] == n) || (a.shape.size() == 2 && a.shape[0] == n && a.shape[1] == 1);
+void require_vector_shape(const std::vector<std::size_t>& shape, std::size_t n, const std::string& what) {
+  const bool ok = (shape.size() == 1 && shape[0] == n) || (shape.size() == 2 && shape[0] == n && shape[1] == 1);
   if (!ok) {
     throw Error(ErrorCode::invalid_input,
-                what + " must have shape (" + std::to_string(n) + ",), got " + shape_text(a.shape));
+                what + " must have shape (" + std::to_string(n) + ",), got " + shape_text(shape));
   }
-  for (std::size_t i = 0; i < a.data.size(); ++i) {
-    if (!std::isfinite(a.data[i])) {
-      throw Error(ErrorCode::invalid_input,
-                  what + " entry " + std::to_string(i) + " is " + (std::isnan(a.data[i]) ? "NaN" : "infinite"));
-    }
-  }
+}
+
+std::vector<double> as_vector(const Array& a, std::size_t n, const std::string& what) {
+  require_vector_shape(a.shape, n, what);
+  if (const auto i = first_nonfinite(a.data))
+    throw Error(ErrorCode::invalid_input, what + " " + nonfinite_entry(*i, 1, std::isnan(a.data[*i])));
   return a.data;
 }
 

@@ -23,6 +23,13 @@ void add_common_options(CLI::App& cmd, CommonOptions& options) {
   cmd.add_flag("--json", options.json, "print one line of JSON with parameters and timings");
 }
 
+void add_io_option(CLI::App& cmd, std::string& io) {
+  cmd.add_option("--io", io,
+                 "across MPI ranks: 'collective' (default) every rank reads and writes its share of the .npy "
+                 "arrays with MPI-IO (laplace: writes its result), 'root' rank 0 reads and writes them whole")
+      ->check(CLI::IsMember({"root", "collective"}));
+}
+
 void apply_threads(const CommonOptions& options) {
   require_thread_count(options.threads, "--threads", /*allow_zero=*/true);
   if (options.threads > 0) omp_set_num_threads(static_cast<int>(options.threads));
@@ -130,14 +137,15 @@ RenamedOption add_renamed_option(CLI::App& cmd, const std::string& name, const s
   return r;
 }
 
+Error nonfinite_output(std::size_t index, bool nan, const std::string& what) {
+  return Error(ErrorCode::numerical_failure, what + ": entry " + std::to_string(index) + " of the result is " +
+                                                 (nan ? "NaN" : "infinite") +
+                                                 " (nothing written; are the input's scales extreme?)");
+}
+
 void require_finite_output(std::span<const double> values, const std::string& what) {
-  for (std::size_t i = 0; i < values.size(); ++i) {
-    if (!std::isfinite(values[i])) {
-      fail(ErrorCode::numerical_failure, what,
-           "entry " + std::to_string(i) + " of the result is " + (std::isnan(values[i]) ? "NaN" : "infinite") +
-               " (nothing written; are the input's scales extreme?)");
-    }
-  }
+  for (std::size_t i = 0; i < values.size(); ++i)
+    if (!std::isfinite(values[i])) throw nonfinite_output(i, std::isnan(values[i]), what);
 }
 
 int active_threads() {

@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include "rpyfmm/core/error.hpp"
 #include "rpyfmm/core/ranges.hpp"
 
 namespace CLI {
@@ -26,6 +27,9 @@ struct CommonOptions {
 
 /// Adds --threads and --json to `cmd`.
 void add_common_options(CLI::App& cmd, CommonOptions& options);
+/// Adds --io root|collective (`io`, default collective): who reads and writes the .npy arrays of a
+/// run across MPI ranks (docs/mpi.md, "The command-line tool under mpirun"); one process ignores it.
+void add_io_option(CLI::App& cmd, std::string& io);
 /// Applies --threads (omp_set_num_threads) after validating it (rpyfmm::require_thread_count).
 void apply_threads(const CommonOptions& options);
 /// Threads that OpenMP will use.
@@ -63,6 +67,8 @@ void print_pending_warnings();
 /// infinite: every command calls it on its results before writing any of them, so that exit
 /// status 0 never comes with non-finite output.
 void require_finite_output(std::span<const double> values, const std::string& what);
+/// require_finite_output's error for entry `index` of the result (NaN where `nan`, else infinite).
+Error nonfinite_output(std::size_t index, bool nan, const std::string& what);
 
 /// A flat JSON object built key by key and printed on one line.
 class JsonLine {

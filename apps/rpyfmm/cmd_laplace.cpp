@@ -36,6 +36,7 @@ struct LaplaceArgs {
   bool direct = false;
   double tolerance = 0.0;  // FMM relative tolerance; 0 = not requested
   CommonOptions common;
+  std::string io = "collective";  // --io, across MPI ranks
 };
 
 // ---- evaluation methods -------------------------------------------------
@@ -70,7 +71,7 @@ void run_laplace(const LaplaceArgs& args, bool fmm_requested) {
   if (fmm_requested) ranges::require_in(ranges::kLaplaceTolerance, args.tolerance, "--tolerance", "tolerance");
   if (under_mpi()) {
     run_laplace_across_ranks(
-        {args.sources, args.targets, args.charges, args.out, args.tolerance, args.direct, args.common.json});
+        {args.sources, args.targets, args.charges, args.out, args.tolerance, args.direct, args.common.json, args.io});
     return;
   }
   StopWatch total;
@@ -130,6 +131,7 @@ void register_laplace(CLI::App& app) {
   cmd->add_option("--out", args->out, "output .npy: (M,10) or (nd,M,10), columns pot,gx,gy,gz,hxx,hyy,hzz,hxy,hxz,hyz")
       ->required();
   add_common_options(*cmd, args->common);
+  add_io_option(*cmd, args->io);
   cmd->callback([args, tolerance] {
     print_pending_warnings();
     run_laplace(*args, tolerance.given());

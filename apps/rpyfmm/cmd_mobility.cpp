@@ -36,6 +36,7 @@ struct MobilityArgs {
   double radius = 0.0;
   MobilityChoice mobility;  // --method, --tolerance, --viscosity, --box, ... (mobility_choice.hpp)
   CommonOptions common;
+  std::string io = "collective";  // --io, across MPI ranks
 };
 
 /// U = M F, or with torques t (non-empty) [U; W] = M [F; T] written as (N, 6) rows Ux Uy Uz Wx Wy Wz;
@@ -97,7 +98,7 @@ void run_mobility(const MobilityArgs& args, bool radius_given) {
   if (under_mpi() && across_ranks(args)) {
     run_mobility_across_ranks({args.positions, args.forces, args.radii, args.out, args.torques, args.angular,
                                args.radius, radius_given, args.mobility.viscosity, args.mobility.tolerance,
-                               args.common.json, args.mobility.method, args.mobility.box});
+                               args.common.json, args.mobility.method, args.mobility.box, args.io});
     return;
   }
 
@@ -171,6 +172,7 @@ void register_mobility(CLI::App& app) {
   cmd->add_flag("--angular", args->angular, "output (N,6) with angular velocities, torques zero unless --torques");
   cmd->add_option("--out", args->out, "output .npy, shape (N,3), or (N,6) with --torques / --angular")->required();
   add_common_options(*cmd, args->common);
+  add_io_option(*cmd, args->io);
   cmd->callback([args, radius] {
     print_pending_warnings();
     run_mobility(*args, radius->count() > 0);

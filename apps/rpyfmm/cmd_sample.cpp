@@ -73,6 +73,7 @@ struct SampleArgs {
   int preconditioner_block = 0;
   bool angular = false;  // (N, 6): the grand mobility with rotation
   CommonOptions common;
+  std::string io = "collective";  // --io, across MPI ranks
 };
 
 // ---- operators ----------------------------------------------------------
@@ -288,7 +289,7 @@ void run_sample(const SampleArgs& given, bool radius_given, bool seed_given) {
   if (under_mpi() && across_ranks(args, options)) {
     run_sample_across_ranks({args.positions, args.radii, args.noise, args.out, args.radius, radius_given,
                              args.viscosity, args.seed, args.step, options, args.common.json, args.op, args.box,
-                             args.tolerance, args.angular});
+                             args.tolerance, args.angular, args.io});
     return;
   }
 
@@ -384,6 +385,7 @@ void register_sample(CLI::App& app) {
                 "displacements then rotations, B z with B B^T = M (docs/theory/samplers.md)");
   cmd->add_option("--out", args->out, "output .npy, shape (N,3), or (N,6) with --angular")->required();
   add_common_options(*cmd, args->common);
+  add_io_option(*cmd, args->io);
   cmd->callback([args, radius, seed] {
     print_pending_warnings();
     run_sample(*args, radius->count() > 0, seed->count() > 0);

@@ -7,19 +7,23 @@
 //   mpirun -np P rpyfmm bd ...
 // (`laplace`, `rigid` and `rigid-bd` run across the ranks too: laplace_across_ranks.hpp,
 // rigid_across_ranks.hpp, rigid_bd_across_ranks.hpp.)
-// Rank 0 reads the same files as the serial command and scatters the particles in P contiguous
-// shares; rpyfmm::mpi::DistributedDirectRpy applies M (bit for bit the serial DirectRpy; with
-// --torques or --angular to round-off, rpyfmm/mpi/direct_operator.hpp),
-// rpyfmm::mpi::DistributedFmmRpy (within --tolerance of it) or rpyfmm::mpi::DistributedPseRpy (the
-// serial PseRpy with double grids to round-off, with --torques or --angular too), and rpyfmm::mpi::sqrt_apply or
-// DistributedPseRpy::apply_sqrt samples M^{1/2} z (with --angular the grand mobility's sampler,
-// rpyfmm::mpi::sqrt_apply_rotation or DistributedPseRpy::apply_sqrt_rotation); rank 0 gathers the result and writes the
-// same file (write_npy: a temporary file renamed into place). Every step fails on every rank alike
+// The ranks read the same files as the serial command in P contiguous shares of the particles
+// (array_shares.hpp: with --io collective every rank reads its share of a .npy file with MPI-IO,
+// with --io root rank 0 reads and scatters); rpyfmm::mpi::DistributedDirectRpy applies M (bit for
+// bit the serial DirectRpy; with --torques or --angular to round-off,
+// rpyfmm/mpi/direct_operator.hpp), rpyfmm::mpi::DistributedFmmRpy (within --tolerance of it) or
+// rpyfmm::mpi::DistributedPseRpy (the serial PseRpy with double grids to round-off, with --torques
+// or --angular too), and rpyfmm::mpi::sqrt_apply or DistributedPseRpy::apply_sqrt samples
+// M^{1/2} z (with --angular the grand mobility's sampler, rpyfmm::mpi::sqrt_apply_rotation or
+// DistributedPseRpy::apply_sqrt_rotation); the ranks write the serial command's file (with --io
+// collective every rank its rows, npy_collective_io.hpp; with --io root rank 0 gathers and calls
+// write_npy; either way a temporary file renamed into place). Every step fails on every rank alike
 // (rpyfmm::mpi::Communicator::run), so no rank waits for another that gave up.
 #include <mpi.h>
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <span>
@@ -28,8 +32,10 @@
 #include <vector>
 
 #include "array_io.hpp"
+#include "array_shares.hpp"
 #include "cli_common.hpp"
 #include "mpi_session.hpp"
+#include "npy_collective_io.hpp"
 #include "rank_shares.hpp"
 #include "rpyfmm/bd/rotation_sampling.hpp"
 #include "rpyfmm/core/cpu_features.hpp"
@@ -46,7 +52,7 @@
 namespace rpyfmm::cli {
 namespace {
 
-// The files a command reads on rank 0.
+// The files a command reads.
 struct Inputs {
   const std::string& positions;
   const std::string& radii;  // empty with a common radius
@@ -60,66 +66,92 @@ struct Inputs {
   [[nodiscard]] bool reads_torques() const { return !torques.empty() || (rows_with_rotation && !rows.empty()); }
 };
 
-// What rank 0 reads: positions, radii (empty with a common radius), one row of three values per
-// particle (forces, or noise; empty where none is read) and the torques (empty where none are read;
-// with sample --angular the rotational noise z_r).
-struct WholeInput {
-  std::vector<double> x, radii, rows, torques;
-};
-
-// `name`'s rows of three values, one per particle of x.
-std::vector<double> read_rows(const std::string& path, const std::string& name, const std::vector<double>& x) {
-  std::vector<double> rows = as_points(read_array(path), name);
-  require(rows.size() == x.size(), ErrorCode::invalid_input, name,
-          "has " + std::to_string(rows.size() / 3) + " rows, expected " + std::to_string(x.size() / 3) +
-              " (one per particle)");
-  return rows;
-}
-
-// In the serial command's order: positions, forces (or noise), radii, torques.
-WholeInput read_on_root(const Inputs& files) {
-  WholeInput in;
-  in.x = as_points(read_array(files.positions), "positions");
-  const std::size_t n = in.x.size() / 3;
-  if (files.rows_with_rotation && !files.rows.empty()) {
-    std::tie(in.rows, in.torques) = as_split_rows6(read_array(files.rows), n, files.rows_name);
-  } else if (!files.rows.empty()) {
-    in.rows = read_rows(files.rows, files.rows_name, in.x);
-  }
-  if (!files.radii.empty()) in.radii = as_vector(read_array(files.radii), n, "radii");
-  if (!files.torques.empty()) in.torques = read_rows(files.torques, "torques", in.x);
-  return in;
-}
-
-// This rank's share of what rank 0 read.
+// This rank's share of the inputs.
 struct LocalInput {
   std::uint64_t n = 0;     // particles in all
   std::size_t offset = 0;  // global index of this rank's first particle
   Shares s3;               // 3 values per particle
   std::vector<double> x, radii, rows, torques;
+  double scatter_seconds = 0.0;  // in MPI_Scatterv (rank 0's reads)
 };
 
-LocalInput distribute(const WholeInput& in, const Inputs& files, const mpi::Communicator& comm) {
-  LocalInput local;
-  local.n = in.x.size() / 3;
-  mpi::check_mpi(MPI_Bcast(&local.n, 1, MPI_UINT64_T, 0, comm.get()), "MPI_Bcast");
-  comm.run([&] { local.s3 = shares_of(local.n, comm.size(), 3); });
-  const Shares s1 = shares_of(local.n, comm.size(), 1);
-  local.offset = static_cast<std::size_t>(s1.displs[static_cast<std::size_t>(comm.rank())]);
-  local.x = scatter(in.x.data(), local.s3, comm);
-  if (!files.radii.empty()) local.radii = scatter(in.radii.data(), s1, comm);
-  if (!files.rows.empty()) local.rows = scatter(in.rows.data(), local.s3, comm);
-  if (files.reads_torques()) local.torques = scatter(in.torques.data(), local.s3, comm);
-  return local;
+// `name`'s rows of three values, one per particle of `n`: as_points' checks, then the count.
+std::vector<double> read_rows(const std::string& path, const std::string& name, std::uint64_t n, IoMode mode,
+                              LocalInput& in, const mpi::Communicator& comm) {
+  ArrayShare rows = read_points_share(path, name, mode, in.scatter_seconds, comm);
+  const std::size_t got = values_of(rows.shape) / 3;
+  comm.run([&] {
+    require(got == n, ErrorCode::invalid_input, name,
+            "has " + std::to_string(got) + " rows, expected " + std::to_string(n) + " (one per particle)");
+  });
+  return std::move(rows.local);
+}
+
+// The positions, and the particles' shares they set.
+void read_positions(const std::string& path, IoMode mode, LocalInput& in, const mpi::Communicator& comm) {
+  ArrayShare x = read_points_share(path, "positions", mode, in.scatter_seconds, comm);
+  in.n = values_of(x.shape) / 3;
+  in.s3 = shares_of(in.n, comm.size(), 3);  // within the int counts: read_share made these shares
+  in.offset = x.first / 3;
+  in.x = std::move(x.local);
+}
+
+// (N,6) rows, each a forces' (or z_t's) triple then a torques' (or z_r's): as_split_rows6's checks.
+void read_rows6(const std::string& path, const std::string& name, IoMode mode, LocalInput& in,
+                const mpi::Communicator& comm) {
+  const std::size_t n = in.n;
+  ArrayShare rows = read_share(
+      path, mode, 6, [&](const auto& shape) { require_rows6_shape(shape, n, name); }, in.scatter_seconds, comm);
+  require_finite_share(
+      rows.local, rows.first,
+      [&](std::size_t i, bool nan) {
+        return Error(ErrorCode::invalid_input, name + ": " + name + " " + nonfinite_entry(i, 6, nan));
+      },
+      comm);
+  std::tie(in.rows, in.torques) = split_rows6(rows.local);
+}
+
+// Every rank's share of the files, read and checked in the serial command's order (positions,
+// forces or noise, radii, torques) with its messages.
+LocalInput read_inputs(const Inputs& files, IoMode mode, const mpi::Communicator& comm) {
+  LocalInput in;
+  read_positions(files.positions, mode, in, comm);
+  if (files.rows_with_rotation && !files.rows.empty()) {
+    read_rows6(files.rows, files.rows_name, mode, in, comm);
+  } else if (!files.rows.empty()) {
+    in.rows = read_rows(files.rows, files.rows_name, in.n, mode, in, comm);
+  }
+  if (!files.radii.empty()) {
+    const std::size_t n = in.n;
+    ArrayShare radii = read_share(
+        files.radii, mode, 1, [&](const auto& shape) { require_vector_shape(shape, n, "radii"); }, in.scatter_seconds,
+        comm);
+    require_finite_share(
+        radii.local, radii.first,
+        [](std::size_t i, bool nan) { return Error(ErrorCode::invalid_input, "radii " + nonfinite_entry(i, 1, nan)); },
+        comm);
+    in.radii = std::move(radii.local);
+  }
+  if (!files.torques.empty()) in.torques = read_rows(files.torques, "torques", in.n, mode, in, comm);
+  return in;
+}
+
+// The serial command's (N,6) rows: each particle's triple of `u`, then its triple of `w`.
+std::vector<double> rows6_of(const std::vector<double>& u, const std::vector<double>& w) {
+  std::vector<double> rows(2 * u.size());
+  for (std::size_t i = 0; i < u.size() / 3; ++i)
+    for (std::size_t c = 0; c < 3; ++c) {
+      rows[6 * i + c] = u[3 * i + c];
+      rows[6 * i + 3 + c] = w[3 * i + c];
+    }
+  return rows;
 }
 
 // Gathers the result on rank 0, which checks and writes it: (N,3) rows of `local`, or with
 // `local_angular` (not null on every rank) the serial command's (N,6) rows Ux Uy Uz Wx Wy Wz; fails
-// on every rank alike. Returns the seconds this took (the "write" stage).
-double gather_and_write(const std::vector<double>& local, const std::vector<double>* local_angular,
-                        const LocalInput& in, const std::string& out, const std::string& what,
-                        const mpi::Communicator& comm) {
-  const StopWatch watch;
+// on every rank alike.
+void gather_and_write(const std::vector<double>& local, const std::vector<double>* local_angular, const LocalInput& in,
+                      const std::string& out, const std::string& what, const mpi::Communicator& comm) {
   const bool angular = local_angular != nullptr;
   std::vector<double> whole(comm.rank() == 0 ? 3 * in.n : 0);
   std::vector<double> whole_angular(comm.rank() == 0 && angular ? 3 * in.n : 0);
@@ -133,18 +165,37 @@ double gather_and_write(const std::vector<double>& local, const std::vector<doub
       return;
     }
     require_finite_output(whole_angular, what);
-    std::vector<double> rows(6 * in.n);
-    for (std::size_t i = 0; i < in.n; ++i)
-      for (std::size_t c = 0; c < 3; ++c) {
-        rows[6 * i + c] = whole[3 * i + c];
-        rows[6 * i + 3 + c] = whole_angular[3 * i + c];
-      }
-    write_npy(out, {in.n, 6}, rows);
+    write_npy(out, {in.n, 6}, rows6_of(whole, whole_angular));
   });
+}
+
+// Every rank checks and writes its share of the result into the file at once (write_npy_at_all):
+// the file and the messages of gather_and_write.
+void write_at_all(const std::vector<double>& local, const std::vector<double>* local_angular, const LocalInput& in,
+                  const std::string& out, const std::string& what, const mpi::Communicator& comm) {
+  const auto output_error = [&](std::size_t i, bool nan) { return nonfinite_output(i, nan, what); };
+  require_finite_share(local, 3 * in.offset, output_error, comm);
+  if (local_angular == nullptr) {
+    write_npy_at_all(out, {in.n, 3}, local, 3 * in.offset, comm);
+    return;
+  }
+  require_finite_share(*local_angular, 3 * in.offset, output_error, comm);
+  write_npy_at_all(out, {in.n, 6}, rows6_of(local, *local_angular), 6 * in.offset, comm);
+}
+
+// The result written by `mode`'s writer; returns the seconds this took (the "write" stage).
+double write_result(const std::vector<double>& local, const std::vector<double>* local_angular, const LocalInput& in,
+                    const std::string& out, const std::string& what, IoMode mode, const mpi::Communicator& comm) {
+  const StopWatch watch;
+  if (mode == IoMode::root) {
+    gather_and_write(local, local_angular, in, out, what, comm);
+  } else {
+    write_at_all(local, local_angular, in, out, what, comm);
+  }
   return watch.seconds();
 }
 
-// Read by rank 0, scattered, and the operator set up on each rank's share: what both commands do
+// Read into each rank's share, and the operator set up on it: what both commands do
 // first, timed per stage.
 template <class Operator>
 struct Prepared {
@@ -174,19 +225,12 @@ rpy::Geometry periodic_box(const std::vector<double>& box) {
 
 // `make()` constructs the operator (collective).
 template <class Operator, class Make>
-Prepared<Operator> prepare(const Inputs& files, const mpi::Communicator& comm, Make&& make) {
+Prepared<Operator> prepare(const Inputs& files, IoMode mode, const mpi::Communicator& comm, Make&& make) {
   Prepared<Operator> p;
   StopWatch watch;
-  WholeInput whole;
-  comm.run([&] {
-    if (comm.rank() == 0) whole = read_on_root(files);
-  });
-  p.stages["read"] = watch.seconds();
-
-  watch.restart();
-  p.in = distribute(whole, files, comm);
-  whole = WholeInput{};  // rank 0 keeps only its share from here on
-  p.communication["distribute"] = p.stages["distribute"] = watch.seconds();
+  p.in = read_inputs(files, mode, comm);
+  p.stages["read"] = watch.seconds() - p.in.scatter_seconds;
+  p.communication["distribute"] = p.stages["distribute"] = p.in.scatter_seconds;
 
   watch.restart();
   p.op = make();
@@ -207,6 +251,7 @@ struct OperatorChoice {
   double tolerance;
   double viscosity;
   const std::vector<double>& box;
+  IoMode io;  // who reads the inputs and writes the result
 };
 
 // Prepares the operator `choice` selects ("fmm": DistributedFmmRpy, "pse": DistributedPseRpy in
@@ -217,19 +262,20 @@ void with_operator(const OperatorChoice& choice, const Inputs& files, const mpi:
   if (choice.name == "fmm") {
     mpi::DistributedFmmRpyOptions options;
     if (choice.tolerance != 0.0) options.tolerance = choice.tolerance;
-    auto p = prepare<mpi::DistributedFmmRpy>(
-        files, comm, [&] { return std::make_unique<mpi::DistributedFmmRpy>(comm.get(), viscosity, options); });
+    auto p = prepare<mpi::DistributedFmmRpy>(files, choice.io, comm, [&] {
+      return std::make_unique<mpi::DistributedFmmRpy>(comm.get(), viscosity, options);
+    });
     body(p);
   } else if (choice.name == "pse") {
     rpy::pse::PseOptions options;
     if (choice.tolerance != 0.0) options.tolerance = choice.tolerance;
-    auto p = prepare<mpi::DistributedPseRpy>(files, comm, [&] {
+    auto p = prepare<mpi::DistributedPseRpy>(files, choice.io, comm, [&] {
       return std::make_unique<mpi::DistributedPseRpy>(comm.get(), periodic_box(choice.box), viscosity, options);
     });
     body(p);
   } else {
     auto p = prepare<mpi::DistributedDirectRpy>(
-        files, comm, [&] { return std::make_unique<mpi::DistributedDirectRpy>(comm.get(), viscosity); });
+        files, choice.io, comm, [&] { return std::make_unique<mpi::DistributedDirectRpy>(comm.get(), viscosity); });
     body(p);
   }
 }
@@ -273,7 +319,7 @@ void apply_and_write(Prepared<Operator>& p, const RanksMobilityArgs& args, const
   p.stages["apply"] = watch.seconds();
   p.communication["apply"] = p.op->communication().apply_seconds;
 
-  p.stages["write"] = gather_and_write(u, rotation ? &w : nullptr, in, args.out, "mobility", comm);
+  p.stages["write"] = write_result(u, rotation ? &w : nullptr, in, args.out, "mobility", io_mode(args.io), comm);
 
   JsonLine line;
   line.add("command", "mobility")
@@ -295,7 +341,7 @@ void run_mobility_across_ranks(const RanksMobilityArgs& args) {
   const StopWatch total;
   const Inputs files{args.positions, args.radius_given ? std::string() : args.radii, args.forces, "forces", args.radius,
                      args.torques};
-  with_operator({args.method, args.tolerance, args.viscosity, args.box}, files, comm,
+  with_operator({args.method, args.tolerance, args.viscosity, args.box, io_mode(args.io)}, files, comm,
                 [&](auto& p) { apply_and_write(p, args, comm, total); });
 }
 
@@ -352,7 +398,7 @@ void sample_and_write(Prepared<Operator>& p, const RanksSampleArgs& args, const 
   p.communication["products"] = p.op->communication().applies_seconds;  // every product of the sampler
   p.communication["inner_products"] = inner_products;
 
-  p.stages["write"] = gather_and_write(w, args.angular ? &w_r : nullptr, in, args.out, "sample", comm);
+  p.stages["write"] = write_result(w, args.angular ? &w_r : nullptr, in, args.out, "sample", io_mode(args.io), comm);
 
   JsonLine line;
   line.add("command", "sample")
@@ -386,7 +432,7 @@ void run_sample_across_ranks(const RanksSampleArgs& given) {
   const Inputs files{
       args.positions, args.radius_given ? std::string() : args.radii, args.noise, "noise", args.radius, std::string(),
       args.angular};
-  with_operator({args.op, args.tolerance, args.viscosity, args.box}, files, comm,
+  with_operator({args.op, args.tolerance, args.viscosity, args.box, io_mode(args.io)}, files, comm,
                 [&](auto& p) { sample_and_write(p, args, comm, total); });
 }
 

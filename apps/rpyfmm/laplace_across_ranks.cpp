@@ -8,13 +8,16 @@
 #include <cstdint>
 #include <iostream>
 #include <limits>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
 
 #include "array_io.hpp"
+#include "array_shares.hpp"
 #include "cli_common.hpp"
 #include "laplace_problem.hpp"
+#include "npy_collective_io.hpp"
 #include "rank_shares.hpp"
 #include "rpyfmm/core/cpu_features.hpp"
 #include "rpyfmm/core/timer.hpp"
@@ -45,24 +48,62 @@ struct LocalShare {
   std::vector<double> sources, targets, charges;
 };
 
-// nd densities of n entries each on rank 0 to this rank's share of each, nd x share.
-std::vector<double> scatter_densities(const std::vector<double>& whole, const Sizes& z, const mpi::Communicator& comm) {
-  const Shares s1 = shares_of(z.n, comm.size(), 1);
-  std::vector<double> local;
-  local.reserve(z.nd * s1.count(comm.rank()));
-  for (std::uint64_t d = 0; d < z.nd; ++d) {
-    const std::vector<double> share = scatter(comm.rank() == 0 ? whole.data() + d * z.n : nullptr, s1, comm);
-    local.insert(local.end(), share.begin(), share.end());
+// What every rank reads: the sizes, its shares, the output's shape and the seconds spent
+// distributing rank 0's reads (scatters, broadcasts).
+struct SharesRead {
+  Sizes z;
+  LocalShare local;
+  std::vector<std::size_t> shape;
+  double distribute_seconds = 0.0;
+};
+
+// This rank's share of every density of the charges (nd x share), with read_laplace_problem's
+// checks and messages; sets z.nd and returns the layout.
+ChargesLayout read_charges(const std::string& path, IoMode mode, SharesRead& r, const mpi::Communicator& comm) {
+  const std::optional<NpyLayout> layout =
+      mode == IoMode::collective ? shared_npy_layout(path, comm) : std::optional<NpyLayout>();
+  Array whole;
+  const std::vector<std::size_t> shape = layout ? layout->shape : read_whole_on_root(path, whole, comm);
+  comm.run([&] {
+    if (comm.rank() == 0) charges_layout(shape, r.z.n);
+  });
+  const ChargesLayout charges = charges_layout(shape, r.z.n);  // checked above: throws nowhere
+  r.z.nd = charges.nd;
+  const Shares s1 = shares_of(r.z.n, comm.size(), 1);
+  const auto displ = static_cast<std::size_t>(s1.displs[static_cast<std::size_t>(comm.rank())]);
+  for (std::size_t d = 0; d < charges.nd; ++d) {  // density by density: the serial check's order
+    const std::size_t first = d * r.z.n + displ;
+    StopWatch watch;
+    const std::vector<double> part =
+        layout ? read_values_at_all(path, *layout, first, s1.count(comm.rank()), comm)
+               : scatter(comm.rank() == 0 ? whole.data.data() + d * r.z.n : nullptr, s1, comm);
+    if (!layout) r.distribute_seconds += watch.seconds();
+    require_finite_share(
+        part, first, [&](std::size_t i, bool nan) { return nonfinite_charge(i, nan, charges, r.z.n); }, comm);
+    r.local.charges.insert(r.local.charges.end(), part.begin(), part.end());
   }
-  return local;
+  return charges;
 }
 
-LocalShare distribute(const LaplaceProblem& whole, const Sizes& z, const mpi::Communicator& comm) {
-  LocalShare local;
-  local.sources = scatter(whole.sources.data(), shares_of(z.n, comm.size(), 3), comm);
-  if (z.targets) local.targets = scatter(whole.targets.data(), shares_of(z.m, comm.size(), 3), comm);
-  local.charges = scatter_densities(whole.charges, z, comm);
-  return local;
+// Every rank's shares of the sources, the targets and the charges, read and checked in the serial
+// command's order with its messages (array_shares.hpp): with --io collective each rank reads its
+// shares of the .npy files, with --io root rank 0 reads and scatters.
+SharesRead read_shares(const RanksLaplaceArgs& args, const mpi::Communicator& comm) {
+  const IoMode mode = io_mode(args.io);
+  SharesRead r;
+  ArrayShare sources = read_points_share(args.sources, "sources", mode, r.distribute_seconds, comm);
+  r.z.n = r.z.m = values_of(sources.shape) / 3;
+  r.local.sources = std::move(sources.local);
+  if (!args.targets.empty()) {
+    ArrayShare targets = read_points_share(args.targets, "targets", mode, r.distribute_seconds, comm);
+    r.z.m = values_of(targets.shape) / 3;
+    r.z.targets = true;
+    r.local.targets = std::move(targets.local);
+  }
+  const ChargesLayout charges = read_charges(args.charges, mode, r, comm);
+  r.shape = {r.z.m, fmm::result_width};
+  if (charges.two_d) r.shape.insert(r.shape.begin(), r.z.nd);
+  return r;
 }
 
 // `count` values of rank 0's `whole` on every rank (one MPI_Bcast; MPI's int count bounds it).
@@ -84,6 +125,22 @@ LocalShare distribute_for_direct(const LaplaceProblem& whole, const Sizes& z, co
   return local;
 }
 
+// --direct: rank 0 reads the serial command's files, broadcasts every source and charge, and
+// scatters the targets (every rank needs every source and charge).
+SharesRead read_for_direct(const RanksLaplaceArgs& args, const mpi::Communicator& comm) {
+  LaplaceProblem whole;
+  comm.run([&] {
+    if (comm.rank() == 0) whole = read_laplace_problem(args.sources, args.targets, args.charges);
+  });
+  const StopWatch watch;
+  SharesRead r;
+  r.z = broadcast_sizes(whole, !args.targets.empty(), comm);
+  comm.run([&] { r.local = distribute_for_direct(whole, r.z, comm); });
+  r.shape = laplace_output_shape(whole);
+  r.distribute_seconds = watch.seconds();
+  return r;
+}
+
 // Every density's results (nd x share x 10) gathered into nd x M x 10 on rank 0.
 std::vector<double> gather_results(const std::vector<double>& local, const Sizes& z, const mpi::Communicator& comm) {
   const Shares s10 = shares_of(z.m, comm.size(), static_cast<int>(fmm::result_width));
@@ -95,6 +152,36 @@ std::vector<double> gather_results(const std::vector<double>& local, const Sizes
     gather(part, s10, comm.rank() == 0 ? whole.data() + d * z.m * fmm::result_width : nullptr, comm);
   }
   return whole;
+}
+
+// Rank 0 gathers every density's results, checks them and writes the serial command's file.
+void gather_and_write(const std::vector<double>& local, const Sizes& z, const std::vector<std::size_t>& shape,
+                      const std::string& out, const mpi::Communicator& comm) {
+  std::vector<double> gathered;
+  comm.run([&] { gathered = gather_results(local, z, comm); });
+  comm.run([&] {
+    if (comm.rank() != 0) return;
+    require_finite_output(gathered, "laplace");
+    write_npy(out, shape, gathered);
+  });
+}
+
+// Every rank checks its results (nd x share x 10) and writes them, one run per density, into the
+// same file (write_npy_at_all): the file and the messages of gather_and_write.
+void write_at_all(const std::vector<double>& local, const Sizes& z, const std::vector<std::size_t>& shape,
+                  const std::string& out, const mpi::Communicator& comm) {
+  const Shares s10 = shares_of(z.m, comm.size(), static_cast<int>(fmm::result_width));
+  const std::size_t share = s10.count(comm.rank());
+  const auto first = static_cast<std::size_t>(s10.displs[static_cast<std::size_t>(comm.rank())]);
+  std::vector<NpyRun> runs;
+  for (std::uint64_t d = 0; d < z.nd; ++d) {
+    const NpyRun run{d * z.m * fmm::result_width + first, std::span<const double>(local).subspan(d * share, share)};
+    // Density by density: the first non-finite entry of the whole file, as the serial check finds it.
+    require_finite_share(
+        run.values, run.first, [](std::size_t i, bool nan) { return nonfinite_output(i, nan, "laplace"); }, comm);
+    runs.push_back(run);
+  }
+  write_npy_at_all(out, shape, runs, comm);
 }
 
 double sum_of(const StageTimes& stages) {
@@ -161,31 +248,22 @@ void run_laplace_across_ranks(const RanksLaplaceArgs& args) {
   StopWatch total;
   StopWatch watch;
   Measured measured;
-  LaplaceProblem whole;
-  comm.run([&] {
-    if (comm.rank() == 0) whole = read_laplace_problem(args.sources, args.targets, args.charges);
-  });
-  measured.stages["read"] = watch.seconds();
-
-  watch.restart();
-  const Sizes z = broadcast_sizes(whole, !args.targets.empty(), comm);
-  LocalShare local;
-  comm.run([&] { local = args.direct ? distribute_for_direct(whole, z, comm) : distribute(whole, z, comm); });
-  const std::vector<std::size_t> shape = laplace_output_shape(whole);
-  whole = LaplaceProblem{};  // rank 0 keeps only what it evaluates from here on
-  measured.communication["distribute"] = measured.stages["distribute"] = watch.seconds();
+  SharesRead r = args.direct ? read_for_direct(args, comm) : read_shares(args, comm);
+  measured.stages["read"] = watch.seconds() - r.distribute_seconds;
+  measured.communication["distribute"] = measured.stages["distribute"] = r.distribute_seconds;
+  const Sizes z = r.z;
+  const LocalShare local = std::move(r.local);
+  const std::vector<std::size_t> shape = std::move(r.shape);
 
   const std::vector<double> results =
       args.direct ? evaluate_direct(local, z, measured, comm) : evaluate_fmm(local, z, args.tolerance, measured, comm);
 
   watch.restart();
-  std::vector<double> gathered;
-  comm.run([&] { gathered = gather_results(results, z, comm); });
-  comm.run([&] {
-    if (comm.rank() != 0) return;
-    require_finite_output(gathered, "laplace");
-    write_npy(args.out, shape, gathered);
-  });
+  if (io_mode(args.io) == IoMode::root) {
+    gather_and_write(results, z, shape, args.out, comm);
+  } else {
+    write_at_all(results, z, shape, args.out, comm);
+  }
   measured.stages["write"] = watch.seconds();
 
   JsonLine line;

@@ -52,14 +52,14 @@ class MpiSessionEnd {
 };
 
 /// `rpyfmm mobility --method direct|fmm` or `--method pse --box ...` across the ranks
-/// (commands_across_ranks.cpp, builds with MPI): rank 0 reads the files and scatters the particles,
-/// rpyfmm::mpi::DistributedDirectRpy, DistributedFmmRpy or DistributedPseRpy applies M, rank 0
-/// gathers U and writes it. direct: bit for bit the serial command's output; fmm: within the
-/// tolerance of the exact product; pse: the serial output with --wave-precision double to
-/// round-off (docs/mpi.md). With --torques or --angular [U; W] = M [F; T], written as the serial
-/// command's (N,6) rows Ux Uy Uz Wx Wy Wz; direct: the serial output to round-off
-/// (rpyfmm/mpi/direct_operator.hpp), fmm: U and W each within the tolerance of the exact product,
-/// pse: U and W each the serial output with --wave-precision double to round-off.
+/// (commands_across_ranks.cpp, builds with MPI): the ranks read the files in contiguous shares of
+/// the particles (`io`: every rank its share of a .npy file, or rank 0 all and scatters),
+/// rpyfmm::mpi::DistributedDirectRpy, DistributedFmmRpy or DistributedPseRpy applies M, the ranks
+/// write U (every rank its rows, or rank 0 after a gather). direct: bit for bit the serial command's output; fmm:
+/// within the tolerance of the exact product; pse: the serial output with --wave-precision double to round-off
+/// (docs/mpi.md). With --torques or --angular [U; W] = M [F; T], written as the serial command's (N,6) rows Ux Uy Uz Wx
+/// Wy Wz; direct: the serial output to round-off (rpyfmm/mpi/direct_operator.hpp), fmm: U and W each within the
+/// tolerance of the exact product, pse: U and W each the serial output with --wave-precision double to round-off.
 struct RanksMobilityArgs {
   std::string positions, forces, radii, out;
   std::string torques;   // (N,3) torques; empty: none read
@@ -71,15 +71,16 @@ struct RanksMobilityArgs {
   bool json = false;
   std::string method = "direct";  // direct | fmm | pse
   std::vector<double> box;        // pse: L or Lx Ly Lz
+  std::string io = "collective";  // --io: root | collective (array_shares.hpp)
 };
 void run_mobility_across_ranks(const RanksMobilityArgs& args);
 
 /// `rpyfmm sample --operator direct|fmm` with Lanczos, or `--operator pse --box ...` with the split
 /// sampler (DistributedPseRpy::apply_sqrt: the serial output with --wave-precision double to
 /// round-off), across the ranks (commands_across_ranks.cpp):
-/// rank 0 reads the files (and --noise) and scatters them, or each rank draws its share's noise
-/// (rpyfmm::mpi::fill_normal: the serial noise), rpyfmm::mpi::sqrt_apply samples, rank 0 gathers
-/// W and writes it. With the direct operator bit for bit the serial command's output; with the
+/// the ranks read the files (and --noise) as mobility does, or each rank draws its share's noise
+/// (rpyfmm::mpi::fill_normal: the serial noise), rpyfmm::mpi::sqrt_apply samples, the ranks write
+/// W as mobility does. With the direct operator bit for bit the serial command's output; with the
 /// FMM the square root of the FMM product (docs/mpi.md). With --angular the grand mobility's
 /// sampler (rows w_t then w_r), keyed and laid out as the serial command's.
 struct RanksSampleArgs {
@@ -90,10 +91,11 @@ struct RanksSampleArgs {
   std::uint64_t seed = 0, step = 0;
   rpy::SqrtOptions options;
   bool json = false;
-  std::string op = "direct";  // direct | fmm | pse (the split sampler)
-  std::vector<double> box;    // pse: L or Lx Ly Lz
-  double tolerance = 0.0;     // fmm, pse: the operator's tolerance (0: its options' default)
-  bool angular = false;       // the grand mobility with rotation: (N,6) noise and output
+  std::string op = "direct";      // direct | fmm | pse (the split sampler)
+  std::vector<double> box;        // pse: L or Lx Ly Lz
+  double tolerance = 0.0;         // fmm, pse: the operator's tolerance (0: its options' default)
+  bool angular = false;           // the grand mobility with rotation: (N,6) noise and output
+  std::string io = "collective";  // --io: root | collective (array_shares.hpp)
 };
 void run_sample_across_ranks(const RanksSampleArgs& args);
 /// `rpyfmm bd` across the ranks (commands_across_ranks.cpp): `options` with the engine across the

@@ -5,6 +5,7 @@
 
 #include <climits>
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -40,6 +41,13 @@ void gather(const std::vector<double>& local, const Shares& s, double* whole, co
   mpi::check_mpi(MPI_Gatherv(local.data(), static_cast<int>(local.size()), MPI_DOUBLE, whole, s.counts.data(),
                              s.displs.data(), MPI_DOUBLE, 0, comm.get()),
                  "MPI_Gatherv");
+}
+
+void broadcast(std::vector<std::uint64_t>& values, const mpi::Communicator& comm) {
+  std::uint64_t size = values.size();
+  mpi::check_mpi(MPI_Bcast(&size, 1, MPI_UINT64_T, 0, comm.get()), "MPI_Bcast");
+  values.resize(size);
+  mpi::check_mpi(MPI_Bcast(values.data(), static_cast<int>(size), MPI_UINT64_T, 0, comm.get()), "MPI_Bcast");
 }
 
 namespace {
