@@ -350,11 +350,11 @@ namespace {
 // M^{1/2} z across the ranks: the Lanczos sampler on the free-space operators, PSE's split sampler.
 template <class Operator>
 rpy::SqrtReport sample_across(const Operator& op, std::span<const double> z, std::span<double> w,
-                              const rpy::SqrtOptions& options, double* inner_products) {
-  return mpi::sqrt_apply(op, z, w, options, inner_products);
+                              const rpy::SqrtOptions& options, mpi::InnerProductStats& stats) {
+  return mpi::sqrt_apply(op, z, w, 1, options, &stats);  // one column: the same bits (rpyfmm/mpi/sqrt.hpp)
 }
 rpy::SqrtReport sample_across(const mpi::DistributedPseRpy& op, std::span<const double> z, std::span<double> w,
-                              const rpy::SqrtOptions& options, double*) {
+                              const rpy::SqrtOptions& options, mpi::InnerProductStats&) {
   return op.apply_sqrt(z, w, options);
 }
 
@@ -364,12 +364,12 @@ rpy::SqrtReport sample_across(const mpi::DistributedPseRpy& op, std::span<const 
 template <class Operator>
 rpy::SqrtReport sample_across(const Operator& op, std::span<const double> z_t, std::span<const double> z_r,
                               std::span<double> w_t, std::span<double> w_r, const rpy::SqrtOptions& options,
-                              double* inner_products) {
-  return mpi::sqrt_apply_rotation(op, z_t, z_r, w_t, w_r, options, inner_products);
+                              mpi::InnerProductStats& stats) {
+  return mpi::sqrt_apply_rotation(op, z_t, z_r, w_t, w_r, options, stats);
 }
 rpy::SqrtReport sample_across(const mpi::DistributedPseRpy& op, std::span<const double> z_t,
                               std::span<const double> z_r, std::span<double> w_t, std::span<double> w_r,
-                              const rpy::SqrtOptions& options, double*) {
+                              const rpy::SqrtOptions& options, mpi::InnerProductStats&) {
   return op.apply_sqrt_rotation(z_t, z_r, w_t, w_r, options);
 }
 
@@ -390,13 +390,15 @@ void sample_and_write(Prepared<Operator>& p, const RanksSampleArgs& args, const 
 
   StopWatch watch;
   std::vector<double> w(in.x.size()), w_r(args.angular ? in.x.size() : 0);
-  double inner_products = 0.0;
-  const rpy::SqrtReport report = args.angular
-                                     ? sample_across(*p.op, in.rows, in.torques, w, w_r, args.options, &inner_products)
-                                     : sample_across(*p.op, in.rows, w, args.options, &inner_products);
+  mpi::InnerProductStats stats;
+  const rpy::SqrtReport report = args.angular ? sample_across(*p.op, in.rows, in.torques, w, w_r, args.options, stats)
+                                              : sample_across(*p.op, in.rows, w, args.options, stats);
   p.stages["sample"] = watch.seconds();
   p.communication["products"] = p.op->communication().applies_seconds;  // every product of the sampler
-  p.communication["inner_products"] = inner_products;
+  p.communication["inner_products"] = stats.seconds;
+  // The block preconditioner's gather of the positions (0 where its blocks were kept) and its
+  // G, G^T, G^{-1} exchanges; 0 without it.
+  p.communication["blocks"] = stats.blocks.gather_seconds + stats.blocks.exchange_seconds();
 
   p.stages["write"] = write_result(w, args.angular ? &w_r : nullptr, in, args.out, "sample", io_mode(args.io), comm);
 

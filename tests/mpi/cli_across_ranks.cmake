@@ -250,6 +250,11 @@ run_identical(sampleblock sample --positions "${WORK}/x.txt" --radii "${WORK}/a.
 if(NOT json MATCHES "\"preconditioner_blocks\":[1-9]" OR NOT EXISTS "${WORK}/sampleblock_mpi.npy")
   message(FATAL_ERROR "sampleblock: no output or no preconditioner blocks in --json: ${json}")
 endif()
+# The blocks' gather and exchanges are among the communication seconds (more than one rank: the
+# gather receives the other ranks' positions, which takes time).
+if(NOT json MATCHES "\"blocks\":[0-9]")
+  message(FATAL_ERROR "sampleblock: --json lacks the blocks' communication seconds: ${json}")
+endif()
 
 # sample with the FMM operator at 1e-9 and Lanczos at 1e-6, against the serial direct sampler's
 # file: the operators differ by at most 1e-9 relative, far below the iteration's tolerance, and each
