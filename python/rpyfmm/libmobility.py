@@ -116,6 +116,10 @@ _PERIODICITIES = ("open", "unspecified", "single_wall", "two_walls", "periodic")
 _ROTATION_STREAM = 3  # rpyfmm BD's stream of rotational noise (docs/python.md)
 
 ArrayOrNone = Optional[np.ndarray]
+# What the public methods return: (U, W), W None without includeAngular. NumPy arrays for NumPy or
+# list input; otherwise arrays of the input's own framework (a PyTorch CPU tensor, a CuPy or PyTorch
+# device array: docs/python.md, "Drop-ins for fmm3dpy and libMobility"), hence Any.
+Velocities = Tuple[Any, Optional[Any]]
 
 
 def _real(value: object, name: str, where: str, minimum: Optional[float] = None, strict: bool = True) -> float:
@@ -304,7 +308,7 @@ class _Solver:
         self._host_like = _host_framework(positions)
 
     def Mdot(self, forces: Optional[npt.ArrayLike] = None,
-             torques: Optional[npt.ArrayLike] = None) -> Tuple[np.ndarray, ArrayOrNone]:
+             torques: Optional[npt.ArrayLike] = None) -> Velocities:
         """(U, W) = M (F, T): velocities in the shape of the forces, angular velocities (None without
         includeAngular). At least one of forces and torques; torques need includeAngular=True."""
         where = f"{type(self).__name__}.Mdot"
@@ -314,7 +318,7 @@ class _Solver:
         u, w = self._apply(f, t)
         return self._results(u, w, f_shape, t_shape, forces if forces is not None else torques)
 
-    def sqrtMdotW(self, prefactor: float = 1.0) -> Tuple[np.ndarray, ArrayOrNone]:
+    def sqrtMdotW(self, prefactor: float = 1.0) -> Velocities:
         """prefactor * M^{1/2} xi (libMobility 1.x) or, after initialize(temperature=kT),
         prefactor * sqrt(2 kT M) xi (before 0.9); xi standard normal. Shapes of the positions."""
         where = f"{type(self).__name__}.sqrtMdotW"
@@ -326,7 +330,7 @@ class _Solver:
         return self._results(u, w, self._shape, self._shape, None)
 
     def LangevinVelocities(self, dt: float, kbt: float, forces: Optional[npt.ArrayLike] = None,
-                           torques: Optional[npt.ArrayLike] = None) -> Tuple[np.ndarray, ArrayOrNone]:
+                           torques: Optional[npt.ArrayLike] = None) -> Velocities:
         """M (F, T) + sqrt(2 kbt / dt) M^{1/2} xi + kbt div M (the divergence is zero here). Without
         forces and torques only the noise; kbt = 0: only M (F, T)."""
         where = f"{type(self).__name__}.LangevinVelocities"
@@ -334,7 +338,7 @@ class _Solver:
         kT = _real(kbt, "kbt", where, 0.0, strict=False)
         return self._velocities(forces, torques, where, math.sqrt(2.0 * kT / step))
 
-    def divM(self, prefactor: float = 1.0) -> Tuple[np.ndarray, ArrayOrNone]:
+    def divM(self, prefactor: float = 1.0) -> Velocities:
         """prefactor * div M: zero for these solvers (one radius, free space or a periodic box)."""
         where = f"{type(self).__name__}.divM"
         self._require_positions(where)
@@ -346,7 +350,7 @@ class _Solver:
         return self._results(u, w, self._shape, self._shape, None)
 
     def hydrodynamicVelocities(self, forces: Optional[npt.ArrayLike] = None, torques: Optional[npt.ArrayLike] = None,
-                               prefactor: float = 1.0) -> Tuple[np.ndarray, ArrayOrNone]:
+                               prefactor: float = 1.0) -> Velocities:
         """libMobility before 0.9: M (F, T) + prefactor * sqrt(2 kT M) xi (+ prefactor kT div M, zero here),
         kT from initialize(temperature=...)."""
         where = f"{type(self).__name__}.hydrodynamicVelocities"
@@ -354,7 +358,7 @@ class _Solver:
         c = _real(prefactor, "prefactor", where)
         return self._velocities(forces, torques, where, self._noise_scale(c))
 
-    def thermalDrift(self, prefactor: float = 1.0) -> Tuple[np.ndarray, ArrayOrNone]:
+    def thermalDrift(self, prefactor: float = 1.0) -> Velocities:
         """libMobility before 0.9: prefactor * kT div M (zero here), kT from initialize(temperature=...)."""
         where = f"{type(self).__name__}.thermalDrift"
         self._require_temperature(where, "divM(prefactor)")
@@ -437,7 +441,7 @@ class _Solver:
         return f, t, f_shape, t_shape
 
     def _velocities(self, forces: Optional[npt.ArrayLike], torques: Optional[npt.ArrayLike], where: str,
-                    noise_scale: float) -> Tuple[np.ndarray, ArrayOrNone]:
+                    noise_scale: float) -> Velocities:
         """M (F, T) (zero without forces and torques) + noise_scale * M^{1/2} xi (none for a zero scale)."""
         given = forces is not None or torques is not None
         if self._device_call(where, forces=forces, torques=torques) or (not given and self._like is not None):
