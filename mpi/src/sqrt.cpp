@@ -7,6 +7,7 @@
 #include <initializer_list>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 // rpy/src (private to rpyfmm::rpy and this layer): the Lanczos and Chebyshev iterations on a
@@ -23,6 +24,16 @@
 #include "sqrt/krylov_space.hpp"
 
 namespace rpyfmm::mpi {
+
+namespace detail {
+// The one writer of SamplerBlocks (rpyfmm/mpi/sampler_blocks.hpp): the samplers below.
+struct SamplerBlocksWriter {
+  static void replace(const SamplerBlocks& kept, std::shared_ptr<const GlobalBlocks> blocks) noexcept {
+    kept.blocks_ = std::move(blocks);
+  }
+};
+}  // namespace detail
+
 namespace {
 
 constexpr const char* kWhere = "rpyfmm::mpi::sqrt_apply";
@@ -179,7 +190,7 @@ std::shared_ptr<const detail::GlobalBlocks> global_blocks(const Operator& op, co
   const std::size_t block = options.preconditioner_block > 0
                                 ? static_cast<std::size_t>(options.preconditioner_block)
                                 : rpy::BlockPreconditioner::automatic_block(op.global_size());
-  SamplerBlocks& kept = op.sampler_blocks();
+  const SamplerBlocks& kept = op.sampler_blocks();
   const bool here = kept.get() != nullptr && kept.get()->built_for(block, matrix, op.viscosity());
   if (same_on_every_rank(op.communicator(), {here ? 1.0 : 0.0}) && here) {
     stats = BlockPreconditionerStats{};
@@ -188,8 +199,9 @@ std::shared_ptr<const detail::GlobalBlocks> global_blocks(const Operator& op, co
     stats.particles_received = kept.get()->build_cost().particles_received;
     return kept.get();
   }
-  kept.clear();  // the old blocks' memory before the new ones'
-  kept.keep(std::make_shared<const detail::GlobalBlocks>(op.communicator(), op.counts(), op.local_positions(),
+  detail::SamplerBlocksWriter::replace(kept, nullptr);  // the old blocks' memory before the new ones'
+  detail::SamplerBlocksWriter::replace(
+      kept, std::make_shared<const detail::GlobalBlocks>(op.communicator(), op.counts(), op.local_positions(),
                                                          op.local_radii(), op.viscosity(), block, matrix));
   stats = kept.get()->build_cost();
   return kept.get();

@@ -15,6 +15,8 @@
 #include <cstdint>
 #include <limits>
 #include <string>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "mpi_test_support.hpp"
@@ -36,6 +38,13 @@ using rpyfmm::rpy::SqrtOptions;
 using rpyfmm::rpy::SqrtPreconditioner;
 using rpyfmm::rpy::SqrtReport;
 using namespace rpyfmm_mpi_test;
+
+// Only the samplers replace an operator's kept blocks: its accessor gives a const reference, and
+// SamplerBlocks has no public way to replace them through one.
+template <class Operator>
+constexpr bool kBlocksReadOnly =
+    std::is_same_v<decltype(std::declval<const Operator&>().sampler_blocks()), const rpyfmm::mpi::SamplerBlocks&>;
+static_assert(kBlocksReadOnly<DistributedDirectRpy> && kBlocksReadOnly<DistributedFmmRpy>);
 
 namespace {
 

@@ -70,7 +70,7 @@ class DistributedDirectRpy {
   [[nodiscard]] std::span<const double> local_radii() const { return radii_; }
   /// The blocks of the block preconditioner that the samplers (rpyfmm/mpi/sqrt.hpp) built for these
   /// positions, emptied by every set_positions (rpyfmm/mpi/sampler_blocks.hpp); for the samplers.
-  [[nodiscard]] SamplerBlocks& sampler_blocks() const { return sampler_blocks_; }
+  [[nodiscard]] const SamplerBlocks& sampler_blocks() const { return sampler_blocks_; }
 
   /// Collective. This rank's positions (3 n, n >= 0) and one radius for them (> 0, finite; the
   /// ranks may pass different radii). Throws rpyfmm::Error on every rank when any rank's input is
@@ -146,7 +146,7 @@ class DistributedDirectRpy {
   double largest_radius_ = 0.0;  // of all ranks, for the load scale with rotation
   bool equal_radii_ = true;
   mutable CommunicationStats stats_;
-  mutable SamplerBlocks sampler_blocks_;
+  SamplerBlocks sampler_blocks_;
 };
 
 }  // namespace rpyfmm::mpi

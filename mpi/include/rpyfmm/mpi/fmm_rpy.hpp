@@ -126,7 +126,7 @@ class DistributedFmmRpy {
   [[nodiscard]] std::span<const double> local_radii() const { return radii_; }
   /// The blocks of the block preconditioner that the samplers (rpyfmm/mpi/sqrt.hpp) built for these
   /// positions, emptied by every set_positions (rpyfmm/mpi/sampler_blocks.hpp); for the samplers.
-  [[nodiscard]] SamplerBlocks& sampler_blocks() const { return sampler_blocks_; }
+  [[nodiscard]] const SamplerBlocks& sampler_blocks() const { return sampler_blocks_; }
   /// The halo particles of this rank's near field: received as particles, with their loads in
   /// each product (0 before set_positions).
   [[nodiscard]] std::size_t halo_size() const;
@@ -194,7 +194,7 @@ class DistributedFmmRpy {
   double largest_radius_ = 0.0;  // of all ranks, as passed (the load scale of torques)
   bool equal_radii_ = true;
   mutable FmmRpyCommunication stats_;
-  mutable SamplerBlocks sampler_blocks_;
+  SamplerBlocks sampler_blocks_;
 };
 
 }  // namespace rpyfmm::mpi
