@@ -28,8 +28,6 @@
 namespace rpyfmm::cli {
 namespace {
 
-constexpr const char* kCommand = "rigid-bd";
-
 // This rank's bodies as the engine takes them: body-frame shapes (3 per bead), radii, body offsets
 // from 0, and the state to start from (3 and 4 per body).
 struct Start {
