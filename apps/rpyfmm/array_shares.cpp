@@ -3,6 +3,7 @@
 
 #include <mpi.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -15,22 +16,6 @@
 #include "rpyfmm/core/validate.hpp"
 
 namespace rpyfmm::cli {
-namespace {
-
-// The shares of `shape`'s values in rows of `per`, after rank 0's `check` of the shape.
-Shares checked_shares(const std::vector<std::size_t>& shape, int per,
-                      const std::function<void(const std::vector<std::size_t>&)>& check,
-                      const mpi::Communicator& comm) {
-  comm.run([&] {
-    if (comm.rank() == 0) check(shape);
-  });
-  Shares shares;
-  comm.run([&] { shares = shares_of(values_of(shape) / static_cast<std::size_t>(per), comm.size(), per); });
-  return shares;
-}
-
-}  // namespace
-
 std::vector<std::size_t> read_whole_on_root(const std::string& path, Array& whole, const mpi::Communicator& comm) {
   comm.run([&] {
     if (comm.rank() == 0) whole = read_array(path);
@@ -44,11 +29,18 @@ ArrayShare read_points_share(const std::string& path, const std::string& name, I
                              const mpi::Communicator& comm) {
   ArrayShare points = read_share(
       path, mode, 3, [&](const auto& shape) { require_points_shape(shape, name); }, scatter_seconds, comm);
-  require_finite_share(
-      points.local, points.first,
-      [&](std::size_t i, bool nan) { return Error(ErrorCode::invalid_input, name + " " + nonfinite_entry(i, 3, nan)); },
-      comm);
+  require_finite_entries(points, name, 3, comm);
   return points;
+}
+
+void require_finite_entries(const ArrayShare& share, const std::string& name, std::size_t stride,
+                            const mpi::Communicator& comm) {
+  require_finite_share(
+      share.local, share.first,
+      [&](std::size_t i, bool nan) {
+        return Error(ErrorCode::invalid_input, name + " " + nonfinite_entry(i, stride, nan));
+      },
+      comm);
 }
 
 IoMode io_mode(const std::string& name) {
@@ -66,12 +58,27 @@ std::size_t values_of(const std::vector<std::size_t>& shape) {
 ArrayShare read_share(const std::string& path, IoMode mode, int per,
                       const std::function<void(const std::vector<std::size_t>&)>& check, double& scatter_seconds,
                       const mpi::Communicator& comm) {
+  const auto balanced = [&](const std::vector<std::size_t>& shape) {
+    Shares shares;
+    comm.run([&] { shares = shares_of(values_of(shape) / static_cast<std::size_t>(per), comm.size(), per); });
+    return shares;
+  };
+  return read_share_in(path, mode, check, balanced, scatter_seconds, comm);
+}
+
+ArrayShare read_share_in(const std::string& path, IoMode mode,
+                         const std::function<void(const std::vector<std::size_t>&)>& check,
+                         const std::function<Shares(const std::vector<std::size_t>&)>& shares_for,
+                         double& scatter_seconds, const mpi::Communicator& comm) {
   const std::optional<NpyLayout> layout =
       mode == IoMode::collective ? shared_npy_layout(path, comm) : std::optional<NpyLayout>();
   ArrayShare share;
   Array whole;
   share.shape = layout ? layout->shape : read_whole_on_root(path, whole, comm);
-  const Shares shares = checked_shares(share.shape, per, check, comm);
+  comm.run([&] {
+    if (comm.rank() == 0) check(share.shape);
+  });
+  const Shares shares = shares_for(share.shape);
   const auto rank = static_cast<std::size_t>(comm.rank());
   share.first = static_cast<std::size_t>(shares.displs[rank]);
   if (layout) {
@@ -87,11 +94,20 @@ ArrayShare read_share(const std::string& path, IoMode mode, int per,
 void require_finite_share(std::span<const double> local, std::size_t first,
                           const std::function<Error(std::size_t index, bool nan)>& error,
                           const mpi::Communicator& comm) {
-  // 2 i + (0 for NaN, 1 for infinite) of the first bad value: the minimum over the ranks is the
-  // first bad value of the whole array and says which it is.
+  const NpyRun run{first, local};
+  require_finite_runs(std::span<const NpyRun>(&run, 1), error, comm);
+}
+
+void require_finite_runs(std::span<const NpyRun> runs, const std::function<Error(std::size_t index, bool nan)>& error,
+                         const mpi::Communicator& comm) {
+  // 2 i + (0 for NaN, 1 for infinite) of the first bad value: the minimum over the runs and the
+  // ranks is the first bad value of the whole array and says which it is.
   constexpr std::uint64_t kNone = std::numeric_limits<std::uint64_t>::max();
   std::uint64_t mine = kNone, first_bad = kNone;
-  if (const auto i = first_nonfinite(local)) mine = 2 * std::uint64_t(first + *i) + (std::isnan(local[*i]) ? 0 : 1);
+  for (const NpyRun& run : runs) {
+    if (const auto i = first_nonfinite(run.values))
+      mine = std::min(mine, 2 * std::uint64_t(run.first + *i) + (std::isnan(run.values[*i]) ? 0 : 1));
+  }
   mpi::check_mpi(MPI_Allreduce(&mine, &first_bad, 1, MPI_UINT64_T, MPI_MIN, comm.get()), "MPI_Allreduce");
   if (first_bad == kNone) return;
   comm.run([&] {

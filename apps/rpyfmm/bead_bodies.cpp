@@ -8,22 +8,6 @@
 #include "rpyfmm/core/validate.hpp"
 
 namespace rpyfmm::cli {
-namespace {
-
-/// Body offsets (m + 1 entries from 0) from body sizes: whole numbers >= 1 (the library checks
-/// >= 3 beads).
-std::vector<std::size_t> body_offsets_from_sizes(const std::vector<double>& sizes) {
-  std::vector<std::size_t> offsets{0};
-  for (std::size_t k = 0; k < sizes.size(); ++k) {
-    const double s = sizes[k];
-    require(std::isfinite(s) && s >= 1.0 && s == std::floor(s) && s < 1e15, ErrorCode::invalid_input, "--body-sizes",
-            "entry " + std::to_string(k) + " is not a whole number of beads >= 1");
-    offsets.push_back(offsets.back() + static_cast<std::size_t>(s));
-  }
-  return offsets;
-}
-
-}  // namespace
 
 void add_bead_body_options(CLI::App& cmd, BeadBodyArgs& args, const std::string& positions_help,
                            const std::string& reference_help) {
@@ -37,18 +21,38 @@ void add_bead_body_options(CLI::App& cmd, BeadBodyArgs& args, const std::string&
   cmd.add_option("--reference", args.reference, reference_help);
 }
 
-BeadBodies read_bead_bodies(const BeadBodyArgs& args) {
+std::vector<std::size_t> body_offsets_from_sizes(const std::vector<double>& sizes) {
+  std::vector<std::size_t> offsets{0};
+  for (std::size_t k = 0; k < sizes.size(); ++k) {
+    const double s = sizes[k];
+    require(std::isfinite(s) && s >= 1.0 && s == std::floor(s) && s < 1e15, ErrorCode::invalid_input, "--body-sizes",
+            "entry " + std::to_string(k) + " is not a whole number of beads >= 1");
+    offsets.push_back(offsets.back() + static_cast<std::size_t>(s));
+  }
+  return offsets;
+}
+
+std::vector<std::size_t> read_body_offsets(const std::string& path, std::size_t n) {
+  std::vector<std::size_t> offsets = body_offsets_from_sizes(read_array(path).data);
+  require(offsets.size() > 1, ErrorCode::invalid_input, "--body-sizes", "no bodies given");
+  require(offsets.back() == n, ErrorCode::invalid_input, "--body-sizes",
+          "the body sizes add up to " + std::to_string(offsets.back()) + " beads, but --positions has " +
+              std::to_string(n));
+  return offsets;
+}
+
+void require_one_radius(const BeadBodyArgs& args) {
   require(args.radius_given != !args.radii.empty(), ErrorCode::invalid_argument, "--radius",
           "give exactly one of --radius a or --radii R.npy");
   if (args.radius_given) ranges::require_in(ranges::kRadius, args.radius, "--radius", "radius");
+}
+
+BeadBodies read_bead_bodies(const BeadBodyArgs& args) {
+  require_one_radius(args);
   BeadBodies b;
   b.x = as_points(read_array(args.positions), "positions");
   const std::size_t n = b.x.size() / 3;
-  b.offsets = body_offsets_from_sizes(read_array(args.body_sizes).data);
-  require(b.bodies() > 0, ErrorCode::invalid_input, "--body-sizes", "no bodies given");
-  require(b.offsets.back() == n, ErrorCode::invalid_input, "--body-sizes",
-          "the body sizes add up to " + std::to_string(b.offsets.back()) + " beads, but --positions has " +
-              std::to_string(n));
+  b.offsets = read_body_offsets(args.body_sizes, n);
   b.radii.assign(n, args.radius);
   if (!args.radius_given) b.radii = as_vector(read_array(args.radii), n, "radii");
   if (!args.reference.empty()) {

@@ -34,6 +34,14 @@ struct BeadBodies {
   [[nodiscard]] std::size_t bodies() const { return offsets.size() - 1; }
 };
 
+/// Body offsets (m + 1 entries from 0) from the body sizes of --body-sizes: whole numbers >= 1 (the
+/// library checks >= 3 beads); rpyfmm::Error naming --body-sizes otherwise.
+std::vector<std::size_t> body_offsets_from_sizes(const std::vector<double>& sizes);
+/// --body-sizes read and checked against the n beads of --positions: its body offsets.
+std::vector<std::size_t> read_body_offsets(const std::string& path, std::size_t n);
+/// Exactly one of --radius (in range) and --radii was given; rpyfmm::Error naming --radius otherwise.
+void require_one_radius(const BeadBodyArgs& args);
+
 /// Reads and checks the files (sizes adding up to N, one radius option, m reference points);
 /// rpyfmm::Error naming the option.
 BeadBodies read_bead_bodies(const BeadBodyArgs& args);

@@ -26,7 +26,7 @@ void add_common_options(CLI::App& cmd, CommonOptions& options) {
 void add_io_option(CLI::App& cmd, std::string& io) {
   cmd.add_option("--io", io,
                  "across MPI ranks: 'collective' (default) every rank reads and writes its share of the .npy "
-                 "arrays with MPI-IO (laplace: writes its result), 'root' rank 0 reads and writes them whole")
+                 "arrays with MPI-IO, 'root' rank 0 reads and writes them whole")
       ->check(CLI::IsMember({"root", "collective"}));
 }
 

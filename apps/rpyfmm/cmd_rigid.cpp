@@ -6,12 +6,15 @@
 //                --forces FT.npy [--reference Q.npy] [--solver-tolerance 1e-6] [--max-iterations 500]
 //                [--no-precondition] [--method direct|fmm|pse|auto] [--tolerance 1e-6] [--viscosity 1]
 //                [--box L | --box Lx Ly Lz] --out UW.npy [--bead-forces L.npy] [--threads N] [--json]
+//                [--io collective|root]
 //
 // Beads are listed body after body; S holds the m body sizes (beads per body, each >= 3).
 // FT is (m,6): F_x F_y F_z T_x T_y T_z per body (torques about the reference points Q, (m,3),
 // default the bodies' centroids); UW is (m,6): U_x U_y U_z Omega_x Omega_y Omega_z.
 // Under mpirun, --method direct and fmm (free space) and --method pse with --box (double-precision
-// wave grids) run across the ranks, each rank owning whole bodies (rigid_across_ranks.hpp); other
+// wave grids) run across the ranks, each rank owning whole bodies and reading and writing their
+// rows of the .npy files (--io collective, the default) or rank 0 all of them (--io root)
+// (rigid_across_ranks.hpp); other
 // methods are refused on more than one rank.
 #include <CLI/CLI.hpp>
 #include <cmath>
@@ -45,6 +48,7 @@ struct RigidArgs {
   bool no_precondition = false;
   MobilityChoice mobility;
   CommonOptions common;
+  std::string io = "collective";  // --io, across MPI ranks
 };
 
 /// Under MPI: whether this solve runs across the ranks (on the CPU: --method direct or fmm without
@@ -67,7 +71,7 @@ void run_rigid(const RigidArgs& args) {
   if (under_mpi() && across_ranks(args)) {
     run_rigid_across_ranks({args.bodies, args.forces, args.out, args.bead_forces, args.solver_tolerance,
                             args.max_iterations, !args.no_precondition, args.mobility.method, args.mobility.tolerance,
-                            args.mobility.viscosity, box_geometry(args.mobility.box), args.common.json});
+                            args.mobility.viscosity, box_geometry(args.mobility.box), args.common.json, args.io});
     return;
   }
 
@@ -147,6 +151,7 @@ void register_rigid(CLI::App& app) {
   cmd->add_option("--out", args->out, "output .npy, shape (m,6): U_x U_y U_z Omega_x Omega_y Omega_z")->required();
   cmd->add_option("--bead-forces", args->bead_forces, "also write the bead forces (N,3) to this .npy");
   add_common_options(*cmd, args->common);
+  add_io_option(*cmd, args->io);
   cmd->callback([args] {
     print_pending_warnings();
     run_rigid(*args);

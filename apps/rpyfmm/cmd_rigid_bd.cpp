@@ -9,7 +9,7 @@
 //                   [--sqrt-preconditioner auto|none|block] [--every K] [--method ...]
 //                   [--tolerance ...]
 //                   [--box ...] --out TRAJ.npy [--beads-out B.npy] [--restart OLD.npy
-//                   --first-step S] [--threads N] [--json]
+//                   --first-step S] [--threads N] [--json] [--io collective|root]
 //
 // X holds the beads at time 0, body after body (S: beads per body); the bodies' reference points
 // are Q (default: centroids) and their orientations start at the identity, so bead i of body k
@@ -23,8 +23,9 @@
 // last step of the earlier run, the continuation equals one longer run bit for bit.
 //
 // Under mpirun, --method direct and fmm (free space) and --method pse with --box (double-precision
-// wave grids), on the CPU, also with --pair, run across the ranks, each rank owning whole bodies
-// (rigid_bd_across_ranks.hpp); other methods are refused on more than one rank.
+// wave grids), on the CPU, also with --pair, run across the ranks, each rank owning whole bodies and
+// reading and writing their rows of the .npy files (--io collective, the default) or rank 0 all of
+// them (--io root) (rigid_bd_across_ranks.hpp); other methods are refused on more than one rank.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <array>
@@ -67,6 +68,7 @@ struct RigidBdArgs {
   std::vector<double> body_force{0, 0, 0}, body_torque{0, 0, 0};
   MobilityChoice mobility;
   CommonOptions common;
+  std::string io = "collective";  // --io, across MPI ranks
 };
 
 /// Checks every option that needs no file before anything is read.
@@ -187,7 +189,8 @@ void run_rigid_bd(const RigidBdArgs& args) {
     run_rigid_bd_across_ranks({args.bodies, args.out, args.beads_out, args.restart,
                                static_cast<std::uint64_t>(args.steps), static_cast<std::uint64_t>(args.every),
                                dynamics_options(args), load_of(args), args.mobility.method, args.mobility.tolerance,
-                               args.mobility.viscosity, box_geometry(args.mobility.box), args.pair, args.common.json});
+                               args.mobility.viscosity, box_geometry(args.mobility.box), args.pair, args.common.json,
+                               args.io});
     return;
   }
   StopWatch total;
@@ -266,6 +269,7 @@ void register_rigid_bd(CLI::App& app) {
   add_integer_option(*cmd, "--first-step", args->first_step, ranges::kSeed,
                      "step number of the initial state (with --restart: the earlier run's last step)");
   add_common_options(*cmd, args->common);
+  add_io_option(*cmd, args->io);
   cmd->callback([args] {
     print_pending_warnings();
     run_rigid_bd(*args);

@@ -141,6 +141,36 @@ SharesRead read_for_direct(const RanksLaplaceArgs& args, const mpi::Communicator
   return r;
 }
 
+// --direct with --io collective: every rank read its shares (read_shares), then gathers every
+// source and every density's charges (MPI_Allgatherv, density by density) and sums at its share of
+// the targets (of the sources when there are no targets): read_for_direct's shares, without rank 0
+// holding any input whole.
+SharesRead gathered_for_direct(SharesRead r, const mpi::Communicator& comm) {
+  const StopWatch watch;
+  if (!r.z.targets) r.local.targets = r.local.sources;
+  const Shares s3 = shares_of(r.z.n, comm.size(), 3);  // read_shares checked these counts
+  const Shares s1 = shares_of(r.z.n, comm.size(), 1);
+  r.local.sources = all_gather(r.local.sources, s3, comm);
+  const std::size_t share = s1.count(comm.rank());
+  std::vector<double> charges;
+  for (std::uint64_t d = 0; d < r.z.nd; ++d) {
+    const auto begin = r.local.charges.begin() + static_cast<std::ptrdiff_t>(d * share);
+    const std::vector<double> all = all_gather({begin, begin + static_cast<std::ptrdiff_t>(share)}, s1, comm);
+    charges.insert(charges.end(), all.begin(), all.end());
+  }
+  r.local.charges = std::move(charges);
+  r.distribute_seconds += watch.seconds();
+  return r;
+}
+
+// What every rank reads: its shares for the FMM; for --direct every source and charge, by rank 0's
+// reads and broadcasts (--io root) or by every rank's reads and gathers (--io collective).
+SharesRead read_inputs(const RanksLaplaceArgs& args, const mpi::Communicator& comm) {
+  if (!args.direct) return read_shares(args, comm);
+  if (io_mode(args.io) == IoMode::root) return read_for_direct(args, comm);
+  return gathered_for_direct(read_shares(args, comm), comm);
+}
+
 // Every density's results (nd x share x 10) gathered into nd x M x 10 on rank 0.
 std::vector<double> gather_results(const std::vector<double>& local, const Sizes& z, const mpi::Communicator& comm) {
   const Shares s10 = shares_of(z.m, comm.size(), static_cast<int>(fmm::result_width));
@@ -248,7 +278,7 @@ void run_laplace_across_ranks(const RanksLaplaceArgs& args) {
   StopWatch total;
   StopWatch watch;
   Measured measured;
-  SharesRead r = args.direct ? read_for_direct(args, comm) : read_shares(args, comm);
+  SharesRead r = read_inputs(args, comm);
   measured.stages["read"] = watch.seconds() - r.distribute_seconds;
   measured.communication["distribute"] = measured.stages["distribute"] = r.distribute_seconds;
   const Sizes z = r.z;

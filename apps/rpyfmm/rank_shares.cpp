@@ -43,6 +43,14 @@ void gather(const std::vector<double>& local, const Shares& s, double* whole, co
                  "MPI_Gatherv");
 }
 
+std::vector<double> all_gather(const std::vector<double>& local, const Shares& s, const mpi::Communicator& comm) {
+  std::vector<double> whole(static_cast<std::size_t>(s.displs.back()) + s.count(comm.size() - 1));
+  mpi::check_mpi(MPI_Allgatherv(local.data(), static_cast<int>(local.size()), MPI_DOUBLE, whole.data(), s.counts.data(),
+                                s.displs.data(), MPI_DOUBLE, comm.get()),
+                 "MPI_Allgatherv");
+  return whole;
+}
+
 void broadcast(std::vector<std::uint64_t>& values, const mpi::Communicator& comm) {
   std::uint64_t size = values.size();
   mpi::check_mpi(MPI_Bcast(&size, 1, MPI_UINT64_T, 0, comm.get()), "MPI_Bcast");

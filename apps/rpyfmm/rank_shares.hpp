@@ -28,6 +28,8 @@ Shares shares_of(std::size_t n, int ranks, int per);
 std::vector<double> scatter(const double* whole, const Shares& s, const mpi::Communicator& comm);
 /// The shares gathered into `whole` on rank 0 (whole is not touched elsewhere).
 void gather(const std::vector<double>& local, const Shares& s, double* whole, const mpi::Communicator& comm);
+/// The shares gathered whole on every rank (MPI_Allgatherv).
+std::vector<double> all_gather(const std::vector<double>& local, const Shares& s, const mpi::Communicator& comm);
 
 /// Rank 0's `values` on every rank (their number first; ignored elsewhere on entry).
 void broadcast(std::vector<std::uint64_t>& values, const mpi::Communicator& comm);

@@ -3,7 +3,6 @@
 
 #include <mpi.h>
 
-#include <climits>
 #include <cstddef>
 #include <cstdint>
 #include <iostream>
@@ -11,6 +10,7 @@
 #include <vector>
 
 #include "array_io.hpp"
+#include "body_io.hpp"
 #include "body_shares.hpp"
 #include "cli_common.hpp"
 #include "rank_shares.hpp"
@@ -28,64 +28,24 @@ namespace {
 
 constexpr const char* kCommand = "rigid";
 
-// What rank 0 read: the bodies and their forces and torques (6 per body).
-struct WholeProblem {
-  BeadBodies bodies;
+// This rank's whole bodies (body_io.hpp) and their forces and torques (6 per body).
+struct LocalProblem {
+  BodiesShare bodies;
   std::vector<double> forces_torques;
 };
 
-WholeProblem read_problem(const RanksRigidArgs& args) {
-  WholeProblem p{read_bead_bodies(args.bodies), read_array(args.forces).data};
-  const std::size_t m = p.bodies.bodies();
-  require(p.forces_torques.size() == 6 * m, ErrorCode::invalid_input, "--forces",
-          "has " + std::to_string(p.forces_torques.size()) + " entries, expected " + std::to_string(6 * m) +
-              " (m x 6: F_x F_y F_z T_x T_y T_z per body)");
-  require(3 * p.bodies.beads() <= static_cast<std::size_t>(INT_MAX) && 6 * m <= static_cast<std::size_t>(INT_MAX),
-          ErrorCode::not_supported, kCommand,
-          std::to_string(p.bodies.beads()) + " beads: more than MPI's int counts address in one scatter");
+// Collective: the serial command's files and checks, each rank reading its bodies' rows (--io).
+LocalProblem read_problem(const RanksRigidArgs& args, IoMode mode, const mpi::Communicator& comm) {
+  LocalProblem p{read_bodies_share(args.bodies, mode, comm), {}};
+  const std::size_t m = p.bodies.z.bodies();
+  const auto check = [m](const std::vector<std::size_t>& shape) {
+    require(values_of(shape) == 6 * m, ErrorCode::invalid_input, "--forces",
+            "has " + std::to_string(values_of(shape)) + " entries, expected " + std::to_string(6 * m) +
+                " (m x 6: F_x F_y F_z T_x T_y T_z per body)");
+  };
+  p.forces_torques =
+      read_body_rows(args.forces, mode, 6, false, check, {}, p.bodies, p.bodies.scatter_seconds, comm).local;
   return p;
-}
-
-// Collective: rank 0 reads the files (the other ranks hold nothing); a failure fails every rank.
-WholeProblem read_on_rank_zero(const RanksRigidArgs& args, const mpi::Communicator& comm) {
-  WholeProblem whole;
-  comm.run([&] {
-    if (comm.rank() == 0) whole = read_problem(args);
-  });
-  return whole;
-}
-
-// The bodies' layout (body_shares.hpp) and whether reference points were given, after rank 0's
-// broadcasts.
-struct Layout : BodyLayout {
-  bool reference = false;
-};
-
-Layout broadcast_layout(const WholeProblem& whole, const mpi::Communicator& comm) {
-  Layout z;
-  static_cast<BodyLayout&>(z) = broadcast_body_layout(whole.bodies.offsets, comm);
-  int reference = comm.rank() == 0 && !whole.bodies.reference.empty() ? 1 : 0;
-  mpi::check_mpi(MPI_Bcast(&reference, 1, MPI_INT, 0, comm.get()), "MPI_Bcast");
-  z.reference = reference != 0;
-  return z;
-}
-
-// This rank's whole bodies: beads, radii, body offsets from 0, forces and torques, reference
-// points (empty when none were given).
-struct LocalProblem {
-  std::vector<double> x, radii, forces_torques, reference;
-  std::vector<std::size_t> offsets;
-};
-
-LocalProblem distribute(const WholeProblem& whole, const Layout& z, const mpi::Communicator& comm) {
-  const BeadBodies& b = whole.bodies;
-  LocalProblem local;
-  local.x = scatter(b.x.data(), body_shares(z, 3, true), comm);
-  local.radii = scatter(b.radii.data(), body_shares(z, 1, true), comm);
-  local.forces_torques = scatter(whole.forces_torques.data(), body_shares(z, 6, false), comm);
-  if (z.reference) local.reference = scatter(b.reference.data(), body_shares(z, 3, false), comm);
-  local.offsets = local_body_offsets(z, comm.rank());
-  return local;
 }
 
 // This rank's velocities (6 per body), bead forces (3 per bead, or none) and the solver's report.
@@ -101,7 +61,8 @@ struct Measured {
 };
 
 template <class Operator>
-LocalSolution solve(Operator& beads, const RanksRigidArgs& args, const LocalProblem& local, Measured& measured) {
+LocalSolution solve(Operator& beads, const RanksRigidArgs& args, const BeadBodies& local,
+                    const std::vector<double>& forces_torques, Measured& measured) {
   StageTimes& stages = measured.stages;
   StopWatch watch;
   mpi::DistributedRigidBodies bodies(
@@ -113,40 +74,42 @@ LocalSolution solve(Operator& beads, const RanksRigidArgs& args, const LocalProb
   LocalSolution s;
   s.velocities.resize(6 * bodies.local_bodies());
   s.bead_forces.resize(args.bead_forces.empty() ? 0 : local.x.size());
-  s.report = bodies.apply(local.forces_torques, s.velocities, s.bead_forces);
+  s.report = bodies.apply(forces_torques, s.velocities, s.bead_forces);
   stages["solve"] = watch.seconds();
   measured.communication["setup"] = beads.communication().set_positions_seconds;
   measured.communication["products"] = beads.communication().applies_seconds;
   return s;
 }
 
-LocalSolution solve_across_ranks(const RanksRigidArgs& args, const LocalProblem& local, Measured& measured) {
+LocalSolution solve_across_ranks(const RanksRigidArgs& args, const LocalProblem& p, Measured& measured) {
+  const BeadBodies& local = p.bodies.local;
   if (args.method == "fmm") {
     mpi::DistributedFmmRpy fmm(MPI_COMM_WORLD, args.viscosity, {.tolerance = args.tolerance});
-    return solve(fmm, args, local, measured);
+    return solve(fmm, args, local, p.forces_torques, measured);
   }
   if (args.method == "pse") {  // PseRpy's options but the tolerance, as the serial command's PseRpy
     mpi::DistributedPseRpy pse(MPI_COMM_WORLD, args.box, args.viscosity, {.tolerance = args.tolerance});
-    return solve(pse, args, local, measured);
+    return solve(pse, args, local, p.forces_torques, measured);
   }
   mpi::DistributedDirectRpy direct(MPI_COMM_WORLD, args.viscosity);
-  return solve(direct, args, local, measured);
+  return solve(direct, args, local, p.forces_torques, measured);
 }
 
-// Rank 0 gathers the rows (`per` values per body or per bead) and writes them as (rows, per).
-void gather_and_write(const std::string& path, const std::vector<double>& local, const Layout& z, int per,
-                      bool by_beads, const mpi::Communicator& comm) {
-  const std::uint64_t rows = by_beads ? z.beads() : z.bodies();
-  std::vector<double> whole(comm.rank() == 0 ? rows * static_cast<std::uint64_t>(per) : 0);
-  comm.run([&] { gather(local, body_shares(z, per, by_beads), whole.data(), comm); });
-  comm.run([&] {
-    if (comm.rank() != 0) return;
-    require_finite_output(whole, kCommand);
-    write_npy(path, {rows, static_cast<std::size_t>(per)}, whole);
-  });
+// The velocities (m,6) and, with --bead-forces, the bead forces (N,3), checked first, written by
+// every rank (--io collective) or by rank 0 after a gather (--io root): the serial command's files.
+void write_solution(const RanksRigidArgs& args, const LocalSolution& s, const BodyLayout& z, IoMode mode,
+                    const mpi::Communicator& comm) {
+  const NpyRun velocities{first_of_rows(z, 6, false, comm.rank()), s.velocities};
+  const NpyRun bead_forces{first_of_rows(z, 3, true, comm.rank()), s.bead_forces};
+  const bool beads = !args.bead_forces.empty();
+  require_finite_result({&velocities, 1}, kCommand, comm);
+  if (beads) require_finite_result({&bead_forces, 1}, "rigid (bead forces)", comm);
+  write_rows(args.out, {z.bodies(), 6}, {&velocities, 1}, body_shares(z, 6, false), 6 * z.bodies(), mode, comm);
+  if (beads)
+    write_rows(args.bead_forces, {z.beads(), 3}, {&bead_forces, 1}, body_shares(z, 3, true), 3 * z.beads(), mode, comm);
 }
 
-void report_json(const RanksRigidArgs& args, const Layout& z, const rpy::RigidBodyReport& report,
+void report_json(const RanksRigidArgs& args, const BodyLayout& z, const rpy::RigidBodyReport& report,
                  const Measured& measured, double total_seconds, const mpi::Communicator& comm) {
   const StageTimes slowest_stages = slowest(measured.stages, comm);  // collective
   const StageTimes slowest_communication = slowest(measured.communication, comm);
@@ -180,23 +143,19 @@ void run_rigid_across_ranks(const RanksRigidArgs& args) {
   StopWatch total;
   Measured measured;
   StageTimes& stages = measured.stages;
-  WholeProblem whole = read_on_rank_zero(args, comm);
-  stages["read"] = total.seconds();
+  IoMode mode = IoMode::collective;
+  comm.run([&] { mode = io_mode(args.io); });
+  const LocalProblem problem = read_problem(args, mode, comm);
+  const double scattered = problem.bodies.scatter_seconds;
+  stages["read"] = total.seconds() - scattered;
+  measured.communication["distribute"] = stages["distribute"] = scattered;
+
+  const LocalSolution solution = solve_across_ranks(args, problem, measured);
+
   StopWatch watch;
-
-  const Layout z = broadcast_layout(whole, comm);
-  LocalProblem local;
-  comm.run([&] { local = distribute(whole, z, comm); });
-  whole = WholeProblem{};  // rank 0 keeps only its own bodies from here on
-  measured.communication["distribute"] = stages["distribute"] = watch.seconds();
-
-  const LocalSolution solution = solve_across_ranks(args, local, measured);
-
-  watch.restart();
-  gather_and_write(args.out, solution.velocities, z, 6, false, comm);
-  if (!args.bead_forces.empty()) gather_and_write(args.bead_forces, solution.bead_forces, z, 3, true, comm);
+  write_solution(args, solution, problem.bodies.z, mode, comm);
   stages["write"] = watch.seconds();
-  report_json(args, z, solution.report, measured, total.seconds(), comm);
+  report_json(args, problem.bodies.z, solution.report, measured, total.seconds(), comm);
 }
 
 }  // namespace rpyfmm::cli

@@ -1,10 +1,11 @@
 // rpyfmm CLI — `mpirun -np P rpyfmm rigid --method direct|fmm|pse ...` across MPI ranks
-// (docs/mpi.md, "Rigid bodies across ranks"). Rank 0 reads the files of the serial command and
-// scatters whole bodies: contiguous runs of bodies, balanced by their bead count (a rank may get
-// none). rpyfmm::mpi::DistributedRigidBodies solves on the ranks' bodies with DistributedDirectRpy,
-// DistributedFmmRpy or DistributedPseRpy (in the --box) as the bead operator; rank 0 gathers the
-// velocities (and the bead forces) and writes the serial command's files (write_npy: a temporary
-// file renamed into place).
+// (docs/mpi.md, "The command-line tool under mpirun"). Each rank holds whole bodies: contiguous
+// runs of bodies balanced by their bead count (a rank may get none), read with --io (body_io.hpp:
+// every rank its bodies' rows of the .npy files with MPI-IO, or rank 0 reads and scatters; rank 0
+// reads --body-sizes). rpyfmm::mpi::DistributedRigidBodies solves on the ranks' bodies with
+// DistributedDirectRpy, DistributedFmmRpy or DistributedPseRpy (in the --box) as the bead operator;
+// the velocities (and the bead forces) are written to the serial command's files (a temporary file
+// renamed into place) by every rank (--io collective) or by rank 0 after a gather (--io root).
 #pragma once
 
 #include <string>
@@ -25,6 +26,7 @@ struct RanksRigidArgs {
   double viscosity = 1.0;
   rpy::Geometry box = rpy::Geometry::open();  // pse's periodic box (--box)
   bool json = false;
+  std::string io = "collective";  // --io (array_shares.hpp)
 };
 
 /// Collective over MPI_COMM_WORLD; fails on every rank alike (rpyfmm::mpi::Communicator). A build

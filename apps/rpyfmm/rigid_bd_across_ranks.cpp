@@ -3,7 +3,6 @@
 
 #include <mpi.h>
 
-#include <climits>
 #include <cstddef>
 #include <cstdint>
 #include <iostream>
@@ -12,6 +11,7 @@
 #include <vector>
 
 #include "array_io.hpp"
+#include "body_io.hpp"
 #include "body_shares.hpp"
 #include "cli_common.hpp"
 #include "rank_shares.hpp"
@@ -28,45 +28,40 @@
 namespace rpyfmm::cli {
 namespace {
 
-constexpr const char* kCommand = "rigid-bd";
-
-// The bodies as the engine takes them: body-frame shapes (3 per bead), radii, body offsets, and the
-// state to start from (3 and 4 per body). Rank 0 holds all of them, then each rank its own.
+// This rank's bodies as the engine takes them: body-frame shapes (3 per bead), radii, body offsets
+// from 0, and the state to start from (3 and 4 per body).
 struct Start {
   std::vector<double> shape, radii, positions, orientations;
   std::vector<std::size_t> offsets;
 };
 
-// What the serial command builds from the files: shapes relative to the reference points (default:
-// centroids; minimum images in pse's --box), the state of --restart or the identity orientations.
-Start read_start(const RanksRigidBdArgs& args) {
-  const BeadBodies bodies = read_bead_bodies(args.bodies);
-  const std::size_t n = bodies.beads(), m = bodies.bodies();
-  require(3 * n <= static_cast<std::size_t>(INT_MAX) && 7 * m <= static_cast<std::size_t>(INT_MAX),
-          ErrorCode::not_supported, kCommand,
-          std::to_string(n) + " beads: more than MPI's int counts address in one scatter");
-  std::vector<double> reference = bodies.reference;
+// --restart's last frame, this rank's bodies' rows (initial_state's check and state).
+BodyState restart_state(const std::string& restart, IoMode mode, BodiesShare& b, const mpi::Communicator& comm) {
+  const std::size_t m = b.z.bodies();
+  const ArrayShare last = read_body_rows(
+      restart, mode, 7, false, [m](const auto& shape) { require_trajectory_shape(shape, m); },
+      [m](const std::vector<std::size_t>& shape) { return (shape[0] - 1) * m * 7; }, b, b.scatter_seconds, comm);
+  return state_of_frame(last.local);
+}
+
+// What the serial command builds from the files, on each rank's bodies (body_io.hpp): shapes
+// relative to the reference points (default: centroids; minimum images in pse's --box), the state
+// of --restart or the identity orientations. Each body's shape is computed alone, as in the serial
+// command.
+Start read_start(const RanksRigidBdArgs& args, IoMode mode, BodiesShare& b, const mpi::Communicator& comm) {
+  b = read_bodies_share(args.bodies, mode, comm);
+  std::vector<double> reference = b.local.reference;
   Start s;
-  s.shape = body_frame_shape(args.box, bodies, reference);
-  BodyState state = initial_state(args.restart, reference, m);
+  comm.run([&] { s.shape = body_frame_shape(args.box, b.local, reference); });
+  BodyState state = args.restart.empty() ? BodyState{reference, {}} : restart_state(args.restart, mode, b, comm);
   s.positions = std::move(state.positions);
   s.orientations = std::move(state.orientations);
   if (s.orientations.empty())
-    for (std::size_t k = 0; k < m; ++k) s.orientations.insert(s.orientations.end(), {1.0, 0.0, 0.0, 0.0});
-  s.radii = bodies.radii;
-  s.offsets = bodies.offsets;
+    for (std::size_t k = 0; k < b.local.bodies(); ++k)
+      s.orientations.insert(s.orientations.end(), {1.0, 0.0, 0.0, 0.0});
+  s.radii = b.local.radii;
+  s.offsets = b.local.offsets;
   return s;
-}
-
-// This rank's bodies of rank 0's whole set.
-Start distribute(const Start& whole, const BodyLayout& z, const mpi::Communicator& comm) {
-  Start local;
-  local.shape = scatter(whole.shape.data(), body_shares(z, 3, true), comm);
-  local.radii = scatter(whole.radii.data(), body_shares(z, 1, true), comm);
-  local.positions = scatter(whole.positions.data(), body_shares(z, 3, false), comm);
-  local.orientations = scatter(whole.orientations.data(), body_shares(z, 4, false), comm);
-  local.offsets = local_body_offsets(z, comm.rank());
-  return local;
 }
 
 // What a run leaves on this rank: its bodies' frames (7 values per body per frame), its final bead
@@ -127,28 +122,24 @@ LocalRun run_across_ranks(const RanksRigidBdArgs& args, Start& local, double fir
   return run_engine(direct, args, local, first_radius, stages);
 }
 
-// Rank 0 gathers the frames (each frame's bodies in rank order) and the final beads, checks them
-// and writes the serial command's files.
-void gather_and_write(const RanksRigidBdArgs& args, const LocalRun& run, const BodyLayout& z,
-                      const mpi::Communicator& comm) {
+// The trajectory (frames, m, 7) and the final beads (N,3), both checked first (the final beads also
+// without --beads-out, as in the serial command), written by every rank (--io collective: each
+// frame's rows of this rank's bodies) or by rank 0 after a gather (--io root): the serial
+// command's files.
+void write_outputs(const RanksRigidBdArgs& args, const LocalRun& run, const BodyLayout& z, IoMode mode,
+                   const mpi::Communicator& comm) {
   const std::size_t m = z.bodies(), per_frame = 7 * m;
   const Shares frame_shares = body_shares(z, 7, false);
-  const std::size_t mine = frame_shares.count(comm.rank());
-  std::vector<double> frames(comm.rank() == 0 ? run.frame_count * per_frame : 0);
-  for (std::size_t f = 0; f < run.frame_count; ++f) {
-    const std::vector<double> local(run.frames.begin() + std::ptrdiff_t(f * mine),
-                                    run.frames.begin() + std::ptrdiff_t((f + 1) * mine));
-    gather(local, frame_shares, comm.rank() == 0 ? frames.data() + f * per_frame : nullptr, comm);
-  }
-  std::vector<double> beads(comm.rank() == 0 && !args.beads_out.empty() ? 3 * z.beads() : 0);
-  if (!args.beads_out.empty()) gather(run.beads, body_shares(z, 3, true), beads.data(), comm);
-  comm.run([&] {
-    if (comm.rank() != 0) return;
-    require_finite_output(frames, "rigid-bd (trajectory)");
-    require_finite_output(beads, "rigid-bd (bead positions)");
-    write_npy(args.out, {run.frame_count, m, 7}, frames);
-    if (!args.beads_out.empty()) write_npy(args.beads_out, {z.beads(), 3}, beads);
-  });
+  const std::size_t mine = frame_shares.count(comm.rank()), first = first_of_rows(z, 7, false, comm.rank());
+  std::vector<NpyRun> frames;
+  for (std::size_t f = 0; f < run.frame_count; ++f)
+    frames.push_back({f * per_frame + first, std::span<const double>(run.frames).subspan(f * mine, mine)});
+  const NpyRun beads{first_of_rows(z, 3, true, comm.rank()), run.beads};
+  require_finite_result(frames, "rigid-bd (trajectory)", comm);
+  require_finite_result({&beads, 1}, "rigid-bd (bead positions)", comm);
+  write_rows(args.out, {run.frame_count, m, 7}, frames, frame_shares, per_frame, mode, comm);
+  if (!args.beads_out.empty())
+    write_rows(args.beads_out, {z.beads(), 3}, {&beads, 1}, body_shares(z, 3, true), 3 * z.beads(), mode, comm);
 }
 
 void report(const RanksRigidBdArgs& args, const BodyLayout& z, const LocalRun& run, const StageTimes& stages,
@@ -198,24 +189,22 @@ void run_rigid_bd_across_ranks(const RanksRigidBdArgs& args) {
   const mpi::Communicator comm(MPI_COMM_WORLD);
   StopWatch total;
   StageTimes stages;
-  Start whole;
-  comm.run([&] {
-    if (comm.rank() == 0) whole = read_start(args);
-  });
-  stages["read"] = total.seconds();
-  StopWatch watch;
-  const BodyLayout z = broadcast_body_layout(whole.offsets, comm);
-  double first_radius = comm.rank() == 0 ? whole.radii.front() : 0.0;  // --pair's bead type
+  IoMode mode = IoMode::collective;
+  comm.run([&] { mode = io_mode(args.io); });
+  BodiesShare bodies;
+  Start local = read_start(args, mode, bodies, comm);
+  stages["read"] = total.seconds() - bodies.scatter_seconds;
+  stages["distribute"] = bodies.scatter_seconds;
+  const BodyLayout& z = bodies.z;
+  // --pair's bead type: the first bead's radius (rank 0 always holds the first body).
+  double first_radius = comm.rank() == 0 ? local.radii.front() : 0.0;
   mpi::check_mpi(MPI_Bcast(&first_radius, 1, MPI_DOUBLE, 0, comm.get()), "MPI_Bcast");
-  Start local;
-  comm.run([&] { local = distribute(whole, z, comm); });
-  whole = Start{};  // rank 0 keeps only its own bodies from here on
-  stages["distribute"] = watch.seconds();
+  bodies.local = BeadBodies{};  // the engine takes `local` from here on
 
   const LocalRun run = run_across_ranks(args, local, first_radius, stages);
 
-  watch.restart();
-  gather_and_write(args, run, z, comm);
+  StopWatch watch;
+  write_outputs(args, run, z, mode, comm);
   stages["write"] = watch.seconds();
   report(args, z, run, stages, total.seconds(), comm);
 }

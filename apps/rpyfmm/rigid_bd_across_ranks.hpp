@@ -1,11 +1,13 @@
 // rpyfmm CLI — `mpirun -np P rpyfmm rigid-bd --method direct|fmm|pse ...` across MPI ranks
-// (docs/mpi.md, "Rigid-body Brownian dynamics across ranks"). Rank 0 reads the files of the serial
-// command (and --restart) and scatters whole bodies, contiguous runs balanced by their bead count (a
-// rank may get none), with their body-frame shapes and starting state;
+// (docs/mpi.md, "The command-line tool under mpirun"). Each rank holds whole bodies, contiguous
+// runs balanced by their bead count (a rank may get none), read with --io (body_io.hpp: every rank
+// its bodies' rows of the .npy files and of --restart's last frame with MPI-IO, or rank 0 reads and
+// scatters; rank 0 reads --body-sizes), and builds their body-frame shapes and starting state;
 // rpyfmm::mpi::DistributedRigidBodyDynamics takes the steps with DistributedDirectRpy,
 // DistributedFmmRpy or DistributedPseRpy (in the --box: shapes from minimum images as the serial
-// command takes them, nothing wrapped) as the bead operator; rank 0 gathers each frame and writes
-// the serial command's files (write_npy: a temporary file renamed into place).
+// command takes them, nothing wrapped) as the bead operator; the frames and the final beads are
+// written to the serial command's files (a temporary file renamed into place) by every rank (--io
+// collective) or by rank 0 after a gather (--io root).
 // --sqrt-preconditioner auto is none across the ranks (the principal root, the serial sampler's
 // bits: rpyfmm/mpi/sqrt.hpp), so with --method direct the trajectory is the serial command's with
 // --sqrt-preconditioner none up to the order of GMRES's inner-product sums; with --method pse the
@@ -58,6 +60,7 @@ struct RanksRigidBdArgs {
   rpy::Geometry box = rpy::Geometry::open();  // pse's periodic box (--box)
   BeadPairArgs pair;                          // --pair (bead_pair_field)
   bool json = false;
+  std::string io = "collective";  // --io (array_shares.hpp)
 };
 
 /// Collective over MPI_COMM_WORLD; fails on every rank alike (rpyfmm::mpi::Communicator). A build

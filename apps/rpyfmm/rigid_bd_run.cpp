@@ -8,19 +8,25 @@
 
 namespace rpyfmm::cli {
 
-BodyState initial_state(const std::string& restart, const std::vector<double>& reference, std::size_t m) {
-  BodyState state{reference, {}};
-  if (restart.empty()) return state;
-  const Array old = read_array(restart);
-  require(old.shape.size() == 3 && old.shape[1] == m && old.shape[2] == 7 && old.shape[0] >= 1,
-          ErrorCode::invalid_input, "--restart",
+void require_trajectory_shape(const std::vector<std::size_t>& shape, std::size_t m) {
+  require(shape.size() == 3 && shape[1] == m && shape[2] == 7 && shape[0] >= 1, ErrorCode::invalid_input, "--restart",
           "expected a trajectory of shape (frames, " + std::to_string(m) + ", 7) from rpyfmm rigid-bd");
-  const std::size_t last = (old.shape[0] - 1) * m * 7;
-  for (std::size_t k = 0; k < m; ++k) {
-    for (std::size_t c = 0; c < 3; ++c) state.positions[3 * k + c] = old.data[last + 7 * k + c];
-    for (std::size_t c = 0; c < 4; ++c) state.orientations.push_back(old.data[last + 7 * k + 3 + c]);
+}
+
+BodyState state_of_frame(std::span<const double> rows) {
+  BodyState state;
+  for (std::size_t k = 0; 7 * k < rows.size(); ++k) {
+    state.positions.insert(state.positions.end(), rows.begin() + 7 * k, rows.begin() + 7 * k + 3);
+    state.orientations.insert(state.orientations.end(), rows.begin() + 7 * k + 3, rows.begin() + 7 * k + 7);
   }
   return state;
+}
+
+BodyState initial_state(const std::string& restart, const std::vector<double>& reference, std::size_t m) {
+  if (restart.empty()) return BodyState{reference, {}};
+  const Array old = read_array(restart);
+  require_trajectory_shape(old.shape, m);
+  return state_of_frame(std::span<const double>(old.data).subspan((old.shape[0] - 1) * m * 7));
 }
 
 bd::BodyForceFunction constant_load(const std::array<double, 6>& load) {

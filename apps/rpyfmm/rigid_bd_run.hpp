@@ -6,6 +6,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -22,6 +23,11 @@ struct BodyState {
 /// otherwise the last frame of the trajectory `restart` (frames, m, 7) from rpyfmm rigid-bd;
 /// rpyfmm::Error naming --restart on a file of another shape.
 BodyState initial_state(const std::string& restart, const std::vector<double>& reference, std::size_t m);
+
+/// initial_state's check of --restart's shape: (frames >= 1, m, 7); rpyfmm::Error naming --restart.
+void require_trajectory_shape(const std::vector<std::size_t>& shape, std::size_t m);
+/// The positions and orientations of a frame's rows (7 per body: q_x q_y q_z w x y z).
+BodyState state_of_frame(std::span<const double> rows);
 
 /// The same force F and torque T (load = F then T) on every body; none when both are zero.
 bd::BodyForceFunction constant_load(const std::array<double, 6>& load);

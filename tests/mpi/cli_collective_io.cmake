@@ -4,17 +4,20 @@
 #    with --radii, --torques, --noise, sample --angular's (N,6) noise, a text file beside .npy
 #    ones): the serial command's output byte for byte, with --io collective (the default) and with
 #    --io root (rank 0 reads and writes whole);
-#  - laplace (the ranks write the (nd,M,10) result; with --tolerance they read their shares of the
-#    inputs, with --direct rank 0 reads): --direct the serial output byte for byte with either
+#  - laplace (the ranks read their shares of the inputs, --direct then gathers every source and
+#    charge, and write the (nd,M,10) result): --direct the serial output byte for byte with either
 #    --io, --tolerance the same bytes with either --io;
 #  - bad inputs and outputs (NaN in a row that only rank 1 reads, NaN in a radius of the last
 #    rank's, NaN in a charge of the second density, a short file, an unsupported dtype, forces with a row too few, --out naming an input,
 #    a symbolic link or a directory): exit status 2, one error line holding the serial command's
 #    message, no output and no temporary file left.
+# With -DPART=bodies it runs the cases of rigid, rigid-bd and laplace --direct instead
+# (cli_collective_io_bodies.cmake).
 # Run by ctest as
-#   cmake -DRPYFMM=... -DMPIEXEC=... -DNP=... "-DMPI_FLAGS=..." -DFIXTURE=... -DWORK=... -P cli_collective_io.cmake
+#   cmake -DRPYFMM=... -DMPIEXEC=... -DNP=... "-DMPI_FLAGS=..." -DFIXTURE=... -DAGREE=... -DWORK=... \
+#         [-DPART=bodies] -P cli_collective_io.cmake
 cmake_minimum_required(VERSION 3.20)
-foreach(var RPYFMM MPIEXEC NP FIXTURE WORK)
+foreach(var RPYFMM MPIEXEC NP FIXTURE AGREE WORK)
   if(NOT DEFINED ${var})
     message(FATAL_ERROR "cli_collective_io.cmake: -D${var}=... is required")
   endif()
@@ -115,31 +118,6 @@ function(run_identical name io)
   require_same(${name} ${name}_serial ${name}_${io})
 endfunction()
 
-set(mobility mobility --positions "${WORK}/x.npy" --forces "${WORK}/f.npy" --viscosity 0.7 --method direct)
-set(sample sample --positions "${WORK}/x.npy" --radii "${WORK}/a.npy" --viscosity 0.7 --operator direct
-           --method lanczos --sqrt-tolerance 1e-6 --preconditioner none)
-foreach(io collective root)
-  run_identical(mobility_radii ${io} ${mobility} --radii "${WORK}/a.npy")
-  run_identical(sample_angular ${io} ${sample} --angular --noise "${WORK}/z6.npy")
-endforeach()
-run_identical(mobility_torques collective ${mobility} --radius 1.1 --torques "${WORK}/f.npy")
-run_identical(sample_noise collective ${sample} --noise "${WORK}/f.npy")
-# laplace writes its (nd,M,10) result with every rank's rows of each density: --direct (rank 0
-# reads) the serial file byte for byte; the FMM across ranks (each rank reading its shares of the
-# sources, the targets and each density's charges) is not the serial FMM's bits, but the same
-# computation writes the same bytes with either --io.
-set(laplace laplace --sources "${WORK}/x.npy" --charges "${WORK}/q2.npy" --targets "${WORK}/f.npy")
-run_identical(laplace_direct collective ${laplace} --direct)
-run_identical(laplace_direct root ${laplace} --direct)
-run_across(laplace_fmm collective ${laplace} --tolerance 1e-6)
-run_across(laplace_fmm root ${laplace} --tolerance 1e-6)
-require_same(laplace_fmm laplace_fmm_collective laplace_fmm_root)
-# float32 positions (widened as the serial reader does) and text forces beside .npy positions.
-run_identical(mobility_f4 collective mobility --positions "${WORK}/x4.npy" --forces "${WORK}/f.npy" --radius 1.1
-              --method direct)
-run_identical(mobility_text collective mobility --positions "${WORK}/x.npy" --forces "${WORK}/f.txt" --radius 1.1
-              --method direct)
-
 # `args` fails serially with exit status 2 and one message; across NP ranks (collective I/O) it must
 # fail alike: exit status 2, one error line holding the serial message, nothing at `out`, no
 # temporary file in `out`'s folder or in ${WORK}.
@@ -168,6 +146,38 @@ function(expect_no_output name)
   endif()
 endfunction()
 
+# -DPART=bodies: the cases of rigid, rigid-bd and laplace --direct instead
+# (tests/mpi/cli_collective_io_bodies.cmake), a test of its own.
+if(PART STREQUAL "bodies")
+  include("${CMAKE_CURRENT_LIST_DIR}/cli_collective_io_bodies.cmake")
+  return()
+endif()
+
+set(mobility mobility --positions "${WORK}/x.npy" --forces "${WORK}/f.npy" --viscosity 0.7 --method direct)
+set(sample sample --positions "${WORK}/x.npy" --radii "${WORK}/a.npy" --viscosity 0.7 --operator direct
+           --method lanczos --sqrt-tolerance 1e-6 --preconditioner none)
+foreach(io collective root)
+  run_identical(mobility_radii ${io} ${mobility} --radii "${WORK}/a.npy")
+  run_identical(sample_angular ${io} ${sample} --angular --noise "${WORK}/z6.npy")
+endforeach()
+run_identical(mobility_torques collective ${mobility} --radius 1.1 --torques "${WORK}/f.npy")
+run_identical(sample_noise collective ${sample} --noise "${WORK}/f.npy")
+# laplace writes its (nd,M,10) result with every rank's rows of each density: --direct (every rank
+# reading its shares, then gathering the sources and charges) the serial file byte for byte; the FMM across ranks (each rank reading its shares of the
+# sources, the targets and each density's charges) is not the serial FMM's bits, but the same
+# computation writes the same bytes with either --io.
+set(laplace laplace --sources "${WORK}/x.npy" --charges "${WORK}/q2.npy" --targets "${WORK}/f.npy")
+run_identical(laplace_direct collective ${laplace} --direct)
+run_identical(laplace_direct root ${laplace} --direct)
+run_across(laplace_fmm collective ${laplace} --tolerance 1e-6)
+run_across(laplace_fmm root ${laplace} --tolerance 1e-6)
+require_same(laplace_fmm laplace_fmm_collective laplace_fmm_root)
+# float32 positions (widened as the serial reader does) and text forces beside .npy positions.
+run_identical(mobility_f4 collective mobility --positions "${WORK}/x4.npy" --forces "${WORK}/f.npy" --radius 1.1
+              --method direct)
+run_identical(mobility_text collective mobility --positions "${WORK}/x.npy" --forces "${WORK}/f.txt" --radius 1.1
+              --method direct)
+
 expect_no_output(positions_nan mobility --positions "${WORK}/x_nan.npy" --forces "${WORK}/f.npy" --radius 1)
 expect_no_output(radii_nan mobility --positions "${WORK}/x.npy" --forces "${WORK}/f.npy" --radii "${WORK}/a_nan.npy")
 expect_no_output(positions_short mobility --positions "${WORK}/x_short.npy" --forces "${WORK}/f.npy" --radius 1)
@@ -188,3 +198,4 @@ file(READ_SYMLINK "${WORK}/link.npy" target)
 if(NOT hash STREQUAL good_hash OR NOT target STREQUAL good OR NOT IS_DIRECTORY "${WORK}/folder.npy")
   message(FATAL_ERROR "a refused --out under ${NP} ranks changed the file, the link or the folder")
 endif()
+
