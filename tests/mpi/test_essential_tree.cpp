@@ -105,7 +105,9 @@ TEST(EssentialTree, EveryParticleIsSentOnceAndCompressedCellsAreFarAndWorthIt) {
                                                                    tree.cells[0].size(), region, acceptance);
       const bool root_only = sent.halo.empty() && sent.compressed.size() == 1 && sent.compressed[0].cell == 0;
       EXPECT_EQ(root_order > 0, root_only);
-      if (root_only) EXPECT_EQ(sent.compressed[0].order, root_order);
+      if (root_only) {
+        EXPECT_EQ(sent.compressed[0].order, root_order);
+      }
       std::vector<int> times(4000, 0);
       for (std::uint32_t c : sent.halo) {
         EXPECT_TRUE(tree.cells[c].leaf());
