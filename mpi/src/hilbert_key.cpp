@@ -3,11 +3,11 @@
 //
 // Butz's algorithm (A. R. Butz, "Alternative algorithm for Hilbert's space-filling curve", IEEE
 // Trans. Comput. C-20 (1971) 424) in the formulation of C. H. Hamilton ("Compact Hilbert indices",
-// Tech. Rep. CS-2006-07, Dalhousie University, 2006, Sec. 2.1 and Algorithm 2): the key is built one
-// level at a time from the coarsest. At each level the octant of the cell (one bit per axis) is
-// mapped into the frame of the current subcurve (a reflection by its entry corner e and a rotation
-// by its direction d, T_(e,d)), and the position of that octant along the subcurve's Gray-code order
-// is the level's 3-bit digit; e and d then move to the chosen octant's subcurve. The digit of a
+// Tech. Rep. CS-2006-07, Dalhousie University, 2006, Sec. 2, its Hilbert index algorithm): the key
+// is built one level at a time from the coarsest. At each level the octant of the cell (one bit per
+// axis) is mapped into the frame of the current subcurve (a reflection by its entry corner e and a
+// rotation by its direction d, T_(e,d)), and the position of that octant along the subcurve's
+// Gray-code order is the level's 3-bit digit; e and d then move to the chosen octant's subcurve. The digit of a
 // level depends only on the coarser levels' bits and its own, and within a frame the octant-to-digit
 // map is a bijection, so the first 3l bits of a key are exactly the cell of level l.
 #include <cstdint>
@@ -46,12 +46,13 @@ unsigned trailing_ones(unsigned i) {
   return n;
 }
 
-// The entry corner e(w) of the w-th subcube (Hamilton, Theorem 2.10).
+// The entry corner e(w) of the w-th subcube along the curve (Hamilton, Sec. 2).
 unsigned entry(unsigned w) {
   return w == 0 ? 0 : gray(2 * ((w - 1) / 2));
 }
 
-// The direction d(w) of the w-th subcube (Hamilton, Lemma 2.8 and Theorem 2.9).
+// The direction d(w) of the w-th subcube (Hamilton, Sec. 2): the axis along which the subcurve
+// leaves its entry corner, from the trailing ones of w - 1 (w even) or w (w odd).
 unsigned direction(unsigned w) {
   if (w == 0) return 0;
   return (w % 2 == 0 ? trailing_ones(w - 1) : trailing_ones(w)) % kDims;

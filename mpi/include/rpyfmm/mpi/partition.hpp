@@ -44,7 +44,7 @@ struct KeyCube {
 [[nodiscard]] std::uint64_t morton_key(std::uint32_t ix, std::uint32_t iy, std::uint32_t iz);
 
 /// The Hilbert key of the cell (ix, iy, iz), each < 2^21 (Butz's algorithm as formulated by
-/// Hamilton, "Compact Hilbert indices", Dalhousie Univ. Tech. Rep. CS-2006-07, 2006, Algorithm 2):
+/// Hamilton, "Compact Hilbert indices", Dalhousie Univ. Tech. Rep. CS-2006-07, 2006, Sec. 2):
 /// 21 digits of 3 bits from the coarsest level, digit l the rank of the cell's octant of level l
 /// along its parent's subcurve. A prefix of 3l bits is one cell of level l, and cells consecutive in
 /// key order at any level are face neighbours. Curve starts at cell (0, 0, 0).
