@@ -43,9 +43,9 @@ struct CellTree {
   std::vector<Cell> cells;
 };
 
-/// Not collective. keys: the owned particles' keys (Morton or Hilbert, SfcPartition), increasing; positions: 3 per
-/// particle in the same order. A cell is split into its non-empty octants while it holds more than `capacity` (>= 1)
-/// particles and lies above the keys' finest level (21).
+/// Not collective. keys: the owned particles' keys (Morton or Hilbert, SfcPartition), increasing;
+/// positions: 3 per particle in the same order. A cell is split into its non-empty octants while it
+/// holds more than `capacity` (>= 1) particles and lies above the keys' finest level (21).
 [[nodiscard]] CellTree build_cell_tree(std::span<const std::uint64_t> keys, std::span<const double> positions,
                                        std::size_t capacity);
 

@@ -7,9 +7,10 @@
 // is built one level at a time from the coarsest. At each level the octant of the cell (one bit per
 // axis) is mapped into the frame of the current subcurve (a reflection by its entry corner e and a
 // rotation by its direction d, T_(e,d)), and the position of that octant along the subcurve's
-// Gray-code order is the level's 3-bit digit; e and d then move to the chosen octant's subcurve. The digit of a
-// level depends only on the coarser levels' bits and its own, and within a frame the octant-to-digit
-// map is a bijection, so the first 3l bits of a key are exactly the cell of level l.
+// Gray-code order is the level's 3-bit digit; e and d then move to the chosen octant's subcurve.
+// The digit of a level depends only on the coarser levels' bits and its own, and within a frame the
+// octant-to-digit map is a bijection, so the first 3l bits of a key are exactly the cell of level
+// l.
 #include <cstdint>
 
 #include "rpyfmm/mpi/partition.hpp"

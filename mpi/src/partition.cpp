@@ -1,5 +1,6 @@
-// rpyfmm — SfcPartition: Morton or Hilbert keys (hilbert_key.cpp) in the global cube, weighted cuts of the global key
-// order by distributed bisection, and the MPI_Alltoallv exchanges to the owners and back (partition.hpp, docs/mpi.md).
+// rpyfmm — SfcPartition: Morton or Hilbert keys (hilbert_key.cpp) in the global cube, weighted cuts
+// of the global key order by distributed bisection, and the MPI_Alltoallv exchanges to the owners
+// and back (partition.hpp, docs/mpi.md).
 #include "rpyfmm/mpi/partition.hpp"
 
 #include <algorithm>

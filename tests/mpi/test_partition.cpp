@@ -1,9 +1,9 @@
 // rpyfmm::mpi::SfcPartition: Morton keys against a serial reference (a bit-by-bit interleave on the
 // whole set), Hilbert keys by their defining properties (a bijection of the grid whose prefixes are
-// the octree's cells and whose consecutive cells are face neighbours), the cuts on either curve against the serial rule
-// on the whole sorted set (contiguous ranges covering every particle once, the weight bound), independence of the
-// input's distribution over the ranks, the exchange to the owners and back bit for bit, edge cases and collective
-// failure.
+// the octree's cells and whose consecutive cells are face neighbours), the cuts on either curve
+// against the serial rule on the whole sorted set (contiguous ranges covering every particle once,
+// the weight bound), independence of the input's distribution over the ranks, the exchange to the
+// owners and back bit for bit, edge cases and collective failure.
 #include <gtest/gtest.h>
 #include <mpi.h>
 

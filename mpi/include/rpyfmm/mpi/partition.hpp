@@ -76,8 +76,8 @@ struct Column {
   std::size_t per = 1;
 };
 
-/// A particle's place in the global order: its key on the partition's curve, then its global index (the
-/// concatenation of the ranks' input shares in rank order) to break ties between equal keys.
+/// A particle's place in the global order: its key on the partition's curve, then its global index
+/// (the concatenation of the ranks' input shares in rank order) to break ties between equal keys.
 struct SfcKey {
   std::uint64_t key = 0;
   std::uint64_t index = 0;
