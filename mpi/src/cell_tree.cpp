@@ -10,8 +10,9 @@
 namespace rpyfmm::mpi::detail {
 namespace {
 
-// The octant (0..7) of a key at `level` + 1: the three key bits below the level's prefix.
-unsigned octant(std::uint64_t key, int level) {
+// The digit (0..7) of a key at `level` + 1: the three key bits below the level's prefix, the rank of
+// the child cell along the curve (its octant for Morton keys; partition.hpp).
+unsigned digit(std::uint64_t key, int level) {
   return static_cast<unsigned>(key >> (3 * (kMortonBitsPerAxis - level - 1))) & 7u;
 }
 
@@ -42,7 +43,7 @@ CellTree build_cell_tree(std::span<const std::uint64_t> keys, std::span<const do
     for (unsigned k = 0; k < 8 && begin < parent.end; ++k) {
       const auto stop = std::partition_point(keys.begin() + static_cast<std::ptrdiff_t>(begin),
                                              keys.begin() + static_cast<std::ptrdiff_t>(parent.end),
-                                             [&](std::uint64_t key) { return octant(key, parent.level) <= k; });
+                                             [&](std::uint64_t key) { return digit(key, parent.level) <= k; });
       const auto end = static_cast<std::size_t>(stop - keys.begin());
       if (end == begin) continue;
       tree.cells.push_back(Cell{begin, end, parent.level + 1, 0, 0, tight_box(positions, begin, end)});

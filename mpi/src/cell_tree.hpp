@@ -1,7 +1,9 @@
-// rpyfmm — the tree of cells over one rank's owned particles, in Morton order (docs/mpi.md,
-// "Distributed Laplace FMM"): the cells of the global octree (prefixes of the Morton keys of
-// SfcPartition) that hold this rank's particles, split while they hold more than a capacity, with
-// the tight bounding box of their particles. The locally essential tree is cut from it.
+// rpyfmm — the tree of cells over one rank's owned particles, in key order (docs/mpi.md,
+// "Distributed Laplace FMM"): the cells of the global octree (prefixes of the Morton or Hilbert keys
+// of SfcPartition) that hold this rank's particles, split while they hold more than a capacity, with
+// the tight bounding box of their particles. The locally essential tree is cut from it. Nothing here
+// decodes a key into coordinates: a cell's children are the runs of equal next digit, in the
+// curve's order, and its geometry is its particles' box, so both curves give valid trees.
 #pragma once
 
 #include <array>
@@ -41,9 +43,9 @@ struct CellTree {
   std::vector<Cell> cells;
 };
 
-/// Not collective. keys: the owned particles' Morton keys, increasing; positions: 3 per particle
-/// in the same order. A cell is split into its non-empty octants while it holds more than
-/// `capacity` (>= 1) particles and lies above the keys' finest level (21).
+/// Not collective. keys: the owned particles' keys (Morton or Hilbert, SfcPartition), increasing;
+/// positions: 3 per particle in the same order. A cell is split into its non-empty octants while it
+/// holds more than `capacity` (>= 1) particles and lies above the keys' finest level (21).
 [[nodiscard]] CellTree build_cell_tree(std::span<const std::uint64_t> keys, std::span<const double> positions,
                                        std::size_t capacity);
 

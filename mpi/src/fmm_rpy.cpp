@@ -35,11 +35,15 @@ DistributedFmmOptions laplace_options(const Communicator& comm, const Distribute
     require(o.leaf_capacity >= 0, ErrorCode::invalid_argument, kWhere,
             "leaf_capacity must be >= 0 (0 = automatic), got " + std::to_string(o.leaf_capacity));
   });
-  const std::vector<double> signature{o.tolerance, static_cast<double>(o.leaf_capacity), o.separation,
-                                      static_cast<double>(o.cell_capacity), o.overlap_exchange ? 1.0 : 0.0};
+  const std::vector<double> signature{o.tolerance,
+                                      static_cast<double>(o.leaf_capacity),
+                                      o.separation,
+                                      static_cast<double>(o.cell_capacity),
+                                      o.overlap_exchange ? 1.0 : 0.0,
+                                      static_cast<double>(o.curve)};
   require(same_on_every_rank(comm, signature), ErrorCode::invalid_argument, kWhere,
-          "the ranks pass different options (tolerance, leaf_capacity, separation, cell_capacity or "
-          "overlap_exchange); every rank must pass the same ones");
+          "the ranks pass different options (tolerance, leaf_capacity, separation, cell_capacity, "
+          "overlap_exchange or curve); every rank must pass the same ones");
   DistributedFmmOptions laplace;
   // The Laplace sums run at the requested tolerance, as in FmmRpy (rpy/src/fmm_operator.cpp); the
   // combination's errors stay below it in the tests (tests/mpi/test_distributed_fmm_rpy.cpp). The
@@ -51,6 +55,7 @@ DistributedFmmOptions laplace_options(const Communicator& comm, const Distribute
   laplace.separation = o.separation;
   laplace.cell_capacity = o.cell_capacity;
   laplace.overlap_exchange = o.overlap_exchange;
+  laplace.curve = o.curve;
   return laplace;
 }
 

@@ -31,6 +31,8 @@ void check_options(const DistributedFmmOptions& o) {
           "separation must be 0 (automatic) or in [1, 100], got " + format_number(o.separation));
   require(o.chebyshev_order >= 0 && o.chebyshev_order <= 32, ErrorCode::invalid_argument, kWhere,
           "chebyshev_order must be 0 (automatic) or in [1, 32], got " + std::to_string(o.chebyshev_order));
+  require(o.curve == SfcCurve::morton || o.curve == SfcCurve::hilbert, ErrorCode::invalid_argument, kWhere,
+          "curve must be SfcCurve::morton or SfcCurve::hilbert, got " + std::to_string(static_cast<int>(o.curve)));
   (void)fmm::LaplaceFmm(o.fmm);  // the serial FMM's own checks
 }
 
@@ -47,7 +49,8 @@ std::vector<double> option_signature(const DistributedFmmOptions& o) {
           static_cast<double>(o.cell_capacity),
           o.overlap_exchange ? 1.0 : 0.0,
           o.fmm.near_field ? 1.0 : 0.0,
-          o.gather_all_regions ? 1.0 : 0.0};
+          o.gather_all_regions ? 1.0 : 0.0,
+          static_cast<double>(o.curve)};
 }
 
 // Collective: translates the owned sources x and targets y next to the origin where the whole cloud lies far
@@ -136,15 +139,15 @@ std::vector<std::uint64_t> owned_keys(const SfcPartition& partition) {
 // Collective: partitions the sources (and separate targets, when any rank passes one) and moves
 // their positions to the owners, next to the origin (shift_to_centre).
 void partition_points(const Communicator& comm, DistributedLaplaceFmm::Plan& plan, std::span<const double> sources,
-                      std::span<const double> targets, std::span<const double> weights) {
-  plan.partition = std::make_unique<SfcPartition>(comm.get(), sources, weights);
+                      std::span<const double> targets, std::span<const double> weights, SfcCurve curve) {
+  plan.partition = std::make_unique<SfcPartition>(comm.get(), sources, weights, curve);
   const Column source_column[] = {{sources, 3}};
   plan.owned_x = plan.partition->to_owners(source_column)[0];
   const int mine = targets.empty() ? 0 : 1;
   int separate = 0;
   check_mpi(MPI_Allreduce(&mine, &separate, 1, MPI_INT, MPI_MAX, comm.get()), "MPI_Allreduce");
   if (separate != 0) {
-    plan.target_partition = std::make_unique<SfcPartition>(comm.get(), targets);
+    plan.target_partition = std::make_unique<SfcPartition>(comm.get(), targets, std::span<const double>{}, curve);
     const Column target_column[] = {{targets, 3}};
     plan.owned_targets = plan.target_partition->to_owners(target_column)[0];
   }
@@ -207,7 +210,7 @@ void DistributedLaplaceFmm::set_points(std::span<const double> local_sources, st
   });
   auto plan = std::make_unique<Plan>();
   detail::timed(stats_.plan_seconds, "partition",
-                [&] { partition_points(comm_, *plan, local_sources, local_targets, local_weights); });
+                [&] { partition_points(comm_, *plan, local_sources, local_targets, local_weights, options_.curve); });
   if (plan->partition->global_size() == 0) fail(ErrorCode::invalid_input, kSetPoints, "no rank has a source");
   stats_.plan_bytes_received += (plan->owned_x.size() + plan->owned_targets.size()) * sizeof(double);
 

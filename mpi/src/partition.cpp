@@ -1,6 +1,6 @@
-// rpyfmm — SfcPartition: Morton keys in the global cube, weighted cuts of the global key order by
-// distributed bisection, and the MPI_Alltoallv exchanges to the owners and back (partition.hpp,
-// docs/mpi.md).
+// rpyfmm — SfcPartition: Morton or Hilbert keys (hilbert_key.cpp) in the global cube, weighted cuts
+// of the global key order by distributed bisection, and the MPI_Alltoallv exchanges to the owners
+// and back (partition.hpp, docs/mpi.md).
 #include "rpyfmm/mpi/partition.hpp"
 
 #include <algorithm>
@@ -41,7 +41,9 @@ int ceil_log2(std::uint64_t n) {
   return bits;
 }
 
-void check_input(std::span<const double> positions, std::span<const double> weights) {
+void check_input(std::span<const double> positions, std::span<const double> weights, SfcCurve curve) {
+  require(curve == SfcCurve::morton || curve == SfcCurve::hilbert, ErrorCode::invalid_argument, kWhere,
+          "curve must be SfcCurve::morton or SfcCurve::hilbert, got " + std::to_string(static_cast<int>(curve)));
   require(positions.size() % 3 == 0, ErrorCode::invalid_input, kWhere,
           "local positions have " + std::to_string(positions.size()) + " entries, not a multiple of 3");
   require_finite(positions, kWhere, "local positions", 3);
@@ -193,15 +195,20 @@ KeyCube global_key_cube(const Communicator& comm, std::span<const double> positi
   return cube;
 }
 
-std::vector<std::uint64_t> morton_keys(const KeyCube& cube, std::span<const double> positions) {
+std::vector<std::uint64_t> sfc_keys(const KeyCube& cube, std::span<const double> positions, SfcCurve curve) {
+  const auto key_of = curve == SfcCurve::hilbert ? hilbert_key : morton_key;
   std::vector<std::uint64_t> keys(positions.size() / 3);
   for (std::size_t i = 0; i < keys.size(); ++i) {
     const double* p = positions.data() + 3 * i;
     keys[i] =
-        morton_key(morton_cell(p[0], cube.origin[0], cube.half_side), morton_cell(p[1], cube.origin[1], cube.half_side),
-                   morton_cell(p[2], cube.origin[2], cube.half_side));
+        key_of(morton_cell(p[0], cube.origin[0], cube.half_side), morton_cell(p[1], cube.origin[1], cube.half_side),
+               morton_cell(p[2], cube.origin[2], cube.half_side));
   }
   return keys;
+}
+
+std::vector<std::uint64_t> morton_keys(const KeyCube& cube, std::span<const double> positions) {
+  return sfc_keys(cube, positions, SfcCurve::morton);
 }
 
 namespace {
@@ -231,9 +238,9 @@ struct LocalOrder {
   std::vector<std::uint64_t> prefix;
 };
 
-LocalOrder sort_local(const KeyCube& cube, std::span<const double> positions, std::span<const double> weights,
-                      std::uint64_t offset, const WeightScale& scale) {
-  const std::vector<std::uint64_t> keys = morton_keys(cube, positions);
+LocalOrder sort_local(const KeyCube& cube, SfcCurve curve, std::span<const double> positions,
+                      std::span<const double> weights, std::uint64_t offset, const WeightScale& scale) {
+  const std::vector<std::uint64_t> keys = sfc_keys(cube, positions, curve);
   const std::size_t n = keys.size();
   LocalOrder local{std::vector<SfcKey>(n), std::vector<std::size_t>(n), std::vector<std::uint64_t>(n + 1, 0)};
   std::iota(local.send_order.begin(), local.send_order.end(), std::size_t{0});  // keys ascend with index on ties
@@ -287,9 +294,13 @@ Owners count_owners(const Communicator& comm, std::span<const Composite> cuts, s
 
 }  // namespace
 
-SfcPartition::SfcPartition(MPI_Comm comm, std::span<const double> positions, std::span<const double> weights)
-    : comm_(comm) {
-  comm_.run([&] { check_input(positions, weights); });
+SfcPartition::SfcPartition(MPI_Comm comm, std::span<const double> positions, std::span<const double> weights,
+                           SfcCurve curve)
+    : comm_(comm), curve_(curve) {
+  comm_.run([&] { check_input(positions, weights, curve); });
+  if (!same_on_every_rank(comm_, {static_cast<double>(curve)})) {
+    fail(ErrorCode::invalid_argument, kWhere, "the ranks pass different curves");
+  }
   input_size_ = positions.size() / 3;
   const auto [offset, global_size] = global_offset_and_size(comm_, input_size_);
   global_size_ = global_size;
@@ -300,7 +311,7 @@ SfcPartition::SfcPartition(MPI_Comm comm, std::span<const double> positions, std
   weight_shift_ = scale.unit_weights ? 0 : scale.shift;
   max_q_ = global_size_ == 0 ? 0 : scale.quantize(scale.unit_weights ? 1.0 : w_max);
 
-  LocalOrder local = sort_local(cube_, positions, weights, offset, scale);
+  LocalOrder local = sort_local(cube_, curve_, positions, weights, offset, scale);
   send_order_ = std::move(local.send_order);
   std::uint64_t total_q = 0;
   check_mpi(MPI_Allreduce(&local.prefix.back(), &total_q, 1, MPI_UINT64_T, MPI_SUM, comm_.get()), "MPI_Allreduce");

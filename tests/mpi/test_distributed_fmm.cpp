@@ -3,8 +3,8 @@
 // measured on its own, at most the tolerance), on uniform and clustered sets, empty ranks and more
 // ranks than particles; the compression error against its rule (docs/mpi.md, "Error rule");
 // results independent of how the input is distributed, repeated evaluations bit for bit, new points
-// on one object, the serial FMM split to overlap the exchanges (overlap_exchange), and collective
-// failure.
+// on one object, the serial FMM split to overlap the exchanges (overlap_exchange), the partition
+// along the Hilbert curve (curve), and collective failure.
 #include <gtest/gtest.h>
 #include <mpi.h>
 
@@ -24,6 +24,7 @@
 using rpyfmm::ErrorCode;
 using rpyfmm::mpi::DistributedFmmOptions;
 using rpyfmm::mpi::DistributedLaplaceFmm;
+using rpyfmm::mpi::SfcCurve;
 using namespace rpyfmm_mpi_test;
 namespace fmm = rpyfmm::fmm;
 
@@ -165,10 +166,12 @@ std::uint64_t total(std::uint64_t mine) {
   return sum;
 }
 
-DistributedFmmOptions with_tolerance(double tolerance, bool overlap_exchange = false) {
+DistributedFmmOptions with_tolerance(double tolerance, bool overlap_exchange = false,
+                                     SfcCurve curve = SfcCurve::morton) {
   DistributedFmmOptions o;
   o.fmm.tolerance = tolerance;
   o.overlap_exchange = overlap_exchange;
+  o.curve = curve;
   return o;
 }
 
@@ -178,9 +181,10 @@ const unsigned kTwoOutputs[] = {fmm::potential | fmm::gradient, fmm::all_outputs
 // when the input is all on the last rank (the partition and so the plan depend on the global set
 // only). Returns the compressed cells received, summed over the ranks.
 std::uint64_t expect_contract(const Cloud& c, const std::vector<double>& exact, double tolerance,
-                              std::span<const unsigned> outputs, bool overlap_exchange = false) {
+                              std::span<const unsigned> outputs, bool overlap_exchange = false,
+                              SfcCurve curve = SfcCurve::morton) {
   const std::vector<double> serial = serial_fmm(c, outputs, tolerance);
-  DistributedLaplaceFmm f(MPI_COMM_WORLD, with_tolerance(tolerance, overlap_exchange));
+  DistributedLaplaceFmm f(MPI_COMM_WORLD, with_tolerance(tolerance, overlap_exchange, curve));
   const std::vector<double> even = distributed(f, c, outputs, Split::even);
   EXPECT_LE(worst_error(even, exact, outputs, c.size()), tolerance) << "against the direct sum, eps " << tolerance;
   EXPECT_LE(worst_error(even, serial, outputs, c.size()), tolerance) << "against the serial FMM, eps " << tolerance;
@@ -440,6 +444,43 @@ TEST(DistributedFmm, OverlappedExchangeMeetsTheSameContract) {
   }
 }
 
+TEST(DistributedFmm, HilbertCurveMeetsTheSameContract) {
+  // The sources (and separate targets) partitioned along the Hilbert curve: within the tolerance of
+  // the direct sum and the serial FMM on uniform and clustered sets, the same bits for the input on
+  // the last rank, on a repeated evaluation and for separate targets distributed two ways.
+  const Cloud uniform = uniform_cloud(3000, 2, 11), clustered = clustered_cloud(1200, 4800, 2, 12);
+  for (const Cloud* c : {&uniform, &clustered}) {
+    const std::vector<double> exact = direct(*c, kTwoOutputs);
+    for (double tolerance : {1e-3, 1e-6, 1e-9}) {
+      const std::uint64_t cells = expect_contract(*c, exact, tolerance, kTwoOutputs, false, SfcCurve::hilbert);
+      if (c == &clustered && world_size() > 1) {
+        EXPECT_GT(cells, 0u) << "no cell was compressed at eps " << tolerance;
+      }
+    }
+  }
+  DistributedLaplaceFmm f(MPI_COMM_WORLD, with_tolerance(1e-6, false, SfcCurve::hilbert));
+  (void)planned_and_evaluated_twice(f, clustered, share_of(clustered, Split::geometric), kTwoOutputs);
+  std::vector<double> targets(uniform.x.begin(), uniform.x.begin() + 30);
+  for (std::size_t i = 0; i < 1500; ++i) targets.push_back(0.37 * static_cast<double>(i % 50) - 5.0);
+  const std::size_t m = targets.size() / 3;
+  const std::vector<double> exact = direct(uniform, kTwoOutputs, targets);
+  const Share u = share_of(uniform, Split::even);
+  std::vector<double> first;
+  for (Split split : {Split::last_only, Split::geometric}) {
+    const Partition t = partition_of(m, split);
+    f.set_points(u.x, share(targets, 3, t.offset, t.n));
+    std::vector<double> local(uniform.nd * t.n * W);
+    f.evaluate(u.q, uniform.nd, kTwoOutputs, local);
+    const std::vector<double> all = gather_results(local, uniform.nd, m, split);
+    EXPECT_LE(worst_error(all, exact, kTwoOutputs, m), 1e-6) << "separate targets";
+    if (first.empty()) {
+      first = all;
+    } else {
+      EXPECT_EQ(bitwise_mismatches(all, first), 0u) << "the targets' distribution changed the bits";
+    }
+  }
+}
+
 TEST(DistributedFmm, GroupedOutputsAsTheSerialFmm) {
   // The serial FMM's grouped flags pass through: a grad_div group (with potentials and gradients),
   // a plain density and a curl_grad_div group, within twice the tolerance of the serial FMM with
@@ -522,6 +563,16 @@ TEST(DistributedFmm, FailsOnEveryRank) {
     overlap_on_one.overlap_exchange = world_rank() == last;
     expect_collective_error([&] { DistributedLaplaceFmm g(MPI_COMM_WORLD, overlap_on_one); },
                             ErrorCode::invalid_argument, "the ranks pass different options");
+    DistributedFmmOptions hilbert_on_one;
+    hilbert_on_one.curve = world_rank() == last ? SfcCurve::hilbert : SfcCurve::morton;
+    expect_collective_error([&] { DistributedLaplaceFmm g(MPI_COMM_WORLD, hilbert_on_one); },
+                            ErrorCode::invalid_argument, "the ranks pass different options");
+  }
+  {
+    DistributedFmmOptions bad_curve;
+    bad_curve.curve = static_cast<SfcCurve>(world_rank() == last ? 7 : 0);
+    expect_collective_error([&] { DistributedLaplaceFmm g(MPI_COMM_WORLD, bad_curve); }, ErrorCode::invalid_argument,
+                            "curve must be SfcCurve::morton or SfcCurve::hilbert, got 7");
   }
   // Still usable after the failures.
   f.evaluate(s.q, 1, fmm::potential, out);

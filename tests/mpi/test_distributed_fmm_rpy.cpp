@@ -4,7 +4,8 @@
 // within twice it of each other). Uniform, strongly clustered and polydisperse sets, overlapping
 // and touching pairs whose partners lie on different ranks, coincident points, more ranks than
 // particles, extreme length scales and loads; repeated products and thread counts bit for bit; the
-// samplers on the operator; and collective failure on bad input of one rank.
+// partition along the Hilbert curve; the samplers on the operator; and collective failure on bad
+// input of one rank.
 #include <gtest/gtest.h>
 #include <mpi.h>
 #include <omp.h>
@@ -27,6 +28,7 @@
 using rpyfmm::ErrorCode;
 using rpyfmm::mpi::DistributedFmmRpy;
 using rpyfmm::mpi::DistributedFmmRpyOptions;
+using rpyfmm::mpi::SfcCurve;
 using rpyfmm::rpy::DirectRpy;
 using rpyfmm::rpy::FmmRpy;
 using rpyfmm::rpy::Geometry;
@@ -62,11 +64,12 @@ SerialProducts serial_products(const Particles& p, double tolerance) {
 // Each owner's serial Laplace FMM runs with leaves of kLeaf points, so that at these sizes most pairs
 // are in its far field (its automatic leaves hold hundreds of points at 1e-6 and 1e-9).
 std::vector<double> expect_contract(const Particles& p, Split split, double tolerance, const char* label,
-                                    bool overlap_exchange = false) {
+                                    bool overlap_exchange = false, SfcCurve curve = SfcCurve::morton) {
   const Partition part = partition_of(p.size(), split);
   const SerialProducts serial = serial_products(p, tolerance);
-  DistributedFmmRpy op(MPI_COMM_WORLD, kViscosity,
-                       {.tolerance = tolerance, .leaf_capacity = kLeaf, .overlap_exchange = overlap_exchange});
+  DistributedFmmRpy op(
+      MPI_COMM_WORLD, kViscosity,
+      {.tolerance = tolerance, .leaf_capacity = kLeaf, .overlap_exchange = overlap_exchange, .curve = curve});
   op.set_positions(share(p.x, 3, part.offset, part.n), share(p.a, 1, part.offset, part.n));
   EXPECT_EQ(op.global_size(), p.size());
   EXPECT_EQ(op.local_size(), part.n);
@@ -85,6 +88,15 @@ std::vector<double> expect_contract(const Particles& p, Split split, double tole
                 world_size(), tolerance, to_exact, to_fmm, op.halo_size());
   }
   return u;
+}
+
+// The whole set's velocities on every rank from each rank's share of the input split by `split`.
+std::vector<double> all_velocities(const std::vector<double>& local, std::size_t n, Split split) {
+  const Partition part = partition_of(n, split);
+  std::vector<double> mine(3 * n, 0.0), all(3 * n);
+  std::copy(local.begin(), local.end(), mine.begin() + static_cast<std::ptrdiff_t>(3 * part.offset));
+  MPI_Allreduce(mine.data(), all.data(), static_cast<int>(mine.size()), MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+  return all;
 }
 
 }  // namespace
@@ -252,16 +264,25 @@ TEST(MpiDistributedFmmRpy, ResultsIndependentOfThreadCountAndDistribution) {
   EXPECT_EQ(bitwise_mismatches(one, three), 0u);
   // The same global input distributed otherwise over the same ranks: the same bits.
   const std::vector<double> other = expect_contract(p, Split::last_only, 1e-6, "last only");
-  const Partition even = partition_of(p.size(), Split::even), last = partition_of(p.size(), Split::last_only);
-  std::vector<double> all_even(3 * p.size(), 0.0), all_last(3 * p.size(), 0.0), sum_even(all_even.size()),
-      sum_last(all_last.size());
-  std::copy(one.begin(), one.end(), all_even.begin() + static_cast<std::ptrdiff_t>(3 * even.offset));
-  std::copy(other.begin(), other.end(), all_last.begin() + static_cast<std::ptrdiff_t>(3 * last.offset));
-  MPI_Allreduce(all_even.data(), sum_even.data(), static_cast<int>(all_even.size()), MPI_DOUBLE, MPI_SUM,
-                MPI_COMM_WORLD);
-  MPI_Allreduce(all_last.data(), sum_last.data(), static_cast<int>(all_last.size()), MPI_DOUBLE, MPI_SUM,
-                MPI_COMM_WORLD);
-  EXPECT_EQ(bitwise_mismatches(sum_even, sum_last), 0u);
+  EXPECT_EQ(
+      bitwise_mismatches(all_velocities(one, p.size(), Split::even), all_velocities(other, p.size(), Split::last_only)),
+      0u);
+}
+
+TEST(MpiDistributedFmmRpy, HilbertCurveWithinToleranceOfDirect) {
+  // The partition along the Hilbert curve: the same contract on the uniform and the strongly
+  // clustered sets, and the same bits whichever way the input is distributed over the ranks.
+  const Particles uniform = uniform_particles(600, 30.0, 1.0, 1.0, 61), clustered = clustered_particles(300, 60, 62);
+  for (double eps : kTolerances) {
+    const std::vector<double> even =
+        expect_contract(uniform, Split::even, eps, "uniform, hilbert", false, SfcCurve::hilbert);
+    const std::vector<double> last =
+        expect_contract(uniform, Split::last_only, eps, "uniform, hilbert, last", false, SfcCurve::hilbert);
+    EXPECT_EQ(bitwise_mismatches(all_velocities(even, uniform.size(), Split::even),
+                                 all_velocities(last, uniform.size(), Split::last_only)),
+              0u);
+    expect_contract(clustered, Split::geometric, eps, "clustered, hilbert", false, SfcCurve::hilbert);
+  }
 }
 
 TEST(MpiDistributedFmmRpy, SamplersOnTheOperator) {
@@ -567,6 +588,9 @@ TEST(MpiDistributedFmmRpy, DifferentOptionsOrViscositiesFailEveryRank) {
     const double viscosity = world_rank() == last ? 2.0 : 1.0;
     expect_collective_error([&] { DistributedFmmRpy op(MPI_COMM_WORLD, viscosity); }, ErrorCode::invalid_argument,
                             "the ranks pass different viscosities");
+    const SfcCurve curve = world_rank() == last ? SfcCurve::hilbert : SfcCurve::morton;
+    expect_collective_error([&] { DistributedFmmRpy op(MPI_COMM_WORLD, kViscosity, {.curve = curve}); },
+                            ErrorCode::invalid_argument, "the ranks pass different options");
   }
   const double bad = world_rank() == last ? 0.5 : 1e-6;
   expect_collective_error([&] { DistributedFmmRpy op(MPI_COMM_WORLD, kViscosity, {.tolerance = bad}); },

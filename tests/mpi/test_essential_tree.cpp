@@ -1,11 +1,13 @@
 // The pieces of DistributedLaplaceFmm's locally essential tree on one process (mpi/src, not
-// collective): the tree of cells over Morton-sorted particles, the cover of a region, the walk
+// collective): the tree of cells over particles sorted by Morton or Hilbert key (each cell one
+// octree cell of its level on both curves), the cover of a region, the walk
 // that chooses what is sent (every particle exactly once, the acceptance and order rules), and the
 // Chebyshev anterpolation (interpolation at the nodes, moments, the far-field error against
 // rho^-p; docs/mpi.md, "Error rule").
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <numeric>
@@ -24,21 +26,22 @@ using rpyfmm::mpi::detail::Cell;
 using rpyfmm::mpi::detail::CellTree;
 using rpyfmm::mpi::detail::Cube;
 
-// n points in the unit cube, a third of them in a cube of side 0.01, sorted by Morton key.
+// n points in the unit cube, a third of them in a cube of side 0.01, sorted by key along `curve`.
 struct Sorted {
   std::vector<double> x;
   std::vector<std::uint64_t> keys;
 };
 
-Sorted sorted_cloud(std::size_t n, std::uint64_t seed) {
+constexpr rpyfmm::mpi::KeyCube kUnitCube{{0.0, 0.0, 0.0}, 0.5};
+
+Sorted sorted_cloud(std::size_t n, std::uint64_t seed, rpyfmm::mpi::SfcCurve curve = rpyfmm::mpi::SfcCurve::morton) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   std::vector<double> x(3 * n);
   for (std::size_t i = 0; i < n; ++i) {
     for (std::size_t d = 0; d < 3; ++d) x[3 * i + d] = i < n / 3 ? 0.6 + 0.01 * u(rng) : u(rng);
   }
-  const rpyfmm::mpi::KeyCube cube{{0.0, 0.0, 0.0}, 0.5};
-  const std::vector<std::uint64_t> keys = rpyfmm::mpi::morton_keys(cube, x);
+  const std::vector<std::uint64_t> keys = rpyfmm::mpi::sfc_keys(kUnitCube, x, curve);
   std::vector<std::size_t> order(n);
   std::iota(order.begin(), order.end(), std::size_t{0});
   std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return keys[a] < keys[b]; });
@@ -57,14 +60,28 @@ bool inside(const Box& b, const double* p) {
   return true;
 }
 
-TEST(EssentialTree, CellsPartitionTheirParentsAndBoundTheirParticles) {
-  const Sorted s = sorted_cloud(3000, 1);
+// The octree cell of level `level` holding point p (its grid cell on each axis, the key's cells).
+std::array<std::uint32_t, 3> octree_cell(const double* p, int level) {
+  std::array<std::uint32_t, 3> c{};
+  for (std::size_t d = 0; d < 3; ++d) {
+    c[d] = rpyfmm::mpi::morton_cell(p[d], kUnitCube.origin[d], kUnitCube.half_side) >>
+           (rpyfmm::mpi::kMortonBitsPerAxis - level);
+  }
+  return c;
+}
+
+void expect_cells_partition_their_parents(rpyfmm::mpi::SfcCurve curve) {
+  const Sorted s = sorted_cloud(3000, 1, curve);
   const CellTree tree = rpyfmm::mpi::detail::build_cell_tree(s.keys, s.x, 32);
   ASSERT_FALSE(tree.cells.empty());
   EXPECT_EQ(tree.cells[0].begin, 0u);
   EXPECT_EQ(tree.cells[0].end, 3000u);
   for (const Cell& c : tree.cells) {
-    for (std::size_t i = c.begin; i < c.end; ++i) EXPECT_TRUE(inside(c.box, &s.x[3 * i]));
+    for (std::size_t i = c.begin; i < c.end; ++i) {
+      EXPECT_TRUE(inside(c.box, &s.x[3 * i]));
+      // One octree cell of the cell's level holds all its particles (the keys' prefix property).
+      EXPECT_EQ(octree_cell(&s.x[3 * i], c.level), octree_cell(&s.x[3 * c.begin], c.level));
+    }
     if (c.leaf()) {
       EXPECT_TRUE(c.size() <= 32 || c.level == rpyfmm::mpi::kMortonBitsPerAxis);
       continue;
@@ -87,6 +104,11 @@ TEST(EssentialTree, CellsPartitionTheirParentsAndBoundTheirParticles) {
   }
 }
 
+TEST(EssentialTree, CellsPartitionTheirParentsAndBoundTheirParticles) {
+  expect_cells_partition_their_parents(rpyfmm::mpi::SfcCurve::morton);
+  expect_cells_partition_their_parents(rpyfmm::mpi::SfcCurve::hilbert);
+}
+
 TEST(EssentialTree, EveryParticleIsSentOnceAndCompressedCellsAreFarAndWorthIt) {
   const Sorted s = sorted_cloud(4000, 2);
   const CellTree tree = rpyfmm::mpi::detail::build_cell_tree(s.keys, s.x, 16);
@@ -105,7 +127,9 @@ TEST(EssentialTree, EveryParticleIsSentOnceAndCompressedCellsAreFarAndWorthIt) {
                                                                    tree.cells[0].size(), region, acceptance);
       const bool root_only = sent.halo.empty() && sent.compressed.size() == 1 && sent.compressed[0].cell == 0;
       EXPECT_EQ(root_order > 0, root_only);
-      if (root_only) EXPECT_EQ(sent.compressed[0].order, root_order);
+      if (root_only) {
+        EXPECT_EQ(sent.compressed[0].order, root_order);
+      }
       std::vector<int> times(4000, 0);
       for (std::uint32_t c : sent.halo) {
         EXPECT_TRUE(tree.cells[c].leaf());

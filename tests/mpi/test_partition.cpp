@@ -1,14 +1,18 @@
 // rpyfmm::mpi::SfcPartition: Morton keys against a serial reference (a bit-by-bit interleave on the
-// whole set), the cuts against the serial rule on the whole sorted set (contiguous ranges covering
-// every particle once, the weight bound), independence of the input's distribution over the ranks,
-// the exchange to the owners and back bit for bit, edge cases and collective failure.
+// whole set), Hilbert keys by their defining properties (a bijection of the grid whose prefixes are
+// the octree's cells and whose consecutive cells are face neighbours), the cuts on either curve
+// against the serial rule on the whole sorted set (contiguous ranges covering every particle once,
+// the weight bound), independence of the input's distribution over the ranks, the exchange to the
+// owners and back bit for bit, edge cases and collective failure.
 #include <gtest/gtest.h>
 #include <mpi.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <map>
 #include <numeric>
 #include <random>
 #include <string>
@@ -19,6 +23,7 @@
 
 using rpyfmm::ErrorCode;
 using rpyfmm::mpi::Column;
+using rpyfmm::mpi::SfcCurve;
 using rpyfmm::mpi::SfcKey;
 using rpyfmm::mpi::SfcPartition;
 using namespace rpyfmm_mpi_test;
@@ -35,8 +40,9 @@ std::uint64_t reference_key(const std::uint32_t cell[3]) {
   return key;
 }
 
-// The keys of the whole set (3N positions), with the cube taken serially over all of them.
-std::vector<std::uint64_t> reference_keys(const std::vector<double>& x) {
+// The keys of the whole set (3N positions) along `curve`, with the cube and the cells taken
+// serially over all of them (Hilbert keys of the cells by hilbert_key, tested on its own below).
+std::vector<std::uint64_t> reference_keys(const std::vector<double>& x, SfcCurve curve) {
   const std::size_t n = x.size() / 3;
   double lo[3], hi[3];
   for (int d = 0; d < 3; ++d) {
@@ -52,7 +58,7 @@ std::vector<std::uint64_t> reference_keys(const std::vector<double>& x) {
       const double c = half > 0.0 ? std::floor((0.5 * x[3 * i + d] - 0.5 * lo[d]) / half * 2097152.0) : 0.0;
       cell[d] = static_cast<std::uint32_t>(std::clamp(c, 0.0, 2097151.0));
     }
-    keys[i] = reference_key(cell);
+    keys[i] = curve == SfcCurve::morton ? reference_key(cell) : rpyfmm::mpi::hilbert_key(cell[0], cell[1], cell[2]);
   }
   return keys;
 }
@@ -99,20 +105,23 @@ std::vector<std::uint64_t> reference_counts(const std::vector<SfcKey>& sorted, c
   return counts;
 }
 
-// Partitions the global set (3N positions, N weights or none) given to the ranks as `split`, checks
-// it against the serial references and the exchange both ways, and returns this rank's owned list.
-std::vector<SfcKey> check_partition(const std::vector<double>& x, const std::vector<double>& weights, Split split) {
+// Partitions the global set (3N positions, N weights or none) given to the ranks as `split` along
+// `curve`, checks it against the serial references and the exchange both ways, and returns this
+// rank's owned list.
+std::vector<SfcKey> check_partition(const std::vector<double>& x, const std::vector<double>& weights, Split split,
+                                    SfcCurve curve) {
   const std::size_t n = x.size() / 3;
   const Partition part = partition_of(n, split);
   const std::vector<double> local_x = share(x, 3, part.offset, part.n);
   const std::vector<double> local_w = weights.empty() ? std::vector<double>{} : share(weights, 1, part.offset, part.n);
-  const SfcPartition p(MPI_COMM_WORLD, local_x, local_w);
+  const SfcPartition p(MPI_COMM_WORLD, local_x, local_w, curve);
+  EXPECT_EQ(p.curve(), curve);
   EXPECT_EQ(p.global_size(), n);
   EXPECT_EQ(p.input_size(), part.n);
 
   // Keys: the serial reference's, each global index once, and the owned lists in rank order are the
   // whole set sorted by (key, index): contiguous ranges that cover every particle once.
-  const std::vector<std::uint64_t> keys = reference_keys(x);
+  const std::vector<std::uint64_t> keys = reference_keys(x, curve);
   std::vector<SfcKey> sorted(n);
   for (std::size_t i = 0; i < n; ++i) sorted[i] = SfcKey{keys[i], i};
   std::sort(sorted.begin(), sorted.end());
@@ -180,10 +189,24 @@ std::vector<double> spread_weights(std::size_t n, std::uint64_t seed) {
   return w;
 }
 
-// Checks every split and that they all give the same owned list on this rank.
-void check_all_splits(const std::vector<double>& x, const std::vector<double>& weights) {
-  const std::vector<SfcKey> first = check_partition(x, weights, Split::even);
-  for (Split s : kSplits) EXPECT_TRUE(check_partition(x, weights, s) == first) << "split " << static_cast<int>(s);
+// Checks every split on `curve` and that they all give the same owned list on this rank.
+void check_all_splits(const std::vector<double>& x, const std::vector<double>& weights,
+                      SfcCurve curve = SfcCurve::morton) {
+  const std::vector<SfcKey> first = check_partition(x, weights, Split::even, curve);
+  for (Split s : kSplits) {
+    EXPECT_TRUE(check_partition(x, weights, s, curve) == first) << "split " << static_cast<int>(s);
+  }
+}
+
+// The cell of level `level` of the 2^21 grid cell (ix, iy, iz) as one number, and the key's prefix
+// of that level.
+std::uint64_t coarse_cell(const std::uint32_t cell[3], int level) {
+  std::uint64_t c = 0;
+  for (int d = 0; d < 3; ++d) c = c << 21 | cell[d] >> (21 - level);
+  return c;
+}
+std::uint64_t prefix(std::uint64_t key, int level) {
+  return level == 0 ? 0 : key >> (3 * (21 - level));
 }
 
 }  // namespace
@@ -202,13 +225,86 @@ TEST(MpiPartition, MortonKeyInterleavesTheBits) {
   }
 }
 
+TEST(MpiPartition, HilbertKeyPrefixesAreTheOctreeCells) {
+  // For random cells of the 2^21 grid and several levels l, two cells share the key prefix of 3l
+  // bits exactly when they lie in the same cell of level l: the prefix is a function of the coarse
+  // cell and the coarse cell one of the prefix.
+  std::mt19937_64 rng(21);
+  std::vector<std::array<std::uint32_t, 3>> cells(3000);
+  for (std::size_t i = 0; i < cells.size(); ++i) {
+    // Half of them near one corner of a coarse cell, so that deep levels share prefixes too.
+    const std::uint32_t mask = i % 2 == 0 ? 0x1fffffu : 0x1fu;
+    for (std::uint32_t& c : cells[i]) c = static_cast<std::uint32_t>(rng()) & mask;
+  }
+  for (int level : {0, 1, 2, 3, 5, 8, 13, 17, 20, 21}) {
+    std::map<std::uint64_t, std::uint64_t> cell_of_prefix, prefix_of_cell;
+    std::size_t wrong = 0;
+    for (const auto& cell : cells) {
+      const std::uint64_t p = prefix(rpyfmm::mpi::hilbert_key(cell[0], cell[1], cell[2]), level);
+      const std::uint64_t c = coarse_cell(cell.data(), level);
+      wrong += cell_of_prefix.try_emplace(p, c).first->second != c;
+      wrong += prefix_of_cell.try_emplace(c, p).first->second != p;
+    }
+    EXPECT_EQ(wrong, 0u) << "level " << level;
+    EXPECT_EQ(cell_of_prefix.size(), prefix_of_cell.size()) << "level " << level;
+  }
+}
+
+TEST(MpiPartition, HilbertKeyVisitsTheGridByFaceNeighbours) {
+  // On the full grid of 2^k cells per axis (the level-k cells, k = 1 .. 4), the keys' prefixes of 3k
+  // bits are a bijection onto 0 .. 8^k - 1, and cells consecutive along it share a face (the
+  // Hilbert property; Morton order breaks it from k = 1 on, checked as a control).
+  for (int k = 1; k <= 4; ++k) {
+    const std::uint32_t side = 1u << k;
+    std::vector<std::array<std::uint32_t, 3>> by_key(std::size_t{side} * side * side, {side, side, side});
+    std::size_t morton_jumps = 0;
+    std::array<std::uint32_t, 3> previous_morton{};
+    for (std::uint32_t x = 0; x < side; ++x) {
+      for (std::uint32_t y = 0; y < side; ++y) {
+        for (std::uint32_t z = 0; z < side; ++z) {
+          const int shift = 21 - k;
+          const std::uint64_t key = rpyfmm::mpi::hilbert_key(x << shift, y << shift, z << shift);
+          const std::uint64_t p = prefix(key, k);
+          ASSERT_LT(p, by_key.size());
+          EXPECT_EQ(by_key[p][0], side) << "key prefix " << p << " twice at k = " << k;
+          by_key[p] = {x, y, z};
+        }
+      }
+    }
+    for (std::size_t j = 1; j < by_key.size(); ++j) {
+      std::uint32_t steps = 0;
+      for (int d = 0; d < 3; ++d) {
+        steps += by_key[j][d] > by_key[j - 1][d] ? by_key[j][d] - by_key[j - 1][d] : by_key[j - 1][d] - by_key[j][d];
+      }
+      EXPECT_EQ(steps, 1u) << "cells " << j - 1 << " and " << j << " along the curve at k = " << k;
+    }
+    // The control: Morton order (key j decoded by the reference interleave) jumps.
+    for (std::uint64_t j = 0; j < by_key.size(); ++j) {
+      std::array<std::uint32_t, 3> cell{};
+      for (int b = 0; b < k; ++b) {
+        for (int d = 0; d < 3; ++d) cell[d] |= static_cast<std::uint32_t>((j >> (3 * b + 2 - d)) & 1u) << b;
+      }
+      std::uint32_t steps = 0;
+      for (int d = 0; d < 3; ++d)
+        steps += cell[d] > previous_morton[d] ? cell[d] - previous_morton[d] : previous_morton[d] - cell[d];
+      morton_jumps += j > 0 && steps != 1;
+      previous_morton = cell;
+    }
+    EXPECT_GT(morton_jumps, 0u);
+  }
+  // The curve starts at the origin's cell.
+  EXPECT_EQ(rpyfmm::mpi::hilbert_key(0, 0, 0), 0u);
+}
+
 TEST(MpiPartition, UniformSetWithUnitWeights) {
   check_all_splits(uniform_positions(1001, -2.0, 3.0, 1), {});
+  check_all_splits(uniform_positions(1001, -2.0, 3.0, 1), {}, SfcCurve::hilbert);
 }
 
 TEST(MpiPartition, ClusteredSetWithSpreadWeights) {
   const Particles p = clustered_particles(500, 80, 2);
   check_all_splits(p.x, spread_weights(p.size(), 3));
+  check_all_splits(p.x, spread_weights(p.size(), 3), SfcCurve::hilbert);
 }
 
 TEST(MpiPartition, WeightBoundHoldsInTheInputUnits) {
@@ -232,6 +328,7 @@ TEST(MpiPartition, OneDominantWeight) {
   std::vector<double> w(400, 1.0);
   w[123] = 1e6;
   check_all_splits(uniform_positions(400, 0.0, 1.0, 11), w);
+  check_all_splits(uniform_positions(400, 0.0, 1.0, 11), w, SfcCurve::hilbert);
 }
 
 TEST(MpiPartition, SubnormalWeights) {
@@ -257,6 +354,7 @@ TEST(MpiPartition, CoincidentPointsAreOrderedByGlobalIndex) {
   // Half of them at a second point: two keys, ties within each.
   for (std::size_t i = 0; i < 37; i += 2) x[3 * i + 2] = 8.0;
   check_all_splits(x, spread_weights(37, 6));
+  check_all_splits(x, spread_weights(37, 6), SfcCurve::hilbert);
 }
 
 TEST(MpiPartition, ZeroWeightsEverywhereCountAsOne) {
@@ -282,6 +380,7 @@ TEST(MpiPartition, ExtremeSpreads) {
   check_all_splits(x, {});
   for (double& c : x) c = (c - 1.0) * 1e-295;  // tiny, partly subnormal
   check_all_splits(x, {});
+  check_all_splits(x, {}, SfcCurve::hilbert);
 }
 
 TEST(MpiPartition, BadInputFailsEveryRank) {
@@ -316,6 +415,17 @@ TEST(MpiPartition, BadInputFailsEveryRank) {
         make(world_rank() == last ? std::vector<double>{1, 2} : x, {});
       },
       ErrorCode::invalid_input, "not a multiple of 3");
+  expect_collective_error(
+      [&] {
+        const SfcPartition p(MPI_COMM_WORLD, x, w, world_rank() == last ? static_cast<SfcCurve>(2) : SfcCurve::hilbert);
+      },
+      ErrorCode::invalid_argument,
+      on_last + ": rpyfmm::mpi::SfcPartition: curve must be SfcCurve::morton or SfcCurve::hilbert, got 2");
+  if (world_size() > 1) {
+    expect_collective_error(
+        [&] { const SfcPartition p(MPI_COMM_WORLD, x, w, world_rank() == 0 ? SfcCurve::hilbert : SfcCurve::morton); },
+        ErrorCode::invalid_argument, "rpyfmm::mpi::SfcPartition: the ranks pass different curves");
+  }
 
   // Columns: a wrong size on the last rank, and different widths on different ranks.
   const SfcPartition p(MPI_COMM_WORLD, x, w);

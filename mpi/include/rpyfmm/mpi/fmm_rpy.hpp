@@ -68,6 +68,8 @@ struct DistributedFmmRpyOptions {
   /// DistributedFmmOptions::overlap_exchange of the Laplace FMM: its serial FMM split to run during
   /// the exchanges of the essential charges (docs/mpi.md).
   bool overlap_exchange = false;
+  /// DistributedFmmOptions::curve: the space-filling curve of the partition (docs/mpi.md).
+  SfcCurve curve = SfcCurve::morton;
 };
 
 /// This rank's exchanges, as DistributedDirectRpy's CommunicationStats (docs/mpi.md, "Distributed

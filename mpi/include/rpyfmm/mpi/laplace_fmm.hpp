@@ -39,6 +39,7 @@
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
 #include "rpyfmm/mpi/communicator.hpp"
+#include "rpyfmm/mpi/partition.hpp"
 
 namespace rpyfmm::mpi {
 
@@ -77,6 +78,9 @@ struct DistributedFmmOptions {
   /// cell (docs/mpi.md, "Distributed Laplace FMM"). Both plans are the same bit for bit; the
   /// gathered one is the reference that the tests compare with.
   bool gather_all_regions = false;
+  /// The space-filling curve of the partition of the sources and of the targets (SfcPartition;
+  /// docs/mpi.md, "Space-filling-curve partition"). Both meet the same accuracy contract.
+  SfcCurve curve = SfcCurve::morton;
 };
 
 /// The acceptance ratio used when DistributedFmmOptions::separation is 0.

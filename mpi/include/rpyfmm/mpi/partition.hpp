@@ -2,16 +2,17 @@
 // the redistribution of per-particle data that goes with it (docs/mpi.md, "Space-filling-curve
 // partition").
 //
-// Particles get Morton keys (Morton, 1966; the Z-order of Warren and Salmon, 1993) in the global
-// bounding cube; the global order by (key, global index) is cut into P contiguous ranges of
-// balanced weight, rank r owning the r-th range. Every rank's share of any per-particle column is
-// then moved to the owners in key order by one MPI_Alltoallv, and results are moved back to the
-// original ranks and order by the inverse exchange, bit for bit.
+// Particles get keys along a space-filling curve in the global bounding cube: Morton keys (Morton,
+// 1966; the Z-order of Warren and Salmon, 1993), the default, or Hilbert keys (Butz, 1971). The
+// global order by (key, global index) is cut into P contiguous ranges of balanced weight, rank r
+// owning the r-th range. Every rank's share of any per-particle column is then moved to the owners
+// in key order by one MPI_Alltoallv, and results are moved back to the original ranks and order by
+// the inverse exchange, bit for bit.
 //
-// Morton rather than Hilbert order: a Morton key's prefixes are the octree's cells, so a rank's
-// range is a union of whole cells on each level (the property the distributed octree of the FMM
-// needs), and a key is a bit interleave. Hilbert ranges have shorter surfaces (less halo traffic)
-// and may replace it behind the same interface.
+// On both curves a key's prefix of 3l bits is one cell of level l of the octree over the cube, so
+// a rank's range is a union of whole cells on each level (the property the distributed octree of
+// the FMM needs). A Morton key is a bit interleave; consecutive Hilbert cells are face neighbours,
+// so Hilbert ranges are more compact (docs/mpi.md measures what that does to the halos).
 #pragma once
 
 #include <mpi.h>
@@ -27,7 +28,7 @@
 
 namespace rpyfmm::mpi {
 
-/// Bits of each coordinate in a Morton key: 3 × 21 = 63 bits, cells of side / 2^21.
+/// Bits of each coordinate in a key (Morton or Hilbert): 3 × 21 = 63 bits, cells of side / 2^21.
 inline constexpr int kMortonBitsPerAxis = 21;
 
 /// The cube [origin, origin + 2 half_side]^3 in which the keys are taken: origin the smallest
@@ -42,6 +43,16 @@ struct KeyCube {
 /// 3b + 1, 3b of the key (x most significant within a level), so keys sort cells level by level.
 [[nodiscard]] std::uint64_t morton_key(std::uint32_t ix, std::uint32_t iy, std::uint32_t iz);
 
+/// The Hilbert key of the cell (ix, iy, iz), each < 2^21 (Butz's algorithm as formulated by
+/// Hamilton, "Compact Hilbert indices", Dalhousie Univ. Tech. Rep. CS-2006-07, 2006, Sec. 2):
+/// 21 digits of 3 bits from the coarsest level, digit l the rank of the cell's octant of level l
+/// along its parent's subcurve. A prefix of 3l bits is one cell of level l, and cells consecutive in
+/// key order at any level are face neighbours. Curve starts at cell (0, 0, 0).
+[[nodiscard]] std::uint64_t hilbert_key(std::uint32_t ix, std::uint32_t iy, std::uint32_t iz);
+
+/// The curve along which SfcPartition orders the particles. Every rank must pass the same.
+enum class SfcCurve { morton, hilbert };
+
 /// The cell index along one axis of coordinate `c`: floor((c/2 - origin/2) / half_side · 2^21), the
 /// upper face in the last cell, 0 when half_side is 0. On halves, so that spreads up to the largest
 /// double do not overflow; the same input gives the same index on every rank.
@@ -52,7 +63,11 @@ struct KeyCube {
 /// (partition() checks them collectively; this function does not).
 [[nodiscard]] KeyCube global_key_cube(const Communicator& comm, std::span<const double> positions);
 
-/// Not collective: the keys of `positions` (3n) in `cube`.
+/// Not collective: the keys of `positions` (3n) in `cube` along `curve` (of the cells that
+/// morton_cell gives on each axis).
+[[nodiscard]] std::vector<std::uint64_t> sfc_keys(const KeyCube& cube, std::span<const double> positions,
+                                                  SfcCurve curve);
+/// sfc_keys along the Morton curve.
 [[nodiscard]] std::vector<std::uint64_t> morton_keys(const KeyCube& cube, std::span<const double> positions);
 
 /// One per-particle column to move: `per` doubles per particle, particle-major (positions: per 3).
@@ -61,8 +76,8 @@ struct Column {
   std::size_t per = 1;
 };
 
-/// A particle's place in the global order: its Morton key, then its global index (the
-/// concatenation of the ranks' input shares in rank order) to break ties between equal keys.
+/// A particle's place in the global order: its key on the partition's curve, then its global index
+/// (the concatenation of the ranks' input shares in rank order) to break ties between equal keys.
 struct SfcKey {
   std::uint64_t key = 0;
   std::uint64_t index = 0;
@@ -74,10 +89,13 @@ class SfcPartition {
   /// Collective. Partitions the particles that this rank holds (3n positions; n may be 0 on any
   /// rank, and on all of them) with weights (n entries, finite and >= 0; empty: 1 for each of this
   /// rank's particles; all 0 everywhere: 1 each). Fails on every rank (Communicator::agree) for a
-  /// wrong size, a NaN or infinite coordinate or weight, or a negative weight on any rank. Memory
-  /// O(n + n_owned + P) per rank. The communicator must outlive the partition.
-  SfcPartition(MPI_Comm comm, std::span<const double> positions, std::span<const double> weights = {});
+  /// wrong size, a NaN or infinite coordinate or weight, a negative weight, or a curve that is not
+  /// an SfcCurve on any rank, or different curves on different ranks. Memory O(n + n_owned + P) per
+  /// rank. The communicator must outlive the partition.
+  SfcPartition(MPI_Comm comm, std::span<const double> positions, std::span<const double> weights = {},
+               SfcCurve curve = SfcCurve::morton);
 
+  [[nodiscard]] SfcCurve curve() const { return curve_; }
   [[nodiscard]] const KeyCube& cube() const { return cube_; }
   /// The particles this rank holds in the input (n) and owns after the partition.
   [[nodiscard]] std::size_t input_size() const { return input_size_; }
@@ -126,6 +144,7 @@ class SfcPartition {
   void receive_owned(std::span<const SfcKey> sorted);
 
   Communicator comm_;
+  SfcCurve curve_ = SfcCurve::morton;
   KeyCube cube_;
   std::size_t input_size_ = 0;
   std::uint64_t global_size_ = 0;
