@@ -50,8 +50,8 @@ initializes MPI. docs/mpi.md, "Python (mpi4py)", lists what is supported.
   holding its share of the particles (``positions``, ``ids``, ``types``, ``last_forces``, ...;
   copies; reading them is not collective), ``gather()`` the whole state on one rank; with free
   draining the positions are :meth:`rpyfmm.Simulation.from_config`'s bit for bit.
-* :class:`SfcPartition` ``(comm, positions, weights=None)``: the Morton-curve partition of the
-  particles the ranks hold (``owned_indices``, ``owned_counts``, ``splitters``, ...) and
+* :class:`SfcPartition` ``(comm, positions, weights=None, curve="morton")``: the Morton- or
+  Hilbert-curve partition of the particles the ranks hold (``owned_indices``, ``owned_counts``, ``splitters``, ...) and
   ``to_owners`` / ``to_origin`` moving per-particle rows to the owners and back.
 
 Constructors take an mpi4py communicator (``MPI.COMM_WORLD`` or any intra-communicator) and

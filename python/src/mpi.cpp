@@ -353,15 +353,22 @@ void bind_distributed_direct(nb::module_& m) {
   add_statistics(cls);
 }
 
+/// The curve named `name`, agreed over the ranks of `comm` (a bad name on any rank raises on all).
+mpi::SfcCurve agreed_curve(MPI_Comm comm, const std::string& name, const char* where) {
+  return agreed(mpi::Communicator(comm), [&] { return curve_from(name, where); });
+}
+
 void init_fmm(Fmm* self, nb::object comm, double viscosity, double tolerance, int leaf_capacity, bool overlap_exchange,
-              double separation, std::size_t cell_capacity) {
+              double separation, std::size_t cell_capacity, const std::string& curve) {
+  const MPI_Comm handle = comm_from(comm, "DistributedFmmRpy");
   mpi::DistributedFmmRpyOptions o;
+  o.curve = agreed_curve(handle, curve, "DistributedFmmRpy");
   o.tolerance = tolerance;
   o.leaf_capacity = leaf_capacity;
   o.overlap_exchange = overlap_exchange;
   o.separation = separation;
   o.cell_capacity = cell_capacity;
-  new (self) Fmm{comm, mpi::DistributedFmmRpy(comm_from(comm, "DistributedFmmRpy"), viscosity, o)};
+  new (self) Fmm{comm, mpi::DistributedFmmRpy(handle, viscosity, o)};
 }
 
 void bind_distributed_fmm(nb::module_& m) {
@@ -371,14 +378,18 @@ void bind_distributed_fmm(nb::module_& m) {
       "near field; relative l2\nerror of U (and of W with torques) over all particles at most the tolerance.");
   cls.def("__init__", &init_fmm, nb::arg("comm"), nb::arg("viscosity") = 1.0, nb::arg("tolerance") = 1e-6,
           nb::arg("leaf_capacity") = 0, nb::arg("overlap_exchange") = false, nb::arg("separation") = 0.0,
-          nb::arg("cell_capacity") = 0,
+          nb::arg("cell_capacity") = 0, nb::arg("curve") = "morton",
           "Collective. comm: an mpi4py communicator; tolerance: relative l2 error of U in [1e-12, 1e-1];\n"
           "leaf_capacity: 0 = automatic; overlap_exchange: the Laplace FMM's serial FMM split to run during\n"
           "the exchanges; separation (0 or in [1, 100]) and cell_capacity (0 = automatic): the Laplace FMM's\n"
-          "exchange of the essential tree (docs/mpi.md). Every rank must pass the same values.")
+          "exchange of the essential tree; curve: 'morton' or 'hilbert', the partition's space-filling curve\n"
+          "(docs/mpi.md). Every rank must pass the same values.")
       .def_prop_ro(
           "tolerance", [](const Fmm& s) { return s.op.options().tolerance; },
-          "Requested relative l2 error of U (and of W with torques).");
+          "Requested relative l2 error of U (and of W with torques).")
+      .def_prop_ro(
+          "curve", [](const Fmm& s) { return curve_name(s.op.options().curve); },
+          "The partition's space-filling curve: 'morton' or 'hilbert'.");
   add_common(cls, kKrylovSqrtDoc, false);
   add_rotation_apply(cls);
   add_apply_block(cls);
@@ -448,15 +459,17 @@ void bind_distributed_pse(nb::module_& m) {
 }
 
 void init_laplace(Laplace* self, nb::object comm, double tolerance, int leaf_capacity, int order, double separation,
-                  std::size_t cell_capacity, bool overlap_exchange) {
+                  std::size_t cell_capacity, bool overlap_exchange, const std::string& curve) {
+  const MPI_Comm handle = comm_from(comm, "DistributedLaplaceFmm");
   mpi::DistributedFmmOptions o;
+  o.curve = agreed_curve(handle, curve, "DistributedLaplaceFmm");
   o.fmm.tolerance = tolerance;
   o.fmm.leaf_capacity = leaf_capacity;
   o.fmm.order = order;
   o.separation = separation;
   o.cell_capacity = cell_capacity;
   o.overlap_exchange = overlap_exchange;
-  new (self) Laplace{comm, mpi::DistributedLaplaceFmm(comm_from(comm, "DistributedLaplaceFmm"), o)};
+  new (self) Laplace{comm, mpi::DistributedLaplaceFmm(handle, o)};
 }
 
 /// Sources, and targets where given (None: none on this rank), as LaplaceFmm.set_points.
@@ -526,15 +539,19 @@ void bind_distributed_laplace(nb::module_& m) {
       "each rank's own sources or targets; relative l2 error of each output at most the tolerance.");
   cls.def("__init__", &init_laplace, nb::arg("comm"), nb::arg("tolerance") = 1e-6, nb::arg("leaf_capacity") = 0,
           nb::arg("order") = 0, nb::arg("separation") = 0.0, nb::arg("cell_capacity") = 0,
-          nb::arg("overlap_exchange") = false,
+          nb::arg("overlap_exchange") = false, nb::arg("curve") = "morton",
           "Collective. comm: an mpi4py communicator; tolerance, leaf_capacity, order: each rank's serial\n"
           "LaplaceFmm; separation (0 or in [1, 100]) and cell_capacity: the exchange of the essential tree\n"
-          "(0 = automatic); overlap_exchange: the serial FMM split to run during the exchanges (docs/mpi.md).\n"
-          "Every rank must pass the same values.")
+          "(0 = automatic); overlap_exchange: the serial FMM split to run during the exchanges; curve:\n"
+          "'morton' or 'hilbert', the partition's space-filling curve (docs/mpi.md). Every rank must pass the\n"
+          "same values.")
       .def_prop_ro(
           "comm", [](const Laplace& s) { return s.comm; }, "The mpi4py communicator the plan works on.")
       .def_prop_ro(
           "tolerance", [](const Laplace& s) { return s.op.options().fmm.tolerance; }, "Requested relative l2 accuracy.")
+      .def_prop_ro(
+          "curve", [](const Laplace& s) { return curve_name(s.op.options().curve); },
+          "The partition's space-filling curve: 'morton' or 'hilbert'.")
       .def_prop_ro("local_size",
                    locked_read(
                        "local_size", +[](const Laplace& s) { return s.op.local_size(); }),

@@ -15,6 +15,7 @@
 
 #include "common.hpp"
 #include "rpyfmm/mpi/communicator.hpp"
+#include "rpyfmm/mpi/partition.hpp"
 #include "rpyfmm/mpi/sqrt.hpp"
 
 namespace rpyfmm::python {
@@ -78,6 +79,12 @@ template <class T>
 nb::object copy_integers(std::span<const T> values) {
   return adopt_integers(std::vector<T>(values.begin(), values.end()));
 }
+
+/// The space-filling curve named `name`: "morton" or "hilbert" (mpi::SfcCurve); else
+/// InvalidArgumentError naming `where` and the choices. Not collective: callers agree on it.
+mpi::SfcCurve curve_from(const std::string& name, const std::string& where);
+/// The Python name of `curve`.
+const char* curve_name(mpi::SfcCurve curve);
 
 void bind_mpi_bd(nb::module_& m);
 void bind_mpi_partition(nb::module_& m);

@@ -30,14 +30,16 @@ struct Partition {
   std::unique_ptr<mpi::SfcPartition> part;
 };
 
-void init_partition(Partition* self, nb::object comm, ArrayArg positions, OptArrayArg weights) {
+void init_partition(Partition* self, nb::object comm, ArrayArg positions, OptArrayArg weights,
+                    const std::string& curve) {
   const MPI_Comm handle = comm_from(comm, kWhere);
   const mpi::Communicator world(handle);
   struct Args {
     InArray x, w;
+    mpi::SfcCurve curve;
   };
   const Args a = agreed(world, [&] {
-    Args r{as_input(positions, kWhere, "positions"), InArray{}};
+    Args r{as_input(positions, kWhere, "positions"), InArray{}, curve_from(curve, kWhere)};
     require_points(r.x, kWhere, "positions");
     if (!weights.is_none()) r.w = as_input(weights, kWhere, "weights");
     return r;
@@ -45,7 +47,7 @@ void init_partition(Partition* self, nb::object comm, ArrayArg positions, OptArr
   std::unique_ptr<mpi::SfcPartition> made;
   {
     nb::gil_scoped_release release;
-    made = std::make_unique<mpi::SfcPartition>(handle, a.x.span(), a.w.span());
+    made = std::make_unique<mpi::SfcPartition>(handle, a.x.span(), a.w.span(), a.curve);
   }
   new (self) Partition{std::move(comm), world, std::move(made)};
 }
@@ -96,6 +98,9 @@ void add_sizes(PartitionClass& cls) {
   cls.def_prop_ro(
          "comm", [](const Partition& p) { return p.comm; }, "The mpi4py communicator the partition works on.")
       .def_prop_ro(
+          "curve", [](const Partition& p) { return curve_name(p.part->curve()); },
+          "The space-filling curve of the order: 'morton' or 'hilbert'.")
+      .def_prop_ro(
           "input_size", [](const Partition& p) { return p.part->input_size(); }, "This rank's input particles n.")
       .def_prop_ro(
           "owned_size", [](const Partition& p) { return p.part->owned_size(); },
@@ -103,10 +108,10 @@ void add_sizes(PartitionClass& cls) {
       .def_prop_ro(
           "global_size", [](const Partition& p) { return p.part->global_size(); }, "The particles on all ranks N.")
       .def_prop_ro("owned_indices", &owned_field<&mpi::SfcKey::index>,
-                   "The global indices (m,) of the owned particles in their order (Morton key, then global index);\n"
+                   "The global indices (m,) of the owned particles in their order (key, then global index);\n"
                    "the global index is the place in the ranks' inputs concatenated in rank order.")
       .def_prop_ro("owned_keys", &owned_field<&mpi::SfcKey::key>,
-                   "The Morton keys (m,) of the owned particles, in the same order (non-decreasing).")
+                   "The keys (m,) of the owned particles along the curve, in the same order (non-decreasing).")
       .def_prop_ro("splitters", &splitters,
                    "The P - 1 cuts as a (P - 1, 2) array of (key, global index): rank r owns the particles with\n"
                    "splitters[r - 1] <= (key, index) < splitters[r].")
@@ -131,14 +136,26 @@ void add_sizes(PartitionClass& cls) {
 
 }  // namespace
 
+mpi::SfcCurve curve_from(const std::string& name, const std::string& where) {
+  if (name == "morton") return mpi::SfcCurve::morton;
+  if (name == "hilbert") return mpi::SfcCurve::hilbert;
+  fail(ErrorCode::invalid_argument, where, "curve must be 'morton' or 'hilbert', got '" + name + "'");
+}
+
+const char* curve_name(mpi::SfcCurve curve) {
+  return curve == mpi::SfcCurve::hilbert ? "hilbert" : "morton";
+}
+
 void bind_mpi_partition(nb::module_& m) {
   PartitionClass cls(m, "SfcPartition",
-                     "Weighted Morton-curve partition of the particles the ranks hold (rpyfmm::mpi::SfcPartition,\n"
-                     "docs/mpi.md): the global order by (key, global index) cut into P ranges of balanced weight,\n"
-                     "and the moves of per-particle data to the owners and back.");
+                     "Weighted space-filling-curve partition of the particles the ranks hold\n"
+                     "(rpyfmm::mpi::SfcPartition, docs/mpi.md): the global order by (key, global index) cut into P\n"
+                     "ranges of balanced weight, and the moves of per-particle data to the owners and back.");
   cls.def("__init__", &init_partition, nb::arg("comm"), nb::arg("positions"), nb::arg("weights") = nb::none(),
+          nb::arg("curve") = "morton",
           "Collective. comm: an mpi4py communicator; positions: this rank's particles, (n, 3) or (3n,), n >= 0;\n"
-          "weights: None (1 each) or n finite weights >= 0. A bad input on any rank raises on every rank.");
+          "weights: None (1 each) or n finite weights >= 0; curve: 'morton' or 'hilbert', the same on every\n"
+          "rank. A bad input on any rank raises on every rank.");
   add_sizes(cls);
   cls.def(
          "to_owners",

@@ -354,6 +354,41 @@ def test_laplace_within_tolerance(with_targets: bool, overlap_exchange: bool) ->
     assert fmm.global_size == len(x) and fmm.local_size == part.stop - part.start
 
 
+def test_hilbert_curve_meets_the_same_contracts() -> None:
+    rng = np.random.default_rng(23)
+    x, q = rng.uniform(0.0, 1.0, (3000, 3)), rng.standard_normal((1, 3000))
+    part = share(len(x))
+    fmm = rpyfmm.mpi.DistributedLaplaceFmm(COMM, tolerance=1e-6, curve="hilbert")
+    fmm.set_points(x[part])
+    r = np.concatenate(COMM.allgather(fmm.evaluate(q[:, part], outputs="all")), axis=1)
+    y, a, f = system(1500, seed=29, radii=True)
+    op = rpyfmm.mpi.DistributedFmmRpy(COMM, tolerance=1e-6, curve="hilbert")
+    ypart = share(len(y))
+    op.set_positions(y[ypart], a[ypart])
+    u = gathered(op.apply(f[ypart]))
+    exact = rpyfmm.DirectRpy()
+    exact.set_positions(y, a)
+    # The contracts of docs/mpi.md ("Distributed Laplace FMM", "Distributed FmmRpy") hold for either
+    # curve: the relative l2 error of each output, and of U, at most the tolerance.
+    expected = rpyfmm.laplace_direct(x, q)
+    for cols in (slice(0, 1), slice(1, 4), slice(4, 10)):
+        assert rel_err(r[0][:, cols], expected[0][:, cols]) <= 1e-6
+    assert rel_err(u, exact.apply(f)) <= 1e-6
+    assert fmm.curve == "hilbert" and op.curve == "hilbert"
+    assert rpyfmm.mpi.DistributedFmmRpy(COMM).curve == "morton"
+
+
+def test_unknown_curve_raises_on_every_rank() -> None:
+    name = "peano" if RANK == SIZE - 1 else "morton"
+    with pytest.raises(rpyfmm.InvalidArgumentError, match="'morton' or 'hilbert'") as laplace:
+        rpyfmm.mpi.DistributedLaplaceFmm(COMM, curve=name)
+    with pytest.raises(rpyfmm.InvalidArgumentError, match="'morton' or 'hilbert'") as fmm:
+        rpyfmm.mpi.DistributedFmmRpy(COMM, curve=name)
+    for caught in (laplace, fmm):
+        messages = COMM.allgather(str(caught.value))
+        assert all(m == messages[0] for m in messages), messages
+
+
 def test_normal_noise_is_the_serial_rows() -> None:
     part = share(90, empty_first=True)
     z = rpyfmm.mpi.normal_noise(part.stop - part.start, part.start, seed=7, step=3, stream=1)

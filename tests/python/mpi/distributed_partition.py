@@ -1,6 +1,6 @@
 """rpyfmm.mpi.SfcPartition: the Morton-curve partition of particles the ranks hold, against keys
 computed here from the documented formula, the balance bound, and the moves of data to the owners
-and back (docs/mpi.md, "Space-filling-curve partition" and "Python (mpi4py)").
+and back; the Hilbert curve's order against the octree cells of the same formula (docs/mpi.md, "Space-filling-curve partition" and "Python (mpi4py)").
 
 Run by ctest under mpirun with distributed_bd.py (tests/mpi/CMakeLists.txt):
 `mpirun -n 3 python -m pytest tests/python/mpi/distributed_partition.py`. Its name does not match
@@ -103,6 +103,36 @@ def test_moves_to_the_owners_and_back_bit_for_bit() -> None:
     assert np.array_equal(owned_x, x[part.owned_indices.astype(np.int64)])
     assert np.array_equal(owned_w, w[part.owned_indices.astype(np.int64)])
     assert back.tobytes() == values.tobytes() and back_w.tobytes() == w[mine].tobytes()
+
+
+def test_hilbert_order_keeps_the_octree_cells_contiguous() -> None:
+    x, w = cloud()
+    part = rpyfmm.mpi.SfcPartition(COMM, x[share(N)], w[share(N)], curve="hilbert")
+    morton = rpyfmm.mpi.SfcPartition(COMM, x[share(N)], curve="morton")
+    owned = COMM.allgather((part.owned_indices, part.owned_keys))
+    indices = np.concatenate([i for i, _ in owned]).astype(np.int64)
+    keys = np.concatenate([k for _, k in owned])
+    assert part.curve == "hilbert" and morton.curve == "morton"
+    assert np.array_equal(np.sort(indices), np.arange(N))
+    assert list(zip(keys.tolist(), indices.tolist())) == sorted(zip(keys.tolist(), indices.tolist()))
+    # On either curve a key's first 3l bits name one octree cell of level l (partition.hpp): the
+    # particles sharing a prefix are exactly those sharing the Morton prefix, the cell computed here
+    # from the documented formula, for every level.
+    cells = morton_keys(x)[indices]
+    for level in (1, 2, 3, 5, 8, 21):
+        shift = np.uint64(3 * (21 - level))
+        by_key = {}
+        for k, c in zip((keys >> shift).tolist(), (cells >> shift).tolist()):
+            by_key.setdefault(k, set()).add(c)
+        assert all(len(c) == 1 for c in by_key.values())
+        assert len(by_key) == len(set((cells >> shift).tolist()))
+    # The curves differ: the octants of level 1 come in Morton's z-order on one, in a Gray-code
+    # order on the other.
+    first_octants = [int(c) for c in dict.fromkeys((cells >> np.uint64(60)).tolist())]
+    assert sorted(first_octants) == list(range(8)) and first_octants != list(range(8))
+    # The balance bound of the cuts is the curve's too (as test_owned_particles_are_the_balanced_morton_ranges).
+    weights = part.owned_weights
+    assert weights.max() <= w.sum() / SIZE + w.max() + 1e-12 * w.sum()
 
 
 def test_bad_input_on_one_rank_raises_on_every_rank() -> None:
