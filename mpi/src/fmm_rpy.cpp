@@ -51,6 +51,9 @@ DistributedFmmOptions laplace_options(const Communicator& comm, const Distribute
   laplace.separation = o.separation;
   laplace.cell_capacity = o.cell_capacity;
   laplace.overlap_exchange = o.overlap_exchange;
+  // FmmRpy's leaves count particles: an owned particle, which an owner's serial FMM holds as a
+  // source and as a target, counts once.
+  laplace.count_owned_once = true;
   return laplace;
 }
 

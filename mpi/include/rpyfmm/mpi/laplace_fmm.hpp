@@ -52,6 +52,14 @@ struct DistributedFmmOptions {
   /// of their near fields between particles (owned or halo) and sum only their near pairs with
   /// equivalent nodes; the results then lack those pairs.
   fmm::FmmOptions fmm{};
+  /// With fmm.leaf_capacity > 0: where an owner's serial FMM runs at its owned sources as separate
+  /// targets (it received halo sources or equivalent nodes), whose tree counts a leaf's sources
+  /// and targets together, the capacity and the fitted grid's occupancy and point counts are
+  /// doubled, so that an owned particle, a source and a target, counts once, as in the serial FMM
+  /// at its own points: leaves with the owned particles split as on one rank (halo-only leaves
+  /// split at twice the capacity). Off: the serial FMM's own count. DistributedFmmRpy sets it
+  /// (docs/mpi.md, "Distributed FmmRpy").
+  bool count_owned_once = false;
   /// Acceptance ratio eta: a cell whose cube (around its particles' tight box, half-side h) lies at a
   /// distance d >= eta h from every box of another rank's region may be sent to it as equivalent
   /// charges, with the Chebyshev order its own ratio d / h needs (chebyshev_order_for). 0 = automatic
