@@ -25,8 +25,9 @@ constexpr const char* kSetPoints = "rpyfmm::mpi::DistributedLaplaceFmm::set_poin
 constexpr const char* kEvaluate = "rpyfmm::mpi::DistributedLaplaceFmm::evaluate";
 
 void check_options(const DistributedFmmOptions& o) {
-  require(!o.fmm.export_direct_far, ErrorCode::invalid_argument, kWhere,
-          "the serial FMM must sum its W/X pairs itself (export_direct_far = false)");
+  require(!o.fmm.export_direct_far || !o.fmm.near_field, ErrorCode::invalid_argument, kWhere,
+          "export_direct_far needs near_field = false (the serial FMM's W/X pairs between particles are "
+          "left to the caller with its near pairs)");
   require(o.separation == 0.0 || (o.separation >= 1.0 && o.separation <= 100.0), ErrorCode::invalid_argument, kWhere,
           "separation must be 0 (automatic) or in [1, 100], got " + format_number(o.separation));
   require(o.chebyshev_order >= 0 && o.chebyshev_order <= 32, ErrorCode::invalid_argument, kWhere,

@@ -45,12 +45,14 @@ namespace rpyfmm::mpi {
 /// Options of the distributed plan. Every rank must pass the same.
 struct DistributedFmmOptions {
   /// The serial FMM that every rank runs on its locally essential sources (tolerance, leaf capacity,
-  /// order, ...). export_direct_far must be false. A min_leaf_side > 0 also keeps every cell closer
-  /// than it to a rank's region from being compressed for that rank, so that pairs closer than it
-  /// are summed exactly, as in the serial FMM's near field. near_field = false (for
-  /// DistributedFmmRpy, which sums them as RPY blocks): the owners' serial FMMs leave out the pairs
-  /// of their near fields between particles (owned or halo) and sum only their near pairs with
-  /// equivalent nodes; the results then lack those pairs.
+  /// order, ...). A min_leaf_side > 0 also keeps every cell closer than it to a rank's region from
+  /// being compressed for that rank, so that pairs closer than it are summed exactly, as in the
+  /// serial FMM's near field. near_field = false (for DistributedFmmRpy, which sums them as RPY
+  /// blocks): the owners' serial FMMs leave out the pairs of their near fields between particles
+  /// (owned or halo) and sum only their near pairs with equivalent nodes; the results then lack
+  /// those pairs. export_direct_far (only with near_field = false): the W/X leaf pairs that the
+  /// serial FMM would sum directly join its near field (fmm::NearField::pairs) and are treated as
+  /// near pairs, those between particles left out, those with equivalent nodes summed.
   fmm::FmmOptions fmm{};
   /// With fmm.leaf_capacity > 0: where an owner's serial FMM runs at its owned sources as separate
   /// targets (it received halo sources or equivalent nodes), whose tree counts a leaf's sources
@@ -127,7 +129,7 @@ struct FmmCommunication {
 class DistributedLaplaceFmm {
  public:
   /// Collective. Throws rpyfmm::Error on every rank for options the serial FMM refuses, for
-  /// export_direct_far = true, a separation that is not 0 or in [1, 100], a
+  /// export_direct_far = true with near_field = true, a separation that is not 0 or in [1, 100], a
   /// Chebyshev order outside [0, 32], and for options that differ between ranks.
   DistributedLaplaceFmm(MPI_Comm comm, const DistributedFmmOptions& options = {});
   ~DistributedLaplaceFmm();
