@@ -32,7 +32,8 @@ struct NearPiece {
 [[nodiscard]] std::vector<std::uint8_t> node_sources(const Plan& plan);
 
 /// Adds to owned_results (nd x owned targets x 10, the serial FMM's layout and flags) the Laplace
-/// sums of the near pairs of `piece` whose source is an equivalent node: potential, gradient and
+/// sums of the near pairs of `piece` (its exported W/X leaf pairs included, where the serial FMM
+/// exports them) whose source is an equivalent node: potential, gradient and
 /// Hessian by the serial P2P kernel, folded as `outputs` ask (fmm::grad_div, fmm::curl_grad_div).
 /// q: nd rows of `width` charges of the piece's sources. Serial, in the order of the piece's pairs.
 void add_node_near_field(const Plan& plan, const NearPiece& piece, std::span<const double> q, std::size_t width,

@@ -51,11 +51,18 @@ DistributedFmmOptions laplace_options(const Communicator& comm, const Distribute
   // are set per configuration (set_positions).
   laplace.fmm.tolerance = o.tolerance;
   laplace.fmm.near_field = false;
+  // FmmRpy's rule (rpy/src/fmm_operator.cpp, docs/design-notes.md item 7): the W/X pairs that the
+  // Laplace FMM would sum directly go to the near field, where one RPY block per pair of particles
+  // beats 4-7 Laplace densities; those with equivalent nodes stay Laplace pairs (essential_near.hpp).
+  laplace.fmm.export_direct_far = true;
   laplace.fmm.leaf_capacity = o.leaf_capacity;
   laplace.separation = o.separation;
   laplace.cell_capacity = o.cell_capacity;
   laplace.overlap_exchange = o.overlap_exchange;
   laplace.curve = o.curve;
+  // FmmRpy's leaves count particles: an owned particle, which an owner's serial FMM holds as a
+  // source and as a target, counts once.
+  laplace.count_owned_once = true;
   return laplace;
 }
 

@@ -1,9 +1,9 @@
 // rpyfmm — the exact near field of DistributedFmmRpy (docs/mpi.md, "Distributed FmmRpy"): on each
-// owner, the near pairs that its serial Laplace FMM (planned with near_field = false) leaves out
-// between particles, owned or halo, summed as RPY blocks by FmmRpy's own code
-// (rpy/src/fmm_near_field.hpp): the pairs of owned particles once for both directions (as FmmRpy
-// at its own points), the halo particles on the owned ones one-sided; and the velocities moved back
-// to the input ranks.
+// owner, the near pairs that its serial Laplace FMM (planned with near_field = false and
+// export_direct_far, so its W/X leaf pairs among them) leaves out between particles, owned or
+// halo, summed as RPY blocks by FmmRpy's own code (rpy/src/fmm_near_field.hpp): the pairs of owned
+// particles once for both directions (as FmmRpy at its own points), the halo particles on the owned
+// ones one-sided; and the velocities moved back to the input ranks.
 #pragma once
 
 #include <cstddef>

@@ -25,8 +25,9 @@ constexpr const char* kSetPoints = "rpyfmm::mpi::DistributedLaplaceFmm::set_poin
 constexpr const char* kEvaluate = "rpyfmm::mpi::DistributedLaplaceFmm::evaluate";
 
 void check_options(const DistributedFmmOptions& o) {
-  require(!o.fmm.export_direct_far, ErrorCode::invalid_argument, kWhere,
-          "the serial FMM must sum its W/X pairs itself (export_direct_far = false)");
+  require(!o.fmm.export_direct_far || !o.fmm.near_field, ErrorCode::invalid_argument, kWhere,
+          "export_direct_far needs near_field = false (the serial FMM's W/X pairs between particles are "
+          "left to the caller with its near pairs)");
   require(o.separation == 0.0 || (o.separation >= 1.0 && o.separation <= 100.0), ErrorCode::invalid_argument, kWhere,
           "separation must be 0 (automatic) or in [1, 100], got " + format_number(o.separation));
   require(o.chebyshev_order >= 0 && o.chebyshev_order <= 32, ErrorCode::invalid_argument, kWhere,
@@ -44,6 +45,7 @@ std::vector<double> option_signature(const DistributedFmmOptions& o) {
           o.fmm.root_scale,
           static_cast<double>(o.fmm.order),
           static_cast<double>(o.fmm.fitted_grid.occupancy),
+          o.count_owned_once ? 1.0 : 0.0,
           o.separation,
           static_cast<double>(o.chebyshev_order),
           static_cast<double>(o.cell_capacity),
@@ -154,16 +156,32 @@ void partition_points(const Communicator& comm, DistributedLaplaceFmm::Plan& pla
   shift_to_centre(comm, plan.owned_x, plan.owned_targets);
 }
 
+// The serial FMM's options where its tree holds every owned particle twice, as a source and as a
+// target (DistributedFmmOptions::count_owned_once): the leaf capacity and the fitted grid's
+// occupancy and point counts doubled, so that a leaf of owned particles splits as in the serial
+// FMM at its own points. The fitted grid's capacity is twice its occupancy (fit_leaf_grid), so
+// doubling the occupancy doubles that capacity too.
+fmm::FmmOptions counting_owned_once(fmm::FmmOptions o) {
+  constexpr std::size_t kMax = std::numeric_limits<std::size_t>::max();
+  o.leaf_capacity *= 2;
+  o.fitted_grid.occupancy *= 2;
+  o.fitted_grid.min_points *= 2;
+  o.fitted_grid.max_points = o.fitted_grid.max_points > kMax / 2 ? kMax : 2 * o.fitted_grid.max_points;
+  return o;
+}
+
 // The serial FMM on this rank's essential sources and owned targets; none where either is empty
 // (its targets' results are then 0). Targets at the sources when nothing came from the other ranks
 // (one rank, or an isolated owner): the serial FMM's own mode, one tree of m points.
-void plan_one_fmm(DistributedLaplaceFmm::Plan& plan, std::span<const double> sources) {
+void plan_one_fmm(DistributedLaplaceFmm::Plan& plan, std::span<const double> sources, const fmm::FmmOptions& options,
+                  bool count_owned_once) {
   const std::vector<double>& targets = plan.target_x();
   plan.sources = sources.empty() || targets.empty() ? 0 : sources.size() / 3;
   if (plan.sources == 0) return;
   if (!plan.target_partition && sources.size() == plan.owned_x.size()) {
     plan.fmm.set_points(sources);
   } else {
+    if (count_owned_once && !plan.target_partition) plan.fmm = fmm::LaplaceFmm(counting_owned_once(options));
     plan.fmm.set_points(sources, targets);
   }
 }
@@ -188,13 +206,19 @@ void plan_split_fmm(DistributedLaplaceFmm::Plan& plan, std::span<const double> s
 }
 
 // Collective: the serial FMM (one, or split in two) on this rank's essential sources.
-void plan_serial_fmm(const Communicator& comm, DistributedLaplaceFmm::Plan& plan, const fmm::FmmOptions& options,
-                     bool split, const std::vector<double>& sources, StageTimes& times) {
-  plan.fmm = fmm::LaplaceFmm(options);
-  plan.own_fmm = fmm::LaplaceFmm(options);
-  plan.received_fmm = fmm::LaplaceFmm(options);
+void plan_serial_fmm(const Communicator& comm, DistributedLaplaceFmm::Plan& plan, const DistributedFmmOptions& options,
+                     const std::vector<double>& sources, StageTimes& times) {
+  plan.fmm = fmm::LaplaceFmm(options.fmm);
+  plan.own_fmm = fmm::LaplaceFmm(options.fmm);
+  plan.received_fmm = fmm::LaplaceFmm(options.fmm);
   comm.run([&] {
-    detail::timed(times, "plan_fmm", [&] { split ? plan_split_fmm(plan, sources) : plan_one_fmm(plan, sources); });
+    detail::timed(times, "plan_fmm", [&] {
+      if (options.overlap_exchange) {
+        plan_split_fmm(plan, sources);
+      } else {
+        plan_one_fmm(plan, sources, options.fmm, options.count_owned_once);
+      }
+    });
   });
 }
 
@@ -238,7 +262,7 @@ void DistributedLaplaceFmm::set_points(std::span<const double> local_sources, st
     plan->essential_x = sources;
     if (stats_.nodes_received > 0) plan->node = detail::node_sources(*plan);
   }
-  plan_serial_fmm(comm_, *plan, options_.fmm, options_.overlap_exchange, sources, stats_.compute_seconds);
+  plan_serial_fmm(comm_, *plan, options_, sources, stats_.compute_seconds);
   plan_ = std::move(plan);
 }
 

@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "fmm_plan.hpp"  // mpi/src: the owners' serial FMMs, for the leaves' capacity
 #include "mpi_test_support.hpp"
 #include "rpyfmm/mpi/direct_operator.hpp"
 #include "rpyfmm/mpi/fmm_rpy.hpp"
@@ -502,6 +503,29 @@ TEST(MpiDistributedFmmRpy, OwnedPairsOnceBesideHaloPairs) {
   const std::vector<double> three = expect_contract(unequal, Split::even, 1e-6, "3 threads");
   omp_set_num_threads(saved);
   EXPECT_EQ(bitwise_mismatches(one, three), 0u);
+}
+
+TEST(MpiDistributedFmmRpy, OwnersLeavesCountOwnedParticlesOnce) {
+  // FmmRpy's leaf capacity counts particles. An owner whose serial Laplace FMM received halo
+  // particles runs it at its owned particles as separate targets, a tree that counts a leaf's
+  // sources and targets together, so there the capacity is doubled (DistributedFmmOptions::
+  // count_owned_once): a leaf of owned particles then splits at kLeaf particles, as in FmmRpy. At
+  // its own points (one rank, nothing received) the capacity stays kLeaf. Every leaf holds at most
+  // kLeaf owned particles either way; the contract on these sets is expect_contract's (above).
+  const Particles p = uniform_particles(2000, 45.0, 1.0, 1.0, 73);
+  const Partition part = partition_of(p.size(), Split::even);
+  DistributedFmmRpy op(MPI_COMM_WORLD, kViscosity, {.tolerance = 1e-6, .leaf_capacity = kLeaf});
+  op.set_positions(share(p.x, 3, part.offset, part.n), share(p.a, 1, part.offset, part.n));
+  const rpyfmm::mpi::DistributedLaplaceFmm::Plan* plan = op.laplace().plan();
+  ASSERT_NE(plan, nullptr);
+  ASSERT_GT(plan->sources, 0u);
+  const bool received = plan->sources > plan->owned_x.size() / 3;
+  EXPECT_EQ(received, world_size() > 1) << "rank " << world_rank();
+  EXPECT_EQ(plan->fmm.stats().leaf_capacity, received ? 2 * kLeaf : kLeaf) << "rank " << world_rank();
+  const rpyfmm::fmm::NearField& near = plan->fmm.near_field();
+  std::size_t most = 0;
+  for (std::size_t leaf = 0; leaf < near.num_leaves(); ++leaf) most = std::max(most, near.targets(leaf).size());
+  EXPECT_LE(most, static_cast<std::size_t>(kLeaf)) << "rank " << world_rank();
 }
 
 // ----------------------------------------------------------------------- collective errors ---

@@ -7,8 +7,9 @@
 // Guan, dissertation, Algorithm 2). The operator evaluates those sums over the far pairs with
 // DistributedLaplaceFmm, combines them as the serial FmmRpy does, and sums the near pairs on each
 // owner as exact RPY blocks with FmmRpy's own near-field code: the pairs of the owner's serial FMM
-// leaves that it leaves out (near_field = false) between its particles and the halo particles
-// received with their loads, and the self terms I / (6 pi eta a_i). Leaves at least 2 a_max wide
+// leaves that it leaves out (near_field = false; its W/X leaf pairs among them, export_direct_far,
+// as in FmmRpy) between its particles and the halo particles received with their loads, and the
+// self terms I / (6 pi eta a_i). Leaves at least 2 a_max wide
 // and no compressed cell within 2 a_max of a rank's region put every overlapping pair (r < a_i +
 // a_j, coincident points included) there.
 //
@@ -60,7 +61,8 @@ class RpyNearField;
 struct DistributedFmmRpyOptions {
   /// Requested relative l2 error of U against the exact product, in [1e-12, 1e-1] (as FmmRpy's).
   double tolerance = 1e-6;
-  /// Points per leaf of each owner's serial Laplace FMM; 0 = its automatic capacity.
+  /// Particles per leaf of each owner's serial Laplace FMM, an owned particle counted once
+  /// (DistributedFmmOptions::count_owned_once); 0 = FmmRpy's automatic capacity.
   int leaf_capacity = 0;
   /// DistributedFmmOptions::separation and cell_capacity of the Laplace FMM (0 = automatic).
   double separation = 0.0;

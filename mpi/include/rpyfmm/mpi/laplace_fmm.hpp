@@ -10,13 +10,12 @@
 //   fmm.set_points(local_sources);                          // collective: builds the plan
 //   fmm.evaluate(local_charges, nd, outputs, local_results); // collective, any number of times
 //
-// How: the sources are partitioned along the Morton curve (SfcPartition) and each owner builds a
-// tree of cells over its key range. Every rank covers its targets' region by a few tight boxes and
-// sends the cover only to the ranks whose root cell it does not compress as a whole (decided from
-// an all-gather of the root cells); for each rank whose cover it receives it walks its cells top
-// down (for the others it sends its root cell compressed) and sends a cell that is well
-// separated from that rank's region, where the p^3 nodes its distance needs are fewer than its
-// particles, as equivalent charges at the tensor Chebyshev nodes of the cell's cube (the
+// How: the sources are partitioned along a space-filling curve (SfcPartition; Morton by default, or Hilbert) and each
+// owner builds a tree of cells over its key range. Every rank covers its targets' region by a few tight boxes and sends
+// the cover only to the ranks whose root cell it does not compress as a whole (decided from an all-gather of the root
+// cells); for each rank whose cover it receives it walks its cells top down (for the others it sends its root cell
+// compressed) and sends a cell that is well separated from that rank's region, where the p^3 nodes its distance needs
+// are fewer than its particles, as equivalent charges at the tensor Chebyshev nodes of the cell's cube (the
 // anterpolation of the black-box FMM, Fong & Darve, J. Comput. Phys. 228 (2009) 8712, Sec. 2);
 // other cells are opened, and leaves not compressed are sent as their particles (halo). The
 // geometry of this locally essential tree is exchanged once in set_points; every evaluate sends
@@ -46,13 +45,23 @@ namespace rpyfmm::mpi {
 /// Options of the distributed plan. Every rank must pass the same.
 struct DistributedFmmOptions {
   /// The serial FMM that every rank runs on its locally essential sources (tolerance, leaf capacity,
-  /// order, ...). export_direct_far must be false. A min_leaf_side > 0 also keeps every cell closer
-  /// than it to a rank's region from being compressed for that rank, so that pairs closer than it
-  /// are summed exactly, as in the serial FMM's near field. near_field = false (for
-  /// DistributedFmmRpy, which sums them as RPY blocks): the owners' serial FMMs leave out the pairs
-  /// of their near fields between particles (owned or halo) and sum only their near pairs with
-  /// equivalent nodes; the results then lack those pairs.
+  /// order, ...). A min_leaf_side > 0 also keeps every cell closer than it to a rank's region from
+  /// being compressed for that rank, so that pairs closer than it are summed exactly, as in the
+  /// serial FMM's near field. near_field = false (for DistributedFmmRpy, which sums them as RPY
+  /// blocks): the owners' serial FMMs leave out the pairs of their near fields between particles
+  /// (owned or halo) and sum only their near pairs with equivalent nodes; the results then lack
+  /// those pairs. export_direct_far (only with near_field = false): the W/X leaf pairs that the
+  /// serial FMM would sum directly join its near field (fmm::NearField::pairs) and are treated as
+  /// near pairs, those between particles left out, those with equivalent nodes summed.
   fmm::FmmOptions fmm{};
+  /// With fmm.leaf_capacity > 0: where an owner's serial FMM runs at its owned sources as separate
+  /// targets (it received halo sources or equivalent nodes), whose tree counts a leaf's sources
+  /// and targets together, the capacity and the fitted grid's occupancy and point counts are
+  /// doubled, so that an owned particle, a source and a target, counts once, as in the serial FMM
+  /// at its own points: leaves with the owned particles split as on one rank (halo-only leaves
+  /// split at twice the capacity). Off: the serial FMM's own count. DistributedFmmRpy sets it
+  /// (docs/mpi.md, "Distributed FmmRpy").
+  bool count_owned_once = false;
   /// Acceptance ratio eta: a cell whose cube (around its particles' tight box, half-side h) lies at a
   /// distance d >= eta h from every box of another rank's region may be sent to it as equivalent
   /// charges, with the Chebyshev order its own ratio d / h needs (chebyshev_order_for). 0 = automatic
@@ -123,7 +132,7 @@ struct FmmCommunication {
 class DistributedLaplaceFmm {
  public:
   /// Collective. Throws rpyfmm::Error on every rank for options the serial FMM refuses, for
-  /// export_direct_far = true, a separation that is not 0 or in [1, 100], a
+  /// export_direct_far = true with near_field = true, a separation that is not 0 or in [1, 100], a
   /// Chebyshev order outside [0, 32], and for options that differ between ranks.
   DistributedLaplaceFmm(MPI_Comm comm, const DistributedFmmOptions& options = {});
   ~DistributedLaplaceFmm();
