@@ -33,10 +33,12 @@ namespace {
 constexpr const char* kWhere = "DistributedBd";
 constexpr std::uint64_t kNoParticle = std::numeric_limits<std::uint64_t>::max();
 
-// The imbalance threshold.
+// The imbalance threshold and the curve.
 void require_supported(const DistributedBdOptions& o) {
   require(o.repartition_imbalance >= 1.0, ErrorCode::invalid_argument, kWhere,
           "repartition_imbalance must be >= 1 (infinity: never), got " + std::to_string(o.repartition_imbalance));
+  require(o.curve == SfcCurve::morton || o.curve == SfcCurve::hilbert, ErrorCode::invalid_argument, kWhere,
+          "curve must be SfcCurve::morton or SfcCurve::hilbert, got " + std::to_string(static_cast<int>(o.curve)));
 }
 
 // Whether the particles of type t are inertial (IntegratorOptions::inertia, as bd::LangevinGroup
@@ -158,7 +160,8 @@ std::vector<double> option_signature(const DistributedBdOptions& o, const rpy::G
           i.keep_split_displacements ? 1.0 : 0.0,
           static_cast<double>(forces.callbacks().size()),
           i.sac.enabled ? 1.0 : 0.0,
-          i.sac.adsorption_factor};
+          i.sac.adsorption_factor,
+          static_cast<double>(o.curve)};
 }
 
 // option_signature with the inertial types' masses and frictions (0 for Brownian types).
@@ -430,7 +433,7 @@ void DistributedBd::repartition(std::span<const double> weights) {
     id[i] = static_cast<double>(ids_[i]);
     type[i] = static_cast<double>(types_[i]);
   }
-  const SfcPartition partition(comm_.get(), keyed, weights);
+  const SfcPartition partition(comm_.get(), keyed, weights, options_.curve);
   // With rotation the orientations, those at step 0 and the summed rotation vectors travel too.
   std::vector<Column> columns = {{x_, 3}, {reference_, 3}, {id, 1}, {type, 1}};
   if (options_.integrator.rotation) columns.insert(columns.end(), {{q_, 4}, {reference_q_, 4}, {rotation_sum_, 3}});

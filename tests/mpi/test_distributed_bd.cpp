@@ -208,6 +208,38 @@ TEST(MpiDistributedBd, ShuffledIdsAndARepartitionAtEveryRebuildKeepTheSerialTraj
   EXPECT_EQ(total, s.size());
 }
 
+TEST(MpiDistributedBd, HilbertCurvePartitionsKeepTheSerialTrajectory) {
+  // Partitions along the Hilbert curve at every rebuild, in a periodic box (the halo across the
+  // faces) and in open space: free-draining positions do not depend on the partition, so they stay
+  // the serial engine's bit for bit.
+  const System s = lattice(7, 1.3, 1, 5);
+  DistributedBdOptions o = options_with(1e-3, 99);
+  o.repartition_imbalance = 1.0;
+  o.curve = rpyfmm::mpi::SfcCurve::hilbert;
+  for (const Geometry& geometry : {Geometry::open(), Geometry::periodic(7 * 1.3)}) {
+    const std::vector<double> expected = serial_run(sticky_trapped(), geometry, o, s, 60);
+    DistributedBd bd(MPI_COMM_WORLD, sticky_trapped(), geometry, o,
+                     share_of(s, Split::even, shuffled(s.size(), 4), true));
+    bd.run(60);
+    expect_positions_bitwise(bd, expected, geometry.is_periodic() ? "hilbert, periodic" : "hilbert, open");
+    EXPECT_GE(bd.stats().rebuilds, 2u);
+    if (world_size() > 1) {
+      EXPECT_EQ(bd.stats().repartitions, bd.stats().rebuilds);
+    }
+  }
+  // A curve that differs between ranks fails on every rank.
+  DistributedBdOptions other = o;
+  if (world_size() > 1 && world_rank() == world_size() - 1) other.curve = rpyfmm::mpi::SfcCurve::morton;
+  if (world_size() > 1) {
+    expect_collective_error(
+        [&] {
+          DistributedBd bd(MPI_COMM_WORLD, sticky_trapped(), Geometry::open(), other,
+                           share_of(s, Split::even, identity(s.size()), false));
+        },
+        ErrorCode::invalid_argument, "different options");
+  }
+}
+
 TEST(MpiDistributedBd, MeasuredTimeCostsRepartitionAndKeepTheSerialTrajectory) {
   // Costs from each rank's measured seconds (partitions that follow the timings, different from run
   // to run): free-draining positions do not depend on the partition, so they stay the serial

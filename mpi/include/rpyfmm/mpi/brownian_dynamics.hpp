@@ -95,6 +95,7 @@
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/mpi/communicator.hpp"
 #include "rpyfmm/mpi/fmm_rpy.hpp"
+#include "rpyfmm/mpi/partition.hpp"
 #include "rpyfmm/rpy/geometry.hpp"
 #include "rpyfmm/rpy/mobility_factory.hpp"
 #include "rpyfmm/rpy/pse/pse_parameters.hpp"
@@ -125,9 +126,14 @@ struct DistributedBdOptions {
   rpy::pse::PseOptions pse{};
   /// Solvent viscosity eta (> 0).
   double viscosity = 1.0;
-  /// A rebuild moves the particles along the Morton curve when the largest rank's cost exceeds this
-  /// multiple of the mean (>= 1; 1: at every rebuild; infinity: never after the first partition).
+  /// A rebuild moves the particles along the space-filling curve when the largest rank's cost
+  /// exceeds this multiple of the mean (>= 1; 1: at every rebuild; infinity: never after the first
+  /// partition).
   double repartition_imbalance = 1.25;
+  /// The curve of the partitions (SfcPartition; docs/mpi.md, "Space-filling-curve partition"). The
+  /// positions do not depend on it in free draining (bit for bit); with hydrodynamic interactions
+  /// the operators' sums do, at round-off, as on a partition by measured costs.
+  SfcCurve curve = SfcCurve::morton;
   /// What a rank's cost is, in the imbalance test and as the weights of the new partition.
   enum class Cost {
     /// Its particles plus their neighbour-list entries (the pair work): the same on every run.
