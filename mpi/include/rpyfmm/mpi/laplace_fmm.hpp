@@ -10,13 +10,14 @@
 //   fmm.set_points(local_sources);                          // collective: builds the plan
 //   fmm.evaluate(local_charges, nd, outputs, local_results); // collective, any number of times
 //
-// How: the sources are partitioned along a space-filling curve (SfcPartition; Morton by default, or Hilbert) and each
-// owner builds a tree of cells over its key range. Every rank covers its targets' region by a few tight boxes and sends
-// the cover only to the ranks whose root cell it does not compress as a whole (decided from an all-gather of the root
-// cells); for each rank whose cover it receives it walks its cells top down (for the others it sends its root cell
-// compressed) and sends a cell that is well separated from that rank's region, where the p^3 nodes its distance needs
-// are fewer than its particles, as equivalent charges at the tensor Chebyshev nodes of the cell's cube (the
-// anterpolation of the black-box FMM, Fong & Darve, J. Comput. Phys. 228 (2009) 8712, Sec. 2);
+// How: the sources are partitioned along a space-filling curve (SfcPartition; Morton by default, or
+// Hilbert) and each owner builds a tree of cells over its key range. Every rank covers its targets'
+// region by a few tight boxes and sends the cover only to the ranks whose root cell it does not
+// compress as a whole (decided from an all-gather of the root cells); for each rank whose cover it
+// receives it walks its cells top down (for the others it sends its root cell compressed) and sends
+// a cell that is well separated from that rank's region, where the p^3 nodes its distance needs are
+// fewer than its particles, as equivalent charges at the tensor Chebyshev nodes of the cell's cube
+// (the anterpolation of the black-box FMM, Fong & Darve, J. Comput. Phys. 228 (2009) 8712, Sec. 2);
 // other cells are opened, and leaves not compressed are sent as their particles (halo). The
 // geometry of this locally essential tree is exchanged once in set_points; every evaluate sends
 // only the equivalent and halo charges (one MPI_Alltoallv). Each owner then runs the serial
