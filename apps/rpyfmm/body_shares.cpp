@@ -20,13 +20,6 @@ std::vector<std::uint64_t> body_cuts(const std::vector<std::size_t>& offsets, in
   return cuts;
 }
 
-void broadcast_u64(std::vector<std::uint64_t>& v, const mpi::Communicator& comm) {
-  std::uint64_t size = v.size();
-  mpi::check_mpi(MPI_Bcast(&size, 1, MPI_UINT64_T, 0, comm.get()), "MPI_Bcast");
-  v.resize(size);
-  mpi::check_mpi(MPI_Bcast(v.data(), static_cast<int>(size), MPI_UINT64_T, 0, comm.get()), "MPI_Bcast");
-}
-
 }  // namespace
 
 BodyLayout broadcast_body_layout(const std::vector<std::size_t>& root_offsets, const mpi::Communicator& comm) {
@@ -35,8 +28,8 @@ BodyLayout broadcast_body_layout(const std::vector<std::size_t>& root_offsets, c
     z.offsets.assign(root_offsets.begin(), root_offsets.end());
     z.cuts = body_cuts(root_offsets, comm.size());
   }
-  broadcast_u64(z.offsets, comm);
-  broadcast_u64(z.cuts, comm);
+  broadcast(z.offsets, comm);
+  broadcast(z.cuts, comm);
   return z;
 }
 
