@@ -13,7 +13,10 @@ only where a GPU is present), samplers (Lanczos, Chebyshev, block preconditioner
 (Tran et al. (2015)'s Table 4 alumina-silica systems), rigid (rigid-body mobility solves and steps),
 mpi (the distributed FMM, direct RPY operator and free-draining BD on 1-4 ranks), mpi-block
 (apply_block against single products of the distributed RPY operators on 1 and 2 ranks), mpi-fmm-rpy
-(one product of the distributed FmmRpy on 1 and 2 ranks beside the serial FmmRpy).
+(one product of the distributed FmmRpy on 1 and 2 ranks beside the serial FmmRpy), mpi-curve (the
+distributed Laplace FMM partitioned along the Morton and the Hilbert curve on 2-4 ranks),
+mpi-block-cache (the first block-preconditioned sample after set_positions against a second on 2
+ranks).
 
 Every case runs at 1 thread (the per-core figure) and at all cores; each program reports the median
 of its own repetitions and the driver the median over --rounds runs. --compare COMMIT builds COMMIT in
@@ -264,6 +267,23 @@ def mpi_fmm_rpy_cases(mode: str) -> list[Case]:
                  {}) for p in (1, 2)]
 
 
+def mpi_curve_cases(mode: str) -> list[Case]:
+    """DistributedLaplaceFmm with the Morton and the Hilbert partition (one program runs both) on 2, 3
+    and 4 ranks of one thread each, uniform and clustered sources (bench/mpi/bench_mpi_curve)."""
+    n, epss = ("4e5", ("1e-3", "1e-6")) if mode == "full" else ("4e4", ("1e-3",))
+    return [Case(["mpi/bench_mpi_ranks", str(p), "bench_mpi_curve", "--n", n, "--eps", e, "--points", points,
+                  "--reps", "3"], 1, {})
+            for points in ("uniform", "clustered") for e in epss for p in (2, 3, 4)]
+
+
+def mpi_block_cache_cases(mode: str) -> list[Case]:
+    """The first and a second block-preconditioned mpi::sqrt_apply on the same positions, 2 ranks of one
+    thread each (bench/mpi/bench_mpi_block_cache)."""
+    sizes = {"direct": "2e4", "fmm": "1e5"} if mode == "full" else {"direct": "5e3", "fmm": "2e4"}
+    return [Case(["mpi/bench_mpi_ranks", "2", "bench_mpi_block_cache", "--method", method, "--n", n, "--reps", "3"],
+                 1, {}) for method, n in sizes.items()]
+
+
 GROUPS = [
     Group("fmm", "Laplace FMM against fmm3dpy",
           "One evaluation of potential, gradient and Hessian at the sources (LaplaceFmm, adaptive plane-wave "
@@ -438,6 +458,31 @@ GROUPS = [
            ("halo", "halo_max", "{:.0f}"), ("serial s", "serial_s", "{:.3f}"),
            ("serial near s", "serial_near_s", "{:.3f}"), ("err", "err_vs_serial", "{:.1e}")],
           keys=("ranks", "N")),
+    Group("mpi-curve", "The distributed Laplace FMM along the Morton and the Hilbert curve",
+          "DistributedLaplaceFmm (docs/mpi.md, \"Space-filling-curve partition\") with the sources partitioned "
+          "along each curve (SfcCurve), one density, potential and gradient, P ranks of one OpenMP thread each, N "
+          "sources in the unit cube, uniform or clustered (half of them in 8 cubes of side 0.02). essential = the "
+          "largest serial-FMM source set of a rank (own + halo + equivalent nodes); halo max = the largest halo "
+          "of a rank; eval s = median of 3 evaluations (the slowest rank's), the two curves alternating. The "
+          "counts are exact; on the 2-core development machine 3 and 4 ranks oversubscribe the cores.",
+          ["bench_mpi_curve"], mpi_curve_cases, parse_json_lines, "eval_s",
+          [("points", "points", "{}"), ("eps", "eps", "{:g}"), ("ranks", "ranks", "{}"), ("N", "N", "{:.2g}"),
+           ("curve", "curve", "{}"), ("essential", "essential_max", "{:.0f}"), ("halo max", "halo_max", "{:.0f}"),
+           ("nodes", "nodes", "{:.0f}"), ("plan s", "plan_s", "{:.3f}"), ("eval s", "eval_s", "{:.3f}")],
+          keys=("points", "eps", "ranks", "N", "curve")),
+    Group("mpi-block-cache", "The block preconditioner's blocks kept between samples across ranks",
+          "mpi::sqrt_apply with the block preconditioner (Lanczos, tolerance 1e-3, automatic block size; docs/mpi.md, "
+          "\"Brownian displacements\") on DistributedDirectRpy or DistributedFmmRpy (eps 1e-6), N spheres of "
+          "radius 0.001 uniform in the unit cube, 2 ranks of one OpenMP thread each: first s = the first call after "
+          "set_positions (gather, bisection and factors of the blocks, then the sample), second s = a second call "
+          "on the same positions (the kept blocks); build s and gather s = the first call's, exchange s = the "
+          "second call's exchanges of the blocks; medians of 3 (the slowest rank's).",
+          ["bench_mpi_block_cache"], mpi_block_cache_cases, parse_json_lines, "second_s",
+          [("method", "method", "{}"), ("ranks", "ranks", "{}"), ("N", "N", "{:.2g}"),
+           ("first s", "first_s", "{:.3f}"), ("second s", "second_s", "{:.3f}"), ("build s", "build_s", "{:.4f}"),
+           ("gather s", "gather_s", "{:.4f}"), ("exchange s", "exchange_s", "{:.4f}"),
+           ("iterations", "iterations", "{}")],
+          keys=("method", "ranks", "N")),
 ]
 GROUP_BY_NAME = {g.name: g for g in GROUPS}
 TIME_COLUMNS = {"solve": "solve_s", "step": "step_s"}  # rigid: the time column of each program
