@@ -284,13 +284,13 @@ toml::table parse_toml(std::string_view text, const std::string& source) {
 
 /// Throws on a top-level key that is not a known section.
 void require_known_sections(const toml::table& root) {
-  static const std::set<std::string> sections{"system",   "types",      "particles", "pair",       "bonds",
-                                              "external", "integrator", "mobility",  "neighbours", "output"};
+  static const std::set<std::string> sections{"system",     "types",    "particles",  "pair",   "bonds",    "external",
+                                              "integrator", "mobility", "neighbours", "output", "partition"};
   for (const auto& [k, v] : root) {
     if (!sections.count(std::string(k.str())))
       bad_key(std::string(k.str()),
               "is unknown (sections: system, types, particles, pair, bonds, external, "
-              "integrator, mobility, neighbours, output)");
+              "integrator, mobility, neighbours, output, partition)");
   }
 }
 
@@ -614,6 +614,32 @@ void parse_neighbours(const toml::table& root, RunConfig& c) {
   s.finish();
 }
 
+/// partition.repartition_imbalance: a number >= 1, or inf (TOML's infinity: never repartition).
+double repartition_imbalance(Section& s) {
+  const std::string k = "repartition_imbalance";
+  const toml::node* n = s.node(k);
+  if (!n) return PartitionSpec{}.repartition_imbalance;
+  if (!n->is_number()) bad_key(s.key(k), "must be a number >= 1 or inf");
+  const double v = n->value<double>().value();
+  if (!(v >= 1.0)) bad_key(s.key(k), "must be >= 1 (or inf: never), got " + num(v));
+  return v;
+}
+
+/// [partition]: the curve and repartition policy of a run across MPI ranks.
+void parse_partition(const toml::table& root, RunConfig& c) {
+  Section s(sub_table(root, "partition"), "partition");
+  const std::string curve = s.string("curve", "morton");
+  if (curve != "morton" && curve != "hilbert")
+    bad_key("partition.curve", "must be \"morton\" or \"hilbert\", got \"" + curve + "\"");
+  c.partition.curve = curve == "hilbert" ? PartitionSpec::Curve::hilbert : PartitionSpec::Curve::morton;
+  c.partition.repartition_imbalance = repartition_imbalance(s);
+  const std::string cost = s.string("repartition_cost", "model");
+  if (cost != "model" && cost != "measured_time")
+    bad_key("partition.repartition_cost", "must be \"model\" or \"measured_time\", got \"" + cost + "\"");
+  c.partition.repartition_cost = cost == "model" ? PartitionSpec::Cost::model : PartitionSpec::Cost::measured_time;
+  s.finish();
+}
+
 /// output.format: "xyz" or "gsd" (the latter only in builds with GSD support).
 TrajectoryFormat trajectory_format(const std::string& name) {
   if (name == "xyz") return TrajectoryFormat::xyz;
@@ -661,6 +687,7 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
   check_langevin(c);
   parse_neighbours(root, c);
   parse_output(root, c);
+  parse_partition(root, c);
   return c;
 }
 

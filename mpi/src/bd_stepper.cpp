@@ -130,6 +130,11 @@ DistributedBdOptions distributed_bd_options(const bd::RunConfig& config) {
   options.method = method_across_ranks(config);
   options.fmm.tolerance = config.mobility.tolerance;
   if (options.method == rpy::MobilityMethod::pse) options.pse = pse_across_ranks(config.mobility);
+  options.curve = config.partition.curve == bd::PartitionSpec::Curve::hilbert ? SfcCurve::hilbert : SfcCurve::morton;
+  options.repartition_imbalance = config.partition.repartition_imbalance;
+  options.repartition_cost = config.partition.repartition_cost == bd::PartitionSpec::Cost::measured_time
+                                 ? DistributedBdOptions::Cost::measured_time
+                                 : DistributedBdOptions::Cost::model;
   return options;
 }
 

@@ -123,6 +123,29 @@ TEST(BdConfig, EveryBadConfigNamesTheKey) {
   expect_error("[integrator\n", "test.toml:1");  // TOML syntax error with its position
 }
 
+// [partition] (docs/bd-config.md): read by runs across MPI ranks, accepted and ignored by one process.
+TEST(BdConfig, PartitionSection) {
+  using rpyfmm::bd::PartitionSpec;
+  const RunConfig defaults = parse_config(kBase, "base");
+  EXPECT_EQ(defaults.partition.curve, PartitionSpec::Curve::morton);
+  EXPECT_EQ(defaults.partition.repartition_imbalance, 1.25);
+  EXPECT_EQ(defaults.partition.repartition_cost, PartitionSpec::Cost::model);
+  const RunConfig c = parse_config(
+      kBase + "[partition]\ncurve = \"hilbert\"\nrepartition_imbalance = 1.5\nrepartition_cost = \"measured_time\"\n",
+      "c");
+  EXPECT_EQ(c.partition.curve, PartitionSpec::Curve::hilbert);
+  EXPECT_EQ(c.partition.repartition_imbalance, 1.5);
+  EXPECT_EQ(c.partition.repartition_cost, PartitionSpec::Cost::measured_time);
+  EXPECT_TRUE(std::isinf(
+      parse_config(kBase + "[partition]\nrepartition_imbalance = inf\n", "c").partition.repartition_imbalance));
+  expect_error(kBase + "[partition]\ncurve = \"peano\"\n", "partition.curve");
+  expect_error(kBase + "[partition]\nrepartition_imbalance = 0.9\n", "partition.repartition_imbalance");
+  expect_error(kBase + "[partition]\nrepartition_imbalance = nan\n", "partition.repartition_imbalance");
+  expect_error(kBase + "[partition]\nrepartition_imbalance = \"never\"\n", "partition.repartition_imbalance");
+  expect_error(kBase + "[partition]\nrepartition_cost = \"time\"\n", "partition.repartition_cost");
+  expect_error(kBase + "[partition]\nranks = 4\n", "partition.ranks");
+}
+
 // The DLVO pair's short-range repulsion: core = "none" (default) or "born", with born_sigma only
 // beside core = "born" (docs/bd-config.md).
 TEST(BdConfig, DlvoCoreKeys) {

@@ -2,7 +2,8 @@
 # "Brownian dynamics across ranks"). With free draining the positions after every step are the
 # serial engine's bit for bit, so the trajectory files must be identical byte for byte:
 #  - a run of 60 steps on NP ranks (frames every 10, a checkpoint every 30);
-#  - the first 30 steps on 2 ranks, then a restart from their checkpoint on NP ranks.
+#  - the first 30 steps on 2 ranks, then a restart from their checkpoint on NP ranks;
+#  - 60 steps on NP ranks on Hilbert-curve partitions, repartitioned at every rebuild ([partition]).
 # With PSE (spheres of one radius, double-precision wave grids) the positions are the serial
 # engine's to round-off (about 1e-15 of the coordinates; tests/mpi/test_distributed_bd.cpp), so
 # the printed coordinates (10 significant digits) agree to one unit of their last digit, allowed 2.
@@ -97,6 +98,14 @@ function(same_as_serial name what)
 endfunction()
 
 same_as_serial(run "free draining")
+
+# [partition]: Hilbert-curve partitions, repartitioned at every rebuild. Free-draining positions do
+# not depend on the partition, so the trajectory is the serial run's byte for byte.
+file(READ "${WORK}/run.toml" text)
+file(WRITE "${WORK}/hilbert.toml"
+     "${text}\n[partition]\ncurve = \"hilbert\"\nrepartition_imbalance = 1.0\nrepartition_cost = \"model\"\n")
+run_bd(${NP} --config "${WORK}/hilbert.toml" --out-dir "${WORK}/hilbert_ranks" --quiet)
+same_trajectory(run_serial hilbert_ranks "free draining on Hilbert-curve partitions, 60 steps on ${NP} ranks")
 
 # Whether two coordinates printed with 10 significant digits differ by at most 2 units of their
 # last digit (the same number of decimals; as integers without the point).

@@ -35,9 +35,11 @@
 
 #include "mpi_test_support.hpp"
 #include "rpyfmm/bd/checkpoint.hpp"
+#include "rpyfmm/bd/config.hpp"
 #include "rpyfmm/bd/integrator.hpp"
 #include "rpyfmm/bd/output.hpp"
 #include "rpyfmm/bd/torque_field.hpp"
+#include "rpyfmm/mpi/bd_stepper.hpp"
 #include "rpyfmm/mpi/brownian_dynamics.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/free_draining.hpp"
@@ -238,6 +240,24 @@ TEST(MpiDistributedBd, HilbertCurvePartitionsKeepTheSerialTrajectory) {
         },
         ErrorCode::invalid_argument, "different options");
   }
+}
+
+// A config's [partition] section (docs/bd-config.md) sets the curve and the repartition policy of
+// the run across ranks; without it the options keep DistributedBdOptions' defaults.
+TEST(MpiDistributedBd, ConfigPartitionSectionSetsTheOptions) {
+  const std::string base =
+      "[particles]\nsource = \"random\"\ncount = 8\n[integrator]\ndt = 0.001\nsteps = 1\n"
+      "[mobility]\nmethod = \"none\"\n";
+  const DistributedBdOptions defaults = rpyfmm::mpi::distributed_bd_options(rpyfmm::bd::parse_config(base, "base"));
+  EXPECT_EQ(defaults.curve, rpyfmm::mpi::SfcCurve::morton);
+  EXPECT_EQ(defaults.repartition_imbalance, DistributedBdOptions{}.repartition_imbalance);
+  EXPECT_EQ(defaults.repartition_cost, DistributedBdOptions::Cost::model);
+  const DistributedBdOptions set = rpyfmm::mpi::distributed_bd_options(rpyfmm::bd::parse_config(
+      base + "[partition]\ncurve = \"hilbert\"\nrepartition_imbalance = 2.5\nrepartition_cost = \"measured_time\"\n",
+      "set"));
+  EXPECT_EQ(set.curve, rpyfmm::mpi::SfcCurve::hilbert);
+  EXPECT_EQ(set.repartition_imbalance, 2.5);
+  EXPECT_EQ(set.repartition_cost, DistributedBdOptions::Cost::measured_time);
 }
 
 TEST(MpiDistributedBd, MeasuredTimeCostsRepartitionAndKeepTheSerialTrajectory) {

@@ -54,6 +54,19 @@ struct OutputSpec {
   std::uint64_t checkpoint_every = 1000;  ///< 0 = only at the end (and on blow-up)
 };
 
+/// How a run across MPI ranks (rpyfmm::mpi::across_ranks; docs/mpi.md, "Brownian dynamics across
+/// ranks") splits the particles ([partition]). A run in one process reads and ignores it, so one
+/// config serves both.
+struct PartitionSpec {
+  enum class Curve { morton, hilbert };
+  enum class Cost { model, measured_time };
+  Curve curve = Curve::morton;  ///< the space-filling curve of the partitions
+  /// A rebuild repartitions when the largest rank's cost exceeds this multiple of the mean (>= 1;
+  /// infinity: never after the first partition).
+  double repartition_imbalance = 1.25;
+  Cost repartition_cost = Cost::model;  ///< model: particles + list entries; measured_time: seconds
+};
+
 struct NamedPair {
   std::string type1, type2;
   PairPotential potential;
@@ -78,6 +91,7 @@ struct RunConfig {
   rpy::MobilitySpec mobility;
   NeighbourOptions neighbours;
   OutputSpec output;
+  PartitionSpec partition;
   std::string text;    ///< the TOML source (stored in checkpoints)
   std::string source;  ///< file name or "<built-in demo>"
 };
