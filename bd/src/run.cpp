@@ -174,7 +174,7 @@ class Run {
     const auto dir = options.out_dir.value_or(config.output.dir);
     sum_.particles = n_;
     sum_.mobility = bd_.mobility().name();
-    sum_.engine = to_string(bd_.options().engine);
+    sum_.engine = options.engine ? options.engine_name : to_string(bd_.options().engine);
     sum_.first_step = start_.step;
     sum_.out_dir = dir;
     sum_.trajectory = dir / config.output.trajectory;

@@ -175,6 +175,7 @@ bd::RunOptions across_ranks(MPI_Comm comm, bd::RunOptions options) {
                           std::span<const double> velocities, std::uint64_t first_step) {
     return make_distributed_stepper(comm, config, forces, x, types, orientations, velocities, first_step);
   };
+  options.engine_name = "mpi";
   options.writes_files = world.rank() == 0;
   if (world.rank() != 0) options.progress = nullptr;
   options.agree = [world](const std::optional<Error>& problem) { world.agree(problem); };

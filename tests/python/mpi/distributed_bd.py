@@ -72,7 +72,8 @@ def test_free_draining_equals_serial_simulation_and_run_bd() -> None:
     start = gathered_positions(sim)
     sim.run(40)
     x = gathered_positions(sim)
-    assert summary["last_step"] == 40 and sim.step_count == 40 and sim.global_size == 96
+    assert summary["last_step"] == 40 and summary["engine"] == "mpi"
+    assert sim.step_count == 40 and sim.global_size == 96
     assert sim.mobility == "none" and sim.dt == 0.002 and sim.time == pytest.approx(0.08)
     if RANK == 0:
         expected = serial_positions(CHAINS, 40)

@@ -41,6 +41,8 @@ struct RunOptions {
                                          std::span<const std::uint32_t> types, std::span<const double> orientations,
                                          std::span<const double> velocities, std::uint64_t first_step)>
       engine;
+  /// The summary's name of the engine `engine` makes (RunSummary::engine; across MPI ranks: "mpi").
+  std::string engine_name = "external";
   /// False on the processes of a run across MPI ranks other than the one that writes its files:
   /// they take every step and read every record's state with the writer (the engine's reads may be
   /// collective), but create no file.
@@ -54,8 +56,9 @@ struct RunOptions {
 struct RunSummary {
   std::size_t particles = 0;
   std::string mobility;  ///< operator name
-  /// What ran the steps: "cpu" (Integrator), "cuda" (the device engine) or "host launcher" (the
-  /// device engine's stages on the host, RunOptions::device_launcher).
+  /// What ran the steps: "cpu" (Integrator), "cuda" (the device engine), "host launcher" (the
+  /// device engine's stages on the host, RunOptions::device_launcher), or a caller's engine by
+  /// RunOptions::engine_name ("mpi" across ranks).
   std::string engine = "cpu";
   std::uint64_t first_step = 0, last_step = 0;
   double wall_seconds = 0.0;
