@@ -6,13 +6,16 @@
 // usage: bench_mpi_partition --n N [--reps 5]
 //   N uniform particles in the unit cube in all, unit weights, every rank drawing its contiguous
 //   share of the global sequence (bench_mpi_common.hpp).
-// Prints one JSON line per search (rank 0): its ways at the start, its rounds (MPI_Allreduce calls)
-// and the median over reps of one construction (the slowest rank's, after a barrier), and whether
-// its splitters equal the other search's. The two searches alternate rep by rep, so that the
+// Prints one JSON line per search (rank 0): its ways at the start, its rounds (MPI_Allreduce calls),
+// the median over reps of one construction (the slowest rank's, after a barrier), the median of the
+// same number of MPI_Allreduce calls of its first round's size replayed alone (allreduce_s: the
+// search's communication without its local counting), and whether its splitters equal the other
+// search's. The two searches alternate rep by rep, so that the
 // machine's load falls on both alike.
 #include <mpi.h>
 
 #include <algorithm>
+#include <cstdint>
 #include <cstdio>
 #include <vector>
 
@@ -31,6 +34,22 @@ struct Search {
   std::vector<SfcKey> splitters;
   std::vector<double> times;
 };
+
+// The ways of the search's first round (all cuts open; partition.hpp).
+std::size_t ways_at_start(std::size_t sums_per_round, std::size_t cuts) {
+  return std::max<std::size_t>(2, 1 + std::min(sums_per_round / cuts, rpyfmm::mpi::kCutMaxWays - 1));
+}
+
+// The median over reps of `rounds` MPI_Allreduce calls of `sums` integers alone (the slowest
+// rank's): the communication of a search with that many rounds of its first round's size.
+double replay_allreduces(int rounds, std::size_t sums, int reps) {
+  std::vector<std::uint64_t> local(sums, 1), global(sums);
+  return bench_mpi::median_seconds(reps, [&] {
+    for (int r = 0; r < rounds; ++r) {
+      MPI_Allreduce(local.data(), global.data(), static_cast<int>(sums), MPI_UINT64_T, MPI_SUM, MPI_COMM_WORLD);
+    }
+  });
+}
 
 }  // namespace
 
@@ -51,16 +70,16 @@ int main(int argc, char** argv) {
     }
   }
   const bool same = searches[0].splitters == searches[1].splitters;
-  const std::size_t cuts = static_cast<std::size_t>(std::max(ranks - 1, 1));
+  const auto cuts = static_cast<std::size_t>(std::max(ranks - 1, 1));
   for (const Search& s : searches) {
-    const std::size_t ways =
-        std::max<std::size_t>(2, 1 + std::min(s.sums_per_round / cuts, rpyfmm::mpi::kCutMaxWays - 1));
+    const std::size_t ways = ways_at_start(s.sums_per_round, cuts);
+    const double allreduce_s = replay_allreduces(s.rounds, cuts * (ways - 1), a.reps);
     if (rank == 0) {
       std::printf(
           "{\"method\":\"sfc_partition\",\"search\":\"%s\",\"ranks\":%d,\"N\":%llu,\"ways\":%zu,\"rounds\":%d,"
-          "\"construct_s\":%.6g,\"same_splitters\":%s}\n",
+          "\"construct_s\":%.6g,\"allreduce_s\":%.6g,\"same_splitters\":%s}\n",
           s.name, ranks, static_cast<unsigned long long>(share.total), ways, s.rounds, bench_mpi::median(s.times),
-          same ? "true" : "false");
+          allreduce_s, same ? "true" : "false");
     }
   }
   MPI_Finalize();
