@@ -1,6 +1,6 @@
 // rpyfmm — SfcPartition: Morton or Hilbert keys (hilbert_key.cpp) in the global cube, weighted cuts
-// of the global key order by distributed bisection, and the MPI_Alltoallv exchanges to the owners
-// and back (partition.hpp, docs/mpi.md).
+// of the global key order by a distributed multi-way search, and the MPI_Alltoallv exchanges to the
+// owners and back (partition.hpp, docs/mpi.md).
 #include "rpyfmm/mpi/partition.hpp"
 
 #include <algorithm>
@@ -18,7 +18,7 @@ namespace rpyfmm::mpi {
 namespace {
 
 // A position in the global order as one integer: key · N + index (N the global count), so that
-// the cuts are found by bisection on [0, 2^63 · N). 128 bits (a GCC/Clang extension).
+// the cuts are searched for on [0, 2^63 · N). 128 bits (a GCC/Clang extension).
 __extension__ using Composite = unsigned __int128;
 
 constexpr const char* kWhere = "rpyfmm::mpi::SfcPartition";
@@ -86,45 +86,99 @@ Composite composite(const SfcKey& k, std::uint64_t n_global) {
   return static_cast<Composite>(k.key) * n_global + k.index;
 }
 
-// Local part of the bisection: the sum of the q of local particles before `v` (sorted: keys in
-// the input's sorted order, prefix[i] the q of the first i).
-std::uint64_t weight_before(Composite v, std::span<const SfcKey> sorted, std::span<const std::uint64_t> prefix,
-                            std::uint64_t n_global) {
-  const auto it =
-      std::partition_point(sorted.begin(), sorted.end(), [&](const SfcKey& k) { return composite(k, n_global) < v; });
-  return prefix[static_cast<std::size_t>(it - sorted.begin())];
+// The local particles' q before each of `count` increasing probes lo + j step (j = 1 .. count),
+// appended to `sums`: one binary search per probe, each starting where the previous one ended.
+void append_weights_before(Composite lo, Composite step, std::size_t count, std::span<const SfcKey> sorted,
+                           std::span<const std::uint64_t> prefix, std::uint64_t n_global,
+                           std::vector<std::uint64_t>& sums) {
+  auto it = sorted.begin();
+  for (std::size_t j = 1; j <= count; ++j) {
+    const Composite v = lo + step * j;
+    it = std::partition_point(it, sorted.end(), [&](const SfcKey& k) { return composite(k, n_global) < v; });
+    sums.push_back(prefix[static_cast<std::size_t>(it - sorted.begin())]);
+  }
 }
 
+// One cut's search interval: weight before lo < target <= weight before hi; found when hi = lo + 1
+// (or hi = 0 for target 0). A round splits (lo, hi] into sub-intervals of ceil(width / k) and
+// probes their upper ends below hi.
+struct CutInterval {
+  Composite lo = 0, hi = 0;
+  std::uint64_t target = 0;
+  [[nodiscard]] bool open() const { return hi - lo > 1; }
+  [[nodiscard]] Composite step(std::size_t ways) const { return (hi - lo + ways - 1) / ways; }
+  [[nodiscard]] std::size_t probes(std::size_t ways) const {
+    return static_cast<std::size_t>((hi - lo - 1) / step(ways));
+  }
+  // Keeps the sub-interval whose upper end is the first probe with a weight of at least target
+  // before it (the last one, up to hi, when there is none).
+  void narrow(std::size_t ways, std::span<const std::uint64_t> global) {
+    const Composite s = step(ways);
+    const auto first = static_cast<std::size_t>(
+        std::find_if(global.begin(), global.end(), [&](std::uint64_t w) { return w >= target; }) - global.begin());
+    if (first < global.size()) hi = lo + s * (first + 1);
+    lo += s * first;
+  }
+};
+
+// The ways of a round with `open` cuts: as many as the budget of sums allows, 2 to kCutMaxWays.
+std::size_t ways_of_round(std::size_t open, std::size_t sums_per_round) {
+  return std::max<std::size_t>(2, 1 + std::min(sums_per_round / open, kCutMaxWays - 1));
+}
+
+// The cut intervals at the start: lo = 0, hi = 2^63 N, the ends of the composites' range.
+std::vector<CutInterval> initial_intervals(std::size_t parts, std::uint64_t total_q, std::uint64_t n_global) {
+  const Composite end = (static_cast<Composite>(1) << 63) * std::max<std::uint64_t>(n_global, 1);
+  std::vector<CutInterval> cuts(parts - 1);
+  for (std::size_t r = 1; r < parts; ++r) {
+    const Composite t = (static_cast<Composite>(total_q) * r + parts - 1) / parts;  // ceil(r Q / P)
+    cuts[r - 1] = CutInterval{0, t == 0 ? 0 : end, static_cast<std::uint64_t>(t)};
+  }
+  return cuts;
+}
+
+struct Cuts {
+  std::vector<Composite> at;
+  int rounds = 0;
+};
+
 // Collective: the cuts v_r (r = 1 .. P-1), each the smallest composite with a weight of at least
-// ceil(r Q / P) before it, by bisection in lock step (one MPI_Allreduce of P - 1 sums per round,
-// 63 + ceil(log2 N) rounds). Integer sums: the cuts depend on the global input only.
-std::vector<Composite> find_cuts(const Communicator& comm, std::span<const SfcKey> sorted,
-                                 std::span<const std::uint64_t> prefix, std::uint64_t total_q, std::uint64_t n_global) {
+// ceil(r Q / P) before it, by a multi-way search in lock step (docs/mpi.md, "Space-filling-curve
+// partition"): per round, one MPI_Allreduce of the weights before k - 1 probes of every open cut,
+// k = ways_of_round. The answer is unique, so it is the same for every k. Integer sums: the cuts
+// depend on the global input only. Local work per round O(open (k - 1) log n).
+Cuts find_cuts(const Communicator& comm, std::span<const SfcKey> sorted, std::span<const std::uint64_t> prefix,
+               std::uint64_t total_q, std::uint64_t n_global, std::size_t sums_per_round) {
   const auto parts = static_cast<std::size_t>(comm.size());
   if (parts == 1) return {};
-  std::vector<Composite> lo(parts - 1, 0), hi(parts - 1, 0);
-  std::vector<std::uint64_t> target(parts - 1);
-  const Composite end = (static_cast<Composite>(1) << 63) * std::max<std::uint64_t>(n_global, 1);
-  for (std::size_t r = 1; r < parts; ++r) {
-    const Composite t = (static_cast<Composite>(total_q) * r + parts - 1) / parts;
-    target[r - 1] = static_cast<std::uint64_t>(t);
-    hi[r - 1] = t == 0 ? 0 : end;  // invariant: weight before lo < target <= weight before hi
-  }
-  std::vector<std::uint64_t> local(parts - 1), global(parts - 1);
-  for (Composite width = end; width > 1; width = (width + 1) / 2) {
-    for (std::size_t r = 0; r + 1 < parts; ++r) {
-      local[r] = hi[r] - lo[r] > 1 ? weight_before(lo[r] + (hi[r] - lo[r]) / 2, sorted, prefix, n_global) : 0;
+  std::vector<CutInterval> cuts = initial_intervals(parts, total_q, n_global);
+  std::vector<std::uint64_t> local, global;
+  int rounds = 0;
+  for (;;) {
+    const auto open = static_cast<std::size_t>(
+        std::count_if(cuts.begin(), cuts.end(), [](const CutInterval& c) { return c.open(); }));
+    if (open == 0) break;
+    const std::size_t ways = ways_of_round(open, sums_per_round);
+    local.clear();
+    for (const CutInterval& c : cuts) {
+      if (c.open()) append_weights_before(c.lo, c.step(ways), c.probes(ways), sorted, prefix, n_global, local);
     }
+    global.resize(local.size());
     check_mpi(
-        MPI_Allreduce(local.data(), global.data(), static_cast<int>(parts - 1), MPI_UINT64_T, MPI_SUM, comm.get()),
+        MPI_Allreduce(local.data(), global.data(), static_cast<int>(local.size()), MPI_UINT64_T, MPI_SUM, comm.get()),
         "MPI_Allreduce");
-    for (std::size_t r = 0; r + 1 < parts; ++r) {
-      if (hi[r] - lo[r] <= 1) continue;
-      const Composite mid = lo[r] + (hi[r] - lo[r]) / 2;
-      (global[r] >= target[r] ? hi[r] : lo[r]) = mid;
+    ++rounds;
+    std::size_t at = 0;
+    for (CutInterval& c : cuts) {
+      if (!c.open()) continue;
+      const std::size_t probes = c.probes(ways);
+      c.narrow(ways, std::span<const std::uint64_t>(global).subspan(at, probes));
+      at += probes;
     }
   }
-  return hi;
+  Cuts out{std::vector<Composite>(cuts.size()), rounds};
+  for (std::size_t r = 0; r < cuts.size(); ++r) out.at[r] = cuts[r].hi;
+  return out;
 }
 
 int checked_int(std::size_t n, const char* what) {
@@ -295,11 +349,20 @@ Owners count_owners(const Communicator& comm, std::span<const Composite> cuts, s
 }  // namespace
 
 SfcPartition::SfcPartition(MPI_Comm comm, std::span<const double> positions, std::span<const double> weights,
-                           SfcCurve curve)
+                           SfcCurve curve, std::size_t cut_sums_per_round)
     : comm_(comm), curve_(curve) {
-  comm_.run([&] { check_input(positions, weights, curve); });
-  if (!same_on_every_rank(comm_, {static_cast<double>(curve)})) {
-    fail(ErrorCode::invalid_argument, kWhere, "the ranks pass different curves");
+  comm_.run([&] {
+    check_input(positions, weights, curve);
+    require(cut_sums_per_round >= 1, ErrorCode::invalid_argument, kWhere, "cut_sums_per_round must be >= 1, got 0");
+  });
+  // The curve and cut_sums_per_round (as two 32-bit halves, each exact in a double) must agree: one
+  // check, and a second only to name what differs.
+  const auto curve_value = static_cast<double>(curve);
+  if (!same_on_every_rank(comm_, {curve_value, static_cast<double>(cut_sums_per_round >> 32),
+                                  static_cast<double>(cut_sums_per_round & 0xffffffffu)})) {
+    if (!same_on_every_rank(comm_, {curve_value}))
+      fail(ErrorCode::invalid_argument, kWhere, "the ranks pass different curves");
+    fail(ErrorCode::invalid_argument, kWhere, "the ranks pass different cut_sums_per_round");
   }
   input_size_ = positions.size() / 3;
   const auto [offset, global_size] = global_offset_and_size(comm_, input_size_);
@@ -315,10 +378,11 @@ SfcPartition::SfcPartition(MPI_Comm comm, std::span<const double> positions, std
   send_order_ = std::move(local.send_order);
   std::uint64_t total_q = 0;
   check_mpi(MPI_Allreduce(&local.prefix.back(), &total_q, 1, MPI_UINT64_T, MPI_SUM, comm_.get()), "MPI_Allreduce");
-  const std::vector<Composite> cuts = find_cuts(comm_, local.sorted, local.prefix, total_q, global_size_);
-  splitters_ = splitters_of(cuts, global_size_);
+  const Cuts cuts = find_cuts(comm_, local.sorted, local.prefix, total_q, global_size_, cut_sums_per_round);
+  splitters_ = splitters_of(cuts.at, global_size_);
+  cut_rounds_ = cuts.rounds;
 
-  Owners owners = count_owners(comm_, cuts, local.sorted, local.prefix, global_size_);
+  Owners owners = count_owners(comm_, cuts.at, local.sorted, local.prefix, global_size_);
   owned_counts_ = std::move(owners.counts);
   owned_q_ = std::move(owners.q);
   plan_exchange(owners.send_count);

@@ -77,11 +77,9 @@ std::vector<T> all_gather(const std::vector<T>& local) {
   return all;
 }
 
-// The serial cut rule on the whole set: sorted by (key, index), q_i = w_i / unit (exact: the unit is
-// a power of two and w_i a double), rank r starting at the first particle with a weight of at least
-// ceil(r Q / P) before it. Returns the number of particles of each rank.
-std::vector<std::uint64_t> reference_counts(const std::vector<SfcKey>& sorted, const std::vector<double>& weights,
-                                            double unit, std::size_t parts) {
+// The q_i of the sorted set in `unit`: round(w_i / unit), 1 each without weights or for all 0.
+std::vector<std::uint64_t> reference_q(const std::vector<SfcKey>& sorted, const std::vector<double>& weights,
+                                       double unit) {
   std::vector<std::uint64_t> q(sorted.size());
   bool all_zero = true;
   for (double w : weights) all_zero = all_zero && w == 0.0;
@@ -89,12 +87,25 @@ std::vector<std::uint64_t> reference_counts(const std::vector<SfcKey>& sorted, c
     const double w = weights.empty() ? 1.0 : weights[sorted[s].index];
     q[s] = all_zero && !weights.empty() ? 1 : static_cast<std::uint64_t>(std::llround(w / unit));
   }
+  return q;
+}
+
+// ceil(r Q / P) in integers: r (Q div P) + ceil(r (Q mod P) / P).
+std::uint64_t reference_target(std::uint64_t total, std::size_t r, std::size_t parts) {
+  return r * (total / parts) + (r * (total % parts) + parts - 1) / parts;
+}
+
+// The serial cut rule on the whole set: sorted by (key, index), q_i = w_i / unit (exact: the unit is
+// a power of two and w_i a double), rank r starting at the first particle with a weight of at least
+// ceil(r Q / P) before it. Returns the number of particles of each rank.
+std::vector<std::uint64_t> reference_counts(const std::vector<SfcKey>& sorted, const std::vector<double>& weights,
+                                            double unit, std::size_t parts) {
+  const std::vector<std::uint64_t> q = reference_q(sorted, weights, unit);
   const std::uint64_t total = std::accumulate(q.begin(), q.end(), std::uint64_t{0});
   std::vector<std::uint64_t> start(parts + 1, sorted.size());
   start[0] = 0;
   for (std::size_t r = 1; r < parts; ++r) {
-    // ceil(r Q / P) in integers: r (Q div P) + ceil(r (Q mod P) / P)
-    const std::uint64_t target = r * (total / parts) + (r * (total % parts) + parts - 1) / parts;
+    const std::uint64_t target = reference_target(total, r, parts);
     std::uint64_t before = 0;
     std::size_t s = 0;
     while (s < sorted.size() && before < target) before += q[s++];
@@ -442,4 +453,139 @@ TEST(MpiPartition, BadInputFailsEveryRank) {
   // The partition still works afterwards.
   const Column ok[] = {{x, 3}};
   EXPECT_EQ(bitwise_mismatches(p.to_origin(std::vector<Column>{{p.to_owners(ok)[0], 3}})[0], x), 0u);
+}
+
+namespace {
+
+// The serial rule's cuts as splitters, from the whole set sorted by (key, index) with its q_i: cut r
+// is the smallest position key · N + index with a weight of at least ceil(r Q / P) before it, so
+// one past the particle at which the running sum reaches the target ((0, 0) for target 0).
+std::vector<SfcKey> reference_splitters(const std::vector<SfcKey>& sorted, const std::vector<std::uint64_t>& q,
+                                        std::size_t parts) {
+  const std::uint64_t n = sorted.size();
+  const std::uint64_t total = std::accumulate(q.begin(), q.end(), std::uint64_t{0});
+  std::vector<SfcKey> cuts;
+  for (std::size_t r = 1; r < parts; ++r) {
+    const std::uint64_t target = reference_target(total, r, parts);
+    std::uint64_t before = 0;
+    std::size_t s = 0;
+    while (target > 0 && before + q[s] < target) before += q[s++];
+    if (target == 0) {
+      cuts.push_back(SfcKey{0, 0});
+    } else {
+      cuts.push_back(sorted[s].index + 1 == n ? SfcKey{sorted[s].key + 1, 0}
+                                              : SfcKey{sorted[s].key, sorted[s].index + 1});
+    }
+  }
+  return cuts;
+}
+
+// The most rounds of a search with at least `ways` ways per round on [0, 2^63 N): ceil-divisions of
+// the width by `ways` until it is 1.
+int round_bound(std::uint64_t n, std::size_t ways) {
+  int bits = 63;
+  while (bits < 127 && (std::uint64_t{1} << (bits - 63)) < n) ++bits;  // 63 + ceil(log2 N)
+  __extension__ using Wide = unsigned __int128;
+  int rounds = 0;
+  for (Wide w = static_cast<Wide>(1) << bits; w > 1; w = (w + ways - 1) / ways) ++rounds;
+  return rounds;
+}
+
+// The budgets of sums per round to try: bisection (1: below one sum per cut), 2 per cut (3 ways), a
+// budget just short of and at 255 per cut (255 and 256 ways) and the default.
+std::vector<std::size_t> budgets() {
+  const auto cuts = static_cast<std::size_t>(std::max(world_size() - 1, 1));
+  return {1, 2 * cuts, 255 * cuts - 1, 255 * cuts, rpyfmm::mpi::kCutSumsPerRound};
+}
+
+// Partitions the global set (3N positions, N weights or none) split as `split` along `curve` with
+// each of `sums` per round: the splitters are the serial rule's for every budget, and the rounds
+// within the bound of the fewest ways (the ways with all P - 1 cuts open); the bisection's rounds
+// are at least 63 + floor(log2 N) (each round at most halves the width).
+void check_cuts(const std::vector<double>& x, const std::vector<double>& weights, Split split, SfcCurve curve,
+                const std::vector<std::size_t>& sums) {
+  const std::size_t n = x.size() / 3;
+  const Partition part = partition_of(n, split);
+  const std::vector<double> local_x = share(x, 3, part.offset, part.n);
+  const std::vector<double> local_w = weights.empty() ? std::vector<double>{} : share(weights, 1, part.offset, part.n);
+  const std::vector<std::uint64_t> keys = reference_keys(x, curve);
+  std::vector<SfcKey> sorted(n);
+  for (std::size_t i = 0; i < n; ++i) sorted[i] = SfcKey{keys[i], i};
+  std::sort(sorted.begin(), sorted.end());
+  const auto parts = static_cast<std::size_t>(world_size());
+  for (std::size_t budget : sums) {
+    const SfcPartition p(MPI_COMM_WORLD, local_x, local_w, curve, budget);
+    const std::vector<SfcKey> expected =
+        reference_splitters(sorted, reference_q(sorted, weights, p.weight_unit()), parts);
+    EXPECT_TRUE(std::equal(expected.begin(), expected.end(), p.splitters().begin(), p.splitters().end()))
+        << "N " << n << ", budget " << budget << ", split " << static_cast<int>(split);
+    const std::size_t ways =
+        parts == 1 ? 2 : std::max<std::size_t>(2, 1 + std::min<std::size_t>(budget / (parts - 1), 255));
+    EXPECT_LE(p.cut_rounds(), round_bound(n, ways)) << "budget " << budget;
+    const bool searched = parts > 1 && expected.back() != SfcKey{0, 0};
+    if (!searched) {
+      EXPECT_EQ(p.cut_rounds(), 0);
+    }
+    int floor_log2_n = 0;
+    while (n >> (floor_log2_n + 1) != 0) ++floor_log2_n;
+    if (searched && ways == 2) {
+      EXPECT_GE(p.cut_rounds(), 63 + floor_log2_n) << "budget " << budget;
+    }
+  }
+}
+
+// check_cuts with every budget on both curves for the splits that leave ranks empty or not.
+void check_cuts_everywhere(const std::vector<double>& x, const std::vector<double>& weights) {
+  for (SfcCurve curve : {SfcCurve::morton, SfcCurve::hilbert}) {
+    for (Split split : {Split::even, Split::first_empty, Split::last_only})
+      check_cuts(x, weights, split, curve, budgets());
+  }
+}
+
+}  // namespace
+
+TEST(MpiPartitionCuts, UniformAndClusteredSets) {
+  check_cuts_everywhere(uniform_positions(1001, -2.0, 3.0, 31), {});
+  const Particles p = clustered_particles(400, 60, 32);
+  check_cuts_everywhere(p.x, {});
+  check_cuts_everywhere(p.x, spread_weights(p.size(), 33));
+}
+
+TEST(MpiPartitionCuts, ZeroAndHugeWeights) {
+  // Weights of 1e300 beside 1 and 0 (the small ones round to q = 0 in the unit of the largest), then
+  // all 0 (counting as 1 each).
+  std::vector<double> w = spread_weights(300, 34);
+  for (std::size_t i = 0; i < w.size(); i += 29) w[i] = 1e300;
+  const std::vector<double> x = uniform_positions(300, 0.0, 1.0, 35);
+  check_cuts_everywhere(x, w);
+  check_cuts_everywhere(x, std::vector<double>(300, 0.0));
+}
+
+TEST(MpiPartitionCuts, DuplicatedPositions) {
+  // 60 particles on three points: the cuts fall between equal keys, by global index.
+  std::vector<double> x(3 * 60);
+  for (std::size_t i = 0; i < 60; ++i) x[3 * i] = static_cast<double>(i % 3), x[3 * i + 1] = 0.5, x[3 * i + 2] = -1.0;
+  check_cuts_everywhere(x, {});
+  check_cuts_everywhere(x, spread_weights(60, 36));
+}
+
+TEST(MpiPartitionCuts, FewerParticlesThanRanks) {
+  check_cuts_everywhere({}, {});
+  check_cuts_everywhere({0.1, 0.2, 0.3}, {});
+  check_cuts_everywhere({0.1, 0.2, 0.3, -4.0, 5.0, 6.0}, {2.0, 0.0});
+}
+
+TEST(MpiPartitionCuts, BudgetMustBePositiveAndAgree) {
+  const std::vector<double> x = uniform_positions(3, 0, 1, 37);
+  const int last = world_size() - 1;
+  expect_collective_error(
+      [&] { const SfcPartition p(MPI_COMM_WORLD, x, {}, SfcCurve::morton, world_rank() == last ? 0 : 8); },
+      ErrorCode::invalid_argument,
+      "rank " + std::to_string(last) + " of " + std::to_string(world_size()) +
+          ": rpyfmm::mpi::SfcPartition: cut_sums_per_round must be >= 1, got 0");
+  if (world_size() > 1) {
+    expect_collective_error(
+        [&] { const SfcPartition p(MPI_COMM_WORLD, x, {}, SfcCurve::morton, world_rank() == 0 ? 7 : 8); },
+        ErrorCode::invalid_argument, "rpyfmm::mpi::SfcPartition: the ranks pass different cut_sums_per_round");
+  }
 }

@@ -84,6 +84,16 @@ struct SfcKey {
   friend auto operator<=>(const SfcKey&, const SfcKey&) = default;
 };
 
+/// The cuts' search (docs/mpi.md, "Space-filling-curve partition") splits every open cut's interval
+/// into k parts per round and sums the weights before the k - 1 probes of all open cuts in one
+/// MPI_Allreduce, k = max(2, 1 + min(sums / open cuts, kCutMaxWays - 1)):
+/// kCutMaxWays = 256 (8 of the 63 + ceil(log2 N) bits per round: at most 11 rounds up to N = 2^25),
+/// more ways saving few rounds for local work that grows with k; kCutSumsPerRound = 2^16 sums
+/// (512 KiB) per round, bounding a round's message at large P (k = 256 up to P = 258, bisection,
+/// k = 2, from P = 2^15 + 2 on).
+inline constexpr std::size_t kCutMaxWays = 256;
+inline constexpr std::size_t kCutSumsPerRound = std::size_t{1} << 16;
+
 class SfcPartition {
  public:
   /// Collective. Partitions the particles that this rank holds (3n positions; n may be 0 on any
@@ -91,9 +101,11 @@ class SfcPartition {
   /// rank's particles; all 0 everywhere: 1 each). Fails on every rank (Communicator::agree) for a
   /// wrong size, a NaN or infinite coordinate or weight, a negative weight, or a curve that is not
   /// an SfcCurve on any rank, or different curves on different ranks. Memory O(n + n_owned + P) per
-  /// rank. The communicator must outlive the partition.
+  /// rank. The communicator must outlive the partition. `cut_sums_per_round` (>= 1, the same on
+  /// every rank) bounds the sums of one round of the cuts' search (above); 1 gives the bisection.
+  /// The cuts are the same for every value, only the number of rounds changes.
   SfcPartition(MPI_Comm comm, std::span<const double> positions, std::span<const double> weights = {},
-               SfcCurve curve = SfcCurve::morton);
+               SfcCurve curve = SfcCurve::morton, std::size_t cut_sums_per_round = kCutSumsPerRound);
 
   [[nodiscard]] SfcCurve curve() const { return curve_; }
   [[nodiscard]] const KeyCube& cube() const { return cube_; }
@@ -106,6 +118,9 @@ class SfcPartition {
   /// P - 1 cuts: rank r owns the particles with splitters()[r-1] <= (key, index) < splitters()[r]
   /// (no lower bound for rank 0, no upper for rank P - 1). Equal cuts leave a rank empty.
   [[nodiscard]] std::span<const SfcKey> splitters() const { return splitters_; }
+  /// The rounds (MPI_Allreduce calls) of the cuts' search: 0 on one rank or when every cut is at 0,
+  /// at most ceil((63 + ceil(log2 N)) / log2 k) with k the fewest ways of a round.
+  [[nodiscard]] int cut_rounds() const { return cut_rounds_; }
   /// Every rank's number of owned particles and owned weight (in the input's units; the weights as
   /// the partition balanced them, rounded to the fixed point described at weight_unit()).
   [[nodiscard]] std::span<const std::uint64_t> owned_counts() const { return owned_counts_; }
@@ -151,6 +166,7 @@ class SfcPartition {
   int weight_shift_ = 0;  // weight_unit() = 2^-weight_shift_
   std::vector<SfcKey> owned_;
   std::vector<SfcKey> splitters_;
+  int cut_rounds_ = 0;
   std::vector<std::uint64_t> owned_counts_, owned_q_;
   std::uint64_t max_q_ = 0;
   // Input particle of each send slot (the input sorted by SfcKey); received slot of each owned one.
