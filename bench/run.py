@@ -16,7 +16,7 @@ mpi (the distributed FMM, direct RPY operator and free-draining BD on 1-4 ranks)
 (one product of the distributed FmmRpy on 1 and 2 ranks beside the serial FmmRpy), mpi-curve (the
 distributed Laplace FMM partitioned along the Morton and the Hilbert curve on 2-4 ranks),
 mpi-block-cache (the first block-preconditioned sample after set_positions against a second on 2
-ranks).
+ranks), mpi-partition (SfcPartition's multi-way cuts' search against the bisection on 2 and 4 ranks).
 
 Every case runs at 1 thread (the per-core figure) and at all cores; each program reports the median
 of its own repetitions and the driver the median over --rounds runs. --compare COMMIT builds COMMIT in
@@ -284,6 +284,14 @@ def mpi_block_cache_cases(mode: str) -> list[Case]:
                  1, {}) for method, n in sizes.items()]
 
 
+def mpi_partition_cases(mode: str) -> list[Case]:
+    """One SfcPartition construction with the multi-way search against the bisection (one program runs
+    both) on 2 and 4 ranks of one thread each (bench/mpi/bench_mpi_partition)."""
+    sizes = ("1e5", "1e6") if mode == "full" else ("1e5",)
+    return [Case(["mpi/bench_mpi_ranks", str(p), "bench_mpi_partition", "--n", n, "--reps", "5"], 1, {})
+            for n in sizes for p in (2, 4)]
+
+
 GROUPS = [
     Group("fmm", "Laplace FMM against fmm3dpy",
           "One evaluation of potential, gradient and Hessian at the sources (LaplaceFmm, adaptive plane-wave "
@@ -483,6 +491,18 @@ GROUPS = [
            ("gather s", "gather_s", "{:.4f}"), ("exchange s", "exchange_s", "{:.4f}"),
            ("iterations", "iterations", "{}")],
           keys=("method", "ranks", "N")),
+    Group("mpi-partition", "SfcPartition's cuts: multi-way search against bisection",
+          "One SfcPartition construction (docs/mpi.md, \"Space-filling-curve partition\") of N uniform particles "
+          "with unit weights on P ranks of one OpenMP thread each, its cuts found by the multi-way search (up to 256 "
+          "ways per round within 2^16 sums per MPI_Allreduce) or by bisection (one sum per cut and round); "
+          "construct s = median over reps of one construction (the slowest rank's), allreduce s = the same number of "
+          "MPI_Allreduce calls of the first round's size replayed alone; same = both searches gave the same "
+          "splitters. On the 2-core development machine 4 ranks oversubscribe the cores.",
+          ["bench_mpi_partition"], mpi_partition_cases, parse_json_lines, "construct_s",
+          [("ranks", "ranks", "{}"), ("N", "N", "{:.2g}"), ("search", "search", "{}"), ("ways", "ways", "{}"),
+           ("rounds", "rounds", "{}"), ("construct s", "construct_s", "{:.4f}"), ("allreduce s", "allreduce_s", "{:.2e}"),
+           ("same", "same_splitters", "{}")],
+          keys=("ranks", "N", "search")),
 ]
 GROUP_BY_NAME = {g.name: g for g in GROUPS}
 TIME_COLUMNS = {"solve": "solve_s", "step": "step_s"}  # rigid: the time column of each program
