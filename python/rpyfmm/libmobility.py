@@ -336,7 +336,10 @@ class _Solver:
         where = f"{type(self).__name__}.LangevinVelocities"
         step = _real(dt, "dt", where, 0.0)
         kT = _real(kbt, "kbt", where, 0.0, strict=False)
-        return self._velocities(forces, torques, where, math.sqrt(2.0 * kT / step))
+        scale = math.sqrt(2.0 * kT / step)
+        if not math.isfinite(scale):  # a subnormal dt: the noise would be infinite
+            raise InvalidArgumentError(f"{where}: sqrt(2 kbt / dt) overflows for dt = {step:g} and kbt = {kT:g}")
+        return self._velocities(forces, torques, where, scale)
 
     def divM(self, prefactor: float = 1.0) -> Velocities:
         """prefactor * div M: zero for these solvers (one radius, free space or a periodic box)."""

@@ -139,3 +139,36 @@ def test_stokes_einstein_refuses_bad_scales(args, name):
     with pytest.raises(rpyfmm.InvalidArgumentError, match=f"stokes_einstein: {name} must be finite"):
         rpyfmm.stokes_einstein(*args)
     assert rpyfmm.stokes_einstein(0.0, 1.0, 1.0) == 0.0
+
+
+@pytest.mark.parametrize("make", ["rpyfmm.PseRpy(20.0, xi=1e300)", "rpyfmm.OpenPseRpy(xi=1e300)",
+                                  "rpyfmm.PseRpy(20.0, xi=1e5)"])
+def test_huge_xi_is_refused_not_looped_on(make):
+    """The real-space cutoff sampled r in steps of 0.01 / xi: with xi a = 1e300 the step vanished
+    next to r and set_positions never returned (run in a child with a timeout)."""
+    refused_in_child(f"{make}.set_positions([[0, 0, 0], [3, 0, 0]], 0.5)", "InvalidArgumentError",
+                     "pse::real_space_cutoff: xi = ")
+
+
+def test_rigid_forces_whose_norm_overflows_raise():
+    """|b| overflowed to inf, every GMRES test passed (inf <= inf) and zero velocities came back."""
+    bead = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    bodies = rpyfmm.RigidBodies(rpyfmm.DirectRpy())
+    bodies.set_configuration(np.vstack([bead, bead + 5.0]), 0.3, [0, 3, 6])
+    with pytest.raises(rpyfmm.NumericalFailureError, match="GMRES: the right-hand side's norm overflows"):
+        bodies.apply(np.full((2, 6), 1e300))
+    # Large but representable loads still give the scaled solution (linearity; rtol: GMRES at 1e-6).
+    big, _ = bodies.apply(np.full((2, 6), 1e150))
+    unit, _ = bodies.apply(np.full((2, 6), 1.0))
+    np.testing.assert_allclose(big, 1e150 * unit, rtol=1e-5)
+
+
+def test_langevin_noise_that_overflows_is_refused():
+    from rpyfmm import libmobility
+
+    solver = libmobility.NBody("open", "open", "open")
+    solver.setParameters()
+    solver.initialize(temperature=1.0, viscosity=1.0, hydrodynamicRadius=0.5)
+    solver.setPositions(X)
+    with pytest.raises(rpyfmm.InvalidArgumentError, match=r"LangevinVelocities: sqrt\(2 kbt / dt\) overflows"):
+        solver.LangevinVelocities(5e-324, 1.0)
