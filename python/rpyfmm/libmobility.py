@@ -136,8 +136,11 @@ def _dlpack_device(value: object) -> Optional[Tuple[int, int]]:
     device = getattr(value, "__dlpack_device__", None)
     if device is None or isinstance(value, np.ndarray):
         return None
-    d = tuple(device())
-    return None if d[0] == 1 else d
+    try:
+        d = tuple(int(v) for v in device())
+    except Exception:  # not a DLPack device: the array's own reading reports the problem (as in C++)
+        return None
+    return None if len(d) != 2 or d[0] == 1 else (d[0], d[1])
 
 
 def _host_framework(value: object) -> Optional[Any]:

@@ -7,7 +7,8 @@ subclass whose message names the argument (docs/python.md, "Errors").
 * fmm_default_leaf_capacity checks its tolerance as LaplaceFmm does;
 * files that are not regular (a device such as /dev/zero, a directory) are refused before they
   are read, so a config or trajectory reader never reads without end;
-* the pure-Python helpers refuse NaN, empty and negative input.
+* the pure-Python helpers refuse NaN, empty and negative input;
+* an object whose __dlpack_device__() is not a (type, id) pair no longer crashes the reader.
 """
 
 from __future__ import annotations
@@ -172,3 +173,49 @@ def test_langevin_noise_that_overflows_is_refused():
     solver.setPositions(X)
     with pytest.raises(rpyfmm.InvalidArgumentError, match=r"LangevinVelocities: sqrt\(2 kbt / dt\) overflows"):
         solver.LangevinVelocities(5e-324, 1.0)
+
+
+def test_malformed_dlpack_device_does_not_crash():
+    """__dlpack_device__() returning a 1-tuple was indexed past its end (a segfault, hence the
+    child process); it is now read through NumPy like any other array-like."""
+    code = textwrap.dedent("""
+        import numpy as np
+        import rpyfmm
+
+        class Odd:
+            def __dlpack_device__(self):
+                return (2,)
+            def __array__(self, dtype=None, copy=None):
+                return np.ones((4, 3))
+
+        op = rpyfmm.DirectRpy()
+        op.set_positions(np.arange(12.0).reshape(4, 3) * 2, 0.5)
+        print(np.array_equal(op.apply(Odd()), op.apply(np.ones((4, 3)))))
+        """)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p), OMP_NUM_THREADS="1")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, env=env,
+                          check=False)
+    assert proc.returncode == 0, f"exit code {proc.returncode}\n{proc.stderr}"
+    assert proc.stdout.strip() == "True"
+
+
+@pytest.mark.parametrize("device", [(2,), (), "cuda", None])
+def test_libmobility_reads_objects_with_a_malformed_dlpack_device(device):
+    """The drop-in indexed __dlpack_device__()'s result and raised IndexError/TypeError."""
+    from rpyfmm import libmobility
+
+    class Odd:
+        def __dlpack_device__(self):
+            return device
+
+        def __array__(self, dtype=None, copy=None):
+            return X.copy()
+
+    solver = libmobility.NBody("open", "open", "open")
+    solver.setParameters()
+    solver.initialize(viscosity=1.0, hydrodynamicRadius=0.5)
+    solver.setPositions(Odd())
+    solver.setPositions(X)
+    expected, _ = solver.Mdot(np.ones_like(X))
+    solver.setPositions(Odd())
+    np.testing.assert_array_equal(solver.Mdot(np.ones_like(X))[0], expected)
