@@ -20,18 +20,18 @@
 #include "rpyfmm/core/validate.hpp"
 
 namespace rpyfmm::cli {
-namespace {
 
-/// "(d0,d1,...)", as NumPy prints a shape (appended piecewise: GCC 12 warns falsely (-Wrestrict)
-/// on `const char* + std::string&&`).
 std::string shape_text(const std::vector<std::size_t>& shape) {
+  // Appended piecewise: GCC 12 warns falsely (-Wrestrict) on `const char* + std::string&&`.
   std::string s = "(";
   for (std::size_t i = 0; i < shape.size(); ++i) {
     if (i) s += ',';
     s += std::to_string(shape[i]);
   }
-  return s + ")";
+  return s + (shape.size() == 1 ? ",)" : ")");
 }
+
+namespace {
 
 [[noreturn]] void bad(const std::string& name, const std::string& what) {
   throw Error(ErrorCode::io_error, "'" + name + "': " + what);

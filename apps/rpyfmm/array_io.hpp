@@ -54,6 +54,9 @@ Array read_array_bytes(std::string_view bytes, const std::string& name);
 void write_npy(const std::filesystem::path& path, const std::vector<std::size_t>& shape,
                const std::vector<double>& data);
 
+/// "(d0,d1,...)", as NumPy prints a shape without spaces: "(4,)" for one dimension, "()" for none.
+std::string shape_text(const std::vector<std::size_t>& shape);
+
 /// One output of write_npys: an empty `path` means "not asked for" and is skipped.
 struct NpyOutput {
   std::filesystem::path path;

@@ -402,4 +402,14 @@ TEST_F(CliInputs, ConfigThatIsNotARegularFileIsRefused) {
                  {"--config", "is a directory"});
 }
 
+// One-dimensional shapes read as NumPy prints them, "(4,)", not "(4)".
+TEST_F(CliInputs, OneDimensionalShapesKeepTheirComma) {
+  write("q.npy", npy_bytes("(4,)", 32));
+  expect_refused(
+      "laplace --sources " + path("x.txt") + " --charges " + path("q.npy") + " --direct --out " + path("u.npy"),
+      {"charges must have shape (3,), got (4,)"});
+  write("p.npy", npy_bytes("(4,)", 32));
+  expect_refused(mobility_with(path("p.npy")), {"positions must have shape (N,3) or (3N,), got (4,)"});
+}
+
 }  // namespace
