@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <new>
 #include <optional>
@@ -19,18 +20,18 @@
 #include "rpyfmm/core/validate.hpp"
 
 namespace rpyfmm::cli {
-namespace {
 
-/// "(d0,d1,...)", as NumPy prints a shape (appended piecewise: GCC 12 warns falsely (-Wrestrict)
-/// on `const char* + std::string&&`).
 std::string shape_text(const std::vector<std::size_t>& shape) {
+  // Appended piecewise: GCC 12 warns falsely (-Wrestrict) on `const char* + std::string&&`.
   std::string s = "(";
   for (std::size_t i = 0; i < shape.size(); ++i) {
     if (i) s += ',';
     s += std::to_string(shape[i]);
   }
-  return s + ")";
+  return s + (shape.size() == 1 ? ",)" : ")");
 }
+
+namespace {
 
 [[noreturn]] void bad(const std::string& name, const std::string& what) {
   throw Error(ErrorCode::io_error, "'" + name + "': " + what);
@@ -346,13 +347,28 @@ std::string npy_header(const std::vector<std::size_t>& shape) {
   return std::string("\x93NUMPY\x01\x00", 8) + static_cast<char>(len & 0xff) + static_cast<char>(len >> 8) + dict;
 }
 
-void write_npy(const std::filesystem::path& path, const std::vector<std::size_t>& shape,
-               const std::vector<double>& data) {
-  const std::string header = npy_header(shape);
-  write_file_atomically(path, [&](std::ostream& out) {
+namespace {
+
+// The bytes of a float64 .npy of `shape` holding `data` (both must outlive the call).
+std::function<void(std::ostream&)> npy_writer(const std::vector<std::size_t>& shape, const std::vector<double>& data) {
+  return [header = npy_header(shape), &data](std::ostream& out) {
     out.write(header.data(), static_cast<std::streamsize>(header.size()));
     out.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size() * sizeof(double)));
-  });
+  };
+}
+
+}  // namespace
+
+void write_npy(const std::filesystem::path& path, const std::vector<std::size_t>& shape,
+               const std::vector<double>& data) {
+  write_file_atomically(path, npy_writer(shape, data));
+}
+
+void write_npys(const std::vector<NpyOutput>& outputs) {
+  std::vector<FileWrite> files;
+  for (const NpyOutput& o : outputs)
+    if (!o.path.empty()) files.push_back({o.path, npy_writer(o.shape, *o.data)});
+  write_files_atomically(files);
 }
 
 std::string nonfinite_entry(std::size_t index, std::size_t stride, bool nan) {

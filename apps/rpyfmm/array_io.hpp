@@ -54,6 +54,20 @@ Array read_array_bytes(std::string_view bytes, const std::string& name);
 void write_npy(const std::filesystem::path& path, const std::vector<std::size_t>& shape,
                const std::vector<double>& data);
 
+/// "(d0,d1,...)", as NumPy prints a shape without spaces: "(4,)" for one dimension, "()" for none.
+std::string shape_text(const std::vector<std::size_t>& shape);
+
+/// One output of write_npys: an empty `path` means "not asked for" and is skipped.
+struct NpyOutput {
+  std::filesystem::path path;
+  std::vector<std::size_t> shape;
+  const std::vector<double>* data = nullptr;
+};
+/// Writes the outputs of one command together (write_files_atomically): all go to temporaries
+/// first and replace their targets only when every one is on disk, so a second output that
+/// cannot be written (missing folder, full disk) leaves no first output behind.
+void write_npys(const std::vector<NpyOutput>& outputs);
+
 /// write_npy's bytes before the values: the float64 C-order header of `shape` (version 1.0, padded
 /// to a multiple of 64 bytes).
 std::string npy_header(const std::vector<std::size_t>& shape);

@@ -35,6 +35,17 @@ void apply_threads(const CommonOptions& options) {
   if (options.threads > 0) omp_set_num_threads(static_cast<int>(options.threads));
 }
 
+void refuse_empty_values(CLI::App& app) {
+  const CLI::Validator non_empty(
+      [](const std::string& value) {
+        return value.empty() ? std::string("must not be empty (it names no file or choice)") : std::string();
+      },
+      "");
+  for (CLI::Option* option : app.get_options())
+    if (option->get_type_name() == "TEXT") option->check(non_empty);
+  for (CLI::App* command : app.get_subcommands({})) refuse_empty_values(*command);
+}
+
 namespace {
 
 // A decimal integer as read: its sign and magnitude (every value of the int64 and uint64 ranges).

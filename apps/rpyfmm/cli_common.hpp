@@ -32,6 +32,12 @@ void add_common_options(CLI::App& cmd, CommonOptions& options);
 void add_io_option(CLI::App& cmd, std::string& io);
 /// Applies --threads (omp_set_num_threads) after validating it (rpyfmm::require_thread_count).
 void apply_threads(const CommonOptions& options);
+
+/// Gives every text option of `app` and its commands (paths, method names) a check that refuses
+/// an empty value: "--out ''" or "--config ''" would otherwise read as "not given" (an optional
+/// output silently not written, the built-in demo run instead of a config) or fail late with a
+/// message about a temporary file.
+void refuse_empty_values(CLI::App& app);
 /// Threads that OpenMP will use.
 int active_threads();
 

@@ -24,6 +24,7 @@
 #include "rpyfmm/bd/config.hpp"
 #include "rpyfmm/bd/run.hpp"
 #include "rpyfmm/core/cpu_features.hpp"
+#include "rpyfmm/core/file_safety.hpp"
 #include "rpyfmm/core/validate.hpp"
 
 namespace rpyfmm::cli {
@@ -58,6 +59,7 @@ void run_bd_command(const BdArgs& args) {
     source = args.restart;
     s = bd::restart_bd(args.restart, options);
   } else {
+    if (!args.config.empty()) require_regular_input(args.config, "--config");  // /dev/zero would never end
     const bd::RunConfig config = args.config.empty() ? bd::parse_config(bd::demo_config_text(), "<built-in demo>")
                                                      : bd::load_config(args.config);
     source = config.source;

@@ -106,8 +106,7 @@ void run_rigid(const RigidArgs& args) {
   watch.restart();
   require_finite_output(uw, "rigid");
   require_finite_output(lambda, "rigid (bead forces)");
-  write_npy(args.out, {m, 6}, uw);
-  if (!args.bead_forces.empty()) write_npy(args.bead_forces, {n, 3}, lambda);
+  write_npys({{args.out, {m, 6}, &uw}, {args.bead_forces, {n, 3}, &lambda}});
   stages["write"] = watch.seconds();
 
   if (args.common.json) {

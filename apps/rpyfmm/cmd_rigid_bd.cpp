@@ -219,9 +219,8 @@ void run_rigid_bd(const RigidBdArgs& args) {
   require_finite_output(frames, "rigid-bd (trajectory)");
   require_finite_output(sim.bead_positions(), "rigid-bd (bead positions)");
   const std::size_t frame_count = frames.size() / (7 * m);
-  write_npy(args.out, {frame_count, m, 7}, frames);
-  if (!args.beads_out.empty())
-    write_npy(args.beads_out, {n, 3}, std::vector<double>(sim.bead_positions().begin(), sim.bead_positions().end()));
+  const std::vector<double> bead_positions(sim.bead_positions().begin(), sim.bead_positions().end());
+  write_npys({{args.out, {frame_count, m, 7}, &frames}, {args.beads_out, {n, 3}, &bead_positions}});
   stages["write"] = watch.seconds();
   report_rigid_bd(args, sim, frame_count, stages, total.seconds());
 }

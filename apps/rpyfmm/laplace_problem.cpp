@@ -18,14 +18,9 @@ ChargesLayout charges_layout(const std::vector<std::size_t>& s, std::size_t n) {
     return {1, false};
   }
   if (s.size() == 2 && s[1] == n && s[0] >= 1) return {s[0], true};
-  std::string shape = "(";
-  for (std::size_t i = 0; i < s.size(); ++i) {
-    if (i > 0) shape += ',';
-    shape += std::to_string(s[i]);
-  }
   fail(ErrorCode::invalid_input, "charges",
        "must have shape (" + std::to_string(n) + ",) or (nd," + std::to_string(n) + ") to match " + std::to_string(n) +
-           " sources, got " + shape + ")");
+           " sources, got " + shape_text(s));
 }
 
 Error nonfinite_charge(std::size_t index, bool nan, const ChargesLayout& layout, std::size_t n) {

@@ -10,6 +10,7 @@
 #include <ostream>
 #include <string>
 
+#include "cli_common.hpp"
 #include "commands.hpp"
 #include "mpi_session.hpp"
 #include "rpyfmm/core/cpu_features.hpp"
@@ -44,6 +45,7 @@ int main(int argc, char** argv) {
   rpyfmm::cli::register_rigid(app);
   rpyfmm::cli::register_rigid_bd(app);
   rpyfmm::cli::add_mpi_flag(app);
+  rpyfmm::cli::refuse_empty_values(app);
   // After parsing (--mpi known), before the command runs: MPI starts where asked for.
   app.parse_complete_callback([&app] {
     if (!rpyfmm::cli::under_mpi()) return;

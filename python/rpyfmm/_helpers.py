@@ -10,7 +10,7 @@ from typing import List, Tuple
 import numpy as np
 import numpy.typing as npt
 
-from ._rpyfmm import FileError, InvalidInputError
+from ._rpyfmm import FileError, InvalidArgumentError, InvalidInputError
 
 
 def read_xyz(path: str | os.PathLike[str]) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -21,8 +21,11 @@ def read_xyz(path: str | os.PathLike[str]) -> Tuple[np.ndarray, np.ndarray, np.n
     written; 10 significant digits) and ``times`` in time units. A file that
     cannot be opened raises :class:`FileError`; one that is not such a
     trajectory (binary, truncated, malformed) :class:`InvalidInputError`; both
-    name the file.
+    name the file, as does a file with no frame or a path that is not a regular file
+    (a directory, or a device such as /dev/zero, which would be read without end).
     """
+    if os.path.exists(path) and not os.path.isfile(path):
+        raise FileError(f"read_xyz: '{os.fspath(path)}' is not a regular file")
     try:
         with open(path, encoding="utf-8") as f:
             text = f.read()
@@ -31,9 +34,12 @@ def read_xyz(path: str | os.PathLike[str]) -> Tuple[np.ndarray, np.ndarray, np.n
     except OSError as e:
         raise FileError(f"read_xyz: cannot read '{os.fspath(path)}': {e.strerror or e}") from e
     try:
-        return _parse_xyz(text.splitlines())
+        frames = _parse_xyz(text.splitlines())
     except (ValueError, IndexError) as e:
         raise InvalidInputError(f"read_xyz: '{os.fspath(path)}' is not an XYZ trajectory: {e}") from e
+    if frames[2].size == 0:
+        raise InvalidInputError(f"read_xyz: '{os.fspath(path)}' holds no frame")
+    return frames
 
 
 def _parse_xyz(lines: List[str]) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -67,12 +73,24 @@ def msd(positions: npt.ArrayLike) -> np.ndarray:
     (length^2 units). For free diffusion it grows as 6 D t.
     """
     x = np.asarray(positions, dtype=np.float64)
-    if x.ndim != 3 or x.shape[2] != 3:
-        raise InvalidInputError(f"msd: positions has shape {x.shape}, expected (frames, N, 3)")
+    if x.ndim != 3 or x.shape[2] != 3 or x.shape[0] == 0 or x.shape[1] == 0:
+        raise InvalidInputError(f"msd: positions has shape {x.shape}, expected (frames, N, 3) with frames, N > 0")
+    if not np.all(np.isfinite(x)):
+        bad = tuple(int(i) for i in np.argwhere(~np.isfinite(x))[0])
+        raise InvalidInputError(f"msd: positions entry {bad} is {'NaN' if np.isnan(x[bad]) else 'infinite'}")
     d = x - x[0]
     return np.mean(np.sum(d * d, axis=2), axis=1)
 
 
 def stokes_einstein(kT: float, viscosity: float, radius: float) -> float:
-    """Single-sphere diffusion coefficient D0 = kT / (6 pi eta a) (length^2 / time)."""
+    """Single-sphere diffusion coefficient D0 = kT / (6 pi eta a) (length^2 / time).
+
+    kT must be finite and >= 0, viscosity and radius finite and > 0; otherwise
+    :class:`InvalidArgumentError` names the argument.
+    """
+    for name, value, zero_ok in (("kT", kT, True), ("viscosity", viscosity, False), ("radius", radius, False)):
+        v = float(value)
+        if not (np.isfinite(v) and (v >= 0.0 if zero_ok else v > 0.0)):
+            raise InvalidArgumentError(
+                f"stokes_einstein: {name} must be finite and {'>= 0' if zero_ok else '> 0'}, got {value!r}")
     return kT / (6.0 * np.pi * viscosity * radius)

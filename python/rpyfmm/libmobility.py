@@ -136,8 +136,11 @@ def _dlpack_device(value: object) -> Optional[Tuple[int, int]]:
     device = getattr(value, "__dlpack_device__", None)
     if device is None or isinstance(value, np.ndarray):
         return None
-    d = tuple(device())
-    return None if d[0] == 1 else d
+    try:
+        d = tuple(int(v) for v in device())
+    except Exception:  # not a DLPack device: the array's own reading reports the problem (as in C++)
+        return None
+    return None if len(d) != 2 or d[0] == 1 else (d[0], d[1])
 
 
 def _host_framework(value: object) -> Optional[Any]:
@@ -336,7 +339,10 @@ class _Solver:
         where = f"{type(self).__name__}.LangevinVelocities"
         step = _real(dt, "dt", where, 0.0)
         kT = _real(kbt, "kbt", where, 0.0, strict=False)
-        return self._velocities(forces, torques, where, math.sqrt(2.0 * kT / step))
+        scale = math.sqrt(2.0 * kT / step)
+        if not math.isfinite(scale):  # a subnormal dt: the noise would be infinite
+            raise InvalidArgumentError(f"{where}: sqrt(2 kbt / dt) overflows for dt = {step:g} and kbt = {kT:g}")
+        return self._velocities(forces, torques, where, scale)
 
     def divM(self, prefactor: float = 1.0) -> Velocities:
         """prefactor * div M: zero for these solvers (one radius, free space or a periodic box)."""

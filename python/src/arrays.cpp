@@ -6,6 +6,7 @@
 
 #include "common.hpp"
 #include "device_arrays.hpp"
+#include "rpyfmm/core/ranges.hpp"
 
 namespace rpyfmm::python {
 namespace {
@@ -213,6 +214,14 @@ rpy::SqrtOptions sqrt_options(const std::string& method, double tolerance, int m
                               bool throw_if_not_converged, double lambda_min, double lambda_max,
                               int bound_estimate_iterations, const std::string& preconditioner,
                               int preconditioner_block) {
+  // Checked here, in sqrt_apply's words (rpy/src/sqrt/sqrt_apply.cpp), for every operator: those
+  // whose own sampler ignores them (PSE's split sampler, free draining's exact root) would
+  // otherwise accept NaN or a negative count without a word.
+  ranges::require_in(ranges::kSolverTolerance, tolerance, "sqrt_apply", "tolerance");
+  require(max_iterations >= 0, ErrorCode::invalid_argument, "sqrt_apply",
+          "max_iterations must be >= 0 (0 = automatic), got " + std::to_string(max_iterations));
+  require(preconditioner_block >= 0, ErrorCode::invalid_argument, "sqrt_apply",
+          "preconditioner_block must be >= 0 (0 = automatic), got " + std::to_string(preconditioner_block));
   rpy::SqrtOptions o;
   o.preconditioner = sqrt_preconditioner_from(preconditioner);
   o.preconditioner_block = preconditioner_block;

@@ -29,6 +29,7 @@
 #include "rpyfmm/bd/particles.hpp"
 #include "rpyfmm/bd/run.hpp"
 #include "rpyfmm/bd/step_engine.hpp"
+#include "rpyfmm/core/ranges.hpp"
 #include "rpyfmm/rpy/mobility_factory.hpp"
 #include "run_arguments.hpp"
 
@@ -150,6 +151,8 @@ bd::ForceField simulation_forces(std::vector<bd::ParticleType> types, nb::handle
 /// The Brownian square root of a Simulation: method, tolerance and preconditioner.
 rpy::SqrtOptions simulation_sqrt(const std::string& method, double tolerance, const std::string& preconditioner,
                                  const std::string& where) {
+  // Checked for every mobility: PSE's split sampler ignores the tolerance and would take NaN.
+  ranges::require_in(ranges::kSolverTolerance, tolerance, where, "sqrt_tolerance");
   rpy::SqrtOptions o = bd::IntegratorOptions{}.sqrt;
   o.method = sqrt_method_from(method);
   o.tolerance = tolerance;

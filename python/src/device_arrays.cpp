@@ -129,6 +129,7 @@ std::optional<DlpackDevice> device_of(nb::handle obj) {
   DlpackDevice device;
   try {
     const nb::tuple d = nb::cast<nb::tuple>(obj.attr("__dlpack_device__")());
+    if (d.size() != 2) return std::nullopt;  // not (type, id); d[i] checks no bounds
     device.type = nb::cast<int>(d[0]);
     device.id = nb::cast<int>(d[1]);
   } catch (const std::exception&) {

@@ -9,6 +9,7 @@
 
 #include "common.hpp"
 #include "object_lock.hpp"
+#include "rpyfmm/core/ranges.hpp"
 #include "rpyfmm/fmm/direct.hpp"
 #include "rpyfmm/fmm/laplace_fmm.hpp"
 #include "rpyfmm/fmm/leaf_grid.hpp"
@@ -85,14 +86,21 @@ void bind_output_constants(nb::module_& m) {
   m.attr("RESULT_COLUMNS") = nb::make_tuple("pot", "gx", "gy", "gz", "hxx", "hyy", "hzz", "hxy", "hxz", "hyz");
 }
 
+// Explicit targets: None means "at the sources"; an empty array is refused, since the library reads
+// an empty target span as "at the sources" and would silently return N rows instead of none.
+InArray targets_from(OptArrayArg targets, const std::string& where) {
+  InArray t;
+  if (targets.is_none()) return t;
+  t = as_input(targets, where, "targets");
+  require(require_points(t, where, "targets") > 0, ErrorCode::invalid_input, where,
+          "targets is empty (0 points); pass targets=None to evaluate at the sources");
+  return t;
+}
+
 void set_points(fmm::LaplaceFmm& self, ArrayArg sources, OptArrayArg targets) {
   const InArray s = as_input(sources, "LaplaceFmm.set_points", "sources");
   require_points(s, "LaplaceFmm.set_points", "sources");
-  InArray t;
-  if (!targets.is_none()) {
-    t = as_input(targets, "LaplaceFmm.set_points", "targets");
-    require_points(t, "LaplaceFmm.set_points", "targets");
-  }
+  const InArray t = targets_from(targets, "LaplaceFmm.set_points");
   nb::gil_scoped_release release;
   self.set_points(s.span(), t.span());
 }
@@ -116,12 +124,8 @@ ArrayResult laplace_direct(ArrayArg sources, ArrayArg charges, OptArrayArg targe
   const unsigned mask = outputs_from(outputs, where);
   const InArray s = as_input(sources, where, "sources");
   const std::size_t n = require_points(s, where, "sources");
-  InArray t;
-  std::size_t mt = n;
-  if (!targets.is_none()) {
-    t = as_input(targets, where, "targets");
-    mt = require_points(t, where, "targets");
-  }
+  const InArray t = targets_from(targets, where);
+  const std::size_t mt = targets.is_none() ? n : t.size / 3;
   const InArray q = as_input(charges, where, "charges");
   const std::size_t nd = densities(q, where);
   OutArray r = make_output(out, result_shape(q, mt), where, &q);
@@ -203,6 +207,9 @@ void bind_laplace_functions(nb::module_& m) {
       [](std::optional<double> tolerance, std::optional<double> eps) {
         const double t = renamed_keyword(tolerance, eps, fmm::FmmOptions{}.tolerance, "fmm_default_leaf_capacity",
                                          "tolerance", "eps");
+        // LaplaceFmm's range: the capacity tables end there, and NaN or a negative value would
+        // otherwise pick a table silently.
+        ranges::require_in(ranges::kLaplaceTolerance, t, "fmm_default_leaf_capacity", "tolerance");
         return fmm::fmm_default_leaf_capacity(t);
       },
       nb::arg("tolerance").sig("1e-06") = nb::none(), nb::kw_only(), nb::arg("eps") = nb::none(),

@@ -16,17 +16,16 @@
 #include "common.hpp"
 #include "rpyfmm/bd/config.hpp"
 #include "rpyfmm/bd/run.hpp"
+#include "rpyfmm/core/file_safety.hpp"
 
 namespace rpyfmm::python {
 
-/// Runs fn() reading the file `path`: a directory, or a stream failure (whose message does not
-/// name the file), raises FileError naming `where` and the path.
+/// Runs fn() reading the file `path`: a directory, device or FIFO (/dev/zero would be read without
+/// end), or a stream failure (whose message does not name the file), raises FileError naming
+/// `where` and the path.
 template <class Fn>
 auto reading_file(const char* where, const std::filesystem::path& path, Fn&& fn) {
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) {
-    fail(ErrorCode::io_error, where, "'" + path.string() + "' is a directory, expected a file");
-  }
+  require_regular_input(path, where);
   try {
     return fn();
   } catch (const std::ios_base::failure& e) {

@@ -354,4 +354,62 @@ TEST_F(CliInputs, NonFiniteResultsAreNotWritten) {
       {"laplace", "is infinite", "nothing written"});
 }
 
+// ---- paths ---------------------------------------------------------------------------------
+
+// An empty path names nothing: refused at parsing, never read as "not given" (an optional output
+// silently not written, the built-in demo run in place of a config) or failing late about a
+// temporary file.
+TEST_F(CliInputs, EmptyValuesAreRefusedNamingTheOption) {
+  write("sizes.txt", "3\n");
+  write("ft.txt", "0 0 1 0 0 0\n");
+  const std::string rigid = "rigid --positions " + path("x.txt") + " --radius 0.5 --body-sizes " + path("sizes.txt") +
+                            " --forces " + path("ft.txt");
+  expect_refused(mobility_with(path("x.txt")) + " --out ''", {"--out", "must not be empty"});
+  expect_refused(rigid + " --out " + path("u.npy") + " --bead-forces ''", {"--bead-forces", "must not be empty"});
+  expect_refused("bd --quiet --config ''", {"--config", "must not be empty"});
+  expect_refused("bd --quiet --steps 0 --out-dir ''", {"--out-dir", "must not be empty"});
+  expect_refused(mobility_with(path("x.txt"), " --method ''"), {"--method", "must not be empty"});
+}
+
+// A command's two outputs are written together: when the second cannot be written (its folder is
+// missing), the first is not left behind either.
+TEST_F(CliInputs, SecondOutputFailingLeavesNoFirstOutput) {
+  write("sizes.txt", "3\n");
+  write("ft.txt", "0 0 1 0 0 0\n");
+  const std::string bodies = " --positions " + path("x.txt") + " --radius 0.5 --body-sizes " + path("sizes.txt");
+  const std::string missing = path("missing/b.npy");
+  expect_refused(
+      "rigid" + bodies + " --forces " + path("ft.txt") + " --out " + path("u.npy") + " --bead-forces " + missing,
+      {"missing/b.npy"});
+  expect_refused("rigid-bd" + bodies + " --dt 0.01 --steps 1 --kT 0 --out " + path("u.npy") + " --beads-out " + missing,
+                 {"missing/b.npy"});
+  for (const auto& entry : fs::directory_iterator(dir_))
+    EXPECT_EQ(entry.path().filename().string().find(".tmp."), std::string::npos) << entry.path() << " left behind";
+  // Both written when both can be.
+  const Result ok = run("rigid" + bodies + " --forces " + path("ft.txt") + " --out " + path("u.npy") +
+                        " --bead-forces " + path("b.npy"));
+  EXPECT_EQ(ok.code, 0) << ok.err;
+  EXPECT_TRUE(fs::exists(path("u.npy")) && fs::exists(path("b.npy")));
+}
+
+// A config that is a device (/dev/zero: endless) or a directory is refused before it is read,
+// under a memory cap so that a reader without the check fails fast here.
+TEST_F(CliInputs, ConfigThatIsNotARegularFileIsRefused) {
+  const std::string cap = kAddressSanitizer ? "" : "ulimit -v 4000000; ";
+  expect_refused("bd --quiet --config /dev/zero --out-dir " + path("u.npy"), {"--config", "'/dev/zero' is a device"},
+                 "u.npy", cap);
+  expect_refused("bd --quiet --config " + dir_.string() + " --out-dir " + path("u.npy"),
+                 {"--config", "is a directory"});
+}
+
+// One-dimensional shapes read as NumPy prints them, "(4,)", not "(4)".
+TEST_F(CliInputs, OneDimensionalShapesKeepTheirComma) {
+  write("q.npy", npy_bytes("(4,)", 32));
+  expect_refused(
+      "laplace --sources " + path("x.txt") + " --charges " + path("q.npy") + " --direct --out " + path("u.npy"),
+      {"charges must have shape (3,), got (4,)"});
+  write("p.npy", npy_bytes("(4,)", 32));
+  expect_refused(mobility_with(path("p.npy")), {"positions must have shape (N,3) or (3N,), got (4,)"});
+}
+
 }  // namespace

@@ -3,8 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
 
 #include "ewald_reference.hpp"
+#include "rpyfmm/core/error.hpp"
 #include "rpyfmm/rpy/pse/real_space.hpp"
 
 using namespace rpyfmm::rpy::pse;
@@ -113,4 +115,17 @@ TEST(PseRealSpace, TableMeetsItsTolerance) {
       EXPECT_LE(worst, 1.5 * eps_t) << xa << " " << eps_t;  // midpoint check + curvature between samples
     }
   }
+}
+
+// A huge xi (xi a = 1e300, e.g. PseRpy(box, xi=1e300)) made the cutoff's sampling step 0.01 / xi
+// vanish next to r, and the loop never ended: it is refused, naming xi; xi a of order 1 is not.
+TEST(PseRealSpace, HugeXiIsRefusedNotLoopedOn) {
+  EXPECT_THROW((void)real_space_cutoff(1e-4, 1e300, 1.0), rpyfmm::Error);
+  EXPECT_THROW((void)real_space_cutoff(1e-4, 1e5, 1.0), rpyfmm::Error);
+  try {
+    (void)real_space_cutoff(1e-4, 1e300, 0.5);
+  } catch (const rpyfmm::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("xi = 1e+300 (xi a = 5e+299) is too large"), std::string::npos) << e.what();
+  }
+  EXPECT_GT(real_space_cutoff(1e-4, 8.0, 1.0), 0.0);
 }

@@ -8,6 +8,7 @@
 #include <random>
 
 #include "rigid/gmres.hpp"
+#include "rpyfmm/core/error.hpp"
 
 using rpyfmm::rpy::rigid_detail::gmres;
 using rpyfmm::rpy::rigid_detail::GmresResult;
@@ -103,4 +104,21 @@ TEST(Gmres, BreakdownZeroRightHandSideAndCap) {
   EXPECT_FALSE(r.converged);
   EXPECT_LE(r.iterations, 7);
   EXPECT_GT(r.residual, 1e-14);
+}
+
+// A right-hand side whose norm overflows (entries of 1e300): |b| = inf made every convergence test
+// pass (inf <= inf) and x = 0 came back as converged; it is refused, while b = 1e150 (|b| finite)
+// still gives the solution, scaled (linearity; 1e-10 relative, as for the unscaled system above).
+TEST(Gmres, RightHandSideWhoseNormOverflowsIsRefused) {
+  const int n = 20;
+  const Eigen::MatrixXd a = Eigen::MatrixXd::Identity(n, n) + 0.3 / std::sqrt(double(n)) * random_matrix(n, 3u);
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(n);
+  const Eigen::VectorXd huge = Eigen::VectorXd::Constant(n, 1e300);
+  EXPECT_THROW((void)gmres(n, map_of(a), {}, huge.data(), x.data(), 1e-12, 1000, 60), rpyfmm::Error);
+  const Eigen::VectorXd big = Eigen::VectorXd::Constant(n, 1e150);
+  x.setZero();
+  const GmresResult r = gmres(n, map_of(a), {}, big.data(), x.data(), 1e-12, 1000, 60);
+  EXPECT_TRUE(r.converged);
+  const Eigen::VectorXd exact = a.partialPivLu().solve(Eigen::VectorXd::Constant(n, 1.0));
+  EXPECT_LE((x / 1e150 - exact).norm(), 1e-10 * exact.norm());
 }

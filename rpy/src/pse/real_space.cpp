@@ -97,6 +97,13 @@ double real_space_cutoff(double eps_r, double xi, double a) {
   const double step = 0.01 / xi;
   const double r0 = 0.5 * std::sqrt(std::log(1.0 / eps_r)) / xi;
   const double r_end = std::max(r0, 2.0 * a) + (std::sqrt(std::log(1.0 / eps_r)) + 6.0) / xi;
+  // About 100 (2 xi a + 6) samples: a huge xi (xi a = 1e300) would need more than the loop can
+  // count, its step vanishing next to r, so it is refused here instead of looping without end.
+  constexpr double kMaxSamples = 1e7;
+  require((r_end - r0) / step <= kMaxSamples, ErrorCode::invalid_argument, "pse::real_space_cutoff",
+          "xi = " + format_number(xi) + " (xi a = " + format_number(xi * a) +
+              ") is too large: the real-space cutoff would need more than 1e7 samples (xi a of order 1 is meant; "
+              "the automatic choice scans [0.2, 8])");
   double last_bad = -1.0;
   for (double r = r0; r <= r_end; r += step) {
     const FG v = real_space_fg(r, xi, a);

@@ -243,7 +243,7 @@ BodyBlocks factor_body_blocks(const std::vector<double>& arms, const std::vector
 
 void require_options(const RigidBodyOptions& options, std::string_view where) {
   require(options.tolerance > 0.0 && options.tolerance < 1.0, ErrorCode::invalid_argument, where,
-          "tolerance must lie in (0, 1), got " + std::to_string(options.tolerance));
+          "tolerance must lie in (0, 1), got " + format_number(options.tolerance));
   require(options.max_iterations > 0, ErrorCode::invalid_argument, where,
           "max_iterations must be > 0, got " + std::to_string(options.max_iterations));
   require(options.restart > 0, ErrorCode::invalid_argument, where,

@@ -148,8 +148,8 @@ RigidBodyReport finish_solve(const BodySystem& s, const SaddleSolution& solution
   const GmresResult& g = solution.gmres;
   const std::vector<double>& x = solution.x;
   require(g.converged, ErrorCode::numerical_failure, where,
-          "GMRES did not reach the tolerance " + std::to_string(options.tolerance) + " in " +
-              std::to_string(g.iterations) + " iterations (relative residual " + std::to_string(g.residual) +
+          "GMRES did not reach the tolerance " + format_number(options.tolerance) + " in " +
+              std::to_string(g.iterations) + " iterations (relative residual " + format_number(g.residual) +
               "); raise max_iterations or the tolerance");
   require(std::all_of(x.begin(), x.end(), [](double v) { return std::isfinite(v); }), ErrorCode::numerical_failure,
           where, "GMRES produced non-finite velocities");

@@ -130,6 +130,16 @@ inline void require_regular_or_absent(const std::filesystem::path& path) {
                                          ", not a regular file: refusing to replace it");
 }
 
+/// Throws io_error naming `where` when `path` exists and is not a regular file once symbolic links
+/// are followed: a directory, or a device, FIFO or socket, whose reads may never end (/dev/zero)
+/// or wait forever (a FIFO with no writer). A missing path is left to the reader's own message.
+inline void require_regular_input(const std::filesystem::path& path, std::string_view where) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0 || S_ISREG(st.st_mode)) return;
+  throw Error(ErrorCode::io_error, std::string(where) + ": " + file_safety_detail::quoted(path) + " is " +
+                                       file_safety_detail::kind_of(st.st_mode) + ", expected a regular file");
+}
+
 /// An unpredictable name for a temporary next to `target`: "<name>.tmp.<16 random hex digits>"
 /// (nothing can be planted there in advance). Create it with O_CREAT | O_EXCL and try another
 /// name when it exists.
