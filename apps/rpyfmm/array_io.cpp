@@ -347,17 +347,12 @@ std::string npy_header(const std::vector<std::size_t>& shape) {
   return std::string("\x93NUMPY\x01\x00", 8) + static_cast<char>(len & 0xff) + static_cast<char>(len >> 8) + dict;
 }
 
-namespace {
-
-// The bytes of a float64 .npy of `shape` holding `data` (both must outlive the call).
 std::function<void(std::ostream&)> npy_writer(const std::vector<std::size_t>& shape, const std::vector<double>& data) {
   return [header = npy_header(shape), &data](std::ostream& out) {
     out.write(header.data(), static_cast<std::streamsize>(header.size()));
     out.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size() * sizeof(double)));
   };
 }
-
-}  // namespace
 
 void write_npy(const std::filesystem::path& path, const std::vector<std::size_t>& shape,
                const std::vector<double>& data) {

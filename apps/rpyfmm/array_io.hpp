@@ -6,7 +6,9 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <optional>
+#include <ostream>
 #include <span>
 #include <string>
 #include <string_view>
@@ -48,6 +50,9 @@ Array read_array(const std::filesystem::path& path);
 std::optional<NpyLayout> npy_file_layout(const std::filesystem::path& path);
 /// The same reader over bytes in memory; `name` names the input in messages.
 Array read_array_bytes(std::string_view bytes, const std::string& name);
+
+/// The bytes of a float64 .npy of `shape` holding `data` (`data` must outlive the writer).
+std::function<void(std::ostream&)> npy_writer(const std::vector<std::size_t>& shape, const std::vector<double>& data);
 
 /// Writes a float64 .npy with write_file_atomically (rpyfmm/core/atomic_file.hpp): a target
 /// that is not a regular file is refused; a new temporary is fsync'ed and renamed over it.

@@ -1,6 +1,8 @@
 // rpyfmm CLI — the .npy files of `rigid` and `rigid-bd` across MPI ranks (body_io.hpp).
 #include "body_io.hpp"
 
+#include <unistd.h>
+
 #include <climits>
 #include <cstdint>
 #include <utility>
@@ -9,6 +11,7 @@
 #include "cli_common.hpp"
 #include "npy_collective_io.hpp"
 #include "rank_shares.hpp"
+#include "rpyfmm/core/atomic_file.hpp"
 #include "rpyfmm/core/validate.hpp"
 
 namespace rpyfmm::cli {
@@ -98,22 +101,45 @@ void require_finite_result(std::span<const NpyRun> runs, const std::string& what
       runs, [&](std::size_t i, bool nan) { return nonfinite_output(i, nan, what); }, comm);
 }
 
-void write_rows(const std::string& path, const std::vector<std::size_t>& shape, std::span<const NpyRun> runs,
-                const Shares& shares, std::size_t block, IoMode mode, const mpi::Communicator& comm) {
-  if (mode == IoMode::collective) {
-    write_npy_at_all(path, shape, runs, comm);
-    return;
-  }
-  std::vector<double> whole(comm.rank() == 0 ? runs.size() * block : 0);
+namespace {
+
+// Collective: `file` in its temporary next to its path, written and synced; the temporary's name on
+// rank 0 (with --io collective on every rank).
+std::string rows_temporary(const RowsFile& file, IoMode mode, const mpi::Communicator& comm) {
+  if (mode == IoMode::collective) return write_npy_temporary_at_all(file.path, file.shape, file.runs, comm);
+  std::vector<double> whole(comm.rank() == 0 ? file.runs.size() * file.block : 0);
   comm.run([&] {
-    for (std::size_t j = 0; j < runs.size(); ++j) {
-      const std::vector<double> local(runs[j].values.begin(), runs[j].values.end());
-      gather(local, shares, comm.rank() == 0 ? whole.data() + j * block : nullptr, comm);
+    for (std::size_t j = 0; j < file.runs.size(); ++j) {
+      const std::vector<double> local(file.runs[j].values.begin(), file.runs[j].values.end());
+      gather(local, file.shares, comm.rank() == 0 ? whole.data() + j * file.block : nullptr, comm);
     }
   });
+  std::string tmp;
   comm.run([&] {
-    if (comm.rank() == 0) write_npy(path, shape, whole);
+    if (comm.rank() == 0) tmp = write_temporary_next_to(file.path, npy_writer(file.shape, whole)).string();
   });
+  return tmp;
+}
+
+}  // namespace
+
+void write_rows_together(std::span<const RowsFile> files, IoMode mode, const mpi::Communicator& comm) {
+  std::vector<std::string> temporaries;  // rank 0's to rename; cleared once renamed
+  try {
+    for (const RowsFile& file : files) temporaries.push_back(rows_temporary(file, mode, comm));
+    comm.run([&] {
+      if (comm.rank() != 0) return;
+      for (std::size_t i = 0; i < files.size(); ++i) {
+        replace_with(temporaries[i], files[i].path);
+        temporaries[i].clear();
+      }
+    });
+  } catch (...) {
+    if (comm.rank() == 0)
+      for (const std::string& tmp : temporaries)
+        if (!tmp.empty()) ::unlink(tmp.c_str());
+    throw;
+  }
 }
 
 }  // namespace rpyfmm::cli

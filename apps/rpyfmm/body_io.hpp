@@ -49,11 +49,23 @@ ArrayShare read_body_rows(const std::string& path, IoMode mode, int per, bool by
 /// message naming `what` and the first non-finite entry by global index.
 void require_finite_result(std::span<const NpyRun> runs, const std::string& what, const mpi::Communicator& comm);
 
-/// Collective: writes the float64 .npy of `shape` whose values are each rank's `runs` (every rank
-/// passes as many runs), write_npy's file and rules: with --io collective every rank its runs
-/// (write_npy_at_all), with --io root rank 0 after gathering each run (MPI_Gatherv, `shares` the
-/// runs' counts and displacements within each run's block of `block` values).
-void write_rows(const std::string& path, const std::vector<std::size_t>& shape, std::span<const NpyRun> runs,
-                const Shares& shares, std::size_t block, IoMode mode, const mpi::Communicator& comm);
+/// One output of write_rows_together: the float64 .npy of `shape` whose values are each rank's
+/// `runs` (every rank passes as many runs), write_npy's file and rules: with --io collective every
+/// rank writes its runs (write_npy_temporary_at_all), with --io root rank 0 after gathering each run
+/// (MPI_Gatherv, `shares` the runs' counts and displacements within each run's block of `block`
+/// values).
+struct RowsFile {
+  std::string path;
+  std::vector<std::size_t> shape;
+  std::span<const NpyRun> runs;
+  Shares shares;
+  std::size_t block = 0;
+};
+
+/// Collective: writes a command's outputs together: every file goes to its
+/// temporary first, and only when all are on disk does rank 0 rename them over their targets, so
+/// a failure while writing (a missing folder, a full disk) leaves every target as it was
+/// (rpyfmm/core/atomic_file.hpp, write_files_atomically).
+void write_rows_together(std::span<const RowsFile> files, IoMode mode, const mpi::Communicator& comm);
 
 }  // namespace rpyfmm::cli

@@ -171,8 +171,8 @@ void write_npy_at_all(const std::string& path, const std::vector<std::size_t>& s
   write_npy_at_all(path, shape, std::span<const NpyRun>(&run, 1), comm);
 }
 
-void write_npy_at_all(const std::string& path, const std::vector<std::size_t>& shape, std::span<const NpyRun> runs,
-                      const mpi::Communicator& comm) {
+std::string write_npy_temporary_at_all(const std::string& path, const std::vector<std::size_t>& shape,
+                                       std::span<const NpyRun> runs, const mpi::Communicator& comm) {
   comm.run([&] {
     for (const NpyRun& run : runs)
       require(run.values.size() <= static_cast<std::size_t>(INT_MAX), ErrorCode::not_supported, path,
@@ -180,8 +180,14 @@ void write_npy_at_all(const std::string& path, const std::vector<std::size_t>& s
   });
   const std::string header = npy_header(shape);
   const std::string tmp = temporary_with_header(path, header, comm);
+  removing_on_failure(tmp, comm, [&] { write_values_at_all(tmp, path, header.size(), runs, comm); });
+  return tmp;
+}
+
+void write_npy_at_all(const std::string& path, const std::vector<std::size_t>& shape, std::span<const NpyRun> runs,
+                      const mpi::Communicator& comm) {
+  const std::string tmp = write_npy_temporary_at_all(path, shape, runs, comm);
   removing_on_failure(tmp, comm, [&] {
-    write_values_at_all(tmp, path, header.size(), runs, comm);
     comm.run([&] {
       if (comm.rank() == 0) replace_with(tmp, path);
     });

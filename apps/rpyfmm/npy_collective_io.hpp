@@ -45,4 +45,10 @@ struct NpyRun {
 void write_npy_at_all(const std::string& path, const std::vector<std::size_t>& shape, std::span<const NpyRun> runs,
                       const mpi::Communicator& comm);
 
+/// write_npy_at_all's file without its last step: the temporary next to `path`, written and synced,
+/// whose name it returns on every rank; the caller renames it (rank 0, replace_with) or removes it.
+/// On any failure the temporary is removed first.
+std::string write_npy_temporary_at_all(const std::string& path, const std::vector<std::size_t>& shape,
+                                       std::span<const NpyRun> runs, const mpi::Communicator& comm);
+
 }  // namespace rpyfmm::cli

@@ -96,7 +96,8 @@ LocalSolution solve_across_ranks(const RanksRigidArgs& args, const LocalProblem&
 }
 
 // The velocities (m,6) and, with --bead-forces, the bead forces (N,3), checked first, written by
-// every rank (--io collective) or by rank 0 after a gather (--io root): the serial command's files.
+// every rank (--io collective) or by rank 0 after a gather (--io root), together (a failure leaves
+// both targets as they were): the serial command's files.
 void write_solution(const RanksRigidArgs& args, const LocalSolution& s, const BodyLayout& z, IoMode mode,
                     const mpi::Communicator& comm) {
   const NpyRun velocities{first_of_rows(z, 6, false, comm.rank()), s.velocities};
@@ -104,9 +105,10 @@ void write_solution(const RanksRigidArgs& args, const LocalSolution& s, const Bo
   const bool beads = !args.bead_forces.empty();
   require_finite_result({&velocities, 1}, kCommand, comm);
   if (beads) require_finite_result({&bead_forces, 1}, "rigid (bead forces)", comm);
-  write_rows(args.out, {z.bodies(), 6}, {&velocities, 1}, body_shares(z, 6, false), 6 * z.bodies(), mode, comm);
+  std::vector<RowsFile> files{{args.out, {z.bodies(), 6}, {&velocities, 1}, body_shares(z, 6, false), 6 * z.bodies()}};
   if (beads)
-    write_rows(args.bead_forces, {z.beads(), 3}, {&bead_forces, 1}, body_shares(z, 3, true), 3 * z.beads(), mode, comm);
+    files.push_back({args.bead_forces, {z.beads(), 3}, {&bead_forces, 1}, body_shares(z, 3, true), 3 * z.beads()});
+  write_rows_together(files, mode, comm);
 }
 
 void report_json(const RanksRigidArgs& args, const BodyLayout& z, const rpy::RigidBodyReport& report,

@@ -124,8 +124,8 @@ LocalRun run_across_ranks(const RanksRigidBdArgs& args, Start& local, double fir
 
 // The trajectory (frames, m, 7) and the final beads (N,3), both checked first (the final beads also
 // without --beads-out, as in the serial command), written by every rank (--io collective: each
-// frame's rows of this rank's bodies) or by rank 0 after a gather (--io root): the serial
-// command's files.
+// frame's rows of this rank's bodies) or by rank 0 after a gather (--io root), together (a failure
+// leaves both targets as they were): the serial command's files.
 void write_outputs(const RanksRigidBdArgs& args, const LocalRun& run, const BodyLayout& z, IoMode mode,
                    const mpi::Communicator& comm) {
   const std::size_t m = z.bodies(), per_frame = 7 * m;
@@ -137,9 +137,10 @@ void write_outputs(const RanksRigidBdArgs& args, const LocalRun& run, const Body
   const NpyRun beads{first_of_rows(z, 3, true, comm.rank()), run.beads};
   require_finite_result(frames, "rigid-bd (trajectory)", comm);
   require_finite_result({&beads, 1}, "rigid-bd (bead positions)", comm);
-  write_rows(args.out, {run.frame_count, m, 7}, frames, frame_shares, per_frame, mode, comm);
+  std::vector<RowsFile> files{{args.out, {run.frame_count, m, 7}, frames, frame_shares, per_frame}};
   if (!args.beads_out.empty())
-    write_rows(args.beads_out, {z.beads(), 3}, {&beads, 1}, body_shares(z, 3, true), 3 * z.beads(), mode, comm);
+    files.push_back({args.beads_out, {z.beads(), 3}, {&beads, 1}, body_shares(z, 3, true), 3 * z.beads()});
+  write_rows_together(files, mode, comm);
 }
 
 void report(const RanksRigidBdArgs& args, const BodyLayout& z, const LocalRun& run, const StageTimes& stages,

@@ -11,8 +11,9 @@
 #    a restart of another shape, NaN in a charge of the second density with --direct): exit status
 #    2 on every rank, one line holding the serial command's message, no output, no temporary file,
 #    and a file already at --out left as it was;
-#  - hostile outputs (an input, a symbolic link to a good file, a device, a missing folder, for the
-#    second output of rigid-bd too): refused alike, the link and its file left as they were.
+#  - hostile outputs (an input, a symbolic link to a good file, a device, a missing folder): refused
+#    alike, the link and its file left as they were; a second output (rigid --bead-forces, rigid-bd
+#    --beads-out) in a missing folder: refused with no first output, with either --io.
 # rigid and rigid-bd across ranks read their bodies' rows of the .npy inputs (each rank whole
 # bodies; --body-sizes, text, read by rank 0) and write their rows of the outputs. 301 beads in 60
 # bodies of 3, 4, 5, 6, 7, ... beads (the last of 8): body k about the point k of a lattice of
@@ -146,7 +147,14 @@ set(rigid_small rigid ${x_args} ${sizes_args} ${ft_args})
 foreach(out "${WORK}/ft.npy" "${WORK}/link.npy" /dev/null "${WORK}/missing/out.npy")
   expect_serial_error("rigid --out ${out}" "${out}" ${rigid_small})
 endforeach()
-expect_serial_error("rigid-bd --beads-out missing" "${WORK}/traj.npy" ${rigid_bd} --beads-out "${WORK}/missing/b.npy")
+# A second output in a missing folder: refused before either file is in place, so no first output
+# either (the outputs are renamed together once both are written), with either --io.
+foreach(io collective root)
+  expect_no_output("rigid-bd --beads-out missing, --io ${io}" ${rigid_bd} --io ${io} --beads-out
+                   "${WORK}/missing/b.npy")
+  expect_no_output("rigid --bead-forces missing, --io ${io}" ${rigid_small} --io ${io} --bead-forces
+                   "${WORK}/missing/b.npy")
+endforeach()
 expect_serial_error("laplace --direct --out link" "${WORK}/link.npy" laplace --sources "${WORK}/x.npy" --charges
                     "${WORK}/a.npy" --direct)
 file(SHA256 "${good}" hash)
