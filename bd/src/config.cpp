@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "rpyfmm/bd/gsd_trajectory.hpp"
+#include "rpyfmm/core/file_safety.hpp"
 #include "rpyfmm/core/ranges.hpp"
 #include "rpyfmm/core/validate.hpp"
 
@@ -652,6 +653,7 @@ TrajectoryFormat trajectory_format(const std::string& name) {
 void parse_output(const toml::table& root, RunConfig& c) {
   Section s(sub_table(root, "output"), "output");
   c.output.dir = s.string("dir", "bd-out");
+  if (c.output.dir.empty()) bad_key("output.dir", "must not be empty");
   const std::string format = s.string("format", "xyz");
   c.output.format = trajectory_format(format);
   c.output.trajectory = s.string("trajectory", "trajectory." + format);
@@ -692,6 +694,7 @@ RunConfig parse_config(std::string_view text, const std::string& source) {
 }
 
 RunConfig load_config(const std::filesystem::path& path) {
+  require_regular_input(path, "config");  // a device or FIFO would be read forever
   std::ifstream in(path, std::ios::binary);
   if (!in) fail(ErrorCode::io_error, "config", "cannot read '" + path.string() + "'");
   std::ostringstream s;

@@ -8,6 +8,7 @@
 #include <sstream>
 #include <unordered_map>
 
+#include "rpyfmm/core/file_safety.hpp"
 #include "rpyfmm/core/validate.hpp"
 
 namespace rpyfmm::bd {
@@ -213,6 +214,7 @@ void add_orientation(const std::vector<std::string>& fields, std::size_t first, 
 }  // namespace
 
 InitialState read_particle_file(const std::filesystem::path& path, const ForceField& forces) {
+  require_regular_input(path, "particles.file");  // a device or FIFO would be read forever
   std::ifstream in(path);
   if (!in) fail(ErrorCode::io_error, "particles.file", "cannot read '" + path.string() + "'");
   InitialState s;

@@ -172,6 +172,7 @@ class Run {
       start_.rotation_vectors.assign(3 * n_, 0.0);
     }
     const auto dir = options.out_dir.value_or(config.output.dir);
+    require(!dir.empty(), ErrorCode::invalid_argument, "run_bd", "the output directory (out_dir) is empty");
     sum_.particles = n_;
     sum_.mobility = bd_.mobility().name();
     sum_.engine = options.engine ? options.engine_name : to_string(bd_.options().engine);

@@ -120,7 +120,36 @@ TEST(BdConfig, EveryBadConfigNamesTheKey) {
                        "source = \"chains\"\nchains = 2\nbeads = 3"),
                "bonds");
   expect_error(kBase + "[output]\nlog = \"../x.csv\"\n", "output");
+  expect_error(kBase + "[output]\ndir = \"\"\n", "output.dir");
   expect_error("[integrator\n", "test.toml:1");  // TOML syntax error with its position
+}
+
+// A config or particle file that is a device or a directory is refused by name before it is read
+// (/dev/zero would be read forever).
+TEST(BdConfig, InputsThatAreNotRegularFilesAreRefused) {
+  for (const char* path : {"/dev/zero", "/"}) {
+    try {
+      (void)load_config(path);
+      ADD_FAILURE() << "load_config(" << path << ") accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("config"), std::string::npos) << e.what();
+    }
+  }
+  expect_error(replace(kBase, "source = \"random\"\ncount = 50\nvolume_fraction = 0.05",
+                       "source = \"file\"\nfile = \"/dev/zero\""),
+               "/dev/zero");
+}
+
+TEST(BdRun, EmptyOutputDirectoryIsRefused) {
+  RunOptions options;
+  options.out_dir = std::filesystem::path();
+  try {
+    (void)run_bd(parse_config(kBase, "base"), options);
+    ADD_FAILURE() << "an empty out_dir accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("out_dir"), std::string::npos) << e.what();
+  }
 }
 
 // [partition] (docs/bd-config.md): read by runs across MPI ranks, accepted and ignored by one process.

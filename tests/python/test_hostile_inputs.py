@@ -111,6 +111,14 @@ def test_config_that_is_a_directory_is_a_file_error(tmp_path):
         rpyfmm.load_config(tmp_path)
 
 
+def test_run_bd_refuses_an_empty_output_directory():
+    config = "[particles]\nsource = \"random\"\ncount = 5\n[integrator]\ndt = 0.001\nsteps = 1\n"
+    with pytest.raises(rpyfmm.InvalidArgumentError, match="output directory"):
+        rpyfmm.run_bd(config, out_dir="")
+    with pytest.raises(rpyfmm.Error, match="output.dir"):
+        rpyfmm.run_bd(config + "[output]\ndir = \"\"\n")
+
+
 def test_read_xyz_refuses_a_file_without_frames(tmp_path):
     empty = tmp_path / "empty.xyz"
     empty.write_text("\n\n")
