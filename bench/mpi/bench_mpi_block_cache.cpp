@@ -1,6 +1,6 @@
 // The block preconditioner's blocks kept between sampler calls (docs/mpi.md, "Brownian
 // displacements"): the first mpi::sqrt_apply with the block preconditioner after set_positions
-// (gather, bisection and factoring of the blocks, then the sample) against a second one on the same
+// (distributed bisection and factoring of the blocks, then the sample) against a second one on the same
 // configuration (the kept blocks). Run under mpiexec by bench_mpi_ranks (bench/mpi/CMakeLists.txt).
 //
 // usage: bench_mpi_block_cache --method direct|fmm --n N [--eps 1e-6] [--reps 3] [--tol 1e-3] [--block 0]
@@ -8,8 +8,8 @@
 //   [-0.5, 0.5); Lanczos; --block: preconditioner_block, 0 the automatic size).
 // Prints one JSON line (rank 0): "first_s" and "second_s", the medians over reps (each rep a fresh
 // set_positions and one product, then the two calls) of the slowest rank's time of each call; "build_s" and
-// "gather_s", the medians of the slowest rank's build and gather in the first call
-// (BlockPreconditionerStats); "exchange_s", the median of the slowest rank's time in the blocks'
+// "gather_s", the medians of the slowest rank's build and its distributed bisection in the first
+// call (BlockPreconditionerStats: gather_seconds); "exchange_s", the median of the slowest rank's time in the blocks'
 // exchanges in the second call; the iterations of the last call.
 #include <mpi.h>
 

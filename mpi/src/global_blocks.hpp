@@ -23,11 +23,11 @@ class GlobalBlocks {
  public:
   /// Collective. The blocks of at most max_block particles of the whole set (counts[r] particles
   /// on rank r; this rank passes its own positions and radii) for `matrix` (translation: 3 rows per
-  /// particle; scaled_grand: 6), open geometry. Every rank gathers every position and radius (one
-  /// MPI_Allgatherv: O(N) memory and traffic per rank while it builds) and runs the serial median
-  /// bisection on the whole set, so every rank knows every block; each block is factored by its
-  /// owner, the rank holding most of its members (the lowest such rank on a tie), which keeps
-  /// only the factors of the blocks it owns. build_cost() reports what the build took.
+  /// particle; scaled_grand: 6), open geometry. The blocks come from the distributed bisection
+  /// (distributed_bisection.hpp: exactly rpy::bisect_blocks' blocks of the whole set, while each
+  /// rank holds only its own particles and the members of the blocks it owns); each block is
+  /// factored by its owner, the rank holding most of its members (the lowest such rank on a tie),
+  /// which keeps only the factors of the blocks it owns. build_cost() reports what the build took.
   GlobalBlocks(const Communicator& comm, std::span<const std::size_t> counts, std::span<const double> local_positions,
                std::span<const double> local_radii, double viscosity, std::size_t max_block,
                rpy::PreconditionedMatrix matrix);
@@ -46,8 +46,9 @@ class GlobalBlocks {
   [[nodiscard]] bool built_for(std::size_t max_block, rpy::PreconditionedMatrix matrix, double viscosity) const {
     return max_block == max_block_ && matrix == matrix_ && viscosity == viscosity_;
   }
-  /// What the build cost this rank: build_seconds, gather_seconds, gather_bytes_received, and the
-  /// exchanges' lists (particles_sent, particles_received); reused false, no exchange counted.
+  /// What the build cost this rank: build_seconds, gather_seconds and gather_bytes_received (the
+  /// distributed bisection with the members sent to the owners), and the exchanges' lists (particles_sent,
+  /// particles_received); reused false, no exchange counted.
   [[nodiscard]] const BlockPreconditionerStats& build_cost() const { return build_cost_; }
 
   /// The blocks of the whole set (the serial count).

@@ -5,12 +5,16 @@
 // statistical covariance test of the preconditioned sampler is in test_sqrt_operator.cpp.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstddef>
 #include <numbers>
 #include <string>
 #include <vector>
 
 #include "rpyfmm/core/error.hpp"
+#include "rpyfmm/rpy/block_factors.hpp"
 #include "rpyfmm/rpy/block_preconditioner.hpp"
 #include "rpyfmm/rpy/direct_operator.hpp"
 #include "rpyfmm/rpy/fmm_operator.hpp"
@@ -72,7 +76,58 @@ class BlockPreconditionerSuspension : public ::testing::Test {
   Eigen::MatrixXd B{dense_sampler(M, G)};
 };
 
+/// The canonical median bisection written out with full sorts (no selection algorithm): the
+/// part's bounding box, its first axis of widest extent, the part sorted by (coordinate, index),
+/// its first floor(n / 2) particles the lower part; a final part's members sorted by index.
+void sorted_bisection(const std::vector<double>& x, std::vector<std::size_t> part, std::size_t max_block,
+                      BlockPartition& out) {
+  if (part.size() <= max_block) {
+    std::sort(part.begin(), part.end());
+    out.order.insert(out.order.end(), part.begin(), part.end());
+    out.offsets.push_back(out.order.size());
+    return;
+  }
+  std::array<double, 3> extent{};
+  for (std::size_t c = 0; c < 3; ++c) {
+    const auto [lo, hi] = std::minmax_element(
+        part.begin(), part.end(), [&](std::size_t i, std::size_t j) { return x[3 * i + c] < x[3 * j + c]; });
+    extent[c] = x[3 * *hi + c] - x[3 * *lo + c];
+  }
+  const std::size_t axis = static_cast<std::size_t>(std::max_element(extent.begin(), extent.end()) - extent.begin());
+  std::sort(part.begin(), part.end(), [&](std::size_t i, std::size_t j) {
+    return x[3 * i + axis] < x[3 * j + axis] || (x[3 * i + axis] == x[3 * j + axis] && i < j);
+  });
+  const auto mid = part.begin() + static_cast<std::ptrdiff_t>(part.size() / 2);
+  sorted_bisection(x, std::vector<std::size_t>(part.begin(), mid), max_block, out);
+  sorted_bisection(x, std::vector<std::size_t>(mid, part.end()), max_block, out);
+}
+
 }  // namespace
+
+// bisect_blocks is the canonical median bisection (block_factors.hpp): the same order and offsets
+// as the bisection by full sorts, on random points, on a lattice where most coordinates tie
+// (-0.0 and +0.0 among them, equal under <) and on coincident points, for several block sizes.
+TEST(BlockPartition, BisectionIsTheCanonicalMedianSplit) {
+  std::vector<std::vector<double>> sets{sqrt_test::random_points(300, 0.1, 5u), std::vector<double>(3 * 70, 2.5)};
+  std::vector<double> lattice(3 * 400);
+  for (std::size_t g = 0; g < 400; ++g)
+    for (std::size_t c = 0; c < 3; ++c) {
+      const std::size_t k = (g * 31 + c * 7) % 5;
+      lattice[3 * g + c] = k == 0 && g % 2 == 1 ? -0.0 : static_cast<double>(k);
+    }
+  sets.push_back(lattice);
+  for (const std::vector<double>& x : sets) {
+    for (const std::size_t max_block : {1, 2, 5, 16, 500}) {
+      BlockPartition expected;
+      std::vector<std::size_t> all(x.size() / 3);
+      for (std::size_t g = 0; g < all.size(); ++g) all[g] = g;
+      sorted_bisection(x, all, max_block, expected);
+      const BlockPartition got = bisect_blocks(x, max_block);
+      EXPECT_EQ(got.offsets, expected.offsets) << x.size() / 3 << " particles, max_block " << max_block;
+      EXPECT_EQ(got.order, expected.order) << x.size() / 3 << " particles, max_block " << max_block;
+    }
+  }
+}
 
 // G = L^{-1} with L L^T the block diagonal of M: the particles' 3x3 diagonal blocks of
 // A = G M G^T are identities (to the single-precision storage of L), G^T and G^{-1} are the

@@ -19,28 +19,26 @@ namespace {
 using Matrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor>;
 
 /// Splits order[begin, end) at its median along the axis of widest extent until every part has
-/// at most max_block particles; appends the part boundaries to `offsets`.
+/// at most max_block particles; appends the part boundaries to `offsets`. The split is by the
+/// strict total order (coordinate along the axis, then index) and each final part is sorted by
+/// index: a part's lower half is then the set of its floor(n / 2) smallest members in that order,
+/// whatever permutation std::nth_element leaves, and a block's member order is its ascending
+/// indices, so the partition (order and offsets) is a function of the positions alone, which a
+/// distributed bisection reproduces exactly (mpi/src/distributed_bisection.hpp).
 void bisect(std::span<const double> x, std::vector<std::size_t>& order, std::size_t begin, std::size_t end,
             std::size_t max_block, std::vector<std::size_t>& offsets) {
+  const auto first = order.begin() + static_cast<std::ptrdiff_t>(begin);
+  const auto last = order.begin() + static_cast<std::ptrdiff_t>(end);
   if (end - begin <= max_block) {
+    std::sort(first, last);
     offsets.push_back(end);
     return;
   }
-  std::array<double, 3> lo{x[3 * order[begin]], x[3 * order[begin] + 1], x[3 * order[begin] + 2]};
-  std::array<double, 3> hi = lo;
-  for (std::size_t k = begin; k < end; ++k) {
-    for (int c = 0; c < 3; ++c) {
-      lo[c] = std::min(lo[c], x[3 * order[k] + c]);
-      hi[c] = std::max(hi[c], x[3 * order[k] + c]);
-    }
-  }
-  int axis = 0;
-  for (int c = 1; c < 3; ++c)
-    if (hi[c] - lo[c] > hi[axis] - lo[axis]) axis = c;
+  const int axis = widest_axis(x, std::span<const std::size_t>(&*first, end - begin));
   const std::size_t mid = begin + (end - begin) / 2;
-  std::nth_element(order.begin() + static_cast<std::ptrdiff_t>(begin), order.begin() + static_cast<std::ptrdiff_t>(mid),
-                   order.begin() + static_cast<std::ptrdiff_t>(end),
-                   [&](std::size_t i, std::size_t j) { return x[3 * i + axis] < x[3 * j + axis]; });
+  std::nth_element(first, order.begin() + static_cast<std::ptrdiff_t>(mid), last, [&](std::size_t i, std::size_t j) {
+    return bisection_less(x[3 * i + axis], i, x[3 * j + axis], j);
+  });
   bisect(x, order, begin, mid, max_block, offsets);
   bisect(x, order, mid, end, max_block, offsets);
 }
@@ -106,6 +104,27 @@ void lower_product(const float* l, std::size_t m, const double* in,
 }
 
 }  // namespace
+
+int widest_axis(std::span<const double> positions, std::span<const std::size_t> members) {
+  std::array<double, 3> lo{}, hi{};
+  if (!members.empty()) {
+    for (int c = 0; c < 3; ++c) lo[c] = hi[c] = positions[3 * members[0] + c];
+  }
+  for (const std::size_t i : members) {
+    for (int c = 0; c < 3; ++c) {
+      lo[c] = std::min(lo[c], positions[3 * i + c]);
+      hi[c] = std::max(hi[c], positions[3 * i + c]);
+    }
+  }
+  return widest_axis(lo, hi);
+}
+
+int widest_axis(const std::array<double, 3>& lo, const std::array<double, 3>& hi) {
+  int axis = 0;
+  for (int c = 1; c < 3; ++c)
+    if (hi[c] - lo[c] > hi[axis] - lo[axis]) axis = c;
+  return axis;
+}
 
 BlockPartition bisect_blocks(std::span<const double> positions, std::size_t max_block) {
   const std::size_t n = positions.size() / 3;

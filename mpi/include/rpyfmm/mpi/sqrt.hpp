@@ -84,13 +84,14 @@ struct BlockPreconditionerStats {
   /// The blocks an earlier call built for the operator's current positions, the same block size
   /// and the same matrix (translation or scaled grand), used again: no build, its fields 0.
   bool reused = false;
-  /// The build's wall time on this rank: the gather, the serial bisection of the whole set,
-  /// the factoring of this rank's blocks and the exchanges' lists.
+  /// The build's wall time on this rank: the blocks by the distributed bisection, the factoring
+  /// of this rank's blocks and the exchanges' lists.
   double build_seconds = 0.0;
-  /// The build's gather of all positions and radii to every rank (mpi/src/bd_gather.hpp: one
-  /// MPI_Allgather of the ranks' int counts, one MPI_Allgatherv of 5 doubles per particle: the
-  /// index, the position, the radius), its time on this rank and the bytes this rank received from
-  /// the others: 40 (N - n_r) + 4 (P - 1), n_r this rank's particles, P the ranks.
+  /// The build's distributed bisection with the blocks' members sent to their owners
+  /// (mpi/src/distributed_bisection.hpp; docs/mpi.md, "Brownian displacements"), its time on this
+  /// rank and the bytes this rank received from the others in it: each MPI_Allreduce counted by its
+  /// result's size, each MPI_Allgather by the other ranks' parts, and 48 bytes (index, block,
+  /// position, radius) per member of this rank's blocks held by another rank; none on one rank.
   double gather_seconds = 0.0;
   std::uint64_t gather_bytes_received = 0;
   /// This rank's particles in blocks owned by other ranks, and the other ranks' particles in the

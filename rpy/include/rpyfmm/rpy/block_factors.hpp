@@ -5,6 +5,7 @@
 // displacements"), so both give the same bits.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <span>
 #include <vector>
@@ -24,9 +25,23 @@ struct BlockPartition {
 };
 
 /// The recursive median bisection along the axis of widest extent of N = positions.size() / 3
-/// particles until every block has at most max(max_block, 1) particles. Deterministic: the same
-/// positions give the same blocks, members in the same order.
+/// particles until every block has at most max(max_block, 1) particles. A part of n > max_block
+/// particles splits into its floor(n / 2) smallest members in the strict order bisection_less
+/// (coordinate along the axis, then index), the lower part, and the others, the upper part; the
+/// blocks come in depth-first order, lower part first, each block's members in ascending index.
+/// So the partition is a function of the positions alone (no dependence on the selection
+/// algorithm's internal permutation), reproduced across ranks by mpi/src/distributed_bisection.hpp.
 [[nodiscard]] BlockPartition bisect_blocks(std::span<const double> positions, std::size_t max_block);
+
+/// The bisection's strict total order of particles along one axis: by coordinate, then by index.
+[[nodiscard]] constexpr bool bisection_less(double xi, std::size_t i, double xj, std::size_t j) {
+  return xi < xj || (!(xj < xi) && i < j);
+}
+
+/// The axis of widest extent hi - lo (the lowest axis on a tie), the bisection's split axis.
+[[nodiscard]] int widest_axis(const std::array<double, 3>& lo, const std::array<double, 3>& hi);
+/// The same for the bounding box of the members' positions (3 per particle in `positions`).
+[[nodiscard]] int widest_axis(std::span<const double> positions, std::span<const std::size_t> members);
 
 /// Rows of the preconditioned matrix per particle: 3, or 6 for the scaled grand mobility.
 [[nodiscard]] std::size_t block_dofs(PreconditionedMatrix matrix);
