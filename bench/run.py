@@ -16,7 +16,9 @@ mpi (the distributed FMM, direct RPY operator and free-draining BD on 1-4 ranks)
 (one product of the distributed FmmRpy on 1 and 2 ranks beside the serial FmmRpy), mpi-curve (the
 distributed Laplace FMM partitioned along the Morton and the Hilbert curve on 2-4 ranks),
 mpi-block-cache (the first block-preconditioned sample after set_positions against a second on 2
-ranks), mpi-partition (SfcPartition's multi-way cuts' search against the bisection on 2 and 4 ranks).
+ranks), mpi-partition (SfcPartition's multi-way cuts' search against the bisection on 2 and 4 ranks),
+mpi-bisection (the block preconditioner's blocks by the distributed bisection against the gather of the
+whole set on 2 and 4 ranks).
 
 Every case runs at 1 thread (the per-core figure) and at all cores; each program reports the median
 of its own repetitions and the driver the median over --rounds runs. --compare COMMIT builds COMMIT in
@@ -97,6 +99,8 @@ def parse_json_lines(out: str) -> list[dict]:
         if line.startswith("{"):
             row = json.loads(line)
             row.update({f"stage_{k}": v for k, v in row.pop("stages", {}).items()})
+            for key in [k for k, v in row.items() if isinstance(v, dict)]:  # {"a": {"b": 1}} -> a_b
+                row.update({f"{key}_{k}": v for k, v in row.pop(key).items()})
             rows.append(row)
     return rows
 
@@ -290,6 +294,14 @@ def mpi_partition_cases(mode: str) -> list[Case]:
     sizes = ("1e5", "1e6") if mode == "full" else ("1e5",)
     return [Case(["mpi/bench_mpi_ranks", str(p), "bench_mpi_partition", "--n", n, "--reps", "5"], 1, {})
             for n in sizes for p in (2, 4)]
+
+
+def mpi_bisection_cases(mode: str) -> list[Case]:
+    """The block preconditioner's blocks by the distributed bisection against the gather of the whole
+    set (one program runs both) on 2 and 4 ranks of one thread each (bench/mpi/bench_mpi_bisection)."""
+    n = "1e5" if mode == "full" else "2e4"
+    return [Case(["mpi/bench_mpi_ranks", str(p), "bench_mpi_bisection", "--n", n, "--order", order, "--reps", "5"],
+                 1, {}) for order in ("slabs", "random") for p in (2, 4)]
 
 
 GROUPS = [
@@ -503,6 +515,20 @@ GROUPS = [
            ("rounds", "rounds", "{}"), ("construct s", "construct_s", "{:.4f}"), ("allreduce s", "allreduce_s", "{:.2e}"),
            ("same", "same_splitters", "{}")],
           keys=("ranks", "N", "search")),
+    Group("mpi-bisection", "The block preconditioner's blocks across ranks: distributed bisection against gather",
+          "The blocks of the block preconditioner (blocks of 32, docs/mpi.md, \"Brownian displacements\") of N "
+          "uniform particles on P ranks of one OpenMP thread each, built by the distributed median bisection (what "
+          "the samplers run) or by gathering the whole set to every rank and bisecting there (the baseline); "
+          "order slabs: each rank's share a slab of the cube, as a spatial partition gives; random: every rank's "
+          "share spread over the cube. s = median over reps of one build (the slowest rank's); bytes max = the most "
+          "bytes a rank received in one build; same = both gave the same blocks and owners. On the 2-core "
+          "development machine 4 ranks oversubscribe the cores.",
+          ["bench_mpi_bisection"], mpi_bisection_cases, parse_json_lines, "distributed_seconds",
+          [("order", "order", "{}"), ("ranks", "ranks", "{}"), ("N", "n", "{:.2g}"), ("levels", "levels", "{}"),
+           ("rounds", "rounds", "{}"), ("gather s", "gathered_seconds", "{:.4f}"),
+           ("gather bytes max", "gathered_bytes_max", "{:.2e}"), ("distributed s", "distributed_seconds", "{:.4f}"),
+           ("distributed bytes max", "distributed_bytes_max", "{:.2e}"), ("same", "same", "{}")],
+          keys=("order", "ranks", "n")),
 ]
 GROUP_BY_NAME = {g.name: g for g in GROUPS}
 TIME_COLUMNS = {"solve": "solve_s", "step": "step_s"}  # rigid: the time column of each program
