@@ -197,7 +197,8 @@ class DistributedLaplaceFmm {
   /// balance the next plan by the measured work of each leaf instead of by source counts. A
   /// measurement: weights, and so partitions, differ from run to run (results stay within the
   /// tolerance contract). Results at the sources only: with separate targets the work is the
-  /// targets', which do not follow the sources' partition (throws not_supported on every rank).
+  /// targets', which a source's weight does not describe, whether or not they follow the sources'
+  /// cuts (throws not_supported on every rank).
   [[nodiscard]] std::vector<double> measured_weights() const;
 
   struct Plan;  // implementation (mpi/src/laplace_fmm.cpp)
