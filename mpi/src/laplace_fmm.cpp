@@ -52,7 +52,8 @@ std::vector<double> option_signature(const DistributedFmmOptions& o) {
           o.overlap_exchange ? 1.0 : 0.0,
           o.fmm.near_field ? 1.0 : 0.0,
           o.gather_all_regions ? 1.0 : 0.0,
-          static_cast<double>(o.curve)};
+          static_cast<double>(o.curve),
+          o.targets_follow_sources ? 1.0 : 0.0};
 }
 
 // Collective: translates the owned sources x and targets y next to the origin where the whole cloud lies far
@@ -138,18 +139,23 @@ std::vector<std::uint64_t> owned_keys(const SfcPartition& partition) {
   return keys;
 }
 
-// Collective: partitions the sources (and separate targets, when any rank passes one) and moves
-// their positions to the owners, next to the origin (shift_to_centre).
+// Collective: partitions the sources (and separate targets, when any rank passes one: by their own
+// cuts, or by the sources' where they follow them) and moves their positions to the owners, next
+// to the origin (shift_to_centre).
 void partition_points(const Communicator& comm, DistributedLaplaceFmm::Plan& plan, std::span<const double> sources,
-                      std::span<const double> targets, std::span<const double> weights, SfcCurve curve) {
-  plan.partition = std::make_unique<SfcPartition>(comm.get(), sources, weights, curve);
+                      std::span<const double> targets, std::span<const double> weights,
+                      const DistributedFmmOptions& options) {
+  plan.partition = std::make_unique<SfcPartition>(comm.get(), sources, weights, options.curve);
   const Column source_column[] = {{sources, 3}};
   plan.owned_x = plan.partition->to_owners(source_column)[0];
   const int mine = targets.empty() ? 0 : 1;
   int separate = 0;
   check_mpi(MPI_Allreduce(&mine, &separate, 1, MPI_INT, MPI_MAX, comm.get()), "MPI_Allreduce");
   if (separate != 0) {
-    plan.target_partition = std::make_unique<SfcPartition>(comm.get(), targets, std::span<const double>{}, curve);
+    plan.target_partition =
+        options.targets_follow_sources
+            ? std::make_unique<SfcPartition>(SfcPartition::aligned_with(*plan.partition, targets))
+            : std::make_unique<SfcPartition>(comm.get(), targets, std::span<const double>{}, options.curve);
     const Column target_column[] = {{targets, 3}};
     plan.owned_targets = plan.target_partition->to_owners(target_column)[0];
   }
@@ -234,7 +240,7 @@ void DistributedLaplaceFmm::set_points(std::span<const double> local_sources, st
   });
   auto plan = std::make_unique<Plan>();
   detail::timed(stats_.plan_seconds, "partition",
-                [&] { partition_points(comm_, *plan, local_sources, local_targets, local_weights, options_.curve); });
+                [&] { partition_points(comm_, *plan, local_sources, local_targets, local_weights, options_); });
   if (plan->partition->global_size() == 0) fail(ErrorCode::invalid_input, kSetPoints, "no rank has a source");
   stats_.plan_bytes_received += (plan->owned_x.size() + plan->owned_targets.size()) * sizeof(double);
 

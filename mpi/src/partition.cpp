@@ -318,23 +318,45 @@ std::vector<SfcKey> splitters_of(std::span<const Composite> cuts, std::uint64_t 
   return splitters;
 }
 
-// Collective. Owners: rank r takes [cut r-1, cut r). How many of this rank's particles go to each
-// owner, and every owner's count and quantized weight over all ranks.
+// The owner of each of this rank's particles in (key, index) order, nondecreasing: by the cuts,
+// rank r takes [cut r-1, cut r).
+std::vector<std::size_t> owners_by_cuts(std::span<const Composite> cuts, std::span<const SfcKey> sorted,
+                                        std::uint64_t n_global) {
+  std::vector<std::size_t> owner(sorted.size());
+  for (std::size_t s = 0, r = 0; s < sorted.size(); ++s) {
+    const Composite c = composite(sorted[s], n_global);
+    while (r < cuts.size() && cuts[r] <= c) ++r;
+    owner[s] = r;
+  }
+  return owner;
+}
+
+// The same by the splitters' keys alone (SfcPartition::aligned_with): the number of splitters
+// whose key is at most the particle's.
+std::vector<std::size_t> owners_by_keys(std::span<const SfcKey> splitters, std::span<const SfcKey> sorted) {
+  std::vector<std::size_t> owner(sorted.size());
+  for (std::size_t s = 0, r = 0; s < sorted.size(); ++s) {
+    while (r < splitters.size() && splitters[r].key <= sorted[s].key) ++r;
+    owner[s] = r;
+  }
+  return owner;
+}
+
+// Collective. How many of this rank's particles go to each owner, and every owner's count and
+// quantized weight over all ranks.
 struct Owners {
   std::vector<std::size_t> send_count;
   std::vector<std::uint64_t> counts, q;
 };
 
-Owners count_owners(const Communicator& comm, std::span<const Composite> cuts, std::span<const SfcKey> sorted,
-                    std::span<const std::uint64_t> prefix, std::uint64_t n_global) {
+Owners count_owners(const Communicator& comm, std::span<const std::size_t> owner,
+                    std::span<const std::uint64_t> prefix) {
   const auto parts = static_cast<std::size_t>(comm.size());
   std::vector<std::uint64_t> local_totals(2 * parts, 0);  // counts, then q
   Owners owners{std::vector<std::size_t>(parts, 0), {}, {}};
-  for (std::size_t s = 0, owner = 0; s < sorted.size(); ++s) {
-    const Composite c = composite(sorted[s], n_global);
-    while (owner + 1 < parts && cuts[owner] <= c) ++owner;
-    ++owners.send_count[owner];
-    local_totals[parts + owner] += prefix[s + 1] - prefix[s];
+  for (std::size_t s = 0; s < owner.size(); ++s) {
+    ++owners.send_count[owner[s]];
+    local_totals[parts + owner[s]] += prefix[s + 1] - prefix[s];
   }
   for (std::size_t r = 0; r < parts; ++r) local_totals[r] = owners.send_count[r];
   std::vector<std::uint64_t> totals(2 * parts);
@@ -382,11 +404,33 @@ SfcPartition::SfcPartition(MPI_Comm comm, std::span<const double> positions, std
   splitters_ = splitters_of(cuts.at, global_size_);
   cut_rounds_ = cuts.rounds;
 
-  Owners owners = count_owners(comm_, cuts.at, local.sorted, local.prefix, global_size_);
+  settle_owners(owners_by_cuts(cuts.at, local.sorted, global_size_), local.sorted, local.prefix);
+}
+
+SfcPartition::SfcPartition(const SfcPartition& sources, AlignedTag /*tag*/)
+    : comm_(sources.comm_), curve_(sources.curve_), cube_(sources.cube_), splitters_(sources.splitters_) {}
+
+SfcPartition SfcPartition::aligned_with(const SfcPartition& sources, std::span<const double> positions) {
+  SfcPartition part(sources, AlignedTag{});
+  part.comm_.run([&] { check_input(positions, {}, part.curve_); });
+  part.input_size_ = positions.size() / 3;
+  const auto [offset, global_size] = global_offset_and_size(part.comm_, part.input_size_);
+  part.global_size_ = global_size;
+  part.max_q_ = global_size == 0 ? 0 : 1;
+  const WeightScale unit{.shift = 0, .unit_weights = true};
+  LocalOrder local = sort_local(part.cube_, part.curve_, positions, {}, offset, unit);
+  part.send_order_ = std::move(local.send_order);
+  part.settle_owners(owners_by_keys(part.splitters_, local.sorted), local.sorted, local.prefix);
+  return part;
+}
+
+void SfcPartition::settle_owners(std::span<const std::size_t> owner, std::span<const SfcKey> sorted,
+                                 std::span<const std::uint64_t> prefix) {
+  Owners owners = count_owners(comm_, owner, prefix);
   owned_counts_ = std::move(owners.counts);
   owned_q_ = std::move(owners.q);
   plan_exchange(owners.send_count);
-  receive_owned(local.sorted);
+  receive_owned(sorted);
 }
 
 // The counts and displacements of the exchange to the owners (MPI's int counts, checked).

@@ -4,7 +4,9 @@
 // ranks than particles; the compression error against its rule (docs/mpi.md, "Error rule");
 // results independent of how the input is distributed, repeated evaluations bit for bit, new points
 // on one object, the serial FMM split to overlap the exchanges (overlap_exchange), the partition
-// along the Hilbert curve (curve), and collective failure.
+// along the Hilbert curve (curve), separate targets partitioned by the sources' cuts
+// (targets_follow_sources: accuracy, ownership aligned with the sources' key ranges), and
+// collective failure.
 #include <gtest/gtest.h>
 #include <mpi.h>
 
@@ -305,6 +307,110 @@ TEST(DistributedFmm, TargetsDistributedApartFromSources) {
       EXPECT_EQ(total(f.owned_target_size()), m);
     }
   }
+}
+
+// Targets partitioned by the sources' cuts (targets_follow_sources) with sources `c` given as
+// `source_split` with partition weights `w` of the whole set (empty: none): within `tolerance` of
+// the direct sum; each rank owns exactly the targets that SfcPartition::aligned_with gives it (its
+// sources' key range); a repeated evaluation the same bits. Returns the results at all targets.
+std::vector<double> expect_aligned_targets(const Cloud& c, const std::vector<double>& w,
+                                           const std::vector<double>& targets, const std::vector<double>& exact,
+                                           double tolerance, Split source_split, Split target_split) {
+  const Share s = share_of(c, source_split);
+  const std::vector<double> local_w = w.empty() ? w : share(w, 1, s.part.offset, s.part.n);
+  const std::size_t m = targets.size() / 3;
+  const Partition t = partition_of(m, target_split);
+  const std::vector<double> local_t = share(targets, 3, t.offset, t.n);
+  DistributedFmmOptions options = with_tolerance(tolerance);
+  options.targets_follow_sources = true;
+  DistributedLaplaceFmm f(MPI_COMM_WORLD, options);
+  f.set_points(s.x, local_t, local_w);
+  std::vector<double> local(c.nd * t.n * W), again(local.size());
+  f.evaluate(s.q, c.nd, kTwoOutputs, local);
+  f.evaluate(s.q, c.nd, kTwoOutputs, again);
+  EXPECT_EQ(bitwise_mismatches(local, again), 0u) << "a repeated evaluation differs";
+  const std::vector<double> all = gather_results(local, c.nd, m, target_split);
+  EXPECT_LE(worst_error(all, exact, kTwoOutputs, m), tolerance)
+      << "against the direct sum, eps " << tolerance << ", " << m << " targets";
+  const rpyfmm::mpi::SfcPartition sources(MPI_COMM_WORLD, s.x, local_w);
+  const auto aligned = rpyfmm::mpi::SfcPartition::aligned_with(sources, local_t);
+  EXPECT_EQ(f.owned_size(), sources.owned_size());
+  EXPECT_EQ(f.owned_target_size(), aligned.owned_size()) << "the targets do not follow the sources' cuts";
+  if (sources.owned_size() == 0) {
+    EXPECT_EQ(f.owned_target_size(), 0u) << "targets on a rank that owns no source";
+  }
+  return all;
+}
+
+TEST(DistributedFmm, TargetsFollowingTheSourcesCuts) {
+  // 3000 uniform sources in the unit cube; targets inside it, partly outside it (a cube of side 3
+  // around it), clustered (a cube of side 0.04 at one corner and 10 points far away) and on 30
+  // sources (those pairs skipped). Each within the tolerance of the direct sum for sources and
+  // targets split several ways, with the same bits for every split; on 2 or more ranks the
+  // clustered targets' owners differ from their own balanced partition's.
+  const Cloud c = uniform_cloud(3000, 2, 50);
+  std::vector<std::vector<double>> sets(3);
+  std::mt19937_64 rng(51);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int i = 0; i < 3 * 1200; ++i) sets[0].push_back(0.05 + 0.9 * u(rng));
+  for (int i = 0; i < 3 * 1200; ++i) sets[1].push_back(3.0 * u(rng) - 1.0);
+  for (int i = 0; i < 3 * 1200; ++i) sets[2].push_back(0.6 + 0.1 * u(rng));
+  for (int i = 0; i < 3 * 10; ++i) sets[2].push_back(40.0 * u(rng) - 20.0);
+  sets[0].insert(sets[0].end(), c.x.begin(), c.x.begin() + 90);
+  for (std::size_t k = 0; k < sets.size(); ++k) {
+    const std::vector<double>& targets = sets[k];
+    const std::size_t m = targets.size() / 3;
+    const std::vector<double> exact = direct(c, kTwoOutputs, targets);
+    for (double tolerance : {1e-3, 1e-6}) {
+      const std::vector<double> first =
+          expect_aligned_targets(c, {}, targets, exact, tolerance, Split::even, Split::even);
+      for (auto [s, t] :
+           {std::pair{Split::last_only, Split::first_empty}, std::pair{Split::geometric, Split::last_only}}) {
+        EXPECT_EQ(bitwise_mismatches(expect_aligned_targets(c, {}, targets, exact, tolerance, s, t), first), 0u)
+            << "target set " << k << ": the input's distribution changed the bits";
+      }
+    }
+    if (k != 2 || world_size() < 2) continue;
+    const Partition t = partition_of(m, Split::even);
+    const rpyfmm::mpi::SfcPartition balanced(MPI_COMM_WORLD, share(targets, 3, t.offset, t.n));
+    DistributedFmmOptions options = with_tolerance(1e-3);
+    options.targets_follow_sources = true;
+    DistributedLaplaceFmm f(MPI_COMM_WORLD, options);
+    f.set_points(share_of(c, Split::even).x, share(targets, 3, t.offset, t.n));
+    std::uint64_t differ = f.owned_target_size() != balanced.owned_size() ? 1 : 0;
+    EXPECT_GT(total(differ), 0u) << "clustered targets owned as by their own balanced cuts";
+  }
+}
+
+TEST(DistributedFmm, TargetsFollowingOwnerlessSources) {
+  // One source weight 1e9: on three or more ranks some own no source, and so no target; the
+  // results at targets inside and around the sources stay within the tolerance.
+  const Cloud c = uniform_cloud(1500, 2, 52);
+  std::vector<double> w(c.size(), 1.0);
+  w[0] = 1e9;
+  std::vector<double> targets = uniform_cloud(900, 1, 53).x;
+  for (double& v : targets) v = 2.0 * v - 0.5;
+  const std::vector<double> exact = direct(c, kTwoOutputs, targets);
+  (void)expect_aligned_targets(c, w, targets, exact, 1e-6, Split::even, Split::geometric);
+  const Share s = share_of(c, Split::even);
+  const rpyfmm::mpi::SfcPartition sources(MPI_COMM_WORLD, s.x, share(w, 1, s.part.offset, s.part.n));
+  std::uint64_t fewest = sources.owned_size();
+  MPI_Allreduce(MPI_IN_PLACE, &fewest, 1, MPI_UINT64_T, MPI_MIN, MPI_COMM_WORLD);
+  if (world_size() >= 3) {
+    EXPECT_EQ(fewest, 0u);
+  }
+}
+
+TEST(DistributedFmm, TargetsFollowingSourcesAtTheSourcesChangeNothing) {
+  // Without targets the option has no effect: the same bits as without it.
+  const Cloud c = uniform_cloud(1000, 2, 54);
+  DistributedLaplaceFmm plain(MPI_COMM_WORLD, with_tolerance(1e-6));
+  DistributedFmmOptions options = with_tolerance(1e-6);
+  options.targets_follow_sources = true;
+  DistributedLaplaceFmm following(MPI_COMM_WORLD, options);
+  EXPECT_EQ(bitwise_mismatches(distributed(following, c, kTwoOutputs, Split::geometric),
+                               distributed(plain, c, kTwoOutputs, Split::geometric)),
+            0u);
 }
 
 TEST(DistributedFmm, EmptyRanksAndMoreRanksThanParticles) {

@@ -40,14 +40,20 @@ std::uint64_t reference_key(const std::uint32_t cell[3]) {
   return key;
 }
 
-// The keys of the whole set (3N positions) along `curve`, with the cube and the cells taken
-// serially over all of them (Hilbert keys of the cells by hilbert_key, tested on its own below).
-std::vector<std::uint64_t> reference_keys(const std::vector<double>& x, SfcCurve curve) {
+// The keys of the whole set (3N positions) along `curve`, with the cube taken serially over all of
+// `cube_of` (x itself by default) and the cells clamped to the cube (Hilbert keys of the cells by
+// hilbert_key, tested on its own below).
+std::vector<std::uint64_t> reference_keys(const std::vector<double>& x, SfcCurve curve,
+                                          const std::vector<double>* cube_of = nullptr) {
   const std::size_t n = x.size() / 3;
+  const std::vector<double>& c_set = cube_of != nullptr ? *cube_of : x;
+  const std::size_t n_cube = c_set.size() / 3;
   double lo[3], hi[3];
   for (int d = 0; d < 3; ++d) {
-    lo[d] = hi[d] = n > 0 ? x[static_cast<std::size_t>(d)] : 0.0;
-    for (std::size_t i = 0; i < n; ++i) lo[d] = std::min(lo[d], x[3 * i + d]), hi[d] = std::max(hi[d], x[3 * i + d]);
+    lo[d] = hi[d] = n_cube > 0 ? c_set[static_cast<std::size_t>(d)] : 0.0;
+    for (std::size_t i = 0; i < n_cube; ++i) {
+      lo[d] = std::min(lo[d], c_set[3 * i + d]), hi[d] = std::max(hi[d], c_set[3 * i + d]);
+    }
   }
   double half = 0.0;
   for (int d = 0; d < 3; ++d) half = std::max(half, 0.5 * hi[d] - 0.5 * lo[d]);
@@ -588,4 +594,101 @@ TEST(MpiPartitionCuts, BudgetMustBePositiveAndAgree) {
         [&] { const SfcPartition p(MPI_COMM_WORLD, x, {}, SfcCurve::morton, world_rank() == 0 ? 7 : 8); },
         ErrorCode::invalid_argument, "rpyfmm::mpi::SfcPartition: the ranks pass different cut_sums_per_round");
   }
+}
+
+namespace {
+
+// Partitions the sources x (given as `source_split`, along `curve`), then the targets y (given as
+// `target_split`) by their cuts (aligned_with), and checks the targets' partition against the
+// serial rule: keys in the sources' cube, clamped to it; every target owned once, by the rank
+// whose splitters' keys hold its key, in (key, index) order; the exchange both ways bit for bit.
+// Returns this rank's owned targets.
+std::vector<SfcKey> check_aligned(const std::vector<double>& x, const std::vector<double>& y, Split source_split,
+                                  Split target_split, SfcCurve curve) {
+  const Partition sp = partition_of(x.size() / 3, source_split);
+  const SfcPartition sources(MPI_COMM_WORLD, share(x, 3, sp.offset, sp.n), {}, curve);
+  const std::size_t m = y.size() / 3;
+  const Partition tp = partition_of(m, target_split);
+  const std::vector<double> local_y = share(y, 3, tp.offset, tp.n);
+  const SfcPartition targets = SfcPartition::aligned_with(sources, local_y);
+  EXPECT_EQ(targets.curve(), curve);
+  EXPECT_EQ(targets.global_size(), m);
+  EXPECT_EQ(targets.input_size(), tp.n);
+  EXPECT_TRUE(std::ranges::equal(targets.splitters(), sources.splitters()));
+
+  const std::vector<std::uint64_t> keys = reference_keys(y, curve, &x);
+  std::vector<SfcKey> sorted(m);
+  for (std::size_t i = 0; i < m; ++i) sorted[i] = SfcKey{keys[i], i};
+  std::sort(sorted.begin(), sorted.end());
+  const std::vector<SfcKey> owned(targets.owned().begin(), targets.owned().end());
+  EXPECT_TRUE(all_gather(owned) == sorted) << "the owned targets in rank order are not the sorted set";
+  const auto r = static_cast<std::size_t>(world_rank());
+  const auto cuts = sources.splitters();
+  std::size_t outside = 0;
+  for (const SfcKey& k : owned) {
+    outside += (r > 0 && k.key < cuts[r - 1].key) || (r < cuts.size() && k.key >= cuts[r].key);
+  }
+  EXPECT_EQ(outside, 0u) << "owned targets outside this rank's sources' key range";
+  EXPECT_EQ(targets.owned_counts()[r], owned.size());
+  EXPECT_EQ(targets.owned_weight_units()[r], owned.size());
+
+  const Column columns[] = {{local_y, 3}};
+  const std::vector<double> there = targets.to_owners(columns)[0];
+  std::size_t wrong = 0;
+  for (std::size_t j = 0; j < owned.size(); ++j)
+    wrong += bitwise_mismatches(share(there, 3, j, 1), share(y, 3, owned[j].index, 1));
+  EXPECT_EQ(wrong, 0u) << "target positions at the owners";
+  const Column back[] = {{there, 3}};
+  EXPECT_EQ(bitwise_mismatches(targets.to_origin(back)[0], local_y), 0u);
+  return owned;
+}
+
+void check_aligned_all_splits(const std::vector<double>& x, const std::vector<double>& y, SfcCurve curve) {
+  const std::vector<SfcKey> first = check_aligned(x, y, Split::even, Split::even, curve);
+  for (Split s : kSplits) {
+    for (Split t : kSplits) {
+      EXPECT_TRUE(check_aligned(x, y, s, t, curve) == first)
+          << "splits " << static_cast<int>(s) << ", " << static_cast<int>(t);
+    }
+  }
+}
+
+}  // namespace
+
+TEST(MpiPartitionAligned, TargetsInsideAndOutsideTheSourcesCube) {
+  // Sources in the unit cube; targets: inside it, a clump around one corner partly outside it, and
+  // far outside on every side (clamped to the boundary cells), on both curves.
+  const std::vector<double> x = uniform_positions(400, 0.0, 1.0, 40);
+  std::vector<double> y = uniform_positions(300, 0.0, 1.0, 41);
+  const std::vector<double> clump = uniform_positions(200, 0.9, 1.1, 42);
+  const std::vector<double> far = uniform_positions(100, -50.0, 50.0, 43);
+  y.insert(y.end(), clump.begin(), clump.end());
+  y.insert(y.end(), far.begin(), far.end());
+  for (SfcCurve curve : {SfcCurve::morton, SfcCurve::hilbert}) check_aligned_all_splits(x, y, curve);
+}
+
+TEST(MpiPartitionAligned, FewSourcesNoTargetsAndCoincidentSources) {
+  // Fewer sources than ranks (ranks with empty ranges get no target), no target at all, and
+  // sources that all coincide (a cube of side 0: every target keyed 0).
+  const std::vector<double> y = uniform_positions(50, -1.0, 2.0, 44);
+  check_aligned_all_splits({0.1, 0.2, 0.3}, y, SfcCurve::morton);
+  check_aligned_all_splits(uniform_positions(20, 0.0, 1.0, 45), {}, SfcCurve::morton);
+  std::vector<double> same(3 * 10, 0.5);
+  check_aligned_all_splits(same, y, SfcCurve::hilbert);
+}
+
+TEST(MpiPartitionAligned, BadTargetsFailEveryRank) {
+  const SfcPartition sources(MPI_COMM_WORLD, uniform_positions(5, 0, 1, 46));
+  const int last = world_size() - 1;
+  const std::string on_last = "rank " + std::to_string(last) + " of " + std::to_string(world_size());
+  std::vector<double> y = uniform_positions(3, 0, 1, 47), nan_y = y;
+  nan_y[5] = std::numeric_limits<double>::quiet_NaN();
+  expect_collective_error([&] { (void)SfcPartition::aligned_with(sources, world_rank() == last ? nan_y : y); },
+                          ErrorCode::invalid_input,
+                          on_last + ": rpyfmm::mpi::SfcPartition: local positions entry (1, 2) is NaN");
+  expect_collective_error(
+      [&] {
+        (void)SfcPartition::aligned_with(sources, world_rank() == last ? std::vector<double>{1.0, 2.0} : y);
+      },
+      ErrorCode::invalid_input, on_last + ": rpyfmm::mpi::SfcPartition: local positions have 2 entries");
 }

@@ -22,8 +22,8 @@
 // geometry of this locally essential tree is exchanged once in set_points; every evaluate sends
 // only the equivalent and halo charges (one MPI_Alltoallv). Each owner then runs the serial
 // LaplaceFmm, planned once, on its own sources + halo sources + equivalent nodes, with its owned
-// targets (its own sources, or the targets' own partition), and the results go back to the input
-// ranks and order.
+// targets (its own sources, or the targets' own partition, or the targets partitioned by the
+// sources' cuts: targets_follow_sources), and the results go back to the input ranks and order.
 //
 // Every public call is collective and fails collectively (communicator.hpp).
 #pragma once
@@ -91,6 +91,13 @@ struct DistributedFmmOptions {
   /// The space-filling curve of the partition of the sources and of the targets (SfcPartition;
   /// docs/mpi.md, "Space-filling-curve partition"). Both meet the same accuracy contract.
   SfcCurve curve = SfcCurve::morton;
+  /// Separate targets partitioned by the sources' cuts (SfcPartition::aligned_with) instead of
+  /// their own balanced cuts: the owner of a region's sources owns its targets, so a rank's region
+  /// is that of its sources and its essential set is built for it. Keys of the targets in the
+  /// sources' key cube, a target outside it keyed as its nearest boundary cell. The load balance is
+  /// then the sources': a rank with few sources and many targets gets all of those targets
+  /// (docs/mpi.md, "Distributed Laplace FMM"). No effect where the results are at the sources.
+  bool targets_follow_sources = false;
 };
 
 /// The acceptance ratio used when DistributedFmmOptions::separation is 0.
@@ -190,7 +197,8 @@ class DistributedLaplaceFmm {
   /// balance the next plan by the measured work of each leaf instead of by source counts. A
   /// measurement: weights, and so partitions, differ from run to run (results stay within the
   /// tolerance contract). Results at the sources only: with separate targets the work is the
-  /// targets', which do not follow the sources' partition (throws not_supported on every rank).
+  /// targets', which a source's weight does not describe, whether or not they follow the sources'
+  /// cuts (throws not_supported on every rank).
   [[nodiscard]] std::vector<double> measured_weights() const;
 
   struct Plan;  // implementation (mpi/src/laplace_fmm.cpp)

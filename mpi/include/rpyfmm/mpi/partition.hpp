@@ -107,6 +107,18 @@ class SfcPartition {
   SfcPartition(MPI_Comm comm, std::span<const double> positions, std::span<const double> weights = {},
                SfcCurve curve = SfcCurve::morton, std::size_t cut_sums_per_round = kCutSumsPerRound);
 
+  /// Collective over `sources`' communicator: partitions the particles that this rank holds (3n
+  /// positions, n may be 0 on any rank; each of weight 1) by the cuts of `sources`, so that owners
+  /// of sources and of these particles are aligned. Keys are taken in sources.cube() along
+  /// sources.curve(); a coordinate outside the cube is clamped to its boundary cell on that axis
+  /// (morton_cell), so every particle has a key. A particle of key k goes to the rank r with
+  /// splitters()[r-1].key <= k < splitters()[r].key (no bound below rank 0 or above rank P - 1):
+  /// the last rank whose range reaches key k where a cut falls between sources of equal key k; a
+  /// rank with an empty range gets none. owned() holds (key, global index of this set), increasing;
+  /// splitters() are those of `sources`, owned_counts() and owned_weight_units() the counts.
+  /// Fails on every rank for a wrong size or a NaN or infinite coordinate on any rank.
+  [[nodiscard]] static SfcPartition aligned_with(const SfcPartition& sources, std::span<const double> positions);
+
   [[nodiscard]] SfcCurve curve() const { return curve_; }
   [[nodiscard]] const KeyCube& cube() const { return cube_; }
   /// The particles this rank holds in the input (n) and owns after the partition.
@@ -152,9 +164,14 @@ class SfcPartition {
     std::vector<int> send_counts, send_displs, recv_counts, recv_displs;
   };
   [[nodiscard]] std::vector<std::vector<double>> exchange(std::span<const Column> columns, bool forward) const;
-  // Construction's last stages: the counts and displacements of the exchange to the owners from
-  // how many particles go to each (MPI's int counts checked), then the owned records received in
-  // (key, index) order.
+  // aligned_with's: the communicator, curve, cube and cuts of `sources`, not yet any particle.
+  struct AlignedTag {};
+  SfcPartition(const SfcPartition& sources, AlignedTag tag);
+  // Construction's last stages: the owners' counts and weights, the counts and displacements of
+  // the exchange to the owners from how many particles go to each (MPI's int counts checked), then
+  // the owned records received in (key, index) order.
+  void settle_owners(std::span<const std::size_t> owner, std::span<const SfcKey> sorted,
+                     std::span<const std::uint64_t> prefix);
   void plan_exchange(std::span<const std::size_t> send_count);
   void receive_owned(std::span<const SfcKey> sorted);
 
