@@ -18,7 +18,8 @@ distributed Laplace FMM partitioned along the Morton and the Hilbert curve on 2-
 mpi-block-cache (the first block-preconditioned sample after set_positions against a second on 2
 ranks), mpi-partition (SfcPartition's multi-way cuts' search against the bisection on 2 and 4 ranks),
 mpi-bisection (the block preconditioner's blocks by the distributed bisection against the gather of the
-whole set on 2 and 4 ranks).
+whole set on 2 and 4 ranks), mpi-targets (separate targets of the distributed Laplace FMM partitioned by
+their own cuts and by the sources' on 2 and 4 ranks).
 
 Every case runs at 1 thread (the per-core figure) and at all cores; each program reports the median
 of its own repetitions and the driver the median over --rounds runs. --compare COMMIT builds COMMIT in
@@ -304,6 +305,14 @@ def mpi_bisection_cases(mode: str) -> list[Case]:
                  1, {}) for order in ("slabs", "random") for p in (2, 4)]
 
 
+def mpi_targets_cases(mode: str) -> list[Case]:
+    """DistributedLaplaceFmm with separate targets partitioned by their own cuts and by the sources'
+    (one program runs both) on 2 and 4 ranks of one thread each (bench/mpi/bench_mpi_targets)."""
+    n = "4e5" if mode == "full" else "4e4"
+    return [Case(["mpi/bench_mpi_ranks", str(p), "bench_mpi_targets", "--n", n, "--eps", "1e-6", "--points", points,
+                  "--reps", "3"], 1, {}) for points in ("uniform", "clustered") for p in (2, 4)]
+
+
 GROUPS = [
     Group("fmm", "Laplace FMM against fmm3dpy",
           "One evaluation of potential, gradient and Hessian at the sources (LaplaceFmm, adaptive plane-wave "
@@ -529,6 +538,21 @@ GROUPS = [
            ("gather bytes max", "gathered_bytes_max", "{:.2e}"), ("distributed s", "distributed_seconds", "{:.4f}"),
            ("distributed bytes max", "distributed_bytes_max", "{:.2e}"), ("same", "same", "{}")],
           keys=("order", "ranks", "n")),
+    Group("mpi-targets", "The distributed Laplace FMM's separate targets: own cuts or the sources' cuts",
+          "DistributedLaplaceFmm (docs/mpi.md, \"Targets partitioned by the sources' cuts\") with N uniform sources "
+          "and N targets (uniform, or 90 % of them in the cube [0.6, 0.7]^3: clustered), eps 1e-6, one density, "
+          "potential and gradient, P ranks of one OpenMP thread each; follow = targets_follow_sources (1: the "
+          "targets partitioned by the sources' cuts, 0: by their own balanced cuts); targets max = the most "
+          "targets a rank owns; essential = the largest serial-FMM source set of a rank; eval s = median of 3 "
+          "evaluations (the slowest rank's), the two partitions alternating. On the 2-core development machine 4 "
+          "ranks oversubscribe the cores.",
+          ["bench_mpi_targets"], mpi_targets_cases, parse_json_lines, "eval_s",
+          [("points", "points", "{}"), ("ranks", "ranks", "{}"), ("N", "N", "{:.2g}"),
+           ("follow", "targets_follow_sources", "{}"), ("targets max", "owned_targets_max", "{:.0f}"),
+           ("halo max", "halo_max", "{:.0f}"), ("essential", "essential_max", "{:.0f}"), ("plan s", "plan_s", "{:.3f}"),
+           ("eval s", "eval_s", "{:.3f}"), ("exchange s", "eval_comm_essential_s", "{:.4f}"),
+           ("serial FMM s", "eval_work_fmm_s", "{:.3f}")],
+          keys=("points", "ranks", "N", "targets_follow_sources")),
 ]
 GROUP_BY_NAME = {g.name: g for g in GROUPS}
 TIME_COLUMNS = {"solve": "solve_s", "step": "step_s"}  # rigid: the time column of each program
