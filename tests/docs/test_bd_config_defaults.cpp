@@ -242,6 +242,16 @@ const std::map<std::string, Check>& checks() {
       {"neighbours.skin", [](const RunConfig& c, const std::string& l) { return c.neighbours.skin == number(l); }},
       {"neighbours.fixed_interval",
        [](const RunConfig& c, const std::string& l) { return c.neighbours.fixed_interval == std::stoi(l); }},
+      {"partition.curve",
+       [](const RunConfig& c, const std::string& l) {
+         return c.partition.curve == bd::PartitionSpec::Curve::morton && unquoted(l) == "morton";
+       }},
+      {"partition.repartition_imbalance",
+       [](const RunConfig& c, const std::string& l) { return c.partition.repartition_imbalance == number(l); }},
+      {"partition.repartition_cost",
+       [](const RunConfig& c, const std::string& l) {
+         return c.partition.repartition_cost == bd::PartitionSpec::Cost::model && unquoted(l) == "model";
+       }},
       {"output.dir", [](const RunConfig& c, const std::string& l) { return c.output.dir == unquoted(l); }},
       {"output.format",
        [](const RunConfig& c, const std::string& l) {
