@@ -31,7 +31,9 @@ What differs from fmm3dpy:
 * pg = pgt = 0 returns an empty Output without printing a note.
 * eps is clamped to rpyfmm's range [1e-15, 1e-1] (a larger eps gets 1e-1, a
   smaller one the full double-precision accuracy that 1e-15 requests); the
-  error is the relative l2 error of each output, as in rpyfmm.
+  error of each output is that of rpyfmm.LaplaceFmm: at most eps times the
+  norm of the charges' absolute field, the relative l2 error where the field
+  does not cancel (docs/theory/fmm.md, Sec. 7).
 * Inputs are checked first: wrong shapes, non-finite values and bad flags raise
   :class:`rpyfmm.InvalidArgumentError` (a ValueError) with a message in
   fmm3dpy's layout, where fmm3dpy raises AssertionError.

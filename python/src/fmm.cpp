@@ -137,11 +137,13 @@ ArrayResult laplace_direct(ArrayArg sources, ArrayArg charges, OptArrayArg targe
 }
 
 void bind_laplace_fmm(nb::module_& m) {
-  nb::class_<fmm::LaplaceFmm>(m, "LaplaceFmm",
-                              "Adaptive plane-wave FMM for phi(x) = sum_j q_j / |x - y_j| (no 1/(4 pi)).\n\n"
-                              "Plan once (set_points), evaluate many charge vectors. Lengths in any unit;\n"
-                              "potential in charge/length, gradient charge/length^2, Hessian charge/length^3.\n"
-                              "Relative l2 error of each output <= tolerance.")
+  nb::class_<fmm::LaplaceFmm>(
+      m, "LaplaceFmm",
+      "Adaptive plane-wave FMM for phi(x) = sum_j q_j / |x - y_j| (no 1/(4 pi)).\n\n"
+      "Plan once (set_points), evaluate many charge vectors. Lengths in any unit;\n"
+      "potential in charge/length, gradient charge/length^2, Hessian charge/length^3.\n"
+      "l2 error of each output <= tolerance times that of the charges' absolute field sum |q_j| / r^(k+1)\n"
+      "(the relative error where the field does not cancel; docs/theory/fmm.md, Sec. 7).")
       .def(
           "__init__",
           [](fmm::LaplaceFmm* self, std::optional<double> tolerance, int leaf_capacity, int order, double root_scale,
@@ -155,7 +157,7 @@ void bind_laplace_fmm(nb::module_& m) {
           },
           nb::arg("tolerance").sig("1e-06") = nb::none(), nb::arg("leaf_capacity") = 0, nb::arg("order") = 0,
           nb::arg("root_scale") = 1.0, nb::kw_only(), nb::arg("eps") = nb::none(),
-          "tolerance: requested relative l2 accuracy in [1e-15, 1e-1]; leaf_capacity: points per leaf\n"
+          "tolerance: requested accuracy in [1e-15, 1e-1] (see the class); leaf_capacity: points per leaf\n"
           "(0 = automatic); order: expansion order (0 = from tolerance); root_scale: root box side over the\n"
           "points' bounding cube, in [1, 8] (1 = the bounding cube; above 1 anchored at the low corner, see\n"
           "fit_leaf_grid). eps: deprecated spelling of tolerance (DeprecationWarning).")
@@ -171,7 +173,7 @@ void bind_laplace_fmm(nb::module_& m) {
            "(unrequested columns are 0); `out` is written in place and returned.")
       .def_prop_ro(
           "tolerance", [](const fmm::LaplaceFmm& self) { return self.options().tolerance; },
-          "Requested relative l2 accuracy.")
+          "Requested accuracy (see the class).")
       .def_prop_ro(
           "eps",
           [](const fmm::LaplaceFmm& self) {

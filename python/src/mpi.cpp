@@ -536,7 +536,7 @@ void bind_distributed_laplace(nb::module_& m) {
   Class<mpi::DistributedLaplaceFmm> cls(
       m, "DistributedLaplaceFmm",
       "Laplace FMM phi(x) = sum_j q_j / |x - y_j| (no 1/(4 pi)) on sources distributed over the ranks, at\n"
-      "each rank's own sources or targets; relative l2 error of each output at most the tolerance.");
+      "each rank's own sources or targets; the accuracy contract of LaplaceFmm (docs/theory/fmm.md, Sec. 7).");
   cls.def("__init__", &init_laplace, nb::arg("comm"), nb::arg("tolerance") = 1e-6, nb::arg("leaf_capacity") = 0,
           nb::arg("order") = 0, nb::arg("separation") = 0.0, nb::arg("cell_capacity") = 0,
           nb::arg("overlap_exchange") = false, nb::arg("curve") = "morton",
@@ -548,7 +548,8 @@ void bind_distributed_laplace(nb::module_& m) {
       .def_prop_ro(
           "comm", [](const Laplace& s) { return s.comm; }, "The mpi4py communicator the plan works on.")
       .def_prop_ro(
-          "tolerance", [](const Laplace& s) { return s.op.options().fmm.tolerance; }, "Requested relative l2 accuracy.")
+          "tolerance", [](const Laplace& s) { return s.op.options().fmm.tolerance; },
+          "Requested accuracy (LaplaceFmm's).")
       .def_prop_ro(
           "curve", [](const Laplace& s) { return curve_name(s.op.options().curve); },
           "The partition's space-filling curve: 'morton' or 'hilbert'.")

@@ -127,3 +127,25 @@ def test_fitted_leaf_grid_from_python():
     assert small.stats()["root_scale"] == 1.0
     with pytest.raises(rpyfmm.InvalidArgumentError, match="root_scale"):
         rpyfmm.LaplaceFmm(tolerance=1e-6, root_scale=0.5)
+
+
+def test_cancelling_density_within_eps_of_its_absolute_field():
+    """docs/theory/fmm.md, Sec. 7: the error of each output is at most eps times the l2 norm of the
+    density's absolute field sum_j |q_j| c_k / r^(k+1); on this layout the second density's
+    potential is 1/877 of its absolute field, and the relative error against the field itself
+    exceeds eps (1.31 eps), which no fixed-order method can exclude for every density."""
+    rng = np.random.default_rng(17)
+    s = rng.uniform(0.0, 1.0, size=(3000, 3))
+    q = rng.uniform(-1.0, 1.0, size=(2, 3000))
+    t = np.vstack([rng.uniform(0.95, 0.99, size=(1200, 3)), rng.uniform(-20.0, 20.0, size=(10, 3))])
+    eps = 1e-6
+    fmm = rpyfmm.LaplaceFmm(tolerance=eps)
+    fmm.set_points(s, targets=t)
+    r = fmm.evaluate(q)
+    r_inv = 1.0 / np.linalg.norm(t[:, None, :] - s[None, :, :], axis=2)
+    for d in range(2):
+        ref = rpyfmm.laplace_direct(s, q[d], targets=t)
+        w = np.abs(q[d])
+        absolute = [r_inv @ w, r_inv**2 @ w, np.sqrt(6.0) * (r_inv**3 @ w)]
+        for cols, a in zip((slice(0, 1), slice(1, 4), slice(4, 10)), absolute):
+            assert np.linalg.norm(r[d][:, cols] - ref[:, cols]) <= eps * np.linalg.norm(a)

@@ -60,9 +60,11 @@ void require_valid_outputs(std::span<const unsigned> outputs, const char* where)
 /// between MPI ranks) can move these columns alone.
 std::vector<std::vector<std::size_t>> filled_result_columns(std::span<const unsigned> outputs);
 
-/// Options of the FMM plan. Defaults give a relative l2 error <= tolerance for every output.
+/// Options of the FMM plan. The contract (docs/theory/fmm.md, Sec. 7): for each density and output
+/// k, the l2 error over the targets is at most tolerance times the l2 norm of the absolute field
+/// sum_j |q_j| c_k / r^(k+1), the relative l2 error where the field does not cancel.
 struct FmmOptions {
-  /// Requested relative l2 accuracy of each output, in [1e-15, 1e-1]. The plane-wave table is the
+  /// Requested accuracy of each output (see above), in [1e-15, 1e-1]. The plane-wave table is the
   /// one of the next tighter of 1e-3, 1e-6, 1e-9, 1e-12; below 1e-12 the accuracy saturates near 1e-13.
   double tolerance = 1e-6;
   /// Points per leaf before a box is split; 0 = automatic: fmm_default_leaf_capacity (chosen per
