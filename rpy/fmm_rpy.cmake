@@ -1,6 +1,7 @@
 # FMM-backed free-space RPY operator (FmmRpy).
 target_sources(rpyfmm_rpy PRIVATE ${CMAKE_CURRENT_LIST_DIR}/src/fmm_operator.cpp
                                   ${CMAKE_CURRENT_LIST_DIR}/src/fmm_far_field.cpp
+                                  ${CMAKE_CURRENT_LIST_DIR}/src/fmm_laplace_accuracy.cpp
                                   ${CMAKE_CURRENT_LIST_DIR}/src/fmm_leaf_rules.cpp
                                   ${CMAKE_CURRENT_LIST_DIR}/src/fmm_near_field.cpp
                                   ${CMAKE_CURRENT_LIST_DIR}/src/fmm_near_kernels.cpp

@@ -29,7 +29,7 @@ namespace rpyfmm::fmm {
 /// The plan of LaplaceFmm::set_points: the tree, the expansion order and the order-p tables.
 struct LaplaceFmm::Plan {
   detail::Octree tree;
-  int p = 0, digits = 0, leaf_capacity = 0;
+  int p = 0, planewave_nodes = 0, leaf_capacity = 0;
   double root_scale = 1.0;
   // W/X boxes with at most this many sources/targets are summed directly instead of by M2P/P2L;
   // with export_direct those direct sums are left to the caller (near_field() pairs).

@@ -49,6 +49,19 @@ int fmm_table_digits_for(double eps) {
   return 12;
 }
 
+int fmm_planewave_nodes_for(double eps) {
+  switch (fmm_table_digits_for(eps)) {
+    case 3:
+      return 12;
+    case 6:
+      return 20;
+    case 9:
+      return 29;
+    default:
+      return 37;
+  }
+}
+
 int fmm_default_leaf_capacity(double eps) {
   // Measured (bench/fmm/RESULTS.md at commit 010249d "Leaf capacity", pot+grad+Hessian, one thread). The best leaf
   // balances P2P against M2L, so it follows the P2P kernel's speed: with the AVX-512 kernels
@@ -151,6 +164,11 @@ LaplaceFmm::LaplaceFmm(const FmmOptions& options) : options_(options) {
           "root_scale must be in [1, 8], got " + std::to_string(options.root_scale));
   require(options.order == 0 || (options.order >= 2 && options.order <= 70), ErrorCode::invalid_argument, where,
           "order must be 0 (automatic) or in [2, 70], got " + std::to_string(options.order));
+  require(options.planewave_nodes == 0 ||
+              (options.planewave_nodes >= kMinPlaneWaveNodes && options.planewave_nodes <= kMaxPlaneWaveNodes),
+          ErrorCode::invalid_argument, where,
+          "planewave_nodes must be 0 (automatic) or in [" + std::to_string(kMinPlaneWaveNodes) + ", " +
+              std::to_string(kMaxPlaneWaveNodes) + "], got " + std::to_string(options.planewave_nodes));
   require(
       options.fitted_grid.occupancy >= 0, ErrorCode::invalid_argument, where,
       "fitted_grid.occupancy must be >= 0 (0 = no fitted grid), got " + std::to_string(options.fitted_grid.occupancy));
@@ -360,7 +378,8 @@ void LaplaceFmm::set_points(std::span<const double> sources, std::span<const dou
   StopWatch sw;
   auto plan = std::make_unique<Plan>();
   plan->p = options_.order > 0 ? options_.order : fmm_order_for(options_.tolerance);
-  plan->digits = fmm_table_digits_for(options_.tolerance);
+  plan->planewave_nodes =
+      options_.planewave_nodes > 0 ? options_.planewave_nodes : fmm_planewave_nodes_for(options_.tolerance);
   plan->leaf_capacity =
       options_.leaf_capacity > 0 ? options_.leaf_capacity : fmm_default_leaf_capacity(options_.tolerance);
   build_plan_tree(*plan, options_, sources, targets);
@@ -371,7 +390,7 @@ void LaplaceFmm::set_points(std::span<const double> sources, std::span<const dou
   sw.restart();
   plan->H = &detail::Harmonics::cached(plan->p + 2);
   plan->ct = &child_translations(plan->p);
-  plan->pw = &detail::PlaneWave::cached(plan->p, plan->digits);
+  plan->pw = &detail::PlaneWave::cached(plan->p, plan->planewave_nodes);
   plan->n = sources.size() / 3;
   plan->m = targets.empty() ? plan->n : targets.size() / 3;
   split_coordinates(plan->tree.sorted_sources(), plan->sx, plan->sy, plan->sz);

@@ -14,12 +14,12 @@
 
 namespace rpyfmm::fmm::detail {
 
-PlaneWave::PlaneWave(int p, int digits)
+PlaneWave::PlaneWave(int p, int nodes)
     : p_(p),
       rot_yneg_(Rotation::about_y(p, -0.5 * std::numbers::pi)),
       rot_x_(Rotation::about_y(p, 0.5 * std::numbers::pi)) {
-  const auto table = planewave_table(digits);
-  if (table.empty()) throw std::invalid_argument("PlaneWave: no table for this precision");
+  const auto table = planewave_table(nodes);
+  if (table.empty()) throw std::invalid_argument("PlaneWave: no table of this many lambda nodes");
   nlams_ = int(table.size());
   if (nlams_ > kMaxNodes) throw std::invalid_argument("PlaneWave: table has too many lambda nodes");
   for (const auto& node : table) {
@@ -85,12 +85,12 @@ PlaneWave::PlaneWave(int p, int digits)
       }
 }
 
-const PlaneWave& PlaneWave::cached(int p, int digits) {
+const PlaneWave& PlaneWave::cached(int p, int nodes) {
   static std::mutex mutex;
   static std::map<std::pair<int, int>, std::unique_ptr<PlaneWave>> cache;
   std::lock_guard lock(mutex);
-  auto& slot = cache[{p, digits}];
-  if (!slot) slot = std::make_unique<PlaneWave>(p, digits);
+  auto& slot = cache[{p, nodes}];
+  if (!slot) slot = std::make_unique<PlaneWave>(p, nodes);
   return *slot;
 }
 

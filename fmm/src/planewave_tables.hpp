@@ -14,7 +14,8 @@ struct PlaneWaveNode {
   int nphysical;
 };
 
-/// Separation-1 table for 3, 6, 9 or 12 digits (nlams = 12, 20, 29, 37); empty span otherwise.
-std::span<const PlaneWaveNode> planewave_table(int digits);
+/// Separation-1 table of `nodes` lambda nodes, 12 to 39 (the 3-, 6-, 9- and 12-digit tables have
+/// 12, 20, 29 and 37); empty span otherwise.
+std::span<const PlaneWaveNode> planewave_table(int nodes);
 
 }  // namespace rpyfmm::fmm::detail

@@ -11,6 +11,7 @@
 // rpy/src (private to rpyfmm::rpy and this layer): FmmRpy's far-field densities and their
 // combination, its leaves, the length units and the load scaling, shared with the serial operators.
 #include "fmm_far_field.hpp"
+#include "fmm_laplace_accuracy.hpp"
 #include "fmm_leaf_rules.hpp"
 #include "fmm_rpy_near.hpp"
 #include "length_units.hpp"
@@ -45,11 +46,14 @@ DistributedFmmOptions laplace_options(const Communicator& comm, const Distribute
           "the ranks pass different options (tolerance, leaf_capacity, separation, cell_capacity, "
           "overlap_exchange or curve); every rank must pass the same ones");
   DistributedFmmOptions laplace;
-  // The Laplace sums run at the requested tolerance, as in FmmRpy (rpy/src/fmm_operator.cpp); the
-  // combination's errors stay below it in the tests (tests/mpi/test_distributed_fmm_rpy.cpp). The
+  // The Laplace sums run at FmmRpy's accuracy for the requested tolerance (fmm_laplace_accuracy.hpp);
+  // the combination's errors stay below it in the tests (tests/mpi/test_distributed_fmm_rpy.cpp). The
   // near field is summed as RPY blocks (fmm_rpy_near.hpp). min_leaf_side and the automatic leaves
   // are set per configuration (set_positions).
-  laplace.fmm.tolerance = o.tolerance;
+  const rpy::detail::LaplaceAccuracy accuracy = rpy::detail::laplace_accuracy_for(o.tolerance);
+  laplace.fmm.tolerance = accuracy.tolerance;
+  laplace.fmm.order = accuracy.order;
+  laplace.fmm.planewave_nodes = accuracy.planewave_nodes;
   laplace.fmm.near_field = false;
   // FmmRpy's rule (rpy/src/fmm_operator.cpp, docs/design-notes.md item 7): the W/X pairs that the
   // Laplace FMM would sum directly go to the near field, where one RPY block per pair of particles

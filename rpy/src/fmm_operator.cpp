@@ -12,6 +12,7 @@
 #include <string>
 
 #include "fmm_far_field.hpp"
+#include "fmm_laplace_accuracy.hpp"
 #include "fmm_leaf_rules.hpp"
 #include "fmm_near_field.hpp"
 #include "length_units.hpp"
@@ -55,12 +56,15 @@ void FmmRpy::on_positions_set() {
 
 FmmRpy::Plan FmmRpy::make_plan(int leaf_capacity, const fmm::FittedGridRule& fitted_grid) const {
   const std::span<const double> a = unit_radii();
-  // The Laplace FMM runs at the requested tolerance: the far field combines up to 7 outputs with
-  // partial cancellation (x_m E_k(F^m) - E_k(x.F)), and its errors measured on the test
-  // configurations stay below the FMM's own eps (tests/rpy/test_fmm_operator.cpp holds the
-  // contract). The expansion order follows from the tolerance.
+  // The Laplace FMM runs at the requested tolerance, with more plane-wave nodes and a higher order
+  // just above each table's step (fmm_laplace_accuracy.hpp): the far field combines up to 7
+  // outputs with partial cancellation (x_m E_k(F^m) - E_k(x.F)), which amplifies the table's own
+  // error there (tests/rpy/test_fmm_force_dipoles.cpp and test_fmm_operator.cpp hold the contract).
   fmm::FmmOptions fo;
-  fo.tolerance = options_.tolerance;
+  const detail::LaplaceAccuracy accuracy = detail::laplace_accuracy_for(options_.tolerance);
+  fo.tolerance = accuracy.tolerance;
+  fo.order = accuracy.order;
+  fo.planewave_nodes = accuracy.planewave_nodes;
   fo.leaf_capacity = leaf_capacity;
   // Automatic leaves: the bounding-cube tree's mean leaf occupancy (or with AVX-512 its leaf-level
   // share) decides whether the fitted grid pays, within the one set_points.

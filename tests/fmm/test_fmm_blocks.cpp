@@ -243,9 +243,9 @@ TEST(FmmBlocks, M2MIsExactAndL2LMatchesDirect) {
 // V-list offsets; normalized error of the plane-wave M2L chain + L2P <= 0.5 eps for each table.
 TEST(FmmBlocks, PlaneWaveM2LAllOffsetsAllTables) {
   for (double eps : {1e-3, 1e-6, 1e-9, 1e-12}) {
-    const int p = rpyfmm::fmm::fmm_order_for(eps), digits = rpyfmm::fmm::fmm_table_digits_for(eps);
+    const int p = rpyfmm::fmm::fmm_order_for(eps), nodes = rpyfmm::fmm::fmm_planewave_nodes_for(eps);
     const Harmonics& H = Harmonics::cached(p + 2);
-    const PlaneWave& pw = PlaneWave::cached(p, digits);
+    const PlaneWave& pw = PlaneWave::cached(p, nodes);
     const double s = 0.125, cs[3] = {0.2, -0.1, 0.05};
     const auto src = box_charges(60, cs, s, 77);
     std::vector<cplx> Mh(ncoef(p)), Mt(ncoef(p)), Mf(ncoef(p)), work(ncoef(p)), T(ncoef(p + 2));
@@ -350,9 +350,9 @@ TEST(FmmBlocks, LaneRotationsMatchOneDensityRotations) {
 // Tolerance 1e-12 relative to the largest value: both sides are the same sums in another order.
 TEST(FmmBlocks, HalfNodePlaneWavesMatchFullCircle) {
   for (double eps : {1e-3, 1e-6, 1e-9, 1e-12}) {
-    const int p = rpyfmm::fmm::fmm_order_for(eps), digits = rpyfmm::fmm::fmm_table_digits_for(eps);
+    const int p = rpyfmm::fmm::fmm_order_for(eps), nodes = rpyfmm::fmm::fmm_planewave_nodes_for(eps);
     const Harmonics& H = Harmonics::cached(p + 2);
-    const PlaneWave& pw = PlaneWave::cached(p, digits);
+    const PlaneWave& pw = PlaneWave::cached(p, nodes);
     const double s = 1.0, cs[3] = {0.0, 0.0, 0.0};
     const auto src = box_charges(40, cs, s, 11);
     std::vector<cplx> Mh(ncoef(p)), Mf(ncoef(p)), work(ncoef(p)), T(ncoef(p + 2));

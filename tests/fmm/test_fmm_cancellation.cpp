@@ -33,7 +33,8 @@ std::vector<double> absolute_field(const std::vector<double>& src, const std::ve
   std::vector<double> a(nd * m * 3, 0.0);
   for (std::size_t i = 0; i < m; ++i)
     for (std::size_t j = 0; j < n; ++j) {
-      const double dx = tgt[3 * i] - src[3 * j], dy = tgt[3 * i + 1] - src[3 * j + 1], dz = tgt[3 * i + 2] - src[3 * j + 2];
+      const double dx = tgt[3 * i] - src[3 * j], dy = tgt[3 * i + 1] - src[3 * j + 1],
+                   dz = tgt[3 * i + 2] - src[3 * j + 2];
       const double r = std::sqrt(dx * dx + dy * dy + dz * dz);
       if (r == 0.0) continue;
       for (std::size_t d = 0; d < nd; ++d) {
@@ -54,7 +55,8 @@ void project_out_rows(const std::vector<double>& src, const std::vector<double>&
   Eigen::MatrixXd at(n, m);  // A^T: its columns span the rows of A
   for (Eigen::Index i = 0; i < m; ++i)
     for (Eigen::Index j = 0; j < n; ++j) {
-      const double dx = tgt[3 * i] - src[3 * j], dy = tgt[3 * i + 1] - src[3 * j + 1], dz = tgt[3 * i + 2] - src[3 * j + 2];
+      const double dx = tgt[3 * i] - src[3 * j], dy = tgt[3 * i + 1] - src[3 * j + 1],
+                   dz = tgt[3 * i + 2] - src[3 * j + 2];
       at(j, i) = 1.0 / std::sqrt(dx * dx + dy * dy + dz * dz);
     }
   const Eigen::HouseholderQR<Eigen::MatrixXd> qr(at);
@@ -134,7 +136,8 @@ void check(const Case& c, const std::string& what) {
     const char* names[3] = {"potential", "gradient", "Hessian"};
     for (std::size_t d = 0; d < c.nd; ++d)
       for (int k = 0; k < 3; ++k) {
-        EXPECT_LE(r.error[d][k], eps * r.absolute[d][k]) << what << " eps " << eps << " density " << d << " " << names[k];
+        EXPECT_LE(r.error[d][k], eps * r.absolute[d][k])
+            << what << " eps " << eps << " density " << d << " " << names[k];
         std::printf("%-14s eps=%.0e density %zu %-9s error / |field of |q|| = %.2e eps\n", what.c_str(), eps, d,
                     names[k], r.error[d][k] / (eps * r.absolute[d][k]));
       }

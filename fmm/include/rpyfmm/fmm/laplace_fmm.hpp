@@ -94,6 +94,11 @@ struct FmmOptions {
   double root_scale = 1.0;
   /// Expansion order; 0 = from eps (FMM3D's rule, fmm_order_for).
   int order = 0;
+  /// Lambda nodes of the plane-wave quadrature, kMinPlaneWaveNodes to kMaxPlaneWaveNodes; 0 = the
+  /// table of the tolerance (fmm_planewave_nodes_for: 12, 20, 29 or 37). More nodes lower the M2L's
+  /// own error between the four tables' steps (docs/theory/fmm.md, Sec. 7), for callers that
+  /// combine outputs with cancellation (FmmRpy); together with `order`.
+  int planewave_nodes = 0;
   /// With leaf_capacity > 0 and root_scale = 1: a fitted grid (fit_leaf_grid) replaces the tree of
   /// that capacity where this rule says it pays, e.g. a caller's measured rule (FmmRpy). The
   /// decision takes the bounding-cube tree's boxes only; the lists are built once. Default
@@ -194,6 +199,11 @@ class LaplaceFmm {
 int fmm_order_for(double eps);
 /// Digits of the plane-wave table used for a tolerance (3, 6, 9 or 12).
 int fmm_table_digits_for(double eps);
+/// Lambda nodes of that table (12, 20, 29 or 37).
+int fmm_planewave_nodes_for(double eps);
+/// The range of FmmOptions::planewave_nodes: the separation-1 tables of 12 to 39 lambda nodes.
+inline constexpr int kMinPlaneWaveNodes = 12;
+inline constexpr int kMaxPlaneWaveNodes = 39;
 /// Automatic leaf capacity for a tolerance (measured per plane-wave table; larger where the
 /// AVX-512 P2P kernels are active, see simd_level() == SimdLevel::avx512).
 int fmm_default_leaf_capacity(double eps);

@@ -69,7 +69,9 @@ class FmmRpy final : public MobilityOperator {
   /// velocities from the same Laplace pass, to the same tolerance.
   [[nodiscard]] bool supports_rotation() const override { return true; }
   [[nodiscard]] const FmmRpyOptions& options() const { return options_; }
-  /// Tolerance handed to the Laplace FMM of laplace_plan(): options().tolerance (see on_positions_set).
+  /// Tolerance handed to the Laplace FMM of laplace_plan(): options().tolerance. Within a factor 10
+  /// above a plane-wave table's step (1e-3, 1e-6, 1e-9, 1e-12) the plan also takes more quadrature
+  /// nodes and a higher order (docs/theory/rpy.md, Sec. 2; laplace_plan().stats()).
   [[nodiscard]] double laplace_eps() const { return options_.tolerance; }
   /// Stage times of the last apply: the FMM's stages plus "rpy_charges", "rpy_far", "rpy_near", "rpy_total".
   [[nodiscard]] StageTimes last_timings() const;

@@ -24,10 +24,10 @@ namespace rpyfmm::fmm::detail {
 
 class PlaneWave {
  public:
-  /// `digits` in {3, 6, 9, 12} selects the quadrature table; p the expansion order.
-  PlaneWave(int p, int digits);
+  /// `nodes` (12 to 39 lambda nodes) selects the quadrature table; p the expansion order.
+  PlaneWave(int p, int nodes);
   /// Process-wide cache (thread-safe).
-  static const PlaneWave& cached(int p, int digits);
+  static const PlaneWave& cached(int p, int nodes);
 
   [[nodiscard]] int order() const noexcept { return p_; }
   [[nodiscard]] int nlams() const noexcept { return nlams_; }
