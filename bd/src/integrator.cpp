@@ -208,7 +208,8 @@ void Integrator::checked_displacements(double dt, double noise, bool brownian) {
 #pragma omp parallel for schedule(static) if (n >= 4096)
   for (std::size_t i = 0; i < n; ++i) {
     double d2 = 0.0, turn2 = 0.0;
-    bool escapes = false;  // x + dx overflows: the next step would meet infinite positions
+    // x + dx overflows: the next step would meet infinite positions.
+    bool escapes = false;
     const bool inertial = inertial_.contains(i);  // dx_ holds its Langevin step already
     for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) {
       const double d = inertial ? dx_[k] : u_[k] * dt + (brownian ? noise * w_[k] : 0.0);
@@ -238,7 +239,7 @@ void Integrator::fail_blow_up(std::size_t i) const {
     msg << " at (" << x[0] << ", " << x[1] << ", " << x[2] << ") would move by " << d
         << " beyond the largest double (|force| = " << norm3(f_.data() + 3 * i) << ")";
   } else if (!q_.empty() && !(norm3(phi_.data() + 3 * i) <= options_.max_displacement) &&
-      d <= options_.max_displacement * radii_[i]) {
+             d <= options_.max_displacement * radii_[i]) {
     msg << " would turn by " << norm3(phi_.data() + 3 * i) << " rad > max_displacement (" << options_.max_displacement
         << ") in one step (|torque| = " << norm3(torque_.data() + 3 * i) << ")";
   } else {
