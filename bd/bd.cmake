@@ -18,7 +18,8 @@ target_sources(rpyfmm_bd PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/src/checkpoint.cpp)
 target_sources(rpyfmm_bd PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/src/config.cpp
-  ${CMAKE_CURRENT_LIST_DIR}/src/particles.cpp)
+  ${CMAKE_CURRENT_LIST_DIR}/src/particles.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/particle_spec.cpp)
 target_sources(rpyfmm_bd PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/src/output.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/hoomd_frame.cpp

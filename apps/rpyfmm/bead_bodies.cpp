@@ -2,6 +2,7 @@
 
 #include <CLI/CLI.hpp>
 #include <cmath>
+#include <string>
 
 #include "array_io.hpp"
 #include "cli_common.hpp"
@@ -22,12 +23,23 @@ void add_bead_body_options(CLI::App& cmd, BeadBodyArgs& args, const std::string&
 }
 
 std::vector<std::size_t> body_offsets_from_sizes(const std::vector<double>& sizes) {
+  // Sizes are read as doubles, which hold every whole number up to 2^53 exactly: a larger entry
+  // (1e30 was called "not a whole number") or total is refused by name, and the offsets never wrap.
+  constexpr std::size_t kMaxBeads = std::size_t{1} << 53;
   std::vector<std::size_t> offsets{0};
   for (std::size_t k = 0; k < sizes.size(); ++k) {
     const double s = sizes[k];
-    require(std::isfinite(s) && s >= 1.0 && s == std::floor(s) && s < 1e15, ErrorCode::invalid_input, "--body-sizes",
-            "entry " + std::to_string(k) + " is not a whole number of beads >= 1");
-    offsets.push_back(offsets.back() + static_cast<std::size_t>(s));
+    const std::string entry = "entry " + std::to_string(k) + " (" + format_number(s) + ")";
+    require(std::isfinite(s) && s >= 1.0 && s == std::floor(s), ErrorCode::invalid_input, "--body-sizes",
+            entry + " is not a whole number of beads >= 1");
+    require(s <= static_cast<double>(kMaxBeads), ErrorCode::invalid_input, "--body-sizes",
+            entry +
+                " is too large: a body holds at most 2^53 = 9007199254740992 beads (the largest whole number a "
+                "double holds exactly)");
+    const auto beads = static_cast<std::size_t>(s);
+    require(beads <= kMaxBeads - offsets.back(), ErrorCode::invalid_input, "--body-sizes",
+            "entries 0 to " + std::to_string(k) + " add up to more than 2^53 = 9007199254740992 beads");
+    offsets.push_back(offsets.back() + beads);
   }
   return offsets;
 }

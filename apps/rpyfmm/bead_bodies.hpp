@@ -34,7 +34,8 @@ struct BeadBodies {
   [[nodiscard]] std::size_t bodies() const { return offsets.size() - 1; }
 };
 
-/// Body offsets (m + 1 entries from 0) from the body sizes of --body-sizes: whole numbers >= 1 (the
+/// Body offsets (m + 1 entries from 0) from the body sizes of --body-sizes: whole numbers >= 1, at most
+/// 2^53 in all (the
 /// library checks >= 3 beads); rpyfmm::Error naming --body-sizes otherwise.
 std::vector<std::size_t> body_offsets_from_sizes(const std::vector<double>& sizes);
 /// --body-sizes read and checked against the n beads of --positions: its body offsets.

@@ -3,7 +3,6 @@
 #include "rpyfmm/bd/config.hpp"
 
 #include <toml++/toml.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -14,6 +13,7 @@
 #include <sstream>
 
 #include "rpyfmm/bd/gsd_trajectory.hpp"
+#include "rpyfmm/bd/particles.hpp"
 #include "rpyfmm/core/file_safety.hpp"
 #include "rpyfmm/core/ranges.hpp"
 #include "rpyfmm/core/validate.hpp"
@@ -42,30 +42,6 @@ void require_distinct_output_names(const OutputSpec& o) {
 
 std::string num(double v) {
   return format_number(v);
-}
-
-// A lower bound of the memory a BD run keeps per particle (positions, reference positions,
-// forces, displacements, noise, neighbour lists, the mobility operator's copies): a count whose
-// run could never fit is refused while parsing, naming the key, instead of failing with
-// std::bad_alloc while the particles are placed.
-constexpr std::uint64_t kBytesPerParticle = 256;
-
-std::uint64_t physical_memory_bytes() {
-  const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGE_SIZE);
-  if (pages <= 0 || page <= 0) return std::numeric_limits<std::uint64_t>::max();
-  return static_cast<std::uint64_t>(pages) * static_cast<std::uint64_t>(page);
-}
-
-// `a` x `b` particles (a count, or chains x beads, ...), in kParticleCount and in memory.
-void require_particle_count(std::uint64_t a, std::uint64_t b, const std::string& key) {
-  const std::uint64_t max = ranges::kParticleCount.hi;
-  if (b != 0 && a > max / b)
-    bad_key(key, "asks for more than " + std::to_string(max) + " particles (the limit " + ranges::kParticleCount.str() +
-                     ")");
-  const std::uint64_t n = a * b, memory = physical_memory_bytes();
-  if (n > memory / kBytesPerParticle)
-    bad_key(key, "asks for " + std::to_string(n) + " particles, which need more than the " +
-                     format_number(static_cast<double>(memory) / 1e9) + " GB of memory of this machine");
 }
 
 /// One TOML table, read key by key; finish() rejects keys nobody asked for.
@@ -107,9 +83,11 @@ class Section {
     }
     return v;
   }
+  /// >= 0 and, unless 0, not subnormal (a subnormal kT made every Brownian displacement 0).
   double non_negative(const std::string& k, double fallback) {
     const double v = number(k, fallback);
     if (v < 0.0) bad_key(key(k), "must be >= 0, got " + num(v));
+    if (v != 0.0 && !std::isnormal(v)) bad_key(key(k), "must be 0 or a normal number (>= 2.2e-308), got " + num(v));
     return v;
   }
   /// An integer in `range` (default: any of TOML's non-negative integers).
@@ -417,11 +395,13 @@ void parse_particles(const toml::table& root, RunConfig& c) {
     require_particle_count(p.clusters, p.cluster_size, "particles.clusters");
     p.volume_fraction = s.positive("volume_fraction", 0.02);
     p.cluster_volume_fraction = s.positive("cluster_volume_fraction", 0.3);
-    if (p.cluster_volume_fraction > 0.4) bad_key("particles.cluster_volume_fraction", "must be <= 0.4");
+    if (p.cluster_volume_fraction > kMaxClusterVolumeFraction)
+      bad_key("particles.cluster_volume_fraction", "must be <= " + num(kMaxClusterVolumeFraction));
   } else {
     bad_key("particles.source", "must be file, random, lattice, chains or clusters, got \"" + source_name + "\"");
   }
-  if (p.volume_fraction > 0.45) bad_key("particles.volume_fraction", "must be <= 0.45, got " + num(p.volume_fraction));
+  if (p.volume_fraction > kMaxVolumeFraction)
+    bad_key("particles.volume_fraction", "must be <= " + num(kMaxVolumeFraction) + ", got " + num(p.volume_fraction));
   s.finish();
 }
 

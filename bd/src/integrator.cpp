@@ -10,6 +10,7 @@
 #include "rpyfmm/bd/rotation_sampling.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/random.hpp"
+#include "thermal_energy.hpp"
 
 namespace rpyfmm::bd {
 
@@ -36,8 +37,7 @@ Integrator::Integrator(Unstarted, std::unique_ptr<rpy::MobilityOperator> mobilit
       step_(first_step) {
   const char* where = "Integrator";
   require_positive(options_.dt, where, "dt");
-  require(std::isfinite(options_.kT) && options_.kT >= 0.0, ErrorCode::invalid_argument, where,
-          "kT must be finite and >= 0, got " + std::to_string(options_.kT));
+  require_thermal_energy(options_.kT, 2.0 * options_.kT * options_.dt, where, "2 kT dt");
   require_positive(options_.max_displacement, where, "max_displacement");
   const std::size_t n = types_.size();
   require(n >= 1, ErrorCode::invalid_input, where, "no particles (N = 0)");
@@ -208,16 +208,19 @@ void Integrator::checked_displacements(double dt, double noise, bool brownian) {
 #pragma omp parallel for schedule(static) if (n >= 4096)
   for (std::size_t i = 0; i < n; ++i) {
     double d2 = 0.0, turn2 = 0.0;
+    // x + dx overflows: the next step would meet infinite positions.
+    bool escapes = false;
     const bool inertial = inertial_.contains(i);  // dx_ holds its Langevin step already
     for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) {
       const double d = inertial ? dx_[k] : u_[k] * dt + (brownian ? noise * w_[k] : 0.0);
       dx_[k] = d;
       d2 += d * d;
+      escapes = escapes || !std::isfinite(x_[k] + d);
       if (!rotation) continue;
       phi_[k] = omega_[k] * dt + (brownian ? noise * wr_[k] : 0.0);
       turn2 += phi_[k] * phi_[k];
     }
-    if (!(d2 <= frac2 * radii_[i] * radii_[i]) || !(turn2 <= frac2)) {  // also catches NaN
+    if (!(d2 <= frac2 * radii_[i] * radii_[i]) || !(turn2 <= frac2) || escapes) {  // also catches NaN
       std::size_t cur = bad.load(std::memory_order_relaxed);
       while (i < cur && !bad.compare_exchange_weak(cur, i, std::memory_order_relaxed)) {
       }
@@ -231,8 +234,12 @@ void Integrator::fail_blow_up(std::size_t i) const {
   const double d = norm3(dx);
   std::ostringstream msg;
   msg << "blow-up at step " << step_ << ": particle " << i;
-  if (!q_.empty() && !(norm3(phi_.data() + 3 * i) <= options_.max_displacement) &&
-      d <= options_.max_displacement * radii_[i]) {
+  const double* x = x_.data() + 3 * i;
+  if (!std::isfinite(x[0] + dx[0]) || !std::isfinite(x[1] + dx[1]) || !std::isfinite(x[2] + dx[2])) {
+    msg << " at (" << x[0] << ", " << x[1] << ", " << x[2] << ") would move by " << d
+        << " beyond the largest double (|force| = " << norm3(f_.data() + 3 * i) << ")";
+  } else if (!q_.empty() && !(norm3(phi_.data() + 3 * i) <= options_.max_displacement) &&
+             d <= options_.max_displacement * radii_[i]) {
     msg << " would turn by " << norm3(phi_.data() + 3 * i) << " rad > max_displacement (" << options_.max_displacement
         << ") in one step (|torque| = " << norm3(torque_.data() + 3 * i) << ")";
   } else {
@@ -244,6 +251,10 @@ void Integrator::fail_blow_up(std::size_t i) const {
 }
 
 const StepReport& Integrator::step() {
+  // The noise is keyed by the step number: past 2^64 - 1 it would wrap to 0 and repeat the noise
+  // of step 0 on (a first_step near the end of the range, e.g. from a restart).
+  require(step_ != std::numeric_limits<std::uint64_t>::max(), ErrorCode::invalid_input, "Integrator::step",
+          "the step counter is at 2^64-1, its largest value (the next step would wrap to 0 and repeat its noise)");
   if (device_) return device_step();
   const std::size_t n = size();
   StepReport rep;

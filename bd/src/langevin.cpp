@@ -24,10 +24,16 @@ void check(std::span<const LangevinParticle> particles, std::span<const std::uin
       "arrays of 3 per particle expected (" + std::to_string(3 * particles.size()) + "), got " + std::to_string(n3));
   for (std::size_t i = 0; i < particles.size(); ++i) {
     const LangevinParticle& p = particles[i];
-    require(std::isfinite(p.mass) && p.mass > 0.0 && std::isfinite(p.friction) && p.friction > 0.0,
+    require(std::isnormal(p.mass) && p.mass > 0.0 && std::isnormal(p.friction) && p.friction > 0.0,
             ErrorCode::invalid_argument, where,
-            "particle " + std::to_string(i) + ": mass and friction must be finite and > 0");
+            "particle " + std::to_string(i) + ": mass and friction must be finite, > 0 and normal (>= 2.2e-308)");
   }
+}
+
+/// kT finite, >= 0 and, unless 0, normal (thermal_energy.hpp: a subnormal kT loses the noise).
+void require_kT(double kT, const char* where) {
+  require(std::isfinite(kT) && kT >= 0.0 && (kT == 0.0 || std::isnormal(kT)), ErrorCode::invalid_argument, where,
+          "kT must be finite, >= 0 and 0 or normal (>= 2.2e-308), got " + format_number(kT));
 }
 
 }  // namespace
@@ -43,7 +49,7 @@ void langevin_step(const LangevinStep& s, std::span<const LangevinParticle> part
                    std::span<double> v) {
   const char* where = "langevin_step";
   require(std::isfinite(s.dt) && s.dt > 0.0, ErrorCode::invalid_argument, where, "dt must be finite and > 0");
-  require(std::isfinite(s.kT) && s.kT >= 0.0, ErrorCode::invalid_argument, where, "kT must be finite and >= 0");
+  require_kT(s.kT, where);
   check(particles, index, x.size(), where);
   require(forces.size() == x.size() && v.size() == x.size(), ErrorCode::invalid_argument, where,
           "forces, positions and velocities must have the same size");
@@ -73,7 +79,7 @@ void langevin_step(const LangevinStep& s, std::span<const LangevinParticle> part
 void maxwell_velocities(double kT, std::uint64_t seed, std::span<const LangevinParticle> particles,
                         std::span<const std::uint64_t> index, std::span<double> v) {
   const char* where = "maxwell_velocities";
-  require(std::isfinite(kT) && kT >= 0.0, ErrorCode::invalid_argument, where, "kT must be finite and >= 0");
+  require_kT(kT, where);
   check(particles, index, v.size(), where);
   for (std::size_t i = 0; i < particles.size(); ++i) {
     double z[3];

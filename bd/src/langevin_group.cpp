@@ -18,8 +18,9 @@ LangevinGroup::LangevinGroup(std::span<const std::optional<LangevinParticle>> in
     index_.push_back(i);
   }
   for (const LangevinParticle& p : particles_)
-    require(std::isfinite(p.mass) && p.mass > 0.0 && std::isfinite(p.friction) && p.friction > 0.0,
-            ErrorCode::invalid_argument, "Integrator", "inertia: mass and friction must be finite and > 0");
+    require(std::isnormal(p.mass) && p.mass > 0.0 && std::isnormal(p.friction) && p.friction > 0.0,
+            ErrorCode::invalid_argument, "Integrator",
+            "inertia: mass and friction must be finite, > 0 and normal (>= 2.2e-308)");
   v_.assign(empty() ? 0 : 3 * types.size(), 0.0);
   pending_.assign(3 * size(), 0.0);
   f_.assign(3 * size(), 0.0);

@@ -19,9 +19,9 @@ NeighbourList::NeighbourList(rpy::Geometry geometry, double cutoff, NeighbourOpt
     : geometry_(geometry), periodic_(geometry.is_periodic()), cutoff_(cutoff), skin_(options.skin), options_(options) {
   const char* where = "NeighbourList";
   require(std::isfinite(cutoff) && cutoff >= 0.0, ErrorCode::invalid_argument, where,
-          "cutoff must be finite and >= 0, got " + std::to_string(cutoff));
+          "cutoff must be finite and >= 0, got " + format_number(cutoff));
   require(std::isfinite(options.skin) && options.skin >= 0.0, ErrorCode::invalid_argument, where,
-          "skin must be finite and >= 0, got " + std::to_string(options.skin));
+          "skin must be finite and >= 0, got " + format_number(options.skin));
   require(options.fixed_interval >= 0, ErrorCode::invalid_argument, where, "fixed_interval must be >= 0");
   if (skin_ == 0.0) skin_ = 0.3 * cutoff_;
   if (periodic_) {
@@ -29,8 +29,8 @@ NeighbourList::NeighbourList(rpy::Geometry geometry, double cutoff, NeighbourOpt
     for (int c = 0; c < 3; ++c) {
       inv_box_[c] = 1.0 / box_[c];
       require(list_radius() <= 0.5 * box_[c], ErrorCode::invalid_argument, where,
-              "cutoff + skin = " + std::to_string(list_radius()) + " exceeds half the box length " +
-                  std::to_string(box_[c]) + " (minimum image would fail)");
+              "cutoff + skin = " + format_number(list_radius()) + " exceeds half the box length " +
+                  format_number(box_[c]) + " (minimum image would fail)");
     }
   }
 }
@@ -95,7 +95,7 @@ void NeighbourList::set_pair_cutoffs(std::span<const std::uint32_t> particle_typ
   for (std::size_t k = 0; k < cutoffs.size(); ++k) {
     require(std::isfinite(cutoffs[k]) && cutoffs[k] >= 0.0 && cutoffs[k] <= cutoff_, ErrorCode::invalid_argument, where,
             "cutoff of type pair (" + std::to_string(k / ntypes) + ", " + std::to_string(k % ntypes) +
-                ") must lie in [0, " + std::to_string(cutoff_) + "], got " + std::to_string(cutoffs[k]));
+                ") must lie in [0, " + format_number(cutoff_) + "], got " + format_number(cutoffs[k]));
   }
   for (std::size_t i = 0; i < particle_types.size(); ++i) {
     require(particle_types[i] < ntypes, ErrorCode::invalid_argument, where,

@@ -270,7 +270,7 @@ InitialState random_particles(const RunConfig& c, const ForceField& ff, std::mt1
     const double phi = mean_volume(ff, s.types) / c.geometry.volume();
     if (phi > 0.4)
       fail(ErrorCode::invalid_argument, "config",
-           "key 'particles.count': " + std::to_string(p.count) + " particles fill " + std::to_string(phi) +
+           "key 'particles.count': " + std::to_string(p.count) + " particles fill " + format_number(phi) +
                " of the box (max 0.4 for random insertion)");
   }
   s.positions = place(
@@ -297,7 +297,7 @@ InitialState lattice_particles(const RunConfig& c, const ForceField& ff) {
   const double amax = max_radius(ff);
   if (*std::min_element(h.begin(), h.end()) < 2 * amax * kGap)
     fail(ErrorCode::invalid_argument, "config",
-         "key 'particles.count': lattice spacing " + std::to_string(h[0]) + " < 2 a (particles would overlap)");
+         "key 'particles.count': lattice spacing " + format_number(h[0]) + " < 2 a (particles would overlap)");
   for (std::size_t i = 0; i < p.count; ++i) {
     const std::size_t ix = i % side, iy = (i / side) % side, iz = i / (side * side);
     s.positions.insert(s.positions.end(),
@@ -365,6 +365,7 @@ InitialState cluster_particles(const RunConfig& c, const ForceField& ff, std::mt
 }  // namespace
 
 InitialState make_particles(const RunConfig& c, const ForceField& ff) {
+  check_particle_spec(c.particles, c.geometry.is_periodic());
   std::mt19937_64 gen(c.particles.seed);
   switch (c.particles.source) {
     case ParticleSpec::Source::file: {

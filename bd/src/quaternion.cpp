@@ -1,5 +1,6 @@
 #include "rpyfmm/bd/quaternion.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -34,6 +35,22 @@ std::array<double, 3> body_axis(std::span<const double, 4> q) {
   return {2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)};
 }
 
+namespace {
+/// |q| without overflow: the sum of squares where it is finite, else |q| in units of its largest
+/// component (components of 1e300 overflowed the squares to infinity, and dividing by the
+/// infinite norm turned the orientation into NaN).
+double quaternion_norm(std::span<const double, 4> q) {
+  double norm2 = 0.0;
+  for (const double v : q) norm2 += v * v;
+  if (std::isfinite(norm2)) return std::sqrt(norm2);
+  double largest = 0.0;
+  for (const double v : q) largest = std::max(largest, std::abs(v));
+  double scaled2 = 0.0;
+  for (const double v : q) scaled2 += (v / largest) * (v / largest);
+  return largest * std::sqrt(scaled2);
+}
+}  // namespace
+
 std::vector<double> checked(std::vector<double> q, std::size_t count, const char* where, const char* object) {
   const std::string name(object);
   if (q.empty()) {
@@ -46,9 +63,7 @@ std::vector<double> checked(std::vector<double> q, std::size_t count, const char
               " (quaternions w, x, y, z, one per " + name + ")");
   require_finite(q, where, "orientations", 4);
   for (std::size_t k = 0; k < count; ++k) {
-    double norm = 0.0;
-    for (int c = 0; c < 4; ++c) norm += q[4 * k + c] * q[4 * k + c];
-    norm = std::sqrt(norm);
+    const double norm = quaternion_norm(std::span<const double, 4>(q.data() + 4 * k, 4));
     require(norm > 1e-12, ErrorCode::invalid_input, where,
             "the orientation of " + name + " " + std::to_string(k) + " is a zero quaternion");
     // Unit quaternions (a saved state) are kept as they are, so that a restart is bitwise.

@@ -32,7 +32,7 @@ TorqueField::TorqueField(std::vector<TypeTorque> types, const std::array<double,
     const std::string name = "type " + std::to_string(t);
     require_finite3(types_[t].torque, "the torque of " + name);
     require(std::isfinite(types_[t].dipole) && types_[t].dipole >= 0.0, ErrorCode::invalid_argument, kWhere,
-            "the dipole of " + name + " must be finite and >= 0, got " + std::to_string(types_[t].dipole));
+            "the dipole of " + name + " must be finite and >= 0, got " + format_number(types_[t].dipole));
     dipoles = dipoles || types_[t].dipole > 0.0;
     type_torques = type_torques || any_nonzero(types_[t].torque);
   }

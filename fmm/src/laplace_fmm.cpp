@@ -159,9 +159,9 @@ LaplaceFmm::LaplaceFmm(const FmmOptions& options) : options_(options) {
   require(options.leaf_capacity >= 0, ErrorCode::invalid_argument, where,
           "leaf_capacity must be >= 0 (0 = automatic), got " + std::to_string(options.leaf_capacity));
   require(std::isfinite(options.min_leaf_side) && options.min_leaf_side >= 0.0, ErrorCode::invalid_argument, where,
-          "min_leaf_side must be finite and >= 0, got " + std::to_string(options.min_leaf_side));
+          "min_leaf_side must be finite and >= 0, got " + format_number(options.min_leaf_side));
   require(options.root_scale >= 1.0 && options.root_scale <= 8.0, ErrorCode::invalid_argument, where,
-          "root_scale must be in [1, 8], got " + std::to_string(options.root_scale));
+          "root_scale must be in [1, 8], got " + format_number(options.root_scale));
   require(options.order == 0 || (options.order >= 2 && options.order <= 70), ErrorCode::invalid_argument, where,
           "order must be 0 (automatic) or in [2, 70], got " + std::to_string(options.order));
   require(options.planewave_nodes == 0 ||

@@ -85,12 +85,21 @@ def msd(positions: npt.ArrayLike) -> np.ndarray:
 def stokes_einstein(kT: float, viscosity: float, radius: float) -> float:
     """Single-sphere diffusion coefficient D0 = kT / (6 pi eta a) (length^2 / time).
 
-    kT must be finite and >= 0, viscosity and radius finite and > 0; otherwise
-    :class:`InvalidArgumentError` names the argument.
+    kT must be finite and >= 0, viscosity and radius finite and > 0, none of them
+    subnormal (nonzero but below 2.2e-308), as in the library (docs/safety-limits.md);
+    otherwise, or where D0 overflows, :class:`InvalidArgumentError` names the argument.
     """
     for name, value, zero_ok in (("kT", kT, True), ("viscosity", viscosity, False), ("radius", radius, False)):
         v = float(value)
         if not (np.isfinite(v) and (v >= 0.0 if zero_ok else v > 0.0)):
             raise InvalidArgumentError(
                 f"stokes_einstein: {name} must be finite and {'>= 0' if zero_ok else '> 0'}, got {value!r}")
-    return kT / (6.0 * np.pi * viscosity * radius)
+        if v != 0.0 and abs(v) < np.finfo(np.float64).tiny:
+            raise InvalidArgumentError(
+                f"stokes_einstein: {name} must be a normal number (>= 2.2e-308), got the subnormal {value!r}")
+    d0 = kT / (6.0 * np.pi * viscosity * radius)
+    if not np.isfinite(d0):
+        raise InvalidArgumentError(
+            f"stokes_einstein: kT / (6 pi eta a) overflows for kT = {kT!r}, viscosity = {viscosity!r}, "
+            f"radius = {radius!r}")
+    return d0

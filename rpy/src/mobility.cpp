@@ -92,12 +92,9 @@ void MobilityOperator::set_positions(std::span<const double> positions, std::spa
   require(positions.size() % 3 == 0, ErrorCode::invalid_input, where,
           "positions has " + std::to_string(positions.size()) + " entries, not a multiple of 3");
   require_size(radii, positions.size() / 3, where, "radii");
-  for (std::size_t i = 0; i < radii.size(); ++i) {
-    if (!(std::isfinite(radii[i]) && radii[i] > 0.0)) {
-      fail(ErrorCode::invalid_argument, where,
-           "radius of particle " + std::to_string(i) + " must be finite and > 0, got " + std::to_string(radii[i]));
-    }
-  }
+  // As for one common radius: finite, > 0 and normal (a subnormal radius's mobility overflows).
+  for (std::size_t i = 0; i < radii.size(); ++i)
+    require_positive(radii[i], where, "radius of particle " + std::to_string(i));
   const bool equal = std::all_of(radii.begin(), radii.end(), [&](double a) { return a == radii.front(); });
   store_positions(positions, radii, equal);
 }

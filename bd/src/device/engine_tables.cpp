@@ -3,6 +3,7 @@
 #include <cmath>
 #include <string>
 
+#include "../thermal_energy.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/free_draining.hpp"
 
@@ -14,8 +15,7 @@ constexpr const char* kWhere = "bd device engine";
 
 void check_options(const EngineOptions& o) {
   require_positive(o.dt, kWhere, "dt");
-  require(std::isfinite(o.kT) && o.kT >= 0.0, ErrorCode::invalid_argument, kWhere,
-          "kT must be finite and >= 0, got " + std::to_string(o.kT));
+  require_thermal_energy(o.kT, 2.0 * o.kT * o.dt, kWhere, "2 kT dt");
   require_positive(o.max_displacement, kWhere, "max_displacement");
   require_positive(o.viscosity, kWhere, "viscosity");
   for (double f : o.global_force)

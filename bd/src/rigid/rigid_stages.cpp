@@ -6,6 +6,7 @@
 #include <sstream>
 #include <string>
 
+#include "../thermal_energy.hpp"
 #include "rpyfmm/bd/quaternion.hpp"
 #include "rpyfmm/core/validate.hpp"
 
@@ -13,8 +14,7 @@ namespace rpyfmm::bd::rigid_detail {
 
 const RigidDynamicsOptions& checked_options(const RigidDynamicsOptions& options, const char* where) {
   require_positive(options.dt, where, "dt");
-  require(std::isfinite(options.kT) && options.kT >= 0.0, ErrorCode::invalid_argument, where,
-          "kT must be finite and >= 0, got " + std::to_string(options.kT));
+  require_thermal_energy(options.kT, 2.0 * options.kT / options.dt, where, "2 kT / dt");
   require_in_range(options.rfd_delta, 1e-6, 0.1, where, "rfd_delta");
   require_positive(options.max_displacement, where, "max_displacement");
   return options;

@@ -204,7 +204,7 @@ struct OpenPseRpy::Impl {
       if (e.code() != ErrorCode::out_of_memory) throw;
       // The grid grows with the configuration's extent: say so, and what suits spread-out particles.
       throw Error(e.code(), std::string(e.what()) + " (OpenPseRpy: the particles span " +
-                                std::to_string(extent.diameter) +
+                                format_number(extent.diameter) +
                                 " lengths; the grid covers twice that: use the FMM operator for spread-out "
                                 "configurations)");
     }
@@ -267,10 +267,10 @@ OpenPseRpy::OpenPseRpy(double viscosity, const PseOptions& options)
     : PseOperator(Geometry::open(), viscosity, kWhere), impl_(std::make_unique<Impl>()) {
   if (!(std::isfinite(options.tolerance) && options.tolerance >= 1e-8 && options.tolerance < 0.1)) {
     fail(ErrorCode::invalid_argument, kWhere,
-         "tolerance must lie in [1e-8, 0.1), got " + std::to_string(options.tolerance));
+         "tolerance must lie in [1e-8, 0.1), got " + format_number(options.tolerance));
   }
   require(std::isfinite(options.xi) && options.xi >= 0.0, ErrorCode::invalid_argument, kWhere,
-          "xi must be >= 0 (0 = automatic), got " + std::to_string(options.xi));
+          "xi must be >= 0 (0 = automatic), got " + format_number(options.xi));
   require(options.open_truncation == 0.0 && options.pair_density == 0.0, ErrorCode::invalid_argument, kWhere,
           "PseOptions::open_truncation and pair_density are chosen by OpenPseRpy and must be 0");
   require(options.grid == std::array<int, 3>{0, 0, 0}, ErrorCode::invalid_argument, kWhere,
@@ -302,10 +302,16 @@ double OpenPseRpy::constant_part() const {
 void OpenPseRpy::on_positions_set() {
   require(equal_radii(), ErrorCode::not_supported, "OpenPseRpy::set_positions",
           "PSE supports equal radii only (the paper's assumption); the radii given differ");
+  require_radius_in_range("OpenPseRpy::set_positions");
   auto& im = *impl_;
   const auto x = positions();
   std::array<double, 3> centre{};
   const Extent extent = measure(x, radii().front(), centre);
+  // Coordinates whose distances overflow (particles at -1e308 and 1e308) have no grid; the
+  // periodic box's checks named the open truncation instead.
+  require(std::isfinite(extent.diameter), ErrorCode::out_of_memory, "OpenPseRpy::set_positions",
+          "the particles' distances overflow double precision, so no grid covers them: use the FMM operator "
+          "for spread-out configurations");
   const std::size_t k = im.plan_for(extent, viscosity());
   StopWatch sw;
   im.shifted.resize(x.size());

@@ -76,10 +76,10 @@ PseRpy::PseRpy(Geometry geometry, double viscosity, const PseOptions& options)
   impl_->options = options;
   if (!(std::isfinite(options.tolerance) && options.tolerance >= 1e-8 && options.tolerance < 0.1)) {
     fail(ErrorCode::invalid_argument, "PseRpy",
-         "tolerance must lie in [1e-8, 0.1), got " + std::to_string(options.tolerance));
+         "tolerance must lie in [1e-8, 0.1), got " + format_number(options.tolerance));
   }
   require(std::isfinite(options.xi) && options.xi >= 0.0, ErrorCode::invalid_argument, "PseRpy",
-          "xi must be >= 0 (0 = automatic), got " + std::to_string(options.xi));
+          "xi must be >= 0 (0 = automatic), got " + format_number(options.xi));
 }
 
 PseRpy::~PseRpy() = default;
@@ -96,6 +96,7 @@ const PseParameters& PseRpy::parameters() const {
 void PseRpy::on_positions_set() {
   require(equal_radii(), ErrorCode::not_supported, "PseRpy::set_positions",
           "PSE supports equal radii only (the paper's assumption); the radii given differ");
+  require_radius_in_range("PseRpy::set_positions");
   const double a = radii().front();
   const std::size_t n = size();
   auto& im = *impl_;
@@ -283,7 +284,7 @@ SqrtReport PseRpy::apply_with_noise(std::span<const double> forces, double noise
   require_size(std::span<const double>(velocities.data(), velocities.size()), 3 * size(), where, "velocities");
   require_finite(forces, where, "forces", 3);
   require(std::isfinite(noise_scale) && noise_scale >= 0.0, ErrorCode::invalid_argument, where,
-          "noise_scale must be finite and >= 0, got " + std::to_string(noise_scale));
+          "noise_scale must be finite and >= 0, got " + format_number(noise_scale));
   auto& im = *impl_;
   SqrtReport rep;
   rep.method = SqrtMethod::split;

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "rpyfmm/core/error.hpp"
+#include "rpyfmm/core/validate.hpp"
 
 namespace rpyfmm::rpy::pse::detail {
 
@@ -32,7 +33,7 @@ RefinedTable refine_linear_table(double dr0, double r_cut, double eps, std::size
     const auto n = static_cast<std::size_t>(std::ceil(r_cut / dr)) + 1;  // cells 0..n-1 cover [0, n dr)
     if (n >= max_entries) {
       fail(ErrorCode::out_of_memory, where,
-           "table for tolerance " + std::to_string(eps) + " would need more than " + max_entries_text + " entries");
+           "table for tolerance " + format_number(eps) + " would need more than " + max_entries_text + " entries");
     }
     const std::vector<double> v = sample(dr, n);
     double worst = 0.0;

@@ -3,6 +3,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <new>
+#include <string>
 #include <vector>
 
 #include "rpyfmm/core/validate.hpp"
@@ -104,12 +106,27 @@ void update_solution(Cycle& c, std::size_t j, const VectorMap& precondition, dou
   for (std::size_t k = 0; k < n; ++k) x[k] += c.z[k];
 }
 
+/// The cycle's workspace: at most max_iterations columns (a longer cycle never runs; the results
+/// are the same), allocated up front. A basis that does not fit (restart = 2^31 - 1 ended in
+/// std::bad_alloc) is refused by name.
+Cycle make_cycle(std::size_t n, int max_iterations, int restart, const InnerProduct& inner_product) {
+  const auto m = static_cast<std::size_t>(std::max(1, std::min(restart, max_iterations)));
+  try {
+    return Cycle(n, m, inner_product);
+  } catch (const std::bad_alloc&) {
+    fail(ErrorCode::out_of_memory, "GMRES",
+         "a cycle of " + std::to_string(m) + " iterations needs " +
+             format_number(8.0 * static_cast<double>(m + 1) * static_cast<double>(n + m) / 1e9) +
+             " GB for its Krylov basis; lower restart (RigidBodyOptions::restart)");
+  }
+}
+
 }  // namespace
 
 GmresResult gmres(std::size_t n, const VectorMap& apply, const VectorMap& precondition, const double* b, double* x,
                   double tol, int max_iterations, int restart, const InnerProduct& inner_product) {
   GmresResult result;
-  Cycle c(n, static_cast<std::size_t>(std::max(restart, 1)), inner_product);
+  Cycle c = make_cycle(n, max_iterations, restart, inner_product);
   const double bnorm = std::sqrt(c.dot(b, b));
   // Entries near 1e154 or larger make |b| infinite, and then every test below passes (inf <= inf)
   // with x = 0 returned as converged. Every rank sees the same reduced norm, so all fail alike.

@@ -117,7 +117,7 @@ void require_noise(const BodySystem& s, std::span<const double> z, double noise_
   require_size(z, 3 * s.beads(), where, "bead noise z");
   require_finite(z, where, "bead noise z", 3);
   require(std::isfinite(noise_scale) && noise_scale >= 0.0, ErrorCode::invalid_argument, where,
-          "noise_scale must be finite and >= 0, got " + std::to_string(noise_scale));
+          "noise_scale must be finite and >= 0, got " + format_number(noise_scale));
 }
 
 SaddleSolution solve_saddle_point(const BodySystem& s, const BeadProduct& beads, const RigidBodyOptions& options,

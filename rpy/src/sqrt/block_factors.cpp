@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <numbers>
 #include <numeric>
 
 #include "rpyfmm/rpy/block_preconditioner.hpp"
@@ -139,9 +140,21 @@ std::size_t block_dofs(PreconditionedMatrix matrix) {
   return matrix == PreconditionedMatrix::scaled_grand ? 6 : 3;
 }
 
+int block_scale_exponent(double min_radius, double max_radius, double viscosity) {
+  // The self mobilities 1 / (6 pi eta a) of the radii's ends, largest first (finite: eta and a are
+  // normal and positive; their product may be tiny or huge).
+  const double largest = 1.0 / (6.0 * std::numbers::pi * viscosity * min_radius);
+  const double smallest = 1.0 / (6.0 * std::numbers::pi * viscosity * max_radius);
+  const double lo = 0x1p-60, hi = 0x1p60;
+  if (smallest >= lo && largest <= hi) return 0;
+  // Centre the logarithms of the ends on 0 (each is bounded, so the sum is exact and finite).
+  const int centre = (std::ilogb(smallest) + std::ilogb(largest)) / 2;
+  return -centre;
+}
+
 bool factor_block(std::span<const double> positions, std::span<const double> radii, double viscosity,
                   const Geometry& geometry, std::span<const std::size_t> members, PreconditionedMatrix matrix,
-                  float* packed) {
+                  float* packed, int scale_exponent) {
   const bool periodic = geometry.is_periodic();
   const auto box = geometry.box();
   const std::size_t count = members.size();
@@ -167,12 +180,15 @@ bool factor_block(std::span<const double> positions, std::span<const double> rad
       for (Eigen::Index r = 0; r < dofs; ++r)
         for (Eigen::Index c = 0; c < dofs; ++c)
           block(dofs * static_cast<Eigen::Index>(p) + r, dofs * static_cast<Eigen::Index>(q) + c) =
-              static_cast<float>(t[dofs * r + c]);
+              static_cast<float>(std::ldexp(t[dofs * r + c], scale_exponent));
     }
   }
   Eigen::LLT<Matrix, Eigen::Lower> llt(block);
-  // A singular block (coincident particles) keeps its diagonal: L = diag(sqrt(M_kk)).
-  const bool factored = llt.info() == Eigen::Success && llt.matrixLLT().diagonal().minCoeff() > 0.0f;
+  // A singular block (coincident particles) keeps its diagonal: L = diag(sqrt(M_kk)); so does one
+  // whose pair entries are not finite (the squared distances of pairs 1e154 apart overflow).
+  const bool factored = block.triangularView<Eigen::Lower>().toDenseMatrix().allFinite() &&
+                        llt.info() == Eigen::Success && llt.matrixL().toDenseMatrix().allFinite() &&
+                        llt.matrixLLT().diagonal().minCoeff() > 0.0f;
   const Matrix& l = llt.matrixLLT();
   for (Eigen::Index i = 0; i < m; ++i) {
     for (Eigen::Index j = 0; j < i; ++j) *packed++ = factored ? l(i, j) : 0.0f;

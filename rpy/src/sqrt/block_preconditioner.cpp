@@ -1,6 +1,7 @@
 // rpyfmm — BlockPreconditioner: spatial blocks and their Cholesky factors (see the header).
 #include "rpyfmm/rpy/block_preconditioner.hpp"
 
+#include <algorithm>
 #include <string>
 #include <utility>
 
@@ -13,8 +14,20 @@ BlockPreconditioner::BlockPreconditioner(std::span<const double> positions, std:
                                          double viscosity, const Geometry& geometry, std::size_t max_block,
                                          PreconditionedMatrix matrix)
     : n_(radii.size()), dofs_(matrix == PreconditionedMatrix::scaled_grand ? 6 : 3) {
-  require(positions.size() == 3 * n_, ErrorCode::invalid_input, "BlockPreconditioner",
+  constexpr const char* where = "BlockPreconditioner";
+  require(positions.size() == 3 * n_, ErrorCode::invalid_input, where,
           "positions has " + std::to_string(positions.size()) + " entries for " + std::to_string(n_) + " radii");
+  // The blocks of M are formed from these: NaN positions, a zero radius or a NaN viscosity made
+  // every factor NaN, and G x with it.
+  require_finite(positions, where, "positions", 3);
+  require_positive(viscosity, where, "viscosity");
+  double min_radius = 1.0, max_radius = 1.0;
+  for (std::size_t i = 0; i < n_; ++i) {
+    require_positive(radii[i], where, "radius of particle " + std::to_string(i));
+    min_radius = i == 0 ? radii[i] : std::min(min_radius, radii[i]);
+    max_radius = i == 0 ? radii[i] : std::max(max_radius, radii[i]);
+  }
+  const int scale_exponent = block_scale_exponent(min_radius, max_radius, viscosity);
   BlockPartition partition = bisect_blocks(positions, max_block);
   order_ = std::move(partition.order);
   offsets_ = std::move(partition.offsets);
@@ -29,7 +42,8 @@ BlockPreconditioner::BlockPreconditioner(std::span<const double> positions, std:
 #pragma omp parallel for schedule(dynamic) reduction(+ : diagonal)
   for (std::size_t b = 0; b < nb; ++b) {
     const std::span<const std::size_t> members(order_.data() + offsets_[b], offsets_[b + 1] - offsets_[b]);
-    if (!factor_block(positions, radii, viscosity, geometry, members, matrix, factors_.data() + factor_offset_[b]))
+    if (!factor_block(positions, radii, viscosity, geometry, members, matrix, factors_.data() + factor_offset_[b],
+                      scale_exponent))
       ++diagonal;
   }
   diagonal_blocks_ = diagonal;

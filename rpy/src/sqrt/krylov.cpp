@@ -138,14 +138,26 @@ void HostKrylovSpace::require_finite(const double* y, const char* where, long lo
   require_finite_product(y, n_, 1, where, product);
 }
 
-Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> tridiagonal_eigen(const std::vector<double>& alpha,
-                                                                 const std::vector<double>& beta, int m) {
+TridiagonalEigen tridiagonal_eigen(const std::vector<double>& alpha, const std::vector<double>& beta, int m) {
   Eigen::VectorXd d = Eigen::Map<const Eigen::VectorXd>(alpha.data(), m);
   Eigen::VectorXd e(std::max(m - 1, 0));
   for (int i = 0; i + 1 < m; ++i) e[i] = beta[static_cast<std::size_t>(i)];
+  const double largest = std::max(d.cwiseAbs().maxCoeff(), m > 1 ? e.cwiseAbs().maxCoeff() : 0.0);
+  // An even power of two (krylov.hpp): every step of the QR iteration, square roots included,
+  // scales exactly; only the deflation test sees the matrix near 1.
+  const int k = largest > 0.0 && std::isfinite(largest) && (largest < 0x1p-10 || largest > 0x1p10)
+                    ? 2 * (std::ilogb(largest) / 2)
+                    : 0;
+  if (k != 0) {
+    for (double& v : d) v = std::ldexp(v, -k);
+    for (double& v : e) v = std::ldexp(v, -k);
+  }
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es;
   es.computeFromTridiagonal(d, e, Eigen::ComputeEigenvectors);
-  return es;
+  TridiagonalEigen out{es.eigenvalues(), es.eigenvectors()};
+  if (k != 0)
+    for (double& v : out.values) v = std::ldexp(v, k);
+  return out;
 }
 
 }  // namespace rpyfmm::rpy::sqrt_detail

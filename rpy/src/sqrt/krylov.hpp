@@ -98,8 +98,21 @@ int lanczos_max_iterations(const SqrtOptions& options, std::size_t n);
 void conclude_lanczos_step(LanczosRhs& s, bool breakdown, int it, int max_it, const SqrtOptions& options, std::size_t k,
                            double* w, SqrtReport& report);
 
-/// Eigen-decomposition of the m x m tridiagonal T (alpha: m, beta: >= m-1).
-Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> tridiagonal_eigen(const std::vector<double>& alpha,
-                                                                 const std::vector<double>& beta, int m);
+/// Eigenvalues (ascending) and eigenvectors of a tridiagonal matrix.
+struct TridiagonalEigen {
+  Eigen::VectorXd values;
+  Eigen::MatrixXd vectors;
+  [[nodiscard]] const Eigen::VectorXd& eigenvalues() const { return values; }
+  [[nodiscard]] const Eigen::MatrixXd& eigenvectors() const { return vectors; }
+};
+
+/// Eigen-decomposition of the m x m tridiagonal T (alpha: m, beta: >= m-1). Eigen's
+/// computeFromTridiagonal deflates a subdiagonal entry e where (e / epsilon)^2 <= |d_i| + |d_i+1|,
+/// a test that is not scale invariant: on T of magnitude 1e-32 (the mobility of eta a = 1e30) it
+/// zeroed every e and the Lanczos square root was 30 % wrong after two iterations (1e-7 at 1e-20).
+/// T whose largest entry lies outside [2^-10, 2^10] is therefore decomposed as 4^-k T with that
+/// entry near 1 (exact, and so is the square root of 4^k), and the eigenvalues scaled back; others
+/// as they are, bit for bit.
+TridiagonalEigen tridiagonal_eigen(const std::vector<double>& alpha, const std::vector<double>& beta, int m);
 
 }  // namespace rpyfmm::rpy::sqrt_detail

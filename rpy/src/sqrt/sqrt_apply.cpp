@@ -1,9 +1,13 @@
 // rpyfmm — sqrt_apply(): validation (once, here) and dispatch to the
 // Lanczos, Chebyshev and dense square-root solvers.
+#include <algorithm>
 #include <cmath>
+#include <span>
 #include <sstream>
 #include <string>
+#include <vector>
 
+#include "../load_scaling.hpp"
 #include "detail.hpp"
 #include "rpyfmm/core/validate.hpp"
 #include "rpyfmm/rpy/sqrt.hpp"
@@ -74,6 +78,30 @@ SqrtPreconditioner sqrt_preconditioner_from_string(const std::string& name) {
        "unknown preconditioner '" + name + "' (expected none, block or automatic)");
 }
 
+namespace {
+
+/// The sampler of `options` on validated arguments.
+SqrtReport sample_dispatch(const LinearOperatorView& op, std::span<const double> z, std::span<double> w,
+                           std::size_t nrhs, const SqrtOptions& options, std::span<const double> first_product) {
+  constexpr const char* where = "sqrt_apply";
+  switch (options.method) {
+    case SqrtMethod::automatic:
+    case SqrtMethod::lanczos:
+      return sqrt_detail::lanczos_sqrt(op, z, w, nrhs, options, first_product);
+    case SqrtMethod::chebyshev:
+      sqrt_detail::require_chebyshev_bounds(options, where);
+      return sqrt_detail::chebyshev_sqrt(op, z, w, nrhs, options);
+    case SqrtMethod::cholesky:
+    case SqrtMethod::eigen:
+      return sqrt_detail::dense_sqrt(op, z, w, nrhs, options);
+    case SqrtMethod::split:
+      fail(ErrorCode::not_supported, where, "the split sampler is only available for the PSE operator");
+  }
+  fail(ErrorCode::invalid_argument, where, "unknown square-root method");
+}
+
+}  // namespace
+
 SqrtReport sqrt_apply(const LinearOperatorView& op, std::span<const double> z, std::span<double> w, std::size_t nrhs,
                       const SqrtOptions& options, std::span<const double> first_product) {
   constexpr const char* where = "sqrt_apply";
@@ -100,20 +128,21 @@ SqrtReport sqrt_apply(const LinearOperatorView& op, std::span<const double> z, s
     require_size(first_product, op.n, where, "first product");
   }
 
-  switch (options.method) {
-    case SqrtMethod::automatic:
-    case SqrtMethod::lanczos:
-      return sqrt_detail::lanczos_sqrt(op, z, w, nrhs, options, first_product);
-    case SqrtMethod::chebyshev:
-      sqrt_detail::require_chebyshev_bounds(options, where);
-      return sqrt_detail::chebyshev_sqrt(op, z, w, nrhs, options);
-    case SqrtMethod::cholesky:
-    case SqrtMethod::eigen:
-      return sqrt_detail::dense_sqrt(op, z, w, nrhs, options);
-    case SqrtMethod::split:
-      fail(ErrorCode::not_supported, where, "the split sampler is only available for the PSE operator");
-  }
-  fail(ErrorCode::invalid_argument, where, "unknown square-root method");
+  // Each noise vector whose largest entry lies outside [2^-100, 2^100] is sampled as 2^-k z and the
+  // result scaled back (the samplers are linear in z, the scaling exact): entries of 1e300 overflowed
+  // |z| to infinity, and Lanczos reported the operator as not positive definite.
+  std::vector<int> exponents(nrhs);
+  for (std::size_t j = 0; j < nrhs; ++j) exponents[j] = detail::load_scale_exponent({z.subspan(j * op.n, op.n)});
+  if (std::ranges::all_of(exponents, [](int k) { return k == 0; }))
+    return sample_dispatch(op, z, w, nrhs, options, first_product);
+  std::vector<double> scaled(z.begin(), z.end()), scaled_product(first_product.begin(), first_product.end());
+  for (std::size_t j = 0; j < nrhs; ++j)
+    for (double& v : std::span<double>(scaled).subspan(j * op.n, op.n)) v = std::ldexp(v, -exponents[j]);
+  for (double& v : scaled_product) v = std::ldexp(v, -exponents[0]);  // nrhs = 1 where given
+  const SqrtReport report = sample_dispatch(op, scaled, w, nrhs, options, scaled_product);
+  for (std::size_t j = 0; j < nrhs; ++j)
+    for (double& v : w.subspan(j * op.n, op.n)) v = std::ldexp(v, exponents[j]);
+  return report;
 }
 
 }  // namespace rpyfmm::rpy

@@ -51,15 +51,24 @@ struct BlockPartition {
   return m * (m + 1) / 2;
 }
 
+/// The power of two 2^e by which factor_block scales the blocks of particles whose radii lie in
+/// [min_radius, max_radius] (viscosity eta) so that they fit single precision: 0 where every self
+/// mobility 1 / (6 pi eta a) lies in [2^-60, 2^60] (the blocks of ordinary suspensions, bit for bit
+/// as unscaled), else the exponent that centres the self mobilities on 1. Without it, eta a = 1e-40
+/// (eta and a = 1e-20, both in their documented ranges) overflowed the float blocks to infinity.
+/// Any scale gives a valid sampler: G = L^{-1} need only be invertible (block_preconditioner.hpp).
+[[nodiscard]] int block_scale_exponent(double min_radius, double max_radius, double viscosity);
+
 /// Factors the diagonal block of `matrix` (M, or S M S with rotation) of the particles `members`
 /// (indices into positions and radii; rows particle after particle, dofs rows each) with viscosity
-/// eta and the minimum image of a periodic geometry: L L^T = the block, in single precision,
-/// packed by rows into `packed` (packed_entries(dofs x members.size()) entries). Where the
-/// Cholesky factorization fails (coincident particles) L = diag(sqrt(diagonal)); returns false
-/// then.
+/// eta and the minimum image of a periodic geometry, times 2^scale_exponent (block_scale_exponent):
+/// L L^T = 2^scale_exponent x the block, in single precision, packed by rows into `packed`
+/// (packed_entries(dofs x members.size()) entries). Where the Cholesky factorization fails
+/// (coincident particles, or pair entries that are not finite in single precision)
+/// L = diag(sqrt(diagonal)); returns false then.
 bool factor_block(std::span<const double> positions, std::span<const double> radii, double viscosity,
                   const Geometry& geometry, std::span<const std::size_t> members, PreconditionedMatrix matrix,
-                  float* packed);
+                  float* packed, int scale_exponent = 0);
 
 /// What a kernel does with a block's factor L (G = L^{-1}).
 enum class BlockOp {

@@ -55,7 +55,9 @@ class BlockPreconditioner {
   /// factors each diagonal block of the RPY mobility (viscosity eta; minimum-image separations
   /// in a periodic geometry). A block whose Cholesky factorization fails (coincident particles
   /// make it singular) keeps only its diagonal, so L is always invertible. `matrix`: the blocks of
-  /// M, or of the scaled grand mobility with rotation.
+  /// M, or of the scaled grand mobility with rotation. Throws rpyfmm::Error for positions that are
+  /// not 3N finite values, or a radius or viscosity that is not finite, > 0 and normal. Blocks of
+  /// extreme eta a are factored scaled by a power of two (block_scale_exponent).
   BlockPreconditioner(std::span<const double> positions, std::span<const double> radii, double viscosity,
                       const Geometry& geometry, std::size_t max_block,
                       PreconditionedMatrix matrix = PreconditionedMatrix::translation);

@@ -50,7 +50,7 @@ class MobilityOperator {
   /// (e.g. PSE: box smaller than 2 r_cut) the error propagates and the operator holds
   /// no positions until a later set_positions succeeds (products then throw, never crash).
   void set_positions(std::span<const double> positions, double radius);
-  /// Same with per-particle radii (N entries, each > 0 and finite).
+  /// Same with per-particle radii (N entries, each finite, > 0 and normal).
   void set_positions(std::span<const double> positions, std::span<const double> radii);
 
   /// U = M F (3N each).

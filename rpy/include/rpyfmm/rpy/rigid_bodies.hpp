@@ -46,7 +46,8 @@ struct RigidBodyOptions {
   /// Most GMRES iterations (bead products) in all; not converging then throws
   /// ErrorCode::numerical_failure.
   int max_iterations = 500;
-  /// Krylov vectors kept before a restart (memory: restart x (3N + 6m) doubles).
+  /// Krylov vectors kept before a restart (memory: min(restart, max_iterations) x (3N + 6m) doubles;
+  /// a basis that does not fit is refused with out_of_memory).
   int restart = 60;
   /// The body-block preconditioner (true: the recommended solver; false: plain GMRES, for
   /// comparison only: it needs many more iterations).

@@ -6,7 +6,9 @@
 
 #include <cstdint>
 #include <span>
+#include <string>
 
+#include "rpyfmm/core/ranges.hpp"
 #include "rpyfmm/core/timer.hpp"
 #include "rpyfmm/rpy/mobility.hpp"
 #include "rpyfmm/rpy/pse/pse_parameters.hpp"
@@ -30,7 +32,17 @@ class PseOperator : public MobilityOperator {
   [[nodiscard]] bool fuses_drift_and_noise() const override { return true; }
 
  protected:
-  using MobilityOperator::MobilityOperator;
+  /// The PSE operators evaluate in the caller's units (no rescaling, unlike DirectRpy and FmmRpy):
+  /// the viscosity must lie in ranges::kViscosity, whose bounds keep 1 / (eta V) and the wave
+  /// space's products finite (a viscosity of 1e-300 gave NaN velocities).
+  PseOperator(Geometry geometry, double viscosity, const char* where) : MobilityOperator(geometry, viscosity, where) {
+    ranges::require_in(ranges::kViscosity, viscosity, where, "viscosity");
+  }
+  /// Throws unless the (common) radius lies in ranges::kRadius: a radius of 1e-300 made the
+  /// volume a^3 of the cost model underflow to 0, one of 1e300 overflowed the wave space to NaN.
+  void require_radius_in_range(const char* where) const {
+    ranges::require_in(ranges::kRadius, radii().front(), where, "radius");
+  }
 };
 
 }  // namespace rpyfmm::rpy::pse
