@@ -7,7 +7,8 @@ renders bench/README.md from those files.
                          [--render-only]
 
 Groups: fmm (Laplace FMM, and fmm3dpy's lfmm3d on the same points when it imports), direct (direct
-kernels), rpy (RPY operators: FmmRpy, DirectRpy), pse (PSE on the CPU), pse-gpu (PSE with CUDA, only
+kernels), rpy (RPY operators: FmmRpy, DirectRpy, and fmm3dpy's Stokes FMM stfmm3d on the same points
+and forces when it imports), pse (PSE on the CPU), pse-gpu (PSE with CUDA, only
 where a GPU is present), bd-gpu (the device BD engine at 1e6 particles and the CPU engine beside it,
 only where a GPU is present), samplers (Lanczos, Chebyshev, block preconditioner), bd (BD steps), sac
 (Tran et al. (2015)'s Table 4 alumina-silica systems), rigid (rigid-body mobility solves and steps),
@@ -31,7 +32,7 @@ files, and the page shows their ratios. --concurrent runs each one-thread case's
 variant at once, each on its own physical core (a machine with many cores: the variants then share
 the memory system alike, and the rounds take the time of one).
 
-fmm3dpy (the peer code of the fmm group) is looked up in the virtual environment build/bench-venv:
+fmm3dpy (the peer code of the fmm and rpy groups) is looked up in the virtual environment build/bench-venv:
     python3 -m venv --system-site-packages build/bench-venv && build/bench-venv/bin/pip install fmm3dpy
 matplotlib, where it imports there or in this interpreter, draws bench/results/<group>.png.
 """
@@ -65,7 +66,7 @@ class Case:
     threads: int
     key: dict  # what identifies the case in the tables (merged into every row it prints)
     keep: dict = field(default_factory=dict)  # only rows whose columns have these values
-    peer: bool = False  # fmm: also run fmm3dpy on the same points
+    peer: bool = False  # also run the group's fmm3dpy peer on the same points
 
 
 @dataclass
@@ -111,6 +112,17 @@ def parse_json_lines(out: str) -> list[dict]:
 
 
 @dataclass
+class Peer:
+    """fmm3dpy on the points (and charges or forces) a benchmark program writes to a file."""
+
+    script: str  # Python source; argv: the file, N, eps, sampled targets, timed calls; prints one JSON line
+    points_argv: object  # (case argv, file) -> the argv that makes the program write its points there
+    ours: tuple  # our columns whose sum the peer's time (setup included) is divided by
+    reps: object  # (case) -> timed calls of the peer (the median is reported)
+    samples: int  # sampled targets of its error, as many as the group's own error has
+
+
+@dataclass
 class Group:
     name: str
     title: str
@@ -122,6 +134,7 @@ class Group:
     columns: list = field(default_factory=list)  # (header, column, format)
     keys: tuple = ()  # the columns that identify a row (the others are measured)
     needs_gpu: bool = False
+    peer: Peer | None = None  # fmm3dpy on the same points, where it imports (cases with peer=True)
 
 
 def fmm_cases(mode: str) -> list[Case]:
@@ -150,15 +163,17 @@ def rpy_cases(mode: str) -> list[Case]:
     full = mode == "full"
     dists, sizes, epss = (["suspension", "cylinder"], ["10000", "100000"], ["1e-3", "1e-6", "1e-9"]) if full else (
         ["suspension"], ["10000"], ["1e-3", "1e-6"])
-    cases = [Case(["rpy/bench_rpy_fmm", d, n, e, str(t), "3"], t, {}) for d in dists for n in sizes for e in epss
-             for t in THREADS]
+    cases = [Case(["rpy/bench_rpy_fmm", d, n, e, str(t), "3"], t, {}, peer=True) for d in dists for n in sizes
+             for e in epss for t in THREADS]
     # N = 1e6 at 1e-6, one thread: the automatic leaves and 100-point leaves (a tree one level
     # deeper, which suits products with torques, whose near field costs ~3x the force-only one).
     if full:
-        cases.append(Case(["rpy/bench_rpy_fmm", "suspension", "1000000", "1e-6", "1", "1", "-", "0,100"], 1, {}))
+        cases.append(Case(["rpy/bench_rpy_fmm", "suspension", "1000000", "1e-6", "1", "1", "-", "0,100"], 1, {},
+                          peer=True))
     else:
-        # The RPY / Laplace ratio from 1e4 to 1e6 points at 1e-6, one thread (about 2 minutes a round).
-        cases += [Case(["rpy/bench_rpy_fmm", "suspension", n, "1e-6", "1", r], 1, {})
+        # The RPY / Laplace ratio from 1e4 to 1e6 points at 1e-6, one thread (about 2 minutes a round,
+        # 6.5 with the fmm3dpy peer: stfmm3d took 230 s at 1e6 on the 2-core development machine).
+        cases += [Case(["rpy/bench_rpy_fmm", "suspension", n, "1e-6", "1", r], 1, {}, peer=True)
                   for n, r in (("100000", "3"), ("1000000", "1"))]
     return cases
 
@@ -313,6 +328,79 @@ def mpi_targets_cases(mode: str) -> list[Case]:
                   "--reps", "3"], 1, {}) for points in ("uniform", "clustered") for p in (2, 4)]
 
 
+# ----------------------------------------------------------------------------------------------
+# The fmm3dpy peers: scripts run in the interpreter that imports fmm3dpy, on the points a benchmark
+# program wrote; what they share comes first.
+
+PEER_COMMON = r"""
+import sys, time, json, statistics, numpy as np, fmm3dpy
+path, n, eps, nsample, reps = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4]), int(sys.argv[5])
+
+
+def timed(call):
+    # Median wall time of reps calls and the last result; every call builds its own tree (setup included).
+    times, out = [], None
+    for _ in range(reps):
+        t0 = time.perf_counter()
+        out = call()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), out
+
+
+def rel(a, b):
+    return float(np.linalg.norm(a - b) / np.linalg.norm(b))
+
+
+idx = np.random.default_rng(99).integers(0, n, size=min(nsample, n))  # the sampled targets
+"""
+
+# lfmm3d: potential, gradient and Hessian of the charges of bench_fmm --npy; errors against l3ddir.
+LFMM3D_PEER = PEER_COMMON + r"""
+x = np.load(path); q = np.load(path + ".charges.npy")[0].copy()
+src = np.ascontiguousarray(x.T)
+t, out = timed(lambda: fmm3dpy.lfmm3d(eps=eps, sources=src, charges=q, pg=3))
+ref = fmm3dpy.l3ddir(sources=src, targets=np.ascontiguousarray(src[:, idx]), charges=q, pgt=3)
+print(json.dumps({"fmm3d_s": t, "fmm3d_err_pot": rel(out.pot[idx], ref.pottarg),
+                  "fmm3d_err_hess": rel(out.hess[:, idx], ref.hesstarg)}))
+"""
+
+# stfmm3d: the velocity of Stokeslets (ifppreg=1) with the forces of bench_rpy_fmm as strengths. Its
+# error: against an exact Stokeslet sum at the sampled targets in FMM3D's normalisation,
+# (I/r + r r^T/r^3) / (8 pi) (ours: 1/(8 pi eta), docs/theory/rpy.md Sec. 2; a constant factor the
+# relative error does not see). numpy, not st3ddir: fmm3dpy 2.1.0's st3ddir evaluates at the sources
+# whatever the targets.
+STFMM3D_PEER = PEER_COMMON + r"""
+data = np.fromfile(path + "." + str(n), dtype=np.float64)  # positions, then forces: (x, y, z) per particle
+src = np.ascontiguousarray(data[:3 * n].reshape(n, 3).T)
+f = np.ascontiguousarray(data[3 * n:].reshape(n, 3).T)
+t, out = timed(lambda: fmm3dpy.stfmm3d(eps=eps, sources=src, stoklet=f, ifppreg=1))
+u = out.pot.reshape(3, n)
+
+
+def stokeslet_sum(i):
+    # Every source but i itself (stfmm3d omits the self pair).
+    d = src[:, [i]] - src
+    r = np.sqrt((d * d).sum(axis=0))
+    r[i] = np.inf
+    return (f / r + d * (d * f).sum(axis=0) / r**3).sum(axis=1) / (8 * np.pi)
+
+
+ref = np.stack([stokeslet_sum(i) for i in idx], axis=1)
+print(json.dumps({"fmm3d_s": t, "fmm3d_err_u": rel(u[:, idx], ref)}))
+"""
+
+
+def rpy_points_argv(argv: list[str], path: str) -> list[str]:
+    """bench_rpy_fmm writes its points and forces to its 6th argument (+ ".N"); every case gives the 5th
+    (the repeats), so the file goes in that place, or replaces the "-" there."""
+    return [*argv[:6], path, *argv[7:]]
+
+
+FMM_PEER = Peer(LFMM3D_PEER, lambda argv, path: [*argv, "--npy", path], ("setup_s", "eval_s"), lambda case: 1, 500)
+# As many timed calls as FmmRpy's (bench_rpy_fmm's 5th argument); FmmRpy's setup is set_positions.
+RPY_PEER = Peer(STFMM3D_PEER, rpy_points_argv, ("setup_s", "rpy_s"), lambda case: int(case.argv[5]), 200)
+
+
 GROUPS = [
     Group("fmm", "Laplace FMM against fmm3dpy",
           "One evaluation of potential, gradient and Hessian at the sources (LaplaceFmm, adaptive plane-wave "
@@ -323,7 +411,7 @@ GROUPS = [
            ("setup s", "setup_s", "{:.3f}"), ("eval s", "eval_s", "{:.3f}"), ("err Hess", "err_hess", "{:.1e}"),
            ("fmm3dpy s", "fmm3d_s", "{:.3f}"), ("fmm3dpy err Hess", "fmm3d_err_hess", "{:.1e}"),
            ("fmm3dpy / rpyfmm", "fmm3d_over_rpyfmm", "{:.2f}")],
-          keys=("N", "dist", "eps", "threads")),
+          keys=("N", "dist", "eps", "threads"), peer=FMM_PEER),
     Group("direct", "Direct kernels",
           "O(N^2) direct sums at N uniform points in the unit cube: Laplace (self pair skipped), RPY "
           "(equal and polydisperse radii) and rpy-rotation (the grand mobility with torques, apply(F, T, U, W)); "
@@ -337,17 +425,24 @@ GROUPS = [
           "suspension, its error against an exact RPY sum at 200 sampled targets, one Laplace FMM "
           "evaluation on the same points, and the direct operator DirectRpy; then the product with torques "
           "[U; W] = M [F; T] (seven densities plus the rotational near field, docs/theory/rpy.md section 7), "
-          "its ratio to the force-only product and its error (the larger of U's and W's).",
+          "its ratio to the force-only product and its error (the larger of U's and W's). Beside it fmm3dpy's "
+          "Stokes FMM `stfmm3d` (velocity of Stokeslets) on the same points and forces at the same eps and thread "
+          "count, timed with its setup as FmmRpy's setup s + FmmRpy s, and its relative l2 error against an exact "
+          "Stokeslet sum at 200 sampled targets (FMM3D's Stokeslet carries 1/(8 pi), ours 1/(8 pi eta): a constant "
+          "factor, which a relative error does not see). `stfmm3d` computes only the Stokeslet part of the RPY "
+          "product: one built on FMM3D would add at least a Laplace FMM for the (a^2/3) Laplacian term "
+          "(docs/theory/rpy.md Sec. 2), so stfmm3d / FmmRpy is a lower bound of the ratio against such a product.",
           ["bench_rpy_fmm"], rpy_cases, parse_csv, "rpy_s",
           [("points", "dist", "{}"), ("N", "N", "{}"), ("eps", "eps", "{:.0e}"), ("threads", "threads", "{}"),
-           ("FmmRpy s", "rpy_s", "{:.3f}"), ("rel err", "rel_l2_err", "{:.1e}"),
-           ("Laplace FMM s", "laplace1_s", "{:.3f}"),
+           ("setup s", "setup_s", "{:.3f}"), ("FmmRpy s", "rpy_s", "{:.3f}"), ("rel err", "rel_l2_err", "{:.1e}"),
+           ("stfmm3d s", "fmm3d_s", "{:.3f}"), ("stfmm3d err", "fmm3d_err_u", "{:.1e}"),
+           ("stfmm3d / FmmRpy", "fmm3d_over_rpyfmm", "{:.2f}"), ("Laplace FMM s", "laplace1_s", "{:.3f}"),
            ("RPY / Laplace", "ratio_rpy_laplace", "{:.2f}"), ("DirectRpy s", "direct_s", "{:.3f}"),
            ("with torques s", "rot_s", "{:.3f}"), ("torques / forces", "ratio_rot_forces", "{:.2f}"),
            ("rot err", "rot_rel_l2_err", "{:.1e}"), ("leaf cap", "leaf_capacity", "{}")],
           # leaf_option: the requested leaf capacity (0 = automatic); the tree's own capacity
           # (leaf_capacity) may differ between instruction-set levels and commits.
-          keys=("dist", "N", "eps", "threads", "leaf_option")),
+          keys=("dist", "N", "eps", "threads", "leaf_option"), peer=RPY_PEER),
     Group("pse", "PSE on the CPU",
           "The setup of Table I of Fiore, Balboa Usabiaga, Donev & Swan, J. Chem. Phys. 146 (2017) 124116: hard "
           "spheres at "
@@ -678,22 +773,6 @@ def run_env(threads: int, simd: str | None) -> dict:
     return env
 
 
-FMM3D_PEER = r"""
-import sys, time, json, numpy as np, fmm3dpy
-path, eps, nsample = sys.argv[1], float(sys.argv[2]), int(sys.argv[3])
-x = np.load(path); q = np.load(path + ".charges.npy")[0].copy(); n = x.shape[0]
-src = np.ascontiguousarray(x.T)
-t0 = time.perf_counter()
-out = fmm3dpy.lfmm3d(eps=eps, sources=src, charges=q, pg=3)
-t = time.perf_counter() - t0
-idx = np.random.default_rng(99).integers(0, n, size=min(nsample, n))
-ref = fmm3dpy.l3ddir(sources=src, targets=np.ascontiguousarray(src[:, idx]), charges=q, pgt=3)
-rel = lambda a, b: float(np.linalg.norm(a - b) / np.linalg.norm(b))
-print(json.dumps({"fmm3d_s": t, "fmm3d_err_pot": rel(out.pot[idx], ref.pottarg),
-                  "fmm3d_err_hess": rel(out.hess[:, idx], ref.hesstarg)}))
-"""
-
-
 def fmm3d_python() -> str | None:
     """An interpreter that imports fmm3dpy (the benchmark venv first), or None."""
     for python in (str(VENV_PYTHON), sys.executable):
@@ -710,36 +789,45 @@ def fmm3d_version(python: str | None) -> str:
     return subprocess.run([python, "-c", code], capture_output=True, text=True).stdout.strip()
 
 
-def run_peer(python: str, points: str, eps: str, threads: int) -> dict:
-    out = subprocess.run([python, "-c", FMM3D_PEER, points, eps, "500"], env=run_env(threads, None),
-                         capture_output=True, text=True, check=True).stdout
-    return json.loads(out.splitlines()[-1])
+def run_peer(peer: Peer, python: str, case: Case, points: str, rows: list[dict]) -> dict[tuple, dict]:
+    """The peer's columns for each (N, eps) of the rows, on the points the program wrote, at the case's
+    thread count."""
+    columns = {}
+    for n, eps in dict.fromkeys((row["N"], row["eps"]) for row in rows):
+        argv = [python, "-c", peer.script, points, str(n), str(eps), str(peer.samples), str(peer.reps(case))]
+        out = subprocess.run(argv, env=run_env(case.threads, None), capture_output=True, text=True, check=True)
+        columns[n, eps] = json.loads(out.stdout.splitlines()[-1])
+    return columns
 
 
-def run_case(group: Group, case: Case, variant: Variant, peer: str | None, cpu: int | None = None) -> list[dict]:
-    """One run of a case on a variant (pinned to logical CPU `cpu` where given); its rows."""
+def run_case(group: Group, case: Case, variant: Variant, peer_python: str | None, cpu: int | None = None) -> list[dict]:
+    """One run of a case on a variant (pinned to logical CPU `cpu` where given), and of the group's peer
+    where `peer_python` (an interpreter that imports fmm3dpy) is given; its rows."""
     program = variant.build / "bench" / case.argv[0]
     if not program.exists():
         return []
+    with_peer = bool(case.peer and peer_python and group.peer)
     with tempfile.TemporaryDirectory() as tmp:
-        points = str(Path(tmp) / "points.npy")
-        argv = [str(program), *case.argv[1:], *(["--npy", points] if case.peer and peer else [])]
+        points = str(Path(tmp) / "points")  # the program's file (or files) of points for the peer
+        argv = group.peer.points_argv(case.argv, points) if with_peer else case.argv
         pin = (lambda: os.sched_setaffinity(0, {cpu})) if cpu is not None else None
-        out = subprocess.run(argv, env=run_env(case.threads, variant.simd), capture_output=True, text=True,
-                             check=True, preexec_fn=pin).stdout
+        out = subprocess.run([str(program), *argv[1:]], env=run_env(case.threads, variant.simd), capture_output=True,
+                             text=True, check=True, preexec_fn=pin).stdout
         rows = [r for r in group.parse(out) if all(r.get(k) == v for k, v in case.keep.items())]
-        extra = run_peer(peer, points, case.argv[case.argv.index("--eps") + 1], case.threads) if (
-            case.peer and peer) else {}
+        for row in rows:
+            row.update(case.key, threads=row.get("threads", case.threads))
+        extra = run_peer(group.peer, peer_python, case, points, rows) if with_peer else {}
     for row in rows:
-        row.update(case.key, threads=row.get("threads", case.threads), **extra)
+        row.update(extra.get((row.get("N"), row.get("eps")), {}))
         derive(group, row)
     return rows
 
 
 def derive(group: Group, row: dict) -> None:
-    """Columns computed from others: fmm3dpy's time over ours (setup included), rigid's time and GMRES columns."""
-    if "fmm3d_s" in row:
-        row["fmm3d_over_rpyfmm"] = row["fmm3d_s"] / (row["eval_s"] + row["setup_s"])
+    """Columns computed from others: fmm3dpy's time over ours (both with their setup), rigid's time and GMRES
+    columns."""
+    if group.peer and "fmm3d_s" in row:
+        row["fmm3d_over_rpyfmm"] = row["fmm3d_s"] / sum(row[c] for c in group.peer.ours)
     if group.name == "rigid":
         row["time_s"] = row[TIME_COLUMNS[row["benchmark"]]]
         row.setdefault("drift", "")
@@ -804,13 +892,13 @@ def run_group_concurrently(group: Group, variants: list[Variant], mode: str, rou
 
 def run_group(group: Group, variants: list[Variant], mode: str, rounds: int) -> dict[str, list[dict]]:
     """Every case on every variant in turn, `rounds` times; medians per variant (the peer code: headline runs)."""
-    peer = fmm3d_python() if group.name == "fmm" and len(variants) == 1 else None
+    peer_python = fmm3d_python() if group.peer and len(variants) == 1 else None
     runs: dict[str, list[dict]] = {v.name: [] for v in variants}
     for r in range(rounds):
         for case in group.cases(mode):
             for i, variant in enumerate(variants):
                 start = datetime.datetime.now()
-                runs[variant.name] += run_case(group, case, variant, peer if i == 0 else None)
+                runs[variant.name] += run_case(group, case, variant, peer_python if i == 0 else None)
                 seconds = (datetime.datetime.now() - start).total_seconds()
                 print(f"# {group.name} round {r + 1}/{rounds} {variant.name}: {' '.join(case.argv)} "
                       f"(threads {case.threads}): {seconds:.1f} s", file=sys.stderr, flush=True)
@@ -832,7 +920,7 @@ def record(group: Group, args, variants: list[Variant], rows: dict[str, list[dic
         "rounds": args.rounds,
         "variants": [{"name": v.name, "commit": commit_of(v.build.parent.parent),
                       "simd": simd_level(v.build, v.simd)} for v in variants],
-        "fmm3dpy": fmm3d_version(fmm3d_python()) if group.name == "fmm" and len(variants) == 1 else "",
+        "fmm3dpy": fmm3d_version(fmm3d_python()) if group.peer and len(variants) == 1 else "",
         "note": args.note or "",
         "rows": rows,
     }
@@ -882,7 +970,7 @@ def headline_section(group: Group, rec: dict | None) -> list[str]:
     columns = [c for c in group.columns if any(c[1] in r for r in rows)]
     table = [[cell(fmt, r.get(col)) for _, col, fmt in columns] for r in rows]
     lines += [provenance(rec) + ".", ""] + markdown_table([h for h, _, _ in columns], table) + [""]
-    if group.name == "fmm":
+    if group.peer and "fmm3dpy" in rec:  # records from before the group had a peer say nothing of it
         lines += [f"fmm3dpy {rec['fmm3dpy']} (the PyPI wheel, in `build/bench-venv`), same thread count; the ratio "
                   "divides its time by ours with the setup included." if rec.get("fmm3dpy") else
                   "fmm3dpy did not import here: no peer columns (`pip install fmm3dpy` into `build/bench-venv`).", ""]
@@ -914,8 +1002,8 @@ INTRO = """# Benchmarks
 
 <!-- Generated by bench/run.py from bench/results/*.json; edit bench/run.py, not this page. -->
 Generated by `bench/run.py` from the JSON files in `bench/results/` (machine, commit, date and
-every measured row). Regenerate everything with one command (about 12 minutes on 2 cores;
-`--full` for the larger sizes):
+every measured row). Regenerate everything with one command (about 18 minutes on 2 cores with the
+fmm3dpy peer, 12 without; `--full` for the larger sizes):
 
     python3 bench/run.py --quick
 
@@ -960,7 +1048,7 @@ def plot(group: Group, rec: dict) -> None:
     labels = [" ".join(row_key(group, r)) for r in rows]
     fig, ax = plt.subplots(figsize=(8, 0.3 * len(rows) + 1.2))
     ax.barh(labels, [r.get(group.time_key, 0) for r in rows], label="rpyfmm")
-    if group.name == "fmm" and rec.get("fmm3dpy"):
+    if group.peer and rec.get("fmm3dpy"):
         ax.barh(labels, [r.get("fmm3d_s", 0) for r in rows], height=0.4, label="fmm3dpy")
         ax.legend()
     ax.set_xscale("log")
@@ -980,7 +1068,7 @@ def plot(group: Group, rec: dict) -> None:
 def parse_args() -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     size = ap.add_mutually_exclusive_group()
-    size.add_argument("--quick", action="store_true", help="small sizes, about 12 minutes on 2 cores (default)")
+    size.add_argument("--quick", action="store_true", help="small sizes, about 18 minutes on 2 cores (default)")
     size.add_argument("--full", action="store_true", help="the sizes of the headline tables on a quiet machine")
     size.add_argument("--isa-rows", action="store_true",
                       help="with --simd-levels: the rows of docs/reproducibility.md (Laplace FMM and FmmRpy at 1e6 "

@@ -9,7 +9,8 @@
 // errors against exact sums at the sampled targets, then each; it runs on the force-only plan).
 // Prints one CSV row per case; leaf_capacity is the tree's, leaf_option the capacity asked for
 // (0: automatic); l2p_s is the Laplace FMM's L2P stage (with the fold of its combined outputs) in
-// the force-only product.
+// the force-only product; setup_s is set_positions (the tree and the Laplace plan), the part of a
+// product's cost that a peer code timed with its setup (bench/run.py's fmm3dpy column) also pays.
 //
 // usage: bench_rpy_fmm [dist=cylinder|eight|suspension|bimodal] [N list] [eps list] [threads list] [repeats]
 //                      [points.bin or -] [leaf capacity list, 0 = the operator's default]
@@ -71,6 +72,17 @@ t::Configuration make(const std::string& dist, std::size_t n) {
   return t::random_suspension(n, 1.0, 0.1, 42);
 }
 
+// Median time of set_positions (the tree and the Laplace plan, rebuilt on every call); op keeps the last.
+double median_setup_time(rpyfmm::rpy::FmmRpy& op, const t::Configuration& c, int repeats) {
+  std::vector<double> times;
+  for (int r = 0; r < repeats; ++r) {
+    StopWatch watch;
+    op.set_positions(c.x, c.a);
+    times.push_back(watch.seconds());
+  }
+  return median(times);
+}
+
 // Median time of the product with torques; u, w hold the last result.
 double median_rotation_time(const rpyfmm::rpy::FmmRpy& op, const std::vector<double>& f, const std::vector<double>& tq,
                             std::vector<double>& u, std::vector<double>& w, int repeats) {
@@ -97,14 +109,15 @@ int main(int argc, char** argv) {
   std::printf(
       "dist,N,eps,threads,rpy_s,laplace1_s,ratio_rpy_laplace,direct_s,direct_kind,speedup_vs_direct,"
       "rel_l2_err,levels,leaves,near_s,far_fmm_s,leaf_capacity,rot_s,ratio_rot_forces,rot_rel_l2_err,rot_u_err,"
-      "rot_w_err,leaf_option,l2p_s\n");
+      "rot_w_err,leaf_option,l2p_s,setup_s\n");
   for (std::size_t n : ns) {
     const auto c = make(dist, n);
     const auto f = t::random_vector(3 * n, 1);
     auto tq = t::random_vector(3 * n, 2);
     for (std::size_t j = 0; j < n; ++j)
       for (int k = 0; k < 3; ++k) tq[3 * j + k] *= c.a[j];  // torques ~ force x radius
-    if (!dump.empty()) {                                    // positions then forces, float64, for a peer code
+    // Positions then forces, float64, (x, y, z) of each particle in turn, for a peer code.
+    if (!dump.empty()) {
       std::ofstream out(dump + "." + std::to_string(n), std::ios::binary);
       out.write(reinterpret_cast<const char*>(c.x.data()), static_cast<std::streamsize>(c.x.size() * 8));
       out.write(reinterpret_cast<const char*>(f.data()), static_cast<std::streamsize>(f.size() * 8));
@@ -127,7 +140,7 @@ int main(int argc, char** argv) {
       }
       for (const auto& [eps, leaf] : cases(epss, leaves)) {
         rpyfmm::rpy::FmmRpy op(rpyfmm::rpy::Geometry::open(), 1.0, {.tolerance = eps, .leaf_capacity = leaf});
-        op.set_positions(c.x, c.a);
+        const double setup_s = median_setup_time(op, c, repeats);
         std::vector<double> u(3 * n);
         std::vector<double> times, near_t, far_t, l2p_t;
         for (int r = 0; r < repeats; ++r) {
@@ -158,10 +171,11 @@ int main(int argc, char** argv) {
         const auto stats = op.laplace_plan()->stats();
         const double rpy_s = median(times), lap_s = median(lt);
         std::printf(
-            "%s,%zu,%.0e,%d,%.4f,%.4f,%.2f,%.3f,%s,%.1f,%.2e,%d,%zu,%.4f,%.4f,%d,%.4f,%.2f,%.2e,%.2e,%.2e,%d,%.4f\n",
+            "%s,%zu,%.0e,%d,%.4f,%.4f,%.2f,%.3f,%s,%.1f,%.2e,%d,%zu,%.4f,%.4f,%d,"
+            "%.4f,%.2f,%.2e,%.2e,%.2e,%d,%.4f,%.4f\n",
             dist.c_str(), n, eps, nt, rpy_s, lap_s, rpy_s / lap_s, direct_s, direct_kind.c_str(), direct_s / rpy_s, err,
             stats.levels, stats.leaves, median(near_t), median(far_t), stats.leaf_capacity, rot_s, rot_s / rpy_s,
-            std::max(rot_u_err, rot_w_err), rot_u_err, rot_w_err, leaf, median(l2p_t));
+            std::max(rot_u_err, rot_w_err), rot_u_err, rot_w_err, leaf, median(l2p_t), setup_s);
         std::fflush(stdout);
       }
     }
