@@ -25,10 +25,14 @@ struct Boost {
 
 Boost boost_for(int digits) {
   switch (digits) {
-    case 3: return {14, 10};
-    case 6: return {23, 20};
-    case 9: return {32, 34};
-    default: return {39, 46};
+    case 3:
+      return {14, 10};
+    case 6:
+      return {23, 20};
+    case 9:
+      return {32, 34};
+    default:
+      return {39, 46};
   }
 }
 
