@@ -78,7 +78,7 @@ struct Measured {
 };
 
 Measured measure(const Case& c, double eps) {
-  const std::size_t n = c.sources.size() / 3, m = c.targets.size() / 3;
+  const std::size_t m = c.targets.size() / 3;
   rpyfmm::fmm::FmmOptions options;
   options.tolerance = eps;
   options.leaf_capacity = 20;  // a deep tree at this size: every list and the plane-wave M2L run
@@ -88,7 +88,6 @@ Measured measure(const Case& c, double eps) {
   fmm.evaluate(c.densities, c.nd, rpyfmm::fmm::all_outputs, out);
   const auto ref = fmmtest::direct(c.sources, c.densities, c.nd, c.targets);
   const auto abs = absolute_field(c.sources, c.densities, c.nd, c.targets);
-  (void)n;
   Measured r;
   const int first[3] = {0, 1, 4}, last[3] = {1, 4, 10};
   for (std::size_t d = 0; d < c.nd; ++d)
