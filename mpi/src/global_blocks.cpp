@@ -1,7 +1,11 @@
 // rpyfmm — the serial block preconditioner's blocks across ranks (global_blocks.hpp).
 #include "global_blocks.hpp"
 
+#include <mpi.h>
+
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <numeric>
 #include <utility>
 
@@ -12,6 +16,21 @@ namespace rpyfmm::mpi::detail {
 namespace {
 
 constexpr const char* kWhere = "rpyfmm::mpi::sqrt_apply (block preconditioner)";
+
+/// rpy::block_scale_exponent over the radii of all ranks (collective): every rank factors its
+/// blocks times the same power of two, the one the serial preconditioner uses on the whole set, so
+/// that blocks of extreme eta a fit single precision.
+int global_block_scale_exponent(const Communicator& comm, std::span<const double> local_radii, double viscosity) {
+  double extremes[2] = {std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity()};
+  for (const double a : local_radii) {  // {min a, -max a}: one MPI_MIN reduces both
+    extremes[0] = std::min(extremes[0], a);
+    extremes[1] = std::min(extremes[1], -a);
+  }
+  double global[2];
+  check_mpi(MPI_Allreduce(extremes, global, 2, MPI_DOUBLE, MPI_MIN, comm.get()), "MPI_Allreduce");
+  if (!std::isfinite(global[0])) return 0;  // no particle on any rank
+  return rpy::block_scale_exponent(global[0], -global[1], viscosity);
+}
 
 }  // namespace
 
@@ -45,12 +64,13 @@ GlobalBlocks::GlobalBlocks(const Communicator& comm, std::span<const std::size_t
   factors_.assign(factor_offset_.back(), 0.0f);
   std::vector<std::size_t> rows(partition.radii.size());  // the members' rows in partition.positions
   std::iota(rows.begin(), rows.end(), std::size_t{0});
+  const int scale_exponent = global_block_scale_exponent(comm, local_radii, viscosity);
   const std::size_t owned = owned_blocks();
 #pragma omp parallel for schedule(dynamic)
   for (std::size_t k = 0; k < owned; ++k) {
     const std::span<const std::size_t> block(rows.data() + owned_[k], owned_[k + 1] - owned_[k]);
     rpy::factor_block(partition.positions, partition.radii, viscosity, rpy::Geometry::open(), block, matrix,
-                      factors_.data() + factor_offset_[k]);
+                      factors_.data() + factor_offset_[k], scale_exponent);
   }
   build_cost_.particles_sent = exchange_.sent();
   build_cost_.particles_received = exchange_.received();

@@ -138,11 +138,15 @@ void DistributedRigidBodies::set_configuration(std::span<const double> local_bea
   std::visit([&](auto* op) { op->set_positions(local_bead_positions, local_radii); }, beads_);
   const double eta = std::visit([](auto* op) { return op->viscosity(); }, beads_);
   const rpy::Geometry geometry = std::visit([](auto* op) { return bead_geometry(*op); }, beads_);
+  // The largest radius over all ranks: every rank solves in the same units (the mobility scale).
+  const double local_largest = local_radii.empty() ? 0.0 : std::ranges::max(local_radii);
+  double largest = 0.0;
+  check_mpi(MPI_Allreduce(&local_largest, &largest, 1, MPI_DOUBLE, MPI_MAX, comm_.get()), "MPI_Allreduce");
   std::shared_ptr<const rpy::rigid_detail::BodySystem> system;
   comm_.run([&] {
-    system = std::make_shared<const rpy::rigid_detail::BodySystem>(
-        rpy::rigid_detail::make_body_system(local_bead_positions, local_radii, local_body_offsets,
-                                            local_reference_points, geometry, eta, options_.precondition, kWhere));
+    system = std::make_shared<const rpy::rigid_detail::BodySystem>(rpy::rigid_detail::make_body_system(
+        local_bead_positions, local_radii, local_body_offsets, local_reference_points, geometry, eta, largest,
+        options_.precondition, kWhere));
   });
   system_ = std::move(system);
   seconds_setup_ = watch.seconds();

@@ -241,6 +241,38 @@ TEST(MpiDistributedSqrt, BlockPreconditionerIsTheSerialSamplerOnEveryPartition) 
   }
 }
 
+// At eta = 1e-20 and lengths scaled by 1e-20 (eta a = 1e-40 for unit radii; both within their
+// documented ranges) the self mobilities, about 5e38, exceed single precision: the serial
+// preconditioner factors its blocks times a power of two (rpy::block_scale_exponent over all
+// radii). Every rank must use the same power, that of the whole set's radii, so the distributed
+// sample is again the serial one bit for bit on every split (without it each rank's float blocks
+// overflowed and the sampler stopped with "local output entry (0, 0) is infinite").
+TEST(MpiDistributedSqrt, BlockPreconditionerAtExtremeViscosityTimesRadius) {
+  constexpr double kScale = 1e-20;
+  Particles p = clustered_particles(60, 20, 67);
+  for (double& v : p.x) v *= kScale;
+  for (double& v : p.a) v *= kScale;
+  rpyfmm::rpy::DirectRpy whole(rpyfmm::rpy::Geometry::open(), kScale);
+  whole.set_positions(p.x, p.a);
+  std::vector<double> z(3 * p.size());
+  rpyfmm::rpy::fill_normal(z, 11, 4);
+  const SqrtOptions options = sampler(SqrtMethod::lanczos, SqrtPreconditioner::block, 1e-6);
+  std::vector<double> w_whole(z.size());
+  const SqrtReport serial = whole.apply_sqrt(z, w_whole, options);
+  ASSERT_TRUE(serial.converged);
+  ASSERT_GT(serial.preconditioner_blocks, 1u);
+  for (Split s : kSplits) {
+    const Partition part = partition_of(p.size(), s);
+    rpyfmm::mpi::DistributedDirectRpy op(MPI_COMM_WORLD, kScale);
+    place(op, p, part);
+    std::vector<double> w(3 * part.n);
+    const SqrtReport report = rpyfmm::mpi::sqrt_apply(op, share(z, 3, part.offset, part.n), w, options);
+    EXPECT_EQ(bitwise_mismatches(w, share(w_whole, 3, part.offset, part.n)), 0u)
+        << "split " << static_cast<int>(s) << ", rank " << world_rank() << " of " << world_size();
+    EXPECT_EQ(report.iterations, serial.iterations);
+  }
+}
+
 namespace {
 
 // Four overlapping and nearby spheres with different radii split geometrically, 1500 samples w

@@ -7,6 +7,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <string>
 
 #include "rpyfmm/core/validate.hpp"
@@ -117,18 +118,32 @@ BodyFrames body_frames(std::span<const double> x, std::span<const std::size_t> b
   return f;
 }
 
+/// The exponent e of the power of two 2^e at or below the largest |arm| of the beads [first, last)
+/// (0 where all are 0): arms times 2^-e lie within [1, 2) at most, so their squares neither
+/// overflow nor underflow at any length scale.
+int arm_exponent(const std::vector<double>& arms, std::size_t first, std::size_t last) {
+  double largest = 0.0;
+  for (std::size_t i = 3 * first; i < 3 * last; ++i) largest = std::max(largest, std::abs(arms[i]));
+  return largest > 0.0 ? std::ilogb(largest) : 0;
+}
+
 /// Throws when a body's beads lie on one line: the second moment of its arms about their mean
-/// has rank 1, so the rotation about that line is undefined.
+/// has rank 1, so the rotation about that line is undefined (arms in units of arm_exponent).
 void require_not_on_one_line(const std::vector<double>& arms, std::span<const std::size_t> body_offsets,
                              std::string_view where) {
   for (std::size_t k = 0; k + 1 < body_offsets.size(); ++k) {
     const std::size_t first = body_offsets[k], count = body_offsets[k + 1] - first;
+    const int e = arm_exponent(arms, first, first + count);
+    const auto arm = [&](std::size_t i) {
+      return Eigen::Vector3d(std::ldexp(arms[3 * i], -e), std::ldexp(arms[3 * i + 1], -e),
+                             std::ldexp(arms[3 * i + 2], -e));
+    };
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (std::size_t i = first; i < first + count; ++i) mean += Eigen::Map<const Eigen::Vector3d>(&arms[3 * i]);
+    for (std::size_t i = first; i < first + count; ++i) mean += arm(i);
     mean /= double(count);
     Eigen::Matrix3d moment = Eigen::Matrix3d::Zero();
     for (std::size_t i = first; i < first + count; ++i) {
-      const Eigen::Vector3d d = Eigen::Map<const Eigen::Vector3d>(&arms[3 * i]) - mean;
+      const Eigen::Vector3d d = arm(i) - mean;
       moment += d * d.transpose();
     }
     const Eigen::Vector3d ev =
@@ -148,9 +163,13 @@ std::vector<double> scale_to_lever_arms(std::vector<double>& arms, std::span<con
   const std::size_t m = body_offsets.size() - 1;
   std::vector<double> lever(m);
   for (std::size_t k = 0; k < m; ++k) {
+    const int e = arm_exponent(arms, body_offsets[k], body_offsets[k + 1]);
     double sum = 0.0;
-    for (std::size_t i = 3 * body_offsets[k]; i < 3 * body_offsets[k + 1]; ++i) sum += arms[i] * arms[i];
-    lever[k] = std::sqrt(sum / double(body_offsets[k + 1] - body_offsets[k]));
+    for (std::size_t i = 3 * body_offsets[k]; i < 3 * body_offsets[k + 1]; ++i) {
+      const double a = std::ldexp(arms[i], -e);
+      sum += a * a;
+    }
+    lever[k] = std::ldexp(std::sqrt(sum / double(body_offsets[k + 1] - body_offsets[k])), e);
     for (std::size_t i = 3 * body_offsets[k]; i < 3 * body_offsets[k + 1]; ++i) arms[i] /= lever[k];
   }
   return lever;
@@ -257,9 +276,18 @@ void require_bodies(std::span<const double> bead_positions, std::size_t n, std::
   if (options.precondition) require_preconditioner_memory(body_offsets, options.max_preconditioner_bytes, where);
 }
 
+int mobility_scale_exponent(double eta, double largest_radius) {
+  if (!(eta > 0.0 && largest_radius > 0.0)) return 0;  // no bead on any rank: nothing to balance
+  const double scale = 1.0 / (6.0 * std::numbers::pi * eta * largest_radius);
+  if (!std::isfinite(scale)) return 900;  // eta a underflows
+  if (scale == 0.0) return -900;          // eta a overflows
+  return std::clamp(std::ilogb(scale), -900, 900);
+}
+
 BodySystem make_body_system(std::span<const double> bead_positions, std::span<const double> radii,
                             std::span<const std::size_t> body_offsets, std::span<const double> reference_points,
-                            const Geometry& geometry, double eta, bool precondition, std::string_view where) {
+                            const Geometry& geometry, double eta, double largest_radius, bool precondition,
+                            std::string_view where) {
   BodyFrames frames = body_frames(bead_positions, body_offsets, reference_points, geometry);
   require_not_on_one_line(frames.arms, body_offsets, where);
   std::vector<double> karms(frames.arms);
@@ -275,6 +303,7 @@ BodySystem make_body_system(std::span<const double> bead_positions, std::span<co
   s.minv_k = std::move(blocks.minv_k);
   s.body_mobility = std::move(blocks.mobility);
   s.offsets.assign(body_offsets.begin(), body_offsets.end());
+  s.mobility_exponent = mobility_scale_exponent(eta, largest_radius);
   return s;
 }
 

@@ -31,6 +31,7 @@ struct BodySystem {
   std::vector<double> factors;             // lower triangles, column-major (3 n_k)^2 each
   std::vector<double> minv_k;              // M_kk^{-1} K_k (3 n_k x 6, column-major) per body
   std::vector<double> body_mobility;       // N_k (6x6 row-major) per body
+  int mobility_exponent = 0;               // e: the system is solved in units of 2^e ~ 1 / (6 pi eta a_max)
 
   [[nodiscard]] std::size_t bodies() const { return offsets.empty() ? 0 : offsets.size() - 1; }
   [[nodiscard]] std::size_t beads() const { return offsets.empty() ? 0 : offsets.back(); }
@@ -48,13 +49,21 @@ void require_bodies(std::span<const double> bead_positions, std::size_t n, std::
                     std::span<const double> reference_points, const RigidBodyOptions& options, bool allow_no_bodies,
                     std::string_view where);
 
+/// The exponent e of the mobility scale 2^e, the power of two at or below 1 / (6 pi eta a_max)
+/// (the self mobility of the largest bead), clamped to [-900, 900]. The saddle-point system is
+/// solved with bead forces in units of 2^-e (docs/theory/rigid.md Sec. 2, "Units"). Every MPI rank
+/// passes the same eta and the largest radius over all ranks, so all get the same e.
+int mobility_scale_exponent(double eta, double largest_radius);
+
 /// The frames (reference points, lever arms and their scale) of bodies whose layout passed
-/// require_bodies and whose positions and radii the bead operator accepted, and with `precondition`
-/// the body-block factors (bead blocks M_kk by the RPY tensor with viscosity `eta`). Throws
-/// invalid_input naming `where` for beads on one line and singular bead blocks.
+/// require_bodies and whose positions and radii the bead operator accepted, the mobility scale's
+/// exponent (mobility_scale_exponent(eta, largest_radius)), and with `precondition` the body-block
+/// factors (bead blocks M_kk by the RPY tensor with viscosity `eta`). Throws invalid_input naming
+/// `where` for beads on one line and singular bead blocks.
 BodySystem make_body_system(std::span<const double> bead_positions, std::span<const double> radii,
                             std::span<const std::size_t> body_offsets, std::span<const double> reference_points,
-                            const Geometry& geometry, double eta, bool precondition, std::string_view where);
+                            const Geometry& geometry, double eta, double largest_radius, bool precondition,
+                            std::string_view where);
 
 /// Throws invalid_input naming `where` unless forces_torques and velocities have 6 entries per body
 /// of `s`, bead_forces 3 per bead or none, and forces_torques are finite.

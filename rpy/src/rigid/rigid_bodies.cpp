@@ -2,6 +2,7 @@
 // the saddle-point system (see the header; the solve itself in body_system.hpp).
 #include "rpyfmm/rpy/rigid_bodies.hpp"
 
+#include <algorithm>
 #include <string>
 
 #include "body_system.hpp"
@@ -43,9 +44,9 @@ void RigidBodies::set_configuration(std::span<const double> bead_positions, std:
   rigid_detail::require_bodies(bead_positions, radii.size(), body_offsets, reference_points, options_, false, kWhere);
   // Plans the bead operator; validates positions and radii (NaN/Inf, radius <= 0).
   beads_.set_positions(bead_positions, radii);
-  system_ = std::make_shared<const rigid_detail::BodySystem>(
-      rigid_detail::make_body_system(bead_positions, beads_.radii(), body_offsets, reference_points, beads_.geometry(),
-                                     beads_.viscosity(), options_.precondition, kWhere));
+  system_ = std::make_shared<const rigid_detail::BodySystem>(rigid_detail::make_body_system(
+      bead_positions, beads_.radii(), body_offsets, reference_points, beads_.geometry(), beads_.viscosity(),
+      std::ranges::max(beads_.radii()), options_.precondition, kWhere));
   seconds_setup_ = watch.seconds();
 }
 

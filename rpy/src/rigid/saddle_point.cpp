@@ -50,11 +50,19 @@ void forces_and_torques(const BodySystem& s, const double* bead, double* body) {
   }
 }
 
-/// y = [M lambda - K Y; -K^T lambda] for x = [lambda; Y].
+/// y[i] = 2^e x[i] for i < n (exact unless it overflows or underflows).
+void scale_by_power_of_two(const double* x, std::size_t n, int e, double* y) {
+  for (std::size_t i = 0; i < n; ++i) y[i] = std::ldexp(x[i], e);
+}
+
+/// y = [M 2^-e lambda' - K Y; -K^T lambda'] for x = [lambda'; Y]: the saddle-point system in units
+/// of the mobility scale 2^e (bead forces lambda' = 2^e lambda, the body rows times 2^e; see
+/// solve_saddle_point).
 void saddle_apply(const BodySystem& s, const BeadProduct& beads, const double* x, double* y) {
   const std::size_t n3 = 3 * s.beads();
-  std::vector<double> k_y(n3);
-  beads(std::span<const double>(x, n3), std::span<double>(y, n3));
+  std::vector<double> k_y(n3), lambda(n3);
+  scale_by_power_of_two(x, n3, -s.mobility_exponent, lambda.data());
+  beads(std::span<const double>(lambda), std::span<double>(y, n3));
   rigid_velocities(s, x + n3, k_y.data());
   for (std::size_t i = 0; i < n3; ++i) y[i] -= k_y[i];
   forces_and_torques(s, x, y + n3);
@@ -63,7 +71,8 @@ void saddle_apply(const BodySystem& s, const BeadProduct& beads, const double* x
 
 /// The body-block preconditioner: per body, the saddle-point system without inter-body coupling,
 ///   Y_k = -N_k (b_k + K_k^T M_kk^{-1} a_k),  lambda_k = M_kk^{-1} a_k + (M_kk^{-1} K_k) Y_k
-/// (two triangular solves; M_kk^{-1} K_k is stored).
+/// (two triangular solves; M_kk^{-1} K_k is stored), for x = [a; b] in the units of the mobility
+/// scale 2^e as saddle_apply: b is divided by 2^e on entry and lambda multiplied by 2^e on exit.
 void precondition(const BodySystem& s, const double* x, double* y) {
   const std::size_t n3 = 3 * s.beads();
   const std::size_t m = s.bodies();
@@ -74,13 +83,15 @@ void precondition(const BodySystem& s, const double* x, double* y) {
     const Eigen::Map<const MatrixX> l(s.factors.data() + s.factor_offset[k], rows, rows);
     const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 6>> minvk(s.minv_k.data() + 18 * first, rows, 6);
     const Eigen::Map<const Eigen::VectorXd> a(x + 3 * first, rows);
-    const Eigen::Map<const Eigen::Matrix<double, 6, 1>> b(x + n3 + 6 * k);
+    Eigen::Matrix<double, 6, 1> b;
+    scale_by_power_of_two(x + n3 + 6 * k, 6, -s.mobility_exponent, b.data());
     const Eigen::Map<const Eigen::Matrix<double, 6, 6, Eigen::RowMajor>> nk(s.body_mobility.data() + 36 * k);
     Eigen::VectorXd minv_a = l.triangularView<Eigen::Lower>().solve(a);
     l.triangularView<Eigen::Lower>().transpose().solveInPlace(minv_a);
     // K_k^T M_kk^{-1} a_k = (M_kk^{-1} K_k)^T a_k (M_kk symmetric)
     const Eigen::Matrix<double, 6, 1> yk = -(nk * (b + minvk.transpose() * a));
-    Eigen::Map<Eigen::VectorXd>(y + 3 * first, rows) = minv_a + minvk * yk;
+    const Eigen::VectorXd lambda = minv_a + minvk * yk;
+    scale_by_power_of_two(lambda.data(), std::size_t(rows), s.mobility_exponent, y + 3 * first);
     Eigen::Map<Eigen::Matrix<double, 6, 1>>(y + n3 + 6 * k) = yk;
   }
 }
@@ -126,12 +137,16 @@ SaddleSolution solve_saddle_point(const BodySystem& s, const BeadProduct& beads,
                                   const InnerProduct& inner_product) {
   const std::size_t m = s.bodies();
   const std::size_t n3 = 3 * s.beads();
-  for (std::size_t k = 0; k < m; ++k)  // -(F_k, T_k / l_k)
-    for (std::size_t c = 0; c < 6; ++c) b[n3 + 6 * k + c] = -forces_torques[6 * k + c] / lever_factor(s, k, c);
+  // Units of the mobility scale 2^e ~ 1 / (6 pi eta a): bead forces lambda' = 2^e lambda and body
+  // rows -2^e (F_k, T_k / l_k), so both blocks of the residual are velocities and the operator is of
+  // order 1 in any units (docs/theory/rigid.md Sec. 2, "Units"). Powers of two: exact.
+  for (std::size_t k = 0; k < m; ++k)
+    for (std::size_t c = 0; c < 6; ++c)
+      b[n3 + 6 * k + c] = -std::ldexp(forces_torques[6 * k + c] / lever_factor(s, k, c), s.mobility_exponent);
   SaddleSolution solution{{}, std::vector<double>(n3 + 6 * m, 0.0)};
   std::vector<double>& x = solution.x;
-  if (!guess_velocities.empty()) {  // [lambda; U_k, Omega_k l_k], as finish_solve in reverse
-    std::copy(guess_bead_forces.begin(), guess_bead_forces.end(), x.begin());
+  if (!guess_velocities.empty()) {  // [2^e lambda; U_k, Omega_k l_k], as finish_solve in reverse
+    scale_by_power_of_two(guess_bead_forces.data(), n3, s.mobility_exponent, x.data());
     for (std::size_t k = 0; k < m; ++k)
       for (std::size_t c = 0; c < 6; ++c) x[n3 + 6 * k + c] = guess_velocities[6 * k + c] * lever_factor(s, k, c);
   }
@@ -157,7 +172,7 @@ RigidBodyReport finish_solve(const BodySystem& s, const SaddleSolution& solution
   const std::size_t n3 = 3 * s.beads();
   for (std::size_t k = 0; k < m; ++k)  // (U_k, Omega_k l_k) -> (U_k, Omega_k)
     for (std::size_t c = 0; c < 6; ++c) velocities[6 * k + c] = x[n3 + 6 * k + c] / lever_factor(s, k, c);
-  if (!bead_forces.empty()) std::copy_n(x.begin(), n3, bead_forces.begin());
+  if (!bead_forces.empty()) scale_by_power_of_two(x.data(), n3, -s.mobility_exponent, bead_forces.data());
   RigidBodyReport report;
   report.iterations = g.iterations;
   report.restarts = g.restarts;
