@@ -17,7 +17,52 @@
 
 namespace rpyfmm::fmm {
 
+namespace {
+
+// Within a factor 10 above a table's step (1e-3 <= eps < 1e-2, 1e-6 <= eps < 1e-5, ...) the
+// Hessian's error against its absolute field (the contract, docs/theory/fmm.md, Sec. 7) is set by
+// the table's own error and, where the far field of a small cluster of targets runs through
+// M2P/P2L (the W/X lists), by the order: with the tables' 12 / 20 / 29 / 37 nodes and the capped
+// order the worst of 50 random layouts (3000 uniform sources in the unit cube, 1200 targets in the
+// corner [0.95, 0.99]^3, 10 in [-20, 20]^3, two densities in [-1, 1], numpy's default_rng(10) to
+// (59); 100 / 100 / 200 / 300-point
+// leaves, AVX2 level) reached 1.23 / 4.5 / 1.62 / 3.2 eps at 1e-3 / 1e-6 / 1e-9 / 1e-12, and no
+// order fixes it with 20 nodes at 1e-6 (4.4-4.5 eps at orders 18, 20, 22). These tables and orders bring
+// it to 0.48 / 0.47 / 0.26 / 0.64 eps (potential and gradient: at most 0.03 eps); 10x above the
+// steps the tables' own parameters reach 0.19 / 0.45 / 0.16 / 0.32 eps. The node counts are
+// FmmRpy's (rpy/src/fmm_laplace_accuracy.cpp). Cost at N = 1e5 (uniform cube, one thread, commit 7a95a86,
+// 2026-12-08, Intel Xeon with AVX-512, 2 cores shared with other jobs, load 2-3): 1.10-1.19x at
+// 1e-3, 1.28-1.42x at 1e-6, 1.02-1.09x at 1e-9, 1.14-1.16x at 1e-12 (AVX-512 and AVX2 levels,
+// potential + gradient and with the Hessian). The order is fixed when the plan is built, before
+// the outputs are known, so these hold for every output.
+struct NearStep {
+  int nodes, order;
+};
+
+NearStep near_step_parameters(int digits) {
+  switch (digits) {
+    case 3:
+      return {14, 10};
+    case 6:
+      return {23, 22};
+    case 9:
+      return {32, 32};
+    default:
+      return {39, 46};
+  }
+}
+
+// True where eps lies within a factor 10 above the step of its table.
+bool near_step(double eps) {
+  const double slack = 1.0 - 1e-9;
+  return eps < std::pow(10.0, 1 - fmm_table_digits_for(eps)) * slack;
+}
+
+}  // namespace
+
 int fmm_order_for(double eps) {
+  const int digits = fmm_table_digits_for(eps);
+  if (near_step(eps)) return near_step_parameters(digits).order;
   // Truncation bound of the multipole expansion (Guan, Theorem 2.2.2; docs/theory/fmm.md, error
   // control; FMM3D's l3dterms): sources within sqrt(3)/2, nearest target at 1.5 (box units). Beyond
   // some order the error saturates at the plane-wave table's own error, so the bound is capped per
@@ -28,14 +73,13 @@ int fmm_order_for(double eps) {
   // 3-digit cap is 9, one above the potential's 8, for the Hessian: at order 8 its relative error
   // reached 1.58e-3 at 1e-3 (701 sources, 350 targets on one side of them, AVX2 level; the targets
   // of tests/mpi/cli_across_ranks.cmake), 3.9e-4 at order 9; order 9 costs 4-12 % more than 8 at
-  // 1e5 points.
+  // 1e5 points. Near the steps the orders of near_step_parameters apply instead.
   int p = 80;
   for (int q = 2; q < 80; ++q)
     if (std::pow(std::sqrt(3.0) / 2.0, q) / std::pow(1.5, q + 1) < eps) {
       p = q;
       break;
     }
-  const int digits = fmm_table_digits_for(eps);
   const int cap = digits <= 3 ? 9 : digits <= 6 ? 18 : digits <= 9 ? 32 : 42;
   return std::min(p, cap);
 }
@@ -50,7 +94,9 @@ int fmm_table_digits_for(double eps) {
 }
 
 int fmm_planewave_nodes_for(double eps) {
-  switch (fmm_table_digits_for(eps)) {
+  const int digits = fmm_table_digits_for(eps);
+  if (near_step(eps)) return near_step_parameters(digits).nodes;
+  switch (digits) {
     case 3:
       return 12;
     case 6:

@@ -94,10 +94,10 @@ struct FmmOptions {
   double root_scale = 1.0;
   /// Expansion order; 0 = from eps (FMM3D's rule, fmm_order_for).
   int order = 0;
-  /// Lambda nodes of the plane-wave quadrature, kMinPlaneWaveNodes to kMaxPlaneWaveNodes; 0 = the
-  /// table of the tolerance (fmm_planewave_nodes_for: 12, 20, 29 or 37). More nodes lower the M2L's
-  /// own error between the four tables' steps (docs/theory/fmm.md, Sec. 7), for callers that
-  /// combine outputs with cancellation (FmmRpy); together with `order`.
+  /// Lambda nodes of the plane-wave quadrature, kMinPlaneWaveNodes to kMaxPlaneWaveNodes; 0 = from
+  /// the tolerance (fmm_planewave_nodes_for: 12, 20, 29 or 37, near the steps 14, 23, 32 or 39).
+  /// More nodes lower the M2L's own error between the four tables' steps (docs/theory/fmm.md,
+  /// Sec. 7), for callers that combine outputs with cancellation (FmmRpy); together with `order`.
   int planewave_nodes = 0;
   /// With leaf_capacity > 0 and root_scale = 1: a fitted grid (fit_leaf_grid) replaces the tree of
   /// that capacity where this rule says it pays, e.g. a caller's measured rule (FmmRpy). The
@@ -195,11 +195,14 @@ class LaplaceFmm {
 };
 
 /// Expansion order chosen for a tolerance: smallest p >= 2 with (sqrt(3)/2)^p / 1.5^(p+1) < eps,
-/// capped at 8 / 18 / 32 / 42 for the 3 / 6 / 9 / 12-digit plane-wave tables (where the error saturates).
+/// capped at 9 / 18 / 32 / 42 for the 3 / 6 / 9 / 12-digit plane-wave tables (where the error
+/// saturates); within a factor 10 above a table's step (eps < 1e-2, 1e-5, 1e-8, 1e-11 in the
+/// respective table) 10 / 22 / 32 / 46 instead, for the Hessian (docs/theory/fmm.md, Sec. 7).
 int fmm_order_for(double eps);
 /// Digits of the plane-wave table used for a tolerance (3, 6, 9 or 12).
 int fmm_table_digits_for(double eps);
-/// Lambda nodes of that table (12, 20, 29 or 37).
+/// Lambda nodes for a tolerance: the table's 12, 20, 29 or 37, and within a factor 10 above its
+/// step 14, 23, 32 or 39 (with the orders of fmm_order_for).
 int fmm_planewave_nodes_for(double eps);
 /// The range of FmmOptions::planewave_nodes: the separation-1 tables of 12 to 39 lambda nodes.
 inline constexpr int kMinPlaneWaveNodes = 12;
