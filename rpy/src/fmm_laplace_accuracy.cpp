@@ -18,7 +18,9 @@ namespace {
 // tolerance at 1e-3 / 1e-6 / 1e-9 / 1e-12 (0.89 at 3e-6, 0.46 at 3e-3, at most 0.09 at 3e-5 and
 // 3e-8); with these 0.36 / 0.29 / 0.27 / 0.71 (W with torques 0.02 at 1e-3 and 1e-6). The cost at
 // N = 1e5 (random suspension, one thread, Intel Xeon with AVX-512, commit f7a2d14, 2026-12-07):
-// 1.06x at 1e-3 and 1.18x at 1e-6, against 1.5x for the next table.
+// 1.06x at 1e-3 and 1.18x at 1e-6, against 1.5x for the next table. LaplaceFmm's own defaults
+// near the steps (fmm_order_for, for its Hessian) now take the same nodes and orders 10 / 22 / 32 /
+// 46; the larger of the two orders applies.
 struct Boost {
   int nodes, order;
 };
