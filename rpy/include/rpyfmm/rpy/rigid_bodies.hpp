@@ -40,7 +40,9 @@ struct RigidBodyOptions {
   /// GMRES stops at ||r|| <= tolerance ||b||: r the residual of the saddle-point system above,
   /// b its right-hand side (W, and apply_with_noise's random slip), with each body's torque and
   /// angular velocity scaled by its RMS lever arm l_k (T_k / l_k, Omega_k l_k: forces and
-  /// torques weigh alike). The relative error of the
+  /// torques weigh alike) and the system in units of the mobility scale (bead forces and the
+  /// body rows times a power of two near 1 / (6 pi eta a_max): the same tolerance means the same
+  /// in any units, docs/theory/rigid.md Sec. 2). The relative error of the
   /// velocities is then within a few times the tolerance (docs/theory/rigid.md); in (0, 1).
   double tolerance = 1e-6;
   /// Most GMRES iterations (bead products) in all; not converging then throws
